@@ -1,0 +1,175 @@
+"""The ``ringtune`` command line: one entry point, one module per subcommand.
+
+Conventions every subcommand follows:
+
+- ``--json`` prints one JSON object with stable keys on stdout and nothing else there (progress
+  bars and notes go to stderr);
+- bad input is one line on stderr, ``ringtune <command>: error: <what and where>``, exit status 2;
+  never a traceback (``RINGTUNE_DEBUG=1`` shows it for developers);
+- Ctrl-C exits with status 130 after saying what was kept.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import sys
+from dataclasses import dataclass, field
+from typing import Any
+
+from ringtune.agents import __version__
+from ringtune.shaping.errors import RingtuneError
+
+# Order is the order ``ringtune --help`` lists them in: the main job first, then the tools.
+COMMAND_MODULES = [
+    "tune",
+    "recommend",
+    "simulate",
+    "study",
+    "train",
+    "shaper",
+    "response",
+    "plan",
+    "limit",
+    "identify",
+    "export",
+    "push",
+]
+
+EXAMPLES = """\
+examples:
+  ringtune tune                                  tune the built-in Ender-3-class printer (main job)
+  ringtune shaper mzv --freq 40 --damping 0.1    impulses, duration, lag and band of a shaper
+  ringtune response zv mzv ei --freq 40 --plot r.png
+  ringtune plan job.gcode --json                 print time and move statistics
+  ringtune limit job.gcode --freq-limit 20 -o out.gcode
+  ringtune recommend --accel resonances_x.csv resonances_y.csv --method klipper
+  ringtune export best.json --firmware klipper
+
+every command takes --help and --json.
+"""
+
+
+@dataclass
+class Output:
+    """Where a command's result goes: JSON on stdout, or readable text."""
+
+    json: bool = False
+    stream: Any = field(default_factory=lambda: sys.stdout)
+
+    def emit(self, result: dict, text: str | None = None) -> None:
+        """Print ``result`` as JSON (``--json``) or ``text`` (else a readable rendering of result)."""
+        if self.json:
+            json.dump(_jsonable(result), self.stream, indent=2, sort_keys=False)
+            self.stream.write("\n")
+        else:
+            self.stream.write((text if text is not None else _render(result)).rstrip("\n") + "\n")
+
+    def note(self, message: str) -> None:
+        """A remark for the person at the terminal (stderr, so ``--json`` output stays clean)."""
+        print(message, file=sys.stderr)
+
+
+def _jsonable(obj: Any) -> Any:
+    try:
+        import numpy as np
+    except ImportError:  # pragma: no cover
+        np = None
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if np is not None:
+        if isinstance(obj, np.ndarray):
+            return _jsonable(obj.tolist())
+        if isinstance(obj, np.generic):
+            return obj.item()
+    if isinstance(obj, float) and obj != obj:  # NaN is not JSON
+        return None
+    if hasattr(obj, "__fspath__"):
+        return os.fspath(obj)
+    return obj
+
+
+def _render(result: dict, indent: int = 0) -> str:
+    lines = []
+    pad = " " * indent
+    for key, value in result.items():
+        if isinstance(value, dict):
+            lines.append(f"{pad}{key}:")
+            lines.append(_render(value, indent + 2))
+        elif isinstance(value, float):
+            lines.append(f"{pad}{key}: {value:.6g}")
+        else:
+            lines.append(f"{pad}{key}: {value}")
+    return "\n".join(lines)
+
+
+def _load_commands() -> dict[str, Any]:
+    modules = {}
+    for name in COMMAND_MODULES:
+        try:
+            modules[name] = importlib.import_module(f"ringtune.agents.commands.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"ringtune.agents.commands.{name}":
+                raise
+    return modules
+
+
+def build_parser() -> tuple[argparse.ArgumentParser, dict[str, Any]]:
+    parser = argparse.ArgumentParser(
+        prog="ringtune",
+        description="Measured input-shaping tuning for 3D printers: firmware-faithful shapers and "
+        "planners drive a MuJoCo printer; Optuna and PPO trade print time against overshoot; the "
+        "result goes out in the printer's own firmware dialect.",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"ringtune {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    modules = _load_commands()
+    for name, module in modules.items():
+        p = sub.add_parser(
+            name,
+            help=module.HELP,
+            description=getattr(module, "DESCRIPTION", module.HELP),
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
+        p.add_argument("--json", action="store_true", help="print one JSON object with stable keys")
+        module.add_arguments(p)
+    return parser, modules
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser, modules = build_parser()
+    args = parser.parse_args(argv)
+    if not args.command:
+        parser.print_help()
+        return 0
+    out = Output(json=args.json)
+    try:
+        return int(modules[args.command].run(args, out) or 0)
+    except RingtuneError as exc:
+        return _fail(args.command, str(exc))
+    except FileNotFoundError as exc:
+        return _fail(args.command, f"{exc.filename}: no such file")
+    except (OSError, ValueError) as exc:
+        if os.environ.get("RINGTUNE_DEBUG"):
+            raise
+        return _fail(args.command, str(exc) or type(exc).__name__)
+    except KeyboardInterrupt:
+        print(f"ringtune {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _fail(command: str, message: str) -> int:
+    if os.environ.get("RINGTUNE_DEBUG"):
+        raise
+    print(f"ringtune {command}: error: {message}", file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,134 @@
+"""TuneConfig: the configuration ``tune`` and ``recommend`` write and ``simulate``, ``export`` and
+``push`` read (JSON). Extra keys (provenance, metrics) are kept in ``extra`` and written back."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+from ringtune.shaping.errors import RingtuneError
+
+#: target firmware -> shaper formula flavour (Prusa Buddy uses Klipper's legacy closed forms)
+FIRMWARE_FLAVOR = {
+    "klipper": "klipper",
+    "rrf": "rrf",
+    "rrf35": "rrf35",
+    "marlin": "marlin",
+    "marlin-ftm": "marlin-ftm",
+    "prusa": "klipper-legacy",
+}
+FIRMWARES = tuple(FIRMWARE_FLAVOR)
+FREQ_LIMIT_METHODS = ("nophead", "sections", "marlin")
+
+
+@dataclass
+class TuneConfig:
+    """One tuning configuration.
+
+    Attributes:
+        firmware: target firmware, one of :data:`FIRMWARES`.
+        shaper_x, shaper_y: shaper names (``"none"`` turns shaping off on that axis).
+        freq_x, freq_y: shaper frequencies, Hz.
+        damping_x, damping_y: shaper damping ratios (dimensionless).
+        freq_limit_hz: infill direction-change frequency limit, Hz (0 = off).
+        min_speed_factor: lowest fraction of the commanded speed the limit may slow to.
+        freq_limit_method: ``nophead`` (whole path), ``sections`` (only the fast part), ``marlin``.
+        accel: printing acceleration, mm/s² (None = the printer's own).
+        extra: any other keys (provenance, metrics), carried through unchanged.
+    """
+
+    firmware: str = "klipper"
+    shaper_x: str = "mzv"
+    shaper_y: str = "mzv"
+    freq_x: float = 40.0
+    freq_y: float = 40.0
+    damping_x: float = 0.1
+    damping_y: float = 0.1
+    freq_limit_hz: float = 0.0
+    min_speed_factor: float = 0.3
+    freq_limit_method: str = "sections"
+    accel: float | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    @property
+    def flavor(self) -> str:
+        """Shaper formula flavour of the target firmware (see ``ringtune.shaping.shapers``)."""
+        return FIRMWARE_FLAVOR[self.firmware]
+
+    def axis(self, axis: str) -> tuple[str, float, float]:
+        """(shaper name, frequency Hz, damping ratio) for axis ``"x"`` or ``"y"``."""
+        return getattr(self, f"shaper_{axis}"), getattr(self, f"freq_{axis}"), getattr(self, f"damping_{axis}")
+
+    def validate(self, where: str = "config") -> None:
+        if self.firmware not in FIRMWARE_FLAVOR:
+            raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {self.firmware!r}",
+                                f"{where}: firmware")
+        for ax in ("x", "y"):
+            name, freq, damping = self.axis(ax)
+            if not isinstance(name, str) or not name:
+                raise RingtuneError("shaper name must be a non-empty string", f"{where}: shaper_{ax}")
+            _finite(freq, f"{where}: freq_{ax}", lo=0.0, hi=1000.0)
+            _finite(damping, f"{where}: damping_{ax}", lo=0.0, hi=0.99)
+            if name != "none" and freq <= 0:
+                raise RingtuneError(f"must be > 0 Hz when shaper_{ax} is {name!r}", f"{where}: freq_{ax}")
+        _finite(self.freq_limit_hz, f"{where}: freq_limit_hz", lo=0.0, hi=1000.0)
+        _finite(self.min_speed_factor, f"{where}: min_speed_factor", lo=0.01, hi=1.0)
+        if self.freq_limit_method not in FREQ_LIMIT_METHODS:
+            raise RingtuneError(f"must be one of {', '.join(FREQ_LIMIT_METHODS)}",
+                                f"{where}: freq_limit_method")
+        if self.accel is not None:
+            _finite(self.accel, f"{where}: accel", lo=1.0, hi=1e6)
+
+    # -- JSON ------------------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        extra = d.pop("extra")
+        d.update(extra)
+        return d
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], where: str = "config") -> "TuneConfig":
+        if not isinstance(data, dict):
+            raise RingtuneError("a TuneConfig must be a JSON object", where)
+        known = {f.name for f in fields(cls)} - {"extra"}
+        kwargs = {k: v for k, v in data.items() if k in known}
+        extra = {k: v for k, v in data.items() if k not in known}
+        for k in ("freq_x", "freq_y", "damping_x", "damping_y", "freq_limit_hz", "min_speed_factor", "accel"):
+            if k in kwargs and kwargs[k] is not None:
+                if isinstance(kwargs[k], bool) or not isinstance(kwargs[k], (int, float)):
+                    raise RingtuneError(f"must be a number, not {kwargs[k]!r}", f"{where}: {k}")
+                kwargs[k] = float(kwargs[k])
+        try:
+            cfg = cls(**kwargs, extra=extra)
+        except RingtuneError as exc:
+            raise RingtuneError(exc.bare, exc.where.replace("config", where, 1) if exc.where else where) from None
+        return cfg
+
+    @classmethod
+    def load(cls, path: str | Path) -> "TuneConfig":
+        path = Path(path)
+        try:
+            text = path.read_text()
+        except FileNotFoundError:
+            raise RingtuneError("no such file", str(path)) from None
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise RingtuneError(f"not valid JSON: {exc.msg}", f"{path}:{exc.lineno}") from None
+        return cls.from_dict(data, where=str(path))
+
+    def save(self, path: str | Path) -> None:
+        Path(path).write_text(json.dumps(self.to_dict(), indent=2) + "\n")
+
+
+def _finite(value: Any, where: str, lo: float, hi: float) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise RingtuneError(f"must be a finite number, not {value!r}", where)
+    if not lo <= value <= hi:
+        raise RingtuneError(f"{value} is out of range [{lo:g}, {hi:g}]", where)

@@ -1,0 +1,20 @@
+"""The one error type every ringtune package raises for bad input.
+
+The CLI turns it into a single line on stderr and a non-zero exit, never a traceback, so the
+message must name *what* is wrong and *where* (file and line, TOML key, CLI option).
+"""
+
+from __future__ import annotations
+
+
+class RingtuneError(ValueError):
+    """Bad input or an impossible request, with a message fit to show a user as it is.
+
+    ``where`` (optional) is prefixed to the message: ``"job.gcode:12"``, ``"printer.toml: [x].modes"``,
+    ``"--freq"``.
+    """
+
+    def __init__(self, message: str, where: str | None = None):
+        self.where = where
+        self.bare = message
+        super().__init__(f"{where}: {message}" if where else message)
