@@ -1,0 +1,460 @@
+"""Accelerometer file readers: Klipper resonance / calibration CSV, Klipper raw CSV, RRF M956 CSV.
+
+Formats (see ``shared/reference/firmware.md`` §1.3, §1.4, §3.4):
+
+- Klipper ``TEST_RESONANCES`` output, header ``freq,psd_x,psd_y,psd_z,psd_xyz``: a PSD of the
+  accelerometer signal in (mm/s²)²/Hz, written before frequency normalisation.
+- Klipper multi-dataset form, header ``freq,<name1>,<name2>,...`` (names CSV-quoted if needed),
+  one ``psd_sum`` column per dataset.
+- Klipper ``calibration_data`` CSV / ``calibrate_shaper.py -c``: the above plus a shaper block,
+  either ``,shapers:,zv(34.4),mzv(...)`` (rows: an empty column, then one response per shaper) or,
+  in older Klipper, the shaper columns ``zv(34.4),...`` straight after ``psd_xyz``. With a shaper block
+  the PSD is already normalised to frequencies (:attr:`PSD.normalized`).
+- Klipper raw accelerometer CSV ``#time,accel_x,accel_y,accel_z`` (s, mm/s²).
+- RepRapFirmware ``M956`` CSV ``Sample,X,Y,Z`` (only the captured axes; values in g) ending with the
+  trailer ``Rate <Hz>, overflows <n>``; time = sample / rate; converted to mm/s².
+
+Every malformed file raises :class:`RingtuneError` naming the file and line.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Union
+
+import numpy as np
+
+from ringtune.shaping.errors import RingtuneError
+
+#: standard gravity in mm/s² (Klipper's FREEFALL_ACCEL)
+G_MM_S2 = 9.80665 * 1000.0
+#: Klipper's Welch window length, s (shaper_calibrate.WINDOW_T_SEC)
+WINDOW_T_SEC = 0.5
+#: Klipper's MIN_FREQ (normalize_to_frequencies damps below 2·MIN_FREQ)
+KLIPPER_MIN_FREQ = 5.0
+
+_SHAPER_COL = re.compile(r"^\s*([A-Za-z_][\w]*(?:\([^()]*\))?)\s*\(\s*([0-9.]+)\s*\)\s*$")
+_M956_TRAILER = re.compile(r"^\s*Rate\s+([0-9.]+)\s*,\s*overflows\s+(\d+)\s*$", re.IGNORECASE)
+
+
+@dataclass
+class PSD:
+    """Power spectral density of an accelerometer signal, per frequency bin.
+
+    Attributes:
+        freqs: bin frequencies, Hz.
+        psd_x, psd_y, psd_z: per-axis PSD, (mm/s²)²/Hz; None in the multi-dataset form.
+        psd_sum: psd_x + psd_y + psd_z (Klipper's ``psd_xyz``).
+        source: the file it came from ("" if computed in memory).
+        name: dataset name (the axis for single files, the column name in multi-dataset files).
+        normalized: True if already divided by (f + 0.1) as Klipper's ``normalize_to_frequencies``
+            does (files with a shaper block are written normalised).
+        shapers: shaper response columns of a calibration CSV, ``{"mzv(46.2)": values}``.
+    """
+
+    freqs: np.ndarray
+    psd_x: np.ndarray | None
+    psd_y: np.ndarray | None
+    psd_z: np.ndarray | None
+    psd_sum: np.ndarray
+    source: str = ""
+    name: str = ""
+    normalized: bool = False
+    shapers: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def axis(self, axis: str) -> np.ndarray:
+        """PSD of ``"x"``, ``"y"``, ``"z"`` or ``"sum"``/``"xyz"``."""
+        key = {"xyz": "sum", "all": "sum"}.get(axis, axis)
+        arr = getattr(self, f"psd_{key}", None)
+        if arr is None:
+            raise RingtuneError(f"this PSD has no per-axis column {axis!r} (multi-dataset form)",
+                                self.source or None)
+        return arr
+
+    def normalized_to_frequencies(self) -> "PSD":
+        """Klipper's ``normalize_to_frequencies``: psd / (f + 0.1), damped below 10 Hz.
+
+        Returns self unchanged if :attr:`normalized` is already True.
+        """
+        if self.normalized:
+            return self
+        f = self.freqs
+        scale = 1.0 / (f + 0.1)
+        low = f < 2.0 * KLIPPER_MIN_FREQ
+        scale = np.where(low, scale * np.exp(1.0 - (2.0 * KLIPPER_MIN_FREQ / (f + 0.1)) ** 2), scale)
+
+        def sc(a):
+            return None if a is None else a * scale
+
+        return PSD(f.copy(), sc(self.psd_x), sc(self.psd_y), sc(self.psd_z), self.psd_sum * scale,
+                   self.source, self.name, True, dict(self.shapers))
+
+
+@dataclass
+class RawAccel:
+    """A raw accelerometer capture: time (s) and acceleration per axis (mm/s²).
+
+    Axes that were not captured (M956 with only some axes) are None.
+    ``rate`` is the sample rate the file states (M956 trailer) or N / (t_last − t_first).
+    """
+
+    t: np.ndarray
+    ax: np.ndarray | None
+    ay: np.ndarray | None
+    az: np.ndarray | None
+    source: str = ""
+    rate: float = 0.0
+    overflows: int = 0
+    fmt: str = "klipper-raw"
+
+    def axis(self, axis: str) -> np.ndarray:
+        arr = getattr(self, f"a{axis}", None)
+        if arr is None:
+            raise RingtuneError(f"axis {axis.upper()} was not captured", self.source or None)
+        return arr
+
+
+AccelData = Union[PSD, list, RawAccel]
+
+
+# -- detection ---------------------------------------------------------------------------------
+
+def _read_lines(path: str | Path) -> tuple[Path, list[str]]:
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except FileNotFoundError:
+        raise RingtuneError("no such file", str(path)) from None
+    except IsADirectoryError:
+        raise RingtuneError("is a directory, not an accelerometer CSV", str(path)) from None
+    return path, text.splitlines()
+
+
+def _first_content(lines: list[str], skip_comments: bool = True) -> int:
+    for i, line in enumerate(lines):
+        s = line.strip()
+        if not s:
+            continue
+        if skip_comments and s.startswith("#") and not s.lower().startswith("#time"):
+            continue
+        return i
+    return -1
+
+
+def detect_format(path: str | Path) -> str:
+    """``"resonances"``, ``"klipper-raw"`` or ``"m956"`` (RingtuneError if none fits)."""
+    path, lines = _read_lines(path)
+    return _detect(path, lines)
+
+
+def _detect(path: Path, lines: list[str]) -> str:
+    i = _first_content(lines)
+    if i < 0:
+        raise RingtuneError("empty file: no header line", str(path))
+    head = lines[i].strip().lower()
+    if head.startswith("freq,") or head == "freq":
+        return "resonances"
+    if head.startswith("sample,"):
+        return "m956"
+    if head.startswith("#time") or _numeric_row(head, 4):
+        return "klipper-raw"
+    raise RingtuneError(
+        f"unrecognised header {lines[i].strip()[:60]!r}; expected Klipper 'freq,psd_x,...', "
+        "Klipper raw '#time,accel_x,accel_y,accel_z' or RRF M956 'Sample,X,Y,Z'", f"{path}:{i + 1}")
+
+
+def _numeric_row(line: str, n: int) -> bool:
+    parts = line.split(",")
+    if len(parts) != n:
+        return False
+    try:
+        [float(p) for p in parts]
+    except ValueError:
+        return False
+    return True
+
+
+def read_accel(path: str | Path) -> AccelData:
+    """Read any supported accelerometer file; the format is detected from its header.
+
+    Returns a :class:`PSD` (single-dataset resonance/calibration CSV), a ``list[PSD]``
+    (multi-dataset CSV) or a :class:`RawAccel` (Klipper raw, RRF M956).
+    """
+    path, lines = _read_lines(path)
+    kind = _detect(path, lines)
+    if kind == "resonances":
+        return _parse_resonances(path, lines)
+    if kind == "m956":
+        return _parse_m956(path, lines)
+    return _parse_klipper_raw(path, lines)
+
+
+# -- Klipper resonance / calibration CSV -------------------------------------------------------
+
+def read_resonances_csv(path: str | Path) -> PSD | list[PSD]:
+    """Klipper ``TEST_RESONANCES`` / ``calibration_data`` CSV -> PSD (multi-dataset -> list[PSD])."""
+    path, lines = _read_lines(path)
+    kind = _detect(path, lines)
+    if kind != "resonances":
+        raise RingtuneError(f"not a Klipper resonance CSV (looks like {kind}); header must start 'freq,'",
+                            str(path))
+    return _parse_resonances(path, lines)
+
+
+def read_calibration_csv(path: str | Path) -> PSD | list[PSD]:
+    """Klipper ``calibration_data_*.csv``: same layout as the resonance CSV plus shaper columns."""
+    return read_resonances_csv(path)
+
+
+def _parse_resonances(path: Path, lines: list[str]) -> PSD | list[PSD]:
+    hi = _first_content(lines)
+    header = next(csv.reader([lines[hi].strip()]))
+    header = [h.strip() for h in header]
+    where_h = f"{path}:{hi + 1}"
+    if header[0].lower() != "freq":
+        raise RingtuneError("first header column must be 'freq'", where_h)
+    cols = header[1:]
+    shaper_names: list[str] = []
+    has_gap = False
+    if "shapers:" in cols:
+        k = cols.index("shapers:")
+        shaper_names = [c for c in cols[k + 1:]]
+        cols = cols[:k]
+        has_gap = True
+    else:
+        # old Klipper: shaper columns 'name(freq)' straight after the PSD columns
+        while cols and _SHAPER_COL.match(cols[-1]) and cols[-1].lower() not in ("psd_xyz",):
+            shaper_names.insert(0, cols.pop())
+    if not cols:
+        raise RingtuneError("no PSD columns after 'freq'", where_h)
+    single = [c.lower() for c in cols] == ["psd_x", "psd_y", "psd_z", "psd_xyz"]
+    n_psd = len(cols)
+    n_expected = 1 + n_psd + (1 if has_gap else 0) + len(shaper_names)
+
+    rows = []
+    for i in range(hi + 1, len(lines)):
+        s = lines[i].strip()
+        if not s or s.startswith("#"):
+            continue
+        parts = s.split(",")
+        where = f"{path}:{i + 1}"
+        if len(parts) != n_expected:
+            raise RingtuneError(f"expected {n_expected} comma-separated values as the header says, "
+                                f"found {len(parts)}", where)
+        if has_gap:
+            if parts[1 + n_psd].strip():
+                raise RingtuneError(f"column {n_psd + 2} before the shaper block must be empty",
+                                    where)
+            del parts[1 + n_psd]
+        try:
+            vals = [float(p) for p in parts]
+        except ValueError:
+            bad = next(p for p in parts if not _is_float(p))
+            raise RingtuneError(f"not a number: {bad.strip()[:30]!r}", where) from None
+        if not all(math.isfinite(v) for v in vals):
+            raise RingtuneError("non-finite value", where)
+        if any(v < 0 for v in vals[1:1 + n_psd]):
+            raise RingtuneError("negative power spectral density", where)
+        if rows and vals[0] <= rows[-1][0]:
+            raise RingtuneError(f"frequencies must increase ({vals[0]:g} after {rows[-1][0]:g} Hz)",
+                                where)
+        rows.append(vals)
+    if len(rows) < 2:
+        raise RingtuneError("fewer than two frequency rows", str(path))
+    data = np.asarray(rows, dtype=float)
+    freqs = data[:, 0]
+    shapers = {name: data[:, 1 + n_psd + j] for j, name in enumerate(shaper_names)}
+    normalized = bool(shaper_names)
+    if single:
+        return PSD(freqs, data[:, 1], data[:, 2], data[:, 3], data[:, 4], str(path),
+                   _axis_from_name(path), normalized, shapers)
+    return [PSD(freqs, None, None, None, data[:, 1 + j].copy(), str(path), name, normalized, shapers)
+            for j, name in enumerate(cols)]
+
+
+def _is_float(s: str) -> bool:
+    try:
+        float(s)
+        return True
+    except ValueError:
+        return False
+
+
+def _axis_from_name(path: Path) -> str:
+    m = re.match(r"(?:resonances|calibration_data|raw_data)_([a-z,]+?)_", path.name)
+    return m.group(1) if m else ""
+
+
+# -- Klipper raw accelerometer CSV ---------------------------------------------------------------
+
+def read_raw_accel(path: str | Path) -> RawAccel:
+    """Klipper raw ``#time,accel_x,accel_y,accel_z`` or RRF M956 CSV -> RawAccel (mm/s²)."""
+    path, lines = _read_lines(path)
+    kind = _detect(path, lines)
+    if kind == "m956":
+        return _parse_m956(path, lines)
+    if kind == "klipper-raw":
+        return _parse_klipper_raw(path, lines)
+    raise RingtuneError("this is a PSD file (header 'freq,...'), not a raw accelerometer capture; "
+                        "use read_resonances_csv", str(path))
+
+
+def _parse_klipper_raw(path: Path, lines: list[str]) -> RawAccel:
+    body = [(i, ln) for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
+    if len(body) < 2:
+        raise RingtuneError("fewer than two samples", str(path))
+    try:
+        data = np.loadtxt([ln for _, ln in body], delimiter=",", dtype=float, ndmin=2)
+        ok = data.shape[1] == 4 and np.isfinite(data).all()
+    except ValueError:
+        ok = False
+    if not ok:
+        for i, ln in body:  # slow path only to name the bad line
+            parts = ln.split(",")
+            if len(parts) != 4:
+                raise RingtuneError(f"expected 4 values (time,accel_x,accel_y,accel_z), found "
+                                    f"{len(parts)}", f"{path}:{i + 1}")
+            for p in parts:
+                if not _is_float(p) or not math.isfinite(float(p)):
+                    raise RingtuneError(f"not a finite number: {p.strip()[:30]!r}", f"{path}:{i + 1}")
+        raise RingtuneError("unreadable raw accelerometer data", str(path))  # pragma: no cover
+    t = data[:, 0]
+    dt = np.diff(t)
+    if (dt <= 0).any():
+        k = int(np.argmax(dt <= 0)) + 1
+        raise RingtuneError("time must increase", f"{path}:{body[k][0] + 1}")
+    rate = (len(t)) / (t[-1] - t[0])
+    return RawAccel(t, data[:, 1].copy(), data[:, 2].copy(), data[:, 3].copy(), str(path), rate, 0,
+                    "klipper-raw")
+
+
+# -- RRF M956 ------------------------------------------------------------------------------------
+
+def _parse_m956(path: Path, lines: list[str]) -> RawAccel:
+    hi = _first_content(lines)
+    header = [h.strip().upper() for h in lines[hi].split(",")]
+    where_h = f"{path}:{hi + 1}"
+    if header[0] != "SAMPLE" or not header[1:] or any(h not in ("X", "Y", "Z") for h in header[1:]) \
+            or len(set(header[1:])) != len(header) - 1:
+        raise RingtuneError(f"M956 header must be 'Sample' then some of X,Y,Z, not {lines[hi].strip()!r}",
+                            where_h)
+    axes = header[1:]
+    rows = []
+    rate = None
+    overflows = 0
+    trailer_line = None
+    for i in range(hi + 1, len(lines)):
+        s = lines[i].strip()
+        if not s:
+            continue
+        where = f"{path}:{i + 1}"
+        if trailer_line is not None:
+            raise RingtuneError("data after the 'Rate N, overflows M' trailer", where)
+        m = _M956_TRAILER.match(s)
+        if m:
+            rate = float(m.group(1))
+            overflows = int(m.group(2))
+            trailer_line = i
+            if not rate > 0:
+                raise RingtuneError("sample rate must be > 0", where)
+            continue
+        if s.lower().startswith("failed"):
+            raise RingtuneError(f"the capture failed on the printer: {s!r}", where)
+        parts = s.split(",")
+        if len(parts) != len(axes) + 1:
+            raise RingtuneError(f"expected {len(axes) + 1} values (Sample,{','.join(axes)}), found "
+                                f"{len(parts)}", where)
+        try:
+            vals = [float(p) for p in parts]
+        except ValueError:
+            bad = next(p for p in parts if not _is_float(p))
+            raise RingtuneError(f"not a number: {bad.strip()[:30]!r}", where) from None
+        if not all(math.isfinite(v) for v in vals):
+            raise RingtuneError("non-finite value", where)
+        if rows and vals[0] != rows[-1][0] + 1:
+            raise RingtuneError(f"sample index {vals[0]:g} does not follow {rows[-1][0]:g}", where)
+        rows.append(vals)
+    if rate is None:
+        raise RingtuneError("missing the 'Rate <Hz>, overflows <n>' trailer line (truncated capture?)",
+                            f"{path}:{len(lines)}")
+    if len(rows) < 2:
+        raise RingtuneError("fewer than two samples", str(path))
+    data = np.asarray(rows, dtype=float)
+    t = data[:, 0] / rate
+    acc = {ax: data[:, 1 + j] * G_MM_S2 for j, ax in enumerate(axes)}
+    return RawAccel(t, acc.get("X"), acc.get("Y"), acc.get("Z"), str(path), rate, overflows, "m956")
+
+
+# -- Klipper's PSD of a raw capture ---------------------------------------------------------------
+
+def klipper_window_size(rate: float) -> int:
+    """Klipper's Welch window length: ``1 << int(rate·0.5 − 1).bit_length()`` samples."""
+    return 1 << int(rate * WINDOW_T_SEC - 1).bit_length()
+
+
+def welch_psd(x: np.ndarray, fs: float, nfft: int) -> tuple[np.ndarray, np.ndarray]:
+    """Welch PSD as Klipper's ``_psd``: Kaiser(β=6) window, 50 % overlap, per-window mean removed,
+    scaled by 1/(Σw²·fs), one-sided (×2 except DC and Nyquist). Returns (freqs Hz, psd)."""
+    window = np.kaiser(nfft, 6.0)
+    scale = 1.0 / (window ** 2).sum()
+    overlap = nfft // 2
+    step = nfft - overlap
+    n_windows = (x.shape[-1] - overlap) // step
+    if n_windows < 1:
+        raise RingtuneError(f"{x.shape[-1]} samples is not more than the {nfft}-sample window")
+    x = np.ascontiguousarray(x, dtype=float)
+    seg = np.lib.stride_tricks.as_strided(x, shape=(nfft, n_windows),
+                                          strides=(x.strides[-1], step * x.strides[-1]),
+                                          writeable=False)
+    seg = window[:, None] * (seg - seg.mean(axis=0))
+    spec = np.fft.rfft(seg, n=nfft, axis=0)
+    power = (np.conjugate(spec) * spec).real * (scale / fs)
+    power[1:-1, :] *= 2.0
+    return np.fft.rfftfreq(nfft, 1.0 / fs), power.mean(axis=-1)
+
+
+def klipper_psd(raw: RawAccel) -> PSD:
+    """PSD of a raw capture computed exactly as Klipper's ``calc_freq_response``.
+
+    fs = N / (t_last − t_first); window M = ``klipper_window_size(fs)``; Klipper refuses captures of
+    N ≤ M samples, and so does this (RingtuneError). Axes not captured count as zero.
+    """
+    n = len(raw.t)
+    span = float(raw.t[-1] - raw.t[0])
+    if n < 2 or span <= 0:
+        raise RingtuneError("need at least two samples spanning some time", raw.source or None)
+    fs = n / span
+    m = klipper_window_size(fs)
+    if n <= m:
+        raise RingtuneError(f"{n} samples is not more than Klipper's {m}-sample analysis window "
+                            f"(0.5 s at {fs:.0f} Hz); Klipper cannot compute a PSD from it",
+                            raw.source or None)
+    out = {}
+    freqs = None
+    for ax in ("x", "y", "z"):
+        a = getattr(raw, f"a{ax}")
+        if a is None:
+            out[ax] = None
+            continue
+        freqs, out[ax] = welch_psd(a, fs, m)
+    present = [v for v in out.values() if v is not None]
+    if not present:
+        raise RingtuneError("no axis captured", raw.source or None)
+    total = np.sum(present, axis=0)
+    zero = np.zeros_like(total)
+    return PSD(freqs, out["x"] if out["x"] is not None else zero,
+               out["y"] if out["y"] is not None else zero,
+               out["z"] if out["z"] is not None else zero, total, raw.source, "", False)
+
+
+def to_psd(data: AccelData) -> list[PSD]:
+    """Any reader result as a list of PSDs (raw captures go through :func:`klipper_psd`)."""
+    if isinstance(data, PSD):
+        return [data]
+    if isinstance(data, RawAccel):
+        return [klipper_psd(data)]
+    return list(data)
