@@ -1,0 +1,278 @@
+"""Print-quality metrics of a simulated print: what a person would see on the part.
+
+Inputs are a simulation result (``SimResult``: sample times ``t`` in s, simulated ``nozzle`` x/y
+relative to the print in mm, ``head_accel`` in mm/s², motor forces, ``step_loss``) and the
+*unshaped* planned motion of the same time span (:class:`~ringtune.shaping.motion.Motion`), which
+is the geometry the slicer asked for. All distances are geometric (nearest point on the commanded
+path), so a nozzle that merely lags along the path (shaper delay, servo lag) costs nothing; only
+leaving the path does.
+
+Definitions (all mm unless stated; "extruding" = the unshaped path deposits material at the
+sample's time minus ``lag``, the shaper's delay):
+
+``path_error_mm``
+    max over extruding samples of the distance from the nozzle to the nearest *extruding* leg of
+    the commanded path active within ``match_window`` s of the sample (the time restriction keeps
+    adjacent parallel infill lines from being mistaken for the line being printed).
+``overshoot_mm``
+    max over corners (direction change ≥ ``corner_angle_deg``, either side extruding) of the
+    outward excursion: for extruding samples within ``corner_window`` s of the corner, the vector
+    ``e`` from the nearest point of the two legs meeting at the corner to the nozzle counts with
+    its length when it points outward (``e · (d_in − d_out) > 0``, the outer bisector; for a
+    reversal, past the turning point).
+``ringing_mm``
+    max over straight walls (extruding legs at least ``min_wall`` s long that follow a corner) of
+    the RMS, about its mean, of the nozzle's perpendicular deviation from the wall's line, taken
+    from ``settle`` s after the corner (when the shaped command has finished turning) to the end
+    of the wall.
+``peak_accel``
+    max over all samples of the head's acceleration magnitude ``|(a_x, a_y)|``, mm/s².
+``step_loss``
+    the simulator's flag, or any sample where ``|motor_force| > motor_force_max``.
+``print_time_s``
+    not computed here: the planner's print time over the whole job (s), filled in by
+    :func:`ringtune.envs.evaluate.evaluate`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any, Iterable
+
+import numpy as np
+
+from ringtune.shaping.motion import Motion
+
+_EPS_LEN = 1e-6  # mm: shorter x/y segments are pure z/e moves or dwells
+_COLLINEAR = math.cos(math.radians(1.0))
+
+
+@dataclass
+class Metrics:
+    """Print time and quality of one configuration on one job (units in the field names).
+
+    ``details`` holds optional diagnostics (per-window values, where the worst error occurred).
+    """
+
+    print_time_s: float = float("nan")
+    path_error_mm: float = 0.0
+    overshoot_mm: float = 0.0
+    ringing_mm: float = 0.0
+    peak_accel: float = 0.0
+    step_loss: bool = False
+    details: dict[str, Any] = field(default_factory=dict)
+
+    QUALITY_KEYS = ("path_error_mm", "overshoot_mm", "ringing_mm")
+
+    def to_dict(self, details: bool = False) -> dict[str, Any]:
+        d = asdict(self)
+        if not details:
+            d.pop("details")
+        d["step_loss"] = bool(d["step_loss"])
+        return d
+
+    @staticmethod
+    def worst(parts: Iterable["Metrics"], print_time_s: float = float("nan")) -> "Metrics":
+        """Combine per-window metrics: max of each quality figure and of peak_accel, any step loss."""
+        parts = list(parts)
+        if not parts:
+            return Metrics(print_time_s=print_time_s)
+        return Metrics(
+            print_time_s=print_time_s,
+            path_error_mm=max(p.path_error_mm for p in parts),
+            overshoot_mm=max(p.overshoot_mm for p in parts),
+            ringing_mm=max(p.ringing_mm for p in parts),
+            peak_accel=max(p.peak_accel for p in parts),
+            step_loss=any(p.step_loss for p in parts),
+            details={"windows": [p.to_dict(details=True) for p in parts]},
+        )
+
+
+# -- path geometry ------------------------------------------------------------------------------
+@dataclass
+class Legs:
+    """Straight pieces of the commanded x/y path: consecutive collinear segments merged.
+
+    Arrays are (L, 2) points in mm and (L,) times in s; ``corner[k]`` is the turn angle (deg)
+    between leg k−1 and leg k (0 for the first leg or where the legs do not touch).
+    """
+
+    start: np.ndarray
+    end: np.ndarray
+    t_start: np.ndarray
+    t_end: np.ndarray
+    extruding: np.ndarray
+    turn_deg: np.ndarray
+
+    @property
+    def direction(self) -> np.ndarray:
+        d = self.end - self.start
+        return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), _EPS_LEN)
+
+    def __len__(self) -> int:
+        return len(self.t_start)
+
+
+def path_legs(path: Motion) -> Legs:
+    """Merge the motion's segments into straight legs (x/y only; z/e-only segments are skipped)."""
+    p0 = path.p[:, :2]
+    p1 = path.end_state()[0][:, :2]
+    seg = p1 - p0
+    length = np.linalg.norm(seg, axis=1)
+    keep = np.flatnonzero(length > _EPS_LEN)
+    if len(keep) == 0:
+        z = np.zeros((0, 2))
+        e = np.zeros(0)
+        return Legs(z, z, e, e, e.astype(bool), e)
+    u = seg[keep] / length[keep, None]
+    ext = path.extruding[keep]
+    same_dir = np.einsum("ij,ij->i", u[1:], u[:-1]) >= _COLLINEAR
+    touching = np.linalg.norm(p0[keep[1:]] - p1[keep[:-1]], axis=1) < 1e-3
+    new = np.concatenate([[True], ~(same_dir & touching & (ext[1:] == ext[:-1]))])
+    first = np.flatnonzero(new)
+    last = np.concatenate([first[1:] - 1, [len(keep) - 1]])
+    start, end = p0[keep[first]], p1[keep[last]]
+    t_start, t_end = path.t[keep[first]], path.t[keep[last] + 1]
+    d = end - start
+    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), _EPS_LEN)
+    cosang = np.clip(np.einsum("ij,ij->i", d[1:], d[:-1]), -1.0, 1.0)
+    joined = np.linalg.norm(start[1:] - end[:-1], axis=1) < 1e-3
+    turn = np.concatenate([[0.0], np.where(joined, np.degrees(np.arccos(cosang)), 0.0)])
+    return Legs(start, end, t_start, t_end, ext[first], turn)
+
+
+def _nearest_on_segments(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Vectors from the nearest point of segment a→b to pts; broadcasts (…, 2)."""
+    ab = b - a
+    denom = np.maximum(np.sum(ab * ab, axis=-1), _EPS_LEN ** 2)
+    s = np.clip(np.sum((pts - a) * ab, axis=-1) / denom, 0.0, 1.0)
+    return pts - (a + s[..., None] * ab)
+
+
+# -- the metrics -----------------------------------------------------------------------------------
+def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float = 0.0,
+                    corner_angle_deg: float = 30.0, corner_window: float = 0.06,
+                    match_window: float = 0.05, min_wall: float = 0.02,
+                    print_time_s: float = float("nan")) -> Metrics:
+    """Quality metrics of one simulated window against its unshaped commanded path.
+
+    Args:
+        sim: a ``SimResult`` (or anything with ``t``, ``nozzle``, ``head_accel``, ``step_loss`` and
+            optionally ``motor_force``/``motor_force_max``), times on the same clock as ``path``.
+        path: the unshaped planned motion of the window.
+        lag: s, delay of the shaped command behind the unshaped one (a causal shaper's centroid;
+            0 for centred shapers), used to decide which part of the path a sample belongs to.
+        settle: s after a corner (unshaped time) at which the shaped command runs straight along
+            the next wall again (last impulse time, minus the centroid if centred).
+        corner_angle_deg: smallest direction change that counts as a corner, degrees.
+        corner_window: s either side of a corner searched for overshoot.
+        match_window: s either side of a leg's time span within which a sample may match it.
+        min_wall: s, shortest leg after a corner whose ringing is measured.
+        print_time_s: passed through to the result.
+    """
+    t = np.asarray(sim.t, float)
+    nozzle = np.asarray(sim.nozzle, float)[:, :2]
+    accel = np.asarray(sim.head_accel, float)[:, :2]
+    peak_accel = float(np.max(np.linalg.norm(accel, axis=1))) if len(accel) else 0.0
+    step_loss = bool(getattr(sim, "step_loss", False))
+    force = getattr(sim, "motor_force", None)
+    fmax = getattr(sim, "motor_force_max", None)
+    if force is not None and fmax is not None and np.size(force):
+        step_loss = step_loss or bool(np.any(np.abs(np.asarray(force)) > np.asarray(fmax)))
+
+    tu = t - lag  # sample times on the unshaped clock
+    inside = (tu >= path.t[0]) & (tu <= path.t[-1])
+    extruding = inside & path.extruding[path.segment_index(tu)]
+    legs = path_legs(path)
+    details: dict[str, Any] = {}
+
+    path_error = _path_error(tu[extruding], nozzle[extruding], legs, match_window, details)
+    overshoot = _overshoot(tu[extruding], nozzle[extruding], legs, corner_angle_deg, corner_window,
+                           details)
+    ringing = _ringing(tu[extruding], nozzle[extruding], legs, corner_angle_deg, settle - lag,
+                       min_wall, details)
+    return Metrics(print_time_s, path_error, overshoot, ringing, peak_accel, step_loss, details)
+
+
+def _path_error(tu, pts, legs: Legs, window: float, details: dict) -> float:
+    ext = np.flatnonzero(legs.extruding)
+    if len(tu) == 0 or len(ext) == 0:
+        return 0.0
+    a, b = legs.start[ext], legs.end[ext]
+    lo, hi = legs.t_start[ext] - window, legs.t_end[ext] + window
+    best = np.full(len(tu), np.inf)
+    chunk = max(1, 2_000_000 // len(ext))
+    for i in range(0, len(tu), chunk):  # chunks of samples × legs, bounded memory
+        sl = slice(i, i + chunk)
+        d = np.linalg.norm(_nearest_on_segments(pts[sl, None, :], a[None], b[None]), axis=-1)
+        active = (tu[sl, None] >= lo[None]) & (tu[sl, None] <= hi[None])
+        best[sl] = np.min(np.where(active, d, np.inf), axis=1)
+    finite = np.isfinite(best)
+    if not finite.any():
+        return 0.0
+    k = int(np.argmax(np.where(finite, best, -1.0)))
+    details["path_error_at"] = {"t": float(tu[k]), "x": float(pts[k, 0]), "y": float(pts[k, 1])}
+    return float(best[k])
+
+
+def _corners(legs: Legs, angle: float) -> np.ndarray:
+    """Indices k of legs that start with a corner (leg k−1 → leg k), at least one extruding."""
+    k = np.flatnonzero(legs.turn_deg >= angle)
+    return k[legs.extruding[k] | legs.extruding[k - 1]]
+
+
+def _overshoot(tu, pts, legs: Legs, angle: float, window: float, details: dict) -> float:
+    ks = _corners(legs, angle)
+    if len(tu) == 0 or len(ks) == 0:
+        return 0.0
+    tc = legs.t_end[ks - 1]
+    # nearest corner in time for each sample
+    hi = np.clip(np.searchsorted(tc, tu), 0, len(tc) - 1)
+    lo = np.maximum(hi - 1, 0)
+    j = np.where(np.abs(tu - tc[lo]) <= np.abs(tu - tc[hi]), lo, hi)
+    near = np.abs(tu - tc[j]) <= window
+    if not near.any():
+        return 0.0
+    k = ks[j[near]]
+    p = pts[near]
+    d = legs.direction
+    e_in = _nearest_on_segments(p, legs.start[k - 1], legs.end[k - 1])
+    e_out = _nearest_on_segments(p, legs.start[k], legs.end[k])
+    n_in, n_out = np.linalg.norm(e_in, axis=1), np.linalg.norm(e_out, axis=1)
+    e = np.where((n_in < n_out)[:, None], e_in, e_out)
+    dist = np.minimum(n_in, n_out)
+    outward = np.einsum("ij,ij->i", e, d[k - 1] - d[k]) > 0
+    val = np.where(outward, dist, 0.0)
+    i = int(np.argmax(val))
+    if val[i] > 0:
+        details["overshoot_at"] = {"t": float(tu[near][i]), "corner_t": float(tc[j[near]][i]),
+                                   "turn_deg": float(legs.turn_deg[k[i]])}
+    return float(val[i])
+
+
+def _ringing(tu, pts, legs: Legs, angle: float, settle: float, min_wall: float,
+             details: dict) -> float:
+    ks = _corners(legs, angle)
+    ks = ks[legs.extruding[ks] & (legs.t_end[ks] - legs.t_start[ks] >= min_wall)]
+    if len(tu) == 0 or len(ks) == 0:
+        return 0.0
+    t0 = legs.t_end[ks - 1] + max(settle, 0.0)
+    t1 = legs.t_end[ks]
+    order = np.argsort(tu)
+    tu, pts = tu[order], pts[order]
+    i0 = np.searchsorted(tu, t0, side="left")
+    i1 = np.searchsorted(tu, t1, side="right")
+    d = legs.direction
+    normal = np.stack([-d[:, 1], d[:, 0]], axis=1)
+    worst, where = 0.0, None
+    for k, a, b in zip(ks, i0, i1):  # one iteration per wall, vectorised within
+        if b - a < 3:
+            continue
+        dev = (pts[a:b] - legs.start[k]) @ normal[k]
+        rms = float(np.sqrt(np.mean((dev - dev.mean()) ** 2)))
+        if rms > worst:
+            worst, where = rms, {"t_corner": float(legs.t_end[k - 1]), "t_end": float(legs.t_end[k])}
+    if where:
+        details["ringing_at"] = where
+    return worst
