@@ -1,0 +1,252 @@
+"""Evaluate a tuning configuration on a job: the one call ``tune`` (Optuna) and the PPO env use.
+
+Print time comes from the planner over the whole job (no physics); quality comes from physics on
+the job's quality windows (sharpest corners, fastest zigzags), each simulated with enough lead-in
+for the shaper and the machine to settle:
+
+1. job (G-code path, G-code text, a parsed ``Job``, or None for the built-in test print)
+   → ``apply_freq_limit`` per the config → ``plan`` with the printer's limits (acceleration
+   replaced by ``config.accel`` if given) → print time, s;
+2. ``quality_windows`` of that plan; each window ``[t0, t1]`` is cut from the unshaped motion with
+   margins, shaped with the config's shapers (centred or causal per the firmware flavour), and cut
+   again to ``[t0 − lead, t1 + tail]`` where the shaped command is exact
+   (``lead = shaper duration + settle``, ``tail = shaper duration``);
+3. all windows of all configs go to one ``simulate_batch`` call;
+4. :func:`ringtune.envs.metrics.compute_metrics` on the samples inside each ``[t0, t1]``
+   (unshaped clock); the job's metrics are the worst window's (:meth:`Metrics.worst`).
+
+Parsed jobs and plans (with their windows) are cached per (job, limits, frequency limit), so
+repeated evaluations of configurations that only change the shaper skip parsing and planning.
+Everything is deterministic.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections import OrderedDict
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any, Sequence
+
+import numpy as np
+
+from ringtune.envs.metrics import Metrics, compute_metrics
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.motion import Motion
+
+#: s of extra simulated time before each window, after the shaper's own duration
+SETTLE = 0.05
+#: quality windows per job and their span, s
+MAX_WINDOWS = 8
+WINDOW_SPAN = 0.25
+
+_JOBS: "OrderedDict[Any, Any]" = OrderedDict()
+_PLANS: "OrderedDict[Any, Any]" = OrderedDict()
+_CACHE_SIZE = 64
+
+
+@dataclasses.dataclass
+class PlannedJob:
+    """A planned job and its quality windows (cached)."""
+
+    plan: Any                 # shaping.planner.Plan
+    windows: list             # [Window(t0, t1, kind, score)]
+
+    @property
+    def print_time(self) -> float:
+        return float(self.plan.print_time)
+
+    @property
+    def motion(self) -> Motion:
+        return self.plan.motion
+
+
+def _remember(cache: OrderedDict, key, value):
+    cache[key] = value
+    cache.move_to_end(key)
+    while len(cache) > _CACHE_SIZE:
+        cache.popitem(last=False)
+    return value
+
+
+def clear_cache() -> None:
+    """Forget cached jobs and plans (e.g. after a G-code file changed in place)."""
+    _JOBS.clear()
+    _PLANS.clear()
+
+
+# -- inputs ------------------------------------------------------------------------------------
+def resolve_printer(printer):
+    """A ``Printer`` from a Printer, a TOML path, or None (the embedded default)."""
+    from ringtune.envs.printer import load_printer
+
+    if printer is None or isinstance(printer, (str, os.PathLike)):
+        return load_printer(printer)
+    return printer
+
+
+def resolve_job(job):
+    """(cache key, parsed Job) from a path, G-code text, a Job, or None (built-in test print)."""
+    if job is None:
+        key = ("builtin",)
+    elif isinstance(job, (str, os.PathLike)):
+        p = Path(job)
+        if isinstance(job, str) and "\n" in job:
+            key = ("text", hash(job))
+        elif p.is_file():
+            st = p.stat()
+            key = ("file", str(p.resolve()), st.st_mtime_ns, st.st_size)
+        else:
+            raise RingtuneError("no such G-code file", str(job))
+    else:
+        return ("object", id(job)), job
+    if key in _JOBS:
+        _JOBS.move_to_end(key)
+        return key, _JOBS[key]
+    from ringtune.shaping import gcode, testprints
+
+    parsed = testprints.builtin_test_print() if job is None else gcode.read_gcode(job)
+    return key, _remember(_JOBS, key, parsed)
+
+
+def job_limits(printer, config: TuneConfig | None):
+    """The printer's machine limits with the config's acceleration, if it sets one."""
+    limits = printer.limits
+    if config is not None and config.accel is not None:
+        limits = dataclasses.replace(limits, accel=float(config.accel))
+    return limits
+
+
+def planned_job(printer, job=None, config: TuneConfig | None = None, *,
+                max_windows: int = MAX_WINDOWS, span: float = WINDOW_SPAN) -> PlannedJob:
+    """Parse, frequency-limit and plan ``job`` for ``printer`` under ``config`` (cached)."""
+    from ringtune.shaping import freqlimit, planner
+
+    jkey, parsed = resolve_job(job)
+    limits = job_limits(printer, config)
+    fl = (0.0, "", 0.0)
+    if config is not None and config.freq_limit_hz > 0:
+        fl = (float(config.freq_limit_hz), config.freq_limit_method, float(config.min_speed_factor))
+    key = (jkey, repr(limits), fl, max_windows, span)
+    if key in _PLANS:
+        _PLANS.move_to_end(key)
+        return _PLANS[key]
+    limited = parsed
+    if fl[0] > 0:
+        limited = freqlimit.apply_freq_limit(parsed, fl[0], method=fl[1], min_speed_factor=fl[2])
+    plan = planner.plan(limited, limits)
+    windows = planner.quality_windows(plan, max_windows=max_windows, span=span)
+    pj = PlannedJob(plan, list(windows))
+    if key[0][0] == "object":  # keep the job alive so its id is not reused while cached
+        pj.source = parsed  # type: ignore[attr-defined]
+    return _remember(_PLANS, key, pj)
+
+
+# -- shaping the windows -------------------------------------------------------------------------
+@dataclasses.dataclass
+class WindowRun:
+    """One quality window prepared for simulation."""
+
+    t0: float                 # quality window on the unshaped clock, s
+    t1: float
+    shaped: Motion            # shaped command over [t0 - lead, t1 + tail]
+    path: Motion              # unshaped command over the same span (geometry for the metrics)
+    lag: float                # s, see compute_metrics
+    settle: float             # s, see compute_metrics
+
+
+def config_shapers(config: TuneConfig) -> tuple[dict, bool]:
+    """({"x": Shaper | None, "y": ...}, centred) for the config's firmware flavour."""
+    from ringtune.shaping.shapers import get_shaper, is_centred
+
+    shapers = {}
+    for ax in ("x", "y"):
+        name, freq, damping = config.axis(ax)
+        shapers[ax] = None if name == "none" else get_shaper(name, freq, damping, config.flavor,
+                                                             where=f"config: shaper_{ax}")
+    return shapers, is_centred(config.flavor)
+
+
+def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE) -> list[WindowRun]:
+    """Shape each quality window of ``pj`` with the config's shapers."""
+    from ringtune.shaping.apply import shape_motion
+
+    shapers, centred = config_shapers(config)
+    active = [s for s in shapers.values() if s is not None]
+    duration = max((s.duration for s in active), default=0.0)
+    lag = 0.0 if centred else max((s.centroid for s in active), default=0.0)
+    # after a corner (unshaped time) the shaped command runs straight once the last impulse passed
+    after = max((s.duration - (s.centre_delay if centred else 0.0) for s in active), default=0.0)
+    motion = pj.motion
+    runs = []
+    for w in pj.windows:
+        a, b = w.t0 - duration - settle, w.t1 + duration
+        lo, hi = max(a - duration, motion.start_time), min(b + duration, motion.end_time)
+        if hi - lo <= 1e-9:
+            continue
+        raw = motion.window(lo, hi)
+        shaped = shape_motion(raw, shapers, centred) if active else raw
+        a, b = max(a, shaped.start_time), min(b, shaped.end_time)
+        runs.append(WindowRun(w.t0, w.t1, shaped.window(a, b), motion.window(max(a, lo), min(b, hi)),
+                              lag, after))
+    return runs
+
+
+def _trimmed(sim, t_lo: float, t_hi: float):
+    """The samples of ``sim`` with t in [t_lo, t_hi] (a shallow copy with sliced arrays)."""
+    t = np.asarray(sim.t)
+    keep = (t >= t_lo) & (t <= t_hi)
+    fields = {}
+    for f in ("t", "commanded", "nozzle", "head_accel", "motor_force", "motor_force_max", "accel_sensor"):
+        v = getattr(sim, f, None)
+        if v is not None and np.ndim(v) >= 1 and len(v) == len(t):
+            fields[f] = np.asarray(v)[keep]
+    return SimpleNamespace(step_loss=bool(getattr(sim, "step_loss", False)), **fields)
+
+
+def metrics_of(runs: list[WindowRun], sims: list, print_time: float) -> Metrics:
+    """Job metrics from the simulated windows: the worst window's values."""
+    parts = []
+    for run, sim in zip(runs, sims):
+        part = compute_metrics(_trimmed(sim, run.t0 + run.lag, run.t1 + run.lag), run.path,
+                               lag=run.lag, settle=run.settle)
+        parts.append(part)
+    return Metrics.worst(parts, print_time_s=print_time)
+
+
+# -- the public calls -------------------------------------------------------------------------------
+def evaluate(config: TuneConfig, printer=None, job=None, backend: str = "mujoco", *,
+             settle: float = SETTLE) -> Metrics:
+    """Print time (whole job) and quality (physics on the quality windows) of ``config``.
+
+    Args:
+        config: the tuning configuration.
+        printer: a ``Printer``, a printer TOML path, or None for the embedded default.
+        job: a G-code path, G-code text, a parsed Job, or None for the built-in test print.
+        backend: ``"mujoco"`` (default) or ``"lti"`` (exact linear screening).
+        settle: s of simulated lead-in beyond the shaper's duration.
+    """
+    return evaluate_many([config], printer, job, backend, settle=settle)[0]
+
+
+def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
+                  settle: float = SETTLE, nthread: int | None = None) -> list[Metrics]:
+    """:func:`evaluate` for many configs, all their windows simulated in one ``simulate_batch``."""
+    from ringtune.envs.sim import simulate_batch
+
+    printer = resolve_printer(printer)
+    per_config = []
+    motions: list[Motion] = []
+    for cfg in configs:
+        pj = planned_job(printer, job, cfg)
+        runs = window_runs(pj, cfg, settle)
+        per_config.append((pj, runs))
+        motions.extend(r.shaped for r in runs)
+    sims = simulate_batch(printer, motions, backend=backend, nthread=nthread) if motions else []
+    out, i = [], 0
+    for pj, runs in per_config:
+        out.append(metrics_of(runs, sims[i:i + len(runs)], pj.print_time))
+        i += len(runs)
+    return out
