@@ -1,0 +1,154 @@
+"""Apply shapers to motion.
+
+:func:`shape_motion` is exact: the shaped position ``Σ A_i·x(t − s_i)`` of piecewise-quadratic
+motion is again piecewise quadratic, with breakpoints at the union of the shifted segment
+boundaries. Each shifted copy is evaluated (position, velocity, acceleration) at the start of every
+merged segment and the weighted copies are summed — no sampling, no interpolation error.
+
+:func:`shape_samples` shapes an already sampled array (uniform rate) with whole-slice shifts and
+linear interpolation for the fractional part of each delay; its error is bounded by
+``max|ẍ|·Δt²/8`` per impulse (≈ 3e-4 mm at 10 000 mm/s² and 2 kHz), so prefer shape_motion when
+the planned motion is at hand.
+
+Shifts: causal firmwares (RRF, Marlin classic) use ``s_i = T_i`` (the shaped motion lags by
+Σ A_i T_i); centring firmwares (Klipper, Prusa, Marlin FT_MOTION) use ``s_i = T_i − centre`` so
+the steady-state lag is zero.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ringtune.shaping.motion import AXES, Motion
+from ringtune.shaping.shapers import Shaper
+
+_NONE = (np.ones(1), np.zeros(1))
+
+
+def impulse_shifts(shaper: Shaper | None, centred: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(amplitudes, shifts s) with shaped x(t) = Σ A_i·x(t − s_i)."""
+    if shaper is None:
+        return _NONE
+    shifts = shaper.times - (shaper.centre_delay if centred else 0.0)
+    return shaper.amplitudes, shifts
+
+
+def _eval_copies(motion: Motion, col: int, starts: np.ndarray, mids: np.ndarray,
+                 amps: np.ndarray, shifts: np.ndarray):
+    """Σ_i A_i · (p, v, a)(τ − s_i) of one axis at merged segment starts (located by midpoints)."""
+    n = motion.n_segments
+    p0 = motion.p[0, col]
+    p_end, _ = motion.end_state()
+    p_end = p_end[-1, col]
+    P = np.zeros(len(starts))
+    V = np.zeros(len(starts))
+    Acc = np.zeros(len(starts))
+    for amp, s in zip(amps, shifts):
+        idx = np.searchsorted(motion.t, mids - s, side="right") - 1
+        before = idx < 0
+        after = idx >= n
+        j = np.clip(idx, 0, n - 1)
+        tau = starts - s - motion.t[j]
+        a = motion.a[j, col]
+        v = motion.v[j, col]
+        p = motion.p[j, col] + (v + 0.5 * a * tau) * tau
+        v = v + a * tau
+        rest = before | after
+        p = np.where(before, p0, np.where(after, p_end, p))
+        v = np.where(rest, 0.0, v)
+        a = np.where(rest, 0.0, a)
+        P += amp * p
+        V += amp * v
+        Acc += amp * a
+    return P, V, Acc
+
+
+def shape_motion(motion: Motion, shapers: dict[str, Shaper | None], centred: bool,
+                 merge_tol: float = 1e-12) -> Motion:
+    """Exactly shaped copy of ``motion``.
+
+    ``shapers`` maps axis names (``"x"``, ``"y"``, optionally ``"z"``) to a :class:`Shaper` or None;
+    axes not named (and ``e``) pass through unchanged. ``centred`` selects centred (Klipper, Prusa,
+    Marlin FT_MOTION) or causal (RRF, Marlin classic) shifts. Breakpoints closer than ``merge_tol``
+    seconds are merged. ``extruding``/``move`` of a merged segment come from the unshaped motion at
+    the same time.
+    """
+    ncol = motion.p.shape[1]
+    plan = {}
+    all_shifts = [np.zeros(1)]
+    for axis, shaper in shapers.items():
+        if axis not in AXES[:ncol]:
+            raise ValueError(f"unknown axis {axis!r}; expected one of {AXES[:ncol]}")
+        amps, shifts = impulse_shifts(shaper, centred)
+        plan[AXES.index(axis)] = (amps, shifts)
+        all_shifts.append(shifts)
+    shifts_all = np.unique(np.concatenate(all_shifts))
+    t = np.unique((motion.t[None, :] + shifts_all[:, None]).ravel())
+    if len(t) > 1:
+        keep = np.concatenate([[True], np.diff(t) > merge_tol * max(1.0, abs(t[-1]))])
+        t = t[keep]
+    if len(t) < 2:
+        return Motion(motion.t.copy(), motion.p.copy(), motion.v.copy(), motion.a.copy(),
+                      motion.extruding.copy(), motion.move.copy())
+    starts = t[:-1]
+    mids = 0.5 * (t[:-1] + t[1:])
+    m = len(starts)
+    P = np.empty((m, ncol))
+    V = np.empty((m, ncol))
+    Acc = np.empty((m, ncol))
+    for col in range(ncol):
+        amps, shifts = plan.get(col, _NONE)
+        P[:, col], V[:, col], Acc[:, col] = _eval_copies(motion, col, starts, mids, amps, shifts)
+    idx = np.searchsorted(motion.t, mids, side="right") - 1
+    inside = (idx >= 0) & (idx < motion.n_segments)
+    j = np.clip(idx, 0, motion.n_segments - 1)
+    extruding = motion.extruding[j] & inside
+    move = np.where(inside, motion.move[j], -1)
+    return Motion(t, P, V, Acc, extruding, move)
+
+
+# ---------------------------------------------------------------------------------------------
+def sample_taps(shaper: Shaper | None, rate: float, centred: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Integer sample lags L and weights w with shaped x[k] ≈ Σ w_j·x[k − L_j] (linear interp)."""
+    amps, shifts = impulse_shifts(shaper, centred)
+    d = shifts * rate
+    lo = np.floor(d)
+    frac = d - lo
+    lags = np.concatenate([lo, lo + 1]).astype(np.int64)
+    weights = np.concatenate([amps * (1 - frac), amps * frac])
+    uniq, inv = np.unique(lags, return_inverse=True)
+    w = np.zeros(len(uniq))
+    np.add.at(w, inv, weights)
+    keep = w != 0
+    return uniq[keep], w[keep]
+
+
+def shape_samples(x: np.ndarray, rate: float, shaper: Shaper | None, centred: bool,
+                  block: int = 16384) -> np.ndarray:
+    """Shape a uniformly sampled signal ``x`` ((m,) or (m, k), time along axis 0, rate Hz).
+
+    Before the first sample the signal is held at ``x[0]``, after the last at ``x[-1]``. Works in
+    cache-sized blocks: each tap is one fused multiply-add over a whole slice.
+    """
+    x = np.asarray(x, float)
+    lags, w = sample_taps(shaper, rate, centred)
+    m = x.shape[0]
+    front = max(int(lags.max()), 0)
+    back = max(-int(lags.min()), 0)
+    if front or back:
+        xp = np.concatenate([np.repeat(x[:1], front, axis=0), x, np.repeat(x[-1:], back, axis=0)])
+    else:
+        xp = x
+    out = np.empty_like(x)
+    tmp = np.empty((min(block, m),) + x.shape[1:])
+    for b0 in range(0, m, block):
+        b1 = min(b0 + block, m)
+        acc = out[b0:b1]
+        t = tmp[: b1 - b0]
+        base = b0 + front
+        np.multiply(xp[base - lags[0]: base - lags[0] + b1 - b0], w[0], out=acc)
+        for lag, wj in zip(lags[1:], w[1:]):
+            s = base - lag
+            np.multiply(xp[s: s + b1 - b0], wj, out=t)
+            acc += t
+    return out
