@@ -1,0 +1,96 @@
+"""Parse what a firmware reports about its input shaping, and compare it with what was meant.
+
+Report formats (``shared/reference/firmware.md``):
+
+- Klipper ``SET_INPUT_SHAPER`` (no args): ``// shaper_type_x:mzv shaper_freq_x:40.000 damping_ratio_x:0.100000``
+- RRF ``M593``: ``Input shaping 'zvd' at 40.0Hz damping factor 0.10, ...`` / ``Input shaping is disabled``
+- Marlin ``M593``: ``  M593 X F40.00 D0.15`` per axis (may be prefixed ``echo:``)
+- Marlin FT_MOTION ``M493``: ``M493 X C8 A40.00 F0.00 I0.10 Q0.05`` per axis
+- Prusa ``M593``: ``axis X type=MZV freq=50.70 damp=0.10 vr=20.00`` or ``axis Z disabled``
+
+Values are returned with the number of decimals printed, so a comparison can allow for the
+firmware's rounding.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+_NUM = r"(-?[0-9]+(?:\.[0-9]*)?)"
+
+
+@dataclass(frozen=True)
+class Reported:
+    value: object          # float or str
+    decimals: int = 6      # digits after the point as printed (tolerance = half a unit there)
+
+
+def _num(s: str) -> Reported:
+    return Reported(float(s), len(s.split(".")[1]) if "." in s else 0)
+
+
+def parse_report(dialect: str, text: str) -> dict[str, Reported]:
+    """Settings found in the firmware's reply text (keys as :attr:`Export.expected`)."""
+    out: dict[str, Reported] = {}
+    if dialect == "klipper":
+        for ax in ("x", "y", "z"):
+            m = re.search(rf"shaper_type_{ax}:(\S+)\s+shaper_freq_{ax}:{_NUM}\s+damping_ratio_{ax}:{_NUM}",
+                          text)
+            if m:
+                out[f"{ax}.type"] = Reported(m.group(1).lower())
+                out[f"{ax}.freq"] = _num(m.group(2))
+                out[f"{ax}.damping"] = _num(m.group(3))
+    elif dialect in ("rrf", "rrf35", "rrf34"):
+        if re.search(r"Input shaping is disabled", text, re.I):
+            out["all.type"] = Reported("none")
+        m = re.search(rf"Input shaping '([^']+)' at {_NUM}\s*Hz damping factor {_NUM}", text, re.I)
+        if m:
+            out["all.type"] = Reported(m.group(1).lower())
+            out["all.freq"] = _num(m.group(2))
+            out["all.damping"] = _num(m.group(3))
+    elif dialect == "marlin":
+        for m in re.finditer(rf"M593\s+([XYZ])\s+F{_NUM}(?:\s+D{_NUM})?", text):
+            ax = m.group(1).lower()
+            out[f"{ax}.freq"] = _num(m.group(2))
+            if m.group(3) is not None and float(m.group(2)) != 0:
+                out[f"{ax}.damping"] = _num(m.group(3))
+    elif dialect == "marlin-ftm":
+        for m in re.finditer(r"M493[ \t]+([XYZE])((?:[ \t]+[A-Z]-?[0-9.]+)+)", text):
+            ax = m.group(1).lower()
+            fields = dict(re.findall(r"([A-Z])(-?[0-9.]+)", m.group(2)))
+            if "C" in fields:
+                out[f"{ax}.mode"] = Reported(int(float(fields["C"])), 0)
+            mode = int(float(fields.get("C", 0)))
+            if mode:
+                for key, letter in (("freq", "A"), ("damping", "I"), ("vtol", "Q")):
+                    if letter in fields:
+                        out[f"{ax}.{key}"] = _num(fields[letter])
+    elif dialect == "prusa":
+        for m in re.finditer(r"axis\s+([XYZ])\s+disabled", text, re.I):
+            out[f"{m.group(1).lower()}.type"] = Reported("none")
+        for m in re.finditer(rf"axis\s+([XYZ])\s+type=(\w+)\s+freq={_NUM}\s+damp={_NUM}", text, re.I):
+            ax = m.group(1).lower()
+            out[f"{ax}.type"] = Reported(m.group(2).lower().replace("ei_2hump", "2hump_ei")
+                                         .replace("ei_3hump", "3hump_ei"))
+            out[f"{ax}.freq"] = _num(m.group(3))
+            out[f"{ax}.damping"] = _num(m.group(4))
+    return out
+
+
+def matches(expected: object, got: Reported) -> bool:
+    """True if the reported value equals the intended one within the printed rounding."""
+    if isinstance(expected, str) or isinstance(got.value, str):
+        return str(expected).lower() == str(got.value).lower()
+    tol = 0.5 * 10 ** (-got.decimals) + 1e-9
+    return abs(float(expected) - float(got.value)) <= tol
+
+
+def compare(expected: dict[str, object], reported: dict[str, Reported]) -> dict[str, dict]:
+    """Per setting: ``{"meant": v, "reported": v|None, "ok": bool}``."""
+    out = {}
+    for key, want in expected.items():
+        got = reported.get(key)
+        out[key] = {"meant": want, "reported": None if got is None else got.value,
+                    "ok": got is not None and matches(want, got)}
+    return out

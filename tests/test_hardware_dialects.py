@@ -1,0 +1,168 @@
+"""Exported lines per firmware dialect, checked against the syntax in shared/reference/firmware.md
+and the RRF M593 seed's worked custom-shaper example."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from ringtune.hardware.dialects import DIALECTS, export_config
+from ringtune.hardware.readback import compare, parse_report
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+
+
+def cfg(**kw) -> TuneConfig:
+    base = dict(shaper_x="mzv", shaper_y="mzv", freq_x=40.0, freq_y=40.0, damping_x=0.1, damping_y=0.1)
+    base.update(kw)
+    return TuneConfig(**base)
+
+
+def test_klipper_set_input_shaper_and_cfg_section_keep_damping():
+    e = export_config(cfg(shaper_x="ei", shaper_y="mzv", freq_x=51.2, freq_y=46.2, damping_x=0.08), "klipper")
+    assert e.lines == ["SET_INPUT_SHAPER SHAPER_FREQ_X=51.2 SHAPER_FREQ_Y=46.2 DAMPING_RATIO_X=0.08 "
+                       "DAMPING_RATIO_Y=0.1 SHAPER_TYPE_X=ei SHAPER_TYPE_Y=mzv"]
+    assert e.config_text.splitlines() == [
+        "[input_shaper]", "shaper_type_x: ei", "shaper_freq_x: 51.2", "damping_ratio_x: 0.08",
+        "shaper_type_y: mzv", "shaper_freq_y: 46.2", "damping_ratio_y: 0.1"]
+    assert e.config_target == "printer.cfg" and e.readback == ["SET_INPUT_SHAPER"]
+    # the report Klipper prints (firmware.md §1.5) parses back to exactly what was meant
+    report = ("// shaper_type_x:ei shaper_freq_x:51.200 damping_ratio_x:0.080000\n"
+              "// shaper_type_y:mzv shaper_freq_y:46.200 damping_ratio_y:0.100000\n")
+    assert all(v["ok"] for v in compare(e.expected, parse_report("klipper", report)).values())
+    bad = report.replace("51.200", "51.000")
+    res = compare(e.expected, parse_report("klipper", bad))
+    assert not res["x.freq"]["ok"] and res["y.freq"]["ok"]
+
+
+def test_klipper_parameterised_and_disabled_axis_and_damping_limit():
+    e = export_config(cfg(shaper_x="mzv(n=5,t=1.1)", shaper_y="none"), "klipper")
+    assert e.lines == ["SET_INPUT_SHAPER SHAPER_FREQ_X=40 SHAPER_FREQ_Y=0 DAMPING_RATIO_X=0.1 "
+                       "SHAPER_TYPE_X=mzv(n=5,t=1.1)"]
+    assert "shaper_freq_y: 0" in e.config_text
+    with pytest.raises(RingtuneError, match=r"damping ratio of 3hump_ei 0.25 .*\[0, 0.2\]"):
+        export_config(cfg(shaper_x="3hump_ei", damping_x=0.25), "klipper")
+    with pytest.raises(RingtuneError, match="nearest it has is '2hump_ei'"):
+        export_config(cfg(shaper_x="zvdd"), "klipper")   # same 1.5/f duration, wide band
+
+
+def test_rrf36_named_shapers():
+    assert export_config(cfg(shaper_x="zvd", shaper_y="zvd", freq_x=40.5, freq_y=40.5), "rrf").lines == \
+        ['M593 P"zvd" F40.5 S0.1']
+    assert export_config(cfg(shaper_x="2hump_ei", shaper_y="ei2", damping_x=0.05, damping_y=0.05),
+                         "rrf").lines == ['M593 P"ei2" F40 S0.05']
+    assert export_config(cfg(shaper_x="none", shaper_y="none"), "rrf").lines == ['M593 P"none"']
+    e = export_config(cfg(), "rrf")
+    assert e.save_lines == [] and e.config_target == "config.g"
+    rep = "Input shaping 'mzv' at 40.0Hz damping factor 0.10, impulses 0.227 0.407 with delays (ms) 0.00 9.42"
+    assert all(v["ok"] for v in compare(e.expected, parse_report("rrf", rep)).values())
+
+
+def test_rrf_custom_in_both_semantics():
+    # the seed's 3.4/3.5 example: M593 P"custom" H0.4:0.7 T0.0135:0.0135
+    # = impulses 0.4, 0.3, 0.3 at 0, 13.5 ms, 27 ms
+    custom = {"amplitudes": [0.4, 0.3, 0.3], "times": [0.0, 0.0135, 0.027]}
+    c = cfg(shaper_x="custom", shaper_y="custom", extra={"custom": custom})
+    assert export_config(c, "rrf35").lines == ['M593 P"custom" H0.4:0.7 T0.0135:0.0135']
+    assert export_config(c, "rrf34").lines == ['M593 P"custom" H0.4:0.7 T0.0135:0.0135']
+    # 3.6: individual amplitudes except the last; cumulative delays of impulses 2..n
+    assert export_config(c, "rrf").lines == ['M593 P"custom" H0.4:0.3 T0.0135:0.027']
+
+
+@pytest.mark.parametrize("custom, msg", [
+    ({"amplitudes": [0.5, 0.6], "times": [0, 0.01]}, "sum to 1"),
+    ({"amplitudes": [0.5, 0.5], "times": [0, 0.0]}, "strictly increase"),
+    ({"amplitudes": [0.2] * 5 + [0.0], "times": [0, 1, 2, 3, 4, 5]}, "2 to 5 impulses"),
+    ({"amplitudes": [1.0], "times": [0]}, "2 to 5 impulses"),
+])
+def test_rrf_custom_refusals(custom, msg):
+    with pytest.raises(RingtuneError, match=msg):
+        export_config(cfg(shaper_x="custom", shaper_y="custom", extra={"custom": custom}), "rrf")
+
+
+def test_rrf_ranges_and_one_shaper():
+    with pytest.raises(RingtuneError, match="one shaper to all axes"):
+        export_config(cfg(freq_y=45.0), "rrf")
+    with pytest.raises(RingtuneError, match=r"frequency F 3.5 is outside RepRapFirmware 3.6's range \[4, 1000\]"):
+        export_config(cfg(freq_x=3.5, freq_y=3.5), "rrf")
+    export_config(cfg(freq_x=4.0, freq_y=4.0), "rrf")          # 3.6 goes down to 4 Hz
+    with pytest.raises(RingtuneError, match="outside RepRapFirmware 3.5"):
+        export_config(cfg(freq_x=5.0, freq_y=5.0), "rrf35")    # 3.5 on Duet 3: 750 kHz / 131070 = 5.72 Hz
+    with pytest.raises(RingtuneError, match=r"has no 'zv' shaper .*nearest it has is 'mzv'"):
+        export_config(cfg(shaper_x="zv", shaper_y="zv"), "rrf")
+    with pytest.raises(RingtuneError, match=r"has no 'ei' shaper .*nearest it has is 'zvd'"):
+        export_config(cfg(shaper_x="ei", shaper_y="ei"), "rrf")
+
+
+def test_rrf35_and_34_l_parameter():
+    c = cfg(extra={"reduction_limit": 0.25})
+    assert export_config(c, "rrf35").lines == ['M593 P"mzv" F40 S0.1 L0.25']
+    assert export_config(c, "rrf").lines == ['M593 P"mzv" F40 S0.1']   # ignored in 3.6
+    with pytest.raises(RingtuneError, match="reduction limit"):
+        export_config(cfg(extra={"reduction_limit": 0.001}), "rrf35")
+    assert export_config(cfg(extra={"min_accel": 10}), "rrf34").lines == ['M593 P"mzv" F40 S0.1 L10']
+
+
+def test_marlin_classic_zv_only_with_frequency_limit():
+    c = cfg(shaper_x="zv", shaper_y="zv", freq_x=41.5, freq_y=37.25, damping_x=0.08, damping_y=0.12,
+            freq_limit_hz=25, min_speed_factor=0.3)
+    e = export_config(c, "marlin")
+    assert e.lines == ["M593 X F41.5 D0.08", "M593 Y F37.25 D0.12", "M201 F25 S30"]
+    assert e.save_lines == ["M500"] and e.readback == ["M593"]
+    report = "echo:Input Shaping:\necho:  M593 X F41.50 D0.08\necho:  M593 Y F37.25 D0.12\n"
+    assert all(v["ok"] for v in compare(e.expected, parse_report("marlin", report)).values())
+    with pytest.raises(RingtuneError, match=r"Marlin \(classic input shaping\) has no 'mzv'.*nearest it has is 'zv'"):
+        export_config(cfg(), "marlin")
+    with pytest.raises(RingtuneError, match="M201 F"):
+        export_config(cfg(shaper_x="zv", shaper_y="zv", freq_limit_hz=150), "marlin")
+    assert export_config(cfg(shaper_x="none", shaper_y="zv"), "marlin").lines[0] == "M593 X F0"
+
+
+def test_marlin_ftm_m493():
+    c = cfg(shaper_x="ei(v_tol=0.1)", shaper_y="2hump_ei", freq_x=51.2, freq_y=40, damping_y=0.15)
+    e = export_config(c, "marlin-ftm")
+    assert e.lines == ["M493 S1", "M493 X C5 A51.2 I0.1 Q0.1", "M493 Y C6 A40 I0.15"]
+    report = "M493 S1 D0 H0\nM493 X C5 A51.20 F0.00 I0.10 Q0.10\nM493 Y C6 A40.00 F0.00 I0.15 Q0.05\n"
+    assert all(v["ok"] for v in compare(e.expected, parse_report("marlin-ftm", report)).values())
+    assert export_config(cfg(shaper_x="zvddd", shaper_y="mzv"), "marlin-ftm").lines[1:] == \
+        ["M493 X C4 A40 I0.1", "M493 Y C8 A40 I0.1"]
+    with pytest.raises(RingtuneError, match="FT_MOTION"):
+        export_config(cfg(freq_x=5), "marlin-ftm")
+
+
+def test_prusa_m593():
+    c = cfg(shaper_x="mzv", shaper_y="ei(v_tol=0.1)", freq_x=50.7, freq_y=40.6)
+    e = export_config(c, "prusa")
+    assert e.lines == ["M593 X T2 F50.7 D0.1", "M593 Y T3 F40.6 D0.1 R10"]
+    assert e.save_lines == ["M593 W"]
+    report = "axis X type=MZV freq=50.70 damp=0.10 vr=20.00\naxis Y type=EI freq=40.60 damp=0.10 vr=10.00\n" \
+             "axis Z disabled\n"
+    assert all(v["ok"] for v in compare(e.expected, parse_report("prusa", report)).values())
+    with pytest.raises(RingtuneError, match=r"\[10, 100\]"):
+        export_config(cfg(freq_x=120), "prusa")
+    with pytest.raises(RingtuneError, match="nearest it has is '2hump_ei'"):
+        export_config(cfg(shaper_x="zvdd"), "prusa")
+    assert export_config(cfg(shaper_y="none"), "prusa").lines[1] == "M593 Y F0"
+
+
+@pytest.mark.parametrize("fw", ["klipper", "rrf", "rrf35", "prusa"])
+def test_no_frequency_limit_gives_the_limit_command(fw):
+    e = export_config(cfg(freq_limit_hz=22.5), fw)
+    assert not any(line.startswith("M201") for line in e.lines)
+    note = next(n for n in e.notes if "no XY frequency limit" in n)
+    assert "ringtune limit FILE.gcode --freq-limit 22.5" in note
+    assert "ringtune limit FILE.gcode --freq-limit 22.5" in e.render()
+
+
+def test_every_dialect_checksum_safe_lines():
+    # every exported runtime line must be sendable: no '*', ';' or newline inside a line
+    for fw in DIALECTS:
+        shaper = {"marlin": "zv", "rrf": "zvd", "rrf35": "zvd", "rrf34": "zvd"}.get(fw, "mzv")
+        for line in export_config(cfg(shaper_x=shaper, shaper_y=shaper), fw).lines:
+            assert not re.search(r"[*;\n]", line), line
+
+
+def test_unknown_firmware():
+    with pytest.raises(RingtuneError, match="--firmware"):
+        export_config(cfg(), "grbl")
