@@ -33,32 +33,27 @@ def impulse_shifts(shaper: Shaper | None, centred: bool) -> tuple[np.ndarray, np
     return shaper.amplitudes, shifts
 
 
-def _eval_copies(motion: Motion, col: int, starts: np.ndarray, mids: np.ndarray,
+def _eval_copies(motion: Motion, cols: list[int], starts: np.ndarray, mids: np.ndarray,
                  amps: np.ndarray, shifts: np.ndarray):
-    """Σ_i A_i · (p, v, a)(τ − s_i) of one axis at merged segment starts (located by midpoints)."""
-    n = motion.n_segments
-    p0 = motion.p[0, col]
-    p_end, _ = motion.end_state()
-    p_end = p_end[-1, col]
-    P = np.zeros(len(starts))
-    V = np.zeros(len(starts))
-    Acc = np.zeros(len(starts))
+    """Σ_i A_i · (p, v, a)(τ − s_i) of the columns ``cols`` at merged segment starts (each merged
+    segment is located by its midpoint, so shifted breakpoints never pick the wrong side)."""
+    # rest segments before the start and after the end make every lookup a plain gather
+    end = motion.end_state()[0][-1:, cols]
+    zero = np.zeros((1, len(cols)))
+    p_ext = np.concatenate([motion.p[:1, cols], motion.p[:, cols], end])
+    v_ext = np.concatenate([zero, motion.v[:, cols], zero])
+    a_ext = np.concatenate([zero, motion.a[:, cols], zero])
+    t_ext = np.concatenate([motion.t[:1], motion.t])
+    P = np.zeros((len(starts), len(cols)))
+    V = np.zeros_like(P)
+    Acc = np.zeros_like(P)
     for amp, s in zip(amps, shifts):
-        idx = np.searchsorted(motion.t, mids - s, side="right") - 1
-        before = idx < 0
-        after = idx >= n
-        j = np.clip(idx, 0, n - 1)
-        tau = starts - s - motion.t[j]
-        a = motion.a[j, col]
-        v = motion.v[j, col]
-        p = motion.p[j, col] + (v + 0.5 * a * tau) * tau
-        v = v + a * tau
-        rest = before | after
-        p = np.where(before, p0, np.where(after, p_end, p))
-        v = np.where(rest, 0.0, v)
-        a = np.where(rest, 0.0, a)
-        P += amp * p
-        V += amp * v
+        j = np.searchsorted(motion.t, mids - s, side="right")      # 0 = before, n + 1 = after
+        tau = (starts - s - t_ext[j])[:, None]
+        a = a_ext[j]
+        v = v_ext[j]
+        P += amp * (p_ext[j] + (v + 0.5 * a * tau) * tau)
+        V += amp * (v + a * tau)
         Acc += amp * a
     return P, V, Acc
 
@@ -96,9 +91,12 @@ def shape_motion(motion: Motion, shapers: dict[str, Shaper | None], centred: boo
     P = np.empty((m, ncol))
     V = np.empty((m, ncol))
     Acc = np.empty((m, ncol))
+    groups: dict[tuple, list[int]] = {}
     for col in range(ncol):
         amps, shifts = plan.get(col, _NONE)
-        P[:, col], V[:, col], Acc[:, col] = _eval_copies(motion, col, starts, mids, amps, shifts)
+        groups.setdefault((tuple(amps), tuple(shifts)), []).append(col)
+    for (amps, shifts), cols in groups.items():
+        P[:, cols], V[:, cols], Acc[:, cols] = _eval_copies(motion, cols, starts, mids, amps, shifts)
     idx = np.searchsorted(motion.t, mids, side="right") - 1
     inside = (idx >= 0) & (idx < motion.n_segments)
     j = np.clip(idx, 0, motion.n_segments - 1)
