@@ -1,0 +1,432 @@
+"""Klipper's ``calibrate_shaper`` choice, re-implemented from a PSD (the baseline users run today).
+
+This is the rule in ``Klipper3d/klipper:klippy/extras/shaper_calibrate.py`` (see
+``shared/reference/firmware.md`` §1.3), in two versions:
+
+- ``"head"`` (current Klipper): shapers with the current formulas (flavour ``"klipper"``), the
+  per-shaper choice accepts ``vibrs < 1.1·best + 0.0005``, and the cross-shaper choice has the later
+  extras (a per-frequency result with both fewer vibrations and less smoothing wins; a ``zv`` pick
+  is replaced by the first other shaper with 10 % fewer vibrations; ``max_vibrations``).
+- ``"0.13"`` (tag v0.13.0 and the 2021–2023 releases whose output users recorded): the closed-form
+  legacy shapers (flavour ``"klipper-legacy"``), ``vibrs < 1.1·best`` and the two original
+  cross-shaper clauses.
+
+Steps, per shaper in ``AUTOTUNE_SHAPERS`` order:
+
+1. PSD normalisation (unless already normalised): ``psd /= f + 0.1``; low-frequency noise
+   suppression — ``"exp"`` (psd × ``exp(1 − (10/(f+0.1))²)`` below 10 Hz; v0.13.0 and HEAD) or
+   ``"zero"`` (psd = 0 below 5 Hz; the 2021–2023 releases — pass ``lowfreq="zero"``). Both give the
+   recorded picks on the real files in ``shared/data/accel/klipper_psd``.
+2. Test frequencies ``np.arange(min_freq, 150, 0.2)`` scanned from high to low; each shaper built at
+   damping 0.1.
+3. Remaining vibration (fraction 0..1), pessimised over test damping ratios 0.075, 0.1, 0.15:
+   ``Σ max(H·psd − max(psd)/20, 0) / Σ max(psd − max(psd)/20, 0)`` with ``H`` the residual
+   vibration of the shaper on a damped oscillator.
+4. Smoothing (mm) at accel 5000 mm/s² and the square-corner velocity ``scv`` (mm/s); suggested
+   ``max_accel`` (mm/s²) = the largest acceleration keeping smoothing ≤ 0.12 mm. Klipper bisects to
+   1e-8; smoothing is affine in the acceleration, so this solves it exactly (same number to 1e-8).
+5. ``score = smoothing · (vibrs^1.5 + 0.2·vibrs + 0.01)``; per shaper the lowest-score frequency
+   whose vibrations are within 10 % of that shaper's best; across shapers a later shaper replaces the
+   pick if its score is 20 % lower, or 5 % lower with 10 % less smoothing.
+
+Entry point: :func:`recommend_klipper`. Amplitudes and times come from
+``ringtune.shaping.shapers.get_shaper`` (or an injected ``shaper_factory``).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable, Sequence
+
+import numpy as np
+
+from ringtune.shaping.errors import RingtuneError
+
+VERSIONS = ("head", "0.13")
+VERSION_FLAVOR = {"head": "klipper", "0.13": "klipper-legacy"}
+#: low-frequency noise suppression used by each version (see module docstring)
+VERSION_LOWFREQ = {"head": "exp", "0.13": "exp"}
+
+AUTOTUNE_SHAPERS = ("zv", "mzv", "ei", "2hump_ei", "3hump_ei")
+#: shaper -> lowest test frequency, Hz (Klipper's ``min_freq``, "projected max_accel ~= 1500")
+SHAPER_MIN_FREQ = {"zv": 21.0, "mzv": 23.0, "zvd": 29.0, "ei": 29.0, "2hump_ei": 39.0, "3hump_ei": 48.0}
+TEST_DAMPING_RATIOS = (0.075, 0.1, 0.15)
+DEFAULT_DAMPING_RATIO = 0.1
+SHAPER_VIBRATION_REDUCTION = 20.0
+MIN_FREQ = 5.0            # Hz, below this (or 2× this) the PSD is noise
+MAX_FREQ = 200.0          # Hz, PSD bins used up to here (or the highest test frequency)
+MAX_SHAPER_FREQ = 150.0   # Hz, test frequencies stop below this
+FREQ_STEP = 0.2           # Hz
+TARGET_SMOOTHING = 0.12   # mm, for the suggested max_accel
+SMOOTHING_ACCEL = 5000.0  # mm/s², the acceleration smoothing is quoted at
+
+#: (name, freq Hz, damping) -> (amplitudes, times s); amplitudes need not be normalised
+ShaperFactory = Callable[[str, float, float], tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass(frozen=True)
+class ShaperFit:
+    """Klipper's fitted result for one shaper type.
+
+    Attributes: name; freq (Hz); vibrs (remaining vibrations, fraction 0..1); smoothing (mm at
+    5000 mm/s² and the scv used); score (Klipper's, dimensionless×mm); max_accel (mm/s², unrounded).
+    """
+
+    name: str
+    freq: float
+    vibrs: float
+    smoothing: float
+    score: float
+    max_accel: float
+
+    @property
+    def max_accel_rounded(self) -> float:
+        """The suggested max_accel as Klipper prints it: rounded to 100 mm/s²."""
+        return float(round(self.max_accel / 100.0) * 100.0)
+
+    def lines(self) -> list[str]:
+        """The two console lines Klipper prints for this shaper."""
+        return [
+            "Fitted shaper '%s' frequency = %.1f Hz (vibrations = %.1f%%, smoothing ~= %.3f)"
+            % (self.name, self.freq, self.vibrs * 100.0, self.smoothing),
+            "To avoid too much smoothing with '%s', suggested max_accel <= %.0f mm/sec^2"
+            % (self.name, self.max_accel_rounded),
+        ]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"shaper": self.name, "freq": round(float(self.freq), 1), "vibrations_pct": 100.0 * self.vibrs,
+                "smoothing": self.smoothing, "score": self.score, "max_accel": self.max_accel,
+                "max_accel_rounded": self.max_accel_rounded}
+
+
+@dataclass
+class KlipperRecommendation:
+    """The pick (``best``) and the per-shaper table (``shapers``, AUTOTUNE order)."""
+
+    best: ShaperFit
+    shapers: list[ShaperFit]
+    version: str
+    scv: float
+    all_results: dict[str, list[ShaperFit]] = field(default_factory=dict, repr=False)
+
+    def lines(self) -> list[str]:
+        out = [line for s in self.shapers for line in s.lines()]
+        out.append("Recommended shaper is %s @ %.1f Hz" % (self.best.name, self.best.freq))
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"version": self.version, "scv": self.scv, "shaper": self.best.name,
+                "freq": round(float(self.best.freq), 1), "max_accel": self.best.max_accel_rounded,
+                "shapers": [s.to_dict() for s in self.shapers]}
+
+
+# -- the pieces -----------------------------------------------------------------------------------
+
+def normalize_psd(freqs: np.ndarray, psd: np.ndarray, lowfreq: str = "exp") -> np.ndarray:
+    """Klipper's ``normalize_to_frequencies`` on one PSD column (returns a new array).
+
+    ``psd / (f + 0.1)``; then ``lowfreq="zero"`` zeroes bins below 5 Hz, ``"exp"`` multiplies bins
+    below 10 Hz by ``exp(1 − (10/(f+0.1))²)``.
+    """
+    freqs = np.asarray(freqs, dtype=float)
+    out = np.asarray(psd, dtype=float) / (freqs + 0.1)
+    if lowfreq == "zero":
+        out[freqs < MIN_FREQ] = 0.0
+    elif lowfreq == "exp":
+        low = freqs < 2.0 * MIN_FREQ
+        out[low] *= np.exp(-((2.0 * MIN_FREQ / (freqs[low] + 0.1)) ** 2) + 1.0)
+    else:
+        raise RingtuneError(f"low-frequency suppression must be 'zero' or 'exp', not {lowfreq!r}", "normalize_psd")
+    return out
+
+
+def shaper_response(amps: np.ndarray, times: np.ndarray, freqs: np.ndarray, damping: float) -> np.ndarray:
+    """Klipper's ``_estimate_shaper``: residual vibration (fraction) of a damped oscillator at
+    ``freqs`` (Hz) with damping ratio ``damping`` after the impulse train (amps, times in s)."""
+    a = np.asarray(amps, dtype=float)
+    t = np.asarray(times, dtype=float)
+    omega = 2.0 * math.pi * np.asarray(freqs, dtype=float)
+    omega_d = omega * math.sqrt(1.0 - damping ** 2)
+    w = a * np.exp(np.outer(-damping * omega, t[-1] - t))
+    phase = np.outer(omega_d, t)
+    s = (w * np.sin(phase)).sum(axis=1)
+    c = (w * np.cos(phase)).sum(axis=1)
+    return np.sqrt(s * s + c * c) / a.sum()
+
+
+def remaining_vibrations(amps, times, freqs, psd, damping: float) -> float:
+    """Klipper's ``_estimate_remaining_vibrations`` (fraction 0..1) for one test damping ratio."""
+    vals = shaper_response(amps, times, freqs, damping)
+    thr = psd.max() / SHAPER_VIBRATION_REDUCTION
+    return float(np.maximum(vals * psd - thr, 0.0).sum() / np.maximum(psd - thr, 0.0).sum())
+
+
+def _smoothing_terms(amps, times, scv: float) -> tuple[float, float, float, float]:
+    """Smoothing as affine functions of accel: o90 = c90 + k90·accel, o180 = k180·accel (mm)."""
+    a = np.asarray(amps, dtype=float)
+    t = np.asarray(times, dtype=float)
+    inv_d = 1.0 / a.sum()
+    ts = float((a * t).sum() * inv_d)
+    d = t - ts
+    late = t >= ts
+    c90 = math.sqrt(2.0) * inv_d * scv * float((a[late] * d[late]).sum())
+    k90 = math.sqrt(2.0) * inv_d * 0.5 * float((a[late] * d[late] ** 2).sum())
+    k180 = inv_d * 0.5 * float((a * d * d).sum())
+    return c90, k90, 0.0, k180
+
+
+def _smoothing_terms_rows(amps: np.ndarray, times: np.ndarray, scv: float):
+    """:func:`_smoothing_terms` for a stack of shapers (rows): arrays c90, k90, k180."""
+    inv_d = 1.0 / amps.sum(axis=1)
+    ts = (amps * times).sum(axis=1) * inv_d
+    d = times - ts[:, None]
+    late = times >= ts[:, None]
+    c90 = math.sqrt(2.0) * inv_d * scv * np.where(late, amps * d, 0.0).sum(axis=1)
+    k90 = math.sqrt(2.0) * inv_d * 0.5 * np.where(late, amps * d * d, 0.0).sum(axis=1)
+    k180 = inv_d * 0.5 * (amps * d * d).sum(axis=1)
+    return c90, k90, k180
+
+
+def _max_accel_rows(c90, k90, k180, target: float) -> np.ndarray:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a90 = np.where(k90 > 0, (target - c90) / k90, np.inf)
+        a180 = np.where(k180 > 0, target / k180, np.inf)
+    return np.where(c90 > target, 0.0, np.minimum(a90, a180))
+
+
+def _response_rows(amps: np.ndarray, times: np.ndarray, freqs: np.ndarray, damping: float) -> np.ndarray:
+    """:func:`shaper_response` for a stack of shapers: (n_shapers, n_freqs)."""
+    omega = 2.0 * math.pi * freqs
+    omega_d = omega * math.sqrt(1.0 - damping ** 2)
+    # |Σ A_i e^{-ζω(T_n - T_i)} e^{jω_d T_i}| as one complex exponential per pulse
+    expo = (-damping * omega)[None, :, None] * (times[:, -1:] - times)[:, None, :] \
+        + 1j * omega_d[None, :, None] * times[:, None, :]
+    z = (amps[:, None, :] * np.exp(expo)).sum(axis=2)
+    s, c = z.imag, z.real
+    return np.sqrt(s * s + c * c) / amps.sum(axis=1)[:, None]
+
+
+def shaper_smoothing(amps, times, accel: float = SMOOTHING_ACCEL, scv: float = 5.0) -> float:
+    """Klipper's ``_get_shaper_smoothing`` (mm): worst offset of a 90° or 180° turn."""
+    c90, k90, c180, k180 = _smoothing_terms(amps, times, scv)
+    return max(c90 + k90 * accel, c180 + k180 * accel)
+
+
+def shaper_max_accel(amps, times, scv: float = 5.0, target: float = TARGET_SMOOTHING) -> float:
+    """Largest accel (mm/s²) with smoothing ≤ ``target`` mm (Klipper's bisection, solved exactly).
+
+    0 when even a standstill turn at ``scv`` smooths more than ``target`` (Klipper HEAD's guard).
+    """
+    c90, k90, c180, k180 = _smoothing_terms(amps, times, scv)
+    limits = []
+    for c, k in ((c90, k90), (c180, k180)):
+        if c > target:
+            return 0.0
+        limits.append((target - c) / k if k > 0 else math.inf)
+    return float(min(limits))
+
+
+def default_shaper_factory(flavor: str) -> ShaperFactory:
+    """Amplitudes and times from ``ringtune.shaping.shapers.get_shaper`` in ``flavor``."""
+    from ringtune.shaping.shapers import get_shaper
+
+    def make(name: str, freq: float, damping: float) -> tuple[np.ndarray, np.ndarray]:
+        s = get_shaper(name, float(freq), damping, flavor=flavor)
+        return np.asarray(s.amplitudes, dtype=float), np.asarray(s.times, dtype=float)
+
+    return make
+
+
+# -- the rule -------------------------------------------------------------------------------------
+
+@dataclass
+class _Dataset:
+    freqs: np.ndarray
+    psd: np.ndarray        # normalised psd_sum
+
+
+def _as_dataset(obj: Any, lowfreq: str, where: str) -> _Dataset:
+    """A PSD object (``.freqs``, ``.psd_sum``) or a ``(freqs, psd_sum)`` pair -> normalised dataset."""
+    if isinstance(obj, (tuple, list)) and len(obj) == 2:
+        freqs, psd, normalised = obj[0], obj[1], False
+    elif hasattr(obj, "freqs") and hasattr(obj, "psd_sum"):
+        freqs, psd = obj.freqs, obj.psd_sum
+        normalised = bool(getattr(obj, "normalized", False) or getattr(obj, "normalised", False))
+    else:
+        raise RingtuneError("expected a PSD (freqs, psd_sum) to fit shapers to", where)
+    freqs = np.asarray(freqs, dtype=float)
+    psd = np.asarray(psd, dtype=float)
+    if freqs.ndim != 1 or freqs.shape != psd.shape or freqs.size < 4:
+        raise RingtuneError(f"PSD needs matching 1-D freqs and psd columns (got {freqs.shape}, {psd.shape})",
+                            where)
+    if not (np.all(np.isfinite(freqs)) and np.all(np.isfinite(psd))) or np.any(psd < 0):
+        raise RingtuneError("PSD has non-finite or negative values", where)
+    if not normalised:
+        psd = normalize_psd(freqs, psd, lowfreq)
+    return _Dataset(freqs, psd)
+
+
+def fit_shaper(name: str, datasets: Sequence[_Dataset], factory: ShaperFactory, *, version: str = "head",
+               scv: float = 5.0, damping_ratio: float = DEFAULT_DAMPING_RATIO,
+               test_damping_ratios: Sequence[float] = TEST_DAMPING_RATIOS,
+               freq_range: tuple[float | None, float | None, float | None] = (None, None, None),
+               max_freq: float | None = None, max_smoothing: float | None = None,
+               max_vibrations: float | None = None) -> tuple[ShaperFit, list[ShaperFit]]:
+    """Klipper's ``fit_shaper`` for one shaper type: (selected result, results high -> low freq)."""
+    f_end = freq_range[1] or MAX_SHAPER_FREQ
+    f_start = min(freq_range[0] or SHAPER_MIN_FREQ[_base(name)], f_end - 1e-7)
+    test_freqs = np.arange(f_start, f_end, freq_range[2] or FREQ_STEP)
+    max_freq = max(max_freq or MAX_FREQ, float(test_freqs.max()))
+    cut = [(d.freqs[d.freqs <= max_freq], d.psd[d.freqs <= max_freq]) for d in datasets]
+
+    freqs_desc = test_freqs[::-1]
+    built = [factory(name, float(f), damping_ratio) for f in freqs_desc]
+    amps = np.stack([np.asarray(b[0], dtype=float) for b in built])
+    times = np.stack([np.asarray(b[1], dtype=float) for b in built])
+    c90, k90, k180 = _smoothing_terms_rows(amps, times, scv)
+    smoothing = np.maximum(c90 + k90 * SMOOTHING_ACCEL, k180 * SMOOTHING_ACCEL)
+    if max_smoothing:
+        over = np.nonzero(smoothing[1:] > max_smoothing)[0]   # Klipper stops once a result exists
+        if over.size:
+            keep = over[0] + 1
+            freqs_desc, amps, times, smoothing = freqs_desc[:keep], amps[:keep], times[:keep], smoothing[:keep]
+            c90, k90, k180 = c90[:keep], k90[:keep], k180[:keep]
+    vibrs = np.zeros(len(freqs_desc))
+    for freqs, psd in cut:
+        thr = psd.max() / SHAPER_VIBRATION_REDUCTION
+        total = np.maximum(psd - thr, 0.0).sum()
+        for dr in test_damping_ratios:
+            vals = _response_rows(amps, times, freqs, dr)
+            vibrs = np.maximum(vibrs, np.maximum(vals * psd - thr, 0.0).sum(axis=1) / total)
+    scores = smoothing * (vibrs ** 1.5 + vibrs * 0.2 + 0.01)
+    max_accels = _max_accel_rows(c90, k90, k180, TARGET_SMOOTHING)
+
+    best: ShaperFit | None = None
+    results: list[ShaperFit] = []
+    for i, freq in enumerate(freqs_desc):
+        res = ShaperFit(name, float(freq), float(vibrs[i]), float(smoothing[i]), float(scores[i]),
+                        float(max_accels[i]))
+        results.append(res)
+        if best is None or best.vibrs > res.vibrs:
+            best = res
+    selected = best
+    for res in results[::-1]:
+        if version == "head":
+            ok = res.vibrs < best.vibrs * 1.1 + 0.0005 and (
+                res.score < selected.score or (max_vibrations is not None and best.vibrs > max_vibrations))
+        else:
+            ok = res.vibrs < best.vibrs * 1.1 and res.score < selected.score
+        if ok:
+            selected = res
+    return selected, results
+
+
+def recommend_klipper(psds: Any, version: str = "head", scv: float = 5.0, *,
+                      shapers: Iterable[str] = AUTOTUNE_SHAPERS, damping_ratio: float | None = None,
+                      test_damping_ratios: Sequence[float] | None = None,
+                      freq_range: tuple[float | None, float | None, float | None] = (None, None, None),
+                      max_freq: float | None = None, max_smoothing: float | None = None,
+                      max_vibrations: float | None = None, lowfreq: str | None = None,
+                      shaper_factory: ShaperFactory | None = None) -> KlipperRecommendation:
+    """Klipper's ``find_best_shaper`` on one axis's PSD(s).
+
+    Args:
+        psds: a PSD (``.freqs`` Hz, ``.psd_sum``), a ``(freqs, psd_sum)`` pair, or a list of them
+            (several measurements of one axis: HEAD pessimises over them; 0.13 averages them).
+            Raw PSDs (as TEST_RESONANCES writes them) are normalised here; objects with
+            ``normalized=True`` are not.
+        version: ``"head"`` or ``"0.13"``.
+        scv: square-corner velocity, mm/s (smoothing and max_accel).
+        max_vibrations: fraction (HEAD only; Klipper's ``--max_vibrs_pcnt`` / 100).
+        lowfreq: override the version's low-frequency suppression (``"zero"`` or ``"exp"``).
+        shaper_factory: ``(name, freq, damping) -> (amps, times)``; default get_shaper in the
+            version's flavour.
+    """
+    if version not in VERSIONS:
+        raise RingtuneError(f"Klipper version must be one of {', '.join(VERSIONS)}, not {version!r}",
+                            "--klipper-version")
+    if not (isinstance(scv, (int, float)) and math.isfinite(scv) and scv >= 0):
+        raise RingtuneError(f"square-corner velocity must be ≥ 0 mm/s, not {scv!r}", "--scv")
+    lowfreq = lowfreq or VERSION_LOWFREQ[version]
+    items = list(psds) if isinstance(psds, list) else [psds]
+    if not items:
+        raise RingtuneError("no PSD given", "recommend_klipper")
+    datasets = [_as_dataset(p, lowfreq, getattr(p, "source", None) or f"PSD {i + 1}") for i, p in enumerate(items)]
+    if version == "0.13" and len(datasets) > 1:
+        datasets = [_average(datasets)]
+    factory = shaper_factory or default_shaper_factory(VERSION_FLAVOR[version])
+    names = [_check_shaper_name(n) for n in shapers]
+    kw = dict(version=version, scv=scv, damping_ratio=damping_ratio or DEFAULT_DAMPING_RATIO,
+              test_damping_ratios=tuple(test_damping_ratios or TEST_DAMPING_RATIOS), freq_range=freq_range,
+              max_freq=max_freq, max_smoothing=max_smoothing,
+              max_vibrations=max_vibrations if version == "head" else None)
+
+    best: ShaperFit | None = None
+    table: list[ShaperFit] = []
+    all_results: dict[str, list[ShaperFit]] = {}
+    for name in names:
+        shaper, results = fit_shaper(name, datasets, factory, **kw)
+        all_results[name] = results
+        mv = kw["max_vibrations"]
+        if (best is None or shaper.score * 1.2 < best.score
+                or (shaper.score * 1.05 < best.score and shaper.smoothing * 1.1 < best.smoothing)
+                or (version == "head" and mv is not None and best.vibrs > mv and shaper.vibrs < best.vibrs)):
+            best = shaper
+        if version == "head":
+            for res in results[::-1]:
+                if res.vibrs < best.vibrs and res.smoothing < best.smoothing:
+                    best = shaper = res
+        table.append(shaper)
+    if version == "head" and best.name == "zv":
+        for s in table:
+            if s.name != "zv" and s.vibrs * 1.1 < best.vibrs:
+                best = s
+                break
+    return KlipperRecommendation(best=best, shapers=table, version=version, scv=float(scv), all_results=all_results)
+
+
+def _average(datasets: list[_Dataset]) -> _Dataset:
+    """Old Klipper's ``add_data``: the mean PSD on the first dataset's bins (others interpolated)."""
+    base = datasets[0]
+    total = base.psd.copy()
+    for d in datasets[1:]:
+        total += np.interp(base.freqs, d.freqs, d.psd)
+    return _Dataset(base.freqs, total / len(datasets))
+
+
+_SHAPER_RE = re.compile(r"^\s*(\w+)\s*(\(.*\))?\s*$")
+
+
+def _base(name: str) -> str:
+    m = _SHAPER_RE.match(str(name))
+    return m.group(1).lower() if m else str(name)
+
+
+def _check_shaper_name(name: str) -> str:
+    m = _SHAPER_RE.match(str(name))
+    base = m.group(1).lower() if m else str(name)
+    if base not in SHAPER_MIN_FREQ:
+        raise RingtuneError(f"unknown shaper {name!r}; Klipper's rule fits {', '.join(SHAPER_MIN_FREQ)}",
+                            "--shapers")
+    return str(name).strip().lower() if m and m.group(2) else base
+
+
+def axis_config(fits: dict[str, KlipperRecommendation], firmware: str = "klipper") -> dict[str, Any]:
+    """TuneConfig fields for Klipper's picks per axis (``{"x": rec, "y": rec}``; missing axis: off).
+
+    ``accel`` is the lower of the axes' suggested max_accel, rounded as Klipper prints it.
+    """
+    d: dict[str, Any] = {"firmware": firmware}
+    accels = []
+    for ax in ("x", "y"):
+        rec = fits.get(ax)
+        if rec is None:
+            d.update({f"shaper_{ax}": "none", f"freq_{ax}": 0.0, f"damping_{ax}": DEFAULT_DAMPING_RATIO})
+            continue
+        d.update({f"shaper_{ax}": rec.best.name, f"freq_{ax}": round(float(rec.best.freq), 1),
+                  f"damping_{ax}": DEFAULT_DAMPING_RATIO})
+        accels.append(rec.best.max_accel_rounded)
+    d["accel"] = min(accels) if accels and min(accels) > 0 else None
+    return d

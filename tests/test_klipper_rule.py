@@ -1,0 +1,188 @@
+"""Klipper's calibrate_shaper rule (agents.klipper_rule) against the real data and Klipper's numbers.
+
+Truth used here: the picks the data owners recorded (shared/data/accel/SOURCES.md), the complete
+console output recorded with one of the files (bassco/klipper-configs ender3/README.md), the worked
+smoothing / max_accel table in shared/reference/firmware.md §1.6, and Klipper's bisection.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ringtune.agents import klipper_rule as kr
+from ringtune.hardware.accel import read_resonances_csv
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.analysis import smoothing as shapers_smoothing
+from ringtune.shaping.shapers import get_shaper
+
+# shared/data/accel/SOURCES.md, "What Klipper recommended when the data was taken"
+RECORDED = {
+    "bassco_ender3/resonances_x_20210821_152037.csv": ("ei", 51.2),
+    "bassco_ender3/resonances_y_20210630_230110.csv": ("mzv", 46.2),
+    "bassco_switchwire/resonances_x_20211024_204517.csv": ("2hump_ei", 61.4),
+    "bassco_switchwire/resonances_y_20211024_200336.csv": ("mzv", 34.8),
+    "bassco_voron_v0/resonances_x_20220703_144605.csv": ("mzv", 123.6),
+    "bassco_voron_v0/resonances_y_20220703_143119.csv": ("mzv", 82.6),
+    "ottoglass_rext3d_cr10s_pro/resonances_y_20230423_110656.csv": ("mzv", 37.0),
+}
+HARD_CASE = "ottoglass_unspecified/resonances_x_20240420_042935.csv"
+
+# The full console output recorded for resonances_y_20210630_230110.csv (Klipper of June 2021),
+# bassco/klipper-configs ender3/README.md ("Tightented the Y-Axis belt and re-run the test").
+ENDER3_Y_RECORDED = """\
+Fitted shaper 'zv' frequency = 48.2 Hz (vibrations = 2.8%, smoothing ~= 0.072)
+To avoid too much smoothing with 'zv', suggested max_accel <= 9100 mm/sec^2
+Fitted shaper 'mzv' frequency = 46.2 Hz (vibrations = 0.0%, smoothing ~= 0.095)
+To avoid too much smoothing with 'mzv', suggested max_accel <= 6300 mm/sec^2
+Fitted shaper 'ei' frequency = 56.2 Hz (vibrations = 0.0%, smoothing ~= 0.102)
+To avoid too much smoothing with 'ei', suggested max_accel <= 5900 mm/sec^2
+Fitted shaper '2hump_ei' frequency = 71.6 Hz (vibrations = 0.0%, smoothing ~= 0.105)
+To avoid too much smoothing with '2hump_ei', suggested max_accel <= 5700 mm/sec^2
+Fitted shaper '3hump_ei' frequency = 88.0 Hz (vibrations = 0.0%, smoothing ~= 0.106)
+To avoid too much smoothing with '3hump_ei', suggested max_accel <= 5700 mm/sec^2
+Recommended shaper is mzv @ 46.2 Hz"""
+
+
+def _psd_dir(data_dir: Path) -> Path:
+    d = data_dir / "accel" / "klipper_psd"
+    if not d.is_dir():
+        pytest.skip(f"{d} is not present")
+    return d
+
+
+@lru_cache(maxsize=None)
+def _rec(path: str, version: str, lowfreq: str | None = None) -> kr.KlipperRecommendation:
+    return kr.recommend_klipper(read_resonances_csv(path), version=version, lowfreq=lowfreq)
+
+
+ALL_FILES = sorted(set(RECORDED) | {HARD_CASE, "bassco_voron_v24/resonances_x_20230306_224517.csv",
+                                     "bassco_voron_v24/resonances_y_20230306_224919.csv"})
+
+
+@pytest.mark.parametrize("name", sorted(RECORDED))
+@pytest.mark.parametrize("lowfreq", [None, "zero"])
+def test_v013_rules_reproduce_recorded_pick(data_dir, name, lowfreq):
+    """Acceptance 1: same shaper and frequency (±0.2 Hz) as the recorded Klipper output, with the
+    v0.13 rules and both the v0.13.0 (exp) and the 2021–2023 (zero) low-frequency suppression."""
+    shaper, freq = RECORDED[name]
+    rec = _rec(str(_psd_dir(data_dir) / name), "0.13", lowfreq)
+    assert rec.best.name == shaper
+    assert abs(rec.best.freq - freq) <= 0.2 + 1e-9
+
+
+def test_v013_full_console_output_matches_recorded(data_dir):
+    rec = _rec(str(_psd_dir(data_dir) / "bassco_ender3/resonances_y_20210630_230110.csv"), "0.13")
+    assert "\n".join(rec.lines()) == ENDER3_Y_RECORDED
+
+
+@pytest.mark.parametrize("name", ALL_FILES)
+def test_head_rules_are_sensible(data_dir, name):
+    """HEAD rules on every file: an autotune shaper inside Klipper's test range, a positive
+    max_accel, and (except the documented hard case) the main PSD peak suppressed to ≤ 5 %
+    residual at every test damping with ≤ 3 % remaining vibrations; close to the v0.13 pick."""
+    path = _psd_dir(data_dir) / name
+    rec = _rec(str(path), "head")
+    old = _rec(str(path), "0.13")
+    best = rec.best
+    assert best.name in kr.AUTOTUNE_SHAPERS
+    assert kr.SHAPER_MIN_FREQ[best.name] - 1e-6 <= best.freq < kr.MAX_SHAPER_FREQ
+    assert best.max_accel > 0 and 0 <= best.vibrs < 1
+    assert [s.name for s in rec.shapers] == list(kr.AUTOTUNE_SHAPERS)
+    psd = read_resonances_csv(path)
+    norm = kr.normalize_psd(psd.freqs, psd.psd_sum, "exp")
+    peak = psd.freqs[np.argmax(norm)]
+    if name == HARD_CASE:
+        # SOURCES.md: no shaper gets the remaining vibrations under 3 % on this file
+        assert min(s.vibrs for s in rec.shapers) > 0.03
+        assert min(s.vibrs for s in old.shapers) > 0.03
+        return
+    sh = get_shaper(best.name, best.freq, 0.1, flavor="klipper")
+    resid = [kr.shaper_response(sh.amplitudes, sh.times, np.array([peak]), z)[0] for z in kr.TEST_DAMPING_RATIOS]
+    assert max(resid) <= 0.05
+    assert best.vibrs <= 0.03
+    assert abs(best.freq - old.best.freq) <= 0.06 * old.best.freq
+
+
+def test_smoothing_and_max_accel_match_reference_table():
+    """firmware.md §1.6 (f = 40 Hz, HEAD, accel 5000, scv 5): smoothing and unrounded max_accel."""
+    table = [("zv", 0.1, 0.1004, 6235), ("zv", 0.0, 0.0977, 6144), ("mzv", 0.1, 0.1273, 4713),
+             ("zvd", 0.1, 0.1924, 3118), ("ei", 0.1, 0.2059, 2914), ("2hump_ei", 0.1, 0.3539, 1570),
+             ("3hump_ei", 0.1, 0.5651, 874)]
+    for name, z, sm, acc in table:
+        s = get_shaper(name, 40.0, z, flavor="klipper")
+        assert kr.shaper_smoothing(s.amplitudes, s.times) == pytest.approx(sm, abs=6e-5)
+        assert kr.shaper_smoothing(s.amplitudes, s.times) == pytest.approx(shapers_smoothing(s), rel=1e-12)
+        assert kr.shaper_max_accel(s.amplitudes, s.times) == pytest.approx(acc, abs=1.0)
+
+
+def _klipper_bisect(func):
+    """Klipper's _bisect, literally (the closed form must agree with it)."""
+    left = right = 1.0
+    if not func(1e-9):
+        return 0.0
+    while not func(left):
+        right = left
+        left *= 0.5
+    if right == left:
+        while func(right):
+            right *= 2.0
+    while right - left > 1e-8:
+        middle = (left + right) * 0.5
+        if func(middle):
+            left = middle
+        else:
+            right = middle
+    return left
+
+
+@pytest.mark.parametrize("name,freq,scv", [("zv", 21.0, 5.0), ("mzv", 37.3, 5.0), ("ei", 80.0, 2.0),
+                                            ("2hump_ei", 55.0, 10.0), ("3hump_ei", 48.0, 5.0),
+                                            ("mzv", 20.0, 200.0)])
+def test_max_accel_equals_klippers_bisection(name, freq, scv):
+    s = get_shaper(name, freq, 0.1, flavor="klipper-legacy")
+    expect = _klipper_bisect(lambda a: kr.shaper_smoothing(s.amplitudes, s.times, a, scv) <= kr.TARGET_SMOOTHING)
+    assert kr.shaper_max_accel(s.amplitudes, s.times, scv) == pytest.approx(expect, abs=1e-6)
+
+
+def test_remaining_vibration_of_no_shaping_is_one_and_zv_kills_its_own_frequency():
+    freqs = np.arange(0.0, 200.0, 1.5)
+    psd = np.exp(-0.5 * ((freqs - 50.0) / 3.0) ** 2) + 1e-4
+    none = (np.array([1.0]), np.array([0.0]))
+    assert kr.remaining_vibrations(*none, freqs, psd, 0.1) == pytest.approx(1.0)
+    zv = get_shaper("zv", 50.0, 0.1, flavor="klipper")
+    # analytic: ZV tuned to the mode's own damping leaves zero residual at its frequency
+    fd = np.array([50.0])
+    assert kr.shaper_response(zv.amplitudes, zv.times, fd, 0.1)[0] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_synthetic_single_mode_is_found():
+    """A single clean resonance at 47 Hz: MZV's pick brackets the mode within Klipper's tolerance."""
+    freqs = np.round(np.arange(0.0, 200.0, 1.5625), 1)
+    psd = 1e4 * (freqs + 0.1) / ((1 - (freqs / 47.0) ** 2) ** 2 + (2 * 0.06 * freqs / 47.0) ** 2) + 10.0
+    for version in kr.VERSIONS:
+        rec = kr.recommend_klipper((freqs, psd), version=version)
+        mzv = next(s for s in rec.shapers if s.name == "mzv")
+        assert abs(mzv.freq - 47.0) < 0.08 * 47.0
+        assert rec.best.vibrs < 0.02
+
+
+def test_head_multiple_datasets_pessimise(data_dir):
+    path = _psd_dir(data_dir) / "bassco_ender3/resonances_y_20210630_230110.csv"
+    p = read_resonances_csv(path)
+    one = kr.recommend_klipper(p, version="head", shapers=["mzv"])
+    two = kr.recommend_klipper([p, p], version="head", shapers=["mzv"])
+    assert (two.best.freq, two.best.vibrs) == (one.best.freq, one.best.vibrs)
+
+
+def test_bad_input_is_a_ringtune_error():
+    with pytest.raises(RingtuneError, match="--klipper-version"):
+        kr.recommend_klipper((np.arange(10.0), np.ones(10)), version="0.12")
+    with pytest.raises(RingtuneError, match="unknown shaper"):
+        kr.recommend_klipper((np.arange(10.0), np.ones(10)), shapers=["bogus"])
+    with pytest.raises(RingtuneError, match="non-finite"):
+        kr.recommend_klipper((np.arange(10.0), np.full(10, math.nan)))
