@@ -1,0 +1,407 @@
+"""Gymnasium environments: choose an input-shaping configuration for a (simulated) printer.
+
+Registered ids (see ``ringtune.envs``): ``ringtune/Tune-v0`` (a new random printer every episode)
+and ``ringtune/TuneFixed-v0`` (one fixed printer, default the embedded Ender-3-class machine).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from ringtune.envs.evaluate import evaluate, planned_job, resolve_printer
+from ringtune.envs.metrics import Metrics
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+
+DEFAULT_WEIGHTS = {"time": 1.0, "path_error": 2.0, "overshoot": 5.0, "ringing": 20.0}
+#: scales s in the squashing m / (m + s) of the observed metrics
+METRIC_SCALES = {"time_ratio": 1.0, "path_error_mm": 0.1, "overshoot_mm": 0.1, "ringing_mm": 0.02}
+
+
+# -- the action encoding -------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ActionSpec:
+    """How a normalised action in [-1, 1]^n maps to a :class:`TuneConfig` (see :func:`decode_action`).
+
+    Attributes:
+        firmware: target firmware (decides the shaper flavour, centred or causal).
+        shapers: shaper types the action chooses among (``"none"`` allowed).
+        per_axis: separate type, F, S for X and Y (else one set shared by both axes).
+        freq_range: Hz, shaper frequency range (log scale).
+        damping_range: shaper damping ratio range (linear; clipped to what the shaper allows).
+        freq_limit_max: Hz, top of the frequency-limit range; ``freq_limit_off`` Hz and below = off.
+        tune_accel: whether the last action entry chooses the acceleration.
+        accel_range: mm/s², acceleration range (log scale) when ``tune_accel``.
+    """
+
+    firmware: str = "klipper"
+    shapers: tuple[str, ...] = ("none", "zv", "mzv", "zvd", "ei", "2hump_ei", "3hump_ei")
+    per_axis: bool = True
+    freq_range: tuple[float, float] = (15.0, 150.0)
+    damping_range: tuple[float, float] = (0.02, 0.25)
+    freq_limit_max: float = 120.0
+    freq_limit_off: float = 10.0
+    tune_accel: bool = False
+    accel_range: tuple[float, float] = (1000.0, 10000.0)
+
+    @property
+    def size(self) -> int:
+        return (6 if self.per_axis else 3) + 1 + (1 if self.tune_accel else 0)
+
+    def labels(self) -> list[str]:
+        axis = (["shaper_x", "freq_x", "damping_x", "shaper_y", "freq_y", "damping_y"] if self.per_axis
+                else ["shaper", "freq", "damping"])
+        return axis + ["freq_limit_hz"] + (["accel"] if self.tune_accel else [])
+
+
+def _unit(u: float) -> float:
+    """[-1, 1] -> [0, 1] (clipped)."""
+    return (min(max(float(u), -1.0), 1.0) + 1.0) / 2.0
+
+
+def decode_action(action, spec: ActionSpec) -> TuneConfig:
+    """The configuration an action in [-1, 1]^spec.size stands for.
+
+    Per axis (or shared) triple ``(type, F, S)``: type = ``spec.shapers[k]`` with ``k`` the index
+    of the equal-width bin of [-1, 1] the value falls in; F = ``f_lo·(f_hi/f_lo)^u`` (log scale,
+    ``u`` = value mapped to [0, 1]); S = ``s_lo + u·(s_hi − s_lo)``, clipped to the shaper's largest
+    allowed damping. Then frequency limit ``u·freq_limit_max`` Hz, off (0) at or below
+    ``freq_limit_off``; and, with ``tune_accel``, acceleration ``a_lo·(a_hi/a_lo)^u`` mm/s².
+    Values outside [-1, 1] are clipped.
+    """
+    from ringtune.shaping.shapers import max_damping
+
+    a = np.asarray(action, dtype=float).ravel()
+    if a.shape != (spec.size,):
+        raise RingtuneError(f"action must have {spec.size} entries ({', '.join(spec.labels())}), "
+                            f"not shape {np.shape(action)}", "action")
+    flavor = TuneConfig(firmware=spec.firmware, shaper_x="none", shaper_y="none").flavor
+
+    def triple(i):
+        k = min(int(_unit(a[i]) * len(spec.shapers)), len(spec.shapers) - 1)
+        name = spec.shapers[k]
+        f_lo, f_hi = spec.freq_range
+        freq = f_lo * (f_hi / f_lo) ** _unit(a[i + 1])
+        s_lo, s_hi = spec.damping_range
+        damping = s_lo + _unit(a[i + 2]) * (s_hi - s_lo)
+        if name != "none":
+            damping = min(damping, max_damping(name, flavor))
+        return name, freq, damping
+
+    x = triple(0)
+    y = triple(3) if spec.per_axis else x
+    j = 6 if spec.per_axis else 3
+    limit = _unit(a[j]) * spec.freq_limit_max
+    accel = None
+    if spec.tune_accel:
+        lo, hi = spec.accel_range
+        accel = lo * (hi / lo) ** _unit(a[j + 1])
+    return TuneConfig(firmware=spec.firmware, shaper_x=x[0], freq_x=x[1], damping_x=x[2],
+                      shaper_y=y[0], freq_y=y[1], damping_y=y[2],
+                      freq_limit_hz=limit if limit > spec.freq_limit_off else 0.0, accel=accel)
+
+
+def encode_config(config: TuneConfig, spec: ActionSpec) -> np.ndarray:
+    """The action (centre of the shaper's bin) that decodes to ``config`` (up to clipping)."""
+    def back(u):
+        return 2.0 * min(max(u, 0.0), 1.0) - 1.0
+
+    def triple(ax):
+        name, freq, damping = config.axis(ax)
+        k = spec.shapers.index(name) if name in spec.shapers else 0
+        f_lo, f_hi = spec.freq_range
+        s_lo, s_hi = spec.damping_range
+        f = min(max(freq, f_lo), f_hi)
+        return [back((k + 0.5) / len(spec.shapers)), back(math.log(f / f_lo) / math.log(f_hi / f_lo)),
+                back((damping - s_lo) / (s_hi - s_lo))]
+
+    out = triple("x") + (triple("y") if spec.per_axis else [])
+    out.append(back(config.freq_limit_hz / spec.freq_limit_max) if config.freq_limit_hz > 0 else -1.0)
+    if spec.tune_accel:
+        lo, hi = spec.accel_range
+        acc = min(max(config.accel or lo, lo), hi)
+        out.append(back(math.log(acc / lo) / math.log(hi / lo)))
+    return np.asarray(out, dtype=np.float32)
+
+
+# -- random printers -------------------------------------------------------------------------------
+def random_printer_dict(rng: np.random.Generator, base: dict | None = None) -> dict:
+    """A printer description (TOML mapping) drawn from the randomisation ranges.
+
+    Per axis: primary mode 20–130 Hz (log-uniform), damping 0.02–0.2 (log-uniform); with
+    probability 1/2 one extra mode at 1.3–3× the primary carrying 5–30 % of the response; moving
+    mass 0.3–1.5 kg (X) / 0.5–2.5 kg (Y). Print mass 0–0.5 kg, motor force 15–60 N, kinematics
+    cartesian (3/4) or corexy with belt mismatch ±0.1. Limits are ``base``'s (so plans are shared).
+    """
+    def logu(lo, hi):
+        return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+    def axis(mass_lo, mass_hi):
+        f = logu(20.0, 130.0)
+        modes = [{"freq": f, "damping": logu(0.02, 0.2)}]
+        if rng.uniform() < 0.5:
+            share = float(rng.uniform(0.05, 0.3))
+            modes[0]["share"] = 1.0 - share
+            modes.append({"freq": f * float(rng.uniform(1.3, 3.0)), "damping": logu(0.02, 0.2),
+                          "share": share})
+        return {"mass": float(rng.uniform(mass_lo, mass_hi)), "modes": modes}
+
+    corexy = rng.uniform() < 0.25
+    d = {
+        "name": "random",
+        "kinematics": "corexy" if corexy else "cartesian",
+        "limits": dict((base or {}).get("limits", {})),
+        "x": axis(0.3, 1.5),
+        "y": axis(0.5, 2.5),
+        "print_mass": float(rng.uniform(0.0, 0.5)),
+        "motor": {"force": float(rng.uniform(15.0, 60.0))},
+    }
+    if corexy:
+        d["belts"] = {"mismatch": float(rng.uniform(-0.1, 0.1))}
+    return d
+
+
+# -- the environment ---------------------------------------------------------------------------------
+class TuneEnv(gym.Env):
+    """Choose an input-shaping configuration for a printer; one shot per episode.
+
+    ## Description
+    A printer (a fixed one, or a new random one each episode) is shown to the agent the way a
+    person tuning it sees it: the spectrum of a resonance test recorded by an accelerometer on the
+    toolhead, plus the current configuration and its metrics. The agent answers with a complete
+    configuration (shaper type, frequency F and damping S per axis, infill frequency limit,
+    optionally the acceleration). The configuration is evaluated by
+    :func:`ringtune.envs.evaluate.evaluate`: print time over the whole job from the planner,
+    quality from the MuJoCo printer on the job's sharpest corners and fastest zigzags.
+
+    ## Action Space
+    ``Box(-1, 1, (n,), float32)``, decoded by :func:`decode_action` with the env's
+    :class:`ActionSpec`; ``n`` = 7 per axis (type, F, S for X, then Y, then frequency limit) or 4
+    shared (type, F, S, frequency limit), +1 with ``tune_accel``.
+
+    | index | meaning (per_axis) | decoding |
+    |---|---|---|
+    | 0, 3 | shaper type X, Y | equal bins over ``spec.shapers`` |
+    | 1, 4 | F X, Y (Hz) | log scale over ``spec.freq_range`` |
+    | 2, 5 | S X, Y | linear over ``spec.damping_range`` |
+    | 6 | frequency limit (Hz) | linear 0–``freq_limit_max``, off at ≤ ``freq_limit_off`` |
+    | 7 | acceleration (mm/s², only with ``tune_accel``) | log scale over ``accel_range`` |
+
+    ## Observation Space
+    ``Box(-1, 1, (2·n_bins + n + 6,), float32)``:
+
+    | slice | meaning |
+    |---|---|
+    | ``[0, n_bins)`` | X resonance-test PSD, mean per bin of ``n_bins`` equal bins over ``spectrum_range`` Hz, ``1 + log10(psd/max)/3`` clipped to [-1, 1] (0 dB → 1, −60 dB → −1; X and Y share the max) |
+    | ``[n_bins, 2·n_bins)`` | the same for Y |
+    | next ``n`` | the current configuration, encoded as an action (:func:`encode_config`) |
+    | last 6 | its metrics squashed as ``m/(m+s)``: print time / baseline print time (s = 1), path error (s = 0.1 mm), overshoot (0.1 mm), ringing (0.02 mm), peak acceleration (s = the printer's accel), step loss (0/1) |
+
+    At reset the current configuration is ``options["config"]`` or shaping off with no frequency
+    limit; its metrics are evaluated when ``observe_metrics`` (else zeros). After the step they
+    are the chosen configuration and its metrics.
+
+    ## Rewards
+    ``r = −(w_time · T/T0 + w_path · path_error + w_over · overshoot + w_ring · ringing) −
+    step_loss_penalty · step_loss`` with ``T`` the print time (s), ``T0`` the print time of the
+    job at the printer's own acceleration without frequency limit, quality terms in mm and
+    ``weights`` = {"time", "path_error", "overshoot", "ringing"} (default :data:`DEFAULT_WEIGHTS`).
+    A configuration the firmware rejects (e.g. impulses colliding on its time grid) ends the
+    episode with reward ``−step_loss_penalty``.
+
+    ## Starting State
+    Fixed env: the given printer. Randomised env: :func:`random_printer_dict` drawn from
+    ``self.np_random``. The resonance test's noise also comes from ``self.np_random``, so a seeded
+    reset reproduces the episode exactly.
+
+    ## Episode End
+    One-shot: every ``step`` returns ``terminated=True`` (no truncation, no TimeLimit).
+
+    ## Arguments
+    ``gymnasium.make("ringtune/TuneFixed-v0", printer=None, job=None, ...)``:
+
+    | argument | default | meaning |
+    |---|---|---|
+    | ``printer`` | None | Printer, TOML path or embedded name (fixed env); None = default printer |
+    | ``randomize`` | False (True for Tune-v0) | draw a new printer every reset |
+    | ``job`` | None | G-code path/text or parsed job; None = built-in test print |
+    | ``firmware`` | "klipper" | target firmware (flavour of the shapers) |
+    | ``shapers`` | all of the firmware's | shaper types to choose among |
+    | ``per_axis`` | True | separate X/Y shaper settings |
+    | ``tune_accel`` | False | the action also sets the acceleration |
+    | ``weights`` | :data:`DEFAULT_WEIGHTS` | reward weights (missing keys take the default) |
+    | ``step_loss_penalty`` | 10.0 | subtracted when the motor loses steps |
+    | ``n_bins`` | 24 | spectrum bins per axis |
+    | ``spectrum_range`` | (10, 160) | Hz covered by the bins |
+    | ``observe_metrics`` | True | evaluate the starting configuration at reset (one more evaluation) |
+    | ``backend`` | "mujoco" | physics backend, "mujoco" or "lti" |
+    | ``render_mode`` | None | None or "rgb_array" (the spectra and the configuration as an image) |
+
+    ## Info
+    ``reset``: ``printer`` (name), ``baseline_print_time_s``. ``step``: also ``config``
+    (TuneConfig dict) and ``metrics`` (Metrics dict).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 1}
+
+    def __init__(self, printer=None, *, randomize: bool = False, job=None, firmware: str = "klipper",
+                 shapers: tuple[str, ...] | None = None, per_axis: bool = True, tune_accel: bool = False,
+                 weights: dict | None = None, step_loss_penalty: float = 10.0, n_bins: int = 24,
+                 spectrum_range: tuple[float, float] = (10.0, 160.0), observe_metrics: bool = True,
+                 backend: str = "mujoco", render_mode: str | None = None):
+        from ringtune.shaping.shapers import available_shapers
+
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise RingtuneError(f"render_mode must be None or 'rgb_array', not {render_mode!r}", "render_mode")
+        self.render_mode = render_mode
+        self.base_printer = resolve_printer(printer)
+        self.randomize = bool(randomize)
+        self.job = job
+        flavor = TuneConfig(firmware=firmware, shaper_x="none", shaper_y="none").flavor
+        have = [s for s in available_shapers(flavor) if s != "custom"]
+        if shapers is None:
+            shapers = tuple(have)
+        bad = [s for s in shapers if s not in have]
+        if bad:
+            raise RingtuneError(f"{firmware} offers no {', '.join(bad)} (available: {', '.join(have)})",
+                                "shapers")
+        self.spec_ = ActionSpec(firmware=firmware, shapers=tuple(shapers), per_axis=per_axis,
+                                tune_accel=tune_accel)
+        self.weights = {**DEFAULT_WEIGHTS, **(weights or {})}
+        unknown = set(self.weights) - set(DEFAULT_WEIGHTS)
+        if unknown:
+            raise RingtuneError(f"unknown reward weights {sorted(unknown)}; known: {sorted(DEFAULT_WEIGHTS)}",
+                                "weights")
+        self.step_loss_penalty = float(step_loss_penalty)
+        self.n_bins = int(n_bins)
+        self.spectrum_range = (float(spectrum_range[0]), float(spectrum_range[1]))
+        self.observe_metrics = bool(observe_metrics)
+        self.backend = backend
+        n = self.spec_.size
+        self.action_space = spaces.Box(-1.0, 1.0, (n,), np.float32)
+        self.observation_space = spaces.Box(-1.0, 1.0, (2 * self.n_bins + n + 6,), np.float32)
+        self.printer = self.base_printer
+        self._spectra = np.zeros(2 * self.n_bins, np.float32)
+        self._config_obs = np.zeros(n, np.float32)
+        self._metrics_obs = np.zeros(6, np.float32)
+        self._baseline = 1.0
+        self.config = TuneConfig(firmware=firmware, shaper_x="none", shaper_y="none")
+
+    # -- helpers ---------------------------------------------------------------------------------
+    def _spectrum(self) -> np.ndarray:
+        from ringtune.envs.sim import resonance_test
+
+        lo, hi = self.spectrum_range
+        edges = np.linspace(lo, hi, self.n_bins + 1)
+        binned = []
+        for axis in ("x", "y"):
+            freqs, psd = resonance_test(self.printer, axis, rng=self.np_random)
+            freqs, psd = np.asarray(freqs, float), np.asarray(psd, float)
+            idx = np.digitize(freqs, edges) - 1
+            ok = (idx >= 0) & (idx < self.n_bins)
+            total = np.bincount(idx[ok], weights=psd[ok], minlength=self.n_bins)
+            count = np.bincount(idx[ok], minlength=self.n_bins)
+            binned.append(total / np.maximum(count, 1))
+        b = np.concatenate(binned)
+        b = np.log10(np.maximum(b, 1e-300) / max(b.max(), 1e-300))
+        return np.clip(1.0 + b / 3.0, -1.0, 1.0).astype(np.float32)
+
+    def _metrics_vector(self, m: Metrics) -> np.ndarray:
+        def sq(v, s):
+            v = max(float(v), 0.0)
+            return v / (v + s)
+
+        return np.asarray([
+            sq(m.print_time_s / self._baseline, METRIC_SCALES["time_ratio"]),
+            sq(m.path_error_mm, METRIC_SCALES["path_error_mm"]),
+            sq(m.overshoot_mm, METRIC_SCALES["overshoot_mm"]),
+            sq(m.ringing_mm, METRIC_SCALES["ringing_mm"]),
+            sq(m.peak_accel, self.printer.limits.accel),
+            float(m.step_loss),
+        ], dtype=np.float32)
+
+    def _obs(self) -> np.ndarray:
+        return np.concatenate([self._spectra, self._config_obs, self._metrics_obs]).astype(np.float32)
+
+    def reward(self, m: Metrics) -> float:
+        """The reward of metrics ``m`` on the current printer (see the class docstring)."""
+        w = self.weights
+        cost = (w["time"] * m.print_time_s / self._baseline + w["path_error"] * m.path_error_mm
+                + w["overshoot"] * m.overshoot_mm + w["ringing"] * m.ringing_mm)
+        return float(-cost - (self.step_loss_penalty if m.step_loss else 0.0))
+
+    def evaluate(self, config: TuneConfig) -> Metrics:
+        return evaluate(config, self.printer, self.job, backend=self.backend)
+
+    # -- gymnasium API ---------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        from ringtune.envs.printer import printer_from_dict
+
+        if self.randomize:
+            d = random_printer_dict(self.np_random, self.base_printer.to_dict())
+            self.printer = printer_from_dict(d, "random printer")
+        else:
+            self.printer = self.base_printer
+        self._baseline = planned_job(self.printer, self.job, None).print_time
+        self._spectra = self._spectrum()
+        options = options or {}
+        start = options.get("config") or TuneConfig(firmware=self.spec_.firmware, shaper_x="none",
+                                                    shaper_y="none")
+        if isinstance(start, dict):
+            start = TuneConfig.from_dict(start, "options['config']")
+        self.config = start
+        self._config_obs = encode_config(start, self.spec_)
+        self._metrics_obs = (self._metrics_vector(self.evaluate(start)) if self.observe_metrics
+                             else np.zeros(6, np.float32))
+        return self._obs(), self._info()
+
+    def step(self, action):
+        config = decode_action(action, self.spec_)
+        info: dict[str, Any] = {}
+        try:
+            m = self.evaluate(config)
+            r = self.reward(m)
+            info["metrics"] = m.to_dict()
+            self._metrics_obs = self._metrics_vector(m)
+        except RingtuneError as exc:  # a configuration the firmware cannot run
+            r = -self.step_loss_penalty
+            info["error"] = str(exc)
+            self._metrics_obs = np.zeros(6, np.float32)
+        self.config = config
+        self._config_obs = encode_config(config, self.spec_)
+        info["config"] = config.to_dict()
+        return self._obs(), r, True, False, {**self._info(), **info}
+
+    def _info(self) -> dict:
+        return {"printer": self.printer.name, "baseline_print_time_s": self._baseline}
+
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        import matplotlib
+
+        matplotlib.use("Agg")
+        from matplotlib.figure import Figure
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+        fig = Figure(figsize=(4, 3), dpi=80)
+        canvas = FigureCanvasAgg(fig)
+        ax = fig.add_subplot()
+        lo, hi = self.spectrum_range
+        centres = lo + (np.arange(self.n_bins) + 0.5) * (hi - lo) / self.n_bins
+        ax.plot(centres, self._spectra[:self.n_bins], label="X")
+        ax.plot(centres, self._spectra[self.n_bins:], label="Y")
+        c = self.config
+        ax.set_title(f"{c.shaper_x} {c.freq_x:.0f} Hz / {c.shaper_y} {c.freq_y:.0f} Hz", fontsize=9)
+        ax.set_xlabel("frequency (Hz)")
+        ax.set_ylabel("PSD (1 + log10/3)")
+        ax.legend(fontsize=8)
+        canvas.draw()
+        return np.asarray(canvas.buffer_rgba())[:, :, :3].copy()
