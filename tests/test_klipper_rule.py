@@ -186,3 +186,39 @@ def test_bad_input_is_a_ringtune_error():
         kr.recommend_klipper((np.arange(10.0), np.ones(10)), shapers=["bogus"])
     with pytest.raises(RingtuneError, match="non-finite"):
         kr.recommend_klipper((np.arange(10.0), np.full(10, math.nan)))
+
+
+def test_recommend_cli_writes_tuneconfig_and_json(data_dir, tmp_path, capsys):
+    import json
+
+    from ringtune.agents.cli import main
+    from ringtune.shaping.config import TuneConfig
+
+    d = _psd_dir(data_dir)
+    out = tmp_path / "best.json"
+    rc = main(["recommend", "--json", "--klipper-version", "0.13", "-o", str(out), "--accel",
+               str(d / "bassco_ender3/resonances_x_20210821_152037.csv"),
+               str(d / "bassco_ender3/resonances_y_20210630_230110.csv")])
+    assert rc == 0
+    res = json.loads(capsys.readouterr().out)
+    cfg = TuneConfig.load(out)
+    assert (cfg.shaper_x, cfg.freq_x, cfg.shaper_y, cfg.freq_y) == ("ei", 51.2, "mzv", 46.2)
+    # max_accel: the lower of the two picks' rounded suggestions (ei 4900, mzv 6300 as recorded)
+    assert cfg.accel == 4900.0 and res["axes"]["y"]["max_accel"] == 6300.0
+    assert [s["shaper"] for s in res["axes"]["x"]["shapers"]] == list(kr.AUTOTUNE_SHAPERS)
+    # RepRapFirmware: one shaper and frequency for all axes, from the shapers RRF has
+    rc = main(["recommend", "--json", "--firmware", "rrf", "--accel",
+               str(d / "bassco_ender3/resonances_x_20210821_152037.csv")])
+    res = json.loads(capsys.readouterr().out)
+    assert rc == 0 and res["config"]["shaper_x"] == res["config"]["shaper_y"] in ("mzv", "2hump_ei", "3hump_ei")
+    assert res["config"]["freq_x"] == res["config"]["freq_y"]
+
+
+def test_recommend_cli_policy_without_training_is_one_clear_line(data_dir, capsys):
+    from ringtune.agents.cli import main
+
+    d = _psd_dir(data_dir)
+    rc = main(["recommend", "--method", "policy", "--accel",
+               str(d / "bassco_ender3/resonances_x_20210821_152037.csv")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "ringtune train" in err and "\n" not in err

@@ -1,0 +1,151 @@
+"""``ringtune recommend``: an instant configuration from a resonance test (Klipper's rule).
+
+``--json`` keys (stable):
+    method: "klipper" | "policy"
+    klipper_version: "head" | "0.13"
+    firmware: target firmware
+    axes: {"x": {...}, "y": {...}} per measured axis — version, scv, shaper, freq (Hz), max_accel
+        (mm/s², rounded as Klipper prints it) and "shapers": the per-shaper table (shaper, freq,
+        vibrations_pct, smoothing (mm), score, max_accel, max_accel_rounded)
+    sources: {"x": [files], "y": [files]} (or {"x": ["printer:<name>"], ...})
+    config: the TuneConfig written (dict)
+    output: path written, or null
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+from pathlib import Path
+
+NAME = "recommend"
+HELP = "instant shaper config from a resonance test (Klipper's calibrate_shaper rule)"
+DESCRIPTION = """\
+Recommend an input shaper from a resonance test, the way Klipper's calibrate_shaper does.
+
+--accel takes Klipper TEST_RESONANCES files (resonances_x_*.csv, resonances_y_*.csv), calibration
+CSVs, or raw accelerometer captures; the axis comes from the file name (resonances_<axis>_...) or,
+failing that, from the larger of its psd_x / psd_y columns (--axes overrides). Several files of one
+axis are fitted together. --printer runs the simulated resonance test of a modelled printer instead.
+
+--klipper-version head (default) uses current Klipper's formulas and rules; 0.13 the older ones
+(v0.13.0 and the releases of 2021-2023). --firmware aims the rule at another firmware's shapers
+(RepRapFirmware: one shaper and frequency for both axes, fitted on both PSDs). An axis without a
+measurement gets shaping off ("none") in the written config.
+
+--method policy (a trained PPO policy) needs a policy from `ringtune train`; it is not available
+until one has been trained.
+
+example:
+  ringtune recommend --accel resonances_x_20210821_152037.csv resonances_y_20210630_230110.csv \\
+      --klipper-version 0.13 -o best.json
+  ringtune export best.json --firmware klipper
+"""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--accel", nargs="+", metavar="CSV", help="Klipper resonance / raw accelerometer CSV files")
+    src.add_argument("--printer", metavar="P", help="printer TOML, or 'default', for a simulated resonance test")
+    p.add_argument("--method", choices=("klipper", "policy"), default="klipper",
+                   help="klipper: Klipper's calibrate_shaper rule (default); policy: a trained PPO policy")
+    p.add_argument("--klipper-version", choices=("head", "0.13"), default="head",
+                   help="Klipper's current rules (head, default) or the older v0.13 ones")
+    p.add_argument("--firmware", default="klipper", help="target firmware (klipper, rrf, rrf35, marlin, "
+                   "marlin-ftm, prusa); default klipper")
+    p.add_argument("--axes", metavar="A,B", help="axis of each --accel file in order, e.g. x,y")
+    p.add_argument("--scv", type=float, default=5.0, help="square-corner velocity for smoothing, mm/s "
+                   "(default 5; --printer uses the printer's)")
+    p.add_argument("--max-smoothing", type=float, default=None, help="Klipper's MAX_SMOOTHING, mm")
+    p.add_argument("--seed", type=int, default=0, help="seed of the simulated resonance test (--printer)")
+    p.add_argument("-o", "--output", metavar="best.json", help="write the TuneConfig here")
+
+
+def run(args: argparse.Namespace, out) -> int:
+    from ringtune.agents import klipper_rule as kr
+    from ringtune.shaping.config import TuneConfig
+    from ringtune.shaping.errors import RingtuneError
+
+    if args.method == "policy":
+        raise RingtuneError("needs a trained policy: run `ringtune train` first "
+                            "(the policy method is not available until then)", "--method policy")
+    if args.max_smoothing is not None and args.max_smoothing < 0.05:
+        raise RingtuneError("must be ≥ 0.05 mm (as Klipper's)", "--max-smoothing")
+    kw = {"max_smoothing": args.max_smoothing}
+    if args.accel:
+        psds, sources = _load_accel(args.accel, args.axes)
+        fits, fields = kr.recommend_axes(psds, args.firmware, args.klipper_version, args.scv, **kw)
+    else:
+        from ringtune.envs.evaluate import resolve_printer
+
+        printer = resolve_printer(None if args.printer in (None, "default") else args.printer)
+        try:
+            fits, fields = kr.recommend_for_printer(printer, args.firmware, args.klipper_version, args.seed, **kw)
+        except ImportError as exc:
+            raise RingtuneError(f"the simulated resonance test is not available ({exc})", "--printer") from None
+        sources = {ax: [f"printer:{getattr(printer, 'name', 'default')}"] for ax in ("x", "y")}
+    fields["extra"] = {"method": "klipper", "klipper_version": args.klipper_version,
+                       "sources": sources,
+                       "klipper": {ax: rec.to_dict() for ax, rec in fits.items()}}
+    extra = fields.pop("extra")
+    config = TuneConfig(**fields, extra=extra)
+    written = None
+    if args.output:
+        config.save(args.output)
+        written = str(args.output)
+
+    text = []
+    shown = set()
+    for ax in ("x", "y"):
+        rec = fits.get(ax)
+        if rec is None:
+            text.append(f"{ax.upper()}: not measured -> shaping off on {ax.upper()}")
+            continue
+        if id(rec) in shown:
+            text.append(f"{ax.upper()}: same as above (one shaper for all axes on {args.firmware})")
+            continue
+        shown.add(id(rec))
+        text.append(f"{ax.upper()} ({', '.join(sources.get(ax, []))}):")
+        text += ["  " + line for line in rec.lines()]
+    accel = f"{config.accel:.0f} mm/s^2" if config.accel else "unchanged"
+    text.append(f"config: {config.shaper_x} @ {config.freq_x:.1f} Hz (X), {config.shaper_y} @ "
+                f"{config.freq_y:.1f} Hz (Y), max_accel {accel}")
+    text.append(f"written to {written}" if written else "(use -o best.json to save it; then `ringtune export best.json`)")
+    out.emit({"method": "klipper", "klipper_version": args.klipper_version, "firmware": args.firmware,
+              "axes": {ax: rec.to_dict() for ax, rec in fits.items()}, "sources": sources,
+              "config": config.to_dict(), "output": written}, "\n".join(text))
+    return 0
+
+
+_AXIS_RE = re.compile(r"(?:resonances|calibration_data|raw_data)_([xy])_", re.IGNORECASE)
+
+
+def _load_accel(paths: list[str], axes_opt: str | None):
+    """{axis: [PSD, ...]} and {axis: [file, ...]} from the --accel files."""
+    import numpy as np
+
+    from ringtune.hardware.accel import read_accel, to_psd
+    from ringtune.shaping.errors import RingtuneError
+
+    axes = None
+    if axes_opt:
+        axes = [a.strip().lower() for a in axes_opt.split(",")]
+        if len(axes) != len(paths) or any(a not in ("x", "y") for a in axes):
+            raise RingtuneError(f"give one axis (x or y) per --accel file ({len(paths)} files)", "--axes")
+    psds: dict[str, list] = {}
+    sources: dict[str, list[str]] = {}
+    for i, path in enumerate(paths):
+        items = to_psd(read_accel(path))
+        if axes:
+            ax = axes[i]
+        else:
+            m = _AXIS_RE.search(Path(path).name)
+            if m:
+                ax = m.group(1).lower()
+            elif items[0].psd_x is not None and items[0].psd_y is not None:
+                ax = "x" if float(np.sum(items[0].psd_x)) >= float(np.sum(items[0].psd_y)) else "y"
+            else:
+                raise RingtuneError("cannot tell which axis this file measured; use --axes", str(path))
+        psds.setdefault(ax, []).extend(items)
+        sources.setdefault(ax, []).append(str(path))
+    return psds, sources
