@@ -234,6 +234,24 @@ def evaluate(config: TuneConfig, printer=None, job=None, backend: str = "mujoco"
 def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
                   settle: float = SETTLE, nthread: int | None = None) -> list[Metrics]:
     """:func:`evaluate` for many configs, all their windows simulated in one ``simulate_batch``."""
+    return [e.metrics for e in evaluate_detailed(configs, printer, job, backend, settle=settle,
+                                                 nthread=nthread)]
+
+
+@dataclasses.dataclass
+class Evaluation:
+    """Everything one evaluation produced (for plots and reports)."""
+
+    config: TuneConfig
+    metrics: Metrics
+    planned: PlannedJob
+    runs: list[WindowRun]
+    sims: list                # SimResult per run
+
+
+def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
+                      settle: float = SETTLE, nthread: int | None = None) -> list[Evaluation]:
+    """Like :func:`evaluate_many`, keeping the plans, shaped windows and simulation results."""
     from ringtune.envs.sim import simulate_batch
 
     printer = resolve_printer(printer)
@@ -242,11 +260,12 @@ def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend
     for cfg in configs:
         pj = planned_job(printer, job, cfg)
         runs = window_runs(pj, cfg, settle)
-        per_config.append((pj, runs))
+        per_config.append((cfg, pj, runs))
         motions.extend(r.shaped for r in runs)
     sims = simulate_batch(printer, motions, backend=backend, nthread=nthread) if motions else []
     out, i = [], 0
-    for pj, runs in per_config:
-        out.append(metrics_of(runs, sims[i:i + len(runs)], pj.print_time))
+    for cfg, pj, runs in per_config:
+        part = sims[i:i + len(runs)]
+        out.append(Evaluation(cfg, metrics_of(runs, part, pj.print_time), pj, runs, part))
         i += len(runs)
     return out
