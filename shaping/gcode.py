@@ -1,0 +1,544 @@
+"""Streaming G-code reader: turns a job into arrays of straight moves plus the settings and events
+a firmware would see on the way (units mm, mm/s, mm/s², s).
+
+Understood: ``G0/G1`` (X Y Z E F), ``G2/G3`` arcs (I J or R; split into chords that deviate from the
+arc by at most ``arc_tolerance`` mm, Z and E interpolated along), ``G4`` (P ms / S s), ``G90/G91``,
+``M82/M83``, ``G92``, ``G28`` (the named axes, or all, go to 0 — homing takes no time here),
+``M201`` (X Y Z E max accel; F S = Marlin XY frequency limit), ``M203`` (max feedrates), ``M204``
+(P print, T travel, R retract, S both), ``M205`` (X Y Z E jerk, J junction deviation), ``M220 S``
+(speed factor %), Klipper's ``SET_VELOCITY_LIMIT`` (VELOCITY, ACCEL, SQUARE_CORNER_VELOCITY,
+ACCEL_TO_DECEL, MINIMUM_CRUISE_RATIO). Shaper changes (``M593``, ``M493``, ``SET_INPUT_SHAPER``)
+become events with the index of the move that follows them. Line numbers ``N..`` and checksums
+``*..`` are accepted (an XOR checksum that does not match is an error). Every other command is kept
+as an event of kind ``other`` (never an error). Slicer feature comments (``;TYPE:``,
+``;FEATURE:``, Simplify3D ``; feature ...``) tag the moves after them.
+
+Commands that make a firmware drain its queue (``G4``, ``G28``, ``G29``, ``M400``, ``M109``,
+``M190``, ``M0/M1``, ``M600``, shaper changes) set ``stop_before`` on the next move: the planner
+comes to rest there.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Iterable, Iterator
+
+import numpy as np
+
+from ringtune.shaping.errors import RingtuneError
+
+#: Setting keys a job can change (NaN = never set in the file; the planner then uses the machine's).
+SETTING_KEYS = (
+    "accel_print", "accel_travel", "accel_retract", "accel_klipper", "accel_to_decel",
+    "max_accel_x", "max_accel_y", "max_accel_z", "max_accel_e",
+    "max_vel_x", "max_vel_y", "max_vel_z", "max_vel_e",
+    "jerk_x", "jerk_y", "jerk_z", "jerk_e",
+    "junction_deviation", "square_corner_velocity", "velocity", "min_cruise_ratio",
+    "freq_limit_hz", "freq_limit_min_factor",
+)
+SHAPER_COMMANDS = ("M593", "M493", "SET_INPUT_SHAPER")
+LIMIT_COMMANDS = ("M201", "M203", "M204", "M205", "M220", "SET_VELOCITY_LIMIT")
+STOP_COMMANDS = {"G4", "G28", "G29", "M400", "M109", "M190", "M0", "M1", "M600", *SHAPER_COMMANDS}
+AXES = "XYZE"
+
+_WORD = re.compile(r"([A-Za-z])\s*([^A-Za-z\s]*)")
+_EXT_PARAM = re.compile(r"(\w+)\s*=\s*(\"[^\"]*\"|\S*)")
+_CLASSIC = re.compile(r"^([GMTgmt])\s*(\d+(?:\.\d+)?)")
+_FEATURE = re.compile(r"^\s*(?:TYPE|FEATURE)\s*:\s*(.+?)\s*$|^\s*feature\s+(.+?)\s*$", re.IGNORECASE)
+
+#: Largest magnitude accepted per parameter letter (anything larger is surely an error).
+_BOUNDS = {"X": 1e5, "Y": 1e5, "Z": 1e5, "E": 1e6, "I": 1e5, "J": 1e5, "R": 1e5, "F": 1e7}
+
+
+@dataclass
+class Event:
+    """A non-motion command in the job.
+
+    kind: ``shaper`` (M593/M493/SET_INPUT_SHAPER), ``limits`` (M201/M203/M204/M205/M220/
+    SET_VELOCITY_LIMIT), ``dwell`` (G4), ``other`` (anything else, kept as it is).
+    move: index of the first move after the command (== number of moves before it).
+    time: s since the job start; None until the planner fills it in.
+    """
+
+    kind: str
+    command: str
+    params: dict
+    line: int
+    move: int
+    text: str = ""
+    time: float | None = None
+
+
+@dataclass
+class Job:
+    """A parsed job: straight moves in machine coordinates (mm) and what surrounds them.
+
+    Move arrays (n moves): ``line`` source line (1-based), ``start``/``end`` (n, 4) x y z e,
+    ``feed`` requested speed (mm/s, M220 applied), ``feature`` index into ``features``,
+    ``settings`` index into ``settings_table`` (rows of :data:`SETTING_KEYS`, NaN = unset),
+    ``stop_before`` the firmware is at rest before this move, ``dwell_before`` s of dwell before it,
+    ``arc`` the move is a chord of a G2/G3 arc.
+    """
+
+    line: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+    feed: np.ndarray
+    feature: np.ndarray
+    settings: np.ndarray
+    stop_before: np.ndarray
+    dwell_before: np.ndarray
+    arc: np.ndarray
+    features: list[str]
+    settings_table: np.ndarray
+    events: list[Event] = field(default_factory=list)
+    dwell_after: float = 0.0
+    source: str = "<text>"
+    n_lines: int = 0
+    arc_tolerance: float = 0.01
+
+    @property
+    def n_moves(self) -> int:
+        return len(self.line)
+
+    @property
+    def delta(self) -> np.ndarray:
+        return self.end - self.start
+
+    @property
+    def extruding(self) -> np.ndarray:
+        """(n,) moves that deposit material: E increases while X/Y move."""
+        d = self.delta
+        return (d[:, 3] > 0) & (np.hypot(d[:, 0], d[:, 1]) > 0)
+
+    def setting(self, key: str) -> np.ndarray:
+        """(n,) value of a setting in force at each move (NaN where the file never set it)."""
+        col = SETTING_KEYS.index(key)
+        return self.settings_table[self.settings, col]
+
+    def file_setting(self, key: str) -> float:
+        """The first value the file set for ``key`` (NaN if never)."""
+        col = self.settings_table[:, SETTING_KEYS.index(key)]
+        ok = col[~np.isnan(col)]
+        return float(ok[0]) if len(ok) else math.nan
+
+    def with_feed(self, feed: np.ndarray) -> "Job":
+        """A copy with other requested speeds (mm/s)."""
+        return replace(self, feed=np.asarray(feed, float).copy())
+
+    def shaper_events(self) -> list[Event]:
+        return [e for e in self.events if e.kind == "shaper"]
+
+
+def _num(value: str, letter: str, where: str) -> float:
+    try:
+        x = float(value)
+    except ValueError:
+        raise RingtuneError(f"{letter}{value!r} is not a number", where) from None
+    if not math.isfinite(x):
+        raise RingtuneError(f"{letter}{value} is not a finite number", where)
+    if abs(x) > _BOUNDS.get(letter, 1e9):
+        raise RingtuneError(f"{letter}{value} is absurdly large", where)
+    return x
+
+
+def _strip_line_number(code: str, where: str) -> str:
+    """Remove a leading ``N<n>`` and a trailing ``*<checksum>`` (verifying XOR checksums)."""
+    if not code or code[0] not in "Nn":
+        if "*" in code:
+            code = code[:code.rindex("*")].rstrip()
+        return code
+    star = code.rfind("*")
+    if star >= 0:
+        cs = code[star + 1:].strip()
+        if not cs.isdigit():
+            raise RingtuneError(f"checksum {cs!r} is not a number", where)
+        if len(cs) <= 3:
+            x = 0
+            for ch in code[:star].encode("latin-1", "replace"):
+                x ^= ch
+            if x != int(cs):
+                raise RingtuneError(f"checksum mismatch: line says {cs}, XOR of the line is {x}", where)
+        code = code[:star]
+    m = re.match(r"[Nn]\s*(-?\d+)\s*", code)
+    if not m:
+        raise RingtuneError("line number N must be an integer", where)
+    return code[m.end():]
+
+
+class _Reader:
+    """State machine of one job being read."""
+
+    def __init__(self, source: str, arc_tolerance: float):
+        if not arc_tolerance > 0:
+            raise RingtuneError(f"arc tolerance must be > 0 mm, not {arc_tolerance}", "arc_tolerance")
+        self.source = source
+        self.tol = arc_tolerance
+        self.pos = [0.0, 0.0, 0.0, 0.0]         # machine position x y z e
+        self.offset = [0.0, 0.0, 0.0, 0.0]      # logical = machine - offset
+        self.abs_xyz = True
+        self.abs_e = True
+        self.feed = 25.0                        # mm/s (F1500)
+        self.speed_factor = 1.0
+        self.features = ["unknown"]
+        self.feature_idx = {"unknown": 0}
+        self.cur_feature = 0
+        self.settings = dict.fromkeys(SETTING_KEYS, math.nan)
+        self.settings_rows = [tuple(self.settings.values())]
+        self.settings_dirty = False
+        self.stop = True
+        self.dwell = 0.0
+        self.events: list[Event] = []
+        # move columns
+        self.m_line: list[int] = []
+        self.m_start: list[tuple] = []
+        self.m_end: list[tuple] = []
+        self.m_feed: list[float] = []
+        self.m_feature: list[int] = []
+        self.m_settings: list[int] = []
+        self.m_stop: list[bool] = []
+        self.m_dwell: list[float] = []
+        self.m_arc: list[bool] = []
+        self.n_lines = 0
+
+    # -- helpers ---------------------------------------------------------------------------------
+    def _where(self, lineno: int) -> str:
+        return f"{self.source}:{lineno}"
+
+    def _emit(self, end: list[float], lineno: int, arc: bool = False) -> None:
+        start = self.pos
+        if end == start:
+            return
+        if self.settings_dirty:
+            self.settings_rows.append(tuple(self.settings.values()))
+            self.settings_dirty = False
+        self.m_line.append(lineno)
+        self.m_start.append(tuple(start))
+        self.m_end.append(tuple(end))
+        self.m_feed.append(self.feed * self.speed_factor)
+        self.m_feature.append(self.cur_feature)
+        self.m_settings.append(len(self.settings_rows) - 1)
+        self.m_stop.append(self.stop)
+        self.m_dwell.append(self.dwell)
+        self.m_arc.append(arc)
+        self.stop = False
+        self.dwell = 0.0
+        self.pos = list(end)
+
+    def _set(self, key: str, value: float) -> None:
+        self.settings[key] = value
+        self.settings_dirty = True
+
+    def _target(self, words: dict[str, float]) -> list[float]:
+        end = list(self.pos)
+        for i, ax in enumerate("XYZ"):
+            if ax in words:
+                end[i] = words[ax] + self.offset[i] if self.abs_xyz else self.pos[i] + words[ax]
+        if "E" in words:
+            end[3] = words["E"] + self.offset[3] if self.abs_e else self.pos[3] + words["E"]
+        return end
+
+    def _feedrate(self, words: dict[str, float], where: str) -> None:
+        if "F" in words:
+            f = words["F"]
+            if f <= 0:
+                raise RingtuneError(f"feedrate F{f:g} must be > 0", where)
+            self.feed = f / 60.0
+
+    # -- the line loop -----------------------------------------------------------------------------
+    def feed_lines(self, lines: Iterable[str]) -> None:
+        lineno = 0
+        for lineno, raw in enumerate(lines, 1):
+            semi = raw.find(";")
+            if semi >= 0:
+                comment = raw[semi + 1:]
+                code = raw[:semi].strip()
+                m = _FEATURE.match(comment)
+                if m:
+                    self._feature(m.group(1) or m.group(2))
+            else:
+                code = raw.strip()
+            if not code:
+                continue
+            if "(" in code:          # RS-274 parenthesised comments
+                code = re.sub(r"\([^)]*\)", "", code).strip()
+                if not code:
+                    continue
+            first = code[0]
+            if first in "Nn" or "*" in code:
+                code = _strip_line_number(code, self._where(lineno))
+                if not code:
+                    continue
+                first = code[0]
+            if first in "Gg" and len(code) > 2 and code[1] in "01" and not code[2].isdigit() \
+                    and code[2] != ".":
+                words = _finite(self._words(code[2:], lineno), self._where(lineno))
+                self._feedrate(words, self._where(lineno))
+                self._emit(self._target(words), lineno)
+                continue
+            self._command(code, lineno)
+        self.n_lines = lineno
+
+    def _words(self, text: str, lineno: int) -> dict[str, float]:
+        words = {}
+        for letter, value in _WORD.findall(text):
+            letter = letter.upper()
+            if value == "":
+                words[letter] = math.nan      # a bare letter (G28 X, M593 X): a flag
+                continue
+            words[letter] = _num(value, letter, self._where(lineno))
+        return words
+
+    def _feature(self, name: str) -> None:
+        name = name.strip()
+        if name not in self.feature_idx:
+            self.feature_idx[name] = len(self.features)
+            self.features.append(name)
+        self.cur_feature = self.feature_idx[name]
+
+    def _event(self, kind: str, command: str, params: dict, lineno: int, text: str) -> None:
+        self.events.append(Event(kind, command, params, lineno, len(self.m_line), text))
+
+    def _command(self, code: str, lineno: int) -> None:
+        where = self._where(lineno)
+        m = _CLASSIC.match(code)
+        if m is None or (len(code) > m.end() and code[m.end()] == "_"):
+            return self._extended(code, lineno)
+        cmd = m.group(1).upper() + m.group(2)
+        rest = code[m.end():]
+        if cmd in ("M117", "M118", "M23", "M28", "M30", "M32"):      # free-text arguments
+            self._event("other", cmd, {"text": rest.strip()}, lineno, code)
+            return
+        words = self._words(rest, lineno)
+        if cmd in ("G0", "G1"):
+            self._feedrate(words, where)
+            self._emit(self._target(_finite(words, where)), lineno)
+        elif cmd in ("G2", "G3"):
+            self._arc(cmd == "G2", _finite(words, where), lineno)
+        elif cmd == "G4":
+            t = words.get("P", 0.0) / 1000.0 + words.get("S", 0.0)
+            if not t >= 0 or not math.isfinite(t):
+                raise RingtuneError("dwell time must be >= 0", where)
+            self.dwell += t
+            self.stop = True
+            self._event("dwell", cmd, {"seconds": t}, lineno, code)
+        elif cmd == "G90":
+            self.abs_xyz = True
+            self.abs_e = True
+        elif cmd == "G91":
+            self.abs_xyz = False
+            self.abs_e = False
+        elif cmd == "M82":
+            self.abs_e = True
+        elif cmd == "M83":
+            self.abs_e = False
+        elif cmd == "G92":
+            if not words:
+                words = {a: 0.0 for a in AXES}
+            for i, ax in enumerate(AXES):
+                if ax in words:
+                    v = 0.0 if math.isnan(words[ax]) else words[ax]
+                    self.offset[i] = self.pos[i] - v
+        elif cmd == "G28":
+            named = [i for i, ax in enumerate("XYZ") if ax in words]
+            for i in named or (0, 1, 2):
+                self.pos[i] = 0.0
+                self.offset[i] = 0.0
+            self.stop = True
+            self._event("other", cmd, words, lineno, code)
+        elif cmd in LIMIT_COMMANDS:
+            self._limits(cmd, words, where)
+            self._event("limits", cmd, words, lineno, code)
+        elif cmd in SHAPER_COMMANDS:
+            self.stop = True
+            self._event("shaper", cmd, words, lineno, code)
+        else:
+            if cmd in STOP_COMMANDS:
+                self.stop = True
+            self._event("other", cmd, words, lineno, code)
+
+    def _limits(self, cmd: str, w: dict[str, float], where: str) -> None:
+        def pos(letter: str) -> float | None:
+            if letter not in w or math.isnan(w[letter]):
+                return None
+            if w[letter] < 0:
+                raise RingtuneError(f"{cmd} {letter}{w[letter]:g} must be >= 0", where)
+            return w[letter]
+
+        if cmd == "M201":
+            for ax in AXES:
+                if (v := pos(ax)) is not None:
+                    self._set(f"max_accel_{ax.lower()}", v)
+            if (v := pos("F")) is not None:
+                self._set("freq_limit_hz", min(v, 100.0))
+            s = pos("S") if "S" in w else pos("G")
+            if s is not None:
+                self._set("freq_limit_min_factor", min(max(s, 1.0), 100.0) / 100.0)
+        elif cmd == "M203":
+            for ax in AXES:
+                if (v := pos(ax)) is not None:
+                    self._set(f"max_vel_{ax.lower()}", v)
+        elif cmd == "M204":
+            s, p, t, r = pos("S"), pos("P"), pos("T"), pos("R")
+            if s is not None:
+                for k in ("accel_print", "accel_travel", "accel_klipper"):
+                    self._set(k, s)
+            if p is not None:
+                self._set("accel_print", p)
+            if t is not None:
+                self._set("accel_travel", t)
+            if r is not None:
+                self._set("accel_retract", r)
+            if s is None and (p is not None or t is not None):
+                self._set("accel_klipper", min(x for x in (p, t) if x is not None))
+        elif cmd == "M205":
+            for ax in AXES:
+                if (v := pos(ax)) is not None:
+                    self._set(f"jerk_{ax.lower()}", v)
+            if (v := pos("J")) is not None:
+                self._set("junction_deviation", v)
+        elif cmd == "M220":
+            if (v := pos("S")) is not None:
+                if v == 0:
+                    raise RingtuneError("M220 S0 would stop every move", where)
+                self.speed_factor = v / 100.0
+
+    def _extended(self, code: str, lineno: int) -> None:
+        where = self._where(lineno)
+        parts = code.split(None, 1)
+        cmd = parts[0].upper()
+        params: dict = {}
+        rest = parts[1] if len(parts) > 1 else ""
+        for key, value in _EXT_PARAM.findall(rest):
+            params[key.upper()] = value.strip('"')
+        if cmd == "SET_VELOCITY_LIMIT":
+            keys = {"VELOCITY": "velocity", "ACCEL": "accel_klipper",
+                    "SQUARE_CORNER_VELOCITY": "square_corner_velocity",
+                    "ACCEL_TO_DECEL": "accel_to_decel", "MINIMUM_CRUISE_RATIO": "min_cruise_ratio"}
+            for k, v in params.items():
+                if k not in keys:
+                    continue
+                x = _num(v, k + "=", where)
+                if x < 0 or (k == "MINIMUM_CRUISE_RATIO" and x >= 1):
+                    raise RingtuneError(f"SET_VELOCITY_LIMIT {k}={v} is out of range", where)
+                self._set(keys[k], x)
+                if k == "ACCEL":
+                    self._set("accel_print", x)
+                    self._set("accel_travel", x)
+                params[k] = x
+            self._event("limits", cmd, params, lineno, code)
+        elif cmd == "SET_INPUT_SHAPER":
+            for k, v in list(params.items()):
+                if k.startswith("SHAPER_FREQ") or k.startswith("DAMPING"):
+                    params[k] = _num(v, k + "=", where)
+            self.stop = True
+            self._event("shaper", cmd, params, lineno, code)
+        else:
+            self._event("other", cmd, params, lineno, code)
+
+    def _arc(self, clockwise: bool, w: dict[str, float], lineno: int) -> None:
+        where = self._where(lineno)
+        self._feedrate(w, where)
+        end = self._target(w)
+        x0, y0 = self.pos[0], self.pos[1]
+        x1, y1 = end[0], end[1]
+        if "R" in w:
+            r = w["R"]
+            dx, dy = x1 - x0, y1 - y0
+            chord = math.hypot(dx, dy)
+            if chord == 0 or abs(r) * 2 < chord - 1e-9:
+                raise RingtuneError(f"arc radius R{r:g} cannot join points {chord:.4g} mm apart", where)
+            h = math.sqrt(max(r * r - chord * chord / 4, 0.0))
+            # centre left of the chord for CCW with R>0 (and right for CW); R<0 takes the long way
+            sign = (-1 if clockwise else 1) * (1 if r > 0 else -1)
+            cx = x0 + dx / 2 - sign * h * dy / chord
+            cy = y0 + dy / 2 + sign * h * dx / chord
+        elif "I" in w or "J" in w:
+            cx, cy = x0 + w.get("I", 0.0), y0 + w.get("J", 0.0)
+        else:
+            raise RingtuneError(f"{'G2' if clockwise else 'G3'} needs I/J or R", where)
+        radius = math.hypot(x0 - cx, y0 - cy)
+        if radius <= 0:
+            raise RingtuneError("arc has zero radius", where)
+        a0 = math.atan2(y0 - cy, x0 - cx)
+        a1 = math.atan2(y1 - cy, x1 - cx)
+        sweep = a1 - a0
+        if clockwise:
+            if sweep >= -1e-12:
+                sweep -= 2 * math.pi
+        elif sweep <= 1e-12:
+            sweep += 2 * math.pi
+        if radius <= self.tol:
+            n = 1
+        else:
+            step = 2 * math.acos(1 - self.tol / radius)
+            n = max(1, math.ceil(abs(sweep) / step))
+        start = list(self.pos)
+        for k in range(1, n + 1):
+            f = k / n
+            if k == n:
+                pt = list(end)
+            else:
+                ang = a0 + sweep * f
+                pt = [cx + radius * math.cos(ang), cy + radius * math.sin(ang),
+                      start[2] + (end[2] - start[2]) * f, start[3] + (end[3] - start[3]) * f]
+            self._emit(pt, lineno, arc=True)
+
+    def job(self) -> Job:
+        n = len(self.m_line)
+        if self.settings_dirty:
+            self.settings_rows.append(tuple(self.settings.values()))
+        return Job(
+            line=np.asarray(self.m_line, np.int64),
+            start=np.asarray(self.m_start, float).reshape(n, 4),
+            end=np.asarray(self.m_end, float).reshape(n, 4),
+            feed=np.asarray(self.m_feed, float),
+            feature=np.asarray(self.m_feature, np.int64),
+            settings=np.asarray(self.m_settings, np.int64),
+            stop_before=np.asarray(self.m_stop, bool),
+            dwell_before=np.asarray(self.m_dwell, float),
+            arc=np.asarray(self.m_arc, bool),
+            features=self.features,
+            settings_table=np.asarray(self.settings_rows, float).reshape(-1, len(SETTING_KEYS)),
+            events=self.events,
+            dwell_after=self.dwell,
+            source=self.source,
+            n_lines=self.n_lines,
+            arc_tolerance=self.tol,
+        )
+
+
+def _finite(words: dict[str, float], where: str) -> dict[str, float]:
+    for k, v in words.items():
+        if math.isnan(v):
+            raise RingtuneError(f"{k} needs a value", where)
+    return words
+
+
+def _open_lines(path: Path) -> Iterator[str]:
+    with open(path, "r", encoding="utf-8", errors="replace", newline=None) as fh:
+        yield from fh
+
+
+def read_gcode(path_or_text, arc_tolerance: float = 0.01) -> Job:
+    """Read a G-code job from a file path (streamed line by line) or from G-code text.
+
+    ``arc_tolerance``: largest distance (mm) between a G2/G3 arc and the chords replacing it.
+    Malformed values raise :class:`RingtuneError` naming ``file:line``.
+    """
+    if isinstance(path_or_text, Path) or (isinstance(path_or_text, str) and "\n" not in path_or_text
+                                          and Path(path_or_text).suffix.lower() in
+                                          (".gcode", ".gco", ".g", ".nc", ".txt", ".gc")):
+        path = Path(path_or_text)
+        if not path.is_file():
+            raise RingtuneError("no such G-code file", str(path))
+        reader = _Reader(str(path), arc_tolerance)
+        reader.feed_lines(_open_lines(path))
+    else:
+        text = path_or_text.decode("utf-8", "replace") if isinstance(path_or_text, bytes) else str(path_or_text)
+        reader = _Reader("<gcode>", arc_tolerance)
+        reader.feed_lines(text.splitlines())
+    return reader.job()
