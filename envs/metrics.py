@@ -46,6 +46,7 @@ from ringtune.shaping.motion import Motion
 
 _EPS_LEN = 1e-6  # mm: shorter x/y segments are pure z/e moves or dwells
 _COLLINEAR = math.cos(math.radians(1.0))
+_ROUNDING = 1e-9  # mm: outward excursions below a nanometre are floating-point noise
 
 
 @dataclass
@@ -242,7 +243,7 @@ def _overshoot(tu, pts, legs: Legs, angle: float, window: float, details: dict) 
     n_in, n_out = np.linalg.norm(e_in, axis=1), np.linalg.norm(e_out, axis=1)
     e = np.where((n_in < n_out)[:, None], e_in, e_out)
     dist = np.minimum(n_in, n_out)
-    outward = np.einsum("ij,ij->i", e, d[k - 1] - d[k]) > 0
+    outward = np.einsum("ij,ij->i", e, d[k - 1] - d[k]) > _ROUNDING
     val = np.where(outward, dist, 0.0)
     i = int(np.argmax(val))
     if val[i] > 0:

@@ -100,7 +100,7 @@ def test_inward_deviation_is_not_overshoot():
     path = polyline_motion([(0, 0), (10, 0), (10, 30)], [tc, 0.3])
     # only the inward half-waves (x < corner x) remain
     sim = sim_of(path, lambda t: np.stack([np.minimum(dx(t - tc), 0.0), 0 * t], axis=1))
-    assert compute_metrics(sim, path).overshoot_mm < 1e-9  # rounding only
+    assert compute_metrics(sim, path).overshoot_mm == 0.0
 
 
 def test_reversal_overshoot_past_the_turning_point():
