@@ -116,9 +116,12 @@ def acceleration_lag(accel: float, freq: float) -> float:
     return accel / (omega * omega)
 
 
-def summary(shaper: Shaper, centred: bool, accel: float = 5000.0, scv: float = 5.0) -> dict:
-    """Everything ``ringtune shaper`` reports, as plain numbers."""
-    f_lo, f_hi = band(shaper, 0.9, 0.0)
+def summary(shaper: Shaper, centred: bool, accel: float = 5000.0, scv: float = 5.0,
+            plant_damping: float | None = None) -> dict:
+    """Everything ``ringtune shaper`` reports, as plain numbers. The band and the residual are for
+    a plant of damping ``plant_damping`` (default: the shaper's own, i.e. matched)."""
+    zp = shaper.damping if plant_damping is None else plant_damping
+    f_lo, f_hi = band(shaper, 0.9, zp)
     return {
         "duration_s": shaper.duration,
         "lag_s": lag(shaper, centred),
@@ -127,5 +130,6 @@ def summary(shaper: Shaper, centred: bool, accel: float = 5000.0, scv: float = 5
         "band90_pct": [100 * (f_lo / shaper.freq - 1), 100 * (f_hi / shaper.freq - 1)],
         "smoothing_mm": smoothing(shaper, accel, scv),
         "max_accel": max_accel(shaper, scv),
-        "residual_at_freq": float(residual_vibration(shaper, [shaper.freq])[0]),
+        "residual_at_freq": float(residual_vibration(shaper, [shaper.freq], zp)[0]),
+        "plant_damping": zp,
     }

@@ -1,0 +1,95 @@
+"""``ringtune shaper``: one shaper's impulses and what they cost and buy.
+
+``--json`` keys (stable): ``name``, ``flavor``, ``freq`` (Hz), ``damping``, ``centred`` (bool),
+``amplitudes`` (sum 1), ``times_s`` (first 0), ``duration_s``, ``lag_s`` (steady-state lag of the
+shaped motion: Σ A_i·T_i when causal, 0 when centred), ``centroid_s``, ``band90_hz`` [lo, hi]
+(≥ 90 % vibration reduction for a plant of the shaper's own damping), ``band90_pct`` [lo, hi] relative to ``freq``,
+``smoothing_mm`` (Klipper's definition at ``accel``/``scv``), ``max_accel`` (mm/s², Klipper's
+smoothing ≤ 0.12 mm rule, unrounded), ``residual_at_freq`` (fraction left at ``freq``, plant damping
+= ``damping``), ``accel``, ``scv``.
+"""
+
+from __future__ import annotations
+
+NAME = "shaper"
+HELP = "impulses, duration, lag, 90 % band and smoothing of one input shaper"
+DESCRIPTION = """\
+Show an input shaper as a firmware would build it: its impulses (amplitude, time), how long it
+lasts, how far the shaped motion lags the commanded one (causal firmwares: RRF, Marlin classic;
+centred firmwares: Klipper, Prusa, Marlin FT_MOTION have none), the frequency band where it removes
+at least 90 % of the ringing, and Klipper's smoothing estimate with the max accel that keeps
+smoothing at or below 0.12 mm.
+
+NAME is zv, mzv, zvd, zvdd, zvddd, ei, 2hump_ei (ei2), 3hump_ei (ei3), none or custom; Klipper's
+parameterised forms work too: "mzv(n=5,t=1.1)", "ei(v_tol=0.1)"; RRF custom shapers take their
+M593 lists: "custom(h=0.4:0.7,t=0.0135:0.0135)".
+--flavor picks the firmware's formulas: klipper (default), klipper-legacy (also prusa), rrf (3.6),
+rrf35 (3.4/3.5), marlin (classic ZV), marlin-ftm (M493). A shaper the firmware lacks is an error
+that names the closest one it has.
+
+example:
+  ringtune shaper mzv --freq 40 --damping 0.1
+  ringtune shaper ei2 --freq 45 --flavor rrf --json
+"""
+
+ALIASES = {"prusa": "klipper-legacy"}
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("name", metavar="NAME", help="shaper name, e.g. zv, mzv, ei, 'mzv(n=5,t=1.1)'")
+    parser.add_argument("--freq", type=float, required=True, help="shaper frequency, Hz")
+    parser.add_argument("--damping", type=float, default=None,
+                        help="damping ratio (default: the firmware's default, e.g. 0.1 for Klipper)")
+    parser.add_argument("--flavor", default="klipper",
+                        help="firmware formulas: klipper, klipper-legacy, prusa, rrf, rrf35, marlin, marlin-ftm")
+    parser.add_argument("--accel", type=float, default=5000.0, help="accel for the smoothing figure, mm/s² (5000)")
+    parser.add_argument("--scv", type=float, default=5.0, help="square corner velocity, mm/s (5)")
+
+
+def resolve_flavor(flavor: str) -> str:
+    from ringtune.shaping.errors import RingtuneError
+    from ringtune.shaping.shapers import FLAVORS
+
+    flavor = ALIASES.get(flavor.lower(), flavor.lower())
+    if flavor not in FLAVORS:
+        raise RingtuneError(f"unknown flavour {flavor!r}; one of {', '.join(FLAVORS)}, prusa", "--flavor")
+    return flavor
+
+
+def run(args, out) -> int:
+    from ringtune.shaping.analysis import summary
+    from ringtune.shaping.errors import RingtuneError
+    from ringtune.shaping.shapers import get_shaper, is_centred
+
+    flavor = resolve_flavor(args.flavor)
+    if not args.accel > 0:
+        raise RingtuneError(f"must be > 0, not {args.accel}", "--accel")
+    if not args.scv >= 0:
+        raise RingtuneError(f"must be >= 0, not {args.scv}", "--scv")
+    shaper = get_shaper(args.name, args.freq, args.damping, flavor, where=f"shaper {args.name!r}")
+    centred = is_centred(flavor)
+    info = summary(shaper, centred, args.accel, args.scv)
+    result = {
+        "name": shaper.name, "flavor": flavor, "freq": shaper.freq, "damping": shaper.damping,
+        "centred": centred, "amplitudes": shaper.amplitudes.tolist(), "times_s": shaper.times.tolist(),
+        "duration_s": info["duration_s"], "lag_s": info["lag_s"], "centroid_s": info["centroid_s"],
+        "band90_hz": info["band90_hz"], "band90_pct": info["band90_pct"],
+        "smoothing_mm": info["smoothing_mm"], "max_accel": info["max_accel"],
+        "residual_at_freq": info["residual_at_freq"], "accel": args.accel, "scv": args.scv,
+    }
+    lines = [f"{shaper.name} ({flavor}) at {shaper.freq:g} Hz, damping {shaper.damping:g}",
+             "  impulse   amplitude   time (ms)"]
+    for i, (a, t) in enumerate(zip(shaper.amplitudes, shaper.times)):
+        lines.append(f"  {i + 1:7d}   {a:9.4f}   {t * 1e3:9.3f}")
+    lo, hi = info["band90_hz"]
+    plo, phi = info["band90_pct"]
+    lines += [
+        f"  duration          {info['duration_s'] * 1e3:.3f} ms",
+        f"  lag               {info['lag_s'] * 1e3:.3f} ms ({'centred' if centred else 'causal'})",
+        f"  90% band          {lo:.2f} – {hi:.2f} Hz ({plo:+.1f}% / {phi:+.1f}%)",
+        f"  smoothing         {info['smoothing_mm']:.4f} mm at {args.accel:g} mm/s², scv {args.scv:g} mm/s",
+        f"  max_accel         {info['max_accel']:.0f} mm/s² (smoothing <= 0.12 mm)",
+        f"  residual at F     {100 * info['residual_at_freq']:.2f} %",
+    ]
+    out.emit(result, "\n".join(lines))
+    return 0
