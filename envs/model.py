@@ -1,0 +1,196 @@
+"""The printer as a linear mechanical system and as a MuJoCo model generated from it.
+
+Formulation (why it is built this way):
+
+- **Frame of reference** (seeds/002): the stepper follows the commanded position until it slips,
+  so every moving part is described *relative to the commanded position*. In that non-inertial
+  frame the commanded acceleration ``a_cmd`` acts as a fictitious force ``−m·a_cmd`` on every mass.
+  Each mode is a body on a slide joint (coordinate q, mm) with a spring and damper to the
+  commanded position; a motor actuator per axis applies ``−m·a_cmd`` through a fixed tendon whose
+  coefficients are the modal masses. This is the base-excitation ODE
+  ``q̈ + 2ζω q̇ + ω² q = −a_cmd`` exactly, which is what makes acceptance 1 and 2 hold to the
+  integrator's accuracy; a stiff position servo carriage would need a far smaller timestep and adds a
+  velocity-proportional following error (../shared/reference/ecosystem.md §4).
+- **Several modes per axis** (belt stretch, toolhead rocking…) are modal bodies side by side; the
+  nozzle deviation on an axis is ``Σ share_i·q_i``; each body carries its modal mass
+  ``mass_share_i · axis mass`` so the force through the belts is ``Σ m_i (a_cmd + q̈_i)``.
+- **Cartesian**: X modes belong to the toolhead, Y modes to the bed, whose mass includes the print.
+  The nozzle relative to the print is ``commanded + deviation`` on both axes.
+- **CoreXY**: the first X and first Y mode are coupled through the two belts, fixed tendons
+  ``A = u + w`` and ``B = u − w`` with stiffness ``k_A``, ``k_B`` (u, w: X and Y deviations). The
+  stiffness matrix is ``[[k_A + k_B + r_x, k_A − k_B], [k_A − k_B, k_A + k_B + r_y]]``; the residual
+  joint stiffnesses r_x, r_y ≥ 0 (frame, pulleys) put matched belts exactly on the measured
+  frequencies. Unequal belts give an off-diagonal term, so a pure X move excites Y.
+- **Motor force and step loss**: the force each motor must give is the belt force that accelerates
+  the masses plus its rotor's inertia and friction (computed exactly from the state in
+  :mod:`ringtune.envs.sim`); step loss is that force exceeding the motor's force at the motor's
+  speed (:meth:`MotorModel.max_force`). Past that point a stepper skips and the print is ruined,
+  so detection (not post-slip dynamics) is what matters.
+- **Accelerometer**: optional MuJoCo ``accelerometer`` sensor on the toolhead body (first X mode).
+  The simulator reports the head's absolute acceleration computed exactly from the state
+  (``a_cmd + Σ share·q̈``) because rollout sensordata lag one step and cost time.
+
+Units inside the model: mm, s, kg (so forces are kg·mm/s² = mN; stiffness kg/s² = N/m).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ringtune.envs.printer import Printer
+
+#: default integrator and timestep: RK4 at 0.5 ms is within 0.12 % RMS at 120 Hz (ecosystem.md §4)
+INTEGRATOR = "RK4"
+TIMESTEP = 0.0005
+
+
+@dataclass
+class LinearSystem:
+    """``M q̈ + C q̇ + K q = −M·B·a_cmd``; q (n,) mm relative to the commanded position.
+
+    Attributes:
+        names: body names, one per modal coordinate.
+        axis: (n,) 0 for X, 1 for Y.
+        mass: (n,) modal masses, kg.
+        share: (n,) nozzle weight of each coordinate on its axis.
+        K, C: (n, n) stiffness (N/m) and damping (kg/s) matrices.
+        joint_stiffness, joint_damping: (n,) what sits on each slide joint.
+        belts: CoreXY belt tendons as (name, {coordinate index: coef}, stiffness).
+        kinematics: "cartesian" or "corexy".
+    """
+
+    names: list[str]
+    axis: np.ndarray
+    mass: np.ndarray
+    share: np.ndarray
+    K: np.ndarray
+    C: np.ndarray
+    joint_stiffness: np.ndarray
+    joint_damping: np.ndarray
+    belts: list = field(default_factory=list)
+    kinematics: str = "cartesian"
+
+    @property
+    def n(self) -> int:
+        return len(self.names)
+
+    @property
+    def B(self) -> np.ndarray:
+        """(n, 2) which commanded acceleration (x, y) drives each coordinate."""
+        b = np.zeros((self.n, 2))
+        b[np.arange(self.n), self.axis] = 1.0
+        return b
+
+    def state_matrices(self) -> tuple[np.ndarray, np.ndarray]:
+        """Continuous state space ``ẋ = A x + G a_cmd`` with x = [q, q̇] (2n,), a_cmd (2,)."""
+        n = self.n
+        minv = 1.0 / self.mass
+        A = np.zeros((2 * n, 2 * n))
+        A[:n, n:] = np.eye(n)
+        A[n:, :n] = -minv[:, None] * self.K
+        A[n:, n:] = -minv[:, None] * self.C
+        G = np.zeros((2 * n, 2))
+        G[n:] = -self.B
+        return A, G
+
+    def qacc(self, q: np.ndarray, qd: np.ndarray, a_cmd: np.ndarray) -> np.ndarray:
+        """(m, n) relative accelerations from states (m, n) and commanded accelerations (m, 2)."""
+        return -(q @ self.K.T + qd @ self.C.T) / self.mass - a_cmd[:, self.axis]
+
+    def static_deflection(self, a_cmd: np.ndarray) -> np.ndarray:
+        """q (n,) at rest under a constant commanded acceleration (the lag of seeds/002)."""
+        return np.linalg.solve(self.K, -self.mass * (self.B @ np.asarray(a_cmd, float)))
+
+
+def linear_system(printer: Printer) -> LinearSystem:
+    """The printer's linear mechanics (modes after print mass), as used by both backends."""
+    names, axis, mass, share, k, c = [], [], [], [], [], []
+    for ai, ax in enumerate(("x", "y")):
+        total = printer.moving_mass(ax)
+        for j, m in enumerate(printer.effective_modes(ax)):
+            mi = max(m.mass_fraction, 1e-6) * total
+            names.append(f"{ax}{j}")
+            axis.append(ai)
+            mass.append(mi)
+            share.append(m.share)
+            k.append(mi * m.omega ** 2)
+            c.append(2.0 * m.damping * m.omega * mi)
+    n = len(names)
+    K = np.diag(np.array(k, float))
+    C = np.diag(np.array(c, float))
+    js = np.array(k, float)
+    belts = []
+    if printer.kinematics == "corexy":
+        ix, iy = names.index("x0"), names.index("y0")
+        ka, kb = printer.belt_stiffnesses()
+        js[ix] = K[ix, ix] - (ka + kb)
+        js[iy] = K[iy, iy] - (ka + kb)
+        K[ix, iy] = K[iy, ix] = ka - kb
+        belts = [("belt_a", {ix: 1.0, iy: 1.0}, ka), ("belt_b", {ix: 1.0, iy: -1.0}, kb)]
+    return LinearSystem(names, np.array(axis, int), np.array(mass, float), np.array(share, float),
+                        K, C, js, np.diag(C).copy(), belts, printer.kinematics)
+
+
+def build_mjcf(printer: Printer, timestep: float = TIMESTEP, integrator: str = INTEGRATOR,
+               accelerometer: bool = False) -> str:
+    """MJCF text of the printer: one slide-jointed body per modal coordinate, belt tendons for
+    CoreXY, one motor per axis (ctrl = −a_cmd, mm/s²) acting through a fixed tendon whose
+    coefficients are the modal masses, optional accelerometer on the toolhead."""
+    sysm = linear_system(printer)
+    dirs = ("1 0 0", "0 1 0")
+    bodies = []
+    for i, name in enumerate(sysm.names):
+        site = ""
+        if accelerometer and name == "x0":
+            site = '<site name="toolhead" size="2"/>'
+        y_off = 20.0 * i
+        bodies.append(
+            f'<body name="{name}" pos="0 {y_off:g} 0">'
+            f'<inertial pos="0 0 0" mass="{sysm.mass[i]:.12g}" diaginertia="1e-6 1e-6 1e-6"/>'
+            f'<joint name="q_{name}" type="slide" axis="{dirs[sysm.axis[i]]}" '
+            f'stiffness="{sysm.joint_stiffness[i]:.12g}" damping="{sysm.joint_damping[i]:.12g}"/>'
+            f'<geom type="box" size="5 5 5" contype="0" conaffinity="0"/>{site}</body>')
+    tendons = []
+    for bname, coefs, k in sysm.belts:
+        joints = "".join(f'<joint joint="q_{sysm.names[i]}" coef="{c:g}"/>' for i, c in coefs.items())
+        tendons.append(f'<fixed name="{bname}" stiffness="{k:.12g}">{joints}</fixed>')
+    for ai, ax in enumerate(("x", "y")):
+        joints = "".join(f'<joint joint="q_{sysm.names[i]}" coef="{sysm.mass[i]:.12g}"/>'
+                         for i in range(sysm.n) if sysm.axis[i] == ai)
+        tendons.append(f'<fixed name="drive_{ax}">{joints}</fixed>')
+    sensors = '<sensor><accelerometer name="accel" site="toolhead"/></sensor>' if accelerometer else ""
+    return (
+        f'<mujoco model="{_xml_escape(printer.name)}">'
+        '<compiler angle="radian"/>'
+        f'<option timestep="{timestep:.12g}" integrator="{integrator}" gravity="0 0 0">'
+        '<flag contact="disable" constraint="disable" energy="disable"/></option>'
+        f'<worldbody>{"".join(bodies)}</worldbody>'
+        f'<tendon>{"".join(tendons)}</tendon>'
+        '<actuator>'
+        '<motor name="motor_x" tendon="drive_x" ctrllimited="false"/>'
+        '<motor name="motor_y" tendon="drive_y" ctrllimited="false"/>'
+        f'</actuator>{sensors}</mujoco>')
+
+
+def _xml_escape(s: str) -> str:
+    return s.replace("&", "&amp;").replace("<", "&lt;").replace('"', "&quot;")
+
+
+_MODEL_CACHE: dict = {}
+
+
+def build_model(printer: Printer, timestep: float = TIMESTEP, integrator: str = INTEGRATOR,
+                accelerometer: bool = False):
+    """Compiled ``mujoco.MjModel`` (cached by description, timestep and integrator)."""
+    import mujoco
+
+    key = (printer.to_toml(), float(timestep), integrator, bool(accelerometer))
+    model = _MODEL_CACHE.get(key)
+    if model is None:
+        model = mujoco.MjModel.from_xml_string(build_mjcf(printer, timestep, integrator, accelerometer))
+        if len(_MODEL_CACHE) > 64:
+            _MODEL_CACHE.clear()
+        _MODEL_CACHE[key] = model
+    return model
