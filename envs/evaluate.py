@@ -262,7 +262,8 @@ def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, bac
         runs = window_runs(pj, cfg, settle)
         per_config.append((cfg, pj, runs))
         motions.extend(r.shaped for r in runs)
-    sims = simulate_batch(printer, motions, backend=backend, nthread=nthread) if motions else []
+    sims = (simulate_batch(printer, motions, backend=backend, nthread=nthread, initial="static")
+            if motions else [])
     out, i = [], 0
     for cfg, pj, runs in per_config:
         part = sims[i:i + len(runs)]
