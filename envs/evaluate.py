@@ -218,7 +218,7 @@ def metrics_of(runs: list[WindowRun], sims: list, print_time: float) -> Metrics:
 
 # -- the public calls -------------------------------------------------------------------------------
 def evaluate(config: TuneConfig, printer=None, job=None, backend: str = "mujoco", *,
-             settle: float = SETTLE) -> Metrics:
+             settle: float = SETTLE, nthread: int | None = None) -> Metrics:
     """Print time (whole job) and quality (physics on the quality windows) of ``config``.
 
     Args:
@@ -227,8 +227,9 @@ def evaluate(config: TuneConfig, printer=None, job=None, backend: str = "mujoco"
         job: a G-code path, G-code text, a parsed Job, or None for the built-in test print.
         backend: ``"mujoco"`` (default) or ``"lti"`` (exact linear screening).
         settle: s of simulated lead-in beyond the shaper's duration.
+        nthread: simulation threads (default: up to one per window and core).
     """
-    return evaluate_many([config], printer, job, backend, settle=settle)[0]
+    return evaluate_many([config], printer, job, backend, settle=settle, nthread=nthread)[0]
 
 
 def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,

@@ -1,0 +1,105 @@
+"""Benchmark: one evaluation of a configuration on the built-in test print, on one core.
+
+Target (DESIGN.md): ≤ 150 ms per evaluation. Measured in one run, pinned to one CPU with one
+simulation thread, on the embedded default printer with the MuJoCo backend:
+
+- ``warm``: a new shaper/frequency each time, same frequency limit (the plan comes from the cache:
+  what an Optuna study mostly does);
+- ``replan``: a new frequency limit each time (parse cached, frequency limit and plan redone);
+- the parts of a warm evaluation: shaping the windows, simulating them, computing the metrics;
+- baseline: the raw ``mujoco.rollout`` of the same number of steps (the floor any evaluation pays).
+
+Run: ``/work/venv/bin/python benchmarks/bench_evaluate.py``
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+import time
+
+TARGET_S = 0.150
+
+
+def main() -> None:
+    try:
+        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+    except (AttributeError, OSError):
+        pass
+    import numpy as np
+
+    from ringtune.envs import evaluate as ev
+    from ringtune.envs.printer import load_printer
+    from ringtune.envs.sim import simulate_batch
+    from ringtune.shaping.config import TuneConfig
+
+    printer = load_printer(None)
+    rng = np.random.default_rng(0)
+    shapers = ("zv", "mzv", "ei", "2hump_ei")
+
+    def config(limit=0.0):
+        return TuneConfig(shaper_x=str(rng.choice(shapers)), shaper_y=str(rng.choice(shapers)),
+                          freq_x=float(rng.uniform(30, 70)), freq_y=float(rng.uniform(30, 70)),
+                          damping_x=0.1, damping_y=0.1, freq_limit_hz=limit)
+
+    t = time.perf_counter()
+    ev.evaluate(config(), printer, None, nthread=1)
+    first = time.perf_counter() - t
+
+    def one(cfg):
+        t0 = time.perf_counter()
+        ev.evaluate_many([cfg], printer, None, nthread=1)
+        return time.perf_counter() - t0
+
+    warm = [one(config()) for _ in range(15)]
+    replan = [one(config(limit=float(rng.uniform(15, 60)))) for _ in range(5)]
+
+    # parts of a warm evaluation
+    cfg = config()
+    pj = ev.planned_job(printer, None, cfg)
+    t0 = time.perf_counter()
+    runs = ev.window_runs(pj, cfg)
+    t_shape = time.perf_counter() - t0
+    motions = [r.shaped for r in runs]
+    t0 = time.perf_counter()
+    sims = simulate_batch(printer, motions, nthread=1, initial="static")
+    t_sim = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    ev.metrics_of(runs, sims, pj.print_time)
+    t_metrics = time.perf_counter() - t0
+
+    # baseline: raw rollout of the same steps
+    import mujoco
+    from mujoco import rollout
+
+    from ringtune.envs.model import INTEGRATOR, TIMESTEP, build_model
+
+    model = build_model(printer, TIMESTEP, INTEGRATOR)
+    nsteps = [int(np.ceil(m.duration / TIMESTEP)) for m in motions]
+    nstate = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    init = np.zeros((len(motions), nstate))
+    ctrl = np.zeros((len(motions), max(nsteps), model.nu))
+    data = mujoco.MjData(model)
+    raw = []
+    for _ in range(7):
+        t0 = time.perf_counter()
+        rollout.rollout(model, data, init, ctrl)
+        raw.append(time.perf_counter() - t0)
+
+    med = statistics.median(warm)
+    print(f"built-in test print: {len(runs)} quality windows, {sum(nsteps)} simulated steps "
+          f"({sum(m.duration for m in motions):.2f} s of machine time), print time {pj.print_time:.1f} s")
+    print(f"first evaluation (parse + plan + model build): {first * 1e3:8.1f} ms")
+    print(f"evaluation, plan cached (median of {len(warm)}): {med * 1e3:8.1f} ms  (min {min(warm) * 1e3:.1f})")
+    print(f"evaluation, new frequency limit (median of {len(replan)}): {statistics.median(replan) * 1e3:8.1f} ms")
+    print(f"  parts: shaping {t_shape * 1e3:.1f} ms, simulate_batch {t_sim * 1e3:.1f} ms, "
+          f"metrics {t_metrics * 1e3:.1f} ms")
+    print(f"baseline raw mujoco.rollout of the same steps: {min(raw) * 1e3:8.1f} ms; "
+          f"evaluation / raw rollout = {med / min(raw):.2f}x")
+    ok = med <= TARGET_S
+    print(f"target one evaluation <= {TARGET_S * 1e3:.0f} ms on one core: "
+          f"{'MET' if ok else 'NOT MET'} ({med * 1e3:.1f} ms)")
+
+
+if __name__ == "__main__":
+    main()
