@@ -1,0 +1,88 @@
+"""Klipper through Moonraker's HTTP API (``shared/reference/firmware.md`` §5.5), with urllib only.
+
+``POST /printer/gcode/script`` with ``{"script": "line1\\nline2"}`` answers ``{"result": "ok"}`` once
+every line has run, or an error object. Console replies (such as the ``SET_INPUT_SHAPER`` report)
+are read back from ``GET /server/gcode_store?count=N``. An API key goes in the ``X-Api-Key``
+header; neither it nor credentials or tokens in the URL are ever logged (:func:`redact`).
+"""
+
+from __future__ import annotations
+
+import json
+import urllib.error
+import urllib.request
+from typing import Callable
+from urllib.parse import urlsplit, urlunsplit
+
+from ringtune.hardware.link import LinkError, LinkTimeout, redact
+from ringtune.shaping.errors import RingtuneError
+
+
+class Moonraker:
+    """A Moonraker server at ``url`` (``http://host:7125``; credentials in it are used, not shown)."""
+
+    def __init__(self, url: str, api_key: str | None = None, timeout: float = 10.0,
+                 log: Callable[[str], None] | None = None):
+        parts = urlsplit(url)
+        if parts.scheme not in ("http", "https") or not parts.hostname:
+            raise RingtuneError("must be an http:// or https:// URL", f"--moonraker {redact(url)}")
+        self.base = urlunsplit((parts.scheme, parts.netloc.rsplit("@", 1)[-1], parts.path.rstrip("/"), "", ""))
+        self.shown = redact(url)
+        self.query = parts.query
+        self.user = parts.username
+        self.password = parts.password
+        self.api_key = api_key
+        self.timeout = timeout
+        self.log = log or (lambda msg: None)
+
+    def _request(self, method: str, path: str, body: dict | None = None) -> dict:
+        url = self.base + path
+        if self.query:
+            url += ("&" if "?" in url else "?") + self.query
+        data = json.dumps(body).encode() if body is not None else None
+        req = urllib.request.Request(url, data=data, method=method)
+        req.add_header("Accept", "application/json")
+        if data is not None:
+            req.add_header("Content-Type", "application/json")
+        if self.api_key:
+            req.add_header("X-Api-Key", self.api_key)
+        if self.user is not None:
+            import base64
+
+            token = base64.b64encode(f"{self.user}:{self.password or ''}".encode()).decode()
+            req.add_header("Authorization", f"Basic {token}")
+        self.log(f"{method} {self.shown.rstrip('/')}{path}")
+        try:
+            with urllib.request.urlopen(req, timeout=self.timeout) as resp:
+                payload = resp.read()
+        except urllib.error.HTTPError as exc:
+            try:
+                err = json.loads(exc.read() or b"{}").get("error", {})
+                msg = err.get("message") if isinstance(err, dict) else str(err)
+            except (json.JSONDecodeError, AttributeError):
+                msg = None
+            raise LinkError(f"HTTP {exc.code} from {path}: {msg or exc.reason}", self.shown) from None
+        except TimeoutError:
+            raise LinkTimeout(f"no answer from {path} within {self.timeout:g} s", path, self.shown) from None
+        except urllib.error.URLError as exc:
+            if isinstance(exc.reason, TimeoutError):
+                raise LinkTimeout(f"no answer from {path} within {self.timeout:g} s", path,
+                                  self.shown) from None
+            raise LinkError(f"cannot reach Moonraker: {exc.reason}", self.shown) from None
+        try:
+            return json.loads(payload)
+        except json.JSONDecodeError:
+            raise LinkError(f"{path} did not answer JSON", self.shown) from None
+
+    def script(self, lines: str | list[str]) -> None:
+        """Run G-code lines; returns when all have completed (LinkError if one fails)."""
+        text = lines if isinstance(lines, str) else "\n".join(lines)
+        result = self._request("POST", "/printer/gcode/script", {"script": text})
+        if result.get("result") != "ok":
+            raise LinkError(f"unexpected answer {str(result)[:80]!r}", self.shown)
+
+    def console(self, count: int = 50) -> list[str]:
+        """The last ``count`` console messages (commands and responses)."""
+        result = self._request("GET", f"/server/gcode_store?count={int(count)}")
+        store = result.get("result", {}).get("gcode_store", [])
+        return [str(item.get("message", "")) for item in store if isinstance(item, dict)]

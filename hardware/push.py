@@ -1,0 +1,258 @@
+"""Push a TuneConfig to a printer: send, read back, compare, report per setting, optionally save.
+
+Flow (serial: Marlin, Prusa, RRF over :class:`GcodeLink`; Klipper over its pty or Moonraker):
+
+1. the dialect's lines (:func:`ringtune.hardware.dialects.export_config`), one ``ok`` each;
+2. the read-back command (``M593``, ``M493``, ``SET_INPUT_SHAPER``), parsed and compared with the
+   intent; every setting is reported ``applied`` / ``not applied`` (with why) /
+   ``acknowledged (no read-back)`` (Marlin's ``M201 F S`` has no report);
+3. ``--save``: ``M500`` (Marlin), ``M593 W`` (Prusa) once everything was verified; RRF and Klipper
+   cannot persist these from G-code, so the config lines are written to a file and the report says
+   where they belong (``config.g``, ``printer.cfg``).
+
+A printer reset during the push (``start``) is said and the whole config is sent again. A printer
+that stops answering ends the push with :class:`PushError`, whose message lists what was applied
+and what was not. ``dry_run`` returns exactly the bytes that would be sent, numbered and checksummed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from ringtune.hardware.dialects import FIRMWARE_TITLE, Export, export_config
+from ringtune.hardware.link import GcodeLink, LinkError, LinkTimeout, PrinterReset, Reply, frame, redact
+from ringtune.hardware.readback import compare, parse_report
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+
+PROTOCOL = {"klipper": "klipper", "rrf": "rrf", "rrf35": "rrf", "rrf34": "rrf", "marlin": "marlin",
+            "marlin-ftm": "marlin", "prusa": "marlin"}
+APPLIED, NOT_APPLIED, ACKED, DRY = "applied", "not applied", "acknowledged (no read-back)", "not sent (dry run)"
+
+
+@dataclass
+class SettingStatus:
+    key: str
+    meant: object
+    reported: object = None
+    status: str = NOT_APPLIED
+    detail: str = ""
+
+
+@dataclass
+class PushResult:
+    """Outcome of a push; ``to_dict()`` is the ``--json`` output of ``ringtune push``."""
+
+    firmware: str
+    port: str
+    dry_run: bool
+    wire: list[str] = field(default_factory=list)
+    settings: list[SettingStatus] = field(default_factory=list)
+    resets: int = 0
+    saved: str | None = None
+    save_file: str | None = None
+    notes: list[str] = field(default_factory=list)
+    ok: bool = False
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["settings"] = {s.key: {k: v for k, v in asdict(s).items() if k != "key"} for s in self.settings}
+        return d
+
+    def summary(self) -> str:
+        applied = [s.key for s in self.settings if s.status in (APPLIED, ACKED)]
+        missing = [s.key for s in self.settings if s.status not in (APPLIED, ACKED)]
+        return (f"applied: {', '.join(applied) or 'nothing'}; "
+                f"not applied: {', '.join(missing) or 'nothing'}")
+
+    def text(self) -> str:
+        out = [f"{FIRMWARE_TITLE[self.firmware]} on {self.port}" + (" (dry run)" if self.dry_run else "")]
+        if self.dry_run:
+            out.append("would send exactly:")
+            out += ["  " + w for w in self.wire]
+        for s in self.settings:
+            rep = "" if s.reported is None else f" (printer reports {s.reported})"
+            out.append(f"  {s.key:<12} {str(s.meant):<10} {s.status}{rep}{' - ' + s.detail if s.detail else ''}")
+        out += [f"note: {n}" for n in self.notes]
+        if self.saved:
+            out.append(f"saved: {self.saved}")
+        return "\n".join(out)
+
+
+class PushError(RingtuneError):
+    """The push failed part-way; ``result`` says per setting what was and was not applied."""
+
+    def __init__(self, message: str, result: PushResult, where: str | None = None):
+        super().__init__(message, where)
+        self.result = result
+
+
+def _statuses(exp: Export, replies: dict[int, Reply], report: str | None, firmware: str) -> list[SettingStatus]:
+    reported = parse_report(firmware, report) if report is not None else {}
+    cmp = compare(exp.expected, reported)
+    out = []
+    for key, meant in exp.expected.items():
+        idx = exp.setting_lines.get(key, 0)
+        st = SettingStatus(key, meant, cmp[key]["reported"])
+        reply = replies.get(idx)
+        if reply is None:
+            st.detail = "line not sent" if report is None else "line never acknowledged"
+        elif reply.errors:
+            st.detail = "printer said: " + "; ".join(reply.errors)
+        elif report is None:
+            st.status, st.detail = NOT_APPLIED, "acknowledged but not read back"
+        elif cmp[key]["ok"]:
+            st.status = APPLIED
+        elif cmp[key]["reported"] is None:
+            st.detail = "missing from the printer's report"
+        else:
+            st.detail = "printer reports a different value"
+        out.append(st)
+    if "limit" in exp.setting_lines:
+        idx = exp.setting_lines["limit"]
+        st = SettingStatus("limit", exp.lines[idx])
+        reply = replies.get(idx)
+        if reply is not None and not reply.errors:
+            st.status = ACKED
+        else:
+            st.detail = "printer said: " + "; ".join(reply.errors) if reply else "line not sent"
+        out.append(st)
+    return out
+
+
+def dry_run_wire(exp: Export, save: bool = False, crc: bool = False) -> list[str]:
+    """Exactly what a push sends, in order (numbered and checksummed for Marlin/RRF)."""
+    protocol = PROTOCOL[exp.firmware]
+    cmds = exp.lines + exp.readback + (exp.save_lines if save else [])
+    if protocol == "klipper":
+        return list(cmds)
+    framed = [frame(0, "M110 N0", crc and protocol == "rrf").decode()]
+    framed += [frame(i + 1, c, crc and protocol == "rrf").decode() for i, c in enumerate(cmds)]
+    return framed
+
+
+def push(config: TuneConfig, firmware: str | None = None, port: str | None = None,
+         moonraker: str | None = None, baud: int = 115200, save: bool = False, dry_run: bool = False,
+         timeout: float = 10.0, crc: bool = False, api_key: str | None = None,
+         save_path: str | Path | None = None, log: Callable[[str], None] | None = None,
+         max_resets: int = 3, link_options: dict | None = None) -> PushResult:
+    """Apply ``config`` on the printer at ``port`` (or Moonraker at ``moonraker``) and verify it."""
+    firmware = firmware or config.firmware
+    exp = export_config(config, firmware)
+    where = redact(moonraker) if moonraker else redact(port) if port else "(no port)"
+    result = PushResult(firmware, where, dry_run, notes=list(exp.notes))
+    if moonraker and firmware != "klipper":
+        raise RingtuneError("Moonraker speaks only for Klipper; use --port for other firmware", "--moonraker")
+    if dry_run:
+        result.wire = dry_run_wire(exp, save and bool(exp.save_lines), crc)
+        result.settings = [SettingStatus(k, v, status=DRY) for k, v in exp.expected.items()]
+        if "limit" in exp.setting_lines:
+            result.settings.append(SettingStatus("limit", exp.lines[exp.setting_lines["limit"]], status=DRY))
+        if save and exp.config_text:
+            result.notes.append(f"--save would write the {exp.config_target} lines to a file")
+        result.ok = True
+        return result
+    if not port and not moonraker:
+        raise RingtuneError("refusing to push without an explicit port: give --port /dev/ttyUSB0 "
+                            "(or socket://host:port, rfc2217://host:port) or --moonraker URL", "--port")
+    if moonraker:
+        replies, report = _push_moonraker(exp, moonraker, api_key, timeout, log, result)
+    else:
+        replies, report = _push_serial(exp, port, baud, crc, timeout, log, result, max_resets,
+                                       link_options or {}, save)
+    if not result.settings:
+        result.settings = _statuses(exp, replies, report, firmware)
+        result.ok = all(s.status in (APPLIED, ACKED) for s in result.settings)
+    if save:
+        _save_file(exp, result, save_path)
+    return result
+
+
+def _push_serial(exp, port, baud, crc, timeout, log, result, max_resets, link_options, save):
+    protocol = PROTOCOL[exp.firmware]
+    replies: dict[int, Reply] = {}
+    try:
+        link = GcodeLink(port, protocol, baud, crc=crc, timeout=timeout, log=log, **link_options)
+        link.open()
+    except PrinterReset as exc:
+        raise RingtuneError(str(exc)) from None
+    try:
+        for attempt in range(max_resets + 1):
+            try:
+                replies.clear()
+                for i, cmd in enumerate(exp.lines):
+                    replies[i] = link.send(cmd)
+                report = "\n".join(link.send(c).text for c in exp.readback)
+                if save and exp.save_lines:
+                    result.settings = _statuses(exp, replies, report, exp.firmware)
+                    result.ok = all(s.status in (APPLIED, ACKED) for s in result.settings)
+                    _save_eeprom(exp, result, link)
+                return replies, report
+            except PrinterReset:
+                result.resets += 1
+                result.notes.append("the printer reset during the push (it said 'start'); "
+                                    "re-handshook and sent every setting again")
+        raise RingtuneError(f"the printer reset {result.resets} times during the push; giving up", redact(port))
+    except LinkTimeout as exc:
+        result.settings = _statuses(exp, replies, None, exp.firmware)
+        for s in result.settings:
+            if exp.setting_lines.get(s.key, -1) in replies and not replies[exp.setting_lines[s.key]].errors:
+                s.status, s.detail = ACKED, "acknowledged before the printer stopped answering"
+        raise PushError(f"printer stopped answering ({exc.bare}); {result.summary()}", result,
+                        redact(port)) from None
+    finally:
+        link.close()
+
+
+def _push_moonraker(exp, url, api_key, timeout, log, result):
+    from ringtune.hardware.moonraker import Moonraker
+
+    mr = Moonraker(url, api_key=api_key, timeout=timeout, log=log)
+    replies: dict[int, Reply] = {}
+    try:
+        for i, cmd in enumerate(exp.lines):
+            try:
+                mr.script(cmd)
+                replies[i] = Reply(cmd)
+            except LinkTimeout:
+                raise
+            except LinkError as exc:
+                replies[i] = Reply(cmd, errors=[exc.bare])
+        mr.script("SET_INPUT_SHAPER")
+        console = mr.console(50)
+    except LinkTimeout as exc:
+        result.settings = _statuses(exp, replies, None, exp.firmware)
+        raise PushError(f"Moonraker stopped answering ({exc.bare}); {result.summary()}", result,
+                        redact(url)) from None
+    last = max((i for i, m in enumerate(console) if m.strip().upper() == "SET_INPUT_SHAPER"), default=-1)
+    return replies, "\n".join(console[last + 1:])
+
+
+def _save_eeprom(exp: Export, result: PushResult, link: GcodeLink) -> None:
+    if not result.ok:
+        result.notes.append("not saved: not every setting was verified on the printer")
+        return
+    for line in exp.save_lines:
+        reply = link.send(line)
+        if reply.errors:
+            result.notes.append(f"{line} failed: {'; '.join(reply.errors)}")
+            return
+    result.saved = f"{' '.join(exp.save_lines)} sent (the printer stores it in EEPROM)"
+
+
+def _save_file(exp: Export, result: PushResult, save_path) -> None:
+    if exp.save_lines or not exp.config_text:
+        return
+    if not result.ok:
+        result.notes.append("config file not written: not every setting was verified on the printer")
+        return
+    default = "ringtune-input_shaper.cfg" if exp.firmware == "klipper" else "ringtune-config.g"
+    path = Path(save_path or default)
+    path.write_text(exp.config_text)
+    result.save_file = str(path)
+    what = ("replace the [input_shaper] section of printer.cfg with it (SAVE_CONFIG would drop "
+            "damping_ratio)" if exp.firmware == "klipper" else "add these lines to config.g "
+            "(RepRapFirmware's M500 does not store M593)")
+    result.saved = f"{FIRMWARE_TITLE[exp.firmware]} cannot persist this from G-code: wrote {path}; {what}"

@@ -1,0 +1,490 @@
+"""A fake printer for push tests: Marlin (classic and FT_MOTION), Prusa, RRF and Klipper, over a
+pseudo-tty or loopback TCP, plus a fake Moonraker HTTP server on 127.0.0.1.
+
+The firmware side follows ``shared/reference/firmware.md`` §5: Marlin checks line numbers and XOR
+checksums and asks ``Resend:`` (optionally followed by ``ok``); RRF silently drops a line with a
+bad checksum; Klipper ignores numbers and checksums. Faults are injected at given received-line
+indices (0-based, counting every numbered line the printer receives, handshakes included):
+
+- ``corrupt``: a byte of the received line is flipped before it is checked (line noise);
+- ``resend``: the line is dropped and ``Resend: <n>`` / ``rs <n>`` asked for it;
+- ``busy``: ``echo:busy: processing`` lines for ``busy_s`` seconds before the ok;
+- ``temps``: a temperature report before the reply; ``garbage``: a line of random bytes;
+- ``reset``: the printer reboots instead of executing the line (says ``start``, loses settings);
+- ``hang_after``: after that many executed commands, it never answers again.
+
+``executed`` lists the commands carried out since the last reset (what is "applied").
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import select
+import socket
+import threading
+import time
+import tty
+from dataclasses import dataclass, field
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from urllib.parse import parse_qs, urlsplit
+
+TEMP_REPORT = " T:210.00 /210.00 B:60.00 /60.00 @:0 B@:0"
+
+
+@dataclass
+class Faults:
+    corrupt: set = field(default_factory=set)
+    resend: set = field(default_factory=set)
+    busy: set = field(default_factory=set)
+    temps: set = field(default_factory=set)
+    garbage: set = field(default_factory=set)
+    reset: set = field(default_factory=set)
+    hang_after: int | None = None
+    busy_s: float = 0.0
+    ok_after_resend: bool = True
+
+
+# -- firmware cores: command text -> (reply lines, error or None) ------------------------------------
+
+def _params(cmd: str) -> dict[str, str]:
+    out = {}
+    for m in re.finditer(r'([A-Z])("[^"]*"|[^\s"]*)', cmd.split(None, 1)[1] if " " in cmd else ""):
+        out[m.group(1)] = m.group(2).strip('"')
+    return out
+
+
+class MarlinCore:
+    """Marlin classic ZV (M593 X/Y F D), M201 F S, M500, M105."""
+
+    def __init__(self):
+        self.reset()
+        self.eeprom = None
+
+    def reset(self):
+        self.shaping = {"x": [40.0, 0.15], "y": [40.0, 0.15]}
+        self.limit = (0.0, 5)
+
+    def execute(self, cmd: str):
+        word = cmd.split()[0].upper()
+        p = _params(cmd)
+        if word == "M593":
+            axes = [a.lower() for a in "XY" if a in p] or ["x", "y"]
+            if "F" not in p and "D" not in p:
+                return ["echo:Input Shaping:"] + [f"echo:  M593 {a.upper()} F{self.shaping[a][0]:.2f} "
+                                                   f"D{self.shaping[a][1]:.2f}" for a in ("x", "y")], None
+            if "D" in p and not 0 <= float(p["D"]) <= 1:
+                return [], "?Zeta (D) value out of range (0-1)"
+            for a in axes:
+                if "F" in p:
+                    self.shaping[a][0] = float(p["F"])
+                if "D" in p:
+                    self.shaping[a][1] = float(p["D"])
+            return [], None
+        if word == "M201":
+            self.limit = (float(p.get("F", self.limit[0])), int(float(p.get("S", self.limit[1]))))
+            return [], None
+        if word == "M500":
+            self.eeprom = self.snapshot()
+            return ["echo:Settings Stored (700 bytes; crc 1234)"], None
+        if word == "M105":
+            return ["__ok__" + TEMP_REPORT], None
+        if word == "M110":
+            return [], None
+        return [f'echo:Unknown command: "{cmd}"'], None
+
+    def snapshot(self):
+        return json.loads(json.dumps({k: v for k, v in vars(self).items() if k != "eeprom"}))
+
+
+class FtmCore(MarlinCore):
+    """Marlin FT_MOTION: M493."""
+
+    def reset(self):
+        super().reset()
+        self.ftm = {"on": 0, "x": [0, 37.0, 0.1, 0.05], "y": [0, 37.0, 0.1, 0.05]}
+
+    def execute(self, cmd: str):
+        if cmd.split()[0].upper() != "M493":
+            return super().execute(cmd)
+        p = _params(cmd)
+        axes = [a.lower() for a in "XY" if a in p] or ["x", "y"]
+        if not p:
+            lines = [f"M493 S{self.ftm['on']} D0 H0"]
+            for a in ("x", "y"):
+                c, f, z, q = self.ftm[a]
+                lines.append(f"M493 {a.upper()} C{c} A{f:.2f} F0.00 I{z:.2f} Q{q:.2f}")
+            return lines, None
+        if "S" in p:
+            self.ftm["on"] = int(float(p["S"]))
+        if "C" in p and not 0 <= int(float(p["C"])) <= 8:
+            return [], "?Invalid (C)ompensator value. (0-8)"
+        for a in axes:
+            for letter, k in (("C", 0), ("A", 1), ("I", 2), ("Q", 3)):
+                if letter in p:
+                    self.ftm[a][k] = int(float(p[letter])) if letter == "C" else float(p[letter])
+        return [], None
+
+
+class PrusaCore(MarlinCore):
+    """Prusa Buddy M593 X/Y T F D R W."""
+
+    TYPES = ["ZV", "ZVD", "MZV", "EI", "EI_2HUMP", "EI_3HUMP"]
+
+    def reset(self):
+        super().reset()
+        self.ps = {"x": [2, 50.7, 0.1, 20.0], "y": [2, 40.6, 0.1, 20.0]}
+
+    def execute(self, cmd: str):
+        if cmd.split()[0].upper() != "M593":
+            return super().execute(cmd)
+        p = _params(cmd)
+        if "W" in p:
+            self.eeprom = self.snapshot()
+            return [], None
+        axes = [a.lower() for a in "XY" if a in p] or ["x", "y"]
+        if not ({"T", "F", "D", "R"} & set(p)):
+            out = []
+            for a in ("x", "y"):
+                t, f, d, r = self.ps[a]
+                out.append(f"axis {a.upper()} disabled" if f == 0 else
+                           f"axis {a.upper()} type={self.TYPES[t]} freq={f:.2f} damp={d:.2f} vr={r:.2f}")
+            return out + ["axis Z disabled"], None
+        for a in axes:
+            for letter, k in (("T", 0), ("F", 1), ("D", 2), ("R", 3)):
+                if letter in p:
+                    self.ps[a][k] = int(p[letter]) if letter == "T" else float(p[letter])
+        return [], None
+
+
+class RrfCore:
+    """RepRapFirmware 3.6 M593."""
+
+    def __init__(self):
+        self.reset()
+
+    def reset(self):
+        self.m593 = {"P": "none", "F": 40.0, "S": 0.05}
+
+    def execute(self, cmd: str):
+        word = cmd.split()[0].upper()
+        p = _params(cmd)
+        if word == "M593":
+            if not p:
+                if self.m593["P"] == "none":
+                    return ["Input shaping is disabled"], None
+                return [f"Input shaping '{self.m593['P']}' at {self.m593['F']:.1f}Hz damping factor "
+                        f"{self.m593['S']:.2f}, impulses 0.250 0.500 with delays (ms) 0.00 12.50 25.00"], None
+            if "F" in p and float(p["F"]) < 4:
+                return [], "M593: parameter 'F' too low"
+            for k in ("P", "F", "S"):
+                if k in p:
+                    self.m593[k] = p[k].lower() if k == "P" else float(p[k])
+            return [], None
+        if word == "M110":
+            return [], None
+        return [], f"Unknown command {word}"
+
+
+class KlipperCore:
+    """Klipper SET_INPUT_SHAPER (always reports, per axis)."""
+
+    def __init__(self):
+        self.reset()
+
+    def reset(self):
+        self.axes = {"x": ["mzv", 0.0, 0.1], "y": ["mzv", 0.0, 0.1]}
+
+    def execute(self, cmd: str):
+        cmd = re.sub(r"^N\d+\s+", "", cmd)
+        cmd = re.sub(r"\*\d+$", "", cmd)
+        parts = cmd.split()
+        if not parts:
+            return [], None
+        if parts[0].upper() == "SET_INPUT_SHAPER":
+            kv = dict(p.split("=", 1) for p in parts[1:] if "=" in p)
+            for k, v in kv.items():
+                m = re.match(r"(SHAPER_FREQ|DAMPING_RATIO|SHAPER_TYPE)_([XY])$", k.upper())
+                if not m:
+                    return [], f"Unknown parameter {k}"
+                a = m.group(2).lower()
+                idx = {"SHAPER_TYPE": 0, "SHAPER_FREQ": 1, "DAMPING_RATIO": 2}[m.group(1)]
+                self.axes[a][idx] = v.lower() if idx == 0 else float(v)
+            return [f"// shaper_type_{a}:{t} shaper_freq_{a}:{f:.3f} damping_ratio_{a}:{d:.6f}"
+                    for a, (t, f, d) in self.axes.items()], None
+        if parts[0].upper() in ("M110", "M115"):
+            return ([] if parts[0].upper() == "M110" else ["ok FIRMWARE_NAME:Klipper"]), None
+        return [], f"Unknown command:\"{parts[0].upper()}\""
+
+
+CORES = {"marlin": MarlinCore, "marlin-ftm": FtmCore, "prusa": PrusaCore, "rrf": RrfCore,
+         "klipper": KlipperCore}
+
+
+# -- the serial side ------------------------------------------------------------------------------------
+
+class FakePrinter:
+    """A printer on a pty (``transport="pty"``) or on 127.0.0.1 TCP (``"tcp"``); use ``.url``."""
+
+    def __init__(self, firmware: str = "marlin", faults: Faults | None = None, transport: str = "pty",
+                 seed: int = 0):
+        self.firmware = firmware
+        self.protocol = "rrf" if firmware == "rrf" else "klipper" if firmware == "klipper" else "marlin"
+        self.core = CORES[firmware]()
+        self.faults = faults or Faults()
+        self.transport = transport
+        self.executed: list[str] = []
+        self.sessions: list[list[str]] = [self.executed]
+        self.received = 0
+        self.last_n = 0
+        self.resets = 0
+        self._stop = threading.Event()
+        self._seed = seed
+        if transport == "pty":
+            self._master, slave = os.openpty()
+            tty.setraw(slave)
+            self.url = os.ttyname(slave)
+            self._slave = slave
+        else:
+            self._srv = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            self._srv.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            self._srv.bind(("127.0.0.1", 0))
+            self._srv.listen(1)
+            self._srv.settimeout(0.1)
+            self.url = f"socket://127.0.0.1:{self._srv.getsockname()[1]}"
+            self._conn = None
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def __enter__(self):
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join(timeout=2)
+        if self.transport == "pty":
+            os.close(self._master)
+            os.close(self._slave)
+        else:
+            if self._conn:
+                self._conn.close()
+            self._srv.close()
+
+    # I/O
+    def _recv(self) -> bytes:
+        if self.transport == "pty":
+            r, _, _ = select.select([self._master], [], [], 0.05)
+            if not r:
+                return b""
+            try:
+                return os.read(self._master, 4096)
+            except OSError:
+                return b""
+        if self._conn is None:
+            try:
+                self._conn, _ = self._srv.accept()
+                self._conn.settimeout(0.05)
+            except (socket.timeout, OSError):
+                return b""
+        try:
+            data = self._conn.recv(4096)
+        except socket.timeout:
+            return b""
+        except OSError:
+            data = b""
+        if not data:
+            self._conn.close()
+            self._conn = None
+        return data
+
+    def write(self, text: str | bytes) -> None:
+        data = text if isinstance(text, bytes) else (text + "\n").encode()
+        if self.transport == "pty":
+            os.write(self._master, data)
+        elif self._conn is not None:
+            try:
+                self._conn.sendall(data)
+            except OSError:
+                pass
+
+    def _run(self):
+        buf = b""
+        while not self._stop.is_set():
+            buf += self._recv()
+            while b"\n" in buf:
+                raw, _, buf = buf.partition(b"\n")
+                self._line(raw.decode("ascii", "replace").strip())
+
+    # protocol
+    def _line(self, line: str) -> None:
+        if not line:
+            return
+        if self.faults.hang_after is not None and len(self.executed) >= self.faults.hang_after:
+            return
+        if self.protocol == "klipper":
+            self._execute(line)
+            return
+        i = self.received
+        self.received += 1
+        if i in self.faults.garbage:
+            self.write(bytes([0xFF, 0xFE, 0x00, 0x9C]) + b"#%$garbage\x07\r\n")
+        if i in self.faults.temps:
+            self.write(TEMP_REPORT)
+        if i in self.faults.corrupt:
+            pos = len(line) // 2
+            line = line[:pos] + chr(ord(line[pos]) ^ 0x01) + line[pos + 1:]
+        m = re.match(r"^N(-?\d+)\s+(.*?)\*(\d+)$", line)
+        if not m:
+            if line.startswith("N"):
+                if self.protocol == "marlin":
+                    self._ask_resend("No Checksum with line number")
+                return
+            self._execute(line)
+            return
+        n, cmd, cs = int(m.group(1)), m.group(2), int(m.group(3))
+        body = line[:line.rindex("*")].encode()
+        calc = 0
+        for b in body:
+            calc ^= b
+        if calc != cs:
+            if self.protocol == "marlin":
+                self._ask_resend("checksum mismatch")
+            return  # RRF: dropped silently
+        if "M110" not in cmd and self.protocol == "marlin" and n != self.last_n + 1:
+            self._ask_resend("Line Number is not Last Line Number+1")
+            return
+        if i in self.faults.resend:
+            if self.protocol == "marlin":
+                self.write(f"Resend: {self.last_n + 1}")
+                if self.faults.ok_after_resend:
+                    self.write("ok")
+            else:
+                self.write(f"rs {n}")
+            return
+        if i in self.faults.reset:
+            self.resets += 1
+            self.core.reset()
+            self.last_n = 0
+            self.executed = []
+            self.sessions.append(self.executed)
+            time.sleep(0.05)
+            self.write("start")
+            self.write("echo: External Reset")
+            return
+        if "M110" in cmd:
+            self.last_n = int(re.findall(r"N(-?\d+)", line)[-1])
+        else:
+            self.last_n = n
+        self._execute(cmd, busy=i in self.faults.busy)
+
+    def _ask_resend(self, why: str) -> None:
+        self.write(f"Error:{why}, Last Line: {self.last_n}")
+        self.write(f"Resend: {self.last_n + 1}")
+        if self.faults.ok_after_resend:
+            self.write("ok")
+
+    def _execute(self, cmd: str, busy: bool = False) -> None:
+        if busy:
+            end = time.monotonic() + self.faults.busy_s
+            while time.monotonic() < end:
+                self.write("echo:busy: processing")
+                time.sleep(min(0.3, self.faults.busy_s / 3))
+        if not cmd.upper().startswith("M110"):
+            self.executed.append(cmd)
+        lines, err = self.core.execute(cmd)
+        ok = "ok"
+        for ln in lines:
+            if ln.startswith("__ok__"):
+                ok = "ok" + ln[6:]
+            elif ln.startswith("ok ") and self.protocol == "klipper":
+                ok = ln
+            else:
+                self.write(ln)
+        if err:
+            self.write(("!! " if self.protocol == "klipper" else "Error:" if self.protocol == "marlin"
+                        else "Error: ") + err)
+        self.write(ok)
+
+
+# -- Moonraker ---------------------------------------------------------------------------------------
+
+class FakeMoonraker:
+    """``POST /printer/gcode/script`` and ``GET /server/gcode_store`` on 127.0.0.1 (Klipper core)."""
+
+    def __init__(self, api_key: str | None = None):
+        self.core = KlipperCore()
+        self.store: list[dict] = []
+        self.scripts: list[str] = []
+        self.requests: list[str] = []
+        self.api_key = api_key
+        fake = self
+
+        class Handler(BaseHTTPRequestHandler):
+            def log_message(self, *args):
+                pass
+
+            def _reply(self, code: int, obj: dict):
+                data = json.dumps(obj).encode()
+                self.send_response(code)
+                self.send_header("Content-Type", "application/json")
+                self.send_header("Content-Length", str(len(data)))
+                self.end_headers()
+                self.wfile.write(data)
+
+            def _auth(self) -> bool:
+                if fake.api_key and self.headers.get("X-Api-Key") != fake.api_key:
+                    self._reply(401, {"error": {"code": 401, "message": "Unauthorized"}})
+                    return False
+                return True
+
+            def do_POST(self):
+                fake.requests.append(self.path)
+                if not self._auth():
+                    return
+                url = urlsplit(self.path)
+                if url.path != "/printer/gcode/script":
+                    return self._reply(404, {"error": {"code": 404, "message": "Not Found"}})
+                body = self.rfile.read(int(self.headers.get("Content-Length", 0)) or 0)
+                try:
+                    script = json.loads(body or b"{}").get("script")
+                except json.JSONDecodeError:
+                    script = None
+                if script is None:
+                    script = parse_qs(url.query).get("script", [None])[0]
+                if script is None:
+                    return self._reply(400, {"error": {"code": 400, "message": "No script"}})
+                fake.scripts.append(script)
+                for line in script.split("\n"):
+                    fake.store.append({"message": line, "time": time.time(), "type": "command"})
+                    lines, err = fake.core.execute(line)
+                    for ln in lines:
+                        fake.store.append({"message": ln, "time": time.time(), "type": "response"})
+                    if err:
+                        fake.store.append({"message": "!! " + err, "time": time.time(), "type": "response"})
+                        return self._reply(400, {"error": {"code": 400, "message": err}})
+                return self._reply(200, {"result": "ok"})
+
+            def do_GET(self):
+                fake.requests.append(self.path)
+                if not self._auth():
+                    return
+                url = urlsplit(self.path)
+                if url.path != "/server/gcode_store":
+                    return self._reply(404, {"error": {"code": 404, "message": "Not Found"}})
+                count = int(parse_qs(url.query).get("count", ["100"])[0])
+                return self._reply(200, {"result": {"gcode_store": fake.store[-count:]}})
+
+        self.server = ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+        self.url = f"http://127.0.0.1:{self.server.server_address[1]}"
+        self._thread = threading.Thread(target=self.server.serve_forever, kwargs={"poll_interval": 0.05},
+                                        daemon=True)
+
+    def __enter__(self):
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.server.shutdown()
+        self.server.server_close()
+        self._thread.join(timeout=2)
