@@ -1,0 +1,175 @@
+"""Push over a fake printer (pty and loopback TCP) that misbehaves the ways real ones do."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from fake_printer import FakeMoonraker, FakePrinter, Faults  # noqa: E402
+
+from ringtune.hardware.link import GcodeLink, LinkTimeout, crc16_ccitt, frame, redact  # noqa: E402
+from ringtune.hardware.push import APPLIED, PushError, dry_run_wire, push  # noqa: E402
+from ringtune.hardware.dialects import export_config  # noqa: E402
+from ringtune.shaping.config import TuneConfig  # noqa: E402
+from ringtune.shaping.errors import RingtuneError  # noqa: E402
+
+pytestmark = pytest.mark.timeout(60)
+
+MARLIN = TuneConfig(firmware="marlin", shaper_x="zv", shaper_y="zv", freq_x=41.5, freq_y=37.25,
+                    damping_x=0.08, damping_y=0.12, freq_limit_hz=25, min_speed_factor=0.3)
+
+
+def test_frames_match_the_reference_examples():
+    assert frame(0, "M110 N0") == b"N0 M110 N0*125"
+    assert frame(1, "G28") == b"N1 G28*18"
+    assert frame(2, "M593 X F40 D0.1") == b"N2 M593 X F40 D0.1*127"
+    assert crc16_ccitt(b"N100 G0 X100 F6000") == 51369       # RRF docs example
+    assert frame(100, "G0 X100 F6000", crc=True) == b"N100 G0 X100 F6000*51369"
+
+
+def test_redact_hides_secrets():
+    assert redact("http://user:hunter2@printer.local:7125/?token=abc&x=1") == \
+        "http://***@printer.local:7125/?token=***&x=1"
+    assert redact("/dev/ttyUSB0") == "/dev/ttyUSB0"
+    assert "pw" not in redact("rfc2217://me:pw@10.0.0.2:2217")
+
+
+def _all_faults(**kw) -> Faults:
+    # received-line indices: 0 is the handshake; faults land on the settings lines and the read-back
+    return Faults(corrupt={1}, resend={2}, garbage={2, 5}, temps={1, 3, 6}, busy={3}, reset={4}, **kw)
+
+
+@pytest.mark.parametrize("transport, ok_after_resend", [("pty", True), ("tcp", False)])
+def test_marlin_push_survives_every_fault(transport, ok_after_resend):
+    faults = _all_faults(busy_s=1.3, ok_after_resend=ok_after_resend)
+    with FakePrinter("marlin", faults, transport=transport) as fp:
+        r = push(MARLIN, port=fp.url, timeout=1.0, save=True)   # busy lasts longer than the timeout
+    sent = export_config(MARLIN).lines
+    # after the reset, every setting line was carried out exactly once, in order
+    assert fp.resets == 1
+    assert fp.executed == sent + ["M593", "M500"]
+    assert r.ok and r.resets == 1 and any("reset" in n for n in r.notes)
+    assert {s.key: s.status for s in r.settings} == {
+        "x.freq": APPLIED, "x.damping": APPLIED, "y.freq": APPLIED, "y.damping": APPLIED,
+        "limit": "acknowledged (no read-back)"}
+    assert fp.core.shaping == {"x": [41.5, 0.08], "y": [37.25, 0.12]} and fp.core.limit == (25.0, 30)
+    assert fp.core.eeprom["shaping"] == {"x": [41.5, 0.08], "y": [37.25, 0.12]}
+    assert "M500" in r.saved
+
+
+def test_rrf_push_retries_silently_dropped_lines_and_verifies():
+    cfg = TuneConfig(firmware="rrf", shaper_x="zvd", shaper_y="zvd", freq_x=40.5, freq_y=40.5,
+                     damping_x=0.1, damping_y=0.1)
+    faults = Faults(corrupt={1, 2}, resend={3}, temps={1}, garbage={3}, reset={4})
+    with FakePrinter("rrf", faults, transport="pty") as fp:
+        r = push(cfg, port=fp.url, timeout=3.0, save=True, save_path=Path(fp.url).name + ".g",
+                 link_options={"retry_after": 0.3})
+    assert fp.executed == ['M593 P"zvd" F40.5 S0.1', "M593"]
+    assert r.ok and r.resets == 1
+    assert {s.key: (s.status, s.reported) for s in r.settings} == {
+        "all.type": (APPLIED, "zvd"), "all.freq": (APPLIED, 40.5), "all.damping": (APPLIED, 0.1)}
+    saved = Path(r.save_file)
+    assert saved.read_text() == 'M593 P"zvd" F40.5 S0.1\n' and "config.g" in r.saved
+    saved.unlink()
+
+
+def test_rrf_error_line_is_reported():
+    with FakePrinter("rrf", transport="tcp") as fp, GcodeLink(fp.url, "rrf", timeout=2.0) as link:
+        reply = link.send("M593 P\"zvd\" F2")
+        assert reply.errors == ["M593: parameter 'F' too low"]
+        assert "disabled" in link.send("M593").text
+
+
+def test_rrf_crc_option_is_accepted_by_number_format():
+    wire = dry_run_wire(export_config(TuneConfig(firmware="rrf", shaper_x="mzv", shaper_y="mzv")), crc=True)
+    assert wire[0] == "N0 M110 N0*%05d" % crc16_ccitt(b"N0 M110 N0")
+    assert all(len(w.rsplit("*", 1)[1]) == 5 for w in wire)
+
+
+@pytest.mark.parametrize("fw, shaper, save_key", [("marlin-ftm", "mzv", "M500"), ("prusa", "ei", "M593 W")])
+def test_ftm_and_prusa_push_and_save(fw, shaper, save_key):
+    cfg = TuneConfig(firmware=fw, shaper_x=shaper, shaper_y="zv", freq_x=48.0, freq_y=36.5,
+                     damping_x=0.1, damping_y=0.15)
+    with FakePrinter(fw, Faults(temps={2}, resend={2}), transport="tcp") as fp:
+        r = push(cfg, port=fp.url, timeout=2.0, save=True)
+    assert r.ok, r.text()
+    assert fp.executed == export_config(cfg).lines + export_config(cfg).readback + [save_key]
+    assert save_key in r.saved and fp.core.eeprom is not None
+
+
+def test_printer_that_stops_answering_fails_within_timeout_and_says_what_was_applied():
+    faults = Faults(hang_after=1)     # executes the X line, then goes silent
+    with FakePrinter("marlin", faults, transport="pty") as fp:
+        t0 = time.monotonic()
+        with pytest.raises(PushError) as exc:
+            push(MARLIN, port=fp.url, timeout=0.8)
+        elapsed = time.monotonic() - t0
+    assert elapsed < 5
+    msg = str(exc.value)
+    assert "stopped answering" in msg and "no answer to 'M593 Y F37.25 D0.12' within 0.8 s" in msg
+    assert "applied: x.freq, x.damping; not applied: y.freq, y.damping, limit" in msg
+    statuses = {s.key: s.status for s in exc.value.result.settings}
+    assert statuses["x.freq"].startswith("acknowledged") and statuses["y.freq"] == "not applied"
+
+
+def test_klipper_through_pty_without_checksums():
+    cfg = TuneConfig(firmware="klipper", shaper_x="ei", shaper_y="mzv", freq_x=51.2, freq_y=46.2,
+                     damping_x=0.08, damping_y=0.1, freq_limit_hz=20)
+    log: list[str] = []
+    with FakePrinter("klipper", transport="pty") as fp:
+        r = push(cfg, port=fp.url, timeout=2.0, log=log.append)
+    assert r.ok
+    assert fp.executed == ["SET_INPUT_SHAPER SHAPER_FREQ_X=51.2 SHAPER_FREQ_Y=46.2 DAMPING_RATIO_X=0.08 "
+                           "DAMPING_RATIO_Y=0.1 SHAPER_TYPE_X=ei SHAPER_TYPE_Y=mzv", "SET_INPUT_SHAPER"]
+    assert not any("*" in line or line.startswith("> N") for line in log)
+    assert fp.core.axes == {"x": ["ei", 51.2, 0.08], "y": ["mzv", 46.2, 0.1]}
+    assert any("ringtune limit FILE.gcode --freq-limit 20" in n for n in r.notes)
+
+
+def test_klipper_through_moonraker_never_logs_secrets(tmp_path):
+    cfg = TuneConfig(firmware="klipper", shaper_x="mzv", shaper_y="2hump_ei", freq_x=44.0, freq_y=60.0,
+                     damping_x=0.1, damping_y=0.1)
+    log: list[str] = []
+    with FakeMoonraker(api_key="k3y") as mr:
+        url = mr.url.replace("http://", "http://bob:s3cret@") + "/?token=t0ken"
+        r = push(cfg, moonraker=url, api_key="k3y", timeout=2.0, save=True,
+                 save_path=tmp_path / "is.cfg", log=log.append)
+        with pytest.raises(RingtuneError, match="HTTP 401"):
+            push(cfg, moonraker=mr.url, api_key="wrong", timeout=2.0)
+    assert r.ok, r.text()
+    assert mr.scripts[0].startswith("SET_INPUT_SHAPER SHAPER_FREQ_X=44 SHAPER_FREQ_Y=60")
+    assert mr.scripts[1] == "SET_INPUT_SHAPER"
+    assert fp_axes(mr) == {"x": ["mzv", 44.0, 0.1], "y": ["2hump_ei", 60.0, 0.1]}
+    text = "\n".join(log) + r.text() + str(r.to_dict())
+    for secret in ("s3cret", "t0ken", "k3y"):
+        assert secret not in text
+    assert "damping_ratio_y: 0.1" in (tmp_path / "is.cfg").read_text()
+    assert "printer.cfg" in r.saved
+
+
+def fp_axes(mr):
+    return mr.core.axes
+
+
+def test_dry_run_prints_exact_wire_and_needs_no_port():
+    r = push(MARLIN, dry_run=True, save=True)
+    assert r.wire == ["N0 M110 N0*125", "N1 M593 X F41.5 D0.08*95", "N2 M593 Y F37.25 D0.12*101",
+                      "N3 M201 F25 S30*50", "N4 M593*40", "N5 M500*35"]
+    assert all(s.status == "not sent (dry run)" for s in r.settings)
+
+
+def test_push_refuses_without_port():
+    with pytest.raises(RingtuneError, match="explicit port"):
+        push(MARLIN)
+
+
+def test_link_times_out_on_silence():
+    with FakePrinter("marlin", Faults(hang_after=0), transport="tcp") as fp:
+        link = GcodeLink(fp.url, "marlin", timeout=0.5)
+        with pytest.raises(LinkTimeout, match="no answer to 'M110 N0' within 0.5 s"):
+            link.open()
+        link.close()
