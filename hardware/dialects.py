@@ -24,11 +24,11 @@ RRF shaper is ``shaper_x = "custom"`` with ``extra["custom"] = {"amplitudes": [A
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, field
 
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.shapers import parse_name
 
 DIALECTS = ("klipper", "rrf", "rrf35", "rrf34", "marlin", "marlin-ftm", "prusa")
 
@@ -60,7 +60,6 @@ _NEAREST = {
     "2hump_ei": ("2hump_ei", "zvdd", "ei", "3hump_ei", "zvd", "zv"),
     "3hump_ei": ("3hump_ei", "zvddd", "2hump_ei", "zvdd", "ei", "zv"),
 }
-_ALIASES = {"ei2": "2hump_ei", "ei3": "3hump_ei", "2hei": "2hump_ei", "3hei": "3hump_ei", "off": "none"}
 _FTM_MODE = {"none": 0, "zv": 1, "zvd": 2, "zvdd": 3, "zvddd": 4, "ei": 5, "2hump_ei": 6, "3hump_ei": 7,
              "mzv": 8}
 _PRUSA_TYPE = {"zv": 0, "zvd": 1, "mzv": 2, "ei": 3, "2hump_ei": 4, "3hump_ei": 5}
@@ -68,7 +67,6 @@ _PRUSA_TYPE = {"zv": 0, "zvd": 1, "mzv": 2, "ei": 3, "2hump_ei": 4, "3hump_ei": 
 _KLIPPER_MAX_DAMPING = {"zv": 0.99, "mzv": 0.99, "zvd": 0.99, "ei": 0.4, "2hump_ei": 0.3, "3hump_ei": 0.2}
 #: RRF 3.4/3.5 minimum frequency on Duet 3: StepClockRate / (2·65535) = 750 kHz / 131070
 RRF35_MIN_FREQ = 750000.0 / 131070.0
-_PARAM_RE = re.compile(r"^\s*(\w+)\s*\((.*)\)\s*$")
 
 
 @dataclass
@@ -122,20 +120,15 @@ def fmt(value: float, decimals: int = 3) -> str:
     return "0" if s in ("-0", "") else s
 
 
-def canonical(name: str) -> tuple[str, dict[str, float]]:
-    """(base name, parameters) of a shaper string: ``"MZV(n=5,t=1.1)"`` -> ``("mzv", {"n": 5, "t": 1.1})``."""
-    s = name.strip().lower().replace("-", "_")
-    params: dict[str, float] = {}
-    m = _PARAM_RE.match(s)
-    if m:
-        s = m.group(1)
-        for i, part in enumerate(p for p in m.group(2).split(",") if p.strip()):
-            k, _, v = part.rpartition("=")
-            try:
-                params[k.strip() or str(i)] = float(v)
-            except ValueError:
-                raise RingtuneError(f"bad shaper parameter {part.strip()!r}", f"shaper {name!r}") from None
-    return _ALIASES.get(s, s), params
+def canonical(name: str) -> tuple[str, dict]:
+    """(base name, parameters) of a shaper string: ``"MZV(n=5,t=1.1)"`` -> ``("mzv", {"n": 5, "t": 1.1})``.
+
+    Uses :func:`ringtune.shaping.shapers.parse_name` (Klipper's syntax; aliases such as ``ei2``)."""
+    base, params = parse_name(name, f"shaper {name!r}")
+    if "_positional" in params:
+        pos = params.pop("_positional")
+        params.update({str(i): v for i, v in enumerate(pos)})
+    return base, params
 
 
 def check_available(name: str, dialect: str, where: str) -> str:
@@ -261,7 +254,7 @@ def _rrf(config: TuneConfig, dialect: str) -> Export:
         raise RingtuneError(f"{title} applies one shaper to all axes, but X is {sx} {fx:g} Hz ζ={dx:g} "
                             f"and Y is {sy} {fy:g} Hz ζ={dy:g}; give both axes the same shaper", "config")
     for ax, name in (("x", sx), ("y", sy)):
-        if canonical(name)[1]:
+        if canonical(name)[1] and bx != "custom":
             raise RingtuneError(f"{title} takes no shaper parameters", f"config: shaper_{ax}")
     expected: dict[str, object] = {"all.type": _rrf_name(bx)}
     if bx == "none":
@@ -301,6 +294,15 @@ def custom_impulses(config: TuneConfig) -> tuple[list[float], list[float]]:
     """(amplitudes, times s) of the config's custom shaper, validated: first time 0, times strictly
     increasing, amplitudes positive summing to 1, 2..5 impulses (RRF takes at most 4 H values)."""
     where = "config: custom"
+    name = config.shaper_x
+    _, params = canonical(name)
+    if params:
+        from ringtune.shaping.custom import rrf_custom
+
+        semantics = "3.6" if config.firmware == "rrf" else "3.5"
+        amps, times = rrf_custom(params.get("h"), params.get("t"), config.freq_x, config.damping_x,
+                                 semantics, where=f"config: shaper_x {name!r}")
+        return [float(a) for a in amps], [float(t) for t in times]
     spec = config.extra.get("custom")
     if not isinstance(spec, dict) or "amplitudes" not in spec or "times" not in spec:
         raise RingtuneError('a custom shaper needs "custom": {"amplitudes": [...], "times": [...]} in '

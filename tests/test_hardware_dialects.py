@@ -166,3 +166,27 @@ def test_every_dialect_checksum_safe_lines():
 def test_unknown_firmware():
     with pytest.raises(RingtuneError, match="--firmware"):
         export_config(cfg(), "grbl")
+
+
+def test_custom_given_in_the_configs_own_rrf_semantics_is_converted():
+    # written for RRF 3.5 (cumulative H, durations T) -> exported for 3.6 and back
+    c35 = TuneConfig(firmware="rrf35", shaper_x="custom(h=0.4:0.7,t=0.0135:0.0135)",
+                     shaper_y="custom(h=0.4:0.7,t=0.0135:0.0135)")
+    assert export_config(c35, "rrf").lines == ['M593 P"custom" H0.4:0.3 T0.0135:0.027']
+    assert export_config(c35, "rrf35").lines == ['M593 P"custom" H0.4:0.7 T0.0135:0.0135']
+    c36 = TuneConfig(firmware="rrf", shaper_x="custom(h=0.4:0.3,t=0.0135:0.027)",
+                     shaper_y="custom(h=0.4:0.3,t=0.0135:0.027)")
+    assert export_config(c36, "rrf35").lines == ['M593 P"custom" H0.4:0.7 T0.0135:0.0135']
+    with pytest.raises(RingtuneError, match="sum to less than 1"):
+        export_config(TuneConfig(firmware="rrf", shaper_x="custom(h=0.6:0.5)", shaper_y="custom(h=0.6:0.5)"),
+                      "rrf")
+
+
+@pytest.mark.parametrize("dialect, flavor", [("klipper", "klipper"), ("rrf", "rrf"), ("rrf35", "rrf35"),
+                                             ("marlin", "marlin"), ("marlin-ftm", "marlin-ftm"),
+                                             ("prusa", "klipper-legacy")])
+def test_dialect_shaper_sets_agree_with_the_shaper_registry(dialect, flavor):
+    from ringtune.hardware.dialects import AVAILABLE
+    from ringtune.shaping.shapers import available_shapers
+
+    assert set(AVAILABLE[dialect]) == set(available_shapers(flavor))
