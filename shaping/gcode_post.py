@@ -1,0 +1,134 @@
+"""The ``limit`` post-processor: rewrite a G-code file so its feedrates respect a direction-change
+frequency limit, changing only the F words it must.
+
+A move line whose planned speed differs from the speed the output file would command there gets
+an F word (its own F replaced, or one added before any comment/checksum). The first move after a
+slowed stretch gets the original F back the same way. Every other byte of the input is kept; one
+header comment at the top records what was done. A checksummed line (``N.. *cs``) that is changed
+gets its XOR checksum recomputed.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.freqlimit import apply_freq_limit
+from ringtune.shaping.gcode import read_gcode
+
+_MOVE = re.compile(rb"^\s*(?:[Nn]\s*-?\d+\s*)?[Gg]0*[0-3](?![0-9.])")
+_F_WORD = re.compile(rb"([Ff])\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
+
+
+@dataclass
+class LimitResult:
+    lines_changed: int
+    moves_slowed: int
+    f_words_changed: int
+    f_words_added: int
+    header: str
+
+
+def _fmt(f_mm_min: float) -> bytes:
+    s = f"{f_mm_min:.1f}"
+    if "." in s:
+        s = s.rstrip("0").rstrip(".")
+    return s.encode()
+
+
+def _split_code(line: bytes) -> tuple[bytes, bytes, bytes]:
+    """(code, checksum part '*nn' or b'', rest: comment and line end)."""
+    body = line.rstrip(b"\r\n")
+    end = line[len(body):]
+    semi = body.find(b";")
+    code, comment = (body, b"") if semi < 0 else (body[:semi], body[semi:])
+    star = code.rfind(b"*")
+    cs = b""
+    if star >= 0 and code[star + 1:].strip().isdigit():
+        code, cs = code[:star], code[star:]
+    return code, cs, comment + end
+
+
+def _with_checksum(code: bytes, cs: bytes) -> bytes:
+    if not cs:
+        return code
+    body = code.rstrip()
+    x = 0
+    for ch in body:
+        x ^= ch
+    return body + b"*" + str(x).encode()
+
+
+def limit_gcode_bytes(data: bytes, limit_hz: float, method: str = "sections",
+                      min_speed_factor: float = 0.3, source: str = "<gcode>") -> tuple[bytes, LimitResult]:
+    """Apply the frequency limit to G-code bytes; returns the new bytes and what changed."""
+    text = data.decode("utf-8", "replace")
+    job = read_gcode(text)
+    job.source = source
+    limited = apply_freq_limit(job, limit_hz, method, min_speed_factor)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(job.feed > 0, limited.feed / job.feed, 1.0)
+    # one ratio per source line (arcs give several moves per line: the slowest wins)
+    line_ratio: dict[int, float] = {}
+    for ln, r in zip(job.line.tolist(), ratio.tolist()):
+        line_ratio[ln] = min(r, line_ratio.get(ln, 1.0))
+    lines = data.splitlines(keepends=True)
+    nl = b"\r\n" if lines and lines[0].endswith(b"\r\n") else b"\n"
+    out = []
+    modal_in = modal_out = 1500.0      # F (mm/min) the input / output file commands here (F1500 default)
+    changed = added = replaced = 0
+    for ln, line in enumerate(lines, 1):
+        if not _MOVE.match(line):
+            out.append(line)
+            continue
+        code, cs, tail = _split_code(line)
+        m = _F_WORD.search(code, _MOVE.match(code).end()) if _MOVE.match(code) else None
+        if m:
+            try:
+                modal_in = float(m.group(2))
+            except ValueError:
+                raise RingtuneError(f"F{m.group(2).decode()} is not a number", f"{source}:{ln}") from None
+        r = line_ratio.get(ln, 1.0)
+        target = modal_in if r >= 1.0 else float(_fmt(modal_in * r))
+        if m:
+            if target == modal_in:
+                modal_out = modal_in
+                out.append(line)
+                continue
+            new_code = code[:m.start(2)] + _fmt(target) + code[m.end(2):]
+            replaced += 1
+        else:
+            if target == modal_out or ln not in line_ratio:
+                out.append(line)
+                continue
+            stripped = code.rstrip()
+            new_code = stripped + b" F" + _fmt(target) + code[len(stripped):]
+            added += 1
+        out.append(_with_checksum(new_code, cs) + tail)
+        modal_out = target
+        changed += 1
+    slowed = int(np.sum(ratio < 1.0 - 1e-12))
+    header = (f"; ringtune limit: method={method} freq_limit={limit_hz:g} Hz "
+              f"min_speed_factor={min_speed_factor:g}; slowed {slowed} of {job.n_moves} moves; "
+              f"changed F on {changed} lines ({replaced} replaced, {added} added); "
+              f"nothing else differs from the input")
+    result = LimitResult(changed, slowed, replaced, added, header)
+    return header.encode() + nl + b"".join(out), result
+
+
+def limit_file(src: str | Path, dst: str | Path | None, limit_hz: float, method: str = "sections",
+               min_speed_factor: float = 0.3) -> tuple[bytes, LimitResult]:
+    """Read ``src``, apply the limit, write ``dst`` (if given); returns (bytes, result)."""
+    src = Path(src)
+    try:
+        data = src.read_bytes()
+    except OSError as exc:
+        raise RingtuneError(f"cannot read: {exc.strerror}", str(src)) from None
+    out, result = limit_gcode_bytes(data, limit_hz, method, min_speed_factor, source=str(src))
+    if dst is not None:
+        Path(dst).write_bytes(out)
+    return out, result
