@@ -1,0 +1,153 @@
+"""Planner against analytic trapezoids, the firmware junction formulas, DAA, a slicer's estimate."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ringtune.shaping.gcode import read_gcode, slicer_estimate
+from ringtune.shaping.planner import (MachineLimits, backward_pass, forward_pass, limits_from_job,
+                                      plan)
+
+
+def test_min_plus_passes_match_the_recurrence():
+    rng = np.random.default_rng(1)
+    c = rng.uniform(0, 100, 50)
+    delta = rng.uniform(0, 30, 49)
+    w = forward_pass(c, delta)
+    ref = [c[0]]
+    for i in range(49):
+        ref.append(min(c[i + 1], ref[-1] + delta[i]))
+    np.testing.assert_allclose(w, ref)
+    u = backward_pass(c, delta)
+    ref = [c[-1]]
+    for i in range(48, -1, -1):
+        ref.append(min(c[i], ref[-1] + delta[i]))
+    np.testing.assert_allclose(u, ref[::-1])
+
+
+@pytest.mark.parametrize("junction", ["scv", "jd", "jerk"])
+def test_single_move_trapezoid_and_triangle(junction):
+    lim = MachineLimits(accel=1000, velocity=500, junction=junction, min_cruise_ratio=0.0,
+                        jerk=(0, 0, 0, 0))
+    # trapezoid: 100 mm at 50 mm/s, a = 1000: t = d/v + v/a
+    p = plan(read_gcode("G1 X100 F3000\n"), lim)
+    assert p.print_time == pytest.approx(100 / 50 + 50 / 1000, rel=1e-12)
+    # triangle: 1 mm can't reach 50 mm/s: t = 2 sqrt(d/a)
+    p = plan(read_gcode("G1 X1 F3000\n"), lim)
+    assert p.print_time == pytest.approx(2 * math.sqrt(1 / 1000), rel=1e-12)
+    assert p.moves.v_cruise[0] == pytest.approx(math.sqrt(1000 * 1), rel=1e-12)
+
+
+def test_motion_evaluates_to_the_moves():
+    job = read_gcode("G1 X10 Y0 F6000\nG1 X10 Y10 E1\nG1 X0 Y0 E2\nG4 P200\nG1 Z1 F600\n")
+    p = plan(job, MachineLimits(accel=2000))
+    m = p.moves
+    starts = p.motion.position(m.t_start)
+    ends = p.motion.position(m.t_start + m.duration)
+    np.testing.assert_allclose(starts, m.start, atol=1e-9)
+    np.testing.assert_allclose(ends, m.end, atol=1e-9)
+    # the dwell: the toolhead rests 0.2 s before the Z move
+    assert m.t_start[3] - (m.t_start[2] + m.duration[2]) == pytest.approx(0.2)
+    assert p.print_time == pytest.approx(m.t_start[-1] + m.duration[-1])
+
+
+def test_klipper_square_corner_is_the_square_corner_velocity():
+    # a 90 degree corner between long moves: Klipper's junction speed is exactly scv
+    lim = MachineLimits(accel=3000, junction="scv", square_corner_velocity=5, min_cruise_ratio=0)
+    p = plan(read_gcode("G1 X50 F6000\nG1 X50 Y50\n"), lim)
+    assert p.moves.v_exit[0] == pytest.approx(5.0, rel=1e-9)
+    assert p.moves.v_entry[1] == pytest.approx(5.0, rel=1e-9)
+    # a full reversal stops; a straight continuation keeps speed
+    p = plan(read_gcode("G1 X50 F6000\nG1 X0\n"), lim)
+    assert p.moves.v_exit[0] == 0
+    p = plan(read_gcode("G1 X50 F6000\nG1 X100\n"), lim)
+    assert p.moves.v_exit[0] == pytest.approx(100)
+
+
+def test_marlin_junction_deviation_formula():
+    # 90 degrees: v^2 = a * jd * sin(45)/(1 - sin(45))
+    lim = MachineLimits(accel=1500, junction="jd", junction_deviation=0.02)
+    p = plan(read_gcode("G1 X50 F6000\nG1 X50 Y50\n"), lim)
+    s = math.sin(math.radians(45))
+    assert p.moves.v_exit[0] ** 2 == pytest.approx(1500 * 0.02 * s / (1 - s), rel=1e-9)
+    # 60 degree turn (120 between the lines): half angle of the inside 120 -> sin(60)
+    p = plan(read_gcode(f"G1 X50 F6000\nG1 X{50 + 25} Y{25 * math.sqrt(3)}\n"), lim)
+    s = math.sin(math.radians(60))
+    assert p.moves.v_exit[0] ** 2 == pytest.approx(1500 * 0.02 * s / (1 - s), rel=1e-6)
+
+
+def test_classic_jerk_corner_and_start_from_rest():
+    lim = MachineLimits(accel=1000, junction="jerk", jerk=(8, 8, 0.4, 5), min_cruise_ratio=0)
+    p = plan(read_gcode("G1 X50 F6000\nG1 X50 Y50\n"), lim)
+    assert p.moves.v_exit[0] == pytest.approx(8.0)                 # each axis jumps by at most 8
+    assert p.moves.v_entry[0] == pytest.approx(8.0)                # from rest: the safe speed
+    assert p.moves.v_exit[1] == pytest.approx(8.0)
+    # analytic time: accelerate 8 -> 100, cruise, decelerate 100 -> 8 on each 50 mm side
+    t_ramp = (100 - 8) / 1000
+    d_ramp = (100 ** 2 - 8 ** 2) / 2000
+    expected = 2 * (2 * t_ramp + (50 - 2 * d_ramp) / 100)
+    assert p.print_time == pytest.approx(expected, rel=1e-12)
+
+
+def test_per_axis_limits_scale_speed_and_accel():
+    lim = MachineLimits(accel=3000, velocity=500, junction="jd", max_velocity=(500, 500, 5, 50),
+                        max_accel=(3000, 3000, 100, 5000))
+    p = plan(read_gcode("G1 Z10 F6000\nG1 X30 Z20 F6000\n"), lim)
+    assert p.moves.v_nominal[0] == pytest.approx(5)
+    assert p.moves.accel[0] == pytest.approx(100)
+    uz = 10 / math.hypot(30, 10)
+    assert p.moves.v_nominal[1] == pytest.approx(5 / uz)
+    assert p.moves.accel[1] == pytest.approx(100 / uz)
+
+
+def test_minimum_cruise_ratio_keeps_half_the_move_at_cruise():
+    lim = MachineLimits(accel=1000, velocity=1000, junction="scv", min_cruise_ratio=0.5)
+    p = plan(read_gcode("G1 X100 F60000\n"), lim)
+    # peak capped at v^2 = a*d/2: accelerating and decelerating take a quarter of the move each
+    assert p.moves.v_cruise[0] ** 2 == pytest.approx(1000 * 100 / 2)
+    p0 = plan(read_gcode("G1 X100 F60000\n"), MachineLimits(accel=1000, velocity=1000, min_cruise_ratio=0))
+    assert p0.moves.v_cruise[0] ** 2 == pytest.approx(1000 * 100)
+    # job's SET_VELOCITY_LIMIT overrides the machine's ratio from its line on
+    p1 = plan(read_gcode("SET_VELOCITY_LIMIT MINIMUM_CRUISE_RATIO=0\nG1 X100 F60000\n"), lim)
+    assert p1.moves.v_cruise[0] ** 2 == pytest.approx(1000 * 100)
+
+
+def test_daa_phases_last_one_or_two_ringing_periods():
+    f = 40.0
+    lim = MachineLimits(accel=3000, velocity=500, junction="jerk", jerk=(0, 0, 0, 0), min_cruise_ratio=0)
+    # 0 -> 100 mm/s takes 33 ms at 3000 > one period (25 ms): DAA stretches it to two (50 ms)
+    p = plan(read_gcode("G1 X100 F6000\n"), lim, daa_freq=f)
+    assert p.moves.accel[0] == pytest.approx(100 / (2 / f))
+    # 0 -> 50 mm/s takes 17 ms: stretched to one period
+    p = plan(read_gcode("G1 X100 F3000\n"), lim, daa_freq=f)
+    assert p.moves.accel[0] == pytest.approx(50 / (1 / f))
+    assert p.moves.decel[0] == pytest.approx(50 / (1 / f))
+    # the phases are visible in the motion: constant acceleration for exactly 1/f
+    seg = np.diff(p.motion.t)
+    acc = np.abs(p.motion.a[:, 0])
+    np.testing.assert_allclose(seg[acc > 0], 1 / f)
+    # a long phase (0 -> 200 mm/s at 3000 = 67 ms > 2 periods) is left alone
+    p = plan(read_gcode("G1 X200 F12000\n"), lim, daa_freq=f)
+    assert p.moves.accel[0] == pytest.approx(3000)
+
+
+def test_events_get_times(shared_dir):
+    job = read_gcode(shared_dir / "data/gcode/ianalexis_ender3_marlin/ringing_tower.gcode")
+    p = plan(job, limits_from_job(job, junction="jerk"))
+    times = [e.time for e in p.events if e.command == "M593"]
+    assert len(times) == 300
+    assert all(a <= b for a, b in zip(times, times[1:]))
+    assert 0 < times[0] < times[-1] < p.print_time
+
+
+def test_ianalexis_print_time_within_3_percent_of_prusaslicer(shared_dir):
+    """Acceptance 4: the file's own limits (M201/M203/M204/M205, jerk 0) and classic jerk."""
+    path = shared_dir / "data/gcode/ianalexis_ender3_marlin/ringing_tower.gcode"
+    job = read_gcode(path)
+    p = plan(job, MachineLimits(junction="jerk", min_cruise_ratio=0))
+    estimate = slicer_estimate(path)
+    assert estimate == 2428
+    assert abs(p.print_time / estimate - 1) < 0.03
