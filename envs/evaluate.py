@@ -155,6 +155,7 @@ class WindowRun:
     path: Motion              # unshaped command over the same span (geometry for the metrics)
     lag: float                # s, see compute_metrics
     settle: float             # s, see compute_metrics
+    anticipate: float = 0.0   # s, see compute_metrics
 
 
 def config_shapers(config: TuneConfig) -> tuple[dict, bool]:
@@ -179,6 +180,8 @@ def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE) -> l
     lag = 0.0 if centred else max((s.centroid for s in active), default=0.0)
     # after a corner (unshaped time) the shaped command runs straight once the last impulse passed
     after = max((s.duration - (s.centre_delay if centred else 0.0) for s in active), default=0.0)
+    # ... and starts turning into the next corner this long before it (centred shapers only)
+    before = max((s.centre_delay for s in active), default=0.0) if centred else 0.0
     motion = pj.motion
     runs = []
     for w in pj.windows:
@@ -190,7 +193,7 @@ def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE) -> l
         shaped = shape_motion(raw, shapers, centred) if active else raw
         a, b = max(a, shaped.start_time), min(b, shaped.end_time)
         runs.append(WindowRun(w.t0, w.t1, shaped.window(a, b), motion.window(max(a, lo), min(b, hi)),
-                              lag, after))
+                              lag, after, before))
     return runs
 
 
@@ -211,7 +214,7 @@ def metrics_of(runs: list[WindowRun], sims: list, print_time: float) -> Metrics:
     parts = []
     for run, sim in zip(runs, sims):
         part = compute_metrics(_trimmed(sim, run.t0 + run.lag, run.t1 + run.lag), run.path,
-                               lag=run.lag, settle=run.settle)
+                               lag=run.lag, settle=run.settle, anticipate=run.anticipate)
         parts.append(part)
     return Metrics.worst(parts, print_time_s=print_time)
 

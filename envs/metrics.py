@@ -16,15 +16,19 @@ sample's time minus ``lag``, the shaper's delay):
     adjacent parallel infill lines from being mistaken for the line being printed).
 ``overshoot_mm``
     max over corners (direction change ≥ ``corner_angle_deg``, either side extruding) of the
-    outward excursion: for extruding samples within ``corner_window`` s of the corner, the vector
-    ``e`` from the nearest point of the two legs meeting at the corner to the nozzle counts with
-    its length when it points outward (``e · (d_in − d_out) > 0``, the outer bisector; for a
-    reversal, past the turning point).
+    outward excursion after the corner: an extruding sample belongs to the latest corner the
+    shaped command has started turning into (``anticipate`` s before the corner's time on the
+    shaped clock) for up to ``corner_window`` s; if its nearest path point (as for
+    ``path_error_mm``) is on the corner's outgoing leg or is the corner itself, it counts with its
+    distance from the path when the vector ``e`` from that point to the nozzle points outward,
+    ``e · (d_in − d_out) > 0`` (the outer bisector; for a reversal, past the turning point).
+    Lateral error on the incoming leg belongs to the corner before it.
 ``ringing_mm``
     max over straight walls (extruding legs at least ``min_wall`` s long that follow a corner) of
     the RMS, about its mean, of the nozzle's perpendicular deviation from the wall's line, taken
-    from ``settle`` s after the corner (when the shaped command has finished turning) to the end
-    of the wall.
+    while the shaped command runs straight along the wall: from ``settle`` s after the corner
+    (when the shaped command has finished turning) to ``anticipate`` s before the wall's end (when
+    it starts turning into the next one), both on the shaped clock.
 ``peak_accel``
     max over all samples of the head's acceleration magnitude ``|(a_x, a_y)|``, mm/s².
 ``step_loss``
@@ -47,6 +51,7 @@ from ringtune.shaping.motion import Motion
 _EPS_LEN = 1e-6  # mm: shorter x/y segments are pure z/e moves or dwells
 _COLLINEAR = math.cos(math.radians(1.0))
 _ROUNDING = 1e-9  # mm: outward excursions below a nanometre are floating-point noise
+_EARLY = 0.001  # s: timing slack when assigning samples to the corner being turned
 
 
 @dataclass
@@ -153,6 +158,7 @@ def _nearest_on_segments(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.nd
 
 # -- the metrics -----------------------------------------------------------------------------------
 def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float = 0.0,
+                    anticipate: float = 0.0,
                     corner_angle_deg: float = 30.0, corner_window: float = 0.06,
                     match_window: float = 0.05, min_wall: float = 0.02,
                     print_time_s: float = float("nan")) -> Metrics:
@@ -188,33 +194,49 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
     legs = path_legs(path)
     details: dict[str, Any] = {}
 
-    path_error = _path_error(tu[extruding], nozzle[extruding], legs, match_window, details)
-    overshoot = _overshoot(tu[extruding], nozzle[extruding], legs, corner_angle_deg, corner_window,
-                           details)
-    ringing = _ringing(tu[extruding], nozzle[extruding], legs, corner_angle_deg, settle - lag,
-                       min_wall, details)
+    tu, pts = tu[extruding], nozzle[extruding]
+    dist, vec, leg = _nearest(tu, pts, legs, match_window)
+    path_error = _path_error(tu, pts, dist, details)
+    overshoot = _overshoot(tu, pts, dist, vec, leg, legs, corner_angle_deg, corner_window,
+                           anticipate + lag, details)
+    ringing = _ringing(tu, pts, legs, corner_angle_deg, settle - lag, anticipate + lag, min_wall,
+                       details)
     return Metrics(print_time_s, path_error, overshoot, ringing, peak_accel, step_loss, details)
 
 
-def _path_error(tu, pts, legs: Legs, window: float, details: dict) -> float:
+def _nearest(tu, pts, legs: Legs, window: float):
+    """Per sample: distance (mm), vector from the nearest path point (mm) and the index of the
+    nearest extruding leg active within ``window`` s (inf, nan, −1 where there is none)."""
+    dist = np.full(len(tu), np.inf)
+    vec = np.full((len(tu), 2), np.nan)
+    leg = np.full(len(tu), -1, dtype=np.int64)
     ext = np.flatnonzero(legs.extruding)
     if len(tu) == 0 or len(ext) == 0:
-        return 0.0
+        return dist, vec, leg
     a, b = legs.start[ext], legs.end[ext]
     lo, hi = legs.t_start[ext] - window, legs.t_end[ext] + window
-    best = np.full(len(tu), np.inf)
     chunk = max(1, 2_000_000 // len(ext))
     for i in range(0, len(tu), chunk):  # chunks of samples × legs, bounded memory
         sl = slice(i, i + chunk)
-        d = np.linalg.norm(_nearest_on_segments(pts[sl, None, :], a[None], b[None]), axis=-1)
-        active = (tu[sl, None] >= lo[None]) & (tu[sl, None] <= hi[None])
-        best[sl] = np.min(np.where(active, d, np.inf), axis=1)
-    finite = np.isfinite(best)
+        e = _nearest_on_segments(pts[sl, None, :], a[None], b[None])
+        d = np.linalg.norm(e, axis=-1)
+        d = np.where((tu[sl, None] >= lo[None]) & (tu[sl, None] <= hi[None]), d, np.inf)
+        j = np.argmin(d, axis=1)
+        rows = np.arange(len(j))
+        dist[sl] = d[rows, j]
+        found = np.isfinite(dist[sl])
+        vec[sl] = np.where(found[:, None], e[rows, j], np.nan)
+        leg[sl] = np.where(found, ext[j], -1)
+    return dist, vec, leg
+
+
+def _path_error(tu, pts, dist, details: dict) -> float:
+    finite = np.isfinite(dist)
     if not finite.any():
         return 0.0
-    k = int(np.argmax(np.where(finite, best, -1.0)))
+    k = int(np.argmax(np.where(finite, dist, -1.0)))
     details["path_error_at"] = {"t": float(tu[k]), "x": float(pts[k, 0]), "y": float(pts[k, 1])}
-    return float(best[k])
+    return float(dist[k])
 
 
 def _corners(legs: Legs, angle: float) -> np.ndarray:
@@ -223,43 +245,41 @@ def _corners(legs: Legs, angle: float) -> np.ndarray:
     return k[legs.extruding[k] | legs.extruding[k - 1]]
 
 
-def _overshoot(tu, pts, legs: Legs, angle: float, window: float, details: dict) -> float:
+def _overshoot(tu, pts, dist, vec, leg, legs: Legs, angle: float, window: float, early: float,
+               details: dict) -> float:
     ks = _corners(legs, angle)
     if len(tu) == 0 or len(ks) == 0:
         return 0.0
     tc = legs.t_end[ks - 1]
-    # nearest corner in time for each sample
-    hi = np.clip(np.searchsorted(tc, tu), 0, len(tc) - 1)
-    lo = np.maximum(hi - 1, 0)
-    j = np.where(np.abs(tu - tc[lo]) <= np.abs(tu - tc[hi]), lo, hi)
-    near = np.abs(tu - tc[j]) <= window
-    if not near.any():
+    # each sample belongs to the latest corner the shaped command has started turning into
+    j = np.searchsorted(tc, tu + early + _EARLY, side="right") - 1
+    ok = j >= 0
+    j = np.maximum(j, 0)
+    k = ks[j]
+    nearest = pts - np.nan_to_num(vec)
+    at_vertex = np.linalg.norm(nearest - legs.end[k - 1], axis=1) < 1e-9
+    # ...while it is within the window after it and nearest to its outgoing leg or the vertex
+    mine = ok & (tu - tc[j] <= window) & ((leg == k) | ((leg == k - 1) & at_vertex))
+    if not mine.any():
         return 0.0
-    k = ks[j[near]]
-    p = pts[near]
     d = legs.direction
-    e_in = _nearest_on_segments(p, legs.start[k - 1], legs.end[k - 1])
-    e_out = _nearest_on_segments(p, legs.start[k], legs.end[k])
-    n_in, n_out = np.linalg.norm(e_in, axis=1), np.linalg.norm(e_out, axis=1)
-    e = np.where((n_in < n_out)[:, None], e_in, e_out)
-    dist = np.minimum(n_in, n_out)
-    outward = np.einsum("ij,ij->i", e, d[k - 1] - d[k]) > _ROUNDING
+    outward = mine & (np.einsum("ij,ij->i", np.nan_to_num(vec), d[k - 1] - d[k]) > _ROUNDING)
     val = np.where(outward, dist, 0.0)
     i = int(np.argmax(val))
     if val[i] > 0:
-        details["overshoot_at"] = {"t": float(tu[near][i]), "corner_t": float(tc[j[near]][i]),
+        details["overshoot_at"] = {"t": float(tu[i]), "corner_t": float(tc[j[i]]),
                                    "turn_deg": float(legs.turn_deg[k[i]])}
     return float(val[i])
 
 
-def _ringing(tu, pts, legs: Legs, angle: float, settle: float, min_wall: float,
+def _ringing(tu, pts, legs: Legs, angle: float, settle: float, early_end: float, min_wall: float,
              details: dict) -> float:
     ks = _corners(legs, angle)
     ks = ks[legs.extruding[ks] & (legs.t_end[ks] - legs.t_start[ks] >= min_wall)]
     if len(tu) == 0 or len(ks) == 0:
         return 0.0
     t0 = legs.t_end[ks - 1] + max(settle, 0.0)
-    t1 = legs.t_end[ks]
+    t1 = legs.t_end[ks] - early_end
     order = np.argsort(tu)
     tu, pts = tu[order], pts[order]
     i0 = np.searchsorted(tu, t0, side="left")
