@@ -122,7 +122,7 @@ def job_limits(printer, config: TuneConfig | None):
 def planned_job(printer, job=None, config: TuneConfig | None = None, *,
                 max_windows: int = MAX_WINDOWS, span: float = WINDOW_SPAN) -> PlannedJob:
     """Parse, frequency-limit and plan ``job`` for ``printer`` under ``config`` (cached)."""
-    from ringtune.shaping import freqlimit, planner
+    from ringtune.shaping import freqlimit, planner, testprints
 
     jkey, parsed = resolve_job(job)
     limits = job_limits(printer, config)
@@ -137,7 +137,7 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
     if fl[0] > 0:
         limited = freqlimit.apply_freq_limit(parsed, fl[0], method=fl[1], min_speed_factor=fl[2])
     plan = planner.plan(limited, limits)
-    windows = planner.quality_windows(plan, max_windows=max_windows, span=span)
+    windows = testprints.quality_windows(plan, max_windows=max_windows, span=span)
     pj = PlannedJob(plan, list(windows))
     if key[0][0] == "object":  # keep the job alive so its id is not reused while cached
         pj.source = parsed  # type: ignore[attr-defined]
