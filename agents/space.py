@@ -1,0 +1,212 @@
+"""The tuning search space: what ``tune`` (Optuna), ``grid`` and the reports vary, per firmware.
+
+Parameters (Optuna names):
+
+- ``shaper`` (RepRapFirmware: one shaper for all axes) or ``shaper_x``, ``shaper_y``: the shaper
+  types the target firmware offers (``none`` included; RRF ``custom`` excluded);
+- ``freq`` (RRF) or ``freq_x``, ``freq_y``: shaper frequency F, Hz, around the printer's modes;
+- ``damping``: shaper damping ratio S (one for all axes), within every offered shaper's limit;
+- ``freq_limit``: ``off`` or a frequency-limit method (``nophead``, ``sections``, ``marlin``), and
+  ``freq_limit_hz`` (Hz, only when on);
+- ``accel``: printing acceleration, mm/s², in steps of ``accel_step``.
+
+:func:`config_from_params` turns a parameter dict into a :class:`TuneConfig`; the same function
+serves Optuna trials, grid points and stored trials, so they can never disagree.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from ringtune.shaping.config import FIRMWARE_FLAVOR, FREQ_LIMIT_METHODS, TuneConfig
+from ringtune.shaping.errors import RingtuneError
+
+ONE_SHAPER_FIRMWARES = ("rrf", "rrf35")
+
+
+@dataclass(frozen=True)
+class SearchSpace:
+    """Ranges of one study (units: Hz, mm/s²)."""
+
+    firmware: str
+    shapers: tuple[str, ...]
+    per_axis: bool
+    freq_x: tuple[float, float]
+    freq_y: tuple[float, float]
+    damping: tuple[float, float]
+    freq_limit_methods: tuple[str, ...]
+    freq_limit_hz: tuple[float, float]
+    accel: tuple[float, float]
+    accel_step: float = 100.0
+    freq_step: float = 0.1
+    min_speed_factor: float = 0.3
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "SearchSpace":
+        kw = dict(d)
+        for k in ("shapers", "freq_limit_methods"):
+            kw[k] = tuple(kw[k])
+        for k in ("freq_x", "freq_y", "damping", "freq_limit_hz", "accel"):
+            kw[k] = tuple(float(v) for v in kw[k])
+        return cls(**kw)
+
+
+def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float, float] | None = None,
+                  shapers: tuple[str, ...] | None = None) -> SearchSpace:
+    """The default space for ``printer`` on ``firmware``.
+
+    F spans 0.6×–1.8× the axis's lowest/highest mode (clipped to 10–200 Hz); S 0–0.2 (capped
+    by the offered shapers' limits); acceleration 0.3×–2.5× the printer's own limit; frequency limit
+    10–80 Hz with every method.
+    """
+    from ringtune.shaping.shapers import available_shapers, max_damping
+
+    if firmware not in FIRMWARE_FLAVOR:
+        raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARE_FLAVOR)}, not {firmware!r}", "--firmware")
+    flavor = FIRMWARE_FLAVOR[firmware]
+    offered = tuple(n for n in available_shapers(flavor) if n != "custom")
+    if shapers:
+        bad = [s for s in shapers if s not in offered]
+        if bad:
+            raise RingtuneError(f"{firmware} does not offer {', '.join(bad)} (offers {', '.join(offered)})",
+                                "--shapers")
+        offered = tuple(shapers)
+    zmax = min([0.2] + [max_damping(n, flavor) for n in offered if n != "none"])
+    ranges = {}
+    for ax in ("x", "y"):
+        freqs = [m.freq for m in getattr(printer, ax).modes] or [40.0]
+        lo = max(10.0, round(0.6 * min(freqs), 1))
+        hi = min(200.0, round(1.8 * max(freqs), 1))
+        ranges[ax] = (lo, hi)
+    per_axis = firmware not in ONE_SHAPER_FIRMWARES
+    if not per_axis:
+        ranges["x"] = ranges["y"] = (min(ranges["x"][0], ranges["y"][0]), max(ranges["x"][1], ranges["y"][1]))
+    a0 = float(printer.limits.accel)
+    acc = accel or (max(100.0, round(0.3 * a0, -2)), round(2.5 * a0, -2))
+    if not (0 < acc[0] <= acc[1]):
+        raise RingtuneError(f"acceleration range must be 0 < lo ≤ hi, not {acc}", "--accel-range")
+    return SearchSpace(firmware=firmware, shapers=offered, per_axis=per_axis, freq_x=ranges["x"],
+                       freq_y=ranges["y"], damping=(0.0, float(zmax)), freq_limit_methods=FREQ_LIMIT_METHODS,
+                       freq_limit_hz=(10.0, 80.0), accel=(float(acc[0]), float(acc[1])))
+
+
+def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
+    """Ask an Optuna trial for one point of ``space`` (returns the parameter dict)."""
+    p: dict[str, Any] = {}
+    if space.per_axis:
+        p["shaper_x"] = trial.suggest_categorical("shaper_x", list(space.shapers))
+        p["shaper_y"] = trial.suggest_categorical("shaper_y", list(space.shapers))
+        for ax in ("x", "y"):
+            if p[f"shaper_{ax}"] != "none":
+                lo, hi = getattr(space, f"freq_{ax}")
+                p[f"freq_{ax}"] = trial.suggest_float(f"freq_{ax}", lo, hi)
+    else:
+        p["shaper"] = trial.suggest_categorical("shaper", list(space.shapers))
+        if p["shaper"] != "none":
+            p["freq"] = trial.suggest_float("freq", *space.freq_x)
+    if any(v != "none" for k, v in p.items() if k.startswith("shaper")):
+        p["damping"] = trial.suggest_float("damping", *space.damping)
+    p["freq_limit"] = trial.suggest_categorical("freq_limit", ["off", *space.freq_limit_methods])
+    if p["freq_limit"] != "off":
+        p["freq_limit_hz"] = trial.suggest_float("freq_limit_hz", *space.freq_limit_hz)
+    p["accel"] = trial.suggest_float("accel", *space.accel)
+    return p
+
+
+def _q(value: float, step: float) -> float:
+    return round(round(float(value) / step) * step, 6)
+
+
+def config_from_params(params: dict[str, Any], space: SearchSpace, extra: dict | None = None) -> TuneConfig:
+    """The TuneConfig of a parameter dict (from a trial, a grid point or storage).
+
+    Values are rounded to what a user would type and a firmware keeps: F to ``freq_step``
+    (0.1 Hz), S to 0.005, the frequency limit to 0.5 Hz, acceleration to ``accel_step``. (Optuna
+    samples them continuously: TPE's discrete kernels cost far more per trial.)"""
+    if space.per_axis:
+        sx, sy = params["shaper_x"], params["shaper_y"]
+        fx, fy = params.get("freq_x", 0.0), params.get("freq_y", 0.0)
+    else:
+        sx = sy = params["shaper"]
+        fx = fy = params.get("freq", 0.0)
+    fx, fy = _q(fx, space.freq_step), _q(fy, space.freq_step)
+    z = _q(params.get("damping", 0.1), 0.005)
+    method = params.get("freq_limit", "off")
+    return TuneConfig(firmware=space.firmware, shaper_x=sx, shaper_y=sy, freq_x=float(fx), freq_y=float(fy),
+                      damping_x=z, damping_y=z,
+                      freq_limit_hz=0.0 if method == "off" else _q(params["freq_limit_hz"], 0.5),
+                      freq_limit_method="sections" if method == "off" else method,
+                      min_speed_factor=space.min_speed_factor, accel=_q(params["accel"], space.accel_step),
+                      extra=dict(extra or {}))
+
+
+def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]:
+    """Inverse of :func:`config_from_params` (for enqueuing a known configuration)."""
+    p: dict[str, Any] = {}
+    if space.per_axis:
+        for ax in ("x", "y"):
+            p[f"shaper_{ax}"] = getattr(config, f"shaper_{ax}")
+            if p[f"shaper_{ax}"] != "none":
+                p[f"freq_{ax}"] = getattr(config, f"freq_{ax}")
+    else:
+        p["shaper"] = config.shaper_x
+        if config.shaper_x != "none":
+            p["freq"] = config.freq_x
+    if config.shaper_x != "none" or config.shaper_y != "none":
+        p["damping"] = config.damping_x
+    p["freq_limit"] = "off" if config.freq_limit_hz <= 0 else config.freq_limit_method
+    if config.freq_limit_hz > 0:
+        p["freq_limit_hz"] = config.freq_limit_hz
+    p["accel"] = config.accel
+    return p
+
+
+def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel: int = 6,
+                freq_limits: tuple[float, ...] = (), shapers: tuple[str, ...] | None = None) -> list[dict]:
+    """A dense Cartesian grid over ``space`` (parameter dicts), for convergence checks.
+
+    Per axis: every shaper × ``n_freq`` frequencies (``none`` once); S on ``n_damping`` levels;
+    acceleration on ``n_accel`` levels (multiples of ``accel_step``); the frequency limit off plus
+    each method at each of ``freq_limits`` Hz.
+    """
+    shapers = shapers or space.shapers
+
+    def axis_options(lo_hi, key_s, key_f):
+        opts = []
+        for s in shapers:
+            if s == "none":
+                opts.append({key_s: "none"})
+            else:
+                for f in np.linspace(lo_hi[0], lo_hi[1], n_freq):
+                    opts.append({key_s: s, key_f: round(float(f), 1)})
+        return opts
+
+    if space.per_axis:
+        shaping = [{**a, **b} for a in axis_options(space.freq_x, "shaper_x", "freq_x")
+                   for b in axis_options(space.freq_y, "shaper_y", "freq_y")]
+    else:
+        shaping = axis_options(space.freq_x, "shaper", "freq")
+    dampings = [round(float(z), 3) for z in np.linspace(space.damping[0], space.damping[1], n_damping)]
+    step = space.accel_step
+    accels = sorted({round(float(a) / step) * step for a in np.linspace(space.accel[0], space.accel[1], n_accel)})
+    limits = [{"freq_limit": "off"}] + [{"freq_limit": m, "freq_limit_hz": float(h)}
+                                         for m in space.freq_limit_methods for h in freq_limits]
+    out = []
+    for sh in shaping:
+        any_on = any(v != "none" for k, v in sh.items() if k.startswith("shaper"))
+        for z in (dampings if any_on else [None]):
+            for lim in limits:
+                for a in accels:
+                    p = dict(sh)
+                    if z is not None:
+                        p["damping"] = z
+                    p.update(lim)
+                    p["accel"] = a
+                    out.append(p)
+    return out

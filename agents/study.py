@@ -1,0 +1,546 @@
+"""The Optuna Pareto study behind ``ringtune tune``: print time against quality, step loss a constraint.
+
+- Objectives (both minimised): ``print_time_s`` and ``path_error_mm`` or ``overshoot_mm``
+  (:data:`QUALITY_METRICS`), from ``ringtune.envs.evaluate.evaluate_many`` or an injected
+  evaluator ``f(configs, printer, job) -> [Metrics]`` (given as ``"module:function"`` so that
+  worker processes can import it).
+- Step loss: ``trial.set_constraint("step_loss", 1.0 | 0.0)``; infeasible trials never reach the
+  front.
+- Storage (:func:`make_storage`): a journal file in the output folder by default
+  (``journal:out/study.journal``), or any RDB URL (``sqlite:///study.db``,
+  ``postgresql+psycopg2://...``) with Optuna's heartbeat (stale RUNNING trials of dead workers on
+  any machine are failed and re-run once). On this host, a RUNNING trial whose worker process is
+  gone is failed and re-run at once, whatever the storage.
+- Exactly N: a worker only evaluates a trial while ``complete + running-with-a-lower-number < N``;
+  otherwise the trial is pruned without evaluation. Rerunning the same command resumes with the
+  trials already complete; after Ctrl-C the current trial finishes first (a second Ctrl-C aborts
+  it; it is re-run on the next start).
+- Reproducibility: the TPE sampler is reseeded from (seed, trial number) before every trial, so a
+  seeded single-worker run — interrupted and resumed, or not — reproduces exactly.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import signal
+import socket
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from ringtune.agents.space import SearchSpace, config_from_params, default_space, suggest_params
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+
+QUALITY_METRICS = ("overshoot_mm", "path_error_mm")
+METRIC_KEYS = ("print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss")
+DEFAULT_EVALUATOR = "ringtune.envs.evaluate:evaluate_many"
+HEARTBEAT_S = 1
+GRACE_S = 4
+
+
+@dataclass
+class StudySettings:
+    """Everything a worker process needs to join a study (picklable)."""
+
+    storage: str
+    study_name: str = "ringtune"
+    n_trials: int = 100
+    seed: int | None = 0
+    quality: str = "overshoot_mm"
+    printer: str | None = None          # TOML path or embedded name; None = default printer
+    job: str | None = None              # G-code path; None = built-in test print
+    firmware: str = "klipper"
+    backend: str = "mujoco"
+    evaluator: str = DEFAULT_EVALUATOR
+    space: dict | None = None           # SearchSpace.to_dict(); None = default_space(printer, firmware)
+    n_startup_trials: int = 10
+    enqueue: list = field(default_factory=list)   # parameter dicts to try first (e.g. baselines)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def resolve_evaluator(spec: str | Callable) -> Callable:
+    """``"module:function"`` -> the function (callables pass through)."""
+    if callable(spec):
+        return spec
+    mod, _, name = str(spec).partition(":")
+    if not mod or not name:
+        raise RingtuneError(f"evaluator must be 'module:function', not {spec!r}", "--evaluator")
+    try:
+        return getattr(importlib.import_module(mod), name)
+    except (ImportError, AttributeError) as exc:
+        raise RingtuneError(f"cannot import evaluator {spec!r}: {exc}", "--evaluator") from None
+
+
+def load_space(settings: StudySettings, printer: Any = None) -> SearchSpace:
+    if settings.space:
+        return SearchSpace.from_dict(settings.space)
+    if printer is None:
+        from ringtune.envs.printer import load_printer
+        printer = load_printer(settings.printer)
+    return default_space(printer, settings.firmware)
+
+
+# -- storage and sampler ---------------------------------------------------------------------------
+
+def default_storage(out_dir: str | Path) -> str:
+    """The default storage of an output folder: an Optuna journal file beside the results."""
+    return f"journal:{Path(out_dir) / 'study.journal'}"
+
+
+def make_storage(url: str):
+    """An Optuna storage for ``url``.
+
+    - ``journal:PATH`` (or a path ending ``.journal``): Optuna's append-only journal file (file
+      lock; safe for several processes on one machine; survives SIGKILL) — the default, because
+      it costs ~10 ms per trial where SQLite through Optuna's ORM costs ~150–250 ms;
+    - any RDB URL (``sqlite:///study.db``, ``postgresql+psycopg2://user:pw@host/db``): with
+      Optuna's heartbeat, so stale RUNNING trials of dead workers on any machine are failed and
+      re-run once.
+    """
+    import optuna
+
+    if isinstance(url, (str, os.PathLike)) and (str(url).startswith("journal:") or str(url).endswith(".journal")):
+        from optuna.storages.journal import JournalFileBackend, JournalFileOpenLock
+
+        path = str(url)[len("journal:"):] if str(url).startswith("journal:") else str(url)
+        path = path[2:] if path.startswith("//") else path
+        if not path:
+            raise RingtuneError("journal storage needs a file path, e.g. journal:out/study.journal", "--storage")
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        try:
+            return optuna.storages.JournalStorage(
+                JournalFileBackend(path, lock_obj=JournalFileOpenLock(path, grace_period=5)))
+        except OSError as exc:
+            raise RingtuneError(f"cannot open journal storage: {exc}", "--storage") from None
+    if not isinstance(url, str) or "://" not in url:
+        raise RingtuneError("storage must be journal:PATH or an Optuna RDB URL such as sqlite:///study.db "
+                            f"or postgresql+psycopg2://user:pw@host/db, not {url!r}", "--storage")
+    from optuna.storages import RDBStorage
+
+    try:
+        import warnings
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+            from optuna.storages import RetryHeartbeatStaleTrialCallback
+            kwargs: dict[str, Any] = {}
+            if url.startswith("sqlite"):
+                kwargs["engine_kwargs"] = {"connect_args": {"timeout": 60}}
+                _sqlite_wal(url)
+            storage = RDBStorage(url, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S,
+                                 heartbeat_stale_trial_callback=RetryHeartbeatStaleTrialCallback(max_retry=1),
+                                 **kwargs)
+            if url.startswith("sqlite"):
+                _sqlite_fast(storage)
+            return storage
+    except ImportError as exc:
+        raise RingtuneError(f"storage {url.split(':')[0]!r} needs a driver that is not installed ({exc})",
+                            "--storage") from None
+    except Exception as exc:  # sqlalchemy OperationalError etc.: one line, naming the option
+        raise RingtuneError(f"cannot open storage: {str(exc).splitlines()[0]}", "--storage") from None
+
+
+def _sqlite_wal(url: str) -> None:
+    """Put a SQLite study file in WAL mode (persistent; many readers, one writer, far fewer fsyncs)."""
+    import sqlite3
+
+    path = url.split(":///", 1)[-1]
+    if not path or path == ":memory:":
+        return
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    con = sqlite3.connect(path, timeout=60)
+    try:
+        con.execute("PRAGMA journal_mode=WAL")
+    finally:
+        con.close()
+
+
+def _sqlite_fast(storage) -> None:
+    """WAL with synchronous=NORMAL on every connection: a commit no longer waits for the disk.
+
+    A crash (even SIGKILL) cannot corrupt the file or lose a committed trial; only a power cut may
+    lose the last few commits (their trials are then simply re-run)."""
+    from sqlalchemy import event
+
+    def on_connect(dbapi_con, _record):
+        cur = dbapi_con.cursor()
+        cur.execute("PRAGMA synchronous=NORMAL")
+        cur.close()
+
+    event.listen(storage.engine, "connect", on_connect)
+    storage.engine.dispose()
+
+
+def make_sampler(seed: int | None, n_startup_trials: int = 10):
+    """Multi-objective TPE whose random state depends only on (seed, trial number)."""
+    import optuna
+
+    class ReseedingTPESampler(optuna.samplers.TPESampler):
+        def __init__(self, seed, **kw):
+            super().__init__(seed=seed, **kw)
+            self._base_seed = seed
+
+        def before_trial(self, study, trial):
+            if self._base_seed is not None:
+                s = int(np.random.SeedSequence([int(self._base_seed), int(trial.number)]).generate_state(1)[0])
+                self._rng.rng.seed(s)
+                self._random_sampler._rng.rng.seed(s ^ 0x5EED)
+            super().before_trial(study, trial)
+
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+        return ReseedingTPESampler(seed, n_startup_trials=n_startup_trials, multivariate=True, group=True)
+
+
+def open_study(settings: StudySettings, seed: int | None = None):
+    """Create or load the study (same name + storage = the same study, from any process)."""
+    import optuna
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    storage = make_storage(settings.storage)
+    study = optuna.create_study(storage=storage, study_name=settings.study_name,
+                                directions=["minimize", "minimize"], load_if_exists=True,
+                                sampler=make_sampler(settings.seed if seed is None else seed,
+                                                     settings.n_startup_trials))
+    names = study.user_attrs.get("objectives")
+    wanted = ["print_time_s", settings.quality]
+    if names is None:
+        study.set_user_attr("objectives", wanted)
+        study.set_user_attr("settings", {k: v for k, v in settings.to_dict().items() if k != "storage"})
+        if settings.space:
+            study.set_user_attr("space", settings.space)
+    elif list(names) != wanted:
+        raise RingtuneError(f"study {settings.study_name!r} in this storage optimises {names}, not {wanted}; "
+                            "use another --study name or --out folder", "--study")
+    return study
+
+
+def count_states(study) -> dict[str, int]:
+    from optuna.trial import TrialState
+
+    trials = study.get_trials(deepcopy=False)
+    return {s.name: sum(1 for t in trials if t.state == s) for s in TrialState}
+
+
+# -- stale trials ----------------------------------------------------------------------------------
+
+def _this_worker() -> str:
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def reap_dead_workers(study) -> list[int]:
+    """Fail RUNNING trials whose worker process on this host is gone; queue each for one re-run.
+
+    Returns the numbers of the trials failed. Trials of other hosts are left to the heartbeat.
+    """
+    import optuna
+    from optuna.trial import TrialState
+
+    host = socket.gethostname()
+    storage = study._storage
+    failed = []
+    for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+        owner = t.user_attrs.get("worker", "")
+        h, _, pid = owner.rpartition(":")
+        if h != host or not pid.isdigit() or _pid_alive(int(pid)):
+            continue
+        try:
+            if storage.set_trial_state_values(t._trial_id, state=TrialState.FAIL):
+                failed.append(t)
+        except optuna.exceptions.UpdateFinishedTrialError:
+            continue
+    for t in failed:
+        _requeue(study, t)
+    _requeue_interrupted(study)
+    return [t.number for t in failed]
+
+
+def _requeue(study, trial) -> None:
+    import optuna
+
+    if trial.system_attrs.get("failed_trial") is not None or trial.user_attrs.get("requeued"):
+        return  # a retry is re-run at most once
+    study._storage.set_trial_user_attr(trial._trial_id, "requeued", True)
+    study.add_trial(optuna.create_trial(state=optuna.trial.TrialState.WAITING, params=trial.params,
+                                        distributions=trial.distributions,
+                                        system_attrs={"failed_trial": trial.number}))
+
+
+def _requeue_interrupted(study) -> None:
+    from optuna.trial import TrialState
+
+    for t in study.get_trials(deepcopy=False, states=(TrialState.FAIL,)):
+        if t.user_attrs.get("interrupted") and not t.user_attrs.get("requeued"):
+            _requeue(study, t)
+
+
+# -- one worker ------------------------------------------------------------------------------------
+
+class _Stop:
+    requested = False
+
+
+def _install_sigint(flag: _Stop):
+    """First Ctrl-C: finish the current trial, then stop. Second: abort now."""
+    def handler(signum, frame):
+        if flag.requested:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            raise KeyboardInterrupt
+        flag.requested = True
+
+    try:
+        return signal.signal(signal.SIGINT, handler)
+    except ValueError:  # not the main thread
+        return None
+
+
+def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any = None,
+               on_trial: Callable[[Any], None] | None = None, stop: _Stop | None = None) -> int:
+    """Run trials of the study until it has ``n_trials`` complete ones (or Ctrl-C). Returns the
+    number this worker completed. Each extra worker uses seed + 1009·index."""
+    import optuna
+    from optuna.trial import TrialState
+
+    seed = None if settings.seed is None else settings.seed + 1009 * worker_index
+    study = open_study(settings, seed=seed)
+    evaluator = resolve_evaluator(settings.evaluator)
+    if printer is None and settings.evaluator == DEFAULT_EVALUATOR:
+        from ringtune.envs.printer import load_printer
+        printer = load_printer(settings.printer)
+    space = load_space(settings, printer)
+    stop = stop or _Stop()
+    previous = _install_sigint(stop)
+    done = 0
+    N = settings.n_trials
+
+    def objective(trial):
+        nonlocal done
+        trial.set_user_attr("worker", _this_worker())
+        ahead = 0
+        if trial.number >= N - 32:   # earlier trials cannot have N others ahead of them
+            others = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.RUNNING))
+            ahead = sum(1 for t in others if t.state == TrialState.COMPLETE
+                        or (t.state == TrialState.RUNNING and t.number < trial.number))
+        if ahead >= N or stop.requested:
+            trial.set_user_attr("skipped", True)
+            study.stop()
+            raise optuna.TrialPruned()
+        params = suggest_params(trial, space)
+        config = config_from_params(params, space)
+        try:
+            m = _call_evaluator(evaluator, settings, config, printer)
+        except KeyboardInterrupt:
+            trial.set_user_attr("interrupted", True)
+            raise
+        trial.set_user_attr("metrics", {k: bool(getattr(m, k)) if k == "step_loss" else float(getattr(m, k))
+                                        for k in METRIC_KEYS})
+        trial.set_constraint("step_loss", 1.0 if m.step_loss else 0.0)
+        return float(m.print_time_s), float(getattr(m, settings.quality))
+
+    def callback(st, frozen):
+        nonlocal done
+        if frozen.state == TrialState.COMPLETE:
+            done += 1
+            if on_trial:
+                on_trial(frozen)
+        if stop.requested:
+            st.stop()
+
+    try:
+        for params in settings.enqueue:
+            _enqueue_once(study, params)
+        while not stop.requested:
+            reap_dead_workers(study)
+            counts = count_states(study)
+            if counts["COMPLETE"] >= N:
+                break
+            free = N - counts["COMPLETE"] - counts["RUNNING"]
+            if free <= 0:
+                optuna.storages.fail_stale_trials(study)
+                time.sleep(0.2)   # others are finishing the last trials (or a stale one awaits its heartbeat)
+                continue
+            study.optimize(objective, n_trials=free, callbacks=[callback], gc_after_trial=False,
+                           catch=(), show_progress_bar=False)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+    return done
+
+
+def _enqueue_once(study, params: dict) -> None:
+    """Enqueue a parameter set unless a trial (any state but FAIL) already has exactly it."""
+    from optuna.trial import TrialState
+
+    key = sorted(params.items())
+    for t in study.get_trials(deepcopy=False):
+        if t.state != TrialState.FAIL and (sorted(t.params.items()) == key or
+                                           t.system_attrs.get("fixed_params") == dict(params)):
+            return
+    study.enqueue_trial(params, skip_if_exists=False)
+
+
+def _call_evaluator(evaluator, settings: StudySettings, config: TuneConfig, printer):
+    kw = {}
+    if settings.evaluator == DEFAULT_EVALUATOR:
+        kw["backend"] = settings.backend
+    out = evaluator([config], printer if printer is not None else settings.printer, settings.job, **kw)
+    return out[0]
+
+
+def _worker_main(settings_dict: dict, index: int) -> None:
+    """Entry point of a spawned worker process."""
+    try:
+        run_worker(StudySettings(**settings_dict), index)
+    except KeyboardInterrupt:
+        pass
+
+
+# -- the whole study -------------------------------------------------------------------------------
+
+@dataclass
+class StudyRun:
+    """What a run left in storage."""
+
+    study: Any
+    completed_before: int
+    completed_now: int
+    interrupted: bool
+
+
+def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
+              progress: Callable[[int, int], None] | None = None) -> StudyRun:
+    """Run (or resume) the study with ``workers`` local processes; ``progress(done, total)``.
+
+    With one worker the trials run in this process; with more, spawned processes share the
+    storage and this process only watches (and reports progress).
+    """
+    import multiprocessing as mp
+
+    if workers < 1:
+        raise RingtuneError("must be ≥ 1", "--workers")
+    study = open_study(settings)
+    before = count_states(study)["COMPLETE"]
+    if progress:
+        progress(before, settings.n_trials)
+    stop = _Stop()
+    interrupted = False
+    if workers == 1:
+        def on_trial(_):
+            if progress:
+                progress(count_states(study)["COMPLETE"], settings.n_trials)
+        run_worker(settings, 0, printer=printer, on_trial=on_trial, stop=stop)
+        interrupted = stop.requested
+    else:
+        ctx = mp.get_context("spawn")
+        procs = [ctx.Process(target=_worker_main, args=(settings.to_dict(), i), daemon=False)
+                 for i in range(workers)]
+        for p in procs:
+            p.start()
+        try:
+            while any(p.is_alive() for p in procs):
+                time.sleep(0.3)
+                if progress:
+                    progress(count_states(study)["COMPLETE"], settings.n_trials)
+        except KeyboardInterrupt:
+            interrupted = True   # the workers got the same Ctrl-C: they finish their trial and stop
+            deadline = time.time() + 30
+            for p in procs:
+                p.join(max(0.1, deadline - time.time()))
+            for p in procs:
+                if p.is_alive():
+                    p.terminate()
+        for p in procs:
+            p.join()
+        bad = [p.exitcode for p in procs if p.exitcode not in (0, None) and not interrupted]
+        if bad:
+            raise RingtuneError(f"{len(bad)} worker process(es) failed (exit codes {bad}); "
+                                "rerun to resume", "--workers")
+    after = count_states(study)["COMPLETE"]
+    if progress:
+        progress(after, settings.n_trials)
+    return StudyRun(study, before, after - before, interrupted)
+
+
+# -- reading results -----------------------------------------------------------------------------
+
+@dataclass
+class Point:
+    """One evaluated configuration (a trial, a grid point or a baseline)."""
+
+    config: TuneConfig
+    print_time_s: float
+    quality_mm: float
+    step_loss: bool = False
+    metrics: dict = field(default_factory=dict)
+    label: str = ""
+    number: int | None = None
+
+    def dominates(self, other: "Point") -> bool:
+        return (self.print_time_s <= other.print_time_s and self.quality_mm <= other.quality_mm
+                and (self.print_time_s < other.print_time_s or self.quality_mm < other.quality_mm))
+
+
+def study_points(study, space: SearchSpace | None = None, quality: str | None = None) -> list[Point]:
+    """All complete trials as points (infeasible ones flagged ``step_loss``)."""
+    from optuna.trial import TrialState
+
+    settings = study.user_attrs.get("settings", {})
+    quality = quality or study.user_attrs.get("objectives", ["", "overshoot_mm"])[1]
+    if space is None:
+        space = SearchSpace.from_dict(study.user_attrs["space"]) if "space" in study.user_attrs else \
+            load_space(StudySettings(storage="", **{k: v for k, v in settings.items() if k != "storage"}))
+    pts = []
+    for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)):
+        metrics = dict(t.user_attrs.get("metrics", {}))
+        pts.append(Point(config_from_params(t.params, space), float(t.values[0]), float(t.values[1]),
+                         bool(metrics.get("step_loss", False)), metrics, f"trial {t.number}", t.number))
+    return pts
+
+
+def pareto_front(points: Sequence[Point]) -> list[Point]:
+    """The feasible non-dominated points, sorted by print time."""
+    feas = sorted((p for p in points if not p.step_loss), key=lambda p: (p.print_time_s, p.quality_mm))
+    front: list[Point] = []
+    best_q = np.inf
+    for p in feas:
+        if p.quality_mm < best_q:
+            front.append(p)
+            best_q = p.quality_mm
+    return front
+
+
+def choose(front: Sequence[Point], weight: float | None = None) -> Point:
+    """The point to use: minimising ``print_time_s + weight·quality_mm`` (weight in s/mm), or else
+    the knee — the front point closest to the ideal corner after scaling both objectives to 0..1."""
+    if not front:
+        raise RingtuneError("no feasible configuration was found (every trial lost steps); "
+                            "lower the acceleration range or run more trials", "tune")
+    if weight is not None:
+        return min(front, key=lambda p: p.print_time_s + weight * p.quality_mm)
+    t = np.array([p.print_time_s for p in front])
+    q = np.array([p.quality_mm for p in front])
+    tn = (t - t.min()) / max(t.max() - t.min(), 1e-12)
+    qn = (q - q.min()) / max(q.max() - q.min(), 1e-12)
+    return front[int(np.argmin(np.hypot(tn, qn)))]
+
+
+def scalar_objective(p: Point, weight: float) -> float:
+    """``print_time_s + weight·quality_mm`` (s), the single number convergence checks compare."""
+    return p.print_time_s + weight * p.quality_mm
