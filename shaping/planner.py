@@ -288,7 +288,7 @@ def _junctions(job, limits, use, u, d, e_only, vmax, accel, amax_axes):
                       np.concatenate([u[:, :3], np.zeros((len(u), 1))], axis=1))
         cos_t = -np.einsum("ij,ij->i", nv[1:], nv[:-1])
         rev = cos_t > 0.999999
-        cos_c = np.maximum(cos_t, -0.999999)
+        cos_c = np.clip(cos_t, -0.999999, 1.0)
         sin_d2 = np.sqrt(0.5 * (1 - cos_c))
         ju = nv[1:] - nv[:-1]
         norm = np.linalg.norm(ju, axis=1)
@@ -400,8 +400,9 @@ def _daa(freq, min_accel, w, cruise2, accel, d):
         t = dv / accel
         return np.where(dv <= 0, 0.0, np.where(t < period, period, np.where(t < 2 * period, 2 * period, t)))
 
+    # a phase of two periods or more is left as it is; if a retimed phase then no longer fits
+    # the move, the top speed is lowered (both phases retimed) or the move is left alone
     ta, td = phase_time(c - s), phase_time(c - e)
-    # keep the phase times; lower the top speed if the phases no longer fit in the move
     need = 0.5 * (s + c) * ta + 0.5 * (c + e) * td
     with np.errstate(divide="ignore", invalid="ignore"):
         c_fit = np.where(ta + td > 0, (2 * d - s * ta - e * td) / (ta + td), c)
@@ -409,7 +410,9 @@ def _daa(freq, min_accel, w, cruise2, accel, d):
     with np.errstate(divide="ignore", invalid="ignore"):
         acc = np.where(ta > 0, (c_new - s) / ta, accel)
         dec = np.where(td > 0, (c_new - e) / td, accel)
+    kept = ((c - s > 0) & (ta == (c - s) / accel)) | ((c - e > 0) & (td == (c - e) / accel))
     ok = (c_new >= np.maximum(s, e) - 1e-9) & (acc >= min_accel) & (dec >= min_accel) \
+        & ~(kept & (need > d)) \
         & (acc <= accel * (1 + 1e-9)) & (dec <= accel * (1 + 1e-9))
     acc = np.where(ok & (ta > 0), acc, accel)
     dec = np.where(ok & (td > 0), dec, accel)
@@ -436,7 +439,7 @@ def _build(job, limits, w, cruise2, acc, dec, d, u, vmax, extruding) -> Plan:
     dist0 = np.stack([np.zeros(n), np.zeros(n), d_acc, d_acc + d_cr], axis=1)
     speed0 = np.stack([np.zeros(n), s, c, c], axis=1)
     acc_sg = np.stack([np.zeros(n), acc, np.zeros(n), -dec], axis=1)
-    keep = dur > 0
+    keep = dur > 1e-12
     flat_dur = dur[keep]
     move_idx = np.broadcast_to(np.arange(n)[:, None], (n, 4))[keep]
     moving = np.broadcast_to(np.array([0, 1, 1, 1], bool), (n, 4))[keep]
