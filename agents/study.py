@@ -272,23 +272,26 @@ def reap_dead_workers(study) -> list[int]:
     return [t.number for t in failed]
 
 
-def _requeue(study, trial) -> None:
+def _requeue(study, trial, trials=None) -> None:
+    """Queue a failed trial's parameters once more (a retry is never retried again)."""
     import optuna
 
-    if trial.system_attrs.get("failed_trial") is not None or trial.user_attrs.get("requeued"):
-        return  # a retry is re-run at most once
-    study._storage.set_trial_user_attr(trial._trial_id, "requeued", True)
+    if trial.system_attrs.get("failed_trial") is not None:
+        return
+    trials = trials if trials is not None else study.get_trials(deepcopy=False)
+    if any(t.system_attrs.get("failed_trial") == trial.number for t in trials):
+        return
     study.add_trial(optuna.create_trial(state=optuna.trial.TrialState.WAITING, params=trial.params,
                                         distributions=trial.distributions,
                                         system_attrs={"failed_trial": trial.number}))
 
 
 def _requeue_interrupted(study) -> None:
-    from optuna.trial import TrialState
-
-    for t in study.get_trials(deepcopy=False, states=(TrialState.FAIL,)):
-        if t.user_attrs.get("interrupted") and not t.user_attrs.get("requeued"):
-            _requeue(study, t)
+    """Failed trials that a Ctrl-C aborted mid-evaluation are re-run once."""
+    trials = study.get_trials(deepcopy=False)
+    for t in trials:
+        if t.state.name == "FAIL" and t.user_attrs.get("interrupted"):
+            _requeue(study, t, trials)
 
 
 # -- one worker ------------------------------------------------------------------------------------
@@ -373,7 +376,10 @@ def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any =
                 break
             free = N - counts["COMPLETE"] - counts["RUNNING"]
             if free <= 0:
-                optuna.storages.fail_stale_trials(study)
+                import warnings
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+                    optuna.storages.fail_stale_trials(study)
                 time.sleep(0.2)   # others are finishing the last trials (or a stale one awaits its heartbeat)
                 continue
             study.optimize(objective, n_trials=free, callbacks=[callback], gc_after_trial=False,
@@ -404,12 +410,22 @@ def _call_evaluator(evaluator, settings: StudySettings, config: TuneConfig, prin
     return out[0]
 
 
-def _worker_main(settings_dict: dict, index: int) -> None:
-    """Entry point of a spawned worker process."""
+def _worker_main(argv: list[str]) -> int:
+    """``python -m ringtune.agents.study worker INDEX`` with the settings as JSON on stdin."""
+    import json
+    import sys
+
+    if len(argv) != 2 or argv[0] != "worker":
+        print("usage: python -m ringtune.agents.study worker INDEX  (settings JSON on stdin)", file=sys.stderr)
+        return 2
     try:
-        run_worker(StudySettings(**settings_dict), index)
+        run_worker(StudySettings(**json.loads(sys.stdin.read())), int(argv[1]))
     except KeyboardInterrupt:
-        pass
+        return 130
+    except RingtuneError as exc:
+        print(f"ringtune worker {argv[1]}: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
 
 
 # -- the whole study -------------------------------------------------------------------------------
@@ -431,8 +447,6 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
     With one worker the trials run in this process; with more, spawned processes share the
     storage and this process only watches (and reports progress).
     """
-    import multiprocessing as mp
-
     if workers < 1:
         raise RingtuneError("must be ≥ 1", "--workers")
     study = open_study(settings)
@@ -448,13 +462,18 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
         run_worker(settings, 0, printer=printer, on_trial=on_trial, stop=stop)
         interrupted = stop.requested
     else:
-        ctx = mp.get_context("spawn")
-        procs = [ctx.Process(target=_worker_main, args=(settings.to_dict(), i), daemon=False)
-                 for i in range(workers)]
+        import json
+        import subprocess
+        import sys
+
+        payload = json.dumps(settings.to_dict())
+        procs = [subprocess.Popen([sys.executable, "-m", "ringtune.agents.study", "worker", str(i)],
+                                  stdin=subprocess.PIPE, text=True) for i in range(workers)]
         for p in procs:
-            p.start()
+            p.stdin.write(payload)
+            p.stdin.close()
         try:
-            while any(p.is_alive() for p in procs):
+            while any(p.poll() is None for p in procs):
                 time.sleep(0.3)
                 if progress:
                     progress(count_states(study)["COMPLETE"], settings.n_trials)
@@ -462,13 +481,12 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
             interrupted = True   # the workers got the same Ctrl-C: they finish their trial and stop
             deadline = time.time() + 30
             for p in procs:
-                p.join(max(0.1, deadline - time.time()))
-            for p in procs:
-                if p.is_alive():
+                try:
+                    p.wait(max(0.1, deadline - time.time()))
+                except subprocess.TimeoutExpired:
                     p.terminate()
-        for p in procs:
-            p.join()
-        bad = [p.exitcode for p in procs if p.exitcode not in (0, None) and not interrupted]
+        codes = [p.wait() for p in procs]
+        bad = [c for c in codes if c != 0 and not interrupted]
         if bad:
             raise RingtuneError(f"{len(bad)} worker process(es) failed (exit codes {bad}); "
                                 "rerun to resume", "--workers")
@@ -544,3 +562,9 @@ def choose(front: Sequence[Point], weight: float | None = None) -> Point:
 def scalar_objective(p: Point, weight: float) -> float:
     """``print_time_s + weight·quality_mm`` (s), the single number convergence checks compare."""
     return p.print_time_s + weight * p.quality_mm
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(_worker_main(sys.argv[1:]))

@@ -4,7 +4,8 @@ It keeps the physics out of tests about storage, resume, workers and reproducibi
 falls with acceleration and rises with a frequency limit; overshoot is Klipper's residual
 vibration of each axis's shaper on that axis's modes, scaled by the static deflection a/ω² of the
 acceleration; more than 6000 mm/s² loses steps. ``RINGTUNE_TEST_SLEEP`` (s) slows each call so that
-a test can interrupt a run mid-trial.
+a test can interrupt a run mid-trial; ``RINGTUNE_TEST_HANG_AT=k`` makes the k-th call of a process
+touch the file ``RINGTUNE_TEST_HANG_FILE`` and then hang (a certain mid-trial interruption).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+_CALLS = [0]
 MODES = {"x": [(45.5, 0.069, 0.41), (58.1, 0.112, 0.59)], "y": [(38.9, 0.127, 0.725), (51.3, 0.108, 0.275)]}
 
 
@@ -24,8 +26,15 @@ def evaluate(configs, printer=None, job=None, **kw):
     from ringtune.shaping.shapers import get_shaper
 
     delay = float(os.environ.get("RINGTUNE_TEST_SLEEP", "0") or 0)
+    hang_at = int(os.environ.get("RINGTUNE_TEST_HANG_AT", "0") or 0)
     out = []
     for c in configs:
+        _CALLS[0] += 1
+        if hang_at and _CALLS[0] == hang_at:
+            with open(os.environ["RINGTUNE_TEST_HANG_FILE"], "w") as f:
+                f.write(str(os.getpid()))
+            while True:
+                time.sleep(0.05)
         if delay:
             time.sleep(delay)
         a = float(c.accel or 3000.0)

@@ -1,0 +1,151 @@
+"""The study's storage behaviour: resume after SIGINT and SIGKILL, several workers, PostgreSQL,
+seeded reproducibility. The physics is replaced by tests/study_objective.py (deterministic and
+cheap) — these tests are about trials in storage, not about metric values."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+
+import pytest
+
+from ringtune.agents.study import StudySettings, count_states, open_study, run_study
+
+TESTS = Path(__file__).resolve().parent
+EVALUATOR = "study_objective:evaluate"
+
+
+def _settings(storage: str, n: int, seed: int | None = 3, name: str = "ringtune") -> StudySettings:
+    return StudySettings(storage=storage, study_name=name, n_trials=n, seed=seed, evaluator=EVALUATOR)
+
+
+def _env(**extra) -> dict:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(TESTS), env.get("PYTHONPATH", "")])
+    env.update({k: str(v) for k, v in extra.items()})
+    return env
+
+
+def _start_worker(settings: StudySettings, **env) -> subprocess.Popen:
+    p = subprocess.Popen([sys.executable, "-m", "ringtune.agents.study", "worker", "0"], stdin=subprocess.PIPE,
+                         text=True, env=_env(**env), start_new_session=True)
+    p.stdin.write(json.dumps(settings.to_dict()))
+    p.stdin.close()
+    return p
+
+
+def _complete(settings: StudySettings) -> dict[int, tuple]:
+    from optuna.trial import TrialState
+
+    study = open_study(settings)
+    return {t.number: (tuple(sorted(t.params.items())), tuple(t.values))
+            for t in study.get_trials(states=(TrialState.COMPLETE,))}
+
+
+def _wait_for(path: Path, proc: subprocess.Popen, timeout: float = 60.0) -> None:
+    t0 = time.time()
+    while not path.exists():
+        assert proc.poll() is None, "worker ended before reaching the trial to interrupt"
+        assert time.time() - t0 < timeout
+        time.sleep(0.05)
+
+
+@pytest.fixture
+def in_tests_path(monkeypatch):
+    monkeypatch.syspath_prepend(str(TESTS))
+
+
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT])
+def test_interrupt_mid_trial_then_resume_loses_and_repeats_nothing(tmp_path, in_tests_path, sig):
+    settings = _settings(f"journal:{tmp_path / 'study.journal'}", n=24)
+    hang = tmp_path / "hang"
+    proc = _start_worker(settings, RINGTUNE_TEST_HANG_AT=9, RINGTUNE_TEST_HANG_FILE=hang)
+    _wait_for(hang, proc)                       # the 9th trial is being evaluated right now
+    before = _complete(settings)
+    assert len(before) == 8
+    os.kill(proc.pid, sig)
+    if sig == signal.SIGINT:
+        # the first Ctrl-C lets the trial finish; this one hangs, so a second Ctrl-C aborts it
+        time.sleep(0.5)
+        os.kill(proc.pid, signal.SIGINT)
+    proc.wait(timeout=30)
+    assert _complete(settings) == before        # nothing completed was lost
+
+    run = run_study(settings)                   # resume in this process, like rerunning the command
+    after = _complete(settings)
+    assert len(after) == 24 and run.completed_now == 16
+    assert all(after[n] == v for n, v in before.items())           # kept unchanged
+    params = [p for p, _ in after.values()]
+    assert len(set(params)) == len(params)                          # nothing evaluated twice
+    counts = count_states(run.study)
+    assert counts["RUNNING"] == 0 and counts["FAIL"] == 1            # the interrupted trial, failed...
+    fail = next(t for t in run.study.get_trials() if t.state.name == "FAIL")
+    assert any(t.system_attrs.get("failed_trial") == fail.number and t.state.name == "COMPLETE"
+               for t in run.study.get_trials())                     # ...and re-run once
+
+
+def test_first_ctrl_c_finishes_the_running_trial(tmp_path, in_tests_path):
+    settings = _settings(f"journal:{tmp_path / 'study.journal'}", n=200)
+    proc = _start_worker(settings, RINGTUNE_TEST_SLEEP=0.2)
+    t0 = time.time()
+    while len(_complete(settings)) < 3:
+        assert time.time() - t0 < 60
+        time.sleep(0.1)
+    os.kill(proc.pid, signal.SIGINT)
+    assert proc.wait(timeout=30) == 0
+    counts = count_states(open_study(settings))
+    assert counts["RUNNING"] == 0 and counts["FAIL"] == 0 and 3 <= counts["COMPLETE"] < 200
+
+
+def test_two_workers_finish_exactly_n_without_duplicates(tmp_path, in_tests_path):
+    settings = _settings(f"journal:{tmp_path / 'study.journal'}", n=30)
+    os.environ["PYTHONPATH"] = os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")])
+    try:
+        run = run_study(settings, workers=2)
+    finally:
+        os.environ["PYTHONPATH"] = os.environ["PYTHONPATH"].split(os.pathsep, 1)[1]
+    done = _complete(settings)
+    assert len(done) == 30 and run.completed_now == 30
+    params = [p for p, _ in done.values()]
+    assert len(set(params)) == 30
+    workers = {t.user_attrs["worker"] for t in run.study.get_trials() if t.state.name == "COMPLETE"}
+    assert len(workers) == 2                    # both processes did part of the work
+
+
+def test_seeded_single_worker_runs_reproduce_exactly(tmp_path, in_tests_path):
+    a = _settings(f"journal:{tmp_path / 'a.journal'}", n=25, seed=11)
+    b = _settings(f"journal:{tmp_path / 'b.journal'}", n=25, seed=11)
+    c = _settings(f"journal:{tmp_path / 'c.journal'}", n=25, seed=12)
+    for s in (a, b, c):
+        run_study(s)
+    assert _complete(a) == _complete(b)
+    assert _complete(a) != _complete(c)
+
+
+def test_sqlite_storage_resumes_too(tmp_path, in_tests_path):
+    settings = _settings(f"sqlite:///{tmp_path / 'study.db'}", n=6)
+    run_study(settings)
+    settings.n_trials = 9
+    run = run_study(settings)
+    assert run.completed_before == 6 and run.completed_now == 3 and len(_complete(settings)) == 9
+
+
+@pytest.mark.postgres
+def test_postgresql_two_workers(in_tests_path):
+    url = os.environ.get("RINGTUNE_PG_URL")
+    if not url:
+        pytest.skip("RINGTUNE_PG_URL is not set (no PostgreSQL server; .ci/run starts one when it can)")
+    settings = _settings(url, n=16, name=f"ringtune-test-{uuid.uuid4().hex[:8]}")
+    os.environ["PYTHONPATH"] = os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")])
+    try:
+        run = run_study(settings, workers=2)
+    finally:
+        os.environ["PYTHONPATH"] = os.environ["PYTHONPATH"].split(os.pathsep, 1)[1]
+    done = _complete(settings)
+    assert len(done) == 16 and len({p for p, _ in done.values()}) == 16 and run.completed_now == 16
