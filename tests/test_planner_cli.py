@@ -1,0 +1,65 @@
+"""`ringtune plan`: acceptance 4 through the command line, JSON keys, trajectory, errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from ringtune.agents.cli import main
+
+
+def _plan_json(capsys, *args):
+    assert main(["plan", *args, "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_plan_ianalexis_matches_prusaslicer_estimate(shared_dir, capsys):
+    """Acceptance 4: the job's own header limits, classic jerk (inferred from its M205 X/Y)."""
+    res = _plan_json(capsys, str(shared_dir / "data/gcode/ianalexis_ender3_marlin/ringing_tower.gcode"))
+    assert res["junction"] == "jerk"
+    assert res["slicer_estimate_s"] == 2428
+    assert abs(res["vs_slicer"]) < 0.03
+    assert len(res["shaper_events"]) == 300
+    assert set(res["time_by_feature"]) >= {"External perimeter", "Skirt/Brim"}
+    assert sum(res["time_by_feature"].values()) <= res["print_time_s"]
+
+
+def test_plan_bassco_parses_klipper_style_commands(shared_dir, capsys):
+    res = _plan_json(capsys, str(shared_dir / "data/gcode/bassco_ender3/ringing_tower.gcode"),
+                     "--junction", "scv")
+    assert res["moves"] > 10000 and res["print_time_s"] > 0
+    assert res["events"]["other"] > 0
+    assert res["top_frequencies"] and res["top_frequencies"][0]["freq_hz"] > 0
+
+
+def test_plan_builtin_with_config_and_trajectory(tmp_path, capsys):
+    cfg = tmp_path / "c.json"
+    cfg.write_text(json.dumps({"firmware": "klipper", "shaper_x": "none", "shaper_y": "none",
+                               "freq_x": 40, "freq_y": 40, "freq_limit_hz": 25,
+                               "freq_limit_method": "sections", "accel": 2000}))
+    traj = tmp_path / "t.csv"
+    res = _plan_json(capsys, "--config", str(cfg), "--trajectory", str(traj), "--rate", "500")
+    assert res["job"] == "built-in test print"
+    assert res["freq_limit"]["moves_slowed"] > 0
+    assert res["limits"]["accel"] == 2000
+    data = np.loadtxt(traj, delimiter=",", skiprows=1)
+    assert data.shape[1] == 5
+    np.testing.assert_allclose(np.diff(data[:, 0]), 1 / 500, atol=1e-6)
+    assert data[-1, 0] == pytest.approx(res["print_time_s"], abs=2 / 500)
+    # DAA selected like a shaper
+    cfg.write_text(json.dumps({"firmware": "rrf", "shaper_x": "daa", "shaper_y": "daa",
+                               "freq_x": 40, "freq_y": 40}))
+    res_daa = _plan_json(capsys, "--config", str(cfg))
+    assert res_daa["daa_hz"] == 40
+
+
+def test_plan_errors_are_one_line(tmp_path, capsys):
+    bad = tmp_path / "bad.gcode"
+    bad.write_text("G1 X10 F600\nG1 Xoops\n")
+    assert main(["plan", str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "bad.gcode:2" in err
+    assert main(["plan", str(tmp_path / "none.gcode")]) == 2
+    assert main(["plan", "--rate", "0", "--trajectory", str(tmp_path / "x.csv")]) == 2
