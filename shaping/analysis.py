@@ -90,6 +90,8 @@ def max_accel(shaper: Shaper, scv: float = 5.0, target: float = TARGET_SMOOTHING
     if right == left:
         while ok(right):
             right *= 2.0
+            if right > 1e12:   # the shaper never smooths (a single impulse): no limit
+                return math.inf
     while right - left > 1e-8:
         mid = 0.5 * (left + right)
         if ok(mid):
