@@ -22,27 +22,18 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Iterable, Iterator
 
 import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.job import (AXES, LIMIT_COMMANDS, SETTING_KEYS, SHAPER_COMMANDS, STOP_COMMANDS,
+                                  Event, Job)
+from ringtune.shaping.slicer import slicer_estimate
 
-#: Setting keys a job can change (NaN = never set in the file; the planner then uses the machine's).
-SETTING_KEYS = (
-    "accel_print", "accel_travel", "accel_retract", "accel_klipper", "accel_to_decel",
-    "max_accel_x", "max_accel_y", "max_accel_z", "max_accel_e",
-    "max_vel_x", "max_vel_y", "max_vel_z", "max_vel_e",
-    "jerk_x", "jerk_y", "jerk_z", "jerk_e",
-    "junction_deviation", "square_corner_velocity", "velocity", "min_cruise_ratio",
-    "freq_limit_hz", "freq_limit_min_factor",
-)
-SHAPER_COMMANDS = ("M593", "M493", "SET_INPUT_SHAPER")
-LIMIT_COMMANDS = ("M201", "M203", "M204", "M205", "M220", "SET_VELOCITY_LIMIT")
-STOP_COMMANDS = {"G4", "G28", "G29", "M400", "M109", "M190", "M0", "M1", "M600", *SHAPER_COMMANDS}
-AXES = "XYZE"
+__all__ = ["Event", "Job", "SETTING_KEYS", "read_gcode", "slicer_estimate"]
+
 
 _WORD = re.compile(r"([A-Za-z])\s*([^A-Za-z\s]*)")
 _EXT_PARAM = re.compile(r"(\w+)\s*=\s*(\"[^\"]*\"|\S*)")
@@ -51,86 +42,7 @@ _FEATURE = re.compile(r"^\s*(?:TYPE|FEATURE)\s*:\s*(.+?)\s*$|^\s*feature\s+(.+?)
 
 #: Largest magnitude accepted per parameter letter (anything larger is surely an error).
 _BOUNDS = {"X": 1e5, "Y": 1e5, "Z": 1e5, "E": 1e6, "I": 1e5, "J": 1e5, "R": 1e5, "F": 1e7}
-
-
-@dataclass
-class Event:
-    """A non-motion command in the job.
-
-    kind: ``shaper`` (M593/M493/SET_INPUT_SHAPER), ``limits`` (M201/M203/M204/M205/M220/
-    SET_VELOCITY_LIMIT), ``dwell`` (G4), ``other`` (anything else, kept as it is).
-    move: index of the first move after the command (== number of moves before it).
-    time: s since the job start; None until the planner fills it in.
-    """
-
-    kind: str
-    command: str
-    params: dict
-    line: int
-    move: int
-    text: str = ""
-    time: float | None = None
-
-
-@dataclass
-class Job:
-    """A parsed job: straight moves in machine coordinates (mm) and what surrounds them.
-
-    Move arrays (n moves): ``line`` source line (1-based), ``start``/``end`` (n, 4) x y z e,
-    ``feed`` requested speed (mm/s, M220 applied), ``feature`` index into ``features``,
-    ``settings`` index into ``settings_table`` (rows of :data:`SETTING_KEYS`, NaN = unset),
-    ``stop_before`` the firmware is at rest before this move, ``dwell_before`` s of dwell before it,
-    ``arc`` the move is a chord of a G2/G3 arc.
-    """
-
-    line: np.ndarray
-    start: np.ndarray
-    end: np.ndarray
-    feed: np.ndarray
-    feature: np.ndarray
-    settings: np.ndarray
-    stop_before: np.ndarray
-    dwell_before: np.ndarray
-    arc: np.ndarray
-    features: list[str]
-    settings_table: np.ndarray
-    events: list[Event] = field(default_factory=list)
-    dwell_after: float = 0.0
-    source: str = "<text>"
-    n_lines: int = 0
-    arc_tolerance: float = 0.01
-
-    @property
-    def n_moves(self) -> int:
-        return len(self.line)
-
-    @property
-    def delta(self) -> np.ndarray:
-        return self.end - self.start
-
-    @property
-    def extruding(self) -> np.ndarray:
-        """(n,) moves that deposit material: E increases while X/Y move."""
-        d = self.delta
-        return (d[:, 3] > 0) & (np.hypot(d[:, 0], d[:, 1]) > 0)
-
-    def setting(self, key: str) -> np.ndarray:
-        """(n,) value of a setting in force at each move (NaN where the file never set it)."""
-        col = SETTING_KEYS.index(key)
-        return self.settings_table[self.settings, col]
-
-    def file_setting(self, key: str) -> float:
-        """The first value the file set for ``key`` (NaN if never)."""
-        col = self.settings_table[:, SETTING_KEYS.index(key)]
-        ok = col[~np.isnan(col)]
-        return float(ok[0]) if len(ok) else math.nan
-
-    def with_feed(self, feed: np.ndarray) -> "Job":
-        """A copy with other requested speeds (mm/s)."""
-        return replace(self, feed=np.asarray(feed, float).copy())
-
-    def shaper_events(self) -> list[Event]:
-        return [e for e in self.events if e.kind == "shaper"]
+_AXIS_INDEX = {"X": 0, "Y": 1, "Z": 2, "E": 3}
 
 
 def _num(value: str, letter: str, where: str) -> float:
@@ -216,8 +128,8 @@ class _Reader:
             self.settings_rows.append(tuple(self.settings.values()))
             self.settings_dirty = False
         self.m_line.append(lineno)
-        self.m_start.append(tuple(start))
-        self.m_end.append(tuple(end))
+        self.m_start.append(start)
+        self.m_end.append(end)
         self.m_feed.append(self.feed * self.speed_factor)
         self.m_feature.append(self.cur_feature)
         self.m_settings.append(len(self.settings_rows) - 1)
@@ -226,7 +138,40 @@ class _Reader:
         self.m_arc.append(arc)
         self.stop = False
         self.dwell = 0.0
-        self.pos = list(end)
+        self.pos = end           # a new list: never mutated in place afterwards
+
+    def _bad_word(self, letter: str, value: str, lineno: int):
+        where = self._where(lineno)
+        if value == "":
+            raise RingtuneError(f"{letter.upper()} needs a value", where)
+        _num(value, letter.upper(), where)
+        raise RingtuneError(f"{letter}{value} is out of range", where)  # pragma: no cover
+
+    def _fast_move(self, text: str, lineno: int) -> None:
+        """G0/G1: the hot path (one regex, one float per word, bounds checked inline)."""
+        pos = self.pos
+        end = list(pos)
+        off = self.offset
+        for letter, value in _WORD.findall(text):
+            try:
+                x = float(value)
+            except ValueError:
+                self._bad_word(letter, value, lineno)
+            up = letter if letter.isupper() else letter.upper()
+            bound = _BOUNDS.get(up, 1e9)
+            if not -bound <= x <= bound:
+                self._bad_word(letter, value, lineno)
+            i = _AXIS_INDEX.get(up)
+            if i is not None:
+                if i < 3:
+                    end[i] = x + off[i] if self.abs_xyz else pos[i] + x
+                else:
+                    end[3] = x + off[3] if self.abs_e else pos[3] + x
+            elif up == "F":
+                if x <= 0:
+                    raise RingtuneError(f"feedrate F{x:g} must be > 0", self._where(lineno))
+                self.feed = x / 60.0
+        self._emit(end, lineno)
 
     def _set(self, key: str, value: float) -> None:
         self.settings[key] = value
@@ -275,9 +220,7 @@ class _Reader:
                 first = code[0]
             if first in "Gg" and len(code) > 2 and code[1] in "01" and not code[2].isdigit() \
                     and code[2] != ".":
-                words = _finite(self._words(code[2:], lineno), self._where(lineno))
-                self._feedrate(words, self._where(lineno))
-                self._emit(self._target(words), lineno)
+                self._fast_move(code[2:], lineno)
                 continue
             self._command(code, lineno)
         self.n_lines = lineno
@@ -314,8 +257,7 @@ class _Reader:
             return
         words = self._words(rest, lineno)
         if cmd in ("G0", "G1"):
-            self._feedrate(words, where)
-            self._emit(self._target(_finite(words, where)), lineno)
+            self._fast_move(rest, lineno)
         elif cmd in ("G2", "G3"):
             self._arc(cmd == "G2", _finite(words, where), lineno)
         elif cmd == "G4":
@@ -344,6 +286,7 @@ class _Reader:
                     self.offset[i] = self.pos[i] - v
         elif cmd == "G28":
             named = [i for i, ax in enumerate("XYZ") if ax in words]
+            self.pos = list(self.pos)
             for i in named or (0, 1, 2):
                 self.pos[i] = 0.0
                 self.offset[i] = 0.0
@@ -543,32 +486,3 @@ def read_gcode(path_or_text, arc_tolerance: float = 0.01) -> Job:
         reader.feed_lines(text.splitlines())
     return reader.job()
 
-
-_EST_PRUSA = re.compile(r";\s*(?:estimated printing time \(normal mode\)|total estimated time)\s*[=:]\s*(.+)", re.I)
-_EST_S3D = re.compile(r";\s*Build time:\s*(.+)", re.I)
-_EST_CURA = re.compile(r"^;TIME:\s*(\d+(?:\.\d+)?)\s*$", re.M)
-_DURATION = re.compile(r"(\d+(?:\.\d+)?)\s*(d|days?|h|hours?|m|min|minutes?|s|sec|seconds?)\b", re.I)
-
-
-def _duration_seconds(text: str) -> float | None:
-    total, found = 0.0, False
-    for value, unit in _DURATION.findall(text):
-        u = unit.lower()[0]
-        total += float(value) * {"d": 86400, "h": 3600, "m": 60, "s": 1}[u]
-        found = True
-    return total if found else None
-
-
-def slicer_estimate(path) -> float | None:
-    """The print time (s) the slicer wrote into the file (PrusaSlicer/Orca ``estimated printing
-    time (normal mode)``, Simplify3D ``Build time``, Cura ``;TIME:``), or None."""
-    try:
-        text = Path(path).read_text(encoding="utf-8", errors="replace")
-    except OSError:
-        return None
-    for rx in (_EST_PRUSA, _EST_S3D):
-        m = rx.search(text)
-        if m:
-            return _duration_seconds(m.group(1))
-    m = _EST_CURA.search(text)
-    return float(m.group(1)) if m else None

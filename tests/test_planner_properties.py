@@ -119,7 +119,7 @@ def _gcode(pts):
     return "\n".join(lines) + "\n"
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(pts=points, junction=st.sampled_from(["scv", "jd", "jerk"]),
        accel=st.sampled_from([500.0, 3000.0, 10000.0]), daa=st.sampled_from([None, None, 35.0]),
        mcr=st.sampled_from([0.0, 0.5]))

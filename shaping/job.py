@@ -1,0 +1,104 @@
+"""The parsed job: straight moves in machine coordinates plus the settings and events around them
+(units mm, mm/s, s). Produced by :func:`ringtune.shaping.gcode.read_gcode`, consumed by the planner
+and the frequency limit."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+#: Setting keys a job can change (NaN = never set in the file; the planner then uses the machine's).
+SETTING_KEYS = (
+    "accel_print", "accel_travel", "accel_retract", "accel_klipper", "accel_to_decel",
+    "max_accel_x", "max_accel_y", "max_accel_z", "max_accel_e",
+    "max_vel_x", "max_vel_y", "max_vel_z", "max_vel_e",
+    "jerk_x", "jerk_y", "jerk_z", "jerk_e",
+    "junction_deviation", "square_corner_velocity", "velocity", "min_cruise_ratio",
+    "freq_limit_hz", "freq_limit_min_factor",
+)
+SHAPER_COMMANDS = ("M593", "M493", "SET_INPUT_SHAPER")
+LIMIT_COMMANDS = ("M201", "M203", "M204", "M205", "M220", "SET_VELOCITY_LIMIT")
+STOP_COMMANDS = {"G4", "G28", "G29", "M400", "M109", "M190", "M0", "M1", "M600", *SHAPER_COMMANDS}
+AXES = "XYZE"
+
+
+@dataclass
+class Event:
+    """A non-motion command in the job.
+
+    kind: ``shaper`` (M593/M493/SET_INPUT_SHAPER), ``limits`` (M201/M203/M204/M205/M220/
+    SET_VELOCITY_LIMIT), ``dwell`` (G4), ``other`` (anything else, kept as it is).
+    move: index of the first move after the command (== number of moves before it).
+    time: s since the job start; None until the planner fills it in.
+    """
+
+    kind: str
+    command: str
+    params: dict
+    line: int
+    move: int
+    text: str = ""
+    time: float | None = None
+
+
+@dataclass
+class Job:
+    """A parsed job: straight moves in machine coordinates (mm) and what surrounds them.
+
+    Move arrays (n moves): ``line`` source line (1-based), ``start``/``end`` (n, 4) x y z e,
+    ``feed`` requested speed (mm/s, M220 applied), ``feature`` index into ``features``,
+    ``settings`` index into ``settings_table`` (rows of :data:`SETTING_KEYS`, NaN = unset),
+    ``stop_before`` the firmware is at rest before this move, ``dwell_before`` s of dwell before it,
+    ``arc`` the move is a chord of a G2/G3 arc.
+    """
+
+    line: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+    feed: np.ndarray
+    feature: np.ndarray
+    settings: np.ndarray
+    stop_before: np.ndarray
+    dwell_before: np.ndarray
+    arc: np.ndarray
+    features: list[str]
+    settings_table: np.ndarray
+    events: list[Event] = field(default_factory=list)
+    dwell_after: float = 0.0
+    source: str = "<text>"
+    n_lines: int = 0
+    arc_tolerance: float = 0.01
+
+    @property
+    def n_moves(self) -> int:
+        return len(self.line)
+
+    @property
+    def delta(self) -> np.ndarray:
+        return self.end - self.start
+
+    @property
+    def extruding(self) -> np.ndarray:
+        """(n,) moves that deposit material: E increases while X/Y move."""
+        d = self.delta
+        return (d[:, 3] > 0) & (np.hypot(d[:, 0], d[:, 1]) > 0)
+
+    def setting(self, key: str) -> np.ndarray:
+        """(n,) value of a setting in force at each move (NaN where the file never set it)."""
+        col = SETTING_KEYS.index(key)
+        return self.settings_table[self.settings, col]
+
+    def file_setting(self, key: str) -> float:
+        """The first value the file set for ``key`` (NaN if never)."""
+        col = self.settings_table[:, SETTING_KEYS.index(key)]
+        ok = col[~np.isnan(col)]
+        return float(ok[0]) if len(ok) else math.nan
+
+    def with_feed(self, feed: np.ndarray) -> "Job":
+        """A copy with other requested speeds (mm/s)."""
+        return replace(self, feed=np.asarray(feed, float).copy())
+
+    def shaper_events(self) -> list[Event]:
+        return [e for e in self.events if e.kind == "shaper"]

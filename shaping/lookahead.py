@@ -1,0 +1,230 @@
+"""Look-ahead building blocks of the planner, vectorised over all moves (mm, s, mm/s, mm/s²).
+
+- :func:`forward_pass` / :func:`backward_pass`: the min-plus recurrences of look-ahead in closed form;
+- :func:`junction_limits`: v² allowed between consecutive moves by the firmware's rule (Klipper
+  square-corner velocity, Marlin junction deviation, classic jerk as Marlin and PrusaSlicer);
+- :func:`klipper_smoothing`: Klipper's minimum_cruise_ratio / accel_to_decel hill caps;
+- :func:`daa_adjust`: RepRapFirmware ≤ 3.3 Dynamic Acceleration Adjustment.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.job import Job
+
+KLIPPER_INSTANT_CORNER_V = 1.0     # mm/s, Klipper [extruder] instantaneous_corner_velocity default
+
+
+def forward_pass(c: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """w[0] = c[0]; w[i+1] = min(c[i+1], w[i] + delta[i]) for all i, in closed form."""
+    s = np.concatenate(([0.0], np.cumsum(delta)))
+    return s + np.minimum.accumulate(c - s)
+
+
+def backward_pass(c: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """u[n] = c[n]; u[i] = min(c[i], u[i+1] + delta[i])."""
+    return forward_pass(c[::-1], delta[::-1])[::-1]
+
+
+def job_value(job: Job, key: str, default, use: bool) -> np.ndarray:
+    n = job.n_moves
+    base = np.full(n, np.nan if default is None else float(default))
+    if not use:
+        return base
+    v = job.setting(key)
+    return np.where(np.isnan(v), base, v)
+
+
+def axis_caps(job: Job, prefix: str, machine: tuple | None, use: bool) -> np.ndarray:
+    """(n, 4) per-axis caps (inf = none)."""
+    cols = []
+    for i, ax in enumerate("xyze"):
+        default = np.inf if machine is None or machine[i] <= 0 else machine[i]
+        v = job_value(job, f"{prefix}_{ax}", default, use)
+        cols.append(np.where(v > 0, v, np.inf))       # Marlin: 0 means "no limit" for M201/M203
+    return np.stack(cols, axis=1)
+
+
+def scale_by_axes(value: np.ndarray, u: np.ndarray, caps: np.ndarray) -> np.ndarray:
+    """Largest ≤ value such that value·|u_a| ≤ cap_a on every axis."""
+    au = np.abs(u)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(au > 0, caps / au, np.inf)
+    return np.minimum(value, ratio.min(axis=1))
+
+
+# -- the planner --------------------------------------------------------------------------------
+
+
+def junction_limits(job, limits, use, u, d, e_only, vmax, accel, amax_axes):
+    """Junction v² limit between move i-1 and i (c[i], c[0] unused) and jerk 'safe' speeds."""
+    n = job.n_moves
+    c = np.full(n, np.inf)
+    safe = np.zeros(n)
+    if n < 2:
+        if limits.junction == "jerk":
+            safe = jerk_safe_speeds(job, limits, use, u, vmax)
+        return c, safe
+    up, uc = u[:-1], u[1:]
+    if limits.junction == "scv":
+        scv = job_value(job, "square_corner_velocity", limits.square_corner_velocity, use)
+        nx = np.where(e_only[:, None], 0.0, u[:, :3])
+        cos_j = -np.einsum("ij,ij->i", nx[1:], nx[:-1])
+        sin_d2 = np.sqrt(np.maximum(0.5 * (1 - cos_j), 0.0))
+        cos_d2 = np.sqrt(np.maximum(0.5 * (1 + cos_j), 0.0))
+        one_minus = 1 - sin_d2
+        ok = (one_minus > 0) & (cos_d2 > 0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r_jd = sin_d2 / one_minus
+            k = math.sqrt(2) - 1
+            jd_v2 = r_jd * k * np.minimum(scv[1:] ** 2, scv[:-1] ** 2)
+            q = 0.25 * sin_d2 / cos_d2
+            cent = np.minimum(2 * accel[1:] * d[1:], 2 * accel[:-1] * d[:-1]) * q
+        lim = np.where(ok, np.minimum(jd_v2, cent), np.inf)
+        # extruder: instantaneous corner velocity on the change of extrusion ratio
+        diff_r = np.abs(uc[:, 3] - up[:, 3])
+        with np.errstate(divide="ignore"):
+            ext = np.where(diff_r > 0, (KLIPPER_INSTANT_CORNER_V / diff_r) ** 2, np.inf)
+        lim = np.minimum(lim, ext)
+        lim = np.where(e_only[1:] | e_only[:-1], 0.0, lim)
+        c[1:] = lim
+    elif limits.junction == "jd":
+        jd = job_value(job, "junction_deviation", limits.junction_deviation, use)[1:]
+        nv = np.where(e_only[:, None], np.array([0, 0, 0, 1.0]) * np.sign(u[:, 3:4]),
+                      np.concatenate([u[:, :3], np.zeros((len(u), 1))], axis=1))
+        cos_t = -np.einsum("ij,ij->i", nv[1:], nv[:-1])
+        rev = cos_t > 0.999999
+        cos_c = np.clip(cos_t, -0.999999, 1.0)
+        sin_d2 = np.sqrt(0.5 * (1 - cos_c))
+        ju = nv[1:] - nv[:-1]
+        norm = np.linalg.norm(ju, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ju = ju / np.where(norm > 0, norm, 1.0)[:, None]
+        a_j = scale_by_axes(accel[1:], ju, amax_axes[1:])
+        lim = a_j * jd * sin_d2 / (1 - sin_d2)
+        # Marlin: short segments of a curve (length < 1 mm, angle > 135°) ~ circular arc bound
+        theta = np.arccos(np.clip(-cos_c, -1, 1))      # angle between directions (0 = straight)
+        junction_theta = np.pi - theta
+        small = (d[1:] < 1.0) & (junction_theta > np.radians(135)) & (theta > 0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            arc = d[1:] * a_j / theta
+        lim = np.where(small, np.minimum(lim, arc), lim)
+        lim = np.where(rev, 0.05 ** 2, lim)
+        c[1:] = lim
+    else:
+        safe = jerk_safe_speeds(job, limits, use, u, vmax)
+        c[1:] = jerk_junction(job, limits, use, u, vmax, safe) ** 2
+    if limits.junction == "jerk":
+        pass
+    elif limits.junction != "jerk":
+        safe = np.zeros(n)
+    return c, safe
+
+
+def jerk_limits(job, limits, use) -> np.ndarray:
+    return np.stack([job_value(job, f"jerk_{ax}", limits.jerk[i], use) for i, ax in enumerate("xyze")],
+                    axis=1)
+
+
+def jerk_safe_speeds(job, limits, use, u, vmax) -> np.ndarray:
+    """Speed a move may start from / end at rest with (PrusaSlicer's ``safe_feedrate``)."""
+    jerk = jerk_limits(job, limits, use)
+    axis_v = np.abs(u) * vmax[:, None]
+    capped = np.where(axis_v > jerk, jerk, np.inf)
+    return np.minimum(vmax, capped.min(axis=1))
+
+
+def jerk_junction(job, limits, use, u, vmax, safe) -> np.ndarray:
+    """Classic-jerk junction speed between move i-1 and i (PrusaSlicer / Marlin rule), (n-1,)."""
+    jerk = jerk_limits(job, limits, use)[1:]
+    prev_v, cur_v = vmax[:-1], vmax[1:]
+    prev_larger = prev_v > cur_v
+    with np.errstate(divide="ignore", invalid="ignore"):
+        smaller = np.where(prev_larger, cur_v / prev_v, prev_v / cur_v)
+    vj = np.where(prev_larger, cur_v, prev_v)
+    v_exit_all = u[:-1] * prev_v[:, None]
+    v_entry_all = u[1:] * cur_v[:, None]
+    v_factor = np.ones(len(vj))
+    limited = np.zeros(len(vj), bool)
+    for a in range(4):
+        v_exit = np.where(prev_larger, v_exit_all[:, a] * smaller, v_exit_all[:, a])
+        v_entry = v_entry_all[:, a]
+        v_exit = np.where(limited, v_exit * v_factor, v_exit)
+        v_entry = np.where(limited, v_entry * v_factor, v_entry)
+        coast_down = (v_entry > 0) | (v_exit < 0)
+        coast_up = (v_entry < 0) | (v_exit > 0)
+        j = np.where(v_exit > v_entry,
+                     np.where(coast_down, v_exit - v_entry, np.maximum(v_exit, -v_entry)),
+                     np.where(coast_up, v_entry - v_exit, np.maximum(-v_exit, v_entry)))
+        over = j > jerk[:, a]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            v_factor = np.where(over, v_factor * jerk[:, a] / j, v_factor)
+        limited |= over
+    vj = np.where(limited, vj * v_factor, vj)
+    thr = 0.99 * vj
+    not_coasting = (safe[:-1] > thr) & (safe[1:] > thr)
+    vj = np.where(not_coasting, safe[1:], vj)
+    vj = np.where(prev_v > 1e-4, vj, safe[1:])
+    return vj
+
+
+def klipper_smoothing(job, limits, use, cj, w, cruise2, accel, d, dv2, v2):
+    """Klipper's minimum_cruise_ratio: cap each accelerate/decelerate hill at the peak reached
+    with the smoothed acceleration, then re-run the passes so junctions stay reachable."""
+    mcr = job_value(job, "min_cruise_ratio", limits.min_cruise_ratio, use)
+    atd = job_value(job, "accel_to_decel", None, use)
+    a_s = np.where(np.isnan(atd), accel * (1 - mcr), np.minimum(atd, accel))
+    if np.all(a_s >= accel):
+        return cruise2, w
+    ds = 2 * a_s * d
+    sm = backward_pass(forward_pass(cj, ds), ds)
+    peak = np.minimum(v2, 0.5 * (sm[:-1] + sm[1:] + ds))      # smoothed peak inside each move
+    n = len(d)
+    valley = np.zeros(n + 1, bool)
+    valley[1:n] = (sm[1:n] < peak[:-1] - 1e-9) & (sm[1:n] < peak[1:] - 1e-9)
+    hill = np.cumsum(valley[:n])
+    starts = np.flatnonzero(np.concatenate(([True], hill[1:] != hill[:-1])))
+    hill_peak = np.maximum.reduceat(peak, starts)[hill - hill[0]] if n else peak
+    cap = np.minimum(cruise2, hill_peak)
+    c2 = cj.copy()
+    c2[1:n] = np.minimum(c2[1:n], np.minimum(cap[1:], cap[:-1]))
+    c2[0] = min(c2[0], cap[0])
+    c2[n] = min(c2[n], cap[-1])
+    w2 = backward_pass(forward_pass(np.minimum(c2, w), dv2), dv2)
+    return np.minimum(cap, 0.5 * (w2[:-1] + w2[1:] + dv2)), w2
+
+
+def daa_adjust(freq, min_accel, w, cruise2, accel, d):
+    """RRF ≤ 3.3 Dynamic Acceleration Adjustment: phase times of one (or two) ringing periods."""
+    if not (math.isfinite(freq) and freq > 0):
+        raise RingtuneError(f"DAA frequency must be > 0 Hz, not {freq}", "daa_freq")
+    period = 1.0 / freq
+    s, e = np.sqrt(w[:-1]), np.sqrt(w[1:])
+    c = np.sqrt(cruise2)
+
+    def phase_time(dv):
+        t = dv / accel
+        return np.where(dv <= 0, 0.0, np.where(t < period, period, np.where(t < 2 * period, 2 * period, t)))
+
+    # a phase of two periods or more is left as it is; if a retimed phase then no longer fits
+    # the move, the top speed is lowered (both phases retimed) or the move is left alone
+    ta, td = phase_time(c - s), phase_time(c - e)
+    need = 0.5 * (s + c) * ta + 0.5 * (c + e) * td
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c_fit = np.where(ta + td > 0, (2 * d - s * ta - e * td) / (ta + td), c)
+    c_new = np.where(need > d, c_fit, c)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        acc = np.where(ta > 0, (c_new - s) / ta, accel)
+        dec = np.where(td > 0, (c_new - e) / td, accel)
+    kept = ((c - s > 0) & (ta == (c - s) / accel)) | ((c - e > 0) & (td == (c - e) / accel))
+    ok = (c_new >= np.maximum(s, e) - 1e-9) & (acc >= min_accel) & (dec >= min_accel) \
+        & ~(kept & (need > d)) \
+        & (acc <= accel * (1 + 1e-9)) & (dec <= accel * (1 + 1e-9))
+    acc = np.where(ok & (ta > 0), acc, accel)
+    dec = np.where(ok & (td > 0), dec, accel)
+    c_out = np.where(ok, np.maximum(c_new, np.maximum(s, e)), c)
+    return acc, dec, c_out ** 2

@@ -1,0 +1,36 @@
+"""What slicers write about a job in its comments: their own print-time estimate."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+
+_EST_PRUSA = re.compile(r";\s*(?:estimated printing time \(normal mode\)|total estimated time)\s*[=:]\s*(.+)", re.I)
+_EST_S3D = re.compile(r";\s*Build time:\s*(.+)", re.I)
+_EST_CURA = re.compile(r"^;TIME:\s*(\d+(?:\.\d+)?)\s*$", re.M)
+_DURATION = re.compile(r"(\d+(?:\.\d+)?)\s*(d|days?|h|hours?|m|min|minutes?|s|sec|seconds?)\b", re.I)
+
+
+def _duration_seconds(text: str) -> float | None:
+    total, found = 0.0, False
+    for value, unit in _DURATION.findall(text):
+        u = unit.lower()[0]
+        total += float(value) * {"d": 86400, "h": 3600, "m": 60, "s": 1}[u]
+        found = True
+    return total if found else None
+
+
+def slicer_estimate(path) -> float | None:
+    """The print time (s) the slicer wrote into the file (PrusaSlicer/Orca ``estimated printing
+    time (normal mode)``, Simplify3D ``Build time``, Cura ``;TIME:``), or None."""
+    try:
+        text = Path(path).read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return None
+    for rx in (_EST_PRUSA, _EST_S3D):
+        m = rx.search(text)
+        if m:
+            return _duration_seconds(m.group(1))
+    m = _EST_CURA.search(text)
+    return float(m.group(1)) if m else None
