@@ -68,25 +68,41 @@ class SimResult:
         return float(np.max(np.abs(self.motor_force) / self.motor_force_max))
 
 
-def _kinematics(motion, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(p, v, a) of x, y at sorted times ``t`` ≥ start; after the motion's end the commanded
-    acceleration is zero, so a motion that ends at rest stays put and a window cut mid-move
-    continues at its end velocity (no fictitious velocity jump)."""
-    te = motion.end_time
-    tc = np.minimum(t, te)
-    p = motion.position(tc)[:, :2]
-    v = motion.velocity(tc)[:, :2]
-    a = motion.acceleration(tc)[:, :2]
-    after = t >= te
-    if after.any():
-        p[after] += v[after] * (t[after] - te)[:, None]
-        a[after] = 0.0
+def _kinematics(motion, t0: float, h: float, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(p, v, a) of x, y on the grid ``t0 + k·h``, k < m, in O(n + m) without a search.
+
+    After the motion's end the commanded acceleration is zero, so a motion that ends at rest stays
+    put and a window cut mid-move continues at its end velocity (no fictitious velocity jump)."""
+    times = t0 + np.arange(m) * h
+    tb = motion.t
+    first = np.clip(np.ceil((tb - t0) / h - 1e-9).astype(np.int64), 0, m)
+    idx = np.repeat(np.arange(motion.n_segments), np.diff(first))
+    lo, hi = int(first[0]), int(first[0]) + len(idx)
+    p = np.empty((m, 2))
+    v = np.empty((m, 2))
+    a = np.empty((m, 2))
+    tau = (times[lo:hi] - tb[idx])[:, None]
+    A = motion.a[idx, :2]
+    V = motion.v[idx, :2]
+    p[lo:hi] = motion.p[idx, :2] + (V + 0.5 * A * tau) * tau
+    v[lo:hi] = V + A * tau
+    a[lo:hi] = A
+    if lo > 0:
+        p[:lo] = motion.p[0, :2]
+        v[:lo] = 0.0
+        a[:lo] = 0.0
+    if hi < m:
+        pe, ve = motion.end_state()
+        dt = (times[hi:] - tb[-1])[:, None]
+        p[hi:] = pe[-1, :2] + ve[-1, :2] * dt
+        v[hi:] = ve[-1, :2]
+        a[hi:] = 0.0
     return p, v, a
 
 
-def _step_controls(motion, t0: float, h: float, nstep: int) -> np.ndarray:
-    """(nstep, 2) per-step control −a (mm/s²) with mean and first moment of the true input."""
-    p, v, _ = _kinematics(motion, t0 + np.arange(nstep + 1) * h)
+def _step_controls(p: np.ndarray, v: np.ndarray, h: float) -> np.ndarray:
+    """(nstep, 2) per-step control −a (mm/s²) from grid positions and velocities (nstep+1, 2):
+    the exact mean of the acceleration over each step plus the first-moment correction."""
     mean = np.diff(v, axis=0) / h
     m1 = 0.5 * h * (v[:-1] + v[1:]) - np.diff(p, axis=0)          # first-moment residual per step
     corr = np.zeros_like(mean)
@@ -95,10 +111,11 @@ def _step_controls(motion, t0: float, h: float, nstep: int) -> np.ndarray:
     return -(mean + corr / (2.0 * h * h))
 
 
-def _post(printer: Printer, sysm: LinearSystem, motion, t: np.ndarray, q: np.ndarray,
+def _post(printer: Printer, sysm: LinearSystem, kin, t: np.ndarray, q: np.ndarray,
           qd: np.ndarray, backend: str) -> SimResult:
-    """Everything derived from the state samples (exact for the linear mechanics)."""
-    p, v, a = _kinematics(motion, t)
+    """Everything derived from the state samples (exact for the linear mechanics); ``kin`` is the
+    commanded (p, v, a) at ``t``."""
+    p, v, a = kin
     qdd = sysm.qacc(q, qd, a)
     onehot = np.zeros((sysm.n, 2))
     onehot[np.arange(sysm.n), sysm.axis] = 1.0
@@ -192,7 +209,7 @@ def simulate_batch(printer_or_list, motions: list, backend: str = "mujoco", nthr
             nstep = _grid(mo, h, tail)
             t = mo.start_time + np.arange(0, nstep + 1, dec) * h
             q, qd = lti_response(sysm, mo, t, _initial(sysm, mo, initial))
-            out.append(_post(p, sysm, mo, t, q, qd, "lti"))
+            out.append(_post(p, sysm, _kinematics(mo, mo.start_time, h * dec, len(t)), t, q, qd, "lti"))
         return out
     return _rollout(printers, systems, motions, h, dec, tail, initial, nthread)
 
@@ -203,45 +220,87 @@ def lti_response(sysm, motion, t, x0):
     return response(sysm, motion, t, x0)
 
 
+#: most windows packed into one MuJoCo model as independent replicas (amortises per-step cost)
+MAX_REPLICAS = 16
+
+
+def _chunks(n: int, nthread: int) -> list[list[int]]:
+    """Split n items into balanced chunks: at least ``nthread`` (if possible), at most MAX_REPLICAS each."""
+    k = max(min(nthread, n), -(-n // MAX_REPLICAS))
+    size = -(-n // k)
+    return [list(range(i, min(i + size, n))) for i in range(0, n, size)]
+
+
+_DATA_CACHE: dict = {}
+
+
+def _datas(model, n: int) -> list:
+    """n MjData for ``model`` (rollout ignores their contents; reused between calls)."""
+    import mujoco
+
+    key = id(model)
+    got = _DATA_CACHE.get(key)
+    if got is None or got[0] is not model or len(got[1]) < n:
+        if len(_DATA_CACHE) > 64:
+            _DATA_CACHE.clear()
+        got = (model, [mujoco.MjData(model) for _ in range(n)])
+        _DATA_CACHE[key] = got
+    return got[1][:n]
+
+
 def _rollout(printers, systems, motions, h, dec, tail, initial, nthread):
     import mujoco
     from mujoco import rollout
 
-    models = [build_model(p, h, INTEGRATOR) for p in printers]
-    # group homogeneous models (same sizes) so each group is one rollout call
-    groups: dict = {}
-    for i, m in enumerate(models):
-        groups.setdefault((m.nq, m.nv, m.nu, m.ntendon), []).append(i)
-    results: list = [None] * len(motions)
     if nthread is None:
-        nthread = min(len(motions), os.cpu_count() or 1)
-    for idx in groups.values():
-        nsteps = [_grid(motions[i], h, tail) for i in idx]
-        nmax = max(nsteps)
-        m0 = models[idx[0]]
-        nq = m0.nq
+        nthread = os.cpu_count() or 1
+    nsteps = [_grid(m, h, tail) for m in motions]
+    # sort by length so that chunks pad little; each chunk is one replicated model
+    order = sorted(range(len(motions)), key=lambda i: nsteps[i])
+    chunks = [[order[j] for j in c] for c in _chunks(len(motions), nthread)]
+    models = [build_model([printers[i] for i in c], h, INTEGRATOR) for c in chunks]
+    groups: dict = {}
+    for ci, m in enumerate(models):
+        groups.setdefault((m.nq, m.nv, m.nu, m.ntendon), []).append(ci)
+    results: list = [None] * len(motions)
+    for cis in groups.values():
+        m0 = models[cis[0]]
         nstate = mujoco.mj_stateSize(m0, mujoco.mjtState.mjSTATE_FULLPHYSICS)
-        init = np.zeros((len(idx), nstate))
-        ctrl = np.zeros((len(idx), nmax, m0.nu))
-        for b, i in enumerate(idx):
-            mo = motions[i]
-            sysm = systems[id(printers[i])]
-            init[b, 0] = mo.start_time
-            x0 = _initial(sysm, mo, initial)
-            init[b, 1:1 + nq] = x0[:nq]
-            init[b, 1 + nq:1 + 2 * nq] = x0[nq:]
-            ctrl[b, :nsteps[b]] = _step_controls(mo, mo.start_time, h, nsteps[b])
-        nth = max(1, min(nthread, len(idx)))
-        datas = [mujoco.MjData(m0) for _ in range(nth)]
-        mlist = [models[i] for i in idx] if len(idx) > 1 else m0
+        nmax = max(nsteps[i] for ci in cis for i in chunks[ci])
+        t_start = min(motions[i].start_time for ci in cis for i in chunks[ci])
+        init = np.zeros((len(cis), nstate))
+        ctrl = np.zeros((len(cis), nmax, m0.nu))
+        layout = []                                          # (batch row, motion, dof offset)
+        for b, ci in enumerate(cis):
+            init[b, 0] = t_start
+            off = 0
+            for i in chunks[ci]:
+                sysm = systems[id(printers[i])]
+                mo = motions[i]
+                n = sysm.n
+                x0 = _initial(sysm, mo, initial)
+                init[b, 1 + off:1 + off + n] = x0[:n]
+                init[b, 1 + m0.nq + off:1 + m0.nq + off + n] = x0[n:]
+                kin = _kinematics(mo, mo.start_time, h, nsteps[i] + 1)
+                u = _step_controls(kin[0], kin[1], h)                     # (nstep, 2) = −a
+                ctrl[b, :nsteps[i], off:off + n] = u[:, sysm.axis]
+                layout.append((b, i, off, kin))
+                off += n
+        nth = max(1, min(nthread, len(cis)))
+        datas = _datas(m0, nth)
+        mlist = [models[ci] for ci in cis] if len(cis) > 1 else m0
         state, _ = rollout.rollout(mlist, datas if nth > 1 else datas[0], init, ctrl)
-        for b, i in enumerate(idx):
-            st = np.concatenate([init[b][None], state[b, :nsteps[b]]])[::dec]
+        nq = m0.nq
+        for b, i, off, kin in layout:
+            sysm = systems[id(printers[i])]
+            n = sysm.n
+            rows = np.arange(0, nsteps[i] + 1, dec)
+            st = np.concatenate([init[b][None], state[b, :nsteps[i]]])[rows]
             mo = motions[i]
-            t = mo.start_time + np.arange(0, nsteps[b] + 1, dec) * h
-            q = st[:, 1:1 + nq]
-            qd = st[:, 1 + nq:1 + 2 * nq]
-            results[i] = _post(printers[i], systems[id(printers[i])], mo, t, q, qd, "mujoco")
+            t = mo.start_time + rows * h
+            kin = tuple(k[rows] for k in kin) if dec > 1 else kin
+            results[i] = _post(printers[i], sysm, kin, t, st[:, 1 + off:1 + off + n],
+                               st[:, 1 + nq + off:1 + nq + off + n], "mujoco")
     return results
 
 
