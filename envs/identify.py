@@ -1,0 +1,358 @@
+"""Identify vibration modes from accelerometer data and write a printer description.
+
+Two kinds of measurement:
+
+- a resonance sweep PSD (Klipper ``TEST_RESONANCES``): the toolhead's measured acceleration is the
+  commanded one times the transmissibility of base-excited modes,
+  ``T(f) = 1 + Σ sᵢ·rᵢ² / (1 − rᵢ² + 2jζᵢrᵢ)``, ``rᵢ = f/fᵢ`` (so a single mode of share 1 gives the
+  classic ``(1 + 2jζr)/(1 − r² + 2jζr)``); Klipper's sweep commands ``accel_per_hz·f`` at every
+  frequency for the same time, so the PSD is modelled as ``C·f^p·|T(f)|² + b`` (``p`` ≈ 2, ``b`` a
+  noise floor) and fitted in log space to the band ``[fmin, fmax]``. Damping comes from that fit
+  (``damping="fit"``) or from each peak's half-power width (``damping="half-power"``).
+- a free-decay capture (RRF ``M956`` after a move): a sum of damped sinusoids
+  ``Σ Aₖ·exp(−ζₖωₖt)·cos(ωₖ√(1−ζₖ²)t + φₖ) + c`` fitted by variable projection (amplitudes and phases
+  linear, frequency and damping non-linear), started from the spectrum's peaks.
+
+Shares are the modes' parts of the nozzle response, normalised to sum to 1 per axis. The printer
+TOML follows ``shared/DESIGN.md``: ``[x] modes = [{ freq = …, damping = …, share = … }]``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ringtune.shaping.errors import RingtuneError
+
+
+@dataclass
+class FittedMode:
+    """A mode: natural frequency (Hz), damping ratio, share of the axis response, and the
+    frequency of the measured peak it explains (Hz; None if it has none in the band)."""
+
+    freq: float
+    damping: float
+    share: float
+    peak_freq: float | None = None
+    fitted_peak: float | None = None      # Hz: where the fitted spectrum peaks near this mode
+
+
+@dataclass
+class AxisFit:
+    """The modes fitted to one measurement of one axis, and the curves to plot."""
+
+    axis: str
+    kind: str                    # "psd" or "decay"
+    source: str
+    modes: list[FittedMode]
+    x: np.ndarray                # frequency (Hz) for psd, time (s) for decay
+    measured: np.ndarray
+    fitted: np.ndarray
+    r2: float                    # coefficient of determination (log PSD for "psd")
+    method: str = "fit"
+    notes: list[str] = field(default_factory=list)
+    x_measured: np.ndarray | None = None   # the measured bins themselves (psd), for plots
+    y_measured: np.ndarray | None = None
+
+    def to_dict(self) -> dict:
+        return {"axis": self.axis, "kind": self.kind, "source": self.source, "method": self.method,
+                "r2": self.r2, "notes": self.notes,
+                "modes": [{"freq": m.freq, "damping": m.damping, "share": m.share, "peak_freq": m.peak_freq,
+                           "fitted_peak": m.fitted_peak} for m in self.modes]}
+
+
+# -- PSD ------------------------------------------------------------------------------------------
+
+def transmissibility(f: np.ndarray, modes: list[tuple[float, float, float]]) -> np.ndarray:
+    """Complex ``T(f) = 1 + Σ s·r²/(1 − r² + 2jζr)`` for modes ``(freq Hz, damping, share)``."""
+    t = np.ones_like(f, dtype=complex)
+    for fn, z, s in modes:
+        r = f / fn
+        t += s * r * r / (1.0 - r * r + 2j * z * r)
+    return t
+
+
+def _half_power(f: np.ndarray, p: np.ndarray, i: int) -> float | None:
+    """Damping ratio from the half-power width of the peak at index ``i`` (linear interpolation)."""
+    half = p[i] / 2.0
+    lo = i
+    while lo > 0 and p[lo] > half:
+        lo -= 1
+    hi = i
+    while hi < len(p) - 1 and p[hi] > half:
+        hi += 1
+    if p[lo] > half or p[hi] > half:
+        return None
+    f1 = f[lo] + (half - p[lo]) * (f[lo + 1] - f[lo]) / (p[lo + 1] - p[lo])
+    f2 = f[hi - 1] + (p[hi - 1] - half) * (f[hi] - f[hi - 1]) / (p[hi - 1] - p[hi])
+    return float((f2 - f1) / (2.0 * f[i]))
+
+
+def find_peaks_psd(f: np.ndarray, p: np.ndarray, max_peaks: int = 3, rel: float = 0.15) -> list[int]:
+    """Indices of the highest resonance peaks (prominence ≥ ``rel``·max), highest first."""
+    from scipy.signal import find_peaks
+
+    idx, props = find_peaks(p, prominence=rel * p.max())
+    order = np.argsort(p[idx])[::-1]
+    return [int(idx[k]) for k in order[:max_peaks]]
+
+
+def identify_psd(psd, axis: str | None = None, max_modes: int = 3, fmin: float = 5.0,
+                 fmax: float = 135.0, damping: str = "fit") -> AxisFit:
+    """Fit modes to a :class:`ringtune.hardware.accel.PSD` (one axis column, or the sum)."""
+    from scipy.optimize import least_squares
+
+    if damping not in ("fit", "half-power"):
+        raise RingtuneError("must be 'fit' or 'half-power'", "--damping-method")
+    axis = axis or (psd.name if psd.name in ("x", "y", "z") else "sum")
+    col = psd.axis(axis) if axis in ("x", "y", "z") else psd.psd_sum
+    band = (psd.freqs >= fmin) & (psd.freqs <= fmax)
+    f, p = psd.freqs[band], np.asarray(col[band], dtype=float)
+    where = psd.source or "psd"
+    if len(f) < 8 or not np.all(np.isfinite(p)) or p.max() <= 0:
+        raise RingtuneError(f"too few usable bins between {fmin:g} and {fmax:g} Hz", where)
+    p = np.maximum(p, p.max() * 1e-9)
+    peaks = find_peaks_psd(f, p, max_modes)
+    if not peaks:
+        peaks = [int(np.argmax(p))]
+    peaks.sort(key=lambda i: f[i])
+    hp = [_half_power(f, p, i) for i in peaks]
+    z0 = [min(max(h if h else 0.05, 0.01), 0.4) for h in hp]
+    n = len(peaks)
+    fpk = f[peaks]
+    df = float(np.median(np.diff(f)))
+    logp = np.log(p)
+
+    def unpack(x):
+        lc, pw, lb = x[:3]
+        m = x[3:].reshape(n, 3)
+        return lc, pw, lb, [(m[k, 0], m[k, 1], m[k, 2]) for k in range(n)]
+
+    def model(x, ff):
+        lc, pw, lb, modes = unpack(x)
+        return np.exp(lc) * (ff / 50.0) ** pw * np.abs(transmissibility(ff, modes)) ** 2 + np.exp(lb)
+
+    def resid(x):
+        return np.log(model(x, f)) - logp
+
+    shares0 = [1.0 / n] * n
+    x0 = [0.0, 2.0, math.log(p.min())]
+    lo, hi = [-np.inf, -2.0, -np.inf], [np.inf, 6.0, np.inf]
+    for k in range(n):
+        x0 += [fpk[k], z0[k], shares0[k]]
+        lo += [fpk[k] - max(3 * df, 0.1 * fpk[k]), 0.005, 0.005]
+        hi += [fpk[k] + max(3 * df, 0.1 * fpk[k]), 0.5, 3.0]
+    # scale C so that the initial model meets the data at the highest peak
+    x0 = np.array(x0, dtype=float)
+    ipk = peaks[int(np.argmax(p[peaks]))]
+    x0[0] = logp[ipk] - math.log(model(x0, f[ipk:ipk + 1])[0] + 1e-300)
+    x0 = np.clip(x0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
+    sol = least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", max_nfev=4000)
+    _, _, _, modes = unpack(sol.x)
+    res = sol.fun
+    r2 = float(1.0 - (res ** 2).sum() / ((logp - logp.mean()) ** 2).sum())
+    total = sum(s for _, _, s in modes)
+    out = []
+    for k, (fn, z, s) in enumerate(modes):
+        zz = z if damping == "fit" else (hp[k] if hp[k] is not None else z)
+        out.append(FittedMode(float(fn), float(zz), float(s / total), float(fpk[k])))
+    fine = np.linspace(f[0], f[-1], 2000)
+    curve = model(sol.x, fine)
+    for m in out:
+        near = np.abs(fine - m.freq) <= 0.15 * m.freq
+        m.fitted_peak = float(fine[near][np.argmax(curve[near])]) if near.any() else None
+    fit = AxisFit(axis, "psd", where, out, fine, np.interp(fine, f, p), curve, r2, damping,
+                  x_measured=f, y_measured=p)
+    if damping == "half-power" and any(h is None for h in hp):
+        fit.notes.append("a peak had no half-power points in the band; its damping comes from the fit")
+    return fit
+
+
+# -- free decay -------------------------------------------------------------------------------------
+
+def _decay_basis(t: np.ndarray, params: np.ndarray) -> np.ndarray:
+    cols = [np.ones_like(t)]
+    for fn, z in params.reshape(-1, 2):
+        w = 2 * math.pi * fn
+        env = np.exp(-z * w * t)
+        wd = w * math.sqrt(max(1 - z * z, 1e-9))
+        cols += [env * np.cos(wd * t), env * np.sin(wd * t)]
+    return np.stack(cols, axis=1)
+
+
+def identify_decay(raw, axis: str, max_modes: int = 2, fmin: float = 5.0, fmax: float = 150.0,
+                   start: float | None = None) -> AxisFit:
+    """Fit damped sinusoids to one axis of a :class:`RawAccel` capture (mm/s²).
+
+    The fit starts at ``start`` s, or by default at the largest acceleration (the end of the move's
+    deceleration, where free ringing begins)."""
+    from scipy.optimize import least_squares
+    from scipy.signal import find_peaks
+
+    a = np.asarray(raw.axis(axis), dtype=float)
+    t = np.asarray(raw.t, dtype=float) - raw.t[0]
+    rate = raw.rate or (len(t) - 1) / t[-1]
+    fmax = min(fmax, 0.4 * rate)
+    a = a - np.median(a)
+    i0 = int(np.searchsorted(t, start)) if start is not None else int(np.argmax(np.abs(a[: len(a) // 2])))
+    tt, yy = t[i0:] - t[i0], a[i0:]
+    if len(tt) < 50:
+        raise RingtuneError(f"only {len(tt)} samples after the start of the ringing", raw.source or None)
+    nfft = 1 << (len(yy) * 8 - 1).bit_length()
+    spec = np.abs(np.fft.rfft((yy - yy.mean()) * np.hanning(len(yy)), nfft))
+    fr = np.fft.rfftfreq(nfft, 1 / rate)
+    band = (fr >= fmin) & (fr <= fmax)
+    idx, props = find_peaks(spec[band], prominence=0.2 * spec[band].max())
+    order = np.argsort(spec[band][idx])[::-1][:max_modes]
+    f0 = sorted(float(fr[band][idx[k]]) for k in order) or [float(fr[band][np.argmax(spec[band])])]
+    x0 = np.array([v for f in f0 for v in (f, 0.03)])
+    lo = np.array([v for f in f0 for v in (max(fmin, f * 0.8), 0.0005)])
+    hi = np.array([v for f in f0 for v in (min(fmax, f * 1.2), 0.6)])
+
+    def resid(x):
+        B = _decay_basis(tt, x)
+        c, *_ = np.linalg.lstsq(B, yy, rcond=None)
+        return B @ c - yy
+
+    sol = least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", max_nfev=3000)
+    B = _decay_basis(tt, sol.x)
+    c, *_ = np.linalg.lstsq(B, yy, rcond=None)
+    fitted = B @ c
+    r2 = float(1 - ((fitted - yy) ** 2).sum() / ((yy - yy.mean()) ** 2).sum())
+    modes, disp = [], []
+    for k, (fn, z) in enumerate(sol.x.reshape(-1, 2)):
+        amp = math.hypot(c[1 + 2 * k], c[2 + 2 * k])           # mm/s² at the start of the ringing
+        disp.append(amp / (2 * math.pi * fn) ** 2)              # displacement amplitude, mm
+        modes.append(FittedMode(float(fn), float(z), 0.0, f0[k]))
+    tot = sum(disp) or 1.0
+    for m, d in zip(modes, disp):
+        m.share = float(d / tot)
+    fit = AxisFit(axis, "decay", raw.source, modes, tt, yy, fitted, r2, "damped-sinusoid")
+    if r2 < 0.5:
+        fit.notes.append(f"the damped sinusoids explain only {100 * r2:.0f} % of the signal: the capture is "
+                         "mostly noise or steady vibration, not clean ringing")
+    for m in modes:
+        if m.damping < 0.003:
+            fit.notes.append(f"{m.freq:.1f} Hz hardly decays: a steady vibration (fan, motor) rather "
+                             "than ringing")
+    return fit
+
+
+# -- files -> fits -> printer TOML -----------------------------------------------------------------
+
+def axis_of_file(path: str | Path) -> str | None:
+    """The axis a capture measured, from the file name (Klipper ``resonances_x_…``, RRF ``…-X54-161-…``)."""
+    import re
+
+    name = Path(path).name
+    m = re.match(r"(?:resonances|calibration_data|raw_data)_([xyz])_", name, re.I)
+    if m:
+        return m.group(1).lower()
+    m = re.search(r"-([XYZ])-?\d+(?:\.\d+)?-\d", name)
+    return m.group(1).lower() if m else None
+
+
+def identify_files(paths: list[str | Path], axis: str | None = None, max_modes: int = 3,
+                   fmin: float = 5.0, fmax: float = 135.0, damping: str = "fit") -> list[AxisFit]:
+    """Read and fit every file: PSD files by spectrum fit, raw captures by damped sinusoids (or by
+    Klipper's PSD when long enough and ``axis`` data is a sweep: raw Klipper files)."""
+    from ringtune.hardware.accel import PSD, RawAccel, klipper_psd, read_accel
+
+    fits = []
+    for path in paths:
+        data = read_accel(path)
+        ax = axis or axis_of_file(path)
+        if isinstance(data, RawAccel):
+            if data.fmt == "m956":
+                if ax is None:
+                    raise RingtuneError("cannot tell which axis this capture measured; give --axis", str(path))
+                fits.append(identify_decay(data, ax, max_modes=min(max_modes, 2), fmin=fmin))
+                continue
+            data = klipper_psd(data)
+            data.name = ax or ""
+        for psd in (data if isinstance(data, list) else [data]):
+            assert isinstance(psd, PSD)
+            fits.append(identify_psd(psd, ax if ax in ("x", "y") else None, max_modes, fmin, fmax, damping))
+    return fits
+
+
+def _round(v: float, digits: int) -> float:
+    return float(f"{v:.{digits}g}")
+
+
+def printer_toml(fits: list[AxisFit], name: str = "identified", kinematics: str = "cartesian",
+                 base: str | None = None) -> str:
+    """Printer description TOML (DESIGN.md format) with the fitted modes of the x and y axes.
+
+    An axis with no fit takes its modes from ``base`` (a printer TOML or embedded name; default the
+    embedded Ender-3-class printer). With several fits for one axis, the best (highest r²) wins."""
+    by_axis: dict[str, AxisFit] = {}
+    for fit in fits:
+        if fit.axis in ("x", "y") and (fit.axis not in by_axis or fit.r2 > by_axis[fit.axis].r2):
+            by_axis[fit.axis] = fit
+    lines = [f'name = "{name}"', f'kinematics = "{kinematics}"', ""]
+    for ax in ("x", "y"):
+        lines.append(f"[{ax}]")
+        if ax in by_axis:
+            fit = by_axis[ax]
+            lines.append(f"# fitted to {Path(fit.source).name} ({fit.kind}, {fit.method}, r² = {fit.r2:.3f})")
+            modes = sorted(fit.modes, key=lambda m: -m.share)
+            shares = [_round(m.share, 3) for m in modes]
+            items = []
+            for k, m in enumerate(modes):
+                item = f"freq = {_round(m.freq, 4)}, damping = {_round(min(max(m.damping, 0.0), 0.95), 3)}"
+                if k < len(modes) - 1:           # the last takes what is left, so shares sum to 1
+                    item += f", share = {shares[k]}"
+                items.append("{ " + item + " }")
+            lines.append("modes = [" + ", ".join(items) + "]")
+        else:
+            from ringtune.envs.printer import load_printer
+
+            p = load_printer(base)
+            lines.append(f"# not measured: modes of {p.name}")
+            items = ["{ " + f"freq = {_round(m.freq, 4)}, damping = {_round(m.damping, 3)}, "
+                     f"share = {_round(m.share, 3)}" + " }" for m in p.axis(ax).modes]
+            if len(items) > 1:
+                items[-1] = items[-1].rsplit(", share", 1)[0] + " }"
+            else:
+                items = [items[0].rsplit(", share", 1)[0] + " }"]
+            lines.append("modes = [" + ", ".join(items) + "]")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def plot_fits(fits: list[AxisFit], path: str | Path) -> None:
+    """Measured against fitted: spectra (log scale) and decays, one panel per fit."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(fits), 1, figsize=(9, 3.6 * len(fits)), squeeze=False)
+    for ax, fit in zip(axes[:, 0], fits):
+        title = f"{Path(fit.source).name}: axis {fit.axis.upper()} ({fit.kind} fit, r² = {fit.r2:.3f})"
+        if fit.kind == "psd":
+            xm = fit.x if fit.x_measured is None else fit.x_measured
+            ym = fit.measured if fit.y_measured is None else fit.y_measured
+            ax.semilogy(xm, ym, "o-", ms=3, lw=1, label="measured PSD")
+            ax.semilogy(fit.x, fit.fitted, "-", lw=2, label="fitted modes")
+            ax.set_xlabel("frequency (Hz)")
+            ax.set_ylabel("PSD ((mm/s²)²/Hz)")
+        else:
+            ax.plot(fit.x, fit.measured / 1000, lw=1, label="measured acceleration")
+            ax.plot(fit.x, fit.fitted / 1000, lw=1.5, label="fitted damped sinusoids")
+            ax.set_xlabel("time after the start of ringing (s)")
+            ax.set_ylabel("acceleration (m/s²)")
+        for m in fit.modes:
+            if fit.kind == "psd":
+                ax.axvline(m.freq, color="grey", ls=":", lw=1)
+        label = ", ".join(f"{m.freq:.1f} Hz ζ={m.damping:.3f} share {m.share:.2f}" for m in fit.modes)
+        ax.set_title(title + "\n" + label, fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
