@@ -1,0 +1,189 @@
+"""``ringtune tune``: the main job — an Optuna Pareto study of print time against quality.
+
+``--json`` keys (stable): out, trials, front_size, quality, chosen {config, print_time_s,
+quality_mm, chosen_by}, baselines {klipper|none: {config, print_time_s, quality_mm, step_loss}},
+vs_baselines {klipper|none: {baseline, faster_s, faster_pct, better_mm, better_pct, dominates}},
+dominates_klipper (null or {config, print_time_s, quality_mm, faster_s, ...}), files {readme,
+summary, plot, best, apply, front, trials}, storage, study, completed_now, interrupted, elapsed_s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+NAME = "tune"
+HELP = "find the best print-time / quality trade-offs (Optuna Pareto study) — the main job"
+DESCRIPTION = """\
+Tune input shaping for a printer and a job: an Optuna multi-objective study over the shaper types
+the target firmware offers, the shaper frequency F per axis (one F on RepRapFirmware), the damping
+S, the infill frequency limit and its method, and the acceleration. Each trial is simulated; a
+configuration that loses steps is ruled out. The result is the whole trade-off (Pareto front),
+the configuration to use (the knee, or the one minimising print time + W × error with --weight W),
+and how it compares with Klipper's own rule and with no shaping on the same printer and job.
+
+With no arguments it tunes the built-in Ender-3-class printer on the built-in test print into
+./ringtune-out/ in about a minute; open ringtune-out/README.txt first. Running the same command
+again resumes the study (also after Ctrl-C or a crash); --trials N extends it to N trials.
+
+examples:
+  ringtune tune
+  ringtune tune --printer my-printer.toml --gcode benchy.gcode --firmware rrf --trials 400 --workers 2
+  ringtune tune --storage postgresql+psycopg2://user:pw@db-host/ringtune --study ender3 --workers 4
+"""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--printer", metavar="P", help="printer TOML (default: the embedded Ender-3-class printer)")
+    p.add_argument("--gcode", metavar="G", help="G-code job (default: the built-in test print)")
+    p.add_argument("--firmware", default="klipper", help="target firmware: klipper (default), rrf, rrf35, "
+                   "marlin, marlin-ftm, prusa")
+    p.add_argument("--trials", type=int, default=200, help="total complete trials of the study (default 200)")
+    p.add_argument("--storage", metavar="URL", help="Optuna storage: journal:PATH (default "
+                   "journal:OUT/study.journal), sqlite:///file.db, postgresql+psycopg2://user:pw@host/db")
+    p.add_argument("--study", default="ringtune", metavar="NAME", help="study name in the storage (default ringtune)")
+    p.add_argument("--workers", type=int, default=1, help="local worker processes (default 1; seeded "
+                   "single-worker runs reproduce exactly)")
+    p.add_argument("--seed", type=int, default=0, help="sampler seed (default 0)")
+    p.add_argument("--out", default="ringtune-out", metavar="DIR", help="output folder (default ringtune-out)")
+    p.add_argument("--weight", type=float, default=None, metavar="W",
+                   help="choose the point minimising print time + W × error (W in s/mm); default: the knee")
+    p.add_argument("--quality", choices=("overshoot", "path_error"), default="overshoot",
+                   help="quality objective: overshoot_mm (default) or path_error_mm")
+    p.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco", help="physics (default mujoco)")
+    p.add_argument("--evaluator", metavar="MODULE:FUNC", default=None,
+                   help="advanced: score configs with your own f(configs, printer, job) -> metrics")
+    p.add_argument("--no-baselines", action="store_true", help="skip Klipper's rule and no-shaping baselines")
+
+
+def run(args: argparse.Namespace, out) -> int:
+    from ringtune.agents import report, study
+    from ringtune.agents.space import default_space, params_from_config
+    from ringtune.envs.evaluate import resolve_printer
+    from ringtune.shaping.config import TuneConfig
+    from ringtune.shaping.errors import RingtuneError
+
+    t_start = time.time()
+    if args.trials < 1:
+        raise RingtuneError("must be ≥ 1", "--trials")
+    if args.workers < 1:
+        raise RingtuneError("must be ≥ 1", "--workers")
+    if args.weight is not None and not args.weight >= 0:
+        raise RingtuneError("must be ≥ 0 (seconds per mm)", "--weight")
+    if args.gcode and not Path(args.gcode).is_file():
+        raise RingtuneError("no such G-code file", "--gcode")
+    out_dir = Path(args.out)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    printer = resolve_printer(args.printer)
+    quality = f"{args.quality}_mm"
+    space = default_space(printer, args.firmware)
+    storage = args.storage or study.default_storage(out_dir)
+    settings = study.StudySettings(
+        storage=storage, study_name=args.study, n_trials=args.trials, seed=args.seed, quality=quality,
+        printer=str(Path(args.printer).resolve()) if args.printer and Path(args.printer).exists() else args.printer,
+        job=str(Path(args.gcode).resolve()) if args.gcode else None, firmware=args.firmware,
+        backend=args.backend, evaluator=args.evaluator or study.DEFAULT_EVALUATOR, space=space.to_dict())
+    evaluator = study.resolve_evaluator(settings.evaluator)
+
+    baselines: dict[str, study.Point] = {}
+    if not args.no_baselines:
+        baselines = _baselines(printer, args, settings, evaluator, quality, out)
+        k = baselines.get("klipper")
+        if k is not None and _inside(k.config, space):
+            settings.enqueue = [params_from_config(k.config, space)]   # start the search from users' answer
+
+    bar = _progress_bar(out)
+    try:
+        run_ = study.run_study(settings, args.workers, printer=printer, progress=bar.update)
+    finally:
+        bar.close()
+    st = run_.study
+    points = study.study_points(st, space, quality)
+    front = study.pareto_front(points)
+    chosen = study.choose(front, args.weight)
+    result = report.write_report(
+        out_dir, points=points, front=front, chosen=chosen, baselines=baselines, quality=quality,
+        printer_name=getattr(printer, "name", "printer"), job_name=Path(args.gcode).name if args.gcode else
+        "built-in test print", firmware=args.firmware, n_trials=args.trials, storage=storage,
+        study_name=args.study, weight=args.weight, command=_command_line(args))
+    text = result.pop("summary_text")
+    result.update({"storage": storage, "study": args.study, "completed_now": run_.completed_now,
+                   "interrupted": run_.interrupted, "elapsed_s": time.time() - t_start})
+    lines = [text.rstrip("\n"), "", f"Results in {out_dir}/ — open {out_dir / 'README.txt'} first."]
+    if run_.interrupted:
+        lines.append(f"Interrupted after {run_.completed_before + run_.completed_now} complete trials; "
+                     "run the same command again to resume.")
+    out.emit(result, "\n".join(lines))
+    return 130 if run_.interrupted else 0
+
+
+def _inside(cfg, space) -> bool:
+    ok = space.accel[0] <= (cfg.accel or 0) <= space.accel[1]
+    for ax in ("x", "y"):
+        name, f, _ = cfg.axis(ax)
+        lo, hi = getattr(space, f"freq_{ax}")
+        ok &= name == "none" or (name in space.shapers and lo <= f <= hi)
+    return bool(ok) and (space.per_axis or cfg.shaper_x == cfg.shaper_y)
+
+
+def _baselines(printer, args, settings, evaluator, quality, out) -> dict:
+    """Klipper's rule (on the printer's simulated resonance test, at its suggested max_accel) and
+    no shaping (the printer's own acceleration), evaluated like every trial."""
+    from ringtune.agents import klipper_rule, study
+    from ringtune.shaping.config import TuneConfig
+    from ringtune.shaping.errors import RingtuneError
+
+    configs = {}
+    try:
+        fits, fields = klipper_rule.recommend_for_printer(printer, args.firmware, "head", seed=args.seed)
+        if fields.get("accel") is None:
+            fields["accel"] = float(printer.limits.accel)
+        configs["klipper"] = TuneConfig(**fields, extra={"source": "Klipper's calibrate_shaper rule (HEAD)"})
+    except (ImportError, RingtuneError) as exc:
+        out.note(f"ringtune tune: Klipper's-rule baseline skipped: {exc}")
+    configs["none"] = TuneConfig(firmware=args.firmware, shaper_x="none", shaper_y="none", freq_x=0.0, freq_y=0.0,
+                                 accel=float(printer.limits.accel), extra={"source": "no shaping"})
+    kw = {"backend": settings.backend} if settings.evaluator == study.DEFAULT_EVALUATOR else {}
+    metrics = evaluator(list(configs.values()), printer, settings.job, **kw)
+    points = {}
+    for (key, cfg), m in zip(configs.items(), metrics):
+        md = {k: bool(getattr(m, k)) if k == "step_loss" else float(getattr(m, k)) for k in study.METRIC_KEYS}
+        points[key] = study.Point(cfg, float(m.print_time_s), float(getattr(m, quality)), bool(m.step_loss), md,
+                                  label=key)
+    return points
+
+
+class _Bar:
+    def __init__(self, out):
+        self._bar = None
+        self._out = out
+
+    def update(self, done: int, total: int) -> None:
+        import sys
+
+        if self._bar is None:
+            from tqdm import tqdm
+
+            self._bar = tqdm(total=total, initial=min(done, total), desc="trials", unit="trial",
+                             file=sys.stderr, dynamic_ncols=True, disable=None)
+        delta = min(done, total) - self._bar.n
+        if delta > 0:
+            self._bar.update(delta)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+
+
+def _progress_bar(out) -> _Bar:
+    return _Bar(out)
+
+
+def _command_line(args) -> str:
+    parts = ["ringtune tune"]
+    for opt in ("printer", "gcode", "firmware", "storage", "out"):
+        v = getattr(args, opt)
+        if v and not (opt == "firmware" and v == "klipper") and not (opt == "out" and v == "ringtune-out"):
+            parts.append(f"--{opt} {v}")
+    return " ".join(parts)
