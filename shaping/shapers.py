@@ -316,6 +316,7 @@ def _ftm_centre(a: np.ndarray, t: np.ndarray) -> float:
 
 # ---------------------------------------------------------------------------------------------
 # THE registry: flavour -> name -> (formula, accepted parameters, max damping)
+# (RRF ei2/ei3 use Klipper's cubic fits, valid to ζ 0.3 / 0.2; later RRF sources clamp S there too)
 _P_MZV = ("n", "t", "tau")
 _P_EI = ("v_tol",)
 REGISTRY: dict[str, dict[str, tuple[Callable, tuple[str, ...], float]]] = {
@@ -332,14 +333,14 @@ REGISTRY: dict[str, dict[str, tuple[Callable, tuple[str, ...], float]]] = {
     "rrf": {
         "none": (none_shaper, (), 0.99), "zvd": (_rrf_binomial(1), (), 0.99),
         "zvdd": (_rrf_binomial(2), (), 0.99), "zvddd": (_rrf_binomial(3), (), 0.99),
-        "mzv": (_rrf_mzv(False), (), 0.99), "2hump_ei": (_rrf_ei(EI2_A, EI2_T, False), (), 0.99),
-        "3hump_ei": (_rrf_ei(EI3_A, EI3_T, False), (), 0.99), "custom": (None, ("h", "t"), 0.99),
+        "mzv": (_rrf_mzv(False), (), 0.99), "2hump_ei": (_rrf_ei(EI2_A, EI2_T, False), (), 0.3),
+        "3hump_ei": (_rrf_ei(EI3_A, EI3_T, False), (), 0.2), "custom": (None, ("h", "t"), 0.99),
     },
     "rrf35": {
         "none": (none_shaper, (), 0.99), "zvd": (_rrf_binomial(1), (), 0.99),
         "zvdd": (_rrf_binomial(2), (), 0.99), "zvddd": (_rrf_binomial(3), (), 0.99),
-        "mzv": (_rrf_mzv(True), (), 0.99), "2hump_ei": (_rrf_ei(EI2_A, EI2_T, True), (), 0.99),
-        "3hump_ei": (_rrf_ei(EI3_A, EI3_T, True), (), 0.99), "custom": (None, ("h", "t"), 0.99),
+        "mzv": (_rrf_mzv(True), (), 0.99), "2hump_ei": (_rrf_ei(EI2_A, EI2_T, True), (), 0.3),
+        "3hump_ei": (_rrf_ei(EI3_A, EI3_T, True), (), 0.2), "custom": (None, ("h", "t"), 0.99),
     },
     "marlin": {"none": (none_shaper, (), 1.0), "zv": (marlin_zv, (), 1.0)},
     "marlin-ftm": {
