@@ -1,0 +1,74 @@
+"""``ringtune shaper`` and ``ringtune response``: output, JSON keys, clean errors, plot."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from ringtune.agents.cli import main
+
+
+def run_cli(capsys, *argv):
+    code = main(list(argv))
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
+
+
+def test_shaper_json_reports_klipper_numbers(capsys):
+    code, out, _ = run_cli(capsys, "shaper", "mzv", "--freq", "40", "--damping", "0.1", "--json")
+    assert code == 0
+    d = json.loads(out)
+    assert d["flavor"] == "klipper" and d["centred"] is True and d["lag_s"] == 0.0
+    assert d["amplitudes"] == pytest.approx([0.3651, 0.4075, 0.2274], abs=5e-5)
+    assert d["smoothing_mm"] == pytest.approx(0.1273, abs=5e-5)
+    assert round(d["max_accel"]) == 4713
+    lo, hi = d["band90_hz"]
+    assert lo < 40 < hi
+    assert set(d) >= {"times_s", "duration_s", "band90_pct", "residual_at_freq", "centroid_s"}
+
+
+def test_shaper_text_and_causal_lag(capsys):
+    code, out, _ = run_cli(capsys, "shaper", "ei2", "--freq", "45", "--flavor", "rrf")
+    assert code == 0
+    assert "2hump_ei (rrf)" in out and "causal" in out and "90% band" in out
+    code, out, _ = run_cli(capsys, "shaper", "zvd", "--freq", "40", "--damping", "0", "--flavor", "rrf", "--json")
+    assert json.loads(out)["lag_s"] == pytest.approx(0.0125, abs=1e-6)     # ZVD: ¼·0 + ½·½T + ¼·T = T/2
+
+
+@pytest.mark.parametrize("argv,needle", [
+    (["shaper", "zv", "--freq", "40", "--flavor", "rrf"], "closest it offers is 'mzv'"),
+    (["shaper", "custom(h=0.6:0.5)", "--freq", "40", "--flavor", "rrf"], "sum to less than 1"),
+    (["shaper", "zv", "--freq", "-4"], "frequency"),
+    (["shaper", "zv", "--freq", "40", "--flavor", "duet"], "--flavor"),
+    (["response", "zv", "--freq", "40", "--plant-damping", "x"], "--plant-damping"),
+])
+def test_bad_input_is_one_line_and_exit_2(capsys, argv, needle):
+    code, out, err = run_cli(capsys, *argv)
+    assert code == 2 and out == ""
+    assert needle in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_response_json_and_plot(capsys, tmp_path):
+    png = tmp_path / "r.png"
+    code, out, _ = run_cli(capsys, "response", "zv", "mzv", "ei", "--freq", "40", "--points", "200",
+                           "--plot", str(png), "--json")
+    assert code == 0
+    d = json.loads(out)
+    assert [s["name"] for s in d["shapers"]] == ["zv", "mzv", "ei"]
+    assert len(d["freqs_hz"]) == 200 and len(d["shapers"][0]["residual"]) == 200
+    assert d["plant_damping"] == [0.075, 0.1, 0.15]
+    # the curve is the max over plant dampings: never 0 exactly, smallest near the design frequency
+    res = d["shapers"][0]["residual"]
+    i_min = min(range(len(res)), key=res.__getitem__)
+    assert abs(d["freqs_hz"][i_min] - 40) < 2
+    assert png.stat().st_size > 10_000 and png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_response_with_klipper_psd(capsys, tmp_path, data_dir):
+    csvs = sorted((data_dir / "accel" / "klipper_psd").rglob("resonances_*.csv"))
+    if not csvs:
+        pytest.skip("no Klipper resonances CSV in shared data")
+    png = tmp_path / "psd.png"
+    code, out, _ = run_cli(capsys, "response", "mzv", "--freq", "45", "--psd", str(csvs[0]), "--plot", str(png))
+    assert code == 0 and png.exists() and "graph written" in out
