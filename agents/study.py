@@ -219,6 +219,15 @@ def open_study(settings: StudySettings, seed: int | None = None):
     elif list(names) != wanted:
         raise RingtuneError(f"study {settings.study_name!r} in this storage optimises {names}, not {wanted}; "
                             "use another --study name or --out folder", "--study")
+    else:
+        import json
+        stored = study.user_attrs.get("settings", {})
+        mine = json.loads(json.dumps(settings.to_dict()))
+        for key in ("printer", "job", "firmware", "backend", "evaluator", "space"):
+            if key in stored and stored[key] != mine[key] and not (key == "space" and mine[key] is None):
+                raise RingtuneError(f"study {settings.study_name!r} in this storage was run with a different "
+                                    f"{key} ({stored[key]!r}); use another --out folder or --study name",
+                                    "--study")
     return study
 
 
