@@ -102,7 +102,15 @@ def build_config(args):
     if args.accel is not None:
         cfg["accel"] = args.accel
     where = args.config or "options"
-    return TuneConfig.from_dict(cfg, where)
+    config = TuneConfig.from_dict(cfg, where)
+    from ringtune.shaping.shapers import get_shaper
+
+    for ax in ("x", "y"):  # the firmware must offer the shaper: say which option asked for it
+        name, f, z = config.axis(ax)
+        if name != "none":
+            get_shaper(name, f, z, config.flavor,
+                       where="--shaper" if shaper else f"{args.config}: shaper_{ax}")
+    return config
 
 
 def run(args, out) -> int:

@@ -1,0 +1,65 @@
+"""``ringtune simulate``: stable JSON keys, consistency with evaluate(), plots, one-line errors."""
+
+from __future__ import annotations
+
+import io
+import json
+
+import pytest
+
+from ringtune.agents.cli import main
+from ringtune.envs.evaluate import evaluate
+from ringtune.shaping.config import TuneConfig
+
+METRIC_KEYS = {"print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss"}
+
+
+def run_cli(argv, capsys):
+    code = main(argv)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_json_matches_evaluate_and_shaping_helps(capsys):
+    code, out, _ = run_cli(["simulate", "--json", "--backend", "lti", "--shaper", "mzv",
+                            "--freq", "45.5,38.9", "--damping", "0.1"], capsys)
+    assert code == 0
+    res = json.loads(out)
+    assert set(res) == {"printer", "job", "backend", "config", "metrics", "windows", "plots"}
+    assert set(res["metrics"]) == METRIC_KEYS and res["plots"] == []
+    cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=45.5, freq_y=38.9, damping_x=0.1, damping_y=0.1)
+    m = evaluate(cfg, backend="lti")
+    for key in METRIC_KEYS:
+        assert res["metrics"][key] == pytest.approx(getattr(m, key))
+    # the job's figures are the worst window's
+    assert res["metrics"]["overshoot_mm"] == pytest.approx(max(w["overshoot_mm"] for w in res["windows"]))
+    code, out, _ = run_cli(["simulate", "--json", "--backend", "lti"], capsys)  # shaping off
+    off = json.loads(out)["metrics"]
+    assert off["print_time_s"] == pytest.approx(res["metrics"]["print_time_s"])
+    assert off["overshoot_mm"] > 5 * res["metrics"]["overshoot_mm"]
+    assert off["ringing_mm"] > 5 * res["metrics"]["ringing_mm"]
+
+
+def test_config_file_and_plots(tmp_path, capsys):
+    cfg = tmp_path / "best.json"
+    TuneConfig(firmware="rrf", shaper_x="zvd", shaper_y="zvd", freq_x=45.0, freq_y=40.0,
+               freq_limit_hz=15.0).save(cfg)
+    code, out, _ = run_cli(["simulate", "--backend", "lti", "--config", str(cfg),
+                            "--plot", str(tmp_path / "plots")], capsys)
+    assert code == 0 and "print time" in out
+    for name in ("path.png", "ringing.png", "accel.png"):
+        f = tmp_path / "plots" / name
+        assert f.is_file() and f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("argv,where", [
+    (["--shaper", "zv"], "--freq"),
+    (["--shaper", "zv", "--freq", "40", "--firmware", "rrf"], "--shaper"),
+    (["--gcode", "no-such.gcode"], "no-such.gcode"),
+    (["--freq", "40,x", "--shaper", "zv"], "--freq"),
+    (["--printer", "no-such.toml"], "no-such.toml"),
+])
+def test_bad_input_is_one_line_and_exit_2(argv, where, capsys):
+    code, out, err = run_cli(["simulate", "--backend", "lti"] + argv, capsys)
+    lines = [ln for ln in err.splitlines() if "error" in ln]
+    assert code == 2 and len(lines) == 1 and where in lines[0] and "Traceback" not in err
