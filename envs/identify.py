@@ -135,8 +135,11 @@ def identify_psd(psd, axis: str | None = None, max_modes: int = 3, fmin: float =
         lc, pw, lb, modes = unpack(x)
         return np.exp(lc) * (ff / 50.0) ** pw * np.abs(transmissibility(ff, modes)) ** 2 + np.exp(lb)
 
+    # log-space residual, weighted towards the resonances (the peaks are what a shaper must hit)
+    weight = 1.0 + 3.0 * p / p.max()
+
     def resid(x):
-        return np.log(model(x, f)) - logp
+        return weight * (np.log(model(x, f)) - logp)
 
     shares0 = [1.0 / n] * n
     x0 = [0.0, 2.0, math.log(p.min())]
@@ -152,7 +155,7 @@ def identify_psd(psd, axis: str | None = None, max_modes: int = 3, fmin: float =
     x0 = np.clip(x0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
     sol = least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", max_nfev=4000)
     _, _, _, modes = unpack(sol.x)
-    res = sol.fun
+    res = np.log(model(sol.x, f)) - logp
     r2 = float(1.0 - (res ** 2).sum() / ((logp - logp.mean()) ** 2).sum())
     total = sum(s for _, _, s in modes)
     out = []
