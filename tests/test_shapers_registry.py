@@ -230,3 +230,36 @@ def test_custom_is_validated_like_the_firmware(h, t, sem, msg):
 def test_custom_only_where_the_firmware_has_it():
     with pytest.raises(RingtuneError, match="klipper has no 'custom'"):
         get_shaper("custom(h=0.5)", 40, 0.1, "klipper")
+
+
+def test_mzv_parameter_validation_and_pulse_limits():
+    with pytest.raises(RingtuneError, match="t > 0"):
+        get_shaper("mzv(n=4,t=-0.5)", 40, 0.1)
+    with pytest.raises(RingtuneError, match="integer n"):
+        get_shaper("mzv(n=4.5,t=1.0)", 40, 0.1)
+    get_shaper("mzv(n=10,t=1.5)", 40, 0.1)
+    with pytest.raises(RingtuneError, match="at most 10"):
+        get_shaper("mzv(n=11,t=1.5)", 40, 0.1)          # Klipper kin_shaper.c: 10 pulses at HEAD
+
+
+def test_shapers_compare_by_value_and_hash():
+    a = get_shaper("ei", np.float64(40.0), np.float32(0.1))
+    b = get_shaper("ei", 40, float(np.float32(0.1)))
+    assert a == b and hash(a) == hash(b) and len({a, b}) == 1
+    assert a != get_shaper("ei", 41, 0.1)
+    with pytest.raises(ValueError):
+        a.amplitudes[0] = 1.0                             # read-only
+
+
+def test_shapers_from_config():
+    from ringtune.shaping.config import TuneConfig
+    from ringtune.shaping.shapers import shapers_from_config
+
+    cfg = TuneConfig(firmware="prusa", shaper_x="mzv", shaper_y="none", freq_x=50.7, freq_y=40.6,
+                     damping_x=0.1, damping_y=0.1)
+    shapers, centred = shapers_from_config(cfg)
+    assert centred is True and shapers["y"] is None
+    assert shapers["x"] == get_shaper("mzv", 50.7, 0.1, "klipper-legacy")
+    bad = TuneConfig(firmware="rrf", shaper_x="zv", shaper_y="zvd")
+    with pytest.raises(RingtuneError, match="shaper_x.*closest it offers is 'mzv'"):
+        shapers_from_config(bad)
