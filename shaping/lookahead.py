@@ -172,6 +172,22 @@ def jerk_junction(job, limits, use, u, vmax, safe) -> np.ndarray:
     return vj
 
 
+def segmented_cummin(values: np.ndarray, run_start: np.ndarray) -> np.ndarray:
+    """Running minimum that restarts at each run: out[i] = min(values[run_start[i] .. i]).
+
+    Hillis-Steele doubling: log2(longest run) vectorised steps, exact."""
+    out = np.asarray(values, float).copy()
+    idx = np.arange(len(out))
+    k = 1
+    longest = int((idx - run_start).max()) + 1 if len(out) else 0
+    while k < longest:
+        ok = idx - k >= run_start
+        shifted = np.concatenate((np.full(k, np.inf), out[:-k]))
+        out = np.where(ok, np.minimum(out, shifted), out)
+        k *= 2
+    return out
+
+
 def klipper_smoothing(job, limits, use, cj, w, cruise2, accel, d, dv2, v2):
     """Klipper's minimum_cruise_ratio: cap each accelerate/decelerate hill at the peak reached
     with the smoothed acceleration, then re-run the passes so junctions stay reachable."""
@@ -184,12 +200,25 @@ def klipper_smoothing(job, limits, use, cj, w, cruise2, accel, d, dv2, v2):
     sm = backward_pass(forward_pass(cj, ds), ds)
     peak = np.minimum(v2, 0.5 * (sm[:-1] + sm[1:] + ds))      # smoothed peak inside each move
     n = len(d)
-    valley = np.zeros(n + 1, bool)
-    valley[1:n] = (sm[1:n] < peak[:-1] - 1e-9) & (sm[1:n] < peak[1:] - 1e-9)
-    hill = np.cumsum(valley[:n])
-    starts = np.flatnonzero(np.concatenate(([True], hill[1:] != hill[:-1])))
-    hill_peak = np.maximum.reduceat(peak, starts)[hill - hill[0]] if n else peak
+    idx = np.arange(n)
+    # the closed-form passes carry rounding of the order of eps x (running sum of δ)
+    tol = 1e-9 * np.maximum(sm[:-1], 1.0) + 1e-12 * float(ds.sum())
+    # Klipper's flush, move by move from the end: a move whose smoothed start is limited from
+    # behind is "falling" (delayed); a non-falling move sets the hill's peak if its smoothed
+    # profile turns down inside it (or a falling run follows it); a purely rising move takes the
+    # peak of the next move that set one; falling moves take the peak of the move before them.
+    falling = sm[:-1] >= sm[1:] + ds - tol
+    next_falling = np.concatenate((falling[1:], [False]))
+    peaking = ~falling & ((sm[:-1] + ds > sm[1:] + tol) | next_falling)
+    nxt = np.minimum.accumulate(np.where(peaking, idx, n)[::-1])[::-1]
+    prv = np.maximum.accumulate(np.where(~falling, idx, -1))
+    peak_ext = np.concatenate((peak, [np.inf]))
+    hill_peak = np.where(falling, peak_ext[np.where(prv >= 0, prv, n)], peak_ext[nxt])
     cap = np.minimum(cruise2, hill_peak)
+    # falling moves do not accelerate: cruise at most the lowest start speed of the run so far
+    first = falling & ~np.concatenate(([False], falling[:-1]))
+    run_start = np.maximum.accumulate(np.where(first, idx, 0))
+    cap = np.where(falling, np.minimum(cap, segmented_cummin(w[:-1], run_start)), cap)
     c2 = cj.copy()
     c2[1:n] = np.minimum(c2[1:n], np.minimum(cap[1:], cap[:-1]))
     c2[0] = min(c2[0], cap[0])
