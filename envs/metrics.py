@@ -41,7 +41,7 @@ sample's time minus ``lag``, the shaper's delay):
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any, Iterable
 
 import numpy as np
@@ -72,10 +72,11 @@ class Metrics:
     QUALITY_KEYS = ("path_error_mm", "overshoot_mm", "ringing_mm")
 
     def to_dict(self, details: bool = False) -> dict[str, Any]:
-        d = asdict(self)
-        if not details:
-            d.pop("details")
-        d["step_loss"] = bool(d["step_loss"])
+        d = {"print_time_s": float(self.print_time_s), "path_error_mm": float(self.path_error_mm),
+             "overshoot_mm": float(self.overshoot_mm), "ringing_mm": float(self.ringing_mm),
+             "peak_accel": float(self.peak_accel), "step_loss": bool(self.step_loss)}
+        if details:
+            d["details"] = self.details
         return d
 
     @staticmethod
@@ -214,19 +215,27 @@ def _nearest(tu, pts, legs: Legs, window: float):
     if len(tu) == 0 or len(ext) == 0:
         return dist, vec, leg
     a, b = legs.start[ext], legs.end[ext]
-    lo, hi = legs.t_start[ext] - window, legs.t_end[ext] + window
-    chunk = max(1, 2_000_000 // len(ext))
-    for i in range(0, len(tu), chunk):  # chunks of samples × legs, bounded memory
+    lo, hi = legs.t_start[ext] - window, legs.t_end[ext] + window  # both non-decreasing
+    # legs active around each sample form a contiguous band [j0, j1] of the time-ordered legs
+    j0 = np.searchsorted(hi, tu, side="left")
+    j1 = np.searchsorted(lo, tu, side="right") - 1
+    width = int(np.max(j1 - j0, initial=-1)) + 1
+    if width <= 0:
+        return dist, vec, leg
+    chunk = max(1, 1_000_000 // width)
+    for i in range(0, len(tu), chunk):  # chunks of samples × band, bounded memory
         sl = slice(i, i + chunk)
-        e = _nearest_on_segments(pts[sl, None, :], a[None], b[None])
-        d = np.linalg.norm(e, axis=-1)
-        d = np.where((tu[sl, None] >= lo[None]) & (tu[sl, None] <= hi[None]), d, np.inf)
+        idx = j0[sl, None] + np.arange(width)[None, :]
+        valid = idx <= j1[sl, None]
+        idx = np.minimum(idx, len(ext) - 1)
+        e = _nearest_on_segments(pts[sl, None, :], a[idx], b[idx])
+        d = np.where(valid, np.sqrt(np.einsum("ijk,ijk->ij", e, e)), np.inf)
         j = np.argmin(d, axis=1)
         rows = np.arange(len(j))
         dist[sl] = d[rows, j]
         found = np.isfinite(dist[sl])
         vec[sl] = np.where(found[:, None], e[rows, j], np.nan)
-        leg[sl] = np.where(found, ext[j], -1)
+        leg[sl] = np.where(found, ext[idx[rows, j]], -1)
     return dist, vec, leg
 
 
