@@ -63,3 +63,24 @@ def test_plan_errors_are_one_line(tmp_path, capsys):
     assert err.count("\n") == 0 and "bad.gcode:2" in err
     assert main(["plan", str(tmp_path / "none.gcode")]) == 2
     assert main(["plan", "--rate", "0", "--trajectory", str(tmp_path / "x.csv")]) == 2
+
+
+def test_plan_trajectory_is_shaped_by_the_config(tmp_path, capsys):
+    plain, shaped = tmp_path / "plain.csv", tmp_path / "shaped.csv"
+    _plan_json(capsys, "--trajectory", str(plain), "--rate", "1000")
+    cfg = tmp_path / "c.json"
+    cfg.write_text(json.dumps({"firmware": "klipper", "shaper_x": "mzv", "shaper_y": "mzv",
+                               "freq_x": 40, "freq_y": 40, "damping_x": 0.1, "damping_y": 0.1}))
+    _plan_json(capsys, "--config", str(cfg), "--trajectory", str(shaped), "--rate", "1000")
+    a = np.loadtxt(plain, delimiter=",", skiprows=1)
+    b = np.loadtxt(shaped, delimiter=",", skiprows=1)
+    n = min(len(a), len(b))
+    # shaping smooths the corners (positions differ) but keeps where the job ends
+    assert np.abs(a[:n, 1:3] - b[:n, 1:3]).max() > 0.01
+    np.testing.assert_allclose(a[-1, 1:], b[-1, 1:], atol=1e-6)
+
+
+def test_plan_with_an_embedded_printer(capsys):
+    res = _plan_json(capsys, "--printer", "ender3")
+    assert res["junction"] in ("scv", "jd", "jerk")
+    assert res["print_time_s"] > 0
