@@ -5,7 +5,8 @@ acceleration, so the response of ``ẋ = A x + G a`` is known in closed form. Th
 diagonalised once (``A = V Λ V⁻¹``, complex); each modal coordinate obeys
 ``z(t+Δ) = e^{λΔ} z(t) + (e^{λΔ} − 1)/λ · g·a`` across every interval of constant acceleration,
 exact for any Δ, so segment boundaries that fall between output samples are honoured exactly.
-The recursion over the merged sorted times (segment boundaries ∪ output grid) is evaluated with
+A jump of the commanded velocity (a corner taken at junction speed) is an impulse of acceleration
+and makes the relative velocity jump by −Δv. The recursion over the merged sorted times (segment boundaries ∪ output grid) is evaluated with
 cumulative sums, ``z_j = e^{λ t_j} (z_0 + Σ_{i<j} β_i e^{−λ t_{i+1}})``, in chunks short enough that
 ``e^{−λ t}`` stays far from overflow — no Python loop per sample.
 
@@ -46,6 +47,17 @@ def response(sysm: LinearSystem, motion, times: np.ndarray, x0: np.ndarray | Non
     acc = motion.acceleration(0.5 * (ev[:-1] + ev[1:]))[:, :2]   # (N, 2), midpoints: exact
     dt = np.diff(ev)
     u = acc @ g.T                                         # (N, 2n) modal input g·a per interval
+    # velocity jumps of the command (corners taken at junction speed, shaped copies that end) are
+    # impulses of acceleration: the relative velocity jumps by −Δv; added at the end of the interval
+    jump = np.zeros((len(ev) - 1, 2 * n), complex)
+    if motion.n_segments > 1:
+        _, v_end = motion.end_state()
+        dv = motion.v[1:, :2] - v_end[:-1, :2]
+        tb = motion.t[1:-1]
+        sel = (tb > t0) & (tb <= times[-1]) & np.any(dv != 0.0, axis=1)
+        if sel.any():
+            k = np.searchsorted(ev, tb[sel]) - 1
+            np.add.at(jump, k, dv[sel] @ g.T)
     z0 = np.zeros(2 * n, complex) if x0 is None else np.linalg.solve(V, np.asarray(x0, complex))
     z = np.empty((len(ev), 2 * n), complex)
     z[0] = z0
@@ -55,15 +67,16 @@ def response(sysm: LinearSystem, motion, times: np.ndarray, x0: np.ndarray | Non
     while j0 < len(ev) - 1:
         j1 = int(np.searchsorted(ev, ev[j0] + span, side="right")) - 1
         j1 = max(min(j1, len(ev) - 1), j0 + 1)
-        tl = ev[j0:j1 + 1] - ev[j0]                       # local times, first 0
-        d = dt[j0:j1][:, None]
-        ed = np.exp(lam[None, :] * d)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            phi1 = np.where(np.abs(lam) > 0, (ed - 1.0) / lam[None, :], d)
-        beta = phi1 * u[j0:j1]                            # (L, 2n)
-        grow = np.exp(-lam[None, :] * tl[1:, None])       # e^{−λ t_{i+1}}
-        s = np.cumsum(beta * grow, axis=0)
-        z[j0 + 1:j1 + 1] = np.exp(lam[None, :] * tl[1:, None]) * (z[j0][None, :] + s)
+        # e^{λΔ} for the few distinct interval lengths (mostly the output step), then running
+        # products give e^{λ t} and e^{−λ t} without evaluating a complex exponential per sample
+        dd, inv = np.unique(dt[j0:j1], return_inverse=True)
+        edu = np.exp(lam[None, :] * dd[:, None])
+        ed = edu[inv]
+        beta = (ed - 1.0) * (u[j0:j1] / lam[None, :]) + jump[j0:j1]   # exact input over each interval
+        e = np.cumprod(ed, axis=0)                         # e^{λ t_{i+1}}
+        einv = np.cumprod((1.0 / edu)[inv], axis=0)        # e^{−λ t_{i+1}}
+        s = np.cumsum(beta * einv, axis=0)
+        z[j0 + 1:j1 + 1] = e * (z[j0][None, :] + s)
         j0 = j1
     idx = np.searchsorted(ev, times)
     x = (z[idx] @ V.T).real
