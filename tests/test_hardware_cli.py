@@ -1,0 +1,89 @@
+"""ringtune identify / export / push on the command line."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from fake_printer import FakePrinter  # noqa: E402
+
+from ringtune.agents.cli import main  # noqa: E402
+
+pytestmark = pytest.mark.timeout(60)
+
+
+@pytest.fixture
+def config(tmp_path) -> Path:
+    p = tmp_path / "best.json"
+    p.write_text(json.dumps({"firmware": "marlin", "shaper_x": "zv", "shaper_y": "zv", "freq_x": 41.5,
+                             "freq_y": 37.25, "damping_x": 0.08, "damping_y": 0.12, "freq_limit_hz": 25.0,
+                             "min_speed_factor": 0.3}))
+    return p
+
+
+def test_export_json_and_file(config, tmp_path, capsys):
+    assert main(["export", str(config), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["lines"] == ["M593 X F41.5 D0.08", "M593 Y F37.25 D0.12", "M201 F25 S30"]
+    assert d["save_lines"] == ["M500"]
+    out = tmp_path / "k.cfg"
+    assert main(["export", str(config), "--firmware", "klipper", "-o", str(out)]) == 0
+    text = out.read_text()
+    assert "SET_INPUT_SHAPER SHAPER_FREQ_X=41.5 SHAPER_FREQ_Y=37.25" in text
+    assert "damping_ratio_y: 0.12" in text and "ringtune limit FILE.gcode --freq-limit 25" in text
+
+
+def test_export_refusal_is_one_line(config, capsys):
+    assert main(["export", str(config), "--firmware", "rrf"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "has no 'zv' shaper" in err[0] and "nearest it has is 'mzv'" in err[0]
+
+
+def test_push_refuses_without_port_and_help_teaches(config, capsys):
+    assert main(["push", str(config)]) == 2
+    err = capsys.readouterr().err
+    assert "explicit port" in err and "--port" in err
+    with pytest.raises(SystemExit):
+        main(["push", "--help"])
+    helptext = capsys.readouterr().out
+    for word in ("socket://", "rfc2217://", "/tmp/printer", "--moonraker", "M500", "--dry-run"):
+        assert word in helptext
+
+
+def test_push_dry_run(config, capsys):
+    assert main(["push", str(config), "--dry-run", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["wire"][:2] == ["N0 M110 N0*125", "N1 M593 X F41.5 D0.08*95"] and d["dry_run"]
+
+
+def test_push_over_tcp_and_timeout_exit(config, capsys):
+    with FakePrinter("marlin", transport="tcp") as fp:
+        assert main(["push", str(config), "--port", fp.url, "--timeout", "2", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["ok"] and d["settings"]["x.freq"]["status"] == "applied"
+    from fake_printer import Faults
+    with FakePrinter("marlin", Faults(hang_after=2), transport="tcp") as fp:
+        assert main(["push", str(config), "--port", fp.url, "--timeout", "0.5"]) == 2
+    captured = capsys.readouterr()
+    assert "not applied: limit" in captured.err and "stopped answering" in captured.err
+
+
+def test_identify_writes_toml_and_plot(data_dir, tmp_path, capsys):
+    files = sorted((data_dir / "accel/klipper_psd/bassco_ender3").glob("*.csv"))
+    toml, png = tmp_path / "p.toml", tmp_path / "fit.png"
+    assert main(["identify", *map(str, files), "-o", str(toml), "--plot", str(png), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert [f["axis"] for f in d["fits"]] == ["x", "y"]
+    assert toml.read_text() == d["toml"] and png.stat().st_size > 20000
+
+
+def test_identify_bad_file_is_one_line(tmp_path, capsys):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("freq,psd_x,psd_y,psd_z,psd_xyz\n5.0,1,2,3,6\n6.0,1,oops,3,6\n")
+    assert main(["identify", str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and f"{bad}:3" in err
