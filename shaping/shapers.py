@@ -1,8 +1,9 @@
 """Every input shaper the firmwares use, in one registry, per firmware flavour.
 
 A shaper is a train of impulses: amplitudes ``A`` (sum 1) at times ``T`` (s, first 0, increasing).
-Each formula below is a small pure function ``(freq Hz, damping ratio[, params]) -> (A, T)``; the
-flavour tables say which formula each firmware uses for each name (sources:
+Each formula (in ``shaping.shaper_formulas``) is a small pure function
+``(freq Hz, damping ratio[, params]) -> (A, T)``; the flavour tables below say which formula each
+firmware uses for each name (sources:
 ``reference/firmware.md`` §1.1, §2.1, §2.2, §3.2, §4, §6):
 
 ========== ==========================================================================================
