@@ -72,6 +72,7 @@ def test_push_over_tcp_and_timeout_exit(config, capsys):
     assert "not applied: limit" in captured.err and "stopped answering" in captured.err
 
 
+@pytest.mark.slow
 def test_identify_writes_toml_and_plot(data_dir, tmp_path, capsys):
     files = sorted((data_dir / "accel/klipper_psd/bassco_ender3").glob("*.csv"))
     toml, png = tmp_path / "p.toml", tmp_path / "fit.png"
