@@ -56,9 +56,17 @@ _EARLY = 0.001  # s: timing slack when assigning samples to the corner being tur
 
 @dataclass
 class Metrics:
-    """Print time and quality of one configuration on one job (units in the field names).
+    """Print time and quality of one configuration on one job (definitions: module docstring).
 
-    ``details`` holds optional diagnostics (per-window values, where the worst error occurred).
+    Attributes:
+        print_time_s: planned print time of the whole job, s.
+        path_error_mm: largest nozzle distance from the extrusion path while extruding, mm.
+        overshoot_mm: largest outward excursion past the path after a corner or reversal, mm.
+        ringing_mm: worst RMS oscillation across a straight wall after a direction change, mm.
+        peak_accel: largest head acceleration magnitude, mm/s².
+        step_loss: whether a motor was asked for more force than it has at that speed.
+        details: diagnostics (per-window values, where the worst error occurred); not part of
+            the stable ``to_dict()`` keys unless asked for.
     """
 
     print_time_s: float = float("nan")

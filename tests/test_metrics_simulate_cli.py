@@ -40,6 +40,7 @@ def test_json_matches_evaluate_and_shaping_helps(capsys):
     assert off["ringing_mm"] > 5 * res["metrics"]["ringing_mm"]
 
 
+@pytest.mark.slow
 def test_config_file_and_plots(tmp_path, capsys):
     cfg = tmp_path / "best.json"
     TuneConfig(firmware="rrf", shaper_x="zvd", shaper_y="zvd", freq_x=45.0, freq_y=40.0,
