@@ -7,7 +7,8 @@ arc by at most ``arc_tolerance`` mm, Z and E interpolated along), ``G4`` (P ms /
 ``M201`` (X Y Z E max accel; F S = Marlin XY frequency limit), ``M203`` (max feedrates), ``M204``
 (P print, T travel, R retract, S both), ``M205`` (X Y Z E jerk, J junction deviation), ``M220 S``
 (speed factor %), Klipper's ``SET_VELOCITY_LIMIT`` (VELOCITY, ACCEL, SQUARE_CORNER_VELOCITY,
-ACCEL_TO_DECEL, MINIMUM_CRUISE_RATIO). Shaper changes (``M593``, ``M493``, ``SET_INPUT_SHAPER``)
+ACCEL_TO_DECEL, MINIMUM_CRUISE_RATIO) and ``TUNING_TOWER`` (the command is re-run, as Klipper does,
+whenever an extrusion move at a new height changes the value). Shaper changes (``M593``, ``M493``, ``SET_INPUT_SHAPER``)
 become events with the index of the move that follows them. Line numbers ``N..`` and checksums
 ``*..`` are accepted (an XOR checksum that does not match is an error). Every other command is kept
 as an event of kind ``other`` (never an error). Slicer feature comments (``;TYPE:``,
@@ -16,6 +17,9 @@ as an event of kind ``other`` (never an error). Slicer feature comments (``;TYPE
 Commands that make a firmware drain its queue (``G4``, ``G28``, ``G29``, ``M400``, ``M109``,
 ``M190``, ``M0/M1``, ``M600``, shaper changes) set ``stop_before`` on the next move: the planner
 comes to rest there.
+
+Own code rather than a library: the maintained pure-Python parser (gcodeparser) drops Klipper's
+extended commands and is slower than this reader's one-regex-per-line path.
 """
 
 from __future__ import annotations
@@ -103,6 +107,9 @@ class _Reader:
         self.settings_dirty = False
         self.stop = True
         self.dwell = 0.0
+        self.tower: tuple | None = None        # active Klipper TUNING_TOWER
+        self.tower_z = math.nan
+        self.tower_value = math.nan
         self.events: list[Event] = []
         # move columns
         self.m_line: list[int] = []
@@ -124,6 +131,9 @@ class _Reader:
         start = self.pos
         if end == start:
             return
+        if self.tower is not None and end[3] > start[3] and end[2] != self.tower_z \
+                and (end[0] != start[0] or end[1] != start[1]):
+            self._tower_step(end[2], lineno)
         if self.settings_dirty:
             self.settings_rows.append(tuple(self.settings.values()))
             self.settings_dirty = False
@@ -373,6 +383,8 @@ class _Reader:
                     self._set("accel_travel", x)
                 params[k] = x
             self._event("limits", cmd, params, lineno, code)
+        elif cmd == "TUNING_TOWER":
+            self._tower_start(params, lineno, code)
         elif cmd == "SET_INPUT_SHAPER":
             for k, v in list(params.items()):
                 if k.startswith("SHAPER_FREQ") or k.startswith("DAMPING"):
@@ -381,6 +393,38 @@ class _Reader:
             self._event("shaper", cmd, params, lineno, code)
         else:
             self._event("other", cmd, params, lineno, code)
+
+    # -- Klipper TUNING_TOWER: a command re-run with a parameter that follows the print height --
+    def _tower_start(self, params: dict, lineno: int, code: str) -> None:
+        where = self._where(lineno)
+        if "COMMAND" not in params or "PARAMETER" not in params:
+            raise RingtuneError("TUNING_TOWER needs COMMAND= and PARAMETER=", where)
+        nums = {}
+        for key in ("START", "FACTOR", "BAND", "SKIP", "STEP_DELTA", "STEP_HEIGHT"):
+            nums[key] = _num(params[key], key + "=", where) if key in params else 0.0
+        if nums["FACTOR"] and nums["STEP_HEIGHT"]:
+            raise RingtuneError("TUNING_TOWER takes FACTOR or STEP_DELTA/STEP_HEIGHT, not both", where)
+        self.tower = (params["COMMAND"].upper(), params["PARAMETER"].upper(), nums)
+        self.tower_z = math.nan
+        self.tower_value = math.nan
+        self._event("other", "TUNING_TOWER", dict(params, **nums), lineno, code)
+
+    def _tower_step(self, z: float, lineno: int) -> None:
+        """As klippy/extras/tuning_tower.py: on extrusion moves at a new height, run the command
+        again when the value changes (value = START + FACTOR·z, BAND-quantised, or stepped)."""
+        command, parameter, k = self.tower
+        self.tower_z = z
+        if k["SKIP"]:
+            z = max(0.0, z - k["SKIP"])
+        if k["STEP_HEIGHT"]:
+            value = k["START"] + k["STEP_DELTA"] * math.floor(z / k["STEP_HEIGHT"])
+        else:
+            if k["BAND"]:
+                z = (math.floor(z / k["BAND"]) + 0.5) * k["BAND"]
+            value = k["START"] + z * k["FACTOR"]
+        if value != self.tower_value:
+            self.tower_value = value
+            self._extended(f"{command} {parameter}={value:.9f}", lineno)
 
     def _arc(self, clockwise: bool, w: dict[str, float], lineno: int) -> None:
         where = self._where(lineno)

@@ -165,3 +165,29 @@ def test_real_files_parse(shared_dir):
 def test_slicer_estimates(shared_dir):
     assert slicer_estimate(shared_dir / "data/gcode/ianalexis_ender3_marlin/ringing_tower.gcode") == 40 * 60 + 28
     assert slicer_estimate(shared_dir / "data/gcode/bassco_ender3/ringing_tower.gcode") == 3600 + 4 * 60
+
+
+def test_klipper_tuning_tower_reruns_the_command_by_height():
+    lines = ["M83", "TUNING_TOWER COMMAND=SET_VELOCITY_LIMIT PARAMETER=ACCEL START=1250 FACTOR=100 BAND=5"]
+    z = 0.0
+    for layer in range(1, 41):                                   # 0.25 mm layers up to 10 mm
+        z = 0.25 * layer
+        lines += [f"G1 Z{z:.2f} F600", f"G1 X{10 * (layer % 2)} Y5 E0.5 F3000"]
+    job = read_gcode("\n".join(lines) + "\n")
+    ext = job.extruding
+    zs = job.end[ext, 2]
+    accel = job.setting("accel_klipper")[ext]
+    expected = 1250 + 100 * (np.floor(zs / 5) + 0.5) * 5          # Klipper's BAND quantisation
+    np.testing.assert_allclose(accel, expected)
+    assert sorted(set(accel.tolist())) == [1500.0, 2000.0, 2500.0]
+
+
+def test_tuning_tower_of_the_shaper_frequency_makes_shaper_events():
+    lines = ["M83", "TUNING_TOWER COMMAND=SET_INPUT_SHAPER PARAMETER=SHAPER_FREQ_X START=20 "
+             "STEP_DELTA=10 STEP_HEIGHT=1"]
+    for layer in range(1, 13):
+        lines += [f"G1 Z{0.25 * layer:.2f} F600", f"G1 X{10 * (layer % 2)} Y5 E0.5 F3000"]
+    job = read_gcode("\n".join(lines) + "\n")
+    ev = job.shaper_events()
+    assert [e.params["SHAPER_FREQ_X"] for e in ev] == [20, 30, 40, 50]
+    assert all(job.stop_before[e.move] for e in ev)
