@@ -173,3 +173,62 @@ def test_link_times_out_on_silence():
         with pytest.raises(LinkTimeout, match="no answer to 'M110 N0' within 0.5 s"):
             link.open()
         link.close()
+
+
+class ScriptedSerial:
+    """A serial port whose printer answers each written line from a script (list per write)."""
+
+    def __init__(self, answers):
+        self.answers = list(answers)
+        self.written: list[bytes] = []
+        self.buf = b""
+        self.in_waiting = 0
+
+    def write(self, data):
+        self.written.append(data)
+        if self.answers:
+            self.buf += "".join(a + "\n" for a in self.answers.pop(0)).encode()
+        self.in_waiting = len(self.buf)
+
+    def flush(self):
+        pass
+
+    def read(self, n):
+        out, self.buf = self.buf[:n], self.buf[n:]
+        self.in_waiting = len(self.buf)
+        if not out:
+            time.sleep(0.01)
+        return out
+
+    def close(self):
+        pass
+
+
+def test_resend_of_earlier_lines_replays_exactly_those_lines():
+    answers = [["ok"],                       # N0 M110 handshake
+               ["ok"],                       # N1 accepted
+               ["Resend: 1", "ok"],          # N2: printer lost track and asks again from N1
+               ["ok"],                       # replayed N1
+               ["ok"]]                       # replayed N2
+    ser = ScriptedSerial(answers)
+    link = GcodeLink("scripted", "marlin", timeout=1.0, serial_obj=ser)
+    link.open()
+    link.send("M593 X F40 D0.1")
+    link.send("M593 Y F40 D0.1")
+    assert ser.written == [b"N0 M110 N0*125\n", frame(1, "M593 X F40 D0.1") + b"\n",
+                           frame(2, "M593 Y F40 D0.1") + b"\n", frame(1, "M593 X F40 D0.1") + b"\n",
+                           frame(2, "M593 Y F40 D0.1") + b"\n"]
+
+
+def test_repeated_resend_gives_up():
+    ser = ScriptedSerial([["ok"]] + [["Resend: 1", "ok"]] * 20)
+    link = GcodeLink("scripted", "marlin", timeout=1.0, max_resends=3, serial_obj=ser)
+    link.open()
+    with pytest.raises(RingtuneError, match="asked for line N1 4 times"):
+        link.send("M593")
+
+
+def test_loop_url_opens_through_pyserial():
+    # loop:// returns what is written: in Klipper mode the line "ok" is its own acknowledgement
+    with GcodeLink("loop://", "klipper", timeout=1.0) as link:
+        assert link.send("ok").errors == []
