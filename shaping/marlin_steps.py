@@ -45,8 +45,11 @@ def steps_from_motion(motion: Motion, axis: str, steps_per_mm: float) -> tuple[n
     ref = u0[0]
     us = us - ref
     ue = us + vs * ds + 0.5 * as_ * ds * ds
-    up = np.floor(us + 0.5)
-    ue_n = np.floor(ue + 0.5)
+    # step count at every piece boundary, computed once so that rounding at a shared boundary can
+    # neither drop nor duplicate a step
+    bounds = np.append(us, ue[-1])
+    nb = np.floor(bounds + 0.5)
+    up, ue_n = nb[:-1], nb[1:]
     counts = np.abs(ue_n - up).astype(np.int64)
     direction = np.sign(ue_n - up)
     piece = np.repeat(np.arange(len(ts)), counts)

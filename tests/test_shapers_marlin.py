@@ -100,3 +100,20 @@ def test_timer_quantised_delay():
     assert d.tolist() == [1, 1]
     assert t[0] == 0.0
     assert t[1] == pytest.approx(np.floor(1e6 / 33.0) / 2e6, abs=1e-15)   # (STEPPER_TIMER_RATE/2)/F ticks
+
+
+def test_segment_boundaries_on_half_step_levels_neither_drop_nor_duplicate_steps():
+    """1000 segments of exactly half a step each: every boundary sits on a step level (up to
+    floating-point rounding of the accumulated positions)."""
+    n = 1000
+    dt = (0.5 / SPM) / 10.0                     # half a step at 10 mm/s
+    t = np.arange(n + 1) * dt
+    v = np.full((n, 4), 0.0)
+    v[:, 0] = 10.0
+    p = np.zeros((n, 4))
+    p[:, 0] = np.cumsum(np.full(n, 10.0 * dt)) - 10.0 * dt
+    m = Motion(t, p, v, np.zeros((n, 4)))
+    st, sd = steps_from_motion(m, "x", SPM)
+    assert sd.sum() == n // 2 and np.all(sd == 1)
+    probe = np.linspace(0, t[-1], 20_001)
+    assert np.abs(step_position(st, sd, probe) - m.position(probe)[:, 0] * SPM).max() <= 0.5 + 1e-6
