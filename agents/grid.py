@@ -1,0 +1,48 @@
+"""Dense grid search over the tuning space (agents.space), for checking the study's convergence.
+
+Every grid point is evaluated with the same evaluator as the study (``envs.evaluate.evaluate_many``
+by default, batched so that one ``simulate_batch`` call covers many configurations), and the
+results are :class:`~ringtune.agents.study.Point` objects, so the same ``pareto_front`` /
+``choose`` / ``scalar_objective`` apply to both.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Sequence
+
+from ringtune.agents.space import SearchSpace, config_from_params, grid_params
+from ringtune.agents.study import DEFAULT_EVALUATOR, METRIC_KEYS, Point, resolve_evaluator
+
+
+def run_grid(space: SearchSpace, *, printer: Any = None, job: Any = None, quality: str = "overshoot_mm",
+             evaluator: str | Callable = DEFAULT_EVALUATOR, backend: str = "mujoco",
+             params: Sequence[dict] | None = None, batch: int = 64,
+             progress: Callable[[int, int], None] | None = None, **grid_kw) -> list[Point]:
+    """Evaluate every point of ``params`` (default :func:`grid_params(space, **grid_kw)`)."""
+    fn = resolve_evaluator(evaluator)
+    kw = {"backend": backend} if evaluator == DEFAULT_EVALUATOR else {}
+    params = list(params if params is not None else grid_params(space, **grid_kw))
+    points: list[Point] = []
+    for i in range(0, len(params), batch):
+        chunk = params[i:i + batch]
+        configs = [config_from_params(p, space) for p in chunk]
+        for j, (cfg, m) in enumerate(zip(configs, fn(configs, printer, job, **kw))):
+            md = {k: bool(getattr(m, k)) if k == "step_loss" else float(getattr(m, k)) for k in METRIC_KEYS}
+            points.append(Point(cfg, float(m.print_time_s), float(getattr(m, quality)), bool(m.step_loss), md,
+                                label=f"grid {i + j}", number=i + j))
+        if progress:
+            progress(len(points), len(params))
+    return points
+
+
+def hypervolume(front: Sequence[Point], ref: tuple[float, float]) -> float:
+    """Area dominated by ``front`` (sorted by print time) up to the reference point (s·mm)."""
+    pts = sorted((p.print_time_s, p.quality_mm) for p in front if p.print_time_s < ref[0] and p.quality_mm < ref[1])
+    # staircase: each front point adds (ref_t − t) × (drop in quality below the previous point)
+    area = 0.0
+    prev_q = ref[1]
+    for t, q in pts:
+        if q < prev_q:
+            area += (ref[0] - t) * (prev_q - q)
+            prev_q = q
+    return area

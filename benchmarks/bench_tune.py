@@ -1,0 +1,109 @@
+"""Benchmark: ``ringtune tune --trials 200`` on the default printer — time and convergence.
+
+Targets (DESIGN.md): the whole command ≤ 60 s on 2 cores; its best objective within 1 % of a dense
+grid's. "Objective" is the scalar the user's ``--weight`` W picks by, J = print_time_s + W ·
+overshoot_mm (W in s/mm; printed for two W), best feasible point of each; the hypervolume ratio of the
+two fronts is printed as well. The grid spans the same space (agents.space.grid_params: every
+shaper on each axis × F levels per axis, S levels, acceleration levels, frequency limit off; the
+study may also use a frequency limit, which only slows the print on this job).
+
+Run: ``python benchmarks/bench_tune.py [--trials 200] [--workers 2] [--grid-freqs 5] [--grid-accels 3]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--trials", type=int, default=200)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--grid-freqs", type=int, default=5, help="F levels per axis and shaper")
+    ap.add_argument("--grid-dampings", type=int, default=2)
+    ap.add_argument("--grid-accels", type=int, default=3, help="acceleration levels (the top of the range)")
+    ap.add_argument("--weights", default="20,100", help="W values, s/mm")
+    ap.add_argument("--skip-grid", action="store_true")
+    args = ap.parse_args()
+
+    from ringtune.agents.grid import hypervolume, run_grid
+    from ringtune.agents.space import SearchSpace, default_space, grid_params
+    from ringtune.agents.study import (StudySettings, open_study, pareto_front, scalar_objective,
+                                       study_points)
+    from ringtune.envs.printer import load_printer
+
+    out = Path(tempfile.mkdtemp(prefix="bench-tune-"))
+    cmd = [sys.executable, "-m", "ringtune.agents.cli", "tune", "--trials", str(args.trials), "--workers",
+           str(args.workers), "--out", str(out), "--json"]
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        print(proc.stderr[-2000:])
+        return 1
+    res = json.loads(proc.stdout)
+    print(f"ringtune tune --trials {args.trials} --workers {args.workers}: {wall:.1f} s wall on "
+          f"{os.cpu_count()} cores (target ≤ 60 s): {'PASS' if wall <= 60 else 'FAIL'}")
+    dk = res.get("dominates_klipper")
+    if dk:
+        print(f"  front point dominating Klipper's rule: {dk['faster_s']:.3f} s faster ({dk['faster_pct']:.1f} %), "
+              f"{dk['better_mm'] * 1000:.1f} µm less overshoot ({dk['better_pct']:.1f} %)")
+    else:
+        print("  no front point dominates Klipper's rule")
+    if args.skip_grid:
+        return 0
+
+    printer = load_printer(None)
+    settings = StudySettings(storage=res["storage"] if res["storage"].startswith(("journal:", "sqlite", "postgres"))
+                             else f"journal:{out / 'study.journal'}", study_name=res["study"])
+    study = open_study(StudySettings(**{**settings.to_dict(), **_stored(settings)}))
+    space = SearchSpace.from_dict(study.user_attrs["settings"]["space"])
+    pts = study_points(study, space, "overshoot_mm")
+    top = sorted({round(space.accel[1] - k * (space.accel[1] - space.accel[0]) / 7 / space.accel_step) *
+                  space.accel_step for k in range(args.grid_accels)})
+    params = [p for p in grid_params(space, n_freq=args.grid_freqs, n_damping=args.grid_dampings, n_accel=8)
+              if p["accel"] in top] if args.grid_accels < 8 else grid_params(space, n_freq=args.grid_freqs,
+                                                                             n_damping=args.grid_dampings)
+    t1 = time.perf_counter()
+    grid = run_grid(space, printer=printer, params=params, batch=128)
+    tg = time.perf_counter() - t1
+    print(f"dense grid: {len(grid)} points in {tg:.0f} s ({1000 * tg / len(grid):.0f} ms/point); accelerations "
+          f"{top}, {args.grid_freqs} F per axis and shaper, {args.grid_dampings} S levels")
+    ok = True
+    for w in (float(x) for x in args.weights.split(",")):
+        bs = min((p for p in pts if not p.step_loss), key=lambda p: scalar_objective(p, w))
+        bg = min((p for p in grid if not p.step_loss), key=lambda p: scalar_objective(p, w))
+        js, jg = scalar_objective(bs, w), scalar_objective(bg, w)
+        gap = 100.0 * (js - jg) / jg
+        ok &= gap <= 1.0
+        print(f"  W = {w:g} s/mm: study best J = {js:.4f} s, grid best J = {jg:.4f} s, study − grid = {gap:+.2f} % "
+              f"(target ≤ +1 %): {'PASS' if gap <= 1.0 else 'FAIL'}")
+    fs, fg = pareto_front(pts), pareto_front(grid)
+    ref = (max(p.print_time_s for p in fs + fg) * 1.05, max(p.quality_mm for p in fs + fg) * 1.05)
+    print(f"  hypervolume study/grid = {hypervolume(fs, ref) / hypervolume(fg, ref):.3f} "
+          f"(fronts of {len(fs)} and {len(fg)} points; study {len(pts)} evaluations, grid {len(grid)})")
+    print("convergence:", "PASS" if ok else "FAIL")
+    return 0
+
+
+def _stored(settings) -> dict:
+    """The study's own settings (so open_study accepts it)."""
+    import optuna
+
+    from ringtune.agents.study import make_storage
+
+    st = optuna.load_study(study_name=settings.study_name, storage=make_storage(settings.storage))
+    s = dict(st.user_attrs["settings"])
+    s.pop("enqueue", None)
+    return s
+
+
+if __name__ == "__main__":
+    sys.exit(main())
