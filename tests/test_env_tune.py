@@ -152,3 +152,16 @@ def test_random_printers_cover_the_documented_ranges():
     assert 20.0 <= min(freqs) < 25.0 and 110.0 < max(freqs) <= 130.0
     assert 0.02 <= min(damps) < 0.03 and 0.15 < max(damps) <= 0.2
     assert kins == {"cartesian", "corexy"}
+
+
+def test_rejected_configuration_ends_with_the_penalty(monkeypatch):
+    env = TuneEnv(backend="lti", observe_metrics=False, step_loss_penalty=4.0)
+    env.reset(seed=0)
+
+    def refuse(config):
+        raise RingtuneError("impulses collide on the firmware's time grid", "shaper")
+
+    monkeypatch.setattr(env, "evaluate", refuse)
+    obs, r, terminated, truncated, info = env.step(np.zeros(env.action_space.shape, np.float32))
+    assert r == -4.0 and terminated and not truncated and "collide" in info["error"]
+    assert env.observation_space.contains(obs)
