@@ -47,6 +47,7 @@ _FEATURE = re.compile(r"^\s*(?:TYPE|FEATURE)\s*:\s*(.+?)\s*$|^\s*feature\s+(.+?)
 #: Largest magnitude accepted per parameter letter (anything larger is surely an error).
 _BOUNDS = {"X": 1e5, "Y": 1e5, "Z": 1e5, "E": 1e6, "I": 1e5, "J": 1e5, "R": 1e5, "F": 1e7}
 _AXIS_INDEX = {"X": 0, "Y": 1, "Z": 2, "E": 3}
+_CHUNK = 1 << 16          # moves collected in Python lists before they go into numpy arrays
 
 
 def _num(value: str, letter: str, where: str) -> float:
@@ -121,6 +122,8 @@ class _Reader:
         self.m_stop: list[bool] = []
         self.m_dwell: list[float] = []
         self.m_arc: list[bool] = []
+        self.n_done = 0                          # moves already moved into ``chunks``
+        self.chunks: list[list[np.ndarray]] = []
         self.n_lines = 0
 
     # -- helpers ---------------------------------------------------------------------------------
@@ -149,6 +152,21 @@ class _Reader:
         self.stop = False
         self.dwell = 0.0
         self.pos = end           # a new list: never mutated in place afterwards
+        if len(self.m_line) >= _CHUNK:
+            self._flush()
+
+    _COLUMNS = (("m_line", np.int64), ("m_start", float), ("m_end", float), ("m_feed", float),
+                ("m_feature", np.int64), ("m_settings", np.int64), ("m_stop", bool),
+                ("m_dwell", float), ("m_arc", bool))
+
+    def _flush(self) -> None:
+        """Move the collected move columns into numpy arrays (bounded memory on long jobs)."""
+        if not self.m_line:
+            return
+        self.n_done += len(self.m_line)
+        self.chunks.append([np.asarray(getattr(self, name), dtype) for name, dtype in self._COLUMNS])
+        for name, _ in self._COLUMNS:
+            setattr(self, name, [])
 
     def _bad_word(self, letter: str, value: str, lineno: int):
         where = self._where(lineno)
@@ -253,7 +271,7 @@ class _Reader:
         self.cur_feature = self.feature_idx[name]
 
     def _event(self, kind: str, command: str, params: dict, lineno: int, text: str) -> None:
-        self.events.append(Event(kind, command, params, lineno, len(self.m_line), text))
+        self.events.append(Event(kind, command, params, lineno, self.n_done + len(self.m_line), text))
 
     def _command(self, code: str, lineno: int) -> None:
         where = self._where(lineno)
@@ -475,19 +493,17 @@ class _Reader:
             self._emit(pt, lineno, arc=True)
 
     def job(self) -> Job:
-        n = len(self.m_line)
+        self._flush()
+        cols = []
+        for k, (name, dtype) in enumerate(self._COLUMNS):
+            parts = [c[k] for c in self.chunks]
+            arr = np.concatenate(parts) if parts else np.zeros(0, dtype)
+            cols.append(arr.reshape(-1, 4) if name in ("m_start", "m_end") else arr)
         if self.settings_dirty:
             self.settings_rows.append(tuple(self.settings.values()))
         return Job(
-            line=np.asarray(self.m_line, np.int64),
-            start=np.asarray(self.m_start, float).reshape(n, 4),
-            end=np.asarray(self.m_end, float).reshape(n, 4),
-            feed=np.asarray(self.m_feed, float),
-            feature=np.asarray(self.m_feature, np.int64),
-            settings=np.asarray(self.m_settings, np.int64),
-            stop_before=np.asarray(self.m_stop, bool),
-            dwell_before=np.asarray(self.m_dwell, float),
-            arc=np.asarray(self.m_arc, bool),
+            line=cols[0], start=cols[1], end=cols[2], feed=cols[3], feature=cols[4],
+            settings=cols[5], stop_before=cols[6], dwell_before=cols[7], arc=cols[8],
             features=self.features,
             settings_table=np.asarray(self.settings_rows, float).reshape(-1, len(SETTING_KEYS)),
             events=self.events,

@@ -191,3 +191,15 @@ def test_tuning_tower_of_the_shaper_frequency_makes_shaper_events():
     ev = job.shaper_events()
     assert [e.params["SHAPER_FREQ_X"] for e in ev] == [20, 30, 40, 50]
     assert all(job.stop_before[e.move] for e in ev)
+
+
+def test_streaming_in_chunks_gives_the_same_job(shared_dir, monkeypatch):
+    import ringtune.shaping.gcode as gcode
+
+    path = shared_dir / "data/gcode/ianalexis_ender3_marlin/ringing_tower.gcode"
+    whole = read_gcode(path)
+    monkeypatch.setattr(gcode, "_CHUNK", 777)
+    chunked = read_gcode(path)
+    for name in ("line", "start", "end", "feed", "feature", "settings", "stop_before", "dwell_before"):
+        np.testing.assert_array_equal(getattr(chunked, name), getattr(whole, name))
+    assert [e.move for e in chunked.events] == [e.move for e in whole.events]
