@@ -58,7 +58,7 @@ def main() -> None:
     cfg = config()
     pj = ev.planned_job(printer, None, cfg)
     t0 = time.perf_counter()
-    runs = ev.window_runs(pj, cfg)
+    runs = ev.window_runs(pj, cfg, ev.auto_settle(printer))
     t_shape = time.perf_counter() - t0
     motions = [r.shaped for r in runs]
     t0 = time.perf_counter()

@@ -10,7 +10,8 @@ for the shaper and the machine to settle:
 2. ``quality_windows`` of that plan; each window ``[t0, t1]`` is cut from the unshaped motion with
    margins, shaped with the config's shapers (centred or causal per the firmware flavour), and cut
    again to ``[t0 − lead, t1 + tail]`` where the shaped command is exact
-   (``lead = shaper duration + settle``, ``tail = shaper duration``);
+   (``lead = shaper duration + settle``, ``tail = shaper duration``; ``settle`` defaults to
+   :func:`auto_settle` of the printer);
 3. all windows of all configs go to one ``simulate_batch`` call;
 4. :func:`ringtune.envs.metrics.compute_metrics` on the samples inside each ``[t0, t1]``
    (unshaped clock); the job's metrics are the worst window's (:meth:`Metrics.worst`).
@@ -36,8 +37,10 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.motion import Motion
 
-#: s of extra simulated time before each window, after the shaper's own duration
-SETTLE = 0.05
+#: bounds (s) of the simulated history before each window beyond the shaper's duration; within
+#: them it is SETTLE_TAUS decay time constants 1/(ζω) of the printer's slowest-decaying mode, so
+#: vibration left by earlier motion is simulated, not cut off
+SETTLE_MIN, SETTLE_MAX, SETTLE_TAUS = 0.05, 0.3, 3.0
 #: quality windows per job and their span, s
 MAX_WINDOWS = 8
 WINDOW_SPAN = 0.25
@@ -170,8 +173,17 @@ def config_shapers(config: TuneConfig) -> tuple[dict, bool]:
     return shapers, is_centred(config.flavor)
 
 
-def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE) -> list[WindowRun]:
-    """Shape each quality window of ``pj`` with the config's shapers."""
+def auto_settle(printer) -> float:
+    """s of history simulated before each window: SETTLE_TAUS time constants 1/(ζω) of the
+    printer's slowest-decaying mode, clipped to [SETTLE_MIN, SETTLE_MAX]."""
+    rates = [m.damping * m.omega for ax in ("x", "y") for m in printer.effective_modes(ax)]
+    tau = 1.0 / max(min(rates), 1e-9) if rates else 0.0
+    return float(min(max(SETTLE_TAUS * tau, SETTLE_MIN), SETTLE_MAX))
+
+
+def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN) -> list[WindowRun]:
+    """Shape each quality window of ``pj`` with the config's shapers (``settle`` s of extra
+    history before each, beyond the shaper's duration)."""
     from ringtune.shaping.apply import shape_motion
 
     shapers, centred = config_shapers(config)
@@ -221,7 +233,7 @@ def metrics_of(runs: list[WindowRun], sims: list, print_time: float) -> Metrics:
 
 # -- the public calls -------------------------------------------------------------------------------
 def evaluate(config: TuneConfig, printer=None, job=None, backend: str = "mujoco", *,
-             settle: float = SETTLE, nthread: int | None = None) -> Metrics:
+             settle: float | None = None, nthread: int | None = None) -> Metrics:
     """Print time (whole job) and quality (physics on the quality windows) of ``config``.
 
     Args:
@@ -229,14 +241,14 @@ def evaluate(config: TuneConfig, printer=None, job=None, backend: str = "mujoco"
         printer: a ``Printer``, a printer TOML path, or None for the embedded default.
         job: a G-code path, G-code text, a parsed Job, or None for the built-in test print.
         backend: ``"mujoco"`` (default) or ``"lti"`` (exact linear screening).
-        settle: s of simulated lead-in beyond the shaper's duration.
+        settle: s of simulated lead-in beyond the shaper's duration (None: :func:`auto_settle`).
         nthread: simulation threads (default: up to one per window and core).
     """
     return evaluate_many([config], printer, job, backend, settle=settle, nthread=nthread)[0]
 
 
 def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
-                  settle: float = SETTLE, nthread: int | None = None) -> list[Metrics]:
+                  settle: float | None = None, nthread: int | None = None) -> list[Metrics]:
     """:func:`evaluate` for many configs, all their windows simulated in one ``simulate_batch``."""
     return [e.metrics for e in evaluate_detailed(configs, printer, job, backend, settle=settle,
                                                  nthread=nthread)]
@@ -254,11 +266,13 @@ class Evaluation:
 
 
 def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
-                      settle: float = SETTLE, nthread: int | None = None) -> list[Evaluation]:
+                      settle: float | None = None, nthread: int | None = None) -> list[Evaluation]:
     """Like :func:`evaluate_many`, keeping the plans, shaped windows and simulation results."""
     from ringtune.envs.sim import simulate_batch
 
     printer = resolve_printer(printer)
+    if settle is None:
+        settle = auto_settle(printer)
     per_config = []
     motions: list[Motion] = []
     for cfg in configs:

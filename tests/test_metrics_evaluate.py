@@ -67,3 +67,17 @@ def test_mujoco_and_exact_linear_backends_agree():
     b = ev.evaluate(cfg, backend="mujoco", nthread=1)
     for key in ("path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel"):
         assert getattr(b, key) == pytest.approx(getattr(a, key), rel=0.1, abs=1e-3)
+
+
+def test_default_lead_in_is_long_enough():
+    """With the automatic history before each window, a much longer history changes nothing
+    that matters: the vibration left by earlier motion is simulated, not cut off."""
+    printer = load_printer(None)
+    assert 0.05 <= ev.auto_settle(printer) <= 0.3
+    cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=45.0, freq_y=39.0)
+    auto = ev.evaluate(cfg, printer, backend="lti")
+    long = ev.evaluate(cfg, printer, backend="lti", settle=0.6)
+    short = ev.evaluate(cfg, printer, backend="lti", settle=0.0)
+    for key in ("path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel"):
+        assert getattr(auto, key) == pytest.approx(getattr(long, key), rel=0.03)
+    assert abs(short.ringing_mm - long.ringing_mm) > 0.2 * long.ringing_mm  # cutting history shows
