@@ -138,3 +138,27 @@ def test_real_m956_captures_are_fitted_and_flagged(data_dir):
         assert sum(m.share for m in fit.modes) == pytest.approx(1.0)
     # these captures hold little clean ringing: the fit says so rather than pretending
     assert fits[0].r2 < 0.5 and any("noise" in n for n in fits[0].notes)
+
+
+def test_raw_klipper_sweep_capture_end_to_end(tmp_path):
+    """A raw capture of a simulated sweep (one 50 Hz mode) -> Klipper's PSD -> fitted mode."""
+    from scipy import signal
+
+    fs, f0, f1, rate_hz = 1600.0, 20.0, 80.0, 6.0          # sweep 20 -> 80 Hz at 6 Hz/s
+    t = np.arange(0, (f1 - f0) / rate_hz, 1 / fs)
+    freq = f0 + rate_hz * t
+    cmd = 60.0 * freq * np.sin(2 * np.pi * np.cumsum(freq) / fs)     # accel_per_hz = 60 mm/s²/Hz
+    w, z = 2 * np.pi * 50.0, 0.05
+    # absolute accel / commanded accel of a base-excited mode, discretised (bilinear)
+    num, den = signal.zpk2tf(*signal.bilinear_zpk(*signal.tf2zpk([2 * z * w, w * w], [1, 2 * z * w, w * w]), fs))
+    meas = signal.lfilter(num, den, cmd)
+    rng = np.random.default_rng(0)
+    path = tmp_path / "raw_data_x_20240101_000000.csv"
+    with path.open("w") as fh:
+        fh.write("#time,accel_x,accel_y,accel_z\n")
+        noise = rng.normal(0, 5, (t.size, 3))
+        np.savetxt(fh, np.column_stack([t, meas + noise[:, 0], noise[:, 1], 9806.65 + noise[:, 2]]),
+                   fmt="%.6f", delimiter=",")
+    fits = identify_files([path], fmin=22, fmax=78, max_modes=1)
+    assert fits[0].axis == "x" and fits[0].kind == "psd"
+    assert fits[0].modes[0].freq == pytest.approx(50.0, abs=1.0)
