@@ -171,26 +171,27 @@ def quality_windows(plan, max_windows: int = 8, span: float = 0.25) -> list[Wind
     span = min(span, duration)
     tc, sc, lc = _corner_candidates(plan)
     tz, fz, lz = direction_change_frequencies(plan)
+    # candidates best first; each kind is consumed lazily from its own cursor
     cands = {
-        "corner": sorted(zip(-sc, tc - 0.2 * span, lc)),
-        "zigzag": sorted(zip(-fz, tz - 0.5 * span, lz)),
+        "corner": (tc - 0.2 * span, sc, lc, np.argsort(-sc, kind="stable")),
+        "zigzag": (tz - 0.5 * span, fz, lz, np.argsort(-fz, kind="stable")),
     }
+    cursor = {"corner": 0, "zigzag": 0}
     chosen: list[Window] = []
+    lo_t, hi_t = plan.motion.start_time, duration - span
 
-    def fits(t0):
-        return all(t0 + span <= w.t0 or t0 >= w.t1 for w in chosen)
-
-    def take(kind, quota):
+    def take(kind: str, quota: int) -> int:
+        t0s, scores, lines, order = cands[kind]
         got = 0
-        rest = []
-        for neg, t0, line in cands[kind]:
-            t0 = float(min(max(t0, plan.motion.start_time), duration - span))
-            if got < quota and fits(t0):
-                chosen.append(Window(t0, t0 + span, kind, float(-neg), int(line)))
+        k = cursor[kind]
+        while got < quota and k < len(order):
+            i = order[k]
+            k += 1
+            t0 = float(min(max(t0s[i], lo_t), hi_t))
+            if all(t0 + span <= w.t0 or t0 >= w.t1 for w in chosen):
+                chosen.append(Window(t0, t0 + span, kind, float(scores[i]), int(lines[i])))
                 got += 1
-            elif got >= quota:
-                rest.append((neg, t0, line))
-        cands[kind] = rest
+        cursor[kind] = k
         return got
 
     half = max_windows // 2
