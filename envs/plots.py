@@ -67,9 +67,9 @@ def plot_path(sim, path: Motion, out, *, lag: float = 0.0, title: str = "") -> P
 
 
 def plot_ringing(sim, path: Motion, out, *, lag: float = 0.0, settle: float = 0.0,
-                 title: str = "") -> Path:
+                 anticipate: float = 0.0, title: str = "") -> Path:
     """Deviation across the wall after the corner with the worst ringing, against time (ms)."""
-    m = compute_metrics(sim, path, lag=lag, settle=settle)
+    m = compute_metrics(sim, path, lag=lag, settle=settle, anticipate=anticipate)
     legs = path_legs(path)
     at = m.details.get("ringing_at") or m.details.get("overshoot_at")
     plt, fig, (ax,) = _figure(figsize=(8.0, 4.5))
@@ -91,6 +91,9 @@ def plot_ringing(sim, path: Motion, out, *, lag: float = 0.0, settle: float = 0.
     ax.axhline(0, color="k", lw=0.8)
     if settle > 0:
         ax.axvline(settle * 1e3, color="g", ls=":", label="shaper finished turning")
+    wall_end = (legs.t_end[k] - tc - anticipate) * 1e3
+    if anticipate > 0:
+        ax.axvline(wall_end, color="g", ls="--", label="shaper starts the next turn")
     ax.set_xlabel("time after the corner (ms)")
     ax.set_ylabel("deviation across the wall (µm)")
     ax.set_title(title or f"Ringing after a {legs.turn_deg[k]:.0f}° corner: RMS {m.ringing_mm * 1e3:.1f} µm, "
@@ -144,6 +147,7 @@ def plot_evaluation(ev, out_dir, prefix: str = "") -> list[Path]:
     i = worst("ringing_mm")
     r, s = ev.runs[i], ev.sims[i]
     files.append(plot_ringing(_trimmed(s, r.t0 + r.lag, r.t1 + r.lag), r.path,
-                              out_dir / f"{prefix}ringing.png", lag=r.lag, settle=r.settle))
+                              out_dir / f"{prefix}ringing.png", lag=r.lag, settle=r.settle,
+                              anticipate=r.anticipate))
     files.append(plot_accel(s, out_dir / f"{prefix}accel.png"))
     return files
