@@ -118,10 +118,6 @@ def junction_limits(job, limits, use, u, d, e_only, vmax, accel, amax_axes):
     else:
         safe = jerk_safe_speeds(job, limits, use, u, vmax)
         c[1:] = jerk_junction(job, limits, use, u, vmax, safe) ** 2
-    if limits.junction == "jerk":
-        pass
-    elif limits.junction != "jerk":
-        safe = np.zeros(n)
     return c, safe
 
 

@@ -146,7 +146,7 @@ class Plan:
         return out
 
 
-# -- helpers ------------------------------------------------------------------------------------
+# -- the planner ---------------------------------------------------------------------------------
 def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | None = None,
          use_job_limits: bool = True, daa_min_accel: float = 10.0) -> Plan:
     """Plan a job (a :class:`Job` or G-code text/path) into exact constant-acceleration motion."""
