@@ -24,11 +24,12 @@ sample's time minus ``lag``, the shaper's delay):
     ``e · (d_in − d_out) > 0`` (the outer bisector; for a reversal, past the turning point).
     Lateral error on the incoming leg belongs to the corner before it.
 ``ringing_mm``
-    max over straight walls (extruding legs at least ``min_wall`` s long that follow a corner) of
-    the RMS, about its mean, of the nozzle's perpendicular deviation from the wall's line, taken
-    while the shaped command runs straight along the wall: from ``settle`` s after the corner
-    (when the shaped command has finished turning) to ``anticipate`` s before the wall's end (when
-    it starts turning into the next one), both on the shaped clock.
+    max over straight walls (extruding legs that follow a corner) of the RMS, about its mean, of
+    the nozzle's perpendicular deviation from the wall's line, taken while the shaped command
+    runs straight along the wall: from ``settle`` s after the corner (when the shaped command has
+    finished turning) to ``anticipate`` s before the wall's end (when it starts turning into the
+    next one), both on the shaped clock; walls where that span is shorter than ``min_wall`` s are
+    skipped (too short to show ringing).
 ``peak_accel``
     max over all samples of the head's acceleration magnitude ``|(a_x, a_y)|``, mm/s².
 ``step_loss``
@@ -184,7 +185,7 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
         corner_angle_deg: smallest direction change that counts as a corner, degrees.
         corner_window: s either side of a corner searched for overshoot.
         match_window: s either side of a leg's time span within which a sample may match it.
-        min_wall: s, shortest leg after a corner whose ringing is measured.
+        min_wall: s, shortest measured span of a wall whose ringing counts.
         print_time_s: passed through to the result.
     """
     t = np.asarray(sim.t, float)
@@ -292,11 +293,12 @@ def _overshoot(tu, pts, dist, vec, leg, legs: Legs, angle: float, window: float,
 def _ringing(tu, pts, legs: Legs, angle: float, settle: float, early_end: float, min_wall: float,
              details: dict) -> float:
     ks = _corners(legs, angle)
-    ks = ks[legs.extruding[ks] & (legs.t_end[ks] - legs.t_start[ks] >= min_wall)]
-    if len(tu) == 0 or len(ks) == 0:
-        return 0.0
     t0 = legs.t_end[ks - 1] + max(settle, 0.0)
     t1 = legs.t_end[ks] - early_end
+    keep = legs.extruding[ks] & (t1 - t0 >= min_wall)
+    ks, t0, t1 = ks[keep], t0[keep], t1[keep]
+    if len(tu) == 0 or len(ks) == 0:
+        return 0.0
     order = np.argsort(tu)
     tu, pts = tu[order], pts[order]
     i0 = np.searchsorted(tu, t0, side="left")
