@@ -72,3 +72,12 @@ def test_response_with_klipper_psd(capsys, tmp_path, data_dir):
     png = tmp_path / "psd.png"
     code, out, _ = run_cli(capsys, "response", "mzv", "--freq", "45", "--psd", str(csvs[0]), "--plot", str(png))
     assert code == 0 and png.exists() and "graph written" in out
+
+
+def test_none_shaper_reports_valid_json_without_limits(capsys):
+    code, out, _ = run_cli(capsys, "shaper", "none", "--freq", "40", "--json")
+    assert code == 0
+    d = json.loads(out)                      # strict JSON: no Infinity / NaN
+    assert d["max_accel"] is None and d["band90_hz"] == [None, None] and d["smoothing_mm"] == 0.0
+    code, out, _ = run_cli(capsys, "response", "none", "zv", "--freq", "40", "--json")
+    assert json.loads(out)["shapers"][0]["max_accel"] is None

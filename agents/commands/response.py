@@ -4,7 +4,7 @@ graph Klipper's ``calibrate_shaper.py`` draws.
 ``--json`` keys (stable): ``freq`` (Hz, design frequency), ``flavor``, ``plant_damping`` (list; the
 curve is the maximum over these plant damping ratios, as Klipper does), ``freqs_hz`` (grid),
 ``shapers``: list of {``name``, ``damping``, ``residual`` (fraction 0..1 per grid frequency),
-``band90_hz`` [lo, hi], ``duration_s``, ``smoothing_mm``, ``max_accel``}, ``plot`` (path or null),
+``band90_hz`` [lo, hi], ``duration_s``, ``smoothing_mm``, ``max_accel`` (null if no limit)}, ``plot`` (path or null),
 ``psd`` (path or null).
 """
 
@@ -55,7 +55,7 @@ def _parse_dampings(text: str) -> list[float]:
 def run(args, out) -> int:
     import numpy as np
 
-    from ringtune.agents.commands.shaper import resolve_flavor
+    from ringtune.agents.commands.shaper import band_text, finite_or_none, resolve_flavor
     from ringtune.shaping.analysis import band, max_accel, residual_vibration, smoothing
     from ringtune.shaping.errors import RingtuneError
     from ringtune.shaping.shapers import get_shaper
@@ -76,7 +76,7 @@ def run(args, out) -> int:
         vals = np.max([residual_vibration(s, freqs, z) for z in dampings], axis=0)
         rows.append({"name": s.name, "damping": s.damping, "residual": vals,
                      "band90_hz": list(band(s, 0.9, s.damping)), "duration_s": s.duration,
-                     "smoothing_mm": smoothing(s), "max_accel": max_accel(s)})
+                     "smoothing_mm": smoothing(s), "max_accel": finite_or_none(max_accel(s))})
     psd = None
     if args.psd:
         from ringtune.hardware.accel import read_resonances_csv
@@ -90,11 +90,11 @@ def run(args, out) -> int:
               "shapers": rows, "plot": args.plot, "psd": args.psd}
     lines = [f"residual vibration at {args.freq:g} Hz design frequency ({flavor}; plant damping "
              f"{', '.join(f'{z:g}' for z in dampings)})",
-             f"  {'shaper':<22} {'90% band (Hz)':>17} {'duration ms':>12} {'smoothing':>10} {'max_accel':>10}"]
+             f"  {'shaper':<22} {'90% band':>20} {'duration ms':>12} {'smoothing':>10} {'max_accel':>10}"]
     for r in rows:
-        lo, hi = r["band90_hz"]
-        lines.append(f"  {r['name']:<22} {lo:8.2f}–{hi:<8.2f} {r['duration_s'] * 1e3:12.2f} "
-                     f"{r['smoothing_mm']:10.4f} {r['max_accel']:10.0f}")
+        acc = "no limit" if r["max_accel"] is None else f"{r['max_accel']:.0f}"
+        lines.append(f"  {r['name']:<22} {band_text(*r['band90_hz']):>20} {r['duration_s'] * 1e3:12.2f} "
+                     f"{r['smoothing_mm']:10.4f} {acc:>10}")
     if args.plot:
         lines.append(f"graph written to {args.plot}")
     out.emit(result, "\n".join(lines))
@@ -118,7 +118,8 @@ def _plot(args, flavor, freqs, rows, dampings, psd) -> None:
         ax2 = ax
     for r in rows:
         ax2.plot(freqs, 100 * r["residual"], ls="--" if psd is not None else "-",
-                 label=f"{r['name']} (smoothing {r['smoothing_mm']:.3f} mm, max accel {r['max_accel']:.0f})")
+                 label=f"{r['name']} (smoothing {r['smoothing_mm']:.3f} mm, max accel "
+                       f"{'-' if r['max_accel'] is None else format(r['max_accel'], '.0f')})")
     ax2.axhline(10, color="grey", lw=0.8, ls=":")
     ax2.axvline(args.freq, color="grey", lw=0.8, ls=":")
     ax2.set_ylabel("remaining vibration, %")

@@ -3,9 +3,9 @@
 ``--json`` keys (stable): ``name``, ``flavor``, ``freq`` (Hz), ``damping``, ``centred`` (bool),
 ``amplitudes`` (sum 1), ``times_s`` (first 0), ``duration_s``, ``lag_s`` (steady-state lag of the
 shaped motion: Σ A_i·T_i when causal, 0 when centred), ``centroid_s``, ``band90_hz`` [lo, hi]
-(≥ 90 % vibration reduction for a plant of the shaper's own damping), ``band90_pct`` [lo, hi] relative to ``freq``,
+(≥ 90 % vibration reduction for a plant of the shaper's own damping; nulls when there is none), ``band90_pct`` [lo, hi] relative to ``freq``,
 ``smoothing_mm`` (Klipper's definition at ``accel``/``scv``), ``max_accel`` (mm/s², Klipper's
-smoothing ≤ 0.12 mm rule, unrounded), ``residual_at_freq`` (fraction left at ``freq``, plant damping
+smoothing ≤ 0.12 mm rule, unrounded; null when the shaper never smooths, e.g. ``none``), ``residual_at_freq`` (fraction left at ``freq``, plant damping
 = ``damping``), ``accel``, ``scv``.
 """
 
@@ -46,6 +46,19 @@ def add_arguments(parser) -> None:
     parser.add_argument("--scv", type=float, default=5.0, help="square corner velocity, mm/s (5)")
 
 
+def finite_or_none(x: float) -> float | None:
+    """JSON has no inf/NaN: report them as null."""
+    import math
+
+    return x if math.isfinite(x) else None
+
+
+def band_text(lo: float, hi: float) -> str:
+    import math
+
+    return "none" if not (math.isfinite(lo) and math.isfinite(hi)) else f"{lo:.2f} – {hi:.2f} Hz"
+
+
 def resolve_flavor(flavor: str) -> str:
     from ringtune.shaping.errors import RingtuneError
     from ringtune.shaping.shapers import FLAVORS
@@ -74,7 +87,7 @@ def run(args, out) -> int:
         "centred": centred, "amplitudes": shaper.amplitudes.tolist(), "times_s": shaper.times.tolist(),
         "duration_s": info["duration_s"], "lag_s": info["lag_s"], "centroid_s": info["centroid_s"],
         "band90_hz": info["band90_hz"], "band90_pct": info["band90_pct"],
-        "smoothing_mm": info["smoothing_mm"], "max_accel": info["max_accel"],
+        "smoothing_mm": info["smoothing_mm"], "max_accel": finite_or_none(info["max_accel"]),
         "residual_at_freq": info["residual_at_freq"], "accel": args.accel, "scv": args.scv,
     }
     lines = [f"{shaper.name} ({flavor}) at {shaper.freq:g} Hz, damping {shaper.damping:g}",
@@ -86,9 +99,10 @@ def run(args, out) -> int:
     lines += [
         f"  duration          {info['duration_s'] * 1e3:.3f} ms",
         f"  lag               {info['lag_s'] * 1e3:.3f} ms ({'centred' if centred else 'causal'})",
-        f"  90% band          {lo:.2f} – {hi:.2f} Hz ({plo:+.1f}% / {phi:+.1f}%)",
+        f"  90% band          {band_text(lo, hi)}" + (f" ({plo:+.1f}% / {phi:+.1f}%)" if lo == lo else ""),
         f"  smoothing         {info['smoothing_mm']:.4f} mm at {args.accel:g} mm/s², scv {args.scv:g} mm/s",
-        f"  max_accel         {info['max_accel']:.0f} mm/s² (smoothing <= 0.12 mm)",
+        f"  max_accel         {info['max_accel']:.0f} mm/s² (smoothing <= 0.12 mm)"
+        if info["max_accel"] != float("inf") else "  max_accel         no limit (no smoothing)",
         f"  residual at F     {100 * info['residual_at_freq']:.2f} %",
     ]
     out.emit(result, "\n".join(lines))
