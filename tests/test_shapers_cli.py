@@ -77,7 +77,8 @@ def test_response_with_klipper_psd(capsys, tmp_path, data_dir):
 def test_none_shaper_reports_valid_json_without_limits(capsys):
     code, out, _ = run_cli(capsys, "shaper", "none", "--freq", "40", "--json")
     assert code == 0
-    d = json.loads(out)                      # strict JSON: no Infinity / NaN
+    d = json.loads(out, parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}"))
     assert d["max_accel"] is None and d["band90_hz"] == [None, None] and d["smoothing_mm"] == 0.0
     code, out, _ = run_cli(capsys, "response", "none", "zv", "--freq", "40", "--json")
-    assert json.loads(out)["shapers"][0]["max_accel"] is None
+    d = json.loads(out, parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}"))
+    assert d["shapers"][0]["max_accel"] is None
