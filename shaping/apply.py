@@ -66,7 +66,10 @@ def shape_motion(motion: Motion, shapers: dict[str, Shaper | None], centred: boo
     axes not named (and ``e``) pass through unchanged. ``centred`` selects centred (Klipper, Prusa,
     Marlin FT_MOTION) or causal (RRF, Marlin classic) shifts. Breakpoints closer than ``merge_tol``
     seconds are merged. ``extruding``/``move`` of a merged segment come from the unshaped motion at
-    the same time.
+    the same time. Outside [t[0], t[-1]] the input rests (the Motion convention), so when shaping
+    a window cut from a longer job, the result is that of the whole job only from one shaper
+    duration after the window's start (and, centred, up to the centre delay before its end).
+    The output spans [t[0] + min s_i, t[-1] + max s_i].
     """
     ncol = motion.p.shape[1]
     plan = {}
