@@ -532,9 +532,14 @@ def read_gcode(path_or_text, arc_tolerance: float = 0.01) -> Job:
     ``arc_tolerance``: largest distance (mm) between a G2/G3 arc and the chords replacing it.
     Malformed values raise :class:`RingtuneError` naming ``file:line``.
     """
-    if isinstance(path_or_text, Path) or (isinstance(path_or_text, str) and "\n" not in path_or_text
-                                          and Path(path_or_text).suffix.lower() in
-                                          (".gcode", ".gco", ".g", ".nc", ".txt", ".gc")):
+    is_path = isinstance(path_or_text, Path)
+    if isinstance(path_or_text, str) and "\n" not in path_or_text:
+        p = Path(path_or_text)
+        try:
+            is_path = p.suffix.lower() in (".gcode", ".gco", ".g", ".nc", ".gc") or p.is_file()
+        except OSError:             # not a possible file name: G-code text
+            is_path = False
+    if is_path:
         path = Path(path_or_text)
         if not path.is_file():
             raise RingtuneError("no such G-code file", str(path))

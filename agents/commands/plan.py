@@ -79,7 +79,11 @@ def run(args, out) -> int:
         raise RingtuneError("must be >= 0", "--top")
     t0 = time.perf_counter()
     if args.file:
-        job = read_gcode(args.file)
+        from pathlib import Path
+
+        if not Path(args.file).is_file():
+            raise RingtuneError("no such G-code file", args.file)
+        job = read_gcode(Path(args.file))
         name = args.file
     else:
         job = builtin_test_print()
