@@ -223,33 +223,59 @@ def klipper_smoothing(job, limits, use, cj, w, cruise2, accel, d, dv2, v2):
     return np.minimum(cap, 0.5 * (w2[:-1] + w2[1:] + dv2)), w2
 
 
-def daa_adjust(freq, min_accel, w, cruise2, accel, d):
-    """RRF ≤ 3.3 Dynamic Acceleration Adjustment: phase times of one (or two) ringing periods."""
+def daa_adjust(freq, min_accel, w, cruise2, accel, d, u):
+    """RRF ≤ 3.3 Dynamic Acceleration Adjustment (``DDA::AdjustAcceleration``), per move.
+
+    Only moves with a top speed above both their start and end speed that move mainly in X or Y
+    (|u_x| or |u_y| > 0.5). A phase shorter than one ringing period T is stretched to T, one shorter
+    than 2T to 2T (acceleration lowered to Δv/T); the acceleration phase is left alone when the
+    previous move is still accelerating into this one, the deceleration phase when the next move
+    keeps decelerating. If the stretched phases no longer fit, the move becomes accelerate-then-
+    decelerate with both phases exactly T (lower top speed), else accelerate-only or decelerate-only
+    "as slowly as we can". Nothing changes when an acceleration would fall under ``min_accel``
+    (M593 L) or rise above the original. Returns (accel, decel, cruise v²) per move.
+    """
     if not (math.isfinite(freq) and freq > 0):
         raise RingtuneError(f"DAA frequency must be > 0 Hz, not {freq}", "daa_freq")
-    period = 1.0 / freq
+    T = 1.0 / freq
     s, e = np.sqrt(w[:-1]), np.sqrt(w[1:])
     c = np.sqrt(cruise2)
-
-    def phase_time(dv):
-        t = dv / accel
-        return np.where(dv <= 0, 0.0, np.where(t < period, period, np.where(t < 2 * period, 2 * period, t)))
-
-    # a phase of two periods or more is left as it is; if a retimed phase then no longer fits
-    # the move, the top speed is lowered (both phases retimed) or the move is left alone
-    ta, td = phase_time(c - s), phase_time(c - e)
-    need = 0.5 * (s + c) * ta + 0.5 * (c + e) * td
+    A = accel
+    tol = 1e-9 * np.maximum(c, 1.0)
+    accel_only = (c > s + tol) & (c <= e + tol)                 # no deceleration phase
+    decel_only = (c <= s + tol) & (c > e + tol)
+    prev_accel_only = np.concatenate(([False], accel_only[:-1]))
+    next_decel_only = np.concatenate((decel_only[1:], [False]))
+    eligible = (np.maximum(np.abs(u[:, 0]), np.abs(u[:, 1])) > 0.5) & (c > s + tol) & (c > e + tol)
+    ta0, td0 = (c - s) / A, (c - e) / A
+    adj_a = eligible & ~prev_accel_only & (ta0 < 2 * T)
+    adj_d = eligible & ~next_decel_only & (td0 < 2 * T)
+    pa = np.where(adj_a, (c - s) / np.where(ta0 < T, T, 2 * T), A)
+    pd = np.where(adj_d, (c - e) / np.where(td0 < T, T, 2 * T), A)
+    fits = (c * c - s * s) / (2 * pa) + (c * c - e * e) / (2 * pd) <= d
+    adjust = adj_a | adj_d
+    acc, dec, top = A.copy(), A.copy(), c.copy()
+    # 1. the stretched phases fit: keep the top speed
+    ok1 = adjust & fits & (pa >= min_accel) & (pd >= min_accel)
+    acc = np.where(ok1, pa, acc)
+    dec = np.where(ok1, pd, dec)
+    # 2. accelerate-decelerate, each phase one period
+    top2 = d / T - 0.5 * (s + e)
+    a2 = (2 * d - (3 * s + e) * T) / (2 * T * T)
+    d2 = (2 * d - (s + 3 * e) * T) / (2 * T * T)
+    tri = adjust & ~fits & (top2 > s) & (top2 > e)
+    ok2 = tri & (a2 >= min_accel) & (d2 >= min_accel) & (a2 <= A) & (d2 <= A)
+    acc = np.where(ok2, a2, acc)
+    dec = np.where(ok2, d2, dec)
+    top = np.where(ok2, top2, top)
+    # 3. accelerate-only / decelerate-only, as slowly as the move allows
     with np.errstate(divide="ignore", invalid="ignore"):
-        c_fit = np.where(ta + td > 0, (2 * d - s * ta - e * td) / (ta + td), c)
-    c_new = np.where(need > d, c_fit, c)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        acc = np.where(ta > 0, (c_new - s) / ta, accel)
-        dec = np.where(td > 0, (c_new - e) / td, accel)
-    kept = ((c - s > 0) & (ta == (c - s) / accel)) | ((c - e > 0) & (td == (c - e) / accel))
-    ok = (c_new >= np.maximum(s, e) - 1e-9) & (acc >= min_accel) & (dec >= min_accel) \
-        & ~(kept & (need > d)) \
-        & (acc <= accel * (1 + 1e-9)) & (dec <= accel * (1 + 1e-9))
-    acc = np.where(ok & (ta > 0), acc, accel)
-    dec = np.where(ok & (td > 0), dec, accel)
-    c_out = np.where(ok, np.maximum(c_new, np.maximum(s, e)), c)
-    return acc, dec, c_out ** 2
+        a3 = (e * e - s * s) / (2 * d)
+        d3 = (s * s - e * e) / (2 * d)
+    up = adjust & ~fits & ~tri & (s < e) & (a3 >= min_accel)
+    down = adjust & ~fits & ~tri & (s > e) & (d3 >= min_accel)
+    acc = np.where(up, a3, acc)
+    top = np.where(up, e, top)
+    dec = np.where(down, d3, dec)
+    top = np.where(down, s, top)
+    return acc, dec, top ** 2

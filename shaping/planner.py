@@ -21,10 +21,12 @@ Look-ahead is exact over the whole job: the forward pass ``w[i+1] = min(c[i+1], 
 (v² at junctions, δ = 2·a·d) is a min-plus recurrence solved in closed form as
 ``S + minimum.accumulate(c − S)`` with ``S`` the running sum of δ; the backward pass is its mirror.
 
-RepRapFirmware ≤ 3.3's Dynamic Acceleration Adjustment (``daa_freq``) then lowers each move's
-acceleration and deceleration so that each phase lasts one ringing period ``1/f`` (two if one is
-too short for the limits), never raising acceleration, and leaves a move alone when its phases
-cannot fit the move or the acceleration would drop under ``daa_min_accel`` (M593 L, 10 mm/s²).
+RepRapFirmware ≤ 3.3's Dynamic Acceleration Adjustment (``daa_freq``; RRF's
+``DDA::AdjustAcceleration``) then lowers each move's acceleration and deceleration so that each
+phase lasts one ringing period ``1/f`` (two if one is too short for the limits), never raising
+acceleration and never under ``daa_min_accel`` (M593 L, 10 mm/s²); see
+:func:`ringtune.shaping.lookahead.daa_adjust`. It works on the whole-job plan at once, where RRF
+adjusts each move as it prepares it.
 
 Simplification: at a forced stop (G4, M400, a shaper change ...) the jerk rule's "safe speed" jump
 uses the smaller of the two moves' safe speeds on both sides (exact for the other rules, which
@@ -211,7 +213,7 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
     decel = accel.copy()
     acc = accel.copy()
     if daa_freq:
-        acc, decel, cruise2 = daa_adjust(daa_freq, daa_min_accel, w, cruise2, accel, d)
+        acc, decel, cruise2 = daa_adjust(daa_freq, daa_min_accel, w, cruise2, accel, d, u)
 
     return _build(job, limits, w, cruise2, acc, decel, d, u, vmax, extruding)
 

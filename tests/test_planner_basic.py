@@ -151,3 +151,17 @@ def test_ianalexis_print_time_within_3_percent_of_prusaslicer(shared_dir):
     estimate = slicer_estimate(path)
     assert estimate == 2428
     assert abs(p.print_time / estimate - 1) < 0.03
+
+
+def test_daa_short_move_becomes_two_phases_of_one_period():
+    """RRF DDA::AdjustAcceleration: stretched phases that no longer fit become an
+    accelerate-decelerate move with both phases exactly one period: top = d/T - (s+e)/2."""
+    f, T = 40.0, 1 / 40.0
+    lim = MachineLimits(accel=3000, velocity=500, junction="jd", min_cruise_ratio=0)
+    p = plan(read_gcode("G1 X1 F6000\n"), lim, daa_freq=f)
+    assert p.moves.v_cruise[0] == pytest.approx(1 / T)
+    assert p.moves.accel[0] == pytest.approx(2 * 1 / (2 * T * T))
+    assert p.print_time == pytest.approx(2 * T)
+    # a Z-only move is not adjusted (|u_x|, |u_y| <= 0.5)
+    p = plan(read_gcode("G1 Z1 F600\n"), lim, daa_freq=f)
+    assert p.moves.accel[0] == pytest.approx(3000)
