@@ -198,7 +198,9 @@ def build_model(printer: Printer | list, timestep: float = TIMESTEP, integrator:
     import mujoco
 
     printers = tuple(printer) if isinstance(printer, (list, tuple)) else (printer,)
-    key = (tuple(_printer_key(p) for p in printers), float(timestep), integrator, bool(accelerometer))
+    seen: dict = {}
+    key = (tuple(seen.setdefault(id(p), _printer_key(p)) if id(p) not in seen else seen[id(p)]
+                 for p in printers), float(timestep), integrator, bool(accelerometer))
     model = _MODEL_CACHE.get(key)
     if model is None:
         arg = list(printers) if len(printers) > 1 else printers[0]
@@ -210,7 +212,4 @@ def build_model(printer: Printer | list, timestep: float = TIMESTEP, integrator:
 
 
 def _printer_key(printer: Printer) -> str:
-    key = getattr(printer, "_model_key", None)
-    if key is None:
-        key = printer.to_toml()
-    return key
+    return printer.to_toml()
