@@ -88,10 +88,10 @@ def run(args: argparse.Namespace, out) -> int:
 
     baselines: dict[str, study.Point] = {}
     if not args.no_baselines:
-        baselines = _baselines(printer, args, settings, evaluator, quality, out)
+        baselines, fits = _baselines(printer, args, settings, evaluator, quality, out)
         k = baselines.get("klipper")
-        if k is not None and _inside(k.config, space):
-            settings.enqueue = [params_from_config(k.config, space)]   # start the search from users' answer
+        if k is not None:   # start the search from what users do today, and its neighbours
+            settings.enqueue = [params_from_config(c, space) for c in _warm_start(k.config, fits, space)]
 
     bar = _progress_bar(out)
     try:
@@ -118,6 +118,36 @@ def run(args: argparse.Namespace, out) -> int:
     return 130 if run_.interrupted else 0
 
 
+def _warm_start(kcfg, fits, space) -> list:
+    """Klipper's pick at its max_accel and 1.25×, 1.5× it; the robust EI family at Klipper's own
+    per-shaper frequencies, at its max_accel and 1.25× (only points inside the space)."""
+    import dataclasses
+
+    def at(cfg, factor):
+        a = min(space.accel[1], round(kcfg.accel * factor / space.accel_step) * space.accel_step)
+        return dataclasses.replace(cfg, accel=float(a), extra={})
+
+    out = [at(kcfg, 1.0), at(kcfg, 1.25), at(kcfg, 1.5)]
+    for name in ("ei", "2hump_ei", "3hump_ei"):
+        freqs = {}
+        for ax in ("x", "y"):
+            rec = fits.get(ax) if fits else None
+            row = next((f for f in rec.shapers if f.name == name), None) if rec else None
+            if row is not None:
+                freqs[ax] = round(row.freq, 1)
+        if len(freqs) == 2 and name in space.shapers:
+            fy = freqs["y"] if space.per_axis else freqs["x"]
+            cfg = dataclasses.replace(kcfg, shaper_x=name, shaper_y=name, freq_x=freqs["x"], freq_y=fy, extra={})
+            out += [at(cfg, 1.0), at(cfg, 1.25)]
+    seen, unique = set(), []
+    for c in out:
+        key = (c.shaper_x, c.freq_x, c.shaper_y, c.freq_y, c.accel)
+        if key not in seen and _inside(c, space):
+            seen.add(key)
+            unique.append(c)
+    return unique
+
+
 def _inside(cfg, space) -> bool:
     ok = space.accel[0] <= (cfg.accel or 0) <= space.accel[1]
     for ax in ("x", "y"):
@@ -134,7 +164,7 @@ def _baselines(printer, args, settings, evaluator, quality, out) -> dict:
     from ringtune.shaping.config import TuneConfig
     from ringtune.shaping.errors import RingtuneError
 
-    configs = {}
+    configs, fits = {}, {}
     try:
         fits, fields = klipper_rule.recommend_for_printer(printer, args.firmware, "head", seed=args.seed)
         if fields.get("accel") is None:
@@ -151,7 +181,7 @@ def _baselines(printer, args, settings, evaluator, quality, out) -> dict:
         md = {k: bool(getattr(m, k)) if k == "step_loss" else float(getattr(m, k)) for k in study.METRIC_KEYS}
         points[key] = study.Point(cfg, float(m.print_time_s), float(getattr(m, quality)), bool(m.step_loss), md,
                                   label=key)
-    return points
+    return points, fits
 
 
 class _Bar:

@@ -1,0 +1,140 @@
+"""``ringtune tune`` / ``ringtune study`` and the report: the output folder, resume through the CLI,
+the Pareto bookkeeping, and acceptance 2 on the real simulation of the default printer."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from ringtune.agents.cli import main
+from ringtune.agents.study import Point, choose, pareto_front
+from ringtune.shaping.config import TuneConfig
+
+TESTS = Path(__file__).resolve().parent
+
+
+def _pt(t, q, loss=False, label=""):
+    return Point(TuneConfig(), t, q, loss, {}, label)
+
+
+def test_pareto_front_and_choice_on_a_known_set():
+    pts = [_pt(1.0, 5.0, label="a"), _pt(2.0, 2.0, label="b"), _pt(2.5, 2.0, label="dominated"),
+           _pt(3.0, 1.0, label="c"), _pt(0.5, 0.1, loss=True, label="infeasible"), _pt(4.0, 0.9, label="d")]
+    front = pareto_front(pts)
+    assert [p.label for p in front] == ["a", "b", "c", "d"]
+    # knee: scaled to 0..1 -> a (0, 1), b (1/3, 0.268), c (2/3, 0.024), d (1, 0): b is closest to (0, 0)
+    assert choose(front).label == "b"
+    assert choose(front, weight=0.0).label == "a"          # only time counts
+    assert choose(front, weight=100.0).label == "d"        # only quality counts
+    assert front[1].dominates(pts[2]) and not front[0].dominates(front[1])
+
+
+@pytest.fixture
+def fake_evaluator(monkeypatch):
+    monkeypatch.syspath_prepend(str(TESTS))
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")]))
+    return "study_objective:evaluate"
+
+
+def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evaluator):
+    out = tmp_path / "out"
+    rc = main(["tune", "--json", "--out", str(out), "--trials", "16", "--evaluator", fake_evaluator])
+    assert rc == 0
+    res = json.loads(capsys.readouterr().out)
+    for name in ("README.txt", "summary.txt", "pareto.png", "best.json", "apply.txt", "front.csv", "trials.csv"):
+        assert (out / name).is_file() and (out / name).stat().st_size > 0, name
+    assert (out / "pareto.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    best = TuneConfig.load(out / "best.json")
+    assert best.to_dict()["shaper_x"] == res["chosen"]["config"]["shaper_x"]
+    assert "SET_INPUT_SHAPER" in (out / "apply.txt").read_text() or "[input_shaper]" in (out / "apply.txt").read_text()
+    readme = (out / "README.txt").read_text()
+    assert readme.index("summary.txt") < readme.index("pareto.png") < readme.index("apply.txt")
+    summary = (out / "summary.txt").read_text()
+    assert "Klipper's rule" in summary and "no shaping" in summary and "CHOSEN" in summary
+    assert set(res["baselines"]) == {"klipper", "none"} and res["trials"] == 16
+    assert len((out / "front.csv").read_text().strip().splitlines()) == res["front_size"] + 1
+    # the same command again, asking for more trials, resumes: 16 kept, 4 new
+    rc = main(["tune", "--json", "--out", str(out), "--trials", "20", "--evaluator", fake_evaluator])
+    res2 = json.loads(capsys.readouterr().out)
+    assert rc == 0 and res2["trials"] == 20 and res2["completed_now"] == 4
+    # a different firmware in the same folder is refused with one clear line
+    rc = main(["tune", "--out", str(out), "--trials", "20", "--firmware", "rrf", "--evaluator", fake_evaluator])
+    assert rc == 2 and "different firmware" in capsys.readouterr().err
+
+
+def test_ctrl_c_on_tune_then_rerun_resumes(tmp_path, fake_evaluator):
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "ringtune.agents.cli", "tune", "--out", str(out), "--trials", "24", "--no-baselines",
+           "--evaluator", fake_evaluator, "--json"]
+    env = dict(os.environ, RINGTUNE_TEST_SLEEP="0.15")
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    journal = out / "study.journal"
+    t0 = time.time()
+    while _complete_in(journal) < 4:
+        assert proc.poll() is None and time.time() - t0 < 60
+        time.sleep(0.1)
+    proc.send_signal(signal.SIGINT)
+    stdout, _ = proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    first = json.loads(stdout)
+    assert first["interrupted"] and 4 <= first["trials"] < 24
+    done = subprocess.run(cmd, env=dict(os.environ), capture_output=True, text=True, timeout=120)
+    second = json.loads(done.stdout)
+    assert done.returncode == 0 and second["trials"] == 24
+    assert second["completed_now"] == 24 - first["trials"]
+    rows = (out / "trials.csv").read_text().strip().splitlines()[1:]
+    configs = [r.split(",", 2)[2] for r in rows]          # everything after label, time
+    assert len(rows) == 24 and len(set(rows)) == 24 and len(configs) == 24
+
+
+def _complete_in(journal: Path) -> int:
+    import optuna
+
+    from ringtune.agents.study import make_storage
+
+    if not journal.exists():
+        return 0
+    try:
+        st = optuna.load_study(study_name="ringtune", storage=make_storage(f"journal:{journal}"))
+    except KeyError:
+        return 0
+    return sum(1 for t in st.get_trials(deepcopy=False) if t.state.name == "COMPLETE")
+
+
+def test_study_command_frequency_error_sweep(tmp_path, capsys):
+    png = tmp_path / "fe.png"
+    rc = main(["study", "--json", "--factor", "freq-error", "--values", "0,0.3", "--shapers", "none,zv,mzv",
+               "-o", str(png)])
+    res = json.loads(capsys.readouterr().out)
+    assert rc == 0 and png.is_file() and Path(res["csv"]).is_file()
+    s = res["shapers"]
+    # nothing to mistune without a shaper; print time does not depend on the shaper frequency
+    assert s["none"]["quality_mm"][0] == pytest.approx(s["none"]["quality_mm"][1])
+    assert s["zv"]["print_time_s"][0] == pytest.approx(s["zv"]["print_time_s"][1])
+    # a tuned shaper beats no shaping; ZV (narrowest band) suffers from a 30 % error
+    assert s["zv"]["quality_mm"][0] < 0.5 * s["none"]["quality_mm"][0]
+    assert s["mzv"]["quality_mm"][0] < 0.5 * s["none"]["quality_mm"][0]
+    assert s["zv"]["quality_mm"][1] > 1.5 * s["zv"]["quality_mm"][0]
+
+
+@pytest.mark.slow
+def test_default_printer_front_dominates_klippers_recommendation(tmp_path, capsys):
+    """Acceptance 2 (reduced to 60 trials to keep the suite short; the benchmark runs 200)."""
+    out = tmp_path / "out"
+    rc = main(["tune", "--json", "--out", str(out), "--trials", "60", "--workers", "1"])
+    res = json.loads(capsys.readouterr().out)
+    assert rc == 0
+    k = res["baselines"]["klipper"]
+    assert not k["step_loss"]
+    d = res["dominates_klipper"]
+    assert d is not None, "no front point dominates Klipper's recommendation"
+    assert d["print_time_s"] <= k["print_time_s"] and d["quality_mm"] <= k["quality_mm"]
+    assert d["print_time_s"] < k["print_time_s"] or d["quality_mm"] < k["quality_mm"]
+    assert "dominating Klipper's rule" in (out / "summary.txt").read_text()
