@@ -168,7 +168,9 @@ def marlin_speed_factors(job: Job, limit_hz: float, min_factor: float,
     Follows ``Planner::_populate_block``: direction bits set for negative motion (a zero move
     counts as positive), ``segment_time_us = LROUND(LROUND(1e6·d/F) / speed_factor)`` with
     the max-feedrate speed factor, history of the last three segments per axis (reset by a segment
-    longer than the minimum interval). The history starts neutral (no throttling at job start).
+    longer than the minimum interval). The history starts at zero as Marlin's static variables do
+    (so a short first segment that moves in -X or -Y is throttled); Cartesian direction bits (on
+    CoreXY Marlin tests the A/B motors instead); SLOWDOWN (buffer-starved slowing) not modelled.
     """
     delta, d = _geometry(job)
     n = job.n_moves
@@ -191,8 +193,9 @@ def marlin_speed_factors(job: Job, limit_hz: float, min_factor: float,
     changed = bits ^ old
     long_ = seg > min_int
     s0 = np.where(changed, seg[:, None], min_int)                       # xs0, ys0
-    s0_prev = np.vstack([np.full((1, 2), min_int), s0[:-1]])
-    s0_prev2 = np.vstack([np.full((2, 2), min_int), s0[:-2]])[:n]
+    # Marlin's history is ``static int32_t xs0, xs1, xs2, ...``: zero before the first block
+    s0_prev = np.vstack([np.zeros((1, 2)), s0[:-1]])
+    s0_prev2 = np.vstack([np.zeros((2, 2)), s0[:-2]])[:n]
     long_prev = np.concatenate(([False], long_[:-1]))
     s1 = np.where(long_[:, None], min_int, s0_prev)
     s2 = np.where((long_ | long_prev)[:, None], min_int, s0_prev2)

@@ -149,3 +149,10 @@ def test_bad_arguments():
     with pytest.raises(RingtuneError, match="--freq-limit"):
         apply_freq_limit(job, -1, "sections")
     assert apply_freq_limit(job, 0, "sections") is job
+
+
+def test_marlin_history_starts_at_zero_like_its_static_variables():
+    # Marlin's xs0..ys2 are zero-initialised statics: a short first segment in -X is throttled
+    # (X "changed direction" from the initial all-positive bits, and the history holds zeros)
+    np.testing.assert_allclose(_marlin([-1]), [0.4])
+    np.testing.assert_allclose(_marlin([1]), [1.0])            # +X: no direction change
