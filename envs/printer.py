@@ -14,7 +14,9 @@ nozzle shows relative to the print. Everything physical has a documented default
     modes = [{ freq = 46.0, damping = 0.05 }]
 
 Units: kg, N, N/m (= kg/s²), mm, mm/s, Hz. A mode's ``share`` is the fraction of the axis's nozzle
-response it carries (an axis's shares sum to 1; modes without one split what is left).
+response it carries (an axis's shares sum to 1; modes without one split what is left; the higher
+modes of a physical chain may carry a small negative share). ``mass_share`` (optional) is the mode's
+fraction of the moving mass (modal effective mass), by default equal to ``share``.
 
 Instead of modes an axis may be given physically:
 
@@ -324,14 +326,17 @@ def _axis_from_dict(d: dict, axis: str, where: str) -> AxisModel:
             f = _num(md, "freq", mw, lo=0.0, lo_open=True, hi=2000.0)
             z = _num(md, "damping", mw, damping, lo=0.0, hi=0.95)
             if "share" in md:
-                sh = _num(md, "share", mw, lo=0.0, lo_open=True, hi=1.0)
+                # physical chains give higher modes small negative shares (nozzle against carriage)
+                sh = _num(md, "share", mw, lo=-2.0, hi=2.0)
+                if sh == 0.0:
+                    raise RingtuneError("share must not be 0 (drop the mode instead)", f"{mw}.share")
                 total += sh
             else:
                 sh = float("nan")
                 free.append(i)
             ms = _num(md, "mass_share", mw, lo=0.0, hi=1.0) if "mass_share" in md else None
             modes.append(Mode(f, z, sh, ms))
-        if total > 1.0 + 1e-6 or (not free and abs(total - 1.0) > 1e-3):
+        if (free and total > 1.0 + 1e-6) or (not free and abs(total - 1.0) > 1e-3):
             raise RingtuneError(f"mode shares sum to {total:g}; they must sum to 1 "
                                 "(leave one out to let it take what is left)", f"{w}.modes")
         if free:

@@ -88,6 +88,9 @@ def test_chain_of_masses_and_stiffnesses():
     assert lag == pytest.approx((m1 + m2) / k1 + m2 / k2, rel=1e-9)
     assert sum(m.mass_fraction for m in p.x.modes) == pytest.approx(1.0)
     assert sum(m.share for m in p.x.modes) == pytest.approx(1.0)
+    # a higher chain mode moves the nozzle against the carriage: negative share, and it round-trips
+    assert min(m.share for m in p.x.modes) < 0
+    assert printer_from_dict(tomllib.loads(p.to_toml())) == p
 
 
 @pytest.mark.parametrize("text,key", [
