@@ -106,12 +106,13 @@ def junction_limits(job, limits, use, u, d, e_only, vmax, accel, amax_axes):
             ju = ju / np.where(norm > 0, norm, 1.0)[:, None]
         a_j = scale_by_axes(accel[1:], ju, amax_axes[1:])
         lim = a_j * jd * sin_d2 / (1 - sin_d2)
-        # Marlin: short segments of a curve (length < 1 mm, angle > 135°) ~ circular arc bound
-        theta = np.arccos(np.clip(-cos_c, -1, 1))      # angle between directions (0 = straight)
-        junction_theta = np.pi - theta
-        small = (d[1:] < 1.0) & (junction_theta > np.radians(135)) & (theta > 0)
+        # Marlin JD_SMALL_SEGMENT_HANDLING: on segments under 1 mm whose junction angle (Marlin's
+        # fast acos approximation, minus its 0.18 rad safety margin) exceeds 135°, bound the
+        # speed as on the circular arc the segments approximate
+        jt = (np.radians(-40) * cos_c ** 2 - np.radians(50)) * cos_c + np.radians(90) - 0.18
+        small = (d[1:] < 1.0) & (jt > np.radians(135))
         with np.errstate(divide="ignore", invalid="ignore"):
-            arc = d[1:] * a_j / theta
+            arc = d[1:] / (np.pi - jt) * a_j
         lim = np.where(small, np.minimum(lim, arc), lim)
         lim = np.where(rev, 0.05 ** 2, lim)
         c[1:] = lim

@@ -62,9 +62,9 @@ def ref_jd(prev, cur, lim):
         if norm > 0 and ju[a] != 0:
             a_j = min(a_j, lim.max_accel[a] / abs(ju[a] / norm))
     v2 = a_j * lim.junction_deviation * s / (1 - s)
-    theta = math.acos(max(-1, min(1, -cos_t)))
-    if dc < 1 and math.pi - theta > math.radians(135) and theta > 0:
-        v2 = min(v2, dc * a_j / theta)
+    jt = (math.radians(-40) * cos_t ** 2 - math.radians(50)) * cos_t + math.radians(90) - 0.18
+    if dc < 1 and jt > math.radians(135):
+        v2 = min(v2, dc / (math.pi - jt) * a_j)
     return v2
 
 
