@@ -183,7 +183,12 @@ def simulate_batch(printer_or_list, motions: list, backend: str = "mujoco", nthr
                    rate: float | None = None, tail: float = 0.0, timestep: float = TIMESTEP,
                    initial: str = "rest") -> list[SimResult]:
     """Simulate many motions in one threaded rollout; ``printer_or_list`` is one printer for all or
-    one per motion. Results come back in the order of ``motions``."""
+    one per motion. Results come back in the order of ``motions``.
+
+    The motions are packed as replicas of one MuJoCo model (up to :data:`MAX_REPLICAS` each),
+    which is far cheaper per motion than separate rollouts. ``nthread`` None uses one thread per
+    full replica model (up to the CPU count); an explicit ``nthread`` splits the motions over at
+    least that many models and threads. Other keywords as :func:`simulate`."""
     if backend not in BACKENDS:
         raise RingtuneError(f"backend must be one of {', '.join(BACKENDS)}, not {backend!r}", "--backend")
     motions = list(motions)
@@ -252,8 +257,8 @@ def _rollout(printers, systems, motions, h, dec, tail, initial, nthread):
     import mujoco
     from mujoco import rollout
 
-    if nthread is None:
-        nthread = os.cpu_count() or 1
+    if nthread is None:                 # threads only for full replica models: replicas are cheaper
+        nthread = min(os.cpu_count() or 1, -(-len(motions) // MAX_REPLICAS))
     nsteps = [_grid(m, h, tail) for m in motions]
     # sort by length so that chunks pad little; each chunk is one replicated model
     order = sorted(range(len(motions)), key=lambda i: nsteps[i])
