@@ -170,8 +170,12 @@ def simulate(printer: Printer | None, motion, backend: str = "mujoco", rate: flo
     Args:
         backend: "mujoco" (default) or "lti" (exact linear reference, much faster).
         rate: output sample rate, Hz (default 1/timestep; must divide it).
-        tail: seconds simulated after the motion ends (the machine keeps ringing at rest).
-        timestep: integration step, s (RK4).
+        tail: seconds simulated after the motion ends (commanded acceleration zero: a motion that
+            ends at rest rings out in place; a window cut mid-move coasts at its end velocity).
+        timestep: integration step, s (RK4; 0.5 ms keeps one mode up to 150 Hz within 0.35 % RMS).
+
+    Meant for windows of a job (seconds): the MuJoCo backend keeps every state of the rollout in
+    memory (about 8·(1 + 2n) bytes per step for n modes).
         initial: "rest" (no deflection at the start) or "static" (settled under the initial
             commanded acceleration, for windows cut out of a longer motion).
     """
@@ -202,6 +206,10 @@ def simulate_batch(printer_or_list, motions: list, backend: str = "mujoco", nthr
     if not motions:
         return []
     h = float(timestep)
+    if not (h > 0 and np.isfinite(h)):
+        raise RingtuneError(f"timestep must be a positive number of seconds, not {timestep!r}", "timestep")
+    if not tail >= 0:
+        raise RingtuneError(f"tail must be ≥ 0 s, not {tail!r}", "tail")
     dec = _decimation(h, rate)
     systems = {}
     for p in printers:
@@ -213,13 +221,13 @@ def simulate_batch(printer_or_list, motions: list, backend: str = "mujoco", nthr
             sysm = systems[id(p)]
             nstep = _grid(mo, h, tail)
             t = mo.start_time + np.arange(0, nstep + 1, dec) * h
-            q, qd = lti_response(sysm, mo, t, _initial(sysm, mo, initial))
+            q, qd = _lti_response(sysm, mo, t, _initial(sysm, mo, initial))
             out.append(_post(p, sysm, _kinematics(mo, mo.start_time, h * dec, len(t)), t, q, qd, "lti"))
         return out
     return _rollout(printers, systems, motions, h, dec, tail, initial, nthread)
 
 
-def lti_response(sysm, motion, t, x0):
+def _lti_response(sysm, motion, t, x0):
     from ringtune.envs.lti import response
 
     return response(sysm, motion, t, x0)
