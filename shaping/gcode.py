@@ -47,6 +47,10 @@ _FEATURE = re.compile(r"^\s*(?:TYPE|FEATURE)\s*:\s*(.+?)\s*$|^\s*feature\s+(.+?)
 #: Largest magnitude accepted per parameter letter (anything larger is surely an error).
 _BOUNDS = {"X": 1e5, "Y": 1e5, "Z": 1e5, "E": 1e6, "I": 1e5, "J": 1e5, "R": 1e5, "F": 1e7}
 _AXIS_INDEX = {"X": 0, "Y": 1, "Z": 2, "E": 3}
+#: G0/G1 word letter -> (largest magnitude, 0-3 axis x y z e | 4 feedrate | -1 other)
+_WORD_INFO = {**{k: (_BOUNDS[k], i) for k, i in _AXIS_INDEX.items()}, "F": (_BOUNDS["F"], 4)}
+_WORD_INFO.update({k.lower(): v for k, v in list(_WORD_INFO.items())})
+_OTHER_WORD = (1e9, -1)
 _CHUNK = 1 << 16          # moves collected in Python lists before they go into numpy arrays
 
 
@@ -180,22 +184,21 @@ class _Reader:
         pos = self.pos
         end = list(pos)
         off = self.offset
+        abs_xyz, abs_e = self.abs_xyz, self.abs_e
         for letter, value in _WORD.findall(text):
             try:
                 x = float(value)
             except ValueError:
                 self._bad_word(letter, value, lineno)
-            up = letter if letter.isupper() else letter.upper()
-            bound = _BOUNDS.get(up, 1e9)
+            bound, i = _WORD_INFO.get(letter, _OTHER_WORD)
             if not -bound <= x <= bound:
                 self._bad_word(letter, value, lineno)
-            i = _AXIS_INDEX.get(up)
-            if i is not None:
-                if i < 3:
-                    end[i] = x + off[i] if self.abs_xyz else pos[i] + x
-                else:
-                    end[3] = x + off[3] if self.abs_e else pos[3] + x
-            elif up == "F":
+            if i < 3:
+                if i >= 0:
+                    end[i] = x + off[i] if abs_xyz else pos[i] + x
+            elif i == 3:
+                end[3] = x + off[3] if abs_e else pos[3] + x
+            else:
                 if x <= 0:
                     raise RingtuneError(f"feedrate F{x:g} must be > 0", self._where(lineno))
                 self.feed = x / 60.0
