@@ -150,11 +150,20 @@ class Plan:
 
 # -- the planner ---------------------------------------------------------------------------------
 def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | None = None,
-         use_job_limits: bool = True, daa_min_accel: float = 10.0) -> Plan:
-    """Plan a job (a :class:`Job` or G-code text/path) into exact constant-acceleration motion."""
+         use_job_limits: bool = True, daa_min_accel: float = 10.0,
+         accel: float | None = None) -> Plan:
+    """Plan a job (a :class:`Job` or G-code text/path) into exact constant-acceleration motion.
+
+    ``limits``: the machine (default :class:`MachineLimits`); the job's own M201/M203/M204/M205/
+    SET_VELOCITY_LIMIT lines override it from where they appear unless ``use_job_limits=False``.
+    ``accel``: one acceleration (mm/s²) for every move, replacing the machine's and the job's
+    M204/SET_VELOCITY_LIMIT values (per-axis M201 caps still apply) — a tuning knob.
+    ``daa_freq``: RRF ≤ 3.3 DAA at this ringing frequency (Hz), ``daa_min_accel`` its M593 L.
+    """
     from ringtune.shaping.gcode import read_gcode
 
     job = job_or_moves if isinstance(job_or_moves, Job) else read_gcode(job_or_moves)
+    accel_override = accel
     limits = limits or MachineLimits()
     limits.validate()
     n = job.n_moves
@@ -180,6 +189,10 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
         a_retract = job_value(job, "accel_retract", limits.retract_accel or limits.accel, use)
         accel = np.where(e_only, a_retract, np.where(delta[:, 3] != 0, a_print, a_travel))
     accel = np.where(accel > 0, accel, limits.accel)
+    if accel_override is not None:
+        if not (math.isfinite(accel_override) and accel_override > 0):
+            raise RingtuneError(f"acceleration must be > 0 mm/s², not {accel_override}", "accel")
+        accel = np.full(n, float(accel_override))
     amax_axes = axis_caps(job, "max_accel", limits.max_accel, use)
     accel = scale_by_axes(accel, u, amax_axes)
     if np.any(~(vmax > 0)) or np.any(~(accel > 0)):

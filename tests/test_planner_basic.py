@@ -165,3 +165,10 @@ def test_daa_short_move_becomes_two_phases_of_one_period():
     # a Z-only move is not adjusted (|u_x|, |u_y| <= 0.5)
     p = plan(read_gcode("G1 Z1 F600\n"), lim, daa_freq=f)
     assert p.moves.accel[0] == pytest.approx(3000)
+
+
+def test_accel_override_replaces_job_accel_but_keeps_axis_caps():
+    job = read_gcode("M204 P500 T500\nM201 X1000 Y4000\nG1 X100 F6000\nG1 Y100\n")
+    lim = MachineLimits(accel=3000, junction="jd")
+    np.testing.assert_allclose(plan(job, lim).moves.accel, [500, 500])          # the job's M204
+    np.testing.assert_allclose(plan(job, lim, accel=2000).moves.accel, [1000, 2000])  # X capped by M201
