@@ -29,7 +29,8 @@ Without --junction the rule follows --printer, or else the job's own commands
 (M201/M203/M204/M205, SET_VELOCITY_LIMIT) override the printer's. When the slicer wrote its own
 time estimate into the file, it is shown beside ours.
 
---config applies a TuneConfig's frequency limit and acceleration; a shaper "daa" in it (or --daa F)
+--config applies a TuneConfig's frequency limit and acceleration (its accel replaces the job's
+M204/SET_VELOCITY_LIMIT accelerations); a shaper "daa" in it (or --daa F)
 plans with RepRapFirmware 3.3's Dynamic Acceleration Adjustment. --trajectory writes the commanded
 toolhead position t,x,y,z,e (after planning, frequency limit and the config's input shaping).
 
@@ -120,7 +121,8 @@ def run(args, out) -> int:
     if daa is None and cfg is not None and cfg.shaper_x.lower() == "daa":
         daa = cfg.freq_x
     t1 = time.perf_counter()
-    p = plan(job, limits, daa_freq=daa, use_job_limits=not args.no_job_limits)
+    p = plan(job, limits, daa_freq=daa, use_job_limits=not args.no_job_limits,
+             accel=float(cfg.accel) if cfg is not None and cfg.accel else None)
     t_plan = time.perf_counter() - t1
 
     tz, fz, lz = direction_change_frequencies(p)
