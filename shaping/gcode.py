@@ -3,7 +3,7 @@ a firmware would see on the way (units mm, mm/s, mm/s², s).
 
 Understood: ``G0/G1`` (X Y Z E F), ``G2/G3`` arcs (I J or R; split into chords that deviate from the
 arc by at most ``arc_tolerance`` mm, Z and E interpolated along), ``G4`` (P ms / S s), ``G90/G91``,
-``M82/M83``, ``G92``, ``G28`` (the named axes, or all, go to 0 — homing takes no time here),
+``M82/M83``, ``G20/G21`` (inches/mm), ``G92``, ``G28`` (the named axes, or all, go to 0 — homing takes no time here),
 ``M201`` (X Y Z E max accel; F S = Marlin XY frequency limit), ``M203`` (max feedrates), ``M204``
 (P print, T travel, R retract, S both), ``M205`` (X Y Z E jerk, J junction deviation), ``M220 S``
 (speed factor %), Klipper's ``SET_VELOCITY_LIMIT`` (VELOCITY, ACCEL, SQUARE_CORNER_VELOCITY,
@@ -103,6 +103,7 @@ class _Reader:
         self.abs_xyz = True
         self.abs_e = True
         self.feed = 25.0                        # mm/s (F1500)
+        self.unit = 1.0                         # mm per G-code length unit (G20 inches: 25.4)
         self.speed_factor = 1.0
         self.features = ["unknown"]
         self.feature_idx = {"unknown": 0}
@@ -185,6 +186,7 @@ class _Reader:
         end = list(pos)
         off = self.offset
         abs_xyz, abs_e = self.abs_xyz, self.abs_e
+        unit = self.unit
         for letter, value in _WORD.findall(text):
             try:
                 x = float(value)
@@ -193,6 +195,8 @@ class _Reader:
             bound, i = _WORD_INFO.get(letter, _OTHER_WORD)
             if not -bound <= x <= bound:
                 self._bad_word(letter, value, lineno)
+            if unit != 1.0:
+                x *= unit
             if i < 3:
                 if i >= 0:
                     end[i] = x + off[i] if abs_xyz else pos[i] + x
@@ -298,6 +302,8 @@ class _Reader:
             self.dwell += t
             self.stop = True
             self._event("dwell", cmd, {"seconds": t}, lineno, code)
+        elif cmd in ("G20", "G21"):
+            self.unit = 25.4 if cmd == "G20" else 1.0
         elif cmd == "G90":
             self.abs_xyz = True
             self.abs_e = True
@@ -313,7 +319,7 @@ class _Reader:
                 words = {a: 0.0 for a in AXES}
             for i, ax in enumerate(AXES):
                 if ax in words:
-                    v = 0.0 if math.isnan(words[ax]) else words[ax]
+                    v = 0.0 if math.isnan(words[ax]) else words[ax] * self.unit
                     self.offset[i] = self.pos[i] - v
         elif cmd == "G28":
             named = [i for i, ax in enumerate("XYZ") if ax in words]
@@ -449,6 +455,8 @@ class _Reader:
 
     def _arc(self, clockwise: bool, w: dict[str, float], lineno: int) -> None:
         where = self._where(lineno)
+        if self.unit != 1.0:
+            w = {k: v * self.unit if k in "XYZEIJRF" else v for k, v in w.items()}
         self._feedrate(w, where)
         end = self._target(w)
         x0, y0 = self.pos[0], self.pos[1]

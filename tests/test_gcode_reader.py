@@ -203,3 +203,9 @@ def test_streaming_in_chunks_gives_the_same_job(shared_dir, monkeypatch):
     for name in ("line", "start", "end", "feed", "feature", "settings", "stop_before", "dwell_before"):
         np.testing.assert_array_equal(getattr(chunked, name), getattr(whole, name))
     assert [e.move for e in chunked.events] == [e.move for e in whole.events]
+
+
+def test_inch_units():
+    job = read_gcode("G20\nG1 X1 Y2 F60\nG92 X0\nG1 X1\nG21\nG1 X30\n")
+    np.testing.assert_allclose(job.end[:, :2], [[25.4, 50.8], [50.8, 50.8], [55.4, 50.8]])
+    np.testing.assert_allclose(job.feed, 25.4)             # 60 in/min = 25.4 mm/s
