@@ -14,7 +14,8 @@ become events with the index of the move that follows them. Line numbers ``N..``
 as an event of kind ``other`` (never an error). Slicer feature comments (``;TYPE:``,
 ``;FEATURE:``, Simplify3D ``; feature ...``) tag the moves after them.
 
-Commands that make a firmware drain its queue (``G4``, ``G28``, ``G29``, ``M400``, ``M109``,
+G90/G91 set XYZ and E together as Marlin and RRF do (Klipper's G90 leaves an M83 in force; slicers
+write M82/M83 after G90, so real jobs read the same). Commands that make a firmware drain its queue (``G4``, ``G28``, ``G29``, ``M400``, ``M109``,
 ``M190``, ``M0/M1``, ``M600``, shaper changes) set ``stop_before`` on the next move: the planner
 comes to rest there.
 
