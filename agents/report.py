@@ -159,7 +159,7 @@ def front_table(front: Sequence[Point], chosen: Point, quality: str) -> str:
 def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Point], chosen: Point,
                  baselines: dict[str, Point], quality: str, printer_name: str, job_name: str,
                  firmware: str, n_trials: int, storage: str, study_name: str, weight: float | None,
-                 command: str = "ringtune tune") -> dict[str, Any]:
+                 command: str = "ringtune tune", notes: Sequence[str] = ()) -> dict[str, Any]:
     """Write the output folder; returns the summary dict (also the CLI's --json)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -213,6 +213,7 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
     s.append(f"PARETO FRONT ({len(front)} of {len(points)} trials; * = chosen):")
     s.append(front_table(front, chosen, quality))
     s.append("")
+    s.extend(notes)
     s.append(f"Study '{study_name}' in {storage}; rerun the same command to resume or extend it (--trials).")
     if apply_note:
         s.append(apply_note)

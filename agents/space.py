@@ -168,12 +168,13 @@ def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]
 
 
 def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel: int = 6,
-                freq_limits: tuple[float, ...] = (), shapers: tuple[str, ...] | None = None) -> list[dict]:
+                freq_limits: tuple[float, ...] = (), shapers: tuple[str, ...] | None = None,
+                dampings: tuple[float, ...] | None = None, accels: tuple[float, ...] | None = None) -> list[dict]:
     """A dense Cartesian grid over ``space`` (parameter dicts), for convergence checks.
 
     Per axis: every shaper × ``n_freq`` frequencies (``none`` once); S on ``n_damping`` levels;
     acceleration on ``n_accel`` levels (multiples of ``accel_step``); the frequency limit off plus
-    each method at each of ``freq_limits`` Hz.
+    each method at each of ``freq_limits`` Hz. ``dampings`` / ``accels`` give explicit levels instead.
     """
     shapers = shapers or space.shapers
 
@@ -192,9 +193,12 @@ def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel
                    for b in axis_options(space.freq_y, "shaper_y", "freq_y")]
     else:
         shaping = axis_options(space.freq_x, "shaper", "freq")
-    dampings = [round(float(z), 3) for z in np.linspace(space.damping[0], space.damping[1], n_damping)]
+    if dampings is None:
+        dampings = [round(float(z), 3) for z in np.linspace(space.damping[0], space.damping[1], n_damping)]
     step = space.accel_step
-    accels = sorted({round(float(a) / step) * step for a in np.linspace(space.accel[0], space.accel[1], n_accel)})
+    if accels is None:
+        accels = np.linspace(space.accel[0], space.accel[1], n_accel)
+    accels = sorted({round(float(a) / step) * step for a in accels})
     limits = [{"freq_limit": "off"}] + [{"freq_limit": m, "freq_limit_hz": float(h)}
                                          for m in space.freq_limit_methods for h in freq_limits]
     out = []

@@ -27,8 +27,9 @@ def main() -> int:
     ap.add_argument("--trials", type=int, default=200)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--grid-freqs", type=int, default=5, help="F levels per axis and shaper")
-    ap.add_argument("--grid-dampings", type=int, default=2)
-    ap.add_argument("--grid-accels", type=int, default=3, help="acceleration levels (the top of the range)")
+    ap.add_argument("--grid-dampings", default="0.1", help="S levels of the grid (comma list)")
+    ap.add_argument("--grid-accels", type=int, default=2, help="acceleration levels from the top of the range, "
+                    "one accel_step apart ×4 (the study's best J sits at the top)")
     ap.add_argument("--weights", default="20,100", help="W values, s/mm")
     ap.add_argument("--skip-grid", action="store_true")
     args = ap.parse_args()
@@ -66,16 +67,14 @@ def main() -> int:
     study = open_study(StudySettings(**{**settings.to_dict(), **_stored(settings)}))
     space = SearchSpace.from_dict(study.user_attrs["settings"]["space"])
     pts = study_points(study, space, "overshoot_mm")
-    top = sorted({round(space.accel[1] - k * (space.accel[1] - space.accel[0]) / 7 / space.accel_step) *
-                  space.accel_step for k in range(args.grid_accels)})
-    params = [p for p in grid_params(space, n_freq=args.grid_freqs, n_damping=args.grid_dampings, n_accel=8)
-              if p["accel"] in top] if args.grid_accels < 8 else grid_params(space, n_freq=args.grid_freqs,
-                                                                             n_damping=args.grid_dampings)
+    top = [space.accel[1] - 4 * k * space.accel_step for k in range(args.grid_accels)]
+    zs = tuple(float(z) for z in args.grid_dampings.split(","))
+    params = grid_params(space, n_freq=args.grid_freqs, dampings=zs, accels=tuple(top))
     t1 = time.perf_counter()
     grid = run_grid(space, printer=printer, params=params, batch=128)
     tg = time.perf_counter() - t1
     print(f"dense grid: {len(grid)} points in {tg:.0f} s ({1000 * tg / len(grid):.0f} ms/point); accelerations "
-          f"{top}, {args.grid_freqs} F per axis and shaper, {args.grid_dampings} S levels")
+          f"{top}, {args.grid_freqs} F per axis and shaper, S {zs}")
     ok = True
     for w in (float(x) for x in args.weights.split(",")):
         bs = min((p for p in pts if not p.step_loss), key=lambda p: scalar_objective(p, w))

@@ -222,3 +222,20 @@ def test_recommend_cli_policy_without_training_is_one_clear_line(data_dir, capsy
                str(d / "bassco_ender3/resonances_x_20210821_152037.csv")])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "ringtune train" in err and "\n" not in err
+
+
+def test_recommend_on_the_default_printers_simulated_resonance_test(capsys):
+    """--printer: Klipper's rule on the simulated TEST_RESONANCES of the embedded Ender-3-class
+    printer, whose modes were fitted to the bassco Ender 3 files; its picks land where the rule
+    lands on those real files (X ei ~51 Hz, Y a 3-pulse shaper near the Y modes 38.9/51.3 Hz)."""
+    import json
+
+    from ringtune.agents.cli import main
+
+    rc = main(["recommend", "--json", "--printer", "default"])
+    res = json.loads(capsys.readouterr().out)
+    assert rc == 0
+    x, y = res["axes"]["x"], res["axes"]["y"]
+    assert x["shaper"] == "ei" and abs(x["freq"] - 51.2) < 3.0
+    assert y["shaper"] in ("mzv", "ei") and 35.0 < y["freq"] < 52.0
+    assert res["config"]["accel"] == min(x["max_accel"], y["max_accel"])

@@ -137,15 +137,16 @@ def test_sqlite_storage_resumes_too(tmp_path, in_tests_path):
 
 
 @pytest.mark.postgres
+@pytest.mark.slow
 def test_postgresql_two_workers(in_tests_path):
     url = os.environ.get("RINGTUNE_PG_URL")
     if not url:
         pytest.skip("RINGTUNE_PG_URL is not set (no PostgreSQL server; .ci/run starts one when it can)")
-    settings = _settings(url, n=16, name=f"ringtune-test-{uuid.uuid4().hex[:8]}")
+    settings = _settings(url, n=10, name=f"ringtune-test-{uuid.uuid4().hex[:8]}")
     os.environ["PYTHONPATH"] = os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")])
     try:
         run = run_study(settings, workers=2)
     finally:
         os.environ["PYTHONPATH"] = os.environ["PYTHONPATH"].split(os.pathsep, 1)[1]
     done = _complete(settings)
-    assert len(done) == 16 and len({p for p, _ in done.values()}) == 16 and run.completed_now == 16
+    assert len(done) == 10 and len({p for p, _ in done.values()}) == 10 and run.completed_now == 10

@@ -106,7 +106,10 @@ def run(args: argparse.Namespace, out) -> int:
         out_dir, points=points, front=front, chosen=chosen, baselines=baselines, quality=quality,
         printer_name=getattr(printer, "name", "printer"), job_name=Path(args.gcode).name if args.gcode else
         "built-in test print", firmware=args.firmware, n_trials=args.trials, storage=storage,
-        study_name=args.study, weight=args.weight, command=_command_line(args))
+        study_name=args.study, weight=args.weight, command=_command_line(args),
+        notes=[f"The search was warm-started from Klipper's recommendation and {len(settings.enqueue) - 1} "
+               "neighbours of it (robust shapers at Klipper's own frequencies, higher accelerations)."]
+        if settings.enqueue else [])
     text = result.pop("summary_text")
     result.update({"storage": storage, "study": args.study, "completed_now": run_.completed_now,
                    "interrupted": run_.interrupted, "elapsed_s": time.time() - t_start})
