@@ -35,36 +35,24 @@ import numpy as np
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.job import (AXES, LIMIT_COMMANDS, SETTING_KEYS, SHAPER_COMMANDS, STOP_COMMANDS,
                                   Event, Job)
+from ringtune.shaping.gcode_commands import BOUNDS as _BOUNDS
+from ringtune.shaping.gcode_commands import SettingCommands
+from ringtune.shaping.gcode_commands import num as _num
 from ringtune.shaping.slicer import slicer_estimate
 
 __all__ = ["Event", "Job", "SETTING_KEYS", "read_gcode", "slicer_estimate"]
 
 
 _WORD = re.compile(r"([A-Za-z])\s*([^A-Za-z\s]*)")
-_EXT_PARAM = re.compile(r"(\w+)\s*=\s*(\"[^\"]*\"|\S*)")
 _CLASSIC = re.compile(r"^([GMTgmt])\s*(\d+(?:\.\d+)?)")
 _FEATURE = re.compile(r"^\s*(?:TYPE|FEATURE)\s*:\s*(.+?)\s*$|^\s*feature\s+(.+?)\s*$", re.IGNORECASE)
 
-#: Largest magnitude accepted per parameter letter (anything larger is surely an error).
-_BOUNDS = {"X": 1e5, "Y": 1e5, "Z": 1e5, "E": 1e6, "I": 1e5, "J": 1e5, "R": 1e5, "F": 1e7}
 _AXIS_INDEX = {"X": 0, "Y": 1, "Z": 2, "E": 3}
 #: G0/G1 word letter -> (largest magnitude, 0-3 axis x y z e | 4 feedrate | -1 other)
 _WORD_INFO = {**{k: (_BOUNDS[k], i) for k, i in _AXIS_INDEX.items()}, "F": (_BOUNDS["F"], 4)}
 _WORD_INFO.update({k.lower(): v for k, v in list(_WORD_INFO.items())})
 _OTHER_WORD = (1e9, -1)
 _CHUNK = 1 << 16          # moves collected in Python lists before they go into numpy arrays
-
-
-def _num(value: str, letter: str, where: str) -> float:
-    try:
-        x = float(value)
-    except ValueError:
-        raise RingtuneError(f"{letter}{value!r} is not a number", where) from None
-    if not math.isfinite(x):
-        raise RingtuneError(f"{letter}{value} is not a finite number", where)
-    if abs(x) > _BOUNDS.get(letter, 1e9):
-        raise RingtuneError(f"{letter}{value} is absurdly large", where)
-    return x
 
 
 def _strip_line_number(code: str, where: str) -> str:
@@ -91,7 +79,7 @@ def _strip_line_number(code: str, where: str) -> str:
     return code[m.end():]
 
 
-class _Reader:
+class _Reader(SettingCommands):
     """State machine of one job being read."""
 
     def __init__(self, source: str, arc_tolerance: float):
@@ -340,119 +328,6 @@ class _Reader:
             if cmd in STOP_COMMANDS:
                 self.stop = True
             self._event("other", cmd, words, lineno, code)
-
-    def _limits(self, cmd: str, w: dict[str, float], where: str) -> None:
-        def pos(letter: str) -> float | None:
-            if letter not in w or math.isnan(w[letter]):
-                return None
-            if w[letter] < 0:
-                raise RingtuneError(f"{cmd} {letter}{w[letter]:g} must be >= 0", where)
-            return w[letter]
-
-        if cmd == "M201":
-            for ax in AXES:
-                if (v := pos(ax)) is not None:
-                    self._set(f"max_accel_{ax.lower()}", v)
-            if (v := pos("F")) is not None:
-                self._set("freq_limit_hz", min(v, 100.0))
-            s = pos("S") if "S" in w else pos("G")
-            if s is not None:
-                self._set("freq_limit_min_factor", min(max(s, 1.0), 100.0) / 100.0)
-        elif cmd == "M203":
-            for ax in AXES:
-                if (v := pos(ax)) is not None:
-                    self._set(f"max_vel_{ax.lower()}", v)
-        elif cmd == "M204":
-            s, p, t, r = pos("S"), pos("P"), pos("T"), pos("R")
-            if s is not None:
-                for k in ("accel_print", "accel_travel", "accel_klipper"):
-                    self._set(k, s)
-            if p is not None:
-                self._set("accel_print", p)
-            if t is not None:
-                self._set("accel_travel", t)
-            if r is not None:
-                self._set("accel_retract", r)
-            if s is None and (p is not None or t is not None):
-                self._set("accel_klipper", min(x for x in (p, t) if x is not None))
-        elif cmd == "M205":
-            for ax in AXES:
-                if (v := pos(ax)) is not None:
-                    self._set(f"jerk_{ax.lower()}", v)
-            if (v := pos("J")) is not None:
-                self._set("junction_deviation", v)
-        elif cmd == "M220":
-            if (v := pos("S")) is not None:
-                if v == 0:
-                    raise RingtuneError("M220 S0 would stop every move", where)
-                self.speed_factor = v / 100.0
-
-    def _extended(self, code: str, lineno: int) -> None:
-        where = self._where(lineno)
-        parts = code.split(None, 1)
-        cmd = parts[0].upper()
-        params: dict = {}
-        rest = parts[1] if len(parts) > 1 else ""
-        for key, value in _EXT_PARAM.findall(rest):
-            params[key.upper()] = value.strip('"')
-        if cmd == "SET_VELOCITY_LIMIT":
-            keys = {"VELOCITY": "velocity", "ACCEL": "accel_klipper",
-                    "SQUARE_CORNER_VELOCITY": "square_corner_velocity",
-                    "ACCEL_TO_DECEL": "accel_to_decel", "MINIMUM_CRUISE_RATIO": "min_cruise_ratio"}
-            for k, v in params.items():
-                if k not in keys:
-                    continue
-                x = _num(v, k + "=", where)
-                if x < 0 or (k == "MINIMUM_CRUISE_RATIO" and x >= 1):
-                    raise RingtuneError(f"SET_VELOCITY_LIMIT {k}={v} is out of range", where)
-                self._set(keys[k], x)
-                if k == "ACCEL":
-                    self._set("accel_print", x)
-                    self._set("accel_travel", x)
-                params[k] = x
-            self._event("limits", cmd, params, lineno, code)
-        elif cmd == "TUNING_TOWER":
-            self._tower_start(params, lineno, code)
-        elif cmd == "SET_INPUT_SHAPER":
-            for k, v in list(params.items()):
-                if k.startswith("SHAPER_FREQ") or k.startswith("DAMPING"):
-                    params[k] = _num(v, k + "=", where)
-            self.stop = True
-            self._event("shaper", cmd, params, lineno, code)
-        else:
-            self._event("other", cmd, params, lineno, code)
-
-    # -- Klipper TUNING_TOWER: a command re-run with a parameter that follows the print height --
-    def _tower_start(self, params: dict, lineno: int, code: str) -> None:
-        where = self._where(lineno)
-        if "COMMAND" not in params or "PARAMETER" not in params:
-            raise RingtuneError("TUNING_TOWER needs COMMAND= and PARAMETER=", where)
-        nums = {}
-        for key in ("START", "FACTOR", "BAND", "SKIP", "STEP_DELTA", "STEP_HEIGHT"):
-            nums[key] = _num(params[key], key + "=", where) if key in params else 0.0
-        if nums["FACTOR"] and nums["STEP_HEIGHT"]:
-            raise RingtuneError("TUNING_TOWER takes FACTOR or STEP_DELTA/STEP_HEIGHT, not both", where)
-        self.tower = (params["COMMAND"].upper(), params["PARAMETER"].upper(), nums)
-        self.tower_z = math.nan
-        self.tower_value = math.nan
-        self._event("other", "TUNING_TOWER", dict(params, **nums), lineno, code)
-
-    def _tower_step(self, z: float, lineno: int) -> None:
-        """As klippy/extras/tuning_tower.py: on extrusion moves at a new height, run the command
-        again when the value changes (value = START + FACTOR·z, BAND-quantised, or stepped)."""
-        command, parameter, k = self.tower
-        self.tower_z = z
-        if k["SKIP"]:
-            z = max(0.0, z - k["SKIP"])
-        if k["STEP_HEIGHT"]:
-            value = k["START"] + k["STEP_DELTA"] * math.floor(z / k["STEP_HEIGHT"])
-        else:
-            if k["BAND"]:
-                z = (math.floor(z / k["BAND"]) + 0.5) * k["BAND"]
-            value = k["START"] + z * k["FACTOR"]
-        if value != self.tower_value:
-            self.tower_value = value
-            self._extended(f"{command} {parameter}={value:.9f}", lineno)
 
     def _arc(self, clockwise: bool, w: dict[str, float], lineno: int) -> None:
         where = self._where(lineno)
