@@ -132,14 +132,17 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
     fl = (0.0, "", 0.0)
     if config is not None and config.freq_limit_hz > 0:
         fl = (float(config.freq_limit_hz), config.freq_limit_method, float(config.min_speed_factor))
-    key = (jkey, repr(limits), fl, max_windows, span)
+    accel = None if config is None or config.accel is None else float(config.accel)
+    daa = daa_frequency(config)
+    key = (jkey, repr(limits), fl, accel, daa, max_windows, span)
     if key in _PLANS:
         _PLANS.move_to_end(key)
         return _PLANS[key]
     limited = parsed
     if fl[0] > 0:
         limited = freqlimit.apply_freq_limit(parsed, fl[0], method=fl[1], min_speed_factor=fl[2])
-    plan = planner.plan(limited, limits)
+    # the config's acceleration wins over the job's own M204 / SET_VELOCITY_LIMIT (a tuning knob)
+    plan = planner.plan(limited, limits, accel=accel, daa_freq=daa)
     windows = testprints.quality_windows(plan, max_windows=max_windows, span=span)
     pj = PlannedJob(plan, list(windows))
     if key[0][0] == "object":  # keep the job alive so its id is not reused while cached
@@ -161,6 +164,16 @@ class WindowRun:
     anticipate: float = 0.0   # s, see compute_metrics
 
 
+def daa_frequency(config: TuneConfig | None) -> float | None:
+    """Ringing frequency (Hz) for RepRapFirmware ≤ 3.3's Dynamic Acceleration Adjustment when the
+    config selects shaper ``"daa"`` (one frequency for the machine: ``freq_x``), else None. DAA
+    works in the planner (it lengthens acceleration phases to whole ringing periods), so such a
+    config is planned with it and not input-shaped."""
+    if config is None or "daa" not in (config.shaper_x, config.shaper_y):
+        return None
+    return float(config.freq_x if config.shaper_x == "daa" else config.freq_y)
+
+
 def config_shapers(config: TuneConfig) -> tuple[dict, bool]:
     """({"x": Shaper | None, "y": ...}, centred) for the config's firmware flavour."""
     from ringtune.shaping.shapers import get_shaper, is_centred
@@ -168,7 +181,7 @@ def config_shapers(config: TuneConfig) -> tuple[dict, bool]:
     shapers = {}
     for ax in ("x", "y"):
         name, freq, damping = config.axis(ax)
-        shapers[ax] = None if name == "none" else get_shaper(name, freq, damping, config.flavor,
+        shapers[ax] = None if name in ("none", "daa") else get_shaper(name, freq, damping, config.flavor,
                                                              where=f"config: shaper_{ax}")
     return shapers, is_centred(config.flavor)
 

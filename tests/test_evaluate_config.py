@@ -1,0 +1,43 @@
+"""evaluate() honours every knob of a TuneConfig: acceleration over the job's own M204, and DAA."""
+
+from __future__ import annotations
+
+from ringtune.envs.evaluate import clear_cache, evaluate, planned_job, resolve_printer
+from ringtune.shaping import planner
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.gcode import read_gcode
+
+GCODE = """\
+M204 S500
+G1 X0 Y0 F6000
+G1 X40 Y0 E1 F6000
+G1 X40 Y40 E2
+G1 X0 Y40 E3
+G1 X0 Y0 E4
+"""
+
+
+def test_config_accel_overrides_the_jobs_own_m204():
+    clear_cache()
+    printer = resolve_printer(None)
+    own = evaluate(TuneConfig(shaper_x="none", shaper_y="none"), printer, GCODE, backend="lti")
+    fast = evaluate(TuneConfig(shaper_x="none", shaper_y="none", accel=3000.0), printer, GCODE,
+                    backend="lti")
+    expected = planner.plan(read_gcode(GCODE), printer.limits, accel=3000.0).print_time
+    assert fast.print_time_s == expected
+    assert fast.print_time_s < own.print_time_s  # M204 S500 no longer rules
+
+
+def test_daa_is_planned_not_shaped():
+    """RRF ≤ 3.3's DAA retimes acceleration phases in the planner: the job gets slower, and the
+    ringing it leaves is lower than with no compensation at all."""
+    clear_cache()
+    printer = resolve_printer(None)
+    freq = printer.effective_modes("x")[0].freq
+    none = TuneConfig(firmware="rrf", shaper_x="none", shaper_y="none")
+    daa = TuneConfig(firmware="rrf", shaper_x="daa", shaper_y="daa", freq_x=freq, freq_y=freq)
+    m_none, m_daa = evaluate(none, printer, backend="lti"), evaluate(daa, printer, backend="lti")
+    pj = planned_job(printer, None, daa)
+    assert pj.plan.print_time == m_daa.print_time_s
+    assert m_daa.print_time_s > m_none.print_time_s
+    assert m_daa.ringing_mm < m_none.ringing_mm
