@@ -1,0 +1,406 @@
+"""PPO (stable-baselines3) on the domain-randomised tuning environment: train, load, recommend.
+
+The policy maps what an accelerometer sees (the resonance-test spectra of X and Y, binned as
+``ringtune/Tune-v0`` bins them) to a whole configuration in one step: shaper type, F and S per
+axis, the infill frequency limit and the acceleration. Episodes are one step long (a contextual
+bandit), so the reward is the configuration's cost on that printer, negated (see
+:class:`ringtune.envs.env.TuneEnv`).
+
+Output folder of :func:`train` (``-o DIR``):
+
+| file | what |
+|---|---|
+| ``policy.zip`` | the final policy (stable-baselines3 format) |
+| ``vecnormalize.pkl`` | its observation/reward normalisation statistics (``VecNormalize.save``) |
+| ``best/best_model.zip`` | the policy that scored best on the held-out printers (``EvalCallback``) |
+| ``checkpoints/`` | ``ppo_<steps>_steps.zip`` + ``ppo_vecnormalize_<steps>_steps.pkl`` (resume) |
+| ``evaluations.npz`` | held-out evaluations (timesteps, rewards), EvalCallback's format |
+| ``training_curve.npz``, ``training_curve.png`` | mean training cost per rollout and held-out cost vs timesteps |
+| ``meta.json`` | env keyword arguments, seeds, hyperparameters, timesteps done, wall time |
+
+Seeds: training worker ``k`` is seeded ``seed + k`` (then draws a new printer from its own stream
+every episode); the held-out printers of the evaluation callback are ``reset(seed=s)`` for
+``s`` in :data:`EVAL_SEEDS`; the benchmark uses :data:`BENCH_SEEDS`. :func:`train` refuses
+training seeds that reach into those ranges.
+
+Security: :func:`load_policy` unpickles files (stable-baselines3 zips can carry pickled objects,
+``vecnormalize.pkl`` is a pickle). Load only policies from a source you trust.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+
+#: keyword arguments of the training env (on top of ``randomize=True``)
+#: (the exact linear backend "lti": same costs as MuJoCo to ~1e-4 on the linear printer model, ~1.6×
+#: cheaper per step; evaluations outside training use the env's default, MuJoCo)
+DEFAULT_ENV_KWARGS: dict[str, Any] = {"tune_accel": True, "observe_metrics": False, "backend": "lti"}
+#: held-out printers of the evaluation callback (never used for training)
+EVAL_SEEDS = tuple(range(900_000, 900_008))
+#: the benchmark's unseen printers (benchmarks/bench_ppo.py)
+BENCH_SEEDS = tuple(range(950_000, 950_020))
+#: training seeds must stay below this
+MAX_TRAIN_SEED = 800_000
+#: ``ringtune train`` defaults (acceptance 4: ≤ 20 min on 2 cores; measured ~0.15 s per episode per core)
+DEFAULT_TIMESTEPS = 12_288
+DEFAULT_N_ENVS = 2
+DEFAULT_HYPER: dict[str, Any] = {
+    "learning_rate": 1e-3, "n_steps": 128, "batch_size": 64, "n_epochs": 10, "gamma": 0.0,
+    "gae_lambda": 1.0, "ent_coef": 0.0, "clip_range": 0.2, "log_std_init": -0.7, "net_arch": [128, 128],
+}
+
+
+# -- environments -----------------------------------------------------------------------------------
+def _pinned_env(seed: int, env_kwargs: dict):
+    """A Tune-v0 env whose every reset uses ``seed`` (the same held-out printer each time)."""
+    import gymnasium as gym
+
+    from ringtune.envs.env import TuneEnv
+
+    class PinnedSeed(gym.Wrapper):
+        def reset(self, *, seed=None, options=None):  # noqa: ARG002 - the pinned seed wins
+            return self.env.reset(seed=self._pinned, options=options)
+
+    from stable_baselines3.common.monitor import Monitor
+
+    w = PinnedSeed(TuneEnv(randomize=True, **env_kwargs))
+    w._pinned = int(seed)
+    return Monitor(w)
+
+
+def _make_train_env(rank: int, seed: int, env_kwargs: dict):
+    def thunk():
+        from stable_baselines3.common.monitor import Monitor
+
+        from ringtune.envs.env import TuneEnv
+
+        env = Monitor(TuneEnv(randomize=True, **env_kwargs))
+        env.reset(seed=seed + rank)
+        return env
+    return thunk
+
+
+def _make_eval_env_fn(s: int, env_kwargs: dict):
+    return lambda: _pinned_env(s, env_kwargs)
+
+
+def make_vec_envs(n_envs: int, seed: int, env_kwargs: dict, subprocess: bool = True):
+    """(training VecEnv, held-out eval VecEnv), both not yet normalised."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+    fns = [_make_train_env(k, seed, env_kwargs) for k in range(n_envs)]
+    venv = SubprocVecEnv(fns) if subprocess and n_envs > 1 else DummyVecEnv(fns)
+    venv.seed(seed)
+    eval_env = DummyVecEnv([_make_eval_env_fn(s, env_kwargs) for s in EVAL_SEEDS])
+    return venv, eval_env
+
+
+# -- training -----------------------------------------------------------------------------------------
+@dataclass
+class TrainResult:
+    out_dir: Path
+    timesteps: int
+    wall_s: float
+    eval_timesteps: list = field(default_factory=list)
+    eval_mean_cost: list = field(default_factory=list)
+    train_timesteps: list = field(default_factory=list)
+    train_mean_cost: list = field(default_factory=list)
+    resumed_from: str | None = None
+
+    def to_dict(self) -> dict:
+        return {"out_dir": str(self.out_dir), "timesteps": self.timesteps, "wall_s": self.wall_s,
+                "eval_timesteps": self.eval_timesteps, "eval_mean_cost": self.eval_mean_cost,
+                "train_timesteps": self.train_timesteps, "train_mean_cost": self.train_mean_cost,
+                "resumed_from": self.resumed_from}
+
+
+def latest_checkpoint(out_dir: str | Path) -> tuple[Path, Path] | None:
+    """(policy zip, vecnormalize pkl) of the newest checkpoint in ``out_dir/checkpoints``, or None."""
+    ck = Path(out_dir) / "checkpoints"
+    best = None
+    for z in ck.glob("ppo_*_steps.zip"):
+        steps = int(z.stem.split("_")[1])
+        pkl = ck / f"ppo_vecnormalize_{steps}_steps.pkl"
+        if pkl.is_file() and (best is None or steps > best[0]):
+            best = (steps, z, pkl)
+    return None if best is None else (best[1], best[2])
+
+
+def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int = DEFAULT_N_ENVS,
+          seed: int = 0, *, resume: bool = False, env_kwargs: dict | None = None,
+          hyper: dict | None = None, eval_freq: int | None = None, checkpoint_freq: int | None = None,
+          progress_bar: bool = True, subprocess: bool = True, verbose: int = 0) -> TrainResult:
+    """Train PPO on ``ringtune/Tune-v0`` (random printers) and write the output folder.
+
+    ``timesteps``: total environment steps (= episodes = evaluated configurations), counting
+    those of a resumed run. ``eval_freq`` / ``checkpoint_freq``: in total steps (default: eight
+    evaluations and checkpoints per run). ``resume``: continue from the newest checkpoint in
+    ``out_dir`` (error if none). ``hyper`` overrides :data:`DEFAULT_HYPER`.
+    """
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    if not 0 <= seed < MAX_TRAIN_SEED:
+        raise RingtuneError(f"must be in [0, {MAX_TRAIN_SEED}) (higher seeds are the held-out printers)", "--seed")
+    if n_envs < 1:
+        raise RingtuneError("needs at least one environment", "--envs")
+    if timesteps < 1:
+        raise RingtuneError("must be ≥ 1", "--timesteps")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    env_kwargs = {**DEFAULT_ENV_KWARGS, **(env_kwargs or {})}
+    hyper = {**DEFAULT_HYPER, **(hyper or {})}
+    torch.set_num_threads(1)
+    t0 = time.perf_counter()
+    venv, eval_env = make_vec_envs(n_envs, seed, env_kwargs, subprocess)
+    resumed = None
+    try:
+        if resume:
+            ck = latest_checkpoint(out)
+            if ck is None:
+                raise RingtuneError("no checkpoint to resume from (train without --resume first)", str(out))
+            venv = VecNormalize.load(str(ck[1]), venv)
+            model = PPO.load(str(ck[0]), env=venv, device="cpu")
+            resumed = str(ck[0])
+        else:
+            venv = VecNormalize(venv, norm_obs=True, norm_reward=True, clip_obs=10.0, gamma=0.99)
+            policy_kwargs = {"net_arch": list(hyper["net_arch"]), "log_std_init": hyper["log_std_init"]}
+            model = PPO("MlpPolicy", venv, learning_rate=hyper["learning_rate"], n_steps=hyper["n_steps"],
+                        batch_size=hyper["batch_size"], n_epochs=hyper["n_epochs"], gamma=hyper["gamma"],
+                        gae_lambda=hyper["gae_lambda"], ent_coef=hyper["ent_coef"],
+                        clip_range=hyper["clip_range"], policy_kwargs=policy_kwargs, seed=seed,
+                        device="cpu", verbose=verbose)
+        eval_venv = VecNormalize(eval_env, training=False, norm_obs=True, norm_reward=False, clip_obs=10.0)
+        every = max(eval_freq or timesteps // 8, n_envs) // n_envs
+        ck_every = max(checkpoint_freq or timesteps // 8, n_envs) // n_envs
+        curve = _CurveCallback()
+        callbacks = CallbackList([
+            EvalCallback(eval_venv, n_eval_episodes=len(EVAL_SEEDS), eval_freq=every,
+                         best_model_save_path=str(out / "best"), log_path=str(out), deterministic=True,
+                         verbose=0),
+            CheckpointCallback(save_freq=ck_every, save_path=str(out / "checkpoints"), name_prefix="ppo",
+                               save_vecnormalize=True),
+            curve,
+        ])
+        remaining = timesteps - model.num_timesteps
+        if remaining > 0:
+            model.learn(total_timesteps=remaining, callback=callbacks, progress_bar=progress_bar,
+                        reset_num_timesteps=not resume)
+        model.save(str(out / "policy.zip"))
+        venv.save(str(out / "vecnormalize.pkl"))
+    finally:
+        venv.close()
+        eval_env.close()
+    wall = time.perf_counter() - t0
+    res = TrainResult(out, int(model.num_timesteps), wall, resumed_from=resumed)
+    ev = out / "evaluations.npz"
+    if ev.is_file():
+        d = np.load(ev)
+        res.eval_timesteps = [int(t) for t in d["timesteps"]]
+        res.eval_mean_cost = [float(-np.mean(r)) for r in d["results"]]
+    prev = out / "training_curve.npz"
+    if resume and prev.is_file():
+        d = np.load(prev)
+        res.train_timesteps = [int(t) for t in d["train_timesteps"]]
+        res.train_mean_cost = [float(c) for c in d["train_mean_cost"]]
+    res.train_timesteps += curve.timesteps
+    res.train_mean_cost += curve.costs
+    np.savez(prev, train_timesteps=np.asarray(res.train_timesteps), train_mean_cost=np.asarray(res.train_mean_cost))
+    meta = {"env_id": "ringtune/Tune-v0", "env_kwargs": env_kwargs, "hyper": hyper, "seed": seed,
+            "n_envs": n_envs, "timesteps": res.timesteps, "wall_s": wall, "eval_seeds": list(EVAL_SEEDS),
+            "resumed_from": resumed}
+    (out / "meta.json").write_text(json.dumps(meta, indent=2))
+    plot_training_curve(res, out / "training_curve.png")
+    return res
+
+
+class _CurveCallback:
+    """Collects the mean training cost (−reward, unnormalised) of each rollout."""
+
+    def __new__(cls):
+        from stable_baselines3.common.callbacks import BaseCallback
+
+        class Curve(BaseCallback):
+            def __init__(self):
+                super().__init__()
+                self.timesteps: list[int] = []
+                self.costs: list[float] = []
+                self._buf: list[float] = []
+
+            def _on_step(self) -> bool:
+                for info in self.locals.get("infos", []):
+                    ep = info.get("episode")
+                    if ep is not None:
+                        self._buf.append(-float(ep["r"]))
+                return True
+
+            def _on_rollout_end(self) -> None:
+                if self._buf:
+                    self.timesteps.append(int(self.num_timesteps))
+                    self.costs.append(float(np.mean(self._buf)))
+                    self._buf = []
+
+        return Curve()
+
+
+def plot_training_curve(res: TrainResult, path: str | Path) -> None:
+    """Mean cost per training rollout and on the held-out printers, vs environment steps."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    if res.train_timesteps:
+        ax.plot(res.train_timesteps, res.train_mean_cost, ".-", alpha=0.6, label="training (stochastic policy)")
+    if res.eval_timesteps:
+        ax.plot(res.eval_timesteps, res.eval_mean_cost, "o-",
+                label=f"held-out printers ({len(EVAL_SEEDS)}, deterministic)")
+    ax.set_xlabel("environment steps (evaluated configurations)")
+    ax.set_ylabel("cost = −reward (time ratio + weighted errors)")
+    ax.set_title("PPO training on randomised printers")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# -- using a trained policy -------------------------------------------------------------------------
+@dataclass
+class Policy:
+    """A loaded policy: the SB3 model, its observation normaliser and the env it was trained on."""
+
+    model: Any
+    vecnorm: Any
+    meta: dict
+    path: Path
+
+    @property
+    def env_kwargs(self) -> dict:
+        return dict(self.meta.get("env_kwargs", DEFAULT_ENV_KWARGS))
+
+    def make_env(self, printer=None, backend: str = "mujoco"):
+        """A fixed-printer env with the training env's action/observation layout."""
+        from ringtune.envs.env import TuneEnv
+
+        return TuneEnv(printer=printer, randomize=False, **{**self.env_kwargs, "backend": backend})
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """Deterministic action for one raw (unnormalised) observation."""
+        o = self.vecnorm.normalize_obs(np.asarray(obs, np.float32)[None, :])
+        action, _ = self.model.predict(o, deterministic=True)
+        return np.clip(np.asarray(action[0], dtype=np.float32), -1.0, 1.0)
+
+
+def load_policy(policy_dir: str | Path, which: str = "policy") -> Policy:
+    """Load ``policy_dir/policy.zip`` (or ``best/best_model.zip`` with ``which="best"``) and its
+    ``vecnormalize.pkl``. **Trusts its source**: both files can carry pickled Python objects that run
+    code when loaded; load only policies you trained or got from someone you trust."""
+    import pickle
+
+    from stable_baselines3 import PPO
+
+    d = Path(policy_dir)
+    zp = d / ("policy.zip" if which == "policy" else "best/best_model.zip")
+    pk = d / "vecnormalize.pkl"
+    for p in (zp, pk, d / "meta.json"):
+        if not p.is_file():
+            raise RingtuneError(f"not a trained policy folder: {p.name} is missing (run `ringtune train -o DIR`)",
+                                str(d))
+    model = PPO.load(str(zp), device="cpu")
+    with open(pk, "rb") as fh:
+        vecnorm = pickle.load(fh)
+    vecnorm.training = False
+    vecnorm.norm_reward = False
+    meta = json.loads((d / "meta.json").read_text())
+    return Policy(model, vecnorm, meta, d)
+
+
+def spectrum_observation(spectra: dict[str, tuple[np.ndarray, np.ndarray]], n_bins: int = 24,
+                         spectrum_range: tuple[float, float] = (10.0, 160.0)) -> np.ndarray:
+    """The env's spectrum features from measured PSDs ``{"x": (freqs Hz, psd), "y": (...)}``.
+
+    As :class:`ringtune.envs.env.TuneEnv` (tests check it equals the env's): mean PSD per bin of
+    ``n_bins`` equal bins over ``spectrum_range`` Hz, X then Y, ``1 + log10(psd / max)/3``
+    clipped to [-1, 1], X and Y sharing the max. A missing axis takes the other's spectrum."""
+    if not spectra:
+        raise RingtuneError("needs at least one resonance spectrum (x or y)", "psd")
+    lo, hi = spectrum_range
+    edges = np.linspace(lo, hi, n_bins + 1)
+    binned = []
+    for axis in ("x", "y"):
+        freqs, psd = spectra.get(axis) or spectra.get("y" if axis == "x" else "x")
+        freqs, psd = np.asarray(freqs, float), np.asarray(psd, float)
+        if freqs.shape != psd.shape or freqs.ndim != 1:
+            raise RingtuneError(f"frequency and PSD columns differ in shape ({freqs.shape} vs {psd.shape})",
+                                f"psd {axis}")
+        idx = np.digitize(freqs, edges) - 1
+        ok = (idx >= 0) & (idx < n_bins)
+        total = np.bincount(idx[ok], weights=psd[ok], minlength=n_bins)
+        count = np.bincount(idx[ok], minlength=n_bins)
+        binned.append(total / np.maximum(count, 1))
+    b = np.concatenate(binned)
+    b = np.log10(np.maximum(b, 1e-300) / max(b.max(), 1e-300))
+    return np.clip(1.0 + b / 3.0, -1.0, 1.0).astype(np.float32)
+
+
+def _full_observation(policy: Policy, spectra_obs: np.ndarray) -> np.ndarray:
+    """Spectra + the reset part of the observation (shaping off, no metrics observed)."""
+    env = policy.make_env()
+    _, _ = env.reset(seed=0)
+    obs = env._obs()
+    obs[: spectra_obs.size] = spectra_obs
+    return obs
+
+
+def recommend_from_psd(policy: Policy, spectra: dict[str, tuple[np.ndarray, np.ndarray]]) -> TuneConfig:
+    """One inference on measured resonance PSDs ``{"x": (freqs, psd), "y": ...}`` -> TuneConfig.
+    An axis that was not measured gets shaping off (like Klipper's rule in ``recommend``)."""
+    from ringtune.envs.env import decode_action
+
+    env = policy.make_env()
+    obs = _full_observation(policy, spectrum_observation(spectra, env.n_bins, env.spectrum_range))
+    config = decode_action(policy.act(obs), env.spec_)
+    for ax in ("x", "y"):
+        if ax not in spectra:
+            config = dataclasses.replace(config, **{f"shaper_{ax}": "none"})
+    return config
+
+
+def recommend_for_printer(policy: Policy, printer=None, seed: int = 0) -> tuple[TuneConfig, np.ndarray]:
+    """One inference on a modelled printer's simulated resonance test (``seed`` its noise) ->
+    (TuneConfig, the action)."""
+    from ringtune.envs.env import decode_action
+
+    env = policy.make_env(printer)
+    obs, _ = env.reset(seed=seed)
+    action = policy.act(obs)
+    return decode_action(action, env.spec_), action
+
+
+def config_dict(config: TuneConfig) -> dict:
+    return {k: (round(v, 4) if isinstance(v, float) and math.isfinite(v) else v)
+            for k, v in config.to_dict().items()}
+
+
+
+def recommend_command(args, out) -> int:
+    """``ringtune recommend --method policy`` (called by ``agents/commands/recommend.py``); see
+    :func:`ringtune.agents.ppo_recommend.run` for its options and ``--json`` keys."""
+    from ringtune.agents.ppo_recommend import run
+
+    return run(args, out)

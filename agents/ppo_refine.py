@@ -1,0 +1,88 @@
+"""The environment's cost of configurations on one printer, and Optuna over the policy's action space.
+
+Used by ``ringtune recommend --method policy --refine N`` (the policy's recommendation is the first
+trial of an N-trial study) and by ``benchmarks/bench_ppo.py`` (Optuna alone, policy + Optuna).
+The cost is exactly the environment's: ``−reward`` of :class:`ringtune.envs.env.TuneEnv` (print
+time ratio + weighted path error, overshoot and ringing in mm; step loss adds the penalty; a
+configuration the firmware rejects costs the penalty).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+
+
+class PrinterCost:
+    """Cost of configurations (or actions) on one fixed printer, as ``TuneEnv`` scores them."""
+
+    def __init__(self, printer=None, env_kwargs: dict | None = None, backend: str = "mujoco", job=None):
+        from ringtune.envs.env import TuneEnv
+
+        kw = {k: v for k, v in (env_kwargs or {}).items() if k not in ("backend", "observe_metrics")}
+        self.env = TuneEnv(printer=printer, randomize=False, job=job, backend=backend,
+                           observe_metrics=False, **kw)
+        self.env.reset(seed=0)      # computes the baseline print time of this printer
+        self.n_evaluations = 0
+
+    @property
+    def spec(self):
+        return self.env.spec_
+
+    def of_config(self, config: TuneConfig) -> float:
+        self.n_evaluations += 1
+        try:
+            return -self.env.reward(self.env.evaluate(config))
+        except RingtuneError:
+            return float(self.env.step_loss_penalty)
+
+    def of_action(self, action) -> float:
+        from ringtune.envs.env import decode_action
+
+        return self.of_config(decode_action(np.clip(np.asarray(action, float), -1, 1), self.spec))
+
+
+@dataclass
+class SearchResult:
+    best_action: np.ndarray
+    best_config: TuneConfig
+    best_cost: float
+    costs: list = field(default_factory=list)       # cost of every trial, in order
+
+    @property
+    def first_cost(self) -> float:
+        return self.costs[0]
+
+
+def optuna_search(cost: PrinterCost, n_trials: int, seed: int = 0, first_action=None) -> SearchResult:
+    """Minimise ``cost`` over the action box [-1, 1]^n with Optuna's TPE (seeded, sequential).
+
+    ``first_action`` (e.g. the policy's) is enqueued as trial 0, so the result is never worse than
+    it. ``n_trials`` counts that trial."""
+    import optuna
+
+    from ringtune.envs.env import decode_action
+
+    if n_trials < 1:
+        raise RingtuneError("needs at least one trial", "--refine")
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    n = cost.spec.size
+    study = optuna.create_study(direction="minimize", sampler=optuna.samplers.TPESampler(seed=seed))
+    if first_action is not None:
+        a = np.clip(np.asarray(first_action, float).ravel(), -1.0, 1.0)
+        study.enqueue_trial({f"a{i}": float(a[i]) for i in range(n)})
+    costs: list[float] = []
+
+    def objective(trial):
+        a = np.array([trial.suggest_float(f"a{i}", -1.0, 1.0) for i in range(n)])
+        c = cost.of_action(a)
+        costs.append(c)
+        return c
+
+    study.optimize(objective, n_trials=n_trials)
+    best = np.array([study.best_trial.params[f"a{i}"] for i in range(n)])
+    return SearchResult(best, decode_action(best, cost.spec), float(study.best_value), costs)
