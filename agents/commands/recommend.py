@@ -33,8 +33,10 @@ axis are fitted together. --printer runs the simulated resonance test of a model
 (RepRapFirmware: one shaper and frequency for both axes, fitted on both PSDs). An axis without a
 measurement gets shaping off ("none") in the written config.
 
---method policy (a trained PPO policy) needs a policy from `ringtune train`; it is not available
-until one has been trained.
+--method policy --policy DIR uses a PPO policy trained by `ringtune train -o DIR`: one inference,
+well under a second. Policy folders hold pickles (stable-baselines3 zip, VecNormalize statistics):
+loading one runs code from it, so only use policies you trained or trust. With --printer,
+--refine N hands the policy's answer to Optuna as the first of N trials on the printer model.
 
 example:
   ringtune recommend --accel resonances_x_20210821_152037.csv resonances_y_20210630_230110.csv \\
@@ -59,6 +61,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-smoothing", type=float, default=None, help="Klipper's MAX_SMOOTHING, mm")
     p.add_argument("--seed", type=int, default=0, help="seed of the simulated resonance test (--printer)")
     p.add_argument("-o", "--output", metavar="best.json", help="write the TuneConfig here")
+    p.add_argument("--policy", metavar="DIR", help="--method policy: folder from `ringtune train` "
+                   "(trusted source only: it is unpickled)")
+    p.add_argument("--refine", type=int, metavar="N", help="--method policy --printer: refine with N Optuna trials")
 
 
 def run(args: argparse.Namespace, out) -> int:
@@ -67,8 +72,9 @@ def run(args: argparse.Namespace, out) -> int:
     from ringtune.shaping.errors import RingtuneError
 
     if args.method == "policy":
-        raise RingtuneError("needs a trained policy: run `ringtune train` first "
-                            "(the policy method is not available until then)", "--method policy")
+        from ringtune.agents.ppo import recommend_command
+
+        return recommend_command(args, out)
     if args.max_smoothing is not None and args.max_smoothing < 0.05:
         raise RingtuneError("must be ≥ 0.05 mm (as Klipper's)", "--max-smoothing")
     kw = {"max_smoothing": args.max_smoothing}
