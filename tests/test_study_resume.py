@@ -104,24 +104,24 @@ def test_first_ctrl_c_finishes_the_running_trial(tmp_path, in_tests_path):
 
 
 def test_two_workers_finish_exactly_n_without_duplicates(tmp_path, in_tests_path):
-    settings = _settings(f"journal:{tmp_path / 'study.journal'}", n=30)
+    settings = _settings(f"journal:{tmp_path / 'study.journal'}", n=20)
     os.environ["PYTHONPATH"] = os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")])
     try:
         run = run_study(settings, workers=2)
     finally:
         os.environ["PYTHONPATH"] = os.environ["PYTHONPATH"].split(os.pathsep, 1)[1]
     done = _complete(settings)
-    assert len(done) == 30 and run.completed_now == 30
+    assert len(done) == 20 and run.completed_now == 20
     params = [p for p, _ in done.values()]
-    assert len(set(params)) == 30
+    assert len(set(params)) == 20
     workers = {t.user_attrs["worker"] for t in run.study.get_trials() if t.state.name == "COMPLETE"}
     assert len(workers) == 2                    # both processes did part of the work
 
 
 def test_seeded_single_worker_runs_reproduce_exactly(tmp_path, in_tests_path):
-    a = _settings(f"journal:{tmp_path / 'a.journal'}", n=25, seed=11)
-    b = _settings(f"journal:{tmp_path / 'b.journal'}", n=25, seed=11)
-    c = _settings(f"journal:{tmp_path / 'c.journal'}", n=25, seed=12)
+    a = _settings(f"journal:{tmp_path / 'a.journal'}", n=15, seed=11)
+    b = _settings(f"journal:{tmp_path / 'b.journal'}", n=15, seed=11)
+    c = _settings(f"journal:{tmp_path / 'c.journal'}", n=15, seed=12)
     for s in (a, b, c):
         run_study(s)
     assert _complete(a) == _complete(b)

@@ -45,7 +45,7 @@ def fake_evaluator(monkeypatch):
 
 def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evaluator):
     out = tmp_path / "out"
-    rc = main(["tune", "--json", "--out", str(out), "--trials", "16", "--evaluator", fake_evaluator])
+    rc = main(["tune", "--json", "--out", str(out), "--trials", "10", "--evaluator", fake_evaluator])
     assert rc == 0
     res = json.loads(capsys.readouterr().out)
     for name in ("README.txt", "summary.txt", "pareto.png", "best.json", "apply.txt", "front.csv", "trials.csv"):
@@ -58,12 +58,12 @@ def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evalua
     assert readme.index("summary.txt") < readme.index("pareto.png") < readme.index("apply.txt")
     summary = (out / "summary.txt").read_text()
     assert "Klipper's rule" in summary and "no shaping" in summary and "CHOSEN" in summary
-    assert set(res["baselines"]) == {"klipper", "none"} and res["trials"] == 16
+    assert set(res["baselines"]) == {"klipper", "none"} and res["trials"] == 10
     assert len((out / "front.csv").read_text().strip().splitlines()) == res["front_size"] + 1
-    # the same command again, asking for more trials, resumes: 16 kept, 4 new
-    rc = main(["tune", "--json", "--out", str(out), "--trials", "20", "--evaluator", fake_evaluator])
+    # the same command again, asking for more trials, resumes: 10 kept, 4 new
+    rc = main(["tune", "--json", "--out", str(out), "--trials", "14", "--evaluator", fake_evaluator])
     res2 = json.loads(capsys.readouterr().out)
-    assert rc == 0 and res2["trials"] == 20 and res2["completed_now"] == 4
+    assert rc == 0 and res2["trials"] == 14 and res2["completed_now"] == 4
     # a different firmware in the same folder is refused with one clear line
     rc = main(["tune", "--out", str(out), "--trials", "20", "--firmware", "rrf", "--evaluator", fake_evaluator])
     assert rc == 2 and "different firmware" in capsys.readouterr().err
@@ -71,27 +71,27 @@ def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evalua
 
 def test_ctrl_c_on_tune_then_rerun_resumes(tmp_path, fake_evaluator):
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "ringtune.agents.cli", "tune", "--out", str(out), "--trials", "24", "--no-baselines",
+    cmd = [sys.executable, "-m", "ringtune.agents.cli", "tune", "--out", str(out), "--trials", "14", "--no-baselines",
            "--evaluator", fake_evaluator, "--json"]
     env = dict(os.environ, RINGTUNE_TEST_SLEEP="0.15")
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     journal = out / "study.journal"
     t0 = time.time()
-    while _complete_in(journal) < 4:
+    while _complete_in(journal) < 3:
         assert proc.poll() is None and time.time() - t0 < 60
         time.sleep(0.1)
     proc.send_signal(signal.SIGINT)
     stdout, _ = proc.communicate(timeout=60)
     assert proc.returncode == 130
     first = json.loads(stdout)
-    assert first["interrupted"] and 4 <= first["trials"] < 24
+    assert first["interrupted"] and 3 <= first["trials"] < 14
     done = subprocess.run(cmd, env=dict(os.environ), capture_output=True, text=True, timeout=120)
     second = json.loads(done.stdout)
-    assert done.returncode == 0 and second["trials"] == 24
-    assert second["completed_now"] == 24 - first["trials"]
+    assert done.returncode == 0 and second["trials"] == 14
+    assert second["completed_now"] == 14 - first["trials"]
     rows = (out / "trials.csv").read_text().strip().splitlines()[1:]
     configs = [r.split(",", 2)[2] for r in rows]          # everything after label, time
-    assert len(rows) == 24 and len(set(rows)) == 24 and len(configs) == 24
+    assert len(rows) == 14 and len(set(configs)) == 14
 
 
 def _complete_in(journal: Path) -> int:
@@ -126,9 +126,9 @@ def test_study_command_frequency_error_sweep(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_default_printer_front_dominates_klippers_recommendation(tmp_path, capsys):
-    """Acceptance 2 (reduced to 60 trials to keep the suite short; the benchmark runs 200)."""
+    """Acceptance 2 (reduced to 30 trials to keep the suite short; the benchmark runs 200)."""
     out = tmp_path / "out"
-    rc = main(["tune", "--json", "--out", str(out), "--trials", "60", "--workers", "1"])
+    rc = main(["tune", "--json", "--out", str(out), "--trials", "30", "--workers", "1"])
     res = json.loads(capsys.readouterr().out)
     assert rc == 0
     k = res["baselines"]["klipper"]
