@@ -165,7 +165,8 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
     out_dir.mkdir(parents=True, exist_ok=True)
     word = QUALITY_LABEL.get(quality, quality)
     how = f"minimises print time + {weight:g} s/mm × {word}" if weight is not None else \
-        "the knee of the front (closest to the ideal corner, both objectives scaled 0..1)"
+        "the knee of the front: closest to the ideal corner with time scaled by the front's range and " \
+        "quality by its range, at least 10 µm"
 
     best_cfg = chosen.config
     best_cfg.extra.update({"source": "ringtune tune", "printer": printer_name, "job": job_name,

@@ -553,9 +553,15 @@ def pareto_front(points: Sequence[Point]) -> list[Point]:
     return front
 
 
+#: mm: quality differences smaller than this are not worth print time when choosing the knee
+KNEE_QUALITY_SCALE = 0.01
+
+
 def choose(front: Sequence[Point], weight: float | None = None) -> Point:
     """The point to use: minimising ``print_time_s + weight·quality_mm`` (weight in s/mm), or else
-    the knee — the front point closest to the ideal corner after scaling both objectives to 0..1."""
+    the knee — the front point closest to the ideal corner after scaling print time by the front's
+    range and quality by its range but at least :data:`KNEE_QUALITY_SCALE` (10 µm; so that a front
+    whose points all lie within a few micrometres is not bought with seconds)."""
     if not front:
         raise RingtuneError("no feasible configuration was found (every trial lost steps); "
                             "lower the acceleration range or run more trials", "tune")
@@ -564,7 +570,7 @@ def choose(front: Sequence[Point], weight: float | None = None) -> Point:
     t = np.array([p.print_time_s for p in front])
     q = np.array([p.quality_mm for p in front])
     tn = (t - t.min()) / max(t.max() - t.min(), 1e-12)
-    qn = (q - q.min()) / max(q.max() - q.min(), 1e-12)
+    qn = (q - q.min()) / max(q.max() - q.min(), KNEE_QUALITY_SCALE)
     return front[int(np.argmin(np.hypot(tn, qn)))]
 
 
