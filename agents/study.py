@@ -22,9 +22,7 @@
 from __future__ import annotations
 
 import importlib
-import os
 import signal
-import socket
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -32,15 +30,16 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from ringtune.agents.pareto import KNEE_QUALITY_SCALE, Point, choose, pareto_front, scalar_objective  # noqa: F401
 from ringtune.agents.space import SearchSpace, config_from_params, default_space, suggest_params
+from ringtune.agents.storage import (GRACE_S, HEARTBEAT_S, _this_worker, default_storage,  # noqa: F401
+                                     make_storage, reap_dead_workers)
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
 QUALITY_METRICS = ("overshoot_mm", "path_error_mm")
 METRIC_KEYS = ("print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss")
 DEFAULT_EVALUATOR = "ringtune.envs.evaluate:evaluate_many"
-HEARTBEAT_S = 1
-GRACE_S = 4
 
 
 @dataclass
@@ -85,96 +84,6 @@ def load_space(settings: StudySettings, printer: Any = None) -> SearchSpace:
         from ringtune.envs.printer import load_printer
         printer = load_printer(settings.printer)
     return default_space(printer, settings.firmware)
-
-
-# -- storage and sampler ---------------------------------------------------------------------------
-
-def default_storage(out_dir: str | Path) -> str:
-    """The default storage of an output folder: an Optuna journal file beside the results."""
-    return f"journal:{Path(out_dir) / 'study.journal'}"
-
-
-def make_storage(url: str):
-    """An Optuna storage for ``url``.
-
-    - ``journal:PATH`` (or a path ending ``.journal``): Optuna's append-only journal file (file
-      lock; safe for several processes on one machine; survives SIGKILL) — the default, because
-      it costs ~10 ms per trial where SQLite through Optuna's ORM costs ~150–250 ms;
-    - any RDB URL (``sqlite:///study.db``, ``postgresql+psycopg2://user:pw@host/db``): with
-      Optuna's heartbeat, so stale RUNNING trials of dead workers on any machine are failed and
-      re-run once.
-    """
-    import optuna
-
-    if isinstance(url, (str, os.PathLike)) and (str(url).startswith("journal:") or str(url).endswith(".journal")):
-        from optuna.storages.journal import JournalFileBackend, JournalFileOpenLock
-
-        path = str(url)[len("journal:"):] if str(url).startswith("journal:") else str(url)
-        path = path[2:] if path.startswith("//") else path
-        if not path:
-            raise RingtuneError("journal storage needs a file path, e.g. journal:out/study.journal", "--storage")
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        try:
-            return optuna.storages.JournalStorage(
-                JournalFileBackend(path, lock_obj=JournalFileOpenLock(path, grace_period=5)))
-        except OSError as exc:
-            raise RingtuneError(f"cannot open journal storage: {exc}", "--storage") from None
-    if not isinstance(url, str) or "://" not in url:
-        raise RingtuneError("storage must be journal:PATH or an Optuna RDB URL such as sqlite:///study.db "
-                            f"or postgresql+psycopg2://user:pw@host/db, not {url!r}", "--storage")
-    from optuna.storages import RDBStorage
-
-    try:
-        import warnings
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-            from optuna.storages import RetryHeartbeatStaleTrialCallback
-            kwargs: dict[str, Any] = {}
-            if url.startswith("sqlite"):
-                kwargs["engine_kwargs"] = {"connect_args": {"timeout": 60}}
-                _sqlite_wal(url)
-            storage = RDBStorage(url, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S,
-                                 heartbeat_stale_trial_callback=RetryHeartbeatStaleTrialCallback(max_retry=1),
-                                 **kwargs)
-            if url.startswith("sqlite"):
-                _sqlite_fast(storage)
-            return storage
-    except ImportError as exc:
-        raise RingtuneError(f"storage {url.split(':')[0]!r} needs a driver that is not installed ({exc})",
-                            "--storage") from None
-    except Exception as exc:  # sqlalchemy OperationalError etc.: one line, naming the option
-        raise RingtuneError(f"cannot open storage: {str(exc).splitlines()[0]}", "--storage") from None
-
-
-def _sqlite_wal(url: str) -> None:
-    """Put a SQLite study file in WAL mode (persistent; many readers, one writer, far fewer fsyncs)."""
-    import sqlite3
-
-    path = url.split(":///", 1)[-1]
-    if not path or path == ":memory:":
-        return
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    con = sqlite3.connect(path, timeout=60)
-    try:
-        con.execute("PRAGMA journal_mode=WAL")
-    finally:
-        con.close()
-
-
-def _sqlite_fast(storage) -> None:
-    """WAL with synchronous=NORMAL on every connection: a commit no longer waits for the disk.
-
-    A crash (even SIGKILL) cannot corrupt the file or lose a committed trial; only a power cut may
-    lose the last few commits (their trials are then simply re-run)."""
-    from sqlalchemy import event
-
-    def on_connect(dbapi_con, _record):
-        cur = dbapi_con.cursor()
-        cur.execute("PRAGMA synchronous=NORMAL")
-        cur.close()
-
-    event.listen(storage.engine, "connect", on_connect)
-    storage.engine.dispose()
 
 
 def make_sampler(seed: int | None, n_startup_trials: int = 10):
@@ -236,71 +145,6 @@ def count_states(study) -> dict[str, int]:
 
     trials = study.get_trials(deepcopy=False)
     return {s.name: sum(1 for t in trials if t.state == s) for s in TrialState}
-
-
-# -- stale trials ----------------------------------------------------------------------------------
-
-def _this_worker() -> str:
-    return f"{socket.gethostname()}:{os.getpid()}"
-
-
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
-def reap_dead_workers(study) -> list[int]:
-    """Fail RUNNING trials whose worker process on this host is gone; queue each for one re-run.
-
-    Returns the numbers of the trials failed. Trials of other hosts are left to the heartbeat.
-    """
-    import optuna
-    from optuna.trial import TrialState
-
-    host = socket.gethostname()
-    storage = study._storage
-    failed = []
-    for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
-        owner = t.user_attrs.get("worker", "")
-        h, _, pid = owner.rpartition(":")
-        if h != host or not pid.isdigit() or _pid_alive(int(pid)):
-            continue
-        try:
-            if storage.set_trial_state_values(t._trial_id, state=TrialState.FAIL):
-                failed.append(t)
-        except optuna.exceptions.UpdateFinishedTrialError:
-            continue
-    for t in failed:
-        _requeue(study, t)
-    _requeue_interrupted(study)
-    return [t.number for t in failed]
-
-
-def _requeue(study, trial, trials=None) -> None:
-    """Queue a failed trial's parameters once more (a retry is never retried again)."""
-    import optuna
-
-    if trial.system_attrs.get("failed_trial") is not None:
-        return
-    trials = trials if trials is not None else study.get_trials(deepcopy=False)
-    if any(t.system_attrs.get("failed_trial") == trial.number for t in trials):
-        return
-    study.add_trial(optuna.create_trial(state=optuna.trial.TrialState.WAITING, params=trial.params,
-                                        distributions=trial.distributions,
-                                        system_attrs={"failed_trial": trial.number}))
-
-
-def _requeue_interrupted(study) -> None:
-    """Failed trials that a Ctrl-C aborted mid-evaluation are re-run once."""
-    trials = study.get_trials(deepcopy=False)
-    for t in trials:
-        if t.state.name == "FAIL" and t.user_attrs.get("interrupted"):
-            _requeue(study, t, trials)
 
 
 # -- one worker ------------------------------------------------------------------------------------
@@ -507,23 +351,6 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
 
 # -- reading results -----------------------------------------------------------------------------
 
-@dataclass
-class Point:
-    """One evaluated configuration (a trial, a grid point or a baseline)."""
-
-    config: TuneConfig
-    print_time_s: float
-    quality_mm: float
-    step_loss: bool = False
-    metrics: dict = field(default_factory=dict)
-    label: str = ""
-    number: int | None = None
-
-    def dominates(self, other: "Point") -> bool:
-        return (self.print_time_s <= other.print_time_s and self.quality_mm <= other.quality_mm
-                and (self.print_time_s < other.print_time_s or self.quality_mm < other.quality_mm))
-
-
 def study_points(study, space: SearchSpace | None = None, quality: str | None = None) -> list[Point]:
     """All complete trials as points (infeasible ones flagged ``step_loss``)."""
     from optuna.trial import TrialState
@@ -539,45 +366,6 @@ def study_points(study, space: SearchSpace | None = None, quality: str | None = 
         pts.append(Point(config_from_params(t.params, space), float(t.values[0]), float(t.values[1]),
                          bool(metrics.get("step_loss", False)), metrics, f"trial {t.number}", t.number))
     return pts
-
-
-def pareto_front(points: Sequence[Point]) -> list[Point]:
-    """The feasible non-dominated points, sorted by print time."""
-    feas = sorted((p for p in points if not p.step_loss), key=lambda p: (p.print_time_s, p.quality_mm))
-    front: list[Point] = []
-    best_q = np.inf
-    for p in feas:
-        if p.quality_mm < best_q:
-            front.append(p)
-            best_q = p.quality_mm
-    return front
-
-
-#: mm: quality differences smaller than this are not worth print time when choosing the knee
-KNEE_QUALITY_SCALE = 0.01
-
-
-def choose(front: Sequence[Point], weight: float | None = None) -> Point:
-    """The point to use: minimising ``print_time_s + weight·quality_mm`` (weight in s/mm), or else
-    the knee — the front point closest to the ideal corner after scaling print time by the front's
-    range and quality by its range but at least :data:`KNEE_QUALITY_SCALE` (10 µm; so that a front
-    whose points all lie within a few micrometres is not bought with seconds)."""
-    if not front:
-        raise RingtuneError("no feasible configuration was found (every trial lost steps); "
-                            "lower the acceleration range or run more trials", "tune")
-    if weight is not None:
-        return min(front, key=lambda p: p.print_time_s + weight * p.quality_mm)
-    t = np.array([p.print_time_s for p in front])
-    q = np.array([p.quality_mm for p in front])
-    tn = (t - t.min()) / max(t.max() - t.min(), 1e-12)
-    qn = (q - q.min()) / max(q.max() - q.min(), KNEE_QUALITY_SCALE)
-    return front[int(np.argmin(np.hypot(tn, qn)))]
-
-
-def scalar_objective(p: Point, weight: float) -> float:
-    """``print_time_s + weight·quality_mm`` (s), the single number convergence checks compare."""
-    return p.print_time_s + weight * p.quality_mm
-
 
 if __name__ == "__main__":
     import sys
