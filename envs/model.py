@@ -42,6 +42,9 @@ import numpy as np
 
 from ringtune.envs.printer import Printer
 
+#: crank radius (mm) of the rotor's magnet tendon; its stator site sits at twice that distance
+_CRANK = 1.0
+
 #: default integrator and timestep: RK4 at 0.5 ms is within 0.12 % RMS at 120 Hz (ecosystem.md §4)
 INTEGRATOR = "RK4"
 TIMESTEP = 0.0005
@@ -60,6 +63,13 @@ class LinearSystem:
         joint_stiffness, joint_damping: (n,) what sits on each slide joint.
         belts: CoreXY belt tendons as (name, {coordinate index: coef}, stiffness).
         kinematics: "cartesian" or "corexy".
+        drive: (n, 2) or None: commanded acceleration weights per coordinate (default one-hot of
+            ``axis``); a CoreXY rotor A is driven by a_x + a_y.
+        nozzle_w: (n, 2) or None: nozzle deviation = q @ nozzle_w (default one-hot·share).
+        scale: (n,) or None: mm of the coordinate per MuJoCo joint unit (1 for slides; λ/2π for a
+            rotor hinge).
+        rotors: :class:`ringtune.envs.rotor.Rotor` stages (slip model), empty otherwise.
+        springs: slip model: every spring/damper as (name, {index: coef}, stiffness, damping).
     """
 
     names: list[str]
@@ -72,6 +82,11 @@ class LinearSystem:
     joint_damping: np.ndarray
     belts: list = field(default_factory=list)
     kinematics: str = "cartesian"
+    drive: np.ndarray | None = None
+    nozzle_w: np.ndarray | None = None
+    scale: np.ndarray | None = None
+    rotors: list = field(default_factory=list)
+    springs: list = field(default_factory=list)
 
     @property
     def n(self) -> int:
@@ -80,9 +95,20 @@ class LinearSystem:
     @property
     def B(self) -> np.ndarray:
         """(n, 2) which commanded acceleration (x, y) drives each coordinate."""
+        if self.drive is not None:
+            return self.drive
         b = np.zeros((self.n, 2))
         b[np.arange(self.n), self.axis] = 1.0
         return b
+
+    @property
+    def W(self) -> np.ndarray:
+        """(n, 2) nozzle weights: nozzle deviation (x, y) = q @ W."""
+        if self.nozzle_w is not None:
+            return self.nozzle_w
+        w = np.zeros((self.n, 2))
+        w[np.arange(self.n), self.axis] = self.share
+        return w
 
     def state_matrices(self) -> tuple[np.ndarray, np.ndarray]:
         """Continuous state space ``ẋ = A x + G a_cmd`` with x = [q, q̇] (2n,), a_cmd (2,)."""
@@ -96,9 +122,16 @@ class LinearSystem:
         G[n:] = -self.B
         return A, G
 
-    def qacc(self, q: np.ndarray, qd: np.ndarray, a_cmd: np.ndarray) -> np.ndarray:
-        """(m, n) relative accelerations from states (m, n) and commanded accelerations (m, 2)."""
-        return -(q @ self.K.T + qd @ self.C.T) / self.mass - a_cmd[:, self.axis]
+    def qacc(self, q: np.ndarray, qd: np.ndarray, a_cmd: np.ndarray, nonlinear: bool = False) -> np.ndarray:
+        """(m, n) relative accelerations from states (m, n) and commanded accelerations (m, 2).
+        ``nonlinear``: rotors feel their sinusoidal magnetic force (the MuJoCo slip model) instead
+        of its linearisation."""
+        f = -(q @ self.K.T + qd @ self.C.T)
+        if nonlinear:
+            for r in self.rotors:
+                e = q[:, r.index]
+                f[:, r.index] += r.stiffness * e - r.peak * np.sin(e * (2.0 * np.pi / r.cycle))
+        return f / self.mass - a_cmd @ self.B.T
 
     def static_deflection(self, a_cmd: np.ndarray) -> np.ndarray:
         """q (n,) at rest under a constant commanded acceleration (the lag of seeds/002)."""
@@ -106,7 +139,12 @@ class LinearSystem:
 
 
 def linear_system(printer: Printer) -> LinearSystem:
-    """The printer's linear mechanics (modes after print mass), as used by both backends."""
+    """The printer's linear mechanics (modes after print mass), as used by both backends; with
+    ``[motor] slip = true`` the linearised slip model of :mod:`ringtune.envs.rotor`."""
+    if printer.motor.slip:
+        from ringtune.envs.rotor import slip_system
+
+        return slip_system(printer)
     names, axis, mass, share, k, c = [], [], [], [], [], []
     for ai, ax in enumerate(("x", "y")):
         total = printer.moving_mass(ax)
@@ -150,22 +188,45 @@ def build_mjcf(printer: Printer | list, timestep: float = TIMESTEP, integrator: 
     for r, pr in enumerate(printers):
         sysm = linear_system(pr)
         sfx = f"_r{r}" if len(printers) > 1 else ""
+        rot = {r.index: r for r in sysm.rotors}
+        scale = sysm.scale if sysm.scale is not None else np.ones(sysm.n)
+        drive = sysm.B
         for i, name in enumerate(sysm.names):
             site = ""
             if accelerometer and name == "x0":
                 site = f'<site name="toolhead{sfx}" size="2"/>'
-            bodies.append(
-                f'<body name="{name}{sfx}" pos="0 {20.0 * row:g} 0">'
-                f'<inertial pos="0 0 0" mass="{sysm.mass[i]:.12g}" diaginertia="1e-6 1e-6 1e-6"/>'
-                f'<joint name="q_{name}{sfx}" type="slide" axis="{dirs[sysm.axis[i]]}" '
-                f'stiffness="{sysm.joint_stiffness[i]:.12g}" damping="{sysm.joint_damping[i]:.12g}"/>'
-                f'<geom type="box" size="5 5 5" contype="0" conaffinity="0"/>{site}</body>')
+            r = rot.get(i)
+            if r is None:
+                bodies.append(
+                    f'<body name="{name}{sfx}" pos="0 {20.0 * row:g} 0">'
+                    f'<inertial pos="0 0 0" mass="{sysm.mass[i]:.12g}" diaginertia="1e-6 1e-6 1e-6"/>'
+                    f'<joint name="q_{name}{sfx}" type="slide" axis="{dirs[sysm.axis[i]]}" '
+                    f'stiffness="{sysm.joint_stiffness[i]:.12g}" damping="{sysm.joint_damping[i]:.12g}"/>'
+                    f'<geom type="box" size="5 5 5" contype="0" conaffinity="0"/>{site}</body>')
+            else:
+                # rotor hinge (angle = 2π·lag/λ) with the crank tendon: torque −k_t·ρ·d·sin φ
+                inertia = r.mass * r.scale ** 2
+                bodies.append(
+                    f'<site name="stator_{name}{sfx}" pos="{2.0 * _CRANK:g} {20.0 * row:g} 0" size="0.5"/>'
+                    f'<body name="{name}{sfx}" pos="0 {20.0 * row:g} 0">'
+                    f'<inertial pos="0 0 0" mass="{r.mass:.12g}" diaginertia="{inertia:.12g} {inertia:.12g} {inertia:.12g}"/>'
+                    f'<joint name="q_{name}{sfx}" type="hinge" axis="0 0 1" damping="{r.damping * r.scale ** 2:.12g}"/>'
+                    f'<site name="crank_{name}{sfx}" pos="{_CRANK:g} 0 0" size="0.5"/></body>')
+                tendons.append(f'<spatial name="magnet_{name}{sfx}" springlength="0" '
+                               f'stiffness="{r.peak * r.scale / (2.0 * _CRANK * _CRANK):.12g}">'
+                               f'<site site="stator_{name}{sfx}"/><site site="crank_{name}{sfx}"/></spatial>')
             motors.append(f'<motor name="drive_{name}{sfx}" joint="q_{name}{sfx}" '
-                          f'gear="{sysm.mass[i]:.12g}" ctrllimited="false"/>')
+                          f'gear="{sysm.mass[i] * scale[i]:.12g}" ctrllimited="false"/>')
             row += 1
         for bname, coefs, k in sysm.belts:
             joints = "".join(f'<joint joint="q_{sysm.names[i]}{sfx}" coef="{c:g}"/>' for i, c in coefs.items())
             tendons.append(f'<fixed name="{bname}{sfx}" stiffness="{k:.12g}">{joints}</fixed>')
+        for bname, coefs, k, c in sysm.springs:
+            joints = "".join(f'<joint joint="q_{sysm.names[i]}{sfx}" coef="{cf * scale[i]:.12g}"/>'
+                             for i, cf in coefs.items())
+            tendons.append(f'<fixed name="{bname}{sfx}" stiffness="{k:.12g}" damping="{c:.12g}" '
+                           f'springlength="0">{joints}</fixed>')
+        del drive
     sensors = ""
     if accelerometer:
         sfxs = [f"_r{r}" if len(printers) > 1 else "" for r in range(len(printers))]

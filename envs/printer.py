@@ -32,7 +32,11 @@ bed of ``[y]`` *without* the print), ``modes`` | ``stiffness`` | ``masses``+``st
 lowers Y's frequencies, modes being measured with an empty bed). ``[motor]``: ``force`` (N at the
 belt, pull-out force at low speed), ``corner_speed`` (mm/s above which the force falls as
 ``force·corner_speed/speed``, the constant-power region of a stepper), ``rotor_mass`` (kg, rotor
-inertia reflected to the belt), ``friction`` (N), ``steps_per_mm``. ``[belts]`` (corexy only):
+inertia reflected to the belt), ``friction`` (N), ``steps_per_mm``, ``microsteps`` (per full step, default 16: one electrical cycle
+λ = 4·microsteps/steps_per_mm mm of belt), ``rotor_damping`` (damping ratio of the rotor on its
+magnetic spring, default 0.1) and ``slip`` (default false: true simulates the rotor on its
+sinusoidal magnetic spring so that an overloaded motor really skips steps; see
+:mod:`ringtune.envs.rotor`). ``[belts]`` (corexy only):
 ``stiffness`` (N/m of each belt at the head; default: half the stiffer-than-needed axis stiffness,
 see :meth:`Printer.belt_stiffnesses`) and ``mismatch`` ((k_A − k_B)/mean, 0 = matched belts).
 """
@@ -63,6 +67,8 @@ DEFAULTS: dict[str, Any] = {
     "rotor_mass": 0.13,      # kg: 54 g·cm² rotor on a 6.37 mm pulley radius
     "friction": 1.0,         # N
     "steps_per_mm": 80.0,
+    "microsteps": 16,        # microsteps per full step (steps_per_mm counts microsteps)
+    "rotor_damping": 0.1,    # damping ratio of the rotor on its magnetic spring (slip model)
     "belt_mismatch": 0.0,
 }
 
@@ -71,7 +77,8 @@ LIMIT_KEYS = ("accel", "velocity", "junction", "square_corner_velocity", "juncti
 _TOP_KEYS = {"name", "kinematics", "limits", "x", "y", "motor", "belts", "print_mass", "description"}
 _AXIS_KEYS = {"mass", "modes", "stiffness", "masses", "stiffnesses", "damping"}
 _MODE_KEYS = {"freq", "damping", "share", "mass_share"}
-_MOTOR_KEYS = {"force", "corner_speed", "rotor_mass", "friction", "steps_per_mm"}
+_MOTOR_KEYS = {"force", "corner_speed", "rotor_mass", "friction", "steps_per_mm", "microsteps",
+               "rotor_damping", "slip"}
 _BELT_KEYS = {"stiffness", "mismatch"}
 
 
@@ -113,6 +120,25 @@ class MotorModel:
     rotor_mass: float = DEFAULTS["rotor_mass"]
     friction: float = DEFAULTS["friction"]
     steps_per_mm: float = DEFAULTS["steps_per_mm"]
+    microsteps: float = DEFAULTS["microsteps"]
+    rotor_damping: float = DEFAULTS["rotor_damping"]
+    slip: bool = False
+
+    @property
+    def electrical_cycle(self) -> float:
+        """mm of belt per electrical cycle (4 full steps): the period of the torque–angle curve."""
+        return 4.0 * self.microsteps / self.steps_per_mm
+
+    @property
+    def full_step(self) -> float:
+        """mm of belt per full step."""
+        return self.microsteps / self.steps_per_mm
+
+    @property
+    def magnetic_stiffness(self) -> float:
+        """N/m at the belt of the rotor on its magnetic spring: ``force·2π/λ`` (small-angle slope of
+        ``force·sin(2π e/λ)``)."""
+        return self.force * 2.0 * math.pi / (self.electrical_cycle * 1e-3)
 
     def max_force(self, speed: np.ndarray | float) -> np.ndarray:
         """Largest force (N) the motor can give at belt speed ``speed`` (mm/s):
@@ -207,6 +233,8 @@ class Printer:
         mo = self.motor
         d["motor"] = {"force": mo.force, "corner_speed": mo.corner_speed, "rotor_mass": mo.rotor_mass,
                       "friction": mo.friction, "steps_per_mm": mo.steps_per_mm}
+        if mo.slip or mo.microsteps != DEFAULTS["microsteps"] or mo.rotor_damping != DEFAULTS["rotor_damping"]:
+            d["motor"].update(microsteps=mo.microsteps, rotor_damping=mo.rotor_damping, slip=mo.slip)
         if self.kinematics == "corexy":
             belts: dict[str, Any] = {"mismatch": self.belt_mismatch}
             if self.belt_stiffness is not None:
@@ -262,6 +290,13 @@ def _num(d: dict, key: str, where: str, default=None, lo=None, hi=None, lo_open=
         raise RingtuneError(f"{key} = {v:g} must be {'>' if lo_open else '≥'} {lo:g}", f"{where}.{key}")
     if hi is not None and v > hi:
         raise RingtuneError(f"{key} = {v:g} must be ≤ {hi:g}", f"{where}.{key}")
+    return v
+
+
+def _bool(d: dict, key: str, where: str, default: bool) -> bool:
+    v = d.get(key, default)
+    if not isinstance(v, bool):
+        raise RingtuneError(f"{key} must be true or false, got {v!r}", f"{where}.{key}")
     return v
 
 
@@ -400,6 +435,9 @@ def printer_from_dict(d: dict, where: str = "printer") -> Printer:
         rotor_mass=_num(mo, "rotor_mass", mw, DEFAULTS["rotor_mass"], lo=0.0),
         friction=_num(mo, "friction", mw, DEFAULTS["friction"], lo=0.0),
         steps_per_mm=_num(mo, "steps_per_mm", mw, DEFAULTS["steps_per_mm"], lo=0.0, lo_open=True),
+        microsteps=_num(mo, "microsteps", mw, DEFAULTS["microsteps"], lo=1.0),
+        rotor_damping=_num(mo, "rotor_damping", mw, DEFAULTS["rotor_damping"], lo=0.0, hi=2.0),
+        slip=_bool(mo, "slip", mw, False),
     )
     print_mass = _num(d, "print_mass", where, DEFAULTS["print_mass"], lo=0.0)
     belts = _table(d, "belts", where)

@@ -44,6 +44,9 @@ class SimResult:
         accel_sensor: (m, 3) what an accelerometer on the toolhead reads, mm/s² (x, y, z; z = 0).
         step_loss_time: first time (s) of step loss, or None.
         backend: "mujoco" or "lti".
+        rotor_lag: (m, k) mm each rotor sits relative to its commanded (electrical) position, with
+            ``[motor] slip = true`` (None otherwise); a skipped step shows as a lag that stays
+            a whole number of electrical cycles after the load is gone.
     """
 
     t: np.ndarray
@@ -56,6 +59,7 @@ class SimResult:
     accel_sensor: np.ndarray
     step_loss_time: float | None = None
     backend: str = "mujoco"
+    rotor_lag: np.ndarray | None = None
 
     @property
     def deviation(self) -> np.ndarray:
@@ -116,6 +120,8 @@ def _post(printer: Printer, sysm: LinearSystem, kin, t: np.ndarray, q: np.ndarra
     """Everything derived from the state samples (exact for the linear mechanics); ``kin`` is the
     commanded (p, v, a) at ``t``."""
     p, v, a = kin
+    if sysm.rotors:
+        return _post_slip(printer, sysm, kin, t, q, qd, backend)
     qdd = sysm.qacc(q, qd, a)
     onehot = np.zeros((sysm.n, 2))
     onehot[np.arange(sysm.n), sysm.axis] = 1.0
@@ -133,12 +139,51 @@ def _post(printer: Printer, sysm: LinearSystem, kin, t: np.ndarray, q: np.ndarra
     force = f_belt + mo.rotor_mass * am * 1e-3 + mo.friction * np.sign(vm)
     fmax = mo.max_force(vm)
     over = np.abs(force) > fmax
+    return _result(t, p, dev, head, force, fmax, over, backend)
+
+
+def _result(t, p, dev, head, force, fmax, over, backend, rotor_lag=None) -> SimResult:
     hit = np.flatnonzero(over.any(axis=1))
     sensor = np.zeros((len(t), 3))
     sensor[:, :2] = head
     return SimResult(t=t, commanded=p, nozzle=p + dev, head_accel=head, motor_force=force,
                      motor_force_max=fmax, step_loss=bool(len(hit)), accel_sensor=sensor,
-                     step_loss_time=float(t[hit[0]]) if len(hit) else None, backend=backend)
+                     step_loss_time=float(t[hit[0]]) if len(hit) else None, backend=backend,
+                     rotor_lag=rotor_lag)
+
+
+def _post_slip(printer: Printer, sysm: LinearSystem, kin, t, q, qd, backend: str) -> SimResult:
+    """Post-processing of the slip model (:mod:`ringtune.envs.rotor`): the MuJoCo rotors feel the
+    sinusoidal magnetic force, the LTI ones its linearisation.
+
+    ``motor_force`` is what each motor must give for its rotor to follow the command: the pull of
+    the belts and springs on the rotor plus its own inertia (m_r·a_motor) plus friction — the
+    rigid-motor definition evaluated on the real state. ``step_loss``: that force exceeds the
+    force at the motor's speed, or a rotor lags one full step or more (past the torque peak)."""
+    p, v, a = kin
+    W = sysm.W
+    qdd = sysm.qacc(q, qd, a, nonlinear=backend == "mujoco")
+    dev = q @ W
+    head = a + qdd @ W
+    mo = printer.motor
+    idx = np.array([r.index for r in sysm.rotors])
+    drv = np.stack([r.drive for r in sysm.rotors], axis=1)            # (2, k)
+    Ks, Cs = sysm.K[idx].copy(), sysm.C[idx].copy()
+    for j, r in enumerate(sysm.rotors):
+        Ks[j, r.index] -= r.stiffness
+        Cs[j, r.index] -= r.damping
+    vm, am = v @ drv, a @ drv
+    pull = (q @ Ks.T + qd @ Cs.T) * 1e-3
+    force = pull + mo.rotor_mass * am * 1e-3 + mo.friction * np.sign(vm)
+    fmax = mo.max_force(vm)
+    lag = q[:, idx]
+    over = (np.abs(force) > fmax) | (np.abs(lag) >= mo.full_step)
+    return _result(t, p, dev, head, force, fmax, over, backend, rotor_lag=lag)
+
+
+def _scale(sysm: LinearSystem) -> np.ndarray:
+    """mm per MuJoCo joint unit of each coordinate (rotor hinges are in radians)."""
+    return sysm.scale if sysm.scale is not None else np.ones(sysm.n)
 
 
 def _grid(motion, h: float, tail: float) -> int:
@@ -292,11 +337,12 @@ def _rollout(printers, systems, motions, h, dec, tail, initial, nthread):
                 mo = motions[i]
                 n = sysm.n
                 x0 = _initial(sysm, mo, initial)
-                init[b, 1 + off:1 + off + n] = x0[:n]
-                init[b, 1 + m0.nq + off:1 + m0.nq + off + n] = x0[n:]
+                sc = _scale(sysm)
+                init[b, 1 + off:1 + off + n] = x0[:n] / sc
+                init[b, 1 + m0.nq + off:1 + m0.nq + off + n] = x0[n:] / sc
                 kin = _kinematics(mo, mo.start_time, h, nsteps[i] + 1)
                 u = _step_controls(kin[0], kin[1], h)                     # (nstep, 2) = −a
-                ctrl[b, :nsteps[i], off:off + n] = u[:, sysm.axis]
+                ctrl[b, :nsteps[i], off:off + n] = u @ sysm.B.T if sysm.rotors else u[:, sysm.axis]
                 layout.append((b, i, off, kin))
                 off += n
         nth = max(1, min(nthread, len(cis)))
@@ -312,8 +358,10 @@ def _rollout(printers, systems, motions, h, dec, tail, initial, nthread):
             mo = motions[i]
             t = mo.start_time + rows * h
             kin = tuple(k[rows] for k in kin) if dec > 1 else kin
-            results[i] = _post(printers[i], sysm, kin, t, st[:, 1 + off:1 + off + n],
-                               st[:, 1 + nq + off:1 + nq + off + n], "mujoco")
+            qs, qds = st[:, 1 + off:1 + off + n], st[:, 1 + nq + off:1 + nq + off + n]
+            if sysm.scale is not None:
+                qs, qds = qs * sysm.scale, qds * sysm.scale
+            results[i] = _post(printers[i], sysm, kin, t, qs, qds, "mujoco")
     return results
 
 

@@ -1,0 +1,237 @@
+"""Slip model: each stepper's rotor on its sinusoidal magnetic spring, the belts and modes behind it.
+
+Why (seeds/002: "if you ask the motor to produce too much force then it slips"): the rigid-motor
+model can only *detect* an overload. Here a stepper is what it physically is — a rotor held to the
+commanded electrical position by a torque that is periodic in the lag ``e`` (mm of belt):
+
+    F_em(e) = −F_hold · sin(2π e / λ),   λ = one electrical cycle = 4 full steps
+              = 4·microsteps/steps_per_mm mm of belt
+
+with F_hold the motor's low-speed force (``[motor].force``). Near e = 0 it is a spring of stiffness
+``k_m = F_hold·2π/λ`` (the linear twin used by the exact reference); it can give no more than
+F_hold, reached one full step behind (e = λ/4); past that the force *falls*, the rotor runs away
+and, once the load is gone, locks again on a later equilibrium e = −j·λ: j whole electrical cycles
+(4j full steps) are lost and never recovered — a skipped step. A force-clamped position servo
+(``forcerange``) would not do that: it recovers its position when the load drops, so it cannot
+show a ruined print.
+
+MuJoCo form (exact, no callbacks): the rotor is a hinge (angle φ = 2π e/λ) whose body carries a
+site at radius ρ; a spatial tendon of zero rest length and stiffness k_t joins it to a fixed site
+at distance d from the axis. Its length is L² = ρ² + d² − 2ρd·cos φ, so its potential ½k_t L²
+gives the torque −k_t ρ d sin φ exactly: the stepper's torque–angle curve. The rotor's reflected
+mass ``rotor_mass`` becomes the hinge inertia m_r·(λ/2π)², its fictitious force −m_r·a_motor a motor
+with gear m_r·λ/2π, and ``rotor_damping`` (ratio on the rotor's own frequency √(k_m/m_r)) a hinge
+damper (back-EMF and eddy losses).
+
+Coordinates (all relative to the commanded position, so the mass matrix stays diagonal): the
+modal bodies of :func:`ringtune.envs.model.linear_system`, then one rotor per motor (cartesian:
+X, Y; CoreXY: A, B in belt mm). Every mode body hangs from its axis's *motor side*
+(cartesian x → r_X; CoreXY x → (r_A + r_B)/2, y → (r_A − r_B)/2) through a spring and damper
+realised as a fixed tendon; the CoreXY primary modes are also tied by the two belts
+``A = u + w − r_A``, ``B = u − w − r_B`` (stiffness as the rigid-motor model).
+
+Series solve: the rotor spring sits in series with the belts, so the mode springs are re-solved
+(Newton on their logarithms, the generalised eigenproblem ``K φ = ω² M φ`` of the linearised system)
+until the n lowest undamped frequencies equal the described ones to 1e-10; the n rotor... extra
+modes lie above (≈ √((k_m + belts)/m_r)). The nozzle weights are then solved (linear least squares,
+exact when the axes decouple) so that the nozzle's modal shares are the described ones and the
+rotor modes are invisible at the nozzle: the measured response stays the measured response, and
+what the motor adds is its force, its lag and, above F_hold, its slip. A description whose
+frequencies the motor's magnetic stiffness cannot carry (k_m < (m_r + M)·ω² for a single mode)
+raises :class:`RingtuneError` naming ``[motor].force``. Damping: each mode spring gets
+2ζ·m_i·ν_i (ν_i its frequency on a blocked rotor), so the modal damping is close to, not exactly,
+the described ζ.
+
+Speed: the rotor mode (≈ 240 Hz for the Ender-3 defaults: k_m = 236 N/mm, m_r = 0.13 kg) has
+ω·h ≈ 0.75 at RK4's 0.5 ms, well inside RK4's stability limit 2.8 (numerical damping ≈ 0.1 % per
+step on that mode only). The holding force is the standstill one: its fall with speed
+(:meth:`MotorModel.max_force`) stays a detection criterion (``step_loss``), as does a rotor that
+passed one full step of lag.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ringtune.shaping.errors import RingtuneError
+
+
+@dataclass
+class Rotor:
+    """One motor's rotor stage (model units mm, kg, s; forces kg·mm/s² = mN).
+
+    index: its coordinate; name: "x", "y", "a" or "b"; drive: (2,) commanded-acceleration weights
+    of its belt coordinate; cycle: λ (mm); peak: F_hold·1000; stiffness: k_m (kg/s²);
+    damping: c_r (kg/s); mass: m_r (kg)."""
+
+    index: int
+    name: str
+    drive: np.ndarray
+    cycle: float
+    peak: float
+    stiffness: float
+    damping: float
+    mass: float
+
+    @property
+    def scale(self) -> float:
+        """mm of belt per radian of the electrical angle."""
+        return self.cycle / (2.0 * math.pi)
+
+
+def slip_system(printer):
+    """The printer's linearised slip model as a :class:`~ringtune.envs.model.LinearSystem` (rotors
+    included, springs solved so the described frequencies and shares hold exactly)."""
+    from ringtune.envs.model import LinearSystem
+
+    mo = printer.motor
+    names, axis, mass, share, zeta, omega = [], [], [], [], [], []
+    for ai, ax in enumerate(("x", "y")):
+        total = printer.moving_mass(ax)
+        for j, m in enumerate(printer.effective_modes(ax)):
+            names.append(f"{ax}{j}")
+            axis.append(ai)
+            mass.append(max(m.mass_fraction, 1e-6) * total)
+            share.append(m.share)
+            zeta.append(m.damping)
+            omega.append(m.omega)
+    nb = len(names)
+    corexy = printer.kinematics == "corexy"
+    motors = (("a", (1.0, 1.0)), ("b", (1.0, -1.0))) if corexy else (("x", (1.0, 0.0)), ("y", (0.0, 1.0)))
+    lam = mo.electrical_cycle
+    km = mo.magnetic_stiffness
+    mr = max(mo.rotor_mass, 1e-4)
+    rotors = []
+    for k, (mname, drv) in enumerate(motors):
+        rotors.append(Rotor(nb + k, mname, np.array(drv), lam, mo.force * 1e3, km,
+                            2.0 * mo.rotor_damping * math.sqrt(km * mr), mr))
+        names.append(f"motor_{mname}")
+        axis.append(0 if mname in ("x", "a") else 1)
+        mass.append(mr)
+        share.append(0.0)
+    n = len(names)
+    mass = np.array(mass, float)
+    axis = np.array(axis, int)
+    drive = np.zeros((n, 2))
+    drive[np.arange(nb), axis[:nb]] = 1.0
+    for r in rotors:
+        drive[r.index] = r.drive
+    # the motor side of each axis, as weights on the rotor coordinates
+    base = np.zeros((2, n))
+    if corexy:
+        base[0, nb:nb + 2] = (0.5, 0.5)
+        base[1, nb:nb + 2] = (0.5, -0.5)
+    else:
+        base[0, nb] = base[1, nb + 1] = 1.0
+    vecs = []
+    for i in range(nb):
+        v = -base[axis[i]].copy()
+        v[i] += 1.0
+        vecs.append(v)
+    belts = []
+    K0 = np.zeros((n, n))
+    for r in rotors:
+        K0[r.index, r.index] += r.stiffness
+    if corexy:
+        ix, iy = names.index("x0"), names.index("y0")
+        ka, kb = printer.belt_stiffnesses()
+        for bname, sgn, kk, r in (("belt_a", 1.0, ka, rotors[0]), ("belt_b", -1.0, kb, rotors[1])):
+            v = np.zeros(n)
+            v[ix], v[iy], v[r.index] = 1.0, sgn, -1.0
+            K0 += kk * np.outer(v, v)
+            belts.append((bname, v, kk, 0.0))
+    targets = np.sort(np.array(omega))
+    kmode = _solve_springs(K0, vecs, mass, np.array(mass[:nb]) * np.array(omega) ** 2, targets, printer)
+    springs = list(belts)
+    K = K0.copy()
+    C = np.zeros((n, n))
+    for r in rotors:
+        C[r.index, r.index] += r.damping
+    for i, (v, k) in enumerate(zip(vecs, kmode)):
+        c = 2.0 * zeta[i] * math.sqrt(k * mass[i])
+        K += k * np.outer(v, v)
+        C += c * np.outer(v, v)
+        springs.append((f"spring_{names[i]}", v, k, c))
+    W = _nozzle_weights(K, mass, drive, base, axis[:nb], np.array(share[:nb]), np.array(omega))
+    scale = np.ones(n)
+    for r in rotors:
+        scale[r.index] = r.scale
+    springs = [(nm, {j: float(c) for j, c in enumerate(v) if c != 0.0}, k, c) for nm, v, k, c in springs]
+    return LinearSystem(names, axis, mass, np.array(share, float), K, C, np.zeros(n), np.zeros(n),
+                        [], printer.kinematics, drive=drive, nozzle_w=W, scale=scale, rotors=rotors,
+                        springs=springs)
+
+
+def undamped_frequencies(K: np.ndarray, mass: np.ndarray) -> np.ndarray:
+    """Sorted undamped angular frequencies (rad/s) of ``K φ = ω² diag(mass) φ``."""
+    s = 1.0 / np.sqrt(mass)
+    w2 = np.linalg.eigvalsh(K * s[:, None] * s[None, :])
+    return np.sqrt(np.maximum(w2, 0.0))
+
+
+def _solve_springs(K0, vecs, mass, k_init, targets, printer) -> np.ndarray:
+    """Mode-spring stiffnesses (kg/s²) whose system's lowest len(targets) undamped frequencies are
+    ``targets`` (rad/s, sorted). Newton on log-stiffness with a finite-difference Jacobian."""
+    nb = len(vecs)
+    outer = [np.outer(v, v) for v in vecs]
+
+    def freqs(logk):
+        K = K0 + sum(math.exp(x) * o for x, o in zip(logk, outer))
+        return undamped_frequencies(K, mass)[:nb]
+
+    x = np.log(np.asarray(k_init, float))
+    ok = False
+    for _ in range(60):
+        f = freqs(x)
+        res = np.log(f) - np.log(targets)
+        if np.max(np.abs(res)) < 1e-12:
+            ok = True
+            break
+        J = np.empty((nb, nb))
+        for j in range(nb):
+            dx = np.zeros(nb)
+            dx[j] = 1e-6
+            J[:, j] = (np.log(freqs(x + dx)) - np.log(f)) / 1e-6
+        try:
+            step = np.linalg.solve(J, -res)
+        except np.linalg.LinAlgError:
+            break
+        step *= min(1.0, 2.0 / max(np.max(np.abs(step)), 1e-300))      # at most e² per iteration
+        x = x + step
+        if np.max(x) > 60:
+            break
+    if not ok:
+        mo = printer.motor
+        raise RingtuneError(
+            f"the motor's magnetic stiffness ({mo.magnetic_stiffness / 1e3:.0f} N/mm from force "
+            f"{mo.force:g} N over an electrical cycle of {mo.electrical_cycle:g} mm) cannot carry the "
+            f"described modes up to {targets[-1] / (2 * math.pi):.1f} Hz in series with the belts; raise "
+            "[motor].force, lower the masses, or set [motor].slip = false", "[motor].force")
+    return np.exp(x)
+
+
+def _nozzle_weights(K, mass, drive, base, axis_b, share, omega) -> np.ndarray:
+    """(n, 2) nozzle weights over each axis's mode bodies and its motor side, so that for a
+    commanded acceleration along the axis the nozzle's modal shares are the described ones on the
+    described modes and zero on every other mode (least squares; exact for decoupled axes)."""
+    n = len(mass)
+    s = 1.0 / np.sqrt(mass)
+    w2, psi = np.linalg.eigh(K * s[:, None] * s[None, :])
+    phi = psi * s[:, None]                                  # mass-normalised modes
+    wfreq = np.sqrt(np.maximum(w2, 0.0))
+    W = np.zeros((n, 2))
+    for ax in (0, 1):
+        bodies = np.flatnonzero(axis_b == ax)
+        gamma = phi.T @ (mass * drive[:, ax])               # participation per mode
+        cols = [phi[i] for i in bodies] + [base[ax] @ phi]  # each unknown weight's mode shape
+        A = np.stack(cols, axis=1) * gamma[:, None]         # (modes, unknowns): share per unit weight
+        target = np.zeros(n)
+        for i in bodies:
+            target[int(np.argmin(np.abs(wfreq - omega[i])))] += share[i]
+        sol, *_ = np.linalg.lstsq(A, target, rcond=None)
+        W[bodies, ax] = sol[:-1]
+        W[:, ax] += sol[-1] * base[ax]
+    return W
