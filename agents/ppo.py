@@ -358,13 +358,16 @@ def spectrum_observation(spectra: dict[str, tuple[np.ndarray, np.ndarray]], n_bi
     return np.clip(1.0 + b / 3.0, -1.0, 1.0).astype(np.float32)
 
 
-def _full_observation(policy: Policy, spectra_obs: np.ndarray) -> np.ndarray:
-    """Spectra + the reset part of the observation (shaping off, no metrics observed)."""
-    env = policy.make_env()
-    _, _ = env.reset(seed=0)
-    obs = env._obs()
-    obs[: spectra_obs.size] = spectra_obs
-    return obs
+def _full_observation(policy: Policy, env, spectra_obs: np.ndarray) -> np.ndarray:
+    """Spectra + the rest of a reset observation: shaping off as the current configuration and no
+    metrics (the training env does not observe metrics, so they are zeros there too)."""
+    from ringtune.envs.env import encode_config
+
+    if policy.env_kwargs.get("observe_metrics", False):
+        raise RingtuneError("this policy was trained observing simulated metrics; it cannot be applied to "
+                            "measured spectra alone", str(policy.path))
+    start = TuneConfig(firmware=env.spec_.firmware, shaper_x="none", shaper_y="none")
+    return np.concatenate([spectra_obs, encode_config(start, env.spec_), np.zeros(6, np.float32)]).astype(np.float32)
 
 
 def recommend_from_psd(policy: Policy, spectra: dict[str, tuple[np.ndarray, np.ndarray]]) -> TuneConfig:
@@ -373,7 +376,7 @@ def recommend_from_psd(policy: Policy, spectra: dict[str, tuple[np.ndarray, np.n
     from ringtune.envs.env import decode_action
 
     env = policy.make_env()
-    obs = _full_observation(policy, spectrum_observation(spectra, env.n_bins, env.spectrum_range))
+    obs = _full_observation(policy, env, spectrum_observation(spectra, env.n_bins, env.spectrum_range))
     config = decode_action(policy.act(obs), env.spec_)
     for ax in ("x", "y"):
         if ax not in spectra:

@@ -1,0 +1,94 @@
+"""PPO training pipeline (acceptance 1): both checkers on the training env, a run with several
+subprocess environments, its files, resume from a checkpoint, loading and one-shot recommendation."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from ringtune.agents import ppo  # noqa: E402
+from ringtune.envs.env import TuneEnv  # noqa: E402
+from ringtune.shaping.config import TuneConfig  # noqa: E402
+from ringtune.shaping.errors import RingtuneError  # noqa: E402
+
+#: a small job with four sharp extruding corners: cheap to evaluate, still rings
+SQUARE_JOB = "G21\nG90\nM83\nG1 X20 Y20 F12000\n" + "".join(
+    "G1 X60 Y20 E1 F12000\nG1 X60 Y60 E1\nG1 X20 Y60 E1\nG1 X20 Y20 E1\n" for _ in range(2))
+
+
+def _training_env():
+    return TuneEnv(randomize=True, **ppo.DEFAULT_ENV_KWARGS)
+
+
+@pytest.mark.slow
+def test_both_checkers_pass_on_the_training_env():
+    from gymnasium.utils.env_checker import check_env as gym_check
+    from stable_baselines3.common.env_checker import check_env as sb3_check
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a checker warning is a failure too
+        sb3_check(_training_env(), warn=True)
+        gym_check(_training_env(), skip_render_check=True)
+
+
+def test_held_out_seeds_are_disjoint_from_training_and_benchmark():
+    assert max(ppo.EVAL_SEEDS) < min(ppo.BENCH_SEEDS)
+    assert ppo.MAX_TRAIN_SEED <= min(ppo.EVAL_SEEDS)
+    with pytest.raises(RingtuneError, match="held-out"):
+        ppo.train("/nonexistent", 10, seed=ppo.EVAL_SEEDS[0])
+
+
+def test_pinned_eval_env_shows_the_same_printer_every_reset():
+    env = ppo._pinned_env(ppo.EVAL_SEEDS[0], {**ppo.DEFAULT_ENV_KWARGS, "job": SQUARE_JOB})
+    o1, _ = env.reset()
+    p1 = env.unwrapped.printer.to_dict()
+    o2, _ = env.reset(seed=123)
+    assert np.array_equal(o1, o2) and env.unwrapped.printer.to_dict() == p1
+
+
+@pytest.mark.slow
+def test_subprocess_training_writes_policy_resumes_and_recommends(tmp_path):
+    kw = {"job": SQUARE_JOB}
+    hyper = {"n_steps": 16, "batch_size": 16, "n_epochs": 2, "net_arch": [16, 16]}
+    out = tmp_path / "pol"
+    res = ppo.train(out, timesteps=32, n_envs=2, seed=3, env_kwargs=kw, hyper=hyper, eval_freq=32,
+                    checkpoint_freq=32, progress_bar=True)
+    assert res.timesteps == 32
+    for name in ("policy.zip", "vecnormalize.pkl", "meta.json", "training_curve.png", "evaluations.npz",
+                 "best/best_model.zip"):
+        assert (out / name).is_file(), name
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["n_envs"] == 2 and meta["env_kwargs"]["job"] == SQUARE_JOB
+    # one evaluation on every held-out printer, a finite cost
+    assert len(res.eval_mean_cost) == 1 and np.isfinite(res.eval_mean_cost[0]) and res.eval_mean_cost[0] > 0.5
+    assert ppo.latest_checkpoint(out)[0].name == "ppo_32_steps.zip"
+
+    # resume (in-process envs to keep the test short)
+    res2 = ppo.train(out, timesteps=64, n_envs=2, seed=3, env_kwargs=kw, hyper=hyper, eval_freq=1000,
+                     checkpoint_freq=32, resume=True, progress_bar=False, subprocess=False)
+    assert res2.resumed_from.endswith("ppo_32_steps.zip") and res2.timesteps == 64
+    assert len(res2.train_timesteps) > len(res.train_timesteps)     # the curve continues
+
+    policy = ppo.load_policy(out)
+    config, action = ppo.recommend_for_printer(policy, None, seed=0)
+    assert isinstance(config, TuneConfig) and action.shape == (8,) and np.all(np.abs(action) <= 1)
+    config.validate()
+    assert 15 <= config.freq_x <= 150 and 15 <= config.freq_y <= 150 and 1000 <= config.accel <= 10000
+
+
+def test_load_policy_names_the_missing_file(tmp_path):
+    with pytest.raises(RingtuneError, match="policy.zip is missing"):
+        ppo.load_policy(tmp_path)
+
+
+def test_cli_recommend_policy_without_policy_folder_is_one_line_error(capsys):
+    from ringtune.agents.cli import main
+
+    assert main(["recommend", "--method", "policy", "--printer", "default"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--policy" in err[0]
