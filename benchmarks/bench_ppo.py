@@ -1,0 +1,168 @@
+"""Does the PPO policy earn its place? (issue 6, acceptance 3 and 5)
+
+On randomised printers never seen in training (``reset(seed=s)`` of ``ringtune/Tune-v0`` for ``s``
+in ``ringtune.agents.ppo.BENCH_SEEDS``; training uses seeds < 800000 and the evaluation callback
+900000–900007), the environment's cost (−reward: print-time ratio + 2·path error + 5·overshoot +
+20·ringing, mm; step loss +10) of:
+
+- policy: the policy's one-shot recommendation from the printer's simulated resonance test;
+- policy+optuna20: that answer as the first of 20 Optuna (TPE) trials over the same action space;
+- optuna200: Optuna alone, 200 trials;
+- klipper: Klipper's calibrate_shaper rule (HEAD) on the simulated resonance test, with its max_accel;
+- none: no shaping, the printer's own acceleration.
+
+Then (``--real``) the policy beside Klipper's rule on the real Klipper resonance files in
+``shared/data/accel/klipper_psd/`` (no ground truth there: it shows the recommendations and checks
+they are within the firmware's ranges).
+
+    python benchmarks/bench_ppo.py --policy policy/ [--printers 20] [--workers 2] [--real]
+
+Targets: policy mean within 10 % of optuna200's mean, and below klipper's mean.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+METHODS = ("policy", "policy+optuna20", "optuna200", "klipper", "none")
+
+
+def bench_printer(job: tuple) -> dict:
+    """All methods on one unseen printer (runs in a worker process)."""
+    policy_dir, seed, backend, n_refine, n_optuna = job
+    import torch
+
+    from ringtune.agents.klipper_rule import recommend_for_printer as klipper_for_printer
+    from ringtune.agents.ppo import load_policy
+    from ringtune.agents.ppo_refine import PrinterCost, optuna_search
+    from ringtune.envs.env import TuneEnv
+    from ringtune.shaping.config import TuneConfig
+
+    torch.set_num_threads(1)
+    policy = load_policy(policy_dir)
+    kw = {**policy.env_kwargs, "backend": backend}
+    env = TuneEnv(randomize=True, **kw)
+    obs, _ = env.reset(seed=seed)
+    printer = env.printer
+    cost = PrinterCost(printer, kw, backend=backend)
+    row: dict = {"seed": seed, "modes_x": [round(m.freq, 1) for m in printer.x.modes],
+                 "modes_y": [round(m.freq, 1) for m in printer.y.modes]}
+    t = time.perf_counter()
+    action = policy.act(obs)
+    row["policy_infer_s"] = time.perf_counter() - t
+    row["policy"] = cost.of_action(action)
+    row["policy+optuna20"] = optuna_search(cost, n_refine, seed, first_action=action).best_cost
+    t = time.perf_counter()
+    row["optuna200"] = optuna_search(cost, n_optuna, seed).best_cost
+    row["optuna200_s"] = time.perf_counter() - t
+    _, fields = klipper_for_printer(printer, "klipper", "head", seed)
+    row["klipper"] = cost.of_config(TuneConfig(**fields))
+    row["none"] = cost.of_config(TuneConfig(firmware="klipper", shaper_x="none", shaper_y="none"))
+    return row
+
+
+def simulated_table(policy_dir: str, n: int, workers: int, backend: str, n_refine: int, n_optuna: int) -> dict:
+    import multiprocessing as mp
+
+    from ringtune.agents.ppo import BENCH_SEEDS
+
+    jobs = [(policy_dir, s, backend, n_refine, n_optuna) for s in BENCH_SEEDS[:n]]
+    t0 = time.perf_counter()
+    if workers > 1:
+        with mp.get_context("forkserver").Pool(workers) as pool:
+            rows = []
+            for r in pool.imap(bench_printer, jobs):
+                rows.append(r)
+                print(f"  printer {r['seed']}: " + "  ".join(f"{m} {r[m]:.3f}" for m in METHODS), flush=True)
+    else:
+        rows = [bench_printer(j) for j in jobs]
+    wall = time.perf_counter() - t0
+    print(f"\n{n} unseen printers (seeds {jobs[0][1]}..{jobs[-1][1]}), backend {backend}, {wall:.0f} s wall")
+    print(f"{'method':<18}{'mean cost':>11}{'worst cost':>12}{'mean / optuna200':>18}")
+    ref = np.mean([r["optuna200"] for r in rows])
+    summary = {}
+    for m in METHODS:
+        c = np.array([r[m] for r in rows])
+        summary[m] = (float(c.mean()), float(c.max()))
+        print(f"{m:<18}{c.mean():>11.4f}{c.max():>12.4f}{c.mean() / ref:>18.3f}")
+    infer = np.mean([r["policy_infer_s"] for r in rows])
+    print(f"policy inference: {infer * 1e3:.1f} ms per printer; optuna200: "
+          f"{np.mean([r['optuna200_s'] for r in rows]):.1f} s per printer")
+    p, o, k = summary["policy"][0], summary["optuna200"][0], summary["klipper"][0]
+    within = p <= 1.10 * o
+    print(f"target: policy mean within 10 % of optuna200: {'MET' if within else 'MISSED'} "
+          f"({(p / o - 1) * 100:+.1f} %)")
+    print(f"target: policy mean below klipper's rule: {'MET' if p < k else 'MISSED'} ({(p / k - 1) * 100:+.1f} %)")
+    return {"rows": rows, "summary": summary}
+
+
+def real_table(policy_dir: str, data: Path) -> None:
+    """Policy vs Klipper's rule on the real Klipper resonance files."""
+    from ringtune.agents import klipper_rule as kr
+    from ringtune.agents.commands.recommend import _load_accel
+    from ringtune.agents.ppo import load_policy, recommend_from_psd
+    from ringtune.agents.ppo_recommend import _axis_spectra
+    from ringtune.shaping.config import TuneConfig
+    from ringtune.shaping.shapers import get_shaper
+
+    policy = load_policy(policy_dir)
+    print(f"\nreal Klipper resonance files ({data}): policy vs Klipper's rule (HEAD)")
+    print(f"{'printer':<28}{'ax':<4}{'policy':<26}{'klipper':<22}{'accel policy/klipper':>22}  ranges")
+    for folder in sorted(p for p in data.iterdir() if p.is_dir()):
+        files = sorted(str(f) for f in folder.glob("resonances_*.csv"))
+        if not files:
+            continue
+        psds, _ = _load_accel(files, None)
+        t = time.perf_counter()
+        pc = recommend_from_psd(policy, _axis_spectra(psds))
+        dt = time.perf_counter() - t
+        _, fields = kr.recommend_axes(psds, "klipper", "head", 5.0)
+        kc = TuneConfig(**fields)
+        ok = True
+        try:
+            pc.validate()
+            for ax in psds:
+                name, f, s = pc.axis(ax)
+                if name != "none":
+                    get_shaper(name, f, s, flavor=pc.flavor)
+        except Exception as exc:  # noqa: BLE001 - reported in the table
+            ok = f"NO ({exc})"
+        for ax in sorted(psds):
+            name, f, s = pc.axis(ax)
+            kn, kf, _ = kc.axis(ax)
+            acc = f"{pc.accel or 0:.0f}/{kc.accel or 0:.0f}"
+            print(f"{folder.name:<28}{ax:<4}{f'{name} {f:.1f} Hz S={s:.2f}':<26}{f'{kn} {kf:.1f} Hz':<22}"
+                  f"{acc:>22}  {'ok' if ok is True else ok}")
+        print(f"{'':<32}freq limit {pc.freq_limit_hz:.0f} Hz, inference {dt * 1e3:.0f} ms")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--policy", default="policy", help="folder written by `ringtune train -o DIR`")
+    ap.add_argument("--printers", type=int, default=20)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--backend", default="mujoco", choices=("mujoco", "lti"),
+                    help="physics of every method's evaluation (lti: exact linear twin, ~1.6x cheaper)")
+    ap.add_argument("--refine", type=int, default=20)
+    ap.add_argument("--optuna", type=int, default=200)
+    ap.add_argument("--real", action="store_true", help="also the real-file table (acceptance 5)")
+    ap.add_argument("--real-only", action="store_true")
+    a = ap.parse_args(argv)
+    data = Path(__file__).resolve().parents[2] / "shared" / "data" / "accel" / "klipper_psd"
+    if not a.real_only:
+        simulated_table(a.policy, a.printers, a.workers, a.backend, a.refine, a.optuna)
+    if a.real or a.real_only:
+        if data.is_dir():
+            real_table(a.policy, data)
+        else:
+            print(f"(no real data at {data})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
