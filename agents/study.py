@@ -318,7 +318,9 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
         import subprocess
         import sys
 
-        payload = json.dumps(settings.to_dict())
+        for params in settings.enqueue:      # once, here: workers racing to enqueue would duplicate
+            _enqueue_once(study, params)
+        payload = json.dumps({**settings.to_dict(), "enqueue": []})
         procs = [subprocess.Popen([sys.executable, "-m", "ringtune.agents.study", "worker", str(i)],
                                   stdin=subprocess.PIPE, text=True) for i in range(workers)]
         for p in procs:

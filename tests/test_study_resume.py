@@ -104,7 +104,14 @@ def test_first_ctrl_c_finishes_the_running_trial(tmp_path, in_tests_path):
 
 
 def test_two_workers_finish_exactly_n_without_duplicates(tmp_path, in_tests_path):
+    from ringtune.agents.space import params_from_config
+    from ringtune.agents.study import load_space
+    from ringtune.shaping.config import TuneConfig
+
     settings = _settings(f"journal:{tmp_path / 'study.journal'}", n=20)
+    space = load_space(settings)
+    warm = [TuneConfig(shaper_x=s, shaper_y=s, freq_x=50.0, freq_y=40.0, accel=3000.0) for s in ("zv", "mzv", "ei")]
+    settings.enqueue = [params_from_config(c, space) for c in warm]     # warm start: each run exactly once
     os.environ["PYTHONPATH"] = os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")])
     try:
         run = run_study(settings, workers=2)
@@ -114,6 +121,8 @@ def test_two_workers_finish_exactly_n_without_duplicates(tmp_path, in_tests_path
     assert len(done) == 20 and run.completed_now == 20
     params = [p for p, _ in done.values()]
     assert len(set(params)) == 20
+    for p in settings.enqueue:
+        assert sum(1 for q, _ in done.values() if dict(q) == p) == 1
     workers = {t.user_attrs["worker"] for t in run.study.get_trials() if t.state.name == "COMPLETE"}
     assert len(workers) == 2                    # both processes did part of the work
 
