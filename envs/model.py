@@ -210,7 +210,7 @@ def build_mjcf(printer: Printer | list, timestep: float = TIMESTEP, integrator: 
                     f'<site name="stator_{name}{sfx}" pos="{2.0 * _CRANK:g} {20.0 * row:g} 0" size="0.5"/>'
                     f'<body name="{name}{sfx}" pos="0 {20.0 * row:g} 0">'
                     f'<inertial pos="0 0 0" mass="{r.mass:.12g}" diaginertia="{inertia:.12g} {inertia:.12g} {inertia:.12g}"/>'
-                    f'<joint name="q_{name}{sfx}" type="hinge" axis="0 0 1" damping="{r.damping * r.scale ** 2:.12g}"/>'
+                    f'<joint name="q_{name}{sfx}" type="hinge" axis="0 0 1"/>'
                     f'<site name="crank_{name}{sfx}" pos="{_CRANK:g} 0 0" size="0.5"/></body>')
                 tendons.append(f'<spatial name="magnet_{name}{sfx}" springlength="0" '
                                f'stiffness="{r.peak * r.scale / (2.0 * _CRANK * _CRANK):.12g}">'

@@ -20,8 +20,8 @@ site at radius ρ; a spatial tendon of zero rest length and stiffness k_t joins 
 at distance d from the axis. Its length is L² = ρ² + d² − 2ρd·cos φ, so its potential ½k_t L²
 gives the torque −k_t ρ d sin φ exactly: the stepper's torque–angle curve. The rotor's reflected
 mass ``rotor_mass`` becomes the hinge inertia m_r·(λ/2π)², its fictitious force −m_r·a_motor a motor
-with gear m_r·λ/2π, and ``rotor_damping`` (ratio on the rotor's own frequency √(k_m/m_r)) a hinge
-damper (back-EMF and eddy losses).
+with gear m_r·λ/2π; ``rotor_damping`` is the damping ratio of the rotor modes (back-EMF and eddy
+losses).
 
 Coordinates (all relative to the commanded position, so the mass matrix stays diagonal): the
 modal bodies of :func:`ringtune.envs.model.linear_system`, then one rotor per motor (cartesian:
@@ -32,15 +32,17 @@ realised as a fixed tendon; the CoreXY primary modes are also tied by the two be
 
 Series solve: the rotor spring sits in series with the belts, so the mode springs are re-solved
 (Newton on their logarithms, the generalised eigenproblem ``K φ = ω² M φ`` of the linearised system)
-until the n lowest undamped frequencies equal the described ones to 1e-10; the n rotor... extra
+until the n lowest undamped frequencies equal the described ones to 1e-10; the rotor
 modes lie above (≈ √((k_m + belts)/m_r)). The nozzle weights are then solved (linear least squares,
 exact when the axes decouple) so that the nozzle's modal shares are the described ones and the
 rotor modes are invisible at the nozzle: the measured response stays the measured response, and
 what the motor adds is its force, its lag and, above F_hold, its slip. A description whose
 frequencies the motor's magnetic stiffness cannot carry (k_m < (m_r + M)·ω² for a single mode)
-raises :class:`RingtuneError` naming ``[motor].force``. Damping: each mode spring gets
-2ζ·m_i·ν_i (ν_i its frequency on a blocked rotor), so the modal damping is close to, not exactly,
-the described ζ.
+raises :class:`RingtuneError` naming ``[motor].force``. Damping is modal,
+``C = M Φ diag(2ζ_j ω_j) Φᵀ M`` (described ζ on the described modes, ``rotor_damping`` on the rotor
+modes), realised in MuJoCo as damper tendons along C's eigenvectors. With exact frequencies, shares
+and modal damping the nozzle's linear response *is* the rigid-motor model's (the rotor modes are
+invisible at the nozzle); the linear difference is in the motor force and the rotor's lag.
 
 Speed: the rotor mode (≈ 240 Hz for the Ender-3 defaults: k_m = 236 N/mm, m_r = 0.13 kg) has
 ω·h ≈ 0.75 at RK4's 0.5 ms, well inside RK4's stability limit 2.8 (numerical damping ≈ 0.1 % per
@@ -65,7 +67,7 @@ class Rotor:
 
     index: its coordinate; name: "x", "y", "a" or "b"; drive: (2,) commanded-acceleration weights
     of its belt coordinate; cycle: λ (mm); peak: F_hold·1000; stiffness: k_m (kg/s²);
-    damping: c_r (kg/s); mass: m_r (kg)."""
+    damping: c_r (kg/s, the diagonal of the modal damping matrix at the rotor); mass: m_r (kg)."""
 
     index: int
     name: str
@@ -106,8 +108,7 @@ def slip_system(printer):
     mr = max(mo.rotor_mass, 1e-4)
     rotors = []
     for k, (mname, drv) in enumerate(motors):
-        rotors.append(Rotor(nb + k, mname, np.array(drv), lam, mo.force * 1e3, km,
-                            2.0 * mo.rotor_damping * math.sqrt(km * mr), mr))
+        rotors.append(Rotor(nb + k, mname, np.array(drv), lam, mo.force * 1e3, km, 0.0, mr))
         names.append(f"motor_{mname}")
         axis.append(0 if mname in ("x", "a") else 1)
         mass.append(mr)
@@ -145,16 +146,18 @@ def slip_system(printer):
             belts.append((bname, v, kk, 0.0))
     targets = np.sort(np.array(omega))
     kmode = _solve_springs(K0, vecs, mass, np.array(mass[:nb]) * np.array(omega) ** 2, targets, printer)
-    springs = list(belts)
     K = K0.copy()
-    C = np.zeros((n, n))
-    for r in rotors:
-        C[r.index, r.index] += r.damping
+    springs = list(belts)
     for i, (v, k) in enumerate(zip(vecs, kmode)):
-        c = 2.0 * zeta[i] * math.sqrt(k * mass[i])
         K += k * np.outer(v, v)
-        C += c * np.outer(v, v)
-        springs.append((f"spring_{names[i]}", v, k, c))
+        springs.append((f"spring_{names[i]}", v, k, 0.0))
+    C = _modal_damping(K, mass, np.array(omega), np.array(zeta), mo.rotor_damping)
+    # realised in MuJoCo as damper tendons along C's eigenvectors (C = Σ c_k u_k u_kᵀ)
+    cval, cvec = np.linalg.eigh(C)
+    for k in np.flatnonzero(cval > 1e-12 * max(cval.max(), 1e-300)):
+        springs.append((f"damper_{k}", cvec[:, k], 0.0, float(cval[k])))
+    for r in rotors:
+        r.damping = float(C[r.index, r.index])
     W = _nozzle_weights(K, mass, drive, base, axis[:nb], np.array(share[:nb]), np.array(omega))
     scale = np.ones(n)
     for r in rotors:
@@ -211,6 +214,23 @@ def _solve_springs(K0, vecs, mass, k_init, targets, printer) -> np.ndarray:
             f"described modes up to {targets[-1] / (2 * math.pi):.1f} Hz in series with the belts; raise "
             "[motor].force, lower the masses, or set [motor].slip = false", "[motor].force")
     return np.exp(x)
+
+
+def _modal_damping(K, mass, omega, zeta, rotor_zeta) -> np.ndarray:
+    """Damping matrix (kg/s) that is exactly modal: ``C = M Φ diag(2ζ_j ω_j) Φᵀ M`` with
+    mass-normalised modes Φ of (K, M); each described mode gets its ζ (matched by frequency), the
+    rotor modes ``rotor_zeta``. With exact frequencies and shares this makes the nozzle's linear
+    response identical to the rigid-motor model's."""
+    s = 1.0 / np.sqrt(mass)
+    w2, psi = np.linalg.eigh(K * s[:, None] * s[None, :])
+    phi = psi * s[:, None]
+    wfreq = np.sqrt(np.maximum(w2, 0.0))
+    z = np.full(len(mass), float(rotor_zeta))
+    for w, zz in zip(omega, zeta):
+        z[int(np.argmin(np.abs(wfreq - w)))] = zz
+    Mphi = mass[:, None] * phi
+    C = Mphi @ np.diag(2.0 * z * wfreq) @ Mphi.T
+    return 0.5 * (C + C.T)
 
 
 def _nozzle_weights(K, mass, drive, base, axis_b, share, omega) -> np.ndarray:

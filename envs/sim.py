@@ -156,10 +156,11 @@ def _post_slip(printer: Printer, sysm: LinearSystem, kin, t, q, qd, backend: str
     """Post-processing of the slip model (:mod:`ringtune.envs.rotor`): the MuJoCo rotors feel the
     sinusoidal magnetic force, the LTI ones its linearisation.
 
-    ``motor_force`` is what each motor must give for its rotor to follow the command: the pull of
-    the belts and springs on the rotor plus its own inertia (m_r·a_motor) plus friction — the
-    rigid-motor definition evaluated on the real state. ``step_loss``: that force exceeds the
-    force at the motor's speed, or a rotor lags one full step or more (past the torque peak)."""
+    ``motor_force`` is what each motor must give for its rotor to follow the command, by the same
+    definition as the rigid-motor model (Newton on the moving masses, Σ m_i (a_cmd + q̈_i) per
+    axis, split over the CoreXY belts, plus m_r·a_motor and friction), evaluated on the real state.
+    ``step_loss``: that force exceeds the force at the motor's speed, or a rotor lags one full step
+    or more (past the peak of its torque–angle curve)."""
     p, v, a = kin
     W = sysm.W
     qdd = sysm.qacc(q, qd, a, nonlinear=backend == "mujoco")
@@ -168,13 +169,14 @@ def _post_slip(printer: Printer, sysm: LinearSystem, kin, t, q, qd, backend: str
     mo = printer.motor
     idx = np.array([r.index for r in sysm.rotors])
     drv = np.stack([r.drive for r in sysm.rotors], axis=1)            # (2, k)
-    Ks, Cs = sysm.K[idx].copy(), sysm.C[idx].copy()
-    for j, r in enumerate(sysm.rotors):
-        Ks[j, r.index] -= r.stiffness
-        Cs[j, r.index] -= r.damping
+    nb = idx.min()                                                    # mode bodies come first
+    onehot = np.zeros((nb, 2))
+    onehot[np.arange(nb), sysm.axis[:nb]] = 1.0
+    f_axis = (qdd[:, :nb] + a[:, sysm.axis[:nb]]) @ (onehot * sysm.mass[:nb, None]) * 1e-3
+    # belt force per motor: cartesian X, Y; CoreXY A = (f_x + f_y)/2, B = (f_x − f_y)/2
+    f_belt = f_axis @ (drv / np.sum(drv * drv, axis=0))
     vm, am = v @ drv, a @ drv
-    pull = (q @ Ks.T + qd @ Cs.T) * 1e-3
-    force = pull + mo.rotor_mass * am * 1e-3 + mo.friction * np.sign(vm)
+    force = f_belt + mo.rotor_mass * am * 1e-3 + mo.friction * np.sign(vm)
     fmax = mo.max_force(vm)
     lag = q[:, idx]
     over = (np.abs(force) > fmax) | (np.abs(lag) >= mo.full_step)
