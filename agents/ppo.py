@@ -183,6 +183,7 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
                         gae_lambda=hyper["gae_lambda"], ent_coef=hyper["ent_coef"],
                         clip_range=hyper["clip_range"], policy_kwargs=policy_kwargs, seed=seed,
                         device="cpu", verbose=verbose)
+            _set_prior(model, env_kwargs)
         eval_venv = VecNormalize(eval_env, training=False, norm_obs=True, norm_reward=False, clip_obs=10.0)
         every = max(eval_freq or timesteps // 8, n_envs) // n_envs
         ck_every = max(checkpoint_freq or timesteps // 8, n_envs) // n_envs
@@ -225,6 +226,27 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
     (out / "meta.json").write_text(json.dumps(meta, indent=2))
     plot_training_curve(res, out / "training_curve.png")
     return res
+
+
+#: where the untrained policy's mean answer starts (a common starting point, not a tuned answer):
+#: MZV at 50 Hz, damping 0.1, no frequency limit, 5000 mm/s²
+PRIOR = {"shaper": "mzv", "freq": 50.0, "damping": 0.1, "accel": 5000.0}
+
+
+def _set_prior(model, env_kwargs: dict) -> None:
+    """Start the policy's mean action at :data:`PRIOR` (the action head's bias; its weights start
+    near zero), instead of the centre of every range (47 Hz, a 60 Hz frequency limit, 3162 mm/s²)."""
+    import torch
+
+    from ringtune.envs.env import TuneEnv, encode_config
+
+    spec = TuneEnv(randomize=True, **env_kwargs).spec_
+    name = PRIOR["shaper"] if PRIOR["shaper"] in spec.shapers else spec.shapers[-1]
+    prior = TuneConfig(firmware=spec.firmware, shaper_x=name, shaper_y=name, freq_x=PRIOR["freq"],
+                       freq_y=PRIOR["freq"], damping_x=PRIOR["damping"], damping_y=PRIOR["damping"],
+                       freq_limit_hz=0.0, accel=PRIOR["accel"] if spec.tune_accel else None)
+    with torch.no_grad():
+        model.policy.action_net.bias.copy_(torch.as_tensor(encode_config(prior, spec)))
 
 
 class _CurveCallback:
