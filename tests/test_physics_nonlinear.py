@@ -19,6 +19,8 @@ from ringtune.shaping.motion import Motion
 
 from test_physics_accuracy import rel_rms, trapezoids
 
+#: a weak motor (10 N at the belt): slips at 25 000 mm/s² with 0.3 kg + 0.1 kg rotor
+WEAK = {"force": 10.0}
 MOTOR = {"force": 60.0, "rotor_mass": 0.1, "friction": 0.0, "steps_per_mm": 80.0, "slip": True}
 
 
@@ -120,7 +122,7 @@ def test_above_the_holding_force_the_rotor_skips_and_never_recovers():
     """(3) Asked for 1.6× the holding force the MuJoCo rotor falls behind by more than one full step,
     keeps whole electrical cycles lost after the load is gone (a skipped step) and the nozzle with
     it; the linear twin stays bounded and returns to the commanded position."""
-    p = slip_printer(50.0)
+    p = slip_printer(50.0, motor=WEAK)
     s = linear_system(p)
     m_tot = s.mass[s.axis == 0].sum()                     # x bodies + x rotor (its axis is x)
     a_star = p.motor.force * 1e3 / m_tot
@@ -154,7 +156,7 @@ def _staircase(a_end, duration, steps=80, hold=0.0):
 def test_slip_onset_where_the_demanded_force_crosses_the_holding_force():
     """(4) Loading the motor slowly, the MuJoCo rotor slips (passes one full step, the torque peak)
     when the analytic demanded force m_total·a crosses F_hold; held just below it never slips."""
-    p = slip_printer(50.0)
+    p = slip_printer(50.0, motor=WEAK)
     s = linear_system(p)
     m_tot = s.mass[s.axis == 0].sum()
     a_star = p.motor.force * 1e3 / m_tot
