@@ -32,9 +32,14 @@ import numpy as np
 METHODS = ("policy", "policy+optuna20", "optuna200", "klipper", "none")
 
 
+BASELINES = ("optuna200", "klipper", "none")
+
+
 def bench_printer(job: tuple) -> dict:
-    """All methods on one unseen printer (runs in a worker process)."""
-    policy_dir, seed, backend, n_refine, n_optuna = job
+    """All methods on one unseen printer (runs in a worker process). ``cached``: the
+    policy-independent results (optuna200, klipper, none) of an earlier run, or None.
+    ``policy_dir`` None: the baselines only."""
+    policy_dir, seed, backend, n_refine, n_optuna, cached = job
     import torch
 
     from ringtune.agents.klipper_rule import recommend_for_printer as klipper_for_printer
@@ -43,20 +48,26 @@ def bench_printer(job: tuple) -> dict:
     from ringtune.envs.env import TuneEnv
     from ringtune.shaping.config import TuneConfig
 
+    from ringtune.agents.ppo import DEFAULT_ENV_KWARGS
+
     torch.set_num_threads(1)
-    policy = load_policy(policy_dir)
-    kw = {**policy.env_kwargs, "backend": backend}
+    policy = load_policy(policy_dir) if policy_dir else None
+    kw = {**(policy.env_kwargs if policy else DEFAULT_ENV_KWARGS), "backend": backend}
     env = TuneEnv(randomize=True, **kw)
     obs, _ = env.reset(seed=seed)
     printer = env.printer
     cost = PrinterCost(printer, kw, backend=backend)
-    row: dict = {"seed": seed, "modes_x": [round(m.freq, 1) for m in printer.x.modes],
+    row: dict = {"seed": seed, "backend": backend, "modes_x": [round(m.freq, 1) for m in printer.x.modes],
                  "modes_y": [round(m.freq, 1) for m in printer.y.modes]}
-    t = time.perf_counter()
-    action = policy.act(obs)
-    row["policy_infer_s"] = time.perf_counter() - t
-    row["policy"] = cost.of_action(action)
-    row["policy+optuna20"] = optuna_search(cost, n_refine, seed, first_action=action).best_cost
+    if policy is not None:
+        t = time.perf_counter()
+        action = policy.act(obs)
+        row["policy_infer_s"] = time.perf_counter() - t
+        row["policy"] = cost.of_action(action)
+        row["policy+optuna20"] = optuna_search(cost, n_refine, seed, first_action=action).best_cost
+    if cached:
+        row.update({k: cached[k] for k in (*BASELINES, "optuna200_s")})
+        return row
     t = time.perf_counter()
     row["optuna200"] = optuna_search(cost, n_optuna, seed).best_cost
     row["optuna200_s"] = time.perf_counter() - t
@@ -66,22 +77,32 @@ def bench_printer(job: tuple) -> dict:
     return row
 
 
-def simulated_table(policy_dir: str, n: int, workers: int, backend: str, n_refine: int, n_optuna: int) -> dict:
+def simulated_table(policy_dir: str | None, n: int, workers: int, backend: str, n_refine: int, n_optuna: int,
+                    cache: Path | None = None) -> dict:
+    """The table; ``cache`` (JSON) keeps the policy-independent baselines per (seed, backend,
+    trials) so that a new policy is compared on exactly the same numbers without re-running them."""
+    import json
     import multiprocessing as mp
 
     from ringtune.agents.ppo import BENCH_SEEDS
 
-    jobs = [(policy_dir, s, backend, n_refine, n_optuna) for s in BENCH_SEEDS[:n]]
+    store = json.loads(cache.read_text()) if cache and cache.is_file() else {}
+    key = lambda s: f"{s}:{backend}:{n_optuna}"  # noqa: E731
+    jobs = [(policy_dir, s, backend, n_refine, n_optuna, store.get(key(s))) for s in BENCH_SEEDS[:n]]
     t0 = time.perf_counter()
-    if workers > 1:
-        with mp.get_context("forkserver").Pool(workers) as pool:
-            rows = []
-            for r in pool.imap(bench_printer, jobs):
-                rows.append(r)
-                print(f"  printer {r['seed']}: " + "  ".join(f"{m} {r[m]:.3f}" for m in METHODS), flush=True)
-    else:
-        rows = [bench_printer(j) for j in jobs]
+    rows = []
+    methods = METHODS if policy_dir else BASELINES
+    ctx = mp.get_context("forkserver")
+    with ctx.Pool(workers) if workers > 1 else _Serial() as pool:
+        for r in pool.imap(bench_printer, jobs):
+            rows.append(r)
+            store[key(r["seed"])] = {k: r[k] for k in (*BASELINES, "optuna200_s")}
+            if cache:
+                cache.write_text(json.dumps(store, indent=1))
+            print(f"  printer {r['seed']}: " + "  ".join(f"{m} {r[m]:.3f}" for m in methods), flush=True)
     wall = time.perf_counter() - t0
+    if not policy_dir:
+        return {"rows": rows}
     print(f"\n{n} unseen printers (seeds {jobs[0][1]}..{jobs[-1][1]}), backend {backend}, {wall:.0f} s wall")
     print(f"{'method':<18}{'mean cost':>11}{'worst cost':>12}{'mean / optuna200':>18}")
     ref = np.mean([r["optuna200"] for r in rows])
@@ -99,6 +120,18 @@ def simulated_table(policy_dir: str, n: int, workers: int, backend: str, n_refin
           f"({(p / o - 1) * 100:+.1f} %)")
     print(f"target: policy mean below klipper's rule: {'MET' if p < k else 'MISSED'} ({(p / k - 1) * 100:+.1f} %)")
     return {"rows": rows, "summary": summary}
+
+
+class _Serial:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    @staticmethod
+    def imap(f, jobs):
+        return map(f, jobs)
 
 
 def real_table(policy_dir: str, data: Path) -> None:
@@ -152,10 +185,13 @@ def main(argv=None) -> int:
     ap.add_argument("--optuna", type=int, default=200)
     ap.add_argument("--real", action="store_true", help="also the real-file table (acceptance 5)")
     ap.add_argument("--real-only", action="store_true")
+    ap.add_argument("--baselines-only", action="store_true", help="only optuna200, klipper, none (into --cache)")
+    ap.add_argument("--cache", type=Path, help="JSON cache of the policy-independent baselines")
     a = ap.parse_args(argv)
     data = Path(__file__).resolve().parents[2] / "shared" / "data" / "accel" / "klipper_psd"
     if not a.real_only:
-        simulated_table(a.policy, a.printers, a.workers, a.backend, a.refine, a.optuna)
+        simulated_table(None if a.baselines_only else a.policy, a.printers, a.workers, a.backend, a.refine,
+                        a.optuna, a.cache)
     if a.real or a.real_only:
         if data.is_dir():
             real_table(a.policy, data)
