@@ -42,8 +42,10 @@ import numpy as np
 
 from ringtune.envs.printer import Printer
 
-#: crank radius (mm) of the rotor's magnet tendon; its stator site sits at twice that distance
-_CRANK = 1.0
+#: the model's gravity (mm/s², along −z) when it holds rotor pendulums: it drives only their
+#: sinusoidal magnetic torque (every other joint slides horizontally). Large, so that the pendulum
+#: arm ρ = F_hold·(λ/2π)/(m_r·G) stays far inside the rotor's radius of gyration λ/2π.
+_MAGNET_G = 1.0e9
 
 #: default integrator and timestep: RK4 at 0.5 ms is within 0.12 % RMS at 120 Hz (ecosystem.md §4)
 INTEGRATOR = "RK4"
@@ -185,8 +187,11 @@ def build_mjcf(printer: Printer | list, timestep: float = TIMESTEP, integrator: 
     dirs = ("1 0 0", "0 1 0")
     bodies, tendons, motors = [], [], []
     row = 0
-    for r, pr in enumerate(printers):
-        sysm = linear_system(pr)
+    gravity = False
+    systems = [linear_system(pr) for pr in printers]
+    # magnet gravity: large enough that every pendulum arm is ≤ λ/2π / 4
+    grav = max([_MAGNET_G] + [4.0 * r.peak / r.mass for s_ in systems for r in s_.rotors])
+    for r, (pr, sysm) in enumerate(zip(printers, systems)):
         sfx = f"_r{r}" if len(printers) > 1 else ""
         rot = {r.index: r for r in sysm.rotors}
         scale = sysm.scale if sysm.scale is not None else np.ones(sysm.n)
@@ -204,17 +209,17 @@ def build_mjcf(printer: Printer | list, timestep: float = TIMESTEP, integrator: 
                     f'stiffness="{sysm.joint_stiffness[i]:.12g}" damping="{sysm.joint_damping[i]:.12g}"/>'
                     f'<geom type="box" size="5 5 5" contype="0" conaffinity="0"/>{site}</body>')
             else:
-                # rotor hinge (angle = 2π·lag/λ) with the crank tendon: torque −k_t·ρ·d·sin φ
-                inertia = r.mass * r.scale ** 2
+                # rotor hinge (angle = 2π·lag/λ), a pendulum under the model's gravity G:
+                # torque −m_r·G·ρ·sin φ = −F_hold·(λ/2π)·sin φ (envs.rotor)
+                rho = r.peak * r.scale / (r.mass * grav)
+                inertia = r.mass * (r.scale ** 2 - rho ** 2)
                 bodies.append(
-                    f'<site name="stator_{name}{sfx}" pos="{2.0 * _CRANK:g} {20.0 * row:g} 0" size="0.5"/>'
                     f'<body name="{name}{sfx}" pos="0 {20.0 * row:g} 0">'
-                    f'<inertial pos="0 0 0" mass="{r.mass:.12g}" diaginertia="{inertia:.12g} {inertia:.12g} {inertia:.12g}"/>'
-                    f'<joint name="q_{name}{sfx}" type="hinge" axis="0 0 1"/>'
-                    f'<site name="crank_{name}{sfx}" pos="{_CRANK:g} 0 0" size="0.5"/></body>')
-                tendons.append(f'<spatial name="magnet_{name}{sfx}" springlength="0" '
-                               f'stiffness="{r.peak * r.scale / (2.0 * _CRANK * _CRANK):.12g}">'
-                               f'<site site="stator_{name}{sfx}"/><site site="crank_{name}{sfx}"/></spatial>')
+                    f'<inertial pos="0 0 {-rho:.12g}" mass="{r.mass:.12g}" '
+                    f'diaginertia="{inertia:.12g} {inertia:.12g} {inertia:.12g}"/>'
+                    f'<joint name="q_{name}{sfx}" type="hinge" axis="0 1 0" '
+                    f'damping="{sysm.joint_damping[i] * r.scale ** 2:.12g}"/></body>')
+                gravity = True
             motors.append(f'<motor name="drive_{name}{sfx}" joint="q_{name}{sfx}" '
                           f'gear="{sysm.mass[i] * scale[i]:.12g}" ctrllimited="false"/>')
             row += 1
@@ -236,8 +241,10 @@ def build_mjcf(printer: Printer | list, timestep: float = TIMESTEP, integrator: 
     return (
         f'<mujoco model="{name}">'
         '<compiler angle="radian"/>'
-        f'<option timestep="{timestep:.12g}" integrator="{integrator}" gravity="0 0 0">'
-        '<flag contact="disable" constraint="disable" energy="disable" gravity="disable" '
+        f'<option timestep="{timestep:.12g}" integrator="{integrator}" '
+        f'gravity="0 0 {-grav if gravity else 0.0:.12g}">'
+        f'<flag contact="disable" constraint="disable" energy="disable" '
+        f'gravity="{"enable" if gravity else "disable"}" '
         'warmstart="disable" filterparent="disable" midphase="disable" nativeccd="disable" '
         'island="disable"/></option>'
         f'<worldbody>{"".join(bodies)}</worldbody>'

@@ -15,13 +15,14 @@ and, once the load is gone, locks again on a later equilibrium e = −j·λ: j w
 (``forcerange``) would not do that: it recovers its position when the load drops, so it cannot
 show a ruined print.
 
-MuJoCo form (exact, no callbacks): the rotor is a hinge (angle φ = 2π e/λ) whose body carries a
-site at radius ρ; a spatial tendon of zero rest length and stiffness k_t joins it to a fixed site
-at distance d from the axis. Its length is L² = ρ² + d² − 2ρd·cos φ, so its potential ½k_t L²
-gives the torque −k_t ρ d sin φ exactly: the stepper's torque–angle curve. The rotor's reflected
-mass ``rotor_mass`` becomes the hinge inertia m_r·(λ/2π)², its fictitious force −m_r·a_motor a motor
-with gear m_r·λ/2π; ``rotor_damping`` is the damping ratio of the rotor modes (back-EMF and eddy
-losses).
+MuJoCo form (exact, no callbacks, no extra cost): the rotor is a hinge (angle φ = 2π e/λ) about a
+horizontal axis whose body is a pendulum: its centre of mass sits ρ below the axis and the model's
+gravity (used for nothing else: every other joint slides horizontally) gives the torque
+−m g ρ·sin φ exactly — the stepper's torque–angle curve, with m g ρ = F_hold·λ/2π. (A spatial
+tendon of zero rest length on a crank gives the same law but doubles the cost per step.) The
+rotor's reflected mass ``rotor_mass`` becomes the hinge inertia m_r·(λ/2π)² (parallel-axis part
+included), its fictitious force −m_r·a_motor a motor with gear m_r·λ/2π; ``rotor_damping`` is the
+damping ratio of the rotor modes (back-EMF and eddy losses).
 
 Coordinates (all relative to the commanded position, so the mass matrix stays diagonal): the
 modal bodies of :func:`ringtune.envs.model.linear_system`, then one rotor per motor (cartesian:
@@ -40,7 +41,8 @@ what the motor adds is its force, its lag and, above F_hold, its slip. A descrip
 frequencies the motor's magnetic stiffness cannot carry (k_m < (m_r + M)·ω² for a single mode)
 raises :class:`RingtuneError` naming ``[motor].force``. Damping is modal,
 ``C = M Φ diag(2ζ_j ω_j) Φᵀ M`` (described ζ on the described modes, ``rotor_damping`` on the rotor
-modes), realised in MuJoCo as damper tendons along C's eigenvectors. With exact frequencies, shares
+modes), realised in MuJoCo sparsely: each off-diagonal entry as a two-joint damper tendon (merged
+into the spring tendon of the same pair), the rest of the diagonal as joint damping. With exact frequencies, shares
 and modal damping the nozzle's linear response *is* the rigid-motor model's (the rotor modes are
 invisible at the nozzle); the linear difference is in the motor force and the rotor's lag.
 
@@ -152,10 +154,7 @@ def slip_system(printer):
         K += k * np.outer(v, v)
         springs.append((f"spring_{names[i]}", v, k, 0.0))
     C = _modal_damping(K, mass, np.array(omega), np.array(zeta), mo.rotor_damping)
-    # realised in MuJoCo as damper tendons along C's eigenvectors (C = Σ c_k u_k u_kᵀ)
-    cval, cvec = np.linalg.eigh(C)
-    for k in np.flatnonzero(cval > 1e-12 * max(cval.max(), 1e-300)):
-        springs.append((f"damper_{k}", cvec[:, k], 0.0, float(cval[k])))
+    springs, joint_damping = _damper_tendons(C, springs)
     for r in rotors:
         r.damping = float(C[r.index, r.index])
     W = _nozzle_weights(K, mass, drive, base, axis[:nb], np.array(share[:nb]), np.array(omega))
@@ -163,7 +162,7 @@ def slip_system(printer):
     for r in rotors:
         scale[r.index] = r.scale
     springs = [(nm, {j: float(c) for j, c in enumerate(v) if c != 0.0}, k, c) for nm, v, k, c in springs]
-    return LinearSystem(names, axis, mass, np.array(share, float), K, C, np.zeros(n), np.zeros(n),
+    return LinearSystem(names, axis, mass, np.array(share, float), K, C, np.zeros(n), joint_damping,
                         [], printer.kinematics, drive=drive, nozzle_w=W, scale=scale, rotors=rotors,
                         springs=springs)
 
@@ -231,6 +230,33 @@ def _modal_damping(K, mass, omega, zeta, rotor_zeta) -> np.ndarray:
     Mphi = mass[:, None] * phi
     C = Mphi @ np.diag(2.0 * z * wfreq) @ Mphi.T
     return 0.5 * (C + C.T)
+
+
+def _damper_tendons(C: np.ndarray, springs: list) -> tuple[list, np.ndarray]:
+    """Realise a full damping matrix sparsely: each off-diagonal C_ij as a two-joint tendon
+    e_i + sign(C_ij)·e_j of damping |C_ij| (merged into a spring tendon along the same vector),
+    the rest of the diagonal as joint damping (may be negative; only the sum matters).
+    Returns (tendons, joint damping)."""
+    n = len(C)
+    tol = 1e-12 * max(np.abs(C).max(), 1e-300)
+    out = [list(t) for t in springs]
+    joint = np.diag(C).copy()
+    for i in range(n):
+        for j in range(i + 1, n):
+            c = C[i, j]
+            if abs(c) <= tol:
+                continue
+            v = np.zeros(n)
+            v[i], v[j] = 1.0, math.copysign(1.0, c)
+            joint[i] -= abs(c)
+            joint[j] -= abs(c)
+            for t in out:
+                if np.array_equal(t[1], v) or np.array_equal(t[1], -v):
+                    t[3] += abs(c)
+                    break
+            else:
+                out.append([f"damper_{i}_{j}", v, 0.0, abs(c)])
+    return [tuple(t) for t in out], joint
 
 
 def _nozzle_weights(K, mass, drive, base, axis_b, share, omega) -> np.ndarray:

@@ -178,19 +178,29 @@ def test_slip_onset_where_the_demanded_force_crosses_the_holding_force():
 
 
 def test_mjcf_magnet_is_the_stepper_torque_angle_curve():
-    """The crank tendon gives exactly −F_hold·sin(2π e/λ) at the belt, for any lag e (beside the
+    """The rotor pendulum gives exactly −F_hold·sin(2π e/λ) at the belt, for any lag e (beside the
     linear belt springs the displaced rotor stretches)."""
     import mujoco
 
-    p = slip_printer(50.0)
+    p = slip_printer(50.0, motor=WEAK)
     s = linear_system(p)
     m = build_model(p)
     d = mujoco.MjData(m)
-    r = s.rotors[0]
-    for e in np.linspace(-1.7, 1.7, 23) * r.cycle:
+    for r in s.rotors:
+        for e in np.linspace(-1.7, 1.7, 23) * r.cycle:
+            d.qpos[:] = 0.0
+            d.qvel[:] = 0.0
+            d.qpos[r.index] = e / r.scale
+            mujoco.mj_forward(m, d)
+            force = (d.qfrc_passive[r.index] - d.qfrc_bias[r.index]) / r.scale   # kg·mm/s² at the belt
+            belts = (s.K[r.index, r.index] - r.stiffness) * e     # the linear springs it stretches
+            assert force + belts == pytest.approx(-r.peak * math.sin(2 * math.pi * e / r.cycle),
+                                                  abs=1e-6 * r.peak)
+        # and its inertia is the reflected rotor mass
         d.qpos[:] = 0.0
-        d.qpos[r.index] = e / r.scale
         mujoco.mj_forward(m, d)
-        force = d.qfrc_passive[r.index] / r.scale             # N·mm/rad -> kg·mm/s² at the belt
-        belts = (s.K[r.index, r.index] - r.stiffness) * e     # the linear springs it stretches
-        assert force + belts == pytest.approx(-r.peak * math.sin(2 * math.pi * e / r.cycle), abs=1e-6 * r.peak)
+        unit, Mu = np.zeros(m.nv), np.zeros(m.nv)
+        unit[r.index] = 1.0
+        mujoco.mj_mulM(m, d, Mu, unit)
+        assert Mu[r.index] * r.scale ** -2 == pytest.approx(r.mass, rel=1e-9)
+        assert np.count_nonzero(Mu) == 1                          # diagonal mass matrix
