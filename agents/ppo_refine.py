@@ -21,11 +21,14 @@ class PrinterCost:
     """Cost of configurations (or actions) on one fixed printer, as ``TuneEnv`` scores them."""
 
     def __init__(self, printer=None, env_kwargs: dict | None = None, backend: str = "mujoco", job=None):
+        """``env_kwargs``: the policy's env arguments (its job, weights, action layout); ``job``
+        overrides the job."""
         from ringtune.envs.env import TuneEnv
 
-        kw = {k: v for k, v in (env_kwargs or {}).items() if k not in ("backend", "observe_metrics")}
-        self.env = TuneEnv(printer=printer, randomize=False, job=job, backend=backend,
-                           observe_metrics=False, **kw)
+        kw = {k: v for k, v in (env_kwargs or {}).items() if k not in ("backend", "observe_metrics", "randomize")}
+        if job is not None:
+            kw["job"] = job
+        self.env = TuneEnv(printer=printer, randomize=False, backend=backend, observe_metrics=False, **kw)
         self.env.reset(seed=0)      # computes the baseline print time of this printer
         self.n_evaluations = 0
 

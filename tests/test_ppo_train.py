@@ -79,6 +79,35 @@ def test_subprocess_training_writes_policy_resumes_and_recommends(tmp_path):
     assert isinstance(config, TuneConfig) and action.shape == (8,) and np.all(np.abs(action) <= 1)
     config.validate()
     assert 15 <= config.freq_x <= 150 and 15 <= config.freq_y <= 150 and 1000 <= config.accel <= 10000
+    _check_recommend_cli(out)
+
+
+def _check_recommend_cli(policy_dir):
+    """`ringtune recommend --method policy` on a real file and on a modelled printer with --refine."""
+    import io
+
+    from ringtune.agents.cli import Output
+    from ringtune.agents.commands import recommend
+    from pathlib import Path
+
+    def run(argv):
+        import argparse
+
+        p = argparse.ArgumentParser()
+        recommend.add_arguments(p)
+        args = p.parse_args(argv)
+        args.json = True
+        buf = io.StringIO()
+        assert recommend.run(args, Output(json=True, stream=buf)) == 0
+        return json.loads(buf.getvalue())
+
+    real = Path(__file__).resolve().parents[2] / "shared" / "data" / "accel" / "klipper_psd" / "bassco_voron_v24"
+    if real.is_dir():
+        d = run(["--method", "policy", "--policy", str(policy_dir), "--accel", *map(str, sorted(real.glob("*.csv")))])
+        assert d["method"] == "policy" and d["refine"] is None and d["inference_s"] < 1.0
+        TuneConfig.from_dict(d["config"]).validate()
+    d = run(["--method", "policy", "--policy", str(policy_dir), "--printer", "default", "--refine", "2"])
+    assert d["refine"]["trials"] == 2 and d["refine"]["best_cost"] <= d["refine"]["first_cost"]
 
 
 def test_load_policy_names_the_missing_file(tmp_path):
@@ -86,9 +115,14 @@ def test_load_policy_names_the_missing_file(tmp_path):
         ppo.load_policy(tmp_path)
 
 
-def test_cli_recommend_policy_without_policy_folder_is_one_line_error(capsys):
+def test_cli_errors_are_one_line(capsys, tmp_path):
     from ringtune.agents.cli import main
 
-    assert main(["recommend", "--method", "policy", "--printer", "default"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "--policy" in err[0]
+    for argv, what in ((["recommend", "--method", "policy", "--printer", "default"], "--policy"),
+                       (["recommend", "--method", "policy", "--policy", str(tmp_path), "--printer", "default"],
+                        "policy.zip is missing"),
+                       (["train", "--envs", "0", "-o", str(tmp_path)], "--envs"),
+                       (["train", "--seed", "900000", "-o", str(tmp_path)], "--seed")):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and what in err[0], (argv, err)

@@ -67,6 +67,9 @@ def run(args, out) -> int:
         raise RingtuneError("needs at least one environment", "--envs")
     if args.timesteps < 1:
         raise RingtuneError("must be ≥ 1", "--timesteps")
+    if not 0 <= args.seed < ppo.MAX_TRAIN_SEED:
+        raise RingtuneError(f"must be in [0, {ppo.MAX_TRAIN_SEED}) (higher seeds are the held-out printers)",
+                            "--seed")
     hyper, hpo = None, None
     if args.hpo:
         if args.resume:
