@@ -88,10 +88,10 @@ def frequency_response(sysm: LinearSystem, freqs: np.ndarray, axis: int) -> np.n
     acceleration on the same axis: ``(a_cmd + Σ share·q̈)/a_cmd`` at ``freqs`` (Hz), (F,)."""
     w = 2j * np.pi * np.asarray(freqs, float)
     b = sysm.B[:, axis]
+    wn = sysm.W[:, axis]
     out = np.empty(len(w), complex)
-    onax = sysm.axis == axis
     for i, s in enumerate(w):
         Z = sysm.K + s * sysm.C + (s * s) * np.diag(sysm.mass)
         q = np.linalg.solve(Z, -sysm.mass * b)
-        out[i] = 1.0 + (s * s) * np.sum(sysm.share[onax] * q[onax])
+        out[i] = 1.0 + (s * s) * (wn @ q)
     return out

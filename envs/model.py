@@ -24,8 +24,18 @@ Formulation (why it is built this way):
 - **Motor force and step loss**: the force each motor must give is the belt force that accelerates
   the masses plus its rotor's inertia and friction (computed exactly from the state in
   :mod:`ringtune.envs.sim`); step loss is that force exceeding the motor's force at the motor's
-  speed (:meth:`MotorModel.max_force`). Past that point a stepper skips and the print is ruined,
-  so detection (not post-slip dynamics) is what matters.
+  speed (:meth:`MotorModel.max_force`).
+- **Slip model** (default whenever the motor can carry the described modes; ``[motor] slip``):
+  each motor gets a rotor coordinate held to the commanded electrical position by the stepper's
+  real torque–angle curve ``−F_hold·sin(2π e/λ)`` (λ = 4 full steps), so a motor asked for more
+  than F_hold *falls behind and skips whole electrical cycles* in MuJoCo, which no linear model
+  can show; the modes hang off the rotors with their springs re-solved in series so that the
+  described frequencies, shares and damping hold exactly (the nozzle's linear response is the
+  rigid-motor model's). The exact LTI reference integrates the linearised twin (spring
+  k_m = F_hold·2π/λ). Step loss is then also flagged when a rotor lags a full step (the torque
+  peak). Formulation, MuJoCo realisation (rotor pendulum, sparse damper tendons) and limits in
+  :mod:`ringtune.envs.rotor`. The clamp is the standstill holding force; the fall of the
+  available force with speed remains a detection criterion only.
 - **Accelerometer**: optional MuJoCo ``accelerometer`` sensor on the toolhead body (first X mode;
   it reads that body's acceleration relative to the commanded frame).
   The simulator reports the head's absolute acceleration computed exactly from the state
@@ -143,10 +153,15 @@ class LinearSystem:
 def linear_system(printer: Printer) -> LinearSystem:
     """The printer's linear mechanics (modes after print mass), as used by both backends; with
     ``[motor] slip = true`` the linearised slip model of :mod:`ringtune.envs.rotor`."""
-    if printer.motor.slip:
+    if printer.motor.slip is not False:
         from ringtune.envs.rotor import slip_system
+        from ringtune.shaping.errors import RingtuneError
 
-        return slip_system(printer)
+        try:
+            return slip_system(printer)
+        except RingtuneError:
+            if printer.motor.slip:
+                raise
     names, axis, mass, share, k, c = [], [], [], [], [], []
     for ai, ax in enumerate(("x", "y")):
         total = printer.moving_mass(ax)

@@ -33,10 +33,12 @@ lowers Y's frequencies, modes being measured with an empty bed). ``[motor]``: ``
 belt, pull-out force at low speed), ``corner_speed`` (mm/s above which the force falls as
 ``force·corner_speed/speed``, the constant-power region of a stepper), ``rotor_mass`` (kg, rotor
 inertia reflected to the belt), ``friction`` (N), ``steps_per_mm``, ``microsteps`` (per full step, default 16: one electrical cycle
-λ = 4·microsteps/steps_per_mm mm of belt), ``rotor_damping`` (damping ratio of the rotor on its
-magnetic spring, default 0.1) and ``slip`` (default false: true simulates the rotor on its
-sinusoidal magnetic spring so that an overloaded motor really skips steps; see
-:mod:`ringtune.envs.rotor`). ``[belts]`` (corexy only):
+λ = 4·microsteps/steps_per_mm mm of belt), ``rotor_damping`` (damping ratio of the rotor modes, default 0.1) and ``slip``: unset (default)
+simulates each rotor on its sinusoidal magnetic spring, so that an overloaded motor really skips
+steps, whenever the motor can carry the described modes (otherwise the motor is rigid and step loss
+is only detected); ``true`` insists on it (an error names ``[motor].force`` if the motor is too
+weak for the modes); ``false`` keeps the rigid, purely linear motor. See :mod:`ringtune.envs.rotor`.
+``[belts]`` (corexy only):
 ``stiffness`` (N/m of each belt at the head; default: half the stiffer-than-needed axis stiffness,
 see :meth:`Printer.belt_stiffnesses`) and ``mismatch`` ((k_A − k_B)/mean, 0 = matched belts).
 """
@@ -68,7 +70,7 @@ DEFAULTS: dict[str, Any] = {
     "friction": 1.0,         # N
     "steps_per_mm": 80.0,
     "microsteps": 16,        # microsteps per full step (steps_per_mm counts microsteps)
-    "rotor_damping": 0.1,    # damping ratio of the rotor on its magnetic spring (slip model)
+    "rotor_damping": 0.1,    # damping ratio of the rotor modes (slip model)
     "belt_mismatch": 0.0,
 }
 
@@ -122,7 +124,7 @@ class MotorModel:
     steps_per_mm: float = DEFAULTS["steps_per_mm"]
     microsteps: float = DEFAULTS["microsteps"]
     rotor_damping: float = DEFAULTS["rotor_damping"]
-    slip: bool = False
+    slip: bool | None = None
 
     @property
     def electrical_cycle(self) -> float:
@@ -233,8 +235,10 @@ class Printer:
         mo = self.motor
         d["motor"] = {"force": mo.force, "corner_speed": mo.corner_speed, "rotor_mass": mo.rotor_mass,
                       "friction": mo.friction, "steps_per_mm": mo.steps_per_mm}
-        if mo.slip or mo.microsteps != DEFAULTS["microsteps"] or mo.rotor_damping != DEFAULTS["rotor_damping"]:
-            d["motor"].update(microsteps=mo.microsteps, rotor_damping=mo.rotor_damping, slip=mo.slip)
+        if mo.microsteps != DEFAULTS["microsteps"] or mo.rotor_damping != DEFAULTS["rotor_damping"]:
+            d["motor"].update(microsteps=mo.microsteps, rotor_damping=mo.rotor_damping)
+        if mo.slip is not None:
+            d["motor"]["slip"] = mo.slip
         if self.kinematics == "corexy":
             belts: dict[str, Any] = {"mismatch": self.belt_mismatch}
             if self.belt_stiffness is not None:
@@ -293,9 +297,9 @@ def _num(d: dict, key: str, where: str, default=None, lo=None, hi=None, lo_open=
     return v
 
 
-def _bool(d: dict, key: str, where: str, default: bool) -> bool:
+def _bool(d: dict, key: str, where: str, default: bool | None) -> bool | None:
     v = d.get(key, default)
-    if not isinstance(v, bool):
+    if v is not None and not isinstance(v, bool):
         raise RingtuneError(f"{key} must be true or false, got {v!r}", f"{where}.{key}")
     return v
 
@@ -437,7 +441,7 @@ def printer_from_dict(d: dict, where: str = "printer") -> Printer:
         steps_per_mm=_num(mo, "steps_per_mm", mw, DEFAULTS["steps_per_mm"], lo=0.0, lo_open=True),
         microsteps=_num(mo, "microsteps", mw, DEFAULTS["microsteps"], lo=1.0),
         rotor_damping=_num(mo, "rotor_damping", mw, DEFAULTS["rotor_damping"], lo=0.0, hi=2.0),
-        slip=_bool(mo, "slip", mw, False),
+        slip=_bool(mo, "slip", mw, None),
     )
     print_mass = _num(d, "print_mass", where, DEFAULTS["print_mass"], lo=0.0)
     belts = _table(d, "belts", where)

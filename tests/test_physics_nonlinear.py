@@ -1,4 +1,4 @@
-"""The slip model ([motor] slip = true, envs.rotor): the stepper's rotor on its sinusoidal magnetic
+"""The slip model (default, [motor] slip; envs.rotor): the stepper's rotor on its sinusoidal magnetic
 spring. Below the holding force MuJoCo is the exact linear twin's (LTI with the same rotor stage);
 the series spring solve keeps the described modes; above the holding force the rotor really skips
 (falls behind by whole electrical cycles and stays there), which no linear model can show."""
@@ -25,9 +25,9 @@ MOTOR = {"force": 60.0, "rotor_mass": 0.1, "friction": 0.0, "steps_per_mm": 80.0
 
 
 def slip_printer(freq, damping=0.05, mass=0.3, motor=None, **extra):
+    mo = {k: v for k, v in dict(MOTOR, **(motor or {})).items() if v is not None}
     d = {"x": {"mass": mass, "modes": [{"freq": freq, "damping": damping}]},
-         "y": {"mass": mass, "modes": [{"freq": 0.8 * freq, "damping": damping}]},
-         "motor": dict(MOTOR, **(motor or {}))}
+         "y": {"mass": mass, "modes": [{"freq": 0.8 * freq, "damping": damping}]}, "motor": mo}
     d.update(extra)
     return printer_from_dict(d)
 
@@ -204,3 +204,17 @@ def test_mjcf_magnet_is_the_stepper_torque_angle_curve():
         mujoco.mj_mulM(m, d, Mu, unit)
         assert Mu[r.index] * r.scale ** -2 == pytest.approx(r.mass, rel=1e-9)
         assert np.count_nonzero(Mu) == 1                          # diagonal mass matrix
+
+
+def test_slip_model_is_the_default_when_the_motor_can_carry_the_modes():
+    """Unset [motor].slip: the embedded printers get rotors; a motor too weak for the described
+    modes falls back to the rigid motor (step loss detected only); slip = false forces rigid."""
+    for name in ("ender3", "voron24"):
+        assert [r.name for r in linear_system(load_printer(name)).rotors] == (
+            ["x", "y"] if name == "ender3" else ["a", "b"])
+    weak = slip_printer(150.0, mass=0.55, motor={"force": 20.0, "slip": None})
+    assert weak.motor.slip is None and linear_system(weak).rotors == []
+    assert linear_system(slip_printer(50.0, motor={"slip": False})).rotors == []
+    # the unset default round-trips as unset
+    import tomllib
+    assert printer_from_dict(tomllib.loads(load_printer(None).to_toml())).motor.slip is None
