@@ -150,6 +150,10 @@ class LinearSystem:
         return np.linalg.solve(self.K, -self.mass * (self.B @ np.asarray(a_cmd, float)))
 
 
+#: solved slip systems (or False: infeasible) by printer description; the series solve costs ms
+_SLIP_CACHE: dict = {}
+
+
 def linear_system(printer: Printer) -> LinearSystem:
     """The printer's linear mechanics (modes after print mass), as used by both backends; with
     ``[motor] slip = true`` the linearised slip model of :mod:`ringtune.envs.rotor`."""
@@ -157,11 +161,20 @@ def linear_system(printer: Printer) -> LinearSystem:
         from ringtune.envs.rotor import slip_system
         from ringtune.shaping.errors import RingtuneError
 
-        try:
-            return slip_system(printer)
-        except RingtuneError:
-            if printer.motor.slip:
-                raise
+        key = _printer_key(printer)
+        got = _SLIP_CACHE.get(key)
+        if got is None:
+            try:
+                got = slip_system(printer)
+            except RingtuneError:
+                if printer.motor.slip:
+                    raise
+                got = False                      # the motor cannot carry the modes: rigid motor
+            if len(_SLIP_CACHE) > 256:
+                _SLIP_CACHE.clear()
+            _SLIP_CACHE[key] = got
+        if got is not False:
+            return got
     names, axis, mass, share, k, c = [], [], [], [], [], []
     for ai, ax in enumerate(("x", "y")):
         total = printer.moving_mass(ax)

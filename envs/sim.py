@@ -201,12 +201,28 @@ def _decimation(h: float, rate: float | None) -> int:
     return r
 
 
-def _initial(sysm: LinearSystem, motion, initial: str) -> np.ndarray:
+def _initial(sysm: LinearSystem, motion, initial: str, nonlinear: bool = False) -> np.ndarray:
+    """Initial state [q, q̇]. ``nonlinear`` (MuJoCo slip model): a static rotor sits where its
+    sinusoidal magnet gives the linear spring's force, asin(F/F_hold)·λ/2π, and the bodies keep their
+    stretch relative to it (when the load exceeds F_hold no rest exists; the linear state is kept)."""
     if initial == "rest":
         return np.zeros(2 * sysm.n)
     if initial == "static":
         a0 = motion.acceleration(np.array([motion.start_time]))[0, :2]
-        return np.concatenate([sysm.static_deflection(a0), np.zeros(sysm.n)])
+        q = sysm.static_deflection(a0)
+        if nonlinear and sysm.rotors:
+            shift = np.zeros(sysm.n)
+            for r in sysm.rotors:
+                ratio = r.stiffness * q[r.index] / r.peak
+                if abs(ratio) < 1.0:
+                    shift[r.index] = np.arcsin(ratio) * r.scale - q[r.index]
+            # the rotors' extra lag carries their bodies (each mode spring keeps its stretch)
+            q = q + shift
+            for name, coefs, _k, _c in sysm.springs:
+                if name.startswith("spring_"):
+                    body = sysm.names.index(name[len("spring_"):])
+                    q[body] -= sum(c * shift[j] for j, c in coefs.items() if j != body)
+        return np.concatenate([q, np.zeros(sysm.n)])
     raise RingtuneError(f"initial must be 'rest' or 'static', not {initial!r}", "initial")
 
 
@@ -338,7 +354,7 @@ def _rollout(printers, systems, motions, h, dec, tail, initial, nthread):
                 sysm = systems[id(printers[i])]
                 mo = motions[i]
                 n = sysm.n
-                x0 = _initial(sysm, mo, initial)
+                x0 = _initial(sysm, mo, initial, nonlinear=True)
                 sc = _scale(sysm)
                 init[b, 1 + off:1 + off + n] = x0[:n] / sc
                 init[b, 1 + m0.nq + off:1 + m0.nq + off + n] = x0[n:] / sc

@@ -218,3 +218,19 @@ def test_slip_model_is_the_default_when_the_motor_can_carry_the_modes():
     # the unset default round-trips as unset
     import tomllib
     assert printer_from_dict(tomllib.loads(load_printer(None).to_toml())).motor.slip is None
+
+
+@pytest.mark.parametrize("name", ["ender3", "voron24"])
+def test_static_start_is_the_nonlinear_rest(name):
+    """initial="static" under a held acceleration: the MuJoCo rotor starts at its sinusoidal
+    magnet's equilibrium asin(F/F_hold)·λ/2π (beyond the linear lag), so nothing moves."""
+    p = load_printer(name)
+    mo = Motion.from_constant_accel(np.array([0.0, 0.1]), np.array([[20000.0, 8000.0]]))
+    mj = simulate(p, mo, initial="static")
+    ex = simulate(p, mo, initial="static", backend="lti")
+    assert np.max(np.ptp(mj.rotor_lag, axis=0)) < 1e-9 and np.max(np.ptp(mj.deviation, axis=0)) < 1e-9
+    lin = ex.rotor_lag[0]
+    k = p.motor.magnetic_stiffness * 1e-3                       # N/mm
+    np.testing.assert_allclose(mj.rotor_lag[0], np.arcsin(k * lin / p.motor.force) / k * p.motor.force,
+                               rtol=1e-9)
+    assert np.all(np.abs(mj.rotor_lag[0]) > np.abs(lin))
