@@ -1,7 +1,7 @@
 """Benchmark: one evaluation of a configuration on the built-in test print, on one core.
 
 Target (DESIGN.md): ≤ 150 ms per evaluation. Measured in one run, pinned to one CPU with one
-simulation thread, on the embedded default printer with the MuJoCo backend:
+simulation thread, on the embedded default printer with the MuJoCo backend (slip model: rotor stages included):
 
 - ``warm``: a new shaper/frequency each time, same frequency limit (the plan comes from the cache:
   what an Optuna study mostly does);

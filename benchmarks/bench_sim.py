@@ -1,7 +1,8 @@
 """Benchmark: whole ``simulate`` cost against the raw ``mujoco.rollout`` of the same steps.
 
 Target (DESIGN.md): simulate ≤ 1.5× raw rollout. Both are measured here in one run on one thread,
-on the embedded default printer, for (a) one 2 s motion and (b) a batch of 8 windows of 0.45 s
+on the embedded default printer (with its slip model: two rotor stages on their sinusoidal
+magnets, 6 degrees of freedom), for (a) one 2 s motion and (b) a batch of 8 windows of 0.45 s
 (about what one evaluation on the built-in test print simulates). The raw baseline is
 ``rollout.rollout`` on the very model simulate uses (windows packed as replicas of one model), same
 initial state and an all-zero control array of the same shape — no control preparation and no

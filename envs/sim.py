@@ -13,6 +13,13 @@ jump inside a step then costs O((ωh)³) instead of O((ωh)²).
 
 Everything derived (nozzle, head acceleration, motor forces, step loss) is computed exactly from
 the state (q, q̇) by the same vectorised post-processing for both backends.
+
+Slip model (:mod:`ringtune.envs.rotor`, the default when the motor can carry the described modes):
+MuJoCo's rotors feel the stepper's sinusoidal magnet, the LTI backend its linearisation, so below
+the holding force both agree and above it only MuJoCo skips steps. ``SimResult.rotor_lag`` then
+reports each rotor's lag; ``step_loss`` is flagged by the demanded force exceeding the force at
+the motor's speed (as for the rigid motor) or by a rotor lagging one full step (past the torque
+peak) — in MuJoCo that is a real, permanent skip.
 """
 
 from __future__ import annotations
