@@ -123,7 +123,8 @@ def run(args: argparse.Namespace, out) -> int:
 
 def _warm_start(kcfg, fits, space) -> list:
     """Klipper's pick at its max_accel and 1.25×, 1.5× it; the robust EI family at Klipper's own
-    per-shaper frequencies, at its max_accel and 1.25× (only points inside the space)."""
+    per-shaper frequencies, at its max_accel, 1.25× it and the top of the range (only points inside
+    the space)."""
     import dataclasses
 
     def at(cfg, factor):
@@ -141,7 +142,7 @@ def _warm_start(kcfg, fits, space) -> list:
         if len(freqs) == 2 and name in space.shapers:
             fy = freqs["y"] if space.per_axis else freqs["x"]
             cfg = dataclasses.replace(kcfg, shaper_x=name, shaper_y=name, freq_x=freqs["x"], freq_y=fy, extra={})
-            out += [at(cfg, 1.0), at(cfg, 1.25)]
+            out += [at(cfg, 1.0), at(cfg, 1.25), at(cfg, space.accel[1] / kcfg.accel)]
     seen, unique = set(), []
     for c in out:
         key = (c.shaper_x, c.freq_x, c.shaper_y, c.freq_y, c.accel)
