@@ -265,3 +265,12 @@ def test_input_shaping_keeps_the_default_printer_from_skipping_steps():
         assert np.max(np.abs(s.rotor_lag[:, 0])) < step
         assert abs(s.rotor_lag[-1, 0]) < 1e-3 and abs(s.deviation[-1, 0]) < 0.02
         assert np.max(np.abs(ls.motor_force[:, 0])) < p.motor.force
+
+
+def test_a_rotor_too_light_for_the_timestep_is_refused_or_rigid():
+    """A rotor mode beyond ω·h = 1.5 at 0.5 ms would be integrated badly: slip = true names
+    [motor].rotor_mass; unset falls back to the rigid motor."""
+    with pytest.raises(RingtuneError, match="too stiff for RK4") as exc:
+        linear_system(slip_printer(50.0, motor={"rotor_mass": 0.002}))
+    assert "[motor].rotor_mass" in str(exc.value)
+    assert linear_system(slip_printer(50.0, motor={"rotor_mass": 0.002, "slip": None})).rotors == []

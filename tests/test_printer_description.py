@@ -103,6 +103,9 @@ def test_chain_of_masses_and_stiffnesses():
     ('[y]\nmodes = [{ freq = 40 }]\nmass = "heavy"', "[y].mass"),
     ('[motor]\nforce = 0', "[motor].force"),
     ('[motor]\ntorque = 1', "[motor]"),
+    ('[motor]\nslip = "yes"', "[motor].slip"),
+    ('[motor]\nmicrosteps = 0', "[motor].microsteps"),
+    ('[motor]\nrotor_damping = -0.1', "[motor].rotor_damping"),
     ('[belts]\nmismatch = 0.1', "[belts]"),
     ('kinematics = "corexy"\n[belts]\nstiffness = 1e9', "[belts].stiffness"),
     ('[limits]\naccel = -1', "[limits].accel"),
@@ -142,3 +145,16 @@ def test_motor_force_falls_with_speed():
 def test_mode_properties():
     m = Mode(50.0, 0.1, 0.3)
     assert m.omega == pytest.approx(2 * math.pi * 50) and m.mass_fraction == 0.3
+
+
+def test_motor_electrical_cycle_and_magnetic_stiffness():
+    """λ = 4 full steps of belt; k_m = F·2π/λ (the small-angle slope of F·sin(2π e/λ))."""
+    m = printer_from_dict({"motor": {"force": 30.0, "steps_per_mm": 80.0, "microsteps": 16},
+                           "x": {"modes": [{"freq": 50}]}, "y": {"modes": [{"freq": 40}]}}).motor
+    assert m.full_step == pytest.approx(0.2) and m.electrical_cycle == pytest.approx(0.8)
+    assert m.magnetic_stiffness == pytest.approx(30.0 * 2 * math.pi / 0.8e-3)
+    assert m.slip is None
+    p = printer_from_dict({"motor": {"slip": False, "microsteps": 32},
+                           "x": {"modes": [{"freq": 50}]}, "y": {"modes": [{"freq": 40}]}})
+    q = printer_from_dict(tomllib.loads(p.to_toml()))
+    assert q == p and q.motor.slip is False and q.motor.microsteps == 32
