@@ -133,9 +133,9 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict[str, Any]]:
     for name, module in modules.items():
         p = sub.add_parser(
             name,
-            # argparse %-formats help strings: module texts are plain prose, so escape them here
+            # argparse %-formats help strings (not descriptions): module texts are plain prose
             help=module.HELP.replace("%", "%%"),
-            description=getattr(module, "DESCRIPTION", module.HELP).replace("%", "%%"),
+            description=getattr(module, "DESCRIPTION", module.HELP),
             formatter_class=argparse.RawDescriptionHelpFormatter,
         )
         p.add_argument("--json", action="store_true", help="print one JSON object with stable keys")
