@@ -28,7 +28,7 @@ def suggest_hyper(trial) -> dict:
 
 
 def tune_hyperparameters(out_dir: str | Path, n_trials: int = 6, budget: int = 2048, n_envs: int = 2,
-                         seed: int = 0) -> dict:
+                         seed: int = 0, env_kwargs: dict | None = None) -> dict:
     """Run the study; returns {"best_params": hyper dict, "best_cost": float, "trials": n, "all": [...]}."""
     import optuna
 
@@ -44,7 +44,7 @@ def tune_hyperparameters(out_dir: str | Path, n_trials: int = 6, budget: int = 2
 
     def objective(trial):
         hyper = suggest_hyper(trial)
-        res = train(out / f"trial_{trial.number}", budget, n_envs, seed, hyper=hyper,
+        res = train(out / f"trial_{trial.number}", budget, n_envs, seed, hyper=hyper, env_kwargs=env_kwargs,
                     eval_freq=budget, checkpoint_freq=budget, progress_bar=False)
         cost = res.eval_mean_cost[-1] if res.eval_mean_cost else float("inf")
         rows.append({"number": trial.number, "hyper": hyper, "cost": cost})
