@@ -22,77 +22,22 @@ from __future__ import annotations
 import csv
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Union
 
 import numpy as np
 
+from ringtune.hardware.psd import (  # noqa: F401  (re-exported: callers import them from here)
+    KLIPPER_MIN_FREQ, PSD, WINDOW_T_SEC, klipper_psd, klipper_window_size, welch_psd,
+)
 from ringtune.shaping.errors import RingtuneError
 
 #: standard gravity in mm/s² (Klipper's FREEFALL_ACCEL)
 G_MM_S2 = 9.80665 * 1000.0
-#: Klipper's Welch window length, s (shaper_calibrate.WINDOW_T_SEC)
-WINDOW_T_SEC = 0.5
-#: Klipper's MIN_FREQ (normalize_to_frequencies damps below 2·MIN_FREQ)
-KLIPPER_MIN_FREQ = 5.0
 
 _SHAPER_COL = re.compile(r"^\s*([A-Za-z_][\w]*(?:\([^()]*\))?)\s*\(\s*([0-9.]+)\s*\)\s*$")
 _M956_TRAILER = re.compile(r"^\s*Rate\s+([0-9.]+)\s*,\s*overflows\s+(\d+)\s*$", re.IGNORECASE)
-
-
-@dataclass
-class PSD:
-    """Power spectral density of an accelerometer signal, per frequency bin.
-
-    Attributes:
-        freqs: bin frequencies, Hz.
-        psd_x, psd_y, psd_z: per-axis PSD, (mm/s²)²/Hz; None in the multi-dataset form.
-        psd_sum: psd_x + psd_y + psd_z (Klipper's ``psd_xyz``).
-        source: the file it came from ("" if computed in memory).
-        name: dataset name (the axis for single files, the column name in multi-dataset files).
-        normalized: True if already divided by (f + 0.1) as Klipper's ``normalize_to_frequencies``
-            does (files with a shaper block are written normalised).
-        shapers: shaper response columns of a calibration CSV, ``{"mzv(46.2)": values}``.
-    """
-
-    freqs: np.ndarray
-    psd_x: np.ndarray | None
-    psd_y: np.ndarray | None
-    psd_z: np.ndarray | None
-    psd_sum: np.ndarray
-    source: str = ""
-    name: str = ""
-    normalized: bool = False
-    shapers: dict[str, np.ndarray] = field(default_factory=dict)
-
-    def axis(self, axis: str) -> np.ndarray:
-        """PSD of ``"x"``, ``"y"``, ``"z"`` or ``"sum"``/``"xyz"``."""
-        key = {"xyz": "sum", "all": "sum"}.get(axis, axis)
-        arr = getattr(self, f"psd_{key}", None)
-        if arr is None:
-            raise RingtuneError(f"this PSD has no per-axis column {axis!r} (multi-dataset form)",
-                                self.source or None)
-        return arr
-
-    def normalized_to_frequencies(self) -> "PSD":
-        """Klipper's ``normalize_to_frequencies``: psd / (f + 0.1), damped below 10 Hz.
-
-        Returns self unchanged if :attr:`normalized` is already True.
-        """
-        if self.normalized:
-            return self
-        f = self.freqs
-        scale = 1.0 / (f + 0.1)
-        low = f < 2.0 * KLIPPER_MIN_FREQ
-        scale = np.where(low, scale * np.exp(1.0 - (2.0 * KLIPPER_MIN_FREQ / (f + 0.1)) ** 2), scale)
-
-        def sc(a):
-            return None if a is None else a * scale
-
-        return PSD(f.copy(), sc(self.psd_x), sc(self.psd_y), sc(self.psd_z), self.psd_sum * scale,
-                   self.source, self.name, True, dict(self.shapers))
-
 
 @dataclass
 class RawAccel:
@@ -184,25 +129,26 @@ def read_accel(path: str | Path) -> AccelData:
     Returns a :class:`PSD` (single-dataset resonance/calibration CSV), a ``list[PSD]``
     (multi-dataset CSV) or a :class:`RawAccel` (Klipper raw, RRF M956).
     """
+    return _read_as(path, ("resonances", "m956", "klipper-raw"), "")
+
+
+def _read_as(path: str | Path, accepted: tuple[str, ...], refusal: str) -> AccelData:
+    """Detect the format of ``path`` and parse it if it is one of ``accepted``; otherwise raise
+    ``refusal`` (``{kind}`` in it becomes the detected format) naming the file."""
     path, lines = _read_lines(path)
     kind = _detect(path, lines)
-    if kind == "resonances":
-        return _parse_resonances(path, lines)
-    if kind == "m956":
-        return _parse_m956(path, lines)
-    return _parse_klipper_raw(path, lines)
+    if kind not in accepted:
+        raise RingtuneError(refusal.format(kind=kind), str(path))
+    parse = {"resonances": _parse_resonances, "m956": _parse_m956, "klipper-raw": _parse_klipper_raw}
+    return parse[kind](path, lines)
 
 
 # -- Klipper resonance / calibration CSV -------------------------------------------------------
 
 def read_resonances_csv(path: str | Path) -> PSD | list[PSD]:
     """Klipper ``TEST_RESONANCES`` / ``calibration_data`` CSV -> PSD (multi-dataset -> list[PSD])."""
-    path, lines = _read_lines(path)
-    kind = _detect(path, lines)
-    if kind != "resonances":
-        raise RingtuneError(f"not a Klipper resonance CSV (looks like {kind}); header must start 'freq,'",
-                            str(path))
-    return _parse_resonances(path, lines)
+    return _read_as(path, ("resonances",),
+                    "not a Klipper resonance CSV (looks like {kind}); header must start 'freq,'")
 
 
 def read_calibration_csv(path: str | Path) -> PSD | list[PSD]:
@@ -250,13 +196,7 @@ def _parse_resonances(path: Path, lines: list[str]) -> PSD | list[PSD]:
                 raise RingtuneError(f"column {n_psd + 2} before the shaper block must be empty",
                                     where)
             del parts[1 + n_psd]
-        try:
-            vals = [float(p) for p in parts]
-        except ValueError:
-            bad = next(p for p in parts if not _is_float(p))
-            raise RingtuneError(f"not a number: {bad.strip()[:30]!r}", where) from None
-        if not all(math.isfinite(v) for v in vals):
-            raise RingtuneError("non-finite value", where)
+        vals = _finite_floats(parts, where)
         if any(v < 0 for v in vals[1:1 + n_psd]):
             raise RingtuneError("negative power spectral density", where)
         if rows and vals[0] <= rows[-1][0]:
@@ -276,6 +216,19 @@ def _parse_resonances(path: Path, lines: list[str]) -> PSD | list[PSD]:
             for j, name in enumerate(cols)]
 
 
+def _finite_floats(parts: list[str], where: str) -> list[float]:
+    """The comma-separated fields of one data row as finite floats; RingtuneError at ``where``
+    names the first field that is not a number, or says a value is not finite."""
+    try:
+        vals = [float(p) for p in parts]
+    except ValueError:
+        bad = next(p for p in parts if not _is_float(p))
+        raise RingtuneError(f"not a number: {bad.strip()[:30]!r}", where) from None
+    if not all(math.isfinite(v) for v in vals):
+        raise RingtuneError("non-finite value", where)
+    return vals
+
+
 def _is_float(s: str) -> bool:
     try:
         float(s)
@@ -293,14 +246,9 @@ def _axis_from_name(path: Path) -> str:
 
 def read_raw_accel(path: str | Path) -> RawAccel:
     """Klipper raw ``#time,accel_x,accel_y,accel_z`` or RRF M956 CSV -> RawAccel (mm/s²)."""
-    path, lines = _read_lines(path)
-    kind = _detect(path, lines)
-    if kind == "m956":
-        return _parse_m956(path, lines)
-    if kind == "klipper-raw":
-        return _parse_klipper_raw(path, lines)
-    raise RingtuneError("this is a PSD file (header 'freq,...'), not a raw accelerometer capture; "
-                        "use read_resonances_csv", str(path))
+    return _read_as(path, ("m956", "klipper-raw"),
+                    "this is a PSD file (header 'freq,...'), not a raw accelerometer capture; "
+                    "use read_resonances_csv")
 
 
 def _parse_klipper_raw(path: Path, lines: list[str]) -> RawAccel:
@@ -368,13 +316,7 @@ def _parse_m956(path: Path, lines: list[str]) -> RawAccel:
         if len(parts) != len(axes) + 1:
             raise RingtuneError(f"expected {len(axes) + 1} values (Sample,{','.join(axes)}), found "
                                 f"{len(parts)}", where)
-        try:
-            vals = [float(p) for p in parts]
-        except ValueError:
-            bad = next(p for p in parts if not _is_float(p))
-            raise RingtuneError(f"not a number: {bad.strip()[:30]!r}", where) from None
-        if not all(math.isfinite(v) for v in vals):
-            raise RingtuneError("non-finite value", where)
+        vals = _finite_floats(parts, where)
         if rows and vals[0] != rows[-1][0] + 1:
             raise RingtuneError(f"sample index {vals[0]:g} does not follow {rows[-1][0]:g}", where)
         rows.append(vals)
@@ -389,67 +331,7 @@ def _parse_m956(path: Path, lines: list[str]) -> RawAccel:
     return RawAccel(t, acc.get("X"), acc.get("Y"), acc.get("Z"), str(path), rate, overflows, "m956")
 
 
-# -- Klipper's PSD of a raw capture ---------------------------------------------------------------
-
-def klipper_window_size(rate: float) -> int:
-    """Klipper's Welch window length: ``1 << int(rate·0.5 − 1).bit_length()`` samples."""
-    return 1 << int(rate * WINDOW_T_SEC - 1).bit_length()
-
-
-def welch_psd(x: np.ndarray, fs: float, nfft: int) -> tuple[np.ndarray, np.ndarray]:
-    """Welch PSD as Klipper's ``_psd``: Kaiser(β=6) window, 50 % overlap, per-window mean removed,
-    scaled by 1/(Σw²·fs), one-sided (×2 except DC and Nyquist). Returns (freqs Hz, psd)."""
-    window = np.kaiser(nfft, 6.0)
-    scale = 1.0 / (window ** 2).sum()
-    overlap = nfft // 2
-    step = nfft - overlap
-    n_windows = (x.shape[-1] - overlap) // step
-    if n_windows < 1:
-        raise RingtuneError(f"{x.shape[-1]} samples is not more than the {nfft}-sample window")
-    x = np.ascontiguousarray(x, dtype=float)
-    seg = np.lib.stride_tricks.as_strided(x, shape=(nfft, n_windows),
-                                          strides=(x.strides[-1], step * x.strides[-1]),
-                                          writeable=False)
-    seg = window[:, None] * (seg - seg.mean(axis=0))
-    spec = np.fft.rfft(seg, n=nfft, axis=0)
-    power = (np.conjugate(spec) * spec).real * (scale / fs)
-    power[1:-1, :] *= 2.0
-    return np.fft.rfftfreq(nfft, 1.0 / fs), power.mean(axis=-1)
-
-
-def klipper_psd(raw: RawAccel) -> PSD:
-    """PSD of a raw capture computed exactly as Klipper's ``calc_freq_response``.
-
-    fs = N / (t_last − t_first); window M = ``klipper_window_size(fs)``; Klipper refuses captures of
-    N ≤ M samples, and so does this (RingtuneError). Axes not captured count as zero.
-    """
-    n = len(raw.t)
-    span = float(raw.t[-1] - raw.t[0])
-    if n < 2 or span <= 0:
-        raise RingtuneError("need at least two samples spanning some time", raw.source or None)
-    fs = n / span
-    m = klipper_window_size(fs)
-    if n <= m:
-        raise RingtuneError(f"{n} samples is not more than Klipper's {m}-sample analysis window "
-                            f"(0.5 s at {fs:.0f} Hz); Klipper cannot compute a PSD from it",
-                            raw.source or None)
-    out = {}
-    freqs = None
-    for ax in ("x", "y", "z"):
-        a = getattr(raw, f"a{ax}")
-        if a is None:
-            out[ax] = None
-            continue
-        freqs, out[ax] = welch_psd(a, fs, m)
-    present = [v for v in out.values() if v is not None]
-    if not present:
-        raise RingtuneError("no axis captured", raw.source or None)
-    total = np.sum(present, axis=0)
-    zero = np.zeros_like(total)
-    return PSD(freqs, out["x"] if out["x"] is not None else zero,
-               out["y"] if out["y"] is not None else zero,
-               out["z"] if out["z"] is not None else zero, total, raw.source, "", False)
-
+# -- any reader result as spectra ----------------------------------------------------------------
 
 def to_psd(data: AccelData) -> list[PSD]:
     """Any reader result as a list of PSDs (raw captures go through :func:`klipper_psd`)."""

@@ -1,0 +1,142 @@
+"""Power spectral densities of accelerometer signals, computed as Klipper computes them.
+
+:class:`PSD` is the spectrum the readers of :mod:`ringtune.hardware.accel` return and the
+identification fits. :func:`klipper_psd` computes one from a raw capture exactly like Klipper's
+``shaper_calibrate.calc_freq_response`` (Welch: Kaiser β=6 window of ``klipper_window_size`` samples,
+50 % overlap, per-window mean removed); :meth:`PSD.normalized_to_frequencies` is Klipper's
+``normalize_to_frequencies`` (see ``shared/reference/firmware.md`` §1.3, §1.4).
+
+Units: Hz, (mm/s²)²/Hz. Everything here is re-exported by :mod:`ringtune.hardware.accel`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ringtune.shaping.errors import RingtuneError
+
+if TYPE_CHECKING:  # the reader module imports this one, not the other way round
+    from ringtune.hardware.accel import RawAccel
+
+#: Klipper's Welch window length, s (shaper_calibrate.WINDOW_T_SEC)
+WINDOW_T_SEC = 0.5
+#: Klipper's MIN_FREQ (normalize_to_frequencies damps below 2·MIN_FREQ)
+KLIPPER_MIN_FREQ = 5.0
+
+
+@dataclass
+class PSD:
+    """Power spectral density of an accelerometer signal, per frequency bin.
+
+    Attributes:
+        freqs: bin frequencies, Hz.
+        psd_x, psd_y, psd_z: per-axis PSD, (mm/s²)²/Hz; None in the multi-dataset form.
+        psd_sum: psd_x + psd_y + psd_z (Klipper's ``psd_xyz``).
+        source: the file it came from ("" if computed in memory).
+        name: dataset name (the axis for single files, the column name in multi-dataset files).
+        normalized: True if already divided by (f + 0.1) as Klipper's ``normalize_to_frequencies``
+            does (files with a shaper block are written normalised).
+        shapers: shaper response columns of a calibration CSV, ``{"mzv(46.2)": values}``.
+    """
+
+    freqs: np.ndarray
+    psd_x: np.ndarray | None
+    psd_y: np.ndarray | None
+    psd_z: np.ndarray | None
+    psd_sum: np.ndarray
+    source: str = ""
+    name: str = ""
+    normalized: bool = False
+    shapers: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def axis(self, axis: str) -> np.ndarray:
+        """PSD of ``"x"``, ``"y"``, ``"z"`` or ``"sum"``/``"xyz"``."""
+        key = {"xyz": "sum", "all": "sum"}.get(axis, axis)
+        arr = getattr(self, f"psd_{key}", None)
+        if arr is None:
+            raise RingtuneError(f"this PSD has no per-axis column {axis!r} (multi-dataset form)",
+                                self.source or None)
+        return arr
+
+    def normalized_to_frequencies(self) -> "PSD":
+        """Klipper's ``normalize_to_frequencies``: psd / (f + 0.1), damped below 10 Hz.
+
+        Returns self unchanged if :attr:`normalized` is already True.
+        """
+        if self.normalized:
+            return self
+        f = self.freqs
+        scale = 1.0 / (f + 0.1)
+        low = f < 2.0 * KLIPPER_MIN_FREQ
+        scale = np.where(low, scale * np.exp(1.0 - (2.0 * KLIPPER_MIN_FREQ / (f + 0.1)) ** 2), scale)
+
+        def sc(a):
+            return None if a is None else a * scale
+
+        return PSD(f.copy(), sc(self.psd_x), sc(self.psd_y), sc(self.psd_z), self.psd_sum * scale,
+                   self.source, self.name, True, dict(self.shapers))
+
+
+# -- Klipper's PSD of a raw capture ---------------------------------------------------------------
+
+def klipper_window_size(rate: float) -> int:
+    """Klipper's Welch window length: ``1 << int(rate·0.5 − 1).bit_length()`` samples."""
+    return 1 << int(rate * WINDOW_T_SEC - 1).bit_length()
+
+
+def welch_psd(x: np.ndarray, fs: float, nfft: int) -> tuple[np.ndarray, np.ndarray]:
+    """Welch PSD as Klipper's ``_psd``: Kaiser(β=6) window, 50 % overlap, per-window mean removed,
+    scaled by 1/(Σw²·fs), one-sided (×2 except DC and Nyquist). Returns (freqs Hz, psd)."""
+    window = np.kaiser(nfft, 6.0)
+    scale = 1.0 / (window ** 2).sum()
+    overlap = nfft // 2
+    step = nfft - overlap
+    n_windows = (x.shape[-1] - overlap) // step
+    if n_windows < 1:
+        raise RingtuneError(f"{x.shape[-1]} samples is not more than the {nfft}-sample window")
+    x = np.ascontiguousarray(x, dtype=float)
+    seg = np.lib.stride_tricks.as_strided(x, shape=(nfft, n_windows),
+                                          strides=(x.strides[-1], step * x.strides[-1]),
+                                          writeable=False)
+    seg = window[:, None] * (seg - seg.mean(axis=0))
+    spec = np.fft.rfft(seg, n=nfft, axis=0)
+    power = (np.conjugate(spec) * spec).real * (scale / fs)
+    power[1:-1, :] *= 2.0
+    return np.fft.rfftfreq(nfft, 1.0 / fs), power.mean(axis=-1)
+
+
+def klipper_psd(raw: RawAccel) -> PSD:
+    """PSD of a raw capture computed exactly as Klipper's ``calc_freq_response``.
+
+    fs = N / (t_last − t_first); window M = ``klipper_window_size(fs)``; Klipper refuses captures of
+    N ≤ M samples, and so does this (RingtuneError). Axes not captured count as zero.
+    """
+    n = len(raw.t)
+    span = float(raw.t[-1] - raw.t[0])
+    if n < 2 or span <= 0:
+        raise RingtuneError("need at least two samples spanning some time", raw.source or None)
+    fs = n / span
+    m = klipper_window_size(fs)
+    if n <= m:
+        raise RingtuneError(f"{n} samples is not more than Klipper's {m}-sample analysis window "
+                            f"(0.5 s at {fs:.0f} Hz); Klipper cannot compute a PSD from it",
+                            raw.source or None)
+    out = {}
+    freqs = None
+    for ax in ("x", "y", "z"):
+        a = getattr(raw, f"a{ax}")
+        if a is None:
+            out[ax] = None
+            continue
+        freqs, out[ax] = welch_psd(a, fs, m)
+    present = [v for v in out.values() if v is not None]
+    if not present:
+        raise RingtuneError("no axis captured", raw.source or None)
+    total = np.sum(present, axis=0)
+    zero = np.zeros_like(total)
+    return PSD(freqs, out["x"] if out["x"] is not None else zero,
+               out["y"] if out["y"] is not None else zero,
+               out["z"] if out["z"] is not None else zero, total, raw.source, "", False)
