@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from ringtune.envs.env import spectrum_features
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
@@ -353,32 +354,8 @@ def load_policy(policy_dir: str | Path, which: str = "policy") -> Policy:
     return Policy(model, vecnorm, meta, d)
 
 
-def spectrum_observation(spectra: dict[str, tuple[np.ndarray, np.ndarray]], n_bins: int = 24,
-                         spectrum_range: tuple[float, float] = (10.0, 160.0)) -> np.ndarray:
-    """The env's spectrum features from measured PSDs ``{"x": (freqs Hz, psd), "y": (...)}``.
-
-    As :class:`ringtune.envs.env.TuneEnv` (tests check it equals the env's): mean PSD per bin of
-    ``n_bins`` equal bins over ``spectrum_range`` Hz, X then Y, ``1 + log10(psd / max)/3``
-    clipped to [-1, 1], X and Y sharing the max. A missing axis takes the other's spectrum."""
-    if not spectra:
-        raise RingtuneError("needs at least one resonance spectrum (x or y)", "psd")
-    lo, hi = spectrum_range
-    edges = np.linspace(lo, hi, n_bins + 1)
-    binned = []
-    for axis in ("x", "y"):
-        freqs, psd = spectra.get(axis) or spectra.get("y" if axis == "x" else "x")
-        freqs, psd = np.asarray(freqs, float), np.asarray(psd, float)
-        if freqs.shape != psd.shape or freqs.ndim != 1:
-            raise RingtuneError(f"frequency and PSD columns differ in shape ({freqs.shape} vs {psd.shape})",
-                                f"psd {axis}")
-        idx = np.digitize(freqs, edges) - 1
-        ok = (idx >= 0) & (idx < n_bins)
-        total = np.bincount(idx[ok], weights=psd[ok], minlength=n_bins)
-        count = np.bincount(idx[ok], minlength=n_bins)
-        binned.append(total / np.maximum(count, 1))
-    b = np.concatenate(binned)
-    b = np.log10(np.maximum(b, 1e-300) / max(b.max(), 1e-300))
-    return np.clip(1.0 + b / 3.0, -1.0, 1.0).astype(np.float32)
+#: the env's own spectrum features, applied to measured PSDs (one function, so they cannot drift)
+spectrum_observation = spectrum_features
 
 
 def _full_observation(policy: Policy, env, spectra_obs: np.ndarray) -> np.ndarray:

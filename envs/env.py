@@ -168,6 +168,34 @@ def random_printer_dict(rng: np.random.Generator, base: dict | None = None) -> d
 
 
 # -- the environment ---------------------------------------------------------------------------------
+def spectrum_features(spectra: dict, n_bins: int = 24,
+                      spectrum_range: tuple[float, float] = (10.0, 160.0)) -> np.ndarray:
+    """The observation's spectrum part from resonance-test PSDs ``{"x": (freqs Hz, psd), "y": …}``
+    (simulated here, measured when a policy is applied to a real printer).
+
+    Mean PSD per bin of ``n_bins`` equal bins over ``spectrum_range`` Hz, X then Y,
+    ``1 + log10(psd / max)/3`` clipped to [-1, 1] (X and Y share the max). A missing axis takes
+    the other's spectrum. Returns float32 (2·n_bins,)."""
+    if not spectra:
+        raise RingtuneError("needs at least one resonance spectrum (x or y)", "psd")
+    edges = np.linspace(spectrum_range[0], spectrum_range[1], n_bins + 1)
+    binned = []
+    for axis in ("x", "y"):
+        freqs, psd = spectra.get(axis) or spectra.get("y" if axis == "x" else "x")
+        freqs, psd = np.asarray(freqs, float), np.asarray(psd, float)
+        if freqs.shape != psd.shape or freqs.ndim != 1:
+            raise RingtuneError(f"frequency and PSD columns differ in shape ({freqs.shape} vs {psd.shape})",
+                                f"psd {axis}")
+        idx = np.digitize(freqs, edges) - 1
+        ok = (idx >= 0) & (idx < n_bins)
+        total = np.bincount(idx[ok], weights=psd[ok], minlength=n_bins)
+        count = np.bincount(idx[ok], minlength=n_bins)
+        binned.append(total / np.maximum(count, 1))
+    b = np.concatenate(binned)
+    b = np.log10(np.maximum(b, 1e-300) / max(b.max(), 1e-300))
+    return np.clip(1.0 + b / 3.0, -1.0, 1.0).astype(np.float32)
+
+
 class TuneEnv(gym.Env):
     """Choose an input-shaping configuration for a printer; one shot per episode.
 
@@ -297,20 +325,8 @@ class TuneEnv(gym.Env):
     def _spectrum(self) -> np.ndarray:
         from ringtune.envs.sim import resonance_test
 
-        lo, hi = self.spectrum_range
-        edges = np.linspace(lo, hi, self.n_bins + 1)
-        binned = []
-        for axis in ("x", "y"):
-            freqs, psd = resonance_test(self.printer, axis, rng=self.np_random)
-            freqs, psd = np.asarray(freqs, float), np.asarray(psd, float)
-            idx = np.digitize(freqs, edges) - 1
-            ok = (idx >= 0) & (idx < self.n_bins)
-            total = np.bincount(idx[ok], weights=psd[ok], minlength=self.n_bins)
-            count = np.bincount(idx[ok], minlength=self.n_bins)
-            binned.append(total / np.maximum(count, 1))
-        b = np.concatenate(binned)
-        b = np.log10(np.maximum(b, 1e-300) / max(b.max(), 1e-300))
-        return np.clip(1.0 + b / 3.0, -1.0, 1.0).astype(np.float32)
+        spectra = {axis: resonance_test(self.printer, axis, rng=self.np_random) for axis in ("x", "y")}
+        return spectrum_features(spectra, self.n_bins, self.spectrum_range)
 
     def _metrics_vector(self, m: Metrics) -> np.ndarray:
         def sq(v, s):
