@@ -263,9 +263,9 @@ def simulate(printer: Printer | None, motion, backend: str = "mujoco", rate: flo
         rate: output sample rate, Hz (default 1/timestep; must divide it).
         tail: seconds simulated after the motion ends (commanded acceleration zero: a motion that
             ends at rest rings out in place; a window cut mid-move coasts at its end velocity).
-        timestep: integration step, s; None picks it from the printer's modes
+        timestep: integration step, s; None picks it from the printer's modes for MuJoCo
             (:func:`auto_timestep`: 0.5 ms, or an integer fraction of it for lightly damped or
-            high modes).
+            high modes) and 0.5 ms output sampling for the exact ``lti`` backend.
 
     Meant for windows of a job (seconds): the MuJoCo backend keeps every state of the rollout in
     memory (about 8·(1 + 2n) bytes per step for n modes).
@@ -298,8 +298,12 @@ def simulate_batch(printer_or_list, motions: list, backend: str = "mujoco", nthr
         printers = [pr] * len(motions)
     if not motions:
         return []
-    h = min(auto_timestep(p) for p in {id(p): p for p in printers}.values()) if timestep is None \
-        else float(timestep)
+    if timestep is not None:
+        h = float(timestep)
+    elif backend == "lti":  # exact at any sample grid: the step only sets the output sampling
+        h = TIMESTEP
+    else:
+        h = min(auto_timestep(p) for p in {id(p): p for p in printers}.values())
     if not (h > 0 and np.isfinite(h)):
         raise RingtuneError(f"timestep must be a positive number of seconds, not {timestep!r}", "timestep")
     if not tail >= 0:
