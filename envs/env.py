@@ -38,6 +38,11 @@ class ActionSpec:
         freq_limit_max: Hz, top of the frequency-limit range; ``freq_limit_off`` Hz and below = off.
         tune_accel: whether the last action entry chooses the acceleration.
         accel_range: mm/s², acceleration range (log scale) when ``tune_accel``.
+        freq_anchor: ``"absolute"`` (F on a log scale over ``freq_range``) or ``"peak"`` (F
+            relative to the axis's resonance peak: ``f_peak·anchor_span^v``, v in [-1, 1]).
+        anchor_span: with ``freq_anchor="peak"``, F covers ``[f_peak/span, f_peak·span]``.
+        freq_limit_gate: the frequency limit is off for the lower half of its action entry and
+            spans ``freq_limit_off``–``freq_limit_max`` Hz over the upper half (off unless chosen).
     """
 
     firmware: str = "klipper"
@@ -49,6 +54,9 @@ class ActionSpec:
     freq_limit_off: float = 10.0
     tune_accel: bool = False
     accel_range: tuple[float, float] = (1000.0, 10000.0)
+    freq_anchor: str = "absolute"
+    anchor_span: float = 2.0
+    freq_limit_gate: bool = False
 
     @property
     def size(self) -> int:
@@ -65,15 +73,33 @@ def _unit(u: float) -> float:
     return (min(max(float(u), -1.0), 1.0) + 1.0) / 2.0
 
 
-def decode_action(action, spec: ActionSpec) -> TuneConfig:
+def _anchors(spec: ActionSpec, peaks) -> tuple[float, float] | None:
+    """(X, Y) anchor frequencies in Hz for ``spec`` (None for absolute decoding); a shared
+    setting anchors both axes at the geometric mean of the peaks."""
+    if spec.freq_anchor == "absolute":
+        return None
+    if spec.freq_anchor != "peak":
+        raise RingtuneError(f"freq_anchor must be 'absolute' or 'peak', not {spec.freq_anchor!r}", "freq_anchor")
+    if peaks is None:
+        raise RingtuneError("peak-relative actions need the resonance peaks (X, Y) in Hz", "peaks")
+    fx, fy = (float(peaks[0]), float(peaks[1]))
+    if not (fx > 0 and fy > 0):
+        raise RingtuneError(f"resonance peaks must be > 0 Hz, not {peaks}", "peaks")
+    return (fx, fy) if spec.per_axis else (math.sqrt(fx * fy),) * 2
+
+
+def decode_action(action, spec: ActionSpec, peaks=None) -> TuneConfig:
     """The configuration an action in [-1, 1]^spec.size stands for.
 
     Per axis (or shared) triple ``(type, F, S)``: type = ``spec.shapers[k]`` with ``k`` the index
     of the equal-width bin of [-1, 1] the value falls in; F = ``f_lo·(f_hi/f_lo)^u`` (log scale,
-    ``u`` = value mapped to [0, 1]); S = ``s_lo + u·(s_hi − s_lo)``, clipped to the shaper's largest
-    allowed damping. Then frequency limit ``u·freq_limit_max`` Hz, off (0) at or below
-    ``freq_limit_off``; and, with ``tune_accel``, acceleration ``a_lo·(a_hi/a_lo)^u`` mm/s².
-    Values outside [-1, 1] are clipped.
+    ``u`` = value mapped to [0, 1]) or, with ``spec.freq_anchor == "peak"``, F =
+    ``f_peak·span^v`` (``v`` the value in [-1, 1], ``f_peak`` the axis's entry of ``peaks`` (X, Y)
+    in Hz, span = ``spec.anchor_span``), clipped to ``freq_range``; S = ``s_lo + u·(s_hi − s_lo)``,
+    clipped to the shaper's largest allowed damping. Then frequency limit ``u·freq_limit_max`` Hz,
+    off (0) at or below ``freq_limit_off`` (with ``freq_limit_gate``: off for ``u ≤ 1/2``, else
+    ``off + (2u − 1)·(max − off)`` Hz); and, with ``tune_accel``, acceleration
+    ``a_lo·(a_hi/a_lo)^u`` mm/s². Values outside [-1, 1] are clipped.
     """
     from ringtune.shaping.shapers import max_damping
 
@@ -82,22 +108,31 @@ def decode_action(action, spec: ActionSpec) -> TuneConfig:
         raise RingtuneError(f"action must have {spec.size} entries ({', '.join(spec.labels())}), "
                             f"not shape {np.shape(action)}", "action")
     flavor = TuneConfig(firmware=spec.firmware, shaper_x="none", shaper_y="none").flavor
+    anchors = _anchors(spec, peaks)
 
-    def triple(i):
+    def triple(i, axis):
         k = min(int(_unit(a[i]) * len(spec.shapers)), len(spec.shapers) - 1)
         name = spec.shapers[k]
         f_lo, f_hi = spec.freq_range
-        freq = f_lo * (f_hi / f_lo) ** _unit(a[i + 1])
+        if anchors is None:
+            freq = f_lo * (f_hi / f_lo) ** _unit(a[i + 1])
+        else:
+            v = 2.0 * _unit(a[i + 1]) - 1.0
+            freq = min(max(anchors[axis] * spec.anchor_span ** v, f_lo), f_hi)
         s_lo, s_hi = spec.damping_range
         damping = s_lo + _unit(a[i + 2]) * (s_hi - s_lo)
         if name != "none":
             damping = min(damping, max_damping(name, flavor))
         return name, freq, damping
 
-    x = triple(0)
-    y = triple(3) if spec.per_axis else x
+    x = triple(0, 0)
+    y = triple(3, 1) if spec.per_axis else x
     j = 6 if spec.per_axis else 3
-    limit = _unit(a[j]) * spec.freq_limit_max
+    if spec.freq_limit_gate:
+        u = _unit(a[j])
+        limit = 0.0 if u <= 0.5 else spec.freq_limit_off + (2.0 * u - 1.0) * (spec.freq_limit_max - spec.freq_limit_off)
+    else:
+        limit = _unit(a[j]) * spec.freq_limit_max
     accel = None
     if spec.tune_accel:
         lo, hi = spec.accel_range
@@ -107,22 +142,34 @@ def decode_action(action, spec: ActionSpec) -> TuneConfig:
                       freq_limit_hz=limit if limit > spec.freq_limit_off else 0.0, accel=accel)
 
 
-def encode_config(config: TuneConfig, spec: ActionSpec) -> np.ndarray:
-    """The action (centre of the shaper's bin) that decodes to ``config`` (up to clipping)."""
+def encode_config(config: TuneConfig, spec: ActionSpec, peaks=None) -> np.ndarray:
+    """The action (centre of the shaper's bin) that decodes to ``config`` (up to clipping);
+    ``peaks`` (X, Y) Hz as for :func:`decode_action`."""
+    anchors = _anchors(spec, peaks)
+
     def back(u):
         return 2.0 * min(max(u, 0.0), 1.0) - 1.0
 
-    def triple(ax):
+    def triple(ax, i):
         name, freq, damping = config.axis(ax)
         k = spec.shapers.index(name) if name in spec.shapers else 0
         f_lo, f_hi = spec.freq_range
         s_lo, s_hi = spec.damping_range
         f = min(max(freq, f_lo), f_hi)
-        return [back((k + 0.5) / len(spec.shapers)), back(math.log(f / f_lo) / math.log(f_hi / f_lo)),
-                back((damping - s_lo) / (s_hi - s_lo))]
+        if anchors is None:
+            uf = math.log(f / f_lo) / math.log(f_hi / f_lo)
+        else:
+            uf = (math.log(f / anchors[i]) / math.log(spec.anchor_span) + 1.0) / 2.0
+        return [back((k + 0.5) / len(spec.shapers)), back(uf), back((damping - s_lo) / (s_hi - s_lo))]
 
-    out = triple("x") + (triple("y") if spec.per_axis else [])
-    out.append(back(config.freq_limit_hz / spec.freq_limit_max) if config.freq_limit_hz > 0 else -1.0)
+    out = triple("x", 0) + (triple("y", 1) if spec.per_axis else [])
+    if config.freq_limit_hz <= 0:
+        out.append(-1.0)
+    elif spec.freq_limit_gate:
+        lim = max(config.freq_limit_hz, spec.freq_limit_off)
+        out.append(back((1.0 + (lim - spec.freq_limit_off) / (spec.freq_limit_max - spec.freq_limit_off)) / 2.0))
+    else:
+        out.append(back(config.freq_limit_hz / spec.freq_limit_max))
     if spec.tune_accel:
         lo, hi = spec.accel_range
         acc = min(max(config.accel or lo, lo), hi)
@@ -196,6 +243,39 @@ def spectrum_features(spectra: dict, n_bins: int = 24,
     return np.clip(1.0 + b / 3.0, -1.0, 1.0).astype(np.float32)
 
 
+def spectrum_peaks(spectra: dict, spectrum_range: tuple[float, float] = (10.0, 160.0)) -> tuple[float, float]:
+    """(X, Y) Hz: the dominant resonance of each axis's resonance-test PSD (``{"x": (freqs Hz,
+    psd), …}``, simulated or measured): the maximum of ``psd/f`` smoothed over 3 neighbouring
+    bins, searched within ``spectrum_range``. A missing axis takes the other's.
+
+    Why ``psd/f``: Klipper's sweep commands an acceleration amplitude ∝ f, so the PSD is
+    ∝ f²·|T(f)|² (T the transmissibility); the raw maximum drifts to the top of the sweep when a
+    mode sits above it, ``psd/f²`` = |T|² is lifted at low f by the sensor noise; ``psd/f`` picks
+    the resonance on the simulated printers and on the real files (e.g. the Ender-3's 45 Hz X
+    mode rather than its 58 Hz hump)."""
+    if not spectra:
+        raise RingtuneError("needs at least one resonance spectrum (x or y)", "psd")
+    out = []
+    for axis in ("x", "y"):
+        freqs, psd = spectra.get(axis) or spectra.get("y" if axis == "x" else "x")
+        freqs, psd = np.asarray(freqs, float), np.asarray(psd, float)
+        ok = (freqs >= spectrum_range[0]) & (freqs <= spectrum_range[1]) & np.isfinite(psd)
+        if not ok.any():
+            raise RingtuneError(f"no PSD bins within {spectrum_range[0]:g}-{spectrum_range[1]:g} Hz", f"psd {axis}")
+        f, p = freqs[ok], psd[ok] / np.maximum(freqs[ok], 1e-9)
+        if p.size >= 3:
+            p = np.convolve(p, np.ones(3) / 3.0, mode="same")
+        out.append(float(f[int(np.argmax(p))]))
+    return out[0], out[1]
+
+
+def peak_features(peaks, spectrum_range: tuple[float, float] = (10.0, 160.0)) -> np.ndarray:
+    """The observation's peak part: ``2·ln(f/lo)/ln(hi/lo) − 1`` per axis (X, Y), float32 in [-1, 1]."""
+    lo, hi = spectrum_range
+    f = np.clip(np.asarray(peaks, float), lo, hi)
+    return (2.0 * np.log(f / lo) / math.log(hi / lo) - 1.0).astype(np.float32)
+
+
 class TuneEnv(gym.Env):
     """Choose an input-shaping configuration for a printer; one shot per episode.
 
@@ -216,20 +296,26 @@ class TuneEnv(gym.Env):
     | index | meaning (per_axis) | decoding |
     |---|---|---|
     | 0, 3 | shaper type X, Y | equal bins over ``spec.shapers`` |
-    | 1, 4 | F X, Y (Hz) | log scale over ``spec.freq_range`` |
+    | 1, 4 | F X, Y (Hz) | ``freq_anchor="absolute"``: log scale over ``spec.freq_range``; ``"peak"``: ``f_peak·2^v`` (v = the value in [-1, 1], ``f_peak`` the axis's resonance peak, :func:`spectrum_peaks`), clipped to ``freq_range`` |
     | 2, 5 | S X, Y | linear over ``spec.damping_range`` |
-    | 6 | frequency limit (Hz) | linear 0–``freq_limit_max``, off at ≤ ``freq_limit_off`` |
+    | 6 | frequency limit (Hz) | linear 0–``freq_limit_max``, off at ≤ ``freq_limit_off``; with ``freq_limit_gate``: off for values ≤ 0, linear ``freq_limit_off``–``freq_limit_max`` over (0, 1] |
     | 7 | acceleration (mm/s², only with ``tune_accel``) | log scale over ``accel_range`` |
 
+    With ``freq_anchor="peak"`` the action is a residual around a physical anchor: 0 puts the
+    shaper on the resonance peak the spectrum shows, ±1 an octave above/below. The peaks come from
+    the same resonance test as the observation (``self.peaks_``), so the decoding transfers to
+    measured spectra, whose absolute frequencies differ from the simulated ones.
+
     ## Observation Space
-    ``Box(-1, 1, (2·n_bins + n + 6,), float32)``:
+    ``Box(-1, 1, (2·n_bins + n + 6 [+ 2],), float32)`` (+2 with ``freq_anchor="peak"``):
 
     | slice | meaning |
     |---|---|
     | ``[0, n_bins)`` | X resonance-test PSD, mean per bin of ``n_bins`` equal bins over ``spectrum_range`` Hz, ``1 + log10(psd/max)/3`` clipped to [-1, 1] (0 dB → 1, −60 dB → −1; X and Y share the max) |
     | ``[n_bins, 2·n_bins)`` | the same for Y |
     | next ``n`` | the current configuration, encoded as an action (:func:`encode_config`) |
-    | last 6 | its metrics squashed as ``m/(m+s)``: print time / baseline print time (s = 1), path error (s = 0.1 mm), overshoot (0.1 mm), ringing (0.02 mm), peak acceleration (s = the printer's accel), step loss (0/1) |
+    | next 6 | its metrics squashed as ``m/(m+s)``: print time / baseline print time (s = 1), path error (s = 0.1 mm), overshoot (0.1 mm), ringing (0.02 mm), peak acceleration (s = the printer's accel), step loss (0/1) |
+    | last 2 (``freq_anchor="peak"`` only) | the resonance peaks X, Y (:func:`spectrum_peaks`), ``2·ln(f/lo)/ln(hi/lo) − 1`` over ``spectrum_range`` (:func:`peak_features`) |
 
     At reset the current configuration is ``options["config"]`` or shaping off with no frequency
     limit; its metrics are evaluated when ``observe_metrics`` (else zeros). After the step they
@@ -263,6 +349,8 @@ class TuneEnv(gym.Env):
     | ``shapers`` | all of the firmware's | shaper types to choose among |
     | ``per_axis`` | True | separate X/Y shaper settings |
     | ``tune_accel`` | False | the action also sets the acceleration |
+    | ``freq_anchor`` | "absolute" | "absolute" or "peak": how the F entries decode (see Action Space) |
+    | ``freq_limit_gate`` | False | frequency limit off for the lower half of its entry |
     | ``weights`` | :data:`DEFAULT_WEIGHTS` | reward weights (missing keys take the default) |
     | ``step_loss_penalty`` | 10.0 | subtracted when the motor loses steps |
     | ``n_bins`` | 24 | spectrum bins per axis |
@@ -272,7 +360,7 @@ class TuneEnv(gym.Env):
     | ``render_mode`` | None | None or "rgb_array" (the spectra and the configuration as an image) |
 
     ## Info
-    ``reset``: ``printer`` (name), ``baseline_print_time_s``. ``step``: also ``config``
+    ``reset``: ``printer`` (name), ``baseline_print_time_s``, ``peaks_hz`` (X, Y). ``step``: also ``config``
     (TuneConfig dict) and ``metrics`` (Metrics dict).
     """
 
@@ -280,6 +368,7 @@ class TuneEnv(gym.Env):
 
     def __init__(self, printer=None, *, randomize: bool = False, job=None, firmware: str = "klipper",
                  shapers: tuple[str, ...] | None = None, per_axis: bool = True, tune_accel: bool = False,
+                 freq_anchor: str = "absolute", freq_limit_gate: bool = False,
                  weights: dict | None = None, step_loss_penalty: float = 10.0, n_bins: int = 24,
                  spectrum_range: tuple[float, float] = (10.0, 160.0), observe_metrics: bool = True,
                  backend: str = "mujoco", render_mode: str | None = None):
@@ -299,8 +388,11 @@ class TuneEnv(gym.Env):
         if bad:
             raise RingtuneError(f"{firmware} offers no {', '.join(bad)} (available: {', '.join(have)})",
                                 "shapers")
+        if freq_anchor not in ("absolute", "peak"):
+            raise RingtuneError(f"must be 'absolute' or 'peak', not {freq_anchor!r}", "freq_anchor")
         self.spec_ = ActionSpec(firmware=firmware, shapers=tuple(shapers), per_axis=per_axis,
-                                tune_accel=tune_accel)
+                                tune_accel=tune_accel, freq_anchor=freq_anchor,
+                                freq_limit_gate=bool(freq_limit_gate))
         self.weights = {**DEFAULT_WEIGHTS, **(weights or {})}
         unknown = set(self.weights) - set(DEFAULT_WEIGHTS)
         if unknown:
@@ -313,7 +405,10 @@ class TuneEnv(gym.Env):
         self.backend = backend
         n = self.spec_.size
         self.action_space = spaces.Box(-1.0, 1.0, (n,), np.float32)
-        self.observation_space = spaces.Box(-1.0, 1.0, (2 * self.n_bins + n + 6,), np.float32)
+        self._n_peak_obs = 2 if freq_anchor == "peak" else 0
+        self.observation_space = spaces.Box(-1.0, 1.0, (2 * self.n_bins + n + 6 + self._n_peak_obs,),
+                                            np.float32)
+        self.peaks_ = (50.0, 50.0)
         self.printer = self.base_printer
         self._spectra = np.zeros(2 * self.n_bins, np.float32)
         self._config_obs = np.zeros(n, np.float32)
@@ -326,7 +421,27 @@ class TuneEnv(gym.Env):
         from ringtune.envs.sim import resonance_test
 
         spectra = {axis: resonance_test(self.printer, axis, rng=self.np_random) for axis in ("x", "y")}
+        self.peaks_ = spectrum_peaks(spectra, self.spectrum_range)
         return spectrum_features(spectra, self.n_bins, self.spectrum_range)
+
+    def observe_measured(self, spectra: dict) -> np.ndarray:
+        """The reset observation for measured resonance PSDs ``{"x": (freqs, psd), …}`` (a missing
+        axis takes the other's): their spectrum features and peaks, shaping off as the current
+        configuration, no metrics. Sets ``peaks_`` so that :meth:`decode` anchors on them."""
+        self._spectra = spectrum_features(spectra, self.n_bins, self.spectrum_range)
+        self.peaks_ = spectrum_peaks(spectra, self.spectrum_range)
+        self.config = TuneConfig(firmware=self.spec_.firmware, shaper_x="none", shaper_y="none")
+        self._config_obs = encode_config(self.config, self.spec_, self.peaks_)
+        self._metrics_obs = np.zeros(6, np.float32)
+        return self._obs()
+
+    def decode(self, action) -> TuneConfig:
+        """:func:`decode_action` with this env's spec and the current printer's peaks."""
+        return decode_action(action, self.spec_, self.peaks_)
+
+    def encode(self, config: TuneConfig) -> np.ndarray:
+        """:func:`encode_config` with this env's spec and the current printer's peaks."""
+        return encode_config(config, self.spec_, self.peaks_)
 
     def _metrics_vector(self, m: Metrics) -> np.ndarray:
         def sq(v, s):
@@ -343,7 +458,10 @@ class TuneEnv(gym.Env):
         ], dtype=np.float32)
 
     def _obs(self) -> np.ndarray:
-        return np.concatenate([self._spectra, self._config_obs, self._metrics_obs]).astype(np.float32)
+        parts = [self._spectra, self._config_obs, self._metrics_obs]
+        if self._n_peak_obs:
+            parts.append(peak_features(self.peaks_, self.spectrum_range))
+        return np.concatenate(parts).astype(np.float32)
 
     def reward(self, m: Metrics) -> float:
         """The reward of metrics ``m`` on the current printer (see the class docstring)."""
@@ -355,14 +473,28 @@ class TuneEnv(gym.Env):
     def evaluate(self, config: TuneConfig) -> Metrics:
         return evaluate(config, self.printer, self.job, backend=self.backend)
 
+    def _draw_printer(self, attempts: int = 20):
+        """A random printer whose linear model can be built (a draw on which the slip model's
+        solver fails numerically, ``LinAlgError``, is replaced by the next draw of the same stream)."""
+        from ringtune.envs.model import linear_system
+        from ringtune.envs.printer import printer_from_dict
+
+        for _ in range(attempts):
+            printer = printer_from_dict(random_printer_dict(self.np_random, self.base_printer.to_dict()),
+                                        "random printer")
+            try:
+                linear_system(printer)
+            except (np.linalg.LinAlgError, FloatingPointError):
+                continue
+            return printer
+        raise RingtuneError(f"{attempts} random printers in a row had no solvable model", "randomize")
+
     # -- gymnasium API ---------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        from ringtune.envs.printer import printer_from_dict
 
         if self.randomize:
-            d = random_printer_dict(self.np_random, self.base_printer.to_dict())
-            self.printer = printer_from_dict(d, "random printer")
+            self.printer = self._draw_printer()
         else:
             self.printer = self.base_printer
         self._baseline = planned_job(self.printer, self.job, None).print_time
@@ -373,13 +505,13 @@ class TuneEnv(gym.Env):
         if isinstance(start, dict):
             start = TuneConfig.from_dict(start, "options['config']")
         self.config = start
-        self._config_obs = encode_config(start, self.spec_)
+        self._config_obs = self.encode(start)
         self._metrics_obs = (self._metrics_vector(self.evaluate(start)) if self.observe_metrics
                              else np.zeros(6, np.float32))
         return self._obs(), self._info()
 
     def step(self, action):
-        config = decode_action(action, self.spec_)
+        config = self.decode(action)
         info: dict[str, Any] = {}
         try:
             m = self.evaluate(config)
@@ -391,12 +523,13 @@ class TuneEnv(gym.Env):
             info["error"] = str(exc)
             self._metrics_obs = np.zeros(6, np.float32)
         self.config = config
-        self._config_obs = encode_config(config, self.spec_)
+        self._config_obs = self.encode(config)
         info["config"] = config.to_dict()
         return self._obs(), r, True, False, {**self._info(), **info}
 
     def _info(self) -> dict:
-        return {"printer": self.printer.name, "baseline_print_time_s": self._baseline}
+        return {"printer": self.printer.name, "baseline_print_time_s": self._baseline,
+                "peaks_hz": tuple(self.peaks_)}
 
     def render(self):
         if self.render_mode != "rgb_array":

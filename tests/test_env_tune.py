@@ -165,3 +165,58 @@ def test_rejected_configuration_ends_with_the_penalty(monkeypatch):
     obs, r, terminated, truncated, info = env.step(np.zeros(env.action_space.shape, np.float32))
     assert r == -4.0 and terminated and not truncated and "collide" in info["error"]
     assert env.observation_space.contains(obs)
+
+
+# -- peak-anchored frequencies and the gated frequency limit ------------------------------------------
+def test_peak_anchored_decoding_is_a_residual_around_each_axis_peak():
+    spec = ActionSpec(freq_anchor="peak", freq_limit_gate=True)
+    peaks = (40.0, 90.0)
+    mid = decode_action(np.zeros(spec.size), spec, peaks)
+    assert (mid.freq_x, mid.freq_y) == (pytest.approx(40.0), pytest.approx(90.0))
+    a = np.zeros(spec.size)
+    a[1], a[4] = 1.0, -1.0
+    c = decode_action(a, spec, peaks)
+    assert c.freq_x == pytest.approx(80.0) and c.freq_y == pytest.approx(45.0)  # one octave up / down
+    a[4] = 1.0
+    assert decode_action(a, spec, peaks).freq_y == pytest.approx(150.0)  # 180 Hz clipped to freq_range
+    # the frequency limit is off for the whole lower half of its entry, then spans 10-120 Hz
+    for v, hz in ((-1.0, 0.0), (0.0, 0.0), (0.5, 65.0), (1.0, 120.0)):
+        a[6] = v
+        assert decode_action(a, spec, peaks).freq_limit_hz == pytest.approx(hz)
+    with pytest.raises(RingtuneError, match="peaks"):
+        decode_action(np.zeros(spec.size), spec)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(20, 130), st.floats(20, 130), st.floats(-0.99, 0.99), st.floats(-0.99, 0.99),
+       st.one_of(st.just(0.0), st.floats(11, 120)))
+def test_peak_anchored_encode_then_decode_gives_the_config_back(px, py, vx, vy, limit):
+    spec = ActionSpec(freq_anchor="peak", freq_limit_gate=True)
+    fx = min(max(px * 2.0 ** vx, 15.0), 150.0)
+    fy = min(max(py * 2.0 ** vy, 15.0), 150.0)
+    cfg = TuneConfig(shaper_x="ei", freq_x=fx, damping_x=0.1, shaper_y="mzv", freq_y=fy, damping_y=0.05,
+                     freq_limit_hz=limit)
+    back = decode_action(encode_config(cfg, spec, (px, py)), spec, (px, py))
+    assert back.freq_x == pytest.approx(fx, rel=1e-5) and back.freq_y == pytest.approx(fy, rel=1e-5)
+    assert back.freq_limit_hz == pytest.approx(limit, abs=1e-4)
+
+
+def test_peak_env_finds_the_modes_and_observes_them():
+    from ringtune.envs.env import peak_features
+
+    printer = printer_from_dict({"name": "two-mode", "x": {"modes": [{"freq": 72.0, "damping": 0.05}]},
+                                 "y": {"modes": [{"freq": 33.0, "damping": 0.05}]}})
+    env = TuneEnv(printer, backend="lti", observe_metrics=False, freq_anchor="peak", freq_limit_gate=True)
+    obs, info = env.reset(seed=3)
+    fx, fy = info["peaks_hz"]
+    assert abs(fx - 72.0) <= 3.2 and abs(fy - 33.0) <= 3.2  # two of Klipper's 1.5625 Hz bins
+    assert obs.shape == env.observation_space.shape and env.observation_space.contains(obs)
+    np.testing.assert_array_equal(obs[-2:], peak_features((fx, fy), env.spectrum_range))
+    # peak_features is the log position in the spectrum range: 10 Hz -> -1, 160 Hz -> 1
+    np.testing.assert_allclose(peak_features((10.0, 160.0)), [-1.0, 1.0], atol=1e-6)
+    a = np.zeros(env.action_space.shape, np.float32)
+    _, _, _, _, info = env.step(a)
+    assert info["config"]["freq_x"] == pytest.approx(fx) and info["config"]["freq_y"] == pytest.approx(fy)
+    assert info["config"]["freq_limit_hz"] == 0.0
+    with pytest.raises(RingtuneError, match="freq_anchor"):
+        TuneEnv(freq_anchor="relative")

@@ -39,3 +39,15 @@ def test_missing_axis_takes_the_other_and_real_file_is_in_range(data_dir):
     centres = 10 + (np.arange(24) + 0.5) * 150 / 24
     assert 41.0 <= centres[int(np.argmax(obs[:24]))] <= 68.0
     assert obs[1] < 0.8 and obs[17] < 0.8
+
+
+def test_peaks_of_real_files_are_the_known_resonances(data_dir):
+    """The anchor of the policy's frequencies on real files: the Ender-3's X resonance is 45 Hz
+    (envs/data/ender3.toml, from this file), not its broader 54-68 Hz hump."""
+    from ringtune.envs.env import spectrum_peaks
+    from ringtune.hardware.accel import read_resonances_csv
+
+    p = read_resonances_csv(data_dir / "accel" / "klipper_psd" / "bassco_ender3" / "resonances_x_20210821_152037.csv")
+    p = p[0] if isinstance(p, list) else p
+    fx, fy = spectrum_peaks({"x": (p.freqs, p.psd_x)})
+    assert 43.0 <= fx <= 47.0 and fy == fx
