@@ -197,8 +197,11 @@ def _scale(sysm: LinearSystem) -> np.ndarray:
     return sysm.scale if sysm.scale is not None else np.ones(sysm.n)
 
 
-def _grid(motion, h: float, tail: float) -> int:
-    return max(1, int(np.ceil((motion.duration + tail) / h - 1e-9)))
+def _grid(motion, h: float, tail: float, dec: int = 1) -> int:
+    """Steps of ``h`` covering the motion and ``tail``, rounded up to whole output samples
+    (multiples of ``dec``) so every backend ends on the same output grid."""
+    n = max(1, int(np.ceil((motion.duration + tail) / h - 1e-9)))
+    return -(-n // dec) * dec
 
 
 def _decimation(h: float, rate: float | None) -> int:
@@ -260,7 +263,8 @@ def simulate(printer: Printer | None, motion, backend: str = "mujoco", rate: flo
 
     Args:
         backend: "mujoco" (default) or "lti" (exact linear reference, much faster).
-        rate: output sample rate, Hz (default 1/timestep; must divide it).
+        rate: output sample rate, Hz (must divide 1/timestep; default 2 kHz with the automatic
+            timestep, else 1/timestep).
         tail: seconds simulated after the motion ends (commanded acceleration zero: a motion that
             ends at rest rings out in place; a window cut mid-move coasts at its end velocity).
         timestep: integration step, s; None picks it from the printer's modes for MuJoCo
@@ -308,7 +312,8 @@ def simulate_batch(printer_or_list, motions: list, backend: str = "mujoco", nthr
         raise RingtuneError(f"timestep must be a positive number of seconds, not {timestep!r}", "timestep")
     if not tail >= 0:
         raise RingtuneError(f"tail must be ≥ 0 s, not {tail!r}", "tail")
-    dec = _decimation(h, rate)
+    # output grid: ``rate``, or 1/TIMESTEP (2 kHz) when the step is automatic, whatever the step
+    dec = _decimation(h, rate if rate is not None or timestep is not None else 1.0 / TIMESTEP)
     systems = {}
     for p in printers:
         if id(p) not in systems:
@@ -317,7 +322,7 @@ def simulate_batch(printer_or_list, motions: list, backend: str = "mujoco", nthr
         out = []
         for p, mo in zip(printers, motions):
             sysm = systems[id(p)]
-            nstep = _grid(mo, h, tail)
+            nstep = _grid(mo, h, tail, dec)
             t = mo.start_time + np.arange(0, nstep + 1, dec) * h
             q, qd = _lti_response(sysm, mo, t, _initial(sysm, mo, initial))
             out.append(_post(p, sysm, _kinematics(mo, mo.start_time, h * dec, len(t)), t, q, qd, "lti"))
@@ -365,7 +370,7 @@ def _rollout(printers, systems, motions, h, dec, tail, initial, nthread):
 
     if nthread is None:                 # threads only for full replica models: replicas are cheaper
         nthread = min(os.cpu_count() or 1, -(-len(motions) // MAX_REPLICAS))
-    nsteps = [_grid(m, h, tail) for m in motions]
+    nsteps = [_grid(m, h, tail, dec) for m in motions]
     # sort by length so that chunks pad little; each chunk is one replicated model
     order = sorted(range(len(motions)), key=lambda i: nsteps[i])
     chunks = [[order[j] for j in c] for c in _chunks(len(motions), nthread)]
