@@ -46,7 +46,10 @@ from ringtune.shaping.errors import RingtuneError
 #: keyword arguments of the training env (on top of ``randomize=True``)
 #: (the exact linear backend "lti": same costs as MuJoCo to ~1e-4 on the linear printer model, ~1.6×
 #: cheaper per step; evaluations outside training use the env's default, MuJoCo)
-DEFAULT_ENV_KWARGS: dict[str, Any] = {"tune_accel": True, "observe_metrics": False, "backend": "lti"}
+#: F is decoded relative to each axis's resonance peak (a residual around a physical anchor, which
+#: transfers to measured spectra) and the frequency limit is off unless the policy chooses it
+DEFAULT_ENV_KWARGS: dict[str, Any] = {"tune_accel": True, "observe_metrics": False, "backend": "lti",
+                                      "freq_anchor": "peak", "freq_limit_gate": True}
 #: held-out printers of the evaluation callback (never used for training)
 EVAL_SEEDS = tuple(range(900_000, 900_008))
 #: the benchmark's unseen printers (benchmarks/bench_ppo.py)
@@ -231,7 +234,8 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
 
 
 #: where the untrained policy's mean answer starts (a common starting point, not a tuned answer):
-#: MZV at 50 Hz, damping 0.1, no frequency limit, 5000 mm/s²
+#: MZV at 50 Hz (on the resonance peak with a peak-anchored action), damping 0.1, no frequency
+#: limit, 5000 mm/s²
 PRIOR = {"shaper": "mzv", "freq": 50.0, "damping": 0.1, "accel": 5000.0}
 
 
@@ -248,7 +252,7 @@ def _set_prior(model, env_kwargs: dict) -> None:
                        freq_y=PRIOR["freq"], damping_x=PRIOR["damping"], damping_y=PRIOR["damping"],
                        freq_limit_hz=0.0, accel=PRIOR["accel"] if spec.tune_accel else None)
     with torch.no_grad():
-        model.policy.action_net.bias.copy_(torch.as_tensor(encode_config(prior, spec)))
+        model.policy.action_net.bias.copy_(torch.as_tensor(encode_config(prior, spec, (PRIOR["freq"],) * 2)))
 
 
 class _CurveCallback:
@@ -358,26 +362,17 @@ def load_policy(policy_dir: str | Path, which: str = "policy") -> Policy:
 spectrum_observation = spectrum_features
 
 
-def _full_observation(policy: Policy, env, spectra_obs: np.ndarray) -> np.ndarray:
-    """Spectra + the rest of a reset observation: shaping off as the current configuration and no
-    metrics (the training env does not observe metrics, so they are zeros there too)."""
-    from ringtune.envs.env import encode_config
-
+def recommend_from_psd(policy: Policy, spectra: dict[str, tuple[np.ndarray, np.ndarray]]) -> TuneConfig:
+    """One inference on measured resonance PSDs ``{"x": (freqs, psd), "y": ...}`` -> TuneConfig:
+    the env's reset observation of those spectra (shaping off as the current configuration, no
+    metrics: the training env does not observe them either), decoded around their peaks. An axis
+    that was not measured gets shaping off (like Klipper's rule in ``recommend``)."""
     if policy.env_kwargs.get("observe_metrics", False):
         raise RingtuneError("this policy was trained observing simulated metrics; it cannot be applied to "
                             "measured spectra alone", str(policy.path))
-    start = TuneConfig(firmware=env.spec_.firmware, shaper_x="none", shaper_y="none")
-    return np.concatenate([spectra_obs, encode_config(start, env.spec_), np.zeros(6, np.float32)]).astype(np.float32)
-
-
-def recommend_from_psd(policy: Policy, spectra: dict[str, tuple[np.ndarray, np.ndarray]]) -> TuneConfig:
-    """One inference on measured resonance PSDs ``{"x": (freqs, psd), "y": ...}`` -> TuneConfig.
-    An axis that was not measured gets shaping off (like Klipper's rule in ``recommend``)."""
-    from ringtune.envs.env import decode_action
-
     env = policy.make_env()
-    obs = _full_observation(policy, env, spectrum_observation(spectra, env.n_bins, env.spectrum_range))
-    config = decode_action(policy.act(obs), env.spec_)
+    obs = env.observe_measured(spectra)
+    config = env.decode(policy.act(obs))
     for ax in ("x", "y"):
         if ax not in spectra:
             config = dataclasses.replace(config, **{f"shaper_{ax}": "none"})
@@ -386,13 +381,12 @@ def recommend_from_psd(policy: Policy, spectra: dict[str, tuple[np.ndarray, np.n
 
 def recommend_for_printer(policy: Policy, printer=None, seed: int = 0) -> tuple[TuneConfig, np.ndarray]:
     """One inference on a modelled printer's simulated resonance test (``seed`` its noise) ->
-    (TuneConfig, the action)."""
-    from ringtune.envs.env import decode_action
-
+    (TuneConfig, the action). The action decodes with the peaks of that test (``env.peaks_`` of a
+    fixed env reset with ``seed``)."""
     env = policy.make_env(printer)
     obs, _ = env.reset(seed=seed)
     action = policy.act(obs)
-    return decode_action(action, env.spec_), action
+    return env.decode(action), action
 
 
 def config_dict(config: TuneConfig) -> dict:

@@ -67,7 +67,7 @@ def run(args, out) -> int:
         from ringtune.agents.ppo_refine import PrinterCost, optuna_search
 
         out.note(f"refining with Optuna: {refine} trials, the policy's answer first ...")
-        res = optuna_search(PrinterCost(printer, policy.env_kwargs), int(refine), args.seed, first_action=action)
+        res = optuna_search(PrinterCost(printer, policy.env_kwargs, seed=args.seed), int(refine), args.seed, first_action=action)
         config = res.best_config
         refined = {"trials": int(refine), "first_cost": res.first_cost, "best_cost": res.best_cost}
     config = dataclasses.replace(config, extra={"method": "policy", "policy": str(policy.path),

@@ -20,16 +20,20 @@ from ringtune.shaping.errors import RingtuneError
 class PrinterCost:
     """Cost of configurations (or actions) on one fixed printer, as ``TuneEnv`` scores them."""
 
-    def __init__(self, printer=None, env_kwargs: dict | None = None, backend: str = "mujoco", job=None):
+    def __init__(self, printer=None, env_kwargs: dict | None = None, backend: str = "mujoco", job=None,
+                 seed: int = 0, peaks=None):
         """``env_kwargs``: the policy's env arguments (its job, weights, action layout); ``job``
-        overrides the job."""
+        overrides the job. Peak-anchored actions decode around the peaks of the resonance test
+        of ``reset(seed=seed)``, or around ``peaks`` (X, Y) Hz when given (e.g. those the policy saw)."""
         from ringtune.envs.env import TuneEnv
 
         kw = {k: v for k, v in (env_kwargs or {}).items() if k not in ("backend", "observe_metrics", "randomize")}
         if job is not None:
             kw["job"] = job
         self.env = TuneEnv(printer=printer, randomize=False, backend=backend, observe_metrics=False, **kw)
-        self.env.reset(seed=0)      # computes the baseline print time of this printer
+        self.env.reset(seed=seed)   # computes the baseline print time (and the peaks) of this printer
+        if peaks is not None:
+            self.env.peaks_ = (float(peaks[0]), float(peaks[1]))
         self.n_evaluations = 0
 
     @property
@@ -44,9 +48,7 @@ class PrinterCost:
             return float(self.env.step_loss_penalty)
 
     def of_action(self, action) -> float:
-        from ringtune.envs.env import decode_action
-
-        return self.of_config(decode_action(np.clip(np.asarray(action, float), -1, 1), self.spec))
+        return self.of_config(self.env.decode(np.clip(np.asarray(action, float), -1, 1)))
 
 
 @dataclass
@@ -68,8 +70,6 @@ def optuna_search(cost: PrinterCost, n_trials: int, seed: int = 0, first_action=
     it. ``n_trials`` counts that trial."""
     import optuna
 
-    from ringtune.envs.env import decode_action
-
     if n_trials < 1:
         raise RingtuneError("needs at least one trial", "--refine")
     optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -88,4 +88,4 @@ def optuna_search(cost: PrinterCost, n_trials: int, seed: int = 0, first_action=
 
     study.optimize(objective, n_trials=n_trials)
     best = np.array([study.best_trial.params[f"a{i}"] for i in range(n)])
-    return SearchResult(best, decode_action(best, cost.spec), float(study.best_value), costs)
+    return SearchResult(best, cost.env.decode(best), float(study.best_value), costs)
