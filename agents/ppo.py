@@ -57,7 +57,7 @@ BENCH_SEEDS = tuple(range(950_000, 950_020))
 #: training seeds must stay below this
 MAX_TRAIN_SEED = 800_000
 #: ``ringtune train`` defaults (acceptance 4: ≤ 20 min on 2 cores; one episode ~0.1 s per free core with
-#: the lti backend; measured 20.7 min wall on 2 cores shared with other jobs, load average 5-6)
+#: the lti backend; measured 16.1 min wall on 2 cores shared with other jobs, load average ~3)
 DEFAULT_TIMESTEPS = 12_288
 DEFAULT_N_ENVS = 2
 DEFAULT_HYPER: dict[str, Any] = {

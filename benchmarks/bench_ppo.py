@@ -7,7 +7,8 @@ in ``ringtune.agents.ppo.BENCH_SEEDS``; training uses seeds < 800000 and the eva
 
 - policy: the policy's one-shot recommendation from the printer's simulated resonance test;
 - policy+optuna20: that answer as the first of 20 Optuna (TPE) trials over the same action space;
-- optuna200: Optuna alone, 200 trials;
+- optuna200: Optuna alone, 200 trials, over the absolute action space (F over 15-150 Hz: it
+  knows nothing of the peak; the policy's refinement searches the policy's own peak-anchored space);
 - klipper: Klipper's calibrate_shaper rule (HEAD) on the simulated resonance test, with its max_accel;
 - none: no shaping, the printer's own acceleration.
 

@@ -29,8 +29,12 @@ training_curve.png, evaluations.npz and meta.json. --resume continues from the n
 in DIR up to --timesteps in total. --hpo first tunes PPO's own hyperparameters with Optuna (short
 runs; a fifth of the budget), then trains with the best ones.
 
-The defaults (12288 steps, 2 envs) took 20.7 min on 2 cores shared with other jobs (load
-average 5-6); one step costs ~0.1 s on a free core, so about 12 min on 2 free cores.
+The policy's shaper frequencies are residuals around each axis's resonance peak (found in the
+same resonance-test PSD it observes): 0 puts the shaper on the peak, +-1 an octave above or below,
+so the answer transfers to measured spectra; the frequency limit stays off unless chosen.
+
+The defaults (12288 steps, 2 envs) took 16.1 min on 2 cores shared with other jobs (load
+average ~3); one step costs ~0.1 s on a free core, so about 12 min on 2 free cores.
 
 Policy files are stable-baselines3 zips plus a pickle: loading one runs code from it, so only use
 policies you trained or trust.
