@@ -198,15 +198,24 @@ def _solve_springs(K0, vecs, mass, k_init, targets, printer) -> np.ndarray:
     nb = len(vecs)
     outer = [np.outer(v, v) for v in vecs]
 
-    def freqs(logk):
+    def log_freqs(logk):
+        """log of the lowest nb frequencies; non-finite when the stiffness has run away (a mode
+        at 0 Hz, or an eigen-solve that fails on ~1e15 kg/s² springs): the description is infeasible."""
         K = K0 + sum(math.exp(x) * o for x, o in zip(logk, outer))
-        return undamped_frequencies(K, mass)[:nb]
+        try:
+            f = undamped_frequencies(K, mass)[:nb]
+        except np.linalg.LinAlgError:
+            return np.full(nb, np.nan)
+        with np.errstate(divide="ignore"):
+            return np.log(f)
 
     x = np.log(np.asarray(k_init, float))
     ok = False
     for _ in range(60):
-        f = freqs(x)
-        res = np.log(f) - np.log(targets)
+        lf = log_freqs(x)
+        res = lf - np.log(targets)
+        if not np.all(np.isfinite(res)):
+            break
         if np.max(np.abs(res)) < 1e-12:
             ok = True
             break
@@ -214,7 +223,9 @@ def _solve_springs(K0, vecs, mass, k_init, targets, printer) -> np.ndarray:
         for j in range(nb):
             dx = np.zeros(nb)
             dx[j] = 1e-6
-            J[:, j] = (np.log(freqs(x + dx)) - np.log(f)) / 1e-6
+            J[:, j] = (log_freqs(x + dx) - lf) / 1e-6
+        if not np.all(np.isfinite(J)):
+            break
         try:
             step = np.linalg.solve(J, -res)
         except np.linalg.LinAlgError:

@@ -113,6 +113,24 @@ def test_a_motor_too_weak_for_the_described_frequency_is_an_error():
     assert "[motor].force" in str(exc.value)
 
 
+def test_a_runaway_series_solve_is_infeasible_not_a_crash():
+    """A two-mode Y that a 21.7 N motor cannot carry beside a 116 Hz X: the Newton solve drives a
+    spring towards infinite stiffness (a 0 Hz mode, then an eigen-solve that fails). That is the
+    same infeasibility as above: unset slip falls back to the rigid motor, slip = true is the
+    error naming [motor].force (once a LinAlgError escaped, ~1 in 300 random printers)."""
+    d = {"name": "runaway", "kinematics": "cartesian",
+         "x": {"mass": 1.018051538030529, "modes": [{"freq": 115.80751028153192, "damping": 0.03254612280415192}]},
+         "y": {"mass": 0.6429837977442394,
+               "modes": [{"freq": 33.72982936616528, "damping": 0.13426772321570668, "share": 0.7197989243064755},
+                         {"freq": 49.44207273017178, "damping": 0.16997520575023453, "share": 0.2802010756935244}]},
+         "print_mass": 0.36645595443636503, "motor": {"force": 21.65512049032228}}
+    assert linear_system(printer_from_dict(d, "runaway")).rotors == []
+    d["motor"]["slip"] = True
+    with pytest.raises(RingtuneError, match="magnetic stiffness") as exc:
+        linear_system(printer_from_dict(d, "runaway"))
+    assert "[motor].force" in str(exc.value)
+
+
 def _over_then_gentle(a_over, a_back, t_over):
     """Accelerate at a_over for t_over, then come back to rest at the gentle a_back."""
     v = a_over * t_over
