@@ -10,9 +10,10 @@ Output folder of :func:`train` (``-o DIR``):
 
 | file | what |
 |---|---|
-| ``policy.zip`` | the final policy (stable-baselines3 format) |
+| ``policy.zip`` | the policy to use (stable-baselines3 format): the one that scored best on the held-out printers, the starting policy included |
 | ``vecnormalize.pkl`` | its observation/reward normalisation statistics (``VecNormalize.save``) |
-| ``best/best_model.zip`` | the policy that scored best on the held-out printers (``EvalCallback``) |
+| ``final.zip``, ``final_vecnormalize.pkl`` | the weights and statistics at the end of training |
+| ``best/best_model.zip``, ``best/vecnormalize.pkl`` | the held-out best as ``EvalCallback`` saved it |
 | ``checkpoints/`` | ``ppo_<steps>_steps.zip`` + ``ppo_vecnormalize_<steps>_steps.pkl`` (resume) |
 | ``evaluations.npz`` | held-out evaluations (timesteps, rewards), EvalCallback's format |
 | ``training_curve.npz``, ``training_curve.png`` | mean training cost per rollout and held-out cost vs timesteps |
@@ -39,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from ringtune.agents.ppo_callbacks import curve_callback, held_out_callback
 from ringtune.envs.env import spectrum_features
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
@@ -60,9 +62,13 @@ MAX_TRAIN_SEED = 800_000
 #: the lti backend; measured 16.1 min wall on 2 cores shared with other jobs, load average ~3)
 DEFAULT_TIMESTEPS = 12_288
 DEFAULT_N_ENVS = 2
+#: (``reference_reward``/``printer_repeats``: the training reward is relative to :data:`PRIOR` on
+#: the same printer, each printer shown 4 times; see :mod:`ringtune.agents.ppo_reward`. A small
+#: ``log_std_init`` explores near the prior instead of averaging over far-off configurations)
 DEFAULT_HYPER: dict[str, Any] = {
-    "learning_rate": 1e-3, "n_steps": 128, "batch_size": 64, "n_epochs": 10, "gamma": 0.0,
-    "gae_lambda": 1.0, "ent_coef": 0.0, "clip_range": 0.2, "log_std_init": -0.7, "net_arch": [128, 128],
+    "learning_rate": 1e-4, "n_steps": 256, "batch_size": 128, "n_epochs": 5, "gamma": 0.0,
+    "gae_lambda": 1.0, "ent_coef": 0.0, "clip_range": 0.2, "log_std_init": -2.0, "net_arch": [128, 128],
+    "log_std_freq": -3.0, "reference_reward": True, "printer_repeats": 4,
 }
 
 
@@ -84,13 +90,17 @@ def _pinned_env(seed: int, env_kwargs: dict):
     return Monitor(w)
 
 
-def _make_train_env(rank: int, seed: int, env_kwargs: dict):
+def _make_train_env(rank: int, seed: int, env_kwargs: dict, hyper: dict):
     def thunk():
         from stable_baselines3.common.monitor import Monitor
 
+        from ringtune.agents.ppo_reward import ReferenceRelative
         from ringtune.envs.env import TuneEnv
 
-        env = Monitor(TuneEnv(randomize=True, **env_kwargs))
+        env = TuneEnv(randomize=True, **env_kwargs)
+        if hyper.get("reference_reward"):
+            env = ReferenceRelative(env, prior_action(env_kwargs), hyper.get("printer_repeats", 1))
+        env = Monitor(env)
         env.reset(seed=seed + rank)
         return env
     return thunk
@@ -100,11 +110,15 @@ def _make_eval_env_fn(s: int, env_kwargs: dict):
     return lambda: _pinned_env(s, env_kwargs)
 
 
-def make_vec_envs(n_envs: int, seed: int, env_kwargs: dict, subprocess: bool = True):
-    """(training VecEnv, held-out eval VecEnv), both not yet normalised."""
+def make_vec_envs(n_envs: int, seed: int, env_kwargs: dict, subprocess: bool = True,
+                  hyper: dict | None = None):
+    """(training VecEnv, held-out eval VecEnv), both not yet normalised. The held-out printers
+    always score the plain cost; training uses the reference-relative reward when
+    ``hyper["reference_reward"]`` (:mod:`ringtune.agents.ppo_reward`)."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
-    fns = [_make_train_env(k, seed, env_kwargs) for k in range(n_envs)]
+    hyper = {**DEFAULT_HYPER, **(hyper or {})}
+    fns = [_make_train_env(k, seed, env_kwargs, hyper) for k in range(n_envs)]
     venv = SubprocVecEnv(fns) if subprocess and n_envs > 1 else DummyVecEnv(fns)
     venv.seed(seed)
     eval_env = DummyVecEnv([_make_eval_env_fn(s, env_kwargs) for s in EVAL_SEEDS])
@@ -112,6 +126,16 @@ def make_vec_envs(n_envs: int, seed: int, env_kwargs: dict, subprocess: bool = T
 
 
 # -- training -----------------------------------------------------------------------------------------
+def _publish_best(out: Path) -> None:
+    """``policy.zip`` + ``vecnormalize.pkl`` := the held-out best (``best/``), else the final weights."""
+    import shutil
+
+    best = (out / "best" / "best_model.zip", out / "best" / "vecnormalize.pkl")
+    src = best if all(p.is_file() for p in best) else (out / "final.zip", out / "final_vecnormalize.pkl")
+    shutil.copyfile(src[0], out / "policy.zip")
+    shutil.copyfile(src[1], out / "vecnormalize.pkl")
+
+
 @dataclass
 class TrainResult:
     out_dir: Path
@@ -155,7 +179,7 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
     """
     import torch
     from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
+    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
     from stable_baselines3.common.vec_env import VecNormalize
 
     if not 0 <= seed < MAX_TRAIN_SEED:
@@ -170,7 +194,7 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
     hyper = {**DEFAULT_HYPER, **(hyper or {})}
     torch.set_num_threads(1)
     t0 = time.perf_counter()
-    venv, eval_env = make_vec_envs(n_envs, seed, env_kwargs, subprocess)
+    venv, eval_env = make_vec_envs(n_envs, seed, env_kwargs, subprocess, hyper)
     resumed = None
     try:
         if resume:
@@ -188,15 +212,15 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
                         gae_lambda=hyper["gae_lambda"], ent_coef=hyper["ent_coef"],
                         clip_range=hyper["clip_range"], policy_kwargs=policy_kwargs, seed=seed,
                         device="cpu", verbose=verbose)
-            _set_prior(model, env_kwargs)
+            _set_prior(model, env_kwargs, hyper)
         eval_venv = VecNormalize(eval_env, training=False, norm_obs=True, norm_reward=False, clip_obs=10.0)
         every = max(eval_freq or timesteps // 8, n_envs) // n_envs
         ck_every = max(checkpoint_freq or timesteps // 8, n_envs) // n_envs
-        curve = _CurveCallback()
+        curve = curve_callback()
+        previous = np.load(out / "evaluations.npz") if resume and (out / "evaluations.npz").is_file() else None
+        previous_best = float(np.max(np.mean(previous["results"], axis=1))) if previous is not None else None
         callbacks = CallbackList([
-            EvalCallback(eval_venv, n_eval_episodes=len(EVAL_SEEDS), eval_freq=every,
-                         best_model_save_path=str(out / "best"), log_path=str(out), deterministic=True,
-                         verbose=0),
+            held_out_callback(eval_venv, len(EVAL_SEEDS), every, out, previous_best),
             CheckpointCallback(save_freq=ck_every, save_path=str(out / "checkpoints"), name_prefix="ppo",
                                save_vecnormalize=True),
             curve,
@@ -205,8 +229,9 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
         if remaining > 0:
             model.learn(total_timesteps=remaining, callback=callbacks, progress_bar=progress_bar,
                         reset_num_timesteps=not resume)
-        model.save(str(out / "policy.zip"))
-        venv.save(str(out / "vecnormalize.pkl"))
+        model.save(str(out / "final.zip"))
+        venv.save(str(out / "final_vecnormalize.pkl"))
+        _publish_best(out)
     finally:
         venv.close()
         eval_env.close()
@@ -233,17 +258,15 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
     return res
 
 
-#: where the untrained policy's mean answer starts (a common starting point, not a tuned answer):
-#: MZV at 50 Hz (on the resonance peak with a peak-anchored action), damping 0.1, no frequency
-#: limit, 5000 mm/s²
-PRIOR = {"shaper": "mzv", "freq": 50.0, "damping": 0.1, "accel": 5000.0}
+#: where the untrained policy's mean answer starts: MZV on the resonance peak (50 Hz with an
+#: absolute action), damping 0.075, no frequency limit, 4000 mm/s². The best of 13 constant
+#: answers (MZV/ZVD/EI × 3000/4000/5000 mm/s² × damping × F/peak) on training printers
+#: (seeds 1000–1029, mean cost 1.08–1.10), so training refines a sound population answer
+PRIOR = {"shaper": "mzv", "freq": 50.0, "damping": 0.075, "accel": 4000.0}
 
 
-def _set_prior(model, env_kwargs: dict) -> None:
-    """Start the policy's mean action at :data:`PRIOR` (the action head's bias; its weights start
-    near zero), instead of the centre of every range (47 Hz, a 60 Hz frequency limit, 3162 mm/s²)."""
-    import torch
-
+def prior_action(env_kwargs: dict) -> np.ndarray:
+    """:data:`PRIOR` as an action of the env ``env_kwargs`` describe (peak-anchored: F on the peak)."""
     from ringtune.envs.env import TuneEnv, encode_config
 
     spec = TuneEnv(randomize=True, **env_kwargs).spec_
@@ -251,37 +274,26 @@ def _set_prior(model, env_kwargs: dict) -> None:
     prior = TuneConfig(firmware=spec.firmware, shaper_x=name, shaper_y=name, freq_x=PRIOR["freq"],
                        freq_y=PRIOR["freq"], damping_x=PRIOR["damping"], damping_y=PRIOR["damping"],
                        freq_limit_hz=0.0, accel=PRIOR["accel"] if spec.tune_accel else None)
+    return encode_config(prior, spec, (PRIOR["freq"],) * 2)
+
+
+def _set_prior(model, env_kwargs: dict, hyper: dict) -> None:
+    """Start the policy's mean action at :data:`PRIOR` (the action head's bias, its weights zeroed:
+    they still learn, their gradient is the advantage times the hidden layer), instead of the centre of every range (47 Hz, a 60 Hz frequency limit, 3162 mm/s²).
+    With ``hyper["log_std_freq"]`` the F entries explore with that log std (the cost is sharpest
+    in F: a few per cent off the resonance costs more than a different damping)."""
+    import torch
+
+    from ringtune.envs.env import TuneEnv
+
     with torch.no_grad():
-        model.policy.action_net.bias.copy_(torch.as_tensor(encode_config(prior, spec, (PRIOR["freq"],) * 2)))
-
-
-class _CurveCallback:
-    """Collects the mean training cost (−reward, unnormalised) of each rollout."""
-
-    def __new__(cls):
-        from stable_baselines3.common.callbacks import BaseCallback
-
-        class Curve(BaseCallback):
-            def __init__(self):
-                super().__init__()
-                self.timesteps: list[int] = []
-                self.costs: list[float] = []
-                self._buf: list[float] = []
-
-            def _on_step(self) -> bool:
-                for info in self.locals.get("infos", []):
-                    ep = info.get("episode")
-                    if ep is not None:
-                        self._buf.append(-float(ep["r"]))
-                return True
-
-            def _on_rollout_end(self) -> None:
-                if self._buf:
-                    self.timesteps.append(int(self.num_timesteps))
-                    self.costs.append(float(np.mean(self._buf)))
-                    self._buf = []
-
-        return Curve()
+        model.policy.action_net.weight.zero_()     # exactly the prior on every printer at first
+        model.policy.action_net.bias.copy_(torch.as_tensor(prior_action(env_kwargs)))
+        if hyper.get("log_std_freq") is not None:
+            labels = TuneEnv(randomize=True, **env_kwargs).spec_.labels()
+            for i, name in enumerate(labels):
+                if name.startswith("freq_") and name != "freq_limit_hz" or name == "freq":
+                    model.policy.log_std[i] = float(hyper["log_std_freq"])
 
 
 def plot_training_curve(res: TrainResult, path: str | Path) -> None:
@@ -335,16 +347,19 @@ class Policy:
 
 
 def load_policy(policy_dir: str | Path, which: str = "policy") -> Policy:
-    """Load ``policy_dir/policy.zip`` (or ``best/best_model.zip`` with ``which="best"``) and its
-    ``vecnormalize.pkl``. **Trusts its source**: both files can carry pickled Python objects that run
+    """Load ``policy_dir/policy.zip`` and ``vecnormalize.pkl`` (``which="final"``: the weights at
+    the end of training; ``"best"``: ``best/``). **Trusts its source**: both files can carry pickled Python objects that run
     code when loaded; load only policies you trained or got from someone you trust."""
     import pickle
 
     from stable_baselines3 import PPO
 
     d = Path(policy_dir)
-    zp = d / ("policy.zip" if which == "policy" else "best/best_model.zip")
-    pk = d / "vecnormalize.pkl"
+    if which not in ("policy", "final", "best"):
+        raise RingtuneError(f"which must be 'policy', 'final' or 'best', not {which!r}", "which")
+    zp, pk = {"policy": (d / "policy.zip", d / "vecnormalize.pkl"),
+              "final": (d / "final.zip", d / "final_vecnormalize.pkl"),
+              "best": (d / "best/best_model.zip", d / "best/vecnormalize.pkl")}[which]
     for p in (zp, pk, d / "meta.json"):
         if not p.is_file():
             raise RingtuneError(f"not a trained policy folder: {p.name} is missing (run `ringtune train -o DIR`)",

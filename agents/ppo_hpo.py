@@ -21,7 +21,7 @@ def suggest_hyper(trial) -> dict:
         "learning_rate": trial.suggest_float("learning_rate", 1e-4, 3e-3, log=True),
         "n_steps": trial.suggest_categorical("n_steps", [64, 128, 256]),
         "n_epochs": trial.suggest_int("n_epochs", 4, 20),
-        "log_std_init": trial.suggest_float("log_std_init", -1.5, 0.0),
+        "log_std_init": trial.suggest_float("log_std_init", -3.0, -1.0),
         "ent_coef": trial.suggest_float("ent_coef", 1e-5, 1e-2, log=True),
         "net_arch": [width, width],
     }

@@ -59,13 +59,17 @@ def test_subprocess_training_writes_policy_resumes_and_recommends(tmp_path):
     res = ppo.train(out, timesteps=32, n_envs=2, seed=3, env_kwargs=kw, hyper=hyper, eval_freq=32,
                     checkpoint_freq=32, progress_bar=True)
     assert res.timesteps == 32
-    for name in ("policy.zip", "vecnormalize.pkl", "meta.json", "training_curve.png", "evaluations.npz",
-                 "best/best_model.zip"):
+    for name in ("policy.zip", "vecnormalize.pkl", "final.zip", "final_vecnormalize.pkl", "meta.json",
+                 "training_curve.png", "evaluations.npz", "best/best_model.zip", "best/vecnormalize.pkl"):
         assert (out / name).is_file(), name
     meta = json.loads((out / "meta.json").read_text())
     assert meta["n_envs"] == 2 and meta["env_kwargs"]["job"] == SQUARE_JOB
-    # one evaluation on every held-out printer, a finite cost
-    assert len(res.eval_mean_cost) == 1 and np.isfinite(res.eval_mean_cost[0]) and res.eval_mean_cost[0] > 0.5
+    # the held-out printers are scored at the start and after 32 steps, finite costs
+    assert res.eval_timesteps == [0, 32]
+    assert np.all(np.isfinite(res.eval_mean_cost)) and min(res.eval_mean_cost) > 0.5
+    # the policy to use is the held-out best, with the statistics it was trained under
+    assert (out / "policy.zip").read_bytes() == (out / "best" / "best_model.zip").read_bytes()
+    assert (out / "vecnormalize.pkl").read_bytes() == (out / "best" / "vecnormalize.pkl").read_bytes()
     assert ppo.latest_checkpoint(out)[0].name == "ppo_32_steps.zip"
 
     # resume (in-process envs to keep the test short)

@@ -23,9 +23,12 @@ acceleration); the reward is minus the configuration's cost (print-time ratio pl
 error, overshoot and ringing; step loss penalised).
 
 Runs --envs environments in subprocesses, normalises observations and rewards (VecNormalize),
-evaluates on 8 held-out printers (seeds disjoint from training), shows a progress bar, and writes
-checkpoints. The output folder DIR receives policy.zip, vecnormalize.pkl, best/best_model.zip,
-training_curve.png, evaluations.npz and meta.json. --resume continues from the newest checkpoint
+evaluates on 8 held-out printers (seeds disjoint from training) at the start and during training,
+shows a progress bar, and writes checkpoints. The training reward is the cost relative to a
+reference answer (MZV on the peak) on the same printer, each printer shown 4 times: the same
+optimum, without the spread between printers. The output folder DIR receives policy.zip and
+vecnormalize.pkl (the held-out best, the starting policy included), final.zip (the last weights),
+best/, training_curve.png, evaluations.npz and meta.json. --resume continues from the newest checkpoint
 in DIR up to --timesteps in total. --hpo first tunes PPO's own hyperparameters with Optuna (short
 runs; a fifth of the budget), then trains with the best ones.
 
@@ -91,7 +94,7 @@ def run(args, out) -> int:
                     progress_bar=not args.no_progress)
     d = Path(args.output)
     files = {"policy": str(d / "policy.zip"), "vecnormalize": str(d / "vecnormalize.pkl"),
-             "curve": str(d / "training_curve.png"), "best": str(d / "best" / "best_model.zip"),
+             "curve": str(d / "training_curve.png"), "final": str(d / "final.zip"),
              "meta": str(d / "meta.json")}
     result = {**res.to_dict(), "hpo": hpo, "files": files}
     text = [f"trained {res.timesteps} steps in {res.wall_s:.0f} s"

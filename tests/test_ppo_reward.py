@@ -1,0 +1,69 @@
+"""The reference-relative training reward (agents/ppo_reward.py): same printer, same optimum,
+the printer's own cost level removed."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from ringtune.agents import ppo
+from ringtune.agents.ppo_reward import ReferenceRelative, reward_of
+from ringtune.envs.env import TuneEnv
+
+from test_ppo_train import SQUARE_JOB
+
+KW = {**ppo.DEFAULT_ENV_KWARGS, "job": SQUARE_JOB}
+
+
+def _wrapped(repeats=2):
+    return ReferenceRelative(TuneEnv(randomize=True, **KW), ppo.prior_action(KW), repeats)
+
+
+def test_reference_action_earns_zero_and_rewards_are_differences_of_true_costs():
+    env = _wrapped(repeats=3)
+    env.reset(seed=11)
+    ref = ppo.prior_action(KW)
+    _, r0, term, _, info = env.step(ref)
+    assert term and r0 == 0.0 and info["cost"] == pytest.approx(info["reference_cost"])
+    other = ref.copy()
+    other[-1] = -1.0            # the lowest acceleration: slower, so a different cost
+    env.reset()
+    _, r1, _, _, info1 = env.step(other)
+    # the wrapper's reward is exactly the difference of the plain env's costs on that printer
+    base = env.unwrapped
+    assert r1 == pytest.approx(reward_of(base, base.decode(other)) - reward_of(base, base.decode(ref)), abs=1e-12)
+    assert r1 == pytest.approx(info1["reference_cost"] - info1["cost"], abs=1e-12)
+    assert r1 != 0.0
+
+
+def test_each_printer_is_shown_repeats_times_then_a_new_one():
+    env = _wrapped(repeats=2)
+    o1, _ = env.reset(seed=5)
+    p1 = env.unwrapped.printer.to_dict()
+    env.step(env.action_space.sample())
+    o2, _ = env.reset()
+    assert np.array_equal(o1, o2) and env.unwrapped.printer.to_dict() == p1
+    env.step(env.action_space.sample())
+    o3, _ = env.reset()
+    assert env.unwrapped.printer.to_dict() != p1 and not np.array_equal(o1, o3)
+    # a seeded reset always draws (and reproduces) the printer of that seed
+    o4, _ = env.reset(seed=5)
+    assert np.array_equal(o1, o4)
+
+
+def test_rejects_zero_repeats():
+    from ringtune.shaping.errors import RingtuneError
+
+    with pytest.raises(RingtuneError, match="printer_repeats"):
+        _wrapped(repeats=0)
+
+
+@pytest.mark.slow
+def test_sb3_checker_passes_on_the_wrapped_training_env():
+    from stable_baselines3.common.env_checker import check_env
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(_wrapped(), warn=True)
