@@ -124,7 +124,11 @@ def job_limits(printer, config: TuneConfig | None):
 
 def planned_job(printer, job=None, config: TuneConfig | None = None, *,
                 max_windows: int = MAX_WINDOWS, span: float = WINDOW_SPAN) -> PlannedJob:
-    """Parse, frequency-limit and plan ``job`` for ``printer`` under ``config`` (cached)."""
+    """Parse, frequency-limit and plan ``job`` for ``printer`` under ``config`` (cached).
+
+    The quality windows are chosen once, on the plan at the printer's own limits without
+    frequency limit, and every configuration is judged on those same corners and zigzags
+    (:func:`ringtune.shaping.testprints.relocate_windows`)."""
     from ringtune.shaping import freqlimit, planner, testprints
 
     jkey, parsed = resolve_job(job)
@@ -143,7 +147,11 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
         limited = freqlimit.apply_freq_limit(parsed, fl[0], method=fl[1], min_speed_factor=fl[2])
     # the config's acceleration wins over the job's own M204 / SET_VELOCITY_LIMIT (a tuning knob)
     plan = planner.plan(limited, limits, accel=accel, daa_freq=daa)
-    windows = testprints.quality_windows(plan, max_windows=max_windows, span=span)
+    if key[2:5] == ((0.0, "", 0.0), None, None):
+        windows = testprints.quality_windows(plan, max_windows=max_windows, span=span)
+    else:   # the corners and zigzags the printer's own plan chose, at this plan's times
+        ref = planned_job(printer, job, None, max_windows=max_windows, span=span).windows
+        windows = testprints.relocate_windows(plan, ref, span=span)
     pj = PlannedJob(plan, list(windows))
     if key[0][0] == "object":  # keep the job alive so its id is not reused while cached
         pj.source = parsed  # type: ignore[attr-defined]

@@ -200,3 +200,32 @@ def quality_windows(plan, max_windows: int = 8, span: float = 0.25) -> list[Wind
     if got_c + got_z < max_windows:
         take("corner", max_windows - got_c - got_z)
     return sorted(chosen, key=lambda w: w.t0)
+
+
+def relocate_windows(plan, reference: list[Window], span: float = 0.25) -> list[Window]:
+    """The windows ``reference`` chose (on another plan of the same job: other acceleration or
+    frequency limit), placed on ``plan``: the same G-code lines, the same corners and zigzags,
+    at the times ``plan`` reaches them, scored on ``plan``.
+
+    Why: choosing windows afresh for every configuration lets the set of simulated corners change
+    when the acceleration crosses a threshold (many corners of a test print score almost alike),
+    and the cost then jumps by ~10 % between neighbouring accelerations; comparing configurations
+    on the same corners keeps the objective smooth. A line ``plan`` lacks as a candidate takes the
+    candidate of that kind on the nearest line."""
+    duration = plan.motion.end_time
+    span = min(span, duration)
+    lo_t, hi_t = plan.motion.start_time, duration - span
+    tc, sc, lc = _corner_candidates(plan)
+    tz, fz, lz = direction_change_frequencies(plan)
+    cands = {"corner": (tc - 0.2 * span, sc, lc), "zigzag": (tz - 0.5 * span, fz, lz)}
+    out = []
+    for w in reference:
+        t0s, scores, lines = cands.get(w.kind, cands["corner"])
+        if len(lines) == 0:
+            t0s, scores, lines = cands["zigzag" if w.kind == "corner" else "corner"]
+        if len(lines) == 0:
+            return quality_windows(plan, max_windows=len(reference), span=span)
+        i = int(np.argmin(np.abs(np.asarray(lines, np.int64) - int(w.line))))
+        t0 = float(min(max(t0s[i], lo_t), hi_t))
+        out.append(Window(t0, t0 + span, w.kind, float(scores[i]), int(lines[i])))
+    return sorted(out, key=lambda w: w.t0)

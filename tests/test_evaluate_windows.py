@@ -1,0 +1,56 @@
+"""Every configuration is judged on the same corners and zigzags (envs/evaluate.py,
+shaping/testprints.relocate_windows), so the cost is a smooth function of the acceleration."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ringtune.envs.evaluate import evaluate, planned_job
+from ringtune.envs.printer import load_printer
+from ringtune.shaping.config import TuneConfig
+
+CONFIG = TuneConfig(firmware="klipper", shaper_x="mzv", shaper_y="mzv", freq_x=45.0, freq_y=35.0,
+                    damping_x=0.075, damping_y=0.075)
+
+
+def test_windows_keep_their_lines_across_accelerations_and_frequency_limits():
+    printer = load_printer(None)
+    ref = planned_job(printer, None, None).windows
+    for accel, limit in ((2000.0, 0.0), (3950.0, 0.0), (4000.0, 0.0), (9000.0, 0.0), (None, 30.0)):
+        cfg = dataclasses.replace(CONFIG, accel=accel, freq_limit_hz=limit)
+        pj = planned_job(printer, None, cfg)
+        assert [(w.kind, w.line) for w in sorted(pj.windows, key=lambda w: w.line)] == \
+            [(w.kind, w.line) for w in sorted(ref, key=lambda w: w.line)]
+        # each window still starts just before its corner / around its zigzag on this plan's clock
+        assert all(0.0 <= w.t0 < w.t1 <= pj.plan.motion.end_time for w in pj.windows)
+    slow = planned_job(printer, None, dataclasses.replace(CONFIG, accel=1000.0))
+    assert max(w.t0 for w in slow.windows) > max(w.t0 for w in ref)   # slower plan, later corners
+
+
+#: a randomised training printer (seed 900001 of ringtune/Tune-v0): low, two-mode X
+LOW_PRINTER = {
+    "name": "low", "kinematics": "cartesian", "print_mass": 0.0706,
+    "limits": {"accel": 3000, "velocity": 300, "square_corner_velocity": 5},
+    "x": {"mass": 1.3068, "modes": [{"freq": 21.4222, "damping": 0.06602, "share": 0.74238},
+                                    {"freq": 54.4677, "damping": 0.059685, "share": 0.25762}]},
+    "y": {"mass": 2.3616, "modes": [{"freq": 24.8113, "damping": 0.042034}]},
+    "motor": {"force": 41.12},
+}
+
+
+def test_cost_is_smooth_in_the_acceleration():
+    """1 % steps of acceleration change the path error by under 5 %; choosing the windows afresh
+    per plan made the metrics jump by up to 130 % on this printer where the chosen corners changed
+    (3950 -> 4000 mm/s²). Overshoot (~8 µm here) and ringing have their own small steps (where the
+    stretch each reads after a corner changes), bounded here at 15 %."""
+    from ringtune.envs.printer import printer_from_dict
+
+    printer = printer_from_dict(LOW_PRINTER, "low")
+    cfg = dataclasses.replace(CONFIG, freq_x=21.6, freq_y=24.9)
+    accels = 3700.0 * 1.01 ** np.arange(20)
+    ms = [evaluate(dataclasses.replace(cfg, accel=float(a)), printer, backend="lti") for a in accels]
+    for name, bound in (("path_error_mm", 0.05), ("overshoot_mm", 0.15), ("ringing_mm", 0.15)):
+        v = np.array([getattr(m, name) for m in ms])
+        assert np.max(np.abs(np.diff(v)) / v[:-1]) < bound, name
