@@ -66,7 +66,7 @@ DEFAULT_N_ENVS = 2
 #: the same printer, each printer shown 4 times; see :mod:`ringtune.agents.ppo_reward`. A small
 #: ``log_std_init`` explores near the prior instead of averaging over far-off configurations)
 DEFAULT_HYPER: dict[str, Any] = {
-    "learning_rate": 1e-4, "n_steps": 256, "batch_size": 128, "n_epochs": 5, "gamma": 0.0,
+    "learning_rate": 3e-4, "n_steps": 256, "batch_size": 128, "n_epochs": 5, "gamma": 0.0,
     "gae_lambda": 1.0, "ent_coef": 0.0, "clip_range": 0.2, "log_std_init": -2.0, "net_arch": [128, 128],
     "log_std_freq": -3.0, "reference_reward": True, "printer_repeats": 4,
 }
@@ -259,9 +259,11 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
 
 
 #: where the untrained policy's mean answer starts: MZV on the resonance peak (50 Hz with an
-#: absolute action), damping 0.075, no frequency limit, 4000 mm/s². The best of 13 constant
-#: answers (MZV/ZVD/EI × 3000/4000/5000 mm/s² × damping × F/peak) on training printers
-#: (seeds 1000–1029, mean cost 1.08–1.10), so training refines a sound population answer
+#: absolute action), damping 0.075, no frequency limit, 4000 mm/s². The best constant answer on
+#: training printers: of MZV/ZVD/EI × 3000–6000 mm/s² × damping 0.05–0.1 on seeds 1000–1029, MZV
+#: with damping 0.05–0.075 at 4000–6000 mm/s² (mean cost 1.11–1.13; EI 1.19); of MZV at
+#: 3000–5000 mm/s² on seeds 1030–1129, 4000 (1.264; 5000: 1.273, where more printers lose steps).
+#: Training refines a sound population answer (e.g. lower accelerations for low resonances)
 PRIOR = {"shaper": "mzv", "freq": 50.0, "damping": 0.075, "accel": 4000.0}
 
 

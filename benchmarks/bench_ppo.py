@@ -6,6 +6,8 @@ in ``ringtune.agents.ppo.BENCH_SEEDS``; training uses seeds < 800000 and the eva
 20·ringing, mm; step loss +10) of:
 
 - policy: the policy's one-shot recommendation from the printer's simulated resonance test;
+- prior: the answer training starts from (``ringtune.agents.ppo.PRIOR``: MZV on the detected
+  peaks, fixed damping and acceleration), i.e. what PPO itself adds is policy vs prior;
 - policy+optuna20: that answer as the first of 20 Optuna (TPE) trials over the same action space;
 - optuna200: Optuna alone, 200 trials, over the absolute action space (F over 15-150 Hz: it
   knows nothing of the peak; the policy's refinement searches the policy's own peak-anchored space);
@@ -30,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-METHODS = ("policy", "policy+optuna20", "optuna200", "klipper", "none")
+METHODS = ("policy", "prior", "policy+optuna20", "optuna200", "klipper", "none")
 
 
 BASELINES = ("optuna200", "klipper", "none")
@@ -44,7 +46,7 @@ def bench_printer(job: tuple) -> dict:
     import torch
 
     from ringtune.agents.klipper_rule import recommend_for_printer as klipper_for_printer
-    from ringtune.agents.ppo import load_policy
+    from ringtune.agents.ppo import load_policy, prior_action
     from ringtune.agents.ppo_refine import PrinterCost, optuna_search
     from ringtune.envs.env import TuneEnv
     from ringtune.shaping.config import TuneConfig
@@ -65,6 +67,7 @@ def bench_printer(job: tuple) -> dict:
         action = policy.act(obs)
         row["policy_infer_s"] = time.perf_counter() - t
         row["policy"] = cost.of_action(action)
+        row["prior"] = cost.of_action(prior_action(kw))
         row["policy+optuna20"] = optuna_search(cost, n_refine, seed, first_action=action).best_cost
     if cached:
         row.update({k: cached[k] for k in (*BASELINES, "optuna200_s")})
@@ -122,6 +125,9 @@ def simulated_table(policy_dir: str | None, n: int, workers: int, backend: str, 
     print(f"target: policy mean within 10 % of optuna200: {'MET' if within else 'MISSED'} "
           f"({(p / o - 1) * 100:+.1f} %)")
     print(f"target: policy mean below klipper's rule: {'MET' if p < k else 'MISSED'} ({(p / k - 1) * 100:+.1f} %)")
+    q = summary["prior"][0]
+    better = sum(r["policy"] < r["prior"] - 1e-9 for r in rows)
+    print(f"what PPO adds to its starting answer: {(p / q - 1) * 100:+.1f} % mean cost, better on {better} of {len(rows)}")
     return {"rows": rows, "summary": summary}
 
 
