@@ -145,12 +145,14 @@ class TrainResult:
     eval_mean_cost: list = field(default_factory=list)
     train_timesteps: list = field(default_factory=list)
     train_mean_cost: list = field(default_factory=list)
+    train_reference_cost: list = field(default_factory=list)   # the prior's, same printers (or empty)
     resumed_from: str | None = None
 
     def to_dict(self) -> dict:
         return {"out_dir": str(self.out_dir), "timesteps": self.timesteps, "wall_s": self.wall_s,
                 "eval_timesteps": self.eval_timesteps, "eval_mean_cost": self.eval_mean_cost,
                 "train_timesteps": self.train_timesteps, "train_mean_cost": self.train_mean_cost,
+                "train_reference_cost": self.train_reference_cost,
                 "resumed_from": self.resumed_from}
 
 
@@ -247,9 +249,15 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
         d = np.load(prev)
         res.train_timesteps = [int(t) for t in d["train_timesteps"]]
         res.train_mean_cost = [float(c) for c in d["train_mean_cost"]]
+        if "train_reference_cost" in d:
+            res.train_reference_cost = [float(c) for c in d["train_reference_cost"]]
     res.train_timesteps += curve.timesteps
     res.train_mean_cost += curve.costs
-    np.savez(prev, train_timesteps=np.asarray(res.train_timesteps), train_mean_cost=np.asarray(res.train_mean_cost))
+    res.train_reference_cost += curve.reference_costs
+    if len(res.train_reference_cost) != len(res.train_mean_cost):
+        res.train_reference_cost = []
+    np.savez(prev, train_timesteps=np.asarray(res.train_timesteps), train_mean_cost=np.asarray(res.train_mean_cost),
+             train_reference_cost=np.asarray(res.train_reference_cost))
     meta = {"env_id": "ringtune/Tune-v0", "env_kwargs": env_kwargs, "hyper": hyper, "seed": seed,
             "n_envs": n_envs, "timesteps": res.timesteps, "wall_s": wall, "eval_seeds": list(EVAL_SEEDS),
             "resumed_from": resumed}
@@ -308,9 +316,15 @@ def plot_training_curve(res: TrainResult, path: str | Path) -> None:
     fig, ax = plt.subplots(figsize=(7, 4))
     if res.train_timesteps:
         ax.plot(res.train_timesteps, res.train_mean_cost, ".-", alpha=0.6, label="training (stochastic policy)")
+        if res.train_reference_cost:
+            ax.plot(res.train_timesteps, res.train_reference_cost, ":", color="grey",
+                    label="starting answer on the same printers")
     if res.eval_timesteps:
         ax.plot(res.eval_timesteps, res.eval_mean_cost, "o-",
                 label=f"held-out printers ({len(EVAL_SEEDS)}, deterministic)")
+        k = int(np.argmin(res.eval_mean_cost))
+        ax.plot([res.eval_timesteps[k]], [res.eval_mean_cost[k]], "*", ms=16, color="C3",
+                label=f"published policy.zip (held-out best, {res.eval_mean_cost[k]:.3f})")
     ax.set_xlabel("environment steps (evaluated configurations)")
     ax.set_ylabel("cost = −reward (time ratio + weighted errors)")
     ax.set_title("PPO training on randomised printers")

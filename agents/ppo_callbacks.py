@@ -10,7 +10,8 @@ import numpy as np
 
 def curve_callback():
     """Collects the mean training cost of each rollout (the true cost ``info["cost"]`` under a
-    reference-relative reward, else −reward as the Monitor saw it); fields ``timesteps``, ``costs``."""
+    reference-relative reward, else −reward as the Monitor saw it); fields ``timesteps``, ``costs``
+    and ``reference_costs`` (the reference's mean cost on the same printers, when reported)."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Curve(BaseCallback):
@@ -18,20 +19,26 @@ def curve_callback():
             super().__init__()
             self.timesteps: list[int] = []
             self.costs: list[float] = []
+            self.reference_costs: list[float] = []
             self._buf: list[float] = []
+            self._ref: list[float] = []
 
         def _on_step(self) -> bool:
             for info in self.locals.get("infos", []):
                 ep = info.get("episode")
                 if ep is not None:
                     self._buf.append(float(info["cost"]) if "cost" in info else -float(ep["r"]))
+                    if "reference_cost" in info:
+                        self._ref.append(float(info["reference_cost"]))
             return True
 
         def _on_rollout_end(self) -> None:
             if self._buf:
                 self.timesteps.append(int(self.num_timesteps))
                 self.costs.append(float(np.mean(self._buf)))
-                self._buf = []
+                if len(self._ref) == len(self._buf):
+                    self.reference_costs.append(float(np.mean(self._ref)))
+                self._buf, self._ref = [], []
 
     return Curve()
 
