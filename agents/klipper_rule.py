@@ -27,7 +27,9 @@ Steps, per shaper in ``AUTOTUNE_SHAPERS`` order:
    1e-8; smoothing is affine in the acceleration, so this solves it exactly (same number to 1e-8).
 5. ``score = smoothing · (vibrs^1.5 + 0.2·vibrs + 0.01)``; per shaper the lowest-score frequency
    whose vibrations are within 10 % of that shaper's best; across shapers a later shaper replaces the
-   pick if its score is 20 % lower, or 5 % lower with 10 % less smoothing.
+   pick if its score is 20 % lower, or 5 % lower with 10 % less smoothing. With ``max_smoothing``
+   (mm) the scan stops at the first frequency smoothing more than that, and the shaper's result is
+   then the lowest-vibration frequency scanned so far (Klipper's early ``return best_res``).
 
 Entry point: :func:`recommend_klipper`. Amplitudes and times come from
 ``ringtune.shaping.shapers.get_shaper`` (or an injected ``shaper_factory``).
@@ -287,9 +289,11 @@ def fit_shaper(name: str, datasets: Sequence[_Dataset], factory: ShaperFactory, 
     times = np.stack([np.asarray(b[1], dtype=float) for b in built])
     c90, k90, k180 = _smoothing_terms_rows(amps, times, scv)
     smoothing = np.maximum(c90 + k90 * SMOOTHING_ACCEL, k180 * SMOOTHING_ACCEL)
+    stopped = False
     if max_smoothing:
         over = np.nonzero(smoothing[1:] > max_smoothing)[0]   # Klipper stops once a result exists
         if over.size:
+            stopped = True
             keep = over[0] + 1
             freqs_desc, amps, times, smoothing = freqs_desc[:keep], amps[:keep], times[:keep], smoothing[:keep]
             c90, k90, k180 = c90[:keep], k90[:keep], k180[:keep]
@@ -312,6 +316,10 @@ def fit_shaper(name: str, datasets: Sequence[_Dataset], factory: ShaperFactory, 
         if best is None or best.vibrs > res.vibrs:
             best = res
     selected = best
+    if stopped:
+        # Klipper's early exit (``return best_res``, every version): the lowest-vibration result of
+        # the frequencies scanned so far, without the smoothing-saving selection below
+        return selected, results
     for res in results[::-1]:
         if version == "head":
             ok = res.vibrs < best.vibrs * 1.1 + 0.0005 and (
