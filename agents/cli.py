@@ -118,8 +118,16 @@ def _load_commands() -> dict[str, Any]:
     return modules
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with the convention above: a usage error is one line on stderr, exit status 2
+    (argparse's own would print the whole usage block first)."""
+
+    def error(self, message: str):  # noqa: D401 - argparse's hook
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> tuple[argparse.ArgumentParser, dict[str, Any]]:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="ringtune",
         description="Measured input-shaping tuning for 3D printers: firmware-faithful shapers and "
         "planners drive a MuJoCo printer; Optuna and PPO trade print time against overshoot; the "

@@ -41,3 +41,31 @@ def test_bad_value_is_one_line_and_exit_2_without_traceback():
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and proc.stderr.startswith("ringtune shaper: error:")
     assert "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize("argv,what", [
+    (["tune", "--trials", "abc"], "--trials"),                                   # argparse type error
+    (["tune", "--trials", "0"], "--trials"),
+    (["tune", "--storage", "bogus", "--no-baselines"], "--storage"),             # not a storage URL
+    (["tune", "--storage", "postgresql+psycopg2://u:p@127.0.0.1:1/db", "--no-baselines"], "--storage"),
+    (["tune", "--gcode", "/nonexistent/job.gcode"], "--gcode"),
+    (["recommend", "--accel", "/nonexistent/resonances_x.csv"], "no such file"),
+    (["recommend", "--method", "klipper"], "--accel"),                           # required group missing
+    (["recommend", "--printer", "default", "--klipper-version", "0.9"], "--klipper-version"),
+    (["study", "--factor", "bogus"], "--factor"),
+    (["train", "--timesteps", "x"], "--timesteps"),
+])
+def test_bad_input_of_tune_recommend_study_train_is_one_line_exit_2(argv, what, tmp_path, capsys):
+    """Usage errors (argparse's) and value errors (RingtuneError) alike: one stderr line naming the
+    option, status 2, no traceback, nothing on stdout."""
+    if argv[0] == "tune":
+        argv = argv + ["--out", str(tmp_path / "out")]
+    try:
+        rc = cli.main(argv)
+    except SystemExit as exc:
+        rc = exc.code
+    cap = capsys.readouterr()
+    assert rc == 2, cap.err
+    lines = cap.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"ringtune {argv[0]}: error:") and what in lines[0], lines
+    assert "Traceback" not in cap.err and cap.out == ""
