@@ -130,3 +130,74 @@ def test_cli_errors_are_one_line(capsys, tmp_path):
         assert main(argv) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and what in err[0], (argv, err)
+
+
+def test_recommend_help_says_policy_files_must_be_trusted(capsys):
+    """Issue 6: loading a policy unpickles it; `recommend --help` says so (and `train --help`)."""
+    from ringtune.agents.cli import main
+
+    for cmd in ("recommend", "train"):
+        with pytest.raises(SystemExit):
+            main([cmd, "--help"])
+        text = " ".join(capsys.readouterr().out.split())
+        assert "pickle" in text and "only use policies you trained or trust" in text, cmd
+
+
+TRAIN_JSON_KEYS = {"out_dir", "timesteps", "wall_s", "resumed_from", "eval_timesteps", "eval_mean_cost",
+                   "train_timesteps", "train_mean_cost", "train_reference_cost", "hpo", "files"}
+
+
+def test_train_cli_json_keys_and_hpo_hands_its_best_to_training(tmp_path, monkeypatch, capsys):
+    """`ringtune train --hpo --json`: the documented keys; the hyperparameters Optuna found are the
+    ones the final training uses; --hpo with --resume is one clear line."""
+    from ringtune.agents import ppo_hpo
+    from ringtune.agents.cli import main
+
+    seen = {}
+    found = {"learning_rate": 1e-3, "n_steps": 64, "n_epochs": 4, "log_std_init": -2.0, "ent_coef": 1e-4,
+             "net_arch": [64, 64]}
+
+    def fake_hpo(out_dir, n_trials, budget, n_envs, seed):
+        seen["hpo"] = (str(out_dir), n_trials, budget, n_envs, seed)
+        return {"best_params": found, "best_cost": 1.2, "trials": n_trials, "all": []}
+
+    def fake_train(out_dir, timesteps, n_envs, seed, **kw):
+        seen["train"] = kw
+        return ppo.TrainResult(tmp_path / "pol", timesteps, 0.1)
+
+    monkeypatch.setattr(ppo_hpo, "tune_hyperparameters", fake_hpo)
+    monkeypatch.setattr(ppo, "train", fake_train)
+    out = tmp_path / "pol"
+    assert main(["train", "--json", "--hpo", "--hpo-trials", "3", "--timesteps", "2000", "--envs", "2",
+                 "--seed", "5", "-o", str(out)]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert set(res) == TRAIN_JSON_KEYS
+    assert set(res["files"]) == {"policy", "vecnormalize", "curve", "final", "meta"}
+    assert seen["hpo"] == (str(out / "hpo"), 3, 400, 2, 5) and seen["train"]["hyper"] == found
+    assert res["hpo"]["best_params"] == found
+    assert main(["train", "--hpo", "--resume", "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--hpo" in err[0]
+
+
+@pytest.mark.slow
+def test_hpo_runs_short_trainings_and_returns_the_best(tmp_path, monkeypatch):
+    """ppo_hpo.tune_hyperparameters for real (tiny budget, small nets): every trial is a training run
+    scored on the held-out printers; the best is the lowest of those scores."""
+    from ringtune.agents import ppo_hpo
+
+    def small(trial):
+        return {"learning_rate": trial.suggest_float("learning_rate", 1e-4, 3e-3, log=True),
+                "n_steps": 8, "batch_size": 8, "n_epochs": trial.suggest_int("n_epochs", 1, 3),
+                "net_arch": [8, 8]}
+
+    monkeypatch.setattr(ppo_hpo, "suggest_hyper", small)
+    res = ppo_hpo.tune_hyperparameters(tmp_path, n_trials=2, budget=8, n_envs=1, seed=2,
+                                       env_kwargs={"job": SQUARE_JOB})
+    assert res["trials"] == 2 and len(res["all"]) == 2
+    costs = [r["cost"] for r in res["all"]]
+    assert all(np.isfinite(costs)) and res["best_cost"] == min(costs)
+    assert res["best_params"] == res["all"][int(np.argmin(costs))]["hyper"]
+    assert json.loads((tmp_path / "hpo.json").read_text())["best_cost"] == res["best_cost"]
+    for k in range(2):
+        assert (tmp_path / f"trial_{k}" / "policy.zip").is_file()

@@ -7,8 +7,9 @@
     resumed_from: checkpoint resumed from, or null
     eval_timesteps, eval_mean_cost: held-out printers' mean cost at each evaluation
     train_timesteps, train_mean_cost: mean training cost per rollout
-    hpo: null, or {"best_params": {...}, "best_cost": float, "trials": int}
-    files: {"policy", "vecnormalize", "curve", "best", "meta"} paths
+    train_reference_cost: the starting answer's cost on the same training printers (or [])
+    hpo: null, or {"best_params": {...}, "best_cost": float, "trials": int, "all": [...]}
+    files: {"policy", "vecnormalize", "curve", "final", "meta"} paths
 """
 
 from __future__ import annotations
