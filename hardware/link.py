@@ -8,6 +8,9 @@ at a time (one ``ok`` per line). The link handles:
   (with or without the ``ok`` some Marlin versions send after the request);
 - ``echo:busy: ...``: the printer is working; the answer timeout starts again;
 - temperature auto-reports and other chatter interleaved with replies: kept out of the reply;
+- line noise (non-ASCII bytes, NULs) glued in front of a line, as a board resetting through its
+  bootloader sends before ``start``: ignored when recognising ``ok``, ``start``, ``Resend:``, busy
+  and error lines, so a noisy ``start`` or ``ok`` is not mistaken for silence;
 - ``start``: the printer reset. The link re-handshakes and raises :class:`PrinterReset`, because
   every runtime setting sent before is gone (the caller decides to send again);
 - ``Error:`` lines: the error is attached to the line's reply (checksum / line-number errors are left
@@ -39,6 +42,8 @@ _RESEND = re.compile(r"^(?:resend|rs)\b[:\s]*(?:N:?)?\s*(\d+)", re.IGNORECASE)
 _TEMP = re.compile(r"^\s*(?:ok\s+)?T\d*:\s*-?[\d.]+\s*/\s*-?[\d.]+|^\s*B:\s*-?[\d.]+\s*/")
 _BUSY = re.compile(r"^(?:echo:)?\s*busy:", re.IGNORECASE)
 _PROTOCOL_ERROR = re.compile(r"checksum|line number|linenumber|last line", re.IGNORECASE)
+#: line noise in front of a line: anything but printable ASCII (replacement characters, NULs, ...)
+_LEADING_NOISE = re.compile(r"^[^\x20-\x7e]+")
 
 
 def xor_checksum(data: bytes) -> int:
@@ -263,6 +268,7 @@ class GcodeLink:
                     reply.sends += 1
                     last_send = now
                 continue
+            raw_line, line = line, _LEADING_NOISE.sub("", line)
             if not line:
                 continue
             low = line.lower()
@@ -323,7 +329,7 @@ class GcodeLink:
             if self.mode == "klipper":
                 reply.lines.append(line)
                 continue
-            if _looks_like_text(line):
+            if _looks_like_text(raw_line):
                 reply.lines.append(line)
 
     def _replay(self, numbers: list[int]) -> None:

@@ -10,6 +10,8 @@ indices (0-based, counting every numbered line the printer receives, handshakes 
 - ``resend``: the line is dropped and ``Resend: <n>`` / ``rs <n>`` asked for it;
 - ``busy``: ``echo:busy: processing`` lines for ``busy_s`` seconds before the ok;
 - ``temps``: a temperature report before the reply; ``garbage``: a line of random bytes;
+- ``noise``: line noise glued to the front of the protocol lines answering that line (``ok``,
+  ``start``, ``Resend:``), as a board resetting through its bootloader at another baud rate sends;
 - ``reset``: the printer reboots instead of executing the line (says ``start``, loses settings);
 - ``hang_after``: after that many executed commands, it never answers again.
 
@@ -31,6 +33,9 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from urllib.parse import parse_qs, urlsplit
 
 TEMP_REPORT = " T:210.00 /210.00 B:60.00 /60.00 @:0 B@:0"
+#: line noise (non-ASCII bytes and a NUL) glued in front of a protocol line by ``Faults.noise``
+NOISE = bytes([0xFF, 0xE0, 0x00, 0x9C, 0x80])
+_PROTOCOL_LINE = re.compile(r"^(ok|start|Resend:|rs )")
 
 
 @dataclass
@@ -41,6 +46,7 @@ class Faults:
     temps: set = field(default_factory=set)
     garbage: set = field(default_factory=set)
     reset: set = field(default_factory=set)
+    noise: set = field(default_factory=set)
     hang_after: int | None = None
     busy_s: float = 0.0
     ok_after_resend: bool = True
@@ -241,6 +247,7 @@ class FakePrinter:
         self.resets = 0
         self._stop = threading.Event()
         self._seed = seed
+        self._noisy = False
         if transport == "pty":
             self._master, slave = os.openpty()
             tty.setraw(slave)
@@ -300,6 +307,8 @@ class FakePrinter:
 
     def write(self, text: str | bytes) -> None:
         data = text if isinstance(text, bytes) else (text + "\n").encode()
+        if self._noisy and isinstance(text, str) and _PROTOCOL_LINE.match(text):
+            data = NOISE + data
         if self.transport == "pty":
             os.write(self._master, data)
         elif self._conn is not None:
@@ -327,6 +336,7 @@ class FakePrinter:
             return
         i = self.received
         self.received += 1
+        self._noisy = i in self.faults.noise
         if i in self.faults.garbage:
             self.write(bytes([0xFF, 0xFE, 0x00, 0x9C]) + b"#%$garbage\x07\r\n")
         if i in self.faults.temps:

@@ -61,6 +61,24 @@ def test_marlin_push_survives_every_fault(transport, ok_after_resend):
     assert "M500" in r.saved
 
 
+@pytest.mark.parametrize("transport", ["pty", "tcp"])
+def test_line_noise_glued_to_ok_start_and_resend_is_not_a_lost_answer(transport):
+    """Boards that reset through a bootloader at another baud rate send bytes of noise in front
+    of ``start``; noise on the line can land in front of any ``ok`` or ``Resend:``. Each must still
+    be recognised: a missed ``start`` would leave the push waiting for an ``ok`` that never comes."""
+    # received lines: 0 handshake, 1 X (asked again), 2 X again, 3 Y -> reset, 4 handshake, 5.. again
+    faults = Faults(noise={0, 1, 2, 3, 4, 6}, resend={1}, reset={3}, temps={6})
+    with FakePrinter("marlin", faults, transport=transport) as fp:
+        t0 = time.monotonic()
+        r = push(MARLIN, port=fp.url, timeout=1.0, save=True)
+        elapsed = time.monotonic() - t0
+    assert elapsed < 3.0                     # no answer was waited out
+    assert fp.resets == 1 and r.resets == 1
+    assert fp.sessions[0] == export_config(MARLIN).lines[:1]      # before the reset: X once
+    assert fp.executed == export_config(MARLIN).lines + ["M593", "M500"]
+    assert r.ok and fp.core.shaping == {"x": [41.5, 0.08], "y": [37.25, 0.12]}
+
+
 def test_rrf_push_retries_silently_dropped_lines_and_verifies():
     cfg = TuneConfig(firmware="rrf", shaper_x="zvd", shaper_y="zvd", freq_x=40.5, freq_y=40.5,
                      damping_x=0.1, damping_y=0.1)
