@@ -112,6 +112,13 @@ def _check_recommend_cli(policy_dir):
         TuneConfig.from_dict(d["config"]).validate()
     d = run(["--method", "policy", "--policy", str(policy_dir), "--printer", "default", "--refine", "2"])
     assert d["refine"]["trials"] == 2 and d["refine"]["best_cost"] <= d["refine"]["first_cost"]
+    # the study's first trial is the policy's own one-shot answer: its cost, scored independently
+    from ringtune.agents.ppo_refine import PrinterCost
+
+    policy = ppo.load_policy(policy_dir)
+    one_shot, _ = ppo.recommend_for_printer(policy, None, seed=0)
+    cost = PrinterCost(None, policy.env_kwargs, seed=0).of_config(one_shot)
+    assert d["refine"]["first_cost"] == pytest.approx(cost, rel=1e-6)
 
 
 def test_load_policy_names_the_missing_file(tmp_path):
