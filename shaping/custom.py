@@ -8,6 +8,8 @@
   (s) between successive impulses, each > 0; default ``t_d/2`` each.
 
 ``t_d`` is the damped period ``1/(f·sqrt(1−ζ²))``. Returns (amplitudes summing to 1, times from 0).
+With ``step_clocks`` (RRF 3.6 as it runs) the delays become whole 750 kHz step clocks as the
+firmware stores them: ``lrintf(T·rate)``, or ``(P·i)/2`` with the integer damped period P.
 """
 
 from __future__ import annotations
@@ -37,8 +39,9 @@ def _as_list(values, what: str, where: str) -> list[float] | None:
 
 
 def rrf_custom(h, t, freq: float, damping: float, semantics: str = "3.6",
-               where: str = "M593") -> tuple[np.ndarray, np.ndarray]:
-    """Amplitudes and times (s) of an RRF custom shaper from its ``H`` and ``T`` lists."""
+               where: str = "M593", step_clocks: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Amplitudes and times (s) of an RRF custom shaper from its ``H`` and ``T`` lists (``freq``
+    Hz, ``damping`` ratio); ``step_clocks`` quantises 3.6 delays as the firmware does."""
     if semantics not in SEMANTICS:
         raise RingtuneError(f"semantics must be one of {SEMANTICS}, not {semantics!r}", where)
     hs = _as_list(h, "H", f"{where} H")
@@ -61,6 +64,16 @@ def rrf_custom(h, t, freq: float, damping: float, semantics: str = "3.6",
         delays = np.arange(1, n + 1) * half if ts is None else np.array(ts)
         if ts is not None and (delays[0] <= 0 or np.any(np.diff(delays) <= 0)):
             raise RingtuneError(f"delays must be > 0 and strictly increasing: {ts}", f"{where} T")
+        if step_clocks:
+            from ringtune.shaping.shaper_formulas import RRF_STEP_CLOCK, rrf_clocks, rrf_period_clocks
+            if ts is None:
+                P = rrf_period_clocks(freq, damping)
+                clocks = np.array([(P * i) // 2 for i in range(1, n + 1)])
+            else:
+                clocks = rrf_clocks(delays)
+            if np.any(np.diff(np.concatenate([[0], clocks])) <= 0):
+                raise RingtuneError(f"delays closer than one step clock: {ts}", f"{where} T")
+            delays = clocks / RRF_STEP_CLOCK
         return amps, np.concatenate([[0.0], delays])
     # 3.4 / 3.5: cumulative amplitudes and durations
     cum = np.array(hs)

@@ -167,44 +167,71 @@ def none_shaper(f, z):
     return np.ones(1), np.zeros(1)
 
 
-# -- RepRapFirmware (§3.2): damped period in whole step clocks ---------------------------------
-def _rrf_period(f, z) -> float:
-    """Damped period P in step clocks (lrintf in 3.6-dev)."""
-    return float(np.rint(RRF_STEP_CLOCK / (f * _df(z))))
+# -- RepRapFirmware (§3.2) ----------------------------------------------------------------------
+# 3.6 (``quantised=True``): the damped period P is a whole number of step clocks computed in single
+# precision, P = lrintf(StepClockRate / (F·sqrt(1 − S²))); ZVD-family delays are integer divisions
+# (i·P)/2, MZV's are (3P)/8 and 2·((3P)/8), EI2/EI3's are lrintf(poly(S)·P). The individual
+# amplitudes are stored with the last one = 1 − Σ others, and MZV's in reverse order (a3 first).
+# 3.4/3.5 (``quantised=False``): P is a float and the durations between impulses are float
+# multiples of it (never rounded to clocks); cumulative MZV coefficients [a3, a2+a3]/Σ, i.e. the
+# same reversed amplitudes.
+def rrf_period_clocks(f: float, z: float) -> int:
+    """RRF 3.6 damped period, whole step clocks (float32 arithmetic as the firmware does it)."""
+    z32 = np.float32(z)
+    df = np.sqrt(np.float32(1.0 - float(z32 * z32)))
+    return int(np.rint(np.float32(np.float32(RRF_STEP_CLOCK) / np.float32(np.float32(f) * df))))
 
 
-def _rrf_times(mults, f, z) -> np.ndarray:
-    return np.rint(np.asarray(mults, float) * _rrf_period(f, z)) / RRF_STEP_CLOCK
+def rrf_clocks(seconds) -> np.ndarray:
+    """RRF 3.6 conversion of delays given in s (custom ``T``) to step clocks: lrintf(T·rate)."""
+    return np.rint(np.asarray(seconds, np.float32) * np.float32(RRF_STEP_CLOCK)).astype(np.int64)
 
 
-def rrf_binomial(order: int):
+def _rrf_poly_clocks(t_rows, z: float, P: int) -> np.ndarray:
+    """lrintf(poly(ζ)·P): ζ is a float, ζ² and ζ³ float products, the polynomial in double."""
+    z32 = np.float32(z)
+    z2 = np.float32(z32 * z32)
+    powers = np.array([1.0, float(z32), float(z2), float(np.float32(z2 * z32))])
+    return np.rint((np.asarray(t_rows, float) @ powers * P).astype(np.float32)).astype(np.int64)
+
+
+def rrf_binomial(order: int, quantised: bool):
+    """RRF zvd (order 1), zvdd (2), zvddd (3): binomial amplitudes, delays i·P/2."""
     def shaper(f, z):
-        a, _ = binomial_zv(order)(f, z)
-        return a, _rrf_times(0.5 * np.arange(order + 2), f, z)
+        a, t = binomial_zv(order)(f, z)
+        if quantised:
+            P = rrf_period_clocks(f, z)
+            t = np.array([(i * P) // 2 for i in range(order + 2)], float) / RRF_STEP_CLOCK
+        return a, t
     return shaper
 
 
-def rrf_mzv(reversed_order: bool):
+def rrf_mzv(quantised: bool):
+    """RRF mzv: Klipper's legacy MZV amplitudes in the firmware's order [a3, a2, a1]/Σ (a3 at the
+    first delay) at 0, 3P/8, 6P/8."""
     def shaper(f, z):
         kp = math.exp(-0.75 * z * math.pi / _df(z))
         a1 = 1 - math.sqrt(2) / 2
-        a = np.array([a1, (math.sqrt(2) - 1) * kp, a1 * kp * kp])
-        if reversed_order:  # RRF 3.4/3.5 (and 3.6-dev) store a3 first
-            a = a[::-1]
-        return a / a.sum(), _rrf_times([0.0, 0.375, 0.75], f, z)
+        a = np.array([a1 * kp * kp, (math.sqrt(2) - 1) * kp, a1])
+        if quantised:
+            d1 = (3 * rrf_period_clocks(f, z)) // 8
+            t = np.array([0, d1, 2 * d1], float) / RRF_STEP_CLOCK
+        else:
+            t = np.array([0.0, 0.375, 0.75]) * _td(f, z)
+        return a / a.sum(), t
     return shaper
 
 
-def rrf_ei(a_rows, t_rows, cumulative_durations: bool):
+def rrf_ei(a_rows, t_rows, quantised: bool):
+    """RRF ei2/ei3: Klipper HEAD's 2/3-hump polynomials, the last amplitude 1 − Σ others, times
+    poly(ζ) × the DAMPED period (Klipper HEAD uses the undamped 1/f)."""
     def shaper(f, z):
         a = _poly(a_rows, z)[:-1]
-        a = np.append(a, 1.0 - a.sum())           # last = 1 − Σ others
-        tp = _poly(t_rows, z)
-        if cumulative_durations:                   # 3.4/3.5: each interval rounded on its own
-            P = _rrf_period(f, z)
-            t = np.concatenate([[0.0], np.cumsum(np.rint(np.diff(tp) * P))]) / RRF_STEP_CLOCK
+        a = np.append(a, 1.0 - a.sum())
+        if quantised:
+            t = _rrf_poly_clocks(t_rows, z, rrf_period_clocks(f, z)) / RRF_STEP_CLOCK
         else:
-            t = _rrf_times(tp, f, z)
+            t = _poly(t_rows, z) * _td(f, z)
         return a, t
     return shaper
 

@@ -13,8 +13,9 @@ klipper    zv, mzv (generalised ``mzv(n=…,t=…)``), zvd, ei (``ei(v_tol=…)`
 klipper-   zv, mzv, zvd, ei, 2hump_ei, 3hump_ei — the ≤ v0.13 closed forms (also Prusa Buddy);
 legacy     EI types take ``v_tol`` (Prusa's ``R`` = 1/v_tol)
 rrf        RRF 3.6: zvd, zvdd, zvddd, mzv, ei2, ei3 (Klipper HEAD polynomials × DAMPED period),
-           custom; delays rounded to the 750 kHz step clock; no zv, no ei
-rrf35      RRF 3.4/3.5: same set; MZV amplitudes in the firmware's (reversed) order; custom with
+           custom; delays in whole 750 kHz step clocks of an lrintf damped period; MZV amplitudes
+           in the firmware's reversed order (a3 first); no zv, no ei
+rrf35      RRF 3.4/3.5: same set and MZV order; float (unrounded) durations; custom with
            cumulative H and durations T
 marlin     classic ZV only: undamped half period 1/(2F), weights factor1:factor2 out of 128
 marlin-ftm M493: zv, zvd, zvdd, zvddd, ei, 2hump_ei, 3hump_ei, mzv (own damping K), times quantised
@@ -124,16 +125,16 @@ REGISTRY: dict[str, dict[str, tuple[Callable, tuple[str, ...], float]]] = {
         "3hump_ei": (ei3_legacy, _P_EI, 0.99),
     },
     "rrf": {
-        "none": (none_shaper, (), 0.99), "zvd": (rrf_binomial(1), (), 0.99),
-        "zvdd": (rrf_binomial(2), (), 0.99), "zvddd": (rrf_binomial(3), (), 0.99),
-        "mzv": (rrf_mzv(False), (), 0.99), "2hump_ei": (rrf_ei(EI2_A, EI2_T, False), (), 0.3),
-        "3hump_ei": (rrf_ei(EI3_A, EI3_T, False), (), 0.2), "custom": (None, ("h", "t"), 0.99),
-    },
-    "rrf35": {
-        "none": (none_shaper, (), 0.99), "zvd": (rrf_binomial(1), (), 0.99),
-        "zvdd": (rrf_binomial(2), (), 0.99), "zvddd": (rrf_binomial(3), (), 0.99),
+        "none": (none_shaper, (), 0.99), "zvd": (rrf_binomial(1, True), (), 0.99),
+        "zvdd": (rrf_binomial(2, True), (), 0.99), "zvddd": (rrf_binomial(3, True), (), 0.99),
         "mzv": (rrf_mzv(True), (), 0.99), "2hump_ei": (rrf_ei(EI2_A, EI2_T, True), (), 0.3),
         "3hump_ei": (rrf_ei(EI3_A, EI3_T, True), (), 0.2), "custom": (None, ("h", "t"), 0.99),
+    },
+    "rrf35": {
+        "none": (none_shaper, (), 0.99), "zvd": (rrf_binomial(1, False), (), 0.99),
+        "zvdd": (rrf_binomial(2, False), (), 0.99), "zvddd": (rrf_binomial(3, False), (), 0.99),
+        "mzv": (rrf_mzv(False), (), 0.99), "2hump_ei": (rrf_ei(EI2_A, EI2_T, False), (), 0.3),
+        "3hump_ei": (rrf_ei(EI3_A, EI3_T, False), (), 0.2), "custom": (None, ("h", "t"), 0.99),
     },
     "marlin": {"none": (none_shaper, (), 1.0), "zv": (marlin_zv, (), 1.0)},
     "marlin-ftm": {
@@ -284,7 +285,8 @@ def get_shaper(name: str, freq: float, damping: float | None = None, flavor: str
         from ringtune.shaping.custom import rrf_custom
         h = params.get("h", h)
         t = params.get("t", t)
-        a, times = rrf_custom(h, t, freq, z, semantics="3.6" if flavor == "rrf" else "3.5", where=where)
+        a, times = rrf_custom(h, t, freq, z, semantics="3.6" if flavor == "rrf" else "3.5", where=where,
+                              step_clocks=flavor == "rrf")
     else:
         if "v_tol" in params and not 0 < params["v_tol"] < 1:
             raise RingtuneError(f"v_tol must be in (0, 1), not {params['v_tol']}", where)

@@ -180,13 +180,75 @@ def test_rrf_delays_are_whole_step_clocks_and_ei2_uses_the_damped_period():
     assert s.amplitudes[3] == pytest.approx(1 - s.amplitudes[:3].sum(), rel=1e-12)
 
 
-def test_rrf35_mzv_keeps_the_firmware_amplitude_order():
-    """RRF 3.4/3.5 store the MZV coefficients with a3 first (firmware.md §3.2); 3.6 (rrf) in
-    Klipper's order."""
-    a35 = get_shaper("mzv", 40, 0.1, "rrf35").amplitudes
-    a36 = get_shaper("mzv", 40, 0.1, "rrf").amplitudes
-    np.testing.assert_allclose(a35, a36[::-1])
-    assert a36[0] > a36[2]
+def _rrf36_reference(name, f, z):
+    """firmware.md §3.2 (RRF 3.6-dev), transcribed directly: P = lrintf(750 kHz/(f·df)) whole
+    clocks; zvd-family delays (i·P)/2 and MZV (3P)/8, 2·((3P)/8) by INTEGER division; MZV
+    amplitudes [a3, a2, a1]/Σ (reversed against Klipper); last amplitude = 1 − Σ others."""
+    df = math.sqrt(1 - z * z)
+    P = round(750_000 / (f * df))
+    k = math.exp(-z * math.pi / df)
+    if name == "mzv":
+        km = math.exp(-0.75 * z * math.pi / df)
+        a1, a2, a3 = 1 - math.sqrt(2) / 2, (math.sqrt(2) - 1) * km, (1 - math.sqrt(2) / 2) * km * km
+        c = [a3 / (a1 + a2 + a3), a2 / (a1 + a2 + a3)]
+        d = [0, 3 * P // 8, 2 * (3 * P // 8)]
+    else:
+        n = {"zvd": 2, "zvdd": 3, "zvddd": 4}[name]
+        c = [math.comb(n, i) * k ** i / (1 + k) ** n for i in range(n)]
+        d = [i * P // 2 for i in range(n + 1)]
+    return c + [1 - sum(c)], [x / 750_000 for x in d]
+
+
+@pytest.mark.parametrize("name", ["mzv", "zvd", "zvdd", "zvddd"])
+@pytest.mark.parametrize("f,z", [(40.0, 0.1), (750_000 / 18751, 0.0), (31.3, 0.05), (57.0, 0.2)])
+def test_rrf36_matches_the_firmware_formulas(name, f, z):
+    """f = 750000/18751 Hz makes P odd: (i·P)/2 and (3P)/8 truncate where rounding would not."""
+    s = get_shaper(name, f, z, "rrf")
+    a, t = _rrf36_reference(name, f, z)
+    np.testing.assert_allclose(s.amplitudes, a, rtol=1e-12, atol=1e-15)
+    np.testing.assert_array_equal(np.round(s.times * 750_000), np.round(np.array(t) * 750_000))
+    np.testing.assert_allclose(s.times, t, rtol=0, atol=1e-15)
+
+
+def test_rrf36_mzv_is_what_m593_reports():
+    """M593 P"mzv" F40 S0.1 on RRF 3.6 reports "impulses 0.227 0.407 0.365 with delays (ms)
+    0.00 9.42 18.84": 3P/8 = 7066 clocks (P = 18844), not Klipper's 0.375·t_d = 7066.67."""
+    s = get_shaper("mzv", 40, 0.1, "rrf")
+    assert [f"{a:.3f}" for a in s.amplitudes] == ["0.227", "0.407", "0.365"]
+    assert [f"{t * 1e3:.2f}" for t in s.times] == ["0.00", "9.42", "18.84"]
+    assert (s.times * 750_000).tolist() == pytest.approx([0, 7066, 14132], abs=1e-6)
+
+
+def test_rrf35_durations_are_unrounded_float_multiples_of_the_damped_period():
+    """RRF 3.4/3.5 keep P = StepClockRate/(f·df) and its durations as floats: times are exact
+    multiples of t_d; the MZV coefficients are cumulative [a3, a2 + a3]/Σ (same reversed order)."""
+    f, z = 40.0, 0.1
+    td = 1 / (f * math.sqrt(1 - z * z))
+    np.testing.assert_allclose(get_shaper("zvdd", f, z, "rrf35").times, [0, td / 2, td, 1.5 * td], rtol=1e-12)
+    m = get_shaper("mzv", f, z, "rrf35")
+    np.testing.assert_allclose(m.times, [0, 0.375 * td, 0.75 * td], rtol=1e-12)
+    np.testing.assert_allclose(m.amplitudes, get_shaper("mzv", f, z, "rrf").amplitudes, rtol=1e-12)
+    e = get_shaper("ei2", f, z, "rrf35")
+    z2, z3 = z * z, z ** 3
+    durations = [((0.49890) + (0.16270) * z + (-0.54262) * z2 + (6.16180) * z3) * td,
+                 ((0.99748 - 0.49890) + (0.18382 - 0.16270) * z + (-1.58270 + 0.54262) * z2
+                  + (8.17120 - 6.16180) * z3) * td,
+                 ((1.49920 - 0.99748) + (-0.09297 - 0.18382) * z + (-0.28338 + 1.58270) * z2
+                  + (1.85710 - 8.17120) * z3) * td]
+    np.testing.assert_allclose(np.diff(e.times), durations, rtol=1e-12)
+    cumulative = [0.16054 + 0.76699 * z + 2.26560 * z2 - 1.22750 * z3,
+                  (0.16054 + 0.33911) + (0.76699 + 0.45081) * z + (2.26560 - 2.58080) * z2
+                  + (-1.22750 + 1.73650) * z3]
+    np.testing.assert_allclose(np.cumsum(e.amplitudes)[:2], cumulative, rtol=1e-12)
+
+
+def test_rrf36_ei_delays_are_rounded_clocks_of_the_integer_period():
+    z = 0.1
+    P = round(750_000 / (40 * math.sqrt(1 - z * z)))
+    rows = [[0.49890, 0.16270, -0.54262, 6.16180], [0.99748, 0.18382, -1.58270, 8.17120],
+            [1.49920, -0.09297, -0.28338, 1.85710]]
+    want = [0] + [round(sum(c * z ** i for i, c in enumerate(r)) * P) for r in rows]
+    assert (get_shaper("ei2", 40, z, "rrf").times * 750_000).round().tolist() == want
 
 
 # -- custom (RRF) -------------------------------------------------------------------------------
@@ -206,6 +268,15 @@ def test_custom_rrf35_cumulative_amplitudes_and_durations():
     s36 = get_shaper("custom", 40, 0.1, "rrf", h=[0.4, 0.3], t=[0.0135, 0.027])
     np.testing.assert_allclose(s36.amplitudes, s.amplitudes)
     np.testing.assert_allclose(s36.times, s.times)
+
+
+def test_custom_rrf36_delays_become_whole_step_clocks():
+    """RRF 3.6 stores custom delays as lrintf(T·750 kHz) and defaults to (P·i)/2 clocks."""
+    s = get_shaper("custom", 40, 0.1, "rrf", h=[0.3, 0.3], t=[0.0123457, 0.0240001])
+    assert (s.times * 750_000).tolist() == pytest.approx([0, 9259, 18000], abs=1e-6)   # 9259.275, 18000.075
+    f = 750_000 / 18751                                                 # P = 18751 clocks at ζ = 0
+    d = get_shaper("custom", f, 0.0, "rrf", h=[0.3, 0.3])
+    assert (d.times * 750_000).tolist() == pytest.approx([0, 9375, 18751], abs=1e-6)
 
 
 @pytest.mark.parametrize("h,t,sem,msg", [
