@@ -61,9 +61,11 @@ def in_tests_path(monkeypatch):
     monkeypatch.syspath_prepend(str(TESTS))
 
 
+@pytest.mark.parametrize("storage", ["journal", "sqlite"])
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT])
-def test_interrupt_mid_trial_then_resume_loses_and_repeats_nothing(tmp_path, in_tests_path, sig):
-    settings = _settings(f"journal:{tmp_path / 'study.journal'}", n=24)
+def test_interrupt_mid_trial_then_resume_loses_and_repeats_nothing(tmp_path, in_tests_path, sig, storage):
+    url = f"journal:{tmp_path / 'study.journal'}" if storage == "journal" else f"sqlite:///{tmp_path / 'study.db'}"
+    settings = _settings(url, n=24)
     hang = tmp_path / "hang"
     proc = _start_worker(settings, RINGTUNE_TEST_HANG_AT=9, RINGTUNE_TEST_HANG_FILE=hang)
     _wait_for(hang, proc)                       # the 9th trial is being evaluated right now
