@@ -173,12 +173,9 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
 def _push_serial(exp, port, baud, crc, timeout, log, result, max_resets, link_options, save):
     protocol = PROTOCOL[exp.firmware]
     replies: dict[int, Reply] = {}
+    link = GcodeLink(port, protocol, baud, crc=crc, timeout=timeout, log=log, **link_options)
     try:
-        link = GcodeLink(port, protocol, baud, crc=crc, timeout=timeout, log=log, **link_options)
-        link.open()
-    except PrinterReset as exc:
-        raise RingtuneError(str(exc)) from None
-    try:
+        link.open()          # a handshake without answer is a timeout like any other: nothing applied
         for attempt in range(max_resets + 1):
             try:
                 replies.clear()

@@ -126,12 +126,28 @@ def test_printer_that_stops_answering_fails_within_timeout_and_says_what_was_app
         with pytest.raises(PushError) as exc:
             push(MARLIN, port=fp.url, timeout=0.8)
         elapsed = time.monotonic() - t0
-    assert elapsed < 5
+    assert 0.8 <= elapsed < 0.8 + 1.0        # the timeout, not some multiple of it
     msg = str(exc.value)
     assert "stopped answering" in msg and "no answer to 'M593 Y F37.25 D0.12' within 0.8 s" in msg
     assert "applied: x.freq, x.damping; not applied: y.freq, y.damping, limit" in msg
     statuses = {s.key: s.status for s in exc.value.result.settings}
     assert statuses["x.freq"].startswith("acknowledged") and statuses["y.freq"] == "not applied"
+
+
+@pytest.mark.parametrize("fw", ["marlin", "rrf"])
+def test_printer_silent_from_the_handshake_says_nothing_was_applied(fw):
+    cfg = MARLIN if fw == "marlin" else TuneConfig(firmware="rrf", shaper_x="zvd", shaper_y="zvd")
+    keys = list(export_config(cfg).expected) + (["limit"] if fw == "marlin" else [])
+    with FakePrinter(fw, Faults(hang_after=0), transport="tcp") as fp:
+        t0 = time.monotonic()
+        with pytest.raises(PushError) as exc:
+            push(cfg, port=fp.url, timeout=0.6)
+        elapsed = time.monotonic() - t0
+    assert 0.6 <= elapsed < 0.6 + 1.0
+    assert fp.executed == []
+    assert "no answer to 'M110 N0' within 0.6 s" in str(exc.value)
+    assert f"applied: nothing; not applied: {', '.join(keys)}" in str(exc.value)
+    assert all(s.status == "not applied" for s in exc.value.result.settings)
 
 
 def test_klipper_through_pty_without_checksums():
