@@ -65,6 +65,19 @@ def test_response_json_and_plot(capsys, tmp_path):
     assert png.stat().st_size > 10_000 and png.read_bytes()[:4] == b"\x89PNG"
 
 
+def test_response_plot_has_a_readable_percentage_axis(capsys, tmp_path, monkeypatch):
+    """Without a PSD the residual curves own the only y axis: it must keep its 0–100 % ticks."""
+    import matplotlib.figure
+
+    saved = []
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", lambda fig, *a, **k: saved.append(fig))
+    code, _, _ = run_cli(capsys, "response", "zv", "--freq", "40", "--plot", str(tmp_path / "r.png"))
+    assert code == 0 and len(saved) == 1
+    ax = saved[0].axes[0]
+    assert ax.get_ylabel() == "remaining vibration, %"
+    assert len(ax.get_yticks()) >= 3 and max(ax.get_ylim()) >= 100
+
+
 def test_response_with_klipper_psd(capsys, tmp_path, data_dir):
     csvs = sorted((data_dir / "accel" / "klipper_psd").rglob("resonances_*.csv"))
     if not csvs:

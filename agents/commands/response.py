@@ -114,8 +114,7 @@ def _plot(args, flavor, freqs, rows, dampings, psd) -> None:
         ax.set_ylabel("power spectral density")
         ax2 = ax.twinx()
     else:
-        ax.set_yticks([])
-        ax2 = ax
+        ax2 = ax          # one axis: the residual scale keeps its ticks
     for r in rows:
         ax2.plot(freqs, 100 * r["residual"], ls="--" if psd is not None else "-",
                  label=f"{r['name']} (smoothing {r['smoothing_mm']:.3f} mm, max accel "
