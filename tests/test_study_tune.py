@@ -59,6 +59,14 @@ def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evalua
     summary = (out / "summary.txt").read_text()
     assert "Klipper's rule" in summary and "no shaping" in summary and "CHOSEN" in summary
     assert set(res["baselines"]) == {"klipper", "none"} and res["trials"] == 10
+    # the --json keys tune.py documents as stable
+    assert set(res) == {"out", "trials", "front_size", "quality", "chosen", "baselines", "vs_baselines",
+                        "dominates_klipper", "files", "storage", "study", "completed_now", "interrupted",
+                        "elapsed_s"}
+    assert set(res["chosen"]) == {"config", "print_time_s", "quality_mm", "chosen_by"}
+    assert set(res["vs_baselines"]["klipper"]) == {"baseline", "faster_s", "faster_pct", "better_mm",
+                                                   "better_pct", "dominates"}
+    assert set(res["files"]) == {"readme", "summary", "plot", "best", "apply", "front", "trials"}
     assert len((out / "front.csv").read_text().strip().splitlines()) == res["front_size"] + 1
     # the same command again, asking for more trials, resumes: 10 kept, 4 new
     rc = main(["tune", "--json", "--out", str(out), "--trials", "14", "--evaluator", fake_evaluator])
@@ -137,4 +145,15 @@ def test_default_printer_front_dominates_klippers_recommendation(tmp_path, capsy
     assert d is not None, "no front point dominates Klipper's recommendation"
     assert d["print_time_s"] <= k["print_time_s"] and d["quality_mm"] <= k["quality_mm"]
     assert d["print_time_s"] < k["print_time_s"] or d["quality_mm"] < k["quality_mm"]
-    assert "dominating Klipper's rule" in (out / "summary.txt").read_text()
+    summary = (out / "summary.txt").read_text()
+    assert "dominating Klipper's rule" in summary
+    # the report says by how much, in the same numbers as --json
+    assert f"{d['faster_s']:.3f} s faster" in summary or f"{-d['faster_s']:.3f} s slower" in summary
+    assert f"{abs(d['better_mm']) * 1000:.1f} µm" in summary
+    # re-simulated from scratch (not read back from storage): the dominance holds
+    from ringtune.envs.evaluate import evaluate_many
+
+    mine, klip = evaluate_many([TuneConfig.from_dict(d["config"]), TuneConfig.from_dict(k["config"])], None, None)
+    assert not mine.step_loss and not klip.step_loss
+    assert mine.print_time_s <= klip.print_time_s + 1e-9 and mine.overshoot_mm <= klip.overshoot_mm + 1e-12
+    assert mine.print_time_s < klip.print_time_s - 1e-6 or mine.overshoot_mm < klip.overshoot_mm - 1e-9
