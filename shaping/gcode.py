@@ -25,6 +25,7 @@ extended commands and is slower than this reader's one-regex-per-line path.
 
 from __future__ import annotations
 
+import io
 import math
 import re
 from pathlib import Path
@@ -413,11 +414,13 @@ def _open_lines(path: Path) -> Iterator[str]:
         yield from fh
 
 
-def read_gcode(path_or_text, arc_tolerance: float = 0.01) -> Job:
-    """Read a G-code job from a file path (streamed line by line) or from G-code text.
+def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = None) -> Job:
+    """Read a G-code job from a file path (streamed line by line) or from G-code text/bytes.
 
     ``arc_tolerance``: largest distance (mm) between a G2/G3 arc and the chords replacing it.
-    Malformed values raise :class:`RingtuneError` naming ``file:line``.
+    Malformed values raise :class:`RingtuneError` naming ``file:line`` (``source`` names text
+    input, default ``<gcode>``). Lines end at ``\n``, ``\r\n`` or ``\r`` for files and text alike,
+    so line numbers are those of the file's bytes.
     """
     is_path = isinstance(path_or_text, Path)
     if isinstance(path_or_text, str) and "\n" not in path_or_text:
@@ -434,7 +437,7 @@ def read_gcode(path_or_text, arc_tolerance: float = 0.01) -> Job:
         reader.feed_lines(_open_lines(path))
     else:
         text = path_or_text.decode("utf-8", "replace") if isinstance(path_or_text, bytes) else str(path_or_text)
-        reader = _Reader("<gcode>", arc_tolerance)
-        reader.feed_lines(text.splitlines())
+        reader = _Reader(source or "<gcode>", arc_tolerance)
+        reader.feed_lines(io.StringIO(text, newline=None))
     return reader.job()
 

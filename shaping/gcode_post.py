@@ -66,9 +66,7 @@ def _with_checksum(code: bytes, cs: bytes) -> bytes:
 def limit_gcode_bytes(data: bytes, limit_hz: float, method: str = "sections",
                       min_speed_factor: float = 0.3, source: str = "<gcode>") -> tuple[bytes, LimitResult]:
     """Apply the frequency limit to G-code bytes; returns the new bytes and what changed."""
-    text = data.decode("utf-8", "replace")
-    job = read_gcode(text)
-    job.source = source
+    job = read_gcode(data, source=source)        # same line numbering as data.splitlines()
     limited = apply_freq_limit(job, limit_hz, method, min_speed_factor)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(job.feed > 0, limited.feed / job.feed, 1.0)

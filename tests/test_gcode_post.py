@@ -101,3 +101,23 @@ def test_limit_cli_json_and_errors(tmp_path, capsys):
     assert main(["limit", str(src), "--freq-limit", "-3", "-o", str(out)]) == 2
     assert "--freq-limit" in capsys.readouterr().err
     assert main(["limit", str(tmp_path / "missing.gcode"), "--freq-limit", "20", "-o", str(out)]) == 2
+
+
+def test_limit_errors_name_the_file_and_line(tmp_path, capsys):
+    """A malformed value is a one-line error (exit 2) naming the input file and its line."""
+    bad = tmp_path / "bad.gcode"
+    bad.write_text("G1 X10 F600\nG1 X1..2 E1\n")
+    assert main(["limit", str(bad), "--freq-limit", "20", "-o", str(tmp_path / "o.gcode")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and f"{bad}:2" in err and "Traceback" not in err
+
+
+def test_line_numbers_follow_the_bytes_whatever_the_comments_hold():
+    """Comments may hold characters Python's str.splitlines treats as line breaks (\\x1c, \\x0c,
+    U+2028): the F words must still land on the lines that were limited."""
+    src = builtin_test_gcode().encode()
+    out0, res0 = limit_gcode_bytes(src, 25.0, "sections")
+    odd = "; odd \x1c\x0c\u2028 comment\n".encode()
+    out, res = limit_gcode_bytes(odd + src, 25.0, "sections")
+    assert res.lines_changed == res0.lines_changed
+    assert out.split(b"\n", 1)[1] == odd + out0.split(b"\n", 1)[1]
