@@ -51,7 +51,7 @@ class Moonraker:
 
             token = base64.b64encode(f"{self.user}:{self.password or ''}".encode()).decode()
             req.add_header("Authorization", f"Basic {token}")
-        self.log(f"{method} {self.shown.rstrip('/')}{path}")
+        self.log(f"{method} {redact(url)}")     # credentials are not in self.base; tokens redacted
         try:
             with urllib.request.urlopen(req, timeout=self.timeout) as resp:
                 payload = resp.read()

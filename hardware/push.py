@@ -122,6 +122,18 @@ def _statuses(exp: Export, replies: dict[int, Reply], report: str | None, firmwa
     return out
 
 
+def _timeout_statuses(exp: Export, replies: dict[int, Reply], who: str) -> list[SettingStatus]:
+    """Statuses when ``who`` stopped answering before the read-back: a setting whose line was
+    acknowledged without error was carried out (Marlin, RRF and Klipper acknowledge after executing;
+    Moonraker answers ``ok`` once the script has run); the others were not applied."""
+    out = _statuses(exp, replies, None, exp.firmware)
+    for s in out:
+        idx = exp.setting_lines.get(s.key, -1)
+        if idx in replies and not replies[idx].errors:
+            s.status, s.detail = ACKED, f"acknowledged before {who} stopped answering"
+    return out
+
+
 def dry_run_wire(exp: Export, save: bool = False, crc: bool = False) -> list[str]:
     """Exactly what a push sends, in order (numbered and checksummed for Marlin/RRF)."""
     protocol = PROTOCOL[exp.firmware]
@@ -193,10 +205,7 @@ def _push_serial(exp, port, baud, crc, timeout, log, result, max_resets, link_op
                                     "re-handshook and sent every setting again")
         raise RingtuneError(f"the printer reset {result.resets} times during the push; giving up", redact(port))
     except LinkTimeout as exc:
-        result.settings = _statuses(exp, replies, None, exp.firmware)
-        for s in result.settings:
-            if exp.setting_lines.get(s.key, -1) in replies and not replies[exp.setting_lines[s.key]].errors:
-                s.status, s.detail = ACKED, "acknowledged before the printer stopped answering"
+        result.settings = _timeout_statuses(exp, replies, "the printer")
         raise PushError(f"printer stopped answering ({exc.bare}); {result.summary()}", result,
                         redact(port)) from None
     finally:
@@ -220,7 +229,7 @@ def _push_moonraker(exp, url, api_key, timeout, log, result):
         mr.script("SET_INPUT_SHAPER")
         console = mr.console(50)
     except LinkTimeout as exc:
-        result.settings = _statuses(exp, replies, None, exp.firmware)
+        result.settings = _timeout_statuses(exp, replies, "Moonraker")
         raise PushError(f"Moonraker stopped answering ({exc.bare}); {result.summary()}", result,
                         redact(url)) from None
     last = max((i for i, m in enumerate(console) if m.strip().upper() == "SET_INPUT_SHAPER"), default=-1)

@@ -420,9 +420,14 @@ class FakePrinter:
 # -- Moonraker ---------------------------------------------------------------------------------------
 
 class FakeMoonraker:
-    """``POST /printer/gcode/script`` and ``GET /server/gcode_store`` on 127.0.0.1 (Klipper core)."""
+    """``POST /printer/gcode/script`` and ``GET /server/gcode_store`` on 127.0.0.1 (Klipper core).
 
-    def __init__(self, api_key: str | None = None):
+    ``hang_after``: after that many scripts have run, every request is left without an answer
+    (until the server is closed), like a Klippy that stopped responding behind Moonraker."""
+
+    def __init__(self, api_key: str | None = None, hang_after: int | None = None):
+        self.hang_after = hang_after
+        self._release = threading.Event()
         self.core = KlipperCore()
         self.store: list[dict] = []
         self.scripts: list[str] = []
@@ -443,6 +448,9 @@ class FakeMoonraker:
                 self.wfile.write(data)
 
             def _auth(self) -> bool:
+                if fake.hang_after is not None and len(fake.scripts) >= fake.hang_after:
+                    fake._release.wait(30)
+                    return False
                 if fake.api_key and self.headers.get("X-Api-Key") != fake.api_key:
                     self._reply(401, {"error": {"code": 401, "message": "Unauthorized"}})
                     return False
@@ -495,6 +503,7 @@ class FakeMoonraker:
         return self
 
     def __exit__(self, *exc):
+        self._release.set()
         self.server.shutdown()
         self.server.server_close()
         self._thread.join(timeout=2)

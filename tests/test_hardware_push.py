@@ -181,8 +181,31 @@ def test_klipper_through_moonraker_never_logs_secrets(tmp_path):
     text = "\n".join(log) + r.text() + str(r.to_dict())
     for secret in ("s3cret", "t0ken", "k3y"):
         assert secret not in text
+    # the log names each request by its real path, with the token redacted in the query
+    assert f"POST {mr.url}/printer/gcode/script?token=***" in log
+    assert f"GET {mr.url}/server/gcode_store?count=50&token=***" in log
     assert "damping_ratio_y: 0.1" in (tmp_path / "is.cfg").read_text()
     assert "printer.cfg" in r.saved
+
+
+@pytest.mark.parametrize("hang_after, applied", [(0, False), (1, True)])
+def test_moonraker_that_stops_answering_fails_within_timeout_and_says_what_was_applied(hang_after, applied):
+    """hang_after=1: SET_INPUT_SHAPER ran ({"result": "ok"}), then the read-back got no answer."""
+    cfg = TuneConfig(firmware="klipper", shaper_x="mzv", shaper_y="ei", freq_x=44.0, freq_y=60.0)
+    keys = list(export_config(cfg).expected)
+    with FakeMoonraker(hang_after=hang_after) as mr:
+        t0 = time.monotonic()
+        with pytest.raises(PushError) as exc:
+            push(cfg, moonraker=mr.url, timeout=0.6)
+        elapsed = time.monotonic() - t0
+    assert 0.6 <= elapsed < 0.6 + 1.0
+    msg = str(exc.value)
+    assert "Moonraker stopped answering" in msg
+    if applied:
+        assert f"applied: {', '.join(keys)}; not applied: nothing" in msg
+        assert mr.core.axes["x"] == ["mzv", 44.0, 0.1]
+    else:
+        assert f"applied: nothing; not applied: {', '.join(keys)}" in msg
 
 
 def fp_axes(mr):
