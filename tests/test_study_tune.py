@@ -157,3 +157,22 @@ def test_default_printer_front_dominates_klippers_recommendation(tmp_path, capsy
     assert not mine.step_loss and not klip.step_loss
     assert mine.print_time_s <= klip.print_time_s + 1e-9 and mine.overshoot_mm <= klip.overshoot_mm + 1e-12
     assert mine.print_time_s < klip.print_time_s - 1e-6 or mine.overshoot_mm < klip.overshoot_mm - 1e-9
+
+
+def test_study_command_mass_and_accel_sweeps(tmp_path, capsys):
+    """`ringtune study --factor mass|accel`: print mass on the bed detunes shapers fitted to the empty
+    bed (worse quality), and a higher acceleration never makes the print slower."""
+    rc = main(["study", "--json", "--factor", "mass", "--values", "0,1", "--shapers", "zv,mzv", "--backend", "lti",
+               "-o", str(tmp_path / "mass.png")])
+    s = json.loads(capsys.readouterr().out)["shapers"]
+    assert rc == 0
+    for name in ("zv", "mzv"):
+        assert s[name]["quality_mm"][1] > 1.5 * s[name]["quality_mm"][0]
+    rc = main(["study", "--json", "--factor", "accel", "--values", "1000,3000,6000", "--shapers", "none,mzv",
+               "--backend", "lti", "-o", str(tmp_path / "acc.png")])
+    res = json.loads(capsys.readouterr().out)
+    assert rc == 0 and res["unit"] == "mm/s²" and (tmp_path / "acc.png").is_file()
+    for name in ("none", "mzv"):
+        t = res["shapers"][name]["print_time_s"]
+        assert t[0] > t[1] > t[2]
+        assert res["shapers"][name]["quality_mm"][2] > res["shapers"][name]["quality_mm"][0]
