@@ -51,6 +51,7 @@ def test_marlin_push_survives_every_fault(transport, ok_after_resend):
     sent = export_config(MARLIN).lines
     # after the reset, every setting line was carried out exactly once, in order
     assert fp.resets == 1
+    assert fp.sessions[0] == sent[:1]        # before the reset: X once, despite its two resends
     assert fp.executed == sent + ["M593", "M500"]
     assert r.ok and r.resets == 1 and any("reset" in n for n in r.notes)
     assert {s.key: s.status for s in r.settings} == {
@@ -86,6 +87,7 @@ def test_rrf_push_retries_silently_dropped_lines_and_verifies():
     with FakePrinter("rrf", faults, transport="pty") as fp:
         r = push(cfg, port=fp.url, timeout=3.0, save=True, save_path=Path(fp.url).name + ".g",
                  link_options={"retry_after": 0.3})
+    assert fp.sessions[0] == []              # every copy before the reset was lost or refused
     assert fp.executed == ['M593 P"zvd" F40.5 S0.1', "M593"]
     assert r.ok and r.resets == 1
     assert {s.key: (s.status, s.reported) for s in r.settings} == {
