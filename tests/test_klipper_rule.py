@@ -206,6 +206,11 @@ def test_recommend_cli_writes_tuneconfig_and_json(data_dir, tmp_path, capsys):
     # max_accel: the lower of the two picks' rounded suggestions (ei 4900, mzv 6300 as recorded)
     assert cfg.accel == 4900.0 and res["axes"]["y"]["max_accel"] == 6300.0
     assert [s["shaper"] for s in res["axes"]["x"]["shapers"]] == list(kr.AUTOTUNE_SHAPERS)
+    # the --json keys recommend.py documents as stable
+    assert set(res) == {"method", "klipper_version", "firmware", "axes", "sources", "config", "output"}
+    assert set(res["axes"]["x"]) == {"version", "scv", "shaper", "freq", "max_accel", "shapers"}
+    assert set(res["axes"]["x"]["shapers"][0]) == {"shaper", "freq", "vibrations_pct", "smoothing", "score",
+                                                   "max_accel", "max_accel_rounded"}
     # RepRapFirmware: one shaper and frequency for all axes, from the shapers RRF has
     rc = main(["recommend", "--json", "--firmware", "rrf", "--accel",
                str(d / "bassco_ender3/resonances_x_20210821_152037.csv")])
