@@ -14,7 +14,9 @@ Three methods, all returning a new :class:`Job` with lowered requested speeds:
   throttled only if it reversed direction in each of the last three segments, all shorter than the
   minimum interval ``1/F``; the speed factor becomes ``max(least/interval, S)``.
 
-``min_speed_factor`` floors every slowed speed at that fraction of the requested one (Marlin's S).
+``min_speed_factor`` floors every slowed speed at that fraction of the requested one (Marlin's S);
+None takes the method's default: for ``marlin`` the job's own ``M201 S`` or else Marlin's
+``XY_FREQUENCY_MIN_PERCENT`` (5 %), for the others 0.3.
 """
 
 from __future__ import annotations
@@ -28,6 +30,21 @@ from ringtune.shaping.gcode import Job
 
 METHODS = ("nophead", "sections", "marlin")
 CYCLES = 3          # nophead: fewer than three cycles is too short for resonance to build up
+#: default floor of the slowed speed, fraction of the requested one (nophead / sections)
+MIN_SPEED_FACTOR = 0.3
+#: Marlin's Configuration_adv.h XY_FREQUENCY_MIN_PERCENT 5 (used until an M201 S sets another)
+MARLIN_MIN_SPEED_FACTOR = 0.05
+
+
+def resolve_min_speed_factor(job: Job, method: str, min_speed_factor: float | None) -> float:
+    """The floor a method uses: the given value, else (``marlin``) the job's M201 S or Marlin's 5 %,
+    else 0.3."""
+    if min_speed_factor is not None:
+        return float(min_speed_factor)
+    if method == "marlin":
+        s = job.file_setting("freq_limit_min_factor")
+        return s if s == s else MARLIN_MIN_SPEED_FACTOR
+    return MIN_SPEED_FACTOR
 
 
 def _geometry(job: Job):
@@ -123,22 +140,20 @@ def path_wavelengths(job: Job, method: str = "sections", features=None) -> np.nd
 
 
 def apply_freq_limit(job: Job, limit_hz: float | None = None, method: str = "sections",
-                     min_speed_factor: float = 0.3, features=None,
+                     min_speed_factor: float | None = None, features=None,
                      max_velocity: tuple | None = None) -> Job:
-    """A copy of ``job`` whose requested speeds respect a direction-change frequency limit.
+    """A copy of ``job`` whose requested speeds respect a direction-change frequency limit (Hz).
 
-    ``limit_hz`` None takes the job's own ``M201 F`` (and its S as ``min_speed_factor`` for
-    ``marlin``); 0 or no limit returns the job unchanged. ``features``: substrings of slicer feature
-    names to limit (None = every extrusion path). ``max_velocity``: per-axis caps (x, y, z, e) the
-    Marlin emulation uses for its speed factor when the job sets no M203.
+    ``limit_hz`` None takes the job's own ``M201 F``; 0 or no limit returns the job unchanged.
+    ``min_speed_factor`` None: see :func:`resolve_min_speed_factor`. ``features``: substrings of
+    slicer feature names to limit (None = every extrusion path). ``max_velocity``: per-axis caps
+    (x, y, z, e; mm/s) the Marlin emulation uses for its speed factor when the job sets no M203.
     """
     if method not in METHODS:
         raise RingtuneError(f"method must be one of {', '.join(METHODS)}, not {method!r}", "--method")
+    min_speed_factor = resolve_min_speed_factor(job, method, min_speed_factor)
     if limit_hz is None:
         limit_hz = job.file_setting("freq_limit_hz")
-        s = job.file_setting("freq_limit_min_factor")
-        if s == s and method == "marlin":
-            min_speed_factor = s
         if limit_hz != limit_hz:
             return job
     if not (math.isfinite(limit_hz) and limit_hz >= 0):

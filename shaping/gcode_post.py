@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.freqlimit import apply_freq_limit
+from ringtune.shaping.freqlimit import apply_freq_limit, resolve_min_speed_factor
 from ringtune.shaping.gcode import read_gcode
 
 _MOVE = re.compile(rb"^\s*(?:[Nn]\s*-?\d+\s*)?[Gg]0*[0-3](?![0-9.])")
@@ -31,6 +31,7 @@ class LimitResult:
     f_words_changed: int
     f_words_added: int
     header: str
+    min_speed_factor: float          # the floor actually used (fraction of the requested speed)
 
 
 def _fmt(f_mm_min: float) -> bytes:
@@ -64,9 +65,12 @@ def _with_checksum(code: bytes, cs: bytes) -> bytes:
 
 
 def limit_gcode_bytes(data: bytes, limit_hz: float, method: str = "sections",
-                      min_speed_factor: float = 0.3, source: str = "<gcode>") -> tuple[bytes, LimitResult]:
-    """Apply the frequency limit to G-code bytes; returns the new bytes and what changed."""
+                      min_speed_factor: float | None = None,
+                      source: str = "<gcode>") -> tuple[bytes, LimitResult]:
+    """Apply the frequency limit (Hz) to G-code bytes; returns the new bytes and what changed.
+    ``min_speed_factor`` None: the method's default (``freqlimit.resolve_min_speed_factor``)."""
     job = read_gcode(data, source=source)        # same line numbering as data.splitlines()
+    min_speed_factor = resolve_min_speed_factor(job, method, min_speed_factor)
     limited = apply_freq_limit(job, limit_hz, method, min_speed_factor)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(job.feed > 0, limited.feed / job.feed, 1.0)
@@ -114,12 +118,12 @@ def limit_gcode_bytes(data: bytes, limit_hz: float, method: str = "sections",
               f"min_speed_factor={min_speed_factor:g}; slowed {slowed} of {job.n_moves} moves; "
               f"changed F on {changed} lines ({replaced} replaced, {added} added); "
               f"nothing else differs from the input")
-    result = LimitResult(changed, slowed, replaced, added, header)
+    result = LimitResult(changed, slowed, replaced, added, header, min_speed_factor)
     return header.encode() + nl + b"".join(out), result
 
 
 def limit_file(src: str | Path, dst: str | Path | None, limit_hz: float, method: str = "sections",
-               min_speed_factor: float = 0.3) -> tuple[bytes, LimitResult]:
+               min_speed_factor: float | None = None) -> tuple[bytes, LimitResult]:
     """Read ``src``, apply the limit, write ``dst`` (if given); returns (bytes, result)."""
     src = Path(src)
     try:

@@ -156,3 +156,18 @@ def test_marlin_history_starts_at_zero_like_its_static_variables():
     # (X "changed direction" from the initial all-positive bits, and the history holds zeros)
     np.testing.assert_allclose(_marlin([-1]), [0.4])
     np.testing.assert_allclose(_marlin([1]), [1.0])            # +X: no direction change
+
+
+def test_marlin_floor_is_the_files_m201_s_or_marlins_default_5_percent():
+    """XY_FREQUENCY_MIN_PERCENT is 5 in Marlin's Configuration_adv.h; an M201 S in the job sets
+    another (constrained to 1..100 %). 0.2 mm strokes at 50 mm/s take 4 ms of a 50 ms interval:
+    the rule asks 0.08, above 5 % but below S10 -> 0.10."""
+    moves = "G1 F3000\n" + "".join(f"G1 X{x}\n" for x in [10, 9.8, 10, 9.8, 10])
+    plain = read_gcode(moves)
+    np.testing.assert_allclose(apply_freq_limit(plain, 20.0, "marlin").feed, [50, 50, 50, 4, 4])
+    with_s = read_gcode("M201 F20 S10\n" + moves)
+    np.testing.assert_allclose(apply_freq_limit(with_s, None, "marlin").feed, [50, 50, 50, 5, 5])
+    np.testing.assert_allclose(apply_freq_limit(with_s, 20.0, "marlin").feed, [50, 50, 50, 5, 5])
+    np.testing.assert_allclose(apply_freq_limit(with_s, 20.0, "marlin", 0.5).feed, [50, 50, 50, 25, 25])
+    s0 = read_gcode("M201 F20 S0\n" + moves)                         # constrain(S, 1, 100) -> 1 %
+    np.testing.assert_allclose(apply_freq_limit(s0, None, "marlin").feed, [50, 50, 50, 4, 4])

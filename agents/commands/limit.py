@@ -18,7 +18,8 @@ line records what was done.
 Methods:
   sections  slow only the high-frequency stretch of a path (default)
   nophead   slow the whole path to its worst three-cycle stretch (nophead's 2010 algorithm)
-  marlin    what Marlin's XY_FREQUENCY_LIMIT (M201 F<Hz> S<%>) does, block by block
+  marlin    what Marlin's XY_FREQUENCY_LIMIT (M201 F<Hz> S<%>) does, block by block; its floor
+            is the file's own M201 S, else Marlin's default XY_FREQUENCY_MIN_PERCENT 5 %
 
 examples:
   ringtune limit part.gcode --freq-limit 20 -o part_limited.gcode
@@ -32,8 +33,9 @@ def add_arguments(parser) -> None:
                         help="largest direction-change frequency, Hz")
     parser.add_argument("--method", choices=("sections", "nophead", "marlin"), default="sections",
                         help="which algorithm (default: sections)")
-    parser.add_argument("--min-speed-factor", metavar="S", type=float, default=0.3,
-                        help="never slow below this fraction of the requested speed (default 0.3)")
+    parser.add_argument("--min-speed-factor", metavar="S", type=float, default=None,
+                        help="never slow below this fraction of the requested speed "
+                             "(default 0.3; marlin: the file's M201 S, else 0.05)")
     parser.add_argument("-o", "--output", metavar="OUT", help="output file (default: stdout)")
 
 
@@ -45,14 +47,14 @@ def run(args, out) -> int:
 
     if not args.freq_limit > 0:
         raise RingtuneError("must be a frequency > 0 Hz", "--freq-limit")
-    if not 0 < args.min_speed_factor <= 1:
+    if args.min_speed_factor is not None and not 0 < args.min_speed_factor <= 1:
         raise RingtuneError("must be in (0, 1]", "--min-speed-factor")
     if args.output is None and args.json:
         raise RingtuneError("--json needs -o OUT (stdout carries the JSON)", "--output")
     data, res = limit_file(args.file, args.output, args.freq_limit, args.method, args.min_speed_factor)
     result = {
         "input": args.file, "output": args.output, "method": args.method,
-        "freq_limit_hz": args.freq_limit, "min_speed_factor": args.min_speed_factor,
+        "freq_limit_hz": args.freq_limit, "min_speed_factor": res.min_speed_factor,
         "moves_slowed": res.moves_slowed, "lines_changed": res.lines_changed,
         "f_words_replaced": res.f_words_changed, "f_words_added": res.f_words_added,
         "header": res.header,
