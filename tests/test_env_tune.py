@@ -56,15 +56,32 @@ def test_stable_baselines3_check_env_passes():
     env.close()
 
 
+@pytest.mark.slow
+def test_both_checkers_pass_on_the_default_environment():
+    """As registered, with its defaults: MuJoCo physics and the last metrics in the observation."""
+    pytest.importorskip("stable_baselines3")
+    from gymnasium.utils.env_checker import check_env
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+    env = gym.make("ringtune/TuneFixed-v0").unwrapped
+    assert env.backend == "mujoco" and env.observe_metrics
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env, skip_render_check=True)
+        sb3_check_env(env, warn=True)
+    env.close()
+
+
 def _episode(env, seed, action):
     obs0, info0 = env.reset(seed=seed)
     obs1, r, term, trunc, info1 = env.step(action)
     return obs0, obs1, r, info0, info1
 
 
-def test_seeded_reset_gives_identical_episodes():
-    a = TuneEnv(randomize=True, backend="lti")
-    b = TuneEnv(randomize=True, backend="lti")
+@pytest.mark.parametrize("backend", ["lti", "mujoco"])
+def test_seeded_reset_gives_identical_episodes(backend):
+    a = TuneEnv(randomize=True, backend=backend)
+    b = TuneEnv(randomize=True, backend=backend)
     action = np.linspace(-0.9, 0.9, a.action_space.shape[0]).astype(np.float32)
     ea, eb = _episode(a, 123, action), _episode(b, 123, action)
     for x, y in zip(ea[:2], eb[:2]):
