@@ -101,6 +101,41 @@ def test_ender3_dominant_frequencies_within_1hz_of_the_psd_peaks(data_dir, tmp_p
     assert out.stat().st_size > 20000
 
 
+def test_plot_shows_the_files_psd_against_the_fitted_spectrum(data_dir, tmp_path, monkeypatch):
+    """What is drawn, not just that a PNG exists: per file, the measured curve is the file's own
+    PSD column, and the fitted curve follows it and peaks where it does."""
+    import matplotlib.figure
+
+    from ringtune.hardware.accel import read_resonances_csv
+
+    drawn = []
+    save = matplotlib.figure.Figure.savefig
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig",
+                        lambda fig, *a, **k: (drawn.append(fig), save(fig, *a, **k))[1])
+    paths = [data_dir / "accel" / p for p in ENDER3]
+    fits = identify_files(paths)
+    plot_fits(fits, tmp_path / "fit.png")
+    assert len(drawn) == 1 and (tmp_path / "fit.png").read_bytes()[:4] == b"\x89PNG"
+    panels = drawn[0].axes
+    assert len(panels) == 2
+    for panel, path, fit, peaks in zip(panels, paths, fits, ([45.0, 59.4], [39.0])):
+        lines = {ln.get_label(): ln for ln in panel.get_lines()}
+        measured, fitted = lines["measured PSD"], lines["fitted modes"]
+        psd = read_resonances_csv(path)
+        col = psd.axis(fit.axis)
+        fm, pm = measured.get_xdata(), measured.get_ydata()
+        np.testing.assert_array_equal(pm, col[np.isin(psd.freqs, fm)])     # the file's numbers
+        assert fm.min() <= 7 and fm.max() >= 130                            # the whole sweep
+        ff, pf = fitted.get_xdata(), fitted.get_ydata()
+        # the fitted curve follows the measured one (log scale) ...
+        err = np.log10(np.interp(fm, ff, pf) / pm)
+        assert np.median(np.abs(err)) < 0.15
+        # ... and peaks where the measured one does
+        for pk in peaks:
+            near = (ff > pk - 4) & (ff < pk + 4)
+            assert abs(ff[near][np.argmax(pf[near])] - pk) <= 1.0, (path.name, pk)
+
+
 def test_printer_toml_round_trips_through_the_loader(data_dir, tmp_path):
     from ringtune.envs.printer import load_printer
 
