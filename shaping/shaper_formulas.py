@@ -75,7 +75,7 @@ def mzv_coeffs(n: int, t: float) -> np.ndarray:
     in damped periods. Read-only (cached)."""
     if n != int(n) or t <= 0:
         raise RingtuneError(f"mzv needs an integer n and t > 0 (got n={n}, t={t:g})")
-    if n < 3 or not n > 2 * t + 1:
+    if n < 3 or n <= 2 * t + 1 + 1e-7:                 # Klipper's test, with its 1e-7 margin
         raise RingtuneError(f"mzv needs n >= 3 and n > 2t+1 (got n={n}, t={t:g})")
     tau = t * (n - 2) / (n - 2 * t - 1)
     T = np.arange(n) * t / (n - 1)
@@ -93,11 +93,15 @@ def mzv_coeffs(n: int, t: float) -> np.ndarray:
     return A
 
 
-def mzv(f, z, n: int = 3, t: float = 0.75, tau: float | None = None):
-    if tau is not None:
-        if tau <= 0:
+def mzv(f, z, n: int = 3, t: float = 0.0, tau: float = 0.0):
+    """Klipper HEAD ``get_mzv_shaper``: n impulses over t damped periods; t = 0 and tau = 0 (not
+    given) mean the classic t = 0.75; a non-zero tau (projected duration) takes precedence over t."""
+    if tau:
+        if tau < 0:
             raise RingtuneError(f"mzv needs tau > 0 (got {tau:g})")
         t = tau * (n - 1) / (n + 2 * tau - 2)
+    elif not t:
+        t = 0.75
     A = mzv_coeffs(n, float(t))
     kp = math.exp(-2 * t * z * math.pi / ((n - 1) * _df(z)))
     A = A * kp ** np.arange(n)

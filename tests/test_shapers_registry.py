@@ -98,6 +98,20 @@ def test_parameterised_mzv_default_equals_closed_form():
         assert coeffs.sum() == pytest.approx(1)
 
 
+def test_mzv_defaults_and_limits_follow_klippers_get_mzv_shaper():
+    """Klipper HEAD: t = tau = 0 (unset) means t = 0.75; tau wins over t; n <= 2t + 1 + 1e-7 is an
+    error (the 1e-7 margin included)."""
+    base = get_shaper("mzv(n=5,t=0.75)", 40, 0.1)
+    for form in ("mzv(n=5)", "mzv(n=5,t=0)", "mzv(5)"):
+        np.testing.assert_array_equal(get_shaper(form, 40, 0.1).times, base.times)
+    tau = 1.1 * 3 / (5 - 2.2 - 1)
+    np.testing.assert_allclose(get_shaper(f"mzv(n=5,t=0.5,tau={tau!r})", 40, 0.1).times,
+                               get_shaper("mzv(n=5,t=1.1)", 40, 0.1).times, rtol=1e-12)
+    get_shaper("mzv(n=3,t=0.9999)", 40, 0.1)
+    with pytest.raises(RingtuneError, match="n > 2t"):
+        get_shaper("mzv(n=3,t=0.99999996)", 40, 0.1)
+
+
 def test_parameter_forms_and_their_errors():
     named = get_shaper("mzv(n=5,t=1.1)", 40, 0.1)
     positional = get_shaper("mzv(5, 1.1)", 40, 0.1)
