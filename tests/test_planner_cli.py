@@ -88,3 +88,19 @@ def test_plan_with_an_embedded_printer(capsys):
     res = _plan_json(capsys, "--printer", "ender3")
     assert res["junction"] in ("scv", "jd", "jerk")
     assert res["print_time_s"] > 0
+
+
+def test_plan_applies_the_jobs_own_marlin_frequency_limit(tmp_path, capsys):
+    """M201 F20 S50 in the job: Marlin's XY_FREQUENCY_LIMIT slows 1 mm X reversals at 50 mm/s
+    (20 ms < 50 ms) from the fourth on to max(20/50, 50 %) = 25 mm/s (firmware.md §2.3)."""
+    body = "M83\nG1 F3000\n" + "".join(f"G1 X{x} E0.05\n" for x in [10, 9, 10, 9, 10, 9, 10])
+    limited, plain = tmp_path / "f.gcode", tmp_path / "p.gcode"
+    limited.write_text("M201 F20 S50\n" + body)
+    plain.write_text(body)
+    a = _plan_json(capsys, str(limited), "--junction", "jd")
+    b = _plan_json(capsys, str(plain), "--junction", "jd")
+    assert a["freq_limit"] == {"hz": 20.0, "method": "marlin", "moves_slowed": 4, "source": "job M201 F"}
+    assert b["freq_limit"] is None
+    assert a["print_time_s"] > b["print_time_s"]
+    off = _plan_json(capsys, str(limited), "--junction", "jd", "--no-job-limits")
+    assert off["freq_limit"] is None

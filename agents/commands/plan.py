@@ -8,7 +8,8 @@ lines, which apply from where they appear unless ``--no-job-limits``), ``print_t
 highest direction-change frequencies while extruding, planned time, three cycles each),
 ``shaper_events`` (list of {``line``, ``command``, ``time``, ``params``}), ``events`` ({kind:
 count}), ``slicer_estimate_s`` (what the slicer wrote in the file, or null), ``vs_slicer``
-(our / slicer − 1, or null), ``freq_limit`` (null or {``hz``, ``method``, ``moves_slowed``}),
+(our / slicer − 1, or null), ``freq_limit`` (null or {``hz``, ``method``, ``moves_slowed``,
+``source``: ``"config"`` or ``"job M201 F"``}),
 ``daa_hz``, ``read_s``, ``plan_s``, ``trajectory`` (CSV path or null).
 """
 
@@ -26,8 +27,9 @@ over the whole job and the firmware's junction rule:
 
 Without --junction the rule follows --printer, or else the job's own commands
 (SET_VELOCITY_LIMIT -> scv, M205 J -> jd, M205 X/Y -> jerk). Limits the job sets in its header
-(M201/M203/M204/M205, SET_VELOCITY_LIMIT) override the printer's. When the slicer wrote its own
-time estimate into the file, it is shown beside ours.
+(M201/M203/M204/M205, SET_VELOCITY_LIMIT) override the printer's; a job's own Marlin
+XY_FREQUENCY_LIMIT (M201 F<Hz> S<%>) slows its zigzags as Marlin would. When the slicer wrote
+its own time estimate into the file, it is shown beside ours.
 
 --config applies a TuneConfig's frequency limit and acceleration (its accel replaces the job's
 M204/SET_VELOCITY_LIMIT accelerations); a shaper "daa" in it (or --daa F)
@@ -116,7 +118,13 @@ def run(args, out) -> int:
         job = apply_freq_limit(job, cfg.freq_limit_hz, cfg.freq_limit_method, cfg.min_speed_factor,
                                max_velocity=limits.max_velocity)
         freq_info = {"hz": cfg.freq_limit_hz, "method": cfg.freq_limit_method,
-                     "moves_slowed": int(np.sum(job.feed < before))}
+                     "moves_slowed": int(np.sum(job.feed < before)), "source": "config"}
+    elif not args.no_job_limits and job.file_setting("freq_limit_hz") > 0:
+        # the job's own M201 F (and S): what Marlin's XY_FREQUENCY_LIMIT will do with it
+        before = job.feed
+        job = apply_freq_limit(job, None, "marlin", max_velocity=limits.max_velocity)
+        freq_info = {"hz": job.file_setting("freq_limit_hz"), "method": "marlin",
+                     "moves_slowed": int(np.sum(job.feed < before)), "source": "job M201 F"}
     daa = args.daa
     if daa is None and cfg is not None and cfg.shaper_x.lower() == "daa":
         daa = cfg.freq_x
