@@ -116,7 +116,9 @@ class Export:
 
 def fmt(value: float, decimals: int = 3) -> str:
     """A number as short as it can be at ``decimals`` places: 40.0 -> '40', 0.15 -> '0.15'."""
-    s = f"{value:.{decimals}f}".rstrip("0").rstrip(".")
+    s = f"{value:.{decimals}f}"
+    if "." in s:                      # trailing zeros of the fraction only: 4000 stays 4000
+        s = s.rstrip("0").rstrip(".")
     return "0" if s in ("-0", "") else s
 
 
@@ -170,12 +172,24 @@ def export_config(config: TuneConfig, firmware: str | None = None) -> Export:
 
 
 def limit_command(config: TuneConfig) -> str:
-    """The ``ringtune limit`` command that applies the frequency limit to G-code instead."""
-    cmd = f"ringtune limit FILE.gcode --freq-limit {fmt(config.freq_limit_hz, 2)}"
-    return cmd + " -o FILE-limited.gcode"
+    """The ``ringtune limit`` command that applies the config's frequency limit to G-code instead:
+    its limit (Hz), its method and its minimum speed factor, so the G-code gets the limit that was
+    tuned (the command's own defaults may differ)."""
+    return (f"ringtune limit FILE.gcode --freq-limit {fmt(config.freq_limit_hz, 2)} "
+            f"--method {config.freq_limit_method} --min-speed-factor {fmt(config.min_speed_factor, 3)} "
+            "-o FILE-limited.gcode")
+
+
+def _accel_note(config: TuneConfig, exp: Export) -> None:
+    """A config tuned at its own acceleration says so: no dialect line here sets it."""
+    if config.accel is not None:
+        exp.notes.append(f"this config was tuned at an acceleration of {fmt(config.accel, 0)} mm/s², "
+                         "which these lines do not set: print with that acceleration (printer or "
+                         "slicer setting) to get the simulated result")
 
 
 def _freq_limit(config: TuneConfig, dialect: str, exp: Export) -> None:
+    _accel_note(config, exp)
     hz = config.freq_limit_hz
     if hz <= 0:
         return
@@ -188,6 +202,10 @@ def _freq_limit(config: TuneConfig, dialect: str, exp: Export) -> None:
         exp.lines.append(f"M201 F{fmt(hz, 2)} S{pct}")
         exp.notes.append("M201 F/S needs XY_FREQUENCY_LIMIT compiled in (older Marlin uses G<min%> "
                          "instead of S)")
+        if config.freq_limit_method != "marlin":
+            exp.notes.append(f"M201 F S applies Marlin's own limit (method 'marlin'); this config was "
+                             f"tuned with the '{config.freq_limit_method}' method: for exactly that, "
+                             f"leave M201 out and run {limit_command(config)}")
         return
     exp.notes.append(f"{title} has no XY frequency limit; apply it to the G-code instead: "
                      f"{limit_command(config)}")

@@ -190,3 +190,34 @@ def test_dialect_shaper_sets_agree_with_the_shaper_registry(dialect, flavor):
     from ringtune.shaping.shapers import available_shapers
 
     assert set(AVAILABLE[dialect]) == set(available_shapers(flavor))
+
+
+@pytest.mark.parametrize("fw", ["klipper", "rrf", "prusa", "marlin", "marlin-ftm"])
+def test_limit_command_applies_the_tuned_limit_exactly(fw):
+    """The `ringtune limit` command in the export parses with the real CLI and carries the config's
+    limit, method and minimum speed factor (the command's own defaults are sections / 0.3)."""
+    import shlex
+
+    from ringtune.agents.cli import build_parser
+
+    shaper = {"marlin": "zv", "rrf": "zvd"}.get(fw, "mzv")
+    c = cfg(shaper_x=shaper, shaper_y=shaper, freq_limit_hz=27.5, min_speed_factor=0.55,
+            freq_limit_method="nophead")
+    notes = export_config(c, fw).notes
+    cmd = next(n[n.index("ringtune limit"):] for n in notes if "ringtune limit" in n)
+    argv = shlex.split(cmd)
+    assert argv[:2] == ["ringtune", "limit"]
+    args = build_parser()[0].parse_args(argv[1:])
+    assert (args.freq_limit, args.method, args.min_speed_factor) == (27.5, "nophead", 0.55)
+    if fw.startswith("marlin"):      # M201 is sent, and the note says it is Marlin's own algorithm
+        assert "M201 F27.5 S55" in export_config(c, fw).lines
+        assert any("Marlin's own limit" in n for n in notes)
+        c_marlin = cfg(shaper_x=shaper, shaper_y=shaper, freq_limit_hz=27.5, freq_limit_method="marlin")
+        assert not any("ringtune limit" in n for n in export_config(c_marlin, fw).notes)
+
+
+def test_tuned_acceleration_is_not_dropped_silently():
+    e = export_config(cfg(accel=4000.0), "klipper")
+    assert any("acceleration of 4000 mm/s²" in n for n in e.notes)
+    assert "acceleration of 4000 mm/s²" in e.render()
+    assert not any("acceleration" in n for n in export_config(cfg(), "klipper").notes)
