@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 
@@ -34,6 +35,34 @@ def test_shaper_text_and_causal_lag(capsys):
     assert "2hump_ei (rrf)" in out and "causal" in out and "90% band" in out
     code, out, _ = run_cli(capsys, "shaper", "zvd", "--freq", "40", "--damping", "0", "--flavor", "rrf", "--json")
     assert json.loads(out)["lag_s"] == pytest.approx(0.0125, abs=1e-6)     # ZVD: ¼·0 + ½·½T + ¼·T = T/2
+
+
+def test_shaper_json_per_flavour_against_the_firmware_formulas(capsys):
+    """firmware.md §2.1/§2.2: Marlin classic ZV at ζ 0.1: factor2 = floor(64.44056192 − 9.902008832
+    − 0.0758095488 + 0.043073216) = 54 of 128, echo after 1/(2F) = 12.5 ms; Marlin FTM MZV at
+    40 Hz ζ 0.1: N1 = LROUND(0.375/40/0.99499·1000) = 9 samples, A = [1, √2K, K²]/Σ with
+    K = exp(−ζπ/df), centred by N0 = LROUND(−Σ A_i·N_i) = −7 samples."""
+    def shaper_json(*argv):
+        code, out, _ = run_cli(capsys, "shaper", *argv, "--json")
+        assert code == 0
+        return json.loads(out)
+
+    m = shaper_json("zv", "--freq", "40", "--damping", "0.1", "--flavor", "marlin")
+    assert m["amplitudes"] == [74 / 128, 54 / 128] and m["times_s"] == [0.0, 0.0125]
+    assert m["centred"] is False and m["lag_s"] == pytest.approx(54 / 128 * 0.0125, rel=1e-12)
+    assert m["centre_delay_s"] == 0.0
+    f = shaper_json("mzv", "--freq", "40", "--damping", "0.1", "--flavor", "marlin-ftm")
+    k = math.exp(-0.1 * math.pi / math.sqrt(0.99))
+    assert f["amplitudes"] == pytest.approx([1 / (1 + 2 ** 0.5 * k + k * k), 2 ** 0.5 * k / (1 + 2 ** 0.5 * k + k * k),
+                                             k * k / (1 + 2 ** 0.5 * k + k * k)], rel=1e-6)
+    assert f["times_s"] == pytest.approx([0.0, 0.009, 0.018], abs=1e-15)
+    assert f["centre_delay_s"] == pytest.approx(0.007, abs=1e-15)
+    assert f["lag_s"] == pytest.approx(f["centroid_s"] - 0.007, abs=1e-15)
+    r = shaper_json("mzv", "--freq", "40", "--damping", "0.1", "--flavor", "rrf")
+    assert [round(a, 3) for a in r["amplitudes"]] == [0.227, 0.407, 0.365]     # M593's own report
+    assert [round(t * 750_000) for t in r["times_s"]] == [0, 7066, 14132]
+    p = shaper_json("mzv", "--freq", "40", "--damping", "0.1", "--flavor", "prusa")
+    assert p["flavor"] == "klipper-legacy" and p["amplitudes"] == pytest.approx([0.3651, 0.4075, 0.2274], abs=5e-5)
 
 
 @pytest.mark.parametrize("argv,needle", [

@@ -2,7 +2,9 @@
 
 ``--json`` keys (stable): ``name``, ``flavor``, ``freq`` (Hz), ``damping``, ``centred`` (bool),
 ``amplitudes`` (sum 1), ``times_s`` (first 0), ``duration_s``, ``lag_s`` (steady-state lag of the
-shaped motion: Σ A_i·T_i when causal, 0 when centred), ``centroid_s``, ``band90_hz`` [lo, hi]
+shaped motion: Σ A_i·T_i when causal, 0 when centred), ``centroid_s``, ``centre_delay_s`` (the
+delay a centring firmware subtracts from every impulse time: Σ A_i·T_i, Marlin FT_MOTION rounds
+it to whole 1 ms samples, N0 = LROUND(−Σ A_i·N_i); 0 when causal), ``band90_hz`` [lo, hi]
 (≥ 90 % vibration reduction for a plant of the shaper's own damping; nulls when there is none), ``band90_pct`` [lo, hi] relative to ``freq``,
 ``smoothing_mm`` (Klipper's definition at ``accel``/``scv``), ``max_accel`` (mm/s², Klipper's
 smoothing ≤ 0.12 mm rule, unrounded; null when the shaper never smooths, e.g. ``none``), ``residual_at_freq`` (fraction left at ``freq``, plant damping
@@ -86,6 +88,7 @@ def run(args, out) -> int:
         "name": shaper.name, "flavor": flavor, "freq": shaper.freq, "damping": shaper.damping,
         "centred": centred, "amplitudes": shaper.amplitudes.tolist(), "times_s": shaper.times.tolist(),
         "duration_s": info["duration_s"], "lag_s": info["lag_s"], "centroid_s": info["centroid_s"],
+        "centre_delay_s": shaper.centre_delay if centred else 0.0,
         "band90_hz": info["band90_hz"], "band90_pct": info["band90_pct"],
         "smoothing_mm": info["smoothing_mm"], "max_accel": finite_or_none(info["max_accel"]),
         "residual_at_freq": info["residual_at_freq"], "accel": args.accel, "scv": args.scv,
@@ -98,7 +101,8 @@ def run(args, out) -> int:
     plo, phi = info["band90_pct"]
     lines += [
         f"  duration          {info['duration_s'] * 1e3:.3f} ms",
-        f"  lag               {info['lag_s'] * 1e3:.3f} ms ({'centred' if centred else 'causal'})",
+        f"  lag               {info['lag_s'] * 1e3:.3f} ms ({'centred' if centred else 'causal'})"
+        + (f", impulses shifted by -{shaper.centre_delay * 1e3:.3f} ms" if centred else ""),
         f"  90% band          {band_text(lo, hi)}" + (f" ({plo:+.1f}% / {phi:+.1f}%)" if lo == lo else ""),
         f"  smoothing         {info['smoothing_mm']:.4f} mm at {args.accel:g} mm/s², scv {args.scv:g} mm/s",
         f"  max_accel         {info['max_accel']:.0f} mm/s² (smoothing <= 0.12 mm)"
