@@ -169,6 +169,10 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
     if not port and not moonraker:
         raise RingtuneError("refusing to push without an explicit port: give --port /dev/ttyUSB0 "
                             "(or socket://host:port, rfc2217://host:port) or --moonraker URL", "--port")
+    target = _save_target(exp, save_path) if save else None
+    if target is not None and not target.parent.is_dir():
+        # refuse before touching the printer: after the push a failed write would hide its report
+        raise RingtuneError("no such directory for the config file", f"--save-file {save_path}")
     if moonraker:
         replies, report = _push_moonraker(exp, moonraker, api_key, timeout, log, result)
     else:
@@ -248,15 +252,27 @@ def _save_eeprom(exp: Export, result: PushResult, link: GcodeLink) -> None:
     result.saved = f"{' '.join(exp.save_lines)} sent (the printer stores it in EEPROM)"
 
 
-def _save_file(exp: Export, result: PushResult, save_path) -> None:
+def _save_target(exp: Export, save_path) -> Path | None:
+    """Where ``--save`` writes the config lines (firmware that cannot persist them), else None."""
     if exp.save_lines or not exp.config_text:
+        return None
+    default = "ringtune-input_shaper.cfg" if exp.firmware == "klipper" else "ringtune-config.g"
+    return Path(save_path or default)
+
+
+def _save_file(exp: Export, result: PushResult, save_path) -> None:
+    path = _save_target(exp, save_path)
+    if path is None:
         return
     if not result.ok:
         result.notes.append("config file not written: not every setting was verified on the printer")
         return
-    default = "ringtune-input_shaper.cfg" if exp.firmware == "klipper" else "ringtune-config.g"
-    path = Path(save_path or default)
-    path.write_text(exp.config_text)
+    try:
+        path.write_text(exp.config_text)
+    except OSError as exc:   # the settings are on the printer: report that, and the failed write
+        result.notes.append(f"could not write {path}: {exc.strerror or exc}; the lines for "
+                            f"{exp.config_target} are:\n{exp.config_text.rstrip()}")
+        return
     result.save_file = str(path)
     what = ("replace the [input_shaper] section of printer.cfg with it (SAVE_CONFIG would drop "
             "damping_ratio)" if exp.firmware == "klipper" else "add these lines to config.g "

@@ -88,3 +88,20 @@ def test_identify_bad_file_is_one_line(tmp_path, capsys):
     assert main(["identify", str(bad)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and f"{bad}:3" in err
+
+
+@pytest.mark.parametrize("argv, where", [
+    (["identify", "{psd}", "--plot", "{tmp}/fit.txt"], "--plot"),
+    (["identify", "{psd}", "--plot", "{tmp}/no/fit.png"], "no such directory"),
+    (["identify", "{psd}", "-o", "{tmp}/no/p.toml"], "no such directory"),
+    (["export", "{config}", "-o", "{tmp}/no/x.g"], "no such directory"),
+    (["push", "{config}", "--firmware", "klipper", "--port", "/dev/null", "--save",
+      "--save-file", "{tmp}/no/x.cfg"], "no such directory"),
+])
+def test_bad_output_paths_are_one_line_before_any_work(argv, where, config, data_dir, tmp_path, capsys):
+    psd = data_dir / "accel/klipper_psd/bassco_ender3/resonances_x_20210821_152037.csv"
+    argv = [a.format(psd=psd, tmp=tmp_path, config=config) for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and where in err and "Traceback" not in err
+    assert not list(tmp_path.rglob("*.png")) and not (tmp_path / "no").exists()

@@ -291,3 +291,11 @@ def test_loop_url_opens_through_pyserial():
     # loop:// returns what is written: in Klipper mode the line "ok" is its own acknowledgement
     with GcodeLink("loop://", "klipper", timeout=1.0) as link:
         assert link.send("ok").errors == []
+
+
+def test_save_file_in_a_missing_directory_is_refused_before_anything_is_sent(tmp_path):
+    cfg = TuneConfig(firmware="rrf", shaper_x="zvd", shaper_y="zvd", freq_x=40.5, freq_y=40.5)
+    with FakePrinter("rrf", transport="tcp") as fp:
+        with pytest.raises(RingtuneError, match="no such directory"):
+            push(cfg, port=fp.url, timeout=1.0, save=True, save_path=tmp_path / "nope" / "c.g")
+    assert fp.executed == [] and fp.received == 0

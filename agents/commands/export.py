@@ -50,6 +50,10 @@ def run(args, out) -> int:
     from ringtune.hardware.dialects import export_config
     from ringtune.shaping.config import TuneConfig
 
+    from ringtune.shaping.errors import RingtuneError
+
+    if args.output and not Path(args.output).parent.is_dir():
+        raise RingtuneError("no such directory", f"-o {args.output}")
     cfg = TuneConfig.load(args.config)
     exp = export_config(cfg, args.firmware)
     text = exp.render()

@@ -32,6 +32,10 @@ examples:
 """
 
 
+#: image formats the plot can be written in (matplotlib picks the format from the suffix)
+PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("files", nargs="+", metavar="ACCEL.csv", help="accelerometer files (any supported format)")
     p.add_argument("-o", "--output", metavar="printer.toml", help="write the printer description here")
@@ -58,6 +62,12 @@ def run(args, out) -> int:
         raise RingtuneError("must be 1 to 5", "--max-modes")
     if not 0 <= args.fmin < args.fmax:
         raise RingtuneError("need 0 <= --fmin < --fmax", "--fmin")
+    for option, path in (("-o", args.output), ("--plot", args.plot)):
+        if path and not Path(path).parent.is_dir():
+            raise RingtuneError("no such directory", f"{option} {path}")
+    if args.plot and Path(args.plot).suffix.lower() not in PLOT_SUFFIXES:
+        raise RingtuneError(f"the plot's file name must end in one of {', '.join(PLOT_SUFFIXES)}",
+                            f"--plot {args.plot}")
     fits = identify_files(args.files, axis=args.axis, max_modes=args.max_modes, fmin=args.fmin,
                           fmax=args.fmax, damping=args.damping_method)
     toml = printer_toml(fits, name=args.name, kinematics=args.kinematics, base=args.base)
