@@ -308,18 +308,19 @@ def _rrf_l(config: TuneConfig, dialect: str) -> str:
     return ""
 
 
-def custom_impulses(config: TuneConfig) -> tuple[list[float], list[float]]:
-    """(amplitudes, times s) of the config's custom shaper, validated: first time 0, times strictly
-    increasing, amplitudes positive summing to 1, 2..5 impulses (RRF takes at most 4 H values)."""
+def custom_impulses(config: TuneConfig, axis: str = "x") -> tuple[list[float], list[float]]:
+    """(amplitudes, times s) of the config's custom shaper on ``axis``, validated: first time 0,
+    times strictly increasing, amplitudes positive summing to 1, 2..5 impulses (RRF takes at most
+    4 H values)."""
     where = "config: custom"
-    name = config.shaper_x
+    name, freq, damping = config.axis(axis)
     _, params = canonical(name)
     if params:
         from ringtune.shaping.custom import rrf_custom
 
         semantics = "3.6" if config.firmware == "rrf" else "3.5"
-        amps, times = rrf_custom(params.get("h"), params.get("t"), config.freq_x, config.damping_x,
-                                 semantics, where=f"config: shaper_x {name!r}")
+        amps, times = rrf_custom(params.get("h"), params.get("t"), freq, damping,
+                                 semantics, where=f"config: shaper_{axis} {name!r}")
         return [float(a) for a in amps], [float(t) for t in times]
     spec = config.extra.get("custom")
     if not isinstance(spec, dict) or "amplitudes" not in spec or "times" not in spec:
@@ -347,7 +348,12 @@ def custom_impulses(config: TuneConfig) -> tuple[list[float], list[float]]:
 
 
 def _rrf_custom(config: TuneConfig, dialect: str) -> str:
-    amps, times = custom_impulses(config)
+    amps, times = custom_impulses(config, "x")
+    amps_y, times_y = custom_impulses(config, "y")
+    if len(amps_y) != len(amps) or not all(math.isclose(a, b, abs_tol=1e-9) for a, b in
+                                           zip(amps + times, amps_y + times_y)):
+        raise RingtuneError(f"{FIRMWARE_TITLE[dialect]} applies one shaper to all axes, but the custom "
+                            f"shapers of X and Y differ; give both axes the same impulses", "config")
     if dialect == "rrf":    # 3.6: individual amplitudes except the last; cumulative delays
         h = amps[:-1]
         if sum(h) >= 1:  # pragma: no cover - guarded by positive amplitudes summing to 1

@@ -221,3 +221,14 @@ def test_tuned_acceleration_is_not_dropped_silently():
     assert any("acceleration of 4000 mm/s²" in n for n in e.notes)
     assert "acceleration of 4000 mm/s²" in e.render()
     assert not any("acceleration" in n for n in export_config(cfg(), "klipper").notes)
+
+
+@pytest.mark.parametrize("fw", ["rrf", "rrf35"])
+def test_rrf_refuses_different_custom_shapers_on_x_and_y(fw):
+    """One shaper for all axes holds for custom impulses too: Y's must not be dropped silently."""
+    x, y = "custom(h=0.4:0.3,t=0.0135:0.027)", "custom(h=0.5:0.2,t=0.01:0.02)"
+    with pytest.raises(RingtuneError, match="one shaper to all axes.*custom shapers of X and Y differ"):
+        export_config(TuneConfig(firmware="rrf", shaper_x=x, shaper_y=y), fw)
+    same = export_config(TuneConfig(firmware="rrf", shaper_x=x, shaper_y=x), fw).lines
+    assert same == {"rrf": ['M593 P"custom" H0.4:0.3 T0.0135:0.027'],
+                    "rrf35": ['M593 P"custom" H0.4:0.7 T0.0135:0.0135']}[fw]
