@@ -64,3 +64,17 @@ def test_bad_input_is_one_line_and_exit_2(argv, where, capsys):
     code, out, err = run_cli(["simulate", "--backend", "lti"] + argv, capsys)
     lines = [ln for ln in err.splitlines() if "error" in ln]
     assert code == 2 and len(lines) == 1 and where in lines[0] and "Traceback" not in err
+
+
+def test_plot_folder_that_cannot_be_made_fails_before_simulating(tmp_path, capsys, monkeypatch):
+    import ringtune.envs.evaluate as evaluate_module
+
+    def no_simulation(*a, **k):
+        raise AssertionError("simulated before checking --plot")
+
+    monkeypatch.setattr(evaluate_module, "evaluate_detailed", no_simulation)
+    blocker = tmp_path / "plots"
+    blocker.write_text("a file, not a folder")
+    code, out, err = run_cli(["simulate", "--backend", "lti", "--plot", str(blocker / "sub")], capsys)
+    lines = [ln for ln in err.splitlines() if "error" in ln]
+    assert code == 2 and len(lines) == 1 and "--plot" in lines[0] and "Traceback" not in err

@@ -119,6 +119,12 @@ def run(args, out) -> int:
     config = build_config(args)
     if args.gcode and not Path(args.gcode).is_file():
         raise RingtuneError("no such G-code file", f"--gcode {args.gcode}")
+    if args.plot:  # before simulating: a folder that cannot be made fails now, in one line
+        try:
+            Path(args.plot).mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RingtuneError(f"cannot create the plot folder: {exc.strerror or exc}",
+                                f"--plot {args.plot}") from None
     printer = resolve_printer(args.printer)
     out.note(f"simulating {config.shaper_x}/{config.shaper_y} on {printer.name} ({args.backend}) ...")
     ev = evaluate_detailed([config], printer, args.gcode, backend=args.backend)[0]
