@@ -11,14 +11,17 @@ from __future__ import annotations
 from typing import Any, Callable, Sequence
 
 from ringtune.agents.space import SearchSpace, config_from_params, grid_params
-from ringtune.agents.study import DEFAULT_EVALUATOR, METRIC_KEYS, Point, resolve_evaluator
+from ringtune.agents.pareto import DEFAULT_MAX_PATH_ERROR_MM, Point, point_from_metrics
+from ringtune.agents.study import DEFAULT_EVALUATOR, resolve_evaluator
 
 
 def run_grid(space: SearchSpace, *, printer: Any = None, job: Any = None, quality: str = "overshoot_mm",
              evaluator: str | Callable = DEFAULT_EVALUATOR, backend: str = "mujoco",
              params: Sequence[dict] | None = None, batch: int = 64,
-             progress: Callable[[int, int], None] | None = None, **grid_kw) -> list[Point]:
-    """Evaluate every point of ``params`` (default :func:`grid_params(space, **grid_kw)`)."""
+             progress: Callable[[int, int], None] | None = None,
+             max_path_error_mm: float = DEFAULT_MAX_PATH_ERROR_MM, **grid_kw) -> list[Point]:
+    """Evaluate every point of ``params`` (default :func:`grid_params(space, **grid_kw)`); points
+    whose path error exceeds ``max_path_error_mm`` (mm; 0 = no bound) are infeasible, as in the study."""
     fn = resolve_evaluator(evaluator)
     kw = {"backend": backend} if evaluator == DEFAULT_EVALUATOR else {}
     params = list(params if params is not None else grid_params(space, **grid_kw))
@@ -27,9 +30,8 @@ def run_grid(space: SearchSpace, *, printer: Any = None, job: Any = None, qualit
         chunk = params[i:i + batch]
         configs = [config_from_params(p, space) for p in chunk]
         for j, (cfg, m) in enumerate(zip(configs, fn(configs, printer, job, **kw))):
-            md = {k: bool(getattr(m, k)) if k == "step_loss" else float(getattr(m, k)) for k in METRIC_KEYS}
-            points.append(Point(cfg, float(m.print_time_s), float(getattr(m, quality)), bool(m.step_loss), md,
-                                label=f"grid {i + j}", number=i + j))
+            points.append(point_from_metrics(cfg, m, quality, label=f"grid {i + j}", number=i + j,
+                                             max_path_error_mm=max_path_error_mm))
         if progress:
             progress(len(points), len(params))
     return points

@@ -11,9 +11,21 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
 
+#: mm: default bound on the path error of a usable configuration. Path error is the largest
+#: distance of the nozzle from the commanded path while extruding, so it holds corner rounding by
+#: the shaper's smoothing as well as overshoot and ringing. Without a bound, the quality objective
+#: ``overshoot_mm`` is bought by heavy smoothing (corners cut inwards by 0.3-0.4 mm to save a few
+#: µm of overshoot); Klipper bounds the same thing with its smoothing target (0.12 mm). 0.1 mm is
+#: a quarter of a 0.4 mm extrusion width.
+DEFAULT_MAX_PATH_ERROR_MM = 0.1
+
+METRIC_KEYS = ("print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss")
+
+
 @dataclass
 class Point:
-    """One evaluated configuration (a trial, a grid point or a baseline)."""
+    """One evaluated configuration (a trial, a grid point or a baseline). A point is feasible
+    unless it loses steps or its path error is over the bound it was judged with (``too_rough``)."""
 
     config: TuneConfig
     print_time_s: float
@@ -22,15 +34,40 @@ class Point:
     metrics: dict = field(default_factory=dict)
     label: str = ""
     number: int | None = None
+    too_rough: bool = False
+
+    @property
+    def feasible(self) -> bool:
+        return not (self.step_loss or self.too_rough)
 
     def dominates(self, other: "Point") -> bool:
         return (self.print_time_s <= other.print_time_s and self.quality_mm <= other.quality_mm
                 and (self.print_time_s < other.print_time_s or self.quality_mm < other.quality_mm))
 
 
+def metrics_dict(m) -> dict:
+    """The :data:`METRIC_KEYS` of a metrics object as plain floats (``step_loss`` a bool)."""
+    return {k: bool(getattr(m, k)) if k == "step_loss" else float(getattr(m, k)) for k in METRIC_KEYS}
+
+
+def point_from_metrics(config: TuneConfig, m, quality: str, *, label: str = "", number: int | None = None,
+                       max_path_error_mm: float = 0.0) -> Point:
+    """A :class:`Point` from a metrics object; ``max_path_error_mm`` > 0 bounds the path error (mm)."""
+    p = Point(config, float(m.print_time_s), float(getattr(m, quality)), bool(m.step_loss), metrics_dict(m),
+              label, number)
+    return judge_path_error(p, max_path_error_mm)
+
+
+def judge_path_error(p: Point, max_path_error_mm: float) -> Point:
+    """Mark ``p`` too rough when its path error exceeds ``max_path_error_mm`` (mm; 0 = no bound)."""
+    pe = p.metrics.get("path_error_mm")
+    p.too_rough = bool(max_path_error_mm > 0 and pe is not None and pe > max_path_error_mm)
+    return p
+
+
 def pareto_front(points: Sequence[Point]) -> list[Point]:
     """The feasible non-dominated points, sorted by print time."""
-    feas = sorted((p for p in points if not p.step_loss), key=lambda p: (p.print_time_s, p.quality_mm))
+    feas = sorted((p for p in points if p.feasible), key=lambda p: (p.print_time_s, p.quality_mm))
     front: list[Point] = []
     best_q = np.inf
     for p in feas:
@@ -50,8 +87,9 @@ def choose(front: Sequence[Point], weight: float | None = None) -> Point:
     range and quality by its range but at least :data:`KNEE_QUALITY_SCALE` (10 µm; so that a front
     whose points all lie within a few micrometres is not bought with seconds)."""
     if not front:
-        raise RingtuneError("no feasible configuration was found (every trial lost steps); "
-                            "lower the acceleration range or run more trials", "tune")
+        raise RingtuneError("no feasible configuration was found (every trial lost steps or exceeded "
+                            "--max-path-error); lower the acceleration range, raise --max-path-error or "
+                            "run more trials", "tune")
     if weight is not None:
         return min(front, key=lambda p: p.print_time_s + weight * p.quality_mm)
     t = np.array([p.print_time_s for p in front])

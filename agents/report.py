@@ -88,8 +88,12 @@ def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chos
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(8.5, 6), dpi=120)
-    feas = [p for p in points if not p.step_loss]
+    feas = [p for p in points if p.feasible]
     bad = [p for p in points if p.step_loss]
+    rough = [p for p in points if p.too_rough and not p.step_loss]
+    if rough:
+        ax.scatter([p.print_time_s for p in rough], [p.quality_mm for p in rough], s=12, marker="+",
+                   c="tab:purple", alpha=0.5, label=f"path error over the bound ({len(rough)}, excluded)", zorder=1)
     if feas:
         ax.scatter([p.print_time_s for p in feas], [p.quality_mm for p in feas], s=10, c="0.75",
                    label=f"trials ({len(feas)})", zorder=1)
@@ -113,6 +117,9 @@ def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chos
     ax.set_title(title, fontsize=10)
     ax.grid(True, alpha=0.3)
     ys = [p.quality_mm for p in front] + [p.quality_mm for p in baselines.values()]
+    if ys and min(ys) > 0 and max(ys) / min(ys) > 30:   # the no-shaping point would flatten the front
+        ax.set_yscale("log")
+        ys = []
     if ys and max(ys) > 0:
         ax.set_ylim(0, 1.15 * max(ys + [chosen.quality_mm]))
     ax.legend(fontsize=8, loc="upper right")
@@ -149,17 +156,21 @@ def _write_csv(path: Path, points: Sequence[Point]) -> None:
 
 def front_table(front: Sequence[Point], chosen: Point, quality: str) -> str:
     word = QUALITY_LABEL.get(quality, quality)
-    lines = [f"  {'':2}{'time s':>8} {word + ' µm':>14}  configuration"]
+    pe = quality != "path_error_mm"
+    lines = [f"  {'':2}{'time s':>8} {word + ' µm':>14}" + (f" {'path error µm':>14}" if pe else "")
+             + "  configuration"]
     for p in front:
         mark = "*" if p is chosen else " "
-        lines.append(f"  {mark:2}{p.print_time_s:8.3f} {p.quality_mm * 1000:14.1f}  {describe(p.config)}")
+        extra = f" {p.metrics.get('path_error_mm', float('nan')) * 1000:14.1f}" if pe else ""
+        lines.append(f"  {mark:2}{p.print_time_s:8.3f} {p.quality_mm * 1000:14.1f}{extra}  {describe(p.config)}")
     return "\n".join(lines)
 
 
 def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Point], chosen: Point,
                  baselines: dict[str, Point], quality: str, printer_name: str, job_name: str,
                  firmware: str, n_trials: int, storage: str, study_name: str, weight: float | None,
-                 command: str = "ringtune tune", notes: Sequence[str] = ()) -> dict[str, Any]:
+                 command: str = "ringtune tune", notes: Sequence[str] = (),
+                 max_path_error_mm: float = 0.0) -> dict[str, Any]:
     """Write the output folder; returns the summary dict (also the CLI's --json)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -201,7 +212,10 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
     for k, b in baselines.items():
         s.append(f"  {names.get(k, k)}: {describe(b.config)}")
         s.append(f"    print time {b.print_time_s:.3f} s, {word} {b.quality_mm * 1000:.1f} µm"
-                 + ("  (LOSES STEPS)" if b.step_loss else ""))
+                 + (f", path error {b.metrics['path_error_mm'] * 1000:.1f} µm"
+                    if quality != "path_error_mm" and "path_error_mm" in b.metrics else "")
+                 + ("  (LOSES STEPS)" if b.step_loss else "")
+                 + ("  (PATH ERROR OVER THE BOUND)" if b.too_rough else ""))
         s.append(f"    chosen vs this: {comparisons[k].sentence(quality)}")
     if "klipper" in baselines:
         if "klipper" in dominating:
@@ -214,6 +228,13 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
     s.append(f"PARETO FRONT ({len(front)} of {len(points)} trials; * = chosen):")
     s.append(front_table(front, chosen, quality))
     s.append("")
+    n_rough = sum(p.too_rough and not p.step_loss for p in points)
+    n_lost = sum(p.step_loss for p in points)
+    if max_path_error_mm > 0:
+        s.append(f"Ruled out: {n_lost} trials that lose steps, {n_rough} whose path error (corner rounding, "
+                 f"overshoot, ringing) exceeds {max_path_error_mm:g} mm (--max-path-error).")
+    elif n_lost:
+        s.append(f"Ruled out: {n_lost} trials that lose steps; path error is not bounded (--max-path-error 0).")
     s.extend(notes)
     s.append(f"Study '{study_name}' in {storage}; rerun the same command to resume or extend it (--trials).")
     if apply_note:
@@ -227,6 +248,7 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         "trials": len(points),
         "front_size": len(front),
         "quality": quality,
+        "max_path_error_mm": max_path_error_mm,
         "chosen": {"config": best_cfg.to_dict(), "print_time_s": chosen.print_time_s, "quality_mm": chosen.quality_mm,
                    "chosen_by": "weight" if weight is not None else "knee"},
         "baselines": {k: {"config": b.config.to_dict(), "print_time_s": b.print_time_s, "quality_mm": b.quality_mm,
@@ -266,7 +288,9 @@ def _readme(out_dir: Path, cfg, firmware: str, storage: str, command: str) -> st
                  micrometres). Then the whole trade-off (the Pareto front) as a table.
 2. pareto.png    The trade-off as a picture: print time (s) against quality (mm). Grey dots are
                  all trials, blue the best trade-offs, the gold star the chosen point, the orange
-                 square Klipper's rule, the black triangle no shaping. Lower-left is better.
+                 square Klipper's rule, the black triangle no shaping; red crosses lost steps and
+                 purple plus signs left the path by more than --max-path-error (both ruled out).
+                 Lower-left is better.
 3. apply.txt     The exact {firmware} lines that put the chosen configuration on the printer.
                  Or: ringtune export {out_dir / 'best.json'} --firmware {firmware}
                      ringtune push {out_dir / 'best.json'} --port /dev/ttyUSB0 --firmware {firmware}

@@ -4,8 +4,10 @@
   (:data:`QUALITY_METRICS`), from ``ringtune.envs.evaluate.evaluate_many`` or an injected
   evaluator ``f(configs, printer, job) -> [Metrics]`` (given as ``"module:function"`` so that
   worker processes can import it).
-- Step loss: ``trial.set_constraint("step_loss", 1.0 | 0.0)``; infeasible trials never reach the
-  front.
+- Constraints: step loss (``trial.set_constraint("step_loss", 1.0 | 0.0)``) and the path-error
+  bound (``"path_error"``: path_error_mm − ``max_path_error_mm``; corner rounding by heavy
+  smoothing is not quality); infeasible trials never reach the front. The bound is applied again
+  when the results are read, so a resumed study may be judged with another bound.
 - Storage (:func:`make_storage`): a journal file in the output folder by default
   (``journal:out/study.journal``), or any RDB URL (``sqlite:///study.db``,
   ``postgresql+psycopg2://...``) with Optuna's heartbeat (stale RUNNING trials of dead workers on
@@ -29,7 +31,9 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ringtune.agents.pareto import KNEE_QUALITY_SCALE, Point, choose, pareto_front, scalar_objective  # noqa: F401
+from ringtune.agents.pareto import (DEFAULT_MAX_PATH_ERROR_MM, KNEE_QUALITY_SCALE, METRIC_KEYS,  # noqa: F401
+                                    Point, choose, judge_path_error, metrics_dict, pareto_front,
+                                    scalar_objective)
 from ringtune.agents.space import SearchSpace, config_from_params, default_space, suggest_params
 from ringtune.agents.storage import (GRACE_S, HEARTBEAT_S, _this_worker, default_storage,  # noqa: F401
                                      make_storage, reap_dead_workers)
@@ -37,7 +41,6 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
 QUALITY_METRICS = ("overshoot_mm", "path_error_mm")
-METRIC_KEYS = ("print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss")
 DEFAULT_EVALUATOR = "ringtune.envs.evaluate:evaluate_many"
 
 
@@ -58,6 +61,7 @@ class StudySettings:
     space: dict | None = None           # SearchSpace.to_dict(); None = default_space(printer, firmware)
     n_startup_trials: int = 10
     enqueue: list = field(default_factory=list)   # parameter dicts to try first (e.g. baselines)
+    max_path_error_mm: float = DEFAULT_MAX_PATH_ERROR_MM   # mm; 0 = no bound
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -204,9 +208,10 @@ def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any =
         except KeyboardInterrupt:
             trial.set_user_attr("interrupted", True)
             raise
-        trial.set_user_attr("metrics", {k: bool(getattr(m, k)) if k == "step_loss" else float(getattr(m, k))
-                                        for k in METRIC_KEYS})
+        trial.set_user_attr("metrics", metrics_dict(m))
         trial.set_constraint("step_loss", 1.0 if m.step_loss else 0.0)
+        bound = settings.max_path_error_mm
+        trial.set_constraint("path_error", float(m.path_error_mm) - bound if bound > 0 else -1.0)
         return float(m.print_time_s), float(getattr(m, settings.quality))
 
     def callback(st, frozen):
@@ -352,8 +357,10 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
 
 # -- reading results -----------------------------------------------------------------------------
 
-def study_points(study, space: SearchSpace | None = None, quality: str | None = None) -> list[Point]:
-    """All complete trials as points (infeasible ones flagged ``step_loss``)."""
+def study_points(study, space: SearchSpace | None = None, quality: str | None = None,
+                 max_path_error_mm: float | None = None) -> list[Point]:
+    """All complete trials as points, flagged ``step_loss`` or ``too_rough`` (path error over
+    ``max_path_error_mm``, mm; default: the bound the study was created with; 0 = no bound)."""
     from optuna.trial import TrialState
 
     settings = study.user_attrs.get("settings", {})
@@ -361,11 +368,14 @@ def study_points(study, space: SearchSpace | None = None, quality: str | None = 
     if space is None:
         space = SearchSpace.from_dict(study.user_attrs["space"]) if "space" in study.user_attrs else \
             load_space(StudySettings(storage="", **{k: v for k, v in settings.items() if k != "storage"}))
+    if max_path_error_mm is None:
+        max_path_error_mm = float(settings.get("max_path_error_mm", 0.0) or 0.0)
     pts = []
     for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)):
         metrics = dict(t.user_attrs.get("metrics", {}))
-        pts.append(Point(config_from_params(t.params, space), float(t.values[0]), float(t.values[1]),
-                         bool(metrics.get("step_loss", False)), metrics, f"trial {t.number}", t.number))
+        pts.append(judge_path_error(Point(config_from_params(t.params, space), float(t.values[0]),
+                                          float(t.values[1]), bool(metrics.get("step_loss", False)), metrics,
+                                          f"trial {t.number}", t.number), max_path_error_mm))
     return pts
 
 if __name__ == "__main__":

@@ -36,6 +36,22 @@ def test_pareto_front_and_choice_on_a_known_set():
     assert front[1].dominates(pts[2]) and not front[0].dominates(front[1])
 
 
+def test_path_error_bound_rules_out_corner_cutting_points():
+    """A point whose nozzle leaves the path by more than the bound is infeasible, like step loss,
+    even when its overshoot is the lowest (heavy smoothing cuts corners inwards)."""
+    from ringtune.agents.pareto import judge_path_error
+
+    smooth = Point(TuneConfig(), 1.0, 0.001, False, {"path_error_mm": 0.40}, "3hump_ei low F")
+    sharp = Point(TuneConfig(), 1.0, 0.003, False, {"path_error_mm": 0.07}, "ei on the peak")
+    assert [p.label for p in pareto_front([smooth, sharp])] == ["3hump_ei low F"]
+    for p in (smooth, sharp):
+        judge_path_error(p, 0.1)
+    assert smooth.too_rough and not smooth.feasible and sharp.feasible
+    assert [p.label for p in pareto_front([smooth, sharp])] == ["ei on the peak"]
+    judge_path_error(smooth, 0.0)          # 0 = no bound
+    assert smooth.feasible
+
+
 @pytest.fixture
 def fake_evaluator(monkeypatch):
     monkeypatch.syspath_prepend(str(TESTS))
@@ -60,7 +76,8 @@ def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evalua
     assert "Klipper's rule" in summary and "no shaping" in summary and "CHOSEN" in summary
     assert set(res["baselines"]) == {"klipper", "none"} and res["trials"] == 10
     # the --json keys tune.py documents as stable
-    assert set(res) == {"out", "trials", "front_size", "quality", "chosen", "baselines", "vs_baselines",
+    assert set(res) == {"out", "trials", "front_size", "quality", "max_path_error_mm", "chosen", "baselines",
+                        "vs_baselines",
                         "dominates_klipper", "files", "storage", "study", "completed_now", "interrupted",
                         "elapsed_s"}
     assert set(res["chosen"]) == {"config", "print_time_s", "quality_mm", "chosen_by"}
@@ -75,6 +92,34 @@ def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evalua
     # a different firmware in the same folder is refused with one clear line
     rc = main(["tune", "--out", str(out), "--trials", "20", "--firmware", "rrf", "--evaluator", fake_evaluator])
     assert rc == 2 and "different firmware" in capsys.readouterr().err
+
+
+def test_max_path_error_is_a_constraint_of_the_study(tmp_path, capsys, fake_evaluator):
+    """Every trial carries the constraint path_error_mm − bound; the front holds only trials within
+    the bound; the bound can be changed when the results are read again (resume)."""
+    import optuna
+
+    from ringtune.agents.study import make_storage
+
+    out = tmp_path / "out"
+    argv = ["tune", "--json", "--out", str(out), "--trials", "25", "--evaluator", fake_evaluator,
+            "--max-path-error", "0.004"]
+    assert main(argv) == 0
+    res = json.loads(capsys.readouterr().out)
+    st = optuna.load_study(study_name="ringtune", storage=make_storage(res["storage"]))
+    trials = [t for t in st.trials if t.state == optuna.trial.TrialState.COMPLETE]
+    for t in trials:
+        assert t.constraints["path_error"] == pytest.approx(t.user_attrs["metrics"]["path_error_mm"] - 0.004)
+    within = sum(t.user_attrs["metrics"]["path_error_mm"] <= 0.004 and not t.user_attrs["metrics"]["step_loss"]
+                 for t in trials)
+    assert 0 < within < len(trials)
+    front = [r.split(",") for r in (out / "front.csv").read_text().strip().splitlines()]
+    col = front[0].index("path_error_mm")
+    assert front[1:] and all(float(r[col]) <= 0.004 for r in front[1:])
+    assert main(argv[:-1] + ["0"]) == 0          # resumed, judged without a bound: a wider front
+    loose = json.loads(capsys.readouterr().out)
+    assert loose["max_path_error_mm"] == 0 and loose["completed_now"] == 0
+    assert main(["tune", "--max-path-error", "-1", "--out", str(out)]) == 2
 
 
 def test_ctrl_c_on_tune_then_rerun_resumes(tmp_path, fake_evaluator):
@@ -157,6 +202,11 @@ def test_default_printer_front_dominates_klippers_recommendation(tmp_path, capsy
     assert not mine.step_loss and not klip.step_loss
     assert mine.print_time_s <= klip.print_time_s + 1e-9 and mine.overshoot_mm <= klip.overshoot_mm + 1e-12
     assert mine.print_time_s < klip.print_time_s - 1e-6 or mine.overshoot_mm < klip.overshoot_mm - 1e-9
+    # neither the dominating point nor the chosen one buys its overshoot by cutting corners
+    assert res["max_path_error_mm"] == 0.1
+    chosen, = evaluate_many([TuneConfig.from_dict(res["chosen"]["config"])], None, None)
+    assert mine.path_error_mm <= 0.1 and chosen.path_error_mm <= 0.1
+    assert "exceeds 0.1 mm (--max-path-error)" in summary
 
 
 def test_study_command_mass_and_accel_sweeps(tmp_path, capsys):

@@ -1,6 +1,6 @@
 """``ringtune tune``: the main job — an Optuna Pareto study of print time against quality.
 
-``--json`` keys (stable): out, trials, front_size, quality, chosen {config, print_time_s,
+``--json`` keys (stable): out, trials, front_size, quality, max_path_error_mm, chosen {config, print_time_s,
 quality_mm, chosen_by}, baselines {klipper|none: {config, print_time_s, quality_mm, step_loss}},
 vs_baselines {klipper|none: {baseline, faster_s, faster_pct, better_mm, better_pct, dominates}},
 dominates_klipper (null or {config, print_time_s, quality_mm, faster_s, ...}), files {readme,
@@ -19,7 +19,9 @@ DESCRIPTION = """\
 Tune input shaping for a printer and a job: an Optuna multi-objective study over the shaper types
 the target firmware offers, the shaper frequency F per axis (one F on RepRapFirmware), the damping
 S, the infill frequency limit and its method, and the acceleration. Each trial is simulated; a
-configuration that loses steps is ruled out. The result is the whole trade-off (Pareto front),
+configuration that loses steps, or whose nozzle leaves the path by more than --max-path-error
+(0.1 mm by default: heavy smoothing cuts corners inwards, which overshoot alone would not see), is
+ruled out. The result is the whole trade-off (Pareto front),
 the configuration to use (the knee, or the one minimising print time + W × error with --weight W),
 and how it compares with Klipper's own rule and with no shaping on the same printer and job.
 
@@ -51,6 +53,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="choose the point minimising print time + W × error (W in s/mm); default: the knee")
     p.add_argument("--quality", choices=("overshoot", "path_error"), default="overshoot",
                    help="quality objective: overshoot_mm (default) or path_error_mm")
+    p.add_argument("--max-path-error", type=float, default=None, metavar="MM",
+                   help="rule out configurations whose path error (corner rounding, overshoot and ringing) "
+                        "exceeds MM (default 0.1; 0 = no bound)")
     p.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco", help="physics (default mujoco)")
     p.add_argument("--evaluator", metavar="MODULE:FUNC", default=None,
                    help="advanced: score configs with your own f(configs, printer, job) -> metrics")
@@ -71,6 +76,9 @@ def run(args: argparse.Namespace, out) -> int:
         raise RingtuneError("must be ≥ 1", "--workers")
     if args.weight is not None and not args.weight >= 0:
         raise RingtuneError("must be ≥ 0 (seconds per mm)", "--weight")
+    max_pe = study.DEFAULT_MAX_PATH_ERROR_MM if args.max_path_error is None else args.max_path_error
+    if not max_pe >= 0:
+        raise RingtuneError("must be ≥ 0 (mm; 0 = no bound)", "--max-path-error")
     if args.gcode and not Path(args.gcode).is_file():
         raise RingtuneError("no such G-code file", "--gcode")
     out_dir = Path(args.out)
@@ -83,7 +91,8 @@ def run(args: argparse.Namespace, out) -> int:
         storage=storage, study_name=args.study, n_trials=args.trials, seed=args.seed, quality=quality,
         printer=str(Path(args.printer).resolve()) if args.printer and Path(args.printer).exists() else args.printer,
         job=str(Path(args.gcode).resolve()) if args.gcode else None, firmware=args.firmware,
-        backend=args.backend, evaluator=args.evaluator or study.DEFAULT_EVALUATOR, space=space.to_dict())
+        backend=args.backend, evaluator=args.evaluator or study.DEFAULT_EVALUATOR, space=space.to_dict(),
+        max_path_error_mm=max_pe)
     evaluator = study.resolve_evaluator(settings.evaluator)
 
     baselines: dict[str, study.Point] = {}
@@ -99,14 +108,14 @@ def run(args: argparse.Namespace, out) -> int:
     finally:
         bar.close()
     st = run_.study
-    points = study.study_points(st, space, quality)
+    points = study.study_points(st, space, quality, max_pe)
     front = study.pareto_front(points)
     chosen = study.choose(front, args.weight)
     result = report.write_report(
         out_dir, points=points, front=front, chosen=chosen, baselines=baselines, quality=quality,
         printer_name=getattr(printer, "name", "printer"), job_name=Path(args.gcode).name if args.gcode else
         "built-in test print", firmware=args.firmware, n_trials=args.trials, storage=storage,
-        study_name=args.study, weight=args.weight, command=_command_line(args),
+        study_name=args.study, weight=args.weight, command=_command_line(args), max_path_error_mm=max_pe,
         notes=[f"The search was warm-started from Klipper's recommendation and {len(settings.enqueue) - 1} "
                "neighbours of it (robust shapers at Klipper's own frequencies, higher accelerations)."]
         if settings.enqueue else [])
@@ -165,6 +174,7 @@ def _baselines(printer, args, settings, evaluator, quality, out) -> dict:
     """Klipper's rule (on the printer's simulated resonance test, at its suggested max_accel) and
     no shaping (the printer's own acceleration), evaluated like every trial."""
     from ringtune.agents import klipper_rule, study
+    from ringtune.agents.pareto import point_from_metrics
     from ringtune.shaping.config import TuneConfig
     from ringtune.shaping.errors import RingtuneError
 
@@ -180,11 +190,8 @@ def _baselines(printer, args, settings, evaluator, quality, out) -> dict:
                                  accel=float(printer.limits.accel), extra={"source": "no shaping"})
     kw = {"backend": settings.backend} if settings.evaluator == study.DEFAULT_EVALUATOR else {}
     metrics = evaluator(list(configs.values()), printer, settings.job, **kw)
-    points = {}
-    for (key, cfg), m in zip(configs.items(), metrics):
-        md = {k: bool(getattr(m, k)) if k == "step_loss" else float(getattr(m, k)) for k in study.METRIC_KEYS}
-        points[key] = study.Point(cfg, float(m.print_time_s), float(getattr(m, quality)), bool(m.step_loss), md,
-                                  label=key)
+    points = {key: point_from_metrics(cfg, m, quality, label=key, max_path_error_mm=settings.max_path_error_mm)
+              for (key, cfg), m in zip(configs.items(), metrics)}
     return points, fits
 
 
