@@ -164,6 +164,11 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(args.command, str(exc))
     except FileNotFoundError as exc:
         return _fail(args.command, f"{exc.filename}: no such file")
+    except BrokenPipeError:
+        # the reader went away (``ringtune plan f.gcode --json | head``): stop quietly, as cat does;
+        # stdout is pointed at devnull so that the interpreter's final flush does not complain
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except (OSError, ValueError) as exc:
         if os.environ.get("RINGTUNE_DEBUG"):
             raise

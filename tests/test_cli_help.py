@@ -69,3 +69,29 @@ def test_bad_input_of_tune_recommend_study_train_is_one_line_exit_2(argv, what, 
     lines = cap.err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"ringtune {argv[0]}: error:") and what in lines[0], lines
     assert "Traceback" not in cap.err and cap.out == ""
+
+
+def test_a_reader_that_goes_away_ends_the_command_quietly(tmp_path):
+    """``ringtune … --json | head``: no 'Broken pipe' error line and no traceback, status 141
+    (SIGPIPE's, as a shell reports for cat)."""
+    job = tmp_path / "job.gcode"
+    job.write_text("G28\n" + "".join(f"G1 X{i % 50} Y{i % 37} E{i * 0.01:.2f} F3000\n" for i in range(4000)))
+    proc = subprocess.Popen([sys.executable, "-m", "ringtune.agents.cli", "plan", str(job), "--json",
+                             "--trajectory", "-"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.read(10)
+    proc.stdout.close()            # the reader leaves after ten bytes
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141
+    assert "Broken pipe" not in err and "Traceback" not in err
+
+
+def test_export_refusal_names_the_config_file(tmp_path, capsys):
+    cfg = tmp_path / "best.json"
+    cfg.write_text('{"firmware": "klipper", "shaper_x": "mzv", "shaper_y": "ei2", "freq_x": 50, "freq_y": 40}')
+    assert cli.main(["export", str(cfg), "--firmware", "rrf"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"error: {cfg}: RepRapFirmware 3.6 applies one shaper to all axes" in err[0]
+    cfg.write_text('{"firmware": "klipper", "shaper_x": "ei", "shaper_y": "ei", "freq_x": 50, "freq_y": 40}')
+    assert cli.main(["export", str(cfg), "--firmware", "rrf"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"error: {cfg}: shaper_x: RepRapFirmware 3.6 has no 'ei' shaper" in err[0]

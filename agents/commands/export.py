@@ -55,11 +55,16 @@ def run(args, out) -> int:
     if args.output and not Path(args.output).parent.is_dir():
         raise RingtuneError("no such directory", f"-o {args.output}")
     cfg = TuneConfig.load(args.config)
-    exp = export_config(cfg, args.firmware)
+    try:
+        exp = export_config(cfg, args.firmware)
+    except RingtuneError as exc:   # name the file the user gave, not the abstract "config"
+        where = exc.where or "config"
+        if where.split(":")[0] == "config":
+            raise RingtuneError(exc.bare, args.config + where[len("config"):]) from None
+        raise
     text = exp.render()
     if args.output:
         Path(args.output).write_text(text)
-        out.note(f"wrote {args.output}")
     out.emit({"firmware": exp.firmware, "lines": exp.lines, "save_lines": exp.save_lines,
               "config_text": exp.config_text, "config_target": exp.config_target,
               "readback": exp.readback, "expected": exp.expected, "notes": exp.notes,
