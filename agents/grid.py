@@ -19,11 +19,13 @@ def run_grid(space: SearchSpace, *, printer: Any = None, job: Any = None, qualit
              evaluator: str | Callable = DEFAULT_EVALUATOR, backend: str = "mujoco",
              params: Sequence[dict] | None = None, batch: int = 64,
              progress: Callable[[int, int], None] | None = None,
-             max_path_error_mm: float = DEFAULT_MAX_PATH_ERROR_MM, **grid_kw) -> list[Point]:
+             max_path_error_mm: float = DEFAULT_MAX_PATH_ERROR_MM, freq_margin: float = 0.0,
+             **grid_kw) -> list[Point]:
     """Evaluate every point of ``params`` (default :func:`grid_params(space, **grid_kw)`); points
-    whose path error exceeds ``max_path_error_mm`` (mm; 0 = no bound) are infeasible, as in the study."""
+    whose path error exceeds ``max_path_error_mm`` (mm; 0 = no bound) are infeasible, as in the study;
+    ``freq_margin``: judged also with the resonances moved by ± this fraction (default evaluator)."""
     fn = resolve_evaluator(evaluator)
-    kw = {"backend": backend} if evaluator == DEFAULT_EVALUATOR else {}
+    kw = {"backend": backend, "freq_margin": freq_margin} if evaluator == DEFAULT_EVALUATOR else {}
     params = list(params if params is not None else grid_params(space, **grid_kw))
     points: list[Point] = []
     for i in range(0, len(params), batch):

@@ -41,6 +41,12 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
 QUALITY_METRICS = ("overshoot_mm", "path_error_mm")
+#: fraction: by default every configuration is judged on the printer and on the printer with all
+#: resonances 5 % lower and 5 % higher, and the worst quality counts (``evaluate_many``'s
+#: ``freq_margin``): a real printer's frequencies drift by that much (print mass on the bed,
+#: toolhead position, a resonance test's 1.5 Hz bins), and a shaper at the edge of its band on the
+#: exact model does not survive it
+DEFAULT_FREQ_MARGIN = 0.05
 DEFAULT_EVALUATOR = "ringtune.envs.evaluate:evaluate_many"
 
 
@@ -62,6 +68,7 @@ class StudySettings:
     n_startup_trials: int = 10
     enqueue: list = field(default_factory=list)   # parameter dicts to try first (e.g. baselines)
     max_path_error_mm: float = DEFAULT_MAX_PATH_ERROR_MM   # mm; 0 = no bound
+    freq_margin: float = DEFAULT_FREQ_MARGIN   # fraction: also judged with resonances ± this (worst counts)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -135,7 +142,7 @@ def open_study(settings: StudySettings, seed: int | None = None):
         import json
         stored = study.user_attrs.get("settings", {})
         mine = json.loads(json.dumps(settings.to_dict()))
-        for key in ("printer", "job", "firmware", "backend", "evaluator", "space"):
+        for key in ("printer", "job", "firmware", "backend", "evaluator", "space", "freq_margin"):
             if key in stored and stored[key] != mine[key] and not (key == "space" and mine[key] is None):
                 raise RingtuneError(f"study {settings.study_name!r} in this storage was run with a different "
                                     f"{key} ({stored[key]!r}); use another --out folder or --study name",
@@ -259,11 +266,17 @@ def _enqueue_once(study, params: dict) -> None:
     study.enqueue_trial(params, skip_if_exists=False)
 
 
+def evaluator_kwargs(settings: StudySettings) -> dict:
+    """Keyword arguments for the evaluator: the default one takes the backend and the frequency
+    margin; an injected ``f(configs, printer, job)`` takes none."""
+    if settings.evaluator != DEFAULT_EVALUATOR:
+        return {}
+    return {"backend": settings.backend, "freq_margin": settings.freq_margin}
+
+
 def _call_evaluator(evaluator, settings: StudySettings, config: TuneConfig, printer):
-    kw = {}
-    if settings.evaluator == DEFAULT_EVALUATOR:
-        kw["backend"] = settings.backend
-    out = evaluator([config], printer if printer is not None else settings.printer, settings.job, **kw)
+    out = evaluator([config], printer if printer is not None else settings.printer, settings.job,
+                    **evaluator_kwargs(settings))
     return out[0]
 
 

@@ -74,10 +74,11 @@ def main() -> int:
     zs = tuple(float(z) for z in args.grid_dampings.split(","))
     params = grid_params(space, n_freq=args.grid_freqs, dampings=zs, accels=tuple(top))
     t1 = time.perf_counter()
-    grid = run_grid(space, printer=printer, params=params, batch=128)
+    margin = float(study.user_attrs["settings"].get("freq_margin", 0.0))
+    grid = run_grid(space, printer=printer, params=params, batch=128, freq_margin=margin)
     tg = time.perf_counter() - t1
     print(f"dense grid: {len(grid)} points in {tg:.0f} s ({1000 * tg / len(grid):.0f} ms/point); accelerations "
-          f"{top}, {args.grid_freqs} F per axis and shaper, S {zs}")
+          f"{top}, {args.grid_freqs} F per axis and shaper, S {zs}; resonances ±{100 * margin:g} % as in the study")
     ok = True
     for w in (float(x) for x in args.weights.split(",")):
         bs = min((p for p in pts if p.feasible), key=lambda p: scalar_objective(p, w))

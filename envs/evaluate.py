@@ -32,7 +32,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ringtune.envs.metrics import Metrics, compute_metrics
+from ringtune.envs.metrics import Metrics, compute_metrics, worst_case
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.motion import Motion
@@ -269,10 +269,26 @@ def evaluate(config: TuneConfig, printer=None, job=None, backend: str = "mujoco"
 
 
 def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
-                  settle: float | None = None, nthread: int | None = None) -> list[Metrics]:
-    """:func:`evaluate` for many configs, all their windows simulated in one ``simulate_batch``."""
-    return [e.metrics for e in evaluate_detailed(configs, printer, job, backend, settle=settle,
-                                                 nthread=nthread)]
+                  settle: float | None = None, nthread: int | None = None,
+                  freq_margin: float = 0.0) -> list[Metrics]:
+    """:func:`evaluate` for many configs, all their windows simulated in one ``simulate_batch``.
+
+    ``freq_margin`` > 0 (a fraction, e.g. 0.05): each config is also judged on the printer with
+    every resonance ``freq_margin`` lower and higher (:meth:`Printer.detuned`), and the worst
+    quality counts (:func:`ringtune.envs.metrics.worst_case`), so that a shaper tuned to the edge
+    of its band on the exact model is not preferred to one that survives the drift of a real
+    printer."""
+    if not 0 <= freq_margin < 1:
+        raise RingtuneError(f"must be in [0, 1), not {freq_margin}", "freq_margin")
+    if not freq_margin:
+        return [e.metrics for e in evaluate_detailed(configs, printer, job, backend, settle=settle,
+                                                     nthread=nthread)]
+    printer = resolve_printer(printer)
+    if settle is None:
+        settle = auto_settle(printer)
+    variants = [printer, printer.detuned(1.0 - freq_margin), printer.detuned(1.0 + freq_margin)]
+    runs = [evaluate_detailed(configs, p, job, backend, settle=settle, nthread=nthread) for p in variants]
+    return [worst_case(r[i].metrics for r in runs) for i in range(len(configs))]
 
 
 @dataclasses.dataclass

@@ -167,6 +167,18 @@ def _nearest_on_segments(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.nd
 
 
 # -- the metrics -----------------------------------------------------------------------------------
+def worst_case(results: Iterable[Metrics]) -> Metrics:
+    """One :class:`Metrics` for a configuration judged on several variants of a printer: the
+    first's print time (the planner does not see resonances), the largest of every quality metric
+    and of ``peak_accel``, and step loss if any variant lost steps."""
+    results = list(results)
+    worst = Metrics(print_time_s=results[0].print_time_s,
+                    **{k: max(getattr(m, k) for m in results) for k in (*Metrics.QUALITY_KEYS, "peak_accel")},
+                    step_loss=any(m.step_loss for m in results))
+    worst.details = {"variants": [m.to_dict() for m in results]}
+    return worst
+
+
 def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float = 0.0,
                     anticipate: float = 0.0,
                     corner_angle_deg: float = 30.0, corner_window: float = 0.06,

@@ -140,6 +140,18 @@ class Printer:
         s = math.sqrt(r)
         return [replace(m, freq=m.freq * s, damping=m.damping * s) for m in ax.modes]
 
+    def detuned(self, factor: float) -> "Printer":
+        """The same machine with every resonance moved by ``factor`` (each mode's frequency ×
+        factor, so every stiffness × factor²; masses, damping ratios and the motor unchanged): what
+        drift in a real printer looks like (print mass on the bed, toolhead position, an
+        identification off by a few per cent)."""
+        if not factor > 0:
+            raise RingtuneError(f"detuning factor must be > 0, not {factor}")
+        axes = {a: AxisModel(getattr(self, a).mass, [replace(m, freq=m.freq * factor) for m in getattr(self, a).modes])
+                for a in ("x", "y")}
+        k = None if self.belt_stiffness is None else self.belt_stiffness * factor ** 2
+        return replace(self, **axes, belt_stiffness=k)
+
     def belt_stiffnesses(self) -> tuple[float, float]:
         """(k_A, k_B) in N/m of the CoreXY belts as seen at the head. Default mean stiffness: half of
         the smaller primary-mode axis stiffness (share·mass·ω²), so that matched belts give exactly

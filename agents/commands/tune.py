@@ -1,6 +1,6 @@
 """``ringtune tune``: the main job — an Optuna Pareto study of print time against quality.
 
-``--json`` keys (stable): out, trials, front_size, quality, max_path_error_mm, chosen {config, print_time_s,
+``--json`` keys (stable): out, trials, front_size, quality, max_path_error_mm, freq_margin, chosen {config, print_time_s,
 quality_mm, chosen_by}, baselines {klipper|none: {config, print_time_s, quality_mm, step_loss}},
 vs_baselines {klipper|none: {baseline, faster_s, faster_pct, better_mm, better_pct, dominates}},
 dominates_klipper (null or {config, print_time_s, quality_mm, faster_s, ...}), files {readme,
@@ -21,7 +21,10 @@ the target firmware offers, the shaper frequency F per axis (one F on RepRapFirm
 S, the infill frequency limit and its method, and the acceleration. Each trial is simulated; a
 configuration that loses steps, or whose nozzle leaves the path by more than --max-path-error
 (0.1 mm by default: heavy smoothing cuts corners inwards, which overshoot alone would not see), is
-ruled out. The result is the whole trade-off (Pareto front),
+ruled out. Every configuration is judged on the printer and on the printer with all resonances
+--freq-margin per cent lower and higher (default 5): the worst quality counts, because a real
+printer's frequencies drift, and a shaper at the edge of its band on the exact model does not
+survive that. The result is the whole trade-off (Pareto front),
 the configuration to use (the knee, or the one minimising print time + W × error with --weight W),
 and how it compares with Klipper's own rule and with no shaping on the same printer and job.
 
@@ -56,6 +59,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-path-error", type=float, default=None, metavar="MM",
                    help="rule out configurations whose path error (corner rounding, overshoot and ringing) "
                         "exceeds MM (default 0.1; 0 = no bound)")
+    p.add_argument("--freq-margin", type=float, default=None, metavar="PCT",
+                   help="also judge every configuration with the printer's resonances PCT %% lower and "
+                        "higher; the worst quality counts (default 5; 0 = the exact model only)")
     p.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco", help="physics (default mujoco)")
     p.add_argument("--evaluator", metavar="MODULE:FUNC", default=None,
                    help="advanced: score configs with your own f(configs, printer, job) -> metrics")
@@ -79,6 +85,9 @@ def run(args: argparse.Namespace, out) -> int:
     max_pe = study.DEFAULT_MAX_PATH_ERROR_MM if args.max_path_error is None else args.max_path_error
     if not max_pe >= 0:
         raise RingtuneError("must be ≥ 0 (mm; 0 = no bound)", "--max-path-error")
+    margin = study.DEFAULT_FREQ_MARGIN if args.freq_margin is None else args.freq_margin / 100.0
+    if not 0 <= margin < 0.5:
+        raise RingtuneError("must be in [0, 50) per cent", "--freq-margin")
     if args.gcode and not Path(args.gcode).is_file():
         raise RingtuneError("no such G-code file", "--gcode")
     out_dir = Path(args.out)
@@ -92,7 +101,7 @@ def run(args: argparse.Namespace, out) -> int:
         printer=str(Path(args.printer).resolve()) if args.printer and Path(args.printer).exists() else args.printer,
         job=str(Path(args.gcode).resolve()) if args.gcode else None, firmware=args.firmware,
         backend=args.backend, evaluator=args.evaluator or study.DEFAULT_EVALUATOR, space=space.to_dict(),
-        max_path_error_mm=max_pe)
+        max_path_error_mm=max_pe, freq_margin=margin)
     evaluator = study.resolve_evaluator(settings.evaluator)
 
     baselines: dict[str, study.Point] = {}
@@ -116,11 +125,13 @@ def run(args: argparse.Namespace, out) -> int:
         printer_name=getattr(printer, "name", "printer"), job_name=Path(args.gcode).name if args.gcode else
         "built-in test print", firmware=args.firmware, n_trials=args.trials, storage=storage,
         study_name=args.study, weight=args.weight, command=_command_line(args), max_path_error_mm=max_pe,
-        notes=[f"The search was warm-started from Klipper's recommendation and {len(settings.enqueue) - 1} "
-               "neighbours of it (robust shapers at Klipper's own frequencies, higher accelerations)."]
-        if settings.enqueue else [])
+        notes=([f"Quality is the worst of the printer as modelled and with all its resonances {margin * 100:g} % "
+                "lower and higher (--freq-margin): what survives a real printer's drift."] if margin else [])
+        + ([f"The search was warm-started from Klipper's recommendation and {len(settings.enqueue) - 1} "
+            "neighbours of it (robust shapers at Klipper's own frequencies, higher accelerations)."]
+           if settings.enqueue else []))
     text = result.pop("summary_text")
-    result.update({"storage": storage, "study": args.study, "completed_now": run_.completed_now,
+    result.update({"freq_margin": margin, "storage": storage, "study": args.study, "completed_now": run_.completed_now,
                    "interrupted": run_.interrupted, "elapsed_s": time.time() - t_start})
     lines = [text.rstrip("\n"), "", f"Results in {out_dir}/ — open {out_dir / 'README.txt'} first."]
     if run_.interrupted:
@@ -188,8 +199,7 @@ def _baselines(printer, args, settings, evaluator, quality, out) -> dict:
         out.note(f"ringtune tune: Klipper's-rule baseline skipped: {exc}")
     configs["none"] = TuneConfig(firmware=args.firmware, shaper_x="none", shaper_y="none", freq_x=0.0, freq_y=0.0,
                                  accel=float(printer.limits.accel), extra={"source": "no shaping"})
-    kw = {"backend": settings.backend} if settings.evaluator == study.DEFAULT_EVALUATOR else {}
-    metrics = evaluator(list(configs.values()), printer, settings.job, **kw)
+    metrics = evaluator(list(configs.values()), printer, settings.job, **study.evaluator_kwargs(settings))
     points = {key: point_from_metrics(cfg, m, quality, label=key, max_path_error_mm=settings.max_path_error_mm)
               for (key, cfg), m in zip(configs.items(), metrics)}
     return points, fits
