@@ -46,12 +46,16 @@ def main() -> None:
     ev.evaluate(config(), printer, None, nthread=1)
     first = time.perf_counter() - t
 
-    def one(cfg):
+    def one(cfg, margin=0.0):
         t0 = time.perf_counter()
-        ev.evaluate_many([cfg], printer, None, nthread=1)
+        ev.evaluate_many([cfg], printer, None, nthread=1, freq_margin=margin)
         return time.perf_counter() - t0
 
+    from ringtune.agents.study import DEFAULT_FREQ_MARGIN
+
+    one(config(), DEFAULT_FREQ_MARGIN)   # builds the detuned twins' models
     warm = [one(config()) for _ in range(15)]
+    robust = [one(config(), DEFAULT_FREQ_MARGIN) for _ in range(9)]
     replan = [one(config(limit=float(rng.uniform(15, 60)))) for _ in range(5)]
 
     # parts of a warm evaluation
@@ -96,9 +100,12 @@ def main() -> None:
           f"metrics {t_metrics * 1e3:.1f} ms")
     print(f"baseline raw mujoco.rollout of the same steps: {min(raw) * 1e3:8.1f} ms; "
           f"evaluation / raw rollout = {med / min(raw):.2f}x")
-    ok = med <= TARGET_S
+    rob = statistics.median(robust)
+    print(f"evaluation as `ringtune tune` judges it (the printer and its ±{DEFAULT_FREQ_MARGIN * 100:g} % twins, "
+          f"median of {len(robust)}): {rob * 1e3:8.1f} ms")
+    ok = med <= TARGET_S and rob <= TARGET_S
     print(f"target one evaluation <= {TARGET_S * 1e3:.0f} ms on one core: "
-          f"{'MET' if ok else 'NOT MET'} ({med * 1e3:.1f} ms)")
+          f"{'MET' if ok else 'NOT MET'} ({med * 1e3:.1f} ms; as tune judges it {rob * 1e3:.1f} ms)")
 
 
 if __name__ == "__main__":
