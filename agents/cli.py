@@ -159,7 +159,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     out = Output(json=args.json)
     try:
-        return int(modules[args.command].run(args, out) or 0)
+        rc = int(modules[args.command].run(args, out) or 0)
+        sys.stdout.flush()          # a closed pipe shows here, not in the interpreter's last flush
+        return rc
     except RingtuneError as exc:
         return _fail(args.command, str(exc))
     except FileNotFoundError as exc:
