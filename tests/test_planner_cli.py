@@ -104,3 +104,21 @@ def test_plan_applies_the_jobs_own_marlin_frequency_limit(tmp_path, capsys):
     assert a["print_time_s"] > b["print_time_s"]
     off = _plan_json(capsys, str(limited), "--junction", "jd", "--no-job-limits")
     assert off["freq_limit"] is None
+
+
+def test_trajectory_to_standard_output(tmp_path, capsys):
+    """`--trajectory -`: the CSV is standard output (summary on stderr), ends where the G-code ends;
+    with --json (which needs stdout) it is a one-line error."""
+    import numpy as np
+
+    job = tmp_path / "j.gcode"
+    job.write_text("G28\nG1 X10 Y5 E1 F3000\nG1 X0 E2\n")
+    assert main(["plan", str(job), "--trajectory", "-", "--rate", "200"]) == 0
+    cap = capsys.readouterr()
+    assert cap.out.startswith("t,x,y,z,e\n") and "planned with" in cap.err
+    data = np.loadtxt(cap.out.splitlines()[1:], delimiter=",")
+    assert data[-1, 1:5] == pytest.approx([0.0, 5.0, 0.0, 2.0], abs=0.005)   # last 5 ms sample, decelerating
+    assert np.allclose(np.diff(data[:, 0]), 0.005)
+    assert main(["plan", str(job), "--trajectory", "-", "--json"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--trajectory" in err[0]

@@ -53,7 +53,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-job-limits", action="store_true", help="ignore the limits the job itself sets")
     parser.add_argument("--daa", metavar="HZ", type=float, help="RRF <= 3.3 Dynamic Acceleration Adjustment at HZ")
     parser.add_argument("--top", metavar="N", type=int, default=5, help="how many top frequencies to list (default 5)")
-    parser.add_argument("--trajectory", metavar="OUT.csv", help="write the commanded position t,x,y,z,e")
+    parser.add_argument("--trajectory", metavar="OUT.csv", help="write the commanded position t,x,y,z,e "
+                        "(- for standard output; the summary then goes to standard error)")
     parser.add_argument("--rate", metavar="HZ", type=float, default=1000.0, help="trajectory sample rate (default 1000)")
 
 
@@ -151,6 +152,9 @@ def run(args, out) -> int:
     estimate = slicer_estimate(args.file) if args.file else None
     traj = None
     if args.trajectory:
+        if args.trajectory == "-" and args.json:
+            raise RingtuneError("'-' writes the CSV to standard output, which --json needs; give a file",
+                                "--trajectory")
         traj = _write_trajectory(p, cfg, args.trajectory, args.rate, out)
 
     result = {
@@ -195,6 +199,9 @@ def run(args, out) -> int:
     if shaper_events:
         lines.append(f"  shaper changes in the job: {len(shaper_events)} "
                      f"(first at line {shaper_events[0]['line']}, {shaper_events[0]['time']:.1f} s)")
+    if traj == "-":
+        out.note("\n".join(lines))          # stdout holds the CSV
+        return 0
     if traj:
         lines.append(f"  trajectory written to {traj}")
     out.emit(result, "\n".join(lines))
@@ -223,5 +230,10 @@ def _write_trajectory(p, cfg, path, rate, out) -> str:
                 motion = shape_motion(motion, shapers, is_centred(cfg.flavor))
     t, pos = motion.sample(rate)
     data = np.column_stack([t, pos[:, :4]])
+    if path == "-":
+        import sys
+
+        np.savetxt(sys.stdout, data, delimiter=",", header="t,x,y,z,e", comments="", fmt="%.6f")
+        return "-"
     np.savetxt(path, data, delimiter=",", header="t,x,y,z,e", comments="", fmt="%.6f")
     return str(path)
