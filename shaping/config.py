@@ -110,6 +110,19 @@ class TuneConfig:
             raise RingtuneError(exc.bare, exc.where.replace("config", where, 1) if exc.where else where) from None
         return cfg
 
+    def likely_typos(self) -> list[str]:
+        """Extra keys that look like a misspelt known key (``freqq_y`` for ``freq_y``): kept, as
+        extra keys are, but the known key then silently takes its default; worth a warning."""
+        import difflib
+
+        known = [f.name for f in fields(self) if f.name != "extra"]
+        out = []
+        for k in self.extra:
+            close = difflib.get_close_matches(str(k), known, n=1, cutoff=0.8)
+            if close:
+                out.append(f"unknown key {k!r} kept as an extra key; did you mean {close[0]!r}?")
+        return out
+
     @classmethod
     def load(cls, path: str | Path) -> "TuneConfig":
         path = Path(path)

@@ -94,3 +94,18 @@ def test_export_refusal_names_the_config_file(tmp_path, capsys):
     assert cli.main(["export", str(cfg), "--firmware", "rrf"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"error: {cfg}: shaper_x: RepRapFirmware 3.6 has no 'ei' shaper" in err[0]
+
+
+def test_a_misspelt_config_key_is_warned_about_not_silently_defaulted(tmp_path, capsys):
+    from ringtune.shaping.config import TuneConfig
+
+    cfg = tmp_path / "c.json"
+    cfg.write_text('{"firmware": "klipper", "shaper_x": "mzv", "shaper_y": "mzv", "freq_x": 50, "freqq_y": 40,'
+                   ' "dampnig_x": 0.1, "source": "ringtune tune", "metrics": {}, "chosen_by": "knee",'
+                   ' "printer": "ender3-class", "job": "built-in test print"}')
+    assert sorted(TuneConfig.load(cfg).likely_typos()) == [
+        "unknown key 'dampnig_x' kept as an extra key; did you mean 'damping_x'?",
+        "unknown key 'freqq_y' kept as an extra key; did you mean 'freq_y'?"]
+    assert cli.main(["export", str(cfg), "--firmware", "klipper"]) == 0
+    err = capsys.readouterr().err
+    assert f"{cfg}: warning: unknown key 'freqq_y'" in err and "'source'" not in err and "'printer'" not in err

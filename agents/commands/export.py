@@ -13,6 +13,8 @@
 
 from __future__ import annotations
 
+from ringtune.agents.commands import load_config
+
 import argparse
 
 NAME = "export"
@@ -48,13 +50,12 @@ def run(args, out) -> int:
     from pathlib import Path
 
     from ringtune.hardware.dialects import export_config
-    from ringtune.shaping.config import TuneConfig
 
     from ringtune.shaping.errors import RingtuneError
 
     if args.output and not Path(args.output).parent.is_dir():
         raise RingtuneError("no such directory", f"-o {args.output}")
-    cfg = TuneConfig.load(args.config)
+    cfg = load_config(args.config, out)
     try:
         exp = export_config(cfg, args.firmware)
     except RingtuneError as exc:   # name the file the user gave, not the abstract "config"

@@ -15,6 +15,8 @@ count}), ``slicer_estimate_s`` (what the slicer wrote in the file, or null), ``v
 
 from __future__ import annotations
 
+from ringtune.agents.commands import load_config
+
 NAME = "plan"
 HELP = "plan a G-code job: print time, moves, time by feature, highest direction-change frequencies"
 DESCRIPTION = """\
@@ -96,8 +98,7 @@ def run(args, out) -> int:
 
     cfg = None
     if args.config:
-        from ringtune.shaping.config import TuneConfig
-        cfg = TuneConfig.load(args.config)
+        cfg = load_config(args.config, out)
     if args.printer:
         from ringtune.envs.printer import load_printer
         limits = load_printer(args.printer).machine_limits()

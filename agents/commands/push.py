@@ -12,6 +12,8 @@ Exit status: 0 all applied, 1 something not applied, 2 bad input or the printer 
 
 from __future__ import annotations
 
+from ringtune.agents.commands import load_config
+
 import argparse
 
 NAME = "push"
@@ -62,10 +64,9 @@ def run(args, out) -> int:
     import os
 
     from ringtune.hardware.push import PushError, push
-    from ringtune.shaping.config import TuneConfig
     from ringtune.shaping.errors import RingtuneError
 
-    cfg = TuneConfig.load(args.config)
+    cfg = load_config(args.config, out)
     if not args.dry_run and not args.port and not args.moonraker:
         raise RingtuneError("refusing to push without an explicit port: give --port /dev/ttyUSB0 (or "
                             "socket://host:port, rfc2217://host:port, /tmp/printer) or --moonraker URL; "

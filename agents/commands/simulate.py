@@ -9,6 +9,8 @@ JSON keys (stable): ``printer`` (name), ``job`` (G-code path or ``"built-in test
 
 from __future__ import annotations
 
+from ringtune.agents.commands import load_config
+
 from pathlib import Path
 
 from ringtune.shaping.errors import RingtuneError
@@ -71,13 +73,13 @@ def _pair(text: str | None, option: str, number: bool) -> tuple | None:
         raise RingtuneError(f"not a number: {text!r}", option) from None
 
 
-def build_config(args):
+def build_config(args, out=None):
     """The TuneConfig from --config and/or the individual options (options override the file)."""
     from ringtune.shaping.config import FIRMWARE_FLAVOR, TuneConfig
     from ringtune.shaping.shapers import default_damping
 
     if args.config:
-        cfg = TuneConfig.load(args.config).to_dict()
+        cfg = (load_config(args.config, out) if out is not None else TuneConfig.load(args.config)).to_dict()
     else:
         cfg = {"shaper_x": "none", "shaper_y": "none"}
     if args.firmware:
@@ -116,7 +118,7 @@ def build_config(args):
 def run(args, out) -> int:
     from ringtune.envs.evaluate import evaluate_detailed, resolve_printer
 
-    config = build_config(args)
+    config = build_config(args, out)
     if args.gcode and not Path(args.gcode).is_file():
         raise RingtuneError("no such G-code file", f"--gcode {args.gcode}")
     if args.plot:  # before simulating: a folder that cannot be made fails now, in one line
