@@ -168,6 +168,7 @@ def export_config(config: TuneConfig, firmware: str | None = None) -> Export:
              "marlin-ftm": _marlin_ftm, "prusa": _prusa}[dialect]
     exp = build(config, dialect)
     _freq_limit(config, dialect, exp)
+    _accel_note(config, exp)
     return exp
 
 
@@ -189,7 +190,6 @@ def _accel_note(config: TuneConfig, exp: Export) -> None:
 
 
 def _freq_limit(config: TuneConfig, dialect: str, exp: Export) -> None:
-    _accel_note(config, exp)
     hz = config.freq_limit_hz
     if hz <= 0:
         return

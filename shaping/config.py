@@ -107,7 +107,7 @@ class TuneConfig:
         try:
             cfg = cls(**kwargs, extra=extra)
         except RingtuneError as exc:
-            raise RingtuneError(exc.bare, exc.where.replace("config", where, 1) if exc.where else where) from None
+            raise exc.relocated("config", where) from None
         return cfg
 
     def likely_typos(self) -> list[str]:

@@ -18,3 +18,11 @@ class RingtuneError(ValueError):
         self.where = where
         self.bare = message
         super().__init__(f"{where}: {message}" if where else message)
+
+    def relocated(self, prefix: str, new: str) -> "RingtuneError":
+        """The same error with a location starting ``prefix`` (e.g. the abstract ``"config"``)
+        moved to ``new`` (the file the user gave); no location becomes ``new``."""
+        where = self.where or prefix
+        if where.split(":")[0] != prefix:
+            return self
+        return RingtuneError(self.bare, new + where[len(prefix):])

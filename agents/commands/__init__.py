@@ -6,11 +6,22 @@ Each module defines ``NAME``, ``HELP`` (one line), optionally ``DESCRIPTION`` (s
 """
 
 
-def load_config(path, out):
-    """``TuneConfig.load(path)``, with a note on stderr for each key that looks misspelt."""
+def load_config(path, out=None):
+    """``TuneConfig.load(path)``, with a note on stderr (through ``out``) for each key that looks
+    misspelt."""
     from ringtune.shaping.config import TuneConfig
 
     cfg = TuneConfig.load(path)
-    for message in cfg.likely_typos():
+    for message in cfg.likely_typos() if out is not None else ():
         out.note(f"{path}: warning: {message}")
     return cfg
+
+
+def check_output_folder(option: str, path) -> None:
+    """Refuse, before any work, an output file whose folder does not exist (one-line error)."""
+    from pathlib import Path
+
+    from ringtune.shaping.errors import RingtuneError
+
+    if path and not Path(path).parent.is_dir():
+        raise RingtuneError("no such directory", f"{option} {path}")

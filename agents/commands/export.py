@@ -13,8 +13,6 @@
 
 from __future__ import annotations
 
-from ringtune.agents.commands import load_config
-
 import argparse
 
 NAME = "export"
@@ -49,20 +47,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args, out) -> int:
     from pathlib import Path
 
+    from ringtune.agents.commands import check_output_folder, load_config
     from ringtune.hardware.dialects import export_config
-
     from ringtune.shaping.errors import RingtuneError
 
-    if args.output and not Path(args.output).parent.is_dir():
-        raise RingtuneError("no such directory", f"-o {args.output}")
+    check_output_folder("-o", args.output)
     cfg = load_config(args.config, out)
     try:
         exp = export_config(cfg, args.firmware)
     except RingtuneError as exc:   # name the file the user gave, not the abstract "config"
-        where = exc.where or "config"
-        if where.split(":")[0] == "config":
-            raise RingtuneError(exc.bare, args.config + where[len("config"):]) from None
-        raise
+        raise exc.relocated("config", args.config) from None
     text = exp.render()
     if args.output:
         Path(args.output).write_text(text)

@@ -55,6 +55,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args, out) -> int:
     from pathlib import Path
 
+    from ringtune.agents.commands import check_output_folder
     from ringtune.envs.identify import identify_files, plot_fits, printer_toml
     from ringtune.shaping.errors import RingtuneError
 
@@ -62,9 +63,8 @@ def run(args, out) -> int:
         raise RingtuneError("must be 1 to 5", "--max-modes")
     if not 0 <= args.fmin < args.fmax:
         raise RingtuneError("need 0 <= --fmin < --fmax", "--fmin")
-    for option, path in (("-o", args.output), ("--plot", args.plot)):
-        if path and not Path(path).parent.is_dir():
-            raise RingtuneError("no such directory", f"{option} {path}")
+    check_output_folder("-o", args.output)
+    check_output_folder("--plot", args.plot)
     if args.plot and Path(args.plot).suffix.lower() not in PLOT_SUFFIXES:
         raise RingtuneError(f"the plot's file name must end in one of {', '.join(PLOT_SUFFIXES)}",
                             f"--plot {args.plot}")

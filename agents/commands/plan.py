@@ -15,8 +15,6 @@ count}), ``slicer_estimate_s`` (what the slicer wrote in the file, or null), ``v
 
 from __future__ import annotations
 
-from ringtune.agents.commands import load_config
-
 NAME = "plan"
 HELP = "plan a G-code job: print time, moves, time by feature, highest direction-change frequencies"
 DESCRIPTION = """\
@@ -98,6 +96,7 @@ def run(args, out) -> int:
 
     cfg = None
     if args.config:
+        from ringtune.agents.commands import load_config
         cfg = load_config(args.config, out)
     if args.printer:
         from ringtune.envs.printer import load_printer

@@ -12,8 +12,6 @@ Exit status: 0 all applied, 1 something not applied, 2 bad input or the printer 
 
 from __future__ import annotations
 
-from ringtune.agents.commands import load_config
-
 import argparse
 
 NAME = "push"
@@ -63,6 +61,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args, out) -> int:
     import os
 
+    from ringtune.agents.commands import load_config
     from ringtune.hardware.push import PushError, push
     from ringtune.shaping.errors import RingtuneError
 

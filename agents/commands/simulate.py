@@ -9,8 +9,6 @@ JSON keys (stable): ``printer`` (name), ``job`` (G-code path or ``"built-in test
 
 from __future__ import annotations
 
-from ringtune.agents.commands import load_config
-
 from pathlib import Path
 
 from ringtune.shaping.errors import RingtuneError
@@ -75,11 +73,12 @@ def _pair(text: str | None, option: str, number: bool) -> tuple | None:
 
 def build_config(args, out=None):
     """The TuneConfig from --config and/or the individual options (options override the file)."""
+    from ringtune.agents.commands import load_config
     from ringtune.shaping.config import FIRMWARE_FLAVOR, TuneConfig
     from ringtune.shaping.shapers import default_damping
 
     if args.config:
-        cfg = (load_config(args.config, out) if out is not None else TuneConfig.load(args.config)).to_dict()
+        cfg = load_config(args.config, out).to_dict()
     else:
         cfg = {"shaper_x": "none", "shaper_y": "none"}
     if args.firmware:
