@@ -30,9 +30,7 @@ Security: :func:`load_policy` unpickles files (stable-baselines3 zips can carry 
 
 from __future__ import annotations
 
-import dataclasses
 import json
-import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -49,9 +47,13 @@ from ringtune.shaping.errors import RingtuneError
 #: (the exact linear backend "lti": same costs as MuJoCo to ~1e-4 on the linear printer model, ~1.6×
 #: cheaper per step; evaluations outside training use the env's default, MuJoCo)
 #: F is decoded relative to each axis's resonance peak (a residual around a physical anchor, which
-#: transfers to measured spectra) and the frequency limit is off unless the policy chooses it
-DEFAULT_ENV_KWARGS: dict[str, Any] = {"tune_accel": True, "observe_metrics": False, "backend": "lti",
-                                      "freq_anchor": "peak", "freq_limit_gate": True}
+#: transfers to measured spectra) and the frequency limit is off unless the policy chooses it.
+#: The policy also observes the metrics of its starting answer (:data:`PRIOR`) on the printer's model
+#: (``observe_metrics``, ``start_action`` filled in by :func:`resolve_env_kwargs`): how much that
+#: printer rings, overshoots or loses steps at 4000 mm/s² is what decides how hard it can be driven,
+#: and a spectrum alone does not show it (the motor's force reserve, the moving masses)
+DEFAULT_ENV_KWARGS: dict[str, Any] = {"tune_accel": True, "observe_metrics": True, "backend": "lti",
+                                      "freq_anchor": "peak", "freq_limit_gate": True, "accel_anchor": "model"}
 #: held-out printers of the evaluation callback (never used for training)
 EVAL_SEEDS = tuple(range(900_000, 900_008))
 #: the benchmark's unseen printers (benchmarks/bench_ppo.py)
@@ -73,6 +75,16 @@ DEFAULT_HYPER: dict[str, Any] = {
 
 
 # -- environments -----------------------------------------------------------------------------------
+def resolve_env_kwargs(env_kwargs: dict | None = None) -> dict:
+    """:data:`DEFAULT_ENV_KWARGS` updated by ``env_kwargs``; an env that observes metrics without a
+    ``start_action`` starts from :data:`PRIOR` (the training reference: its evaluation at reset is
+    reused as the reference reward). JSON-ready (the action as a list)."""
+    kw = {**DEFAULT_ENV_KWARGS, **(env_kwargs or {})}
+    if kw.get("observe_metrics") and kw.get("start_action") is None:
+        kw["start_action"] = [float(v) for v in prior_action(kw)]
+    return kw
+
+
 def _pinned_env(seed: int, env_kwargs: dict):
     """A Tune-v0 env whose every reset uses ``seed`` (the same held-out printer each time)."""
     import gymnasium as gym
@@ -99,7 +111,9 @@ def _make_train_env(rank: int, seed: int, env_kwargs: dict, hyper: dict):
 
         env = TuneEnv(randomize=True, **env_kwargs)
         if hyper.get("reference_reward"):
-            env = ReferenceRelative(env, prior_action(env_kwargs), hyper.get("printer_repeats", 1))
+            start = env_kwargs.get("observe_metrics") and env_kwargs.get("start_action") is not None
+            ref = None if start else prior_action(env_kwargs)       # None: the observed starting answer
+            env = ReferenceRelative(env, ref, hyper.get("printer_repeats", 1))
         env = Monitor(env)
         env.reset(seed=seed + rank)
         return env
@@ -192,7 +206,7 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
         raise RingtuneError("must be ≥ 1", "--timesteps")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    env_kwargs = {**DEFAULT_ENV_KWARGS, **(env_kwargs or {})}
+    env_kwargs = resolve_env_kwargs(env_kwargs)
     hyper = {**DEFAULT_HYPER, **(hyper or {})}
     torch.set_num_threads(1)
     t0 = time.perf_counter()
@@ -279,7 +293,7 @@ def prior_action(env_kwargs: dict) -> np.ndarray:
     """:data:`PRIOR` as an action of the env ``env_kwargs`` describe (peak-anchored: F on the peak)."""
     from ringtune.envs.env import TuneEnv, encode_config
 
-    spec = TuneEnv(randomize=True, **env_kwargs).spec_
+    spec = TuneEnv(randomize=True, **{**env_kwargs, "start_action": None}).spec_
     name = PRIOR["shaper"] if PRIOR["shaper"] in spec.shapers else spec.shapers[-1]
     prior = TuneConfig(firmware=spec.firmware, shaper_x=name, shaper_y=name, freq_x=PRIOR["freq"],
                        freq_y=PRIOR["freq"], damping_x=PRIOR["damping"], damping_y=PRIOR["damping"],
@@ -391,39 +405,6 @@ def load_policy(policy_dir: str | Path, which: str = "policy") -> Policy:
 
 #: the env's own spectrum features, applied to measured PSDs (one function, so they cannot drift)
 spectrum_observation = spectrum_features
-
-
-def recommend_from_psd(policy: Policy, spectra: dict[str, tuple[np.ndarray, np.ndarray]]) -> TuneConfig:
-    """One inference on measured resonance PSDs ``{"x": (freqs, psd), "y": ...}`` -> TuneConfig:
-    the env's reset observation of those spectra (shaping off as the current configuration, no
-    metrics: the training env does not observe them either), decoded around their peaks. An axis
-    that was not measured gets shaping off (like Klipper's rule in ``recommend``)."""
-    if policy.env_kwargs.get("observe_metrics", False):
-        raise RingtuneError("this policy was trained observing simulated metrics; it cannot be applied to "
-                            "measured spectra alone", str(policy.path))
-    env = policy.make_env()
-    obs = env.observe_measured(spectra)
-    config = env.decode(policy.act(obs))
-    for ax in ("x", "y"):
-        if ax not in spectra:
-            config = dataclasses.replace(config, **{f"shaper_{ax}": "none"})
-    return config
-
-
-def recommend_for_printer(policy: Policy, printer=None, seed: int = 0) -> tuple[TuneConfig, np.ndarray]:
-    """One inference on a modelled printer's simulated resonance test (``seed`` its noise) ->
-    (TuneConfig, the action). The action decodes with the peaks of that test (``env.peaks_`` of a
-    fixed env reset with ``seed``)."""
-    env = policy.make_env(printer)
-    obs, _ = env.reset(seed=seed)
-    action = policy.act(obs)
-    return env.decode(action), action
-
-
-def config_dict(config: TuneConfig) -> dict:
-    return {k: (round(v, 4) if isinstance(v, float) and math.isfinite(v) else v)
-            for k, v in config.to_dict().items()}
-
 
 
 def recommend_command(args, out) -> int:

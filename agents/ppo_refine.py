@@ -24,16 +24,18 @@ class PrinterCost:
                  seed: int = 0, peaks=None):
         """``env_kwargs``: the policy's env arguments (its job, weights, action layout); ``job``
         overrides the job. Peak-anchored actions decode around the peaks of the resonance test
-        of ``reset(seed=seed)``, or around ``peaks`` (X, Y) Hz when given (e.g. those the policy saw)."""
+        of ``reset(seed=seed)``, or around ``peaks`` (X, Y) Hz when given (e.g. those the policy saw);
+        a model-anchored acceleration around the anchor of the starting configuration on those peaks
+        (one evaluation, not counted in ``n_evaluations``)."""
         from ringtune.envs.env import TuneEnv
 
-        kw = {k: v for k, v in (env_kwargs or {}).items() if k not in ("backend", "observe_metrics", "randomize")}
+        kw = {k: v for k, v in (env_kwargs or {}).items() if k not in ("backend", "randomize")}
         if job is not None:
             kw["job"] = job
-        self.env = TuneEnv(printer=printer, randomize=False, backend=backend, observe_metrics=False, **kw)
-        self.env.reset(seed=seed)   # computes the baseline print time (and the peaks) of this printer
+        self.env = TuneEnv(printer=printer, randomize=False, backend=backend, **kw)
+        self.env.reset(seed=seed)   # the baseline print time, the peaks, the acceleration anchor
         if peaks is not None:
-            self.env.peaks_ = (float(peaks[0]), float(peaks[1]))
+            self.env.observe_start(peaks=peaks)
         self.n_evaluations = 0
 
     @property

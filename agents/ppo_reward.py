@@ -9,7 +9,8 @@ good start). Subtracting the reward of a fixed reference configuration on the *s
 cancels the spread and leaves each printer's optimum where it was, since the reference does not
 depend on the action.
 
-The reference costs one more evaluation per printer; showing each printer ``repeats`` times in a
+The reference costs one more evaluation per printer (none when the reference is the env's starting
+configuration, whose metrics the reset has evaluated); showing each printer ``repeats`` times in a
 row (the same resonance test, so the same observation) spreads that cost over ``repeats`` steps.
 """
 
@@ -36,7 +37,9 @@ class ReferenceRelative(gym.Wrapper):
     Args:
         env: the TuneEnv (randomised).
         reference_action: an action of ``env``'s action space; decoded on each printer (with a
-            peak-anchored action: around that printer's resonance peaks).
+            peak-anchored action: around that printer's resonance peaks). None: the env's starting
+            configuration, whose metrics the env observed at reset (no extra evaluation; needs
+            ``observe_metrics``).
         repeats: episodes per drawn printer (≥ 1). A ``reset(seed=…)`` always draws a new one.
 
     ``info["cost"]`` carries the unmodified cost (−reward of the env) and ``info["reference_cost"]``
@@ -47,7 +50,10 @@ class ReferenceRelative(gym.Wrapper):
         super().__init__(env)
         if int(repeats) < 1:
             raise RingtuneError(f"must be ≥ 1, not {repeats}", "printer_repeats")
-        self.reference_action = np.asarray(reference_action, np.float32)
+        if reference_action is None and not getattr(env.unwrapped, "observe_metrics", False):
+            raise RingtuneError("without a reference action the env must observe its starting metrics",
+                                "reference_action")
+        self.reference_action = None if reference_action is None else np.asarray(reference_action, np.float32)
         self.repeats = int(repeats)
         self._left = 0
         self._first: tuple | None = None
@@ -57,7 +63,11 @@ class ReferenceRelative(gym.Wrapper):
         if seed is not None or options or self._left <= 0 or self._first is None:
             obs, info = self.env.reset(seed=seed, options=options)
             base = self.env.unwrapped
-            self._ref = reward_of(base, base.decode(self.reference_action))
+            if self.reference_action is None:        # the starting configuration, evaluated by the reset
+                m = base.start_metrics_
+                self._ref = float(base.reward(m)) if m is not None else -float(base.step_loss_penalty)
+            else:
+                self._ref = reward_of(base, base.decode(self.reference_action))
             self._first = (obs.copy(), dict(info))
             self._left = self.repeats
         self._left -= 1

@@ -51,11 +51,11 @@ def bench_printer(job: tuple) -> dict:
     from ringtune.envs.env import TuneEnv
     from ringtune.shaping.config import TuneConfig
 
-    from ringtune.agents.ppo import DEFAULT_ENV_KWARGS
+    from ringtune.agents.ppo import resolve_env_kwargs
 
     torch.set_num_threads(1)
     policy = load_policy(policy_dir) if policy_dir else None
-    kw = {**(policy.env_kwargs if policy else DEFAULT_ENV_KWARGS), "backend": backend}
+    kw = {**(policy.env_kwargs if policy else resolve_env_kwargs()), "backend": backend}
     env = TuneEnv(randomize=True, **kw)
     obs, _ = env.reset(seed=seed)
     printer = env.printer
@@ -73,7 +73,9 @@ def bench_printer(job: tuple) -> dict:
         row.update({k: cached[k] for k in (*BASELINES, "optuna200_s")})
         return row
     # Optuna alone searches the broad absolute action space (no knowledge of the peak)
-    base = PrinterCost(printer, {**kw, "freq_anchor": "absolute", "freq_limit_gate": False}, backend=backend)
+    base = PrinterCost(printer, {**kw, "freq_anchor": "absolute", "freq_limit_gate": False,
+                                 "accel_anchor": "absolute", "observe_metrics": False, "start_action": None},
+                       backend=backend)
     t = time.perf_counter()
     row["optuna200"] = optuna_search(base, n_optuna, seed).best_cost
     row["optuna200_s"] = time.perf_counter() - t
@@ -147,8 +149,8 @@ def real_table(policy_dir: str, data: Path) -> None:
     """Policy vs Klipper's rule on the real Klipper resonance files."""
     from ringtune.agents import klipper_rule as kr
     from ringtune.agents.commands.recommend import _load_accel
-    from ringtune.agents.ppo import load_policy, recommend_from_psd
-    from ringtune.agents.ppo_recommend import _axis_spectra
+    from ringtune.agents.ppo import load_policy
+    from ringtune.agents.ppo_recommend import _axis_spectra, recommend_from_psd
     from ringtune.shaping.config import TuneConfig
     from ringtune.shaping.shapers import get_shaper
 

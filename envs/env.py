@@ -22,6 +22,8 @@ from ringtune.shaping.errors import RingtuneError
 DEFAULT_WEIGHTS = {"time": 1.0, "path_error": 2.0, "overshoot": 5.0, "ringing": 20.0}
 #: scales s in the squashing m / (m + s) of the observed metrics
 METRIC_SCALES = {"time_ratio": 1.0, "path_error_mm": 0.1, "overshoot_mm": 0.1, "ringing_mm": 0.02}
+#: entries of the observation's metrics part (see :class:`TuneEnv`)
+N_METRICS = 7
 
 
 # -- the action encoding -------------------------------------------------------------------------
@@ -43,6 +45,11 @@ class ActionSpec:
         anchor_span: with ``freq_anchor="peak"``, F covers ``[f_peak/span, f_peak·span]``.
         freq_limit_gate: the frequency limit is off for the lower half of its action entry and
             spans ``freq_limit_off``–``freq_limit_max`` Hz over the upper half (off unless chosen).
+        accel_anchor: ``"absolute"`` (acceleration on a log scale over ``accel_range``) or
+            ``"model"`` (relative to an anchor acceleration ``a_anchor·anchor_span^v``, v in [-1, 1];
+            the env computes the anchor from the starting configuration's metrics, see
+            :func:`model_accel`).
+        accel_start: mm/s², the anchor before it is known (what the starting action decodes with).
     """
 
     firmware: str = "klipper"
@@ -57,6 +64,8 @@ class ActionSpec:
     freq_anchor: str = "absolute"
     anchor_span: float = 2.0
     freq_limit_gate: bool = False
+    accel_anchor: str = "absolute"
+    accel_start: float = 4000.0
 
     @property
     def size(self) -> int:
@@ -88,7 +97,7 @@ def _anchors(spec: ActionSpec, peaks) -> tuple[float, float] | None:
     return (fx, fy) if spec.per_axis else (math.sqrt(fx * fy),) * 2
 
 
-def decode_action(action, spec: ActionSpec, peaks=None) -> TuneConfig:
+def decode_action(action, spec: ActionSpec, peaks=None, accel_anchor: float | None = None) -> TuneConfig:
     """The configuration an action in [-1, 1]^spec.size stands for.
 
     Per axis (or shared) triple ``(type, F, S)``: type = ``spec.shapers[k]`` with ``k`` the index
@@ -99,7 +108,9 @@ def decode_action(action, spec: ActionSpec, peaks=None) -> TuneConfig:
     clipped to the shaper's largest allowed damping. Then frequency limit ``u·freq_limit_max`` Hz,
     off (0) at or below ``freq_limit_off`` (with ``freq_limit_gate``: off for ``u ≤ 1/2``, else
     ``off + (2u − 1)·(max − off)`` Hz); and, with ``tune_accel``, acceleration
-    ``a_lo·(a_hi/a_lo)^u`` mm/s². Values outside [-1, 1] are clipped.
+    ``a_lo·(a_hi/a_lo)^u`` mm/s² (with ``spec.accel_anchor == "model"``: ``a·span^v`` clipped to
+    ``accel_range``, ``a`` = ``accel_anchor`` mm/s², default ``spec.accel_start``). Values outside
+    [-1, 1] are clipped.
     """
     from ringtune.shaping.shapers import max_damping
 
@@ -136,15 +147,19 @@ def decode_action(action, spec: ActionSpec, peaks=None) -> TuneConfig:
     accel = None
     if spec.tune_accel:
         lo, hi = spec.accel_range
-        accel = lo * (hi / lo) ** _unit(a[j + 1])
+        if spec.accel_anchor == "model":
+            anchor = float(accel_anchor or spec.accel_start)
+            accel = min(max(anchor * spec.anchor_span ** (2.0 * _unit(a[j + 1]) - 1.0), lo), hi)
+        else:
+            accel = lo * (hi / lo) ** _unit(a[j + 1])
     return TuneConfig(firmware=spec.firmware, shaper_x=x[0], freq_x=x[1], damping_x=x[2],
                       shaper_y=y[0], freq_y=y[1], damping_y=y[2],
                       freq_limit_hz=limit if limit > spec.freq_limit_off else 0.0, accel=accel)
 
 
-def encode_config(config: TuneConfig, spec: ActionSpec, peaks=None) -> np.ndarray:
+def encode_config(config: TuneConfig, spec: ActionSpec, peaks=None, accel_anchor: float | None = None) -> np.ndarray:
     """The action (centre of the shaper's bin) that decodes to ``config`` (up to clipping);
-    ``peaks`` (X, Y) Hz as for :func:`decode_action`."""
+    ``peaks`` (X, Y) Hz and ``accel_anchor`` mm/s² as for :func:`decode_action`."""
     anchors = _anchors(spec, peaks)
 
     def back(u):
@@ -173,7 +188,11 @@ def encode_config(config: TuneConfig, spec: ActionSpec, peaks=None) -> np.ndarra
     if spec.tune_accel:
         lo, hi = spec.accel_range
         acc = min(max(config.accel or lo, lo), hi)
-        out.append(back(math.log(acc / lo) / math.log(hi / lo)))
+        if spec.accel_anchor == "model":
+            anchor = float(accel_anchor or spec.accel_start)
+            out.append(back((math.log(acc / anchor) / math.log(spec.anchor_span) + 1.0) / 2.0))
+        else:
+            out.append(back(math.log(acc / lo) / math.log(hi / lo)))
     return np.asarray(out, dtype=np.float32)
 
 
@@ -325,19 +344,28 @@ class TuneEnv(gym.Env):
     measured spectra, whose absolute frequencies differ from the simulated ones.
 
     ## Observation Space
-    ``Box(-1, 1, (2·n_bins + n + 6 [+ 2],), float32)`` (+2 with ``freq_anchor="peak"``):
+    ``Box(-1, 1, (2·n_bins + n + 7 [+ 2] [+ 1],), float32)`` (+2 with ``freq_anchor="peak"``, +1
+    with ``accel_anchor="model"``):
 
     | slice | meaning |
     |---|---|
     | ``[0, n_bins)`` | X resonance-test PSD, mean per bin of ``n_bins`` equal bins over ``spectrum_range`` Hz, ``1 + log10(psd/max)/3`` clipped to [-1, 1] (0 dB → 1, −60 dB → −1; X and Y share the max) |
     | ``[n_bins, 2·n_bins)`` | the same for Y |
     | next ``n`` | the current configuration, encoded as an action (:func:`encode_config`) |
-    | next 6 | its metrics squashed as ``m/(m+s)``: print time / baseline print time (s = 1), path error (s = 0.1 mm), overshoot (0.1 mm), ringing (0.02 mm), peak acceleration (s = the printer's accel), step loss (0/1) |
-    | last 2 (``freq_anchor="peak"`` only) | the resonance peaks X, Y (:func:`spectrum_peaks`), ``2·ln(f/lo)/ln(hi/lo) − 1`` over ``spectrum_range`` (:func:`peak_features`) |
+    | next 7 | its metrics squashed as ``m/(m+s)``: print time / baseline print time (s = 1), path error (s = 0.1 mm), overshoot (0.1 mm), ringing (0.02 mm), peak acceleration (s = the printer's accel), step loss (0/1), motor load (s = 1) |
+    | next 2 (``freq_anchor="peak"`` only) | the resonance peaks X, Y (:func:`spectrum_peaks`), ``2·ln(f/lo)/ln(hi/lo) − 1`` over ``spectrum_range`` (:func:`peak_features`) |
+    | last 1 (``accel_anchor="model"`` only) | the anchor acceleration ``accel_anchor_``, ``2·ln(a/lo)/ln(hi/lo) − 1`` over ``accel_range`` |
 
-    At reset the current configuration is ``options["config"]`` or shaping off with no frequency
-    limit; its metrics are evaluated when ``observe_metrics`` (else zeros). After the step they
-    are the chosen configuration and its metrics.
+    With ``accel_anchor="model"`` (needs ``observe_metrics``) the acceleration entry is a residual
+    around ``accel_anchor_``: the acceleration at which the starting configuration's metrics,
+    scaled linearly with acceleration, give the lowest cost with a 30 % motor force reserve
+    (:func:`ringtune.envs.accel_model.model_accel`); the starting action itself decodes with
+    ``spec_.accel_start``.
+
+    At reset the current configuration is ``options["config"]``, else ``start_action`` decoded on
+    the printer's peaks, else shaping off with no frequency limit; its metrics are evaluated when
+    ``observe_metrics`` (else zeros) and kept as ``start_metrics_``. After the step they are the
+    chosen configuration and its metrics.
 
     ## Rewards
     ``r = −(w_time · T/T0 + w_path · path_error + w_over · overshoot + w_ring · ringing) −
@@ -369,27 +397,29 @@ class TuneEnv(gym.Env):
     | ``tune_accel`` | False | the action also sets the acceleration |
     | ``freq_anchor`` | "absolute" | "absolute" or "peak": how the F entries decode (see Action Space) |
     | ``freq_limit_gate`` | False | frequency limit off for the lower half of its entry |
+    | ``accel_anchor`` | "absolute" | "absolute" or "model": how the acceleration entry decodes (see Observation Space) |
     | ``weights`` | :data:`DEFAULT_WEIGHTS` | reward weights (missing keys take the default) |
     | ``step_loss_penalty`` | 10.0 | subtracted when the motor loses steps |
     | ``n_bins`` | 24 | spectrum bins per axis |
     | ``spectrum_range`` | (10, 160) | Hz covered by the bins |
     | ``observe_metrics`` | True | evaluate the starting configuration at reset (one more evaluation) |
+    | ``start_action`` | None | the starting configuration as an action (decoded on each printer's peaks); None = shaping off |
     | ``backend`` | "mujoco" | physics backend, "mujoco" or "lti" |
     | ``render_mode`` | None | None or "rgb_array" (the spectra and the configuration as an image) |
 
     ## Info
-    ``reset``: ``printer`` (name), ``baseline_print_time_s``, ``peaks_hz`` (X, Y). ``step``: also ``config``
-    (TuneConfig dict) and ``metrics`` (Metrics dict).
+    ``reset``: ``printer`` (name), ``baseline_print_time_s``, ``peaks_hz`` (X, Y), ``accel_anchor``
+    (mm/s²). ``step``: also ``config`` (TuneConfig dict) and ``metrics`` (Metrics dict).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 1}
 
     def __init__(self, printer=None, *, randomize: bool = False, job=None, firmware: str = "klipper",
                  shapers: tuple[str, ...] | None = None, per_axis: bool = True, tune_accel: bool = False,
-                 freq_anchor: str = "absolute", freq_limit_gate: bool = False,
+                 freq_anchor: str = "absolute", freq_limit_gate: bool = False, accel_anchor: str = "absolute",
                  weights: dict | None = None, step_loss_penalty: float = 10.0, n_bins: int = 24,
                  spectrum_range: tuple[float, float] = (10.0, 160.0), observe_metrics: bool = True,
-                 backend: str = "mujoco", render_mode: str | None = None):
+                 start_action=None, backend: str = "mujoco", render_mode: str | None = None):
         from ringtune.shaping.shapers import available_shapers
 
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -408,9 +438,14 @@ class TuneEnv(gym.Env):
                                 "shapers")
         if freq_anchor not in ("absolute", "peak"):
             raise RingtuneError(f"must be 'absolute' or 'peak', not {freq_anchor!r}", "freq_anchor")
+        if accel_anchor not in ("absolute", "model"):
+            raise RingtuneError(f"must be 'absolute' or 'model', not {accel_anchor!r}", "accel_anchor")
+        if accel_anchor == "model" and not (tune_accel and observe_metrics):
+            raise RingtuneError("'model' needs tune_accel and observe_metrics (the anchor comes from the "
+                                "starting configuration's metrics)", "accel_anchor")
         self.spec_ = ActionSpec(firmware=firmware, shapers=tuple(shapers), per_axis=per_axis,
                                 tune_accel=tune_accel, freq_anchor=freq_anchor,
-                                freq_limit_gate=bool(freq_limit_gate))
+                                freq_limit_gate=bool(freq_limit_gate), accel_anchor=accel_anchor)
         self.weights = {**DEFAULT_WEIGHTS, **(weights or {})}
         unknown = set(self.weights) - set(DEFAULT_WEIGHTS)
         if unknown:
@@ -422,15 +457,24 @@ class TuneEnv(gym.Env):
         self.observe_metrics = bool(observe_metrics)
         self.backend = backend
         n = self.spec_.size
+        self.start_action = None
+        if start_action is not None:
+            self.start_action = np.clip(np.asarray(start_action, dtype=np.float32).ravel(), -1.0, 1.0)
+            if self.start_action.shape != (n,):
+                raise RingtuneError(f"must have {n} entries ({', '.join(self.spec_.labels())}), "
+                                    f"not {np.size(start_action)}", "start_action")
+        self.start_metrics_: Metrics | None = None
         self.action_space = spaces.Box(-1.0, 1.0, (n,), np.float32)
         self._n_peak_obs = 2 if freq_anchor == "peak" else 0
-        self.observation_space = spaces.Box(-1.0, 1.0, (2 * self.n_bins + n + 6 + self._n_peak_obs,),
-                                            np.float32)
+        self._n_accel_obs = 1 if accel_anchor == "model" else 0
+        self.observation_space = spaces.Box(
+            -1.0, 1.0, (2 * self.n_bins + n + N_METRICS + self._n_peak_obs + self._n_accel_obs,), np.float32)
+        self.accel_anchor_ = self.spec_.accel_start
         self.peaks_ = (50.0, 50.0)
         self.printer = self.base_printer
         self._spectra = np.zeros(2 * self.n_bins, np.float32)
         self._config_obs = np.zeros(n, np.float32)
-        self._metrics_obs = np.zeros(6, np.float32)
+        self._metrics_obs = np.zeros(N_METRICS, np.float32)
         self._baseline = 1.0
         self.config = TuneConfig(firmware=firmware, shaper_x="none", shaper_y="none")
 
@@ -444,22 +488,25 @@ class TuneEnv(gym.Env):
 
     def observe_measured(self, spectra: dict) -> np.ndarray:
         """The reset observation for measured resonance PSDs ``{"x": (freqs, psd), …}`` (a missing
-        axis takes the other's): their spectrum features and peaks, shaping off as the current
-        configuration, no metrics. Sets ``peaks_`` so that :meth:`decode` anchors on them."""
+        axis takes the other's): their spectrum features and peaks, and the starting configuration
+        as :meth:`reset` makes it (``start_action`` decoded on those peaks, else shaping off). With
+        ``observe_metrics`` its metrics are those on this env's printer, which should then be a
+        model of the measured one (e.g. identified from the same spectra). Sets ``peaks_`` so that
+        :meth:`decode` anchors on them."""
+        self.printer = self.base_printer
+        self._baseline = planned_job(self.printer, self.job, None).print_time
         self._spectra = spectrum_features(spectra, self.n_bins, self.spectrum_range)
         self.peaks_ = spectrum_peaks(spectra, self.spectrum_range)
-        self.config = TuneConfig(firmware=self.spec_.firmware, shaper_x="none", shaper_y="none")
-        self._config_obs = encode_config(self.config, self.spec_, self.peaks_)
-        self._metrics_obs = np.zeros(6, np.float32)
+        self.observe_start()
         return self._obs()
 
     def decode(self, action) -> TuneConfig:
-        """:func:`decode_action` with this env's spec and the current printer's peaks."""
-        return decode_action(action, self.spec_, self.peaks_)
+        """:func:`decode_action` with this env's spec, the current printer's peaks and acceleration anchor."""
+        return decode_action(action, self.spec_, self.peaks_, self.accel_anchor_)
 
     def encode(self, config: TuneConfig) -> np.ndarray:
-        """:func:`encode_config` with this env's spec and the current printer's peaks."""
-        return encode_config(config, self.spec_, self.peaks_)
+        """:func:`encode_config` with this env's spec, the current printer's peaks and acceleration anchor."""
+        return encode_config(config, self.spec_, self.peaks_, self.accel_anchor_)
 
     def _metrics_vector(self, m: Metrics) -> np.ndarray:
         def sq(v, s):
@@ -473,12 +520,17 @@ class TuneEnv(gym.Env):
             sq(m.ringing_mm, METRIC_SCALES["ringing_mm"]),
             sq(m.peak_accel, self.printer.limits.accel),
             float(m.step_loss),
+            sq(m.motor_load, 1.0),
         ], dtype=np.float32)
 
     def _obs(self) -> np.ndarray:
         parts = [self._spectra, self._config_obs, self._metrics_obs]
         if self._n_peak_obs:
             parts.append(peak_features(self.peaks_, self.spectrum_range))
+        if self._n_accel_obs:
+            lo, hi = self.spec_.accel_range
+            a = min(max(self.accel_anchor_, lo), hi)
+            parts.append(np.array([2.0 * math.log(a / lo) / math.log(hi / lo) - 1.0], np.float32))
         return np.concatenate(parts).astype(np.float32)
 
     def reward(self, m: Metrics) -> float:
@@ -518,15 +570,40 @@ class TuneEnv(gym.Env):
         self._baseline = planned_job(self.printer, self.job, None).print_time
         self._spectra = self._spectrum()
         options = options or {}
-        start = options.get("config") or TuneConfig(firmware=self.spec_.firmware, shaper_x="none",
-                                                    shaper_y="none")
+        start = options.get("config")
         if isinstance(start, dict):
             start = TuneConfig.from_dict(start, "options['config']")
-        self.config = start
-        self._config_obs = self.encode(start)
-        self._metrics_obs = (self._metrics_vector(self.evaluate(start)) if self.observe_metrics
-                             else np.zeros(6, np.float32))
+        self.observe_start(config=start)
         return self._obs(), self._info()
+
+    def observe_start(self, peaks=None, config: TuneConfig | None = None) -> None:
+        """Make the starting configuration current (``config``, else ``start_action`` decoded on
+        the peaks, else shaping off; ``peaks`` (X, Y) Hz replace ``peaks_`` first). With
+        ``observe_metrics`` evaluate it on the current printer (``start_metrics_``; a configuration
+        the firmware rejects shows zeros) and, with ``accel_anchor="model"``, set the acceleration
+        anchor from those metrics."""
+        from ringtune.envs.accel_model import model_accel
+
+        if peaks is not None:
+            self.peaks_ = (float(peaks[0]), float(peaks[1]))
+        self.accel_anchor_ = self.spec_.accel_start
+        if config is None:
+            config = (self.decode(self.start_action) if self.start_action is not None
+                      else TuneConfig(firmware=self.spec_.firmware, shaper_x="none", shaper_y="none"))
+        self.config = config
+        self.start_metrics_ = None
+        self._metrics_obs = np.zeros(N_METRICS, np.float32)
+        if self.observe_metrics:
+            try:
+                self.start_metrics_ = self.evaluate(config)
+            except RingtuneError:
+                pass
+            else:
+                self._metrics_obs = self._metrics_vector(self.start_metrics_)
+                if self.spec_.accel_anchor == "model":
+                    self.accel_anchor_ = model_accel(self.printer, self.job, config, self.start_metrics_,
+                                                     self.weights, self._baseline, self.spec_.accel_range)
+        self._config_obs = self.encode(config)
 
     def step(self, action):
         config = self.decode(action)
@@ -539,7 +616,7 @@ class TuneEnv(gym.Env):
         except RingtuneError as exc:  # a configuration the firmware cannot run
             r = -self.step_loss_penalty
             info["error"] = str(exc)
-            self._metrics_obs = np.zeros(6, np.float32)
+            self._metrics_obs = np.zeros(N_METRICS, np.float32)
         self.config = config
         self._config_obs = self.encode(config)
         info["config"] = config.to_dict()
@@ -547,7 +624,7 @@ class TuneEnv(gym.Env):
 
     def _info(self) -> dict:
         return {"printer": self.printer.name, "baseline_print_time_s": self._baseline,
-                "peaks_hz": tuple(self.peaks_)}
+                "peaks_hz": tuple(self.peaks_), "accel_anchor": self.accel_anchor_}
 
     def render(self):
         if self.render_mode != "rgb_array":

@@ -34,6 +34,9 @@ sample's time minus ``lag``, the shaper's delay):
     max over all samples of the head's acceleration magnitude ``|(a_x, a_y)|``, mm/s².
 ``step_loss``
     the simulator's flag, or any sample where ``|motor_force| > motor_force_max``.
+``motor_load``
+    max over all samples and motors of ``|motor_force| / motor_force_max``: how much of the force a
+    motor has at its speed the motion asks of it (above 1 it loses steps).
 ``print_time_s``
     not computed here: the planner's print time over the whole job (s), filled in by
     :func:`ringtune.envs.evaluate.evaluate`.
@@ -66,6 +69,8 @@ class Metrics:
         ringing_mm: worst RMS oscillation across a straight wall after a direction change, mm.
         peak_accel: largest head acceleration magnitude, mm/s².
         step_loss: whether a motor was asked for more force than it has at that speed.
+        motor_load: largest fraction of the force a motor has at its speed that it was asked for
+            (``max |force| / max_force(speed)``; 1 is the edge of step loss; 0 if not simulated).
         details: diagnostics (per-window values, where the worst error occurred); not part of
             the stable ``to_dict()`` keys unless asked for.
     """
@@ -76,6 +81,7 @@ class Metrics:
     ringing_mm: float = 0.0
     peak_accel: float = 0.0
     step_loss: bool = False
+    motor_load: float = 0.0
     details: dict[str, Any] = field(default_factory=dict)
 
     QUALITY_KEYS = ("path_error_mm", "overshoot_mm", "ringing_mm")
@@ -83,14 +89,16 @@ class Metrics:
     def to_dict(self, details: bool = False) -> dict[str, Any]:
         d = {"print_time_s": float(self.print_time_s), "path_error_mm": float(self.path_error_mm),
              "overshoot_mm": float(self.overshoot_mm), "ringing_mm": float(self.ringing_mm),
-             "peak_accel": float(self.peak_accel), "step_loss": bool(self.step_loss)}
+             "peak_accel": float(self.peak_accel), "step_loss": bool(self.step_loss),
+             "motor_load": float(self.motor_load)}
         if details:
             d["details"] = self.details
         return d
 
     @staticmethod
     def worst(parts: Iterable["Metrics"], print_time_s: float = float("nan")) -> "Metrics":
-        """Combine per-window metrics: max of each quality figure and of peak_accel, any step loss."""
+        """Combine per-window metrics: max of each quality figure, of peak_accel and of motor_load,
+        any step loss."""
         parts = list(parts)
         if not parts:
             return Metrics(print_time_s=print_time_s)
@@ -101,6 +109,7 @@ class Metrics:
             ringing_mm=max(p.ringing_mm for p in parts),
             peak_accel=max(p.peak_accel for p in parts),
             step_loss=any(p.step_loss for p in parts),
+            motor_load=max(p.motor_load for p in parts),
             details={"windows": [p.to_dict(details=True) for p in parts]},
         )
 
@@ -169,11 +178,12 @@ def _nearest_on_segments(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.nd
 # -- the metrics -----------------------------------------------------------------------------------
 def worst_case(results: Iterable[Metrics]) -> Metrics:
     """One :class:`Metrics` for a configuration judged on several variants of a printer: the
-    first's print time (the planner does not see resonances), the largest of every quality metric
-    and of ``peak_accel``, and step loss if any variant lost steps."""
+    first's print time (the planner does not see resonances), the largest of every quality metric,
+    of ``peak_accel`` and of ``motor_load``, and step loss if any variant lost steps."""
     results = list(results)
     worst = Metrics(print_time_s=results[0].print_time_s,
-                    **{k: max(getattr(m, k) for m in results) for k in (*Metrics.QUALITY_KEYS, "peak_accel")},
+                    **{k: max(getattr(m, k) for m in results)
+                       for k in (*Metrics.QUALITY_KEYS, "peak_accel", "motor_load")},
                     step_loss=any(m.step_loss for m in results))
     worst.details = {"variants": [m.to_dict() for m in results]}
     return worst
@@ -207,8 +217,10 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
     step_loss = bool(getattr(sim, "step_loss", False))
     force = getattr(sim, "motor_force", None)
     fmax = getattr(sim, "motor_force_max", None)
+    motor_load = 0.0
     if force is not None and fmax is not None and np.size(force):
         step_loss = step_loss or bool(np.any(np.abs(np.asarray(force)) > np.asarray(fmax)))
+        motor_load = float(np.max(np.abs(np.asarray(force)) / np.maximum(np.asarray(fmax), 1e-12)))
 
     tu = t - lag  # sample times on the unshaped clock
     inside = (tu >= path.t[0]) & (tu <= path.t[-1])
@@ -223,7 +235,7 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
                            anticipate + lag, details)
     ringing = _ringing(tu, pts, legs, corner_angle_deg, settle - lag, anticipate + lag, min_wall,
                        details)
-    return Metrics(print_time_s, path_error, overshoot, ringing, peak_accel, step_loss, details)
+    return Metrics(print_time_s, path_error, overshoot, ringing, peak_accel, step_loss, motor_load, details)
 
 
 def _nearest(tu, pts, legs: Legs, window: float):

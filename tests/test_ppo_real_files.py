@@ -2,8 +2,9 @@
 answers, on every real Klipper resonance file the recommendation is within the firmware's ranges.
 
 The policy's action is the whole box [-1, 1]^n; a stub policy answers its corners, centre and random
-points, and the real recommendation path (`recommend_from_psd`: file -> PSD -> observation ->
-peak-anchored decoding) turns each into a TuneConfig. "Within the firmware's ranges" is judged by
+points, and the real recommendation path (`recommend_from_psd`: file -> PSD -> model fitted to it ->
+observation with the starting answer's simulated metrics -> peak-anchored decoding) turns each into
+a TuneConfig. "Within the firmware's ranges" is judged by
 `hardware.dialects.export_config`, whose Klipper ranges follow firmware.md §1.5 (shaper_freq > 0,
 damping ≤ the shaper's maximum, a shaper Klipper has), plus Klipper's own calibration range for F.
 The table beside Klipper's rule with a trained policy is printed by
@@ -19,6 +20,7 @@ pytest.importorskip("stable_baselines3")
 
 from ringtune.agents import ppo  # noqa: E402
 from ringtune.agents.commands.recommend import _load_accel  # noqa: E402
+from ringtune.agents import ppo_recommend  # noqa: E402
 from ringtune.agents.ppo_recommend import _axis_spectra  # noqa: E402
 
 
@@ -26,7 +28,7 @@ class _StubPolicy(ppo.Policy):
     """A 'policy' that answers a fixed action (no pickles, no training)."""
 
     def __init__(self, action=None):
-        super().__init__(model=None, vecnorm=None, meta={"env_kwargs": dict(ppo.DEFAULT_ENV_KWARGS)}, path=".")
+        super().__init__(model=None, vecnorm=None, meta={"env_kwargs": ppo.resolve_env_kwargs()}, path=".")
         self.action = action
 
     def act(self, obs):
@@ -51,8 +53,11 @@ def test_every_policy_answer_on_every_real_file_is_within_klippers_ranges(data_d
     for folder in folders:
         psds, _ = _load_accel(sorted(str(f) for f in folder.glob("resonances_*.csv")), None)
         spectra = _axis_spectra(psds)
+        env, obs = ppo_recommend.measured_observation(_StubPolicy(), spectra)
+        assert np.all(np.isfinite(obs)) and np.all(np.abs(obs) <= 1.0)
+        assert env.start_metrics_ is not None          # the starting answer simulated on the fitted model
         for action in _actions(n):
-            cfg = ppo.recommend_from_psd(_StubPolicy(action), spectra)
+            cfg = ppo_recommend.decode_measured(env, action, spectra)
             cfg.validate()
             text = export_config(cfg).render()            # raises on anything outside Klipper's ranges
             assert "SET_INPUT_SHAPER" in text

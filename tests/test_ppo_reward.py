@@ -14,7 +14,7 @@ from ringtune.envs.env import TuneEnv
 
 from test_ppo_train import SQUARE_JOB
 
-KW = {**ppo.DEFAULT_ENV_KWARGS, "job": SQUARE_JOB}
+KW = ppo.resolve_env_kwargs({"job": SQUARE_JOB})
 
 
 def _wrapped(repeats=2):
@@ -67,3 +67,24 @@ def test_sb3_checker_passes_on_the_wrapped_training_env():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_env(_wrapped(), warn=True)
+
+
+def test_training_env_observes_the_prior_and_its_evaluation_is_the_reference():
+    """The training env starts from PRIOR and observes its metrics; the wrapper takes the reference
+    reward from that reset evaluation (one evaluation per printer, not two), and it is the same
+    number an independent evaluation of the prior gives."""
+    assert KW["observe_metrics"] and np.array_equal(np.float32(KW["start_action"]), ppo.prior_action(KW))
+    env = _wrapped(repeats=2)
+    base = env.unwrapped
+    calls = []
+    plain = base.evaluate
+    base.evaluate = lambda c: calls.append(c) or plain(c)
+    obs, info = env.reset(seed=21)
+    assert len(calls) == 1 and calls[0] == base.decode(ppo.prior_action(KW))
+    # the observation's metrics part is the prior's metrics on this printer, not zeros
+    n = base.spec_.size
+    metrics_part = obs[2 * base.n_bins + n: 2 * base.n_bins + n + 6]
+    assert np.allclose(metrics_part, base._metrics_vector(base.start_metrics_)) and metrics_part[1:4].max() > 0
+    fresh = TuneEnv(printer=base.printer, **{**KW, "observe_metrics": False})
+    fresh.reset(seed=0)
+    assert info["reference_cost"] == pytest.approx(-fresh.reward(fresh.evaluate(calls[0])), rel=1e-9)

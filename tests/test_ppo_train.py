@@ -11,7 +11,7 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from ringtune.agents import ppo  # noqa: E402
+from ringtune.agents import ppo, ppo_recommend  # noqa: E402
 from ringtune.envs.env import TuneEnv  # noqa: E402
 from ringtune.shaping.config import TuneConfig  # noqa: E402
 from ringtune.shaping.errors import RingtuneError  # noqa: E402
@@ -22,7 +22,7 @@ SQUARE_JOB = "G21\nG90\nM83\nG1 X20 Y20 F12000\n" + "".join(
 
 
 def _training_env():
-    return TuneEnv(randomize=True, **ppo.DEFAULT_ENV_KWARGS)
+    return TuneEnv(randomize=True, **ppo.resolve_env_kwargs())
 
 
 @pytest.mark.slow
@@ -44,7 +44,7 @@ def test_held_out_seeds_are_disjoint_from_training_and_benchmark():
 
 
 def test_pinned_eval_env_shows_the_same_printer_every_reset():
-    env = ppo._pinned_env(ppo.EVAL_SEEDS[0], {**ppo.DEFAULT_ENV_KWARGS, "job": SQUARE_JOB})
+    env = ppo._pinned_env(ppo.EVAL_SEEDS[0], ppo.resolve_env_kwargs({"job": SQUARE_JOB}))
     o1, _ = env.reset()
     p1 = env.unwrapped.printer.to_dict()
     o2, _ = env.reset(seed=123)
@@ -79,7 +79,7 @@ def test_subprocess_training_writes_policy_resumes_and_recommends(tmp_path):
     assert len(res2.train_timesteps) > len(res.train_timesteps)     # the curve continues
 
     policy = ppo.load_policy(out)
-    config, action = ppo.recommend_for_printer(policy, None, seed=0)
+    config, action = ppo_recommend.recommend_for_printer(policy, None, seed=0)
     assert isinstance(config, TuneConfig) and action.shape == (8,) and np.all(np.abs(action) <= 1)
     config.validate()
     assert 15 <= config.freq_x <= 150 and 15 <= config.freq_y <= 150 and 1000 <= config.accel <= 10000
@@ -116,7 +116,7 @@ def _check_recommend_cli(policy_dir):
     from ringtune.agents.ppo_refine import PrinterCost
 
     policy = ppo.load_policy(policy_dir)
-    one_shot, _ = ppo.recommend_for_printer(policy, None, seed=0)
+    one_shot, _ = ppo_recommend.recommend_for_printer(policy, None, seed=0)
     cost = PrinterCost(None, policy.env_kwargs, seed=0).of_config(one_shot)
     assert d["refine"]["first_cost"] == pytest.approx(cost, rel=1e-6)
 

@@ -35,8 +35,11 @@ measurement gets shaping off ("none") in the written config.
 
 --method policy --policy DIR uses a PPO policy trained by `ringtune train -o DIR`: one inference,
 well under a second. Policy folders hold pickles (stable-baselines3 zip, VecNormalize statistics):
-loading one runs code from it, so only use policies you trained or trust. With --printer,
---refine N hands the policy's answer to Optuna as the first of N trials on the printer model.
+loading one runs code from it, so only use policies you trained or trust. The policy sees the
+resonance spectra and the simulated metrics of its starting answer on a model of the printer: with
+--accel alone, modes fitted to the files and the default printer's masses, motor and limits; give
+--printer P too (e.g. from `ringtune identify` plus your [motor] and masses) to use your own model.
+--refine N hands the policy's answer to Optuna as the first of N trials on that model.
 
 example:
   ringtune recommend --accel resonances_x_20210821_152037.csv resonances_y_20210630_230110.csv \\
@@ -46,9 +49,10 @@ example:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    src = p.add_mutually_exclusive_group(required=True)
+    src = p.add_argument_group("what to recommend for (--accel, --printer, or both with --method policy)")
     src.add_argument("--accel", nargs="+", metavar="CSV", help="Klipper resonance / raw accelerometer CSV files")
-    src.add_argument("--printer", metavar="P", help="printer TOML, or 'default', for a simulated resonance test")
+    src.add_argument("--printer", metavar="P", help="printer TOML, or 'default': its simulated resonance test; "
+                     "with --accel and --method policy, the model the starting answer is simulated on")
     p.add_argument("--method", choices=("klipper", "policy"), default="klipper",
                    help="klipper: Klipper's calibrate_shaper rule (default); policy: a trained PPO policy")
     p.add_argument("--klipper-version", choices=("head", "0.13"), default="head",
@@ -71,10 +75,16 @@ def run(args: argparse.Namespace, out) -> int:
     from ringtune.shaping.config import TuneConfig
     from ringtune.shaping.errors import RingtuneError
 
+    if not args.accel and not args.printer:
+        raise RingtuneError("give --accel CSV… (a measured resonance test) or --printer P (a simulated one)",
+                            "recommend")
     if args.method == "policy":
         from ringtune.agents.ppo import recommend_command
 
         return recommend_command(args, out)
+    if args.accel and args.printer:
+        raise RingtuneError("Klipper's rule reads either --accel files or --printer's simulated test, not both",
+                            "--printer")
     if args.max_smoothing is not None and args.max_smoothing < 0.05:
         raise RingtuneError("must be ≥ 0.05 mm (as Klipper's)", "--max-smoothing")
     kw = {"max_smoothing": args.max_smoothing}
