@@ -11,7 +11,7 @@ from ringtune.agents.cli import main
 from ringtune.envs.evaluate import evaluate
 from ringtune.shaping.config import TuneConfig
 
-METRIC_KEYS = {"print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss"}
+METRIC_KEYS = {"print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss", "motor_load"}
 
 
 def run_cli(argv, capsys):

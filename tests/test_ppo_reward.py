@@ -70,21 +70,26 @@ def test_sb3_checker_passes_on_the_wrapped_training_env():
 
 
 def test_training_env_observes_the_prior_and_its_evaluation_is_the_reference():
-    """The training env starts from PRIOR and observes its metrics; the wrapper takes the reference
-    reward from that reset evaluation (one evaluation per printer, not two), and it is the same
-    number an independent evaluation of the prior gives."""
+    """The training env starts from PRIOR and observes its metrics; without a reference action the
+    wrapper takes the reference reward from that reset evaluation (one evaluation per printer, not
+    two), and it is the same number an independent evaluation of that configuration gives."""
     assert KW["observe_metrics"] and np.array_equal(np.float32(KW["start_action"]), ppo.prior_action(KW))
-    env = _wrapped(repeats=2)
+    env = ReferenceRelative(TuneEnv(randomize=True, **KW), None, 2)
     base = env.unwrapped
     calls = []
     plain = base.evaluate
     base.evaluate = lambda c: calls.append(c) or plain(c)
     obs, info = env.reset(seed=21)
-    assert len(calls) == 1 and calls[0] == base.decode(ppo.prior_action(KW))
+    assert len(calls) == 1
+    start = calls[0]      # PRIOR: MZV on the peaks, S 0.075, at the starting acceleration
+    assert (start.shaper_x, start.shaper_y, start.accel) == ("mzv", "mzv", base.spec_.accel_start)
+    assert start.freq_x == pytest.approx(info["peaks_hz"][0]) and start.damping_x == pytest.approx(0.075)
     # the observation's metrics part is the prior's metrics on this printer, not zeros
     n = base.spec_.size
-    metrics_part = obs[2 * base.n_bins + n: 2 * base.n_bins + n + 6]
+    metrics_part = obs[2 * base.n_bins + n: 2 * base.n_bins + n + 7]
     assert np.allclose(metrics_part, base._metrics_vector(base.start_metrics_)) and metrics_part[1:4].max() > 0
-    fresh = TuneEnv(printer=base.printer, **{**KW, "observe_metrics": False})
+    fresh = TuneEnv(printer=base.printer, **{**KW, "observe_metrics": False, "accel_anchor": "absolute"})
     fresh.reset(seed=0)
-    assert info["reference_cost"] == pytest.approx(-fresh.reward(fresh.evaluate(calls[0])), rel=1e-9)
+    assert info["reference_cost"] == pytest.approx(-fresh.reward(fresh.evaluate(start)), rel=1e-9)
+    env.reset()                # the same printer again: no evaluation
+    assert len(calls) == 1

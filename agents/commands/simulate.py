@@ -2,9 +2,9 @@
 
 JSON keys (stable): ``printer`` (name), ``job`` (G-code path or ``"built-in test print"``),
 ``backend``, ``config`` (TuneConfig dict), ``metrics`` {``print_time_s``, ``path_error_mm``,
-``overshoot_mm``, ``ringing_mm``, ``peak_accel``, ``step_loss``}, ``windows`` (list of {``t0``,
-``t1``, ``kind``, ``path_error_mm``, ``overshoot_mm``, ``ringing_mm``, ``peak_accel``,
-``step_loss``}), ``plots`` (list of PNG paths, empty without ``--plot``).
+``overshoot_mm``, ``ringing_mm``, ``peak_accel``, ``step_loss``, ``motor_load``}, ``windows``
+(list of {``t0``, ``t1``, ``kind``, ``path_error_mm``, ``overshoot_mm``, ``ringing_mm``,
+``peak_accel``, ``step_loss``, ``motor_load``}), ``plots`` (list of PNG paths, empty without ``--plot``).
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ the job's quality windows (sharpest corners, fastest zigzags):
   ringing_mm     worst RMS oscillation across a straight wall after a direction change
   peak_accel     largest toolhead acceleration, mm/s²
   step_loss      whether a motor was asked for more force than it has at that speed
+  motor_load     largest fraction of that force it was asked for (1 = the edge of step loss)
 
 The configuration comes from a TuneConfig JSON (--config, as written by `ringtune tune`) or from
 --shaper/--freq/--damping/--freq-limit (one value for both axes, or "X,Y"). Without any, shaping
@@ -134,7 +135,7 @@ def run(args, out) -> int:
     for w, part in zip(ev.planned.windows, m.details.get("windows", [])):
         windows.append({"t0": float(w.t0), "t1": float(w.t1), "kind": str(getattr(w, "kind", "")),
                         **{k: part[k] for k in ("path_error_mm", "overshoot_mm", "ringing_mm",
-                                                "peak_accel", "step_loss")}})
+                                                "peak_accel", "step_loss", "motor_load")}})
     plots = []
     if args.plot:
         from ringtune.envs.plots import plot_evaluation
@@ -162,6 +163,7 @@ def run(args, out) -> int:
         f"ringing      {m.ringing_mm:10.4f} mm RMS",
         f"peak accel   {m.peak_accel:10.0f} mm/s²",
         f"step loss    {'YES' if m.step_loss else 'no':>10}",
+        f"motor load   {m.motor_load * 100:>9.0f} %  of the force the motors have",
         f"({len(windows)} quality windows simulated)",
     ] + [f"plot: {p}" for p in plots]
     out.emit(result, "\n".join(lines))

@@ -1,0 +1,101 @@
+"""The acceleration anchor of the PPO policy (envs/accel_model.py) and the motor_load metric it
+reads: the premise (deviations and motor force grow in proportion to the acceleration on the linear
+printer), the rule (cost model minimised, force reserve kept) against hand-worked cases, and the
+metric against the step-loss flag and the closed-form force of tests/test_physics_steploss.py."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from ringtune.envs.accel_model import LOAD_CAP, model_accel
+from ringtune.envs.env import DEFAULT_WEIGHTS
+from ringtune.envs.evaluate import evaluate, planned_job, resolve_printer
+from ringtune.envs.metrics import Metrics
+from ringtune.shaping.config import TuneConfig
+
+MZV = TuneConfig(firmware="klipper", shaper_x="mzv", shaper_y="mzv", freq_x=45.5, freq_y=38.9,
+                 damping_x=0.075, damping_y=0.075, accel=4000.0)
+RANGE = (1000.0, 10000.0)
+GRID = np.geomspace(*RANGE, 33)
+
+
+def _baseline(printer):
+    return planned_job(printer, None, None).print_time
+
+
+@pytest.mark.parametrize("shaper", ["none", "zv", "mzv"])
+def test_metrics_scale_with_acceleration_on_the_linear_printer(shaper):
+    """The premise of the model, to first order: at twice the acceleration the weighted deviations
+    grow (1.2–3×: each move's response is proportional to its acceleration, but the planner's
+    profile changes between plans: more moves reach cruise speed) and the motor force beyond
+    friction doubles (±15 %)."""
+    p = resolve_printer(None)
+    cfg = dataclasses.replace(MZV, shaper_x=shaper, shaper_y=shaper)
+    m1, m2 = (evaluate(dataclasses.replace(cfg, accel=a), p, None, backend="lti") for a in (3000.0, 6000.0))
+
+    def q(m):
+        return sum(DEFAULT_WEIGHTS[k.removesuffix("_mm")] * getattr(m, k) for k in Metrics.QUALITY_KEYS)
+
+    assert 1.2 < q(m2) / q(m1) < 3.0
+    fric = p.motor.friction / p.motor.force
+    assert (m2.motor_load - fric) / (m1.motor_load - fric) == pytest.approx(2.0, rel=0.15)
+
+
+def test_motor_load_crosses_one_where_steps_are_lost():
+    from ringtune.envs.printer import printer_from_dict
+
+    p = printer_from_dict({**resolve_printer(None).to_dict(), "motor": {"force": 8.0}}, "weak motor")
+    loads = []
+    for a in (1000.0, 2000.0, 4000.0, 8000.0):
+        m = evaluate(dataclasses.replace(MZV, accel=a), p, None, backend="lti")
+        loads.append(m.motor_load)
+        assert m.step_loss == (m.motor_load > 1.0), (a, m.motor_load)
+    assert loads == sorted(loads) and loads[0] < 1.0 < loads[-1]
+
+
+def test_motor_load_is_the_closed_form_force_ratio():
+    """One abrupt acceleration of a single-mode axis (tests/test_physics_steploss.py's case): the
+    metric equals the analytic demanded/available force maximum."""
+    import test_physics_steploss as ps
+
+    from ringtune.envs.metrics import compute_metrics
+    from ringtune.envs.sim import simulate
+
+    a = 0.8 * ps._threshold()[0]
+    sim = simulate(ps._printer(), ps._motion(a), backend="lti")
+    m = compute_metrics(sim, ps._motion(a))
+    assert m.motor_load == pytest.approx(ps._analytic_ratio(a, ps.TT).max(), rel=0.01)
+    assert 0.6 < m.motor_load < 0.8 and not m.step_loss       # friction does not scale with a
+
+
+def test_anchor_keeps_the_force_reserve():
+    """No deviation at all: the fastest acceleration whose load, scaled from 0.5 at 4000 mm/s²,
+    stays at or under the cap (0.7 · 4000 / 0.5 = 5600 mm/s²)."""
+    p = resolve_printer(None)
+    m = Metrics(print_time_s=1.0, motor_load=0.5)
+    a = model_accel(p, None, MZV, m, DEFAULT_WEIGHTS, _baseline(p), RANGE)
+    assert a == GRID[GRID <= LOAD_CAP * 4000 / 0.5].max()
+    # no load reported (not simulated): the top of the range; overloaded already: the bottom
+    assert model_accel(p, None, MZV, Metrics(print_time_s=1.0), DEFAULT_WEIGHTS, _baseline(p), RANGE) == RANGE[1]
+    assert model_accel(p, None, MZV, Metrics(print_time_s=1.0, motor_load=5.0), DEFAULT_WEIGHTS,
+                       _baseline(p), RANGE) == pytest.approx(RANGE[0])
+
+
+def test_anchor_balances_print_time_against_scaled_deviations():
+    """With ringing r mm at 4000 mm/s², the anchor minimises T(a)/T0 + 20·r·a/4000 over the grid:
+    brute force over the planner's own print times agrees, and more ringing means a lower anchor."""
+    p = resolve_printer(None)
+    t0 = _baseline(p)
+    times = np.array([planned_job(p, None, dataclasses.replace(MZV, accel=float(a))).print_time for a in GRID])
+    found = []
+    for r in (0.001, 0.005, 0.02):
+        m = Metrics(print_time_s=1.0, ringing_mm=r, motor_load=0.1)
+        a = model_accel(p, None, MZV, m, DEFAULT_WEIGHTS, t0, RANGE)
+        cost = times / t0 + 20.0 * r * GRID / 4000.0
+        cost[GRID > LOAD_CAP * 4000 / 0.1] = np.inf
+        assert a == GRID[np.argmin(cost)]
+        found.append(a)
+    assert found[0] > found[1] > found[2]
