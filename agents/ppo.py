@@ -1,10 +1,12 @@
 """PPO (stable-baselines3) on the domain-randomised tuning environment: train, load, recommend.
 
 The policy maps what an accelerometer sees (the resonance-test spectra of X and Y, binned as
-``ringtune/Tune-v0`` bins them) to a whole configuration in one step: shaper type, F and S per
-axis, the infill frequency limit and the acceleration. Episodes are one step long (a contextual
-bandit), so the reward is the configuration's cost on that printer, negated (see
-:class:`ringtune.envs.env.TuneEnv`).
+``ringtune/Tune-v0`` bins them), together with one simulation of its starting answer (:data:`PRIOR`)
+on the printer's model, to a whole configuration in one step: shaper type, F and S per axis, the
+infill frequency limit and the acceleration. F is a residual around each axis's resonance peak,
+the acceleration a residual around the acceleration that simulation suggests
+(:mod:`ringtune.envs.accel_model`). Episodes are one step long (a contextual bandit), so the
+reward is the configuration's cost on that printer, negated (see :class:`ringtune.envs.env.TuneEnv`).
 
 Output folder of :func:`train` (``-o DIR``):
 
@@ -281,7 +283,9 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
 
 
 #: where the untrained policy's mean answer starts: MZV on the resonance peak (50 Hz with an
-#: absolute action), damping 0.075, no frequency limit, 4000 mm/s². The best constant answer on
+#: absolute action), damping 0.075, no frequency limit, 4000 mm/s² (with the model-anchored
+#: acceleration: 4000 is the starting configuration the env simulates, and the untrained policy
+#: answers the anchor that simulation gives). The best constant answer on
 #: training printers: of MZV/ZVD/EI × 3000–6000 mm/s² × damping 0.05–0.1 on seeds 1000–1029, MZV
 #: with damping 0.05–0.075 at 4000–6000 mm/s² (mean cost 1.11–1.13; EI 1.19); of MZV at
 #: 3000–5000 mm/s² on seeds 1030–1129, 4000 (1.264; 5000: 1.273, where more printers lose steps).
