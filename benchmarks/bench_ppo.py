@@ -150,12 +150,15 @@ def real_table(policy_dir: str, data: Path) -> None:
     from ringtune.agents import klipper_rule as kr
     from ringtune.agents.commands.recommend import _load_accel
     from ringtune.agents.ppo import load_policy
-    from ringtune.agents.ppo_recommend import _axis_spectra, recommend_from_psd
+    from ringtune.agents.ppo_recommend import _axis_spectra, preload, recommend_from_psd
     from ringtune.shaping.config import TuneConfig
     from ringtune.shaping.shapers import get_shaper
 
     policy = load_policy(policy_dir)
+    preload()
     print(f"\nreal Klipper resonance files ({data}): policy vs Klipper's rule (HEAD)")
+    print("(the policy's starting answer is simulated on modes fitted to each file with the default printer's "
+          "masses, motor and limits; Klipper's accel is its max_accel suggestion)")
     print(f"{'printer':<28}{'ax':<4}{'policy':<26}{'klipper':<22}{'accel policy/klipper':>22}  ranges")
     for folder in sorted(p for p in data.iterdir() if p.is_dir()):
         files = sorted(str(f) for f in folder.glob("resonances_*.csv"))
