@@ -404,7 +404,12 @@ def load_policy(policy_dir: str | Path, which: str = "policy") -> Policy:
     vecnorm.training = False
     vecnorm.norm_reward = False
     meta = json.loads((d / "meta.json").read_text())
-    return Policy(model, vecnorm, meta, d)
+    policy = Policy(model, vecnorm, meta, d)
+    want = policy.make_env().observation_space.shape
+    if tuple(model.observation_space.shape) != tuple(want):
+        raise RingtuneError(f"this policy observes {model.observation_space.shape[0]} values but this version of "
+                            f"ringtune shows {want[0]} (an older observation layout); train it again", str(d))
+    return policy
 
 
 #: the env's own spectrum features, applied to measured PSDs (one function, so they cannot drift)

@@ -79,6 +79,15 @@ def test_subprocess_training_writes_policy_resumes_and_recommends(tmp_path):
     assert len(res2.train_timesteps) > len(res.train_timesteps)     # the curve continues
 
     policy = ppo.load_policy(out)
+    # a policy whose observation layout differs from this version's env is refused in one clear error
+    import shutil
+
+    old = tmp_path / "old"
+    shutil.copytree(out, old)
+    meta["env_kwargs"]["accel_anchor"] = "absolute"           # one observation entry fewer
+    (old / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(RingtuneError, match="older observation layout"):
+        ppo.load_policy(old)
     config, action = ppo_recommend.recommend_for_printer(policy, None, seed=0)
     assert isinstance(config, TuneConfig) and action.shape == (8,) and np.all(np.abs(action) <= 1)
     config.validate()
