@@ -14,6 +14,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from ringtune.envs.accel_model import model_accel
 from ringtune.envs.evaluate import evaluate, planned_job, resolve_printer
 from ringtune.envs.metrics import Metrics
 from ringtune.shaping.config import TuneConfig
@@ -582,8 +583,6 @@ class TuneEnv(gym.Env):
         ``observe_metrics`` evaluate it on the current printer (``start_metrics_``; a configuration
         the firmware rejects shows zeros) and, with ``accel_anchor="model"``, set the acceleration
         anchor from those metrics."""
-        from ringtune.envs.accel_model import model_accel
-
         if peaks is not None:
             self.peaks_ = (float(peaks[0]), float(peaks[1]))
         self.accel_anchor_ = self.spec_.accel_start
