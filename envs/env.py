@@ -83,6 +83,22 @@ def _unit(u: float) -> float:
     return (min(max(float(u), -1.0), 1.0) + 1.0) / 2.0
 
 
+def _log_position(x, lo: float, hi: float):
+    """Where ``x`` sits on a log scale from ``lo`` (−1) to ``hi`` (+1); numbers or arrays."""
+    return 2.0 * np.log(np.asarray(x, float) / lo) / math.log(hi / lo) - 1.0
+
+
+def _around(anchor: float, span: float, u: float, lo: float, hi: float) -> float:
+    """``anchor·span^v`` with ``v = 2u − 1`` (``u`` in [0, 1]), clipped to [lo, hi]: a residual
+    around a physical anchor, from ``anchor/span`` to ``anchor·span``."""
+    return min(max(anchor * span ** (2.0 * u - 1.0), lo), hi)
+
+
+def _unit_around(x: float, anchor: float, span: float) -> float:
+    """The ``u`` for which :func:`_around` gives ``x`` (before clipping)."""
+    return (math.log(x / anchor) / math.log(span) + 1.0) / 2.0
+
+
 def _anchors(spec: ActionSpec, peaks) -> tuple[float, float] | None:
     """(X, Y) anchor frequencies in Hz for ``spec`` (None for absolute decoding); a shared
     setting anchors both axes at the geometric mean of the peaks."""
@@ -129,8 +145,7 @@ def decode_action(action, spec: ActionSpec, peaks=None, accel_anchor: float | No
         if anchors is None:
             freq = f_lo * (f_hi / f_lo) ** _unit(a[i + 1])
         else:
-            v = 2.0 * _unit(a[i + 1]) - 1.0
-            freq = min(max(anchors[axis] * spec.anchor_span ** v, f_lo), f_hi)
+            freq = _around(anchors[axis], spec.anchor_span, _unit(a[i + 1]), f_lo, f_hi)
         s_lo, s_hi = spec.damping_range
         damping = s_lo + _unit(a[i + 2]) * (s_hi - s_lo)
         if name != "none":
@@ -149,8 +164,7 @@ def decode_action(action, spec: ActionSpec, peaks=None, accel_anchor: float | No
     if spec.tune_accel:
         lo, hi = spec.accel_range
         if spec.accel_anchor == "model":
-            anchor = float(accel_anchor or spec.accel_start)
-            accel = min(max(anchor * spec.anchor_span ** (2.0 * _unit(a[j + 1]) - 1.0), lo), hi)
+            accel = _around(float(accel_anchor or spec.accel_start), spec.anchor_span, _unit(a[j + 1]), lo, hi)
         else:
             accel = lo * (hi / lo) ** _unit(a[j + 1])
     return TuneConfig(firmware=spec.firmware, shaper_x=x[0], freq_x=x[1], damping_x=x[2],
@@ -175,7 +189,7 @@ def encode_config(config: TuneConfig, spec: ActionSpec, peaks=None, accel_anchor
         if anchors is None:
             uf = math.log(f / f_lo) / math.log(f_hi / f_lo)
         else:
-            uf = (math.log(f / anchors[i]) / math.log(spec.anchor_span) + 1.0) / 2.0
+            uf = _unit_around(f, anchors[i], spec.anchor_span)
         return [back((k + 0.5) / len(spec.shapers)), back(uf), back((damping - s_lo) / (s_hi - s_lo))]
 
     out = triple("x", 0) + (triple("y", 1) if spec.per_axis else [])
@@ -190,8 +204,7 @@ def encode_config(config: TuneConfig, spec: ActionSpec, peaks=None, accel_anchor
         lo, hi = spec.accel_range
         acc = min(max(config.accel or lo, lo), hi)
         if spec.accel_anchor == "model":
-            anchor = float(accel_anchor or spec.accel_start)
-            out.append(back((math.log(acc / anchor) / math.log(spec.anchor_span) + 1.0) / 2.0))
+            out.append(back(_unit_around(acc, float(accel_anchor or spec.accel_start), spec.anchor_span)))
         else:
             out.append(back(math.log(acc / lo) / math.log(hi / lo)))
     return np.asarray(out, dtype=np.float32)
@@ -310,8 +323,7 @@ def _refine_peak(f: np.ndarray, p: np.ndarray, k: int) -> float:
 def peak_features(peaks, spectrum_range: tuple[float, float] = (10.0, 160.0)) -> np.ndarray:
     """The observation's peak part: ``2·ln(f/lo)/ln(hi/lo) − 1`` per axis (X, Y), float32 in [-1, 1]."""
     lo, hi = spectrum_range
-    f = np.clip(np.asarray(peaks, float), lo, hi)
-    return (2.0 * np.log(f / lo) / math.log(hi / lo) - 1.0).astype(np.float32)
+    return _log_position(np.clip(np.asarray(peaks, float), lo, hi), lo, hi).astype(np.float32)
 
 
 class TuneEnv(gym.Env):
@@ -530,8 +542,7 @@ class TuneEnv(gym.Env):
             parts.append(peak_features(self.peaks_, self.spectrum_range))
         if self._n_accel_obs:
             lo, hi = self.spec_.accel_range
-            a = min(max(self.accel_anchor_, lo), hi)
-            parts.append(np.array([2.0 * math.log(a / lo) / math.log(hi / lo) - 1.0], np.float32))
+            parts.append(_log_position([min(max(self.accel_anchor_, lo), hi)], lo, hi).astype(np.float32))
         return np.concatenate(parts).astype(np.float32)
 
     def reward(self, m: Metrics) -> float:
