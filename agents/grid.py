@@ -2,7 +2,7 @@
 
 Every grid point is evaluated with the same evaluator as the study (``envs.evaluate.evaluate_many``
 by default, batched so that one ``simulate_batch`` call covers many configurations), and the
-results are :class:`~ringtune.agents.study.Point` objects, so the same ``pareto_front`` /
+results are :class:`~ringtune.agents.tune_study.Point` objects, so the same ``pareto_front`` /
 ``choose`` / ``scalar_objective`` apply to both.
 """
 
@@ -12,7 +12,7 @@ from typing import Any, Callable, Sequence
 
 from ringtune.agents.space import SearchSpace, config_from_params, grid_params
 from ringtune.agents.pareto import DEFAULT_MAX_PATH_ERROR_MM, Point, point_from_metrics
-from ringtune.agents.study import DEFAULT_EVALUATOR, resolve_evaluator
+from ringtune.agents.tune_study import DEFAULT_EVALUATOR, resolve_evaluator
 
 
 def run_grid(space: SearchSpace, *, printer: Any = None, job: Any = None, quality: str = "overshoot_mm",

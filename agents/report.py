@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
-from ringtune.agents.study import Point
+from ringtune.agents.pareto import Point
 
 QUALITY_LABEL = {"overshoot_mm": "overshoot", "path_error_mm": "path error"}
 

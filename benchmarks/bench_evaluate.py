@@ -51,7 +51,7 @@ def main() -> None:
         ev.evaluate_many([cfg], printer, None, nthread=1, freq_margin=margin)
         return time.perf_counter() - t0
 
-    from ringtune.agents.study import DEFAULT_FREQ_MARGIN
+    from ringtune.agents.tune_study import DEFAULT_FREQ_MARGIN
 
     one(config(), DEFAULT_FREQ_MARGIN)   # builds the detuned twins' models
     warm = [one(config()) for _ in range(15)]
@@ -76,7 +76,7 @@ def main() -> None:
     import mujoco
     from mujoco import rollout
 
-    from ringtune.envs.model import INTEGRATOR, TIMESTEP, build_model
+    from ringtune.envs.mujoco_model import INTEGRATOR, TIMESTEP, build_model
 
     model = build_model(printer, TIMESTEP, INTEGRATOR)
     nsteps = [int(np.ceil(m.duration / TIMESTEP)) for m in motions]

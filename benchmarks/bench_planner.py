@@ -19,7 +19,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 TARGET = 100_000
-FILE = Path(__file__).resolve().parents[2] / "shared/data/gcode/ianalexis_ender3_marlin/ringing_tower.gcode"
+FILE = Path(__file__).resolve().parents[1] / "tests/data/gcode/ianalexis_ender3_marlin/ringing_tower.gcode"
 
 
 def best_of(fn, repeat=5):

@@ -202,7 +202,7 @@ def main(argv=None) -> int:
     ap.add_argument("--baselines-only", action="store_true", help="only optuna200, klipper, none (into --cache)")
     ap.add_argument("--cache", type=Path, help="JSON cache of the policy-independent baselines")
     a = ap.parse_args(argv)
-    data = Path(__file__).resolve().parents[2] / "shared" / "data" / "accel" / "klipper_psd"
+    data = Path(__file__).resolve().parents[1] / "tests" / "data" / "accel" / "klipper_psd"
     if not a.real_only:
         simulated_table(None if a.baselines_only else a.policy, a.printers, a.workers, a.backend, a.refine,
                         a.optuna, a.cache)

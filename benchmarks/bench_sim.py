@@ -57,7 +57,7 @@ def main() -> None:
     import mujoco
     from mujoco import rollout
 
-    from ringtune.envs.model import TIMESTEP, build_model
+    from ringtune.envs.mujoco_model import TIMESTEP, build_model
     from ringtune.envs.printer import load_printer
     from ringtune.envs.sim import _chunks, _grid, simulate_batch
 

@@ -37,8 +37,8 @@ def main() -> int:
 
     from ringtune.agents.grid import hypervolume, run_grid
     from ringtune.agents.space import SearchSpace, default_space, grid_params
-    from ringtune.agents.study import (StudySettings, open_study, pareto_front, scalar_objective,
-                                       study_points)
+    from ringtune.agents.pareto import pareto_front, scalar_objective
+    from ringtune.agents.tune_study import StudySettings, open_study, study_points
     from ringtune.envs.printer import load_printer
 
     out = Path(tempfile.mkdtemp(prefix="bench-tune-"))
@@ -100,7 +100,7 @@ def _stored(settings) -> dict:
     """The study's own settings (so open_study accepts it)."""
     import optuna
 
-    from ringtune.agents.study import make_storage
+    from ringtune.agents.storage import make_storage
 
     st = optuna.load_study(study_name=settings.study_name, storage=make_storage(settings.storage))
     s = dict(st.user_attrs["settings"])

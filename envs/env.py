@@ -558,7 +558,7 @@ class TuneEnv(gym.Env):
     def _draw_printer(self, attempts: int = 20):
         """A random printer whose linear model can be built (a draw on which the slip model's
         solver fails numerically, ``LinAlgError``, is replaced by the next draw of the same stream)."""
-        from ringtune.envs.model import linear_system
+        from ringtune.envs.mujoco_model import linear_system
         from ringtune.envs.printer import printer_from_dict
 
         for _ in range(attempts):

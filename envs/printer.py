@@ -43,8 +43,8 @@ weak for the modes); ``false`` keeps the rigid, purely linear motor. See :mod:`r
 see :meth:`Printer.belt_stiffnesses`) and ``mismatch`` ((k_A − k_B)/mean, 0 = matched belts).
 
 The data types (:class:`Printer`, :class:`AxisModel`, :class:`Mode`, :class:`MotorModel`,
-:data:`DEFAULTS`) and their derived physics live in :mod:`ringtune.envs.printer_model` and are
-re-exported here; this module reads and validates descriptions.
+:data:`DEFAULTS`) and their derived physics live in :mod:`ringtune.envs.printer_model`;
+this module reads and validates descriptions.
 """
 
 from __future__ import annotations
@@ -56,9 +56,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ringtune.envs.printer_model import (  # noqa: F401  (re-exported: callers import them from here)
-    DEFAULTS, AxisModel, Mode, MotorModel, Printer,
-)
+from ringtune.envs.printer_model import DEFAULTS, AxisModel, Mode, MotorModel, Printer
 from ringtune.shaping.errors import RingtuneError
 
 KINEMATICS = ("cartesian", "corexy")

@@ -3,8 +3,7 @@
 Besides the fields, the types carry the physics derived from them (moving mass with the print on
 the bed, the modes actually simulated, CoreXY belt stiffnesses, the motor's force–speed curve and
 electrical cycle) and write themselves back as TOML. Reading and validating a TOML description,
-its documented form and the embedded printers are :mod:`ringtune.envs.printer`, which re-exports
-everything here.
+its documented form and the embedded printers are :mod:`ringtune.envs.printer`.
 
 Units: kg, N, N/m (= kg/s²), mm, mm/s, Hz.
 """

@@ -25,7 +25,7 @@ included), its fictitious force −m_r·a_motor a motor with gear m_r·λ/2π; `
 damping ratio of the rotor modes (back-EMF and eddy losses).
 
 Coordinates (all relative to the commanded position, so the mass matrix stays diagonal): the
-modal bodies of :func:`ringtune.envs.model.linear_system`, then one rotor per motor (cartesian:
+modal bodies of :func:`ringtune.envs.mujoco_model.linear_system`, then one rotor per motor (cartesian:
 X, Y; CoreXY: A, B in belt mm). Every mode body hangs from its axis's *motor side*
 (cartesian x → r_X; CoreXY x → (r_A + r_B)/2, y → (r_A − r_B)/2) through a spring and damper
 realised as a fixed tendon; the CoreXY primary modes are also tied by the two belts
@@ -67,7 +67,7 @@ import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
 
-#: default MuJoCo step (s), as :data:`ringtune.envs.model.TIMESTEP` (not imported: model imports us)
+#: default MuJoCo step (s), as :data:`ringtune.envs.mujoco_model.TIMESTEP` (not imported: model imports us)
 TIMESTEP = 0.0005
 #: largest ω·h of the stiffest (rotor) mode accepted at that step: RK4 is stable to 2.83; at 1.5 it
 #: damps that mode numerically by ~6 % per step (0.2 % at the Ender-3's 0.8); beyond, the slip
@@ -99,9 +99,9 @@ class Rotor:
 
 
 def slip_system(printer):
-    """The printer's linearised slip model as a :class:`~ringtune.envs.model.LinearSystem` (rotors
+    """The printer's linearised slip model as a :class:`~ringtune.envs.mujoco_model.LinearSystem` (rotors
     included, springs solved so the described frequencies and shares hold exactly)."""
-    from ringtune.envs.model import LinearSystem
+    from ringtune.envs.mujoco_model import LinearSystem
 
     mo = printer.motor
     names, axis, mass, share, zeta, omega = [], [], [], [], [], []

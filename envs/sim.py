@@ -1,6 +1,6 @@
 """Simulate a printer following a commanded (planned, shaped) motion.
 
-``simulate(printer, motion)`` drives the MuJoCo model of :mod:`ringtune.envs.model` with the motion's
+``simulate(printer, motion)`` drives the MuJoCo model of :mod:`ringtune.envs.mujoco_model` with the motion's
 x/y acceleration through ``mujoco.rollout`` (one C++ call, no Python loop per step) and returns a
 :class:`SimResult`; ``backend="lti"`` gives the exact linear answer from :mod:`ringtune.envs.lti`.
 ``simulate_batch`` runs many motions (and printers) in one threaded rollout.
@@ -31,8 +31,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ringtune.envs.model import INTEGRATOR, TIMESTEP, LinearSystem, build_model, linear_system
-from ringtune.envs.printer import Printer, load_printer
+from ringtune.envs.mujoco_model import INTEGRATOR, TIMESTEP, LinearSystem, build_model, linear_system
+from ringtune.envs.printer import load_printer
+from ringtune.envs.printer_model import Printer
 from ringtune.shaping.errors import RingtuneError
 
 BACKENDS = ("mujoco", "lti")

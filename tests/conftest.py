@@ -1,4 +1,8 @@
-"""Shared fixtures: where the real data lives (``shared/`` beside the repository)."""
+"""Shared fixtures: where the real data lives.
+
+The real files the tests use (accelerometer data, G-code, Klipper configurations) are copied into
+``tests/data/`` with their ``SOURCES.md`` files, so a bare clone runs every test.
+"""
 
 from __future__ import annotations
 
@@ -6,17 +10,13 @@ from pathlib import Path
 
 import pytest
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
+DATA = Path(__file__).resolve().parent / "data"
 
 
 @pytest.fixture(scope="session")
-def shared_dir() -> Path:
-    """``shared/`` beside the checkout (real accelerometer data, G-code, seeds)."""
-    if not (SHARED / "data").is_dir():
-        pytest.skip(f"real data folder {SHARED / 'data'} is not present beside the checkout")
-    return SHARED
+def data_dir() -> Path:
+    """``tests/data/``: real accelerometer data, G-code and Klipper configurations (see SOURCES.md)."""
+    return DATA
 
 
-@pytest.fixture(scope="session")
-def data_dir(shared_dir: Path) -> Path:
-    return shared_dir / "data"
+from real_klipper import real_klipper  # noqa: E402,F401  (session fixture: real Klipper + Moonraker)

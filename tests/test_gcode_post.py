@@ -49,8 +49,8 @@ def test_builtin_only_f_words_change_and_speeds_are_what_the_limit_asked(method)
     np.testing.assert_allclose(got, want, rtol=1e-3)      # F written to 0.1 mm/min
 
 
-def test_real_file_limit_is_minimal(shared_dir, tmp_path):
-    path = shared_dir / "data/gcode/bassco_ender3/ringing_tower.gcode"
+def test_real_file_limit_is_minimal(data_dir, tmp_path):
+    path = data_dir / "gcode/bassco_ender3/ringing_tower.gcode"
     src = path.read_bytes()
     out_path = tmp_path / "limited.gcode"
     code = main(["limit", str(path), "--freq-limit", "10", "-o", str(out_path)])

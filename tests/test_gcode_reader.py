@@ -147,8 +147,8 @@ def test_dwell_and_homing_stop_the_planner():
     np.testing.assert_allclose(job.start[2], [0, 0, 0, 0])           # homed X -> 0
 
 
-def test_real_files_parse(shared_dir):
-    marlin = read_gcode(shared_dir / "data/gcode/ianalexis_ender3_marlin/ringing_tower.gcode")
+def test_real_files_parse(data_dir):
+    marlin = read_gcode(data_dir / "gcode/ianalexis_ender3_marlin/ringing_tower.gcode")
     assert marlin.n_moves > 10000
     m593 = [e for e in marlin.shaper_events() if e.command == "M593"]
     assert len(m593) == 300
@@ -156,15 +156,15 @@ def test_real_files_parse(shared_dir):
     assert freqs[:3] == [0, 0, 15] or freqs[0] == 0
     assert max(freqs) == 60
     assert all(a.move <= b.move for a, b in zip(m593, m593[1:]))
-    klipper = read_gcode(shared_dir / "data/gcode/bassco_ender3/ringing_tower.gcode")
+    klipper = read_gcode(data_dir / "gcode/bassco_ender3/ringing_tower.gcode")
     assert klipper.n_moves > 10000
     assert {"START_PRINT", "END_PRINT"} <= {e.command for e in klipper.events}
     assert "outer perimeter" in klipper.features
 
 
-def test_slicer_estimates(shared_dir):
-    assert slicer_estimate(shared_dir / "data/gcode/ianalexis_ender3_marlin/ringing_tower.gcode") == 40 * 60 + 28
-    assert slicer_estimate(shared_dir / "data/gcode/bassco_ender3/ringing_tower.gcode") == 3600 + 4 * 60
+def test_slicer_estimates(data_dir):
+    assert slicer_estimate(data_dir / "gcode/ianalexis_ender3_marlin/ringing_tower.gcode") == 40 * 60 + 28
+    assert slicer_estimate(data_dir / "gcode/bassco_ender3/ringing_tower.gcode") == 3600 + 4 * 60
 
 
 def test_klipper_tuning_tower_reruns_the_command_by_height():
@@ -193,10 +193,10 @@ def test_tuning_tower_of_the_shaper_frequency_makes_shaper_events():
     assert all(job.stop_before[e.move] for e in ev)
 
 
-def test_streaming_in_chunks_gives_the_same_job(shared_dir, monkeypatch):
+def test_streaming_in_chunks_gives_the_same_job(data_dir, monkeypatch):
     import ringtune.shaping.gcode as gcode
 
-    path = shared_dir / "data/gcode/ianalexis_ender3_marlin/ringing_tower.gcode"
+    path = data_dir / "gcode/ianalexis_ender3_marlin/ringing_tower.gcode"
     whole = read_gcode(path)
     monkeypatch.setattr(gcode, "_CHUNK", 777)
     chunked = read_gcode(path)

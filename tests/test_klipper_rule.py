@@ -1,6 +1,6 @@
 """Klipper's calibrate_shaper rule (agents.klipper_rule) against the real data and Klipper's numbers.
 
-Truth used here: the picks the data owners recorded (shared/data/accel/SOURCES.md), the complete
+Truth used here: the picks the data owners recorded (tests/data/accel/SOURCES.md), the complete
 console output recorded with one of the files (bassco/klipper-configs ender3/README.md), the worked
 smoothing / max_accel table in shared/reference/firmware.md §1.6, and Klipper's bisection.
 """
@@ -20,7 +20,7 @@ from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.analysis import smoothing as shapers_smoothing
 from ringtune.shaping.shapers import get_shaper
 
-# shared/data/accel/SOURCES.md, "What Klipper recommended when the data was taken"
+# tests/data/accel/SOURCES.md, "What Klipper recommended when the data was taken"
 RECORDED = {
     "bassco_ender3/resonances_x_20210821_152037.csv": ("ei", 51.2),
     "bassco_ender3/resonances_y_20210630_230110.csv": ("mzv", 46.2),

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ringtune.envs.model import build_model, linear_system
+from ringtune.envs.mujoco_model import build_model, linear_system
 from ringtune.envs.printer import load_printer, printer_from_dict
 from ringtune.envs.sim import simulate, simulate_batch
 from ringtune.shaping.motion import Motion

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from ringtune.envs.model import build_model, linear_system
+from ringtune.envs.mujoco_model import build_model, linear_system
 from ringtune.envs.printer import load_printer, printer_from_dict
 from ringtune.envs.rotor import undamped_frequencies
 from ringtune.envs.sim import simulate, simulate_batch

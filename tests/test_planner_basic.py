@@ -134,8 +134,8 @@ def test_daa_phases_last_one_or_two_ringing_periods():
     assert p.moves.accel[0] == pytest.approx(3000)
 
 
-def test_events_get_times(shared_dir):
-    job = read_gcode(shared_dir / "data/gcode/ianalexis_ender3_marlin/ringing_tower.gcode")
+def test_events_get_times(data_dir):
+    job = read_gcode(data_dir / "gcode/ianalexis_ender3_marlin/ringing_tower.gcode")
     p = plan(job, limits_from_job(job, junction="jerk"))
     times = [e.time for e in p.events if e.command == "M593"]
     assert len(times) == 300
@@ -143,9 +143,9 @@ def test_events_get_times(shared_dir):
     assert 0 < times[0] < times[-1] < p.print_time
 
 
-def test_ianalexis_print_time_within_3_percent_of_prusaslicer(shared_dir):
+def test_ianalexis_print_time_within_3_percent_of_prusaslicer(data_dir):
     """Acceptance 4: the file's own limits (M201/M203/M204/M205, jerk 0) and classic jerk."""
-    path = shared_dir / "data/gcode/ianalexis_ender3_marlin/ringing_tower.gcode"
+    path = data_dir / "gcode/ianalexis_ender3_marlin/ringing_tower.gcode"
     job = read_gcode(path)
     p = plan(job, MachineLimits(junction="jerk", min_cruise_ratio=0))
     estimate = slicer_estimate(path)

@@ -15,9 +15,9 @@ def _plan_json(capsys, *args):
     return json.loads(capsys.readouterr().out)
 
 
-def test_plan_ianalexis_matches_prusaslicer_estimate(shared_dir, capsys):
+def test_plan_ianalexis_matches_prusaslicer_estimate(data_dir, capsys):
     """Acceptance 4: the job's own header limits, classic jerk (inferred from its M205 X/Y)."""
-    res = _plan_json(capsys, str(shared_dir / "data/gcode/ianalexis_ender3_marlin/ringing_tower.gcode"))
+    res = _plan_json(capsys, str(data_dir / "gcode/ianalexis_ender3_marlin/ringing_tower.gcode"))
     assert res["junction"] == "jerk"
     assert res["slicer_estimate_s"] == 2428
     assert abs(res["vs_slicer"]) < 0.03
@@ -26,8 +26,8 @@ def test_plan_ianalexis_matches_prusaslicer_estimate(shared_dir, capsys):
     assert sum(res["time_by_feature"].values()) <= res["print_time_s"]
 
 
-def test_plan_bassco_parses_klipper_style_commands(shared_dir, capsys):
-    res = _plan_json(capsys, str(shared_dir / "data/gcode/bassco_ender3/ringing_tower.gcode"),
+def test_plan_bassco_parses_klipper_style_commands(data_dir, capsys):
+    res = _plan_json(capsys, str(data_dir / "gcode/bassco_ender3/ringing_tower.gcode"),
                      "--junction", "scv")
     assert res["moves"] > 10000 and res["print_time_s"] > 0
     assert res["events"]["other"] > 0

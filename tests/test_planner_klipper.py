@@ -119,8 +119,8 @@ def test_print_time_equals_klippers_lookahead(mcr):
         assert plan(job, lim).print_time == pytest.approx(ref, rel=1e-9)
 
 
-def test_real_klipper_job_matches(shared_dir):
-    job = read_gcode(shared_dir / "data/gcode/bassco_ender3/ringing_tower.gcode")
+def test_real_klipper_job_matches(data_dir):
+    job = read_gcode(data_dir / "gcode/bassco_ender3/ringing_tower.gcode")
     # bassco's macro: SET_VELOCITY_LIMIT SQUARE_CORNER_VELOCITY=1 ACCEL=500 (see SOURCES.md)
     lim = MachineLimits(accel=500, velocity=1e6, junction="scv", square_corner_velocity=1,
                         min_cruise_ratio=0.5)

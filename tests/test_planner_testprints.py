@@ -59,8 +59,8 @@ def test_quality_windows_pick_corners_and_fast_zigzags():
     assert all(w.score > 50 for w in corners)
 
 
-def test_quality_windows_on_a_long_real_job(shared_dir):
-    job = read_gcode(shared_dir / "data/gcode/ianalexis_ender3_marlin/ringing_tower.gcode")
+def test_quality_windows_on_a_long_real_job(data_dir):
+    job = read_gcode(data_dir / "gcode/ianalexis_ender3_marlin/ringing_tower.gcode")
     p = plan(job, MachineLimits(junction="jd"))
     wins = quality_windows(p, max_windows=8, span=0.25)
     assert 1 <= len(wins) <= 8

@@ -114,7 +114,7 @@ def _check_recommend_cli(policy_dir):
         assert recommend.run(args, Output(json=True, stream=buf)) == 0
         return json.loads(buf.getvalue())
 
-    real = Path(__file__).resolve().parents[2] / "shared" / "data" / "accel" / "klipper_psd" / "bassco_voron_v24"
+    real = Path(__file__).resolve().parent / "data" / "accel" / "klipper_psd" / "bassco_voron_v24"
     if real.is_dir():
         d = run(["--method", "policy", "--policy", str(policy_dir), "--accel", *map(str, sorted(real.glob("*.csv")))])
         assert d["method"] == "policy" and d["refine"] is None and d["inference_s"] < 1.0

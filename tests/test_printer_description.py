@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from ringtune.envs.printer import (DEFAULTS, Mode, embedded_printers, load_printer,
-                                   printer_from_dict)
+from ringtune.envs.printer import embedded_printers, load_printer, printer_from_dict
+from ringtune.envs.printer_model import DEFAULTS, Mode
 from ringtune.shaping.errors import RingtuneError
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from ringtune.agents.cli import main
-from ringtune.agents.study import Point, choose, pareto_front
+from ringtune.agents.pareto import Point, choose, pareto_front
 from ringtune.shaping.config import TuneConfig
 
 TESTS = Path(__file__).resolve().parent
@@ -100,7 +100,7 @@ def test_max_path_error_is_a_constraint_of_the_study(tmp_path, capsys, fake_eval
     the bound; the bound can be changed when the results are read again (resume)."""
     import optuna
 
-    from ringtune.agents.study import make_storage
+    from ringtune.agents.storage import make_storage
 
     out = tmp_path / "out"
     argv = ["tune", "--json", "--out", str(out), "--trials", "25", "--evaluator", fake_evaluator,
@@ -151,7 +151,7 @@ def test_ctrl_c_on_tune_then_rerun_resumes(tmp_path, fake_evaluator):
 def _complete_in(journal: Path) -> int:
     import optuna
 
-    from ringtune.agents.study import make_storage
+    from ringtune.agents.storage import make_storage
 
     if not journal.exists():
         return 0

@@ -69,7 +69,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace, out) -> int:
-    from ringtune.agents import report, study
+    from ringtune.agents import pareto, report, storage, tune_study
     from ringtune.agents.space import default_space, params_from_config
     from ringtune.envs.evaluate import resolve_printer
     from ringtune.shaping.config import TuneConfig
@@ -82,10 +82,10 @@ def run(args: argparse.Namespace, out) -> int:
         raise RingtuneError("must be ≥ 1", "--workers")
     if args.weight is not None and not args.weight >= 0:
         raise RingtuneError("must be ≥ 0 (seconds per mm)", "--weight")
-    max_pe = study.DEFAULT_MAX_PATH_ERROR_MM if args.max_path_error is None else args.max_path_error
+    max_pe = pareto.DEFAULT_MAX_PATH_ERROR_MM if args.max_path_error is None else args.max_path_error
     if not max_pe >= 0:
         raise RingtuneError("must be ≥ 0 (mm; 0 = no bound)", "--max-path-error")
-    margin = study.DEFAULT_FREQ_MARGIN if args.freq_margin is None else args.freq_margin / 100.0
+    margin = tune_study.DEFAULT_FREQ_MARGIN if args.freq_margin is None else args.freq_margin / 100.0
     if not 0 <= margin < 0.5:
         raise RingtuneError("must be in [0, 50) per cent", "--freq-margin")
     if args.gcode and not Path(args.gcode).is_file():
@@ -95,16 +95,16 @@ def run(args: argparse.Namespace, out) -> int:
     printer = resolve_printer(args.printer)
     quality = f"{args.quality}_mm"
     space = default_space(printer, args.firmware)
-    storage = args.storage or study.default_storage(out_dir)
-    settings = study.StudySettings(
+    storage = args.storage or storage.default_storage(out_dir)
+    settings = tune_study.StudySettings(
         storage=storage, study_name=args.study, n_trials=args.trials, seed=args.seed, quality=quality,
         printer=str(Path(args.printer).resolve()) if args.printer and Path(args.printer).exists() else args.printer,
         job=str(Path(args.gcode).resolve()) if args.gcode else None, firmware=args.firmware,
-        backend=args.backend, evaluator=args.evaluator or study.DEFAULT_EVALUATOR, space=space.to_dict(),
+        backend=args.backend, evaluator=args.evaluator or tune_study.DEFAULT_EVALUATOR, space=space.to_dict(),
         max_path_error_mm=max_pe, freq_margin=margin)
-    evaluator = study.resolve_evaluator(settings.evaluator)
+    evaluator = tune_study.resolve_evaluator(settings.evaluator)
 
-    baselines: dict[str, study.Point] = {}
+    baselines: dict[str, pareto.Point] = {}
     if not args.no_baselines:
         baselines, fits = _baselines(printer, args, settings, evaluator, quality, out)
         k = baselines.get("klipper")
@@ -113,13 +113,13 @@ def run(args: argparse.Namespace, out) -> int:
 
     bar = _progress_bar(out)
     try:
-        run_ = study.run_study(settings, args.workers, printer=printer, progress=bar.update)
+        run_ = tune_study.run_study(settings, args.workers, printer=printer, progress=bar.update)
     finally:
         bar.close()
     st = run_.study
-    points = study.study_points(st, space, quality, max_pe)
-    front = study.pareto_front(points)
-    chosen = study.choose(front, args.weight)
+    points = tune_study.study_points(st, space, quality, max_pe)
+    front = pareto.pareto_front(points)
+    chosen = pareto.choose(front, args.weight)
     result = report.write_report(
         out_dir, points=points, front=front, chosen=chosen, baselines=baselines, quality=quality,
         printer_name=getattr(printer, "name", "printer"), job_name=Path(args.gcode).name if args.gcode else
@@ -184,7 +184,7 @@ def _inside(cfg, space) -> bool:
 def _baselines(printer, args, settings, evaluator, quality, out) -> dict:
     """Klipper's rule (on the printer's simulated resonance test, at its suggested max_accel) and
     no shaping (the printer's own acceleration), evaluated like every trial."""
-    from ringtune.agents import klipper_rule, study
+    from ringtune.agents import klipper_rule, tune_study
     from ringtune.agents.pareto import point_from_metrics
     from ringtune.shaping.config import TuneConfig
     from ringtune.shaping.errors import RingtuneError
@@ -199,7 +199,7 @@ def _baselines(printer, args, settings, evaluator, quality, out) -> dict:
         out.note(f"ringtune tune: Klipper's-rule baseline skipped: {exc}")
     configs["none"] = TuneConfig(firmware=args.firmware, shaper_x="none", shaper_y="none", freq_x=0.0, freq_y=0.0,
                                  accel=float(printer.limits.accel), extra={"source": "no shaping"})
-    metrics = evaluator(list(configs.values()), printer, settings.job, **study.evaluator_kwargs(settings))
+    metrics = evaluator(list(configs.values()), printer, settings.job, **tune_study.evaluator_kwargs(settings))
     points = {key: point_from_metrics(cfg, m, quality, label=key, max_path_error_mm=settings.max_path_error_mm)
               for (key, cfg), m in zip(configs.items(), metrics)}
     return points, fits

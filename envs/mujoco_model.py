@@ -50,7 +50,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ringtune.envs.printer import Printer
+from ringtune.envs.printer_model import Printer
 
 #: the model's gravity (mm/s², along −z) when it holds rotor pendulums: it drives only their
 #: sinusoidal magnetic torque (every other joint slides horizontally). Large, so that the pendulum

@@ -31,12 +31,9 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ringtune.agents.pareto import (DEFAULT_MAX_PATH_ERROR_MM, KNEE_QUALITY_SCALE, METRIC_KEYS,  # noqa: F401
-                                    Point, choose, judge_path_error, metrics_dict, pareto_front,
-                                    scalar_objective)
+from ringtune.agents.pareto import DEFAULT_MAX_PATH_ERROR_MM, Point, judge_path_error, metrics_dict
 from ringtune.agents.space import SearchSpace, config_from_params, default_space, suggest_params
-from ringtune.agents.storage import (GRACE_S, HEARTBEAT_S, _this_worker, default_storage,  # noqa: F401
-                                     make_storage, reap_dead_workers)
+from ringtune.agents.storage import _this_worker, make_storage, reap_dead_workers
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
@@ -281,12 +278,12 @@ def _call_evaluator(evaluator, settings: StudySettings, config: TuneConfig, prin
 
 
 def _worker_main(argv: list[str]) -> int:
-    """``python -m ringtune.agents.study worker INDEX`` with the settings as JSON on stdin."""
+    """``python -m ringtune.agents.tune_study worker INDEX`` with the settings as JSON on stdin."""
     import json
     import sys
 
     if len(argv) != 2 or argv[0] != "worker":
-        print("usage: python -m ringtune.agents.study worker INDEX  (settings JSON on stdin)", file=sys.stderr)
+        print("usage: python -m ringtune.agents.tune_study worker INDEX  (settings JSON on stdin)", file=sys.stderr)
         return 2
     try:
         run_worker(StudySettings(**json.loads(sys.stdin.read())), int(argv[1]))
@@ -339,7 +336,7 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
         for params in settings.enqueue:      # once, here: workers racing to enqueue would duplicate
             _enqueue_once(study, params)
         payload = json.dumps({**settings.to_dict(), "enqueue": []})
-        procs = [subprocess.Popen([sys.executable, "-m", "ringtune.agents.study", "worker", str(i)],
+        procs = [subprocess.Popen([sys.executable, "-m", "ringtune.agents.tune_study", "worker", str(i)],
                                   stdin=subprocess.PIPE, text=True) for i in range(workers)]
         for p in procs:
             p.stdin.write(payload)
