@@ -22,7 +22,10 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-KLIPPERD = REPO.parent / "shared" / "tools" / "klipper" / "klipperd"
+#: klipperd in ``shared/`` beside the checkout (or beside a folder above it, for git worktrees)
+KLIPPERD = next((d / "shared" / "tools" / "klipper" / "klipperd" for d in REPO.parents
+                 if (d / "shared" / "tools" / "klipper" / "klipperd").exists()),
+                REPO.parent / "shared" / "tools" / "klipper" / "klipperd")
 WORKDIR = REPO / ".klipper-test"
 
 
