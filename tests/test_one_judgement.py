@@ -106,3 +106,19 @@ def test_plot_titles_state_the_figures_simulate_reports(tmp_path, capsys):
     assert res["judgement"] in ringing and "shown on the printer" in ringing
     path = Image.open(plots / "path.png").text["Title"]
     assert f"largest path error, {m['path_error_mm'] * 1e3:.1f} µm" in path and res["judgement"] in path
+
+
+def test_study_says_which_judgement(tmp_path, capsys):
+    """`study` printed quality figures without saying how they were judged; it now judges as tune
+    does (±5 %) except for the freq-error sweep (exact model: the sweep itself detunes), and says so."""
+    argv = ["study", "--values", "0", "--shapers", "mzv", "--backend", "lti"]
+    assert main(argv + ["--json", "--factor", "mass", "-o", str(tmp_path / "m.png")]) == 0
+    mass = json.loads(capsys.readouterr().out)
+    assert mass["freq_margin"] == DEFAULT_FREQ_MARGIN and "±5 %" in mass["judgement"]
+    assert main(argv + ["--json", "--factor", "freq-error", "-o", str(tmp_path / "f.png")]) == 0
+    fe = json.loads(capsys.readouterr().out)
+    assert fe["freq_margin"] == 0 and "exact model" in fe["judgement"]
+    # same configuration, same printer: the judged figure is never below the exact model's
+    assert mass["shapers"]["mzv"]["quality_mm"][0] >= fe["shapers"]["mzv"]["quality_mm"][0]
+    assert main(argv + ["--factor", "mass", "-o", str(tmp_path / "m.png")]) == 0
+    assert "quality judged worst of the model and its resonances ±5 %" in capsys.readouterr().out

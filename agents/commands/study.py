@@ -5,8 +5,9 @@ Factors: ``freq-error`` (the shaper frequency off by a fraction of its tuned val
 ``accel`` (printing acceleration, mm/s²). Each shaper starts tuned as Klipper's rule tunes it on
 the printer's simulated resonance test (shapers outside Klipper's list: the axis's main mode).
 
-``--json`` keys (stable): factor, unit, values, quality, shapers {name: {freq_x, freq_y,
-print_time_s: [...], quality_mm: [...], step_loss: [...]}}, plot, csv.
+``--json`` keys (stable): factor, unit, values, quality, freq_margin (fraction), judgement (how the
+quality was judged, in words), shapers {name: {freq_x, freq_y, print_time_s: [...], quality_mm:
+[...], step_loss: [...]}}, plot, csv.
 """
 
 from __future__ import annotations
@@ -24,7 +25,10 @@ Sweep one factor and see how every shaper of the firmware responds, in print tim
   accel       printing acceleration (faster prints against more ringing and smoothing)
 
 Each shaper is tuned first (Klipper's rule on the printer's simulated resonance test) and then
-the factor is varied. Writes a PNG (two panels: print time and quality against the factor, one
+the factor is varied. Quality is judged as `ringtune tune` judges it, the worst of the model and
+of its resonances --freq-margin per cent lower and higher (default 5), except for freq-error,
+whose sweep itself moves the shaper against the resonances: that one judges the exact model unless
+--freq-margin is given. The output says which. Writes a PNG (two panels: print time and quality against the factor, one
 line per shaper) and a CSV.
 
 examples:
@@ -47,6 +51,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--shapers", metavar="S1,S2", help="shapers to compare (default: all the firmware offers)")
     p.add_argument("--quality", choices=("overshoot", "path_error"), default="overshoot")
     p.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco")
+    p.add_argument("--freq-margin", metavar="PCT", type=float, default=None,
+                   help="judge also with every resonance PCT %% lower and higher, the worst counts (default "
+                        "5 as tune, 0 for --factor freq-error)")
     p.add_argument("-o", "--output", metavar="PNG", help="plot file (default ringtune-study-<factor>.png)")
 
 
@@ -56,6 +63,8 @@ def run(args: argparse.Namespace, out) -> int:
     import numpy as np
 
     from ringtune.agents import klipper_rule
+    from ringtune.agents.commands import judgement
+    from ringtune.agents.tune_study import DEFAULT_FREQ_MARGIN
     from ringtune.envs.evaluate import evaluate_many, resolve_printer
     from ringtune.shaping.config import FIRMWARE_FLAVOR, TuneConfig
     from ringtune.shaping.errors import RingtuneError
@@ -63,6 +72,13 @@ def run(args: argparse.Namespace, out) -> int:
 
     if args.firmware not in FIRMWARE_FLAVOR:
         raise RingtuneError(f"must be one of {', '.join(FIRMWARE_FLAVOR)}", "--firmware")
+    if args.freq_margin is None:
+        margin = 0.0 if args.factor == "freq-error" else DEFAULT_FREQ_MARGIN
+    elif 0 <= args.freq_margin < 50:
+        margin = args.freq_margin / 100.0
+    else:
+        raise RingtuneError(f"must be a percentage in [0, 50), not {args.freq_margin:g}", "--freq-margin")
+    judged = judgement(margin)
     printer = resolve_printer(args.printer)
     quality = f"{args.quality}_mm"
     offered = [s for s in available_shapers(FIRMWARE_FLAVOR[args.firmware]) if s != "custom"]
@@ -106,7 +122,8 @@ def run(args: argparse.Namespace, out) -> int:
                                       freq_y=0.0 if s == "none" else round(fy, 2), accel=acc))
         if args.factor == "mass":
             pr = dataclasses.replace(printer, print_mass=float(v))
-        for s, m in zip(shapers, evaluate_many(configs, pr, args.gcode, backend=args.backend)):
+        for s, m in zip(shapers, evaluate_many(configs, pr, args.gcode, backend=args.backend,
+                                                   freq_margin=margin)):
             results[s]["print_time_s"].append(float(m.print_time_s))
             results[s]["quality_mm"].append(float(getattr(m, quality)))
             results[s]["step_loss"].append(bool(m.step_loss))
@@ -115,7 +132,7 @@ def run(args: argparse.Namespace, out) -> int:
     png = Path(args.output or f"ringtune-study-{args.factor}.png")
     csv_path = png.with_suffix(".csv")
     _plot(png, values, results, label, unit, quality, getattr(printer, "name", "printer"),
-          Path(args.gcode).name if args.gcode else "built-in test print", args.firmware)
+          Path(args.gcode).name if args.gcode else "built-in test print", args.firmware, judged)
     with open(csv_path, "w") as f:
         f.write(f"{args.factor},shaper,freq_x,freq_y,print_time_s,{quality},step_loss\n")
         for s, r in results.items():
@@ -124,7 +141,7 @@ def run(args: argparse.Namespace, out) -> int:
                         f"{r['quality_mm'][i]:.6f},{int(r['step_loss'][i])}\n")
     word = quality.replace("_mm", "").replace("_", " ")
     lines = [f"{label} ({unit}) sweep on {getattr(printer, 'name', 'printer')}, {args.firmware}; "
-             f"{word} in µm / print time in s:"]
+             f"{word} in µm / print time in s; quality judged {judged}:"]
     head = "  " + f"{'shaper':10}" + "".join(f"{v:>10g} " for v in values)
     lines.append(head)
     for s, r in results.items():
@@ -134,7 +151,7 @@ def run(args: argparse.Namespace, out) -> int:
     lines.append("  (! = lost steps)")
     lines.append(f"plot: {png}   table: {csv_path}")
     out.emit({"factor": args.factor, "unit": unit, "values": list(values), "quality": quality,
-              "shapers": results, "plot": str(png), "csv": str(csv_path)}, "\n".join(lines))
+              "freq_margin": margin, "judgement": judged, "shapers": results, "plot": str(png), "csv": str(csv_path)}, "\n".join(lines))
     return 0
 
 
@@ -165,7 +182,7 @@ def _values(args, printer) -> list[float]:
     return vals
 
 
-def _plot(path, values, results, label, unit, quality, printer_name, job_name, firmware) -> None:
+def _plot(path, values, results, label, unit, quality, printer_name, job_name, firmware, judged) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -187,7 +204,8 @@ def _plot(path, values, results, label, unit, quality, printer_name, job_name, f
     for a in (a1, a2):
         a.grid(True, alpha=0.3)
     a1.legend(fontsize=8, ncol=4)
-    a1.set_title(f"{label}: {printer_name} · {job_name} · {firmware}  (red x = lost steps)", fontsize=10)
+    a1.set_title(f"{label}: {printer_name} · {job_name} · {firmware}  (red x = lost steps)\n"
+                 f"quality judged {judged}", fontsize=10)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
