@@ -2,7 +2,11 @@
 
 JSON keys (stable): ``input``, ``output`` (path or null when printed to stdout), ``method``,
 ``freq_limit_hz``, ``min_speed_factor``, ``moves_slowed``, ``lines_changed``, ``f_words_replaced``,
-``f_words_added``, ``header`` (the comment written at the top of the output).
+``f_words_added``, ``header`` (the comment written at the top of the output), ``frequencies``
+({``commanded_hz``: {``before``, ``after``}: the highest direction-change frequency at the
+G-code's speeds F, what the limit acts on; ``planned_hz``: {``before``, ``after``}: the highest
+after planning, as ``ringtune plan`` reports it with the same printer; ``junction``,
+``junction_reason``}).
 """
 
 from __future__ import annotations
@@ -14,6 +18,12 @@ Rewrite a G-code file so that no extrusion path changes direction faster than --
 (nophead's infill frequency limit). Only the F words that must change are changed (or added where
 a slowed stretch begins and ends); every other byte stays as it was, and a comment on the first
 line records what was done.
+
+The limit acts on the commanded frequency: the G-code's own speed F over the length of three
+zigzag cycles. The printer never reaches F on short zigzags (it accelerates and slows for
+corners), so the planned frequency, what the printer does, is lower. Both are reported, before
+and after, exactly as `ringtune plan` reports them given the same --printer: a limit above the
+planned figure slows moves on paper but changes little on the printer.
 
 Methods:
   sections  slow only the high-frequency stretch of a path (default)
@@ -37,6 +47,8 @@ def add_arguments(parser) -> None:
                         help="never slow below this fraction of the requested speed "
                              "(default 0.3; marlin: the file's M201 S, else 0.05)")
     parser.add_argument("-o", "--output", metavar="OUT", help="output file (default: stdout)")
+    parser.add_argument("--printer", metavar="P", help="printer TOML or embedded name for the planned "
+                        "frequencies (default: as `ringtune plan` without --printer)")
 
 
 def run(args, out) -> int:
@@ -52,19 +64,45 @@ def run(args, out) -> int:
     if args.output is None and args.json:
         raise RingtuneError("--json needs -o OUT (stdout carries the JSON)", "--output")
     data, res = limit_file(args.file, args.output, args.freq_limit, args.method, args.min_speed_factor)
+    freqs = _frequencies(args.file, data, args.printer)
     result = {
         "input": args.file, "output": args.output, "method": args.method,
         "freq_limit_hz": args.freq_limit, "min_speed_factor": res.min_speed_factor,
         "moves_slowed": res.moves_slowed, "lines_changed": res.lines_changed,
         "f_words_replaced": res.f_words_changed, "f_words_added": res.f_words_added,
         "header": res.header,
+        "frequencies": freqs,
     }
+    c, p = freqs["commanded_hz"], freqs["planned_hz"]
+    said = (f"highest direction-change frequency (three cycles while extruding): commanded at F "
+            f"{c['before']:.1f} -> {c['after']:.1f} Hz (what the limit acts on); planned with "
+            f"{freqs['junction']} {p['before']:.1f} -> {p['after']:.1f} Hz (what the printer does)")
     if args.output is None:
         sys.stdout.buffer.write(data)
         sys.stdout.flush()
         out.note(res.header)
+        out.note(said)
         return 0
     out.emit(result, f"{args.file} -> {args.output}: {res.moves_slowed} moves slowed, "
                      f"F changed on {res.lines_changed} lines ({res.f_words_changed} replaced, "
-                     f"{res.f_words_added} added)")
+                     f"{res.f_words_added} added)\n  {said}")
     return 0
+
+
+def _frequencies(path, limited: bytes, printer=None) -> dict:
+    """Highest commanded and planned direction-change frequencies of the file and of its limited
+    text, through the same functions as ``ringtune plan``."""
+    from ringtune.agents.commands.plan import (commanded_frequencies, planned_frequencies,
+                                               planning_limits)
+    from ringtune.shaping.gcode import read_gcode
+    from ringtune.shaping.planner import plan
+
+    out = {"commanded_hz": {}, "planned_hz": {}}
+    for key, job in (("before", read_gcode(path)), ("after", read_gcode(limited, source=str(path)))):
+        limits, junction, why = planning_limits(job, path, printer)
+        top = planned_frequencies(plan(job, limits), 1)
+        cmd = commanded_frequencies(job, 1)
+        out["planned_hz"][key] = top[0]["freq_hz"] if top else 0.0
+        out["commanded_hz"][key] = cmd[0]["freq_hz"] if cmd else 0.0
+    out.update(junction=junction, junction_reason=why)
+    return out
