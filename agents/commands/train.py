@@ -3,6 +3,8 @@
 ``--json`` keys (stable):
     out_dir: the output folder
     timesteps: environment steps done in total (a resumed run counts the earlier ones)
+    timesteps_requested: --timesteps N
+    rollout_steps: steps PPO collects per update (n_steps × envs); training ends on a whole rollout
     wall_s: wall time of this run, s
     resumed_from: checkpoint resumed from, or null
     eval_timesteps, eval_mean_cost: held-out printers' mean cost at each evaluation
@@ -22,6 +24,14 @@ episode is a new random printer; the policy sees its simulated resonance-test sp
 and answers with a whole configuration (shaper type, F and S per axis, infill frequency limit,
 acceleration); the reward is minus the configuration's cost (print-time ratio plus weighted path
 error, overshoot and ringing; step loss penalised).
+
+--timesteps N trains N steps when N is a multiple of PPO's rollout (256 steps per env, so 512
+with the default 2 envs); a smaller N shortens the rollout to N (rounded up to a multiple of
+--envs); a larger one that is not a multiple ends on the next whole rollout. Either way the command
+says so before training, and the JSON has the steps done.
+
+Progress (the bar, notes) goes to standard error only: with --json, standard output holds the
+JSON object and nothing else.
 
 Runs --envs environments in subprocesses, normalises observations and rewards (VecNormalize),
 evaluates on 8 held-out printers (seeds disjoint from training) at the start and during training,
@@ -90,14 +100,22 @@ def run(args, out) -> int:
                                    budget=max(args.timesteps // 5, 256), n_envs=args.envs, seed=args.seed)
         hyper = hpo["best_params"]
         out.note(f"best hyperparameters: {hyper} (held-out cost {hpo['best_cost']:.3f})")
-    out.note(f"training PPO: {args.timesteps} steps on {args.envs} env(s) -> {args.output}")
-    res = ppo.train(args.output, args.timesteps, args.envs, args.seed, resume=args.resume, hyper=hyper,
-                    progress_bar=not args.no_progress)
+    hyper, rollout, planned = rollout_for(args.timesteps, args.envs, hyper, args.resume)
+    if planned != args.timesteps:
+        out.note(f"PPO collects whole rollouts of {rollout // args.envs} steps × {args.envs} env(s) = {rollout}: "
+                 f"--timesteps {args.timesteps} trains {planned} steps")
+    out.note(f"training PPO: {planned if planned else args.timesteps} steps on {args.envs} env(s) -> {args.output}")
+    with _stdout_to_stderr():
+        res = ppo.train(args.output, args.timesteps, args.envs, args.seed, resume=args.resume, hyper=hyper,
+                        progress_bar=not args.no_progress)
+    if args.resume and res.timesteps != args.timesteps:
+        out.note(f"trained {res.timesteps} steps in total, not {args.timesteps}: PPO ends on a whole rollout")
     d = Path(args.output)
     files = {"policy": str(d / "policy.zip"), "vecnormalize": str(d / "vecnormalize.pkl"),
              "curve": str(d / "training_curve.png"), "final": str(d / "final.zip"),
              "meta": str(d / "meta.json")}
-    result = {**res.to_dict(), "hpo": hpo, "files": files}
+    result = {**res.to_dict(), "timesteps_requested": args.timesteps, "rollout_steps": rollout,
+              "hpo": hpo, "files": files}
     text = [f"trained {res.timesteps} steps in {res.wall_s:.0f} s"
             + (f" (resumed from {res.resumed_from})" if res.resumed_from else "")]
     if res.eval_mean_cost:
@@ -107,3 +125,63 @@ def run(args, out) -> int:
     text.append(f"use it: ringtune recommend --method policy --policy {d} --printer default")
     out.emit(result, "\n".join(text))
     return 0
+
+
+def rollout_for(timesteps: int, n_envs: int, hyper: dict | None, resume: bool) -> tuple[dict | None, int, int]:
+    """(hyperparameters, rollout size, steps a new run will train). PPO updates after whole
+    rollouts of ``n_steps`` per env; a budget below one rollout shortens ``n_steps`` to
+    ceil(timesteps / envs) (and the minibatch to fit), so that a small run trains what it was asked.
+    ``resume`` keeps the checkpoint's rollout (its steps are known only after loading: 0)."""
+    import math
+
+    from ringtune.agents.ppo import DEFAULT_HYPER
+
+    h = {**DEFAULT_HYPER, **(hyper or {})}
+    n_steps = int(h["n_steps"])
+    if resume:
+        return hyper, n_steps * n_envs, 0
+    if timesteps < n_steps * n_envs:
+        n_steps = math.ceil(timesteps / n_envs)
+        hyper = {**(hyper or {}), "n_steps": n_steps,
+                 "batch_size": max(2, min(int(h["batch_size"]), n_steps * n_envs))}
+    rollout = n_steps * n_envs
+    return hyper, rollout, math.ceil(timesteps / rollout) * rollout
+
+
+class _stdout_to_stderr:
+    """Everything written to standard output while training (stable-baselines3's progress bar,
+    library prints, the environment subprocesses it forks) goes to standard error, so that --json
+    output stays one JSON object."""
+
+    def __enter__(self):
+        import contextlib
+        import os
+        import sys
+
+        import warnings
+
+        sys.stdout.flush()
+        self._warnings = warnings.catch_warnings()
+        self._warnings.__enter__()
+        # the progress bar's own "rich is experimental" warning is noise to a user
+        warnings.filterwarnings("ignore", message="rich is experimental")
+        self._redirect = contextlib.redirect_stdout(sys.stderr)
+        self._redirect.__enter__()
+        try:
+            self._saved = os.dup(1)
+            os.dup2(2, 1)
+        except OSError:          # no file descriptors (an embedding host): the Python level suffices
+            self._saved = None
+        return self
+
+    def __exit__(self, *exc):
+        import os
+        import sys
+
+        sys.stderr.flush()
+        if self._saved is not None:
+            os.dup2(self._saved, 1)
+            os.close(self._saved)
+        self._redirect.__exit__(*exc)
+        self._warnings.__exit__(*exc)
+        return False
