@@ -315,9 +315,7 @@ def _motor_from_dict(mo: dict, mw: str) -> MotorModel:
                     "give one of them", f"{mw}.steps_per_mm")
         steps_per_mm = derived
     elif datasheet and "steps_per_mm" not in mo:
-        from ringtune.envs.stepper import DEFAULT_ROTATION_DISTANCE
-
-        steps_per_mm = n_steps * microsteps / DEFAULT_ROTATION_DISTANCE
+        steps_per_mm = None                      # the motor assumes (and says) a rotation distance
     else:
         steps_per_mm = _num(mo, "steps_per_mm", mw, DEFAULTS["steps_per_mm"], lo=0.0, lo_open=True)
     if not datasheet and "rotor_inertia" in drive:

@@ -89,7 +89,7 @@ class MotorModel:
     corner_speed: float = DEFAULTS["corner_speed"]
     rotor_mass: float = DEFAULTS["rotor_mass"]
     friction: float = DEFAULTS["friction"]
-    steps_per_mm: float = DEFAULTS["steps_per_mm"]
+    steps_per_mm: float | None = DEFAULTS["steps_per_mm"]     # None (datasheet form): from rotation_distance
     microsteps: float = DEFAULTS["microsteps"]
     rotor_damping: float = DEFAULTS["rotor_damping"]
     slip: bool | None = None
@@ -109,9 +109,12 @@ class MotorModel:
     def __post_init__(self) -> None:
         if not self.has_datasheet:
             self._stepper = None
+            if self.steps_per_mm is None:
+                self.steps_per_mm = DEFAULTS["steps_per_mm"]
             return
         from ringtune.envs.motors import MotorConstants
-        from ringtune.envs.stepper import DEFAULT_VOLTAGE, StepperDrive, default_run_current
+        from ringtune.envs.stepper import (DEFAULT_ROTATION_DISTANCE, DEFAULT_VOLTAGE, StepperDrive,
+                                           default_run_current)
 
         n = int(self.steps_per_revolution or 200)
         notes = []
@@ -127,12 +130,14 @@ class MotorModel:
             volt = DEFAULT_VOLTAGE
             notes.append(f"voltage = {volt:g} V (not given: a 24 V supply assumed)")
         rd = self.rotation_distance
-        if rd is None:
+        if rd is None and self.steps_per_mm is None:
+            rd = DEFAULT_ROTATION_DISTANCE
+            notes.append(f"rotation_distance = {rd:g} mm (not given: a GT2 belt on a 20-tooth pulley assumed)")
+        elif rd is None:
             rd = n * self.microsteps / self.steps_per_mm
             notes.append(f"rotation_distance = {rd:.4g} mm (not given: from steps_per_mm = "
                          f"{self.steps_per_mm:g}, {self.microsteps:g} microsteps, {n} steps/rev)")
-        else:
-            self.steps_per_mm = n * self.microsteps / rd
+        self.steps_per_mm = n * self.microsteps / rd
         consts = MotorConstants(self.name or "custom", self.resistance, self.inductance,
                                 self.holding_torque, self.rated_current, n)
         drive = StepperDrive(consts, float(run), float(volt), float(rd))
