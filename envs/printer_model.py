@@ -262,6 +262,29 @@ class Printer:
             return [("a", mx, (1.0, 0.0)), ("b", mx, (1.0, 0.0)), ("y", my, (0.0, 1.0))]
         return [("x", mx, (1.0, 0.0)), ("y", my, (0.0, 1.0))]
 
+    def motor_accel_limit(self, axis: str, speed: np.ndarray | float = 0.0) -> np.ndarray:
+        """mm/s²: the largest steady acceleration of a pure ``axis`` move passing ``speed`` (mm/s)
+        that every motor driving it can give (rigid masses; the modes' transient overshoot and any
+        reserve are the caller's). Motor k must give its share of the axis force (the least-squares
+        inverse P of the drive D, as in the simulation) plus its rotor's inertia and friction:
+        ``a_max = min_k (F_k(|D_k|·v) − friction_k) / |P_k·m_axis + m_r,k·D_k|``."""
+        e = 0 if axis == "x" else 1
+        if axis not in ("x", "y"):
+            raise RingtuneError(f"axis must be 'x' or 'y', not {axis!r}")
+        motors = self.drive_motors()
+        D = np.array([d for _n, _m, d in motors], float).T            # (2, k)
+        P = np.linalg.pinv(D.T)                                         # (2, k)
+        m = self.moving_mass(axis)
+        v = np.abs(np.asarray(speed, dtype=float))
+        out = np.full(v.shape, np.inf)
+        for k, (_n, mo, _d) in enumerate(motors):
+            if D[e, k] == 0.0:
+                continue
+            per_accel = abs(P[e, k] * m + mo.rotor_mass * D[e, k])      # kg
+            spare = np.maximum(mo.max_force(abs(D[e, k]) * v) - mo.friction, 0.0)
+            out = np.minimum(out, spare / per_accel * 1e3)
+        return out
+
     # -- derived physics --------------------------------------------------------------------------
     def axis(self, name: str) -> AxisModel:
         if name not in ("x", "y"):

@@ -37,6 +37,15 @@ def move(axis, accel=3000.0):
     return Motion.from_constant_accel(t, a)
 
 
+def short_move(axis, accel, top_speed):
+    """Accelerate to ``top_speed`` (mm/s) and back to rest, then rest."""
+    dt = top_speed / accel
+    t = np.array([0.0, dt, 2 * dt, 2 * dt + 0.05])
+    a = np.zeros((3, 2))
+    a[0, axis], a[1, axis] = accel, -accel
+    return Motion.from_constant_accel(t, a)
+
+
 def commanded(mo, res):
     """Commanded (v, a) at the samples, and a mask away from the acceleration switches (where the
     sample's acceleration depends on which side of the switch it is taken)."""
@@ -115,3 +124,33 @@ def test_slip_model_of_corexz_keeps_the_described_modes(backend):
     err = np.sqrt(np.mean((got.deviation - rigid.deviation) ** 2)) / np.sqrt(np.mean(rigid.deviation ** 2))
     assert err < 0.02
     assert not got.step_loss
+
+
+@pytest.mark.parametrize("kin", ["cartesian", "corexy", "corexz"])
+def test_motor_accel_limit_is_where_the_simulated_demand_meets_the_force(kin):
+    """A pure move at the limit acceleration, below the corner speed: once the step's transient has
+    died out, the simulated demand of the busiest motor equals its force (Newton with each
+    kinematics' split, rotor inertia and friction); at 80 % of it no step is lost."""
+    d = {"kinematics": kin, "print_mass": 0.2,
+         "motor": {"name": "ldo-42sth40-1684ac", "run_current": 1.0, "voltage": 48, "rotation_distance": 40,
+                   "slip": False},
+         "x": {"mass": 3.0, "modes": [{"freq": 150.0, "damping": 0.9}]},
+         "y": {"mass": 4.0, "modes": [{"freq": 150.0, "damping": 0.9}]}}
+    p = printer_from_dict(d)
+    mo = p.motor_for("x")
+    for ax, e in (("x", 0), ("y", 1)):
+        m = p.moving_mass(ax)
+        f0 = float(mo.max_force(0.0)) - mo.friction
+        share = 1.0 if kin == "cartesian" or (kin == "corexz" and ax == "y") else 0.5
+        assert p.motor_accel_limit(ax) == pytest.approx(f0 / (share * m + mo.rotor_mass) * 1e3)
+        a = float(p.motor_accel_limit(ax))
+        top = 0.9 * mo.corner_speed
+        res = simulate(p, short_move(e, a, top), backend="lti")
+        steady = (res.t > 0.5 * top / a) & (res.t < top / a - 1e-3)
+        assert steady.sum() >= 5
+        ratio = np.max(np.abs(res.motor_force[steady]) / res.motor_force_max[steady], axis=1)
+        np.testing.assert_allclose(ratio, 1.0, atol=0.01)
+        assert not simulate(p, short_move(e, 0.8 * a, top), backend="lti").step_loss
+    assert p.moving_mass("y") == pytest.approx(4.0 + (0.0 if kin == "corexy" else 0.2))
+    # faster: less force, less acceleration
+    assert p.motor_accel_limit("x", 3 * mo.corner_speed) < p.motor_accel_limit("x", 0.0)
