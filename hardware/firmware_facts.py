@@ -1,0 +1,68 @@
+"""What a firmware configuration says about the printer, as plain data.
+
+The readers (:mod:`ringtune.hardware.klipper_config`, :mod:`ringtune.hardware.marlin_config`,
+:mod:`ringtune.hardware.rrf_config`) return a :class:`FirmwareFacts`: a dict in the form of the
+printer description (TOML; ``kinematics``, ``limits``, ``motor`` or ``x.motor``/``y.motor``,
+``current``) and the notes on what could not be known or was mapped. ``hardware`` cannot import
+``envs``: whether a motor name is in the built-in table is decided by the caller.
+
+Units as in the description: mm, mm/s, mm/s², A (RMS), V, Ω, H, N·m, Hz.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from ringtune.shaping.errors import RingtuneError
+
+#: kinematics the printer model has
+KINEMATICS = ("cartesian", "corexy", "corexz")
+
+
+@dataclass
+class FirmwareFacts:
+    """``description``: printer-description dict; ``notes``: one line each, for stderr and TOML
+    comments; ``source``: the file (or URL) read."""
+
+    description: dict = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    source: str = ""
+
+
+def to_number(value, where: str, integer: bool = False) -> float | int:
+    """A finite number from a config value (string or number), else a RingtuneError at ``where``."""
+    try:
+        v = int(value) if integer and not isinstance(value, float) else float(value)
+    except (TypeError, ValueError):
+        kind = "an integer" if integer else "a number"
+        raise RingtuneError(f"must be {kind}, not {value!r}", where) from None
+    if not math.isfinite(v):
+        raise RingtuneError(f"must be finite, not {value!r}", where)
+    return v
+
+
+def place_motors(description: dict, x: dict, y: dict) -> None:
+    """Put the X and Y motor tables into ``description``: one ``[motor]`` when they are equal, else
+    ``[x.motor]`` and ``[y.motor]`` (on CoreXY/CoreXZ: motor A and motor B / the Y motor)."""
+    if not x and not y:
+        return
+    if x == y:
+        description["motor"] = dict(x)
+        return
+    if x:
+        description.setdefault("x", {})["motor"] = dict(x)
+    if y:
+        description.setdefault("y", {})["motor"] = dict(y)
+
+
+def motor_tables(description: dict) -> dict[str, dict]:
+    """The motor tables of a description by where they sit: ``motor``, ``x.motor``, ``y.motor``."""
+    found = {}
+    if isinstance(description.get("motor"), dict):
+        found["motor"] = description["motor"]
+    for ax in ("x", "y"):
+        table = description.get(ax, {}).get("motor") if isinstance(description.get(ax), dict) else None
+        if isinstance(table, dict):
+            found[f"{ax}.motor"] = table
+    return found
