@@ -12,6 +12,7 @@ Units as in the description: mm, mm/s, mm/s², A (RMS), V, Ω, H, N·m, Hz.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 
 from ringtune.shaping.errors import RingtuneError
@@ -66,3 +67,16 @@ def motor_tables(description: dict) -> dict[str, dict]:
         if isinstance(table, dict):
             found[f"{ax}.motor"] = table
     return found
+
+
+def gcode_words(line: str) -> tuple[str, dict[str, str]] | None:
+    """``("M92", {"X": "80.00", "Y": "80.00"})`` from a G-code line without its comment; a letter with
+    no value maps to ``""``; a quoted string (RRF ``P"zvd"``) loses its quotes; ``None`` for a line
+    without a command. Letters are upper-cased."""
+    m = re.match(r"\s*([GMgm])(\d+(?:\.\d+)?)(.*)$", line)
+    if not m:
+        return None
+    words: dict[str, str] = {}
+    for letter, quoted, value in re.findall(r'([A-Za-z])\s*(?:"([^"]*)"|([^\sA-Za-z"]*))', m.group(3)):
+        words[letter.upper()] = quoted if quoted else value
+    return m.group(1).upper() + m.group(2), words

@@ -131,9 +131,10 @@ class _Reader:
         matches = sorted(glob.glob(pattern))
         if not matches:
             if glob.has_magic(pattern):
-                self.cfg.notes.append(f"{where}: [include {spec}] matches no file (nothing read from it)")
+                self.cfg.notes.append(f"{where}: warning: [include {spec}] matches no file (nothing read "
+                                      "from it)")
             else:
-                self.cfg.notes.append(f"{where}: [include {spec}]: no such file {os.path.normpath(pattern)} (Klipper itself "
+                self.cfg.notes.append(f"{where}: warning: [include {spec}]: no such file {os.path.normpath(pattern)} (Klipper itself "
                                       "would refuse to start; read on without it)")
             return
         for path in matches:
@@ -153,7 +154,7 @@ class _Reader:
         if first and not _SECTION.match(first):
             # e.g. a symbolic link kept as a one-line text file (git without symlinks): Klipper
             # could not read it either
-            self.cfg.notes.append(f"{path}:1: not a configuration (text before any [section]: "
+            self.cfg.notes.append(f"{path}:1: warning: not a configuration (text before any [section]: "
                                   f"{first[:60]!r}, a symbolic link kept as text?); nothing read from it")
         else:
             self.cfg.files.append(path)
