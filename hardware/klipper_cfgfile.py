@@ -95,7 +95,8 @@ class _Reader:
             indent = len(line) - len(line.lstrip())
             if self.opt is not None and indent > self.indent:
                 old = self.cfg.sections[self.cur][self.opt]
-                self.cfg.sections[self.cur][self.opt] = (old + "\n" + _strip_inline_semicolon(stripped)).strip()
+                more = _strip_inline_semicolon(stripped)
+                self.cfg.sections[self.cur][self.opt] = (old + "\n" + more).strip()
                 continue
             self.opt = None
             where = f"{name}:{n}"
@@ -134,8 +135,9 @@ class _Reader:
                 self.cfg.notes.append(f"{where}: warning: [include {spec}] matches no file (nothing read "
                                       "from it)")
             else:
-                self.cfg.notes.append(f"{where}: warning: [include {spec}]: no such file {os.path.normpath(pattern)} (Klipper itself "
-                                      "would refuse to start; read on without it)")
+                self.cfg.notes.append(f"{where}: warning: [include {spec}]: no such file "
+                                      f"{os.path.normpath(pattern)} (Klipper itself would refuse to start; "
+                                      "read on without it)")
             return
         for path in matches:
             self.read_file(path)

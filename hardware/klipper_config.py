@@ -154,7 +154,8 @@ def _gearing(src: _Source, stepper: str) -> float:
     g = 1.0
     for pair in pairs:
         if len(pair) != 2:
-            raise RingtuneError(f"gear_ratio must be 'a:b[, c:d…]', not {raw!r}", src.where(stepper, "gear_ratio"))
+            raise RingtuneError(f"gear_ratio must be 'a:b[, c:d…]', not {raw!r}",
+                                src.where(stepper, "gear_ratio"))
         a, b = (to_number(p, src.where(stepper, "gear_ratio")) for p in pair)
         g *= a / b
     return g
@@ -297,8 +298,8 @@ def printer_facts_from_klipper(path: str | Path) -> FirmwareFacts:
     """Facts from ``printer.cfg`` (and what it includes)."""
     cfg = read_klipper_cfg(path)
     notes = list(cfg.notes)
-    used = re.compile(r"(printer|input_shaper|stepper_[xyz]|(tmc\w+|autotune_tmc)\s+stepper_[xyz]|motor_constants\s.*)",
-                      re.I)
+    used = re.compile(r"(printer|input_shaper|stepper_[xyz]|(tmc\w+|autotune_tmc)\s+stepper_[xyz]"
+                      r"|motor_constants\s.*)", re.I)
     notes += [note for section, _, note in cfg.ignored_saved if used.fullmatch(section)]
     src = _Source(cfg.sections, str(path), cfg.origin, None, notes)
     return facts_from_sections(src)

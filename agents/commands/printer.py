@@ -16,7 +16,8 @@ import argparse
 import math
 
 NAME = "printer"
-HELP = "the printer description (TOML) from its firmware configuration: Klipper, Moonraker, Marlin M503, RRF config.g"
+HELP = ("the printer description (TOML) from its firmware configuration: Klipper, Moonraker, "
+        "Marlin M503, RRF config.g")
 DESCRIPTION = """\
 Write a printer description from what the printer's firmware already knows: kinematics, limits,
 each motor's drive (rotation_distance, microsteps, run current, supply voltage, named motor or its
@@ -36,7 +37,6 @@ examples:
   ringtune printer from-klipper --moonraker http://voron.local:7125 -o voron.toml
   ringtune printer from-marlin m503.txt --kinematics cartesian -o ender.toml
   ringtune printer from-rrf sys/config.g --json
-then: ringtune identify resonances_x_*.csv resonances_y_*.csv --base myprinter.toml -o myprinter.toml
 """
 
 FIRMWARES = {"from-klipper": "klipper", "from-marlin": "marlin", "from-rrf": "rrf"}
