@@ -46,7 +46,7 @@ from ringtune.shaping.errors import RingtuneError
 #: shapers Klipper 84104bb has (``klippy/extras/shaper_defs.py``), unparameterised names
 KLIPPER_SHAPERS = ("zv", "mzv", "zvd", "ei", "2hump_ei", "3hump_ei")
 #: Klipper's defaults for what is taken here (toolhead.py, stepper.py, extras/input_shaper.py)
-DEFAULTS = {"square_corner_velocity": 5.0, "minimum_cruise_ratio": 0.5, "full_steps_per_rotation": 200,
+KLIPPER_DEFAULTS = {"square_corner_velocity": 5.0, "minimum_cruise_ratio": 0.5, "full_steps_per_rotation": 200,
             "shaper_type": "mzv", "damping_ratio": 0.1}
 _MOTOR_CONSTANTS = (("resistance", "resistance"), ("inductance", "inductance"),
                     ("holding_torque", "holding_torque"), ("max_current", "rated_current"))
@@ -109,7 +109,7 @@ def _kinematics(src: _Source) -> str:
                         f"({', '.join(KINEMATICS)})", src.where("printer", "kinematics"))
 
 
-def _limits(src: _Source, kin: str) -> dict:
+def _limits(src: _Source) -> dict:
     if src.name("printer") is None:
         raise RingtuneError("no [printer] section", src.label)
     accel = src.number("printer", "max_accel")
@@ -121,10 +121,10 @@ def _limits(src: _Source, kin: str) -> dict:
             raise RingtuneError(f"must be > 0, not {v:g}", src.where("printer", key))
     limits = {"accel": accel, "velocity": velocity, "junction": "scv",
               "square_corner_velocity": src.number("printer", "square_corner_velocity",
-                                                   DEFAULTS["square_corner_velocity"], unit=" mm/s")}
+                                                   KLIPPER_DEFAULTS["square_corner_velocity"], unit=" mm/s")}
     mad = src.number("printer", "max_accel_to_decel")
     if src.given_by_user("printer", "minimum_cruise_ratio") or mad is None:
-        mcr = src.number("printer", "minimum_cruise_ratio", DEFAULTS["minimum_cruise_ratio"])
+        mcr = src.number("printer", "minimum_cruise_ratio", KLIPPER_DEFAULTS["minimum_cruise_ratio"])
         if mad is not None:
             src.notes.append(f"{src.where('printer', 'max_accel_to_decel')}: max_accel_to_decel is "
                              "ignored: minimum_cruise_ratio is set too")
@@ -183,7 +183,7 @@ def _stepper_motor(src: _Source, stepper: str) -> dict:
     tmc = _tmc_section(src, stepper)
     if micro is None and tmc is not None:
         micro = src.number(tmc, "microsteps", integer=True)      # old configurations kept it there
-    full = src.number(stepper, "full_steps_per_rotation", DEFAULTS["full_steps_per_rotation"], integer=True)
+    full = src.number(stepper, "full_steps_per_rotation", KLIPPER_DEFAULTS["full_steps_per_rotation"], integer=True)
     rd = src.number(stepper, "rotation_distance")
     if rd is None and src.get(stepper, "step_distance") is not None:
         sd = src.number(stepper, "step_distance")
@@ -259,12 +259,12 @@ def _current(src: _Source, accel: float) -> dict:
         elif src.given_by_user("input_shaper", "shaper_type"):
             shaper = str(src.get("input_shaper", "shaper_type")).strip()
         else:
-            shaper = DEFAULTS["shaper_type"]
+            shaper = KLIPPER_DEFAULTS["shaper_type"]
             src.notes.append(f"[input_shaper] shaper_type_{ax} not set: Klipper's default {shaper}")
-        if shaper.lower() not in KLIPPER_SHAPERS:
+        if shaper.split("(")[0].strip().lower() not in KLIPPER_SHAPERS:
             src.notes.append(f"[input_shaper] {ax.upper()} shaper {shaper!r} is not one of Klipper's "
                              f"{', '.join(KLIPPER_SHAPERS)}; kept as written")
-        damping = src.number("input_shaper", f"damping_ratio_{ax}", DEFAULTS["damping_ratio"])
+        damping = src.number("input_shaper", f"damping_ratio_{ax}", KLIPPER_DEFAULTS["damping_ratio"])
         cur.update({f"shaper_{ax}": shaper, f"freq_{ax}": freq, f"damping_{ax}": damping})
     cur["accel"] = accel
     return cur
@@ -273,7 +273,7 @@ def _current(src: _Source, accel: float) -> dict:
 def facts_from_sections(src: _Source) -> FirmwareFacts:
     """The facts of a configuration already merged into sections (file or Moonraker)."""
     kin = _kinematics(src)
-    limits = _limits(src, kin)
+    limits = _limits(src)
     x = _stepper_motor(src, "stepper_x")
     y = _stepper_motor(src, "stepper_y")
     if kin == "corexz":

@@ -45,13 +45,17 @@ FIRMWARES = {"from-klipper": "klipper", "from-marlin": "marlin", "from-rrf": "rr
 def add_arguments(p: argparse.ArgumentParser) -> None:
     sub = p.add_subparsers(dest="source", metavar="SOURCE", required=True)
     specs = {
-        "from-klipper": ("printer.cfg", "Klipper's printer.cfg (its includes are read too)"),
-        "from-marlin": ("M503.txt", "the printer's answer to M503, saved as text"),
-        "from-rrf": ("config.g", "RepRapFirmware's config.g"),
+        "from-klipper": ("printer.cfg", "Klipper's printer.cfg (its includes are read too)",
+                         "ringtune printer from-klipper printer.cfg -o myprinter.toml\n"
+                         "  ringtune printer from-klipper --moonraker http://voron.local:7125 --json"),
+        "from-marlin": ("M503.txt", "the printer's answer to M503, saved as text",
+                        "ringtune printer from-marlin m503.txt --kinematics cartesian -o ender.toml"),
+        "from-rrf": ("config.g", "RepRapFirmware's config.g",
+                     "ringtune printer from-rrf sys/config.g -o duet.toml"),
     }
-    for name, (metavar, what) in specs.items():
-        s = sub.add_parser(name, help=what, description=f"ringtune printer {name}: {what}.",
-                           formatter_class=argparse.RawDescriptionHelpFormatter)
+    for name, (metavar, what, example) in specs.items():
+        s = sub.add_parser(name, help=what, description=f"ringtune printer {name}: {what}.\n\n"
+                           f"example:\n  {example}", formatter_class=argparse.RawDescriptionHelpFormatter)
         s.add_argument("file", metavar=metavar, nargs="?" if name == "from-klipper" else None, help=what)
         if name == "from-klipper":
             s.add_argument("--moonraker", metavar="URL", help="read a running printer through Moonraker "
