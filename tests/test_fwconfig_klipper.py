@@ -170,10 +170,30 @@ def test_v24_steppers_name_the_builtin_2004mah_not_the_inline_2004mac(data_dir):
     assert m["steps_per_revolution"] == 400 and m["microsteps"] == 64      # steppers.cfg:25-26
     assert any("[motor_constants ldo-42sth40-2004mac]" in n and "neither stepper_x nor stepper_y" in n
                for n in facts.notes)
+
+
+# rows of shared/reference/motors.md (klipper_tmc_autotune's motor_database.cfg at 3d1ab9f):
+# R Ω, L H, holding torque N·m, rated current A, steps per revolution
+MOTORS_MD = {"ldo-42sth40-1684ac": (1.65, 0.0036, 0.45, 1.68, 200),
+             "ldo-42sth40-2004mah": (1.1, 0.0028, 0.35, 2.0, 400)}
+
+
+@pytest.mark.parametrize("printer", ["switchwire", "v24"])
+def test_motors_named_but_not_defined_get_the_builtin_constants(printer, data_dir, tmp_path, capsys):
+    """switchwire (autotune.cfg:2) and v24 (autotune.cfg:9) name motors their files do not define:
+    the constants are the built-in table's, and the command keeps the name for the loader."""
     motors = pytest.importorskip("ringtune.envs.motors", reason="the built-in motor table (helper motors)")
-    c = motors.lookup_motor("ldo-42sth40-2004mah")        # motors.md row: 1.1 Ω, 2.8 mH, 0.35 N·m, 2.0 A, 400
+    from ringtune.agents import cli
+
+    name = printer_facts_from_klipper(data_dir / "klipper_config" / printer / "printer.cfg").description[
+        "motor"]["name"]
+    c = motors.lookup_motor(name)
     assert (c.resistance, c.inductance, c.holding_torque, c.rated_current, c.steps_per_revolution) == \
-        (1.1, 0.0028, 0.35, 2.0, 400)
+        MOTORS_MD[name]
+    out = tmp_path / "p.toml"
+    assert cli.main(["printer", "from-klipper", str(data_dir / "klipper_config" / printer / "printer.cfg"),
+                     "-o", str(out)]) == 0
+    assert f'name = "{name}"' in out.read_text() and "not in the built-in table" not in capsys.readouterr().err
 
 
 def test_v24_missing_includes_are_named_in_warnings_and_the_fork_kinematics_in_a_note(data_dir):
