@@ -80,3 +80,25 @@ def gcode_words(line: str) -> tuple[str, dict[str, str]] | None:
     for letter, quoted, value in re.findall(r'([A-Za-z])\s*(?:"([^"]*)"|([^\sA-Za-z"]*))', m.group(3)):
         words[letter.upper()] = quoted if quoted else value
     return m.group(1).upper() + m.group(2), words
+
+
+#: keys that describe the motor itself (a built-in ``name`` stands for all of them)
+MOTOR_CONSTANTS = ("holding_torque", "rated_current", "resistance", "inductance")
+
+
+def without_motor(table: dict, notes: list[str], where: str) -> None:
+    """Make a motor table with no motor (no ``name``, no constants) a drive only, in place.
+
+    The description counts ``steps_per_revolution`` among the motor's constants, so it cannot stand
+    alone: it is dropped, and when it is not the 200 the loader then assumes, ``rotation_distance``
+    (+ ``microsteps``) is replaced by the ``steps_per_mm`` they give, so the step size stays right.
+    """
+    if "name" in table or any(k in table for k in MOTOR_CONSTANTS):
+        return
+    steps = table.pop("steps_per_revolution", None)
+    rd, micro = table.get("rotation_distance"), table.get("microsteps")
+    if steps is not None and steps != 200 and rd and micro:
+        table["steps_per_mm"] = steps * micro / rd
+        del table["rotation_distance"]
+        notes.append(f"{where}: no motor named, so its {steps} steps per revolution are kept as "
+                     f"steps_per_mm = {steps} × {micro} / {rd:g} = {table['steps_per_mm']:g}")

@@ -39,7 +39,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, place_motors, to_number
+from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, place_motors, to_number, without_motor
 from ringtune.hardware.klipper_cfgfile import read_klipper_cfg
 from ringtune.shaping.errors import RingtuneError
 
@@ -217,6 +217,7 @@ def _stepper_motor(src: _Source, stepper: str) -> dict:
     motor = src.get(auto, "motor")
     if motor is None:
         src.notes.append(f"no [autotune_tmc {stepper}] motor: {stepper}'s motor is not named")
+        without_motor(table, src.notes, stepper)
         return table
     motor = str(motor).strip()
     table["name"] = motor

@@ -217,7 +217,10 @@ def test_old_names_step_distance_and_max_accel_to_decel(tmp_path):
     facts = printer_facts_from_klipper(tmp_path / "printer.cfg")
     d = facts.description
     assert d["x"]["motor"]["rotation_distance"] == pytest.approx(0.0125 * 200 * 16)    # 40 mm
-    assert d["y"]["motor"]["rotation_distance"] == pytest.approx(0.00625 * 400 * 16)   # 40 mm
+    # Y: rotation_distance 0.00625 × 400 × 16 = 40 mm, but with no motor named its 400 steps per
+    # revolution are kept as steps per mm, which must be 1 / step_distance
+    assert d["y"]["motor"]["steps_per_mm"] == pytest.approx(1 / 0.00625)
+    assert "steps_per_revolution" not in d["y"]["motor"]
     assert d["limits"]["min_cruise_ratio"] == pytest.approx(1 - 1000 / 4000)
     assert any("old step_distance" in n for n in facts.notes)
     assert any("old max_accel_to_decel" in n for n in facts.notes)

@@ -83,20 +83,17 @@ def lookup_motor(name: str):
     return table_lookup(name)
 
 
-_CONSTANTS = ("resistance", "inductance", "holding_torque", "rated_current")
-
-
 def check_motor_names(description: dict, notes: list[str], comments: dict[str, list[str]]) -> None:
     """Keep a motor ``name`` only when the built-in table knows it; else drop it and say so (the
     user's own constants, when given, still describe the motor)."""
-    from ringtune.hardware.firmware_facts import motor_tables
+    from ringtune.hardware.firmware_facts import MOTOR_CONSTANTS, motor_tables, without_motor
 
     for where, table in motor_tables(description).items():
         name = table.get("name")
         if name is None:
             continue
         known = lookup_motor(name)
-        inline = all(k in table for k in _CONSTANTS)
+        inline = all(k in table for k in MOTOR_CONSTANTS)
         if known is False:
             notes.append(f"[{where}] motor {name}: the built-in motor table is not available in this build; "
                          "the name is kept unchecked")
@@ -107,6 +104,7 @@ def check_motor_names(description: dict, notes: list[str], comments: dict[str, l
                              "take precedence over the built-in table's entry of that name")
             continue
         del table["name"]
+        without_motor(table, notes, f"[{where}]")
         if inline:
             comments.setdefault(where, []).append(f"motor {name} (constants from the configuration's "
                                                   "[motor_constants])")
