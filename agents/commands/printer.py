@@ -228,6 +228,8 @@ def run(args, out) -> int:
     from pathlib import Path
 
     from ringtune.agents.commands import check_output_folder
+    from ringtune.envs.printer_model import DEFAULTS
+    from ringtune.hardware.firmware_facts import MOTOR_CONSTANTS, motor_tables
 
     check_output_folder("--output", args.output)
     facts, default_name = _read(args)
@@ -235,9 +237,10 @@ def run(args, out) -> int:
     notes = list(facts.notes)
     comments: dict[str, list[str]] = {}
     check_motor_names(description, notes, comments)
-    if not any(k in description for k in ("motor",)) and not any(
-            isinstance(description.get(ax), dict) and description[ax].get("motor") for ax in "xy"):
-        notes.append("no motor information: the motor is the default one")
+    if not any("name" in t or all(k in t for k in MOTOR_CONSTANTS) for t in motor_tables(description).values()):
+        notes.append(f"no motor named or described: the force at the belt is the default motor's "
+                     f"({DEFAULTS['motor_force']:g} N, falling above {DEFAULTS['corner_speed']:g} mm/s); "
+                     "name the motor ([motor] name = …) or give its constants")
     notes.append("modes are defaults until `ringtune identify` measures them; masses are defaults")
     name = args.name or default_name
     text = description_toml(name, description, notes, facts.source, args.source, comments)
@@ -248,7 +251,7 @@ def run(args, out) -> int:
     result = {"source": facts.source, "firmware": FIRMWARES[args.source], "description": description,
               "notes": notes, "toml": text, "output": args.output}
     if args.output:
-        out.emit(result, f"{facts.source} -> {args.output} ({len(notes)} notes above)")
+        out.emit(result, f"{facts.source} -> {args.output} ({len(notes)} note{'s' if len(notes) != 1 else ''} above)")
     else:
         out.emit(result, text)
     return 0
