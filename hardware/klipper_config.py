@@ -122,7 +122,9 @@ def _limits(src: _Source) -> dict:
     limits = {"accel": accel, "velocity": velocity, "junction": "scv",
               "square_corner_velocity": src.number("printer", "square_corner_velocity",
                                                    KLIPPER_DEFAULTS["square_corner_velocity"], unit=" mm/s")}
-    mad = src.number("printer", "max_accel_to_decel")
+    # only when written: an older Klipper's settings hold its default (max_accel / 2) unasked
+    mad = src.number("printer", "max_accel_to_decel") if src.given_by_user("printer", "max_accel_to_decel") \
+        else None
     if src.given_by_user("printer", "minimum_cruise_ratio") or mad is None:
         mcr = src.number("printer", "minimum_cruise_ratio", KLIPPER_DEFAULTS["minimum_cruise_ratio"])
         if mad is not None:
