@@ -185,7 +185,8 @@ def _stepper_motor(src: _Source, stepper: str) -> dict:
     tmc = _tmc_section(src, stepper)
     if micro is None and tmc is not None:
         micro = src.number(tmc, "microsteps", integer=True)      # old configurations kept it there
-    full = src.number(stepper, "full_steps_per_rotation", KLIPPER_DEFAULTS["full_steps_per_rotation"], integer=True)
+    full = src.number(stepper, "full_steps_per_rotation", KLIPPER_DEFAULTS["full_steps_per_rotation"],
+                      integer=True)
     rd = src.number(stepper, "rotation_distance")
     if rd is None and src.get(stepper, "step_distance") is not None:
         sd = src.number(stepper, "step_distance")
@@ -286,7 +287,8 @@ def facts_from_sections(src: _Source) -> FirmwareFacts:
         if z != x:
             src.notes.append("corexz: motor B (stepper_z) differs from motor A (stepper_x); [x.motor] "
                              "describes stepper_x")
-    named = {str(src.get(f"autotune_tmc {s}", "motor") or "").strip().lower() for s in ("stepper_x", "stepper_y")}
+    named = {str(src.get(f"autotune_tmc {s}", "motor") or "").strip().lower()
+             for s in ("stepper_x", "stepper_y")}
     for sec in src.sections:
         if sec.lower().startswith("motor_constants ") and sec.split(None, 1)[1].lower() not in named:
             src.notes.append(f"[{sec}] ({src.where(sec, 'resistance')}) is defined but neither stepper_x "
