@@ -25,7 +25,7 @@ from dataclasses import asdict, dataclass, field
 
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.firmware import firmware_record
+from ringtune.shaping.firmware import Firmware
 
 SLICERS = ("prusaslicer", "orcaslicer", "cura")
 #: Cura's "machine_gcode_flavor" / PrusaSlicer's "gcode_flavor" for each firmware family
@@ -64,7 +64,7 @@ def slicer_profile(config: TuneConfig, slicer: str, firmware: str | None = None)
         raise RingtuneError(f"must be one of {', '.join(SLICERS)}, not {slicer!r}", "--slicer")
     if config.accel is None:
         raise RingtuneError("the config has no accel (mm/s²) to put in the slicer profile", "config: accel")
-    fw = firmware_record(firmware or config.firmware)
+    fw = Firmware.named(firmware or config.firmware)
     a = _n(config.accel)
     common = [f"tuned acceleration {a} mm/s² for {fw.title}; per-feature accelerations already set "
               "in the profile override it where they are not 0: set them to 0 (or to this value)"]
