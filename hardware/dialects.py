@@ -182,7 +182,8 @@ def check_value(value: float, span: Span, what: str, unit: str, where: str, titl
                             f"{span.text(unit)}{why}", where)
     if span.changes(value):
         raise RingtuneError(f"{what} {value:g}{unit and ' ' + unit} would be sent as "
-                            f"{fmt(value, span.decimals)} ({title} takes {span.decimals} decimals); give a "
+                            f"{fmt(value, span.decimals)} (values go to {title} with {span.decimals} decimals, the "
+                            f"precision read back); give a "
                             f"value in {span.text(unit)} at that precision", where)
     return span.sent(value)
 
@@ -269,8 +270,8 @@ def _rounding_notes(config: TuneConfig, exp: Export) -> None:
             continue
         value = getattr(config, key)
         if span.sent(value) != value:
-            exp.notes.append(f"{key} {value:g} is sent as {fmt(value, span.decimals)} ({fw.title} takes "
-                             f"{span.decimals} decimals)")
+            exp.notes.append(f"{key} {value:g} is sent as {fmt(value, span.decimals)} (values go to "
+                             f"{fw.title} with {span.decimals} decimals, the precision read back)")
 
 
 def _freq_limit(config: TuneConfig, fw: Firmware, exp: Export) -> None:
