@@ -22,10 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from ringtune.shaping.config import FIRMWARE_FLAVOR, FREQ_LIMIT_METHODS, TuneConfig
+from ringtune.shaping.config import FREQ_LIMIT_METHODS, TuneConfig
 from ringtune.shaping.errors import RingtuneError
-
-ONE_SHAPER_FIRMWARES = ("rrf", "rrf35")
+from ringtune.shaping.firmware import FIRMWARES
 
 
 @dataclass(frozen=True)
@@ -77,9 +76,9 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
     """
     from ringtune.shaping.shapers import available_shapers, max_damping
 
-    if firmware not in FIRMWARE_FLAVOR:
-        raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARE_FLAVOR)}, not {firmware!r}", "--firmware")
-    flavor = FIRMWARE_FLAVOR[firmware]
+    if firmware not in FIRMWARES:
+        raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "--firmware")
+    flavor = FIRMWARES[firmware].flavor
     offered = tuple(n for n in available_shapers(flavor) if n != "custom")
     if shapers:
         bad = [s for s in shapers if s not in offered]
@@ -94,7 +93,7 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
         lo = max(10.0, round(0.6 * min(freqs), 1))
         hi = min(200.0, round(1.8 * max(freqs), 1))
         ranges[ax] = (lo, hi)
-    per_axis = firmware not in ONE_SHAPER_FIRMWARES
+    per_axis = not FIRMWARES[firmware].one_shaper
     if not per_axis:
         ranges["x"] = ranges["y"] = (min(ranges["x"][0], ranges["y"][0]), max(ranges["x"][1], ranges["y"][1]))
     if accel is not None:
@@ -111,56 +110,39 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
                        freq_limit_hz=(10.0, 80.0), accel=(float(acc[0]), float(acc[1])), accel_basis=basis)
 
 
-def _motor(printer: Any, axis: str):
-    """The motor driving ``axis`` (per-axis motors when the printer has them)."""
-    fn = getattr(printer, "motor_for", None)
-    return fn(axis) if callable(fn) else printer.motor
-
-
-def _drives(printer: Any) -> list[tuple[str, Any, np.ndarray]]:
-    """(name, motor, drive vector) per motor: the belt displacement of the motor per mm of head
-    motion in x and y while a layer prints (cartesian X, Y; CoreXY A = x + y, B = x − y;
-    CoreXZ A and B both drive X, Z being still, and Y its own motor)."""
-    kin = getattr(printer, "kinematics", "cartesian")
-    if kin == "corexy":
-        return [("motor A (stepper_x)", _motor(printer, "x"), np.array([1.0, 1.0])),
-                ("motor B (stepper_y)", _motor(printer, "y"), np.array([1.0, -1.0]))]
-    if kin == "corexz":
-        return [("motor A (stepper_x)", _motor(printer, "x"), np.array([1.0, 0.0])),
-                ("motor B (stepper_z)", _motor(printer, "x"), np.array([1.0, 0.0])),
-                ("Y motor", _motor(printer, "y"), np.array([0.0, 1.0]))]
-    return [("X motor", _motor(printer, "x"), np.array([1.0, 0.0])),
-            ("Y motor", _motor(printer, "y"), np.array([0.0, 1.0]))]
-
-
 def motor_accel_limit(printer: Any, speed: float, n_dir: int = 181) -> tuple[float, str]:
     """(mm/s², motor name): the acceleration at which the weakest motor would need all its force
     while the head moves at ``speed`` (mm/s) in the worst direction, rigid machine.
 
     Moving along the unit vector u at acceleration a, the axes need the forces m_ax·a·u_ax (moving
-    masses, kg, print on the bed included); motor j with drive vector d_j carries
-    Σ_ax m_ax·a·u_ax·d_j,ax / Σ_k d_k,ax² of them at the belt, plus its rotor's reflected mass
-    m_r·a·(u·d_j) and its friction, at belt speed speed·|u·d_j|, where it has
-    ``max_force(speed·|u·d_j|)``. The result is the smallest a, over directions (``n_dir`` from
-    0 to 180°) and motors, at which the demand meets the force."""
+    masses, kg, print on the bed included); the motors (``Printer.drive_motors``: drive vectors
+    D_k, belt speed per unit head speed) share them by the least-squares inverse P of the drive,
+    as the simulation does: motor k gives a·Σ_ax P_ax,k·m_ax·u_ax at the belt, plus its rotor's
+    reflected mass m_r·a·(D_k·u) and its friction, at belt speed speed·|D_k·u|, where it has
+    ``max_force(speed·|D_k·u|)``. The result is the smallest a over directions (``n_dir`` from 0
+    to 180°; diagonals load one CoreXY motor most) and motors at which demand meets force; on pure
+    axis moves it equals ``Printer.motor_accel_limit``."""
     th = np.linspace(0.0, np.pi, n_dir)
     u = np.stack([np.cos(th), np.sin(th)], axis=1)                      # (n, 2)
-    drives = _drives(printer)
-    D = np.stack([d for _, _, d in drives])                              # (k, 2)
-    norm = np.sum(D * D, axis=0)                                        # (2,) per axis
+    motors = printer.drive_motors()
+    D = np.array([d for _n, _m, d in motors], float).T                  # (2, k)
+    P = np.linalg.pinv(D.T)                                             # (2, k)
     mass = np.array([printer.moving_mass("x"), printer.moving_mass("y")])
     best, who = np.inf, ""
-    for name, mo, d in drives:
-        share = np.where(norm > 0, d / np.where(norm > 0, norm, 1.0), 0.0)
-        proj = u @ d                                                     # motor mm per head mm
-        per_accel = np.abs(u @ (mass * share) + mo.rotor_mass * proj) * 1e-3   # N per mm/s²
+    for k, (name, mo, _d) in enumerate(motors):
+        proj = u @ D[:, k]                                              # motor mm per head mm
+        per_accel = np.abs(u @ (P[:, k] * mass) + mo.rotor_mass * proj) * 1e-3   # N per mm/s²
         avail = np.asarray(mo.max_force(speed * np.abs(proj)), float) - mo.friction
         with np.errstate(divide="ignore", invalid="ignore"):
             a = np.where(per_accel > 1e-12, np.maximum(avail, 0.0) / per_accel, np.inf)
         i = int(np.argmin(a))
         if a[i] < best:
-            best, who = float(a[i]), name
+            names = dict(_MOTOR_NAMES, b="B motor (stepper_z)") if printer.kinematics == "corexz" else _MOTOR_NAMES
+            best, who = float(a[i]), names.get(name, f"{name} motor")
     return best, who
+
+
+_MOTOR_NAMES = {"x": "X motor", "y": "Y motor", "a": "A motor (stepper_x)", "b": "B motor (stepper_y)"}
 
 
 def accel_ceiling(printer: Any, speed: float | None = None) -> tuple[float, str]:

@@ -237,25 +237,12 @@ def run(args: argparse.Namespace, out) -> int:
 
 def firmware_names(name: str) -> tuple[str, str, str]:
     """(firmware to tune for, dialect apply.txt is written in, a note or "") from a ``--firmware``
-    value: the names ``export`` accepts, in any case. RepRapFirmware 3.4 shapes as 3.5 does (same
-    shapers, formulas and custom-shaper meaning; only M593 L differs), so it is tuned as rrf35 and
-    exported for 3.4."""
-    from ringtune.shaping.config import FIRMWARE_FLAVOR
-    from ringtune.shaping.errors import RingtuneError
+    value: every firmware of :data:`ringtune.shaping.firmware.FIRMWARES` (the names ``export``
+    accepts, rrf34 included), in any case."""
+    from ringtune.shaping.firmware import firmware_record
 
-    try:
-        from ringtune.hardware.dialects import DIALECTS
-    except ImportError:        # pragma: no cover - hardware is part of the package
-        DIALECTS = tuple(FIRMWARE_FLAVOR)
-    d = str(name).strip().lower()
-    if d not in DIALECTS and d not in FIRMWARE_FLAVOR:
-        raise RingtuneError(f"must be one of {', '.join(DIALECTS)}, not {name!r}", "--firmware")
-    if d in FIRMWARE_FLAVOR:
-        return d, d, ""
-    if d == "rrf34":
-        return "rrf35", d, ("RepRapFirmware 3.4 shapes motion as 3.5 does (same shapers and formulas): tuned as "
-                            "rrf35, apply.txt written for 3.4")
-    raise RingtuneError(f"tuning for {d} is not available", "--firmware")
+    rec = firmware_record(name, "--firmware")
+    return rec.name, rec.name, ""
 
 
 def _accel_range(text: str | None):
