@@ -34,6 +34,8 @@ COMMAND_MODULES = [
     "plan",
     "limit",
     "identify",
+    "printer",
+    "motor",
     "export",
     "push",
 ]

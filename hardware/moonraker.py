@@ -61,7 +61,9 @@ class Moonraker:
                 msg = err.get("message") if isinstance(err, dict) else str(err)
             except (json.JSONDecodeError, AttributeError):
                 msg = None
-            raise LinkError(f"HTTP {exc.code} from {path}: {msg or exc.reason}", self.shown) from None
+            err = LinkError(f"HTTP {exc.code} from {path}: {msg or exc.reason}", self.shown)
+            err.message = msg      # Klipper's own words (e.g. "Unsupported shaper type: ei2")
+            raise err from None
         except TimeoutError:
             raise LinkTimeout(f"no answer from {path} within {self.timeout:g} s", path, self.shown) from None
         except urllib.error.URLError as exc:
@@ -81,8 +83,32 @@ class Moonraker:
         if result.get("result") != "ok":
             raise LinkError(f"unexpected answer {str(result)[:80]!r}", self.shown)
 
+    def state(self) -> dict:
+        """Klippy's state through ``GET /printer/info``: ``{"state": "ready" | "shutdown" | "error" |
+        "startup", "message": state_message}`` (``unknown`` when Moonraker cannot say)."""
+        try:
+            info = self._request("GET", "/printer/info").get("result", {})
+        except LinkTimeout:
+            raise
+        except LinkError as exc:
+            return {"state": "unknown", "message": exc.bare}
+        return {"state": str(info.get("state", "unknown")), "message": str(info.get("state_message", ""))}
+
     def console(self, count: int = 50) -> list[str]:
         """The last ``count`` console messages (commands and responses)."""
         result = self._request("GET", f"/server/gcode_store?count={int(count)}")
         store = result.get("result", {}).get("gcode_store", [])
         return [str(item.get("message", "")) for item in store if isinstance(item, dict)]
+
+    def query_objects(self, objects: dict[str, list[str] | None]) -> dict:
+        """``GET /printer/objects/query``: ``{object: {attribute: value}}`` for each object (the
+        attributes listed, or all of them for ``None``)."""
+        from urllib.parse import quote
+
+        args = "&".join(quote(name, safe=" ").replace(" ", "%20")
+                        + ("=" + ",".join(attrs) if attrs else "") for name, attrs in objects.items())
+        result = self._request("GET", f"/printer/objects/query?{args}")
+        status = result.get("result", {}).get("status") if isinstance(result, dict) else None
+        if not isinstance(status, dict):
+            raise LinkError(f"unexpected answer to objects/query {str(result)[:80]!r}", self.shown)
+        return status
