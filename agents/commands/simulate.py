@@ -119,8 +119,18 @@ def build_config(args, out=None):
         cfg["freq_limit_hz"] = args.freq_limit
     if args.accel is not None:
         cfg["accel"] = args.accel
+    _check_options(freq, damping, args)
     where = args.config or "options"
-    config = TuneConfig.from_dict(cfg, where)
+    try:
+        config = TuneConfig.from_dict(cfg, where)
+    except RingtuneError as exc:   # a value an option gave: name the option, not the config key
+        key = (exc.where or "").rpartition(": ")[2]
+        given = {"--freq": freq, "--damping": damping, "--shaper": shaper, "--firmware": args.firmware,
+                 "--freq-limit": args.freq_limit, "--accel": args.accel}
+        flag = _KEY_FLAG.get(key)
+        if flag and given.get(flag) is not None:
+            raise RingtuneError(exc.bare, flag) from None
+        raise
     from ringtune.shaping.shapers import get_shaper
 
     for ax in ("x", "y"):  # the firmware must offer the shaper: say which option asked for it
@@ -129,6 +139,30 @@ def build_config(args, out=None):
             get_shaper(name, f, z, config.flavor,
                        where="--shaper" if shaper else f"{args.config}: shaper_{ax}")
     return config
+
+
+#: TuneConfig key -> the option that sets it
+_KEY_FLAG = {"freq_x": "--freq", "freq_y": "--freq", "damping_x": "--damping", "damping_y": "--damping",
+             "shaper_x": "--shaper", "shaper_y": "--shaper", "firmware": "--firmware",
+             "freq_limit_hz": "--freq-limit", "accel": "--accel"}
+
+
+def _check_options(freq, damping, args) -> None:
+    """The options' values in their own units, named by option (TuneConfig's own check would name
+    its keys: ``options: freq_x: -40.0 is out of range``)."""
+    import math
+
+    for f in freq or ():
+        if not (math.isfinite(f) and 0 <= f <= 1000):
+            raise RingtuneError(f"{f:g} Hz is not a shaper frequency: give one in (0, 1000] Hz", "--freq")
+    for z in damping or ():
+        if not (math.isfinite(z) and 0 <= z <= 0.99):
+            raise RingtuneError(f"{z:g} is not a damping ratio: give one in [0, 0.99] (e.g. 0.1)", "--damping")
+    if args.freq_limit is not None and not (math.isfinite(args.freq_limit) and 0 <= args.freq_limit <= 1000):
+        raise RingtuneError(f"{args.freq_limit:g} Hz is not a frequency limit: give one in [0, 1000] Hz "
+                            "(0 = off)", "--freq-limit")
+    if args.accel is not None and not (math.isfinite(args.accel) and 0 < args.accel <= 1e6):
+        raise RingtuneError(f"{args.accel:g} mm/s² is not an acceleration: give one > 0 mm/s²", "--accel")
 
 
 def freq_margin(args) -> float:

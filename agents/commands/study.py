@@ -68,12 +68,11 @@ def run(args: argparse.Namespace, out) -> int:
     from ringtune.envs.evaluate import evaluate_many, resolve_printer
     from ringtune.shaping.config import TuneConfig
     from ringtune.shaping.errors import RingtuneError
+    from ringtune.shaping.firmware import Firmware
     from ringtune.shaping.shapers import available_shapers
 
-    from ringtune.shaping.firmware import FIRMWARES
-
-    if args.firmware not in FIRMWARES:
-        raise RingtuneError(f"must be one of {', '.join(FIRMWARES)}", "--firmware")
+    fw = Firmware.named(args.firmware, "--firmware")
+    args.firmware = fw.name
     if args.freq_margin is None:
         margin = 0.0 if args.factor == "freq-error" else DEFAULT_FREQ_MARGIN
     elif 0 <= args.freq_margin < 50:
@@ -83,14 +82,14 @@ def run(args: argparse.Namespace, out) -> int:
     judged = judgement(margin)
     printer = resolve_printer(args.printer)
     quality = f"{args.quality}_mm"
-    offered = [s for s in available_shapers(FIRMWARES[args.firmware].flavor) if s != "custom"]
+    offered = [s for s in available_shapers(fw.flavor) if s != "custom"]
     shapers = [s.strip().lower() for s in args.shapers.split(",")] if args.shapers else offered
     bad = [s for s in shapers if s not in offered]
     if bad:
         raise RingtuneError(f"{args.firmware} does not offer {', '.join(bad)} (offers {', '.join(offered)})",
                             "--shapers")
     values = _values(args, printer)
-    one = FIRMWARES[args.firmware].one_shaper
+    one = fw.one_shaper
 
     # tuned frequency per shaper and axis: Klipper's per-shaper fit where it has one
     tuned: dict[str, dict[str, float]] = {}
