@@ -48,9 +48,12 @@ def test_simulate_of_tunes_best_json_prints_tunes_figures_to_the_digit(tmp_path)
     # the text a person reads: tune's summary line for the chosen point and simulate's table
     text = _run(["simulate", "--config", str(out / "best.json")]).stdout
     summary = (out / "summary.txt").read_text()
-    chosen = re.search(r"print time ([\d.]+) s, overshoot ([\d.]+) µm, path error ([\d.]+) µm", summary)
+    chosen = re.search(r"print time ([\d.]+) s, overshoot ([\d.]+) µm, path error ([\d.]+) µm"
+                       r"(?:, motor load (\d+) %)?", summary)
     assert chosen, summary
-    t, os_um, pe_um = chosen.groups()
+    t, os_um, pe_um, load = chosen.groups()
+    if load is not None:
+        assert re.search(rf"motor load\s+{load} %", text), text
     assert re.search(rf"print time\s+{re.escape(t)} s", text), text
     assert re.search(rf"overshoot\s+{re.escape(os_um)} µm", text), text
     assert re.search(rf"path error\s+{re.escape(pe_um)} µm", text), text
@@ -122,3 +125,18 @@ def test_study_says_which_judgement(tmp_path, capsys):
     assert mass["shapers"]["mzv"]["quality_mm"][0] >= fe["shapers"]["mzv"]["quality_mm"][0]
     assert main(argv + ["--factor", "mass", "-o", str(tmp_path / "m.png")]) == 0
     assert "quality judged worst of the model and its resonances ±5 %" in capsys.readouterr().out
+
+
+def test_simulate_judges_a_best_json_with_the_margin_it_was_tuned_with(tmp_path, capsys):
+    """A best.json records tune's --freq-margin: simulate uses it unless told otherwise."""
+    from ringtune.shaping.config import TuneConfig
+
+    cfg = tmp_path / "best.json"
+    TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=45.0, freq_y=40.0,
+               extra={"source": "ringtune tune", "freq_margin": 0.1}).save(cfg)
+    argv = ["simulate", "--json", "--backend", "lti", "--config", str(cfg)]
+    assert main(argv) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["freq_margin"] == 0.1 and [v["factor"] for v in res["variants"]] == [1.0, 0.9, 1.1]
+    assert main(argv + ["--freq-margin", "0"]) == 0
+    assert json.loads(capsys.readouterr().out)["freq_margin"] == 0

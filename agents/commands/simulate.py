@@ -4,7 +4,8 @@ JSON keys (stable): ``printer`` (name), ``job`` (G-code path or ``"built-in test
 ``backend``, ``config`` (TuneConfig dict), ``metrics`` {``print_time_s``, ``path_error_mm``,
 ``overshoot_mm``, ``ringing_mm``, ``peak_accel``, ``step_loss``, ``motor_load``}, ``freq_margin``
 (fraction: the metrics are the worst of the printer and its resonances this much lower and
-higher, as ``tune`` judges; 0 = the exact model), ``judgement`` (that, in words), ``variants``
+higher, as ``tune`` judges; 0 = the exact model; default: the ``freq_margin`` a tune best.json
+records, else tune's default), ``judgement`` (that, in words), ``variants``
 (list of {``factor`` (every resonance × it), ``metrics``}), ``windows`` (list of {``t0``, ``t1``,
 ``kind``, ``path_error_mm``, ``overshoot_mm``, ``ringing_mm``, ``peak_accel``, ``step_loss``,
 ``motor_load``}, each the worst over the variants), ``plots`` (list of PNG paths, empty without
@@ -36,7 +37,8 @@ the job's quality windows (sharpest corners, fastest zigzags):
 
 Every figure is judged as `ringtune tune` judges its trials: the worst of the printer as modelled
 and of the printer with all its resonances --freq-margin per cent lower and higher (default 5; a
-real printer's frequencies drift by that much). --freq-margin 0 judges the exact model only. So
+real printer's frequencies drift by that much; a best.json from tune that records another margin
+is judged with that one). --freq-margin 0 judges the exact model only. So
 `simulate --config best.json` on tune's printer and job prints tune's figures for that
 configuration, to the digit.
 
@@ -67,7 +69,8 @@ def add_arguments(parser) -> None:
                         help="physics: mujoco (default) or lti (exact linear, fast screening)")
     parser.add_argument("--freq-margin", metavar="PCT", type=float, default=None,
                         help="judge also with every resonance PCT %% lower and higher, the worst counts, as "
-                             f"tune does (default {DEFAULT_FREQ_MARGIN * 100:g}; 0 = the exact model only)")
+                             f"tune does (default: the margin a tune best.json records, else {DEFAULT_FREQ_MARGIN * 100:g}; "
+                             "0 = the exact model only)")
     parser.add_argument("--plot", metavar="DIR", help="write path, ringing and accelerometer plots (PNG) to DIR")
 
 
@@ -165,9 +168,13 @@ def _check_options(freq, damping, args) -> None:
         raise RingtuneError(f"{args.accel:g} mm/s² is not an acceleration: give one > 0 mm/s²", "--accel")
 
 
-def freq_margin(args) -> float:
-    """--freq-margin PCT as a fraction (default: tune's)."""
+def freq_margin(args, config=None) -> float:
+    """--freq-margin PCT as a fraction; default: the margin the configuration was tuned with
+    (``freq_margin`` in a best.json from tune), else tune's default."""
     if args.freq_margin is None:
+        recorded = (config.extra or {}).get("freq_margin") if config is not None else None
+        if isinstance(recorded, (int, float)) and not isinstance(recorded, bool) and 0 <= recorded < 0.5:
+            return float(recorded)
         return DEFAULT_FREQ_MARGIN
     if not 0 <= args.freq_margin < 50:
         raise RingtuneError(f"must be a percentage in [0, 50), not {args.freq_margin:g}", "--freq-margin")
@@ -179,7 +186,7 @@ def run(args, out) -> int:
     from ringtune.envs.evaluate import evaluate_judged, resolve_printer, variant_factors
 
     config = build_config(args, out)
-    margin = freq_margin(args)
+    margin = freq_margin(args, config)
     if args.gcode and not Path(args.gcode).is_file():
         raise RingtuneError("no such G-code file", f"--gcode {args.gcode}")
     if args.plot:  # before simulating: a folder that cannot be made fails now, in one line
