@@ -16,14 +16,18 @@ from ringtune.agents.commands.train import rollout_for
 def test_train_json_is_one_json_object_and_trains_exactly_n(tmp_path, monkeypatch, capfd):
     """A tiny real run (4 steps, one held-out printer instead of eight to keep it short), captured
     at the file-descriptor level: whatever stable-baselines3 and its progress bar write goes to
-    stderr; stdout parses as JSON, and 4 steps were trained, not a whole 256-step rollout."""
+    stderr; stdout parses as JSON, and 4 steps were trained, not a whole 256-step rollout; stderr
+    not being a terminal, progress comes as lines."""
     monkeypatch.setattr(ppo, "EVAL_SEEDS", ppo.EVAL_SEEDS[:1])
+    monkeypatch.setenv("RINGTUNE_PROGRESS_S", "0")      # stderr is not a terminal: a line per step
     assert main(["train", "--json", "--timesteps", "4", "--envs", "1", "-o", str(tmp_path / "pol")]) == 0
     out, err = capfd.readouterr()
     res = json.loads(out)
     assert res["timesteps"] == res["timesteps_requested"] == 4 and res["rollout_steps"] == 4
     assert json.loads((tmp_path / "pol" / "meta.json").read_text())["timesteps"] == 4
     assert "training PPO: 4 steps" in err
+    progress = [ln for ln in err.splitlines() if ln.startswith("ringtune train: ")]
+    assert progress and progress[-1].startswith("ringtune train: 4/4 steps") and "held-out mean cost" in progress[-1]
 
 
 @pytest.mark.parametrize("n,envs,rollout,trained", [

@@ -30,8 +30,9 @@ with the default 2 envs); a smaller N shortens the rollout to N (rounded up to a
 --envs); a larger one that is not a multiple ends on the next whole rollout. Either way the command
 says so before training, and the JSON has the steps done.
 
-Progress (the bar, notes) goes to standard error only: with --json, standard output holds the
-JSON object and nothing else.
+Progress goes to standard error only (with --json, standard output holds the JSON object and
+nothing else): a bar on a terminal, else (logs, CI, nohup) a line every 10 s with the steps done
+and the held-out printers' best mean cost so far.
 
 Runs --envs environments in subprocesses, normalises observations and rewards (VecNormalize),
 evaluates on 8 held-out printers (seeds disjoint from training) at the start and during training,
@@ -105,9 +106,13 @@ def run(args, out) -> int:
         out.note(f"PPO collects whole rollouts of {rollout // args.envs} steps × {args.envs} env(s) = {rollout}: "
                  f"--timesteps {args.timesteps} trains {planned} steps")
     out.note(f"training PPO: {planned if planned else args.timesteps} steps on {args.envs} env(s) -> {args.output}")
+    import sys
+
+    tty = sys.stderr.isatty()
+    lines = [] if tty or args.no_progress else [progress_lines(args.output, planned or args.timesteps)]
     with _stdout_to_stderr():
         res = ppo.train(args.output, args.timesteps, args.envs, args.seed, resume=args.resume, hyper=hyper,
-                        progress_bar=not args.no_progress)
+                        progress_bar=tty and not args.no_progress, callbacks=lines)
     if args.resume and res.timesteps != args.timesteps:
         out.note(f"trained {res.timesteps} steps in total, not {args.timesteps}: PPO ends on a whole rollout")
     d = Path(args.output)
@@ -185,3 +190,41 @@ class _stdout_to_stderr:
         self._redirect.__exit__(*exc)
         self._warnings.__exit__(*exc)
         return False
+
+
+def progress_lines(out_dir, total: int):
+    """A stable-baselines3 callback printing, on stderr, a line every ``PROGRESS_INTERVAL_S`` s
+    (``RINGTUNE_PROGRESS_S``): steps done of ``total`` and the best held-out mean cost so far
+    (``out_dir/evaluations.npz``, written at each evaluation)."""
+    import os
+    import sys
+    import time
+    from pathlib import Path
+
+    import numpy as np
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from ringtune.agents.commands.tune import PROGRESS_INTERVAL_S
+
+    interval = float(os.environ.get("RINGTUNE_PROGRESS_S", PROGRESS_INTERVAL_S))
+    evals = Path(out_dir) / "evaluations.npz"
+
+    class Lines(BaseCallback):
+        def _on_training_start(self) -> None:
+            self._t0 = self._last = time.time()
+
+        def _on_step(self) -> bool:
+            now = time.time()
+            if now - self._last >= interval:
+                self._last = now
+                best = "no held-out evaluation yet"
+                try:
+                    with np.load(evals) as d:
+                        best = f"best held-out mean cost {-np.max(np.mean(d['results'], axis=1)):.3f}"
+                except (OSError, KeyError, ValueError):
+                    pass
+                print(f"ringtune train: {self.num_timesteps}/{total} steps, {now - self._t0:.0f} s; {best}",
+                      file=sys.stderr, flush=True)
+            return True
+
+    return Lines()
