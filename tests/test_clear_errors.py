@@ -43,11 +43,12 @@ def test_plan_of_a_png_says_it_is_an_image(tmp_path, capsys):
 
 def test_plan_of_a_printer_toml_says_give_it_with_printer(tmp_path, capsys):
     """`plan myprinter.toml` said `line number N must be an integer` (the `name = ...` line)."""
-    from ringtune.envs.data import __file__ as data_init
     from pathlib import Path
 
+    import ringtune.envs.data
+
     toml = tmp_path / "myprinter.toml"
-    toml.write_text((Path(data_init).parent / "ender3.toml").read_text())
+    toml.write_text((Path(ringtune.envs.data.__file__).parent / "ender3.toml").read_text())
     line = _error(capsys, ["plan", str(toml)])
     assert "TOML file" in line and "--printer" in line and "line number" not in line
 
