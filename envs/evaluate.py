@@ -5,8 +5,8 @@ the job's quality windows (sharpest corners, fastest zigzags), each simulated wi
 for the shaper and the machine to settle:
 
 1. job (G-code path, G-code text, a parsed ``Job``, or None for the built-in test print)
-   → ``apply_freq_limit`` per the config → ``plan`` with the printer's limits (acceleration
-   replaced by ``config.accel`` if given) → print time, s;
+   → :func:`ringtune.shaping.config_plan.plan_with_config` (the config's frequency limit and
+   acceleration, the planner with the printer's limits) → print time, s;
 2. ``quality_windows`` of that plan; each window ``[t0, t1]`` is cut from the unshaped motion with
    margins, shaped with the config's shapers (centred or causal per the firmware flavour), and cut
    again to ``[t0 − lead, t1 + tail]`` where the shaped command is exact
@@ -114,14 +114,6 @@ def resolve_job(job):
     return key, _remember(_JOBS, key, parsed)
 
 
-def job_limits(printer, config: TuneConfig | None):
-    """The printer's machine limits with the config's acceleration, if it sets one."""
-    limits = printer.limits
-    if config is not None and config.accel is not None:
-        limits = dataclasses.replace(limits, accel=float(config.accel))
-    return limits
-
-
 def planned_job(printer, job=None, config: TuneConfig | None = None, *,
                 max_windows: int = MAX_WINDOWS, span: float = WINDOW_SPAN) -> PlannedJob:
     """Parse, frequency-limit and plan ``job`` for ``printer`` under ``config`` (cached).
@@ -129,24 +121,21 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
     The quality windows are chosen once, on the plan at the printer's own limits without
     frequency limit, and every configuration is judged on those same corners and zigzags
     (:func:`ringtune.shaping.testprints.relocate_windows`)."""
-    from ringtune.shaping import freqlimit, planner, testprints
+    from ringtune.shaping import testprints
+    from ringtune.shaping.config_plan import plan_with_config
 
     jkey, parsed = resolve_job(job)
-    limits = job_limits(printer, config)
+    limits = printer.limits
     fl = (0.0, "", 0.0)
     if config is not None and config.freq_limit_hz > 0:
         fl = (float(config.freq_limit_hz), config.freq_limit_method, float(config.min_speed_factor))
     accel = None if config is None or config.accel is None else float(config.accel)
-    daa = daa_frequency(config)
+    daa = None if config is None else config.daa_freq
     key = (jkey, repr(limits), fl, accel, daa, max_windows, span)
     if key in _PLANS:
         _PLANS.move_to_end(key)
         return _PLANS[key]
-    limited = parsed
-    if fl[0] > 0:
-        limited = freqlimit.apply_freq_limit(parsed, fl[0], method=fl[1], min_speed_factor=fl[2])
-    # the config's acceleration wins over the job's own M204 / SET_VELOCITY_LIMIT (a tuning knob)
-    plan = planner.plan(limited, limits, accel=accel, daa_freq=daa)
+    plan = plan_with_config(parsed, limits, config).plan
     if key[2:5] == ((0.0, "", 0.0), None, None):
         windows = testprints.quality_windows(plan, max_windows=max_windows, span=span)
     else:   # the corners and zigzags the printer's own plan chose, at this plan's times
@@ -172,28 +161,6 @@ class WindowRun:
     anticipate: float = 0.0   # s, see compute_metrics
 
 
-def daa_frequency(config: TuneConfig | None) -> float | None:
-    """Ringing frequency (Hz) for RepRapFirmware ≤ 3.3's Dynamic Acceleration Adjustment when the
-    config selects shaper ``"daa"`` (one frequency for the machine: ``freq_x``), else None. DAA
-    works in the planner (it lengthens acceleration phases to whole ringing periods), so such a
-    config is planned with it and not input-shaped."""
-    if config is None or "daa" not in (config.shaper_x, config.shaper_y):
-        return None
-    return float(config.freq_x if config.shaper_x == "daa" else config.freq_y)
-
-
-def config_shapers(config: TuneConfig) -> tuple[dict, bool]:
-    """({"x": Shaper | None, "y": ...}, centred) for the config's firmware flavour."""
-    from ringtune.shaping.shapers import get_shaper, is_centred
-
-    shapers = {}
-    for ax in ("x", "y"):
-        name, freq, damping = config.axis(ax)
-        shapers[ax] = None if name in ("none", "daa") else get_shaper(name, freq, damping, config.flavor,
-                                                             where=f"config: shaper_{ax}")
-    return shapers, is_centred(config.flavor)
-
-
 def auto_settle(printer) -> float:
     """s of history simulated before each window: SETTLE_TAUS time constants 1/(ζω) of the
     printer's slowest-decaying mode, clipped to [SETTLE_MIN, SETTLE_MAX]."""
@@ -206,8 +173,9 @@ def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN) 
     """Shape each quality window of ``pj`` with the config's shapers (``settle`` s of extra
     history before each, beyond the shaper's duration)."""
     from ringtune.shaping.apply import shape_motion
+    from ringtune.shaping.shapers import shapers_from_config
 
-    shapers, centred = config_shapers(config)
+    shapers, centred = shapers_from_config(config)
     active = [s for s in shapers.values() if s is not None]
     duration = max((s.duration for s in active), default=0.0)
     lag = 0.0 if centred else max((s.centroid for s in active), default=0.0)

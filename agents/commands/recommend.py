@@ -15,8 +15,6 @@
 from __future__ import annotations
 
 import argparse
-import re
-from pathlib import Path
 
 NAME = "recommend"
 HELP = "instant shaper config from a resonance test (Klipper's calibrate_shaper rule)"
@@ -89,7 +87,7 @@ def run(args: argparse.Namespace, out) -> int:
         raise RingtuneError("must be ≥ 0.05 mm (as Klipper's)", "--max-smoothing")
     kw = {"max_smoothing": args.max_smoothing}
     if args.accel:
-        psds, sources = _load_accel(args.accel, args.axes)
+        psds, sources = _load_accel(args.accel, args.axes, out)
         fits, fields = klipper_baseline.recommend_axes(psds, args.firmware, args.klipper_version, args.scv, **kw)
     else:
         from ringtune.envs.evaluate import resolve_printer
@@ -133,14 +131,12 @@ def run(args: argparse.Namespace, out) -> int:
     return 0
 
 
-_AXIS_RE = re.compile(r"(?:resonances|calibration_data|raw_data)_([xy])_", re.IGNORECASE)
-
-
-def _load_accel(paths: list[str], axes_opt: str | None):
-    """{axis: [PSD, ...]} and {axis: [file, ...]} from the --accel files."""
+def _load_accel(paths: list[str], axes_opt: str | None, out=None):
+    """{axis: [PSD, ...]} and {axis: [file, ...]} from the --accel files (the axis from --axes, else
+    the file name, else the larger of the psd_x / psd_y columns, said through ``out``)."""
     import numpy as np
 
-    from ringtune.hardware.accel import read_accel, to_psd
+    from ringtune.hardware.accel import axis_from_file_name, read_accel, to_psd
     from ringtune.shaping.errors import RingtuneError
 
     axes = None
@@ -155,12 +151,16 @@ def _load_accel(paths: list[str], axes_opt: str | None):
         if axes:
             ax = axes[i]
         else:
-            m = _AXIS_RE.search(Path(path).name)
-            if m:
-                ax = m.group(1).lower()
-            elif items[0].psd_x is not None and items[0].psd_y is not None:
+            ax = axis_from_file_name(path)
+            if ax == "z":
+                raise RingtuneError("the file name says it measured Z; recommend fits X and Y (if it "
+                                    "measured X or Y, say so with --axes)", str(path))
+            if ax is None and items[0].psd_x is not None and items[0].psd_y is not None:
                 ax = "x" if float(np.sum(items[0].psd_x)) >= float(np.sum(items[0].psd_y)) else "y"
-            else:
+                if out is not None:
+                    out.note(f"{path}: the file name does not say the axis; taking {ax.upper()}, the larger of "
+                             "its psd_x and psd_y (--axes overrides)")
+            elif ax is None:
                 raise RingtuneError("cannot tell which axis this file measured; use --axes", str(path))
         psds.setdefault(ax, []).extend(items)
         sources.setdefault(ax, []).append(str(path))

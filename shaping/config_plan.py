@@ -1,0 +1,70 @@
+"""A job planned under a TuneConfig: the one path from a parsed job to its plan that ``ringtune plan``
+and :func:`ringtune.envs.evaluate.planned_job` (every tuning trial) share.
+
+1. the config's acceleration (mm/s²) replaces the limits' and the job's M204 / SET_VELOCITY_LIMIT
+   accelerations (a tuning knob);
+2. the config's frequency limit rewrites the requested feedrates (``shaping.freqlimit``); without
+   one, a job's own Marlin ``M201 F`` (XY_FREQUENCY_LIMIT) does, as Marlin would, unless the job's
+   own limits are ignored; Marlin's emulation takes the machine's per-axis maximum feedrates;
+3. the planner plans, with RepRapFirmware ≤ 3.3's DAA when the config (or the caller) selects it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.freqlimit import apply_freq_limit
+from ringtune.shaping.job import Job
+from ringtune.shaping.planner import MachineLimits, Plan, plan
+
+
+@dataclass(frozen=True)
+class FreqLimitApplied:
+    """The frequency limit a plan was made with: Hz, method, how many moves it slowed, and
+    ``source`` (``"config"`` or ``"job M201 F"``)."""
+
+    hz: float
+    method: str
+    moves_slowed: int
+    source: str
+
+
+@dataclass(frozen=True)
+class ConfiguredPlan:
+    """The plan, the limits it used (the config's acceleration in), the frequency limit applied
+    (None: none) and the DAA frequency planned with (Hz, None: off)."""
+
+    plan: Plan
+    limits: MachineLimits
+    freq_limit: FreqLimitApplied | None
+    daa_hz: float | None
+
+
+def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None = None, *,
+                     use_job_limits: bool = True, daa_freq: float | None = None) -> ConfiguredPlan:
+    """Plan ``job`` on a machine with ``limits`` under ``config`` (None: as the job is).
+
+    ``use_job_limits``: whether the job's own M201/M203/M204/M205/SET_VELOCITY_LIMIT lines (and its
+    M201 F) apply. ``daa_freq`` (Hz) overrides the config's DAA (:attr:`TuneConfig.daa_freq`).
+    """
+    accel = None if config is None or config.accel is None else float(config.accel)
+    if accel is not None:
+        limits = replace(limits, accel=accel)
+    freq_limit = None
+    if config is not None and config.freq_limit_hz > 0:
+        before = job.feed
+        job = apply_freq_limit(job, float(config.freq_limit_hz), config.freq_limit_method,
+                               float(config.min_speed_factor), max_velocity=limits.max_velocity)
+        freq_limit = FreqLimitApplied(float(config.freq_limit_hz), config.freq_limit_method,
+                                      int(np.sum(job.feed < before)), "config")
+    elif use_job_limits and job.file_setting("freq_limit_hz") > 0:
+        before = job.feed
+        job = apply_freq_limit(job, None, "marlin", max_velocity=limits.max_velocity)
+        freq_limit = FreqLimitApplied(job.file_setting("freq_limit_hz"), "marlin",
+                                      int(np.sum(job.feed < before)), "job M201 F")
+    daa = daa_freq if daa_freq is not None else (None if config is None else config.daa_freq)
+    planned = plan(job, limits, daa_freq=daa, use_job_limits=use_job_limits, accel=accel)
+    return ConfiguredPlan(planned, limits, freq_limit, daa)
