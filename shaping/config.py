@@ -10,17 +10,8 @@ from pathlib import Path
 from typing import Any
 
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import FIRMWARES
 
-#: target firmware -> shaper formula flavour (Prusa Buddy uses Klipper's legacy closed forms)
-FIRMWARE_FLAVOR = {
-    "klipper": "klipper",
-    "rrf": "rrf",
-    "rrf35": "rrf35",
-    "marlin": "marlin",
-    "marlin-ftm": "marlin-ftm",
-    "prusa": "klipper-legacy",
-}
-FIRMWARES = tuple(FIRMWARE_FLAVOR)
 FREQ_LIMIT_METHODS = ("nophead", "sections", "marlin")
 
 
@@ -29,7 +20,8 @@ class TuneConfig:
     """One tuning configuration.
 
     Attributes:
-        firmware: target firmware, one of :data:`FIRMWARES`.
+        firmware: target firmware, a key of :data:`ringtune.shaping.firmware.FIRMWARES` (read
+            case-insensitively: ``"Klipper"`` is stored as ``"klipper"``).
         shaper_x, shaper_y: shaper names (``"none"`` turns shaping off on that axis).
         freq_x, freq_y: shaper frequencies, Hz.
         damping_x, damping_y: shaper damping ratios (dimensionless).
@@ -59,7 +51,7 @@ class TuneConfig:
     @property
     def flavor(self) -> str:
         """Shaper formula flavour of the target firmware (see ``ringtune.shaping.shapers``)."""
-        return FIRMWARE_FLAVOR[self.firmware]
+        return FIRMWARES[self.firmware].flavor
 
     def axis(self, axis: str) -> tuple[str, float, float]:
         """(shaper name, frequency Hz, damping ratio) for axis ``"x"`` or ``"y"``."""
@@ -79,7 +71,9 @@ class TuneConfig:
         return float(getattr(self, f"freq_{axes[0]}")) if axes else None
 
     def validate(self, where: str = "config") -> None:
-        if self.firmware not in FIRMWARE_FLAVOR:
+        if isinstance(self.firmware, str) and self.firmware.strip().lower() in FIRMWARES:
+            self.firmware = self.firmware.strip().lower()
+        if self.firmware not in FIRMWARES:
             raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {self.firmware!r}",
                                 f"{where}: firmware")
         for ax in ("x", "y"):
@@ -89,7 +83,8 @@ class TuneConfig:
             _finite(freq, f"{where}: freq_{ax}", lo=0.0, hi=1000.0)
             _finite(damping, f"{where}: damping_{ax}", lo=0.0, hi=0.99)
             if name != "none" and freq <= 0:
-                raise RingtuneError(f"must be > 0 Hz when shaper_{ax} is {name!r}", f"{where}: freq_{ax}")
+                raise RingtuneError(f"{freq:g} Hz is outside (0, 1000] Hz while shaper_{ax} is {name!r} "
+                                    f"(shaper_{ax} = \"none\" turns shaping off)", f"{where}: freq_{ax}")
         if _is_daa(self.shaper_x) and _is_daa(self.shaper_y) and self.freq_x != self.freq_y:
             raise RingtuneError(f"DAA has one frequency for the whole machine (M593 F), but freq_x is "
                                 f"{self.freq_x:g} Hz and freq_y {self.freq_y:g} Hz", f"{where}: freq_y")
