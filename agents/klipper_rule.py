@@ -258,9 +258,9 @@ def recommend_klipper(psds: Any, version: str = "head", scv: float = 5.0, *,
     """
     if version not in VERSIONS:
         raise RingtuneError(f"Klipper version must be one of {', '.join(VERSIONS)}, not {version!r}",
-                            "--klipper-version")
+                            "version")
     if not (isinstance(scv, (int, float)) and math.isfinite(scv) and scv >= 0):
-        raise RingtuneError(f"square-corner velocity must be ≥ 0 mm/s, not {scv!r}", "--scv")
+        raise RingtuneError(f"square-corner velocity must be ≥ 0 mm/s, not {scv!r}", "scv")
     lowfreq = lowfreq or VERSION_LOWFREQ[version]
     items = list(psds) if isinstance(psds, list) else [psds]
     if not items:
@@ -321,6 +321,6 @@ def _check_shaper_name(name: str) -> str:
     base = m.group(1).lower() if m else str(name)
     if base not in SHAPER_MIN_FREQ:
         raise RingtuneError(f"unknown shaper {name!r}; Klipper's rule fits {', '.join(SHAPER_MIN_FREQ)}",
-                            "--shapers")
+                            "shapers")
     return str(name).strip().lower() if m and m.group(2) else base
 

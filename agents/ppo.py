@@ -201,11 +201,11 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
     from stable_baselines3.common.vec_env import VecNormalize
 
     if not 0 <= seed < MAX_TRAIN_SEED:
-        raise RingtuneError(f"must be in [0, {MAX_TRAIN_SEED}) (higher seeds are the held-out printers)", "--seed")
+        raise RingtuneError(f"must be in [0, {MAX_TRAIN_SEED}) (higher seeds are the held-out printers)", "seed")
     if n_envs < 1:
-        raise RingtuneError("needs at least one environment", "--envs")
+        raise RingtuneError("needs at least one environment", "n_envs")
     if timesteps < 1:
-        raise RingtuneError("must be ≥ 1", "--timesteps")
+        raise RingtuneError("must be ≥ 1", "timesteps")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     env_kwargs = resolve_env_kwargs(env_kwargs)

@@ -180,7 +180,7 @@ def test_head_multiple_datasets_pessimise(data_dir):
 
 
 def test_bad_input_is_a_ringtune_error():
-    with pytest.raises(RingtuneError, match="--klipper-version"):
+    with pytest.raises(RingtuneError, match="^version: "):
         kr.recommend_klipper((np.arange(10.0), np.ones(10)), version="0.12")
     with pytest.raises(RingtuneError, match="unknown shaper"):
         kr.recommend_klipper((np.arange(10.0), np.ones(10)), shapers=["bogus"])

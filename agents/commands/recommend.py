@@ -46,6 +46,10 @@ example:
 """
 
 
+#: library parameters whose option has another name (see agents/cli.py: as_flag)
+PARAMETER_FLAGS = {"version": "--klipper-version", "n_trials": "--refine"}
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     src = p.add_argument_group("what to recommend for (--accel, --printer, or both with --method policy)")
     src.add_argument("--accel", nargs="+", metavar="CSV", help="Klipper resonance / raw accelerometer CSV files")
