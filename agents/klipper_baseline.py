@@ -80,7 +80,7 @@ def _as_list(p: Any) -> list:
     return list(p) if isinstance(p, list) else [p]
 
 
-def recommend_for_printer(printer: Any = None, firmware: str = "klipper", version: str = "head",
+def klipper_rule_on_simulated_test(printer: Any = None, firmware: str = "klipper", version: str = "head",
                           seed: int = 0, **kw) -> tuple[dict[str, KlipperRecommendation], dict[str, Any]]:
     """Klipper's rule on a modelled printer's simulated resonance test (one per axis), as a user
     would run TEST_RESONANCES + calibrate_shaper.py; scv is the printer's square-corner velocity."""

@@ -81,9 +81,7 @@ def run(args: argparse.Namespace, out) -> int:
         raise RingtuneError("give --accel CSV… (a measured resonance test) or --printer P (a simulated one)",
                             "recommend")
     if args.method == "policy":
-        from ringtune.agents.ppo import recommend_command
-
-        return recommend_command(args, out)
+        return _run_policy(args, out)
     if args.accel and args.printer:
         raise RingtuneError("Klipper's rule reads either --accel files or --printer's simulated test, not both",
                             "--printer")
@@ -98,7 +96,8 @@ def run(args: argparse.Namespace, out) -> int:
 
         printer = resolve_printer(None if args.printer in (None, "default") else args.printer)
         try:
-            fits, fields = klipper_baseline.recommend_for_printer(printer, args.firmware, args.klipper_version, args.seed, **kw)
+            fits, fields = klipper_baseline.klipper_rule_on_simulated_test(printer, args.firmware, args.klipper_version,
+                                                                           args.seed, **kw)
         except ImportError as exc:
             raise RingtuneError(f"the simulated resonance test is not available ({exc})", "--printer") from None
         sources = {ax: [f"printer:{getattr(printer, 'name', 'default')}"] for ax in ("x", "y")}
@@ -132,6 +131,82 @@ def run(args: argparse.Namespace, out) -> int:
     out.emit({"method": "klipper", "klipper_version": args.klipper_version, "firmware": args.firmware,
               "axes": {ax: rec.to_dict() for ax, rec in fits.items()}, "sources": sources,
               "config": config.to_dict(), "output": written}, "\n".join(text))
+    return 0
+
+
+def _run_policy(args, out) -> int:
+    """``ringtune recommend --method policy --policy DIR (--accel CSV… [--printer P] | --printer P)
+    [--refine N]``. ``--json`` keys: method ("policy"), firmware,
+    policy (folder), sources ({axis: [files]} or {axis: ["printer:<name>"]}), model (name of the
+    printer model the starting answer is simulated on and refined on), config (TuneConfig dict),
+    inference_s (s, loading excluded; with --accel it includes fitting the model), refine (null or
+    {"trials", "first_cost", "best_cost"}: the environment's cost of the policy's answer and of the
+    best trial), output.
+    """
+    import dataclasses
+    import time
+
+    from ringtune.agents.ppo import load_policy
+    from ringtune.agents.ppo_recommend import (_axis_spectra, decode_measured, measured_observation,
+                                               policy_on_simulated_test, preload)
+    from ringtune.envs.evaluate import resolve_printer
+    from ringtune.shaping.errors import RingtuneError
+
+    if not getattr(args, "policy", None):
+        raise RingtuneError("needs --policy DIR (a folder written by `ringtune train -o DIR`)", "--policy")
+    policy = load_policy(args.policy)
+    trained = policy.env_kwargs.get("firmware", "klipper")
+    if args.firmware != trained:
+        raise RingtuneError(f"this policy chooses {trained} shapers; train one for {args.firmware} "
+                            f"or use --method klipper", "--firmware")
+    refine = getattr(args, "refine", None)
+    printer = resolve_printer(None if args.printer in (None, "default") else args.printer) if args.printer else None
+    preload()
+    t0 = time.perf_counter()
+    if args.accel:
+        psds, sources = _load_accel(args.accel, args.axes, out)
+        spectra = _axis_spectra(psds)
+        env, obs = measured_observation(policy, spectra, printer)
+        action = policy.act(obs)
+        config = decode_measured(env, action, spectra)
+        printer, peaks = env.printer, env.peaks_
+    else:
+        config, action = policy_on_simulated_test(policy, printer, args.seed)
+        sources = {ax: [f"printer:{getattr(printer, 'name', 'default')}"] for ax in ("x", "y")}
+        peaks = None
+    inference = time.perf_counter() - t0
+    refined = None
+    if refine:
+        from ringtune.agents.ppo_refine import PrinterCost, optuna_search
+
+        out.note(f"refining with Optuna: {refine} trials, the policy's answer first ...")
+        cost = PrinterCost(printer, policy.env_kwargs, seed=args.seed, peaks=peaks)
+        res = optuna_search(cost, int(refine), args.seed, first_action=action)
+        config = decode_measured(cost.env, res.best_action, spectra) if args.accel else res.best_config
+        refined = {"trials": int(refine), "first_cost": res.first_cost, "best_cost": res.best_cost}
+    config = dataclasses.replace(config, extra={"method": "policy", "policy": str(policy.path),
+                                                "sources": sources, "refine": refined})
+    written = None
+    if args.output:
+        config.save(args.output)
+        written = str(args.output)
+    accel = f"{config.accel:.0f} mm/s^2" if config.accel else "unchanged"
+    model = getattr(printer, "name", "the default printer")
+    text = [f"policy {policy.path} (loaded pickles: trusted source assumed), inference {inference * 1e3:.0f} ms",
+            *([f"printer model (starting answer's metrics{', refinement' if refine else ''}): {model}"]
+              if policy.env_kwargs.get("observe_metrics") or refine else []),
+            f"X: {config.shaper_x} @ {config.freq_x:.1f} Hz, damping {config.damping_x:.3f}",
+            f"Y: {config.shaper_y} @ {config.freq_y:.1f} Hz, damping {config.damping_y:.3f}",
+            f"frequency limit: {config.freq_limit_hz:.0f} Hz" if config.freq_limit_hz else "frequency limit: off",
+            f"acceleration: {accel}"]
+    if refined:
+        text.append(f"refined: cost {refined['first_cost']:.4f} (policy) -> {refined['best_cost']:.4f} "
+                    f"after {refine} trials")
+    text.append(f"written to {written}" if written else "(use -o best.json to save it)")
+    out.emit({"method": "policy", "firmware": args.firmware, "policy": str(policy.path), "sources": sources,
+              "model": model,
+              "config": config.to_dict(), "inference_s": inference, "refine": refined, "output": written},
+             "\n".join(text))
     return 0
 
 

@@ -79,7 +79,7 @@ def run(args: argparse.Namespace, out) -> int:
     # tuned frequency per shaper and axis: Klipper's per-shaper fit where it has one
     tuned: dict[str, dict[str, float]] = {}
     try:
-        fits, _ = klipper_baseline.recommend_for_printer(printer, args.firmware, "head")
+        fits, _ = klipper_baseline.klipper_rule_on_simulated_test(printer, args.firmware, "head")
     except (ImportError, RingtuneError) as exc:
         out.note(f"ringtune study: Klipper's fit unavailable ({exc}); shapers tuned to the main mode")
         fits = {}

@@ -191,7 +191,7 @@ def _baselines(printer, args, settings, evaluator, quality, out) -> dict:
 
     configs, fits = {}, {}
     try:
-        fits, fields = klipper_baseline.recommend_for_printer(printer, args.firmware, "head", seed=args.seed)
+        fits, fields = klipper_baseline.klipper_rule_on_simulated_test(printer, args.firmware, "head", seed=args.seed)
         if fields.get("accel") is None:
             fields["accel"] = float(printer.limits.accel)
         configs["klipper"] = TuneConfig(**fields, extra={"source": "Klipper's calibrate_shaper rule (HEAD)"})
