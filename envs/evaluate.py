@@ -5,8 +5,9 @@ the job's quality windows (sharpest corners, fastest zigzags), each simulated wi
 for the shaper and the machine to settle:
 
 1. job (G-code path, G-code text, a parsed ``Job``, or None for the built-in test print)
-   → :func:`ringtune.shaping.config_plan.plan_with_config` (the config's frequency limit and
-   acceleration, the planner with the printer's limits) → print time, s;
+   → :func:`ringtune.shaping.config_plan.plan_with_config` with the printer's limits (the config's
+   acceleration per the job-acceleration mode ``job_accel``, its frequency limit, DAA) → print
+   time, s;
 2. ``quality_windows`` of that plan; each window ``[t0, t1]`` is cut from the unshaped motion with
    margins, shaped with the config's shapers (centred or causal per the firmware flavour), and cut
    again to ``[t0 − lead, t1 + tail]`` where the shaped command is exact
@@ -114,16 +115,34 @@ def resolve_job(job):
     return key, _remember(_JOBS, key, parsed)
 
 
+def job_accel_commands(job) -> dict[str, float]:
+    """The acceleration commands a parsed job sets itself: {setting: largest value it sets}
+    (mm/s²; keys of :data:`ringtune.shaping.config_plan.JOB_ACCEL_SETTINGS`; empty when it sets none)."""
+    from ringtune.shaping.config_plan import JOB_ACCEL_SETTINGS
+    from ringtune.shaping.job import SETTING_KEYS
+
+    out = {}
+    for k in JOB_ACCEL_SETTINGS:
+        col = np.asarray(job.settings_table)[:, SETTING_KEYS.index(k)]
+        col = col[~np.isnan(col)]
+        if len(col):
+            out[k] = float(col.max())
+    return out
+
+
 def planned_job(printer, job=None, config: TuneConfig | None = None, *,
-                max_windows: int = MAX_WINDOWS, span: float = WINDOW_SPAN) -> PlannedJob:
+                max_windows: int = MAX_WINDOWS, span: float = WINDOW_SPAN,
+                job_accel: str | None = None) -> PlannedJob:
     """Parse, frequency-limit and plan ``job`` for ``printer`` under ``config`` (cached).
 
-    The quality windows are chosen once, on the plan at the printer's own limits without
-    frequency limit, and every configuration is judged on those same corners and zigzags
-    (:func:`ringtune.shaping.testprints.relocate_windows`)."""
+    ``job_accel``: how ``config.accel`` meets the job's own acceleration commands
+    (:func:`ringtune.shaping.config_plan.job_accel_mode`). The quality windows are chosen once, on
+    the plan at the printer's own limits without frequency limit, and every configuration is judged
+    on those same corners and zigzags (:func:`ringtune.shaping.testprints.relocate_windows`)."""
     from ringtune.shaping import testprints
-    from ringtune.shaping.config_plan import plan_with_config
+    from ringtune.shaping.config_plan import job_accel_mode, plan_with_config
 
+    mode = job_accel_mode(config, job_accel)
     jkey, parsed = resolve_job(job)
     limits = printer.limits
     fl = (0.0, "", 0.0)
@@ -131,11 +150,13 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
         fl = (float(config.freq_limit_hz), config.freq_limit_method, float(config.min_speed_factor))
     accel = None if config is None or config.accel is None else float(config.accel)
     daa = None if config is None else config.daa_freq
-    key = (jkey, repr(limits), fl, accel, daa, max_windows, span)
+    if accel is None:
+        mode = "replace"       # nothing to replace with: the job's and the machine's limits as they are
+    key = (jkey, repr(limits), fl, accel, daa, max_windows, span, mode)
     if key in _PLANS:
         _PLANS.move_to_end(key)
         return _PLANS[key]
-    plan = plan_with_config(parsed, limits, config).plan
+    plan = plan_with_config(parsed, limits, config, job_accel=mode).plan
     if key[2:5] == ((0.0, "", 0.0), None, None):
         windows = testprints.quality_windows(plan, max_windows=max_windows, span=span)
     else:   # the corners and zigzags the printer's own plan chose, at this plan's times
@@ -222,7 +243,7 @@ def metrics_of(runs: list[WindowRun], sims: list, print_time: float) -> Metrics:
 
 # -- the public calls -------------------------------------------------------------------------------
 def evaluate(config: TuneConfig, printer=None, job=None, backend: str = "mujoco", *,
-             settle: float | None = None, nthread: int | None = None) -> Metrics:
+             settle: float | None = None, nthread: int | None = None, job_accel: str | None = None) -> Metrics:
     """Print time (whole job) and quality (physics on the quality windows) of ``config``.
 
     Args:
@@ -232,13 +253,15 @@ def evaluate(config: TuneConfig, printer=None, job=None, backend: str = "mujoco"
         backend: ``"mujoco"`` (default) or ``"lti"`` (exact linear screening).
         settle: s of simulated lead-in beyond the shaper's duration (None: :func:`auto_settle`).
         nthread: simulation threads (default: up to one per window and core).
+        job_accel: ``replace`` or ``respect`` (:func:`ringtune.shaping.config_plan.job_accel_mode`;
+            default the config's own, else ``replace``).
     """
-    return evaluate_many([config], printer, job, backend, settle=settle, nthread=nthread)[0]
+    return evaluate_many([config], printer, job, backend, settle=settle, nthread=nthread, job_accel=job_accel)[0]
 
 
 def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
                   settle: float | None = None, nthread: int | None = None,
-                  freq_margin: float = 0.0) -> list[Metrics]:
+                  freq_margin: float = 0.0, job_accel: str | None = None) -> list[Metrics]:
     """:func:`evaluate` for many configs, all their windows simulated in one ``simulate_batch``.
 
     ``freq_margin`` > 0 (a fraction, e.g. 0.05): each config is also judged on the printer with
@@ -250,12 +273,13 @@ def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend
         raise RingtuneError(f"must be in [0, 1), not {freq_margin}", "freq_margin")
     if not freq_margin:
         return [e.metrics for e in evaluate_detailed(configs, printer, job, backend, settle=settle,
-                                                     nthread=nthread)]
+                                                     nthread=nthread, job_accel=job_accel)]
     printer = resolve_printer(printer)
     if settle is None:
         settle = auto_settle(printer)
     variants = [printer, printer.detuned(1.0 - freq_margin), printer.detuned(1.0 + freq_margin)]
-    runs = [evaluate_detailed(configs, p, job, backend, settle=settle, nthread=nthread) for p in variants]
+    runs = [evaluate_detailed(configs, p, job, backend, settle=settle, nthread=nthread, job_accel=job_accel)
+            for p in variants]
     return [worst_case(r[i].metrics for r in runs) for i in range(len(configs))]
 
 
@@ -271,7 +295,8 @@ class Evaluation:
 
 
 def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
-                      settle: float | None = None, nthread: int | None = None) -> list[Evaluation]:
+                      settle: float | None = None, nthread: int | None = None,
+                      job_accel: str | None = None) -> list[Evaluation]:
     """Like :func:`evaluate_many`, keeping the plans, shaped windows and simulation results."""
     from ringtune.envs.sim import simulate_batch
 
@@ -281,7 +306,7 @@ def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, bac
     per_config = []
     motions: list[Motion] = []
     for cfg in configs:
-        pj = planned_job(printer, job, cfg)
+        pj = planned_job(printer, job, cfg, job_accel=job_accel)
         runs = window_runs(pj, cfg, settle)
         per_config.append((cfg, pj, runs))
         motions.extend(r.shaped for r in runs)
