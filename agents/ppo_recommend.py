@@ -5,7 +5,6 @@ simulated test): the library behind ``ringtune recommend --method policy``
 from __future__ import annotations
 
 import dataclasses
-import time
 
 import numpy as np
 

@@ -88,12 +88,6 @@ def _first_content(lines: list[str], skip_comments: bool = True) -> int:
     return -1
 
 
-def detect_format(path: str | Path) -> str:
-    """``"resonances"``, ``"klipper-raw"`` or ``"m956"`` (RingtuneError if none fits)."""
-    path, lines = _read_lines(path)
-    return _detect(path, lines)
-
-
 def _detect(path: Path, lines: list[str]) -> str:
     i = _first_content(lines)
     if i < 0:
@@ -147,11 +141,6 @@ def read_resonances_csv(path: str | Path) -> PSD | list[PSD]:
     """Klipper ``TEST_RESONANCES`` / ``calibration_data`` CSV -> PSD (multi-dataset -> list[PSD])."""
     return _read_as(path, ("resonances",),
                     "not a Klipper resonance CSV (looks like {kind}); header must start 'freq,'")
-
-
-def read_calibration_csv(path: str | Path) -> PSD | list[PSD]:
-    """Klipper ``calibration_data_*.csv``: same layout as the resonance CSV plus shaper columns."""
-    return read_resonances_csv(path)
 
 
 def _parse_resonances(path: Path, lines: list[str]) -> PSD | list[PSD]:

@@ -147,11 +147,6 @@ def lag(shaper: Shaper, centred: bool = False) -> float:
     return shaper.centroid - shaper.centre_delay if centred else shaper.centroid
 
 
-def position_lag(shaper: Shaper, speed: float, centred: bool = False) -> float:
-    """Steady-state distance the shaped position trails the commanded one at ``speed`` mm/s, mm."""
-    return speed * lag(shaper, centred)
-
-
 def acceleration_lag(accel: float, freq: float) -> float:
     """Static deflection of a mode of ``freq`` Hz under constant ``accel`` mm/s²: a/ω², mm."""
     omega = 2 * math.pi * freq
