@@ -7,6 +7,7 @@ smoothing / max_accel table in shared/reference/firmware.md §1.6, and Klipper's
 
 from __future__ import annotations
 
+import json
 import math
 from functools import lru_cache
 from pathlib import Path
@@ -284,3 +285,22 @@ def test_fit_shaper_matches_klippers_loop_with_and_without_max_smoothing(data_di
         ref = _klipper_fit_shaper_loop(fit.name, p.freqs[keep], norm[keep], version, max_smoothing, flavor)
         assert fit.freq == pytest.approx(ref[0], abs=1e-9), fit.name
         assert fit.vibrs == pytest.approx(ref[1], rel=1e-9, abs=1e-12)
+
+
+def test_recommend_takes_the_axis_from_the_file_name_and_says_when_it_cannot(data_dir, tmp_path, capsys):
+    """One axis-from-file-name (hardware.accel.axis_from_file_name): a Z file is refused (the
+    config has no Z shaper), a file whose name says nothing is read as the larger of its psd_x /
+    psd_y columns, and recommend says so on stderr."""
+    from ringtune.agents.cli import main
+
+    src = _psd_dir(data_dir) / "bassco_ender3/resonances_x_20210821_152037.csv"
+    z = tmp_path / "resonances_z_20210821_152037.csv"
+    z.write_bytes(src.read_bytes())
+    assert main(["recommend", "--accel", str(z)]) == 2
+    assert "measured Z" in capsys.readouterr().err
+    anon = tmp_path / "ender3_sweep.csv"
+    anon.write_bytes(src.read_bytes())
+    assert main(["recommend", "--json", "--accel", str(anon)]) == 0
+    cap = capsys.readouterr()
+    assert "does not say the axis; taking X" in cap.err
+    assert json.loads(cap.out)["axes"]["x"]["shaper"] == "ei"      # SOURCES.md: Klipper's pick, ei

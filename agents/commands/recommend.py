@@ -106,10 +106,7 @@ def run(args: argparse.Namespace, out) -> int:
                        "klipper": {ax: rec.to_dict() for ax, rec in fits.items()}}
     extra = fields.pop("extra")
     config = TuneConfig(**fields, extra=extra)
-    written = None
-    if args.output:
-        config.save(args.output)
-        written = str(args.output)
+    written = _save(config, args.output)
 
     text = []
     shown = set()
@@ -186,10 +183,7 @@ def _run_policy(args, out) -> int:
         refined = {"trials": int(refine), "first_cost": res.first_cost, "best_cost": res.best_cost}
     config = dataclasses.replace(config, extra={"method": "policy", "policy": str(policy.path),
                                                 "sources": sources, "refine": refined})
-    written = None
-    if args.output:
-        config.save(args.output)
-        written = str(args.output)
+    written = _save(config, args.output)
     accel = f"{config.accel:.0f} mm/s^2" if config.accel else "unchanged"
     model = getattr(printer, "name", "the default printer")
     text = [f"policy {policy.path} (loaded pickles: trusted source assumed), inference {inference * 1e3:.0f} ms",
@@ -208,6 +202,14 @@ def _run_policy(args, out) -> int:
               "config": config.to_dict(), "inference_s": inference, "refine": refined, "output": written},
              "\n".join(text))
     return 0
+
+
+def _save(config, path) -> str | None:
+    """Write the TuneConfig to ``path`` (-o) if given; the path written, or None."""
+    if not path:
+        return None
+    config.save(path)
+    return str(path)
 
 
 def _load_accel(paths: list[str], axes_opt: str | None, out=None):
