@@ -199,6 +199,7 @@ def run(args: argparse.Namespace, out) -> int:
     chosen = choice.point
     accel_lines, accel_json = accel_statement(chosen, space, max_pe, reserve, points)
     ja_lines, ja_json = job_accel_section(facts, args.job_accel, printer, args.gcode, chosen.config)
+    ja_json["searched"] = not space.accel_fixed
     notes = []
     if margin:
         notes.append(f"Every figure is the worst of the printer as modelled and with all its resonances "
