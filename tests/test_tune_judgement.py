@@ -292,3 +292,29 @@ def test_warm_start_sentence_with_no_neighbour(tmp_path, capsys, fake_evaluator)
     summary = (out / "summary.txt").read_text()
     assert "The search was warm-started from Klipper's recommendation." in summary
     assert "neighbour" not in summary
+
+
+def test_identify_then_tune_klipper_baseline_equals_recommend_on_the_same_files(data_dir, tmp_path, capsys,
+                                                                               fake_evaluator):
+    """Acceptance 14.1 end to end: identify on the real Ender 3 files, tune on that TOML: the
+    summary's and JSON's Klipper baseline equal `recommend --accel` on the same files."""
+    from ringtune.envs.printer import load_printer
+
+    files = [str(p) for p in sorted((data_dir / "accel" / "klipper_psd" / "bassco_ender3").glob("resonances_*.csv"))]
+    toml = tmp_path / "ender3.toml"
+    assert main(["identify", *files, "-o", str(toml)]) == 0
+    capsys.readouterr()
+    if not load_printer(toml).measurement.get("klipper"):
+        pytest.skip("identify does not record [measurement.klipper] yet (helper identify)")
+    assert main(["recommend", "--json", "--accel", *files]) == 0
+    want = json.loads(capsys.readouterr().out)["config"]
+    out = tmp_path / "out"
+    assert main(["tune", "--json", "--printer", str(toml), "--out", str(out), "--trials", "3", "--evaluator",
+                 fake_evaluator]) == 0
+    got = json.loads(capsys.readouterr().out)["baselines"]["klipper"]
+    assert got["source"] == "measurement"
+    for key in ("shaper_x", "freq_x", "shaper_y", "freq_y", "accel"):
+        assert got["config"][key] == want[key], key
+    summary = (out / "summary.txt").read_text()
+    assert (f"X {want['shaper_x']} @ {want['freq_x']:.1f} Hz, Y {want['shaper_y']} @ {want['freq_y']:.1f} Hz"
+            in summary and f"accel {want['accel']:.0f} mm/s²" in summary)
