@@ -318,3 +318,24 @@ def test_identify_then_tune_klipper_baseline_equals_recommend_on_the_same_files(
     summary = (out / "summary.txt").read_text()
     assert (f"X {want['shaper_x']} @ {want['freq_x']:.1f} Hz, Y {want['shaper_y']} @ {want['freq_y']:.1f} Hz"
             in summary and f"accel {want['accel']:.0f} mm/s²" in summary)
+
+
+def test_pareto_plot_draws_every_ruled_out_point_and_marks_a_baseline_over_a_bound(tmp_path):
+    """Ruled-out points far beyond the scale are drawn as arrows at the edge and counted (the legend's
+    count is the number of such points, all drawn); a baseline over the path-error bound says so."""
+    from ringtune.agents.pareto_plot import plot_front
+
+    front = [_pt(10.0, 0.004, 0.05), _pt(11.0, 0.003, 0.04), _pt(12.0, 0.002, 0.03)]
+    far = [_pt(9.0 + i, 0.4 + i, 0.5 + i, feasible=False) for i in range(4)]        # 100× off the scale
+    near = [_pt(10.5, 0.0035, 0.12, feasible=False)]
+    klipper = _pt(11.5, 0.0035, 0.11, "klipper", feasible=False)
+    drawn = plot_front(tmp_path / "p.png", front + far + near, front, front[1], {"klipper": klipper},
+                       "overshoot_mm", "t", max_path_error_mm=0.1, baseline_labels={"klipper": "Klipper's rule"})
+    assert (tmp_path / "p.png").read_bytes()[:4] == b"\x89PNG"
+    assert set(drawn) == {"overshoot_mm", "path_error_mm"}
+    assert drawn["overshoot_mm"]["above_scale"] == 4
+    assert drawn["path_error_mm"]["above_scale"] == 5        # the near one is over 0.1 mm of path error too
+    for panel in drawn.values():
+        assert "path error over the bound, excluded (5)" in panel["legend"]
+        assert any(t.startswith("Klipper's rule") and "BREAKS A BOUND (path error over the bound)" in t
+                   for t in panel["legend"])

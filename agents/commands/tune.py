@@ -52,7 +52,7 @@ distance and 0.5 % of print time count as the same.
 With no arguments it tunes the built-in Ender-3-class printer on the built-in test print into
 ./ringtune-out/ in about a minute; open ringtune-out/README.txt first. Running the same command
 again resumes the study (also after Ctrl-C or a crash); --trials N extends it to N trials.
-Progress goes to stderr: a bar on a terminal, else a line every 10 s.
+Progress goes to stderr: a bar on a terminal, else a line every 10 s (RINGTUNE_PROGRESS_S=N sets it).
 
 examples:
   ringtune tune
@@ -240,9 +240,9 @@ def firmware_names(name: str) -> tuple[str, str, str]:
     """(firmware to tune for, dialect apply.txt is written in, a note or "") from a ``--firmware``
     value: every firmware of :data:`ringtune.shaping.firmware.FIRMWARES` (the names ``export``
     accepts, rrf34 included), in any case."""
-    from ringtune.shaping.firmware import firmware_record
+    from ringtune.shaping.firmware import Firmware
 
-    rec = firmware_record(name, "--firmware")
+    rec = Firmware.named(name, "--firmware")
     return rec.name, rec.name, ""
 
 
