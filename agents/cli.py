@@ -34,6 +34,7 @@ COMMAND_MODULES = [
     "plan",
     "limit",
     "identify",
+    "testprint",
     "export",
     "push",
 ]
