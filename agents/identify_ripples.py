@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-from dataclasses import replace
+from dataclasses import fields, replace
 from pathlib import Path
 
 
@@ -126,13 +126,17 @@ def printer_text(modes: dict, meas: dict, files: list, name: str, base: str | No
     new = replace(p, name=name, description=f"identified from {meas['source']} on a print; base {p.name}", **axes)
     if files:
         meas["files"] = files
-    if hasattr(new, "measurement"):
+    readable = "measurement" in {f.name for f in fields(new)}   # the reader takes [measurement]
+    if readable:
         new.measurement = meas
     text = new.to_toml()
     head = [f"# identified without an accelerometer ({meas['source']}); base: {p.name}"]
     head += [f"# {ax.upper()}: {c}" for ax, (_, _, c) in sorted(modes.items())]
     if "[measurement]" not in text:
-        text += "\n" + _measurement_toml(meas)
+        section = _measurement_toml(meas)
+        if not readable:          # kept as comments until the printer reader takes the section
+            section = "".join(f"# {line}\n" if line else "#\n" for line in section.splitlines())
+        text += "\n" + section
     return "\n".join(head) + "\n" + text
 
 
