@@ -166,6 +166,8 @@ def ringing_tower(bands: list[Band], geometry: TowerGeometry, ext: Extrusion, *,
     out += [C] + start
     x0, y0, s = g.x0, g.y0, g.side
     z = ext.layer
+    # band 1 holds the first layer, prime line and brim included
+    out += [f"{C} band {bands[0].number} starts", *bands[0].lines]
     # prime line in front of the tower, then a brim around the first layer
     out += [f"G1 Z{z:.3f} F600", f"G1 X{x0:.3f} Y{y0 - 12:.3f} F{g.travel_speed * 60:.0f}",
             f"G1 X{x0 + s:.3f} Y{y0 - 12:.3f} E{_e(ext, x0, 0, x0 + s, 0)} F{g.first_layer_speed * 60:.0f}"]
@@ -185,7 +187,7 @@ def ringing_tower(bands: list[Band], geometry: TowerGeometry, ext: Extrusion, *,
     band = next(band_iter)
     for i in range(n_layers):
         z = (i + 1) * ext.layer
-        first_of_band = i == 0
+        first_of_band = False
         while z > band.z1 + 1e-9:
             band = next(band_iter)
             first_of_band = True

@@ -118,8 +118,8 @@ def test_no_shaping_tower_turns_shaping_off_and_says_what_to_measure(tmp_path, c
 def test_bad_tower_requests_are_one_line_errors(argv, where, capsys):
     base = ["testprint", "ringing"] + (["--firmware", "klipper"] if "--firmware" not in argv else [])
     assert main(base + argv) == 2
-    err = capsys.readouterr().err
-    assert where in err and len(err.strip().splitlines()) == 1
+    last = capsys.readouterr().err.strip().splitlines()[-1]        # notes first, then one error line
+    assert last.startswith("ringtune testprint: error: " + where), last
 
 
 # -- the acceleration ladder ----------------------------------------------------------------------------
@@ -171,3 +171,36 @@ def test_accel_ladder_needs_a_tuned_acceleration(tmp_path, capsys):
     TuneConfig().save(tmp_path / "best.json")
     assert main(["testprint", "accel", "--firmware", "klipper", "--config", str(tmp_path / "best.json")]) == 2
     assert "accel" in capsys.readouterr().err
+
+
+# -- the arithmetic of seed 000 ------------------------------------------------------------------------
+def test_ripple_arithmetic_matches_seed_000_and_the_logarithmic_decrement():
+    from ringtune.envs.ripples import damping_from_ratio, mode_from_ripples
+
+    # seed 000: frequency = perimeter speed / distance between adjacent ripple peaks (damped ringing)
+    m = mode_from_ripples("x", 2.0, 100.0, 0.0, "none")
+    assert m.freq == pytest.approx(50.0) and m.damped_freq == pytest.approx(50.0)
+    m = mode_from_ripples("x", 2.0, 100.0, 0.1, "given")
+    assert m.freq == pytest.approx(50.0 / math.sqrt(1 - 0.01))
+    # a free decay x(t) = exp(-ζωt)cos(ω_d t): successive maxima one damped period apart
+    zeta, f = 0.08, 40.0
+    w, wd = 2 * math.pi * f, 2 * math.pi * f * math.sqrt(1 - zeta ** 2)
+    t = np.linspace(0, 0.3, 300001)
+    x = np.exp(-zeta * w * t) * np.cos(wd * t)
+    i = np.flatnonzero((x[1:-1] > x[:-2]) & (x[1:-1] >= x[2:])) + 1
+    r = x[i[0]] / x[i[1]]
+    assert damping_from_ratio(r) == pytest.approx(zeta, rel=1e-3)
+    assert damping_from_ratio(1 / r) == pytest.approx(zeta, rel=1e-3)     # either way round
+
+
+@pytest.mark.parametrize("argv, where", [
+    (["--ripples", "X=2"], "--speed"),
+    (["--ripples", "X=0", "--speed", "100"], "--ripples"),
+    (["--ripples", "X=2", "--speed", "100", "--decay", "X=1"], "--decay"),
+    (["--ripples", "Z=2", "--speed", "100"], "--ripples"),
+    (["--tower-band", "X=2"], "--tower"),
+])
+def test_bad_ripple_input_is_a_one_line_error(argv, where, capsys):
+    assert main(["identify"] + argv) == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last.startswith("ringtune identify: error: " + where), last
