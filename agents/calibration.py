@@ -167,6 +167,9 @@ def accel_ladder(firmware: str, config: TuneConfig, *, start_accel: float, rungs
     end = ["the last lines set the starting acceleration again: " + "; ".join(restore)]
     if firmware != "klipper":
         end.append("the raised M201 axis maxima stay until reset: M501 (Marlin, Prusa) or restart (RRF)")
+    if firmware in ("marlin", "marlin-ftm", "prusa"):
+        end.append("a Marlin built with LIMITED_MAX_ACCEL_EDITING caps M201: check with M503 that the "
+                   "top rung's M201 was taken")
     start = cp.start_lines(hotend, bed, [])
     text = cp.accel_ladder(accels, firmware, g, ext, header=header, start=start, safe_accel=start_accel,
                            shaper_lines=exp.lines, restore=restore, end_note=end)

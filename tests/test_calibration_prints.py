@@ -204,3 +204,18 @@ def test_bad_ripple_input_is_a_one_line_error(argv, where, capsys):
     assert main(["identify"] + argv) == 2
     last = capsys.readouterr().err.strip().splitlines()[-1]
     assert last.startswith("ringtune identify: error: " + where), last
+
+
+def test_trace_of_a_long_job_is_its_quality_windows(tmp_path, monkeypatch, capsys):
+    """A job longer than the whole-job limit is traced over the windows the metrics judged: the
+    rows carry their window number and the nozzle stays near the commanded path."""
+    from ringtune.envs import trace
+
+    monkeypatch.setattr(trace, "WHOLE_JOB_MAX_S", 0.5)
+    out = tmp_path / "t.csv"
+    assert main(["simulate", "--backend", "lti", "--trace", str(out)]) == 0
+    assert "quality windows" in capsys.readouterr().err
+    tr = trace.read_trace(out)
+    assert set(np.unique(tr["window"])) == set(range(1, 9))
+    dev = np.hypot(tr["x_nozzle"] - tr["x_shaped"], tr["y_nozzle"] - tr["y_shaped"])
+    assert 0 < dev.max() < 1.0

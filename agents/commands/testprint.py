@@ -2,7 +2,8 @@
 
 ``--json`` keys (stable):
     kind: "ringing" | "accel"; firmware; output (path written, or null)
-    bands (ringing): [{number, z0, z1 (mm), freq_x, freq_y (Hz, 0 = off), shaper, damping, lines}]
+    bands (ringing): [{number, z0, z1 (mm), freq_x, freq_y (Hz, 0 = off), shaper, damping, lines}];
+        speed (wall speed, mm/s), accel (mm/s²)
     rungs (accel): [{number, accel (mm/s²), of_tuned (fraction)}]; tuned_accel (mm/s²)
     measure: lines saying what to measure or look for (also written into the file)
     notes: what was decided for you (defaults)
