@@ -11,7 +11,8 @@ import pytest
 from ringtune.envs.identify import (
     identify_decay, identify_files, identify_psd, plot_fits, printer_toml, transmissibility,
 )
-from ringtune.hardware.accel import PSD, RawAccel
+from ringtune.hardware.accel import RawAccel
+from ringtune.hardware.psd import PSD
 
 ENDER3 = ("klipper_psd/bassco_ender3/resonances_x_20210821_152037.csv",
           "klipper_psd/bassco_ender3/resonances_y_20210630_230110.csv")
