@@ -11,10 +11,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from ringtune.hardware.dialects import AVAILABLE, FIRMWARE_TITLE, export_config
+from ringtune.hardware.dialects import check_available, export_config
 from ringtune.shaping import calibration_prints as cp
-from ringtune.shaping.config import FIRMWARE_FLAVOR, TuneConfig
+from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import firmware_record
 from ringtune.shaping.shapers import default_damping
 
 #: shapers the tower prefers, narrowest band first: the band with the least ringing then pins the
@@ -22,19 +23,14 @@ from ringtune.shaping.shapers import default_damping
 TOWER_SHAPERS = ("zv", "mzv", "zvd", "ei")
 
 
-def config_firmware(firmware: str) -> str:
-    """The TuneConfig firmware for a dialect (RRF 3.4 shares RRF 3.5's shaper formulas)."""
-    return firmware if firmware in FIRMWARE_FLAVOR else "rrf35"
-
-
 def shaper_lines(firmware: str, shaper: str, freq: float, damping: float) -> list[str]:
     """What ``ringtune export --firmware FIRMWARE`` writes for ``shaper`` at ``freq`` Hz on both
     axes (``shaper`` "none": shaping off)."""
-    cfg = TuneConfig(firmware=config_firmware(firmware), shaper_x=shaper, shaper_y=shaper,
+    cfg = TuneConfig(firmware=firmware, shaper_x=shaper, shaper_y=shaper,
                      freq_x=freq if shaper != "none" else 0.0, freq_y=freq if shaper != "none" else 0.0,
                      damping_x=damping, damping_y=damping)
     try:
-        return export_config(cfg, firmware).lines
+        return export_config(cfg, firmware, accel=False).lines
     except RingtuneError as exc:
         raise RingtuneError(f"{exc.bare} (band at {freq:g} Hz)", "--bands") from None
 
@@ -42,10 +38,8 @@ def shaper_lines(firmware: str, shaper: str, freq: float, damping: float) -> lis
 def tower_shaper(firmware: str, shaper: str | None) -> str:
     """The tower's shaper: ``shaper`` if the firmware has it, else the narrowest it has."""
     if shaper:
-        from ringtune.hardware.dialects import check_available
-
         return check_available(shaper, firmware, "--shaper")
-    return next(s for s in TOWER_SHAPERS if s in AVAILABLE[firmware])
+    return next(s for s in TOWER_SHAPERS if s in firmware_record(firmware).shapers)
 
 
 @dataclass
@@ -64,7 +58,7 @@ def ringing_tower(firmware: str, *, speed: float, accel: float, bands: tuple[flo
                   printer_name: str) -> TowerPlan:
     """The ringing tower for ``firmware``: ``bands`` = (F0, F1, N) or None for shaping off."""
     notes = []
-    flavor = FIRMWARE_FLAVOR[config_firmware(firmware)]
+    record = firmware_record(firmware, "--firmware")
     if bands is None:
         name, z = "none", 0.0
         n_layers = max(3, int(round(height / ext.layer)))
@@ -72,8 +66,8 @@ def ringing_tower(firmware: str, *, speed: float, accel: float, bands: tuple[flo
     else:
         name = tower_shaper(firmware, shaper)
         if damping is None:
-            damping = default_damping(flavor)
-            notes.append(f"shaper damping {damping:g}: {FIRMWARE_TITLE[firmware]}'s default (--damping to change)")
+            damping = default_damping(record.flavor)
+            notes.append(f"shaper damping {damping:g}: {record.title}'s default (--damping to change)")
         z = damping
         specs = cp.tower_bands(bands[0], bands[1], int(bands[2]), band_height, ext.layer)
     out_bands = [cp.Band(k, z0, z1, f, f, name, z, shaper_lines(firmware, name, f, z))
@@ -81,7 +75,7 @@ def ringing_tower(firmware: str, *, speed: float, accel: float, bands: tuple[flo
     g = geometry
     v = speed
     measure = _what_to_measure(g, v, bands is not None)
-    header = [f"ringtune testprint ringing for {FIRMWARE_TITLE[firmware]} ({printer_name})",
+    header = [f"ringtune testprint ringing for {record.title} ({printer_name})",
               f"single-wall square tower {g.side:g} mm, front-left corner at X{g.x0:g} Y{g.y0:g}, printed "
               f"counter-clockwise at {v:g} mm/s with {accel:.0f} mm/s² acceleration",
               f"layers {ext.layer:g} mm, line {ext.line_width:.3g} mm wide, {ext.filament:g} mm filament, "
@@ -146,7 +140,8 @@ def accel_ladder(firmware: str, config: TuneConfig, *, start_accel: float, rungs
     tuned = float(config.accel)
     accels, notes = ladder_accels(start_accel, tuned, rungs)
     g = geometry
-    exp = export_config(config, firmware)
+    record = firmware_record(firmware, "--firmware")
+    exp = export_config(config, firmware, accel=False)     # the shaper; the ladder sets the acceleration
     table = [f"{'rung':>4}  {'accel mm/s²':>11}  {'of tuned':>8}"]
     table += [f"{k:>4}  {a:>11.0f}  {a / tuned * 100:>7.0f}%" for k, a in enumerate(accels, 1)]
     look = [f"Rung 0 draws the reference dashes; rung K draws dash K further out, after its fast moves.",
@@ -156,11 +151,11 @@ def accel_ladder(firmware: str, config: TuneConfig, *, start_accel: float, rungs
             "Also listen: grinding or a loud knock at a rung is the same warning.",
             f"Print with the tuned acceleration ({tuned:.0f} mm/s²) only if every dash up to rung "
             f"{len(accels)} ({accels[-1]:.0f} mm/s², 120 %) is in line."]
-    header = [f"ringtune testprint accel for {FIRMWARE_TITLE[firmware]} ({printer_name})",
+    header = [f"ringtune testprint accel for {record.title} ({printer_name})",
               f"checks the tuned acceleration {tuned:.0f} mm/s² and 20 % beyond, from {accels[0]:.0f} mm/s²",
               f"fast moves at {g.speed:g} mm/s, {g.reach:g} mm each way from the reference point "
               f"X{g.cx:g} Y{g.cy:g} (X, Y, both diagonals), {g.reps}× per rung, {g.hop:g} mm above the bed",
-              f"acceleration set with {cp.ACCEL_SYNTAX[firmware]}; the tuned shaper is on (as ringtune export "
+              f"acceleration set with {cp.accel_syntax(firmware)}; the tuned shaper is on (as ringtune export "
               "writes it) because prints will run with it",
               "", "ladder table:", *table, "", "what to look for:", *look]
     restore = cp.accel_lines(firmware, start_accel, axis_maxima=False)

@@ -36,16 +36,12 @@ def wanted(args) -> bool:
 
 
 def _default_damping(args, out) -> tuple[float, str]:
-    from ringtune.hardware.dialects import FIRMWARE_TITLE
-    from ringtune.shaping.config import FIRMWARE_FLAVOR
-    from ringtune.shaping.errors import RingtuneError
+    from ringtune.shaping.firmware import firmware_record
     from ringtune.shaping.shapers import default_damping
 
-    fw = args.firmware or "klipper"
-    if fw not in FIRMWARE_FLAVOR:
-        raise RingtuneError(f"must be one of {', '.join(FIRMWARE_FLAVOR)}, not {fw!r}", "--firmware")
-    z = default_damping(FIRMWARE_FLAVOR[fw])
-    return z, f"{FIRMWARE_TITLE[fw]}'s default shaper damping{'' if args.firmware else ' (--firmware)'}"
+    fw = firmware_record(args.firmware or "klipper", "--firmware")
+    z = default_damping(fw.flavor)
+    return z, f"{fw.title}'s default shaper damping{'' if args.firmware else ' (--firmware)'}"
 
 
 def identify_modes(args, out) -> tuple[dict, dict, list]:

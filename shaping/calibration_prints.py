@@ -22,6 +22,7 @@ import re
 from dataclasses import dataclass, field
 
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import firmware_record
 
 C = ";"   # comment character every firmware here accepts (Klipper too)
 
@@ -99,28 +100,25 @@ def read_band_table(text: str, where: str = "tower") -> list[tuple[float, float,
 
 
 # -- acceleration commands per firmware ------------------------------------------------------------
-#: how each firmware sets the acceleration the planner uses for printing and travel moves
-ACCEL_SYNTAX = {
-    "klipper": "SET_VELOCITY_LIMIT ACCEL=<a>",
-    "marlin": "M201 X<a> Y<a> (axis maxima) + M204 P<a> T<a> (print, travel)",
-    "marlin-ftm": "M201 X<a> Y<a> (axis maxima) + M204 P<a> T<a> (print, travel)",
-    "prusa": "M201 X<a> Y<a> (axis maxima) + M204 P<a> T<a> (print, travel)",
-    "rrf": "M201 X<a> Y<a> (axis maxima) + M204 P<a> T<a> (print, travel)",
-    "rrf35": "M201 X<a> Y<a> (axis maxima) + M204 P<a> T<a> (print, travel)",
-    "rrf34": "M201 X<a> Y<a> (axis maxima) + M204 P<a> T<a> (print, travel)",
-}
-
-
 def accel_lines(firmware: str, accel: float, axis_maxima: bool = True) -> list[str]:
-    """The lines that make ``firmware`` print and travel at ``accel`` mm/s². Marlin, Prusa and
-    RepRapFirmware also cap each axis (M201), so those caps are raised too when ``axis_maxima``."""
-    if firmware not in ACCEL_SYNTAX:
-        raise RingtuneError(f"firmware must be one of {', '.join(ACCEL_SYNTAX)}, not {firmware!r}",
-                            "--firmware")
+    """The lines that make ``firmware`` print and travel at ``accel`` mm/s²: its own command from
+    :mod:`ringtune.shaping.firmware` (``SET_VELOCITY_LIMIT ACCEL=``, ``M204 P``), on M204 with the
+    travel acceleration ``T`` too (the ladder's fast moves are travel moves); Marlin, Prusa and
+    RepRapFirmware also cap each axis (``M201 X Y``), so those caps are raised first when
+    ``axis_maxima``."""
+    fw = firmware_record(firmware, "--firmware")
     a = f"{accel:.0f}"
-    if firmware == "klipper":
-        return [f"SET_VELOCITY_LIMIT ACCEL={a}"]
-    return ([f"M201 X{a} Y{a}"] if axis_maxima else []) + [f"M204 P{a} T{a}"]
+    line = fw.accel_set.format(a=a)
+    if not line.startswith("M204"):
+        return [line]
+    return ([f"M201 X{a} Y{a}"] if axis_maxima else []) + [f"{line} T{a}"]
+
+
+def accel_syntax(firmware: str) -> str:
+    """How :func:`accel_lines` sets the acceleration on ``firmware``, for comments."""
+    lines = accel_lines(firmware, 987654321)
+    text = " + ".join(ln.replace("987654321", "<a>") for ln in lines)
+    return text + (" (axis maxima, then print and travel)" if len(lines) > 1 else "")
 
 
 # -- the ringing tower ------------------------------------------------------------------------------

@@ -109,12 +109,10 @@ def run(args, out) -> int:
 
     from ringtune.agents.commands import check_output_folder
     from ringtune.envs.printer import load_printer
-    from ringtune.hardware.dialects import DIALECTS
     from ringtune.shaping import calibration_prints as cp
-    from ringtune.shaping.errors import RingtuneError
+    from ringtune.shaping.firmware import firmware_record
 
-    if args.firmware not in DIALECTS:
-        raise RingtuneError(f"must be one of {', '.join(DIALECTS)}, not {args.firmware!r}", "--firmware")
+    args.firmware = firmware_record(args.firmware, "--firmware").name
     check_output_folder("-o", args.output)
     printer = load_printer(args.printer)
     cx, cy = _centre(args.centre, out)
