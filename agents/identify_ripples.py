@@ -6,6 +6,9 @@ ratio of successive ripple heights, else the firmware's default), or from the ri
 with the least ringing. The rest of the description (masses, motors, limits, the modes of an axis
 not measured) comes from ``--base``; ``[measurement]`` records the source (``"ripples"`` or
 ``"tower"``) and the numbers measured.
+
+``--json`` keys (stable, this path): source ("ripples" | "tower"), modes {x|y: {freq (Hz, natural),
+damping, how}}, measurement (as written to ``[measurement]``), toml (the description), output.
 """
 
 from __future__ import annotations
