@@ -24,7 +24,7 @@ from ringtune.agents.cli import main
 from ringtune.envs.printer import load_printer
 from ringtune.envs.printer_model import Mode
 
-SIDE, SPEED = 60.0, 100.0
+SIDE, SPEED = 40.0, 100.0          # a 40 mm tower: walls long enough, a short job
 X0 = Y0 = 110.0 - SIDE / 2          # testprint's default centre 110,110
 LAYER_Z = 0.6                       # third layer: full wall speed, settled
 
@@ -122,7 +122,7 @@ def loop(tmp_path_factory):
         d = tmp_path_factory.mktemp(name)
         g, trace = d / "ripples.gcode", d / "trace.csv"
         assert main(["testprint", "ringing", "--firmware", "klipper", "--no-shaping", "--height", "0.6",
-                     "--printer", spec, "-o", str(g)]) == 0
+                     "--side", str(SIDE), "--printer", spec, "-o", str(g)]) == 0
         # the embedded printers on MuJoCo (motors, slip), the random ones on the exact linear model
         backend = "lti" if name.startswith("random") else "mujoco"
         assert main(["simulate", "--printer", spec, "--gcode", str(g), "--trace", str(trace),

@@ -50,11 +50,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "its acceleration and speed limits")
     p.add_argument("-o", "--output", metavar="FILE.gcode", help="write the G-code here (else only the table)")
     p.add_argument("--centre", metavar="X,Y", help="middle of the print on the bed, mm (default 110,110)")
-    p.add_argument("--nozzle", type=float, default=0.4, help="nozzle diameter, mm (0.4)")
-    p.add_argument("--layer", type=float, default=0.2, help="layer height, mm (0.2)")
-    p.add_argument("--filament", type=float, default=1.75, help="filament diameter, mm (1.75)")
-    p.add_argument("--hotend", type=float, default=210.0, help="nozzle temperature, °C (210, PLA)")
-    p.add_argument("--bed", type=float, default=60.0, help="bed temperature, °C (60, PLA)")
+    p.add_argument("--nozzle", type=float, help="nozzle diameter, mm (0.4)")
+    p.add_argument("--layer", type=float, help="layer height, mm (0.2)")
+    p.add_argument("--filament", type=float, help="filament diameter, mm (1.75)")
+    p.add_argument("--hotend", type=float, help="nozzle temperature, °C (210, PLA)")
+    p.add_argument("--bed", type=float, help="bed temperature, °C (60, PLA)")
     r = p.add_argument_group("ringing")
     r.add_argument("--speed", type=float, help="ringing: wall speed, mm/s (default 100, at most the "
                    "printer's); accel: speed of the fast moves (default the printer's top speed)")
@@ -64,7 +64,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                       "(default 25:75:11)")
     mode.add_argument("--no-shaping", action="store_true", help="shaping off: measure ripples")
     r.add_argument("--band-height", type=float, default=4.0, help="height of each band, mm (4)")
-    r.add_argument("--height", type=float, default=10.0, help="tower height with --no-shaping, mm (10)")
+    r.add_argument("--height", type=float, help="tower height with --no-shaping, mm (10)")
     r.add_argument("--shaper", help="shaper of the bands (default: the narrowest the firmware has, zv or mzv)")
     r.add_argument("--damping", type=float, help="shaper damping of the bands (default: the firmware's)")
     r.add_argument("--side", type=float, default=60.0, help="side of the square tower, mm (60)")
@@ -89,6 +89,19 @@ def _centre(text: str | None, out) -> tuple[float, float]:
     except ValueError:
         raise RingtuneError(f"expected X,Y in mm, not {text!r}", "--centre") from None
     return x, y
+
+
+#: what the print assumes when not told (said on stderr)
+MATERIAL = {"nozzle": 0.4, "layer": 0.2, "filament": 1.75, "hotend": 210.0, "bed": 60.0}
+
+
+def _material(args, out) -> None:
+    missing = [k for k, v in MATERIAL.items() if getattr(args, k) is None]
+    for k in missing:
+        setattr(args, k, MATERIAL[k])
+    if missing:
+        out.note("assumed " + ", ".join(f"--{k} {MATERIAL[k]:g}" for k in missing)
+                 + " (mm, °C; PLA on a 0.4 mm nozzle)")
 
 
 def _bands(text: str | None) -> tuple[float, float, int]:
@@ -116,6 +129,7 @@ def run(args, out) -> int:
     check_output_folder("-o", args.output)
     printer = load_printer(args.printer)
     cx, cy = _centre(args.centre, out)
+    _material(args, out)
     ext = cp.Extrusion(args.nozzle, args.layer, args.filament)
     ext.validate()
     lim = printer.limits
@@ -163,13 +177,16 @@ def _ringing(args, out, printer, lim, cx, cy, ext):
         raise RingtuneError(f"at {accel:.0f} mm/s² the head needs {speed ** 2 / (2 * accel):.1f} mm to reach "
                             f"{speed:g} mm/s: too much of a {args.side:g} mm wall; raise --accel or --side",
                             "--speed")
+    if args.height is not None and not args.no_shaping:
+        raise RingtuneError("goes with --no-shaping (with bands the height is N × --band-height)", "--height")
+    height = 10.0 if args.height is None else args.height
     bands = None if args.no_shaping else _bands(args.bands)
     if bands is not None and args.bands is None:
         out.note("bands 25:75:11 (25 to 75 Hz in 5 Hz steps); give --bands F0:F1:N")
     geom = cp.TowerGeometry(cx - args.side / 2, cy - args.side / 2, args.side, speed,
                             min(25.0, speed), min(150.0, lim.velocity))
     plan = ringing_tower(args.firmware, speed=speed, accel=accel, bands=bands, band_height=args.band_height,
-                         height=args.height, shaper=args.shaper, damping=args.damping, geometry=geom,
+                         height=height, shaper=args.shaper, damping=args.damping, geometry=geom,
                          ext=ext, hotend=args.hotend, bed=args.bed, printer_name=printer.name)
     for n in plan.notes:
         out.note(n)
