@@ -60,7 +60,7 @@ def ringing_tower(firmware: str, *, speed: float, accel: float, bands: tuple[flo
     notes = []
     record = firmware_record(firmware, "--firmware")
     if bands is None:
-        name, z = "none", 0.0
+        name, zeta = "none", 0.0
         n_layers = max(3, int(round(height / ext.layer)))
         specs = [(1, 0.0, n_layers * ext.layer, 0.0)]
     else:
@@ -68,12 +68,11 @@ def ringing_tower(firmware: str, *, speed: float, accel: float, bands: tuple[flo
         if damping is None:
             damping = default_damping(record.flavor)
             notes.append(f"shaper damping {damping:g}: {record.title}'s default (--damping to change)")
-        z = damping
+        zeta = damping
         specs = cp.tower_bands(bands[0], bands[1], int(bands[2]), band_height, ext.layer)
-    out_bands = [cp.Band(k, z0, z1, f, f, name, z, shaper_lines(firmware, name, f, z))
+    out_bands = [cp.Band(k, z0, z1, f, f, name, zeta, shaper_lines(firmware, name, f, zeta))
                  for k, z0, z1, f in specs]
-    g = geometry
-    v = speed
+    g, v = geometry, speed
     measure = _what_to_measure(g, v, bands is not None)
     header = [f"ringtune testprint ringing for {record.title} ({printer_name})",
               f"single-wall square tower {g.side:g} mm, front-left corner at X{g.x0:g} Y{g.y0:g}, printed "

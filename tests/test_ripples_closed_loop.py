@@ -14,7 +14,6 @@ static deflection a/ω²), decaying as exp(−ζωt); the measurement starts at 
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
