@@ -35,6 +35,7 @@ COMMAND_MODULES = [
     "limit",
     "identify",
     "testprint",
+    "printer",
     "motor",
     "export",
     "push",
