@@ -15,7 +15,7 @@ from ringtune.hardware.dialects import check_available, export_config
 from ringtune.shaping import calibration_prints as cp
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.firmware import firmware_record
+from ringtune.shaping.firmware import Firmware
 from ringtune.shaping.shapers import default_damping
 
 #: shapers the tower prefers, narrowest band first: the band with the least ringing then pins the
@@ -39,7 +39,7 @@ def tower_shaper(firmware: str, shaper: str | None) -> str:
     """The tower's shaper: ``shaper`` if the firmware has it, else the narrowest it has."""
     if shaper:
         return check_available(shaper, firmware, "--shaper")
-    return next(s for s in TOWER_SHAPERS if s in firmware_record(firmware).shapers)
+    return next(s for s in TOWER_SHAPERS if s in Firmware.named(firmware).shapers)
 
 
 @dataclass
@@ -58,7 +58,7 @@ def ringing_tower(firmware: str, *, speed: float, accel: float, bands: tuple[flo
                   printer_name: str) -> TowerPlan:
     """The ringing tower for ``firmware``: ``bands`` = (F0, F1, N) or None for shaping off."""
     notes = []
-    record = firmware_record(firmware, "--firmware")
+    record = Firmware.named(firmware, "--firmware")
     if bands is None:
         name, zeta = "none", 0.0
         n_layers = max(3, int(round(height / ext.layer)))
@@ -139,7 +139,7 @@ def accel_ladder(firmware: str, config: TuneConfig, *, start_accel: float, rungs
     tuned = float(config.accel)
     accels, notes = ladder_accels(start_accel, tuned, rungs)
     g = geometry
-    record = firmware_record(firmware, "--firmware")
+    record = Firmware.named(firmware, "--firmware")
     exp = export_config(config, firmware, accel=False)     # the shaper; the ladder sets the acceleration
     table = [f"{'rung':>4}  {'accel mm/s²':>11}  {'of tuned':>8}"]
     table += [f"{k:>4}  {a:>11.0f}  {a / tuned * 100:>7.0f}%" for k, a in enumerate(accels, 1)]

@@ -39,10 +39,10 @@ def wanted(args) -> bool:
 
 
 def _default_damping(args, out) -> tuple[float, str]:
-    from ringtune.shaping.firmware import firmware_record
+    from ringtune.shaping.firmware import Firmware
     from ringtune.shaping.shapers import default_damping
 
-    fw = firmware_record(args.firmware or "klipper", "--firmware")
+    fw = Firmware.named(args.firmware or "klipper", "--firmware")
     z = default_damping(fw.flavor)
     return z, f"{fw.title}'s default shaper damping{'' if args.firmware else ' (--firmware)'}"
 

@@ -22,7 +22,7 @@ import re
 from dataclasses import dataclass, field
 
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.firmware import firmware_record
+from ringtune.shaping.firmware import Firmware
 
 C = ";"   # comment character every firmware here accepts (Klipper too)
 
@@ -106,7 +106,7 @@ def accel_lines(firmware: str, accel: float, axis_maxima: bool = True) -> list[s
     travel acceleration ``T`` too (the ladder's fast moves are travel moves); Marlin, Prusa and
     RepRapFirmware also cap each axis (``M201 X Y``), so those caps are raised first when
     ``axis_maxima``."""
-    fw = firmware_record(firmware, "--firmware")
+    fw = Firmware.named(firmware, "--firmware")
     a = f"{accel:.0f}"
     line = fw.accel_set.format(a=a)
     if not line.startswith("M204"):

@@ -123,9 +123,9 @@ def run(args, out) -> int:
     from ringtune.agents.commands import check_output_folder
     from ringtune.envs.printer import load_printer
     from ringtune.shaping import calibration_prints as cp
-    from ringtune.shaping.firmware import firmware_record
+    from ringtune.shaping.firmware import Firmware
 
-    args.firmware = firmware_record(args.firmware, "--firmware").name
+    args.firmware = Firmware.named(args.firmware, "--firmware").name
     check_output_folder("-o", args.output)
     printer = load_printer(args.printer)
     cx, cy = _centre(args.centre, out)

@@ -239,9 +239,9 @@ def firmware_names(name: str) -> tuple[str, str, str]:
     """(firmware to tune for, dialect apply.txt is written in, a note or "") from a ``--firmware``
     value: every firmware of :data:`ringtune.shaping.firmware.FIRMWARES` (the names ``export``
     accepts, rrf34 included), in any case."""
-    from ringtune.shaping.firmware import firmware_record
+    from ringtune.shaping.firmware import Firmware
 
-    rec = firmware_record(name, "--firmware")
+    rec = Firmware.named(name, "--firmware")
     return rec.name, rec.name, ""
 
 
