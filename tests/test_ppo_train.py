@@ -88,7 +88,7 @@ def test_subprocess_training_writes_policy_resumes_and_recommends(tmp_path):
     (old / "meta.json").write_text(json.dumps(meta))
     with pytest.raises(RingtuneError, match="older observation layout"):
         ppo.load_policy(old)
-    config, action = ppo_recommend.recommend_for_printer(policy, None, seed=0)
+    config, action = ppo_recommend.policy_on_simulated_test(policy, None, seed=0)
     assert isinstance(config, TuneConfig) and action.shape == (8,) and np.all(np.abs(action) <= 1)
     config.validate()
     assert 15 <= config.freq_x <= 150 and 15 <= config.freq_y <= 150 and 1000 <= config.accel <= 10000
@@ -125,7 +125,7 @@ def _check_recommend_cli(policy_dir):
     from ringtune.agents.ppo_refine import PrinterCost
 
     policy = ppo.load_policy(policy_dir)
-    one_shot, _ = ppo_recommend.recommend_for_printer(policy, None, seed=0)
+    one_shot, _ = ppo_recommend.policy_on_simulated_test(policy, None, seed=0)
     cost = PrinterCost(None, policy.env_kwargs, seed=0).of_config(one_shot)
     assert d["refine"]["first_cost"] == pytest.approx(cost, rel=1e-6)
 
