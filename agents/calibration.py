@@ -11,7 +11,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from ringtune.hardware.dialects import check_available, export_config
+from ringtune.hardware.dialects import export_config
+from ringtune.hardware.firmware_check import check_available
 from ringtune.shaping import calibration_prints as cp
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
