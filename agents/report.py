@@ -188,8 +188,10 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
                 dominating[k] = (d, compare(d, baselines[k], resolution))
 
     title = f"{printer_name} · {job_name} · {firmware} · {len(points)} trials"
-    arrows = plot_front(out_dir / "pareto.png", points, front, chosen, baselines, quality, title,
-                        max_path_error_mm=max_path_error_mm, baseline_labels=labels)
+    marked = {f"dominates {labels[k]} (at the resolution)": d for k, (d, _c) in dominating.items()}
+    drawn = plot_front(out_dir / "pareto.png", points, front, chosen, baselines, quality, title,
+                       max_path_error_mm=max_path_error_mm, baseline_labels=labels, marked=marked)
+    arrows = {k: {w: n for w, n in v.items() if w != "legend"} for k, v in drawn.items()}
     _write_csv(out_dir / "front.csv", front)
     _write_csv(out_dir / "trials.csv", sorted(points, key=lambda p: p.number if p.number is not None else -1))
 

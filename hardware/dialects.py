@@ -204,8 +204,7 @@ def check_axis(config: TuneConfig, fw: Firmware, ax: str) -> tuple[str, dict, fl
     zmax = fw.max_damping(base)
     span = fw.damping if zmax >= fw.damping.hi else Span(fw.damping.lo, zmax, fw.damping.decimals)
     damping = check_value(damping, span, f"damping ratio of {base}", "", f"config: damping_{ax}", fw.title)
-    if base != "custom":
-        fw.check_shaper(name, freq, damping, f"config: shaper_{ax}")   # parameters, as `ringtune shaper`
+    fw.check_shaper(name, freq, damping, f"config: shaper_{ax}")   # parameters, as `ringtune shaper`
     _, params = named_params(name, fw.flavor)
     return base, params, freq, damping
 

@@ -52,7 +52,7 @@ distance and 0.5 % of print time count as the same.
 With no arguments it tunes the built-in Ender-3-class printer on the built-in test print into
 ./ringtune-out/ in about a minute; open ringtune-out/README.txt first. Running the same command
 again resumes the study (also after Ctrl-C or a crash); --trials N extends it to N trials.
-Progress goes to stderr: a bar on a terminal, else a line every 10 s.
+Progress goes to stderr: a bar on a terminal, else a line every 10 s (RINGTUNE_PROGRESS_S=N sets it).
 
 examples:
   ringtune tune
@@ -199,6 +199,7 @@ def run(args: argparse.Namespace, out) -> int:
     chosen = choice.point
     accel_lines, accel_json = accel_statement(chosen, space, max_pe, reserve, points)
     ja_lines, ja_json = job_accel_section(facts, args.job_accel, printer, args.gcode, chosen.config)
+    ja_json["searched"] = not space.accel_fixed
     notes = []
     if margin:
         notes.append(f"Every figure is the worst of the printer as modelled and with all its resonances "
