@@ -156,6 +156,11 @@ def _measurement_toml(meas: dict) -> str:
 def run(args, out) -> int:
     from ringtune.agents.commands import check_output_folder
 
+    from ringtune.shaping.errors import RingtuneError
+
+    for opt in ("plot", "axis"):
+        if getattr(args, opt, None):
+            raise RingtuneError("goes with accelerometer files, not with --ripples/--tower-band", f"--{opt}")
     check_output_folder("-o", args.output)
     modes, meas, files = identify_modes(args, out)
     text = printer_text(modes, meas, files, args.name, args.base, out)

@@ -40,13 +40,14 @@ def _rows(path_motion, sim, window: int) -> np.ndarray:
 
 def trace_job(config: TuneConfig, printer, job=None, backend: str = "mujoco") -> np.ndarray:
     """(m, len(COLUMNS)) rows of the whole job simulated from rest (see module doc)."""
-    from ringtune.envs.evaluate import config_shapers, planned_job, resolve_printer
+    from ringtune.envs.evaluate import planned_job, resolve_printer
     from ringtune.envs.sim import simulate
     from ringtune.shaping.apply import shape_motion
+    from ringtune.shaping.shapers import shapers_from_config
 
     printer = resolve_printer(printer)
     motion = planned_job(printer, job, config).motion
-    shapers, centred = config_shapers(config)
+    shapers, centred = shapers_from_config(config)
     shaped = shape_motion(motion, shapers, centred) if any(shapers.values()) else motion
     sim = simulate(printer, shaped, backend=backend, initial="rest")
     return _rows(motion, sim, 0)

@@ -199,6 +199,7 @@ def test_ripple_arithmetic_matches_seed_000_and_the_logarithmic_decrement():
     (["--ripples", "X=2", "--speed", "100", "--decay", "X=1"], "--decay"),
     (["--ripples", "Z=2", "--speed", "100"], "--ripples"),
     (["--tower-band", "X=2"], "--tower"),
+    (["--ripples", "X=2", "--speed", "100", "--plot", "f.png"], "--plot"),
 ])
 def test_bad_ripple_input_is_a_one_line_error(argv, where, capsys):
     assert main(["identify"] + argv) == 2
