@@ -247,7 +247,7 @@ def _klipper(config: TuneConfig, dialect: str) -> Export:
         else:
             cfg.append(f"shaper_freq_{ax}: 0")
     line = "SET_INPUT_SHAPER " + " ".join(params)
-    exp = Export(dialect, [line], [], "\n".join(cfg) + "\n", "printer.cfg", ["SET_INPUT_SHAPER"],
+    exp = Export(dialect, [line], [], "\n".join(cfg) + "\n", fw.config_file, ["SET_INPUT_SHAPER"],
                  expected, {k: 0 for k in expected},
                  ["SET_INPUT_SHAPER lasts until restart; SAVE_CONFIG would not keep damping_ratio, so "
                   "put the [input_shaper] section (export --part config) in printer.cfg"])
@@ -281,7 +281,7 @@ def _rrf(config: TuneConfig, dialect: str) -> Export:
         expected.update({"all.freq": f, "all.damping": z})
     if dialect != "rrf" and bx != "none":
         line += _rrf_l(config, dialect)
-    exp = Export(dialect, [line], [], line + "\n", "config.g", ["M593"], expected,
+    exp = Export(dialect, [line], [], line + "\n", fw.config_file, ["M593"], expected,
                  {k: 0 for k in expected},
                  [f"{title} cannot save M593 (M500 does not store it): add the config.g part "
                   "(export --part config) to config.g"])
