@@ -14,7 +14,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ringtune.agents.pareto import Point
+from ringtune.agents.pareto import Point, pareto_front
 
 LABEL = {"overshoot_mm": "overshoot", "path_error_mm": "path error"}
 STYLE = {"klipper": ("s", "tab:orange"), "current": ("D", "tab:green"), "none": ("^", "black")}
@@ -96,11 +96,10 @@ def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chos
             ax.text(0.01, 0.99, "; ".join(notes), transform=ax.transAxes, va="top", fontsize=8, color="0.3")
         arrows[key] = counts
         if front:
-            xs, ys = [p.print_time_s for p in front], [_value(p, key, quality) for p in front]
-            if key == quality:     # the front is a staircase in its own objective
-                ax.step(xs, ys, where="post", c="tab:blue", lw=1.2, zorder=2)
-            else:
-                ax.plot(xs, ys, c="tab:blue", lw=0.8, alpha=0.6, zorder=2)
+            if key == quality:     # the staircase of print time against this figure alone
+                stair = pareto_front(front)
+                ax.step([p.print_time_s for p in stair], [p.quality_mm for p in stair], where="post",
+                        c="tab:blue", lw=1.2, zorder=2)
             ax.scatter([p.print_time_s for p in front], [_value(p, key, quality) for p in front], s=22,
                        c="tab:blue", label=f"Pareto front ({len(front)})", zorder=3)
         if key == "path_error_mm" and max_path_error_mm > 0:

@@ -80,6 +80,23 @@ def test_default_pick_is_the_fastest_point_at_the_best_baselines_quality():
     assert pick(front, {"klipper": klipper}, "weight", weight=0.0).point.label == "fast but rough"
 
 
+def test_the_front_keeps_a_point_with_less_path_error_so_the_pick_can_match_the_baseline():
+    """Over print time and overshoot alone, a faster point with less overshoot but twice the path
+    error hides the one that matches Klipper's quality; the front over both figures keeps it, and
+    it is the choice ("same quality, faster")."""
+    klipper = _pt(5.087, 0.0037, 0.0459, "klipper")
+    rough_fast = _pt(4.5, 0.0030, 0.095, "rough")
+    match = _pt(4.9, 0.0036, 0.047, "match")
+    assert [p.label for p in pareto_front([rough_fast, match])] == ["rough"]
+    front = pareto_front([rough_fast, match], also=("path_error_mm",))
+    assert [p.label for p in front] == ["rough", "match"]
+    c = pick(front, {"klipper": klipper})
+    assert c.point is match and "same quality, faster" in c.sentence
+    # the baseline's own configuration found again is not "faster": the sentence says so
+    c = pick([rough_fast, _pt(5.087, 0.0037, 0.0459, "itself")], {"klipper": klipper})
+    assert c.point.label == "itself" and "no front point is faster than Klipper's rule" in c.sentence
+
+
 def _no_worse(p, b):
     """Independent of pareto.judge: quality no worse than b's beyond 1 µm / 5 % of the larger."""
     def ok(a, c):
