@@ -46,6 +46,10 @@ examples:
 """
 
 
+#: library parameters whose option has another name (see agents/cli.py: as_flag)
+PARAMETER_FLAGS = {"limit_hz": "--freq-limit"}
+
+
 def add_arguments(parser) -> None:
     parser.add_argument("file", metavar="FILE.gcode", help="G-code file to limit")
     parser.add_argument("--freq-limit", metavar="HZ", type=float, default=None,
@@ -134,14 +138,15 @@ def _frequencies(path, limited: bytes, printer=None) -> dict:
     text, through the same functions as ``ringtune plan``."""
     from ringtune.agents.commands.plan import (commanded_frequencies, planned_frequencies,
                                                planning_limits)
+    from ringtune.shaping.config_plan import plan_with_config
     from ringtune.shaping.gcode import read_gcode
-    from ringtune.shaping.planner import plan
 
     out = {"commanded_hz": {}, "planned_hz": {}}
     for key, job in (("before", read_gcode(path)), ("after", read_gcode(limited, source=str(path)))):
         limits, junction, why = planning_limits(job, path, printer)
-        top = planned_frequencies(plan(job, limits), 1)
-        cmd = commanded_frequencies(job, 1)
+        configured = plan_with_config(job, limits)
+        top = planned_frequencies(configured.plan, 1)
+        cmd = commanded_frequencies(configured.job, 1)
         out["planned_hz"][key] = top[0]["freq_hz"] if top else 0.0
         out["commanded_hz"][key] = cmd[0]["freq_hz"] if cmd else 0.0
     out.update(junction=junction, junction_reason=why)

@@ -9,7 +9,8 @@ records, else tune's default), ``judgement`` (that, in words), ``variants``
 (list of {``factor`` (every resonance × it), ``metrics``}), ``windows`` (list of {``t0``, ``t1``,
 ``kind``, ``path_error_mm``, ``overshoot_mm``, ``ringing_mm``, ``peak_accel``, ``step_loss``,
 ``motor_load``}, each the worst over the variants), ``plots`` (list of PNG paths, empty without
-``--plot``).
+``--plot``), ``trace`` (with ``--trace`` only: the CSV path; columns in ``ringtune.envs.trace``; the printer as
+modelled, not a detuned variant).
 """
 
 from __future__ import annotations
@@ -52,6 +53,7 @@ examples:
   ringtune simulate --shaper zv,mzv --freq 51,46 --freq-limit 30 --firmware rrf --plot plots/
   ringtune simulate --printer my.toml --gcode part.gcode --config best.json --json
   ringtune simulate --config best.json --freq-margin 0     # the exact model only
+  ringtune simulate --gcode ripples.gcode --trace nozzle.csv   # what the model prints
 """
 
 
@@ -72,6 +74,8 @@ def add_arguments(parser) -> None:
                              f"tune does (default: the margin a tune best.json records, else {DEFAULT_FREQ_MARGIN * 100:g}; "
                              "0 = the exact model only)")
     parser.add_argument("--plot", metavar="DIR", help="write path, ringing and accelerometer plots (PNG) to DIR")
+    parser.add_argument("--trace", metavar="OUT.csv", help="write the simulated nozzle path (t, commanded and "
+                        "nozzle x y, ...) of the whole job, or of its quality windows if it is long")
 
 
 def _pair(text: str | None, option: str, number: bool) -> tuple | None:
@@ -199,6 +203,10 @@ def run(args, out) -> int:
     judged = judgement(margin)
     out.note(f"simulating {config.shaper_x}/{config.shaper_y} on {printer.name} ({args.backend}), {judged} ...")
     m, evs = evaluate_judged([config], printer, args.gcode, backend=args.backend, freq_margin=margin)[0]
+    if args.trace:   # the printer as modelled (variant 1.0)
+        from ringtune.agents.trace_option import write_trace_option
+
+        write_trace_option(args.trace, evs[0], config, printer, args.gcode, args.backend, out)
     keys = ("path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss", "motor_load")
     windows = []
     for i, w in enumerate(evs[0].planned.windows):
@@ -223,6 +231,7 @@ def run(args, out) -> int:
         "variants": [{"factor": f, "metrics": e.metrics.to_dict()} for f, e in zip(factors, evs)],
         "windows": windows,
         "plots": plots,
+        **({"trace": args.trace} if args.trace else {}),
     }
     c = config
     um = 1000.0
