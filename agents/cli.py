@@ -34,6 +34,7 @@ COMMAND_MODULES = [
     "plan",
     "limit",
     "identify",
+    "testprint",
     "printer",
     "motor",
     "export",

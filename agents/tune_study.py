@@ -159,7 +159,9 @@ def _setting_text(key: str, value) -> str:
         return {"printer": "the built-in default printer", "job": "the built-in test print",
                 "space": "the default search space"}.get(key, "none")
     if key == "space" and isinstance(value, dict):
-        return "another search space"
+        acc = value.get("accel")
+        return (f"acceleration {acc[0]:g}–{acc[1]:g} mm/s², F X {value.get('freq_x')}, F Y {value.get('freq_y')} Hz"
+                if acc else "another search space")
     return repr(value)
 
 
