@@ -63,7 +63,8 @@ KINEMATICS = ("cartesian", "corexy")
 
 LIMIT_KEYS = ("accel", "velocity", "junction", "square_corner_velocity", "junction_deviation",
               "jerk", "max_accel", "max_velocity", "min_cruise_ratio", "travel_accel")
-_TOP_KEYS = {"name", "kinematics", "limits", "x", "y", "motor", "belts", "print_mass", "description"}
+_TOP_KEYS = {"name", "kinematics", "limits", "x", "y", "motor", "belts", "print_mass", "description",
+              "measurement", "current"}   # the last two: pass-through records (identify, from-*)
 _AXIS_KEYS = {"mass", "modes", "stiffness", "masses", "stiffnesses", "damping"}
 _MODE_KEYS = {"freq", "damping", "share", "mass_share"}
 _MOTOR_KEYS = {"force", "corner_speed", "rotor_mass", "friction", "steps_per_mm", "microsteps",
