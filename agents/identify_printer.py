@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ringtune.envs.identify import AxisFit, added_mass
+from ringtune.envs.identify import AxisFit, added_mass, frequency_scale
 from ringtune.envs.printer_model import DEFAULTS
 from ringtune.shaping.errors import RingtuneError
 
@@ -33,22 +33,28 @@ class AddedMass:
     f1: float
     mass: float
     stiffness: float
+    mass_error: float = float("nan")     # kg, one standard error from the spectra's scatter
 
     @classmethod
     def from_fits(cls, base: AxisFit, loaded: AxisFit, dm: float) -> "AddedMass":
-        """From the fits of the same axis without and with ``dm`` kg: each fit's dominant mode
-        (largest share; the added mass lowers every mode of the axis by the same factor)."""
+        """From the spectrum fits of the same axis without and with ``dm`` kg: the factor by which
+        the added mass moved the whole spectrum (:func:`frequency_scale`), applied to the base's
+        dominant mode (largest share) for ``f0`` and ``f1``."""
+        if base.kind != "psd" or loaded.kind != "psd":
+            raise RingtuneError("the added-mass method needs two resonance sweeps (TEST_RESONANCES files) "
+                                f"of {base.axis.upper()}, not free-decay captures", "--added-mass")
         f0 = max(base.modes, key=lambda m: m.share).freq
-        f1 = max(loaded.modes, key=lambda m: m.share).freq
+        scale, err = frequency_scale(base, loaded)
         try:
-            m, k = added_mass(f0, f1, dm)
+            m, k = added_mass(f0, f0 * scale, dm)
         except RingtuneError as exc:
             raise RingtuneError(f"axis {base.axis.upper()}: {exc.args[0]}", "--added-mass") from None
-        return cls(base.axis, dm, f0, f1, m, k)
+        u = scale ** -2                                  # m = dm/(u − 1): dm/d(ln s) = dm·2u/(u − 1)²
+        return cls(base.axis, dm, f0, f0 * scale, m, k, dm * 2.0 * u / (u - 1.0) ** 2 * err)
 
     def to_dict(self) -> dict:
         return {"axis": self.axis, "added_mass_kg": self.dm, "f0_hz": self.f0, "f1_hz": self.f1,
-                "mass_kg": self.mass, "stiffness_n_m": self.stiffness}
+                "mass_kg": self.mass, "mass_error_kg": self.mass_error, "stiffness_n_m": self.stiffness}
 
 
 @dataclass

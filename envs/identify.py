@@ -57,6 +57,7 @@ class AxisFit:
     warnings: list[str] = field(default_factory=list)   # what makes the fit doubtful
     x_measured: np.ndarray | None = None   # the measured bins themselves (psd), for plots
     y_measured: np.ndarray | None = None
+    params: np.ndarray | None = None       # psd: the fitted (ln C, p, ln b, (freq, damping, raw share)…)
 
     def to_dict(self) -> dict:
         return {"axis": self.axis, "kind": self.kind, "source": self.source, "method": self.method,
@@ -101,6 +102,19 @@ def find_peaks_psd(f: np.ndarray, p: np.ndarray, max_peaks: int = 3, rel: float 
     return [int(idx[k]) for k in order[:max_peaks]]
 
 
+def _psd_model(x: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """The sweep PSD model ``C·(f/50)^p·|T(f)|² + b`` of parameters ``x = (ln C, p, ln b, (freq, damping,
+    share)…)``."""
+    m = np.asarray(x[3:]).reshape(-1, 3)
+    lc, lb = np.clip(x[0], -700.0, 700.0), np.clip(x[2], -700.0, 700.0)    # trial steps may be wild
+    return np.exp(lc) * (f / 50.0) ** x[1] * np.abs(transmissibility(f, [tuple(r) for r in m])) ** 2 + np.exp(lb)
+
+
+def _weight(p: np.ndarray) -> np.ndarray:
+    """Log-space residual weights, heavier at the resonances (the peaks are what a shaper must hit)."""
+    return 1.0 + 3.0 * p / p.max()
+
+
 def identify_psd(freqs: np.ndarray, psd: np.ndarray, axis: str = "sum", source: str = "psd",
                  max_modes: int = 3, fmin: float = 5.0, fmax: float = 135.0,
                  damping: str = "fit") -> AxisFit:
@@ -134,11 +148,9 @@ def identify_psd(freqs: np.ndarray, psd: np.ndarray, axis: str = "sum", source: 
         return lc, pw, lb, [(m[k, 0], m[k, 1], m[k, 2]) for k in range(n)]
 
     def model(x, ff):
-        lc, pw, lb, modes = unpack(x)
-        return np.exp(lc) * (ff / 50.0) ** pw * np.abs(transmissibility(ff, modes)) ** 2 + np.exp(lb)
+        return _psd_model(x, ff)
 
-    # log-space residual, weighted towards the resonances (the peaks are what a shaper must hit)
-    weight = 1.0 + 3.0 * p / p.max()
+    weight = _weight(p)
 
     def resid(x):
         return weight * (np.log(model(x, f)) - logp)
@@ -170,7 +182,7 @@ def identify_psd(freqs: np.ndarray, psd: np.ndarray, axis: str = "sum", source: 
         near = np.abs(fine - m.freq) <= 0.15 * m.freq
         m.fitted_peak = float(fine[near][np.argmax(curve[near])]) if near.any() else None
     fit = AxisFit(axis, "psd", where, out, fine, np.interp(fine, f, p), curve, r2, damping,
-                  x_measured=f, y_measured=p)
+                  x_measured=f, y_measured=p, params=np.asarray(sol.x, dtype=float))
     if damping == "half-power" and any(h is None for h in hp):
         fit.notes.append("a peak had no half-power points in the band; its damping comes from the fit")
     fit.warnings += psd_fit_warnings(fit, freqs, fmin, fmax, df)
@@ -315,6 +327,61 @@ def plot_fits(fits: list[AxisFit], path: str | Path) -> None:
 
 
 # -- added mass -------------------------------------------------------------------------------------
+
+def frequency_scale(base: AxisFit, loaded: AxisFit) -> tuple[float, float]:
+    """The factor ``s`` by which every resonance of an axis moved between two spectrum fits of it
+    (e.g. with a mass added), and its standard error (of ln s).
+
+    Both measured spectra are fitted together: one set of modes (frequency, damping, share) for
+    the base, the same modes at ``s·freq`` with damping ``s·damping`` for the second (a mass added at
+    unchanged stiffness and damping coefficient scales both by sqrt(m/(m+dm))), and a level, slope
+    and noise floor per spectrum. One factor fitted to both whole curves is far steadier than
+    pairing modes fitted separately, whose split between close modes the noise decides. The error
+    comes from the Jacobian and the residual scatter (both spectra's noise included)."""
+    from scipy.optimize import least_squares
+
+    if base.params is None or loaded.params is None:
+        raise RingtuneError("needs spectrum fits of both measurements", base.source)
+    data = []
+    for fit in (base, loaded):
+        f, p = np.asarray(fit.x_measured, dtype=float), np.asarray(fit.y_measured, dtype=float)
+        p = np.maximum(p, p.max() * 1e-9)
+        data.append((f, np.log(p), _weight(p)))
+    n_modes = (len(base.params) - 3) // 3
+
+    def split(x):
+        modes = x[7:].reshape(n_modes, 3)
+        scaled = modes.copy()
+        scaled[:, :2] *= math.exp(x[0])
+        return np.concatenate([x[1:4], modes.ravel()]), np.concatenate([x[4:7], scaled.ravel()])
+
+    def resid(x):
+        return np.concatenate([w * (np.log(_psd_model(px, f)) - lp) for px, (f, lp, w) in zip(split(x), data)])
+
+    s0 = loaded.modes[0].freq / base.modes[0].freq if len(loaded.modes) == len(base.modes) == 1 else None
+    modes = base.params[3:].reshape(n_modes, 3)
+    lo = [math.log(0.3), -np.inf, -2.0, -np.inf, -np.inf, -2.0, -np.inf]
+    hi = [math.log(3.0), np.inf, 6.0, np.inf, np.inf, 6.0, np.inf]
+    for fn, _, _ in modes:
+        lo += [0.5 * fn, 0.005, 0.005]
+        hi += [1.5 * fn, 0.5, 3.0]
+    best = None
+    for start in sorted({s0 or 1.0, 0.6, 0.8, 1.0, 1.25}):   # local minima one mode apart
+        x = np.concatenate([[math.log(start)], base.params[:3], base.params[:3], modes.ravel()])
+        _, px = split(x)
+        x[4] += float(np.median(data[1][1] - np.log(_psd_model(px, data[1][0]))))
+        x = np.clip(x, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
+        sol = least_squares(resid, x, bounds=(lo, hi), x_scale="jac", max_nfev=3000)
+        if best is None or sol.cost < best.cost:
+            best = sol
+    n, k = best.fun.size, best.x.size
+    try:
+        cov = np.linalg.pinv(best.jac.T @ best.jac) * (2.0 * best.cost / max(n - k, 1))
+        err = float(math.sqrt(max(cov[0, 0], 0.0)))
+    except np.linalg.LinAlgError:
+        err = float("nan")
+    return float(math.exp(best.x[0])), err
+
 
 def added_mass(f0: float, f1: float, dm: float) -> tuple[float, float]:
     """Moving mass (kg) and stiffness (N/m) of a mode from the added-mass method: the same spring

@@ -238,7 +238,12 @@ def run(args, out) -> int:
             mass = dm.get(ax, dm.get("all"))
             if mass is None:
                 raise RingtuneError(f"no added mass given for {ax.upper()}", "--added-mass")
-            added[ax] = AddedMass.from_fits(fits[ax], fit, mass)
+            added[ax] = a = AddedMass.from_fits(fits[ax], fit, mass)
+            if not a.mass_error <= 0.05 * a.mass:
+                warnings.append(f"{ax.upper()}: the added-mass estimate {a.mass:.3f} kg is uncertain by "
+                                f"±{a.mass_error:.3f} kg (one standard error from the spectra's scatter): "
+                                "repeat both tests, or add more mass (the error falls as the frequencies "
+                                "move further apart)")
         unused = [ax.upper() for ax in dm if ax != "all" and ax not in added]
         if unused:
             raise RingtuneError(f"no loaded file of {', '.join(unused)}", "--added-mass")
@@ -287,7 +292,7 @@ def run(args, out) -> int:
         lines += [f"  note: {n}" for n in fit.notes]
     for ax, a in added.items():
         lines.append(f"{ax.upper()} added mass {a.dm:g} kg: dominant mode {a.f0:.2f} -> {a.f1:.2f} Hz, moving "
-                     f"mass {a.mass:.3f} kg, stiffness {a.stiffness:.4g} N/m (m = dm/((f0/f1)² − 1), k = m(2π f0)²)")
+                     f"mass {a.mass:.3f} ± {a.mass_error:.3f} kg (±1 standard error), stiffness {a.stiffness:.4g} N/m (m = dm/((f0/f1)² − 1), k = m(2π f0)²)")
     if klipper:
         picks = ", ".join(f"{ax.upper()} {klipper[f'shaper_{ax}']} @ {klipper[f'freq_{ax}']:.1f} Hz"
                           for ax in ("x", "y") if f"shaper_{ax}" in klipper)
