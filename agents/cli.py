@@ -34,6 +34,7 @@ COMMAND_MODULES = [
     "plan",
     "limit",
     "identify",
+    "motor",
     "export",
     "push",
 ]

@@ -42,12 +42,12 @@ def firmware_rule_setup(firmware: str, version: str) -> tuple[str, tuple[str, ..
     shapers; other firmwares use their own formulas restricted to Klipper's autotune list (RRF:
     mzv, 2hump_ei, 3hump_ei; Marlin: zv; Marlin FTM: all five).
     """
-    from ringtune.shaping.config import FIRMWARE_FLAVOR
+    from ringtune.shaping.firmware import FIRMWARES
     from ringtune.shaping.shapers import available_shapers
 
-    if firmware not in FIRMWARE_FLAVOR:
-        raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARE_FLAVOR)}, not {firmware!r}", "--firmware")
-    flavor = VERSION_FLAVOR[version] if firmware == "klipper" else FIRMWARE_FLAVOR[firmware]
+    if firmware not in FIRMWARES:
+        raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "--firmware")
+    flavor = VERSION_FLAVOR[version] if firmware == "klipper" else FIRMWARES[firmware].flavor
     names = tuple(n for n in AUTOTUNE_SHAPERS if n in available_shapers(flavor))
     if not names:
         raise RingtuneError(f"{firmware} offers none of Klipper's autotuned shapers", "--firmware")
@@ -64,7 +64,9 @@ def recommend_axes(psds_by_axis: dict[str, Any], firmware: str = "klipper", vers
     flavor, names = firmware_rule_setup(firmware, version)
     factory = kw.pop("shaper_factory", None) or default_shaper_factory(flavor)
     kw.setdefault("shapers", names)
-    if firmware in ("rrf", "rrf35"):
+    from ringtune.shaping.firmware import FIRMWARES
+
+    if FIRMWARES[firmware].one_shaper:
         joint = [p for ax in sorted(psds_by_axis) for p in _as_list(psds_by_axis[ax])]
         rec = recommend_klipper(joint, version, scv, shaper_factory=factory, **kw)
         fits = {ax: rec for ax in ("x", "y")}

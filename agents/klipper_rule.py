@@ -420,14 +420,3 @@ def _check_shaper_name(name: str) -> str:
                             "--shapers")
     return str(name).strip().lower() if m and m.group(2) else base
 
-
-_BASELINE_NAMES = ("axis_config", "firmware_rule_setup", "recommend_axes", "recommend_for_printer")
-
-
-def __getattr__(name: str):
-    """Per-axis / per-firmware / per-printer use of the rule lives in klipper_baseline (lazy re-export)."""
-    if name in _BASELINE_NAMES:
-        from ringtune.agents import klipper_baseline
-
-        return getattr(klipper_baseline, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -21,10 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from ringtune.shaping.config import FIRMWARE_FLAVOR, FREQ_LIMIT_METHODS, TuneConfig
+from ringtune.shaping.config import FREQ_LIMIT_METHODS, TuneConfig
 from ringtune.shaping.errors import RingtuneError
-
-ONE_SHAPER_FIRMWARES = ("rrf", "rrf35")
+from ringtune.shaping.firmware import FIRMWARES
 
 
 @dataclass(frozen=True)
@@ -67,9 +66,9 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
     """
     from ringtune.shaping.shapers import available_shapers, max_damping
 
-    if firmware not in FIRMWARE_FLAVOR:
-        raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARE_FLAVOR)}, not {firmware!r}", "--firmware")
-    flavor = FIRMWARE_FLAVOR[firmware]
+    if firmware not in FIRMWARES:
+        raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "--firmware")
+    flavor = FIRMWARES[firmware].flavor
     offered = tuple(n for n in available_shapers(flavor) if n != "custom")
     if shapers:
         bad = [s for s in shapers if s not in offered]
@@ -84,7 +83,7 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
         lo = max(10.0, round(0.6 * min(freqs), 1))
         hi = min(200.0, round(1.8 * max(freqs), 1))
         ranges[ax] = (lo, hi)
-    per_axis = firmware not in ONE_SHAPER_FIRMWARES
+    per_axis = not FIRMWARES[firmware].one_shaper
     if not per_axis:
         ranges["x"] = ranges["y"] = (min(ranges["x"][0], ranges["y"][0]), max(ranges["x"][1], ranges["y"][1]))
     a0 = float(printer.limits.accel)

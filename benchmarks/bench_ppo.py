@@ -45,7 +45,7 @@ def bench_printer(job: tuple) -> dict:
     policy_dir, seed, backend, n_refine, n_optuna, cached = job
     import torch
 
-    from ringtune.agents.klipper_rule import recommend_for_printer as klipper_for_printer
+    from ringtune.agents.klipper_baseline import recommend_for_printer as klipper_for_printer
     from ringtune.agents.ppo import load_policy, prior_action
     from ringtune.agents.ppo_refine import PrinterCost, optuna_search
     from ringtune.envs.env import TuneEnv
@@ -147,7 +147,7 @@ class _Serial:
 
 def real_table(policy_dir: str, data: Path) -> None:
     """Policy vs Klipper's rule on the real Klipper resonance files."""
-    from ringtune.agents import klipper_rule as kr
+    from ringtune.agents import klipper_baseline
     from ringtune.agents.commands.recommend import _load_accel
     from ringtune.agents.ppo import load_policy
     from ringtune.agents.ppo_recommend import _axis_spectra, preload, recommend_from_psd
@@ -168,7 +168,7 @@ def real_table(policy_dir: str, data: Path) -> None:
         t = time.perf_counter()
         pc = recommend_from_psd(policy, _axis_spectra(psds))
         dt = time.perf_counter() - t
-        _, fields = kr.recommend_axes(psds, "klipper", "head", 5.0)
+        _, fields = klipper_baseline.recommend_axes(psds, "klipper", "head", 5.0)
         kc = TuneConfig(**fields)
         ok = True
         try:

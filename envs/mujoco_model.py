@@ -15,6 +15,8 @@ Formulation (why it is built this way):
   nozzle deviation on an axis is ``Σ share_i·q_i``; each body carries its modal mass
   ``mass_share_i · axis mass`` so the force through the belts is ``Σ m_i (a_cmd + q̈_i)``.
 - **Cartesian**: X modes belong to the toolhead, Y modes to the bed, whose mass includes the print.
+  **CoreXZ** is the same mechanics in the XY plane (Z is still while a layer prints: A and B turn
+  together with X; Y is a bed slinger's); only the motors differ (:meth:`Printer.drive_motors`).
   The nozzle relative to the print is ``commanded + deviation`` on both axes.
 - **CoreXY**: the first X and first Y mode are coupled through the two belts, fixed tendons
   ``A = u + w`` and ``B = u − w`` with stiffness ``k_A``, ``k_B`` (u, w: X and Y deviations). The
@@ -157,7 +159,8 @@ _SLIP_CACHE: dict = {}
 def linear_system(printer: Printer) -> LinearSystem:
     """The printer's linear mechanics (modes after print mass), as used by both backends; with
     ``[motor] slip = true`` the linearised slip model of :mod:`ringtune.envs.rotor`."""
-    if printer.motor.slip is not False:
+    slips = {mo.slip for _n, mo, _d in printer.drive_motors()}
+    if False not in slips:
         from ringtune.envs.rotor import slip_system
         from ringtune.shaping.errors import RingtuneError
 
@@ -167,7 +170,7 @@ def linear_system(printer: Printer) -> LinearSystem:
             try:
                 got = slip_system(printer)
             except RingtuneError:
-                if printer.motor.slip:
+                if True in slips:
                     raise
                 got = False                      # the motor cannot carry the modes: rigid motor
             if len(_SLIP_CACHE) > 256:

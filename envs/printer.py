@@ -5,7 +5,7 @@ nozzle shows relative to the print. Everything physical has a documented default
 :data:`DEFAULTS`), so the minimal form of DESIGN.md is enough::
 
     name = "my-ender3"
-    kinematics = "cartesian"        # or "corexy"
+    kinematics = "cartesian"        # or "corexy", "corexz"
     [limits]
     accel = 3000
     [x]
@@ -38,6 +38,25 @@ simulates each rotor on its sinusoidal magnetic spring, so that an overloaded mo
 steps, whenever the motor can carry the described modes (otherwise the motor is rigid and step loss
 is only detected); ``true`` insists on it (an error names ``[motor].force`` if the motor is too
 weak for the modes); ``false`` keeps the rigid, purely linear motor. See :mod:`ringtune.envs.rotor`.
+
+Motors from the datasheet (:mod:`ringtune.envs.stepper`): instead of ``force``/``corner_speed``,
+``[motor]`` may name a built-in motor, ``name = "ldo-42sth48-2504ac"`` (every motor of Klipper
+autotune's database, :mod:`ringtune.envs.motors`), and/or give its constants ``holding_torque``
+(N·m), ``rated_current`` (A), ``resistance`` (Ω), ``inductance`` (H), ``steps_per_revolution``
+(explicit constants win over the named motor's); the drive: ``run_current`` (A RMS), ``voltage``
+(V), ``rotation_distance`` (mm of belt per revolution; gives ``steps_per_mm``), ``rotor_inertia``
+(kg·m², optional). The force then follows from stepper physics; what is not given is assumed and
+said (:attr:`MotorModel.assumed`, TOML comments). ``[x.motor]`` / ``[y.motor]`` override ``[motor]``
+per axis (a motor named there replaces the base's motor and keeps its drive): cartesian X, Y; CoreXY
+A (stepper_x), B (stepper_y); CoreXZ the A/B pair that drives X (stepper_x, stepper_z) and the bed's
+Y motor (stepper_y). CoreXZ: Z is still while a layer prints, so X moves turn A and B together, and
+Y is a bed slinger's (the print mass moves with it).
+
+``[current]`` (what the printer runs today: ``source``, ``shaper_x``, ``freq_x``, ``damping_x``, the
+same for y, ``accel``, ``firmware``) and ``[measurement]`` (``source``, ``files = [{ name, sha256,
+axis }]``, ``[measurement.klipper]``) are kept as read in :attr:`Printer.current` /
+:attr:`Printer.measurement` and written back unchanged.
+
 ``[belts]`` (corexy only):
 ``stiffness`` (N/m of each belt at the head; default: half the stiffer-than-needed axis stiffness,
 see :meth:`Printer.belt_stiffnesses`) and ``mismatch`` ((k_A − k_B)/mean, 0 = matched belts).
@@ -56,19 +75,22 @@ from pathlib import Path
 
 import numpy as np
 
-from ringtune.envs.printer_model import DEFAULTS, AxisModel, Mode, MotorModel, Printer
+from ringtune.envs.motors import lookup_motor, unknown_motor_message
+from ringtune.envs.printer_model import (DEFAULTS, MOTOR_CONSTANT_KEYS, MOTOR_DRIVE_KEYS, AxisModel, Mode,
+                                         MotorModel, Printer)
 from ringtune.shaping.errors import RingtuneError
 
-KINEMATICS = ("cartesian", "corexy")
+KINEMATICS = ("cartesian", "corexy", "corexz")
 
 LIMIT_KEYS = ("accel", "velocity", "junction", "square_corner_velocity", "junction_deviation",
               "jerk", "max_accel", "max_velocity", "min_cruise_ratio", "travel_accel")
 _TOP_KEYS = {"name", "kinematics", "limits", "x", "y", "motor", "belts", "print_mass", "description",
-              "measurement", "current"}   # the last two: pass-through records (identify, from-*)
-_AXIS_KEYS = {"mass", "modes", "stiffness", "masses", "stiffnesses", "damping"}
+             "current", "measurement"}
+_AXIS_KEYS = {"mass", "modes", "stiffness", "masses", "stiffnesses", "damping", "motor"}
 _MODE_KEYS = {"freq", "damping", "share", "mass_share"}
+_OLD_FORM_KEYS = {"force", "corner_speed"}
 _MOTOR_KEYS = {"force", "corner_speed", "rotor_mass", "friction", "steps_per_mm", "microsteps",
-               "rotor_damping", "slip"}
+               "rotor_damping", "slip", "name", *MOTOR_CONSTANT_KEYS, *MOTOR_DRIVE_KEYS}
 _BELT_KEYS = {"stiffness", "mismatch"}
 
 
@@ -137,6 +159,7 @@ def _modes_from_chain(masses, stiffnesses, damping, where) -> tuple[list[Mode], 
 def _axis_from_dict(d: dict, axis: str, where: str) -> AxisModel:
     w = f"{where}: [{axis}]"
     _unknown(d, _AXIS_KEYS, w)
+    d = {k: v for k, v in d.items() if k != "motor"}
     mass = _num(d, "mass", w, DEFAULTS[f"mass_{axis}"], lo=0.0, lo_open=True)
     damping = _num(d, "damping", w, DEFAULTS["damping"], lo=0.0, hi=0.95)
     given = [k for k in ("modes", "stiffness", "masses") if k in d]
@@ -194,6 +217,124 @@ def _axis_from_dict(d: dict, axis: str, where: str) -> AxisModel:
     return AxisModel(total, modes)
 
 
+#: keys of the pass-through sections that must be numbers / strings when present
+_NUMERIC = {"current": ("freq_x", "freq_y", "damping_x", "damping_y", "accel"),
+            "measurement": ()}
+_STRINGS = {"current": ("source", "shaper_x", "shaper_y", "firmware"), "measurement": ("source",)}
+
+
+def _passthrough(d: dict, sec: str, where: str) -> dict:
+    """``[current]`` / ``[measurement]``: kept as read (written back unchanged); the keys the tools
+    read are type-checked."""
+    t = _table(d, sec, where)
+    w = f"{where}: [{sec}]"
+    for k in _NUMERIC[sec]:
+        if k in t:
+            _num(t, k, w, lo=0.0)
+    for k in _STRINGS[sec]:
+        if k in t and not isinstance(t[k], str):
+            raise RingtuneError(f"{k} must be a string, got {t[k]!r}", f"{w}.{k}")
+    if sec == "measurement":
+        files = t.get("files", [])
+        if not isinstance(files, list) or not all(isinstance(f, dict) for f in files):
+            raise RingtuneError('files must be a list of tables like { name = "x.csv", sha256 = "…", axis = "x" }',
+                                f"{w}.files")
+        if "klipper" in t and not isinstance(t["klipper"], dict):
+            raise RingtuneError("[measurement.klipper] must be a table", f"{w}.klipper")
+    return dict(t)
+
+
+def _is_datasheet(raw: dict) -> bool:
+    return "name" in raw or any(k in raw for k in MOTOR_CONSTANT_KEYS)
+
+
+def _inherit(base: dict, own: dict) -> dict:
+    """An axis's motor table over ``[motor]``: the axis's keys win; a motor named or described on the
+    axis replaces the base's motor (its name, constants and old-form force) but keeps its drive."""
+    if _is_datasheet(own):
+        drop = {"name", *MOTOR_CONSTANT_KEYS, *_OLD_FORM_KEYS, "rotor_inertia"}
+    elif own.keys() & _OLD_FORM_KEYS:
+        drop = {"name", *MOTOR_CONSTANT_KEYS, "rotor_inertia"}
+    else:
+        drop = set()
+    return {**{k: v for k, v in base.items() if k not in drop}, **own}
+
+
+def _motor_from_dict(mo: dict, mw: str) -> MotorModel:
+    """One motor table (``[motor]`` or an axis's, already merged over ``[motor]``)."""
+    _unknown(mo, _MOTOR_KEYS, mw)
+    consts: dict = {}
+    name = mo.get("name")
+    if name is not None:
+        if not isinstance(name, str) or not name.strip():
+            raise RingtuneError("name must be a motor name (string)", f"{mw}.name")
+        ref = lookup_motor(name)
+        if ref is None and not all(k in mo for k in MOTOR_CONSTANT_KEYS[:4]):
+            raise RingtuneError(unknown_motor_message(name), f"{mw}.name")
+        if ref is not None:
+            consts = {k: getattr(ref, k) for k in MOTOR_CONSTANT_KEYS}
+    for k in MOTOR_CONSTANT_KEYS[:4]:
+        if k in mo:
+            consts[k] = _num(mo, k, mw, lo=0.0, lo_open=True)
+    if "steps_per_revolution" in mo:
+        n = _num(mo, "steps_per_revolution", mw, lo=4.0)
+        if n != int(n) or int(n) % 4:
+            raise RingtuneError(f"steps_per_revolution = {n:g} must be a whole multiple of 4 (200, 400)",
+                                f"{mw}.steps_per_revolution")
+        consts["steps_per_revolution"] = int(n)
+    datasheet = bool(consts)
+    if datasheet:
+        missing = [k for k in MOTOR_CONSTANT_KEYS[:4] if k not in consts]
+        if missing:
+            raise RingtuneError(f"a motor from datasheet constants needs {', '.join(missing)} too "
+                                "(or a built-in motor's name)", f"{mw}.{missing[0]}")
+        both = sorted(_OLD_FORM_KEYS & mo.keys())
+        if both:
+            raise RingtuneError(f"{both[0]} belongs to the old form: give either force/corner_speed or "
+                                "the motor (name or datasheet constants), whose force follows from them",
+                                f"{mw}.{both[0]}")
+        if "rotor_inertia" in mo and "rotor_mass" in mo:
+            raise RingtuneError("give either rotor_inertia (kg·m²) or rotor_mass (kg at the belt)",
+                                f"{mw}.rotor_mass")
+    drive = {}
+    for k in ("run_current", "voltage", "rotation_distance"):
+        if k in mo:
+            drive[k] = _num(mo, k, mw, lo=0.0, lo_open=True)
+    if "rotor_inertia" in mo:
+        drive["rotor_inertia"] = _num(mo, "rotor_inertia", mw, lo=0.0)
+    microsteps = _num(mo, "microsteps", mw, DEFAULTS["microsteps"], lo=1.0)
+    n_steps = consts.get("steps_per_revolution", 200)
+    if "rotation_distance" in drive:
+        derived = n_steps * microsteps / drive["rotation_distance"]
+        if "steps_per_mm" in mo:
+            spm = _num(mo, "steps_per_mm", mw, lo=0.0, lo_open=True)
+            if abs(spm - derived) > 1e-3 * derived:
+                raise RingtuneError(
+                    f"steps_per_mm = {spm:g} disagrees with rotation_distance = {drive['rotation_distance']:g} "
+                    f"({n_steps} steps/rev × {microsteps:g} microsteps / rotation_distance = {derived:g}); "
+                    "give one of them", f"{mw}.steps_per_mm")
+        steps_per_mm = derived
+    elif datasheet and "steps_per_mm" not in mo:
+        steps_per_mm = None                      # the motor assumes (and says) a rotation distance
+    else:
+        steps_per_mm = _num(mo, "steps_per_mm", mw, DEFAULTS["steps_per_mm"], lo=0.0, lo_open=True)
+    if not datasheet and "rotor_inertia" in drive:
+        raise RingtuneError("rotor_inertia needs the motor (name or datasheet constants); give rotor_mass "
+                            "(kg at the belt) instead", f"{mw}.rotor_inertia")
+    return MotorModel(
+        force=_num(mo, "force", mw, DEFAULTS["motor_force"], lo=0.0, lo_open=True),
+        corner_speed=_num(mo, "corner_speed", mw, DEFAULTS["corner_speed"], lo=0.0, lo_open=True),
+        rotor_mass=_num(mo, "rotor_mass", mw, DEFAULTS["rotor_mass"], lo=0.0),
+        friction=_num(mo, "friction", mw, DEFAULTS["friction"], lo=0.0),
+        steps_per_mm=steps_per_mm,
+        microsteps=microsteps,
+        rotor_damping=_num(mo, "rotor_damping", mw, DEFAULTS["rotor_damping"], lo=0.0, hi=2.0),
+        slip=_bool(mo, "slip", mw, None),
+        name=name.strip() if isinstance(name, str) else None,
+        **consts, **drive,
+    )
+
+
 def printer_from_dict(d: dict, where: str = "printer") -> Printer:
     """Validate a parsed TOML mapping and build a :class:`Printer` (errors name the key)."""
     if not isinstance(d, dict):
@@ -222,28 +363,24 @@ def printer_from_dict(d: dict, where: str = "printer") -> Printer:
             raise RingtuneError(f"{key} must be a list of non-negative numbers (x, y, z, e)", f"{lw}.{key}")
     x = _axis_from_dict(_table(d, "x", where), "x", where)
     y = _axis_from_dict(_table(d, "y", where), "y", where)
-    mo = _table(d, "motor", where)
-    mw = f"{where}: [motor]"
-    _unknown(mo, _MOTOR_KEYS, mw)
-    motor = MotorModel(
-        force=_num(mo, "force", mw, DEFAULTS["motor_force"], lo=0.0, lo_open=True),
-        corner_speed=_num(mo, "corner_speed", mw, DEFAULTS["corner_speed"], lo=0.0, lo_open=True),
-        rotor_mass=_num(mo, "rotor_mass", mw, DEFAULTS["rotor_mass"], lo=0.0),
-        friction=_num(mo, "friction", mw, DEFAULTS["friction"], lo=0.0),
-        steps_per_mm=_num(mo, "steps_per_mm", mw, DEFAULTS["steps_per_mm"], lo=0.0, lo_open=True),
-        microsteps=_num(mo, "microsteps", mw, DEFAULTS["microsteps"], lo=1.0),
-        rotor_damping=_num(mo, "rotor_damping", mw, DEFAULTS["rotor_damping"], lo=0.0, hi=2.0),
-        slip=_bool(mo, "slip", mw, None),
-    )
+    base_raw = _table(d, "motor", where)
+    motor = _motor_from_dict(base_raw, f"{where}: [motor]")
+    axis_motors = {}
+    for ax in ("x", "y"):
+        own = _table(_table(d, ax, where), "motor", f"{where}: [{ax}]")
+        if own:
+            axis_motors[ax] = _motor_from_dict(_inherit(base_raw, own), f"{where}: [{ax}.motor]")
     print_mass = _num(d, "print_mass", where, DEFAULTS["print_mass"], lo=0.0)
     belts = _table(d, "belts", where)
     bw = f"{where}: [belts]"
+    passthrough = {sec: _passthrough(d, sec, where) for sec in ("current", "measurement")}
     if belts and kin != "corexy":
         raise RingtuneError("[belts] applies only to kinematics = \"corexy\"", bw)
     _unknown(belts, _BELT_KEYS, bw)
     p = Printer(
         name=name, kinematics=kin, limits_dict=dict(limits), x=x, y=y, motor=motor,
-        print_mass=print_mass,
+        x_motor=axis_motors.get("x"), y_motor=axis_motors.get("y"), print_mass=print_mass,
+        current=passthrough["current"], measurement=passthrough["measurement"],
         belt_stiffness=_num(belts, "stiffness", bw, lo=0.0, lo_open=True) if "stiffness" in belts else None,
         belt_mismatch=_num(belts, "mismatch", bw, DEFAULTS["belt_mismatch"], lo=-1.9, hi=1.9),
         description=str(d.get("description", "")),

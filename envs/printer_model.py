@@ -10,6 +10,7 @@ Units: kg, N, N/m (= kg/s²), mm, mm/s, Hz.
 
 from __future__ import annotations
 
+import datetime as _dt
 import math
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -64,18 +65,98 @@ class AxisModel:
     modes: list[Mode]
 
 
+#: MotorModel fields that are a motor's datasheet constants (from ``name`` or given explicitly)
+MOTOR_CONSTANT_KEYS = ("holding_torque", "rated_current", "resistance", "inductance", "steps_per_revolution")
+#: MotorModel fields of the drive and mechanics of a datasheet motor (optional; defaults assumed aloud)
+MOTOR_DRIVE_KEYS = ("run_current", "voltage", "rotation_distance", "rotor_inertia")
+
+
 @dataclass
 class MotorModel:
-    """Stepper seen at the belt: force (N) it can give falls with speed above ``corner_speed``."""
+    """Stepper seen at the belt: the force (N) it can give against belt speed (mm/s), its rotor.
+
+    Two forms. Old form: ``force`` up to ``corner_speed``, then ``force·corner_speed/speed``.
+    Datasheet form (``holding_torque``, ``rated_current``, ``resistance``, ``inductance`` all set,
+    e.g. from ``name`` in :data:`ringtune.envs.motors.MOTOR_TABLE`): the stepper physics of
+    :mod:`ringtune.envs.stepper` with ``run_current`` (A RMS), ``voltage`` (V) and
+    ``rotation_distance`` (mm/rev); then ``force`` (the holding force at the run current, the rotor's
+    magnetic spring), ``corner_speed``, ``steps_per_mm`` (when ``rotation_distance`` is given) and
+    ``rotor_mass`` (when ``rotor_inertia``, kg·m², is given: J/r²) are *derived* on construction.
+    Drive values left ``None`` take the defaults of :mod:`ringtune.envs.stepper`, listed in
+    ``assumed`` (one sentence each, for stderr and TOML comments)."""
 
     force: float = DEFAULTS["motor_force"]
     corner_speed: float = DEFAULTS["corner_speed"]
     rotor_mass: float = DEFAULTS["rotor_mass"]
     friction: float = DEFAULTS["friction"]
-    steps_per_mm: float = DEFAULTS["steps_per_mm"]
+    steps_per_mm: float | None = DEFAULTS["steps_per_mm"]     # None (datasheet form): from rotation_distance
     microsteps: float = DEFAULTS["microsteps"]
     rotor_damping: float = DEFAULTS["rotor_damping"]
     slip: bool | None = None
+    name: str | None = None
+    holding_torque: float | None = None
+    rated_current: float | None = None
+    resistance: float | None = None
+    inductance: float | None = None
+    steps_per_revolution: int | None = None
+    run_current: float | None = None
+    voltage: float | None = None
+    rotation_distance: float | None = None
+    rotor_inertia: float | None = None
+    assumed: tuple = field(default=(), compare=False, repr=False)
+    _stepper: Any = field(default=None, init=False, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not self.has_datasheet:
+            self._stepper = None
+            if self.steps_per_mm is None:
+                self.steps_per_mm = DEFAULTS["steps_per_mm"]
+            return
+        from ringtune.envs.motors import MotorConstants
+        from ringtune.envs.stepper import (DEFAULT_ROTATION_DISTANCE, DEFAULT_VOLTAGE, StepperDrive,
+                                           default_run_current)
+
+        n = int(self.steps_per_revolution or 200)
+        notes = []
+        if self.steps_per_revolution is None:
+            notes.append("steps_per_revolution = 200 (not given: a 1.8° motor assumed)")
+        run = self.run_current
+        if run is None:
+            run = default_run_current(self.rated_current)
+            notes.append(f"run_current = {run:.3g} A RMS (not given: rated_current/√2, the sine's "
+                         "peak at the rated current)")
+        volt = self.voltage
+        if volt is None:
+            volt = DEFAULT_VOLTAGE
+            notes.append(f"voltage = {volt:g} V (not given: a 24 V supply assumed)")
+        rd = self.rotation_distance
+        if rd is None and self.steps_per_mm is None:
+            rd = DEFAULT_ROTATION_DISTANCE
+            notes.append(f"rotation_distance = {rd:g} mm (not given: a GT2 belt on a 20-tooth pulley assumed)")
+        elif rd is None:
+            rd = n * self.microsteps / self.steps_per_mm
+            notes.append(f"rotation_distance = {rd:.4g} mm (not given: from steps_per_mm = "
+                         f"{self.steps_per_mm:g}, {self.microsteps:g} microsteps, {n} steps/rev)")
+        self.steps_per_mm = n * self.microsteps / rd
+        consts = MotorConstants(self.name or "custom", self.resistance, self.inductance,
+                                self.holding_torque, self.rated_current, n)
+        drive = StepperDrive(consts, float(run), float(volt), float(rd))
+        self._stepper = drive
+        self.force = drive.standstill_force
+        self.corner_speed = drive.corner_speed
+        if self.rotor_inertia is not None:
+            self.rotor_mass = self.rotor_inertia / drive.radius ** 2
+        self.assumed = tuple(notes)
+
+    @property
+    def has_datasheet(self) -> bool:
+        """True when the four datasheet constants are set (the stepper physics is used)."""
+        return None not in (self.holding_torque, self.rated_current, self.resistance, self.inductance)
+
+    @property
+    def stepper(self):
+        """The :class:`ringtune.envs.stepper.StepperDrive` (datasheet form) or ``None``."""
+        return self._stepper
 
     @property
     def electrical_cycle(self) -> float:
@@ -94,10 +175,50 @@ class MotorModel:
         return self.force * 2.0 * math.pi / (self.electrical_cycle * 1e-3)
 
     def max_force(self, speed: np.ndarray | float) -> np.ndarray:
-        """Largest force (N) the motor can give at belt speed ``speed`` (mm/s):
-        ``force`` up to ``corner_speed``, then ``force·corner_speed/|speed|``."""
+        """Largest force (N) the motor can give at belt speed ``speed`` (mm/s): the stepper curve
+        (datasheet form) or ``force`` up to ``corner_speed``, then ``force·corner_speed/|speed|``."""
+        if self._stepper is not None:
+            return self._stepper.force(speed)
         s = np.abs(np.asarray(speed, dtype=float))
         return self.force * np.minimum(1.0, self.corner_speed / np.maximum(s, 1e-12))
+
+    def to_dict(self) -> dict:
+        """The ``[motor]`` table: only what was given (derived and assumed values are left out, so
+        that reading it back gives the same motor; a named motor's constants only where they differ
+        from the built-in table)."""
+        if not self.has_datasheet:
+            d: dict[str, Any] = {"force": self.force, "corner_speed": self.corner_speed,
+                                 "rotor_mass": self.rotor_mass, "friction": self.friction,
+                                 "steps_per_mm": self.steps_per_mm}
+            if self.microsteps != DEFAULTS["microsteps"] or self.rotor_damping != DEFAULTS["rotor_damping"]:
+                d.update(microsteps=self.microsteps, rotor_damping=self.rotor_damping)
+            if self.name is not None:
+                d["name"] = self.name
+            for k in MOTOR_DRIVE_KEYS:
+                if getattr(self, k) is not None:
+                    d[k] = getattr(self, k)
+        else:
+            from ringtune.envs.motors import lookup_motor
+
+            d = {}
+            ref = lookup_motor(self.name) if self.name else None
+            if self.name is not None:
+                d["name"] = self.name
+            for k in MOTOR_CONSTANT_KEYS:
+                v = getattr(self, k)
+                if v is not None and (ref is None or getattr(ref, k) != v):
+                    d[k] = v
+            for k in MOTOR_DRIVE_KEYS:
+                if getattr(self, k) is not None:
+                    d[k] = getattr(self, k)
+            if self.rotation_distance is None:
+                d["steps_per_mm"] = self.steps_per_mm
+            if self.rotor_inertia is None:
+                d["rotor_mass"] = self.rotor_mass
+            d.update(friction=self.friction, microsteps=self.microsteps, rotor_damping=self.rotor_damping)
+        if self.slip is not None:
+            d["slip"] = self.slip
+        return d
 
 
 @dataclass
@@ -110,10 +231,59 @@ class Printer:
     x: AxisModel = field(default_factory=lambda: AxisModel(DEFAULTS["mass_x"], [Mode(50.0, 0.07)]))
     y: AxisModel = field(default_factory=lambda: AxisModel(DEFAULTS["mass_y"], [Mode(40.0, 0.07)]))
     motor: MotorModel = field(default_factory=MotorModel)
+    x_motor: MotorModel | None = None
+    y_motor: MotorModel | None = None
     print_mass: float = DEFAULTS["print_mass"]
     belt_stiffness: float | None = None
     belt_mismatch: float = DEFAULTS["belt_mismatch"]
     description: str = ""
+    current: dict = field(default_factory=dict)
+    measurement: dict = field(default_factory=dict)
+
+    # -- motors -----------------------------------------------------------------------------------
+    def motor_for(self, axis: str) -> MotorModel:
+        """The motor of ``[x.motor]`` / ``[y.motor]`` (``[motor]`` when the axis has none). On CoreXY
+        ``x`` is motor A (stepper_x), ``y`` motor B (stepper_y); on CoreXZ ``x`` is the pair A, B
+        that drives X (stepper_x and stepper_z), ``y`` the bed's own motor (stepper_y)."""
+        if axis not in ("x", "y"):
+            raise RingtuneError(f"axis must be 'x' or 'y', not {axis!r}")
+        own = self.x_motor if axis == "x" else self.y_motor
+        return self.motor if own is None else own
+
+    def drive_motors(self) -> list[tuple[str, MotorModel, tuple[float, float]]]:
+        """Every motor that moves the head in the XY plane: (name, model, drive) with ``drive`` the
+        motor's belt speed per unit (x, y) speed. Cartesian: X (1, 0), Y (0, 1). CoreXY: A (1, 1),
+        B (1, −1). CoreXZ (Z still while a layer prints, so A = x + z and B = x − z both turn with
+        x): A (1, 0), B (1, 0), Y (0, 1)."""
+        mx, my = self.motor_for("x"), self.motor_for("y")
+        if self.kinematics == "corexy":
+            return [("a", mx, (1.0, 1.0)), ("b", my, (1.0, -1.0))]
+        if self.kinematics == "corexz":
+            return [("a", mx, (1.0, 0.0)), ("b", mx, (1.0, 0.0)), ("y", my, (0.0, 1.0))]
+        return [("x", mx, (1.0, 0.0)), ("y", my, (0.0, 1.0))]
+
+    def motor_accel_limit(self, axis: str, speed: np.ndarray | float = 0.0) -> np.ndarray:
+        """mm/s²: the largest steady acceleration of a pure ``axis`` move passing ``speed`` (mm/s)
+        that every motor driving it can give (rigid masses; the modes' transient overshoot and any
+        reserve are the caller's). Motor k must give its share of the axis force (the least-squares
+        inverse P of the drive D, as in the simulation) plus its rotor's inertia and friction:
+        ``a_max = min_k (F_k(|D_k|·v) − friction_k) / |P_k·m_axis + m_r,k·D_k|``."""
+        e = 0 if axis == "x" else 1
+        if axis not in ("x", "y"):
+            raise RingtuneError(f"axis must be 'x' or 'y', not {axis!r}")
+        motors = self.drive_motors()
+        D = np.array([d for _n, _m, d in motors], float).T            # (2, k)
+        P = np.linalg.pinv(D.T)                                         # (2, k)
+        m = self.moving_mass(axis)
+        v = np.abs(np.asarray(speed, dtype=float))
+        out = np.full(v.shape, np.inf)
+        for k, (_n, mo, _d) in enumerate(motors):
+            if D[e, k] == 0.0:
+                continue
+            per_accel = abs(P[e, k] * m + mo.rotor_mass * D[e, k])      # kg
+            spare = np.maximum(mo.max_force(abs(D[e, k]) * v) - mo.friction, 0.0)
+            out = np.minimum(out, spare / per_accel * 1e3)
+        return out
 
     # -- derived physics --------------------------------------------------------------------------
     def axis(self, name: str) -> AxisModel:
@@ -122,14 +292,15 @@ class Printer:
         return self.x if name == "x" else self.y
 
     def moving_mass(self, axis: str) -> float:
-        """kg moving on ``axis`` during printing (the Y bed of a bed slinger carries the print)."""
+        """kg moving on ``axis`` during printing (the Y bed of a bed slinger carries the print:
+        cartesian and CoreXZ)."""
         m = self.axis(axis).mass
-        if axis == "y" and self.kinematics == "cartesian":
+        if axis == "y" and self.kinematics in ("cartesian", "corexz"):
             m += self.print_mass
         return m
 
     def effective_modes(self, axis: str) -> list[Mode]:
-        """The modes actually simulated: on a cartesian bed slinger the print mass lowers every Y
+        """The modes actually simulated: on a bed slinger (cartesian, CoreXZ) the print mass lowers every Y
         mode's frequency by sqrt(m/(m+print)) at unchanged stiffness and damping coefficient
         (so the damping ratio falls by the same factor)."""
         ax = self.axis(axis)
@@ -195,40 +366,67 @@ class Printer:
                     md["mass_share"] = m.mass_share
                 modes.append(md)
             d[ax] = {"mass": a.mass, "modes": modes}
-        mo = self.motor
-        d["motor"] = {"force": mo.force, "corner_speed": mo.corner_speed, "rotor_mass": mo.rotor_mass,
-                      "friction": mo.friction, "steps_per_mm": mo.steps_per_mm}
-        if mo.microsteps != DEFAULTS["microsteps"] or mo.rotor_damping != DEFAULTS["rotor_damping"]:
-            d["motor"].update(microsteps=mo.microsteps, rotor_damping=mo.rotor_damping)
-        if mo.slip is not None:
-            d["motor"]["slip"] = mo.slip
+        d["motor"] = self.motor.to_dict()
+        base = d["motor"]
+        for ax in ("x", "y"):
+            own = getattr(self, f"{ax}_motor")
+            if own is not None:
+                od = own.to_dict()
+                if od.get("name") != base.get("name") or own.has_datasheet != self.motor.has_datasheet:
+                    d[ax]["motor"] = od
+                else:
+                    d[ax]["motor"] = {k: v for k, v in od.items() if base.get(k, _MISSING) != v}
         if self.kinematics == "corexy":
             belts: dict[str, Any] = {"mismatch": self.belt_mismatch}
             if self.belt_stiffness is not None:
                 belts["stiffness"] = self.belt_stiffness
             d["belts"] = belts
+        if self.current:
+            d["current"] = dict(self.current)
+        if self.measurement:
+            d["measurement"] = dict(self.measurement)
         return d
 
     def to_toml(self) -> str:
-        """TOML text that :func:`ringtune.envs.printer.load_printer` reads back to an equal printer."""
+        """TOML text that :func:`ringtune.envs.printer.load_printer` reads back to an equal printer.
+        What a datasheet motor assumes (run current, voltage, …) is written as a comment."""
         d = self.to_dict()
         lines = [f"name = {_toml_value(d['name'])}", f"kinematics = {_toml_value(d['kinematics'])}"]
         if "description" in d:
             lines.append(f"description = {_toml_value(d['description'])}")
         lines.append(f"print_mass = {_toml_value(d['print_mass'])}")
-        for table in ("limits", "x", "y", "motor", "belts"):
-            if table not in d:
-                continue
-            lines.append("")
-            lines.append(f"[{table}]")
-            for k, v in d[table].items():
-                if k == "modes":
-                    inner = ", ".join("{ " + ", ".join(f"{mk} = {_toml_value(mv)}" for mk, mv in m.items())
-                                      + " }" for m in v)
-                    lines.append(f"modes = [{inner}]")
-                else:
-                    lines.append(f"{k} = {_toml_value(v)}")
+        notes = {"motor": self.motor.assumed}
+        for ax in ("x", "y"):
+            own = getattr(self, f"{ax}_motor")
+            if own is not None:
+                notes[f"{ax}.motor"] = own.assumed
+        for table in ("limits", "x", "y", "motor", "belts", "current", "measurement"):
+            if table in d:
+                _toml_table(lines, table, d[table], notes)
         return "\n".join(lines) + "\n"
+
+
+_MISSING = object()
+
+
+def _toml_table(lines: list[str], name: str, table: dict, notes: dict) -> None:
+    """Append ``[name]`` with its plain keys, then its sub-tables as ``[name.sub]`` (recursively)."""
+    lines.append("")
+    lines.append(f"[{name}]")
+    for note in notes.get(name, ()):
+        lines.append(f"# {note}")
+    subs = []
+    for k, v in table.items():
+        if isinstance(v, dict):
+            subs.append((k, v))
+        else:
+            lines.append(f"{_toml_key(k)} = {_toml_value(v)}")
+    for k, v in subs:
+        _toml_table(lines, f"{name}.{_toml_key(k)}", v, notes)
+
+
+def _toml_key(k: str) -> str:
+    return k if k.replace("_", "").replace("-", "").isalnum() and k.isascii() else _toml_value(k)
 
 
 def _toml_value(v: Any) -> str:
@@ -240,4 +438,8 @@ def _toml_value(v: Any) -> str:
         return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, (_dt.date, _dt.time)):
+        return v.isoformat()
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items()) + " }"
     raise TypeError(f"cannot write {v!r} to TOML")

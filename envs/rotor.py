@@ -7,7 +7,8 @@ commanded electrical position by a torque that is periodic in the lag ``e`` (mm 
     F_em(e) = −F_hold · sin(2π e / λ),   λ = one electrical cycle = 4 full steps
               = 4·microsteps/steps_per_mm mm of belt
 
-with F_hold the motor's low-speed force (``[motor].force``). Near e = 0 it is a spring of stiffness
+with F_hold the motor's low-speed force (``[motor].force``, or from the datasheet constants the
+holding force at the run current, :mod:`ringtune.envs.stepper`). Near e = 0 it is a spring of stiffness
 ``k_m = F_hold·2π/λ`` (the linear twin used by the exact reference); it can give no more than
 F_hold, reached one full step behind (e = λ/4); past that the force *falls*, the rotor runs away
 and, once the load is gone, locks again on a later equilibrium e = −j·λ: j whole electrical cycles
@@ -26,8 +27,10 @@ damping ratio of the rotor modes (back-EMF and eddy losses).
 
 Coordinates (all relative to the commanded position, so the mass matrix stays diagonal): the
 modal bodies of :func:`ringtune.envs.mujoco_model.linear_system`, then one rotor per motor (cartesian:
-X, Y; CoreXY: A, B in belt mm). Every mode body hangs from its axis's *motor side*
-(cartesian x → r_X; CoreXY x → (r_A + r_B)/2, y → (r_A − r_B)/2) through a spring and damper
+X, Y; CoreXY: A, B in belt mm; CoreXZ: A, B both turning with X, and Y), each with its own motor's
+F_hold, λ and rotor mass (:meth:`Printer.drive_motors`). Every mode body hangs from its axis's
+*motor side* (cartesian x → r_X; CoreXY x → (r_A + r_B)/2, y → (r_A − r_B)/2; CoreXZ x →
+(r_A + r_B)/2, y → r_Y) through a spring and damper
 realised as a fixed tendon; the CoreXY primary modes are also tied by the two belts
 ``A = u + w − r_A``, ``B = u − w − r_B`` (stiffness as the rigid-motor model).
 
@@ -103,7 +106,6 @@ def slip_system(printer):
     included, springs solved so the described frequencies and shares hold exactly)."""
     from ringtune.envs.mujoco_model import LinearSystem
 
-    mo = printer.motor
     names, axis, mass, share, zeta, omega = [], [], [], [], [], []
     for ai, ax in enumerate(("x", "y")):
         total = printer.moving_mass(ax)
@@ -116,16 +118,14 @@ def slip_system(printer):
             omega.append(m.omega)
     nb = len(names)
     corexy = printer.kinematics == "corexy"
-    motors = (("a", (1.0, 1.0)), ("b", (1.0, -1.0))) if corexy else (("x", (1.0, 0.0)), ("y", (0.0, 1.0)))
-    lam = mo.electrical_cycle
-    km = mo.magnetic_stiffness
-    mr = max(mo.rotor_mass, 1e-4)
-    rotors = []
-    for k, (mname, drv) in enumerate(motors):
-        rotors.append(Rotor(nb + k, mname, np.array(drv), lam, mo.force * 1e3, km, 0.0, mr))
+    rotors, motor_of = [], []
+    for k, (mname, mo, drv) in enumerate(printer.drive_motors()):
+        rotors.append(Rotor(nb + k, mname, np.array(drv), mo.electrical_cycle, mo.force * 1e3,
+                            mo.magnetic_stiffness, 0.0, max(mo.rotor_mass, 1e-4)))
+        motor_of.append(mo)
         names.append(f"motor_{mname}")
-        axis.append(0 if mname in ("x", "a") else 1)
-        mass.append(mr)
+        axis.append(0 if mname in ("x", "a") or (mname == "b" and not corexy) else 1)
+        mass.append(rotors[-1].mass)
         share.append(0.0)
     n = len(names)
     mass = np.array(mass, float)
@@ -134,13 +134,11 @@ def slip_system(printer):
     drive[np.arange(nb), axis[:nb]] = 1.0
     for r in rotors:
         drive[r.index] = r.drive
-    # the motor side of each axis, as weights on the rotor coordinates
+    # the motor side of each axis, as weights on the rotor coordinates: the least-squares inverse
+    # of the drive (cartesian: X, Y; CoreXY x = (A + B)/2, y = (A − B)/2; CoreXZ x = (A + B)/2, y = Y)
+    D = np.stack([r.drive for r in rotors], axis=1)                 # (2, k) belt per unit axis
     base = np.zeros((2, n))
-    if corexy:
-        base[0, nb:nb + 2] = (0.5, 0.5)
-        base[1, nb:nb + 2] = (0.5, -0.5)
-    else:
-        base[0, nb] = base[1, nb + 1] = 1.0
+    base[:, nb:] = np.linalg.pinv(D.T)
     vecs = []
     for i in range(nb):
         v = -base[axis[i]].copy()
@@ -171,7 +169,8 @@ def slip_system(printer):
             f"the rotor mode at {w_top / (2 * math.pi):.0f} Hz is too stiff for RK4 at "
             f"{TIMESTEP * 1e3:g} ms (ω·h = {w_top * TIMESTEP:.2f} > {MAX_OMEGA_H:g}); raise "
             "[motor].rotor_mass or set [motor].slip = false", "[motor].rotor_mass")
-    C = _modal_damping(K, mass, np.array(omega), np.array(zeta), mo.rotor_damping)
+    C = _modal_damping(K, mass, np.array(omega), np.array(zeta),
+                       np.array([m.rotor_damping for m in motor_of]), np.array([r.index for r in rotors]))
     springs, joint_damping = _damper_tendons(C, springs)
     for r in rotors:
         r.damping = float(C[r.index, r.index])
@@ -235,25 +234,28 @@ def _solve_springs(K0, vecs, mass, k_init, targets, printer) -> np.ndarray:
         if np.max(x) > 60:
             break
     if not ok:
-        mo = printer.motor
+        mo = min((m for _n, m, _d in printer.drive_motors()), key=lambda m: m.magnetic_stiffness)
+        key = "[motor].run_current" if mo.has_datasheet else "[motor].force"
         raise RingtuneError(
             f"the motor's magnetic stiffness ({mo.magnetic_stiffness / 1e3:.0f} N/mm from force "
-            f"{mo.force:g} N over an electrical cycle of {mo.electrical_cycle:g} mm) cannot carry the "
+            f"{mo.force:.3g} N over an electrical cycle of {mo.electrical_cycle:g} mm) cannot carry the "
             f"described modes up to {targets[-1] / (2 * math.pi):.1f} Hz in series with the belts; raise "
-            "[motor].force, lower the masses, or set [motor].slip = false", "[motor].force")
+            f"{key}, lower the masses, or set [motor].slip = false", key)
     return np.exp(x)
 
 
-def _modal_damping(K, mass, omega, zeta, rotor_zeta) -> np.ndarray:
+def _modal_damping(K, mass, omega, zeta, rotor_zeta, rotor_index) -> np.ndarray:
     """Damping matrix (kg/s) that is exactly modal: ``C = M Φ diag(2ζ_j ω_j) Φᵀ M`` with
-    mass-normalised modes Φ of (K, M); each described mode gets its ζ (matched by frequency), the
-    rotor modes ``rotor_zeta``. With exact frequencies and shares this makes the nozzle's linear
-    response identical to the rigid-motor model's."""
+    mass-normalised modes Φ of (K, M); each described mode gets its ζ (matched by frequency), each
+    rotor mode the ``rotor_zeta`` of the rotor that moves most in it (``rotor_index``: their
+    coordinates). With exact frequencies and shares this makes the nozzle's linear response
+    identical to the rigid-motor model's."""
     s = 1.0 / np.sqrt(mass)
     w2, psi = np.linalg.eigh(K * s[:, None] * s[None, :])
     phi = psi * s[:, None]
     wfreq = np.sqrt(np.maximum(w2, 0.0))
-    z = np.full(len(mass), float(rotor_zeta))
+    rz = np.asarray(rotor_zeta, float)
+    z = rz[np.argmax(np.abs(psi[np.asarray(rotor_index)]), axis=0)]
     for w, zz in zip(omega, zeta):
         z[int(np.argmin(np.abs(wfreq - w)))] = zz
     Mphi = mass[:, None] * phi

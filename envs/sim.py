@@ -48,7 +48,8 @@ class SimResult:
         commanded: (m, 2) commanded (shaped) x, y, mm.
         nozzle: (m, 2) simulated nozzle relative to the print (bed frame), mm.
         head_accel: (m, 2) absolute acceleration of the head (x) and bed (y, cartesian), mm/s².
-        motor_force: (m, k) force each motor must give at the belt, N (cartesian: X, Y; CoreXY: A, B).
+        motor_force: (m, k) force each motor must give at the belt, N (cartesian: X, Y; CoreXY: A, B;
+            CoreXZ: A, B, Y — :meth:`Printer.drive_motors`).
         motor_force_max: (m, k) force each motor can give at its current speed, N.
         step_loss: whether the demanded force ever exceeded what the motor has.
         accel_sensor: (m, 3) what an accelerometer on the toolhead reads, mm/s² (x, y, z; z = 0).
@@ -139,17 +140,28 @@ def _post(printer: Printer, sysm: LinearSystem, kin, t: np.ndarray, q: np.ndarra
     head = a + qdd @ (onehot * sysm.share[:, None])
     # force through the belts on each axis: Σ m_i (a_cmd + q̈_i), kg·mm/s² -> N
     f_axis = (qdd + a[:, sysm.axis]) @ (onehot * sysm.mass[:, None]) * 1e-3
-    mo = printer.motor
-    if printer.kinematics == "corexy":
-        f_belt = np.stack([(f_axis[:, 0] + f_axis[:, 1]) / 2, (f_axis[:, 0] - f_axis[:, 1]) / 2], axis=1)
-        vm = np.stack([v[:, 0] + v[:, 1], v[:, 0] - v[:, 1]], axis=1)
-        am = np.stack([a[:, 0] + a[:, 1], a[:, 0] - a[:, 1]], axis=1)
-    else:
-        f_belt, vm, am = f_axis, v, a
-    force = f_belt + mo.rotor_mass * am * 1e-3 + mo.friction * np.sign(vm)
-    fmax = mo.max_force(vm)
+    force, fmax, _ = motor_forces(printer, f_axis, v, a)
     over = np.abs(force) > fmax
     return _result(t, p, dev, head, force, fmax, over, backend)
+
+
+def motor_forces(printer: Printer, f_axis: np.ndarray, v: np.ndarray, a: np.ndarray):
+    """(force, force_max, motors): per motor of :meth:`Printer.drive_motors` (columns), the force
+    (N) it must give at the belt and the force its own curve allows at its belt speed.
+
+    ``f_axis`` (m, 2): N through the belts on X and Y (Newton on the moving masses); ``v``, ``a``
+    (m, 2): commanded mm/s, mm/s². The axis forces are shared by the motors with the least-squares
+    inverse of the drive (cartesian: X, Y; CoreXY A = (f_x + f_y)/2, B = (f_x − f_y)/2; CoreXZ
+    A = B = f_x/2, Y = f_y); each motor adds its rotor's inertia (m_r·a_motor) and friction."""
+    motors = printer.drive_motors()
+    D = np.array([d for _n, _m, d in motors], float).T                # (2, k)
+    f_belt = f_axis @ np.linalg.pinv(D.T)
+    vm, am = v @ D, a @ D
+    mr = np.array([mo.rotor_mass for _n, mo, _d in motors])
+    fr = np.array([mo.friction for _n, mo, _d in motors])
+    force = f_belt + mr * am * 1e-3 + fr * np.sign(vm)
+    fmax = np.stack([mo.max_force(vm[:, k]) for k, (_n, mo, _d) in enumerate(motors)], axis=1)
+    return force, fmax, motors
 
 
 def _result(t, p, dev, head, force, fmax, over, backend, rotor_lag=None) -> SimResult:
@@ -176,20 +188,15 @@ def _post_slip(printer: Printer, sysm: LinearSystem, kin, t, q, qd, backend: str
     qdd = sysm.qacc(q, qd, a, nonlinear=backend == "mujoco")
     dev = q @ W
     head = a + qdd @ W
-    mo = printer.motor
     idx = np.array([r.index for r in sysm.rotors])
-    drv = np.stack([r.drive for r in sysm.rotors], axis=1)            # (2, k)
     nb = idx.min()                                                    # mode bodies come first
     onehot = np.zeros((nb, 2))
     onehot[np.arange(nb), sysm.axis[:nb]] = 1.0
     f_axis = (qdd[:, :nb] + a[:, sysm.axis[:nb]]) @ (onehot * sysm.mass[:nb, None]) * 1e-3
-    # belt force per motor: cartesian X, Y; CoreXY A = (f_x + f_y)/2, B = (f_x − f_y)/2
-    f_belt = f_axis @ (drv / np.sum(drv * drv, axis=0))
-    vm, am = v @ drv, a @ drv
-    force = f_belt + mo.rotor_mass * am * 1e-3 + mo.friction * np.sign(vm)
-    fmax = mo.max_force(vm)
+    force, fmax, motors = motor_forces(printer, f_axis, v, a)
+    full_step = np.array([mo.full_step for _n, mo, _d in motors])
     lag = q[:, idx]
-    over = (np.abs(force) > fmax) | (np.abs(lag) >= mo.full_step)
+    over = (np.abs(force) > fmax) | (np.abs(lag) >= full_step)
     return _result(t, p, dev, head, force, fmax, over, backend, rotor_lag=lag)
 
 

@@ -28,9 +28,7 @@ from typing import Union
 
 import numpy as np
 
-from ringtune.hardware.psd import (  # noqa: F401  (re-exported: callers import them from here)
-    KLIPPER_MIN_FREQ, PSD, WINDOW_T_SEC, klipper_psd, klipper_window_size, welch_psd,
-)
+from ringtune.hardware.psd import PSD, klipper_psd
 from ringtune.shaping.errors import RingtuneError
 
 #: standard gravity in mm/s² (Klipper's FREEFALL_ACCEL)

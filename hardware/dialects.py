@@ -16,6 +16,16 @@ dialect         runtime lines                                                   
 ``prusa``       ``M593 X T<type> F<Hz> D<zeta> [R<red.>]``; ``M593 W`` saves      none (ringtune limit)
 ==============  ==============================================================  ==================
 
+Marlin's ``M201 F S`` is sent only for a config tuned with Marlin's own algorithm (method
+``marlin``); another method's limit goes to the G-code with ``ringtune limit`` and no M201 F is sent.
+The config's acceleration is applied with the firmware's own command (Klipper
+``SET_VELOCITY_LIMIT ACCEL=``, Marlin/Prusa/RRF ``M204 P``) and read back.
+
+Before any line is built, every value is checked exactly as ``ringtune shaper`` checks a shaper
+(name, parameters, the shaper's damping limit) plus the firmware's ranges and precision from its
+record (:data:`ringtune.shaping.firmware.FIRMWARES`): a value that would round to another one is
+refused, never changed.
+
 RRF applies one shaper to every axis, so an RRF config must give X and Y the same shaper. A custom
 RRF shaper is ``shaper_x = "custom"`` with ``extra["custom"] = {"amplitudes": [A1..An] (sum 1),
 "times": [0, T2..Tn] (s)}``; it is converted to the H/T meaning of the chosen RRF version.
@@ -28,26 +38,8 @@ from dataclasses import dataclass, field
 
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.shapers import parse_name
-
-DIALECTS = ("klipper", "rrf", "rrf35", "rrf34", "marlin", "marlin-ftm", "prusa")
-
-FIRMWARE_TITLE = {
-    "klipper": "Klipper", "rrf": "RepRapFirmware 3.6", "rrf35": "RepRapFirmware 3.5",
-    "rrf34": "RepRapFirmware 3.4", "marlin": "Marlin (classic input shaping)",
-    "marlin-ftm": "Marlin FT_MOTION", "prusa": "Prusa-Firmware-Buddy",
-}
-
-#: shapers each dialect has (canonical names; "none" = shaping off)
-AVAILABLE = {
-    "klipper": ("none", "zv", "mzv", "zvd", "ei", "2hump_ei", "3hump_ei"),
-    "rrf": ("none", "zvd", "zvdd", "zvddd", "mzv", "2hump_ei", "3hump_ei", "custom"),
-    "rrf35": ("none", "zvd", "zvdd", "zvddd", "mzv", "2hump_ei", "3hump_ei", "custom"),
-    "rrf34": ("none", "zvd", "zvdd", "zvddd", "mzv", "2hump_ei", "3hump_ei", "custom"),
-    "marlin": ("none", "zv"),
-    "marlin-ftm": ("none", "zv", "zvd", "zvdd", "zvddd", "ei", "2hump_ei", "3hump_ei", "mzv"),
-    "prusa": ("none", "zv", "zvd", "mzv", "ei", "2hump_ei", "3hump_ei"),
-}
+from ringtune.shaping.firmware import FIRMWARES, Firmware, Span, firmware_record
+from ringtune.shaping.shapers import REGISTRY, get_shaper, parse_name
 
 #: for a missing shaper, the ones most like it (similar duration and band), best first
 _NEAREST = {
@@ -63,10 +55,11 @@ _NEAREST = {
 _FTM_MODE = {"none": 0, "zv": 1, "zvd": 2, "zvdd": 3, "zvddd": 4, "ei": 5, "2hump_ei": 6, "3hump_ei": 7,
              "mzv": 8}
 _PRUSA_TYPE = {"zv": 0, "zvd": 1, "mzv": 2, "ei": 3, "2hump_ei": 4, "3hump_ei": 5}
-#: Klipper HEAD max_damping_ratio per shaper (firmware.md §1.1)
-_KLIPPER_MAX_DAMPING = {"zv": 0.99, "mzv": 0.99, "zvd": 0.99, "ei": 0.4, "2hump_ei": 0.3, "3hump_ei": 0.2}
-#: RRF 3.4/3.5 minimum frequency on Duet 3: StepClockRate / (2·65535) = 750 kHz / 131070
-RRF35_MIN_FREQ = 750000.0 / 131070.0
+#: said wherever an acceleration is applied: the slicer has the last word
+SLICER_OVERRIDES = ("a sliced file's own acceleration commands (M204, SET_VELOCITY_LIMIT, written by the "
+                    "slicer from its printer profile) override this acceleration while it prints: put the "
+                    "same value in the slicer (ringtune export --slicer prusaslicer|orcaslicer|cura) or "
+                    "rewrite a sliced file with ringtune limit FILE.gcode --accel A")
 
 
 @dataclass
@@ -74,7 +67,7 @@ class Export:
     """What to send, save and expect for one firmware.
 
     Attributes:
-        firmware: dialect name (:data:`DIALECTS`).
+        firmware: firmware name (a key of :data:`ringtune.shaping.firmware.FIRMWARES`).
         lines: G-code lines that apply the config now, in order.
         save_lines: lines that persist it on the printer (``M500``, ``M593 W``); empty if the
             firmware cannot save it from G-code.
@@ -83,7 +76,7 @@ class Export:
         config_target: where ``config_text`` belongs (e.g. ``"printer.cfg"``, ``"config.g"``).
         readback: commands whose reply reports the applied settings.
         expected: setting -> intended value, as :mod:`ringtune.hardware.readback` reports them:
-            ``"x.type"``, ``"x.freq"``, ``"x.damping"`` (RRF: ``"all.*"``).
+            ``"x.type"``, ``"x.freq"``, ``"x.damping"`` (RRF: ``"all.*"``), ``"accel"``.
         setting_lines: setting -> index in ``lines`` of the line that sets it.
         notes: remarks for the user (e.g. no frequency limit in this firmware, and what to run).
     """
@@ -98,20 +91,38 @@ class Export:
     setting_lines: dict[str, int] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
 
-    def render(self) -> str:
-        """The export file: commented, ready to paste or send."""
-        c = "#" if self.firmware == "klipper" else ";"
-        out = [f"{c} ringtune export for {FIRMWARE_TITLE[self.firmware]}"]
-        out += [f"{c} {n}" for n in self.notes]
+    @property
+    def record(self) -> Firmware:
+        return FIRMWARES[self.firmware]
+
+    def render_commands(self) -> str:
+        """The command part: the firmware's comment syntax and G-code lines only, so the whole text
+        can be sent to the printer as a file (Klipper reads ``;`` comments, not ``#``)."""
+        c = self.record.comment
+        out = [f"{c} ringtune export for {self.record.title}"]
+        out += [f"{c} note: {n}" for n in self.notes]
         out += self.lines
         if self.save_lines:
             out.append(f"{c} to keep it after a restart:")
             out += self.save_lines
         if self.config_text:
-            out.append(f"{c} for {self.config_target}:" if self.firmware != "klipper"
-                       else f"{c} printer.cfg section (replaces an existing [input_shaper]):")
-            out.append(self.config_text.rstrip("\n"))
+            out.append(f"{c} the {self.config_target} part is written separately (export --part config)")
         return "\n".join(out) + "\n"
+
+    def render_config(self) -> str | None:
+        """The config-file part (``printer.cfg`` section, ``config.g`` lines), or None."""
+        if not self.config_text:
+            return None
+        c = "#" if self.config_target == "printer.cfg" else self.record.comment
+        head = (f"{c} ringtune export for {self.record.title}: put this in {self.config_target}"
+                + (" (it replaces an existing [input_shaper] section)" if self.config_target == "printer.cfg"
+                   else ""))
+        return head + "\n" + self.config_text.rstrip("\n") + "\n"
+
+    def render(self) -> str:
+        """Both parts, the config part after a comment line saying where it belongs."""
+        cfg = self.render_config()
+        return self.render_commands() + ("" if cfg is None else "\n" + cfg)
 
 
 def fmt(value: float, decimals: int = 3) -> str:
@@ -133,42 +144,81 @@ def canonical(name: str) -> tuple[str, dict]:
     return base, params
 
 
+def named_params(name: str, flavor: str) -> tuple[str, dict]:
+    """(base, parameters by name) of a shaper string, positional parameters named in the order
+    the flavour's formula takes them (Klipper: ``mzv(5,1.1)`` is ``mzv(n=5,t=1.1)``)."""
+    base, params = parse_name(name, f"shaper {name!r}")
+    pos = params.pop("_positional", None)
+    if pos:
+        params.update(zip(REGISTRY[flavor][base][1], pos))
+    return base, params
+
+
 def check_available(name: str, dialect: str, where: str) -> str:
     """Canonical name if ``dialect`` has the shaper, else a refusal naming the nearest it has."""
+    fw = firmware_record(dialect, "--firmware")
     base, _ = canonical(name)
-    have = AVAILABLE[dialect]
+    have = fw.shapers
     if base in have:
         return base
-    title = FIRMWARE_TITLE[dialect]
-    native = _rrf_name if dialect.startswith("rrf") else (lambda n: n)
+    native = _rrf_name if fw.family == "rrf" else (lambda n: n)
     listed = ", ".join(native(h) for h in have if h != "none")
     if base == "custom":
-        raise RingtuneError(f"{title} has no custom shaper (only RepRapFirmware takes impulse lists); "
+        raise RingtuneError(f"{fw.title} has no custom shaper (only RepRapFirmware takes impulse lists); "
                             f"it has {listed}", where)
     if base not in _NEAREST:
-        raise RingtuneError(f"unknown shaper {name!r}; {title} has {listed}", where)
+        raise RingtuneError(f"unknown shaper {name!r}; {fw.title} has {listed}", where)
     nearest = next(n for n in _NEAREST[base] if n in have)
-    raise RingtuneError(f"{title} has no {base!r} shaper (it has {listed}); the nearest it has is "
+    raise RingtuneError(f"{fw.title} has no {base!r} shaper (it has {listed}); the nearest it has is "
                         f"{native(nearest)!r}", where)
 
 
-def _range(value: float, lo: float, hi: float, what: str, where: str, title: str,
-           lo_open: bool = False) -> None:
-    if not math.isfinite(value) or value < lo or value > hi or (lo_open and value <= lo):
-        raise RingtuneError(f"{what} {value:g} is outside {title}'s range "
-                            f"{'(' if lo_open else '['}{lo:g}, {hi:g}]", where)
+def check_value(value: float, span: Span, what: str, unit: str, where: str, title: str) -> float:
+    """``value`` as the firmware gets it; a refusal naming the allowed range when it is outside
+    ``span`` or would round to another value at the firmware's precision."""
+    why = f"; {span.why}" if span.why else ""
+    if not span.contains(value):
+        raise RingtuneError(f"{what} {value:g}{unit and ' ' + unit} is outside {title}'s range "
+                            f"{span.text(unit)}{why}", where)
+    if span.changes(value):
+        raise RingtuneError(f"{what} {value:g}{unit and ' ' + unit} would be sent as "
+                            f"{fmt(value, span.decimals)} ({title} takes {span.decimals} decimals); give a "
+                            f"value in {span.text(unit)} at that precision", where)
+    return span.sent(value)
 
 
-def export_config(config: TuneConfig, firmware: str | None = None) -> Export:
-    """The lines that put ``config`` on ``firmware`` (default: ``config.firmware``)."""
-    dialect = firmware or config.firmware
-    if dialect not in DIALECTS:
-        raise RingtuneError(f"firmware must be one of {', '.join(DIALECTS)}, not {dialect!r}", "--firmware")
-    build = {"klipper": _klipper, "rrf": _rrf, "rrf35": _rrf, "rrf34": _rrf, "marlin": _marlin,
-             "marlin-ftm": _marlin_ftm, "prusa": _prusa}[dialect]
-    exp = build(config, dialect)
-    _freq_limit(config, dialect, exp)
-    _accel_note(config, exp)
+def check_axis(config: TuneConfig, fw: Firmware, ax: str) -> tuple[str, dict, float, float]:
+    """One axis of ``config`` checked exactly as ``ringtune shaper`` checks a shaper (name,
+    parameters, damping limit of the shaper) plus ``fw``'s ranges and precision.
+
+    Returns (base name, parameters by name, frequency Hz, damping) as they will be sent; "none"
+    for an axis without shaping. Nothing is sent to a printer until every axis passed."""
+    name, freq, damping = config.axis(ax)
+    base = check_available(name, fw.name, f"config: shaper_{ax}")
+    if base == "none":
+        return "none", {}, 0.0, damping
+    if base == "custom":      # impulses in seconds: checked by custom_impulses
+        return base, named_params(name, fw.flavor)[1], freq, damping
+    freq = check_value(freq, fw.freq, "frequency", "Hz", f"config: freq_{ax}", fw.title)
+    zmax = REGISTRY[fw.flavor][base][2]
+    span = fw.damping if zmax >= fw.damping.hi else Span(fw.damping.lo, min(zmax, fw.damping.hi),
+                                                         fw.damping.decimals)
+    damping = check_value(damping, span, f"damping ratio of {base}", "", f"config: damping_{ax}", fw.title)
+    if base != "custom":
+        get_shaper(name, freq, damping, fw.flavor, where=f"config: shaper_{ax}")   # parameters
+    _, params = named_params(name, fw.flavor)
+    return base, params, freq, damping
+
+
+def export_config(config: TuneConfig, firmware: str | None = None, accel: bool = True) -> Export:
+    """The lines that put ``config`` on ``firmware`` (default: ``config.firmware``); ``accel``
+    False leaves the printer's acceleration alone."""
+    fw = firmware_record(firmware or config.firmware, "--firmware")
+    build = {"klipper": _klipper, "rrf": _rrf, "marlin": _marlin, "marlin-ftm": _marlin_ftm,
+             "prusa": _prusa}[fw.family]
+    exp = build(config, fw.name)
+    _freq_limit(config, fw, exp)
+    _accel(config, fw, exp, accel)
     return exp
 
 
@@ -181,65 +231,105 @@ def limit_command(config: TuneConfig) -> str:
             "-o FILE-limited.gcode")
 
 
-def _accel_note(config: TuneConfig, exp: Export) -> None:
-    """A config tuned at its own acceleration says so: no dialect line here sets it."""
-    if config.accel is not None:
-        exp.notes.append(f"this config was tuned at an acceleration of {fmt(config.accel, 0)} mm/s², "
-                         "which these lines do not set: print with that acceleration (printer or "
-                         "slicer setting) to get the simulated result")
+def _accel(config: TuneConfig, fw: Firmware, exp: Export, apply: bool) -> None:
+    """The config's printing acceleration as the firmware's own command, read back afterwards."""
+    if config.accel is None:
+        return
+    if not apply:
+        exp.notes.append(f"the config's acceleration {fmt(config.accel, 0)} mm/s² is not applied "
+                         "(--no-accel): the printer keeps its own")
+        return
+    a = check_value(config.accel, fw.accel, "acceleration", "mm/s²", "config: accel", fw.title)
+    exp.setting_lines["accel"] = len(exp.lines)
+    exp.lines.append(fw.accel_set.format(a=fmt(a, fw.accel.decimals)))
+    exp.expected["accel"] = a
+    exp.readback.append(fw.accel_report)
+    exp.notes.append(f"the printing acceleration becomes {fmt(a, fw.accel.decimals)} mm/s², the value "
+                     f"this config was tuned at; {SLICER_OVERRIDES}")
+    if fw.family == "klipper":
+        exp.notes.append("SET_VELOCITY_LIMIT lasts until restart: max_accel in printer.cfg's [printer] "
+                         "section keeps it")
+        if exp.config_text:
+            exp.config_text += f"# and in the [printer] section: max_accel: {fmt(a, fw.accel.decimals)}\n"
+    elif fw.family == "rrf":
+        if exp.config_text:
+            exp.config_text += exp.lines[-1] + "\n"
+    elif fw.family in ("marlin", "marlin-ftm"):
+        exp.notes.append("Marlin also caps each axis at its M201 X/Y maximum; M500 stores M204")
+    elif fw.family == "prusa":
+        exp.notes.append("M593 W stores the shaper, not M204: the acceleration lasts until restart")
 
 
-def _freq_limit(config: TuneConfig, dialect: str, exp: Export) -> None:
+def _rounding_notes(config: TuneConfig, exp: Export) -> None:
+    """Say where a value goes out rounded to the firmware's precision (within the tolerance)."""
+    fw = exp.record
+    for key, span in (("freq_x", fw.freq), ("freq_y", fw.freq), ("damping_x", fw.damping),
+                      ("damping_y", fw.damping)):
+        ax = key[-1]
+        if canonical(config.axis(ax)[0])[0] in ("none", "custom"):
+            continue
+        value = getattr(config, key)
+        if span.sent(value) != value:
+            exp.notes.append(f"{key} {value:g} is sent as {fmt(value, span.decimals)} ({fw.title} takes "
+                             f"{span.decimals} decimals)")
+
+
+def _freq_limit(config: TuneConfig, fw: Firmware, exp: Export) -> None:
+    """Marlin's own limit (``M201 F S``) only for a config tuned with Marlin's algorithm; every
+    other limit goes to the G-code with ``ringtune limit`` (never both: the printer would apply
+    another algorithm than the one tuned)."""
     hz = config.freq_limit_hz
     if hz <= 0:
         return
-    title = FIRMWARE_TITLE[dialect]
-    if dialect in ("marlin", "marlin-ftm"):
-        _range(hz, 0, 100, "frequency limit F", "config: freq_limit_hz", "Marlin M201 F", lo_open=True)
-        pct = round(config.min_speed_factor * 100)
-        _range(pct, 1, 100, "minimum speed S (%)", "config: min_speed_factor", "Marlin M201 S")
+    if fw.freq_limit and config.freq_limit_method == "marlin":
+        f = check_value(hz, Span(0.0, 100.0, 2, lo_open=True), "frequency limit F", "Hz", "config: freq_limit_hz",
+                        "Marlin M201 F")
+        pct = check_value(config.min_speed_factor * 100, Span(1.0, 100.0, 0), "minimum speed S", "%",
+                          "config: min_speed_factor", "Marlin M201 S")
         exp.setting_lines["limit"] = len(exp.lines)
-        exp.lines.append(f"M201 F{fmt(hz, 2)} S{pct}")
+        exp.lines.append(f"M201 F{fmt(f, 2)} S{fmt(pct, 0)}")
         exp.notes.append("M201 F/S needs XY_FREQUENCY_LIMIT compiled in (older Marlin uses G<min%> "
                          "instead of S)")
-        if config.freq_limit_method != "marlin":
-            exp.notes.append(f"M201 F S applies Marlin's own limit (method 'marlin'); this config was "
-                             f"tuned with the '{config.freq_limit_method}' method: for exactly that, "
-                             f"leave M201 out and run {limit_command(config)}")
         return
-    exp.notes.append(f"{title} has no XY frequency limit; apply it to the G-code instead: "
+    if fw.freq_limit:
+        exp.notes.append(f"this config's frequency limit was tuned with the '{config.freq_limit_method}' "
+                         f"method, which Marlin's M201 F does not run, so no M201 F is sent: apply it to "
+                         f"the G-code instead: {limit_command(config)}")
+        return
+    exp.notes.append(f"{fw.title} has no XY frequency limit; apply it to the G-code instead: "
                      f"{limit_command(config)}")
 
 
 # -- Klipper ---------------------------------------------------------------------------------------
 
+def _klipper_value(v) -> str:
+    """A shaper parameter as Klipper parses it (``[\\d.]+``; int without a point)."""
+    if isinstance(v, int) or float(v) == int(v) and abs(v) < 1e9:
+        return str(int(v))
+    return fmt(float(v), 9)
+
+
 def _klipper(config: TuneConfig, dialect: str) -> Export:
+    fw = FIRMWARES[dialect]
     params, cfg = [], ["[input_shaper]"]
     expected: dict[str, object] = {}
     per_axis = {}
     for ax in ("x", "y"):
-        name, freq, damping = config.axis(ax)
-        where = f"config: shaper_{ax}"
-        base = check_available(name, dialect, where)
+        base, p, freq, damping = check_axis(config, fw, ax)
         if base == "none":
             per_axis[ax] = (None, 0.0, damping)
             continue
-        _, p = canonical(name)
-        if p and base not in ("mzv", "ei"):
-            raise RingtuneError(f"Klipper takes parameters only for mzv and ei, not {base!r}", where)
-        _range(freq, 0, 1000, "frequency", f"config: freq_{ax}", "Klipper", lo_open=True)
-        _range(damping, 0, _KLIPPER_MAX_DAMPING[base], f"damping ratio of {base}", f"config: damping_{ax}",
-               "Klipper")
-        per_axis[ax] = (name.strip().lower().replace(" ", ""), freq, damping)
+        name = base + ("(" + ",".join(f"{k}={_klipper_value(v)}" for k, v in p.items()) + ")" if p else "")
+        per_axis[ax] = (name, freq, damping)
     for ax in ("x", "y"):
         name, freq, _ = per_axis[ax]
-        params.append(f"SHAPER_FREQ_{ax.upper()}={fmt(freq)}")
-        expected[f"{ax}.freq"] = round(freq, 3)
+        params.append(f"SHAPER_FREQ_{ax.upper()}={fmt(freq, fw.freq.decimals)}")
+        expected[f"{ax}.freq"] = freq
     for ax in ("x", "y"):
         name, _, damping = per_axis[ax]
         if name:
-            params.append(f"DAMPING_RATIO_{ax.upper()}={fmt(damping, 6)}")
-            expected[f"{ax}.damping"] = round(damping, 6)
+            params.append(f"DAMPING_RATIO_{ax.upper()}={fmt(damping, fw.damping.decimals)}")
+            expected[f"{ax}.damping"] = damping
     for ax in ("x", "y"):
         name, _, _ = per_axis[ax]
         if name:
@@ -248,21 +338,24 @@ def _klipper(config: TuneConfig, dialect: str) -> Export:
     for ax in ("x", "y"):
         name, freq, damping = per_axis[ax]
         if name:
-            cfg += [f"shaper_type_{ax}: {name}", f"shaper_freq_{ax}: {fmt(freq)}",
-                    f"damping_ratio_{ax}: {fmt(damping, 6)}"]
+            cfg += [f"shaper_type_{ax}: {name}", f"shaper_freq_{ax}: {fmt(freq, fw.freq.decimals)}",
+                    f"damping_ratio_{ax}: {fmt(damping, fw.damping.decimals)}"]
         else:
             cfg.append(f"shaper_freq_{ax}: 0")
     line = "SET_INPUT_SHAPER " + " ".join(params)
-    return Export(dialect, [line], [], "\n".join(cfg) + "\n", "printer.cfg", ["SET_INPUT_SHAPER"],
-                  expected, {k: 0 for k in expected},
-                  ["SET_INPUT_SHAPER lasts until restart; SAVE_CONFIG would not keep damping_ratio, so "
-                   "put the [input_shaper] section below in printer.cfg"])
+    exp = Export(dialect, [line], [], "\n".join(cfg) + "\n", "printer.cfg", ["SET_INPUT_SHAPER"],
+                 expected, {k: 0 for k in expected},
+                 ["SET_INPUT_SHAPER lasts until restart; SAVE_CONFIG would not keep damping_ratio, so "
+                  "put the [input_shaper] section (export --part config) in printer.cfg"])
+    _rounding_notes(config, exp)
+    return exp
 
 
 # -- RepRapFirmware ---------------------------------------------------------------------------------
 
 def _rrf(config: TuneConfig, dialect: str) -> Export:
-    title = FIRMWARE_TITLE[dialect]
+    fw = FIRMWARES[dialect]
+    title = fw.title
     sx, fx, dx = config.axis("x")
     sy, fy, dy = config.axis("y")
     bx = check_available(sx, dialect, "config: shaper_x")
@@ -271,25 +364,25 @@ def _rrf(config: TuneConfig, dialect: str) -> Export:
     if not same:
         raise RingtuneError(f"{title} applies one shaper to all axes, but X is {sx} {fx:g} Hz ζ={dx:g} "
                             f"and Y is {sy} {fy:g} Hz ζ={dy:g}; give both axes the same shaper", "config")
-    for ax, name in (("x", sx), ("y", sy)):
-        if canonical(name)[1] and bx != "custom":
-            raise RingtuneError(f"{title} takes no shaper parameters", f"config: shaper_{ax}")
+    for ax in ("x", "y"):
+        check_axis(config, fw, ax)
     expected: dict[str, object] = {"all.type": _rrf_name(bx)}
     if bx == "none":
         line = 'M593 P"none"'
     elif bx == "custom":
         line = 'M593 P"custom" ' + _rrf_custom(config, dialect)
     else:
-        lo = 4.0 if dialect == "rrf" else RRF35_MIN_FREQ
-        _range(fx, lo, 1000, "frequency F", "config: freq_x", title + (" (Duet 3)" if dialect != "rrf" else ""))
-        _range(dx, 0, 0.99, "damping S", "config: damping_x", title)
-        line = f'M593 P"{_rrf_name(bx)}" F{fmt(fx, 2)} S{fmt(dx, 3)}'
-        expected.update({"all.freq": round(fx, 2), "all.damping": round(dx, 3)})
+        f, z = fw.freq.sent(fx), fw.damping.sent(dx)
+        line = f'M593 P"{_rrf_name(bx)}" F{fmt(f, fw.freq.decimals)} S{fmt(z, fw.damping.decimals)}'
+        expected.update({"all.freq": f, "all.damping": z})
     if dialect != "rrf" and bx != "none":
         line += _rrf_l(config, dialect)
-    return Export(dialect, [line], [], line + "\n", "config.g", ["M593"], expected,
-                  {k: 0 for k in expected},
-                  [f"{title} cannot save M593 (M500 does not store it): add the line to config.g"])
+    exp = Export(dialect, [line], [], line + "\n", "config.g", ["M593"], expected,
+                 {k: 0 for k in expected},
+                 [f"{title} cannot save M593 (M500 does not store it): add the config.g part "
+                  "(export --part config) to config.g"])
+    _rounding_notes(config, exp)
+    return exp
 
 
 def _rrf_name(base: str) -> str:
@@ -299,11 +392,13 @@ def _rrf_name(base: str) -> str:
 def _rrf_l(config: TuneConfig, dialect: str) -> str:
     if dialect == "rrf35" and "reduction_limit" in config.extra:
         val = float(config.extra["reduction_limit"])
-        _range(val, 0.01, 1.0, "reduction limit L", "config: reduction_limit", "RepRapFirmware 3.5")
+        val = check_value(val, Span(0.01, 1.0, 3), "reduction limit L", "", "config: reduction_limit",
+                          "RepRapFirmware 3.5")
         return f" L{fmt(val, 3)}"
     if dialect == "rrf34" and "min_accel" in config.extra:
         val = float(config.extra["min_accel"])
-        _range(val, 1.0, 1e6, "minimum acceleration L", "config: min_accel", "RepRapFirmware 3.4")
+        val = check_value(val, Span(1.0, 1e6, 1), "minimum acceleration L", "mm/s²", "config: min_accel",
+                          "RepRapFirmware 3.4")
         return f" L{fmt(val, 1)}"
     return ""
 
@@ -352,7 +447,7 @@ def _rrf_custom(config: TuneConfig, dialect: str) -> str:
     amps_y, times_y = custom_impulses(config, "y")
     if len(amps_y) != len(amps) or not all(math.isclose(a, b, abs_tol=1e-9) for a, b in
                                            zip(amps + times, amps_y + times_y)):
-        raise RingtuneError(f"{FIRMWARE_TITLE[dialect]} applies one shaper to all axes, but the custom "
+        raise RingtuneError(f"{FIRMWARES[dialect].title} applies one shaper to all axes, but the custom "
                             f"shapers of X and Y differ; give both axes the same impulses", "config")
     if dialect == "rrf":    # 3.6: individual amplitudes except the last; cumulative delays
         h = amps[:-1]
@@ -368,84 +463,77 @@ def _rrf_custom(config: TuneConfig, dialect: str) -> str:
 # -- Marlin -----------------------------------------------------------------------------------------
 
 def _marlin(config: TuneConfig, dialect: str) -> Export:
+    fw = FIRMWARES[dialect]
     lines, expected, where_line = [], {}, {}
     for ax in ("x", "y"):
-        name, freq, damping = config.axis(ax)
-        base = check_available(name, dialect, f"config: shaper_{ax}")
-        if canonical(name)[1]:
-            raise RingtuneError("Marlin's ZV takes no parameters", f"config: shaper_{ax}")
+        base, params, freq, damping = check_axis(config, fw, ax)
         if base == "none":
             lines.append(f"M593 {ax.upper()} F0")
             expected[f"{ax}.freq"] = 0.0
         else:
-            _range(freq, 0, 1000, "frequency F", f"config: freq_{ax}", "Marlin", lo_open=True)
-            _range(damping, 0, 1, "damping D", f"config: damping_{ax}", "Marlin")
-            lines.append(f"M593 {ax.upper()} F{fmt(freq, 2)} D{fmt(damping, 3)}")
-            expected.update({f"{ax}.freq": round(freq, 2), f"{ax}.damping": round(damping, 3)})
+            lines.append(f"M593 {ax.upper()} F{fmt(freq, fw.freq.decimals)} D{fmt(damping, fw.damping.decimals)}")
+            expected.update({f"{ax}.freq": freq, f"{ax}.damping": damping})
         for k in expected:
             where_line.setdefault(k, len(lines) - 1)
-    return Export(dialect, lines, ["M500"], None, None, ["M593"], expected, where_line,
-                  ["Marlin's minimum F depends on the board (the echo delay must fit its timer)"])
+    exp = Export(dialect, lines, list(fw.save), None, None, ["M593"], expected, where_line,
+                 ["Marlin's minimum F depends on the board (the echo delay must fit its timer)"])
+    _rounding_notes(config, exp)
+    return exp
+
+
+def _vtol(params: dict, where: str, title: str) -> float | None:
+    """The EI vibration tolerance (the only shaper parameter Marlin FT_MOTION and Prusa take)."""
+    if not params:
+        return None
+    return check_value(float(params["v_tol"]), Span(0.001, 1.0, 3), "vibration tolerance v_tol", "", where, title)
 
 
 def _marlin_ftm(config: TuneConfig, dialect: str) -> Export:
+    fw = FIRMWARES[dialect]
     lines, expected, where_line = ["M493 S1"], {}, {}
     for ax in ("x", "y"):
-        name, freq, damping = config.axis(ax)
-        where = f"config: shaper_{ax}"
-        base = check_available(name, dialect, where)
-        _, params = canonical(name)
+        base, params, freq, damping = check_axis(config, fw, ax)
         line = f"M493 {ax.upper()} C{_FTM_MODE[base]}"
         expected[f"{ax}.mode"] = _FTM_MODE[base]
         if base != "none":
-            _range(freq, 10, 500, "base frequency A", f"config: freq_{ax}", "Marlin FT_MOTION "
-                   "(FTM_MIN_SHAPE_FREQ..FTM_FS/2)")
-            _range(damping, 0.01, 1.0, "damping I", f"config: damping_{ax}", "Marlin FT_MOTION")
-            line += f" A{fmt(freq, 2)} I{fmt(damping, 3)}"
-            expected.update({f"{ax}.freq": round(freq, 2), f"{ax}.damping": round(damping, 3)})
-            if params:
-                if base != "ei" or set(params) - {"v_tol", "0"}:
-                    raise RingtuneError("Marlin FT_MOTION takes only ei(v_tol=...)", where)
-                vtol = next(iter(params.values()))
-                _range(vtol, 0, 1, "vibration tolerance Q", where, "Marlin FT_MOTION")
+            line += f" A{fmt(freq, fw.freq.decimals)} I{fmt(damping, fw.damping.decimals)}"
+            expected.update({f"{ax}.freq": freq, f"{ax}.damping": damping})
+            vtol = _vtol(params, f"config: shaper_{ax}", fw.title)
+            if vtol is not None:
                 line += f" Q{fmt(vtol, 3)}"
-                expected[f"{ax}.vtol"] = round(vtol, 3)
+                expected[f"{ax}.vtol"] = vtol
         lines.append(line)
         for k in expected:
             where_line.setdefault(k, len(lines) - 1)
     notes = ["M493 S1 turns FT_MOTION on"]
     if any(v > 0.25 for k, v in expected.items() if k.endswith(".damping")):
         notes.append("some FT_MOTION builds cap damping I at FTM_MAX_DAMPENING 0.25")
-    return Export(dialect, lines, ["M500"], None, None, ["M493"], expected, where_line, notes)
+    exp = Export(dialect, lines, list(fw.save), None, None, ["M493"], expected, where_line, notes)
+    _rounding_notes(config, exp)
+    return exp
 
 
 # -- Prusa Buddy ------------------------------------------------------------------------------------
 
 def _prusa(config: TuneConfig, dialect: str) -> Export:
+    fw = FIRMWARES[dialect]
     lines, expected, where_line = [], {}, {}
     for ax in ("x", "y"):
-        name, freq, damping = config.axis(ax)
-        where = f"config: shaper_{ax}"
-        base = check_available(name, dialect, where)
-        _, params = canonical(name)
+        base, params, freq, damping = check_axis(config, fw, ax)
         if base == "none":
             lines.append(f"M593 {ax.upper()} F0")
             expected[f"{ax}.type"] = "none"
         else:
-            _range(freq, 10, 100, "frequency F", f"config: freq_{ax}", "Prusa-Firmware-Buddy (it clamps "
-                   "to 10-100 Hz)")
-            _range(damping, 0, 0.99, "damping D", f"config: damping_{ax}", "Prusa-Firmware-Buddy")
-            line = f"M593 {ax.upper()} T{_PRUSA_TYPE[base]} F{fmt(freq, 2)} D{fmt(damping, 3)}"
-            if params:
-                if base != "ei" or set(params) - {"v_tol", "0"}:
-                    raise RingtuneError("Prusa takes only ei(v_tol=...) (as R = 1/v_tol)", where)
-                vtol = next(iter(params.values()))
-                _range(vtol, 1e-3, 1, "vibration tolerance", where, "Prusa-Firmware-Buddy", lo_open=True)
+            line = (f"M593 {ax.upper()} T{_PRUSA_TYPE[base]} F{fmt(freq, fw.freq.decimals)} "
+                    f"D{fmt(damping, fw.damping.decimals)}")
+            vtol = _vtol(params, f"config: shaper_{ax}", fw.title)
+            if vtol is not None:
                 line += f" R{fmt(1 / vtol, 3)}"
             lines.append(line)
-            expected.update({f"{ax}.type": base, f"{ax}.freq": round(freq, 2),
-                             f"{ax}.damping": round(damping, 3)})
+            expected.update({f"{ax}.type": base, f"{ax}.freq": freq, f"{ax}.damping": damping})
         for k in expected:
             where_line.setdefault(k, len(lines) - 1)
-    return Export(dialect, lines, ["M593 W"], None, None, ["M593"], expected, where_line,
-                  ["Prusa keeps M593 settings only after M593 W (written to EEPROM)"])
+    exp = Export(dialect, lines, list(fw.save), None, None, ["M593"], expected, where_line,
+                 ["Prusa keeps M593 settings only after M593 W (written to EEPROM)"])
+    _rounding_notes(config, exp)
+    return exp

@@ -20,7 +20,9 @@ at a time (one ``ok`` per line). The link handles:
 - no answer within ``timeout`` s: :class:`LinkTimeout`.
 
 Klipper's pseudo-tty (``mode="klipper"``) takes plain lines: no numbers, no checksums, no handshake;
-errors come as ``!! <msg>``.
+errors come as ``!! <msg>``. An unknown command is answered with an info line
+(``// Unknown command:"X"``, ``klippy/gcode.py``), which :func:`klipper_reply_lines` counts as an error:
+the line did nothing.
 
 Ports are anything ``serial.serial_for_url`` opens: ``/dev/ttyUSB0``, ``/tmp/printer``,
 ``socket://host:port``, ``rfc2217://host:port``, ``loop://``.
@@ -44,6 +46,25 @@ _BUSY = re.compile(r"^(?:echo:)?\s*busy:", re.IGNORECASE)
 _PROTOCOL_ERROR = re.compile(r"checksum|line number|linenumber|last line", re.IGNORECASE)
 #: line noise in front of a line: anything but printable ASCII (replacement characters, NULs, ...)
 _LEADING_NOISE = re.compile(r"^[^\x20-\x7e]+")
+
+
+def klipper_reply_lines(messages: list[str]) -> tuple[list[str], list[str]]:
+    """(info lines, errors) of Klipper's replies to one command: ``!! msg`` and
+    ``// Unknown command:"X"`` are errors; ``ok`` lines are dropped. ``messages`` may hold several
+    lines each (Moonraker's console store keeps a multi-line reply as one message)."""
+    lines, errors = [], []
+    for message in messages:
+        for line in str(message).splitlines():
+            line = line.strip()
+            if not line or line.lower() == "ok":
+                continue
+            if line.startswith("!!"):
+                errors.append(line[2:].strip())
+            elif re.match(r"^(?://\s*)?Unknown command", line):
+                errors.append(line.lstrip("/ ").strip())
+            else:
+                lines.append(line)
+    return lines, errors
 
 
 def xor_checksum(data: bytes) -> int:
@@ -323,11 +344,10 @@ class GcodeLink:
                     continue  # a Resend follows; handled there
                 reply.errors.append(text)
                 continue
-            if self.mode == "klipper" and line.startswith("//"):
-                reply.lines.append(line)
-                continue
             if self.mode == "klipper":
-                reply.lines.append(line)
+                info, errors = klipper_reply_lines([line])
+                reply.lines += info
+                reply.errors += errors
                 continue
             if _looks_like_text(raw_line):
                 reply.lines.append(line)

@@ -61,7 +61,9 @@ class Moonraker:
                 msg = err.get("message") if isinstance(err, dict) else str(err)
             except (json.JSONDecodeError, AttributeError):
                 msg = None
-            raise LinkError(f"HTTP {exc.code} from {path}: {msg or exc.reason}", self.shown) from None
+            err = LinkError(f"HTTP {exc.code} from {path}: {msg or exc.reason}", self.shown)
+            err.message = msg      # Klipper's own words (e.g. "Unsupported shaper type: ei2")
+            raise err from None
         except TimeoutError:
             raise LinkTimeout(f"no answer from {path} within {self.timeout:g} s", path, self.shown) from None
         except urllib.error.URLError as exc:
@@ -80,6 +82,17 @@ class Moonraker:
         result = self._request("POST", "/printer/gcode/script", {"script": text})
         if result.get("result") != "ok":
             raise LinkError(f"unexpected answer {str(result)[:80]!r}", self.shown)
+
+    def state(self) -> dict:
+        """Klippy's state through ``GET /printer/info``: ``{"state": "ready" | "shutdown" | "error" |
+        "startup", "message": state_message}`` (``unknown`` when Moonraker cannot say)."""
+        try:
+            info = self._request("GET", "/printer/info").get("result", {})
+        except LinkTimeout:
+            raise
+        except LinkError as exc:
+            return {"state": "unknown", "message": exc.bare}
+        return {"state": str(info.get("state", "unknown")), "message": str(info.get("state_message", ""))}
 
     def console(self, count: int = 50) -> list[str]:
         """The last ``count`` console messages (commands and responses)."""

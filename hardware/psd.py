@@ -6,7 +6,7 @@ identification fits. :func:`klipper_psd` computes one from a raw capture exactly
 50 % overlap, per-window mean removed); :meth:`PSD.normalized_to_frequencies` is Klipper's
 ``normalize_to_frequencies`` (see ``shared/reference/firmware.md`` §1.3, §1.4).
 
-Units: Hz, (mm/s²)²/Hz. Everything here is re-exported by :mod:`ringtune.hardware.accel`.
+Units: Hz, (mm/s²)²/Hz.
 """
 
 from __future__ import annotations

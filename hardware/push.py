@@ -2,11 +2,18 @@
 
 Flow (serial: Marlin, Prusa, RRF over :class:`GcodeLink`; Klipper over its pty or Moonraker):
 
-1. the dialect's lines (:func:`ringtune.hardware.dialects.export_config`), one ``ok`` each;
-2. the read-back command (``M593``, ``M493``, ``SET_INPUT_SHAPER``), parsed and compared with the
-   intent; every setting is reported ``applied`` / ``not applied`` (with why) /
-   ``acknowledged (no read-back)`` (Marlin's ``M201 F S`` has no report);
-3. ``--save``: ``M500`` (Marlin), ``M593 W`` (Prusa) once everything was verified; RRF and Klipper
+1. the dialect's lines (:func:`ringtune.hardware.dialects.export_config`: shaping, Marlin's own
+   frequency limit, the acceleration unless ``accel=False``), one ``ok`` each; every value was
+   checked against the firmware's ranges and precision before the port is opened;
+2. the read-back commands (``M593``, ``M493``, ``SET_INPUT_SHAPER``; ``M204``,
+   ``SET_VELOCITY_LIMIT``), parsed and compared with the intent; every setting is reported
+   ``applied`` / ``not applied`` (with why) / ``acknowledged (no read-back)`` (Marlin's ``M201 F S``
+   has no report). Klipper answers an unknown command with an info line (``// Unknown command``),
+   not an error: it counts as the line failing. Over Moonraker each line's replies are read from
+   the console store, so the report is the same as over the pty;
+3. after a failed line, Klipper is asked for its state (``STATUS`` on the pty, ``/printer/info``
+   through Moonraker); a printer that shut down is said, with how to recover (``FIRMWARE_RESTART``);
+4. ``--save``: ``M500`` (Marlin), ``M593 W`` (Prusa) once everything was verified; RRF and Klipper
    cannot persist these from G-code, so the config lines are written to a file and the report says
    where they belong (``config.g``, ``printer.cfg``).
 
@@ -21,14 +28,12 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from ringtune.hardware.dialects import FIRMWARE_TITLE, Export, export_config
+from ringtune.hardware.dialects import Export, export_config
 from ringtune.hardware.link import GcodeLink, LinkError, LinkTimeout, PrinterReset, Reply, frame, redact
 from ringtune.hardware.readback import compare, parse_report
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
-
-PROTOCOL = {"klipper": "klipper", "rrf": "rrf", "rrf35": "rrf", "rrf34": "rrf", "marlin": "marlin",
-            "marlin-ftm": "marlin", "prusa": "marlin"}
+from ringtune.shaping.firmware import FIRMWARES
 APPLIED, NOT_APPLIED, ACKED, DRY = "applied", "not applied", "acknowledged (no read-back)", "not sent (dry run)"
 
 
@@ -54,6 +59,7 @@ class PushResult:
     saved: str | None = None
     save_file: str | None = None
     notes: list[str] = field(default_factory=list)
+    printer_state: dict | None = None
     ok: bool = False
 
     def to_dict(self) -> dict:
@@ -68,7 +74,7 @@ class PushResult:
                 f"not applied: {', '.join(missing) or 'nothing'}")
 
     def text(self) -> str:
-        out = [f"{FIRMWARE_TITLE[self.firmware]} on {self.port}" + (" (dry run)" if self.dry_run else "")]
+        out = [f"{FIRMWARES[self.firmware].title} on {self.port}" + (" (dry run)" if self.dry_run else "")]
         if self.dry_run:
             out.append("would send exactly:")
             out += ["  " + w for w in self.wire]
@@ -76,6 +82,8 @@ class PushResult:
             rep = "" if s.reported is None else f" (printer reports {s.reported})"
             out.append(f"  {s.key:<12} {str(s.meant):<10} {s.status}{rep}{' - ' + s.detail if s.detail else ''}")
         out += [f"note: {n}" for n in self.notes]
+        if self.printer_state:
+            out.append(state_sentence(self.printer_state))
         if self.saved:
             out.append(f"saved: {self.saved}")
         return "\n".join(out)
@@ -87,6 +95,21 @@ class PushError(RingtuneError):
     def __init__(self, message: str, result: PushResult, where: str | None = None):
         super().__init__(message, where)
         self.result = result
+
+
+def state_sentence(state: dict) -> str:
+    """What the printer's state after a failed line means for the user."""
+    if state.get("state") == "ready":
+        return "printer state after the failed line: ready (it did not shut down)"
+    if state.get("state") in (None, "unknown"):
+        return f"printer state after the failed line: unknown ({state.get('message') or 'no answer'})"
+    msg = " ".join(str(state.get("message") or "").split())
+    return (f"printer state after the failed line: {state['state']} ({msg}); the printer is not ready: "
+            f"recover with FIRMWARE_RESTART, then push again")
+
+
+def _failed(replies: dict[int, Reply]) -> bool:
+    return any(r.errors for r in replies.values())
 
 
 def _statuses(exp: Export, replies: dict[int, Reply], report: str | None, firmware: str) -> list[SettingStatus]:
@@ -136,7 +159,7 @@ def _timeout_statuses(exp: Export, replies: dict[int, Reply], who: str) -> list[
 
 def dry_run_wire(exp: Export, save: bool = False, crc: bool = False) -> list[str]:
     """Exactly what a push sends, in order (numbered and checksummed for Marlin/RRF)."""
-    protocol = PROTOCOL[exp.firmware]
+    protocol = FIRMWARES[exp.firmware].protocol
     cmds = exp.lines + exp.readback + (exp.save_lines if save else [])
     if protocol == "klipper":
         return list(cmds)
@@ -149,13 +172,14 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
          moonraker: str | None = None, baud: int = 115200, save: bool = False, dry_run: bool = False,
          timeout: float = 10.0, crc: bool = False, api_key: str | None = None,
          save_path: str | Path | None = None, log: Callable[[str], None] | None = None,
-         max_resets: int = 3, link_options: dict | None = None) -> PushResult:
-    """Apply ``config`` on the printer at ``port`` (or Moonraker at ``moonraker``) and verify it."""
-    firmware = firmware or config.firmware
-    exp = export_config(config, firmware)
+         max_resets: int = 3, link_options: dict | None = None, accel: bool = True) -> PushResult:
+    """Apply ``config`` on the printer at ``port`` (or Moonraker at ``moonraker``) and verify it;
+    ``accel`` False leaves the printer's acceleration as it is."""
+    exp = export_config(config, firmware, accel=accel)
+    firmware = exp.firmware
     where = redact(moonraker) if moonraker else redact(port) if port else "(no port)"
     result = PushResult(firmware, where, dry_run, notes=list(exp.notes))
-    if moonraker and firmware != "klipper":
+    if moonraker and FIRMWARES[firmware].family != "klipper":
         raise RingtuneError("Moonraker speaks only for Klipper; use --port for other firmware", "--moonraker")
     if dry_run:
         result.wire = dry_run_wire(exp, save and bool(exp.save_lines), crc)
@@ -181,13 +205,15 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
     if not result.settings:
         result.settings = _statuses(exp, replies, report, firmware)
         result.ok = all(s.status in (APPLIED, ACKED) for s in result.settings)
+    if result.printer_state and result.printer_state.get("state") != "ready":
+        result.ok = False
     if save:
         _save_file(exp, result, save_path)
     return result
 
 
 def _push_serial(exp, port, baud, crc, timeout, log, result, max_resets, link_options, save):
-    protocol = PROTOCOL[exp.firmware]
+    protocol = FIRMWARES[exp.firmware].protocol
     replies: dict[int, Reply] = {}
     link = GcodeLink(port, protocol, baud, crc=crc, timeout=timeout, log=log, **link_options)
     try:
@@ -197,7 +223,10 @@ def _push_serial(exp, port, baud, crc, timeout, log, result, max_resets, link_op
                 replies.clear()
                 for i, cmd in enumerate(exp.lines):
                     replies[i] = link.send(cmd)
-                report = "\n".join(link.send(c).text for c in exp.readback)
+                answers = [link.send(c) for c in exp.readback]
+                report = "\n".join(a.text for a in answers)
+                if protocol == "klipper" and (_failed(replies) or any(a.errors for a in answers)):
+                    result.printer_state = _klipper_state(link)
                 if save and exp.save_lines:
                     result.settings = _statuses(exp, replies, report, exp.firmware)
                     result.ok = all(s.status in (APPLIED, ACKED) for s in result.settings)
@@ -216,6 +245,47 @@ def _push_serial(exp, port, baud, crc, timeout, log, result, max_resets, link_op
         link.close()
 
 
+def _klipper_state(link: GcodeLink) -> dict:
+    """Klipper's state over its pty: ``STATUS`` answers ``Klipper state: Ready``, or an error with
+    the state message when it is not ready (shutdown, error)."""
+    try:
+        reply = link.send("STATUS")
+    except LinkError as exc:
+        return {"state": "unknown", "message": exc.bare}
+    if reply.errors:
+        text = " ".join(reply.errors)
+        return {"state": "shutdown" if "shutdown" in text.lower() else "not ready", "message": text}
+    return {"state": "ready" if "ready" in reply.text.lower() else "unknown", "message": reply.text.strip()}
+
+
+def _console_after(console: list[str], cmd: str) -> list[str]:
+    """The console messages that followed the last time ``cmd`` was run."""
+    last = max((i for i, m in enumerate(console) if m.strip() == cmd), default=None)
+    return [] if last is None else console[last + 1:]
+
+
+def _moonraker_run(mr, cmd: str, sink: dict | None = None, key: int = 0) -> Reply:
+    """Run one line through Moonraker and gather its replies from the console store, so that the
+    reply is what the pty would have given (errors, ``// Unknown command``). The reply goes into
+    ``sink[key]`` as soon as the line has run (a console that then stops answering does not hide
+    that it ran)."""
+    from ringtune.hardware.link import klipper_reply_lines
+
+    reply = Reply(cmd)
+    try:
+        mr.script(cmd)
+    except LinkTimeout:
+        raise
+    except LinkError as exc:
+        reply.errors.append(getattr(exc, "message", None) or exc.bare)
+    if sink is not None:
+        sink[key] = reply
+    lines, errors = klipper_reply_lines(_console_after(mr.console(50), cmd))
+    reply.lines += lines
+    reply.errors += [e for e in errors if not any(e in r or r in e for r in reply.errors)]
+    return reply
+
+
 def _push_moonraker(exp, url, api_key, timeout, log, result):
     from ringtune.hardware.moonraker import Moonraker
 
@@ -223,21 +293,15 @@ def _push_moonraker(exp, url, api_key, timeout, log, result):
     replies: dict[int, Reply] = {}
     try:
         for i, cmd in enumerate(exp.lines):
-            try:
-                mr.script(cmd)
-                replies[i] = Reply(cmd)
-            except LinkTimeout:
-                raise
-            except LinkError as exc:
-                replies[i] = Reply(cmd, errors=[exc.bare])
-        mr.script("SET_INPUT_SHAPER")
-        console = mr.console(50)
+            _moonraker_run(mr, cmd, replies, i)
+        answers = [_moonraker_run(mr, c) for c in exp.readback]
+        if _failed(replies) or any(a.errors for a in answers):
+            result.printer_state = mr.state()
     except LinkTimeout as exc:
         result.settings = _timeout_statuses(exp, replies, "Moonraker")
         raise PushError(f"Moonraker stopped answering ({exc.bare}); {result.summary()}", result,
                         redact(url)) from None
-    last = max((i for i, m in enumerate(console) if m.strip().upper() == "SET_INPUT_SHAPER"), default=-1)
-    return replies, "\n".join(console[last + 1:])
+    return replies, "\n".join(a.text for a in answers)
 
 
 def _save_eeprom(exp: Export, result: PushResult, link: GcodeLink) -> None:
@@ -277,4 +341,4 @@ def _save_file(exp: Export, result: PushResult, save_path) -> None:
     what = ("replace the [input_shaper] section of printer.cfg with it (SAVE_CONFIG would drop "
             "damping_ratio)" if exp.firmware == "klipper" else "add these lines to config.g "
             "(RepRapFirmware's M500 does not store M593)")
-    result.saved = f"{FIRMWARE_TITLE[exp.firmware]} cannot persist this from G-code: wrote {path}; {what}"
+    result.saved = f"{FIRMWARES[exp.firmware].title} cannot persist this from G-code: wrote {path}; {what}"

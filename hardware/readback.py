@@ -7,6 +7,9 @@ Report formats (``shared/reference/firmware.md``):
 - Marlin ``M593``: ``  M593 X F40.00 D0.15`` per axis (may be prefixed ``echo:``)
 - Marlin FT_MOTION ``M493``: ``M493 X C8 A40.00 F0.00 I0.10 Q0.05`` per axis
 - Prusa ``M593``: ``axis X type=MZV freq=50.70 damp=0.10 vr=20.00`` or ``axis Z disabled``
+- acceleration: Klipper ``SET_VELOCITY_LIMIT`` (no args): ``// max_accel: 3000.000000``; Marlin and
+  Prusa ``M204``: ``  M204 P3000.00 R3000.00 T3000.00``; RRF ``M204``: ``Maximum printing
+  acceleration 3000.0, maximum travel acceleration 3000.0``
 
 Values are returned with the number of decimals printed, so a comparison can allow for the
 firmware's rounding.
@@ -16,6 +19,8 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+
+from ringtune.shaping.firmware import FIRMWARES
 
 _NUM = r"(-?[0-9]+(?:\.[0-9]*)?)"
 
@@ -30,9 +35,13 @@ def _num(s: str) -> Reported:
     return Reported(float(s), len(s.split(".")[1]) if "." in s else 0)
 
 
-def parse_report(dialect: str, text: str) -> dict[str, Reported]:
+def parse_report(firmware: str, text: str) -> dict[str, Reported]:
     """Settings found in the firmware's reply text (keys as :attr:`Export.expected`)."""
     out: dict[str, Reported] = {}
+    dialect = FIRMWARES[firmware].family
+    accel = _accel(dialect, text)
+    if accel is not None:
+        out["accel"] = accel
     if dialect == "klipper":
         for ax in ("x", "y", "z"):
             m = re.search(rf"shaper_type_{ax}:(\S+)\s+shaper_freq_{ax}:{_NUM}\s+damping_ratio_{ax}:{_NUM}",
@@ -41,7 +50,7 @@ def parse_report(dialect: str, text: str) -> dict[str, Reported]:
                 out[f"{ax}.type"] = Reported(m.group(1).lower())
                 out[f"{ax}.freq"] = _num(m.group(2))
                 out[f"{ax}.damping"] = _num(m.group(3))
-    elif dialect in ("rrf", "rrf35", "rrf34"):
+    elif dialect == "rrf":
         if re.search(r"Input shaping is disabled", text, re.I):
             out["all.type"] = Reported("none")
         m = re.search(rf"Input shaping '([^']+)' at {_NUM}\s*Hz damping factor {_NUM}", text, re.I)
@@ -76,6 +85,18 @@ def parse_report(dialect: str, text: str) -> dict[str, Reported]:
             out[f"{ax}.freq"] = _num(m.group(3))
             out[f"{ax}.damping"] = _num(m.group(4))
     return out
+
+
+def _accel(dialect: str, text: str) -> Reported | None:
+    if dialect == "klipper":
+        m = re.search(rf"max_accel:\s*{_NUM}", text)
+    elif dialect == "rrf":
+        m = re.search(rf"Maximum printing acceleration {_NUM}", text, re.I)
+    else:
+        m = re.search(rf"M204(?:\s+S{_NUM})?\s+P{_NUM}", text)
+        if m:
+            return _num(m.group(2))
+    return _num(m.group(1)) if m else None
 
 
 def matches(expected: object, got: Reported) -> bool:

@@ -1,6 +1,2 @@
 """What the firmware does to motion: shapers, trajectory shaping, G-code reader, planner and
 frequency limit. Imports nothing of ringtune's but ``hardware``'s plain data types."""
-
-from ringtune.shaping.errors import RingtuneError
-
-__all__ = ["RingtuneError"]

@@ -10,17 +10,8 @@ from pathlib import Path
 from typing import Any
 
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import FIRMWARES
 
-#: target firmware -> shaper formula flavour (Prusa Buddy uses Klipper's legacy closed forms)
-FIRMWARE_FLAVOR = {
-    "klipper": "klipper",
-    "rrf": "rrf",
-    "rrf35": "rrf35",
-    "marlin": "marlin",
-    "marlin-ftm": "marlin-ftm",
-    "prusa": "klipper-legacy",
-}
-FIRMWARES = tuple(FIRMWARE_FLAVOR)
 FREQ_LIMIT_METHODS = ("nophead", "sections", "marlin")
 
 
@@ -29,7 +20,8 @@ class TuneConfig:
     """One tuning configuration.
 
     Attributes:
-        firmware: target firmware, one of :data:`FIRMWARES`.
+        firmware: target firmware, a key of :data:`ringtune.shaping.firmware.FIRMWARES` (read
+            case-insensitively: ``"Klipper"`` is stored as ``"klipper"``).
         shaper_x, shaper_y: shaper names (``"none"`` turns shaping off on that axis).
         freq_x, freq_y: shaper frequencies, Hz.
         damping_x, damping_y: shaper damping ratios (dimensionless).
@@ -59,14 +51,16 @@ class TuneConfig:
     @property
     def flavor(self) -> str:
         """Shaper formula flavour of the target firmware (see ``ringtune.shaping.shapers``)."""
-        return FIRMWARE_FLAVOR[self.firmware]
+        return FIRMWARES[self.firmware].flavor
 
     def axis(self, axis: str) -> tuple[str, float, float]:
         """(shaper name, frequency Hz, damping ratio) for axis ``"x"`` or ``"y"``."""
         return getattr(self, f"shaper_{axis}"), getattr(self, f"freq_{axis}"), getattr(self, f"damping_{axis}")
 
     def validate(self, where: str = "config") -> None:
-        if self.firmware not in FIRMWARE_FLAVOR:
+        if isinstance(self.firmware, str) and self.firmware.strip().lower() in FIRMWARES:
+            self.firmware = self.firmware.strip().lower()
+        if self.firmware not in FIRMWARES:
             raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {self.firmware!r}",
                                 f"{where}: firmware")
         for ax in ("x", "y"):
@@ -76,7 +70,8 @@ class TuneConfig:
             _finite(freq, f"{where}: freq_{ax}", lo=0.0, hi=1000.0)
             _finite(damping, f"{where}: damping_{ax}", lo=0.0, hi=0.99)
             if name != "none" and freq <= 0:
-                raise RingtuneError(f"must be > 0 Hz when shaper_{ax} is {name!r}", f"{where}: freq_{ax}")
+                raise RingtuneError(f"{freq:g} Hz is outside (0, 1000] Hz while shaper_{ax} is {name!r} "
+                                    f"(shaper_{ax} = \"none\" turns shaping off)", f"{where}: freq_{ax}")
         _finite(self.freq_limit_hz, f"{where}: freq_limit_hz", lo=0.0, hi=1000.0)
         _finite(self.min_speed_factor, f"{where}: min_speed_factor", lo=0.01, hi=1.0)
         if self.freq_limit_method not in FREQ_LIMIT_METHODS:

@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.gcode import Job
+from ringtune.shaping.job import Job
 
 METHODS = ("nophead", "sections", "marlin")
 CYCLES = 3          # nophead: fewer than three cycles is too short for resonance to build up

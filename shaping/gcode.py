@@ -39,9 +39,6 @@ from ringtune.shaping.job import (AXES, LIMIT_COMMANDS, SETTING_KEYS, SHAPER_COM
 from ringtune.shaping.gcode_commands import BOUNDS as _BOUNDS
 from ringtune.shaping.gcode_commands import SettingCommands
 from ringtune.shaping.gcode_commands import num as _num
-from ringtune.shaping.slicer import slicer_estimate
-
-__all__ = ["Event", "Job", "SETTING_KEYS", "read_gcode", "slicer_estimate"]
 
 
 _WORD = re.compile(r"([A-Za-z])\s*([^A-Za-z\s]*)")

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ringtune.shaping.motion import AXES, Motion
-from ringtune.shaping.shapers import marlin_factors
+from ringtune.shaping.shaper_formulas import marlin_factors
 
 
 def steps_from_motion(motion: Motion, axis: str, steps_per_mm: float) -> tuple[np.ndarray, np.ndarray]:

@@ -47,8 +47,7 @@ from ringtune.shaping.lookahead import (axis_caps, backward_pass, daa_adjust, fo
                                         scale_by_axes)
 from ringtune.shaping.motion import Motion
 
-__all__ = ["MachineLimits", "MoveTable", "Plan", "plan", "limits_from_job", "guess_junction",
-           "forward_pass", "backward_pass", "JUNCTIONS"]
+__all__ = ["MachineLimits", "MoveTable", "Plan", "plan", "limits_from_job", "guess_junction", "JUNCTIONS"]
 
 JUNCTIONS = ("scv", "jd", "jerk")
 

@@ -37,11 +37,10 @@ from typing import Callable
 import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.shaper_formulas import (DEFAULT_V_TOL, EI2_A, EI2_T, EI3_A, EI3_T, FTM_FS,  # noqa: F401
-                                              RRF_STEP_CLOCK, ftm_shaper, ftm_centre, rrf_binomial, rrf_ei,
-                                              rrf_mzv, binomial_zv, ei, ei2, ei2_legacy, ei3, ei3_legacy,
-                                              ei_legacy, ftm_mzv, marlin_factors, marlin_zv, mzv,
-                                              mzv_coeffs, mzv_legacy, none_shaper, zv, zvd)
+from ringtune.shaping.shaper_formulas import (EI2_A, EI2_T, EI3_A, EI3_T, binomial_zv, ei, ei2, ei2_legacy,
+                                              ei3, ei3_legacy, ei_legacy, ftm_centre, ftm_mzv, ftm_shaper,
+                                              marlin_zv, mzv, mzv_legacy, none_shaper, rrf_binomial, rrf_ei,
+                                              rrf_mzv, zv, zvd)
 
 FLAVORS = ("klipper", "klipper-legacy", "rrf", "rrf35", "marlin", "marlin-ftm")
 

@@ -21,7 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ringtune.shaping.gcode import Job, read_gcode
+from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.job import Job
 
 ZIGZAG_FREQS = (10.0, 15.0, 20.0, 30.0, 40.0, 55.0, 80.0)    # Hz at the commanded speed
 ZIGZAG_SPEED = 80.0          # mm/s

@@ -62,7 +62,8 @@ def _params(cmd: str) -> dict[str, str]:
 
 
 class MarlinCore:
-    """Marlin classic ZV (M593 X/Y F D), M201 F S, M500, M105."""
+    """Marlin classic ZV (M593 X/Y F D), M201 F S, M204 P R T S (report ``  M204 P.. R.. T..``,
+    Marlin ``M200-M205.cpp``), M500, M105."""
 
     def __init__(self):
         self.reset()
@@ -71,6 +72,7 @@ class MarlinCore:
     def reset(self):
         self.shaping = {"x": [40.0, 0.15], "y": [40.0, 0.15]}
         self.limit = (0.0, 5)
+        self.accel = {"P": 1500.0, "R": 1500.0, "T": 3000.0}
 
     def execute(self, cmd: str):
         word = cmd.split()[0].upper()
@@ -90,6 +92,16 @@ class MarlinCore:
             return [], None
         if word == "M201":
             self.limit = (float(p.get("F", self.limit[0])), int(float(p.get("S", self.limit[1]))))
+            return [], None
+        if word == "M204":
+            if not {"P", "R", "S", "T"} & set(p):
+                return ["echo:; Acceleration (units/s2) (P<print-accel> R<retract-accel> T<travel-accel>):",
+                        f"echo:  M204 P{self.accel['P']:.2f} R{self.accel['R']:.2f} T{self.accel['T']:.2f}"], None
+            if "S" in p:
+                self.accel["P"] = self.accel["T"] = float(p["S"])
+            for k in ("P", "R", "T"):
+                if k in p:
+                    self.accel[k] = float(p[k])
             return [], None
         if word == "M500":
             self.eeprom = self.snapshot()
@@ -172,6 +184,7 @@ class RrfCore:
 
     def reset(self):
         self.m593 = {"P": "none", "F": 40.0, "S": 0.05}
+        self.accel = {"P": 10000.0, "T": 10000.0}
 
     def execute(self, cmd: str):
         word = cmd.split()[0].upper()
@@ -188,19 +201,33 @@ class RrfCore:
                 if k in p:
                     self.m593[k] = p[k].lower() if k == "P" else float(p[k])
             return [], None
+        if word == "M204":          # RRF Move.cpp: P printing, T travel, S both
+            if not {"P", "S", "T"} & set(p):
+                return [f"Maximum printing acceleration {self.accel['P']:.1f}, maximum travel acceleration "
+                        f"{self.accel['T']:.1f} mm/sec^2"], None
+            if "S" in p:
+                self.accel["P"] = self.accel["T"] = float(p["S"])
+            for k in ("P", "T"):
+                if k in p:
+                    self.accel[k] = float(p[k])
+            return [], None
         if word == "M110":
             return [], None
         return [], f"Unknown command {word}"
 
 
 class KlipperCore:
-    """Klipper SET_INPUT_SHAPER (always reports, per axis)."""
+    """Klipper SET_INPUT_SHAPER (always reports, per axis), SET_VELOCITY_LIMIT (reports when given
+    no parameter), STATUS. ``input_shaper=False``: a printer.cfg without ``[input_shaper]``, where
+    SET_INPUT_SHAPER is an unknown command (answered with an info line, as Klipper does)."""
 
-    def __init__(self):
+    def __init__(self, input_shaper: bool = True):
+        self.input_shaper = input_shaper
         self.reset()
 
     def reset(self):
         self.axes = {"x": ["mzv", 0.0, 0.1], "y": ["mzv", 0.0, 0.1]}
+        self.max_accel = 3000.0
 
     def execute(self, cmd: str):
         cmd = re.sub(r"^N\d+\s+", "", cmd)
@@ -208,7 +235,17 @@ class KlipperCore:
         parts = cmd.split()
         if not parts:
             return [], None
-        if parts[0].upper() == "SET_INPUT_SHAPER":
+        if parts[0].upper() == "SET_VELOCITY_LIMIT":
+            kv = dict(p.split("=", 1) for p in parts[1:] if "=" in p)
+            if "ACCEL" in kv:
+                self.max_accel = float(kv["ACCEL"])
+            if kv:
+                return [], None
+            return [f"// max_velocity: 300.000000\n// max_accel: {self.max_accel:.6f}\n"
+                    "// minimum_cruise_ratio: 0.500000\n// square_corner_velocity: 5.000000"], None
+        if parts[0].upper() == "STATUS":
+            return ["// Klipper state: Ready"], None
+        if parts[0].upper() == "SET_INPUT_SHAPER" and self.input_shaper:
             kv = dict(p.split("=", 1) for p in parts[1:] if "=" in p)
             for k, v in kv.items():
                 m = re.match(r"(SHAPER_FREQ|DAMPING_RATIO|SHAPER_TYPE)_([XY])$", k.upper())
@@ -221,7 +258,7 @@ class KlipperCore:
                     for a, (t, f, d) in self.axes.items()], None
         if parts[0].upper() in ("M110", "M115"):
             return ([] if parts[0].upper() == "M110" else ["ok FIRMWARE_NAME:Klipper"]), None
-        return [], f"Unknown command:\"{parts[0].upper()}\""
+        return [f"// Unknown command:\"{parts[0].upper()}\""], None
 
 
 CORES = {"marlin": MarlinCore, "marlin-ftm": FtmCore, "prusa": PrusaCore, "rrf": RrfCore,
@@ -234,10 +271,10 @@ class FakePrinter:
     """A printer on a pty (``transport="pty"``) or on 127.0.0.1 TCP (``"tcp"``); use ``.url``."""
 
     def __init__(self, firmware: str = "marlin", faults: Faults | None = None, transport: str = "pty",
-                 seed: int = 0):
+                 seed: int = 0, core=None):
         self.firmware = firmware
         self.protocol = "rrf" if firmware == "rrf" else "klipper" if firmware == "klipper" else "marlin"
-        self.core = CORES[firmware]()
+        self.core = core or CORES[firmware]()
         self.faults = faults or Faults()
         self.transport = transport
         self.executed: list[str] = []
@@ -425,10 +462,10 @@ class FakeMoonraker:
     ``hang_after``: after that many scripts have run, every request is left without an answer
     (until the server is closed), like a Klippy that stopped responding behind Moonraker."""
 
-    def __init__(self, api_key: str | None = None, hang_after: int | None = None):
+    def __init__(self, api_key: str | None = None, hang_after: int | None = None, core=None):
         self.hang_after = hang_after
         self._release = threading.Event()
-        self.core = KlipperCore()
+        self.core = core or KlipperCore()
         self.store: list[dict] = []
         self.scripts: list[str] = []
         self.requests: list[str] = []
@@ -488,6 +525,8 @@ class FakeMoonraker:
                 if not self._auth():
                     return
                 url = urlsplit(self.path)
+                if url.path == "/printer/info":
+                    return self._reply(200, {"result": {"state": "ready", "state_message": "Printer is ready"}})
                 if url.path != "/server/gcode_store":
                     return self._reply(404, {"error": {"code": 404, "message": "Not Found"}})
                 count = int(parse_qs(url.query).get("count", ["100"])[0])

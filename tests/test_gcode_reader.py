@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.gcode import read_gcode, slicer_estimate
+from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.slicer import slicer_estimate
 
 
 def test_absolute_relative_and_g92():

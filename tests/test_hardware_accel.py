@@ -8,10 +8,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from ringtune.hardware.accel import (
-    G_MM_S2, PSD, RawAccel, klipper_psd, klipper_window_size, read_accel, read_raw_accel,
-    read_resonances_csv,
-)
+from ringtune.hardware.accel import G_MM_S2, RawAccel, read_accel, read_raw_accel, read_resonances_csv
+from ringtune.hardware.psd import PSD, klipper_psd, klipper_window_size
 from ringtune.shaping.errors import RingtuneError
 
 

@@ -21,7 +21,7 @@ def config(tmp_path) -> Path:
     p = tmp_path / "best.json"
     p.write_text(json.dumps({"firmware": "marlin", "shaper_x": "zv", "shaper_y": "zv", "freq_x": 41.5,
                              "freq_y": 37.25, "damping_x": 0.08, "damping_y": 0.12, "freq_limit_hz": 25.0,
-                             "min_speed_factor": 0.3}))
+                             "min_speed_factor": 0.3, "freq_limit_method": "marlin"}))
     return p
 
 

@@ -7,10 +7,11 @@ import re
 
 import pytest
 
-from ringtune.hardware.dialects import DIALECTS, export_config
+from ringtune.hardware.dialects import export_config
 from ringtune.hardware.readback import compare, parse_report
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import FIRMWARES
 
 
 def cfg(**kw) -> TuneConfig:
@@ -84,7 +85,7 @@ def test_rrf_custom_refusals(custom, msg):
 def test_rrf_ranges_and_one_shaper():
     with pytest.raises(RingtuneError, match="one shaper to all axes"):
         export_config(cfg(freq_y=45.0), "rrf")
-    with pytest.raises(RingtuneError, match=r"frequency F 3.5 is outside RepRapFirmware 3.6's range \[4, 1000\]"):
+    with pytest.raises(RingtuneError, match=r"freq_x: frequency 3.5 Hz is outside RepRapFirmware 3.6.s range \[4, 1000\] Hz"):
         export_config(cfg(freq_x=3.5, freq_y=3.5), "rrf")
     export_config(cfg(freq_x=4.0, freq_y=4.0), "rrf")          # 3.6 goes down to 4 Hz
     with pytest.raises(RingtuneError, match="outside RepRapFirmware 3.5"):
@@ -106,7 +107,7 @@ def test_rrf35_and_34_l_parameter():
 
 def test_marlin_classic_zv_only_with_frequency_limit():
     c = cfg(shaper_x="zv", shaper_y="zv", freq_x=41.5, freq_y=37.25, damping_x=0.08, damping_y=0.12,
-            freq_limit_hz=25, min_speed_factor=0.3)
+            freq_limit_hz=25, min_speed_factor=0.3, freq_limit_method="marlin")
     e = export_config(c, "marlin")
     assert e.lines == ["M593 X F41.5 D0.08", "M593 Y F37.25 D0.12", "M201 F25 S30"]
     assert e.save_lines == ["M500"] and e.readback == ["M593"]
@@ -115,7 +116,7 @@ def test_marlin_classic_zv_only_with_frequency_limit():
     with pytest.raises(RingtuneError, match=r"Marlin \(classic input shaping\) has no 'mzv'.*nearest it has is 'zv'"):
         export_config(cfg(), "marlin")
     with pytest.raises(RingtuneError, match="M201 F"):
-        export_config(cfg(shaper_x="zv", shaper_y="zv", freq_limit_hz=150), "marlin")
+        export_config(cfg(shaper_x="zv", shaper_y="zv", freq_limit_hz=150, freq_limit_method="marlin"), "marlin")
     assert export_config(cfg(shaper_x="none", shaper_y="zv"), "marlin").lines[0] == "M593 X F0"
 
 
@@ -157,7 +158,7 @@ def test_no_frequency_limit_gives_the_limit_command(fw):
 
 def test_every_dialect_checksum_safe_lines():
     # every exported runtime line must be sendable: no '*', ';' or newline inside a line
-    for fw in DIALECTS:
+    for fw in FIRMWARES:
         shaper = {"marlin": "zv", "rrf": "zvd", "rrf35": "zvd", "rrf34": "zvd"}.get(fw, "mzv")
         for line in export_config(cfg(shaper_x=shaper, shaper_y=shaper), fw).lines:
             assert not re.search(r"[*;\n]", line), line
@@ -186,10 +187,9 @@ def test_custom_given_in_the_configs_own_rrf_semantics_is_converted():
                                              ("marlin", "marlin"), ("marlin-ftm", "marlin-ftm"),
                                              ("prusa", "klipper-legacy")])
 def test_dialect_shaper_sets_agree_with_the_shaper_registry(dialect, flavor):
-    from ringtune.hardware.dialects import AVAILABLE
     from ringtune.shaping.shapers import available_shapers
 
-    assert set(AVAILABLE[dialect]) == set(available_shapers(flavor))
+    assert set(FIRMWARES[dialect].shapers) == set(available_shapers(flavor))
 
 
 @pytest.mark.parametrize("fw", ["klipper", "rrf", "prusa", "marlin", "marlin-ftm"])
@@ -209,18 +209,32 @@ def test_limit_command_applies_the_tuned_limit_exactly(fw):
     assert argv[:2] == ["ringtune", "limit"]
     args = build_parser()[0].parse_args(argv[1:])
     assert (args.freq_limit, args.method, args.min_speed_factor) == (27.5, "nophead", 0.55)
-    if fw.startswith("marlin"):      # M201 is sent, and the note says it is Marlin's own algorithm
-        assert "M201 F27.5 S55" in export_config(c, fw).lines
-        assert any("Marlin's own limit" in n for n in notes)
-        c_marlin = cfg(shaper_x=shaper, shaper_y=shaper, freq_limit_hz=27.5, freq_limit_method="marlin")
+    if fw.startswith("marlin"):      # Marlin's own M201 F only for a limit tuned with its algorithm
+        assert not any(line.startswith("M201") for line in export_config(c, fw).lines)
+        c_marlin = cfg(shaper_x=shaper, shaper_y=shaper, freq_limit_hz=27.5, min_speed_factor=0.55,
+                       freq_limit_method="marlin")
+        assert "M201 F27.5 S55" in export_config(c_marlin, fw).lines
         assert not any("ringtune limit" in n for n in export_config(c_marlin, fw).notes)
 
 
-def test_tuned_acceleration_is_not_dropped_silently():
+def test_tuned_acceleration_is_applied_and_read_back_or_left_alone_on_request():
     e = export_config(cfg(accel=4000.0), "klipper")
-    assert any("acceleration of 4000 mm/s²" in n for n in e.notes)
-    assert "acceleration of 4000 mm/s²" in e.render()
+    assert e.lines[-1] == "SET_VELOCITY_LIMIT ACCEL=4000" and e.readback[-1] == "SET_VELOCITY_LIMIT"
+    assert any("override this acceleration" in n for n in e.notes)
+    # Klipper's own SET_VELOCITY_LIMIT report (toolhead.py: "max_accel: %.6f") reads back as applied
+    report = "// max_velocity: 300.000000\n// max_accel: 4000.000000\n// minimum_cruise_ratio: 0.500000"
+    assert compare({"accel": 4000.0}, parse_report("klipper", report))["accel"]["ok"]
+    assert not any("ACCEL" in line for line in export_config(cfg(accel=4000.0), "klipper", accel=False).lines)
+    assert any("--no-accel" in n for n in export_config(cfg(accel=4000.0), "klipper", accel=False).notes)
     assert not any("acceleration" in n for n in export_config(cfg(), "klipper").notes)
+    # RRF: M204 P, report "Maximum printing acceleration %.1f, ..." (Move.cpp); Marlin: "  M204 P%.2f ..."
+    r = export_config(cfg(shaper_x="zvd", shaper_y="zvd", accel=3500.0), "rrf")
+    assert r.lines[-1] == "M204 P3500" and "M204 P3500" in r.config_text
+    assert parse_report("rrf", "Maximum printing acceleration 3500.0, maximum travel acceleration "
+                               "10000.0 mm/sec^2")["accel"].value == 3500.0
+    m = export_config(cfg(shaper_x="zv", shaper_y="zv", accel=3500.0), "marlin")
+    assert m.lines[-1] == "M204 P3500" and m.readback == ["M593", "M204"]
+    assert parse_report("marlin", "echo:  M204 P3500.00 R1500.00 T3000.00")["accel"].value == 3500.0
 
 
 @pytest.mark.parametrize("fw", ["rrf", "rrf35"])
@@ -232,3 +246,60 @@ def test_rrf_refuses_different_custom_shapers_on_x_and_y(fw):
     same = export_config(TuneConfig(firmware="rrf", shaper_x=x, shaper_y=x), fw).lines
     assert same == {"rrf": ['M593 P"custom" H0.4:0.3 T0.0135:0.027'],
                     "rrf35": ['M593 P"custom" H0.4:0.7 T0.0135:0.0135']}[fw]
+
+
+def test_marlin_export_never_sends_m201_f_for_a_limit_tuned_with_another_method(tmp_path):
+    """Issue 14: `export --firmware marlin` printed `M201 F37.5 S30` and, in the same output, "for
+    exactly that, leave M201 out and run ringtune limit"; `push --save` then stored that M201."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from fake_printer import FakePrinter
+
+    from ringtune.hardware.push import push
+
+    c = cfg(shaper_x="zv", shaper_y="zv", freq_limit_hz=37.5, min_speed_factor=0.3, freq_limit_method="sections")
+    for fw in ("marlin", "marlin-ftm"):
+        e = export_config(c, fw)
+        assert not any(line.startswith("M201") for line in e.lines + e.save_lines), e.lines
+        sent = [ln for ln in e.render_commands().splitlines() if not ln.startswith(";")]
+        assert not any("M201" in ln for ln in sent) and "leave M201 out" not in e.render()
+        assert any("ringtune limit FILE.gcode --freq-limit 37.5 --method sections" in n for n in e.notes)
+    with FakePrinter("marlin", transport="tcp") as fp:
+        r = push(c, "marlin", port=fp.url, timeout=2.0, save=True)
+    assert r.ok and not any(cmd.startswith("M201") for cmd in fp.executed)
+    assert fp.executed[-1] == "M500" and fp.core.eeprom["limit"] == [0.0, 5]   # Marlin's own stays off
+
+
+@pytest.mark.parametrize("kw, key, allowed", [
+    (dict(shaper_x="ei(foo=1)"), "shaper_x", "accepted: v_tol"),
+    (dict(shaper_x="mzv(n=2)"), "shaper_x", "n >= 3"),
+    (dict(shaper_x="ei(v_tol=5)"), "shaper_x", "(0, 1)"),
+    (dict(freq_x=0.0004), "freq_x", "[1, 1000] Hz"),
+    (dict(shaper_x="foo"), "shaper_x", "Klipper has zv, mzv, zvd, ei, 2hump_ei, 3hump_ei"),
+    (dict(shaper_x="zvdd"), "shaper_x", "it has zv, mzv, zvd, ei, 2hump_ei, 3hump_ei"),
+    (dict(shaper_x="ei", damping_x=0.5), "damping_x", "[0, 0.4]"),
+])
+def test_klipper_refusals_name_the_key_and_the_allowed_range(kw, key, allowed):
+    with pytest.raises(RingtuneError) as exc:
+        export_config(cfg(**kw), "klipper")
+    msg = str(exc.value)
+    assert f"config: {key}:" in msg and allowed in msg and "\n" not in msg
+
+
+@pytest.mark.parametrize("fw, value", [("marlin", 0.0004), ("marlin", 0.015), ("prusa", 0.0004)])
+def test_a_frequency_that_would_round_to_another_is_refused_never_changed(fw, value):
+    shaper = "zv" if fw == "marlin" else "mzv"
+    with pytest.raises(RingtuneError, match=r"freq_x: .*(outside|would be sent as)"):
+        export_config(cfg(shaper_x=shaper, shaper_y=shaper, freq_x=value), fw)
+    # within the rounding tolerance the value goes out at the firmware's precision, and is said
+    e = export_config(cfg(shaper_x=shaper, shaper_y=shaper, freq_x=41.5001), fw)
+    assert e.expected["x.freq"] == 41.5 and any("freq_x 41.5001 is sent as 41.5" in n for n in e.notes)
+
+
+def test_klipper_gets_canonical_shaper_names_and_named_integer_parameters():
+    """Klipper knows no alias (`ei2` -> "Unsupported shaper type") and parses parameters with
+    `[\\d.]+`, int without a point: n=5.0 would reach range() as a float and crash the host."""
+    e = export_config(cfg(shaper_x="EI2", damping_x=0.1, shaper_y="mzv(5.0, 1.1)"), "klipper")
+    assert "SHAPER_TYPE_X=2hump_ei" in e.lines[0] and "SHAPER_TYPE_Y=mzv(n=5,t=1.1)" in e.lines[0]

@@ -20,7 +20,8 @@ from ringtune.shaping.errors import RingtuneError  # noqa: E402
 pytestmark = pytest.mark.timeout(60)
 
 MARLIN = TuneConfig(firmware="marlin", shaper_x="zv", shaper_y="zv", freq_x=41.5, freq_y=37.25,
-                    damping_x=0.08, damping_y=0.12, freq_limit_hz=25, min_speed_factor=0.3)
+                    damping_x=0.08, damping_y=0.12, freq_limit_hz=25, min_speed_factor=0.3,
+                    freq_limit_method="marlin")
 
 
 def test_frames_match_the_reference_examples():

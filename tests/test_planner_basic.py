@@ -7,9 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from ringtune.shaping.gcode import read_gcode, slicer_estimate
-from ringtune.shaping.planner import (MachineLimits, backward_pass, forward_pass, limits_from_job,
-                                      plan)
+from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.lookahead import backward_pass, forward_pass
+from ringtune.shaping.planner import MachineLimits, limits_from_job, plan
+from ringtune.shaping.slicer import slicer_estimate
 
 
 def test_min_plus_passes_match_the_recurrence():

@@ -11,7 +11,8 @@ from scipy.integrate import solve_ivp
 
 from ringtune.shaping.analysis import (acceleration_lag, band, lag, max_accel, residual_vibration,
                                        smoothing)
-from ringtune.shaping.shapers import Shaper, binomial_zv, get_shaper
+from ringtune.shaping.shaper_formulas import binomial_zv
+from ringtune.shaping.shapers import Shaper, get_shaper
 
 DAMPINGS = [0.0, 0.05, 0.1, 0.2, 0.3]
 

@@ -9,7 +9,8 @@ import pytest
 from ringtune.shaping.apply import shape_motion
 from ringtune.shaping.marlin_steps import marlin_zv_steps, step_position, steps_from_motion
 from ringtune.shaping.motion import Motion
-from ringtune.shaping.shapers import get_shaper, marlin_factors
+from ringtune.shaping.shaper_formulas import marlin_factors
+from ringtune.shaping.shapers import get_shaper
 
 SPM = 80.0  # steps per mm (16 microsteps, GT2 belt, 20-tooth pulley)
 

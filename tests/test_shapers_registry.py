@@ -11,8 +11,8 @@ import pytest
 from ringtune.shaping.analysis import max_accel, smoothing
 from ringtune.shaping.custom import rrf_custom
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.shapers import (FLAVORS, available_shapers, canonical_name, get_shaper, is_centred,
-                                      marlin_factors, max_damping, mzv_coeffs)
+from ringtune.shaping.shaper_formulas import marlin_factors, mzv_coeffs
+from ringtune.shaping.shapers import FLAVORS, available_shapers, canonical_name, get_shaper, is_centred, max_damping
 
 # firmware.md §1.6: f = 40 Hz, Klipper HEAD; A normalised, T in ms, smoothing at 5000/5, max_accel
 KLIPPER_TABLE = [

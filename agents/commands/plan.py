@@ -73,8 +73,9 @@ def run(args, out) -> int:
 
     from ringtune.shaping.errors import RingtuneError
     from ringtune.shaping.freqlimit import apply_freq_limit
-    from ringtune.shaping.gcode import read_gcode, slicer_estimate
+    from ringtune.shaping.gcode import read_gcode
     from ringtune.shaping.planner import MachineLimits, guess_junction, plan
+    from ringtune.shaping.slicer import slicer_estimate
     from ringtune.shaping.testprints import builtin_test_print, direction_change_frequencies
 
     if args.rate <= 0 or not np.isfinite(args.rate):

@@ -71,7 +71,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace, out) -> int:
-    from ringtune.agents import klipper_rule as kr
+    from ringtune.agents import klipper_baseline
     from ringtune.shaping.config import TuneConfig
     from ringtune.shaping.errors import RingtuneError
 
@@ -90,13 +90,13 @@ def run(args: argparse.Namespace, out) -> int:
     kw = {"max_smoothing": args.max_smoothing}
     if args.accel:
         psds, sources = _load_accel(args.accel, args.axes)
-        fits, fields = kr.recommend_axes(psds, args.firmware, args.klipper_version, args.scv, **kw)
+        fits, fields = klipper_baseline.recommend_axes(psds, args.firmware, args.klipper_version, args.scv, **kw)
     else:
         from ringtune.envs.evaluate import resolve_printer
 
         printer = resolve_printer(None if args.printer in (None, "default") else args.printer)
         try:
-            fits, fields = kr.recommend_for_printer(printer, args.firmware, args.klipper_version, args.seed, **kw)
+            fits, fields = klipper_baseline.recommend_for_printer(printer, args.firmware, args.klipper_version, args.seed, **kw)
         except ImportError as exc:
             raise RingtuneError(f"the simulated resonance test is not available ({exc})", "--printer") from None
         sources = {ax: [f"printer:{getattr(printer, 'name', 'default')}"] for ax in ("x", "y")}

@@ -75,7 +75,8 @@ def _pair(text: str | None, option: str, number: bool) -> tuple | None:
 def build_config(args, out=None):
     """The TuneConfig from --config and/or the individual options (options override the file)."""
     from ringtune.agents.commands import load_config
-    from ringtune.shaping.config import FIRMWARE_FLAVOR, TuneConfig
+    from ringtune.shaping.config import TuneConfig
+    from ringtune.shaping.firmware import FIRMWARES
     from ringtune.shaping.shapers import default_damping
 
     if args.config:
@@ -96,9 +97,9 @@ def build_config(args, out=None):
     if damping:
         cfg["damping_x"], cfg["damping_y"] = damping
     elif shaper and not args.config:
-        flavor = FIRMWARE_FLAVOR.get(cfg.get("firmware", "klipper"))
-        if flavor is not None:  # an unknown firmware is reported by TuneConfig below
-            cfg["damping_x"] = cfg["damping_y"] = default_damping(flavor)
+        record = FIRMWARES.get(str(cfg.get("firmware", "klipper")).lower())
+        if record is not None:  # an unknown firmware is reported by TuneConfig below
+            cfg["damping_x"] = cfg["damping_y"] = default_damping(record.flavor)
     if args.freq_limit is not None:
         cfg["freq_limit_hz"] = args.freq_limit
     if args.accel is not None:

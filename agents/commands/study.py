@@ -55,29 +55,31 @@ def run(args: argparse.Namespace, out) -> int:
 
     import numpy as np
 
-    from ringtune.agents import klipper_rule
+    from ringtune.agents import klipper_baseline
     from ringtune.envs.evaluate import evaluate_many, resolve_printer
-    from ringtune.shaping.config import FIRMWARE_FLAVOR, TuneConfig
+    from ringtune.shaping.config import TuneConfig
     from ringtune.shaping.errors import RingtuneError
     from ringtune.shaping.shapers import available_shapers
 
-    if args.firmware not in FIRMWARE_FLAVOR:
-        raise RingtuneError(f"must be one of {', '.join(FIRMWARE_FLAVOR)}", "--firmware")
+    from ringtune.shaping.firmware import FIRMWARES
+
+    if args.firmware not in FIRMWARES:
+        raise RingtuneError(f"must be one of {', '.join(FIRMWARES)}", "--firmware")
     printer = resolve_printer(args.printer)
     quality = f"{args.quality}_mm"
-    offered = [s for s in available_shapers(FIRMWARE_FLAVOR[args.firmware]) if s != "custom"]
+    offered = [s for s in available_shapers(FIRMWARES[args.firmware].flavor) if s != "custom"]
     shapers = [s.strip().lower() for s in args.shapers.split(",")] if args.shapers else offered
     bad = [s for s in shapers if s not in offered]
     if bad:
         raise RingtuneError(f"{args.firmware} does not offer {', '.join(bad)} (offers {', '.join(offered)})",
                             "--shapers")
     values = _values(args, printer)
-    one = args.firmware in ("rrf", "rrf35")
+    one = FIRMWARES[args.firmware].one_shaper
 
     # tuned frequency per shaper and axis: Klipper's per-shaper fit where it has one
     tuned: dict[str, dict[str, float]] = {}
     try:
-        fits, _ = klipper_rule.recommend_for_printer(printer, args.firmware, "head")
+        fits, _ = klipper_baseline.recommend_for_printer(printer, args.firmware, "head")
     except (ImportError, RingtuneError) as exc:
         out.note(f"ringtune study: Klipper's fit unavailable ({exc}); shapers tuned to the main mode")
         fits = {}

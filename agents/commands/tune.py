@@ -184,14 +184,14 @@ def _inside(cfg, space) -> bool:
 def _baselines(printer, args, settings, evaluator, quality, out) -> dict:
     """Klipper's rule (on the printer's simulated resonance test, at its suggested max_accel) and
     no shaping (the printer's own acceleration), evaluated like every trial."""
-    from ringtune.agents import klipper_rule, tune_study
+    from ringtune.agents import klipper_baseline, tune_study
     from ringtune.agents.pareto import point_from_metrics
     from ringtune.shaping.config import TuneConfig
     from ringtune.shaping.errors import RingtuneError
 
     configs, fits = {}, {}
     try:
-        fits, fields = klipper_rule.recommend_for_printer(printer, args.firmware, "head", seed=args.seed)
+        fits, fields = klipper_baseline.recommend_for_printer(printer, args.firmware, "head", seed=args.seed)
         if fields.get("accel") is None:
             fields["accel"] = float(printer.limits.accel)
         configs["klipper"] = TuneConfig(**fields, extra={"source": "Klipper's calibrate_shaper rule (HEAD)"})

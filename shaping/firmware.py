@@ -1,0 +1,150 @@
+"""One record per target firmware: what it has, what it accepts, how it is spoken to.
+
+Every module that needs a fact about a firmware reads it here: ``TuneConfig`` (which firmware names
+exist and their shaper formulas), the search space (one shaper for all axes or not), the dialects
+and push (ranges, precision, commands), the read-back parser (report format). Facts and their
+sources: ``shared/reference/firmware.md`` (§1.5 Klipper, §2 Marlin, §3 RRF, §4 Prusa); the
+acceleration commands from Klipper ``toolhead.py`` (``SET_VELOCITY_LIMIT``), Marlin
+``M200-M205.cpp`` (``M204 P``, report ``  M204 P<a> R<a> T<a>``) and RRF ``Move.cpp`` (``M204 P``,
+report ``Maximum printing acceleration <a>, maximum travel acceleration <a>``).
+
+A :class:`Span` is a range the firmware accepts together with the number of decimals a value is
+sent (and reported) with. A value that would round to another one at that precision is refused
+rather than changed (0.0004 Hz is not "0", which would turn shaping off): "another one" is a sent
+value outside the range or more than :data:`ROUNDING_TOLERANCE` away from the given one, the
+resolution tune and recommend write values with (0.1 Hz at 20 Hz). Closer than that, the value is
+sent at the firmware's precision and the export says so.
+
+Plain data (frozen dataclasses and a dict): ``hardware`` may import it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from ringtune.shaping.shapers import available_shapers
+
+
+#: largest relative change rounding to a firmware's precision may make before the value is refused
+ROUNDING_TOLERANCE = 0.005
+
+
+@dataclass(frozen=True)
+class Span:
+    """Values a firmware accepts: ``[lo, hi]`` (``(lo, hi]`` when ``lo_open``), sent with ``decimals``
+    digits after the point. ``why`` says where a bound comes from when it is not the firmware's
+    own check (shown with a refusal)."""
+
+    lo: float
+    hi: float
+    decimals: int
+    lo_open: bool = False
+    why: str = ""
+
+    def text(self, unit: str = "") -> str:
+        """The range as printed in refusals: ``[4, 1000] Hz``, ``(0, 100] Hz``."""
+        lo = f"{self.lo:.2f}".rstrip("0").rstrip(".") if self.lo != int(self.lo) else f"{self.lo:g}"
+        return f"{'(' if self.lo_open else '['}{lo}, {self.hi:g}]" + (f" {unit}" if unit else "")
+
+    def contains(self, value: float) -> bool:
+        return (math.isfinite(value) and value <= self.hi
+                and (value > self.lo if self.lo_open else value >= self.lo))
+
+    def sent(self, value: float) -> float:
+        """``value`` as sent: rounded to ``decimals`` digits."""
+        return round(value, self.decimals)
+
+    def changes(self, value: float) -> bool:
+        """True if sending ``value`` changes it into another one (see module docstring)."""
+        got = self.sent(value)
+        return not self.contains(got) or abs(got - value) > ROUNDING_TOLERANCE * abs(value)
+
+
+@dataclass(frozen=True)
+class Firmware:
+    """What one target firmware is.
+
+    Attributes:
+        name: the name configs and ``--firmware`` use (``klipper``, ``rrf35``, ...).
+        title: human name with version (``RepRapFirmware 3.5``).
+        flavor: its shaper formulas in :mod:`ringtune.shaping.shapers` (hence its shapers, their
+            parameters and maximum damping).
+        family: command dialect and report format (``klipper``, ``rrf``, ``marlin``,
+            ``marlin-ftm``, ``prusa``).
+        protocol: the serial link it speaks (``klipper`` plain lines; ``marlin``/``rrf``
+            numbered and checksummed).
+        one_shaper: one shaper (type, F, S) for all axes (RepRapFirmware).
+        freq: shaper frequency, Hz.
+        damping: damping ratio (the shaper's own maximum also applies).
+        freq_limit: the firmware has an XY direction-change frequency limit (Marlin ``M201 F S``);
+            elsewhere ``ringtune limit`` applies it to the G-code.
+        accel_set: command that sets the printing acceleration (``{a}`` = mm/s²).
+        accel_report: command whose reply reports it.
+        accel: printing acceleration, mm/s².
+        comment: the G-code comment character the firmware reads.
+        save: lines that persist shaping settings from G-code (empty: they belong in a config file).
+        config_file: where settings go when they cannot be saved from G-code, or None.
+    """
+
+    name: str
+    title: str
+    flavor: str
+    family: str
+    protocol: str
+    one_shaper: bool
+    freq: Span
+    damping: Span
+    freq_limit: bool
+    accel_set: str
+    accel_report: str
+    accel: Span
+    comment: str = ";"
+    save: tuple[str, ...] = ()
+    config_file: str | None = None
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def shapers(self) -> tuple[str, ...]:
+        """Canonical names of the shapers it has (``none`` included), from its flavour's formulas."""
+        return available_shapers(self.flavor)
+
+
+_KLIPPER_ACCEL = Span(1.0, 1e6, 3, why="Klipper takes any ACCEL > 0")
+_M204_2 = Span(1.0, 1e6, 2)
+_RRF_ACCEL = Span(1.0, 1e6, 1)
+_RRF35_FREQ = Span(750000.0 / 131070.0, 1000.0, 2, why="Duet 3: StepClockRate / (2·65535)")
+
+FIRMWARES: dict[str, Firmware] = {f.name: f for f in (
+    Firmware("klipper", "Klipper", "klipper", "klipper", "klipper", False,
+             Span(1.0, 1000.0, 3, why="ringtune's bound: Klipper takes any F > 0, but below 1 Hz one shaper "
+                                      "outlasts half a second and delays every step by that"),
+             Span(0.0, 0.99, 6), False, "SET_VELOCITY_LIMIT ACCEL={a}", "SET_VELOCITY_LIMIT",
+             _KLIPPER_ACCEL, ";", (), "printer.cfg"),
+    Firmware("rrf", "RepRapFirmware 3.6", "rrf", "rrf", "rrf", True, Span(4.0, 1000.0, 2),
+             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g"),
+    Firmware("rrf35", "RepRapFirmware 3.5", "rrf35", "rrf", "rrf", True, _RRF35_FREQ,
+             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g"),
+    Firmware("rrf34", "RepRapFirmware 3.4", "rrf35", "rrf", "rrf", True, _RRF35_FREQ,
+             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g"),
+    Firmware("marlin", "Marlin (classic input shaping)", "marlin", "marlin", "marlin", False,
+             Span(0.0, 1000.0, 2, lo_open=True, why="Marlin's own minimum F depends on the board"),
+             Span(0.0, 1.0, 3), True, "M204 P{a}", "M204", _M204_2, ";", ("M500",)),
+    Firmware("marlin-ftm", "Marlin FT_MOTION", "marlin-ftm", "marlin-ftm", "marlin", False,
+             Span(10.0, 500.0, 2, why="FTM_MIN_SHAPE_FREQ..FTM_FS/2"), Span(0.01, 1.0, 3), True,
+             "M204 P{a}", "M204", _M204_2, ";", ("M500",)),
+    Firmware("prusa", "Prusa-Firmware-Buddy", "klipper-legacy", "prusa", "marlin", False,
+             Span(10.0, 100.0, 2, why="it clamps other values to 10-100 Hz"), Span(0.0, 0.99, 3), False,
+             "M204 P{a}", "M204", _M204_2, ";", ("M593 W",)),
+)}
+
+
+def firmware_record(name: str, where: str = "firmware") -> Firmware:
+    """The record of ``name`` (case-insensitive: ``Klipper`` is ``klipper``); a refusal naming
+    the firmwares there are otherwise."""
+    from ringtune.shaping.errors import RingtuneError
+
+    key = name.strip().lower() if isinstance(name, str) else name
+    if key not in FIRMWARES:
+        raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {name!r}", where)
+    return FIRMWARES[key]
