@@ -152,3 +152,22 @@ def klipper_record(psds: dict[str, list], scv: float = 5.0, version: str = "head
     rec["version"] = version
     rec["scv"] = float(scv)
     return rec
+
+
+def recorded_files(measurement: dict, printer_path: str | Path | None) -> tuple[list[tuple[str, str]], list[str]]:
+    """The files a printer description records in ``[measurement]`` that are still here and
+    unchanged: ``([(path, axis), …], [missing or changed file, …])``. A recorded name is looked for
+    as written (relative to the working folder) and beside the description."""
+    found, missing = [], []
+    folder = Path(printer_path).resolve().parent if printer_path else None
+    for rec in measurement.get("files", []):
+        name = str(rec.get("name", ""))
+        candidates = [Path(name)]
+        if folder is not None:
+            candidates += [folder / name, folder / Path(name).name]
+        hit = next((c for c in candidates if c.is_file() and sha256_of(c) == rec.get("sha256")), None)
+        if hit is None:
+            missing.append(name)
+        else:
+            found.append((str(hit), str(rec.get("axis", ""))))
+    return found, missing

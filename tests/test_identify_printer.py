@@ -165,3 +165,27 @@ def test_bad_options_are_one_line(argv, where, data_dir, capsys):
     assert main(["identify", str(psd), *argv]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and where in err and "Traceback" not in err
+
+
+def test_recommend_on_a_printer_that_records_its_files_gives_the_files_recommendation(data_dir, tmp_path, capsys):
+    """Issue 14: `recommend --printer P` on identify's TOML equals `recommend --accel` on the files
+    (it gave the model's simulated test before: X ei @ 53.2, Y mzv @ 38.4); with the files changed
+    or gone, the recommendation recorded from them."""
+    files = sorted((data_dir / ENDER3).glob("*.csv"))
+    toml = tmp_path / "p.toml"
+    assert main(["identify", *map(str, files), "-o", str(toml)]) == 0
+    capsys.readouterr()
+    assert main(["recommend", "--accel", *map(str, files), "--json"]) == 0
+    want = json.loads(capsys.readouterr().out)["config"]
+    keys = ("shaper_x", "freq_x", "shaper_y", "freq_y", "accel")
+    assert main(["recommend", "--printer", str(toml), "--json"]) == 0
+    captured = capsys.readouterr()
+    got = json.loads(captured.out)
+    assert [got["config"][k] for k in keys] == [want[k] for k in keys]
+    assert got["sources"]["x"] == [str(files[0])] and "identified from" in captured.err
+    text = toml.read_text()
+    toml.write_text(text.replace(tomllib.loads(text)["measurement"]["files"][0]["sha256"], "0" * 64))
+    assert main(["recommend", "--printer", str(toml), "--json"]) == 0
+    captured = capsys.readouterr()
+    assert [json.loads(captured.out)["config"][k] for k in keys] == [want[k] for k in keys]
+    assert "not found here (or changed)" in captured.err and "[measurement.klipper]" in captured.err
