@@ -189,3 +189,20 @@ def test_recommend_on_a_printer_that_records_its_files_gives_the_files_recommend
     captured = capsys.readouterr()
     assert [json.loads(captured.out)["config"][k] for k in keys] == [want[k] for k in keys]
     assert "not found here (or changed)" in captured.err and "[measurement.klipper]" in captured.err
+
+
+def test_motor_option_names_the_motors_and_stops_saying_the_default(data_dir, tmp_path, capsys):
+    from ringtune.envs.motors import lookup_motor
+
+    files = sorted((data_dir / ENDER3).glob("*.csv"))
+    out = tmp_path / "p.toml"
+    assert main(["identify", *map(str, files), "--motor", "X=LDO-42STH48-2504AC:1.2:24,Y=ldo-42sth40-1684ac",
+                 "--mass", "X=0.62,Y=1.4", "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "default: motor (" not in err and "default: masses" not in err
+    assert "run_current" in err                       # Y's run current was not given: said aloud
+    printer = load_printer(out)
+    x, y = printer.motor_for("x"), printer.motor_for("y")
+    assert (x.name.lower(), x.run_current, x.voltage) == ("ldo-42sth48-2504ac", 1.2, 24.0)
+    assert x.holding_torque == lookup_motor("ldo-42sth48-2504ac").holding_torque
+    assert y.name.lower() == "ldo-42sth40-1684ac" and (printer.x.mass, printer.y.mass) == (0.62, 1.4)

@@ -131,10 +131,14 @@ def _motor(v: str) -> dict:
     """``NAME[:RUN_CURRENT[:VOLTAGE]]`` -> {name, run_current, voltage}."""
     from ringtune.shaping.errors import RingtuneError
 
+    from ringtune.envs.motors import lookup_motor, unknown_motor_message
+
     parts = v.split(":")
     if len(parts) > 3 or not parts[0].strip():
         raise RingtuneError(f"expected NAME[:RUN_CURRENT[:VOLTAGE]], not {v!r}", "--motor")
     spec: dict = {"name": parts[0].strip()}
+    if lookup_motor(spec["name"]) is None:
+        raise RingtuneError(unknown_motor_message(spec["name"]), "--motor")
     for key, unit, text in zip(("run_current", "voltage"), ("A", "V"), parts[1:]):
         try:
             value = float(text)
@@ -259,9 +263,15 @@ def run(args, out) -> int:
     desc = build_description(fits, name=args.name, kinematics=args.kinematics, base=args.base,
                              masses=masses, added=added, facts=facts, motors=motors,
                              measurement=measurement)
-    toml = description_toml(desc, ["Printer description written by `ringtune identify` from "
-                                   + ", ".join(Path(f).name for f in [*args.files, *loaded_files])])
-    _validate(toml)
+    header = ["Printer description written by `ringtune identify` from "
+              + ", ".join(Path(f).name for f in [*args.files, *loaded_files])]
+    printer = _validate(description_toml(desc, header))
+    for ax in ("x", "y"):                        # what a named motor's drive still assumes
+        for sentence in printer.motor_for(ax).assumed:
+            said = f"motor: {sentence}"
+            if said not in desc.defaults:
+                desc.defaults.append(said)
+    toml = description_toml(desc, header)
 
     for w in warnings:
         out.note(f"warning: {w}")
@@ -308,10 +318,10 @@ def run(args, out) -> int:
     return 0
 
 
-def _validate(toml: str) -> None:
-    """The written description must load: check it before anything is written."""
+def _validate(toml: str):
+    """The written description must load: the Printer, checked before anything is written."""
     import tomllib
 
     from ringtune.envs.printer import printer_from_dict
 
-    printer_from_dict(tomllib.loads(toml), "the identified printer")
+    return printer_from_dict(tomllib.loads(toml), "the identified printer")
