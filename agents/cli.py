@@ -34,6 +34,7 @@ COMMAND_MODULES = [
     "plan",
     "limit",
     "identify",
+    "printer",
     "motor",
     "export",
     "push",

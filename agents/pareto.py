@@ -1,4 +1,11 @@
-"""Points, Pareto fronts and the choice of one point (shared by the study, the grid and reports)."""
+"""Points, Pareto fronts, comparison at a stated resolution, and the choice of one point (shared by
+the study, the grid and reports).
+
+Comparisons ("better", "same", "worse", "dominates") are made at a resolution (:class:`Resolution`):
+differences of distances smaller than 1 µm or 5 % of the larger value, whichever is larger, and of
+print time smaller than 0.5 %, are "the same" — below what the model resolves or a print shows.
+A configuration dominates another when no compared figure is worse and at least one is better.
+"""
 
 from __future__ import annotations
 
@@ -18,14 +25,47 @@ from ringtune.shaping.errors import RingtuneError
 #: µm of overshoot); Klipper bounds the same thing with its smoothing target (0.12 mm). 0.1 mm is
 #: a quarter of a 0.4 mm extrusion width.
 DEFAULT_MAX_PATH_ERROR_MM = 0.1
+#: fraction of each motor's force at its speed kept in reserve by default (``--motor-reserve 20``):
+#: ``motor_load`` ≤ 1 − reserve, so that modelling error (mass, motor constants, a drifting
+#: resonance) does not turn into skipped steps
+DEFAULT_MOTOR_RESERVE = 0.2
 
-METRIC_KEYS = ("print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss")
+METRIC_KEYS = ("print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss",
+               "motor_load")
+#: the figures a comparison judges: print time and the two quality figures every report shows
+COMPARED = ("print_time_s", "overshoot_mm", "path_error_mm")
+
+
+@dataclass(frozen=True)
+class Resolution:
+    """Differences below these are "the same": distances (mm) under ``distance_mm`` or
+    ``distance_rel`` of the larger of the two values (whichever is larger); print time (s) under
+    ``time_rel`` of the larger."""
+
+    distance_mm: float = 0.001
+    distance_rel: float = 0.05
+    time_rel: float = 0.005
+
+    def tolerance(self, key: str, a: float, b: float) -> float:
+        big = max(abs(a), abs(b))
+        if key == "print_time_s":
+            return self.time_rel * big
+        return max(self.distance_mm, self.distance_rel * big)
+
+    def describe(self) -> str:
+        return (f"differences under {self.distance_mm * 1000:g} µm or {self.distance_rel * 100:g} % "
+                f"(whichever is larger) for distances and under {self.time_rel * 100:g} % for print time "
+                "count as the same")
+
+
+DEFAULT_RESOLUTION = Resolution()
 
 
 @dataclass
 class Point:
     """One evaluated configuration (a trial, a grid point or a baseline). A point is feasible
-    unless it loses steps or its path error is over the bound it was judged with (``too_rough``)."""
+    unless it loses steps, its path error is over the bound it was judged with (``too_rough``) or
+    its motor load is over 1 − the motor reserve (``overloaded``)."""
 
     config: TuneConfig
     print_time_s: float
@@ -35,27 +75,80 @@ class Point:
     label: str = ""
     number: int | None = None
     too_rough: bool = False
+    overloaded: bool = False
 
     @property
     def feasible(self) -> bool:
-        return not (self.step_loss or self.too_rough)
+        return not (self.step_loss or self.too_rough or self.overloaded)
 
     def dominates(self, other: "Point") -> bool:
+        """Strict Pareto dominance on the two objectives (no resolution; the front's relation)."""
         return (self.print_time_s <= other.print_time_s and self.quality_mm <= other.quality_mm
                 and (self.print_time_s < other.print_time_s or self.quality_mm < other.quality_mm))
 
+    def value(self, key: str) -> float | None:
+        if key == "print_time_s":
+            return self.print_time_s
+        v = self.metrics.get(key)
+        return None if v is None else float(v)
+
+
+@dataclass
+class Judgement:
+    """How ``point`` compares with ``base`` at a resolution: per figure ``better|same|worse``
+    (from the point's side), ``feasible`` both ways, and ``dominates`` (nothing worse, something
+    better, and the point not ruled out where the base is not)."""
+
+    verdicts: dict
+    dominates: bool
+    resolution: Resolution
+
+    def worse(self) -> list[str]:
+        return [k for k, v in self.verdicts.items() if v == "worse"]
+
+
+def verdict(key: str, mine: float, theirs: float, res: Resolution = DEFAULT_RESOLUTION) -> str:
+    """``better``, ``same`` or ``worse`` for a figure where lower is better."""
+    d = float(mine) - float(theirs)
+    tol = res.tolerance(key, mine, theirs)
+    return "worse" if d > tol else "better" if d < -tol else "same"
+
+
+def judge(point: Point, base: Point, res: Resolution = DEFAULT_RESOLUTION,
+          keys: Sequence[str] = COMPARED) -> Judgement:
+    """Compare ``point`` with ``base`` on ``keys`` (figures both have) and on feasibility."""
+    v = {}
+    for k in keys:
+        a, b = point.value(k), base.value(k)
+        if a is not None and b is not None:
+            v[k] = verdict(k, a, b, res)
+    if not point.feasible and base.feasible:
+        v["feasible"] = "worse"
+    elif point.feasible and not base.feasible:
+        v["feasible"] = "better"
+    else:
+        v["feasible"] = "same"
+    vals = list(v.values())
+    return Judgement(v, "worse" not in vals and "better" in vals, res)
+
 
 def metrics_dict(m) -> dict:
-    """The :data:`METRIC_KEYS` of a metrics object as plain floats (``step_loss`` a bool)."""
-    return {k: bool(getattr(m, k)) if k == "step_loss" else float(getattr(m, k)) for k in METRIC_KEYS}
+    """The :data:`METRIC_KEYS` of a metrics object as plain floats (``step_loss`` a bool; a
+    figure the object lacks, e.g. ``motor_load`` of a custom evaluator, is left out)."""
+    out = {}
+    for k in METRIC_KEYS:
+        if hasattr(m, k):
+            out[k] = bool(getattr(m, k)) if k == "step_loss" else float(getattr(m, k))
+    return out
 
 
 def point_from_metrics(config: TuneConfig, m, quality: str, *, label: str = "", number: int | None = None,
-                       max_path_error_mm: float = 0.0) -> Point:
-    """A :class:`Point` from a metrics object; ``max_path_error_mm`` > 0 bounds the path error (mm)."""
+                       max_path_error_mm: float = 0.0, max_motor_load: float = 0.0) -> Point:
+    """A :class:`Point` from a metrics object; ``max_path_error_mm`` > 0 bounds the path error (mm),
+    ``max_motor_load`` > 0 the motor load (fraction)."""
     p = Point(config, float(m.print_time_s), float(getattr(m, quality)), bool(m.step_loss), metrics_dict(m),
               label, number)
-    return judge_path_error(p, max_path_error_mm)
+    return judge_bounds(p, max_path_error_mm, max_motor_load)
 
 
 def judge_path_error(p: Point, max_path_error_mm: float) -> Point:
@@ -63,6 +156,19 @@ def judge_path_error(p: Point, max_path_error_mm: float) -> Point:
     pe = p.metrics.get("path_error_mm")
     p.too_rough = bool(max_path_error_mm > 0 and pe is not None and pe > max_path_error_mm)
     return p
+
+
+def judge_motor_load(p: Point, max_motor_load: float) -> Point:
+    """Mark ``p`` overloaded when its motor load exceeds ``max_motor_load`` (fraction of the force
+    the motor has at its speed; 0 = no bound)."""
+    load = p.metrics.get("motor_load")
+    p.overloaded = bool(max_motor_load > 0 and load is not None and load > max_motor_load)
+    return p
+
+
+def judge_bounds(p: Point, max_path_error_mm: float = 0.0, max_motor_load: float = 0.0) -> Point:
+    """Both bounds at once (0 = no bound)."""
+    return judge_motor_load(judge_path_error(p, max_path_error_mm), max_motor_load)
 
 
 def pareto_front(points: Sequence[Point]) -> list[Point]:
@@ -79,24 +185,102 @@ def pareto_front(points: Sequence[Point]) -> list[Point]:
 
 #: mm: quality differences smaller than this are not worth print time when choosing the knee
 KNEE_QUALITY_SCALE = 0.01
+PICKS = ("fastest-at-baseline-quality", "knee", "weight")
 
 
-def choose(front: Sequence[Point], weight: float | None = None) -> Point:
-    """The point to use: minimising ``print_time_s + weight·quality_mm`` (weight in s/mm), or else
-    the knee — the front point closest to the ideal corner after scaling print time by the front's
-    range and quality by its range but at least :data:`KNEE_QUALITY_SCALE` (10 µm; so that a front
-    whose points all lie within a few micrometres is not bought with seconds)."""
+@dataclass
+class Choice:
+    """The chosen point, how (``by``: one of :data:`PICKS`), against which baseline (key or None)
+    and a sentence saying so."""
+
+    point: Point
+    by: str
+    baseline: str | None
+    sentence: str
+
+
+def _no_front() -> RingtuneError:
+    return RingtuneError("no feasible configuration was found (every trial lost steps, exceeded "
+                         "--max-path-error or left less than --motor-reserve of the motors' force); lower the "
+                         "acceleration range, raise --max-path-error or run more trials", "tune")
+
+
+def knee(front: Sequence[Point]) -> Point:
+    """The front point closest to the ideal corner after scaling print time by the front's range
+    and quality by its range but at least :data:`KNEE_QUALITY_SCALE` (10 µm; so that a front whose
+    points all lie within a few micrometres is not bought with seconds)."""
     if not front:
-        raise RingtuneError("no feasible configuration was found (every trial lost steps or exceeded "
-                            "--max-path-error); lower the acceleration range, raise --max-path-error or "
-                            "run more trials", "tune")
-    if weight is not None:
-        return min(front, key=lambda p: p.print_time_s + weight * p.quality_mm)
+        raise _no_front()
     t = np.array([p.print_time_s for p in front])
     q = np.array([p.quality_mm for p in front])
     tn = (t - t.min()) / max(t.max() - t.min(), 1e-12)
     qn = (q - q.min()) / max(q.max() - q.min(), KNEE_QUALITY_SCALE)
     return front[int(np.argmin(np.hypot(tn, qn)))]
+
+
+def choose(front: Sequence[Point], weight: float | None = None) -> Point:
+    """The point minimising ``print_time_s + weight·quality_mm`` (weight in s/mm), or else the knee."""
+    if not front:
+        raise _no_front()
+    if weight is not None:
+        return min(front, key=lambda p: p.print_time_s + weight * p.quality_mm)
+    return knee(front)
+
+
+def at_baseline_quality(front: Sequence[Point], base: Point, res: Resolution = DEFAULT_RESOLUTION) -> list[Point]:
+    """Front points at least as fast as ``base`` whose overshoot and path error are no worse than
+    its (at the resolution; "same" counts as no worse)."""
+    out = []
+    for p in front:
+        j = judge(p, base, res)
+        if all(j.verdicts.get(k) in ("better", "same", None) for k in COMPARED) and \
+                p.print_time_s <= base.print_time_s:
+            out.append(p)
+    return out
+
+
+def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastest-at-baseline-quality",
+         weight: float | None = None, res: Resolution = DEFAULT_RESOLUTION) -> Choice:
+    """Choose the configuration to use.
+
+    ``fastest-at-baseline-quality`` (default): the reference baselines are the feasible shaped
+    ones (Klipper's rule, what the printer runs now; no shaping only when there is no other),
+    best quality first; for the first the front can match — a front point at least as fast with
+    no worse overshoot and path error — the fastest such point ("same quality, faster"). Where the
+    front matches none, the knee, and the sentence says so. ``knee``: :func:`knee`. ``weight``:
+    minimises print time + ``weight`` × quality (s/mm)."""
+    if not front:
+        raise _no_front()
+    if how == "weight":
+        if weight is None:
+            raise RingtuneError("--pick weight needs --weight W (seconds per mm)", "--pick")
+        return Choice(choose(front, weight), "weight", None,
+                      f"minimises print time + {weight:g} s/mm × quality")
+    if how == "knee":
+        return Choice(knee(front), "knee", None, "the knee of the front (closest to the ideal corner, time "
+                      "scaled by the front's range, quality by its range but at least 10 µm)")
+    if how != "fastest-at-baseline-quality":
+        raise RingtuneError(f"must be one of {', '.join(PICKS)}, not {how!r}", "--pick")
+    usable = {k: b for k, b in baselines.items() if b.feasible}
+    shaped = {k: b for k, b in usable.items() if k != "none"}
+    refs = sorted((shaped or usable).items(), key=lambda kv: kv[1].quality_mm)
+    for key, b in refs:
+        cands = at_baseline_quality(front, b, res)
+        if cands:
+            p = min(cands, key=lambda p: (p.print_time_s, p.quality_mm))
+            lead = "" if key == refs[0][0] else \
+                f"no front point matches {BASELINE_NAMES.get(refs[0][0], refs[0][0])}'s quality at its speed; "
+            return Choice(p, "fastest-at-baseline-quality", key,
+                          f"{lead}the fastest front point whose overshoot and path error are no worse than "
+                          f"{BASELINE_NAMES.get(key, key)}'s (same quality, faster)")
+    why = "there is no usable baseline to match" if not refs else \
+        "no front point is as fast as " + " or ".join(BASELINE_NAMES.get(k, k) for k, _ in refs) + \
+        " with no worse overshoot and path error"
+    return Choice(knee(front), "knee", None, f"the knee of the front, because {why}")
+
+
+#: short names of the baselines in sentences
+BASELINE_NAMES = {"klipper": "Klipper's rule", "current": "what the printer runs now", "none": "no shaping"}
 
 
 def scalar_objective(p: Point, weight: float) -> float:

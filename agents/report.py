@@ -15,18 +15,21 @@ Files (all in ``out_dir``):
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
-from ringtune.agents.pareto import Point
+from ringtune.agents.pareto import (BASELINE_NAMES, DEFAULT_RESOLUTION, Choice, Point, Resolution, judge)
+from ringtune.agents.pareto_plot import plot_front
 
 QUALITY_LABEL = {"overshoot_mm": "overshoot", "path_error_mm": "path error"}
 
 
 @dataclass
 class Comparison:
-    """How ``point`` compares with a baseline (positive = better than the baseline)."""
+    """How ``point`` compares with a baseline (positive = better than the baseline), with the
+    verdict per figure at the resolution (``better|same|worse``) and ``dominates`` (nothing worse,
+    something better; :func:`ringtune.agents.pareto.judge`)."""
 
     baseline: str
     faster_s: float
@@ -34,26 +37,56 @@ class Comparison:
     better_mm: float
     better_pct: float
     dominates: bool
+    metrics: dict = field(default_factory=dict)
+    path_error_better_mm: float | None = None
+    path_error_better_pct: float | None = None
 
     def sentence(self, quality: str) -> str:
         word = QUALITY_LABEL.get(quality, quality)
-        t = (f"{self.faster_s:.3f} s faster ({self.faster_pct:.1f} %)" if self.faster_s >= 0
-             else f"{-self.faster_s:.3f} s slower ({-self.faster_pct:.1f} %)")
-        q = (f"{self.better_mm * 1000:.1f} µm less {word} ({self.better_pct:.1f} %)" if self.better_mm >= 0
-             else f"{-self.better_mm * 1000:.1f} µm more {word} ({-self.better_pct:.1f} %)")
-        return f"{t}, {q}" + (" — dominates it" if self.dominates else "")
+
+        def same(key):
+            return ": the same" if self.metrics.get(key) == "same" else ""
+        t = (f"{self.faster_s:.3f} s faster ({self.faster_pct:.1f} %{same('print_time_s')})" if self.faster_s >= 0
+             else f"{-self.faster_s:.3f} s slower ({-self.faster_pct:.1f} %{same('print_time_s')})")
+        parts = [t, _diff(self.better_mm, self.better_pct, word, same(quality))]
+        if quality != "path_error_mm" and self.path_error_better_mm is not None:
+            parts.append(_diff(self.path_error_better_mm, self.path_error_better_pct, "path error",
+                               same("path_error_mm")))
+        worse = [_NAMES.get(k, k) for k, v in self.metrics.items() if v == "worse"]
+        tail = (" — dominates it" if self.dominates else
+                f" — does not dominate it (worse {', '.join(worse)})" if worse else
+                " — the same within the resolution")
+        return "; ".join(parts) + tail
+
+    def to_dict(self) -> dict:
+        return dict(self.__dict__)
 
 
-def compare(point: Point, base: Point) -> Comparison:
+_NAMES = {"print_time_s": "print time", "overshoot_mm": "overshoot", "path_error_mm": "path error",
+          "feasible": "feasibility (it breaks a bound the baseline keeps)"}
+
+
+def _diff(better_mm: float, pct: float | None, word: str, same: str = "") -> str:
+    p = f" ({abs(pct):.1f} %{same})" if pct is not None else (f" ({same[2:]})" if same else "")
+    return (f"{better_mm * 1000:.1f} µm less {word}{p}" if better_mm >= 0
+            else f"{-better_mm * 1000:.1f} µm more {word}{p}")
+
+
+def compare(point: Point, base: Point, res: Resolution = DEFAULT_RESOLUTION) -> Comparison:
     dt = base.print_time_s - point.print_time_s
     dq = base.quality_mm - point.quality_mm
+    j = judge(point, base, res)
+    pe_p, pe_b = point.value("path_error_mm"), base.value("path_error_mm")
+    dpe = None if pe_p is None or pe_b is None else pe_b - pe_p
     return Comparison(base.label, dt, 100.0 * dt / base.print_time_s if base.print_time_s else 0.0,
-                      dq, 100.0 * dq / base.quality_mm if base.quality_mm else 0.0, point.dominates(base))
+                      dq, 100.0 * dq / base.quality_mm if base.quality_mm else 0.0, j.dominates, j.verdicts,
+                      dpe, None if dpe is None or not pe_b else 100.0 * dpe / pe_b)
 
 
-def best_dominating(front: Sequence[Point], base: Point) -> Point | None:
-    """The front point dominating ``base`` with the largest summed relative gain, or None."""
-    dom = [p for p in front if p.dominates(base)]
+def best_dominating(front: Sequence[Point], base: Point, res: Resolution = DEFAULT_RESOLUTION) -> Point | None:
+    """The front point dominating ``base`` at the resolution with the largest summed relative
+    gain, or None."""
+    dom = [p for p in front if judge(p, base, res).dominates]
     if not dom:
         return None
 
@@ -79,56 +112,7 @@ def describe(cfg) -> str:
     return ", ".join(parts)
 
 
-def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chosen: Point,
-               baselines: dict[str, Point], quality: str, title: str) -> None:
-    """Pareto front PNG: axes in s and mm, chosen point and baselines marked."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(8.5, 6), dpi=120)
-    feas = [p for p in points if p.feasible]
-    bad = [p for p in points if p.step_loss]
-    rough = [p for p in points if p.too_rough and not p.step_loss]
-    if rough:
-        ax.scatter([p.print_time_s for p in rough], [p.quality_mm for p in rough], s=12, marker="+",
-                   c="tab:purple", alpha=0.5, label=f"path error over the bound ({len(rough)}, excluded)", zorder=1)
-    if feas:
-        ax.scatter([p.print_time_s for p in feas], [p.quality_mm for p in feas], s=10, c="0.75",
-                   label=f"trials ({len(feas)})", zorder=1)
-    if bad:
-        ax.scatter([p.print_time_s for p in bad], [p.quality_mm for p in bad], s=14, marker="x", c="tab:red",
-                   alpha=0.5, label=f"lost steps ({len(bad)}, excluded)", zorder=1)
-    if front:
-        ax.step([p.print_time_s for p in front], [p.quality_mm for p in front], where="post", c="tab:blue",
-                lw=1.5, zorder=2)
-        ax.scatter([p.print_time_s for p in front], [p.quality_mm for p in front], s=22, c="tab:blue",
-                   label=f"Pareto front ({len(front)})", zorder=3)
-    style = {"klipper": ("s", "tab:orange", "Klipper's rule"), "none": ("^", "black", "no shaping")}
-    for key, p in baselines.items():
-        m, c, lab = style.get(key, ("D", "tab:purple", key))
-        ax.scatter([p.print_time_s], [p.quality_mm], s=90, marker=m, c=c, edgecolors="white", zorder=5,
-                   label=f"{lab}: {p.print_time_s:.2f} s, {p.quality_mm * 1000:.1f} µm")
-    ax.scatter([chosen.print_time_s], [chosen.quality_mm], s=260, marker="*", c="gold", edgecolors="black",
-               zorder=6, label=f"chosen: {chosen.print_time_s:.2f} s, {chosen.quality_mm * 1000:.1f} µm")
-    ax.set_xlabel("print time (s)")
-    ax.set_ylabel(f"{QUALITY_LABEL.get(quality, quality)} (mm)")
-    ax.set_title(title, fontsize=10)
-    ax.grid(True, alpha=0.3)
-    ys = [p.quality_mm for p in front] + [p.quality_mm for p in baselines.values()]
-    if ys and min(ys) > 0 and max(ys) / min(ys) > 30:   # the no-shaping point would flatten the front
-        ax.set_yscale("log")
-        ys = []
-    if ys and max(ys) > 0:
-        ax.set_ylim(0, 1.15 * max(ys + [chosen.quality_mm]))
-    ax.legend(fontsize=8, loc="upper right")
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-
-
-_ROW_KEYS = ("print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss")
+_ROW_KEYS = ("print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss", "motor_load")
 
 
 def _row(p: Point) -> dict[str, Any]:
@@ -166,82 +150,113 @@ def front_table(front: Sequence[Point], chosen: Point, quality: str) -> str:
     return "\n".join(lines)
 
 
-def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Point], chosen: Point,
+def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Point], choice: Choice,
                  baselines: dict[str, Point], quality: str, printer_name: str, job_name: str,
-                 firmware: str, n_trials: int, storage: str, study_name: str, weight: float | None,
-                 command: str = "ringtune tune", notes: Sequence[str] = (),
-                 max_path_error_mm: float = 0.0) -> dict[str, Any]:
-    """Write the output folder; returns the summary dict (also the CLI's --json)."""
+                 firmware: str, n_trials: int, storage: str, study_name: str,
+                 command: str = "ringtune tune", notes: Sequence[str] = (), max_path_error_mm: float = 0.0,
+                 motor_reserve: float = 0.0, resolution: Resolution = DEFAULT_RESOLUTION,
+                 baseline_labels: dict[str, str] | None = None, sections: Sequence[tuple[str, list[str]]] = (),
+                 export_firmware: str | None = None, best_extra: dict | None = None) -> dict[str, Any]:
+    """Write the output folder; returns the summary dict (also the CLI's --json).
+
+    ``baseline_labels``: how each baseline is named (e.g. "Klipper's rule on a simulated resonance
+    test"); ``sections``: (title, lines) blocks printed after the baselines (the acceleration's
+    limit, the job's own accelerations); ``export_firmware``: the dialect apply.txt is written in
+    (default ``firmware``); ``best_extra``: more keys for best.json's extra."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    chosen = choice.point
     word = QUALITY_LABEL.get(quality, quality)
-    how = f"minimises print time + {weight:g} s/mm × {word}" if weight is not None else \
-        "the knee of the front: closest to the ideal corner with time scaled by the front's range and " \
-        "quality by its range, at least 10 µm"
+    labels = {k: (baseline_labels or {}).get(k, BASELINE_NAMES.get(k, k)) for k in baselines}
+    dialect = export_firmware or firmware
 
     best_cfg = chosen.config
     best_cfg.extra.update({"source": "ringtune tune", "printer": printer_name, "job": job_name,
                            "metrics": {k: chosen.metrics.get(k) for k in _ROW_KEYS if k in chosen.metrics},
-                           "chosen_by": "weight" if weight is not None else "knee"})
+                           "chosen_by": choice.by, **(best_extra or {})})
     best_cfg.save(out_dir / "best.json")
 
-    apply_text, apply_note = _apply_lines(best_cfg)
+    apply_text, apply_note = _apply_lines(best_cfg, dialect)
     (out_dir / "apply.txt").write_text(apply_text)
 
-    comparisons = {k: compare(chosen, b) for k, b in baselines.items()}
+    comparisons = {k: compare(chosen, b, resolution) for k, b in baselines.items()}
     dominating = {}
-    if "klipper" in baselines:
-        d = best_dominating(front, baselines["klipper"])
-        if d is not None:
-            dominating["klipper"] = (d, compare(d, baselines["klipper"]))
+    for k in ("klipper", "current"):
+        if k in baselines:
+            d = best_dominating(front, baselines[k], resolution)
+            if d is not None:
+                dominating[k] = (d, compare(d, baselines[k], resolution))
 
     title = f"{printer_name} · {job_name} · {firmware} · {len(points)} trials"
-    plot_front(out_dir / "pareto.png", points, front, chosen, baselines, quality, title)
+    arrows = plot_front(out_dir / "pareto.png", points, front, chosen, baselines, quality, title,
+                        max_path_error_mm=max_path_error_mm, baseline_labels=labels)
     _write_csv(out_dir / "front.csv", front)
     _write_csv(out_dir / "trials.csv", sorted(points, key=lambda p: p.number if p.number is not None else -1))
 
     s = [f"ringtune tune — {title}", ""]
-    s.append(f"CHOSEN ({how}):")
+    s.append(f"CHOSEN ({choice.sentence}):")
     s.append(f"  {describe(best_cfg)}")
-    s.append(f"  print time {chosen.print_time_s:.3f} s, {word} {chosen.quality_mm * 1000:.1f} µm"
-             + (f", path error {chosen.metrics['path_error_mm'] * 1000:.1f} µm"
-                if quality != "path_error_mm" and "path_error_mm" in chosen.metrics else ""))
+    s.append("  " + _figures(chosen, quality))
     s.append("")
     s.append("BASELINES (same printer, job and simulation):")
-    names = {"klipper": "Klipper's rule (its shapers at its suggested max_accel)", "none": "no shaping"}
     for k, b in baselines.items():
-        s.append(f"  {names.get(k, k)}: {describe(b.config)}")
-        s.append(f"    print time {b.print_time_s:.3f} s, {word} {b.quality_mm * 1000:.1f} µm"
-                 + (f", path error {b.metrics['path_error_mm'] * 1000:.1f} µm"
-                    if quality != "path_error_mm" and "path_error_mm" in b.metrics else "")
+        s.append(f"  {labels[k]}: {describe(b.config)}")
+        s.append("    " + _figures(b, quality)
                  + ("  (LOSES STEPS)" if b.step_loss else "")
-                 + ("  (PATH ERROR OVER THE BOUND)" if b.too_rough else ""))
+                 + ("  (PATH ERROR OVER THE BOUND)" if b.too_rough else "")
+                 + ("  (MOTOR LOAD OVER THE RESERVE)" if b.overloaded else ""))
         s.append(f"    chosen vs this: {comparisons[k].sentence(quality)}")
-    if "klipper" in baselines:
-        if "klipper" in dominating:
-            d, c = dominating["klipper"]
-            s.append(f"  Best front point dominating Klipper's rule: {describe(d.config)}")
+    for k in ("klipper", "current"):
+        if k not in baselines:
+            continue
+        if k in dominating:
+            d, c = dominating[k]
+            s.append(f"  Best front point dominating {labels[k]}: {describe(d.config)}")
             s.append(f"    {c.sentence(quality)}")
         else:
-            s.append("  No front point dominates Klipper's rule in this run (try more --trials).")
+            s.append(f"  No front point dominates {labels[k]} in this run (try more --trials).")
+    s.append(f"  (\"the same\", \"dominates\": {resolution.describe()}.)")
+    for head, lines in sections:
+        s.append("")
+        s.append(f"{head}:")
+        s.extend(f"  {line}" for line in lines)
     s.append("")
     s.append(f"PARETO FRONT ({len(front)} of {len(points)} trials; * = chosen):")
     s.append(front_table(front, chosen, quality))
     s.append("")
     n_rough = sum(p.too_rough and not p.step_loss for p in points)
     n_lost = sum(p.step_loss for p in points)
-    if max_path_error_mm > 0:
-        s.append(f"Ruled out: {n_lost} trials that lose steps, {n_rough} whose path error (corner rounding, "
-                 f"overshoot, ringing) exceeds {max_path_error_mm:g} mm (--max-path-error).")
-    elif n_lost:
-        s.append(f"Ruled out: {n_lost} trials that lose steps; path error is not bounded (--max-path-error 0).")
+    n_load = sum(p.overloaded and not p.too_rough and not p.step_loss for p in points)
+    ruled = [f"{n_lost} trials that lose steps"]
+    ruled.append(f"{n_rough} whose path error (corner rounding, overshoot, ringing) exceeds {max_path_error_mm:g} mm "
+                 "(--max-path-error)" if max_path_error_mm > 0 else "path error not bounded (--max-path-error 0)")
+    ruled.append(f"{n_load} that ask a motor for more than {(1 - motor_reserve) * 100:.0f} % of its force "
+                 "(--motor-reserve)" if motor_reserve > 0 else "motor load not bounded (--motor-reserve 0)")
+    s.append("Ruled out: " + "; ".join(ruled) + ". All are drawn in pareto.png.")
     s.extend(notes)
     s.append(f"Study '{study_name}' in {storage}; rerun the same command to resume or extend it (--trials).")
     if apply_note:
         s.append(apply_note)
     summary_text = "\n".join(s) + "\n"
     (out_dir / "summary.txt").write_text(summary_text)
-    (out_dir / "README.txt").write_text(_readme(out_dir, best_cfg, firmware, storage, command))
+    (out_dir / "README.txt").write_text(_readme(out_dir, best_cfg, dialect, storage, command))
+
+    def base_dict(k, b):
+        return {"config": b.config.to_dict(), "print_time_s": b.print_time_s, "quality_mm": b.quality_mm,
+                "path_error_mm": b.metrics.get("path_error_mm"), "overshoot_mm": b.metrics.get("overshoot_mm"),
+                "motor_load": b.metrics.get("motor_load"), "step_loss": b.step_loss,
+                "breaks": [w for w, f in (("step_loss", b.step_loss), ("max_path_error", b.too_rough),
+                                          ("motor_reserve", b.overloaded)) if f],
+                "label": labels[k]}
+
+    def dom_dict(k):
+        if k not in baselines:
+            return None
+        if k not in dominating:
+            return None
+        d, c = dominating[k]
+        return {"config": d.config.to_dict(), "print_time_s": d.print_time_s, "quality_mm": d.quality_mm,
+                **c.to_dict()}
 
     result = {
         "out": str(out_dir),
@@ -249,16 +264,18 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         "front_size": len(front),
         "quality": quality,
         "max_path_error_mm": max_path_error_mm,
+        "motor_reserve": motor_reserve,
+        "resolution": {"distance_mm": resolution.distance_mm, "distance_rel": resolution.distance_rel,
+                       "time_rel": resolution.time_rel},
         "chosen": {"config": best_cfg.to_dict(), "print_time_s": chosen.print_time_s, "quality_mm": chosen.quality_mm,
-                   "chosen_by": "weight" if weight is not None else "knee"},
-        "baselines": {k: {"config": b.config.to_dict(), "print_time_s": b.print_time_s, "quality_mm": b.quality_mm,
-                          "step_loss": b.step_loss} for k, b in baselines.items()},
-        "vs_baselines": {k: c.__dict__ for k, c in comparisons.items()},
-        "dominates_klipper": None if "klipper" not in baselines else (
-            None if "klipper" not in dominating else {
-                "config": dominating["klipper"][0].config.to_dict(),
-                "print_time_s": dominating["klipper"][0].print_time_s,
-                "quality_mm": dominating["klipper"][0].quality_mm, **dominating["klipper"][1].__dict__}),
+                   "path_error_mm": chosen.metrics.get("path_error_mm"),
+                   "overshoot_mm": chosen.metrics.get("overshoot_mm"), "motor_load": chosen.metrics.get("motor_load"),
+                   "chosen_by": choice.by, "against": choice.baseline, "why": choice.sentence},
+        "baselines": {k: base_dict(k, b) for k, b in baselines.items()},
+        "vs_baselines": {k: c.to_dict() for k, c in comparisons.items()},
+        "dominates_klipper": dom_dict("klipper"),
+        "dominates_current": dom_dict("current"),
+        "plot_arrows": arrows,
         "files": {k: str(out_dir / v) for k, v in (("readme", "README.txt"), ("summary", "summary.txt"),
                                                    ("plot", "pareto.png"), ("best", "best.json"),
                                                    ("apply", "apply.txt"), ("front", "front.csv"),
@@ -267,16 +284,27 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
     return {"summary_text": summary_text, **result}
 
 
-def _apply_lines(cfg) -> tuple[str, str]:
+def _figures(p: Point, quality: str) -> str:
+    """print time, quality, path error and motor load of a point, one line."""
+    word = QUALITY_LABEL.get(quality, quality)
+    out = f"print time {p.print_time_s:.3f} s, {word} {p.quality_mm * 1000:.1f} µm"
+    if quality != "path_error_mm" and "path_error_mm" in p.metrics:
+        out += f", path error {p.metrics['path_error_mm'] * 1000:.1f} µm"
+    if p.metrics.get("motor_load"):
+        out += f", motor load {p.metrics['motor_load'] * 100:.0f} %"
+    return out
+
+
+def _apply_lines(cfg, dialect: str | None = None) -> tuple[str, str]:
     try:
         from ringtune.hardware.dialects import export_config
     except ImportError:
         return ("# hardware.dialects is not available; run `ringtune export best.json` later\n",
                 "apply.txt: firmware export was not available.")
     try:
-        return export_config(cfg).render(), ""
+        return export_config(cfg, dialect).render(), ""
     except Exception as exc:  # a firmware range refusal: say so instead of failing the study
-        return (f"# could not export for {cfg.firmware}: {exc}\n", f"apply.txt: {exc}")
+        return (f"# could not export for {dialect or cfg.firmware}: {exc}\n", f"apply.txt: {exc}")
 
 
 def _readme(out_dir: Path, cfg, firmware: str, storage: str, command: str) -> str:
@@ -284,20 +312,25 @@ def _readme(out_dir: Path, cfg, firmware: str, storage: str, command: str) -> st
 =================================
 
 1. summary.txt   The answer: the chosen input-shaping configuration, and how it compares with
-                 Klipper's own rule and with no shaping on the same printer and job (seconds and
-                 micrometres). Then the whole trade-off (the Pareto front) as a table.
-2. pareto.png    The trade-off as a picture: print time (s) against quality (mm). Grey dots are
-                 all trials, blue the best trade-offs, the gold star the chosen point, the orange
-                 square Klipper's rule, the black triangle no shaping; red crosses lost steps and
-                 purple plus signs left the path by more than --max-path-error (both ruled out).
-                 Lower-left is better.
+                 Klipper's own rule, with what the printer runs now (when known) and with no
+                 shaping on the same printer and job (seconds and micrometres). Then what stops
+                 the acceleration, and the whole trade-off (the Pareto front) as a table.
+2. pareto.png    The trade-off as a picture: print time (s) against overshoot and against path
+                 error (mm). Grey dots are trials, blue the best trade-offs, the gold star the
+                 chosen point, the orange square Klipper's rule, the green diamond what the printer
+                 runs now, the black triangle no shaping (a red edge: it breaks a bound). Red
+                 crosses lost steps, purple plus signs left the path by more than
+                 --max-path-error, brown marks asked a motor for more than --motor-reserve allows
+                 (all ruled out); arrows at an edge are points beyond the scale. Lower-left is better.
 3. apply.txt     The exact {firmware} lines that put the chosen configuration on the printer.
                  Or: ringtune export {out_dir / 'best.json'} --firmware {firmware}
                      ringtune push {out_dir / 'best.json'} --port /dev/ttyUSB0 --firmware {firmware}
 4. best.json     The chosen configuration (TuneConfig) for ringtune simulate / export / push.
 5. front.csv, trials.csv   Every point of the front and every trial, for your own analysis.
 
-To pick another point of the front: rerun with --weight W (seconds of print time you would
-give for 1 mm less error; e.g. --weight 100). The study itself is kept in {storage}:
-running the same command again ({command}) resumes it with nothing lost; --trials N extends it.
+To pick another point of the front: rerun with --pick knee, or --weight W (seconds of print time
+you would give for 1 mm less error; e.g. --weight 100). The study itself is kept in {storage}:
+running the same command again resumes it with nothing lost:
+  {command}
+(--trials N extends it to N trials).
 """

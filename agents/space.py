@@ -16,6 +16,7 @@ serves Optuna trials, grid points and stored trials, so they can never disagree.
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -42,6 +43,12 @@ class SearchSpace:
     accel_step: float = 100.0
     freq_step: float = 0.1
     min_speed_factor: float = 0.3
+    accel_basis: str = ""               # what sets the acceleration range's top (for the summary)
+
+    @property
+    def accel_fixed(self) -> bool:
+        """The acceleration is not searched (one value: it has no effect, or the user fixed it)."""
+        return self.accel[0] == self.accel[1]
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -57,12 +64,15 @@ class SearchSpace:
 
 
 def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float, float] | None = None,
-                  shapers: tuple[str, ...] | None = None) -> SearchSpace:
+                  shapers: tuple[str, ...] | None = None, speed: float | None = None) -> SearchSpace:
     """The default space for ``printer`` on ``firmware``.
 
     F spans 0.6×–1.8× the axis's lowest/highest mode (clipped to 10–200 Hz); S 0–0.2 (capped
-    by the offered shapers' limits); acceleration 0.3×–2.5× the printer's own limit; frequency limit
-    10–80 Hz with every method.
+    by the offered shapers' limits); frequency limit 10–80 Hz with every method; acceleration
+    from 0.3× the printer's own limit up to :func:`accel_ceiling` at the job's top speed
+    ``speed`` (mm/s; default the printer's velocity limit): where the weakest motor would need all
+    its force, or the firmware's per-axis maximum if lower. ``accel`` = (lo, hi) overrides it
+    (lo = hi: the acceleration is not searched).
     """
     from ringtune.shaping.shapers import available_shapers, max_damping
 
@@ -86,13 +96,67 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
     per_axis = not FIRMWARES[firmware].one_shaper
     if not per_axis:
         ranges["x"] = ranges["y"] = (min(ranges["x"][0], ranges["y"][0]), max(ranges["x"][1], ranges["y"][1]))
-    a0 = float(printer.limits.accel)
-    acc = accel or (max(100.0, round(0.3 * a0, -2)), round(2.5 * a0, -2))
+    if accel is not None:
+        acc, basis = accel, "--accel-range"
+    else:
+        top, basis = accel_ceiling(printer, speed)
+        hi = max(100.0, math.floor(top / 100.0) * 100.0)
+        lo = min(max(100.0, round(0.3 * float(printer.limits.accel), -2)), max(100.0, round(hi / 3.0, -2)))
+        acc = (lo, hi)
     if not (0 < acc[0] <= acc[1]):
         raise RingtuneError(f"acceleration range must be 0 < lo ≤ hi, not {acc}", "--accel-range")
     return SearchSpace(firmware=firmware, shapers=offered, per_axis=per_axis, freq_x=ranges["x"],
                        freq_y=ranges["y"], damping=(0.0, float(zmax)), freq_limit_methods=FREQ_LIMIT_METHODS,
-                       freq_limit_hz=(10.0, 80.0), accel=(float(acc[0]), float(acc[1])))
+                       freq_limit_hz=(10.0, 80.0), accel=(float(acc[0]), float(acc[1])), accel_basis=basis)
+
+
+def motor_accel_limit(printer: Any, speed: float, n_dir: int = 181) -> tuple[float, str]:
+    """(mm/s², motor name): the acceleration at which the weakest motor would need all its force
+    while the head moves at ``speed`` (mm/s) in the worst direction, rigid machine.
+
+    Moving along the unit vector u at acceleration a, the axes need the forces m_ax·a·u_ax (moving
+    masses, kg, print on the bed included); the motors (``Printer.drive_motors``: drive vectors
+    D_k, belt speed per unit head speed) share them by the least-squares inverse P of the drive,
+    as the simulation does: motor k gives a·Σ_ax P_ax,k·m_ax·u_ax at the belt, plus its rotor's
+    reflected mass m_r·a·(D_k·u) and its friction, at belt speed speed·|D_k·u|, where it has
+    ``max_force(speed·|D_k·u|)``. The result is the smallest a over directions (``n_dir`` from 0
+    to 180°; diagonals load one CoreXY motor most) and motors at which demand meets force; on pure
+    axis moves it equals ``Printer.motor_accel_limit``."""
+    th = np.linspace(0.0, np.pi, n_dir)
+    u = np.stack([np.cos(th), np.sin(th)], axis=1)                      # (n, 2)
+    motors = printer.drive_motors()
+    D = np.array([d for _n, _m, d in motors], float).T                  # (2, k)
+    P = np.linalg.pinv(D.T)                                             # (2, k)
+    mass = np.array([printer.moving_mass("x"), printer.moving_mass("y")])
+    best, who = np.inf, ""
+    for k, (name, mo, _d) in enumerate(motors):
+        proj = u @ D[:, k]                                              # motor mm per head mm
+        per_accel = np.abs(u @ (P[:, k] * mass) + mo.rotor_mass * proj) * 1e-3   # N per mm/s²
+        avail = np.asarray(mo.max_force(speed * np.abs(proj)), float) - mo.friction
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a = np.where(per_accel > 1e-12, np.maximum(avail, 0.0) / per_accel, np.inf)
+        i = int(np.argmin(a))
+        if a[i] < best:
+            names = dict(_MOTOR_NAMES, b="B motor (stepper_z)") if printer.kinematics == "corexz" else _MOTOR_NAMES
+            best, who = float(a[i]), names.get(name, f"{name} motor")
+    return best, who
+
+
+_MOTOR_NAMES = {"x": "X motor", "y": "Y motor", "a": "A motor (stepper_x)", "b": "B motor (stepper_y)"}
+
+
+def accel_ceiling(printer: Any, speed: float | None = None) -> tuple[float, str]:
+    """(mm/s², basis): the top of the acceleration search — the lower of
+    :func:`motor_accel_limit` at ``speed`` (default the printer's velocity limit) and the
+    firmware's per-axis maximum acceleration (X/Y of ``limits.max_accel``, if set)."""
+    lim = printer.limits
+    v = float(speed if speed is not None else lim.velocity)
+    a, who = motor_accel_limit(printer, v)
+    basis = f"the {who} would need all its force at {v:.0f} mm/s (the job's top speed)"
+    caps = [c for c in (lim.max_accel or ())[:2] if c and c > 0]
+    if caps and min(caps) < a:
+        a, basis = float(min(caps)), f"the firmware's maximum acceleration ({min(caps):.0f} mm/s², max_accel)"
+    return a, basis
 
 
 def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
@@ -114,7 +178,10 @@ def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
     p["freq_limit"] = trial.suggest_categorical("freq_limit", ["off", *space.freq_limit_methods])
     if p["freq_limit"] != "off":
         p["freq_limit_hz"] = trial.suggest_float("freq_limit_hz", *space.freq_limit_hz)
-    p["accel"] = trial.suggest_float("accel", *space.accel)
+    if space.accel_fixed:
+        p["accel"] = space.accel[0]      # not searched: it has no effect (or was fixed)
+    else:
+        p["accel"] = trial.suggest_float("accel", *space.accel)
     return p
 
 
@@ -141,7 +208,9 @@ def config_from_params(params: dict[str, Any], space: SearchSpace, extra: dict |
                       damping_x=z, damping_y=z,
                       freq_limit_hz=0.0 if method == "off" else _q(params["freq_limit_hz"], 0.5),
                       freq_limit_method="sections" if method == "off" else method,
-                      min_speed_factor=space.min_speed_factor, accel=_q(params["accel"], space.accel_step),
+                      min_speed_factor=space.min_speed_factor,
+                      accel=_q(params.get("accel", space.accel[0]) if not space.accel_fixed else space.accel[0],
+                               space.accel_step),
                       extra=dict(extra or {}))
 
 
@@ -162,7 +231,8 @@ def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]
     p["freq_limit"] = "off" if config.freq_limit_hz <= 0 else config.freq_limit_method
     if config.freq_limit_hz > 0:
         p["freq_limit_hz"] = config.freq_limit_hz
-    p["accel"] = config.accel
+    if not space.accel_fixed:
+        p["accel"] = config.accel
     return p
 
 

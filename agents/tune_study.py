@@ -4,10 +4,12 @@
   (:data:`QUALITY_METRICS`), from ``ringtune.envs.evaluate.evaluate_many`` or an injected
   evaluator ``f(configs, printer, job) -> [Metrics]`` (given as ``"module:function"`` so that
   worker processes can import it).
-- Constraints: step loss (``trial.set_constraint("step_loss", 1.0 | 0.0)``) and the path-error
+- Constraints: step loss (``trial.set_constraint("step_loss", 1.0 | 0.0)``), the path-error
   bound (``"path_error"``: path_error_mm − ``max_path_error_mm``; corner rounding by heavy
-  smoothing is not quality); infeasible trials never reach the front. The bound is applied again
-  when the results are read, so a resumed study may be judged with another bound.
+  smoothing is not quality) and the motor reserve (``"motor_load"``: motor_load − (1 − reserve),
+  judged like quality on the printer and its detuned twins); infeasible trials never reach the
+  front. The bounds are applied again when the results are read, so a resumed study may be
+  judged with other bounds.
 - Storage (:func:`make_storage`): a journal file in the output folder by default
   (``journal:out/study.journal``), or any RDB URL (``sqlite:///study.db``,
   ``postgresql+psycopg2://...``) with Optuna's heartbeat (stale RUNNING trials of dead workers on
@@ -31,7 +33,8 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ringtune.agents.pareto import DEFAULT_MAX_PATH_ERROR_MM, Point, judge_path_error, metrics_dict
+from ringtune.agents.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MOTOR_RESERVE, Point, judge_bounds,
+                                    metrics_dict)
 from ringtune.agents.space import SearchSpace, config_from_params, default_space, suggest_params
 from ringtune.agents.storage import _this_worker, make_storage, reap_dead_workers
 from ringtune.shaping.config import TuneConfig
@@ -66,6 +69,8 @@ class StudySettings:
     enqueue: list = field(default_factory=list)   # parameter dicts to try first (e.g. baselines)
     max_path_error_mm: float = DEFAULT_MAX_PATH_ERROR_MM   # mm; 0 = no bound
     freq_margin: float = DEFAULT_FREQ_MARGIN   # fraction: also judged with resonances ± this (worst counts)
+    motor_reserve: float = DEFAULT_MOTOR_RESERVE   # fraction of the motors' force kept free; 0 = no bound
+    job_accel: str = "replace"          # "respect": the job's M201/M204 stand; "replace": config.accel replaces them
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -139,12 +144,23 @@ def open_study(settings: StudySettings, seed: int | None = None):
         import json
         stored = study.user_attrs.get("settings", {})
         mine = json.loads(json.dumps(settings.to_dict()))
-        for key in ("printer", "job", "firmware", "backend", "evaluator", "space", "freq_margin"):
+        for key in ("printer", "job", "firmware", "backend", "evaluator", "space", "freq_margin", "job_accel"):
             if key in stored and stored[key] != mine[key] and not (key == "space" and mine[key] is None):
                 raise RingtuneError(f"study {settings.study_name!r} in this storage was run with a different "
-                                    f"{key} ({stored[key]!r}); use another --out folder or --study name",
+                                    f"{key} ({_setting_text(key, stored[key])}; now "
+                                    f"{_setting_text(key, mine[key])}); use another --out folder or --study name",
                                     "--study")
     return study
+
+
+def _setting_text(key: str, value) -> str:
+    """A stored study setting as a person would name it (None = the built-in default)."""
+    if value is None:
+        return {"printer": "the built-in default printer", "job": "the built-in test print",
+                "space": "the default search space"}.get(key, "none")
+    if key == "space" and isinstance(value, dict):
+        return "another search space"
+    return repr(value)
 
 
 def count_states(study) -> dict[str, int]:
@@ -216,6 +232,10 @@ def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any =
         trial.set_constraint("step_loss", 1.0 if m.step_loss else 0.0)
         bound = settings.max_path_error_mm
         trial.set_constraint("path_error", float(m.path_error_mm) - bound if bound > 0 else -1.0)
+        reserve = settings.motor_reserve
+        load = getattr(m, "motor_load", None)
+        trial.set_constraint("motor_load", float(load) - (1.0 - reserve) if reserve > 0 and load is not None
+                             else -1.0)
         return float(m.print_time_s), float(getattr(m, settings.quality))
 
     def callback(st, frozen):
@@ -268,7 +288,7 @@ def evaluator_kwargs(settings: StudySettings) -> dict:
     margin; an injected ``f(configs, printer, job)`` takes none."""
     if settings.evaluator != DEFAULT_EVALUATOR:
         return {}
-    return {"backend": settings.backend, "freq_margin": settings.freq_margin}
+    return {"backend": settings.backend, "freq_margin": settings.freq_margin, "job_accel": settings.job_accel}
 
 
 def _call_evaluator(evaluator, settings: StudySettings, config: TuneConfig, printer):
@@ -308,8 +328,8 @@ class StudyRun:
 
 
 def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
-              progress: Callable[[int, int], None] | None = None) -> StudyRun:
-    """Run (or resume) the study with ``workers`` local processes; ``progress(done, total)``.
+              progress: Callable[[int, int, Any], None] | None = None) -> StudyRun:
+    """Run (or resume) the study with ``workers`` local processes; ``progress(done, total, study)``.
 
     With one worker the trials run in this process; with more, spawned processes share the
     storage and this process only watches (and reports progress).
@@ -319,13 +339,13 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
     study = open_study(settings)
     before = count_states(study)["COMPLETE"]
     if progress:
-        progress(before, settings.n_trials)
+        progress(before, settings.n_trials, study)
     stop = _Stop()
     interrupted = False
     if workers == 1:
         def on_trial(_):
             if progress:
-                progress(count_states(study)["COMPLETE"], settings.n_trials)
+                progress(count_states(study)["COMPLETE"], settings.n_trials, study)
         run_worker(settings, 0, printer=printer, on_trial=on_trial, stop=stop)
         interrupted = stop.requested
     else:
@@ -345,7 +365,7 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
             while any(p.poll() is None for p in procs):
                 time.sleep(0.3)
                 if progress:
-                    progress(count_states(study)["COMPLETE"], settings.n_trials)
+                    progress(count_states(study)["COMPLETE"], settings.n_trials, study)
         except KeyboardInterrupt:
             interrupted = True   # the workers got the same Ctrl-C: they finish their trial and stop
             deadline = time.time() + 30
@@ -361,16 +381,17 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
                                 "rerun to resume", "--workers")
     after = count_states(study)["COMPLETE"]
     if progress:
-        progress(after, settings.n_trials)
+        progress(after, settings.n_trials, study)
     return StudyRun(study, before, after - before, interrupted)
 
 
 # -- reading results -----------------------------------------------------------------------------
 
 def study_points(study, space: SearchSpace | None = None, quality: str | None = None,
-                 max_path_error_mm: float | None = None) -> list[Point]:
-    """All complete trials as points, flagged ``step_loss`` or ``too_rough`` (path error over
-    ``max_path_error_mm``, mm; default: the bound the study was created with; 0 = no bound)."""
+                 max_path_error_mm: float | None = None, motor_reserve: float | None = None) -> list[Point]:
+    """All complete trials as points, flagged ``step_loss``, ``too_rough`` (path error over
+    ``max_path_error_mm``, mm) or ``overloaded`` (motor load over 1 − ``motor_reserve``); default
+    bounds: those the study was created with; 0 = no bound."""
     from optuna.trial import TrialState
 
     settings = study.user_attrs.get("settings", {})
@@ -380,12 +401,15 @@ def study_points(study, space: SearchSpace | None = None, quality: str | None = 
             load_space(StudySettings(storage="", **{k: v for k, v in settings.items() if k != "storage"}))
     if max_path_error_mm is None:
         max_path_error_mm = float(settings.get("max_path_error_mm", 0.0) or 0.0)
+    if motor_reserve is None:
+        motor_reserve = float(settings.get("motor_reserve", 0.0) or 0.0)
+    max_load = 1.0 - motor_reserve if motor_reserve > 0 else 0.0
     pts = []
     for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)):
         metrics = dict(t.user_attrs.get("metrics", {}))
-        pts.append(judge_path_error(Point(config_from_params(t.params, space), float(t.values[0]),
-                                          float(t.values[1]), bool(metrics.get("step_loss", False)), metrics,
-                                          f"trial {t.number}", t.number), max_path_error_mm))
+        pts.append(judge_bounds(Point(config_from_params(t.params, space), float(t.values[0]),
+                                      float(t.values[1]), bool(metrics.get("step_loss", False)), metrics,
+                                      f"trial {t.number}", t.number), max_path_error_mm, max_load))
     return pts
 
 if __name__ == "__main__":

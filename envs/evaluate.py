@@ -5,8 +5,13 @@ the job's quality windows (sharpest corners, fastest zigzags), each simulated wi
 for the shaper and the machine to settle:
 
 1. job (G-code path, G-code text, a parsed ``Job``, or None for the built-in test print)
-   → ``apply_freq_limit`` per the config → ``plan`` with the printer's limits (acceleration
-   replaced by ``config.accel`` if given) → print time, s;
+   → ``apply_freq_limit`` per the config → ``plan`` with the printer's limits → print time, s.
+   ``config.accel`` (if given) is applied per the job-acceleration mode (:data:`JOB_ACCEL_MODES`,
+   argument ``job_accel`` or the config's ``extra["job_accel"]``): ``replace`` (default) — it
+   replaces the job's own acceleration commands (M204, SET_VELOCITY_LIMIT ACCEL and the X/Y caps of
+   M201), what re-slicing at that acceleration with the machine limits raised to it gives;
+   ``respect`` — the job's commands stand and ``config.accel`` is the machine's acceleration
+   wherever the job sets none (the print as sliced);
 2. ``quality_windows`` of that plan; each window ``[t0, t1]`` is cut from the unshaped motion with
    margins, shaped with the config's shapers (centred or causal per the firmware flavour), and cut
    again to ``[t0 − lead, t1 + tail]`` where the shaped command is exact
@@ -44,6 +49,12 @@ SETTLE_MIN, SETTLE_MAX, SETTLE_TAUS = 0.05, 0.3, 3.0
 #: quality windows per job and their span, s
 MAX_WINDOWS = 8
 WINDOW_SPAN = 0.25
+
+#: how a config's acceleration meets the job's own acceleration commands (module docstring)
+JOB_ACCEL_MODES = ("replace", "respect")
+#: the job settings that "replace" removes (the job's own accelerations and X/Y acceleration caps)
+JOB_ACCEL_SETTINGS = ("accel_print", "accel_travel", "accel_retract", "accel_klipper", "max_accel_x",
+                      "max_accel_y")
 
 _JOBS: "OrderedDict[Any, Any]" = OrderedDict()
 _PLANS: "OrderedDict[Any, Any]" = OrderedDict()
@@ -122,15 +133,53 @@ def job_limits(printer, config: TuneConfig | None):
     return limits
 
 
+def job_accel_mode(config: TuneConfig | None, job_accel: str | None = None) -> str:
+    """The job-acceleration mode: ``job_accel`` if given, else the config's ``extra["job_accel"]``,
+    else ``"replace"``."""
+    mode = job_accel or (config.extra.get("job_accel") if config is not None and config.extra else None) \
+        or "replace"
+    if mode not in JOB_ACCEL_MODES:
+        raise RingtuneError(f"must be one of {', '.join(JOB_ACCEL_MODES)}, not {mode!r}", "job_accel")
+    return mode
+
+
+def without_job_accel(job):
+    """A copy of a parsed job whose own acceleration commands (:data:`JOB_ACCEL_SETTINGS`) are
+    gone, so that the machine's (or the config's) acceleration rules every move."""
+    from ringtune.shaping.job import SETTING_KEYS
+
+    cols = [SETTING_KEYS.index(k) for k in JOB_ACCEL_SETTINGS]
+    table = np.array(job.settings_table, dtype=float, copy=True)
+    table[:, cols] = np.nan
+    return dataclasses.replace(job, settings_table=table)
+
+
+def job_accel_commands(job) -> dict[str, float]:
+    """The acceleration commands a parsed job sets itself: {setting: largest value it sets}
+    (mm/s²; keys of :data:`JOB_ACCEL_SETTINGS`; empty when it sets none)."""
+    from ringtune.shaping.job import SETTING_KEYS
+
+    out = {}
+    for k in JOB_ACCEL_SETTINGS:
+        col = np.asarray(job.settings_table)[:, SETTING_KEYS.index(k)]
+        col = col[~np.isnan(col)]
+        if len(col):
+            out[k] = float(col.max())
+    return out
+
+
 def planned_job(printer, job=None, config: TuneConfig | None = None, *,
-                max_windows: int = MAX_WINDOWS, span: float = WINDOW_SPAN) -> PlannedJob:
+                max_windows: int = MAX_WINDOWS, span: float = WINDOW_SPAN,
+                job_accel: str | None = None) -> PlannedJob:
     """Parse, frequency-limit and plan ``job`` for ``printer`` under ``config`` (cached).
 
-    The quality windows are chosen once, on the plan at the printer's own limits without
-    frequency limit, and every configuration is judged on those same corners and zigzags
-    (:func:`ringtune.shaping.testprints.relocate_windows`)."""
+    ``job_accel``: how ``config.accel`` meets the job's own acceleration commands
+    (:func:`job_accel_mode`). The quality windows are chosen once, on the plan at the printer's
+    own limits without frequency limit, and every configuration is judged on those same corners
+    and zigzags (:func:`ringtune.shaping.testprints.relocate_windows`)."""
     from ringtune.shaping import freqlimit, planner, testprints
 
+    mode = job_accel_mode(config, job_accel)
     jkey, parsed = resolve_job(job)
     limits = job_limits(printer, config)
     fl = (0.0, "", 0.0)
@@ -138,15 +187,20 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
         fl = (float(config.freq_limit_hz), config.freq_limit_method, float(config.min_speed_factor))
     accel = None if config is None or config.accel is None else float(config.accel)
     daa = daa_frequency(config)
-    key = (jkey, repr(limits), fl, accel, daa, max_windows, span)
+    if accel is None:
+        mode = "replace"       # nothing to replace with: the job's and the machine's limits as they are
+    key = (jkey, repr(limits), fl, accel, daa, max_windows, span, mode)
     if key in _PLANS:
         _PLANS.move_to_end(key)
         return _PLANS[key]
     limited = parsed
+    if accel is not None and mode == "replace":
+        limited = without_job_accel(limited)
     if fl[0] > 0:
-        limited = freqlimit.apply_freq_limit(parsed, fl[0], method=fl[1], min_speed_factor=fl[2])
-    # the config's acceleration wins over the job's own M204 / SET_VELOCITY_LIMIT (a tuning knob)
-    plan = planner.plan(limited, limits, accel=accel, daa_freq=daa)
+        limited = freqlimit.apply_freq_limit(limited, fl[0], method=fl[1], min_speed_factor=fl[2])
+    # replace: the config's acceleration wins over the job's own commands (a tuning knob);
+    # respect: it is the machine's acceleration (limits.accel), the job's commands stand
+    plan = planner.plan(limited, limits, accel=accel if mode == "replace" else None, daa_freq=daa)
     if key[2:5] == ((0.0, "", 0.0), None, None):
         windows = testprints.quality_windows(plan, max_windows=max_windows, span=span)
     else:   # the corners and zigzags the printer's own plan chose, at this plan's times
@@ -254,7 +308,7 @@ def metrics_of(runs: list[WindowRun], sims: list, print_time: float) -> Metrics:
 
 # -- the public calls -------------------------------------------------------------------------------
 def evaluate(config: TuneConfig, printer=None, job=None, backend: str = "mujoco", *,
-             settle: float | None = None, nthread: int | None = None) -> Metrics:
+             settle: float | None = None, nthread: int | None = None, job_accel: str | None = None) -> Metrics:
     """Print time (whole job) and quality (physics on the quality windows) of ``config``.
 
     Args:
@@ -264,13 +318,15 @@ def evaluate(config: TuneConfig, printer=None, job=None, backend: str = "mujoco"
         backend: ``"mujoco"`` (default) or ``"lti"`` (exact linear screening).
         settle: s of simulated lead-in beyond the shaper's duration (None: :func:`auto_settle`).
         nthread: simulation threads (default: up to one per window and core).
+        job_accel: ``replace`` or ``respect`` (:func:`job_accel_mode`; default the config's own,
+            else ``replace``).
     """
-    return evaluate_many([config], printer, job, backend, settle=settle, nthread=nthread)[0]
+    return evaluate_many([config], printer, job, backend, settle=settle, nthread=nthread, job_accel=job_accel)[0]
 
 
 def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
                   settle: float | None = None, nthread: int | None = None,
-                  freq_margin: float = 0.0) -> list[Metrics]:
+                  freq_margin: float = 0.0, job_accel: str | None = None) -> list[Metrics]:
     """:func:`evaluate` for many configs, all their windows simulated in one ``simulate_batch``.
 
     ``freq_margin`` > 0 (a fraction, e.g. 0.05): each config is also judged on the printer with
@@ -282,12 +338,13 @@ def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend
         raise RingtuneError(f"must be in [0, 1), not {freq_margin}", "freq_margin")
     if not freq_margin:
         return [e.metrics for e in evaluate_detailed(configs, printer, job, backend, settle=settle,
-                                                     nthread=nthread)]
+                                                     nthread=nthread, job_accel=job_accel)]
     printer = resolve_printer(printer)
     if settle is None:
         settle = auto_settle(printer)
     variants = [printer, printer.detuned(1.0 - freq_margin), printer.detuned(1.0 + freq_margin)]
-    runs = [evaluate_detailed(configs, p, job, backend, settle=settle, nthread=nthread) for p in variants]
+    runs = [evaluate_detailed(configs, p, job, backend, settle=settle, nthread=nthread, job_accel=job_accel)
+            for p in variants]
     return [worst_case(r[i].metrics for r in runs) for i in range(len(configs))]
 
 
@@ -303,7 +360,8 @@ class Evaluation:
 
 
 def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
-                      settle: float | None = None, nthread: int | None = None) -> list[Evaluation]:
+                      settle: float | None = None, nthread: int | None = None,
+                      job_accel: str | None = None) -> list[Evaluation]:
     """Like :func:`evaluate_many`, keeping the plans, shaped windows and simulation results."""
     from ringtune.envs.sim import simulate_batch
 
@@ -313,7 +371,7 @@ def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, bac
     per_config = []
     motions: list[Motion] = []
     for cfg in configs:
-        pj = planned_job(printer, job, cfg)
+        pj = planned_job(printer, job, cfg, job_accel=job_accel)
         runs = window_runs(pj, cfg, settle)
         per_config.append((cfg, pj, runs))
         motions.extend(r.shaped for r in runs)

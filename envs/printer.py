@@ -250,13 +250,20 @@ def _is_datasheet(raw: dict) -> bool:
 
 def _inherit(base: dict, own: dict) -> dict:
     """An axis's motor table over ``[motor]``: the axis's keys win; a motor named or described on the
-    axis replaces the base's motor (its name, constants and old-form force) but keeps its drive."""
+    axis replaces the base's motor (its name, constants and old-form force) but keeps its drive; an
+    axis's rotation_distance (rotor_inertia) replaces the base's steps_per_mm (rotor_mass) and vice versa."""
     if _is_datasheet(own):
         drop = {"name", *MOTOR_CONSTANT_KEYS, *_OLD_FORM_KEYS, "rotor_inertia"}
     elif own.keys() & _OLD_FORM_KEYS:
         drop = {"name", *MOTOR_CONSTANT_KEYS, "rotor_inertia"}
     else:
         drop = set()
+    # given on the axis in either form, the belt per revolution and the rotor win over the base's
+    for a, b in (("rotation_distance", "steps_per_mm"), ("rotor_inertia", "rotor_mass")):
+        if a in own:
+            drop.add(b)
+        if b in own:
+            drop.add(a)
     return {**{k: v for k, v in base.items() if k not in drop}, **own}
 
 
@@ -369,7 +376,9 @@ def printer_from_dict(d: dict, where: str = "printer") -> Printer:
     for ax in ("x", "y"):
         own = _table(_table(d, ax, where), "motor", f"{where}: [{ax}]")
         if own:
-            axis_motors[ax] = _motor_from_dict(_inherit(base_raw, own), f"{where}: [{ax}.motor]")
+            m = _motor_from_dict(_inherit(base_raw, own), f"{where}: [{ax}.motor]")
+            if m != motor:                       # an axis table that changes nothing is no own motor
+                axis_motors[ax] = m
     print_mass = _num(d, "print_mass", where, DEFAULTS["print_mass"], lo=0.0)
     belts = _table(d, "belts", where)
     bw = f"{where}: [belts]"

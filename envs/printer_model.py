@@ -10,13 +10,13 @@ Units: kg, N, N/m (= kg/s²), mm, mm/s, Hz.
 
 from __future__ import annotations
 
-import datetime as _dt
 import math
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
+from ringtune.envs.toml_writer import toml_value, write_table
 from ringtune.shaping.errors import RingtuneError
 
 #: documented defaults for everything physical (an Ender-3-class machine)
@@ -391,10 +391,10 @@ class Printer:
         """TOML text that :func:`ringtune.envs.printer.load_printer` reads back to an equal printer.
         What a datasheet motor assumes (run current, voltage, …) is written as a comment."""
         d = self.to_dict()
-        lines = [f"name = {_toml_value(d['name'])}", f"kinematics = {_toml_value(d['kinematics'])}"]
+        lines = [f"name = {toml_value(d['name'])}", f"kinematics = {toml_value(d['kinematics'])}"]
         if "description" in d:
-            lines.append(f"description = {_toml_value(d['description'])}")
-        lines.append(f"print_mass = {_toml_value(d['print_mass'])}")
+            lines.append(f"description = {toml_value(d['description'])}")
+        lines.append(f"print_mass = {toml_value(d['print_mass'])}")
         notes = {"motor": self.motor.assumed}
         for ax in ("x", "y"):
             own = getattr(self, f"{ax}_motor")
@@ -402,44 +402,8 @@ class Printer:
                 notes[f"{ax}.motor"] = own.assumed
         for table in ("limits", "x", "y", "motor", "belts", "current", "measurement"):
             if table in d:
-                _toml_table(lines, table, d[table], notes)
+                write_table(lines, table, d[table], notes)
         return "\n".join(lines) + "\n"
 
 
 _MISSING = object()
-
-
-def _toml_table(lines: list[str], name: str, table: dict, notes: dict) -> None:
-    """Append ``[name]`` with its plain keys, then its sub-tables as ``[name.sub]`` (recursively)."""
-    lines.append("")
-    lines.append(f"[{name}]")
-    for note in notes.get(name, ()):
-        lines.append(f"# {note}")
-    subs = []
-    for k, v in table.items():
-        if isinstance(v, dict):
-            subs.append((k, v))
-        else:
-            lines.append(f"{_toml_key(k)} = {_toml_value(v)}")
-    for k, v in subs:
-        _toml_table(lines, f"{name}.{_toml_key(k)}", v, notes)
-
-
-def _toml_key(k: str) -> str:
-    return k if k.replace("_", "").replace("-", "").isalnum() and k.isascii() else _toml_value(k)
-
-
-def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        return repr(float(v)) if isinstance(v, float) else str(v)
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    if isinstance(v, (_dt.date, _dt.time)):
-        return v.isoformat()
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items()) + " }"
-    raise TypeError(f"cannot write {v!r} to TOML")

@@ -150,15 +150,17 @@ class StepperDrive:
 
     def speed_at_fraction(self, fraction: float) -> float:
         """Belt speed (mm/s) at which the force has fallen to ``fraction`` of the standstill force
-        (bisection; the curve is non-increasing). ``fraction`` = 1 gives the corner speed."""
+        (the curve is non-increasing: first crossing on a log grid, then bisection); inf if never."""
         f0 = self.standstill_force
         target = f0 * fraction * (1.0 - 1e-9)
-        lo, hi = 0.0, 1.0
-        while float(self.force(hi)) > target:
-            lo, hi = hi, hi * 2.0
-            if hi > 1e7:
-                return math.inf
-        for _ in range(80):
+        grid = np.concatenate([[0.0], np.geomspace(1e-2, 1e7, 361)])
+        below = np.flatnonzero(self.force(grid) <= target)
+        if not len(below):
+            return math.inf
+        if below[0] == 0:
+            return 0.0
+        lo, hi = float(grid[below[0] - 1]), float(grid[below[0]])
+        for _ in range(60):
             mid = 0.5 * (lo + hi)
             if float(self.force(mid)) > target:
                 lo = mid
@@ -168,8 +170,19 @@ class StepperDrive:
 
     @property
     def corner_speed(self) -> float:
-        """mm/s up to which the full force is available (the current still fits under the voltage)."""
-        return self.speed_at_fraction(1.0)
+        """mm/s up to which the full force is available. With the run current at most the rated
+        one, the full current fits in phase while (R·I_p + K·ω)² + (p·L·ω·I_p)² ≤ V²: the positive
+        root of that quadratic in ω (0 when even standstill cannot reach it); above, by search."""
+        if self.run_current > self.motor.rated_current:
+            return self.speed_at_fraction(1.0)
+        K, R, ip, V = self.torque_constant, self.motor.resistance, self.peak_current, self.voltage
+        a = K * K + (self.pole_pairs * self.motor.inductance * ip) ** 2
+        b = 2.0 * R * ip * K
+        c = (R * ip) ** 2 - V * V
+        if c >= 0.0:
+            return 0.0
+        w = (-b + math.sqrt(b * b - 4.0 * a * c)) / (2.0 * a)
+        return w * self.radius * 1e3
 
     @property
     def half_force_speed(self) -> float:

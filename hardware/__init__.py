@@ -1,2 +1,2 @@
 """The real printer: firmware dialects, config export, serial and Moonraker links, accelerometer
-file readers. Imports nothing of ringtune's but ``shaping``'s plain data types."""
+file readers. Imports only ``shaping`` of ringtune's (what it sends is checked with shaping's math)."""

@@ -38,8 +38,8 @@ from dataclasses import dataclass, field
 
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.firmware import FIRMWARES, Firmware, Span, firmware_record
-from ringtune.shaping.shapers import REGISTRY, get_shaper, parse_name
+from ringtune.shaping.firmware import FIRMWARES, Firmware, Span
+from ringtune.shaping.shapers import REGISTRY, parse_name
 
 #: for a missing shaper, the ones most like it (similar duration and band), best first
 _NEAREST = {
@@ -156,7 +156,7 @@ def named_params(name: str, flavor: str) -> tuple[str, dict]:
 
 def check_available(name: str, dialect: str, where: str) -> str:
     """Canonical name if ``dialect`` has the shaper, else a refusal naming the nearest it has."""
-    fw = firmware_record(dialect, "--firmware")
+    fw = Firmware.named(dialect, "--firmware")
     base, _ = canonical(name)
     have = fw.shapers
     if base in have:
@@ -182,7 +182,8 @@ def check_value(value: float, span: Span, what: str, unit: str, where: str, titl
                             f"{span.text(unit)}{why}", where)
     if span.changes(value):
         raise RingtuneError(f"{what} {value:g}{unit and ' ' + unit} would be sent as "
-                            f"{fmt(value, span.decimals)} ({title} takes {span.decimals} decimals); give a "
+                            f"{fmt(value, span.decimals)} (values go to {title} with {span.decimals} decimals, the "
+                            f"precision read back); give a "
                             f"value in {span.text(unit)} at that precision", where)
     return span.sent(value)
 
@@ -200,12 +201,11 @@ def check_axis(config: TuneConfig, fw: Firmware, ax: str) -> tuple[str, dict, fl
     if base == "custom":      # impulses in seconds: checked by custom_impulses
         return base, named_params(name, fw.flavor)[1], freq, damping
     freq = check_value(freq, fw.freq, "frequency", "Hz", f"config: freq_{ax}", fw.title)
-    zmax = REGISTRY[fw.flavor][base][2]
-    span = fw.damping if zmax >= fw.damping.hi else Span(fw.damping.lo, min(zmax, fw.damping.hi),
-                                                         fw.damping.decimals)
+    zmax = fw.max_damping(base)
+    span = fw.damping if zmax >= fw.damping.hi else Span(fw.damping.lo, zmax, fw.damping.decimals)
     damping = check_value(damping, span, f"damping ratio of {base}", "", f"config: damping_{ax}", fw.title)
     if base != "custom":
-        get_shaper(name, freq, damping, fw.flavor, where=f"config: shaper_{ax}")   # parameters
+        fw.check_shaper(name, freq, damping, f"config: shaper_{ax}")   # parameters, as `ringtune shaper`
     _, params = named_params(name, fw.flavor)
     return base, params, freq, damping
 
@@ -213,7 +213,7 @@ def check_axis(config: TuneConfig, fw: Firmware, ax: str) -> tuple[str, dict, fl
 def export_config(config: TuneConfig, firmware: str | None = None, accel: bool = True) -> Export:
     """The lines that put ``config`` on ``firmware`` (default: ``config.firmware``); ``accel``
     False leaves the printer's acceleration alone."""
-    fw = firmware_record(firmware or config.firmware, "--firmware")
+    fw = Firmware.named(firmware or config.firmware, "--firmware")
     build = {"klipper": _klipper, "rrf": _rrf, "marlin": _marlin, "marlin-ftm": _marlin_ftm,
              "prusa": _prusa}[fw.family]
     exp = build(config, fw.name)
@@ -270,8 +270,8 @@ def _rounding_notes(config: TuneConfig, exp: Export) -> None:
             continue
         value = getattr(config, key)
         if span.sent(value) != value:
-            exp.notes.append(f"{key} {value:g} is sent as {fmt(value, span.decimals)} ({fw.title} takes "
-                             f"{span.decimals} decimals)")
+            exp.notes.append(f"{key} {value:g} is sent as {fmt(value, span.decimals)} (values go to "
+                             f"{fw.title} with {span.decimals} decimals, the precision read back)")
 
 
 def _freq_limit(config: TuneConfig, fw: Firmware, exp: Export) -> None:

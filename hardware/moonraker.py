@@ -99,3 +99,16 @@ class Moonraker:
         result = self._request("GET", f"/server/gcode_store?count={int(count)}")
         store = result.get("result", {}).get("gcode_store", [])
         return [str(item.get("message", "")) for item in store if isinstance(item, dict)]
+
+    def query_objects(self, objects: dict[str, list[str] | None]) -> dict:
+        """``GET /printer/objects/query``: ``{object: {attribute: value}}`` for each object (the
+        attributes listed, or all of them for ``None``)."""
+        from urllib.parse import quote
+
+        args = "&".join(quote(name, safe=" ").replace(" ", "%20")
+                        + ("=" + ",".join(attrs) if attrs else "") for name, attrs in objects.items())
+        result = self._request("GET", f"/printer/objects/query?{args}")
+        status = result.get("result", {}).get("status") if isinstance(result, dict) else None
+        if not isinstance(status, dict):
+            raise LinkError(f"unexpected answer to objects/query {str(result)[:80]!r}", self.shown)
+        return status

@@ -252,10 +252,12 @@ def _klipper_state(link: GcodeLink) -> dict:
         reply = link.send("STATUS")
     except LinkError as exc:
         return {"state": "unknown", "message": exc.bare}
-    if reply.errors:
-        text = " ".join(reply.errors)
+    if reply.errors:      # Klipper sends a multi-line error's first line as "!!", the rest as "//"
+        text = " ".join(reply.errors + [ln.lstrip("/ ") for ln in reply.lines])
         return {"state": "shutdown" if "shutdown" in text.lower() else "not ready", "message": text}
-    return {"state": "ready" if "ready" in reply.text.lower() else "unknown", "message": reply.text.strip()}
+    if "klipper state: ready" in reply.text.lower():
+        return {"state": "ready", "message": "Printer is ready"}     # klippy.py message_ready, as Moonraker says
+    return {"state": "unknown", "message": reply.text.strip()}
 
 
 def _console_after(console: list[str], cmd: str) -> list[str]:

@@ -1,2 +1,2 @@
-"""What the firmware does to motion: shapers, trajectory shaping, G-code reader, planner and
-frequency limit. Imports nothing of ringtune's but ``hardware``'s plain data types."""
+"""What the firmware does to motion: shapers, firmware records, trajectory shaping, G-code reader,
+planner and frequency limit. Imports nothing of ringtune's (the bottom layer)."""

@@ -23,7 +23,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from ringtune.shaping.shapers import available_shapers
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.shapers import REGISTRY, available_shapers, get_shaper
 
 
 #: largest relative change rounding to a firmware's precision may make before the value is refused
@@ -109,6 +110,24 @@ class Firmware:
         """Canonical names of the shapers it has (``none`` included), from its flavour's formulas."""
         return available_shapers(self.flavor)
 
+    def max_damping(self, base: str) -> float:
+        """Largest damping ratio of shaper ``base`` here: the firmware's and the shaper's own limit."""
+        return min(REGISTRY[self.flavor][base][2], self.damping.hi)
+
+    def check_shaper(self, name: str, freq: float, damping: float, where: str) -> None:
+        """``ringtune shaper``'s own check of a shaper string at ``freq`` Hz and ``damping`` (its
+        parameters: unknown ones, Klipper's mzv ``n >= 3``, the ``v_tol`` range, ...)."""
+        get_shaper(name, freq, damping, self.flavor, where=where)
+
+    @staticmethod
+    def named(name: str, where: str = "firmware") -> "Firmware":
+        """The record of ``name`` (case-insensitive: ``Klipper`` is ``klipper``); a refusal naming
+        the firmwares there are otherwise."""
+        key = name.strip().lower() if isinstance(name, str) else name
+        if key not in FIRMWARES:
+            raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {name!r}", where)
+        return FIRMWARES[key]
+
 
 _KLIPPER_ACCEL = Span(1.0, 1e6, 3, why="Klipper takes any ACCEL > 0")
 _M204_2 = Span(1.0, 1e6, 2)
@@ -137,14 +156,3 @@ FIRMWARES: dict[str, Firmware] = {f.name: f for f in (
              Span(10.0, 100.0, 2, why="it clamps other values to 10-100 Hz"), Span(0.0, 0.99, 3), False,
              "M204 P{a}", "M204", _M204_2, ";", ("M593 W",)),
 )}
-
-
-def firmware_record(name: str, where: str = "firmware") -> Firmware:
-    """The record of ``name`` (case-insensitive: ``Klipper`` is ``klipper``); a refusal naming
-    the firmwares there are otherwise."""
-    from ringtune.shaping.errors import RingtuneError
-
-    key = name.strip().lower() if isinstance(name, str) else name
-    if key not in FIRMWARES:
-        raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {name!r}", where)
-    return FIRMWARES[key]

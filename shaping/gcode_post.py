@@ -1,5 +1,7 @@
 """The ``limit`` post-processor: rewrite a G-code file so its feedrates respect a direction-change
-frequency limit, changing only the F words it must.
+frequency limit, changing only the F words it must; and (``--accel``) scale a sliced file's own
+acceleration commands to a tuned acceleration, keeping the ratios between features
+(:func:`rewrite_accel_bytes`).
 
 A move line whose planned speed differs from the speed the output file would command there gets
 an F word (its own F replaced, or one added before any comment/checksum). The first move after a
@@ -134,3 +136,90 @@ def limit_file(src: str | Path, dst: str | Path | None, limit_hz: float, method:
     if dst is not None:
         Path(dst).write_bytes(out)
     return out, result
+
+
+# -- acceleration rewrite (ringtune limit --accel) ------------------------------------------------
+
+#: the acceleration commands a sliced file carries: Marlin/RRF/Prusa M204 (P print, S print and
+#: travel, T travel; R is the extruder's retraction and stays), M201 X/Y (per-axis maxima that cap
+#: M204), Klipper SET_VELOCITY_LIMIT ACCEL= (Klipper also reads M204 S / P+T)
+_ACCEL_LINE = re.compile(rb"^(\s*(?:[Nn]\s*-?\d+\s*)?)(M204|M201|SET_VELOCITY_LIMIT)(?![0-9A-Za-z_])", re.I)
+_LETTER_WORD = re.compile(rb"(?<![A-Za-z_])([A-Za-z])\s*([-+]?(?:\d+\.?\d*|\.\d+))")
+_KLIPPER_ACCEL = re.compile(rb"(?i)(?<![A-Za-z_])(ACCEL(?:_TO_DECEL)?)\s*=\s*([-+]?(?:\d+\.?\d*|\.\d+))")
+_SCALED = {b"M204": (b"P", b"S", b"T"), b"M201": (b"X", b"Y")}
+_PRINTING = {b"M204": (b"P", b"S")}
+
+
+@dataclass
+class AccelResult:
+    lines_changed: int
+    reference: float | None          # mm/s²: the file's highest printing acceleration (None: none set)
+    factor: float                    # every acceleration value scaled by this
+    header: str
+    notes: list[str]
+
+
+def _accel_words(code: bytes, word: bytes):
+    """(match, letter) of the acceleration values on one command line, as the firmware reads them."""
+    start = _ACCEL_LINE.match(code).end()
+    if word == b"SET_VELOCITY_LIMIT":
+        return [(m, m.group(1).upper()) for m in _KLIPPER_ACCEL.finditer(code, start)]
+    return [(m, m.group(1).upper()) for m in _LETTER_WORD.finditer(code, start)
+            if m.group(1).upper() in _SCALED[word]]
+
+
+def rewrite_accel_bytes(data: bytes, accel: float, source: str = "<gcode>") -> tuple[bytes, AccelResult]:
+    """Scale every acceleration command of a sliced file so its highest printing acceleration
+    (M204 P/S, SET_VELOCITY_LIMIT ACCEL) becomes ``accel`` mm/s², keeping the ratios between
+    features (and M204 T, M201 X/Y in the same ratio, so the caps do not undo it). Only those
+    numbers change; a header comment says what was done; checksummed lines get a new checksum."""
+    if not (accel > 0 and np.isfinite(accel)):
+        raise RingtuneError(f"must be an acceleration > 0 mm/s², not {accel!r}", "--accel")
+    lines = data.splitlines(keepends=True)
+    nl = b"\r\n" if lines and lines[0].endswith(b"\r\n") else b"\n"
+    printing = []
+    for ln, line in enumerate(lines, 1):
+        code = _split_code(line)[0]
+        m = _ACCEL_LINE.match(code)
+        if not m:
+            continue
+        word = m.group(2).upper()
+        for w, letter in _accel_words(code, word):
+            try:
+                value = float(w.group(2))
+            except ValueError:  # pragma: no cover - the pattern only matches numbers
+                raise RingtuneError(f"{letter.decode()}{w.group(2).decode()} is not a number", f"{source}:{ln}") from None
+            if letter == b"ACCEL" or letter in _PRINTING.get(word, ()):
+                printing.append(value)
+    notes: list[str] = []
+    if not printing or max(printing) <= 0:
+        header = (f"; ringtune limit --accel {accel:g}: the file sets no printing acceleration (no M204 P/S, "
+                  "no SET_VELOCITY_LIMIT ACCEL), so nothing was changed: the printer's own acceleration applies")
+        notes.append("the file sets no printing acceleration: set the printer's (ringtune push / export)")
+        return header.encode() + nl + data, AccelResult(0, None, 1.0, header, notes)
+    reference = max(printing)
+    factor = accel / reference
+    out, changed = [], 0
+    for line in lines:
+        code, cs, tail = _split_code(line)
+        m = _ACCEL_LINE.match(code)
+        if not m:
+            out.append(line)
+            continue
+        new, pos = b"", 0
+        for w, _ in _accel_words(code, m.group(2).upper()):
+            new += code[pos:w.start(2)] + _fmt(float(w.group(2)) * factor)
+            pos = w.end(2)
+        new += code[pos:]
+        if new == code:
+            out.append(line)
+            continue
+        out.append(_with_checksum(new, cs) + tail)
+        changed += 1
+    if len(set(printing)) > 1:
+        notes.append(f"{len(set(printing))} printing accelerations in the file (features): all scaled by "
+                     f"{factor:.4g}, so their ratios stay")
+    header = (f"; ringtune limit --accel {accel:g}: the file's highest printing acceleration {reference:g} mm/s² "
+              f"becomes {accel:g}; every acceleration command (M204 P/S/T, M201 X/Y, SET_VELOCITY_LIMIT ACCEL/ACCEL_TO_DECEL) "
+              f"scaled by {factor:.4g}; changed {changed} lines; nothing else differs from the input")
+    return header.encode() + nl + b"".join(out), AccelResult(changed, reference, factor, header, notes)

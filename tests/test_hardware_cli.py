@@ -34,7 +34,8 @@ def test_export_json_and_file(config, tmp_path, capsys):
     assert main(["export", str(config), "--firmware", "klipper", "-o", str(out)]) == 0
     text = out.read_text()
     assert "SET_INPUT_SHAPER SHAPER_FREQ_X=41.5 SHAPER_FREQ_Y=37.25" in text
-    assert "damping_ratio_y: 0.12" in text and "ringtune limit FILE.gcode --freq-limit 25" in text
+    assert "ringtune limit FILE.gcode --freq-limit 25" in text
+    assert "damping_ratio_y: 0.12" in (tmp_path / "k-printer.cfg").read_text()   # the printer.cfg part
 
 
 def test_export_refusal_is_one_line(config, capsys):
@@ -105,3 +106,29 @@ def test_bad_output_paths_are_one_line_before_any_work(argv, where, config, data
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and where in err and "Traceback" not in err
     assert not list(tmp_path.rglob("*.png")) and not (tmp_path / "no").exists()
+
+
+def test_export_parts_are_separate_and_the_command_part_uses_semicolons(tmp_path, capsys):
+    p = tmp_path / "k.json"
+    p.write_text(json.dumps({"firmware": "klipper", "shaper_x": "ei", "shaper_y": "mzv", "freq_x": 51.2,
+                             "freq_y": 46.2, "accel": 4000}))
+    out = tmp_path / "shaping.gcode"
+    assert main(["export", str(p), "-o", str(out), "--slicer", "prusaslicer", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["files"] == [str(out), str(tmp_path / "shaping-printer.cfg"), str(tmp_path / "shaping-prusaslicer.ini")]
+    commands = out.read_text().splitlines()
+    assert all(ln.startswith(";") or ln.split()[0] in ("SET_INPUT_SHAPER", "SET_VELOCITY_LIMIT") for ln in commands)
+    assert "[input_shaper]" in (tmp_path / "shaping-printer.cfg").read_text()
+    ini = (tmp_path / "shaping-prusaslicer.ini").read_text()
+    assert "machine_max_acceleration_extruding = 4000,4000" in ini and "default_acceleration = 4000" in ini
+    assert main(["export", str(p), "--part", "config"]) == 0
+    assert capsys.readouterr().out.splitlines()[1] == "[input_shaper]"
+    assert main(["export", str(p), "--part", "config", "--firmware", "marlin"]) == 2   # mzv: Marlin lacks it
+    capsys.readouterr()
+    q = tmp_path / "m.json"
+    q.write_text(json.dumps({"firmware": "marlin", "shaper_x": "zv", "shaper_y": "zv", "accel": 4000}))
+    assert main(["export", str(q), "--part", "config"]) == 2
+    assert "no config-file part" in capsys.readouterr().err
+    assert main(["export", str(q), "--slicer", "cura", "--part", "slicer"]) == 0
+    cura = capsys.readouterr().out
+    assert "acceleration_enabled = True" in cura and "acceleration_print = 4000" in cura

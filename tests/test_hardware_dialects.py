@@ -291,7 +291,7 @@ def test_klipper_refusals_name_the_key_and_the_allowed_range(kw, key, allowed):
 @pytest.mark.parametrize("fw, value", [("marlin", 0.0004), ("marlin", 0.015), ("prusa", 0.0004)])
 def test_a_frequency_that_would_round_to_another_is_refused_never_changed(fw, value):
     shaper = "zv" if fw == "marlin" else "mzv"
-    with pytest.raises(RingtuneError, match=r"freq_x: .*(outside|would be sent as)"):
+    with pytest.raises(RingtuneError, match=r"freq_x: .*(outside .*range|would be sent as .*give a value in)"):
         export_config(cfg(shaper_x=shaper, shaper_y=shaper, freq_x=value), fw)
     # within the rounding tolerance the value goes out at the firmware's precision, and is said
     e = export_config(cfg(shaper_x=shaper, shaper_y=shaper, freq_x=41.5001), fw)
@@ -303,3 +303,20 @@ def test_klipper_gets_canonical_shaper_names_and_named_integer_parameters():
     `[\\d.]+`, int without a point: n=5.0 would reach range() as a float and crash the host."""
     e = export_config(cfg(shaper_x="EI2", damping_x=0.1, shaper_y="mzv(5.0, 1.1)"), "klipper")
     assert "SHAPER_TYPE_X=2hump_ei" in e.lines[0] and "SHAPER_TYPE_Y=mzv(n=5,t=1.1)" in e.lines[0]
+
+
+def test_one_record_per_firmware_is_what_config_space_and_export_read():
+    """Issue 17: every reader takes the firmware facts from the one record: names are read
+    case-insensitively (`Klipper`), rrf34 is a firmware tune accepts as export does, and RRF's one
+    shaper for all axes holds in the search space for every RRF version."""
+    from ringtune.agents.space import default_space
+    from ringtune.envs.printer import load_printer
+
+    assert TuneConfig(firmware="Klipper").firmware == "klipper"
+    assert TuneConfig(firmware="rrf34", shaper_x="zvd", shaper_y="zvd").flavor == FIRMWARES["rrf34"].flavor
+    printer = load_printer(None)
+    for name, fw in FIRMWARES.items():
+        assert default_space(printer, name).per_axis is not fw.one_shaper
+        assert set(default_space(printer, name).shapers) <= set(fw.shapers)
+    assert [n for n, fw in FIRMWARES.items() if fw.one_shaper] == ["rrf", "rrf35", "rrf34"]
+    assert [n for n, fw in FIRMWARES.items() if fw.freq_limit] == ["marlin", "marlin-ftm"]

@@ -300,3 +300,40 @@ def test_save_file_in_a_missing_directory_is_refused_before_anything_is_sent(tmp
         with pytest.raises(RingtuneError, match="no such directory"):
             push(cfg, port=fp.url, timeout=1.0, save=True, save_path=tmp_path / "nope" / "c.g")
     assert fp.executed == [] and fp.received == 0
+
+
+@pytest.mark.parametrize("fw, shaper, accel_of", [
+    ("marlin", "zv", lambda core: core.accel["P"]),
+    ("rrf", "zvd", lambda core: core.accel["P"]),
+    ("prusa", "mzv", lambda core: core.accel["P"]),
+    ("klipper", "mzv", lambda core: core.max_accel)])
+def test_push_applies_and_reads_back_the_acceleration_and_no_accel_leaves_it(fw, shaper, accel_of):
+    cfg = TuneConfig(firmware=fw, shaper_x=shaper, shaper_y=shaper, freq_x=40.5, freq_y=40.5, accel=4250.0)
+    with FakePrinter(fw, transport="tcp") as fp:
+        before = accel_of(fp.core)
+        r = push(cfg, port=fp.url, timeout=2.0, accel=False)
+        assert r.ok and "accel" not in {s.key for s in r.settings} and accel_of(fp.core) == before
+        assert not any(c.startswith(("M204", "SET_VELOCITY_LIMIT")) for c in fp.executed)
+        r = push(cfg, port=fp.url, timeout=2.0)
+    assert accel_of(fp.core) == 4250.0
+    st = next(s for s in r.settings if s.key == "accel")
+    assert r.ok and st.status == APPLIED and st.reported == 4250.0
+    assert any("override this acceleration" in n for n in r.notes)
+
+
+def test_klipper_unknown_command_counts_as_a_failed_line_on_pty_and_moonraker():
+    """Klipper answers an unknown command with an info line, not "!!" (gcode.py); a printer.cfg
+    without [input_shaper] has no SET_INPUT_SHAPER. Both links give the same per-setting report."""
+    from fake_printer import KlipperCore
+
+    cfg = TuneConfig(firmware="klipper", shaper_x="ei", shaper_y="mzv", freq_x=51.2, freq_y=46.2, accel=4000.0)
+    with FakePrinter("klipper", core=KlipperCore(input_shaper=False)) as fp:
+        a = push(cfg, port=fp.url, timeout=2.0)
+    with FakeMoonraker(core=KlipperCore(input_shaper=False)) as mr:
+        b = push(cfg, moonraker=mr.url, timeout=2.0)
+    for r in (a, b):
+        assert not r.ok and r.printer_state == {"state": "ready", "message": "Printer is ready"}
+        st = {s.key: (s.status, s.detail) for s in r.settings}
+        assert st["x.freq"] == ("not applied", 'printer said: Unknown command:"SET_INPUT_SHAPER"')
+        assert st["accel"][0] == APPLIED
+    assert a.text().splitlines()[1:] == b.text().splitlines()[1:]

@@ -5,13 +5,14 @@ The graph is read with ``ast`` from every module of ``shaping/``, ``envs/``, ``a
 ``hardware/`` — every ``import`` statement, also those inside functions and under
 ``if TYPE_CHECKING``. The rules (``../shared/DESIGN.md``, "Layout"):
 
-- ``hardware`` and ``shaping`` import nothing of ours but each other's *plain data types*: a name
-  imported across the two must be a class (a dataclass, an exception) or a module constant
-  (``UPPER_CASE = …``) of the module that defines it, never a function or a module;
-- ``envs`` imports ``shaping`` (and itself) only; ``agents`` may import everything;
-- no cycles: neither between packages (counting every edge but the plain-data ones between
-  ``hardware`` and ``shaping``, which DESIGN.md allows both ways) nor between modules (imports
-  at module level; an import inside a function runs later and may close a loop);
+- ``shaping`` (what the firmware does to motion, and the firmware records) imports nothing of ours;
+  ``hardware`` (the real printer) imports ``shaping``: it sends what shaping defines and checks it
+  with the same math before anything reaches a printer; ``envs`` imports ``shaping`` only;
+  ``agents`` may import everything. (DESIGN.md allowed hardware and shaping each other's plain
+  data types; the firmware dialects need the shaper registry's parser and checks, so the rule is
+  made a strict layering instead: shaping below hardware, never the reverse.)
+- no cycles: neither between packages nor between modules (imports at module level; an import
+  inside a function runs later and may close a loop);
 - one address per name: every ``from ringtune.m import N`` (in the packages, the tests and the
   benchmarks) and every ``m.N`` on an imported module names a module that defines ``N``; no module
   imports one of our names without using it (a re-export), lists a name it does not define in
@@ -32,18 +33,12 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("shaping", "envs", "agents", "hardware")
-#: package -> the packages it may import (besides itself); hardware/shaping: plain data only
-MAY_IMPORT = {"shaping": {"hardware"}, "hardware": {"shaping"}, "envs": {"shaping"},
+#: package -> the packages it may import (besides itself)
+MAY_IMPORT = {"shaping": set(), "hardware": {"shaping"}, "envs": {"shaping"},
               "agents": {"shaping", "envs", "hardware"}}
-PLAIN_DATA_ONLY = {("shaping", "hardware"), ("hardware", "shaping")}
 
 #: (importing module, imported module, name or "*") -> why it is still allowed
 KNOWN_EXCEPTIONS = {
-    ("ringtune.hardware.dialects", "ringtune.shaping.shapers", "parse_name"):
-        "the firmware dialects parse shaper names (with Klipper's mzv(n=…) parameters) with the "
-        "registry's own parser rather than a second copy",
-    ("ringtune.hardware.dialects", "ringtune.shaping.custom", "rrf_custom"):
-        "RRF custom shapers are validated by the same function the registry builds them with",
 }
 
 
@@ -162,13 +157,6 @@ def _exception(edge: Edge) -> str | None:
     return None
 
 
-def _plain_data(edge: Edge) -> bool:
-    if edge.name is None or edge.dst not in DEFS:
-        return False
-    _, classes, constants = DEFS[edge.dst]
-    return edge.name in classes or edge.name in constants
-
-
 def _where(edge: Edge) -> str:
     return f"{MODULES[edge.src].relative_to(ROOT)}:{edge.line}"
 
@@ -188,9 +176,6 @@ def package_rule_violations(edges=EDGES) -> list[str]:
         if dp not in MAY_IMPORT[sp]:
             bad.append(f"{_where(e)}: {sp} imports {what} ({sp} may import only "
                        f"{', '.join(sorted(MAY_IMPORT[sp])) or 'itself'})")
-        elif (sp, dp) in PLAIN_DATA_ONLY and not _plain_data(e):
-            bad.append(f"{_where(e)}: {sp} imports {what}, which is not a plain data type "
-                       f"(a class or an UPPER_CASE constant) of {dp}")
     return bad
 
 
@@ -241,7 +226,7 @@ def test_no_cycles_between_packages():
     graph: dict[str, set[str]] = {}
     for e in EDGES:
         sp, dp = _package(e.src), _package(e.dst)
-        if sp != dp and not ((sp, dp) in PLAIN_DATA_ONLY and _plain_data(e)):
+        if sp != dp:
             graph.setdefault(sp, set()).add(dp)
     assert _cycle(graph) is None
 
@@ -352,7 +337,7 @@ def test_no_module_imports_our_names_only_to_expose_them():
 @pytest.mark.parametrize("src, dst, name, rule", [
     ("ringtune.shaping.planner", "ringtune.envs.printer", "load_printer", "shaping imports"),
     ("ringtune.envs.sim", "ringtune.hardware.accel", "read_accel", "envs imports"),
-    ("ringtune.hardware.dialects", "ringtune.shaping.shapers", "get_shaper", "not a plain data type"),
+    ("ringtune.shaping.shapers", "ringtune.hardware.dialects", "DIALECTS", "shaping imports"),
     ("ringtune.shaping.apply", "ringtune.agents.pareto", "choose", "shaping imports"),
 ])
 def test_a_forbidden_import_is_caught(src, dst, name, rule):

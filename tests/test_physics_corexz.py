@@ -154,3 +154,23 @@ def test_motor_accel_limit_is_where_the_simulated_demand_meets_the_force(kin):
     assert p.moving_mass("y") == pytest.approx(4.0 + (0.0 if kin == "corexy" else 0.2))
     # faster: less force, less acceleration
     assert p.motor_accel_limit("x", 3 * mo.corner_speed) < p.motor_accel_limit("x", 0.0)
+
+
+def test_slip_rotors_carry_each_motors_own_datasheet_constants():
+    """Rotor A of a CoreXY on a 0.9° motor, B on a 1.8° one: each rotor's magnetic peak is its
+    motor's holding force at the run current, T_h·I_run/I_r / r, and its period 4 full steps of belt."""
+    p = printer_from_dict({"kinematics": "corexy",
+                           "x": {"mass": 0.6, "modes": [{"freq": 55.0, "damping": 0.08}],
+                                 "motor": {"name": "ldo-42sth48-2004mah", "run_current": 1.2,
+                                           "rotation_distance": 40, "rotor_inertia": 6.8e-6}},
+                           "y": {"mass": 1.0, "modes": [{"freq": 45.0, "damping": 0.08}],
+                                 "motor": {"name": "ldo-42sth48-2504ac", "run_current": 1.5,
+                                           "rotation_distance": 40, "rotor_inertia": 6.8e-6}},
+                           "motor": {"slip": True}})
+    s = linear_system(p)
+    r = 40e-3 / (2 * math.pi)
+    a, b = s.rotors
+    assert a.peak == pytest.approx(0.44 * 1.2 / 2.0 / r * 1e3)          # mN
+    assert b.peak == pytest.approx(0.55 * 1.5 / 2.5 / r * 1e3)
+    assert a.cycle == pytest.approx(4 * 40 / 400) and b.cycle == pytest.approx(4 * 40 / 200)
+    assert a.mass == pytest.approx(6.8e-6 / r ** 2) == b.mass

@@ -159,3 +159,28 @@ def test_corexz_is_a_bed_slinger_in_y_and_drives_x_with_two_motors():
     with pytest.raises(RingtuneError, match="belts"):
         printer_from_dict({"kinematics": "corexz", "belts": {"mismatch": 0.1}, **AXES})
     assert DEFAULTS["print_mass"] == 0.0
+
+
+_FORMS = [None, {"force": 22.0, "corner_speed": 90.0}, {"name": "ldo-42sth48-2504ac"},
+          {"name": "wantai-42byghm810", "run_current": 1.1, "rotation_distance": 32.0, "microsteps": 32},
+          {"holding_torque": 0.4, "rated_current": 1.5, "resistance": 2.0, "inductance": 0.003,
+           "voltage": 12.0},
+          {"run_current": 0.7}, {"name": "ldo-42sth40-1684ac", "inductance": 0.005, "rotor_inertia": 5.4e-6}]
+
+
+@pytest.mark.parametrize("base", range(len(_FORMS)))
+@pytest.mark.parametrize("kin", ["cartesian", "corexy", "corexz"])
+def test_every_combination_of_motor_forms_round_trips(base, kin):
+    for xi in range(len(_FORMS)):
+        yi = (xi + base + 1) % len(_FORMS)
+        d = {"kinematics": kin, "x": dict(AXES["x"]), "y": dict(AXES["y"])}
+        if _FORMS[base] is not None:
+            d["motor"] = dict(_FORMS[base])
+        for ax, i in (("x", xi), ("y", yi)):
+            if _FORMS[i] is not None:
+                d[ax]["motor"] = dict(_FORMS[i])
+        p = printer_from_dict(d)
+        q = printer_from_dict(tomllib.loads(p.to_toml()))
+        assert q == p, (base, xi, yi)
+        for ax in ("x", "y"):
+            assert q.motor_for(ax).max_force(900.0) == pytest.approx(p.motor_for(ax).max_force(900.0))

@@ -143,3 +143,15 @@ def test_motor_command_says_its_defaults_and_refuses_unknown_names(capsys):
     assert rc == 2 and len(lines) == 1 and "ldo-42sth48-2504ac" in lines[0] and cap.out == ""
     rc, cap = _run(["motor", "ldo-42sth48-2504ac", "--voltage", "0"], capsys)
     assert rc == 2 and "--voltage" in cap.err
+
+
+@pytest.mark.parametrize("name, frac, volt", [("ldo-42sth48-2504ac", 0.7, 24.0), ("wantai-42byghm810", 0.5, 12.0),
+                                              ("omc-14hs10-0404s", 1.0, 24.0), ("ldo-42sth40-1684ac", 1.3, 24.0)])
+def test_corner_speed_is_where_the_flat_part_ends(name, frac, volt):
+    m = MOTOR_TABLE[name]
+    d = StepperDrive(m, frac * m.rated_current, volt, 40.0)
+    vc = d.corner_speed
+    assert 0 < vc < math.inf
+    f0 = d.standstill_force
+    assert float(d.force(0.999 * vc)) == pytest.approx(f0, rel=1e-9)
+    assert float(d.force(1.01 * vc)) < f0 * (1 - 1e-6)

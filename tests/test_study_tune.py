@@ -76,14 +76,17 @@ def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evalua
     assert "Klipper's rule" in summary and "no shaping" in summary and "CHOSEN" in summary
     assert set(res["baselines"]) == {"klipper", "none"} and res["trials"] == 10
     # the --json keys tune.py documents as stable
-    assert set(res) == {"out", "trials", "front_size", "quality", "max_path_error_mm", "freq_margin", "chosen",
-                        "baselines",
-                        "vs_baselines",
-                        "dominates_klipper", "files", "storage", "study", "completed_now", "interrupted",
-                        "elapsed_s"}
-    assert set(res["chosen"]) == {"config", "print_time_s", "quality_mm", "chosen_by"}
+    assert set(res) == {"out", "trials", "front_size", "quality", "max_path_error_mm", "motor_reserve",
+                        "freq_margin", "resolution", "chosen", "baselines", "vs_baselines", "dominates_klipper",
+                        "dominates_current", "accel", "job_accel", "plot_arrows", "files", "storage", "study",
+                        "completed_now", "interrupted", "elapsed_s"}
+    assert set(res["chosen"]) == {"config", "print_time_s", "quality_mm", "path_error_mm", "overshoot_mm",
+                                  "motor_load", "chosen_by", "against", "why"}
     assert set(res["vs_baselines"]["klipper"]) == {"baseline", "faster_s", "faster_pct", "better_mm",
-                                                   "better_pct", "dominates"}
+                                                   "better_pct", "dominates", "metrics", "path_error_better_mm",
+                                                   "path_error_better_pct"}
+    assert set(res["vs_baselines"]["klipper"]["metrics"]) == {"print_time_s", "overshoot_mm", "path_error_mm",
+                                                              "feasible"}
     assert set(res["files"]) == {"readme", "summary", "plot", "best", "apply", "front", "trials"}
     assert len((out / "front.csv").read_text().strip().splitlines()) == res["front_size"] + 1
     # the same command again, asking for more trials, resumes: 10 kept, 4 new
@@ -180,17 +183,17 @@ def test_study_command_frequency_error_sweep(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_default_printer_front_dominates_klippers_recommendation(tmp_path, capsys):
-    """Acceptance 2 (reduced to 30 trials to keep the suite short; the benchmark runs 200)."""
+    """Acceptance 2 (reduced to 40 trials to keep the suite short; the benchmark runs 200); dominance
+    at the stated resolution, on overshoot, path error and print time together (issue 14)."""
     out = tmp_path / "out"
-    rc = main(["tune", "--json", "--out", str(out), "--trials", "30", "--workers", "1"])
+    rc = main(["tune", "--json", "--out", str(out), "--trials", "40", "--workers", "1", "--seed", "1"])
     res = json.loads(capsys.readouterr().out)
     assert rc == 0
     k = res["baselines"]["klipper"]
     assert not k["step_loss"]
     d = res["dominates_klipper"]
     assert d is not None, "no front point dominates Klipper's recommendation"
-    assert d["print_time_s"] <= k["print_time_s"] and d["quality_mm"] <= k["quality_mm"]
-    assert d["print_time_s"] < k["print_time_s"] or d["quality_mm"] < k["quality_mm"]
+    assert "worse" not in d["metrics"].values() and "better" in d["metrics"].values()
     summary = (out / "summary.txt").read_text()
     assert "dominating Klipper's rule" in summary
     # the report says by how much, in the same numbers as --json
@@ -204,8 +207,14 @@ def test_default_printer_front_dominates_klippers_recommendation(tmp_path, capsy
     mine, klip = evaluate_many([TuneConfig.from_dict(d["config"]), TuneConfig.from_dict(k["config"])], None, None,
                                freq_margin=0.05)
     assert not mine.step_loss and not klip.step_loss
-    assert mine.print_time_s <= klip.print_time_s + 1e-9 and mine.overshoot_mm <= klip.overshoot_mm + 1e-12
-    assert mine.print_time_s < klip.print_time_s - 1e-6 or mine.overshoot_mm < klip.overshoot_mm - 1e-9
+    # nothing worse beyond 1 µm / 5 % (distances) or 0.5 % (time), something better beyond it
+    worse = [mine.print_time_s > 1.005 * klip.print_time_s,
+             mine.overshoot_mm - klip.overshoot_mm > max(1e-3, 0.05 * max(mine.overshoot_mm, klip.overshoot_mm)),
+             mine.path_error_mm - klip.path_error_mm > max(1e-3, 0.05 * max(mine.path_error_mm, klip.path_error_mm))]
+    better = [mine.print_time_s < klip.print_time_s * 0.995,
+              klip.overshoot_mm - mine.overshoot_mm > max(1e-3, 0.05 * max(mine.overshoot_mm, klip.overshoot_mm)),
+              klip.path_error_mm - mine.path_error_mm > max(1e-3, 0.05 * max(mine.path_error_mm, klip.path_error_mm))]
+    assert not any(worse) and any(better)
     # neither the dominating point nor the chosen one buys its overshoot by cutting corners
     assert res["max_path_error_mm"] == 0.1
     chosen, = evaluate_many([TuneConfig.from_dict(res["chosen"]["config"])], None, None, freq_margin=0.05)

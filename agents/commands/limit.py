@@ -2,7 +2,10 @@
 
 JSON keys (stable): ``input``, ``output`` (path or null when printed to stdout), ``method``,
 ``freq_limit_hz``, ``min_speed_factor``, ``moves_slowed``, ``lines_changed``, ``f_words_replaced``,
-``f_words_added``, ``header`` (the comment written at the top of the output).
+``f_words_added``, ``header`` (the comment written at the top of the output); with ``--accel``: ``accel`` (mm/s²),
+``accel_reference`` (the file's highest printing acceleration, mm/s², null when it sets none),
+``accel_factor``, ``accel_lines_changed``, ``notes``. Without ``--freq-limit`` the frequency keys are
+null / 0.
 """
 
 from __future__ import annotations
@@ -21,16 +24,26 @@ Methods:
   marlin    what Marlin's XY_FREQUENCY_LIMIT (M201 F<Hz> S<%>) does, block by block; its floor
             is the file's own M201 S, else Marlin's default XY_FREQUENCY_MIN_PERCENT 5 %
 
+--accel A rewrites the file's own acceleration commands (M204 P/S/T, M201 X/Y, Klipper
+SET_VELOCITY_LIMIT ACCEL) so that its highest printing acceleration becomes A mm/s², every other
+one scaled by the same factor (the ratios between features stay); nothing else changes. A sliced
+file's commands override what the printer was told, so this is how a tuned acceleration reaches a
+job that is already sliced.
+
 examples:
   ringtune limit part.gcode --freq-limit 20 -o part_limited.gcode
+  ringtune limit part.gcode --accel 4200 -o part_4200.gcode
   ringtune limit part.gcode --freq-limit 25 --method nophead --min-speed-factor 0.5 -o out.gcode
 """
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("file", metavar="FILE.gcode", help="G-code file to limit")
-    parser.add_argument("--freq-limit", metavar="HZ", type=float, required=True,
+    parser.add_argument("--freq-limit", metavar="HZ", type=float, default=None,
                         help="largest direction-change frequency, Hz")
+    parser.add_argument("--accel", metavar="A", type=float, default=None,
+                        help="scale the file's acceleration commands so its highest printing "
+                             "acceleration becomes A mm/s² (ratios between features kept)")
     parser.add_argument("--method", choices=("sections", "nophead", "marlin"), default="sections",
                         help="which algorithm (default: sections)")
     parser.add_argument("--min-speed-factor", metavar="S", type=float, default=None,
@@ -43,28 +56,55 @@ def run(args, out) -> int:
     import sys
 
     from ringtune.shaping.errors import RingtuneError
-    from ringtune.shaping.gcode_post import limit_file
+    from pathlib import Path
 
-    if not args.freq_limit > 0:
+    from ringtune.shaping.gcode_post import limit_file, rewrite_accel_bytes
+
+    if args.freq_limit is None and args.accel is None:
+        raise RingtuneError("give --freq-limit HZ, --accel A or both", "--freq-limit")
+    if args.freq_limit is not None and not args.freq_limit > 0:
         raise RingtuneError("must be a frequency > 0 Hz", "--freq-limit")
+    if args.accel is not None and not args.accel > 0:
+        raise RingtuneError("must be an acceleration > 0 mm/s²", "--accel")
     if args.min_speed_factor is not None and not 0 < args.min_speed_factor <= 1:
         raise RingtuneError("must be in (0, 1]", "--min-speed-factor")
     if args.output is None and args.json:
         raise RingtuneError("--json needs -o OUT (stdout carries the JSON)", "--output")
-    data, res = limit_file(args.file, args.output, args.freq_limit, args.method, args.min_speed_factor)
+    if args.freq_limit is not None:
+        data, res = limit_file(args.file, None, args.freq_limit, args.method, args.min_speed_factor)
+    else:
+        try:
+            data, res = Path(args.file).read_bytes(), None
+        except OSError as exc:
+            raise RingtuneError(f"cannot read: {exc.strerror}", args.file) from None
+    acc = None
+    if args.accel is not None:
+        data, acc = rewrite_accel_bytes(data, args.accel, source=args.file)
+    if args.output is not None:
+        Path(args.output).write_bytes(data)
     result = {
-        "input": args.file, "output": args.output, "method": args.method,
-        "freq_limit_hz": args.freq_limit, "min_speed_factor": res.min_speed_factor,
-        "moves_slowed": res.moves_slowed, "lines_changed": res.lines_changed,
-        "f_words_replaced": res.f_words_changed, "f_words_added": res.f_words_added,
-        "header": res.header,
+        "input": args.file, "output": args.output, "method": args.method if res else None,
+        "freq_limit_hz": args.freq_limit, "min_speed_factor": res.min_speed_factor if res else None,
+        "moves_slowed": res.moves_slowed if res else 0, "lines_changed": res.lines_changed if res else 0,
+        "f_words_replaced": res.f_words_changed if res else 0, "f_words_added": res.f_words_added if res else 0,
+        "header": "\n".join(h.header for h in (res, acc) if h is not None),
+        "accel": args.accel, "accel_reference": acc.reference if acc else None,
+        "accel_factor": acc.factor if acc else None, "accel_lines_changed": acc.lines_changed if acc else 0,
+        "notes": acc.notes if acc else [],
     }
     if args.output is None:
         sys.stdout.buffer.write(data)
         sys.stdout.flush()
-        out.note(res.header)
+        out.note(result["header"])
+        for n in result["notes"]:
+            out.note(n)
         return 0
-    out.emit(result, f"{args.file} -> {args.output}: {res.moves_slowed} moves slowed, "
-                     f"F changed on {res.lines_changed} lines ({res.f_words_changed} replaced, "
-                     f"{res.f_words_added} added)")
+    text = []
+    if res:
+        text.append(f"{args.file} -> {args.output}: {res.moves_slowed} moves slowed, "
+                    f"F changed on {res.lines_changed} lines ({res.f_words_changed} replaced, "
+                    f"{res.f_words_added} added)")
+    if acc:
+        text.append(acc.header.lstrip("; ") + "".join(f"\nnote: {n}" for n in acc.notes))
+    out.emit(result, "\n".join(text))
     return 0

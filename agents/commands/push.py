@@ -6,8 +6,11 @@
     settings: {key: {meant, reported, status ("applied" | "not applied" |
         "acknowledged (no read-back)" | "not sent (dry run)"), detail}},
     resets: printer resets seen during the push, saved: how it was persisted or null,
-    save_file: config file written (RRF, Klipper) or null, notes: remarks
-Exit status: 0 all applied, 1 something not applied, 2 bad input or the printer stopped answering.
+    save_file: config file written (RRF, Klipper) or null, notes: remarks,
+    printer_state: after a failed line on Klipper, {state ("ready" | "shutdown" | "not ready" |
+        "error" | "unknown"), message} (pty: STATUS; Moonraker: /printer/info), else null
+Exit status: 0 all applied, 1 something not applied (the same over the pty and Moonraker), 2 bad
+input (nothing sent) or the printer stopped answering.
 """
 
 from __future__ import annotations
@@ -26,7 +29,15 @@ through Moonraker: --moonraker http://host:7125 (API key: --api-key or $MOONRAKE
 
 Marlin and RepRapFirmware lines are numbered and checksummed (XOR; --crc for RRF's CRC-16), one
 `ok` each, with resend requests, busy messages, temperature reports and printer resets handled.
-After sending, the firmware is asked (M593, M493, SET_INPUT_SHAPER) and its answer compared.
+After sending, the firmware is asked (M593, M493, SET_INPUT_SHAPER; M204, SET_VELOCITY_LIMIT) and
+its answer compared. Nothing is sent unless every value passes `ringtune shaper`'s check and the
+firmware's range and precision (a value that would round to another one is refused). After a
+line Klipper refused, its state is asked; if it shut down, the report says so and how to recover
+(FIRMWARE_RESTART).
+
+The config's acceleration is applied too (SET_VELOCITY_LIMIT ACCEL= on Klipper, M204 P on Marlin,
+Prusa and RepRapFirmware) and read back; --no-accel leaves it alone. A sliced file's own
+acceleration commands override it while it prints (see `ringtune export --slicer`).
 
 --save persists where the firmware can: M500 (Marlin), M593 W (Prusa). RepRapFirmware and Klipper
 cannot save these from G-code: the lines are written to a file (--save-file) for config.g or
@@ -54,6 +65,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="seconds without any answer before giving up (default 10)")
     p.add_argument("--save", action="store_true", help="persist the settings (see above)")
     p.add_argument("--save-file", metavar="FILE", help="where --save writes config lines (RRF, Klipper)")
+    p.add_argument("--no-accel", action="store_true", help="leave the printer's acceleration alone")
     p.add_argument("--dry-run", action="store_true", help="print exactly what would be sent; send nothing")
     p.add_argument("-v", "--verbose", action="store_true", help="show the conversation on stderr")
 
@@ -79,9 +91,11 @@ def run(args, out) -> int:
         result = push(cfg, args.firmware, port=args.port, moonraker=args.moonraker, baud=args.baud,
                       save=args.save, dry_run=args.dry_run, timeout=args.timeout, crc=args.crc,
                       api_key=args.api_key or os.environ.get("MOONRAKER_API_KEY"),
-                      save_path=args.save_file, log=log)
+                      save_path=args.save_file, log=log, accel=not args.no_accel)
     except PushError as exc:
         out.emit(exc.result.to_dict(), exc.result.text())
         raise
+    except RingtuneError as exc:   # name the file the user gave, not the abstract "config"
+        raise exc.relocated("config", args.config) from None
     out.emit(result.to_dict(), result.text())
     return 0 if result.ok else 1

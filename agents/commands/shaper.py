@@ -26,15 +26,14 @@ NAME is zv, mzv, zvd, zvdd, zvddd, ei, 2hump_ei (ei2), 3hump_ei (ei3), none or c
 parameterised forms work too: "mzv(n=5,t=1.1)", "ei(v_tol=0.1)"; RRF custom shapers take their
 M593 lists: "custom(h=0.4:0.7,t=0.0135:0.0135)".
 --flavor picks the firmware's formulas: klipper (default), klipper-legacy (also prusa), rrf (3.6),
-rrf35 (3.4/3.5), marlin (classic ZV), marlin-ftm (M493). A shaper the firmware lacks is an error
+rrf35 (3.4/3.5), marlin (classic ZV), marlin-ftm (M493); any firmware name (prusa, rrf34) gives
+its formulas. A shaper the firmware lacks is an error
 that names the closest one it has.
 
 example:
   ringtune shaper mzv --freq 40 --damping 0.1
   ringtune shaper ei2 --freq 45 --flavor rrf --json
 """
-
-ALIASES = {"prusa": "klipper-legacy"}
 
 
 def add_arguments(parser) -> None:
@@ -63,11 +62,14 @@ def band_text(lo: float, hi: float) -> str:
 
 def resolve_flavor(flavor: str) -> str:
     from ringtune.shaping.errors import RingtuneError
+    from ringtune.shaping.firmware import FIRMWARES
     from ringtune.shaping.shapers import FLAVORS
 
-    flavor = ALIASES.get(flavor.lower(), flavor.lower())
+    name = flavor.lower()
+    flavor = FIRMWARES[name].flavor if name in FIRMWARES else name    # a firmware name: its formulas
     if flavor not in FLAVORS:
-        raise RingtuneError(f"unknown flavour {flavor!r}; one of {', '.join(FLAVORS)}, prusa", "--flavor")
+        raise RingtuneError(f"unknown flavour {flavor!r}; one of {', '.join(FLAVORS)}, or a firmware "
+                            f"({', '.join(FIRMWARES)})", "--flavor")
     return flavor
 
 

@@ -1,0 +1,330 @@
+"""The printer from a Klipper configuration: kinematics, limits, motors and the input shaper in use.
+
+Two sources give the same facts:
+
+- :func:`printer_facts_from_klipper` reads ``printer.cfg`` as Klipper does (includes, comments,
+  SAVE_CONFIG block: :mod:`ringtune.hardware.klipper_cfgfile`);
+- :func:`printer_facts_from_moonraker` asks a running printer, ``GET
+  /printer/objects/query?configfile=config,settings``: ``settings`` holds the values as Klipper
+  parsed them (its defaults included), ``config`` the raw text of what the files set, which tells a
+  value the user wrote from one Klipper filled in.
+
+What is taken (Klipper's option -> description key):
+
+- ``[printer] kinematics`` -> ``kinematics`` (``cartesian``, ``corexy``, ``corexz``; a fork's
+  ``limited_*`` -> its base, with a note; anything else is refused);
+- ``max_accel`` -> ``limits.accel``, ``max_velocity`` -> ``limits.velocity``,
+  ``square_corner_velocity`` (default 5 mm/s), ``minimum_cruise_ratio`` -> ``limits.min_cruise_ratio``
+  (default 0.5; from the old ``max_accel_to_decel``: ``1 − max_accel_to_decel / max_accel``),
+  ``max_z_velocity``/``max_z_accel`` (and ``limited_*``'s ``max_x_…``/``max_y_…``) -> the per-axis
+  caps ``limits.max_velocity``/``limits.max_accel`` (x, y, z, e; 0 = no cap) when they bind;
+- per motor (``stepper_x`` -> ``[x.motor]``, ``stepper_y`` -> ``[y.motor]``, one ``[motor]`` when
+  both are the same): ``rotation_distance`` (mm of belt per *motor* revolution: divided by
+  ``gear_ratio``; from the old ``step_distance``: ``step_distance · full_steps_per_rotation ·
+  microsteps``), ``microsteps``, ``full_steps_per_rotation`` -> ``steps_per_revolution``,
+  ``[tmc… stepper_x] run_current`` (A RMS, any TMC driver), ``[autotune_tmc stepper_x] motor`` ->
+  ``name`` and ``voltage``; a ``[motor_constants NAME]`` of the user's files gives ``resistance``,
+  ``inductance``, ``holding_torque``, ``max_current`` -> ``rated_current`` (they take precedence
+  over a built-in table entry of that name);
+- ``[input_shaper]`` -> ``[current]``: ``shaper_x``/``freq_x``/``damping_x`` (and y) as Klipper runs
+  them (``shaper_type_x`` else ``shaper_type`` else Klipper's ``mzv``; damping 0.1 by default; a
+  zero or missing frequency is ``"none"``), ``accel`` = ``max_accel``, ``firmware = "klipper"``.
+
+Every default taken and every mapping made is a note; nothing is guessed silently.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, place_motors, to_number, without_motor
+from ringtune.hardware.klipper_cfgfile import read_klipper_cfg
+from ringtune.shaping.errors import RingtuneError
+
+#: shapers Klipper 84104bb has (``klippy/extras/shaper_defs.py``), unparameterised names
+KLIPPER_SHAPERS = ("zv", "mzv", "zvd", "ei", "2hump_ei", "3hump_ei")
+#: Klipper's defaults for what is taken here (toolhead.py, stepper.py, extras/input_shaper.py)
+KLIPPER_DEFAULTS = {"square_corner_velocity": 5.0, "minimum_cruise_ratio": 0.5, "full_steps_per_rotation": 200,
+            "shaper_type": "mzv", "damping_ratio": 0.1}
+_MOTOR_CONSTANTS = (("resistance", "resistance"), ("inductance", "inductance"),
+                    ("holding_torque", "holding_torque"), ("max_current", "rated_current"))
+
+
+@dataclass
+class _Source:
+    """Sections to read facts from, and how to say where a value came from."""
+
+    sections: dict
+    label: str                                   # file or URL
+    origin: dict = field(default_factory=dict)   # (section, option) -> "file:line"
+    given: set | None = None                     # (section lower, option) the user wrote; None = all
+    notes: list = field(default_factory=list)
+
+    def name(self, section: str) -> str | None:
+        """The section's name as written (sections are matched case-insensitively)."""
+        for key in self.sections:
+            if key.lower() == section.lower():
+                return key
+        return None
+
+    def get(self, section: str, option: str):
+        real = self.name(section)
+        return None if real is None else self.sections[real].get(option)
+
+    def where(self, section: str, option: str) -> str:
+        real = self.name(section) or section
+        return self.origin.get((real, option)) or f"{self.label}: [{real}] {option}"
+
+    def given_by_user(self, section: str, option: str) -> bool:
+        if self.get(section, option) is None:
+            return False
+        return self.given is None or (section.lower(), option) in self.given
+
+    def number(self, section: str, option: str, default=None, integer=False, unit=""):
+        """The option as a number; Klipper's ``default`` (with a note) when the user did not set it."""
+        v = self.get(section, option)
+        if v is None and default is None:
+            return None
+        value = default if v is None else to_number(v, self.where(section, option), integer)
+        if not self.given_by_user(section, option) and default is not None:
+            self.notes.append(f"[{self.name(section) or section}] {option} not set: Klipper's default "
+                              f"{value:g}{unit} is used")
+        return value
+
+
+def _kinematics(src: _Source) -> str:
+    kin = src.get("printer", "kinematics")
+    if kin is None:
+        raise RingtuneError("no kinematics: [printer] kinematics is missing", src.label)
+    kin = str(kin).strip()
+    if kin in KINEMATICS:
+        return kin
+    if kin.startswith("limited_") and kin[8:] in KINEMATICS:
+        src.notes.append(f"{src.where('printer', 'kinematics')}: kinematics {kin} (a Klipper fork's) is "
+                         f"modelled as {kin[8:]}; its per-axis limits become per-axis caps")
+        return kin[8:]
+    raise RingtuneError(f"kinematics {kin!r} is not one the printer model has "
+                        f"({', '.join(KINEMATICS)})", src.where("printer", "kinematics"))
+
+
+def _limits(src: _Source) -> dict:
+    if src.name("printer") is None:
+        raise RingtuneError("no [printer] section", src.label)
+    accel = src.number("printer", "max_accel")
+    velocity = src.number("printer", "max_velocity")
+    for key, v in (("max_accel", accel), ("max_velocity", velocity)):
+        if v is None:
+            raise RingtuneError(f"[printer] {key} is missing (Klipper requires it)", src.label)
+        if v <= 0:
+            raise RingtuneError(f"must be > 0, not {v:g}", src.where("printer", key))
+    limits = {"accel": accel, "velocity": velocity, "junction": "scv",
+              "square_corner_velocity": src.number("printer", "square_corner_velocity",
+                                                   KLIPPER_DEFAULTS["square_corner_velocity"], unit=" mm/s")}
+    # only when written: an older Klipper's settings hold its default (max_accel / 2) unasked
+    mad = src.number("printer", "max_accel_to_decel") if src.given_by_user("printer", "max_accel_to_decel") \
+        else None
+    if src.given_by_user("printer", "minimum_cruise_ratio") or mad is None:
+        mcr = src.number("printer", "minimum_cruise_ratio", KLIPPER_DEFAULTS["minimum_cruise_ratio"])
+        if mad is not None:
+            src.notes.append(f"{src.where('printer', 'max_accel_to_decel')}: max_accel_to_decel is "
+                             "ignored: minimum_cruise_ratio is set too")
+    else:
+        mcr = min(max(1.0 - mad / accel, 0.0), 0.99)
+        src.notes.append(f"{src.where('printer', 'max_accel_to_decel')}: old max_accel_to_decel {mad:g} "
+                         f"-> minimum_cruise_ratio = 1 - {mad:g}/{accel:g} = {mcr:g}")
+    if not 0 <= mcr < 1:
+        raise RingtuneError(f"must be in [0, 1), not {mcr:g}", src.where("printer", "minimum_cruise_ratio"))
+    limits["min_cruise_ratio"] = mcr
+    for kind, top in (("accel", accel), ("velocity", velocity)):
+        caps = [0.0, 0.0, 0.0, 0.0]
+        for i, ax in enumerate("xyz"):
+            v = src.number("printer", f"max_{ax}_{kind}")
+            if v is not None and v < top:
+                caps[i] = v
+        if any(caps):
+            limits[f"max_{kind}"] = caps
+    return limits
+
+
+def _gearing(src: _Source, stepper: str) -> float:
+    raw = src.get(stepper, "gear_ratio")
+    if raw is None or raw == "" or raw == ():
+        return 1.0
+    pairs = raw if isinstance(raw, (list, tuple)) else [p.split(":") for p in str(raw).split(",") if p.strip()]
+    g = 1.0
+    for pair in pairs:
+        if len(pair) != 2:
+            raise RingtuneError(f"gear_ratio must be 'a:b[, c:d…]', not {raw!r}",
+                                src.where(stepper, "gear_ratio"))
+        a, b = (to_number(p, src.where(stepper, "gear_ratio")) for p in pair)
+        g *= a / b
+    return g
+
+
+def _tmc_section(src: _Source, stepper: str) -> str | None:
+    found = [s for s in src.sections if re.fullmatch(rf"tmc\w+\s+{re.escape(stepper)}", s, re.I)]
+    if len(found) > 1:
+        src.notes.append(f"{stepper}: several driver sections ({', '.join(found)}); {found[-1]} is read")
+    return found[-1] if found else None
+
+
+def _motor_constants(src: _Source, name: str) -> str | None:
+    want = f"motor_constants {name}".lower()
+    return next((s for s in src.sections if " ".join(s.split()).lower() == want), None)
+
+
+def _stepper_motor(src: _Source, stepper: str) -> dict:
+    """The motor table of one stepper (see the module docstring)."""
+    if src.name(stepper) is None:
+        src.notes.append(f"no [{stepper}] section: its rotation_distance and microsteps are unknown")
+        return {}
+    table: dict = {}
+    micro = src.number(stepper, "microsteps", integer=True)
+    tmc = _tmc_section(src, stepper)
+    if micro is None and tmc is not None:
+        micro = src.number(tmc, "microsteps", integer=True)      # old configurations kept it there
+    full = src.number(stepper, "full_steps_per_rotation", KLIPPER_DEFAULTS["full_steps_per_rotation"],
+                      integer=True)
+    rd = src.number(stepper, "rotation_distance")
+    if rd is None and src.get(stepper, "step_distance") is not None:
+        sd = src.number(stepper, "step_distance")
+        if micro is None:
+            src.notes.append(f"{src.where(stepper, 'step_distance')}: old step_distance {sd:g} mm but no "
+                             "microsteps: rotation_distance unknown")
+        else:
+            rd = sd * full * micro
+            src.notes.append(f"{src.where(stepper, 'step_distance')}: old step_distance {sd:g} mm -> "
+                             f"rotation_distance = {sd:g} × {full} × {micro} = {rd:g} mm")
+    elif rd is None:
+        src.notes.append(f"[{stepper}] has no rotation_distance")
+    gearing = _gearing(src, stepper)
+    if rd is not None and gearing != 1.0:
+        src.notes.append(f"{src.where(stepper, 'gear_ratio')}: gear_ratio {gearing:g}: the motor turns "
+                         f"{gearing:g}× per rotation_distance, so {rd / gearing:g} mm of belt per motor "
+                         "revolution")
+        rd = rd / gearing
+    if rd is not None:
+        table["rotation_distance"] = rd
+    if micro is not None:
+        table["microsteps"] = int(micro)
+    table["steps_per_revolution"] = int(full)
+    if tmc is None:
+        src.notes.append(f"no [tmc… {stepper}] section: {stepper}'s run current is unknown")
+    else:
+        rc = src.number(tmc, "run_current")
+        if rc is not None:
+            table["run_current"] = rc
+    auto = f"autotune_tmc {stepper}"
+    motor = src.get(auto, "motor")
+    if motor is None:
+        src.notes.append(f"no [autotune_tmc {stepper}] motor: {stepper}'s motor is not named")
+        without_motor(table, src.notes, stepper)
+        return table
+    motor = str(motor).strip()
+    table["name"] = motor
+    volts = src.number(auto, "voltage")
+    if volts is not None:
+        table["voltage"] = volts
+    else:
+        src.notes.append(f"[autotune_tmc {stepper}] gives no voltage: the supply voltage is unknown")
+    inline = _motor_constants(src, motor)
+    if inline is not None:
+        for key, out in _MOTOR_CONSTANTS:
+            v = src.number(inline, key)
+            if v is None:
+                raise RingtuneError(f"[{inline}] has no {key}", src.label)
+            table[out] = v
+        steps = src.number(inline, "steps_per_revolution", integer=True)
+        src.notes.append(f"{stepper}: motor {motor}: constants from [{inline}] at "
+                         f"{src.where(inline, 'resistance')} (they take precedence over a built-in entry)")
+        if steps is not None and steps != full:
+            src.notes.append(f"{stepper}: [{inline}] steps_per_revolution {steps} but full_steps_per_rotation "
+                             f"{full}; {full} is written (it is how Klipper steps the motor)")
+    return table
+
+
+def _current(src: _Source, accel: float) -> dict:
+    cur = {"source": src.label, "firmware": "klipper"}
+    if src.name("input_shaper") is None:
+        src.notes.append("no [input_shaper] section: the printer runs without input shaping today")
+        cur.update(shaper_x="none", shaper_y="none", accel=accel)
+        return cur
+    for ax in "xy":
+        freq = src.number("input_shaper", f"shaper_freq_{ax}")
+        if not freq:
+            src.notes.append(f"[input_shaper] shaper_freq_{ax} is {'0' if freq == 0 else 'not set'}: "
+                             f"no shaping on {ax.upper()}")
+            cur[f"shaper_{ax}"] = "none"
+            continue
+        if src.given_by_user("input_shaper", f"shaper_type_{ax}"):
+            shaper = str(src.get("input_shaper", f"shaper_type_{ax}")).strip()
+        elif src.given_by_user("input_shaper", "shaper_type"):
+            shaper = str(src.get("input_shaper", "shaper_type")).strip()
+        else:
+            shaper = KLIPPER_DEFAULTS["shaper_type"]
+            src.notes.append(f"[input_shaper] shaper_type_{ax} not set: Klipper's default {shaper}")
+        if shaper.split("(")[0].strip().lower() not in KLIPPER_SHAPERS:
+            src.notes.append(f"[input_shaper] {ax.upper()} shaper {shaper!r} is not one of Klipper's "
+                             f"{', '.join(KLIPPER_SHAPERS)}; kept as written")
+        damping = src.number("input_shaper", f"damping_ratio_{ax}", KLIPPER_DEFAULTS["damping_ratio"])
+        cur.update({f"shaper_{ax}": shaper, f"freq_{ax}": freq, f"damping_{ax}": damping})
+    cur["accel"] = accel
+    return cur
+
+
+def facts_from_sections(src: _Source) -> FirmwareFacts:
+    """The facts of a configuration already merged into sections (file or Moonraker)."""
+    kin = _kinematics(src)
+    limits = _limits(src)
+    x = _stepper_motor(src, "stepper_x")
+    y = _stepper_motor(src, "stepper_y")
+    if kin == "corexz":
+        zn = len(src.notes)
+        z = _stepper_motor(src, "stepper_z")
+        del src.notes[zn:]
+        if z != x:
+            src.notes.append("corexz: motor B (stepper_z) differs from motor A (stepper_x); [x.motor] "
+                             "describes stepper_x")
+    named = {str(src.get(f"autotune_tmc {s}", "motor") or "").strip().lower()
+             for s in ("stepper_x", "stepper_y")}
+    for sec in src.sections:
+        if sec.lower().startswith("motor_constants ") and sec.split(None, 1)[1].lower() not in named:
+            src.notes.append(f"[{sec}] ({src.where(sec, 'resistance')}) is defined but neither stepper_x "
+                             "nor stepper_y names it")
+    description = {"kinematics": kin, "limits": limits}
+    place_motors(description, x, y)
+    description["current"] = _current(src, limits["accel"])
+    return FirmwareFacts(description, src.notes, src.label)
+
+
+def printer_facts_from_klipper(path: str | Path) -> FirmwareFacts:
+    """Facts from ``printer.cfg`` (and what it includes)."""
+    cfg = read_klipper_cfg(path)
+    notes = list(cfg.notes)
+    used = re.compile(r"(printer|input_shaper|stepper_[xyz]|(tmc\w+|autotune_tmc)\s+stepper_[xyz]"
+                      r"|motor_constants\s.*)", re.I)
+    notes += [note for section, _, note in cfg.ignored_saved if used.fullmatch(section)]
+    src = _Source(cfg.sections, str(path), cfg.origin, None, notes)
+    return facts_from_sections(src)
+
+
+def printer_facts_from_moonraker(url: str, api_key: str | None = None, timeout: float = 10.0) -> FirmwareFacts:
+    """Facts from a running Klipper through Moonraker (``configfile`` object; see module docstring)."""
+    from ringtune.hardware.moonraker import Moonraker
+
+    mr = Moonraker(url, api_key=api_key, timeout=timeout)
+    status = mr.query_objects({"configfile": ["config", "settings"]})
+    cf = status.get("configfile") or {}
+    raw, parsed = cf.get("config"), cf.get("settings")
+    if not isinstance(raw, dict) or not isinstance(parsed, dict):
+        raise RingtuneError("Moonraker's configfile object has no config/settings", mr.shown)
+    sections = {name: dict(opts) for name, opts in raw.items() if isinstance(opts, dict)}
+    given = {(name.lower(), opt.lower()) for name, opts in sections.items() for opt in opts}
+    real = {name.lower(): name for name in sections}
+    for name, opts in parsed.items():
+        if isinstance(opts, dict):
+            sections.setdefault(real.get(name.lower(), name), {}).update(opts)
+    src = _Source(sections, mr.shown, {}, given, [])
+    return facts_from_sections(src)

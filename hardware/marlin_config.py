@@ -1,0 +1,148 @@
+"""The printer from Marlin's ``M503`` report: steps/mm, limits, motor currents and the ZV shaper.
+
+``M503`` prints the settings in force as G-code lines, each after ``echo:`` and a heading comment
+(``MarlinFirmware/MarlinDocumentation:_gcode/M503.md``; the lines are those of ``settings.cpp``'s
+report). Read here, in Marlin's units:
+
+| line | meaning | description key |
+|---|---|---|
+| ``M92 X Y Z E`` | steps per mm | ``motor.steps_per_mm`` (X, Y) |
+| ``M203 X Y Z E`` | max feedrate, mm/s | ``limits.max_velocity`` (x, y, z, e); ``limits.velocity`` = max(X, Y) |
+| ``M201 X Y Z E`` | max acceleration, mm/s² | ``limits.max_accel`` (x, y, z, e) |
+| ``M204 P R T`` (old: ``S T``) | print / retract / travel acceleration, mm/s² | ``limits.accel`` = P (else S), ``limits.travel_accel`` = T |
+| ``M205 J`` or ``M205 X Y Z E`` | junction deviation, mm, or classic jerk, mm/s | ``limits.junction`` = ``jd`` / ``jerk`` and its value |
+| ``M906 X Y`` | TMC driver current, mA RMS | ``motor.run_current`` (A) |
+| ``M593 X/Y F D`` | ZV input shaper (``firmware.md`` §2.1): F Hz (0 = off), D damping | ``[current]`` shaper ``zv`` |
+
+``M503`` does not report the kinematics; the caller gives it (or it stays unknown, with a note).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, gcode_words, place_motors, to_number
+from ringtune.shaping.errors import RingtuneError
+
+_READ = ("M92", "M201", "M203", "M204", "M205", "M906", "M593")
+
+
+def _lines(text: str):
+    """(line number, G-code words) of each command line of an M503 capture."""
+    for n, raw in enumerate(text.splitlines(), 1):
+        line = raw.strip()
+        while line.lower().startswith(("echo:", "//")):
+            line = line.split(":", 1)[1] if line.lower().startswith("echo:") else line[2:]
+            line = line.strip()
+        line = line.split(";", 1)[0]
+        words = gcode_words(line)
+        if words is not None:
+            yield n, words
+
+
+def printer_facts_from_marlin(path: str | Path, kinematics: str | None = None) -> FirmwareFacts:
+    """Facts from a saved ``M503`` answer (see the module docstring)."""
+    path = str(path)
+    try:
+        text = Path(path).read_text(errors="replace")
+    except FileNotFoundError:
+        raise RingtuneError("no such file", path) from None
+    seen: dict[str, tuple[int, dict]] = {}
+    notes: list[str] = []
+    for n, (cmd, words) in _lines(text):
+        if cmd == "M906" and words.get("I", "0") not in ("", "0"):
+            notes.append(f"{path}:{n}: M906 I{words['I']} (a second stepper of an axis) is not read")
+            continue
+        if cmd == "M593":
+            axes = [a for a in "XY" if a in words] or ["X", "Y"]     # no axis letter: every shaped axis
+            for a in axes:
+                seen[f"M593 {a}"] = (n, words)
+            continue
+        if cmd == "M493":
+            notes.append(f"{path}:{n}: M493 (fixed-time motion) is not read; [current] is the classic "
+                         "M593 ZV shaper")
+            continue
+        if cmd in _READ:
+            prev = seen.get(cmd, (n, {}))[1] if cmd in ("M906", "M203", "M201", "M92") else {}
+            seen[cmd] = (n, {**prev, **words})
+    if not any(k in seen for k in _READ):
+        raise RingtuneError("no M92/M201/M203/M204/M205/M906/M593 line: not an M503 report", path)
+
+    def num(cmd: str, letter: str) -> float | None:
+        if cmd not in seen or seen[cmd][1].get(letter) in (None, ""):
+            return None
+        n, words = seen[cmd]
+        return to_number(words[letter].split(":")[0], f"{path}:{n}: {cmd} {letter}")
+
+    def per_axis(cmd: str) -> list[float] | None:
+        vals = [num(cmd, a) for a in "XYZE"]
+        return None if all(v is None for v in vals) else [v or 0.0 for v in vals]
+
+    description: dict = {}
+    if kinematics is not None:
+        if kinematics not in KINEMATICS:
+            raise RingtuneError(f"must be one of {', '.join(KINEMATICS)}, not {kinematics!r}", "kinematics")
+        description["kinematics"] = kinematics
+    else:
+        notes.append("M503 does not report the kinematics: not written (give it with --kinematics)")
+    limits: dict = {}
+    accel = num("M204", "P") or num("M204", "S")
+    if accel is None:
+        notes.append("no M204 P (print acceleration): limits.accel unknown")
+    else:
+        limits["accel"] = accel
+    if num("M204", "T"):
+        limits["travel_accel"] = num("M204", "T")
+    if num("M204", "R"):
+        notes.append(f"M204 R{num('M204', 'R'):g} (retract acceleration) is not part of the model")
+    vmax = per_axis("M203")
+    if vmax is not None:
+        limits["max_velocity"] = vmax
+        limits["velocity"] = max(vmax[0], vmax[1])
+        notes.append(f"limits.velocity = {limits['velocity']:g} mm/s, the larger of M203 X and Y (Marlin has "
+                     "no overall speed limit; the G-code's F decides)")
+    amax = per_axis("M201")
+    if amax is not None:
+        limits["max_accel"] = amax
+    if num("M205", "J") is not None:
+        limits.update(junction="jd", junction_deviation=num("M205", "J"))
+    elif per_axis("M205") is not None:
+        limits.update(junction="jerk", jerk=per_axis("M205"))
+    else:
+        notes.append("no M205 J or X/Y jerk: the junction rule is unknown")
+    description["limits"] = limits
+    motors = {}
+    for ax in "XY":
+        table = {}
+        if num("M92", ax) is not None:
+            table["steps_per_mm"] = num("M92", ax)
+        if num("M906", ax) is not None:
+            table["run_current"] = num("M906", ax) / 1000.0
+        motors[ax] = table
+    if "M906" not in seen:
+        notes.append("no M906 (TMC driver current): the run current is unknown")
+    notes.append("M503 names no motor and gives steps/mm only: rotation_distance, microsteps and the "
+                 "motor's constants are unknown")
+    place_motors(description, motors["X"], motors["Y"])
+    current: dict = {"source": path, "firmware": "marlin"}
+    for ax in "XY":
+        key = f"M593 {ax}"
+        if key not in seen:
+            current[f"shaper_{ax.lower()}"] = "none"
+            notes.append(f"no M593 for {ax}: no input shaping on {ax} (or the firmware has none)")
+            continue
+        n, words = seen[key]
+        f = to_number(words["F"], f"{path}:{n}: M593 F") if words.get("F") else None
+        d = to_number(words["D"], f"{path}:{n}: M593 D") if words.get("D") else None
+        if not f:
+            current[f"shaper_{ax.lower()}"] = "none"
+            continue
+        current.update({f"shaper_{ax.lower()}": "zv", f"freq_{ax.lower()}": f})
+        if d is not None:
+            current[f"damping_{ax.lower()}"] = d
+        else:
+            notes.append(f"{path}:{n}: M593 gives no D: the damping ratio on {ax} is unknown")
+    if accel is not None:
+        current["accel"] = accel
+    description["current"] = current
+    return FirmwareFacts(description, notes, path)

@@ -1,0 +1,146 @@
+"""The printer from RepRapFirmware's ``config.g``: kinematics, steps/mm, limits, currents, shaper.
+
+RRF's units differ between commands (``Duet3D/wiki-content:User_manual/Reference/Gcodes.md``):
+
+| command | meaning, RRF units | description key (units of the description) |
+|---|---|---|
+| ``M669 K`` | kinematics: 0 / ``"cartesian"``, 1 / ``"coreXY"``, 2 / ``"coreXZ"`` | ``kinematics`` |
+| ``M92 X Y`` | steps per mm | ``motor.steps_per_mm`` |
+| ``M201 X Y Z E`` | max acceleration, mm/s² | ``limits.max_accel`` |
+| ``M203 X Y Z E`` | max speed, **mm/min** | ``limits.max_velocity`` = /60, mm/s; ``limits.velocity`` = max(X, Y) |
+| ``M204 P T`` | print / travel acceleration, mm/s² | ``limits.accel``, ``limits.travel_accel`` |
+| ``M566 X Y Z E`` | instantaneous speed change ("jerk"), **mm/min** | ``limits.jerk`` = /60, mm/s; ``junction = "jerk"`` |
+| ``M906 X Y`` | motor current, mA **peak** | ``motor.run_current`` = mA / 1000 / √2, A RMS |
+| ``M593 P"type" F S`` | the one shaper of every axis (``firmware.md`` §3.1): F Hz, S damping | ``[current]`` |
+
+A later line replaces what an earlier one set (config.g runs top to bottom). ``E`` values with
+colons (one per extruder) are read as their first entry.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from ringtune.hardware.firmware_facts import FirmwareFacts, gcode_words, place_motors, to_number
+from ringtune.shaping.errors import RingtuneError
+
+#: M669 K (number or RRF 3.7 name, lower case) -> kinematics of the model
+_KINEMATICS = {"0": "cartesian", "1": "corexy", "2": "corexz",
+               "cartesian": "cartesian", "corexy": "corexy", "corexz": "corexz"}
+_READ = ("M669", "M92", "M201", "M203", "M204", "M566", "M906", "M593")
+
+
+def printer_facts_from_rrf(path: str | Path) -> FirmwareFacts:
+    """Facts from ``config.g`` (see the module docstring)."""
+    path = str(path)
+    try:
+        text = Path(path).read_text(errors="replace")
+    except FileNotFoundError:
+        raise RingtuneError("no such file", path) from None
+    seen: dict[str, dict[str, tuple[int, str]]] = {}
+    for n, raw in enumerate(text.splitlines(), 1):
+        line = raw.split(";", 1)[0]
+        words = gcode_words(line)
+        if words is None or words[0] not in _READ:
+            continue
+        cmd, params = words
+        for letter, value in params.items():
+            seen.setdefault(cmd, {})[letter] = (n, value)
+    if not seen:
+        raise RingtuneError("no M669/M92/M201/M203/M204/M566/M906/M593 line: not a config.g", path)
+    notes: list[str] = []
+
+    def where(cmd: str, letter: str) -> str:
+        return f"{path}:{seen[cmd][letter][0]}: {cmd} {letter}"
+
+    def num(cmd: str, letter: str) -> float | None:
+        n_value = seen.get(cmd, {}).get(letter)
+        if n_value is None or n_value[1] == "":
+            return None
+        value = n_value[1].split(":")[0]
+        if value.startswith("{"):
+            raise RingtuneError(f"an expression {value!r} cannot be read here; write the number",
+                                where(cmd, letter))
+        return to_number(value, where(cmd, letter))
+
+    def per_axis(cmd: str, scale: float = 1.0) -> list[float] | None:
+        vals = [num(cmd, a) for a in "XYZE"]
+        return None if all(v is None for v in vals) else [(v or 0.0) * scale for v in vals]
+
+    description: dict = {}
+    k = seen.get("M669", {}).get("K")
+    if k is None:
+        description["kinematics"] = "cartesian"
+        notes.append("no M669 K: RepRapFirmware's default kinematics, Cartesian")
+    else:
+        kin = _KINEMATICS.get(k[1].strip().lower())
+        if kin is None:
+            raise RingtuneError(f"kinematics K{k[1]} is not one the printer model has (0/cartesian, "
+                                "1/coreXY, 2/coreXZ)", where("M669", "K"))
+        description["kinematics"] = kin
+    limits: dict = {}
+    accel = num("M204", "P")
+    amax = per_axis("M201")
+    if accel is not None:
+        limits["accel"] = accel
+    elif amax is not None:
+        limits["accel"] = min(amax[0], amax[1])
+        notes.append(f"no M204 P: limits.accel = {limits['accel']:g} mm/s², the smaller of M201 X and Y "
+                     "(RRF then limits printing moves by M201 only)")
+    else:
+        notes.append("no M204 P nor M201: the acceleration is unknown")
+    if num("M204", "T"):
+        limits["travel_accel"] = num("M204", "T")
+    if amax is not None:
+        limits["max_accel"] = amax
+    vmax = per_axis("M203", 1 / 60)
+    if vmax is not None:
+        limits["max_velocity"] = vmax
+        limits["velocity"] = max(vmax[0], vmax[1])
+    jerk = per_axis("M566", 1 / 60)
+    if jerk is not None:
+        limits.update(junction="jerk", jerk=jerk)
+    else:
+        notes.append("no M566: the allowed speed change at corners is unknown")
+    description["limits"] = limits
+    motors = {}
+    for ax in "XY":
+        table = {}
+        if num("M92", ax) is not None:
+            table["steps_per_mm"] = num("M92", ax)
+        if num("M906", ax) is not None:
+            table["run_current"] = num("M906", ax) / 1000.0 / math.sqrt(2.0)
+        motors[ax] = table
+    if "M906" in seen:
+        notes.append("M906 currents are peak values (RRF); run_current = peak / √2 (RMS)")
+    else:
+        notes.append("no M906: the motor current is unknown")
+    notes.append("config.g names no motor and gives steps/mm only: rotation_distance, microsteps and the "
+                 "motor's constants are unknown")
+    place_motors(description, motors["X"], motors["Y"])
+    current: dict = {"source": path, "firmware": "rrf"}
+    shaper = seen.get("M593", {}).get("P")
+    if "M593" not in seen or (shaper is not None and shaper[1].strip().lower() == "none"):
+        current.update(shaper_x="none", shaper_y="none")
+        notes.append("no M593 (or P\"none\"): the printer runs without input shaping")
+    else:
+        name = shaper[1].strip().lower().replace("-", "").replace("_", "") if shaper else "zvd"
+        if shaper is None:
+            notes.append("M593 without P: RepRapFirmware uses zvd when a frequency is given")
+        f = num("M593", "F")
+        if f is None:
+            f = 40.0
+            notes.append("M593 without F: RepRapFirmware's default 40 Hz")
+        d = num("M593", "S")
+        if d is None:
+            notes.append("M593 without S: the damping is RRF's default (0.1 up to 3.5, 0.05 in 3.6-dev)"
+                         " and unknown here")
+        for ax in "xy":                       # RRF shapes every axis with the one shaper
+            current.update({f"shaper_{ax}": name, f"freq_{ax}": f})
+            if d is not None:
+                current[f"damping_{ax}"] = d
+    if "accel" in limits:
+        current["accel"] = limits["accel"]
+    description["current"] = current
+    return FirmwareFacts(description, notes, path)

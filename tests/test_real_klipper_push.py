@@ -1,0 +1,193 @@
+"""export and push against the real thing: Klipper 84104bb (host + Linux-process MCU) and the
+Moonraker release from the package index (session fixture ``real_klipper``, tests/real_klipper.py).
+
+Truth here is Klipper itself: its config parser (a restart with the exported section comes up
+"Ready"), its G-code parser (no "Unknown command", no "!!"), its own reports (``SET_INPUT_SHAPER``,
+``SET_VELOCITY_LIMIT``), its state (``STATUS``, ``/printer/info``) and its log ("Transition to
+shutdown"). One Klipper session; restarts only where another printer.cfg is needed (the exported
+section; none), and the default one is restored at the end.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import sys
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from ringtune.agents.cli import main  # noqa: E402
+
+pytestmark = [pytest.mark.timeout(600), pytest.mark.slow]
+
+TUNED = {"firmware": "klipper", "shaper_x": "ei", "shaper_y": "mzv(n=5,t=1.1)", "freq_x": 51.2,
+         "freq_y": 46.25, "damping_x": 0.08, "damping_y": 0.12, "accel": 4200, "freq_limit_hz": 25}
+
+#: (config changes, key named, allowed range named): refused before anything is sent
+HOSTILE = [
+    ({"shaper_x": "ei(foo=1)"}, "shaper_x", "accepted: v_tol"),
+    ({"shaper_x": "mzv(n=2)"}, "shaper_x", "n >= 3"),
+    ({"shaper_x": "mzv(n=2)", "freq_x": 0}, "freq_x", "(0, 1000] Hz"),
+    ({"shaper_x": "ei(v_tol=5)"}, "shaper_x", "(0, 1)"),
+    ({"freq_x": 0.0004}, "freq_x", "[1, 1000] Hz"),
+    ({"freq_x": 0}, "freq_x", "(0, 1000] Hz"),
+    ({"freq_x": 1e6}, "freq_x", "[0, 1000]"),
+    ({"damping_x": 1.5}, "damping_x", "[0, 0.99]"),
+    ({"damping_x": -0.1}, "damping_x", "[0, 0.99]"),
+    ({"shaper_x": "ei", "damping_x": 0.5}, "damping_x", "[0, 0.4]"),
+    ({"shaper_x": "no_such_shaper"}, "shaper_x", "Klipper has zv, mzv, zvd, ei, 2hump_ei, 3hump_ei"),
+    ({"shaper_x": "zvdd"}, "shaper_x", "it has zv, mzv, zvd, ei, 2hump_ei, 3hump_ei"),
+]
+
+
+def _write(tmp_path: Path, name: str, data: dict) -> Path:
+    p = tmp_path / name
+    p.write_text(json.dumps(data))
+    return p
+
+
+def _store(url: str) -> tuple:
+    """The newest entry of Moonraker's console store (time, message): it changes with anything
+    Klipper answers, on the pty or through Moonraker."""
+    with urllib.request.urlopen(f"{url}/server/gcode_store?count=1", timeout=10) as r:
+        last = json.load(r)["result"]["gcode_store"]
+    return (last[-1]["time"], last[-1]["message"]) if last else None
+
+
+def _klipper_report(svc) -> dict[str, str]:
+    """Klipper's own SET_INPUT_SHAPER and SET_VELOCITY_LIMIT reports, as key -> printed value."""
+    text = svc.send("SET_INPUT_SHAPER", "SET_VELOCITY_LIMIT")
+    return dict(re.findall(r"(\w+_[xy]|max_accel):\s*(\S+)", text))
+
+
+def _ready(svc, log_mark: int) -> None:
+    assert "Klipper state: Ready" in svc.status()
+    assert "Transition to shutdown" not in svc.log.read_text(errors="replace")[log_mark:]
+
+
+@pytest.fixture(scope="module")
+def klipper(real_klipper):
+    yield real_klipper
+    real_klipper.restart(None)     # leave the session's Klipper with klipperd's own printer.cfg
+
+
+def test_hostile_configs_are_refused_before_anything_is_sent(klipper, tmp_path, capsys):
+    before = _klipper_report(klipper)
+    mark = len(klipper.log.read_text(errors="replace"))
+    store = _store(klipper.moonraker_url)
+    for i, (change, key, allowed) in enumerate(HOSTILE):
+        cfg = _write(tmp_path, f"hostile{i}.json", {**TUNED, **change})
+        for target in (["--port", klipper.pty], ["--moonraker", klipper.moonraker_url]):
+            assert main(["push", str(cfg), *target, "--json"]) == 2, change
+            captured = capsys.readouterr()
+            err = captured.err.strip()
+            assert captured.out == "" and "\n" not in err, err
+            assert f"{cfg}: {key}:" in err and allowed in err, (change, err)
+    assert _store(klipper.moonraker_url) == store      # Klipper answered nothing: nothing was sent
+    assert _klipper_report(klipper) == before
+    _ready(klipper, mark)
+
+
+def test_push_over_pty_and_moonraker_applies_and_reads_back_with_the_acceleration(klipper, tmp_path, capsys):
+    cfg = _write(tmp_path, "best.json", TUNED)
+    mark = len(klipper.log.read_text(errors="replace"))
+    for target, accel in (([ "--port", klipper.pty], 4200.0), (["--moonraker", klipper.moonraker_url], 3700.0)):
+        cfg = _write(tmp_path, "best.json", {**TUNED, "accel": accel})
+        assert main(["push", str(cfg), *target, "--json"]) == 0
+        d = json.loads(capsys.readouterr().out)
+        assert d["ok"] and d["printer_state"] is None
+        assert {k: v["status"] for k, v in d["settings"].items()} == {
+            k: "applied" for k in ("x.freq", "y.freq", "x.damping", "y.damping", "x.type", "y.type", "accel")}
+        # Klipper's own report, read independently of ringtune's parser
+        rep = _klipper_report(klipper)
+        assert (rep["shaper_type_x"], rep["shaper_freq_x"], rep["damping_ratio_x"]) == ("ei", "51.200", "0.080000")
+        assert (rep["shaper_type_y"], rep["shaper_freq_y"], rep["damping_ratio_y"]) == \
+            ("mzv(n=5,t=1.1)", "46.250", "0.120000")
+        assert float(rep["max_accel"]) == accel
+    # --no-accel leaves Klipper's acceleration as it was
+    cfg = _write(tmp_path, "other.json", {**TUNED, "accel": 9000})
+    assert main(["push", str(cfg), "--port", klipper.pty, "--no-accel", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert "accel" not in d["settings"] and float(_klipper_report(klipper)["max_accel"]) == 3700.0
+    # --save: Klipper cannot save these from G-code, so the printer.cfg section is written
+    saved = tmp_path / "is.cfg"
+    assert main(["push", str(cfg), "--moonraker", klipper.moonraker_url, "--save", "--save-file", str(saved)]) == 0
+    assert "damping_ratio_y: 0.12" in saved.read_text() and "printer.cfg" in capsys.readouterr().out
+    _ready(klipper, mark)
+
+
+def test_the_exported_command_part_sent_as_a_file_is_all_understood(klipper, tmp_path, capsys):
+    cfg = _write(tmp_path, "best.json", TUNED)
+    out = tmp_path / "shaping.gcode"
+    assert main(["export", str(cfg), "-o", str(out)]) == 0
+    assert (tmp_path / "shaping-printer.cfg").exists()
+    lines = out.read_text().splitlines()
+    assert any(ln.startswith(";") for ln in lines) and not any(ln.startswith("#") for ln in lines)
+    transcript = klipper.send(*lines)
+    replies = [ln for ln in transcript.splitlines() if ln.startswith("< ")]
+    assert len([r for r in replies if r == "< ok"]) == len(lines)          # every line answered
+    assert "Unknown command" not in transcript and "!!" not in transcript, transcript
+    assert float(_klipper_report(klipper)["max_accel"]) == 4200.0
+
+
+def test_a_line_that_shuts_klipper_down_is_reported_with_the_way_back(klipper, tmp_path, capsys, monkeypatch):
+    """What push says when a line crashes Klipper (validation never lets one through, so the line
+    is forced here): ``ei(foo=1)`` makes Klipper's host raise a TypeError and shut down."""
+    import ringtune.hardware.push as push_mod
+    from ringtune.hardware.dialects import export_config
+
+    def crashing(config, firmware=None, accel=True):
+        exp = export_config(config, firmware, accel)
+        exp.lines[0] = exp.lines[0].replace("SHAPER_TYPE_X=ei", "SHAPER_TYPE_X=ei(foo=1)")
+        return exp
+
+    monkeypatch.setattr(push_mod, "export_config", crashing)
+    cfg = _write(tmp_path, "best.json", TUNED)
+    for target in (["--port", klipper.pty], ["--moonraker", klipper.moonraker_url]):
+        assert main(["push", str(cfg), *target, "--json"]) == 1
+        d = json.loads(capsys.readouterr().out)
+        assert d["printer_state"]["state"] == "shutdown" and not d["ok"]
+        assert d["settings"]["x.type"]["status"] == "not applied"
+        assert main(["push", str(cfg), *target]) == 1
+        text = capsys.readouterr().out
+        assert "shutdown" in text and "FIRMWARE_RESTART" in text
+    assert "Transition to shutdown" in klipper.log.read_text(errors="replace")
+
+
+def test_the_exported_printer_cfg_section_parses_in_klipper(klipper, tmp_path, capsys):
+    cfg = _write(tmp_path, "best.json", TUNED)
+    assert main(["export", str(cfg), "--part", "config"]) == 0
+    section = capsys.readouterr().out
+    assert section.lstrip().startswith("#") and "[input_shaper]" in section
+    klipper.restart(section)          # also recovers from the previous test's shutdown
+    rep = _klipper_report(klipper)
+    assert "Klipper state: Ready" in klipper.status()
+    assert (rep["shaper_type_x"], rep["shaper_freq_x"], rep["damping_ratio_x"]) == ("ei", "51.200", "0.080000")
+    assert (rep["shaper_type_y"], rep["shaper_freq_y"], rep["damping_ratio_y"]) == \
+        ("mzv(n=5,t=1.1)", "46.250", "0.120000")
+
+
+def test_a_line_that_fails_gives_the_same_report_over_pty_and_moonraker(klipper, tmp_path, capsys):
+    """Klipper without [input_shaper]: SET_INPUT_SHAPER is an unknown command (an info line, not an
+    error); the acceleration still applies. Same per-setting report, text and JSON, same exit."""
+    klipper.restart("")
+    cfg = _write(tmp_path, "best.json", TUNED)
+    texts, jsons = [], []
+    for target in (["--port", klipper.pty], ["--moonraker", klipper.moonraker_url]):
+        assert main(["push", str(cfg), *target]) == 1
+        texts.append(capsys.readouterr().out.splitlines()[1:])       # first line names the port
+        assert main(["push", str(cfg), *target, "--json"]) == 1
+        d = json.loads(capsys.readouterr().out)
+        d.pop("port")
+        jsons.append(d)
+    assert texts[0] == texts[1] and jsons[0] == jsons[1]
+    d = jsons[0]
+    assert d["settings"]["accel"]["status"] == "applied"
+    assert d["settings"]["x.freq"]["status"] == "not applied"
+    assert 'Unknown command:"SET_INPUT_SHAPER"' in d["settings"]["x.freq"]["detail"]
+    assert d["printer_state"]["state"] == "ready"
+    assert "printer state after the failed line: ready" in "\n".join(texts[0])
