@@ -110,11 +110,10 @@ def _merge(into: dict, new: dict) -> None:
 
 
 def _has_motor(d: dict, ax: str) -> bool:
-    """Does the description name the motor (or give its constants) for ``ax``?"""
-    for m in (d.get(ax, {}).get("motor", {}), d.get("motor", {})):
-        if "name" in m or "holding_torque" in m or "force" in m:
-            return True
-    return False
+    """Does the description name the motor (or give its constants) for ``ax``? (The axis's own
+    ``[x.motor]`` when it has one, else ``[motor]``, as :meth:`Printer.motor_for` picks.)"""
+    m = d.get(ax, {}).get("motor") or d.get("motor", {})
+    return "name" in m or "holding_torque" in m or "force" in m
 
 
 def build_description(fits: dict[str, AxisFit], *, name: str = "identified", kinematics: str | None = None,
@@ -153,8 +152,7 @@ def build_description(fits: dict[str, AxisFit], *, name: str = "identified", kin
             if isinstance(fw.get(ax), dict):
                 d.setdefault(ax, {}).update({k: v for k, v in fw[ax].items() if k != "modes"})
         desc.comment("", f"limits, motors and the firmware's current shaping from {facts.source}")
-        for n in facts.notes:
-            desc.notes.append(f"{src}: {n}")
+        desc.notes += list(facts.notes)
     else:
         desc.defaults.append("limits: the default printer's (accel 3000 mm/s², velocity 300 mm/s, square "
                              "corner velocity 5 mm/s): the print times and the acceleration range of tune come "
@@ -162,11 +160,14 @@ def build_description(fits: dict[str, AxisFit], *, name: str = "identified", kin
 
     # --motor: all axes or per axis
     for key, spec in motors.items():
-        target = d.setdefault("motor", {}) if key == "all" else d.setdefault(key, {}).setdefault("motor", {})
-        if "name" in target and target["name"] != spec.get("name"):
-            desc.notes.append(f"--motor {spec['name']} replaces {src}'s motor {target['name']}"
-                              + ("" if key == "all" else f" on {key.upper()}"))
-        target.update(spec)
+        if key == "all":          # every motor table: [motor] and the per-axis ones the configuration has
+            targets = [d.setdefault("motor", {})] + [d[ax]["motor"] for ax in AXES if "motor" in d.get(ax, {})]
+        else:
+            targets = [d.setdefault(key, {}).setdefault("motor", {})]
+        for target in targets:
+            if "name" in target and target["name"].casefold() != spec["name"].casefold():
+                desc.notes.append(f"--motor {spec['name']} replaces {src}'s motor {target['name']}")
+            target.update(spec)
     missing = [ax for ax in AXES if not _has_motor(d, ax)]
     if missing:
         which = " and ".join(ax.upper() for ax in missing)

@@ -206,3 +206,31 @@ def test_motor_option_names_the_motors_and_stops_saying_the_default(data_dir, tm
     assert (x.name.lower(), x.run_current, x.voltage) == ("ldo-42sth48-2504ac", 1.2, 24.0)
     assert x.holding_torque == lookup_motor("ldo-42sth48-2504ac").holding_torque
     assert y.name.lower() == "ldo-42sth40-1684ac" and (printer.x.mass, printer.y.mass) == (0.62, 1.4)
+
+
+def test_klipper_config_gives_the_rest_of_the_printer_in_one_step(data_dir, tmp_path, capsys):
+    """Issue 13: modes from the measurement, the rest from the real Ender 3 printer.cfg (values read
+    off the file: kinematics cartesian, max_accel 4900, square_corner_velocity 5, run_current 0.580,
+    rotation_distance 40, [input_shaper] ei @ 51.2 / mzv @ 46.2)."""
+    files = sorted((data_dir / ENDER3).glob("*.csv"))
+    cfg = data_dir / "klipper_config/ender3/printer.cfg"
+    out = tmp_path / "p.toml"
+    assert main(["identify", *map(str, files), "--klipper-config", str(cfg), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "default: kinematics" not in err and "default: limits" not in err
+    assert "default: motor (X and Y)" in err            # the file names no motor: still said
+    d = tomllib.loads(out.read_text())
+    assert d["kinematics"] == "cartesian" and d["limits"]["accel"] == 4900
+    assert d["limits"]["square_corner_velocity"] == 5
+    assert (d["motor"]["run_current"], d["motor"]["rotation_distance"]) == (0.58, 40)
+    cur = d["current"]
+    assert (cur["shaper_x"], cur["freq_x"], cur["shaper_y"], cur["freq_y"]) == ("ei", 51.2, "mzv", 46.2)
+    assert d["x"]["modes"][0]["freq"] > 40 and d["measurement"]["klipper"]["shaper_x"] == "ei"
+    printer = load_printer(out)
+    assert printer.current["freq_x"] == 51.2 and printer.measurement["klipper"]["freq_y"] == 46.6
+    # --motor supplies the motor the file does not name; the file's run current stays
+    assert main(["identify", *map(str, files), "--klipper-config", str(cfg), "--motor", "ldo-42sth40-1684ac",
+                 "-o", str(out)]) == 0
+    assert "default: motor (" not in capsys.readouterr().err
+    m = load_printer(out).motor_for("x")
+    assert (m.name, m.run_current) == ("ldo-42sth40-1684ac", 0.58)
