@@ -141,8 +141,9 @@ def build_description(fits: dict[str, AxisFit], *, name: str = "identified", kin
         d["kinematics"] = fw["kinematics"]
     else:
         d["kinematics"] = "cartesian"
-        desc.defaults.append("kinematics: cartesian is a default (no --kinematics, no firmware configuration): "
-                             "a CoreXY or CoreXZ is simulated with the wrong coupling of its axes and motors")
+        why = f"no --kinematics, and {src} does not give it" if src else "no --kinematics, no firmware configuration"
+        desc.defaults.append(f"kinematics: cartesian is a default ({why}): a CoreXY or CoreXZ is simulated "
+                             "with the wrong coupling of its axes and motors")
     fw.pop("kinematics", None)
 
     # limits and the rest of the configuration (motors, [current])
