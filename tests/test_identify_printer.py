@@ -234,3 +234,13 @@ def test_klipper_config_gives_the_rest_of_the_printer_in_one_step(data_dir, tmp_
     assert "default: motor (" not in capsys.readouterr().err
     m = load_printer(out).motor_for("x")
     assert (m.name, m.run_current) == ("ldo-42sth40-1684ac", 0.58)
+
+
+def test_the_help_examples_name_motors_the_table_has():
+    import re
+
+    from ringtune.agents.commands.identify import DESCRIPTION
+    from ringtune.envs.motors import lookup_motor
+
+    names = re.findall(r"--motor ([a-z][^\s:]+)", DESCRIPTION) + re.findall(r"\(e\.g\. ([^\s:]+):", DESCRIPTION)
+    assert names and all(lookup_motor(n) is not None for n in names), names

@@ -55,7 +55,7 @@ examples:
   ringtune identify resonances_x_*.csv resonances_y_*.csv --klipper-config printer.cfg -o mine.toml
   ringtune identify resonances_x_1.csv resonances_y_1.csv --added-mass 0.25 \\
       resonances_x_2.csv resonances_y_2.csv -o mine.toml      # 250 g on the toolhead / bed
-  ringtune identify resonances_*.csv --mass X=0.62,Y=1.4 --motor 17HS19-2004S1:0.8 --kinematics corexy
+  ringtune identify resonances_*.csv --mass X=0.62,Y=1.4 --motor omc-17hs19-2004s1:0.8 --kinematics corexy
   ringtune identify 1-T0-X54-161-0-none.csv --axis x --json
 """
 
