@@ -374,10 +374,16 @@ def frequency_scale(base: AxisFit, loaded: AxisFit) -> tuple[float, float]:
         sol = least_squares(resid, x, bounds=(lo, hi), x_scale="jac", max_nfev=3000)
         if best is None or sol.cost < best.cost:
             best = sol
+    # covariance of a weighted fit (the weights are not inverse variances: the log-spectrum's scatter
+    # is the same in every bin): inv(JᵀWJ)·JᵀW²J·inv(JᵀWJ)·σ², σ² from the unweighted residuals
+    w = np.concatenate([d[2] for d in data])
     n, k = best.fun.size, best.x.size
     try:
-        cov = np.linalg.pinv(best.jac.T @ best.jac) * (2.0 * best.cost / max(n - k, 1))
-        err = float(math.sqrt(max(cov[0, 0], 0.0)))
+        jw = best.jac                                   # = W·J
+        bread = np.linalg.pinv(jw.T @ jw)
+        meat = (jw * w[:, None]).T @ (jw * w[:, None])
+        sigma2 = float(np.sum((best.fun / w) ** 2)) / max(n - k, 1)
+        err = float(math.sqrt(max((bread @ meat @ bread)[0, 0] * sigma2, 0.0)))
     except np.linalg.LinAlgError:
         err = float("nan")
     return float(math.exp(best.x[0])), err
