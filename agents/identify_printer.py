@@ -197,9 +197,10 @@ def build_description(fits: dict[str, AxisFit], *, name: str = "identified", kin
         if ax in added:
             a = added[ax]
             table["mass"] = _round(a.mass, 4)
-            desc.comment(ax, f"mass by the added-mass method: {a.dm:g} kg moved {a.f0:.2f} Hz to {a.f1:.2f} Hz; "
-                             f"m = dm/((f0/f1)² − 1) = {a.mass:.3f} kg, stiffness k = m·(2π f0)² = "
-                             f"{a.stiffness:.4g} N/m")
+            desc.comment(ax, f"mass by the added-mass method: {a.dm:g} kg moved the spectrum by ×{a.f1 / a.f0:.4f} "
+                             f"(fitted to both spectra), the dominant mode {a.f0:.2f} Hz to {a.f1:.2f} Hz; "
+                             f"m = dm/((f0/f1)² − 1) = {a.mass:.3f} ± {a.mass_error:.3f} kg (1 standard error), "
+                             f"stiffness k = m·(2π f0)² = {a.stiffness:.4g} N/m")
             if ax in masses:
                 desc.notes.append(f"{ax.upper()}: --mass {masses[ax]:g} kg replaces the added-mass "
                                   f"estimate {a.mass:.3f} kg")

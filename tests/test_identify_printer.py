@@ -71,6 +71,10 @@ def test_added_mass_recovers_mass_and_stiffness_of_a_known_printer(tmp_path, cap
             _dominant_freq(printer, ax) * math.sqrt(printer.axis(ax).mass / (printer.axis(ax).mass + dm)), rel=0.01)
     assert "mass = dm/((f0/f1)² − 1)" in d["toml"] or "m = dm/((f0/f1)² − 1)" in d["toml"]
     assert not any("masses" in s for s in d["defaults"])
+    recorded = tomllib.loads(d["toml"])["measurement"]
+    assert [f["name"] for f in recorded["files"]] == [str(files["base", "x"]), str(files["base", "y"])]
+    assert [(f["name"], f["added_mass_kg"]) for f in recorded["added_mass_files"]] == [
+        (str(files["loaded", "x"]), dmx), (str(files["loaded", "y"]), dmy)]
 
 
 def test_corexy_files_without_a_configuration_say_the_kinematics_is_a_default(data_dir, tmp_path, capsys):

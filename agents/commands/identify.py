@@ -258,6 +258,10 @@ def run(args, out) -> int:
     klipper = klipper_record(meas.psds, scv)
     measurement = {"source": "accelerometer",
                    "files": [{k: f[k] for k in ("name", "sha256", "axis")} for f in meas.files]}
+    if added:
+        measurement["added_mass_files"] = [{k: f[k] for k in ("name", "sha256", "axis")}
+                                           | {"added_mass_kg": added[f["axis"]].dm}
+                                           for f in loaded.files if f["axis"] in added]
     if klipper:
         measurement["klipper"] = klipper
     desc = build_description(fits, name=args.name, kinematics=args.kinematics, base=args.base,
