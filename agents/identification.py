@@ -155,12 +155,14 @@ def klipper_record(psds: dict[str, list], scv: float = 5.0, version: str = "head
 
 
 def recorded_files(measurement: dict, printer_path: str | Path | None) -> tuple[list[tuple[str, str]], list[str]]:
-    """The files a printer description records in ``[measurement]`` that are still here and
-    unchanged: ``([(path, axis), …], [missing or changed file, …])``. A recorded name is looked for
+    """The resonance sweeps a printer description records in ``[measurement]`` that are still here
+    and unchanged (free-decay captures, ``kind = "free decay"``, are skipped): ``([(path, axis), …], [missing or changed file, …])``. A recorded name is looked for
     as written (relative to the working folder) and beside the description."""
     found, missing = [], []
     folder = Path(printer_path).resolve().parent if printer_path else None
     for rec in measurement.get("files", []):
+        if rec.get("kind") == "free decay":      # one move's ringing (M956): not for Klipper's rule
+            continue
         name = str(rec.get("name", ""))
         candidates = [Path(name)]
         if folder is not None:

@@ -257,7 +257,7 @@ def run(args, out) -> int:
         scv = float(facts.description.get("limits", {}).get("square_corner_velocity", scv))
     klipper = klipper_record(meas.psds, scv)
     measurement = {"source": "accelerometer",
-                   "files": [{k: f[k] for k in ("name", "sha256", "axis")} for f in meas.files]}
+                   "files": [{k: f[k] for k in ("name", "sha256", "axis", "kind") if k in f} for f in meas.files]}
     if added:
         measurement["added_mass_files"] = [{k: f[k] for k in ("name", "sha256", "axis")}
                                            | {"added_mass_kg": added[f["axis"]].dm}

@@ -177,6 +177,8 @@ def _recorded(printer, args, out) -> list[tuple[str, str]] | None:
         out.note(f"note: {args.printer} was identified from {', '.join(missing)}, not found here (or changed): "
                  "Klipper's rule runs on the model's simulated resonance test instead")
         return None
+    if not found:                                 # only free-decay captures: no sweep for the rule
+        return None
     out.note(f"note: Klipper's rule on the resonance files {args.printer} was identified from")
     return found
 
