@@ -1,4 +1,5 @@
-"""Identify vibration modes from accelerometer data and write a printer description.
+"""Vibration modes fitted to accelerometer data given as arrays (reading the files is
+:mod:`ringtune.agents.identification`; the printer description, :mod:`ringtune.agents.identify_printer`).
 
 Two kinds of measurement:
 
@@ -13,8 +14,11 @@ Two kinds of measurement:
   ``Σ Aₖ·exp(−ζₖωₖt)·cos(ωₖ√(1−ζₖ²)t + φₖ) + c`` fitted by variable projection (amplitudes and phases
   linear, frequency and damping non-linear), started from the spectrum's peaks.
 
-Shares are the modes' parts of the nozzle response, normalised to sum to 1 per axis. The printer
-TOML follows ``shared/DESIGN.md``: ``[x] modes = [{ freq = …, damping = …, share = … }]``.
+Shares are the modes' parts of the nozzle response, normalised to sum to 1 per axis. A spectrum fit
+warns when the data stop short of the band, a mode sits at its edge, a damping ratio is implausible
+or the fit is poor. The added-mass method (:func:`frequency_scale`, :func:`added_mass`): a known
+mass added to what moves lowers every mode by sqrt(m/(m+dm)), which gives the moving mass and the
+stiffness.
 """
 
 from __future__ import annotations
