@@ -11,30 +11,17 @@ that does not cover the usual band, a poor fit) is returned as a warning naming 
 from __future__ import annotations
 
 import hashlib
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ringtune.envs.identify import AxisFit, identify_decay, identify_psd
-from ringtune.hardware.accel import RawAccel, read_accel, to_psd
+from ringtune.hardware.accel import RawAccel, axis_from_file_name, read_accel, to_psd
 from ringtune.shaping.errors import RingtuneError
 
 #: Klipper's default resonance sweep, Hz ([resonance_tester] min_freq, max_freq)
 SWEEP = (5.0, 135.0)
-
-_AXIS_RE = re.compile(r"(?:resonances|calibration_data|raw_data)_([xy])_", re.IGNORECASE)
-_RRF_AXIS_RE = re.compile(r"-([XY])-?\d+(?:\.\d+)?-\d")
-
-
-def axis_of_file(path: str | Path) -> str | None:
-    """The axis a file measured, from its name (Klipper ``resonances_x_…``, ``calibration_data_y_…``,
-    ``raw_data_x_…``; RRF ``…-X54-161-…``), any case; None if the name does not say."""
-    name = Path(path).name
-    m = _AXIS_RE.match(name) or _RRF_AXIS_RE.search(name)
-    return m.group(1).lower() if m else None
-
 
 def sha256_of(path: str | Path) -> str:
     """Hex SHA-256 of a file's bytes."""
@@ -60,33 +47,19 @@ class Measurement:
         return best
 
 
-def load_spectra(paths, axes: list[str] | None = None) -> tuple[dict[str, list], dict[str, list[str]], list[str]]:
-    """``({axis: [PSD, …]}, {axis: [file, …]}, warnings)`` of resonance files for Klipper's rule.
-
-    The axis of each file is ``axes[i]`` when given, else from its name, else the larger of its
-    psd_x / psd_y columns (said in a warning). RRF M956 captures are refused: they hold one move's
-    ringing, not a sweep."""
-    psds: dict[str, list] = {}
-    sources: dict[str, list[str]] = {}
-    warnings: list[str] = []
-    for i, path in enumerate(paths):
-        data = read_accel(path)
-        if isinstance(data, RawAccel) and data.fmt == "m956":
-            raise RingtuneError("an M956 capture holds one move's ringing, not a resonance sweep: "
-                                "Klipper's rule needs a TEST_RESONANCES file", str(path))
-        items = to_psd(data)
-        ax, warning = _axis(path, items, axes[i] if axes else None)
-        if warning:
-            warnings.append(warning)
-        psds.setdefault(ax, []).extend(items)
-        sources.setdefault(ax, []).append(str(path))
-    return psds, sources, warnings
+def _named_axis(path) -> str | None:
+    """X or Y from the file's name (:func:`axis_from_file_name`); a Z file is refused: the printer
+    model has no Z resonances."""
+    ax = axis_from_file_name(path)
+    if ax == "z":
+        raise RingtuneError("a Z resonance test: the printer model has X and Y modes only", str(path))
+    return ax
 
 
 def _axis(path, items, given: str | None) -> tuple[str, str | None]:
     if given:
         return given, None
-    ax = axis_of_file(path)
+    ax = _named_axis(path)
     if ax:
         return ax, None
     first = items[0]
@@ -108,7 +81,7 @@ def read_measurement(paths, axis: str | None = None, max_modes: int = 3, fmin: f
         data = read_accel(path)
         record = {"name": str(path), "sha256": sha256_of(path)}
         if isinstance(data, RawAccel) and data.fmt == "m956":
-            ax = axis or axis_of_file(path)
+            ax = axis or _named_axis(path)
             if ax is None:
                 raise RingtuneError("cannot tell which axis this capture measured; give --axis", str(path))
             fit = identify_decay(data.t, data.axis(ax), ax, str(path), data.rate,
@@ -159,6 +132,8 @@ def recorded_files(measurement: dict, printer_path: str | Path | None) -> tuple[
     and unchanged (free-decay captures, ``kind = "free decay"``, are skipped): ``([(path, axis), …], [missing or changed file, …])``. A recorded name is looked for
     as written (relative to the working folder) and beside the description."""
     found, missing = [], []
+    if measurement.get("source") != "accelerometer":     # ripples, a tower: no resonance files
+        return found, missing
     folder = Path(printer_path).resolve().parent if printer_path else None
     for rec in measurement.get("files", []):
         if rec.get("kind") == "free decay":      # one move's ringing (M956): not for Klipper's rule

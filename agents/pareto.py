@@ -171,16 +171,37 @@ def judge_bounds(p: Point, max_path_error_mm: float = 0.0, max_motor_load: float
     return judge_motor_load(judge_path_error(p, max_path_error_mm), max_motor_load)
 
 
-def pareto_front(points: Sequence[Point]) -> list[Point]:
-    """The feasible non-dominated points, sorted by print time."""
+def pareto_front(points: Sequence[Point], also: Sequence[str] = ()) -> list[Point]:
+    """The feasible non-dominated points, sorted by print time.
+
+    Dominance is over print time and the quality objective, and also over the figures named in
+    ``also`` (metrics keys, e.g. ``("path_error_mm",)``: then a point with more overshoot but
+    much less path error than a faster one stays on the front, so that "no worse overshoot and
+    path error than a baseline" can be found on it)."""
     feas = sorted((p for p in points if p.feasible), key=lambda p: (p.print_time_s, p.quality_mm))
-    front: list[Point] = []
-    best_q = np.inf
-    for p in feas:
-        if p.quality_mm < best_q:
-            front.append(p)
-            best_q = p.quality_mm
-    return front
+    if not also:
+        front: list[Point] = []
+        best_q = np.inf
+        for p in feas:
+            if p.quality_mm < best_q:
+                front.append(p)
+                best_q = p.quality_mm
+        return front
+    v = np.array([[p.print_time_s, p.quality_mm] + [float(p.metrics.get(k, np.inf)) for k in also] for p in feas])
+    keep = []
+    for i in range(len(feas)):
+        le = np.all(v <= v[i], axis=1)
+        lt = np.any(v < v[i], axis=1)
+        if not np.any(le & lt):
+            keep.append(feas[i])
+    # identical figures: keep the first only
+    out, seen = [], set()
+    for p in keep:
+        key = (p.print_time_s, p.quality_mm, *(p.metrics.get(k) for k in also))
+        if key not in seen:
+            seen.add(key)
+            out.append(p)
+    return out
 
 
 #: mm: quality differences smaller than this are not worth print time when choosing the knee
@@ -270,9 +291,14 @@ def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastes
             p = min(cands, key=lambda p: (p.print_time_s, p.quality_mm))
             lead = "" if key == refs[0][0] else \
                 f"no front point matches {BASELINE_NAMES.get(refs[0][0], refs[0][0])}'s quality at its speed; "
-            return Choice(p, "fastest-at-baseline-quality", key,
-                          f"{lead}the fastest front point whose overshoot and path error are no worse than "
-                          f"{BASELINE_NAMES.get(key, key)}'s (same quality, faster)")
+            name = BASELINE_NAMES.get(key, key)
+            if p.print_time_s < b.print_time_s:
+                why = (f"{lead}the fastest front point whose overshoot and path error are no worse than {name}'s "
+                       "(same quality, faster)")
+            else:
+                why = (f"{lead}no front point is faster than {name} at its quality: the search found nothing "
+                       f"better than {name} itself at that quality (more --trials may)")
+            return Choice(p, "fastest-at-baseline-quality", key, why)
     why = "there is no usable baseline to match" if not refs else \
         "no front point is as fast as " + " or ".join(BASELINE_NAMES.get(k, k) for k, _ in refs) + \
         " with no worse overshoot and path error"

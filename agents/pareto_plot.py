@@ -14,7 +14,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ringtune.agents.pareto import Point
+from ringtune.agents.pareto import Point, pareto_front
 
 LABEL = {"overshoot_mm": "overshoot", "path_error_mm": "path error"}
 STYLE = {"klipper": ("s", "tab:orange"), "current": ("D", "tab:green"), "none": ("^", "black")}
@@ -41,9 +41,10 @@ def _limits(vals: np.ndarray, log: bool) -> tuple[float, float]:
 
 def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chosen: Point,
                baselines: dict[str, Point], quality: str, title: str, *, max_path_error_mm: float = 0.0,
-               baseline_labels: dict[str, str] | None = None) -> dict:
-    """Write the PNG; returns {panel key: {"below_scale": n, "above_scale": n, "right_of_scale": n}}
-    (what was drawn as arrows)."""
+               baseline_labels: dict[str, str] | None = None, marked: dict[str, Point] | None = None) -> dict:
+    """Write the PNG; returns {panel key: {"above_scale": n, "below_scale": n, "right_of_scale": n,
+    "left_of_scale": n, "legend": [labels]}} (what was drawn as arrows, and the legend).
+    ``marked``: {label: point} drawn ringed (e.g. "dominates Klipper's rule")."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -95,11 +96,10 @@ def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chos
             ax.text(0.01, 0.99, "; ".join(notes), transform=ax.transAxes, va="top", fontsize=8, color="0.3")
         arrows[key] = counts
         if front:
-            xs, ys = [p.print_time_s for p in front], [_value(p, key, quality) for p in front]
-            if key == quality:     # the front is a staircase in its own objective
-                ax.step(xs, ys, where="post", c="tab:blue", lw=1.2, zorder=2)
-            else:
-                ax.plot(xs, ys, c="tab:blue", lw=0.8, alpha=0.6, zorder=2)
+            if key == quality:     # the staircase of print time against this figure alone
+                stair = pareto_front(front)
+                ax.step([p.print_time_s for p in stair], [p.quality_mm for p in stair], where="post",
+                        c="tab:blue", lw=1.2, zorder=2)
             ax.scatter([p.print_time_s for p in front], [_value(p, key, quality) for p in front], s=22,
                        c="tab:blue", label=f"Pareto front ({len(front)})", zorder=3)
         if key == "path_error_mm" and max_path_error_mm > 0:
@@ -114,6 +114,9 @@ def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chos
                        edgecolors="red" if broke else "white", linewidths=2 if broke else 1, zorder=5,
                        label=f"{lab}: {p.print_time_s:.2f} s, {_value(p, key, quality) * 1000:.1f} µm"
                        + (f" — BREAKS A BOUND ({', '.join(broke)})" if broke else ""))
+        for lab, p in (marked or {}).items():
+            ax.scatter([p.print_time_s], [_value(p, key, quality)], s=180, facecolors="none", edgecolors="tab:green",
+                       linewidths=1.8, zorder=4, label=lab)
         ax.scatter([chosen.print_time_s], [_value(chosen, key, quality)], s=260, marker="*", c="gold",
                    edgecolors="black", zorder=6,
                    label=f"chosen: {chosen.print_time_s:.2f} s, {_value(chosen, key, quality) * 1000:.1f} µm")
@@ -124,7 +127,8 @@ def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chos
         ax.set_xlabel("print time (s)")
         ax.set_ylabel(f"{LABEL.get(key, key)} (mm)")
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7, loc="upper right")
+        leg = ax.legend(fontsize=7, loc="upper right")
+        counts["legend"] = [t.get_text() for t in leg.get_texts()]
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     fig.savefig(path)

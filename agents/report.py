@@ -188,8 +188,10 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
                 dominating[k] = (d, compare(d, baselines[k], resolution))
 
     title = f"{printer_name} · {job_name} · {firmware} · {len(points)} trials"
-    arrows = plot_front(out_dir / "pareto.png", points, front, chosen, baselines, quality, title,
-                        max_path_error_mm=max_path_error_mm, baseline_labels=labels)
+    marked = {f"dominates {labels[k]} (at the resolution)": d for k, (d, _c) in dominating.items()}
+    drawn = plot_front(out_dir / "pareto.png", points, front, chosen, baselines, quality, title,
+                       max_path_error_mm=max_path_error_mm, baseline_labels=labels, marked=marked)
+    arrows = {k: {w: n for w, n in v.items() if w != "legend"} for k, v in drawn.items()}
     _write_csv(out_dir / "front.csv", front)
     _write_csv(out_dir / "trials.csv", sorted(points, key=lambda p: p.number if p.number is not None else -1))
 
@@ -221,7 +223,8 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         s.append(f"{head}:")
         s.extend(f"  {line}" for line in lines)
     s.append("")
-    s.append(f"PARETO FRONT ({len(front)} of {len(points)} trials; * = chosen):")
+    dims = "print time and " + word + ("" if quality == "path_error_mm" else ", path error")
+    s.append(f"PARETO FRONT over {dims} ({len(front)} of {len(points)} trials; * = chosen):")
     s.append(front_table(front, chosen, quality))
     s.append("")
     n_rough = sum(p.too_rough and not p.step_loss for p in points)

@@ -110,7 +110,7 @@ def baselines_for(printer: Any, firmware: str, settings, evaluator: Callable, qu
         out.sources["klipper"] = "measurement"
     else:
         try:
-            out.fits, fields = klipper_baseline.recommend_for_printer(printer, firmware, "head", seed=seed)
+            out.fits, fields = klipper_baseline.klipper_rule_on_simulated_test(printer, firmware, "head", seed=seed)
             if fields.get("accel") is None:
                 fields["accel"] = float(printer.limits.accel)
             configs["klipper"] = TuneConfig(**fields, extra={"source": "Klipper's calibrate_shaper rule (HEAD) "
@@ -142,7 +142,8 @@ def baselines_for(printer: Any, firmware: str, settings, evaluator: Callable, qu
 
 
 def warm_start(kcfg: TuneConfig, fits: dict, space) -> list[TuneConfig]:
-    """Klipper's pick at its max_accel and 1.25×, 1.5× it; the robust EI family at Klipper's own
+    """Klipper's pick at its max_accel and 1.1×, 1.25×, 1.5× it (and at 0.6× the range's top when its
+    max_accel is above that: the motors would need more than 60 % of their force, resonance not counted); the robust EI family at Klipper's own
     per-shaper frequencies (when the rule ran here), at its max_accel, 1.25× it and the top of the
     range (only points inside the space; one acceleration when it is not searched)."""
     def at(cfg, factor):
@@ -150,7 +151,9 @@ def warm_start(kcfg: TuneConfig, fits: dict, space) -> list[TuneConfig]:
                                     * space.accel_step))
         return dataclasses.replace(cfg, accel=float(space.accel[0] if space.accel_fixed else a), extra={})
 
-    out = [at(kcfg, 1.0), at(kcfg, 1.25), at(kcfg, 1.5)]
+    out = [at(kcfg, 1.0), at(kcfg, 1.1), at(kcfg, 1.25), at(kcfg, 1.5)]
+    if kcfg.accel and kcfg.accel > 0.6 * space.accel[1]:   # a weak motor: also where its force keeps a reserve
+        out.append(at(kcfg, 0.6 * space.accel[1] / kcfg.accel))
     for name in ("ei", "2hump_ei", "3hump_ei"):
         freqs = {}
         for ax in ("x", "y"):

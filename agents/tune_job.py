@@ -22,10 +22,6 @@ from ringtune.envs.evaluate import job_accel_commands, planned_job, resolve_job
 from ringtune.shaping.config import TuneConfig
 
 #: how the job's acceleration settings are written in G-code
-_COMMAND = {"accel_print": "M204 P/S", "accel_travel": "M204 T", "accel_retract": "M204 R",
-            "accel_klipper": "M204 S / SET_VELOCITY_LIMIT ACCEL", "max_accel_x": "M201 X",
-            "max_accel_y": "M201 Y"}
-
 
 @dataclass
 class JobAccelFacts:
@@ -48,13 +44,25 @@ class JobAccelFacts:
         return abs(t_lo - t_hi) > DEFAULT_RESOLUTION.time_rel * max(t_lo, t_hi)
 
     def described(self) -> str:
-        parts = [f"{_COMMAND.get(k, k)} {v:.0f}" for k, v in self.commands.items()]
+        """The commands as G-code would write them (largest value of each), e.g.
+        ``M201 X1500 Y1500, M204 P1500 T1500 R1000``."""
+        c = self.commands
+        parts = []
+        if "max_accel_x" in c or "max_accel_y" in c:
+            parts.append("M201" + "".join(f" {a.upper()}{c[f'max_accel_{a}']:.0f}" for a in "xy"
+                                          if f"max_accel_{a}" in c))
+        m204 = "".join(f" {w}{c[k]:.0f}" for k, w in (("accel_print", "P"), ("accel_travel", "T"),
+                                                     ("accel_retract", "R")) if k in c)
+        if m204:
+            parts.append("M204" + m204)
+        elif "accel_klipper" in c:
+            parts.append(f"SET_VELOCITY_LIMIT ACCEL={c['accel_klipper']:.0f} (or M204 S)")
         return ", ".join(parts)
 
     def notes(self, mode: str, space) -> list[str]:
         if not self.commands:
             return []
-        head = f"the job sets its own accelerations ({self.described()} mm/s²)" + (
+        head = f"the job sets its own accelerations ({self.described()}, mm/s²)" + (
             f": the file caps acceleration at {self.cap:.0f} mm/s²" if self.cap else "")
         if mode == "respect":
             tail = ("; --job-accel respect: they stand (the print as sliced)" +
@@ -96,20 +104,20 @@ def job_accel_section(facts: JobAccelFacts, mode: str, printer, job, chosen: Tun
     sliced = facts.time(chosen, "respect")
     replaced = facts.time(chosen, "replace")
     info.update(print_time_as_sliced_s=sliced, print_time_replaced_s=replaced, saved_s=sliced - replaced)
-    lines = [f"The job sets its own accelerations ({facts.described()} mm/s²)"
+    lines = [f"The job sets its own accelerations ({facts.described()}, mm/s²)"
              + (f": the file caps acceleration at {facts.cap:.0f} mm/s²." if facts.cap else ".")]
     saved = sliced - replaced
     pct = 100.0 * saved / sliced if sliced else 0.0
     if mode == "respect":
         lines.append(f"--job-accel respect (the print as sliced): chosen configuration {sliced:.1f} s.")
-        lines.append(f"With the job's accelerations replaced by {chosen.accel:.0f} mm/s² (re-slicing): {replaced:.1f} s "
-                     f"({saved:.1f} s, {pct:.1f} %, saved; print time only, quality not judged here — run "
-                     "--job-accel replace to tune that acceleration).")
+        lines.append(f"With the job's accelerations replaced by {chosen.accel:.0f} mm/s² (re-slicing): {replaced:.1f} s, "
+                     f"{saved:.1f} s ({pct:.1f} %) less — print time only, quality not judged at it here; "
+                     "--job-accel replace tunes that acceleration.")
     else:
         lines.append(f"--job-accel replace: the chosen {chosen.accel:.0f} mm/s² replaces them: {replaced:.1f} s; "
                      f"as sliced (the job's own accelerations, same shaper): {sliced:.1f} s.")
-        lines.append(f"Re-slicing at {chosen.accel:.0f} mm/s² (and raising the machine limits, M201, to it) would "
-                     f"save {saved:.1f} s ({pct:.1f} %); `ringtune limit --accel` can rewrite the file's M204 lines.")
+        lines.append(f"Re-slicing at {chosen.accel:.0f} mm/s² (print and travel accelerations, and the machine "
+                     f"limits M201 raised to it) would save {saved:.1f} s ({pct:.1f} %).")
     return lines, info
 
 

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import argparse
 
+from ringtune.agents import identify_ripples
+
 NAME = "identify"
 HELP = "the printer from your files: modes from accelerometer data, the rest from your config (TOML)"
 DESCRIPTION = """\
@@ -57,6 +59,10 @@ examples:
       resonances_x_2.csv resonances_y_2.csv -o mine.toml      # 250 g on the toolhead / bed
   ringtune identify resonances_*.csv --mass X=0.62,Y=1.4 --motor omc-17hs19-2004s1:0.8 --kinematics corexy
   ringtune identify 1-T0-X54-161-0-none.csv --axis x --json
+
+Without an accelerometer (prints from `ringtune testprint ringing`):
+  ringtune identify --ripples X=2.2,Y=2.6 --speed 100 [--decay X=1.9,Y=2.1] -o printer.toml
+  ringtune identify --tower-band X=4,Y=3 --tower tower.gcode -o printer.toml
 """
 
 
@@ -65,7 +71,7 @@ PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("files", nargs="+", metavar="ACCEL.csv", help="accelerometer files (any supported format)")
+    p.add_argument("files", nargs="*", metavar="ACCEL.csv", help="accelerometer files (any supported format)")
     p.add_argument("-o", "--output", metavar="printer.toml", help="write the printer description here")
     p.add_argument("--plot", metavar="out.png", help="plot measured against fitted spectra / decays")
     p.add_argument("--axis", choices=("x", "y"), help="axis of every file (default: from the file name)")
@@ -90,6 +96,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--added-mass", nargs="+", metavar="KG LOADED.csv",
                    help="added-mass method: KG (or X=KG,Y=KG) fixed to the toolhead (X; Y on a CoreXY) or the "
                    "bed (Y on a bed slinger), then the resonance files measured with it")
+    identify_ripples.add_arguments(p)
 
 
 # -- option parsing ---------------------------------------------------------------------------------
@@ -203,6 +210,14 @@ def run(args, out) -> int:
     from ringtune.envs.identify import plot_fits
     from ringtune.shaping.errors import RingtuneError
 
+    if identify_ripples.wanted(args) or not args.files:   # no accelerometer: ripples or a tower
+        given = [flag for flag, v in (("--klipper-config", args.klipper_config), ("--marlin", args.marlin),
+                                      ("--rrf", args.rrf), ("--motor", args.motor), ("--mass", args.mass),
+                                      ("--added-mass", args.added_mass)) if v]
+        if given:
+            raise RingtuneError("goes with accelerometer files; with --ripples/--tower-band give the rest of "
+                                "the printer as --base P (e.g. from `ringtune printer from-klipper`)", given[0])
+        return identify_ripples.run(args, out)
     if args.max_modes < 1 or args.max_modes > 5:
         raise RingtuneError("must be 1 to 5", "--max-modes")
     if not 0 <= args.fmin < args.fmax:

@@ -52,7 +52,7 @@ distance and 0.5 % of print time count as the same.
 With no arguments it tunes the built-in Ender-3-class printer on the built-in test print into
 ./ringtune-out/ in about a minute; open ringtune-out/README.txt first. Running the same command
 again resumes the study (also after Ctrl-C or a crash); --trials N extends it to N trials.
-Progress goes to stderr: a bar on a terminal, else a line every 10 s.
+Progress goes to stderr: a bar on a terminal, else a line every 10 s (RINGTUNE_PROGRESS_S=N sets it).
 
 examples:
   ringtune tune
@@ -194,11 +194,14 @@ def run(args: argparse.Namespace, out) -> int:
         raise
     st = run_.study
     points = tune_study.study_points(st, space, quality, max_pe, reserve)
-    front = pareto.pareto_front(points)
+    # the front over print time, the quality objective and path error: the two figures of quality
+    # every comparison judges (a point with a little more overshoot and far less path error stays)
+    front = pareto.pareto_front(points, also=("path_error_mm",) if quality != "path_error_mm" else ())
     choice = pareto.pick(front, baselines, how, args.weight)
     chosen = choice.point
     accel_lines, accel_json = accel_statement(chosen, space, max_pe, reserve, points)
     ja_lines, ja_json = job_accel_section(facts, args.job_accel, printer, args.gcode, chosen.config)
+    ja_json["searched"] = not space.accel_fixed
     notes = []
     if margin:
         notes.append(f"Every figure is the worst of the printer as modelled and with all its resonances "
@@ -239,9 +242,9 @@ def firmware_names(name: str) -> tuple[str, str, str]:
     """(firmware to tune for, dialect apply.txt is written in, a note or "") from a ``--firmware``
     value: every firmware of :data:`ringtune.shaping.firmware.FIRMWARES` (the names ``export``
     accepts, rrf34 included), in any case."""
-    from ringtune.shaping.firmware import firmware_record
+    from ringtune.shaping.firmware import Firmware
 
-    rec = firmware_record(name, "--firmware")
+    rec = Firmware.named(name, "--firmware")
     return rec.name, rec.name, ""
 
 

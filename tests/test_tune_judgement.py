@@ -1,0 +1,358 @@
+"""``ringtune tune`` says what is true (issue 14): "the same" and "dominates" at a stated resolution,
+the default pick "same quality, faster", the baselines the user really has, progress in a log,
+and the small errors found by trying it as a new user."""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from ringtune.agents.cli import main
+from ringtune.agents.pareto import Point, judge, pareto_front, pick
+from ringtune.agents.report import compare
+from ringtune.shaping.config import TuneConfig
+
+TESTS = Path(__file__).resolve().parent
+
+
+@pytest.fixture
+def fake_evaluator(monkeypatch):
+    monkeypatch.syspath_prepend(str(TESTS))
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")]))
+    return "study_objective:evaluate"
+
+
+def _pt(t, over, pe, label="", feasible=True):
+    return Point(TuneConfig(), t, over, False, {"overshoot_mm": over, "path_error_mm": pe}, label,
+                 too_rough=not feasible)
+
+
+# -- acceptance 14.3 -------------------------------------------------------------------------------
+def test_a_sub_micrometre_overshoot_gain_does_not_buy_70_percent_more_path_error():
+    """0.4 µm less overshoot is the same (under 1 µm); +70 % path error is worse (over 5 %): neither
+    dominates, and the JSON of the comparison says so per figure."""
+    klipper = _pt(5.0, 0.0034, 0.0459, "klipper")
+    mine = _pt(4.5, 0.0030, 0.0459 * 1.7, "mine")
+    j = judge(mine, klipper)
+    assert j.verdicts["overshoot_mm"] == "same" and j.verdicts["path_error_mm"] == "worse"
+    assert j.verdicts["print_time_s"] == "better"          # 10 % faster, over 0.5 %
+    assert not j.dominates and not judge(klipper, mine).dominates
+    d = json.loads(json.dumps(compare(mine, klipper).to_dict()))
+    assert d["dominates"] is False
+    assert d["metrics"]["overshoot_mm"] == "same" and d["metrics"]["path_error_mm"] == "worse"
+    assert "does not dominate it (worse path error)" in compare(mine, klipper).sentence("overshoot_mm")
+
+
+def test_resolution_edges_one_micrometre_five_percent_half_a_percent_of_time():
+    base = _pt(100.0, 0.010, 0.040)
+    # 1 µm is larger than 5 % of 10 µm (0.5 µm): 0.9 µm is the same, 1.1 µm is not
+    assert judge(_pt(100.0, 0.0109, 0.040), base).verdicts["overshoot_mm"] == "same"
+    assert judge(_pt(100.0, 0.0111, 0.040), base).verdicts["overshoot_mm"] == "worse"
+    # 5 % of 40 µm = 2 µm is larger than 1 µm: +1.9 µm is the same, +2.3 µm (5.5 % of 42.3) is worse
+    assert judge(_pt(100.0, 0.010, 0.0419), base).verdicts["path_error_mm"] == "same"
+    assert judge(_pt(100.0, 0.010, 0.0423), base).verdicts["path_error_mm"] == "worse"
+    # time: 0.4 % faster is the same, 0.6 % faster is better
+    assert judge(_pt(99.6, 0.010, 0.040), base).verdicts["print_time_s"] == "same"
+    assert judge(_pt(99.4, 0.010, 0.040), base).verdicts["print_time_s"] == "better"
+    assert judge(_pt(99.4, 0.010, 0.040), base).dominates
+    # a point ruled out by a bound never dominates a baseline that keeps it
+    assert not judge(_pt(90.0, 0.001, 0.001, feasible=False), base).dominates
+
+
+# -- acceptance 14.4 -------------------------------------------------------------------------------
+def test_default_pick_is_the_fastest_point_at_the_best_baselines_quality():
+    klipper = _pt(10.0, 0.004, 0.040, "klipper")
+    front = [_pt(8.0, 0.020, 0.090, "fast but rough"), _pt(9.0, 0.0042, 0.041, "same quality, faster"),
+             _pt(9.5, 0.003, 0.030, "better, less fast"), _pt(12.0, 0.001, 0.020, "slow")]
+    c = pick(front, {"klipper": klipper, "none": _pt(11.0, 0.07, 0.07, "none")})
+    assert c.point.label == "same quality, faster" and c.by == "fastest-at-baseline-quality"
+    assert c.baseline == "klipper"
+    # nothing as fast with no worse quality: the knee, and the sentence says why
+    c = pick(front[:1] + front[3:], {"klipper": klipper})
+    assert c.by == "knee" and "because no front point is as fast as Klipper's rule" in c.sentence
+    assert pick(front, {"klipper": klipper}, "knee").by == "knee"
+    assert pick(front, {"klipper": klipper}, "weight", weight=0.0).point.label == "fast but rough"
+
+
+def test_the_front_keeps_a_point_with_less_path_error_so_the_pick_can_match_the_baseline():
+    """Over print time and overshoot alone, a faster point with less overshoot but twice the path
+    error hides the one that matches Klipper's quality; the front over both figures keeps it, and
+    it is the choice ("same quality, faster")."""
+    klipper = _pt(5.087, 0.0037, 0.0459, "klipper")
+    rough_fast = _pt(4.5, 0.0030, 0.095, "rough")
+    match = _pt(4.9, 0.0036, 0.047, "match")
+    assert [p.label for p in pareto_front([rough_fast, match])] == ["rough"]
+    front = pareto_front([rough_fast, match], also=("path_error_mm",))
+    assert [p.label for p in front] == ["rough", "match"]
+    c = pick(front, {"klipper": klipper})
+    assert c.point is match and "same quality, faster" in c.sentence
+    # the baseline's own configuration found again is not "faster": the sentence says so
+    c = pick([rough_fast, _pt(5.087, 0.0037, 0.0459, "itself")], {"klipper": klipper})
+    assert c.point.label == "itself" and "no front point is faster than Klipper's rule" in c.sentence
+
+
+def _no_worse(p, b):
+    """Independent of pareto.judge: quality no worse than b's beyond 1 µm / 5 % of the larger."""
+    def ok(a, c):
+        return a - c <= max(0.001, 0.05 * max(abs(a), abs(c)))
+    return ok(p["overshoot_mm"], b["overshoot_mm"]) and ok(p["path_error_mm"], b["path_error_mm"])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_with_40_trials_the_choice_is_as_fast_as_a_baseline_at_no_worse_quality(tmp_path, capsys, fake_evaluator,
+                                                                               seed):
+    out = tmp_path / "out"
+    assert main(["tune", "--json", "--out", str(out), "--trials", "40", "--seed", str(seed), "--evaluator",
+                 fake_evaluator]) == 0
+    res = json.loads(capsys.readouterr().out)
+    rows = [r.split(",") for r in (out / "front.csv").read_text().strip().splitlines()]
+    cols = rows[0]
+    front = [{k: float(v) for k, v in zip(cols, r) if k in ("print_time_s", "overshoot_mm", "path_error_mm")}
+             for r in rows[1:]]
+    shaped = {k: b for k, b in res["baselines"].items() if k != "none" and not b["breaks"]}
+    exists = any(p["print_time_s"] <= b["print_time_s"] and _no_worse(p, b) for p in front for b in shaped.values())
+    ch = res["chosen"]
+    if exists:
+        assert ch["chosen_by"] == "fastest-at-baseline-quality"
+        b = res["baselines"][ch["against"]]
+        assert ch["print_time_s"] <= b["print_time_s"] and _no_worse(ch, b)
+    else:
+        assert ch["chosen_by"] == "knee" and "because" in ch["why"]
+    summary = (out / "summary.txt").read_text()
+    assert ch["why"] in summary
+
+
+# -- baselines: what the user really has (acceptance 14.1, unit part) ----------------------------
+def _printer_toml(path: Path, klipper: dict | None = None, current: dict | None = None) -> Path:
+    text = """name = "ender3-measured"
+kinematics = "cartesian"
+[limits]
+accel = 3000
+velocity = 300
+square_corner_velocity = 5
+[x]
+modes = [{ freq = 51.0, damping = 0.06 }]
+[y]
+modes = [{ freq = 46.0, damping = 0.05 }]
+"""
+    if current:
+        text += "[current]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in current.items())
+    if klipper:
+        text += '[measurement]\nsource = "accelerometer"\n[measurement.klipper]\n' + \
+            "".join(f"{k} = {json.dumps(v)}\n" for k, v in klipper.items())
+    path.write_text(text)
+    return path
+
+
+def test_klippers_rule_is_the_recommendation_recorded_from_the_files(data_dir, tmp_path, capsys, fake_evaluator):
+    """The printer records Klipper's recommendation from its resonance files (computed here with the
+    function `recommend --accel` uses): tune's Klipper baseline is exactly it, in the summary and the
+    JSON, and nothing says "simulated"."""
+    from ringtune.agents.commands.recommend import _load_accel
+    from ringtune.agents.klipper_baseline import recommend_axes
+
+    d = data_dir / "accel" / "klipper_psd" / "bassco_ender3"
+    psds, _ = _load_accel([str(p) for p in sorted(d.glob("resonances_*.csv"))], None)
+    fits, fields = recommend_axes(psds, "klipper", "head", 5.0)
+    rec = {"shaper_x": fields["shaper_x"], "freq_x": fields["freq_x"], "shaper_y": fields["shaper_y"],
+           "freq_y": fields["freq_y"], "max_accel": fields["accel"], "version": "head"}
+    toml = _printer_toml(tmp_path / "p.toml", klipper=rec)
+    out = tmp_path / "out"
+    assert main(["tune", "--json", "--printer", str(toml), "--out", str(out), "--trials", "5", "--evaluator",
+                 fake_evaluator]) == 0
+    res = json.loads(capsys.readouterr().out)
+    k = res["baselines"]["klipper"]
+    assert k["source"] == "measurement" and "simulated" not in k["label"]
+    for key in ("shaper_x", "freq_x", "shaper_y", "freq_y"):
+        assert k["config"][key] == fields[key]
+    assert k["config"]["accel"] == fields["accel"]
+    summary = (out / "summary.txt").read_text()
+    line = next(s for s in summary.splitlines() if s.strip().startswith("Klipper's rule from your resonance files"))
+    assert (f"X {fields['shaper_x']} @ {fields['freq_x']:.1f} Hz, Y {fields['shaper_y']} @ {fields['freq_y']:.1f} Hz"
+            in line and f"accel {fields['accel']:.0f} mm/s²" in line)
+    assert "simulated resonance test" not in summary
+
+
+def test_without_a_recorded_recommendation_the_baseline_says_simulated_and_current_is_a_third(tmp_path, capsys,
+                                                                                             fake_evaluator):
+    toml = _printer_toml(tmp_path / "p.toml", current={"source": "printer.cfg", "shaper_x": "mzv", "freq_x": 48.2,
+                                                       "shaper_y": "ei", "freq_y": 41.0, "damping_x": 0.1,
+                                                       "damping_y": 0.1, "accel": 2500.0})
+    out = tmp_path / "out"
+    assert main(["tune", "--json", "--printer", str(toml), "--out", str(out), "--trials", "5", "--evaluator",
+                 fake_evaluator, "--accel-range", "1000,5000"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert set(res["baselines"]) == {"klipper", "current", "none"}
+    assert res["baselines"]["klipper"]["source"] == "simulated resonance test"
+    assert "on a simulated resonance test" in res["baselines"]["klipper"]["label"]
+    cur = res["baselines"]["current"]["config"]
+    assert (cur["shaper_x"], cur["freq_x"], cur["shaper_y"], cur["freq_y"], cur["accel"]) == \
+        ("mzv", 48.2, "ei", 41.0, 2500.0)
+    summary = (out / "summary.txt").read_text()
+    assert "Klipper's rule on a simulated resonance test of the model" in summary
+    assert "what the printer runs now (printer.cfg): X mzv @ 48.2 Hz, Y ei @ 41.0 Hz" in summary
+    assert "current" in res["vs_baselines"]
+
+
+# -- progress (acceptance 14.6, tune part) --------------------------------------------------------
+def test_progress_goes_to_a_log_file_as_lines(tmp_path, fake_evaluator):
+    out = tmp_path / "out"
+    log = tmp_path / "log"
+    env = dict(os.environ, RINGTUNE_PROGRESS_S="0")
+    with open(log, "w") as err:
+        done = subprocess.run([sys.executable, "-m", "ringtune.agents.cli", "tune", "--json", "--out", str(out),
+                               "--trials", "6", "--no-baselines", "--evaluator", fake_evaluator],
+                              env=env, stdout=subprocess.PIPE, stderr=err, text=True, timeout=120)
+    assert done.returncode == 0
+    json.loads(done.stdout)                      # stdout is only the JSON
+    lines = [s for s in log.read_text().splitlines() if s.startswith("ringtune tune: ") and "/6 trials" in s]
+    assert len(lines) >= 2 and "6/6 trials" in lines[-1] and "best so far" in lines[-1]
+    assert "\r" not in log.read_text()          # no progress bar redraws in a log
+
+
+# -- smaller things --------------------------------------------------------------------------------
+def test_out_that_is_a_file_is_one_clear_line(tmp_path, capsys):
+    f = tmp_path / "myprinter.toml"
+    f.write_text("name = 'x'\n")
+    assert main(["tune", "--out", str(f), "--trials", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "--out" in err and "is a file, not a folder" in err and "Errno" not in err
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes in read-only folders")
+def test_read_only_out_folder_is_one_clear_line(tmp_path, capsys):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(stat.S_IRUSR | stat.S_IXUSR)
+    try:
+        assert main(["tune", "--out", str(ro / "res"), "--trials", "1"]) == 2
+    finally:
+        ro.chmod(stat.S_IRWXU)
+    err = capsys.readouterr().err
+    assert "--out" in err and "cannot write" in err and "Errno" not in err
+
+
+def test_read_only_file_system_is_one_clear_line(tmp_path, capsys, monkeypatch):
+    """A read-only mount (what root meets): the probe write fails with EROFS; said in words."""
+    import errno
+    import tempfile
+
+    def refuse(*a, **k):
+        raise OSError(errno.EROFS, os.strerror(errno.EROFS))
+    monkeypatch.setattr(tempfile, "TemporaryFile", refuse)
+    assert main(["tune", "--out", str(tmp_path / "res"), "--trials", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "--out" in err and "Read-only file system" in err and "Errno" not in err
+    assert not (tmp_path / "res").exists()
+
+
+def test_a_failed_tune_leaves_no_empty_out_folder(tmp_path, capsys):
+    out = tmp_path / "res"
+    assert main(["tune", "--out", str(out), "--trials", "2", "--evaluator", "no_such_module:f"]) == 2
+    assert "--evaluator" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_study_mismatch_names_the_default_printer_in_words(tmp_path, capsys, fake_evaluator):
+    out = tmp_path / "out"
+    assert main(["tune", "--out", str(out), "--trials", "3", "--no-baselines", "--evaluator", fake_evaluator,
+                 "--accel-range", "1000,5000"]) == 0
+    toml = _printer_toml(tmp_path / "p.toml")
+    capsys.readouterr()
+    assert main(["tune", "--out", str(out), "--trials", "3", "--no-baselines", "--printer", str(toml),
+                 "--evaluator", fake_evaluator]) == 2
+    err = capsys.readouterr().err
+    assert "different printer (the built-in default printer; now" in err and "(None)" not in err
+
+
+@pytest.mark.parametrize("name,expect", [("rrf34", "rrf34"), ("Klipper", "klipper"), ("RRF35", "rrf35")])
+def test_tune_accepts_the_firmware_names_export_accepts_in_any_case(tmp_path, capsys, fake_evaluator, name, expect):
+    from ringtune.shaping.firmware import FIRMWARES    # what export accepts
+
+    assert expect in FIRMWARES
+    out = tmp_path / "out"
+    assert main(["tune", "--json", "--out", str(out), "--trials", "3", "--no-baselines", "--firmware", name,
+                 "--evaluator", fake_evaluator, "--accel-range", "1000,5000"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["chosen"]["config"]["firmware"] == expect
+    if expect == "rrf34":
+        assert "M593" in (out / "apply.txt").read_text()
+
+
+def test_readme_same_command_keeps_the_trials_and_the_warm_start_sentence_reads(tmp_path, capsys, fake_evaluator):
+    out = tmp_path / "out"
+    assert main(["tune", "--out", str(out), "--trials", "7", "--seed", "3", "--evaluator", fake_evaluator]) == 0
+    readme = (out / "README.txt").read_text()
+    assert f"ringtune tune --trials 7 --seed 3 --out {out} --evaluator {fake_evaluator}" in readme
+    summary = (out / "summary.txt").read_text()
+    assert "and 0 neighbours" not in summary
+    from ringtune.agents.commands.tune import command_line
+    import argparse
+    ns = argparse.Namespace(**{"trials": 200, "out": "ringtune-out", "job_accel": "replace"})
+    assert command_line(ns) == "ringtune tune --job-accel replace"
+
+
+def test_warm_start_sentence_with_no_neighbour(tmp_path, capsys, fake_evaluator):
+    """A recorded recommendation (no per-shaper fits here) and a fixed acceleration leave Klipper's
+    pick alone to start from: the sentence says so without "and 0 neighbours"."""
+    toml = _printer_toml(tmp_path / "p.toml", klipper={"shaper_x": "mzv", "freq_x": 50.0, "shaper_y": "mzv",
+                                                       "freq_y": 44.0, "max_accel": 3000.0})
+    out = tmp_path / "out"
+    assert main(["tune", "--printer", str(toml), "--out", str(out), "--trials", "2", "--accel-range", "3000,3000",
+                 "--evaluator", fake_evaluator]) == 0
+    summary = (out / "summary.txt").read_text()
+    assert "The search was warm-started from Klipper's recommendation." in summary
+    assert "neighbour" not in summary
+
+
+def test_identify_then_tune_klipper_baseline_equals_recommend_on_the_same_files(data_dir, tmp_path, capsys,
+                                                                               fake_evaluator):
+    """Acceptance 14.1 end to end: identify on the real Ender 3 files, tune on that TOML: the
+    summary's and JSON's Klipper baseline equal `recommend --accel` on the same files."""
+    from ringtune.envs.printer import load_printer
+
+    files = [str(p) for p in sorted((data_dir / "accel" / "klipper_psd" / "bassco_ender3").glob("resonances_*.csv"))]
+    toml = tmp_path / "ender3.toml"
+    assert main(["identify", *files, "-o", str(toml)]) == 0
+    capsys.readouterr()
+    if not load_printer(toml).measurement.get("klipper"):
+        pytest.skip("identify does not record [measurement.klipper] yet (helper identify)")
+    assert main(["recommend", "--json", "--accel", *files]) == 0
+    want = json.loads(capsys.readouterr().out)["config"]
+    out = tmp_path / "out"
+    assert main(["tune", "--json", "--printer", str(toml), "--out", str(out), "--trials", "3", "--evaluator",
+                 fake_evaluator]) == 0
+    got = json.loads(capsys.readouterr().out)["baselines"]["klipper"]
+    assert got["source"] == "measurement"
+    for key in ("shaper_x", "freq_x", "shaper_y", "freq_y", "accel"):
+        assert got["config"][key] == want[key], key
+    summary = (out / "summary.txt").read_text()
+    assert (f"X {want['shaper_x']} @ {want['freq_x']:.1f} Hz, Y {want['shaper_y']} @ {want['freq_y']:.1f} Hz"
+            in summary and f"accel {want['accel']:.0f} mm/s²" in summary)
+
+
+def test_pareto_plot_draws_every_ruled_out_point_and_marks_a_baseline_over_a_bound(tmp_path):
+    """Ruled-out points far beyond the scale are drawn as arrows at the edge and counted (the legend's
+    count is the number of such points, all drawn); a baseline over the path-error bound says so."""
+    from ringtune.agents.pareto_plot import plot_front
+
+    front = [_pt(10.0, 0.004, 0.05), _pt(11.0, 0.003, 0.04), _pt(12.0, 0.002, 0.03)]
+    far = [_pt(9.0 + i, 0.4 + i, 0.5 + i, feasible=False) for i in range(4)]        # 100× off the scale
+    near = [_pt(10.5, 0.0035, 0.12, feasible=False)]
+    klipper = _pt(11.5, 0.0035, 0.11, "klipper", feasible=False)
+    drawn = plot_front(tmp_path / "p.png", front + far + near, front, front[1], {"klipper": klipper},
+                       "overshoot_mm", "t", max_path_error_mm=0.1, baseline_labels={"klipper": "Klipper's rule"})
+    assert (tmp_path / "p.png").read_bytes()[:4] == b"\x89PNG"
+    assert set(drawn) == {"overshoot_mm", "path_error_mm"}
+    assert drawn["overshoot_mm"]["above_scale"] == 4
+    assert drawn["path_error_mm"]["above_scale"] == 5        # the near one is over 0.1 mm of path error too
+    for panel in drawn.values():
+        assert "path error over the bound, excluded (5)" in panel["legend"]
+        assert any(t.startswith("Klipper's rule") and "BREAKS A BOUND (path error over the bound)" in t
+                   for t in panel["legend"])
