@@ -34,6 +34,7 @@ COMMAND_MODULES = [
     "plan",
     "limit",
     "identify",
+    "testprint",
     "printer",
     "motor",
     "export",
@@ -128,6 +129,35 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
+#: library parameter -> the option that carries it, where the two names differ on every command
+#: that has the option (a command module's ``PARAMETER_FLAGS`` adds its own)
+PARAMETER_OPTIONS = {"study_name": "study", "n_envs": "envs"}
+#: command -> {library parameter: --flag}, filled by :func:`build_parser`
+_FLAGS: dict[str, dict[str, str]] = {}
+
+
+def _parameter_flags(parser: argparse.ArgumentParser, module: Any) -> dict[str, str]:
+    """{parameter: --flag} for one command: each option's destination (``min_speed_factor`` ->
+    ``--min-speed-factor``), :data:`PARAMETER_OPTIONS`, and the module's ``PARAMETER_FLAGS``."""
+    flags = {}
+    for action in parser._actions:
+        long = [o for o in action.option_strings if o.startswith("--")]
+        if long:
+            flags[action.dest] = long[0]
+    for param, dest in PARAMETER_OPTIONS.items():
+        if dest in flags:
+            flags.setdefault(param, flags[dest])
+    flags.update(getattr(module, "PARAMETER_FLAGS", {}))
+    return flags
+
+
+def as_flag(exc: RingtuneError, command: str) -> RingtuneError:
+    """A library error naming a parameter (``where="method"``) as the command's flag (``--method``):
+    the library speaks of its parameters, the user of the options they typed."""
+    flag = _FLAGS.get(command, {}).get(exc.where or "")
+    return RingtuneError(exc.bare, flag) if flag else exc
+
+
 def build_parser() -> tuple[argparse.ArgumentParser, dict[str, Any]]:
     parser = _Parser(
         prog="ringtune",
@@ -150,6 +180,7 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict[str, Any]]:
         )
         p.add_argument("--json", action="store_true", help="print one JSON object with stable keys")
         module.add_arguments(p)
+        _FLAGS[name] = _parameter_flags(p, module)
     return parser, modules
 
 
@@ -165,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
         sys.stdout.flush()          # a closed pipe shows here, not in the interpreter's last flush
         return rc
     except RingtuneError as exc:
-        return _fail(args.command, str(exc))
+        return _fail(args.command, str(as_flag(exc, args.command)))
     except FileNotFoundError as exc:
         return _fail(args.command, f"{exc.filename}: no such file")
     except BrokenPipeError:

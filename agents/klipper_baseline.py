@@ -46,11 +46,11 @@ def firmware_rule_setup(firmware: str, version: str) -> tuple[str, tuple[str, ..
     from ringtune.shaping.shapers import available_shapers
 
     if firmware not in FIRMWARES:
-        raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "--firmware")
+        raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "firmware")
     flavor = VERSION_FLAVOR[version] if firmware == "klipper" else FIRMWARES[firmware].flavor
     names = tuple(n for n in AUTOTUNE_SHAPERS if n in available_shapers(flavor))
     if not names:
-        raise RingtuneError(f"{firmware} offers none of Klipper's autotuned shapers", "--firmware")
+        raise RingtuneError(f"{firmware} offers none of Klipper's autotuned shapers", "firmware")
     return flavor, names
 
 
@@ -80,7 +80,7 @@ def _as_list(p: Any) -> list:
     return list(p) if isinstance(p, list) else [p]
 
 
-def recommend_for_printer(printer: Any = None, firmware: str = "klipper", version: str = "head",
+def klipper_rule_on_simulated_test(printer: Any = None, firmware: str = "klipper", version: str = "head",
                           seed: int = 0, **kw) -> tuple[dict[str, KlipperRecommendation], dict[str, Any]]:
     """Klipper's rule on a modelled printer's simulated resonance test (one per axis), as a user
     would run TEST_RESONANCES + calibrate_shaper.py; scv is the printer's square-corner velocity."""

@@ -44,6 +44,9 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
+from ringtune.hardware.psd import normalize_to_frequencies
+from ringtune.shaping.analysis import (SMOOTHING_ACCEL, TARGET_SMOOTHING, impulse_residual,
+                                       max_accel_from_terms, smoothing_from_terms, smoothing_terms)
 from ringtune.shaping.errors import RingtuneError
 
 VERSIONS = ("head", "0.13")
@@ -57,12 +60,9 @@ SHAPER_MIN_FREQ = {"zv": 21.0, "mzv": 23.0, "zvd": 29.0, "ei": 29.0, "2hump_ei":
 TEST_DAMPING_RATIOS = (0.075, 0.1, 0.15)
 DEFAULT_DAMPING_RATIO = 0.1
 SHAPER_VIBRATION_REDUCTION = 20.0
-MIN_FREQ = 5.0            # Hz, below this (or 2× this) the PSD is noise
 MAX_FREQ = 200.0          # Hz, PSD bins used up to here (or the highest test frequency)
 MAX_SHAPER_FREQ = 150.0   # Hz, test frequencies stop below this
 FREQ_STEP = 0.2           # Hz
-TARGET_SMOOTHING = 0.12   # mm, for the suggested max_accel
-SMOOTHING_ACCEL = 5000.0  # mm/s², the acceleration smoothing is quoted at
 
 #: (name, freq Hz, damping) -> (amplitudes, times s); amplitudes need not be normalised
 ShaperFactory = Callable[[str, float, float], tuple[np.ndarray, np.ndarray]]
@@ -126,108 +126,15 @@ class KlipperRecommendation:
 
 # -- the pieces -----------------------------------------------------------------------------------
 
-def normalize_psd(freqs: np.ndarray, psd: np.ndarray, lowfreq: str = "exp") -> np.ndarray:
-    """Klipper's ``normalize_to_frequencies`` on one PSD column (returns a new array).
-
-    ``psd / (f + 0.1)``; then ``lowfreq="zero"`` zeroes bins below 5 Hz, ``"exp"`` multiplies bins
-    below 10 Hz by ``exp(1 − (10/(f+0.1))²)``.
-    """
-    freqs = np.asarray(freqs, dtype=float)
-    out = np.asarray(psd, dtype=float) / (freqs + 0.1)
-    if lowfreq == "zero":
-        out[freqs < MIN_FREQ] = 0.0
-    elif lowfreq == "exp":
-        low = freqs < 2.0 * MIN_FREQ
-        out[low] *= np.exp(-((2.0 * MIN_FREQ / (freqs[low] + 0.1)) ** 2) + 1.0)
-    else:
-        raise RingtuneError(f"low-frequency suppression must be 'zero' or 'exp', not {lowfreq!r}", "normalize_psd")
-    return out
-
-
-def shaper_response(amps: np.ndarray, times: np.ndarray, freqs: np.ndarray, damping: float) -> np.ndarray:
-    """Klipper's ``_estimate_shaper``: residual vibration (fraction) of a damped oscillator at
-    ``freqs`` (Hz) with damping ratio ``damping`` after the impulse train (amps, times in s)."""
-    a = np.asarray(amps, dtype=float)
-    t = np.asarray(times, dtype=float)
-    omega = 2.0 * math.pi * np.asarray(freqs, dtype=float)
-    omega_d = omega * math.sqrt(1.0 - damping ** 2)
-    w = a * np.exp(np.outer(-damping * omega, t[-1] - t))
-    phase = np.outer(omega_d, t)
-    s = (w * np.sin(phase)).sum(axis=1)
-    c = (w * np.cos(phase)).sum(axis=1)
-    return np.sqrt(s * s + c * c) / a.sum()
-
-
-def remaining_vibrations(amps, times, freqs, psd, damping: float) -> float:
-    """Klipper's ``_estimate_remaining_vibrations`` (fraction 0..1) for one test damping ratio."""
-    vals = shaper_response(amps, times, freqs, damping)
+def remaining_vibrations(amps, times, freqs, psd, damping: float):
+    """Klipper's ``_estimate_remaining_vibrations`` (fraction 0..1) for one test damping ratio:
+    ``Σ max(H·psd − max(psd)/20, 0) / Σ max(psd − max(psd)/20, 0)``, ``H`` the shaper's residual
+    (:func:`ringtune.shaping.analysis.impulse_residual`). A float for one shaper (``amps`` (n,)),
+    an array for a stack of shapers (rows)."""
+    vals = impulse_residual(amps, times, freqs, damping)
     thr = psd.max() / SHAPER_VIBRATION_REDUCTION
-    return float(np.maximum(vals * psd - thr, 0.0).sum() / np.maximum(psd - thr, 0.0).sum())
-
-
-def _smoothing_terms(amps, times, scv: float) -> tuple[float, float, float, float]:
-    """Smoothing as affine functions of accel: o90 = c90 + k90·accel, o180 = k180·accel (mm)."""
-    a = np.asarray(amps, dtype=float)
-    t = np.asarray(times, dtype=float)
-    inv_d = 1.0 / a.sum()
-    ts = float((a * t).sum() * inv_d)
-    d = t - ts
-    late = t >= ts
-    c90 = math.sqrt(2.0) * inv_d * scv * float((a[late] * d[late]).sum())
-    k90 = math.sqrt(2.0) * inv_d * 0.5 * float((a[late] * d[late] ** 2).sum())
-    k180 = inv_d * 0.5 * float((a * d * d).sum())
-    return c90, k90, 0.0, k180
-
-
-def _smoothing_terms_rows(amps: np.ndarray, times: np.ndarray, scv: float):
-    """:func:`_smoothing_terms` for a stack of shapers (rows): arrays c90, k90, k180."""
-    inv_d = 1.0 / amps.sum(axis=1)
-    ts = (amps * times).sum(axis=1) * inv_d
-    d = times - ts[:, None]
-    late = times >= ts[:, None]
-    c90 = math.sqrt(2.0) * inv_d * scv * np.where(late, amps * d, 0.0).sum(axis=1)
-    k90 = math.sqrt(2.0) * inv_d * 0.5 * np.where(late, amps * d * d, 0.0).sum(axis=1)
-    k180 = inv_d * 0.5 * (amps * d * d).sum(axis=1)
-    return c90, k90, k180
-
-
-def _max_accel_rows(c90, k90, k180, target: float) -> np.ndarray:
-    with np.errstate(divide="ignore", invalid="ignore"):
-        a90 = np.where(k90 > 0, (target - c90) / k90, np.inf)
-        a180 = np.where(k180 > 0, target / k180, np.inf)
-    return np.where(c90 > target, 0.0, np.minimum(a90, a180))
-
-
-def _response_rows(amps: np.ndarray, times: np.ndarray, freqs: np.ndarray, damping: float) -> np.ndarray:
-    """:func:`shaper_response` for a stack of shapers: (n_shapers, n_freqs)."""
-    omega = 2.0 * math.pi * freqs
-    omega_d = omega * math.sqrt(1.0 - damping ** 2)
-    # |Σ A_i e^{-ζω(T_n - T_i)} e^{jω_d T_i}| as one complex exponential per pulse
-    expo = (-damping * omega)[None, :, None] * (times[:, -1:] - times)[:, None, :] \
-        + 1j * omega_d[None, :, None] * times[:, None, :]
-    z = (amps[:, None, :] * np.exp(expo)).sum(axis=2)
-    s, c = z.imag, z.real
-    return np.sqrt(s * s + c * c) / amps.sum(axis=1)[:, None]
-
-
-def shaper_smoothing(amps, times, accel: float = SMOOTHING_ACCEL, scv: float = 5.0) -> float:
-    """Klipper's ``_get_shaper_smoothing`` (mm): worst offset of a 90° or 180° turn."""
-    c90, k90, c180, k180 = _smoothing_terms(amps, times, scv)
-    return max(c90 + k90 * accel, c180 + k180 * accel)
-
-
-def shaper_max_accel(amps, times, scv: float = 5.0, target: float = TARGET_SMOOTHING) -> float:
-    """Largest accel (mm/s²) with smoothing ≤ ``target`` mm (Klipper's bisection, solved exactly).
-
-    0 when even a standstill turn at ``scv`` smooths more than ``target`` (Klipper HEAD's guard).
-    """
-    c90, k90, c180, k180 = _smoothing_terms(amps, times, scv)
-    limits = []
-    for c, k in ((c90, k90), (c180, k180)):
-        if c > target:
-            return 0.0
-        limits.append((target - c) / k if k > 0 else math.inf)
-    return float(min(limits))
+    out = np.maximum(vals * psd - thr, 0.0).sum(axis=-1) / np.maximum(psd - thr, 0.0).sum()
+    return float(out) if np.ndim(out) == 0 else out
 
 
 def default_shaper_factory(flavor: str) -> ShaperFactory:
@@ -266,7 +173,7 @@ def _as_dataset(obj: Any, lowfreq: str, where: str) -> _Dataset:
     if not (np.all(np.isfinite(freqs)) and np.all(np.isfinite(psd))) or np.any(psd < 0):
         raise RingtuneError("PSD has non-finite or negative values", where)
     if not normalised:
-        psd = normalize_psd(freqs, psd, lowfreq)
+        psd = normalize_to_frequencies(freqs, psd, lowfreq)
     return _Dataset(freqs, psd)
 
 
@@ -287,8 +194,8 @@ def fit_shaper(name: str, datasets: Sequence[_Dataset], factory: ShaperFactory, 
     built = [factory(name, float(f), damping_ratio) for f in freqs_desc]
     amps = np.stack([np.asarray(b[0], dtype=float) for b in built])
     times = np.stack([np.asarray(b[1], dtype=float) for b in built])
-    c90, k90, k180 = _smoothing_terms_rows(amps, times, scv)
-    smoothing = np.maximum(c90 + k90 * SMOOTHING_ACCEL, k180 * SMOOTHING_ACCEL)
+    terms = smoothing_terms(amps, times, scv)
+    smoothing = smoothing_from_terms(terms, SMOOTHING_ACCEL)
     stopped = False
     if max_smoothing:
         over = np.nonzero(smoothing[1:] > max_smoothing)[0]   # Klipper stops once a result exists
@@ -296,16 +203,13 @@ def fit_shaper(name: str, datasets: Sequence[_Dataset], factory: ShaperFactory, 
             stopped = True
             keep = over[0] + 1
             freqs_desc, amps, times, smoothing = freqs_desc[:keep], amps[:keep], times[:keep], smoothing[:keep]
-            c90, k90, k180 = c90[:keep], k90[:keep], k180[:keep]
+            terms = tuple(x[:keep] for x in terms)
     vibrs = np.zeros(len(freqs_desc))
     for freqs, psd in cut:
-        thr = psd.max() / SHAPER_VIBRATION_REDUCTION
-        total = np.maximum(psd - thr, 0.0).sum()
         for dr in test_damping_ratios:
-            vals = _response_rows(amps, times, freqs, dr)
-            vibrs = np.maximum(vibrs, np.maximum(vals * psd - thr, 0.0).sum(axis=1) / total)
+            vibrs = np.maximum(vibrs, remaining_vibrations(amps, times, freqs, psd, dr))
     scores = smoothing * (vibrs ** 1.5 + vibrs * 0.2 + 0.01)
-    max_accels = _max_accel_rows(c90, k90, k180, TARGET_SMOOTHING)
+    max_accels = max_accel_from_terms(terms, TARGET_SMOOTHING)
 
     best: ShaperFit | None = None
     results: list[ShaperFit] = []
@@ -354,9 +258,9 @@ def recommend_klipper(psds: Any, version: str = "head", scv: float = 5.0, *,
     """
     if version not in VERSIONS:
         raise RingtuneError(f"Klipper version must be one of {', '.join(VERSIONS)}, not {version!r}",
-                            "--klipper-version")
+                            "version")
     if not (isinstance(scv, (int, float)) and math.isfinite(scv) and scv >= 0):
-        raise RingtuneError(f"square-corner velocity must be ≥ 0 mm/s, not {scv!r}", "--scv")
+        raise RingtuneError(f"square-corner velocity must be ≥ 0 mm/s, not {scv!r}", "scv")
     lowfreq = lowfreq or VERSION_LOWFREQ[version]
     items = list(psds) if isinstance(psds, list) else [psds]
     if not items:
@@ -417,6 +321,6 @@ def _check_shaper_name(name: str) -> str:
     base = m.group(1).lower() if m else str(name)
     if base not in SHAPER_MIN_FREQ:
         raise RingtuneError(f"unknown shaper {name!r}; Klipper's rule fits {', '.join(SHAPER_MIN_FREQ)}",
-                            "--shapers")
+                            "shapers")
     return str(name).strip().lower() if m and m.group(2) else base
 

@@ -41,7 +41,6 @@ from typing import Any
 import numpy as np
 
 from ringtune.agents.ppo_callbacks import curve_callback, held_out_callback
-from ringtune.envs.env import spectrum_features
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
@@ -201,11 +200,11 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
     from stable_baselines3.common.vec_env import VecNormalize
 
     if not 0 <= seed < MAX_TRAIN_SEED:
-        raise RingtuneError(f"must be in [0, {MAX_TRAIN_SEED}) (higher seeds are the held-out printers)", "--seed")
+        raise RingtuneError(f"must be in [0, {MAX_TRAIN_SEED}) (higher seeds are the held-out printers)", "seed")
     if n_envs < 1:
-        raise RingtuneError("needs at least one environment", "--envs")
+        raise RingtuneError("needs at least one environment", "n_envs")
     if timesteps < 1:
-        raise RingtuneError("must be ≥ 1", "--timesteps")
+        raise RingtuneError("must be ≥ 1", "timesteps")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     env_kwargs = resolve_env_kwargs(env_kwargs)
@@ -410,15 +409,3 @@ def load_policy(policy_dir: str | Path, which: str = "policy") -> Policy:
         raise RingtuneError(f"this policy observes {model.observation_space.shape[0]} values but this version of "
                             f"ringtune shows {want[0]} (an older observation layout); train it again", str(d))
     return policy
-
-
-#: the env's own spectrum features, applied to measured PSDs (one function, so they cannot drift)
-spectrum_observation = spectrum_features
-
-
-def recommend_command(args, out) -> int:
-    """``ringtune recommend --method policy`` (called by ``agents/commands/recommend.py``); see
-    :func:`ringtune.agents.ppo_recommend.run` for its options and ``--json`` keys."""
-    from ringtune.agents.ppo_recommend import run
-
-    return run(args, out)

@@ -35,7 +35,7 @@ def tune_hyperparameters(out_dir: str | Path, n_trials: int = 6, budget: int = 2
     from ringtune.agents.ppo import train
 
     if n_trials < 1:
-        raise RingtuneError("needs at least one trial", "--hpo-trials")
+        raise RingtuneError("needs at least one trial", "n_trials")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     optuna.logging.set_verbosity(optuna.logging.WARNING)

@@ -73,7 +73,7 @@ def optuna_search(cost: PrinterCost, n_trials: int, seed: int = 0, first_action=
     import optuna
 
     if n_trials < 1:
-        raise RingtuneError("needs at least one trial", "--refine")
+        raise RingtuneError("needs at least one trial", "n_trials")
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     n = cost.spec.size
     study = optuna.create_study(direction="minimize", sampler=optuna.samplers.TPESampler(seed=seed))

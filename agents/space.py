@@ -77,14 +77,14 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
     from ringtune.shaping.shapers import available_shapers, max_damping
 
     if firmware not in FIRMWARES:
-        raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "--firmware")
+        raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "firmware")
     flavor = FIRMWARES[firmware].flavor
     offered = tuple(n for n in available_shapers(flavor) if n != "custom")
     if shapers:
         bad = [s for s in shapers if s not in offered]
         if bad:
             raise RingtuneError(f"{firmware} does not offer {', '.join(bad)} (offers {', '.join(offered)})",
-                                "--shapers")
+                                "shapers")
         offered = tuple(shapers)
     zmax = min([0.2] + [max_damping(n, flavor) for n in offered if n != "none"])
     ranges = {}
@@ -104,7 +104,7 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
         lo = min(max(100.0, round(0.3 * float(printer.limits.accel), -2)), max(100.0, round(hi / 3.0, -2)))
         acc = (lo, hi)
     if not (0 < acc[0] <= acc[1]):
-        raise RingtuneError(f"acceleration range must be 0 < lo ≤ hi, not {acc}", "--accel-range")
+        raise RingtuneError(f"acceleration range must be 0 < lo ≤ hi, not {acc}", "accel")
     return SearchSpace(firmware=firmware, shapers=offered, per_axis=per_axis, freq_x=ranges["x"],
                        freq_y=ranges["y"], damping=(0.0, float(zmax)), freq_limit_methods=FREQ_LIMIT_METHODS,
                        freq_limit_hz=(10.0, 80.0), accel=(float(acc[0]), float(acc[1])), accel_basis=basis)

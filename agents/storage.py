@@ -44,16 +44,16 @@ def make_storage(url: str):
         path = str(url)[len("journal:"):] if str(url).startswith("journal:") else str(url)
         path = path[2:] if path.startswith("//") else path
         if not path:
-            raise RingtuneError("journal storage needs a file path, e.g. journal:out/study.journal", "--storage")
+            raise RingtuneError("journal storage needs a file path, e.g. journal:out/study.journal", "storage")
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         try:
             return optuna.storages.JournalStorage(
                 JournalFileBackend(path, lock_obj=JournalFileOpenLock(path, grace_period=5)))
         except OSError as exc:
-            raise RingtuneError(f"cannot open journal storage: {exc}", "--storage") from None
+            raise RingtuneError(f"cannot open journal storage: {exc}", "storage") from None
     if not isinstance(url, str) or "://" not in url:
         raise RingtuneError("storage must be journal:PATH or an Optuna RDB URL such as sqlite:///study.db "
-                            f"or postgresql+psycopg2://user:pw@host/db, not {url!r}", "--storage")
+                            f"or postgresql+psycopg2://user:pw@host/db, not {url!r}", "storage")
     from optuna.storages import RDBStorage
 
     try:
@@ -73,9 +73,9 @@ def make_storage(url: str):
             return storage
     except ImportError as exc:
         raise RingtuneError(f"storage {url.split(':')[0]!r} needs a driver that is not installed ({exc})",
-                            "--storage") from None
+                            "storage") from None
     except Exception as exc:  # sqlalchemy OperationalError etc.: one line, naming the option
-        raise RingtuneError(f"cannot open storage: {str(exc).splitlines()[0]}", "--storage") from None
+        raise RingtuneError(f"cannot open storage: {str(exc).splitlines()[0]}", "storage") from None
 
 
 def _sqlite_wal(url: str) -> None:

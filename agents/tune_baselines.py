@@ -110,7 +110,7 @@ def baselines_for(printer: Any, firmware: str, settings, evaluator: Callable, qu
         out.sources["klipper"] = "measurement"
     else:
         try:
-            out.fits, fields = klipper_baseline.recommend_for_printer(printer, firmware, "head", seed=seed)
+            out.fits, fields = klipper_baseline.klipper_rule_on_simulated_test(printer, firmware, "head", seed=seed)
             if fields.get("accel") is None:
                 fields["accel"] = float(printer.limits.accel)
             configs["klipper"] = TuneConfig(**fields, extra={"source": "Klipper's calibrate_shaper rule (HEAD) "

@@ -82,11 +82,11 @@ def resolve_evaluator(spec: str | Callable) -> Callable:
         return spec
     mod, _, name = str(spec).partition(":")
     if not mod or not name:
-        raise RingtuneError(f"evaluator must be 'module:function', not {spec!r}", "--evaluator")
+        raise RingtuneError(f"evaluator must be 'module:function', not {spec!r}", "evaluator")
     try:
         return getattr(importlib.import_module(mod), name)
     except (ImportError, AttributeError) as exc:
-        raise RingtuneError(f"cannot import evaluator {spec!r}: {exc}", "--evaluator") from None
+        raise RingtuneError(f"cannot import evaluator {spec!r}: {exc}", "evaluator") from None
 
 
 def load_space(settings: StudySettings, printer: Any = None) -> SearchSpace:
@@ -139,7 +139,7 @@ def open_study(settings: StudySettings, seed: int | None = None):
             study.set_user_attr("space", settings.space)
     elif list(names) != wanted:
         raise RingtuneError(f"study {settings.study_name!r} in this storage optimises {names}, not {wanted}; "
-                            "use another --study name or --out folder", "--study")
+                            "use another --study name or --out folder", "study_name")
     else:
         import json
         stored = study.user_attrs.get("settings", {})
@@ -149,7 +149,7 @@ def open_study(settings: StudySettings, seed: int | None = None):
                 raise RingtuneError(f"study {settings.study_name!r} in this storage was run with a different "
                                     f"{key} ({_setting_text(key, stored[key])}; now "
                                     f"{_setting_text(key, mine[key])}); use another --out folder or --study name",
-                                    "--study")
+                                    "study_name")
     return study
 
 
@@ -337,7 +337,7 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
     storage and this process only watches (and reports progress).
     """
     if workers < 1:
-        raise RingtuneError("must be ≥ 1", "--workers")
+        raise RingtuneError("must be ≥ 1", "workers")
     study = open_study(settings)
     before = count_states(study)["COMPLETE"]
     if progress:
@@ -380,7 +380,7 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
         bad = [c for c in codes if c != 0 and not interrupted]
         if bad:
             raise RingtuneError(f"{len(bad)} worker process(es) failed (exit codes {bad}); "
-                                "rerun to resume", "--workers")
+                                "rerun to resume", "workers")
     after = count_states(study)["COMPLETE"]
     if progress:
         progress(after, settings.n_trials, study)

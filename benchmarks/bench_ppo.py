@@ -45,7 +45,7 @@ def bench_printer(job: tuple) -> dict:
     policy_dir, seed, backend, n_refine, n_optuna, cached = job
     import torch
 
-    from ringtune.agents.klipper_baseline import recommend_for_printer as klipper_for_printer
+    from ringtune.agents.klipper_baseline import klipper_rule_on_simulated_test
     from ringtune.agents.ppo import load_policy, prior_action
     from ringtune.agents.ppo_refine import PrinterCost, optuna_search
     from ringtune.envs.env import TuneEnv
@@ -79,7 +79,7 @@ def bench_printer(job: tuple) -> dict:
     t = time.perf_counter()
     row["optuna200"] = optuna_search(base, n_optuna, seed).best_cost
     row["optuna200_s"] = time.perf_counter() - t
-    _, fields = klipper_for_printer(printer, "klipper", "head", seed)
+    _, fields = klipper_rule_on_simulated_test(printer, "klipper", "head", seed)
     row["klipper"] = cost.of_config(TuneConfig(**fields))
     row["none"] = cost.of_config(TuneConfig(firmware="klipper", shaper_x="none", shaper_y="none"))
     return row

@@ -5,13 +5,9 @@ the job's quality windows (sharpest corners, fastest zigzags), each simulated wi
 for the shaper and the machine to settle:
 
 1. job (G-code path, G-code text, a parsed ``Job``, or None for the built-in test print)
-   → ``apply_freq_limit`` per the config → ``plan`` with the printer's limits → print time, s.
-   ``config.accel`` (if given) is applied per the job-acceleration mode (:data:`JOB_ACCEL_MODES`,
-   argument ``job_accel`` or the config's ``extra["job_accel"]``): ``replace`` (default) — it
-   replaces the job's own acceleration commands (M204, SET_VELOCITY_LIMIT ACCEL and the X/Y caps of
-   M201), what re-slicing at that acceleration with the machine limits raised to it gives;
-   ``respect`` — the job's commands stand and ``config.accel`` is the machine's acceleration
-   wherever the job sets none (the print as sliced);
+   → :func:`ringtune.shaping.config_plan.plan_with_config` with the printer's limits (the config's
+   acceleration per the job-acceleration mode ``job_accel``, its frequency limit, DAA) → print
+   time, s;
 2. ``quality_windows`` of that plan; each window ``[t0, t1]`` is cut from the unshaped motion with
    margins, shaped with the config's shapers (centred or causal per the firmware flavour), and cut
    again to ``[t0 − lead, t1 + tail]`` where the shaped command is exact
@@ -49,12 +45,6 @@ SETTLE_MIN, SETTLE_MAX, SETTLE_TAUS = 0.05, 0.3, 3.0
 #: quality windows per job and their span, s
 MAX_WINDOWS = 8
 WINDOW_SPAN = 0.25
-
-#: how a config's acceleration meets the job's own acceleration commands (module docstring)
-JOB_ACCEL_MODES = ("replace", "respect")
-#: the job settings that "replace" removes (the job's own accelerations and X/Y acceleration caps)
-JOB_ACCEL_SETTINGS = ("accel_print", "accel_travel", "accel_retract", "accel_klipper", "max_accel_x",
-                      "max_accel_y")
 
 _JOBS: "OrderedDict[Any, Any]" = OrderedDict()
 _PLANS: "OrderedDict[Any, Any]" = OrderedDict()
@@ -125,38 +115,10 @@ def resolve_job(job):
     return key, _remember(_JOBS, key, parsed)
 
 
-def job_limits(printer, config: TuneConfig | None):
-    """The printer's machine limits with the config's acceleration, if it sets one."""
-    limits = printer.limits
-    if config is not None and config.accel is not None:
-        limits = dataclasses.replace(limits, accel=float(config.accel))
-    return limits
-
-
-def job_accel_mode(config: TuneConfig | None, job_accel: str | None = None) -> str:
-    """The job-acceleration mode: ``job_accel`` if given, else the config's ``extra["job_accel"]``,
-    else ``"replace"``."""
-    mode = job_accel or (config.extra.get("job_accel") if config is not None and config.extra else None) \
-        or "replace"
-    if mode not in JOB_ACCEL_MODES:
-        raise RingtuneError(f"must be one of {', '.join(JOB_ACCEL_MODES)}, not {mode!r}", "job_accel")
-    return mode
-
-
-def without_job_accel(job):
-    """A copy of a parsed job whose own acceleration commands (:data:`JOB_ACCEL_SETTINGS`) are
-    gone, so that the machine's (or the config's) acceleration rules every move."""
-    from ringtune.shaping.job import SETTING_KEYS
-
-    cols = [SETTING_KEYS.index(k) for k in JOB_ACCEL_SETTINGS]
-    table = np.array(job.settings_table, dtype=float, copy=True)
-    table[:, cols] = np.nan
-    return dataclasses.replace(job, settings_table=table)
-
-
 def job_accel_commands(job) -> dict[str, float]:
     """The acceleration commands a parsed job sets itself: {setting: largest value it sets}
-    (mm/s²; keys of :data:`JOB_ACCEL_SETTINGS`; empty when it sets none)."""
+    (mm/s²; keys of :data:`ringtune.shaping.config_plan.JOB_ACCEL_SETTINGS`; empty when it sets none)."""
+    from ringtune.shaping.config_plan import JOB_ACCEL_SETTINGS
     from ringtune.shaping.job import SETTING_KEYS
 
     out = {}
@@ -174,33 +136,27 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
     """Parse, frequency-limit and plan ``job`` for ``printer`` under ``config`` (cached).
 
     ``job_accel``: how ``config.accel`` meets the job's own acceleration commands
-    (:func:`job_accel_mode`). The quality windows are chosen once, on the plan at the printer's
-    own limits without frequency limit, and every configuration is judged on those same corners
-    and zigzags (:func:`ringtune.shaping.testprints.relocate_windows`)."""
-    from ringtune.shaping import freqlimit, planner, testprints
+    (:func:`ringtune.shaping.config_plan.job_accel_mode`). The quality windows are chosen once, on
+    the plan at the printer's own limits without frequency limit, and every configuration is judged
+    on those same corners and zigzags (:func:`ringtune.shaping.testprints.relocate_windows`)."""
+    from ringtune.shaping import testprints
+    from ringtune.shaping.config_plan import job_accel_mode, plan_with_config
 
     mode = job_accel_mode(config, job_accel)
     jkey, parsed = resolve_job(job)
-    limits = job_limits(printer, config)
+    limits = printer.limits
     fl = (0.0, "", 0.0)
     if config is not None and config.freq_limit_hz > 0:
         fl = (float(config.freq_limit_hz), config.freq_limit_method, float(config.min_speed_factor))
     accel = None if config is None or config.accel is None else float(config.accel)
-    daa = daa_frequency(config)
+    daa = None if config is None else config.daa_freq
     if accel is None:
         mode = "replace"       # nothing to replace with: the job's and the machine's limits as they are
     key = (jkey, repr(limits), fl, accel, daa, max_windows, span, mode)
     if key in _PLANS:
         _PLANS.move_to_end(key)
         return _PLANS[key]
-    limited = parsed
-    if accel is not None and mode == "replace":
-        limited = without_job_accel(limited)
-    if fl[0] > 0:
-        limited = freqlimit.apply_freq_limit(limited, fl[0], method=fl[1], min_speed_factor=fl[2])
-    # replace: the config's acceleration wins over the job's own commands (a tuning knob);
-    # respect: it is the machine's acceleration (limits.accel), the job's commands stand
-    plan = planner.plan(limited, limits, accel=accel if mode == "replace" else None, daa_freq=daa)
+    plan = plan_with_config(parsed, limits, config, job_accel=mode).plan
     if key[2:5] == ((0.0, "", 0.0), None, None):
         windows = testprints.quality_windows(plan, max_windows=max_windows, span=span)
     else:   # the corners and zigzags the printer's own plan chose, at this plan's times
@@ -226,28 +182,6 @@ class WindowRun:
     anticipate: float = 0.0   # s, see compute_metrics
 
 
-def daa_frequency(config: TuneConfig | None) -> float | None:
-    """Ringing frequency (Hz) for RepRapFirmware ≤ 3.3's Dynamic Acceleration Adjustment when the
-    config selects shaper ``"daa"`` (one frequency for the machine: ``freq_x``), else None. DAA
-    works in the planner (it lengthens acceleration phases to whole ringing periods), so such a
-    config is planned with it and not input-shaped."""
-    if config is None or "daa" not in (config.shaper_x, config.shaper_y):
-        return None
-    return float(config.freq_x if config.shaper_x == "daa" else config.freq_y)
-
-
-def config_shapers(config: TuneConfig) -> tuple[dict, bool]:
-    """({"x": Shaper | None, "y": ...}, centred) for the config's firmware flavour."""
-    from ringtune.shaping.shapers import get_shaper, is_centred
-
-    shapers = {}
-    for ax in ("x", "y"):
-        name, freq, damping = config.axis(ax)
-        shapers[ax] = None if name in ("none", "daa") else get_shaper(name, freq, damping, config.flavor,
-                                                             where=f"config: shaper_{ax}")
-    return shapers, is_centred(config.flavor)
-
-
 def auto_settle(printer) -> float:
     """s of history simulated before each window: SETTLE_TAUS time constants 1/(ζω) of the
     printer's slowest-decaying mode, clipped to [SETTLE_MIN, SETTLE_MAX]."""
@@ -260,8 +194,9 @@ def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN) 
     """Shape each quality window of ``pj`` with the config's shapers (``settle`` s of extra
     history before each, beyond the shaper's duration)."""
     from ringtune.shaping.apply import shape_motion
+    from ringtune.shaping.shapers import shapers_from_config
 
-    shapers, centred = config_shapers(config)
+    shapers, centred = shapers_from_config(config)
     active = [s for s in shapers.values() if s is not None]
     duration = max((s.duration for s in active), default=0.0)
     lag = 0.0 if centred else max((s.centroid for s in active), default=0.0)
@@ -318,8 +253,8 @@ def evaluate(config: TuneConfig, printer=None, job=None, backend: str = "mujoco"
         backend: ``"mujoco"`` (default) or ``"lti"`` (exact linear screening).
         settle: s of simulated lead-in beyond the shaper's duration (None: :func:`auto_settle`).
         nthread: simulation threads (default: up to one per window and core).
-        job_accel: ``replace`` or ``respect`` (:func:`job_accel_mode`; default the config's own,
-            else ``replace``).
+        job_accel: ``replace`` or ``respect`` (:func:`ringtune.shaping.config_plan.job_accel_mode`;
+            default the config's own, else ``replace``).
     """
     return evaluate_many([config], printer, job, backend, settle=settle, nthread=nthread, job_accel=job_accel)[0]
 

@@ -299,7 +299,7 @@ def simulate_batch(printer_or_list, motions: list, backend: str = "mujoco", nthr
     full replica model (up to the CPU count); an explicit ``nthread`` splits the motions over at
     least that many models and threads. Other keywords as :func:`simulate`."""
     if backend not in BACKENDS:
-        raise RingtuneError(f"backend must be one of {', '.join(BACKENDS)}, not {backend!r}", "--backend")
+        raise RingtuneError(f"backend must be one of {', '.join(BACKENDS)}, not {backend!r}", "backend")
     motions = list(motions)
     if isinstance(printer_or_list, (list, tuple)):
         printers = [load_printer(p) if not isinstance(p, Printer) else p for p in printer_or_list]

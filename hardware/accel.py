@@ -88,12 +88,6 @@ def _first_content(lines: list[str], skip_comments: bool = True) -> int:
     return -1
 
 
-def detect_format(path: str | Path) -> str:
-    """``"resonances"``, ``"klipper-raw"`` or ``"m956"`` (RingtuneError if none fits)."""
-    path, lines = _read_lines(path)
-    return _detect(path, lines)
-
-
 def _detect(path: Path, lines: list[str]) -> str:
     i = _first_content(lines)
     if i < 0:
@@ -147,11 +141,6 @@ def read_resonances_csv(path: str | Path) -> PSD | list[PSD]:
     """Klipper ``TEST_RESONANCES`` / ``calibration_data`` CSV -> PSD (multi-dataset -> list[PSD])."""
     return _read_as(path, ("resonances",),
                     "not a Klipper resonance CSV (looks like {kind}); header must start 'freq,'")
-
-
-def read_calibration_csv(path: str | Path) -> PSD | list[PSD]:
-    """Klipper ``calibration_data_*.csv``: same layout as the resonance CSV plus shaper columns."""
-    return read_resonances_csv(path)
 
 
 def _parse_resonances(path: Path, lines: list[str]) -> PSD | list[PSD]:
@@ -209,7 +198,7 @@ def _parse_resonances(path: Path, lines: list[str]) -> PSD | list[PSD]:
     normalized = bool(shaper_names)
     if single:
         return PSD(freqs, data[:, 1], data[:, 2], data[:, 3], data[:, 4], str(path),
-                   _axis_from_name(path), normalized, shapers)
+                   axis_from_file_name(path) or "", normalized, shapers)
     return [PSD(freqs, None, None, None, data[:, 1 + j].copy(), str(path), name, normalized, shapers)
             for j, name in enumerate(cols)]
 
@@ -235,9 +224,28 @@ def _is_float(s: str) -> bool:
         return False
 
 
-def _axis_from_name(path: Path) -> str:
-    m = re.match(r"(?:resonances|calibration_data|raw_data)_([a-z,]+?)_", path.name)
-    return m.group(1) if m else ""
+#: Klipper's ``resonances_<axis>_…``, ``calibration_data_<axis>_…``, ``raw_data_<axis>_…`` (firmware.md §1.4)
+_KLIPPER_AXIS_NAME = re.compile(r"(?:^|[^a-z])(?:resonances|calibration_data|raw_data)_([xyz])_", re.IGNORECASE)
+#: ``<run>-<tool>-<Axis><start>-<end>-<?>-<shaper>.csv``: RRF M956 captures saved by Duet's Input
+#: Shaping plugin (a pattern inferred from the names, tests/data/accel/SOURCES.md)
+_RRF_AXIS_NAME = re.compile(r"-([XYZ])-?\d+(?:\.\d+)?-\d")
+
+
+def axis_from_file_name(path: str | Path) -> str | None:
+    """The axis (``"x"``, ``"y"``, ``"z"``) an accelerometer file measured, from its name; None if
+    the name does not say.
+
+    Klipper names its files ``resonances_<axis>_<name>.csv`` (likewise ``calibration_data_`` and
+    ``raw_data_``), lower case; a prefix (``ender3_resonances_x_…``) and upper case are accepted. A
+    diagonal test (``resonances_axis=1.000,-1.000_…``) names no single axis: None. RRF M956 captures
+    saved by Duet's Input Shaping plugin are named like ``1-T0-X54-161-0-none.csv`` (axis X).
+    """
+    name = Path(path).name
+    m = _KLIPPER_AXIS_NAME.search(name)
+    if m:
+        return m.group(1).lower()
+    m = _RRF_AXIS_NAME.search(name)
+    return m.group(1).lower() if m else None
 
 
 # -- Klipper raw accelerometer CSV ---------------------------------------------------------------

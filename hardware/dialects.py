@@ -36,22 +36,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from ringtune.hardware.firmware_check import canonical, check_available, check_axis, check_value, fmt
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES, Firmware, Span
-from ringtune.shaping.shapers import REGISTRY, parse_name
 
-#: for a missing shaper, the ones most like it (similar duration and band), best first
-_NEAREST = {
-    "zv": ("zv", "mzv", "zvd", "ei"),
-    "mzv": ("mzv", "zv", "zvd", "ei"),
-    "zvd": ("zvd", "mzv", "ei", "zvdd", "zv"),
-    "ei": ("ei", "zvd", "mzv", "2hump_ei", "zvdd", "zv"),
-    "zvdd": ("zvdd", "2hump_ei", "zvd", "ei", "zvddd", "zv"),
-    "zvddd": ("zvddd", "3hump_ei", "zvdd", "2hump_ei", "zvd", "zv"),
-    "2hump_ei": ("2hump_ei", "zvdd", "ei", "3hump_ei", "zvd", "zv"),
-    "3hump_ei": ("3hump_ei", "zvddd", "2hump_ei", "zvdd", "ei", "zv"),
-}
 _FTM_MODE = {"none": 0, "zv": 1, "zvd": 2, "zvdd": 3, "zvddd": 4, "ei": 5, "2hump_ei": 6, "3hump_ei": 7,
              "mzv": 8}
 _PRUSA_TYPE = {"zv": 0, "zvd": 1, "mzv": 2, "ei": 3, "2hump_ei": 4, "3hump_ei": 5}
@@ -123,91 +112,6 @@ class Export:
         """Both parts, the config part after a comment line saying where it belongs."""
         cfg = self.render_config()
         return self.render_commands() + ("" if cfg is None else "\n" + cfg)
-
-
-def fmt(value: float, decimals: int = 3) -> str:
-    """A number as short as it can be at ``decimals`` places: 40.0 -> '40', 0.15 -> '0.15'."""
-    s = f"{value:.{decimals}f}"
-    if "." in s:                      # trailing zeros of the fraction only: 4000 stays 4000
-        s = s.rstrip("0").rstrip(".")
-    return "0" if s in ("-0", "") else s
-
-
-def canonical(name: str) -> tuple[str, dict]:
-    """(base name, parameters) of a shaper string: ``"MZV(n=5,t=1.1)"`` -> ``("mzv", {"n": 5, "t": 1.1})``.
-
-    Uses :func:`ringtune.shaping.shapers.parse_name` (Klipper's syntax; aliases such as ``ei2``)."""
-    base, params = parse_name(name, f"shaper {name!r}")
-    if "_positional" in params:
-        pos = params.pop("_positional")
-        params.update({str(i): v for i, v in enumerate(pos)})
-    return base, params
-
-
-def named_params(name: str, flavor: str) -> tuple[str, dict]:
-    """(base, parameters by name) of a shaper string, positional parameters named in the order
-    the flavour's formula takes them (Klipper: ``mzv(5,1.1)`` is ``mzv(n=5,t=1.1)``)."""
-    base, params = parse_name(name, f"shaper {name!r}")
-    pos = params.pop("_positional", None)
-    if pos:
-        params.update(zip(REGISTRY[flavor][base][1], pos))
-    return base, params
-
-
-def check_available(name: str, dialect: str, where: str) -> str:
-    """Canonical name if ``dialect`` has the shaper, else a refusal naming the nearest it has."""
-    fw = Firmware.named(dialect, "--firmware")
-    base, _ = canonical(name)
-    have = fw.shapers
-    if base in have:
-        return base
-    native = _rrf_name if fw.family == "rrf" else (lambda n: n)
-    listed = ", ".join(native(h) for h in have if h != "none")
-    if base == "custom":
-        raise RingtuneError(f"{fw.title} has no custom shaper (only RepRapFirmware takes impulse lists); "
-                            f"it has {listed}", where)
-    if base not in _NEAREST:
-        raise RingtuneError(f"unknown shaper {name!r}; {fw.title} has {listed}", where)
-    nearest = next(n for n in _NEAREST[base] if n in have)
-    raise RingtuneError(f"{fw.title} has no {base!r} shaper (it has {listed}); the nearest it has is "
-                        f"{native(nearest)!r}", where)
-
-
-def check_value(value: float, span: Span, what: str, unit: str, where: str, title: str) -> float:
-    """``value`` as the firmware gets it; a refusal naming the allowed range when it is outside
-    ``span`` or would round to another value at the firmware's precision."""
-    why = f"; {span.why}" if span.why else ""
-    if not span.contains(value):
-        raise RingtuneError(f"{what} {value:g}{unit and ' ' + unit} is outside {title}'s range "
-                            f"{span.text(unit)}{why}", where)
-    if span.changes(value):
-        raise RingtuneError(f"{what} {value:g}{unit and ' ' + unit} would be sent as "
-                            f"{fmt(value, span.decimals)} (values go to {title} with {span.decimals} decimals, the "
-                            f"precision read back); give a "
-                            f"value in {span.text(unit)} at that precision", where)
-    return span.sent(value)
-
-
-def check_axis(config: TuneConfig, fw: Firmware, ax: str) -> tuple[str, dict, float, float]:
-    """One axis of ``config`` checked exactly as ``ringtune shaper`` checks a shaper (name,
-    parameters, damping limit of the shaper) plus ``fw``'s ranges and precision.
-
-    Returns (base name, parameters by name, frequency Hz, damping) as they will be sent; "none"
-    for an axis without shaping. Nothing is sent to a printer until every axis passed."""
-    name, freq, damping = config.axis(ax)
-    base = check_available(name, fw.name, f"config: shaper_{ax}")
-    if base == "none":
-        return "none", {}, 0.0, damping
-    if base == "custom":      # impulses in seconds: checked by custom_impulses
-        return base, named_params(name, fw.flavor)[1], freq, damping
-    freq = check_value(freq, fw.freq, "frequency", "Hz", f"config: freq_{ax}", fw.title)
-    zmax = fw.max_damping(base)
-    span = fw.damping if zmax >= fw.damping.hi else Span(fw.damping.lo, zmax, fw.damping.decimals)
-    damping = check_value(damping, span, f"damping ratio of {base}", "", f"config: damping_{ax}", fw.title)
-    if base != "custom":
-        fw.check_shaper(name, freq, damping, f"config: shaper_{ax}")   # parameters, as `ringtune shaper`
-    _, params = named_params(name, fw.flavor)
-    return base, params, freq, damping
 
 
 def export_config(config: TuneConfig, firmware: str | None = None, accel: bool = True) -> Export:
@@ -343,7 +247,7 @@ def _klipper(config: TuneConfig, dialect: str) -> Export:
         else:
             cfg.append(f"shaper_freq_{ax}: 0")
     line = "SET_INPUT_SHAPER " + " ".join(params)
-    exp = Export(dialect, [line], [], "\n".join(cfg) + "\n", "printer.cfg", ["SET_INPUT_SHAPER"],
+    exp = Export(dialect, [line], [], "\n".join(cfg) + "\n", fw.config_file, ["SET_INPUT_SHAPER"],
                  expected, {k: 0 for k in expected},
                  ["SET_INPUT_SHAPER lasts until restart; SAVE_CONFIG would not keep damping_ratio, so "
                   "put the [input_shaper] section (export --part config) in printer.cfg"])
@@ -366,27 +270,23 @@ def _rrf(config: TuneConfig, dialect: str) -> Export:
                             f"and Y is {sy} {fy:g} Hz ζ={dy:g}; give both axes the same shaper", "config")
     for ax in ("x", "y"):
         check_axis(config, fw, ax)
-    expected: dict[str, object] = {"all.type": _rrf_name(bx)}
+    expected: dict[str, object] = {"all.type": fw.native(bx)}
     if bx == "none":
         line = 'M593 P"none"'
     elif bx == "custom":
         line = 'M593 P"custom" ' + _rrf_custom(config, dialect)
     else:
         f, z = fw.freq.sent(fx), fw.damping.sent(dx)
-        line = f'M593 P"{_rrf_name(bx)}" F{fmt(f, fw.freq.decimals)} S{fmt(z, fw.damping.decimals)}'
+        line = f'M593 P"{fw.native(bx)}" F{fmt(f, fw.freq.decimals)} S{fmt(z, fw.damping.decimals)}'
         expected.update({"all.freq": f, "all.damping": z})
     if dialect != "rrf" and bx != "none":
         line += _rrf_l(config, dialect)
-    exp = Export(dialect, [line], [], line + "\n", "config.g", ["M593"], expected,
+    exp = Export(dialect, [line], [], line + "\n", fw.config_file, ["M593"], expected,
                  {k: 0 for k in expected},
                  [f"{title} cannot save M593 (M500 does not store it): add the config.g part "
                   "(export --part config) to config.g"])
     _rounding_notes(config, exp)
     return exp
-
-
-def _rrf_name(base: str) -> str:
-    return {"2hump_ei": "ei2", "3hump_ei": "ei3"}.get(base, base)
 
 
 def _rrf_l(config: TuneConfig, dialect: str) -> str:

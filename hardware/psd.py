@@ -3,7 +3,7 @@
 :class:`PSD` is the spectrum the readers of :mod:`ringtune.hardware.accel` return and the
 identification fits. :func:`klipper_psd` computes one from a raw capture exactly like Klipper's
 ``shaper_calibrate.calc_freq_response`` (Welch: Kaiser β=6 window of ``klipper_window_size`` samples,
-50 % overlap, per-window mean removed); :meth:`PSD.normalized_to_frequencies` is Klipper's
+50 % overlap, per-window mean removed); :func:`normalize_to_frequencies` is Klipper's
 ``normalize_to_frequencies`` (see ``shared/reference/firmware.md`` §1.3, §1.4).
 
 Units: Hz, (mm/s²)²/Hz.
@@ -61,23 +61,39 @@ class PSD:
                                 self.source or None)
         return arr
 
-    def normalized_to_frequencies(self) -> "PSD":
-        """Klipper's ``normalize_to_frequencies``: psd / (f + 0.1), damped below 10 Hz.
+    def normalized_to_frequencies(self, lowfreq: str = "exp") -> "PSD":
+        """Klipper's ``normalize_to_frequencies`` on every column (:func:`normalize_to_frequencies`).
 
         Returns self unchanged if :attr:`normalized` is already True.
         """
         if self.normalized:
             return self
         f = self.freqs
-        scale = 1.0 / (f + 0.1)
-        low = f < 2.0 * KLIPPER_MIN_FREQ
-        scale = np.where(low, scale * np.exp(1.0 - (2.0 * KLIPPER_MIN_FREQ / (f + 0.1)) ** 2), scale)
 
         def sc(a):
-            return None if a is None else a * scale
+            return None if a is None else normalize_to_frequencies(f, a, lowfreq)
 
-        return PSD(f.copy(), sc(self.psd_x), sc(self.psd_y), sc(self.psd_z), self.psd_sum * scale,
+        return PSD(f.copy(), sc(self.psd_x), sc(self.psd_y), sc(self.psd_z), sc(self.psd_sum),
                    self.source, self.name, True, dict(self.shapers))
+
+
+def normalize_to_frequencies(freqs: np.ndarray, psd: np.ndarray, lowfreq: str = "exp") -> np.ndarray:
+    """Klipper's ``normalize_to_frequencies`` on one PSD column, (mm/s²)²/Hz -> a new array.
+
+    ``psd / (f + 0.1)`` (a division, as Klipper writes it); then the low-frequency noise
+    suppression: ``"exp"`` (v0.13.0 and HEAD) multiplies bins below 2·KLIPPER_MIN_FREQ = 10 Hz by
+    ``exp(1 − (10/(f+0.1))²)``; ``"zero"`` (the 2021–2023 releases) zeroes bins below 5 Hz.
+    """
+    freqs = np.asarray(freqs, dtype=float)
+    out = np.asarray(psd, dtype=float) / (freqs + 0.1)
+    if lowfreq == "zero":
+        out[freqs < KLIPPER_MIN_FREQ] = 0.0
+    elif lowfreq == "exp":
+        low = freqs < 2.0 * KLIPPER_MIN_FREQ
+        out[low] *= np.exp(-((2.0 * KLIPPER_MIN_FREQ / (freqs[low] + 0.1)) ** 2) + 1.0)
+    else:
+        raise RingtuneError(f"low-frequency suppression must be 'zero' or 'exp', not {lowfreq!r}", "lowfreq")
+    return out
 
 
 # -- Klipper's PSD of a raw capture ---------------------------------------------------------------

@@ -274,6 +274,7 @@ def _moonraker_run(mr, cmd: str, sink: dict | None = None, key: int = 0) -> Repl
     from ringtune.hardware.link import klipper_reply_lines
 
     reply = Reply(cmd)
+    t0 = mr.newest()
     try:
         mr.script(cmd)
     except LinkTimeout:
@@ -282,7 +283,7 @@ def _moonraker_run(mr, cmd: str, sink: dict | None = None, key: int = 0) -> Repl
         reply.errors.append(getattr(exc, "message", None) or exc.bare)
     if sink is not None:
         sink[key] = reply
-    lines, errors = klipper_reply_lines(_console_after(mr.console(50), cmd))
+    lines, errors = klipper_reply_lines(_console_after(mr.console(50, since=t0), cmd))
     reply.lines += lines
     reply.errors += [e for e in errors if not any(e in r or r in e for r in reply.errors)]
     return reply

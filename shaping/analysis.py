@@ -16,23 +16,89 @@ from ringtune.shaping.shapers import Shaper
 
 #: Klipper's find_shaper_max_accel target: largest accel whose smoothing stays <= 0.12 mm
 TARGET_SMOOTHING = 0.12
+#: mm/s², the acceleration Klipper quotes smoothing at (calibrate_shaper's table)
+SMOOTHING_ACCEL = 5000.0
 
+
+# -- on impulse arrays: one shaper (A, T of shape (n,)) or a stack of shapers (rows, (k, n)) ------
+
+def impulse_residual(amps, times, freqs, damping: float) -> np.ndarray:
+    """Fraction (0..1) of a vibration at each ``freqs`` (Hz) of a plant with damping ratio
+    ``damping`` that survives the impulse train(s) — Klipper's ``_estimate_shaper``:
+
+    ``|Σ A_i·exp(−ζω(T_n − T_i))·exp(jω_d T_i)| / ΣA`` with ``ω = 2πf``, ``ω_d = ω√(1−ζ²)``.
+
+    ``amps``/``times`` (s) of shape (n,) give shape ``(len(freqs),)``; a stack (k, n) gives (k, len(freqs)).
+    """
+    a = np.asarray(amps, dtype=float)
+    t = np.asarray(times, dtype=float)
+    single = a.ndim == 1
+    a, t = np.atleast_2d(a), np.atleast_2d(t)
+    omega = 2.0 * math.pi * np.atleast_1d(np.asarray(freqs, dtype=float))
+    omega_d = omega * math.sqrt(1.0 - damping ** 2)
+    # |Σ A_i e^{-ζω(T_n - T_i)} e^{jω_d T_i}| as one complex exponential per pulse
+    expo = (-damping * omega)[None, :, None] * (t[:, -1:] - t)[:, None, :] \
+        + 1j * omega_d[None, :, None] * t[:, None, :]
+    z = (a[:, None, :] * np.exp(expo)).sum(axis=2)
+    s, c = z.imag, z.real
+    out = np.sqrt(s * s + c * c) / a.sum(axis=1)[:, None]
+    return out[0] if single else out
+
+
+def smoothing_terms(amps, times, scv: float = 5.0):
+    """Klipper's smoothing as affine functions of the acceleration ``accel`` (mm/s²):
+    90° corner at square-corner velocity ``scv`` (mm/s) ``c90 + k90·accel``, 180° reversal
+    ``k180·accel`` (mm). Returns (c90, k90, k180): floats for one shaper, arrays for a stack."""
+    a = np.atleast_2d(np.asarray(amps, dtype=float))
+    t = np.atleast_2d(np.asarray(times, dtype=float))
+    inv_d = 1.0 / a.sum(axis=1)
+    ts = (a * t).sum(axis=1) * inv_d
+    d = t - ts[:, None]
+    late = t >= ts[:, None]
+    c90 = math.sqrt(2.0) * inv_d * scv * np.where(late, a * d, 0.0).sum(axis=1)
+    k90 = math.sqrt(2.0) * inv_d * 0.5 * np.where(late, a * d * d, 0.0).sum(axis=1)
+    k180 = inv_d * 0.5 * (a * d * d).sum(axis=1)
+    if np.ndim(amps) == 1:
+        return float(c90[0]), float(k90[0]), float(k180[0])
+    return c90, k90, k180
+
+
+def smoothing_from_terms(terms, accel: float = SMOOTHING_ACCEL):
+    """Smoothing (mm) at ``accel`` mm/s² from :func:`smoothing_terms`: the worse of the two turns."""
+    c90, k90, k180 = terms
+    return np.maximum(c90 + k90 * accel, k180 * accel)
+
+
+def max_accel_from_terms(terms, target: float = TARGET_SMOOTHING):
+    """Largest accel (mm/s²) whose smoothing stays ≤ ``target`` mm, from :func:`smoothing_terms`.
+
+    Klipper finds it by bisection to 1e-8 mm/s²; smoothing is affine in the acceleration, so this
+    solves it exactly (the same number to 1e-8), the result never smoothing more than ``target``
+    (like Klipper's, whose bisection keeps the side that passes). 0 when even a standstill turn at ``scv`` smooths
+    more than ``target`` (Klipper HEAD's guard); inf when the shaper never smooths (one impulse).
+    """
+    c90, k90, k180 = (np.asarray(x, dtype=float) for x in terms)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a90 = np.where(k90 > 0, (target - c90) / k90, np.inf)
+        a180 = np.where(k180 > 0, target / k180, np.inf)
+    out = np.where(c90 > target, 0.0, np.minimum(a90, a180))
+    for _ in range(4):   # the closed form may land one rounding step past the target: step back
+        with np.errstate(invalid="ignore"):          # inf · 0 for a shaper that never smooths
+            over = smoothing_from_terms((c90, k90, k180), out) > target
+        if not over.any():
+            break
+        out = np.where(over, np.nextafter(out, 0.0), out)
+    return float(out) if out.ndim == 0 else out
+
+
+# -- on a Shaper -------------------------------------------------------------------------------------
 
 def residual_vibration(shaper: Shaper, freqs, damping: float | None = None) -> np.ndarray:
     """Fraction (0..1) of a vibration at each ``freqs`` (Hz) of a plant with damping ratio
-    ``damping`` (default: the shaper's own) that survives the shaper, as Klipper estimates it:
-
-    ``|Σ A_i·exp(−ζω(T_n − T_i))·exp(jω_d T_i)| / ΣA`` with ``ω = 2πf``, ``ω_d = ω√(1−ζ²)``.
-    """
+    ``damping`` (default: the shaper's own) that survives the shaper (:func:`impulse_residual`)."""
     z = shaper.damping if damping is None else float(damping)
     f = np.asarray(freqs, float)
-    A, T = shaper.amplitudes, shaper.times
-    omega = 2 * math.pi * f[..., None]
-    w = A * np.exp(-z * omega * (T[-1] - T))
-    phase = omega * math.sqrt(1 - z * z) * T
-    s = (w * np.sin(phase)).sum(-1)
-    c = (w * np.cos(phase)).sum(-1)
-    return np.sqrt(s * s + c * c) / A.sum()
+    return impulse_residual(shaper.amplitudes, shaper.times, f.ravel(), z).reshape(f.shape)
 
 
 def band(shaper: Shaper, reduction: float = 0.9, damping: float = 0.0,
@@ -63,42 +129,16 @@ def band(shaper: Shaper, reduction: float = 0.9, damping: float = 0.0,
     return float(f_lo), float(f_hi)
 
 
-def smoothing(shaper: Shaper, accel: float = 5000.0, scv: float = 5.0) -> float:
+def smoothing(shaper: Shaper, accel: float = SMOOTHING_ACCEL, scv: float = 5.0) -> float:
     """Klipper's smoothing estimate, mm: the larger of the offsets a 90° corner (at square-corner
     velocity ``scv`` mm/s) and a 180° reversal suffer at acceleration ``accel`` mm/s²."""
-    A, T = shaper.amplitudes, shaper.times
-    inv_d = 1.0 / A.sum()
-    ts = float(np.dot(A, T)) * inv_d
-    h = 0.5 * accel
-    dt = T - ts
-    ahead = T >= ts
-    offset_90 = math.sqrt(2) * inv_d * float(np.sum(A[ahead] * (scv + h * dt[ahead]) * dt[ahead]))
-    offset_180 = inv_d * float(np.sum(A * h * dt * dt))
-    return max(offset_90, offset_180)
+    return float(smoothing_from_terms(smoothing_terms(shaper.amplitudes, shaper.times, scv), accel))
 
 
 def max_accel(shaper: Shaper, scv: float = 5.0, target: float = TARGET_SMOOTHING) -> float:
     """Largest accel (mm/s², unrounded) with ``smoothing(accel, scv) <= target`` — Klipper's
-    ``find_shaper_max_accel`` bisection (Klipper prints it rounded to 100)."""
-    ok = lambda a: smoothing(shaper, a, scv) <= target  # noqa: E731
-    if not ok(1e-9):
-        return 0.0
-    left = right = 1.0
-    while not ok(left):
-        right = left
-        left *= 0.5
-    if right == left:
-        while ok(right):
-            right *= 2.0
-            if right > 1e12:   # the shaper never smooths (a single impulse): no limit
-                return math.inf
-    while right - left > 1e-8:
-        mid = 0.5 * (left + right)
-        if ok(mid):
-            left = mid
-        else:
-            right = mid
-    return left
+    ``find_shaper_max_accel`` (Klipper prints it rounded to 100); see :func:`max_accel_from_terms`."""
+    return max_accel_from_terms(smoothing_terms(shaper.amplitudes, shaper.times, scv), target)
 
 
 def lag(shaper: Shaper, centred: bool = False) -> float:
@@ -107,18 +147,13 @@ def lag(shaper: Shaper, centred: bool = False) -> float:
     return shaper.centroid - shaper.centre_delay if centred else shaper.centroid
 
 
-def position_lag(shaper: Shaper, speed: float, centred: bool = False) -> float:
-    """Steady-state distance the shaped position trails the commanded one at ``speed`` mm/s, mm."""
-    return speed * lag(shaper, centred)
-
-
 def acceleration_lag(accel: float, freq: float) -> float:
     """Static deflection of a mode of ``freq`` Hz under constant ``accel`` mm/s²: a/ω², mm."""
     omega = 2 * math.pi * freq
     return accel / (omega * omega)
 
 
-def summary(shaper: Shaper, centred: bool, accel: float = 5000.0, scv: float = 5.0,
+def summary(shaper: Shaper, centred: bool, accel: float = SMOOTHING_ACCEL, scv: float = 5.0,
             plant_damping: float | None = None) -> dict:
     """Everything ``ringtune shaper`` reports, as plain numbers. The band and the residual are for
     a plant of damping ``plant_damping`` (default: the shaper's own, i.e. matched)."""

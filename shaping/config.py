@@ -57,6 +57,19 @@ class TuneConfig:
         """(shaper name, frequency Hz, damping ratio) for axis ``"x"`` or ``"y"``."""
         return getattr(self, f"shaper_{axis}"), getattr(self, f"freq_{axis}"), getattr(self, f"damping_{axis}")
 
+    @property
+    def daa_freq(self) -> float | None:
+        """Ringing frequency (Hz) of RepRapFirmware ≤ 3.3's Dynamic Acceleration Adjustment when
+        either axis's shaper is ``"daa"`` (any case, as RRF lower-cases ``M593 P``), else None.
+
+        DAA is one setting for the whole machine (``M593 P"daa" F…``): it stretches every move's
+        acceleration phases to whole ringing periods, whichever axes the move drives, so a
+        ``"daa"`` on X or on Y means the same machine-wide DAA at that axis's frequency. DAA works in
+        the planner; such a config is planned with it and not input-shaped (see
+        :func:`ringtune.shaping.shapers.shapers_from_config`)."""
+        axes = [ax for ax in ("x", "y") if _is_daa(getattr(self, f"shaper_{ax}"))]
+        return float(getattr(self, f"freq_{axes[0]}")) if axes else None
+
     def validate(self, where: str = "config") -> None:
         if isinstance(self.firmware, str) and self.firmware.strip().lower() in FIRMWARES:
             self.firmware = self.firmware.strip().lower()
@@ -72,6 +85,9 @@ class TuneConfig:
             if name != "none" and freq <= 0:
                 raise RingtuneError(f"{freq:g} Hz is outside (0, 1000] Hz while shaper_{ax} is {name!r} "
                                     f"(shaper_{ax} = \"none\" turns shaping off)", f"{where}: freq_{ax}")
+        if _is_daa(self.shaper_x) and _is_daa(self.shaper_y) and self.freq_x != self.freq_y:
+            raise RingtuneError(f"DAA has one frequency for the whole machine (M593 F), but freq_x is "
+                                f"{self.freq_x:g} Hz and freq_y {self.freq_y:g} Hz", f"{where}: freq_y")
         _finite(self.freq_limit_hz, f"{where}: freq_limit_hz", lo=0.0, hi=1000.0)
         _finite(self.min_speed_factor, f"{where}: min_speed_factor", lo=0.01, hi=1.0)
         if self.freq_limit_method not in FREQ_LIMIT_METHODS:
@@ -140,3 +156,7 @@ def _finite(value: Any, where: str, lo: float, hi: float) -> None:
         raise RingtuneError(f"must be a finite number, not {value!r}", where)
     if not lo <= value <= hi:
         raise RingtuneError(f"{value} is out of range [{lo:g}, {hi:g}]", where)
+
+
+def _is_daa(name: Any) -> bool:
+    return isinstance(name, str) and name.strip().lower() == "daa"

@@ -21,7 +21,7 @@ Plain data (frozen dataclasses and a dict): ``hardware`` may import it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.shapers import REGISTRY, available_shapers, get_shaper
@@ -86,6 +86,7 @@ class Firmware:
         comment: the G-code comment character the firmware reads.
         save: lines that persist shaping settings from G-code (empty: they belong in a config file).
         config_file: where settings go when they cannot be saved from G-code, or None.
+        native_names: (canonical name, the firmware's own name) where they differ (RRF ``ei2``).
     """
 
     name: str
@@ -103,12 +104,16 @@ class Firmware:
     comment: str = ";"
     save: tuple[str, ...] = ()
     config_file: str | None = None
-    notes: tuple[str, ...] = field(default=())
+    native_names: tuple[tuple[str, str], ...] = ()
 
     @property
     def shapers(self) -> tuple[str, ...]:
         """Canonical names of the shapers it has (``none`` included), from its flavour's formulas."""
         return available_shapers(self.flavor)
+
+    def native(self, base: str) -> str:
+        """The firmware's own name of canonical shaper ``base`` (RRF: ``2hump_ei`` is ``ei2``)."""
+        return dict(self.native_names).get(base, base)
 
     def max_damping(self, base: str) -> float:
         """Largest damping ratio of shaper ``base`` here: the firmware's and the shaper's own limit."""
@@ -133,6 +138,7 @@ _KLIPPER_ACCEL = Span(1.0, 1e6, 3, why="Klipper takes any ACCEL > 0")
 _M204_2 = Span(1.0, 1e6, 2)
 _RRF_ACCEL = Span(1.0, 1e6, 1)
 _RRF35_FREQ = Span(750000.0 / 131070.0, 1000.0, 2, why="Duet 3: StepClockRate / (2·65535)")
+_RRF_NAMES = (("2hump_ei", "ei2"), ("3hump_ei", "ei3"))      # InputShaperType names
 
 FIRMWARES: dict[str, Firmware] = {f.name: f for f in (
     Firmware("klipper", "Klipper", "klipper", "klipper", "klipper", False,
@@ -141,11 +147,11 @@ FIRMWARES: dict[str, Firmware] = {f.name: f for f in (
              Span(0.0, 0.99, 6), False, "SET_VELOCITY_LIMIT ACCEL={a}", "SET_VELOCITY_LIMIT",
              _KLIPPER_ACCEL, ";", (), "printer.cfg"),
     Firmware("rrf", "RepRapFirmware 3.6", "rrf", "rrf", "rrf", True, Span(4.0, 1000.0, 2),
-             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g"),
+             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES),
     Firmware("rrf35", "RepRapFirmware 3.5", "rrf35", "rrf", "rrf", True, _RRF35_FREQ,
-             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g"),
+             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES),
     Firmware("rrf34", "RepRapFirmware 3.4", "rrf35", "rrf", "rrf", True, _RRF35_FREQ,
-             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g"),
+             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES),
     Firmware("marlin", "Marlin (classic input shaping)", "marlin", "marlin", "marlin", False,
              Span(0.0, 1000.0, 2, lo_open=True, why="Marlin's own minimum F depends on the board"),
              Span(0.0, 1.0, 3), True, "M204 P{a}", "M204", _M204_2, ";", ("M500",)),

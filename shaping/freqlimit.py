@@ -150,17 +150,17 @@ def apply_freq_limit(job: Job, limit_hz: float | None = None, method: str = "sec
     (x, y, z, e; mm/s) the Marlin emulation uses for its speed factor when the job sets no M203.
     """
     if method not in METHODS:
-        raise RingtuneError(f"method must be one of {', '.join(METHODS)}, not {method!r}", "--method")
+        raise RingtuneError(f"method must be one of {', '.join(METHODS)}, not {method!r}", "method")
     min_speed_factor = resolve_min_speed_factor(job, method, min_speed_factor)
     if limit_hz is None:
         limit_hz = job.file_setting("freq_limit_hz")
         if limit_hz != limit_hz:
             return job
     if not (math.isfinite(limit_hz) and limit_hz >= 0):
-        raise RingtuneError(f"frequency limit must be a number >= 0 Hz, not {limit_hz}", "--freq-limit")
+        raise RingtuneError(f"frequency limit must be a number >= 0 Hz, not {limit_hz}", "limit_hz")
     if not 0 < min_speed_factor <= 1:
         raise RingtuneError(f"minimum speed factor must be in (0, 1], not {min_speed_factor}",
-                            "--min-speed-factor")
+                            "min_speed_factor")
     if limit_hz == 0 or job.n_moves == 0:
         return job
     if method == "marlin":

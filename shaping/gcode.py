@@ -43,6 +43,7 @@ from ringtune.shaping.gcode_commands import num as _num
 
 _WORD = re.compile(r"([A-Za-z])\s*([^A-Za-z\s]*)")
 _CLASSIC = re.compile(r"^([GMTgmt])\s*(\d+(?:\.\d+)?)")
+_QUOTED = re.compile(r'([A-Za-z])\s*"([^"]*)"')     # RepRapFirmware string parameters: P"mzv"
 _FEATURE = re.compile(r"^\s*(?:TYPE|FEATURE)\s*:\s*(.+?)\s*$|^\s*feature\s+(.+?)\s*$", re.IGNORECASE)
 
 _AXIS_INDEX = {"X": 0, "Y": 1, "Z": 2, "E": 3}
@@ -249,6 +250,9 @@ class _Reader(SettingCommands):
 
     def _words(self, text: str, lineno: int) -> dict[str, float]:
         words = {}
+        if '"' in text:            # quoted strings (RRF M593 P"zvd", M98 P"file.g") are kept as text
+            words.update((k.upper(), v) for k, v in _QUOTED.findall(text))
+            text = _QUOTED.sub(" ", text)
         for letter, value in _WORD.findall(text):
             letter = letter.upper()
             if value == "":

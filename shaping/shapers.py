@@ -310,12 +310,14 @@ def get_shaper(name: str, freq: float, damping: float | None = None, flavor: str
 
 def shapers_from_config(config) -> tuple[dict[str, Shaper | None], bool]:
     """({"x": Shaper | None, "y": …}, centred) for a :class:`~ringtune.shaping.config.TuneConfig`:
-    its firmware's flavour, shaper names, frequencies and dampings (``"none"`` -> None)."""
+    its firmware's flavour, shaper names, frequencies and dampings. ``"none"`` (and its aliases)
+    -> None; ``"daa"`` -> None too: RepRapFirmware's DAA acts in the planner, not as a shaper
+    (:attr:`TuneConfig.daa_freq`)."""
     flavor = config.flavor
     out: dict[str, Shaper | None] = {}
     for axis in ("x", "y"):
         name, freq, damping = config.axis(axis)
-        if canonical_name(name) == "none":
+        if canonical_name(name) in ("none", "daa"):
             out[axis] = None
         else:
             out[axis] = get_shaper(name, freq, damping, flavor, where=f"config: shaper_{axis}")

@@ -109,3 +109,23 @@ def test_a_misspelt_config_key_is_warned_about_not_silently_defaulted(tmp_path, 
     assert cli.main(["export", str(cfg), "--firmware", "klipper"]) == 0
     err = capsys.readouterr().err
     assert f"{cfg}: warning: unknown key 'freqq_y'" in err and "'source'" not in err and "'printer'" not in err
+
+
+# -- library errors name the parameter; the command names the flag ----------------------------------
+
+def test_library_errors_name_their_parameter_and_the_command_the_flag(tmp_path, capsys):
+    from ringtune.shaping.errors import RingtuneError
+    from ringtune.shaping.freqlimit import apply_freq_limit
+    from ringtune.shaping.testprints import builtin_test_print
+
+    cli.build_parser()
+    with pytest.raises(RingtuneError) as info:
+        apply_freq_limit(builtin_test_print(), -1.0, "sections")
+    assert info.value.where == "limit_hz"                                # the library's word
+    assert cli.as_flag(info.value, "limit").where == "--freq-limit"           # the option of `limit`
+    assert cli.as_flag(RingtuneError("x", "method"), "limit").where == "--method"
+    assert cli.as_flag(RingtuneError("x", "study_name"), "tune").where == "--study"
+    assert cli.as_flag(RingtuneError("x", "config: freq_x"), "simulate").where == "config: freq_x"
+    # through the command line: one line naming the flag the user typed
+    assert cli.main(["tune", "--workers", "0", "--trials", "1", "--out", str(tmp_path / "o")]) == 2
+    assert capsys.readouterr().err.strip() == "ringtune tune: error: --workers: must be ≥ 1"

@@ -146,7 +146,7 @@ def test_bad_arguments():
     job = builtin_test_print()
     with pytest.raises(RingtuneError, match="method"):
         apply_freq_limit(job, 20, "fancy")
-    with pytest.raises(RingtuneError, match="--freq-limit"):
+    with pytest.raises(RingtuneError, match="limit_hz"):
         apply_freq_limit(job, -1, "sections")
     assert apply_freq_limit(job, 0, "sections") is job
 

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from ringtune.hardware.accel import G_MM_S2, RawAccel, read_accel, read_raw_accel, read_resonances_csv
+from ringtune.hardware.accel import (G_MM_S2, RawAccel, axis_from_file_name, read_accel, read_raw_accel,
+                                    read_resonances_csv)
 from ringtune.hardware.psd import PSD, klipper_psd, klipper_window_size
 from ringtune.shaping.errors import RingtuneError
 
@@ -153,3 +154,34 @@ def test_malformed_files_name_file_and_line(tmp_path, text, line, msg):
 def test_missing_file(tmp_path):
     with pytest.raises(RingtuneError, match="no such file"):
         read_accel(tmp_path / "nope.csv")
+
+
+# -- the axis from the file name: one function (hardware.accel.axis_from_file_name) ------------------
+
+def test_axis_from_file_name_on_the_real_files(data_dir):
+    """Every real file's axis is the one its SOURCES.md entry states (Klipper: the name Klipper
+    wrote; RRF: the X54-161 / Y71-214 moves of Duet's plugin names)."""
+    files = sorted((data_dir / "accel").rglob("*.csv"))
+    assert len(files) >= 12
+    for f in files:
+        if f.name.startswith("resonances_"):
+            expect = f.name.split("_")[1]
+        else:
+            expect = {"1-T0-X54-161-0-none.csv": "x", "1-T0-Y71-214-0-none.csv": "y"}[f.name]
+        assert axis_from_file_name(f) == expect, f.name
+
+
+@pytest.mark.parametrize("name, axis", [
+    ("resonances_x_20210821_152037.csv", "x"),            # Klipper TEST_RESONANCES
+    ("calibration_data_y_20230306.csv", "y"),              # SHAPER_CALIBRATE
+    ("raw_data_x_adxl345_20230306.csv", "x"),              # OUTPUT=raw_data
+    ("resonances_z_20251004.csv", "z"),                    # Klipper HEAD's Z axis
+    ("Resonances_X_20210821.CSV", "x"),                    # renamed by a user: case does not matter
+    ("ender3_resonances_y_20210630.csv", "y"),             # a prefix the user added
+    ("resonances_axis=1.000,-1.000_20240101.csv", None),   # a diagonal test names no single axis
+    ("myresonances_x_1.csv", None),                        # not Klipper's word
+    ("adxl345-20240101_120000.csv", None),                 # ACCELEROMETER_MEASURE: no axis in the name
+    ("1-T0-X54-161-0-none.csv", "x"),                      # Duet's Input Shaping plugin
+])
+def test_axis_from_file_name(name, axis):
+    assert axis_from_file_name(Path("/somewhere") / name) == axis

@@ -325,6 +325,12 @@ def test_no_module_imports_our_names_only_to_expose_them():
         defined = DEFS[m][0]
         for name in sorted(all_names - defined):
             bad.append(f"{MODULES[m].relative_to(ROOT)}: __all__ exposes {name!r}, defined elsewhere")
+        ours = {a.asname or a.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+                and node.module and node.module.startswith("ringtune.") for a in node.names}
+        for node in tree.body:     # ``alias = imported_name``: the same object under a second name
+            if isinstance(node, ast.Assign) and isinstance(node.value, ast.Name) and node.value.id in ours:
+                bad.append(f"{MODULES[m].relative_to(ROOT)}:{node.lineno}: {ast.unparse(node)} gives "
+                           f"{node.value.id} a second address")
         for node in ast.walk(tree):
             if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("ringtune."):
                 for a in node.names:

@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.seeding import np_random
 
-from ringtune.agents.ppo import spectrum_observation
-from ringtune.envs.env import TuneEnv
+from ringtune.envs.env import TuneEnv, spectrum_features
 from ringtune.envs.sim import resonance_test
 
 
@@ -21,7 +20,7 @@ def test_spectrum_observation_reproduces_the_env_bins():
 
     random_printer_dict(rng, env.base_printer.to_dict())
     spectra = {ax: resonance_test(env.printer, ax, rng=rng) for ax in ("x", "y")}
-    mine = spectrum_observation(spectra, env.n_bins, env.spectrum_range)
+    mine = spectrum_features(spectra, env.n_bins, env.spectrum_range)
     np.testing.assert_array_equal(mine, obs[: 2 * env.n_bins])
     # the peak bin is where the printer's strongest mode is
     assert mine.max() == 1.0
@@ -32,7 +31,7 @@ def test_missing_axis_takes_the_other_and_real_file_is_in_range(data_dir):
 
     p = read_resonances_csv(data_dir / "accel" / "klipper_psd" / "bassco_ender3" / "resonances_x_20210821_152037.csv")
     p = p[0] if isinstance(p, list) else p
-    obs = spectrum_observation({"x": (p.freqs, p.psd_x)})
+    obs = spectrum_features({"x": (p.freqs, p.psd_x)})
     assert obs.shape == (48,) and np.all(np.abs(obs) <= 1)
     np.testing.assert_array_equal(obs[:24], obs[24:])
     # the Ender's X resonances (45 Hz and a broad hump at 53.6-67.8 Hz, envs/data/ender3.toml)

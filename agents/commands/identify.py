@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import argparse
 
+from ringtune.agents import identify_ripples
+
 NAME = "identify"
 HELP = "fit vibration modes to accelerometer data and write a printer description (TOML)"
 DESCRIPTION = """\
@@ -29,6 +31,10 @@ examples:
   ringtune identify resonances_x_20210821_152037.csv resonances_y_20210630_230110.csv \\
       -o ender3.toml --plot fit.png
   ringtune identify 1-T0-X54-161-0-none.csv --axis x --json
+
+Without an accelerometer (prints from `ringtune testprint ringing`):
+  ringtune identify --ripples X=2.2,Y=2.6 --speed 100 [--decay X=1.9,Y=2.1] -o printer.toml
+  ringtune identify --tower-band X=4,Y=3 --tower tower.gcode -o printer.toml
 """
 
 
@@ -37,7 +43,7 @@ PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("files", nargs="+", metavar="ACCEL.csv", help="accelerometer files (any supported format)")
+    p.add_argument("files", nargs="*", metavar="ACCEL.csv", help="accelerometer files (any supported format)")
     p.add_argument("-o", "--output", metavar="printer.toml", help="write the printer description here")
     p.add_argument("--plot", metavar="out.png", help="plot measured against fitted spectra / decays")
     p.add_argument("--axis", choices=("x", "y"), help="axis of every file (default: from the file name)")
@@ -50,6 +56,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--name", default="identified", help="printer name in the TOML")
     p.add_argument("--kinematics", choices=("cartesian", "corexy"), default="cartesian")
     p.add_argument("--base", metavar="P", help="printer TOML (or embedded name) for unmeasured axes")
+    identify_ripples.add_arguments(p)
 
 
 def run(args, out) -> int:
@@ -59,6 +66,8 @@ def run(args, out) -> int:
     from ringtune.envs.identify import identify_files, plot_fits, printer_toml
     from ringtune.shaping.errors import RingtuneError
 
+    if identify_ripples.wanted(args) or not args.files:   # no accelerometer: ripples or a tower
+        return identify_ripples.run(args, out)
     if args.max_modes < 1 or args.max_modes > 5:
         raise RingtuneError("must be 1 to 5", "--max-modes")
     if not 0 <= args.fmin < args.fmax:

@@ -37,6 +37,10 @@ examples:
 """
 
 
+#: library parameters whose option has another name (see agents/cli.py: as_flag)
+PARAMETER_FLAGS = {"limit_hz": "--freq-limit"}
+
+
 def add_arguments(parser) -> None:
     parser.add_argument("file", metavar="FILE.gcode", help="G-code file to limit")
     parser.add_argument("--freq-limit", metavar="HZ", type=float, default=None,

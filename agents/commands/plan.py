@@ -71,10 +71,10 @@ def run(args, out) -> int:
 
     import numpy as np
 
+    from ringtune.shaping.config_plan import plan_with_config
     from ringtune.shaping.errors import RingtuneError
-    from ringtune.shaping.freqlimit import apply_freq_limit
     from ringtune.shaping.gcode import read_gcode
-    from ringtune.shaping.planner import MachineLimits, guess_junction, plan
+    from ringtune.shaping.planner import MachineLimits, guess_junction
     from ringtune.shaping.slicer import slicer_estimate
     from ringtune.shaping.testprints import builtin_test_print, direction_change_frequencies
 
@@ -111,29 +111,11 @@ def run(args, out) -> int:
     limits = replace(limits, junction=junction)
     if junction != "scv":
         limits = replace(limits, min_cruise_ratio=0.0)
-    if cfg is not None and cfg.accel:
-        limits = replace(limits, accel=float(cfg.accel))
-
-    freq_info = None
-    if cfg is not None and cfg.freq_limit_hz > 0:
-        before = job.feed
-        job = apply_freq_limit(job, cfg.freq_limit_hz, cfg.freq_limit_method, cfg.min_speed_factor,
-                               max_velocity=limits.max_velocity)
-        freq_info = {"hz": cfg.freq_limit_hz, "method": cfg.freq_limit_method,
-                     "moves_slowed": int(np.sum(job.feed < before)), "source": "config"}
-    elif not args.no_job_limits and job.file_setting("freq_limit_hz") > 0:
-        # the job's own M201 F (and S): what Marlin's XY_FREQUENCY_LIMIT will do with it
-        before = job.feed
-        job = apply_freq_limit(job, None, "marlin", max_velocity=limits.max_velocity)
-        freq_info = {"hz": job.file_setting("freq_limit_hz"), "method": "marlin",
-                     "moves_slowed": int(np.sum(job.feed < before)), "source": "job M201 F"}
-    daa = args.daa
-    if daa is None and cfg is not None and cfg.shaper_x.lower() == "daa":
-        daa = cfg.freq_x
     t1 = time.perf_counter()
-    p = plan(job, limits, daa_freq=daa, use_job_limits=not args.no_job_limits,
-             accel=float(cfg.accel) if cfg is not None and cfg.accel else None)
+    configured = plan_with_config(job, limits, cfg, use_job_limits=not args.no_job_limits, daa_freq=args.daa)
     t_plan = time.perf_counter() - t1
+    p, limits, daa = configured.plan, configured.limits, configured.daa_hz
+    freq_info = None if configured.freq_limit is None else asdict(configured.freq_limit)
 
     tz, fz, lz = direction_change_frequencies(p)
     order = np.argsort(-fz)
@@ -156,7 +138,7 @@ def run(args, out) -> int:
         if args.trajectory == "-" and args.json:
             raise RingtuneError("'-' writes the CSV to standard output, which --json needs; give a file",
                                 "--trajectory")
-        traj = _write_trajectory(p, cfg, args.trajectory, args.rate, out)
+        traj = _write_trajectory(p, cfg, args.trajectory, args.rate)
 
     result = {
         "job": name,
@@ -209,26 +191,17 @@ def run(args, out) -> int:
     return 0
 
 
-def _write_trajectory(p, cfg, path, rate, out) -> str:
+def _write_trajectory(p, cfg, path, rate) -> str:
     import numpy as np
 
     motion = p.motion
     if cfg is not None:
-        try:
-            from ringtune.shaping.apply import shape_motion
-            from ringtune.shaping.shapers import get_shaper, is_centred
-        except ImportError:
-            out.note("plan: shaping is not available yet; writing the unshaped trajectory")
-        else:
-            shapers = {}
-            for ax in ("x", "y"):
-                name, freq, damping = cfg.axis(ax)
-                if name.lower() in ("none", "daa"):
-                    shapers[ax] = None
-                else:
-                    shapers[ax] = get_shaper(name, freq, damping, flavor=cfg.flavor)
-            if any(s is not None for s in shapers.values()):
-                motion = shape_motion(motion, shapers, is_centred(cfg.flavor))
+        from ringtune.shaping.apply import shape_motion
+        from ringtune.shaping.shapers import shapers_from_config
+
+        shapers, centred = shapers_from_config(cfg)
+        if any(s is not None for s in shapers.values()):
+            motion = shape_motion(motion, shapers, centred)
     t, pos = motion.sample(rate)
     data = np.column_stack([t, pos[:, :4]])
     if path == "-":

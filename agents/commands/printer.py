@@ -73,19 +73,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 # -- the built-in motor table (helper `motors`: ringtune.envs.motors) ------------------------------
 def lookup_motor(name: str):
-    """The built-in motor ``name`` (an object with ``resistance``, ``inductance``,
-    ``holding_torque``, ``rated_current``, ``steps_per_revolution``), ``None`` when unknown, or
-    ``False`` when this build has no motor table to ask."""
-    try:
-        from ringtune.envs.motors import lookup_motor as table_lookup
-    except ModuleNotFoundError:          # the table is not in this build yet
-        return False
+    """The built-in motor ``name`` (with ``resistance``, ``inductance``, ``holding_torque``,
+    ``rated_current``, ``steps_per_revolution``), or ``None`` when the table does not know it."""
+    from ringtune.envs.motors import lookup_motor as table_lookup
+
     return table_lookup(name)
 
 
 def check_motor_names(description: dict, notes: list[str], comments: dict[str, list[str]]) -> None:
-    """Keep a motor ``name`` only when the built-in table knows it; else drop it and say so (the
-    user's own constants, when given, still describe the motor)."""
+    """Keep a motor ``name`` when the built-in table knows it or the configuration gives its
+    constants; else drop it, say so, and leave a comment where its constants belong."""
     from ringtune.hardware.firmware_facts import MOTOR_CONSTANTS, motor_tables, without_motor
 
     for where, table in motor_tables(description).items():
@@ -94,23 +91,17 @@ def check_motor_names(description: dict, notes: list[str], comments: dict[str, l
             continue
         known = lookup_motor(name)
         inline = all(k in table for k in MOTOR_CONSTANTS)
-        if known is False:
-            notes.append(f"[{where}] motor {name}: the built-in motor table is not available in this build; "
-                         "the name is kept unchecked")
-            continue
         if known is not None:
             if inline:
                 notes.append(f"[{where}] {name}: the configuration's own [motor_constants] are written; they "
                              "take precedence over the built-in table's entry of that name")
             continue
-        del table["name"]
-        without_motor(table, notes, f"[{where}]")
-        if inline:
-            comments.setdefault(where, []).append(f"motor {name} (constants from the configuration's "
-                                                  "[motor_constants])")
+        if inline:                       # the loader takes an unknown name that comes with its constants
             notes.append(f"[{where}] motor {name} is not in the built-in table; its constants come from "
                          "the configuration's [motor_constants]")
         else:
+            del table["name"]
+            without_motor(table, notes, f"[{where}]")
             comments.setdefault(where, []).append(f"motor {name}: not in the built-in table; give holding_torque, "
                                                   "rated_current, resistance, inductance here")
             notes.append(f"[{where}] motor {name} is not in the built-in table and the configuration gives no "

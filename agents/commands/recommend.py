@@ -15,8 +15,6 @@
 from __future__ import annotations
 
 import argparse
-import re
-from pathlib import Path
 
 NAME = "recommend"
 HELP = "instant shaper config from a resonance test (Klipper's calibrate_shaper rule)"
@@ -46,6 +44,10 @@ example:
       --klipper-version 0.13 -o best.json
   ringtune export best.json --firmware klipper
 """
+
+
+#: library parameters whose option has another name (see agents/cli.py: as_flag)
+PARAMETER_FLAGS = {"version": "--klipper-version", "n_trials": "--refine"}
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -79,9 +81,7 @@ def run(args: argparse.Namespace, out) -> int:
         raise RingtuneError("give --accel CSV… (a measured resonance test) or --printer P (a simulated one)",
                             "recommend")
     if args.method == "policy":
-        from ringtune.agents.ppo import recommend_command
-
-        return recommend_command(args, out)
+        return _run_policy(args, out)
     if args.accel and args.printer:
         raise RingtuneError("Klipper's rule reads either --accel files or --printer's simulated test, not both",
                             "--printer")
@@ -89,14 +89,15 @@ def run(args: argparse.Namespace, out) -> int:
         raise RingtuneError("must be ≥ 0.05 mm (as Klipper's)", "--max-smoothing")
     kw = {"max_smoothing": args.max_smoothing}
     if args.accel:
-        psds, sources = _load_accel(args.accel, args.axes)
+        psds, sources = _load_accel(args.accel, args.axes, out)
         fits, fields = klipper_baseline.recommend_axes(psds, args.firmware, args.klipper_version, args.scv, **kw)
     else:
         from ringtune.envs.evaluate import resolve_printer
 
         printer = resolve_printer(None if args.printer in (None, "default") else args.printer)
         try:
-            fits, fields = klipper_baseline.recommend_for_printer(printer, args.firmware, args.klipper_version, args.seed, **kw)
+            fits, fields = klipper_baseline.klipper_rule_on_simulated_test(printer, args.firmware, args.klipper_version,
+                                                                           args.seed, **kw)
         except ImportError as exc:
             raise RingtuneError(f"the simulated resonance test is not available ({exc})", "--printer") from None
         sources = {ax: [f"printer:{getattr(printer, 'name', 'default')}"] for ax in ("x", "y")}
@@ -105,10 +106,7 @@ def run(args: argparse.Namespace, out) -> int:
                        "klipper": {ax: rec.to_dict() for ax, rec in fits.items()}}
     extra = fields.pop("extra")
     config = TuneConfig(**fields, extra=extra)
-    written = None
-    if args.output:
-        config.save(args.output)
-        written = str(args.output)
+    written = _save(config, args.output)
 
     text = []
     shown = set()
@@ -133,14 +131,93 @@ def run(args: argparse.Namespace, out) -> int:
     return 0
 
 
-_AXIS_RE = re.compile(r"(?:resonances|calibration_data|raw_data)_([xy])_", re.IGNORECASE)
+def _run_policy(args, out) -> int:
+    """``ringtune recommend --method policy --policy DIR (--accel CSV… [--printer P] | --printer P)
+    [--refine N]``. ``--json`` keys: method ("policy"), firmware,
+    policy (folder), sources ({axis: [files]} or {axis: ["printer:<name>"]}), model (name of the
+    printer model the starting answer is simulated on and refined on), config (TuneConfig dict),
+    inference_s (s, loading excluded; with --accel it includes fitting the model), refine (null or
+    {"trials", "first_cost", "best_cost"}: the environment's cost of the policy's answer and of the
+    best trial), output.
+    """
+    import dataclasses
+    import time
+
+    from ringtune.agents.ppo import load_policy
+    from ringtune.agents.ppo_recommend import (_axis_spectra, decode_measured, measured_observation,
+                                               policy_on_simulated_test, preload)
+    from ringtune.envs.evaluate import resolve_printer
+    from ringtune.shaping.errors import RingtuneError
+
+    if not getattr(args, "policy", None):
+        raise RingtuneError("needs --policy DIR (a folder written by `ringtune train -o DIR`)", "--policy")
+    policy = load_policy(args.policy)
+    trained = policy.env_kwargs.get("firmware", "klipper")
+    if args.firmware != trained:
+        raise RingtuneError(f"this policy chooses {trained} shapers; train one for {args.firmware} "
+                            f"or use --method klipper", "--firmware")
+    refine = getattr(args, "refine", None)
+    printer = resolve_printer(None if args.printer in (None, "default") else args.printer) if args.printer else None
+    preload()
+    t0 = time.perf_counter()
+    if args.accel:
+        psds, sources = _load_accel(args.accel, args.axes, out)
+        spectra = _axis_spectra(psds)
+        env, obs = measured_observation(policy, spectra, printer)
+        action = policy.act(obs)
+        config = decode_measured(env, action, spectra)
+        printer, peaks = env.printer, env.peaks_
+    else:
+        config, action = policy_on_simulated_test(policy, printer, args.seed)
+        sources = {ax: [f"printer:{getattr(printer, 'name', 'default')}"] for ax in ("x", "y")}
+        peaks = None
+    inference = time.perf_counter() - t0
+    refined = None
+    if refine:
+        from ringtune.agents.ppo_refine import PrinterCost, optuna_search
+
+        out.note(f"refining with Optuna: {refine} trials, the policy's answer first ...")
+        cost = PrinterCost(printer, policy.env_kwargs, seed=args.seed, peaks=peaks)
+        res = optuna_search(cost, int(refine), args.seed, first_action=action)
+        config = decode_measured(cost.env, res.best_action, spectra) if args.accel else res.best_config
+        refined = {"trials": int(refine), "first_cost": res.first_cost, "best_cost": res.best_cost}
+    config = dataclasses.replace(config, extra={"method": "policy", "policy": str(policy.path),
+                                                "sources": sources, "refine": refined})
+    written = _save(config, args.output)
+    accel = f"{config.accel:.0f} mm/s^2" if config.accel else "unchanged"
+    model = getattr(printer, "name", "the default printer")
+    text = [f"policy {policy.path} (loaded pickles: trusted source assumed), inference {inference * 1e3:.0f} ms",
+            *([f"printer model (starting answer's metrics{', refinement' if refine else ''}): {model}"]
+              if policy.env_kwargs.get("observe_metrics") or refine else []),
+            f"X: {config.shaper_x} @ {config.freq_x:.1f} Hz, damping {config.damping_x:.3f}",
+            f"Y: {config.shaper_y} @ {config.freq_y:.1f} Hz, damping {config.damping_y:.3f}",
+            f"frequency limit: {config.freq_limit_hz:.0f} Hz" if config.freq_limit_hz else "frequency limit: off",
+            f"acceleration: {accel}"]
+    if refined:
+        text.append(f"refined: cost {refined['first_cost']:.4f} (policy) -> {refined['best_cost']:.4f} "
+                    f"after {refine} trials")
+    text.append(f"written to {written}" if written else "(use -o best.json to save it)")
+    out.emit({"method": "policy", "firmware": args.firmware, "policy": str(policy.path), "sources": sources,
+              "model": model,
+              "config": config.to_dict(), "inference_s": inference, "refine": refined, "output": written},
+             "\n".join(text))
+    return 0
 
 
-def _load_accel(paths: list[str], axes_opt: str | None):
-    """{axis: [PSD, ...]} and {axis: [file, ...]} from the --accel files."""
+def _save(config, path) -> str | None:
+    """Write the TuneConfig to ``path`` (-o) if given; the path written, or None."""
+    if not path:
+        return None
+    config.save(path)
+    return str(path)
+
+
+def _load_accel(paths: list[str], axes_opt: str | None, out=None):
+    """{axis: [PSD, ...]} and {axis: [file, ...]} from the --accel files (the axis from --axes, else
+    the file name, else the larger of the psd_x / psd_y columns, said through ``out``)."""
     import numpy as np
 
-    from ringtune.hardware.accel import read_accel, to_psd
+    from ringtune.hardware.accel import axis_from_file_name, read_accel, to_psd
     from ringtune.shaping.errors import RingtuneError
 
     axes = None
@@ -155,12 +232,16 @@ def _load_accel(paths: list[str], axes_opt: str | None):
         if axes:
             ax = axes[i]
         else:
-            m = _AXIS_RE.search(Path(path).name)
-            if m:
-                ax = m.group(1).lower()
-            elif items[0].psd_x is not None and items[0].psd_y is not None:
+            ax = axis_from_file_name(path)
+            if ax == "z":
+                raise RingtuneError("the file name says it measured Z; recommend fits X and Y (if it "
+                                    "measured X or Y, say so with --axes)", str(path))
+            if ax is None and items[0].psd_x is not None and items[0].psd_y is not None:
                 ax = "x" if float(np.sum(items[0].psd_x)) >= float(np.sum(items[0].psd_y)) else "y"
-            else:
+                if out is not None:
+                    out.note(f"{path}: the file name does not say the axis; taking {ax.upper()}, the larger of "
+                             "its psd_x and psd_y (--axes overrides)")
+            elif ax is None:
                 raise RingtuneError("cannot tell which axis this file measured; use --axes", str(path))
         psds.setdefault(ax, []).extend(items)
         sources.setdefault(ax, []).append(str(path))

@@ -4,7 +4,8 @@ JSON keys (stable): ``printer`` (name), ``job`` (G-code path or ``"built-in test
 ``backend``, ``config`` (TuneConfig dict), ``metrics`` {``print_time_s``, ``path_error_mm``,
 ``overshoot_mm``, ``ringing_mm``, ``peak_accel``, ``step_loss``, ``motor_load``}, ``windows``
 (list of {``t0``, ``t1``, ``kind``, ``path_error_mm``, ``overshoot_mm``, ``ringing_mm``,
-``peak_accel``, ``step_loss``, ``motor_load``}), ``plots`` (list of PNG paths, empty without ``--plot``).
+``peak_accel``, ``step_loss``, ``motor_load``}), ``plots`` (list of PNG paths, empty without ``--plot``),
+``trace`` (with ``--trace`` only: the CSV path; columns in ``ringtune.envs.trace``).
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ examples:
   ringtune simulate --shaper mzv --freq 48 --damping 0.1
   ringtune simulate --shaper zv,mzv --freq 51,46 --freq-limit 30 --firmware rrf --plot plots/
   ringtune simulate --printer my.toml --gcode part.gcode --config best.json --json
+  ringtune simulate --gcode ripples.gcode --trace nozzle.csv   # what the model prints
 """
 
 
@@ -54,6 +56,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco",
                         help="physics: mujoco (default) or lti (exact linear, fast screening)")
     parser.add_argument("--plot", metavar="DIR", help="write path, ringing and accelerometer plots (PNG) to DIR")
+    parser.add_argument("--trace", metavar="OUT.csv", help="write the simulated nozzle path (t, commanded and "
+                        "nozzle x y, ...) of the whole job, or of its quality windows if it is long")
 
 
 def _pair(text: str | None, option: str, number: bool) -> tuple | None:
@@ -131,6 +135,10 @@ def run(args, out) -> int:
     printer = resolve_printer(args.printer)
     out.note(f"simulating {config.shaper_x}/{config.shaper_y} on {printer.name} ({args.backend}) ...")
     ev = evaluate_detailed([config], printer, args.gcode, backend=args.backend)[0]
+    if args.trace:
+        from ringtune.agents.trace_option import write_trace_option
+
+        write_trace_option(args.trace, ev, config, printer, args.gcode, args.backend, out)
     m = ev.metrics
     windows = []
     for w, part in zip(ev.planned.windows, m.details.get("windows", [])):
@@ -150,6 +158,7 @@ def run(args, out) -> int:
         "metrics": m.to_dict(),
         "windows": windows,
         "plots": plots,
+        **({"trace": args.trace} if args.trace else {}),
     }
     c = config
     lines = [

@@ -51,6 +51,10 @@ examples:
 """
 
 
+#: library parameters whose option has another name (see agents/cli.py: as_flag)
+PARAMETER_FLAGS = {"n_trials": "--hpo-trials"}
+
+
 def add_arguments(p) -> None:
     from ringtune.agents.ppo import DEFAULT_N_ENVS, DEFAULT_TIMESTEPS
 

@@ -1,0 +1,71 @@
+"""The simulated nozzle path of a job, as a CSV anyone can plot (``ringtune simulate --trace``).
+
+Columns (one row per output sample, 2 kHz by default):
+
+- ``t`` s since the job's first move;
+- ``x_cmd, y_cmd, z`` the planned (G-code) path, mm, before input shaping;
+- ``extruding`` 1 while the move deposits material, else 0;
+- ``x_shaped, y_shaped`` the command after the config's input shaper (what the motors follow), mm;
+- ``x_nozzle, y_nozzle`` the simulated nozzle relative to the print (bed frame), mm;
+- ``window`` 0 for a whole-job trace; else the quality window's number (1, 2, ...).
+
+A job whose motion lasts up to :data:`WHOLE_JOB_MAX_S` is simulated whole, from rest, with the
+same printer, shapers and backend as the metrics; a longer one is traced over the quality windows
+the metrics judged (said on stderr by the command).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ringtune.shaping.config import TuneConfig
+
+#: longest motion (s) traced whole; longer jobs are traced over their quality windows
+WHOLE_JOB_MAX_S = 600.0
+COLUMNS = ("t", "x_cmd", "y_cmd", "z", "extruding", "x_shaped", "y_shaped", "x_nozzle", "y_nozzle", "window")
+
+
+def _rows(path_motion, sim, window: int) -> np.ndarray:
+    t = np.asarray(sim.t)
+    cmd = path_motion.position(t)
+    seg = path_motion.segment_index(t)
+    inside = (t >= path_motion.start_time) & (t <= path_motion.end_time)
+    ext = path_motion.extruding[seg] & inside
+    return np.column_stack([t, cmd[:, 0], cmd[:, 1], cmd[:, 2], ext.astype(float),
+                            sim.commanded[:, 0], sim.commanded[:, 1], sim.nozzle[:, 0], sim.nozzle[:, 1],
+                            np.full(len(t), float(window))])
+
+
+def trace_job(config: TuneConfig, printer, job=None, backend: str = "mujoco") -> np.ndarray:
+    """(m, len(COLUMNS)) rows of the whole job simulated from rest (see module doc)."""
+    from ringtune.envs.evaluate import planned_job, resolve_printer
+    from ringtune.envs.sim import simulate
+    from ringtune.shaping.apply import shape_motion
+    from ringtune.shaping.shapers import shapers_from_config
+
+    printer = resolve_printer(printer)
+    motion = planned_job(printer, job, config).motion
+    shapers, centred = shapers_from_config(config)
+    shaped = shape_motion(motion, shapers, centred) if any(shapers.values()) else motion
+    sim = simulate(printer, shaped, backend=backend, initial="rest")
+    return _rows(motion, sim, 0)
+
+
+def trace_windows(evaluation) -> np.ndarray:
+    """Rows of the quality windows an :class:`ringtune.envs.evaluate.Evaluation` simulated."""
+    parts = [_rows(run.path, sim, k) for k, (run, sim) in enumerate(zip(evaluation.runs, evaluation.sims), 1)]
+    return np.concatenate(parts) if parts else np.zeros((0, len(COLUMNS)))
+
+
+def write_trace(path: str | Path, rows: np.ndarray) -> None:
+    """Write ``rows`` as CSV with the :data:`COLUMNS` header (mm and s to 1 µm / 1 µs)."""
+    fmt = ["%.6f"] + ["%.5f"] * 3 + ["%d"] + ["%.5f"] * 4 + ["%d"]
+    np.savetxt(path, rows, fmt=fmt, delimiter=",", header=",".join(COLUMNS), comments="")
+
+
+def read_trace(path: str | Path) -> dict[str, np.ndarray]:
+    """A trace CSV back as {column: array}."""
+    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    return {c: data[:, i] for i, c in enumerate(COLUMNS)}

@@ -1,0 +1,108 @@
+"""A job planned under a TuneConfig: the one path from a parsed job to its plan that ``ringtune plan``
+and :func:`ringtune.envs.evaluate.planned_job` (every tuning trial) share.
+
+1. the config's acceleration (mm/s²) is the machine's; how it meets the job's own acceleration
+   commands is the job-acceleration mode (:data:`JOB_ACCEL_MODES`, argument ``job_accel`` or the
+   config's ``extra["job_accel"]``): ``replace`` (default) — it replaces the job's own commands
+   (M204, SET_VELOCITY_LIMIT ACCEL and the X/Y caps of M201), what re-slicing at that acceleration
+   with the machine limits raised to it gives; ``respect`` — the job's commands stand and
+   ``config.accel`` rules wherever the job sets none (the print as sliced);
+2. the config's frequency limit rewrites the requested feedrates (``shaping.freqlimit``); without
+   one, a job's own Marlin ``M201 F`` (XY_FREQUENCY_LIMIT) does, as Marlin would, unless the job's
+   own limits are ignored; Marlin's emulation takes the machine's per-axis maximum feedrates;
+3. the planner plans, with RepRapFirmware ≤ 3.3's DAA when the config (or the caller) selects it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.freqlimit import apply_freq_limit
+from ringtune.shaping.job import SETTING_KEYS, Job
+from ringtune.shaping.planner import MachineLimits, Plan, plan
+
+#: how a config's acceleration meets the job's own acceleration commands (module docstring)
+JOB_ACCEL_MODES = ("replace", "respect")
+#: the job settings that "replace" removes (the job's own accelerations and X/Y acceleration caps)
+JOB_ACCEL_SETTINGS = ("accel_print", "accel_travel", "accel_retract", "accel_klipper", "max_accel_x",
+                      "max_accel_y")
+
+
+@dataclass(frozen=True)
+class FreqLimitApplied:
+    """The frequency limit a plan was made with: Hz, method, how many moves it slowed, and
+    ``source`` (``"config"`` or ``"job M201 F"``)."""
+
+    hz: float
+    method: str
+    moves_slowed: int
+    source: str
+
+
+@dataclass(frozen=True)
+class ConfiguredPlan:
+    """The plan, the limits it used (the config's acceleration in), the frequency limit applied
+    (None: none) and the DAA frequency planned with (Hz, None: off)."""
+
+    plan: Plan
+    limits: MachineLimits
+    freq_limit: FreqLimitApplied | None
+    daa_hz: float | None
+
+
+def job_accel_mode(config: TuneConfig | None, job_accel: str | None = None) -> str:
+    """The job-acceleration mode: ``job_accel`` if given, else the config's ``extra["job_accel"]``,
+    else ``"replace"``."""
+    mode = job_accel or (config.extra.get("job_accel") if config is not None and config.extra else None) \
+        or "replace"
+    if mode not in JOB_ACCEL_MODES:
+        raise RingtuneError(f"must be one of {', '.join(JOB_ACCEL_MODES)}, not {mode!r}", "job_accel")
+    return mode
+
+
+def without_job_accel(job: Job) -> Job:
+    """A copy of a parsed job whose own acceleration commands (:data:`JOB_ACCEL_SETTINGS`) are
+    gone, so that the machine's (or the config's) acceleration rules every move."""
+    cols = [SETTING_KEYS.index(k) for k in JOB_ACCEL_SETTINGS]
+    table = np.array(job.settings_table, dtype=float, copy=True)
+    table[:, cols] = np.nan
+    return replace(job, settings_table=table)
+
+
+def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None = None, *,
+                     use_job_limits: bool = True, daa_freq: float | None = None,
+                     job_accel: str | None = None) -> ConfiguredPlan:
+    """Plan ``job`` on a machine with ``limits`` under ``config`` (None: as the job is).
+
+    ``use_job_limits``: whether the job's own M201/M203/M204/M205/SET_VELOCITY_LIMIT lines (and its
+    M201 F) apply. ``daa_freq`` (Hz) overrides the config's DAA (:attr:`TuneConfig.daa_freq`).
+    ``job_accel``: ``replace`` or ``respect`` (:func:`job_accel_mode`).
+    """
+    mode = job_accel_mode(config, job_accel)
+    accel = None if config is None or config.accel is None else float(config.accel)
+    if accel is not None:
+        limits = replace(limits, accel=accel)
+        if mode == "replace":
+            job = without_job_accel(job)
+    freq_limit = None
+    if config is not None and config.freq_limit_hz > 0:
+        before = job.feed
+        job = apply_freq_limit(job, float(config.freq_limit_hz), config.freq_limit_method,
+                               float(config.min_speed_factor), max_velocity=limits.max_velocity)
+        freq_limit = FreqLimitApplied(float(config.freq_limit_hz), config.freq_limit_method,
+                                      int(np.sum(job.feed < before)), "config")
+    elif use_job_limits and job.file_setting("freq_limit_hz") > 0:
+        before = job.feed
+        job = apply_freq_limit(job, None, "marlin", max_velocity=limits.max_velocity)
+        freq_limit = FreqLimitApplied(job.file_setting("freq_limit_hz"), "marlin",
+                                      int(np.sum(job.feed < before)), "job M201 F")
+    daa = daa_freq if daa_freq is not None else (None if config is None else config.daa_freq)
+    # replace: the config's acceleration wins over the job's own commands (a tuning knob);
+    # respect: it is the machine's acceleration (limits.accel), the job's commands stand
+    planned = plan(job, limits, daa_freq=daa, use_job_limits=use_job_limits,
+                   accel=accel if mode == "replace" else None)
+    return ConfiguredPlan(planned, limits, freq_limit, daa)
