@@ -5,7 +5,8 @@ masses, motors, limits and kinematics from what the user gives — written as a 
     fits: list per measurement of {axis, kind ("psd" | "decay"), source, method, r2, notes, warnings,
         modes: [{freq (Hz), damping, share, peak_freq (Hz, measured peak), fitted_peak (Hz)}]}
     loaded_fits: the same for the --added-mass files ([] without)
-    added_mass: {axis: {axis, added_mass_kg, f0_hz, f1_hz, mass_kg, stiffness_n_m}}
+    added_mass: {axis: {axis, added_mass_kg, f0_hz, f1_hz, mass_kg, mass_error_kg (one standard error),
+        stiffness_n_m}}
     klipper: Klipper's recommendation from the files ([measurement.klipper]), or {}
     defaults: what is still a default, one sentence each (also on stderr and in the TOML)
     warnings: doubts about the files and fits, one sentence each (also on stderr)
@@ -40,7 +41,8 @@ The rest of the printer:
   --klipper-config printer.cfg | --marlin M503.txt | --rrf config.g: kinematics, limits, motors
       (run current, rotation distance, microsteps, motor names) and the shaping the printer runs now.
   --motor NAME[:RUN_CURRENT[:VOLTAGE]] (every axis) or --motor X=NAME...,Y=NAME...: a motor the
-      configuration does not name (e.g. LDO-42STH48-2504AC:1.2:24).
+      configuration does not name (e.g. LDO-42STH48-2504AC:1.2:24); on a CoreXY/CoreXZ X= is
+      motor A (stepper_x) and Y= motor B (stepper_y). See `ringtune motor NAME`.
   --kinematics cartesian|corexy|corexz: when no configuration gives it.
   --mass X=KG,Y=KG: weighed moving masses (X: toolhead and carriage; Y: the bed on a bed slinger,
       the gantry with the toolhead on a CoreXY).
