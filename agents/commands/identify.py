@@ -252,18 +252,20 @@ def run(args, out) -> int:
         loaded = read_measurement(loaded_files, **kw)
         loaded_fits = loaded.fits
         warnings += loaded.warnings
-        for ax, fit in loaded.by_axis().items():
+        for ax in loaded.by_axis():
             if ax not in fits:
                 raise RingtuneError(f"the loaded test measured {ax.upper()} but the base files did not",
                                     "--added-mass")
             mass = dm.get(ax, dm.get("all"))
             if mass is None:
                 raise RingtuneError(f"no added mass given for {ax.upper()}", "--added-mass")
-            added[ax] = a = AddedMass.from_fits(fits[ax], fit, mass)
+            repeats = [f for f in meas.fits if f.axis == ax and f is not fits[ax]]     # best fit first
+            added[ax] = a = AddedMass.from_fits([fits[ax], *repeats], [f for f in loaded.fits if f.axis == ax],
+                                                mass)
             if not a.mass_error <= 0.05 * a.mass:
                 warnings.append(f"{ax.upper()}: the added-mass estimate {a.mass:.3f} kg is uncertain by "
                                 f"±{a.mass_error:.3f} kg (one standard error from the spectra's scatter): "
-                                "repeat both tests, or add more mass (the error falls as the frequencies "
+                                "repeat both tests and give every file (repeats are fitted together), or add more mass (the error falls as the frequencies "
                                 "move further apart)")
         unused = [ax.upper() for ax in dm if ax != "all" and ax not in added]
         if unused:
