@@ -36,21 +36,25 @@ class AddedMass:
     mass_error: float = float("nan")     # kg, one standard error from the spectra's scatter
 
     @classmethod
-    def from_fits(cls, base: AxisFit, loaded: AxisFit, dm: float) -> "AddedMass":
-        """From the spectrum fits of the same axis without and with ``dm`` kg: the factor by which
-        the added mass moved the whole spectrum (:func:`frequency_scale`), applied to the base's
-        dominant mode (largest share) for ``f0`` and ``f1``."""
-        if base.kind != "psd" or loaded.kind != "psd":
-            raise RingtuneError("the added-mass method needs two resonance sweeps (TEST_RESONANCES files) "
-                                f"of {base.axis.upper()}, not free-decay captures", "--added-mass")
-        f0 = max(base.modes, key=lambda m: m.share).freq
-        scale, err = frequency_scale(base, loaded)
+    def from_fits(cls, base: AxisFit | list[AxisFit], loaded: AxisFit | list[AxisFit], dm: float) -> "AddedMass":
+        """From the spectrum fits of the same axis without and with ``dm`` kg (one test each, or
+        repeats): the factor by which the added mass moved the whole spectrum
+        (:func:`frequency_scale`), applied to the first base fit's dominant mode (largest share) for
+        ``f0`` and ``f1``."""
+        bases = base if isinstance(base, list) else [base]
+        loads = loaded if isinstance(loaded, list) else [loaded]
+        axis = bases[0].axis
+        if any(f.kind != "psd" for f in bases + loads):
+            raise RingtuneError("the added-mass method needs resonance sweeps (TEST_RESONANCES files) "
+                                f"of {axis.upper()}, not free-decay captures", "--added-mass")
+        f0 = max(bases[0].modes, key=lambda m: m.share).freq
+        scale, err = frequency_scale(bases, loads)
         try:
             m, k = added_mass(f0, f0 * scale, dm)
         except RingtuneError as exc:
-            raise RingtuneError(f"axis {base.axis.upper()}: {exc.args[0]}", "--added-mass") from None
+            raise RingtuneError(f"axis {axis.upper()}: {exc.args[0]}", "--added-mass") from None
         u = scale ** -2                                  # m = dm/(u − 1): dm/d(ln s) = dm·2u/(u − 1)²
-        return cls(base.axis, dm, f0, f0 * scale, m, k, dm * 2.0 * u / (u - 1.0) ** 2 * err)
+        return cls(axis, dm, f0, f0 * scale, m, k, dm * 2.0 * u / (u - 1.0) ** 2 * err)
 
     def to_dict(self) -> dict:
         return {"axis": self.axis, "added_mass_kg": self.dm, "f0_hz": self.f0, "f1_hz": self.f1,

@@ -332,52 +332,71 @@ def plot_fits(fits: list[AxisFit], path: str | Path) -> None:
 
 # -- added mass -------------------------------------------------------------------------------------
 
-def frequency_scale(base: AxisFit, loaded: AxisFit) -> tuple[float, float]:
-    """The factor ``s`` by which every resonance of an axis moved between two spectrum fits of it
-    (e.g. with a mass added), and its standard error (of ln s).
+def frequency_scale(base: AxisFit | list[AxisFit], loaded: AxisFit | list[AxisFit]) -> tuple[float, float]:
+    """The factor ``s`` by which every resonance of an axis moved between spectrum fits of it
+    (e.g. with a mass added), and its standard error (of ln s). ``base`` and ``loaded`` may each
+    be several tests (repeats average the measurement noise); the first base fit starts the modes.
 
-    Both measured spectra are fitted together: one set of modes (frequency, damping, share) for
-    the base, the same modes at ``s·freq`` with damping ``s·damping`` for the second (a mass added at
-    unchanged stiffness and damping coefficient scales both by sqrt(m/(m+dm))), and a level, slope
-    and noise floor per spectrum. One factor fitted to both whole curves is far steadier than
-    pairing modes fitted separately, whose split between close modes the noise decides. The error
-    comes from the Jacobian and the residual scatter (both spectra's noise included)."""
+    All measured spectra are fitted together: one set of modes (frequency, damping, share) for
+    the base tests, the same modes at ``s·freq`` with damping ``s·damping`` for the loaded ones (a
+    mass added at unchanged stiffness and damping coefficient scales both by sqrt(m/(m+dm))), and a
+    level, slope and noise floor per spectrum. One factor fitted to the whole curves is far steadier
+    than pairing modes fitted separately, whose split between close modes the noise decides. The
+    error comes from the Jacobian and the residual scatter (every spectrum's noise included)."""
     from scipy.optimize import least_squares
 
-    if base.params is None or loaded.params is None:
-        raise RingtuneError("needs spectrum fits of both measurements", base.source)
+    bases = list(base) if isinstance(base, list) else [base]
+    loads = list(loaded) if isinstance(loaded, list) else [loaded]
+    if not bases or not loads or any(f.params is None for f in bases + loads):
+        raise RingtuneError("needs spectrum fits of both measurements", bases[0].source if bases else "added_mass")
     data = []
-    for fit in (base, loaded):
+    for fit in bases + loads:
         f, p = np.asarray(fit.x_measured, dtype=float), np.asarray(fit.y_measured, dtype=float)
         p = np.maximum(p, p.max() * 1e-9)
         data.append((f, np.log(p), _weight(p)))
-    n_modes = (len(base.params) - 3) // 3
+    ref = bases[0]
+    n_spec, n_base = len(data), len(bases)
 
-    def split(x):
-        modes = x[7:].reshape(n_modes, 3)
-        scaled = modes.copy()
-        scaled[:, :2] *= math.exp(x[0])
-        return np.concatenate([x[1:4], modes.ravel()]), np.concatenate([x[4:7], scaled.ravel()])
+    def dominant(fit):
+        return max(fit.modes, key=lambda m: m.share).freq
 
-    def resid(x):
-        return np.concatenate([w * (np.log(_psd_model(px, f)) - lp) for px, (f, lp, w) in zip(split(x), data)])
-
-    s0 = loaded.modes[0].freq / base.modes[0].freq if len(loaded.modes) == len(base.modes) == 1 else None
-    modes = base.params[3:].reshape(n_modes, 3)
-    lo = [math.log(0.3), -np.inf, -2.0, -np.inf, -np.inf, -2.0, -np.inf]
-    hi = [math.log(3.0), np.inf, 6.0, np.inf, np.inf, 6.0, np.inf]
-    for fn, _, _ in modes:
-        lo += [0.5 * fn, 0.005, 0.005]
-        hi += [1.5 * fn, 0.5, 3.0]
+    s_dom = dominant(loads[0]) / dominant(ref)
     best = None
-    for start in sorted({s0 or 1.0, 0.6, 0.8, 1.0, 1.25}):   # local minima one mode apart
-        x = np.concatenate([[math.log(start)], base.params[:3], base.params[:3], modes.ravel()])
-        _, px = split(x)
-        x[4] += float(np.median(data[1][1] - np.log(_psd_model(px, data[1][0]))))
-        x = np.clip(x, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
-        sol = least_squares(resid, x, bounds=(lo, hi), x_scale="jac", max_nfev=3000)
-        if best is None or sol.cost < best.cost:
-            best = sol
+    # starts: the modes of the first base fit, or of the first loaded fit brought back by 1/s (the
+    # two fits may split close modes differently); the factor from their dominant modes and a grid
+    # (the cost has local minima one mode apart)
+    for origin in (ref, loads[0]):
+        modes = origin.params[3:].reshape(-1, 3)
+        n_modes = len(modes)
+        k_modes = 1 + 3 * n_spec                        # x = [ln s, (ln C, p, ln b) per spectrum, modes]
+        lo = [math.log(0.3)] + [-np.inf, -2.0, -np.inf] * n_spec
+        hi = [math.log(3.0)] + [np.inf, 6.0, np.inf] * n_spec
+        for start in sorted({s_dom, 0.6, 0.8, 1.0, 1.25}):
+            m0 = modes.copy()
+            if origin is not ref:
+                m0[:, :2] /= start
+            lo_m = np.ravel([[0.5 * fn, PLAUSIBLE_DAMPING[0], 0.005] for fn in m0[:, 0]])
+            hi_m = np.ravel([[1.5 * fn, 0.5, 3.0] for fn in m0[:, 0]])
+            lb, ub = np.concatenate([lo, lo_m]), np.concatenate([hi, hi_m])
+
+            def split(x, n_modes=n_modes, k_modes=k_modes):
+                mm = x[k_modes:].reshape(n_modes, 3)
+                scaled = mm.copy()
+                scaled[:, :2] *= math.exp(x[0])
+                return [np.concatenate([x[1 + 3 * i:4 + 3 * i], (mm if i < n_base else scaled).ravel()])
+                        for i in range(n_spec)]
+
+            def resid(x, split=split):
+                return np.concatenate([w * (np.log(_psd_model(px, f)) - lp)
+                                       for px, (f, lp, w) in zip(split(x), data)])
+
+            x = np.concatenate([[math.log(start)], np.tile(origin.params[:3], n_spec), m0.ravel()])
+            for i, (px, (f, lp, _)) in enumerate(zip(split(x), data)):   # each spectrum's level met
+                x[1 + 3 * i] += float(np.median(lp - np.log(_psd_model(px, f))))
+            x = np.clip(x, lb + 1e-9, ub - 1e-9)
+            sol = least_squares(resid, x, bounds=(lb, ub), x_scale="jac", max_nfev=3000)
+            if best is None or sol.cost < best.cost:
+                best = sol
     # covariance of a weighted fit (the weights are not inverse variances: the log-spectrum's scatter
     # is the same in every bin): inv(JᵀWJ)·JᵀW²J·inv(JᵀWJ)·σ², σ² from the unweighted residuals
     w = np.concatenate([d[2] for d in data])

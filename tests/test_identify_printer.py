@@ -268,3 +268,21 @@ def test_the_added_mass_error_it_states_is_the_error_it_makes_on_noisy_tests():
         z.append((math.log(scale) - truth) / err)
     z = np.array(z)
     assert 0.4 < math.sqrt(np.mean(z ** 2)) < 2.0 and np.abs(z).max() < 3.5, z
+
+
+def test_repeated_added_mass_tests_are_fitted_together_and_narrow_the_error():
+    """Four noisy tests of each state: one factor fitted to all eight spectra; its stated error is
+    about half a single pair's (1/√4) and the estimate stays within it."""
+    from ringtune.envs.identify import frequency_scale
+
+    known = printer_from_dict({"name": "known", "x": {"mass": 0.6, "modes": [{"freq": 52.0, "damping": 0.06}]},
+                               "y": {"mass": 1.2, "modes": [{"freq": 38.0, "damping": 0.08}]}})
+    loaded = replace(known, print_mass=1.2)
+    truth = math.log(math.sqrt(1.2 / 2.4))
+    rng = np.random.default_rng(11)
+    base = [identify_psd(*resonance_test(known, "y", rng=rng), "y") for _ in range(4)]
+    load = [identify_psd(*resonance_test(loaded, "y", rng=rng), "y") for _ in range(4)]
+    _, one = frequency_scale(base[0], load[0])
+    scale, four = frequency_scale(base, load)
+    assert 0.35 * one < four < 0.7 * one
+    assert abs(math.log(scale) - truth) < 3 * four

@@ -5,7 +5,8 @@ masses, motors, limits and kinematics from what the user gives — written as a 
     fits: list per measurement of {axis, kind ("psd" | "decay"), source, method, r2, notes, warnings,
         modes: [{freq (Hz), damping, share, peak_freq (Hz, measured peak), fitted_peak (Hz)}]}
     loaded_fits: the same for the --added-mass files ([] without)
-    added_mass: {axis: {axis, added_mass_kg, f0_hz, f1_hz, mass_kg, stiffness_n_m}}
+    added_mass: {axis: {axis, added_mass_kg, f0_hz, f1_hz, mass_kg, mass_error_kg (one standard error),
+        stiffness_n_m}}
     klipper: Klipper's recommendation from the files ([measurement.klipper]), or {}
     defaults: what is still a default, one sentence each (also on stderr and in the TOML)
     warnings: doubts about the files and fits, one sentence each (also on stderr)
@@ -40,7 +41,8 @@ The rest of the printer:
   --klipper-config printer.cfg | --marlin M503.txt | --rrf config.g: kinematics, limits, motors
       (run current, rotation distance, microsteps, motor names) and the shaping the printer runs now.
   --motor NAME[:RUN_CURRENT[:VOLTAGE]] (every axis) or --motor X=NAME...,Y=NAME...: a motor the
-      configuration does not name (e.g. LDO-42STH48-2504AC:1.2:24).
+      configuration does not name (e.g. LDO-42STH48-2504AC:1.2:24); on a CoreXY/CoreXZ X= is
+      motor A (stepper_x) and Y= motor B (stepper_y). See `ringtune motor NAME`.
   --kinematics cartesian|corexy|corexz: when no configuration gives it.
   --mass X=KG,Y=KG: weighed moving masses (X: toolhead and carriage; Y: the bed on a bed slinger,
       the gantry with the toolhead on a CoreXY).
@@ -250,18 +252,20 @@ def run(args, out) -> int:
         loaded = read_measurement(loaded_files, **kw)
         loaded_fits = loaded.fits
         warnings += loaded.warnings
-        for ax, fit in loaded.by_axis().items():
+        for ax in loaded.by_axis():
             if ax not in fits:
                 raise RingtuneError(f"the loaded test measured {ax.upper()} but the base files did not",
                                     "--added-mass")
             mass = dm.get(ax, dm.get("all"))
             if mass is None:
                 raise RingtuneError(f"no added mass given for {ax.upper()}", "--added-mass")
-            added[ax] = a = AddedMass.from_fits(fits[ax], fit, mass)
+            repeats = [f for f in meas.fits if f.axis == ax and f is not fits[ax]]     # best fit first
+            added[ax] = a = AddedMass.from_fits([fits[ax], *repeats], [f for f in loaded.fits if f.axis == ax],
+                                                mass)
             if not a.mass_error <= 0.05 * a.mass:
                 warnings.append(f"{ax.upper()}: the added-mass estimate {a.mass:.3f} kg is uncertain by "
                                 f"±{a.mass_error:.3f} kg (one standard error from the spectra's scatter): "
-                                "repeat both tests, or add more mass (the error falls as the frequencies "
+                                "repeat both tests and give every file (repeats are fitted together), or add more mass (the error falls as the frequencies "
                                 "move further apart)")
         unused = [ax.upper() for ax in dm if ax != "all" and ax not in added]
         if unused:
