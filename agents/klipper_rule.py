@@ -16,7 +16,7 @@ Steps, per shaper in ``AUTOTUNE_SHAPERS`` order:
 1. PSD normalisation (unless already normalised): ``psd /= f + 0.1``; low-frequency noise
    suppression — ``"exp"`` (psd × ``exp(1 − (10/(f+0.1))²)`` below 10 Hz; v0.13.0 and HEAD) or
    ``"zero"`` (psd = 0 below 5 Hz; the 2021–2023 releases — pass ``lowfreq="zero"``). Both give the
-   recorded picks on the real files in ``shared/data/accel/klipper_psd``.
+   recorded picks on the real files in ``tests/data/accel/klipper_psd``.
 2. Test frequencies ``np.arange(min_freq, 150, 0.2)`` scanned from high to low; each shaper built at
    damping 0.1.
 3. Remaining vibration (fraction 0..1), pessimised over test damping ratios 0.075, 0.1, 0.15:
@@ -32,7 +32,10 @@ Steps, per shaper in ``AUTOTUNE_SHAPERS`` order:
    then the lowest-vibration frequency scanned so far (Klipper's early ``return best_res``).
 
 Entry point: :func:`recommend_klipper`. Amplitudes and times come from
-``ringtune.shaping.shapers.get_shaper`` (or an injected ``shaper_factory``).
+``ringtune.shaping.shapers.get_shaper`` (or an injected ``shaper_factory``); the shaper math
+(residual vibration, smoothing, max_accel) from :mod:`ringtune.shaping.analysis` and the PSD
+normalisation from :func:`ringtune.hardware.psd.normalize_to_frequencies`: this module holds only
+Klipper's rule.
 """
 
 from __future__ import annotations

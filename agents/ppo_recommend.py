@@ -20,14 +20,12 @@ def model_from_spectra(spectra: dict[str, tuple[np.ndarray, np.ndarray]], base=N
     from ringtune.envs.evaluate import resolve_printer
     from ringtune.envs.identify import identify_psd
     from ringtune.envs.printer import printer_from_dict
-    from ringtune.hardware.psd import PSD
 
     d = resolve_printer(base).to_dict()
     fitted = []
     for ax, (freqs, psd) in spectra.items():
         f, p = np.asarray(freqs, float), np.asarray(psd, float)
-        cols = {"psd_x": p if ax == "x" else None, "psd_y": p if ax == "y" else None, "psd_z": None}
-        fit = identify_psd(PSD(f, psd_sum=p, name=ax, source=f"measured {ax}", **cols), ax)
+        fit = identify_psd(f, p, ax, f"measured {ax}")
         modes = sorted(fit.modes, key=lambda m: -m.share)
         d[ax]["modes"] = [{"freq": m.freq, "damping": min(max(m.damping, 0.005), 0.95), "share": m.share}
                           for m in modes]

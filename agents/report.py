@@ -3,10 +3,14 @@
 Files (all in ``out_dir``):
 
 - ``README.txt``   — what each file is and which to open first;
-- ``summary.txt``  — the chosen configuration, how it compares with Klipper's rule and with no
-  shaping (by how much, in s and mm), and the Pareto front as a table;
-- ``pareto.png``   — print time (s) against quality (mm): every trial, the front, the chosen point
-  and the baselines marked;
+- ``summary.txt``  — the chosen configuration and why, how it compares with each baseline (Klipper's
+  rule, what the printer runs now, no shaping: by how much, in s and µm, and per figure better /
+  same / worse at the resolution of :class:`ringtune.agents.pareto.Resolution`), what stops the
+  acceleration, the job's own accelerations, and the Pareto front as a table;
+- ``pareto.png``   — print time (s) against overshoot and against path error (mm): every trial
+  (ruled-out ones too; off-scale ones as counted arrows), the front, the chosen point, the
+  baselines (marked when they break a bound) and the point dominating a baseline
+  (:mod:`ringtune.agents.pareto_plot`);
 - ``best.json``    — the chosen TuneConfig (for ``ringtune export``/``push``/``simulate``);
 - ``apply.txt``    — the exact firmware lines that apply it (``hardware.dialects``);
 - ``front.csv``, ``trials.csv`` — the front and every complete trial, one row each.

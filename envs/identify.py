@@ -1,4 +1,5 @@
-"""Identify vibration modes from accelerometer data and write a printer description.
+"""Vibration modes fitted to accelerometer data given as arrays (reading the files is
+:mod:`ringtune.agents.identification`; the printer description, :mod:`ringtune.agents.identify_printer`).
 
 Two kinds of measurement:
 
@@ -13,8 +14,11 @@ Two kinds of measurement:
   ``Σ Aₖ·exp(−ζₖωₖt)·cos(ωₖ√(1−ζₖ²)t + φₖ) + c`` fitted by variable projection (amplitudes and phases
   linear, frequency and damping non-linear), started from the spectrum's peaks.
 
-Shares are the modes' parts of the nozzle response, normalised to sum to 1 per axis. The printer
-TOML follows ``shared/DESIGN.md``: ``[x] modes = [{ freq = …, damping = …, share = … }]``.
+Shares are the modes' parts of the nozzle response, normalised to sum to 1 per axis. A spectrum fit
+warns when the data stop short of the band, a mode sits at its edge, a damping ratio is implausible
+or the fit is poor. The added-mass method (:func:`frequency_scale`, :func:`added_mass`): a known
+mass added to what moves lowers every mode by sqrt(m/(m+dm)), which gives the moving mass and the
+stiffness.
 """
 
 from __future__ import annotations
@@ -54,12 +58,14 @@ class AxisFit:
     r2: float                    # coefficient of determination (log PSD for "psd")
     method: str = "fit"
     notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)   # what makes the fit doubtful
     x_measured: np.ndarray | None = None   # the measured bins themselves (psd), for plots
     y_measured: np.ndarray | None = None
+    params: np.ndarray | None = None       # psd: the fitted (ln C, p, ln b, (freq, damping, raw share)…)
 
     def to_dict(self) -> dict:
         return {"axis": self.axis, "kind": self.kind, "source": self.source, "method": self.method,
-                "r2": self.r2, "notes": self.notes,
+                "r2": self.r2, "notes": self.notes, "warnings": self.warnings,
                 "modes": [{"freq": m.freq, "damping": m.damping, "share": m.share, "peak_freq": m.peak_freq,
                            "fitted_peak": m.fitted_peak} for m in self.modes]}
 
@@ -100,18 +106,32 @@ def find_peaks_psd(f: np.ndarray, p: np.ndarray, max_peaks: int = 3, rel: float 
     return [int(idx[k]) for k in order[:max_peaks]]
 
 
-def identify_psd(psd, axis: str | None = None, max_modes: int = 3, fmin: float = 5.0,
-                 fmax: float = 135.0, damping: str = "fit") -> AxisFit:
-    """Fit modes to a :class:`ringtune.hardware.accel.PSD` (one axis column, or the sum)."""
+def _psd_model(x: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """The sweep PSD model ``C·(f/50)^p·|T(f)|² + b`` of parameters ``x = (ln C, p, ln b, (freq, damping,
+    share)…)``."""
+    m = np.asarray(x[3:]).reshape(-1, 3)
+    lc, lb = np.clip(x[0], -700.0, 700.0), np.clip(x[2], -700.0, 700.0)    # trial steps may be wild
+    return np.exp(lc) * (f / 50.0) ** x[1] * np.abs(transmissibility(f, [tuple(r) for r in m])) ** 2 + np.exp(lb)
+
+
+def _weight(p: np.ndarray) -> np.ndarray:
+    """Log-space residual weights, heavier at the resonances (the peaks are what a shaper must hit)."""
+    return 1.0 + 3.0 * p / p.max()
+
+
+def identify_psd(freqs: np.ndarray, psd: np.ndarray, axis: str = "sum", source: str = "psd",
+                 max_modes: int = 3, fmin: float = 5.0, fmax: float = 135.0,
+                 damping: str = "fit") -> AxisFit:
+    """Fit modes to one resonance spectrum: ``freqs`` (Hz) and ``psd`` ((mm/s²)²/Hz) of the axis
+    ``axis`` ("x", "y" or "sum"), measured in ``source`` (named in errors and notes)."""
     from scipy.optimize import least_squares
 
     if damping not in ("fit", "half-power"):
-        raise RingtuneError("must be 'fit' or 'half-power'", "--damping-method")
-    axis = axis or (psd.name if psd.name in ("x", "y", "z") else "sum")
-    col = psd.axis(axis) if axis in ("x", "y", "z") else psd.psd_sum
-    band = (psd.freqs >= fmin) & (psd.freqs <= fmax)
-    f, p = psd.freqs[band], np.asarray(col[band], dtype=float)
-    where = psd.source or "psd"
+        raise RingtuneError("must be 'fit' or 'half-power'", "damping")
+    freqs, col = np.asarray(freqs, dtype=float), np.asarray(psd, dtype=float)
+    band = (freqs >= fmin) & (freqs <= fmax)
+    f, p = freqs[band], col[band]
+    where = source or "psd"
     if len(f) < 8 or not np.all(np.isfinite(p)) or p.max() <= 0:
         raise RingtuneError(f"too few usable bins between {fmin:g} and {fmax:g} Hz", where)
     p = np.maximum(p, p.max() * 1e-9)
@@ -132,11 +152,9 @@ def identify_psd(psd, axis: str | None = None, max_modes: int = 3, fmin: float =
         return lc, pw, lb, [(m[k, 0], m[k, 1], m[k, 2]) for k in range(n)]
 
     def model(x, ff):
-        lc, pw, lb, modes = unpack(x)
-        return np.exp(lc) * (ff / 50.0) ** pw * np.abs(transmissibility(ff, modes)) ** 2 + np.exp(lb)
+        return _psd_model(x, ff)
 
-    # log-space residual, weighted towards the resonances (the peaks are what a shaper must hit)
-    weight = 1.0 + 3.0 * p / p.max()
+    weight = _weight(p)
 
     def resid(x):
         return weight * (np.log(model(x, f)) - logp)
@@ -168,10 +186,42 @@ def identify_psd(psd, axis: str | None = None, max_modes: int = 3, fmin: float =
         near = np.abs(fine - m.freq) <= 0.15 * m.freq
         m.fitted_peak = float(fine[near][np.argmax(curve[near])]) if near.any() else None
     fit = AxisFit(axis, "psd", where, out, fine, np.interp(fine, f, p), curve, r2, damping,
-                  x_measured=f, y_measured=p)
+                  x_measured=f, y_measured=p, params=np.asarray(sol.x, dtype=float))
     if damping == "half-power" and any(h is None for h in hp):
         fit.notes.append("a peak had no half-power points in the band; its damping comes from the fit")
+    fit.warnings += psd_fit_warnings(fit, freqs, fmin, fmax, df)
     return fit
+
+
+#: below this r² a fit is reported as poor
+POOR_R2 = 0.8
+#: damping ratios outside this range are implausible for a printer's belt and frame modes
+PLAUSIBLE_DAMPING = (0.02, 0.3)
+
+
+def psd_fit_warnings(fit: AxisFit, freqs: np.ndarray, fmin: float, fmax: float, df: float) -> list[str]:
+    """What makes a spectrum fit doubtful: data that stop short of the band asked for (``fmin`` to
+    ``fmax`` Hz, by default Klipper's sweep), a mode at the edge of the data (seen from one side
+    only), an implausible damping ratio, or a poor fit (r² < :data:`POOR_R2`)."""
+    out = []
+    lo, hi = float(np.min(freqs)), float(np.max(freqs))
+    if hi < fmax - 2 * df:
+        out.append(f"the data end at {hi:.1f} Hz, short of the {fmax:g} Hz the fit covers (Klipper's "
+                   "sweep goes to 135 Hz): modes above are not seen")
+    if lo > fmin + 2 * df:
+        out.append(f"the data start at {lo:.1f} Hz, above the {fmin:g} Hz the fit covers")
+    f_lo, f_hi = max(lo, fmin), min(hi, fmax)
+    for m in fit.modes:
+        if m.freq > f_hi - 3 * df or m.freq < f_lo + 3 * df:
+            out.append(f"the mode at {m.freq:.1f} Hz sits at the edge of the data ({f_lo:.1f}-{f_hi:.1f} "
+                       "Hz): its frequency and damping are extrapolated from one side of the peak")
+        if not PLAUSIBLE_DAMPING[0] <= m.damping <= PLAUSIBLE_DAMPING[1]:
+            out.append(f"damping {m.damping:.3f} of the mode at {m.freq:.1f} Hz is outside what printers "
+                       f"show ({PLAUSIBLE_DAMPING[0]:g}-{PLAUSIBLE_DAMPING[1]:g}): check the measurement")
+    if fit.r2 < POOR_R2:
+        out.append(f"poor fit: the modes explain {100 * fit.r2:.0f} % of the log spectrum "
+                   f"(r² {fit.r2:.3f} < {POOR_R2:g})")
+    return out
 
 
 # -- free decay -------------------------------------------------------------------------------------
@@ -186,24 +236,26 @@ def _decay_basis(t: np.ndarray, params: np.ndarray) -> np.ndarray:
     return np.stack(cols, axis=1)
 
 
-def identify_decay(raw, axis: str, max_modes: int = 2, fmin: float = 5.0, fmax: float = 150.0,
+def identify_decay(t: np.ndarray, accel: np.ndarray, axis: str, source: str = "capture",
+                   rate: float | None = None, max_modes: int = 2, fmin: float = 5.0, fmax: float = 150.0,
                    start: float | None = None) -> AxisFit:
-    """Fit damped sinusoids to one axis of a :class:`RawAccel` capture (mm/s²).
+    """Fit damped sinusoids to one axis of a free-decay capture: times ``t`` (s), acceleration
+    ``accel`` (mm/s²), sample ``rate`` (Hz; default from ``t``), measured in ``source``.
 
     The fit starts at ``start`` s, or by default at the largest acceleration (the end of the move's
     deceleration, where free ringing begins)."""
     from scipy.optimize import least_squares
     from scipy.signal import find_peaks
 
-    a = np.asarray(raw.axis(axis), dtype=float)
-    t = np.asarray(raw.t, dtype=float) - raw.t[0]
-    rate = raw.rate or (len(t) - 1) / t[-1]
+    a = np.asarray(accel, dtype=float)
+    t = np.asarray(t, dtype=float) - t[0]
+    rate = rate or (len(t) - 1) / t[-1]
     fmax = min(fmax, 0.4 * rate)
     a = a - np.median(a)
     i0 = int(np.searchsorted(t, start)) if start is not None else int(np.argmax(np.abs(a[: len(a) // 2])))
     tt, yy = t[i0:] - t[i0], a[i0:]
     if len(tt) < 50:
-        raise RingtuneError(f"only {len(tt)} samples after the start of the ringing", raw.source or None)
+        raise RingtuneError(f"only {len(tt)} samples after the start of the ringing", source or None)
     nfft = 1 << (len(yy) * 8 - 1).bit_length()
     spec = np.abs(np.fft.rfft((yy - yy.mean()) * np.hanning(len(yy)), nfft))
     fr = np.fft.rfftfreq(nfft, 1 / rate)
@@ -233,98 +285,15 @@ def identify_decay(raw, axis: str, max_modes: int = 2, fmin: float = 5.0, fmax: 
     tot = sum(disp) or 1.0
     for m, d in zip(modes, disp):
         m.share = float(d / tot)
-    fit = AxisFit(axis, "decay", raw.source, modes, tt, yy, fitted, r2, "damped-sinusoid")
+    fit = AxisFit(axis, "decay", source, modes, tt, yy, fitted, r2, "damped-sinusoid")
     if r2 < 0.5:
-        fit.notes.append(f"the damped sinusoids explain only {100 * r2:.0f} % of the signal: the capture is "
+        fit.warnings.append(f"the damped sinusoids explain only {100 * r2:.0f} % of the signal: the capture is "
                          "mostly noise or steady vibration, not clean ringing")
     for m in modes:
         if m.damping < 0.003:
-            fit.notes.append(f"{m.freq:.1f} Hz hardly decays: a steady vibration (fan, motor) rather "
+            fit.warnings.append(f"{m.freq:.1f} Hz hardly decays: a steady vibration (fan, motor) rather "
                              "than ringing")
     return fit
-
-
-# -- files -> fits -> printer TOML -----------------------------------------------------------------
-
-def axis_of_file(path: str | Path) -> str | None:
-    """The axis a capture measured, from the file name (Klipper ``resonances_x_…``, RRF ``…-X54-161-…``)."""
-    import re
-
-    name = Path(path).name
-    m = re.match(r"(?:resonances|calibration_data|raw_data)_([xyz])_", name, re.I)
-    if m:
-        return m.group(1).lower()
-    m = re.search(r"-([XYZ])-?\d+(?:\.\d+)?-\d", name)
-    return m.group(1).lower() if m else None
-
-
-def identify_files(paths: list[str | Path], axis: str | None = None, max_modes: int = 3,
-                   fmin: float = 5.0, fmax: float = 135.0, damping: str = "fit") -> list[AxisFit]:
-    """Read and fit every file: PSD files by spectrum fit, raw captures by damped sinusoids (or by
-    Klipper's PSD when long enough and ``axis`` data is a sweep: raw Klipper files)."""
-    from ringtune.hardware.accel import PSD, RawAccel, klipper_psd, read_accel
-
-    fits = []
-    for path in paths:
-        data = read_accel(path)
-        ax = axis or axis_of_file(path)
-        if isinstance(data, RawAccel):
-            if data.fmt == "m956":
-                if ax is None:
-                    raise RingtuneError("cannot tell which axis this capture measured; give --axis", str(path))
-                fits.append(identify_decay(data, ax, max_modes=min(max_modes, 2), fmin=fmin))
-                continue
-            data = klipper_psd(data)
-            data.name = ax or ""
-        for psd in (data if isinstance(data, list) else [data]):
-            assert isinstance(psd, PSD)
-            fits.append(identify_psd(psd, ax if ax in ("x", "y") else None, max_modes, fmin, fmax, damping))
-    return fits
-
-
-def _round(v: float, digits: int) -> float:
-    return float(f"{v:.{digits}g}")
-
-
-def printer_toml(fits: list[AxisFit], name: str = "identified", kinematics: str = "cartesian",
-                 base: str | None = None) -> str:
-    """Printer description TOML (DESIGN.md format) with the fitted modes of the x and y axes.
-
-    An axis with no fit takes its modes from ``base`` (a printer TOML or embedded name; default the
-    embedded Ender-3-class printer). With several fits for one axis, the best (highest r²) wins."""
-    by_axis: dict[str, AxisFit] = {}
-    for fit in fits:
-        if fit.axis in ("x", "y") and (fit.axis not in by_axis or fit.r2 > by_axis[fit.axis].r2):
-            by_axis[fit.axis] = fit
-    lines = [f'name = "{name}"', f'kinematics = "{kinematics}"', ""]
-    for ax in ("x", "y"):
-        lines.append(f"[{ax}]")
-        if ax in by_axis:
-            fit = by_axis[ax]
-            lines.append(f"# fitted to {Path(fit.source).name} ({fit.kind}, {fit.method}, r² = {fit.r2:.3f})")
-            modes = sorted(fit.modes, key=lambda m: -m.share)
-            shares = [_round(m.share, 3) for m in modes]
-            items = []
-            for k, m in enumerate(modes):
-                item = f"freq = {_round(m.freq, 4)}, damping = {_round(min(max(m.damping, 0.0), 0.95), 3)}"
-                if k < len(modes) - 1:           # the last takes what is left, so shares sum to 1
-                    item += f", share = {shares[k]}"
-                items.append("{ " + item + " }")
-            lines.append("modes = [" + ", ".join(items) + "]")
-        else:
-            from ringtune.envs.printer import load_printer
-
-            p = load_printer(base)
-            lines.append(f"# not measured: modes of {p.name}")
-            items = ["{ " + f"freq = {_round(m.freq, 4)}, damping = {_round(m.damping, 3)}, "
-                     f"share = {_round(m.share, 3)}" + " }" for m in p.axis(ax).modes]
-            if len(items) > 1:
-                items[-1] = items[-1].rsplit(", share", 1)[0] + " }"
-            else:
-                items = [items[0].rsplit(", share", 1)[0] + " }"]
-            lines.append("modes = [" + ", ".join(items) + "]")
-        lines.append("")
-    return "\n".join(lines)
 
 
 def plot_fits(fits: list[AxisFit], path: str | Path) -> None:
@@ -359,3 +328,80 @@ def plot_fits(fits: list[AxisFit], path: str | Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+# -- added mass -------------------------------------------------------------------------------------
+
+def frequency_scale(base: AxisFit, loaded: AxisFit) -> tuple[float, float]:
+    """The factor ``s`` by which every resonance of an axis moved between two spectrum fits of it
+    (e.g. with a mass added), and its standard error (of ln s).
+
+    Both measured spectra are fitted together: one set of modes (frequency, damping, share) for
+    the base, the same modes at ``s·freq`` with damping ``s·damping`` for the second (a mass added at
+    unchanged stiffness and damping coefficient scales both by sqrt(m/(m+dm))), and a level, slope
+    and noise floor per spectrum. One factor fitted to both whole curves is far steadier than
+    pairing modes fitted separately, whose split between close modes the noise decides. The error
+    comes from the Jacobian and the residual scatter (both spectra's noise included)."""
+    from scipy.optimize import least_squares
+
+    if base.params is None or loaded.params is None:
+        raise RingtuneError("needs spectrum fits of both measurements", base.source)
+    data = []
+    for fit in (base, loaded):
+        f, p = np.asarray(fit.x_measured, dtype=float), np.asarray(fit.y_measured, dtype=float)
+        p = np.maximum(p, p.max() * 1e-9)
+        data.append((f, np.log(p), _weight(p)))
+    n_modes = (len(base.params) - 3) // 3
+
+    def split(x):
+        modes = x[7:].reshape(n_modes, 3)
+        scaled = modes.copy()
+        scaled[:, :2] *= math.exp(x[0])
+        return np.concatenate([x[1:4], modes.ravel()]), np.concatenate([x[4:7], scaled.ravel()])
+
+    def resid(x):
+        return np.concatenate([w * (np.log(_psd_model(px, f)) - lp) for px, (f, lp, w) in zip(split(x), data)])
+
+    s0 = loaded.modes[0].freq / base.modes[0].freq if len(loaded.modes) == len(base.modes) == 1 else None
+    modes = base.params[3:].reshape(n_modes, 3)
+    lo = [math.log(0.3), -np.inf, -2.0, -np.inf, -np.inf, -2.0, -np.inf]
+    hi = [math.log(3.0), np.inf, 6.0, np.inf, np.inf, 6.0, np.inf]
+    for fn, _, _ in modes:
+        lo += [0.5 * fn, 0.005, 0.005]
+        hi += [1.5 * fn, 0.5, 3.0]
+    best = None
+    for start in sorted({s0 or 1.0, 0.6, 0.8, 1.0, 1.25}):   # local minima one mode apart
+        x = np.concatenate([[math.log(start)], base.params[:3], base.params[:3], modes.ravel()])
+        _, px = split(x)
+        x[4] += float(np.median(data[1][1] - np.log(_psd_model(px, data[1][0]))))
+        x = np.clip(x, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
+        sol = least_squares(resid, x, bounds=(lo, hi), x_scale="jac", max_nfev=3000)
+        if best is None or sol.cost < best.cost:
+            best = sol
+    # covariance of a weighted fit (the weights are not inverse variances: the log-spectrum's scatter
+    # is the same in every bin): inv(JᵀWJ)·JᵀW²J·inv(JᵀWJ)·σ², σ² from the unweighted residuals
+    w = np.concatenate([d[2] for d in data])
+    n, k = best.fun.size, best.x.size
+    try:
+        jw = best.jac                                   # = W·J
+        bread = np.linalg.pinv(jw.T @ jw)
+        meat = (jw * w[:, None]).T @ (jw * w[:, None])
+        sigma2 = float(np.sum((best.fun / w) ** 2)) / max(n - k, 1)
+        err = float(math.sqrt(max((bread @ meat @ bread)[0, 0] * sigma2, 0.0)))
+    except np.linalg.LinAlgError:
+        err = float("nan")
+    return float(math.exp(best.x[0])), err
+
+
+def added_mass(f0: float, f1: float, dm: float) -> tuple[float, float]:
+    """Moving mass (kg) and stiffness (N/m) of a mode from the added-mass method: the same spring
+    carries the moving mass ``m`` at ``f0`` (Hz) and ``m + dm`` (``dm`` kg fixed to it) at ``f1``, so
+    ``(f0/f1)² = (m + dm)/m``: ``m = dm / ((f0/f1)² − 1)`` and ``k = m·(2π f0)²``."""
+    if not (f0 > 0 and f1 > 0 and dm > 0):
+        raise RingtuneError(f"need f0, f1 > 0 Hz and an added mass > 0 kg (got {f0}, {f1}, {dm})", "added_mass")
+    ratio = (f0 / f1) ** 2 - 1.0
+    if ratio <= 0:
+        raise RingtuneError(f"the loaded frequency {f1:.2f} Hz is not below the unloaded {f0:.2f} Hz: the "
+                            "added mass did not move with the axis, or the two tests differ", "added_mass")
+    m = dm / ratio
+    return m, m * (2.0 * math.pi * f0) ** 2

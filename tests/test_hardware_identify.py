@@ -8,14 +8,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ringtune.envs.identify import (
-    identify_decay, identify_files, identify_psd, plot_fits, printer_toml, transmissibility,
-)
-from ringtune.hardware.accel import RawAccel
-from ringtune.hardware.psd import PSD
+from ringtune.agents.identification import read_measurement
+from ringtune.agents.identify_printer import build_description, description_toml
+from ringtune.envs.identify import identify_decay, identify_psd, plot_fits, transmissibility
 
 ENDER3 = ("klipper_psd/bassco_ender3/resonances_x_20210821_152037.csv",
           "klipper_psd/bassco_ender3/resonances_y_20210630_230110.csv")
+
+
+def _fits(paths, **kw):
+    return read_measurement(paths, **kw).fits
+
+
+def _toml(fits, **kw):
+    return description_toml(build_description({f.axis: f for f in fits}, **kw))
 
 
 def _local_maxima(f, p, rel, merge_hz=4.0):
@@ -42,7 +48,7 @@ def test_recovers_known_modes_from_a_synthetic_sweep_psd():
     true = [(42.0, 0.06, 0.7), (75.0, 0.10, 0.3)]
     p = 3e3 * (f / 50) ** 2 * np.abs(transmissibility(f, true)) ** 2 + 50.0
     p *= np.exp(rng.normal(0, 0.05, f.size))
-    fit = identify_psd(PSD(f, p, p * 0.1, p * 0.1, p * 1.2, name="x"))
+    fit = identify_psd(f, p, "x")
     got = sorted((m.freq, m.damping, m.share) for m in fit.modes)
     assert len(got) == 2
     for (fg, zg, sg), (ft, zt, st) in zip(got, true):
@@ -55,7 +61,7 @@ def test_recovers_known_modes_from_a_synthetic_sweep_psd():
 def test_half_power_damping_on_a_light_single_mode():
     f = np.arange(0, 200, 0.25)
     p = (f / 50) ** 2 * np.abs(transmissibility(f, [(50.0, 0.03, 1.0)])) ** 2
-    fit = identify_psd(PSD(f, p, p, p, 3 * p, name="x"), damping="half-power", max_modes=1)
+    fit = identify_psd(f, p, "x", damping="half-power", max_modes=1)
     assert fit.modes[0].damping == pytest.approx(0.03, rel=0.1)
     assert fit.modes[0].freq == pytest.approx(50.0, abs=0.2)
 
@@ -70,16 +76,15 @@ def test_damped_sinusoid_fit_recovers_a_free_decay():
     w = 2 * math.pi * 59.0
     a[kick:] = 3000 * np.exp(-0.04 * w * tt) * np.cos(w * math.sqrt(1 - 0.04 ** 2) * tt)
     a += rng.normal(0, 20, t.size) + 9806.65 * 0.02
-    raw = RawAccel(t, a, None, None, "synthetic", rate, 0, "m956")
-    fit = identify_decay(raw, "x", max_modes=1)
+    fit = identify_decay(t, a, "x", "synthetic", rate, max_modes=1)
     assert fit.modes[0].freq == pytest.approx(59.0, rel=0.005)
     assert fit.modes[0].damping == pytest.approx(0.04, rel=0.1)
-    assert fit.r2 > 0.9 and not fit.notes
+    assert fit.r2 > 0.9 and not fit.notes and not fit.warnings
 
 
 def test_ender3_dominant_frequencies_within_1hz_of_the_psd_peaks(data_dir, tmp_path):
     paths = [data_dir / "accel" / p for p in ENDER3]
-    fits = identify_files(paths)
+    fits = _fits(paths)
     assert [f.axis for f in fits] == ["x", "y"]
     for fit, path in zip(fits, paths):
         psd = __import__("ringtune.hardware.accel", fromlist=["x"]).read_resonances_csv(path)
@@ -114,7 +119,7 @@ def test_plot_shows_the_files_psd_against_the_fitted_spectrum(data_dir, tmp_path
     monkeypatch.setattr(matplotlib.figure.Figure, "savefig",
                         lambda fig, *a, **k: (drawn.append(fig), save(fig, *a, **k))[1])
     paths = [data_dir / "accel" / p for p in ENDER3]
-    fits = identify_files(paths)
+    fits = _fits(paths)
     plot_fits(fits, tmp_path / "fit.png")
     assert len(drawn) == 1 and (tmp_path / "fit.png").read_bytes()[:4] == b"\x89PNG"
     panels = drawn[0].axes
@@ -140,8 +145,8 @@ def test_plot_shows_the_files_psd_against_the_fitted_spectrum(data_dir, tmp_path
 def test_printer_toml_round_trips_through_the_loader(data_dir, tmp_path):
     from ringtune.envs.printer import load_printer
 
-    fits = identify_files([data_dir / "accel" / p for p in ENDER3])
-    text = printer_toml(fits, name="bassco-ender3")
+    fits = _fits([data_dir / "accel" / p for p in ENDER3])
+    text = _toml(fits, name="bassco-ender3")
     path = tmp_path / "p.toml"
     path.write_text(text)
     printer = load_printer(path)
@@ -157,9 +162,9 @@ def test_printer_toml_round_trips_through_the_loader(data_dir, tmp_path):
 def test_one_axis_takes_the_other_from_the_base_printer(data_dir, tmp_path):
     from ringtune.envs.printer import load_printer
 
-    fits = identify_files([data_dir / "accel" / ENDER3[0]])
+    fits = _fits([data_dir / "accel" / ENDER3[0]])
     path = tmp_path / "p.toml"
-    path.write_text(printer_toml(fits))
+    path.write_text(_toml(fits))
     p = load_printer(path)
     base = load_printer(None)
     assert [m.freq for m in p.y.modes] == pytest.approx([m.freq for m in base.y.modes], rel=1e-3)
@@ -167,13 +172,13 @@ def test_one_axis_takes_the_other_from_the_base_printer(data_dir, tmp_path):
 
 def test_real_m956_captures_are_fitted_and_flagged(data_dir):
     paths = sorted((data_dir / "accel" / "rrf_m956").rglob("*.csv"))
-    fits = identify_files(paths)
+    fits = _fits(paths)
     assert [f.axis for f in fits] == ["x", "y"] and all(f.kind == "decay" for f in fits)
     for fit in fits:
         assert all(5 <= m.freq <= 150 and 0 < m.damping <= 0.6 for m in fit.modes)
         assert sum(m.share for m in fit.modes) == pytest.approx(1.0)
     # these captures hold little clean ringing: the fit says so rather than pretending
-    assert fits[0].r2 < 0.5 and any("noise" in n for n in fits[0].notes)
+    assert fits[0].r2 < 0.5 and any("noise" in n for n in fits[0].warnings)
 
 
 def test_raw_klipper_sweep_capture_end_to_end(tmp_path):
@@ -195,6 +200,6 @@ def test_raw_klipper_sweep_capture_end_to_end(tmp_path):
         noise = rng.normal(0, 5, (t.size, 3))
         np.savetxt(fh, np.column_stack([t, meas + noise[:, 0], noise[:, 1], 9806.65 + noise[:, 2]]),
                    fmt="%.6f", delimiter=",")
-    fits = identify_files([path], fmin=22, fmax=78, max_modes=1)
+    fits = _fits([path], fmin=22, fmax=78, max_modes=1)
     assert fits[0].axis == "x" and fits[0].kind == "psd"
     assert fits[0].modes[0].freq == pytest.approx(50.0, abs=1.0)

@@ -39,9 +39,6 @@ MAY_IMPORT = {"shaping": set(), "hardware": {"shaping"}, "envs": {"shaping"},
 
 #: (importing module, imported module, name or "*") -> why it is still allowed
 KNOWN_EXCEPTIONS = {
-    ("ringtune.envs.identify", "ringtune.hardware.accel", "*"):
-        "issue 17: envs/identify.py reads accelerometer files through hardware; helper `identify` "
-        "moves it (drop this entry when that lands)",
 }
 
 

@@ -92,15 +92,36 @@ def run(args: argparse.Namespace, out) -> int:
         psds, sources = _load_accel(args.accel, args.axes, out)
         fits, fields = klipper_baseline.recommend_axes(psds, args.firmware, args.klipper_version, args.scv, **kw)
     else:
+        from ringtune.agents.klipper_rule import DEFAULT_DAMPING_RATIO
         from ringtune.envs.evaluate import resolve_printer
 
         printer = resolve_printer(None if args.printer in (None, "default") else args.printer)
-        try:
-            fits, fields = klipper_baseline.klipper_rule_on_simulated_test(printer, args.firmware, args.klipper_version,
-                                                                           args.seed, **kw)
-        except ImportError as exc:
-            raise RingtuneError(f"the simulated resonance test is not available ({exc})", "--printer") from None
-        sources = {ax: [f"printer:{getattr(printer, 'name', 'default')}"] for ax in ("x", "y")}
+        recorded = _recorded(printer, args, out)
+        kept = (printer.measurement or {}).get("klipper", {})
+        if recorded is not None:        # identify recorded the files: their recommendation, not the model's
+            psds, sources = _load_accel([p for p, _ in recorded], ",".join(ax for _, ax in recorded), out)
+            scv = float(kept.get("scv", args.scv))
+            fits, fields = klipper_baseline.recommend_axes(psds, args.firmware, args.klipper_version, scv, **kw)
+        elif kept and args.firmware == "klipper" and args.klipper_version == kept.get("version") \
+                and args.max_smoothing is None:     # the files moved: what identify recorded from them
+            out.note(f"note: the recommendation {args.printer} recorded from its files ([measurement.klipper]); "
+                     "without the files there is no per-shaper table")
+            fits = {}
+            fields = {"firmware": "klipper", "accel": kept.get("max_accel")}
+            for ax in ("x", "y"):
+                fields.update({f"shaper_{ax}": kept.get(f"shaper_{ax}", "none"), f"freq_{ax}": kept.get(f"freq_{ax}", 0.0),
+                               f"damping_{ax}": DEFAULT_DAMPING_RATIO})
+            sources = {ax: [f"{args.printer} [measurement.klipper]"] for ax in ("x", "y") if f"shaper_{ax}" in kept}
+        else:
+            if printer.measurement.get("files"):
+                out.note("note: Klipper's rule runs on the model's simulated resonance test instead")
+            try:
+                fits, fields = klipper_baseline.klipper_rule_on_simulated_test(printer, args.firmware,
+                                                                                args.klipper_version, args.seed, **kw)
+            except ImportError as exc:
+                raise RingtuneError(f"the simulated resonance test is not available ({exc})", "--printer") from None
+            sources = {ax: [f"printer:{getattr(printer, 'name', 'default')} (simulated resonance test)"]
+                       for ax in ("x", "y")}
     fields["extra"] = {"method": "klipper", "klipper_version": args.klipper_version,
                        "sources": sources,
                        "klipper": {ax: rec.to_dict() for ax, rec in fits.items()}}
@@ -112,6 +133,9 @@ def run(args: argparse.Namespace, out) -> int:
     shown = set()
     for ax in ("x", "y"):
         rec = fits.get(ax)
+        if rec is None and ax in sources:
+            text.append(f"{ax.upper()} ({sources[ax][0]}): {fields_shown(config, ax)}")
+            continue
         if rec is None:
             text.append(f"{ax.upper()}: not measured -> shaping off on {ax.upper()}")
             continue
@@ -202,6 +226,28 @@ def _run_policy(args, out) -> int:
               "config": config.to_dict(), "inference_s": inference, "refine": refined, "output": written},
              "\n".join(text))
     return 0
+
+
+def fields_shown(config, ax: str) -> str:
+    return f"Recommended shaper is {getattr(config, f'shaper_{ax}')} @ {getattr(config, f'freq_{ax}'):.1f} Hz"
+
+
+def _recorded(printer, args, out) -> list[tuple[str, str]] | None:
+    """The resonance files ``printer`` records in ``[measurement]`` (written by ``ringtune identify``)
+    when they are all still here and unchanged, else None (with a note when some are missing)."""
+    from ringtune.agents.identification import recorded_files
+
+    files = printer.measurement.get("files") if printer.measurement else None
+    if not files:
+        return None
+    found, missing = recorded_files(printer.measurement, args.printer)
+    if missing:
+        out.note(f"note: {args.printer} was identified from {', '.join(missing)}, not found here (or changed)")
+        return None
+    if not found:                                 # only free-decay captures: no sweep for the rule
+        return None
+    out.note(f"note: Klipper's rule on the resonance files {args.printer} was identified from")
+    return found
 
 
 def _save(config, path) -> str | None:

@@ -110,13 +110,14 @@ def build_config(args, out=None):
         cfg["accel"] = args.accel
     where = args.config or "options"
     config = TuneConfig.from_dict(cfg, where)
-    from ringtune.shaping.shapers import get_shaper
+    from ringtune.shaping.shapers import shapers_from_config
 
-    for ax in ("x", "y"):  # the firmware must offer the shaper: say which option asked for it
-        name, f, z = config.axis(ax)
-        if name != "none":
-            get_shaper(name, f, z, config.flavor,
-                       where="--shaper" if shaper else f"{args.config}: shaper_{ax}")
+    try:  # the firmware must offer the shapers: say which option (or file) asked for them
+        shapers_from_config(config)
+    except RingtuneError as exc:
+        if shaper:
+            raise RingtuneError(exc.bare, "--shaper") from None
+        raise exc.relocated("config", where) from None
     return config
 
 

@@ -1,0 +1,273 @@
+"""The printer description ``ringtune identify`` writes: measured modes, and everything else from what
+the user gave (firmware configuration, motors, masses, kinematics) — or said aloud as a default.
+
+:func:`build_description` assembles the description as a dict in the TOML form of
+:mod:`ringtune.envs.printer` plus, per table, the comments that say where each part came from;
+:func:`description_toml` writes it. Whatever is still a default is returned in
+:attr:`Description.defaults` (one sentence each: what it is and what it decides), printed on stderr
+by the command and written at the top of the TOML.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ringtune.envs.identify import AxisFit, added_mass, frequency_scale
+from ringtune.envs.printer_model import DEFAULTS
+from ringtune.shaping.errors import RingtuneError
+
+AXES = ("x", "y")
+KINEMATICS = ("cartesian", "corexy", "corexz")
+
+
+@dataclass(frozen=True)
+class AddedMass:
+    """An axis identified by the added-mass method: ``dm`` kg added moved the dominant mode from
+    ``f0`` to ``f1`` Hz; moving mass ``mass`` (kg) and stiffness ``stiffness`` (N/m)."""
+
+    axis: str
+    dm: float
+    f0: float
+    f1: float
+    mass: float
+    stiffness: float
+    mass_error: float = float("nan")     # kg, one standard error from the spectra's scatter
+
+    @classmethod
+    def from_fits(cls, base: AxisFit, loaded: AxisFit, dm: float) -> "AddedMass":
+        """From the spectrum fits of the same axis without and with ``dm`` kg: the factor by which
+        the added mass moved the whole spectrum (:func:`frequency_scale`), applied to the base's
+        dominant mode (largest share) for ``f0`` and ``f1``."""
+        if base.kind != "psd" or loaded.kind != "psd":
+            raise RingtuneError("the added-mass method needs two resonance sweeps (TEST_RESONANCES files) "
+                                f"of {base.axis.upper()}, not free-decay captures", "--added-mass")
+        f0 = max(base.modes, key=lambda m: m.share).freq
+        scale, err = frequency_scale(base, loaded)
+        try:
+            m, k = added_mass(f0, f0 * scale, dm)
+        except RingtuneError as exc:
+            raise RingtuneError(f"axis {base.axis.upper()}: {exc.args[0]}", "--added-mass") from None
+        u = scale ** -2                                  # m = dm/(u − 1): dm/d(ln s) = dm·2u/(u − 1)²
+        return cls(base.axis, dm, f0, f0 * scale, m, k, dm * 2.0 * u / (u - 1.0) ** 2 * err)
+
+    def to_dict(self) -> dict:
+        return {"axis": self.axis, "added_mass_kg": self.dm, "f0_hz": self.f0, "f1_hz": self.f1,
+                "mass_kg": self.mass, "mass_error_kg": self.mass_error, "stiffness_n_m": self.stiffness}
+
+
+@dataclass
+class Description:
+    """A printer description in TOML form (``data``), the comments of each table (``comments``,
+    key ``""`` for the top), and what is still a default (``defaults``: one sentence each)."""
+
+    data: dict
+    comments: dict[str, list[str]] = field(default_factory=dict)
+    defaults: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    def comment(self, table: str, text: str) -> None:
+        self.comments.setdefault(table, []).append(text)
+
+
+def _round(v: float, digits: int) -> float:
+    return float(f"{v:.{digits}g}")
+
+
+def fitted_modes(fit: AxisFit) -> list[dict]:
+    """The modes of a fit as TOML items, largest share first; the last takes what is left so that
+    the shares sum to 1 exactly."""
+    modes = sorted(fit.modes, key=lambda m: -m.share)
+    out = []
+    for k, m in enumerate(modes):
+        item = {"freq": _round(m.freq, 4), "damping": _round(min(max(m.damping, 0.0), 0.95), 3)}
+        if k < len(modes) - 1:
+            item["share"] = _round(m.share, 3)
+        out.append(item)
+    return out
+
+
+def _base_modes(base) -> tuple[str, dict[str, list[dict]]]:
+    from ringtune.envs.printer import load_printer
+
+    p = load_printer(base)
+    modes = {}
+    for ax in AXES:
+        items = [{"freq": _round(m.freq, 4), "damping": _round(m.damping, 3), "share": _round(m.share, 3)}
+                 for m in p.axis(ax).modes]
+        items[-1].pop("share")
+        modes[ax] = items
+    return p.name, modes
+
+
+def _merge(into: dict, new: dict) -> None:
+    for k, v in new.items():
+        if isinstance(v, dict) and isinstance(into.get(k), dict):
+            _merge(into[k], v)
+        else:
+            into[k] = v
+
+
+def _has_motor(d: dict, ax: str) -> bool:
+    """Does the description name the motor (or give its constants) for ``ax``? (The axis's own
+    ``[x.motor]`` when it has one, else ``[motor]``, as :meth:`Printer.motor_for` picks.)"""
+    m = d.get(ax, {}).get("motor") or d.get("motor", {})
+    return "name" in m or "holding_torque" in m or "force" in m
+
+
+def build_description(fits: dict[str, AxisFit], *, name: str = "identified", kinematics: str | None = None,
+                      base: str | None = None, masses: dict[str, float] | None = None,
+                      added: dict[str, AddedMass] | None = None, facts=None,
+                      motors: dict[str, dict] | None = None, measurement: dict | None = None) -> Description:
+    """The printer description of measured ``fits`` (one per axis) and what the user gave.
+
+    ``masses``: weighed masses by axis (kg); ``added``: added-mass results by axis; ``facts``: a
+    firmware configuration's :class:`FirmwareFacts` (``description`` dict in this form, ``notes``,
+    ``source``); ``motors``: ``{"all"|"x"|"y": {name, run_current, voltage}}`` from ``--motor``;
+    ``measurement``: the ``[measurement]`` table (files and Klipper's recommendation)."""
+    masses, added, motors = masses or {}, added or {}, motors or {}
+    d: dict[str, Any] = {"name": name}
+    desc = Description(d)
+    fw = dict(facts.description) if facts is not None else {}
+    src = Path(facts.source).name if facts is not None else None
+
+    # kinematics
+    if kinematics:
+        d["kinematics"] = kinematics
+        if fw.get("kinematics") and fw["kinematics"] != kinematics:
+            desc.notes.append(f"--kinematics {kinematics} replaces {src}'s {fw['kinematics']}")
+    elif fw.get("kinematics"):
+        d["kinematics"] = fw["kinematics"]
+    else:
+        d["kinematics"] = "cartesian"
+        why = f"no --kinematics, and {src} does not give it" if src else "no --kinematics, no firmware configuration"
+        desc.defaults.append(f"kinematics: cartesian is a default ({why}): a CoreXY or CoreXZ is simulated "
+                             "with the wrong coupling of its axes and motors")
+    fw.pop("kinematics", None)
+
+    # limits and the rest of the configuration (motors, [current])
+    if facts is not None:
+        _merge(d, {k: v for k, v in fw.items() if k not in AXES})
+        for ax in AXES:
+            if isinstance(fw.get(ax), dict):
+                d.setdefault(ax, {}).update({k: v for k, v in fw[ax].items() if k != "modes"})
+        desc.comment("", f"limits, motors and the firmware's current shaping from {facts.source}")
+        desc.notes += list(facts.notes)
+    else:
+        desc.defaults.append("limits: the default printer's (accel 3000 mm/s², velocity 300 mm/s, square "
+                             "corner velocity 5 mm/s): the print times and the acceleration range of tune come "
+                             "from them (give --klipper-config, --marlin or --rrf)")
+
+    # --motor: all axes or per axis
+    for key, spec in motors.items():
+        if key == "all":          # every motor table: [motor] and the per-axis ones the configuration has
+            targets = [d.setdefault("motor", {})] + [d[ax]["motor"] for ax in AXES if "motor" in d.get(ax, {})]
+        else:
+            targets = [d.setdefault(key, {}).setdefault("motor", {})]
+        for target in targets:
+            if "name" in target and target["name"].casefold() != spec["name"].casefold():
+                desc.notes.append(f"--motor {spec['name']} replaces {src}'s motor {target['name']}")
+            target.update(spec)
+    missing = [ax for ax in AXES if not _has_motor(d, ax)]
+    if missing:
+        which = " and ".join(ax.upper() for ax in missing)
+        desc.defaults.append(f"motor ({which}): the default 42-34 stepper ({DEFAULTS['motor_force']:g} N at the "
+                             f"belt up to {DEFAULTS['corner_speed']:g} mm/s): the acceleration headroom and the "
+                             "motor load come from the default motor (give --motor NAME[:RUN_CURRENT[:VOLTAGE]] "
+                             "or a firmware configuration that names it)")
+
+    # axes: modes, masses
+    base_name, base_modes = _base_modes(base)
+    default_mass = []
+    for ax in AXES:
+        table = d.setdefault(ax, {})
+        if ax in fits:
+            fit = fits[ax]
+            desc.comment(ax, f"modes fitted to {Path(fit.source).name} ({fit.kind}, {fit.method}, "
+                             f"r² = {fit.r2:.3f})")
+            table["modes"] = fitted_modes(fit)
+        else:
+            table["modes"] = base_modes[ax]
+            desc.comment(ax, f"not measured: the modes of {base_name}")
+            freqs = ", ".join(f"{m['freq']:g} Hz" for m in base_modes[ax])
+            desc.defaults.append(f"{ax.upper()} was not measured: its modes are {base_name}'s "
+                                 f"({freqs}); the shaper "
+                                 f"tuned for {ax.upper()} fits that printer, not yours (measure {ax.upper()} too)")
+        if ax in added:
+            a = added[ax]
+            table["mass"] = _round(a.mass, 4)
+            desc.comment(ax, f"mass by the added-mass method: {a.dm:g} kg moved the spectrum by ×{a.f1 / a.f0:.4f} "
+                             f"(fitted to both spectra), the dominant mode {a.f0:.2f} Hz to {a.f1:.2f} Hz; "
+                             f"m = dm/((f0/f1)² − 1) = {a.mass:.3f} ± {a.mass_error:.3f} kg (1 standard error), "
+                             f"stiffness k = m·(2π f0)² = {a.stiffness:.4g} N/m")
+            if ax in masses:
+                desc.notes.append(f"{ax.upper()}: --mass {masses[ax]:g} kg replaces the added-mass "
+                                  f"estimate {a.mass:.3f} kg")
+        if ax in masses:
+            table["mass"] = masses[ax]
+            desc.comment(ax, f"mass {masses[ax]:g} kg weighed (--mass)")
+        if "mass" not in table:
+            default_mass.append(f"{ax.upper()} {DEFAULTS[f'mass_{ax}']:g} kg")
+        # the per-axis tables come last in TOML order: put modes and mass first
+        d[ax] = {k: table[k] for k in ("mass", "modes") if k in table} | \
+            {k: v for k, v in table.items() if k not in ("mass", "modes")}
+    if default_mass:
+        desc.defaults.append(f"masses: {', '.join(default_mass)} are the defaults (an Ender-3-class machine): "
+                             "the motor load and the acceleration headroom come from them (give --mass "
+                             "X=KG,Y=KG weighed, or --added-mass KG with a second resonance test)")
+    if measurement:
+        d["measurement"] = measurement
+    return desc
+
+
+# -- TOML -------------------------------------------------------------------------------------------
+
+def _value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return repr(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{_key(k)} = {_value(x)}" for k, x in v.items()) + " }"
+    raise TypeError(f"cannot write {v!r} to TOML")
+
+
+def _key(k: str) -> str:
+    return k if k.replace("_", "").replace("-", "").isalnum() else _value(k)
+
+
+def description_toml(desc: Description, header: list[str] = ()) -> str:
+    """TOML text of ``desc``: ``header`` and the defaults as comments at the top, then the top-level
+    keys, then each table (sub-tables ``[x.motor]`` after their parent) with its comments."""
+    lines = [f"# {h}" for h in header]
+    if desc.defaults:
+        lines.append("# Still defaults (not known from your files):")
+        lines += [f"#   - {s}" for s in desc.defaults]
+    lines += [f"# {c}" for c in desc.comments.get("", [])]
+
+    def emit(path: str, table: dict) -> None:
+        scalars = {k: v for k, v in table.items() if not isinstance(v, dict)}
+        subs = {k: v for k, v in table.items() if isinstance(v, dict)}
+        if path:
+            lines.append("")
+            lines.append(f"[{path}]")
+            lines.extend(f"# {c}" for c in desc.comments.get(path, []))
+        for k, v in scalars.items():
+            if isinstance(v, list) and len(v) > 1 and all(isinstance(x, dict) for x in v) and k != "modes":
+                lines.append(f"{_key(k)} = [")          # one record per line (e.g. the files)
+                lines.extend(f"  {_value(x)}," for x in v)
+                lines.append("]")
+            else:
+                lines.append(f"{_key(k)} = {_value(v)}")
+        for k, v in subs.items():
+            emit(f"{path}.{k}" if path else k, v)
+
+    emit("", desc.data)
+    return "\n".join(lines) + "\n"
