@@ -103,3 +103,22 @@ def test_bad_kinematics_is_one_line_naming_file_and_line(tmp_path, capsys):
     assert cli.main(["printer", "from-klipper", str(cfg)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"ringtune printer: error: {cfg}:2: kinematics 'delta'" in err[0]
+
+
+@pytest.mark.parametrize("source", ["from-klipper", "from-marlin", "from-rrf"])
+def test_a_folder_or_a_binary_file_is_one_line_saying_what_it_is(source, tmp_path, capsys):
+    binary = tmp_path / "firmware.bin"
+    binary.write_bytes(bytes(range(256)) * 8)          # what a user gets by picking the wrong file
+    for path, words in ((tmp_path, "is a directory"), (binary, "not a text file")):
+        assert cli.main(["printer", source, str(path)]) == 2
+        cap = capsys.readouterr()
+        err = cap.err.strip().splitlines()
+        assert len(err) == 1 and cap.out == "", cap.err
+        assert err[0].startswith(f"ringtune printer: error: {path}: {words}") and "\ufffd" not in err[0]
+
+
+def test_output_to_a_folder_is_refused_before_reading(data_dir, tmp_path, capsys):
+    cfg = data_dir / "klipper_config" / "ender3" / "printer.cfg"
+    assert cli.main(["printer", "from-klipper", str(cfg), "-o", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"--output {tmp_path}: is a directory" in err[0]

@@ -223,6 +223,10 @@ def run(args, out) -> int:
     from ringtune.hardware.firmware_facts import MOTOR_CONSTANTS, motor_tables
 
     check_output_folder("--output", args.output)
+    if args.output and Path(args.output).is_dir():
+        from ringtune.shaping.errors import RingtuneError
+
+        raise RingtuneError("is a directory; give a file name such as printer.toml", f"--output {args.output}")
     facts, default_name = _read(args)
     description = facts.description
     notes = list(facts.notes)
