@@ -238,7 +238,7 @@ def _stepper_motor(src: _Source, stepper: str) -> dict:
             table[out] = v
         steps = src.number(inline, "steps_per_revolution", integer=True)
         src.notes.append(f"{stepper}: motor {motor}: constants from [{inline}] at "
-                         f"{src.where(inline, 'resistance')} (they take precedence over a built-in entry)")
+                         f"{src.where(inline, 'resistance')}")
         if steps is not None and steps != full:
             src.notes.append(f"{stepper}: [{inline}] steps_per_revolution {steps} but full_steps_per_rotation "
                              f"{full}; {full} is written (it is how Klipper steps the motor)")

@@ -122,3 +122,16 @@ def test_output_to_a_folder_is_refused_before_reading(data_dir, tmp_path, capsys
     assert cli.main(["printer", "from-klipper", str(cfg), "-o", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"--output {tmp_path}: is a directory" in err[0]
+
+
+def test_no_note_claims_a_builtin_motor_the_table_does_not_have(data_dir, capsys):
+    # the V0 defines fysetc-35hsh7402-24b-400a inline; the built-in table has no motor of that name,
+    # so no note may say that the inline constants override a built-in entry
+    from ringtune.envs.motors import lookup_motor
+
+    assert lookup_motor("fysetc-35hsh7402-24b-400a") is None
+    cfg = data_dir / "klipper_config" / "v0" / "printer.cfg"
+    assert cli.main(["printer", "from-klipper", str(cfg), "--json"]) == 0
+    notes = json.loads(capsys.readouterr().out)["notes"]
+    assert any("fysetc-35hsh7402-24b-400a is not in the built-in table" in n for n in notes)
+    assert not [n for n in notes if "precedence over a built-in" in n or "built-in table's entry" in n]
