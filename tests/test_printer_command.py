@@ -135,3 +135,24 @@ def test_no_note_claims_a_builtin_motor_the_table_does_not_have(data_dir, capsys
     notes = json.loads(capsys.readouterr().out)["notes"]
     assert any("fysetc-35hsh7402-24b-400a is not in the built-in table" in n for n in notes)
     assert not [n for n in notes if "precedence over a built-in" in n or "built-in table's entry" in n]
+
+
+def test_a_run_current_without_a_motor_is_said_to_have_no_effect(data_dir, capsys):
+    # the Ender 3's configuration gives run_current 0.58 A but names no motor: the loader then uses
+    # the default motor's force, which the run current does not change; the note must say so
+    cfg = data_dir / "klipper_config" / "ender3" / "printer.cfg"
+    assert cli.main(["printer", "from-klipper", str(cfg), "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["description"]["motor"]["run_current"] == 0.58
+    p = load_printer_text(res["toml"])
+    assert p.motor.stepper is None                       # the old-form default motor: run_current unused
+    note = next(n for n in res["notes"] if n.startswith("no motor named or described"))
+    assert "run_current is kept but counts only once the motor is named" in note
+
+
+def load_printer_text(text):
+    import tomllib as _t
+
+    from ringtune.envs.printer import printer_from_dict
+
+    return printer_from_dict(_t.loads(text))

@@ -233,8 +233,12 @@ def run(args, out) -> int:
     comments: dict[str, list[str]] = {}
     check_motor_names(description, notes, comments)
     if not any("name" in t or all(k in t for k in MOTOR_CONSTANTS) for t in motor_tables(description).values()):
+        drive = sorted({k for t in motor_tables(description).values() for k in ("run_current", "voltage")
+                        if k in t})
+        unused = (f"; {' and '.join(drive)} {'are kept but count' if len(drive) > 1 else 'is kept but counts'} "
+                  "only once the motor is named") if drive else ""
         notes.append(f"no motor named or described: the force at the belt is the default motor's "
-                     f"({DEFAULTS['motor_force']:g} N, falling above {DEFAULTS['corner_speed']:g} mm/s); "
+                     f"({DEFAULTS['motor_force']:g} N, falling above {DEFAULTS['corner_speed']:g} mm/s){unused}; "
                      "name the motor ([motor] name = …) or give its constants")
     notes.append("modes are defaults until `ringtune identify` measures them; masses are defaults")
     name = args.name or default_name
