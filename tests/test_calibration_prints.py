@@ -220,3 +220,10 @@ def test_trace_of_a_long_job_is_its_quality_windows(tmp_path, monkeypatch, capsy
     assert set(np.unique(tr["window"])) == set(range(1, 9))
     dev = np.hypot(tr["x_nozzle"] - tr["x_shaped"], tr["y_nozzle"] - tr["y_shaped"])
     assert 0 < dev.max() < 1.0
+
+
+def test_ringing_tower_says_its_acceleration_stays_after_the_print(tmp_path, capsys):
+    g = tmp_path / "r.gcode"
+    run_json(["testprint", "ringing", "--firmware", "marlin", "--bands", "30:40:2", "-o", str(g)], capsys)
+    tail = g.read_text().splitlines()[-3:]
+    assert any("M201 X3000 Y3000" in ln and "M204 P3000 T3000" in ln and "stays" in ln for ln in tail), tail
