@@ -222,6 +222,23 @@ def test_trace_of_a_long_job_is_its_quality_windows(tmp_path, monkeypatch, capsy
     assert 0 < dev.max() < 1.0
 
 
+# -- what a new user gets wrong (QA) -------------------------------------------------------------------
+@pytest.mark.parametrize("argv, where", [
+    (["ringing", "--hotend", "900"], "--hotend"),                    # no hotend reaches 900 °C
+    (["ringing", "--bed", "-20"], "--bed"),
+    (["ringing", "--centre", "20,20"], "--side"),                    # the tower would start below X0/Y0
+    (["accel", "--reach", "500"], "--reach"),                        # fast moves to X-390
+])
+def test_implausible_prints_are_one_line_errors(argv, where, tmp_path, capsys):
+    TuneConfig(firmware="klipper", shaper_x="mzv", shaper_y="mzv", freq_x=45.0, freq_y=40.0,
+               accel=6000.0).save(tmp_path / "best.json")
+    extra = ["--config", str(tmp_path / "best.json")] if argv[0] == "accel" else []
+    assert main(["testprint", *argv, "--firmware", "klipper", *extra, "-o", str(tmp_path / "x.gcode")]) == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last.startswith("ringtune testprint: error: " + where), last
+    assert not (tmp_path / "x.gcode").exists()
+
+
 def test_ringing_tower_says_its_acceleration_stays_after_the_print(tmp_path, capsys):
     g = tmp_path / "r.gcode"
     run_json(["testprint", "ringing", "--firmware", "marlin", "--bands", "30:40:2", "-o", str(g)], capsys)
