@@ -239,6 +239,19 @@ def test_implausible_prints_are_one_line_errors(argv, where, tmp_path, capsys):
     assert not (tmp_path / "x.gcode").exists()
 
 
+def test_accel_ladder_above_the_tuned_value_does_not_call_the_current_one_the_first_rung(tmp_path, capsys):
+    # the Voron 2.4 of tests/data runs 8994 mm/s²; a tune that chose 4100 makes the ladder start at half
+    # of 4100, and stderr must not also say that the first rung is 8994
+    TuneConfig(firmware="klipper", shaper_x="mzv", shaper_y="mzv", freq_x=53.0, freq_y=37.6,
+               accel=4100.0).save(tmp_path / "best.json")
+    (tmp_path / "p.toml").write_text('[limits]\naccel = 3000\nvelocity = 300\n[current]\naccel = 8994.0\n'
+                                     '[x]\nmodes = [{ freq = 50.0 }]\n[y]\nmodes = [{ freq = 40.0 }]\n')
+    res, err = run_json(["testprint", "accel", "--firmware", "klipper", "--config", str(tmp_path / "best.json"),
+                         "--printer", str(tmp_path / "p.toml")], capsys)
+    assert res["rungs"][0]["accel"] == 2050
+    assert "first rung 8994" not in err and "8994" in err
+
+
 def test_ringing_tower_says_its_acceleration_stays_after_the_print(tmp_path, capsys):
     g = tmp_path / "r.gcode"
     run_json(["testprint", "ringing", "--firmware", "marlin", "--bands", "30:40:2", "-o", str(g)], capsys)

@@ -240,11 +240,13 @@ def _accel(args, out, printer, lim, cx, cy, ext):
     if start is None:
         current = getattr(printer, "current", None) or {}
         if current.get("accel"):
-            start = float(current["accel"])
-            out.note(f"first rung {start:.0f} mm/s²: what {printer.name} runs now ([current] accel)")
+            start, whence = float(current["accel"]), f"what {printer.name} runs now ([current] accel)"
         else:
-            start = lim.accel
-            out.note(f"first rung {start:.0f} mm/s²: {printer.name}'s [limits] accel (--from to change)")
+            start, whence = lim.accel, f"{printer.name}'s [limits] accel"
+        if config.accel is not None and start < float(config.accel):
+            out.note(f"first rung {start:.0f} mm/s²: {whence} (--from to change)")
+        else:
+            out.note(f"starting acceleration {start:.0f} mm/s²: {whence} (--from to change)")
     speed = args.speed if args.speed is not None else lim.velocity
     if args.speed is None:
         out.note(f"fast moves at {speed:g} mm/s: {printer.name}'s top speed (--speed to change)")
