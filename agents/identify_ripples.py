@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import math
 from dataclasses import fields, replace
 from pathlib import Path
 
@@ -65,6 +66,8 @@ def identify_modes(args, out) -> tuple[dict, dict, list]:
             raise RingtuneError("--tower goes with --tower-band", "--tower")
         if args.speed is None:
             raise RingtuneError("the ripples need the wall speed they were printed at", "--speed")
+        if not (math.isfinite(args.speed) and args.speed > 0):
+            raise RingtuneError(f"must be a positive wall speed in mm/s, not {args.speed:g}", "--speed")
         spacing = parse_axis_values(args.ripples, "--ripples")
         decay = parse_axis_values(args.decay, "--decay") if args.decay else {}
         for ax in decay:
@@ -91,6 +94,8 @@ def identify_modes(args, out) -> tuple[dict, dict, list]:
         if args.speed or args.decay:
             raise RingtuneError("--speed and --decay go with --ripples", "--speed" if args.speed else "--decay")
         path = Path(args.tower)
+        if path.is_dir():
+            raise RingtuneError("is a directory, not the tower's G-code", f"--tower {args.tower}")
         if not path.is_file():
             raise RingtuneError("no such file", f"--tower {args.tower}")
         data = path.read_bytes()

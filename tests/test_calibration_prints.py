@@ -200,6 +200,9 @@ def test_ripple_arithmetic_matches_seed_000_and_the_logarithmic_decrement():
     (["--ripples", "Z=2", "--speed", "100"], "--ripples"),
     (["--tower-band", "X=2"], "--tower"),
     (["--ripples", "X=2", "--speed", "100", "--plot", "f.png"], "--plot"),
+    (["--ripples", "X=2", "--speed", "-1"], "--speed"),          # was blamed on --ripples X
+    (["--ripples", "X=2", "--speed", "nan"], "--speed"),
+    (["--tower-band", "X=2", "--tower", "."], "--tower . : is a directory".replace(" :", ":")),
 ])
 def test_bad_ripple_input_is_a_one_line_error(argv, where, capsys):
     assert main(["identify"] + argv) == 2
