@@ -1,0 +1,40 @@
+"""Error paths a new user meets on the finished commands (export, push, testprint, identify --ripples):
+a folder where a file belongs, a binary file where a JSON one belongs. Each is one line on stderr that
+names the file or flag and says what is wrong, exit 2, nothing on stdout, never a raw OS message."""
+
+from __future__ import annotations
+
+import pytest
+
+from ringtune.agents.cli import main
+from ringtune.shaping.config import TuneConfig
+
+
+def _one_line_error(argv, capsys) -> str:
+    assert main(argv) == 2
+    cap = capsys.readouterr()
+    assert cap.out == ""
+    last = cap.err.strip().splitlines()[-1]
+    assert "Errno" not in last and "codec" not in last, last
+    return last
+
+
+@pytest.fixture
+def best(tmp_path):
+    path = tmp_path / "best.json"
+    TuneConfig(firmware="klipper", shaper_x="mzv", shaper_y="mzv", freq_x=45.0, freq_y=40.0,
+               accel=4000.0).save(path)
+    return path
+
+
+@pytest.mark.parametrize("argv, flag", [
+    (["export", "{best}", "--firmware", "klipper", "-o", "{dir}"], "-o"),
+    (["testprint", "ringing", "--firmware", "marlin", "-o", "{dir}"], "-o"),
+    (["testprint", "accel", "--firmware", "klipper", "--config", "{best}", "-o", "{dir}"], "-o"),
+    (["identify", "--ripples", "X=2,Y=2.5", "--speed", "100", "-o", "{dir}"], "-o"),
+])
+def test_an_output_that_is_a_folder_is_refused(argv, flag, best, tmp_path, capsys):
+    argv = [a.format(best=best, dir=tmp_path) for a in argv]
+    last = _one_line_error(argv, capsys)
+    assert f"{flag} {tmp_path}: is a directory" in last, last
+
