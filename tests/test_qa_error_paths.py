@@ -38,3 +38,15 @@ def test_an_output_that_is_a_folder_is_refused(argv, flag, best, tmp_path, capsy
     last = _one_line_error(argv, capsys)
     assert f"{flag} {tmp_path}: is a directory" in last, last
 
+
+@pytest.mark.parametrize("argv", [
+    ["export", "{cfg}", "--firmware", "klipper"],
+    ["push", "{cfg}", "--firmware", "klipper", "--dry-run"],
+    ["testprint", "accel", "--firmware", "klipper", "--config", "{cfg}"],
+])
+def test_a_config_that_is_a_folder_or_binary_is_named(argv, tmp_path, capsys):
+    binary = tmp_path / "best.bin"
+    binary.write_bytes(bytes(range(256)) * 4)
+    for cfg, words in ((tmp_path, "is a directory"), (binary, "not a text file")):
+        last = _one_line_error([a.format(cfg=cfg) for a in argv], capsys)
+        assert f"{cfg}: {words}" in last, last
