@@ -143,6 +143,9 @@ def _limits(src: _Source) -> dict:
             v = src.number("printer", f"max_{ax}_{kind}")
             if v is not None and v < top:
                 caps[i] = v
+            elif v is not None:
+                src.notes.append(f"{src.where('printer', f'max_{ax}_{kind}')}: max_{ax}_{kind} {v:g} is not below "
+                                 f"max_{kind} {top:g}, which limits every move: no cap of its own on {ax.upper()}")
         if any(caps):
             limits[f"max_{kind}"] = caps
     return limits

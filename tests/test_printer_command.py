@@ -156,3 +156,13 @@ def load_printer_text(text):
     from ringtune.envs.printer import printer_from_dict
 
     return printer_from_dict(_t.loads(text))
+
+
+def test_a_per_axis_limit_above_the_overall_one_is_said_not_dropped(data_dir, capsys):
+    # the Voron 2.4 (limited_corexy) sets max_x_accel 10010 over max_accel 8994: X gets no cap of its own
+    # (max_accel binds first), Y its 4130; the dropped X value must be said, not vanish
+    cfg = data_dir / "klipper_config" / "v24" / "printer.cfg"
+    assert cli.main(["printer", "from-klipper", str(cfg), "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["description"]["limits"]["max_accel"][:2] == [0.0, 4130.0]
+    assert any("max_x_accel 10010" in n and "max_accel 8994" in n for n in res["notes"]), res["notes"]
