@@ -50,3 +50,18 @@ def test_a_config_that_is_a_folder_or_binary_is_named(argv, tmp_path, capsys):
     for cfg, words in ((tmp_path, "is a directory"), (binary, "not a text file")):
         last = _one_line_error([a.format(cfg=cfg) for a in argv], capsys)
         assert f"{cfg}: {words}" in last, last
+
+
+@pytest.mark.parametrize("argv", [
+    ["testprint", "ringing", "--firmware", "marlin", "--printer", "{p}"],
+    ["motor", "ldo-42sth40-1684ac"],                      # control: no printer, must pass
+])
+def test_a_binary_printer_description_is_named(argv, tmp_path, capsys):
+    binary = tmp_path / "printer.toml"
+    binary.write_bytes(bytes(range(256)) * 4)
+    if "{p}" not in argv:
+        assert main(argv) == 0
+        capsys.readouterr()
+        return
+    last = _one_line_error([a.format(p=binary) for a in argv], capsys)
+    assert f"{binary}: not a text file" in last, last
