@@ -192,6 +192,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     out = Output(json=args.json)
     try:
+        _firmware_names(args)
         rc = int(modules[args.command].run(args, out) or 0)
         sys.stdout.flush()          # a closed pipe shows here, not in the interpreter's last flush
         return rc
@@ -211,6 +212,16 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"ringtune {args.command}: interrupted", file=sys.stderr)
         return 130
+
+
+def _firmware_names(args) -> None:
+    """Every command's --firmware through the firmware record's one parser: any case (``Klipper``,
+    ``RRF``), one refusal naming the firmwares there are."""
+    name = getattr(args, "firmware", None)
+    if isinstance(name, str):
+        from ringtune.shaping.firmware import Firmware
+
+        args.firmware = Firmware.named(name, "--firmware").name
 
 
 def _fail(command: str, message: str) -> int:

@@ -104,9 +104,10 @@ def tuned_frequencies(printer: Any, firmware: str, shapers: list[str],
 
 def sweep(printer: Any, job: Any, firmware: str, factor: str, values: list[float],
           tuned: dict[str, dict[str, float]], quality: str = "overshoot_mm",
-          backend: str = "mujoco") -> dict[str, ShaperSweep]:
+          backend: str = "mujoco", freq_margin: float = 0.0) -> dict[str, ShaperSweep]:
     """Evaluate every shaper of ``tuned`` at every value of ``factor`` on ``printer`` and ``job``
-    (a G-code path or None for the built-in test print); ``quality`` is a Metrics field in mm."""
+    (a G-code path or None for the built-in test print); ``quality`` is a Metrics field in mm;
+    ``freq_margin``: judged as ``evaluate_many`` judges with it (fraction; 0 = the exact model)."""
     from ringtune.envs.evaluate import evaluate_many
     from ringtune.shaping.config import TuneConfig
 
@@ -123,7 +124,7 @@ def sweep(printer: Any, job: Any, firmware: str, factor: str, values: list[float
                                       freq_x=0.0 if s == "none" else round(fx, 2),
                                       freq_y=0.0 if s == "none" else round(fy, 2), accel=acc))
         pr = dataclasses.replace(printer, print_mass=float(v)) if factor == "mass" else printer
-        for s, m in zip(tuned, evaluate_many(configs, pr, job, backend=backend)):
+        for s, m in zip(tuned, evaluate_many(configs, pr, job, backend=backend, freq_margin=freq_margin)):
             results[s].print_time_s.append(float(m.print_time_s))
             results[s].quality_mm.append(float(getattr(m, quality)))
             results[s].step_loss.append(bool(m.step_loss))

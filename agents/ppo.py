@@ -36,7 +36,7 @@ import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -186,13 +186,15 @@ def latest_checkpoint(out_dir: str | Path) -> tuple[Path, Path] | None:
 def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int = DEFAULT_N_ENVS,
           seed: int = 0, *, resume: bool = False, env_kwargs: dict | None = None,
           hyper: dict | None = None, eval_freq: int | None = None, checkpoint_freq: int | None = None,
-          progress_bar: bool = True, subprocess: bool = True, verbose: int = 0) -> TrainResult:
+          progress_bar: bool = True, subprocess: bool = True, verbose: int = 0,
+          callbacks: Sequence = ()) -> TrainResult:
     """Train PPO on ``ringtune/Tune-v0`` (random printers) and write the output folder.
 
     ``timesteps``: total environment steps (= episodes = evaluated configurations), counting
     those of a resumed run. ``eval_freq`` / ``checkpoint_freq``: in total steps (default: eight
     evaluations and checkpoints per run). ``resume``: continue from the newest checkpoint in
-    ``out_dir`` (error if none). ``hyper`` overrides :data:`DEFAULT_HYPER`.
+    ``out_dir`` (error if none). ``hyper`` overrides :data:`DEFAULT_HYPER`. ``callbacks``: more
+    stable-baselines3 callbacks (e.g. the CLI's progress lines).
     """
     import torch
     from stable_baselines3 import PPO
@@ -241,6 +243,7 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
             CheckpointCallback(save_freq=ck_every, save_path=str(out / "checkpoints"), name_prefix="ppo",
                                save_vecnormalize=True),
             curve,
+            *callbacks,
         ])
         remaining = timesteps - model.num_timesteps
         if remaining > 0:

@@ -269,18 +269,34 @@ def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend
     quality counts (:func:`ringtune.envs.metrics.worst_case`), so that a shaper tuned to the edge
     of its band on the exact model is not preferred to one that survives the drift of a real
     printer."""
+    return [m for m, _ in evaluate_judged(configs, printer, job, backend, settle=settle, nthread=nthread,
+                                          freq_margin=freq_margin, job_accel=job_accel)]
+
+
+def variant_factors(freq_margin: float) -> tuple[float, ...]:
+    """Resonance factors of the printer variants a configuration is judged on: (1,) for the exact
+    model; (1, 1 − margin, 1 + margin) with a margin (fraction; every mode's frequency × factor)."""
+    return (1.0,) if not freq_margin else (1.0, 1.0 - freq_margin, 1.0 + freq_margin)
+
+
+def evaluate_judged(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
+                    settle: float | None = None, nthread: int | None = None,
+                    freq_margin: float = 0.0,
+                    job_accel: str | None = None) -> list[tuple[Metrics, list["Evaluation"]]]:
+    """:func:`evaluate_many`'s figures with what they came from: per config, (the judged metrics,
+    its :class:`Evaluation` on each printer variant of :func:`variant_factors`). ``tune`` and
+    ``simulate`` both judge through here, so their figures for one configuration are the same."""
     if not 0 <= freq_margin < 1:
         raise RingtuneError(f"must be in [0, 1), not {freq_margin}", "freq_margin")
-    if not freq_margin:
-        return [e.metrics for e in evaluate_detailed(configs, printer, job, backend, settle=settle,
-                                                     nthread=nthread, job_accel=job_accel)]
     printer = resolve_printer(printer)
     if settle is None:
         settle = auto_settle(printer)
-    variants = [printer, printer.detuned(1.0 - freq_margin), printer.detuned(1.0 + freq_margin)]
-    runs = [evaluate_detailed(configs, p, job, backend, settle=settle, nthread=nthread, job_accel=job_accel)
-            for p in variants]
-    return [worst_case(r[i].metrics for r in runs) for i in range(len(configs))]
+    runs = [evaluate_detailed(configs, printer if f == 1.0 else printer.detuned(f), job, backend,
+                              settle=settle, nthread=nthread, job_accel=job_accel)
+            for f in variant_factors(freq_margin)]
+    per_config = [[r[i] for r in runs] for i in range(len(configs))]
+    return [(evs[0].metrics if len(evs) == 1 else worst_case(e.metrics for e in evs), evs)
+            for evs in per_config]
 
 
 @dataclasses.dataclass

@@ -28,11 +28,13 @@ def _figure(nrows: int = 1, figsize=(7.5, 5.0)):
     return plt, fig, axes[:, 0]
 
 
-def _save(plt, fig, out: Path) -> Path:
+def _save(plt, fig, out: Path, title: str = "") -> Path:
+    """Write the PNG; its title also goes into the file's ``Title`` text chunk (readable by tools
+    and tests: what the picture says it shows)."""
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
-    fig.savefig(out, dpi=110)
+    fig.savefig(out, dpi=110, metadata={"Title": title} if title else None)
     plt.close(fig)
     return out
 
@@ -60,10 +62,11 @@ def plot_path(sim, path: Motion, out, *, lag: float = 0.0, title: str = "") -> P
     ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
-    ax.set_title(title or "Nozzle path against the commanded path (zoomed at the largest error)")
+    title = title or "Nozzle path against the commanded path (zoomed at the largest error)"
+    ax.set_title(title, fontsize=9)
     ax.legend(fontsize=8, loc="best")
     ax.grid(alpha=0.3)
-    return _save(plt, fig, out)
+    return _save(plt, fig, out, title)
 
 
 def plot_ringing(sim, path: Motion, out, *, lag: float = 0.0, settle: float = 0.0,
@@ -94,13 +97,14 @@ def plot_ringing(sim, path: Motion, out, *, lag: float = 0.0, settle: float = 0.
     wall_end = (legs.t_end[k] - tc - anticipate) * 1e3
     if anticipate > 0:
         ax.axvline(wall_end, color="g", ls="--", label="shaper starts the next turn")
-    ax.set_xlabel("time after the corner (ms)")
+    ax.set_xlabel(f"time after the {legs.turn_deg[k]:.0f}° corner (ms)")
     ax.set_ylabel("deviation across the wall (µm)")
-    ax.set_title(title or f"Ringing after a {legs.turn_deg[k]:.0f}° corner: RMS {m.ringing_mm * 1e3:.1f} µm, "
-                          f"overshoot {m.overshoot_mm * 1e3:.1f} µm")
+    title = title or (f"Ringing after a {legs.turn_deg[k]:.0f}° corner: RMS {m.ringing_mm * 1e3:.1f} µm; "
+                      f"overshoot in this window {m.overshoot_mm * 1e3:.1f} µm")
+    ax.set_title(title, fontsize=9)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    return _save(plt, fig, out)
+    return _save(plt, fig, out, title)
 
 
 def plot_accel(sim, out, *, title: str = "") -> Path:
@@ -113,7 +117,8 @@ def plot_accel(sim, out, *, title: str = "") -> Path:
         for i, name in enumerate("xyz"[:acc.shape[1]]):
             axes[0].plot(t, acc[:, i] / 1e3, lw=0.8, label=f"accelerometer {name}")
     axes[0].set_ylabel("acceleration (m/s²)")
-    axes[0].set_title(title or "Toolhead accelerometer")
+    title = title or "Toolhead accelerometer"
+    axes[0].set_title(title, fontsize=9)
     axes[0].legend(fontsize=8)
     head = np.linalg.norm(np.asarray(sim.head_accel)[:, :2], axis=1)
     axes[1].plot(t, head / 1e3, "k-", lw=0.8, label="|head acceleration|")
@@ -122,32 +127,60 @@ def plot_accel(sim, out, *, title: str = "") -> Path:
     axes[1].legend(fontsize=8)
     for ax in axes:
         ax.grid(alpha=0.3)
-    return _save(plt, fig, out)
+    return _save(plt, fig, out, title)
 
 
-def plot_evaluation(ev, out_dir, prefix: str = "") -> list[Path]:
+def _variant_name(factor: float) -> str:
+    return "the printer as modelled" if factor == 1.0 else \
+        f"the printer with its resonances {abs(factor - 1) * 100:g} % {'lower' if factor < 1 else 'higher'}"
+
+
+def plot_evaluation(ev, out_dir, prefix: str = "", *, factors=None, judged: str = "") -> list[Path]:
     """Write path, ringing and accelerometer plots of an evaluation's worst windows to ``out_dir``.
 
-    ``ev`` is a :class:`ringtune.envs.evaluate.Evaluation`. Returns the files written."""
+    ``ev`` is a :class:`ringtune.envs.evaluate.Evaluation`, or a list of them: one per printer
+    variant (``factors``: each variant's resonance factor, as ``evaluate_judged`` returns them).
+    Each plot shows the window and variant where its figure is worst, so its title states the
+    figure the command reports for the job (``judged``: how it was judged, in words). Returns the
+    files written."""
     from ringtune.envs.evaluate import _trimmed
 
+    evs = list(ev) if isinstance(ev, (list, tuple)) else [ev]
+    factors = list(factors) if factors is not None else [1.0] * len(evs)
     out_dir = Path(out_dir)
-    if not ev.runs:
+    if not evs or not evs[0].runs:
         return []
-    parts = ev.metrics.details.get("windows", [])
+    how = f"\njudged: {judged}" if judged else ""
 
     def worst(key):
-        return int(np.argmax([p[key] for p in parts])) if parts else 0
+        """(variant, window) of the largest ``key``; the first variant on ties."""
+        best, at = -np.inf, (0, 0)
+        for v, e in enumerate(evs):
+            for w, part in enumerate(e.metrics.details.get("windows", [])):
+                if part[key] > best:
+                    best, at = part[key], (v, w)
+        return at
+
+    def on(v):
+        return f"\nshown on {_variant_name(factors[v])}" if len(evs) > 1 else ""
 
     files = []
-    i = worst("path_error_mm")
-    r, s = ev.runs[i], ev.sims[i]
+    v, i = worst("path_error_mm")
+    r, s = evs[v].runs[i], evs[v].sims[i]
+    pe = evs[v].metrics.details["windows"][i]["path_error_mm"]
     files.append(plot_path(_trimmed(s, r.t0 + r.lag, r.t1 + r.lag), r.path, out_dir / f"{prefix}path.png",
-                           lag=r.lag))
-    i = worst("ringing_mm")
-    r, s = ev.runs[i], ev.sims[i]
+                           lag=r.lag, title=f"Nozzle path at the job's largest path error, {pe * 1e3:.1f} µm"
+                           f"{how}{on(v)}"))
+    v, i = worst("ringing_mm")
+    r, s = evs[v].runs[i], evs[v].sims[i]
+    part = evs[v].metrics.details["windows"][i]
+    job_os = max(e.metrics.overshoot_mm for e in evs)
     files.append(plot_ringing(_trimmed(s, r.t0 + r.lag, r.t1 + r.lag), r.path,
                               out_dir / f"{prefix}ringing.png", lag=r.lag, settle=r.settle,
-                              anticipate=r.anticipate))
-    files.append(plot_accel(s, out_dir / f"{prefix}accel.png"))
+                              anticipate=r.anticipate,
+                              title=f"The job's worst ringing, RMS {part['ringing_mm'] * 1e3:.1f} µm\novershoot "
+                              f"in this window {part['overshoot_mm'] * 1e3:.1f} µm (the job's worst "
+                              f"{job_os * 1e3:.1f} µm){how}{on(v)}"))
+    files.append(plot_accel(s, out_dir / f"{prefix}accel.png",
+                            title=f"Toolhead accelerometer in the window of the worst ringing{on(v)}"))
     return files

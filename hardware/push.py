@@ -187,7 +187,8 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
         if "limit" in exp.setting_lines:
             result.settings.append(SettingStatus("limit", exp.lines[exp.setting_lines["limit"]], status=DRY))
         if save and exp.config_text:
-            result.notes.append(f"--save would write the {exp.config_target} lines to a file")
+            result.notes.append(f"--save would write the {exp.config_target} lines to "
+                                f"{_save_target(exp, save_path)} (--save-file FILE for another)")
         result.ok = True
         return result
     if not port and not moonraker:

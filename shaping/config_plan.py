@@ -46,12 +46,14 @@ class FreqLimitApplied:
 @dataclass(frozen=True)
 class ConfiguredPlan:
     """The plan, the limits it used (the config's acceleration in), the frequency limit applied
-    (None: none) and the DAA frequency planned with (Hz, None: off)."""
+    (None: none), the DAA frequency planned with (Hz, None: off) and the job as planned (its
+    requested speeds after the frequency limit: what ``plan`` reports commanded frequencies of)."""
 
     plan: Plan
     limits: MachineLimits
     freq_limit: FreqLimitApplied | None
     daa_hz: float | None
+    job: Job | None = None
 
 
 def job_accel_mode(config: TuneConfig | None, job_accel: str | None = None) -> str:
@@ -105,4 +107,4 @@ def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None 
     # respect: it is the machine's acceleration (limits.accel), the job's commands stand
     planned = plan(job, limits, daa_freq=daa, use_job_limits=use_job_limits,
                    accel=accel if mode == "replace" else None)
-    return ConfiguredPlan(planned, limits, freq_limit, daa)
+    return ConfiguredPlan(planned, limits, freq_limit, daa, job)

@@ -139,6 +139,18 @@ def path_wavelengths(job: Job, method: str = "sections", features=None) -> np.nd
     return out
 
 
+def commanded_frequencies(job: Job, features=None) -> np.ndarray:
+    """(n,) direction-change frequency of each move at its commanded speed, Hz: the requested
+    speed (the G-code's F, mm/s) over the shortest three-cycle wavelength around it (``sections``
+    wavelengths, mm); 0 where no three cycles surround the move. This is the figure a frequency
+    limit acts on: after ``apply_freq_limit(job, L)`` no move exceeds L unless its floor
+    (``min_speed_factor``) holds it above. The printer's accelerations and corners make the planned
+    figure lower (``shaping.testprints.direction_change_frequencies``)."""
+    lam = path_wavelengths(job, "sections", features)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(np.isfinite(lam) & (lam > 0), job.feed / lam, 0.0)
+
+
 def apply_freq_limit(job: Job, limit_hz: float | None = None, method: str = "sections",
                      min_speed_factor: float | None = None, features=None,
                      max_velocity: tuple | None = None) -> Job:

@@ -34,6 +34,7 @@ from typing import Iterable, Iterator
 import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.gcode_sniff import HEAD, not_gcode
 from ringtune.shaping.job import (AXES, LIMIT_COMMANDS, SETTING_KEYS, SHAPER_COMMANDS, STOP_COMMANDS,
                                   Event, Job)
 from ringtune.shaping.gcode_commands import BOUNDS as _BOUNDS
@@ -415,6 +416,12 @@ def _open_lines(path: Path) -> Iterator[str]:
         yield from fh
 
 
+def _refuse_non_gcode(head: bytes, where: str) -> None:
+    why = not_gcode(head)
+    if why:
+        raise RingtuneError(why, where)
+
+
 def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = None) -> Job:
     """Read a G-code job from a file path (streamed line by line) or from G-code text/bytes.
 
@@ -434,9 +441,13 @@ def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = N
         path = Path(path_or_text)
         if not path.is_file():
             raise RingtuneError("no such G-code file", str(path))
+        with open(path, "rb") as fh:
+            _refuse_non_gcode(fh.read(HEAD), str(path))
         reader = _Reader(str(path), arc_tolerance)
         reader.feed_lines(_open_lines(path))
     else:
+        if isinstance(path_or_text, bytes):
+            _refuse_non_gcode(path_or_text[:HEAD], source or "<gcode>")
         text = path_or_text.decode("utf-8", "replace") if isinstance(path_or_text, bytes) else str(path_or_text)
         reader = _Reader(source or "<gcode>", arc_tolerance)
         reader.feed_lines(io.StringIO(text, newline=None))

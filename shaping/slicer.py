@@ -34,3 +34,23 @@ def slicer_estimate(path) -> float | None:
             return _duration_seconds(m.group(1))
     m = _EST_CURA.search(text)
     return float(m.group(1)) if m else None
+
+
+#: the firmware a slicer says it wrote the job for: PrusaSlicer / SuperSlicer / OrcaSlicer
+#: ``; gcode_flavor = marlin2``, Cura ``;FLAVOR:Marlin``
+_FLAVOR_PRUSA = re.compile(r"^;\s*gcode_flavor\s*=\s*([\w-]+)", re.M | re.I)
+_FLAVOR_CURA = re.compile(r"^;FLAVOR:\s*([\w-]+)", re.M | re.I)
+
+
+def slicer_flavor(path) -> str | None:
+    """The G-code flavour the slicer wrote into the file, lower case (``marlin2``, ``marlin``,
+    ``klipper``, ``reprapfirmware``, ``griffin``...), or None."""
+    try:
+        text = Path(path).read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return None
+    for rx in (_FLAVOR_PRUSA, _FLAVOR_CURA):
+        m = rx.search(text)
+        if m:
+            return m.group(1).lower()
+    return None

@@ -22,10 +22,11 @@ def run_cli(argv, capsys):
 
 def test_json_matches_evaluate_and_shaping_helps(capsys):
     code, out, _ = run_cli(["simulate", "--json", "--backend", "lti", "--shaper", "mzv",
-                            "--freq", "45.5,38.9", "--damping", "0.1"], capsys)
+                            "--freq", "45.5,38.9", "--damping", "0.1", "--freq-margin", "0"], capsys)
     assert code == 0
     res = json.loads(out)
-    assert set(res) == {"printer", "job", "backend", "config", "metrics", "windows", "plots"}
+    assert set(res) == {"printer", "job", "backend", "config", "metrics", "freq_margin", "judgement",
+                        "variants", "windows", "plots"}
     assert set(res["metrics"]) == METRIC_KEYS and res["plots"] == []
     cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=45.5, freq_y=38.9, damping_x=0.1, damping_y=0.1)
     m = evaluate(cfg, backend="lti")
@@ -33,7 +34,7 @@ def test_json_matches_evaluate_and_shaping_helps(capsys):
         assert res["metrics"][key] == pytest.approx(getattr(m, key))
     # the job's figures are the worst window's
     assert res["metrics"]["overshoot_mm"] == pytest.approx(max(w["overshoot_mm"] for w in res["windows"]))
-    code, out, _ = run_cli(["simulate", "--json", "--backend", "lti"], capsys)  # shaping off
+    code, out, _ = run_cli(["simulate", "--json", "--backend", "lti", "--freq-margin", "0"], capsys)  # off
     off = json.loads(out)["metrics"]
     assert off["print_time_s"] == pytest.approx(res["metrics"]["print_time_s"])
     assert off["overshoot_mm"] > 5 * res["metrics"]["overshoot_mm"]

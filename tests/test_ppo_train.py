@@ -162,7 +162,8 @@ def test_recommend_help_says_policy_files_must_be_trusted(capsys):
 
 
 TRAIN_JSON_KEYS = {"out_dir", "timesteps", "wall_s", "resumed_from", "eval_timesteps", "eval_mean_cost",
-                   "train_timesteps", "train_mean_cost", "train_reference_cost", "hpo", "files"}
+                   "train_timesteps", "train_mean_cost", "train_reference_cost", "hpo", "files",
+                   "timesteps_requested", "rollout_steps"}
 
 
 def test_train_cli_json_keys_and_hpo_hands_its_best_to_training(tmp_path, monkeypatch, capsys):

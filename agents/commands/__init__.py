@@ -28,3 +28,12 @@ def check_output_folder(option: str, path) -> None:
         raise RingtuneError("no such directory", f"{option} {path}")
     if path and Path(path).is_dir():
         raise RingtuneError("is a directory; give a file name", f"{option} {path}")
+
+
+def judgement(freq_margin: float) -> str:
+    """How a command's quality figures were judged, in words (``freq_margin`` a fraction):
+    the exact model, or the worst of it and its resonances ± the margin (as ``tune`` judges)."""
+    if not freq_margin:
+        return "on the exact model (--freq-margin 0)"
+    return (f"worst of the model and its resonances ±{freq_margin * 100:g} % "
+            f"(--freq-margin {freq_margin * 100:g})")

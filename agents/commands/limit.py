@@ -5,7 +5,10 @@ JSON keys (stable): ``input``, ``output`` (path or null when printed to stdout),
 ``f_words_added``, ``header`` (the comment written at the top of the output); with ``--accel``: ``accel`` (mm/s²),
 ``accel_reference`` (the file's highest printing acceleration, mm/s², null when it sets none),
 ``accel_factor``, ``accel_lines_changed``, ``notes``. Without ``--freq-limit`` the frequency keys are
-null / 0.
+null / 0. ``frequencies`` ({``commanded_hz``: {``before``, ``after``}: the highest
+direction-change frequency at the G-code's speeds F, what a frequency limit acts on;
+``planned_hz``: {``before``, ``after``}: the highest after planning, as ``ringtune plan`` reports
+it with the same printer; ``junction``, ``junction_reason``}).
 """
 
 from __future__ import annotations
@@ -17,6 +20,12 @@ Rewrite a G-code file so that no extrusion path changes direction faster than --
 (nophead's infill frequency limit). Only the F words that must change are changed (or added where
 a slowed stretch begins and ends); every other byte stays as it was, and a comment on the first
 line records what was done.
+
+The limit acts on the commanded frequency: the G-code's own speed F over the length of three
+zigzag cycles. The printer never reaches F on short zigzags (it accelerates and slows for
+corners), so the planned frequency, what the printer does, is lower. Both are reported, before
+and after, exactly as `ringtune plan` reports them given the same --printer: a limit above the
+planned figure slows moves on paper but changes little on the printer.
 
 Methods:
   sections  slow only the high-frequency stretch of a path (default)
@@ -54,6 +63,8 @@ def add_arguments(parser) -> None:
                         help="never slow below this fraction of the requested speed "
                              "(default 0.3; marlin: the file's M201 S, else 0.05)")
     parser.add_argument("-o", "--output", metavar="OUT", help="output file (default: stdout)")
+    parser.add_argument("--printer", metavar="P", help="printer TOML or embedded name for the planned "
+                        "frequencies (default: as `ringtune plan` without --printer)")
 
 
 def run(args, out) -> int:
@@ -86,6 +97,7 @@ def run(args, out) -> int:
         data, acc = rewrite_accel_bytes(data, args.accel, source=args.file)
     if args.output is not None:
         Path(args.output).write_bytes(data)
+    freqs = _frequencies(args.file, data, args.printer)
     result = {
         "input": args.file, "output": args.output, "method": args.method if res else None,
         "freq_limit_hz": args.freq_limit, "min_speed_factor": res.min_speed_factor if res else None,
@@ -95,13 +107,19 @@ def run(args, out) -> int:
         "accel": args.accel, "accel_reference": acc.reference if acc else None,
         "accel_factor": acc.factor if acc else None, "accel_lines_changed": acc.lines_changed if acc else 0,
         "notes": acc.notes if acc else [],
+        "frequencies": freqs,
     }
+    c, p = freqs["commanded_hz"], freqs["planned_hz"]
+    said = (f"highest direction-change frequency (three cycles while extruding): commanded at F "
+            f"{c['before']:.1f} -> {c['after']:.1f} Hz (what a frequency limit acts on); planned with "
+            f"{freqs['junction']} {p['before']:.1f} -> {p['after']:.1f} Hz (what the printer does)")
     if args.output is None:
         sys.stdout.buffer.write(data)
         sys.stdout.flush()
         out.note(result["header"])
         for n in result["notes"]:
             out.note(n)
+        out.note(said)
         return 0
     text = []
     if res:
@@ -110,5 +128,26 @@ def run(args, out) -> int:
                     f"{res.f_words_added} added)")
     if acc:
         text.append(acc.header.lstrip("; ") + "".join(f"\nnote: {n}" for n in acc.notes))
+    text.append(f"  {said}")
     out.emit(result, "\n".join(text))
     return 0
+
+
+def _frequencies(path, limited: bytes, printer=None) -> dict:
+    """Highest commanded and planned direction-change frequencies of the file and of its limited
+    text, through the same functions as ``ringtune plan``."""
+    from ringtune.agents.commands.plan import (commanded_frequencies, planned_frequencies,
+                                               planning_limits)
+    from ringtune.shaping.config_plan import plan_with_config
+    from ringtune.shaping.gcode import read_gcode
+
+    out = {"commanded_hz": {}, "planned_hz": {}}
+    for key, job in (("before", read_gcode(path)), ("after", read_gcode(limited, source=str(path)))):
+        limits, junction, why = planning_limits(job, path, printer)
+        configured = plan_with_config(job, limits)
+        top = planned_frequencies(configured.plan, 1)
+        cmd = commanded_frequencies(configured.job, 1)
+        out["planned_hz"][key] = top[0]["freq_hz"] if top else 0.0
+        out["commanded_hz"][key] = cmd[0]["freq_hz"] if cmd else 0.0
+    out.update(junction=junction, junction_reason=why)
+    return out

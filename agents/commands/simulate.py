@@ -2,16 +2,22 @@
 
 JSON keys (stable): ``printer`` (name), ``job`` (G-code path or ``"built-in test print"``),
 ``backend``, ``config`` (TuneConfig dict), ``metrics`` {``print_time_s``, ``path_error_mm``,
-``overshoot_mm``, ``ringing_mm``, ``peak_accel``, ``step_loss``, ``motor_load``}, ``windows``
-(list of {``t0``, ``t1``, ``kind``, ``path_error_mm``, ``overshoot_mm``, ``ringing_mm``,
-``peak_accel``, ``step_loss``, ``motor_load``}), ``plots`` (list of PNG paths, empty without ``--plot``),
-``trace`` (with ``--trace`` only: the CSV path; columns in ``ringtune.envs.trace``).
+``overshoot_mm``, ``ringing_mm``, ``peak_accel``, ``step_loss``, ``motor_load``}, ``freq_margin``
+(fraction: the metrics are the worst of the printer and its resonances this much lower and
+higher, as ``tune`` judges; 0 = the exact model; default: the ``freq_margin`` a tune best.json
+records, else tune's default), ``judgement`` (that, in words), ``variants``
+(list of {``factor`` (every resonance × it), ``metrics``}), ``windows`` (list of {``t0``, ``t1``,
+``kind``, ``path_error_mm``, ``overshoot_mm``, ``ringing_mm``, ``peak_accel``, ``step_loss``,
+``motor_load``}, each the worst over the variants), ``plots`` (list of PNG paths, empty without
+``--plot``), ``trace`` (with ``--trace`` only: the CSV path; columns in ``ringtune.envs.trace``; the printer as
+modelled, not a detuned variant).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
+from ringtune.agents.tune_study import DEFAULT_FREQ_MARGIN
 from ringtune.shaping.errors import RingtuneError
 
 NAME = "simulate"
@@ -30,6 +36,13 @@ the job's quality windows (sharpest corners, fastest zigzags):
   step_loss      whether a motor was asked for more force than it has at that speed
   motor_load     largest fraction of that force it was asked for (1 = the edge of step loss)
 
+Every figure is judged as `ringtune tune` judges its trials: the worst of the printer as modelled
+and of the printer with all its resonances --freq-margin per cent lower and higher (default 5; a
+real printer's frequencies drift by that much; a best.json from tune that records another margin
+is judged with that one). --freq-margin 0 judges the exact model only. So
+`simulate --config best.json` on tune's printer and job prints tune's figures for that
+configuration, to the digit.
+
 The configuration comes from a TuneConfig JSON (--config, as written by `ringtune tune`) or from
 --shaper/--freq/--damping/--freq-limit (one value for both axes, or "X,Y"). Without any, shaping
 is off. Without --printer the embedded Ender-3-class printer is used; without --gcode the built-in
@@ -39,6 +52,7 @@ examples:
   ringtune simulate --shaper mzv --freq 48 --damping 0.1
   ringtune simulate --shaper zv,mzv --freq 51,46 --freq-limit 30 --firmware rrf --plot plots/
   ringtune simulate --printer my.toml --gcode part.gcode --config best.json --json
+  ringtune simulate --config best.json --freq-margin 0     # the exact model only
   ringtune simulate --gcode ripples.gcode --trace nozzle.csv   # what the model prints
 """
 
@@ -55,6 +69,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--accel", metavar="A", type=float, help="printing acceleration, mm/s² (default: the printer's)")
     parser.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco",
                         help="physics: mujoco (default) or lti (exact linear, fast screening)")
+    parser.add_argument("--freq-margin", metavar="PCT", type=float, default=None,
+                        help="judge also with every resonance PCT %% lower and higher, the worst counts, as "
+                             f"tune does (default: the margin a tune best.json records, else {DEFAULT_FREQ_MARGIN * 100:g}; "
+                             "0 = the exact model only)")
     parser.add_argument("--plot", metavar="DIR", help="write path, ringing and accelerometer plots (PNG) to DIR")
     parser.add_argument("--trace", metavar="OUT.csv", help="write the simulated nozzle path (t, commanded and "
                         "nozzle x y, ...) of the whole job, or of its quality windows if it is long")
@@ -108,8 +126,18 @@ def build_config(args, out=None):
         cfg["freq_limit_hz"] = args.freq_limit
     if args.accel is not None:
         cfg["accel"] = args.accel
+    _check_options(freq, damping, args)
     where = args.config or "options"
-    config = TuneConfig.from_dict(cfg, where)
+    try:
+        config = TuneConfig.from_dict(cfg, where)
+    except RingtuneError as exc:   # a value an option gave: name the option, not the config key
+        key = (exc.where or "").rpartition(": ")[2]
+        given = {"--freq": freq, "--damping": damping, "--shaper": shaper, "--firmware": args.firmware,
+                 "--freq-limit": args.freq_limit, "--accel": args.accel}
+        flag = _KEY_FLAG.get(key)
+        if flag and given.get(flag) is not None:
+            raise RingtuneError(exc.bare, flag) from None
+        raise
     from ringtune.shaping.shapers import shapers_from_config
 
     try:  # the firmware must offer the shapers: say which option (or file) asked for them
@@ -121,10 +149,49 @@ def build_config(args, out=None):
     return config
 
 
+#: TuneConfig key -> the option that sets it
+_KEY_FLAG = {"freq_x": "--freq", "freq_y": "--freq", "damping_x": "--damping", "damping_y": "--damping",
+             "shaper_x": "--shaper", "shaper_y": "--shaper", "firmware": "--firmware",
+             "freq_limit_hz": "--freq-limit", "accel": "--accel"}
+
+
+def _check_options(freq, damping, args) -> None:
+    """The options' values in their own units, named by option (TuneConfig's own check would name
+    its keys: ``options: freq_x: -40.0 is out of range``)."""
+    import math
+
+    for f in freq or ():
+        if not (math.isfinite(f) and 0 <= f <= 1000):
+            raise RingtuneError(f"{f:g} Hz is not a shaper frequency: give one in (0, 1000] Hz", "--freq")
+    for z in damping or ():
+        if not (math.isfinite(z) and 0 <= z <= 0.99):
+            raise RingtuneError(f"{z:g} is not a damping ratio: give one in [0, 0.99] (e.g. 0.1)", "--damping")
+    if args.freq_limit is not None and not (math.isfinite(args.freq_limit) and 0 <= args.freq_limit <= 1000):
+        raise RingtuneError(f"{args.freq_limit:g} Hz is not a frequency limit: give one in [0, 1000] Hz "
+                            "(0 = off)", "--freq-limit")
+    if args.accel is not None and not (math.isfinite(args.accel) and 0 < args.accel <= 1e6):
+        raise RingtuneError(f"{args.accel:g} mm/s² is not an acceleration: give one > 0 mm/s²", "--accel")
+
+
+def freq_margin(args, config=None) -> float:
+    """--freq-margin PCT as a fraction; default: the margin the configuration was tuned with
+    (``freq_margin`` in a best.json from tune), else tune's default."""
+    if args.freq_margin is None:
+        recorded = (config.extra or {}).get("freq_margin") if config is not None else None
+        if isinstance(recorded, (int, float)) and not isinstance(recorded, bool) and 0 <= recorded < 0.5:
+            return float(recorded)
+        return DEFAULT_FREQ_MARGIN
+    if not 0 <= args.freq_margin < 50:
+        raise RingtuneError(f"must be a percentage in [0, 50), not {args.freq_margin:g}", "--freq-margin")
+    return args.freq_margin / 100.0
+
+
 def run(args, out) -> int:
-    from ringtune.envs.evaluate import evaluate_detailed, resolve_printer
+    from ringtune.agents.commands import judgement
+    from ringtune.envs.evaluate import evaluate_judged, resolve_printer, variant_factors
 
     config = build_config(args, out)
+    margin = freq_margin(args, config)
     if args.gcode and not Path(args.gcode).is_file():
         raise RingtuneError("no such G-code file", f"--gcode {args.gcode}")
     if args.plot:  # before simulating: a folder that cannot be made fails now, in one line
@@ -134,48 +201,57 @@ def run(args, out) -> int:
             raise RingtuneError(f"cannot create the plot folder: {exc.strerror or exc}",
                                 f"--plot {args.plot}") from None
     printer = resolve_printer(args.printer)
-    out.note(f"simulating {config.shaper_x}/{config.shaper_y} on {printer.name} ({args.backend}) ...")
-    ev = evaluate_detailed([config], printer, args.gcode, backend=args.backend)[0]
-    if args.trace:
+    judged = judgement(margin)
+    out.note(f"simulating {config.shaper_x}/{config.shaper_y} on {printer.name} ({args.backend}), {judged} ...")
+    m, evs = evaluate_judged([config], printer, args.gcode, backend=args.backend, freq_margin=margin)[0]
+    if args.trace:   # the printer as modelled (variant 1.0)
         from ringtune.agents.trace_option import write_trace_option
 
-        write_trace_option(args.trace, ev, config, printer, args.gcode, args.backend, out)
-    m = ev.metrics
+        write_trace_option(args.trace, evs[0], config, printer, args.gcode, args.backend, out)
+    keys = ("path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss", "motor_load")
     windows = []
-    for w, part in zip(ev.planned.windows, m.details.get("windows", [])):
+    for i, w in enumerate(evs[0].planned.windows):
+        parts = [e.metrics.details["windows"][i] for e in evs]
         windows.append({"t0": float(w.t0), "t1": float(w.t1), "kind": str(getattr(w, "kind", "")),
-                        **{k: part[k] for k in ("path_error_mm", "overshoot_mm", "ringing_mm",
-                                                "peak_accel", "step_loss", "motor_load")}})
+                        **{k: (any(p[k] for p in parts) if k == "step_loss" else max(p[k] for p in parts))
+                           for k in keys}})
+    factors = variant_factors(margin)
     plots = []
     if args.plot:
         from ringtune.envs.plots import plot_evaluation
 
-        plots = [str(p) for p in plot_evaluation(ev, args.plot)]
+        plots = [str(p) for p in plot_evaluation(evs, args.plot, factors=factors, judged=judged)]
     result = {
         "printer": printer.name,
         "job": args.gcode or "built-in test print",
         "backend": args.backend,
         "config": config.to_dict(),
         "metrics": m.to_dict(),
+        "freq_margin": margin,
+        "judgement": judged,
+        "variants": [{"factor": f, "metrics": e.metrics.to_dict()} for f, e in zip(factors, evs)],
         "windows": windows,
         "plots": plots,
         **({"trace": args.trace} if args.trace else {}),
     }
     c = config
+    um = 1000.0
     lines = [
         f"printer {printer.name}, job {result['job']}, backend {args.backend}",
         f"config  {c.firmware}: X {c.shaper_x} {c.freq_x:g} Hz S {c.damping_x:g}, "
         f"Y {c.shaper_y} {c.freq_y:g} Hz S {c.damping_y:g}, freq limit "
         f"{(f'{c.freq_limit_hz:g} Hz' if c.freq_limit_hz else 'off')}"
         + (f", accel {c.accel:g} mm/s²" if c.accel else ""),
-        f"print time   {m.print_time_s:10.2f} s",
-        f"path error   {m.path_error_mm:10.4f} mm",
-        f"overshoot    {m.overshoot_mm:10.4f} mm",
-        f"ringing      {m.ringing_mm:10.4f} mm RMS",
+        f"judged  {judged}",
+        f"print time   {m.print_time_s:10.3f} s",
+        f"path error   {m.path_error_mm * um:10.1f} µm",
+        f"overshoot    {m.overshoot_mm * um:10.1f} µm",
+        f"ringing      {m.ringing_mm * um:10.1f} µm RMS",
         f"peak accel   {m.peak_accel:10.0f} mm/s²",
         f"step loss    {'YES' if m.step_loss else 'no':>10}",
         f"motor load   {m.motor_load * 100:>9.0f} %  of the force the motors have",
-        f"({len(windows)} quality windows simulated)",
+        f"({len(windows)} quality windows simulated"
+        + (f" on each of {len(evs)} printer variants)" if len(evs) > 1 else ")"),
     ] + [f"plot: {p}" for p in plots]
     out.emit(result, "\n".join(lines))
     return 0

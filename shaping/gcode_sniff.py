@@ -1,0 +1,57 @@
+"""Is a file G-code at all? One clear sentence before the reader trips over a PNG's bytes or a
+TOML's ``name = ...`` line (``line number N must be an integer``).
+
+:func:`not_gcode` looks at the first bytes only (signatures of common binary formats, NUL bytes)
+and at the first lines that are not comments: G-code has G/M/T commands or Klipper-style
+upper-case macros there; a printer description, a Klipper configuration or a CSV file has none.
+"""
+
+from __future__ import annotations
+
+import re
+
+#: how much of a file is looked at, bytes
+HEAD = 64 * 1024
+#: code lines looked at
+LINES = 200
+
+_SIGNATURES = (
+    (b"\x89PNG\r\n\x1a\n", "a PNG image"),
+    (b"\xff\xd8\xff", "a JPEG image"),
+    (b"GIF8", "a GIF image"),
+    (b"%PDF", "a PDF document"),
+    (b"GCDE", "binary G-code (.bgcode): export plain G-code from the slicer, or convert it"),
+    (b"PK\x03\x04", "a ZIP archive (a .3mf project or a policy?)"),
+    (b"\x1f\x8b", "a gzip archive"),
+)
+_GCODE = re.compile(r"^\s*(?:[Nn]\s*\d+\s*)?(?:[GgMmTt]\s*\d|(?:[A-Z][A-Z0-9]*_[A-Z0-9_]+|[A-Z]{4,})(?:\s|$)"
+                    r"|[XYZEFxyzef]\s*-?[\d.])")
+_TOML = re.compile(r"^\s*(?:\[\[?[A-Za-z_][\w.\- \"']*\]\]?\s*(?:#.*)?$|[A-Za-z_][\w\-.]*\s*=)")
+_CFG = re.compile(r"^\s*(?:\[[A-Za-z_][\w\- ]*\]\s*$|[a-z_][\w]*\s*:)")
+_CSV = re.compile(r"^\s*[\w#.\-]+(?:\s*,\s*[\w.\-+]+)+\s*$")
+
+
+def not_gcode(head: bytes) -> str | None:
+    """Why ``head`` (a file's first bytes) is not G-code, in words, or None if it may be."""
+    for sig, what in _SIGNATURES:
+        if head.startswith(sig):
+            return f"{what}, not G-code"
+    if b"\x00" in head:
+        return "binary data, not G-code text"
+    text = head.decode("utf-8", "replace")
+    code = []
+    for line in text.splitlines()[:-1] if len(head) >= HEAD else text.splitlines():
+        s = line.split(";", 1)[0].strip()
+        if s:
+            code.append(s)
+            if len(code) >= LINES:
+                break
+    # G-code if the first command is one, or most are (a stray header line is not a verdict)
+    if not code or _GCODE.match(code[0]) or sum(bool(_GCODE.match(s)) for s in code) >= 0.5 * len(code):
+        return None
+    kinds = (("a TOML file (a printer description? give it with --printer)", _TOML),
+             ("a configuration file (printer.cfg?)", _CFG), ("a CSV table", _CSV))
+    for what, rx in kinds:
+        if sum(bool(rx.match(s)) or s.startswith("#") for s in code) >= 0.5 * len(code):
+            return f"looks like {what}, not G-code: its first lines are not G-code commands"
+    return "does not look like G-code: its first lines are not G-code commands (G0/G1, M…, T…)"

@@ -1,0 +1,103 @@
+"""Errors that were one line but not clear (issue 14, "Smaller things"): each names what is wrong
+in the user's terms — the file that is not G-code and what it is, the option and its unit, any
+case of a firmware name."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from ringtune.agents.cli import main
+
+
+def _error(capsys, argv) -> str:
+    assert main(argv) == 2
+    out, err = capsys.readouterr()
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert out == ""
+    return lines[0]
+
+
+def _png(path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots()
+    ax.plot([0, 1, 0, 2])
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def test_plan_of_a_png_says_it_is_an_image(tmp_path, capsys):
+    """`plan fit.png` printed the reader's complaint about a line of the PNG's bytes."""
+    png = _png(tmp_path / "fit.png")
+    line = _error(capsys, ["plan", str(png)])
+    assert line == f"ringtune plan: error: {png}: a PNG image, not G-code"
+    assert line.isprintable()
+
+
+def test_plan_of_a_printer_toml_says_give_it_with_printer(tmp_path, capsys):
+    """`plan myprinter.toml` said `line number N must be an integer` (the `name = ...` line)."""
+    from pathlib import Path
+
+    import ringtune.envs.data
+
+    toml = tmp_path / "myprinter.toml"
+    toml.write_text((Path(ringtune.envs.data.__file__).parent / "ender3.toml").read_text())
+    line = _error(capsys, ["plan", str(toml)])
+    assert "TOML file" in line and "--printer" in line and "line number" not in line
+
+
+def test_gcode_sniff_knows_real_files_from_the_data(data_dir):
+    from ringtune.shaping.gcode_sniff import HEAD, not_gcode
+
+    for g in sorted((data_dir / "gcode").glob("*/*.gcode")):
+        assert not_gcode(g.read_bytes()[:HEAD]) is None, g
+    csv = next(iter(sorted((data_dir / "accel").rglob("*.csv"))))
+    assert "CSV" in not_gcode(csv.read_bytes()[:HEAD])
+    for cfg in sorted((data_dir / "klipper_config").glob("*/printer.cfg")):
+        assert not_gcode(cfg.read_bytes()[:HEAD]) is not None, cfg
+
+
+@pytest.mark.parametrize("argv,expected", [
+    (["--shaper", "mzv", "--freq", "-40"], "--freq: -40 Hz is not a shaper frequency"),
+    (["--shaper", "mzv", "--freq", "40", "--damping", "1.5"], "--damping: 1.5 is not a damping ratio"),
+    (["--freq-limit", "-3"], "--freq-limit: -3 Hz is not a frequency limit"),
+    (["--accel", "0"], "--accel: 0 mm/s² is not an acceleration"),
+    (["--shaper", "mzv", "--freq", "0"], "--freq: "),
+])
+def test_simulate_names_the_option_not_the_config_key(argv, expected, capsys):
+    """`simulate --freq -40` said `options: freq_x: -40.0 is out of range [0, 1000]`."""
+    line = _error(capsys, ["simulate", "--backend", "lti", *argv])
+    assert expected in line and "options:" not in line and "freq_x" not in line.split("shaper_x")[0]
+
+
+@pytest.mark.parametrize("argv", [
+    ["study", "--json", "--firmware", "Klipper", "--values", "0", "--shapers", "mzv", "--backend", "lti"],
+    ["simulate", "--json", "--firmware", "RRF", "--shaper", "zvd", "--freq", "40", "--backend", "lti",
+     "--freq-margin", "0"],
+])
+def test_firmware_names_in_any_case(argv, tmp_path, capsys):
+    """`Klipper` was refused (`study`, `recommend`): every --firmware goes through the firmware
+    record's parser, once, in the CLI."""
+    if argv[0] == "study":
+        argv = argv + ["-o", str(tmp_path / "s.png")]
+    assert main(argv) == 0
+    res = json.loads(capsys.readouterr().out)
+    if argv[0] == "simulate":
+        assert res["config"]["firmware"] == "rrf"
+
+
+def test_recommend_takes_a_capitalised_firmware(capsys):
+    assert main(["recommend", "--json", "--printer", "default", "--firmware", "Klipper"]) == 0
+    assert json.loads(capsys.readouterr().out)
+
+
+def test_unknown_firmware_is_refused_once_naming_the_option(capsys):
+    line = _error(capsys, ["simulate", "--firmware", "Duet"])
+    assert "--firmware" in line and "klipper" in line and "'Duet'" in line
