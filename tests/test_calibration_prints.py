@@ -260,3 +260,22 @@ def test_ringing_tower_says_its_acceleration_stays_after_the_print(tmp_path, cap
     run_json(["testprint", "ringing", "--firmware", "marlin", "--bands", "30:40:2", "-o", str(g)], capsys)
     tail = g.read_text().splitlines()[-3:]
     assert any("M201 X3000 Y3000" in ln and "M204 P3000 T3000" in ln and "stays" in ln for ln in tail), tail
+
+
+def test_ripples_on_a_base_without_masses_say_the_masses_are_defaults(data_dir, tmp_path, capsys):
+    # a description from `printer from-klipper` has no masses (a configuration does not know them);
+    # identify --ripples --base must not write the loader's defaults as if they were the printer's
+    base = tmp_path / "v24.toml"
+    assert main(["printer", "from-klipper", str(data_dir / "klipper_config" / "v24" / "printer.cfg"),
+                 "-o", str(base)]) == 0
+    capsys.readouterr()
+    out = tmp_path / "v24r.toml"
+    res, err = run_json(["identify", "--ripples", "X=2.1,Y=2.6", "--speed", "100", "--base", str(base),
+                         "-o", str(out)], capsys)
+    text = out.read_text()
+    assert "masses X 0.55 kg, Y 1.1 kg are defaults" in err and "--base to use" not in err
+    assert "# still defaults: masses X 0.55 kg, Y 1.1 kg" in text
+    # a base that gives its masses gets no such note
+    base.write_text(base.read_text().replace("[x]\n", "[x]\nmass = 0.4\n").replace("[y]\n", "[y]\nmass = 0.6\n"))
+    res, err = run_json(["identify", "--ripples", "X=2.1,Y=2.6", "--speed", "100", "--base", str(base)], capsys)
+    assert "are defaults" not in err and "still defaults" not in res["toml"]
