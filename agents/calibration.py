@@ -84,7 +84,12 @@ def ringing_tower(firmware: str, *, speed: float, accel: float, bands: tuple[flo
     end = ([f"the shaper of the last band stays active until the firmware restarts or you send your own "
             f"settings (ringtune export)"] if bands is not None else
            ["shaping stays off until the firmware restarts or you send your own settings (ringtune export)"])
-    start = cp.start_lines(hotend, bed, cp.accel_lines(firmware, accel))
+    accel_set = cp.accel_lines(firmware, accel)
+    end.append(f"the acceleration set at the start ({'; '.join(accel_set)}) stays too: "
+               + ("restart Klipper or set your own" if firmware == "klipper" else
+                  "M501 reloads the saved settings" if firmware in ("marlin", "marlin-ftm", "prusa") else
+                  "restart or run config.g again"))
+    start = cp.start_lines(hotend, bed, accel_set)
     text = cp.ringing_tower(out_bands, g, ext, header=header, start=start, end_note=end)
     return TowerPlan(out_bands, text, measure, notes)
 

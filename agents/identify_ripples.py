@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import math
 from dataclasses import fields, replace
 from pathlib import Path
 
@@ -65,6 +66,8 @@ def identify_modes(args, out) -> tuple[dict, dict, list]:
             raise RingtuneError("--tower goes with --tower-band", "--tower")
         if args.speed is None:
             raise RingtuneError("the ripples need the wall speed they were printed at", "--speed")
+        if not (math.isfinite(args.speed) and args.speed > 0):
+            raise RingtuneError(f"must be a positive wall speed in mm/s, not {args.speed:g}", "--speed")
         spacing = parse_axis_values(args.ripples, "--ripples")
         decay = parse_axis_values(args.decay, "--decay") if args.decay else {}
         for ax in decay:
@@ -91,6 +94,8 @@ def identify_modes(args, out) -> tuple[dict, dict, list]:
         if args.speed or args.decay:
             raise RingtuneError("--speed and --decay go with --ripples", "--speed" if args.speed else "--decay")
         path = Path(args.tower)
+        if path.is_dir():
+            raise RingtuneError("is a directory, not the tower's G-code", f"--tower {args.tower}")
         if not path.is_file():
             raise RingtuneError("no such file", f"--tower {args.tower}")
         data = path.read_bytes()
@@ -119,8 +124,13 @@ def printer_text(modes: dict, meas: dict, files: list, name: str, base: str | No
     from ringtune.envs.printer_model import AxisModel, Mode
 
     p = load_printer(base)
-    out.note(f"masses, motors, limits{' and the modes of ' + ', '.join(a.upper() for a in 'xy' if a not in modes) if len(modes) < 2 else ''}: "
-             f"from {p.name} (--base to use your printer's)")
+    unmeasured = ' and the modes of ' + ', '.join(a.upper() for a in 'xy' if a not in modes) if len(modes) < 2 else ''
+    out.note(f"masses, motors, limits{unmeasured}: from {p.name}"
+             + (" (--base to use your printer's)" if base is None else f" ({base})"))
+    default_masses = _default_masses(base, p)
+    if default_masses:
+        out.note(f"masses {default_masses} are defaults (not in {base or 'the embedded printer'}): the motor load "
+                 "and the acceleration headroom come from them (weigh them: [x] mass / [y] mass)")
     axes = {ax: AxisModel(p.axis(ax).mass, [Mode(round(f, 3), round(z, 4))]) for ax, (f, z, _) in modes.items()}
     new = replace(p, name=name, description=f"identified from {meas['source']} on a print; base {p.name}", **axes)
     if files:
@@ -131,12 +141,30 @@ def printer_text(modes: dict, meas: dict, files: list, name: str, base: str | No
     text = new.to_toml()
     head = [f"# identified without an accelerometer ({meas['source']}); base: {p.name}"]
     head += [f"# {ax.upper()}: {c}" for ax, (_, _, c) in sorted(modes.items())]
+    if default_masses:
+        head.append(f"# still defaults: masses {default_masses} (the base gives none); [x] mass / [y] mass "
+                    "replace them")
     if "[measurement]" not in text:
         section = _measurement_toml(meas)
         if not readable:          # kept as comments until the printer reader takes the section
             section = "".join(f"# {line}\n" if line else "#\n" for line in section.splitlines())
         text += "\n" + section
     return "\n".join(head) + "\n" + text
+
+
+def _default_masses(base: str | None, p) -> str:
+    """"X 0.55 kg, Y 1.1 kg" for the axes whose mass the base description does not give (the
+    loader's defaults), "" when it gives both."""
+    import tomllib
+
+    if base is None or not Path(base).is_file():  # the embedded printers name their masses (and the
+        return ""                                 # note before this one says they are not the user's)
+    try:
+        raw = tomllib.loads(Path(base).read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError):
+        raw = {}
+    missing = [ax for ax in "xy" if not isinstance(raw.get(ax), dict) or "mass" not in raw[ax]]
+    return ", ".join(f"{ax.upper()} {p.axis(ax).mass:g} kg" for ax in missing)
 
 
 def _measurement_toml(meas: dict) -> str:

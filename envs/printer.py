@@ -422,6 +422,8 @@ def load_printer(path: str | Path | None = None) -> Printer:
             text = p.read_text()
         except OSError as exc:
             raise RingtuneError(f"cannot read printer description: {exc.strerror}", str(path)) from None
+        except UnicodeDecodeError:
+            raise RingtuneError("not a text file (binary data): not a printer description (TOML)", str(path)) from None
         where = str(path)
     try:
         data = tomllib.loads(text)

@@ -26,6 +26,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ringtune.hardware.firmware_facts import read_text_file
 from ringtune.shaping.errors import RingtuneError
 
 #: the line that opens Klipper's auto-saved block (``AUTOSAVE_HEADER`` in klippy/configfile.py)
@@ -182,11 +183,9 @@ def split_autosave(text: str) -> tuple[str, str, int]:
 def read_klipper_cfg(path: str | Path) -> KlipperCfg:
     """Read ``printer.cfg`` with its includes and SAVE_CONFIG block (see the module docstring)."""
     path = str(path)
-    if not os.path.isfile(path):
-        raise RingtuneError("no such file", path)
+    text = read_text_file(path, "Klipper configuration").replace("\r\n", "\n")
     cfg = KlipperCfg()
     reader = _Reader(cfg)
-    text = Path(path).read_text(errors="replace").replace("\r\n", "\n")
     regular, saved, first = split_autosave(text)
     real = os.path.realpath(path)
     reader.visiting.add(real)

@@ -143,6 +143,9 @@ def _limits(src: _Source) -> dict:
             v = src.number("printer", f"max_{ax}_{kind}")
             if v is not None and v < top:
                 caps[i] = v
+            elif v is not None:
+                src.notes.append(f"{src.where('printer', f'max_{ax}_{kind}')}: max_{ax}_{kind} {v:g} is not below "
+                                 f"max_{kind} {top:g}, which limits every move: no cap of its own on {ax.upper()}")
         if any(caps):
             limits[f"max_{kind}"] = caps
     return limits
@@ -238,7 +241,7 @@ def _stepper_motor(src: _Source, stepper: str) -> dict:
             table[out] = v
         steps = src.number(inline, "steps_per_revolution", integer=True)
         src.notes.append(f"{stepper}: motor {motor}: constants from [{inline}] at "
-                         f"{src.where(inline, 'resistance')} (they take precedence over a built-in entry)")
+                         f"{src.where(inline, 'resistance')}")
         if steps is not None and steps != full:
             src.notes.append(f"{stepper}: [{inline}] steps_per_revolution {steps} but full_steps_per_rotation "
                              f"{full}; {full} is written (it is how Klipper steps the motor)")

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, gcode_words, place_motors, to_number
+from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, gcode_words, place_motors, read_text_file, to_number
 from ringtune.shaping.errors import RingtuneError
 
 _READ = ("M92", "M201", "M203", "M204", "M205", "M906", "M593")
@@ -43,10 +43,7 @@ def _lines(text: str):
 def printer_facts_from_marlin(path: str | Path, kinematics: str | None = None) -> FirmwareFacts:
     """Facts from a saved ``M503`` answer (see the module docstring)."""
     path = str(path)
-    try:
-        text = Path(path).read_text(errors="replace")
-    except FileNotFoundError:
-        raise RingtuneError("no such file", path) from None
+    text = read_text_file(path, "M503 report")
     seen: dict[str, tuple[int, dict]] = {}
     notes: list[str] = []
     for n, (cmd, words) in _lines(text):

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ringtune.hardware.firmware_facts import FirmwareFacts, gcode_words, place_motors, to_number
+from ringtune.hardware.firmware_facts import FirmwareFacts, gcode_words, place_motors, read_text_file, to_number
 from ringtune.shaping.errors import RingtuneError
 
 #: M669 K (number or RRF 3.7 name, lower case) -> kinematics of the model
@@ -34,10 +34,7 @@ _READ = ("M669", "M92", "M201", "M203", "M204", "M566", "M906", "M593")
 def printer_facts_from_rrf(path: str | Path) -> FirmwareFacts:
     """Facts from ``config.g`` (see the module docstring)."""
     path = str(path)
-    try:
-        text = Path(path).read_text(errors="replace")
-    except FileNotFoundError:
-        raise RingtuneError("no such file", path) from None
+    text = read_text_file(path, "config.g")
     seen: dict[str, dict[str, tuple[int, str]]] = {}
     for n, raw in enumerate(text.splitlines(), 1):
         line = raw.split(";", 1)[0]

@@ -200,6 +200,9 @@ def test_ripple_arithmetic_matches_seed_000_and_the_logarithmic_decrement():
     (["--ripples", "Z=2", "--speed", "100"], "--ripples"),
     (["--tower-band", "X=2"], "--tower"),
     (["--ripples", "X=2", "--speed", "100", "--plot", "f.png"], "--plot"),
+    (["--ripples", "X=2", "--speed", "-1"], "--speed"),          # was blamed on --ripples X
+    (["--ripples", "X=2", "--speed", "nan"], "--speed"),
+    (["--tower-band", "X=2", "--tower", "."], "--tower . : is a directory".replace(" :", ":")),
 ])
 def test_bad_ripple_input_is_a_one_line_error(argv, where, capsys):
     assert main(["identify"] + argv) == 2
@@ -220,3 +223,59 @@ def test_trace_of_a_long_job_is_its_quality_windows(tmp_path, monkeypatch, capsy
     assert set(np.unique(tr["window"])) == set(range(1, 9))
     dev = np.hypot(tr["x_nozzle"] - tr["x_shaped"], tr["y_nozzle"] - tr["y_shaped"])
     assert 0 < dev.max() < 1.0
+
+
+# -- what a new user gets wrong (QA) -------------------------------------------------------------------
+@pytest.mark.parametrize("argv, where", [
+    (["ringing", "--hotend", "900"], "--hotend"),                    # no hotend reaches 900 °C
+    (["ringing", "--bed", "-20"], "--bed"),
+    (["ringing", "--centre", "20,20"], "--side"),                    # the tower would start below X0/Y0
+    (["accel", "--reach", "500"], "--reach"),                        # fast moves to X-390
+])
+def test_implausible_prints_are_one_line_errors(argv, where, tmp_path, capsys):
+    TuneConfig(firmware="klipper", shaper_x="mzv", shaper_y="mzv", freq_x=45.0, freq_y=40.0,
+               accel=6000.0).save(tmp_path / "best.json")
+    extra = ["--config", str(tmp_path / "best.json")] if argv[0] == "accel" else []
+    assert main(["testprint", *argv, "--firmware", "klipper", *extra, "-o", str(tmp_path / "x.gcode")]) == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last.startswith("ringtune testprint: error: " + where), last
+    assert not (tmp_path / "x.gcode").exists()
+
+
+def test_accel_ladder_above_the_tuned_value_does_not_call_the_current_one_the_first_rung(tmp_path, capsys):
+    # the Voron 2.4 of tests/data runs 8994 mm/s²; a tune that chose 4100 makes the ladder start at half
+    # of 4100, and stderr must not also say that the first rung is 8994
+    TuneConfig(firmware="klipper", shaper_x="mzv", shaper_y="mzv", freq_x=53.0, freq_y=37.6,
+               accel=4100.0).save(tmp_path / "best.json")
+    (tmp_path / "p.toml").write_text('[limits]\naccel = 3000\nvelocity = 300\n[current]\naccel = 8994.0\n'
+                                     '[x]\nmodes = [{ freq = 50.0 }]\n[y]\nmodes = [{ freq = 40.0 }]\n')
+    res, err = run_json(["testprint", "accel", "--firmware", "klipper", "--config", str(tmp_path / "best.json"),
+                         "--printer", str(tmp_path / "p.toml")], capsys)
+    assert res["rungs"][0]["accel"] == 2050
+    assert "first rung 8994" not in err and "8994" in err
+
+
+def test_ringing_tower_says_its_acceleration_stays_after_the_print(tmp_path, capsys):
+    g = tmp_path / "r.gcode"
+    run_json(["testprint", "ringing", "--firmware", "marlin", "--bands", "30:40:2", "-o", str(g)], capsys)
+    tail = g.read_text().splitlines()[-3:]
+    assert any("M201 X3000 Y3000" in ln and "M204 P3000 T3000" in ln and "stays" in ln for ln in tail), tail
+
+
+def test_ripples_on_a_base_without_masses_say_the_masses_are_defaults(data_dir, tmp_path, capsys):
+    # a description from `printer from-klipper` has no masses (a configuration does not know them);
+    # identify --ripples --base must not write the loader's defaults as if they were the printer's
+    base = tmp_path / "v24.toml"
+    assert main(["printer", "from-klipper", str(data_dir / "klipper_config" / "v24" / "printer.cfg"),
+                 "-o", str(base)]) == 0
+    capsys.readouterr()
+    out = tmp_path / "v24r.toml"
+    res, err = run_json(["identify", "--ripples", "X=2.1,Y=2.6", "--speed", "100", "--base", str(base),
+                         "-o", str(out)], capsys)
+    text = out.read_text()
+    assert "masses X 0.55 kg, Y 1.1 kg are defaults" in err and "--base to use" not in err
+    assert "# still defaults: masses X 0.55 kg, Y 1.1 kg" in text
+    # a base that gives its masses gets no such note
+    base.write_text(base.read_text().replace("[x]\n", "[x]\nmass = 0.4\n").replace("[y]\n", "[y]\nmass = 0.6\n"))
+    res, err = run_json(["identify", "--ripples", "X=2.1,Y=2.6", "--speed", "100", "--base", str(base)], capsys)
+    assert "are defaults" not in err and "still defaults" not in res["toml"]

@@ -103,3 +103,66 @@ def test_bad_kinematics_is_one_line_naming_file_and_line(tmp_path, capsys):
     assert cli.main(["printer", "from-klipper", str(cfg)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"ringtune printer: error: {cfg}:2: kinematics 'delta'" in err[0]
+
+
+@pytest.mark.parametrize("source", ["from-klipper", "from-marlin", "from-rrf"])
+def test_a_folder_or_a_binary_file_is_one_line_saying_what_it_is(source, tmp_path, capsys):
+    binary = tmp_path / "firmware.bin"
+    binary.write_bytes(bytes(range(256)) * 8)          # what a user gets by picking the wrong file
+    for path, words in ((tmp_path, "is a directory"), (binary, "not a text file")):
+        assert cli.main(["printer", source, str(path)]) == 2
+        cap = capsys.readouterr()
+        err = cap.err.strip().splitlines()
+        assert len(err) == 1 and cap.out == "", cap.err
+        assert err[0].startswith(f"ringtune printer: error: {path}: {words}") and "\ufffd" not in err[0]
+
+
+def test_output_to_a_folder_is_refused_before_reading(data_dir, tmp_path, capsys):
+    cfg = data_dir / "klipper_config" / "ender3" / "printer.cfg"
+    assert cli.main(["printer", "from-klipper", str(cfg), "-o", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"--output {tmp_path}: is a directory" in err[0]
+
+
+def test_no_note_claims_a_builtin_motor_the_table_does_not_have(data_dir, capsys):
+    # the V0 defines fysetc-35hsh7402-24b-400a inline; the built-in table has no motor of that name,
+    # so no note may say that the inline constants override a built-in entry
+    from ringtune.envs.motors import lookup_motor
+
+    assert lookup_motor("fysetc-35hsh7402-24b-400a") is None
+    cfg = data_dir / "klipper_config" / "v0" / "printer.cfg"
+    assert cli.main(["printer", "from-klipper", str(cfg), "--json"]) == 0
+    notes = json.loads(capsys.readouterr().out)["notes"]
+    assert any("fysetc-35hsh7402-24b-400a is not in the built-in table" in n for n in notes)
+    assert not [n for n in notes if "precedence over a built-in" in n or "built-in table's entry" in n]
+
+
+def test_a_run_current_without_a_motor_is_said_to_have_no_effect(data_dir, capsys):
+    # the Ender 3's configuration gives run_current 0.58 A but names no motor: the loader then uses
+    # the default motor's force, which the run current does not change; the note must say so
+    cfg = data_dir / "klipper_config" / "ender3" / "printer.cfg"
+    assert cli.main(["printer", "from-klipper", str(cfg), "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["description"]["motor"]["run_current"] == 0.58
+    p = load_printer_text(res["toml"])
+    assert p.motor.stepper is None                       # the old-form default motor: run_current unused
+    note = next(n for n in res["notes"] if n.startswith("no motor named or described"))
+    assert "run_current is kept but counts only once the motor is named" in note
+
+
+def load_printer_text(text):
+    import tomllib as _t
+
+    from ringtune.envs.printer import printer_from_dict
+
+    return printer_from_dict(_t.loads(text))
+
+
+def test_a_per_axis_limit_above_the_overall_one_is_said_not_dropped(data_dir, capsys):
+    # the Voron 2.4 (limited_corexy) sets max_x_accel 10010 over max_accel 8994: X gets no cap of its own
+    # (max_accel binds first), Y its 4130; the dropped X value must be said, not vanish
+    cfg = data_dir / "klipper_config" / "v24" / "printer.cfg"
+    assert cli.main(["printer", "from-klipper", str(cfg), "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["description"]["limits"]["max_accel"][:2] == [0.0, 4130.0]
+    assert any("max_x_accel 10010" in n and "max_accel 8994" in n for n in res["notes"]), res["notes"]

@@ -155,3 +155,39 @@ def test_corner_speed_is_where_the_flat_part_ends(name, frac, volt):
     f0 = d.standstill_force
     assert float(d.force(0.999 * vc)) == pytest.approx(f0, rel=1e-9)
     assert float(d.force(1.01 * vc)) < f0 * (1 - 1e-6)
+
+
+def test_motor_command_takes_the_constants_of_a_motor_the_table_lacks(capsys, tmp_path):
+    # the V0 of tests/data/klipper_config defines its motor inline ([motor_constants
+    # fysetc-35hsh7402-24b-400a] in v0/config/autotune.cfg): the command must take those constants
+    name = "fysetc-35hsh7402-24b-400a"
+    assert lookup_motor(name) is None
+    rc, cap = _run(["motor", name, "--run-current", "0.7"], capsys)
+    assert rc == 2 and cap.out == "" and len(cap.err.strip().splitlines()) == 1
+    for flag in ("--holding-torque", "--rated-current", "--resistance", "--inductance"):
+        assert flag in cap.err
+    rc, cap = _run(["motor", name, "--holding-torque", "0.42", "--rated-current", "1.5", "--resistance", "2.8",
+                    "--inductance", "0.0055", "--run-current", "0.7", "--voltage", "24",
+                    "--rotation-distance", "40", "--json"], capsys)
+    assert rc == 0, cap.err
+    r = json.loads(cap.out)
+    assert r["motor"] == name and r["constants"]["holding_torque_nm"] == 0.42
+    got = dict(r["force_n"])
+    want = [pullout_force_by_search(2.8, 0.0055, 0.42, 1.5, 200, 0.7, 24.0, 40.0, s) for s in (0, 500)]
+    np.testing.assert_allclose([got[0], got[500]], want, rtol=0.02)
+    assert "steps_per_revolution = 200" in cap.err          # the one constant not given is said
+    rc, cap = _run(["motor", name, "--holding-torque", "-1", "--rated-current", "1.5", "--resistance", "2.8",
+                    "--inductance", "0.0055"], capsys)
+    assert rc == 2 and "--holding-torque" in cap.err
+
+
+def test_motor_command_refuses_a_plot_folder_and_says_a_current_above_the_rating(capsys, tmp_path):
+    rc, cap = _run(["motor", "ldo-42sth40-1684ac", "--plot", str(tmp_path)], capsys)
+    assert rc == 2 and "--plot" in cap.err and "directory" in cap.err
+    assert not Path(str(tmp_path) + ".png").exists()
+    rc, cap = _run(["motor", "ldo-42sth40-1684ac", "--run-current", "2.0", "--voltage", "24",
+                    "--rotation-distance", "40"], capsys)
+    assert rc == 0 and "above the motor's rated 1.68 A" in cap.err
+    rc, cap = _run(["motor", "ldo-42sth40-1684ac", "--run-current", "0.9", "--voltage", "24",
+                    "--rotation-distance", "40"], capsys)
+    assert rc == 0 and cap.err == ""

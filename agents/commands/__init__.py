@@ -18,13 +18,16 @@ def load_config(path, out=None):
 
 
 def check_output_folder(option: str, path) -> None:
-    """Refuse, before any work, an output file whose folder does not exist (one-line error)."""
+    """Refuse, before any work, an output file whose folder does not exist, or that is itself a
+    folder (one-line error)."""
     from pathlib import Path
 
     from ringtune.shaping.errors import RingtuneError
 
     if path and not Path(path).parent.is_dir():
         raise RingtuneError("no such directory", f"{option} {path}")
+    if path and Path(path).is_dir():
+        raise RingtuneError("is a directory; give a file name", f"{option} {path}")
 
 
 def judgement(freq_margin: float) -> str:

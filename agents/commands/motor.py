@@ -23,13 +23,28 @@ The acceleration with --mass is F(v)/mass at each speed: the largest acceleratio
 that mass while passing that speed, without the rotor's own inertia and friction (add the rotor's
 reflected mass J/r² to --mass to count it). Values not given are said on stderr with what is used.
 
+A motor the table does not know (or one whose datasheet differs) is given by its constants, the
+same five as Klipper's [motor_constants NAME] section: --holding-torque, --rated-current,
+--resistance, --inductance (and --steps-per-revolution, default 200).
+
 examples:
   ringtune motor ldo-42sth48-2504ac
+  ringtune motor fysetc-35hsh7402-24b-400a --holding-torque 0.42 --rated-current 1.5 \\
+      --resistance 2.8 --inductance 0.0055 --run-current 0.7
   ringtune motor ldo-42sth40-1684ac --run-current 0.9 --voltage 24 --rotation-distance 40 --mass 0.8
   ringtune motor ldo-42sth48-2504ac --voltage 48 --plot force.png --json
 """
 
 SPEEDS = (0.0, 100.0, 200.0, 300.0, 500.0)
+
+#: (flag, metavar, help) of the datasheet constants, in the order of the [motor] keys
+CONSTANT_FLAGS = (
+    ("--holding-torque", "NM", "holding torque, N·m at the rated current (max_current)"),
+    ("--rated-current", "A", "rated (datasheet) current per phase, A (Klipper's max_current)"),
+    ("--resistance", "OHM", "phase resistance, Ω"),
+    ("--inductance", "H", "phase inductance, H (0.0036 for 3.6 mH)"),
+    ("--steps-per-revolution", "N", "full steps per revolution: 200 (1.8°) or 400 (0.9°)"),
+)
 
 
 def add_arguments(parser) -> None:
@@ -41,12 +56,18 @@ def add_arguments(parser) -> None:
                         help="driver supply voltage, V (default 24)")
     parser.add_argument("--rotation-distance", metavar="MM", type=float, default=None,
                         help="mm of belt per motor revolution (default 40: GT2 belt, 20-tooth pulley)")
+    c = parser.add_argument_group("the motor's datasheet constants (Klipper's [motor_constants]): for a motor "
+                                  "the table does not know, or to override the table's")
+    for flag, meta, what in CONSTANT_FLAGS:
+        c.add_argument(flag, metavar=meta, type=float, default=None, help=what)
     parser.add_argument("--mass", metavar="KG", type=float, default=None,
                         help="moving mass, kg: also report the acceleration the force allows")
     parser.add_argument("--plot", metavar="OUT.png", default=None, help="write the force–speed graph here")
 
 
 def run(args, out) -> int:
+    from pathlib import Path
+
     from ringtune.agents.commands import check_output_folder
     from ringtune.envs.motors import lookup_motor, unknown_motor_message
     from ringtune.envs.printer import printer_from_dict
@@ -57,10 +78,20 @@ def run(args, out) -> int:
         if v is not None and not v > 0:
             raise RingtuneError(f"must be > 0, not {v:g}", opt)
     check_output_folder("--plot", args.plot)
+    if args.plot and Path(args.plot).is_dir():
+        raise RingtuneError("is a directory; give a file name such as force.png", f"--plot {args.plot}")
+    given = {flag[2:].replace("-", "_"): getattr(args, flag[2:].replace("-", "_"))
+             for flag, _, _ in CONSTANT_FLAGS if getattr(args, flag[2:].replace("-", "_")) is not None}
+    for key, v in given.items():
+        if not v > 0:
+            raise RingtuneError(f"must be > 0, not {v:g}", "--" + key.replace("_", "-"))
     ref = lookup_motor(args.name)
     if ref is None:
-        raise RingtuneError(unknown_motor_message(args.name))
-    table = {"name": ref.name}
+        missing = [k for k in ("holding_torque", "rated_current", "resistance", "inductance") if k not in given]
+        if missing:
+            raise RingtuneError(unknown_motor_message(args.name).rsplit("; give", 1)[0] + "; give its "
+                                "constants: " + " ".join("--" + k.replace("_", "-") for k in missing))
+    table = {"name": ref.name if ref is not None else args.name.strip(), **given}
     for key, v in (("run_current", args.run_current), ("voltage", args.voltage),
                    ("rotation_distance", args.rotation_distance)):
         if v is not None:
@@ -71,17 +102,22 @@ def run(args, out) -> int:
     except RingtuneError as exc:                      # name the flag, not the key
         raise RingtuneError(exc.bare, "--" + exc.where.rsplit(".", 1)[-1].replace("_", "-")) from None
     for note in mo.assumed:
-        if not note.startswith("steps_per_revolution"):
+        if ref is None or not note.startswith("steps_per_revolution"):
             out.note(f"note: {note}")
     drive = mo.stepper
+    if drive.run_current > drive.motor.rated_current:
+        out.note(f"note: run_current {drive.run_current:g} A is above the motor's rated {drive.motor.rated_current:g} A: "
+                 "the force is credited only up to the rated current (the iron saturates), and the motor "
+                 "runs hotter than its datasheet allows")
     import numpy as np
 
     forces = drive.force(np.array(SPEEDS))
+    c = drive.motor
     result = {
-        "motor": ref.name,
-        "constants": {"holding_torque_nm": ref.holding_torque, "rated_current_a": ref.rated_current,
-                      "resistance_ohm": ref.resistance, "inductance_h": ref.inductance,
-                      "steps_per_revolution": ref.steps_per_revolution},
+        "motor": table["name"],
+        "constants": {"holding_torque_nm": c.holding_torque, "rated_current_a": c.rated_current,
+                      "resistance_ohm": c.resistance, "inductance_h": c.inductance,
+                      "steps_per_revolution": c.steps_per_revolution},
         "run_current_a": drive.run_current, "voltage_v": drive.voltage,
         "rotation_distance_mm": drive.rotation_distance, "assumed": list(mo.assumed),
         "force_n": [[s, float(f)] for s, f in zip(SPEEDS, forces)],

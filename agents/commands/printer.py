@@ -223,14 +223,22 @@ def run(args, out) -> int:
     from ringtune.hardware.firmware_facts import MOTOR_CONSTANTS, motor_tables
 
     check_output_folder("--output", args.output)
+    if args.output and Path(args.output).is_dir():
+        from ringtune.shaping.errors import RingtuneError
+
+        raise RingtuneError("is a directory; give a file name such as printer.toml", f"--output {args.output}")
     facts, default_name = _read(args)
     description = facts.description
     notes = list(facts.notes)
     comments: dict[str, list[str]] = {}
     check_motor_names(description, notes, comments)
     if not any("name" in t or all(k in t for k in MOTOR_CONSTANTS) for t in motor_tables(description).values()):
+        drive = sorted({k for t in motor_tables(description).values() for k in ("run_current", "voltage")
+                        if k in t})
+        unused = (f"; {' and '.join(drive)} {'are kept but count' if len(drive) > 1 else 'is kept but counts'} "
+                  "only once the motor is named") if drive else ""
         notes.append(f"no motor named or described: the force at the belt is the default motor's "
-                     f"({DEFAULTS['motor_force']:g} N, falling above {DEFAULTS['corner_speed']:g} mm/s); "
+                     f"({DEFAULTS['motor_force']:g} N, falling above {DEFAULTS['corner_speed']:g} mm/s){unused}; "
                      "name the motor ([motor] name = …) or give its constants")
     notes.append("modes are defaults until `ringtune identify` measures them; masses are defaults")
     name = args.name or default_name

@@ -102,6 +102,16 @@ def _material(args, out) -> None:
     if missing:
         out.note("assumed " + ", ".join(f"--{k} {MATERIAL[k]:g}" for k in missing)
                  + " (mm, °C; PLA on a 0.4 mm nozzle)")
+    import math
+
+    from ringtune.shaping.errors import RingtuneError
+
+    # plausible targets: a nozzle hot enough to extrude anything printable and within what a hotend
+    # survives (PTFE-lined ones stop near 250 °C, all-metal ones near 300-450 °C); a bed off or up to 150 °C
+    for key, lo, hi in (("hotend", 150.0, 450.0), ("bed", 0.0, 150.0)):
+        v = getattr(args, key)
+        if not (math.isfinite(v) and lo <= v <= hi):
+            raise RingtuneError(f"must be {lo:g} to {hi:g} °C, not {v:g}", f"--{key}")
 
 
 def _bands(text: str | None) -> tuple[float, float, int]:
@@ -153,6 +163,16 @@ def _positive(value, option):
         raise RingtuneError(f"must be a positive number, not {value:g}", option)
 
 
+def _on_the_bed(option: str, what: str, x_min: float, y_min: float) -> None:
+    """Refuse a print that would move below X0 or Y0, off the bed of any printer (--centre too near
+    the front-left corner for this size)."""
+    from ringtune.shaping.errors import RingtuneError
+
+    if x_min < 0 or y_min < 0:
+        raise RingtuneError(f"{what} reaches X{x_min:.1f} Y{y_min:.1f}, off the bed; move --centre or make "
+                            "it smaller", option)
+
+
 def _ringing(args, out, printer, lim, cx, cy, ext):
     from ringtune.agents.calibration import ringing_tower
     from ringtune.shaping import calibration_prints as cp
@@ -183,6 +203,9 @@ def _ringing(args, out, printer, lim, cx, cy, ext):
     bands = None if args.no_shaping else _bands(args.bands)
     if bands is not None and args.bands is None:
         out.note("bands 25:75:11 (25 to 75 Hz in 5 Hz steps); give --bands F0:F1:N")
+    # the prime line runs 12 mm in front of the tower, the brim 3 lines around it
+    _on_the_bed("--side", f"a {args.side:g} mm tower at X{cx:g} Y{cy:g} with its brim and prime line",
+                cx - args.side / 2 - 3 * ext.line_width, cy - args.side / 2 - 12.0)
     geom = cp.TowerGeometry(cx - args.side / 2, cy - args.side / 2, args.side, speed,
                             min(25.0, speed), min(150.0, lim.velocity))
     plan = ringing_tower(args.firmware, speed=speed, accel=accel, bands=bands, band_height=args.band_height,
@@ -217,14 +240,17 @@ def _accel(args, out, printer, lim, cx, cy, ext):
     if start is None:
         current = getattr(printer, "current", None) or {}
         if current.get("accel"):
-            start = float(current["accel"])
-            out.note(f"first rung {start:.0f} mm/s²: what {printer.name} runs now ([current] accel)")
+            start, whence = float(current["accel"]), f"what {printer.name} runs now ([current] accel)"
         else:
-            start = lim.accel
-            out.note(f"first rung {start:.0f} mm/s²: {printer.name}'s [limits] accel (--from to change)")
+            start, whence = lim.accel, f"{printer.name}'s [limits] accel"
+        if config.accel is not None and start < float(config.accel):
+            out.note(f"first rung {start:.0f} mm/s²: {whence} (--from to change)")
+        else:
+            out.note(f"starting acceleration {start:.0f} mm/s²: {whence} (--from to change)")
     speed = args.speed if args.speed is not None else lim.velocity
     if args.speed is None:
         out.note(f"fast moves at {speed:g} mm/s: {printer.name}'s top speed (--speed to change)")
+    _on_the_bed("--reach", f"{args.reach:g} mm each way from X{cx:g} Y{cy:g}", cx - args.reach, cy - args.reach)
     geom = cp.LadderGeometry(cx, cy, args.reach, speed, args.reps)
     try:
         plan = accel_ladder(args.firmware, config, start_accel=start, rungs=args.rungs, geometry=geom,
