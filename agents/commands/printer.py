@@ -13,7 +13,8 @@ written), ``output`` (path written, or null).
 from __future__ import annotations
 
 import argparse
-import math
+
+from ringtune.envs.toml_writer import toml_value
 
 NAME = "printer"
 HELP = ("the printer description (TOML) from its firmware configuration: Klipper, Moonraker, "
@@ -109,22 +110,6 @@ def check_motor_names(description: dict, notes: list[str], comments: dict[str, l
 
 
 # -- TOML ---------------------------------------------------------------------------------------
-def _value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        return repr(v) if math.isfinite(v) else "nan"
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_value(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{k} = {_value(x)}" for k, x in v.items()) + " }"
-    raise TypeError(f"cannot write {v!r} to TOML")
-
-
 _KEY_COMMENTS = {
     "accel": "mm/s²", "travel_accel": "mm/s²", "velocity": "mm/s", "square_corner_velocity": "mm/s",
     "junction_deviation": "mm", "max_accel": "mm/s² per axis x, y, z, e (0 = no cap)",
@@ -142,7 +127,7 @@ def _table(lines: list[str], name: str, table: dict, comments: list[str] = ()) -
     lines.append(f"[{name}]")
     for k, v in table.items():
         unit = _KEY_COMMENTS.get(k)
-        text = f"{k} = {_value(v)}"
+        text = f"{k} = {toml_value(v)}"
         lines.append(f"{text:<34} # {unit}" if unit else text)
 
 
@@ -163,9 +148,9 @@ def description_toml(name: str, description: dict, notes: list[str], source: str
     lines = [f"# Printer description from {source} (ringtune printer {command}).",
              "# What the configuration does not say, and what was mapped:"]
     lines += [f"#   - {n}" for n in notes] or ["#   (nothing)"]
-    lines += [f"name = {_value(name)}"]
+    lines += [f"name = {toml_value(name)}"]
     if "kinematics" in description:
-        lines.append(f"kinematics = {_value(description['kinematics'])}")
+        lines.append(f"kinematics = {toml_value(description['kinematics'])}")
     for key in ("limits", "current", "motor"):
         if description.get(key):
             cm = ["what the printer runs today (firmware configuration): a baseline for tune"] \
@@ -176,7 +161,7 @@ def description_toml(name: str, description: dict, notes: list[str], source: str
         lines.append(f"# default modes (the embedded {default['name']} printer's), not this printer's: "
                      f"`ringtune identify` replaces them; mass: the default {DEFAULTS[f'mass_{ax}']:g} kg")
         lines.append(f"[{ax}]")
-        lines.append(f"modes = {_value(default[ax]['modes'])}")
+        lines.append(f"modes = {toml_value(default[ax]['modes'])}")
         motor = description.get(ax, {}).get("motor")
         if motor:
             _table(lines, f"{ax}.motor", motor, comments.get(f"{ax}.motor", []))
