@@ -16,6 +16,7 @@ from typing import Any
 
 from ringtune.envs.identify import AxisFit, added_mass, frequency_scale
 from ringtune.envs.printer_model import DEFAULTS
+from ringtune.envs.toml_writer import toml_key, toml_value
 from ringtune.shaping.errors import RingtuneError
 
 AXES = ("x", "y")
@@ -227,26 +228,6 @@ def build_description(fits: dict[str, AxisFit], *, name: str = "identified", kin
 
 # -- TOML -------------------------------------------------------------------------------------------
 
-def _value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        return repr(v)
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_value(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{_key(k)} = {_value(x)}" for k, x in v.items()) + " }"
-    raise TypeError(f"cannot write {v!r} to TOML")
-
-
-def _key(k: str) -> str:
-    return k if k.replace("_", "").replace("-", "").isalnum() else _value(k)
-
-
 def description_toml(desc: Description, header: list[str] = ()) -> str:
     """TOML text of ``desc``: ``header`` and the defaults as comments at the top, then the top-level
     keys, then each table (sub-tables ``[x.motor]`` after their parent) with its comments."""
@@ -265,11 +246,11 @@ def description_toml(desc: Description, header: list[str] = ()) -> str:
             lines.extend(f"# {c}" for c in desc.comments.get(path, []))
         for k, v in scalars.items():
             if isinstance(v, list) and len(v) > 1 and all(isinstance(x, dict) for x in v) and k != "modes":
-                lines.append(f"{_key(k)} = [")          # one record per line (e.g. the files)
-                lines.extend(f"  {_value(x)}," for x in v)
+                lines.append(f"{toml_key(k)} = [")          # one record per line (e.g. the files)
+                lines.extend(f"  {toml_value(x)}," for x in v)
                 lines.append("]")
             else:
-                lines.append(f"{_key(k)} = {_value(v)}")
+                lines.append(f"{toml_key(k)} = {toml_value(v)}")
         for k, v in subs.items():
             emit(f"{path}.{k}" if path else k, v)
 
