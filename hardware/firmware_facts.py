@@ -78,6 +78,22 @@ def place_motors(description: dict, x: dict, y: dict) -> None:
         description.setdefault("y", {})["motor"] = dict(y)
 
 
+def place_gcode_motors(description: dict, num, amps_per_m906_unit: float) -> None:
+    """The X and Y motor tables of a Marlin M503 report or an RRF config.g, placed as
+    :func:`place_motors` does: ``steps_per_mm`` from M92, ``run_current`` (A RMS) from M906 times
+    ``amps_per_m906_unit`` (Marlin: mA RMS -> 1e-3; RRF: mA peak -> 1e-3/√2). ``num(code, letter)``
+    gives a word's number or None."""
+    motors = {}
+    for ax in "XY":
+        table = {}
+        if num("M92", ax) is not None:
+            table["steps_per_mm"] = num("M92", ax)
+        if num("M906", ax) is not None:
+            table["run_current"] = num("M906", ax) * amps_per_m906_unit
+        motors[ax] = table
+    place_motors(description, motors["X"], motors["Y"])
+
+
 def motor_tables(description: dict) -> dict[str, dict]:
     """The motor tables of a description by where they sit: ``motor``, ``x.motor``, ``y.motor``."""
     found = {}

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, gcode_words, place_motors, read_text_file, to_number
+from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, gcode_words, place_gcode_motors, read_text_file, to_number
 from ringtune.shaping.errors import RingtuneError
 
 _READ = ("M92", "M201", "M203", "M204", "M205", "M906", "M593")
@@ -108,19 +108,11 @@ def printer_facts_from_marlin(path: str | Path, kinematics: str | None = None) -
     else:
         notes.append("no M205 J or X/Y jerk: the junction rule is unknown")
     description["limits"] = limits
-    motors = {}
-    for ax in "XY":
-        table = {}
-        if num("M92", ax) is not None:
-            table["steps_per_mm"] = num("M92", ax)
-        if num("M906", ax) is not None:
-            table["run_current"] = num("M906", ax) / 1000.0
-        motors[ax] = table
+    place_gcode_motors(description, num, 1e-3)          # Marlin's M906: mA RMS
     if "M906" not in seen:
         notes.append("no M906 (TMC driver current): the run current is unknown")
     notes.append("M503 names no motor and gives steps/mm only: rotation_distance, microsteps and the "
                  "motor's constants are unknown")
-    place_motors(description, motors["X"], motors["Y"])
     current: dict = {"source": path, "firmware": "marlin"}
     for ax in "XY":
         key = f"M593 {ax}"

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ringtune.hardware.firmware_facts import FirmwareFacts, gcode_words, place_motors, read_text_file, to_number
+from ringtune.hardware.firmware_facts import FirmwareFacts, gcode_words, place_gcode_motors, read_text_file, to_number
 from ringtune.shaping.errors import RingtuneError
 
 #: M669 K (number or RRF 3.7 name, lower case) -> kinematics of the model
@@ -101,21 +101,13 @@ def printer_facts_from_rrf(path: str | Path) -> FirmwareFacts:
     else:
         notes.append("no M566: the allowed speed change at corners is unknown")
     description["limits"] = limits
-    motors = {}
-    for ax in "XY":
-        table = {}
-        if num("M92", ax) is not None:
-            table["steps_per_mm"] = num("M92", ax)
-        if num("M906", ax) is not None:
-            table["run_current"] = num("M906", ax) / 1000.0 / math.sqrt(2.0)
-        motors[ax] = table
+    place_gcode_motors(description, num, 1e-3 / math.sqrt(2.0))   # RRF's M906: mA peak
     if "M906" in seen:
         notes.append("M906 currents are peak values (RRF); run_current = peak / √2 (RMS)")
     else:
         notes.append("no M906: the motor current is unknown")
     notes.append("config.g names no motor and gives steps/mm only: rotation_distance, microsteps and the "
                  "motor's constants are unknown")
-    place_motors(description, motors["X"], motors["Y"])
     current: dict = {"source": path, "firmware": "rrf"}
     shaper = seen.get("M593", {}).get("P")
     if "M593" not in seen or (shaper is not None and shaper[1].strip().lower() == "none"):
