@@ -290,10 +290,10 @@ def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastes
         if cands:
             p = min(cands, key=lambda p: (p.print_time_s, p.quality_mm))
             lead = "" if key == refs[0][0] else \
-                f"no front point matches {BASELINE_NAMES.get(refs[0][0], refs[0][0])}'s quality at its speed; "
+                f"no front point matches the quality of {BASELINE_NAMES.get(refs[0][0], refs[0][0])} at its speed; "
             name = BASELINE_NAMES.get(key, key)
             if p.print_time_s < b.print_time_s:
-                why = (f"{lead}the fastest front point whose overshoot and path error are no worse than {name}'s "
+                why = (f"{lead}the fastest front point whose overshoot and path error are no worse than those of {name} "
                        "(same quality, faster)")
             else:
                 why = (f"{lead}no front point is faster than {name} at its quality: the search found nothing "
