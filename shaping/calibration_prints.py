@@ -167,7 +167,9 @@ def ringing_tower(bands: list[Band], geometry: TowerGeometry, ext: Extrusion, *,
     # band 1 holds the first layer, prime line and brim included
     out += [f"{C} band {bands[0].number} starts", *bands[0].lines]
     # prime line in front of the tower, then a brim around the first layer
-    out += [f"G1 Z{z:.3f} F600", f"G1 X{x0:.3f} Y{y0 - 12:.3f} F{g.travel_speed * 60:.0f}",
+    # (the travel from the homed corner runs 2 mm up, clear of bed clips and an unlevel bed's high side)
+    out += [f"G1 Z{z + 2:.3f} F600", f"G1 X{x0:.3f} Y{y0 - 12:.3f} F{g.travel_speed * 60:.0f}",
+            f"G1 Z{z:.3f} F600",
             f"G1 X{x0 + s:.3f} Y{y0 - 12:.3f} E{_e(ext, x0, 0, x0 + s, 0)} F{g.first_layer_speed * 60:.0f}"]
     w = ext.line_width
     for k in (3, 2, 1):

@@ -279,3 +279,17 @@ def test_ripples_on_a_base_without_masses_say_the_masses_are_defaults(data_dir, 
     base.write_text(base.read_text().replace("[x]\n", "[x]\nmass = 0.4\n").replace("[y]\n", "[y]\nmass = 0.6\n"))
     res, err = run_json(["identify", "--ripples", "X=2.1,Y=2.6", "--speed", "100", "--base", str(base)], capsys)
     assert "are defaults" not in err and "still defaults" not in res["toml"]
+
+
+@pytest.mark.parametrize("fw", ["klipper", "marlin"])
+def test_ringing_tower_travels_from_home_clear_of_the_bed(fw, tmp_path, capsys):
+    # after G28 the head is at the homed corner; the first travel to the prime line crosses the bed
+    # and must not run at first-layer height (bed clips, an unlevel bed's high side)
+    g = tmp_path / "r.gcode"
+    run_json(["testprint", "ringing", "--firmware", fw, "--no-shaping", "-o", str(g)], capsys)
+    layer = 0.2
+    first_xy = next(i for i, ln in enumerate(g.read_text().splitlines())
+                    if ln.startswith("G1 X") and "E" not in ln)
+    z_before = [float(w[1:]) for ln in g.read_text().splitlines()[:first_xy] if ln.startswith("G1 Z")
+                for w in ln.split() if w.startswith("Z")]
+    assert z_before and z_before[-1] >= layer + 1.0, z_before
