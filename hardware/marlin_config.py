@@ -81,7 +81,8 @@ def printer_facts_from_marlin(path: str | Path, kinematics: str | None = None) -
             raise RingtuneError(f"must be one of {', '.join(KINEMATICS)}, not {kinematics!r}", "kinematics")
         description["kinematics"] = kinematics
     else:
-        notes.append("M503 does not report the kinematics: not written (give it with --kinematics)")
+        notes.append("M503 does not report the kinematics: not written, so the description loads as cartesian "
+                     "(a CoreXY or CoreXZ machine: give --kinematics, or add kinematics = \"corexy\")")
     limits: dict = {}
     accel = num("M204", "P") or num("M204", "S")
     if accel is None:

@@ -166,3 +166,18 @@ def test_a_per_axis_limit_above_the_overall_one_is_said_not_dropped(data_dir, ca
     res = json.loads(capsys.readouterr().out)
     assert res["description"]["limits"]["max_accel"][:2] == [0.0, 4130.0]
     assert any("max_x_accel 10010" in n and "max_accel 8994" in n for n in res["notes"]), res["notes"]
+
+
+def test_from_marlin_without_kinematics_says_what_the_description_becomes(tmp_path, capsys):
+    # M503 has no kinematics line; the TOML leaves it out and the loader then takes cartesian:
+    # the note must say so (a CoreXY user would otherwise tune a bed slinger without a word)
+    from test_fwconfig_marlin_rrf import M503
+
+    f = tmp_path / "m503.txt"
+    f.write_text(M503)
+    assert cli.main(["printer", "from-marlin", str(f), "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert "kinematics" not in tomllib.loads(res["toml"])
+    assert load_printer_text(res["toml"]).kinematics == "cartesian"
+    note = next(n for n in res["notes"] if "does not report the kinematics" in n)
+    assert "loads as cartesian" in note and "--kinematics" in note
