@@ -203,6 +203,9 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
     s.append(f"CHOSEN ({choice.sentence}):")
     s.append(f"  {describe(best_cfg)}")
     s.append("  " + _figures(chosen, quality))
+    rewrite, rewrite_line = _job_rewrite(best_cfg, dialect)
+    if rewrite_line:
+        s.append("  " + rewrite_line)
     s.append("")
     s.append("BASELINES (same printer, job and simulation):")
     for k, b in baselines.items():
@@ -277,7 +280,8 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         "chosen": {"config": best_cfg.to_dict(), "print_time_s": chosen.print_time_s, "quality_mm": chosen.quality_mm,
                    "path_error_mm": chosen.metrics.get("path_error_mm"),
                    "overshoot_mm": chosen.metrics.get("overshoot_mm"), "motor_load": chosen.metrics.get("motor_load"),
-                   "chosen_by": choice.by, "against": choice.baseline, "why": choice.sentence},
+                   "chosen_by": choice.by, "against": choice.baseline, "why": choice.sentence,
+                   "rewrite_jobs": rewrite},
         "baselines": {k: base_dict(k, b) for k, b in baselines.items()},
         "vs_baselines": {k: c.to_dict() for k, c in comparisons.items()},
         "dominates_klipper": dom_dict("klipper"),
@@ -300,6 +304,29 @@ def _figures(p: Point, quality: str) -> str:
     if p.metrics.get("motor_load"):
         out += f", motor load {p.metrics['motor_load'] * 100:.0f} %"
     return out
+
+
+def _job_rewrite(cfg, dialect: str | None = None) -> tuple[str | None, str]:
+    """(the ``ringtune limit`` command, one summary line) when the chosen frequency limit cannot be
+    set on the firmware and every job must be rewritten with it (no limit of the firmware's own, or
+    Marlin's ``M201 F`` with another method than Marlin's); (None, "") otherwise."""
+    from ringtune.shaping.firmware import Firmware
+
+    if cfg.freq_limit_hz <= 0:
+        return None, ""
+    fw = Firmware.named(dialect or cfg.firmware)
+    if fw.freq_limit and cfg.freq_limit_method == "marlin":
+        return None, ""
+    try:
+        from ringtune.hardware.dialects import limit_command
+    except ImportError:
+        cmd = f"ringtune limit FILE.gcode --freq-limit {cfg.freq_limit_hz:g} --method {cfg.freq_limit_method}"
+    else:
+        cmd = limit_command(cfg)
+    why = (f"{fw.title} has no frequency limit of its own" if not fw.freq_limit else
+           f"{fw.title}'s M201 F runs Marlin's method, not '{cfg.freq_limit_method}'")
+    return cmd, (f"The {cfg.freq_limit_hz:g} Hz frequency limit is not a printer setting ({why}): rewrite every "
+                 f"job with `{cmd}` before printing it.")
 
 
 def _apply_lines(cfg, dialect: str | None = None) -> tuple[str, str]:

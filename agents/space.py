@@ -71,7 +71,7 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
     by the offered shapers' limits); frequency limit 10–80 Hz with every method; acceleration
     from 0.3× the printer's own limit up to :func:`accel_ceiling` at the job's top speed
     ``speed`` (mm/s; default the printer's velocity limit): where the weakest motor would need all
-    its force, or the firmware's per-axis maximum if lower. ``accel`` = (lo, hi) overrides it
+    its force (the firmware's limits are no bound: see there). ``accel`` = (lo, hi) overrides it
     (lo = hi: the acceleration is not searched).
     """
     from ringtune.shaping.shapers import available_shapers, max_damping
@@ -146,17 +146,60 @@ _MOTOR_NAMES = {"x": "X motor", "y": "Y motor", "a": "A motor (stepper_x)", "b":
 
 
 def accel_ceiling(printer: Any, speed: float | None = None) -> tuple[float, str]:
-    """(mm/s², basis): the top of the acceleration search — the lower of
-    :func:`motor_accel_limit` at ``speed`` (default the printer's velocity limit) and the
-    firmware's per-axis maximum acceleration (X/Y of ``limits.max_accel``, if set)."""
-    lim = printer.limits
-    v = float(speed if speed is not None else lim.velocity)
+    """(mm/s², basis): the top of the acceleration search — :func:`motor_accel_limit` at ``speed``
+    (default the printer's velocity limit).
+
+    The firmware's limits do not cap it: the tuned value is what the user will set as the
+    printer's ``max_accel`` (so today's ``limits.accel`` is no bound), and a per-axis cap
+    (``limits.max_accel``: Klipper's ``max_x_accel``/``max_y_accel``, Marlin's ``M201 X/Y``) is
+    applied by the planner to the moves along that axis, in every trial alike
+    (:func:`axis_cap_notes`)."""
+    v = float(speed if speed is not None else printer.limits.velocity)
     a, who = motor_accel_limit(printer, v)
-    basis = f"the {who} would need all its force at {v:.0f} mm/s (the job's top speed)"
-    caps = [c for c in (lim.max_accel or ())[:2] if c and c > 0]
-    if caps and min(caps) < a:
-        a, basis = float(min(caps)), f"the firmware's maximum acceleration ({min(caps):.0f} mm/s², max_accel)"
-    return a, basis
+    return a, f"the {who} would need all its force at {v:.0f} mm/s (the job's top speed)"
+
+
+def axis_cap_notes(printer: Any) -> list[str]:
+    """One sentence per X/Y cap of the printer's own (``limits.max_accel``), named as its firmware
+    writes it: it limits the moves along that axis, not the tuned acceleration."""
+    caps = tuple(printer.limits.max_accel or ())[:2]
+    fw = str((getattr(printer, "current", None) or {}).get("firmware", "")).lower()
+    out = []
+    for ax, cap in zip("xy", caps):
+        if not cap or cap <= 0:
+            continue
+        name = (f"max_{ax}_accel" if fw == "klipper" else f"M201 {ax.upper()}" if fw
+                else f"[limits] max_accel's {ax.upper()} entry")
+        out.append(f"{ax.upper()}'s own cap {name} {cap:.0f} mm/s² applies to {ax.upper()} moves (the planner keeps "
+                   f"each move's {ax.upper()} acceleration under it, in every trial and baseline alike); it does not "
+                   "cap the tuned acceleration.")
+    return out
+
+
+def defaults_note(printer: Any) -> str:
+    """One sentence when the motor bound rests on defaults (``Printer.defaulted``: a motor with
+    neither a name, datasheet constants nor ``force``; an axis with no ``mass``), else ""."""
+    d = set(getattr(printer, "defaulted", ()) or ())
+    motors = [ax for ax in "xy" if f"{ax}.motor" in d]
+    masses = [ax for ax in "xy" if f"{ax}.mass" in d]
+    if not motors and not masses:
+        return ""
+    parts = []
+    if motors:
+        force = printer.motor_for(motors[0]).force
+        if len(motors) == 2:
+            parts.append(f"the default motor ({force:g} N)")
+        else:
+            names = dict(_MOTOR_NAMES) if printer.kinematics == "corexy" else {"x": "X motor", "y": "Y motor"}
+            if printer.kinematics == "corexz":
+                names["x"] = "A and B motors (stepper_x, stepper_z)"
+            parts.append(f"the default {names.get(motors[0], motors[0])} ({force:g} N)")
+    if masses:
+        kg = ", ".join(f"{ax.upper()} {getattr(printer, ax).mass:g} kg" for ax in masses)
+        parts.append(f"default mass{'es' if len(masses) == 2 else ''} ({kg})")
+    them = "them" if len(motors) + len(masses) > 1 else "it"
+    return (f"The motor bound comes from {' and '.join(parts)}: give {them} (see ringtune identify "
+            "--motor/--mass, or ringtune printer from-klipper).")
 
 
 def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:

@@ -121,17 +121,28 @@ def job_accel_section(facts: JobAccelFacts, mode: str, printer, job, chosen: Tun
     return lines, info
 
 
-def accel_statement(chosen: Point, space, max_pe: float, reserve: float, points) -> tuple[list[str], dict]:
+def accel_statement(chosen: Point, space, max_pe: float, reserve: float, points,
+                    printer=None) -> tuple[list[str], dict]:
     """Which limit stops the chosen acceleration and how far it is from it: the motor reserve,
-    the path-error bound, the range's top (the motors' force or the firmware's maximum), or none
-    of them (then the choice of quality stops it)."""
+    the path-error bound, the range's edge (the motors' force, or ``--accel-range``), or none of
+    them (then the choice of quality stops it). With ``printer``: its per-axis caps (which limit
+    moves along one axis, not the tuned value) and whether the motor bound rests on defaults."""
+    from ringtune.agents.space import axis_cap_notes, defaults_note
+
     a = float(chosen.config.accel or 0.0)
     lo, hi = space.accel
     info = {"range": [lo, hi], "searched": not space.accel_fixed, "basis": space.accel_basis, "chosen": a,
-            "stopped_by": None, "headroom": {}}
+            "stopped_by": None, "headroom": {}, "defaults": []}
+    tail = []
+    if printer is not None:
+        tail = axis_cap_notes(printer)
+        note = defaults_note(printer)
+        if note:
+            tail.append(note)
+            info["defaults"] = list(printer.defaulted)
     if space.accel_fixed:
         info["stopped_by"] = "not searched"
-        return [f"{a:.0f} mm/s², {space.accel_basis}."], info
+        return [f"{a:.0f} mm/s², {space.accel_basis}."] + tail, info
     cands = []
     load = chosen.metrics.get("motor_load")
     if reserve > 0 and load:
@@ -144,9 +155,8 @@ def accel_statement(chosen: Point, space, max_pe: float, reserve: float, points)
         cands.append(("path error", pe / max_pe, f"path error {pe * 1000:.1f} µm of the {max_pe * 1000:g} µm bound "
                       f"({(max_pe - pe) * 1000:.1f} µm free)"))
         info["headroom"]["path_error_mm"] = max_pe - pe
-    edge = "the firmware's max" if "firmware" in space.accel_basis else "range edge"
-    cands.append((edge, a / hi, f"{a:.0f} of {hi:.0f} mm/s², the top of the range ({space.accel_basis}; "
-                  f"{hi - a:.0f} mm/s² free)"))
+    cands.append(("range edge", a / hi, f"{hi:.0f} mm/s² ({space.accel_basis})"
+                  + ("; the choice is on it" if hi - a < 0.5 else f", {hi - a:.0f} mm/s² above the choice")))
     info["headroom"]["accel_mm_s2"] = hi - a
     name, ratio, text = max(cands, key=lambda c: c[1])
     lines = [f"Chosen {a:.0f} mm/s² (searched {lo:.0f}–{hi:.0f})."]
@@ -157,7 +167,7 @@ def accel_statement(chosen: Point, space, max_pe: float, reserve: float, points)
         info["stopped_by"] = "quality"
         lines.append("No bound is within 10 % of it: what stops it is quality — the faster front points have more "
                      "overshoot or path error than the choice allows.")
-    lines += [f"  {t}" for n, r, t in cands if n != name or ratio < 0.9]
+    lines += [f"  {'range edge: ' if n == 'range edge' else ''}{t}" for n, r, t in cands if n != name or ratio < 0.9]
     faster = [p for p in points if (p.config.accel or 0) > a]
     if faster:
         why = {"lose steps": sum(p.step_loss for p in faster),
@@ -166,4 +176,4 @@ def accel_statement(chosen: Point, space, max_pe: float, reserve: float, points)
         said = ", ".join(f"{n} {w}" for w, n in why.items() if n)
         if said:
             lines.append(f"Of the {len(faster)} trials at a higher acceleration, {said}.")
-    return lines, info
+    return lines + tail, info

@@ -342,6 +342,24 @@ def _motor_from_dict(mo: dict, mw: str) -> MotorModel:
     )
 
 
+def _defaulted(d: dict, base_raw: dict) -> tuple[str, ...]:
+    """What the description leaves to DEFAULTS: an axis's moving mass (no ``mass``/``masses``) and an
+    axis's motor force (its table over ``[motor]`` has neither a name, datasheet constants nor
+    ``force``): ``Printer.defaulted``."""
+    out = []
+    for ax in ("x", "y"):
+        t = d.get(ax) if isinstance(d.get(ax), dict) else {}
+        if "mass" not in t and "masses" not in t:
+            out.append(f"{ax}.mass")
+    for ax in ("x", "y"):
+        t = d.get(ax) if isinstance(d.get(ax), dict) else {}
+        own = t.get("motor") if isinstance(t.get("motor"), dict) else {}
+        mo = _inherit(base_raw, own) if own else base_raw
+        if not (_is_datasheet(mo) or "force" in mo):
+            out.append(f"{ax}.motor")
+    return tuple(out)
+
+
 def printer_from_dict(d: dict, where: str = "printer") -> Printer:
     """Validate a parsed TOML mapping and build a :class:`Printer` (errors name the key)."""
     if not isinstance(d, dict):
@@ -393,6 +411,7 @@ def printer_from_dict(d: dict, where: str = "printer") -> Printer:
         belt_stiffness=_num(belts, "stiffness", bw, lo=0.0, lo_open=True) if "stiffness" in belts else None,
         belt_mismatch=_num(belts, "mismatch", bw, DEFAULTS["belt_mismatch"], lo=-1.9, hi=1.9),
         description=str(d.get("description", "")),
+        defaulted=_defaulted(d, base_raw),
     )
     if kin == "corexy":
         ka, kb = p.belt_stiffnesses()

@@ -239,6 +239,10 @@ class Printer:
     description: str = ""
     current: dict = field(default_factory=dict)
     measurement: dict = field(default_factory=dict)
+    #: what the loaded description left to :data:`DEFAULTS` ("x.mass", "y.mass"; "x.motor",
+    #: "y.motor": that axis's motor has neither a name, datasheet constants nor ``force``); set by
+    #: :func:`ringtune.envs.printer.printer_from_dict`, empty for a Printer built in Python
+    defaulted: tuple = field(default=(), compare=False, repr=False)
 
     # -- motors -----------------------------------------------------------------------------------
     def motor_for(self, axis: str) -> MotorModel:

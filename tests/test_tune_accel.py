@@ -152,6 +152,7 @@ def test_weak_and_strong_motor_on_the_same_frame(tmp_path, capsys):
         _check_within_reserve(res, toml)
         top = (force - 1.0) / (1.6 + 0.13) * 1000.0       # the job's top speed (150 mm/s) ≤ corner speed
         assert res["accel"]["range"][1] == math.floor(top / 100.0) * 100.0
+        assert res["accel"]["defaults"] == []      # motor force and both masses given
     assert rw["chosen"]["config"]["accel"] < rs["chosen"]["config"]["accel"]
 
 
@@ -166,3 +167,119 @@ def test_held_out_random_printers_never_choose_beyond_the_reserve(tmp_path, caps
                     zx=float(rng.uniform(0.03, 0.12)), zy=float(rng.uniform(0.03, 0.12)),
                     corner=float(rng.uniform(60.0, 200.0)))
     _check_within_reserve(_tune(tmp_path, capsys, toml), toml)
+
+
+# -- a new user's run on a real configuration (v24: per-axis caps, named motor, default masses) ---
+V24 = Path(__file__).resolve().parent / "data" / "klipper_config" / "v24" / "printer.cfg"
+
+
+def _cfg_value(path: Path, key: str) -> float:
+    """``key: value`` of the [printer] section, read from the file's text (comments dropped)."""
+    for line in path.read_text().splitlines():
+        k, sep, v = line.partition(":")
+        if sep and k.strip() == key:
+            return float(v.split("#")[0])
+    raise KeyError(key)
+
+
+@pytest.fixture(scope="module")
+def v24_run(tmp_path_factory):
+    """``printer from-klipper`` on the Voron 2.4 configuration, then a 3-trial ``tune`` of it."""
+    import contextlib
+    import io
+
+    tmp = tmp_path_factory.mktemp("v24")
+    toml, out = tmp / "v24.toml", tmp / "out"
+    with contextlib.redirect_stderr(io.StringIO()):
+        assert main(["printer", "from-klipper", str(V24), "-o", str(toml)]) == 0
+        buf = io.StringIO()
+        with contextlib.redirect_stdout(buf):
+            assert main(["tune", "--json", "--printer", str(toml), "--out", str(out), "--trials", "3",
+                         "--backend", "lti"]) == 0
+    return json.loads(buf.getvalue()), (out / "summary.txt").read_text(), toml
+
+
+def test_per_axis_cap_does_not_cap_the_tuned_acceleration(v24_run):
+    """max_y_accel (4130, a cap the planner applies to Y moves) is not the top of the search: the
+    tuned value becomes max_accel, so the range reaches the motor bound, above the 8994 mm/s² of
+    max_accel the baselines run at; the summary names the Y cap as Y's own."""
+    from ringtune.agents.space import motor_accel_limit
+    from ringtune.envs.printer import load_printer
+
+    res, summary, toml = v24_run
+    y_cap, accel = _cfg_value(V24, "max_y_accel"), _cfg_value(V24, "max_accel")
+    lo, hi = res["accel"]["range"]
+    assert hi > accel > y_cap
+    a, _who = motor_accel_limit(load_printer(toml), 150.0)      # the built-in job's top speed
+    assert hi == math.floor(a / 100.0) * 100.0
+    assert f"Y's own cap max_y_accel {y_cap:.0f} mm/s² applies to Y moves" in summary
+    assert "X's own cap" not in summary                # max_x_accel ≥ max_accel: no cap of its own
+    assert "the the" not in summary and "max_accel)" not in summary
+
+
+def test_range_edge_is_named_as_the_edge_with_its_distance_from_the_choice(v24_run):
+    res, summary, _ = v24_run
+    hi, a = res["accel"]["range"][1], res["chosen"]["config"]["accel"]
+    assert hi > a
+    assert "the top of the range" not in summary
+    assert f"range edge: {hi:.0f} mm/s² (" in summary or f"Stopped by the range edge: {hi:.0f} mm/s² (" in summary
+    assert f"{hi - a:.0f} mm/s² above the choice" in summary
+
+
+def test_summary_says_the_motor_bound_rests_on_default_masses(v24_run):
+    """The v24 TOML names its motor (autotune's ldo-42sth40-2004mah) but no [x]/[y] mass."""
+    from ringtune.envs.printer_model import DEFAULTS
+
+    res, summary, toml = v24_run
+    text = toml.read_text()
+    assert 'name = "ldo-42sth40-2004mah"' in text and "\nmass" not in text
+    assert res["accel"]["defaults"] == ["x.mass", "y.mass"]
+    assert (f"The motor bound comes from default masses (X {DEFAULTS['mass_x']:g} kg, Y {DEFAULTS['mass_y']:g} kg): "
+            "give them (see ringtune identify --motor/--mass, or ringtune printer from-klipper).") in summary
+    assert "default motor" not in summary
+
+
+@pytest.mark.parametrize("desc, defaulted", [
+    ({}, ("x.mass", "y.mass", "x.motor", "y.motor")),
+    ({"x": {"mass": 0.6}, "motor": {"force": 40.0}}, ("y.mass",)),
+    ({"y": {"mass": 1.2, "motor": {"name": "ldo-42sth48-2504ac"}}}, ("x.mass", "x.motor")),
+    ({"motor": {"run_current": 0.8, "rotation_distance": 40.0}}, ("x.mass", "y.mass", "x.motor", "y.motor")),
+])
+def test_loader_records_what_the_description_leaves_to_defaults(desc, defaulted):
+    from ringtune.agents.space import defaults_note
+    from ringtune.envs.printer import printer_from_dict
+
+    p = printer_from_dict({"x": {"modes": [{"freq": 50.0, "damping": 0.05}]},
+                           "y": {"modes": [{"freq": 40.0, "damping": 0.05}]}} | {
+        k: ({**v, "modes": [{"freq": 45.0, "damping": 0.05}]} if k in "xy" else v) for k, v in desc.items()})
+    assert p.defaulted == defaulted
+    note = defaults_note(p)
+    assert ("default motor (30 N)" in note) == ("x.motor" in defaulted and "y.motor" in defaulted)
+    assert ("default Y motor" in note) == ("y.motor" in defaulted and "x.motor" not in defaulted)
+    assert ("default X motor" in note) == ("x.motor" in defaulted and "y.motor" not in defaulted)
+
+
+@pytest.mark.parametrize("firmware, method, rewrite", [
+    ("klipper", "sections", True),        # Klipper has no frequency limit (firmware.md §1.5)
+    ("marlin", "marlin", False),          # Marlin's own M201 F S runs Marlin's method
+    ("marlin", "nophead", True),          # ... but not another one
+])
+def test_chosen_block_says_every_job_needs_ringtune_limit(tmp_path, firmware, method, rewrite):
+    from ringtune.agents import report
+    from ringtune.agents.pareto import Choice, Point
+    from ringtune.shaping.config import TuneConfig
+
+    cfg = TuneConfig(firmware=firmware, shaper_x="mzv", shaper_y="mzv", freq_x=50.0, freq_y=40.0,
+                     freq_limit_hz=20.0, freq_limit_method=method, accel=3000.0)
+    p = Point(cfg, 10.0, 0.01, metrics={"path_error_mm": 0.02, "overshoot_mm": 0.01})
+    res = report.write_report(tmp_path, points=[p], front=[p], choice=Choice(p, "knee", None, "the knee"),
+                              baselines={}, quality="overshoot_mm", printer_name="p", job_name="j",
+                              firmware=firmware, n_trials=1, storage="journal:x", study_name="s")
+    chosen_block = res["summary_text"].split("\n\n")[1]
+    assert chosen_block.startswith("CHOSEN")
+    said = [ln for ln in chosen_block.splitlines() if "rewrite every job with `ringtune limit FILE.gcode" in ln]
+    assert len(said) == (1 if rewrite else 0)
+    assert (res["chosen"]["rewrite_jobs"] is not None) == rewrite
+    if rewrite:
+        assert "--freq-limit 20" in said[0] and f"--method {method}" in said[0]
+        assert res["chosen"]["rewrite_jobs"].startswith("ringtune limit FILE.gcode --freq-limit 20")

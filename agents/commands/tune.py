@@ -2,14 +2,16 @@
 
 ``--json`` keys (stable): out, trials, front_size, quality, max_path_error_mm, motor_reserve,
 freq_margin, resolution {distance_mm, distance_rel, time_rel}, chosen {config, print_time_s,
-quality_mm, path_error_mm, overshoot_mm, motor_load, chosen_by, against, why}, baselines
+quality_mm, path_error_mm, overshoot_mm, motor_load, chosen_by, against, why, rewrite_jobs (the
+`ringtune limit` command every job needs, or null)}, baselines
 {klipper|current|none: {config, print_time_s, quality_mm, path_error_mm, overshoot_mm, motor_load,
 step_loss, breaks, label, source}}, vs_baselines {key: {baseline, faster_s, faster_pct, better_mm,
 better_pct, dominates, metrics {print_time_s|overshoot_mm|path_error_mm|feasible: better|same|worse},
 path_error_better_mm, path_error_better_pct}}, dominates_klipper, dominates_current (null or {config,
 print_time_s, quality_mm, ...comparison}), accel {range, searched, basis, chosen, stopped_by,
-headroom}, job_accel {mode, commands, cap_mm_s2, searched, print_time_as_sliced_s,
-print_time_replaced_s, replaced_accel, saved_s}, plot_arrows, files {readme, summary, plot, best,
+headroom, defaults (what of the motor bound is a default: "x.mass", "y.motor", ...; [] when none)},
+job_accel {mode, commands, cap_mm_s2, searched, print_time_as_sliced_s, print_time_replaced_s,
+replaced_accel, saved_s}, plot_arrows, files {readme, summary, plot, best,
 apply, front, trials}, storage, study, completed_now, interrupted, elapsed_s.
 """
 
@@ -35,7 +37,9 @@ the printer and on the printer with all resonances --freq-margin per cent lower 
 (default 5): the worst counts, because a real printer's frequencies drift.
 
 The acceleration is searched up to where the weakest motor would need all its force at the job's
-top speed (from the printer's motors and moving masses; --accel-range LO,HI overrides). A job that
+top speed (from the printer's motors and moving masses; --accel-range LO,HI overrides). The
+firmware's max_accel does not cap it (the tuned value is what you set as max_accel); a per-axis cap
+(max_y_accel, M201 Y) still limits that axis's moves, in every trial alike. A job that
 sets its own accelerations (M201/M204, SET_VELOCITY_LIMIT) keeps them with --job-accel respect (the
 default: the print as sliced; the acceleration is then not searched where it has no effect); with
 --job-accel replace the tuned acceleration replaces them (what re-slicing would give), and the
@@ -199,7 +203,7 @@ def run(args: argparse.Namespace, out) -> int:
     front = pareto.pareto_front(points, also=("path_error_mm",) if quality != "path_error_mm" else ())
     choice = pareto.pick(front, baselines, how, args.weight)
     chosen = choice.point
-    accel_lines, accel_json = accel_statement(chosen, space, max_pe, reserve, points)
+    accel_lines, accel_json = accel_statement(chosen, space, max_pe, reserve, points, printer)
     ja_lines, ja_json = job_accel_section(facts, args.job_accel, printer, args.gcode, chosen.config)
     ja_json["searched"] = not space.accel_fixed
     notes = []
