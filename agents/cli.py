@@ -200,6 +200,11 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(args.command, str(as_flag(exc, args.command)))
     except FileNotFoundError as exc:
         return _fail(args.command, f"{exc.filename}: no such file")
+    except (IsADirectoryError, NotADirectoryError, PermissionError) as exc:
+        return _fail(args.command, _os_error(exc))
+    except UnicodeDecodeError as exc:
+        return _fail(args.command, f"{_undecodable(args)}: not a text file (binary data, or text not in "
+                                   f"UTF-8: byte {exc.object[exc.start:exc.start + 1]!r} at offset {exc.start})")
     except BrokenPipeError:
         # the reader went away (``ringtune plan f.gcode --json | head``): stop quietly, as cat does;
         # stdout is pointed at devnull so that the interpreter's final flush does not complain
@@ -222,6 +227,33 @@ def _firmware_names(args) -> None:
         from ringtune.shaping.firmware import Firmware
 
         args.firmware = Firmware.named(name, "--firmware").name
+
+
+def _os_error(exc: OSError) -> str:
+    """``<file>: is a directory`` from an OSError's own file name and words (no ``[Errno 21]``)."""
+    words = (exc.strerror or type(exc).__name__).lower()
+    if isinstance(exc, IsADirectoryError):
+        words += ", not a file"
+    name = exc.filename if exc.filename is not None else "a file"
+    return f"{name}: {words}"
+
+
+def _undecodable(args) -> str:
+    """The file among the command's arguments that is not UTF-8 text (a UnicodeDecodeError names
+    no file), else a phrase that says it was one of them."""
+    values = []
+    for value in vars(args).values():
+        values.extend(value if isinstance(value, (list, tuple)) else [value])
+    for value in values:
+        if isinstance(value, (str, os.PathLike)) and os.path.isfile(value):
+            try:
+                with open(value, "rb") as fh:
+                    fh.read().decode("utf-8")
+            except UnicodeDecodeError:
+                return os.fspath(value)
+            except OSError:
+                continue
+    return "one of the files given"
 
 
 def _fail(command: str, message: str) -> int:

@@ -226,6 +226,28 @@ def build_description(fits: dict[str, AxisFit], *, name: str = "identified", kin
     return desc
 
 
+#: file names that say nothing of the printer (its folder does: ``ender3/printer.cfg``)
+_GENERIC_STEMS = {"printer", "config", "configuration", "configuration_adv", "moonraker", "klipper"}
+
+
+def printer_name(config: str | None, files: list[str]) -> tuple[str, str]:
+    """The printer's name when ``--name`` is not given, and whence: the firmware configuration's
+    file name stem (its folder's name when the stem is generic, ``ender3/printer.cfg`` ->
+    ``ender3``), else the folder of the first accelerometer file, else ``identified``."""
+    candidates = []
+    if config:
+        p = Path(config).resolve()
+        if p.stem.casefold() not in _GENERIC_STEMS:
+            candidates.append((p.stem, f"the file name of {Path(config).name}"))
+        candidates.append((p.parent.name, f"the folder of {Path(config).name}"))
+    if files:
+        candidates.append((Path(files[0]).resolve().parent.name, f"the folder of {Path(files[0]).name}"))
+    for name, whence in candidates:
+        if name and name not in ("/", "."):
+            return name, whence
+    return "identified", "nothing names it"
+
+
 # -- TOML -------------------------------------------------------------------------------------------
 
 def description_toml(desc: Description, header: list[str] = ()) -> str:
@@ -235,6 +257,9 @@ def description_toml(desc: Description, header: list[str] = ()) -> str:
     if desc.defaults:
         lines.append("# Still defaults (not known from your files):")
         lines += [f"#   - {s}" for s in desc.defaults]
+    if desc.notes:
+        lines.append("# Notes (what the configuration does not say, and what was mapped):")
+        lines += [f"#   - {n}" for n in desc.notes]
     lines += [f"# {c}" for c in desc.comments.get("", [])]
 
     def emit(path: str, table: dict) -> None:

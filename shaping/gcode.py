@@ -422,6 +422,29 @@ def _refuse_non_gcode(head: bytes, where: str) -> None:
         raise RingtuneError(why, where)
 
 
+def _read_head(path: Path, size: int | None = HEAD) -> bytes:
+    """The first ``size`` bytes of the G-code file ``path`` (all of it when None), with one-line
+    errors for a missing file, a folder and a file that cannot be read."""
+    if path.is_dir():
+        raise RingtuneError("is a directory, not a G-code file", str(path))
+    if not path.is_file():
+        raise RingtuneError("no such G-code file", str(path))
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(size) if size is not None else fh.read()
+    except OSError as exc:
+        raise RingtuneError(f"cannot read: {exc.strerror or exc}", str(path)) from None
+
+
+def read_gcode_bytes(path: str | Path) -> bytes:
+    """The bytes of the G-code file ``path``, refused in one line (naming the file) when it is
+    missing, a folder, unreadable or not G-code (binary data, a PNG, a TOML description...)."""
+    path = Path(path)
+    data = _read_head(path, None)
+    _refuse_non_gcode(data[:HEAD], str(path))
+    return data
+
+
 def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = None) -> Job:
     """Read a G-code job from a file path (streamed line by line) or from G-code text/bytes.
 
@@ -439,10 +462,7 @@ def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = N
             is_path = False
     if is_path:
         path = Path(path_or_text)
-        if not path.is_file():
-            raise RingtuneError("no such G-code file", str(path))
-        with open(path, "rb") as fh:
-            _refuse_non_gcode(fh.read(HEAD), str(path))
+        _refuse_non_gcode(_read_head(path), str(path))
         reader = _Reader(str(path), arc_tolerance)
         reader.feed_lines(_open_lines(path))
     else:

@@ -20,7 +20,7 @@ import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.freqlimit import apply_freq_limit, resolve_min_speed_factor
-from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.gcode import read_gcode, read_gcode_bytes
 
 _MOVE = re.compile(rb"^\s*(?:[Nn]\s*-?\d+\s*)?[Gg]0*[0-3](?![0-9.])")
 _F_WORD = re.compile(rb"([Ff])\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
@@ -128,10 +128,7 @@ def limit_file(src: str | Path, dst: str | Path | None, limit_hz: float, method:
                min_speed_factor: float | None = None) -> tuple[bytes, LimitResult]:
     """Read ``src``, apply the limit, write ``dst`` (if given); returns (bytes, result)."""
     src = Path(src)
-    try:
-        data = src.read_bytes()
-    except OSError as exc:
-        raise RingtuneError(f"cannot read: {exc.strerror}", str(src)) from None
+    data = read_gcode_bytes(src)
     out, result = limit_gcode_bytes(data, limit_hz, method, min_speed_factor, source=str(src))
     if dst is not None:
         Path(dst).write_bytes(out)

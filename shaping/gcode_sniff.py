@@ -1,9 +1,9 @@
 """Is a file G-code at all? One clear sentence before the reader trips over a PNG's bytes or a
 TOML's ``name = ...`` line (``line number N must be an integer``).
 
-:func:`not_gcode` looks at the first bytes only (signatures of common binary formats, NUL bytes)
-and at the first lines that are not comments: G-code has G/M/T commands or Klipper-style
-upper-case macros there; a printer description, a Klipper configuration or a CSV file has none.
+:func:`not_gcode` looks at the first bytes only (signatures of common binary formats, NUL bytes,
+invalid UTF-8 and control characters, of which a text file has few) and at the first lines that
+are not comments: G-code has G/M/T commands or Klipper-style upper-case macros there; a printer description, a Klipper configuration or a CSV file has none.
 """
 
 from __future__ import annotations
@@ -31,14 +31,25 @@ _CFG = re.compile(r"^\s*(?:\[[A-Za-z_][\w\- ]*\]\s*$|[a-z_][\w]*\s*:)")
 _CSV = re.compile(r"^\s*[\w#.\-]+(?:\s*,\s*[\w.\-+]+)+\s*$")
 
 
+#: control bytes no text file has (not tab, line feed, form feed, carriage return, escape)
+_CONTROL = bytes(set(range(32)) - {9, 10, 11, 12, 13, 27}) + b"\x7f"
+
+
+def _binary(head: bytes, text: str) -> bool:
+    """More than 1 % of the bytes (and more than 2) are invalid UTF-8 or control characters: a text
+    file in another 8-bit encoding (a stray latin-1 degree sign in a comment) stays G-code."""
+    bad = text.count("\ufffd") + len(head) - len(head.translate(None, _CONTROL))
+    return bad > max(2.0, 0.01 * len(head))
+
+
 def not_gcode(head: bytes) -> str | None:
     """Why ``head`` (a file's first bytes) is not G-code, in words, or None if it may be."""
     for sig, what in _SIGNATURES:
         if head.startswith(sig):
             return f"{what}, not G-code"
-    if b"\x00" in head:
-        return "binary data, not G-code text"
     text = head.decode("utf-8", "replace")
+    if b"\x00" in head or _binary(head, text):
+        return "not a text file (binary data), not G-code"
     code = []
     for line in text.splitlines()[:-1] if len(head) >= HEAD else text.splitlines():
         s = line.split(";", 1)[0].strip()

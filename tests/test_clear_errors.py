@@ -101,3 +101,28 @@ def test_recommend_takes_a_capitalised_firmware(capsys):
 def test_unknown_firmware_is_refused_once_naming_the_option(capsys):
     line = _error(capsys, ["simulate", "--firmware", "Duet"])
     assert "--firmware" in line and "klipper" in line and "'Duet'" in line
+
+
+def _binary_without_nul(seed: int, n: int) -> bytes:
+    import random
+
+    r = random.Random(seed)
+    return bytes(r.randrange(1, 256) for _ in range(n))
+
+
+@pytest.mark.parametrize("seed", [550, 1649, 77])
+def test_plan_of_a_binary_file_says_not_a_text_file(seed, tmp_path, capsys):
+    """Random bytes with no NUL (seeds whose lines happened to read as G-code, or as nothing)
+    gave 'the job has no moves' or a line-number complaint: a binary file is not a text file."""
+    path = tmp_path / "bin.cfg"
+    path.write_bytes(_binary_without_nul(seed, 500 if seed == 77 else 3000))
+    line = _error(capsys, ["plan", str(path)])
+    assert line == f"ringtune plan: error: {path}: not a text file (binary data), not G-code", line
+
+
+def test_gcode_with_a_latin1_comment_is_still_gcode(capsys):
+    """The binary rule leaves a text file in another 8-bit encoding alone (a degree sign in cp1252)."""
+    from ringtune.shaping.gcode import read_gcode
+
+    job = read_gcode("; nozzle 210 \xb0C\nG1 X10 F600\nG1 Y10\n".encode("cp1252"), source="t.gcode")
+    assert job.n_moves == 2

@@ -286,3 +286,27 @@ def test_repeated_added_mass_tests_are_fitted_together_and_narrow_the_error():
     scale, four = frequency_scale(base, load)
     assert 0.35 * one < four < 0.7 * one
     assert abs(math.log(scale) - truth) < 3 * four
+
+
+def test_klipper_config_notes_are_in_the_toml_and_the_name_comes_from_its_folder(data_dir, tmp_path, capsys):
+    """The configuration's notes (the real Ender 3 printer.cfg sets no damping_ratio_x/y, so
+    Klipper's default 0.1 is said) went to stderr only; the printer was called "identified"."""
+    files = sorted((data_dir / ENDER3).glob("*.csv"))
+    cfg = data_dir / "klipper_config/ender3/printer.cfg"
+    assert "damping_ratio" not in cfg.read_text()
+    out = tmp_path / "p.toml"
+    assert main(["identify", *map(str, files), "--klipper-config", str(cfg), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    notes = [ln[len("note: "):] for ln in err.splitlines() if ln.startswith("note: ") and "name " not in ln]
+    assert any("damping_ratio_x not set" in n for n in notes)
+    text = out.read_text()
+    comments = [ln[len("#   - "):] for ln in text.splitlines() if ln.startswith("#   - ")]
+    assert all(n in comments for n in notes), (notes, comments)
+    assert tomllib.loads(text)["name"] == "ender3" and "name 'ender3', from the folder of printer.cfg" in err
+    # no configuration: the accelerometer files' folder
+    assert main(["identify", *map(str, files), "-o", str(out)]) == 0
+    assert tomllib.loads(out.read_text())["name"] == (data_dir / ENDER3).name
+    assert f"name '{(data_dir / ENDER3).name}', from the folder of" in capsys.readouterr().err
+    # --name wins
+    assert main(["identify", *map(str, files), "--name", "mine", "-o", str(out)]) == 0
+    assert tomllib.loads(out.read_text())["name"] == "mine"

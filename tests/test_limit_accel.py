@@ -87,3 +87,22 @@ def test_a_job_without_acceleration_commands_is_left_as_it_is_and_says_so(tmp_pa
         rewrite_accel_bytes(b"M204 P1000\n", 0.0)
     assert main(["limit", str(src), "-o", str(dst)]) == 2
     assert "--freq-limit HZ, --accel A" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("output", [False, True])
+@pytest.mark.parametrize("flags", [["--accel", "3000"], ["--freq-limit", "20"]])
+def test_a_binary_file_is_refused_and_nothing_is_written(flags, output, tmp_path, capsys):
+    """`limit bin.cfg --accel 3000` copied the binary to stdout or to -o: one line, exit 2, no output."""
+    binary = tmp_path / "bin.cfg"
+    binary.write_bytes(bytes(range(256)) * 8)
+    out = tmp_path / "out.gcode"
+    argv = ["limit", str(binary), *flags] + (["-o", str(out)] if output else [])
+    assert main(argv) == 2
+    std = capsys.readouterr()
+    assert std.out == "" and not out.exists()
+    assert std.err.strip() == f"ringtune limit: error: {binary}: not a text file (binary data), not G-code"
+
+
+def test_a_folder_is_refused(tmp_path, capsys):
+    assert main(["limit", str(tmp_path), "--accel", "3000"]) == 2
+    assert f"{tmp_path}: is a directory, not a G-code file" in capsys.readouterr().err

@@ -122,3 +122,11 @@ def test_trajectory_to_standard_output(tmp_path, capsys):
     assert main(["plan", str(job), "--trajectory", "-", "--json"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--trajectory" in err[0]
+
+
+def test_plan_of_a_folder_says_it_is_a_folder(tmp_path, capsys):
+    """A folder given as the G-code file is named as a folder, not as a missing file."""
+    assert main(["plan", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and f"{tmp_path}: is a directory" in err, err
+    assert "no such" not in err

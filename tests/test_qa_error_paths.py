@@ -65,3 +65,37 @@ def test_a_binary_printer_description_is_named(argv, tmp_path, capsys):
         return
     last = _one_line_error([a.format(p=binary) for a in argv], capsys)
     assert f"{binary}: not a text file" in last, last
+
+
+def _raw_read(args, out):
+    """A command body that trips over a raw OS/codec error (what the CLI must still say in one line)."""
+    with open(args.config, encoding="utf-8") as fh:
+        return len(fh.read())
+
+
+def test_raw_folder_and_decoding_errors_reaching_the_cli_name_the_file(
+        tmp_path, capsys, monkeypatch):
+    """IsADirectoryError / UnicodeDecodeError escaping a command printed '[Errno 21] ...' or
+    "'utf-8' codec can't decode byte ..." with no file named."""
+    import ringtune.agents.commands.export as export
+
+    monkeypatch.setattr(export, "run", _raw_read)
+    last = _one_line_error(["export", str(tmp_path), "--firmware", "klipper"], capsys)
+    assert last == f"ringtune export: error: {tmp_path}: is a directory, not a file", last
+    binary = tmp_path / "best.json"
+    binary.write_bytes(b'{"a": "\xff\xfe"}')
+    last = _one_line_error(["export", str(binary), "--firmware", "klipper"], capsys)
+    assert last.startswith(f"ringtune export: error: {binary}: not a text file"), last
+
+
+def test_a_permission_error_names_the_file(tmp_path, capsys, monkeypatch):
+    import ringtune.agents.commands.export as export
+
+    locked = tmp_path / "locked.json"
+
+    def run(args, out):
+        raise PermissionError(13, "Permission denied", str(locked))   # tests may run as root
+
+    monkeypatch.setattr(export, "run", run)
+    last = _one_line_error(["export", str(locked), "--firmware", "klipper"], capsys)
+    assert last == f"ringtune export: error: {locked}: permission denied", last

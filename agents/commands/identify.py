@@ -83,7 +83,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "the end of Klipper's default sweep)")
     p.add_argument("--damping-method", choices=("fit", "half-power"), default="fit",
                    help="damping from the curve fit (default) or each peak's half-power width")
-    p.add_argument("--name", default="identified", help="printer name in the TOML")
+    p.add_argument("--name", default=None, help="printer name in the TOML (default: the firmware "
+                   "configuration's folder or file name, e.g. ender3, else the accelerometer files' folder)")
     p.add_argument("--base", metavar="P", help="printer TOML (or embedded name) for unmeasured axes' modes")
     g = p.add_argument_group("the rest of the printer")
     cfg = g.add_mutually_exclusive_group()
@@ -208,7 +209,8 @@ def run(args, out) -> int:
     from pathlib import Path
 
     from ringtune.agents.identification import klipper_record, read_measurement
-    from ringtune.agents.identify_printer import AddedMass, build_description, description_toml
+    from ringtune.agents.identify_printer import (AddedMass, build_description, description_toml,
+                                                  printer_name)
     from ringtune.envs.identify import plot_fits
     from ringtune.shaping.errors import RingtuneError
 
@@ -219,6 +221,7 @@ def run(args, out) -> int:
         if given:
             raise RingtuneError("goes with accelerometer files; with --ripples/--tower-band give the rest of "
                                 "the printer as --base P (e.g. from `ringtune printer from-klipper`)", given[0])
+        args.name = args.name or "identified"
         return identify_ripples.run(args, out)
     if args.max_modes < 1 or args.max_modes > 5:
         raise RingtuneError("must be 1 to 5", "--max-modes")
@@ -283,7 +286,11 @@ def run(args, out) -> int:
                                            for f in loaded.files if f["axis"] in added]
     if klipper:
         measurement["klipper"] = klipper
-    desc = build_description(fits, name=args.name, kinematics=args.kinematics, base=args.base,
+    name = args.name
+    if name is None:
+        name, whence = printer_name(args.klipper_config or args.marlin or args.rrf, args.files)
+        out.note(f"note: name {name!r}, from {whence} (give --name to choose another)")
+    desc = build_description(fits, name=name, kinematics=args.kinematics, base=args.base,
                              masses=masses, added=added, facts=facts, motors=motors,
                              measurement=measurement)
     header = ["Printer description written by `ringtune identify` from "

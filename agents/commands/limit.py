@@ -73,6 +73,7 @@ def run(args, out) -> int:
     from ringtune.shaping.errors import RingtuneError
     from pathlib import Path
 
+    from ringtune.shaping.gcode import read_gcode_bytes
     from ringtune.shaping.gcode_post import limit_file, rewrite_accel_bytes
 
     if args.freq_limit is None and args.accel is None:
@@ -88,10 +89,7 @@ def run(args, out) -> int:
     if args.freq_limit is not None:
         data, res = limit_file(args.file, None, args.freq_limit, args.method, args.min_speed_factor)
     else:
-        try:
-            data, res = Path(args.file).read_bytes(), None
-        except OSError as exc:
-            raise RingtuneError(f"cannot read: {exc.strerror}", args.file) from None
+        data, res = read_gcode_bytes(args.file), None   # refuses a folder, a binary, a TOML...
     acc = None
     if args.accel is not None:
         data, acc = rewrite_accel_bytes(data, args.accel, source=args.file)

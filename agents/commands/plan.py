@@ -97,8 +97,6 @@ def run(args, out) -> int:
     if args.file:
         from pathlib import Path
 
-        if not Path(args.file).is_file():
-            raise RingtuneError("no such G-code file", args.file)
         job = read_gcode(Path(args.file))
         name = args.file
     else:

@@ -44,8 +44,9 @@ is judged with that one). --freq-margin 0 judges the exact model only. So
 configuration, to the digit.
 
 The configuration comes from a TuneConfig JSON (--config, as written by `ringtune tune`) or from
---shaper/--freq/--damping/--freq-limit (one value for both axes, or "X,Y"). Without any, shaping
-is off. Without --printer the embedded Ender-3-class printer is used; without --gcode the built-in
+--shaper/--freq/--damping/--freq-limit (one value for both axes, or "X,Y"). Without --config and
+--shaper/--freq/--damping: what the printer runs now when its description has a [current] section
+(`ringtune printer from-klipper` writes one), else shaping off; stderr says which. Without --printer the embedded Ender-3-class printer is used; without --gcode the built-in
 test print.
 
 examples:
@@ -94,15 +95,42 @@ def _pair(text: str | None, option: str, number: bool) -> tuple | None:
         raise RingtuneError(f"not a number: {text!r}", option) from None
 
 
-def build_config(args, out=None):
-    """The TuneConfig from --config and/or the individual options (options override the file)."""
+def _base_config(args, printer) -> tuple[dict, list[str]]:
+    """What is simulated when neither --config nor --shaper/--freq/--damping says: what the printer
+    runs now (its ``[current]`` section), else no shaping; and the notes that say so."""
+    from ringtune.agents.tune_baselines import current_config, section
+
+    notes: list[str] = []
+    note = notes.append
+    if printer is not None and section(printer, "current"):
+        cur = section(printer, "current")
+        firmware = args.firmware or str(cur.get("firmware") or "klipper")
+        cfg, why = current_config(printer, firmware)
+        if cfg is not None:
+            note(f"no --config: simulating what the printer runs now, from [current] "
+                 f"({cur.get('source') or printer.name})")
+            d = cfg.to_dict()
+            d.pop("extra", None)
+            return d, notes
+        note(why)
+    note("no --config or --shaper: simulating with input shaping off (give --config best.json or "
+         "--shaper S --freq F to simulate a configuration)")
+    return {"shaper_x": "none", "shaper_y": "none"}, notes
+
+
+def build_config(args, out=None, printer=None):
+    """The TuneConfig from --config and/or the individual options (options override the file);
+    without either, what ``printer`` runs now (``[current]``), else no shaping."""
     from ringtune.agents.commands import load_config
     from ringtune.shaping.config import TuneConfig
     from ringtune.shaping.firmware import FIRMWARES
     from ringtune.shaping.shapers import default_damping
 
+    notes: list[str] = []   # said once the options are known to be good
     if args.config:
         cfg = load_config(args.config, out).to_dict()
+    elif args.shaper is None and args.freq is None and args.damping is None:
+        cfg, notes = _base_config(args, printer)
     else:
         cfg = {"shaper_x": "none", "shaper_y": "none"}
     if args.firmware:
@@ -146,6 +174,8 @@ def build_config(args, out=None):
         if shaper:
             raise RingtuneError(exc.bare, "--shaper") from None
         raise exc.relocated("config", where) from None
+    for n in notes if out is not None else ():
+        out.note(n)
     return config
 
 
@@ -173,6 +203,12 @@ def _check_options(freq, damping, args) -> None:
         raise RingtuneError(f"{args.accel:g} mm/s² is not an acceleration: give one > 0 mm/s²", "--accel")
 
 
+def _axis(shaper: str, freq: float, damping: float) -> str:
+    """One axis of the configuration line: ``mzv 48 Hz S 0.1``, or ``none`` alone (no shaping has
+    no frequency or damping)."""
+    return "none" if shaper == "none" else f"{shaper} {freq:g} Hz S {damping:g}"
+
+
 def freq_margin(args, config=None) -> float:
     """--freq-margin PCT as a fraction; default: the margin the configuration was tuned with
     (``freq_margin`` in a best.json from tune), else tune's default."""
@@ -190,7 +226,8 @@ def run(args, out) -> int:
     from ringtune.agents.commands import judgement
     from ringtune.envs.evaluate import evaluate_judged, resolve_printer, variant_factors
 
-    config = build_config(args, out)
+    printer = resolve_printer(args.printer)
+    config = build_config(args, out, printer)
     margin = freq_margin(args, config)
     if args.gcode and not Path(args.gcode).is_file():
         raise RingtuneError("no such G-code file", f"--gcode {args.gcode}")
@@ -200,7 +237,6 @@ def run(args, out) -> int:
         except OSError as exc:
             raise RingtuneError(f"cannot create the plot folder: {exc.strerror or exc}",
                                 f"--plot {args.plot}") from None
-    printer = resolve_printer(args.printer)
     judged = judgement(margin)
     out.note(f"simulating {config.shaper_x}/{config.shaper_y} on {printer.name} ({args.backend}), {judged} ...")
     m, evs = evaluate_judged([config], printer, args.gcode, backend=args.backend, freq_margin=margin)[0]
@@ -238,8 +274,8 @@ def run(args, out) -> int:
     um = 1000.0
     lines = [
         f"printer {printer.name}, job {result['job']}, backend {args.backend}",
-        f"config  {c.firmware}: X {c.shaper_x} {c.freq_x:g} Hz S {c.damping_x:g}, "
-        f"Y {c.shaper_y} {c.freq_y:g} Hz S {c.damping_y:g}, freq limit "
+        f"config  {c.firmware}: X {_axis(c.shaper_x, c.freq_x, c.damping_x)}, "
+        f"Y {_axis(c.shaper_y, c.freq_y, c.damping_y)}, freq limit "
         f"{(f'{c.freq_limit_hz:g} Hz' if c.freq_limit_hz else 'off')}"
         + (f", accel {c.accel:g} mm/s²" if c.accel else ""),
         f"judged  {judged}",
