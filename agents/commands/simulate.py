@@ -226,6 +226,8 @@ def run(args, out) -> int:
     from ringtune.agents.commands import judgement
     from ringtune.envs.evaluate import evaluate_judged, resolve_printer, variant_factors
 
+    if args.freq_margin is not None:    # a bad option is refused before any note is printed
+        freq_margin(args)
     printer = resolve_printer(args.printer)
     config = build_config(args, out, printer)
     margin = freq_margin(args, config)
