@@ -21,12 +21,19 @@ def _duration_seconds(text: str) -> float | None:
     return total if found else None
 
 
+def _text(path) -> str | None:
+    """The file's text (undecodable bytes replaced), or None when it cannot be read."""
+    try:
+        return Path(path).read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return None
+
+
 def slicer_estimate(path) -> float | None:
     """The print time (s) the slicer wrote into the file (PrusaSlicer/Orca ``estimated printing
     time (normal mode)``, Simplify3D ``Build time``, Cura ``;TIME:``), or None."""
-    try:
-        text = Path(path).read_text(encoding="utf-8", errors="replace")
-    except OSError:
+    text = _text(path)
+    if text is None:
         return None
     for rx in (_EST_PRUSA, _EST_S3D):
         m = rx.search(text)
@@ -45,9 +52,8 @@ _FLAVOR_CURA = re.compile(r"^;FLAVOR:\s*([\w-]+)", re.M | re.I)
 def slicer_flavor(path) -> str | None:
     """The G-code flavour the slicer wrote into the file, lower case (``marlin2``, ``marlin``,
     ``klipper``, ``reprapfirmware``, ``griffin``...), or None."""
-    try:
-        text = Path(path).read_text(encoding="utf-8", errors="replace")
-    except OSError:
+    text = _text(path)
+    if text is None:
         return None
     for rx in (_FLAVOR_PRUSA, _FLAVOR_CURA):
         m = rx.search(text)
