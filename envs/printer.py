@@ -428,17 +428,22 @@ def load_printer(path: str | Path | None = None) -> Printer:
     """Read and validate a printer TOML; ``None`` gives the embedded default (Ender-3-class).
 
     A bare name of an embedded description (``"ender3"``, ``"voron24"``) also works."""
-    if path is None:
-        path = "ender3"
     if isinstance(path, Printer):
         return path
-    p = Path(path)
-    if not p.exists() and p.suffix == "" and (resources.files("ringtune.envs.data") / f"{p.name}.toml").is_file():
-        text = (resources.files("ringtune.envs.data") / f"{p.name}.toml").read_text()
+    p = Path("ender3" if path is None else path)
+    embedded = resources.files("ringtune.envs.data") / f"{p.name}.toml"
+    if (path is None or not p.is_file()) and p.suffix == "" and embedded.is_file():
+        text = embedded.read_text()
         where = f"<embedded {p.name}.toml>"
     else:
         try:
             text = p.read_text()
+        except FileNotFoundError:
+            hint = (f" (and not an embedded printer: {', '.join(embedded_printers())})"
+                    if p.suffix == "" and p.parent == Path(".") else "")
+            raise RingtuneError(f"cannot read printer description: no such file{hint}", str(path)) from None
+        except IsADirectoryError:
+            raise RingtuneError("is a folder, not a printer description (TOML)", str(path)) from None
         except OSError as exc:
             raise RingtuneError(f"cannot read printer description: {exc.strerror}", str(path)) from None
         except UnicodeDecodeError:

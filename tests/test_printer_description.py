@@ -158,3 +158,22 @@ def test_motor_electrical_cycle_and_magnetic_stiffness():
                            "x": {"modes": [{"freq": 50}]}, "y": {"modes": [{"freq": 40}]}})
     q = printer_from_dict(tomllib.loads(p.to_toml()))
     assert q == p and q.motor.slip is False and q.motor.microsteps == 32
+
+
+def test_unknown_printer_name_lists_the_embedded_ones_and_a_folder_is_named(tmp_path, monkeypatch):
+    with pytest.raises(RingtuneError) as e:
+        load_printer("default")
+    assert "not an embedded printer: ender3, voron24" in str(e.value)
+    with pytest.raises(RingtuneError, match="is a folder"):
+        load_printer(tmp_path)
+    # the default printer is the embedded one, even beside a folder named like it
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "ender3").mkdir()
+    assert load_printer(None).name == load_printer("ender3").name == embedded_default_name()
+
+
+def embedded_default_name() -> str:
+    import tomllib
+    from importlib import resources
+
+    return tomllib.loads((resources.files("ringtune.envs.data") / "ender3.toml").read_text())["name"]
