@@ -18,6 +18,7 @@ from typing import Any, Callable
 
 from ringtune.agents.klipper_rule import DEFAULT_DAMPING_RATIO
 from ringtune.agents.pareto import Point, point_from_metrics
+from ringtune.envs.printer_model import Printer
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
@@ -37,16 +38,10 @@ class Baselines:
     fits: dict = field(default_factory=dict)
 
 
-def section(printer: Any, name: str) -> dict:
-    """A pass-through section of the printer description (``measurement``, ``current``), or {}."""
-    d = getattr(printer, name, None)
-    return dict(d) if isinstance(d, dict) else {}
-
-
-def recorded_klipper(printer: Any, firmware: str) -> tuple[TuneConfig | None, str]:
+def recorded_klipper(printer: Printer, firmware: str) -> tuple[TuneConfig | None, str]:
     """Klipper's recommendation recorded from the resonance files, as a TuneConfig (or None, and
     why not)."""
-    rec = section(printer, "measurement").get("klipper")
+    rec = printer.measurement.get("klipper")
     if not isinstance(rec, dict) or not rec:
         return None, "the printer description records no Klipper recommendation ([measurement.klipper])"
     try:
@@ -66,11 +61,11 @@ def recorded_klipper(printer: Any, firmware: str) -> tuple[TuneConfig | None, st
     return cfg, ""
 
 
-def current_config(printer: Any, firmware: str) -> tuple[TuneConfig | None, str]:
+def current_config(printer: Printer, firmware: str) -> tuple[TuneConfig | None, str]:
     """What the printer runs now (``[current]``) as a TuneConfig for ``firmware`` (or None, and why)."""
     from ringtune.shaping.shapers import parse_name
 
-    cur = section(printer, "current")
+    cur = printer.current
     if not cur:
         return None, ""
     try:
@@ -93,7 +88,7 @@ def current_config(printer: Any, firmware: str) -> tuple[TuneConfig | None, str]
     return cfg, ""
 
 
-def baselines_for(printer: Any, firmware: str, settings, evaluator: Callable, quality: str, *, seed: int = 0,
+def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable, quality: str, *, seed: int = 0,
                   note: Callable[[str], None] = lambda s: None) -> Baselines:
     """Klipper's rule, what the printer runs now (when known) and no shaping, evaluated with the
     study's evaluator, bounds and frequency margin (``settings``: a StudySettings)."""
@@ -104,7 +99,7 @@ def baselines_for(printer: Any, firmware: str, settings, evaluator: Callable, qu
     kcfg, why = recorded_klipper(printer, firmware)
     if kcfg is not None:
         configs["klipper"] = kcfg
-        rec = section(printer, "measurement").get("klipper", {})
+        rec = printer.measurement.get("klipper", {})
         version = f" (Klipper {rec['version']})" if rec.get("version") else ""
         out.labels["klipper"] = f"Klipper's rule {FROM_FILES}{version}"
         out.sources["klipper"] = "measurement"
@@ -117,14 +112,14 @@ def baselines_for(printer: Any, firmware: str, settings, evaluator: Callable, qu
                                                              + SIMULATED})
             out.labels["klipper"] = f"Klipper's rule {SIMULATED}"
             out.sources["klipper"] = "simulated resonance test"
-            if section(printer, "measurement").get("klipper"):
+            if printer.measurement.get("klipper"):
                 note(f"ringtune tune: {why}; Klipper's rule is computed {SIMULATED} instead")
         except (ImportError, RingtuneError) as exc:
             note(f"ringtune tune: Klipper's-rule baseline skipped: {exc}")
     ccfg, why = current_config(printer, firmware)
     if ccfg is not None:
         configs["current"] = ccfg
-        src = section(printer, "current").get("source")
+        src = printer.current.get("source")
         out.labels["current"] = "what the printer runs now" + (f" ({src})" if src else "")
         out.sources["current"] = "[current]"
     elif why:

@@ -98,12 +98,12 @@ def _pair(text: str | None, option: str, number: bool) -> tuple | None:
 def _base_config(args, printer) -> tuple[dict, list[str]]:
     """What is simulated when neither --config nor --shaper/--freq/--damping says: what the printer
     runs now (its ``[current]`` section), else no shaping; and the notes that say so."""
-    from ringtune.agents.tune_baselines import current_config, section
+    from ringtune.agents.tune_baselines import current_config
 
     notes: list[str] = []
     note = notes.append
-    if printer is not None and section(printer, "current"):
-        cur = section(printer, "current")
+    if printer is not None and printer.current:
+        cur = printer.current
         firmware = args.firmware or str(cur.get("firmware") or "klipper")
         cfg, why = current_config(printer, firmware)
         if cfg is not None:
