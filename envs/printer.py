@@ -79,6 +79,7 @@ from ringtune.envs.motors import lookup_motor, unknown_motor_message
 from ringtune.envs.printer_model import (DEFAULTS, MOTOR_CONSTANT_KEYS, MOTOR_DRIVE_KEYS, AxisModel, Mode,
                                          MotorModel, Printer)
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.textfile import read_text_file
 
 KINEMATICS = ("cartesian", "corexy", "corexz")
 
@@ -436,18 +437,11 @@ def load_printer(path: str | Path | None = None) -> Printer:
         text = embedded.read_text()
         where = f"<embedded {p.name}.toml>"
     else:
-        try:
-            text = p.read_text()
-        except FileNotFoundError:
+        if not p.exists() and not p.is_symlink():
             hint = (f" (and not an embedded printer: {', '.join(embedded_printers())})"
                     if p.suffix == "" and p.parent == Path(".") else "")
-            raise RingtuneError(f"cannot read printer description: no such file{hint}", str(path)) from None
-        except IsADirectoryError:
-            raise RingtuneError("is a folder, not a printer description (TOML)", str(path)) from None
-        except OSError as exc:
-            raise RingtuneError(f"cannot read printer description: {exc.strerror}", str(path)) from None
-        except UnicodeDecodeError:
-            raise RingtuneError("not a text file (binary data): not a printer description (TOML)", str(path)) from None
+            raise RingtuneError(f"cannot read printer description: no such file{hint}", str(path))
+        text = read_text_file(p, "printer description (TOML)")
         where = str(path)
     try:
         data = tomllib.loads(text)

@@ -43,27 +43,6 @@ def to_number(value, where: str, integer: bool = False) -> float | int:
     return v
 
 
-def read_text_file(path, what: str) -> str:
-    """The text of the configuration file ``path`` (``what`` names the kind, e.g. "Klipper
-    configuration"), with one-line errors for what is not one: a missing file, a folder, a file that
-    cannot be read, binary data (a NUL byte, or more than 1 % of the bytes not UTF-8)."""
-    from pathlib import Path
-
-    p = Path(path)
-    if p.is_dir():
-        raise RingtuneError(f"is a directory, not a {what} file", str(path))
-    try:
-        data = p.read_bytes()
-    except FileNotFoundError:
-        raise RingtuneError("no such file", str(path)) from None
-    except OSError as exc:
-        raise RingtuneError(f"cannot read: {exc.strerror or exc}", str(path)) from None
-    text = data.decode("utf-8", errors="replace")
-    if b"\0" in data[:65536] or text.count("\ufffd") > 0.01 * max(len(text), 1):
-        raise RingtuneError(f"not a text file (binary data): not a {what}", str(path))
-    return text
-
-
 def place_motors(description: dict, x: dict, y: dict) -> None:
     """Put the X and Y motor tables into ``description``: one ``[motor]`` when they are equal, else
     ``[x.motor]`` and ``[y.motor]`` (on CoreXY/CoreXZ: motor A and motor B / the Y motor)."""

@@ -26,8 +26,8 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ringtune.hardware.firmware_facts import read_text_file
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.textfile import read_text_file
 
 #: the line that opens Klipper's auto-saved block (``AUTOSAVE_HEADER`` in klippy/configfile.py)
 AUTOSAVE_LINE = "#*# <---------------------- SAVE_CONFIG ---------------------->"

@@ -21,8 +21,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, gcode_words, place_gcode_motors, read_text_file, to_number
+from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, gcode_words, place_gcode_motors, to_number
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.textfile import read_text_file
 
 _READ = ("M92", "M201", "M203", "M204", "M205", "M906", "M593")
 

@@ -22,8 +22,9 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ringtune.hardware.firmware_facts import FirmwareFacts, gcode_words, place_gcode_motors, read_text_file, to_number
+from ringtune.hardware.firmware_facts import FirmwareFacts, gcode_words, place_gcode_motors, to_number
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.textfile import read_text_file
 
 #: M669 K (number or RRF 3.7 name, lower case) -> kinematics of the model
 _KINEMATICS = {"0": "cartesian", "1": "corexy", "2": "corexz",

@@ -136,15 +136,10 @@ class TuneConfig:
 
     @classmethod
     def load(cls, path: str | Path) -> "TuneConfig":
+        from ringtune.shaping.textfile import read_text_file
+
         path = Path(path)
-        if path.is_dir():
-            raise RingtuneError("is a directory, not a TuneConfig JSON file", str(path))
-        try:
-            text = path.read_bytes().decode("utf-8")
-        except FileNotFoundError:
-            raise RingtuneError("no such file", str(path)) from None
-        except UnicodeDecodeError:
-            raise RingtuneError("not a text file (binary data): not a TuneConfig JSON", str(path)) from None
+        text = read_text_file(path, "TuneConfig JSON")
         try:
             data = json.loads(text)
         except json.JSONDecodeError as exc:

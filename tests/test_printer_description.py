@@ -164,7 +164,7 @@ def test_unknown_printer_name_lists_the_embedded_ones_and_a_folder_is_named(tmp_
     with pytest.raises(RingtuneError) as e:
         load_printer("default")
     assert "not an embedded printer: ender3, voron24" in str(e.value)
-    with pytest.raises(RingtuneError, match="is a folder"):
+    with pytest.raises(RingtuneError, match="is a directory"):
         load_printer(tmp_path)
     # the default printer is the embedded one, even beside a folder named like it
     monkeypatch.chdir(tmp_path)

@@ -1,0 +1,27 @@
+"""Reading a user's text file (a configuration, a printer description) with one-line errors for
+what is not one: a missing file, a folder, a file that cannot be read, binary data."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ringtune.shaping.errors import RingtuneError
+
+
+def read_text_file(path, what: str) -> str:
+    """The text of ``path`` (``what`` names the kind, e.g. "Klipper configuration"); binary data is a
+    NUL byte in the first 64 KiB, or more than 1 % of the bytes not UTF-8 (a stray Latin-1 byte in a
+    comment is still text)."""
+    p = Path(path)
+    if p.is_dir():
+        raise RingtuneError(f"is a directory, not a {what} file", str(path))
+    try:
+        data = p.read_bytes()
+    except FileNotFoundError:
+        raise RingtuneError("no such file", str(path)) from None
+    except OSError as exc:
+        raise RingtuneError(f"cannot read: {exc.strerror or exc}", str(path)) from None
+    text = data.decode("utf-8", errors="replace")
+    if b"\0" in data[:65536] or text.count("\ufffd") > 0.01 * max(len(text), 1):
+        raise RingtuneError(f"not a text file (binary data): not a {what}", str(path))
+    return text
