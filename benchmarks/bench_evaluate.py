@@ -51,7 +51,7 @@ def main() -> None:
         ev.evaluate_many([cfg], printer, None, nthread=1, freq_margin=margin)
         return time.perf_counter() - t0
 
-    from ringtune.agents.tune_study import DEFAULT_FREQ_MARGIN
+    from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 
     one(config(), DEFAULT_FREQ_MARGIN)   # builds the detuned twins' models
     warm = [one(config()) for _ in range(15)]

@@ -1,12 +1,12 @@
 """Does the PPO policy earn its place? (issue 6, acceptance 3 and 5)
 
 On randomised printers never seen in training (``reset(seed=s)`` of ``ringtune/Tune-v0`` for ``s``
-in ``ringtune.agents.ppo.BENCH_SEEDS``; training uses seeds < 800000 and the evaluation callback
+in ``ringtune.agents.ppo.policy.BENCH_SEEDS``; training uses seeds < 800000 and the evaluation callback
 900000–900007), the environment's cost (−reward: print-time ratio + 2·path error + 5·overshoot +
 20·ringing, mm; step loss +10) of:
 
 - policy: the policy's one-shot recommendation from the printer's simulated resonance test;
-- prior: the answer training starts from (``ringtune.agents.ppo.PRIOR``: MZV on the detected
+- prior: the answer training starts from (``ringtune.agents.ppo.policy.PRIOR``: MZV on the detected
   peaks, fixed damping and acceleration), i.e. what PPO itself adds is policy vs prior;
 - policy+optuna20: that answer as the first of 20 Optuna (TPE) trials over the same action space;
 - optuna200: Optuna alone, 200 trials, over the absolute action space (F over 15-150 Hz: it
@@ -45,13 +45,13 @@ def bench_printer(job: tuple) -> dict:
     policy_dir, seed, backend, n_refine, n_optuna, cached = job
     import torch
 
-    from ringtune.agents.klipper_baseline import klipper_rule_on_simulated_test
-    from ringtune.agents.ppo import load_policy, prior_action
-    from ringtune.agents.ppo_refine import PrinterCost, optuna_search
+    from ringtune.agents.klipper.baseline import klipper_rule_on_simulated_test
+    from ringtune.agents.ppo.policy import load_policy, prior_action
+    from ringtune.agents.ppo.refine import PrinterCost, optuna_search
     from ringtune.envs.env import TuneEnv
     from ringtune.shaping.config import TuneConfig
 
-    from ringtune.agents.ppo import resolve_env_kwargs
+    from ringtune.agents.ppo.policy import resolve_env_kwargs
 
     torch.set_num_threads(1)
     policy = load_policy(policy_dir) if policy_dir else None
@@ -92,7 +92,7 @@ def simulated_table(policy_dir: str | None, n: int, workers: int, backend: str, 
     import json
     import multiprocessing as mp
 
-    from ringtune.agents.ppo import BENCH_SEEDS
+    from ringtune.agents.ppo.policy import BENCH_SEEDS
 
     store = json.loads(cache.read_text()) if cache and cache.is_file() else {}
     key = lambda s: f"{s}:{backend}:{n_optuna}"  # noqa: E731
@@ -147,10 +147,10 @@ class _Serial:
 
 def real_table(policy_dir: str, data: Path) -> None:
     """Policy vs Klipper's rule on the real Klipper resonance files."""
-    from ringtune.agents import klipper_baseline
-    from ringtune.agents.commands.recommend import _load_accel
-    from ringtune.agents.ppo import load_policy
-    from ringtune.agents.ppo_recommend import _axis_spectra, preload, recommend_from_psd
+    from ringtune.agents.klipper import baseline as klipper_baseline
+    from ringtune.agents.cli.recommend import _load_accel
+    from ringtune.agents.ppo.policy import load_policy
+    from ringtune.agents.ppo.recommend import _axis_spectra, preload, recommend_from_psd
     from ringtune.shaping.config import TuneConfig
     from ringtune.shaping.shapers import get_shaper
 

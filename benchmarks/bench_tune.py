@@ -35,14 +35,14 @@ def main() -> int:
     ap.add_argument("--skip-grid", action="store_true")
     args = ap.parse_args()
 
-    from ringtune.agents.grid import hypervolume, run_grid
-    from ringtune.agents.space import SearchSpace, default_space, grid_params
-    from ringtune.agents.pareto import pareto_front, scalar_objective
-    from ringtune.agents.tune_study import StudySettings, open_study, study_points
+    from ringtune.agents.tune.grid import hypervolume, run_grid
+    from ringtune.agents.tune.space import SearchSpace, default_space, grid_params
+    from ringtune.agents.tune.pareto import pareto_front, scalar_objective
+    from ringtune.agents.tune.study import StudySettings, open_study, study_points
     from ringtune.envs.printer import load_printer
 
     out = Path(tempfile.mkdtemp(prefix="bench-tune-"))
-    cmd = [sys.executable, "-m", "ringtune.agents.cli", "tune", "--trials", str(args.trials), "--workers",
+    cmd = [sys.executable, "-m", "ringtune.agents.cli.main", "tune", "--trials", str(args.trials), "--workers",
            str(args.workers), "--out", str(out), "--json"]
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True)
@@ -100,7 +100,7 @@ def _stored(settings) -> dict:
     """The study's own settings (so open_study accepts it)."""
     import optuna
 
-    from ringtune.agents.storage import make_storage
+    from ringtune.agents.tune.storage import make_storage
 
     st = optuna.load_study(study_name=settings.study_name, storage=make_storage(settings.storage))
     s = dict(st.user_attrs["settings"])

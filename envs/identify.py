@@ -1,5 +1,5 @@
 """Vibration modes fitted to accelerometer data given as arrays (reading the files is
-:mod:`ringtune.agents.identification`; the printer description, :mod:`ringtune.agents.identify_printer`).
+:mod:`ringtune.agents.identify.accelerometer`; the printer description, :mod:`ringtune.agents.identify.description`).
 
 Two kinds of measurement:
 

@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from ringtune.agents.cli import main
+from ringtune.agents.cli.main import main
 from ringtune.envs.printer import load_printer
 from ringtune.hardware.dialects import export_config
 from ringtune.shaping import planner

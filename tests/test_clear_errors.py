@@ -8,7 +8,7 @@ import json
 
 import pytest
 
-from ringtune.agents.cli import main
+from ringtune.agents.cli.main import main
 
 
 def _error(capsys, argv) -> str:

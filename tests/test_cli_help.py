@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from ringtune.agents import cli
+from ringtune.agents.cli import main as cli
 
 
 def test_every_listed_command_is_implemented():
@@ -36,7 +36,7 @@ def test_each_command_help_has_an_example_and_json(name, capsys):
 
 
 def test_bad_value_is_one_line_and_exit_2_without_traceback():
-    proc = subprocess.run([sys.executable, "-m", "ringtune.agents.cli", "shaper", "mzv", "--freq", "-3"],
+    proc = subprocess.run([sys.executable, "-m", "ringtune.agents.cli.main", "shaper", "mzv", "--freq", "-3"],
                           capture_output=True, text=True)
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and proc.stderr.startswith("ringtune shaper: error:")
@@ -76,7 +76,7 @@ def test_a_reader_that_goes_away_ends_the_command_quietly(tmp_path):
     (SIGPIPE's, as a shell reports for cat)."""
     job = tmp_path / "job.gcode"
     job.write_text("G28\n" + "".join(f"G1 X{i % 50} Y{i % 37} E{i * 0.01:.2f} F3000\n" for i in range(400)))
-    proc = subprocess.Popen([sys.executable, "-m", "ringtune.agents.cli", "plan", str(job), "--json"],
+    proc = subprocess.Popen([sys.executable, "-m", "ringtune.agents.cli.main", "plan", str(job), "--json"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     proc.stdout.close()            # the reader leaves before the command has written anything
     err = proc.stderr.read().decode()

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 import ringtune.envs
-from ringtune.agents.cli import main
+from ringtune.agents.cli.main import main
 from ringtune.envs.evaluate import clear_cache, planned_job
 from ringtune.envs.printer import load_printer
 from ringtune.shaping.config import TuneConfig

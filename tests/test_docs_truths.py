@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from ringtune.agents.cli import main
+from ringtune.agents.cli.main import main
 
 README = Path(__file__).resolve().parent.parent / "README.md"
 

@@ -182,7 +182,7 @@ MOTORS_MD = {"ldo-42sth40-1684ac": (1.65, 0.0036, 0.45, 1.68, 200),
 def test_motors_named_but_not_defined_get_the_builtin_constants(printer, data_dir, tmp_path, capsys):
     """switchwire (autotune.cfg:2) and v24 (autotune.cfg:9) name motors their files do not define:
     the constants are the built-in table's (motors.md rows), and the command keeps the name."""
-    from ringtune.agents import cli
+    from ringtune.agents.cli import main as cli
     from ringtune.envs import motors
 
     name = printer_facts_from_klipper(data_dir / "klipper_config" / printer / "printer.cfg").description[

@@ -8,7 +8,7 @@ import json
 
 import pytest
 
-from ringtune.agents import cli
+from ringtune.agents.cli import main as cli
 from ringtune.hardware.klipper_config import printer_facts_from_klipper, printer_facts_from_moonraker
 
 

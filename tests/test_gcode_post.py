@@ -8,7 +8,7 @@ import re
 import numpy as np
 import pytest
 
-from ringtune.agents.cli import main
+from ringtune.agents.cli.main import main
 from ringtune.shaping.freqlimit import apply_freq_limit
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.gcode_post import limit_gcode_bytes

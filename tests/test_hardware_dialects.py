@@ -198,7 +198,7 @@ def test_limit_command_applies_the_tuned_limit_exactly(fw):
     limit, method and minimum speed factor (the command's own defaults are sections / 0.3)."""
     import shlex
 
-    from ringtune.agents.cli import build_parser
+    from ringtune.agents.cli.main import build_parser
 
     shaper = {"marlin": "zv", "rrf": "zvd"}.get(fw, "mzv")
     c = cfg(shaper_x=shaper, shaper_y=shaper, freq_limit_hz=27.5, min_speed_factor=0.55,
@@ -309,7 +309,7 @@ def test_one_record_per_firmware_is_what_config_space_and_export_read():
     """Issue 17: every reader takes the firmware facts from the one record: names are read
     case-insensitively (`Klipper`), rrf34 is a firmware tune accepts as export does, and RRF's one
     shaper for all axes holds in the search space for every RRF version."""
-    from ringtune.agents.space import default_space
+    from ringtune.agents.tune.space import default_space
     from ringtune.envs.printer import load_printer
 
     assert TuneConfig(firmware="Klipper").firmware == "klipper"

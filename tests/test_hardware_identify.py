@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ringtune.agents.identification import read_measurement
-from ringtune.agents.identify_printer import build_description, description_toml
+from ringtune.agents.identify.accelerometer import read_measurement
+from ringtune.agents.identify.description import build_description, description_toml
 from ringtune.envs.identify import identify_decay, identify_psd, plot_fits, transmissibility
 
 ENDER3 = ("klipper_psd/bassco_ender3/resonances_x_20210821_152037.csv",

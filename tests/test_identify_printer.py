@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ringtune.agents.cli import main
+from ringtune.agents.cli.main import main
 from ringtune.envs.identify import identify_psd
 from ringtune.envs.printer import load_printer, printer_from_dict
 from ringtune.envs.printer_model import AxisModel
@@ -243,7 +243,7 @@ def test_klipper_config_gives_the_rest_of_the_printer_in_one_step(data_dir, tmp_
 def test_the_help_examples_name_motors_the_table_has():
     import re
 
-    from ringtune.agents.commands.identify import DESCRIPTION
+    from ringtune.agents.cli.identify import DESCRIPTION
     from ringtune.envs.motors import lookup_motor
 
     names = re.findall(r"--motor ([a-z][^\s:]+)", DESCRIPTION) + re.findall(r"\(e\.g\. ([^\s:]+):", DESCRIPTION)

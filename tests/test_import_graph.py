@@ -163,7 +163,7 @@ def _where(edge: Edge) -> str:
 
 def test_every_module_is_read():
     assert len(MODULES) > 60
-    assert "ringtune.shaping.shapers" in MODULES and "ringtune.agents.commands.plan" in MODULES
+    assert "ringtune.shaping.shapers" in MODULES and "ringtune.agents.cli.plan" in MODULES
 
 
 def package_rule_violations(edges=EDGES) -> list[str]:
@@ -182,6 +182,44 @@ def package_rule_violations(edges=EDGES) -> list[str]:
 def test_dependencies_point_one_way():
     bad = package_rule_violations()
     assert not bad, "\n".join(bad)
+
+
+#: agents' subpackages by concept (DESIGN.md, "Layout"); ``cli`` holds the entry point and the commands
+AGENT_ROOMS = {"cli", "tune", "ppo", "identify", "klipper"}
+
+
+def _room(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[2] if len(parts) > 2 and parts[1] == "agents" else None
+
+
+def room_rule_violations(edges=EDGES) -> list[str]:
+    """Inside ``agents``: every module lives in a room; commands import the library, the library
+    never imports a command (nor the entry point)."""
+    bad = []
+    for m in MODULES:
+        if _package(m) == "agents" and m != "ringtune.agents" and _room(m) not in AGENT_ROOMS:
+            bad.append(f"{MODULES[m].relative_to(ROOT)}: agents/ module outside the rooms "
+                       f"{', '.join(sorted(AGENT_ROOMS))}")
+    for e in edges:
+        if _package(e.src) == "agents" and _room(e.src) != "cli" and _room(e.dst) == "cli":
+            bad.append(f"{_where(e)}: the library imports the command line ({e.dst}); "
+                       f"commands import the library, never the reverse")
+    return bad
+
+
+def test_agents_rooms_and_the_library_never_imports_a_command():
+    bad = room_rule_violations()
+    assert not bad, "\n".join(bad)
+
+
+def test_a_library_to_cli_import_is_caught():
+    """The rule above fails on the edge it forbids (a library module importing a command)."""
+    fake = Edge("ringtune.agents.tune.report", "ringtune.agents.cli.common", "check_output_folder",
+                1, True)
+    assert any("the library imports the command line" in v for v in room_rule_violations([fake]))
+    ok = Edge("ringtune.agents.cli.tune", "ringtune.agents.tune.report", None, 1, True)
+    assert room_rule_violations([ok]) == []
 
 
 def test_known_exceptions_are_still_needed():
@@ -344,7 +382,7 @@ def test_no_module_imports_our_names_only_to_expose_them():
     ("ringtune.shaping.planner", "ringtune.envs.printer", "load_printer", "shaping imports"),
     ("ringtune.envs.sim", "ringtune.hardware.accel", "read_accel", "envs imports"),
     ("ringtune.shaping.shapers", "ringtune.hardware.dialects", "DIALECTS", "shaping imports"),
-    ("ringtune.shaping.apply", "ringtune.agents.pareto", "choose", "shaping imports"),
+    ("ringtune.shaping.apply", "ringtune.agents.tune.pareto", "choose", "shaping imports"),
 ])
 def test_a_forbidden_import_is_caught(src, dst, name, rule):
     extra = Edge(src, dst, name, 1, True)

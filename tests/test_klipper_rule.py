@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ringtune.agents import klipper_rule as kr
+from ringtune.agents.klipper import rule as kr
 from ringtune.hardware.accel import read_resonances_csv
 from ringtune.hardware.psd import normalize_to_frequencies
 from ringtune.shaping.analysis import TARGET_SMOOTHING, impulse_residual, max_accel, smoothing
@@ -192,7 +192,7 @@ def test_bad_input_is_a_ringtune_error():
 def test_recommend_cli_writes_tuneconfig_and_json(data_dir, tmp_path, capsys):
     import json
 
-    from ringtune.agents.cli import main
+    from ringtune.agents.cli.main import main
     from ringtune.shaping.config import TuneConfig
 
     d = _psd_dir(data_dir)
@@ -221,7 +221,7 @@ def test_recommend_cli_writes_tuneconfig_and_json(data_dir, tmp_path, capsys):
 
 
 def test_recommend_cli_policy_without_training_is_one_clear_line(data_dir, capsys):
-    from ringtune.agents.cli import main
+    from ringtune.agents.cli.main import main
 
     d = _psd_dir(data_dir)
     rc = main(["recommend", "--method", "policy", "--accel",
@@ -236,7 +236,7 @@ def test_recommend_on_the_default_printers_simulated_resonance_test(capsys):
     lands on those real files (X ei ~51 Hz, Y a 3-pulse shaper near the Y modes 38.9/51.3 Hz)."""
     import json
 
-    from ringtune.agents.cli import main
+    from ringtune.agents.cli.main import main
 
     rc = main(["recommend", "--json", "--printer", "default"])
     res = json.loads(capsys.readouterr().out)
@@ -291,7 +291,7 @@ def test_recommend_takes_the_axis_from_the_file_name_and_says_when_it_cannot(dat
     """One axis-from-file-name (hardware.accel.axis_from_file_name): a Z file is refused (the
     config has no Z shaper), a file whose name says nothing is read as the larger of its psd_x /
     psd_y columns, and recommend says so on stderr."""
-    from ringtune.agents.cli import main
+    from ringtune.agents.cli.main import main
 
     src = _psd_dir(data_dir) / "bassco_ender3/resonances_x_20210821_152037.csv"
     z = tmp_path / "resonances_z_20210821_152037.csv"

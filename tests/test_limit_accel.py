@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from ringtune.agents.cli import main
+from ringtune.agents.cli.main import main
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.gcode_post import rewrite_accel_bytes

@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from ringtune.agents.cli import main
+from ringtune.agents.cli.main import main
 from ringtune.envs.evaluate import evaluate
 from ringtune.shaping.config import TuneConfig
 

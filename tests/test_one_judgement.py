@@ -12,10 +12,10 @@ import sys
 
 import pytest
 
-from ringtune.agents.cli import main
-from ringtune.agents.tune_study import DEFAULT_FREQ_MARGIN
+from ringtune.agents.cli.main import main
+from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 
-RINGTUNE = [sys.executable, "-m", "ringtune.agents.cli"]
+RINGTUNE = [sys.executable, "-m", "ringtune.agents.cli.main"]
 
 
 def _run(argv, **kw):

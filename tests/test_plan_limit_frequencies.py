@@ -14,7 +14,7 @@ import json
 
 import pytest
 
-from ringtune.agents.cli import main
+from ringtune.agents.cli.main import main
 
 TOWER = "gcode/bassco_ender3/ringing_tower.gcode"
 MARLIN_TOWER = "gcode/ianalexis_ender3_marlin/ringing_tower.gcode"

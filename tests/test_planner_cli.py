@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from ringtune.agents.cli import main
+from ringtune.agents.cli.main import main
 
 
 def _plan_json(capsys, *args):

@@ -18,10 +18,10 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from ringtune.agents import ppo  # noqa: E402
-from ringtune.agents.commands.recommend import _load_accel  # noqa: E402
-from ringtune.agents import ppo_recommend  # noqa: E402
-from ringtune.agents.ppo_recommend import _axis_spectra  # noqa: E402
+from ringtune.agents.ppo import policy as ppo  # noqa: E402
+from ringtune.agents.cli.recommend import _load_accel  # noqa: E402
+from ringtune.agents.ppo import recommend as ppo_recommend  # noqa: E402
+from ringtune.agents.ppo.recommend import _axis_spectra  # noqa: E402
 
 
 class _StubPolicy(ppo.Policy):

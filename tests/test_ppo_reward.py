@@ -1,4 +1,4 @@
-"""The reference-relative training reward (agents/ppo_reward.py): same printer, same optimum,
+"""The reference-relative training reward (agents/ppo/reward.py): same printer, same optimum,
 the printer's own cost level removed."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import warnings
 import numpy as np
 import pytest
 
-from ringtune.agents import ppo
-from ringtune.agents.ppo_reward import ReferenceRelative, reward_of
+from ringtune.agents.ppo import policy as ppo
+from ringtune.agents.ppo.reward import ReferenceRelative, reward_of
 from ringtune.envs.env import TuneEnv
 
 from test_ppo_train import SQUARE_JOB

@@ -11,7 +11,8 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from ringtune.agents import ppo, ppo_recommend  # noqa: E402
+from ringtune.agents.ppo import policy as ppo  # noqa: E402
+from ringtune.agents.ppo import recommend as ppo_recommend  # noqa: E402
 from ringtune.envs.env import TuneEnv  # noqa: E402
 from ringtune.shaping.config import TuneConfig  # noqa: E402
 from ringtune.shaping.errors import RingtuneError  # noqa: E402
@@ -99,8 +100,8 @@ def _check_recommend_cli(policy_dir):
     """`ringtune recommend --method policy` on a real file and on a modelled printer with --refine."""
     import io
 
-    from ringtune.agents.cli import Output
-    from ringtune.agents.commands import recommend
+    from ringtune.agents.cli.main import Output
+    from ringtune.agents.cli import recommend
     from pathlib import Path
 
     def run(argv):
@@ -122,7 +123,7 @@ def _check_recommend_cli(policy_dir):
     d = run(["--method", "policy", "--policy", str(policy_dir), "--printer", "default", "--refine", "2"])
     assert d["refine"]["trials"] == 2 and d["refine"]["best_cost"] <= d["refine"]["first_cost"]
     # the study's first trial is the policy's own one-shot answer: its cost, scored independently
-    from ringtune.agents.ppo_refine import PrinterCost
+    from ringtune.agents.ppo.refine import PrinterCost
 
     policy = ppo.load_policy(policy_dir)
     one_shot, _ = ppo_recommend.policy_on_simulated_test(policy, None, seed=0)
@@ -136,7 +137,7 @@ def test_load_policy_names_the_missing_file(tmp_path):
 
 
 def test_cli_errors_are_one_line(capsys, tmp_path):
-    from ringtune.agents.cli import main
+    from ringtune.agents.cli.main import main
 
     for argv, what in ((["recommend", "--method", "policy", "--printer", "default"], "--policy"),
                        (["recommend", "--method", "policy", "--policy", str(tmp_path), "--printer", "default"],
@@ -152,7 +153,7 @@ def test_cli_errors_are_one_line(capsys, tmp_path):
 
 def test_recommend_help_says_policy_files_must_be_trusted(capsys):
     """Issue 6: loading a policy unpickles it; `recommend --help` says so (and `train --help`)."""
-    from ringtune.agents.cli import main
+    from ringtune.agents.cli.main import main
 
     for cmd in ("recommend", "train"):
         with pytest.raises(SystemExit):
@@ -169,8 +170,8 @@ TRAIN_JSON_KEYS = {"out_dir", "timesteps", "wall_s", "resumed_from", "eval_times
 def test_train_cli_json_keys_and_hpo_hands_its_best_to_training(tmp_path, monkeypatch, capsys):
     """`ringtune train --hpo --json`: the documented keys; the hyperparameters Optuna found are the
     ones the final training uses; --hpo with --resume is one clear line."""
-    from ringtune.agents import ppo_hpo
-    from ringtune.agents.cli import main
+    from ringtune.agents.ppo import hpo as ppo_hpo
+    from ringtune.agents.cli.main import main
 
     seen = {}
     found = {"learning_rate": 1e-3, "n_steps": 64, "n_epochs": 4, "log_std_init": -2.0, "ent_coef": 1e-4,
@@ -203,7 +204,7 @@ def test_train_cli_json_keys_and_hpo_hands_its_best_to_training(tmp_path, monkey
 def test_hpo_runs_short_trainings_and_returns_the_best(tmp_path, monkeypatch):
     """ppo_hpo.tune_hyperparameters for real (tiny budget, small nets): every trial is a training run
     scored on the held-out printers; the best is the lowest of those scores."""
-    from ringtune.agents import ppo_hpo
+    from ringtune.agents.ppo import hpo as ppo_hpo
 
     def small(trial):
         return {"learning_rate": trial.suggest_float("learning_rate", 1e-4, 3e-3, log=True),

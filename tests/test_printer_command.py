@@ -9,8 +9,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from ringtune.agents import cli
-from ringtune.agents.commands import printer as printer_cmd
+from ringtune.agents.cli import main as cli
+from ringtune.agents.cli import printer as printer_cmd
 from ringtune.envs.printer import load_printer
 
 CONFIGS = ("ender3", "switchwire", "v0", "v24")

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from ringtune.agents.cli import main
+from ringtune.agents.cli.main import main
 from ringtune.shaping.config import TuneConfig
 
 
@@ -77,7 +77,7 @@ def test_raw_folder_and_decoding_errors_reaching_the_cli_name_the_file(
         tmp_path, capsys, monkeypatch):
     """IsADirectoryError / UnicodeDecodeError escaping a command printed '[Errno 21] ...' or
     "'utf-8' codec can't decode byte ..." with no file named."""
-    import ringtune.agents.commands.export as export
+    import ringtune.agents.cli.export as export
 
     monkeypatch.setattr(export, "run", _raw_read)
     last = _one_line_error(["export", str(tmp_path), "--firmware", "klipper"], capsys)
@@ -89,7 +89,7 @@ def test_raw_folder_and_decoding_errors_reaching_the_cli_name_the_file(
 
 
 def test_a_permission_error_names_the_file(tmp_path, capsys, monkeypatch):
-    import ringtune.agents.commands.export as export
+    import ringtune.agents.cli.export as export
 
     locked = tmp_path / "locked.json"
 

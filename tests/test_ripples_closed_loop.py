@@ -19,7 +19,7 @@ import math
 import numpy as np
 import pytest
 
-from ringtune.agents.cli import main
+from ringtune.agents.cli.main import main
 from ringtune.envs.printer import load_printer
 from ringtune.envs.printer_model import Mode
 

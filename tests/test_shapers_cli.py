@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from ringtune.agents.cli import main
+from ringtune.agents.cli.main import main
 
 
 def run_cli(capsys, *argv):

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 import ringtune.envs.data
-from ringtune.agents.cli import main
+from ringtune.agents.cli.main import main
 
 
 def _printer(tmp_path, current: str = "") -> Path:

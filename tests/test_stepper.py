@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from ringtune.agents import cli
+from ringtune.agents.cli import main as cli
 from ringtune.envs.motors import MOTOR_TABLE, lookup_motor
 from ringtune.envs.stepper import StepperDrive
 

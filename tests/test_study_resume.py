@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from ringtune.agents.tune_study import StudySettings, count_states, open_study, run_study
+from ringtune.agents.tune.study import StudySettings, count_states, open_study, run_study
 
 TESTS = Path(__file__).resolve().parent
 EVALUATOR = "study_objective:evaluate"
@@ -33,7 +33,7 @@ def _env(**extra) -> dict:
 
 
 def _start_worker(settings: StudySettings, **env) -> subprocess.Popen:
-    p = subprocess.Popen([sys.executable, "-m", "ringtune.agents.tune_study", "worker", "0"], stdin=subprocess.PIPE,
+    p = subprocess.Popen([sys.executable, "-m", "ringtune.agents.tune.study", "worker", "0"], stdin=subprocess.PIPE,
                          text=True, env=_env(**env), start_new_session=True)
     p.stdin.write(json.dumps(settings.to_dict()))
     p.stdin.close()
@@ -106,8 +106,8 @@ def test_first_ctrl_c_finishes_the_running_trial(tmp_path, in_tests_path):
 
 
 def test_two_workers_finish_exactly_n_without_duplicates(tmp_path, in_tests_path):
-    from ringtune.agents.space import params_from_config
-    from ringtune.agents.tune_study import load_space
+    from ringtune.agents.tune.space import params_from_config
+    from ringtune.agents.tune.study import load_space
     from ringtune.shaping.config import TuneConfig
 
     settings = _settings(f"journal:{tmp_path / 'study.journal'}", n=20)
@@ -177,7 +177,7 @@ def test_seeded_run_stopped_and_resumed_reproduces_the_straight_run(tmp_path, in
 
 def test_seeded_tune_cli_on_the_real_simulation_reproduces_exactly(tmp_path, capsys):
     """`ringtune tune --seed S` twice (real evaluator, one worker): identical trials, front and choice."""
-    from ringtune.agents.cli import main
+    from ringtune.agents.cli.main import main
 
     outs = []
     for k in range(2):

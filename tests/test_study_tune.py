@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from ringtune.agents.cli import main
-from ringtune.agents.pareto import Point, choose, pareto_front
+from ringtune.agents.cli.main import main
+from ringtune.agents.tune.pareto import Point, choose, pareto_front
 from ringtune.shaping.config import TuneConfig
 
 TESTS = Path(__file__).resolve().parent
@@ -39,7 +39,7 @@ def test_pareto_front_and_choice_on_a_known_set():
 def test_path_error_bound_rules_out_corner_cutting_points():
     """A point whose nozzle leaves the path by more than the bound is infeasible, like step loss,
     even when its overshoot is the lowest (heavy smoothing cuts corners inwards)."""
-    from ringtune.agents.pareto import judge_path_error
+    from ringtune.agents.tune.pareto import judge_path_error
 
     smooth = Point(TuneConfig(), 1.0, 0.001, False, {"path_error_mm": 0.40}, "3hump_ei low F")
     sharp = Point(TuneConfig(), 1.0, 0.003, False, {"path_error_mm": 0.07}, "ei on the peak")
@@ -104,7 +104,7 @@ def test_max_path_error_is_a_constraint_of_the_study(tmp_path, capsys, fake_eval
     the bound; the bound can be changed when the results are read again (resume)."""
     import optuna
 
-    from ringtune.agents.storage import make_storage
+    from ringtune.agents.tune.storage import make_storage
 
     out = tmp_path / "out"
     argv = ["tune", "--json", "--out", str(out), "--trials", "25", "--evaluator", fake_evaluator,
@@ -129,7 +129,7 @@ def test_max_path_error_is_a_constraint_of_the_study(tmp_path, capsys, fake_eval
 
 def test_ctrl_c_on_tune_then_rerun_resumes(tmp_path, fake_evaluator):
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "ringtune.agents.cli", "tune", "--out", str(out), "--trials", "14", "--no-baselines",
+    cmd = [sys.executable, "-m", "ringtune.agents.cli.main", "tune", "--out", str(out), "--trials", "14", "--no-baselines",
            "--evaluator", fake_evaluator, "--json"]
     env = dict(os.environ, RINGTUNE_TEST_SLEEP="0.15")
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -155,7 +155,7 @@ def test_ctrl_c_on_tune_then_rerun_resumes(tmp_path, fake_evaluator):
 def _complete_in(journal: Path) -> int:
     import optuna
 
-    from ringtune.agents.storage import make_storage
+    from ringtune.agents.tune.storage import make_storage
 
     if not journal.exists():
         return 0

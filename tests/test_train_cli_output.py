@@ -7,9 +7,9 @@ import json
 
 import pytest
 
-from ringtune.agents import ppo
-from ringtune.agents.cli import main
-from ringtune.agents.commands.train import rollout_for
+from ringtune.agents.ppo import policy as ppo
+from ringtune.agents.cli.main import main
+from ringtune.agents.cli.train import rollout_for
 
 
 @pytest.mark.slow

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ringtune.agents.cli import main
+from ringtune.agents.cli.main import main
 
 TOWER = Path(__file__).resolve().parent / "data" / "gcode" / "ianalexis_ender3_marlin" / "ringing_tower.gcode"
 
@@ -203,7 +203,7 @@ def test_per_axis_cap_does_not_cap_the_tuned_acceleration(v24_run):
     """max_y_accel (4130, a cap the planner applies to Y moves) is not the top of the search: the
     tuned value becomes max_accel, so the range reaches the motor bound, above the 8994 mm/s² of
     max_accel the baselines run at; the summary names the Y cap as Y's own."""
-    from ringtune.agents.space import motor_accel_limit
+    from ringtune.agents.tune.space import motor_accel_limit
     from ringtune.envs.printer import load_printer
 
     res, summary, toml = v24_run
@@ -246,7 +246,7 @@ def test_summary_says_the_motor_bound_rests_on_default_masses(v24_run):
     ({"motor": {"run_current": 0.8, "rotation_distance": 40.0}}, ("x.mass", "y.mass", "x.motor", "y.motor")),
 ])
 def test_loader_records_what_the_description_leaves_to_defaults(desc, defaulted):
-    from ringtune.agents.space import defaults_note
+    from ringtune.agents.tune.space import defaults_note
     from ringtune.envs.printer import printer_from_dict
 
     p = printer_from_dict({"x": {"modes": [{"freq": 50.0, "damping": 0.05}]},
@@ -265,8 +265,8 @@ def test_loader_records_what_the_description_leaves_to_defaults(desc, defaulted)
     ("marlin", "nophead", True),          # ... but not another one
 ])
 def test_chosen_block_says_every_job_needs_ringtune_limit(tmp_path, firmware, method, rewrite):
-    from ringtune.agents import report
-    from ringtune.agents.pareto import Choice, Point
+    from ringtune.agents.tune import report
+    from ringtune.agents.tune.pareto import Choice, Point
     from ringtune.shaping.config import TuneConfig
 
     cfg = TuneConfig(firmware=firmware, shaper_x="mzv", shaper_y="mzv", freq_x=50.0, freq_y=40.0,

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from ringtune.agents.cli import main
-from ringtune.agents.pareto import Point, judge, pareto_front, pick
-from ringtune.agents.report import compare
+from ringtune.agents.cli.main import main
+from ringtune.agents.tune.pareto import Point, judge, pareto_front, pick
+from ringtune.agents.tune.report import compare
 from ringtune.shaping.config import TuneConfig
 
 TESTS = Path(__file__).resolve().parent
@@ -153,8 +153,8 @@ def test_klippers_rule_is_the_recommendation_recorded_from_the_files(data_dir, t
     """The printer records Klipper's recommendation from its resonance files (computed here with the
     function `recommend --accel` uses): tune's Klipper baseline is exactly it, in the summary and the
     JSON, and nothing says "simulated"."""
-    from ringtune.agents.commands.recommend import _load_accel
-    from ringtune.agents.klipper_baseline import recommend_axes
+    from ringtune.agents.cli.recommend import _load_accel
+    from ringtune.agents.klipper.baseline import recommend_axes
 
     d = data_dir / "accel" / "klipper_psd" / "bassco_ender3"
     psds, _ = _load_accel([str(p) for p in sorted(d.glob("resonances_*.csv"))], None)
@@ -205,7 +205,7 @@ def test_progress_goes_to_a_log_file_as_lines(tmp_path, fake_evaluator):
     log = tmp_path / "log"
     env = dict(os.environ, RINGTUNE_PROGRESS_S="0")
     with open(log, "w") as err:
-        done = subprocess.run([sys.executable, "-m", "ringtune.agents.cli", "tune", "--json", "--out", str(out),
+        done = subprocess.run([sys.executable, "-m", "ringtune.agents.cli.main", "tune", "--json", "--out", str(out),
                                "--trials", "6", "--no-baselines", "--evaluator", fake_evaluator],
                               env=env, stdout=subprocess.PIPE, stderr=err, text=True, timeout=120)
     assert done.returncode == 0
@@ -280,7 +280,7 @@ def test_readme_same_command_keeps_the_trials_and_the_warm_start_sentence_reads(
     assert f"ringtune tune --trials 7 --seed 3 --out {out} --evaluator {fake_evaluator}" in readme
     summary = (out / "summary.txt").read_text()
     assert "and 0 neighbours" not in summary
-    from ringtune.agents.commands.tune import command_line
+    from ringtune.agents.cli.tune import command_line
     import argparse
     ns = argparse.Namespace(**{"trials": 200, "out": "ringtune-out", "job_accel": "replace"})
     assert command_line(ns) == "ringtune tune --job-accel replace"
@@ -328,7 +328,7 @@ def test_identify_then_tune_klipper_baseline_equals_recommend_on_the_same_files(
 def test_pareto_plot_draws_every_ruled_out_point_and_marks_a_baseline_over_a_bound(tmp_path):
     """Ruled-out points far beyond the scale are drawn as arrows at the edge and counted (the legend's
     count is the number of such points, all drawn); a baseline over the path-error bound says so."""
-    from ringtune.agents.pareto_plot import plot_front
+    from ringtune.agents.tune.pareto_plot import plot_front
 
     front = [_pt(10.0, 0.004, 0.05), _pt(11.0, 0.003, 0.04), _pt(12.0, 0.002, 0.03)]
     far = [_pt(9.0 + i, 0.4 + i, 0.5 + i, feasible=False) for i in range(4)]        # 100× off the scale

@@ -1,0 +1,357 @@
+"""``ringtune identify``: the printer from the user's files — vibration modes from accelerometer files;
+masses, motors, limits and kinematics from what the user gives — written as a printer description.
+
+``--json`` keys (stable):
+    fits: list per measurement of {axis, kind ("psd" | "decay"), source, method, r2, notes, warnings,
+        modes: [{freq (Hz), damping, share, peak_freq (Hz, measured peak), fitted_peak (Hz)}]}
+    loaded_fits: the same for the --added-mass files ([] without)
+    added_mass: {axis: {axis, added_mass_kg, f0_hz, f1_hz, mass_kg, mass_error_kg (one standard error),
+        stiffness_n_m}}
+    klipper: Klipper's recommendation from the files ([measurement.klipper]), or {}
+    defaults: what is still a default, one sentence each (also on stderr and in the TOML)
+    warnings: doubts about the files and fits, one sentence each (also on stderr)
+    toml: the printer description text
+    output: path written, or null
+    plot: path of the plot, or null
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from ringtune.agents.cli import identify_ripples
+
+NAME = "identify"
+HELP = "the printer from your files: modes from accelerometer data, the rest from your config (TOML)"
+DESCRIPTION = """\
+Fit the vibration modes (frequency, damping ratio, share of the response) of each axis to
+accelerometer measurements, and write them with everything else you know about the printer as a
+printer description for simulate/tune.
+
+Takes Klipper TEST_RESONANCES / calibration CSVs (freq,psd_x,...), Klipper raw captures
+(#time,accel_x,...; turned into a PSD exactly as Klipper does), and RepRapFirmware M956 CSVs
+(Sample,X,Y,Z ... Rate N, overflows M). A resonance PSD is fitted with base-excited modes
+(C·f^p·|T(f)|² + noise floor); an M956 capture, which holds the ringing after one move, with
+damped sinusoids. The axis comes from the file name (resonances_x_..., ...-X54-161-...) or --axis.
+An axis you did not measure keeps the modes of --base (default: the embedded Ender-3-class
+printer), and says so. The files (name, SHA-256) and Klipper's recommendation from them are kept in
+the TOML's [measurement], so tune's "Klipper's rule" is what your Klipper would say.
+
+The rest of the printer:
+  --klipper-config printer.cfg | --marlin M503.txt | --rrf config.g: kinematics, limits, motors
+      (run current, rotation distance, microsteps, motor names) and the shaping the printer runs now.
+  --motor NAME[:RUN_CURRENT[:VOLTAGE]] (every axis) or --motor X=NAME...,Y=NAME...: a motor the
+      configuration does not name (e.g. LDO-42STH48-2504AC:1.2:24); on a CoreXY/CoreXZ X= is
+      motor A (stepper_x) and Y= motor B (stepper_y). See `ringtune motor NAME`.
+  --kinematics cartesian|corexy|corexz: when no configuration gives it.
+  --mass X=KG,Y=KG: weighed moving masses (X: toolhead and carriage; Y: the bed on a bed slinger,
+      the gantry with the toolhead on a CoreXY).
+  --added-mass KG LOADED.csv...: a second resonance test with KG fixed to what moves (the toolhead
+      for X and, on a CoreXY, Y; the BED for Y on a bed slinger). The added mass lowers each
+      frequency from f0 to f1, which gives the moving mass m = KG/((f0/f1)² - 1) and the stiffness
+      k = m·(2π f0)² per axis. Per axis: --added-mass X=0.2,Y=0.5 LOADED.csv...
+Whatever is still a default (masses, motor, kinematics, limits) is printed on stderr and written
+as a comment in the TOML, with what it decides.
+
+examples:
+  ringtune identify resonances_x_20210821_152037.csv resonances_y_20210630_230110.csv \\
+      -o ender3.toml --plot fit.png
+  ringtune identify resonances_x_*.csv resonances_y_*.csv --klipper-config printer.cfg -o mine.toml
+  ringtune identify resonances_x_1.csv resonances_y_1.csv --added-mass 0.25 \\
+      resonances_x_2.csv resonances_y_2.csv -o mine.toml      # 250 g on the toolhead / bed
+  ringtune identify resonances_*.csv --mass X=0.62,Y=1.4 --motor omc-17hs19-2004s1:0.8 --kinematics corexy
+  ringtune identify 1-T0-X54-161-0-none.csv --axis x --json
+
+Without an accelerometer (prints from `ringtune testprint ringing`):
+  ringtune identify --ripples X=2.2,Y=2.6 --speed 100 [--decay X=1.9,Y=2.1] -o printer.toml
+  ringtune identify --tower-band X=4,Y=3 --tower tower.gcode -o printer.toml
+"""
+
+
+#: image formats the plot can be written in (matplotlib picks the format from the suffix)
+PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("files", nargs="*", metavar="ACCEL.csv", help="accelerometer files (any supported format)")
+    p.add_argument("-o", "--output", metavar="printer.toml", help="write the printer description here")
+    p.add_argument("--plot", metavar="out.png", help="plot measured against fitted spectra / decays")
+    p.add_argument("--axis", choices=("x", "y"), help="axis of every file (default: from the file name)")
+    p.add_argument("--max-modes", type=int, default=3, help="modes per axis at most (default 3)")
+    p.add_argument("--fmin", type=float, default=5.0, help="lowest frequency fitted, Hz (default 5)")
+    p.add_argument("--fmax", type=float, default=135.0, help="highest frequency fitted, Hz (default 135, "
+                   "the end of Klipper's default sweep)")
+    p.add_argument("--damping-method", choices=("fit", "half-power"), default="fit",
+                   help="damping from the curve fit (default) or each peak's half-power width")
+    p.add_argument("--name", default=None, help="printer name in the TOML (default: the firmware "
+                   "configuration's folder or file name, e.g. ender3, else the accelerometer files' folder)")
+    p.add_argument("--base", metavar="P", help="printer TOML (or embedded name) for unmeasured axes' modes")
+    g = p.add_argument_group("the rest of the printer")
+    cfg = g.add_mutually_exclusive_group()
+    cfg.add_argument("--klipper-config", metavar="printer.cfg", help="Klipper configuration (includes followed)")
+    cfg.add_argument("--marlin", metavar="M503.txt", help="Marlin settings as M503 prints them")
+    cfg.add_argument("--rrf", metavar="config.g", help="RepRapFirmware config.g")
+    g.add_argument("--kinematics", choices=("cartesian", "corexy", "corexz"),
+                   help="kinematics, when no configuration gives it (default cartesian, said aloud)")
+    g.add_argument("--motor", metavar="NAME[:A[:V]]", help="motor name, run current (A RMS) and driver voltage "
+                   "(V) of every axis, or per axis X=NAME:A:V,Y=...")
+    g.add_argument("--mass", metavar="X=KG,Y=KG", help="weighed moving masses, kg (on a bed slinger Y is the bed)")
+    g.add_argument("--added-mass", nargs="+", metavar="KG LOADED.csv",
+                   help="added-mass method: KG (or X=KG,Y=KG) fixed to the toolhead (X; Y on a CoreXY) or the "
+                   "bed (Y on a bed slinger), then the resonance files measured with it")
+    identify_ripples.add_arguments(p)
+
+
+# -- option parsing ---------------------------------------------------------------------------------
+
+def _per_axis(text: str, option: str, parse) -> dict[str, object]:
+    """``X=v,Y=v`` (either or both) -> {"x": parse(v), …}; a bare ``v`` -> {"all": parse(v)}."""
+    from ringtune.shaping.errors import RingtuneError
+
+    text = text.strip()
+    if "=" not in text:
+        return {"all": parse(text)}
+    out = {}
+    for part in text.split(","):
+        ax, _, value = part.partition("=")
+        ax = ax.strip().lower()
+        if ax not in ("x", "y") or not value.strip():
+            raise RingtuneError(f"expected X=…,Y=…, not {part.strip()!r}", option)
+        if ax in out:
+            raise RingtuneError(f"{ax.upper()} given twice", option)
+        out[ax] = parse(value.strip())
+    return out
+
+
+def _kg(option: str):
+    from ringtune.shaping.errors import RingtuneError
+
+    def parse(v: str) -> float:
+        try:
+            kg = float(v)
+        except ValueError:
+            raise RingtuneError(f"not a mass in kg: {v!r}", option) from None
+        if not 0 < kg < 100:
+            raise RingtuneError(f"mass must be between 0 and 100 kg, not {v}", option)
+        return kg
+    return parse
+
+
+def _motor(v: str) -> dict:
+    """``NAME[:RUN_CURRENT[:VOLTAGE]]`` -> {name, run_current, voltage}."""
+    from ringtune.shaping.errors import RingtuneError
+
+    from ringtune.envs.motors import lookup_motor, unknown_motor_message
+
+    parts = v.split(":")
+    if len(parts) > 3 or not parts[0].strip():
+        raise RingtuneError(f"expected NAME[:RUN_CURRENT[:VOLTAGE]], not {v!r}", "--motor")
+    spec: dict = {"name": parts[0].strip()}
+    if lookup_motor(spec["name"]) is None:
+        raise RingtuneError(unknown_motor_message(spec["name"]), "--motor")
+    for key, unit, text in zip(("run_current", "voltage"), ("A", "V"), parts[1:]):
+        try:
+            value = float(text)
+        except ValueError:
+            raise RingtuneError(f"{key} must be a number ({unit}), not {text!r}", "--motor") from None
+        if not value > 0:
+            raise RingtuneError(f"{key} must be > 0 {unit}, not {text}", "--motor")
+        spec[key] = value
+    return spec
+
+
+def _check_output(option: str, path) -> None:
+    """Refuse, before any work, an output the command could not write (missing or read-only folder,
+    a folder in its place), so that nothing is half-written."""
+    import os
+    from pathlib import Path
+
+    from ringtune.agents.cli.common import check_output_folder
+    from ringtune.shaping.errors import RingtuneError
+
+    check_output_folder(option, path)
+    if not path:
+        return
+    p = Path(path)
+    if p.is_dir():
+        raise RingtuneError("is a directory", f"{option} {path}")
+    folder = p.parent
+    if not os.access(folder, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
+        raise RingtuneError("not writable (permission denied)", f"{option} {path}")
+    try:                                  # a read-only file system passes os.access for root
+        probe = folder / f".ringtune-write-test-{os.getpid()}"
+        probe.touch()
+        probe.unlink()
+    except OSError as exc:
+        raise RingtuneError(f"cannot write there ({exc.strerror})", f"{option} {path}") from None
+
+
+def _read_facts(args):
+    """The firmware configuration's FirmwareFacts, or None."""
+    if args.klipper_config:
+        from ringtune.hardware.klipper_config import printer_facts_from_klipper
+
+        return printer_facts_from_klipper(args.klipper_config)
+    if args.marlin:
+        from ringtune.hardware.marlin_config import printer_facts_from_marlin
+
+        return printer_facts_from_marlin(args.marlin)
+    if args.rrf:
+        from ringtune.hardware.rrf_config import printer_facts_from_rrf
+
+        return printer_facts_from_rrf(args.rrf)
+    return None
+
+
+# -- the command ------------------------------------------------------------------------------------
+
+def run(args, out) -> int:
+    from pathlib import Path
+
+    from ringtune.agents.identify.accelerometer import klipper_record, read_measurement
+    from ringtune.agents.identify.description import (AddedMass, build_description, description_toml,
+                                                  printer_name)
+    from ringtune.envs.identify import plot_fits
+    from ringtune.shaping.errors import RingtuneError
+
+    if identify_ripples.wanted(args) or not args.files:   # no accelerometer: ripples or a tower
+        given = [flag for flag, v in (("--klipper-config", args.klipper_config), ("--marlin", args.marlin),
+                                      ("--rrf", args.rrf), ("--motor", args.motor), ("--mass", args.mass),
+                                      ("--added-mass", args.added_mass)) if v]
+        if given:
+            raise RingtuneError("goes with accelerometer files; with --ripples/--tower-band give the rest of "
+                                "the printer as --base P (e.g. from `ringtune printer from-klipper`)", given[0])
+        args.name = args.name or "identified"
+        return identify_ripples.run(args, out)
+    if args.max_modes < 1 or args.max_modes > 5:
+        raise RingtuneError("must be 1 to 5", "--max-modes")
+    if not 0 <= args.fmin < args.fmax:
+        raise RingtuneError("need 0 <= --fmin < --fmax", "--fmin")
+    if args.plot and Path(args.plot).suffix.lower() not in PLOT_SUFFIXES:
+        raise RingtuneError(f"the plot's file name must end in one of {', '.join(PLOT_SUFFIXES)}",
+                            f"--plot {args.plot}")
+    _check_output("-o", args.output)
+    _check_output("--plot", args.plot)
+    masses = _per_axis(args.mass, "--mass", _kg("--mass")) if args.mass else {}
+    if "all" in masses:
+        raise RingtuneError("give the mass per axis: X=KG,Y=KG", "--mass")
+    motors = _per_axis(args.motor, "--motor", _motor) if args.motor else {}
+    dm, loaded_files = {}, []
+    if args.added_mass:
+        if len(args.added_mass) < 2:
+            raise RingtuneError("expected KG (or X=KG,Y=KG) then the resonance files measured with it",
+                                "--added-mass")
+        dm = _per_axis(args.added_mass[0], "--added-mass", _kg("--added-mass"))
+        loaded_files = args.added_mass[1:]
+
+    kw = dict(axis=args.axis, max_modes=args.max_modes, fmin=args.fmin, fmax=args.fmax,
+              damping=args.damping_method)
+    facts = _read_facts(args)
+    meas = read_measurement(args.files, **kw)
+    fits = meas.by_axis()
+    warnings = list(meas.warnings)
+    added, loaded_fits = {}, []
+    if loaded_files:
+        loaded = read_measurement(loaded_files, **kw)
+        loaded_fits = loaded.fits
+        warnings += loaded.warnings
+        for ax in loaded.by_axis():
+            if ax not in fits:
+                raise RingtuneError(f"the loaded test measured {ax.upper()} but the base files did not",
+                                    "--added-mass")
+            mass = dm.get(ax, dm.get("all"))
+            if mass is None:
+                raise RingtuneError(f"no added mass given for {ax.upper()}", "--added-mass")
+            repeats = [f for f in meas.fits if f.axis == ax and f is not fits[ax]]     # best fit first
+            added[ax] = a = AddedMass.from_fits([fits[ax], *repeats], [f for f in loaded.fits if f.axis == ax],
+                                                mass)
+            if not a.mass_error <= 0.05 * a.mass:
+                warnings.append(f"{ax.upper()}: the added-mass estimate {a.mass:.3f} kg is uncertain by "
+                                f"±{a.mass_error:.3f} kg (one standard error from the spectra's scatter): "
+                                "repeat both tests and give every file (repeats are fitted together), or add more mass (the error falls as the frequencies "
+                                "move further apart)")
+        unused = [ax.upper() for ax in dm if ax != "all" and ax not in added]
+        if unused:
+            raise RingtuneError(f"no loaded file of {', '.join(unused)}", "--added-mass")
+
+    scv = 5.0
+    if facts is not None:
+        scv = float(facts.description.get("limits", {}).get("square_corner_velocity", scv))
+    klipper = klipper_record(meas.psds, scv)
+    measurement = {"source": "accelerometer",
+                   "files": [{k: f[k] for k in ("name", "sha256", "axis", "kind") if k in f} for f in meas.files]}
+    if added:
+        measurement["added_mass_files"] = [{k: f[k] for k in ("name", "sha256", "axis")}
+                                           | {"added_mass_kg": added[f["axis"]].dm}
+                                           for f in loaded.files if f["axis"] in added]
+    if klipper:
+        measurement["klipper"] = klipper
+    name = args.name
+    if name is None:
+        name, whence = printer_name(args.klipper_config or args.marlin or args.rrf, args.files)
+        out.note(f"note: name {name!r}, from {whence} (give --name to choose another)")
+    desc = build_description(fits, name=name, kinematics=args.kinematics, base=args.base,
+                             masses=masses, added=added, facts=facts, motors=motors,
+                             measurement=measurement)
+    header = ["Printer description written by `ringtune identify` from "
+              + ", ".join(Path(f).name for f in [*args.files, *loaded_files])]
+    printer = _validate(description_toml(desc, header))
+    for ax in ("x", "y"):                        # what a named motor's drive still assumes
+        for sentence in printer.motor_for(ax).assumed:
+            said = f"motor: {sentence}"
+            if said not in desc.defaults:
+                desc.defaults.append(said)
+    toml = description_toml(desc, header)
+
+    for w in warnings:
+        out.note(f"warning: {w}")
+    for n in desc.notes:
+        out.note(f"note: {n}")
+    for s in desc.defaults:
+        out.note(f"default: {s}")
+    if args.plot:                                # before the TOML: a failure leaves nothing half-written
+        try:
+            plot_fits(meas.fits + loaded_fits, args.plot)
+        except OSError as exc:
+            raise RingtuneError(f"cannot write the plot ({exc.strerror or exc})", f"--plot {args.plot}") from None
+        out.note(f"wrote {args.plot}")
+    if args.output:
+        try:
+            Path(args.output).write_text(toml)
+        except OSError as exc:
+            raise RingtuneError(f"cannot write ({exc.strerror or exc})", f"-o {args.output}") from None
+        out.note(f"wrote {args.output}")
+
+    lines = []
+    for fit in meas.fits + loaded_fits:
+        lines.append(f"{Path(fit.source).name}: axis {fit.axis.upper()}, {fit.kind} fit ({fit.method}), "
+                     f"r² = {fit.r2:.3f}")
+        for m in fit.modes:
+            peak = f", measured peak {m.peak_freq:.1f} Hz" if m.peak_freq else ""
+            lines.append(f"  {m.freq:7.2f} Hz  damping {m.damping:.3f}  share {m.share:.2f}{peak}")
+        lines += [f"  note: {n}" for n in fit.notes]
+    for ax, a in added.items():
+        lines.append(f"{ax.upper()} added mass {a.dm:g} kg: dominant mode {a.f0:.2f} -> {a.f1:.2f} Hz, moving "
+                     f"mass {a.mass:.3f} ± {a.mass_error:.3f} kg (±1 standard error), stiffness {a.stiffness:.4g} N/m (m = dm/((f0/f1)² − 1), k = m(2π f0)²)")
+    if klipper:
+        picks = ", ".join(f"{ax.upper()} {klipper[f'shaper_{ax}']} @ {klipper[f'freq_{ax}']:.1f} Hz"
+                          for ax in ("x", "y") if f"shaper_{ax}" in klipper)
+        accel = f", max_accel {klipper['max_accel']:.0f} mm/s²" if "max_accel" in klipper else ""
+        lines.append(f"Klipper's rule on these files (calibrate_shaper, current rules, scv {scv:g} mm/s): "
+                     f"{picks}{accel}")
+    if not args.output:
+        lines += ["", toml]
+    out.emit({"fits": [f.to_dict() for f in meas.fits], "loaded_fits": [f.to_dict() for f in loaded_fits],
+              "added_mass": {ax: a.to_dict() for ax, a in added.items()}, "klipper": klipper,
+              "defaults": desc.defaults, "warnings": warnings, "toml": toml, "output": args.output,
+              "plot": args.plot}, "\n".join(lines))
+    return 0
+
+
+def _validate(toml: str):
+    """The written description must load: the Printer, checked before anything is written."""
+    import tomllib
+
+    from ringtune.envs.printer import printer_from_dict
+
+    return printer_from_dict(tomllib.loads(toml), "the identified printer")

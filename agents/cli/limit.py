@@ -1,0 +1,151 @@
+"""``ringtune limit``: frequency-limit post-processor for G-code.
+
+JSON keys (stable): ``input``, ``output`` (path or null when printed to stdout), ``method``,
+``freq_limit_hz``, ``min_speed_factor``, ``moves_slowed``, ``lines_changed``, ``f_words_replaced``,
+``f_words_added``, ``header`` (the comment written at the top of the output); with ``--accel``: ``accel`` (mm/s²),
+``accel_reference`` (the file's highest printing acceleration, mm/s², null when it sets none),
+``accel_factor``, ``accel_lines_changed``, ``notes``. Without ``--freq-limit`` the frequency keys are
+null / 0. ``frequencies`` ({``commanded_hz``: {``before``, ``after``}: the highest
+direction-change frequency at the G-code's speeds F, what a frequency limit acts on;
+``planned_hz``: {``before``, ``after``}: the highest after planning, as ``ringtune plan`` reports
+it with the same printer; ``junction``, ``junction_reason``}).
+"""
+
+from __future__ import annotations
+
+NAME = "limit"
+HELP = "slow only the zigzags that shake: rewrite F words so direction changes stay under a frequency"
+DESCRIPTION = """\
+Rewrite a G-code file so that no extrusion path changes direction faster than --freq-limit Hz
+(nophead's infill frequency limit). Only the F words that must change are changed (or added where
+a slowed stretch begins and ends); every other byte stays as it was, and a comment on the first
+line records what was done.
+
+The limit acts on the commanded frequency: the G-code's own speed F over the length of three
+zigzag cycles. The printer never reaches F on short zigzags (it accelerates and slows for
+corners), so the planned frequency, what the printer does, is lower. Both are reported, before
+and after, exactly as `ringtune plan` reports them given the same --printer: a limit above the
+planned figure slows moves on paper but changes little on the printer.
+
+Methods:
+  sections  slow only the high-frequency stretch of a path (default)
+  nophead   slow the whole path to its worst three-cycle stretch (nophead's 2010 algorithm)
+  marlin    what Marlin's XY_FREQUENCY_LIMIT (M201 F<Hz> S<%>) does, block by block; its floor
+            is the file's own M201 S, else Marlin's default XY_FREQUENCY_MIN_PERCENT 5 %
+
+--accel A rewrites the file's own acceleration commands (M204 P/S/T, M201 X/Y, Klipper
+SET_VELOCITY_LIMIT ACCEL) so that its highest printing acceleration becomes A mm/s², every other
+one scaled by the same factor (the ratios between features stay); nothing else changes. A sliced
+file's commands override what the printer was told, so this is how a tuned acceleration reaches a
+job that is already sliced.
+
+examples:
+  ringtune limit part.gcode --freq-limit 20 -o part_limited.gcode
+  ringtune limit part.gcode --accel 4200 -o part_4200.gcode
+  ringtune limit part.gcode --freq-limit 25 --method nophead --min-speed-factor 0.5 -o out.gcode
+"""
+
+
+#: library parameters whose option has another name (see agents/cli/main.py: as_flag)
+PARAMETER_FLAGS = {"limit_hz": "--freq-limit"}
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("file", metavar="FILE.gcode", help="G-code file to limit")
+    parser.add_argument("--freq-limit", metavar="HZ", type=float, default=None,
+                        help="largest direction-change frequency, Hz")
+    parser.add_argument("--accel", metavar="A", type=float, default=None,
+                        help="scale the file's acceleration commands so its highest printing "
+                             "acceleration becomes A mm/s² (ratios between features kept)")
+    parser.add_argument("--method", choices=("sections", "nophead", "marlin"), default="sections",
+                        help="which algorithm (default: sections)")
+    parser.add_argument("--min-speed-factor", metavar="S", type=float, default=None,
+                        help="never slow below this fraction of the requested speed "
+                             "(default 0.3; marlin: the file's M201 S, else 0.05)")
+    parser.add_argument("-o", "--output", metavar="OUT", help="output file (default: stdout)")
+    parser.add_argument("--printer", metavar="P", help="printer TOML or embedded name for the planned "
+                        "frequencies (default: as `ringtune plan` without --printer)")
+
+
+def run(args, out) -> int:
+    import sys
+
+    from ringtune.shaping.errors import RingtuneError
+    from pathlib import Path
+
+    from ringtune.shaping.gcode import read_gcode_bytes
+    from ringtune.shaping.gcode_post import limit_file, rewrite_accel_bytes
+
+    if args.freq_limit is None and args.accel is None:
+        raise RingtuneError("give --freq-limit HZ, --accel A or both", "--freq-limit")
+    if args.freq_limit is not None and not args.freq_limit > 0:
+        raise RingtuneError("must be a frequency > 0 Hz", "--freq-limit")
+    if args.accel is not None and not args.accel > 0:
+        raise RingtuneError("must be an acceleration > 0 mm/s²", "--accel")
+    if args.min_speed_factor is not None and not 0 < args.min_speed_factor <= 1:
+        raise RingtuneError("must be in (0, 1]", "--min-speed-factor")
+    if args.output is None and args.json:
+        raise RingtuneError("--json needs -o OUT (stdout carries the JSON)", "--output")
+    if args.freq_limit is not None:
+        data, res = limit_file(args.file, None, args.freq_limit, args.method, args.min_speed_factor)
+    else:
+        data, res = read_gcode_bytes(args.file), None   # refuses a folder, a binary, a TOML...
+    acc = None
+    if args.accel is not None:
+        data, acc = rewrite_accel_bytes(data, args.accel, source=args.file)
+    if args.output is not None:
+        Path(args.output).write_bytes(data)
+    freqs = _frequencies(args.file, data, args.printer)
+    result = {
+        "input": args.file, "output": args.output, "method": args.method if res else None,
+        "freq_limit_hz": args.freq_limit, "min_speed_factor": res.min_speed_factor if res else None,
+        "moves_slowed": res.moves_slowed if res else 0, "lines_changed": res.lines_changed if res else 0,
+        "f_words_replaced": res.f_words_changed if res else 0, "f_words_added": res.f_words_added if res else 0,
+        "header": "\n".join(h.header for h in (res, acc) if h is not None),
+        "accel": args.accel, "accel_reference": acc.reference if acc else None,
+        "accel_factor": acc.factor if acc else None, "accel_lines_changed": acc.lines_changed if acc else 0,
+        "notes": acc.notes if acc else [],
+        "frequencies": freqs,
+    }
+    c, p = freqs["commanded_hz"], freqs["planned_hz"]
+    said = (f"highest direction-change frequency (three cycles while extruding): commanded at F "
+            f"{c['before']:.1f} -> {c['after']:.1f} Hz (what a frequency limit acts on); planned with "
+            f"{freqs['junction']} {p['before']:.1f} -> {p['after']:.1f} Hz (what the printer does)")
+    if args.output is None:
+        sys.stdout.buffer.write(data)
+        sys.stdout.flush()
+        out.note(result["header"])
+        for n in result["notes"]:
+            out.note(n)
+        out.note(said)
+        return 0
+    text = []
+    if res:
+        text.append(f"{args.file} -> {args.output}: {res.moves_slowed} moves slowed, "
+                    f"F changed on {res.lines_changed} lines ({res.f_words_changed} replaced, "
+                    f"{res.f_words_added} added)")
+    if acc:
+        text.append(acc.header.lstrip("; ") + "".join(f"\nnote: {n}" for n in acc.notes))
+    text.append(f"  {said}")
+    out.emit(result, "\n".join(text))
+    return 0
+
+
+def _frequencies(path, limited: bytes, printer=None) -> dict:
+    """Highest commanded and planned direction-change frequencies of the file and of its limited
+    text, through the same functions as ``ringtune plan``."""
+    from ringtune.agents.cli.plan import (commanded_frequencies, planned_frequencies,
+                                               planning_limits)
+    from ringtune.shaping.config_plan import plan_with_config
+    from ringtune.shaping.gcode import read_gcode
+
+    out = {"commanded_hz": {}, "planned_hz": {}}
+    for key, job in (("before", read_gcode(path)), ("after", read_gcode(limited, source=str(path)))):
+        limits, junction, why = planning_limits(job, path, printer)
+        configured = plan_with_config(job, limits)
+        top = planned_frequencies(configured.plan, 1)
+        cmd = commanded_frequencies(configured.job, 1)
+        out["planned_hz"][key] = top[0]["freq_hz"] if top else 0.0
+        out["commanded_hz"][key] = cmd[0]["freq_hz"] if cmd else 0.0
+    out.update(junction=junction, junction_reason=why)
+    return out

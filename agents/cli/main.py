@@ -1,0 +1,267 @@
+"""The ``ringtune`` command line: one entry point, one module per subcommand.
+
+Conventions every subcommand follows:
+
+- ``--json`` prints one JSON object with stable keys on stdout and nothing else there (progress
+  bars and notes go to stderr);
+- bad input is one line on stderr, ``ringtune <command>: error: <what and where>``, exit status 2;
+  never a traceback (``RINGTUNE_DEBUG=1`` shows it for developers);
+- Ctrl-C exits with status 130 after saying what was kept.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import sys
+from dataclasses import dataclass, field
+from typing import Any
+
+from ringtune.agents import __version__
+from ringtune.shaping.errors import RingtuneError
+
+# Order is the order ``ringtune --help`` lists them in: the main job first, then the tools.
+COMMAND_MODULES = [
+    "tune",
+    "recommend",
+    "simulate",
+    "study",
+    "train",
+    "shaper",
+    "response",
+    "plan",
+    "limit",
+    "identify",
+    "testprint",
+    "printer",
+    "motor",
+    "export",
+    "push",
+]
+
+EXAMPLES = """\
+examples:
+  ringtune tune                                  tune the built-in Ender-3-class printer (main job)
+  ringtune shaper mzv --freq 40 --damping 0.1    impulses, duration, lag and band of a shaper
+  ringtune response zv mzv ei --freq 40 --plot r.png
+  ringtune plan job.gcode --json                 print time and move statistics
+  ringtune limit job.gcode --freq-limit 20 -o out.gcode
+  ringtune recommend --accel resonances_x.csv resonances_y.csv --method klipper
+  ringtune export best.json --firmware klipper
+
+every command takes --help and --json.
+"""
+
+
+@dataclass
+class Output:
+    """Where a command's result goes: JSON on stdout, or readable text."""
+
+    json: bool = False
+    stream: Any = field(default_factory=lambda: sys.stdout)
+
+    def emit(self, result: dict, text: str | None = None) -> None:
+        """Print ``result`` as JSON (``--json``) or ``text`` (else a readable rendering of result)."""
+        if self.json:
+            json.dump(_jsonable(result), self.stream, indent=2, sort_keys=False)
+            self.stream.write("\n")
+        else:
+            self.stream.write((text if text is not None else _render(result)).rstrip("\n") + "\n")
+
+    def note(self, message: str) -> None:
+        """A remark for the person at the terminal (stderr, so ``--json`` output stays clean)."""
+        print(message, file=sys.stderr)
+
+
+def _jsonable(obj: Any) -> Any:
+    try:
+        import numpy as np
+    except ImportError:  # pragma: no cover
+        np = None
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if np is not None:
+        if isinstance(obj, np.ndarray):
+            return _jsonable(obj.tolist())
+        if isinstance(obj, np.generic):
+            return obj.item()
+    if isinstance(obj, float) and obj != obj:  # NaN is not JSON
+        return None
+    if hasattr(obj, "__fspath__"):
+        return os.fspath(obj)
+    return obj
+
+
+def _render(result: dict, indent: int = 0) -> str:
+    lines = []
+    pad = " " * indent
+    for key, value in result.items():
+        if isinstance(value, dict):
+            lines.append(f"{pad}{key}:")
+            lines.append(_render(value, indent + 2))
+        elif isinstance(value, float):
+            lines.append(f"{pad}{key}: {value:.6g}")
+        else:
+            lines.append(f"{pad}{key}: {value}")
+    return "\n".join(lines)
+
+
+def _load_commands() -> dict[str, Any]:
+    modules = {}
+    for name in COMMAND_MODULES:
+        try:
+            modules[name] = importlib.import_module(f"ringtune.agents.cli.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"ringtune.agents.cli.{name}":
+                raise
+    return modules
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with the convention above: a usage error is one line on stderr, exit status 2
+    (argparse's own would print the whole usage block first)."""
+
+    def error(self, message: str):  # noqa: D401 - argparse's hook
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+#: library parameter -> the option that carries it, where the two names differ on every command
+#: that has the option (a command module's ``PARAMETER_FLAGS`` adds its own)
+PARAMETER_OPTIONS = {"study_name": "study", "n_envs": "envs"}
+#: command -> {library parameter: --flag}, filled by :func:`build_parser`
+_FLAGS: dict[str, dict[str, str]] = {}
+
+
+def _parameter_flags(parser: argparse.ArgumentParser, module: Any) -> dict[str, str]:
+    """{parameter: --flag} for one command: each option's destination (``min_speed_factor`` ->
+    ``--min-speed-factor``), :data:`PARAMETER_OPTIONS`, and the module's ``PARAMETER_FLAGS``."""
+    flags = {}
+    for action in parser._actions:
+        long = [o for o in action.option_strings if o.startswith("--")]
+        if long:
+            flags[action.dest] = long[0]
+    for param, dest in PARAMETER_OPTIONS.items():
+        if dest in flags:
+            flags.setdefault(param, flags[dest])
+    flags.update(getattr(module, "PARAMETER_FLAGS", {}))
+    return flags
+
+
+def as_flag(exc: RingtuneError, command: str) -> RingtuneError:
+    """A library error naming a parameter (``where="method"``) as the command's flag (``--method``):
+    the library speaks of its parameters, the user of the options they typed."""
+    flag = _FLAGS.get(command, {}).get(exc.where or "")
+    return RingtuneError(exc.bare, flag) if flag else exc
+
+
+def build_parser() -> tuple[argparse.ArgumentParser, dict[str, Any]]:
+    parser = _Parser(
+        prog="ringtune",
+        description="Measured input-shaping tuning for 3D printers: firmware-faithful shapers and "
+        "planners drive a MuJoCo printer; Optuna and PPO trade print time against overshoot; the "
+        "result goes out in the printer's own firmware dialect.",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"ringtune {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    modules = _load_commands()
+    for name, module in modules.items():
+        p = sub.add_parser(
+            name,
+            # argparse %-formats help strings (not descriptions): module texts are plain prose
+            help=module.HELP.replace("%", "%%"),
+            description=getattr(module, "DESCRIPTION", module.HELP),
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
+        p.add_argument("--json", action="store_true", help="print one JSON object with stable keys")
+        module.add_arguments(p)
+        _FLAGS[name] = _parameter_flags(p, module)
+    return parser, modules
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser, modules = build_parser()
+    args = parser.parse_args(argv)
+    if not args.command:
+        parser.print_help()
+        return 0
+    out = Output(json=args.json)
+    try:
+        _firmware_names(args)
+        rc = int(modules[args.command].run(args, out) or 0)
+        sys.stdout.flush()          # a closed pipe shows here, not in the interpreter's last flush
+        return rc
+    except RingtuneError as exc:
+        return _fail(args.command, str(as_flag(exc, args.command)))
+    except FileNotFoundError as exc:
+        return _fail(args.command, f"{exc.filename}: no such file")
+    except (IsADirectoryError, NotADirectoryError, PermissionError) as exc:
+        return _fail(args.command, _os_error(exc))
+    except UnicodeDecodeError as exc:
+        return _fail(args.command, f"{_undecodable(args)}: not a text file (binary data, or text not in "
+                                   f"UTF-8: byte {exc.object[exc.start:exc.start + 1]!r} at offset {exc.start})")
+    except BrokenPipeError:
+        # the reader went away (``ringtune plan f.gcode --json | head``): stop quietly, as cat does;
+        # stdout is pointed at devnull so that the interpreter's final flush does not complain
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
+    except (OSError, ValueError) as exc:
+        if os.environ.get("RINGTUNE_DEBUG"):
+            raise
+        return _fail(args.command, str(exc) or type(exc).__name__)
+    except KeyboardInterrupt:
+        print(f"ringtune {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _firmware_names(args) -> None:
+    """Every command's --firmware through the firmware record's one parser: any case (``Klipper``,
+    ``RRF``), one refusal naming the firmwares there are."""
+    name = getattr(args, "firmware", None)
+    if isinstance(name, str):
+        from ringtune.shaping.firmware import Firmware
+
+        args.firmware = Firmware.named(name, "--firmware").name
+
+
+def _os_error(exc: OSError) -> str:
+    """``<file>: is a directory`` from an OSError's own file name and words (no ``[Errno 21]``)."""
+    words = (exc.strerror or type(exc).__name__).lower()
+    if isinstance(exc, IsADirectoryError):
+        words += ", not a file"
+    name = exc.filename if exc.filename is not None else "a file"
+    return f"{name}: {words}"
+
+
+def _undecodable(args) -> str:
+    """The file among the command's arguments that is not UTF-8 text (a UnicodeDecodeError names
+    no file), else a phrase that says it was one of them."""
+    values = []
+    for value in vars(args).values():
+        values.extend(value if isinstance(value, (list, tuple)) else [value])
+    for value in values:
+        if isinstance(value, (str, os.PathLike)) and os.path.isfile(value):
+            try:
+                with open(value, "rb") as fh:
+                    fh.read().decode("utf-8")
+            except UnicodeDecodeError:
+                return os.fspath(value)
+            except OSError:
+                continue
+    return "one of the files given"
+
+
+def _fail(command: str, message: str) -> int:
+    if os.environ.get("RINGTUNE_DEBUG"):
+        raise
+    print(f"ringtune {command}: error: {message}", file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

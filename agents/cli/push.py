@@ -1,0 +1,101 @@
+"""``ringtune push``: apply a TuneConfig on a printer over serial or Moonraker, and verify it.
+
+``--json`` keys (stable):
+    firmware, port (secrets redacted), dry_run (bool), ok (bool: every setting applied),
+    wire: lines sent / that would be sent (dry run: exactly, numbered and checksummed),
+    settings: {key: {meant, reported, status ("applied" | "not applied" |
+        "acknowledged (no read-back)" | "not sent (dry run)"), detail}},
+    resets: printer resets seen during the push, saved: how it was persisted or null,
+    save_file: config file written (RRF, Klipper) or null, notes: remarks,
+    printer_state: after a failed line on Klipper, {state ("ready" | "shutdown" | "not ready" |
+        "error" | "unknown"), message} (pty: STATUS; Moonraker: /printer/info), else null
+Exit status: 0 all applied, 1 something not applied (the same over the pty and Moonraker), 2 bad
+input (nothing sent) or the printer stopped answering.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+NAME = "push"
+HELP = "send a tuning config to the printer, read it back and report what was applied"
+DESCRIPTION = """\
+Send a TuneConfig to a printer, read the settings back and report, per setting, applied or not.
+
+--port is required (there is no guessing): a device (/dev/ttyUSB0, /dev/ttyACM0, COM3), Klipper's
+pseudo-tty (/tmp/printer, ~/printer_data/comms/klippy.serial), or a pyserial URL
+(socket://host:port for a network serial bridge, rfc2217://host:port). Klipper can also be reached
+through Moonraker: --moonraker http://host:7125 (API key: --api-key or $MOONRAKER_API_KEY).
+
+Marlin and RepRapFirmware lines are numbered and checksummed (XOR; --crc for RRF's CRC-16), one
+`ok` each, with resend requests, busy messages, temperature reports and printer resets handled.
+After sending, the firmware is asked (M593, M493, SET_INPUT_SHAPER; M204, SET_VELOCITY_LIMIT) and
+its answer compared. Nothing is sent unless every value passes `ringtune shaper`'s check and the
+firmware's range and precision (a value that would round to another one is refused). After a
+line Klipper refused, its state is asked; if it shut down, the report says so and how to recover
+(FIRMWARE_RESTART).
+
+The config's acceleration is applied too (SET_VELOCITY_LIMIT ACCEL= on Klipper, M204 P on Marlin,
+Prusa and RepRapFirmware) and read back; --no-accel leaves it alone. A sliced file's own
+acceleration commands override it while it prints (see `ringtune export --slicer`).
+
+--save persists where the firmware can: M500 (Marlin), M593 W (Prusa). RepRapFirmware and Klipper
+cannot save these from G-code: the lines are written to a file (--save-file) for config.g or
+printer.cfg. --dry-run prints exactly what would be sent and opens nothing.
+
+examples:
+  ringtune push best.json --firmware marlin --port /dev/ttyUSB0 --save
+  ringtune push best.json --firmware rrf --port socket://192.168.1.40:23 --dry-run
+  ringtune push best.json --firmware klipper --port /tmp/printer
+  ringtune push best.json --firmware klipper --moonraker http://mainsail.local:7125
+"""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("config", metavar="CONFIG", help="TuneConfig JSON")
+    p.add_argument("--firmware", help="klipper, rrf, rrf35, rrf34, marlin, marlin-ftm, prusa "
+                   "(default: the config's firmware)")
+    p.add_argument("--port", metavar="PORT", help="serial device or pyserial URL (required unless "
+                   "--moonraker or --dry-run)")
+    p.add_argument("--moonraker", metavar="URL", help="Klipper through Moonraker's HTTP API")
+    p.add_argument("--api-key", metavar="KEY", help="Moonraker API key (default $MOONRAKER_API_KEY)")
+    p.add_argument("--baud", type=int, default=115200, help="serial speed (default 115200)")
+    p.add_argument("--crc", action="store_true", help="RepRapFirmware: CRC-16 instead of XOR checksums")
+    p.add_argument("--timeout", type=float, default=10.0,
+                   help="seconds without any answer before giving up (default 10)")
+    p.add_argument("--save", action="store_true", help="persist the settings (see above)")
+    p.add_argument("--save-file", metavar="FILE", help="where --save writes config lines (RRF, Klipper)")
+    p.add_argument("--no-accel", action="store_true", help="leave the printer's acceleration alone")
+    p.add_argument("--dry-run", action="store_true", help="print exactly what would be sent; send nothing")
+    p.add_argument("-v", "--verbose", action="store_true", help="show the conversation on stderr")
+
+
+def run(args, out) -> int:
+    import os
+
+    from ringtune.agents.cli.common import load_config
+    from ringtune.hardware.push import PushError, push
+    from ringtune.shaping.errors import RingtuneError
+
+    cfg = load_config(args.config, out)
+    if not args.dry_run and not args.port and not args.moonraker:
+        raise RingtuneError("refusing to push without an explicit port: give --port /dev/ttyUSB0 (or "
+                            "socket://host:port, rfc2217://host:port, /tmp/printer) or --moonraker URL; "
+                            "--dry-run shows what would be sent", "--port")
+    if args.port and args.moonraker:
+        raise RingtuneError("give --port or --moonraker, not both", "--moonraker")
+    if args.timeout <= 0:
+        raise RingtuneError("must be > 0 s", "--timeout")
+    log = out.note if args.verbose else None
+    try:
+        result = push(cfg, args.firmware, port=args.port, moonraker=args.moonraker, baud=args.baud,
+                      save=args.save, dry_run=args.dry_run, timeout=args.timeout, crc=args.crc,
+                      api_key=args.api_key or os.environ.get("MOONRAKER_API_KEY"),
+                      save_path=args.save_file, log=log, accel=not args.no_accel)
+    except PushError as exc:
+        out.emit(exc.result.to_dict(), exc.result.text())
+        raise
+    except RingtuneError as exc:   # name the file the user gave, not the abstract "config"
+        raise exc.relocated("config", args.config) from None
+    out.emit(result.to_dict(), result.text())
+    return 0 if result.ok else 1

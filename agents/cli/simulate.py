@@ -1,0 +1,295 @@
+"""``ringtune simulate``: print time and print quality of one configuration on a job.
+
+JSON keys (stable): ``printer`` (name), ``job`` (G-code path or ``"built-in test print"``),
+``backend``, ``config`` (TuneConfig dict), ``metrics`` {``print_time_s``, ``path_error_mm``,
+``overshoot_mm``, ``ringing_mm``, ``peak_accel``, ``step_loss``, ``motor_load``}, ``freq_margin``
+(fraction: the metrics are the worst of the printer and its resonances this much lower and
+higher, as ``tune`` judges; 0 = the exact model; default: the ``freq_margin`` a tune best.json
+records, else tune's default), ``judgement`` (that, in words), ``variants``
+(list of {``factor`` (every resonance × it), ``metrics``}), ``windows`` (list of {``t0``, ``t1``,
+``kind``, ``path_error_mm``, ``overshoot_mm``, ``ringing_mm``, ``peak_accel``, ``step_loss``,
+``motor_load``}, each the worst over the variants), ``plots`` (list of PNG paths, empty without
+``--plot``), ``trace`` (with ``--trace`` only: the CSV path; columns in ``ringtune.envs.trace``; the printer as
+modelled, not a detuned variant).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
+from ringtune.shaping.errors import RingtuneError
+
+NAME = "simulate"
+HELP = "simulate a configuration on a job: print time, path error, overshoot, ringing, step loss"
+DESCRIPTION = """\
+Simulate one input-shaping configuration on a print job and report what a person would see.
+
+Print time comes from the planner over the whole job; quality comes from the MuJoCo printer on
+the job's quality windows (sharpest corners, fastest zigzags):
+
+  print_time_s   planned print time of the whole job, s
+  path_error_mm  largest distance of the nozzle from the extrusion path while extruding
+  overshoot_mm   largest outward excursion past the path at corners and reversals
+  ringing_mm     worst RMS oscillation across a straight wall after a direction change
+  peak_accel     largest toolhead acceleration, mm/s²
+  step_loss      whether a motor was asked for more force than it has at that speed
+  motor_load     largest fraction of that force it was asked for (1 = the edge of step loss)
+
+Every figure is judged as `ringtune tune` judges its trials: the worst of the printer as modelled
+and of the printer with all its resonances --freq-margin per cent lower and higher (default 5; a
+real printer's frequencies drift by that much; a best.json from tune that records another margin
+is judged with that one). --freq-margin 0 judges the exact model only. So
+`simulate --config best.json` on tune's printer and job prints tune's figures for that
+configuration, to the digit.
+
+The configuration comes from a TuneConfig JSON (--config, as written by `ringtune tune`) or from
+--shaper/--freq/--damping/--freq-limit (one value for both axes, or "X,Y"). Without --config and
+--shaper/--freq/--damping: what the printer runs now when its description has a [current] section
+(`ringtune printer from-klipper` writes one), else shaping off; stderr says which. Without --printer the embedded Ender-3-class printer is used; without --gcode the built-in
+test print.
+
+examples:
+  ringtune simulate --shaper mzv --freq 48 --damping 0.1
+  ringtune simulate --shaper zv,mzv --freq 51,46 --freq-limit 30 --firmware rrf --plot plots/
+  ringtune simulate --printer my.toml --gcode part.gcode --config best.json --json
+  ringtune simulate --config best.json --freq-margin 0     # the exact model only
+  ringtune simulate --gcode ripples.gcode --trace nozzle.csv   # what the model prints
+"""
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--printer", metavar="P", help="printer TOML or embedded name (default: ender3)")
+    parser.add_argument("--gcode", metavar="G", help="G-code file (default: the built-in test print)")
+    parser.add_argument("--config", metavar="C", help="TuneConfig JSON file")
+    parser.add_argument("--shaper", metavar="S", help="shaper name, or X,Y (e.g. mzv or zv,ei); 'none' = off")
+    parser.add_argument("--freq", metavar="F", help="shaper frequency in Hz, or X,Y")
+    parser.add_argument("--damping", metavar="D", help="shaper damping ratio, or X,Y (default: the firmware's)")
+    parser.add_argument("--freq-limit", metavar="L", type=float, help="infill frequency limit in Hz (0 = off)")
+    parser.add_argument("--firmware", metavar="FW", help="firmware whose shapers are used (default: klipper)")
+    parser.add_argument("--accel", metavar="A", type=float, help="printing acceleration, mm/s² (default: the printer's)")
+    parser.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco",
+                        help="physics: mujoco (default) or lti (exact linear, fast screening)")
+    parser.add_argument("--freq-margin", metavar="PCT", type=float, default=None,
+                        help="judge also with every resonance PCT %% lower and higher, the worst counts, as "
+                             f"tune does (default: the margin a tune best.json records, else {DEFAULT_FREQ_MARGIN * 100:g}; "
+                             "0 = the exact model only)")
+    parser.add_argument("--plot", metavar="DIR", help="write path, ringing and accelerometer plots (PNG) to DIR")
+    parser.add_argument("--trace", metavar="OUT.csv", help="write the simulated nozzle path (t, commanded and "
+                        "nozzle x y, ...) of the whole job, or of its quality windows if it is long")
+
+
+def _pair(text: str | None, option: str, number: bool) -> tuple | None:
+    if text is None:
+        return None
+    parts = [p.strip() for p in str(text).split(",")]
+    if len(parts) == 1:
+        parts = parts * 2
+    if len(parts) != 2 or not all(parts):
+        raise RingtuneError("give one value or two separated by a comma (X,Y)", option)
+    if not number:
+        return tuple(parts)
+    try:
+        return tuple(float(p) for p in parts)
+    except ValueError:
+        raise RingtuneError(f"not a number: {text!r}", option) from None
+
+
+def _base_config(args, printer) -> tuple[dict, list[str]]:
+    """What is simulated when neither --config nor --shaper/--freq/--damping says: what the printer
+    runs now (its ``[current]`` section), else no shaping; and the notes that say so."""
+    from ringtune.agents.tune.baselines import current_config
+
+    notes: list[str] = []
+    note = notes.append
+    if printer is not None and printer.current:
+        cur = printer.current
+        firmware = args.firmware or str(cur.get("firmware") or "klipper")
+        cfg, why = current_config(printer, firmware)
+        if cfg is not None:
+            note(f"no --config: simulating what the printer runs now, from [current] "
+                 f"({cur.get('source') or printer.name})")
+            d = cfg.to_dict()
+            d.pop("extra", None)
+            return d, notes
+        note(why)
+    note("no --config or --shaper: simulating with input shaping off (give --config best.json or "
+         "--shaper S --freq F to simulate a configuration)")
+    return {"shaper_x": "none", "shaper_y": "none"}, notes
+
+
+def build_config(args, out=None, printer=None):
+    """The TuneConfig from --config and/or the individual options (options override the file);
+    without either, what ``printer`` runs now (``[current]``), else no shaping."""
+    from ringtune.agents.cli.common import load_config
+    from ringtune.shaping.config import TuneConfig
+    from ringtune.shaping.firmware import FIRMWARES
+    from ringtune.shaping.shapers import default_damping
+
+    notes: list[str] = []   # said once the options are known to be good
+    if args.config:
+        cfg = load_config(args.config, out).to_dict()
+    elif args.shaper is None and args.freq is None and args.damping is None:
+        cfg, notes = _base_config(args, printer)
+    else:
+        cfg = {"shaper_x": "none", "shaper_y": "none"}
+    if args.firmware:
+        cfg["firmware"] = args.firmware
+    shaper = _pair(args.shaper, "--shaper", False)
+    freq = _pair(args.freq, "--freq", True)
+    damping = _pair(args.damping, "--damping", True)
+    if shaper:
+        cfg["shaper_x"], cfg["shaper_y"] = shaper
+        if not freq and not args.config and any(s != "none" for s in shaper):
+            raise RingtuneError("a shaper needs a frequency", "--freq")
+    if freq:
+        cfg["freq_x"], cfg["freq_y"] = freq
+    if damping:
+        cfg["damping_x"], cfg["damping_y"] = damping
+    elif shaper and not args.config:
+        record = FIRMWARES.get(str(cfg.get("firmware", "klipper")).lower())
+        if record is not None:  # an unknown firmware is reported by TuneConfig below
+            cfg["damping_x"] = cfg["damping_y"] = default_damping(record.flavor)
+    if args.freq_limit is not None:
+        cfg["freq_limit_hz"] = args.freq_limit
+    if args.accel is not None:
+        cfg["accel"] = args.accel
+    _check_options(freq, damping, args)
+    where = args.config or "options"
+    try:
+        config = TuneConfig.from_dict(cfg, where)
+    except RingtuneError as exc:   # a value an option gave: name the option, not the config key
+        key = (exc.where or "").rpartition(": ")[2]
+        given = {"--freq": freq, "--damping": damping, "--shaper": shaper, "--firmware": args.firmware,
+                 "--freq-limit": args.freq_limit, "--accel": args.accel}
+        flag = _KEY_FLAG.get(key)
+        if flag and given.get(flag) is not None:
+            raise RingtuneError(exc.bare, flag) from None
+        raise
+    from ringtune.shaping.shapers import shapers_from_config
+
+    try:  # the firmware must offer the shapers: say which option (or file) asked for them
+        shapers_from_config(config)
+    except RingtuneError as exc:
+        if shaper:
+            raise RingtuneError(exc.bare, "--shaper") from None
+        raise exc.relocated("config", where) from None
+    for n in notes if out is not None else ():
+        out.note(n)
+    return config
+
+
+#: TuneConfig key -> the option that sets it
+_KEY_FLAG = {"freq_x": "--freq", "freq_y": "--freq", "damping_x": "--damping", "damping_y": "--damping",
+             "shaper_x": "--shaper", "shaper_y": "--shaper", "firmware": "--firmware",
+             "freq_limit_hz": "--freq-limit", "accel": "--accel"}
+
+
+def _check_options(freq, damping, args) -> None:
+    """The options' values in their own units, named by option (TuneConfig's own check would name
+    its keys: ``options: freq_x: -40.0 is out of range``)."""
+    import math
+
+    for f in freq or ():
+        if not (math.isfinite(f) and 0 <= f <= 1000):
+            raise RingtuneError(f"{f:g} Hz is not a shaper frequency: give one in (0, 1000] Hz", "--freq")
+    for z in damping or ():
+        if not (math.isfinite(z) and 0 <= z <= 0.99):
+            raise RingtuneError(f"{z:g} is not a damping ratio: give one in [0, 0.99] (e.g. 0.1)", "--damping")
+    if args.freq_limit is not None and not (math.isfinite(args.freq_limit) and 0 <= args.freq_limit <= 1000):
+        raise RingtuneError(f"{args.freq_limit:g} Hz is not a frequency limit: give one in [0, 1000] Hz "
+                            "(0 = off)", "--freq-limit")
+    if args.accel is not None and not (math.isfinite(args.accel) and 0 < args.accel <= 1e6):
+        raise RingtuneError(f"{args.accel:g} mm/s² is not an acceleration: give one > 0 mm/s²", "--accel")
+
+
+def _axis(shaper: str, freq: float, damping: float) -> str:
+    """One axis of the configuration line: ``mzv 48 Hz S 0.1``, or ``none`` alone (no shaping has
+    no frequency or damping)."""
+    return "none" if shaper == "none" else f"{shaper} {freq:g} Hz S {damping:g}"
+
+
+def freq_margin(args, config=None) -> float:
+    """--freq-margin PCT as a fraction; default: the margin the configuration was tuned with
+    (``freq_margin`` in a best.json from tune), else tune's default."""
+    if args.freq_margin is None:
+        recorded = (config.extra or {}).get("freq_margin") if config is not None else None
+        if isinstance(recorded, (int, float)) and not isinstance(recorded, bool) and 0 <= recorded < 0.5:
+            return float(recorded)
+        return DEFAULT_FREQ_MARGIN
+    if not 0 <= args.freq_margin < 50:
+        raise RingtuneError(f"must be a percentage in [0, 50), not {args.freq_margin:g}", "--freq-margin")
+    return args.freq_margin / 100.0
+
+
+def run(args, out) -> int:
+    from ringtune.agents.cli.common import judgement
+    from ringtune.envs.evaluate import evaluate_judged, resolve_printer, variant_factors
+
+    if args.freq_margin is not None:    # a bad option is refused before any note is printed
+        freq_margin(args)
+    printer = resolve_printer(args.printer)
+    config = build_config(args, out, printer)
+    margin = freq_margin(args, config)
+    if args.gcode and not Path(args.gcode).is_file():
+        raise RingtuneError("no such G-code file", f"--gcode {args.gcode}")
+    if args.plot:  # before simulating: a folder that cannot be made fails now, in one line
+        try:
+            Path(args.plot).mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RingtuneError(f"cannot create the plot folder: {exc.strerror or exc}",
+                                f"--plot {args.plot}") from None
+    judged = judgement(margin)
+    out.note(f"simulating {config.shaper_x}/{config.shaper_y} on {printer.name} ({args.backend}), {judged} ...")
+    m, evs = evaluate_judged([config], printer, args.gcode, backend=args.backend, freq_margin=margin)[0]
+    if args.trace:   # the printer as modelled (variant 1.0)
+        from ringtune.agents.cli.trace_option import write_trace_option
+
+        write_trace_option(args.trace, evs[0], config, printer, args.gcode, args.backend, out)
+    keys = ("path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss", "motor_load")
+    windows = []
+    for i, w in enumerate(evs[0].planned.windows):
+        parts = [e.metrics.details["windows"][i] for e in evs]
+        windows.append({"t0": float(w.t0), "t1": float(w.t1), "kind": str(getattr(w, "kind", "")),
+                        **{k: (any(p[k] for p in parts) if k == "step_loss" else max(p[k] for p in parts))
+                           for k in keys}})
+    factors = variant_factors(margin)
+    plots = []
+    if args.plot:
+        from ringtune.envs.plots import plot_evaluation
+
+        plots = [str(p) for p in plot_evaluation(evs, args.plot, factors=factors, judged=judged)]
+    result = {
+        "printer": printer.name,
+        "job": args.gcode or "built-in test print",
+        "backend": args.backend,
+        "config": config.to_dict(),
+        "metrics": m.to_dict(),
+        "freq_margin": margin,
+        "judgement": judged,
+        "variants": [{"factor": f, "metrics": e.metrics.to_dict()} for f, e in zip(factors, evs)],
+        "windows": windows,
+        "plots": plots,
+        **({"trace": args.trace} if args.trace else {}),
+    }
+    c = config
+    um = 1000.0
+    lines = [
+        f"printer {printer.name}, job {result['job']}, backend {args.backend}",
+        f"config  {c.firmware}: X {_axis(c.shaper_x, c.freq_x, c.damping_x)}, "
+        f"Y {_axis(c.shaper_y, c.freq_y, c.damping_y)}, freq limit "
+        f"{(f'{c.freq_limit_hz:g} Hz' if c.freq_limit_hz else 'off')}"
+        + (f", accel {c.accel:g} mm/s²" if c.accel else ""),
+        f"judged  {judged}",
+        f"print time   {m.print_time_s:10.3f} s",
+        f"path error   {m.path_error_mm * um:10.1f} µm",
+        f"overshoot    {m.overshoot_mm * um:10.1f} µm",
+        f"ringing      {m.ringing_mm * um:10.1f} µm RMS",
+        f"peak accel   {m.peak_accel:10.0f} mm/s²",
+        f"step loss    {'YES' if m.step_loss else 'no':>10}",
+        f"motor load   {m.motor_load * 100:>9.0f} %  of the force the motors have",
+        f"({len(windows)} quality windows simulated"
+        + (f" on each of {len(evs)} printer variants)" if len(evs) > 1 else ")"),
+    ] + [f"plot: {p}" for p in plots]
+    out.emit(result, "\n".join(lines))
+    return 0

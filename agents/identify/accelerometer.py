@@ -1,0 +1,150 @@
+"""Accelerometer files -> fitted modes, Klipper's recommendation and the files' record.
+
+The glue between the file readers (:mod:`ringtune.hardware.accel`) and the fits on arrays
+(:mod:`ringtune.envs.identify`): each file is read once; a resonance spectrum is fitted per axis
+and kept for Klipper's rule (the very function ``ringtune recommend --accel`` uses, so the two
+agree by construction); an RRF ``M956`` capture (the ringing after one move, not a sweep) is fitted
+with damped sinusoids. What the tool had to decide about a file (its axis from its columns, a sweep
+that does not cover the usual band, a poor fit) is returned as a warning naming the file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ringtune.envs.identify import AxisFit, identify_decay, identify_psd
+from ringtune.hardware.accel import RawAccel, axis_from_file_name, read_accel, to_psd
+from ringtune.shaping.errors import RingtuneError
+
+#: Klipper's default resonance sweep, Hz ([resonance_tester] min_freq, max_freq)
+SWEEP = (5.0, 135.0)
+
+def sha256_of(path: str | Path) -> str:
+    """Hex SHA-256 of a file's bytes."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+@dataclass
+class Measurement:
+    """What a set of accelerometer files says: the fits, the spectra by axis (for Klipper's rule),
+    the files as recorded in ``[measurement]`` and the warnings (each naming its file)."""
+
+    fits: list[AxisFit]
+    psds: dict[str, list] = field(default_factory=dict)
+    files: list[dict] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+    def by_axis(self) -> dict[str, AxisFit]:
+        """The fit used for each axis: with several files of one axis, the highest r²."""
+        best: dict[str, AxisFit] = {}
+        for fit in self.fits:
+            if fit.axis in ("x", "y") and (fit.axis not in best or fit.r2 > best[fit.axis].r2):
+                best[fit.axis] = fit
+        return best
+
+
+def _named_axis(path) -> str | None:
+    """X or Y from the file's name (:func:`axis_from_file_name`); a Z file is refused: the printer
+    model has no Z resonances."""
+    ax = axis_from_file_name(path)
+    if ax == "z":
+        raise RingtuneError("a Z resonance test: the printer model has X and Y modes only", str(path))
+    return ax
+
+
+def _axis(path, items, given: str | None) -> tuple[str, str | None]:
+    if given:
+        return given, None
+    ax = _named_axis(path)
+    if ax:
+        return ax, None
+    first = items[0]
+    if first.psd_x is not None and first.psd_y is not None:
+        ax = "x" if float(np.sum(first.psd_x)) >= float(np.sum(first.psd_y)) else "y"
+        return ax, (f"{path}: the file name does not say the axis; taken as {ax.upper()} (its psd_{ax} "
+                    "column holds more energy); give --axis to decide")
+    raise RingtuneError("cannot tell which axis this file measured; give --axis", str(path))
+
+
+def read_measurement(paths, axis: str | None = None, max_modes: int = 3, fmin: float = SWEEP[0],
+                     fmax: float = SWEEP[1], damping: str = "fit") -> Measurement:
+    """Read and fit every file (``axis``: the axis of all of them, default from each file)."""
+    fits: list[AxisFit] = []
+    psds: dict[str, list] = {}
+    files: list[dict] = []
+    warnings: list[str] = []
+    for path in paths:
+        data = read_accel(path)
+        record = {"name": str(path), "sha256": sha256_of(path)}
+        if isinstance(data, RawAccel) and data.fmt == "m956":
+            ax = axis or _named_axis(path)
+            if ax is None:
+                raise RingtuneError("cannot tell which axis this capture measured; give --axis", str(path))
+            fit = identify_decay(data.t, data.axis(ax), ax, str(path), data.rate,
+                                 max_modes=min(max_modes, 2), fmin=fmin)
+            fits.append(fit)
+            files.append({**record, "axis": ax, "kind": "free decay"})
+            warnings += [f"{path}: {w}" for w in fit.warnings]
+            continue
+        items = to_psd(data)
+        ax, warning = _axis(path, items, axis)
+        if warning:
+            warnings.append(warning)
+        files.append({**record, "axis": ax})
+        psds.setdefault(ax, []).extend(items)
+        for psd in items:
+            col = psd.axis(ax) if psd.psd_x is not None else psd.psd_sum
+            fit = identify_psd(psd.freqs, col, ax, psd.source or str(path), max_modes, fmin, fmax, damping)
+            fits.append(fit)
+            warnings += [f"{path}: {w}" for w in fit.warnings]
+    return Measurement(fits, psds, files, warnings)
+
+
+def klipper_record(psds: dict[str, list], scv: float = 5.0, version: str = "head") -> dict:
+    """``[measurement.klipper]``: Klipper's calibrate_shaper recommendation from the measured spectra
+    (the function ``ringtune recommend --accel`` uses), for the axes measured: ``shaper_<ax>``,
+    ``freq_<ax>`` (Hz), ``max_accel`` (mm/s², the lower of the axes', as Klipper prints it),
+    ``version``, ``scv`` (mm/s, the square-corner velocity the smoothing was computed at)."""
+    from ringtune.agents.klipper.baseline import recommend_axes
+
+    spectra = {ax: p for ax, p in psds.items() if ax in ("x", "y")}
+    if not spectra:
+        return {}
+    fits, fields = recommend_axes(spectra, "klipper", version, scv)
+    rec: dict = {}
+    for ax in ("x", "y"):
+        if ax in fits:
+            rec[f"shaper_{ax}"] = fields[f"shaper_{ax}"]
+            rec[f"freq_{ax}"] = fields[f"freq_{ax}"]
+    if fields.get("accel"):
+        rec["max_accel"] = float(fields["accel"])
+    rec["version"] = version
+    rec["scv"] = float(scv)
+    return rec
+
+
+def recorded_files(measurement: dict, printer_path: str | Path | None) -> tuple[list[tuple[str, str]], list[str]]:
+    """The resonance sweeps a printer description records in ``[measurement]`` that are still here
+    and unchanged (free-decay captures, ``kind = "free decay"``, are skipped): ``([(path, axis), …], [missing or changed file, …])``. A recorded name is looked for
+    as written (relative to the working folder) and beside the description."""
+    found, missing = [], []
+    if measurement.get("source") != "accelerometer":     # ripples, a tower: no resonance files
+        return found, missing
+    folder = Path(printer_path).resolve().parent if printer_path else None
+    for rec in measurement.get("files", []):
+        if rec.get("kind") == "free decay":      # one move's ringing (M956): not for Klipper's rule
+            continue
+        name = str(rec.get("name", ""))
+        candidates = [Path(name)]
+        if folder is not None:
+            candidates += [folder / name, folder / Path(name).name]
+        hit = next((c for c in candidates if c.is_file() and sha256_of(c) == rec.get("sha256")), None)
+        if hit is None:
+            missing.append(name)
+        else:
+            found.append((str(hit), str(rec.get("axis", ""))))
+    return found, missing

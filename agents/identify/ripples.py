@@ -1,0 +1,159 @@
+"""A printer description from what a person
+measured on a calibration print (``ringtune testprint ringing``), without an accelerometer.
+
+One mode per measured axis: from the ripple spacing and wall speed (seed 000; damping from the
+ratio of successive ripple heights, else the firmware's default), or from the ringing-tower band
+with the least ringing. The rest of the description (masses, motors, limits, the modes of an axis
+not measured) comes from ``--base``; ``[measurement]`` records the source (``"ripples"`` or
+``"tower"``) and the numbers measured.
+
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import fields, replace
+from pathlib import Path
+
+
+def _default_damping(args, out) -> tuple[float, str]:
+    from ringtune.shaping.firmware import Firmware
+    from ringtune.shaping.shapers import default_damping
+
+    fw = Firmware.named(args.firmware or "klipper", "--firmware")
+    z = default_damping(fw.flavor)
+    return z, f"{fw.title}'s default shaper damping{'' if args.firmware else ' (--firmware)'}"
+
+
+def identify_modes(args, out) -> tuple[dict, dict, list]:
+    """({axis: (freq Hz, damping, comment)}, measurement dict, files) from the options."""
+    from ringtune.envs.ripples import damping_from_ratio, mode_from_ripples, parse_axis_values, tower_frequency
+    from ringtune.shaping.calibration_prints import read_band_table
+    from ringtune.shaping.errors import RingtuneError
+
+    if args.ripples and args.tower_band:
+        raise RingtuneError("give --ripples or --tower-band, not both", "--tower-band")
+    if getattr(args, "files", None):
+        raise RingtuneError("accelerometer files and --ripples/--tower-band are two ways; use one",
+                            args.files[0])
+    modes: dict = {}
+    files: list = []
+    if args.ripples:
+        if args.tower:
+            raise RingtuneError("--tower goes with --tower-band", "--tower")
+        if args.speed is None:
+            raise RingtuneError("the ripples need the wall speed they were printed at", "--speed")
+        if not (math.isfinite(args.speed) and args.speed > 0):
+            raise RingtuneError(f"must be a positive wall speed in mm/s, not {args.speed:g}", "--speed")
+        spacing = parse_axis_values(args.ripples, "--ripples")
+        decay = parse_axis_values(args.decay, "--decay") if args.decay else {}
+        for ax in decay:
+            if ax not in spacing:
+                raise RingtuneError(f"a decay for {ax.upper()} without its ripple spacing", "--decay")
+        meas = {"source": "ripples", "ripples": {"speed": args.speed}}
+        for ax, s in spacing.items():
+            if ax in decay:
+                z = damping_from_ratio(decay[ax], f"--decay {ax.upper()}")
+                how = f"ripple height ratio {decay[ax]:g} (logarithmic decrement)"
+                meas["ripples"][f"decay_{ax}"] = decay[ax]
+            else:
+                z, how = _default_damping(args, out)
+                out.note(f"{ax.upper()}: damping {z:g} is {how}, not measured (--decay {ax.upper()}=R to measure it)")
+            m = mode_from_ripples(ax, s, args.speed, z, how, f"--ripples {ax.upper()}")
+            meas["ripples"][f"spacing_{ax}"] = s
+            modes[ax] = (m.freq, m.damping,
+                         f"ripples {s:g} mm apart at {args.speed:g} mm/s: ringing at {m.damped_freq:.2f} Hz, "
+                         f"natural {m.freq:.2f} Hz; damping {m.damping:.3f} from {how}")
+        return modes, meas, files
+    if args.tower_band:
+        if not args.tower:
+            raise RingtuneError("the band numbers need the tower's G-code (its band table)", "--tower")
+        if args.speed or args.decay:
+            raise RingtuneError("--speed and --decay go with --ripples", "--speed" if args.speed else "--decay")
+        path = Path(args.tower)
+        if path.is_dir():
+            raise RingtuneError("is a directory, not the tower's G-code", f"--tower {args.tower}")
+        if not path.is_file():
+            raise RingtuneError("no such file", f"--tower {args.tower}")
+        data = path.read_bytes()
+        bands = read_band_table(data.decode("utf-8", "replace"), f"--tower {args.tower}")
+        numbers = parse_axis_values(args.tower_band, "--tower-band")
+        meas = {"source": "tower", "tower": {}}
+        for ax, n in numbers.items():
+            if n != int(n):
+                raise RingtuneError(f"band {ax.upper()}={n:g} must be a whole number", "--tower-band")
+            f, half = tower_frequency(bands, int(n), ax)
+            z, how = _default_damping(args, out)
+            out.note(f"{ax.upper()}: damping {z:g} is {how}; a tower does not measure damping")
+            modes[ax] = (f, z, f"tower band {int(n)} ({bands[int(n) - 1][0]:g}-{bands[int(n) - 1][1]:g} mm) "
+                               f"at {f:g} Hz, ±{half:.3g} Hz (half the band step); damping {z:g} from {how}")
+            meas["tower"][f"band_{ax}"] = int(n)
+            meas["tower"][f"freq_{ax}"] = f
+            files.append({"name": path.name, "sha256": hashlib.sha256(data).hexdigest(), "axis": ax})
+        return modes, meas, files
+    raise RingtuneError("give accelerometer files, --ripples X=MM,Y=MM --speed V, or --tower-band X=N,Y=N "
+                        "--tower FILE", "identify")
+
+
+def printer_text(modes: dict, meas: dict, files: list, name: str, base: str | None, out) -> str:
+    """The printer TOML: ``base`` with the measured axes' modes replaced, plus ``[measurement]``."""
+    from ringtune.envs.printer import load_printer
+    from ringtune.envs.printer_model import AxisModel, Mode
+
+    p = load_printer(base)
+    unmeasured = ' and the modes of ' + ', '.join(a.upper() for a in 'xy' if a not in modes) if len(modes) < 2 else ''
+    out.note(f"masses, motors, limits{unmeasured}: from {p.name}"
+             + (" (--base to use your printer's)" if base is None else f" ({base})"))
+    default_masses = _default_masses(base, p)
+    if default_masses:
+        out.note(f"masses {default_masses} are defaults (not in {base or 'the embedded printer'}): the motor load "
+                 "and the acceleration headroom come from them (weigh them: [x] mass / [y] mass)")
+    axes = {ax: AxisModel(p.axis(ax).mass, [Mode(round(f, 3), round(z, 4))]) for ax, (f, z, _) in modes.items()}
+    new = replace(p, name=name, description=f"identified from {meas['source']} on a print; base {p.name}", **axes)
+    if files:
+        meas["files"] = files
+    readable = "measurement" in {f.name for f in fields(new)}   # the reader takes [measurement]
+    if readable:
+        new.measurement = meas
+    text = new.to_toml()
+    head = [f"# identified without an accelerometer ({meas['source']}); base: {p.name}"]
+    head += [f"# {ax.upper()}: {c}" for ax, (_, _, c) in sorted(modes.items())]
+    if default_masses:
+        head.append(f"# still defaults: masses {default_masses} (the base gives none); [x] mass / [y] mass "
+                    "replace them")
+    if "[measurement]" not in text:
+        section = _measurement_toml(meas)
+        if not readable:          # kept as comments until the printer reader takes the section
+            section = "".join(f"# {line}\n" if line else "#\n" for line in section.splitlines())
+        text += "\n" + section
+    return "\n".join(head) + "\n" + text
+
+
+def _default_masses(base: str | None, p) -> str:
+    """"X 0.55 kg, Y 1.1 kg" for the axes whose mass the base description does not give (the
+    loader's defaults), "" when it gives both."""
+    import tomllib
+
+    if base is None or not Path(base).is_file():  # the embedded printers name their masses (and the
+        return ""                                 # note before this one says they are not the user's)
+    try:
+        raw = tomllib.loads(Path(base).read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError):
+        raw = {}
+    missing = [ax for ax in "xy" if not isinstance(raw.get(ax), dict) or "mass" not in raw[ax]]
+    return ", ".join(f"{ax.upper()} {p.axis(ax).mass:g} kg" for ax in missing)
+
+
+def _measurement_toml(meas: dict) -> str:
+    def val(v):
+        return f'"{v}"' if isinstance(v, str) else repr(v)
+
+    lines = ["[measurement]", f"source = {val(meas['source'])}"]
+    if meas.get("files"):
+        items = ", ".join("{ " + ", ".join(f"{k} = {val(v)}" for k, v in f.items()) + " }" for f in meas["files"])
+        lines.append(f"files = [{items}]")
+    for key in ("ripples", "tower"):
+        if key in meas:
+            lines += ["", f"[measurement.{key}]"] + [f"{k} = {val(v)}" for k, v in meas[key].items()]
+    return "\n".join(lines) + "\n"

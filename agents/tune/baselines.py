@@ -1,0 +1,179 @@
+"""The baselines ``ringtune tune`` compares against, evaluated exactly like every trial.
+
+- ``klipper`` — Klipper's rule. When the printer description records Klipper's recommendation from
+  the user's own resonance files (``[measurement.klipper]``, written by ``ringtune identify``:
+  ``shaper_x``, ``freq_x``, ``shaper_y``, ``freq_y``, ``max_accel``), it is that recommendation;
+  otherwise the rule (:mod:`ringtune.agents.klipper.baseline`) on the model's simulated resonance
+  test, and its label says so.
+- ``current`` — what the printer runs now (``[current]``: shaper, frequency and damping per axis and
+  the acceleration, from its firmware configuration), when known.
+- ``none`` — no shaping at the printer's own acceleration.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+from ringtune.agents.klipper.rule import DEFAULT_DAMPING_RATIO
+from ringtune.agents.tune.pareto import Point, point_from_metrics
+from ringtune.envs.printer_model import Printer
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+
+SIMULATED = "on a simulated resonance test of the model"
+FROM_FILES = "from your resonance files"
+
+
+@dataclass
+class Baselines:
+    """Evaluated baselines (``points``), how each is named (``labels``), where each comes from
+    (``sources``: "measurement" | "simulated resonance test" | "[current]" | "no shaping") and
+    Klipper's per-axis fits when the rule ran here (for the warm start)."""
+
+    points: dict[str, Point] = field(default_factory=dict)
+    labels: dict[str, str] = field(default_factory=dict)
+    sources: dict[str, str] = field(default_factory=dict)
+    fits: dict = field(default_factory=dict)
+
+
+def recorded_klipper(printer: Printer, firmware: str) -> tuple[TuneConfig | None, str]:
+    """Klipper's recommendation recorded from the resonance files, as a TuneConfig (or None, and
+    why not)."""
+    rec = printer.measurement.get("klipper")
+    if not isinstance(rec, dict) or not rec:
+        return None, "the printer description records no Klipper recommendation ([measurement.klipper])"
+    try:
+        fields = {"firmware": firmware}
+        for ax in ("x", "y"):
+            name = str(rec.get(f"shaper_{ax}") or "none").lower()
+            fields[f"shaper_{ax}"] = name
+            fields[f"freq_{ax}"] = round(float(rec.get(f"freq_{ax}") or 0.0), 1) if name != "none" else 0.0
+            fields[f"damping_{ax}"] = DEFAULT_DAMPING_RATIO
+        acc = rec.get("max_accel")
+        fields["accel"] = float(acc) if acc else float(printer.limits.accel)
+        cfg = TuneConfig(**fields, extra={"source": "Klipper's calibrate_shaper rule on the resonance files "
+                                                    "(recorded by ringtune identify)"})
+        cfg.validate("[measurement.klipper]")
+    except (TypeError, ValueError, RingtuneError) as exc:
+        return None, f"[measurement.klipper] cannot be used for {firmware}: {exc}"
+    return cfg, ""
+
+
+def current_config(printer: Printer, firmware: str) -> tuple[TuneConfig | None, str]:
+    """What the printer runs now (``[current]``) as a TuneConfig for ``firmware`` (or None, and why)."""
+    from ringtune.shaping.shapers import parse_name
+
+    cur = printer.current
+    if not cur:
+        return None, ""
+    try:
+        fields: dict[str, Any] = {"firmware": firmware}
+        for ax in ("x", "y"):
+            raw = cur.get(f"shaper_{ax}", cur.get("shaper"))
+            freq = cur.get(f"freq_{ax}", cur.get("freq"))
+            name = parse_name(str(raw))[0] if raw and freq else "none"
+            fields[f"shaper_{ax}"] = name
+            fields[f"freq_{ax}"] = float(freq) if name != "none" else 0.0
+            z = cur.get(f"damping_{ax}", cur.get("damping"))
+            fields[f"damping_{ax}"] = float(z) if z is not None else DEFAULT_DAMPING_RATIO
+        acc = cur.get("accel")
+        fields["accel"] = float(acc) if acc else float(printer.limits.accel)
+        src = cur.get("source")
+        cfg = TuneConfig(**fields, extra={"source": f"what the printer runs now ({src or '[current]'})"})
+        cfg.validate("[current]")
+    except (TypeError, ValueError, RingtuneError) as exc:
+        return None, f"what the printer runs now ([current]) cannot be compared on {firmware}: {exc}"
+    return cfg, ""
+
+
+def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable, quality: str, *, seed: int = 0,
+                  note: Callable[[str], None] = lambda s: None) -> Baselines:
+    """Klipper's rule, what the printer runs now (when known) and no shaping, evaluated with the
+    study's evaluator, bounds and frequency margin (``settings``: a StudySettings)."""
+    from ringtune.agents.klipper import baseline as klipper_baseline
+    from ringtune.agents.tune import study as tune_study
+
+    out = Baselines()
+    configs: dict[str, TuneConfig] = {}
+    kcfg, why = recorded_klipper(printer, firmware)
+    if kcfg is not None:
+        configs["klipper"] = kcfg
+        rec = printer.measurement.get("klipper", {})
+        version = f" (Klipper {rec['version']})" if rec.get("version") else ""
+        out.labels["klipper"] = f"Klipper's rule {FROM_FILES}{version}"
+        out.sources["klipper"] = "measurement"
+    else:
+        try:
+            out.fits, fields = klipper_baseline.klipper_rule_on_simulated_test(printer, firmware, "head", seed=seed)
+            if fields.get("accel") is None:
+                fields["accel"] = float(printer.limits.accel)
+            configs["klipper"] = TuneConfig(**fields, extra={"source": "Klipper's calibrate_shaper rule (HEAD) "
+                                                             + SIMULATED})
+            out.labels["klipper"] = f"Klipper's rule {SIMULATED}"
+            out.sources["klipper"] = "simulated resonance test"
+            if printer.measurement.get("klipper"):
+                note(f"ringtune tune: {why}; Klipper's rule is computed {SIMULATED} instead")
+        except (ImportError, RingtuneError) as exc:
+            note(f"ringtune tune: Klipper's-rule baseline skipped: {exc}")
+    ccfg, why = current_config(printer, firmware)
+    if ccfg is not None:
+        configs["current"] = ccfg
+        src = printer.current.get("source")
+        out.labels["current"] = "what the printer runs now" + (f" ({src})" if src else "")
+        out.sources["current"] = "[current]"
+    elif why:
+        note(f"ringtune tune: {why}")
+    configs["none"] = TuneConfig(firmware=firmware, shaper_x="none", shaper_y="none", freq_x=0.0, freq_y=0.0,
+                                 accel=float(printer.limits.accel), extra={"source": "no shaping"})
+    out.labels["none"] = "no shaping"
+    out.sources["none"] = "no shaping"
+    metrics = evaluator(list(configs.values()), printer, settings.job, **tune_study.evaluator_kwargs(settings))
+    max_load = 1.0 - settings.motor_reserve if settings.motor_reserve > 0 else 0.0
+    out.points = {key: point_from_metrics(cfg, m, quality, label=key, max_path_error_mm=settings.max_path_error_mm,
+                                          max_motor_load=max_load)
+                  for (key, cfg), m in zip(configs.items(), metrics)}
+    return out
+
+
+def warm_start(kcfg: TuneConfig, fits: dict, space) -> list[TuneConfig]:
+    """Klipper's pick at its max_accel and 1.1×, 1.25×, 1.5× it (and at 0.6× the range's top when its
+    max_accel is above that: the motors would need more than 60 % of their force, resonance not counted); the robust EI family at Klipper's own
+    per-shaper frequencies (when the rule ran here), at its max_accel, 1.25× it and the top of the
+    range (only points inside the space; one acceleration when it is not searched)."""
+    def at(cfg, factor):
+        a = min(space.accel[1], max(space.accel[0], round(kcfg.accel * factor / space.accel_step)
+                                    * space.accel_step))
+        return dataclasses.replace(cfg, accel=float(space.accel[0] if space.accel_fixed else a), extra={})
+
+    out = [at(kcfg, 1.0), at(kcfg, 1.1), at(kcfg, 1.25), at(kcfg, 1.5)]
+    if kcfg.accel and kcfg.accel > 0.6 * space.accel[1]:   # a weak motor: also where its force keeps a reserve
+        out.append(at(kcfg, 0.6 * space.accel[1] / kcfg.accel))
+    for name in ("ei", "2hump_ei", "3hump_ei"):
+        freqs = {}
+        for ax in ("x", "y"):
+            rec = fits.get(ax) if fits else None
+            row = next((f for f in rec.shapers if f.name == name), None) if rec else None
+            if row is not None:
+                freqs[ax] = round(row.freq, 1)
+        if len(freqs) == 2 and name in space.shapers:
+            fy = freqs["y"] if space.per_axis else freqs["x"]
+            cfg = dataclasses.replace(kcfg, shaper_x=name, shaper_y=name, freq_x=freqs["x"], freq_y=fy, extra={})
+            out += [at(cfg, 1.0), at(cfg, 1.25), at(cfg, space.accel[1] / kcfg.accel)]
+    seen, unique = set(), []
+    for c in out:
+        key = (c.shaper_x, c.freq_x, c.shaper_y, c.freq_y, c.accel)
+        if key not in seen and inside(c, space):
+            seen.add(key)
+            unique.append(c)
+    return unique
+
+
+def inside(cfg: TuneConfig, space) -> bool:
+    ok = space.accel[0] <= (cfg.accel or 0) <= space.accel[1]
+    for ax in ("x", "y"):
+        name, f, _ = cfg.axis(ax)
+        lo, hi = getattr(space, f"freq_{ax}")
+        ok &= name == "none" or (name in space.shapers and lo <= f <= hi)
+    return bool(ok) and (space.per_axis or cfg.shaper_x == cfg.shaper_y)

@@ -1,0 +1,179 @@
+"""What ``ringtune tune`` says about acceleration: the job's own acceleration commands, the print
+times with them and without them, and which limit stops the chosen acceleration.
+
+A sliced job often sets its own accelerations (Marlin ``M201``/``M204``, Klipper
+``SET_VELOCITY_LIMIT``, per-feature ``M204``). With ``--job-accel respect`` they stand (the print as
+sliced) and the tuned acceleration only rules where the job sets none — where it has no effect it
+is not searched; with ``--job-accel replace`` the tuned acceleration replaces them (what
+re-slicing at it, with the machine limits raised to it, would give). Print times here come from
+the planner alone (no physics), through :func:`ringtune.envs.evaluate.planned_job`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point
+from ringtune.envs.evaluate import job_accel_commands, planned_job, resolve_job
+from ringtune.shaping.config import TuneConfig
+
+#: how the job's acceleration settings are written in G-code
+
+@dataclass
+class JobAccelFacts:
+    """The job's own acceleration commands and its top speed (mm/s)."""
+
+    printer: Any
+    job: Any
+    commands: dict = field(default_factory=dict)     # setting -> largest value set, mm/s²
+    top_speed: float = 0.0
+    cap: float | None = None                         # mm/s²: the largest acceleration the job lets any move have
+
+    def time(self, config: TuneConfig, mode: str) -> float:
+        return planned_job(self.printer, self.job, config, job_accel=mode).print_time
+
+    def accel_matters(self, space) -> bool:
+        """Whether the acceleration changes the print time beyond the resolution under ``respect``
+        over the space's range."""
+        lo, hi = (TuneConfig(accel=float(a)) for a in space.accel)
+        t_lo, t_hi = self.time(lo, "respect"), self.time(hi, "respect")
+        return abs(t_lo - t_hi) > DEFAULT_RESOLUTION.time_rel * max(t_lo, t_hi)
+
+    def described(self) -> str:
+        """The commands as G-code would write them (largest value of each), e.g.
+        ``M201 X1500 Y1500, M204 P1500 T1500 R1000``."""
+        c = self.commands
+        parts = []
+        if "max_accel_x" in c or "max_accel_y" in c:
+            parts.append("M201" + "".join(f" {a.upper()}{c[f'max_accel_{a}']:.0f}" for a in "xy"
+                                          if f"max_accel_{a}" in c))
+        m204 = "".join(f" {w}{c[k]:.0f}" for k, w in (("accel_print", "P"), ("accel_travel", "T"),
+                                                     ("accel_retract", "R")) if k in c)
+        if m204:
+            parts.append("M204" + m204)
+        elif "accel_klipper" in c:
+            parts.append(f"SET_VELOCITY_LIMIT ACCEL={c['accel_klipper']:.0f} (or M204 S)")
+        return ", ".join(parts)
+
+    def notes(self, mode: str, space) -> list[str]:
+        if not self.commands:
+            return []
+        head = f"the job sets its own accelerations ({self.described()}, mm/s²)" + (
+            f": the file caps acceleration at {self.cap:.0f} mm/s²" if self.cap else "")
+        if mode == "respect":
+            tail = ("; --job-accel respect: they stand (the print as sliced)" +
+                    ("; the acceleration has no effect and is not searched" if space.accel_fixed else "")
+                    + ". --job-accel replace tunes the acceleration that re-slicing would use.")
+        else:
+            tail = "; --job-accel replace: the tuned acceleration replaces them (what re-slicing would give)."
+        return [head + tail]
+
+
+def job_accel_facts(printer, job, mode: str) -> JobAccelFacts:
+    """The job's acceleration commands, its top speed (the largest speed a move asks for after the
+    velocity limits, mm/s; under ``respect`` the job's own limits count) and the acceleration cap
+    those commands put on it (under ``respect``, planned at a very high machine acceleration)."""
+    _, parsed = resolve_job(job)
+    facts = JobAccelFacts(printer, job, job_accel_commands(parsed))
+    pj = planned_job(printer, job, None)
+    m = pj.plan.moves
+    xy = np.hypot(*(m.end - m.start)[:, :2].T) > 0
+    facts.top_speed = float(m.v_nominal[xy].max()) if xy.any() else float(printer.limits.velocity)
+    if facts.commands:   # moves under one of the job's own acceleration commands, planned without a machine cap
+        ruled = np.zeros(len(xy), bool)
+        for k in facts.commands:
+            ruled |= ~np.isnan(parsed.setting(k))
+        far = planned_job(printer, job, TuneConfig(accel=1e6), job_accel="respect").plan.moves
+        sel = xy & ruled
+        facts.cap = float(far.accel[sel].max()) if sel.any() else None
+    return facts
+
+
+def job_accel_section(facts: JobAccelFacts, mode: str, printer, job, chosen: TuneConfig) -> tuple[list[str], dict]:
+    """Summary lines and JSON for the job's own accelerations: both print times of the chosen
+    configuration (as sliced; with the job's accelerations replaced by the chosen one)."""
+    info = {"mode": mode, "commands": dict(facts.commands), "cap_mm_s2": facts.cap, "searched": None,
+            "print_time_as_sliced_s": None, "print_time_replaced_s": None, "replaced_accel": chosen.accel,
+            "saved_s": None}
+    if not facts.commands:
+        return [], info
+    sliced = facts.time(chosen, "respect")
+    replaced = facts.time(chosen, "replace")
+    info.update(print_time_as_sliced_s=sliced, print_time_replaced_s=replaced, saved_s=sliced - replaced)
+    lines = [f"The job sets its own accelerations ({facts.described()}, mm/s²)"
+             + (f": the file caps acceleration at {facts.cap:.0f} mm/s²." if facts.cap else ".")]
+    saved = sliced - replaced
+    pct = 100.0 * saved / sliced if sliced else 0.0
+    if mode == "respect":
+        lines.append(f"--job-accel respect (the print as sliced): chosen configuration {sliced:.1f} s.")
+        lines.append(f"With the job's accelerations replaced by {chosen.accel:.0f} mm/s² (re-slicing): {replaced:.1f} s, "
+                     f"{saved:.1f} s ({pct:.1f} %) less — print time only, quality not judged at it here; "
+                     "--job-accel replace tunes that acceleration.")
+    else:
+        lines.append(f"--job-accel replace: the chosen {chosen.accel:.0f} mm/s² replaces them: {replaced:.1f} s; "
+                     f"as sliced (the job's own accelerations, same shaper): {sliced:.1f} s.")
+        lines.append(f"Re-slicing at {chosen.accel:.0f} mm/s² (print and travel accelerations, and the machine "
+                     f"limits M201 raised to it) would save {saved:.1f} s ({pct:.1f} %).")
+    return lines, info
+
+
+def accel_statement(chosen: Point, space, max_pe: float, reserve: float, points,
+                    printer=None) -> tuple[list[str], dict]:
+    """Which limit stops the chosen acceleration and how far it is from it: the motor reserve,
+    the path-error bound, the range's edge (the motors' force, or ``--accel-range``), or none of
+    them (then the choice of quality stops it). With ``printer``: its per-axis caps (which limit
+    moves along one axis, not the tuned value) and whether the motor bound rests on defaults."""
+    from ringtune.agents.tune.space import axis_cap_notes, defaults_note
+
+    a = float(chosen.config.accel or 0.0)
+    lo, hi = space.accel
+    info = {"range": [lo, hi], "searched": not space.accel_fixed, "basis": space.accel_basis, "chosen": a,
+            "stopped_by": None, "headroom": {}, "defaults": []}
+    tail = []
+    if printer is not None:
+        tail = axis_cap_notes(printer)
+        note = defaults_note(printer)
+        if note:
+            tail.append(note)
+            info["defaults"] = list(printer.defaulted)
+    if space.accel_fixed:
+        info["stopped_by"] = "not searched"
+        return [f"{a:.0f} mm/s², {space.accel_basis}."] + tail, info
+    cands = []
+    load = chosen.metrics.get("motor_load")
+    if reserve > 0 and load:
+        cap = 1.0 - reserve
+        cands.append(("motor reserve", load / cap, f"motor load {load * 100:.0f} % of the force the motors have at "
+                      f"their speed; the reserve allows {cap * 100:.0f} % ({(cap - load) * 100:.0f} points free)"))
+        info["headroom"]["motor_load"] = cap - load
+    pe = chosen.metrics.get("path_error_mm")
+    if max_pe > 0 and pe is not None:
+        cands.append(("path error", pe / max_pe, f"path error {pe * 1000:.1f} µm of the {max_pe * 1000:g} µm bound "
+                      f"({(max_pe - pe) * 1000:.1f} µm free)"))
+        info["headroom"]["path_error_mm"] = max_pe - pe
+    cands.append(("range edge", a / hi, f"{hi:.0f} mm/s² ({space.accel_basis})"
+                  + ("; the choice is on it" if hi - a < 0.5 else f", {hi - a:.0f} mm/s² above the choice")))
+    info["headroom"]["accel_mm_s2"] = hi - a
+    name, ratio, text = max(cands, key=lambda c: c[1])
+    lines = [f"Chosen {a:.0f} mm/s² (searched {lo:.0f}–{hi:.0f})."]
+    if ratio >= 0.9:
+        info["stopped_by"] = name
+        lines.append(f"Stopped by the {name}: {text}.")
+    else:
+        info["stopped_by"] = "quality"
+        lines.append("No bound is within 10 % of it: what stops it is quality — the faster front points have more "
+                     "overshoot or path error than the choice allows.")
+    lines += [f"  {'range edge: ' if n == 'range edge' else ''}{t}" for n, r, t in cands if n != name or ratio < 0.9]
+    faster = [p for p in points if (p.config.accel or 0) > a]
+    if faster:
+        why = {"lose steps": sum(p.step_loss for p in faster),
+               "exceed the path-error bound": sum(p.too_rough and not p.step_loss for p in faster),
+               "break the motor reserve": sum(p.overloaded and not p.too_rough and not p.step_loss for p in faster)}
+        said = ", ".join(f"{n} {w}" for w, n in why.items() if n)
+        if said:
+            lines.append(f"Of the {len(faster)} trials at a higher acceleration, {said}.")
+    return lines + tail, info

@@ -1,0 +1,370 @@
+"""The output folder of ``ringtune tune``: what a person opens after a study.
+
+Files (all in ``out_dir``):
+
+- ``README.txt``   — what each file is and which to open first;
+- ``summary.txt``  — the chosen configuration and why, how it compares with each baseline (Klipper's
+  rule, what the printer runs now, no shaping: by how much, in s and µm, and per figure better /
+  same / worse at the resolution of :class:`ringtune.agents.tune.pareto.Resolution`), what stops the
+  acceleration, the job's own accelerations, and the Pareto front as a table;
+- ``pareto.png``   — print time (s) against overshoot and against path error (mm): every trial
+  (ruled-out ones too; off-scale ones as counted arrows), the front, the chosen point, the
+  baselines (marked when they break a bound) and the point dominating a baseline
+  (:mod:`ringtune.agents.tune.pareto_plot`);
+- ``best.json``    — the chosen TuneConfig (for ``ringtune export``/``push``/``simulate``);
+- ``apply.txt``    — the exact firmware lines that apply it (``hardware.dialects``);
+- ``front.csv``, ``trials.csv`` — the front and every complete trial, one row each.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+from ringtune.agents.tune.pareto import (BASELINE_NAMES, DEFAULT_RESOLUTION, Choice, Point, Resolution, judge)
+from ringtune.agents.tune.pareto_plot import plot_front
+
+QUALITY_LABEL = {"overshoot_mm": "overshoot", "path_error_mm": "path error"}
+
+
+@dataclass
+class Comparison:
+    """How ``point`` compares with a baseline (positive = better than the baseline), with the
+    verdict per figure at the resolution (``better|same|worse``) and ``dominates`` (nothing worse,
+    something better; :func:`ringtune.agents.tune.pareto.judge`)."""
+
+    baseline: str
+    faster_s: float
+    faster_pct: float
+    better_mm: float
+    better_pct: float
+    dominates: bool
+    metrics: dict = field(default_factory=dict)
+    path_error_better_mm: float | None = None
+    path_error_better_pct: float | None = None
+
+    def sentence(self, quality: str) -> str:
+        word = QUALITY_LABEL.get(quality, quality)
+
+        def same(key):
+            return ": the same" if self.metrics.get(key) == "same" else ""
+        t = (f"{self.faster_s:.3f} s faster ({self.faster_pct:.1f} %{same('print_time_s')})" if self.faster_s >= 0
+             else f"{-self.faster_s:.3f} s slower ({-self.faster_pct:.1f} %{same('print_time_s')})")
+        parts = [t, _diff(self.better_mm, self.better_pct, word, same(quality))]
+        if quality != "path_error_mm" and self.path_error_better_mm is not None:
+            parts.append(_diff(self.path_error_better_mm, self.path_error_better_pct, "path error",
+                               same("path_error_mm")))
+        worse = [_NAMES.get(k, k) for k, v in self.metrics.items() if v == "worse"]
+        tail = (" — dominates it" if self.dominates else
+                f" — does not dominate it (worse {', '.join(worse)})" if worse else
+                " — the same within the resolution")
+        return "; ".join(parts) + tail
+
+    def to_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+_NAMES = {"print_time_s": "print time", "overshoot_mm": "overshoot", "path_error_mm": "path error",
+          "feasible": "feasibility (it breaks a bound the baseline keeps)"}
+
+
+def _diff(better_mm: float, pct: float | None, word: str, same: str = "") -> str:
+    p = f" ({abs(pct):.1f} %{same})" if pct is not None else (f" ({same[2:]})" if same else "")
+    return (f"{better_mm * 1000:.1f} µm less {word}{p}" if better_mm >= 0
+            else f"{-better_mm * 1000:.1f} µm more {word}{p}")
+
+
+def compare(point: Point, base: Point, res: Resolution = DEFAULT_RESOLUTION) -> Comparison:
+    dt = base.print_time_s - point.print_time_s
+    dq = base.quality_mm - point.quality_mm
+    j = judge(point, base, res)
+    pe_p, pe_b = point.value("path_error_mm"), base.value("path_error_mm")
+    dpe = None if pe_p is None or pe_b is None else pe_b - pe_p
+    return Comparison(base.label, dt, 100.0 * dt / base.print_time_s if base.print_time_s else 0.0,
+                      dq, 100.0 * dq / base.quality_mm if base.quality_mm else 0.0, j.dominates, j.verdicts,
+                      dpe, None if dpe is None or not pe_b else 100.0 * dpe / pe_b)
+
+
+def best_dominating(front: Sequence[Point], base: Point, res: Resolution = DEFAULT_RESOLUTION) -> Point | None:
+    """The front point dominating ``base`` at the resolution with the largest summed relative
+    gain, or None."""
+    dom = [p for p in front if judge(p, base, res).dominates]
+    if not dom:
+        return None
+
+    def gain(p: Point) -> float:
+        return ((base.print_time_s - p.print_time_s) / max(base.print_time_s, 1e-12)
+                + (base.quality_mm - p.quality_mm) / max(base.quality_mm, 1e-12))
+
+    return max(dom, key=gain)
+
+
+def describe(cfg) -> str:
+    """One line: shapers, F, S, frequency limit and acceleration of a TuneConfig."""
+    def ax(a):
+        name, f, z = cfg.axis(a)
+        return f"{a.upper()} {name}" if name == "none" else f"{a.upper()} {name} @ {f:.1f} Hz"
+    z = cfg.damping_x if cfg.shaper_x != "none" else cfg.damping_y
+    parts = [ax("x"), ax("y")]
+    if cfg.shaper_x != "none" or cfg.shaper_y != "none":
+        parts.append(f"S {z:.3f}")
+    parts.append("no freq limit" if cfg.freq_limit_hz <= 0 else
+                 f"freq limit {cfg.freq_limit_hz:.1f} Hz ({cfg.freq_limit_method})")
+    parts.append(f"accel {cfg.accel:.0f} mm/s²" if cfg.accel else "printer's accel")
+    return ", ".join(parts)
+
+
+_ROW_KEYS = ("print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss", "motor_load")
+
+
+def _row(p: Point) -> dict[str, Any]:
+    c = p.config
+    row = {"label": p.label, "print_time_s": round(p.print_time_s, 4)}
+    for k in _ROW_KEYS[1:]:
+        v = p.metrics.get(k)
+        row[k] = v if not isinstance(v, float) else round(v, 6)
+    row.update({"shaper_x": c.shaper_x, "freq_x": c.freq_x, "shaper_y": c.shaper_y, "freq_y": c.freq_y,
+                "damping": c.damping_x, "freq_limit_hz": c.freq_limit_hz,
+                "freq_limit_method": c.freq_limit_method if c.freq_limit_hz > 0 else "off", "accel": c.accel})
+    return row
+
+
+def _write_csv(path: Path, points: Sequence[Point]) -> None:
+    rows = [_row(p) for p in points]
+    if not rows:
+        path.write_text("")
+        return
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+
+
+def front_table(front: Sequence[Point], chosen: Point, quality: str) -> str:
+    word = QUALITY_LABEL.get(quality, quality)
+    pe = quality != "path_error_mm"
+    lines = [f"  {'':2}{'time s':>8} {word + ' µm':>14}" + (f" {'path error µm':>14}" if pe else "")
+             + "  configuration"]
+    for p in front:
+        mark = "*" if p is chosen else " "
+        extra = f" {p.metrics.get('path_error_mm', float('nan')) * 1000:14.1f}" if pe else ""
+        lines.append(f"  {mark:2}{p.print_time_s:8.3f} {p.quality_mm * 1000:14.1f}{extra}  {describe(p.config)}")
+    return "\n".join(lines)
+
+
+def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Point], choice: Choice,
+                 baselines: dict[str, Point], quality: str, printer_name: str, job_name: str,
+                 firmware: str, n_trials: int, storage: str, study_name: str,
+                 command: str = "ringtune tune", notes: Sequence[str] = (), max_path_error_mm: float = 0.0,
+                 motor_reserve: float = 0.0, resolution: Resolution = DEFAULT_RESOLUTION,
+                 baseline_labels: dict[str, str] | None = None, sections: Sequence[tuple[str, list[str]]] = (),
+                 export_firmware: str | None = None, best_extra: dict | None = None) -> dict[str, Any]:
+    """Write the output folder; returns the summary dict (also the CLI's --json).
+
+    ``baseline_labels``: how each baseline is named (e.g. "Klipper's rule on a simulated resonance
+    test"); ``sections``: (title, lines) blocks printed after the baselines (the acceleration's
+    limit, the job's own accelerations); ``export_firmware``: the dialect apply.txt is written in
+    (default ``firmware``); ``best_extra``: more keys for best.json's extra."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    chosen = choice.point
+    word = QUALITY_LABEL.get(quality, quality)
+    labels = {k: (baseline_labels or {}).get(k, BASELINE_NAMES.get(k, k)) for k in baselines}
+    dialect = export_firmware or firmware
+
+    best_cfg = chosen.config
+    best_cfg.extra.update({"source": "ringtune tune", "printer": printer_name, "job": job_name,
+                           "metrics": {k: chosen.metrics.get(k) for k in _ROW_KEYS if k in chosen.metrics},
+                           "chosen_by": choice.by, **(best_extra or {})})
+    best_cfg.save(out_dir / "best.json")
+
+    apply_text, apply_note = _apply_lines(best_cfg, dialect)
+    (out_dir / "apply.txt").write_text(apply_text)
+
+    comparisons = {k: compare(chosen, b, resolution) for k, b in baselines.items()}
+    dominating = {}
+    for k in ("klipper", "current"):
+        if k in baselines:
+            d = best_dominating(front, baselines[k], resolution)
+            if d is not None:
+                dominating[k] = (d, compare(d, baselines[k], resolution))
+
+    title = f"{printer_name} · {job_name} · {firmware} · {len(points)} trials"
+    marked = {f"dominates {labels[k]} (at the resolution)": d for k, (d, _c) in dominating.items()}
+    drawn = plot_front(out_dir / "pareto.png", points, front, chosen, baselines, quality, title,
+                       max_path_error_mm=max_path_error_mm, baseline_labels=labels, marked=marked)
+    arrows = {k: {w: n for w, n in v.items() if w != "legend"} for k, v in drawn.items()}
+    _write_csv(out_dir / "front.csv", front)
+    _write_csv(out_dir / "trials.csv", sorted(points, key=lambda p: p.number if p.number is not None else -1))
+
+    s = [f"ringtune tune — {title}", ""]
+    s.append(f"CHOSEN ({choice.sentence}):")
+    s.append(f"  {describe(best_cfg)}")
+    s.append("  " + _figures(chosen, quality))
+    rewrite, rewrite_line = _job_rewrite(best_cfg, dialect)
+    if rewrite_line:
+        s.append("  " + rewrite_line)
+    s.append("")
+    s.append("BASELINES (same printer, job and simulation):")
+    for k, b in baselines.items():
+        s.append(f"  {labels[k]}: {describe(b.config)}")
+        s.append("    " + _figures(b, quality)
+                 + ("  (LOSES STEPS)" if b.step_loss else "")
+                 + ("  (PATH ERROR OVER THE BOUND)" if b.too_rough else "")
+                 + ("  (MOTOR LOAD OVER THE RESERVE)" if b.overloaded else ""))
+        s.append(f"    chosen vs this: {comparisons[k].sentence(quality)}")
+    for k in ("klipper", "current"):
+        if k not in baselines:
+            continue
+        if k in dominating:
+            d, c = dominating[k]
+            s.append(f"  Best front point dominating {labels[k]}: {describe(d.config)}")
+            s.append(f"    {c.sentence(quality)}")
+        else:
+            s.append(f"  No front point dominates {labels[k]} in this run (try more --trials).")
+    s.append(f"  (\"the same\", \"dominates\": {resolution.describe()}.)")
+    for head, lines in sections:
+        s.append("")
+        s.append(f"{head}:")
+        s.extend(f"  {line}" for line in lines)
+    s.append("")
+    dims = "print time and " + word + ("" if quality == "path_error_mm" else ", path error")
+    s.append(f"PARETO FRONT over {dims} ({len(front)} of {len(points)} trials; * = chosen):")
+    s.append(front_table(front, chosen, quality))
+    s.append("")
+    n_rough = sum(p.too_rough and not p.step_loss for p in points)
+    n_lost = sum(p.step_loss for p in points)
+    n_load = sum(p.overloaded and not p.too_rough and not p.step_loss for p in points)
+    ruled = [f"{n_lost} trials that lose steps"]
+    ruled.append(f"{n_rough} whose path error (corner rounding, overshoot, ringing) exceeds {max_path_error_mm:g} mm "
+                 "(--max-path-error)" if max_path_error_mm > 0 else "path error not bounded (--max-path-error 0)")
+    ruled.append(f"{n_load} that ask a motor for more than {(1 - motor_reserve) * 100:.0f} % of its force "
+                 "(--motor-reserve)" if motor_reserve > 0 else "motor load not bounded (--motor-reserve 0)")
+    s.append("Ruled out: " + "; ".join(ruled) + ". All are drawn in pareto.png.")
+    s.extend(notes)
+    s.append(f"Study '{study_name}' in {storage}; rerun the same command to resume or extend it (--trials).")
+    if apply_note:
+        s.append(apply_note)
+    summary_text = "\n".join(s) + "\n"
+    (out_dir / "summary.txt").write_text(summary_text)
+    (out_dir / "README.txt").write_text(_readme(out_dir, best_cfg, dialect, storage, command))
+
+    def base_dict(k, b):
+        return {"config": b.config.to_dict(), "print_time_s": b.print_time_s, "quality_mm": b.quality_mm,
+                "path_error_mm": b.metrics.get("path_error_mm"), "overshoot_mm": b.metrics.get("overshoot_mm"),
+                "motor_load": b.metrics.get("motor_load"), "step_loss": b.step_loss,
+                "breaks": [w for w, f in (("step_loss", b.step_loss), ("max_path_error", b.too_rough),
+                                          ("motor_reserve", b.overloaded)) if f],
+                "label": labels[k]}
+
+    def dom_dict(k):
+        if k not in baselines:
+            return None
+        if k not in dominating:
+            return None
+        d, c = dominating[k]
+        return {"config": d.config.to_dict(), "print_time_s": d.print_time_s, "quality_mm": d.quality_mm,
+                **c.to_dict()}
+
+    result = {
+        "out": str(out_dir),
+        "trials": len(points),
+        "front_size": len(front),
+        "quality": quality,
+        "max_path_error_mm": max_path_error_mm,
+        "motor_reserve": motor_reserve,
+        "resolution": {"distance_mm": resolution.distance_mm, "distance_rel": resolution.distance_rel,
+                       "time_rel": resolution.time_rel},
+        "chosen": {"config": best_cfg.to_dict(), "print_time_s": chosen.print_time_s, "quality_mm": chosen.quality_mm,
+                   "path_error_mm": chosen.metrics.get("path_error_mm"),
+                   "overshoot_mm": chosen.metrics.get("overshoot_mm"), "motor_load": chosen.metrics.get("motor_load"),
+                   "chosen_by": choice.by, "against": choice.baseline, "why": choice.sentence,
+                   "rewrite_jobs": rewrite},
+        "baselines": {k: base_dict(k, b) for k, b in baselines.items()},
+        "vs_baselines": {k: c.to_dict() for k, c in comparisons.items()},
+        "dominates_klipper": dom_dict("klipper"),
+        "dominates_current": dom_dict("current"),
+        "plot_arrows": arrows,
+        "files": {k: str(out_dir / v) for k, v in (("readme", "README.txt"), ("summary", "summary.txt"),
+                                                   ("plot", "pareto.png"), ("best", "best.json"),
+                                                   ("apply", "apply.txt"), ("front", "front.csv"),
+                                                   ("trials", "trials.csv"))},
+    }
+    return {"summary_text": summary_text, **result}
+
+
+def _figures(p: Point, quality: str) -> str:
+    """print time, quality, path error and motor load of a point, one line."""
+    word = QUALITY_LABEL.get(quality, quality)
+    out = f"print time {p.print_time_s:.3f} s, {word} {p.quality_mm * 1000:.1f} µm"
+    if quality != "path_error_mm" and "path_error_mm" in p.metrics:
+        out += f", path error {p.metrics['path_error_mm'] * 1000:.1f} µm"
+    if p.metrics.get("motor_load"):
+        out += f", motor load {p.metrics['motor_load'] * 100:.0f} %"
+    return out
+
+
+def _job_rewrite(cfg, dialect: str | None = None) -> tuple[str | None, str]:
+    """(the ``ringtune limit`` command, one summary line) when the chosen frequency limit cannot be
+    set on the firmware and every job must be rewritten with it (no limit of the firmware's own, or
+    Marlin's ``M201 F`` with another method than Marlin's); (None, "") otherwise."""
+    from ringtune.shaping.firmware import Firmware
+
+    if cfg.freq_limit_hz <= 0:
+        return None, ""
+    fw = Firmware.named(dialect or cfg.firmware)
+    if fw.freq_limit and cfg.freq_limit_method == "marlin":
+        return None, ""
+    try:
+        from ringtune.hardware.dialects import limit_command
+    except ImportError:
+        cmd = f"ringtune limit FILE.gcode --freq-limit {cfg.freq_limit_hz:g} --method {cfg.freq_limit_method}"
+    else:
+        cmd = limit_command(cfg)
+    why = (f"{fw.title} has no frequency limit of its own" if not fw.freq_limit else
+           f"{fw.title}'s M201 F runs Marlin's method, not '{cfg.freq_limit_method}'")
+    return cmd, (f"The {cfg.freq_limit_hz:g} Hz frequency limit is not a printer setting ({why}): rewrite every "
+                 f"job with `{cmd}` before printing it.")
+
+
+def _apply_lines(cfg, dialect: str | None = None) -> tuple[str, str]:
+    try:
+        from ringtune.hardware.dialects import export_config
+    except ImportError:
+        return ("# hardware.dialects is not available; run `ringtune export best.json` later\n",
+                "apply.txt: firmware export was not available.")
+    try:
+        return export_config(cfg, dialect).render(), ""
+    except Exception as exc:  # a firmware range refusal: say so instead of failing the study
+        return (f"# could not export for {dialect or cfg.firmware}: {exc}\n", f"apply.txt: {exc}")
+
+
+def _readme(out_dir: Path, cfg, firmware: str, storage: str, command: str) -> str:
+    return f"""ringtune tune results — start here
+=================================
+
+1. summary.txt   The answer: the chosen input-shaping configuration, and how it compares with
+                 Klipper's own rule, with what the printer runs now (when known) and with no
+                 shaping on the same printer and job (seconds and micrometres). Then what stops
+                 the acceleration, and the whole trade-off (the Pareto front) as a table.
+2. pareto.png    The trade-off as a picture: print time (s) against overshoot and against path
+                 error (mm). Grey dots are trials, blue the best trade-offs, the gold star the
+                 chosen point, the orange square Klipper's rule, the green diamond what the printer
+                 runs now, the black triangle no shaping (a red edge: it breaks a bound). Red
+                 crosses lost steps, purple plus signs left the path by more than
+                 --max-path-error, brown marks asked a motor for more than --motor-reserve allows
+                 (all ruled out); arrows at an edge are points beyond the scale. Lower-left is better.
+3. apply.txt     The exact {firmware} lines that put the chosen configuration on the printer.
+                 Or: ringtune export {out_dir / 'best.json'} --firmware {firmware}
+                     ringtune push {out_dir / 'best.json'} --port /dev/ttyUSB0 --firmware {firmware}
+4. best.json     The chosen configuration (TuneConfig) for ringtune simulate / export / push.
+5. front.csv, trials.csv   Every point of the front and every trial, for your own analysis.
+
+To pick another point of the front: rerun with --pick knee, or --weight W (seconds of print time
+you would give for 1 mm less error; e.g. --weight 100). The study itself is kept in {storage}:
+running the same command again resumes it with nothing lost:
+  {command}
+(--trials N extends it to N trials).
+"""

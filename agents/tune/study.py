@@ -1,0 +1,420 @@
+"""The Optuna Pareto study behind ``ringtune tune``: print time against quality, step loss a constraint.
+
+- Objectives (both minimised): ``print_time_s`` and ``path_error_mm`` or ``overshoot_mm``
+  (:data:`QUALITY_METRICS`), from ``ringtune.envs.evaluate.evaluate_many`` or an injected
+  evaluator ``f(configs, printer, job) -> [Metrics]`` (given as ``"module:function"`` so that
+  worker processes can import it).
+- Constraints: step loss (``trial.set_constraint("step_loss", 1.0 | 0.0)``), the path-error
+  bound (``"path_error"``: path_error_mm − ``max_path_error_mm``; corner rounding by heavy
+  smoothing is not quality) and the motor reserve (``"motor_load"``: motor_load − (1 − reserve),
+  judged like quality on the printer and its detuned twins); infeasible trials never reach the
+  front. The bounds are applied again when the results are read, so a resumed study may be
+  judged with other bounds.
+- Storage (:func:`make_storage`): a journal file in the output folder by default
+  (``journal:out/study.journal``), or any RDB URL (``sqlite:///study.db``,
+  ``postgresql+psycopg2://...``) with Optuna's heartbeat (stale RUNNING trials of dead workers on
+  any machine are failed and re-run once). On this host, a RUNNING trial whose worker process is
+  gone is failed and re-run at once, whatever the storage.
+- Exactly N: a worker only evaluates a trial while ``complete + running-with-a-lower-number < N``;
+  otherwise the trial is pruned without evaluation. Rerunning the same command resumes with the
+  trials already complete; after Ctrl-C the current trial finishes first (a second Ctrl-C aborts
+  it; it is re-run on the next start).
+- Reproducibility: the TPE sampler is reseeded from (seed, trial number) before every trial, so a
+  seeded single-worker run — interrupted and resumed, or not — reproduces exactly.
+"""
+
+from __future__ import annotations
+
+import importlib
+import signal
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from ringtune.agents.tune.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MOTOR_RESERVE, Point, judge_bounds,
+                                    metrics_dict)
+from ringtune.agents.tune.space import SearchSpace, config_from_params, default_space, suggest_params
+from ringtune.agents.tune.storage import _this_worker, make_storage, reap_dead_workers
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+
+QUALITY_METRICS = ("overshoot_mm", "path_error_mm")
+#: fraction: by default every configuration is judged on the printer and on the printer with all
+#: resonances 5 % lower and 5 % higher, and the worst quality counts (``evaluate_many``'s
+#: ``freq_margin``): a real printer's frequencies drift by that much (print mass on the bed,
+#: toolhead position, a resonance test's 1.5 Hz bins), and a shaper at the edge of its band on the
+#: exact model does not survive it
+DEFAULT_FREQ_MARGIN = 0.05
+DEFAULT_EVALUATOR = "ringtune.envs.evaluate:evaluate_many"
+
+
+@dataclass
+class StudySettings:
+    """Everything a worker process needs to join a study (picklable)."""
+
+    storage: str
+    study_name: str = "ringtune"
+    n_trials: int = 100
+    seed: int | None = 0
+    quality: str = "overshoot_mm"
+    printer: str | None = None          # TOML path or embedded name; None = default printer
+    job: str | None = None              # G-code path; None = built-in test print
+    firmware: str = "klipper"
+    backend: str = "mujoco"
+    evaluator: str = DEFAULT_EVALUATOR
+    space: dict | None = None           # SearchSpace.to_dict(); None = default_space(printer, firmware)
+    n_startup_trials: int = 10
+    enqueue: list = field(default_factory=list)   # parameter dicts to try first (e.g. baselines)
+    max_path_error_mm: float = DEFAULT_MAX_PATH_ERROR_MM   # mm; 0 = no bound
+    freq_margin: float = DEFAULT_FREQ_MARGIN   # fraction: also judged with resonances ± this (worst counts)
+    motor_reserve: float = DEFAULT_MOTOR_RESERVE   # fraction of the motors' force kept free; 0 = no bound
+    job_accel: str = "replace"          # "respect": the job's M201/M204 stand; "replace": config.accel replaces them
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def resolve_evaluator(spec: str | Callable) -> Callable:
+    """``"module:function"`` -> the function (callables pass through)."""
+    if callable(spec):
+        return spec
+    mod, _, name = str(spec).partition(":")
+    if not mod or not name:
+        raise RingtuneError(f"evaluator must be 'module:function', not {spec!r}", "evaluator")
+    try:
+        return getattr(importlib.import_module(mod), name)
+    except (ImportError, AttributeError) as exc:
+        raise RingtuneError(f"cannot import evaluator {spec!r}: {exc}", "evaluator") from None
+
+
+def load_space(settings: StudySettings, printer: Any = None) -> SearchSpace:
+    if settings.space:
+        return SearchSpace.from_dict(settings.space)
+    if printer is None:
+        from ringtune.envs.printer import load_printer
+        printer = load_printer(settings.printer)
+    return default_space(printer, settings.firmware)
+
+
+def make_sampler(seed: int | None, n_startup_trials: int = 10):
+    """Multi-objective TPE whose random state depends only on (seed, trial number)."""
+    import optuna
+
+    class ReseedingTPESampler(optuna.samplers.TPESampler):
+        def __init__(self, seed, **kw):
+            super().__init__(seed=seed, **kw)
+            self._base_seed = seed
+
+        def before_trial(self, study, trial):
+            if self._base_seed is not None:
+                s = int(np.random.SeedSequence([int(self._base_seed), int(trial.number)]).generate_state(1)[0])
+                self._rng.rng.seed(s)
+                self._random_sampler._rng.rng.seed(s ^ 0x5EED)
+            super().before_trial(study, trial)
+
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+        return ReseedingTPESampler(seed, n_startup_trials=n_startup_trials, multivariate=True, group=True)
+
+
+def open_study(settings: StudySettings, seed: int | None = None):
+    """Create or load the study (same name + storage = the same study, from any process)."""
+    import optuna
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    storage = make_storage(settings.storage)
+    study = optuna.create_study(storage=storage, study_name=settings.study_name,
+                                directions=["minimize", "minimize"], load_if_exists=True,
+                                sampler=make_sampler(settings.seed if seed is None else seed,
+                                                     settings.n_startup_trials))
+    names = study.user_attrs.get("objectives")
+    wanted = ["print_time_s", settings.quality]
+    if names is None:
+        study.set_user_attr("objectives", wanted)
+        study.set_user_attr("settings", {k: v for k, v in settings.to_dict().items() if k != "storage"})
+        if settings.space:
+            study.set_user_attr("space", settings.space)
+    elif list(names) != wanted:
+        raise RingtuneError(f"study {settings.study_name!r} in this storage optimises {names}, not {wanted}; "
+                            "use another --study name or --out folder", "study_name")
+    else:
+        import json
+        stored = study.user_attrs.get("settings", {})
+        mine = json.loads(json.dumps(settings.to_dict()))
+        for key in ("printer", "job", "firmware", "backend", "evaluator", "space", "freq_margin", "job_accel"):
+            if key in stored and stored[key] != mine[key] and not (key == "space" and mine[key] is None):
+                raise RingtuneError(f"study {settings.study_name!r} in this storage was run with a different "
+                                    f"{key} ({_setting_text(key, stored[key])}; now "
+                                    f"{_setting_text(key, mine[key])}); use another --out folder or --study name",
+                                    "study_name")
+    return study
+
+
+def _setting_text(key: str, value) -> str:
+    """A stored study setting as a person would name it (None = the built-in default)."""
+    if value is None:
+        return {"printer": "the built-in default printer", "job": "the built-in test print",
+                "space": "the default search space"}.get(key, "none")
+    if key == "space" and isinstance(value, dict):
+        acc = value.get("accel")
+        return (f"acceleration {acc[0]:g}–{acc[1]:g} mm/s², F X {value.get('freq_x')}, F Y {value.get('freq_y')} Hz"
+                if acc else "another search space")
+    return repr(value)
+
+
+def count_states(study) -> dict[str, int]:
+    from optuna.trial import TrialState
+
+    trials = study.get_trials(deepcopy=False)
+    return {s.name: sum(1 for t in trials if t.state == s) for s in TrialState}
+
+
+# -- one worker ------------------------------------------------------------------------------------
+
+class _Stop:
+    requested = False
+
+
+def _install_sigint(flag: _Stop):
+    """First Ctrl-C: finish the current trial, then stop. Second: abort now."""
+    def handler(signum, frame):
+        if flag.requested:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            raise KeyboardInterrupt
+        flag.requested = True
+
+    try:
+        return signal.signal(signal.SIGINT, handler)
+    except ValueError:  # not the main thread
+        return None
+
+
+def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any = None,
+               on_trial: Callable[[Any], None] | None = None, stop: _Stop | None = None) -> int:
+    """Run trials of the study until it has ``n_trials`` complete ones (or Ctrl-C). Returns the
+    number this worker completed. Each extra worker uses seed + 1009·index."""
+    import optuna
+    from optuna.trial import TrialState
+
+    seed = None if settings.seed is None else settings.seed + 1009 * worker_index
+    study = open_study(settings, seed=seed)
+    evaluator = resolve_evaluator(settings.evaluator)
+    if printer is None and settings.evaluator == DEFAULT_EVALUATOR:
+        from ringtune.envs.printer import load_printer
+        printer = load_printer(settings.printer)
+    space = load_space(settings, printer)
+    stop = stop or _Stop()
+    previous = _install_sigint(stop)
+    done = 0
+    N = settings.n_trials
+
+    def objective(trial):
+        nonlocal done
+        trial.set_user_attr("worker", _this_worker())
+        ahead = 0
+        if trial.number >= N - 32:   # earlier trials cannot have N others ahead of them
+            others = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.RUNNING))
+            ahead = sum(1 for t in others if t.state == TrialState.COMPLETE
+                        or (t.state == TrialState.RUNNING and t.number < trial.number))
+        if ahead >= N or stop.requested:
+            trial.set_user_attr("skipped", True)
+            study.stop()
+            raise optuna.TrialPruned()
+        params = suggest_params(trial, space)
+        config = config_from_params(params, space)
+        try:
+            m = _call_evaluator(evaluator, settings, config, printer)
+        except KeyboardInterrupt:
+            trial.set_user_attr("interrupted", True)
+            raise
+        trial.set_user_attr("metrics", metrics_dict(m))
+        trial.set_constraint("step_loss", 1.0 if m.step_loss else 0.0)
+        bound = settings.max_path_error_mm
+        trial.set_constraint("path_error", float(m.path_error_mm) - bound if bound > 0 else -1.0)
+        reserve = settings.motor_reserve
+        load = getattr(m, "motor_load", None)
+        trial.set_constraint("motor_load", float(load) - (1.0 - reserve) if reserve > 0 and load is not None
+                             else -1.0)
+        return float(m.print_time_s), float(getattr(m, settings.quality))
+
+    def callback(st, frozen):
+        nonlocal done
+        if frozen.state == TrialState.COMPLETE:
+            done += 1
+            if on_trial:
+                on_trial(frozen)
+        if stop.requested:
+            st.stop()
+
+    try:
+        for params in settings.enqueue:
+            _enqueue_once(study, params)
+        while not stop.requested:
+            reap_dead_workers(study)
+            counts = count_states(study)
+            if counts["COMPLETE"] >= N:
+                break
+            free = N - counts["COMPLETE"] - counts["RUNNING"]
+            if free <= 0:
+                import warnings
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+                    optuna.storages.fail_stale_trials(study)
+                time.sleep(0.2)   # others are finishing the last trials (or a stale one awaits its heartbeat)
+                continue
+            study.optimize(objective, n_trials=free, callbacks=[callback], gc_after_trial=False,
+                           catch=(), show_progress_bar=False)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+    return done
+
+
+def _enqueue_once(study, params: dict) -> None:
+    """Enqueue a parameter set unless a trial (any state but FAIL) already has exactly it."""
+    from optuna.trial import TrialState
+
+    key = sorted(params.items())
+    for t in study.get_trials(deepcopy=False):
+        if t.state != TrialState.FAIL and (sorted(t.params.items()) == key or
+                                           t.system_attrs.get("fixed_params") == dict(params)):
+            return
+    study.enqueue_trial(params, skip_if_exists=False)
+
+
+def evaluator_kwargs(settings: StudySettings) -> dict:
+    """Keyword arguments for the evaluator: the default one takes the backend and the frequency
+    margin; an injected ``f(configs, printer, job)`` takes none."""
+    if settings.evaluator != DEFAULT_EVALUATOR:
+        return {}
+    return {"backend": settings.backend, "freq_margin": settings.freq_margin, "job_accel": settings.job_accel}
+
+
+def _call_evaluator(evaluator, settings: StudySettings, config: TuneConfig, printer):
+    out = evaluator([config], printer if printer is not None else settings.printer, settings.job,
+                    **evaluator_kwargs(settings))
+    return out[0]
+
+
+def _worker_main(argv: list[str]) -> int:
+    """``python -m ringtune.agents.tune.study worker INDEX`` with the settings as JSON on stdin."""
+    import json
+    import sys
+
+    if len(argv) != 2 or argv[0] != "worker":
+        print("usage: python -m ringtune.agents.tune.study worker INDEX  (settings JSON on stdin)", file=sys.stderr)
+        return 2
+    try:
+        run_worker(StudySettings(**json.loads(sys.stdin.read())), int(argv[1]))
+    except KeyboardInterrupt:
+        return 130
+    except RingtuneError as exc:
+        print(f"ringtune worker {argv[1]}: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+# -- the whole study -------------------------------------------------------------------------------
+
+@dataclass
+class StudyRun:
+    """What a run left in storage."""
+
+    study: Any
+    completed_before: int
+    completed_now: int
+    interrupted: bool
+
+
+def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
+              progress: Callable[[int, int, Any], None] | None = None) -> StudyRun:
+    """Run (or resume) the study with ``workers`` local processes; ``progress(done, total, study)``.
+
+    With one worker the trials run in this process; with more, spawned processes share the
+    storage and this process only watches (and reports progress).
+    """
+    if workers < 1:
+        raise RingtuneError("must be ≥ 1", "workers")
+    study = open_study(settings)
+    before = count_states(study)["COMPLETE"]
+    if progress:
+        progress(before, settings.n_trials, study)
+    stop = _Stop()
+    interrupted = False
+    if workers == 1:
+        def on_trial(_):
+            if progress:
+                progress(count_states(study)["COMPLETE"], settings.n_trials, study)
+        run_worker(settings, 0, printer=printer, on_trial=on_trial, stop=stop)
+        interrupted = stop.requested
+    else:
+        import json
+        import subprocess
+        import sys
+
+        for params in settings.enqueue:      # once, here: workers racing to enqueue would duplicate
+            _enqueue_once(study, params)
+        payload = json.dumps({**settings.to_dict(), "enqueue": []})
+        procs = [subprocess.Popen([sys.executable, "-m", "ringtune.agents.tune.study", "worker", str(i)],
+                                  stdin=subprocess.PIPE, text=True) for i in range(workers)]
+        for p in procs:
+            p.stdin.write(payload)
+            p.stdin.close()
+        try:
+            while any(p.poll() is None for p in procs):
+                time.sleep(0.3)
+                if progress:
+                    progress(count_states(study)["COMPLETE"], settings.n_trials, study)
+        except KeyboardInterrupt:
+            interrupted = True   # the workers got the same Ctrl-C: they finish their trial and stop
+            deadline = time.time() + 30
+            for p in procs:
+                try:
+                    p.wait(max(0.1, deadline - time.time()))
+                except subprocess.TimeoutExpired:
+                    p.terminate()
+        codes = [p.wait() for p in procs]
+        bad = [c for c in codes if c != 0 and not interrupted]
+        if bad:
+            raise RingtuneError(f"{len(bad)} worker process(es) failed (exit codes {bad}); "
+                                "rerun to resume", "workers")
+    after = count_states(study)["COMPLETE"]
+    if progress:
+        progress(after, settings.n_trials, study)
+    return StudyRun(study, before, after - before, interrupted)
+
+
+# -- reading results -----------------------------------------------------------------------------
+
+def study_points(study, space: SearchSpace | None = None, quality: str | None = None,
+                 max_path_error_mm: float | None = None, motor_reserve: float | None = None) -> list[Point]:
+    """All complete trials as points, flagged ``step_loss``, ``too_rough`` (path error over
+    ``max_path_error_mm``, mm) or ``overloaded`` (motor load over 1 − ``motor_reserve``); default
+    bounds: those the study was created with; 0 = no bound."""
+    from optuna.trial import TrialState
+
+    settings = study.user_attrs.get("settings", {})
+    quality = quality or study.user_attrs.get("objectives", ["", "overshoot_mm"])[1]
+    if space is None:
+        space = SearchSpace.from_dict(study.user_attrs["space"]) if "space" in study.user_attrs else \
+            load_space(StudySettings(storage="", **{k: v for k, v in settings.items() if k != "storage"}))
+    if max_path_error_mm is None:
+        max_path_error_mm = float(settings.get("max_path_error_mm", 0.0) or 0.0)
+    if motor_reserve is None:
+        motor_reserve = float(settings.get("motor_reserve", 0.0) or 0.0)
+    max_load = 1.0 - motor_reserve if motor_reserve > 0 else 0.0
+    pts = []
+    for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)):
+        metrics = dict(t.user_attrs.get("metrics", {}))
+        pts.append(judge_bounds(Point(config_from_params(t.params, space), float(t.values[0]),
+                                      float(t.values[1]), bool(metrics.get("step_loss", False)), metrics,
+                                      f"trial {t.number}", t.number), max_path_error_mm, max_load))
+    return pts
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(_worker_main(sys.argv[1:]))

@@ -1,0 +1,173 @@
+"""How each shaper's print time and quality respond to one factor (the sweep behind ``ringtune study``).
+
+Factors: ``freq-error`` (the shaper frequency off by a fraction of its tuned value), ``mass`` (print
+mass on the bed, kg; the shapers stay tuned for the empty bed) and ``accel`` (printing acceleration,
+mm/s²). Each shaper starts tuned as Klipper's rule tunes it on the printer's simulated resonance
+test (a shaper outside Klipper's list: the axis's strongest mode); every value of the factor is
+then evaluated with :func:`ringtune.envs.evaluate.evaluate_many` (print time over the whole job,
+quality from physics on its quality windows).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from ringtune.shaping.errors import RingtuneError
+
+#: factor -> (label, unit, default values (lo, hi, n) or None: from the printer)
+FACTORS = {"freq-error": ("shaper frequency error", "fraction", (-0.3, 0.3, 13)),
+           "mass": ("print mass on the bed", "kg", (0.0, 1.0, 6)),
+           "accel": ("acceleration", "mm/s²", None)}
+
+
+@dataclass
+class ShaperSweep:
+    """One shaper across the factor's values: tuned frequencies (Hz), print time (s), quality (mm)
+    and whether steps were lost, one entry per value."""
+
+    freq_x: float
+    freq_y: float
+    print_time_s: list[float] = field(default_factory=list)
+    quality_mm: list[float] = field(default_factory=list)
+    step_loss: list[bool] = field(default_factory=list)
+
+
+def offered_shapers(firmware: str, shapers: list[str] | None = None) -> list[str]:
+    """The shapers to compare: ``shapers`` (checked against the firmware's) or all it offers but
+    ``custom``."""
+    from ringtune.shaping.firmware import FIRMWARES
+    from ringtune.shaping.shapers import available_shapers
+
+    if firmware not in FIRMWARES:
+        raise RingtuneError(f"must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "firmware")
+    offered = [s for s in available_shapers(FIRMWARES[firmware].flavor) if s != "custom"]
+    chosen = [s.strip().lower() for s in shapers] if shapers else offered
+    bad = [s for s in chosen if s not in offered]
+    if bad:
+        raise RingtuneError(f"{firmware} does not offer {', '.join(bad)} (offers {', '.join(offered)})", "shapers")
+    return chosen
+
+
+def factor_values(factor: str, printer: Any, values: list[float] | None = None) -> list[float]:
+    """The values to sweep: ``values`` (checked) or the factor's default range (accel: 0.3–2.5× the
+    printer's own acceleration, rounded to 100 mm/s²)."""
+    if factor not in FACTORS:
+        raise RingtuneError(f"must be one of {', '.join(FACTORS)}, not {factor!r}", "factor")
+    if values is not None:
+        vals = [float(v) for v in values]
+    elif factor == "accel":
+        a0 = float(printer.limits.accel)
+        vals = [round(float(a), -2) for a in np.linspace(0.3 * a0, 2.5 * a0, 8)]
+    else:
+        lo, hi, n = FACTORS[factor][2]
+        vals = [round(float(v), 4) for v in np.linspace(lo, hi, n)]
+    if not vals:
+        raise RingtuneError("no values", "values")
+    if factor == "freq-error" and any(v <= -0.9 for v in vals):
+        raise RingtuneError("frequency errors must be > -0.9 (fractions, e.g. -0.2 for 20 % low)", "values")
+    if factor == "mass" and any(v < 0 for v in vals):
+        raise RingtuneError("print mass must be ≥ 0 kg", "values")
+    if factor == "accel" and any(v <= 0 for v in vals):
+        raise RingtuneError("accelerations must be > 0 mm/s²", "values")
+    return vals
+
+
+def tuned_frequencies(printer: Any, firmware: str, shapers: list[str],
+                      note: Callable[[str], None] = lambda message: None) -> dict[str, dict[str, float]]:
+    """{shaper: {"x": Hz, "y": Hz}}: Klipper's per-shaper fit on the printer's simulated resonance
+    test where it has one, else the axis's strongest mode (said through ``note``); one frequency for
+    both axes on firmwares with one shaper for all axes."""
+    from ringtune.agents.klipper.baseline import klipper_rule_on_simulated_test
+    from ringtune.shaping.firmware import FIRMWARES
+
+    try:
+        fits, _ = klipper_rule_on_simulated_test(printer, firmware, "head")
+    except (ImportError, RingtuneError) as exc:
+        note(f"Klipper's fit unavailable ({exc}); shapers tuned to the main mode")
+        fits = {}
+    tuned: dict[str, dict[str, float]] = {}
+    for s in shapers:
+        tuned[s] = {}
+        for ax in ("x", "y"):
+            table = {f.name: f.freq for f in fits[ax].shapers} if ax in fits else {}
+            main = max(getattr(printer, ax).modes, key=lambda m: m.share or 0).freq
+            tuned[s][ax] = round(table.get(s, main), 1)
+        if FIRMWARES[firmware].one_shaper:
+            tuned[s]["y"] = tuned[s]["x"]
+    return tuned
+
+
+def sweep(printer: Any, job: Any, firmware: str, factor: str, values: list[float],
+          tuned: dict[str, dict[str, float]], quality: str = "overshoot_mm",
+          backend: str = "mujoco", freq_margin: float = 0.0) -> dict[str, ShaperSweep]:
+    """Evaluate every shaper of ``tuned`` at every value of ``factor`` on ``printer`` and ``job``
+    (a G-code path or None for the built-in test print); ``quality`` is a Metrics field in mm;
+    ``freq_margin``: judged as ``evaluate_many`` judges with it (fraction; 0 = the exact model)."""
+    from ringtune.envs.evaluate import evaluate_many
+    from ringtune.shaping.config import TuneConfig
+
+    results = {s: ShaperSweep(f["x"], f["y"]) for s, f in tuned.items()}
+    for v in values:
+        configs = []
+        for s, f in tuned.items():
+            fx, fy, acc = f["x"], f["y"], None
+            if factor == "freq-error":
+                fx, fy = fx * (1 + v), fy * (1 + v)
+            elif factor == "accel":
+                acc = float(v)
+            configs.append(TuneConfig(firmware=firmware, shaper_x=s, shaper_y=s,
+                                      freq_x=0.0 if s == "none" else round(fx, 2),
+                                      freq_y=0.0 if s == "none" else round(fy, 2), accel=acc))
+        pr = dataclasses.replace(printer, print_mass=float(v)) if factor == "mass" else printer
+        for s, m in zip(tuned, evaluate_many(configs, pr, job, backend=backend, freq_margin=freq_margin)):
+            results[s].print_time_s.append(float(m.print_time_s))
+            results[s].quality_mm.append(float(getattr(m, quality)))
+            results[s].step_loss.append(bool(m.step_loss))
+    return results
+
+
+def write_csv(path: str | Path, factor: str, values: list[float], results: dict[str, ShaperSweep],
+              quality: str) -> None:
+    """One row per shaper and value: factor, shaper, freq_x, freq_y, print_time_s, quality, step_loss."""
+    with open(path, "w") as f:
+        f.write(f"{factor},shaper,freq_x,freq_y,print_time_s,{quality},step_loss\n")
+        for s, r in results.items():
+            for i, v in enumerate(values):
+                f.write(f"{v:g},{s},{r.freq_x},{r.freq_y},{r.print_time_s[i]:.4f},"
+                        f"{r.quality_mm[i]:.6f},{int(r.step_loss[i])}\n")
+
+
+def plot_sweep(path: str | Path, factor: str, values: list[float], results: dict[str, ShaperSweep],
+               quality: str, title: str) -> None:
+    """Two panels against the factor (print time, quality), one line per shaper; red x = lost steps."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    label, unit, _ = FACTORS[factor]
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 7.5), dpi=120, sharex=True)
+    xs = [100 * v for v in values] if unit == "fraction" else values
+    xlabel = f"{label} (%)" if unit == "fraction" else f"{label} ({unit})"
+    for s, r in results.items():
+        ls = "--" if s == "none" else "-"
+        a1.plot(xs, r.print_time_s, ls, marker="o", ms=3, label=s)
+        a2.plot(xs, r.quality_mm, ls, marker="o", ms=3, label=s)
+        bad = [i for i, b in enumerate(r.step_loss) if b]
+        if bad:
+            a2.scatter([xs[i] for i in bad], [r.quality_mm[i] for i in bad], marker="x", c="red", zorder=5)
+    a1.set_ylabel("print time (s)")
+    a2.set_ylabel(f"{quality.replace('_mm', '').replace('_', ' ')} (mm)")
+    a2.set_xlabel(xlabel)
+    for a in (a1, a2):
+        a.grid(True, alpha=0.3)
+    a1.legend(fontsize=8, ncol=4)
+    a1.set_title(f"{label}: {title}  (red x = lost steps)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
