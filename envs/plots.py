@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ringtune.envs.metrics import compute_metrics, path_legs
+from ringtune.envs.metrics import compute_metrics
+from ringtune.envs.path_geometry import path_legs
 from ringtune.shaping.motion import Motion
 
 

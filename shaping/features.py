@@ -29,6 +29,8 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
+
 FEATURE_CLASSES = ("outer_wall", "inner_wall", "infill", "solid_infill", "top_surface",
                    "bridge_overhang", "travel", "support", "other")
 VISIBLE = frozenset({"outer_wall", "top_surface", "bridge_overhang", "other"})
@@ -102,3 +104,8 @@ def feature_class(label: str) -> str:
 def is_visible(label: str) -> bool:
     """Whether moves with this raw label are on the surface a person sees (:data:`VISIBLE`)."""
     return feature_class(label) in VISIBLE
+
+
+def class_indices(labels: list[str]) -> np.ndarray:
+    """(len(labels),) index into :data:`FEATURE_CLASSES` of each raw label's class."""
+    return np.array([FEATURE_CLASSES.index(feature_class(lab)) for lab in labels], np.int64)
