@@ -276,30 +276,30 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
     """
     t, nozzle, machine = _machine(sim)
     tu = t - lag  # sample times on the unshaped clock
-    inside = (tu >= path.t[0]) & (tu <= path.t[-1])
     seg = path.segment_index(tu)
     cls_seg = np.full(path.n_segments, _OTHER) if classes is None else np.asarray(classes, np.int64)
-    extruding = (inside & path.extruding[seg])[inside]
+    extruding = (tu >= path.t[0]) & (tu <= path.t[-1]) & path.extruding[seg]
     legs = path_legs(path, cls_seg)
     details: dict[str, Any] = {}
-    tu, pts, cls = tu[inside], nozzle[inside], cls_seg[seg[inside]]
-    dist, vec, leg = nearest_leg(tu, pts, legs, match_window)
-    ex = (tu[extruding], pts[extruding], dist[extruding], vec[extruding], leg[extruding])
+    dist, vec, leg = nearest_leg(tu, nozzle, legs, match_window)
+    cls = cls_seg[seg[extruding]]
+    ex = (tu[extruding], nozzle[extruding], dist[extruding], vec[extruding], leg[extruding])
     old = dict(path_error_mm=path_error(ex[0], ex[1], ex[2], details),
                overshoot_mm=overshoot(*ex, legs, corner_angle_deg, corner_window, anticipate + lag, details),
                ringing_mm=ringing_rms(ex[0], ex[1], legs, corner_angle_deg, settle - lag, anticipate + lag,
                                       min_wall, details))
-    per_cls = _seen(ex[0], ex[1], ex[2], cls[extruding], legs, corner_angle_deg, settle - lag,
+    per_cls = _seen(ex[0], ex[1], ex[2], cls, legs, corner_angle_deg, settle - lag,
                     anticipate + lag, min_wall, corner_tail, details)
-    made = _made(t[inside], e_command)
+    # extrusion: every sample near an extruding leg (the extruder may start before the nozzle)
+    made = _made(t, e_command)
     if made is not None:
-        per_cls.update(_extruded(made, pts, vec, leg, legs))
+        per_cls.update(_extruded(made, nozzle, vec, leg, legs))
     m = Metrics(print_time_s=print_time_s, details=details, **old, **machine, **_top(per_cls))
-    m.features = _features(per_cls, np.unique(cls[extruding]))
+    m.features = _features(per_cls, np.unique(cls))
     _p90_from_walls(m, details["ripple_walls"])
-    synced = _made(t[inside], e_command_synced)
+    synced = _made(t, e_command_synced)
     if synced is not None:
-        m.extrusion_if_synced = _top(_extruded(synced, pts, vec, leg, legs))
+        m.extrusion_if_synced = _top(_extruded(synced, nozzle, vec, leg, legs))
     return m
 
 
