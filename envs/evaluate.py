@@ -231,18 +231,26 @@ def _extruder(raw: Motion, shapers, centred: bool, config: TuneConfig):
     return e_cmd, synced
 
 
+def shaper_timing(shapers, centred: bool) -> tuple[float, float, float, float]:
+    """(duration, lag, after, before) of the active shapers, s: the longest impulse train; the
+    causal shaped command's delay (0 when centred); after a corner (unshaped time) when the shaped
+    command runs straight again (the last impulse has passed); how long before a corner it starts
+    turning (centred shapers only)."""
+    active = [s for s in shapers.values() if s is not None]
+    duration = max((s.duration for s in active), default=0.0)
+    lag = 0.0 if centred else max((s.centroid for s in active), default=0.0)
+    after = max((s.duration - (s.centre_delay if centred else 0.0) for s in active), default=0.0)
+    before = max((s.centre_delay for s in active), default=0.0) if centred else 0.0
+    return duration, lag, after, before
+
+
 def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN,
                 tail: float = CORNER_TAIL) -> list[WindowRun]:
     """Shape each quality window of ``pj`` with the config's shapers (``settle`` s of extra
     history before each, beyond the shaper's duration); ``tail``: see :func:`corner_tail`."""
     shapers, centred = shapers_from_config(config)
-    active = [s for s in shapers.values() if s is not None]
-    duration = max((s.duration for s in active), default=0.0)
-    lag = 0.0 if centred else max((s.centroid for s in active), default=0.0)
-    # after a corner (unshaped time) the shaped command runs straight once the last impulse passed
-    after = max((s.duration - (s.centre_delay if centred else 0.0) for s in active), default=0.0)
-    # ... and starts turning into the next corner this long before it (centred shapers only)
-    before = max((s.centre_delay for s in active), default=0.0) if centred else 0.0
+    active = any(s is not None for s in shapers.values())
+    duration, lag, after, before = shaper_timing(shapers, centred)
     motion = pj.motion
     runs = []
     for w in pj.windows:
