@@ -19,10 +19,12 @@ are applied), so it can be compared sample by sample with the simulated nozzle.
 
 from __future__ import annotations
 
+import numpy as np
+
 from ringtune.shaping.apply import shape_motion
-from ringtune.shaping.firmware import Firmware
+from ringtune.shaping.firmware import FIRMWARES, Firmware
 from ringtune.shaping.motion import Motion
-from ringtune.shaping.shapers import Shaper
+from ringtune.shaping.shapers import Shaper, shapers_from_config
 
 E_TIMINGS = ("shaped", "delayed", "neither")
 XY_DELAYS = ("centred", "causal", "largest")
@@ -75,3 +77,21 @@ def extruder_command(raw: Motion, shapers: dict[str, Shaper | None], centred: bo
         return shape_motion(e, {"x": active[0]}, centred)
     shift = extruder_shift(shapers, centred, firmware, timing)
     return e.shifted(shift) if shift else e
+
+
+def firmware_trajectory(motion: Motion, config, rate: float) -> tuple[np.ndarray, np.ndarray]:
+    """(t, [x, y, z, e]) sampled at ``rate`` Hz as ``config``'s firmware commands them: X/Y
+    shaped by its shapers (centred or causal as the firmware applies them), E by the firmware's
+    own timing (:func:`extruder_command`); ``config`` None: the planned motion as it is.
+    Over the span of the shaped X/Y (the extruder holds its position outside its own)."""
+    if config is None:
+        return motion.sample(rate)
+    shapers, centred = shapers_from_config(config)
+    if not any(s is not None for s in shapers.values()):
+        return motion.sample(rate)
+    shaped = shape_motion(motion, shapers, centred)
+    t, pos = shaped.sample(rate)
+    e = extruder_command(motion, shapers, centred, FIRMWARES[config.firmware])
+    pos = pos[:, :4].copy()
+    pos[:, 3] = e.position(t)[:, 0]
+    return t, pos

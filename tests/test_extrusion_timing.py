@@ -150,3 +150,30 @@ def test_retraction_after_the_line_is_not_material_taken_back():
     m = compute_metrics(StiffSim(t, shaped.position(t)[:, :2], np.zeros((len(t), 2))), job, lag=0.00625,
                         settle=0.0125, e_command=extruder_command(job, shapers, centred, FIRMWARES["marlin"]))
     assert m.extrusion_under_pct == pytest.approx(62.5, rel=2e-3)
+
+
+@pytest.mark.parametrize("firmware, shaper", [("marlin", "zv"), ("rrf", "zvd"), ("klipper", "zv")])
+def test_plan_trajectory_writes_the_extruder_as_the_firmware_commands_it(tmp_path, capsys, firmware, shaper):
+    """From the CSV alone: on the cruise of a long line, the e column leads the material the path
+    holds at the written x by ΣAᵢTᵢ·v where the firmware leaves E behind delayed X/Y (Marlin), and
+    not at all where E is shaped with X/Y (RepRapFirmware) or X/Y are centred (Klipper)."""
+    import json
+
+    from ringtune.agents.cli.main import main
+
+    job = tmp_path / "line.gcode"
+    job.write_text("G90\nM83\nG1 X10 Y10 F6000\nG1 X110 Y10 E3.3 F6000\n")
+    cfg = tmp_path / "c.json"
+    cfg.write_text(json.dumps({"firmware": firmware, "shaper_x": shaper, "shaper_y": shaper,
+                               "freq_x": 40, "freq_y": 40, "damping_x": 0.05, "damping_y": 0.05}))
+    traj = tmp_path / "t.csv"
+    assert main(["plan", str(job), "--config", str(cfg), "--trajectory", str(traj), "--rate", "2000"]) == 0
+    capsys.readouterr()
+    t, x, _, _, e = np.loadtxt(traj, delimiter=",", skiprows=1).T
+    cruise = (x > 40) & (x < 80)                     # well away from the ends, at 100 mm/s
+    asked = 0.033 * (x[cruise] - 10.0)               # filament the path holds up to x (E from 0)
+    lead = (e[cruise] - asked) / 0.033
+    shapers, centred = shapers_from_config(TuneConfig.load(cfg))
+    lag = float(np.dot(shapers["x"].amplitudes, shapers["x"].times))
+    want = V * lag if firmware == "marlin" else 0.0
+    np.testing.assert_allclose(lead, want, atol=2e-3)
