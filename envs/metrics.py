@@ -111,7 +111,7 @@ import numpy as np
 from ringtune.envs.extrusion import SPAN_MM, extrusion
 from ringtune.envs.path_geometry import Legs, nearest_leg, path_legs
 from ringtune.envs.path_measures import overshoot, path_error, ringing_rms
-from ringtune.envs.visible import corner_deviation, per_class_max, per_class_p90, walls
+from ringtune.envs.visible import corner_deviation, p90, per_class_max, walls
 from ringtune.shaping.features import FEATURE_CLASSES, VISIBLE
 from ringtune.shaping.motion import Motion
 
@@ -223,13 +223,12 @@ def _combined(parts: list[Metrics], print_time_s: float) -> Metrics:
 
 def _p90_from_walls(out: Metrics, walls_all: list) -> None:
     """Set the 90th percentiles of ``out`` (top level and per class) from [class, ripple] pairs."""
-    names = np.array([w[0] for w in walls_all])
-    ripple = np.array([w[1] for w in walls_all], float)
-    seen = np.isin(names, list(VISIBLE))
-    out.ripple_p90_mm = float(np.percentile(ripple[seen], 90)) if seen.any() else 0.0
+    by_class: dict[str, list[float]] = {}
+    for cls, ripple in walls_all:
+        by_class.setdefault(cls, []).append(ripple)
+    out.ripple_p90_mm = p90(np.array([r for c, rs in by_class.items() if c in VISIBLE for r in rs]))
     for cls, vals in out.features.items():
-        mine = names == cls
-        vals["ripple_p90_mm"] = float(np.percentile(ripple[mine], 90)) if mine.any() else 0.0
+        vals["ripple_p90_mm"] = p90(np.array(by_class.get(cls, [])))
 
 
 def worst_case(results: Iterable[Metrics]) -> Metrics:
@@ -325,12 +324,17 @@ def _seen(tu, pts, dist, cls, legs: Legs, angle: float, settle: float, early: fl
     path error of the extruding samples."""
     w = walls(tu, pts, legs, settle, early, min_wall)
     details["ripple_walls"] = [[FEATURE_CLASSES[c], float(r)] for c, r in zip(w.cls, w.ripple)]
+    if len(w.leg):
+        k = w.leg[int(np.argmax(w.ripple))]
+        details["ripple_at"] = {"t_start": float(legs.t_start[k]), "t_end": float(legs.t_end[k]),
+                                "x": float(legs.start[k, 0]), "y": float(legs.start[k, 1]),
+                                "feature": FEATURE_CLASSES[legs.cls[k]]}
     inward, outward = corner_deviation(tu, pts, legs, angle, early, max(settle, 0.0) + tail)
     out = per_class_max(outward, cls, _N)
     hidden_reach = np.maximum(out, per_class_max(w.offset, w.cls, _N))
     finite = np.isfinite(dist)
     return {"ripple_mm": per_class_max(w.ripple, w.cls, _N),
-            "ripple_p90_mm": per_class_p90(w.ripple, w.cls, _N),
+            "ripple_p90_mm": np.zeros(_N),          # from the walls of all windows: _p90_from_walls
             "corner_in_mm": per_class_max(inward, cls, _N), "corner_out_mm": out,
             "show_through_mm": np.where(_VISIBLE, 0.0, hidden_reach),
             "path_error_mm": per_class_max(dist[finite], cls[finite], _N)}

@@ -45,23 +45,28 @@ class Legs:
     @property
     def direction(self) -> np.ndarray:
         d = self.end - self.start
-        return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), EPS_LEN)
+        return d / np.maximum(_norm(d), EPS_LEN)[:, None]
 
     @property
     def length(self) -> np.ndarray:
-        return np.linalg.norm(self.end - self.start, axis=1)
+        return _norm(self.end - self.start)
 
     @property
     def run(self) -> np.ndarray:
         """(L,) index of the extrusion run each leg belongs to (a run: consecutive touching
         extruding legs; non-extruding legs get the run before them)."""
-        joined = np.concatenate([[False], np.linalg.norm(self.start[1:] - self.end[:-1], axis=1) < _TOUCH])
+        joined = np.concatenate([[False], _norm(self.start[1:] - self.end[:-1]) < _TOUCH])
         prev_ext = np.concatenate([[False], self.extruding[:-1]])
         new = self.extruding & ~(joined & prev_ext)
         return np.cumsum(new) - 1
 
     def __len__(self) -> int:
         return len(self.t_start)
+
+
+def _norm(v: np.ndarray) -> np.ndarray:
+    """Lengths of (n, 2) vectors (hypot: faster than linalg.norm on small arrays)."""
+    return np.hypot(v[:, 0], v[:, 1])
 
 
 def _empty_legs() -> Legs:
@@ -77,7 +82,7 @@ def path_legs(path: Motion, classes: np.ndarray | None = None) -> Legs:
     p0 = path.p[:, :2]
     p1 = path.end_state()[0][:, :2]
     seg = p1 - p0
-    length = np.linalg.norm(seg, axis=1)
+    length = _norm(seg)
     keep = np.flatnonzero(length > EPS_LEN)
     if len(keep) == 0:
         return _empty_legs()
@@ -85,22 +90,30 @@ def path_legs(path: Motion, classes: np.ndarray | None = None) -> Legs:
     u = seg[keep] / length[keep, None]
     ext, cls = path.extruding[keep], cls_all[keep]
     same_dir = np.einsum("ij,ij->i", u[1:], u[:-1]) >= _COLLINEAR
-    touching = np.linalg.norm(p0[keep[1:]] - p1[keep[:-1]], axis=1) < _TOUCH
+    touching = _norm(p0[keep[1:]] - p1[keep[:-1]]) < _TOUCH
     same = same_dir & touching & (ext[1:] == ext[:-1]) & (cls[1:] == cls[:-1])
     first = np.flatnonzero(np.concatenate([[True], ~same]))
     last = np.concatenate([first[1:] - 1, [len(keep) - 1]])
     start, end = p0[keep[first]], p1[keep[last]]
     t_start, t_end = path.t[keep[first]], path.t[keep[last] + 1]
     d = end - start
-    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), EPS_LEN)
+    leg_len = _norm(d)
+    d = d / np.maximum(leg_len, EPS_LEN)[:, None]
     cosang = np.clip(np.einsum("ij,ij->i", d[1:], d[:-1]), -1.0, 1.0)
-    joined = np.linalg.norm(start[1:] - end[:-1], axis=1) < _TOUCH
+    joined = _norm(start[1:] - end[:-1]) < _TOUCH
     turn = np.concatenate([[0.0], np.where(joined, np.degrees(np.arccos(cosang)), 0.0)])
-    s_start = np.concatenate([[0.0], np.cumsum(np.linalg.norm(end - start, axis=1))[:-1]])
-    e_col = path.p.shape[1] > 3
-    e_start = path.position(t_start)[:, 3] if e_col else np.zeros(len(first))
-    e_end = path.position(t_end)[:, 3] if e_col else np.zeros(len(first))
+    s_start = np.concatenate([[0.0], np.cumsum(leg_len)[:-1]])
+    if path.p.shape[1] > 3:
+        e_start, e_end = path.p[keep[first], 3], p1_e(path)[keep[last]]
+    else:
+        e_start = e_end = np.zeros(len(first))
     return Legs(start, end, t_start, t_end, ext[first], turn, cls[first], s_start, e_start, e_end)
+
+
+def p1_e(path: Motion) -> np.ndarray:
+    """Extruder position (mm) at the end of each segment."""
+    d = path.dt
+    return path.p[:, 3] + path.v[:, 3] * d + 0.5 * path.a[:, 3] * d * d
 
 
 def vector_from_segment(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -95,7 +95,7 @@ def corner_deviation(tu, pts, legs: Legs, angle: float, before: float, after: fl
     dist = np.sqrt(np.minimum(d_in, d_out))
     d = legs.direction
     b = d[k - 1] - d[k]
-    b = b / np.maximum(np.linalg.norm(b, axis=1, keepdims=True), EPS_LEN)
+    b = b / np.maximum(np.hypot(b[:, 0], b[:, 1]), EPS_LEN)[:, None]
     side = np.einsum("ij,ij->i", e, b)
     return np.where(ok & (side < -_SIDE), dist, 0.0), np.where(ok & (side > _SIDE), dist, 0.0)
 
@@ -108,9 +108,14 @@ def per_class_max(values: np.ndarray, cls: np.ndarray, n_classes: int) -> np.nda
     return out
 
 
-def per_class_p90(values: np.ndarray, cls: np.ndarray, n_classes: int) -> np.ndarray:
-    """(n_classes,) 90th percentile (linear interpolation) of the values of each class."""
-    out = np.zeros(n_classes)
-    for c in np.unique(cls):
-        out[c] = float(np.percentile(values[cls == c], 90))
-    return out
+def p90(values: np.ndarray) -> float:
+    """90th percentile with linear interpolation between order statistics (numpy's default
+    ``percentile``), 0 for no values; written out because ``np.percentile`` costs ~0.5 ms a call."""
+    n = len(values)
+    if n == 0:
+        return 0.0
+    v = np.sort(values)
+    pos = 0.9 * (n - 1)
+    lo = int(pos)
+    hi = min(lo + 1, n - 1)
+    return float(v[lo] + (pos - lo) * (v[hi] - v[lo]))
