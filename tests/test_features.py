@@ -46,6 +46,16 @@ def test_simplify3d_labels_of_a_real_tower():
     assert feature_class("solid layer") == "top_surface"
 
 
+def test_cura_labels_of_a_real_job():
+    labels = _labels(DATA / "fastlb_cura_um2" / "platte_klein_cut.gcode")
+    assert {"SKIRT", "WALL-OUTER", "SKIN", "FILL"} <= labels
+    assert [feature_class(x) for x in ("WALL-OUTER", "SKIN", "FILL", "SKIRT")] == \
+        ["outer_wall", "top_surface", "infill", "support"]
+    job = read_gcode(DATA / "fastlb_cura_um2" / "platte_klein_cut.gcode")
+    seen = [feature_class(job.features[i]) in VISIBLE for i in job.feature[job.extruding]]
+    assert any(seen) and not all(seen)        # walls and skin seen, infill and skirt hidden
+
+
 def test_unlabelled_moves_count_as_visible():
     job = read_gcode("G90\nM83\nG1 X10 Y0 E1 F3000\n")
     assert job.features[job.feature[0]] == "unknown"
