@@ -111,7 +111,7 @@ import numpy as np
 from ringtune.envs.extrusion import SPAN_MM, extrusion
 from ringtune.envs.path_geometry import Legs, nearest_leg, path_legs
 from ringtune.envs.path_measures import overshoot, path_error, ringing_rms
-from ringtune.envs.visible import corner_deviation, p90, per_class_max, walls
+from ringtune.envs.visible import Walls, corner_deviation, p90, per_class_max, walls
 from ringtune.shaping.features import FEATURE_CLASSES, VISIBLE
 from ringtune.shaping.motion import Motion
 
@@ -283,12 +283,12 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
     dist, vec, leg = nearest_leg(tu, nozzle, legs, match_window)
     cls = cls_seg[seg[extruding]]
     ex = (tu[extruding], nozzle[extruding], dist[extruding], vec[extruding], leg[extruding])
+    w = walls(ex[0], ex[1], legs, settle - lag, anticipate + lag, min_wall)
     old = dict(path_error_mm=path_error(ex[0], ex[1], ex[2], details),
                overshoot_mm=overshoot(*ex, legs, corner_angle_deg, corner_window, anticipate + lag, details),
-               ringing_mm=ringing_rms(ex[0], ex[1], legs, corner_angle_deg, settle - lag, anticipate + lag,
-                                      min_wall, details))
-    per_cls = _seen(ex[0], ex[1], ex[2], cls, legs, corner_angle_deg, settle - lag,
-                    anticipate + lag, min_wall, corner_tail, details)
+               ringing_mm=ringing_rms(w, legs, corner_angle_deg, details))
+    per_cls = _seen(ex[0], ex[1], ex[2], cls, legs, w, corner_angle_deg, settle - lag,
+                    anticipate + lag, corner_tail, details)
     # extrusion: every sample near an extruding leg (the extruder may start before the nozzle)
     made = _made(t, e_command)
     if made is not None:
@@ -318,11 +318,10 @@ def _machine(sim: Any):
     return t, nozzle, {"peak_accel": peak_accel, "step_loss": step_loss, "motor_load": motor_load}
 
 
-def _seen(tu, pts, dist, cls, legs: Legs, angle: float, settle: float, early: float, min_wall: float,
+def _seen(tu, pts, dist, cls, legs: Legs, w: Walls, angle: float, settle: float, early: float,
           tail: float, details: dict) -> dict[str, np.ndarray]:
-    """Per class (arrays over FEATURE_CLASSES): ripple, its p90, corner in/out, show-through and
-    path error of the extruding samples."""
-    w = walls(tu, pts, legs, settle, early, min_wall)
+    """Per class (arrays over FEATURE_CLASSES): ripple, corner in/out, show-through and path error
+    of the extruding samples (the ripple's p90 is set from the walls of all windows)."""
     details["ripple_walls"] = [[FEATURE_CLASSES[c], float(r)] for c, r in zip(w.cls, w.ripple)]
     if len(w.leg):
         k = w.leg[int(np.argmax(w.ripple))]

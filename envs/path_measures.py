@@ -52,29 +52,15 @@ def overshoot(tu, pts, dist, vec, leg, legs: Legs, angle: float, window: float, 
     return float(val[i])
 
 
-def ringing_rms(tu, pts, legs: Legs, angle: float, settle: float, early_end: float, min_wall: float,
-             details: dict) -> float:
-    ks = corner_legs(legs, angle)
-    t0 = legs.t_end[ks - 1] + max(settle, 0.0)
-    t1 = legs.t_end[ks] - early_end
-    keep = legs.extruding[ks] & (t1 - t0 >= min_wall)
-    ks, t0, t1 = ks[keep], t0[keep], t1[keep]
-    if len(tu) == 0 or len(ks) == 0:
+def ringing_rms(walls, legs: Legs, angle: float, details: dict) -> float:
+    """Worst RMS (about its mean) of the deviation across a measured wall that follows a corner
+    (``walls``: :func:`ringtune.envs.visible.walls`, whose spans start ``settle`` s after the
+    corner)."""
+    after_corner = (legs.turn_deg[walls.leg] >= angle) & (legs.extruding[walls.leg - 1]
+                                                         | legs.extruding[walls.leg]) & (walls.leg > 0)
+    if not after_corner.any():
         return 0.0
-    order = np.argsort(tu)
-    tu, pts = tu[order], pts[order]
-    i0 = np.searchsorted(tu, t0, side="left")
-    i1 = np.searchsorted(tu, t1, side="right")
-    d = legs.direction
-    normal = np.stack([-d[:, 1], d[:, 0]], axis=1)
-    worst, where = 0.0, None
-    for k, a, b in zip(ks, i0, i1):  # one iteration per wall, vectorised within
-        if b - a < 3:
-            continue
-        dev = (pts[a:b] - legs.start[k]) @ normal[k]
-        rms = float(np.sqrt(np.mean((dev - dev.mean()) ** 2)))
-        if rms > worst:
-            worst, where = rms, {"t_corner": float(legs.t_end[k - 1]), "t_end": float(legs.t_end[k])}
-    if where:
-        details["ringing_at"] = where
-    return worst
+    i = int(np.argmax(np.where(after_corner, walls.rms, -1.0)))
+    k = walls.leg[i]
+    details["ringing_at"] = {"t_corner": float(legs.t_end[k - 1]), "t_end": float(legs.t_end[k])}
+    return float(walls.rms[i])

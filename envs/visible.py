@@ -20,11 +20,13 @@ _SIDE = 1e-9  # mm: smaller projections on the corner's bisector are neither inw
 @dataclass
 class Walls:
     """The measured straight walls of a window: leg index, peak-to-peak of the nozzle's deviation
-    across the wall (mm), largest distance from the wall's line (mm), feature class index."""
+    across the wall (mm), largest distance from the wall's line (mm), RMS of the deviation about
+    its mean (mm), feature class index."""
 
     leg: np.ndarray
     ripple: np.ndarray
     offset: np.ndarray
+    rms: np.ndarray
     cls: np.ndarray
 
 
@@ -49,7 +51,7 @@ def walls(tu, pts, legs: Legs, settle: float, early_end: float, min_wall: float)
     ks, i0, i1 = ks[ok], i0[ok], i1[ok]
     if len(ks) == 0:
         z = np.zeros(0)
-        return Walls(ks, z, z, ks)
+        return Walls(ks, z, z, z, ks)
     counts = i1 - i0
     first = np.cumsum(counts) - counts
     wall_of = np.repeat(np.arange(len(ks)), counts)
@@ -59,7 +61,9 @@ def walls(tu, pts, legs: Legs, settle: float, early_end: float, min_wall: float)
     dev = np.einsum("ij,ij->i", pts[idx] - legs.start[ks][wall_of], normal[wall_of])
     hi = np.maximum.reduceat(dev, first)
     lo = np.minimum.reduceat(dev, first)
-    return Walls(ks, hi - lo, np.maximum(np.abs(hi), np.abs(lo)), legs.cls[ks])
+    mean = np.add.reduceat(dev, first) / counts
+    var = np.maximum(np.add.reduceat(dev * dev, first) / counts - mean * mean, 0.0)
+    return Walls(ks, hi - lo, np.maximum(np.abs(hi), np.abs(lo)), np.sqrt(var), legs.cls[ks])
 
 
 def corner_legs(legs: Legs, angle: float) -> np.ndarray:
