@@ -39,20 +39,25 @@ What a person sees (all mm unless stated):
     Klipper ZV at 50 Hz with no damping (two halves 10 ms apart, centred), a stiff machine: the
     shaped command cuts the corner by v·Δt/4 = 0.25 mm (corner_in 0.25 mm, corner_out 0).
 ``extrusion_over_pct`` / ``extrusion_under_pct``
-    seed 002's extruder timing. At each sample the G-code asks for the filament of the path up
-    to the point nearest the nozzle; the firmware has pushed what its extruder command reached
-    (running maximum: retracted filament is not taken back from the part). Their difference in mm
-    of path is the extruder's lead. Over every stretch of ``SPAN_MM`` = 1 mm of the nozzle's
-    path within an extrusion run (a shorter run: the run), the material laid against the asked
-    is 1 + (lead at its end − lead at its start)/length; the largest excess and the largest
+    seed 002's extruder timing. The firmware pushes filament as its extruder command says
+    (running maximum: retracted filament is not taken back from the part); the G-code asks, per mm
+    of path, the filament of the path's own moves. Along each extrusion run the nozzle's position
+    is counted by the length it travels (from the nearest point of the path where it starts the
+    run), so a corner it cuts short gets its filament on a shorter path. Over every stretch of
+    ``SPAN_MM`` = 1 mm of the nozzle's path within a run (a shorter run: the run), the material
+    laid against the asked is 1 + Δlead/length, lead being the filament pushed beyond what the
+    path holds up to the nozzle's position, in mm of path; the largest excess and the largest
     shortfall, in %, over all extruding classes (they arise at starts, stops and corners).
     *Example*: Marlin classic ZV at 40 Hz (no damping: halves 12.5 ms apart, lag ΣAᵢTᵢ = 6.25 ms)
     leaves the extruder 0.625 mm ahead at 100 mm/s; a line started from rest whose acceleration
     ends within its first mm gets 62.5 % too much material there and 62.5 % too little over its
     last mm.
 ``e_lag_mm``
-    the largest |lead| (mm of path) over extruding samples: how far the firmware's extruder runs
-    ahead of (or behind) the nozzle. Example above: 0.625 mm.
+    the largest |lead| (mm of path, the nozzle's position taken at its nearest point of the path)
+    where the shaped command runs straight along a leg (the spans ``ripple_mm`` measures walls
+    on): how far the firmware's extruder runs ahead of (or behind) the nozzle. Example above:
+    0.625 mm; where E follows X/Y (Klipper, RepRapFirmware), what remains is the nozzle's own lag
+    behind the command while accelerating, a/ω² per mode (seed 002).
 ``show_through_mm``
     what hidden features push into the outer wall (nophead's serrated edge: infill overshooting
     the outline): over samples of hidden classes, the outward excursion past their corners and
@@ -289,16 +294,17 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
                ringing_mm=ringing_rms(w, legs, corner_angle_deg, details))
     per_cls = _seen(ex[0], ex[1], ex[2], cls, legs, w, corner_angle_deg, settle - lag,
                     anticipate + lag, corner_tail, details)
-    # extrusion: every sample near an extruding leg (the extruder may start before the nozzle)
+    # extrusion: every sample near an extruding leg in time (the extruder may start before the
+    # nozzle arrives and stop before it finishes)
     made = _made(t, e_command)
     if made is not None:
-        per_cls.update(_extruded(made, nozzle, vec, leg, legs))
+        per_cls.update(_extruded(made, tu, nozzle, vec, leg, legs, anticipate + lag, settle - lag))
     m = Metrics(print_time_s=print_time_s, details=details, **old, **machine, **_top(per_cls))
     m.features = _features(per_cls, np.unique(cls))
     _p90_from_walls(m, details["ripple_walls"])
     synced = _made(t, e_command_synced)
     if synced is not None:
-        m.extrusion_if_synced = _top(_extruded(synced, nozzle, vec, leg, legs))
+        m.extrusion_if_synced = _top(_extruded(synced, tu, nozzle, vec, leg, legs, anticipate + lag, settle - lag))
     return m
 
 
@@ -346,9 +352,9 @@ def _made(t: np.ndarray, e_command: Motion | None) -> np.ndarray | None:
     return np.maximum.accumulate(e_command.position(t)[:, 0]) if len(t) else np.zeros(0)
 
 
-def _extruded(made, pts, vec, leg, legs: Legs) -> dict[str, np.ndarray]:
+def _extruded(made, tu, pts, vec, leg, legs: Legs, before: float, after: float) -> dict[str, np.ndarray]:
     """Per class: worst over- and under-extrusion (%) and largest |lead| (mm)."""
-    ex = extrusion(made, pts, vec, leg, legs, SPAN_MM)
+    ex = extrusion(made, tu, pts, vec, leg, legs, max(before, 0.0), max(after, 0.0), SPAN_MM)
     return {"extrusion_over_pct": 100.0 * per_class_max(np.maximum(ex.excess, 0.0), ex.excess_cls, _N),
             "extrusion_under_pct": 100.0 * per_class_max(np.maximum(-ex.excess, 0.0), ex.excess_cls, _N),
             "e_lag_mm": per_class_max(np.abs(ex.lead), ex.lead_cls, _N)}
