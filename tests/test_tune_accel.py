@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from ringtune.agents.cli.main import main
+from ringtune.shaping.testprints import TRAVEL_SPEED
 
 TOWER = Path(__file__).resolve().parent / "data" / "gcode" / "ianalexis_ender3_marlin" / "ringing_tower.gcode"
 
@@ -150,7 +151,10 @@ def test_weak_and_strong_motor_on_the_same_frame(tmp_path, capsys):
     rw, rs = _tune(tmp_path, capsys, weak), _tune(tmp_path, capsys, strong)
     for res, toml, force in ((rw, weak, 7.0), (rs, strong, 60.0)):
         _check_within_reserve(res, toml)
-        top = (force - 1.0) / (1.6 + 0.13) * 1000.0       # the job's top speed (150 mm/s) ≤ corner speed
+        # the job's top speed: the built-in print's travel (300 mm/s, the printer's velocity limit),
+        # above the motor's corner speed (150 mm/s), where its force has fallen to F·150/300
+        speed = min(TRAVEL_SPEED, 300.0)
+        top = (force * min(1.0, 150.0 / speed) - 1.0) / (1.6 + 0.13) * 1000.0
         assert res["accel"]["range"][1] == math.floor(top / 100.0) * 100.0
         assert res["accel"]["defaults"] == []      # motor force and both masses given
     assert rw["chosen"]["config"]["accel"] < rs["chosen"]["config"]["accel"]
@@ -210,7 +214,8 @@ def test_per_axis_cap_does_not_cap_the_tuned_acceleration(v24_run):
     y_cap, accel = _cfg_value(V24, "max_y_accel"), _cfg_value(V24, "max_accel")
     lo, hi = res["accel"]["range"]
     assert hi > accel > y_cap
-    a, _who = motor_accel_limit(load_printer(toml), 150.0)      # the built-in job's top speed
+    printer = load_printer(toml)
+    a, _who = motor_accel_limit(printer, min(TRAVEL_SPEED, printer.limits.velocity))   # the job's top speed
     assert hi == math.floor(a / 100.0) * 100.0
     assert f"Y's own cap max_y_accel {y_cap:.0f} mm/s² applies to Y moves" in summary
     assert "X's own cap" not in summary                # max_x_accel ≥ max_accel: no cap of its own
