@@ -34,9 +34,16 @@ from typing import Any, Sequence
 import numpy as np
 
 from ringtune.envs.metrics import Metrics, compute_metrics, worst_case
+from ringtune.envs.printer import load_printer
+from ringtune.envs.sim import simulate_batch
+from ringtune.shaping import gcode, testprints
+from ringtune.shaping.apply import shape_motion
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.config_plan import JOB_ACCEL_SETTINGS, job_accel_mode, plan_with_config
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.job import SETTING_KEYS
 from ringtune.shaping.motion import Motion
+from ringtune.shaping.shapers import shapers_from_config
 
 #: bounds (s) of the simulated history before each window beyond the shaper's duration; within
 #: them it is SETTLE_TAUS decay time constants 1/(ζω) of the printer's slowest-decaying mode, so
@@ -84,8 +91,6 @@ def clear_cache() -> None:
 # -- inputs ------------------------------------------------------------------------------------
 def resolve_printer(printer):
     """A ``Printer`` from a Printer, a TOML path, or None (the embedded default)."""
-    from ringtune.envs.printer import load_printer
-
     if printer is None or isinstance(printer, (str, os.PathLike)):
         return load_printer(printer)
     return printer
@@ -109,8 +114,6 @@ def resolve_job(job):
     if key in _JOBS:
         _JOBS.move_to_end(key)
         return key, _JOBS[key]
-    from ringtune.shaping import gcode, testprints
-
     parsed = testprints.builtin_test_print() if job is None else gcode.read_gcode(job)
     return key, _remember(_JOBS, key, parsed)
 
@@ -118,9 +121,6 @@ def resolve_job(job):
 def job_accel_commands(job) -> dict[str, float]:
     """The acceleration commands a parsed job sets itself: {setting: largest value it sets}
     (mm/s²; keys of :data:`ringtune.shaping.config_plan.JOB_ACCEL_SETTINGS`; empty when it sets none)."""
-    from ringtune.shaping.config_plan import JOB_ACCEL_SETTINGS
-    from ringtune.shaping.job import SETTING_KEYS
-
     out = {}
     for k in JOB_ACCEL_SETTINGS:
         col = np.asarray(job.settings_table)[:, SETTING_KEYS.index(k)]
@@ -139,9 +139,6 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
     (:func:`ringtune.shaping.config_plan.job_accel_mode`). The quality windows are chosen once, on
     the plan at the printer's own limits without frequency limit, and every configuration is judged
     on those same corners and zigzags (:func:`ringtune.shaping.testprints.relocate_windows`)."""
-    from ringtune.shaping import testprints
-    from ringtune.shaping.config_plan import job_accel_mode, plan_with_config
-
     mode = job_accel_mode(config, job_accel)
     jkey, parsed = resolve_job(job)
     limits = printer.limits
@@ -193,9 +190,6 @@ def auto_settle(printer) -> float:
 def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN) -> list[WindowRun]:
     """Shape each quality window of ``pj`` with the config's shapers (``settle`` s of extra
     history before each, beyond the shaper's duration)."""
-    from ringtune.shaping.apply import shape_motion
-    from ringtune.shaping.shapers import shapers_from_config
-
     shapers, centred = shapers_from_config(config)
     active = [s for s in shapers.values() if s is not None]
     duration = max((s.duration for s in active), default=0.0)
@@ -314,8 +308,6 @@ def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, bac
                       settle: float | None = None, nthread: int | None = None,
                       job_accel: str | None = None) -> list[Evaluation]:
     """Like :func:`evaluate_many`, keeping the plans, shaped windows and simulation results."""
-    from ringtune.envs.sim import simulate_batch
-
     printer = resolve_printer(printer)
     if settle is None:
         settle = auto_settle(printer)
