@@ -34,12 +34,17 @@ from typing import Any, Sequence
 import numpy as np
 
 from ringtune.envs.metrics import CORNER_TAIL, Metrics, compute_metrics, worst_case
+from ringtune.envs.printer import load_printer
+from ringtune.envs.sim import simulate_batch
+from ringtune.shaping import gcode, testprints
 from ringtune.shaping.apply import shape_motion
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.config_plan import JOB_ACCEL_SETTINGS, job_accel_mode, plan_with_config
 from ringtune.shaping.e_timing import extruder_command
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.features import FEATURE_CLASSES, class_indices
 from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.job import SETTING_KEYS
 from ringtune.shaping.motion import Motion
 from ringtune.shaping.shapers import shapers_from_config
 
@@ -91,8 +96,6 @@ def clear_cache() -> None:
 # -- inputs ------------------------------------------------------------------------------------
 def resolve_printer(printer):
     """A ``Printer`` from a Printer, a TOML path, or None (the embedded default)."""
-    from ringtune.envs.printer import load_printer
-
     if printer is None or isinstance(printer, (str, os.PathLike)):
         return load_printer(printer)
     return printer
@@ -116,8 +119,6 @@ def resolve_job(job):
     if key in _JOBS:
         _JOBS.move_to_end(key)
         return key, _JOBS[key]
-    from ringtune.shaping import gcode, testprints
-
     parsed = testprints.builtin_test_print() if job is None else gcode.read_gcode(job)
     return key, _remember(_JOBS, key, parsed)
 
@@ -125,9 +126,6 @@ def resolve_job(job):
 def job_accel_commands(job) -> dict[str, float]:
     """The acceleration commands a parsed job sets itself: {setting: largest value it sets}
     (mm/s²; keys of :data:`ringtune.shaping.config_plan.JOB_ACCEL_SETTINGS`; empty when it sets none)."""
-    from ringtune.shaping.config_plan import JOB_ACCEL_SETTINGS
-    from ringtune.shaping.job import SETTING_KEYS
-
     out = {}
     for k in JOB_ACCEL_SETTINGS:
         col = np.asarray(job.settings_table)[:, SETTING_KEYS.index(k)]
@@ -146,9 +144,6 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
     (:func:`ringtune.shaping.config_plan.job_accel_mode`). The quality windows are chosen once, on
     the plan at the printer's own limits without frequency limit, and every configuration is judged
     on those same corners and zigzags (:func:`ringtune.shaping.testprints.relocate_windows`)."""
-    from ringtune.shaping import testprints
-    from ringtune.shaping.config_plan import job_accel_mode, plan_with_config
-
     mode = job_accel_mode(config, job_accel)
     jkey, parsed = resolve_job(job)
     limits = printer.limits
@@ -365,8 +360,6 @@ def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, bac
                       settle: float | None = None, nthread: int | None = None,
                       job_accel: str | None = None) -> list[Evaluation]:
     """Like :func:`evaluate_many`, keeping the plans, shaped windows and simulation results."""
-    from ringtune.envs.sim import simulate_batch
-
     printer = resolve_printer(printer)
     if settle is None:
         settle = auto_settle(printer)

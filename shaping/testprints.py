@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ringtune.shaping.features import VISIBLE, feature_class
+from ringtune.shaping.freqlimit import CYCLES
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.job import Job
 
@@ -169,8 +170,6 @@ def direction_change_frequencies(plan):
     2·3 reversals of X or Y inside one extrusion path, 3 cycles / their duration.
 
     Returns (t_centre, freq, line) arrays."""
-    from ringtune.shaping.freqlimit import CYCLES
-
     mv = plan.moves
     n = len(mv)
     ts, fs, ls = [], [], []

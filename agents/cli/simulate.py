@@ -21,15 +21,22 @@ modelled, not a detuned variant).
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
+from ringtune.agents.cli.common import firmware_name, judgement, load_config
+from ringtune.agents.cli.trace_option import write_trace_option
+from ringtune.agents.tune.baselines import current_config
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
+from ringtune.envs.evaluate import evaluate_judged, resolve_printer, variant_factors
 from ringtune.envs.metrics import Metrics
+from ringtune.envs.plots import plot_evaluation
+from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.shapers import default_damping, shapers_from_config
 
 NAME = "simulate"
-HELP = "simulate a configuration on a job: print time, path error, overshoot, ringing, step loss"
 DESCRIPTION = """\
 Simulate one input-shaping configuration on a print job and report what a person would see.
 
@@ -81,7 +88,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--freq", metavar="F", help="shaper frequency in Hz, or X,Y")
     parser.add_argument("--damping", metavar="D", help="shaper damping ratio, or X,Y (default: the firmware's)")
     parser.add_argument("--freq-limit", metavar="L", type=float, help="infill frequency limit in Hz (0 = off)")
-    parser.add_argument("--firmware", metavar="FW", help="firmware whose shapers are used (default: klipper)")
+    parser.add_argument("--firmware", type=firmware_name, metavar="FW", help="firmware whose shapers are used (default: klipper)")
     parser.add_argument("--accel", metavar="A", type=float, help="printing acceleration, mm/s² (default: the printer's)")
     parser.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco",
                         help="physics: mujoco (default) or lti (exact linear, fast screening)")
@@ -113,8 +120,6 @@ def _pair(text: str | None, option: str, number: bool) -> tuple | None:
 def _base_config(args, printer) -> tuple[dict, list[str]]:
     """What is simulated when neither --config nor --shaper/--freq/--damping says: what the printer
     runs now (its ``[current]`` section), else no shaping; and the notes that say so."""
-    from ringtune.agents.tune.baselines import current_config
-
     notes: list[str] = []
     note = notes.append
     if printer is not None and printer.current:
@@ -136,11 +141,6 @@ def _base_config(args, printer) -> tuple[dict, list[str]]:
 def build_config(args, out=None, printer=None):
     """The TuneConfig from --config and/or the individual options (options override the file);
     without either, what ``printer`` runs now (``[current]``), else no shaping."""
-    from ringtune.agents.cli.common import load_config
-    from ringtune.shaping.config import TuneConfig
-    from ringtune.shaping.firmware import FIRMWARES
-    from ringtune.shaping.shapers import default_damping
-
     notes: list[str] = []   # said once the options are known to be good
     if args.config:
         cfg = load_config(args.config, out).to_dict()
@@ -181,8 +181,6 @@ def build_config(args, out=None, printer=None):
         if flag and given.get(flag) is not None:
             raise RingtuneError(exc.bare, flag) from None
         raise
-    from ringtune.shaping.shapers import shapers_from_config
-
     try:  # the firmware must offer the shapers: say which option (or file) asked for them
         shapers_from_config(config)
     except RingtuneError as exc:
@@ -203,8 +201,6 @@ _KEY_FLAG = {"freq_x": "--freq", "freq_y": "--freq", "damping_x": "--damping", "
 def _check_options(freq, damping, args) -> None:
     """The options' values in their own units, named by option (TuneConfig's own check would name
     its keys: ``options: freq_x: -40.0 is out of range``)."""
-    import math
-
     for f in freq or ():
         if not (math.isfinite(f) and 0 <= f <= 1000):
             raise RingtuneError(f"{f:g} Hz is not a shaper frequency: give one in (0, 1000] Hz", "--freq")
@@ -238,9 +234,6 @@ def freq_margin(args, config=None) -> float:
 
 
 def run(args, out) -> int:
-    from ringtune.agents.cli.common import judgement
-    from ringtune.envs.evaluate import evaluate_judged, resolve_printer, variant_factors
-
     if args.freq_margin is not None:    # a bad option is refused before any note is printed
         freq_margin(args)
     printer = resolve_printer(args.printer)
@@ -258,15 +251,11 @@ def run(args, out) -> int:
     out.note(f"simulating {config.shaper_x}/{config.shaper_y} on {printer.name} ({args.backend}), {judged} ...")
     m, evs = evaluate_judged([config], printer, args.gcode, backend=args.backend, freq_margin=margin)[0]
     if args.trace:   # the printer as modelled (variant 1.0)
-        from ringtune.agents.cli.trace_option import write_trace_option
-
         write_trace_option(args.trace, evs[0], config, printer, args.gcode, args.backend, out)
     windows = _windows(evs)
     factors = variant_factors(margin)
     plots = []
     if args.plot:
-        from ringtune.envs.plots import plot_evaluation
-
         plots = [str(p) for p in plot_evaluation(evs, args.plot, factors=factors, judged=judged)]
     result = {
         "printer": printer.name,
