@@ -32,6 +32,7 @@ from ringtune.envs.evaluate import evaluate_judged, resolve_printer, variant_fac
 from ringtune.envs.metrics import Metrics
 from ringtune.envs.plots import plot_evaluation
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.e_timing import E_TIMING_WORDS
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.shapers import default_damping, shapers_from_config
@@ -306,7 +307,8 @@ def _text(result: dict, m, c, printer, judged: str, n_variants: int) -> list[str
         f"corner in    {m.corner_in_mm * um:10.1f} µm rounding, worst visible corner",
         f"corner out   {m.corner_out_mm * um:10.1f} µm overshoot, worst visible corner",
         f"extrusion    {m.extrusion_over_pct:+9.1f} % / {-m.extrusion_under_pct:+.1f} % material over 1 mm "
-        f"of path; extruder up to {m.e_lag_mm * um:.0f} µm off the nozzle (E {fw.e_timing} under shaping)",
+        f"of path; extruder up to {m.e_lag_mm * um:.0f} µm off the nozzle ({fw.title}: "
+        f"{E_TIMING_WORDS[fw.e_timing]})",
     ]
     if m.extrusion_if_synced:
         s = m.extrusion_if_synced
