@@ -249,8 +249,9 @@ def _klipper(config: TuneConfig, dialect: str) -> Export:
     line = "SET_INPUT_SHAPER " + " ".join(params)
     exp = Export(dialect, [line], [], "\n".join(cfg) + "\n", fw.config_file, ["SET_INPUT_SHAPER"],
                  expected, {k: 0 for k in expected},
-                 ["SET_INPUT_SHAPER lasts until restart; SAVE_CONFIG would not keep damping_ratio, so "
-                  "put the [input_shaper] section (export --part config) in printer.cfg"])
+                 [f"{fw.title} keeps nothing set by SET_INPUT_SHAPER across a restart (SAVE_CONFIG does "
+                  "not save it either; only printer.cfg does): put the [input_shaper] section (export "
+                  "--part config) in printer.cfg"])
     _rounding_notes(config, exp)
     return exp
 

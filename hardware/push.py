@@ -324,7 +324,7 @@ def _save_target(exp: Export, save_path) -> Path | None:
     """Where ``--save`` writes the config lines (firmware that cannot persist them), else None."""
     if exp.save_lines or not exp.config_text:
         return None
-    default = "ringtune-input_shaper.cfg" if exp.firmware == "klipper" else "ringtune-config.g"
+    default = "ringtune-input_shaper.cfg" if exp.record.family == "klipper" else "ringtune-config.g"
     return Path(save_path or default)
 
 
@@ -342,7 +342,7 @@ def _save_file(exp: Export, result: PushResult, save_path) -> None:
                             f"{exp.config_target} are:\n{exp.config_text.rstrip()}")
         return
     result.save_file = str(path)
-    what = ("replace the [input_shaper] section of printer.cfg with it (SAVE_CONFIG would drop "
-            "damping_ratio)" if exp.firmware == "klipper" else "add these lines to config.g "
+    what = ("replace the [input_shaper] section of printer.cfg with it (SET_INPUT_SHAPER's values are "
+            "lost at a restart, and SAVE_CONFIG does not save them)" if exp.record.family == "klipper" else "add these lines to config.g "
             "(RepRapFirmware's M500 does not store M593)")
     result.saved = f"{FIRMWARES[exp.firmware].title} cannot persist this from G-code: wrote {path}; {what}"

@@ -87,6 +87,14 @@ class Firmware:
         save: lines that persist shaping settings from G-code (empty: they belong in a config file).
         config_file: where settings go when they cannot be saved from G-code, or None.
         native_names: (canonical name, the firmware's own name) where they differ (RRF ``ei2``).
+        axis_accel_set: command that sets the per-axis X/Y acceleration caps (``{x}``, ``{y}`` in
+            mm/s²), empty if the firmware has none (mainline Klipper: one ``max_accel``).
+        axis_accel_config: the config-file keys of those caps (``max_{ax}_accel`` on Kalico's
+            limited_* kinematics), empty if they are set by G-code.
+        axis_accel_kinematics: kinematics on which the per-axis caps exist (empty: all).
+        accel_roles: the accelerations the firmware keeps apart, besides per-axis caps: ``print``
+            (extruding moves), ``travel`` (non-extruding), ``retract`` (E-only moves).
+        persists: what of the tuned settings survives a restart, and how.
     """
 
     name: str
@@ -105,6 +113,11 @@ class Firmware:
     save: tuple[str, ...] = ()
     config_file: str | None = None
     native_names: tuple[tuple[str, str], ...] = ()
+    axis_accel_set: str = ""
+    axis_accel_config: str = ""
+    axis_accel_kinematics: tuple[str, ...] = ()
+    accel_roles: tuple[str, ...] = ("print",)
+    persists: str = ""
 
     @property
     def shapers(self) -> tuple[str, ...]:
@@ -135,30 +148,60 @@ class Firmware:
 
 
 _KLIPPER_ACCEL = Span(1.0, 1e6, 3, why="Klipper takes any ACCEL > 0")
+_KLIPPER_FREQ = Span(1.0, 1000.0, 3, why="ringtune's bound: Klipper takes any F > 0, but below 1 Hz one shaper "
+                                         "outlasts half a second and delays every step by that")
 _M204_2 = Span(1.0, 1e6, 2)
 _RRF_ACCEL = Span(1.0, 1e6, 1)
 _RRF35_FREQ = Span(750000.0 / 131070.0, 1000.0, 2, why="Duet 3: StepClockRate / (2·65535)")
 _RRF_NAMES = (("2hump_ei", "ei2"), ("3hump_ei", "ei3"))      # InputShaperType names
+#: Marlin's M201 per-axis maxima (mm/s²); RRF's M201 takes the same letters and unit
+_M201_XY = "M201 X{x} Y{y}"
+#: Kalico's limited_cartesian / limited_corexy kinematics (klippy/kinematics/limited_*.py)
+KALICO_LIMITED = ("limited_cartesian", "limited_corexy", "limited_corexz")
+
+_KLIPPER_KEEPS = ("nothing set by SET_INPUT_SHAPER or SET_VELOCITY_LIMIT survives a restart: only "
+                  "printer.cfg does ([input_shaper], and max_accel in [printer]); SHAPER_CALIBRATE + "
+                  "SAVE_CONFIG writes shaper_type and shaper_freq, never damping_ratio")
+_RRF_KEEPS = ("nothing set by G-code survives a restart (M500 stores neither M593 nor M201/M204): "
+              "the lines belong in config.g")
+_MARLIN_KEEPS = "M500 stores the shaper, M201 and M204 in EEPROM (EEPROM_SETTINGS builds)"
 
 FIRMWARES: dict[str, Firmware] = {f.name: f for f in (
-    Firmware("klipper", "Klipper", "klipper", "klipper", "klipper", False,
-             Span(1.0, 1000.0, 3, why="ringtune's bound: Klipper takes any F > 0, but below 1 Hz one shaper "
-                                      "outlasts half a second and delays every step by that"),
+    Firmware("klipper", "Klipper", "klipper", "klipper", "klipper", False, _KLIPPER_FREQ,
              Span(0.0, 0.99, 6), False, "SET_VELOCITY_LIMIT ACCEL={a}", "SET_VELOCITY_LIMIT",
-             _KLIPPER_ACCEL, ";", (), "printer.cfg"),
-    Firmware("rrf", "RepRapFirmware 3.6", "rrf", "rrf", "rrf", True, Span(4.0, 1000.0, 2),
-             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES),
+             _KLIPPER_ACCEL, ";", (), "printer.cfg", persists=_KLIPPER_KEEPS),
+    # Kalico (the Klipper fork formerly Danger Klipper): Klipper's toolhead, shapers and commands, plus
+    # per-axis acceleration caps on its limited_* kinematics: [printer] max_x_accel / max_y_accel,
+    # set at run time by SET_VELOCITY_LIMIT X_ACCEL= Y_ACCEL= (reported as max_x_accel: ...).
+    # Its shaper list is its flavour's (issue 23 adds Kalico's smooth shapers there).
+    Firmware("kalico", "Kalico", "klipper", "klipper", "klipper", False, _KLIPPER_FREQ,
+             Span(0.0, 0.99, 6), False, "SET_VELOCITY_LIMIT ACCEL={a}", "SET_VELOCITY_LIMIT",
+             _KLIPPER_ACCEL, ";", (), "printer.cfg",
+             axis_accel_set="SET_VELOCITY_LIMIT X_ACCEL={x} Y_ACCEL={y}", axis_accel_config="max_{ax}_accel",
+             axis_accel_kinematics=KALICO_LIMITED,
+             persists=_KLIPPER_KEEPS.replace("max_accel in [printer]",
+                                             "max_accel, max_x_accel, max_y_accel in [printer]")),
+    Firmware("rrf", "RepRapFirmware 3.6", "rrf", "rrf", "rrf", True, Span(4.0, 1000.0, 2, why="RRF 3.6's minimum"),
+             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
+             axis_accel_set=_M201_XY, accel_roles=("print", "travel"), persists=_RRF_KEEPS),
     Firmware("rrf35", "RepRapFirmware 3.5", "rrf35", "rrf", "rrf", True, _RRF35_FREQ,
-             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES),
+             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
+             axis_accel_set=_M201_XY, accel_roles=("print", "travel"), persists=_RRF_KEEPS),
     Firmware("rrf34", "RepRapFirmware 3.4", "rrf35", "rrf", "rrf", True, _RRF35_FREQ,
-             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES),
+             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
+             axis_accel_set=_M201_XY, accel_roles=("print", "travel"), persists=_RRF_KEEPS),
     Firmware("marlin", "Marlin (classic input shaping)", "marlin", "marlin", "marlin", False,
              Span(0.0, 1000.0, 2, lo_open=True, why="Marlin's own minimum F depends on the board"),
-             Span(0.0, 1.0, 3), True, "M204 P{a}", "M204", _M204_2, ";", ("M500",)),
+             Span(0.0, 1.0, 3), True, "M204 P{a}", "M204", _M204_2, ";", ("M500",),
+             axis_accel_set=_M201_XY, accel_roles=("print", "retract", "travel"), persists=_MARLIN_KEEPS),
     Firmware("marlin-ftm", "Marlin FT_MOTION", "marlin-ftm", "marlin-ftm", "marlin", False,
              Span(10.0, 500.0, 2, why="FTM_MIN_SHAPE_FREQ..FTM_FS/2"), Span(0.01, 1.0, 3), True,
-             "M204 P{a}", "M204", _M204_2, ";", ("M500",)),
+             "M204 P{a}", "M204", _M204_2, ";", ("M500",),
+             axis_accel_set=_M201_XY, accel_roles=("print", "retract", "travel"),
+             persists=_MARLIN_KEEPS.replace("the shaper", "M493")),
     Firmware("prusa", "Prusa-Firmware-Buddy", "klipper-legacy", "prusa", "marlin", False,
              Span(10.0, 100.0, 2, why="it clamps other values to 10-100 Hz"), Span(0.0, 0.99, 3), False,
-             "M204 P{a}", "M204", _M204_2, ";", ("M593 W",)),
+             "M204 P{a}", "M204", _M204_2, ";", ("M593 W",),
+             axis_accel_set=_M201_XY, accel_roles=("print", "retract", "travel"),
+             persists="M593 W stores the shaper; M201 and M204 last until restart"),
 )}

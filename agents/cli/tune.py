@@ -72,7 +72,7 @@ PROGRESS_INTERVAL_S = 10.0
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--printer", metavar="P", help="printer TOML (default: the embedded Ender-3-class printer)")
     p.add_argument("--gcode", metavar="G", help="G-code job (default: the built-in test print)")
-    p.add_argument("--firmware", default="klipper", help="target firmware: klipper (default), rrf, rrf35, rrf34, "
+    p.add_argument("--firmware", default="klipper", help="target firmware: klipper (default), kalico, rrf, rrf35, rrf34, "
                    "marlin, marlin-ftm, prusa (any case)")
     p.add_argument("--trials", type=int, default=200, help="total complete trials of the study (default 200)")
     p.add_argument("--storage", metavar="URL", help="Optuna storage: journal:PATH (default "
