@@ -136,32 +136,88 @@ def limit_command(config: TuneConfig) -> str:
 
 
 def _accel(config: TuneConfig, fw: Firmware, exp: Export, apply: bool) -> None:
-    """The config's printing acceleration as the firmware's own command, read back afterwards."""
-    if config.accel is None:
+    """The config's per-axis caps, then its printing acceleration, as the firmware's own commands,
+    read back afterwards (the caps first: Marlin applies M201 to every move planned after it)."""
+    if config.accel is None and config.axis_caps == (None, None):
         return
     if not apply:
-        exp.notes.append(f"the config's acceleration {fmt(config.accel, 0)} mm/s² is not applied "
-                         "(--no-accel): the printer keeps its own")
+        exp.notes.append(f"the config's acceleration {fmt(config.accel or 0, 0)} mm/s² and axis caps are not "
+                         "applied (--no-accel): the printer keeps its own")
+        return
+    _axis_caps(config, fw, exp)
+    if config.accel is None:
         return
     a = check_value(config.accel, fw.accel, "acceleration", "mm/s²", "config: accel", fw.title)
     exp.setting_lines["accel"] = len(exp.lines)
     exp.lines.append(fw.accel_set.format(a=fmt(a, fw.accel.decimals)))
     exp.expected["accel"] = a
-    exp.readback.append(fw.accel_report)
+    if "travel" in fw.accel_roles:
+        exp.setting_lines["travel_accel"] = exp.setting_lines["accel"]
+        exp.expected["travel_accel"] = a
+    _read_back(exp, fw.accel_report)
+    if fw.axis_accel_report and config.axis_caps == (None, None):
+        _read_back(exp, fw.axis_accel_report)     # push says whether the printer's caps hold it lower
     exp.notes.append(f"the printing acceleration becomes {fmt(a, fw.accel.decimals)} mm/s², the value "
                      f"this config was tuned at; {SLICER_OVERRIDES}")
+    _accel_persistence(config, fw, exp, a)
+
+
+def _read_back(exp: Export, command: str) -> None:
+    if command not in exp.readback:
+        exp.readback.append(command)
+
+
+def _axis_caps(config: TuneConfig, fw: Firmware, exp: Export) -> None:
+    """The X/Y caps the config runs with (``max_accel_x``/``y``), set before the acceleration."""
+    caps = {ax: c for ax, c in zip("xy", config.axis_caps) if c is not None}
+    if not caps:
+        return
+    text = ", ".join(f"{ax.upper()} {fmt(c, 0)}" for ax, c in caps.items())
+    if not fw.axis_accel_set:
+        exp.notes.append(f"this config was planned with per-axis acceleration caps ({text} mm/s²), which "
+                         f"{fw.title} does not have"
+                         + ("; Kalico's limited_* kinematics do (--firmware kalico)" if fw.family == "klipper"
+                            else ""))
+        return
+    sent = {ax: check_value(c, fw.axis_accel, f"{ax.upper()} acceleration cap", "mm/s²",
+                            f"config: max_accel_{ax}", fw.title) for ax, c in caps.items()}
+    words = [w for w in fw.axis_accel_set.split()
+             if not any("{" + ax + "}" in w for ax in "xy" if ax not in sent)]
+    line = " ".join(words).format(**{ax: fmt(v, fw.axis_accel.decimals) for ax, v in sent.items()})
+    for ax, v in sent.items():
+        exp.setting_lines[f"max_accel_{ax}"] = len(exp.lines)
+        exp.expected[f"max_accel_{ax}"] = v
+    exp.lines.append(line)
+    _read_back(exp, fw.axis_accel_report)
+    if fw.family == "rrf" and exp.config_text:
+        exp.config_text += line + "\n"
+    exp.notes.append(f"the per-axis acceleration caps become {text} mm/s² ({line}), as this config was "
+                     "planned: each axis's share of a move's acceleration stays under its cap")
+
+
+def _accel_persistence(config: TuneConfig, fw: Firmware, exp: Export, a: float) -> None:
+    """Where the acceleration (and the caps) stay after a restart, from the firmware record."""
+    caps = config.axis_caps != (None, None) and bool(fw.axis_accel_set)
     if fw.family == "klipper":
-        exp.notes.append("SET_VELOCITY_LIMIT lasts until restart: max_accel in printer.cfg's [printer] "
+        keys = "max_accel" + (", " + ", ".join(fw.axis_accel_config.format(ax=ax) for ax in "xy")
+                              if caps and fw.axis_accel_config else "")
+        exp.notes.append(f"SET_VELOCITY_LIMIT lasts until restart: {keys} in printer.cfg's [printer] "
                          "section keeps it")
         if exp.config_text:
             exp.config_text += f"# and in the [printer] section: max_accel: {fmt(a, fw.accel.decimals)}\n"
+            exp.config_text += "".join(
+                f"#   {fw.axis_accel_config.format(ax=k[-1])}: {fmt(v, fw.axis_accel.decimals)}\n"
+                for k, v in exp.expected.items() if k.startswith("max_accel_") and fw.axis_accel_config)
     elif fw.family == "rrf":
         if exp.config_text:
             exp.config_text += exp.lines[-1] + "\n"
     elif fw.family in ("marlin", "marlin-ftm"):
-        exp.notes.append("Marlin also caps each axis at its M201 X/Y maximum; M500 stores M204")
+        exp.notes.append("M500 stores M201 and M204" if caps else
+                         "Marlin also caps each axis at its M201 X/Y maximum (push reads it back and says "
+                         "when it holds the acceleration lower); M500 stores M204")
     elif fw.family == "prusa":
-        exp.notes.append("M593 W stores the shaper, not M204: the acceleration lasts until restart")
+        exp.notes.append("M593 W stores the shaper, not M204" + (" or M201" if caps else "")
+                         + ": the acceleration lasts until restart")
 
 
 def _rounding_notes(config: TuneConfig, exp: Export) -> None:

@@ -133,6 +133,7 @@ def _statuses(exp: Export, replies: dict[int, Reply], report: str | None, firmwa
         else:
             st.detail = "printer reports a different value"
         out.append(st)
+    _judge_axis_caps(out, exp, reported)
     if "limit" in exp.setting_lines:
         idx = exp.setting_lines["limit"]
         st = SettingStatus("limit", exp.lines[idx])
@@ -143,6 +144,25 @@ def _statuses(exp: Export, replies: dict[int, Reply], report: str | None, firmwa
             st.detail = "printer said: " + "; ".join(reply.errors) if reply else "line not sent"
         out.append(st)
     return out
+
+
+def _judge_axis_caps(statuses: list[SettingStatus], exp: Export, reported: dict) -> None:
+    """An acceleration the printer's own per-axis caps (read back) hold lower is not claimed as
+    applied: the printer would not print at it. Caps the config itself sets are settings of their
+    own (it was planned with them)."""
+    st = next((s for s in statuses if s.key == "accel"), None)
+    if st is None or st.status != APPLIED or any(k.startswith("max_accel_") for k in exp.expected):
+        return
+    low = {ax: float(reported[f"max_accel_{ax}"].value) for ax in "xy"
+           if f"max_accel_{ax}" in reported and float(reported[f"max_accel_{ax}"].value) < float(st.meant)}
+    if not low:
+        return
+    caps = ", ".join(f"{ax.upper()} {v:g}" for ax, v in low.items())
+    raise_line = exp.record.axis_accel_set.format(x=f"{float(st.meant):g}", y=f"{float(st.meant):g}")
+    st.status = NOT_APPLIED
+    st.detail = (f"set, but the printer's own per-axis caps ({caps} mm/s²) hold those moves lower, so it "
+                 f"will not print at {float(st.meant):g}: push a config that carries the caps it was planned "
+                 f"with (max_accel_x/max_accel_y, which tune writes), or raise them ({raise_line})")
 
 
 def _timeout_statuses(exp: Export, replies: dict[int, Reply], who: str) -> list[SettingStatus]:

@@ -80,7 +80,9 @@ class Firmware:
         damping: damping ratio (the shaper's own maximum also applies).
         freq_limit: the firmware has an XY direction-change frequency limit (Marlin ``M201 F S``);
             elsewhere ``ringtune limit`` applies it to the G-code.
-        accel_set: command that sets the printing acceleration (``{a}`` = mm/s²).
+        accel_set: command that sets the tuned acceleration (``{a}`` = mm/s²): printing and, where
+            the firmware keeps it apart, travel (``M204 P T``: the tuned acceleration is what every
+            XY move was planned with; Marlin's retractions keep ``M204 R``).
         accel_report: command whose reply reports it.
         accel: printing acceleration, mm/s².
         comment: the G-code comment character the firmware reads.
@@ -89,6 +91,8 @@ class Firmware:
         native_names: (canonical name, the firmware's own name) where they differ (RRF ``ei2``).
         axis_accel_set: command that sets the per-axis X/Y acceleration caps (``{x}``, ``{y}`` in
             mm/s²), empty if the firmware has none (mainline Klipper: one ``max_accel``).
+        axis_accel_report: command whose reply reports them.
+        axis_accel: the caps' range and precision (Marlin keeps M201 as whole mm/s²).
         axis_accel_config: the config-file keys of those caps (``max_{ax}_accel`` on Kalico's
             limited_* kinematics), empty if they are set by G-code.
         axis_accel_kinematics: kinematics on which the per-axis caps exist (empty: all).
@@ -114,6 +118,8 @@ class Firmware:
     config_file: str | None = None
     native_names: tuple[tuple[str, str], ...] = ()
     axis_accel_set: str = ""
+    axis_accel_report: str = ""
+    axis_accel: Span = Span(1.0, 1e6, 0)
     axis_accel_config: str = ""
     axis_accel_kinematics: tuple[str, ...] = ()
     accel_roles: tuple[str, ...] = ("print",)
@@ -156,6 +162,8 @@ _RRF35_FREQ = Span(750000.0 / 131070.0, 1000.0, 2, why="Duet 3: StepClockRate / 
 _RRF_NAMES = (("2hump_ei", "ei2"), ("3hump_ei", "ei3"))      # InputShaperType names
 #: Marlin's M201 per-axis maxima (mm/s²); RRF's M201 takes the same letters and unit
 _M201_XY = "M201 X{x} Y{y}"
+#: Marlin's max_acceleration_mm_per_s2 is a uint32_t: M201 keeps whole mm/s²
+_M201_SPAN = Span(1.0, 1e6, 0, why="Marlin stores M201 as whole mm/s²")
 #: Kalico's limited_cartesian / limited_corexy kinematics (klippy/kinematics/limited_*.py)
 KALICO_LIMITED = ("limited_cartesian", "limited_corexy", "limited_corexz")
 
@@ -177,31 +185,38 @@ FIRMWARES: dict[str, Firmware] = {f.name: f for f in (
     Firmware("kalico", "Kalico", "klipper", "klipper", "klipper", False, _KLIPPER_FREQ,
              Span(0.0, 0.99, 6), False, "SET_VELOCITY_LIMIT ACCEL={a}", "SET_VELOCITY_LIMIT",
              _KLIPPER_ACCEL, ";", (), "printer.cfg",
-             axis_accel_set="SET_VELOCITY_LIMIT X_ACCEL={x} Y_ACCEL={y}", axis_accel_config="max_{ax}_accel",
+             axis_accel_set="SET_VELOCITY_LIMIT X_ACCEL={x} Y_ACCEL={y}", axis_accel_report="SET_VELOCITY_LIMIT",
+             axis_accel=_KLIPPER_ACCEL, axis_accel_config="max_{ax}_accel",
              axis_accel_kinematics=KALICO_LIMITED,
              persists=_KLIPPER_KEEPS.replace("max_accel in [printer]",
                                              "max_accel, max_x_accel, max_y_accel in [printer]")),
     Firmware("rrf", "RepRapFirmware 3.6", "rrf", "rrf", "rrf", True, Span(4.0, 1000.0, 2, why="RRF 3.6's minimum"),
-             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
-             axis_accel_set=_M201_XY, accel_roles=("print", "travel"), persists=_RRF_KEEPS),
+             Span(0.0, 0.99, 3), False, "M204 P{a} T{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
+             axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_RRF_ACCEL,
+             accel_roles=("print", "travel"), persists=_RRF_KEEPS),
     Firmware("rrf35", "RepRapFirmware 3.5", "rrf35", "rrf", "rrf", True, _RRF35_FREQ,
-             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
-             axis_accel_set=_M201_XY, accel_roles=("print", "travel"), persists=_RRF_KEEPS),
+             Span(0.0, 0.99, 3), False, "M204 P{a} T{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
+             axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_RRF_ACCEL,
+             accel_roles=("print", "travel"), persists=_RRF_KEEPS),
     Firmware("rrf34", "RepRapFirmware 3.4", "rrf35", "rrf", "rrf", True, _RRF35_FREQ,
-             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
-             axis_accel_set=_M201_XY, accel_roles=("print", "travel"), persists=_RRF_KEEPS),
+             Span(0.0, 0.99, 3), False, "M204 P{a} T{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
+             axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_RRF_ACCEL,
+             accel_roles=("print", "travel"), persists=_RRF_KEEPS),
     Firmware("marlin", "Marlin (classic input shaping)", "marlin", "marlin", "marlin", False,
              Span(0.0, 1000.0, 2, lo_open=True, why="Marlin's own minimum F depends on the board"),
-             Span(0.0, 1.0, 3), True, "M204 P{a}", "M204", _M204_2, ";", ("M500",),
-             axis_accel_set=_M201_XY, accel_roles=("print", "retract", "travel"), persists=_MARLIN_KEEPS),
+             Span(0.0, 1.0, 3), True, "M204 P{a} T{a}", "M204", _M204_2, ";", ("M500",),
+             axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_M201_SPAN,
+             accel_roles=("print", "retract", "travel"), persists=_MARLIN_KEEPS),
     Firmware("marlin-ftm", "Marlin FT_MOTION", "marlin-ftm", "marlin-ftm", "marlin", False,
              Span(10.0, 500.0, 2, why="FTM_MIN_SHAPE_FREQ..FTM_FS/2"), Span(0.01, 1.0, 3), True,
-             "M204 P{a}", "M204", _M204_2, ";", ("M500",),
-             axis_accel_set=_M201_XY, accel_roles=("print", "retract", "travel"),
+             "M204 P{a} T{a}", "M204", _M204_2, ";", ("M500",),
+             axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_M201_SPAN,
+             accel_roles=("print", "retract", "travel"),
              persists=_MARLIN_KEEPS.replace("the shaper", "M493")),
     Firmware("prusa", "Prusa-Firmware-Buddy", "klipper-legacy", "prusa", "marlin", False,
              Span(10.0, 100.0, 2, why="it clamps other values to 10-100 Hz"), Span(0.0, 0.99, 3), False,
-             "M204 P{a}", "M204", _M204_2, ";", ("M593 W",),
-             axis_accel_set=_M201_XY, accel_roles=("print", "retract", "travel"),
+             "M204 P{a} T{a}", "M204", _M204_2, ";", ("M593 W",),
+             axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_M201_SPAN,
+             accel_roles=("print", "retract", "travel"),
              persists="M593 W stores the shaper; M201 and M204 last until restart"),
 )}

@@ -54,11 +54,15 @@ def move_accels(job: Job, limits, use: bool, delta: np.ndarray, e_only: np.ndarr
     """Each move's acceleration before the per-axis caps (mm/s²): Klipper's one acceleration
     (``scv``), else Marlin's/RRF's by role — E-only moves (retract, unretract) at M204 R, extruding
     moves at P, the others (travel) at T (:attr:`MachineLimits.travel_accel`/``retract_accel``,
-    None = the printing acceleration); ``override`` replaces them all (a tuning knob)."""
+    None = the printing acceleration); ``override`` (a tuning knob, sent as ``M204 P T``) replaces
+    the printing and travel accelerations, not a known retract acceleration (M204 R)."""
     if override is not None:
         if not (math.isfinite(override) and override > 0):
             raise RingtuneError(f"acceleration must be > 0 mm/s², not {override}", "accel")
-        return np.full(job.n_moves, float(override))
+        keep = marlin_retractions(job, limits, use, e_only)
+        if keep is None:
+            return np.full(job.n_moves, float(override))
+        return np.where(keep, job_value(job, "accel_retract", limits.retract_accel, use), float(override))
     if limits.junction == "scv":
         accel = job_value(job, "accel_klipper", limits.accel, use)
     else:

@@ -18,6 +18,7 @@ apply, front, trials}, storage, study, completed_now, interrupted, elapsed_s.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import time
@@ -118,6 +119,7 @@ def run(args: argparse.Namespace, out) -> int:
     from ringtune.agents.tune import study as tune_study
     from ringtune.agents.tune.space import default_space, params_from_config
     from ringtune.agents.tune.baselines import baselines_for, warm_start
+    from ringtune.agents.tune.binding import binding_limits, binding_sentences
     from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
     from ringtune.envs.evaluate import resolve_printer
     from ringtune.shaping.errors import RingtuneError
@@ -152,10 +154,9 @@ def run(args: argparse.Namespace, out) -> int:
     printer = resolve_printer(args.printer)
     quality = f"{args.quality}_mm"
     facts = job_accel_facts(printer, args.gcode, args.job_accel)
-    space = default_space(printer, firmware, accel=accel_range, speed=facts.top_speed)
+    # no --gcode: the built-in print stands in for the user's, which may run up to the velocity limit
+    space = default_space(printer, firmware, accel=accel_range, speed=facts.top_speed if args.gcode else None)
     if accel_range is None and args.job_accel == "respect" and facts.commands and not facts.accel_matters(space):
-        import dataclasses
-
         a = float(printer.limits.accel)
         space = dataclasses.replace(space, accel=(a, a), accel_basis="not searched: the job's own acceleration "
                                     "commands rule every move (--job-accel respect)")
@@ -206,7 +207,10 @@ def run(args: argparse.Namespace, out) -> int:
     front = pareto.pareto_front(points, also=("path_error_mm",) if quality != "path_error_mm" else ())
     choice = pareto.pick(front, baselines, how, args.weight)
     chosen = choice.point
-    accel_lines, accel_json = accel_statement(chosen, space, max_pe, reserve, points, printer)
+    bindings = binding_limits(printer, args.gcode, chosen.config, firmware, args.job_accel)
+    accel_lines, accel_json = accel_statement(chosen, space, max_pe, reserve, points, printer,
+                                              binding_sentences(bindings, chosen.config.accel))
+    accel_json["binding"] = [dataclasses.asdict(b) for b in bindings]
     ja_lines, ja_json = job_accel_section(facts, args.job_accel, printer, args.gcode, chosen.config)
     ja_json["searched"] = not space.accel_fixed
     notes = []
@@ -229,7 +233,8 @@ def run(args: argparse.Namespace, out) -> int:
         baseline_labels=bl.labels if bl else None,
         sections=[("ACCELERATION", accel_lines)] + ([("THE JOB'S OWN ACCELERATIONS", ja_lines)] if ja_lines else []),
         notes=notes, export_firmware=dialect,
-        best_extra={"job_accel": args.job_accel, "freq_margin": margin, "motor_reserve": reserve})
+        best_extra={"job_accel": args.job_accel, "freq_margin": margin, "motor_reserve": reserve,
+                    "top_speed_mm_s": facts.top_speed if args.gcode else float(printer.limits.velocity)})
     text = result.pop("summary_text")
     if bl:
         for k, src in bl.sources.items():

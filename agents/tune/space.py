@@ -8,7 +8,12 @@ Parameters (Optuna names):
 - ``damping``: shaper damping ratio S (one for all axes), within every offered shaper's limit;
 - ``freq_limit``: ``off`` or a frequency-limit method (``nophead``, ``sections``, ``marlin``), and
   ``freq_limit_hz`` (Hz, only when on);
-- ``accel``: printing acceleration, mm/s², in steps of ``accel_step``.
+- ``accel``: printing acceleration, mm/s², in steps of ``accel_step``; every trial's configuration
+  carries the per-axis caps it runs with (:func:`trial_axis_caps`): the printer's X/Y caps, raised
+  to the trial's acceleration where the firmware sets them by G-code (Marlin, RepRapFirmware,
+  Prusa: ``M201 X Y``, which ``export`` then sends before ``M204``), kept as they are where they
+  are the owner's per-axis limits in the firmware's configuration (Kalico's limited_* kinematics:
+  ``max_x_accel``/``max_y_accel``; and on mainline Klipper, which has none, said by ``export``).
 
 :func:`config_from_params` turns a parameter dict into a :class:`TuneConfig`; the same function
 serves Optuna trials, grid points and stored trials, so they can never disagree.
@@ -44,6 +49,8 @@ class SearchSpace:
     freq_step: float = 0.1
     min_speed_factor: float = 0.3
     accel_basis: str = ""               # what sets the acceleration range's top (for the summary)
+    axis_caps: tuple[float, float] | None = None   # the printer's X/Y caps, mm/s² (0 = none)
+    raise_axis_caps: bool = False       # the firmware sets them by G-code: raised to the trial's acceleration
 
     @property
     def accel_fixed(self) -> bool:
@@ -58,8 +65,9 @@ class SearchSpace:
         kw = dict(d)
         for k in ("shapers", "freq_limit_methods"):
             kw[k] = tuple(kw[k])
-        for k in ("freq_x", "freq_y", "damping", "freq_limit_hz", "accel"):
-            kw[k] = tuple(float(v) for v in kw[k])
+        for k in ("freq_x", "freq_y", "damping", "freq_limit_hz", "accel", "axis_caps"):
+            if kw.get(k) is not None:
+                kw[k] = tuple(float(v) for v in kw[k])
         return cls(**kw)
 
 
@@ -105,9 +113,34 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
         acc = (lo, hi)
     if not (0 < acc[0] <= acc[1]):
         raise RingtuneError(f"acceleration range must be 0 < lo ≤ hi, not {acc}", "accel")
+    caps, raise_caps = printer_axis_caps(printer, firmware)
     return SearchSpace(firmware=firmware, shapers=offered, per_axis=per_axis, freq_x=ranges["x"],
                        freq_y=ranges["y"], damping=(0.0, float(zmax)), freq_limit_methods=FREQ_LIMIT_METHODS,
-                       freq_limit_hz=(10.0, 80.0), accel=(float(acc[0]), float(acc[1])), accel_basis=basis)
+                       freq_limit_hz=(10.0, 80.0), accel=(float(acc[0]), float(acc[1])), accel_basis=basis,
+                       axis_caps=caps, raise_axis_caps=raise_caps)
+
+
+def printer_axis_caps(printer: Any, firmware: str) -> tuple[tuple[float, float] | None, bool]:
+    """(the printer's X/Y acceleration caps or None, whether trials raise them to their acceleration):
+    raised where ``firmware`` sets them by G-code (``M201``), kept where they live in its
+    configuration (Kalico) or where it has none (module docstring)."""
+    caps = tuple(float(c) for c in tuple(printer.limits.max_accel or (0.0, 0.0))[:2])
+    if not any(c > 0 for c in caps):
+        return None, False
+    fw = FIRMWARES[firmware]
+    return caps, bool(fw.axis_accel_set) and not fw.axis_accel_config
+
+
+def trial_axis_caps(space: SearchSpace, accel: float) -> dict[str, float]:
+    """``max_accel_x``/``max_accel_y`` of a trial at ``accel`` mm/s² (empty when the printer has no
+    X/Y caps): the printer's, raised to ``accel`` where ``space.raise_axis_caps``."""
+    if not space.axis_caps:
+        return {}
+    out = {}
+    for ax, cap in zip("xy", space.axis_caps):
+        if cap > 0:
+            out[f"max_accel_{ax}"] = max(cap, float(accel)) if space.raise_axis_caps else cap
+    return out
 
 
 def motor_accel_limit(printer: Any, speed: float, n_dir: int = 181) -> tuple[float, str]:
@@ -151,29 +184,14 @@ def accel_ceiling(printer: Any, speed: float | None = None) -> tuple[float, str]
 
     The firmware's limits do not cap it: the tuned value is what the user will set as the
     printer's ``max_accel`` (so today's ``limits.accel`` is no bound), and a per-axis cap
-    (``limits.max_accel``: Klipper's ``max_x_accel``/``max_y_accel``, Marlin's ``M201 X/Y``) is
-    applied by the planner to the moves along that axis, in every trial alike
-    (:func:`axis_cap_notes`)."""
+    (``limits.max_accel``: Kalico's ``max_x_accel``/``max_y_accel``, Marlin's ``M201 X/Y``) is
+    applied by the planner to the moves along that axis, as each trial carries it
+    (:func:`trial_axis_caps`); the summary says which caps bind
+    (:mod:`ringtune.agents.tune.binding`)."""
+    what = "the job's top speed" if speed is not None else "the printer's velocity limit"
     v = float(speed if speed is not None else printer.limits.velocity)
     a, who = motor_accel_limit(printer, v)
-    return a, f"the {who} would need all its force at {v:.0f} mm/s (the job's top speed)"
-
-
-def axis_cap_notes(printer: Any) -> list[str]:
-    """One sentence per X/Y cap of the printer's own (``limits.max_accel``), named as its firmware
-    writes it: it limits the moves along that axis, not the tuned acceleration."""
-    caps = tuple(printer.limits.max_accel or ())[:2]
-    fw = str((getattr(printer, "current", None) or {}).get("firmware", "")).lower()
-    out = []
-    for ax, cap in zip("xy", caps):
-        if not cap or cap <= 0:
-            continue
-        name = (f"max_{ax}_accel" if fw == "klipper" else f"M201 {ax.upper()}" if fw
-                else f"[limits] max_accel's {ax.upper()} entry")
-        out.append(f"{ax.upper()}'s own cap {name} {cap:.0f} mm/s² applies to {ax.upper()} moves (the planner keeps "
-                   f"each move's {ax.upper()} acceleration under it, in every trial and baseline alike); it does not "
-                   "cap the tuned acceleration.")
-    return out
+    return a, f"the {who} would need all its force at {v:.0f} mm/s ({what})"
 
 
 def defaults_note(printer: Any) -> str:
@@ -247,14 +265,13 @@ def config_from_params(params: dict[str, Any], space: SearchSpace, extra: dict |
     fx, fy = _q(fx, space.freq_step), _q(fy, space.freq_step)
     z = _q(params.get("damping", 0.1), 0.005)
     method = params.get("freq_limit", "off")
+    accel = _q(params.get("accel", space.accel[0]) if not space.accel_fixed else space.accel[0], space.accel_step)
     return TuneConfig(firmware=space.firmware, shaper_x=sx, shaper_y=sy, freq_x=float(fx), freq_y=float(fy),
                       damping_x=z, damping_y=z,
                       freq_limit_hz=0.0 if method == "off" else _q(params["freq_limit_hz"], 0.5),
                       freq_limit_method="sections" if method == "off" else method,
-                      min_speed_factor=space.min_speed_factor,
-                      accel=_q(params.get("accel", space.accel[0]) if not space.accel_fixed else space.accel[0],
-                               space.accel_step),
-                      extra=dict(extra or {}))
+                      min_speed_factor=space.min_speed_factor, accel=accel,
+                      **trial_axis_caps(space, accel), extra=dict(extra or {}))
 
 
 def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]:
