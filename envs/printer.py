@@ -376,16 +376,18 @@ def _check_limits(limits: dict, lw: str) -> None:
             _num(limits, key, lw, lo=0.0, lo_open=True)
     if "min_cruise_ratio" in limits:
         _num(limits, "min_cruise_ratio", lw, lo=0.0, hi=1.0)
-    if "junction" in limits and limits["junction"] not in ("scv", "jd", "jerk"):
-        raise RingtuneError(f"junction must be scv, jd or jerk, not {limits['junction']!r}", f"{lw}.junction")
-    if "axis_rule" in limits and limits["axis_rule"] not in AXIS_RULES:
-        raise RingtuneError(f"axis_rule must be one of {', '.join(AXIS_RULES)}, not {limits['axis_rule']!r}",
-                            f"{lw}.axis_rule")
+    for key, allowed in (("junction", ("scv", "jd", "jerk")), ("axis_rule", AXIS_RULES)):
+        if key in limits and limits[key] not in allowed:
+            raise RingtuneError(f"{key} must be one of {', '.join(allowed)}, not {limits[key]!r}", f"{lw}.{key}")
     _bool(limits, "scale_xy_accel", lw, None)
     for key in ("jerk", "max_accel", "max_velocity"):
-        if key in limits and not (isinstance(limits[key], list) and len(limits[key]) == 4 and all(
-                isinstance(x, (int, float)) and not isinstance(x, bool) and x >= 0 for x in limits[key])):
+        if key in limits and not _four_numbers(limits[key]):
             raise RingtuneError(f"{key} must be a list of 4 non-negative numbers (x, y, z, e)", f"{lw}.{key}")
+
+
+def _four_numbers(v) -> bool:
+    return isinstance(v, list) and len(v) == 4 and all(
+        isinstance(x, (int, float)) and not isinstance(x, bool) and x >= 0 for x in v)
 
 
 def printer_from_dict(d: dict, where: str = "printer") -> Printer:

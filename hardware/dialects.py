@@ -174,16 +174,11 @@ def _axis_caps(config: TuneConfig, fw: Firmware, exp: Export) -> None:
         return
     text = ", ".join(f"{ax.upper()} {fmt(c, 0)}" for ax, c in caps.items())
     if not fw.axis_accel_set:
-        exp.notes.append(f"this config was planned with per-axis acceleration caps ({text} mm/s²), which "
-                         f"{fw.title} does not have"
-                         + ("; Kalico's limited_* kinematics do (--firmware kalico)" if fw.family == "klipper"
-                            else ""))
+        _no_axis_caps(fw, exp, text)
         return
     sent = {ax: check_value(c, fw.axis_accel, f"{ax.upper()} acceleration cap", "mm/s²",
                             f"config: max_accel_{ax}", fw.title) for ax, c in caps.items()}
-    words = [w for w in fw.axis_accel_set.split()
-             if not any("{" + ax + "}" in w for ax in "xy" if ax not in sent)]
-    line = " ".join(words).format(**{ax: fmt(v, fw.axis_accel.decimals) for ax, v in sent.items()})
+    line = _axis_caps_line(fw, sent)
     for ax, v in sent.items():
         exp.setting_lines[f"max_accel_{ax}"] = len(exp.lines)
         exp.expected[f"max_accel_{ax}"] = v
@@ -195,22 +190,26 @@ def _axis_caps(config: TuneConfig, fw: Firmware, exp: Export) -> None:
                      "planned: each axis's share of a move's acceleration stays under its cap")
 
 
+def _no_axis_caps(fw: Firmware, exp: Export, text: str) -> None:
+    fork = "; Kalico's limited_* kinematics do (--firmware kalico)" if fw.family == "klipper" else ""
+    exp.notes.append(f"this config was planned with per-axis acceleration caps ({text} mm/s²), which "
+                     f"{fw.title} does not have{fork}")
+
+
+def _axis_caps_line(fw: Firmware, sent: dict[str, float]) -> str:
+    """The record's command for the caps given (``M201 X.. Y..``; an axis not given is left out)."""
+    words = [w for w in fw.axis_accel_set.split()
+             if not any("{" + ax + "}" in w for ax in "xy" if ax not in sent)]
+    return " ".join(words).format(**{ax: fmt(v, fw.axis_accel.decimals) for ax, v in sent.items()})
+
+
 def _accel_persistence(config: TuneConfig, fw: Firmware, exp: Export, a: float) -> None:
     """Where the acceleration (and the caps) stay after a restart, from the firmware record."""
     caps = config.axis_caps != (None, None) and bool(fw.axis_accel_set)
     if fw.family == "klipper":
-        keys = "max_accel" + (", " + ", ".join(fw.axis_accel_config.format(ax=ax) for ax in "xy")
-                              if caps and fw.axis_accel_config else "")
-        exp.notes.append(f"SET_VELOCITY_LIMIT lasts until restart: {keys} in printer.cfg's [printer] "
-                         "section keeps it")
-        if exp.config_text:
-            exp.config_text += f"# and in the [printer] section: max_accel: {fmt(a, fw.accel.decimals)}\n"
-            exp.config_text += "".join(
-                f"#   {fw.axis_accel_config.format(ax=k[-1])}: {fmt(v, fw.axis_accel.decimals)}\n"
-                for k, v in exp.expected.items() if k.startswith("max_accel_") and fw.axis_accel_config)
-    elif fw.family == "rrf":
-        if exp.config_text:
-            exp.config_text += exp.lines[-1] + "\n"
+        _klipper_printer_section(fw, exp, a, caps)
+    elif fw.family == "rrf" and exp.config_text:
+        exp.config_text += exp.lines[-1] + "\n"
     elif fw.family in ("marlin", "marlin-ftm"):
         exp.notes.append("M500 stores M201 and M204" if caps else
                          "Marlin also caps each axis at its M201 X/Y maximum (push reads it back and says "
@@ -218,6 +217,19 @@ def _accel_persistence(config: TuneConfig, fw: Firmware, exp: Export, a: float) 
     elif fw.family == "prusa":
         exp.notes.append("M593 W stores the shaper, not M204" + (" or M201" if caps else "")
                          + ": the acceleration lasts until restart")
+
+
+def _klipper_printer_section(fw: Firmware, exp: Export, a: float, caps: bool) -> None:
+    """Klipper/Kalico: the [printer] keys that keep the acceleration (and Kalico's caps), as
+    comment lines of the config part (it replaces [input_shaper] only)."""
+    keys = [fw.axis_accel_config.format(ax=k[-1]) for k in exp.expected
+            if k.startswith("max_accel_") and caps and fw.axis_accel_config]
+    exp.notes.append(f"SET_VELOCITY_LIMIT lasts until restart: {', '.join(['max_accel', *keys])} in "
+                     "printer.cfg's [printer] section keeps it")
+    if exp.config_text:
+        exp.config_text += f"# and in the [printer] section: max_accel: {fmt(a, fw.accel.decimals)}\n"
+        exp.config_text += "".join(f"#   {key}: {fmt(exp.expected['max_accel_' + key[4]], fw.axis_accel.decimals)}\n"
+                                   for key in keys)
 
 
 def _rounding_notes(config: TuneConfig, exp: Export) -> None:
@@ -434,6 +446,12 @@ def _marlin(config: TuneConfig, dialect: str) -> Export:
             where_line.setdefault(k, len(lines) - 1)
     exp = Export(dialect, lines, list(fw.save), None, None, ["M593"], expected, where_line,
                  ["Marlin's minimum F depends on the board (the echo delay must fit its timer)"])
+    low = [f"{ax.upper()} {fmt(config.axis(ax)[1], 2)} Hz" for ax in "xy"
+           if config.axis(ax)[0] != "none" and 0 < config.axis(ax)[1] < fw.build_min_freq]
+    if low:
+        exp.notes.append(f"{', '.join(low)} is below {fw.build_min_freq:g} Hz, {fw.build_min_freq_why}: "
+                         f"build with SHAPING_MIN_FREQ at or below it (Configuration_adv.h), or tune with "
+                         f"--shaping-min-freq your build's value")
     _rounding_notes(config, exp)
     return exp
 

@@ -168,15 +168,7 @@ def _accel_caps(src: _Source, limits: dict, accel: float) -> None:
     """Per-axis acceleration caps, kept whatever their value (module docstring)."""
     kin = str(src.get("printer", "kinematics")).strip()
     limited = kin.startswith("limited_")
-    caps = [0.0, 0.0, 0.0, 0.0]
-    for i, ax in enumerate("xyz"):
-        v = src.number("printer", f"max_{ax}_accel")
-        if v is None and limited and ax != "z":
-            v = accel
-            src.notes.append(f"[printer] max_{ax}_accel not set: {kin}'s default, max_accel {accel:g} mm/s², "
-                             f"caps {ax.upper()} even when the acceleration is raised at run time")
-        if v is not None:
-            caps[i] = v
+    caps = [_accel_cap(src, ax, accel, kin if limited and ax != "z" else None) for ax in "xyz"] + [0.0]
     if any(caps):
         limits["max_accel"] = caps
     if kin == "limited_corexy":
@@ -281,6 +273,16 @@ def _stepper_motor(src: _Source, stepper: str) -> dict:
             src.notes.append(f"{stepper}: [{inline}] steps_per_revolution {steps} but full_steps_per_rotation "
                              f"{full}; {full} is written (it is how Klipper steps the motor)")
     return table
+
+
+def _accel_cap(src: _Source, ax: str, accel: float, limited: str | None) -> float:
+    """max_<ax>_accel (0 = none); on a limited_* kinematics an unset X/Y cap is max_accel."""
+    v = src.number("printer", f"max_{ax}_accel")
+    if v is None and limited:
+        src.notes.append(f"[printer] max_{ax}_accel not set: {limited}'s default, max_accel {accel:g} mm/s², "
+                         f"caps {ax.upper()} even when the acceleration is raised at run time")
+        return accel
+    return 0.0 if v is None else v
 
 
 def _current(src: _Source, accel: float) -> dict:

@@ -146,6 +146,12 @@ def _statuses(exp: Export, replies: dict[int, Reply], report: str | None, firmwa
     return out
 
 
+def _caps_below(reported: dict, accel: float) -> dict[str, float]:
+    """The read-back X/Y caps (mm/s²) below ``accel``."""
+    caps = {ax: float(reported[f"max_accel_{ax}"].value) for ax in "xy" if f"max_accel_{ax}" in reported}
+    return {ax: v for ax, v in caps.items() if v < accel}
+
+
 def _judge_axis_caps(statuses: list[SettingStatus], exp: Export, reported: dict) -> None:
     """An acceleration the printer's own per-axis caps (read back) hold lower is not claimed as
     applied: the printer would not print at it. Caps the config itself sets are settings of their
@@ -153,8 +159,7 @@ def _judge_axis_caps(statuses: list[SettingStatus], exp: Export, reported: dict)
     st = next((s for s in statuses if s.key == "accel"), None)
     if st is None or st.status != APPLIED or any(k.startswith("max_accel_") for k in exp.expected):
         return
-    low = {ax: float(reported[f"max_accel_{ax}"].value) for ax in "xy"
-           if f"max_accel_{ax}" in reported and float(reported[f"max_accel_{ax}"].value) < float(st.meant)}
+    low = _caps_below(reported, float(st.meant))
     if not low:
         return
     caps = ", ".join(f"{ax.upper()} {v:g}" for ax, v in low.items())

@@ -99,6 +99,9 @@ class Firmware:
         accel_roles: the accelerations the firmware keeps apart, besides per-axis caps: ``print``
             (extruding moves), ``travel`` (non-extruding), ``retract`` (E-only moves).
         persists: what of the tuned settings survives a restart, and how.
+        build_min_freq: the lowest shaper frequency (Hz) a stock build handles as it should, where
+            the build (not a G-code check) sets it (Marlin classic: SHAPING_MIN_FREQ); 0 = none.
+        build_min_freq_why: what it is and what happens below it.
     """
 
     name: str
@@ -124,6 +127,8 @@ class Firmware:
     axis_accel_kinematics: tuple[str, ...] = ()
     accel_roles: tuple[str, ...] = ("print",)
     persists: str = ""
+    build_min_freq: float = 0.0
+    build_min_freq_why: str = ""
 
     @property
     def shapers(self) -> tuple[str, ...]:
@@ -173,6 +178,12 @@ _KLIPPER_KEEPS = ("nothing set by SET_INPUT_SHAPER or SET_VELOCITY_LIMIT survive
 _RRF_KEEPS = ("nothing set by G-code survives a restart (M500 stores neither M593 nor M201/M204): "
               "the lines belong in config.g")
 _MARLIN_KEEPS = "M500 stores the shaper, M201 and M204 in EEPROM (EEPROM_SETTINGS builds)"
+#: Marlin classic (stepper.h): SHAPING_MIN_FREQ defaults to the lower of SHAPING_FREQ_X/Y (40 Hz in
+#: a stock Configuration_adv.h) and sizes the echo buffer (max step rate / SHAPING_MIN_FREQ / 2 + 3);
+#: below it the buffer fills at high step rates and stepper.cpp applies echoes early
+_MARLIN_MIN_FREQ_WHY = ("a stock build's SHAPING_MIN_FREQ (the lower of SHAPING_FREQ_X/Y, 40 Hz by default), "
+                        "which sizes the echo buffer: below it, at high step rates, Marlin applies the "
+                        "echoes early and the shaping no longer cancels the ringing")
 
 FIRMWARES: dict[str, Firmware] = {f.name: f for f in (
     Firmware("klipper", "Klipper", "klipper", "klipper", "klipper", False, _KLIPPER_FREQ,
@@ -206,7 +217,8 @@ FIRMWARES: dict[str, Firmware] = {f.name: f for f in (
              Span(0.0, 1000.0, 2, lo_open=True, why="Marlin's own minimum F depends on the board"),
              Span(0.0, 1.0, 3), True, "M204 P{a} T{a}", "M204", _M204_2, ";", ("M500",),
              axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_M201_SPAN,
-             accel_roles=("print", "retract", "travel"), persists=_MARLIN_KEEPS),
+             accel_roles=("print", "retract", "travel"), persists=_MARLIN_KEEPS,
+             build_min_freq=40.0, build_min_freq_why=_MARLIN_MIN_FREQ_WHY),
     Firmware("marlin-ftm", "Marlin FT_MOTION", "marlin-ftm", "marlin-ftm", "marlin", False,
              Span(10.0, 500.0, 2, why="FTM_MIN_SHAPE_FREQ..FTM_FS/2"), Span(0.01, 1.0, 3), True,
              "M204 P{a} T{a}", "M204", _M204_2, ";", ("M500",),

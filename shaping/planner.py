@@ -94,15 +94,18 @@ class MachineLimits:
     def __post_init__(self) -> None:
         self.validate()
 
-    def validate(self, where: str = "limits") -> None:
-        if self.junction not in JUNCTIONS:
-            raise RingtuneError(f"junction must be one of {', '.join(JUNCTIONS)}, not {self.junction!r}",
-                                f"{where}.junction")
+    def _validate_axis_rule(self, where: str) -> None:
         if self.axis_rule not in AXIS_RULES:
             raise RingtuneError(f"must be one of {', '.join(AXIS_RULES)}, not {self.axis_rule!r}",
                                 f"{where}.axis_rule")
         if self.scale_xy_accel and not (self.max_accel and all(c > 0 for c in self.max_accel[:2])):
             raise RingtuneError("scale_xy_accel needs X and Y caps (max_accel)", f"{where}.scale_xy_accel")
+
+    def validate(self, where: str = "limits") -> None:
+        if self.junction not in JUNCTIONS:
+            raise RingtuneError(f"junction must be one of {', '.join(JUNCTIONS)}, not {self.junction!r}",
+                                f"{where}.junction")
+        self._validate_axis_rule(where)
         for name in ("accel", "velocity"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -215,19 +218,7 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
     v2 = vmax * vmax
     dv2 = 2.0 * accel * d
 
-    # -- junction limits c[0..n] (v² at the start of move i; c[n] = end of the job) --
-    c, safe = junction_limits(job, limits, use, u, d, e_only, vmax, accel, amax_axes)
-    stop = job.stop_before.copy()
-    stop[0] = True
-    if limits.junction == "jerk":
-        c_stop = np.minimum(safe, np.concatenate(([safe[0]], safe[:-1]))) ** 2
-    else:
-        c_stop = np.zeros(n)
-    cj = np.empty(n + 1)
-    cj[:n] = np.where(stop, c_stop, c)
-    cj[n] = safe[-1] ** 2 if limits.junction == "jerk" else 0.0
-    cj[1:n] = np.minimum(cj[1:n], np.minimum(v2[1:], v2[:-1]))
-    cj[0] = min(cj[0], v2[0])
+    cj = _junction_v2(job, limits, use, u, d, e_only, vmax, accel, amax_axes, v2)
 
     w = backward_pass(forward_pass(cj, dv2), dv2)
     cruise2 = np.minimum(v2, 0.5 * (w[:-1] + w[1:] + dv2))
@@ -242,6 +233,25 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
         acc, decel, cruise2 = daa_adjust(daa_freq, daa_min_accel, w, cruise2, accel, d, u)
 
     return _build(job, limits, w, cruise2, acc, decel, d, u, vmax, extruding)
+
+
+def _junction_v2(job, limits, use, u, d, e_only, vmax, accel, amax_axes, v2) -> np.ndarray:
+    """Junction limits c[0..n] (v² at the start of move i; c[n] = end of the job): the rule's,
+    full stops where the job stops, never above either move's top speed."""
+    n = job.n_moves
+    c, safe = junction_limits(job, limits, use, u, d, e_only, vmax, accel, amax_axes)
+    stop = job.stop_before.copy()
+    stop[0] = True
+    if limits.junction == "jerk":
+        c_stop = np.minimum(safe, np.concatenate(([safe[0]], safe[:-1]))) ** 2
+    else:
+        c_stop = np.zeros(n)
+    cj = np.empty(n + 1)
+    cj[:n] = np.where(stop, c_stop, c)
+    cj[n] = safe[-1] ** 2 if limits.junction == "jerk" else 0.0
+    cj[1:n] = np.minimum(cj[1:n], np.minimum(v2[1:], v2[:-1]))
+    cj[0] = min(cj[0], v2[0])
+    return cj
 
 
 def _build(job, limits, w, cruise2, acc, dec, d, u, vmax, extruding) -> Plan:

@@ -208,25 +208,22 @@ _KEY_FLAG = {"freq_x": "--freq", "freq_y": "--freq", "damping_x": "--damping", "
              "min_speed_factor": "--min-speed-factor"}
 
 
+def _in_range(values, lo: float, hi: float, option: str, what: str) -> None:
+    bad = [v for v in values if v is not None and not (math.isfinite(v) and lo <= v <= hi)]
+    if bad:
+        raise RingtuneError(f"{bad[0]:g} is not {what}", option)
+
+
 def _other_keys(cfg: dict, args) -> None:
     """The TuneConfig keys without a shaper of their own: acceleration, caps, limit method and
     speed factor, the job-acceleration mode (an extra key of tune's best.json)."""
-    if args.accel is not None:
-        cfg["accel"] = args.accel
-    caps = _pair(args.max_accel, "--max-accel", True)
-    if caps:
-        if not all(math.isfinite(c) and c > 0 for c in caps):
-            raise RingtuneError(f"{args.max_accel} is not an acceleration cap: give mm/s² > 0", "--max-accel")
-        cfg["max_accel_x"], cfg["max_accel_y"] = caps
-    if args.freq_limit_method is not None:
-        cfg["freq_limit_method"] = args.freq_limit_method
-    if args.min_speed_factor is not None:
-        if not (math.isfinite(args.min_speed_factor) and 0.01 <= args.min_speed_factor <= 1):
-            raise RingtuneError(f"{args.min_speed_factor:g} is not a speed factor: give one in [0.01, 1]",
-                                "--min-speed-factor")
-        cfg["min_speed_factor"] = args.min_speed_factor
-    if args.job_accel is not None:
-        cfg["job_accel"] = args.job_accel
+    caps = _pair(args.max_accel, "--max-accel", True) or (None, None)
+    _in_range(caps, 1.0, 1e6, "--max-accel", "an acceleration cap: give mm/s² > 0")
+    msf = args.min_speed_factor
+    _in_range((msf,), 0.01, 1.0, "--min-speed-factor", "a speed factor: give one in [0.01, 1]")
+    given = {"accel": args.accel, "max_accel_x": caps[0], "max_accel_y": caps[1],
+             "freq_limit_method": args.freq_limit_method, "min_speed_factor": msf, "job_accel": args.job_accel}
+    cfg.update({k: v for k, v in given.items() if v is not None})
 
 
 def _check_options(freq, damping, args) -> None:

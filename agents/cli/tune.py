@@ -9,7 +9,10 @@ step_loss, breaks, label, source}}, vs_baselines {key: {baseline, faster_s, fast
 better_pct, dominates, metrics {print_time_s|overshoot_mm|path_error_mm|feasible: better|same|worse},
 path_error_better_mm, path_error_better_pct}}, dominates_klipper, dominates_current (null or {config,
 print_time_s, quality_mm, ...comparison}), accel {range, searched, basis, chosen, stopped_by,
-headroom, defaults (what of the motor bound is a default: "x.mass", "y.motor", ...; [] when none)},
+headroom, defaults (what of the motor bound is a default: "x.mass", "y.motor", ...; [] when none),
+binding (the firmware limits that hold some moves of the chosen configuration lower: list of {name
+(the firmware's own: "M201 X", "max_y_accel", "M204 R"), value (mm/s²), what, moves, time_s,
+time_without_s (the planner with that limit removed)})},
 job_accel {mode, commands, cap_mm_s2, searched, print_time_as_sliced_s, print_time_replaced_s,
 replaced_accel, saved_s}, plot_arrows, files {readme, summary, plot, best,
 apply, front, trials}, storage, study, completed_now, interrupted, elapsed_s.
@@ -99,6 +102,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--freq-margin", type=float, default=None, metavar="PCT",
                    help="also judge every configuration with the printer's resonances PCT %% lower and "
                         "higher; the worst counts (default 5; 0 = the exact model only)")
+    p.add_argument("--shaping-min-freq", metavar="HZ", type=float, default=None,
+                   help="Marlin classic: your build's SHAPING_MIN_FREQ (default: a stock build's 40 Hz, the "
+                        "lower of SHAPING_FREQ_X/Y); the search stays above it")
     p.add_argument("--accel-range", metavar="LO,HI", default=None,
                    help="acceleration search range, mm/s² (default: from the printer's motors and masses at the "
                         "job's top speed); LO = HI fixes it")
@@ -117,7 +123,7 @@ def run(args: argparse.Namespace, out) -> int:
     from ringtune.agents.tune import report
     from ringtune.agents.tune import storage
     from ringtune.agents.tune import study as tune_study
-    from ringtune.agents.tune.space import default_space, params_from_config
+    from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config
     from ringtune.agents.tune.baselines import baselines_for, warm_start
     from ringtune.agents.tune.binding import binding_limits, binding_sentences
     from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
@@ -155,7 +161,12 @@ def run(args: argparse.Namespace, out) -> int:
     quality = f"{args.quality}_mm"
     facts = job_accel_facts(printer, args.gcode, args.job_accel)
     # no --gcode: the built-in print stands in for the user's, which may run up to the velocity limit
-    space = default_space(printer, firmware, accel=accel_range, speed=facts.top_speed if args.gcode else None)
+    min_freq = _shaping_min_freq(args.shaping_min_freq)
+    space = default_space(printer, firmware, accel=accel_range, speed=facts.top_speed if args.gcode else None,
+                          min_freq=min_freq)
+    floor_note = freq_floor_note(firmware, min_freq, space)
+    if floor_note:
+        out.note(f"ringtune tune: {floor_note}")
     if accel_range is None and args.job_accel == "respect" and facts.commands and not facts.accel_matters(space):
         a = float(printer.limits.accel)
         space = dataclasses.replace(space, accel=(a, a), accel_basis="not searched: the job's own acceleration "
@@ -213,7 +224,7 @@ def run(args: argparse.Namespace, out) -> int:
     accel_json["binding"] = [dataclasses.asdict(b) for b in bindings]
     ja_lines, ja_json = job_accel_section(facts, args.job_accel, printer, args.gcode, chosen.config)
     ja_json["searched"] = not space.accel_fixed
-    notes = []
+    notes = [f"The {floor_note}."] if floor_note else []
     if margin:
         notes.append(f"Every figure is the worst of the printer as modelled and with all its resonances "
                      f"{margin * 100:g} % lower and higher (--freq-margin; `ringtune simulate --freq-margin "
@@ -258,6 +269,14 @@ def firmware_names(name: str) -> tuple[str, str, str]:
 
     rec = Firmware.named(name, "--firmware")
     return rec.name, rec.name, ""
+
+
+def _shaping_min_freq(value: float | None) -> float | None:
+    from ringtune.shaping.errors import RingtuneError
+
+    if value is not None and not (0 < value <= 1000):
+        raise RingtuneError(f"{value:g} Hz is not a frequency: give one in (0, 1000] Hz", "--shaping-min-freq")
+    return value
 
 
 def _accel_range(text: str | None):

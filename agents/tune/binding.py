@@ -61,18 +61,15 @@ def cap_names(firmware: str) -> dict[str, str]:
 
 def _variants(limits: MachineLimits) -> list[tuple[str, MachineLimits, str]]:
     """(key, the limits with that limit removed, what it acts on) for every limit there is."""
-    out = []
     caps = tuple(limits.max_accel or ())
-    for i, ax in enumerate("xyz"):
-        if i < len(caps) and caps[i] > 0:
-            removed = tuple(0.0 if j == i else c for j, c in enumerate(caps))
-            out.append((ax, replace(limits, max_accel=removed, scale_xy_accel=False),
-                        f"moves with {ax.upper()} travel"))
-    if limits.retract_accel is not None and limits.junction != "scv":
-        out.append(("retract", replace(limits, retract_accel=None), "retractions (E-only moves)"))
-    if limits.travel_accel is not None and limits.junction != "scv":
-        out.append(("travel", replace(limits, travel_accel=None), "travel moves"))
-    return out
+    out = [(ax, replace(limits, max_accel=tuple(0.0 if j == i else c for j, c in enumerate(caps)),
+                        scale_xy_accel=False), f"moves with {ax.upper()} travel")
+           for i, ax in enumerate("xyz") if i < len(caps) and caps[i] > 0]
+    if limits.junction == "scv":          # Klipper: one acceleration for every move
+        return out
+    roles = (("retract", "retract_accel", "retractions (E-only moves)"), ("travel", "travel_accel", "travel moves"))
+    return out + [(key, replace(limits, **{attr: None}), what) for key, attr, what in roles
+                  if getattr(limits, attr) is not None]
 
 
 def _value(key: str, limits: MachineLimits) -> float:

@@ -5,7 +5,9 @@ Parameters (Optuna names):
 - ``shaper`` (RepRapFirmware: one shaper for all axes) or ``shaper_x``, ``shaper_y``: the shaper
   types the target firmware offers (``none`` included; RRF ``custom`` excluded);
 - ``freq`` (RRF) or ``freq_x``, ``freq_y``: shaper frequency F, Hz, around the printer's modes;
-- ``damping``: shaper damping ratio S (one for all axes), within every offered shaper's limit;
+- ``damping_x``, ``damping_y`` (or ``damping`` on RepRapFirmware, one shaper for all axes): shaper
+  damping ratio S per axis, as Klipper, Marlin and Prusa take it (``damping_ratio_x``, ``M593 X
+  D``), within every offered shaper's limit (a stored trial's single ``damping`` is both);
 - ``freq_limit``: ``off`` or a frequency-limit method (``nophead``, ``sections``, ``marlin``), and
   ``freq_limit_hz`` (Hz, only when on);
 - ``accel``: printing acceleration, mm/s², in steps of ``accel_step``; every trial's configuration
@@ -72,10 +74,14 @@ class SearchSpace:
 
 
 def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float, float] | None = None,
-                  shapers: tuple[str, ...] | None = None, speed: float | None = None) -> SearchSpace:
+                  shapers: tuple[str, ...] | None = None, speed: float | None = None,
+                  min_freq: float | None = None) -> SearchSpace:
     """The default space for ``printer`` on ``firmware``.
 
-    F spans 0.6×–1.8× the axis's lowest/highest mode (clipped to 10–200 Hz); S 0–0.2 (capped
+    F spans 0.6×–1.8× the axis's lowest/highest mode (clipped to 10–200 Hz and from below to the
+    firmware's lowest frequency — its record's range, and a stock build's minimum where the build
+    sets one, Marlin's SHAPING_MIN_FREQ, unless ``min_freq`` says the user's build differs; the
+    top at least 1.5× that floor); S 0–0.2 (capped
     by the offered shapers' limits); frequency limit 10–80 Hz with every method; acceleration
     from 0.3× the printer's own limit up to :func:`accel_ceiling` at the job's top speed
     ``speed`` (mm/s; default the printer's velocity limit): where the weakest motor would need all
@@ -95,11 +101,12 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
                                 "shapers")
         offered = tuple(shapers)
     zmax = min([0.2] + [max_damping(n, flavor) for n in offered if n != "none"])
+    floor = freq_floor(firmware, min_freq)
     ranges = {}
     for ax in ("x", "y"):
         freqs = [m.freq for m in getattr(printer, ax).modes] or [40.0]
-        lo = max(10.0, round(0.6 * min(freqs), 1))
-        hi = min(200.0, round(1.8 * max(freqs), 1))
+        lo = max(10.0, floor, round(0.6 * min(freqs), 1))
+        hi = max(min(200.0, round(1.8 * max(freqs), 1)), round(1.5 * lo, 1))
         ranges[ax] = (lo, hi)
     per_axis = not FIRMWARES[firmware].one_shaper
     if not per_axis:
@@ -118,6 +125,26 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
                        freq_y=ranges["y"], damping=(0.0, float(zmax)), freq_limit_methods=FREQ_LIMIT_METHODS,
                        freq_limit_hz=(10.0, 80.0), accel=(float(acc[0]), float(acc[1])), accel_basis=basis,
                        axis_caps=caps, raise_axis_caps=raise_caps)
+
+
+def freq_floor(firmware: str, min_freq: float | None = None) -> float:
+    """The lowest shaper frequency (Hz) the search offers on ``firmware``: the lower end of its
+    record's range, and its stock build's minimum (``build_min_freq``) unless ``min_freq`` (the
+    user's build) replaces it."""
+    fw = FIRMWARES[firmware]
+    build = fw.build_min_freq if min_freq is None else float(min_freq)
+    return max(fw.freq.lo, build)
+
+
+def freq_floor_note(firmware: str, min_freq: float | None, space: "SearchSpace") -> str:
+    """Where the firmware's build minimum binds the search, said; "" where it does not."""
+    fw = FIRMWARES[firmware]
+    if not fw.build_min_freq:
+        return ""
+    floor = freq_floor(firmware, min_freq)
+    where = ("your build's SHAPING_MIN_FREQ (--shaping-min-freq)" if min_freq is not None else
+             f"{fw.build_min_freq_why}; --shaping-min-freq HZ if your build differs")
+    return f"shaper frequencies searched from {floor:g} Hz: {where}"
 
 
 def printer_axis_caps(printer: Any, firmware: str) -> tuple[tuple[float, float] | None, bool]:
@@ -234,8 +261,8 @@ def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
         p["shaper"] = trial.suggest_categorical("shaper", list(space.shapers))
         if p["shaper"] != "none":
             p["freq"] = trial.suggest_float("freq", *space.freq_x)
-    if any(v != "none" for k, v in p.items() if k.startswith("shaper")):
-        p["damping"] = trial.suggest_float("damping", *space.damping)
+    for key in _damping_keys(p, space):
+        p[key] = trial.suggest_float(key, *space.damping)
     p["freq_limit"] = trial.suggest_categorical("freq_limit", ["off", *space.freq_limit_methods])
     if p["freq_limit"] != "off":
         p["freq_limit_hz"] = trial.suggest_float("freq_limit_hz", *space.freq_limit_hz)
@@ -244,6 +271,14 @@ def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
     else:
         p["accel"] = trial.suggest_float("accel", *space.accel)
     return p
+
+
+def _damping_keys(shaping: dict[str, Any], space: SearchSpace) -> list[str]:
+    """The damping parameters a point with these shapers has: ``damping_x``/``damping_y`` for each
+    shaped axis (per-axis firmwares), else ``damping`` when shaping is on."""
+    if space.per_axis:
+        return [f"damping_{ax}" for ax in "xy" if shaping.get(f"shaper_{ax}", "none") != "none"]
+    return ["damping"] if shaping.get("shaper", "none") != "none" else []
 
 
 def _q(value: float, step: float) -> float:
@@ -263,11 +298,12 @@ def config_from_params(params: dict[str, Any], space: SearchSpace, extra: dict |
         sx = sy = params["shaper"]
         fx = fy = params.get("freq", 0.0)
     fx, fy = _q(fx, space.freq_step), _q(fy, space.freq_step)
-    z = _q(params.get("damping", 0.1), 0.005)
+    z = params.get("damping", 0.1)
+    zx, zy = (_q(params.get(f"damping_{ax}", z), 0.005) for ax in "xy")
     method = params.get("freq_limit", "off")
     accel = _q(params.get("accel", space.accel[0]) if not space.accel_fixed else space.accel[0], space.accel_step)
     return TuneConfig(firmware=space.firmware, shaper_x=sx, shaper_y=sy, freq_x=float(fx), freq_y=float(fy),
-                      damping_x=z, damping_y=z,
+                      damping_x=zx, damping_y=zy,
                       freq_limit_hz=0.0 if method == "off" else _q(params["freq_limit_hz"], 0.5),
                       freq_limit_method="sections" if method == "off" else method,
                       min_speed_factor=space.min_speed_factor, accel=accel,
@@ -286,8 +322,8 @@ def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]
         p["shaper"] = config.shaper_x
         if config.shaper_x != "none":
             p["freq"] = config.freq_x
-    if config.shaper_x != "none" or config.shaper_y != "none":
-        p["damping"] = config.damping_x
+    for key in _damping_keys(p, space):
+        p[key] = getattr(config, key if key != "damping" else "damping_x")
     p["freq_limit"] = "off" if config.freq_limit_hz <= 0 else config.freq_limit_method
     if config.freq_limit_hz > 0:
         p["freq_limit_hz"] = config.freq_limit_hz
@@ -338,7 +374,7 @@ def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel
                 for a in accels:
                     p = dict(sh)
                     if z is not None:
-                        p["damping"] = z
+                        p.update({key: z for key in _damping_keys(sh, space)})
                     p.update(lim)
                     p["accel"] = a
                     out.append(p)
