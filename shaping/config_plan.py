@@ -1,7 +1,8 @@
 """A job planned under a TuneConfig: the one path from a parsed job to its plan that ``ringtune plan``
 and :func:`ringtune.envs.evaluate.planned_job` (every tuning trial) share.
 
-1. the config's acceleration (mm/s²) is the machine's, and its per-axis caps (``max_accel_x``/``y``)
+1. the config's acceleration (mm/s²) is the machine's printing and travel acceleration (export
+   sends ``M204 P T``; a retract acceleration, Marlin's ``M204 R``, stays), and its per-axis caps (``max_accel_x``/``y``)
    replace the machine's X/Y caps; how it meets the job's own acceleration
    commands is the job-acceleration mode (:data:`JOB_ACCEL_MODES`, argument ``job_accel`` or the
    config's ``extra["job_accel"]``): ``replace`` (default) — it replaces the job's own commands
@@ -98,8 +99,8 @@ def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None 
     mode = job_accel_mode(config, job_accel)
     limits = with_axis_caps(limits, config)
     accel = None if config is None or config.accel is None else float(config.accel)
-    if accel is not None:
-        limits = replace(limits, accel=accel)
+    if accel is not None:     # export sends it as printing and travel acceleration (M204 P T)
+        limits = replace(limits, accel=accel, travel_accel=None)
         if mode == "replace":
             job = without_job_accel(job)
     freq_limit = None

@@ -65,3 +65,31 @@ def test_rrf_sets_and_reads_back_its_m201_caps():
     assert r.ok and fp.core.max_accel["X"] == 6000.0 and fp.core.max_accel["Y"] == 4500.0
     assert {s.key: s.status for s in r.settings}["max_accel_y"] == APPLIED
     assert "M201 X6000 Y4500" in export_config(cfg).render_config()
+
+
+def test_each_trial_carries_the_caps_its_firmware_would_run(tmp_path):
+    """Marlin's M201 X/Y (set by G-code) are raised to the trial's acceleration; Kalico's
+    max_x_accel/max_y_accel (the owner's, in printer.cfg) are kept as they are; a printer with no
+    X/Y caps gives configurations without them."""
+    from ringtune.agents.tune.space import config_from_params, default_space
+    from ringtune.envs.printer import load_printer, printer_from_dict
+    from ringtune.hardware.klipper_config import printer_facts_from_klipper
+
+    modes = {"x": {"modes": [{"freq": 45.0, "damping": 0.07}]}, "y": {"modes": [{"freq": 38.0, "damping": 0.07}]}}
+    marlin = printer_from_dict({"limits": {"accel": 500, "junction": "jd", "max_accel": [500, 500, 100, 5000]},
+                                **modes})
+    params = {"shaper_x": "zv", "shaper_y": "zv", "freq_x": 45.0, "freq_y": 40.0, "damping_x": 0.1,
+              "damping_y": 0.1, "accel": 5500.0}
+    cfg = config_from_params(params, default_space(marlin, "marlin"))
+    assert (cfg.max_accel_x, cfg.max_accel_y) == (5500.0, 5500.0)
+    low = config_from_params({**params, "accel": 400.0}, default_space(marlin, "marlin"))
+    assert (low.max_accel_x, low.max_accel_y) == (500.0, 500.0)          # never lowered
+    facts = printer_facts_from_klipper(Path(__file__).parent / "data" / "klipper_config" / "v24" / "printer.cfg")
+    v24 = printer_from_dict({**facts.description, **modes, "current": {}})
+    p = {**params, "shaper_x": "mzv", "shaper_y": "mzv", "accel": 20000.0}
+    for fw in ("kalico", "klipper"):
+        cfg = config_from_params(p, default_space(v24, fw))
+        assert (cfg.max_accel_x, cfg.max_accel_y) == (10010.0, 4130.0)
+    assert any("Klipper does not have" in n for n in export_config(cfg).notes)
+    plain = config_from_params(p, default_space(load_printer(None), "klipper"))
+    assert plain.axis_caps == (None, None)
