@@ -6,7 +6,13 @@ and push (ranges, precision, commands), the read-back parser (report format). Fa
 sources: ``shared/reference/firmware.md`` (§1.5 Klipper, §2 Marlin, §3 RRF, §4 Prusa); the
 acceleration commands from Klipper ``toolhead.py`` (``SET_VELOCITY_LIMIT``), Marlin
 ``M200-M205.cpp`` (``M204 P``, report ``  M204 P<a> R<a> T<a>``) and RRF ``Move.cpp`` (``M204 P``,
-report ``Maximum printing acceleration <a>, maximum travel acceleration <a>``).
+report ``Maximum printing acceleration <a>, maximum travel acceleration <a>``); the per-axis caps
+from Marlin ``M201`` (report ``  M201 X<a> Y<a> ...``), RRF ``M201`` and Kalico's limited_*
+kinematics (``klippy/kinematics/limited_corexy.py``, ``limited_cartesian.py``: ``max_x_accel``,
+``max_y_accel``; ``toolhead.py``: ``SET_VELOCITY_LIMIT X_ACCEL= Y_ACCEL=``, reported as
+``max_x_accel: ...`` while ``[danger_options] log_velocity_limit_changes`` is on, its default);
+Marlin's build-time ``SHAPING_MIN_FREQ`` (``stepper.h``); what persists across a restart
+(``reference/firmware.md`` §1.5, §2, §3.5, §4).
 
 A :class:`Span` is a range the firmware accepts together with the number of decimals a value is
 sent (and reported) with. A value that would round to another one at that precision is refused

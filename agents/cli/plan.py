@@ -43,10 +43,11 @@ commanded, at the G-code's own speeds F (what `ringtune limit` and a firmware fr
 on), and planned, with the accelerations and corners of the rule above (what the printer does, always lower).
 `ringtune limit` reports the same two figures, before and after.
 
---config applies a TuneConfig's frequency limit and acceleration (its accel replaces the job's
-M204/SET_VELOCITY_LIMIT accelerations); a shaper "daa" in it (or --daa F)
-plans with RepRapFirmware 3.3's Dynamic Acceleration Adjustment. --trajectory writes the commanded
-toolhead position t,x,y,z,e (after planning, frequency limit and the config's input shaping).
+--config applies a TuneConfig's frequency limit, acceleration and per-axis caps (its accel replaces
+the job's M204/SET_VELOCITY_LIMIT accelerations unless its job_accel is "respect"); a shaper "daa"
+in it (or --daa F) plans with RepRapFirmware 3.3's Dynamic Acceleration Adjustment. --trajectory
+writes the commanded toolhead position t,x,y,z,e (after planning, frequency limit and the config's
+input shaping, changed where the job's own shaper commands stand, as simulate does).
 
 examples:
   ringtune plan ringing_tower.gcode
@@ -290,13 +291,10 @@ def _write_trajectory(p, cfg, path, rate) -> str:
     import numpy as np
 
     motion = p.motion
-    if cfg is not None:
-        from ringtune.shaping.apply import shape_motion
-        from ringtune.shaping.shapers import shapers_from_config
+    if cfg is not None:   # the config's shapers, changed where the job's own shaper commands stand
+        from ringtune.shaping.job_shapers import shape_timeline, shaper_timeline
 
-        shapers, centred = shapers_from_config(cfg)
-        if any(s is not None for s in shapers.values()):
-            motion = shape_motion(motion, shapers, centred)
+        motion = shape_timeline(motion, shaper_timeline(p.events, cfg))
     t, pos = motion.sample(rate)
     data = np.column_stack([t, pos[:, :4]])
     if path == "-":
