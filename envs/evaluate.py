@@ -137,6 +137,17 @@ def job_accel_commands(job) -> dict[str, float]:
     return out
 
 
+def _plan_settings(config: TuneConfig | None) -> tuple:
+    """What of ``config`` changes the plan: (frequency limit (Hz, method, speed factor), accel,
+    DAA frequency, per-axis caps)."""
+    if config is None:
+        return (0.0, "", 0.0), None, None, (None, None)
+    fl = ((float(config.freq_limit_hz), config.freq_limit_method, float(config.min_speed_factor))
+          if config.freq_limit_hz > 0 else (0.0, "", 0.0))
+    accel = None if config.accel is None else float(config.accel)
+    return fl, accel, config.daa_freq, config.axis_caps
+
+
 def planned_job(printer, job=None, config: TuneConfig | None = None, *,
                 max_windows: int = MAX_WINDOWS, span: float = WINDOW_SPAN,
                 job_accel: str | None = None) -> PlannedJob:
@@ -149,20 +160,15 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
     mode = job_accel_mode(config, job_accel)
     jkey, parsed = resolve_job(job)
     limits = printer.limits
-    fl = (0.0, "", 0.0)
-    if config is not None and config.freq_limit_hz > 0:
-        fl = (float(config.freq_limit_hz), config.freq_limit_method, float(config.min_speed_factor))
-    accel = None if config is None or config.accel is None else float(config.accel)
-    daa = None if config is None else config.daa_freq
+    fl, accel, daa, caps = _plan_settings(config)
     if accel is None:
         mode = "replace"       # nothing to replace with: the job's and the machine's limits as they are
-    caps = (None, None) if config is None else config.axis_caps
     key = (jkey, repr(limits), fl, accel, daa, max_windows, span, mode, caps)
     if key in _PLANS:
         _PLANS.move_to_end(key)
         return _PLANS[key]
     plan = plan_with_config(parsed, limits, config, job_accel=mode).plan
-    if key[2:5] == ((0.0, "", 0.0), None, None) and caps == (None, None):
+    if (fl, accel, daa, caps) == _plan_settings(None):
         windows = testprints.quality_windows(plan, max_windows=max_windows, span=span)
     else:   # the corners and zigzags the printer's own plan chose, at this plan's times
         ref = planned_job(printer, job, None, max_windows=max_windows, span=span).windows

@@ -275,10 +275,11 @@ def freq_margin(args, config=None) -> float:
     return args.freq_margin / 100.0
 
 
-def job_commands(printer, gcode, config) -> tuple[list[str], list]:
-    """What the job's own commands do to this simulation, said aloud: its acceleration commands
-    (standing or replaced, :func:`ringtune.shaping.config_plan.job_accel_mode`) and its shaper
-    commands (the timeline of :func:`ringtune.shaping.job_shapers.shaper_timeline`)."""
+def job_commands(printer, gcode, config, out) -> list[dict]:
+    """What the job's own commands do to this simulation, said aloud (``out.note``): its
+    acceleration commands (standing or replaced, :func:`ringtune.shaping.config_plan.job_accel_mode`)
+    and its shaper commands; returns the shaper changes ({``time`` s, ``config``}, the steps of
+    :func:`ringtune.shaping.job_shapers.shaper_timeline`)."""
     _, parsed = resolve_job(gcode)
     plan = planned_job(printer, gcode, config).plan
     timeline = shaper_timeline(plan.events, config)
@@ -290,7 +291,9 @@ def job_commands(printer, gcode, config) -> tuple[list[str], list]:
         notes.append("the job's own acceleration commands " + (
             "stand (--job-accel respect), as the printer would run them" if mode == "respect" else
             f"are replaced by the configuration's {config.accel:g} mm/s² (--job-accel replace)"))
-    return notes, timeline
+    for n in notes:
+        out.note(n)
+    return [{"time": t, "config": c.to_dict()} for t, c in timeline[1:]]
 
 
 def run(args, out) -> int:
@@ -308,9 +311,7 @@ def run(args, out) -> int:
             raise RingtuneError(f"cannot create the plot folder: {exc.strerror or exc}",
                                 f"--plot {args.plot}") from None
     judged = judgement(margin)
-    job_notes, timeline = job_commands(printer, args.gcode, config)
-    for n in job_notes:
-        out.note(n)
+    changes = job_commands(printer, args.gcode, config, out)
     out.note(f"simulating {config.shaper_x}/{config.shaper_y} on {printer.name} ({args.backend}), {judged} ...")
     m, evs = evaluate_judged([config], printer, args.gcode, backend=args.backend, freq_margin=margin,
                              job_shapers=True)[0]
@@ -334,7 +335,7 @@ def run(args, out) -> int:
         "variants": [{"factor": f, "metrics": e.metrics.to_dict()} for f, e in zip(factors, evs)],
         "windows": windows,
         "plots": plots,
-        "job_shapers": [{"time": t, "config": c.to_dict()} for t, c in timeline[1:]],
+        "job_shapers": changes,
         "job_accel": job_accel_mode(config),
         **({"trace": args.trace} if args.trace else {}),
     }

@@ -373,7 +373,7 @@ def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel
                 for a in accels:
                     p = dict(sh)
                     if z is not None:
-                        p.update({key: z for key in _damping_keys(sh, space)})
+                        p.update(dict.fromkeys(_damping_keys(sh, space), z))
                     p.update(lim)
                     p["accel"] = a
                     out.append(p)
