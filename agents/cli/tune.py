@@ -36,7 +36,7 @@ from ringtune.agents.tune.baselines import baselines_for, warm_start
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
 from ringtune.agents.tune.pareto import pareto_front
-from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config
+from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config, top_speed_load_note
 from ringtune.agents.tune.study import study_points
 from ringtune.envs.evaluate import resolve_printer
 from ringtune.shaping.errors import RingtuneError
@@ -223,6 +223,8 @@ def run(args: argparse.Namespace, out) -> int:
     accel_lines, accel_json = accel_statement(chosen, space, max_pe, reserve, points, printer,
                                               binding_sentences(bindings, chosen.config.accel))
     accel_json["binding"] = [dataclasses.asdict(b) for b in bindings]
+    if not args.gcode and chosen.config.accel:
+        accel_lines.append(top_speed_load_note(printer, chosen.config.accel, reserve))
     ja_lines, ja_json = job_accel_section(facts, args.job_accel, printer, args.gcode, chosen.config)
     ja_json["searched"] = not space.accel_fixed
     notes = [f"The {floor_note}."] if floor_note else []

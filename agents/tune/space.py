@@ -220,6 +220,19 @@ def accel_ceiling(printer: Any, speed: float | None = None) -> tuple[float, str]
     return a, f"the {who} would need all its force at {v:.0f} mm/s ({what})"
 
 
+def top_speed_load_note(printer: Any, accel: float, reserve: float) -> str:
+    """With no job given (the built-in print stands in for prints that may run at the printer's
+    velocity limit): the share of the weakest motor's force the acceleration asks for at that
+    speed, rigid machine (:func:`motor_accel_limit`), and whether that keeps the reserve."""
+    v = float(printer.limits.velocity)
+    limit, who = motor_accel_limit(printer, v)
+    load = float(accel) / limit if limit > 0 else math.inf
+    kept = ("within the reserve" if load <= 1.0 - reserve else
+            f"BEYOND the {reserve * 100:.0f} % reserve: a print that fast at this acceleration may skip steps")
+    return (f"At the printer's velocity limit {v:.0f} mm/s (no job given; the built-in print runs slower) "
+            f"{accel:.0f} mm/s² asks the {who} for {load * 100:.0f} % of its force there (rigid machine): {kept}.")
+
+
 def defaults_note(printer: Any) -> str:
     """One sentence when the motor bound rests on defaults (``Printer.defaulted``: a motor with
     neither a name, datasheet constants nor ``force``; an axis with no ``mass``), else ""."""
