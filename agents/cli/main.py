@@ -31,6 +31,7 @@ COMMAND_MODULES = [
     "train",
     "shaper",
     "response",
+    "graph",
     "plan",
     "limit",
     "identify",
