@@ -13,7 +13,11 @@ at all (speeds come from a printer model and a job).
         max_accel (mm/s², rounded to 100 as Klipper prints; null: no limit), score, residual (ratio
         per freqs_hz)}], klipper (the pick, same keys), ringtune (the --config's shaper, same keys,
         or null), after_shaper_psd, notes}]}
-    belts: see ``ringtune graph belts --help``
+    belts: {graph: "belts", plot, notes, sources {a, b}, similarity_pct, similarity_definition,
+        pairs [{freq_a, amp_a, freq_b, amp_b, freq_diff_hz (B − A), amp_diff_pct ((A − B) / mean)}],
+        mismatch ((k_A − k_B)/mean, null without --printer), mismatch_error (one standard error),
+        stiffness_a_n_m, stiffness_b_n_m, matched, meaning, freqs_hz {a, b}, psd {a, b},
+        model_psd {a, b} (the fitted model, scaled; {} without --printer)}
     speeds: see ``ringtune graph speeds --help``
 """
 
@@ -31,8 +35,15 @@ The graphs Klipper users read, from the same files, with ringtune's own numbers 
       it, Klipper's pick and (with --config) ringtune's choice marked, and the table of frequency,
       remaining vibrations, smoothing and max_accel, computed as Klipper computes them.
 
+  belts AXIS_1_1.csv AXIS_1_-1.csv [--printer P]: the CoreXY belt comparison (Klipper's
+      TEST_RESONANCES AXIS=1,1 and AXIS=1,-1) — both spectra overlaid, their similarity (defined on
+      the figure), the paired peaks with their frequency and amplitude differences, and, with a
+      CoreXY printer description, the two belts' stiffnesses that explain the difference.
+
 examples:
   ringtune graph shapers resonances_x_*.csv resonances_y_*.csv -o shapers.png
+  ringtune graph belts resonances_axis=1.000,1.000,0.000_b.csv resonances_axis=1.000,-1.000,0.000_b.csv \\
+      --printer voron.toml -o belts.png
   ringtune graph shapers resonances_*.csv --config tuned/best.json --scv 5 -o shapers.png --json
 """
 
@@ -49,6 +60,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     sh.add_argument("--scv", type=float, default=5.0, help="square-corner velocity, mm/s (default 5, Klipper's)")
     sh.add_argument("--axis", choices=("x", "y"), help="axis of every file (default: from the file name)")
     _json_flag(sh)
+    be = sub.add_parser("belts", help="CoreXY belt comparison from the two diagonal tests",
+                        description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    be.add_argument("files", nargs=2, metavar="DIAGONAL.csv", help="TEST_RESONANCES AXIS=1,1 and AXIS=1,-1 files")
+    be.add_argument("-o", "--output", required=True, metavar="OUT.png", help="the graph (.png, .pdf or .svg)")
+    be.add_argument("--printer", metavar="P", help="CoreXY printer description (TOML or embedded name): "
+                    "turn the difference into the two belts' stiffnesses")
+    _json_flag(be)
 
 
 def _json_flag(s: argparse.ArgumentParser) -> None:
@@ -69,7 +87,26 @@ def check_plot_path(path: str) -> None:
 
 
 def run(args, out) -> int:
-    return {"shapers": _run_shapers}[args.graph](args, out)
+    return {"shapers": _run_shapers, "belts": _run_belts}[args.graph](args, out)
+
+
+def _run_belts(args, out) -> int:
+    from ringtune.agents.identify.belts import compare_belts, read_belt_tests
+    from ringtune.agents.identify.belts_plot import pair_rows, plot_belts, summary_lines
+    from ringtune.envs.printer import load_printer
+
+    check_plot_path(args.output)
+    printer = load_printer(args.printer) if args.printer else None
+    tests, notes = read_belt_tests(args.files)
+    c = compare_belts(tests, printer)
+    for n in notes + c.notes:
+        out.note(f"note: {n}")
+    plot_belts(c, args.output)
+    lines = summary_lines(c) + ["paired peaks: " + "; ".join(
+        f"A {a} Hz / B {b} Hz (B − A {d} Hz, amplitude A − B {p} %)" for a, b, d, p in pair_rows(c)),
+        c.meaning(), f"wrote {args.output}"]
+    out.emit({"graph": "belts", "plot": args.output, "notes": notes + c.notes, **c.to_dict()}, "\n".join(lines))
+    return 0
 
 
 def _run_shapers(args, out) -> int:

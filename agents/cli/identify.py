@@ -8,6 +8,9 @@ masses, motors, limits and kinematics from what the user gives — written as a 
     added_mass: {axis: {axis, added_mass_kg, f0_hz, f1_hz, mass_kg, mass_error_kg (one standard error),
         stiffness_n_m}}
     klipper: Klipper's recommendation from the files ([measurement.klipper]), or {}
+    belts: with --belts, the CoreXY belt comparison written as [belts] mismatch: {similarity_pct,
+        mismatch ((k_A - k_B)/mean), mismatch_error, stiffness_a_n_m, stiffness_b_n_m, matched,
+        meaning} (see `ringtune graph belts`); else null
     defaults: what is still a default, one sentence each (also on stderr and in the TOML)
     warnings: doubts about the files and fits, one sentence each (also on stderr)
     toml: the printer description text
@@ -61,6 +64,8 @@ examples:
       resonances_x_2.csv resonances_y_2.csv -o mine.toml      # 250 g on the toolhead / bed
   ringtune identify resonances_*.csv --mass X=0.62,Y=1.4 --motor omc-17hs19-2004s1:0.8 --kinematics corexy
   ringtune identify 1-T0-X54-161-0-none.csv --axis x --json
+  ringtune identify resonances_x_*.csv resonances_y_*.csv --kinematics corexy \\
+      --belts resonances_axis=1.000,1.000,0.000_b.csv resonances_axis=1.000,-1.000,0.000_b.csv -o voron.toml
 
 Without an accelerometer (prints from `ringtune testprint ringing`):
   ringtune identify --ripples X=2.2,Y=2.6 --speed 100 [--decay X=1.9,Y=2.1] -o printer.toml
@@ -96,6 +101,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--motor", metavar="NAME[:A[:V]]", help="motor name, run current (A RMS) and driver voltage "
                    "(V) of every axis, or per axis X=NAME:A:V,Y=...")
     g.add_argument("--mass", metavar="X=KG,Y=KG", help="weighed moving masses, kg (on a bed slinger Y is the bed)")
+    g.add_argument("--belts", nargs=2, metavar="DIAGONAL.csv", help="CoreXY: the TEST_RESONANCES AXIS=1,1 and "
+                   "AXIS=1,-1 files; the two belts' stiffness difference goes into [belts] (see `ringtune graph belts`)")
     g.add_argument("--added-mass", nargs="+", metavar="KG LOADED.csv",
                    help="added-mass method: KG (or X=KG,Y=KG) fixed to the toolhead (X; Y on a CoreXY) or the "
                    "bed (Y on a bed slinger), then the resonance files measured with it")
@@ -217,6 +224,7 @@ def run(args, out) -> int:
     if identify_ripples.wanted(args) or not args.files:   # no accelerometer: ripples or a tower
         given = [flag for flag, v in (("--klipper-config", args.klipper_config), ("--marlin", args.marlin),
                                       ("--rrf", args.rrf), ("--motor", args.motor), ("--mass", args.mass),
+                                      ("--belts", args.belts),
                                       ("--added-mass", args.added_mass)) if v]
         if given:
             raise RingtuneError("goes with accelerometer files; with --ripples/--tower-band give the rest of "
@@ -296,6 +304,12 @@ def run(args, out) -> int:
     header = ["Printer description written by `ringtune identify` from "
               + ", ".join(Path(f).name for f in [*args.files, *loaded_files])]
     printer = _validate(description_toml(desc, header))
+    belts = None
+    if args.belts:
+        from ringtune.agents.identify.belts import belts_into_description
+
+        belts = belts_into_description(desc, printer, args.belts)
+        printer = _validate(description_toml(desc, header))
     for ax in ("x", "y"):                        # what a named motor's drive still assumes
         for sentence in printer.motor_for(ax).assumed:
             said = f"motor: {sentence}"
@@ -343,6 +357,9 @@ def run(args, out) -> int:
         lines += ["", toml]
     out.emit({"fits": [f.to_dict() for f in meas.fits], "loaded_fits": [f.to_dict() for f in loaded_fits],
               "added_mass": {ax: a.to_dict() for ax, a in added.items()}, "klipper": klipper,
+              "belts": None if belts is None else {k: v for k, v in belts.to_dict().items() if k in (
+                  "similarity_pct", "mismatch", "mismatch_error", "stiffness_a_n_m", "stiffness_b_n_m", "matched",
+                  "meaning")},
               "defaults": desc.defaults, "warnings": warnings, "toml": toml, "output": args.output,
               "plot": args.plot}, "\n".join(lines))
     return 0
