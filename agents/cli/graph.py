@@ -18,7 +18,11 @@ at all (speeds come from a printer model and a job).
         mismatch ((k_A − k_B)/mean, null without --printer), mismatch_error (one standard error),
         stiffness_a_n_m, stiffness_b_n_m, matched, meaning, freqs_hz {a, b}, psd {a, b},
         model_psd {a, b} (the fitted model, scaled; {} without --printer)}
-    speeds: see ``ringtune graph speeds --help``
+    speeds: {graph: "speeds", plot, printer, speeds_mm_s, ripple_mm {direction: per speed (RMS across the
+        wall, as simulate's ringing_mm)}, bands [{direction ("x": walls along X, "y", CoreXY "a"/"b":
+        the diagonals), lo, hi, peak_speed (mm/s), peak_ripple_mm}], wall_length_mm, corner_deg, accel
+        (mm/s²), band_level, orcaslicer {resonance_avoidance, min_resonance_avoidance_speed,
+        max_resonance_avoidance_speed} (the worst band; {} without one), notes}
 """
 
 from __future__ import annotations
@@ -40,10 +44,17 @@ The graphs Klipper users read, from the same files, with ringtune's own numbers 
       the figure), the paired peaks with their frequency and amplitude differences, and, with a
       CoreXY printer description, the two belts' stiffnesses that explain the difference.
 
+  speeds [--printer P] [--gcode G] [--config C]: vibration against speed — the ripple a typical wall
+      of the job (its length-weighted median length, after its median corner) shows at each speed,
+      per wall direction (CoreXY: the belts' diagonals too), simulated on the printer model with
+      the configuration's acceleration and shapers; the bands to avoid, and the worst one in
+      OrcaSlicer's resonance-avoidance keys (outer walls).
+
 examples:
   ringtune graph shapers resonances_x_*.csv resonances_y_*.csv -o shapers.png
   ringtune graph belts resonances_axis=1.000,1.000,0.000_b.csv resonances_axis=1.000,-1.000,0.000_b.csv \\
       --printer voron.toml -o belts.png
+  ringtune graph speeds --printer myprinter.toml --gcode job.gcode --config tuned/best.json -o speeds.png
   ringtune graph shapers resonances_*.csv --config tuned/best.json --scv 5 -o shapers.png --json
 """
 
@@ -67,6 +78,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     be.add_argument("--printer", metavar="P", help="CoreXY printer description (TOML or embedded name): "
                     "turn the difference into the two belts' stiffnesses")
     _json_flag(be)
+    sp = sub.add_parser("speeds", help="vibration against speed, bands to avoid (OrcaSlicer keys)",
+                        description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sp.add_argument("-o", "--output", required=True, metavar="OUT.png", help="the graph (.png, .pdf or .svg)")
+    sp.add_argument("--printer", metavar="P", help="printer TOML or embedded name (default: the embedded ender3)")
+    sp.add_argument("--gcode", metavar="G", help="the job whose walls to judge (default: a 40 mm square's walls)")
+    sp.add_argument("--config", metavar="best.json", help="shaping and acceleration printed with (default: "
+                    "shaping off at the printer's acceleration)")
+    sp.add_argument("--step", type=float, default=5.0, help="speed step, mm/s (default 5)")
+    _json_flag(sp)
 
 
 def _json_flag(s: argparse.ArgumentParser) -> None:
@@ -87,7 +107,30 @@ def check_plot_path(path: str) -> None:
 
 
 def run(args, out) -> int:
-    return {"shapers": _run_shapers, "belts": _run_belts}[args.graph](args, out)
+    return {"shapers": _run_shapers, "belts": _run_belts, "speeds": _run_speeds}[args.graph](args, out)
+
+
+def _run_speeds(args, out) -> int:
+    from ringtune.agents.cli.common import load_config
+    from ringtune.agents.tune.speeds import speed_advice
+    from ringtune.agents.tune.speeds_plot import band_lines, plot_speeds
+    from ringtune.envs.printer import load_printer
+
+    check_plot_path(args.output)
+    printer = load_printer(args.printer)
+    if not args.printer:
+        out.note(f"note: no --printer: the embedded {printer.name}")
+    config = load_config(args.config, out) if args.config else None
+    advice = speed_advice(printer, args.gcode, config, step=args.step)
+    for n in advice.notes:
+        out.note(f"note: {n}")
+    plot_speeds(advice, args.output, printer.name)
+    orca = advice.orcaslicer()
+    lines = ["speeds to avoid (ripple ≥ 1/√2 of the direction's worst):", *("  " + b for b in band_lines(advice)),
+             "OrcaSlicer (printer settings): " + (", ".join(f"{k} = {v}" for k, v in orca.items()) or "no band"),
+             f"wrote {args.output}"]
+    out.emit({"graph": "speeds", "plot": args.output, "printer": printer.name, **advice.to_dict()}, "\n".join(lines))
+    return 0
 
 
 def _run_belts(args, out) -> int:
