@@ -56,6 +56,13 @@ The rest of the printer:
 Whatever is still a default (masses, motor, kinematics, limits) is printed on stderr and written
 as a comment in the TOML, with what it decides.
 
+--moonraker URL takes the files from the printer instead: the newest resonance test of each axis
+(and the two diagonal belt tests of a CoreXY) from Moonraker's config and gcodes folders — Klipper
+writes them to /tmp, which Moonraker does not serve, so copy them into the config folder first —
+and printer.cfg with the .cfg files beside it (else what Klipper loaded, the configfile object).
+They are saved under their own names in --fetch-dir (default: the folder of -o, else here), so the
+TOML records files that exist; a different file of the same name there is never overwritten.
+
 examples:
   ringtune identify resonances_x_20210821_152037.csv resonances_y_20210630_230110.csv \\
       -o ender3.toml --plot fit.png
@@ -64,6 +71,7 @@ examples:
       resonances_x_2.csv resonances_y_2.csv -o mine.toml      # 250 g on the toolhead / bed
   ringtune identify resonances_*.csv --mass X=0.62,Y=1.4 --motor omc-17hs19-2004s1:0.8 --kinematics corexy
   ringtune identify 1-T0-X54-161-0-none.csv --axis x --json
+  ringtune identify --moonraker http://voron.local:7125 -o voron.toml   # files and printer.cfg from the printer
   ringtune identify resonances_x_*.csv resonances_y_*.csv --kinematics corexy \\
       --belts resonances_axis=1.000,1.000,0.000_b.csv resonances_axis=1.000,-1.000,0.000_b.csv -o voron.toml
 
@@ -96,6 +104,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     cfg.add_argument("--klipper-config", metavar="printer.cfg", help="Klipper configuration (includes followed)")
     cfg.add_argument("--marlin", metavar="M503.txt", help="Marlin settings as M503 prints them")
     cfg.add_argument("--rrf", metavar="config.g", help="RepRapFirmware config.g")
+    cfg.add_argument("--moonraker", metavar="URL", help="fetch the newest resonance files and printer.cfg from a "
+                     "Klipper printer through Moonraker (http://host:7125) instead of giving them")
+    g.add_argument("--api-key", metavar="KEY", help="Moonraker API key (default $MOONRAKER_API_KEY)")
+    g.add_argument("--fetch-dir", metavar="DIR", help="where --moonraker saves the files (default: the folder of "
+                   "-o, else the working folder)")
     g.add_argument("--kinematics", choices=("cartesian", "corexy", "corexz"),
                    help="kinematics, when no configuration gives it (default cartesian, said aloud)")
     g.add_argument("--motor", metavar="NAME[:A[:V]]", help="motor name, run current (A RMS) and driver voltage "
@@ -195,6 +208,8 @@ def _check_output(option: str, path) -> None:
 
 def _read_facts(args):
     """The firmware configuration's FirmwareFacts, or None."""
+    if getattr(args, "facts", None) is not None:
+        return args.facts
     if args.klipper_config:
         from ringtune.hardware.klipper_config import printer_facts_from_klipper
 
@@ -212,6 +227,51 @@ def _read_facts(args):
 
 # -- the command ------------------------------------------------------------------------------------
 
+def _from_moonraker(args, out) -> None:
+    """Fetch the files and the configuration into --fetch-dir and point the arguments at them."""
+    import os
+
+    from ringtune.hardware.moonraker_files import fetch_printer_files
+    from ringtune.shaping.errors import RingtuneError
+
+    if args.files or args.belts:
+        raise RingtuneError("fetches the resonance files from the printer; give no files with it", "--moonraker")
+    _check_output("-o", args.output)
+    dest = _fetch_dir(args)
+    key = args.api_key or os.environ.get("MOONRAKER_API_KEY")
+    got = fetch_printer_files(args.moonraker, dest, api_key=key)
+    for n in got.notes:
+        out.note(f"note: {n}")
+    args.files = [str(p) for p in got.axes]
+    args.facts = _moonraker_facts(args, got.config, key, out)
+    kinematics = args.kinematics or args.facts.description.get("kinematics")
+    if got.belts and kinematics == "corexy":
+        args.belts = [str(p) for p in got.belts]
+
+
+def _fetch_dir(args):
+    """--fetch-dir, else the folder of -o, else the working folder (it must exist)."""
+    from pathlib import Path
+
+    from ringtune.shaping.errors import RingtuneError
+
+    dest = Path(args.fetch_dir) if args.fetch_dir else (Path(args.output).parent if args.output else Path("."))
+    if not dest.is_dir():
+        raise RingtuneError("no such directory", f"--fetch-dir {dest}")
+    return dest
+
+
+def _moonraker_facts(args, config, key, out):
+    """The fetched printer.cfg's facts, else those of the configuration Klipper loaded."""
+    from ringtune.hardware.klipper_config import printer_facts_from_moonraker
+
+    if config is not None:
+        args.klipper_config = str(config)
+        return _read_facts(args)
+    out.note("note: no printer.cfg in Moonraker's config folder: the configuration Klipper loaded is used")
+    return printer_facts_from_moonraker(args.moonraker, api_key=key)
+
+
 def run(args, out) -> int:
     from pathlib import Path
 
@@ -221,6 +281,8 @@ def run(args, out) -> int:
     from ringtune.envs.identify import plot_fits
     from ringtune.shaping.errors import RingtuneError
 
+    if getattr(args, "moonraker", None):
+        _from_moonraker(args, out)
     if identify_ripples.wanted(args) or not args.files:   # no accelerometer: ripples or a tower
         given = [flag for flag, v in (("--klipper-config", args.klipper_config), ("--marlin", args.marlin),
                                       ("--rrf", args.rrf), ("--motor", args.motor), ("--mass", args.mass),
