@@ -333,6 +333,11 @@ def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]
     return p
 
 
+def _plain(shapers: tuple[str, ...]) -> tuple[str, ...]:
+    """The shapers without the parametrised families."""
+    return tuple(s for s in shapers if "(" not in s)
+
+
 def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel: int = 6,
                 freq_limits: tuple[float, ...] = (), shapers: tuple[str, ...] | None = None,
                 dampings: tuple[float, ...] | None = None, accels: tuple[float, ...] | None = None) -> list[dict]:
@@ -343,7 +348,7 @@ def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel
     acceleration on ``n_accel`` levels (multiples of ``accel_step``); the frequency limit off plus
     each method at each of ``freq_limits`` Hz. ``dampings`` / ``accels`` give explicit levels instead.
     """
-    shapers = tuple(s for s in (shapers or space.shapers) if "(" not in s)
+    shapers = _plain(shapers or space.shapers)
 
     def axis_options(lo_hi, key_s, key_f):
         opts = []
