@@ -25,6 +25,7 @@ Everything is deterministic.
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from collections import OrderedDict
 from pathlib import Path
@@ -36,6 +37,7 @@ import numpy as np
 from ringtune.envs.metrics import Metrics, compute_metrics, worst_case
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.job_shapers import config_at, shaper_timeline
 from ringtune.shaping.motion import Motion
 
 #: bounds (s) of the simulated history before each window beyond the shaper's duration; within
@@ -152,12 +154,13 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
     daa = None if config is None else config.daa_freq
     if accel is None:
         mode = "replace"       # nothing to replace with: the job's and the machine's limits as they are
-    key = (jkey, repr(limits), fl, accel, daa, max_windows, span, mode)
+    caps = (None, None) if config is None else config.axis_caps
+    key = (jkey, repr(limits), fl, accel, daa, max_windows, span, mode, caps)
     if key in _PLANS:
         _PLANS.move_to_end(key)
         return _PLANS[key]
     plan = plan_with_config(parsed, limits, config, job_accel=mode).plan
-    if key[2:5] == ((0.0, "", 0.0), None, None):
+    if key[2:5] == ((0.0, "", 0.0), None, None) and caps == (None, None):
         windows = testprints.quality_windows(plan, max_windows=max_windows, span=span)
     else:   # the corners and zigzags the printer's own plan chose, at this plan's times
         ref = planned_job(printer, job, None, max_windows=max_windows, span=span).windows
@@ -190,10 +193,8 @@ def auto_settle(printer) -> float:
     return float(min(max(SETTLE_TAUS * tau, SETTLE_MIN), SETTLE_MAX))
 
 
-def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN) -> list[WindowRun]:
-    """Shape each quality window of ``pj`` with the config's shapers (``settle`` s of extra
-    history before each, beyond the shaper's duration)."""
-    from ringtune.shaping.apply import shape_motion
+def _window_shaping(config: TuneConfig) -> tuple:
+    """(shapers, centred, active, duration, lag, after, before) of a config's shapers (s)."""
     from ringtune.shaping.shapers import shapers_from_config
 
     shapers, centred = shapers_from_config(config)
@@ -204,9 +205,26 @@ def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN) 
     after = max((s.duration - (s.centre_delay if centred else 0.0) for s in active), default=0.0)
     # ... and starts turning into the next corner this long before it (centred shapers only)
     before = max((s.centre_delay for s in active), default=0.0) if centred else 0.0
+    return shapers, centred, active, duration, lag, after, before
+
+
+def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN,
+                job_shapers: bool = False) -> list[WindowRun]:
+    """Shape each quality window of ``pj`` with the config's shapers (``settle`` s of extra
+    history before each, beyond the shaper's duration). ``job_shapers``: the job's own shaper
+    commands apply from where they stand (:func:`ringtune.shaping.job_shapers.shaper_timeline`);
+    each window is shaped with the shapers in force at its start."""
+    from ringtune.shaping.apply import shape_motion
+
+    timeline = shaper_timeline(pj.plan.events, config) if job_shapers else [(-math.inf, config)]
+    shaping = {}
     motion = pj.motion
     runs = []
     for w in pj.windows:
+        cfg = config_at(timeline, w.t0)
+        if id(cfg) not in shaping:
+            shaping[id(cfg)] = _window_shaping(cfg)
+        shapers, centred, active, duration, lag, after, before = shaping[id(cfg)]
         a, b = w.t0 - duration - settle, w.t1 + duration
         lo, hi = max(a - duration, motion.start_time), min(b + duration, motion.end_time)
         if hi - lo <= 1e-9:
@@ -281,18 +299,20 @@ def variant_factors(freq_margin: float) -> tuple[float, ...]:
 
 def evaluate_judged(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
                     settle: float | None = None, nthread: int | None = None,
-                    freq_margin: float = 0.0,
-                    job_accel: str | None = None) -> list[tuple[Metrics, list["Evaluation"]]]:
+                    freq_margin: float = 0.0, job_accel: str | None = None,
+                    job_shapers: bool = False) -> list[tuple[Metrics, list["Evaluation"]]]:
     """:func:`evaluate_many`'s figures with what they came from: per config, (the judged metrics,
     its :class:`Evaluation` on each printer variant of :func:`variant_factors`). ``tune`` and
-    ``simulate`` both judge through here, so their figures for one configuration are the same."""
+    ``simulate`` both judge through here, so their figures for one configuration are the same.
+    ``job_shapers``: the job's own shaper commands apply (:func:`window_runs`; ``simulate``), else
+    the configuration's shapers rule the whole job (``tune``: the shaper being tuned)."""
     if not 0 <= freq_margin < 1:
         raise RingtuneError(f"must be in [0, 1), not {freq_margin}", "freq_margin")
     printer = resolve_printer(printer)
     if settle is None:
         settle = auto_settle(printer)
     runs = [evaluate_detailed(configs, printer if f == 1.0 else printer.detuned(f), job, backend,
-                              settle=settle, nthread=nthread, job_accel=job_accel)
+                              settle=settle, nthread=nthread, job_accel=job_accel, job_shapers=job_shapers)
             for f in variant_factors(freq_margin)]
     per_config = [[r[i] for r in runs] for i in range(len(configs))]
     return [(evs[0].metrics if len(evs) == 1 else worst_case(e.metrics for e in evs), evs)
@@ -312,7 +332,7 @@ class Evaluation:
 
 def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
                       settle: float | None = None, nthread: int | None = None,
-                      job_accel: str | None = None) -> list[Evaluation]:
+                      job_accel: str | None = None, job_shapers: bool = False) -> list[Evaluation]:
     """Like :func:`evaluate_many`, keeping the plans, shaped windows and simulation results."""
     from ringtune.envs.sim import simulate_batch
 
@@ -323,7 +343,7 @@ def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, bac
     motions: list[Motion] = []
     for cfg in configs:
         pj = planned_job(printer, job, cfg, job_accel=job_accel)
-        runs = window_runs(pj, cfg, settle)
+        runs = window_runs(pj, cfg, settle, job_shapers)
         per_config.append((cfg, pj, runs))
         motions.extend(r.shaped for r in runs)
     sims = (simulate_batch(printer, motions, backend=backend, nthread=nthread, initial="static")

@@ -136,32 +136,100 @@ def limit_command(config: TuneConfig) -> str:
 
 
 def _accel(config: TuneConfig, fw: Firmware, exp: Export, apply: bool) -> None:
-    """The config's printing acceleration as the firmware's own command, read back afterwards."""
-    if config.accel is None:
+    """The config's per-axis caps, then its printing acceleration, as the firmware's own commands,
+    read back afterwards (the caps first: Marlin applies M201 to every move planned after it)."""
+    if config.accel is None and config.axis_caps == (None, None):
         return
     if not apply:
-        exp.notes.append(f"the config's acceleration {fmt(config.accel, 0)} mm/s² is not applied "
-                         "(--no-accel): the printer keeps its own")
+        exp.notes.append(f"the config's acceleration {fmt(config.accel or 0, 0)} mm/s² and axis caps are not "
+                         "applied (--no-accel): the printer keeps its own")
+        return
+    _axis_caps(config, fw, exp)
+    if config.accel is None:
         return
     a = check_value(config.accel, fw.accel, "acceleration", "mm/s²", "config: accel", fw.title)
     exp.setting_lines["accel"] = len(exp.lines)
     exp.lines.append(fw.accel_set.format(a=fmt(a, fw.accel.decimals)))
     exp.expected["accel"] = a
-    exp.readback.append(fw.accel_report)
+    if "travel" in fw.accel_roles:
+        exp.setting_lines["travel_accel"] = exp.setting_lines["accel"]
+        exp.expected["travel_accel"] = a
+    _read_back(exp, fw.accel_report)
+    if fw.axis_accel_report and config.axis_caps == (None, None):
+        _read_back(exp, fw.axis_accel_report)     # push says whether the printer's caps hold it lower
     exp.notes.append(f"the printing acceleration becomes {fmt(a, fw.accel.decimals)} mm/s², the value "
                      f"this config was tuned at; {SLICER_OVERRIDES}")
+    _accel_persistence(config, fw, exp, a)
+
+
+def _read_back(exp: Export, command: str) -> None:
+    if command not in exp.readback:
+        exp.readback.append(command)
+
+
+def _axis_caps(config: TuneConfig, fw: Firmware, exp: Export) -> None:
+    """The X/Y caps the config runs with (``max_accel_x``/``y``), set before the acceleration."""
+    caps = {ax: c for ax, c in zip("xy", config.axis_caps) if c is not None}
+    if not caps:
+        return
+    text = ", ".join(f"{ax.upper()} {fmt(c, 0)}" for ax, c in caps.items())
+    if not fw.axis_accel_set:
+        _no_axis_caps(fw, exp, text)
+        return
+    sent = {ax: check_value(c, fw.axis_accel, f"{ax.upper()} acceleration cap", "mm/s²",
+                            f"config: max_accel_{ax}", fw.title) for ax, c in caps.items()}
+    line = _axis_caps_line(fw, sent)
+    for ax, v in sent.items():
+        exp.setting_lines[f"max_accel_{ax}"] = len(exp.lines)
+        exp.expected[f"max_accel_{ax}"] = v
+    exp.lines.append(line)
+    _read_back(exp, fw.axis_accel_report)
+    if fw.family == "rrf" and exp.config_text:
+        exp.config_text += line + "\n"
+    exp.notes.append(f"the per-axis acceleration caps become {text} mm/s² ({line}), as this config was "
+                     "planned: each axis's share of a move's acceleration stays under its cap")
+
+
+def _no_axis_caps(fw: Firmware, exp: Export, text: str) -> None:
+    fork = "; Kalico's limited_* kinematics do (--firmware kalico)" if fw.family == "klipper" else ""
+    exp.notes.append(f"this config was planned with per-axis acceleration caps ({text} mm/s²), which "
+                     f"{fw.title} does not have{fork}")
+
+
+def _axis_caps_line(fw: Firmware, sent: dict[str, float]) -> str:
+    """The record's command for the caps given (``M201 X.. Y..``; an axis not given is left out)."""
+    words = [w for w in fw.axis_accel_set.split()
+             if not any("{" + ax + "}" in w for ax in "xy" if ax not in sent)]
+    return " ".join(words).format(**{ax: fmt(v, fw.axis_accel.decimals) for ax, v in sent.items()})
+
+
+def _accel_persistence(config: TuneConfig, fw: Firmware, exp: Export, a: float) -> None:
+    """Where the acceleration (and the caps) stay after a restart, from the firmware record."""
+    caps = config.axis_caps != (None, None) and bool(fw.axis_accel_set)
     if fw.family == "klipper":
-        exp.notes.append("SET_VELOCITY_LIMIT lasts until restart: max_accel in printer.cfg's [printer] "
-                         "section keeps it")
-        if exp.config_text:
-            exp.config_text += f"# and in the [printer] section: max_accel: {fmt(a, fw.accel.decimals)}\n"
-    elif fw.family == "rrf":
-        if exp.config_text:
-            exp.config_text += exp.lines[-1] + "\n"
+        _klipper_printer_section(fw, exp, a, caps)
+    elif fw.family == "rrf" and exp.config_text:
+        exp.config_text += exp.lines[-1] + "\n"
     elif fw.family in ("marlin", "marlin-ftm"):
-        exp.notes.append("Marlin also caps each axis at its M201 X/Y maximum; M500 stores M204")
+        exp.notes.append("M500 stores M201 and M204" if caps else
+                         "Marlin also caps each axis at its M201 X/Y maximum (push reads it back and says "
+                         "when it holds the acceleration lower); M500 stores M204")
     elif fw.family == "prusa":
-        exp.notes.append("M593 W stores the shaper, not M204: the acceleration lasts until restart")
+        exp.notes.append("M593 W stores the shaper, not M204" + (" or M201" if caps else "")
+                         + ": the acceleration lasts until restart")
+
+
+def _klipper_printer_section(fw: Firmware, exp: Export, a: float, caps: bool) -> None:
+    """Klipper/Kalico: the [printer] keys that keep the acceleration (and Kalico's caps), as
+    comment lines of the config part (it replaces [input_shaper] only)."""
+    keys = [fw.axis_accel_config.format(ax=k[-1]) for k in exp.expected
+            if k.startswith("max_accel_") and caps and fw.axis_accel_config]
+    exp.notes.append(f"SET_VELOCITY_LIMIT lasts until restart: {', '.join(['max_accel', *keys])} in "
+                     "printer.cfg's [printer] section keeps it")
+    if exp.config_text:
+        exp.config_text += f"# and in the [printer] section: max_accel: {fmt(a, fw.accel.decimals)}\n"
+        exp.config_text += "".join(f"#   {key}: {fmt(exp.expected['max_accel_' + key[4]], fw.axis_accel.decimals)}\n"
+                                   for key in keys)
 
 
 def _rounding_notes(config: TuneConfig, exp: Export) -> None:
@@ -249,8 +317,9 @@ def _klipper(config: TuneConfig, dialect: str) -> Export:
     line = "SET_INPUT_SHAPER " + " ".join(params)
     exp = Export(dialect, [line], [], "\n".join(cfg) + "\n", fw.config_file, ["SET_INPUT_SHAPER"],
                  expected, {k: 0 for k in expected},
-                 ["SET_INPUT_SHAPER lasts until restart; SAVE_CONFIG would not keep damping_ratio, so "
-                  "put the [input_shaper] section (export --part config) in printer.cfg"])
+                 [f"{fw.title} keeps nothing set by SET_INPUT_SHAPER across a restart (SAVE_CONFIG does "
+                  "not save it either; only printer.cfg does): put the [input_shaper] section (export "
+                  "--part config) in printer.cfg"])
     _rounding_notes(config, exp)
     return exp
 
@@ -377,6 +446,12 @@ def _marlin(config: TuneConfig, dialect: str) -> Export:
             where_line.setdefault(k, len(lines) - 1)
     exp = Export(dialect, lines, list(fw.save), None, None, ["M593"], expected, where_line,
                  ["Marlin's minimum F depends on the board (the echo delay must fit its timer)"])
+    low = [f"{ax.upper()} {fmt(config.axis(ax)[1], 2)} Hz" for ax in "xy"
+           if config.axis(ax)[0] != "none" and 0 < config.axis(ax)[1] < fw.build_min_freq]
+    if low:
+        exp.notes.append(f"{', '.join(low)} is below {fw.build_min_freq:g} Hz, {fw.build_min_freq_why}: "
+                         f"build with SHAPING_MIN_FREQ at or below it (Configuration_adv.h), or tune with "
+                         f"--shaping-min-freq your build's value")
     _rounding_notes(config, exp)
     return exp
 

@@ -26,7 +26,7 @@ def test_json_matches_evaluate_and_shaping_helps(capsys):
     assert code == 0
     res = json.loads(out)
     assert set(res) == {"printer", "job", "backend", "config", "metrics", "freq_margin", "judgement",
-                        "variants", "windows", "plots"}
+                        "variants", "windows", "plots", "job_shapers", "job_accel"}
     assert set(res["metrics"]) == METRIC_KEYS and res["plots"] == []
     cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=45.5, freq_y=38.9, damping_x=0.1, damping_y=0.1)
     m = evaluate(cfg, backend="lti")
