@@ -36,6 +36,7 @@ import numpy as np
 from ringtune.shaping.config import FREQ_LIMIT_METHODS, TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.smoothers import is_smoother
 
 #: search families of Klipper's parametrised shapers, per shaper flavour that has them
 PARAMETRISED = {"klipper": ("mzv(n,t)", "ei(v_tol)")}
@@ -325,11 +326,16 @@ def family_params(name: str, ax: str) -> tuple[str, dict[str, Any]]:
     return name, {}
 
 
+def _takes_damping(family: str) -> bool:
+    return family != "none" and not is_smoother(family)
+
+
 def _damping_keys(shaping: dict[str, Any], space: SearchSpace) -> list[str]:
     """The damping parameters a point with these shapers has: ``damping_x``/``damping_y`` for each
-    shaped axis (per-axis firmwares), else ``damping`` when shaping is on."""
+    shaped axis (per-axis firmwares; not for Kalico's smoothers, which take none), else ``damping``
+    when shaping is on."""
     if space.per_axis:
-        return [f"damping_{ax}" for ax in "xy" if shaping.get(f"shaper_{ax}", "none") != "none"]
+        return [f"damping_{ax}" for ax in "xy" if _takes_damping(shaping.get(f"shaper_{ax}", "none"))]
     return ["damping"] if shaping.get("shaper", "none") != "none" else []
 
 
