@@ -28,6 +28,17 @@ at all (speeds come from a printer model and a job).
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
+
+from ringtune.agents.cli.common import check_output_folder, load_config
+from ringtune.agents.identify.belts import compare_belts, read_belt_tests
+from ringtune.agents.identify.belts_plot import pair_rows, plot_belts, summary_lines
+from ringtune.agents.identify.graph import shaper_graph
+from ringtune.agents.identify.graph_plot import plot_shaper_graph, table_rows
+from ringtune.agents.tune.speeds import speed_advice
+from ringtune.agents.tune.speeds_plot import band_lines, plot_speeds
+from ringtune.envs.printer import load_printer
+from ringtune.shaping.errors import RingtuneError
 
 NAME = "graph"
 HELP = "Klipper-style graphs: shapers over the spectrum, CoreXY belts, vibration against speed (PNG + --json)"
@@ -96,11 +107,6 @@ def _json_flag(s: argparse.ArgumentParser) -> None:
 
 def check_plot_path(path: str) -> None:
     """Refuse, before any work, a graph path of the wrong kind or in a missing folder."""
-    from pathlib import Path
-
-    from ringtune.agents.cli.common import check_output_folder
-    from ringtune.shaping.errors import RingtuneError
-
     if Path(path).suffix.lower() not in PLOT_SUFFIXES:
         raise RingtuneError(f"the graph's file name must end in one of {', '.join(PLOT_SUFFIXES)}", f"-o {path}")
     check_output_folder("-o", path)
@@ -111,11 +117,6 @@ def run(args, out) -> int:
 
 
 def _run_speeds(args, out) -> int:
-    from ringtune.agents.cli.common import load_config
-    from ringtune.agents.tune.speeds import speed_advice
-    from ringtune.agents.tune.speeds_plot import band_lines, plot_speeds
-    from ringtune.envs.printer import load_printer
-
     check_plot_path(args.output)
     printer = load_printer(args.printer)
     if not args.printer:
@@ -134,10 +135,6 @@ def _run_speeds(args, out) -> int:
 
 
 def _run_belts(args, out) -> int:
-    from ringtune.agents.identify.belts import compare_belts, read_belt_tests
-    from ringtune.agents.identify.belts_plot import pair_rows, plot_belts, summary_lines
-    from ringtune.envs.printer import load_printer
-
     check_plot_path(args.output)
     printer = load_printer(args.printer) if args.printer else None
     tests, notes = read_belt_tests(args.files)
@@ -153,11 +150,6 @@ def _run_belts(args, out) -> int:
 
 
 def _run_shapers(args, out) -> int:
-    from ringtune.agents.cli.common import load_config
-    from ringtune.agents.identify.graph import shaper_graph
-    from ringtune.agents.identify.graph_plot import plot_shaper_graph, table_rows
-    from ringtune.shaping.errors import RingtuneError
-
     check_plot_path(args.output)
     if not args.scv >= 0:
         raise RingtuneError(f"must be ≥ 0 mm/s, not {args.scv}", "--scv")
