@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ringtune.envs.evaluate import planned_job, resolve_printer
+from ringtune.envs.sim import simulate
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.job_shapers import shape_timeline, shaper_timeline
 
@@ -45,9 +47,6 @@ def trace_job(config: TuneConfig, printer, job=None, backend: str = "mujoco",
               job_shapers: bool = False) -> np.ndarray:
     """(m, len(COLUMNS)) rows of the whole job simulated from rest (see module doc); with
     ``job_shapers`` the job's own shaper commands apply where they stand."""
-    from ringtune.envs.evaluate import planned_job, resolve_printer
-    from ringtune.envs.sim import simulate
-
     printer = resolve_printer(printer)
     plan = planned_job(printer, job, config).plan
     motion = plan.motion

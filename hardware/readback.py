@@ -57,13 +57,7 @@ def parse_report(firmware: str, text: str) -> dict[str, Reported]:
     """Settings found in the firmware's reply text (keys as :attr:`Export.expected`)."""
     out: dict[str, Reported] = {}
     dialect = FIRMWARES[firmware].family
-    accel = _accel(dialect, text)
-    if accel is not None:
-        out["accel"] = accel
-    travel = _travel_accel(dialect, text)
-    if travel is not None:
-        out["travel_accel"] = travel
-    out.update(_axis_caps(dialect, text))
+    out.update(_acceleration_fields(dialect, text))
     if dialect == "klipper":
         out.update(_klipper_shapers(text))
     elif dialect == "rrf":
@@ -101,6 +95,13 @@ def parse_report(firmware: str, text: str) -> dict[str, Reported]:
             out[f"{ax}.freq"] = _num(m.group(3))
             out[f"{ax}.damping"] = _num(m.group(4))
     return out
+
+
+def _acceleration_fields(dialect: str, text: str) -> dict[str, Reported]:
+    """``accel``, ``travel_accel``, ``max_accel_x``/``y`` where the reply reports them."""
+    found = {"accel": _accel(dialect, text), "travel_accel": _travel_accel(dialect, text),
+             **_axis_caps(dialect, text)}
+    return {k: v for k, v in found.items() if v is not None}
 
 
 def _travel_accel(dialect: str, text: str) -> Reported | None:

@@ -6,7 +6,13 @@ and push (ranges, precision, commands), the read-back parser (report format). Fa
 sources: ``shared/reference/firmware.md`` (§1.5 Klipper, §2 Marlin, §3 RRF, §4 Prusa); the
 acceleration commands from Klipper ``toolhead.py`` (``SET_VELOCITY_LIMIT``), Marlin
 ``M200-M205.cpp`` (``M204 P``, report ``  M204 P<a> R<a> T<a>``) and RRF ``Move.cpp`` (``M204 P``,
-report ``Maximum printing acceleration <a>, maximum travel acceleration <a>``).
+report ``Maximum printing acceleration <a>, maximum travel acceleration <a>``); the per-axis caps
+from Marlin ``M201`` (report ``  M201 X<a> Y<a> ...``), RRF ``M201`` and Kalico's limited_*
+kinematics (``klippy/kinematics/limited_corexy.py``, ``limited_cartesian.py``: ``max_x_accel``,
+``max_y_accel``; ``toolhead.py``: ``SET_VELOCITY_LIMIT X_ACCEL= Y_ACCEL=``, reported as
+``max_x_accel: ...`` while ``[danger_options] log_velocity_limit_changes`` is on, its default);
+Marlin's build-time ``SHAPING_MIN_FREQ`` (``stepper.h``); what persists across a restart
+(``reference/firmware.md`` §1.5, §2, §3.5, §4).
 
 A :class:`Span` is a range the firmware accepts together with the number of decimals a value is
 sent (and reported) with. A value that would round to another one at that precision is refused
@@ -102,6 +108,15 @@ class Firmware:
         build_min_freq: the lowest shaper frequency (Hz) a stock build handles as it should, where
             the build (not a G-code check) sets it (Marlin classic: SHAPING_MIN_FREQ); 0 = none.
         build_min_freq_why: what it is and what happens below it.
+        e_timing: the extruder under input shaping (seed 002; :mod:`ringtune.shaping.e_timing`):
+            ``shaped`` with X/Y's impulses, ``delayed`` by the shaped axes' lag, or ``neither``.
+        xy_delay: how the shaped X/Y are delayed against the firmware's own (extruder) clock:
+            ``centred`` (impulses centred, no lag on average), ``causal`` (each axis by its
+            centroid ΣAᵢTᵢ) or ``largest`` (every shaped axis by the largest centroid).
+        e_sync: how to make the extruder follow X/Y where the firmware can and does not by
+            default ("" where it already does or cannot).
+        e_sync_timing: the ``e_timing`` that ``e_sync`` gives ("" without it).
+        e_source: where ``e_timing`` and ``xy_delay`` were read (file and function).
     """
 
     name: str
@@ -129,6 +144,11 @@ class Firmware:
     persists: str = ""
     build_min_freq: float = 0.0
     build_min_freq_why: str = ""
+    e_timing: str = "neither"
+    xy_delay: str = "centred"
+    e_sync: str = ""
+    e_sync_timing: str = ""
+    e_source: str = ""
 
     @property
     def shapers(self) -> tuple[str, ...]:
@@ -185,10 +205,44 @@ _MARLIN_MIN_FREQ_WHY = ("a stock build's SHAPING_MIN_FREQ (the lower of SHAPING_
                         "which sizes the echo buffer: below it, at high step rates, Marlin applies the "
                         "echoes early and the shaping no longer cancels the ringing")
 
+#: extruder timing facts per firmware family (Firmware.e_timing, xy_delay, e_sync, e_sync_timing,
+#: e_source); read in the firmwares' sources, see each e_source
+_E_KLIPPER = dict(
+    e_timing="neither", xy_delay="centred",
+    e_source="Klipper klippy/chelper/kin_shaper.c init_shaper/shift_pulses (impulses shifted so that "
+             "Σaᵢtᵢ = 0; only x, y, z are shaped); kin_extruder.c (the extruder is not shaped, only "
+             "smoothed by pressure advance)")
+_E_RRF = dict(
+    e_timing="shaped", xy_delay="causal",
+    e_source="RepRapFirmware src/Movement/Move.cpp Move::AddLinearSegments (\"taking account of "
+             "possible input shaping. This is used by linear axes and by extruders\"; causal "
+             "impulses, no centring); 3.4 reshapes each move's acceleration phases, which all its "
+             "drives follow")
+_E_MARLIN = dict(
+    e_timing="neither", xy_delay="causal",
+    e_source="seed 002, by the author of Marlin's classic input shaping: the shaped axes' steps are "
+             "diverted through ShapingQueue and echoed after the pulse (Stepper::pulse_phase_isr, "
+             "Stepper::shaping_isr); the non-shaped axes are not rescheduled (\"nothing has been done "
+             "in Marlin yet\"), so the extruder leads X/Y by their lag")
+_E_MARLIN_FTM = dict(
+    e_timing="neither", xy_delay="largest",
+    e_sync="build with FTM_SHAPER_E (Configuration_adv.h: \"Required to synchronize extruder with "
+           "XYZ\") and keep axis synchronisation on (its default)",
+    e_sync_timing="delayed",
+    e_source="Marlin src/module/ft_motion.cpp FTMotion::calc_traj_point (with axis_sync_enabled, the "
+             "default, every shaped axis is delayed to the largest centroid; the extruder is in the "
+             "shaped set only with FTM_SHAPER_E, which Configuration_adv.h leaves off); "
+             "ft_motion/shaping.h refresh_largest_delay_samples")
+_E_PRUSA = dict(
+    e_timing="neither", xy_delay="centred",
+    e_source="Prusa-Firmware-Buddy lib/Marlin/Marlin/src/module/prusa/input_shaper.cpp "
+             "input_shaper_step_generator_init (X, Y, Z only: \"Input shaper isn't supported on this "
+             "axis\"); pulses centred as Klipper's (init_input_shaper_pulses)")
+
 FIRMWARES: dict[str, Firmware] = {f.name: f for f in (
     Firmware("klipper", "Klipper", "klipper", "klipper", "klipper", False, _KLIPPER_FREQ,
              Span(0.0, 0.99, 6), False, "SET_VELOCITY_LIMIT ACCEL={a}", "SET_VELOCITY_LIMIT",
-             _KLIPPER_ACCEL, ";", (), "printer.cfg", persists=_KLIPPER_KEEPS),
+             _KLIPPER_ACCEL, ";", (), "printer.cfg", persists=_KLIPPER_KEEPS, **_E_KLIPPER),
     # Kalico (the Klipper fork formerly Danger Klipper): Klipper's toolhead, shapers and commands, plus
     # per-axis acceleration caps on its limited_* kinematics: [printer] max_x_accel / max_y_accel,
     # set at run time by SET_VELOCITY_LIMIT X_ACCEL= Y_ACCEL= (reported as max_x_accel: ...).
@@ -201,35 +255,36 @@ FIRMWARES: dict[str, Firmware] = {f.name: f for f in (
              axis_accel=_KLIPPER_ACCEL, axis_accel_config="max_{ax}_accel",
              axis_accel_kinematics=KALICO_LIMITED,
              persists=_KLIPPER_KEEPS.replace("max_accel in [printer]",
-                                             "max_accel, max_x_accel, max_y_accel in [printer]")),
+                                             "max_accel, max_x_accel, max_y_accel in [printer]"),
+             **_E_KLIPPER),
     Firmware("rrf", "RepRapFirmware 3.6", "rrf", "rrf", "rrf", True, Span(4.0, 1000.0, 2, why="RRF 3.6's minimum"),
              Span(0.0, 0.99, 3), False, "M204 P{a} T{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
              axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_RRF_ACCEL,
-             accel_roles=("print", "travel"), persists=_RRF_KEEPS),
+             accel_roles=("print", "travel"), persists=_RRF_KEEPS, **_E_RRF),
     Firmware("rrf35", "RepRapFirmware 3.5", "rrf35", "rrf", "rrf", True, _RRF35_FREQ,
              Span(0.0, 0.99, 3), False, "M204 P{a} T{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
              axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_RRF_ACCEL,
-             accel_roles=("print", "travel"), persists=_RRF_KEEPS),
+             accel_roles=("print", "travel"), persists=_RRF_KEEPS, **_E_RRF),
     Firmware("rrf34", "RepRapFirmware 3.4", "rrf35", "rrf", "rrf", True, _RRF35_FREQ,
              Span(0.0, 0.99, 3), False, "M204 P{a} T{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
              axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_RRF_ACCEL,
-             accel_roles=("print", "travel"), persists=_RRF_KEEPS),
+             accel_roles=("print", "travel"), persists=_RRF_KEEPS, **_E_RRF),
     Firmware("marlin", "Marlin (classic input shaping)", "marlin", "marlin", "marlin", False,
              Span(0.0, 1000.0, 2, lo_open=True, why="Marlin's own minimum F depends on the board"),
              Span(0.0, 1.0, 3), True, "M204 P{a} T{a}", "M204", _M204_2, ";", ("M500",),
              axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_M201_SPAN,
              accel_roles=("print", "retract", "travel"), persists=_MARLIN_KEEPS,
-             build_min_freq=40.0, build_min_freq_why=_MARLIN_MIN_FREQ_WHY),
+             build_min_freq=40.0, build_min_freq_why=_MARLIN_MIN_FREQ_WHY, **_E_MARLIN),
     Firmware("marlin-ftm", "Marlin FT_MOTION", "marlin-ftm", "marlin-ftm", "marlin", False,
              Span(10.0, 500.0, 2, why="FTM_MIN_SHAPE_FREQ..FTM_FS/2"), Span(0.01, 1.0, 3), True,
              "M204 P{a} T{a}", "M204", _M204_2, ";", ("M500",),
              axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_M201_SPAN,
              accel_roles=("print", "retract", "travel"),
-             persists=_MARLIN_KEEPS.replace("the shaper", "M493")),
+             persists=_MARLIN_KEEPS.replace("the shaper", "M493"), **_E_MARLIN_FTM),
     Firmware("prusa", "Prusa-Firmware-Buddy", "klipper-legacy", "prusa", "marlin", False,
              Span(10.0, 100.0, 2, why="it clamps other values to 10-100 Hz"), Span(0.0, 0.99, 3), False,
              "M204 P{a} T{a}", "M204", _M204_2, ";", ("M593 W",),
              axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_M201_SPAN,
              accel_roles=("print", "retract", "travel"),
-             persists="M593 W stores the shaper; M201 and M204 last until restart"),
+             persists="M593 W stores the shaper; M201 and M204 last until restart", **_E_PRUSA),
 )}

@@ -60,3 +60,35 @@ def test_the_acceleration_ladder_raises_kalicos_axis_caps_too():
     assert accel_lines("klipper", 8000) == ["SET_VELOCITY_LIMIT ACCEL=8000"]
     assert accel_lines("marlin", 8000) == ["M201 X8000 Y8000", "M204 P8000 T8000"]
     assert accel_lines("rrf", 8000, axis_maxima=False) == ["M204 P8000 T8000"]
+
+
+def test_damping_is_searched_per_axis_where_the_firmware_takes_it_per_axis():
+    from ringtune.agents.tune.report import describe
+    from ringtune.agents.tune.space import config_from_params, default_space, params_from_config
+    from ringtune.envs.printer import load_printer
+
+    class Trial:                      # a fixed answer to every Optuna question
+        def suggest_categorical(self, name, choices):
+            return "mzv" if "mzv" in choices else choices[-1]
+
+        def suggest_float(self, name, lo, hi):
+            return {"damping_x": 0.05, "damping_y": 0.055}.get(name, lo)
+
+    from ringtune.agents.tune.space import suggest_params
+
+    printer = load_printer(None)
+    for fw, keys in (("klipper", {"damping_x", "damping_y"}), ("marlin", {"damping_x", "damping_y"}),
+                     ("prusa", {"damping_x", "damping_y"}), ("rrf", {"damping"})):
+        space = default_space(printer, fw)
+        p = suggest_params(Trial(), space)
+        assert keys <= set(p) and not ({"damping", "damping_x", "damping_y"} - keys) & set(p), (fw, p)
+        cfg = config_from_params(p, space)
+        assert params_from_config(cfg, space).keys() >= keys
+    cfg = config_from_params(suggest_params(Trial(), default_space(printer, "klipper")),
+                             default_space(printer, "klipper"))
+    assert (cfg.damping_x, cfg.damping_y) == (0.05, 0.055)
+    # the summary line says each axis's damping, not one number for both
+    line = describe(cfg)
+    assert "S 0.050" in line and "S 0.055" in line
+    same = describe(TuneConfig(shaper_x="ei", shaper_y="mzv", damping_x=0.1, damping_y=0.1))
+    assert same.count("S 0.100") == 1

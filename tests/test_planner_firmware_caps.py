@@ -171,3 +171,29 @@ def test_kalicos_set_velocity_limit_x_accel_y_accel_in_a_job_set_the_caps():
     moves = plan(job, lim).moves
     assert (moves.accel[0], moves.accel[1]) == (6000.0, 3000.0)
     assert plan(job, lim, use_job_limits=False).moves.accel[:2].tolist() == [10010.0, 4130.0]
+
+
+def test_the_summary_names_marlins_retract_acceleration_as_the_planner_measures_it(marlin_printer):
+    """binding_limits: M204 R binds on the job's retractions, and the time it names without it is
+    the planner's with the retractions at the tuned acceleration (limits built here by hand)."""
+    from dataclasses import replace
+
+    from ringtune.agents.tune.binding import binding_limits, binding_sentences
+    from ringtune.shaping.config import TuneConfig
+
+    text = ("G90\nM83\nG1 X10 Y10 Z0.3 F6000\nG1 X60 Y10 E2 F3000\nG1 E-5 F2400\nG1 X10 Y50 F9000\n"
+            "G1 E5 F2400\nG1 X60 Y50 E2 F3000\n")
+    cfg = TuneConfig(firmware="marlin", shaper_x="zv", shaper_y="zv", freq_x=45.0, freq_y=40.0, accel=3000.0,
+                     max_accel_x=3000.0, max_accel_y=3000.0)
+    found = {b.name: b for b in binding_limits(marlin_printer, text, cfg)}
+    assert set(found) == {"M204 R"}          # X/Y caps raised to 3000, travel at the tuned 3000
+    r = found["M204 R"]
+    lim = replace(marlin_printer.machine_limits(), accel=3000.0, travel_accel=None,
+                  max_accel=(3000.0, 3000.0, 100.0, 400.0))
+    job = read_gcode(text)
+    assert r.moves == 2 and r.value == 500.0
+    assert r.time_s == pytest.approx(plan(job, lim, accel=3000.0).print_time, rel=1e-12)
+    assert r.time_without_s == pytest.approx(plan(job, replace(lim, retract_accel=3000.0), accel=3000.0).print_time,
+                                              rel=1e-12)
+    assert r.time_without_s < r.time_s
+    assert "M204 R 500 mm/s² binds on 2 retractions" in binding_sentences([r], 3000.0)[1]

@@ -216,6 +216,10 @@ def test_per_axis_cap_does_not_cap_the_tuned_acceleration(v24_run):
     a, _who = motor_accel_limit(load_printer(toml), _cfg_value(V24, "max_velocity"))
     assert hi == math.floor(a / 100.0) * 100.0
     assert "at 500 mm/s (the printer's velocity limit)" in summary
+    chosen = res["chosen"]["config"]["accel"]
+    share = round(chosen / a * 100)          # the motor's share at the velocity limit, rigid machine
+    assert (f"At the printer's velocity limit 500 mm/s (no job given; the built-in print runs slower) "
+            f"{chosen:.0f} mm/s² asks the {_who} for {share:.0f} % of its force there") in summary
     assert "the the" not in summary and "max_accel)" not in summary
 
 

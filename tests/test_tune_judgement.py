@@ -153,11 +153,11 @@ def test_klippers_rule_is_the_recommendation_recorded_from_the_files(data_dir, t
     """The printer records Klipper's recommendation from its resonance files (computed here with the
     function `recommend --accel` uses): tune's Klipper baseline is exactly it, in the summary and the
     JSON, and nothing says "simulated"."""
-    from ringtune.agents.cli.recommend import _load_accel
+    from ringtune.agents.identify.accelerometer import resonance_psds
     from ringtune.agents.klipper.baseline import recommend_axes
 
     d = data_dir / "accel" / "klipper_psd" / "bassco_ender3"
-    psds, _ = _load_accel([str(p) for p in sorted(d.glob("resonances_*.csv"))], None)
+    psds, _ = resonance_psds([str(p) for p in sorted(d.glob("resonances_*.csv"))], None)
     fits, fields = recommend_axes(psds, "klipper", "head", 5.0)
     rec = {"shaper_x": fields["shaper_x"], "freq_x": fields["freq_x"], "shaper_y": fields["shaper_y"],
            "freq_y": fields["freq_y"], "max_accel": fields["accel"], "version": "head"}

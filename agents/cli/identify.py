@@ -21,11 +21,25 @@ masses, motors, limits and kinematics from what the user gives — written as a 
 from __future__ import annotations
 
 import argparse
+import os
+import tomllib
+from pathlib import Path
 
 from ringtune.agents.cli import identify_ripples
+from ringtune.agents.cli.common import check_output_folder
+from ringtune.agents.identify.accelerometer import klipper_record, read_measurement
+from ringtune.agents.identify.belts import belts_into_description
+from ringtune.agents.identify.description import AddedMass, build_description, description_toml, printer_name
+from ringtune.envs.identify import plot_fits
+from ringtune.envs.motors import lookup_motor, unknown_motor_message
+from ringtune.envs.printer import printer_from_dict
+from ringtune.hardware.klipper_config import printer_facts_from_klipper, printer_facts_from_moonraker
+from ringtune.hardware.marlin_config import printer_facts_from_marlin
+from ringtune.hardware.moonraker_files import fetch_printer_files
+from ringtune.hardware.rrf_config import printer_facts_from_rrf
+from ringtune.shaping.errors import RingtuneError
 
 NAME = "identify"
-HELP = "the printer from your files: modes from accelerometer data, the rest from your config (TOML)"
 DESCRIPTION = """\
 Fit the vibration modes (frequency, damping ratio, share of the response) of each axis to
 accelerometer measurements, and write them with everything else you know about the printer as a
@@ -126,8 +140,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _per_axis(text: str, option: str, parse) -> dict[str, object]:
     """``X=v,Y=v`` (either or both) -> {"x": parse(v), …}; a bare ``v`` -> {"all": parse(v)}."""
-    from ringtune.shaping.errors import RingtuneError
-
     text = text.strip()
     if "=" not in text:
         return {"all": parse(text)}
@@ -144,8 +156,6 @@ def _per_axis(text: str, option: str, parse) -> dict[str, object]:
 
 
 def _kg(option: str):
-    from ringtune.shaping.errors import RingtuneError
-
     def parse(v: str) -> float:
         try:
             kg = float(v)
@@ -159,10 +169,6 @@ def _kg(option: str):
 
 def _motor(v: str) -> dict:
     """``NAME[:RUN_CURRENT[:VOLTAGE]]`` -> {name, run_current, voltage}."""
-    from ringtune.shaping.errors import RingtuneError
-
-    from ringtune.envs.motors import lookup_motor, unknown_motor_message
-
     parts = v.split(":")
     if len(parts) > 3 or not parts[0].strip():
         raise RingtuneError(f"expected NAME[:RUN_CURRENT[:VOLTAGE]], not {v!r}", "--motor")
@@ -183,12 +189,6 @@ def _motor(v: str) -> dict:
 def _check_output(option: str, path) -> None:
     """Refuse, before any work, an output the command could not write (missing or read-only folder,
     a folder in its place), so that nothing is half-written."""
-    import os
-    from pathlib import Path
-
-    from ringtune.agents.cli.common import check_output_folder
-    from ringtune.shaping.errors import RingtuneError
-
     check_output_folder(option, path)
     if not path:
         return
@@ -211,16 +211,10 @@ def _read_facts(args):
     if getattr(args, "facts", None) is not None:
         return args.facts
     if args.klipper_config:
-        from ringtune.hardware.klipper_config import printer_facts_from_klipper
-
         return printer_facts_from_klipper(args.klipper_config)
     if args.marlin:
-        from ringtune.hardware.marlin_config import printer_facts_from_marlin
-
         return printer_facts_from_marlin(args.marlin)
     if args.rrf:
-        from ringtune.hardware.rrf_config import printer_facts_from_rrf
-
         return printer_facts_from_rrf(args.rrf)
     return None
 
@@ -229,11 +223,6 @@ def _read_facts(args):
 
 def _from_moonraker(args, out) -> None:
     """Fetch the files and the configuration into --fetch-dir and point the arguments at them."""
-    import os
-
-    from ringtune.hardware.moonraker_files import fetch_printer_files
-    from ringtune.shaping.errors import RingtuneError
-
     if args.files or args.belts:
         raise RingtuneError("fetches the resonance files from the printer; give no files with it", "--moonraker")
     _check_output("-o", args.output)
@@ -251,10 +240,6 @@ def _from_moonraker(args, out) -> None:
 
 def _fetch_dir(args):
     """--fetch-dir, else the folder of -o, else the working folder (it must exist)."""
-    from pathlib import Path
-
-    from ringtune.shaping.errors import RingtuneError
-
     dest = Path(args.fetch_dir) if args.fetch_dir else (Path(args.output).parent if args.output else Path("."))
     if not dest.is_dir():
         raise RingtuneError("no such directory", f"--fetch-dir {dest}")
@@ -263,8 +248,6 @@ def _fetch_dir(args):
 
 def _moonraker_facts(args, config, key, out):
     """The fetched printer.cfg's facts, else those of the configuration Klipper loaded."""
-    from ringtune.hardware.klipper_config import printer_facts_from_moonraker
-
     if config is not None:
         args.klipper_config = str(config)
         return _read_facts(args)
@@ -273,14 +256,6 @@ def _moonraker_facts(args, config, key, out):
 
 
 def run(args, out) -> int:
-    from pathlib import Path
-
-    from ringtune.agents.identify.accelerometer import klipper_record, read_measurement
-    from ringtune.agents.identify.description import (AddedMass, build_description, description_toml,
-                                                  printer_name)
-    from ringtune.envs.identify import plot_fits
-    from ringtune.shaping.errors import RingtuneError
-
     if getattr(args, "moonraker", None):
         _from_moonraker(args, out)
     if identify_ripples.wanted(args) or not args.files:   # no accelerometer: ripples or a tower
@@ -368,8 +343,6 @@ def run(args, out) -> int:
     printer = _validate(description_toml(desc, header))
     belts = None
     if args.belts:
-        from ringtune.agents.identify.belts import belts_into_description
-
         belts = belts_into_description(desc, printer, args.belts)
         printer = _validate(description_toml(desc, header))
     for ax in ("x", "y"):                        # what a named motor's drive still assumes
@@ -429,8 +402,4 @@ def run(args, out) -> int:
 
 def _validate(toml: str):
     """The written description must load: the Printer, checked before anything is written."""
-    import tomllib
-
-    from ringtune.envs.printer import printer_from_dict
-
     return printer_from_dict(tomllib.loads(toml), "the identified printer")

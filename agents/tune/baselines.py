@@ -16,12 +16,14 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
+from ringtune.agents.klipper import baseline as klipper_baseline
 from ringtune.agents.klipper.rule import DEFAULT_DAMPING_RATIO
+from ringtune.agents.tune import study as tune_study
 from ringtune.agents.tune.pareto import Point, point_from_metrics
 from ringtune.envs.printer_model import Printer
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.shapers import shapers_from_config
+from ringtune.shaping.shapers import parse_name, shapers_from_config
 
 SIMULATED = "on a simulated resonance test of the model"
 FROM_FILES = "from your resonance files"
@@ -65,8 +67,6 @@ def recorded_klipper(printer: Printer, firmware: str) -> tuple[TuneConfig | None
 
 def current_config(printer: Printer, firmware: str) -> tuple[TuneConfig | None, str]:
     """What the printer runs now (``[current]``) as a TuneConfig for ``firmware`` (or None, and why)."""
-    from ringtune.shaping.shapers import parse_name
-
     cur = printer.current
     if not cur:
         return None, ""
@@ -94,9 +94,6 @@ def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable
                   note: Callable[[str], None] = lambda s: None) -> Baselines:
     """Klipper's rule, what the printer runs now (when known) and no shaping, evaluated with the
     study's evaluator, bounds and frequency margin (``settings``: a StudySettings)."""
-    from ringtune.agents.klipper import baseline as klipper_baseline
-    from ringtune.agents.tune import study as tune_study
-
     out = Baselines()
     configs: dict[str, TuneConfig] = {}
     kcfg, why = recorded_klipper(printer, firmware)

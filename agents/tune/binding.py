@@ -4,8 +4,10 @@ The chosen acceleration is not what every move runs at: a per-axis cap (Marlin/R
 Kalico's ``max_x_accel``/``max_y_accel``), Marlin's retract acceleration (``M204 R``) or a travel
 acceleration kept apart (``M204 T``) lowers some moves. For each such limit of the printer (and of
 the configuration, whose caps replace the printer's), :func:`binding_limits` plans the job with it
-and without it (the same planner, the same job, nothing else changed) and reports the moves it
-lowers and the print time it costs; a limit that lowers no move does not bind and is not said.
+and without it (the same planner, the same job, nothing else changed: a cap removed leaves those
+moves at the configuration's acceleration; a retract or travel acceleration removed is raised to
+it, since nothing else would bound those moves) and reports the moves it lowers and the print time
+it costs; a limit that lowers no move does not bind and is not said.
 :func:`binding_sentences` words them with the firmware's own names, for the summary.
 """
 
@@ -68,7 +70,7 @@ def _variants(limits: MachineLimits) -> list[tuple[str, MachineLimits, str]]:
     if limits.junction == "scv":          # Klipper: one acceleration for every move
         return out
     roles = (("retract", "retract_accel", "retractions (E-only moves)"), ("travel", "travel_accel", "travel moves"))
-    return out + [(key, replace(limits, **{attr: None}), what) for key, attr, what in roles
+    return out + [(key, replace(limits, **{attr: limits.accel}), what) for key, attr, what in roles
                   if getattr(limits, attr) is not None]
 
 
@@ -84,6 +86,8 @@ def binding_limits(printer, job, config: TuneConfig, firmware: str | None = None
     ``config``, each with the print time with and without it (module docstring)."""
     _, parsed = resolve_job(job)
     limits = with_axis_caps(printer.limits, config)
+    if config.accel is not None:
+        limits = replace(limits, accel=float(config.accel))
     plain = replace(config, max_accel_x=None, max_accel_y=None)     # its caps are in ``limits`` now
     base = plan_with_config(parsed, limits, plain, job_accel=job_accel).plan
     names = cap_names(firmware or config.firmware)

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point
+from ringtune.agents.tune.space import defaults_note
 from ringtune.envs.evaluate import job_accel_commands, planned_job, resolve_job
 from ringtune.shaping.config import TuneConfig
 
@@ -129,8 +130,6 @@ def accel_statement(chosen: Point, space, max_pe: float, reserve: float, points,
     them (then the choice of quality stops it). ``binding``: the firmware limits that hold some
     moves lower (:func:`ringtune.agents.tune.binding.binding_sentences`). With ``printer``: whether
     the motor bound rests on defaults."""
-    from ringtune.agents.tune.space import defaults_note
-
     a = float(chosen.config.accel or 0.0)
     lo, hi = space.accel
     info = {"range": [lo, hi], "searched": not space.accel_fixed, "basis": space.accel_basis, "chosen": a,

@@ -36,6 +36,7 @@ import numpy as np
 from ringtune.shaping.config import FREQ_LIMIT_METHODS, TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.shapers import available_shapers, max_damping, parse_name
 from ringtune.shaping.smoothers import is_smoother
 
 #: search families of Klipper's parametrised shapers, per shaper flavour that has them
@@ -104,8 +105,6 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
     its force (the firmware's limits are no bound: see there). ``accel`` = (lo, hi) overrides it
     (lo = hi: the acceleration is not searched).
     """
-    from ringtune.shaping.shapers import available_shapers, max_damping
-
     if firmware not in FIRMWARES:
         raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "firmware")
     flavor = FIRMWARES[firmware].flavor
@@ -237,6 +236,19 @@ def accel_ceiling(printer: Any, speed: float | None = None) -> tuple[float, str]
     return a, f"the {who} would need all its force at {v:.0f} mm/s ({what})"
 
 
+def top_speed_load_note(printer: Any, accel: float, reserve: float) -> str:
+    """With no job given (the built-in print stands in for prints that may run at the printer's
+    velocity limit): the share of the weakest motor's force the acceleration asks for at that
+    speed, rigid machine (:func:`motor_accel_limit`), and whether that keeps the reserve."""
+    v = float(printer.limits.velocity)
+    limit, who = motor_accel_limit(printer, v)
+    load = float(accel) / limit if limit > 0 else math.inf
+    kept = ("within the reserve" if load <= 1.0 - reserve else
+            f"BEYOND the {reserve * 100:.0f} % reserve: a print that fast at this acceleration may skip steps")
+    return (f"At the printer's velocity limit {v:.0f} mm/s (no job given; the built-in print runs slower) "
+            f"{accel:.0f} mm/s² asks the {who} for {load * 100:.0f} % of its force there (rigid machine): {kept}.")
+
+
 def defaults_note(printer: Any) -> str:
     """One sentence when the motor bound rests on defaults (``Printer.defaulted``: a motor with
     neither a name, datasheet constants nor ``force``; an axis with no ``mass``), else ""."""
@@ -314,8 +326,6 @@ def shaper_name(family: str, params: dict[str, Any], ax: str) -> str:
 
 def family_params(name: str, ax: str) -> tuple[str, dict[str, Any]]:
     """Inverse of :func:`shaper_name`: (family, parameters) of a configuration's shaper name."""
-    from ringtune.shaping.shapers import parse_name
-
     base, params = parse_name(name)
     if base == "mzv" and params:
         n = int(params.get("n", 3))
@@ -440,7 +450,7 @@ def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel
                 for a in accels:
                     p = dict(sh)
                     if z is not None:
-                        p.update({key: z for key in _damping_keys(sh, space)})
+                        p.update(dict.fromkeys(_damping_keys(sh, space), z))
                     p.update(lim)
                     p["accel"] = a
                     out.append(p)
