@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 from matplotlib.table import Table
 from matplotlib.text import Text
 
@@ -25,8 +26,6 @@ def figure_texts(fig) -> list[str]:
 def save_figure(fig, path: str | Path, title: str = "", dpi: int = 110) -> Path:
     """Write ``fig`` to ``path`` (format from the suffix); PNGs carry :func:`figure_texts` in their
     ``Description`` chunk and ``title`` in ``Title``. The figure is closed."""
-    import matplotlib.pyplot as plt
-
     out = Path(path)
     meta = None
     if out.suffix.lower() == ".png":

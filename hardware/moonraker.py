@@ -45,15 +45,11 @@ class Moonraker:
 
     def download(self, root: str, path: str) -> bytes:
         """A file's bytes through the file API, ``GET /server/files/<root>/<path>``."""
-        from urllib.parse import quote
-
         return self._open("GET", f"/server/files/{quote(root)}/{quote(path)}", None)
 
     def list_files(self, root: str) -> list[dict]:
         """Every file of a root, ``GET /server/files/list?root=<root>``: ``[{path (relative to the
         root), modified (s since the epoch), size (bytes), permissions}]``."""
-        from urllib.parse import quote
-
         result = self._request("GET", f"/server/files/list?root={quote(root)}").get("result")
         return [f for f in result if isinstance(f, dict) and "path" in f] if isinstance(result, list) else []
 

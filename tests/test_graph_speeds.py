@@ -60,7 +60,7 @@ def test_the_typical_wall_of_a_square_tower():
 def test_the_predicted_band_holds_the_speed_of_the_largest_simulated_ripple(printer):
     config = TuneConfig(firmware="klipper", shaper_x="none", shaper_y="none", accel=3000)
     speeds = np.arange(14.0, 200.0, 6.0)          # a grid of its own, not the prediction's
-    ripple = [evaluate(config, printer, tower(v), backend="mujoco").ringing_mm for v in speeds]
+    ripple = [evaluate(config, printer, tower(v), backend="mujoco").ripple_mm for v in speeds]
     worst = float(speeds[int(np.argmax(ripple))])
     advice = speed_advice(printer, tower(100), config)
     band = advice.worst

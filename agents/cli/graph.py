@@ -18,8 +18,8 @@ at all (speeds come from a printer model and a job).
         mismatch ((k_A − k_B)/mean, null without --printer), mismatch_error (one standard error),
         stiffness_a_n_m, stiffness_b_n_m, matched, meaning, freqs_hz {a, b}, psd {a, b},
         model_psd {a, b} (the fitted model, scaled; {} without --printer)}
-    speeds: {graph: "speeds", plot, printer, speeds_mm_s, ripple_mm {direction: per speed (RMS across the
-        wall, as simulate's ringing_mm)}, bands [{direction ("x": walls along X, "y", CoreXY "a"/"b":
+    speeds: {graph: "speeds", plot, printer, speeds_mm_s, ripple_mm {direction: per speed (peak-to-peak
+        across the wall, as simulate's ripple_mm)}, bands [{direction ("x": walls along X, "y", CoreXY "a"/"b":
         the diagonals), lo, hi, peak_speed (mm/s), peak_ripple_mm}], wall_length_mm, corner_deg, accel
         (mm/s²), band_level, orcaslicer {resonance_avoidance, min_resonance_avoidance_speed,
         max_resonance_avoidance_speed} (the worst band; {} without one), notes}

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from ringtune.agents.identify.accelerometer import sha256_of
 from ringtune.envs.identify import find_peaks_psd
 from ringtune.envs.printer_model import Printer
 from ringtune.envs.sim import resonance_test
@@ -253,8 +254,6 @@ def belts_into_description(desc, printer: Printer, paths: list[str]) -> BeltComp
     :class:`~ringtune.agents.identify.description.Description`, and ``printer``, what it loads as)
     and write ``[belts] mismatch`` with a comment on where it came from; the files go into
     ``[measurement] belt_files``."""
-    from ringtune.agents.identify.accelerometer import sha256_of
-
     if printer.kinematics != "corexy":
         raise RingtuneError(f"the belt tests compare a CoreXY's two belts, but the printer is {printer.kinematics} "
                             "(give --kinematics corexy, or a configuration that says corexy)", "--belts")

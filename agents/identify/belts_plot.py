@@ -9,12 +9,10 @@ import textwrap
 from pathlib import Path
 
 import matplotlib
+import matplotlib.pyplot as plt
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-from ringtune.agents.identify.belts import SWEEP, BeltComparison  # noqa: E402
-from ringtune.envs.figure import save_figure  # noqa: E402
+from ringtune.agents.identify.belts import SWEEP, BeltComparison
+from ringtune.envs.figure import save_figure
 
 _STYLE = {"a": ("belt A (AXIS=1,1, motor A)", "tab:blue"), "b": ("belt B (AXIS=1,-1, motor B)", "tab:orange")}
 PAIR_HEADER = ("peak A Hz", "peak B Hz", "B − A Hz", "amp. A − B %")
@@ -43,6 +41,7 @@ def summary_lines(c: BeltComparison) -> list[str]:
 
 def plot_belts(c: BeltComparison, path: str | Path) -> Path:
     """Spectra on the left, the numbers on the right."""
+    matplotlib.use("Agg")
     fig, (ax, side) = plt.subplots(1, 2, figsize=(15, 6.2), gridspec_kw={"width_ratios": [2.4, 1.6]})
     for k, (label, colour) in _STYLE.items():
         ax.plot(c.freqs[k], c.psd[k], color=colour, lw=1.8, label=f"{label}: {Path(c.sources[k]).name}")

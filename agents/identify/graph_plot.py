@@ -13,12 +13,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import matplotlib
+import matplotlib.pyplot as plt
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-from ringtune.agents.identify.graph import AxisGraph, ShaperCurve  # noqa: E402
-from ringtune.envs.figure import save_figure  # noqa: E402
+from ringtune.agents.identify.graph import AxisGraph, ShaperCurve
+from ringtune.envs.figure import save_figure
 
 _PSD_STYLE = {"x": ("X", "tab:red"), "y": ("Y", "tab:green"), "z": ("Z", "tab:blue"), "sum": ("X+Y+Z", "tab:purple")}
 TABLE_HEADER = ("shaper", "freq Hz", "vibr %", "smooth. mm", "max_accel", "pick")
@@ -91,6 +89,7 @@ def _table(ax, g: AxisGraph) -> None:
 
 def plot_shaper_graph(graphs: list[AxisGraph], path: str | Path) -> Path:
     """One row per axis: spectrum and shaper curves, and the table."""
+    matplotlib.use("Agg")
     fig, axes = plt.subplots(len(graphs), 2, figsize=(16, 6.2 * len(graphs)), squeeze=False,
                              gridspec_kw={"width_ratios": [2.6, 1.4]})
     for (ax, tab_ax), g in zip(axes, graphs):

@@ -13,7 +13,8 @@ it builds the job's typical wall — its length-weighted median length, entered 
 corner angle — at each speed of a grid, and runs it through the same pipeline ``simulate`` uses
 (planner with the printer's limits and the configuration's acceleration, the configuration's
 shapers, the exact linear model: ``evaluate(..., backend="lti")``), reading the ripple as
-``ringing_mm`` (RMS of the nozzle's deviation across the wall). A *band* is a run of speeds whose
+``ripple_mm`` (peak-to-peak of the nozzle's deviation across the wall, what calipers see). A
+*band* is a run of speeds whose
 ripple is at least :data:`BAND_LEVEL` (1/√2, the half-power level) of that direction's worst.
 
 OrcaSlicer's resonance avoidance takes one band for outer walls (keys ``resonance_avoidance``,
@@ -26,7 +27,6 @@ Units: mm, mm/s, mm/s², degrees.
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,11 +35,10 @@ from ringtune.envs.evaluate import evaluate, resolve_job
 from ringtune.envs.printer_model import Printer
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.features import feature_class
 
 #: a band: speeds whose ripple is at least this fraction of the direction's worst (half power)
 BAND_LEVEL = 1.0 / math.sqrt(2.0)
-#: slicer feature names of outer walls (PrusaSlicer/SuperSlicer, OrcaSlicer/Bambu, Cura, Simplify3D)
-OUTER_WALL = re.compile(r"external perimeter|outer wall|wall-outer|^outer perimeter", re.IGNORECASE)
 #: a direction change at least this large (degrees) ends a straight wall
 CORNER_DEG = 30.0
 #: without a job: a 40 mm square's walls
@@ -60,7 +59,7 @@ class Band:
     lo: float
     hi: float
     peak_speed: float
-    peak_ripple: float          # mm, RMS across the wall
+    peak_ripple: float          # mm, peak-to-peak across the wall
 
     def to_dict(self) -> dict:
         return {"direction": self.direction, "lo": self.lo, "hi": self.hi, "peak_speed": self.peak_speed,
@@ -99,10 +98,11 @@ class SpeedAdvice:
 
 def _runs(job) -> list[tuple[float, float]]:
     """(length mm, corner angle before it, degrees) of every straight wall of the job's outer walls
-    (all extruding moves when the job names none) that follows a corner: a wall runs on through
+    (:func:`ringtune.shaping.features.feature_class`; all extruding moves when the job labels
+    none) that follows a corner: a wall runs on through
     direction changes under :data:`CORNER_DEG` and ends at a corner or where the walls stop."""
     ext = job.extruding
-    named = np.array([bool(OUTER_WALL.search(job.features[f])) for f in job.feature], dtype=bool)
+    named = np.array([feature_class(job.features[f]) == "outer_wall" for f in job.feature], dtype=bool)
     sel = ext & named if (ext & named).any() else ext
     d = job.delta[:, :2]
     length = np.hypot(d[:, 0], d[:, 1])
@@ -148,8 +148,9 @@ def wall_gcode(direction, length: float, corner_deg: float, speed: float) -> str
 
 def ripple_against_speed(printer: Printer, config: TuneConfig, direction, length: float, corner_deg: float,
                          speeds: np.ndarray) -> np.ndarray:
-    """Ripple (mm, ``ringing_mm``) of the typical wall along ``direction`` at each speed (mm/s)."""
-    return np.array([evaluate(config, printer, wall_gcode(direction, length, corner_deg, v), backend="lti").ringing_mm
+    """Ripple (mm, ``ripple_mm``: peak-to-peak across the wall) of the typical wall along
+    ``direction`` at each speed (mm/s)."""
+    return np.array([evaluate(config, printer, wall_gcode(direction, length, corner_deg, v), backend="lti").ripple_mm
                      for v in speeds])
 
 

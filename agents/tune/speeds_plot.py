@@ -7,12 +7,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import matplotlib
+import matplotlib.pyplot as plt
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-from ringtune.agents.tune.speeds import BAND_LEVEL, DIRECTION_TEXT, SpeedAdvice  # noqa: E402
-from ringtune.envs.figure import save_figure  # noqa: E402
+from ringtune.agents.tune.speeds import BAND_LEVEL, DIRECTION_TEXT, SpeedAdvice
+from ringtune.envs.figure import save_figure
 
 
 def band_lines(a: SpeedAdvice) -> list[str]:
@@ -23,6 +21,8 @@ def band_lines(a: SpeedAdvice) -> list[str]:
 
 
 def plot_speeds(a: SpeedAdvice, path: str | Path, printer_name: str = "") -> Path:
+    """Ripple against speed per direction, bands shaded, on the left; the bands and OrcaSlicer's keys on the right."""
+    matplotlib.use("Agg")
     fig, (ax, side) = plt.subplots(1, 2, figsize=(15, 6), gridspec_kw={"width_ratios": [2.5, 1.3]})
     colours = dict(zip(a.ripple, ("tab:blue", "tab:orange", "tab:green", "tab:red")))
     for k, r in a.ripple.items():
@@ -34,7 +34,7 @@ def plot_speeds(a: SpeedAdvice, path: str | Path, printer_name: str = "") -> Pat
         ax.annotate(f"worst: {w.peak_speed:g} mm/s", (w.peak_speed, 1000 * w.peak_ripple), xytext=(6, 6),
                     textcoords="offset points", fontsize=8)
     ax.set_xlabel("wall speed, mm/s")
-    ax.set_ylabel("ripple across the wall, µm RMS (ringing_mm)")
+    ax.set_ylabel("ripple across the wall, µm peak-to-peak (ripple_mm)")
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="upper right")
