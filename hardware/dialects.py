@@ -41,6 +41,7 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.custom import rrf_custom
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES, Firmware, Span
+from ringtune.shaping.smoothers import is_smoother
 
 _FTM_MODE = {"none": 0, "zv": 1, "zvd": 2, "zvdd": 3, "zvddd": 4, "ei": 5, "2hump_ei": 6, "3hump_ei": 7,
              "mzv": 8}
@@ -282,6 +283,30 @@ def _klipper_value(v) -> str:
     return fmt(float(v), 9)
 
 
+def _freq_key(name: str | None, ax: str) -> str:
+    """Kalico's smoothers take ``smoother_freq_<ax>``; every shaper ``shaper_freq_<ax>``."""
+    return f"smoother_freq_{ax}" if name and is_smoother(name) else f"shaper_freq_{ax}"
+
+
+def _freq_params(name: str | None, freq: float, ax: str, fw) -> list[str]:
+    """``SHAPER_FREQ_X=…`` (``SMOOTHER_FREQ_X=…`` for a smoother); an axis turned off on Kalico gets
+    both at 0 (a smoother there reads only SMOOTHER_FREQ)."""
+    out = [f"{_freq_key(name, ax).upper()}={fmt(freq, fw.freq.decimals)}"]
+    if name is None and fw.flavor == "kalico":
+        out.append(f"SMOOTHER_FREQ_{ax.upper()}=0")
+    return out
+
+
+def _klipper_config_lines(ax: str, name: str | None, freq: float, damping: float, fw) -> list[str]:
+    """The ``[input_shaper]`` lines of one axis (a smoother has no damping ratio)."""
+    if not name:
+        return [f"shaper_freq_{ax}: 0"]
+    lines = [f"shaper_type_{ax}: {name}", f"{_freq_key(name, ax)}: {fmt(freq, fw.freq.decimals)}"]
+    if not is_smoother(name):
+        lines.append(f"damping_ratio_{ax}: {fmt(damping, fw.damping.decimals)}")
+    return lines
+
+
 def _klipper(config: TuneConfig, dialect: str) -> Export:
     fw = FIRMWARES[dialect]
     params, cfg = [], ["[input_shaper]"]
@@ -296,11 +321,11 @@ def _klipper(config: TuneConfig, dialect: str) -> Export:
         per_axis[ax] = (name, freq, damping)
     for ax in ("x", "y"):
         name, freq, _ = per_axis[ax]
-        params.append(f"SHAPER_FREQ_{ax.upper()}={fmt(freq, fw.freq.decimals)}")
+        params += _freq_params(name, freq, ax, fw)
         expected[f"{ax}.freq"] = freq
     for ax in ("x", "y"):
         name, _, damping = per_axis[ax]
-        if name:
+        if name and not is_smoother(name):
             params.append(f"DAMPING_RATIO_{ax.upper()}={fmt(damping, fw.damping.decimals)}")
             expected[f"{ax}.damping"] = damping
     for ax in ("x", "y"):
@@ -309,12 +334,7 @@ def _klipper(config: TuneConfig, dialect: str) -> Export:
             params.append(f"SHAPER_TYPE_{ax.upper()}={name}")
             expected[f"{ax}.type"] = name
     for ax in ("x", "y"):
-        name, freq, damping = per_axis[ax]
-        if name:
-            cfg += [f"shaper_type_{ax}: {name}", f"shaper_freq_{ax}: {fmt(freq, fw.freq.decimals)}",
-                    f"damping_ratio_{ax}: {fmt(damping, fw.damping.decimals)}"]
-        else:
-            cfg.append(f"shaper_freq_{ax}: 0")
+        cfg += _klipper_config_lines(ax, *per_axis[ax], fw)
     line = "SET_INPUT_SHAPER " + " ".join(params)
     exp = Export(dialect, [line], [], "\n".join(cfg) + "\n", fw.config_file, ["SET_INPUT_SHAPER"],
                  expected, {k: 0 for k in expected},

@@ -38,19 +38,28 @@ def _num(s: str) -> Reported:
     return Reported(float(s), len(s.split(".")[1]) if "." in s else 0)
 
 
+def _klipper_shapers(text: str) -> dict[str, Reported]:
+    """SET_INPUT_SHAPER's report: ``shaper_type_x:mzv shaper_freq_x:40.000 damping_ratio_x:0.100000``,
+    or for Kalico's smoothers ``shaper_type_x:smooth_mzv smoother_freq_x:40.000``."""
+    out: dict[str, Reported] = {}
+    for ax in ("x", "y", "z"):
+        m = re.search(rf"shaper_type_{ax}:(\S+)\s+shaper_freq_{ax}:{_NUM}\s+damping_ratio_{ax}:{_NUM}", text)
+        if m:
+            out[f"{ax}.damping"] = _num(m.group(3))
+        m = m or re.search(rf"shaper_type_{ax}:(\S+)\s+smoother_freq_{ax}:{_NUM}", text)
+        if m:
+            out[f"{ax}.type"] = Reported(m.group(1).lower())
+            out[f"{ax}.freq"] = _num(m.group(2))
+    return out
+
+
 def parse_report(firmware: str, text: str) -> dict[str, Reported]:
     """Settings found in the firmware's reply text (keys as :attr:`Export.expected`)."""
     out: dict[str, Reported] = {}
     dialect = FIRMWARES[firmware].family
     out.update(_acceleration_fields(dialect, text))
     if dialect == "klipper":
-        for ax in ("x", "y", "z"):
-            m = re.search(rf"shaper_type_{ax}:(\S+)\s+shaper_freq_{ax}:{_NUM}\s+damping_ratio_{ax}:{_NUM}",
-                          text)
-            if m:
-                out[f"{ax}.type"] = Reported(m.group(1).lower())
-                out[f"{ax}.freq"] = _num(m.group(2))
-                out[f"{ax}.damping"] = _num(m.group(3))
+        out.update(_klipper_shapers(text))
     elif dialect == "rrf":
         if re.search(r"Input shaping is disabled", text, re.I):
             out["all.type"] = Reported("none")

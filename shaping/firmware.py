@@ -246,8 +246,9 @@ FIRMWARES: dict[str, Firmware] = {f.name: f for f in (
     # Kalico (the Klipper fork formerly Danger Klipper): Klipper's toolhead, shapers and commands, plus
     # per-axis acceleration caps on its limited_* kinematics: [printer] max_x_accel / max_y_accel,
     # set at run time by SET_VELOCITY_LIMIT X_ACCEL= Y_ACCEL= (reported as max_x_accel: ...).
-    # Its shaper list is its flavour's (issue 23 adds Kalico's smooth shapers there).
-    Firmware("kalico", "Kalico", "klipper", "klipper", "klipper", False, _KLIPPER_FREQ,
+    # Its shapers are its flavour's: Klipper's closed forms of before 2025 and Kalico's continuous
+    # smoothers (smooth_zv ... smooth_si, set by SHAPER_TYPE_X= with SMOOTHER_FREQ_X=).
+    Firmware("kalico", "Kalico", "kalico", "klipper", "klipper", False, _KLIPPER_FREQ,
              Span(0.0, 0.99, 6), False, "SET_VELOCITY_LIMIT ACCEL={a}", "SET_VELOCITY_LIMIT",
              _KLIPPER_ACCEL, ";", (), "printer.cfg",
              axis_accel_set="SET_VELOCITY_LIMIT X_ACCEL={x} Y_ACCEL={y}", axis_accel_report="SET_VELOCITY_LIMIT",

@@ -3,7 +3,11 @@
 Parameters (Optuna names):
 
 - ``shaper`` (RepRapFirmware: one shaper for all axes) or ``shaper_x``, ``shaper_y``: the shaper
-  types the target firmware offers (``none`` included; RRF ``custom`` excluded);
+  types the target firmware offers (``none`` included; RRF ``custom`` excluded) and, where its
+  shapers take Klipper's parameters (flavour ``klipper``: Klipper HEAD), the families
+  ``mzv(n,t)`` — ``mzv_n_<ax>`` impulses (3–6) over ``mzv_t_<ax>`` damped periods (0.5 to just under
+  (n − 1)/2, where Klipper's generalised MZV stays non-negative; sampled as a fraction of that
+  span) — and ``ei(v_tol)`` — ``ei_vtol_<ax>`` the tolerated vibration (0.01–0.2; plain EI is 0.05);
 - ``freq`` (RRF) or ``freq_x``, ``freq_y``: shaper frequency F, Hz, around the printer's modes;
 - ``damping_x``, ``damping_y`` (or ``damping`` on RepRapFirmware, one shaper for all axes): shaper
   damping ratio S per axis, as Klipper, Marlin and Prusa take it (``damping_ratio_x``, ``M593 X
@@ -32,7 +36,19 @@ import numpy as np
 from ringtune.shaping.config import FREQ_LIMIT_METHODS, TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
-from ringtune.shaping.shapers import available_shapers, max_damping
+from ringtune.shaping.shapers import available_shapers, max_damping, parse_name
+from ringtune.shaping.smoothers import is_smoother
+
+#: search families of Klipper's parametrised shapers, per shaper flavour that has them
+PARAMETRISED = {"klipper": ("mzv(n,t)", "ei(v_tol)")}
+MZV_N = (3, 6)
+MZV_T_MIN = 0.5
+EI_VTOL = (0.01, 0.2)
+
+
+def mzv_t_max(n: int) -> float:
+    """Longest duration (damped periods) searched for ``mzv(n=…)``: just under Klipper's n > 2t + 1."""
+    return (n - 1) / 2.0 - 0.01
 
 
 @dataclass(frozen=True)
@@ -92,14 +108,14 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
     if firmware not in FIRMWARES:
         raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "firmware")
     flavor = FIRMWARES[firmware].flavor
-    offered = tuple(n for n in available_shapers(flavor) if n != "custom")
+    offered = tuple(n for n in available_shapers(flavor) if n != "custom") + PARAMETRISED.get(flavor, ())
     if shapers:
         bad = [s for s in shapers if s not in offered]
         if bad:
             raise RingtuneError(f"{firmware} does not offer {', '.join(bad)} (offers {', '.join(offered)})",
                                 "shapers")
         offered = tuple(shapers)
-    zmax = min([0.2] + [max_damping(n, flavor) for n in offered if n != "none"])
+    zmax = min([0.2] + [max_damping(n.split("(")[0], flavor) for n in offered if n != "none"])
     floor = freq_floor(firmware, min_freq)
     ranges = {}
     for ax in ("x", "y"):
@@ -269,6 +285,7 @@ def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
             if p[f"shaper_{ax}"] != "none":
                 lo, hi = getattr(space, f"freq_{ax}")
                 p[f"freq_{ax}"] = trial.suggest_float(f"freq_{ax}", lo, hi)
+            p.update(_suggest_family(trial, p[f"shaper_{ax}"], ax))
     else:
         p["shaper"] = trial.suggest_categorical("shaper", list(space.shapers))
         if p["shaper"] != "none":
@@ -285,11 +302,50 @@ def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
     return p
 
 
+def _suggest_family(trial: Any, family: str, ax: str) -> dict[str, Any]:
+    """The parameters of a parametrised family on axis ``ax`` ({} for a plain shaper)."""
+    if family == "mzv(n,t)":
+        return {f"mzv_n_{ax}": trial.suggest_int(f"mzv_n_{ax}", *MZV_N),
+                f"mzv_t_{ax}": trial.suggest_float(f"mzv_t_{ax}", 0.0, 1.0)}
+    if family == "ei(v_tol)":
+        return {f"ei_vtol_{ax}": trial.suggest_float(f"ei_vtol_{ax}", *EI_VTOL)}
+    return {}
+
+
+def shaper_name(family: str, params: dict[str, Any], ax: str) -> str:
+    """The firmware's shaper name of a search family and its parameters: ``mzv(n=5,t=1.1)``,
+    ``ei(v_tol=0.08)``, or the plain name (t to 0.01 period, v_tol to 0.005, as a user would type)."""
+    if family == "mzv(n,t)":
+        n = int(params[f"mzv_n_{ax}"])
+        t = MZV_T_MIN + float(params[f"mzv_t_{ax}"]) * (mzv_t_max(n) - MZV_T_MIN)
+        return f"mzv(n={n},t={round(t, 2):g})"
+    if family == "ei(v_tol)":
+        return f"ei(v_tol={_q(params[f'ei_vtol_{ax}'], 0.005):g})"
+    return family
+
+
+def family_params(name: str, ax: str) -> tuple[str, dict[str, Any]]:
+    """Inverse of :func:`shaper_name`: (family, parameters) of a configuration's shaper name."""
+    base, params = parse_name(name)
+    if base == "mzv" and params:
+        n = int(params.get("n", 3))
+        t = float(params.get("t", 0.75))
+        return "mzv(n,t)", {f"mzv_n_{ax}": n, f"mzv_t_{ax}": (t - MZV_T_MIN) / (mzv_t_max(n) - MZV_T_MIN)}
+    if base == "ei" and params:
+        return "ei(v_tol)", {f"ei_vtol_{ax}": float(params.get("v_tol", 0.05))}
+    return name, {}
+
+
+def _takes_damping(family: str) -> bool:
+    return family != "none" and not is_smoother(family)
+
+
 def _damping_keys(shaping: dict[str, Any], space: SearchSpace) -> list[str]:
     """The damping parameters a point with these shapers has: ``damping_x``/``damping_y`` for each
-    shaped axis (per-axis firmwares), else ``damping`` when shaping is on."""
+    shaped axis (per-axis firmwares; not for Kalico's smoothers, which take none), else ``damping``
+    when shaping is on."""
     if space.per_axis:
-        return [f"damping_{ax}" for ax in "xy" if shaping.get(f"shaper_{ax}", "none") != "none"]
+        return [f"damping_{ax}" for ax in "xy" if _takes_damping(shaping.get(f"shaper_{ax}", "none"))]
     return ["damping"] if shaping.get("shaper", "none") != "none" else []
 
 
@@ -304,7 +360,7 @@ def config_from_params(params: dict[str, Any], space: SearchSpace, extra: dict |
     (0.1 Hz), S to 0.005, the frequency limit to 0.5 Hz, acceleration to ``accel_step``. (Optuna
     samples them continuously: TPE's discrete kernels cost far more per trial.)"""
     if space.per_axis:
-        sx, sy = params["shaper_x"], params["shaper_y"]
+        sx, sy = (shaper_name(params[f"shaper_{ax}"], params, ax) for ax in ("x", "y"))
         fx, fy = params.get("freq_x", 0.0), params.get("freq_y", 0.0)
     else:
         sx = sy = params["shaper"]
@@ -327,7 +383,9 @@ def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]
     p: dict[str, Any] = {}
     if space.per_axis:
         for ax in ("x", "y"):
-            p[f"shaper_{ax}"] = getattr(config, f"shaper_{ax}")
+            family, extra = family_params(getattr(config, f"shaper_{ax}"), ax)
+            p[f"shaper_{ax}"] = family
+            p.update(extra)
             if p[f"shaper_{ax}"] != "none":
                 p[f"freq_{ax}"] = getattr(config, f"freq_{ax}")
     else:
@@ -344,16 +402,22 @@ def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]
     return p
 
 
+def _plain(shapers: tuple[str, ...]) -> tuple[str, ...]:
+    """The shapers without the parametrised families."""
+    return tuple(s for s in shapers if "(" not in s)
+
+
 def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel: int = 6,
                 freq_limits: tuple[float, ...] = (), shapers: tuple[str, ...] | None = None,
                 dampings: tuple[float, ...] | None = None, accels: tuple[float, ...] | None = None) -> list[dict]:
     """A dense Cartesian grid over ``space`` (parameter dicts), for convergence checks.
 
-    Per axis: every shaper × ``n_freq`` frequencies (``none`` once); S on ``n_damping`` levels;
+    Per axis: every shaper × ``n_freq`` frequencies (``none`` once; the parametrised families are
+    left to Optuna); S on ``n_damping`` levels;
     acceleration on ``n_accel`` levels (multiples of ``accel_step``); the frequency limit off plus
     each method at each of ``freq_limits`` Hz. ``dampings`` / ``accels`` give explicit levels instead.
     """
-    shapers = shapers or space.shapers
+    shapers = _plain(shapers or space.shapers)
 
     def axis_options(lo_hi, key_s, key_f):
         opts = []
