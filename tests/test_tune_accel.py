@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 from ringtune.agents.cli.main import main
-from ringtune.shaping.testprints import TRAVEL_SPEED
 
 TOWER = Path(__file__).resolve().parent / "data" / "gcode" / "ianalexis_ender3_marlin" / "ringing_tower.gcode"
 
