@@ -14,7 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ringtune.envs.identify import AxisFit, added_mass, frequency_scale
+from ringtune.envs.added_mass import added_mass, frequency_scale
+from ringtune.envs.identify import AxisFit
 from ringtune.envs.printer_model import DEFAULTS
 from ringtune.envs.toml_writer import toml_key, toml_value
 from ringtune.shaping.errors import RingtuneError
