@@ -53,8 +53,9 @@ Y motor (stepper_y). CoreXZ: Z is still while a layer prints, so X moves turn A 
 Y is a bed slinger's (the print mass moves with it).
 
 ``[current]`` (what the printer runs today: ``source``, ``shaper_x``, ``freq_x``, ``damping_x``, the
-same for y, ``accel``, ``firmware``) and ``[measurement]`` (``source``, ``files = [{ name, sha256,
-axis }]``, ``[measurement.klipper]``) are kept as read in :attr:`Printer.current` /
+same for y, ``accel``, ``firmware``) and ``[measurement]`` (``source``, ``origin`` — whose files they
+are when not the user's, e.g. an embedded printer's —, ``files = [{ name, sha256, axis }]``,
+``[measurement.klipper]``) are kept as read in :attr:`Printer.current` /
 :attr:`Printer.measurement` and written back unchanged.
 
 ``[belts]`` (corexy only):
@@ -221,7 +222,7 @@ def _axis_from_dict(d: dict, axis: str, where: str) -> AxisModel:
 #: keys of the pass-through sections that must be numbers / strings when present
 _NUMERIC = {"current": ("freq_x", "freq_y", "damping_x", "damping_y", "accel"),
             "measurement": ()}
-_STRINGS = {"current": ("source", "shaper_x", "shaper_y", "firmware"), "measurement": ("source",)}
+_STRINGS = {"current": ("source", "shaper_x", "shaper_y", "firmware"), "measurement": ("source", "origin")}
 
 
 def _passthrough(d: dict, sec: str, where: str) -> dict:

@@ -120,9 +120,10 @@ def test_a_file_cut_short_and_its_implausible_fit_are_warned_about(data_dir, tmp
     assert "sits at the edge of the data" in err
     damping = d["fits"][0]["modes"][0]["damping"]
     assert damping < 0.02 and f"damping {damping:.3f}" in err
-    # the whole file: none of these
+    # the whole file: none of these (what it does say: Klipper's rule on the model lands elsewhere)
     assert main(["identify", str(data_dir / ENDER3 / "resonances_x_20210821_152037.csv")]) == 0
-    assert "warning:" not in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert not any(w in err for w in ("the data end", "sits at the edge", "outside what printers show"))
 
 
 def test_nothing_is_written_when_the_plot_cannot_be(data_dir, tmp_path, capsys):

@@ -211,6 +211,7 @@ def run(args, out) -> int:
     from ringtune.agents.identify.accelerometer import klipper_record, read_measurement
     from ringtune.agents.identify.description import (AddedMass, build_description, description_toml,
                                                   printer_name)
+    from ringtune.agents.identify.model_check import pick_warnings
     from ringtune.envs.identify import plot_fits
     from ringtune.shaping.errors import RingtuneError
 
@@ -296,6 +297,9 @@ def run(args, out) -> int:
     header = ["Printer description written by `ringtune identify` from "
               + ", ".join(Path(f).name for f in [*args.files, *loaded_files])]
     printer = _validate(description_toml(desc, header))
+    for w in pick_warnings(printer, klipper, meas.psds, fits):       # does the model give back the files' pick?
+        warnings.append(w)
+        desc.comment("measurement", w)
     for ax in ("x", "y"):                        # what a named motor's drive still assumes
         for sentence in printer.motor_for(ax).assumed:
             said = f"motor: {sentence}"

@@ -65,7 +65,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scv", type=float, default=5.0, help="square-corner velocity for smoothing, mm/s "
                    "(default 5; --printer uses the printer's)")
     p.add_argument("--max-smoothing", type=float, default=None, help="Klipper's MAX_SMOOTHING, mm")
-    p.add_argument("--seed", type=int, default=0, help="seed of the simulated resonance test (--printer)")
+    p.add_argument("--seed", type=int, default=None, help="--printer: scatter the simulated resonance test's "
+                   "bins as a measurement would, from this seed (default: the model's expected spectrum, "
+                   "no noise, as tune's baseline); --method policy: its seed (default 0)")
     p.add_argument("-o", "--output", metavar="best.json", help="write the TuneConfig here")
     p.add_argument("--policy", metavar="DIR", help="--method policy: folder from `ringtune train` "
                    "(trusted source only: it is unpickled)")
@@ -192,7 +194,7 @@ def _run_policy(args, out) -> int:
         config = decode_measured(env, action, spectra)
         printer, peaks = env.printer, env.peaks_
     else:
-        config, action = policy_on_simulated_test(policy, printer, args.seed)
+        config, action = policy_on_simulated_test(policy, printer, args.seed or 0)
         sources = {ax: [f"printer:{getattr(printer, 'name', 'default')}"] for ax in ("x", "y")}
         peaks = None
     inference = time.perf_counter() - t0
@@ -201,8 +203,8 @@ def _run_policy(args, out) -> int:
         from ringtune.agents.ppo.refine import PrinterCost, optuna_search
 
         out.note(f"refining with Optuna: {refine} trials, the policy's answer first ...")
-        cost = PrinterCost(printer, policy.env_kwargs, seed=args.seed, peaks=peaks)
-        res = optuna_search(cost, int(refine), args.seed, first_action=action)
+        cost = PrinterCost(printer, policy.env_kwargs, seed=args.seed or 0, peaks=peaks)
+        res = optuna_search(cost, int(refine), args.seed or 0, first_action=action)
         config = decode_measured(cost.env, res.best_action, spectra) if args.accel else res.best_config
         refined = {"trials": int(refine), "first_cost": res.first_cost, "best_cost": res.best_cost}
     config = dataclasses.replace(config, extra={"method": "policy", "policy": str(policy.path),

@@ -177,7 +177,7 @@ def run(args: argparse.Namespace, out) -> int:
         bl = None
         baselines: dict[str, pareto.Point] = {}
         if not args.no_baselines:
-            bl = baselines_for(printer, firmware, settings, evaluator, quality, seed=args.seed, note=out.note)
+            bl = baselines_for(printer, firmware, settings, evaluator, quality, note=out.note)
             baselines = bl.points
             k = baselines.get("klipper")
             if k is not None:   # start the search from what users do today, and its neighbours
