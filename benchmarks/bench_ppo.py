@@ -148,14 +148,13 @@ class _Serial:
 def real_table(policy_dir: str, data: Path) -> None:
     """Policy vs Klipper's rule on the real Klipper resonance files."""
     from ringtune.agents.klipper import baseline as klipper_baseline
-    from ringtune.agents.cli.recommend import _load_accel
+    from ringtune.agents.identify.accelerometer import resonance_psds
     from ringtune.agents.ppo.policy import load_policy
-    from ringtune.agents.ppo.recommend import _axis_spectra, preload, recommend_from_psd
+    from ringtune.agents.ppo.recommend import axis_spectra, recommend_from_psd
     from ringtune.shaping.config import TuneConfig
     from ringtune.shaping.shapers import get_shaper
 
     policy = load_policy(policy_dir)
-    preload()
     print(f"\nreal Klipper resonance files ({data}): policy vs Klipper's rule (HEAD)")
     print("(the policy's starting answer is simulated on modes fitted to each file with the default printer's "
           "masses, motor and limits; Klipper's accel is its max_accel suggestion)")
@@ -164,9 +163,9 @@ def real_table(policy_dir: str, data: Path) -> None:
         files = sorted(str(f) for f in folder.glob("resonances_*.csv"))
         if not files:
             continue
-        psds, _ = _load_accel(files, None)
+        psds, _ = resonance_psds(files, None)
         t = time.perf_counter()
-        pc = recommend_from_psd(policy, _axis_spectra(psds))
+        pc = recommend_from_psd(policy, axis_spectra(psds))
         dt = time.perf_counter() - t
         _, fields = klipper_baseline.recommend_axes(psds, "klipper", "head", 5.0)
         kc = TuneConfig(**fields)

@@ -11,14 +11,21 @@ from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
+import matplotlib
 import numpy as np
 from gymnasium import spaces
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
 from ringtune.envs.accel_model import model_accel
 from ringtune.envs.evaluate import evaluate, planned_job, resolve_printer
 from ringtune.envs.metrics import Metrics
+from ringtune.envs.mujoco_model import linear_system
+from ringtune.envs.printer import printer_from_dict
+from ringtune.envs.sim import resonance_test
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.shapers import available_shapers, max_damping
 
 DEFAULT_WEIGHTS = {"time": 1.0, "path_error": 2.0, "overshoot": 5.0, "ringing": 20.0}
 #: scales s in the squashing m / (m + s) of the observed metrics
@@ -129,8 +136,6 @@ def decode_action(action, spec: ActionSpec, peaks=None, accel_anchor: float | No
     ``accel_range``, ``a`` = ``accel_anchor`` mm/s², default ``spec.accel_start``). Values outside
     [-1, 1] are clipped.
     """
-    from ringtune.shaping.shapers import max_damping
-
     a = np.asarray(action, dtype=float).ravel()
     if a.shape != (spec.size,):
         raise RingtuneError(f"action must have {spec.size} entries ({', '.join(spec.labels())}), "
@@ -433,8 +438,6 @@ class TuneEnv(gym.Env):
                  weights: dict | None = None, step_loss_penalty: float = 10.0, n_bins: int = 24,
                  spectrum_range: tuple[float, float] = (10.0, 160.0), observe_metrics: bool = True,
                  start_action=None, backend: str = "mujoco", render_mode: str | None = None):
-        from ringtune.shaping.shapers import available_shapers
-
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise RingtuneError(f"render_mode must be None or 'rgb_array', not {render_mode!r}", "render_mode")
         self.render_mode = render_mode
@@ -493,8 +496,6 @@ class TuneEnv(gym.Env):
 
     # -- helpers ---------------------------------------------------------------------------------
     def _spectrum(self) -> np.ndarray:
-        from ringtune.envs.sim import resonance_test
-
         spectra = {axis: resonance_test(self.printer, axis, rng=self.np_random) for axis in ("x", "y")}
         self.peaks_ = spectrum_peaks(spectra, self.spectrum_range)
         return spectrum_features(spectra, self.n_bins, self.spectrum_range)
@@ -558,9 +559,6 @@ class TuneEnv(gym.Env):
     def _draw_printer(self, attempts: int = 20):
         """A random printer whose linear model can be built (a draw on which the slip model's
         solver fails numerically, ``LinAlgError``, is replaced by the next draw of the same stream)."""
-        from ringtune.envs.mujoco_model import linear_system
-        from ringtune.envs.printer import printer_from_dict
-
         for _ in range(attempts):
             printer = printer_from_dict(random_printer_dict(self.np_random, self.base_printer.to_dict()),
                                         "random printer")
@@ -639,12 +637,7 @@ class TuneEnv(gym.Env):
     def render(self):
         if self.render_mode != "rgb_array":
             return None
-        import matplotlib
-
         matplotlib.use("Agg")
-        from matplotlib.figure import Figure
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-
         fig = Figure(figsize=(4, 3), dpi=80)
         canvas = FigureCanvasAgg(fig)
         ax = fig.add_subplot()

@@ -26,7 +26,11 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
+from scipy.optimize import least_squares
+from scipy.signal import find_peaks
 
 from ringtune.shaping.errors import RingtuneError
 
@@ -98,8 +102,6 @@ def _half_power(f: np.ndarray, p: np.ndarray, i: int) -> float | None:
 
 def find_peaks_psd(f: np.ndarray, p: np.ndarray, max_peaks: int = 3, rel: float = 0.15) -> list[int]:
     """Indices of the highest resonance peaks (prominence ≥ ``rel``·max), highest first."""
-    from scipy.signal import find_peaks
-
     idx, props = find_peaks(p, prominence=rel * p.max())
     order = np.argsort(p[idx])[::-1]
     return [int(idx[k]) for k in order[:max_peaks]]
@@ -145,8 +147,6 @@ def identify_psd(freqs: np.ndarray, psd: np.ndarray, axis: str = "sum", source: 
                  damping: str = "fit") -> AxisFit:
     """Fit modes to one resonance spectrum: ``freqs`` (Hz) and ``psd`` ((mm/s²)²/Hz) of the axis
     ``axis`` ("x", "y" or "sum"), measured in ``source`` (named in errors and notes)."""
-    from scipy.optimize import least_squares
-
     if damping not in ("fit", "half-power"):
         raise RingtuneError("must be 'fit' or 'half-power'", "damping")
     freqs, col = np.asarray(freqs, dtype=float), np.asarray(psd, dtype=float)
@@ -268,9 +268,6 @@ def identify_decay(t: np.ndarray, accel: np.ndarray, axis: str, source: str = "c
 
     The fit starts at ``start`` s, or by default at the largest acceleration (the end of the move's
     deceleration, where free ringing begins)."""
-    from scipy.optimize import least_squares
-    from scipy.signal import find_peaks
-
     a = np.asarray(accel, dtype=float)
     t = np.asarray(t, dtype=float) - t[0]
     rate = rate or (len(t) - 1) / t[-1]
@@ -322,11 +319,7 @@ def identify_decay(t: np.ndarray, accel: np.ndarray, axis: str, source: str = "c
 
 def plot_fits(fits: list[AxisFit], path: str | Path) -> None:
     """Measured against fitted: spectra (log scale) and decays, one panel per fit."""
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     fig, axes = plt.subplots(len(fits), 1, figsize=(9, 3.6 * len(fits)), squeeze=False)
     for ax, fit in zip(axes[:, 0], fits):
         title = f"{Path(fit.source).name}: axis {fit.axis.upper()} ({fit.kind} fit, r² = {fit.r2:.3f})"

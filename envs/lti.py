@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ringtune.envs.mujoco_model import LinearSystem
+from ringtune.envs.modal_system import LinearSystem
 
 #: largest decay exponent |Re λ|·Δt inside one chunk of the cumulative-sum evaluation
 _CHUNK_EXPONENT = 200.0

@@ -12,18 +12,18 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 
-from ringtune.envs.metrics import compute_metrics, path_legs
+from ringtune.envs.evaluate import _trimmed
+from ringtune.envs.metrics import compute_metrics
+from ringtune.envs.path_geometry import path_legs
 from ringtune.shaping.motion import Motion
 
 
 def _figure(nrows: int = 1, figsize=(7.5, 5.0)):
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     fig, axes = plt.subplots(nrows, 1, figsize=figsize, squeeze=False)
     return plt, fig, axes[:, 0]
 
@@ -143,8 +143,6 @@ def plot_evaluation(ev, out_dir, prefix: str = "", *, factors=None, judged: str 
     Each plot shows the window and variant where its figure is worst, so its title states the
     figure the command reports for the job (``judged``: how it was judged, in words). Returns the
     files written."""
-    from ringtune.envs.evaluate import _trimmed
-
     evs = list(ev) if isinstance(ev, (list, tuple)) else [ev]
     factors = list(factors) if factors is not None else [1.0] * len(evs)
     out_dir = Path(out_dir)

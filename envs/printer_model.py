@@ -16,8 +16,12 @@ from typing import Any
 
 import numpy as np
 
+from ringtune.envs.motors import MotorConstants, lookup_motor
+from ringtune.envs.stepper import (DEFAULT_ROTATION_DISTANCE, DEFAULT_VOLTAGE, StepperDrive,
+    default_run_current)
 from ringtune.envs.toml_writer import toml_value, write_table
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.planner import MachineLimits
 
 #: documented defaults for everything physical (an Ender-3-class machine)
 DEFAULTS: dict[str, Any] = {
@@ -112,10 +116,6 @@ class MotorModel:
             if self.steps_per_mm is None:
                 self.steps_per_mm = DEFAULTS["steps_per_mm"]
             return
-        from ringtune.envs.motors import MotorConstants
-        from ringtune.envs.stepper import (DEFAULT_ROTATION_DISTANCE, DEFAULT_VOLTAGE, StepperDrive,
-                                           default_run_current)
-
         n = int(self.steps_per_revolution or 200)
         notes = []
         if self.steps_per_revolution is None:
@@ -198,8 +198,6 @@ class MotorModel:
                 if getattr(self, k) is not None:
                     d[k] = getattr(self, k)
         else:
-            from ringtune.envs.motors import lookup_motor
-
             d = {}
             ref = lookup_motor(self.name) if self.name else None
             if self.name is not None:
@@ -342,8 +340,6 @@ class Printer:
 
     def machine_limits(self):
         """The firmware limits as :class:`ringtune.shaping.planner.MachineLimits`."""
-        from ringtune.shaping.planner import MachineLimits  # lazy: planner is a sibling package
-
         kw = dict(self.limits_dict)
         for key in ("jerk", "max_accel", "max_velocity"):
             if key in kw and kw[key] is not None:

@@ -68,6 +68,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ringtune.envs.modal_system import LinearSystem
 from ringtune.shaping.errors import RingtuneError
 
 #: default MuJoCo step (s), as :data:`ringtune.envs.mujoco_model.TIMESTEP` (not imported: model imports us)
@@ -102,10 +103,8 @@ class Rotor:
 
 
 def slip_system(printer):
-    """The printer's linearised slip model as a :class:`~ringtune.envs.mujoco_model.LinearSystem` (rotors
+    """The printer's linearised slip model as a :class:`~ringtune.envs.modal_system.LinearSystem` (rotors
     included, springs solved so the described frequencies and shares hold exactly)."""
-    from ringtune.envs.mujoco_model import LinearSystem
-
     names, axis, mass, share, zeta, omega = [], [], [], [], [], []
     for ai, ax in enumerate(("x", "y")):
         total = printer.moving_mass(ax)

@@ -25,13 +25,16 @@ peak) — in MuJoCo that is a real, permanent skip.
 from __future__ import annotations
 
 import math
-
 import os
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
+from mujoco import rollout
 
-from ringtune.envs.mujoco_model import INTEGRATOR, TIMESTEP, LinearSystem, build_model, linear_system
+from ringtune.envs.lti import frequency_response, response
+from ringtune.envs.modal_system import LinearSystem
+from ringtune.envs.mujoco_model import INTEGRATOR, TIMESTEP, build_model, linear_system
 from ringtune.envs.printer import load_printer
 from ringtune.envs.printer_model import Printer
 from ringtune.shaping.errors import RingtuneError
@@ -339,8 +342,6 @@ def simulate_batch(printer_or_list, motions: list, backend: str = "mujoco", nthr
 
 
 def _lti_response(sysm, motion, t, x0):
-    from ringtune.envs.lti import response
-
     return response(sysm, motion, t, x0)
 
 
@@ -360,8 +361,6 @@ _DATA_CACHE: dict = {}
 
 def _datas(model, n: int) -> list:
     """n MjData for ``model`` (rollout ignores their contents; reused between calls)."""
-    import mujoco
-
     key = id(model)
     got = _DATA_CACHE.get(key)
     if got is None or got[0] is not model or len(got[1]) < n:
@@ -373,9 +372,6 @@ def _datas(model, n: int) -> list:
 
 
 def _rollout(printers, systems, motions, h, dec, tail, initial, nthread):
-    import mujoco
-    from mujoco import rollout
-
     if nthread is None:                 # threads only for full replica models: replicas are cheaper
         nthread = min(os.cpu_count() or 1, -(-len(motions) // MAX_REPLICAS))
     nsteps = [_grid(m, h, tail, dec) for m in motions]
@@ -447,8 +443,6 @@ def resonance_test(printer: Printer | None, axis: str, rng: np.random.Generator 
 
     With ``rng`` each bin is scattered like a Welch estimate (Gamma with ``dof`` degrees of freedom,
     mean preserved); without it the expected PSD is returned. Returns (freqs, psd)."""
-    from ringtune.envs.lti import frequency_response
-
     pr = printer if isinstance(printer, Printer) else load_printer(printer)
     if axis not in ("x", "y"):
         raise RingtuneError(f"axis must be 'x' or 'y', not {axis!r}", "axis")

@@ -20,7 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ringtune.envs.evaluate import planned_job, resolve_printer
+from ringtune.envs.sim import simulate
+from ringtune.shaping.apply import shape_motion
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.shapers import shapers_from_config
 
 #: longest motion (s) traced whole; longer jobs are traced over their quality windows
 WHOLE_JOB_MAX_S = 600.0
@@ -40,11 +44,6 @@ def _rows(path_motion, sim, window: int) -> np.ndarray:
 
 def trace_job(config: TuneConfig, printer, job=None, backend: str = "mujoco") -> np.ndarray:
     """(m, len(COLUMNS)) rows of the whole job simulated from rest (see module doc)."""
-    from ringtune.envs.evaluate import planned_job, resolve_printer
-    from ringtune.envs.sim import simulate
-    from ringtune.shaping.apply import shape_motion
-    from ringtune.shaping.shapers import shapers_from_config
-
     printer = resolve_printer(printer)
     motion = planned_job(printer, job, config).motion
     shapers, centred = shapers_from_config(config)

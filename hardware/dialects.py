@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 
 from ringtune.hardware.firmware_check import canonical, check_available, check_axis, check_value, fmt
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.custom import rrf_custom
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES, Firmware, Span
 
@@ -311,8 +312,6 @@ def custom_impulses(config: TuneConfig, axis: str = "x") -> tuple[list[float], l
     name, freq, damping = config.axis(axis)
     _, params = canonical(name)
     if params:
-        from ringtune.shaping.custom import rrf_custom
-
         semantics = "3.6" if config.firmware == "rrf" else "3.5"
         amps, times = rrf_custom(params.get("h"), params.get("t"), freq, damping,
                                  semantics, where=f"config: shaper_{axis} {name!r}")

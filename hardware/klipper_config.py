@@ -41,6 +41,7 @@ from pathlib import Path
 
 from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, place_motors, to_number, without_motor
 from ringtune.hardware.klipper_cfgfile import read_klipper_cfg
+from ringtune.hardware.moonraker import Moonraker
 from ringtune.shaping.errors import RingtuneError
 
 #: shapers Klipper 84104bb has (``klippy/extras/shaper_defs.py``), unparameterised names
@@ -315,8 +316,6 @@ def printer_facts_from_klipper(path: str | Path) -> FirmwareFacts:
 
 def printer_facts_from_moonraker(url: str, api_key: str | None = None, timeout: float = 10.0) -> FirmwareFacts:
     """Facts from a running Klipper through Moonraker (``configfile`` object; see module docstring)."""
-    from ringtune.hardware.moonraker import Moonraker
-
     mr = Moonraker(url, api_key=api_key, timeout=timeout)
     status = mr.query_objects({"configfile": ["config", "settings"]})
     cf = status.get("configfile") or {}

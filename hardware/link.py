@@ -36,6 +36,8 @@ from dataclasses import dataclass, field
 from typing import Callable
 from urllib.parse import urlsplit, urlunsplit
 
+import serial
+
 from ringtune.shaping.errors import RingtuneError
 
 MODES = ("marlin", "rrf", "klipper")
@@ -181,8 +183,6 @@ class GcodeLink:
 
     def open(self) -> None:
         if self.ser is None:
-            import serial
-
             try:
                 self.ser = serial.serial_for_url(self.port, baudrate=self.baud, timeout=0.05,
                                                  write_timeout=self.timeout)

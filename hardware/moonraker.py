@@ -8,11 +8,12 @@ header; neither it nor credentials or tokens in the URL are ever logged (:func:`
 
 from __future__ import annotations
 
+import base64
 import json
 import urllib.error
 import urllib.request
 from typing import Callable
-from urllib.parse import urlsplit, urlunsplit
+from urllib.parse import quote, urlsplit, urlunsplit
 
 from ringtune.hardware.link import LinkError, LinkTimeout, redact
 from ringtune.shaping.errors import RingtuneError
@@ -47,8 +48,6 @@ class Moonraker:
         if self.api_key:
             req.add_header("X-Api-Key", self.api_key)
         if self.user is not None:
-            import base64
-
             token = base64.b64encode(f"{self.user}:{self.password or ''}".encode()).decode()
             req.add_header("Authorization", f"Basic {token}")
         self.log(f"{method} {redact(url)}")     # credentials are not in self.base; tokens redacted
@@ -112,8 +111,6 @@ class Moonraker:
     def query_objects(self, objects: dict[str, list[str] | None]) -> dict:
         """``GET /printer/objects/query``: ``{object: {attribute: value}}`` for each object (the
         attributes listed, or all of them for ``None``)."""
-        from urllib.parse import quote
-
         args = "&".join(quote(name, safe=" ").replace(" ", "%20")
                         + ("=" + ",".join(attrs) if attrs else "") for name, attrs in objects.items())
         result = self._request("GET", f"/printer/objects/query?{args}")

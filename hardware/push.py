@@ -29,7 +29,9 @@ from pathlib import Path
 from typing import Callable
 
 from ringtune.hardware.dialects import Export, export_config
-from ringtune.hardware.link import GcodeLink, LinkError, LinkTimeout, PrinterReset, Reply, frame, redact
+from ringtune.hardware.link import (GcodeLink, LinkError, LinkTimeout, PrinterReset, Reply, frame,
+    klipper_reply_lines, redact)
+from ringtune.hardware.moonraker import Moonraker
 from ringtune.hardware.readback import compare, parse_report
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
@@ -272,8 +274,6 @@ def _moonraker_run(mr, cmd: str, sink: dict | None = None, key: int = 0) -> Repl
     reply is what the pty would have given (errors, ``// Unknown command``). The reply goes into
     ``sink[key]`` as soon as the line has run (a console that then stops answering does not hide
     that it ran)."""
-    from ringtune.hardware.link import klipper_reply_lines
-
     reply = Reply(cmd)
     t0 = mr.newest()
     try:
@@ -291,8 +291,6 @@ def _moonraker_run(mr, cmd: str, sink: dict | None = None, key: int = 0) -> Repl
 
 
 def _push_moonraker(exp, url, api_key, timeout, log, result):
-    from ringtune.hardware.moonraker import Moonraker
-
     mr = Moonraker(url, api_key=api_key, timeout=timeout, log=log)
     replies: dict[int, Reply] = {}
     try:

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import difflib
 import json
 import math
 from dataclasses import asdict, dataclass, field, fields
@@ -11,6 +12,7 @@ from typing import Any
 
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.textfile import read_text_file
 
 FREQ_LIMIT_METHODS = ("nophead", "sections", "marlin")
 
@@ -124,8 +126,6 @@ class TuneConfig:
     def likely_typos(self) -> list[str]:
         """Extra keys that look like a misspelt known key (``freqq_y`` for ``freq_y``): kept, as
         extra keys are, but the known key then silently takes its default; worth a warning."""
-        import difflib
-
         known = [f.name for f in fields(self) if f.name != "extra"]
         out = []
         for k in self.extra:
@@ -136,8 +136,6 @@ class TuneConfig:
 
     @classmethod
     def load(cls, path: str | Path) -> "TuneConfig":
-        from ringtune.shaping.textfile import read_text_file
-
         path = Path(path)
         text = read_text_file(path, "TuneConfig JSON")
         try:

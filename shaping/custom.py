@@ -19,6 +19,7 @@ import math
 import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.shaper_formulas import RRF_STEP_CLOCK, rrf_clocks, rrf_period_clocks
 
 MAX_EXTRA_IMPULSES = 4
 SEMANTICS = ("3.6", "3.5")
@@ -65,7 +66,6 @@ def rrf_custom(h, t, freq: float, damping: float, semantics: str = "3.6",
         if ts is not None and (delays[0] <= 0 or np.any(np.diff(delays) <= 0)):
             raise RingtuneError(f"delays must be > 0 and strictly increasing: {ts}", f"{where} T")
         if step_clocks:
-            from ringtune.shaping.shaper_formulas import RRF_STEP_CLOCK, rrf_clocks, rrf_period_clocks
             if ts is None:
                 P = rrf_period_clocks(freq, damping)
                 clocks = np.array([(P * i) // 2 for i in range(1, n + 1)])

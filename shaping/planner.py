@@ -41,10 +41,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.job import Job
-from ringtune.shaping.lookahead import (axis_caps, backward_pass, daa_adjust, forward_pass,
-                                        job_value, junction_limits, klipper_smoothing,
-                                        scale_by_axes)
+from ringtune.shaping.lookahead import (axis_caps, backward_pass, daa_adjust, forward_pass, job_value,
+    junction_limits, klipper_smoothing, scale_by_axes)
 from ringtune.shaping.motion import Motion
 
 __all__ = ["MachineLimits", "MoveTable", "Plan", "plan", "limits_from_job", "guess_junction", "JUNCTIONS"]
@@ -159,8 +159,6 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
     M204/SET_VELOCITY_LIMIT values (per-axis M201 caps still apply) — a tuning knob.
     ``daa_freq``: RRF ≤ 3.3 DAA at this ringing frequency (Hz), ``daa_min_accel`` its M593 L.
     """
-    from ringtune.shaping.gcode import read_gcode
-
     job = job_or_moves if isinstance(job_or_moves, Job) else read_gcode(job_or_moves)
     accel_override = accel
     limits = limits or MachineLimits()

@@ -36,11 +36,11 @@ from typing import Callable
 
 import numpy as np
 
+from ringtune.shaping.custom import rrf_custom
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.shaper_formulas import (EI2_A, EI2_T, EI3_A, EI3_T, binomial_zv, ei, ei2, ei2_legacy,
-                                              ei3, ei3_legacy, ei_legacy, ftm_centre, ftm_mzv, ftm_shaper,
-                                              marlin_zv, mzv, mzv_legacy, none_shaper, rrf_binomial, rrf_ei,
-                                              rrf_mzv, zv, zvd)
+    ei3, ei3_legacy, ei_legacy, ftm_centre, ftm_mzv, ftm_shaper, marlin_zv, mzv, mzv_legacy, none_shaper,
+    rrf_binomial, rrf_ei, rrf_mzv, zv, zvd)
 
 FLAVORS = ("klipper", "klipper-legacy", "rrf", "rrf35", "marlin", "marlin-ftm")
 
@@ -281,7 +281,6 @@ def get_shaper(name: str, freq: float, damping: float | None = None, flavor: str
         raise RingtuneError(f"{base!r} in {flavor} takes no parameter {', '.join(sorted(unknown))}"
                             + (f" (accepted: {', '.join(allowed)})" if allowed else ""), where)
     if base == "custom":
-        from ringtune.shaping.custom import rrf_custom
         h = params.get("h", h)
         t = params.get("t", t)
         a, times = rrf_custom(h, t, freq, z, semantics="3.6" if flavor == "rrf" else "3.5", where=where,

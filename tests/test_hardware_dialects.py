@@ -207,7 +207,7 @@ def test_limit_command_applies_the_tuned_limit_exactly(fw):
     cmd = next(n[n.index("ringtune limit"):] for n in notes if "ringtune limit" in n)
     argv = shlex.split(cmd)
     assert argv[:2] == ["ringtune", "limit"]
-    args = build_parser()[0].parse_args(argv[1:])
+    args = build_parser("limit")[0].parse_args(argv[1:])
     assert (args.freq_limit, args.method, args.min_speed_factor) == (27.5, "nophead", 0.55)
     if fw.startswith("marlin"):      # Marlin's own M201 F only for a limit tuned with its algorithm
         assert not any(line.startswith("M201") for line in export_config(c, fw).lines)

@@ -13,6 +13,9 @@ The graph is read with ``ast`` from every module of ``shaping/``, ``envs/``, ``a
   made a strict layering instead: shaping below hardware, never the reverse.)
 - no cycles: neither between packages nor between modules (imports at module level; an import
   inside a function runs later and may close a loop);
+- imports at the top of each module: the only lazy imports are those :data:`LAZY_IMPORTS` lists
+  (torch and stable-baselines3 in ``agents/ppo/rl.py``) and the by-name imports of
+  :data:`IMPORTS_BY_NAME` (the entry point loads only the command being run);
 - one address per name: every ``from ringtune.m import N`` (in the packages, the tests and the
   benchmarks) and every ``m.N`` on an imported module names a module that defines ``N``; no module
   imports one of our names without using it (a re-export), lists a name it does not define in
@@ -230,6 +233,55 @@ def test_known_exceptions_are_still_needed():
             if key in KNOWN_EXCEPTIONS:
                 used.add(key)
     assert set(KNOWN_EXCEPTIONS) - used == set()
+
+
+#: the only imports that run after start-up (inside a function): module -> (top-level packages it
+#: may import there, why)
+LAZY_IMPORTS = {
+    "ringtune.agents.ppo.rl": ({"torch", "stable_baselines3"},
+                               "the rl extra: optional, and seconds to import"),
+}
+#: the only modules that import by name at run time (``importlib``): module -> why
+IMPORTS_BY_NAME = {
+    "ringtune.agents.cli.main": "only the command being run; ringtune --help lists them from COMMANDS",
+    "ringtune.agents.tune.study": "the evaluator a study names ('module:function'), in each worker",
+}
+
+
+def lazy_import_violations(trees=None) -> list[str]:
+    """Imports at the top of each module: an import statement inside a function (or a class body)
+    is allowed only where :data:`LAZY_IMPORTS` lists it; ``importlib.import_module`` and
+    ``__import__`` only in :data:`IMPORTS_BY_NAME`'s modules."""
+    bad = []
+    for m, tree in (trees or TREES).items():
+        inner = {id(n) for d in ast.walk(tree) if isinstance(d, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef))
+                 for n in ast.walk(d)}
+        allowed = LAZY_IMPORTS.get(m, (set(), ""))[0]
+        where = MODULES[m].relative_to(ROOT) if m in MODULES else m
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.Import, ast.ImportFrom)) and id(node) in inner:
+                roots = ({a.name.split(".")[0] for a in node.names} if isinstance(node, ast.Import)
+                         else {(node.module or "").split(".")[0]})
+                if not roots <= allowed:
+                    bad.append(f"{where}:{node.lineno}: {ast.unparse(node)} inside a function "
+                               "(imports go at the top of the module)")
+            elif (isinstance(node, ast.Call) and ast.unparse(node.func) in ("importlib.import_module", "__import__")
+                  and m not in IMPORTS_BY_NAME):
+                bad.append(f"{where}:{node.lineno}: imports by name at run time")
+    return bad
+
+
+def test_imports_are_at_the_top_of_each_module():
+    bad = lazy_import_violations()
+    assert not bad, "\n".join(bad)
+
+
+def test_a_lazy_import_is_caught():
+    tree = ast.parse("import os\n\ndef f():\n    import numpy as np\n    return np\n")
+    assert any("inside a function" in v for v in lazy_import_violations({"ringtune.shaping.fake": tree}))
+    tree = ast.parse("def f():\n    import torch\n")
+    assert lazy_import_violations({"ringtune.agents.ppo.rl": tree}) == []
+    assert lazy_import_violations({"ringtune.agents.ppo.policy": tree}) != []
 
 
 def _cycle(graph: dict[str, set[str]]) -> list[str] | None:

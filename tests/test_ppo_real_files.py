@@ -19,9 +19,9 @@ import pytest
 pytest.importorskip("stable_baselines3")
 
 from ringtune.agents.ppo import policy as ppo  # noqa: E402
-from ringtune.agents.cli.recommend import _load_accel  # noqa: E402
+from ringtune.agents.identify.accelerometer import resonance_psds  # noqa: E402
 from ringtune.agents.ppo import recommend as ppo_recommend  # noqa: E402
-from ringtune.agents.ppo.recommend import _axis_spectra  # noqa: E402
+from ringtune.agents.ppo.recommend import axis_spectra  # noqa: E402
 
 
 class _StubPolicy(ppo.Policy):
@@ -51,8 +51,8 @@ def test_every_policy_answer_on_every_real_file_is_within_klippers_ranges(data_d
     assert len(folders) == 6
     n = _StubPolicy().make_env().spec_.size
     for folder in folders:
-        psds, _ = _load_accel(sorted(str(f) for f in folder.glob("resonances_*.csv")), None)
-        spectra = _axis_spectra(psds)
+        psds, _ = resonance_psds(sorted(str(f) for f in folder.glob("resonances_*.csv")), None)
+        spectra = axis_spectra(psds)
         env, obs = ppo_recommend.measured_observation(_StubPolicy(), spectra)
         assert np.all(np.isfinite(obs)) and np.all(np.abs(obs) <= 1.0)
         assert env.start_metrics_ is not None          # the starting answer simulated on the fitted model

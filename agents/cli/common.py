@@ -1,16 +1,42 @@
-"""One module per ``ringtune`` subcommand.
+"""What the ``ringtune`` commands share: reading a config, checking an output path, the
+firmware option, progress timing.
 
-Each module defines ``NAME``, ``HELP`` (one line), optionally ``DESCRIPTION`` (shown by
-``ringtune NAME --help``), ``add_arguments(parser)`` and ``run(args, out) -> int``. Heavy imports
-(mujoco, optuna, torch) happen inside ``run`` so that ``ringtune --help`` stays instant.
+Each command is one module ``ringtune.agents.cli.NAME`` defining ``NAME``, optionally
+``DESCRIPTION`` (shown by ``ringtune NAME --help``), ``add_arguments(parser)`` and
+``run(args, out) -> int``; its one-line help is in :data:`ringtune.agents.cli.main.COMMANDS`.
+Only the command being run is imported, so modules import what they use at their tops.
 """
+
+import argparse
+import os
+from pathlib import Path
+
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import Firmware
+
+#: seconds between progress lines when stderr is not a terminal (``RINGTUNE_PROGRESS_S`` overrides)
+PROGRESS_INTERVAL_S = 10.0
+
+
+def progress_interval() -> float:
+    """Seconds between progress lines on a non-terminal stderr: ``RINGTUNE_PROGRESS_S``, else
+    :data:`PROGRESS_INTERVAL_S`."""
+    return float(os.environ.get("RINGTUNE_PROGRESS_S", PROGRESS_INTERVAL_S))
+
+
+def firmware_name(text: str) -> str:
+    """argparse type of every ``--firmware``: the firmware record's name in any case (``Klipper``,
+    ``RRF``); a refusal naming the firmwares there are."""
+    try:
+        return Firmware.named(text).name
+    except RingtuneError as exc:
+        raise argparse.ArgumentTypeError(exc.bare) from None
 
 
 def load_config(path, out=None):
     """``TuneConfig.load(path)``, with a note on stderr (through ``out``) for each key that looks
     misspelt."""
-    from ringtune.shaping.config import TuneConfig
-
     cfg = TuneConfig.load(path)
     for message in cfg.likely_typos() if out is not None else ():
         out.note(f"{path}: warning: {message}")
@@ -20,10 +46,6 @@ def load_config(path, out=None):
 def check_output_folder(option: str, path) -> None:
     """Refuse, before any work, an output file whose folder does not exist, or that is itself a
     folder (one-line error)."""
-    from pathlib import Path
-
-    from ringtune.shaping.errors import RingtuneError
-
     if path and not Path(path).parent.is_dir():
         raise RingtuneError("no such directory", f"{option} {path}")
     if path and Path(path).is_dir():

@@ -28,9 +28,14 @@ The output has up to three parts:
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
+
+from ringtune.agents.cli.common import check_output_folder, firmware_name, load_config
+from ringtune.hardware.dialects import export_config
+from ringtune.hardware.slicer_profile import slicer_profile
+from ringtune.shaping.errors import RingtuneError
 
 NAME = "export"
-HELP = "write a tuning config in a firmware's own dialect (M593, M493, SET_INPUT_SHAPER, ...)"
 DESCRIPTION = """\
 Turn a TuneConfig (JSON from `ringtune tune` or `recommend`) into the firmware's own lines:
 
@@ -68,7 +73,7 @@ PARTS = ("commands", "config", "slicer")
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("config", metavar="CONFIG", help="TuneConfig JSON")
-    p.add_argument("--firmware", help="klipper, rrf, rrf35, rrf34, marlin, marlin-ftm, prusa "
+    p.add_argument("--firmware", type=firmware_name, help="klipper, rrf, rrf35, rrf34, marlin, marlin-ftm, prusa "
                    "(default: the config's firmware)")
     p.add_argument("-o", "--output", metavar="FILE", help="write the commands here, the config-file and "
                    "slicer parts beside it (else print them)")
@@ -79,20 +84,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _sibling(output, suffix: str):
-    from pathlib import Path
-
     out = Path(output)
     return out.with_name(f"{out.stem}-{suffix}")
 
 
 def run(args, out) -> int:
-    from pathlib import Path
-
-    from ringtune.agents.cli.common import check_output_folder, load_config
-    from ringtune.hardware.dialects import export_config
-    from ringtune.hardware.slicer_profile import slicer_profile
-    from ringtune.shaping.errors import RingtuneError
-
     check_output_folder("-o", args.output)
     cfg = load_config(args.config, out)
     try:

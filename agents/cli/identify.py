@@ -18,11 +18,24 @@ masses, motors, limits and kinematics from what the user gives — written as a 
 from __future__ import annotations
 
 import argparse
+import os
+import tomllib
+from pathlib import Path
 
 from ringtune.agents.cli import identify_ripples
+from ringtune.agents.cli.common import check_output_folder
+from ringtune.agents.identify.accelerometer import klipper_record, read_measurement
+from ringtune.agents.identify.description import AddedMass, build_description, description_toml, printer_name
+from ringtune.agents.identify.model_check import pick_warnings
+from ringtune.envs.identify import plot_fits
+from ringtune.envs.motors import lookup_motor, unknown_motor_message
+from ringtune.envs.printer import printer_from_dict
+from ringtune.hardware.klipper_config import printer_facts_from_klipper
+from ringtune.hardware.marlin_config import printer_facts_from_marlin
+from ringtune.hardware.rrf_config import printer_facts_from_rrf
+from ringtune.shaping.errors import RingtuneError
 
 NAME = "identify"
-HELP = "the printer from your files: modes from accelerometer data, the rest from your config (TOML)"
 DESCRIPTION = """\
 Fit the vibration modes (frequency, damping ratio, share of the response) of each axis to
 accelerometer measurements, and write them with everything else you know about the printer as a
@@ -106,8 +119,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _per_axis(text: str, option: str, parse) -> dict[str, object]:
     """``X=v,Y=v`` (either or both) -> {"x": parse(v), …}; a bare ``v`` -> {"all": parse(v)}."""
-    from ringtune.shaping.errors import RingtuneError
-
     text = text.strip()
     if "=" not in text:
         return {"all": parse(text)}
@@ -124,8 +135,6 @@ def _per_axis(text: str, option: str, parse) -> dict[str, object]:
 
 
 def _kg(option: str):
-    from ringtune.shaping.errors import RingtuneError
-
     def parse(v: str) -> float:
         try:
             kg = float(v)
@@ -139,10 +148,6 @@ def _kg(option: str):
 
 def _motor(v: str) -> dict:
     """``NAME[:RUN_CURRENT[:VOLTAGE]]`` -> {name, run_current, voltage}."""
-    from ringtune.shaping.errors import RingtuneError
-
-    from ringtune.envs.motors import lookup_motor, unknown_motor_message
-
     parts = v.split(":")
     if len(parts) > 3 or not parts[0].strip():
         raise RingtuneError(f"expected NAME[:RUN_CURRENT[:VOLTAGE]], not {v!r}", "--motor")
@@ -163,12 +168,6 @@ def _motor(v: str) -> dict:
 def _check_output(option: str, path) -> None:
     """Refuse, before any work, an output the command could not write (missing or read-only folder,
     a folder in its place), so that nothing is half-written."""
-    import os
-    from pathlib import Path
-
-    from ringtune.agents.cli.common import check_output_folder
-    from ringtune.shaping.errors import RingtuneError
-
     check_output_folder(option, path)
     if not path:
         return
@@ -189,16 +188,10 @@ def _check_output(option: str, path) -> None:
 def _read_facts(args):
     """The firmware configuration's FirmwareFacts, or None."""
     if args.klipper_config:
-        from ringtune.hardware.klipper_config import printer_facts_from_klipper
-
         return printer_facts_from_klipper(args.klipper_config)
     if args.marlin:
-        from ringtune.hardware.marlin_config import printer_facts_from_marlin
-
         return printer_facts_from_marlin(args.marlin)
     if args.rrf:
-        from ringtune.hardware.rrf_config import printer_facts_from_rrf
-
         return printer_facts_from_rrf(args.rrf)
     return None
 
@@ -206,15 +199,6 @@ def _read_facts(args):
 # -- the command ------------------------------------------------------------------------------------
 
 def run(args, out) -> int:
-    from pathlib import Path
-
-    from ringtune.agents.identify.accelerometer import klipper_record, read_measurement
-    from ringtune.agents.identify.description import (AddedMass, build_description, description_toml,
-                                                  printer_name)
-    from ringtune.agents.identify.model_check import pick_warnings
-    from ringtune.envs.identify import plot_fits
-    from ringtune.shaping.errors import RingtuneError
-
     if identify_ripples.wanted(args) or not args.files:   # no accelerometer: ripples or a tower
         given = [flag for flag, v in (("--klipper-config", args.klipper_config), ("--marlin", args.marlin),
                                       ("--rrf", args.rrf), ("--motor", args.motor), ("--mass", args.mass),
@@ -354,8 +338,4 @@ def run(args, out) -> int:
 
 def _validate(toml: str):
     """The written description must load: the Printer, checked before anything is written."""
-    import tomllib
-
-    from ringtune.envs.printer import printer_from_dict
-
     return printer_from_dict(tomllib.loads(toml), "the identified printer")

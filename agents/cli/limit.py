@@ -13,8 +13,14 @@ it with the same printer; ``junction``, ``junction_reason``}).
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+from ringtune.agents.cli.options import VALUES
+from ringtune.envs.job_plan import limit_job
+from ringtune.shaping.errors import RingtuneError
+
 NAME = "limit"
-HELP = "slow only the zigzags that shake: rewrite F words so direction changes stay under a frequency"
 DESCRIPTION = """\
 Rewrite a G-code file so that no extrusion path changes direction faster than --freq-limit Hz
 (nophead's infill frequency limit). Only the F words that must change are changed (or added where
@@ -52,14 +58,14 @@ PARAMETER_FLAGS = {"limit_hz": "--freq-limit"}
 
 def add_arguments(parser) -> None:
     parser.add_argument("file", metavar="FILE.gcode", help="G-code file to limit")
-    parser.add_argument("--freq-limit", metavar="HZ", type=float, default=None,
+    parser.add_argument("--freq-limit", metavar="HZ", type=VALUES["freq"], default=None,
                         help="largest direction-change frequency, Hz")
-    parser.add_argument("--accel", metavar="A", type=float, default=None,
+    parser.add_argument("--accel", metavar="A", type=VALUES["accel"], default=None,
                         help="scale the file's acceleration commands so its highest printing "
                              "acceleration becomes A mm/s² (ratios between features kept)")
     parser.add_argument("--method", choices=("sections", "nophead", "marlin"), default="sections",
                         help="which algorithm (default: sections)")
-    parser.add_argument("--min-speed-factor", metavar="S", type=float, default=None,
+    parser.add_argument("--min-speed-factor", metavar="S", type=VALUES["fraction"], default=None,
                         help="never slow below this fraction of the requested speed "
                              "(default 0.3; marlin: the file's M201 S, else 0.05)")
     parser.add_argument("-o", "--output", metavar="OUT", help="output file (default: stdout)")
@@ -68,35 +74,28 @@ def add_arguments(parser) -> None:
 
 
 def run(args, out) -> int:
-    import sys
-
-    from ringtune.shaping.errors import RingtuneError
-    from pathlib import Path
-
-    from ringtune.shaping.gcode import read_gcode_bytes
-    from ringtune.shaping.gcode_post import limit_file, rewrite_accel_bytes
-
     if args.freq_limit is None and args.accel is None:
         raise RingtuneError("give --freq-limit HZ, --accel A or both", "--freq-limit")
-    if args.freq_limit is not None and not args.freq_limit > 0:
-        raise RingtuneError("must be a frequency > 0 Hz", "--freq-limit")
-    if args.accel is not None and not args.accel > 0:
-        raise RingtuneError("must be an acceleration > 0 mm/s²", "--accel")
-    if args.min_speed_factor is not None and not 0 < args.min_speed_factor <= 1:
-        raise RingtuneError("must be in (0, 1]", "--min-speed-factor")
     if args.output is None and args.json:
         raise RingtuneError("--json needs -o OUT (stdout carries the JSON)", "--output")
-    if args.freq_limit is not None:
-        data, res = limit_file(args.file, None, args.freq_limit, args.method, args.min_speed_factor)
-    else:
-        data, res = read_gcode_bytes(args.file), None   # refuses a folder, a binary, a TOML...
-    acc = None
-    if args.accel is not None:
-        data, acc = rewrite_accel_bytes(data, args.accel, source=args.file)
+    done = limit_job(args.file, args.freq_limit, args.method, args.min_speed_factor, args.accel, args.printer)
     if args.output is not None:
-        Path(args.output).write_bytes(data)
-    freqs = _frequencies(args.file, data, args.printer)
-    result = {
+        Path(args.output).write_bytes(done.data)
+    result = _result(args, done)
+    if args.output is None:
+        sys.stdout.buffer.write(done.data)
+        sys.stdout.flush()
+        for line in (result["header"], *result["notes"], _said(done.frequencies)):
+            out.note(line)
+        return 0
+    out.emit(result, _text(args, done))
+    return 0
+
+
+def _result(args, done) -> dict:
+    """The JSON of one run (keys in the module docstring)."""
+    res, acc = done.limited, done.accel
+    return {
         "input": args.file, "output": args.output, "method": args.method if res else None,
         "freq_limit_hz": args.freq_limit, "min_speed_factor": res.min_speed_factor if res else None,
         "moves_slowed": res.moves_slowed if res else 0, "lines_changed": res.lines_changed if res else 0,
@@ -105,20 +104,21 @@ def run(args, out) -> int:
         "accel": args.accel, "accel_reference": acc.reference if acc else None,
         "accel_factor": acc.factor if acc else None, "accel_lines_changed": acc.lines_changed if acc else 0,
         "notes": acc.notes if acc else [],
-        "frequencies": freqs,
+        "frequencies": done.frequencies,
     }
+
+
+def _said(freqs: dict) -> str:
+    """The highest frequencies before and after, in words."""
     c, p = freqs["commanded_hz"], freqs["planned_hz"]
-    said = (f"highest direction-change frequency (three cycles while extruding): commanded at F "
+    return (f"highest direction-change frequency (three cycles while extruding): commanded at F "
             f"{c['before']:.1f} -> {c['after']:.1f} Hz (what a frequency limit acts on); planned with "
             f"{freqs['junction']} {p['before']:.1f} -> {p['after']:.1f} Hz (what the printer does)")
-    if args.output is None:
-        sys.stdout.buffer.write(data)
-        sys.stdout.flush()
-        out.note(result["header"])
-        for n in result["notes"]:
-            out.note(n)
-        out.note(said)
-        return 0
+
+
+def _text(args, done) -> str:
+    """The readable summary when the G-code went to a file."""
+    res, acc = done.limited, done.accel
     text = []
     if res:
         text.append(f"{args.file} -> {args.output}: {res.moves_slowed} moves slowed, "
@@ -126,26 +126,5 @@ def run(args, out) -> int:
                     f"{res.f_words_added} added)")
     if acc:
         text.append(acc.header.lstrip("; ") + "".join(f"\nnote: {n}" for n in acc.notes))
-    text.append(f"  {said}")
-    out.emit(result, "\n".join(text))
-    return 0
-
-
-def _frequencies(path, limited: bytes, printer=None) -> dict:
-    """Highest commanded and planned direction-change frequencies of the file and of its limited
-    text, through the same functions as ``ringtune plan``."""
-    from ringtune.agents.cli.plan import (commanded_frequencies, planned_frequencies,
-                                               planning_limits)
-    from ringtune.shaping.config_plan import plan_with_config
-    from ringtune.shaping.gcode import read_gcode
-
-    out = {"commanded_hz": {}, "planned_hz": {}}
-    for key, job in (("before", read_gcode(path)), ("after", read_gcode(limited, source=str(path)))):
-        limits, junction, why = planning_limits(job, path, printer)
-        configured = plan_with_config(job, limits)
-        top = planned_frequencies(configured.plan, 1)
-        cmd = commanded_frequencies(configured.job, 1)
-        out["planned_hz"][key] = top[0]["freq_hz"] if top else 0.0
-        out["commanded_hz"][key] = cmd[0]["freq_hz"] if cmd else 0.0
-    out.update(junction=junction, junction_reason=why)
-    return out
+    text.append(f"  {_said(done.frequencies)}")
+    return "\n".join(text)

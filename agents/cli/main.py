@@ -17,29 +17,34 @@ import json
 import os
 import sys
 from dataclasses import dataclass, field
+from types import ModuleType
 from typing import Any
 
 from ringtune.agents import __version__
 from ringtune.shaping.errors import RingtuneError
 
-# Order is the order ``ringtune --help`` lists them in: the main job first, then the tools.
-COMMAND_MODULES = [
-    "tune",
-    "recommend",
-    "simulate",
-    "study",
-    "train",
-    "shaper",
-    "response",
-    "plan",
-    "limit",
-    "identify",
-    "testprint",
-    "printer",
-    "motor",
-    "export",
-    "push",
-]
+#: every command and its one-line help, in the order ``ringtune --help`` lists them (the main job
+#: first, then the tools). The command ``NAME`` lives in ``ringtune.agents.cli.NAME``; only the
+#: command being run is imported (the rest of the library loads with it), so ``ringtune --help``
+#: lists them from here alone.
+COMMANDS = {
+    "tune": "find the best print-time / quality trade-offs (Optuna Pareto study) — the main job",
+    "recommend": "instant shaper config from a resonance test (Klipper's calibrate_shaper rule)",
+    "simulate": "simulate a configuration on a job: print time, path error, overshoot, ringing, step loss",
+    "study": "trade-off study: sweep one factor and plot each shaper's print time and quality",
+    "train": "train a PPO policy that recommends a configuration from a resonance test (random printers)",
+    "shaper": "impulses, duration, lag, 90 % band and smoothing of one input shaper",
+    "response": "residual vibration vs frequency for several shapers (Klipper-style graph)",
+    "plan": "plan a G-code job: print time, moves, time by feature, highest direction-change frequencies",
+    "limit": "slow only the zigzags that shake: rewrite F words so direction changes stay under a frequency",
+    "identify": "the printer from your files: modes from accelerometer data, the rest from your config (TOML)",
+    "testprint": "calibration prints: ringing tower (ripples / shaper bands) and acceleration ladder",
+    "printer": "the printer description (TOML) from its firmware configuration: Klipper, Moonraker, "
+               "Marlin M503, RRF config.g",
+    "motor": "a stepper's force at the belt against speed, from its datasheet constants",
+    "export": "write a tuning config in a firmware's own dialect (M593, M493, SET_INPUT_SHAPER, ...)",
+    "push": "send a tuning config to the printer, read it back and report what was applied",
+}
 
 EXAMPLES = """\
 examples:
@@ -76,19 +81,14 @@ class Output:
 
 
 def _jsonable(obj: Any) -> Any:
-    try:
-        import numpy as np
-    except ImportError:  # pragma: no cover
-        np = None
+    """``obj`` with numpy arrays and scalars as lists and numbers (their ``tolist``), NaN as null and
+    paths as strings."""
     if isinstance(obj, dict):
         return {str(k): _jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
         return [_jsonable(v) for v in obj]
-    if np is not None:
-        if isinstance(obj, np.ndarray):
-            return _jsonable(obj.tolist())
-        if isinstance(obj, np.generic):
-            return obj.item()
+    if callable(getattr(obj, "tolist", None)):      # numpy array or scalar
+        return _jsonable(obj.tolist())
     if isinstance(obj, float) and obj != obj:  # NaN is not JSON
         return None
     if hasattr(obj, "__fspath__"):
@@ -108,17 +108,6 @@ def _render(result: dict, indent: int = 0) -> str:
         else:
             lines.append(f"{pad}{key}: {value}")
     return "\n".join(lines)
-
-
-def _load_commands() -> dict[str, Any]:
-    modules = {}
-    for name in COMMAND_MODULES:
-        try:
-            modules[name] = importlib.import_module(f"ringtune.agents.cli.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name != f"ringtune.agents.cli.{name}":
-                raise
-    return modules
 
 
 class _Parser(argparse.ArgumentParser):
@@ -154,11 +143,16 @@ def _parameter_flags(parser: argparse.ArgumentParser, module: Any) -> dict[str, 
 def as_flag(exc: RingtuneError, command: str) -> RingtuneError:
     """A library error naming a parameter (``where="method"``) as the command's flag (``--method``):
     the library speaks of its parameters, the user of the options they typed."""
-    flag = _FLAGS.get(command, {}).get(exc.where or "")
+    if command not in _FLAGS:
+        build_parser(command)
+    flag = _FLAGS[command].get(exc.where or "")
     return RingtuneError(exc.bare, flag) if flag else exc
 
 
-def build_parser() -> tuple[argparse.ArgumentParser, dict[str, Any]]:
+def build_parser(command: str | None = None) -> tuple[argparse.ArgumentParser, ModuleType | None]:
+    """The ``ringtune`` parser listing every command of :data:`COMMANDS`, and the module of
+    ``command``: only that one is imported and only its options are added (``None``: no command
+    module, as ``ringtune --help`` needs)."""
     parser = _Parser(
         prog="ringtune",
         description="Measured input-shaping tuning for 3D printers: firmware-faithful shapers and "
@@ -169,64 +163,67 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict[str, Any]]:
     )
     parser.add_argument("--version", action="version", version=f"ringtune {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    modules = _load_commands()
-    for name, module in modules.items():
-        p = sub.add_parser(
-            name,
-            # argparse %-formats help strings (not descriptions): module texts are plain prose
-            help=module.HELP.replace("%", "%%"),
-            description=getattr(module, "DESCRIPTION", module.HELP),
-            formatter_class=argparse.RawDescriptionHelpFormatter,
-        )
-        p.add_argument("--json", action="store_true", help="print one JSON object with stable keys")
-        module.add_arguments(p)
-        _FLAGS[name] = _parameter_flags(p, module)
-    return parser, modules
+    module = None
+    for name, one_line in COMMANDS.items():
+        # argparse %-formats help strings (not descriptions): the texts are plain prose
+        p = sub.add_parser(name, help=one_line.replace("%", "%%"), description=one_line,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        if name == command:
+            module = importlib.import_module(f"ringtune.agents.cli.{name}")
+            p.description = getattr(module, "DESCRIPTION", one_line)
+            p.add_argument("--json", action="store_true", help="print one JSON object with stable keys")
+            module.add_arguments(p)
+            _FLAGS[name] = _parameter_flags(p, module)
+    return parser, module
+
+
+def command_named(argv: list[str]) -> str | None:
+    """The command ``argv`` runs (its first word that is not an option), if it is one of
+    :data:`COMMANDS`."""
+    word = next((a for a in argv if not a.startswith("-")), None)
+    return word if word in COMMANDS else None
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser, modules = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser, module = build_parser(command_named(argv))
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:        # a usage error (argparse said it in one line): its status
+        if exc.code:
+            return exc.code
+        raise                        # --help, --version
     if not args.command:
         parser.print_help()
         return 0
-    out = Output(json=args.json)
     try:
-        _firmware_names(args)
-        rc = int(modules[args.command].run(args, out) or 0)
+        rc = int(module.run(args, Output(json=args.json)) or 0)
         sys.stdout.flush()          # a closed pipe shows here, not in the interpreter's last flush
         return rc
-    except RingtuneError as exc:
-        return _fail(args.command, str(as_flag(exc, args.command)))
-    except FileNotFoundError as exc:
-        return _fail(args.command, f"{exc.filename}: no such file")
-    except (IsADirectoryError, NotADirectoryError, PermissionError) as exc:
-        return _fail(args.command, _os_error(exc))
-    except UnicodeDecodeError as exc:
-        return _fail(args.command, f"{_undecodable(args)}: not a text file (binary data, or text not in "
-                                   f"UTF-8: byte {exc.object[exc.start:exc.start + 1]!r} at offset {exc.start})")
     except BrokenPipeError:
         # the reader went away (``ringtune plan f.gcode --json | head``): stop quietly, as cat does;
         # stdout is pointed at devnull so that the interpreter's final flush does not complain
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
-    except (OSError, ValueError) as exc:
-        if os.environ.get("RINGTUNE_DEBUG"):
-            raise
-        return _fail(args.command, str(exc) or type(exc).__name__)
+    except (OSError, ValueError) as exc:      # RingtuneError is a ValueError
+        return _fail(args.command, _message(exc, args))
     except KeyboardInterrupt:
         print(f"ringtune {args.command}: interrupted", file=sys.stderr)
         return 130
 
 
-def _firmware_names(args) -> None:
-    """Every command's --firmware through the firmware record's one parser: any case (``Klipper``,
-    ``RRF``), one refusal naming the firmwares there are."""
-    name = getattr(args, "firmware", None)
-    if isinstance(name, str):
-        from ringtune.shaping.firmware import Firmware
-
-        args.firmware = Firmware.named(name, "--firmware").name
+def _message(exc: Exception, args) -> str:
+    """The one line a failure prints: what and where, in the words of the options the user typed."""
+    if isinstance(exc, RingtuneError):
+        return str(as_flag(exc, args.command))
+    if isinstance(exc, FileNotFoundError):
+        return f"{exc.filename}: no such file"
+    if isinstance(exc, (IsADirectoryError, NotADirectoryError, PermissionError)):
+        return _os_error(exc)
+    if isinstance(exc, UnicodeDecodeError):
+        return (f"{_undecodable(args)}: not a text file (binary data, or text not in "
+                f"UTF-8: byte {exc.object[exc.start:exc.start + 1]!r} at offset {exc.start})")
+    return str(exc) or type(exc).__name__
 
 
 def _os_error(exc: OSError) -> str:

@@ -9,8 +9,18 @@ JSON keys (stable): ``motor`` (name), ``constants`` {``holding_torque_nm``, ``ra
 
 from __future__ import annotations
 
+from pathlib import Path
+
+import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+
+from ringtune.agents.cli.common import check_output_folder
+from ringtune.envs.motors import lookup_motor, unknown_motor_message
+from ringtune.envs.printer import printer_from_dict
+from ringtune.shaping.errors import RingtuneError
+
 NAME = "motor"
-HELP = "a stepper's force at the belt against speed, from its datasheet constants"
 DESCRIPTION = """\
 The force a stepper motor can give at the belt as the belt speeds up, from the motor's datasheet
 constants (the built-in table holds every motor of Klipper's autotune plugin, by the names Klipper
@@ -66,13 +76,6 @@ def add_arguments(parser) -> None:
 
 
 def run(args, out) -> int:
-    from pathlib import Path
-
-    from ringtune.agents.cli.common import check_output_folder
-    from ringtune.envs.motors import lookup_motor, unknown_motor_message
-    from ringtune.envs.printer import printer_from_dict
-    from ringtune.shaping.errors import RingtuneError
-
     for opt, v in (("--run-current", args.run_current), ("--voltage", args.voltage),
                    ("--rotation-distance", args.rotation_distance), ("--mass", args.mass)):
         if v is not None and not v > 0:
@@ -109,8 +112,6 @@ def run(args, out) -> int:
         out.note(f"note: run_current {drive.run_current:g} A is above the motor's rated {drive.motor.rated_current:g} A: "
                  "the force is credited only up to the rated current (the iron saturates), and the motor "
                  "runs hotter than its datasheet allows")
-    import numpy as np
-
     forces = drive.force(np.array(SPEEDS))
     c = drive.motor
     result = {
@@ -157,12 +158,7 @@ def _text(r: dict, drive) -> str:
 
 
 def _plot(args, drive, r: dict) -> None:
-    import matplotlib
-    import numpy as np
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     top = max(1000.0, 2.0 * min(r["half_force_speed_mm_s"], 5000.0))
     v = np.linspace(0.0, top, 400)
     f = drive.force(v)

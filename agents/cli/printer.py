@@ -13,12 +13,24 @@ written), ``output`` (path written, or null).
 from __future__ import annotations
 
 import argparse
+import os
+import tomllib
+from importlib import resources
+from pathlib import Path
+from urllib.parse import urlsplit
 
+from ringtune.agents.cli.common import check_output_folder
+from ringtune.envs.motors import lookup_motor as table_lookup
+from ringtune.envs.printer import printer_from_dict
+from ringtune.envs.printer_model import DEFAULTS
 from ringtune.envs.toml_writer import toml_value
+from ringtune.hardware.firmware_facts import MOTOR_CONSTANTS, motor_tables, without_motor
+from ringtune.hardware.klipper_config import printer_facts_from_klipper, printer_facts_from_moonraker
+from ringtune.hardware.marlin_config import printer_facts_from_marlin
+from ringtune.hardware.rrf_config import printer_facts_from_rrf
+from ringtune.shaping.errors import RingtuneError
 
 NAME = "printer"
-HELP = ("the printer description (TOML) from its firmware configuration: Klipper, Moonraker, "
-        "Marlin M503, RRF config.g")
 DESCRIPTION = """\
 Write a printer description from what the printer's firmware already knows: kinematics, limits,
 each motor's drive (rotation_distance, microsteps, run current, supply voltage, named motor or its
@@ -76,16 +88,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def lookup_motor(name: str):
     """The built-in motor ``name`` (with ``resistance``, ``inductance``, ``holding_torque``,
     ``rated_current``, ``steps_per_revolution``), or ``None`` when the table does not know it."""
-    from ringtune.envs.motors import lookup_motor as table_lookup
-
     return table_lookup(name)
 
 
 def check_motor_names(description: dict, notes: list[str], comments: dict[str, list[str]]) -> None:
     """Keep a motor ``name`` when the built-in table knows it or the configuration gives its
     constants; else drop it, say so, and leave a comment where its constants belong."""
-    from ringtune.hardware.firmware_facts import MOTOR_CONSTANTS, motor_tables, without_motor
-
     for where, table in motor_tables(description).items():
         name = table.get("name")
         if name is None:
@@ -135,12 +143,6 @@ def description_toml(name: str, description: dict, notes: list[str], source: str
                      comments: dict[str, list[str]]) -> str:
     """The TOML text: what the configuration gives, default modes marked as defaults, notes as
     comments."""
-    import tomllib
-    from importlib import resources
-
-    from ringtune.envs.printer import printer_from_dict
-    from ringtune.envs.printer_model import DEFAULTS
-
     # the embedded default printer, read from the package itself (load_printer(None) looks for a
     # path "ender3" first, and a folder of that name in the working directory shadows it)
     embedded = resources.files("ringtune.envs.data") / "ender3.toml"
@@ -170,30 +172,17 @@ def description_toml(name: str, description: dict, notes: list[str], source: str
 
 # -- the command --------------------------------------------------------------------------------
 def _read(args):
-    import os
-    from pathlib import Path
-
-    from ringtune.shaping.errors import RingtuneError
-
     if args.source == "from-klipper":
-        from ringtune.hardware.klipper_config import printer_facts_from_klipper, printer_facts_from_moonraker
-
         if (args.file is None) == (args.moonraker is None):
             raise RingtuneError("give printer.cfg or --moonraker URL (one of them)", "from-klipper")
         if args.moonraker:
-            from urllib.parse import urlsplit
-
             facts = printer_facts_from_moonraker(args.moonraker,
                                                  api_key=args.api_key or os.environ.get("MOONRAKER_API_KEY"))
             return facts, urlsplit(args.moonraker).hostname or "printer"
         facts = printer_facts_from_klipper(args.file)
     elif args.source == "from-marlin":
-        from ringtune.hardware.marlin_config import printer_facts_from_marlin
-
         facts = printer_facts_from_marlin(args.file, args.kinematics)
     else:
-        from ringtune.hardware.rrf_config import printer_facts_from_rrf
-
         facts = printer_facts_from_rrf(args.file)
     p = Path(args.file)
     default_name = p.resolve().parent.name if p.stem in ("printer", "config", "M503", "m503") else p.stem
@@ -201,16 +190,8 @@ def _read(args):
 
 
 def run(args, out) -> int:
-    from pathlib import Path
-
-    from ringtune.agents.cli.common import check_output_folder
-    from ringtune.envs.printer_model import DEFAULTS
-    from ringtune.hardware.firmware_facts import MOTOR_CONSTANTS, motor_tables
-
     check_output_folder("--output", args.output)
     if args.output and Path(args.output).is_dir():
-        from ringtune.shaping.errors import RingtuneError
-
         raise RingtuneError("is a directory; give a file name such as printer.toml", f"--output {args.output}")
     facts, default_name = _read(args)
     description = facts.description

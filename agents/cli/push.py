@@ -16,9 +16,13 @@ input (nothing sent) or the printer stopped answering.
 from __future__ import annotations
 
 import argparse
+import os
+
+from ringtune.agents.cli.common import firmware_name, load_config
+from ringtune.hardware.push import PushError, push
+from ringtune.shaping.errors import RingtuneError
 
 NAME = "push"
-HELP = "send a tuning config to the printer, read it back and report what was applied"
 DESCRIPTION = """\
 Send a TuneConfig to a printer, read the settings back and report, per setting, applied or not.
 
@@ -53,7 +57,7 @@ examples:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("config", metavar="CONFIG", help="TuneConfig JSON")
-    p.add_argument("--firmware", help="klipper, rrf, rrf35, rrf34, marlin, marlin-ftm, prusa "
+    p.add_argument("--firmware", type=firmware_name, help="klipper, rrf, rrf35, rrf34, marlin, marlin-ftm, prusa "
                    "(default: the config's firmware)")
     p.add_argument("--port", metavar="PORT", help="serial device or pyserial URL (required unless "
                    "--moonraker or --dry-run)")
@@ -71,12 +75,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args, out) -> int:
-    import os
-
-    from ringtune.agents.cli.common import load_config
-    from ringtune.hardware.push import PushError, push
-    from ringtune.shaping.errors import RingtuneError
-
     cfg = load_config(args.config, out)
     if not args.dry_run and not args.port and not args.moonraker:
         raise RingtuneError("refusing to push without an explicit port: give --port /dev/ttyUSB0 (or "

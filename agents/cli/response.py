@@ -10,8 +10,17 @@ curve is the maximum over these plant damping ratios, as Klipper does), ``freqs_
 
 from __future__ import annotations
 
+import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+
+from ringtune.agents.cli.shaper import band_text, finite_or_none, resolve_flavor
+from ringtune.hardware.accel import read_resonances_csv
+from ringtune.shaping.analysis import band, max_accel, residual_vibration, smoothing
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.shapers import get_shaper
+
 NAME = "response"
-HELP = "residual vibration vs frequency for several shapers (Klipper-style graph)"
 DESCRIPTION = """\
 Compare shapers by how much vibration they leave at each frequency: 100 % means no help, 0 %
 means perfect cancellation. The curve is Klipper's estimate (maximum over the plant damping
@@ -41,8 +50,6 @@ def add_arguments(parser) -> None:
 
 
 def _parse_dampings(text: str) -> list[float]:
-    from ringtune.shaping.errors import RingtuneError
-
     try:
         vals = [float(x) for x in text.split(",") if x.strip()]
     except ValueError:
@@ -53,13 +60,6 @@ def _parse_dampings(text: str) -> list[float]:
 
 
 def run(args, out) -> int:
-    import numpy as np
-
-    from ringtune.agents.cli.shaper import band_text, finite_or_none, resolve_flavor
-    from ringtune.shaping.analysis import band, max_accel, residual_vibration, smoothing
-    from ringtune.shaping.errors import RingtuneError
-    from ringtune.shaping.shapers import get_shaper
-
     flavor = resolve_flavor(args.flavor)
     dampings = _parse_dampings(args.plant_damping)
     if not args.freq > 0:
@@ -79,8 +79,6 @@ def run(args, out) -> int:
                      "smoothing_mm": smoothing(s), "max_accel": finite_or_none(max_accel(s))})
     psd = None
     if args.psd:
-        from ringtune.hardware.accel import read_resonances_csv
-
         psd = read_resonances_csv(args.psd)
         if isinstance(psd, list):
             psd = psd[0]
@@ -102,11 +100,7 @@ def run(args, out) -> int:
 
 
 def _plot(args, flavor, freqs, rows, dampings, psd) -> None:
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     fig, ax = plt.subplots(figsize=(10, 6))
     if psd is not None:
         keep = psd.freqs <= freqs[-1]

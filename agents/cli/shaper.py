@@ -13,8 +13,14 @@ smoothing ≤ 0.12 mm rule, unrounded; null when the shaper never smooths, e.g. 
 
 from __future__ import annotations
 
+import math
+
+from ringtune.shaping.analysis import summary
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.shapers import FLAVORS, get_shaper, is_centred
+
 NAME = "shaper"
-HELP = "impulses, duration, lag, 90 % band and smoothing of one input shaper"
 DESCRIPTION = """\
 Show an input shaper as a firmware would build it: its impulses (amplitude, time), how long it
 lasts, how far the shaped motion lags the commanded one (causal firmwares: RRF, Marlin classic;
@@ -49,22 +55,14 @@ def add_arguments(parser) -> None:
 
 def finite_or_none(x: float) -> float | None:
     """JSON has no inf/NaN: report them as null."""
-    import math
-
     return x if math.isfinite(x) else None
 
 
 def band_text(lo: float, hi: float) -> str:
-    import math
-
     return "none" if not (math.isfinite(lo) and math.isfinite(hi)) else f"{lo:.2f} – {hi:.2f} Hz"
 
 
 def resolve_flavor(flavor: str) -> str:
-    from ringtune.shaping.errors import RingtuneError
-    from ringtune.shaping.firmware import FIRMWARES
-    from ringtune.shaping.shapers import FLAVORS
-
     name = flavor.lower()
     flavor = FIRMWARES[name].flavor if name in FIRMWARES else name    # a firmware name: its formulas
     if flavor not in FLAVORS:
@@ -74,10 +72,6 @@ def resolve_flavor(flavor: str) -> str:
 
 
 def run(args, out) -> int:
-    from ringtune.shaping.analysis import summary
-    from ringtune.shaping.errors import RingtuneError
-    from ringtune.shaping.shapers import get_shaper, is_centred
-
     flavor = resolve_flavor(args.flavor)
     if not args.accel > 0:
         raise RingtuneError(f"must be > 0, not {args.accel}", "--accel")

@@ -17,8 +17,14 @@ import argparse
 import dataclasses
 from pathlib import Path
 
+from ringtune.agents.cli.common import firmware_name, judgement
+from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
+from ringtune.agents.tune.sweep import (FACTORS, factor_values, offered_shapers, plot_sweep, sweep,
+    tuned_frequencies, write_csv)
+from ringtune.envs.evaluate import resolve_printer
+from ringtune.shaping.errors import RingtuneError
+
 NAME = "study"
-HELP = "trade-off study: sweep one factor and plot each shaper's print time and quality"
 DESCRIPTION = """\
 Sweep one factor and see how every shaper of the firmware responds, in print time and quality:
 
@@ -46,7 +52,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--values", metavar="A,B,...", help="factor values (default: a range per factor)")
     p.add_argument("--printer", metavar="P", help="printer TOML (default: the embedded Ender-3-class printer)")
     p.add_argument("--gcode", metavar="G", help="G-code job (default: the built-in test print)")
-    p.add_argument("--firmware", default="klipper", help="target firmware (default klipper)")
+    p.add_argument("--firmware", type=firmware_name, default="klipper", help="target firmware (default klipper)")
     p.add_argument("--shapers", metavar="S1,S2", help="shapers to compare (default: all the firmware offers)")
     p.add_argument("--quality", choices=("overshoot", "path_error"), default="overshoot")
     p.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco")
@@ -57,13 +63,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace, out) -> int:
-    from ringtune.agents.tune.sweep import (FACTORS, factor_values, offered_shapers, plot_sweep, sweep,
-                                              tuned_frequencies, write_csv)
-    from ringtune.agents.cli.common import judgement
-    from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
-    from ringtune.envs.evaluate import resolve_printer
-    from ringtune.shaping.errors import RingtuneError
-
     if args.freq_margin is None:
         margin = 0.0 if args.factor == "freq-error" else DEFAULT_FREQ_MARGIN
     elif 0 <= args.freq_margin < 50:

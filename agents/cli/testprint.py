@@ -12,9 +12,16 @@
 from __future__ import annotations
 
 import argparse
+import math
+from pathlib import Path
+
+from ringtune.agents.cli.common import check_output_folder, firmware_name, load_config
+from ringtune.agents.identify.testprints import accel_ladder, ringing_tower
+from ringtune.envs.printer import load_printer
+from ringtune.shaping import calibration_prints as cp
+from ringtune.shaping.errors import RingtuneError
 
 NAME = "testprint"
-HELP = "calibration prints: ringing tower (ripples / shaper bands) and acceleration ladder"
 DESCRIPTION = """\
 Write a calibration print in the firmware's own G-code, with what to measure as comments.
 
@@ -44,7 +51,7 @@ examples:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("kind", choices=("ringing", "accel"), help="which print")
-    p.add_argument("--firmware", required=True,
+    p.add_argument("--firmware", type=firmware_name, required=True,
                    help="klipper, marlin, marlin-ftm, rrf, rrf35, rrf34, prusa")
     p.add_argument("--printer", metavar="P", help="printer TOML or embedded name (default: ender3): "
                    "its acceleration and speed limits")
@@ -79,8 +86,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _centre(text: str | None, out) -> tuple[float, float]:
-    from ringtune.shaping.errors import RingtuneError
-
     if text is None:
         out.note("centre of the print on the bed: X110 Y110 (an Ender-3's 220 mm bed); give --centre X,Y")
         return 110.0, 110.0
@@ -102,10 +107,6 @@ def _material(args, out) -> None:
     if missing:
         out.note("assumed " + ", ".join(f"--{k} {MATERIAL[k]:g}" for k in missing)
                  + " (mm, °C; PLA on a 0.4 mm nozzle)")
-    import math
-
-    from ringtune.shaping.errors import RingtuneError
-
     # plausible targets: a nozzle hot enough to extrude anything printable and within what a hotend
     # survives (PTFE-lined ones stop near 250 °C, all-metal ones near 300-450 °C); a bed off or up to 150 °C
     for key, lo, hi in (("hotend", 150.0, 450.0), ("bed", 0.0, 150.0)):
@@ -115,8 +116,6 @@ def _material(args, out) -> None:
 
 
 def _bands(text: str | None) -> tuple[float, float, int]:
-    from ringtune.shaping.errors import RingtuneError
-
     parts = (text or "25:75:11").split(":")
     try:
         f0, f1, n = float(parts[0]), float(parts[1]), int(parts[2])
@@ -128,14 +127,6 @@ def _bands(text: str | None) -> tuple[float, float, int]:
 
 
 def run(args, out) -> int:
-    from pathlib import Path
-
-    from ringtune.agents.cli.common import check_output_folder
-    from ringtune.envs.printer import load_printer
-    from ringtune.shaping import calibration_prints as cp
-    from ringtune.shaping.firmware import Firmware
-
-    args.firmware = Firmware.named(args.firmware, "--firmware").name
     check_output_folder("-o", args.output)
     printer = load_printer(args.printer)
     cx, cy = _centre(args.centre, out)
@@ -155,10 +146,6 @@ def run(args, out) -> int:
 
 
 def _positive(value, option):
-    import math
-
-    from ringtune.shaping.errors import RingtuneError
-
     if value is not None and not (math.isfinite(value) and value > 0):
         raise RingtuneError(f"must be a positive number, not {value:g}", option)
 
@@ -166,18 +153,12 @@ def _positive(value, option):
 def _on_the_bed(option: str, what: str, x_min: float, y_min: float) -> None:
     """Refuse a print that would move below X0 or Y0, off the bed of any printer (--centre too near
     the front-left corner for this size)."""
-    from ringtune.shaping.errors import RingtuneError
-
     if x_min < 0 or y_min < 0:
         raise RingtuneError(f"{what} reaches X{x_min:.1f} Y{y_min:.1f}, off the bed; move --centre or make "
                             "it smaller", option)
 
 
 def _ringing(args, out, printer, lim, cx, cy, ext):
-    from ringtune.agents.identify.testprints import ringing_tower
-    from ringtune.shaping import calibration_prints as cp
-    from ringtune.shaping.errors import RingtuneError
-
     for opt in ("speed", "accel", "band_height", "height", "side"):
         _positive(getattr(args, opt), "--" + opt.replace("_", "-"))
     if args.config or args.start_accel:
@@ -221,11 +202,6 @@ def _ringing(args, out, printer, lim, cx, cy, ext):
 
 
 def _accel(args, out, printer, lim, cx, cy, ext):
-    from ringtune.agents.identify.testprints import accel_ladder
-    from ringtune.agents.cli.common import load_config
-    from ringtune.shaping import calibration_prints as cp
-    from ringtune.shaping.errors import RingtuneError
-
     if not args.config:
         raise RingtuneError("testprint accel needs the tuned configuration", "--config")
     if args.bands or args.no_shaping or args.accel:

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
+from ringtune.agents.cli.common import check_output_folder
+from ringtune.envs.trace import WHOLE_JOB_MAX_S, trace_job, trace_windows, write_trace
+
 
 def write_trace_option(path, evaluation, config, printer, gcode, backend: str, out) -> None:
     """The whole job traced from rest when its motion is short enough, else the quality windows
     ``evaluation`` simulated; says which on stderr."""
-    from ringtune.agents.cli.common import check_output_folder
-    from ringtune.envs.trace import WHOLE_JOB_MAX_S, trace_job, trace_windows, write_trace
-
     check_output_folder("--trace", path)
     duration = evaluation.planned.motion.duration
     if duration <= WHOLE_JOB_MAX_S:

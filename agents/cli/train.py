@@ -16,8 +16,24 @@
 
 from __future__ import annotations
 
+import contextlib
+import math
+import os
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ringtune.agents.cli.common import progress_interval
+from ringtune.agents.ppo import policy as ppo
+from ringtune.agents.ppo.hpo import tune_hyperparameters
+from ringtune.agents.ppo.rl import rl
+from ringtune.agents.ppo.policy import DEFAULT_HYPER, DEFAULT_N_ENVS, DEFAULT_TIMESTEPS
+from ringtune.shaping.errors import RingtuneError
+
 NAME = "train"
-HELP = "train a PPO policy that recommends a configuration from a resonance test (random printers)"
 DESCRIPTION = """\
 Train a PPO policy (stable-baselines3) on the domain-randomised environment ringtune/Tune-v0: every
 episode is a new random printer; the policy sees its simulated resonance-test spectra (X and Y)
@@ -67,8 +83,6 @@ PARAMETER_FLAGS = {"n_trials": "--hpo-trials"}
 
 
 def add_arguments(p) -> None:
-    from ringtune.agents.ppo.policy import DEFAULT_N_ENVS, DEFAULT_TIMESTEPS
-
     p.add_argument("--timesteps", type=int, default=DEFAULT_TIMESTEPS, metavar="N",
                    help=f"environment steps in total (default {DEFAULT_TIMESTEPS})")
     p.add_argument("--envs", type=int, default=DEFAULT_N_ENVS, metavar="K",
@@ -82,11 +96,6 @@ def add_arguments(p) -> None:
 
 
 def run(args, out) -> int:
-    from pathlib import Path
-
-    from ringtune.agents.ppo import policy as ppo
-    from ringtune.shaping.errors import RingtuneError
-
     if args.envs < 1:
         raise RingtuneError("needs at least one environment", "--envs")
     if args.timesteps < 1:
@@ -98,8 +107,6 @@ def run(args, out) -> int:
     if args.hpo:
         if args.resume:
             raise RingtuneError("--hpo starts a new run; it cannot resume", "--hpo")
-        from ringtune.agents.ppo.hpo import tune_hyperparameters
-
         out.note(f"tuning PPO hyperparameters: {args.hpo_trials} short runs ...")
         hpo = tune_hyperparameters(Path(args.output) / "hpo", n_trials=args.hpo_trials,
                                    budget=max(args.timesteps // 5, 256), n_envs=args.envs, seed=args.seed)
@@ -110,8 +117,6 @@ def run(args, out) -> int:
         out.note(f"PPO collects whole rollouts of {rollout // args.envs} steps × {args.envs} env(s) = {rollout}: "
                  f"--timesteps {args.timesteps} trains {planned} steps")
     out.note(f"training PPO: {planned if planned else args.timesteps} steps on {args.envs} env(s) -> {args.output}")
-    import sys
-
     tty = sys.stderr.isatty()
     lines = [] if tty or args.no_progress else [progress_lines(args.output, planned or args.timesteps)]
     with _stdout_to_stderr():
@@ -141,10 +146,6 @@ def rollout_for(timesteps: int, n_envs: int, hyper: dict | None, resume: bool) -
     rollouts of ``n_steps`` per env; a budget below one rollout shortens ``n_steps`` to
     ceil(timesteps / envs) (and the minibatch to fit), so that a small run trains what it was asked.
     ``resume`` keeps the checkpoint's rollout (its steps are known only after loading: 0)."""
-    import math
-
-    from ringtune.agents.ppo.policy import DEFAULT_HYPER
-
     h = {**DEFAULT_HYPER, **(hyper or {})}
     n_steps = int(h["n_steps"])
     if resume:
@@ -163,12 +164,6 @@ class _stdout_to_stderr:
     output stays one JSON object."""
 
     def __enter__(self):
-        import contextlib
-        import os
-        import sys
-
-        import warnings
-
         sys.stdout.flush()
         self._warnings = warnings.catch_warnings()
         self._warnings.__enter__()
@@ -184,9 +179,6 @@ class _stdout_to_stderr:
         return self
 
     def __exit__(self, *exc):
-        import os
-        import sys
-
         sys.stderr.flush()
         if self._saved is not None:
             os.dup2(self._saved, 1)
@@ -197,23 +189,13 @@ class _stdout_to_stderr:
 
 
 def progress_lines(out_dir, total: int):
-    """A stable-baselines3 callback printing, on stderr, a line every ``PROGRESS_INTERVAL_S`` s
-    (``RINGTUNE_PROGRESS_S``): steps done of ``total`` and the best held-out mean cost so far
-    (``out_dir/evaluations.npz``, written at each evaluation)."""
-    import os
-    import sys
-    import time
-    from pathlib import Path
-
-    import numpy as np
-    from stable_baselines3.common.callbacks import BaseCallback
-
-    from ringtune.agents.cli.tune import PROGRESS_INTERVAL_S
-
-    interval = float(os.environ.get("RINGTUNE_PROGRESS_S", PROGRESS_INTERVAL_S))
+    """A stable-baselines3 callback printing, on stderr, a line every
+    :func:`~ringtune.agents.cli.common.progress_interval` s: steps done of ``total`` and the best
+    held-out mean cost so far (``out_dir/evaluations.npz``, written at each evaluation)."""
+    interval = progress_interval()
     evals = Path(out_dir) / "evaluations.npz"
 
-    class Lines(BaseCallback):
+    class Lines(rl().BaseCallback):
         def _on_training_start(self) -> None:
             self._t0 = self._last = time.time()
 

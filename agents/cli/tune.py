@@ -18,13 +18,27 @@ apply, front, trials}, storage, study, completed_now, interrupted, elapsed_s.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
+import tempfile
 import time
 from pathlib import Path
 
+from tqdm import tqdm
+
+from ringtune.agents.cli.common import firmware_name, progress_interval
+from ringtune.agents.tune import pareto, report, storage, study as tune_study
+from ringtune.agents.tune.baselines import baselines_for, warm_start
+from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
+from ringtune.agents.tune.pareto import pareto_front
+from ringtune.agents.tune.space import default_space, params_from_config
+from ringtune.agents.tune.study import study_points
+from ringtune.envs.evaluate import resolve_printer
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import Firmware
+
 NAME = "tune"
-HELP = "find the best print-time / quality trade-offs (Optuna Pareto study) — the main job"
 DESCRIPTION = """\
 Tune input shaping for a printer and a job: an Optuna multi-objective study over the shaper types
 the target firmware offers, the shaper frequency F per axis (one F on RepRapFirmware), the damping
@@ -65,14 +79,12 @@ examples:
   ringtune tune --storage postgresql+psycopg2://user:pw@db-host/ringtune --study ender3 --workers 4
 """
 
-#: s between progress lines when stderr is not a terminal (RINGTUNE_PROGRESS_S overrides)
-PROGRESS_INTERVAL_S = 10.0
-
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--printer", metavar="P", help="printer TOML (default: the embedded Ender-3-class printer)")
     p.add_argument("--gcode", metavar="G", help="G-code job (default: the built-in test print)")
-    p.add_argument("--firmware", default="klipper", help="target firmware: klipper (default), rrf, rrf35, rrf34, "
+    p.add_argument("--firmware", type=firmware_name, default="klipper",
+                   help="target firmware: klipper (default), rrf, rrf35, rrf34, "
                    "marlin, marlin-ftm, prusa (any case)")
     p.add_argument("--trials", type=int, default=200, help="total complete trials of the study (default 200)")
     p.add_argument("--storage", metavar="URL", help="Optuna storage: journal:PATH (default "
@@ -112,16 +124,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace, out) -> int:
-    from ringtune.agents.tune import pareto
-    from ringtune.agents.tune import report
-    from ringtune.agents.tune import storage
-    from ringtune.agents.tune import study as tune_study
-    from ringtune.agents.tune.space import default_space, params_from_config
-    from ringtune.agents.tune.baselines import baselines_for, warm_start
-    from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
-    from ringtune.envs.evaluate import resolve_printer
-    from ringtune.shaping.errors import RingtuneError
-
     t_start = time.time()
     firmware, dialect, fw_note = firmware_names(args.firmware)
     if args.trials < 1:
@@ -154,8 +156,6 @@ def run(args: argparse.Namespace, out) -> int:
     facts = job_accel_facts(printer, args.gcode, args.job_accel)
     space = default_space(printer, firmware, accel=accel_range, speed=facts.top_speed)
     if accel_range is None and args.job_accel == "respect" and facts.commands and not facts.accel_matters(space):
-        import dataclasses
-
         a = float(printer.limits.accel)
         space = dataclasses.replace(space, accel=(a, a), accel_basis="not searched: the job's own acceleration "
                                     "commands rule every move (--job-accel respect)")
@@ -219,8 +219,8 @@ def run(args: argparse.Namespace, out) -> int:
     n_warm = len(settings.enqueue)
     if n_warm:
         notes.append("The search was warm-started from Klipper's recommendation" + (
-            "." if n_warm == 1 else f" and {n_warm - 1} neighbour{'s' if n_warm > 2 else ''} of it (robust "
-            "shapers at Klipper's own frequencies, higher accelerations)."))
+            "." if n_warm == 1 else f" and {n_warm - 1} neighbour{'s' if n_warm > 2 else ''} of it (the rule's "
+            "pick and robust shapers at its frequencies on the model's simulated test, higher accelerations)."))
     result = report.write_report(
         out_dir, points=points, front=front, choice=choice, baselines=baselines, quality=quality,
         printer_name=getattr(printer, "name", "printer"), job_name=Path(args.gcode).name if args.gcode else
@@ -249,15 +249,11 @@ def firmware_names(name: str) -> tuple[str, str, str]:
     """(firmware to tune for, dialect apply.txt is written in, a note or "") from a ``--firmware``
     value: every firmware of :data:`ringtune.shaping.firmware.FIRMWARES` (the names ``export``
     accepts, rrf34 included), in any case."""
-    from ringtune.shaping.firmware import Firmware
-
     rec = Firmware.named(name, "--firmware")
     return rec.name, rec.name, ""
 
 
 def _accel_range(text: str | None):
-    from ringtune.shaping.errors import RingtuneError
-
     if text is None:
         return None
     try:
@@ -271,8 +267,6 @@ def _accel_range(text: str | None):
 
 def _check_out(out_dir: Path) -> None:
     """--out must be a folder we can write in (or create): say so in words, not an errno."""
-    from ringtune.shaping.errors import RingtuneError
-
     if out_dir.exists() and not out_dir.is_dir():
         raise RingtuneError(f"{out_dir} is a file, not a folder: give a folder for the results "
                             f"(e.g. --out {out_dir.with_suffix('')}-tune)", "--out")
@@ -286,8 +280,6 @@ def _check_out(out_dir: Path) -> None:
         raise RingtuneError(f"cannot write in the {what} (no permission or a read-only file system); "
                             "choose another --out", "--out")
     try:      # a read-only mount answers os.access with "yes" for root: try it
-        import tempfile
-
         with tempfile.TemporaryFile(dir=probe):
             pass
     except OSError as exc:
@@ -306,12 +298,12 @@ def _remove_if_empty(out_dir: Path) -> None:
 
 class Progress:
     """Progress on stderr only: a tqdm bar on a terminal; otherwise (logs, CI, nohup) a line every
-    :data:`PROGRESS_INTERVAL_S` seconds with the trials done and the best so far."""
+    :func:`~ringtune.agents.cli.common.progress_interval` seconds with the trials done and the best so far."""
 
     def __init__(self, quality: str, max_pe: float, reserve: float, space, stream=None):
         self.stream = stream or sys.stderr
         self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
-        self.interval = float(os.environ.get("RINGTUNE_PROGRESS_S", PROGRESS_INTERVAL_S))
+        self.interval = progress_interval()
         self.quality, self.max_pe, self.reserve, self.space = quality, max_pe, reserve, space
         self._bar = None
         self._t0 = self._last = time.time()
@@ -320,8 +312,6 @@ class Progress:
     def update(self, done: int, total: int, study=None) -> None:
         if self.tty:
             if self._bar is None:
-                from tqdm import tqdm
-
                 self._bar = tqdm(total=total, initial=min(done, total), desc="trials", unit="trial",
                                  file=self.stream, dynamic_ncols=True)
             delta = min(done, total) - self._bar.n
@@ -338,9 +328,6 @@ class Progress:
     def _best(self, study) -> str:
         if study is None:
             return "no trial yet"
-        from ringtune.agents.tune.pareto import pareto_front
-        from ringtune.agents.tune.study import study_points
-
         try:
             front = pareto_front(study_points(study, self.space, self.quality, self.max_pe, self.reserve))
         except Exception:   # progress never stops a study

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ringtune.agents.klipper.baseline import recommend_axes
 from ringtune.envs.identify import AxisFit, identify_decay, identify_psd
 from ringtune.hardware.accel import RawAccel, axis_from_file_name, read_accel, to_psd
 from ringtune.shaping.errors import RingtuneError
@@ -109,8 +110,6 @@ def klipper_record(psds: dict[str, list], scv: float = 5.0, version: str = "head
     (the function ``ringtune recommend --accel`` uses), for the axes measured: ``shaper_<ax>``,
     ``freq_<ax>`` (Hz), ``max_accel`` (mm/s², the lower of the axes', as Klipper prints it),
     ``version``, ``scv`` (mm/s, the square-corner velocity the smoothing was computed at)."""
-    from ringtune.agents.klipper.baseline import recommend_axes
-
     spectra = {ax: p for ax, p in psds.items() if ax in ("x", "y")}
     if not spectra:
         return {}
@@ -148,3 +147,38 @@ def recorded_files(measurement: dict, printer_path: str | Path | None) -> tuple[
         else:
             found.append((str(hit), str(rec.get("axis", ""))))
     return found, missing
+
+
+def resonance_psds(paths: list, axes: str | None = None, note=None) -> tuple[dict[str, list], dict[str, list[str]]]:
+    """({axis: [PSD, …]}, {axis: [file, …]}) of resonance-test files; each file's axis from
+    ``axes`` (comma-separated, one per file), else its name, else the larger of its psd_x / psd_y
+    columns (said through ``note``)."""
+    named = None
+    if axes:
+        named = [a.strip().lower() for a in axes.split(",")]
+        if len(named) != len(paths) or any(a not in ("x", "y") for a in named):
+            raise RingtuneError(f"give one axis (x or y) per --accel file ({len(paths)} files)", "axes")
+    psds: dict[str, list] = {}
+    sources: dict[str, list[str]] = {}
+    for i, path in enumerate(paths):
+        items = to_psd(read_accel(path))
+        ax = named[i] if named else _psd_axis(path, items, note)
+        psds.setdefault(ax, []).extend(items)
+        sources.setdefault(ax, []).append(str(path))
+    return psds, sources
+
+
+def _psd_axis(path, items, note=None) -> str:
+    """The axis a resonance file measured: from its name, else the larger of its psd_x / psd_y."""
+    ax = axis_from_file_name(path)
+    if ax == "z":
+        raise RingtuneError("the file name says it measured Z; recommend fits X and Y (if it "
+                            "measured X or Y, say so with --axes)", str(path))
+    if ax is None and items[0].psd_x is not None and items[0].psd_y is not None:
+        ax = "x" if float(np.sum(items[0].psd_x)) >= float(np.sum(items[0].psd_y)) else "y"
+        if note is not None:
+            note(f"{path}: the file name does not say the axis; taking {ax.upper()}, the larger of "
+                 "its psd_x and psd_y (--axes overrides)")
+    elif ax is None:
+        raise RingtuneError("cannot tell which axis this file measured; use --axes", str(path))
+    return ax

@@ -19,6 +19,7 @@ import numpy as np
 
 from ringtune.envs.added_mass import added_mass, frequency_scale
 from ringtune.envs.identify import AxisFit
+from ringtune.envs.printer import load_printer
 from ringtune.envs.printer_model import DEFAULTS
 from ringtune.envs.toml_writer import toml_key, toml_value
 from ringtune.shaping.errors import RingtuneError
@@ -124,8 +125,6 @@ def fitted_modes(fit: AxisFit) -> list[dict]:
 
 
 def _base_modes(base) -> tuple[str, dict[str, list[dict]]]:
-    from ringtune.envs.printer import load_printer
-
     p = load_printer(base)
     modes = {}
     for ax in AXES:

@@ -13,14 +13,20 @@ from __future__ import annotations
 
 import hashlib
 import math
+import tomllib
 from dataclasses import fields, replace
 from pathlib import Path
 
+from ringtune.envs.printer import load_printer
+from ringtune.envs.printer_model import AxisModel, Mode
+from ringtune.envs.ripples import damping_from_ratio, mode_from_ripples, parse_axis_values, tower_frequency
+from ringtune.shaping.calibration_prints import read_band_table
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import Firmware
+from ringtune.shaping.shapers import default_damping
+
 
 def _default_damping(args, out) -> tuple[float, str]:
-    from ringtune.shaping.firmware import Firmware
-    from ringtune.shaping.shapers import default_damping
-
     fw = Firmware.named(args.firmware or "klipper", "--firmware")
     z = default_damping(fw.flavor)
     return z, f"{fw.title}'s default shaper damping{'' if args.firmware else ' (--firmware)'}"
@@ -28,10 +34,6 @@ def _default_damping(args, out) -> tuple[float, str]:
 
 def identify_modes(args, out) -> tuple[dict, dict, list]:
     """({axis: (freq Hz, damping, comment)}, measurement dict, files) from the options."""
-    from ringtune.envs.ripples import damping_from_ratio, mode_from_ripples, parse_axis_values, tower_frequency
-    from ringtune.shaping.calibration_prints import read_band_table
-    from ringtune.shaping.errors import RingtuneError
-
     if args.ripples and args.tower_band:
         raise RingtuneError("give --ripples or --tower-band, not both", "--tower-band")
     if getattr(args, "files", None):
@@ -98,9 +100,6 @@ def identify_modes(args, out) -> tuple[dict, dict, list]:
 
 def printer_text(modes: dict, meas: dict, files: list, name: str, base: str | None, out) -> str:
     """The printer TOML: ``base`` with the measured axes' modes replaced, plus ``[measurement]``."""
-    from ringtune.envs.printer import load_printer
-    from ringtune.envs.printer_model import AxisModel, Mode
-
     p = load_printer(base)
     unmeasured = ' and the modes of ' + ', '.join(a.upper() for a in 'xy' if a not in modes) if len(modes) < 2 else ''
     out.note(f"masses, motors, limits{unmeasured}: from {p.name}"
@@ -133,8 +132,6 @@ def printer_text(modes: dict, meas: dict, files: list, name: str, base: str | No
 def _default_masses(base: str | None, p) -> str:
     """"X 0.55 kg, Y 1.1 kg" for the axes whose mass the base description does not give (the
     loader's defaults), "" when it gives both."""
-    import tomllib
-
     if base is None or not Path(base).is_file():  # the embedded printers name their masses (and the
         return ""                                 # note before this one says they are not the user's)
     try:

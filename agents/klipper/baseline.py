@@ -12,8 +12,12 @@ from typing import Any
 import numpy as np
 
 from ringtune.agents.klipper.rule import (AUTOTUNE_SHAPERS, DEFAULT_DAMPING_RATIO, VERSION_FLAVOR,
-                                          KlipperRecommendation, default_shaper_factory, recommend_klipper)
+    KlipperRecommendation, default_shaper_factory, recommend_klipper)
+from ringtune.envs.evaluate import resolve_printer
+from ringtune.envs.sim import resonance_test
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.shapers import available_shapers
 
 
 def axis_config(fits: dict[str, KlipperRecommendation], firmware: str = "klipper") -> dict[str, Any]:
@@ -42,9 +46,6 @@ def firmware_rule_setup(firmware: str, version: str) -> tuple[str, tuple[str, ..
     shapers; other firmwares use their own formulas restricted to Klipper's autotune list (RRF:
     mzv, 2hump_ei, 3hump_ei; Marlin: zv; Marlin FTM: all five).
     """
-    from ringtune.shaping.firmware import FIRMWARES
-    from ringtune.shaping.shapers import available_shapers
-
     if firmware not in FIRMWARES:
         raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "firmware")
     flavor = VERSION_FLAVOR[version] if firmware == "klipper" else FIRMWARES[firmware].flavor
@@ -64,8 +65,6 @@ def recommend_axes(psds_by_axis: dict[str, Any], firmware: str = "klipper", vers
     flavor, names = firmware_rule_setup(firmware, version)
     factory = kw.pop("shaper_factory", None) or default_shaper_factory(flavor)
     kw.setdefault("shapers", names)
-    from ringtune.shaping.firmware import FIRMWARES
-
     if FIRMWARES[firmware].one_shaper:
         joint = [p for ax in sorted(psds_by_axis) for p in _as_list(psds_by_axis[ax])]
         rec = recommend_klipper(joint, version, scv, shaper_factory=factory, **kw)
@@ -88,9 +87,6 @@ def klipper_rule_on_simulated_test(printer: Any = None, firmware: str = "klipper
     Without ``seed`` the test is the model's expected spectrum (no measurement noise), so the pick
     is the model's own and does not move with any study's seed; with one, each bin is scattered as a
     Welch estimate (:func:`ringtune.envs.sim.resonance_test`)."""
-    from ringtune.envs.evaluate import resolve_printer
-    from ringtune.envs.sim import resonance_test
-
     printer = resolve_printer(printer)
     rng = None if seed is None else np.random.default_rng(seed)
     psds = {ax: resonance_test(printer, ax, rng=rng) for ax in ("x", "y")}

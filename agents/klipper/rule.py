@@ -49,8 +49,9 @@ import numpy as np
 
 from ringtune.hardware.psd import normalize_to_frequencies
 from ringtune.shaping.analysis import (SMOOTHING_ACCEL, TARGET_SMOOTHING, impulse_residual,
-                                       max_accel_from_terms, smoothing_from_terms, smoothing_terms)
+    max_accel_from_terms, smoothing_from_terms, smoothing_terms)
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.shapers import get_shaper
 
 VERSIONS = ("head", "0.13")
 VERSION_FLAVOR = {"head": "klipper", "0.13": "klipper-legacy"}
@@ -142,8 +143,6 @@ def remaining_vibrations(amps, times, freqs, psd, damping: float):
 
 def default_shaper_factory(flavor: str) -> ShaperFactory:
     """Amplitudes and times from ``ringtune.shaping.shapers.get_shaper`` in ``flavor``."""
-    from ringtune.shaping.shapers import get_shaper
-
     def make(name: str, freq: float, damping: float) -> tuple[np.ndarray, np.ndarray]:
         s = get_shaper(name, float(freq), damping, flavor=flavor)
         return np.asarray(s.amplitudes, dtype=float), np.asarray(s.times, dtype=float)

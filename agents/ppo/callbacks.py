@@ -1,5 +1,5 @@
-"""Callbacks of :func:`ringtune.agents.ppo.policy.train` (stable-baselines3 is imported lazily: the
-``rl`` extra is optional)."""
+"""Callbacks of :func:`ringtune.agents.ppo.policy.train` (stable-baselines3's classes come from
+:func:`ringtune.agents.ppo.rl.rl`: the ``rl`` extra is optional)."""
 
 from __future__ import annotations
 
@@ -7,14 +7,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ringtune.agents.ppo.rl import rl
+
 
 def curve_callback():
     """Collects the mean training cost of each rollout (the true cost ``info["cost"]`` under a
     reference-relative reward, else −reward as the Monitor saw it); fields ``timesteps``, ``costs``
     and ``reference_costs`` (the reference's mean cost on the same printers, when reported)."""
-    from stable_baselines3.common.callbacks import BaseCallback
-
-    class Curve(BaseCallback):
+    class Curve(rl().BaseCallback):
         def __init__(self):
             super().__init__()
             self.timesteps: list[int] = []
@@ -49,11 +49,10 @@ def held_out_callback(eval_venv, n_episodes: int, every: int, out: Path, previou
     the training env's normalisation statistics beside each new best model
     (``best/vecnormalize.pkl``: the best model must see observations scaled as it was trained).
     ``previous_best``: mean reward of the best model of the run being resumed."""
-    from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
-
+    sb3 = rl()
     best_dir = Path(out) / "best"
 
-    class SaveNormalisation(BaseCallback):
+    class SaveNormalisation(sb3.BaseCallback):
         def _on_step(self) -> bool:
             vn = self.model.get_vec_normalize_env()
             if vn is not None:
@@ -61,7 +60,7 @@ def held_out_callback(eval_venv, n_episodes: int, every: int, out: Path, previou
                 vn.save(str(best_dir / "vecnormalize.pkl"))
             return True
 
-    class FromStart(EvalCallback):
+    class FromStart(sb3.EvalCallback):
         def _on_training_start(self) -> None:
             super()._on_training_start()
             if previous_best is not None:

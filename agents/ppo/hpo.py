@@ -11,6 +11,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import optuna
+
+from ringtune.agents.ppo.policy import train
 from ringtune.shaping.errors import RingtuneError
 
 
@@ -30,10 +33,6 @@ def suggest_hyper(trial) -> dict:
 def tune_hyperparameters(out_dir: str | Path, n_trials: int = 6, budget: int = 2048, n_envs: int = 2,
                          seed: int = 0, env_kwargs: dict | None = None) -> dict:
     """Run the study; returns {"best_params": hyper dict, "best_cost": float, "trials": n, "all": [...]}."""
-    import optuna
-
-    from ringtune.agents.ppo.policy import train
-
     if n_trials < 1:
         raise RingtuneError("needs at least one trial", "n_trials")
     out = Path(out_dir)

@@ -33,14 +33,22 @@ Security: :func:`load_policy` unpickles files (stable-baselines3 zips can carry 
 from __future__ import annotations
 
 import json
+import pickle
+import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
+import gymnasium as gym
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 
 from ringtune.agents.ppo.callbacks import curve_callback, held_out_callback
+from ringtune.agents.ppo.reward import ReferenceRelative
+from ringtune.agents.ppo.rl import rl
+from ringtune.envs.env import TuneEnv, encode_config
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
@@ -88,34 +96,23 @@ def resolve_env_kwargs(env_kwargs: dict | None = None) -> dict:
 
 def _pinned_env(seed: int, env_kwargs: dict):
     """A Tune-v0 env whose every reset uses ``seed`` (the same held-out printer each time)."""
-    import gymnasium as gym
-
-    from ringtune.envs.env import TuneEnv
-
     class PinnedSeed(gym.Wrapper):
         def reset(self, *, seed=None, options=None):  # noqa: ARG002 - the pinned seed wins
             return self.env.reset(seed=self._pinned, options=options)
 
-    from stable_baselines3.common.monitor import Monitor
-
     w = PinnedSeed(TuneEnv(randomize=True, **env_kwargs))
     w._pinned = int(seed)
-    return Monitor(w)
+    return rl().Monitor(w)
 
 
 def _make_train_env(rank: int, seed: int, env_kwargs: dict, hyper: dict):
     def thunk():
-        from stable_baselines3.common.monitor import Monitor
-
-        from ringtune.agents.ppo.reward import ReferenceRelative
-        from ringtune.envs.env import TuneEnv
-
         env = TuneEnv(randomize=True, **env_kwargs)
         if hyper.get("reference_reward"):
             start = env_kwargs.get("observe_metrics") and env_kwargs.get("start_action") is not None
             ref = None if start else prior_action(env_kwargs)       # None: the observed starting answer
             env = ReferenceRelative(env, ref, hyper.get("printer_repeats", 1))
-        env = Monitor(env)
+        env = rl().Monitor(env)
         env.reset(seed=seed + rank)
         return env
     return thunk
@@ -130,21 +127,18 @@ def make_vec_envs(n_envs: int, seed: int, env_kwargs: dict, subprocess: bool = T
     """(training VecEnv, held-out eval VecEnv), both not yet normalised. The held-out printers
     always score the plain cost; training uses the reference-relative reward when
     ``hyper["reference_reward"]`` (:mod:`ringtune.agents.ppo.reward`)."""
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
-
+    sb3 = rl()
     hyper = {**DEFAULT_HYPER, **(hyper or {})}
     fns = [_make_train_env(k, seed, env_kwargs, hyper) for k in range(n_envs)]
-    venv = SubprocVecEnv(fns) if subprocess and n_envs > 1 else DummyVecEnv(fns)
+    venv = sb3.SubprocVecEnv(fns) if subprocess and n_envs > 1 else sb3.DummyVecEnv(fns)
     venv.seed(seed)
-    eval_env = DummyVecEnv([_make_eval_env_fn(s, env_kwargs) for s in EVAL_SEEDS])
+    eval_env = sb3.DummyVecEnv([_make_eval_env_fn(s, env_kwargs) for s in EVAL_SEEDS])
     return venv, eval_env
 
 
 # -- training -----------------------------------------------------------------------------------------
 def _publish_best(out: Path) -> None:
     """``policy.zip`` + ``vecnormalize.pkl`` := the held-out best (``best/``), else the final weights."""
-    import shutil
-
     best = (out / "best" / "best_model.zip", out / "best" / "vecnormalize.pkl")
     src = best if all(p.is_file() for p in best) else (out / "final.zip", out / "final_vecnormalize.pkl")
     shutil.copyfile(src[0], out / "policy.zip")
@@ -196,11 +190,7 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
     ``out_dir`` (error if none). ``hyper`` overrides :data:`DEFAULT_HYPER`. ``callbacks``: more
     stable-baselines3 callbacks (e.g. the CLI's progress lines).
     """
-    import torch
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
-    from stable_baselines3.common.vec_env import VecNormalize
-
+    sb3 = rl()
     if not 0 <= seed < MAX_TRAIN_SEED:
         raise RingtuneError(f"must be in [0, {MAX_TRAIN_SEED}) (higher seeds are the held-out printers)", "seed")
     if n_envs < 1:
@@ -211,7 +201,7 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
     out.mkdir(parents=True, exist_ok=True)
     env_kwargs = resolve_env_kwargs(env_kwargs)
     hyper = {**DEFAULT_HYPER, **(hyper or {})}
-    torch.set_num_threads(1)
+    sb3.torch.set_num_threads(1)
     t0 = time.perf_counter()
     venv, eval_env = make_vec_envs(n_envs, seed, env_kwargs, subprocess, hyper)
     resumed = None
@@ -220,28 +210,28 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
             ck = latest_checkpoint(out)
             if ck is None:
                 raise RingtuneError("no checkpoint to resume from (train without --resume first)", str(out))
-            venv = VecNormalize.load(str(ck[1]), venv)
-            model = PPO.load(str(ck[0]), env=venv, device="cpu")
+            venv = sb3.VecNormalize.load(str(ck[1]), venv)
+            model = sb3.PPO.load(str(ck[0]), env=venv, device="cpu")
             resumed = str(ck[0])
         else:
-            venv = VecNormalize(venv, norm_obs=True, norm_reward=True, clip_obs=10.0, gamma=0.99)
+            venv = sb3.VecNormalize(venv, norm_obs=True, norm_reward=True, clip_obs=10.0, gamma=0.99)
             policy_kwargs = {"net_arch": list(hyper["net_arch"]), "log_std_init": hyper["log_std_init"]}
-            model = PPO("MlpPolicy", venv, learning_rate=hyper["learning_rate"], n_steps=hyper["n_steps"],
-                        batch_size=hyper["batch_size"], n_epochs=hyper["n_epochs"], gamma=hyper["gamma"],
-                        gae_lambda=hyper["gae_lambda"], ent_coef=hyper["ent_coef"],
-                        clip_range=hyper["clip_range"], policy_kwargs=policy_kwargs, seed=seed,
-                        device="cpu", verbose=verbose)
+            model = sb3.PPO("MlpPolicy", venv, learning_rate=hyper["learning_rate"], n_steps=hyper["n_steps"],
+                            batch_size=hyper["batch_size"], n_epochs=hyper["n_epochs"], gamma=hyper["gamma"],
+                            gae_lambda=hyper["gae_lambda"], ent_coef=hyper["ent_coef"],
+                            clip_range=hyper["clip_range"], policy_kwargs=policy_kwargs, seed=seed,
+                            device="cpu", verbose=verbose)
             _set_prior(model, env_kwargs, hyper)
-        eval_venv = VecNormalize(eval_env, training=False, norm_obs=True, norm_reward=False, clip_obs=10.0)
+        eval_venv = sb3.VecNormalize(eval_env, training=False, norm_obs=True, norm_reward=False, clip_obs=10.0)
         every = max(eval_freq or timesteps // 8, n_envs) // n_envs
         ck_every = max(checkpoint_freq or timesteps // 8, n_envs) // n_envs
         curve = curve_callback()
         previous = np.load(out / "evaluations.npz") if resume and (out / "evaluations.npz").is_file() else None
         previous_best = float(np.max(np.mean(previous["results"], axis=1))) if previous is not None else None
-        callbacks = CallbackList([
+        callbacks = sb3.CallbackList([
             held_out_callback(eval_venv, len(EVAL_SEEDS), every, out, previous_best),
-            CheckpointCallback(save_freq=ck_every, save_path=str(out / "checkpoints"), name_prefix="ppo",
-                               save_vecnormalize=True),
+            sb3.CheckpointCallback(save_freq=ck_every, save_path=str(out / "checkpoints"), name_prefix="ppo",
+                                   save_vecnormalize=True),
             curve,
             *callbacks,
         ])
@@ -297,8 +287,6 @@ PRIOR = {"shaper": "mzv", "freq": 50.0, "damping": 0.075, "accel": 4000.0}
 
 def prior_action(env_kwargs: dict) -> np.ndarray:
     """:data:`PRIOR` as an action of the env ``env_kwargs`` describe (peak-anchored: F on the peak)."""
-    from ringtune.envs.env import TuneEnv, encode_config
-
     spec = TuneEnv(randomize=True, **{**env_kwargs, "start_action": None}).spec_
     name = PRIOR["shaper"] if PRIOR["shaper"] in spec.shapers else spec.shapers[-1]
     prior = TuneConfig(firmware=spec.firmware, shaper_x=name, shaper_y=name, freq_x=PRIOR["freq"],
@@ -312,10 +300,7 @@ def _set_prior(model, env_kwargs: dict, hyper: dict) -> None:
     they still learn, their gradient is the advantage times the hidden layer), instead of the centre of every range (47 Hz, a 60 Hz frequency limit, 3162 mm/s²).
     With ``hyper["log_std_freq"]`` the F entries explore with that log std (the cost is sharpest
     in F: a few per cent off the resonance costs more than a different damping)."""
-    import torch
-
-    from ringtune.envs.env import TuneEnv
-
+    torch = rl().torch
     with torch.no_grad():
         model.policy.action_net.weight.zero_()     # exactly the prior on every printer at first
         model.policy.action_net.bias.copy_(torch.as_tensor(prior_action(env_kwargs)))
@@ -328,11 +313,7 @@ def _set_prior(model, env_kwargs: dict, hyper: dict) -> None:
 
 def plot_training_curve(res: TrainResult, path: str | Path) -> None:
     """Mean cost per training rollout and on the held-out printers, vs environment steps."""
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     fig, ax = plt.subplots(figsize=(7, 4))
     if res.train_timesteps:
         ax.plot(res.train_timesteps, res.train_mean_cost, ".-", alpha=0.6, label="training (stochastic policy)")
@@ -371,8 +352,6 @@ class Policy:
 
     def make_env(self, printer=None, backend: str = "mujoco"):
         """A fixed-printer env with the training env's action/observation layout."""
-        from ringtune.envs.env import TuneEnv
-
         return TuneEnv(printer=printer, randomize=False, **{**self.env_kwargs, "backend": backend})
 
     def act(self, obs: np.ndarray) -> np.ndarray:
@@ -386,10 +365,7 @@ def load_policy(policy_dir: str | Path, which: str = "policy") -> Policy:
     """Load ``policy_dir/policy.zip`` and ``vecnormalize.pkl`` (``which="final"``: the weights at
     the end of training; ``"best"``: ``best/``). **Trusts its source**: both files can carry pickled Python objects that run
     code when loaded; load only policies you trained or got from someone you trust."""
-    import pickle
-
-    from stable_baselines3 import PPO
-
+    sb3 = rl()                      # without the rl extra, that is the first thing to say
     d = Path(policy_dir)
     if which not in ("policy", "final", "best"):
         raise RingtuneError(f"which must be 'policy', 'final' or 'best', not {which!r}", "which")
@@ -400,7 +376,7 @@ def load_policy(policy_dir: str | Path, which: str = "policy") -> Policy:
         if not p.is_file():
             raise RingtuneError(f"not a trained policy folder: {p.name} is missing (run `ringtune train -o DIR`)",
                                 str(d))
-    model = PPO.load(str(zp), device="cpu")
+    model = sb3.PPO.load(str(zp), device="cpu")
     with open(pk, "rb") as fh:
         vecnorm = pickle.load(fh)
     vecnorm.training = False

@@ -5,11 +5,19 @@ simulated test): the library behind ``ringtune recommend --method policy``
 from __future__ import annotations
 
 import dataclasses
+import time
+from dataclasses import dataclass
 
 import numpy as np
 
-from ringtune.agents.ppo.policy import Policy
+from ringtune.agents.identify.accelerometer import resonance_psds
+from ringtune.agents.ppo.policy import Policy, load_policy
+from ringtune.agents.ppo.refine import PrinterCost, optuna_search
+from ringtune.envs.evaluate import resolve_printer
+from ringtune.envs.identify import identify_psd
+from ringtune.envs.printer import printer_from_dict
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
 
 
 def model_from_spectra(spectra: dict[str, tuple[np.ndarray, np.ndarray]], base=None):
@@ -17,10 +25,6 @@ def model_from_spectra(spectra: dict[str, tuple[np.ndarray, np.ndarray]], base=N
     axis's modes fitted to its PSD as ``ringtune identify`` fits them; everything a resonance test
     cannot show (moving masses, motor, limits, kinematics) and an unmeasured axis's modes from
     ``base`` (a Printer, TOML path or embedded name; default the embedded default printer)."""
-    from ringtune.envs.evaluate import resolve_printer
-    from ringtune.envs.identify import identify_psd
-    from ringtune.envs.printer import printer_from_dict
-
     d = resolve_printer(base).to_dict()
     fitted = []
     for ax, (freqs, psd) in spectra.items():
@@ -32,15 +36,6 @@ def model_from_spectra(spectra: dict[str, tuple[np.ndarray, np.ndarray]], base=N
         fitted.append(ax)
     d["name"] = f"{d['name']} with {'/'.join(a.upper() for a in fitted)} modes fitted to the measurement"
     return printer_from_dict(d, "model of the measured printer")
-
-
-def preload() -> None:
-    """Import what the inference path imports lazily (scipy's fitting and peak finding for the
-    model, MuJoCo), so that a timed inference measures the inference (about 50 ms) and not a
-    first import (about 1.3 s)."""
-    import mujoco  # noqa: F401
-    import scipy.optimize  # noqa: F401
-    import scipy.signal  # noqa: F401
 
 
 def measured_observation(policy: Policy, spectra: dict, printer=None):
@@ -83,7 +78,7 @@ def policy_on_simulated_test(policy: Policy, printer=None, seed: int = 0) -> tup
     return env.decode(action), action
 
 
-def _axis_spectra(psds: dict[str, list]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+def axis_spectra(psds: dict[str, list]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """{axis: (freqs, psd)} from ``hardware.accel.PSD`` lists: the measured axis's own column (the
     sum column in the multi-dataset form), un-normalised if the file was normalised, averaged over
     the files of an axis (on the first file's frequencies)."""
@@ -101,3 +96,58 @@ def _axis_spectra(psds: dict[str, list]) -> dict[str, tuple[np.ndarray, np.ndarr
         out[ax] = (f0, acc / len(items))
     return out
 
+
+def _silent(_message: str) -> None:
+    """A ``note`` that says nothing."""
+
+
+@dataclass
+class PolicyPick:
+    """A trained policy's answer (``ringtune recommend --method policy``): the TuneConfig (its
+    ``extra`` says how it was made), the policy, where the data came from per axis, the model
+    the starting answer was simulated on, the inference time (s, loading excluded; with files it
+    includes fitting the model) and the refinement (None or {trials, first_cost, best_cost})."""
+
+    config: TuneConfig
+    policy: Policy
+    sources: dict[str, list[str]]
+    model: str
+    inference_s: float
+    refined: dict | None
+
+
+def policy_pick(policy_dir, firmware: str = "klipper", accel: list | None = None, printer=None,
+                axes: str | None = None, seed: int = 0, refine: int | None = None, note=_silent) -> PolicyPick:
+    """The policy in ``policy_dir`` on the resonance files ``accel`` (modes fitted to them; the
+    rest of the model from ``printer``, TOML or embedded name) or on ``printer``'s simulated
+    resonance test (``seed`` its noise); ``refine``: that many Optuna trials on the model, the
+    policy's answer first."""
+    policy = load_policy(policy_dir)
+    trained = policy.env_kwargs.get("firmware", "klipper")
+    if firmware != trained:
+        raise RingtuneError(f"this policy chooses {trained} shapers; train one for {firmware} "
+                            f"or use --method klipper", "firmware")
+    printer = resolve_printer(None if printer in (None, "default") else printer) if printer else None
+    t0 = time.perf_counter()
+    spectra, peaks = None, None
+    if accel:
+        psds, sources = resonance_psds(accel, axes, note)
+        spectra = axis_spectra(psds)
+        env, obs = measured_observation(policy, spectra, printer)
+        action = policy.act(obs)
+        config = decode_measured(env, action, spectra)
+        printer, peaks = env.printer, env.peaks_
+    else:
+        config, action = policy_on_simulated_test(policy, printer, seed)
+        sources = {ax: [f"printer:{getattr(printer, 'name', 'default')}"] for ax in ("x", "y")}
+    inference = time.perf_counter() - t0
+    refined = None
+    if refine:
+        note(f"refining with Optuna: {refine} trials, the policy's answer first ...")
+        cost = PrinterCost(printer, policy.env_kwargs, seed=seed, peaks=peaks)
+        res = optuna_search(cost, int(refine), seed, first_action=action)
+        config = decode_measured(cost.env, res.best_action, spectra) if accel else res.best_config
+        refined = {"trials": int(refine), "first_cost": res.first_cost, "best_cost": res.best_cost}
+    config = dataclasses.replace(config, extra={"method": "policy", "policy": str(policy.path),
+                                                "sources": sources, "refine": refined})
+    return PolicyPick(config, policy, sources, getattr(printer, "name", "the default printer"), inference, refined)

@@ -12,7 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import optuna
 
+from ringtune.envs.env import TuneEnv
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
@@ -27,8 +29,6 @@ class PrinterCost:
         of ``reset(seed=seed)``, or around ``peaks`` (X, Y) Hz when given (e.g. those the policy saw);
         a model-anchored acceleration around the anchor of the starting configuration on those peaks
         (one evaluation, not counted in ``n_evaluations``)."""
-        from ringtune.envs.env import TuneEnv
-
         kw = {k: v for k, v in (env_kwargs or {}).items() if k not in ("backend", "randomize")}
         if job is not None:
             kw["job"] = job
@@ -70,8 +70,6 @@ def optuna_search(cost: PrinterCost, n_trials: int, seed: int = 0, first_action=
 
     ``first_action`` (e.g. the policy's) is enqueued as trial 0, so the result is never worse than
     it. ``n_trials`` counts that trial."""
-    import optuna
-
     if n_trials < 1:
         raise RingtuneError("needs at least one trial", "n_trials")
     optuna.logging.set_verbosity(optuna.logging.WARNING)

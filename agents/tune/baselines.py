@@ -16,11 +16,16 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
+from ringtune.agents.klipper import baseline as klipper_baseline
 from ringtune.agents.klipper.rule import DEFAULT_DAMPING_RATIO
+from ringtune.agents.tune import study as tune_study
 from ringtune.agents.tune.pareto import Point, point_from_metrics
 from ringtune.envs.printer_model import Printer
+from ringtune.hardware.firmware_check import check_available
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.shapers import parse_name
 
 SIMULATED = "on a simulated resonance test of the model"
 #: whose files [measurement.klipper] came from, unless [measurement] says (``origin``, e.g. an embedded printer's)
@@ -65,8 +70,6 @@ def recorded_klipper(printer: Printer, firmware: str) -> tuple[TuneConfig | None
 
 def _model_fits(printer: Printer, firmware: str) -> dict:
     """Klipper's per-axis fits on the model's simulated resonance test ({} when it cannot run)."""
-    from ringtune.agents.klipper import baseline as klipper_baseline
-
     try:
         return klipper_baseline.klipper_rule_on_simulated_test(printer, firmware, "head")[0]
     except (ImportError, RingtuneError):
@@ -76,9 +79,6 @@ def _model_fits(printer: Printer, firmware: str) -> dict:
 def _runs_on(cfg: TuneConfig, firmware: str) -> None:
     """Refuse a recorded Klipper pick ``firmware`` cannot run: a shaper it lacks, or two axes' picks
     on a firmware with one shaper for all axes (Klipper's rule is then aimed at it instead)."""
-    from ringtune.hardware.firmware_check import check_available
-    from ringtune.shaping.firmware import FIRMWARES
-
     for ax in ("x", "y"):
         check_available(cfg.axis(ax)[0], firmware, f"shaper_{ax}")
     if FIRMWARES[firmware].one_shaper and cfg.axis("x")[:2] != cfg.axis("y")[:2]:
@@ -88,8 +88,6 @@ def _runs_on(cfg: TuneConfig, firmware: str) -> None:
 
 def current_config(printer: Printer, firmware: str) -> tuple[TuneConfig | None, str]:
     """What the printer runs now (``[current]``) as a TuneConfig for ``firmware`` (or None, and why)."""
-    from ringtune.shaping.shapers import parse_name
-
     cur = printer.current
     if not cur:
         return None, ""
@@ -118,9 +116,6 @@ def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable
     """Klipper's rule, what the printer runs now (when known) and no shaping, evaluated with the
     study's evaluator, bounds and frequency margin (``settings``: a StudySettings). Klipper's rule on
     a simulated test uses the model's expected spectrum: it does not depend on the study's seed."""
-    from ringtune.agents.klipper import baseline as klipper_baseline
-    from ringtune.agents.tune import study as tune_study
-
     out = Baselines()
     configs: dict[str, TuneConfig] = {}
     kcfg, why = recorded_klipper(printer, firmware)

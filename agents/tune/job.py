@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point
+from ringtune.agents.tune.space import axis_cap_notes, defaults_note
 from ringtune.envs.evaluate import job_accel_commands, planned_job, resolve_job
 from ringtune.shaping.config import TuneConfig
 
@@ -127,8 +128,6 @@ def accel_statement(chosen: Point, space, max_pe: float, reserve: float, points,
     the path-error bound, the range's edge (the motors' force, or ``--accel-range``), or none of
     them (then the choice of quality stops it). With ``printer``: its per-axis caps (which limit
     moves along one axis, not the tuned value) and whether the motor bound rests on defaults."""
-    from ringtune.agents.tune.space import axis_cap_notes, defaults_note
-
     a = float(chosen.config.accel or 0.0)
     lo, hi = space.accel
     info = {"range": [lo, hi], "searched": not space.accel_fixed, "basis": space.accel_basis, "chosen": a,

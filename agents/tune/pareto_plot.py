@@ -12,6 +12,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 
 from ringtune.agents.tune.pareto import Point, pareto_front
@@ -45,11 +47,7 @@ def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chos
     """Write the PNG; returns {panel key: {"above_scale": n, "below_scale": n, "right_of_scale": n,
     "left_of_scale": n, "legend": [labels]}} (what was drawn as arrows, and the legend).
     ``marked``: {label: point} drawn ringed (e.g. "dominates Klipper's rule")."""
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     baseline_labels = baseline_labels or {}
     keys = [quality] + (["path_error_mm"] if quality != "path_error_mm" else [])
     fig, axes = plt.subplots(1, len(keys), figsize=(7.5 * len(keys), 6), dpi=110, squeeze=False)

@@ -23,8 +23,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
-from ringtune.agents.tune.pareto import (BASELINE_NAMES, DEFAULT_RESOLUTION, Choice, Point, Resolution, judge)
+from ringtune.agents.tune.pareto import BASELINE_NAMES, DEFAULT_RESOLUTION, Choice, Point, Resolution, judge
 from ringtune.agents.tune.pareto_plot import plot_front
+from ringtune.hardware.dialects import export_config, limit_command
+from ringtune.shaping.firmware import Firmware
 
 QUALITY_LABEL = {"overshoot_mm": "overshoot", "path_error_mm": "path error"}
 
@@ -310,19 +312,12 @@ def _job_rewrite(cfg, dialect: str | None = None) -> tuple[str | None, str]:
     """(the ``ringtune limit`` command, one summary line) when the chosen frequency limit cannot be
     set on the firmware and every job must be rewritten with it (no limit of the firmware's own, or
     Marlin's ``M201 F`` with another method than Marlin's); (None, "") otherwise."""
-    from ringtune.shaping.firmware import Firmware
-
     if cfg.freq_limit_hz <= 0:
         return None, ""
     fw = Firmware.named(dialect or cfg.firmware)
     if fw.freq_limit and cfg.freq_limit_method == "marlin":
         return None, ""
-    try:
-        from ringtune.hardware.dialects import limit_command
-    except ImportError:
-        cmd = f"ringtune limit FILE.gcode --freq-limit {cfg.freq_limit_hz:g} --method {cfg.freq_limit_method}"
-    else:
-        cmd = limit_command(cfg)
+    cmd = limit_command(cfg)
     why = (f"{fw.title} has no frequency limit of its own" if not fw.freq_limit else
            f"{fw.title}'s M201 F runs Marlin's method, not '{cfg.freq_limit_method}'")
     return cmd, (f"The {cfg.freq_limit_hz:g} Hz frequency limit is not a printer setting ({why}): rewrite every "
@@ -330,11 +325,6 @@ def _job_rewrite(cfg, dialect: str | None = None) -> tuple[str | None, str]:
 
 
 def _apply_lines(cfg, dialect: str | None = None) -> tuple[str, str]:
-    try:
-        from ringtune.hardware.dialects import export_config
-    except ImportError:
-        return ("# hardware.dialects is not available; run `ringtune export best.json` later\n",
-                "apply.txt: firmware export was not available.")
     try:
         return export_config(cfg, dialect).render(), ""
     except Exception as exc:  # a firmware range refusal: say so instead of failing the study

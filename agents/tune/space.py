@@ -25,6 +25,7 @@ import numpy as np
 from ringtune.shaping.config import FREQ_LIMIT_METHODS, TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.shapers import available_shapers, max_damping
 
 
 @dataclass(frozen=True)
@@ -74,8 +75,6 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
     its force (the firmware's limits are no bound: see there). ``accel`` = (lo, hi) overrides it
     (lo = hi: the acceleration is not searched).
     """
-    from ringtune.shaping.shapers import available_shapers, max_damping
-
     if firmware not in FIRMWARES:
         raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "firmware")
     flavor = FIRMWARES[firmware].flavor

@@ -12,8 +12,16 @@ from __future__ import annotations
 
 import os
 import socket
+import sqlite3
+import warnings
 from pathlib import Path
 from typing import Any
+
+import optuna
+from optuna.storages import RDBStorage, RetryHeartbeatStaleTrialCallback
+from optuna.storages.journal import JournalFileBackend, JournalFileOpenLock
+from optuna.trial import TrialState
+from sqlalchemy import event
 
 from ringtune.shaping.errors import RingtuneError
 
@@ -36,11 +44,7 @@ def make_storage(url: str):
       Optuna's heartbeat, so stale RUNNING trials of dead workers on any machine are failed and
       re-run once.
     """
-    import optuna
-
     if isinstance(url, (str, os.PathLike)) and (str(url).startswith("journal:") or str(url).endswith(".journal")):
-        from optuna.storages.journal import JournalFileBackend, JournalFileOpenLock
-
         path = str(url)[len("journal:"):] if str(url).startswith("journal:") else str(url)
         path = path[2:] if path.startswith("//") else path
         if not path:
@@ -54,13 +58,9 @@ def make_storage(url: str):
     if not isinstance(url, str) or "://" not in url:
         raise RingtuneError("storage must be journal:PATH or an Optuna RDB URL such as sqlite:///study.db "
                             f"or postgresql+psycopg2://user:pw@host/db, not {url!r}", "storage")
-    from optuna.storages import RDBStorage
-
     try:
-        import warnings
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-            from optuna.storages import RetryHeartbeatStaleTrialCallback
             kwargs: dict[str, Any] = {}
             if url.startswith("sqlite"):
                 kwargs["engine_kwargs"] = {"connect_args": {"timeout": 60}}
@@ -80,8 +80,6 @@ def make_storage(url: str):
 
 def _sqlite_wal(url: str) -> None:
     """Put a SQLite study file in WAL mode (persistent; many readers, one writer, far fewer fsyncs)."""
-    import sqlite3
-
     path = url.split(":///", 1)[-1]
     if not path or path == ":memory:":
         return
@@ -98,8 +96,6 @@ def _sqlite_fast(storage) -> None:
 
     A crash (even SIGKILL) cannot corrupt the file or lose a committed trial; only a power cut may
     lose the last few commits (their trials are then simply re-run)."""
-    from sqlalchemy import event
-
     def on_connect(dbapi_con, _record):
         cur = dbapi_con.cursor()
         cur.execute("PRAGMA synchronous=NORMAL")
@@ -128,9 +124,6 @@ def reap_dead_workers(study) -> list[int]:
 
     Returns the numbers of the trials failed. Trials of other hosts are left to the heartbeat.
     """
-    import optuna
-    from optuna.trial import TrialState
-
     host = socket.gethostname()
     storage = study._storage
     failed = []
@@ -152,8 +145,6 @@ def reap_dead_workers(study) -> list[int]:
 
 def _requeue(study, trial, trials=None) -> None:
     """Queue a failed trial's parameters once more (a retry is never retried again)."""
-    import optuna
-
     if trial.system_attrs.get("failed_trial") is not None:
         return
     trials = trials if trials is not None else study.get_trials(deepcopy=False)

@@ -26,17 +26,24 @@
 from __future__ import annotations
 
 import importlib
+import json
 import signal
+import subprocess
+import sys
 import time
+import warnings
 from dataclasses import asdict, dataclass, field
 from typing import Any, Callable, Sequence
 
 import numpy as np
+import optuna
+from optuna.trial import TrialState
 
-from ringtune.agents.tune.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MOTOR_RESERVE, Point, judge_bounds,
-                                    metrics_dict)
+from ringtune.agents.tune.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MOTOR_RESERVE, Point,
+    judge_bounds, metrics_dict)
 from ringtune.agents.tune.space import SearchSpace, config_from_params, default_space, suggest_params
 from ringtune.agents.tune.storage import _this_worker, make_storage, reap_dead_workers
+from ringtune.envs.printer import load_printer
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
@@ -93,15 +100,12 @@ def load_space(settings: StudySettings, printer: Any = None) -> SearchSpace:
     if settings.space:
         return SearchSpace.from_dict(settings.space)
     if printer is None:
-        from ringtune.envs.printer import load_printer
         printer = load_printer(settings.printer)
     return default_space(printer, settings.firmware)
 
 
 def make_sampler(seed: int | None, n_startup_trials: int = 10):
     """Multi-objective TPE whose random state depends only on (seed, trial number)."""
-    import optuna
-
     class ReseedingTPESampler(optuna.samplers.TPESampler):
         def __init__(self, seed, **kw):
             super().__init__(seed=seed, **kw)
@@ -114,7 +118,6 @@ def make_sampler(seed: int | None, n_startup_trials: int = 10):
                 self._random_sampler._rng.rng.seed(s ^ 0x5EED)
             super().before_trial(study, trial)
 
-    import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
         return ReseedingTPESampler(seed, n_startup_trials=n_startup_trials, multivariate=True, group=True)
@@ -122,8 +125,6 @@ def make_sampler(seed: int | None, n_startup_trials: int = 10):
 
 def open_study(settings: StudySettings, seed: int | None = None):
     """Create or load the study (same name + storage = the same study, from any process)."""
-    import optuna
-
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     storage = make_storage(settings.storage)
     study = optuna.create_study(storage=storage, study_name=settings.study_name,
@@ -141,7 +142,6 @@ def open_study(settings: StudySettings, seed: int | None = None):
         raise RingtuneError(f"study {settings.study_name!r} in this storage optimises {names}, not {wanted}; "
                             "use another --study name or --out folder", "study_name")
     else:
-        import json
         stored = study.user_attrs.get("settings", {})
         mine = json.loads(json.dumps(settings.to_dict()))
         for key in ("printer", "job", "firmware", "backend", "evaluator", "space", "freq_margin", "job_accel"):
@@ -166,8 +166,6 @@ def _setting_text(key: str, value) -> str:
 
 
 def count_states(study) -> dict[str, int]:
-    from optuna.trial import TrialState
-
     trials = study.get_trials(deepcopy=False)
     return {s.name: sum(1 for t in trials if t.state == s) for s in TrialState}
 
@@ -196,14 +194,10 @@ def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any =
                on_trial: Callable[[Any], None] | None = None, stop: _Stop | None = None) -> int:
     """Run trials of the study until it has ``n_trials`` complete ones (or Ctrl-C). Returns the
     number this worker completed. Each extra worker uses seed + 1009·index."""
-    import optuna
-    from optuna.trial import TrialState
-
     seed = None if settings.seed is None else settings.seed + 1009 * worker_index
     study = open_study(settings, seed=seed)
     evaluator = resolve_evaluator(settings.evaluator)
     if printer is None and settings.evaluator == DEFAULT_EVALUATOR:
-        from ringtune.envs.printer import load_printer
         printer = load_printer(settings.printer)
     space = load_space(settings, printer)
     stop = stop or _Stop()
@@ -259,7 +253,6 @@ def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any =
                 break
             free = N - counts["COMPLETE"] - counts["RUNNING"]
             if free <= 0:
-                import warnings
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
                     optuna.storages.fail_stale_trials(study)
@@ -275,8 +268,6 @@ def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any =
 
 def _enqueue_once(study, params: dict) -> None:
     """Enqueue a parameter set unless a trial (any state but FAIL) already has exactly it."""
-    from optuna.trial import TrialState
-
     key = sorted(params.items())
     for t in study.get_trials(deepcopy=False):
         if t.state != TrialState.FAIL and (sorted(t.params.items()) == key or
@@ -301,9 +292,6 @@ def _call_evaluator(evaluator, settings: StudySettings, config: TuneConfig, prin
 
 def _worker_main(argv: list[str]) -> int:
     """``python -m ringtune.agents.tune.study worker INDEX`` with the settings as JSON on stdin."""
-    import json
-    import sys
-
     if len(argv) != 2 or argv[0] != "worker":
         print("usage: python -m ringtune.agents.tune.study worker INDEX  (settings JSON on stdin)", file=sys.stderr)
         return 2
@@ -351,10 +339,6 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
         run_worker(settings, 0, printer=printer, on_trial=on_trial, stop=stop)
         interrupted = stop.requested
     else:
-        import json
-        import subprocess
-        import sys
-
         for params in settings.enqueue:      # once, here: workers racing to enqueue would duplicate
             _enqueue_once(study, params)
         payload = json.dumps({**settings.to_dict(), "enqueue": []})
@@ -394,8 +378,6 @@ def study_points(study, space: SearchSpace | None = None, quality: str | None = 
     """All complete trials as points, flagged ``step_loss``, ``too_rough`` (path error over
     ``max_path_error_mm``, mm) or ``overloaded`` (motor load over 1 − ``motor_reserve``); default
     bounds: those the study was created with; 0 = no bound."""
-    from optuna.trial import TrialState
-
     settings = study.user_attrs.get("settings", {})
     quality = quality or study.user_attrs.get("objectives", ["", "overshoot_mm"])[1]
     if space is None:

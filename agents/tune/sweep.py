@@ -15,9 +15,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 
+from ringtune.agents.klipper.baseline import klipper_rule_on_simulated_test
+from ringtune.envs.evaluate import evaluate_many
+from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.shapers import available_shapers
 
 #: factor -> (label, unit, default values (lo, hi, n) or None: from the printer)
 FACTORS = {"freq-error": ("shaper frequency error", "fraction", (-0.3, 0.3, 13)),
@@ -40,9 +47,6 @@ class ShaperSweep:
 def offered_shapers(firmware: str, shapers: list[str] | None = None) -> list[str]:
     """The shapers to compare: ``shapers`` (checked against the firmware's) or all it offers but
     ``custom``."""
-    from ringtune.shaping.firmware import FIRMWARES
-    from ringtune.shaping.shapers import available_shapers
-
     if firmware not in FIRMWARES:
         raise RingtuneError(f"must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "firmware")
     offered = [s for s in available_shapers(FIRMWARES[firmware].flavor) if s != "custom"]
@@ -82,9 +86,6 @@ def tuned_frequencies(printer: Any, firmware: str, shapers: list[str],
     """{shaper: {"x": Hz, "y": Hz}}: Klipper's per-shaper fit on the printer's simulated resonance
     test where it has one, else the axis's strongest mode (said through ``note``); one frequency for
     both axes on firmwares with one shaper for all axes."""
-    from ringtune.agents.klipper.baseline import klipper_rule_on_simulated_test
-    from ringtune.shaping.firmware import FIRMWARES
-
     try:
         fits, _ = klipper_rule_on_simulated_test(printer, firmware, "head")
     except (ImportError, RingtuneError) as exc:
@@ -108,9 +109,6 @@ def sweep(printer: Any, job: Any, firmware: str, factor: str, values: list[float
     """Evaluate every shaper of ``tuned`` at every value of ``factor`` on ``printer`` and ``job``
     (a G-code path or None for the built-in test print); ``quality`` is a Metrics field in mm;
     ``freq_margin``: judged as ``evaluate_many`` judges with it (fraction; 0 = the exact model)."""
-    from ringtune.envs.evaluate import evaluate_many
-    from ringtune.shaping.config import TuneConfig
-
     results = {s: ShaperSweep(f["x"], f["y"]) for s, f in tuned.items()}
     for v in values:
         configs = []
@@ -145,11 +143,7 @@ def write_csv(path: str | Path, factor: str, values: list[float], results: dict[
 def plot_sweep(path: str | Path, factor: str, values: list[float], results: dict[str, ShaperSweep],
                quality: str, title: str) -> None:
     """Two panels against the factor (print time, quality), one line per shaper; red x = lost steps."""
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     label, unit, _ = FACTORS[factor]
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 7.5), dpi=120, sharex=True)
     xs = [100 * v for v in values] if unit == "fraction" else values

@@ -1,0 +1,220 @@
+"""A G-code job planned on a printer as its firmware would, for ``ringtune plan`` and ``ringtune
+limit``: the limits and junction rule that apply (and why, in words), the print time and where it
+goes, and the highest direction-change frequencies, commanded (at the G-code's F: what a frequency
+limit acts on) and planned (with accelerations and corners: what the printer does).
+
+Times in s, frequencies in Hz, lengths in mm. Both commands plan through :func:`planning_limits`,
+so they report the same planned frequencies.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ringtune.envs.printer import load_printer
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.config_plan import ConfiguredPlan, plan_with_config
+from ringtune.shaping.freqlimit import commanded_frequencies as per_move
+from ringtune.shaping.gcode import read_gcode, read_gcode_bytes
+from ringtune.shaping.gcode_post import AccelResult, LimitResult, limit_file, rewrite_accel_bytes
+from ringtune.shaping.job import Job
+from ringtune.shaping.planner import MachineLimits
+from ringtune.shaping.slicer import slicer_estimate, slicer_flavor
+from ringtune.shaping.testprints import builtin_test_print, direction_change_frequencies
+
+#: the junction rules, in words
+JUNCTION_NAMES = {"scv": "Klipper's square-corner velocity", "jd": "Marlin's junction deviation",
+                  "jerk": "classic jerk"}
+#: slicer G-code flavour -> the rule that firmware plans corners with by default (Marlin 2 ships
+#: with junction deviation, CLASSIC_JERK off; legacy Marlin, RepRapFirmware's M566 and Repetier
+#: use jerk; Smoothieware junction deviation)
+FLAVOR_JUNCTION = {"klipper": "scv", "marlin2": "jd", "marlin": "jerk", "reprapfirmware": "jerk",
+                   "reprap": "jerk", "repetier": "jerk", "smoothie": "jd"}
+#: what a job's own commands imply, in order: (the setting it sets, the rule, why in words)
+JOB_JUNCTION = (
+    ("square_corner_velocity", "scv", "the job sets SQUARE_CORNER_VELOCITY (Klipper)"),
+    ("junction_deviation", "jd", "the job sets M205 J (Marlin's junction deviation)"),
+    ("jerk_x", "jerk", "the job sets M205 X/Y (jerk: legacy Marlin, and PrusaSlicer's own estimate)"),
+    ("jerk_y", "jerk", "the job sets M205 X/Y (jerk: legacy Marlin, and PrusaSlicer's own estimate)"),
+)
+#: a printer's corner setting ([limits]) -> the rule it belongs to, in order
+CORNER_JUNCTION = {"square_corner_velocity": "scv", "junction_deviation": "jd", "jerk": "jerk"}
+
+
+def junction_rule(job: Job, path=None, printer=None, given: dict | None = None,
+                  junction: str = "auto") -> tuple[str, str]:
+    """(rule, why in words): ``junction`` if not ``"auto"``; else the printer's ``[limits]
+    junction`` (``given``: its limits); else what the job's own commands imply; else the slicer's
+    flavour (:data:`FLAVOR_JUNCTION`, read from the file at ``path``); else the printer's corner
+    setting; else scv."""
+    given = given or {}
+    if junction != "auto":
+        return junction, "--junction"
+    if "junction" in given:
+        return given["junction"], f"the printer's [limits] junction ({printer})"
+    for setting, rule, why in JOB_JUNCTION:
+        if not math.isnan(job.file_setting(setting)):
+            return rule, why
+    flavor = slicer_flavor(path) if path else None
+    if flavor in FLAVOR_JUNCTION:
+        return FLAVOR_JUNCTION[flavor], f"the slicer wrote the job for {flavor}"
+    for key, rule in CORNER_JUNCTION.items():
+        if key in given:
+            return rule, f"the printer gives {key} ({printer})"
+    return "scv", ("nothing names a rule (no printer rule, no M205 or SET_VELOCITY_LIMIT, no slicer "
+                   "flavour): Klipper's, the default; --junction jd|jerk for Marlin")
+
+
+def planning_limits(job: Job, path=None, printer=None, junction: str = "auto"):
+    """(the machine limits the job is planned with, the junction rule, why in words): the limits of
+    ``printer`` (TOML or embedded name; else the planner's defaults) with the rule of
+    :func:`junction_rule`."""
+    given: dict = {}
+    if printer:
+        pr = load_printer(printer)
+        limits, given = pr.machine_limits(), dict(pr.limits_dict)
+    else:
+        limits = MachineLimits()
+    junction, why = junction_rule(job, path, printer, given, junction)
+    limits = replace(limits, junction=junction)
+    if junction != "scv":
+        limits = replace(limits, min_cruise_ratio=0.0)
+    return limits, junction, why
+
+
+def planned_frequencies(p, top: int) -> list[dict]:
+    """The ``top`` highest planned direction-change frequencies (one per G-code line):
+    [{freq_hz, line, t}], three cycles of zigzag while extruding, in planned time."""
+    tz, fz, lz = direction_change_frequencies(p)
+    out, seen = [], set()
+    for i in np.argsort(-fz, kind="stable"):
+        if len(out) >= top:
+            break
+        if int(lz[i]) not in seen:
+            seen.add(int(lz[i]))
+            out.append({"freq_hz": float(fz[i]), "line": int(lz[i]), "t": float(tz[i])})
+    return out
+
+
+def commanded_frequencies(job: Job, top: int) -> list[dict]:
+    """The ``top`` highest direction-change frequencies at the G-code's commanded speeds (one per
+    line): [{freq_hz, line}] (``shaping.freqlimit.commanded_frequencies``)."""
+    f = per_move(job)
+    out = []
+    for i in np.argsort(-f, kind="stable")[:max(top, 0)]:
+        if f[i] <= 0:
+            break
+        out.append({"freq_hz": float(f[i]), "line": int(job.line[i])})
+    return out
+
+
+def hms(seconds: float) -> str:
+    """``1h 02m 03s`` / ``4m 05s``."""
+    s = int(round(seconds))
+    h, rem = divmod(s, 3600)
+    m, s = divmod(rem, 60)
+    return f"{h}h {m:02d}m {s:02d}s" if h else f"{m}m {s:02d}s"
+
+
+@dataclass
+class JobPlan:
+    """A planned job: what ``ringtune plan`` reports (:meth:`to_dict`: its JSON keys but
+    ``trajectory``)."""
+
+    name: str               # the file, or "built-in test print"
+    job: Job
+    configured: ConfiguredPlan
+    junction: str
+    why: str                # why that junction rule, in words
+    top: list[dict]         # planned frequencies (planned_frequencies)
+    top_commanded: list[dict]
+    estimate: float | None  # the slicer's own estimate, s
+    read_s: float
+    plan_s: float
+
+    def to_dict(self) -> dict:
+        p = self.configured.plan
+        fl = self.configured.freq_limit
+        shaper_events = [{"line": e.line, "command": e.command, "time": e.time, "params": e.params}
+                         for e in p.events if e.kind == "shaper"]
+        kinds: dict[str, int] = {}
+        for e in p.events:
+            kinds[e.kind] = kinds.get(e.kind, 0) + 1
+        return {
+            "job": self.name, "junction": self.junction, "junction_reason": self.why,
+            "limits": dict(asdict(self.configured.limits)),
+            "print_time_s": p.print_time, "print_time": hms(p.print_time),
+            "moves": len(p.moves), "extruding_moves": int(p.moves.extruding.sum()), "lines": self.job.n_lines,
+            "path_length_mm": float(p.moves.length.sum()), "time_by_feature": p.time_by_feature(),
+            "top_frequencies": self.top, "top_commanded_frequencies": self.top_commanded,
+            "max_planned_freq_hz": self.top[0]["freq_hz"] if self.top else 0.0,
+            "max_commanded_freq_hz": self.top_commanded[0]["freq_hz"] if self.top_commanded else 0.0,
+            "shaper_events": shaper_events, "events": kinds,
+            "slicer_estimate_s": self.estimate,
+            "vs_slicer": (p.print_time / self.estimate - 1) if self.estimate else None,
+            "freq_limit": None if fl is None else asdict(fl), "daa_hz": self.configured.daa_hz,
+            "read_s": self.read_s, "plan_s": self.plan_s,
+        }
+
+
+def plan_job(path=None, printer=None, config: TuneConfig | None = None, junction: str = "auto",
+             use_job_limits: bool = True, daa_freq: float | None = None, top: int = 5) -> JobPlan:
+    """Plan the G-code at ``path`` (None: the built-in test print) with ``printer``'s limits (TOML
+    or embedded name; None: the planner's defaults), ``config``'s frequency limit and acceleration,
+    the junction rule of :func:`junction_rule`, and ``top`` frequencies of each kind."""
+    t0 = time.perf_counter()
+    job = read_gcode(Path(path)) if path else builtin_test_print()
+    t_read = time.perf_counter() - t0
+    limits, junction, why = planning_limits(job, path, printer, junction)
+    t1 = time.perf_counter()
+    configured = plan_with_config(job, limits, config, use_job_limits=use_job_limits, daa_freq=daa_freq)
+    t_plan = time.perf_counter() - t1
+    return JobPlan(path or "built-in test print", job, configured, junction, why,
+                   planned_frequencies(configured.plan, top), commanded_frequencies(configured.job, top),
+                   slicer_estimate(path) if path else None, t_read, t_plan)
+
+
+@dataclass
+class LimitedJob:
+    """A job rewritten by ``ringtune limit``: its bytes, what the frequency limit and the
+    acceleration rewrite did (None: not asked), and the highest frequencies before and after."""
+
+    data: bytes
+    limited: LimitResult | None
+    accel: AccelResult | None
+    frequencies: dict       # {commanded_hz: {before, after}, planned_hz: {before, after}, junction, junction_reason}
+
+
+def limit_job(path, freq_limit: float | None = None, method: str = "sections",
+              min_speed_factor: float | None = None, accel: float | None = None, printer=None) -> LimitedJob:
+    """The G-code at ``path`` with its zigzags slowed under ``freq_limit`` Hz (``method``) and/or
+    its acceleration commands scaled so the highest printing one is ``accel`` mm/s², with the
+    highest direction-change frequencies before and after (planned with ``printer``'s limits)."""
+    res = acc = None
+    if freq_limit is not None:
+        data, res = limit_file(path, None, freq_limit, method, min_speed_factor)
+    else:
+        data = read_gcode_bytes(path)        # refuses a folder, a binary, a TOML...
+    if accel is not None:
+        data, acc = rewrite_accel_bytes(data, accel, source=path)
+    return LimitedJob(data, res, acc, _frequencies(path, data, printer))
+
+
+def _frequencies(path, limited: bytes, printer=None) -> dict:
+    """Highest commanded and planned direction-change frequencies of the file and of its limited
+    text, through the same functions as ``ringtune plan``."""
+    out: dict = {"commanded_hz": {}, "planned_hz": {}}
+    for key, job in (("before", read_gcode(path)), ("after", read_gcode(limited, source=str(path)))):
+        limits, junction, why = planning_limits(job, path, printer)
+        configured = plan_with_config(job, limits)
+        top = planned_frequencies(configured.plan, 1)
+        cmd = commanded_frequencies(configured.job, 1)
+        out["planned_hz"][key] = top[0]["freq_hz"] if top else 0.0
+        out["commanded_hz"][key] = cmd[0]["freq_hz"] if cmd else 0.0
+    out.update(junction=junction, junction_reason=why)
+    return out
