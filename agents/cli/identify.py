@@ -134,7 +134,13 @@ def _per_axis(text: str, option: str, parse) -> dict[str, object]:
     return out
 
 
-def _kg(option: str):
+#: kg: what moves on a printer axis (a toolhead with its carriage, a bed, a gantry) weighs within this
+MOVING_MASS_RANGE = (0.05, 30.0)
+
+
+def _kg(option: str, lo: float = 0.0, hi: float = 100.0):
+    """A parser of masses in kg for ``option``, refusing values outside [lo, hi] (a moving mass:
+    :data:`MOVING_MASS_RANGE`)."""
     def parse(v: str) -> float:
         try:
             kg = float(v)
@@ -142,6 +148,10 @@ def _kg(option: str):
             raise RingtuneError(f"not a mass in kg: {v!r}", option) from None
         if not 0 < kg < 100:
             raise RingtuneError(f"mass must be between 0 and 100 kg, not {v}", option)
+        if not lo <= kg <= hi:
+            raise RingtuneError(f"{kg:g} kg ({1000 * kg:g} g) is outside what moves on a printer axis "
+                                f"({lo:g}-{hi:g} kg: a toolhead with its carriage, a bed, a gantry); masses "
+                                "are in kg (600 g is 0.6)", option)
         return kg
     return parse
 
@@ -204,8 +214,10 @@ def run(args, out) -> int:
                                       ("--rrf", args.rrf), ("--motor", args.motor), ("--mass", args.mass),
                                       ("--added-mass", args.added_mass)) if v]
         if given:
+            maker = {"--marlin": f"printer from-marlin {args.marlin}", "--rrf": f"printer from-rrf {args.rrf}"}.get(
+                given[0], f"printer from-klipper {args.klipper_config or 'printer.cfg'}")
             raise RingtuneError("goes with accelerometer files; with --ripples/--tower-band give the rest of "
-                                "the printer as --base P (e.g. from `ringtune printer from-klipper`)", given[0])
+                                f"the printer as --base P (e.g. from `ringtune {maker} -o P`)", given[0])
         args.name = args.name or "identified"
         return identify_ripples.run(args, out)
     if args.max_modes < 1 or args.max_modes > 5:
@@ -217,7 +229,7 @@ def run(args, out) -> int:
                             f"--plot {args.plot}")
     _check_output("-o", args.output)
     _check_output("--plot", args.plot)
-    masses = _per_axis(args.mass, "--mass", _kg("--mass")) if args.mass else {}
+    masses = _per_axis(args.mass, "--mass", _kg("--mass", *MOVING_MASS_RANGE)) if args.mass else {}
     if "all" in masses:
         raise RingtuneError("give the mass per axis: X=KG,Y=KG", "--mass")
     motors = _per_axis(args.motor, "--motor", _motor) if args.motor else {}
