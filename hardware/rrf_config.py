@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from ringtune.hardware.config_dialect import refuse_other_dialect
 from ringtune.hardware.firmware_facts import FirmwareFacts, gcode_words, place_gcode_motors, to_number
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.textfile import read_text_file
@@ -36,6 +37,7 @@ def printer_facts_from_rrf(path: str | Path) -> FirmwareFacts:
     """Facts from ``config.g`` (see the module docstring)."""
     path = str(path)
     text = read_text_file(path, "config.g")
+    refuse_other_dialect(text, path, "rrf")
     seen: dict[str, dict[str, tuple[int, str]]] = {}
     for n, raw in enumerate(text.splitlines(), 1):
         line = raw.split(";", 1)[0]

@@ -87,3 +87,17 @@ def test_the_simulated_baseline_does_not_move_with_the_studys_seed(tmp_path, cap
         assert k["source"] == "simulated resonance test"
         seen.append(k["config"])
     assert seen[0] == seen[1] == seen[2]
+
+
+def test_the_typical_damping_ripples_assume_is_the_median_of_the_real_tests(data_dir):
+    """identify --ripples/--tower-band without --decay assume TYPICAL_DAMPING: the median damping of
+    the dominant mode (largest share) fitted to every real Klipper resonance test in tests/data."""
+    from statistics import median
+
+    from ringtune.envs.ripples import TYPICAL_DAMPING
+
+    dampings = []
+    for name in SETS:
+        fits = read_measurement(sorted((data_dir / "accel/klipper_psd" / name).glob("*.csv"))).by_axis()
+        dampings += [max(f.modes, key=lambda m: m.share).damping for f in fits.values()]
+    assert len(dampings) == 10 and round(median(dampings), 2) == TYPICAL_DAMPING

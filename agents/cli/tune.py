@@ -27,7 +27,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from ringtune.agents.cli.common import firmware_name, progress_interval
+from ringtune.agents.cli.common import firmware_name, progress_interval, say_unmeasured
 from ringtune.agents.tune import pareto, report, storage, study as tune_study
 from ringtune.agents.tune.baselines import baselines_for, warm_start
 from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
@@ -152,6 +152,7 @@ def run(args: argparse.Namespace, out) -> int:
     if fw_note:
         out.note(f"ringtune tune: {fw_note}")
     printer = resolve_printer(args.printer)
+    say_unmeasured(printer, out)
     quality = f"{args.quality}_mm"
     facts = job_accel_facts(printer, args.gcode, args.job_accel)
     space = default_space(printer, firmware, accel=accel_range, speed=facts.top_speed)

@@ -14,7 +14,6 @@ import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-
 from ringtune.agents.klipper.baseline import recommend_axes
 from ringtune.envs.identify import AxisFit, identify_decay, identify_psd
 from ringtune.hardware.accel import RawAccel, axis_from_file_name, read_accel, to_psd

@@ -61,6 +61,10 @@ def _from_printer(ref, firmware, version, scv, max_smoothing, seed, note):
         return _kept(kept, ref, note)       # the files moved: what identify recorded from them
     if printer.measurement.get("files"):
         note("note: Klipper's rule runs on the model's simulated resonance test instead")
+    if printer.measurement.get("source") == "none":
+        note(f"note: {printer.name}: its modes were not measured ([measurement] source = \"none\"): Klipper's "
+             "rule runs on the simulated test of the embedded Ender-3-class printer's modes; run `ringtune "
+             "identify` on your resonance files to measure yours")
     fits, fields = klipper_rule_on_simulated_test(printer, firmware, version, seed, max_smoothing=max_smoothing)
     sources = {ax: [f"printer:{getattr(printer, 'name', 'default')} (simulated resonance test)"]
                for ax in ("x", "y")}
