@@ -8,6 +8,9 @@ masses, motors, limits and kinematics from what the user gives — written as a 
     added_mass: {axis: {axis, added_mass_kg, f0_hz, f1_hz, mass_kg, mass_error_kg (one standard error),
         stiffness_n_m}}
     klipper: Klipper's recommendation from the files ([measurement.klipper]), or {}
+    belts: with --belts, the CoreXY belt comparison written as [belts] mismatch: {similarity_pct,
+        mismatch ((k_A - k_B)/mean), mismatch_error, stiffness_a_n_m, stiffness_b_n_m, matched,
+        meaning} (see `ringtune graph belts`); else null
     defaults: what is still a default, one sentence each (also on stderr and in the TOML)
     warnings: doubts about the files and fits, one sentence each (also on stderr)
     toml: the printer description text
@@ -25,13 +28,15 @@ from pathlib import Path
 from ringtune.agents.cli import identify_ripples
 from ringtune.agents.cli.common import check_output_folder
 from ringtune.agents.identify.accelerometer import klipper_record, read_measurement
+from ringtune.agents.identify.belts import belts_into_description
 from ringtune.agents.identify.description import AddedMass, build_description, description_toml, printer_name
 from ringtune.agents.identify.model_check import pick_warnings
 from ringtune.envs.identify import plot_fits
 from ringtune.envs.motors import lookup_motor, unknown_motor_message
 from ringtune.envs.printer import printer_from_dict
-from ringtune.hardware.klipper_config import printer_facts_from_klipper
+from ringtune.hardware.klipper_config import printer_facts_from_klipper, printer_facts_from_moonraker
 from ringtune.hardware.marlin_config import printer_facts_from_marlin
+from ringtune.hardware.moonraker_files import fetch_printer_files
 from ringtune.hardware.rrf_config import printer_facts_from_rrf
 from ringtune.shaping.errors import RingtuneError
 
@@ -66,6 +71,13 @@ The rest of the printer:
 Whatever is still a default (masses, motor, kinematics, limits) is printed on stderr and written
 as a comment in the TOML, with what it decides.
 
+--moonraker URL takes the files from the printer instead: the newest resonance test of each axis
+(and the two diagonal belt tests of a CoreXY) from Moonraker's config and gcodes folders — Klipper
+writes them to /tmp, which Moonraker does not serve, so copy them into the config folder first —
+and printer.cfg with the .cfg files beside it (else what Klipper loaded, the configfile object).
+They are saved under their own names in --fetch-dir (default: the folder of -o, else here), so the
+TOML records files that exist; a different file of the same name there is never overwritten.
+
 examples:
   ringtune identify resonances_x_20210821_152037.csv resonances_y_20210630_230110.csv \\
       -o ender3.toml --plot fit.png
@@ -74,6 +86,9 @@ examples:
       resonances_x_2.csv resonances_y_2.csv -o mine.toml      # 250 g on the toolhead / bed
   ringtune identify resonances_*.csv --mass X=0.62,Y=1.4 --motor omc-17hs19-2004s1:0.8 --kinematics corexy
   ringtune identify 1-T0-X54-161-0-none.csv --axis x --json
+  ringtune identify --moonraker http://voron.local:7125 -o voron.toml   # files and printer.cfg from the printer
+  ringtune identify resonances_x_*.csv resonances_y_*.csv --kinematics corexy \\
+      --belts resonances_axis=1.000,1.000,0.000_b.csv resonances_axis=1.000,-1.000,0.000_b.csv -o voron.toml
 
 Without an accelerometer (prints from `ringtune testprint ringing`):
   ringtune identify --ripples X=2.2,Y=2.6 --speed 100 [--decay X=1.9,Y=2.1] -o printer.toml
@@ -104,11 +119,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     cfg.add_argument("--klipper-config", metavar="printer.cfg", help="Klipper configuration (includes followed)")
     cfg.add_argument("--marlin", metavar="M503.txt", help="Marlin settings as M503 prints them")
     cfg.add_argument("--rrf", metavar="config.g", help="RepRapFirmware config.g")
+    cfg.add_argument("--moonraker", metavar="URL", help="fetch the newest resonance files and printer.cfg from a "
+                     "Klipper printer through Moonraker (http://host:7125) instead of giving them")
+    g.add_argument("--api-key", metavar="KEY", help="Moonraker API key (default $MOONRAKER_API_KEY)")
+    g.add_argument("--fetch-dir", metavar="DIR", help="where --moonraker saves the files (default: the folder of "
+                   "-o, else the working folder)")
     g.add_argument("--kinematics", choices=("cartesian", "corexy", "corexz"),
                    help="kinematics, when no configuration gives it (default cartesian, said aloud)")
     g.add_argument("--motor", metavar="NAME[:A[:V]]", help="motor name, run current (A RMS) and driver voltage "
                    "(V) of every axis, or per axis X=NAME:A:V,Y=...")
     g.add_argument("--mass", metavar="X=KG,Y=KG", help="weighed moving masses, kg (on a bed slinger Y is the bed)")
+    g.add_argument("--belts", nargs=2, metavar="DIAGONAL.csv", help="CoreXY: the TEST_RESONANCES AXIS=1,1 and "
+                   "AXIS=1,-1 files; the two belts' stiffness difference goes into [belts] (see `ringtune graph belts`)")
     g.add_argument("--added-mass", nargs="+", metavar="KG LOADED.csv",
                    help="added-mass method: KG (or X=KG,Y=KG) fixed to the toolhead (X; Y on a CoreXY) or the "
                    "bed (Y on a bed slinger), then the resonance files measured with it")
@@ -197,6 +219,8 @@ def _check_output(option: str, path) -> None:
 
 def _read_facts(args):
     """The firmware configuration's FirmwareFacts, or None."""
+    if getattr(args, "facts", None) is not None:
+        return args.facts
     if args.klipper_config:
         return printer_facts_from_klipper(args.klipper_config)
     if args.marlin:
@@ -208,10 +232,47 @@ def _read_facts(args):
 
 # -- the command ------------------------------------------------------------------------------------
 
+def _from_moonraker(args, out) -> None:
+    """Fetch the files and the configuration into --fetch-dir and point the arguments at them."""
+    if args.files or args.belts:
+        raise RingtuneError("fetches the resonance files from the printer; give no files with it", "--moonraker")
+    _check_output("-o", args.output)
+    dest = _fetch_dir(args)
+    key = args.api_key or os.environ.get("MOONRAKER_API_KEY")
+    got = fetch_printer_files(args.moonraker, dest, api_key=key)
+    for n in got.notes:
+        out.note(f"note: {n}")
+    args.files = [str(p) for p in got.axes]
+    args.facts = _moonraker_facts(args, got.config, key, out)
+    kinematics = args.kinematics or args.facts.description.get("kinematics")
+    if got.belts and kinematics == "corexy":
+        args.belts = [str(p) for p in got.belts]
+
+
+def _fetch_dir(args):
+    """--fetch-dir, else the folder of -o, else the working folder (it must exist)."""
+    dest = Path(args.fetch_dir) if args.fetch_dir else (Path(args.output).parent if args.output else Path("."))
+    if not dest.is_dir():
+        raise RingtuneError("no such directory", f"--fetch-dir {dest}")
+    return dest
+
+
+def _moonraker_facts(args, config, key, out):
+    """The fetched printer.cfg's facts, else those of the configuration Klipper loaded."""
+    if config is not None:
+        args.klipper_config = str(config)
+        return _read_facts(args)
+    out.note("note: no printer.cfg in Moonraker's config folder: the configuration Klipper loaded is used")
+    return printer_facts_from_moonraker(args.moonraker, api_key=key)
+
+
 def run(args, out) -> int:
+    if getattr(args, "moonraker", None):
+        _from_moonraker(args, out)
     if identify_ripples.wanted(args) or not args.files:   # no accelerometer: ripples or a tower
         given = [flag for flag, v in (("--klipper-config", args.klipper_config), ("--marlin", args.marlin),
                                       ("--rrf", args.rrf), ("--motor", args.motor), ("--mass", args.mass),
+                                      ("--belts", args.belts),
                                       ("--added-mass", args.added_mass)) if v]
         if given:
             maker = {"--marlin": f"printer from-marlin {args.marlin}", "--rrf": f"printer from-rrf {args.rrf}"}.get(
@@ -293,6 +354,10 @@ def run(args, out) -> int:
     header = ["Printer description written by `ringtune identify` from "
               + ", ".join(Path(f).name for f in [*args.files, *loaded_files])]
     printer = _validate(description_toml(desc, header))
+    belts = None
+    if args.belts:
+        belts = belts_into_description(desc, printer, args.belts)
+        printer = _validate(description_toml(desc, header))
     for w in pick_warnings(printer, klipper, meas.psds, fits):       # does the model give back the files' pick?
         warnings.append(w)
         desc.comment("measurement", w)
@@ -343,6 +408,9 @@ def run(args, out) -> int:
         lines += ["", toml]
     out.emit({"fits": [f.to_dict() for f in meas.fits], "loaded_fits": [f.to_dict() for f in loaded_fits],
               "added_mass": {ax: a.to_dict() for ax, a in added.items()}, "klipper": klipper,
+              "belts": None if belts is None else {k: v for k, v in belts.to_dict().items() if k in (
+                  "similarity_pct", "mismatch", "mismatch_error", "stiffness_a_n_m", "stiffness_b_n_m", "matched",
+                  "meaning")},
               "defaults": desc.defaults, "warnings": warnings, "toml": toml, "output": args.output,
               "plot": args.plot}, "\n".join(lines))
     return 0

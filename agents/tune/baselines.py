@@ -25,7 +25,7 @@ from ringtune.hardware.firmware_check import check_available
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
-from ringtune.shaping.shapers import parse_name
+from ringtune.shaping.shapers import parse_name, shapers_from_config
 
 SIMULATED = "on a simulated resonance test of the model"
 #: whose files [measurement.klipper] came from, unless [measurement] says (``origin``, e.g. an embedded printer's)
@@ -62,6 +62,7 @@ def recorded_klipper(printer: Printer, firmware: str) -> tuple[TuneConfig | None
         cfg = TuneConfig(**fields, extra={"source": "Klipper's calibrate_shaper rule on the resonance files "
                                                     "(recorded by ringtune identify)"})
         cfg.validate("[measurement.klipper]")
+        shapers_from_config(cfg)          # Klipper's shapers may not be the firmware's (Marlin: zv only)
         _runs_on(cfg, firmware)
     except (TypeError, ValueError, RingtuneError) as exc:
         return None, f"[measurement.klipper] cannot be used for {firmware}: {exc}"
