@@ -71,6 +71,7 @@ def _other_state(t):
 
 def _files(t, d):
     (t / "config.g").write_text(RRF_CONFIG)
+    (t / "config_calls.g").write_text(RRF_CONFIG.replace('M593 P"zvd" F40.5 S0.1\n', 'M98 P"shaper.g"\n'))
     (t / "m503_host.txt").write_text(M503_HOST)
     (t / "m503_console.txt").write_text(M503_CONSOLE)
     (t / "query.txt").write_text(QUERY)
@@ -232,6 +233,8 @@ CASES = [
     ("m503-from-a-console", ["printer", "from-marlin", "m503_console.txt", "-o", "m.toml"], 0, ["limits.velocity"]),
     ("missing-include-is-unknown", ["printer", "from-klipper", "e3_missing_include.cfg", "-o", "p.toml"], 0,
      ["shaper.cfg", "unknown"]),
+    ("rrf-config-runs-a-macro", ["printer", "from-rrf", "config_calls.g", "-o", "p.toml"], 0,
+     ["shaper.g", "unknown"]),
     ("ripples-damping-not-measured", ["identify", *RIP, "-o", "p.toml"], 0, ["typical printer", "tests/data"]),
 ]
 
