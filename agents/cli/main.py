@@ -63,8 +63,9 @@ every command takes --help and --json.
 
 
 #: notes are held this long (s) after a command starts: one that fails in that time prints its error
-#: line alone; after it they go out as they come (a long run's progress)
-NOTE_HOLD_S = 2.0
+#: line alone; after it they go out as they come. Long commands (tune, train, push) release them
+#: once their input is checked, so their progress is live.
+NOTE_HOLD_S = 10.0
 
 
 @dataclass

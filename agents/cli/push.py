@@ -102,6 +102,7 @@ def run(args, out) -> int:
     if args.timeout <= 0:
         raise RingtuneError("must be > 0 s", "--timeout")
     log = out.note if args.verbose else None
+    out.release()                        # the conversation (-v) goes out live
     try:
         result = push(cfg, args.firmware, port=args.port, moonraker=args.moonraker, baud=args.baud,
                       save=args.save, dry_run=args.dry_run, timeout=args.timeout, crc=args.crc,

@@ -205,6 +205,7 @@ def run(args: argparse.Namespace, out) -> int:
                 settings.enqueue = enq
 
         bar = Progress(quality, max_pe, reserve, space)
+        out.release()                    # the study runs long: its notes and progress go out live
         try:
             run_ = tune_study.run_study(settings, args.workers, printer=printer, progress=bar.update)
         finally:
