@@ -89,6 +89,8 @@ def _files(t, d):
     (t / "bad_mass.toml").write_text('name = "b"\n[x]\nmass = -1\nmodes = [{ freq = 40, damping = 0.1 }]\n'
                                      '[y]\nmodes = [{ freq = 40, damping = 0.1 }]\n')
     (t / "not.toml").write_text("name = [unclosed\n")
+    (t / "tiny.toml").write_text('name = "t"\n[x]\nmass = 0.01\nmodes = [{ freq = 40, damping = 0.1 }]\n'
+                                 '[y]\nmodes = [{ freq = 40, damping = 0.1 }]\n')
     (t / "job.gcode").write_text("G28\nG1 X10 Y10 F3000\nG1 X20 Y10 E1\n")
     missing = t / "e3_missing_include.cfg"
     text = (d / "klipper_config/ender3/printer.cfg").read_text().splitlines()
@@ -191,6 +193,7 @@ CASES = [
     ("simulate-config-broken", ["simulate", "--config", "broken.json"], R, ["broken.json"]),
     ("simulate-printer-missing", ["simulate", "--printer", "none.toml"], R, ["none.toml"]),
     ("simulate-printer-negative-mass", ["simulate", "--printer", "bad_mass.toml"], R, ["bad_mass.toml", "mass"]),
+    ("printer-toml-10-grams", ["simulate", "--printer", "tiny.toml"], R, ["tiny.toml", "[x].mass", "10 g"]),
     ("simulate-printer-not-toml", ["simulate", "--printer", "not.toml"], R, ["not.toml", "TOML"]),
     ("simulate-gcode-missing", ["simulate", "--gcode", "none.gcode", "--shaper", "mzv", "--freq", "40"], R,
      ["none.gcode"]),

@@ -33,7 +33,7 @@ from ringtune.agents.identify.description import AddedMass, build_description, d
 from ringtune.agents.identify.model_check import pick_warnings
 from ringtune.envs.identify import plot_fits
 from ringtune.envs.motors import lookup_motor, unknown_motor_message
-from ringtune.envs.printer import printer_from_dict
+from ringtune.envs.printer import check_moving_mass, printer_from_dict
 from ringtune.hardware.klipper_config import printer_facts_from_klipper, printer_facts_from_moonraker
 from ringtune.hardware.marlin_config import printer_facts_from_marlin
 from ringtune.hardware.moonraker_files import fetch_printer_files
@@ -156,13 +156,9 @@ def _per_axis(text: str, option: str, parse) -> dict[str, object]:
     return out
 
 
-#: kg: what moves on a printer axis (a toolhead with its carriage, a bed, a gantry) weighs within this
-MOVING_MASS_RANGE = (0.05, 30.0)
-
-
-def _kg(option: str, lo: float = 0.0, hi: float = 100.0):
-    """A parser of masses in kg for ``option``, refusing values outside [lo, hi] (a moving mass:
-    :data:`MOVING_MASS_RANGE`)."""
+def _kg(option: str, moving: bool = False):
+    """A parser of masses in kg for ``option``; ``moving``: what moves on an axis
+    (:func:`check_moving_mass`)."""
     def parse(v: str) -> float:
         try:
             kg = float(v)
@@ -170,11 +166,7 @@ def _kg(option: str, lo: float = 0.0, hi: float = 100.0):
             raise RingtuneError(f"not a mass in kg: {v!r}", option) from None
         if not 0 < kg < 100:
             raise RingtuneError(f"mass must be between 0 and 100 kg, not {v}", option)
-        if not lo <= kg <= hi:
-            raise RingtuneError(f"{kg:g} kg ({1000 * kg:g} g) is outside what moves on a printer axis "
-                                f"({lo:g}-{hi:g} kg: a toolhead with its carriage, a bed, a gantry); masses "
-                                "are in kg (600 g is 0.6)", option)
-        return kg
+        return check_moving_mass(kg, option) if moving else kg
     return parse
 
 
@@ -290,7 +282,7 @@ def run(args, out) -> int:
                             f"--plot {args.plot}")
     _check_output("-o", args.output)
     _check_output("--plot", args.plot)
-    masses = _per_axis(args.mass, "--mass", _kg("--mass", *MOVING_MASS_RANGE)) if args.mass else {}
+    masses = _per_axis(args.mass, "--mass", _kg("--mass", moving=True)) if args.mass else {}
     if "all" in masses:
         raise RingtuneError("give the mass per axis: X=KG,Y=KG", "--mass")
     motors = _per_axis(args.motor, "--motor", _motor) if args.motor else {}
