@@ -12,6 +12,8 @@ import argparse
 import math
 from dataclasses import dataclass
 
+from ringtune.envs.motors import lookup_motor, unknown_motor_message
+
 
 @dataclass(frozen=True)
 class Value:
@@ -56,11 +58,14 @@ class Value:
 #: the shared values: name -> meaning, unit and range
 VALUES: dict[str, Value] = {
     "freq": Value("a frequency", "Hz", 0.0),
+    "hz_from_0": Value("a frequency", "Hz", 0.0, low_closed=True),
     "accel": Value("an acceleration", "mm/s²", 0.0),
     "speed": Value("a speed", "mm/s", 0.0),
     "scv": Value("a square-corner velocity", "mm/s", 0.0, low_closed=True),
     "smoothing": Value("a smoothing", "mm", 0.05, low_closed=True),
     "mass": Value("a mass", "kg", 0.0, 100.0, high_closed=False),
+    "current": Value("a run current", "A", 0.0),
+    "voltage": Value("a voltage", "V", 0.0),
     "fraction": Value("a fraction", "", 0.0, 1.0),
     "damping_ratio": Value("a damping ratio", "", 0.0, 1.0, low_closed=True, high_closed=False),
     "margin_percent": Value("a percentage", "%", 0.0, 50.0, low_closed=True, high_closed=False),
@@ -71,3 +76,42 @@ VALUES: dict[str, Value] = {
     "modes": Value("a number of modes", "", 1, 5, low_closed=True, integer=True),
     "points": Value("a number of points", "", 10, 100_000, low_closed=True, integer=True),
 }
+
+
+class PerAxis:
+    """argparse type of a per-axis option, ``X=v,Y=v`` (either or both) -> {"x": v, …}, each ``v``
+    read by ``value``; a bare ``v`` -> {"all": v} when ``bare`` allows it (every axis)."""
+
+    def __init__(self, value, what: str, bare: bool = True):
+        self.value, self.what, self.bare = value, what, bare
+
+    def __call__(self, text: str) -> dict:
+        text = text.strip()
+        if "=" not in text:
+            if not self.bare:
+                raise argparse.ArgumentTypeError(f"give the {self.what} per axis: X=…,Y=…")
+            return {"all": self.value(text)}
+        out = {}
+        for part in text.split(","):
+            ax, _, v = part.partition("=")
+            ax = ax.strip().lower()
+            if ax not in ("x", "y") or not v.strip():
+                raise argparse.ArgumentTypeError(f"expected X=…,Y=…, not {part.strip()!r}")
+            if ax in out:
+                raise argparse.ArgumentTypeError(f"{ax.upper()} given twice")
+            out[ax] = self.value(v.strip())
+        return out
+
+
+def motor_spec(text: str) -> dict:
+    """argparse type of ``NAME[:RUN_CURRENT[:VOLTAGE]]`` -> {name, run_current (A RMS), voltage (V)};
+    the name must be a built-in motor."""
+    parts = text.split(":")
+    if len(parts) > 3 or not parts[0].strip():
+        raise argparse.ArgumentTypeError(f"expected NAME[:RUN_CURRENT[:VOLTAGE]], not {text!r}")
+    spec: dict = {"name": parts[0].strip()}
+    if lookup_motor(spec["name"]) is None:
+        raise argparse.ArgumentTypeError(unknown_motor_message(spec["name"]))
+    for key, value, v in zip(("run_current", "voltage"), (VALUES["current"], VALUES["voltage"]), parts[1:]):
+        spec[key] = value(v)
+    return spec
