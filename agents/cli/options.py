@@ -61,6 +61,7 @@ VALUES: dict[str, Value] = {
     "hz_from_0": Value("a frequency", "Hz", 0.0, low_closed=True),
     "accel": Value("an acceleration", "mm/s²", 0.0),
     "speed": Value("a speed", "mm/s", 0.0),
+    "length": Value("a length", "mm", 0.0),
     "scv": Value("a square-corner velocity", "mm/s", 0.0, low_closed=True),
     "smoothing": Value("a smoothing", "mm", 0.05, low_closed=True),
     "mass": Value("a mass", "kg", 0.0, 100.0, high_closed=False),
