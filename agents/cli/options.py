@@ -116,3 +116,11 @@ def motor_spec(text: str) -> dict:
     for key, value, v in zip(("run_current", "voltage"), (VALUES["current"], VALUES["voltage"]), parts[1:]):
         spec[key] = value(v)
     return spec
+
+
+def number_list(text: str) -> list[float]:
+    """argparse type of ``A,B,…``: the numbers, in order (empty items skipped)."""
+    try:
+        return [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be numbers separated by commas, not {text!r}") from None
