@@ -3,7 +3,7 @@ must lie in, applied by argparse when the command line is parsed.
 
 A command declares such an option with ``type=VALUES["accel"]``; a value
 out of range is refused before the command runs, in one line naming the option and the range:
-``ringtune limit: error: argument --accel: must be an acceleration > 0 mm/s², not '-5'``.
+``ringtune limit: error: --accel: must be an acceleration > 0 mm/s², not '-5'``.
 """
 
 from __future__ import annotations
