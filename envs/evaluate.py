@@ -33,14 +33,17 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ringtune.envs.metrics import Metrics, compute_metrics, worst_case
+from ringtune.envs.metrics import CORNER_TAIL, Metrics, compute_metrics, worst_case
 from ringtune.envs.printer import load_printer
 from ringtune.envs.sim import simulate_batch
 from ringtune.shaping import gcode, testprints
 from ringtune.shaping.apply import shape_motion
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import JOB_ACCEL_SETTINGS, job_accel_mode, plan_with_config
+from ringtune.shaping.e_timing import extruder_command
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.features import FEATURE_CLASSES, class_indices
+from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.job import SETTING_KEYS
 from ringtune.shaping.motion import Motion
 from ringtune.shaping.shapers import shapers_from_config
@@ -52,6 +55,8 @@ SETTLE_MIN, SETTLE_MAX, SETTLE_TAUS = 0.05, 0.3, 3.0
 #: quality windows per job and their span, s
 MAX_WINDOWS = 8
 WINDOW_SPAN = 0.25
+#: bounds (s) of the part of a corner after the shaped command has turned (see corner_tail)
+CORNER_TAIL_MIN, CORNER_TAIL_MAX = 0.005, 0.03
 
 _JOBS: "OrderedDict[Any, Any]" = OrderedDict()
 _PLANS: "OrderedDict[Any, Any]" = OrderedDict()
@@ -177,6 +182,10 @@ class WindowRun:
     lag: float                # s, see compute_metrics
     settle: float             # s, see compute_metrics
     anticipate: float = 0.0   # s, see compute_metrics
+    classes: np.ndarray | None = None      # feature class index per segment of ``path``
+    e_command: Motion | None = None        # the firmware's extruder on the shaped clock
+    e_synced: Motion | None = None         # ... with its E synchronisation on (None: no such option)
+    corner_tail: float = CORNER_TAIL       # s, see compute_metrics
 
 
 def auto_settle(printer) -> float:
@@ -187,17 +196,56 @@ def auto_settle(printer) -> float:
     return float(min(max(SETTLE_TAUS * tau, SETTLE_MIN), SETTLE_MAX))
 
 
-def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN) -> list[WindowRun]:
-    """Shape each quality window of ``pj`` with the config's shapers (``settle`` s of extra
-    history before each, beyond the shaper's duration)."""
-    shapers, centred = shapers_from_config(config)
+def corner_tail(printer) -> float:
+    """s after a shaped corner that still belong to it: half the period of the printer's lowest
+    mode (its first swing), clipped to [CORNER_TAIL_MIN, CORNER_TAIL_MAX]."""
+    freqs = [m.omega / (2.0 * np.pi) for ax in ("x", "y") for m in printer.effective_modes(ax)]
+    if not freqs:
+        return CORNER_TAIL
+    return float(min(max(0.5 / min(freqs), CORNER_TAIL_MIN), CORNER_TAIL_MAX))
+
+
+def segment_classes(pj: PlannedJob, motion: Motion) -> np.ndarray:
+    """(motion.n_segments,) feature class index of each segment of a window of ``pj``'s motion:
+    the class of its G-code move's label (``other`` outside any move or without a move table)."""
+    out = np.full(motion.n_segments, FEATURE_CLASSES.index("other"), np.int64)
+    moves = getattr(pj.plan, "moves", None)
+    if moves is None or not len(moves.feature):
+        return out
+    by_move = class_indices(moves.features)[moves.feature]
+    known = motion.move >= 0
+    out[known] = by_move[motion.move[known]]
+    return out
+
+
+def _extruder(raw: Motion, shapers, centred: bool, config: TuneConfig):
+    """The firmware's extruder command for ``raw``, and with its E synchronisation on (or None)."""
+    fw = FIRMWARES[config.firmware]
+    e_cmd = extruder_command(raw, shapers, centred, fw)
+    synced = extruder_command(raw, shapers, centred, fw, fw.e_sync_timing) if fw.e_sync_timing else None
+    return e_cmd, synced
+
+
+def shaper_timing(shapers, centred: bool) -> tuple[float, float, float, float]:
+    """(duration, lag, after, before) of the active shapers, s: the longest impulse train; the
+    causal shaped command's delay (0 when centred); after a corner (unshaped time) when the shaped
+    command runs straight again (the last impulse has passed); how long before a corner it starts
+    turning (centred shapers only)."""
     active = [s for s in shapers.values() if s is not None]
     duration = max((s.duration for s in active), default=0.0)
     lag = 0.0 if centred else max((s.centroid for s in active), default=0.0)
-    # after a corner (unshaped time) the shaped command runs straight once the last impulse passed
     after = max((s.duration - (s.centre_delay if centred else 0.0) for s in active), default=0.0)
-    # ... and starts turning into the next corner this long before it (centred shapers only)
     before = max((s.centre_delay for s in active), default=0.0) if centred else 0.0
+    return duration, lag, after, before
+
+
+def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN,
+                tail: float = CORNER_TAIL) -> list[WindowRun]:
+    """Shape each quality window of ``pj`` with the config's shapers (``settle`` s of extra
+    history before each, beyond the shaper's duration); ``tail``: see :func:`corner_tail`."""
+    shapers, centred = shapers_from_config(config)
+    active = any(s is not None for s in shapers.values())
+    duration, lag, after, before = shaper_timing(shapers, centred)
     motion = pj.motion
     runs = []
     for w in pj.windows:
@@ -208,8 +256,10 @@ def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN) 
         raw = motion.window(lo, hi)
         shaped = shape_motion(raw, shapers, centred) if active else raw
         a, b = max(a, shaped.start_time), min(b, shaped.end_time)
-        runs.append(WindowRun(w.t0, w.t1, shaped.window(a, b), motion.window(max(a, lo), min(b, hi)),
-                              lag, after, before))
+        path = motion.window(max(a, lo), min(b, hi))
+        e_cmd, synced = _extruder(raw, shapers, centred, config)
+        runs.append(WindowRun(w.t0, w.t1, shaped.window(a, b), path, lag, after, before,
+                              segment_classes(pj, path), e_cmd, synced, tail))
     return runs
 
 
@@ -230,7 +280,9 @@ def metrics_of(runs: list[WindowRun], sims: list, print_time: float) -> Metrics:
     parts = []
     for run, sim in zip(runs, sims):
         part = compute_metrics(_trimmed(sim, run.t0 + run.lag, run.t1 + run.lag), run.path,
-                               lag=run.lag, settle=run.settle, anticipate=run.anticipate)
+                               lag=run.lag, settle=run.settle, anticipate=run.anticipate,
+                               classes=run.classes, e_command=run.e_command,
+                               e_command_synced=run.e_synced, corner_tail=run.corner_tail)
         parts.append(part)
     return Metrics.worst(parts, print_time_s=print_time)
 
@@ -315,7 +367,7 @@ def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, bac
     motions: list[Motion] = []
     for cfg in configs:
         pj = planned_job(printer, job, cfg, job_accel=job_accel)
-        runs = window_runs(pj, cfg, settle)
+        runs = window_runs(pj, cfg, settle, corner_tail(printer))
         per_config.append((cfg, pj, runs))
         motions.extend(r.shaped for r in runs)
     sims = (simulate_batch(printer, motions, backend=backend, nthread=nthread, initial="static")

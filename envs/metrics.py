@@ -3,12 +3,80 @@
 Inputs are a simulation result (``SimResult``: sample times ``t`` in s, simulated ``nozzle`` x/y
 relative to the print in mm, ``head_accel`` in mm/s², motor forces, ``step_loss``) and the
 *unshaped* planned motion of the same time span (:class:`~ringtune.shaping.motion.Motion`), which
-is the geometry the slicer asked for. All distances are geometric (nearest point on the commanded
-path), so a nozzle that merely lags along the path (shaper delay, servo lag) costs nothing; only
-leaving the path does.
+is the geometry the slicer asked for, with the feature class of each of its segments
+(:mod:`ringtune.shaping.features`) and the extruder as the firmware commands it
+(:mod:`ringtune.shaping.e_timing`). Distances are geometric (to the commanded path), so a nozzle
+that merely lags along the path costs nothing; only leaving the path does. "Unshaped clock": the
+sample's time minus ``lag`` (the causal shaper's centroid; 0 for centred shapers). A sample is
+*extruding* when the unshaped path deposits material at that time; its *class* is the feature
+class of that path segment. *Visible* classes (outer walls, top surfaces, bridges and overhangs,
+unlabelled moves) are judged by ripple, corners and extrusion; *hidden* ones (inner walls, infill,
+solid infill, support) by show-through and extrusion.
 
-Definitions (all mm unless stated; "extruding" = the unshaped path deposits material at the
-sample's time minus ``lag``, the shaper's delay):
+What a person sees (all mm unless stated):
+
+``ripple_mm``
+    on every straight wall of a visible class (an extruding leg), over the span where the shaped
+    command runs straight along it — from ``settle`` s after the leg starts (the shaper's last
+    impulse has passed the corner) to ``anticipate`` s before it ends (the shaper starts turning
+    into the next one), both on the unshaped clock, at least ``min_wall`` s long — the
+    peak-to-peak of the nozzle's deviation across the wall (perpendicular to the wall's line):
+    what calipers and eyes see. ``ripple_mm`` is the worst wall's. *Example*: a wall along Y after
+    a corner where X stopped from a deceleration of 5000 mm/s², on one X mode of 40 Hz with
+    damping ratio 0.05, no shaper: the nozzle leaves the corner a/ω² = 0.079 mm ahead and swings
+    freely about the wall, x(τ) = 0.079·e^(−ζωτ)(cos ω_dτ + ζ/√(1−ζ²)·sin ω_dτ); over 0.1 s of
+    wall the peak-to-peak is 0.079·(1 + e^(−ζπ/√(1−ζ²))) = 0.147 mm.
+``ripple_p90_mm``
+    the 90th percentile (linear interpolation) of the visible walls' ripples.
+``corner_in_mm`` / ``corner_out_mm``
+    at every corner (the path turns by ≥ ``corner_angle_deg`` between two legs, one extruding),
+    over the samples of visible classes from when the shaped command starts turning
+    (``anticipate`` s before the corner, unshaped clock) to ``corner_tail`` s after it has finished
+    (``settle`` s after the corner; the tail holds the nozzle's first swing), the distance from the
+    nearest point of the corner's two legs, inward (cutting the corner: the shaper's smoothing)
+    or outward (past the corner, outside the turn: overshoot) by the side of the corner's
+    bisector it lies on; the worst of each. *Example*: a 90° corner taken at a constant 100 mm/s,
+    Klipper ZV at 50 Hz with no damping (two halves 10 ms apart, centred), a stiff machine: the
+    shaped command cuts the corner by v·Δt/4 = 0.25 mm (corner_in 0.25 mm, corner_out 0).
+``extrusion_over_pct`` / ``extrusion_under_pct``
+    seed 002's extruder timing. The firmware pushes filament as its extruder command says
+    (running maximum: retracted filament is not taken back from the part); the G-code asks, per mm
+    of path, the filament of the path's own moves. Along each extrusion run the nozzle's position
+    is counted by the length it travels (from the nearest point of the path where it starts the
+    run), so a corner it cuts short gets its filament on a shorter path. Over every stretch of
+    ``SPAN_MM`` = 1 mm of the nozzle's path within a run (a shorter run: the run), the material
+    laid against the asked is 1 + Δlead/length, lead being the filament pushed beyond what the
+    path holds up to the nozzle's position, in mm of path; the largest excess and the largest
+    shortfall, in %, over all extruding classes (they arise at starts, stops and corners).
+    *Example*: Marlin classic ZV at 40 Hz (no damping: halves 12.5 ms apart, lag ΣAᵢTᵢ = 6.25 ms)
+    leaves the extruder 0.625 mm ahead at 100 mm/s; a line started from rest whose acceleration
+    ends within its first mm gets 62.5 % too much material there and 62.5 % too little over its
+    last mm.
+``e_lag_mm``
+    the largest |lead| (mm of path, the nozzle's position taken at its nearest point of the path)
+    where the shaped command runs straight along a leg (the spans ``ripple_mm`` measures walls
+    on): how far the firmware's extruder runs ahead of (or behind) the nozzle. Example above:
+    0.625 mm; where E follows X/Y (Klipper, RepRapFirmware), what remains is the nozzle's own lag
+    behind the command while accelerating, a/ω² per mode (seed 002).
+``show_through_mm``
+    what hidden features push into the outer wall (nophead's serrated edge: infill overshooting
+    the outline): over samples of hidden classes, the outward excursion past their corners and
+    reversals (as ``corner_out_mm``, where infill turns at the walls), and over their straight
+    walls (inner walls lie against the outer wall; its side is not known, so either side counts)
+    the largest distance from the wall's line; the worst. Whether it shows depends on how much of
+    it the overlap the slicer leaves between infill and walls (typically 10–25 % of a line
+    width) absorbs: that bound belongs to the judge. *Example*: infill reversing 0.08 mm past its
+    turning points: 0.08 mm.
+``features``
+    ``{class: {key: value}}`` for each feature class with extruding samples in the judged
+    windows, keys :data:`FEATURE_KEYS` (``show_through_mm`` 0 for visible classes); the values
+    above are the worst over the visible (respectively hidden, or all for extrusion) classes.
+``extrusion_if_synced``
+    where the firmware can synchronise its extruder and does not by default
+    (:attr:`ringtune.shaping.firmware.Firmware.e_sync`), ``extrusion_over_pct``,
+    ``extrusion_under_pct`` and ``e_lag_mm`` with that option on; empty otherwise.
+
+Diagnostics and constraints:
 
 ``path_error_mm``
     max over extruding samples of the distance from the nozzle to the nearest *extruding* leg of
@@ -22,14 +90,10 @@ sample's time minus ``lag``, the shaper's delay):
     ``path_error_mm``) is on the corner's outgoing leg or is the corner itself, it counts with its
     distance from the path when the vector ``e`` from that point to the nozzle points outward,
     ``e · (d_in − d_out) > 0`` (the outer bisector; for a reversal, past the turning point).
-    Lateral error on the incoming leg belongs to the corner before it.
 ``ringing_mm``
-    max over straight walls (extruding legs that follow a corner) of the RMS, about its mean, of
-    the nozzle's perpendicular deviation from the wall's line, taken while the shaped command
-    runs straight along the wall: from ``settle`` s after the corner (when the shaped command has
-    finished turning) to ``anticipate`` s before the wall's end (when it starts turning into the
-    next one), both on the shaped clock; walls where that span is shorter than ``min_wall`` s are
-    skipped (too short to show ringing).
+    max over straight walls that follow a corner of the RMS, about its mean, of the nozzle's
+    perpendicular deviation from the wall's line over the span ``ripple_mm`` uses (a diagnostic:
+    the ripple is what is judged).
 ``peak_accel``
     max over all samples of the head's acceleration magnitude ``|(a_x, a_y)|``, mm/s².
 ``step_loss``
@@ -44,18 +108,30 @@ sample's time minus ``lag``, the shaper's delay):
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any, Iterable
 
 import numpy as np
 
+from ringtune.envs.extrusion import SPAN_MM, extrusion
+from ringtune.envs.path_geometry import Legs, nearest_leg, path_legs
+from ringtune.envs.path_measures import overshoot, path_error, ringing_rms
+from ringtune.envs.visible import Walls, corner_deviation, p90, per_class_max, walls
+from ringtune.shaping.features import FEATURE_CLASSES, VISIBLE
 from ringtune.shaping.motion import Motion
 
-_EPS_LEN = 1e-6  # mm: shorter x/y segments are pure z/e moves or dwells
-_COLLINEAR = math.cos(math.radians(1.0))
-_ROUNDING = 1e-9  # mm: outward excursions below a nanometre are floating-point noise
-_EARLY = 0.001  # s: timing slack when assigning samples to the corner being turned
+#: the measures kept per feature class (``Metrics.features[class]``)
+FEATURE_KEYS = ("ripple_mm", "ripple_p90_mm", "corner_in_mm", "corner_out_mm", "show_through_mm",
+                "extrusion_over_pct", "extrusion_under_pct", "e_lag_mm", "path_error_mm")
+#: what a person sees on the visible features (all: smaller is better)
+SEEN_KEYS = ("ripple_mm", "ripple_p90_mm", "corner_in_mm", "corner_out_mm")
+#: the extruder's timing measures (all features)
+EXTRUSION_KEYS = ("extrusion_over_pct", "extrusion_under_pct", "e_lag_mm")
+_VISIBLE = np.array([c in VISIBLE for c in FEATURE_CLASSES])
+_OTHER = FEATURE_CLASSES.index("other")
+_N = len(FEATURE_CLASSES)
+#: s after the shaped command finished turning a corner that still belongs to it, by default
+CORNER_TAIL = 0.0125
 
 
 @dataclass
@@ -73,6 +149,17 @@ class Metrics:
             (``max |force| / max_force(speed)``; 1 is the edge of step loss; 0 if not simulated).
         details: diagnostics (per-window values, where the worst error occurred); not part of
             the stable ``to_dict()`` keys unless asked for.
+        ripple_mm: worst visible wall's peak-to-peak deviation across the wall, mm.
+        ripple_p90_mm: 90th percentile of the visible walls' ripple, mm.
+        corner_in_mm: worst inward deviation at visible corners (rounding), mm.
+        corner_out_mm: worst outward deviation at visible corners (overshoot), mm.
+        extrusion_over_pct: worst over-extrusion over 1 mm of path, %.
+        extrusion_under_pct: worst under-extrusion over 1 mm of path, %.
+        e_lag_mm: largest distance along the path between the extruder and the nozzle, mm.
+        show_through_mm: hidden features' worst excursion towards the walls, mm.
+        features: the measures per feature class present, ``{class: {key: value}}``.
+        extrusion_if_synced: the extrusion measures with the firmware's E synchronisation on,
+            where it has one off by default (else empty).
     """
 
     print_time_s: float = float("nan")
@@ -83,117 +170,90 @@ class Metrics:
     step_loss: bool = False
     motor_load: float = 0.0
     details: dict[str, Any] = field(default_factory=dict)
+    ripple_mm: float = 0.0
+    ripple_p90_mm: float = 0.0
+    corner_in_mm: float = 0.0
+    corner_out_mm: float = 0.0
+    extrusion_over_pct: float = 0.0
+    extrusion_under_pct: float = 0.0
+    e_lag_mm: float = 0.0
+    show_through_mm: float = 0.0
+    features: dict[str, dict[str, float]] = field(default_factory=dict)
+    extrusion_if_synced: dict[str, float] = field(default_factory=dict)
 
     QUALITY_KEYS = ("path_error_mm", "overshoot_mm", "ringing_mm")
+    #: every scalar measure, in ``to_dict()`` order after ``print_time_s``
+    SCALAR_KEYS = ("path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "motor_load",
+                   "ripple_mm", "ripple_p90_mm", "corner_in_mm", "corner_out_mm",
+                   "extrusion_over_pct", "extrusion_under_pct", "e_lag_mm", "show_through_mm")
 
     def to_dict(self, details: bool = False) -> dict[str, Any]:
-        d = {"print_time_s": float(self.print_time_s), "path_error_mm": float(self.path_error_mm),
-             "overshoot_mm": float(self.overshoot_mm), "ringing_mm": float(self.ringing_mm),
-             "peak_accel": float(self.peak_accel), "step_loss": bool(self.step_loss),
-             "motor_load": float(self.motor_load)}
+        d: dict[str, Any] = {"print_time_s": float(self.print_time_s)}
+        d.update({k: float(getattr(self, k)) for k in self.SCALAR_KEYS})
+        d["step_loss"] = bool(self.step_loss)
+        d["features"] = {c: {k: float(v) for k, v in m.items()} for c, m in self.features.items()}
+        d["extrusion_if_synced"] = {k: float(v) for k, v in self.extrusion_if_synced.items()}
         if details:
             d["details"] = self.details
         return d
 
     @staticmethod
     def worst(parts: Iterable["Metrics"], print_time_s: float = float("nan")) -> "Metrics":
-        """Combine per-window metrics: max of each quality figure, of peak_accel and of motor_load,
-        any step loss."""
+        """Combine per-window metrics: the max of every measure, any step loss; the ripple's 90th
+        percentile over the walls of all windows (kept in ``details["ripple_walls"]``)."""
         parts = list(parts)
         if not parts:
             return Metrics(print_time_s=print_time_s)
-        return Metrics(
-            print_time_s=print_time_s,
-            path_error_mm=max(p.path_error_mm for p in parts),
-            overshoot_mm=max(p.overshoot_mm for p in parts),
-            ringing_mm=max(p.ringing_mm for p in parts),
-            peak_accel=max(p.peak_accel for p in parts),
-            step_loss=any(p.step_loss for p in parts),
-            motor_load=max(p.motor_load for p in parts),
-            details={"windows": [p.to_dict(details=True) for p in parts]},
-        )
+        out = _combined(parts, print_time_s)
+        walls_all = [w for p in parts for w in p.details.get("ripple_walls", [])]
+        if walls_all and all("ripple_walls" in p.details for p in parts):
+            _p90_from_walls(out, walls_all)
+        out.details = {"windows": [p.to_dict(details=True) for p in parts], "ripple_walls": walls_all}
+        return out
 
 
-# -- path geometry ------------------------------------------------------------------------------
-@dataclass
-class Legs:
-    """Straight pieces of the commanded x/y path: consecutive collinear segments merged.
-
-    Arrays are (L, 2) points in mm and (L,) times in s; ``corner[k]`` is the turn angle (deg)
-    between leg k−1 and leg k (0 for the first leg or where the legs do not touch).
-    """
-
-    start: np.ndarray
-    end: np.ndarray
-    t_start: np.ndarray
-    t_end: np.ndarray
-    extruding: np.ndarray
-    turn_deg: np.ndarray
-
-    @property
-    def direction(self) -> np.ndarray:
-        d = self.end - self.start
-        return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), _EPS_LEN)
-
-    def __len__(self) -> int:
-        return len(self.t_start)
+def _combined(parts: list[Metrics], print_time_s: float) -> Metrics:
+    """The max of every scalar and per-feature measure of ``parts``, any step loss."""
+    out = Metrics(print_time_s=print_time_s, step_loss=any(p.step_loss for p in parts),
+                  **{k: max(getattr(p, k) for p in parts) for k in Metrics.SCALAR_KEYS})
+    for p in parts:
+        for cls, vals in p.features.items():
+            mine = out.features.setdefault(cls, dict.fromkeys(FEATURE_KEYS, 0.0))
+            for k, v in vals.items():
+                mine[k] = max(mine.get(k, 0.0), v)
+        for k, v in p.extrusion_if_synced.items():
+            out.extrusion_if_synced[k] = max(out.extrusion_if_synced.get(k, 0.0), v)
+    return out
 
 
-def path_legs(path: Motion) -> Legs:
-    """Merge the motion's segments into straight legs (x/y only; z/e-only segments are skipped)."""
-    p0 = path.p[:, :2]
-    p1 = path.end_state()[0][:, :2]
-    seg = p1 - p0
-    length = np.linalg.norm(seg, axis=1)
-    keep = np.flatnonzero(length > _EPS_LEN)
-    if len(keep) == 0:
-        z = np.zeros((0, 2))
-        e = np.zeros(0)
-        return Legs(z, z, e, e, e.astype(bool), e)
-    u = seg[keep] / length[keep, None]
-    ext = path.extruding[keep]
-    same_dir = np.einsum("ij,ij->i", u[1:], u[:-1]) >= _COLLINEAR
-    touching = np.linalg.norm(p0[keep[1:]] - p1[keep[:-1]], axis=1) < 1e-3
-    new = np.concatenate([[True], ~(same_dir & touching & (ext[1:] == ext[:-1]))])
-    first = np.flatnonzero(new)
-    last = np.concatenate([first[1:] - 1, [len(keep) - 1]])
-    start, end = p0[keep[first]], p1[keep[last]]
-    t_start, t_end = path.t[keep[first]], path.t[keep[last] + 1]
-    d = end - start
-    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), _EPS_LEN)
-    cosang = np.clip(np.einsum("ij,ij->i", d[1:], d[:-1]), -1.0, 1.0)
-    joined = np.linalg.norm(start[1:] - end[:-1], axis=1) < 1e-3
-    turn = np.concatenate([[0.0], np.where(joined, np.degrees(np.arccos(cosang)), 0.0)])
-    return Legs(start, end, t_start, t_end, ext[first], turn)
+def _p90_from_walls(out: Metrics, walls_all: list) -> None:
+    """Set the 90th percentiles of ``out`` (top level and per class) from [class, ripple] pairs."""
+    by_class: dict[str, list[float]] = {}
+    for cls, ripple in walls_all:
+        by_class.setdefault(cls, []).append(ripple)
+    out.ripple_p90_mm = p90(np.array([r for c, rs in by_class.items() if c in VISIBLE for r in rs]))
+    for cls, vals in out.features.items():
+        vals["ripple_p90_mm"] = p90(np.array(by_class.get(cls, [])))
 
 
-def _nearest_on_segments(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Vectors from the nearest point of segment a→b to pts; broadcasts (…, 2)."""
-    ab = b - a
-    denom = np.maximum(np.sum(ab * ab, axis=-1), _EPS_LEN ** 2)
-    s = np.clip(np.sum((pts - a) * ab, axis=-1) / denom, 0.0, 1.0)
-    return pts - (a + s[..., None] * ab)
-
-
-# -- the metrics -----------------------------------------------------------------------------------
 def worst_case(results: Iterable[Metrics]) -> Metrics:
     """One :class:`Metrics` for a configuration judged on several variants of a printer: the
-    first's print time (the planner does not see resonances), the largest of every quality metric,
-    of ``peak_accel`` and of ``motor_load``, and step loss if any variant lost steps."""
+    first's print time (the planner does not see resonances), the largest of every measure (the
+    90th percentiles included, per printer), and step loss if any variant lost steps."""
     results = list(results)
-    worst = Metrics(print_time_s=results[0].print_time_s,
-                    **{k: max(getattr(m, k) for m in results)
-                       for k in (*Metrics.QUALITY_KEYS, "peak_accel", "motor_load")},
-                    step_loss=any(m.step_loss for m in results))
+    worst = _combined(results, results[0].print_time_s)
     worst.details = {"variants": [m.to_dict() for m in results]}
     return worst
 
 
+# -- the measures of one window ----------------------------------------------------------------------
 def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float = 0.0,
                     anticipate: float = 0.0,
                     corner_angle_deg: float = 30.0, corner_window: float = 0.06,
                     match_window: float = 0.05, min_wall: float = 0.02,
-                    print_time_s: float = float("nan")) -> Metrics:
+                    print_time_s: float = float("nan"), classes: np.ndarray | None = None,
+                    e_command: Motion | None = None, e_command_synced: Motion | None = None,
+                    corner_tail: float = CORNER_TAIL) -> Metrics:
     """Quality metrics of one simulated window against its unshaped commanded path.
 
     Args:
@@ -204,12 +264,52 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
             0 for centred shapers), used to decide which part of the path a sample belongs to.
         settle: s after a corner (unshaped time) at which the shaped command runs straight along
             the next wall again (last impulse time, minus the centroid if centred).
+        anticipate: s before a corner (unshaped time) at which a centred shaped command starts
+            turning (the centre delay; 0 for causal shapers).
         corner_angle_deg: smallest direction change that counts as a corner, degrees.
-        corner_window: s either side of a corner searched for overshoot.
+        corner_window: s after a corner searched for ``overshoot_mm``.
         match_window: s either side of a leg's time span within which a sample may match it.
-        min_wall: s, shortest measured span of a wall whose ringing counts.
+        min_wall: s, shortest measured span of a wall whose ripple counts.
         print_time_s: passed through to the result.
+        classes: (path.n_segments,) feature class index of each segment of ``path``
+            (:data:`ringtune.shaping.features.FEATURE_CLASSES`; None: all ``other``, visible).
+        e_command: the firmware's extruder command on the sim's clock (one-column motion,
+            :func:`ringtune.shaping.e_timing.extruder_command`); None: no extrusion measures.
+        e_command_synced: the same with the firmware's E synchronisation on, or None.
+        corner_tail: s after the shaped command finished turning that still belong to the corner.
     """
+    t, nozzle, machine = _machine(sim)
+    tu = t - lag  # sample times on the unshaped clock
+    seg = path.segment_index(tu)
+    cls_seg = np.full(path.n_segments, _OTHER) if classes is None else np.asarray(classes, np.int64)
+    extruding = (tu >= path.t[0]) & (tu <= path.t[-1]) & path.extruding[seg]
+    legs = path_legs(path, cls_seg)
+    details: dict[str, Any] = {}
+    dist, vec, leg = nearest_leg(tu, nozzle, legs, match_window)
+    cls = cls_seg[seg[extruding]]
+    ex = (tu[extruding], nozzle[extruding], dist[extruding], vec[extruding], leg[extruding])
+    w = walls(ex[0], ex[1], legs, settle - lag, anticipate + lag, min_wall)
+    old = dict(path_error_mm=path_error(ex[0], ex[1], ex[2], details),
+               overshoot_mm=overshoot(*ex, legs, corner_angle_deg, corner_window, anticipate + lag, details),
+               ringing_mm=ringing_rms(w, legs, corner_angle_deg, details))
+    per_cls = _seen(ex[0], ex[1], ex[2], cls, legs, w, corner_angle_deg, settle - lag,
+                    anticipate + lag, corner_tail, details)
+    # extrusion: every sample near an extruding leg in time (the extruder may start before the
+    # nozzle arrives and stop before it finishes)
+    made = _made(t, e_command)
+    if made is not None:
+        per_cls.update(_extruded(made, tu, nozzle, vec, leg, legs, anticipate + lag, settle - lag))
+    m = Metrics(print_time_s=print_time_s, details=details, **old, **machine, **_top(per_cls))
+    m.features = _features(per_cls, np.unique(cls))
+    _p90_from_walls(m, details["ripple_walls"])
+    synced = _made(t, e_command_synced)
+    if synced is not None:
+        m.extrusion_if_synced = _top(_extruded(synced, tu, nozzle, vec, leg, legs, anticipate + lag, settle - lag))
+    return m
+
+
+def _machine(sim: Any):
+    """(t, nozzle x/y, {peak_accel, step_loss, motor_load}) of a simulation result."""
     t = np.asarray(sim.t, float)
     nozzle = np.asarray(sim.nozzle, float)[:, :2]
     accel = np.asarray(sim.head_accel, float)[:, :2]
@@ -221,122 +321,58 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
     if force is not None and fmax is not None and np.size(force):
         step_loss = step_loss or bool(np.any(np.abs(np.asarray(force)) > np.asarray(fmax)))
         motor_load = float(np.max(np.abs(np.asarray(force)) / np.maximum(np.asarray(fmax), 1e-12)))
-
-    tu = t - lag  # sample times on the unshaped clock
-    inside = (tu >= path.t[0]) & (tu <= path.t[-1])
-    extruding = inside & path.extruding[path.segment_index(tu)]
-    legs = path_legs(path)
-    details: dict[str, Any] = {}
-
-    tu, pts = tu[extruding], nozzle[extruding]
-    dist, vec, leg = _nearest(tu, pts, legs, match_window)
-    path_error = _path_error(tu, pts, dist, details)
-    overshoot = _overshoot(tu, pts, dist, vec, leg, legs, corner_angle_deg, corner_window,
-                           anticipate + lag, details)
-    ringing = _ringing(tu, pts, legs, corner_angle_deg, settle - lag, anticipate + lag, min_wall,
-                       details)
-    return Metrics(print_time_s, path_error, overshoot, ringing, peak_accel, step_loss, motor_load, details)
+    return t, nozzle, {"peak_accel": peak_accel, "step_loss": step_loss, "motor_load": motor_load}
 
 
-def _nearest(tu, pts, legs: Legs, window: float):
-    """Per sample: distance (mm), vector from the nearest path point (mm) and the index of the
-    nearest extruding leg active within ``window`` s (inf, nan, −1 where there is none)."""
-    dist = np.full(len(tu), np.inf)
-    vec = np.full((len(tu), 2), np.nan)
-    leg = np.full(len(tu), -1, dtype=np.int64)
-    ext = np.flatnonzero(legs.extruding)
-    if len(tu) == 0 or len(ext) == 0:
-        return dist, vec, leg
-    a, b = legs.start[ext], legs.end[ext]
-    lo, hi = legs.t_start[ext] - window, legs.t_end[ext] + window  # both non-decreasing
-    # legs active around each sample form a contiguous band [j0, j1] of the time-ordered legs
-    j0 = np.searchsorted(hi, tu, side="left")
-    j1 = np.searchsorted(lo, tu, side="right") - 1
-    width = int(np.max(j1 - j0, initial=-1)) + 1
-    if width <= 0:
-        return dist, vec, leg
-    chunk = max(1, 1_000_000 // width)
-    for i in range(0, len(tu), chunk):  # chunks of samples × band, bounded memory
-        sl = slice(i, i + chunk)
-        idx = j0[sl, None] + np.arange(width)[None, :]
-        valid = idx <= j1[sl, None]
-        idx = np.minimum(idx, len(ext) - 1)
-        e = _nearest_on_segments(pts[sl, None, :], a[idx], b[idx])
-        d = np.where(valid, np.sqrt(np.einsum("ijk,ijk->ij", e, e)), np.inf)
-        j = np.argmin(d, axis=1)
-        rows = np.arange(len(j))
-        dist[sl] = d[rows, j]
-        found = np.isfinite(dist[sl])
-        vec[sl] = np.where(found[:, None], e[rows, j], np.nan)
-        leg[sl] = np.where(found, ext[idx[rows, j]], -1)
-    return dist, vec, leg
-
-
-def _path_error(tu, pts, dist, details: dict) -> float:
+def _seen(tu, pts, dist, cls, legs: Legs, w: Walls, angle: float, settle: float, early: float,
+          tail: float, details: dict) -> dict[str, np.ndarray]:
+    """Per class (arrays over FEATURE_CLASSES): ripple, corner in/out, show-through and path error
+    of the extruding samples (the ripple's p90 is set from the walls of all windows)."""
+    details["ripple_walls"] = [[FEATURE_CLASSES[c], float(r)] for c, r in zip(w.cls, w.ripple)]
+    if len(w.leg):
+        k = w.leg[int(np.argmax(w.ripple))]
+        details["ripple_at"] = {"t_start": float(legs.t_start[k]), "t_end": float(legs.t_end[k]),
+                                "x": float(legs.start[k, 0]), "y": float(legs.start[k, 1]),
+                                "feature": FEATURE_CLASSES[legs.cls[k]]}
+    inward, outward = corner_deviation(tu, pts, legs, angle, early, max(settle, 0.0) + tail)
+    out = per_class_max(outward, cls, _N)
+    hidden_reach = np.maximum(out, per_class_max(w.offset, w.cls, _N))
     finite = np.isfinite(dist)
-    if not finite.any():
-        return 0.0
-    k = int(np.argmax(np.where(finite, dist, -1.0)))
-    details["path_error_at"] = {"t": float(tu[k]), "x": float(pts[k, 0]), "y": float(pts[k, 1])}
-    return float(dist[k])
+    return {"ripple_mm": per_class_max(w.ripple, w.cls, _N),
+            "ripple_p90_mm": np.zeros(_N),          # from the walls of all windows: _p90_from_walls
+            "corner_in_mm": per_class_max(inward, cls, _N), "corner_out_mm": out,
+            "show_through_mm": np.where(_VISIBLE, 0.0, hidden_reach),
+            "path_error_mm": per_class_max(dist[finite], cls[finite], _N)}
 
 
-def _corners(legs: Legs, angle: float) -> np.ndarray:
-    """Indices k of legs that start with a corner (leg k−1 → leg k), at least one extruding."""
-    k = np.flatnonzero(legs.turn_deg >= angle)
-    return k[legs.extruding[k] | legs.extruding[k - 1]]
+def _made(t: np.ndarray, e_command: Motion | None) -> np.ndarray | None:
+    """The extruder position the firmware has reached by each sample (running maximum), or None."""
+    if e_command is None:
+        return None
+    return np.maximum.accumulate(e_command.position(t)[:, 0]) if len(t) else np.zeros(0)
 
 
-def _overshoot(tu, pts, dist, vec, leg, legs: Legs, angle: float, window: float, early: float,
-               details: dict) -> float:
-    ks = _corners(legs, angle)
-    if len(tu) == 0 or len(ks) == 0:
-        return 0.0
-    tc = legs.t_end[ks - 1]
-    # each sample belongs to the latest corner the shaped command has started turning into
-    j = np.searchsorted(tc, tu + early + _EARLY, side="right") - 1
-    ok = j >= 0
-    j = np.maximum(j, 0)
-    k = ks[j]
-    nearest = pts - np.nan_to_num(vec)
-    at_vertex = np.linalg.norm(nearest - legs.end[k - 1], axis=1) < 1e-9
-    # ...while it is within the window after it and nearest to its outgoing leg or the vertex
-    mine = ok & (tu - tc[j] <= window) & ((leg == k) | ((leg == k - 1) & at_vertex))
-    if not mine.any():
-        return 0.0
-    d = legs.direction
-    outward = mine & (np.einsum("ij,ij->i", np.nan_to_num(vec), d[k - 1] - d[k]) > _ROUNDING)
-    val = np.where(outward, dist, 0.0)
-    i = int(np.argmax(val))
-    if val[i] > 0:
-        details["overshoot_at"] = {"t": float(tu[i]), "corner_t": float(tc[j[i]]),
-                                   "turn_deg": float(legs.turn_deg[k[i]])}
-    return float(val[i])
+def _extruded(made, tu, pts, vec, leg, legs: Legs, before: float, after: float) -> dict[str, np.ndarray]:
+    """Per class: worst over- and under-extrusion (%) and largest |lead| (mm)."""
+    ex = extrusion(made, tu, pts, vec, leg, legs, max(before, 0.0), max(after, 0.0), SPAN_MM)
+    return {"extrusion_over_pct": 100.0 * per_class_max(np.maximum(ex.excess, 0.0), ex.excess_cls, _N),
+            "extrusion_under_pct": 100.0 * per_class_max(np.maximum(-ex.excess, 0.0), ex.excess_cls, _N),
+            "e_lag_mm": per_class_max(np.abs(ex.lead), ex.lead_cls, _N)}
 
 
-def _ringing(tu, pts, legs: Legs, angle: float, settle: float, early_end: float, min_wall: float,
-             details: dict) -> float:
-    ks = _corners(legs, angle)
-    t0 = legs.t_end[ks - 1] + max(settle, 0.0)
-    t1 = legs.t_end[ks] - early_end
-    keep = legs.extruding[ks] & (t1 - t0 >= min_wall)
-    ks, t0, t1 = ks[keep], t0[keep], t1[keep]
-    if len(tu) == 0 or len(ks) == 0:
-        return 0.0
-    order = np.argsort(tu)
-    tu, pts = tu[order], pts[order]
-    i0 = np.searchsorted(tu, t0, side="left")
-    i1 = np.searchsorted(tu, t1, side="right")
-    d = legs.direction
-    normal = np.stack([-d[:, 1], d[:, 0]], axis=1)
-    worst, where = 0.0, None
-    for k, a, b in zip(ks, i0, i1):  # one iteration per wall, vectorised within
-        if b - a < 3:
-            continue
-        dev = (pts[a:b] - legs.start[k]) @ normal[k]
-        rms = float(np.sqrt(np.mean((dev - dev.mean()) ** 2)))
-        if rms > worst:
-            worst, where = rms, {"t_corner": float(legs.t_end[k - 1]), "t_end": float(legs.t_end[k])}
-    if where:
-        details["ringing_at"] = where
-    return worst
+def _top(per_cls: dict[str, np.ndarray]) -> dict[str, float]:
+    """The job-level values: seen measures over visible classes, show-through over hidden ones,
+    extrusion over all (the ripple's p90 is set from the walls, :func:`_p90_from_walls`)."""
+    out = {}
+    for k, v in per_cls.items():
+        if k in SEEN_KEYS:
+            out[k] = float(np.max(v[_VISIBLE]))
+        elif k in EXTRUSION_KEYS or k == "show_through_mm":
+            out[k] = float(np.max(v))
+    return out
+
+
+def _features(per_cls: dict[str, np.ndarray], present: np.ndarray) -> dict[str, dict[str, float]]:
+    """``{class: {key: value}}`` for the classes with extruding samples."""
+    return {FEATURE_CLASSES[c]: {k: float(per_cls[k][c]) if k in per_cls else 0.0 for k in FEATURE_KEYS}
+            for c in present}

@@ -17,7 +17,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ringtune.envs.evaluate import _trimmed
-from ringtune.envs.metrics import compute_metrics, path_legs
+from ringtune.envs.metrics import compute_metrics
+from ringtune.envs.path_geometry import path_legs
 from ringtune.shaping.motion import Motion
 
 

@@ -87,6 +87,15 @@ class Firmware:
         save: lines that persist shaping settings from G-code (empty: they belong in a config file).
         config_file: where settings go when they cannot be saved from G-code, or None.
         native_names: (canonical name, the firmware's own name) where they differ (RRF ``ei2``).
+        e_timing: the extruder under input shaping (seed 002; :mod:`ringtune.shaping.e_timing`):
+            ``shaped`` with X/Y's impulses, ``delayed`` by the shaped axes' lag, or ``neither``.
+        xy_delay: how the shaped X/Y are delayed against the firmware's own (extruder) clock:
+            ``centred`` (impulses centred, no lag on average), ``causal`` (each axis by its
+            centroid ΣAᵢTᵢ) or ``largest`` (every shaped axis by the largest centroid).
+        e_sync: how to make the extruder follow X/Y where the firmware can and does not by
+            default ("" where it already does or cannot).
+        e_sync_timing: the ``e_timing`` that ``e_sync`` gives ("" without it).
+        e_source: where ``e_timing`` and ``xy_delay`` were read (file and function).
     """
 
     name: str
@@ -105,6 +114,11 @@ class Firmware:
     save: tuple[str, ...] = ()
     config_file: str | None = None
     native_names: tuple[tuple[str, str], ...] = ()
+    e_timing: str = "neither"
+    xy_delay: str = "centred"
+    e_sync: str = ""
+    e_sync_timing: str = ""
+    e_source: str = ""
 
     @property
     def shapers(self) -> tuple[str, ...]:
@@ -140,25 +154,62 @@ _RRF_ACCEL = Span(1.0, 1e6, 1)
 _RRF35_FREQ = Span(750000.0 / 131070.0, 1000.0, 2, why="Duet 3: StepClockRate / (2·65535)")
 _RRF_NAMES = (("2hump_ei", "ei2"), ("3hump_ei", "ei3"))      # InputShaperType names
 
+#: extruder timing facts per firmware family (Firmware.e_timing, xy_delay, e_sync, e_sync_timing,
+#: e_source); read in the firmwares' sources, see each e_source
+_E_KLIPPER = dict(
+    e_timing="neither", xy_delay="centred",
+    e_source="Klipper klippy/chelper/kin_shaper.c init_shaper/shift_pulses (impulses shifted so that "
+             "Σaᵢtᵢ = 0; only x, y, z are shaped); kin_extruder.c (the extruder is not shaped, only "
+             "smoothed by pressure advance)")
+_E_RRF = dict(
+    e_timing="shaped", xy_delay="causal",
+    e_source="RepRapFirmware src/Movement/Move.cpp Move::AddLinearSegments (\"taking account of "
+             "possible input shaping. This is used by linear axes and by extruders\"; causal "
+             "impulses, no centring); 3.4 reshapes each move's acceleration phases, which all its "
+             "drives follow")
+_E_MARLIN = dict(
+    e_timing="neither", xy_delay="causal",
+    e_source="seed 002, by the author of Marlin's classic input shaping: the shaped axes' steps are "
+             "diverted through ShapingQueue and echoed after the pulse (Stepper::pulse_phase_isr, "
+             "Stepper::shaping_isr); the non-shaped axes are not rescheduled (\"nothing has been done "
+             "in Marlin yet\"), so the extruder leads X/Y by their lag")
+_E_MARLIN_FTM = dict(
+    e_timing="neither", xy_delay="largest",
+    e_sync="build with FTM_SHAPER_E (Configuration_adv.h: \"Required to synchronize extruder with "
+           "XYZ\") and keep axis synchronisation on (its default)",
+    e_sync_timing="delayed",
+    e_source="Marlin src/module/ft_motion.cpp FTMotion::calc_traj_point (with axis_sync_enabled, the "
+             "default, every shaped axis is delayed to the largest centroid; the extruder is in the "
+             "shaped set only with FTM_SHAPER_E, which Configuration_adv.h leaves off); "
+             "ft_motion/shaping.h refresh_largest_delay_samples")
+_E_PRUSA = dict(
+    e_timing="neither", xy_delay="centred",
+    e_source="Prusa-Firmware-Buddy lib/Marlin/Marlin/src/module/prusa/input_shaper.cpp "
+             "input_shaper_step_generator_init (X, Y, Z only: \"Input shaper isn't supported on this "
+             "axis\"); pulses centred as Klipper's (init_input_shaper_pulses)")
+
 FIRMWARES: dict[str, Firmware] = {f.name: f for f in (
     Firmware("klipper", "Klipper", "klipper", "klipper", "klipper", False,
              Span(1.0, 1000.0, 3, why="ringtune's bound: Klipper takes any F > 0, but below 1 Hz one shaper "
                                       "outlasts half a second and delays every step by that"),
              Span(0.0, 0.99, 6), False, "SET_VELOCITY_LIMIT ACCEL={a}", "SET_VELOCITY_LIMIT",
-             _KLIPPER_ACCEL, ";", (), "printer.cfg"),
+             _KLIPPER_ACCEL, ";", (), "printer.cfg", **_E_KLIPPER),
     Firmware("rrf", "RepRapFirmware 3.6", "rrf", "rrf", "rrf", True, Span(4.0, 1000.0, 2),
-             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES),
+             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
+             **_E_RRF),
     Firmware("rrf35", "RepRapFirmware 3.5", "rrf35", "rrf", "rrf", True, _RRF35_FREQ,
-             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES),
+             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
+             **_E_RRF),
     Firmware("rrf34", "RepRapFirmware 3.4", "rrf35", "rrf", "rrf", True, _RRF35_FREQ,
-             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES),
+             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
+             **_E_RRF),
     Firmware("marlin", "Marlin (classic input shaping)", "marlin", "marlin", "marlin", False,
              Span(0.0, 1000.0, 2, lo_open=True, why="Marlin's own minimum F depends on the board"),
-             Span(0.0, 1.0, 3), True, "M204 P{a}", "M204", _M204_2, ";", ("M500",)),
+             Span(0.0, 1.0, 3), True, "M204 P{a}", "M204", _M204_2, ";", ("M500",), **_E_MARLIN),
     Firmware("marlin-ftm", "Marlin FT_MOTION", "marlin-ftm", "marlin-ftm", "marlin", False,
              Span(10.0, 500.0, 2, why="FTM_MIN_SHAPE_FREQ..FTM_FS/2"), Span(0.01, 1.0, 3), True,
-             "M204 P{a}", "M204", _M204_2, ";", ("M500",)),
+             "M204 P{a}", "M204", _M204_2, ";", ("M500",), **_E_MARLIN_FTM),
     Firmware("prusa", "Prusa-Firmware-Buddy", "klipper-legacy", "prusa", "marlin", False,
              Span(10.0, 100.0, 2, why="it clamps other values to 10-100 Hz"), Span(0.0, 0.99, 3), False,
-             "M204 P{a}", "M204", _M204_2, ";", ("M593 W",)),
+             "M204 P{a}", "M204", _M204_2, ";", ("M593 W",), **_E_PRUSA),
 )}

@@ -1,17 +1,22 @@
 """Built-in test print and the quality-relevant windows of any planned job (mm, mm/s, s, Hz).
 
-:func:`builtin_test_gcode` writes a short job (about four seconds of motion) that shows what input
-shaping and the frequency limit are about:
+:func:`builtin_test_gcode` writes one layer of a modern job in miniature (about eight seconds of
+motion on the default printer), labelled as PrusaSlicer labels its features, at the speeds a
+current printer prints them:
 
-1. a ringing-tower layer: one square perimeter, 90° corners at 100 mm/s;
-2. nophead's zigzag infill: one continuous extrusion path whose zigzag strokes narrow so that the
-   direction-change frequency, at the commanded 80 mm/s, sweeps 10, 15, 20, 30, 40, 55, 80 Hz
-   (four cycles each);
-3. a circle (G2 arc, radius 8 mm) at 80 mm/s.
+1. ``Perimeter`` (inner wall, 250 mm/s): a rectangle loop inside the part, long straight sides;
+2. ``External perimeter`` (outer wall, 150 mm/s): the part's outline, started mid-wall as slicers
+   hide the seam — a 70 mm wall along X and a 40 mm wall along Y after 90° corners (ripples show
+   on them), an acute corner (121° turn), an obtuse one (78°), and a curve of short straight
+   segments (10° each, as slicers write arcs) into a 35 mm wall along Y;
+3. ``Internal infill`` (250 mm/s): nophead's zigzag, one continuous extrusion path whose strokes
+   narrow so that the direction-change frequency at the commanded speed sweeps 10, 15, 20, 30, 40,
+   55, 80 Hz (four cycles each).
 
-:func:`quality_windows` picks, from any plan, the stretches physics should score: the sharpest
-corners taken at speed and the highest-frequency zigzags, so a long print is judged on a fraction of
-its length.
+:func:`quality_windows` picks, from any plan, the stretches physics should score, per feature
+class: the sharpest corners of what a person sees (each window runs on along the wall after the
+corner, so its ripple is inside), the highest-frequency zigzags and the sharpest corners of what
+is hidden (what shows through), so a long print is judged on a fraction of its length.
 """
 
 from __future__ import annotations
@@ -21,28 +26,40 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ringtune.shaping.features import VISIBLE, feature_class
 from ringtune.shaping.freqlimit import CYCLES
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.job import Job
 
 ZIGZAG_FREQS = (10.0, 15.0, 20.0, 30.0, 40.0, 55.0, 80.0)    # Hz at the commanded speed
-ZIGZAG_SPEED = 80.0          # mm/s
-ZIGZAG_STEP = 0.25           # mm advance per stroke along X
+ZIGZAG_SPEED = 250.0         # mm/s
+ZIGZAG_STEP = 0.45           # mm advance per stroke along X (one line width)
 ZIGZAG_CYCLES = 4
+OUTER_SPEED = 150.0          # mm/s, outer wall
+INNER_SPEED = 250.0          # mm/s, inner wall
+TRAVEL_SPEED = 300.0         # mm/s
 E_PER_MM = 0.033             # 0.45 x 0.2 mm line, 1.75 mm filament
+#: the outline, counter-clockwise from the middle of the wall F → A: A (90° corner), B (70 mm
+#: wall, 90° corner), C (40 mm wall, acute corner), D (obtuse corner), E, then a curve of radius
+#: CURVE_R about CURVE_C from E's angle to 180° (10° chords) to F, and back down the wall
+OUTLINE = ((20.0, 40.0), (20.0, 20.0), (90.0, 20.0), (90.0, 60.0), (65.0, 45.0))
+CURVE_C, CURVE_R, CURVE_FROM_DEG, CURVE_TO_DEG, CURVE_STEP_DEG = (35.0, 55.0), 15.0, 45.0, 180.0, 10.0
+INNER_LOOP = ((22.0, 22.0), (88.0, 22.0), (88.0, 42.0), (22.0, 42.0))
 
 
 @dataclass(frozen=True)
 class Window:
     """A stretch of a planned job worth simulating: [t0, t1] s, ``kind`` ``corner`` | ``zigzag``,
     ``score`` (corner: velocity change across it, mm/s; zigzag: direction-change frequency, Hz),
-    ``line``: the G-code line at its centre."""
+    ``line``: the G-code line at its centre, ``feature``: the feature class there
+    (:data:`ringtune.shaping.features.FEATURE_CLASSES`)."""
 
     t0: float
     t1: float
     kind: str
     score: float
     line: int = 0
+    feature: str = "other"
 
 
 def zigzag_stroke_width(freq: float, speed: float = ZIGZAG_SPEED, step: float = ZIGZAG_STEP) -> float:
@@ -52,39 +69,62 @@ def zigzag_stroke_width(freq: float, speed: float = ZIGZAG_SPEED, step: float = 
     return math.sqrt(max(stroke * stroke - step * step, 0.0))
 
 
+def _outline() -> list[tuple[float, float]]:
+    """The outer wall's points after A: B, C, D, the curve's chords from E to F, and A again."""
+    cx, cy = CURVE_C
+    angles = np.arange(CURVE_FROM_DEG, CURVE_TO_DEG + 1e-9, CURVE_STEP_DEG)
+    curve = [(cx + CURVE_R * math.cos(math.radians(a)), cy + CURVE_R * math.sin(math.radians(a)))
+             for a in angles]
+    return [*OUTLINE[1:], *curve, OUTLINE[0]]
+
+
+class _Writer:
+    """G-code lines of the test print, tracking the position (absolute XY, relative E)."""
+
+    def __init__(self) -> None:
+        self.lines = ["; ringtune built-in test print: one layer of a modern job in miniature",
+                      "G90", "M83", "G92 E0", "G1 Z0.2 F600"]
+        self.x, self.y = 0.0, 0.0
+
+    def travel(self, x: float, y: float, retract: bool = True) -> None:
+        if retract:
+            self.lines.append("G1 E-0.8 F2400")
+        self.lines.append(f"G1 X{x:.3f} Y{y:.3f} F{TRAVEL_SPEED * 60:.0f}")
+        if retract:
+            self.lines.append("G1 E0.8 F2400")
+        self.x, self.y = x, y
+
+    def feature(self, label: str, speed: float) -> None:
+        self.lines += [f";TYPE:{label}", f"G1 F{speed * 60:.0f}"]
+
+    def extrude(self, x: float, y: float) -> None:
+        e = E_PER_MM * math.hypot(x - self.x, y - self.y)
+        self.lines.append(f"G1 X{x:.4f} Y{y:.4f} E{e:.5f}")
+        self.x, self.y = x, y
+
+
 def builtin_test_gcode() -> str:
     """G-code text of the built-in test print (absolute XYZ, relative E)."""
-    out = ["; ringtune built-in test print", "G90", "M83", "G92 E0", "G1 Z0.2 F600"]
-
-    def ext(x0, y0, x1, y1):
-        return E_PER_MM * math.hypot(x1 - x0, y1 - y0)
-
-    # 1. ringing-tower layer: square perimeter, sharp corners at speed
-    out += ["G1 X20 Y20 F9000", ";TYPE:External perimeter", "G1 F6000"]
-    pts = [(45, 20), (45, 45), (20, 45), (20, 20)]
-    x, y = 20.0, 20.0
-    for px, py in pts:
-        out.append(f"G1 X{px} Y{py} E{ext(x, y, px, py):.5f}")
-        x, y = px, py
-    # 2. zigzag infill sweeping direction-change frequency
-    x0, yc = 60.0, 35.0
-    out += ["G1 E-0.8 F2400", f"G1 X{x0:.3f} Y{yc:.3f} F9000", "G1 E0.8 F2400",
-            ";TYPE:Internal infill", f"G1 F{ZIGZAG_SPEED * 60:.0f}"]
-    x, y = x0, yc
+    g = _Writer()
+    g.travel(*INNER_LOOP[0], retract=False)
+    g.feature("Perimeter", INNER_SPEED)
+    for p in (*INNER_LOOP[1:], INNER_LOOP[0]):
+        g.extrude(*p)
+    g.travel(*OUTLINE[0])
+    g.feature("External perimeter", OUTER_SPEED)
+    for p in _outline():
+        g.extrude(*p)
+    x0, yc = 30.0, 32.0
+    g.travel(x0, yc)
+    g.feature("Internal infill", ZIGZAG_SPEED)
     up = True
     for f in ZIGZAG_FREQS:
         w = zigzag_stroke_width(f)
         for _ in range(2 * ZIGZAG_CYCLES):
-            nx, ny = x + ZIGZAG_STEP, yc + (w / 2 if up else -w / 2)
-            out.append(f"G1 X{nx:.4f} Y{ny:.4f} E{ext(x, y, nx, ny):.5f}")
-            x, y, up = nx, ny, not up
-    # 3. circle
-    cx, cy, r = 100.0, 35.0, 8.0
-    out += ["G1 E-0.8 F2400", f"G1 X{cx + r:.3f} Y{cy:.3f} F9000", "G1 E0.8 F2400",
-            ";TYPE:Perimeter", "G1 F4800",
-            f"G2 X{cx + r:.3f} Y{cy:.3f} I{-r:.3f} J0 E{E_PER_MM * 2 * math.pi * r:.5f}",
-            "G1 E-0.8 F2400", "G1 Z1.2 F600"]
-    return "\n".join(out) + "\n"
+            g.extrude(g.x + ZIGZAG_STEP, yc + (w / 2 if up else -w / 2))
+            up = not up
+    g.lines += ["G1 E-0.8 F2400", "G1 Z1.2 F600"]
+    return "\n".join(g.lines) + "\n"
 
 
 def builtin_test_print() -> Job:
@@ -95,12 +135,20 @@ def builtin_test_print() -> Job:
 
 
 # -- windows ------------------------------------------------------------------------------------
+def move_visibility(plan) -> np.ndarray:
+    """(n moves,) True where the move's feature label is a visible class (unlabelled included)."""
+    mv = plan.moves
+    seen = np.array([feature_class(name) in VISIBLE for name in mv.features], bool)
+    return seen[mv.feature] if len(mv.feature) else np.zeros(0, bool)
+
+
 def _corner_candidates(plan, tau: float = 0.02):
-    """Junctions inside extrusion: time, xy velocity change over ±tau (mm/s), line."""
+    """Junctions inside extrusion: time, xy velocity change over ±tau (mm/s), line, index of the
+    move after the junction."""
     mv = plan.moves
     n = len(mv)
     if n < 2:
-        return np.zeros(0), np.zeros(0), np.zeros(0, np.int64)
+        return np.zeros(0), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.int64)
     ext = mv.extruding
     both = ext[1:] & ext[:-1]
     d_prev = (mv.end[:-1] - mv.start[:-1])[:, :2]
@@ -114,7 +162,7 @@ def _corner_candidates(plan, tau: float = 0.02):
     vb = plan.motion.velocity(tj - tau)[:, :2]
     va = plan.motion.velocity(tj + tau)[:, :2]
     score = np.linalg.norm(va - vb, axis=1)
-    return tj, score, mv.line[idx + 1]
+    return tj, score, mv.line[idx + 1], idx + 1
 
 
 def direction_change_frequencies(plan):
@@ -162,43 +210,77 @@ def _same_path(ext, connected, a, b) -> np.ndarray:
     return (bad[b + 1] - bad[a] == 0) & (gap[b] - gap[a] == 0)
 
 
+#: shares of the windows per kind, in the order they are filled: corners of visible features
+#: (each window runs on along the wall after the corner), zigzags (fastest direction changes,
+#: mostly infill) and corners of hidden features; a kind short of candidates leaves its places to
+#: the next, then to any kind with candidates left
+WINDOW_SHARES = (("seen-corner", 0.5), ("zigzag", 0.25), ("hidden-corner", 0.25))
+
+
+def _candidates(plan, span: float) -> dict:
+    """Per window kind: (t0 of the window, score, line, feature class, order best first)."""
+    tc, sc, lc, mc = _corner_candidates(plan)
+    tz, fz, lz = direction_change_frequencies(plan)
+    mv = plan.moves
+    names = np.array([feature_class(n) for n in mv.features] or ["other"])
+    cls_c = names[mv.feature[mc]] if len(mc) else np.zeros(0, str)
+    line_to_move = {int(line): i for i, line in enumerate(mv.line)}
+    cls_z = np.array([names[mv.feature[line_to_move[int(x)]]] for x in lz], dtype=names.dtype)
+    seen = np.isin(cls_c, list(VISIBLE))
+    out = {}
+    for kind, pick, t0, score, line, cls in (
+            ("seen-corner", seen, tc - 0.2 * span, sc, lc, cls_c),
+            ("hidden-corner", ~seen, tc - 0.2 * span, sc, lc, cls_c),
+            ("zigzag", np.ones(len(tz), bool), tz - 0.5 * span, fz, lz, cls_z)):
+        t0, score, line, cls = t0[pick], score[pick], line[pick], cls[pick]
+        out[kind] = (t0, score, line, cls, _best_per_class_first(score, cls))
+    return out
+
+
+def _best_per_class_first(score: np.ndarray, cls: np.ndarray) -> np.ndarray:
+    """Candidate order: each class's best, then each class's second best, ... (by score within a
+    round), so the windows of a kind cover every feature class that has candidates."""
+    by_score = np.argsort(-score, kind="stable")
+    rank = np.zeros(len(score), np.int64)
+    seen: dict = {}
+    for i in by_score:
+        rank[i] = seen.get(cls[i], 0)
+        seen[cls[i]] = rank[i] + 1
+    return np.lexsort((-score, rank))
+
+
 def quality_windows(plan, max_windows: int = 8, span: float = 0.25) -> list[Window]:
-    """Up to ``max_windows`` non-overlapping windows of ``span`` s each, half the sharpest corners
-    (largest velocity change while extruding, window starting just before the corner so the
-    ringing after it is inside) and half the highest-frequency zigzags; a kind with too few
-    candidates leaves its places to the other. Sorted by start time."""
+    """Up to ``max_windows`` non-overlapping windows of ``span`` s each, shared per feature class
+    as :data:`WINDOW_SHARES` says: the sharpest corners (largest velocity change while extruding)
+    of visible features, window starting just before the corner so the wall after it is inside;
+    the highest-frequency zigzags; the sharpest corners of hidden features. Sorted by start time;
+    ``kind`` is ``corner`` or ``zigzag``, ``feature`` the class there."""
     duration = plan.motion.end_time
     span = min(span, duration)
-    tc, sc, lc = _corner_candidates(plan)
-    tz, fz, lz = direction_change_frequencies(plan)
-    # candidates best first; each kind is consumed lazily from its own cursor
-    cands = {
-        "corner": (tc - 0.2 * span, sc, lc, np.argsort(-sc, kind="stable")),
-        "zigzag": (tz - 0.5 * span, fz, lz, np.argsort(-fz, kind="stable")),
-    }
-    cursor = {"corner": 0, "zigzag": 0}
+    cands = _candidates(plan, span)
+    cursor = dict.fromkeys(cands, 0)
     chosen: list[Window] = []
     lo_t, hi_t = plan.motion.start_time, duration - span
 
     def take(kind: str, quota: int) -> int:
-        t0s, scores, lines, order = cands[kind]
-        got = 0
-        k = cursor[kind]
+        t0s, scores, lines, classes, order = cands[kind]
+        got, k = 0, cursor[kind]
         while got < quota and k < len(order):
             i = order[k]
             k += 1
             t0 = float(min(max(t0s[i], lo_t), hi_t))
             if all(t0 + span <= w.t0 or t0 >= w.t1 for w in chosen):
-                chosen.append(Window(t0, t0 + span, kind, float(scores[i]), int(lines[i])))
+                chosen.append(Window(t0, t0 + span, "zigzag" if kind == "zigzag" else "corner",
+                                     float(scores[i]), int(lines[i]), str(classes[i])))
                 got += 1
         cursor[kind] = k
         return got
 
-    half = max_windows // 2
-    got_c = take("corner", max_windows - half)
-    got_z = take("zigzag", half + (max_windows - half - got_c))
-    if got_c + got_z < max_windows:
-        take("corner", max_windows - got_c - got_z)
+    left = max_windows
+    for kind, share in WINDOW_SHARES:
+        left -= take(kind, min(left, max(1, round(share * max_windows))))
+    for kind, _ in WINDOW_SHARES:      # places a kind could not fill go to the others
+        left -= take(kind, left)
     return sorted(chosen, key=lambda w: w.t0)
 
 
@@ -215,17 +297,17 @@ def relocate_windows(plan, reference: list[Window], span: float = 0.25) -> list[
     duration = plan.motion.end_time
     span = min(span, duration)
     lo_t, hi_t = plan.motion.start_time, duration - span
-    tc, sc, lc = _corner_candidates(plan)
-    tz, fz, lz = direction_change_frequencies(plan)
-    cands = {"corner": (tc - 0.2 * span, sc, lc), "zigzag": (tz - 0.5 * span, fz, lz)}
+    c = _candidates(plan, span)
+    corners = tuple(np.concatenate([c["seen-corner"][j], c["hidden-corner"][j]]) for j in range(4))
+    cands = {"corner": corners, "zigzag": c["zigzag"][:4]}
     out = []
     for w in reference:
-        t0s, scores, lines = cands.get(w.kind, cands["corner"])
+        t0s, scores, lines, classes = cands.get(w.kind, cands["corner"])
         if len(lines) == 0:
-            t0s, scores, lines = cands["zigzag" if w.kind == "corner" else "corner"]
+            t0s, scores, lines, classes = cands["zigzag" if w.kind == "corner" else "corner"]
         if len(lines) == 0:
             return quality_windows(plan, max_windows=len(reference), span=span)
         i = int(np.argmin(np.abs(np.asarray(lines, np.int64) - int(w.line))))
         t0 = float(min(max(t0s[i], lo_t), hi_t))
-        out.append(Window(t0, t0 + span, w.kind, float(scores[i]), int(lines[i])))
+        out.append(Window(t0, t0 + span, w.kind, float(scores[i]), int(lines[i]), str(classes[i])))
     return sorted(out, key=lambda w: w.t0)

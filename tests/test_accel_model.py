@@ -15,6 +15,7 @@ from ringtune.envs.env import DEFAULT_WEIGHTS
 from ringtune.envs.evaluate import evaluate, planned_job, resolve_printer
 from ringtune.envs.metrics import Metrics
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.testprints import builtin_test_print
 
 MZV = TuneConfig(firmware="klipper", shaper_x="mzv", shaper_y="mzv", freq_x=45.5, freq_y=38.9,
                  damping_x=0.075, damping_y=0.075, accel=4000.0)
@@ -34,7 +35,12 @@ def test_metrics_scale_with_acceleration_on_the_linear_printer(shaper):
     friction doubles (±15 %)."""
     p = resolve_printer(None)
     cfg = dataclasses.replace(MZV, shaper_x=shaper, shaper_y=shaper)
-    m1, m2 = (evaluate(dataclasses.replace(cfg, accel=a), p, None, backend="lti") for a in (3000.0, 6000.0))
+    # the built-in print at most 100 mm/s: below the motor's corner speed (150 mm/s) its force
+    # does not fall with speed, which is the premise's domain (at 250 mm/s it does, and the load
+    # grows faster than the acceleration)
+    job = builtin_test_print()
+    slow = job.with_feed(np.minimum(job.feed, 100.0))
+    m1, m2 = (evaluate(dataclasses.replace(cfg, accel=a), p, slow, backend="lti") for a in (3000.0, 6000.0))
 
     def q(m):
         return sum(DEFAULT_WEIGHTS[k.removesuffix("_mm")] * getattr(m, k) for k in Metrics.QUALITY_KEYS)

@@ -10,7 +10,8 @@ import pytest
 from hypothesis import given, settings, strategies as st
 from scipy.integrate import quad
 
-from ringtune.envs.metrics import Metrics, compute_metrics, path_legs
+from ringtune.envs.metrics import Metrics, compute_metrics
+from ringtune.envs.path_geometry import path_legs
 from ringtune.shaping.motion import Motion
 
 RATE = 10_000.0  # Hz, synthetic sample rate

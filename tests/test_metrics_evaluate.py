@@ -41,14 +41,20 @@ def test_plans_are_cached_per_limits_and_frequency_limit():
     limited = ev.planned_job(printer, None, CONFIGS[2])
     faster = ev.planned_job(printer, None, CONFIGS[3])
     assert limited is not a and faster is not a
-    assert limited.print_time > a.print_time > faster.print_time    # slower zigzags; higher accel
+    assert a.print_time > faster.print_time                         # higher accel
+    # at 6000 mm/s² the zigzag's strokes reach speeds a 15 Hz limit cuts (at the printer's 3000
+    # the built-in print's zigzag is acceleration-bound below 15 Hz already)
+    fast_limited = ev.planned_job(printer, None, TuneConfig(shaper_x="zv", shaper_y="zv", freq_x=50.0,
+                                                            freq_y=50.0, accel=6000.0, freq_limit_hz=15.0))
+    assert fast_limited.print_time > faster.print_time              # slower zigzags
 
 
 def test_print_time_is_the_whole_job_and_quality_follows_the_physics():
     """Shaping at the true frequency of a one-mode printer removes most overshoot and ringing;
     shaping at half that frequency does much less; print time does not depend on the shaper."""
     printer = printer_from_dict({"name": "one-mode", "x": {"modes": [{"freq": 40.0, "damping": 0.05}]},
-                                 "y": {"modes": [{"freq": 40.0, "damping": 0.05}]}})
+                                 "y": {"modes": [{"freq": 40.0, "damping": 0.05}]},
+                                 "motor": {"slip": False}})   # one mode: no rotor stage
     off, on, wrong = ev.evaluate_many([
         TuneConfig(shaper_x="none", shaper_y="none"),
         TuneConfig(shaper_x="zvd", shaper_y="zvd", freq_x=40.0, freq_y=40.0, damping_x=0.05, damping_y=0.05),
@@ -57,7 +63,9 @@ def test_print_time_is_the_whole_job_and_quality_follows_the_physics():
     assert off.print_time_s == on.print_time_s == wrong.print_time_s
     assert on.print_time_s == pytest.approx(ev.planned_job(printer, None, None).plan.print_time)
     assert on.overshoot_mm < 0.1 * off.overshoot_mm and on.ringing_mm < 0.1 * off.ringing_mm
-    assert wrong.ringing_mm > 3 * on.ringing_mm
+    assert on.ripple_mm < 0.1 * off.ripple_mm and on.corner_out_mm < 0.1 * off.corner_out_mm
+    assert wrong.ringing_mm > 3 * on.ringing_mm and wrong.ripple_mm > 3 * on.ripple_mm
+    assert wrong.corner_in_mm > on.corner_in_mm > off.corner_in_mm   # a lower shaper rounds more
     assert on.peak_accel < off.peak_accel
 
 
@@ -78,8 +86,9 @@ def test_default_lead_in_is_long_enough():
     auto = ev.evaluate(cfg, printer, backend="lti")
     long = ev.evaluate(cfg, printer, backend="lti", settle=0.6)
     short = ev.evaluate(cfg, printer, backend="lti", settle=0.0)
-    for key in ("path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel"):
-        assert getattr(auto, key) == pytest.approx(getattr(long, key), rel=0.03)
-    # cutting the history off shows: the windows start from a state that ignores earlier motion
-    assert abs(short.peak_accel - long.peak_accel) > 0.05 * long.peak_accel
-    assert abs(short.overshoot_mm - long.overshoot_mm) > 0.3 * long.overshoot_mm
+    for key in ("path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "ripple_mm", "corner_in_mm",
+                "corner_out_mm", "show_through_mm", "extrusion_over_pct"):
+        assert getattr(auto, key) == pytest.approx(getattr(long, key), rel=0.03), key
+    # the built-in print's windows open on a quiet stretch (each starts before its corner or
+    # zigzag), so even no history beyond the shaper's own duration changes little
+    assert short.ripple_mm == pytest.approx(long.ripple_mm, rel=0.05)

@@ -11,7 +11,10 @@ from ringtune.agents.cli.main import main
 from ringtune.envs.evaluate import evaluate
 from ringtune.shaping.config import TuneConfig
 
-METRIC_KEYS = {"print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss", "motor_load"}
+METRIC_KEYS = {"print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss", "motor_load",
+               "ripple_mm", "ripple_p90_mm", "corner_in_mm", "corner_out_mm", "extrusion_over_pct",
+               "extrusion_under_pct", "e_lag_mm", "show_through_mm"}
+NESTED_KEYS = {"features", "extrusion_if_synced"}
 
 
 def run_cli(argv, capsys):
@@ -26,8 +29,9 @@ def test_json_matches_evaluate_and_shaping_helps(capsys):
     assert code == 0
     res = json.loads(out)
     assert set(res) == {"printer", "job", "backend", "config", "metrics", "freq_margin", "judgement",
-                        "variants", "windows", "plots"}
-    assert set(res["metrics"]) == METRIC_KEYS and res["plots"] == []
+                        "variants", "windows", "plots", "e_timing", "e_sync"}
+    assert set(res["metrics"]) == METRIC_KEYS | NESTED_KEYS and res["plots"] == []
+    assert res["e_timing"] == "neither" and res["e_sync"] == ""   # Klipper: centred X/Y, E unshaped
     cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=45.5, freq_y=38.9, damping_x=0.1, damping_y=0.1)
     m = evaluate(cfg, backend="lti")
     for key in METRIC_KEYS:

@@ -15,10 +15,30 @@ from ringtune.shaping.testprints import (ZIGZAG_FREQS, ZIGZAG_SPEED, ZIGZAG_STEP
 def test_builtin_is_a_few_seconds_with_all_three_parts():
     job = builtin_test_print()
     p = plan(job, MachineLimits())
-    assert 2.0 < p.print_time < 8.0
+    assert 4.0 < p.print_time < 12.0
     feats = p.time_by_feature()
     assert {"External perimeter", "Internal infill", "Perimeter"} <= set(feats)
-    assert job.arc.any()                                        # the circle is a G2 arc
+    assert not job.arc.any()                    # the curve is short straight segments, as slicers write
+
+
+def test_builtin_is_a_modern_job_in_miniature():
+    """Long straight walls, a 90° corner before each, an acute corner, a curve of short segments,
+    a zigzag, labelled as PrusaSlicer labels them, at speeds a current printer uses."""
+    job = builtin_test_print()
+    label = np.array(job.features)[job.feature]
+    d = job.delta[:, :2]
+    length = np.hypot(d[:, 0], d[:, 1])
+    ext = job.extruding
+    outer = ext & (label == "External perimeter")
+    inner = ext & (label == "Perimeter")
+    assert length[outer].max() >= 60 and length[inner].max() >= 60       # long straight walls
+    assert np.sum(outer & (length > 0.5) & (length < 3)) >= 10            # a curve of short chords
+    u = d / np.maximum(length, 1e-12)[:, None]
+    turn = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1, 1)))
+    both = outer[1:] & outer[:-1]
+    assert turn[both].max() > 115                                         # an acute corner
+    assert np.sum(both & (np.abs(turn - 90) < 1)) >= 2                    # 90° corners
+    assert job.feed[outer].max() >= 150 and job.feed[inner].max() >= 200 and job.feed[ext].max() >= 250
 
 
 def test_zigzag_stroke_width_gives_the_frequency():
@@ -54,9 +74,13 @@ def test_quality_windows_pick_corners_and_fast_zigzags():
     t, f, _ = direction_change_frequencies(p)
     z = [w for w in wins if w.kind == "zigzag"]
     assert max(w.score for w in z) == pytest.approx(f.max())
-    # corner windows sit on the square's corners (lines of the perimeter)
+    # corner windows sit on the walls' corners: the outer wall's first, then the hidden features'
     corners = [w for w in wins if w.kind == "corner"]
     assert all(w.score > 50 for w in corners)
+    assert [w.feature for w in corners].count("outer_wall") >= 2
+    # with the default eight windows, every labelled class with corners is judged somewhere
+    eight = quality_windows(p)
+    assert {w.feature for w in eight} == {"outer_wall", "inner_wall", "infill"}
 
 
 def test_quality_windows_on_a_long_real_job(data_dir):

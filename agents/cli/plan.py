@@ -26,9 +26,8 @@ import numpy as np
 from ringtune.agents.cli.common import load_config
 from ringtune.agents.cli.options import VALUES
 from ringtune.envs.job_plan import JUNCTION_NAMES, hms, plan_job
-from ringtune.shaping.apply import shape_motion
+from ringtune.shaping.e_timing import firmware_trajectory
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.shapers import shapers_from_config
 
 NAME = "plan"
 DESCRIPTION = """\
@@ -56,7 +55,11 @@ on), and planned, with the accelerations and corners of the rule above (what the
 --config applies a TuneConfig's frequency limit and acceleration (its accel replaces the job's
 M204/SET_VELOCITY_LIMIT accelerations); a shaper "daa" in it (or --daa F)
 plans with RepRapFirmware 3.3's Dynamic Acceleration Adjustment. --trajectory writes the commanded
-toolhead position t,x,y,z,e (after planning, frequency limit and the config's input shaping).
+toolhead position t,x,y,z,e (after planning, frequency limit and the config's input shaping);
+its e column is the extruder as that firmware commands it under shaping: shaped with X/Y
+(RepRapFirmware), delayed with them, or on the planner's clock (Klipper and Prusa, whose X/Y are
+time-centred; Marlin, whose X/Y lag by the shaper's ΣAᵢTᵢ, so E leads them): compare it with the
+path to see the extrusion error `simulate` reports.
 
 examples:
   ringtune plan ringing_tower.gcode
@@ -128,15 +131,10 @@ def _text(r: dict) -> str:
 
 
 def _write_trajectory(p, cfg, path, rate) -> str:
-    motion = p.motion
-    if cfg is not None:
-        shapers, centred = shapers_from_config(cfg)
-        if any(s is not None for s in shapers.values()):
-            motion = shape_motion(motion, shapers, centred)
-    t, pos = motion.sample(rate)
+    """Write t,x,y,z,e as the firmware commands them (X/Y shaped, E with the firmware's own
+    timing under shaping: ringtune.shaping.e_timing) to ``path`` ('-': standard output)."""
+    t, pos = firmware_trajectory(p.motion, cfg, rate)
     data = np.column_stack([t, pos[:, :4]])
-    if path == "-":
-        np.savetxt(sys.stdout, data, delimiter=",", header="t,x,y,z,e", comments="", fmt="%.6f")
-        return "-"
-    np.savetxt(path, data, delimiter=",", header="t,x,y,z,e", comments="", fmt="%.6f")
-    return str(path)
+    target = sys.stdout if path == "-" else path
+    np.savetxt(target, data, delimiter=",", header="t,x,y,z,e", comments="", fmt="%.6f")
+    return "-" if path == "-" else str(path)

@@ -2,13 +2,19 @@
 
 JSON keys (stable): ``printer`` (name), ``job`` (G-code path or ``"built-in test print"``),
 ``backend``, ``config`` (TuneConfig dict), ``metrics`` {``print_time_s``, ``path_error_mm``,
-``overshoot_mm``, ``ringing_mm``, ``peak_accel``, ``step_loss``, ``motor_load``}, ``freq_margin``
+``overshoot_mm``, ``ringing_mm``, ``peak_accel``, ``step_loss``, ``motor_load``, ``ripple_mm``,
+``ripple_p90_mm``, ``corner_in_mm``, ``corner_out_mm``, ``extrusion_over_pct``,
+``extrusion_under_pct``, ``e_lag_mm``, ``show_through_mm``, ``features`` ({class: {the same measures
+per feature class, ringtune.envs.metrics.FEATURE_KEYS}}), ``extrusion_if_synced``
+({``extrusion_over_pct``, ``extrusion_under_pct``, ``e_lag_mm``} with the firmware's E
+synchronisation on, empty where it has none off by default)} (definitions: ringtune.envs.metrics),
+``e_timing`` (the firmware's extruder under shaping: shaped, delayed or neither), ``e_sync`` (how to
+synchronise it, "" where not applicable), ``freq_margin``
 (fraction: the metrics are the worst of the printer and its resonances this much lower and
 higher, as ``tune`` judges; 0 = the exact model; default: the ``freq_margin`` a tune best.json
 records, else tune's default), ``judgement`` (that, in words), ``variants``
 (list of {``factor`` (every resonance × it), ``metrics``}), ``windows`` (list of {``t0``, ``t1``,
-``kind``, ``path_error_mm``, ``overshoot_mm``, ``ringing_mm``, ``peak_accel``, ``step_loss``,
-``motor_load``}, each the worst over the variants), ``plots`` (list of PNG paths, empty without
+``kind``, ``step_loss`` and every scalar key of ``metrics``}, each the worst over the variants), ``plots`` (list of PNG paths, empty without
 ``--plot``), ``trace`` (with ``--trace`` only: the CSV path; columns in ``ringtune.envs.trace``; the printer as
 modelled, not a detuned variant).
 """
@@ -23,6 +29,7 @@ from ringtune.agents.cli.trace_option import write_trace_option
 from ringtune.agents.tune.baselines import current_config
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 from ringtune.envs.evaluate import evaluate_judged, resolve_printer, variant_factors
+from ringtune.envs.metrics import Metrics
 from ringtune.envs.plots import plot_evaluation
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
@@ -37,6 +44,13 @@ Print time comes from the planner over the whole job; quality comes from the MuJ
 the job's quality windows (sharpest corners, fastest zigzags):
 
   print_time_s   planned print time of the whole job, s
+  ripple_mm      worst peak-to-peak of the nozzle across a visible straight wall (outer walls,
+                 top surfaces, overhangs, unlabelled moves); ripple_p90_mm its 90th percentile
+  corner_in_mm   worst rounding of a visible corner (inwards); corner_out_mm its overshoot
+  extrusion_over_pct / extrusion_under_pct
+                 worst excess / shortfall of material over 1 mm of path, with the firmware's own
+                 extruder timing under shaping (seed 002); e_lag_mm how far it runs ahead
+  show_through_mm  worst excursion of hidden features (infill, inner walls) towards the walls
   path_error_mm  largest distance of the nozzle from the extrusion path while extruding
   overshoot_mm   largest outward excursion past the path at corners and reversals
   ringing_mm     worst RMS oscillation across a straight wall after a direction change
@@ -238,13 +252,7 @@ def run(args, out) -> int:
     m, evs = evaluate_judged([config], printer, args.gcode, backend=args.backend, freq_margin=margin)[0]
     if args.trace:   # the printer as modelled (variant 1.0)
         write_trace_option(args.trace, evs[0], config, printer, args.gcode, args.backend, out)
-    keys = ("path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss", "motor_load")
-    windows = []
-    for i, w in enumerate(evs[0].planned.windows):
-        parts = [e.metrics.details["windows"][i] for e in evs]
-        windows.append({"t0": float(w.t0), "t1": float(w.t1), "kind": str(getattr(w, "kind", "")),
-                        **{k: (any(p[k] for p in parts) if k == "step_loss" else max(p[k] for p in parts))
-                           for k in keys}})
+    windows = _windows(evs)
     factors = variant_factors(margin)
     plots = []
     if args.plot:
@@ -255,6 +263,8 @@ def run(args, out) -> int:
         "backend": args.backend,
         "config": config.to_dict(),
         "metrics": m.to_dict(),
+        "e_timing": FIRMWARES[config.firmware].e_timing,
+        "e_sync": FIRMWARES[config.firmware].e_sync,
         "freq_margin": margin,
         "judgement": judged,
         "variants": [{"factor": f, "metrics": e.metrics.to_dict()} for f, e in zip(factors, evs)],
@@ -262,24 +272,55 @@ def run(args, out) -> int:
         "plots": plots,
         **({"trace": args.trace} if args.trace else {}),
     }
-    c = config
+    lines = _text(result, m, config, printer, judged, len(evs)) + [f"plot: {p}" for p in plots]
+    out.emit(result, "\n".join(lines))
+    return 0
+
+
+def _windows(evs) -> list[dict]:
+    """Per quality window: its span and kind, each measure the worst over the printer variants."""
+    keys = ("step_loss",) + Metrics.SCALAR_KEYS
+    windows = []
+    for i, w in enumerate(evs[0].planned.windows):
+        parts = [e.metrics.details["windows"][i] for e in evs]
+        windows.append({"t0": float(w.t0), "t1": float(w.t1), "kind": str(getattr(w, "kind", "")),
+                        **{k: (any(p[k] for p in parts) if k == "step_loss" else max(p[k] for p in parts))
+                           for k in keys}})
+    return windows
+
+
+def _text(result: dict, m, c, printer, judged: str, n_variants: int) -> list[str]:
+    """The text report's lines (µm for lengths)."""
     um = 1000.0
+    fw = FIRMWARES[c.firmware]
     lines = [
-        f"printer {printer.name}, job {result['job']}, backend {args.backend}",
+        f"printer {printer.name}, job {result['job']}, backend {result['backend']}",
         f"config  {c.firmware}: X {_axis(c.shaper_x, c.freq_x, c.damping_x)}, "
         f"Y {_axis(c.shaper_y, c.freq_y, c.damping_y)}, freq limit "
         f"{(f'{c.freq_limit_hz:g} Hz' if c.freq_limit_hz else 'off')}"
         + (f", accel {c.accel:g} mm/s²" if c.accel else ""),
         f"judged  {judged}",
         f"print time   {m.print_time_s:10.3f} s",
+        f"ripple       {m.ripple_mm * um:10.1f} µm peak-to-peak, worst visible wall "
+        f"(90th percentile {m.ripple_p90_mm * um:.1f} µm)",
+        f"corner in    {m.corner_in_mm * um:10.1f} µm rounding, worst visible corner",
+        f"corner out   {m.corner_out_mm * um:10.1f} µm overshoot, worst visible corner",
+        f"extrusion    {m.extrusion_over_pct:+9.1f} % / {-m.extrusion_under_pct:+.1f} % material over 1 mm "
+        f"of path; extruder up to {m.e_lag_mm * um:.0f} µm off the nozzle (E {fw.e_timing} under shaping)",
+    ]
+    if m.extrusion_if_synced:
+        s = m.extrusion_if_synced
+        lines.append(f"  E synced   {s['extrusion_over_pct']:+9.1f} % / {-s['extrusion_under_pct']:+.1f} %, "
+                     f"up to {s['e_lag_mm'] * um:.0f} µm, if you {fw.e_sync}")
+    lines += [
+        f"show-through {m.show_through_mm * um:10.1f} µm hidden features towards the walls",
         f"path error   {m.path_error_mm * um:10.1f} µm",
         f"overshoot    {m.overshoot_mm * um:10.1f} µm",
         f"ringing      {m.ringing_mm * um:10.1f} µm RMS",
         f"peak accel   {m.peak_accel:10.0f} mm/s²",
         f"step loss    {'YES' if m.step_loss else 'no':>10}",
         f"motor load   {m.motor_load * 100:>9.0f} %  of the force the motors have",
-        f"({len(windows)} quality windows simulated"
-        + (f" on each of {len(evs)} printer variants)" if len(evs) > 1 else ")"),
-    ] + [f"plot: {p}" for p in plots]
-    out.emit(result, "\n".join(lines))
-    return 0
+        f"({len(result['windows'])} quality windows simulated"
+        + (f" on each of {n_variants} printer variants)" if n_variants > 1 else ")"),
+    ]
+    return lines

@@ -1,0 +1,159 @@
+"""Material laid along the nozzle's real path against what the G-code asks (seed 002; definitions in
+:mod:`ringtune.envs.metrics`; mm of path, mm of filament, %).
+
+The firmware commands the extruder on its own clock (:mod:`ringtune.shaping.e_timing`: shaped with
+X/Y, delayed by their lag, or neither); the nozzle follows the shaped X/Y command through the
+machine's physics. At each sample the G-code asks for the filament the path holds up to the point
+of the path nearest the nozzle; the firmware has pushed what its extruder command reached. Their
+difference, in mm of path, is how far the extruder runs ahead of the nozzle (``lead``); a change
+of lead over a stretch of path is material laid there beyond (or short of) what was asked.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ringtune.envs.path_geometry import EPS_LEN, Legs
+
+#: mm of the nozzle's path over which laid material is compared with the asked (about two
+#: nozzle widths: the bead spreads material over its own width)
+SPAN_MM = 1.0
+
+
+@dataclass
+class Extrusion:
+    """Per judged sample: the extruder's lead over the nozzle along the path (mm; > 0 ahead) and
+    the feature class of its leg; per window of :data:`SPAN_MM`: the relative excess of material
+    (fraction; > 0 over-extrusion) and the class where the window starts."""
+
+    lead: np.ndarray
+    lead_cls: np.ndarray
+    excess: np.ndarray
+    excess_cls: np.ndarray
+
+
+def _empty() -> Extrusion:
+    z = np.zeros(0)
+    return Extrusion(z, z.astype(np.int64), z, z.astype(np.int64))
+
+
+def extrusion(e_made: np.ndarray, tu: np.ndarray, pts: np.ndarray, vec: np.ndarray, leg: np.ndarray,
+              legs: Legs, before: float = 0.0, after: float = 0.0, span: float = SPAN_MM) -> Extrusion:
+    """Lead and excess of material of the samples matched to an extruding leg.
+
+    Args:
+        e_made: (n,) extruder position the firmware has commanded at each sample (mm of
+            filament, the running maximum: retracted filament is not taken back from the part).
+        tu: (n,) sample times on the unshaped clock, s, increasing.
+        pts: (n, 2) nozzle x/y, mm; ``vec``/``leg``: from
+            :func:`ringtune.envs.path_geometry.nearest_leg` (leg −1: no extruding leg near).
+        legs: the commanded path's legs.
+        before, after: s the shaped command starts turning before a corner (and its run before
+            the planner's) and runs straight again after it (ends its run after the planner's).
+        span: mm of the nozzle's path per compared stretch.
+
+    Material is compared over the nozzle's own path: from where it starts its run (the nearest
+    point of the path to the first sample of the run; before the run's time, the run's start), by
+    the length the nozzle travels, so a corner the nozzle cuts short gets its filament on a shorter
+    path. The lead is read where the shaped command runs straight along a leg (there the nearest
+    point of the path is where the nozzle is along it).
+    """
+    ok = np.flatnonzero(leg >= 0)
+    if len(ok) == 0:
+        return _empty()
+    first, last = _run_ends(legs)
+    k0, run, t = leg[ok], legs.run[leg[ok]], tu[ok]
+    along = np.einsum("ij,ij->i", pts[ok] - vec[ok] - legs.start[k0], legs.direction[k0])
+    s_near = legs.s_start[k0] + np.clip(along, 0.0, legs.length[k0])
+    active = (t >= legs.t_start[first[run]] - before) & (t <= legs.t_end[last[run]] + after)
+    s_path = _nozzle_path(s_near, pts[ok], run, active, legs.s_start[first[run]])
+    straight = (t >= legs.t_start[k0] + after) & (t <= legs.t_end[k0] - before)
+    lo_e, hi_e = legs.e_start[first[run]], legs.e_end[last[run]]
+    made = np.clip(e_made[ok], lo_e, hi_e)
+    lead_path, cls = _lead(made, s_path, legs, first[run], last[run])
+    lead_near, _ = _lead(made, _running_max_per_run(s_near, run), legs, first[run], last[run])
+    order = np.argsort(run, kind="stable")
+    excess, start = _excess(lead_path[order], s_path[order], run[order], span)
+    return Extrusion(lead_near[straight], cls[straight], excess, cls[order][start])
+
+
+def _nozzle_path(s_near, pts, run, active, s_first) -> np.ndarray:
+    """Path position (mm) of each sample along its run by the nozzle's own travel: the run's
+    start until the run's first active sample, there its nearest point of the path, then on by
+    the length the nozzle moves between consecutive active samples of the run."""
+    order = np.argsort(run, kind="stable")
+    r, act = run[order], active[order]
+    step = np.hypot(*np.diff(pts[order], axis=0).T)
+    inc = np.concatenate([[0.0], np.where((r[1:] == r[:-1]) & act[1:] & act[:-1], step, 0.0)])
+    cum = np.cumsum(inc)
+    run_first = np.searchsorted(r, r, side="left")
+    travelled = cum - cum[run_first]
+    idx = np.arange(len(r))
+    first_active = np.full(int(r.max()) + 1, len(r))
+    np.minimum.at(first_active, r[act], idx[act])
+    anchored = idx >= first_active[r]
+    anchor = (s_near[order] - s_first[order])[np.minimum(first_active[r], len(r) - 1)]
+    out = np.empty_like(s_near)
+    out[order] = s_first[order] + np.where(anchored, anchor + travelled - travelled[np.minimum(first_active[r], len(r) - 1)], 0.0)
+    return out
+
+
+def _lead(made, s, legs: Legs, lo: np.ndarray, hi: np.ndarray):
+    """(lead mm, feature class) of each sample: filament made beyond what the path holds up to
+    path position ``s``, in mm of that path."""
+    k = _leg_at(legs, s, lo, hi)
+    per_mm = np.maximum(legs.e_end[k] - legs.e_start[k], 1e-12) / np.maximum(legs.length[k], EPS_LEN)
+    asked = legs.e_start[k] + per_mm * np.clip(s - legs.s_start[k], 0.0, legs.length[k])
+    return (made - asked) / per_mm, legs.cls[k]
+
+
+def _running_max_per_run(s: np.ndarray, run: np.ndarray) -> np.ndarray:
+    """Running maximum of ``s`` within each run (samples in time order)."""
+    order = np.argsort(run, kind="stable")
+    big = float(np.ptp(s)) + 1.0
+    key = np.maximum.accumulate(s[order] + run[order] * big) - run[order] * big
+    out = np.empty_like(s)
+    out[order] = key
+    return out
+
+
+def _leg_at(legs: Legs, s: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Index of the extruding leg of each sample's run that holds path length ``s`` (mm)."""
+    idx = np.flatnonzero(legs.extruding)
+    j = np.searchsorted(legs.s_start[idx], s, side="right") - 1
+    return np.clip(idx[np.maximum(j, 0)], lo, hi)
+
+
+def _run_ends(legs: Legs) -> tuple[np.ndarray, np.ndarray]:
+    """Per extrusion run (index = run id): its first and its last extruding leg."""
+    n_runs = int(legs.run.max()) + 1 if len(legs) else 0
+    idx = np.flatnonzero(legs.extruding)
+    first = np.zeros(n_runs, np.int64)
+    last = np.zeros(n_runs, np.int64)
+    first[legs.run[idx[::-1]]] = idx[::-1]     # the lowest index of each run is written last
+    last[legs.run[idx]] = idx                  # the highest index of each run is written last
+    return first, last
+
+
+def _excess(lead: np.ndarray, s: np.ndarray, run: np.ndarray, span: float):
+    """Relative excess of material over each stretch of ``span`` mm of a run's path, and the index
+    of the sample where it starts: (lead at the end − lead at the start) / path length between.
+    A run shorter than ``span`` (but longer than a quarter of it) is one stretch. Samples grouped
+    by run, in time order; ``s`` non-decreasing within each run."""
+    run_o, lead_o = run, lead
+    big = float(np.ptp(s)) + 2.0 * span + 1.0
+    key = s + run_o * big                                    # runs apart, each non-decreasing
+    last = np.searchsorted(run_o, run_o, side="right") - 1    # last sample of each sample's run
+    j = np.searchsorted(key, key + span, side="left")
+    i_full = np.flatnonzero(j <= last)
+    firsts = np.flatnonzero(np.r_[True, run_o[1:] != run_o[:-1]])
+    has_full = np.zeros(int(run_o.max()) + 1, bool)
+    has_full[run_o[i_full]] = True
+    short = firsts[~has_full[run_o[firsts]]]
+    short = short[key[last[short]] - key[short] > 0.25 * span]
+    i_all = np.r_[i_full, short]
+    j_all = np.r_[j[i_full], last[short]]
+    length = np.maximum(key[j_all] - key[i_all], EPS_LEN)
+    return (lead_o[j_all] - lead_o[i_all]) / length, i_all

@@ -1,0 +1,159 @@
+"""The commanded path as straight legs, and where each nozzle sample sits on it (mm, s).
+
+:func:`path_legs` merges the planned motion's segments into straight legs (collinear, touching,
+same extruding state and same feature class); :func:`nearest_leg` finds, for each sample of the
+simulated nozzle, the nearest extruding leg active around the sample's time — the geometry every
+measure of :mod:`ringtune.envs.metrics` is taken against.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ringtune.shaping.motion import Motion
+
+EPS_LEN = 1e-6  # mm: shorter x/y segments are pure z/e moves or dwells
+_COLLINEAR = math.cos(math.radians(1.0))
+_TOUCH = 1e-3  # mm: legs closer than this are joined
+
+
+@dataclass
+class Legs:
+    """Straight pieces of the commanded x/y path: consecutive collinear segments merged.
+
+    Arrays are (L, 2) points in mm and (L,) times in s; ``turn_deg[k]`` is the turn angle (deg)
+    between leg k−1 and leg k (0 for the first leg or where the legs do not touch); ``cls[k]`` the
+    feature class index (:data:`ringtune.shaping.features.FEATURE_CLASSES`) of the leg;
+    ``s_start[k]`` the path length (mm) from the path's start to the leg's start; ``e_start`` and
+    ``e_end`` the commanded extruder position (mm of filament) at the leg's ends.
+    """
+
+    start: np.ndarray
+    end: np.ndarray
+    t_start: np.ndarray
+    t_end: np.ndarray
+    extruding: np.ndarray
+    turn_deg: np.ndarray
+    cls: np.ndarray
+    s_start: np.ndarray
+    e_start: np.ndarray
+    e_end: np.ndarray
+
+    @property
+    def direction(self) -> np.ndarray:
+        d = self.end - self.start
+        return d / np.maximum(_norm(d), EPS_LEN)[:, None]
+
+    @property
+    def length(self) -> np.ndarray:
+        return _norm(self.end - self.start)
+
+    @property
+    def run(self) -> np.ndarray:
+        """(L,) index of the extrusion run each leg belongs to (a run: consecutive touching
+        extruding legs; non-extruding legs get the run before them)."""
+        joined = np.concatenate([[False], _norm(self.start[1:] - self.end[:-1]) < _TOUCH])
+        prev_ext = np.concatenate([[False], self.extruding[:-1]])
+        new = self.extruding & ~(joined & prev_ext)
+        return np.cumsum(new) - 1
+
+    def __len__(self) -> int:
+        return len(self.t_start)
+
+
+def _norm(v: np.ndarray) -> np.ndarray:
+    """Lengths of (n, 2) vectors (hypot: faster than linalg.norm on small arrays)."""
+    return np.hypot(v[:, 0], v[:, 1])
+
+
+def _empty_legs() -> Legs:
+    z, e = np.zeros((0, 2)), np.zeros(0)
+    return Legs(z, z, e, e, e.astype(bool), e, e.astype(np.int64), e, e, e)
+
+
+def path_legs(path: Motion, classes: np.ndarray | None = None) -> Legs:
+    """Merge the motion's segments into straight legs (x/y only; z/e-only segments are skipped).
+
+    ``classes``: (n_segments,) feature class index of each segment (None: all 0); a class change
+    starts a new leg."""
+    p0 = path.p[:, :2]
+    p1 = path.end_state()[0][:, :2]
+    seg = p1 - p0
+    length = _norm(seg)
+    keep = np.flatnonzero(length > EPS_LEN)
+    if len(keep) == 0:
+        return _empty_legs()
+    cls_all = np.zeros(path.n_segments, np.int64) if classes is None else np.asarray(classes, np.int64)
+    u = seg[keep] / length[keep, None]
+    ext, cls = path.extruding[keep], cls_all[keep]
+    same_dir = np.einsum("ij,ij->i", u[1:], u[:-1]) >= _COLLINEAR
+    touching = _norm(p0[keep[1:]] - p1[keep[:-1]]) < _TOUCH
+    same = same_dir & touching & (ext[1:] == ext[:-1]) & (cls[1:] == cls[:-1])
+    first = np.flatnonzero(np.concatenate([[True], ~same]))
+    last = np.concatenate([first[1:] - 1, [len(keep) - 1]])
+    start, end = p0[keep[first]], p1[keep[last]]
+    t_start, t_end = path.t[keep[first]], path.t[keep[last] + 1]
+    d = end - start
+    leg_len = _norm(d)
+    d = d / np.maximum(leg_len, EPS_LEN)[:, None]
+    cosang = np.clip(np.einsum("ij,ij->i", d[1:], d[:-1]), -1.0, 1.0)
+    joined = _norm(start[1:] - end[:-1]) < _TOUCH
+    turn = np.concatenate([[0.0], np.where(joined, np.degrees(np.arccos(cosang)), 0.0)])
+    s_start = np.concatenate([[0.0], np.cumsum(leg_len)[:-1]])
+    if path.p.shape[1] > 3:
+        e_start, e_end = path.p[keep[first], 3], p1_e(path)[keep[last]]
+    else:
+        e_start = e_end = np.zeros(len(first))
+    return Legs(start, end, t_start, t_end, ext[first], turn, cls[first], s_start, e_start, e_end)
+
+
+def p1_e(path: Motion) -> np.ndarray:
+    """Extruder position (mm) at the end of each segment."""
+    d = path.dt
+    return path.p[:, 3] + path.v[:, 3] * d + 0.5 * path.a[:, 3] * d * d
+
+
+def vector_from_segment(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Vectors from the nearest point of segment a→b to pts; broadcasts (…, 2)."""
+    ab = b - a
+    denom = np.maximum(np.sum(ab * ab, axis=-1), EPS_LEN ** 2)
+    s = np.clip(np.sum((pts - a) * ab, axis=-1) / denom, 0.0, 1.0)
+    return pts - (a + s[..., None] * ab)
+
+
+def nearest_leg(tu: np.ndarray, pts: np.ndarray, legs: Legs, window: float):
+    """Per sample: distance (mm), vector from the nearest path point (mm) and the index of the
+    nearest extruding leg active within ``window`` s of the sample's time ``tu`` (inf, nan, −1
+    where there is none)."""
+    dist = np.full(len(tu), np.inf)
+    vec = np.full((len(tu), 2), np.nan)
+    leg = np.full(len(tu), -1, dtype=np.int64)
+    ext = np.flatnonzero(legs.extruding)
+    if len(tu) == 0 or len(ext) == 0:
+        return dist, vec, leg
+    a, b = legs.start[ext], legs.end[ext]
+    lo, hi = legs.t_start[ext] - window, legs.t_end[ext] + window  # both non-decreasing
+    # legs active around each sample form a contiguous band [j0, j1] of the time-ordered legs
+    j0 = np.searchsorted(hi, tu, side="left")
+    j1 = np.searchsorted(lo, tu, side="right") - 1
+    width = int(np.max(j1 - j0, initial=-1)) + 1
+    if width <= 0:
+        return dist, vec, leg
+    chunk = max(1, 1_000_000 // width)
+    for i in range(0, len(tu), chunk):  # chunks of samples × band, bounded memory
+        sl = slice(i, i + chunk)
+        idx = j0[sl, None] + np.arange(width)[None, :]
+        valid = idx <= j1[sl, None]
+        idx = np.minimum(idx, len(ext) - 1)
+        e = vector_from_segment(pts[sl, None, :], a[idx], b[idx])
+        d = np.where(valid, np.sqrt(np.einsum("ijk,ijk->ij", e, e)), np.inf)
+        j = np.argmin(d, axis=1)
+        rows = np.arange(len(j))
+        dist[sl] = d[rows, j]
+        found = np.isfinite(dist[sl])
+        vec[sl] = np.where(found[:, None], e[rows, j], np.nan)
+        leg[sl] = np.where(found, ext[idx[rows, j]], -1)
+    return dist, vec, leg

@@ -1,0 +1,179 @@
+"""The extruder under input shaping, per firmware (seed 002), against ΣAᵢTᵢ·v.
+
+A straight line from rest to rest at 100 mm/s (20000 mm/s²: the acceleration ends within 0.25 mm)
+on a stiff machine (the nozzle is the shaped X/Y command). The shaped axes lag the planner by their
+shaper's centroid ΣAᵢTᵢ (causal) or not at all on average (centred); the extruder follows the
+firmware's own rule. Truth: the lag computed here from the shaper's impulses, times the speed;
+on cruise the extruder leads the nozzle by exactly that where the firmware leaves E on the
+planner's clock behind delayed X/Y, and by nothing where E is shaped or delayed alike or X/Y are
+centred; from rest (and to rest) that lead builds up (and falls) within the first (last) mm of
+path, so the material there is off by lead/1 mm.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ringtune.envs.metrics import compute_metrics
+from ringtune.shaping.apply import shape_motion
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.e_timing import E_TIMINGS, XY_DELAYS, extruder_command
+from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.motion import Motion
+from ringtune.shaping.shapers import shapers_from_config
+from tests.test_seen_measures import StiffSim
+
+V, A, LENGTH = 100.0, 20000.0, 60.0
+E_PER_MM = 0.033
+RATE = 100_000.0
+
+#: a shaper each firmware has (RepRapFirmware has no ZV)
+SHAPER = {"rrf": "zvd", "rrf35": "zvd", "rrf34": "zvd"}
+
+
+def line() -> Motion:
+    """Rest to rest along X, extruding E_PER_MM per mm."""
+    td = V / A
+    cr = (LENGTH - V * td) / V
+    t = np.cumsum([0.0, td, cr, td])
+    acc = np.array([[A, 0, 0, A * E_PER_MM], [0, 0, 0, 0], [-A, 0, 0, -A * E_PER_MM]], float)
+    return Motion.from_constant_accel(t, acc, p0=[0.0, 0.0, 0.2, 5.0], extruding=np.ones(3, bool))
+
+
+def judged(firmware: str, timing: str | None = None, cruise_only: bool = False):
+    cfg = TuneConfig(firmware=firmware, shaper_x=SHAPER.get(firmware, "zv"), shaper_y=SHAPER.get(firmware, "zv"),
+                     freq_x=40.0, freq_y=40.0, damping_x=0.05, damping_y=0.05)
+    shapers, centred = shapers_from_config(cfg)
+    mo = line()
+    shaped = shape_motion(mo, shapers, centred)
+    e_cmd = extruder_command(mo, shapers, centred, FIRMWARES[firmware], timing)
+    sx = shapers["x"]
+    lo, hi = shaped.t[0], shaped.t[-1]
+    if cruise_only:   # well inside the cruise, on every clock
+        lo, hi = mo.t[1] + 2 * sx.duration, mo.t[2] - 2 * sx.duration
+    t = np.arange(lo, hi, 1.0 / RATE)
+    sim = StiffSim(t, shaped.position(t)[:, :2], np.zeros((len(t), 2)))
+    lag = 0.0 if centred else sx.centroid
+    m = compute_metrics(sim, mo, lag=lag, settle=sx.duration - (sx.centre_delay if centred else 0.0),
+                        anticipate=sx.centre_delay if centred else 0.0, e_command=e_cmd)
+    return m, sx, centred
+
+
+def expected_lead(firmware: str, timing: str, sx, centred: bool) -> float:
+    """mm the extruder leads the nozzle on cruise: v × (the mean delay of the firmware's X/Y − the
+    delay of its E). X/Y: centred impulses are delayed by ΣAᵢTᵢ − the centre the firmware removes
+    (0 unless it rounds the centre, as FT_MOTION does to whole 1 ms samples); causal ones by ΣAᵢTᵢ;
+    FT_MOTION's axis synchronisation delays every shaped axis by its rounded centre on top of the
+    centred impulses, ΣAᵢTᵢ on average. E: not at all (neither), by X/Y's (rounded) delay (delayed),
+    or as X/Y (shaped)."""
+    fw = FIRMWARES[firmware]
+    centroid = float(np.dot(sx.amplitudes, sx.times))
+    xy = {"centred": centroid - sx.centre_delay, "causal": centroid, "largest": centroid}[fw.xy_delay]
+    e = {"neither": 0.0, "shaped": xy,
+         "delayed": sx.centre_delay if fw.xy_delay == "largest" else centroid}[timing]
+    return V * (xy - e)
+
+
+@pytest.mark.parametrize("firmware", list(FIRMWARES))
+def test_cruise_lead_is_the_shaped_axes_lag_times_speed(firmware):
+    fw = FIRMWARES[firmware]
+    for timing in {fw.e_timing, fw.e_sync_timing} - {""}:
+        m, sx, centred = judged(firmware, timing, cruise_only=True)
+        lead = expected_lead(firmware, timing, sx, centred)
+        assert m.e_lag_mm == pytest.approx(abs(lead), abs=2e-4), timing
+        # steady lead: the same material per mm as asked
+        assert m.extrusion_over_pct < 0.1 and m.extrusion_under_pct < 0.1
+
+
+def test_e_timing_of_each_firmware():
+    assert {f.e_timing for f in FIRMWARES.values()} <= set(E_TIMINGS)
+    assert {f.xy_delay for f in FIRMWARES.values()} <= set(XY_DELAYS)
+    assert all(f.e_source for f in FIRMWARES.values())
+    assert FIRMWARES["klipper"].e_timing == "neither" and FIRMWARES["klipper"].xy_delay == "centred"
+    assert FIRMWARES["rrf"].e_timing == "shaped"
+    assert FIRMWARES["marlin"].e_timing == "neither" and FIRMWARES["marlin"].xy_delay == "causal"
+    ftm = FIRMWARES["marlin-ftm"]
+    assert (ftm.e_timing, ftm.xy_delay, ftm.e_sync_timing) == ("neither", "largest", "delayed")
+    assert all(bool(f.e_sync) == bool(f.e_sync_timing) for f in FIRMWARES.values())
+
+
+@pytest.mark.parametrize("firmware", ["marlin", "marlin-ftm"])
+def test_start_and_stop_of_a_line_when_e_leads(firmware):
+    """E on the planner's clock, X/Y delayed: the first mm of the line gets lead/1 mm too much
+    material, the last mm that much too little."""
+    m, sx, centred = judged(firmware)
+    lead = expected_lead(firmware, "neither", sx, centred)
+    assert lead > 0.4
+    assert m.e_lag_mm == pytest.approx(lead, rel=1e-3)
+    assert m.extrusion_over_pct == pytest.approx(100 * lead / 1.0, rel=2e-3)
+    assert m.extrusion_under_pct == pytest.approx(100 * lead / 1.0, rel=2e-3)
+    assert m.features["other"]["extrusion_over_pct"] == pytest.approx(m.extrusion_over_pct)
+
+
+def test_shaped_extruder_lays_what_is_asked():
+    m, _, _ = judged("rrf")
+    assert m.e_lag_mm < 1e-6
+    assert m.extrusion_over_pct < 1e-4 and m.extrusion_under_pct < 1e-4
+
+
+def test_extrusion_worked_example_of_the_docstring():
+    """Marlin classic ZV at 40 Hz, no damping: halves 12.5 ms apart, lag 6.25 ms, 0.625 mm at
+    100 mm/s; 62.5 % too much material over the first mm, too little over the last."""
+    cfg = TuneConfig(firmware="marlin", shaper_x="zv", shaper_y="zv", freq_x=40.0, freq_y=40.0,
+                     damping_x=0.0, damping_y=0.0)
+    shapers, centred = shapers_from_config(cfg)
+    assert float(np.dot(shapers["x"].amplitudes, shapers["x"].times)) == pytest.approx(0.00625)
+    mo = line()
+    shaped = shape_motion(mo, shapers, centred)
+    t = np.arange(shaped.t[0], shaped.t[-1], 1.0 / RATE)
+    m = compute_metrics(StiffSim(t, shaped.position(t)[:, :2], np.zeros((len(t), 2))), mo, lag=0.00625,
+                        settle=0.0125, e_command=extruder_command(mo, shapers, centred, FIRMWARES["marlin"]))
+    assert m.e_lag_mm == pytest.approx(0.625, rel=1e-3)
+    assert m.extrusion_over_pct == pytest.approx(62.5, rel=2e-3)
+    assert m.extrusion_under_pct == pytest.approx(62.5, rel=2e-3)
+
+
+def test_retraction_after_the_line_is_not_material_taken_back():
+    """E leading X/Y retracts while the nozzle still finishes the line: the part keeps what was
+    laid (the shortfall at the stop is the lead, not the retraction)."""
+    cfg = TuneConfig(firmware="marlin", shaper_x="zv", shaper_y="zv", freq_x=40.0, freq_y=40.0,
+                     damping_x=0.0, damping_y=0.0)
+    shapers, centred = shapers_from_config(cfg)
+    mo = line()
+    end = mo.end_state()[0][-1]
+    retract = Motion(np.array([mo.t[-1], mo.t[-1] + 0.02]), end[None, :], np.array([[0, 0, 0, -40.0]]),
+                     np.zeros((1, 4)), np.zeros(1, bool))
+    job = Motion.concatenate([mo, retract])
+    shaped = shape_motion(job, shapers, centred)
+    t = np.arange(shaped.t[0], shaped.t[-1], 1.0 / RATE)
+    m = compute_metrics(StiffSim(t, shaped.position(t)[:, :2], np.zeros((len(t), 2))), job, lag=0.00625,
+                        settle=0.0125, e_command=extruder_command(job, shapers, centred, FIRMWARES["marlin"]))
+    assert m.extrusion_under_pct == pytest.approx(62.5, rel=2e-3)
+
+
+@pytest.mark.parametrize("firmware, shaper", [("marlin", "zv"), ("rrf", "zvd"), ("klipper", "zv")])
+def test_plan_trajectory_writes_the_extruder_as_the_firmware_commands_it(tmp_path, capsys, firmware, shaper):
+    """From the CSV alone: on the cruise of a long line, the e column leads the material the path
+    holds at the written x by ΣAᵢTᵢ·v where the firmware leaves E behind delayed X/Y (Marlin), and
+    not at all where E is shaped with X/Y (RepRapFirmware) or X/Y are centred (Klipper)."""
+    import json
+
+    from ringtune.agents.cli.main import main
+
+    job = tmp_path / "line.gcode"
+    job.write_text("G90\nM83\nG1 X10 Y10 F6000\nG1 X110 Y10 E3.3 F6000\n")
+    cfg = tmp_path / "c.json"
+    cfg.write_text(json.dumps({"firmware": firmware, "shaper_x": shaper, "shaper_y": shaper,
+                               "freq_x": 40, "freq_y": 40, "damping_x": 0.05, "damping_y": 0.05}))
+    traj = tmp_path / "t.csv"
+    assert main(["plan", str(job), "--config", str(cfg), "--trajectory", str(traj), "--rate", "2000"]) == 0
+    capsys.readouterr()
+    t, x, _, _, e = np.loadtxt(traj, delimiter=",", skiprows=1).T
+    cruise = (x > 40) & (x < 80)                     # well away from the ends, at 100 mm/s
+    asked = 0.033 * (x[cruise] - 10.0)               # filament the path holds up to x (E from 0)
+    lead = (e[cruise] - asked) / 0.033
+    shapers, centred = shapers_from_config(TuneConfig.load(cfg))
+    lag = float(np.dot(shapers["x"].amplitudes, shapers["x"].times))
+    want = V * lag if firmware == "marlin" else 0.0
+    np.testing.assert_allclose(lead, want, atol=2e-3)

@@ -1,0 +1,86 @@
+"""Feature classes from the labels real slicers write (tests/data/gcode, SOURCES.md there).
+
+Truth: each slicer's own spelling of its features, read from the real files by the G-code reader,
+and what each feature is on the part (an external perimeter is the outer wall a person sees, a
+skirt is not the part)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from ringtune.shaping.features import (FEATURE_CLASSES, HIDDEN, VISIBLE, feature_class,
+                                       normalise_label)
+from ringtune.shaping.gcode import read_gcode
+
+DATA = Path(__file__).parent / "data" / "gcode"
+
+
+def _labels(path: Path) -> set[str]:
+    """The raw labels of the moves a real file has (as the reader keeps them)."""
+    job = read_gcode(path)
+    return {job.features[i] for i in set(job.feature.tolist())}
+
+
+def test_visible_and_hidden_split_the_classes():
+    assert VISIBLE | HIDDEN == set(FEATURE_CLASSES)
+    assert not VISIBLE & HIDDEN
+    assert {"outer_wall", "top_surface", "bridge_overhang", "other"} == VISIBLE
+
+
+def test_prusaslicer_labels_of_a_real_tower():
+    labels = _labels(DATA / "ianalexis_ender3_marlin" / "ringing_tower.gcode")
+    assert {"External perimeter", "Skirt/Brim", "Custom"} <= labels
+    assert feature_class("External perimeter") == "outer_wall"
+    assert feature_class("Skirt/Brim") == "support"
+    assert feature_class("Custom") == "other"
+
+
+def test_simplify3d_labels_of_a_real_tower():
+    labels = _labels(DATA / "bassco_ender3" / "ringing_tower.gcode")
+    assert {"outer perimeter", "skirt", "solid layer"} <= labels
+    assert feature_class("outer perimeter") == "outer_wall"
+    assert feature_class("skirt") == "support"
+    # Simplify3D does not tell top from bottom layers: the top one is seen
+    assert feature_class("solid layer") == "top_surface"
+
+
+def test_cura_labels_of_a_real_job():
+    labels = _labels(DATA / "fastlb_cura_um2" / "platte_klein_cut.gcode")
+    assert {"SKIRT", "WALL-OUTER", "SKIN", "FILL"} <= labels
+    assert [feature_class(x) for x in ("WALL-OUTER", "SKIN", "FILL", "SKIRT")] == \
+        ["outer_wall", "top_surface", "infill", "support"]
+    job = read_gcode(DATA / "fastlb_cura_um2" / "platte_klein_cut.gcode")
+    seen = [feature_class(job.features[i]) in VISIBLE for i in job.feature[job.extruding]]
+    assert any(seen) and not all(seen)        # walls and skin seen, infill and skirt hidden
+
+
+def test_unlabelled_moves_count_as_visible():
+    job = read_gcode("G90\nM83\nG1 X10 Y0 E1 F3000\n")
+    assert job.features[job.feature[0]] == "unknown"
+    assert feature_class("unknown") in VISIBLE
+    assert feature_class("") == "other"
+
+
+@pytest.mark.parametrize("label, cls", [
+    ("WALL-OUTER", "outer_wall"), ("WALL-INNER", "inner_wall"), ("FILL", "infill"),
+    ("SKIN", "top_surface"), ("SUPPORT-INTERFACE", "support"), ("SKIRT", "support"),
+    ("Outer wall", "outer_wall"), ("Inner wall", "inner_wall"), ("Sparse infill", "infill"),
+    ("Internal solid infill", "solid_infill"), ("Top surface", "top_surface"),
+    ("Bottom surface", "solid_infill"), ("Overhang wall", "bridge_overhang"),
+    ("Bridge", "bridge_overhang"), ("Internal Bridge", "solid_infill"),
+    ("Perimeter", "inner_wall"), ("Internal infill", "infill"), ("Solid infill", "solid_infill"),
+    ("Top solid infill", "top_surface"), ("Bridge infill", "bridge_overhang"),
+    ("Overhang perimeter", "bridge_overhang"), ("Support material", "support"),
+    ("Wipe tower", "support"), ("Gap fill", "other"), ("inner perimeter", "inner_wall"),
+    ("infill", "infill"), ("something new", "other"),
+])
+def test_slicer_spellings(label, cls):
+    assert feature_class(label) == cls
+    assert cls in FEATURE_CLASSES
+
+
+def test_normalise_label():
+    assert normalise_label("  WALL-OUTER ") == "wall outer"
+    assert normalise_label("Skirt/Brim") == "skirt brim"
