@@ -262,14 +262,38 @@ def get_shaper(name: str, freq: float, damping: float | None = None, flavor: str
     base, params = parse_name(name, where)
     func, allowed, zmax = _entry(base, flavor, where)
     z = DEFAULT_DAMPING[flavor] if damping is None else damping
-    if isinstance(freq, bool) or not isinstance(freq, (int, float, np.integer, np.floating)) or not math.isfinite(freq) \
-            or freq <= 0:
+    _check_frequency_and_damping(base, flavor, freq, z, zmax, where)
+    freq, z = float(freq), float(z)
+    params = _parameters(base, params, allowed, flavor, where)
+    if base == "custom":
+        a, times = rrf_custom(params.get("h", h), params.get("t", t), freq, z,
+                              semantics="3.6" if flavor == "rrf" else "3.5", where=where, step_clocks=flavor == "rrf")
+    else:
+        a, times = _formula(func, freq, z, params, where)
+    a, times = _checked_impulses(name, flavor, freq, a, times, where)
+    centre = ftm_centre(a, times) if flavor == "marlin-ftm" else None
+    label = name.strip().lower() if params else base
+    return Shaper(label, flavor, freq, z, a, times, centre)
+
+
+def _check_frequency_and_damping(base: str, flavor: str, freq, z, zmax: float, where: str) -> None:
+    """F a finite number > 0 Hz; the damping ratio in [0, the shaper's and flavour's maximum], < 1."""
+    if not _finite_number(freq) or freq <= 0:
         raise RingtuneError(f"frequency must be a finite number > 0 Hz, not {freq!r}", where)
-    if isinstance(z, bool) or not isinstance(z, (int, float, np.integer, np.floating)) or not math.isfinite(z) \
-            or not 0 <= z <= zmax or z >= 1:
+    if not _finite_number(z) or not 0 <= z <= zmax or z >= 1:
         raise RingtuneError(f"damping ratio of {base!r} ({flavor}) must be in [0, {min(zmax, 0.99):g}], "
                             f"not {z!r}", where)
-    freq, z = float(freq), float(z)
+
+
+def _finite_number(v) -> bool:
+    """A real, finite number (not a bool)."""
+    return (not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
+            and math.isfinite(v))
+
+
+def _parameters(base: str, params: dict, allowed: tuple, flavor: str, where: str) -> dict:
+    """The shaper's parameters by name (positional ones in ``allowed``'s order); one it does not
+    take is refused."""
     positional = params.pop("_positional", None)
     if positional:
         if len(positional) > len(allowed):
@@ -280,18 +304,22 @@ def get_shaper(name: str, freq: float, damping: float | None = None, flavor: str
     if unknown:
         raise RingtuneError(f"{base!r} in {flavor} takes no parameter {', '.join(sorted(unknown))}"
                             + (f" (accepted: {', '.join(allowed)})" if allowed else ""), where)
-    if base == "custom":
-        h = params.get("h", h)
-        t = params.get("t", t)
-        a, times = rrf_custom(h, t, freq, z, semantics="3.6" if flavor == "rrf" else "3.5", where=where,
-                              step_clocks=flavor == "rrf")
-    else:
-        if "v_tol" in params and not 0 < params["v_tol"] < 1:
-            raise RingtuneError(f"v_tol must be in (0, 1), not {params['v_tol']}", where)
-        try:
-            a, times = func(freq, z, **params)
-        except RingtuneError as exc:
-            raise RingtuneError(exc.bare, where) from None
+    return params
+
+
+def _formula(func, freq: float, z: float, params: dict, where: str):
+    """(amplitudes, times) of a formula shaper; its errors named at ``where``."""
+    if "v_tol" in params and not 0 < params["v_tol"] < 1:
+        raise RingtuneError(f"v_tol must be in (0, 1), not {params['v_tol']}", where)
+    try:
+        return func(freq, z, **params)
+    except RingtuneError as exc:
+        raise RingtuneError(exc.bare, where) from None
+
+
+def _checked_impulses(name: str, flavor: str, freq: float, a, times, where: str):
+    """Read-only arrays of the impulses, refused when two coincide (the flavour's time quantisation)
+    or there are more than the firmware takes."""
     a = np.asarray(a, float)
     times = np.asarray(times, float)
     if len(times) > 1 and np.any(np.diff(times) <= 0):
@@ -302,9 +330,7 @@ def get_shaper(name: str, freq: float, damping: float | None = None, flavor: str
         raise RingtuneError(f"{name!r} has {len(a)} impulses; {flavor} allows at most {limit}", where)
     a.setflags(write=False)
     times.setflags(write=False)
-    centre = ftm_centre(a, times) if flavor == "marlin-ftm" else None
-    label = name.strip().lower() if params else base
-    return Shaper(label, flavor, freq, z, a, times, centre)
+    return a, times
 
 
 def shapers_from_config(config) -> tuple[dict[str, Shaper | None], bool]:
