@@ -25,6 +25,7 @@ Everything is deterministic.
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from collections import OrderedDict
 from pathlib import Path
@@ -45,6 +46,7 @@ from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.features import FEATURE_CLASSES, class_indices
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.job import SETTING_KEYS
+from ringtune.shaping.job_shapers import config_at, shaper_timeline
 from ringtune.shaping.motion import Motion
 from ringtune.shaping.shapers import shapers_from_config
 
@@ -135,6 +137,17 @@ def job_accel_commands(job) -> dict[str, float]:
     return out
 
 
+def _plan_settings(config: TuneConfig | None) -> tuple:
+    """What of ``config`` changes the plan: (frequency limit (Hz, method, speed factor), accel,
+    DAA frequency, per-axis caps)."""
+    if config is None:
+        return (0.0, "", 0.0), None, None, (None, None)
+    fl = ((float(config.freq_limit_hz), config.freq_limit_method, float(config.min_speed_factor))
+          if config.freq_limit_hz > 0 else (0.0, "", 0.0))
+    accel = None if config.accel is None else float(config.accel)
+    return fl, accel, config.daa_freq, config.axis_caps
+
+
 def planned_job(printer, job=None, config: TuneConfig | None = None, *,
                 max_windows: int = MAX_WINDOWS, span: float = WINDOW_SPAN,
                 job_accel: str | None = None) -> PlannedJob:
@@ -147,19 +160,15 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
     mode = job_accel_mode(config, job_accel)
     jkey, parsed = resolve_job(job)
     limits = printer.limits
-    fl = (0.0, "", 0.0)
-    if config is not None and config.freq_limit_hz > 0:
-        fl = (float(config.freq_limit_hz), config.freq_limit_method, float(config.min_speed_factor))
-    accel = None if config is None or config.accel is None else float(config.accel)
-    daa = None if config is None else config.daa_freq
+    fl, accel, daa, caps = _plan_settings(config)
     if accel is None:
         mode = "replace"       # nothing to replace with: the job's and the machine's limits as they are
-    key = (jkey, repr(limits), fl, accel, daa, max_windows, span, mode)
+    key = (jkey, repr(limits), fl, accel, daa, max_windows, span, mode, caps)
     if key in _PLANS:
         _PLANS.move_to_end(key)
         return _PLANS[key]
     plan = plan_with_config(parsed, limits, config, job_accel=mode).plan
-    if key[2:5] == ((0.0, "", 0.0), None, None):
+    if (fl, accel, daa, caps) == _plan_settings(None):
         windows = testprints.quality_windows(plan, max_windows=max_windows, span=span)
     else:   # the corners and zigzags the printer's own plan chose, at this plan's times
         ref = planned_job(printer, job, None, max_windows=max_windows, span=span).windows
@@ -240,15 +249,20 @@ def shaper_timing(shapers, centred: bool) -> tuple[float, float, float, float]:
 
 
 def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN,
-                tail: float = CORNER_TAIL) -> list[WindowRun]:
+                tail: float = CORNER_TAIL, job_shapers: bool = False) -> list[WindowRun]:
     """Shape each quality window of ``pj`` with the config's shapers (``settle`` s of extra
-    history before each, beyond the shaper's duration); ``tail``: see :func:`corner_tail`."""
-    shapers, centred = shapers_from_config(config)
-    active = any(s is not None for s in shapers.values())
-    duration, lag, after, before = shaper_timing(shapers, centred)
+    history before each, beyond the shaper's duration); ``tail``: see :func:`corner_tail`.
+    ``job_shapers``: the job's own shaper commands apply from where they stand
+    (:func:`ringtune.shaping.job_shapers.shaper_timeline`); each window is shaped with the
+    shapers in force at its start (``simulate``; ``tune`` judges the configuration's own)."""
+    timeline = shaper_timeline(pj.plan.events, config) if job_shapers else [(-math.inf, config)]
     motion = pj.motion
     runs = []
     for w in pj.windows:
+        cfg = config_at(timeline, w.t0)
+        shapers, centred = shapers_from_config(cfg)
+        active = any(s is not None for s in shapers.values())
+        duration, lag, after, before = shaper_timing(shapers, centred)
         a, b = w.t0 - duration - settle, w.t1 + duration
         lo, hi = max(a - duration, motion.start_time), min(b + duration, motion.end_time)
         if hi - lo <= 1e-9:
@@ -257,7 +271,7 @@ def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN,
         shaped = shape_motion(raw, shapers, centred) if active else raw
         a, b = max(a, shaped.start_time), min(b, shaped.end_time)
         path = motion.window(max(a, lo), min(b, hi))
-        e_cmd, synced = _extruder(raw, shapers, centred, config)
+        e_cmd, synced = _extruder(raw, shapers, centred, cfg)
         runs.append(WindowRun(w.t0, w.t1, shaped.window(a, b), path, lag, after, before,
                               segment_classes(pj, path), e_cmd, synced, tail))
     return runs
@@ -327,18 +341,20 @@ def variant_factors(freq_margin: float) -> tuple[float, ...]:
 
 def evaluate_judged(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
                     settle: float | None = None, nthread: int | None = None,
-                    freq_margin: float = 0.0,
-                    job_accel: str | None = None) -> list[tuple[Metrics, list["Evaluation"]]]:
+                    freq_margin: float = 0.0, job_accel: str | None = None,
+                    job_shapers: bool = False) -> list[tuple[Metrics, list["Evaluation"]]]:
     """:func:`evaluate_many`'s figures with what they came from: per config, (the judged metrics,
     its :class:`Evaluation` on each printer variant of :func:`variant_factors`). ``tune`` and
-    ``simulate`` both judge through here, so their figures for one configuration are the same."""
+    ``simulate`` both judge through here, so their figures for one configuration are the same.
+    ``job_shapers``: the job's own shaper commands apply (:func:`window_runs`; ``simulate``), else
+    the configuration's shapers rule the whole job (``tune``: the shaper being tuned)."""
     if not 0 <= freq_margin < 1:
         raise RingtuneError(f"must be in [0, 1), not {freq_margin}", "freq_margin")
     printer = resolve_printer(printer)
     if settle is None:
         settle = auto_settle(printer)
     runs = [evaluate_detailed(configs, printer if f == 1.0 else printer.detuned(f), job, backend,
-                              settle=settle, nthread=nthread, job_accel=job_accel)
+                              settle=settle, nthread=nthread, job_accel=job_accel, job_shapers=job_shapers)
             for f in variant_factors(freq_margin)]
     per_config = [[r[i] for r in runs] for i in range(len(configs))]
     return [(evs[0].metrics if len(evs) == 1 else worst_case(e.metrics for e in evs), evs)
@@ -358,7 +374,7 @@ class Evaluation:
 
 def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
                       settle: float | None = None, nthread: int | None = None,
-                      job_accel: str | None = None) -> list[Evaluation]:
+                      job_accel: str | None = None, job_shapers: bool = False) -> list[Evaluation]:
     """Like :func:`evaluate_many`, keeping the plans, shaped windows and simulation results."""
     printer = resolve_printer(printer)
     if settle is None:
@@ -367,7 +383,7 @@ def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, bac
     motions: list[Motion] = []
     for cfg in configs:
         pj = planned_job(printer, job, cfg, job_accel=job_accel)
-        runs = window_runs(pj, cfg, settle, corner_tail(printer))
+        runs = window_runs(pj, cfg, settle, corner_tail(printer), job_shapers)
         per_config.append((cfg, pj, runs))
         motions.extend(r.shaped for r in runs)
     sims = (simulate_batch(printer, motions, backend=backend, nthread=nthread, initial="static")

@@ -86,12 +86,20 @@ def response(sysm: LinearSystem, motion, times: np.ndarray, x0: np.ndarray | Non
 def frequency_response(sysm: LinearSystem, freqs: np.ndarray, axis: int) -> np.ndarray:
     """Complex head-acceleration transmissibility on ``axis`` (0 x, 1 y) for commanded
     acceleration on the same axis: ``(a_cmd + Σ share·q̈)/a_cmd`` at ``freqs`` (Hz), (F,)."""
+    unit = (1.0, 0.0) if axis == 0 else (0.0, 1.0)
+    return frequency_response_along(sysm, freqs, unit)[:, axis]
+
+
+def frequency_response_along(sysm: LinearSystem, freqs: np.ndarray, direction) -> np.ndarray:
+    """Complex head acceleration on x and y, (F, 2), per unit of commanded acceleration along the
+    unit vector ``direction`` (dx, dy) at ``freqs`` (Hz): ``d + Σ share·q̈`` per axis. A diagonal
+    (1, ±1)/√2 is Klipper's ``TEST_RESONANCES AXIS=1,±1``: on a CoreXY it turns one motor only."""
+    d = np.asarray(direction, float)
     w = 2j * np.pi * np.asarray(freqs, float)
-    b = sysm.B[:, axis]
-    wn = sysm.W[:, axis]
-    out = np.empty(len(w), complex)
+    force = -sysm.mass * (sysm.B @ d)
+    out = np.empty((len(w), 2), complex)
     for i, s in enumerate(w):
         Z = sysm.K + s * sysm.C + (s * s) * np.diag(sysm.mass)
-        q = np.linalg.solve(Z, -sysm.mass * b)
-        out[i] = 1.0 + (s * s) * (wn @ q)
+        q = np.linalg.solve(Z, force)
+        out[i] = d + (s * s) * (q @ sysm.W)
     return out

@@ -79,12 +79,19 @@ from ringtune.envs.motors import lookup_motor, unknown_motor_message
 from ringtune.envs.printer_model import (DEFAULTS, MOTOR_CONSTANT_KEYS, MOTOR_DRIVE_KEYS, AxisModel, Mode,
                                          MotorModel, Printer)
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.planner import AXIS_RULES
 from ringtune.shaping.textfile import read_text_file
 
 KINEMATICS = ("cartesian", "corexy", "corexz")
 
+#: ``[limits]``: every acceleration the firmware applies (mm/s², mm/s): ``accel`` (printing; Marlin
+#: M204 P, RRF M204 P, Klipper max_accel), ``travel_accel`` (M204 T), ``retract_accel`` (Marlin M204
+#: R: E-only moves), ``max_accel``/``max_velocity`` (per-axis caps x, y, z, e; 0 = none), ``axis_rule``
+#: (how those caps bind: ``per_axis`` or Kalico's ``limited_corexy``), ``scale_xy_accel`` (Kalico),
+#: the corner rule and Klipper's ``min_cruise_ratio`` (see :class:`ringtune.shaping.planner.MachineLimits`)
 LIMIT_KEYS = ("accel", "velocity", "junction", "square_corner_velocity", "junction_deviation",
-              "jerk", "max_accel", "max_velocity", "min_cruise_ratio", "travel_accel")
+              "jerk", "max_accel", "max_velocity", "min_cruise_ratio", "travel_accel", "retract_accel",
+              "axis_rule", "scale_xy_accel")
 _TOP_KEYS = {"name", "kinematics", "limits", "x", "y", "motor", "belts", "print_mass", "description",
              "current", "measurement"}
 _AXIS_KEYS = {"mass", "modes", "stiffness", "masses", "stiffnesses", "damping", "motor"}
@@ -361,6 +368,28 @@ def _defaulted(d: dict, base_raw: dict) -> tuple[str, ...]:
     return tuple(out)
 
 
+def _check_limits(limits: dict, lw: str) -> None:
+    """Validate ``[limits]`` (errors name the key); the planner's own check runs on top."""
+    for key in ("accel", "velocity", "square_corner_velocity", "junction_deviation", "travel_accel",
+                "retract_accel"):
+        if key in limits:
+            _num(limits, key, lw, lo=0.0, lo_open=True)
+    if "min_cruise_ratio" in limits:
+        _num(limits, "min_cruise_ratio", lw, lo=0.0, hi=1.0)
+    for key, allowed in (("junction", ("scv", "jd", "jerk")), ("axis_rule", AXIS_RULES)):
+        if key in limits and limits[key] not in allowed:
+            raise RingtuneError(f"{key} must be one of {', '.join(allowed)}, not {limits[key]!r}", f"{lw}.{key}")
+    _bool(limits, "scale_xy_accel", lw, None)
+    for key in ("jerk", "max_accel", "max_velocity"):
+        if key in limits and not _four_numbers(limits[key]):
+            raise RingtuneError(f"{key} must be a list of 4 non-negative numbers (x, y, z, e)", f"{lw}.{key}")
+
+
+def _four_numbers(v) -> bool:
+    return isinstance(v, list) and len(v) == 4 and all(
+        isinstance(x, (int, float)) and not isinstance(x, bool) and x >= 0 for x in v)
+
+
 def printer_from_dict(d: dict, where: str = "printer") -> Printer:
     """Validate a parsed TOML mapping and build a :class:`Printer` (errors name the key)."""
     if not isinstance(d, dict):
@@ -376,17 +405,7 @@ def printer_from_dict(d: dict, where: str = "printer") -> Printer:
     limits = _table(d, "limits", where)
     lw = f"{where}: [limits]"
     _unknown(limits, set(LIMIT_KEYS), lw)
-    for key in ("accel", "velocity", "square_corner_velocity", "junction_deviation", "travel_accel"):
-        if key in limits:
-            _num(limits, key, lw, lo=0.0, lo_open=True)
-    if "min_cruise_ratio" in limits:
-        _num(limits, "min_cruise_ratio", lw, lo=0.0, hi=1.0)
-    if "junction" in limits and limits["junction"] not in ("scv", "jd", "jerk"):
-        raise RingtuneError(f"junction must be scv, jd or jerk, not {limits['junction']!r}", f"{lw}.junction")
-    for key in ("jerk", "max_accel", "max_velocity"):
-        if key in limits and not (isinstance(limits[key], list) and all(
-                isinstance(x, (int, float)) and not isinstance(x, bool) and x >= 0 for x in limits[key])):
-            raise RingtuneError(f"{key} must be a list of non-negative numbers (x, y, z, e)", f"{lw}.{key}")
+    _check_limits(limits, lw)
     x = _axis_from_dict(_table(d, "x", where), "x", where)
     y = _axis_from_dict(_table(d, "y", where), "y", where)
     base_raw = _table(d, "motor", where)
@@ -414,6 +433,10 @@ def printer_from_dict(d: dict, where: str = "printer") -> Printer:
         description=str(d.get("description", "")),
         defaulted=_defaulted(d, base_raw),
     )
+    try:
+        p.machine_limits()
+    except RingtuneError as exc:          # the planner's own check (e.g. scale_xy_accel without caps)
+        raise RingtuneError(exc.bare, f"{where}: [{exc.where}]" if exc.where else where) from None
     if kin == "corexy":
         ka, kb = p.belt_stiffnesses()
         for ax in ("x", "y"):

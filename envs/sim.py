@@ -32,7 +32,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from ringtune.envs.lti import frequency_response, response
+from ringtune.envs.lti import frequency_response_along, response
 from ringtune.envs.modal_system import LinearSystem
 from ringtune.envs.mujoco_model import INTEGRATOR, TIMESTEP, build_model, linear_system
 from ringtune.envs.printer import load_printer
@@ -427,11 +427,15 @@ def _rollout(printers, systems, motions, h, dec, tail, initial, nthread):
     return results
 
 
-def resonance_test(printer: Printer | None, axis: str, rng: np.random.Generator | None = None,
+def resonance_test(printer: Printer | None, axis, rng: np.random.Generator | None = None,
                    accel_per_hz: float = 60.0, freq_start: float = 5.0, freq_end: float = 135.0,
                    sample_rate: float = 3200.0, max_freq: float = 200.0, noise_floor: float = 50.0,
-                   dof: float = 6.0) -> tuple[np.ndarray, np.ndarray]:
+                   dof: float = 6.0, freqs: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """PSD of the head acceleration along ``axis`` as Klipper's ``TEST_RESONANCES`` would record it.
+
+    ``axis`` ``"x"`` or ``"y"`` gives that axis's PSD (``psd_x`` / ``psd_y``); a direction
+    ``(dx, dy)`` (``TEST_RESONANCES AXIS=dx,dy``, e.g. ``(1, 1)`` and ``(1, -1)``, the CoreXY belt
+    tests) sweeps along the unit vector and gives ``psd_x + psd_y``, Klipper's ``psd_xyz``.
 
     Excitation model: Klipper sweeps a commanded sinusoidal acceleration of amplitude
     ``accel_per_hz·f`` (mm/s²) from ``freq_start`` to ``freq_end`` at constant rate; a slow sweep
@@ -439,21 +443,36 @@ def resonance_test(printer: Printer | None, axis: str, rng: np.random.Generator 
     acceleration is ``(accel_per_hz·f·|T(f)|)² / (2·(f_end − f_start))`` in (mm/s²)²/Hz inside the
     sweep, with ``T`` the exact transmissibility of the linear model (CoreXY coupling included),
     plus a flat sensor ``noise_floor``. Bins are Klipper's: 0.5 s windows rounded up to a power of
-    two at ``sample_rate`` (1.5625 Hz at 3200 Hz), up to ``max_freq``.
+    two at ``sample_rate`` (1.5625 Hz at 3200 Hz), up to ``max_freq`` — or ``freqs`` (Hz) when given
+    (a measured file's bins).
 
     With ``rng`` each bin is scattered like a Welch estimate (Gamma with ``dof`` degrees of freedom,
     mean preserved); without it the expected PSD is returned. Returns (freqs, psd)."""
     pr = printer if isinstance(printer, Printer) else load_printer(printer)
-    if axis not in ("x", "y"):
-        raise RingtuneError(f"axis must be 'x' or 'y', not {axis!r}", "axis")
-    nfft = 1 << int(np.ceil(np.log2(sample_rate * 0.5)))
-    df = sample_rate / nfft
-    freqs = np.arange(0, int(max_freq / df) + 1) * df
+    direction = _test_direction(axis)
+    if freqs is None:
+        nfft = 1 << int(np.ceil(np.log2(sample_rate * 0.5)))
+        df = sample_rate / nfft
+        freqs = np.arange(0, int(max_freq / df) + 1) * df
+    freqs = np.asarray(freqs, float)
     sysm = linear_system(pr)
-    T = frequency_response(sysm, np.maximum(freqs, 1e-3), 0 if axis == "x" else 1)
+    T = frequency_response_along(sysm, np.maximum(freqs, 1e-3), direction)
+    gain = (np.abs(T) ** 2).sum(axis=1) if isinstance(axis, tuple) else np.abs(T[:, "xy".index(axis)]) ** 2
     inside = (freqs >= freq_start) & (freqs <= freq_end)
-    psd = np.where(inside, (accel_per_hz * freqs * np.abs(T)) ** 2 / (2.0 * (freq_end - freq_start)), 0.0)
+    psd = np.where(inside, (accel_per_hz * freqs) ** 2 * gain / (2.0 * (freq_end - freq_start)), 0.0)
     psd = psd + noise_floor
     if rng is not None:
         psd = psd * rng.gamma(dof / 2.0, 2.0 / dof, size=psd.shape)
     return freqs, psd
+
+
+def _test_direction(axis) -> tuple[float, float]:
+    """The unit vector of a resonance test's axis: ``"x"``, ``"y"`` or a direction ``(dx, dy)``."""
+    if axis in ("x", "y"):
+        return (1.0, 0.0) if axis == "x" else (0.0, 1.0)
+    if isinstance(axis, tuple) and len(axis) == 2:
+        d = np.asarray(axis, float)
+        norm = float(np.hypot(*d))
+        if np.all(np.isfinite(d)) and norm > 0:
+            return float(d[0] / norm), float(d[1] / norm)
+    raise RingtuneError(f"axis must be 'x', 'y' or a direction (dx, dy), not {axis!r}", "axis")

@@ -6,6 +6,7 @@ Columns (one row per output sample, 2 kHz by default):
 - ``x_cmd, y_cmd, z`` the planned (G-code) path, mm, before input shaping;
 - ``extruding`` 1 while the move deposits material, else 0;
 - ``x_shaped, y_shaped`` the command after the config's input shaper (what the motors follow), mm;
+  ``simulate`` applies the job's own shaper commands from where they stand;
 - ``x_nozzle, y_nozzle`` the simulated nozzle relative to the print (bed frame), mm;
 - ``window`` 0 for a whole-job trace; else the quality window's number (1, 2, ...).
 
@@ -16,15 +17,15 @@ the metrics judged (said on stderr by the command).
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
 from ringtune.envs.evaluate import planned_job, resolve_printer
 from ringtune.envs.sim import simulate
-from ringtune.shaping.apply import shape_motion
 from ringtune.shaping.config import TuneConfig
-from ringtune.shaping.shapers import shapers_from_config
+from ringtune.shaping.job_shapers import shape_timeline, shaper_timeline
 
 #: longest motion (s) traced whole; longer jobs are traced over their quality windows
 WHOLE_JOB_MAX_S = 600.0
@@ -42,12 +43,15 @@ def _rows(path_motion, sim, window: int) -> np.ndarray:
                             np.full(len(t), float(window))])
 
 
-def trace_job(config: TuneConfig, printer, job=None, backend: str = "mujoco") -> np.ndarray:
-    """(m, len(COLUMNS)) rows of the whole job simulated from rest (see module doc)."""
+def trace_job(config: TuneConfig, printer, job=None, backend: str = "mujoco",
+              job_shapers: bool = False) -> np.ndarray:
+    """(m, len(COLUMNS)) rows of the whole job simulated from rest (see module doc); with
+    ``job_shapers`` the job's own shaper commands apply where they stand."""
     printer = resolve_printer(printer)
-    motion = planned_job(printer, job, config).motion
-    shapers, centred = shapers_from_config(config)
-    shaped = shape_motion(motion, shapers, centred) if any(shapers.values()) else motion
+    plan = planned_job(printer, job, config).plan
+    motion = plan.motion
+    timeline = shaper_timeline(plan.events, config) if job_shapers else [(-math.inf, config)]
+    shaped = shape_timeline(motion, timeline)
     sim = simulate(printer, shaped, backend=backend, initial="rest")
     return _rows(motion, sim, 0)
 

@@ -248,6 +248,22 @@ def axis_from_file_name(path: str | Path) -> str | None:
     return m.group(1).lower() if m else None
 
 
+#: Klipper's ``TEST_RESONANCES AXIS=dx,dy`` file names: ``resonances_axis=1.000,-1.000[,0.000]_<name>.csv``
+_KLIPPER_DIRECTION_NAME = re.compile(r"axis=(-?\d+(?:\.\d*)?),(-?\d+(?:\.\d*)?)(?:,(-?\d+(?:\.\d*)?))?_",
+                                     re.IGNORECASE)
+
+
+def direction_from_file_name(path: str | Path) -> tuple[float, float] | None:
+    """The (dx, dy) direction of a Klipper resonance test along a direction (``TEST_RESONANCES
+    AXIS=1,1`` writes ``resonances_axis=1.000,1.000,0.000_<name>.csv``; before 2025 without the z
+    part), from the file's name; None for a single-axis test or a name that does not say."""
+    m = _KLIPPER_DIRECTION_NAME.search(Path(path).name)
+    if not m:
+        return None
+    dx, dy = float(m.group(1)), float(m.group(2))
+    return (dx, dy) if (dx, dy) != (0.0, 0.0) else None
+
+
 # -- Klipper raw accelerometer CSV ---------------------------------------------------------------
 
 def read_raw_accel(path: str | Path) -> RawAccel:

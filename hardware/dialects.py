@@ -41,6 +41,7 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.custom import rrf_custom
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES, Firmware, Span
+from ringtune.shaping.smoothers import is_smoother
 
 _FTM_MODE = {"none": 0, "zv": 1, "zvd": 2, "zvdd": 3, "zvddd": 4, "ei": 5, "2hump_ei": 6, "3hump_ei": 7,
              "mzv": 8}
@@ -137,32 +138,100 @@ def limit_command(config: TuneConfig) -> str:
 
 
 def _accel(config: TuneConfig, fw: Firmware, exp: Export, apply: bool) -> None:
-    """The config's printing acceleration as the firmware's own command, read back afterwards."""
-    if config.accel is None:
+    """The config's per-axis caps, then its printing acceleration, as the firmware's own commands,
+    read back afterwards (the caps first: Marlin applies M201 to every move planned after it)."""
+    if config.accel is None and config.axis_caps == (None, None):
         return
     if not apply:
-        exp.notes.append(f"the config's acceleration {fmt(config.accel, 0)} mm/s² is not applied "
-                         "(--no-accel): the printer keeps its own")
+        exp.notes.append(f"the config's acceleration {fmt(config.accel or 0, 0)} mm/s² and axis caps are not "
+                         "applied (--no-accel): the printer keeps its own")
+        return
+    _axis_caps(config, fw, exp)
+    if config.accel is None:
         return
     a = check_value(config.accel, fw.accel, "acceleration", "mm/s²", "config: accel", fw.title)
     exp.setting_lines["accel"] = len(exp.lines)
     exp.lines.append(fw.accel_set.format(a=fmt(a, fw.accel.decimals)))
     exp.expected["accel"] = a
-    exp.readback.append(fw.accel_report)
+    if "travel" in fw.accel_roles:
+        exp.setting_lines["travel_accel"] = exp.setting_lines["accel"]
+        exp.expected["travel_accel"] = a
+    _read_back(exp, fw.accel_report)
+    if fw.axis_accel_report and config.axis_caps == (None, None):
+        _read_back(exp, fw.axis_accel_report)     # push says whether the printer's caps hold it lower
     exp.notes.append(f"the printing acceleration becomes {fmt(a, fw.accel.decimals)} mm/s², the value "
                      f"this config was tuned at; {SLICER_OVERRIDES}")
+    _accel_persistence(config, fw, exp, a)
+
+
+def _read_back(exp: Export, command: str) -> None:
+    if command not in exp.readback:
+        exp.readback.append(command)
+
+
+def _axis_caps(config: TuneConfig, fw: Firmware, exp: Export) -> None:
+    """The X/Y caps the config runs with (``max_accel_x``/``y``), set before the acceleration."""
+    caps = {ax: c for ax, c in zip("xy", config.axis_caps) if c is not None}
+    if not caps:
+        return
+    text = ", ".join(f"{ax.upper()} {fmt(c, 0)}" for ax, c in caps.items())
+    if not fw.axis_accel_set:
+        _no_axis_caps(fw, exp, text)
+        return
+    sent = {ax: check_value(c, fw.axis_accel, f"{ax.upper()} acceleration cap", "mm/s²",
+                            f"config: max_accel_{ax}", fw.title) for ax, c in caps.items()}
+    line = _axis_caps_line(fw, sent)
+    for ax, v in sent.items():
+        exp.setting_lines[f"max_accel_{ax}"] = len(exp.lines)
+        exp.expected[f"max_accel_{ax}"] = v
+    exp.lines.append(line)
+    _read_back(exp, fw.axis_accel_report)
+    if fw.family == "rrf" and exp.config_text:
+        exp.config_text += line + "\n"
+    exp.notes.append(f"the per-axis acceleration caps become {text} mm/s² ({line}), as this config was "
+                     "planned: each axis's share of a move's acceleration stays under its cap")
+
+
+def _no_axis_caps(fw: Firmware, exp: Export, text: str) -> None:
+    fork = "; Kalico's limited_* kinematics do (--firmware kalico)" if fw.family == "klipper" else ""
+    exp.notes.append(f"this config was planned with per-axis acceleration caps ({text} mm/s²), which "
+                     f"{fw.title} does not have{fork}")
+
+
+def _axis_caps_line(fw: Firmware, sent: dict[str, float]) -> str:
+    """The record's command for the caps given (``M201 X.. Y..``; an axis not given is left out)."""
+    words = [w for w in fw.axis_accel_set.split()
+             if not any("{" + ax + "}" in w for ax in "xy" if ax not in sent)]
+    return " ".join(words).format(**{ax: fmt(v, fw.axis_accel.decimals) for ax, v in sent.items()})
+
+
+def _accel_persistence(config: TuneConfig, fw: Firmware, exp: Export, a: float) -> None:
+    """Where the acceleration (and the caps) stay after a restart, from the firmware record."""
+    caps = config.axis_caps != (None, None) and bool(fw.axis_accel_set)
     if fw.family == "klipper":
-        exp.notes.append("SET_VELOCITY_LIMIT lasts until restart: max_accel in printer.cfg's [printer] "
-                         "section keeps it")
-        if exp.config_text:
-            exp.config_text += f"# and in the [printer] section: max_accel: {fmt(a, fw.accel.decimals)}\n"
-    elif fw.family == "rrf":
-        if exp.config_text:
-            exp.config_text += exp.lines[-1] + "\n"
+        _klipper_printer_section(fw, exp, a, caps)
+    elif fw.family == "rrf" and exp.config_text:
+        exp.config_text += exp.lines[-1] + "\n"
     elif fw.family in ("marlin", "marlin-ftm"):
-        exp.notes.append("Marlin also caps each axis at its M201 X/Y maximum; M500 stores M204")
+        exp.notes.append("M500 stores M201 and M204" if caps else
+                         "Marlin also caps each axis at its M201 X/Y maximum (push reads it back and says "
+                         "when it holds the acceleration lower); M500 stores M204")
     elif fw.family == "prusa":
-        exp.notes.append("M593 W stores the shaper, not M204: the acceleration lasts until restart")
+        exp.notes.append("M593 W stores the shaper, not M204" + (" or M201" if caps else "")
+                         + ": the acceleration lasts until restart")
+
+
+def _klipper_printer_section(fw: Firmware, exp: Export, a: float, caps: bool) -> None:
+    """Klipper/Kalico: the [printer] keys that keep the acceleration (and Kalico's caps), as
+    comment lines of the config part (it replaces [input_shaper] only)."""
+    keys = [fw.axis_accel_config.format(ax=k[-1]) for k in exp.expected
+            if k.startswith("max_accel_") and caps and fw.axis_accel_config]
+    exp.notes.append(f"SET_VELOCITY_LIMIT lasts until restart: {', '.join(['max_accel', *keys])} in "
+                     "printer.cfg's [printer] section keeps it")
+    if exp.config_text:
+        exp.config_text += f"# and in the [printer] section: max_accel: {fmt(a, fw.accel.decimals)}\n"
+        exp.config_text += "".join(f"#   {key}: {fmt(exp.expected['max_accel_' + key[4]], fw.axis_accel.decimals)}\n"
+                                   for key in keys)
 
 
 def _rounding_notes(config: TuneConfig, exp: Export) -> None:
@@ -214,6 +283,30 @@ def _klipper_value(v) -> str:
     return fmt(float(v), 9)
 
 
+def _freq_key(name: str | None, ax: str) -> str:
+    """Kalico's smoothers take ``smoother_freq_<ax>``; every shaper ``shaper_freq_<ax>``."""
+    return f"smoother_freq_{ax}" if name and is_smoother(name) else f"shaper_freq_{ax}"
+
+
+def _freq_params(name: str | None, freq: float, ax: str, fw) -> list[str]:
+    """``SHAPER_FREQ_X=…`` (``SMOOTHER_FREQ_X=…`` for a smoother); an axis turned off on Kalico gets
+    both at 0 (a smoother there reads only SMOOTHER_FREQ)."""
+    out = [f"{_freq_key(name, ax).upper()}={fmt(freq, fw.freq.decimals)}"]
+    if name is None and fw.flavor == "kalico":
+        out.append(f"SMOOTHER_FREQ_{ax.upper()}=0")
+    return out
+
+
+def _klipper_config_lines(ax: str, name: str | None, freq: float, damping: float, fw) -> list[str]:
+    """The ``[input_shaper]`` lines of one axis (a smoother has no damping ratio)."""
+    if not name:
+        return [f"shaper_freq_{ax}: 0"]
+    lines = [f"shaper_type_{ax}: {name}", f"{_freq_key(name, ax)}: {fmt(freq, fw.freq.decimals)}"]
+    if not is_smoother(name):
+        lines.append(f"damping_ratio_{ax}: {fmt(damping, fw.damping.decimals)}")
+    return lines
+
+
 def _klipper(config: TuneConfig, dialect: str) -> Export:
     fw = FIRMWARES[dialect]
     params, cfg = [], ["[input_shaper]"]
@@ -228,11 +321,11 @@ def _klipper(config: TuneConfig, dialect: str) -> Export:
         per_axis[ax] = (name, freq, damping)
     for ax in ("x", "y"):
         name, freq, _ = per_axis[ax]
-        params.append(f"SHAPER_FREQ_{ax.upper()}={fmt(freq, fw.freq.decimals)}")
+        params += _freq_params(name, freq, ax, fw)
         expected[f"{ax}.freq"] = freq
     for ax in ("x", "y"):
         name, _, damping = per_axis[ax]
-        if name:
+        if name and not is_smoother(name):
             params.append(f"DAMPING_RATIO_{ax.upper()}={fmt(damping, fw.damping.decimals)}")
             expected[f"{ax}.damping"] = damping
     for ax in ("x", "y"):
@@ -241,17 +334,13 @@ def _klipper(config: TuneConfig, dialect: str) -> Export:
             params.append(f"SHAPER_TYPE_{ax.upper()}={name}")
             expected[f"{ax}.type"] = name
     for ax in ("x", "y"):
-        name, freq, damping = per_axis[ax]
-        if name:
-            cfg += [f"shaper_type_{ax}: {name}", f"shaper_freq_{ax}: {fmt(freq, fw.freq.decimals)}",
-                    f"damping_ratio_{ax}: {fmt(damping, fw.damping.decimals)}"]
-        else:
-            cfg.append(f"shaper_freq_{ax}: 0")
+        cfg += _klipper_config_lines(ax, *per_axis[ax], fw)
     line = "SET_INPUT_SHAPER " + " ".join(params)
     exp = Export(dialect, [line], [], "\n".join(cfg) + "\n", fw.config_file, ["SET_INPUT_SHAPER"],
                  expected, {k: 0 for k in expected},
-                 ["SET_INPUT_SHAPER lasts until restart; SAVE_CONFIG would not keep damping_ratio, so "
-                  "put the [input_shaper] section (export --part config) in printer.cfg"])
+                 [f"{fw.title} keeps nothing set by SET_INPUT_SHAPER across a restart (SAVE_CONFIG does "
+                  "not save it either; only printer.cfg does): put the [input_shaper] section (export "
+                  "--part config) in printer.cfg"])
     _rounding_notes(config, exp)
     return exp
 
@@ -376,6 +465,12 @@ def _marlin(config: TuneConfig, dialect: str) -> Export:
             where_line.setdefault(k, len(lines) - 1)
     exp = Export(dialect, lines, list(fw.save), None, None, ["M593"], expected, where_line,
                  ["Marlin's minimum F depends on the board (the echo delay must fit its timer)"])
+    low = [f"{ax.upper()} {fmt(config.axis(ax)[1], 2)} Hz" for ax in "xy"
+           if config.axis(ax)[0] != "none" and 0 < config.axis(ax)[1] < fw.build_min_freq]
+    if low:
+        exp.notes.append(f"{', '.join(low)} is below {fw.build_min_freq:g} Hz, {fw.build_min_freq_why}: "
+                         f"build with SHAPING_MIN_FREQ at or below it (Configuration_adv.h), or tune with "
+                         f"--shaping-min-freq your build's value")
     _rounding_notes(config, exp)
     return exp
 

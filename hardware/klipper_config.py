@@ -11,13 +11,19 @@ Two sources give the same facts:
 
 What is taken (Klipper's option -> description key):
 
-- ``[printer] kinematics`` -> ``kinematics`` (``cartesian``, ``corexy``, ``corexz``; a fork's
-  ``limited_*`` -> its base, with a note; anything else is refused);
+- ``[printer] kinematics`` -> ``kinematics`` (``cartesian``, ``corexy``, ``corexz``; Kalico's
+  ``limited_*`` -> its base, with a note, ``[current] firmware = "kalico"`` and its caps below;
+  anything else is refused);
 - ``max_accel`` -> ``limits.accel``, ``max_velocity`` -> ``limits.velocity``,
   ``square_corner_velocity`` (default 5 mm/s), ``minimum_cruise_ratio`` -> ``limits.min_cruise_ratio``
   (default 0.5; from the old ``max_accel_to_decel``: ``1 − max_accel_to_decel / max_accel``),
-  ``max_z_velocity``/``max_z_accel`` (and ``limited_*``'s ``max_x_…``/``max_y_…``) -> the per-axis
-  caps ``limits.max_velocity``/``limits.max_accel`` (x, y, z, e; 0 = no cap) when they bind;
+  ``max_z_velocity`` (and ``limited_*``'s ``max_x_velocity``/``max_y_velocity``) -> the per-axis
+  speed caps ``limits.max_velocity`` (x, y, z, e; 0 = no cap) when they bind (under
+  ``max_velocity``); ``max_z_accel`` and ``limited_*``'s ``max_x_accel``/``max_y_accel`` ->
+  ``limits.max_accel`` whatever their value (a cap above today's max_accel still holds once the
+  acceleration is raised; on ``limited_*`` an unset X/Y cap is Kalico's default, max_accel, as
+  ``limited_*.py`` reads it), ``limited_corexy`` -> ``limits.axis_rule = "limited_corexy"`` (the
+  belts' shares bind, not each axis's), ``scale_xy_accel`` -> ``limits.scale_xy_accel``;
 - per motor (``stepper_x`` -> ``[x.motor]``, ``stepper_y`` -> ``[y.motor]``, one ``[motor]`` when
   both are the same): ``rotation_distance`` (mm of belt per *motor* revolution: divided by
   ``gear_ratio``; from the old ``step_distance``: ``step_distance · full_steps_per_rotation ·
@@ -103,8 +109,9 @@ def _kinematics(src: _Source) -> str:
     if kin in KINEMATICS:
         return kin
     if kin.startswith("limited_") and kin[8:] in KINEMATICS:
-        src.notes.append(f"{src.where('printer', 'kinematics')}: kinematics {kin} (a Klipper fork's) is "
-                         f"modelled as {kin[8:]}; its per-axis limits become per-axis caps")
+        src.notes.append(f"{src.where('printer', 'kinematics')}: kinematics {kin} (Kalico's) is "
+                         f"modelled as {kin[8:]}; its per-axis acceleration caps are applied as {kin} "
+                         "applies them, and the firmware is Kalico")
         return kin[8:]
     raise RingtuneError(f"kinematics {kin!r} is not one the printer model has "
                         f"({', '.join(KINEMATICS)})", src.where("printer", "kinematics"))
@@ -138,18 +145,38 @@ def _limits(src: _Source) -> dict:
     if not 0 <= mcr < 1:
         raise RingtuneError(f"must be in [0, 1), not {mcr:g}", src.where("printer", "minimum_cruise_ratio"))
     limits["min_cruise_ratio"] = mcr
-    for kind, top in (("accel", accel), ("velocity", velocity)):
-        caps = [0.0, 0.0, 0.0, 0.0]
-        for i, ax in enumerate("xyz"):
-            v = src.number("printer", f"max_{ax}_{kind}")
-            if v is not None and v < top:
-                caps[i] = v
-            elif v is not None:
-                src.notes.append(f"{src.where('printer', f'max_{ax}_{kind}')}: max_{ax}_{kind} {v:g} is not below "
-                                 f"max_{kind} {top:g}, which limits every move: no cap of its own on {ax.upper()}")
-        if any(caps):
-            limits[f"max_{kind}"] = caps
+    _speed_caps(src, limits, velocity)
+    _accel_caps(src, limits, accel)
     return limits
+
+
+def _speed_caps(src: _Source, limits: dict, velocity: float) -> None:
+    """Per-axis speed caps that bind (under max_velocity, which ringtune does not tune)."""
+    caps = [0.0, 0.0, 0.0, 0.0]
+    for i, ax in enumerate("xyz"):
+        v = src.number("printer", f"max_{ax}_velocity")
+        if v is not None and v < velocity:
+            caps[i] = v
+        elif v is not None:
+            src.notes.append(f"{src.where('printer', f'max_{ax}_velocity')}: max_{ax}_velocity {v:g} is not "
+                             f"below max_velocity {velocity:g}, which limits every move: no speed cap of its "
+                             f"own on {ax.upper()}")
+    if any(caps):
+        limits["max_velocity"] = caps
+
+
+def _accel_caps(src: _Source, limits: dict, accel: float) -> None:
+    """Per-axis acceleration caps, kept whatever their value (module docstring)."""
+    kin = str(src.get("printer", "kinematics")).strip()
+    limited = kin.startswith("limited_")
+    caps = [_accel_cap(src, ax, accel, kin if limited and ax != "z" else None) for ax in "xyz"] + [0.0]
+    if any(caps):
+        limits["max_accel"] = caps
+    if kin == "limited_corexy":
+        limits["axis_rule"] = "limited_corexy"
+    scale = src.get("printer", "scale_xy_accel")
+    if limited and scale is not None and str(scale).strip().lower() in ("true", "1", "yes"):
+        limits["scale_xy_accel"] = True
 
 
 def _gearing(src: _Source, stepper: str) -> float:
@@ -249,8 +276,19 @@ def _stepper_motor(src: _Source, stepper: str) -> dict:
     return table
 
 
+def _accel_cap(src: _Source, ax: str, accel: float, limited: str | None) -> float:
+    """max_<ax>_accel (0 = none); on a limited_* kinematics an unset X/Y cap is max_accel."""
+    v = src.number("printer", f"max_{ax}_accel")
+    if v is None and limited:
+        src.notes.append(f"[printer] max_{ax}_accel not set: {limited}'s default, max_accel {accel:g} mm/s², "
+                         f"caps {ax.upper()} even when the acceleration is raised at run time")
+        return accel
+    return 0.0 if v is None else v
+
+
 def _current(src: _Source, accel: float) -> dict:
-    cur = {"source": src.label, "firmware": "klipper"}
+    kalico = str(src.get("printer", "kinematics")).strip().startswith("limited_")
+    cur = {"source": src.label, "firmware": "kalico" if kalico else "klipper"}
     if src.name("input_shaper") is None:
         src.notes.append("no [input_shaper] section: the printer runs without input shaping today")
         cur.update(shaper_x="none", shaper_y="none", accel=accel)

@@ -9,7 +9,7 @@ report). Read here, in Marlin's units:
 | ``M92 X Y Z E`` | steps per mm | ``motor.steps_per_mm`` (X, Y) |
 | ``M203 X Y Z E`` | max feedrate, mm/s | ``limits.max_velocity`` (x, y, z, e); ``limits.velocity`` = max(X, Y) |
 | ``M201 X Y Z E`` | max acceleration, mm/s² | ``limits.max_accel`` (x, y, z, e) |
-| ``M204 P R T`` (old: ``S T``) | print / retract / travel acceleration, mm/s² | ``limits.accel`` = P (else S), ``limits.travel_accel`` = T |
+| ``M204 P R T`` (old: ``S T``) | print / retract / travel acceleration, mm/s² | ``limits.accel`` = P (else S), ``limits.retract_accel`` = R (E-only moves), ``limits.travel_accel`` = T |
 | ``M205 J`` or ``M205 X Y Z E`` | junction deviation, mm, or classic jerk, mm/s | ``limits.junction`` = ``jd`` / ``jerk`` and its value |
 | ``M906 X Y`` | TMC driver current, mA RMS | ``motor.run_current`` (A) |
 | ``M593 X/Y F D`` | ZV input shaper (``firmware.md`` §2.1): F Hz (0 = off), D damping | ``[current]`` shaper ``zv`` |
@@ -93,7 +93,9 @@ def printer_facts_from_marlin(path: str | Path, kinematics: str | None = None) -
     if num("M204", "T"):
         limits["travel_accel"] = num("M204", "T")
     if num("M204", "R"):
-        notes.append(f"M204 R{num('M204', 'R'):g} (retract acceleration) is not part of the model")
+        limits["retract_accel"] = num("M204", "R")
+    else:
+        notes.append("no M204 R (retract acceleration): retractions are planned at the print acceleration")
     vmax = per_axis("M203")
     if vmax is not None:
         limits["max_velocity"] = vmax

@@ -37,6 +37,24 @@ class Moonraker:
         self.log = log or (lambda msg: None)
 
     def _request(self, method: str, path: str, body: dict | None = None) -> dict:
+        payload = self._open(method, path, body)
+        try:
+            return json.loads(payload)
+        except json.JSONDecodeError:
+            raise LinkError(f"{path} did not answer JSON", self.shown) from None
+
+    def download(self, root: str, path: str) -> bytes:
+        """A file's bytes through the file API, ``GET /server/files/<root>/<path>``."""
+        return self._open("GET", f"/server/files/{quote(root)}/{quote(path)}", None)
+
+    def list_files(self, root: str) -> list[dict]:
+        """Every file of a root, ``GET /server/files/list?root=<root>``: ``[{path (relative to the
+        root), modified (s since the epoch), size (bytes), permissions}]``."""
+        result = self._request("GET", f"/server/files/list?root={quote(root)}").get("result")
+        return [f for f in result if isinstance(f, dict) and "path" in f] if isinstance(result, list) else []
+
+    def _open(self, method: str, path: str, body: dict | None) -> bytes:
+        """The answer's bytes (errors as :class:`LinkError`, Moonraker's own message kept)."""
         url = self.base + path
         if self.query:
             url += ("&" if "?" in url else "?") + self.query
@@ -70,10 +88,7 @@ class Moonraker:
                 raise LinkTimeout(f"no answer from {path} within {self.timeout:g} s", path,
                                   self.shown) from None
             raise LinkError(f"cannot reach Moonraker: {exc.reason}", self.shown) from None
-        try:
-            return json.loads(payload)
-        except json.JSONDecodeError:
-            raise LinkError(f"{path} did not answer JSON", self.shown) from None
+        return payload
 
     def script(self, lines: str | list[str]) -> None:
         """Run G-code lines; returns when all have completed (LinkError if one fails)."""

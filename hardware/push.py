@@ -135,6 +135,7 @@ def _statuses(exp: Export, replies: dict[int, Reply], report: str | None, firmwa
         else:
             st.detail = "printer reports a different value"
         out.append(st)
+    _judge_axis_caps(out, exp, reported)
     if "limit" in exp.setting_lines:
         idx = exp.setting_lines["limit"]
         st = SettingStatus("limit", exp.lines[idx])
@@ -145,6 +146,30 @@ def _statuses(exp: Export, replies: dict[int, Reply], report: str | None, firmwa
             st.detail = "printer said: " + "; ".join(reply.errors) if reply else "line not sent"
         out.append(st)
     return out
+
+
+def _caps_below(reported: dict, accel: float) -> dict[str, float]:
+    """The read-back X/Y caps (mm/s²) below ``accel``."""
+    caps = {ax: float(reported[f"max_accel_{ax}"].value) for ax in "xy" if f"max_accel_{ax}" in reported}
+    return {ax: v for ax, v in caps.items() if v < accel}
+
+
+def _judge_axis_caps(statuses: list[SettingStatus], exp: Export, reported: dict) -> None:
+    """An acceleration the printer's own per-axis caps (read back) hold lower is not claimed as
+    applied: the printer would not print at it. Caps the config itself sets are settings of their
+    own (it was planned with them)."""
+    st = next((s for s in statuses if s.key == "accel"), None)
+    if st is None or st.status != APPLIED or any(k.startswith("max_accel_") for k in exp.expected):
+        return
+    low = _caps_below(reported, float(st.meant))
+    if not low:
+        return
+    caps = ", ".join(f"{ax.upper()} {v:g}" for ax, v in low.items())
+    raise_line = exp.record.axis_accel_set.format(x=f"{float(st.meant):g}", y=f"{float(st.meant):g}")
+    st.status = NOT_APPLIED
+    st.detail = (f"set, but the printer's own per-axis caps ({caps} mm/s²) hold those moves lower, so it "
+                 f"will not print at {float(st.meant):g}: push a config that carries the caps it was planned "
+                 f"with (max_accel_x/max_accel_y, which tune writes), or raise them ({raise_line})")
 
 
 def _timeout_statuses(exp: Export, replies: dict[int, Reply], who: str) -> list[SettingStatus]:
@@ -322,7 +347,7 @@ def _save_target(exp: Export, save_path) -> Path | None:
     """Where ``--save`` writes the config lines (firmware that cannot persist them), else None."""
     if exp.save_lines or not exp.config_text:
         return None
-    default = "ringtune-input_shaper.cfg" if exp.firmware == "klipper" else "ringtune-config.g"
+    default = "ringtune-input_shaper.cfg" if exp.record.family == "klipper" else "ringtune-config.g"
     return Path(save_path or default)
 
 
@@ -340,7 +365,7 @@ def _save_file(exp: Export, result: PushResult, save_path) -> None:
                             f"{exp.config_target} are:\n{exp.config_text.rstrip()}")
         return
     result.save_file = str(path)
-    what = ("replace the [input_shaper] section of printer.cfg with it (SAVE_CONFIG would drop "
-            "damping_ratio)" if exp.firmware == "klipper" else "add these lines to config.g "
+    what = ("replace the [input_shaper] section of printer.cfg with it (SET_INPUT_SHAPER's values are "
+            "lost at a restart, and SAVE_CONFIG does not save them)" if exp.record.family == "klipper" else "add these lines to config.g "
             "(RepRapFirmware's M500 does not store M593)")
     result.saved = f"{FIRMWARES[exp.firmware].title} cannot persist this from G-code: wrote {path}; {what}"

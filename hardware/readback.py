@@ -10,6 +10,9 @@ Report formats (``shared/reference/firmware.md``):
 - acceleration: Klipper ``SET_VELOCITY_LIMIT`` (no args): ``// max_accel: 3000.000000``; Marlin and
   Prusa ``M204``: ``  M204 P3000.00 R3000.00 T3000.00``; RRF ``M204``: ``Maximum printing
   acceleration 3000.0, maximum travel acceleration 3000.0``
+- per-axis caps: Kalico ``SET_VELOCITY_LIMIT`` (no args): ``// max_x_accel: 10010.000000``;
+  Marlin and Prusa ``M201``: ``  M201 X500.00 Y500.00 Z100.00 E5000.00`` (``M201_report``); RRF
+  ``M201``: ``Accelerations (mm/sec^2): X: 3000.0, Y: 3000.0, Z: 100.0, E: 5000.0``
 
 Values are returned with the number of decimals printed, so a comparison can allow for the
 firmware's rounding.
@@ -35,21 +38,28 @@ def _num(s: str) -> Reported:
     return Reported(float(s), len(s.split(".")[1]) if "." in s else 0)
 
 
+def _klipper_shapers(text: str) -> dict[str, Reported]:
+    """SET_INPUT_SHAPER's report: ``shaper_type_x:mzv shaper_freq_x:40.000 damping_ratio_x:0.100000``,
+    or for Kalico's smoothers ``shaper_type_x:smooth_mzv smoother_freq_x:40.000``."""
+    out: dict[str, Reported] = {}
+    for ax in ("x", "y", "z"):
+        m = re.search(rf"shaper_type_{ax}:(\S+)\s+shaper_freq_{ax}:{_NUM}\s+damping_ratio_{ax}:{_NUM}", text)
+        if m:
+            out[f"{ax}.damping"] = _num(m.group(3))
+        m = m or re.search(rf"shaper_type_{ax}:(\S+)\s+smoother_freq_{ax}:{_NUM}", text)
+        if m:
+            out[f"{ax}.type"] = Reported(m.group(1).lower())
+            out[f"{ax}.freq"] = _num(m.group(2))
+    return out
+
+
 def parse_report(firmware: str, text: str) -> dict[str, Reported]:
     """Settings found in the firmware's reply text (keys as :attr:`Export.expected`)."""
     out: dict[str, Reported] = {}
     dialect = FIRMWARES[firmware].family
-    accel = _accel(dialect, text)
-    if accel is not None:
-        out["accel"] = accel
+    out.update(_acceleration_fields(dialect, text))
     if dialect == "klipper":
-        for ax in ("x", "y", "z"):
-            m = re.search(rf"shaper_type_{ax}:(\S+)\s+shaper_freq_{ax}:{_NUM}\s+damping_ratio_{ax}:{_NUM}",
-                          text)
-            if m:
-                out[f"{ax}.type"] = Reported(m.group(1).lower())
-                out[f"{ax}.freq"] = _num(m.group(2))
-                out[f"{ax}.damping"] = _num(m.group(3))
+        out.update(_klipper_shapers(text))
     elif dialect == "rrf":
         if re.search(r"Input shaping is disabled", text, re.I):
             out["all.type"] = Reported("none")
@@ -87,6 +97,24 @@ def parse_report(firmware: str, text: str) -> dict[str, Reported]:
     return out
 
 
+def _acceleration_fields(dialect: str, text: str) -> dict[str, Reported]:
+    """``accel``, ``travel_accel``, ``max_accel_x``/``y`` where the reply reports them."""
+    found = {"accel": _accel(dialect, text), "travel_accel": _travel_accel(dialect, text),
+             **_axis_caps(dialect, text)}
+    return {k: v for k, v in found.items() if v is not None}
+
+
+def _travel_accel(dialect: str, text: str) -> Reported | None:
+    """M204's travel acceleration: Marlin/Prusa ``T`` of the report, RRF ``maximum travel acceleration``."""
+    if dialect == "klipper":
+        return None
+    if dialect == "rrf":
+        m = re.search(rf"maximum travel acceleration {_NUM}", text, re.I)
+    else:
+        m = re.search(rf"M204\b[^\n]*?\sT{_NUM}", text)
+    return _num(m.group(1)) if m else None
+
+
 def _accel(dialect: str, text: str) -> Reported | None:
     if dialect == "klipper":
         m = re.search(rf"max_accel:\s*{_NUM}", text)
@@ -97,6 +125,18 @@ def _accel(dialect: str, text: str) -> Reported | None:
         if m:
             return _num(m.group(2))
     return _num(m.group(1)) if m else None
+
+
+def _axis_caps(dialect: str, text: str) -> dict[str, Reported]:
+    """``max_accel_x`` / ``max_accel_y`` from the reply of the record's ``axis_accel_report``."""
+    if dialect == "klipper":
+        found = {ax: re.search(rf"max_{ax}_accel:\s*{_NUM}", text) for ax in "xy"}
+        return {f"max_accel_{ax}": _num(m.group(1)) for ax, m in found.items() if m}
+    if dialect == "rrf":
+        m = re.search(rf"Accelerations \(mm/sec\^2\):\s*X:\s*{_NUM},\s*Y:\s*{_NUM}", text, re.I)
+    else:
+        m = re.search(rf"M201\s+X{_NUM}\s+Y{_NUM}", text)
+    return {"max_accel_x": _num(m.group(1)), "max_accel_y": _num(m.group(2))} if m else {}
 
 
 def matches(expected: object, got: Reported) -> bool:

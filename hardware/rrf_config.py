@@ -92,6 +92,8 @@ def printer_facts_from_rrf(path: str | Path) -> FirmwareFacts:
         limits["travel_accel"] = num("M204", "T")
     if amax is not None:
         limits["max_accel"] = amax
+        notes.append("RepRapFirmware's M204 has no retract acceleration: retractions (E-only moves) are "
+                     "planned at the printing acceleration under M201 E")
     vmax = per_axis("M203", 1 / 60)
     if vmax is not None:
         limits["max_velocity"] = vmax

@@ -58,6 +58,14 @@ def _n(a: float) -> str:
     return f"{a:.0f}" if a == int(a) else f"{a:g}"
 
 
+def _caps_note(caps: dict) -> str:
+    """What the slicer's M201 (machine_max_acceleration_x/_y, emitted to the G-code) must be."""
+    if caps:
+        return ("machine_max_acceleration_x/_y are the per-axis caps this config was planned with "
+                "(the slicer writes them as M201 X Y)")
+    return "machine_max_acceleration_x/_y must be at least this value, or M201 caps it"
+
+
 def slicer_profile(config: TuneConfig, slicer: str, firmware: str | None = None) -> SlicerProfile:
     """The acceleration settings of ``slicer``'s profile for ``config.accel`` (mm/s²)."""
     if slicer not in SLICERS:
@@ -68,19 +76,20 @@ def slicer_profile(config: TuneConfig, slicer: str, firmware: str | None = None)
     a = _n(config.accel)
     common = [f"tuned acceleration {a} mm/s² for {fw.title}; per-feature accelerations already set "
               "in the profile override it where they are not 0: set them to 0 (or to this value)"]
+    caps = {f"machine_max_acceleration_{ax}": _n(c) for ax, c in zip("xy", config.axis_caps) if c is not None}
     if slicer == "prusaslicer":
-        settings = {"machine_limits_usage": "emit_to_gcode", "machine_max_acceleration_extruding": f"{a},{a}",
-                    "machine_max_acceleration_travel": f"{a},{a}", "default_acceleration": a}
+        machine = {"machine_limits_usage": "emit_to_gcode", "machine_max_acceleration_extruding": f"{a},{a}",
+                   "machine_max_acceleration_travel": f"{a},{a}", **{k: f"{v},{v}" for k, v in caps.items()}}
+        settings = {**machine, "default_acceleration": a}
         text = ("# printer profile (Printer Settings > Machine limits)\n"
-                + "".join(f"{k} = {settings[k]}\n" for k in list(settings)[:3])
+                + "".join(f"{k} = {v}\n" for k, v in machine.items())
                 + "# print profile (Print Settings > Speed > Acceleration control)\n"
                 + f"default_acceleration = {a}\n")
-        notes = common + ["machine_max_acceleration_x/_y must be at least this value, or M201 caps it",
-                          f"gcode_flavor = {_PRUSA_FLAVOR[fw.family]} for {fw.title}"]
+        notes = common + [_caps_note(caps), f"gcode_flavor = {_PRUSA_FLAVOR[fw.family]} for {fw.title}"]
         return SlicerProfile(slicer, "ini", settings, text, notes)
     if slicer == "orcaslicer":
         settings = {"machine_max_acceleration_extruding": [a, a], "machine_max_acceleration_travel": [a, a],
-                    "default_acceleration": a}
+                    **{k: [v, v] for k, v in caps.items()}, "default_acceleration": a}
         notes = common + ["machine profile: machine_max_acceleration_*; process profile: default_acceleration"]
         text = json.dumps({**settings, "_ringtune": notes}, indent=2) + "\n"
         return SlicerProfile(slicer, "json", settings, text, notes)

@@ -12,7 +12,8 @@ import math
 import numpy as np
 from scipy.optimize import brentq
 
-from ringtune.shaping.shapers import Shaper
+from ringtune.shaping.shapers import Shaper, Smoother
+from ringtune.shaping.smoothers import smoother_smoothing_terms
 
 #: Klipper's find_shaper_max_accel target: largest accel whose smoothing stays <= 0.12 mm
 TARGET_SMOOTHING = 0.12
@@ -129,16 +130,24 @@ def band(shaper: Shaper, reduction: float = 0.9, damping: float = 0.0,
     return float(f_lo), float(f_hi)
 
 
+def shaper_smoothing_terms(shaper: Shaper, scv: float = 5.0):
+    """:func:`smoothing_terms` of a shaper; of a continuous smoother, its kernel's exact integrals
+    (the impulse sums of its quadrature would cut the 90° integral at a node, not at the centroid)."""
+    if isinstance(shaper, Smoother):
+        return smoother_smoothing_terms(shaper.coeffs, shaper.smooth_time, shaper.offset, scv)
+    return smoothing_terms(shaper.amplitudes, shaper.times, scv)
+
+
 def smoothing(shaper: Shaper, accel: float = SMOOTHING_ACCEL, scv: float = 5.0) -> float:
     """Klipper's smoothing estimate, mm: the larger of the offsets a 90° corner (at square-corner
     velocity ``scv`` mm/s) and a 180° reversal suffer at acceleration ``accel`` mm/s²."""
-    return float(smoothing_from_terms(smoothing_terms(shaper.amplitudes, shaper.times, scv), accel))
+    return float(smoothing_from_terms(shaper_smoothing_terms(shaper, scv), accel))
 
 
 def max_accel(shaper: Shaper, scv: float = 5.0, target: float = TARGET_SMOOTHING) -> float:
     """Largest accel (mm/s², unrounded) with ``smoothing(accel, scv) <= target`` — Klipper's
     ``find_shaper_max_accel`` (Klipper prints it rounded to 100); see :func:`max_accel_from_terms`."""
-    return max_accel_from_terms(smoothing_terms(shaper.amplitudes, shaper.times, scv), target)
+    return max_accel_from_terms(shaper_smoothing_terms(shaper, scv), target)
 
 
 def lag(shaper: Shaper, centred: bool = False) -> float:

@@ -13,6 +13,13 @@ the planned motion is at hand.
 Shifts: causal firmwares (RRF, Marlin classic) use ``s_i = T_i`` (the shaped motion lags by
 Σ A_i T_i); centring firmwares (Klipper, Prusa, Marlin FT_MOTION) use ``s_i = T_i − centre`` so
 the steady-state lag is zero.
+
+A continuous smoother (Kalico's ``smooth_*``, :class:`~ringtune.shaping.shapers.Smoother`) is the
+convolution ``∫ w(τ)·x(t + t_offs − τ) dτ``; its impulses are the Gauss–Legendre quadrature of that
+integral (:mod:`ringtune.shaping.smoothers`), so :func:`shape_motion` evaluates it exactly
+wherever the kernel spans no change of acceleration, and across one replaces the kernel's smooth
+ramp of acceleration by a staircase of its nodes (position within a micrometre of the exact
+convolution: ``tests/test_kalico_smoothers.py``). Its zero-weight end impulses are skipped.
 """
 
 from __future__ import annotations
@@ -29,8 +36,9 @@ def impulse_shifts(shaper: Shaper | None, centred: bool) -> tuple[np.ndarray, np
     """(amplitudes, shifts s) with shaped x(t) = Σ A_i·x(t − s_i)."""
     if shaper is None:
         return _NONE
-    shifts = shaper.times - (shaper.centre_delay if centred else 0.0)
-    return shaper.amplitudes, shifts
+    keep = shaper.amplitudes != 0.0            # a smoother's end markers
+    shifts = shaper.times[keep] - (shaper.centre_delay if centred else 0.0)
+    return shaper.amplitudes[keep], shifts
 
 
 def _eval_copies(motion: Motion, cols: list[int], starts: np.ndarray, mids: np.ndarray,

@@ -102,16 +102,14 @@ def read_band_table(text: str, where: str = "tower") -> list[tuple[float, float,
 # -- acceleration commands per firmware ------------------------------------------------------------
 def accel_lines(firmware: str, accel: float, axis_maxima: bool = True) -> list[str]:
     """The lines that make ``firmware`` print and travel at ``accel`` mm/s²: its own command from
-    :mod:`ringtune.shaping.firmware` (``SET_VELOCITY_LIMIT ACCEL=``, ``M204 P``), on M204 with the
-    travel acceleration ``T`` too (the ladder's fast moves are travel moves); Marlin, Prusa and
-    RepRapFirmware also cap each axis (``M201 X Y``), so those caps are raised first when
-    ``axis_maxima``."""
+    :mod:`ringtune.shaping.firmware` (``SET_VELOCITY_LIMIT ACCEL=``, ``M204 P T``: the ladder's fast
+    moves are travel moves); Marlin, Prusa, RepRapFirmware (``M201 X Y``) and Kalico's limited_* kinematics
+    (``SET_VELOCITY_LIMIT X_ACCEL= Y_ACCEL=``) also cap each axis, so those caps are raised first
+    when ``axis_maxima``."""
     fw = Firmware.named(firmware, "--firmware")
     a = f"{accel:.0f}"
-    line = fw.accel_set.format(a=a)
-    if not line.startswith("M204"):
-        return [line]
-    return ([f"M201 X{a} Y{a}"] if axis_maxima else []) + [f"{line} T{a}"]
+    caps = [fw.axis_accel_set.format(x=a, y=a)] if axis_maxima and fw.axis_accel_set else []
+    return caps + [fw.accel_set.format(a=a)]
 
 
 def accel_syntax(firmware: str) -> str:

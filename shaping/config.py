@@ -31,6 +31,10 @@ class TuneConfig:
         min_speed_factor: lowest fraction of the commanded speed the limit may slow to.
         freq_limit_method: ``nophead`` (whole path), ``sections`` (only the fast part), ``marlin``.
         accel: printing acceleration, mm/s² (None = the printer's own).
+        max_accel_x, max_accel_y: the per-axis acceleration caps this configuration runs with,
+            mm/s² (Marlin/RRF ``M201 X Y``, Kalico ``max_x_accel``/``max_y_accel``; None = the
+            printer's own, unchanged). ``export`` and ``push`` set and read them back before the
+            acceleration; written to JSON only when set.
         extra: any other keys (provenance, metrics), carried through unchanged.
     """
 
@@ -45,6 +49,8 @@ class TuneConfig:
     min_speed_factor: float = 0.3
     freq_limit_method: str = "sections"
     accel: float | None = None
+    max_accel_x: float | None = None
+    max_accel_y: float | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -95,15 +101,24 @@ class TuneConfig:
         if self.freq_limit_method not in FREQ_LIMIT_METHODS:
             raise RingtuneError(f"must be one of {', '.join(FREQ_LIMIT_METHODS)}",
                                 f"{where}: freq_limit_method")
-        if self.accel is not None:
-            _finite(self.accel, f"{where}: accel", lo=1.0, hi=1e6)
+        for key in ("accel", "max_accel_x", "max_accel_y"):
+            if getattr(self, key) is not None:
+                _finite(getattr(self, key), f"{where}: {key}", lo=1.0, hi=1e6)
 
     # -- JSON ------------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
         extra = d.pop("extra")
+        for key in ("max_accel_x", "max_accel_y"):      # only when set: older files stay as they were
+            if d[key] is None:
+                del d[key]
         d.update(extra)
         return d
+
+    @property
+    def axis_caps(self) -> tuple[float | None, float | None]:
+        """(X, Y) per-axis acceleration caps this configuration runs with, mm/s² (None: the printer's)."""
+        return self.max_accel_x, self.max_accel_y
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], where: str = "config") -> "TuneConfig":
@@ -112,7 +127,8 @@ class TuneConfig:
         known = {f.name for f in fields(cls)} - {"extra"}
         kwargs = {k: v for k, v in data.items() if k in known}
         extra = {k: v for k, v in data.items() if k not in known}
-        for k in ("freq_x", "freq_y", "damping_x", "damping_y", "freq_limit_hz", "min_speed_factor", "accel"):
+        for k in ("freq_x", "freq_y", "damping_x", "damping_y", "freq_limit_hz", "min_speed_factor", "accel",
+                  "max_accel_x", "max_accel_y"):
             if k in kwargs and kwargs[k] is not None:
                 if isinstance(kwargs[k], bool) or not isinstance(kwargs[k], (int, float)):
                     raise RingtuneError(f"must be a number, not {kwargs[k]!r}", f"{where}: {k}")

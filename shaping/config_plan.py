@@ -1,7 +1,9 @@
 """A job planned under a TuneConfig: the one path from a parsed job to its plan that ``ringtune plan``
 and :func:`ringtune.envs.evaluate.planned_job` (every tuning trial) share.
 
-1. the config's acceleration (mm/s²) is the machine's; how it meets the job's own acceleration
+1. the config's acceleration (mm/s²) is the machine's printing and travel acceleration (export
+   sends ``M204 P T``; a retract acceleration, Marlin's ``M204 R``, stays), and its per-axis caps (``max_accel_x``/``y``)
+   replace the machine's X/Y caps; how it meets the job's own acceleration
    commands is the job-acceleration mode (:data:`JOB_ACCEL_MODES`, argument ``job_accel`` or the
    config's ``extra["job_accel"]``): ``replace`` (default) — it replaces the job's own commands
    (M204, SET_VELOCITY_LIMIT ACCEL and the X/Y caps of M201), what re-slicing at that acceleration
@@ -75,6 +77,16 @@ def without_job_accel(job: Job) -> Job:
     return replace(job, settings_table=table)
 
 
+def with_axis_caps(limits: MachineLimits, config: TuneConfig | None) -> MachineLimits:
+    """``limits`` with the X/Y acceleration caps the config runs with (:attr:`TuneConfig.axis_caps`)."""
+    caps = (None, None) if config is None else config.axis_caps
+    if caps == (None, None):
+        return limits
+    old = tuple(limits.max_accel) if limits.max_accel is not None else (0.0, 0.0, 0.0, 0.0)
+    new = tuple(float(c) if c is not None else o for c, o in zip(caps, old[:2])) + old[2:]
+    return replace(limits, max_accel=new)
+
+
 def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None = None, *,
                      use_job_limits: bool = True, daa_freq: float | None = None,
                      job_accel: str | None = None) -> ConfiguredPlan:
@@ -85,9 +97,10 @@ def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None 
     ``job_accel``: ``replace`` or ``respect`` (:func:`job_accel_mode`).
     """
     mode = job_accel_mode(config, job_accel)
+    limits = with_axis_caps(limits, config)
     accel = None if config is None or config.accel is None else float(config.accel)
-    if accel is not None:
-        limits = replace(limits, accel=accel)
+    if accel is not None:     # export sends it as printing and travel acceleration (M204 P T)
+        limits = replace(limits, accel=accel, travel_accel=None)
         if mode == "replace":
             job = without_job_accel(job)
     freq_limit = None

@@ -27,6 +27,9 @@ from ringtune.shaping.motion import Motion
 from ringtune.shaping.shapers import Shaper, shapers_from_config
 
 E_TIMINGS = ("shaped", "delayed", "neither")
+#: each timing in words, for reports
+E_TIMING_WORDS = {"shaped": "the extruder shaped with X/Y", "delayed": "the extruder delayed with X/Y",
+                  "neither": "the extruder neither shaped nor delayed"}
 XY_DELAYS = ("centred", "causal", "largest")
 
 

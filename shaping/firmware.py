@@ -6,7 +6,13 @@ and push (ranges, precision, commands), the read-back parser (report format). Fa
 sources: ``shared/reference/firmware.md`` (§1.5 Klipper, §2 Marlin, §3 RRF, §4 Prusa); the
 acceleration commands from Klipper ``toolhead.py`` (``SET_VELOCITY_LIMIT``), Marlin
 ``M200-M205.cpp`` (``M204 P``, report ``  M204 P<a> R<a> T<a>``) and RRF ``Move.cpp`` (``M204 P``,
-report ``Maximum printing acceleration <a>, maximum travel acceleration <a>``).
+report ``Maximum printing acceleration <a>, maximum travel acceleration <a>``); the per-axis caps
+from Marlin ``M201`` (report ``  M201 X<a> Y<a> ...``), RRF ``M201`` and Kalico's limited_*
+kinematics (``klippy/kinematics/limited_corexy.py``, ``limited_cartesian.py``: ``max_x_accel``,
+``max_y_accel``; ``toolhead.py``: ``SET_VELOCITY_LIMIT X_ACCEL= Y_ACCEL=``, reported as
+``max_x_accel: ...`` while ``[danger_options] log_velocity_limit_changes`` is on, its default);
+Marlin's build-time ``SHAPING_MIN_FREQ`` (``stepper.h``); what persists across a restart
+(``reference/firmware.md`` §1.5, §2, §3.5, §4).
 
 A :class:`Span` is a range the firmware accepts together with the number of decimals a value is
 sent (and reported) with. A value that would round to another one at that precision is refused
@@ -80,13 +86,28 @@ class Firmware:
         damping: damping ratio (the shaper's own maximum also applies).
         freq_limit: the firmware has an XY direction-change frequency limit (Marlin ``M201 F S``);
             elsewhere ``ringtune limit`` applies it to the G-code.
-        accel_set: command that sets the printing acceleration (``{a}`` = mm/s²).
+        accel_set: command that sets the tuned acceleration (``{a}`` = mm/s²): printing and, where
+            the firmware keeps it apart, travel (``M204 P T``: the tuned acceleration is what every
+            XY move was planned with; Marlin's retractions keep ``M204 R``).
         accel_report: command whose reply reports it.
         accel: printing acceleration, mm/s².
         comment: the G-code comment character the firmware reads.
         save: lines that persist shaping settings from G-code (empty: they belong in a config file).
         config_file: where settings go when they cannot be saved from G-code, or None.
         native_names: (canonical name, the firmware's own name) where they differ (RRF ``ei2``).
+        axis_accel_set: command that sets the per-axis X/Y acceleration caps (``{x}``, ``{y}`` in
+            mm/s²), empty if the firmware has none (mainline Klipper: one ``max_accel``).
+        axis_accel_report: command whose reply reports them.
+        axis_accel: the caps' range and precision (Marlin keeps M201 as whole mm/s²).
+        axis_accel_config: the config-file keys of those caps (``max_{ax}_accel`` on Kalico's
+            limited_* kinematics), empty if they are set by G-code.
+        axis_accel_kinematics: kinematics on which the per-axis caps exist (empty: all).
+        accel_roles: the accelerations the firmware keeps apart, besides per-axis caps: ``print``
+            (extruding moves), ``travel`` (non-extruding), ``retract`` (E-only moves).
+        persists: what of the tuned settings survives a restart, and how.
+        build_min_freq: the lowest shaper frequency (Hz) a stock build handles as it should, where
+            the build (not a G-code check) sets it (Marlin classic: SHAPING_MIN_FREQ); 0 = none.
+        build_min_freq_why: what it is and what happens below it.
         e_timing: the extruder under input shaping (seed 002; :mod:`ringtune.shaping.e_timing`):
             ``shaped`` with X/Y's impulses, ``delayed`` by the shaped axes' lag, or ``neither``.
         xy_delay: how the shaped X/Y are delayed against the firmware's own (extruder) clock:
@@ -114,6 +135,15 @@ class Firmware:
     save: tuple[str, ...] = ()
     config_file: str | None = None
     native_names: tuple[tuple[str, str], ...] = ()
+    axis_accel_set: str = ""
+    axis_accel_report: str = ""
+    axis_accel: Span = Span(1.0, 1e6, 0)
+    axis_accel_config: str = ""
+    axis_accel_kinematics: tuple[str, ...] = ()
+    accel_roles: tuple[str, ...] = ("print",)
+    persists: str = ""
+    build_min_freq: float = 0.0
+    build_min_freq_why: str = ""
     e_timing: str = "neither"
     xy_delay: str = "centred"
     e_sync: str = ""
@@ -149,10 +179,31 @@ class Firmware:
 
 
 _KLIPPER_ACCEL = Span(1.0, 1e6, 3, why="Klipper takes any ACCEL > 0")
+_KLIPPER_FREQ = Span(1.0, 1000.0, 3, why="ringtune's bound: Klipper takes any F > 0, but below 1 Hz one shaper "
+                                         "outlasts half a second and delays every step by that")
 _M204_2 = Span(1.0, 1e6, 2)
 _RRF_ACCEL = Span(1.0, 1e6, 1)
 _RRF35_FREQ = Span(750000.0 / 131070.0, 1000.0, 2, why="Duet 3: StepClockRate / (2·65535)")
 _RRF_NAMES = (("2hump_ei", "ei2"), ("3hump_ei", "ei3"))      # InputShaperType names
+#: Marlin's M201 per-axis maxima (mm/s²); RRF's M201 takes the same letters and unit
+_M201_XY = "M201 X{x} Y{y}"
+#: Marlin's max_acceleration_mm_per_s2 is a uint32_t: M201 keeps whole mm/s²
+_M201_SPAN = Span(1.0, 1e6, 0, why="Marlin stores M201 as whole mm/s²")
+#: Kalico's limited_cartesian / limited_corexy kinematics (klippy/kinematics/limited_*.py)
+KALICO_LIMITED = ("limited_cartesian", "limited_corexy", "limited_corexz")
+
+_KLIPPER_KEEPS = ("nothing set by SET_INPUT_SHAPER or SET_VELOCITY_LIMIT survives a restart: only "
+                  "printer.cfg does ([input_shaper], and max_accel in [printer]); SHAPER_CALIBRATE + "
+                  "SAVE_CONFIG writes shaper_type and shaper_freq, never damping_ratio")
+_RRF_KEEPS = ("nothing set by G-code survives a restart (M500 stores neither M593 nor M201/M204): "
+              "the lines belong in config.g")
+_MARLIN_KEEPS = "M500 stores the shaper, M201 and M204 in EEPROM (EEPROM_SETTINGS builds)"
+#: Marlin classic (stepper.h): SHAPING_MIN_FREQ defaults to the lower of SHAPING_FREQ_X/Y (40 Hz in
+#: a stock Configuration_adv.h) and sizes the echo buffer (max step rate / SHAPING_MIN_FREQ / 2 + 3);
+#: below it the buffer fills at high step rates and stepper.cpp applies echoes early
+_MARLIN_MIN_FREQ_WHY = ("a stock build's SHAPING_MIN_FREQ (the lower of SHAPING_FREQ_X/Y, 40 Hz by default), "
+                        "which sizes the echo buffer: below it, at high step rates, Marlin applies the "
+                        "echoes early and the shaping no longer cancels the ringing")
 
 #: extruder timing facts per firmware family (Firmware.e_timing, xy_delay, e_sync, e_sync_timing,
 #: e_source); read in the firmwares' sources, see each e_source
@@ -189,27 +240,51 @@ _E_PRUSA = dict(
              "axis\"); pulses centred as Klipper's (init_input_shaper_pulses)")
 
 FIRMWARES: dict[str, Firmware] = {f.name: f for f in (
-    Firmware("klipper", "Klipper", "klipper", "klipper", "klipper", False,
-             Span(1.0, 1000.0, 3, why="ringtune's bound: Klipper takes any F > 0, but below 1 Hz one shaper "
-                                      "outlasts half a second and delays every step by that"),
+    Firmware("klipper", "Klipper", "klipper", "klipper", "klipper", False, _KLIPPER_FREQ,
              Span(0.0, 0.99, 6), False, "SET_VELOCITY_LIMIT ACCEL={a}", "SET_VELOCITY_LIMIT",
-             _KLIPPER_ACCEL, ";", (), "printer.cfg", **_E_KLIPPER),
-    Firmware("rrf", "RepRapFirmware 3.6", "rrf", "rrf", "rrf", True, Span(4.0, 1000.0, 2),
-             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
-             **_E_RRF),
+             _KLIPPER_ACCEL, ";", (), "printer.cfg", persists=_KLIPPER_KEEPS, **_E_KLIPPER),
+    # Kalico (the Klipper fork formerly Danger Klipper): Klipper's toolhead, shapers and commands, plus
+    # per-axis acceleration caps on its limited_* kinematics: [printer] max_x_accel / max_y_accel,
+    # set at run time by SET_VELOCITY_LIMIT X_ACCEL= Y_ACCEL= (reported as max_x_accel: ...).
+    # Its shapers are its flavour's: Klipper's closed forms of before 2025 and Kalico's continuous
+    # smoothers (smooth_zv ... smooth_si, set by SHAPER_TYPE_X= with SMOOTHER_FREQ_X=).
+    Firmware("kalico", "Kalico", "kalico", "klipper", "klipper", False, _KLIPPER_FREQ,
+             Span(0.0, 0.99, 6), False, "SET_VELOCITY_LIMIT ACCEL={a}", "SET_VELOCITY_LIMIT",
+             _KLIPPER_ACCEL, ";", (), "printer.cfg",
+             axis_accel_set="SET_VELOCITY_LIMIT X_ACCEL={x} Y_ACCEL={y}", axis_accel_report="SET_VELOCITY_LIMIT",
+             axis_accel=_KLIPPER_ACCEL, axis_accel_config="max_{ax}_accel",
+             axis_accel_kinematics=KALICO_LIMITED,
+             persists=_KLIPPER_KEEPS.replace("max_accel in [printer]",
+                                             "max_accel, max_x_accel, max_y_accel in [printer]"),
+             **_E_KLIPPER),
+    Firmware("rrf", "RepRapFirmware 3.6", "rrf", "rrf", "rrf", True, Span(4.0, 1000.0, 2, why="RRF 3.6's minimum"),
+             Span(0.0, 0.99, 3), False, "M204 P{a} T{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
+             axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_RRF_ACCEL,
+             accel_roles=("print", "travel"), persists=_RRF_KEEPS, **_E_RRF),
     Firmware("rrf35", "RepRapFirmware 3.5", "rrf35", "rrf", "rrf", True, _RRF35_FREQ,
-             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
-             **_E_RRF),
+             Span(0.0, 0.99, 3), False, "M204 P{a} T{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
+             axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_RRF_ACCEL,
+             accel_roles=("print", "travel"), persists=_RRF_KEEPS, **_E_RRF),
     Firmware("rrf34", "RepRapFirmware 3.4", "rrf35", "rrf", "rrf", True, _RRF35_FREQ,
-             Span(0.0, 0.99, 3), False, "M204 P{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
-             **_E_RRF),
+             Span(0.0, 0.99, 3), False, "M204 P{a} T{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
+             axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_RRF_ACCEL,
+             accel_roles=("print", "travel"), persists=_RRF_KEEPS, **_E_RRF),
     Firmware("marlin", "Marlin (classic input shaping)", "marlin", "marlin", "marlin", False,
              Span(0.0, 1000.0, 2, lo_open=True, why="Marlin's own minimum F depends on the board"),
-             Span(0.0, 1.0, 3), True, "M204 P{a}", "M204", _M204_2, ";", ("M500",), **_E_MARLIN),
+             Span(0.0, 1.0, 3), True, "M204 P{a} T{a}", "M204", _M204_2, ";", ("M500",),
+             axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_M201_SPAN,
+             accel_roles=("print", "retract", "travel"), persists=_MARLIN_KEEPS,
+             build_min_freq=40.0, build_min_freq_why=_MARLIN_MIN_FREQ_WHY, **_E_MARLIN),
     Firmware("marlin-ftm", "Marlin FT_MOTION", "marlin-ftm", "marlin-ftm", "marlin", False,
              Span(10.0, 500.0, 2, why="FTM_MIN_SHAPE_FREQ..FTM_FS/2"), Span(0.01, 1.0, 3), True,
-             "M204 P{a}", "M204", _M204_2, ";", ("M500",), **_E_MARLIN_FTM),
+             "M204 P{a} T{a}", "M204", _M204_2, ";", ("M500",),
+             axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_M201_SPAN,
+             accel_roles=("print", "retract", "travel"),
+             persists=_MARLIN_KEEPS.replace("the shaper", "M493"), **_E_MARLIN_FTM),
     Firmware("prusa", "Prusa-Firmware-Buddy", "klipper-legacy", "prusa", "marlin", False,
              Span(10.0, 100.0, 2, why="it clamps other values to 10-100 Hz"), Span(0.0, 0.99, 3), False,
-             "M204 P{a}", "M204", _M204_2, ";", ("M593 W",), **_E_PRUSA),
+             "M204 P{a} T{a}", "M204", _M204_2, ";", ("M593 W",),
+             axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_M201_SPAN,
+             accel_roles=("print", "retract", "travel"),
+             persists="M593 W stores the shaper; M201 and M204 last until restart", **_E_PRUSA),
 )}

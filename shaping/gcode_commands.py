@@ -98,7 +98,9 @@ class SettingCommands:
         if cmd == "SET_VELOCITY_LIMIT":
             keys = {"VELOCITY": "velocity", "ACCEL": "accel_klipper",
                     "SQUARE_CORNER_VELOCITY": "square_corner_velocity",
-                    "ACCEL_TO_DECEL": "accel_to_decel", "MINIMUM_CRUISE_RATIO": "min_cruise_ratio"}
+                    "ACCEL_TO_DECEL": "accel_to_decel", "MINIMUM_CRUISE_RATIO": "min_cruise_ratio",
+                    # Kalico's limited_* kinematics (toolhead.py: only when the kinematics has them)
+                    "X_ACCEL": "max_accel_x", "Y_ACCEL": "max_accel_y"}
             for k, v in params.items():
                 if k not in keys:
                     continue

@@ -49,6 +49,71 @@ def axis_caps(job: Job, prefix: str, machine: tuple | None, use: bool) -> np.nda
     return np.stack(cols, axis=1)
 
 
+def move_accels(job: Job, limits, use: bool, delta: np.ndarray, e_only: np.ndarray,
+                override: float | None = None) -> np.ndarray:
+    """Each move's acceleration before the per-axis caps (mm/s²): Klipper's one acceleration
+    (``scv``), else Marlin's/RRF's by role — E-only moves (retract, unretract) at M204 R, extruding
+    moves at P, the others (travel) at T (:attr:`MachineLimits.travel_accel`/``retract_accel``,
+    None = the printing acceleration); ``override`` (a tuning knob, sent as ``M204 P T``) replaces
+    the printing and travel accelerations, not a known retract acceleration (M204 R)."""
+    if override is not None:
+        if not (math.isfinite(override) and override > 0):
+            raise RingtuneError(f"acceleration must be > 0 mm/s², not {override}", "accel")
+        keep = marlin_retractions(job, limits, use, e_only)
+        if keep is None:
+            return np.full(job.n_moves, float(override))
+        return np.where(keep, job_value(job, "accel_retract", limits.retract_accel, use), float(override))
+    if limits.junction == "scv":
+        accel = job_value(job, "accel_klipper", limits.accel, use)
+    else:
+        a_print = job_value(job, "accel_print", limits.accel, use)
+        a_travel = job_value(job, "accel_travel", limits.travel_accel or limits.accel, use)
+        a_retract = job_value(job, "accel_retract", limits.retract_accel or limits.accel, use)
+        accel = np.where(e_only, a_retract, np.where(delta[:, 3] != 0, a_print, a_travel))
+    return np.where(accel > 0, accel, limits.accel)
+
+
+def marlin_retractions(job: Job, limits, use: bool, e_only: np.ndarray) -> np.ndarray | None:
+    """E-only moves that run at Marlin's ``M204 R`` without per-axis caps: where a retract
+    acceleration is known (machine or job) under Marlin's junction rules; None under Klipper's."""
+    if limits.junction == "scv":
+        return None
+    known = ~np.isnan(job_value(job, "accel_retract", limits.retract_accel, use))
+    return e_only & known
+
+
+def kinematic_accel(accel: np.ndarray, u: np.ndarray, caps: np.ndarray, rule: str = "per_axis",
+                    scale_xy: bool = False, skip: np.ndarray | None = None) -> np.ndarray:
+    """The acceleration (mm/s²) each move gets under the per-axis ``caps`` ((n, 4), inf = none) by
+    the firmware's rule (planner module docstring): ``per_axis`` — ``min(accel, cap_i/|u_i|)``;
+    ``limited_corexy`` — ``min(accel, 1/(|u_x|/c_x + |u_y|/c_y))`` on X/Y (Kalico), per axis on
+    Z and E. ``scale_xy``: Kalico's ``scale_xy_accel`` — the X/Y bound times ``accel/hypot(c_x,
+    c_y)`` (limited_cartesian) or ``accel/max(c_x, c_y)`` (limited_corexy). ``skip``: moves left
+    alone (Marlin's retractions)."""
+    au = np.abs(u)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(au > 0, caps / au, np.inf)
+        if rule == "limited_corexy":
+            share = au[:, 0] / caps[:, 0] + au[:, 1] / caps[:, 1]
+            xy = np.where(share > 0, 1.0 / share, np.inf)
+            norm = np.maximum(caps[:, 0], caps[:, 1])
+        else:
+            xy = ratio[:, :2].min(axis=1)
+            norm = np.hypot(caps[:, 0], caps[:, 1])
+    if scale_xy:
+        xy = xy * accel / norm
+    out = np.minimum(accel, np.minimum(xy, ratio[:, 2:].min(axis=1)))
+    return out if skip is None else np.where(skip, accel, out)
+
+
+def corexy_speed_cap(vmax: np.ndarray, velocity: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Kalico's limited_corexy speed bound: max_velocity is each motor's, so a move in direction
+    ``u`` runs at most ``velocity/max(|u_x + u_y|, |u_x − u_y|) = velocity/(|u_x| + |u_y|)``."""
+    ab = np.abs(u[:, 0]) + np.abs(u[:, 1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(ab > 1e-12, np.minimum(vmax, velocity / ab), vmax)
+
+
 def scale_by_axes(value: np.ndarray, u: np.ndarray, caps: np.ndarray) -> np.ndarray:
     """Largest ≤ value such that value·|u_a| ≤ cap_a on every axis."""
     au = np.abs(u)

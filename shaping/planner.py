@@ -13,8 +13,17 @@ What a firmware does between a parsed move and the motors, for three junction ru
 - ``jerk`` — classic jerk, as Marlin 1.1/2.x and PrusaSlicer's time estimator compute it: per-axis
   speed jumps bounded by the jerk limits, "safe" entry/exit speeds from and to rest.
 
-Per-axis maximum speeds and accelerations scale each move's speed and acceleration (as Marlin
-does). Settings the job itself sets (M201/M203/M204/M205/SET_VELOCITY_LIMIT) override the
+Per-axis maximum speeds and accelerations scale each move's speed and acceleration by the
+firmware's own rule (``axis_rule``): ``per_axis`` — each axis's share of the move stays under its
+cap, ``a ≤ cap_i/|u_i|`` (Marlin ``M201``/``M203`` in its planner's ``LIMIT_ACCEL``, RepRapFirmware
+``M201``, Kalico's limited_cartesian, Klipper's Z caps); ``limited_corexy`` — Kalico's
+limited_corexy ``check_move``: the two belts' shares, ``a ≤ 1/max(|u_x/c_x + u_y/c_y|, |u_x/c_x −
+u_y/c_y|) = 1/(|u_x|/c_x + |u_y|/c_y)`` and the speed ``v ≤ velocity/(|u_x| + |u_y|)`` (max_velocity
+is each motor's); ``scale_xy_accel`` scales those caps by the printing acceleration as Kalico does.
+Marlin's retraction (an E-only move) runs at ``M204 R`` without the axis caps (its planner's
+retract branch) wherever a retract acceleration is known (the machine's ``retract_accel`` or the
+job's M204 R); otherwise (RepRapFirmware, whose M204 has no R) an E-only move runs at the printing
+acceleration under the E cap (M201 E). Settings the job itself sets (M201/M203/M204/M205/SET_VELOCITY_LIMIT) override the
 machine's from the line where they appear (``use_job_limits``).
 
 Look-ahead is exact over the whole job: the forward pass ``w[i+1] = min(c[i+1], w[i] + δ[i])``
@@ -43,13 +52,18 @@ import numpy as np
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.job import Job
-from ringtune.shaping.lookahead import (axis_caps, backward_pass, daa_adjust, forward_pass, job_value,
-    junction_limits, klipper_smoothing, scale_by_axes)
+from ringtune.shaping.lookahead import (axis_caps, backward_pass, corexy_speed_cap, daa_adjust,
+                                        forward_pass, job_value, junction_limits, kinematic_accel,
+                                        klipper_smoothing, marlin_retractions, move_accels,
+                                        scale_by_axes)
 from ringtune.shaping.motion import Motion
 
-__all__ = ["MachineLimits", "MoveTable", "Plan", "plan", "limits_from_job", "guess_junction", "JUNCTIONS"]
+__all__ = ["MachineLimits", "MoveTable", "Plan", "plan", "limits_from_job", "guess_junction", "JUNCTIONS",
+           "AXIS_RULES"]
 
 JUNCTIONS = ("scv", "jd", "jerk")
+#: how per-axis caps bind (module docstring)
+AXIS_RULES = ("per_axis", "limited_corexy")
 
 
 @dataclass
@@ -59,7 +73,9 @@ class MachineLimits:
     accel: printing acceleration; velocity: top speed; junction: ``scv`` | ``jd`` | ``jerk``;
     square_corner_velocity (Klipper), junction_deviation (Marlin), jerk (x, y, z, e classic jerk);
     max_accel / max_velocity: per-axis caps (x, y, z, e) or None; min_cruise_ratio (Klipper only);
-    travel_accel / retract_accel: Marlin's M204 T / R (None = accel).
+    travel_accel / retract_accel: Marlin's M204 T / R, RRF's M204 T (None = accel; the junction
+    rules ``jd`` and ``jerk`` use them, Klipper has one acceleration); axis_rule: how the per-axis
+    caps bind (:data:`AXIS_RULES`, module docstring); scale_xy_accel: Kalico's ``scale_xy_accel``.
     """
 
     accel: float = 3000.0
@@ -73,14 +89,24 @@ class MachineLimits:
     min_cruise_ratio: float = 0.5
     travel_accel: float | None = None
     retract_accel: float | None = None
+    axis_rule: str = "per_axis"
+    scale_xy_accel: bool = False
 
     def __post_init__(self) -> None:
         self.validate()
+
+    def _validate_axis_rule(self, where: str) -> None:
+        if self.axis_rule not in AXIS_RULES:
+            raise RingtuneError(f"must be one of {', '.join(AXIS_RULES)}, not {self.axis_rule!r}",
+                                f"{where}.axis_rule")
+        if self.scale_xy_accel and not (self.max_accel and all(c > 0 for c in self.max_accel[:2])):
+            raise RingtuneError("scale_xy_accel needs X and Y caps (max_accel)", f"{where}.scale_xy_accel")
 
     def validate(self, where: str = "limits") -> None:
         if self.junction not in JUNCTIONS:
             raise RingtuneError(f"junction must be one of {', '.join(JUNCTIONS)}, not {self.junction!r}",
                                 f"{where}.junction")
+        self._validate_axis_rule(where)
         for name in ("accel", "velocity"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -178,20 +204,12 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
     velocity = job_value(job, "velocity", limits.velocity, use)
     vmax = np.minimum(job.feed, velocity)
     vmax = scale_by_axes(vmax, u, axis_caps(job, "max_vel", limits.max_velocity, use))
-    if limits.junction == "scv":
-        accel = job_value(job, "accel_klipper", limits.accel, use)
-    else:
-        a_print = job_value(job, "accel_print", limits.accel, use)
-        a_travel = job_value(job, "accel_travel", limits.travel_accel or limits.accel, use)
-        a_retract = job_value(job, "accel_retract", limits.retract_accel or limits.accel, use)
-        accel = np.where(e_only, a_retract, np.where(delta[:, 3] != 0, a_print, a_travel))
-    accel = np.where(accel > 0, accel, limits.accel)
-    if accel_override is not None:
-        if not (math.isfinite(accel_override) and accel_override > 0):
-            raise RingtuneError(f"acceleration must be > 0 mm/s², not {accel_override}", "accel")
-        accel = np.full(n, float(accel_override))
+    if limits.axis_rule == "limited_corexy":
+        vmax = corexy_speed_cap(vmax, velocity, u)
+    accel = move_accels(job, limits, use, delta, e_only, accel_override)
     amax_axes = axis_caps(job, "max_accel", limits.max_accel, use)
-    accel = scale_by_axes(accel, u, amax_axes)
+    accel = kinematic_accel(accel, u, amax_axes, limits.axis_rule, limits.scale_xy_accel,
+                            skip=marlin_retractions(job, limits, use, e_only))
     if np.any(~(vmax > 0)) or np.any(~(accel > 0)):
         i = int(np.flatnonzero(~((vmax > 0) & (accel > 0)))[0])
         raise RingtuneError("a move ends up with zero speed or acceleration (check M203/M201)",
@@ -199,19 +217,7 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
     v2 = vmax * vmax
     dv2 = 2.0 * accel * d
 
-    # -- junction limits c[0..n] (v² at the start of move i; c[n] = end of the job) --
-    c, safe = junction_limits(job, limits, use, u, d, e_only, vmax, accel, amax_axes)
-    stop = job.stop_before.copy()
-    stop[0] = True
-    if limits.junction == "jerk":
-        c_stop = np.minimum(safe, np.concatenate(([safe[0]], safe[:-1]))) ** 2
-    else:
-        c_stop = np.zeros(n)
-    cj = np.empty(n + 1)
-    cj[:n] = np.where(stop, c_stop, c)
-    cj[n] = safe[-1] ** 2 if limits.junction == "jerk" else 0.0
-    cj[1:n] = np.minimum(cj[1:n], np.minimum(v2[1:], v2[:-1]))
-    cj[0] = min(cj[0], v2[0])
+    cj = _junction_v2(job, limits, use, u, d, e_only, vmax, accel, amax_axes, v2)
 
     w = backward_pass(forward_pass(cj, dv2), dv2)
     cruise2 = np.minimum(v2, 0.5 * (w[:-1] + w[1:] + dv2))
@@ -226,6 +232,25 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
         acc, decel, cruise2 = daa_adjust(daa_freq, daa_min_accel, w, cruise2, accel, d, u)
 
     return _build(job, limits, w, cruise2, acc, decel, d, u, vmax, extruding)
+
+
+def _junction_v2(job, limits, use, u, d, e_only, vmax, accel, amax_axes, v2) -> np.ndarray:
+    """Junction limits c[0..n] (v² at the start of move i; c[n] = end of the job): the rule's,
+    full stops where the job stops, never above either move's top speed."""
+    n = job.n_moves
+    c, safe = junction_limits(job, limits, use, u, d, e_only, vmax, accel, amax_axes)
+    stop = job.stop_before.copy()
+    stop[0] = True
+    if limits.junction == "jerk":
+        c_stop = np.minimum(safe, np.concatenate(([safe[0]], safe[:-1]))) ** 2
+    else:
+        c_stop = np.zeros(n)
+    cj = np.empty(n + 1)
+    cj[:n] = np.where(stop, c_stop, c)
+    cj[n] = safe[-1] ** 2 if limits.junction == "jerk" else 0.0
+    cj[1:n] = np.minimum(cj[1:n], np.minimum(v2[1:], v2[:-1]))
+    cj[0] = min(cj[0], v2[0])
+    return cj
 
 
 def _build(job, limits, w, cruise2, acc, dec, d, u, vmax, extruding) -> Plan:

@@ -12,6 +12,9 @@ flavour    shapers (formula family)
 klipper    zv, mzv (generalised ``mzv(n=…,t=…)``), zvd, ei (``ei(v_tol=…)``), 2hump_ei, 3hump_ei (HEAD)
 klipper-   zv, mzv, zvd, ei, 2hump_ei, 3hump_ei — the ≤ v0.13 closed forms (also Prusa Buddy);
 legacy     EI types take ``v_tol`` (Prusa's ``R`` = 1/v_tol)
+kalico     zv, mzv, zvd, ei, 2hump_ei, 3hump_ei as klipper-legacy (no parameters), and the continuous
+           smoothers smooth_zv, smooth_mzv, smooth_ei, smooth_2hump_ei, smooth_zvd_ei, smooth_si
+           (:class:`Smoother`, :mod:`ringtune.shaping.smoothers`)
 rrf        RRF 3.6: zvd, zvdd, zvddd, mzv, ei2, ei3 (Klipper HEAD polynomials × DAMPED period),
            custom; delays in whole 750 kHz step clocks of an lrintf damped period; MZV amplitudes
            in the firmware's reversed order (a3 first); no zv, no ei
@@ -38,22 +41,23 @@ import numpy as np
 
 from ringtune.shaping.custom import rrf_custom
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.smoothers import KALICO_SMOOTHERS, kernel, quadrature
 from ringtune.shaping.shaper_formulas import (EI2_A, EI2_T, EI3_A, EI3_T, binomial_zv, ei, ei2, ei2_legacy,
     ei3, ei3_legacy, ei_legacy, ftm_centre, ftm_mzv, ftm_shaper, marlin_zv, mzv, mzv_legacy, none_shaper,
     rrf_binomial, rrf_ei, rrf_mzv, zv, zvd)
 
-FLAVORS = ("klipper", "klipper-legacy", "rrf", "rrf35", "marlin", "marlin-ftm")
+FLAVORS = ("klipper", "klipper-legacy", "kalico", "rrf", "rrf35", "marlin", "marlin-ftm")
 
 
 DEFAULT_DAMPING = {
-    "klipper": 0.1, "klipper-legacy": 0.1, "rrf": 0.1, "rrf35": 0.1,
+    "klipper": 0.1, "klipper-legacy": 0.1, "kalico": 0.1, "rrf": 0.1, "rrf35": 0.1,
     "marlin": 0.15,       # SHAPING_ZETA_X/Y default in Configuration_adv.h
     "marlin-ftm": 0.1,    # FTM_SHAPING_ZETA_X/Y
 }
 #: most impulses the firmware accepts (Klipper kin_shaper.c: 10 at HEAD, 5 up to v0.13)
-MAX_PULSES = {"klipper": 10, "klipper-legacy": 5}
+MAX_PULSES = {"klipper": 10, "klipper-legacy": 5, "kalico": 25}
 #: Flavours that centre the impulse train on its centroid (no steady-state lag).
-CENTRED = {"klipper": True, "klipper-legacy": True, "marlin-ftm": True,
+CENTRED = {"klipper": True, "klipper-legacy": True, "kalico": True, "marlin-ftm": True,
            "rrf": False, "rrf35": False, "marlin": False}
 
 
@@ -107,6 +111,38 @@ class Shaper:
                 "amplitudes": self.amplitudes.tolist(), "times": self.times.tolist()}
 
 
+@dataclass(frozen=True, eq=False)
+class Smoother(Shaper):
+    """A continuous input smoother (Kalico's ``smooth_*``; :mod:`ringtune.shaping.smoothers`): its
+    impulses are the Gauss–Legendre quadrature of the convolution integral. ``coeffs``: ascending
+    ``c_k`` of the unit-integral kernel ``w(τ) = Σ c_k τ^k`` (τ in s) on ``[−T_sm/2, T_sm/2]``;
+    ``smooth_time``: ``T_sm``, s; ``offset``: ``t_offs = ∫ τ·w``, s (the firmware's centring)."""
+
+    coeffs: tuple[float, ...] = ()
+    smooth_time: float = 0.0
+    offset: float = 0.0
+
+    @property
+    def duration(self) -> float:
+        """The kernel's support, s."""
+        return float(self.smooth_time)
+
+    def to_dict(self) -> dict:
+        return {**super().to_dict(), "kernel_coeffs": list(self.coeffs), "smooth_time": self.smooth_time,
+                "offset": self.offset}
+
+
+def _smoother(name: str, freq: float, damping: float, flavor: str) -> Smoother:
+    """Kalico's smoother ``name`` at ``freq`` Hz; ``damping`` is only the plant damping its residual
+    is judged at by default (Kalico's kernel ignores it)."""
+    w, t_sm, offset = kernel(name, freq)
+    amps, times = quadrature(name, t_sm)
+    amps.setflags(write=False)
+    times.setflags(write=False)
+    return Smoother(name, flavor, float(freq), float(damping), amps, times, offset + 0.5 * t_sm,
+                    tuple(float(c) for c in w.coef), t_sm, offset)
+
+
 # ---------------------------------------------------------------------------------------------
 # THE registry: flavour -> name -> (formula, accepted parameters, max damping)
 # (RRF ei2/ei3 use Klipper's cubic fits, valid to ζ 0.3 / 0.2; later RRF sources clamp S there too)
@@ -122,6 +158,13 @@ REGISTRY: dict[str, dict[str, tuple[Callable, tuple[str, ...], float]]] = {
         "none": (none_shaper, (), 0.99), "zv": (zv, (), 0.99), "mzv": (mzv_legacy, (), 0.99),
         "zvd": (zvd, (), 0.99), "ei": (ei_legacy, _P_EI, 0.99), "2hump_ei": (ei2_legacy, _P_EI, 0.99),
         "3hump_ei": (ei3_legacy, _P_EI, 0.99),
+    },
+    # Kalico (KalicoCrew/kalico 8b9f661 shaper_defs.py): Klipper's closed forms of before 2025 (the
+    # EI family with v_tol fixed at 0.05, no parameters), and its continuous smoothers
+    "kalico": {
+        "none": (none_shaper, (), 0.99), "zv": (zv, (), 0.99), "mzv": (mzv_legacy, (), 0.99),
+        "zvd": (zvd, (), 0.99), "ei": (ei_legacy, (), 0.99), "2hump_ei": (ei2_legacy, (), 0.99),
+        "3hump_ei": (ei3_legacy, (), 0.99), **{name: (None, (), 0.99) for name in KALICO_SMOOTHERS},
     },
     "rrf": {
         "none": (none_shaper, (), 0.99), "zvd": (rrf_binomial(1, True), (), 0.99),
@@ -155,6 +198,9 @@ _CLOSEST = {
     "zvddd": ("3hump_ei", "zvdd", "2hump_ei", "zvd", "zv"),
     "2hump_ei": ("zvdd", "3hump_ei", "ei", "zvd", "zv"), "3hump_ei": ("zvddd", "2hump_ei", "ei", "zv"),
     "custom": ("zvd", "mzv", "zv"), "none": (),
+    "smooth_zv": ("zv", "mzv"), "smooth_mzv": ("mzv", "zvd", "ei"), "smooth_ei": ("ei", "zvd", "mzv"),
+    "smooth_2hump_ei": ("2hump_ei", "zvdd", "ei"), "smooth_zvd_ei": ("zvd", "ei", "2hump_ei"),
+    "smooth_si": ("ei", "zvd", "mzv"),
 }
 
 _PARAM_RE = re.compile(r"^(\w+)\s*\((.*)\)$")
@@ -252,6 +298,19 @@ def _entry(base: str, flavor: str, where: str):
                         f"(available: {', '.join(table)})", where)
 
 
+def _real(v) -> bool:
+    return not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating)) and math.isfinite(v)
+
+
+def _checked_freq_damping(freq, z, zmax: float, what: str, where: str) -> tuple[float, float]:
+    """(freq Hz, damping) as floats, or a refusal: F > 0, 0 ≤ S ≤ the shaper's maximum, below 1."""
+    if not _real(freq) or freq <= 0:
+        raise RingtuneError(f"frequency must be a finite number > 0 Hz, not {freq!r}", where)
+    if not _real(z) or not 0 <= z <= zmax or z >= 1:
+        raise RingtuneError(f"damping ratio of {what} must be in [0, {min(zmax, 0.99):g}], not {z!r}", where)
+    return float(freq), float(z)
+
+
 def get_shaper(name: str, freq: float, damping: float | None = None, flavor: str = "klipper", *,
                h=None, t=None, where: str = "shaper") -> Shaper:
     """The shaper ``name`` of firmware ``flavor`` at ``freq`` Hz and damping ratio ``damping``.
@@ -261,10 +320,11 @@ def get_shaper(name: str, freq: float, damping: float | None = None, flavor: str
     """
     base, params = parse_name(name, where)
     func, allowed, zmax = _entry(base, flavor, where)
-    z = DEFAULT_DAMPING[flavor] if damping is None else damping
-    _check_frequency_and_damping(base, flavor, freq, z, zmax, where)
-    freq, z = float(freq), float(z)
+    freq, z = _checked_freq_damping(freq, DEFAULT_DAMPING[flavor] if damping is None else damping, zmax,
+                                    f"{base!r} ({flavor})", where)
     params = _parameters(base, params, allowed, flavor, where)
+    if base in KALICO_SMOOTHERS:
+        return _smoother(base, freq, z, flavor)
     if base == "custom":
         a, times = rrf_custom(params.get("h", h), params.get("t", t), freq, z,
                               semantics="3.6" if flavor == "rrf" else "3.5", where=where, step_clocks=flavor == "rrf")
@@ -274,21 +334,6 @@ def get_shaper(name: str, freq: float, damping: float | None = None, flavor: str
     centre = ftm_centre(a, times) if flavor == "marlin-ftm" else None
     label = name.strip().lower() if params else base
     return Shaper(label, flavor, freq, z, a, times, centre)
-
-
-def _check_frequency_and_damping(base: str, flavor: str, freq, z, zmax: float, where: str) -> None:
-    """F a finite number > 0 Hz; the damping ratio in [0, the shaper's and flavour's maximum], < 1."""
-    if not _finite_number(freq) or freq <= 0:
-        raise RingtuneError(f"frequency must be a finite number > 0 Hz, not {freq!r}", where)
-    if not _finite_number(z) or not 0 <= z <= zmax or z >= 1:
-        raise RingtuneError(f"damping ratio of {base!r} ({flavor}) must be in [0, {min(zmax, 0.99):g}], "
-                            f"not {z!r}", where)
-
-
-def _finite_number(v) -> bool:
-    """A real, finite number (not a bool)."""
-    return (not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
-            and math.isfinite(v))
 
 
 def _parameters(base: str, params: dict, allowed: tuple, flavor: str, where: str) -> dict:

@@ -73,6 +73,19 @@ class MarlinCore:
         self.shaping = {"x": [40.0, 0.15], "y": [40.0, 0.15]}
         self.limit = (0.0, 5)
         self.accel = {"P": 1500.0, "R": 1500.0, "T": 3000.0}
+        self.max_accel = {"X": 500.0, "Y": 500.0, "Z": 100.0, "E": 5000.0}   # an Ender-3 V2's M201
+
+    def move_accel(self, dx: float, dy: float, de: float = 0.0) -> float:
+        """The acceleration (mm/s²) Marlin's planner gives a move (planner.cpp _populate_block, equal
+        steps/mm): a retraction at R; else P (with E steps) or T, capped per axis by M201."""
+        if dx == 0 and dy == 0:
+            return self.accel["R"]
+        accel = self.accel["P"] if de else self.accel["T"]
+        total = max(abs(dx), abs(dy), abs(de))
+        for ax, d in (("X", dx), ("Y", dy), ("E", de)):
+            if d and self.max_accel[ax] < accel:
+                accel = min(accel, self.max_accel[ax] * total / abs(d))
+        return accel
 
     def execute(self, cmd: str):
         word = cmd.split()[0].upper()
@@ -91,7 +104,14 @@ class MarlinCore:
                     self.shaping[a][1] = float(p["D"])
             return [], None
         if word == "M201":
+            if not p:                                  # M201_report (Marlin M200-M205.cpp)
+                m = self.max_accel
+                return ["echo:; Maximum Acceleration (units/s2):",
+                        f"echo:  M201 X{m['X']:.2f} Y{m['Y']:.2f} Z{m['Z']:.2f} E{m['E']:.2f}"], None
             self.limit = (float(p.get("F", self.limit[0])), int(float(p.get("S", self.limit[1]))))
+            for k in "XYZE":
+                if k in p:
+                    self.max_accel[k] = float(int(float(p[k])))     # uint32_t max_acceleration_mm_per_s2
             return [], None
         if word == "M204":
             if not {"P", "R", "S", "T"} & set(p):
@@ -185,6 +205,7 @@ class RrfCore:
     def reset(self):
         self.m593 = {"P": "none", "F": 40.0, "S": 0.05}
         self.accel = {"P": 10000.0, "T": 10000.0}
+        self.max_accel = {"X": 3000.0, "Y": 3000.0, "Z": 100.0, "E": 5000.0}
 
     def execute(self, cmd: str):
         word = cmd.split()[0].upper()
@@ -200,6 +221,15 @@ class RrfCore:
             for k in ("P", "F", "S"):
                 if k in p:
                     self.m593[k] = p[k].lower() if k == "P" else float(p[k])
+            return [], None
+        if word == "M201":          # RRF GCodes2.cpp: report "Accelerations (mm/sec^2): X: .., Y: .., ..."
+            if not p:
+                m = self.max_accel
+                return [f"Accelerations (mm/sec^2): X: {m['X']:.1f}, Y: {m['Y']:.1f}, Z: {m['Z']:.1f}, "
+                        f"E: {m['E']:.1f}"], None
+            for k in "XYZE":
+                if k in p:
+                    self.max_accel[k] = float(p[k])
             return [], None
         if word == "M204":          # RRF Move.cpp: P printing, T travel, S both
             if not {"P", "S", "T"} & set(p):

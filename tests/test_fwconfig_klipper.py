@@ -123,7 +123,7 @@ def test_each_real_configuration_imports_with_the_values_of_its_files(printer, d
             damping = 0.1                      # shaper_defs.DEFAULT_DAMPING_RATIO
             assert any(f"damping_ratio_{ax} not set: Klipper's default 0.1" in n for n in facts.notes)
         assert d["current"][f"damping_{ax}"] == damping
-    assert d["current"]["firmware"] == "klipper"
+    assert d["current"]["firmware"] == ("kalico" if kin.startswith("limited_") else "klipper")
 
 
 def test_v0_inline_motor_constants_are_written(data_dir):
@@ -203,8 +203,13 @@ def test_v24_missing_includes_are_named_in_warnings_and_the_fork_kinematics_in_a
     for name in ("Line_Purge", "Voron_Purge", "Smart_Park"):          # KAMP_Settings.cfg:4-6
         assert re.search(rf"KAMP_Settings.cfg:\d: warning: \[include ./KAMP/{name}.cfg\]: no such file", text)
     assert "kinematics limited_corexy" in text and "modelled as corexy" in text
-    # max_y_accel 4130 (printer.cfg:36) binds below max_accel 8994; max_x_accel 10010 does not
-    assert facts.description["limits"]["max_accel"][:2] == [0.0, 4130.0]
+    # Kalico's caps are kept whatever today's max_accel (8994): max_x_accel 10010 (printer.cfg:35)
+    # still holds once the acceleration is raised; max_y_accel 4130 (printer.cfg:36); the belts'
+    # shares bind (limited_corexy), and the firmware is Kalico
+    limits = facts.description["limits"]
+    assert limits["max_accel"][:2] == [10010.0, 4130.0]
+    assert limits["axis_rule"] == "limited_corexy"
+    assert facts.description["current"]["firmware"] == "kalico"
 
 
 def test_old_names_step_distance_and_max_accel_to_decel(tmp_path):

@@ -171,6 +171,23 @@ def test_the_exported_printer_cfg_section_parses_in_klipper(klipper, tmp_path, c
         ("mzv(n=5,t=1.1)", "46.250", "0.120000")
 
 
+@pytest.mark.parametrize("firmware", ["klipper", "kalico"])
+def test_a_config_with_per_axis_caps_still_parses_and_kalicos_part_keeps_them(klipper, tmp_path, capsys, firmware):
+    """A tuned configuration that carries per-axis caps (a limited_corexy printer's): mainline
+    Klipper's part is unchanged (the caps are said in a note: it has none); Kalico's keeps them with
+    its own key names (limited_*.py: max_x_accel, max_y_accel), beside max_accel, as comment lines
+    for the [printer] section; both parts still parse in real Klipper."""
+    cfg = _write(tmp_path, "best.json", {**TUNED, "firmware": firmware, "max_accel_x": 10010, "max_accel_y": 4130})
+    assert main(["export", str(cfg), "--part", "config"]) == 0
+    section = capsys.readouterr().out
+    has_caps = "#   max_x_accel: 10010" in section and "#   max_y_accel: 4130" in section
+    assert has_caps == (firmware == "kalico")
+    assert "# and in the [printer] section: max_accel: 4200" in section
+    klipper.restart(section)
+    assert "Klipper state: Ready" in klipper.status()
+    assert _klipper_report(klipper)["shaper_type_x"] == "ei"
+
+
 def test_a_line_that_fails_gives_the_same_report_over_pty_and_moonraker(klipper, tmp_path, capsys):
     """Klipper without [input_shaper]: SET_INPUT_SHAPER is an unknown command (an info line, not an
     error); the acceleration still applies. Same per-setting report, text and JSON, same exit."""

@@ -74,7 +74,11 @@ def test_margin_is_the_worst_of_the_detuned_printers_and_punishes_a_narrow_shape
         assert rob.print_time_s == nom.print_time_s
         for k in Metrics.QUALITY_KEYS:
             assert getattr(rob, k) == pytest.approx(max(getattr(m, k) for m in [nom, *twins]), rel=1e-9)
-        ratio[name] = rob.ringing_mm / nom.ringing_mm
-    assert ratio["zv"] > 2.0 and ratio["ei"] < 1.2
+        ratio[name] = {k: getattr(rob, k) / getattr(nom, k) for k in ("overshoot_mm", "ripple_p90_mm", "ringing_mm")}
+    # the worst wall's RMS on the built-in print is partly the bulge of its diagonal walls while
+    # accelerating (X and Y modes differ), which detuning does not change: the residual vibration
+    # shows in the overshoot at corners and in the walls' ripple as a whole
+    assert ratio["zv"]["overshoot_mm"] > 2.0 and ratio["zv"]["ripple_p90_mm"] > 2.0
+    assert all(r < 1.2 for r in ratio["ei"].values())
     with pytest.raises(ValueError):
         ev.evaluate_many([TuneConfig()], p, backend="lti", freq_margin=1.5)

@@ -197,3 +197,27 @@ def test_worst_combines_windows_and_recomputes_the_percentile():
     assert w.features["outer_wall"]["ripple_p90_mm"] == pytest.approx(np.percentile([0.01, 0.03, 0.02], 90))
     d = w.to_dict()
     assert d["features"]["outer_wall"]["corner_in_mm"] == 0.03
+
+
+def test_the_jobs_labels_decide_what_is_seen_on_the_built_in_print():
+    """evaluate on the built-in print: its three labelled classes are judged; the job's ripple and
+    corners are the outer wall's, its show-through the hidden features' worst, its extrusion the
+    worst of all; without its labels everything is seen (and nothing is hidden)."""
+    from ringtune.envs import evaluate as ev
+    from ringtune.shaping.config import TuneConfig
+    from ringtune.shaping.testprints import builtin_test_gcode
+
+    cfg = TuneConfig(shaper_x="zv", shaper_y="zv", freq_x=40.0, freq_y=40.0, accel=6000.0)
+    m = ev.evaluate(cfg, None, None, backend="lti")
+    assert set(m.features) == {"outer_wall", "inner_wall", "infill"}
+    f = m.features
+    for key in ("ripple_mm", "corner_in_mm", "corner_out_mm"):
+        assert getattr(m, key) == f["outer_wall"][key]
+    assert m.show_through_mm == max(f["inner_wall"]["show_through_mm"], f["infill"]["show_through_mm"]) > 0
+    assert f["outer_wall"]["show_through_mm"] == 0
+    for key in ("extrusion_over_pct", "extrusion_under_pct", "e_lag_mm"):
+        assert getattr(m, key) == max(v[key] for v in f.values())
+    unlabelled = "\n".join(line for line in builtin_test_gcode().splitlines() if not line.startswith(";TYPE:"))
+    u = ev.evaluate(cfg, None, unlabelled + "\n", backend="lti")
+    assert set(u.features) == {"other"} and u.show_through_mm == 0
+    assert u.ripple_mm == u.features["other"]["ripple_mm"] > 0

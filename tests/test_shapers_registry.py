@@ -46,7 +46,10 @@ def test_available_shapers_per_firmware():
     assert set(available_shapers("marlin")) == {"none", "zv"}
     assert set(available_shapers("marlin-ftm")) == {"none", "zv", "zvd", "zvdd", "zvddd", "ei", "2hump_ei",
                                                      "3hump_ei", "mzv"}
-    assert [is_centred(f) for f in FLAVORS] == [True, True, False, False, False, True]
+    assert set(available_shapers("kalico")) == {"none", "zv", "mzv", "zvd", "ei", "2hump_ei", "3hump_ei", "smooth_zv",
+                                                 "smooth_mzv", "smooth_ei", "smooth_2hump_ei", "smooth_zvd_ei",
+                                                 "smooth_si"}
+    assert [is_centred(f) for f in FLAVORS] == [True, True, True, False, False, False, True]
 
 
 @pytest.mark.parametrize("flavor,name,closest", [

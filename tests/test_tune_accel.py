@@ -150,7 +150,9 @@ def test_weak_and_strong_motor_on_the_same_frame(tmp_path, capsys):
     rw, rs = _tune(tmp_path, capsys, weak), _tune(tmp_path, capsys, strong)
     for res, toml, force in ((rw, weak, 7.0), (rs, strong, 60.0)):
         _check_within_reserve(res, toml)
-        top = (force - 1.0) / (1.6 + 0.13) * 1000.0       # the job's top speed (150 mm/s) ≤ corner speed
+        # no job given: the printer's velocity limit (300 mm/s), above the 150 mm/s corner speed,
+        # where the motor has force·150/300; pure Y (the heavier axis) is the worst direction
+        top = (force * 150.0 / 300.0 - 1.0) / (1.6 + 0.13) * 1000.0
         assert res["accel"]["range"][1] == math.floor(top / 100.0) * 100.0
         assert res["accel"]["defaults"] == []      # motor force and both masses given
     assert rw["chosen"]["config"]["accel"] < rs["chosen"]["config"]["accel"]
@@ -202,7 +204,8 @@ def v24_run(tmp_path_factory):
 def test_per_axis_cap_does_not_cap_the_tuned_acceleration(v24_run):
     """max_y_accel (4130, a cap the planner applies to Y moves) is not the top of the search: the
     tuned value becomes max_accel, so the range reaches the motor bound, above the 8994 mm/s² of
-    max_accel the baselines run at; the summary names the Y cap as Y's own."""
+    max_accel the baselines run at, judged at the printer's velocity limit (500 mm/s: no job was
+    given, the built-in print stands in for prints that may run that fast)."""
     from ringtune.agents.tune.space import motor_accel_limit
     from ringtune.envs.printer import load_printer
 
@@ -210,10 +213,13 @@ def test_per_axis_cap_does_not_cap_the_tuned_acceleration(v24_run):
     y_cap, accel = _cfg_value(V24, "max_y_accel"), _cfg_value(V24, "max_accel")
     lo, hi = res["accel"]["range"]
     assert hi > accel > y_cap
-    a, _who = motor_accel_limit(load_printer(toml), 150.0)      # the built-in job's top speed
+    a, _who = motor_accel_limit(load_printer(toml), _cfg_value(V24, "max_velocity"))
     assert hi == math.floor(a / 100.0) * 100.0
-    assert f"Y's own cap max_y_accel {y_cap:.0f} mm/s² applies to Y moves" in summary
-    assert "X's own cap" not in summary                # max_x_accel ≥ max_accel: no cap of its own
+    assert "at 500 mm/s (the printer's velocity limit)" in summary
+    chosen = res["chosen"]["config"]["accel"]
+    share = round(chosen / a * 100)          # the motor's share at the velocity limit, rigid machine
+    assert (f"At the printer's velocity limit 500 mm/s (no job given; the built-in print runs slower) "
+            f"{chosen:.0f} mm/s² asks the {_who} for {share:.0f} % of its force there") in summary
     assert "the the" not in summary and "max_accel)" not in summary
 
 
@@ -283,3 +289,36 @@ def test_chosen_block_says_every_job_needs_ringtune_limit(tmp_path, firmware, me
     if rewrite:
         assert "--freq-limit 20" in said[0] and f"--method {method}" in said[0]
         assert res["chosen"]["rewrite_jobs"].startswith("ringtune limit FILE.gcode --freq-limit 20")
+
+
+def test_every_cap_the_summary_names_is_checked_against_the_planner_without_it(v24_run):
+    """The chosen configuration carries Kalico's caps (kept: they are the owner's); each binding
+    limit the summary names costs exactly the print time the planner gives with that limit removed
+    (limits built here by hand from the TOML), and a cap that lowers no move is not named."""
+    from dataclasses import replace
+
+    from ringtune.envs.printer import load_printer
+    from ringtune.shaping.testprints import builtin_test_print
+    from ringtune.shaping.config import TuneConfig
+    from ringtune.shaping.planner import plan
+
+    res, summary, toml = v24_run
+    printer = load_printer(toml)
+    cfg = TuneConfig.from_dict(res["chosen"]["config"])
+    assert (cfg.max_accel_x, cfg.max_accel_y) == (_cfg_value(V24, "max_x_accel"), _cfg_value(V24, "max_y_accel"))
+    job = builtin_test_print()
+    lim = replace(printer.limits, accel=cfg.accel)
+    base = plan(job, lim, accel=cfg.accel).print_time
+    named = res["accel"]["binding"]
+    assert named, summary
+    for b in named:
+        i = {"max_x_accel": 0, "max_y_accel": 1, "max_z_accel": 2}[b["name"]]
+        caps = list(lim.max_accel)
+        assert caps[i] == b["value"]
+        caps[i] = 0.0
+        without = plan(job, replace(lim, max_accel=tuple(caps)), accel=cfg.accel).print_time
+        assert b["time_s"] == pytest.approx(base, rel=1e-12)
+        assert b["time_without_s"] == pytest.approx(without, rel=1e-12)
+        assert without < base
+        assert f"{b['name']} {b['value']:.0f} mm/s² binds on {b['moves']} " in summary
+    assert "max_y_accel" in {b["name"] for b in named}

@@ -73,7 +73,7 @@ PARTS = ("commands", "config", "slicer")
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("config", metavar="CONFIG", help="TuneConfig JSON")
-    p.add_argument("--firmware", type=firmware_name, help="klipper, rrf, rrf35, rrf34, marlin, marlin-ftm, prusa "
+    p.add_argument("--firmware", type=firmware_name, help="klipper, kalico, rrf, rrf35, rrf34, marlin, marlin-ftm, prusa "
                    "(default: the config's firmware)")
     p.add_argument("-o", "--output", metavar="FILE", help="write the commands here, the config-file and "
                    "slicer parts beside it (else print them)")

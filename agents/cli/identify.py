@@ -8,6 +8,9 @@ masses, motors, limits and kinematics from what the user gives — written as a 
     added_mass: {axis: {axis, added_mass_kg, f0_hz, f1_hz, mass_kg, mass_error_kg (one standard error),
         stiffness_n_m}}
     klipper: Klipper's recommendation from the files ([measurement.klipper]), or {}
+    belts: with --belts, the CoreXY belt comparison written as [belts] mismatch: {similarity_pct,
+        mismatch ((k_A - k_B)/mean), mismatch_error, stiffness_a_n_m, stiffness_b_n_m, matched,
+        meaning} (see `ringtune graph belts`); else null
     defaults: what is still a default, one sentence each (also on stderr and in the TOML)
     warnings: doubts about the files and fits, one sentence each (also on stderr)
     toml: the printer description text
@@ -24,8 +27,10 @@ from pathlib import Path
 from ringtune.agents.cli import identify_ripples
 from ringtune.agents.cli.common import check_output_folder
 from ringtune.agents.cli.options import VALUES, PerAxis, motor_spec
-from ringtune.agents.identify.from_files import identify_from_files
+from ringtune.agents.identify.from_files import identify_from_files, read_facts
 from ringtune.envs.identify import plot_fits
+from ringtune.hardware.klipper_config import printer_facts_from_moonraker
+from ringtune.hardware.moonraker_files import fetch_printer_files
 from ringtune.shaping.errors import RingtuneError
 
 NAME = "identify"
@@ -59,6 +64,13 @@ The rest of the printer:
 Whatever is still a default (masses, motor, kinematics, limits) is printed on stderr and written
 as a comment in the TOML, with what it decides.
 
+--moonraker URL takes the files from the printer instead: the newest resonance test of each axis
+(and the two diagonal belt tests of a CoreXY) from Moonraker's config and gcodes folders — Klipper
+writes them to /tmp, which Moonraker does not serve, so copy them into the config folder first —
+and printer.cfg with the .cfg files beside it (else what Klipper loaded, the configfile object).
+They are saved under their own names in --fetch-dir (default: the folder of -o, else here), so the
+TOML records files that exist; a different file of the same name there is never overwritten.
+
 examples:
   ringtune identify resonances_x_20210821_152037.csv resonances_y_20210630_230110.csv \\
       -o ender3.toml --plot fit.png
@@ -67,6 +79,9 @@ examples:
       resonances_x_2.csv resonances_y_2.csv -o mine.toml      # 250 g on the toolhead / bed
   ringtune identify resonances_*.csv --mass X=0.62,Y=1.4 --motor omc-17hs19-2004s1:0.8 --kinematics corexy
   ringtune identify 1-T0-X54-161-0-none.csv --axis x --json
+  ringtune identify --moonraker http://voron.local:7125 -o voron.toml   # files and printer.cfg from the printer
+  ringtune identify resonances_x_*.csv resonances_y_*.csv --kinematics corexy \\
+      --belts resonances_axis=1.000,1.000,0.000_b.csv resonances_axis=1.000,-1.000,0.000_b.csv -o voron.toml
 
 Without an accelerometer (prints from `ringtune testprint ringing`):
   ringtune identify --ripples X=2.2,Y=2.6 --speed 100 [--decay X=1.9,Y=2.1] -o printer.toml
@@ -79,7 +94,9 @@ PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
 
 
 #: the options that describe the rest of the printer (they go with accelerometer files)
-REST_OF_PRINTER = ("--klipper-config", "--marlin", "--rrf", "--motor", "--mass", "--added-mass")
+REST_OF_PRINTER = ("--klipper-config", "--marlin", "--rrf", "--motor", "--mass", "--belts", "--added-mass")
+#: the belt comparison's keys in --json (``belts``)
+BELT_KEYS = ("similarity_pct", "mismatch", "mismatch_error", "stiffness_a_n_m", "stiffness_b_n_m", "matched", "meaning")
 #: per-axis masses, kg (identify takes both axes' weighed masses, or neither)
 MASSES = PerAxis(VALUES["mass"], "mass", bare=False)
 
@@ -104,11 +121,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     cfg.add_argument("--klipper-config", metavar="printer.cfg", help="Klipper configuration (includes followed)")
     cfg.add_argument("--marlin", metavar="M503.txt", help="Marlin settings as M503 prints them")
     cfg.add_argument("--rrf", metavar="config.g", help="RepRapFirmware config.g")
+    cfg.add_argument("--moonraker", metavar="URL", help="fetch the newest resonance files and printer.cfg from a "
+                     "Klipper printer through Moonraker (http://host:7125) instead of giving them")
+    g.add_argument("--api-key", metavar="KEY", help="Moonraker API key (default $MOONRAKER_API_KEY)")
+    g.add_argument("--fetch-dir", metavar="DIR", help="where --moonraker saves the files (default: the folder of "
+                   "-o, else the working folder)")
     g.add_argument("--kinematics", choices=("cartesian", "corexy", "corexz"),
                    help="kinematics, when no configuration gives it (default cartesian, said aloud)")
     g.add_argument("--motor", type=PerAxis(motor_spec, "motor"), metavar="NAME[:A[:V]]", help="motor name, run current (A RMS) and driver voltage "
                    "(V) of every axis, or per axis X=NAME:A:V,Y=...")
     g.add_argument("--mass", type=MASSES, metavar="X=KG,Y=KG", help="weighed moving masses, kg (on a bed slinger Y is the bed)")
+    g.add_argument("--belts", nargs=2, metavar="DIAGONAL.csv", help="CoreXY: the TEST_RESONANCES AXIS=1,1 and "
+                   "AXIS=1,-1 files; the two belts' stiffness difference goes into [belts] (see `ringtune graph belts`)")
     g.add_argument("--added-mass", nargs="+", metavar="KG LOADED.csv",
                    help="added-mass method: KG (or X=KG,Y=KG) fixed to the toolhead (X; Y on a CoreXY) or the "
                    "bed (Y on a bed slinger), then the resonance files measured with it")
@@ -158,9 +182,45 @@ def _check(args) -> None:
     _check_output("--plot", args.plot)
 
 
+def _from_moonraker(args, out) -> None:
+    """Fetch the files and the configuration into --fetch-dir and point the arguments at them."""
+    if args.files or args.belts:
+        raise RingtuneError("fetches the resonance files from the printer; give no files with it", "--moonraker")
+    _check_output("-o", args.output)
+    dest = _fetch_dir(args)
+    key = args.api_key or os.environ.get("MOONRAKER_API_KEY")
+    got = fetch_printer_files(args.moonraker, dest, api_key=key)
+    for n in got.notes:
+        out.note(f"note: {n}")
+    args.files = [str(p) for p in got.axes]
+    args.facts = _moonraker_facts(args, got.config, key, out)
+    kinematics = args.kinematics or args.facts.description.get("kinematics")
+    if got.belts and kinematics == "corexy":
+        args.belts = [str(p) for p in got.belts]
+
+
+def _fetch_dir(args):
+    """--fetch-dir, else the folder of -o, else the working folder (it must exist)."""
+    dest = Path(args.fetch_dir) if args.fetch_dir else (Path(args.output).parent if args.output else Path("."))
+    if not dest.is_dir():
+        raise RingtuneError("no such directory", f"--fetch-dir {dest}")
+    return dest
+
+
+def _moonraker_facts(args, config, key, out):
+    """The fetched printer.cfg's facts, else those of the configuration Klipper loaded."""
+    if config is not None:
+        args.klipper_config = str(config)
+        return read_facts({"klipper_config": args.klipper_config})[0]
+    out.note("note: no printer.cfg in Moonraker's config folder: the configuration Klipper loaded is used")
+    return printer_facts_from_moonraker(args.moonraker, api_key=key)
+
+
 # -- the command ------------------------------------------------------------------------------------
 
 def run(args, out) -> int:
+    if args.moonraker:
+        _from_moonraker(args, out)
     if identify_ripples.wanted(args) or not args.files:   # no accelerometer: ripples or a tower
         return _without_accelerometer(args, out)
     _check(args)
@@ -169,7 +229,8 @@ def run(args, out) -> int:
         args.files, configs={"klipper_config": args.klipper_config, "marlin": args.marlin, "rrf": args.rrf},
         axis=args.axis, max_modes=args.max_modes, fmin=args.fmin, fmax=args.fmax, damping=args.damping_method,
         kinematics=args.kinematics, base=args.base, masses=args.mass or {}, motors=args.motor or {},
-        added_mass=dm, loaded_files=loaded_files, name=args.name, note=out.note)
+        added_mass=dm, loaded_files=loaded_files, name=args.name, facts=getattr(args, "facts", None),
+        belts=args.belts, note=out.note)
     for prefix, sentences in (("warning", got.warnings), ("note", got.description.notes),
                               ("default", got.description.defaults)):
         for sentence in sentences:
@@ -177,6 +238,7 @@ def run(args, out) -> int:
     _write(args, got, out)
     out.emit({"fits": [f.to_dict() for f in got.measurement.fits], "loaded_fits": [f.to_dict() for f in got.loaded_fits],
               "added_mass": {ax: a.to_dict() for ax, a in got.added.items()}, "klipper": got.klipper,
+              "belts": None if got.belts is None else {k: v for k, v in got.belts.to_dict().items() if k in BELT_KEYS},
               "defaults": got.description.defaults, "warnings": got.warnings, "toml": got.toml,
               "output": args.output, "plot": args.plot}, _text(got, args.output))
     return 0

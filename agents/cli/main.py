@@ -35,6 +35,7 @@ COMMANDS = {
     "train": "train a PPO policy that recommends a configuration from a resonance test (random printers)",
     "shaper": "impulses, duration, lag, 90 % band and smoothing of one input shaper",
     "response": "residual vibration vs frequency for several shapers (Klipper-style graph)",
+    "graph": "Klipper-style graphs: shapers over the spectrum, CoreXY belts, vibration against speed (PNG + --json)",
     "plan": "plan a G-code job: print time, moves, time by feature, highest direction-change frequencies",
     "limit": "slow only the zigzags that shake: rewrite F words so direction changes stay under a frequency",
     "identify": "the printer from your files: modes from accelerometer data, the rest from your config (TOML)",

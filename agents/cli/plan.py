@@ -52,9 +52,9 @@ commanded, at the G-code's own speeds F (what `ringtune limit` and a firmware fr
 on), and planned, with the accelerations and corners of the rule above (what the printer does, always lower).
 `ringtune limit` reports the same two figures, before and after.
 
---config applies a TuneConfig's frequency limit and acceleration (its accel replaces the job's
-M204/SET_VELOCITY_LIMIT accelerations); a shaper "daa" in it (or --daa F)
-plans with RepRapFirmware 3.3's Dynamic Acceleration Adjustment. --trajectory writes the commanded
+--config applies a TuneConfig's frequency limit, acceleration and per-axis caps (its accel replaces
+the job's M204/SET_VELOCITY_LIMIT accelerations unless its job_accel is "respect"); a shaper "daa"
+in it (or --daa F) plans with RepRapFirmware 3.3's Dynamic Acceleration Adjustment. --trajectory writes the commanded
 toolhead position t,x,y,z,e (after planning, frequency limit and the config's input shaping);
 its e column is the extruder as that firmware commands it under shaping: shaped with X/Y
 (RepRapFirmware), delayed with them, or on the planner's clock (Klipper and Prusa, whose X/Y are

@@ -57,7 +57,7 @@ examples:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("config", metavar="CONFIG", help="TuneConfig JSON")
-    p.add_argument("--firmware", type=firmware_name, help="klipper, rrf, rrf35, rrf34, marlin, marlin-ftm, prusa "
+    p.add_argument("--firmware", type=firmware_name, help="klipper, kalico, rrf, rrf35, rrf34, marlin, marlin-ftm, prusa "
                    "(default: the config's firmware)")
     p.add_argument("--port", metavar="PORT", help="serial device or pyserial URL (required unless "
                    "--moonraker or --dry-run)")

@@ -8,7 +8,10 @@ it to whole 1 ms samples, N0 = LROUND(−Σ A_i·N_i); 0 when causal), ``band90_
 (≥ 90 % vibration reduction for a plant of the shaper's own damping; nulls when there is none), ``band90_pct`` [lo, hi] relative to ``freq``,
 ``smoothing_mm`` (Klipper's definition at ``accel``/``scv``), ``max_accel`` (mm/s², Klipper's
 smoothing ≤ 0.12 mm rule, unrounded; null when the shaper never smooths, e.g. ``none``), ``residual_at_freq`` (fraction left at ``freq``, plant damping
-= ``damping``), ``accel``, ``scv``.
+= ``damping``), ``accel``, ``scv``; for Kalico's continuous smoothers also ``kernel_coeffs`` (ascending
+c_k of w(τ) = Σ c_k τ^k, τ in s, unit integral), ``smooth_time_s`` (its support) and ``offset_s``
+(its centroid, by which Kalico shifts it); their ``amplitudes``/``times_s`` are the quadrature nodes
+ringtune convolves with.
 """
 
 from __future__ import annotations
@@ -28,10 +31,12 @@ centred firmwares: Klipper, Prusa, Marlin FT_MOTION have none), the frequency ba
 at least 90 % of the ringing, and Klipper's smoothing estimate with the max accel that keeps
 smoothing at or below 0.12 mm.
 
-NAME is zv, mzv, zvd, zvdd, zvddd, ei, 2hump_ei (ei2), 3hump_ei (ei3), none or custom; Klipper's
+NAME is zv, mzv, zvd, zvdd, zvddd, ei, 2hump_ei (ei2), 3hump_ei (ei3), none or custom, or one of
+Kalico's continuous smoothers (--flavor kalico): smooth_zv, smooth_mzv, smooth_ei, smooth_2hump_ei,
+smooth_zvd_ei, smooth_si (a polynomial kernel, shown as such); Klipper's
 parameterised forms work too: "mzv(n=5,t=1.1)", "ei(v_tol=0.1)"; RRF custom shapers take their
 M593 lists: "custom(h=0.4:0.7,t=0.0135:0.0135)".
---flavor picks the firmware's formulas: klipper (default), klipper-legacy (also prusa), rrf (3.6),
+--flavor picks the firmware's formulas: klipper (default), klipper-legacy (also prusa), kalico, rrf (3.6),
 rrf35 (3.4/3.5), marlin (classic ZV), marlin-ftm (M493); any firmware name (prusa, rrf34) gives
 its formulas. A shaper the firmware lacks is an error
 that names the closest one it has.
@@ -71,6 +76,20 @@ def resolve_flavor(flavor: str) -> str:
     return flavor
 
 
+def _impulse_lines(shaper) -> list[str]:
+    """The impulses, or a smoother's kernel (a continuous weight, not impulses)."""
+    if hasattr(shaper, "coeffs"):
+        terms = " ".join(f"{c:+.6g}·τ^{k}" for k, c in enumerate(shaper.coeffs))
+        return [f"  continuous kernel w(τ) = {terms} (τ in s, unit integral)",
+                f"  on [−{shaper.smooth_time * 500:.3f}, +{shaper.smooth_time * 500:.3f}] ms, centroid "
+                f"{shaper.offset * 1e3:+.4f} ms (the firmware shifts the kernel by it); ringtune convolves with "
+                f"its {int((shaper.amplitudes > 0).sum())}-node Gauss–Legendre quadrature"]
+    lines = ["  impulse   amplitude   time (ms)"]
+    for i, (a, t) in enumerate(zip(shaper.amplitudes, shaper.times)):
+        lines.append(f"  {i + 1:7d}   {a:9.4f}   {t * 1e3:9.3f}")
+    return lines
+
+
 def run(args, out) -> int:
     flavor = resolve_flavor(args.flavor)
     if not args.accel > 0:
@@ -89,10 +108,10 @@ def run(args, out) -> int:
         "smoothing_mm": info["smoothing_mm"], "max_accel": finite_or_none(info["max_accel"]),
         "residual_at_freq": info["residual_at_freq"], "accel": args.accel, "scv": args.scv,
     }
-    lines = [f"{shaper.name} ({flavor}) at {shaper.freq:g} Hz, damping {shaper.damping:g}",
-             "  impulse   amplitude   time (ms)"]
-    for i, (a, t) in enumerate(zip(shaper.amplitudes, shaper.times)):
-        lines.append(f"  {i + 1:7d}   {a:9.4f}   {t * 1e3:9.3f}")
+    lines = [f"{shaper.name} ({flavor}) at {shaper.freq:g} Hz, damping {shaper.damping:g}"] + _impulse_lines(shaper)
+    if hasattr(shaper, "coeffs"):
+        result.update({"kernel_coeffs": list(shaper.coeffs), "smooth_time_s": shaper.smooth_time,
+                       "offset_s": shaper.offset})
     lo, hi = info["band90_hz"]
     plo, phi = info["band90_pct"]
     lines += [

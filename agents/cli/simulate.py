@@ -16,7 +16,8 @@ records, else tune's default), ``judgement`` (that, in words), ``variants``
 (list of {``factor`` (every resonance × it), ``metrics``}), ``windows`` (list of {``t0``, ``t1``,
 ``kind``, ``step_loss`` and every scalar key of ``metrics``}, each the worst over the variants), ``plots`` (list of PNG paths, empty without
 ``--plot``), ``trace`` (with ``--trace`` only: the CSV path; columns in ``ringtune.envs.trace``; the printer as
-modelled, not a detuned variant).
+modelled, not a detuned variant), ``job_shapers`` (the job's own shaper changes applied: list of
+{``time``, ``config``}, empty when the job sets none), ``job_accel`` (``respect`` or ``replace``).
 """
 
 from __future__ import annotations
@@ -28,12 +29,16 @@ from ringtune.agents.cli.common import firmware_name, judgement, load_config
 from ringtune.agents.cli.trace_option import write_trace_option
 from ringtune.agents.tune.baselines import current_config
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
-from ringtune.envs.evaluate import evaluate_judged, resolve_printer, variant_factors
+from ringtune.envs.evaluate import (evaluate_judged, job_accel_commands, planned_job, resolve_job,
+                                    resolve_printer, variant_factors)
 from ringtune.envs.metrics import Metrics
 from ringtune.envs.plots import plot_evaluation
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.config_plan import job_accel_mode
+from ringtune.shaping.e_timing import E_TIMING_WORDS
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.job_shapers import describe_timeline, shaper_timeline
 from ringtune.shaping.shapers import default_damping, shapers_from_config
 
 NAME = "simulate"
@@ -66,7 +71,15 @@ is judged with that one). --freq-margin 0 judges the exact model only. So
 configuration, to the digit.
 
 The configuration comes from a TuneConfig JSON (--config, as written by `ringtune tune`) or from
---shaper/--freq/--damping/--freq-limit (one value for both axes, or "X,Y"). Without --config and
+--shaper/--freq/--damping/--freq-limit (one value for both axes, or "X,Y"); every TuneConfig key
+has its option (--freq-limit-method, --min-speed-factor, --accel, --max-accel X,Y, --job-accel),
+which overrides the file's value.
+
+The job runs as the printer would run it, as `ringtune plan` plans it: its own acceleration
+commands (M201, M204, SET_VELOCITY_LIMIT) stand unless --job-accel replace (or a best.json's
+job_accel) replaces them with the configuration's acceleration, and its own shaper commands (a
+ringing test print's M593 X F0, a tower's SET_INPUT_SHAPER per band) change the shaping from where
+they stand; stderr says so. Without --config and
 --shaper/--freq/--damping: what the printer runs now when its description has a [current] section
 (`ringtune printer from-klipper` writes one), else shaping off; stderr says which. Without --printer the embedded Ender-3-class printer is used; without --gcode the built-in
 test print.
@@ -90,6 +103,15 @@ def add_arguments(parser) -> None:
     parser.add_argument("--freq-limit", metavar="L", type=float, help="infill frequency limit in Hz (0 = off)")
     parser.add_argument("--firmware", type=firmware_name, metavar="FW", help="firmware whose shapers are used (default: klipper)")
     parser.add_argument("--accel", metavar="A", type=float, help="printing acceleration, mm/s² (default: the printer's)")
+    parser.add_argument("--max-accel", metavar="X,Y", help="per-axis acceleration caps, mm/s² (TuneConfig "
+                        "max_accel_x/max_accel_y; default: the printer's)")
+    parser.add_argument("--freq-limit-method", choices=("sections", "nophead", "marlin"),
+                        help="how the frequency limit slows the zigzags (default sections)")
+    parser.add_argument("--min-speed-factor", metavar="K", type=float,
+                        help="lowest fraction of the commanded speed the frequency limit may slow to (default 0.3)")
+    parser.add_argument("--job-accel", choices=("respect", "replace"),
+                        help="the job's own acceleration commands stand (respect) or the configuration's "
+                             "acceleration replaces them (replace); default: the config's job_accel, else replace")
     parser.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco",
                         help="physics: mujoco (default) or lti (exact linear, fast screening)")
     parser.add_argument("--freq-margin", metavar="PCT", type=float, default=None,
@@ -131,6 +153,7 @@ def _base_config(args, printer) -> tuple[dict, list[str]]:
                  f"({cur.get('source') or printer.name})")
             d = cfg.to_dict()
             d.pop("extra", None)
+            d["job_accel"] = "respect"    # the printer runs the job's own acceleration commands
             return d, notes
         note(why)
     note("no --config or --shaper: simulating with input shaping off (give --config best.json or "
@@ -167,8 +190,7 @@ def build_config(args, out=None, printer=None):
             cfg["damping_x"] = cfg["damping_y"] = default_damping(record.flavor)
     if args.freq_limit is not None:
         cfg["freq_limit_hz"] = args.freq_limit
-    if args.accel is not None:
-        cfg["accel"] = args.accel
+    _other_keys(cfg, args)
     _check_options(freq, damping, args)
     where = args.config or "options"
     try:
@@ -176,7 +198,8 @@ def build_config(args, out=None, printer=None):
     except RingtuneError as exc:   # a value an option gave: name the option, not the config key
         key = (exc.where or "").rpartition(": ")[2]
         given = {"--freq": freq, "--damping": damping, "--shaper": shaper, "--firmware": args.firmware,
-                 "--freq-limit": args.freq_limit, "--accel": args.accel}
+                 "--freq-limit": args.freq_limit, "--accel": args.accel, "--max-accel": args.max_accel,
+                 "--freq-limit-method": args.freq_limit_method, "--min-speed-factor": args.min_speed_factor}
         flag = _KEY_FLAG.get(key)
         if flag and given.get(flag) is not None:
             raise RingtuneError(exc.bare, flag) from None
@@ -195,7 +218,27 @@ def build_config(args, out=None, printer=None):
 #: TuneConfig key -> the option that sets it
 _KEY_FLAG = {"freq_x": "--freq", "freq_y": "--freq", "damping_x": "--damping", "damping_y": "--damping",
              "shaper_x": "--shaper", "shaper_y": "--shaper", "firmware": "--firmware",
-             "freq_limit_hz": "--freq-limit", "accel": "--accel"}
+             "freq_limit_hz": "--freq-limit", "accel": "--accel", "max_accel_x": "--max-accel",
+             "max_accel_y": "--max-accel", "freq_limit_method": "--freq-limit-method",
+             "min_speed_factor": "--min-speed-factor"}
+
+
+def _in_range(values, lo: float, hi: float, option: str, what: str) -> None:
+    bad = [v for v in values if v is not None and not (math.isfinite(v) and lo <= v <= hi)]
+    if bad:
+        raise RingtuneError(f"{bad[0]:g} is not {what}", option)
+
+
+def _other_keys(cfg: dict, args) -> None:
+    """The TuneConfig keys without a shaper of their own: acceleration, caps, limit method and
+    speed factor, the job-acceleration mode (an extra key of tune's best.json)."""
+    caps = _pair(args.max_accel, "--max-accel", True) or (None, None)
+    _in_range(caps, 1.0, 1e6, "--max-accel", "an acceleration cap: give mm/s² > 0")
+    msf = args.min_speed_factor
+    _in_range((msf,), 0.01, 1.0, "--min-speed-factor", "a speed factor: give one in [0.01, 1]")
+    given = {"accel": args.accel, "max_accel_x": caps[0], "max_accel_y": caps[1],
+             "freq_limit_method": args.freq_limit_method, "min_speed_factor": msf, "job_accel": args.job_accel}
+    cfg.update({k: v for k, v in given.items() if v is not None})
 
 
 def _check_options(freq, damping, args) -> None:
@@ -233,6 +276,27 @@ def freq_margin(args, config=None) -> float:
     return args.freq_margin / 100.0
 
 
+def job_commands(printer, gcode, config, out) -> list[dict]:
+    """What the job's own commands do to this simulation, said aloud (``out.note``): its
+    acceleration commands (standing or replaced, :func:`ringtune.shaping.config_plan.job_accel_mode`)
+    and its shaper commands; returns the shaper changes ({``time`` s, ``config``}, the steps of
+    :func:`ringtune.shaping.job_shapers.shaper_timeline`)."""
+    _, parsed = resolve_job(gcode)
+    plan = planned_job(printer, gcode, config).plan
+    timeline = shaper_timeline(plan.events, config)
+    notes = []
+    if len(timeline) > 1:
+        notes.append(describe_timeline(timeline, plan.events))
+    if job_accel_commands(parsed):
+        mode = job_accel_mode(config) if config.accel is not None else "respect"
+        notes.append("the job's own acceleration commands " + (
+            "stand (--job-accel respect), as the printer would run them" if mode == "respect" else
+            f"are replaced by the configuration's {config.accel:g} mm/s² (--job-accel replace)"))
+    for n in notes:
+        out.note(n)
+    return [{"time": t, "config": c.to_dict()} for t, c in timeline[1:]]
+
+
 def run(args, out) -> int:
     if args.freq_margin is not None:    # a bad option is refused before any note is printed
         freq_margin(args)
@@ -248,8 +312,10 @@ def run(args, out) -> int:
             raise RingtuneError(f"cannot create the plot folder: {exc.strerror or exc}",
                                 f"--plot {args.plot}") from None
     judged = judgement(margin)
+    changes = job_commands(printer, args.gcode, config, out)
     out.note(f"simulating {config.shaper_x}/{config.shaper_y} on {printer.name} ({args.backend}), {judged} ...")
-    m, evs = evaluate_judged([config], printer, args.gcode, backend=args.backend, freq_margin=margin)[0]
+    m, evs = evaluate_judged([config], printer, args.gcode, backend=args.backend, freq_margin=margin,
+                             job_shapers=True)[0]
     if args.trace:   # the printer as modelled (variant 1.0)
         write_trace_option(args.trace, evs[0], config, printer, args.gcode, args.backend, out)
     windows = _windows(evs)
@@ -270,6 +336,8 @@ def run(args, out) -> int:
         "variants": [{"factor": f, "metrics": e.metrics.to_dict()} for f, e in zip(factors, evs)],
         "windows": windows,
         "plots": plots,
+        "job_shapers": changes,
+        "job_accel": job_accel_mode(config),
         **({"trace": args.trace} if args.trace else {}),
     }
     lines = _text(result, m, config, printer, judged, len(evs)) + [f"plot: {p}" for p in plots]
@@ -306,7 +374,8 @@ def _text(result: dict, m, c, printer, judged: str, n_variants: int) -> list[str
         f"corner in    {m.corner_in_mm * um:10.1f} µm rounding, worst visible corner",
         f"corner out   {m.corner_out_mm * um:10.1f} µm overshoot, worst visible corner",
         f"extrusion    {m.extrusion_over_pct:+9.1f} % / {-m.extrusion_under_pct:+.1f} % material over 1 mm "
-        f"of path; extruder up to {m.e_lag_mm * um:.0f} µm off the nozzle (E {fw.e_timing} under shaping)",
+        f"of path; extruder up to {m.e_lag_mm * um:.0f} µm off the nozzle ({fw.title}: "
+        f"{E_TIMING_WORDS[fw.e_timing]})",
     ]
     if m.extrusion_if_synced:
         s = m.extrusion_if_synced

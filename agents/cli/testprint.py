@@ -149,6 +149,18 @@ def run(args, out) -> int:
     return 0
 
 
+def _ladder_speed(given, config, velocity: float, name: str) -> tuple[float, str]:
+    """Speed of the ladder's fast moves (mm/s) and why: ``--speed``, else the top speed the tuned
+    acceleration was judged at (``top_speed_mm_s`` in the config, written by ``tune``), else the
+    printer's velocity limit."""
+    if given is not None:
+        return float(given), "--speed"
+    top = config.extra.get("top_speed_mm_s")
+    if isinstance(top, (int, float)) and not isinstance(top, bool) and 0 < top <= velocity:
+        return float(top), "the top speed the tuned acceleration was judged at (the config's top_speed_mm_s)"
+    return float(velocity), f"{name}'s top speed"
+
+
 def _on_the_bed(option: str, what: str, x_min: float, y_min: float) -> None:
     """Refuse a print that would move below X0 or Y0, off the bed of any printer (--centre too near
     the front-left corner for this size)."""
@@ -232,9 +244,9 @@ def _accel(args, out, printer, lim, cx, cy, ext):
         raise RingtuneError("has no accel: nothing to check (tune with an acceleration search, or add "
                             '"accel": A)', args.config)
     start = args.start_accel if args.start_accel is not None else _start_accel(out, printer, lim, config)
-    speed = args.speed if args.speed is not None else lim.velocity
+    speed, whence = _ladder_speed(args.speed, config, lim.velocity, printer.name)
     if args.speed is None:
-        out.note(f"fast moves at {speed:g} mm/s: {printer.name}'s top speed (--speed to change)")
+        out.note(f"fast moves at {speed:g} mm/s: {whence} (--speed to change)")
     _on_the_bed("--reach", f"{args.reach:g} mm each way from X{cx:g} Y{cy:g}", cx - args.reach, cy - args.reach)
     geom = cp.LadderGeometry(cx, cy, args.reach, speed, args.reps)
     try:

@@ -12,7 +12,7 @@ def write_trace_option(path, evaluation, config, printer, gcode, backend: str, o
     check_output_folder("--trace", path)
     duration = evaluation.planned.motion.duration
     if duration <= WHOLE_JOB_MAX_S:
-        rows = trace_job(config, printer, gcode, backend)
+        rows = trace_job(config, printer, gcode, backend, job_shapers=True)
         what = f"the whole job ({duration:.1f} s of motion, from rest)"
     else:
         rows = trace_windows(evaluation)

@@ -9,7 +9,10 @@ step_loss, breaks, label, source}}, vs_baselines {key: {baseline, faster_s, fast
 better_pct, dominates, metrics {print_time_s|overshoot_mm|path_error_mm|feasible: better|same|worse},
 path_error_better_mm, path_error_better_pct}}, dominates_klipper, dominates_current (null or {config,
 print_time_s, quality_mm, ...comparison}), accel {range, searched, basis, chosen, stopped_by,
-headroom, defaults (what of the motor bound is a default: "x.mass", "y.motor", ...; [] when none)},
+headroom, defaults (what of the motor bound is a default: "x.mass", "y.motor", ...; [] when none),
+binding (the firmware limits that hold some moves of the chosen configuration lower: list of {name
+(the firmware's own: "M201 X", "max_y_accel", "M204 R"), value (mm/s²), what, moves, time_s,
+time_without_s (the planner with that limit removed)})},
 job_accel {mode, commands, cap_mm_s2, searched, print_time_as_sliced_s, print_time_replaced_s,
 replaced_accel, saved_s}, plot_arrows, files {readme, summary, plot, best,
 apply, front, trials}, storage, study, completed_now, interrupted, elapsed_s.
@@ -30,9 +33,10 @@ from tqdm import tqdm
 from ringtune.agents.cli.common import firmware_name, progress_interval
 from ringtune.agents.tune import pareto, report, storage, study as tune_study
 from ringtune.agents.tune.baselines import baselines_for, warm_start
+from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
 from ringtune.agents.tune.pareto import pareto_front
-from ringtune.agents.tune.space import default_space, params_from_config
+from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config, top_speed_load_note
 from ringtune.agents.tune.study import study_points
 from ringtune.envs.evaluate import resolve_printer
 from ringtune.shaping.errors import RingtuneError
@@ -84,7 +88,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--printer", metavar="P", help="printer TOML (default: the embedded Ender-3-class printer)")
     p.add_argument("--gcode", metavar="G", help="G-code job (default: the built-in test print)")
     p.add_argument("--firmware", type=firmware_name, default="klipper",
-                   help="target firmware: klipper (default), rrf, rrf35, rrf34, "
+                   help="target firmware: klipper (default), kalico, rrf, rrf35, rrf34, "
                    "marlin, marlin-ftm, prusa (any case)")
     p.add_argument("--trials", type=int, default=200, help="total complete trials of the study (default 200)")
     p.add_argument("--storage", metavar="URL", help="Optuna storage: journal:PATH (default "
@@ -110,6 +114,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--freq-margin", type=float, default=None, metavar="PCT",
                    help="also judge every configuration with the printer's resonances PCT %% lower and "
                         "higher; the worst counts (default 5; 0 = the exact model only)")
+    p.add_argument("--shaping-min-freq", metavar="HZ", type=float, default=None,
+                   help="Marlin classic: your build's SHAPING_MIN_FREQ (default: a stock build's 40 Hz, the "
+                        "lower of SHAPING_FREQ_X/Y); the search stays above it")
     p.add_argument("--accel-range", metavar="LO,HI", default=None,
                    help="acceleration search range, mm/s² (default: from the printer's motors and masses at the "
                         "job's top speed); LO = HI fixes it")
@@ -154,7 +161,13 @@ def run(args: argparse.Namespace, out) -> int:
     printer = resolve_printer(args.printer)
     quality = f"{args.quality}_mm"
     facts = job_accel_facts(printer, args.gcode, args.job_accel)
-    space = default_space(printer, firmware, accel=accel_range, speed=facts.top_speed)
+    # no --gcode: the built-in print stands in for the user's, which may run up to the velocity limit
+    min_freq = _shaping_min_freq(args.shaping_min_freq)
+    space = default_space(printer, firmware, accel=accel_range, speed=facts.top_speed if args.gcode else None,
+                          min_freq=min_freq)
+    floor_note = freq_floor_note(firmware, min_freq, space)
+    if floor_note:
+        out.note(f"ringtune tune: {floor_note}")
     if accel_range is None and args.job_accel == "respect" and facts.commands and not facts.accel_matters(space):
         a = float(printer.limits.accel)
         space = dataclasses.replace(space, accel=(a, a), accel_basis="not searched: the job's own acceleration "
@@ -206,10 +219,15 @@ def run(args: argparse.Namespace, out) -> int:
     front = pareto.pareto_front(points, also=("path_error_mm",) if quality != "path_error_mm" else ())
     choice = pareto.pick(front, baselines, how, args.weight)
     chosen = choice.point
-    accel_lines, accel_json = accel_statement(chosen, space, max_pe, reserve, points, printer)
+    bindings = binding_limits(printer, args.gcode, chosen.config, firmware, args.job_accel)
+    accel_lines, accel_json = accel_statement(chosen, space, max_pe, reserve, points, printer,
+                                              binding_sentences(bindings, chosen.config.accel))
+    accel_json["binding"] = [dataclasses.asdict(b) for b in bindings]
+    if not args.gcode and chosen.config.accel:
+        accel_lines.append(top_speed_load_note(printer, chosen.config.accel, reserve))
     ja_lines, ja_json = job_accel_section(facts, args.job_accel, printer, args.gcode, chosen.config)
     ja_json["searched"] = not space.accel_fixed
-    notes = []
+    notes = [f"The {floor_note}."] if floor_note else []
     if margin:
         notes.append(f"Every figure is the worst of the printer as modelled and with all its resonances "
                      f"{margin * 100:g} % lower and higher (--freq-margin; `ringtune simulate --freq-margin "
@@ -229,7 +247,8 @@ def run(args: argparse.Namespace, out) -> int:
         baseline_labels=bl.labels if bl else None,
         sections=[("ACCELERATION", accel_lines)] + ([("THE JOB'S OWN ACCELERATIONS", ja_lines)] if ja_lines else []),
         notes=notes, export_firmware=dialect,
-        best_extra={"job_accel": args.job_accel, "freq_margin": margin, "motor_reserve": reserve})
+        best_extra={"job_accel": args.job_accel, "freq_margin": margin, "motor_reserve": reserve,
+                    "top_speed_mm_s": facts.top_speed if args.gcode else float(printer.limits.velocity)})
     text = result.pop("summary_text")
     if bl:
         for k, src in bl.sources.items():
@@ -251,6 +270,12 @@ def firmware_names(name: str) -> tuple[str, str, str]:
     accepts, rrf34 included), in any case."""
     rec = Firmware.named(name, "--firmware")
     return rec.name, rec.name, ""
+
+
+def _shaping_min_freq(value: float | None) -> float | None:
+    if value is not None and not (0 < value <= 1000):
+        raise RingtuneError(f"{value:g} Hz is not a frequency: give one in (0, 1000] Hz", "--shaping-min-freq")
+    return value
 
 
 def _accel_range(text: str | None):

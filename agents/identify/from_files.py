@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ringtune.agents.identify.accelerometer import Measurement, klipper_record, read_measurement
+from ringtune.agents.identify.belts import BeltComparison, belts_into_description
 from ringtune.agents.identify.description import AddedMass, Description, build_description, description_toml, printer_name
 from ringtune.envs.printer import printer_from_dict
 from ringtune.hardware.klipper_config import printer_facts_from_klipper
@@ -46,20 +47,23 @@ class Identified:
     description: Description
     toml: str
     warnings: list[str] = field(default_factory=list)
+    belts: BeltComparison | None = None     # with belt tests: the two belts compared
 
 
 def identify_from_files(files: list, *, configs: dict | None = None, axis: str | None = None, max_modes: int = 3,
                         fmin: float = 5.0, fmax: float = 135.0, damping: str = "fit", kinematics: str | None = None,
                         base=None, masses: dict | None = None, motors: dict | None = None,
                         added_mass: dict | None = None, loaded_files: list = (), name: str | None = None,
-                        note=_silent) -> Identified:
+                        facts=None, belts: list | None = None, note=_silent) -> Identified:
     """The printer from the accelerometer ``files`` and, in ``configs`` ({``klipper_config`` |
     ``marlin`` | ``rrf``: path}), its firmware configuration; ``masses`` ({axis: kg}), ``motors``
     ({axis or "all": {name, run_current, voltage}}), ``added_mass`` ({axis or "all": kg}) with the
     ``loaded_files`` measured with it. Fit bounds ``fmin``/``fmax`` Hz, at most ``max_modes`` per
-    axis. The name, when not given, from the configuration's or the files' folder (said through
-    ``note``)."""
-    facts, config_path = read_facts(configs or {})
+    axis. ``facts``: the configuration's FirmwareFacts already read (e.g. through Moonraker);
+    ``belts``: a CoreXY's two diagonal resonance tests (``[belts] mismatch``). The name, when not
+    given, from the configuration's or the files' folder (said through ``note``)."""
+    read, config_path = read_facts(configs or {})
+    facts = facts if facts is not None else read
     kw = dict(axis=axis, max_modes=max_modes, fmin=fmin, fmax=fmax, damping=damping)
     meas = read_measurement(files, **kw)
     warnings = list(meas.warnings)
@@ -79,9 +83,9 @@ def identify_from_files(files: list, *, configs: dict | None = None, axis: str |
                              measurement=_measurement(meas, loaded, added, klipper))
     header = ["Printer description written by `ringtune identify` from "
               + ", ".join(Path(f).name for f in [*files, *loaded_files])]
-    _say_motor_assumptions(desc, header)
+    compared = _checked(desc, header, belts)
     return Identified(meas, loaded.fits if loaded else [], added, klipper, scv, desc,
-                      description_toml(desc, header), warnings)
+                      description_toml(desc, header), warnings, compared)
 
 
 def read_facts(configs: dict) -> tuple:
@@ -135,12 +139,23 @@ def _measurement(meas: Measurement, loaded: Measurement | None, added: dict, kli
     return out
 
 
-def _say_motor_assumptions(desc: Description, header: list[str]) -> None:
-    """Load the description (it must: checked before anything is written) and add to its
-    defaults what a named motor's drive still assumes."""
-    printer = printer_from_dict(tomllib.loads(description_toml(desc, header)), "the identified printer")
+def _checked(desc: Description, header: list[str], belts: list | None) -> BeltComparison | None:
+    """Load the description (it must: checked before anything is written), write the belt
+    comparison into it (``belts``: the two diagonal tests) and add to its defaults what a named
+    motor's drive still assumes; the belt comparison, or None."""
+    printer = _loaded(desc, header)
+    compared = None
+    if belts:
+        compared = belts_into_description(desc, printer, belts)
+        printer = _loaded(desc, header)
     for ax in ("x", "y"):
         for sentence in printer.motor_for(ax).assumed:
             said = f"motor: {sentence}"
             if said not in desc.defaults:
                 desc.defaults.append(said)
+    return compared
+
+
+def _loaded(desc: Description, header: list[str]):
+    """The Printer the description loads as."""
+    return printer_from_dict(tomllib.loads(description_toml(desc, header)), "the identified printer")

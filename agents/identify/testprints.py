@@ -86,7 +86,7 @@ def ringing_tower(firmware: str, *, speed: float, accel: float, bands: tuple[flo
            ["shaping stays off until the firmware restarts or you send your own settings (ringtune export)"])
     accel_set = cp.accel_lines(firmware, accel)
     end.append(f"the acceleration set at the start ({'; '.join(accel_set)}) stays too: "
-               + ("restart Klipper or set your own" if firmware == "klipper" else
+               + ("restart Klipper or set your own" if Firmware.named(firmware).family == "klipper" else
                   "M501 reloads the saved settings" if firmware in ("marlin", "marlin-ftm", "prusa") else
                   "restart or run config.g again"))
     start = cp.start_lines(hotend, bed, accel_set)
@@ -165,7 +165,10 @@ def accel_ladder(firmware: str, config: TuneConfig, *, start_accel: float, rungs
               "", "ladder table:", *table, "", "what to look for:", *look]
     restore = cp.accel_lines(firmware, start_accel, axis_maxima=False)
     end = ["the last lines set the starting acceleration again: " + "; ".join(restore)]
-    if firmware != "klipper":
+    fw = Firmware.named(firmware)
+    if fw.family == "klipper" and fw.axis_accel_set:
+        end.append("the raised X_ACCEL/Y_ACCEL caps stay until RESET_VELOCITY_LIMIT or a restart")
+    elif fw.family != "klipper":
         end.append("the raised M201 axis maxima stay until reset: M501 (Marlin, Prusa) or restart (RRF)")
     if firmware in ("marlin", "marlin-ftm", "prusa"):
         end.append("a Marlin built with LIMITED_MAX_ACCEL_EDITING caps M201: check with M503 that the "

@@ -48,7 +48,7 @@ def firmware_rule_setup(firmware: str, version: str) -> tuple[str, tuple[str, ..
     """
     if firmware not in FIRMWARES:
         raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "firmware")
-    flavor = VERSION_FLAVOR[version] if firmware == "klipper" else FIRMWARES[firmware].flavor
+    flavor = VERSION_FLAVOR[version] if FIRMWARES[firmware].family == "klipper" else FIRMWARES[firmware].flavor
     names = tuple(n for n in AUTOTUNE_SHAPERS if n in available_shapers(flavor))
     if not names:
         raise RingtuneError(f"{firmware} offers none of Klipper's autotuned shapers", "firmware")

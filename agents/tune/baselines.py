@@ -23,7 +23,7 @@ from ringtune.agents.tune.pareto import Point, point_from_metrics
 from ringtune.envs.printer_model import Printer
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.shapers import parse_name
+from ringtune.shaping.shapers import parse_name, shapers_from_config
 
 SIMULATED = "on a simulated resonance test of the model"
 FROM_FILES = "from your resonance files"
@@ -59,6 +59,7 @@ def recorded_klipper(printer: Printer, firmware: str) -> tuple[TuneConfig | None
         cfg = TuneConfig(**fields, extra={"source": "Klipper's calibrate_shaper rule on the resonance files "
                                                     "(recorded by ringtune identify)"})
         cfg.validate("[measurement.klipper]")
+        shapers_from_config(cfg)          # Klipper's shapers may not be the firmware's (Marlin: zv only)
     except (TypeError, ValueError, RingtuneError) as exc:
         return None, f"[measurement.klipper] cannot be used for {firmware}: {exc}"
     return cfg, ""

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point
-from ringtune.agents.tune.space import axis_cap_notes, defaults_note
+from ringtune.agents.tune.space import defaults_note
 from ringtune.envs.evaluate import job_accel_commands, planned_job, resolve_job
 from ringtune.shaping.config import TuneConfig
 
@@ -76,8 +76,9 @@ class JobAccelFacts:
 
 def job_accel_facts(printer, job, mode: str) -> JobAccelFacts:
     """The job's acceleration commands, its top speed (the largest speed a move asks for after the
-    velocity limits, mm/s; under ``respect`` the job's own limits count) and the acceleration cap
-    those commands put on it (under ``respect``, planned at a very high machine acceleration)."""
+    velocity limits, mm/s; under ``respect`` the job's own limits count; ``tune`` uses the printer's
+    velocity limit instead when no job is given) and the acceleration cap those commands put on it
+    (under ``respect``, planned at a very high machine acceleration)."""
     _, parsed = resolve_job(job)
     facts = JobAccelFacts(printer, job, job_accel_commands(parsed))
     pj = planned_job(printer, job, None)
@@ -123,18 +124,18 @@ def job_accel_section(facts: JobAccelFacts, mode: str, printer, job, chosen: Tun
 
 
 def accel_statement(chosen: Point, space, max_pe: float, reserve: float, points,
-                    printer=None) -> tuple[list[str], dict]:
+                    printer=None, binding: list[str] = ()) -> tuple[list[str], dict]:
     """Which limit stops the chosen acceleration and how far it is from it: the motor reserve,
     the path-error bound, the range's edge (the motors' force, or ``--accel-range``), or none of
-    them (then the choice of quality stops it). With ``printer``: its per-axis caps (which limit
-    moves along one axis, not the tuned value) and whether the motor bound rests on defaults."""
+    them (then the choice of quality stops it). ``binding``: the firmware limits that hold some
+    moves lower (:func:`ringtune.agents.tune.binding.binding_sentences`). With ``printer``: whether
+    the motor bound rests on defaults."""
     a = float(chosen.config.accel or 0.0)
     lo, hi = space.accel
     info = {"range": [lo, hi], "searched": not space.accel_fixed, "basis": space.accel_basis, "chosen": a,
             "stopped_by": None, "headroom": {}, "defaults": []}
-    tail = []
+    tail = list(binding)
     if printer is not None:
-        tail = axis_cap_notes(printer)
         note = defaults_note(printer)
         if note:
             tail.append(note)

@@ -104,17 +104,24 @@ def best_dominating(front: Sequence[Point], base: Point, res: Resolution = DEFAU
 
 
 def describe(cfg) -> str:
-    """One line: shapers, F, S, frequency limit and acceleration of a TuneConfig."""
+    """One line: shapers, F, S (per axis where the axes' differ), frequency limit, acceleration and
+    the per-axis caps the configuration carries of a TuneConfig."""
+    shaped = [a for a in "xy" if cfg.axis(a)[0] != "none"]
+    per_axis_s = len({cfg.axis(a)[2] for a in shaped}) > 1
+
     def ax(a):
         name, f, z = cfg.axis(a)
-        return f"{a.upper()} {name}" if name == "none" else f"{a.upper()} {name} @ {f:.1f} Hz"
-    z = cfg.damping_x if cfg.shaper_x != "none" else cfg.damping_y
+        if name == "none":
+            return f"{a.upper()} {name}"
+        return f"{a.upper()} {name} @ {f:.1f} Hz" + (f" S {z:.3f}" if per_axis_s else "")
     parts = [ax("x"), ax("y")]
-    if cfg.shaper_x != "none" or cfg.shaper_y != "none":
-        parts.append(f"S {z:.3f}")
+    if shaped and not per_axis_s:
+        parts.append(f"S {cfg.axis(shaped[0])[2]:.3f}")
     parts.append("no freq limit" if cfg.freq_limit_hz <= 0 else
                  f"freq limit {cfg.freq_limit_hz:.1f} Hz ({cfg.freq_limit_method})")
-    parts.append(f"accel {cfg.accel:.0f} mm/s²" if cfg.accel else "printer's accel")
+    caps = ", ".join(f"{a.upper()} {c:.0f}" for a, c in zip("xy", cfg.axis_caps) if c is not None)
+    parts.append((f"accel {cfg.accel:.0f} mm/s²" if cfg.accel else "printer's accel")
+                 + (f" (axis caps {caps})" if caps else ""))
     return ", ".join(parts)
 
 
@@ -128,7 +135,7 @@ def _row(p: Point) -> dict[str, Any]:
         v = p.metrics.get(k)
         row[k] = v if not isinstance(v, float) else round(v, 6)
     row.update({"shaper_x": c.shaper_x, "freq_x": c.freq_x, "shaper_y": c.shaper_y, "freq_y": c.freq_y,
-                "damping": c.damping_x, "freq_limit_hz": c.freq_limit_hz,
+                "damping_x": c.damping_x, "damping_y": c.damping_y, "freq_limit_hz": c.freq_limit_hz,
                 "freq_limit_method": c.freq_limit_method if c.freq_limit_hz > 0 else "off", "accel": c.accel})
     return row
 

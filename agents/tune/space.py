@@ -3,12 +3,23 @@
 Parameters (Optuna names):
 
 - ``shaper`` (RepRapFirmware: one shaper for all axes) or ``shaper_x``, ``shaper_y``: the shaper
-  types the target firmware offers (``none`` included; RRF ``custom`` excluded);
+  types the target firmware offers (``none`` included; RRF ``custom`` excluded) and, where its
+  shapers take Klipper's parameters (flavour ``klipper``: Klipper HEAD), the families
+  ``mzv(n,t)`` — ``mzv_n_<ax>`` impulses (3–6) over ``mzv_t_<ax>`` damped periods (0.5 to just under
+  (n − 1)/2, where Klipper's generalised MZV stays non-negative; sampled as a fraction of that
+  span) — and ``ei(v_tol)`` — ``ei_vtol_<ax>`` the tolerated vibration (0.01–0.2; plain EI is 0.05);
 - ``freq`` (RRF) or ``freq_x``, ``freq_y``: shaper frequency F, Hz, around the printer's modes;
-- ``damping``: shaper damping ratio S (one for all axes), within every offered shaper's limit;
+- ``damping_x``, ``damping_y`` (or ``damping`` on RepRapFirmware, one shaper for all axes): shaper
+  damping ratio S per axis, as Klipper, Marlin and Prusa take it (``damping_ratio_x``, ``M593 X
+  D``), within every offered shaper's limit (a stored trial's single ``damping`` is both);
 - ``freq_limit``: ``off`` or a frequency-limit method (``nophead``, ``sections``, ``marlin``), and
   ``freq_limit_hz`` (Hz, only when on);
-- ``accel``: printing acceleration, mm/s², in steps of ``accel_step``.
+- ``accel``: printing acceleration, mm/s², in steps of ``accel_step``; every trial's configuration
+  carries the per-axis caps it runs with (:func:`trial_axis_caps`): the printer's X/Y caps, raised
+  to the trial's acceleration where the firmware sets them by G-code (Marlin, RepRapFirmware,
+  Prusa: ``M201 X Y``, which ``export`` then sends before ``M204``), kept as they are where they
+  are the owner's per-axis limits in the firmware's configuration (Kalico's limited_* kinematics:
+  ``max_x_accel``/``max_y_accel``; and on mainline Klipper, which has none, said by ``export``).
 
 :func:`config_from_params` turns a parameter dict into a :class:`TuneConfig`; the same function
 serves Optuna trials, grid points and stored trials, so they can never disagree.
@@ -25,7 +36,19 @@ import numpy as np
 from ringtune.shaping.config import FREQ_LIMIT_METHODS, TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
-from ringtune.shaping.shapers import available_shapers, max_damping
+from ringtune.shaping.shapers import available_shapers, max_damping, parse_name
+from ringtune.shaping.smoothers import is_smoother
+
+#: search families of Klipper's parametrised shapers, per shaper flavour that has them
+PARAMETRISED = {"klipper": ("mzv(n,t)", "ei(v_tol)")}
+MZV_N = (3, 6)
+MZV_T_MIN = 0.5
+EI_VTOL = (0.01, 0.2)
+
+
+def mzv_t_max(n: int) -> float:
+    """Longest duration (damped periods) searched for ``mzv(n=…)``: just under Klipper's n > 2t + 1."""
+    return (n - 1) / 2.0 - 0.01
 
 
 @dataclass(frozen=True)
@@ -45,6 +68,8 @@ class SearchSpace:
     freq_step: float = 0.1
     min_speed_factor: float = 0.3
     accel_basis: str = ""               # what sets the acceleration range's top (for the summary)
+    axis_caps: tuple[float, float] | None = None   # the printer's X/Y caps, mm/s² (0 = none)
+    raise_axis_caps: bool = False       # the firmware sets them by G-code: raised to the trial's acceleration
 
     @property
     def accel_fixed(self) -> bool:
@@ -59,16 +84,21 @@ class SearchSpace:
         kw = dict(d)
         for k in ("shapers", "freq_limit_methods"):
             kw[k] = tuple(kw[k])
-        for k in ("freq_x", "freq_y", "damping", "freq_limit_hz", "accel"):
-            kw[k] = tuple(float(v) for v in kw[k])
+        for k in ("freq_x", "freq_y", "damping", "freq_limit_hz", "accel", "axis_caps"):
+            if kw.get(k) is not None:
+                kw[k] = tuple(float(v) for v in kw[k])
         return cls(**kw)
 
 
 def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float, float] | None = None,
-                  shapers: tuple[str, ...] | None = None, speed: float | None = None) -> SearchSpace:
+                  shapers: tuple[str, ...] | None = None, speed: float | None = None,
+                  min_freq: float | None = None) -> SearchSpace:
     """The default space for ``printer`` on ``firmware``.
 
-    F spans 0.6×–1.8× the axis's lowest/highest mode (clipped to 10–200 Hz); S 0–0.2 (capped
+    F spans 0.6×–1.8× the axis's lowest/highest mode (clipped to 10–200 Hz and from below to the
+    firmware's lowest frequency — its record's range, and a stock build's minimum where the build
+    sets one, Marlin's SHAPING_MIN_FREQ, unless ``min_freq`` says the user's build differs; the
+    top at least 1.5× that floor); S 0–0.2 (capped
     by the offered shapers' limits); frequency limit 10–80 Hz with every method; acceleration
     from 0.3× the printer's own limit up to :func:`accel_ceiling` at the job's top speed
     ``speed`` (mm/s; default the printer's velocity limit): where the weakest motor would need all
@@ -78,19 +108,20 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
     if firmware not in FIRMWARES:
         raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "firmware")
     flavor = FIRMWARES[firmware].flavor
-    offered = tuple(n for n in available_shapers(flavor) if n != "custom")
+    offered = tuple(n for n in available_shapers(flavor) if n != "custom") + PARAMETRISED.get(flavor, ())
     if shapers:
         bad = [s for s in shapers if s not in offered]
         if bad:
             raise RingtuneError(f"{firmware} does not offer {', '.join(bad)} (offers {', '.join(offered)})",
                                 "shapers")
         offered = tuple(shapers)
-    zmax = min([0.2] + [max_damping(n, flavor) for n in offered if n != "none"])
+    zmax = min([0.2] + [max_damping(n.split("(")[0], flavor) for n in offered if n != "none"])
+    floor = freq_floor(firmware, min_freq)
     ranges = {}
     for ax in ("x", "y"):
         freqs = [m.freq for m in getattr(printer, ax).modes] or [40.0]
-        lo = max(10.0, round(0.6 * min(freqs), 1))
-        hi = min(200.0, round(1.8 * max(freqs), 1))
+        lo = max(10.0, floor, round(0.6 * min(freqs), 1))
+        hi = max(min(200.0, round(1.8 * max(freqs), 1)), round(1.5 * lo, 1))
         ranges[ax] = (lo, hi)
     per_axis = not FIRMWARES[firmware].one_shaper
     if not per_axis:
@@ -104,9 +135,54 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
         acc = (lo, hi)
     if not (0 < acc[0] <= acc[1]):
         raise RingtuneError(f"acceleration range must be 0 < lo ≤ hi, not {acc}", "accel")
+    caps, raise_caps = printer_axis_caps(printer, firmware)
     return SearchSpace(firmware=firmware, shapers=offered, per_axis=per_axis, freq_x=ranges["x"],
                        freq_y=ranges["y"], damping=(0.0, float(zmax)), freq_limit_methods=FREQ_LIMIT_METHODS,
-                       freq_limit_hz=(10.0, 80.0), accel=(float(acc[0]), float(acc[1])), accel_basis=basis)
+                       freq_limit_hz=(10.0, 80.0), accel=(float(acc[0]), float(acc[1])), accel_basis=basis,
+                       axis_caps=caps, raise_axis_caps=raise_caps)
+
+
+def freq_floor(firmware: str, min_freq: float | None = None) -> float:
+    """The lowest shaper frequency (Hz) the search offers on ``firmware``: the lower end of its
+    record's range, and its stock build's minimum (``build_min_freq``) unless ``min_freq`` (the
+    user's build) replaces it."""
+    fw = FIRMWARES[firmware]
+    build = fw.build_min_freq if min_freq is None else float(min_freq)
+    return max(fw.freq.lo, build)
+
+
+def freq_floor_note(firmware: str, min_freq: float | None, space: "SearchSpace") -> str:
+    """Where the firmware's build minimum binds the search, said; "" where it does not."""
+    fw = FIRMWARES[firmware]
+    if not fw.build_min_freq:
+        return ""
+    floor = freq_floor(firmware, min_freq)
+    where = ("your build's SHAPING_MIN_FREQ (--shaping-min-freq)" if min_freq is not None else
+             f"{fw.build_min_freq_why}; --shaping-min-freq HZ if your build differs")
+    return f"shaper frequencies searched from {floor:g} Hz: {where}"
+
+
+def printer_axis_caps(printer: Any, firmware: str) -> tuple[tuple[float, float] | None, bool]:
+    """(the printer's X/Y acceleration caps or None, whether trials raise them to their acceleration):
+    raised where ``firmware`` sets them by G-code (``M201``), kept where they live in its
+    configuration (Kalico) or where it has none (module docstring)."""
+    caps = tuple(float(c) for c in tuple(printer.limits.max_accel or (0.0, 0.0))[:2])
+    if not any(c > 0 for c in caps):
+        return None, False
+    fw = FIRMWARES[firmware]
+    return caps, bool(fw.axis_accel_set) and not fw.axis_accel_config
+
+
+def trial_axis_caps(space: SearchSpace, accel: float) -> dict[str, float]:
+    """``max_accel_x``/``max_accel_y`` of a trial at ``accel`` mm/s² (empty when the printer has no
+    X/Y caps): the printer's, raised to ``accel`` where ``space.raise_axis_caps``."""
+    if not space.axis_caps:
+        return {}
+    out = {}
+    for ax, cap in zip("xy", space.axis_caps):
+        if cap > 0:
+            out[f"max_accel_{ax}"] = max(cap, float(accel)) if space.raise_axis_caps else cap
+    return out
 
 
 def motor_accel_limit(printer: Any, speed: float, n_dir: int = 181) -> tuple[float, str]:
@@ -150,29 +226,27 @@ def accel_ceiling(printer: Any, speed: float | None = None) -> tuple[float, str]
 
     The firmware's limits do not cap it: the tuned value is what the user will set as the
     printer's ``max_accel`` (so today's ``limits.accel`` is no bound), and a per-axis cap
-    (``limits.max_accel``: Klipper's ``max_x_accel``/``max_y_accel``, Marlin's ``M201 X/Y``) is
-    applied by the planner to the moves along that axis, in every trial alike
-    (:func:`axis_cap_notes`)."""
+    (``limits.max_accel``: Kalico's ``max_x_accel``/``max_y_accel``, Marlin's ``M201 X/Y``) is
+    applied by the planner to the moves along that axis, as each trial carries it
+    (:func:`trial_axis_caps`); the summary says which caps bind
+    (:mod:`ringtune.agents.tune.binding`)."""
+    what = "the job's top speed" if speed is not None else "the printer's velocity limit"
     v = float(speed if speed is not None else printer.limits.velocity)
     a, who = motor_accel_limit(printer, v)
-    return a, f"the {who} would need all its force at {v:.0f} mm/s (the job's top speed)"
+    return a, f"the {who} would need all its force at {v:.0f} mm/s ({what})"
 
 
-def axis_cap_notes(printer: Any) -> list[str]:
-    """One sentence per X/Y cap of the printer's own (``limits.max_accel``), named as its firmware
-    writes it: it limits the moves along that axis, not the tuned acceleration."""
-    caps = tuple(printer.limits.max_accel or ())[:2]
-    fw = str((getattr(printer, "current", None) or {}).get("firmware", "")).lower()
-    out = []
-    for ax, cap in zip("xy", caps):
-        if not cap or cap <= 0:
-            continue
-        name = (f"max_{ax}_accel" if fw == "klipper" else f"M201 {ax.upper()}" if fw
-                else f"[limits] max_accel's {ax.upper()} entry")
-        out.append(f"{ax.upper()}'s own cap {name} {cap:.0f} mm/s² applies to {ax.upper()} moves (the planner keeps "
-                   f"each move's {ax.upper()} acceleration under it, in every trial and baseline alike); it does not "
-                   "cap the tuned acceleration.")
-    return out
+def top_speed_load_note(printer: Any, accel: float, reserve: float) -> str:
+    """With no job given (the built-in print stands in for prints that may run at the printer's
+    velocity limit): the share of the weakest motor's force the acceleration asks for at that
+    speed, rigid machine (:func:`motor_accel_limit`), and whether that keeps the reserve."""
+    v = float(printer.limits.velocity)
+    limit, who = motor_accel_limit(printer, v)
+    load = float(accel) / limit if limit > 0 else math.inf
+    kept = ("within the reserve" if load <= 1.0 - reserve else
+            f"BEYOND the {reserve * 100:.0f} % reserve: a print that fast at this acceleration may skip steps")
+    return (f"At the printer's velocity limit {v:.0f} mm/s (no job given; the built-in print runs slower) "
+            f"{accel:.0f} mm/s² asks the {who} for {load * 100:.0f} % of its force there (rigid machine): {kept}.")
 
 
 def defaults_note(printer: Any) -> str:
@@ -211,12 +285,13 @@ def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
             if p[f"shaper_{ax}"] != "none":
                 lo, hi = getattr(space, f"freq_{ax}")
                 p[f"freq_{ax}"] = trial.suggest_float(f"freq_{ax}", lo, hi)
+            p.update(_suggest_family(trial, p[f"shaper_{ax}"], ax))
     else:
         p["shaper"] = trial.suggest_categorical("shaper", list(space.shapers))
         if p["shaper"] != "none":
             p["freq"] = trial.suggest_float("freq", *space.freq_x)
-    if any(v != "none" for k, v in p.items() if k.startswith("shaper")):
-        p["damping"] = trial.suggest_float("damping", *space.damping)
+    for key in _damping_keys(p, space):
+        p[key] = trial.suggest_float(key, *space.damping)
     p["freq_limit"] = trial.suggest_categorical("freq_limit", ["off", *space.freq_limit_methods])
     if p["freq_limit"] != "off":
         p["freq_limit_hz"] = trial.suggest_float("freq_limit_hz", *space.freq_limit_hz)
@@ -225,6 +300,53 @@ def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
     else:
         p["accel"] = trial.suggest_float("accel", *space.accel)
     return p
+
+
+def _suggest_family(trial: Any, family: str, ax: str) -> dict[str, Any]:
+    """The parameters of a parametrised family on axis ``ax`` ({} for a plain shaper)."""
+    if family == "mzv(n,t)":
+        return {f"mzv_n_{ax}": trial.suggest_int(f"mzv_n_{ax}", *MZV_N),
+                f"mzv_t_{ax}": trial.suggest_float(f"mzv_t_{ax}", 0.0, 1.0)}
+    if family == "ei(v_tol)":
+        return {f"ei_vtol_{ax}": trial.suggest_float(f"ei_vtol_{ax}", *EI_VTOL)}
+    return {}
+
+
+def shaper_name(family: str, params: dict[str, Any], ax: str) -> str:
+    """The firmware's shaper name of a search family and its parameters: ``mzv(n=5,t=1.1)``,
+    ``ei(v_tol=0.08)``, or the plain name (t to 0.01 period, v_tol to 0.005, as a user would type)."""
+    if family == "mzv(n,t)":
+        n = int(params[f"mzv_n_{ax}"])
+        t = MZV_T_MIN + float(params[f"mzv_t_{ax}"]) * (mzv_t_max(n) - MZV_T_MIN)
+        return f"mzv(n={n},t={round(t, 2):g})"
+    if family == "ei(v_tol)":
+        return f"ei(v_tol={_q(params[f'ei_vtol_{ax}'], 0.005):g})"
+    return family
+
+
+def family_params(name: str, ax: str) -> tuple[str, dict[str, Any]]:
+    """Inverse of :func:`shaper_name`: (family, parameters) of a configuration's shaper name."""
+    base, params = parse_name(name)
+    if base == "mzv" and params:
+        n = int(params.get("n", 3))
+        t = float(params.get("t", 0.75))
+        return "mzv(n,t)", {f"mzv_n_{ax}": n, f"mzv_t_{ax}": (t - MZV_T_MIN) / (mzv_t_max(n) - MZV_T_MIN)}
+    if base == "ei" and params:
+        return "ei(v_tol)", {f"ei_vtol_{ax}": float(params.get("v_tol", 0.05))}
+    return name, {}
+
+
+def _takes_damping(family: str) -> bool:
+    return family != "none" and not is_smoother(family)
+
+
+def _damping_keys(shaping: dict[str, Any], space: SearchSpace) -> list[str]:
+    """The damping parameters a point with these shapers has: ``damping_x``/``damping_y`` for each
+    shaped axis (per-axis firmwares; not for Kalico's smoothers, which take none), else ``damping``
+    when shaping is on."""
+    if space.per_axis:
+        return [f"damping_{ax}" for ax in "xy" if _takes_damping(shaping.get(f"shaper_{ax}", "none"))]
+    return ["damping"] if shaping.get("shaper", "none") != "none" else []
 
 
 def _q(value: float, step: float) -> float:
@@ -238,22 +360,22 @@ def config_from_params(params: dict[str, Any], space: SearchSpace, extra: dict |
     (0.1 Hz), S to 0.005, the frequency limit to 0.5 Hz, acceleration to ``accel_step``. (Optuna
     samples them continuously: TPE's discrete kernels cost far more per trial.)"""
     if space.per_axis:
-        sx, sy = params["shaper_x"], params["shaper_y"]
+        sx, sy = (shaper_name(params[f"shaper_{ax}"], params, ax) for ax in ("x", "y"))
         fx, fy = params.get("freq_x", 0.0), params.get("freq_y", 0.0)
     else:
         sx = sy = params["shaper"]
         fx = fy = params.get("freq", 0.0)
     fx, fy = _q(fx, space.freq_step), _q(fy, space.freq_step)
-    z = _q(params.get("damping", 0.1), 0.005)
+    z = params.get("damping", 0.1)
+    zx, zy = (_q(params.get(f"damping_{ax}", z), 0.005) for ax in "xy")
     method = params.get("freq_limit", "off")
+    accel = _q(params.get("accel", space.accel[0]) if not space.accel_fixed else space.accel[0], space.accel_step)
     return TuneConfig(firmware=space.firmware, shaper_x=sx, shaper_y=sy, freq_x=float(fx), freq_y=float(fy),
-                      damping_x=z, damping_y=z,
+                      damping_x=zx, damping_y=zy,
                       freq_limit_hz=0.0 if method == "off" else _q(params["freq_limit_hz"], 0.5),
                       freq_limit_method="sections" if method == "off" else method,
-                      min_speed_factor=space.min_speed_factor,
-                      accel=_q(params.get("accel", space.accel[0]) if not space.accel_fixed else space.accel[0],
-                               space.accel_step),
-                      extra=dict(extra or {}))
+                      min_speed_factor=space.min_speed_factor, accel=accel,
+                      **trial_axis_caps(space, accel), extra=dict(extra or {}))
 
 
 def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]:
@@ -261,15 +383,17 @@ def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]
     p: dict[str, Any] = {}
     if space.per_axis:
         for ax in ("x", "y"):
-            p[f"shaper_{ax}"] = getattr(config, f"shaper_{ax}")
+            family, extra = family_params(getattr(config, f"shaper_{ax}"), ax)
+            p[f"shaper_{ax}"] = family
+            p.update(extra)
             if p[f"shaper_{ax}"] != "none":
                 p[f"freq_{ax}"] = getattr(config, f"freq_{ax}")
     else:
         p["shaper"] = config.shaper_x
         if config.shaper_x != "none":
             p["freq"] = config.freq_x
-    if config.shaper_x != "none" or config.shaper_y != "none":
-        p["damping"] = config.damping_x
+    for key in _damping_keys(p, space):
+        p[key] = getattr(config, key if key != "damping" else "damping_x")
     p["freq_limit"] = "off" if config.freq_limit_hz <= 0 else config.freq_limit_method
     if config.freq_limit_hz > 0:
         p["freq_limit_hz"] = config.freq_limit_hz
@@ -278,16 +402,22 @@ def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]
     return p
 
 
+def _plain(shapers: tuple[str, ...]) -> tuple[str, ...]:
+    """The shapers without the parametrised families."""
+    return tuple(s for s in shapers if "(" not in s)
+
+
 def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel: int = 6,
                 freq_limits: tuple[float, ...] = (), shapers: tuple[str, ...] | None = None,
                 dampings: tuple[float, ...] | None = None, accels: tuple[float, ...] | None = None) -> list[dict]:
     """A dense Cartesian grid over ``space`` (parameter dicts), for convergence checks.
 
-    Per axis: every shaper × ``n_freq`` frequencies (``none`` once); S on ``n_damping`` levels;
+    Per axis: every shaper × ``n_freq`` frequencies (``none`` once; the parametrised families are
+    left to Optuna); S on ``n_damping`` levels;
     acceleration on ``n_accel`` levels (multiples of ``accel_step``); the frequency limit off plus
     each method at each of ``freq_limits`` Hz. ``dampings`` / ``accels`` give explicit levels instead.
     """
-    shapers = shapers or space.shapers
+    shapers = _plain(shapers or space.shapers)
 
     def axis_options(lo_hi, key_s, key_f):
         opts = []
@@ -320,7 +450,7 @@ def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel
                 for a in accels:
                     p = dict(sh)
                     if z is not None:
-                        p["damping"] = z
+                        p.update(dict.fromkeys(_damping_keys(sh, space), z))
                     p.update(lim)
                     p["accel"] = a
                     out.append(p)

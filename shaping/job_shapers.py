@@ -1,0 +1,178 @@
+"""The job's own shaper commands, applied as the firmware applies them: a timeline of shaper settings.
+
+A job may set input shaping itself: a ringing test print turns it off (``M593 X F0``,
+``SET_INPUT_SHAPER SHAPER_FREQ_X=0``), a tower changes the frequency band by band. Each command
+changes the settings it names, for the moves after it, from the full stop the firmware makes there
+(the reader sets ``stop_before``):
+
+- Klipper ``SET_INPUT_SHAPER``: ``SHAPER_TYPE[_X|_Y]``, ``SHAPER_FREQ_X|Y`` (0 = off),
+  ``DAMPING_RATIO_X|Y``;
+- Marlin ``M593 [X] [Y] F D`` (classic ZV; no axis letter: both; ``F0`` = off); Prusa ``M593 ... T
+  F D`` (``T`` the type index); RepRapFirmware ``M593 P"type" F S`` (one shaper for all axes,
+  ``P"none"`` = off);
+- Marlin FT_MOTION ``M493 [X] [Y] C A I`` (``C`` the mode, 0 = off; ``S0`` turns FT_MOTION off).
+
+:func:`shaper_timeline` folds them into (time s, :class:`TuneConfig`) steps starting from the
+configuration given; :func:`shape_timeline` shapes a motion piece by piece, each piece with the
+shapers in force, the pieces superposed as displacements (shaping is linear), which is what the
+firmware does with each move.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from ringtune.shaping.apply import shape_motion
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.motion import Motion
+from ringtune.shaping.shapers import shapers_from_config
+
+_FTM_MODES = ("none", "zv", "zvd", "zvdd", "zvddd", "ei", "2hump_ei", "3hump_ei", "mzv")
+_PRUSA_TYPES = ("zv", "zvd", "mzv", "ei", "2hump_ei", "3hump_ei", "none")
+_RRF_NAMES = {"ei2": "2hump_ei", "ei3": "3hump_ei"}
+
+
+def _num(v) -> float | None:
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
+
+
+def _set_axis(cfg: dict, ax: str, shaper: str | None, freq: float | None, damping: float | None) -> None:
+    """Apply one axis's change: frequency 0 or shaper ``none`` turns it off."""
+    if freq is not None and freq <= 0 or shaper == "none":
+        cfg[f"shaper_{ax}"] = "none"
+        return
+    if shaper is not None:
+        cfg[f"shaper_{ax}"] = shaper
+    if freq is not None:
+        cfg[f"freq_{ax}"] = freq
+    if damping is not None:
+        cfg[f"damping_{ax}"] = damping
+
+
+def _klipper(cfg: dict, p: dict) -> None:
+    for ax in "xy":
+        kind = p.get(f"SHAPER_TYPE_{ax.upper()}", p.get("SHAPER_TYPE"))
+        _set_axis(cfg, ax, str(kind).lower() if kind is not None else None,
+                  _num(p.get(f"SHAPER_FREQ_{ax.upper()}")), _num(p.get(f"DAMPING_RATIO_{ax.upper()}")))
+
+
+def _axes(p: dict) -> str:
+    named = "".join(ax for ax in "xy" if ax.upper() in p)
+    return named or "xy"
+
+
+def _m593(cfg: dict, p: dict) -> None:
+    if "P" in p:                                     # RepRapFirmware: one shaper for all axes
+        name = str(p["P"]).strip().lower().replace("-", "").replace("_", "")
+        for ax in "xy":
+            _set_axis(cfg, ax, _RRF_NAMES.get(name, name), _num(p.get("F")), _num(p.get("S")))
+        return
+    kind = None
+    if "T" in p and _num(p["T"]) is not None:       # Prusa: T<type index>
+        kind = _PRUSA_TYPES[int(_num(p["T"]))] if 0 <= int(_num(p["T"])) < len(_PRUSA_TYPES) else None
+    for ax in _axes(p):
+        freq = _num(p.get("F"))
+        shaper = kind
+        if shaper is None and freq and cfg.get(f"shaper_{ax}") == "none":
+            shaper = "zv"                            # Marlin classic has ZV only
+        _set_axis(cfg, ax, shaper, freq, _num(p.get("D")))
+
+
+def _m493(cfg: dict, p: dict) -> None:
+    if _num(p.get("S")) == 0:
+        for ax in "xy":
+            _set_axis(cfg, ax, "none", None, None)
+        return
+    if "C" not in p and "A" not in p and "I" not in p:
+        return
+    mode = _num(p.get("C"))
+    kind = _FTM_MODES[int(mode)] if mode is not None and 0 <= int(mode) < len(_FTM_MODES) else None
+    for ax in _axes(p):
+        _set_axis(cfg, ax, kind, _num(p.get("A")), _num(p.get("I")))
+
+
+_APPLY = {"SET_INPUT_SHAPER": _klipper, "M593": _m593, "M493": _m493}
+
+
+def shaper_timeline(events, config: TuneConfig) -> list[tuple[float, TuneConfig]]:
+    """[(from time s, configuration)]: ``config`` from the start, then after each shaper event
+    (planned, so with a ``time``) the configuration its command leaves. A command that leaves the
+    shaping as it was adds no step. Values the firmware would refuse are refused here too (the
+    configuration's own check), naming the event's line."""
+    steps = [(-math.inf, config)]
+    for ev in events:
+        if ev.kind != "shaper" or ev.time is None or ev.command not in _APPLY:
+            continue
+        cur = steps[-1][1]
+        d = {k: getattr(cur, k) for k in ("shaper_x", "shaper_y", "freq_x", "freq_y", "damping_x", "damping_y")}
+        _APPLY[ev.command](d, ev.params)
+        try:
+            nxt = replace(cur, **d)
+        except RingtuneError as exc:
+            raise RingtuneError(f"{ev.command}: {exc.bare}", f"line {ev.line}") from None
+        if nxt != cur:
+            steps.append((float(ev.time), nxt))
+    return steps
+
+
+def config_at(timeline: list[tuple[float, TuneConfig]], t: float) -> TuneConfig:
+    """The configuration in force at time ``t`` (s)."""
+    cfg = timeline[0][1]
+    for t0, c in timeline:
+        if t0 <= t:
+            cfg = c
+    return cfg
+
+
+def describe_timeline(timeline: list[tuple[float, TuneConfig]], events) -> str:
+    """One sentence: how many shaper changes the job makes and the first one."""
+    n = len(timeline) - 1
+    first = next(e for e in events if e.kind == "shaper" and e.time is not None)
+    c = timeline[1][1] if n else timeline[0][1]
+    axes = ", ".join(f"{ax.upper()} " + ("off" if getattr(c, f"shaper_{ax}") == "none" else
+                                          f"{getattr(c, f'shaper_{ax}')} {getattr(c, f'freq_{ax}'):g} Hz")
+                     for ax in "xy")
+    return (f"the job's own shaper commands are applied as the firmware would ({n} change{'s' * (n != 1)}; "
+            f"first at line {first.line}, {first.text or first.command}: {axes})")
+
+
+def shape_timeline(motion: Motion, timeline: list[tuple[float, TuneConfig]]) -> Motion:
+    """``motion`` shaped piece by piece: the moves between two changes with the shapers then in
+    force, the pieces' displacements superposed (module docstring)."""
+    bounds = [motion.start_time] + [t for t, _ in timeline[1:] if motion.start_time < t < motion.end_time]
+    bounds.append(motion.end_time)
+    parts = []
+    for (lo, hi) in zip(bounds[:-1], bounds[1:]):
+        if hi - lo <= 1e-12:
+            continue
+        piece = motion.window(lo, hi)
+        shapers, centred = shapers_from_config(config_at(timeline, 0.5 * (lo + hi)))
+        parts.append(shape_motion(piece, shapers, centred) if any(shapers.values()) else piece)
+    if len(parts) == 1:
+        return parts[0]
+    return _superpose(parts)
+
+
+def _superpose(parts: list[Motion]) -> Motion:
+    """p0 + Σ (part − its start position): one Motion on the union of the parts' breakpoints."""
+    t = np.unique(np.concatenate([m.t for m in parts]))
+    starts, mids = t[:-1], 0.5 * (t[:-1] + t[1:])
+    p = parts[0].start_position + sum(m.position(starts) - m.start_position for m in parts)
+    v = sum(m.velocity(starts) for m in parts)
+    a = sum(m.acceleration(mids) for m in parts)
+    ext = np.zeros(len(starts), bool)
+    move = np.full(len(starts), -1, np.int64)
+    for m in parts:
+        inside = (mids >= m.start_time) & (mids < m.end_time)
+        idx = np.clip(m.segment_index(mids), 0, m.n_segments - 1)
+        ext |= inside & m.extruding[idx]
+        move = np.where(inside & (m.move[idx] >= 0), m.move[idx], move)
+    return Motion(t, p, v, a, ext, move)
