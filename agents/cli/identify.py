@@ -26,7 +26,7 @@ from pathlib import Path
 
 from ringtune.agents.cli import identify_ripples
 from ringtune.agents.cli.common import check_output_folder
-from ringtune.agents.cli.options import VALUES, PerAxis, motor_spec
+from ringtune.agents.cli.options import VALUES, PerAxis, motor_spec, moving_mass
 from ringtune.agents.identify.from_files import identify_from_files, read_facts
 from ringtune.envs.identify import plot_fits
 from ringtune.hardware.klipper_config import printer_facts_from_moonraker
@@ -98,7 +98,7 @@ REST_OF_PRINTER = ("--klipper-config", "--marlin", "--rrf", "--motor", "--mass",
 #: the belt comparison's keys in --json (``belts``)
 BELT_KEYS = ("similarity_pct", "mismatch", "mismatch_error", "stiffness_a_n_m", "stiffness_b_n_m", "matched", "meaning")
 #: per-axis masses, kg (identify takes both axes' weighed masses, or neither)
-MASSES = PerAxis(VALUES["mass"], "mass", bare=False)
+MASSES = PerAxis(moving_mass, "mass", bare=False)
 
 
 
@@ -249,8 +249,10 @@ def _without_accelerometer(args, out) -> int:
     printer then comes from --base."""
     given = [flag for flag in REST_OF_PRINTER if getattr(args, flag[2:].replace("-", "_"))]
     if given:
+        maker = {"--marlin": f"printer from-marlin {args.marlin}", "--rrf": f"printer from-rrf {args.rrf}"}.get(
+            given[0], f"printer from-klipper {args.klipper_config or 'printer.cfg'}")
         raise RingtuneError("goes with accelerometer files; with --ripples/--tower-band give the rest of "
-                            "the printer as --base P (e.g. from `ringtune printer from-klipper`)", given[0])
+                            f"the printer as --base P (e.g. from `ringtune {maker} -o P`)", given[0])
     args.name = args.name or "identified"
     return identify_ripples.run(args, out)
 

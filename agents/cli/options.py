@@ -13,6 +13,8 @@ import math
 from dataclasses import dataclass
 
 from ringtune.envs.motors import lookup_motor, unknown_motor_message
+from ringtune.envs.printer import check_moving_mass
+from ringtune.shaping.errors import RingtuneError
 
 
 @dataclass(frozen=True)
@@ -102,6 +104,15 @@ class PerAxis:
                 raise argparse.ArgumentTypeError(f"{ax.upper()} given twice")
             out[ax] = self.value(v.strip())
         return out
+
+
+def moving_mass(text: str) -> float:
+    """argparse type of a mass that moves on an axis, kg (:func:`check_moving_mass`'s range)."""
+    kg = VALUES["mass"](text)
+    try:
+        return check_moving_mass(kg, "")
+    except RingtuneError as exc:
+        raise argparse.ArgumentTypeError(exc.bare) from None
 
 
 def motor_spec(text: str) -> dict:

@@ -17,7 +17,7 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-from ringtune.agents.cli.common import firmware_name, judgement
+from ringtune.agents.cli.common import firmware_name, judgement, say_unmeasured
 from ringtune.agents.cli.options import VALUES, number_list
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 from ringtune.agents.tune.sweep import (FACTORS, factor_values, offered_shapers, plot_sweep, sweep,
@@ -68,6 +68,7 @@ def run(args: argparse.Namespace, out) -> int:
     else:
         margin = args.freq_margin / 100.0
     printer = resolve_printer(args.printer)
+    say_unmeasured(printer, out)
     quality = f"{args.quality}_mm"
     shapers = offered_shapers(args.firmware, args.shapers.split(",") if args.shapers else None)
     values = factor_values(args.factor, printer, args.values)

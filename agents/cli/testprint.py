@@ -113,8 +113,14 @@ def _material(args, out) -> None:
                  + " (mm, °C; PLA on a 0.4 mm nozzle)")
 
 
+#: Hz: where a ringing tower's bands may lie — printers' X/Y resonances and the shapers that cancel
+#: them (FT_MOTION and Prusa Buddy start at 10 Hz; Klipper's rule tests shaper frequencies up to 150 Hz)
+BAND_RANGE = (10.0, 150.0)
+
+
 def bands(text: str) -> tuple[float, float, int]:
-    """argparse type of --bands ``F0:F1:N`` -> (F0 Hz, F1 Hz, N bands)."""
+    """argparse type of --bands ``F0:F1:N`` -> (F0 Hz, F1 Hz, N bands), the bands within
+    :data:`BAND_RANGE`."""
     parts = text.split(":")
     try:
         f0, f1, n = float(parts[0]), float(parts[1]), int(parts[2])
@@ -122,6 +128,11 @@ def bands(text: str) -> tuple[float, float, int]:
             raise ValueError
     except (ValueError, IndexError):
         raise argparse.ArgumentTypeError(f"expected F0:F1:N (Hz, Hz, bands), not {text!r}") from None
+    for f in (f0, f1):
+        if not BAND_RANGE[0] <= f <= BAND_RANGE[1]:
+            raise argparse.ArgumentTypeError(
+                f"a band at {f:g} Hz is outside {BAND_RANGE[0]:g}-{BAND_RANGE[1]:g} Hz, where printers resonate "
+                "and shapers are tuned (FT_MOTION and Prusa start at 10 Hz, Klipper's rule tests up to 150 Hz)")
     return f0, f1, n
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 from ringtune.agents.identify.accelerometer import Measurement, klipper_record, read_measurement
 from ringtune.agents.identify.belts import BeltComparison, belts_into_description
 from ringtune.agents.identify.description import AddedMass, Description, build_description, description_toml, printer_name
+from ringtune.agents.identify.model_check import pick_warnings
 from ringtune.envs.printer import printer_from_dict
 from ringtune.hardware.klipper_config import printer_facts_from_klipper
 from ringtune.hardware.marlin_config import printer_facts_from_marlin
@@ -83,7 +84,7 @@ def identify_from_files(files: list, *, configs: dict | None = None, axis: str |
                              measurement=_measurement(meas, loaded, added, klipper))
     header = ["Printer description written by `ringtune identify` from "
               + ", ".join(Path(f).name for f in [*files, *loaded_files])]
-    compared = _checked(desc, header, belts)
+    compared = _checked(desc, header, belts, (klipper, meas, warnings))
     return Identified(meas, loaded.fits if loaded else [], added, klipper, scv, desc,
                       description_toml(desc, header), warnings, compared)
 
@@ -139,15 +140,20 @@ def _measurement(meas: Measurement, loaded: Measurement | None, added: dict, kli
     return out
 
 
-def _checked(desc: Description, header: list[str], belts: list | None) -> BeltComparison | None:
+def _checked(desc: Description, header: list[str], belts: list | None, pick: tuple) -> BeltComparison | None:
     """Load the description (it must: checked before anything is written), write the belt
-    comparison into it (``belts``: the two diagonal tests) and add to its defaults what a named
-    motor's drive still assumes; the belt comparison, or None."""
+    comparison into it (``belts``: the two diagonal tests), warn where the model does not give
+    back the files' Klipper pick (``pick``: the pick, the measurement, the warnings to add to) and
+    add to its defaults what a named motor's drive still assumes; the belt comparison, or None."""
     printer = _loaded(desc, header)
     compared = None
     if belts:
         compared = belts_into_description(desc, printer, belts)
         printer = _loaded(desc, header)
+    klipper, meas, warnings = pick
+    for w in pick_warnings(printer, klipper, meas.psds, meas.by_axis()):   # does the model give back the pick?
+        warnings.append(w)
+        desc.comment("measurement", w)
     for ax in ("x", "y"):
         for sentence in printer.motor_for(ax).assumed:
             said = f"motor: {sentence}"
