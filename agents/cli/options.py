@@ -31,12 +31,14 @@ class Value:
     integer: bool = False
 
     def range_text(self) -> str:
-        """The range in words: ``> 0 Hz``, ``in [0, 1)``, ``1 to 5``."""
+        """The range in words: ``> 0 Hz``, ``in [0, 1)``, ``1 to 5``, ``between 0 and 100 kg``."""
         unit = f" {self.unit}" if self.unit else ""
         if self.high is None:
             return f"{'≥' if self.low_closed else '>'} {self.low:g}{unit}"
         if self.low_closed and self.high_closed:
             return f"{self.low:g} to {self.high:g}{unit}"
+        if not (self.low_closed or self.high_closed):
+            return f"between {self.low:g} and {self.high:g}{unit}"
         return (f"in {'[' if self.low_closed else '('}{self.low:g}, {self.high:g}"
                 f"{']' if self.high_closed else ')'}{unit}")
 
@@ -125,7 +127,10 @@ def motor_spec(text: str) -> dict:
     if lookup_motor(spec["name"]) is None:
         raise argparse.ArgumentTypeError(unknown_motor_message(spec["name"]))
     for key, value, v in zip(("run_current", "voltage"), (VALUES["current"], VALUES["voltage"]), parts[1:]):
-        spec[key] = value(v)
+        try:
+            spec[key] = value(v)
+        except argparse.ArgumentTypeError as exc:
+            raise argparse.ArgumentTypeError(f"{key}: {exc}") from None
     return spec
 
 
