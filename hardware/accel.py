@@ -156,63 +156,75 @@ def read_resonances_csv(path: str | Path) -> PSD | list[PSD]:
 
 
 def _parse_resonances(path: Path, lines: list[str]) -> PSD | list[PSD]:
+    hi, cols, shaper_names, has_gap = _resonance_header(path, lines)
+    n_psd = len(cols)
+    rows = _resonance_rows(path, lines, hi, n_psd, has_gap, 1 + n_psd + (1 if has_gap else 0) + len(shaper_names))
+    data = np.asarray(rows, dtype=float)
+    freqs = data[:, 0]
+    shapers = {name: data[:, 1 + n_psd + j] for j, name in enumerate(shaper_names)}
+    normalized = bool(shaper_names)
+    if [c.lower() for c in cols] == ["psd_x", "psd_y", "psd_z", "psd_xyz"]:
+        return PSD(freqs, data[:, 1], data[:, 2], data[:, 3], data[:, 4], str(path),
+                   axis_from_file_name(path) or "", normalized, shapers)
+    return [PSD(freqs, None, None, None, data[:, 1 + j].copy(), str(path), name, normalized, shapers)
+            for j, name in enumerate(cols)]
+
+
+def _resonance_header(path: Path, lines: list[str]) -> tuple[int, list[str], list[str], bool]:
+    """(header line index, PSD columns, shaper columns, whether an empty column and ``shapers:``
+    separate them) of a Klipper resonance CSV; old Klipper puts ``name(freq)`` shaper columns
+    straight after the PSD columns."""
     hi = _first_content(lines)
-    header = next(csv.reader([lines[hi].strip()]))
-    header = [h.strip() for h in header]
+    header = [h.strip() for h in next(csv.reader([lines[hi].strip()]))]
     where_h = f"{path}:{hi + 1}"
     if header[0].lower() != "freq":
         raise RingtuneError("first header column must be 'freq'", where_h)
     cols = header[1:]
     shaper_names: list[str] = []
-    has_gap = False
-    if "shapers:" in cols:
+    has_gap = "shapers:" in cols
+    if has_gap:
         k = cols.index("shapers:")
-        shaper_names = [c for c in cols[k + 1:]]
+        shaper_names = list(cols[k + 1:])
         cols = cols[:k]
-        has_gap = True
     else:
-        # old Klipper: shaper columns 'name(freq)' straight after the PSD columns
         while cols and _SHAPER_COL.match(cols[-1]) and cols[-1].lower() not in ("psd_xyz",):
             shaper_names.insert(0, cols.pop())
     if not cols:
         raise RingtuneError("no PSD columns after 'freq'", where_h)
-    single = [c.lower() for c in cols] == ["psd_x", "psd_y", "psd_z", "psd_xyz"]
-    n_psd = len(cols)
-    n_expected = 1 + n_psd + (1 if has_gap else 0) + len(shaper_names)
+    return hi, cols, shaper_names, has_gap
 
+
+def _resonance_rows(path: Path, lines: list[str], hi: int, n_psd: int, has_gap: bool, n_expected: int) -> list:
+    """The data rows after the header line ``hi`` as finite floats: ``n_expected`` fields each (the
+    empty separator column dropped), PSDs ≥ 0, frequencies rising, at least two rows."""
     rows = []
     for i in range(hi + 1, len(lines)):
         s = lines[i].strip()
         if not s or s.startswith("#"):
             continue
-        parts = s.split(",")
         where = f"{path}:{i + 1}"
-        if len(parts) != n_expected:
-            raise RingtuneError(f"expected {n_expected} comma-separated values as the header says, "
-                                f"found {len(parts)}", where)
-        if has_gap:
-            if parts[1 + n_psd].strip():
-                raise RingtuneError(f"column {n_psd + 2} before the shaper block must be empty",
-                                    where)
-            del parts[1 + n_psd]
-        vals = _finite_floats(parts, where)
-        if any(v < 0 for v in vals[1:1 + n_psd]):
-            raise RingtuneError("negative power spectral density", where)
+        vals = _resonance_row(s.split(","), n_psd, has_gap, n_expected, where)
         if rows and vals[0] <= rows[-1][0]:
-            raise RingtuneError(f"frequencies must increase ({vals[0]:g} after {rows[-1][0]:g} Hz)",
-                                where)
+            raise RingtuneError(f"frequencies must increase ({vals[0]:g} after {rows[-1][0]:g} Hz)", where)
         rows.append(vals)
     if len(rows) < 2:
         raise RingtuneError("fewer than two frequency rows", str(path))
-    data = np.asarray(rows, dtype=float)
-    freqs = data[:, 0]
-    shapers = {name: data[:, 1 + n_psd + j] for j, name in enumerate(shaper_names)}
-    normalized = bool(shaper_names)
-    if single:
-        return PSD(freqs, data[:, 1], data[:, 2], data[:, 3], data[:, 4], str(path),
-                   axis_from_file_name(path) or "", normalized, shapers)
-    return [PSD(freqs, None, None, None, data[:, 1 + j].copy(), str(path), name, normalized, shapers)
-            for j, name in enumerate(cols)]
+    return rows
+
+
+def _resonance_row(parts: list[str], n_psd: int, has_gap: bool, n_expected: int, where: str) -> list[float]:
+    """One data row's values (the separator column, which must be empty, dropped); PSDs ≥ 0."""
+    if len(parts) != n_expected:
+        raise RingtuneError(f"expected {n_expected} comma-separated values as the header says, "
+                            f"found {len(parts)}", where)
+    if has_gap:
+        if parts[1 + n_psd].strip():
+            raise RingtuneError(f"column {n_psd + 2} before the shaper block must be empty", where)
+        del parts[1 + n_psd]
+    vals = _finite_floats(parts, where)
+    if any(v < 0 for v in vals[1:1 + n_psd]):
+        raise RingtuneError("negative power spectral density", where)
+    return vals
 
 
 def _finite_floats(parts: list[str], where: str) -> list[float]:

@@ -43,6 +43,11 @@ from ringtune.shaping.gcode_commands import num as _num
 
 
 _WORD = re.compile(r"([A-Za-z])\s*([^A-Za-z\s]*)")
+#: commands whose argument is free text (a message, a file name)
+TEXT_COMMANDS = ("M117", "M118", "M23", "M28", "M30", "M32")
+#: commands that only set the reader's modes: command -> {attribute: value}
+MODE_COMMANDS = {"G20": {"unit": 25.4}, "G21": {"unit": 1.0}, "G90": {"abs_xyz": True, "abs_e": True},
+                 "G91": {"abs_xyz": False, "abs_e": False}, "M82": {"abs_e": True}, "M83": {"abs_e": False}}
 _CLASSIC = re.compile(r"^([GMTgmt])\s*(\d+(?:\.\d+)?)")
 _QUOTED = re.compile(r'([A-Za-z])\s*"([^"]*)"')     # RepRapFirmware string parameters: P"mzv"
 _FEATURE = re.compile(r"^\s*(?:TYPE|FEATURE)\s*:\s*(.+?)\s*$|^\s*feature\s+(.+?)\s*$", re.IGNORECASE)
@@ -273,56 +278,61 @@ class _Reader(SettingCommands):
         self.events.append(Event(kind, command, params, lineno, self.n_done + len(self.m_line), text))
 
     def _command(self, code: str, lineno: int) -> None:
-        where = self._where(lineno)
         m = _CLASSIC.match(code)
         if m is None or (len(code) > m.end() and code[m.end()] == "_"):
             return self._extended(code, lineno)
         cmd = m.group(1).upper() + m.group(2)
         rest = code[m.end():]
-        if cmd in ("M117", "M118", "M23", "M28", "M30", "M32"):      # free-text arguments
+        if cmd in TEXT_COMMANDS:
             self._event("other", cmd, {"text": rest.strip()}, lineno, code)
             return
         words = self._words(rest, lineno)
         if cmd in ("G0", "G1"):
             self._fast_move(rest, lineno)
-        elif cmd in ("G2", "G3"):
-            self._arc(cmd == "G2", _finite(words, where), lineno)
-        elif cmd == "G4":
-            t = words.get("P", 0.0) / 1000.0 + words.get("S", 0.0)
-            if not t >= 0 or not math.isfinite(t):
-                raise RingtuneError("dwell time must be >= 0", where)
-            self.dwell += t
-            self.stop = True
-            self._event("dwell", cmd, {"seconds": t}, lineno, code)
-        elif cmd in ("G20", "G21"):
-            self.unit = 25.4 if cmd == "G20" else 1.0
-        elif cmd == "G90":
-            self.abs_xyz = True
-            self.abs_e = True
-        elif cmd == "G91":
-            self.abs_xyz = False
-            self.abs_e = False
-        elif cmd == "M82":
-            self.abs_e = True
-        elif cmd == "M83":
-            self.abs_e = False
-        elif cmd == "G92":
-            if not words:
-                words = {a: 0.0 for a in AXES}
-            for i, ax in enumerate(AXES):
-                if ax in words:
-                    v = 0.0 if math.isnan(words[ax]) else words[ax] * self.unit
-                    self.offset[i] = self.pos[i] - v
-        elif cmd == "G28":
-            named = [i for i, ax in enumerate("XYZ") if ax in words]
-            self.pos = list(self.pos)
-            for i in named or (0, 1, 2):
-                self.pos[i] = 0.0
-                self.offset[i] = 0.0
-            self.stop = True
-            self._event("other", cmd, words, lineno, code)
-        elif cmd in LIMIT_COMMANDS:
-            self._limits(cmd, words, where)
+        elif cmd in MODE_COMMANDS:
+            for attr, value in MODE_COMMANDS[cmd].items():
+                setattr(self, attr, value)
+        elif cmd in self._HANDLERS:
+            self._HANDLERS[cmd](self, cmd, words, lineno, code)
+        else:
+            self._other(cmd, words, lineno, code)
+
+    def _arc_command(self, cmd: str, words: dict, lineno: int, code: str) -> None:
+        self._arc(cmd == "G2", _finite(words, self._where(lineno)), lineno)
+
+    def _dwell(self, cmd: str, words: dict, lineno: int, code: str) -> None:
+        """G4 P<ms> S<s>: a pause (the planner stops there)."""
+        t = words.get("P", 0.0) / 1000.0 + words.get("S", 0.0)
+        if not t >= 0 or not math.isfinite(t):
+            raise RingtuneError("dwell time must be >= 0", self._where(lineno))
+        self.dwell += t
+        self.stop = True
+        self._event("dwell", cmd, {"seconds": t}, lineno, code)
+
+    def _set_position(self, cmd: str, words: dict, lineno: int, code: str) -> None:
+        """G92: the named axes (all without words) read the given value (NaN: 0) from here on."""
+        if not words:
+            words = {a: 0.0 for a in AXES}
+        for i, ax in enumerate(AXES):
+            if ax in words:
+                v = 0.0 if math.isnan(words[ax]) else words[ax] * self.unit
+                self.offset[i] = self.pos[i] - v
+
+    def _home(self, cmd: str, words: dict, lineno: int, code: str) -> None:
+        """G28: the named axes (all without words) to 0, offsets cleared; the planner stops."""
+        named = [i for i, ax in enumerate("XYZ") if ax in words]
+        self.pos = list(self.pos)
+        for i in named or (0, 1, 2):
+            self.pos[i] = 0.0
+            self.offset[i] = 0.0
+        self.stop = True
+        self._event("other", cmd, words, lineno, code)
+
+    def _other(self, cmd: str, words: dict, lineno: int, code: str) -> None:
+        """Limit commands (applied and recorded), shaper commands, and the rest (recorded; some stop
+        the planner)."""
+        if cmd in LIMIT_COMMANDS:
+            self._limits(cmd, words, self._where(lineno))
             self._event("limits", cmd, words, lineno, code)
         elif cmd in SHAPER_COMMANDS:
             self.stop = True
@@ -331,6 +341,9 @@ class _Reader(SettingCommands):
             if cmd in STOP_COMMANDS:
                 self.stop = True
             self._event("other", cmd, words, lineno, code)
+
+    #: classic commands with their own handler (moves, modes and the rest aside)
+    _HANDLERS = {"G2": _arc_command, "G3": _arc_command, "G4": _dwell, "G92": _set_position, "G28": _home}
 
     def _arc(self, clockwise: bool, w: dict[str, float], lineno: int) -> None:
         where = self._where(lineno)

@@ -31,55 +31,61 @@ def num(value: str, letter: str, where: str) -> float:
     return x
 
 
+def _non_negative(cmd: str, w: dict[str, float], letter: str, where: str) -> float | None:
+    """Word ``letter`` of a limit command (None when absent or without a value); negative refused."""
+    if letter not in w or math.isnan(w[letter]):
+        return None
+    if w[letter] < 0:
+        raise RingtuneError(f"{cmd} {letter}{w[letter]:g} must be >= 0", where)
+    return w[letter]
+
+
+def _per_axis(prefix: str) -> tuple:
+    return tuple((ax, f"{prefix}_{ax.lower()}", None) for ax in AXES)
+
+
+#: Marlin limit commands whose words each set one setting: command -> ((letter, setting, clamp or
+#: None), …), in the order they are set; M201 F is Marlin's XY_FREQUENCY_LIMIT (at most 100 Hz)
+WORD_SETTINGS = {
+    "M201": (*_per_axis("max_accel"), ("F", "freq_limit_hz", lambda v: min(v, 100.0))),
+    "M203": _per_axis("max_vel"),
+    "M205": (*_per_axis("jerk"), ("J", "junction_deviation", None)),
+}
+
+
 class SettingCommands:
     """Mixin: needs ``_where``, ``_set``, ``_event``, ``speed_factor``, ``stop`` and ``tower*``
     attributes of the reader."""
 
     def _limits(self, cmd: str, w: dict[str, float], where: str) -> None:
         def pos(letter: str) -> float | None:
-            if letter not in w or math.isnan(w[letter]):
-                return None
-            if w[letter] < 0:
-                raise RingtuneError(f"{cmd} {letter}{w[letter]:g} must be >= 0", where)
-            return w[letter]
+            return _non_negative(cmd, w, letter, where)
 
+        for letter, key, clamp in WORD_SETTINGS.get(cmd, ()):
+            if (v := pos(letter)) is not None:
+                self._set(key, clamp(v) if clamp else v)
         if cmd == "M201":
-            for ax in AXES:
-                if (v := pos(ax)) is not None:
-                    self._set(f"max_accel_{ax.lower()}", v)
-            if (v := pos("F")) is not None:
-                self._set("freq_limit_hz", min(v, 100.0))
             s = pos("S") if "S" in w else pos("G")
             if s is not None:
                 self._set("freq_limit_min_factor", min(max(s, 1.0), 100.0) / 100.0)
-        elif cmd == "M203":
-            for ax in AXES:
-                if (v := pos(ax)) is not None:
-                    self._set(f"max_vel_{ax.lower()}", v)
         elif cmd == "M204":
-            s, p, t, r = pos("S"), pos("P"), pos("T"), pos("R")
-            if s is not None:
-                for k in ("accel_print", "accel_travel", "accel_klipper"):
-                    self._set(k, s)
-            if p is not None:
-                self._set("accel_print", p)
-            if t is not None:
-                self._set("accel_travel", t)
-            if r is not None:
-                self._set("accel_retract", r)
-            if s is None and (p is not None or t is not None):
-                self._set("accel_klipper", min(x for x in (p, t) if x is not None))
-        elif cmd == "M205":
-            for ax in AXES:
-                if (v := pos(ax)) is not None:
-                    self._set(f"jerk_{ax.lower()}", v)
-            if (v := pos("J")) is not None:
-                self._set("junction_deviation", v)
-        elif cmd == "M220":
-            if (v := pos("S")) is not None:
-                if v == 0:
-                    raise RingtuneError("M220 S0 would stop every move", where)
-                self.speed_factor = v / 100.0
+            self._m204(pos("S"), pos("P"), pos("T"), pos("R"))
+        elif cmd == "M220" and (v := pos("S")) is not None:
+            if v == 0:
+                raise RingtuneError("M220 S0 would stop every move", where)
+            self.speed_factor = v / 100.0
+
+    def _m204(self, s, p, t, r) -> None:
+        """M204 S (print, travel and Klipper's one acceleration), P (print), T (travel), R (retract);
+        without S, Klipper's acceleration is the lower of P and T."""
+        if s is not None:
+            for k in ("accel_print", "accel_travel", "accel_klipper"):
+                self._set(k, s)
+        for key, v in (("accel_print", p), ("accel_travel", t), ("accel_retract", r)):
+            if v is not None:
+                self._set(key, v)
+        if s is None and (p is not None or t is not None):
+            self._set("accel_klipper", min(x for x in (p, t) if x is not None))
 
     def _extended(self, code: str, lineno: int) -> None:
         where = self._where(lineno)

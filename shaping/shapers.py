@@ -322,6 +322,23 @@ def get_shaper(name: str, freq: float, damping: float | None = None, flavor: str
     func, allowed, zmax = _entry(base, flavor, where)
     freq, z = _checked_freq_damping(freq, DEFAULT_DAMPING[flavor] if damping is None else damping, zmax,
                                     f"{base!r} ({flavor})", where)
+    params = _parameters(base, params, allowed, flavor, where)
+    if base in KALICO_SMOOTHERS:
+        return _smoother(base, freq, z, flavor)
+    if base == "custom":
+        a, times = rrf_custom(params.get("h", h), params.get("t", t), freq, z,
+                              semantics="3.6" if flavor == "rrf" else "3.5", where=where, step_clocks=flavor == "rrf")
+    else:
+        a, times = _formula(func, freq, z, params, where)
+    a, times = _checked_impulses(name, flavor, freq, a, times, where)
+    centre = ftm_centre(a, times) if flavor == "marlin-ftm" else None
+    label = name.strip().lower() if params else base
+    return Shaper(label, flavor, freq, z, a, times, centre)
+
+
+def _parameters(base: str, params: dict, allowed: tuple, flavor: str, where: str) -> dict:
+    """The shaper's parameters by name (positional ones in ``allowed``'s order); one it does not
+    take is refused."""
     positional = params.pop("_positional", None)
     if positional:
         if len(positional) > len(allowed):
@@ -332,20 +349,22 @@ def get_shaper(name: str, freq: float, damping: float | None = None, flavor: str
     if unknown:
         raise RingtuneError(f"{base!r} in {flavor} takes no parameter {', '.join(sorted(unknown))}"
                             + (f" (accepted: {', '.join(allowed)})" if allowed else ""), where)
-    if base in KALICO_SMOOTHERS:
-        return _smoother(base, freq, z, flavor)
-    if base == "custom":
-        h = params.get("h", h)
-        t = params.get("t", t)
-        a, times = rrf_custom(h, t, freq, z, semantics="3.6" if flavor == "rrf" else "3.5", where=where,
-                              step_clocks=flavor == "rrf")
-    else:
-        if "v_tol" in params and not 0 < params["v_tol"] < 1:
-            raise RingtuneError(f"v_tol must be in (0, 1), not {params['v_tol']}", where)
-        try:
-            a, times = func(freq, z, **params)
-        except RingtuneError as exc:
-            raise RingtuneError(exc.bare, where) from None
+    return params
+
+
+def _formula(func, freq: float, z: float, params: dict, where: str):
+    """(amplitudes, times) of a formula shaper; its errors named at ``where``."""
+    if "v_tol" in params and not 0 < params["v_tol"] < 1:
+        raise RingtuneError(f"v_tol must be in (0, 1), not {params['v_tol']}", where)
+    try:
+        return func(freq, z, **params)
+    except RingtuneError as exc:
+        raise RingtuneError(exc.bare, where) from None
+
+
+def _checked_impulses(name: str, flavor: str, freq: float, a, times, where: str):
+    """Read-only arrays of the impulses, refused when two coincide (the flavour's time quantisation)
+    or there are more than the firmware takes."""
     a = np.asarray(a, float)
     times = np.asarray(times, float)
     if len(times) > 1 and np.any(np.diff(times) <= 0):
@@ -356,9 +375,7 @@ def get_shaper(name: str, freq: float, damping: float | None = None, flavor: str
         raise RingtuneError(f"{name!r} has {len(a)} impulses; {flavor} allows at most {limit}", where)
     a.setflags(write=False)
     times.setflags(write=False)
-    centre = ftm_centre(a, times) if flavor == "marlin-ftm" else None
-    label = name.strip().lower() if params else base
-    return Shaper(label, flavor, freq, z, a, times, centre)
+    return a, times
 
 
 def shapers_from_config(config) -> tuple[dict[str, Shaper | None], bool]:

@@ -216,9 +216,10 @@ def test_bad_ripple_input_is_a_one_line_error(argv, where, capsys):
 def test_trace_of_a_long_job_is_its_quality_windows(tmp_path, monkeypatch, capsys):
     """A job longer than the whole-job limit is traced over the windows the metrics judged: the
     rows carry their window number and the nozzle stays near the commanded path."""
+    from ringtune.agents.cli import trace_option
     from ringtune.envs import trace
 
-    monkeypatch.setattr(trace, "WHOLE_JOB_MAX_S", 0.5)
+    monkeypatch.setattr(trace_option, "WHOLE_JOB_MAX_S", 0.5)      # where the command reads it
     out = tmp_path / "t.csv"
     assert main(["simulate", "--backend", "lti", "--trace", str(out)]) == 0
     assert "quality windows" in capsys.readouterr().err

@@ -22,6 +22,7 @@ def test_every_listed_command_is_implemented():
         _, module = cli.build_parser(name)
         assert module.__name__ == f"ringtune.agents.cli.{name}" and module.NAME == name
         assert callable(module.add_arguments) and callable(module.run)
+        assert not hasattr(module, "HELP"), f"{name}: the one-line help lives in main.COMMANDS only"
 
 
 def _imported_after(argv: list[str], *, block: tuple[str, ...] = ()) -> tuple[int, set[str], str]:

@@ -170,7 +170,7 @@ TRAIN_JSON_KEYS = {"out_dir", "timesteps", "wall_s", "resumed_from", "eval_times
 def test_train_cli_json_keys_and_hpo_hands_its_best_to_training(tmp_path, monkeypatch, capsys):
     """`ringtune train --hpo --json`: the documented keys; the hyperparameters Optuna found are the
     ones the final training uses; --hpo with --resume is one clear line."""
-    from ringtune.agents.ppo import hpo as ppo_hpo
+    from ringtune.agents.cli import train as train_cmd
     from ringtune.agents.cli.main import main
 
     seen = {}
@@ -185,7 +185,7 @@ def test_train_cli_json_keys_and_hpo_hands_its_best_to_training(tmp_path, monkey
         seen["train"] = kw
         return ppo.TrainResult(tmp_path / "pol", timesteps, 0.1)
 
-    monkeypatch.setattr(ppo_hpo, "tune_hyperparameters", fake_hpo)
+    monkeypatch.setattr(train_cmd, "tune_hyperparameters", fake_hpo)     # as the command calls it
     monkeypatch.setattr(ppo, "train", fake_train)
     out = tmp_path / "pol"
     assert main(["train", "--json", "--hpo", "--hpo-trials", "3", "--timesteps", "2000", "--envs", "2",

@@ -96,32 +96,45 @@ def run(args, out) -> int:
         slicer = slicer_profile(cfg, args.slicer, exp.firmware) if args.slicer else None
     except RingtuneError as exc:   # name the file the user gave, not the abstract "config"
         raise exc.relocated("config", args.config) from None
-    if args.part == "slicer" and slicer is None:
-        raise RingtuneError("give --slicer prusaslicer|orcaslicer|cura for the slicer part", "--part")
-    if args.part == "config" and exp.config_text is None:
-        raise RingtuneError(f"{exp.record.title} has no config-file part: its settings are saved from "
-                            f"G-code ({' '.join(exp.save_lines) or 'not at all'}); use --part commands",
-                            "--part")
-    parts = {"commands": exp.render_commands(), "config": exp.render_config(),
-             "slicer": slicer.render() if slicer else None}
-    target = "printer.cfg" if exp.config_target == "printer.cfg" else "config.g"
-    names = {"commands": None, "config": target,
-             "slicer": f"{args.slicer}.{slicer.extension}" if slicer else None}
-    wanted = [args.part] if args.part else [k for k in PARTS if parts[k] is not None]
-    files = []
-    if args.output:
-        for k in wanted:
-            path = Path(args.output) if (k == "commands" or args.part) else _sibling(args.output, names[k])
-            path.write_text(parts[k])
-            files.append(str(path))
-        text = "\n".join(f"wrote {f}" for f in files)
-    elif len(wanted) == 1:
-        text = parts[wanted[0]].rstrip("\n")
-    else:
-        text = "\n".join(parts[k] for k in wanted).rstrip("\n")
+    parts = _parts(exp, slicer, args)
+    files = _write(parts, args) if args.output else []
     out.emit({"firmware": exp.firmware, "lines": exp.lines, "save_lines": exp.save_lines,
               "config_text": exp.config_text, "config_target": exp.config_target,
               "readback": exp.readback, "expected": exp.expected, "notes": exp.notes,
               "slicer": slicer.to_dict() if slicer else None,
-              "output": files[0] if files else None, "files": files}, text)
+              "output": files[0] if files else None, "files": files},
+             "\n".join(f"wrote {f}" for f in files) if files else "\n".join(t for t, _ in parts.values()).rstrip("\n"))
     return 0
+
+
+def _parts(exp, slicer, args) -> dict[str, tuple[str, str | None]]:
+    """{part: (text, the name it takes beside -o)} of the parts asked for (--part), else of every
+    part there is."""
+    _check_part(exp, slicer, args.part)
+    parts = {"commands": (exp.render_commands(), None),
+             "config": (exp.render_config(), "printer.cfg" if exp.config_target == "printer.cfg" else "config.g"),
+             "slicer": (slicer.render(), f"{args.slicer}.{slicer.extension}") if slicer else (None, None)}
+    wanted = [args.part] if args.part else [k for k in PARTS if parts[k][0] is not None]
+    return {k: parts[k] for k in wanted}
+
+
+def _check_part(exp, slicer, part: str | None) -> None:
+    """A part asked for must exist: the slicer part needs --slicer, the config part a firmware with a
+    config file."""
+    if part == "slicer" and slicer is None:
+        raise RingtuneError("give --slicer prusaslicer|orcaslicer|cura for the slicer part", "--part")
+    if part == "config" and exp.config_text is None:
+        raise RingtuneError(f"{exp.record.title} has no config-file part: its settings are saved from "
+                            f"G-code ({' '.join(exp.save_lines) or 'not at all'}); use --part commands",
+                            "--part")
+
+
+def _write(parts: dict, args) -> list[str]:
+    """Write the commands to -o and the other parts beside it (a single --part goes to -o itself);
+    the files written."""
+    files = []
+    for k, (text, name) in parts.items():
+        path = Path(args.output) if (k == "commands" or args.part) else _sibling(args.output, name)
+        path.write_text(text)
+        files.append(str(path))
+    return files

@@ -41,7 +41,6 @@ from ringtune.envs.printer import load_printer
 from ringtune.shaping.errors import RingtuneError
 
 NAME = "graph"
-HELP = "Klipper-style graphs: shapers over the spectrum, CoreXY belts, vibration against speed (PNG + --json)"
 DESCRIPTION = """\
 The graphs Klipper users read, from the same files, with ringtune's own numbers beside them.
 

@@ -22,22 +22,15 @@ from __future__ import annotations
 
 import argparse
 import os
-import tomllib
 from pathlib import Path
 
 from ringtune.agents.cli import identify_ripples
 from ringtune.agents.cli.common import check_output_folder
-from ringtune.agents.identify.accelerometer import klipper_record, read_measurement
-from ringtune.agents.identify.belts import belts_into_description
-from ringtune.agents.identify.description import AddedMass, build_description, description_toml, printer_name
-from ringtune.agents.identify.model_check import pick_warnings
+from ringtune.agents.cli.options import VALUES, PerAxis, motor_spec, moving_mass
+from ringtune.agents.identify.from_files import identify_from_files, read_facts
 from ringtune.envs.identify import plot_fits
-from ringtune.envs.motors import lookup_motor, unknown_motor_message
-from ringtune.envs.printer import check_moving_mass, printer_from_dict
-from ringtune.hardware.klipper_config import printer_facts_from_klipper, printer_facts_from_moonraker
-from ringtune.hardware.marlin_config import printer_facts_from_marlin
+from ringtune.hardware.klipper_config import printer_facts_from_moonraker
 from ringtune.hardware.moonraker_files import fetch_printer_files
-from ringtune.hardware.rrf_config import printer_facts_from_rrf
 from ringtune.shaping.errors import RingtuneError
 
 NAME = "identify"
@@ -100,14 +93,23 @@ Without an accelerometer (prints from `ringtune testprint ringing`):
 PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
 
 
+#: the options that describe the rest of the printer (they go with accelerometer files)
+REST_OF_PRINTER = ("--klipper-config", "--marlin", "--rrf", "--motor", "--mass", "--belts", "--added-mass")
+#: the belt comparison's keys in --json (``belts``)
+BELT_KEYS = ("similarity_pct", "mismatch", "mismatch_error", "stiffness_a_n_m", "stiffness_b_n_m", "matched", "meaning")
+#: per-axis masses, kg (identify takes both axes' weighed masses, or neither)
+MASSES = PerAxis(moving_mass, "mass", bare=False)
+
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("files", nargs="*", metavar="ACCEL.csv", help="accelerometer files (any supported format)")
     p.add_argument("-o", "--output", metavar="printer.toml", help="write the printer description here")
     p.add_argument("--plot", metavar="out.png", help="plot measured against fitted spectra / decays")
     p.add_argument("--axis", choices=("x", "y"), help="axis of every file (default: from the file name)")
-    p.add_argument("--max-modes", type=int, default=3, help="modes per axis at most (default 3)")
-    p.add_argument("--fmin", type=float, default=5.0, help="lowest frequency fitted, Hz (default 5)")
-    p.add_argument("--fmax", type=float, default=135.0, help="highest frequency fitted, Hz (default 135, "
+    p.add_argument("--max-modes", type=VALUES["modes"], default=3, help="modes per axis at most (default 3)")
+    p.add_argument("--fmin", type=VALUES["hz_from_0"], default=5.0, help="lowest frequency fitted, Hz (default 5)")
+    p.add_argument("--fmax", type=VALUES["freq"], default=135.0, help="highest frequency fitted, Hz (default 135, "
                    "the end of Klipper's default sweep)")
     p.add_argument("--damping-method", choices=("fit", "half-power"), default="fit",
                    help="damping from the curve fit (default) or each peak's half-power width")
@@ -126,67 +128,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "-o, else the working folder)")
     g.add_argument("--kinematics", choices=("cartesian", "corexy", "corexz"),
                    help="kinematics, when no configuration gives it (default cartesian, said aloud)")
-    g.add_argument("--motor", metavar="NAME[:A[:V]]", help="motor name, run current (A RMS) and driver voltage "
+    g.add_argument("--motor", type=PerAxis(motor_spec, "motor"), metavar="NAME[:A[:V]]", help="motor name, run current (A RMS) and driver voltage "
                    "(V) of every axis, or per axis X=NAME:A:V,Y=...")
-    g.add_argument("--mass", metavar="X=KG,Y=KG", help="weighed moving masses, kg (on a bed slinger Y is the bed)")
+    g.add_argument("--mass", type=MASSES, metavar="X=KG,Y=KG", help="weighed moving masses, kg (on a bed slinger Y is the bed)")
     g.add_argument("--belts", nargs=2, metavar="DIAGONAL.csv", help="CoreXY: the TEST_RESONANCES AXIS=1,1 and "
                    "AXIS=1,-1 files; the two belts' stiffness difference goes into [belts] (see `ringtune graph belts`)")
     g.add_argument("--added-mass", nargs="+", metavar="KG LOADED.csv",
                    help="added-mass method: KG (or X=KG,Y=KG) fixed to the toolhead (X; Y on a CoreXY) or the "
                    "bed (Y on a bed slinger), then the resonance files measured with it")
     identify_ripples.add_arguments(p)
-
-
-# -- option parsing ---------------------------------------------------------------------------------
-
-def _per_axis(text: str, option: str, parse) -> dict[str, object]:
-    """``X=v,Y=v`` (either or both) -> {"x": parse(v), …}; a bare ``v`` -> {"all": parse(v)}."""
-    text = text.strip()
-    if "=" not in text:
-        return {"all": parse(text)}
-    out = {}
-    for part in text.split(","):
-        ax, _, value = part.partition("=")
-        ax = ax.strip().lower()
-        if ax not in ("x", "y") or not value.strip():
-            raise RingtuneError(f"expected X=…,Y=…, not {part.strip()!r}", option)
-        if ax in out:
-            raise RingtuneError(f"{ax.upper()} given twice", option)
-        out[ax] = parse(value.strip())
-    return out
-
-
-def _kg(option: str, moving: bool = False):
-    """A parser of masses in kg for ``option``; ``moving``: what moves on an axis
-    (:func:`check_moving_mass`)."""
-    def parse(v: str) -> float:
-        try:
-            kg = float(v)
-        except ValueError:
-            raise RingtuneError(f"not a mass in kg: {v!r}", option) from None
-        if not 0 < kg < 100:
-            raise RingtuneError(f"mass must be between 0 and 100 kg, not {v}", option)
-        return check_moving_mass(kg, option) if moving else kg
-    return parse
-
-
-def _motor(v: str) -> dict:
-    """``NAME[:RUN_CURRENT[:VOLTAGE]]`` -> {name, run_current, voltage}."""
-    parts = v.split(":")
-    if len(parts) > 3 or not parts[0].strip():
-        raise RingtuneError(f"expected NAME[:RUN_CURRENT[:VOLTAGE]], not {v!r}", "--motor")
-    spec: dict = {"name": parts[0].strip()}
-    if lookup_motor(spec["name"]) is None:
-        raise RingtuneError(unknown_motor_message(spec["name"]), "--motor")
-    for key, unit, text in zip(("run_current", "voltage"), ("A", "V"), parts[1:]):
-        try:
-            value = float(text)
-        except ValueError:
-            raise RingtuneError(f"{key} must be a number ({unit}), not {text!r}", "--motor") from None
-        if not value > 0:
-            raise RingtuneError(f"{key} must be > 0 {unit}, not {text}", "--motor")
-        spec[key] = value
-    return spec
 
 
 def _check_output(option: str, path) -> None:
@@ -209,20 +159,28 @@ def _check_output(option: str, path) -> None:
         raise RingtuneError(f"cannot write there ({exc.strerror})", f"{option} {path}") from None
 
 
-def _read_facts(args):
-    """The firmware configuration's FirmwareFacts, or None."""
-    if getattr(args, "facts", None) is not None:
-        return args.facts
-    if args.klipper_config:
-        return printer_facts_from_klipper(args.klipper_config)
-    if args.marlin:
-        return printer_facts_from_marlin(args.marlin)
-    if args.rrf:
-        return printer_facts_from_rrf(args.rrf)
-    return None
+def _added_mass(values: list[str] | None) -> tuple[dict, list[str]]:
+    """--added-mass KG|X=KG,Y=KG LOADED.csv… -> ({axis or "all": kg}, [loaded file, …])."""
+    if not values:
+        return {}, []
+    if len(values) < 2:
+        raise RingtuneError("expected KG (or X=KG,Y=KG) then the resonance files measured with it", "--added-mass")
+    try:
+        return PerAxis(VALUES["mass"], "added mass")(values[0]), values[1:]
+    except argparse.ArgumentTypeError as exc:
+        raise RingtuneError(str(exc), "--added-mass") from None
 
 
-# -- the command ------------------------------------------------------------------------------------
+def _check(args) -> None:
+    """Refuse what cannot work before any file is read."""
+    if args.plot and Path(args.plot).suffix.lower() not in PLOT_SUFFIXES:
+        raise RingtuneError(f"the plot's file name must end in one of {', '.join(PLOT_SUFFIXES)}",
+                            f"--plot {args.plot}")
+    if not args.fmin < args.fmax:
+        raise RingtuneError("need 0 <= --fmin < --fmax", "--fmin")
+    _check_output("-o", args.output)
+    _check_output("--plot", args.plot)
+
 
 def _from_moonraker(args, out) -> None:
     """Fetch the files and the configuration into --fetch-dir and point the arguments at them."""
@@ -253,161 +211,90 @@ def _moonraker_facts(args, config, key, out):
     """The fetched printer.cfg's facts, else those of the configuration Klipper loaded."""
     if config is not None:
         args.klipper_config = str(config)
-        return _read_facts(args)
+        return read_facts({"klipper_config": args.klipper_config})[0]
     out.note("note: no printer.cfg in Moonraker's config folder: the configuration Klipper loaded is used")
     return printer_facts_from_moonraker(args.moonraker, api_key=key)
 
 
+# -- the command ------------------------------------------------------------------------------------
+
 def run(args, out) -> int:
-    if getattr(args, "moonraker", None):
+    if args.moonraker:
         _from_moonraker(args, out)
     if identify_ripples.wanted(args) or not args.files:   # no accelerometer: ripples or a tower
-        given = [flag for flag, v in (("--klipper-config", args.klipper_config), ("--marlin", args.marlin),
-                                      ("--rrf", args.rrf), ("--motor", args.motor), ("--mass", args.mass),
-                                      ("--belts", args.belts),
-                                      ("--added-mass", args.added_mass)) if v]
-        if given:
-            maker = {"--marlin": f"printer from-marlin {args.marlin}", "--rrf": f"printer from-rrf {args.rrf}"}.get(
-                given[0], f"printer from-klipper {args.klipper_config or 'printer.cfg'}")
-            raise RingtuneError("goes with accelerometer files; with --ripples/--tower-band give the rest of "
-                                f"the printer as --base P (e.g. from `ringtune {maker} -o P`)", given[0])
-        args.name = args.name or "identified"
-        return identify_ripples.run(args, out)
-    if args.max_modes < 1 or args.max_modes > 5:
-        raise RingtuneError("must be 1 to 5", "--max-modes")
-    if not 0 <= args.fmin < args.fmax:
-        raise RingtuneError("need 0 <= --fmin < --fmax", "--fmin")
-    if args.plot and Path(args.plot).suffix.lower() not in PLOT_SUFFIXES:
-        raise RingtuneError(f"the plot's file name must end in one of {', '.join(PLOT_SUFFIXES)}",
-                            f"--plot {args.plot}")
-    _check_output("-o", args.output)
-    _check_output("--plot", args.plot)
-    masses = _per_axis(args.mass, "--mass", _kg("--mass", moving=True)) if args.mass else {}
-    if "all" in masses:
-        raise RingtuneError("give the mass per axis: X=KG,Y=KG", "--mass")
-    motors = _per_axis(args.motor, "--motor", _motor) if args.motor else {}
-    dm, loaded_files = {}, []
-    if args.added_mass:
-        if len(args.added_mass) < 2:
-            raise RingtuneError("expected KG (or X=KG,Y=KG) then the resonance files measured with it",
-                                "--added-mass")
-        dm = _per_axis(args.added_mass[0], "--added-mass", _kg("--added-mass"))
-        loaded_files = args.added_mass[1:]
+        return _without_accelerometer(args, out)
+    _check(args)
+    dm, loaded_files = _added_mass(args.added_mass)
+    got = identify_from_files(
+        args.files, configs={"klipper_config": args.klipper_config, "marlin": args.marlin, "rrf": args.rrf},
+        axis=args.axis, max_modes=args.max_modes, fmin=args.fmin, fmax=args.fmax, damping=args.damping_method,
+        kinematics=args.kinematics, base=args.base, masses=args.mass or {}, motors=args.motor or {},
+        added_mass=dm, loaded_files=loaded_files, name=args.name, facts=getattr(args, "facts", None),
+        belts=args.belts, note=out.note)
+    for prefix, sentences in (("warning", got.warnings), ("note", got.description.notes),
+                              ("default", got.description.defaults)):
+        for sentence in sentences:
+            out.note(f"{prefix}: {sentence}")
+    _write(args, got, out)
+    out.emit({"fits": [f.to_dict() for f in got.measurement.fits], "loaded_fits": [f.to_dict() for f in got.loaded_fits],
+              "added_mass": {ax: a.to_dict() for ax, a in got.added.items()}, "klipper": got.klipper,
+              "belts": None if got.belts is None else {k: v for k, v in got.belts.to_dict().items() if k in BELT_KEYS},
+              "defaults": got.description.defaults, "warnings": got.warnings, "toml": got.toml,
+              "output": args.output, "plot": args.plot}, _text(got, args.output))
+    return 0
 
-    kw = dict(axis=args.axis, max_modes=args.max_modes, fmin=args.fmin, fmax=args.fmax,
-              damping=args.damping_method)
-    facts = _read_facts(args)
-    meas = read_measurement(args.files, **kw)
-    fits = meas.by_axis()
-    warnings = list(meas.warnings)
-    added, loaded_fits = {}, []
-    if loaded_files:
-        loaded = read_measurement(loaded_files, **kw)
-        loaded_fits = loaded.fits
-        warnings += loaded.warnings
-        for ax in loaded.by_axis():
-            if ax not in fits:
-                raise RingtuneError(f"the loaded test measured {ax.upper()} but the base files did not",
-                                    "--added-mass")
-            mass = dm.get(ax, dm.get("all"))
-            if mass is None:
-                raise RingtuneError(f"no added mass given for {ax.upper()}", "--added-mass")
-            repeats = [f for f in meas.fits if f.axis == ax and f is not fits[ax]]     # best fit first
-            added[ax] = a = AddedMass.from_fits([fits[ax], *repeats], [f for f in loaded.fits if f.axis == ax],
-                                                mass)
-            if not a.mass_error <= 0.05 * a.mass:
-                warnings.append(f"{ax.upper()}: the added-mass estimate {a.mass:.3f} kg is uncertain by "
-                                f"±{a.mass_error:.3f} kg (one standard error from the spectra's scatter): "
-                                "repeat both tests and give every file (repeats are fitted together), or add more mass (the error falls as the frequencies "
-                                "move further apart)")
-        unused = [ax.upper() for ax in dm if ax != "all" and ax not in added]
-        if unused:
-            raise RingtuneError(f"no loaded file of {', '.join(unused)}", "--added-mass")
 
-    scv = 5.0
-    if facts is not None:
-        scv = float(facts.description.get("limits", {}).get("square_corner_velocity", scv))
-    klipper = klipper_record(meas.psds, scv)
-    measurement = {"source": "accelerometer",
-                   "files": [{k: f[k] for k in ("name", "sha256", "axis", "kind") if k in f} for f in meas.files]}
-    if added:
-        measurement["added_mass_files"] = [{k: f[k] for k in ("name", "sha256", "axis")}
-                                           | {"added_mass_kg": added[f["axis"]].dm}
-                                           for f in loaded.files if f["axis"] in added]
-    if klipper:
-        measurement["klipper"] = klipper
-    name = args.name
-    if name is None:
-        name, whence = printer_name(args.klipper_config or args.marlin or args.rrf, args.files)
-        out.note(f"note: name {name!r}, from {whence} (give --name to choose another)")
-    desc = build_description(fits, name=name, kinematics=args.kinematics, base=args.base,
-                             masses=masses, added=added, facts=facts, motors=motors,
-                             measurement=measurement)
-    header = ["Printer description written by `ringtune identify` from "
-              + ", ".join(Path(f).name for f in [*args.files, *loaded_files])]
-    printer = _validate(description_toml(desc, header))
-    belts = None
-    if args.belts:
-        belts = belts_into_description(desc, printer, args.belts)
-        printer = _validate(description_toml(desc, header))
-    for w in pick_warnings(printer, klipper, meas.psds, fits):       # does the model give back the files' pick?
-        warnings.append(w)
-        desc.comment("measurement", w)
-    for ax in ("x", "y"):                        # what a named motor's drive still assumes
-        for sentence in printer.motor_for(ax).assumed:
-            said = f"motor: {sentence}"
-            if said not in desc.defaults:
-                desc.defaults.append(said)
-    toml = description_toml(desc, header)
+def _without_accelerometer(args, out) -> int:
+    """The ripple / tower path (:mod:`ringtune.agents.cli.identify_ripples`); the rest of the
+    printer then comes from --base."""
+    given = [flag for flag in REST_OF_PRINTER if getattr(args, flag[2:].replace("-", "_"))]
+    if given:
+        maker = {"--marlin": f"printer from-marlin {args.marlin}", "--rrf": f"printer from-rrf {args.rrf}"}.get(
+            given[0], f"printer from-klipper {args.klipper_config or 'printer.cfg'}")
+        raise RingtuneError("goes with accelerometer files; with --ripples/--tower-band give the rest of "
+                            f"the printer as --base P (e.g. from `ringtune {maker} -o P`)", given[0])
+    args.name = args.name or "identified"
+    return identify_ripples.run(args, out)
 
-    for w in warnings:
-        out.note(f"warning: {w}")
-    for n in desc.notes:
-        out.note(f"note: {n}")
-    for s in desc.defaults:
-        out.note(f"default: {s}")
-    if args.plot:                                # before the TOML: a failure leaves nothing half-written
+
+def _write(args, got, out) -> None:
+    """The plot, then the TOML (a failed plot leaves nothing half-written)."""
+    if args.plot:
         try:
-            plot_fits(meas.fits + loaded_fits, args.plot)
+            plot_fits(got.measurement.fits + got.loaded_fits, args.plot)
         except OSError as exc:
             raise RingtuneError(f"cannot write the plot ({exc.strerror or exc})", f"--plot {args.plot}") from None
         out.note(f"wrote {args.plot}")
     if args.output:
         try:
-            Path(args.output).write_text(toml)
+            Path(args.output).write_text(got.toml)
         except OSError as exc:
             raise RingtuneError(f"cannot write ({exc.strerror or exc})", f"-o {args.output}") from None
         out.note(f"wrote {args.output}")
 
-    lines = []
-    for fit in meas.fits + loaded_fits:
-        lines.append(f"{Path(fit.source).name}: axis {fit.axis.upper()}, {fit.kind} fit ({fit.method}), "
-                     f"r² = {fit.r2:.3f}")
-        for m in fit.modes:
-            peak = f", measured peak {m.peak_freq:.1f} Hz" if m.peak_freq else ""
-            lines.append(f"  {m.freq:7.2f} Hz  damping {m.damping:.3f}  share {m.share:.2f}{peak}")
-        lines += [f"  note: {n}" for n in fit.notes]
-    for ax, a in added.items():
+
+def _fit_lines(fit) -> list[str]:
+    """One fit in words: the file, axis and r², then each mode and the fit's notes."""
+    lines = [f"{Path(fit.source).name}: axis {fit.axis.upper()}, {fit.kind} fit ({fit.method}), r² = {fit.r2:.3f}"]
+    for m in fit.modes:
+        peak = f", measured peak {m.peak_freq:.1f} Hz" if m.peak_freq else ""
+        lines.append(f"  {m.freq:7.2f} Hz  damping {m.damping:.3f}  share {m.share:.2f}{peak}")
+    return lines + [f"  note: {n}" for n in fit.notes]
+
+
+def _text(got, output) -> str:
+    """The fits, the added-mass results and Klipper's pick in words (and the TOML when not written)."""
+    lines = [line for fit in got.measurement.fits + got.loaded_fits for line in _fit_lines(fit)]
+    for ax, a in got.added.items():
         lines.append(f"{ax.upper()} added mass {a.dm:g} kg: dominant mode {a.f0:.2f} -> {a.f1:.2f} Hz, moving "
                      f"mass {a.mass:.3f} ± {a.mass_error:.3f} kg (±1 standard error), stiffness {a.stiffness:.4g} N/m (m = dm/((f0/f1)² − 1), k = m(2π f0)²)")
+    klipper = got.klipper
     if klipper:
         picks = ", ".join(f"{ax.upper()} {klipper[f'shaper_{ax}']} @ {klipper[f'freq_{ax}']:.1f} Hz"
                           for ax in ("x", "y") if f"shaper_{ax}" in klipper)
         accel = f", max_accel {klipper['max_accel']:.0f} mm/s²" if "max_accel" in klipper else ""
-        lines.append(f"Klipper's rule on these files (calibrate_shaper, current rules, scv {scv:g} mm/s): "
+        lines.append(f"Klipper's rule on these files (calibrate_shaper, current rules, scv {got.scv:g} mm/s): "
                      f"{picks}{accel}")
-    if not args.output:
-        lines += ["", toml]
-    out.emit({"fits": [f.to_dict() for f in meas.fits], "loaded_fits": [f.to_dict() for f in loaded_fits],
-              "added_mass": {ax: a.to_dict() for ax, a in added.items()}, "klipper": klipper,
-              "belts": None if belts is None else {k: v for k, v in belts.to_dict().items() if k in (
-                  "similarity_pct", "mismatch", "mismatch_error", "stiffness_a_n_m", "stiffness_b_n_m", "matched",
-                  "meaning")},
-              "defaults": desc.defaults, "warnings": warnings, "toml": toml, "output": args.output,
-              "plot": args.plot}, "\n".join(lines))
-    return 0
-
-
-def _validate(toml: str):
-    """The written description must load: the Printer, checked before anything is written."""
-    return printer_from_dict(tomllib.loads(toml), "the identified printer")
+    if not output:
+        lines += ["", got.toml]
+    return "\n".join(lines)

@@ -137,6 +137,8 @@ class _Parser(argparse.ArgumentParser):
     (argparse's own would print the whole usage block first)."""
 
     def error(self, message: str):  # noqa: D401 - argparse's hook
+        # "argument --freq: must be …" reads as every other error: "--freq: must be …"
+        message = message.removeprefix("argument ")
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 

@@ -16,8 +16,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ringtune.agents.cli.common import check_output_folder
+from ringtune.agents.cli.options import VALUES, Value
+from ringtune.envs.motor_report import motor_report
 from ringtune.envs.motors import lookup_motor, unknown_motor_message
-from ringtune.envs.printer import printer_from_dict
 from ringtune.shaping.errors import RingtuneError
 
 NAME = "motor"
@@ -45,8 +46,6 @@ examples:
   ringtune motor ldo-42sth48-2504ac --voltage 48 --plot force.png --json
 """
 
-SPEEDS = (0.0, 100.0, 200.0, 300.0, 500.0)
-
 #: (flag, metavar, help) of the datasheet constants, in the order of the [motor] keys
 CONSTANT_FLAGS = (
     ("--holding-torque", "NM", "holding torque, N·m at the rated current (max_current)"),
@@ -55,84 +54,55 @@ CONSTANT_FLAGS = (
     ("--inductance", "H", "phase inductance, H (0.0036 for 3.6 mH)"),
     ("--steps-per-revolution", "N", "full steps per revolution: 200 (1.8°) or 400 (0.9°)"),
 )
+#: their [motor] keys (the options' destinations)
+CONSTANT_KEYS = tuple(flag[2:].replace("-", "_") for flag, _, _ in CONSTANT_FLAGS)
+#: what each constant must be
+CONSTANT_VALUES = {"--holding-torque": Value("a torque", "N·m", 0.0), "--rated-current": VALUES["current"],
+                   "--resistance": Value("a resistance", "Ω", 0.0), "--inductance": Value("an inductance", "H", 0.0),
+                   "--steps-per-revolution": Value("a step count", "", 0.0)}
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("name", metavar="NAME", help="motor name as in Klipper's autotune plugin, "
                                                      "e.g. ldo-42sth48-2504ac")
-    parser.add_argument("--run-current", metavar="A", type=float, default=None,
+    parser.add_argument("--run-current", metavar="A", type=VALUES["current"], default=None,
                         help="driver current, A RMS (Klipper run_current, M906); default rated/√2")
-    parser.add_argument("--voltage", metavar="V", type=float, default=None,
+    parser.add_argument("--voltage", metavar="V", type=VALUES["voltage"], default=None,
                         help="driver supply voltage, V (default 24)")
-    parser.add_argument("--rotation-distance", metavar="MM", type=float, default=None,
+    parser.add_argument("--rotation-distance", metavar="MM", type=VALUES["length"], default=None,
                         help="mm of belt per motor revolution (default 40: GT2 belt, 20-tooth pulley)")
     c = parser.add_argument_group("the motor's datasheet constants (Klipper's [motor_constants]): for a motor "
                                   "the table does not know, or to override the table's")
     for flag, meta, what in CONSTANT_FLAGS:
-        c.add_argument(flag, metavar=meta, type=float, default=None, help=what)
-    parser.add_argument("--mass", metavar="KG", type=float, default=None,
+        c.add_argument(flag, metavar=meta, type=CONSTANT_VALUES[flag], default=None, help=what)
+    parser.add_argument("--mass", metavar="KG", type=VALUES["mass"], default=None,
                         help="moving mass, kg: also report the acceleration the force allows")
     parser.add_argument("--plot", metavar="OUT.png", default=None, help="write the force–speed graph here")
 
 
 def run(args, out) -> int:
-    for opt, v in (("--run-current", args.run_current), ("--voltage", args.voltage),
-                   ("--rotation-distance", args.rotation_distance), ("--mass", args.mass)):
-        if v is not None and not v > 0:
-            raise RingtuneError(f"must be > 0, not {v:g}", opt)
     check_output_folder("--plot", args.plot)
     if args.plot and Path(args.plot).is_dir():
         raise RingtuneError("is a directory; give a file name such as force.png", f"--plot {args.plot}")
-    given = {flag[2:].replace("-", "_"): getattr(args, flag[2:].replace("-", "_"))
-             for flag, _, _ in CONSTANT_FLAGS if getattr(args, flag[2:].replace("-", "_")) is not None}
-    for key, v in given.items():
-        if not v > 0:
-            raise RingtuneError(f"must be > 0, not {v:g}", "--" + key.replace("_", "-"))
-    ref = lookup_motor(args.name)
-    if ref is None:
-        missing = [k for k in ("holding_torque", "rated_current", "resistance", "inductance") if k not in given]
-        if missing:
-            raise RingtuneError(unknown_motor_message(args.name).rsplit("; give", 1)[0] + "; give its "
-                                "constants: " + " ".join("--" + k.replace("_", "-") for k in missing))
-    table = {"name": ref.name if ref is not None else args.name.strip(), **given}
-    for key, v in (("run_current", args.run_current), ("voltage", args.voltage),
-                   ("rotation_distance", args.rotation_distance)):
-        if v is not None:
-            table[key] = v
-    try:
-        mo = printer_from_dict({"motor": table, "x": {"modes": [{"freq": 50.0}]},
-                                "y": {"modes": [{"freq": 50.0}]}}).motor
-    except RingtuneError as exc:                      # name the flag, not the key
-        raise RingtuneError(exc.bare, "--" + exc.where.rsplit(".", 1)[-1].replace("_", "-")) from None
-    for note in mo.assumed:
-        if ref is None or not note.startswith("steps_per_revolution"):
-            out.note(f"note: {note}")
-    drive = mo.stepper
-    if drive.run_current > drive.motor.rated_current:
-        out.note(f"note: run_current {drive.run_current:g} A is above the motor's rated {drive.motor.rated_current:g} A: "
-                 "the force is credited only up to the rated current (the iron saturates), and the motor "
-                 "runs hotter than its datasheet allows")
-    forces = drive.force(np.array(SPEEDS))
-    c = drive.motor
-    result = {
-        "motor": table["name"],
-        "constants": {"holding_torque_nm": c.holding_torque, "rated_current_a": c.rated_current,
-                      "resistance_ohm": c.resistance, "inductance_h": c.inductance,
-                      "steps_per_revolution": c.steps_per_revolution},
-        "run_current_a": drive.run_current, "voltage_v": drive.voltage,
-        "rotation_distance_mm": drive.rotation_distance, "assumed": list(mo.assumed),
-        "force_n": [[s, float(f)] for s, f in zip(SPEEDS, forces)],
-        "corner_speed_mm_s": drive.corner_speed,
-        "half_force_speed_mm_s": drive.half_force_speed,
-    }
-    if args.mass is not None:
-        result["mass_kg"] = args.mass
-        result["accel_mm_s2"] = [[s, float(f) / args.mass * 1e3] for s, f in zip(SPEEDS, forces)]
-    result["plot"] = args.plot
+    given = {key: getattr(args, key) for key in CONSTANT_KEYS if getattr(args, key) is not None}
+    _check_known(args.name, given)
+    report = motor_report(args.name, given, args.run_current, args.voltage, args.rotation_distance, args.mass)
+    for note in report.notes:
+        out.note(note)
+    result = {**report.result, "plot": args.plot}
     if args.plot:
-        _plot(args, drive, result)
-    out.emit(result, _text(result, drive))
+        _plot(args, report.drive, result)
+    out.emit(result, _text(result, report.drive))
     return 0
+
+
+def _check_known(name: str, given: dict) -> None:
+    """A motor the table does not know needs its four datasheet constants."""
+    if lookup_motor(name) is None:
+        missing = [k for k in CONSTANT_KEYS[:4] if k not in given]
+        if missing:
+            raise RingtuneError(unknown_motor_message(name).rsplit("; give", 1)[0] + "; give its "
+                                "constants: " + " ".join("--" + k.replace("_", "-") for k in missing))
 
 
 def _text(r: dict, drive) -> str:

@@ -3,7 +3,7 @@ must lie in, applied by argparse when the command line is parsed.
 
 A command declares such an option with ``type=VALUES["accel"]``; a value
 out of range is refused before the command runs, in one line naming the option and the range:
-``ringtune limit: error: argument --accel: must be an acceleration > 0 mm/s², not '-5'``.
+``ringtune limit: error: --accel: must be an acceleration > 0 mm/s², not '-5'``.
 """
 
 from __future__ import annotations
@@ -11,6 +11,10 @@ from __future__ import annotations
 import argparse
 import math
 from dataclasses import dataclass
+
+from ringtune.envs.motors import lookup_motor, unknown_motor_message
+from ringtune.envs.printer import check_moving_mass
+from ringtune.shaping.errors import RingtuneError
 
 
 @dataclass(frozen=True)
@@ -27,12 +31,14 @@ class Value:
     integer: bool = False
 
     def range_text(self) -> str:
-        """The range in words: ``> 0 Hz``, ``in [0, 1)``, ``1 to 5``."""
+        """The range in words: ``> 0 Hz``, ``in [0, 1)``, ``1 to 5``, ``between 0 and 100 kg``."""
         unit = f" {self.unit}" if self.unit else ""
         if self.high is None:
             return f"{'≥' if self.low_closed else '>'} {self.low:g}{unit}"
         if self.low_closed and self.high_closed:
             return f"{self.low:g} to {self.high:g}{unit}"
+        if not (self.low_closed or self.high_closed):
+            return f"between {self.low:g} and {self.high:g}{unit}"
         return (f"in {'[' if self.low_closed else '('}{self.low:g}, {self.high:g}"
                 f"{']' if self.high_closed else ')'}{unit}")
 
@@ -56,11 +62,15 @@ class Value:
 #: the shared values: name -> meaning, unit and range
 VALUES: dict[str, Value] = {
     "freq": Value("a frequency", "Hz", 0.0),
+    "hz_from_0": Value("a frequency", "Hz", 0.0, low_closed=True),
     "accel": Value("an acceleration", "mm/s²", 0.0),
     "speed": Value("a speed", "mm/s", 0.0),
+    "length": Value("a length", "mm", 0.0),
     "scv": Value("a square-corner velocity", "mm/s", 0.0, low_closed=True),
     "smoothing": Value("a smoothing", "mm", 0.05, low_closed=True),
     "mass": Value("a mass", "kg", 0.0, 100.0, high_closed=False),
+    "current": Value("a run current", "A", 0.0),
+    "voltage": Value("a voltage", "V", 0.0),
     "fraction": Value("a fraction", "", 0.0, 1.0),
     "damping_ratio": Value("a damping ratio", "", 0.0, 1.0, low_closed=True, high_closed=False),
     "margin_percent": Value("a percentage", "%", 0.0, 50.0, low_closed=True, high_closed=False),
@@ -71,3 +81,62 @@ VALUES: dict[str, Value] = {
     "modes": Value("a number of modes", "", 1, 5, low_closed=True, integer=True),
     "points": Value("a number of points", "", 10, 100_000, low_closed=True, integer=True),
 }
+
+
+class PerAxis:
+    """argparse type of a per-axis option, ``X=v,Y=v`` (either or both) -> {"x": v, …}, each ``v``
+    read by ``value``; a bare ``v`` -> {"all": v} when ``bare`` allows it (every axis)."""
+
+    def __init__(self, value, what: str, bare: bool = True):
+        self.value, self.what, self.bare = value, what, bare
+
+    def __call__(self, text: str) -> dict:
+        text = text.strip()
+        if "=" not in text:
+            if not self.bare:
+                raise argparse.ArgumentTypeError(f"give the {self.what} per axis: X=…,Y=…")
+            return {"all": self.value(text)}
+        out = {}
+        for part in text.split(","):
+            ax, _, v = part.partition("=")
+            ax = ax.strip().lower()
+            if ax not in ("x", "y") or not v.strip():
+                raise argparse.ArgumentTypeError(f"expected X=…,Y=…, not {part.strip()!r}")
+            if ax in out:
+                raise argparse.ArgumentTypeError(f"{ax.upper()} given twice")
+            out[ax] = self.value(v.strip())
+        return out
+
+
+def moving_mass(text: str) -> float:
+    """argparse type of a mass that moves on an axis, kg (:func:`check_moving_mass`'s range)."""
+    kg = VALUES["mass"](text)
+    try:
+        return check_moving_mass(kg, "")
+    except RingtuneError as exc:
+        raise argparse.ArgumentTypeError(exc.bare) from None
+
+
+def motor_spec(text: str) -> dict:
+    """argparse type of ``NAME[:RUN_CURRENT[:VOLTAGE]]`` -> {name, run_current (A RMS), voltage (V)};
+    the name must be a built-in motor."""
+    parts = text.split(":")
+    if len(parts) > 3 or not parts[0].strip():
+        raise argparse.ArgumentTypeError(f"expected NAME[:RUN_CURRENT[:VOLTAGE]], not {text!r}")
+    spec: dict = {"name": parts[0].strip()}
+    if lookup_motor(spec["name"]) is None:
+        raise argparse.ArgumentTypeError(unknown_motor_message(spec["name"]))
+    for key, value, v in zip(("run_current", "voltage"), (VALUES["current"], VALUES["voltage"]), parts[1:]):
+        try:
+            spec[key] = value(v)
+        except argparse.ArgumentTypeError as exc:
+            raise argparse.ArgumentTypeError(f"{key}: {exc}") from None
+    return spec
+
+
+def number_list(text: str) -> list[float]:
+    """argparse type of ``A,B,…``: the numbers, in order (empty items skipped)."""
+    try:
+        return [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be numbers separated by commas, not {text!r}") from None

@@ -200,25 +200,29 @@ def run(args, out) -> int:
     notes = list(facts.notes)
     comments: dict[str, list[str]] = {}
     check_motor_names(description, notes, comments)
-    if not any("name" in t or all(k in t for k in MOTOR_CONSTANTS) for t in motor_tables(description).values()):
-        drive = sorted({k for t in motor_tables(description).values() for k in ("run_current", "voltage")
-                        if k in t})
-        unused = (f"; {' and '.join(drive)} {'are kept but count' if len(drive) > 1 else 'is kept but counts'} "
-                  "only once the motor is named") if drive else ""
-        notes.append(f"no motor named or described: the force at the belt is the default motor's "
-                     f"({DEFAULTS['motor_force']:g} N, falling above {DEFAULTS['corner_speed']:g} mm/s){unused}; "
-                     "name the motor ([motor] name = …) or give its constants")
+    notes += _unnamed_motor(description)
     notes.append("modes are defaults until `ringtune identify` measures them; masses are defaults")
-    name = args.name or default_name
-    text = description_toml(name, description, notes, facts.source, args.source, comments)
+    text = description_toml(args.name or default_name, description, notes, facts.source, args.source, comments)
     if args.output:
         Path(args.output).write_text(text)
     for n in notes:
         out.note(n if ": warning: " in n else f"note: {n}")
-    result = {"source": facts.source, "firmware": FIRMWARES[args.source], "description": description,
-              "notes": notes, "toml": text, "output": args.output}
-    if args.output:
-        out.emit(result, f"{facts.source} -> {args.output} ({len(notes)} note{'s' if len(notes) != 1 else ''} above)")
-    else:
-        out.emit(result, text)
+    plural = "s" if len(notes) != 1 else ""
+    out.emit({"source": facts.source, "firmware": FIRMWARES[args.source], "description": description,
+              "notes": notes, "toml": text, "output": args.output},
+             f"{facts.source} -> {args.output} ({len(notes)} note{plural} above)" if args.output else text)
     return 0
+
+
+def _unnamed_motor(description: dict) -> list[str]:
+    """The note a description without a named or described motor needs (the default motor's force
+    is used), else none."""
+    tables = motor_tables(description).values()
+    if any("name" in t or all(k in t for k in MOTOR_CONSTANTS) for t in tables):
+        return []
+    drive = sorted({k for t in tables for k in ("run_current", "voltage") if k in t})
+    unused = (f"; {' and '.join(drive)} {'are kept but count' if len(drive) > 1 else 'is kept but counts'} "
+              "only once the motor is named") if drive else ""
+    return [f"no motor named or described: the force at the belt is the default motor's "
+            f"({DEFAULTS['motor_force']:g} N, falling above {DEFAULTS['corner_speed']:g} mm/s){unused}; "
+            "name the motor ([motor] name = …) or give its constants"]

@@ -18,11 +18,11 @@ import dataclasses
 from pathlib import Path
 
 from ringtune.agents.cli.common import firmware_name, judgement, say_unmeasured
+from ringtune.agents.cli.options import VALUES, number_list
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 from ringtune.agents.tune.sweep import (FACTORS, factor_values, offered_shapers, plot_sweep, sweep,
     tuned_frequencies, write_csv)
 from ringtune.envs.evaluate import resolve_printer
-from ringtune.shaping.errors import RingtuneError
 
 NAME = "study"
 DESCRIPTION = """\
@@ -49,14 +49,14 @@ examples:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--factor", choices=("freq-error", "mass", "accel"), default="freq-error",
                    help="what to sweep (default freq-error)")
-    p.add_argument("--values", metavar="A,B,...", help="factor values (default: a range per factor)")
+    p.add_argument("--values", metavar="A,B,...", type=number_list, help="factor values (default: a range per factor)")
     p.add_argument("--printer", metavar="P", help="printer TOML (default: the embedded Ender-3-class printer)")
     p.add_argument("--gcode", metavar="G", help="G-code job (default: the built-in test print)")
     p.add_argument("--firmware", type=firmware_name, default="klipper", help="target firmware (default klipper)")
     p.add_argument("--shapers", metavar="S1,S2", help="shapers to compare (default: all the firmware offers)")
     p.add_argument("--quality", choices=("overshoot", "path_error"), default="overshoot")
     p.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco")
-    p.add_argument("--freq-margin", metavar="PCT", type=float, default=None,
+    p.add_argument("--freq-margin", metavar="PCT", type=VALUES["margin_percent"], default=None,
                    help="judge also with every resonance PCT %% lower and higher, the worst counts (default "
                         "5 as tune, 0 for --factor freq-error)")
     p.add_argument("-o", "--output", metavar="PNG", help="plot file (default ringtune-study-<factor>.png)")
@@ -65,33 +65,34 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace, out) -> int:
     if args.freq_margin is None:
         margin = 0.0 if args.factor == "freq-error" else DEFAULT_FREQ_MARGIN
-    elif 0 <= args.freq_margin < 50:
-        margin = args.freq_margin / 100.0
     else:
-        raise RingtuneError(f"must be a percentage in [0, 50), not {args.freq_margin:g}", "--freq-margin")
-    judged = judgement(margin)
+        margin = args.freq_margin / 100.0
     printer = resolve_printer(args.printer)
     say_unmeasured(printer, out)
     quality = f"{args.quality}_mm"
     shapers = offered_shapers(args.firmware, args.shapers.split(",") if args.shapers else None)
-    values = None
-    if args.values:
-        try:
-            values = [float(v) for v in args.values.split(",") if v.strip()]
-        except ValueError:
-            raise RingtuneError("must be numbers separated by commas", "--values") from None
-    values = factor_values(args.factor, printer, values)
+    values = factor_values(args.factor, printer, args.values)
     tuned = tuned_frequencies(printer, args.firmware, shapers, note=lambda m: out.note(f"ringtune study: {m}"))
     results = sweep(printer, args.gcode, args.firmware, args.factor, values, tuned, quality, args.backend,
                     freq_margin=margin)
-
-    label, unit, _ = FACTORS[args.factor]
     png = Path(args.output or f"ringtune-study-{args.factor}.png")
     csv_path = png.with_suffix(".csv")
     name = getattr(printer, "name", "printer")
     job = Path(args.gcode).name if args.gcode else "built-in test print"
+    judged = judgement(margin)
     plot_sweep(png, args.factor, values, results, quality, f"{name} · {job} · {args.firmware}\nquality judged {judged}")
     write_csv(csv_path, args.factor, values, results, quality)
+    shapers_json = {s: dataclasses.asdict(r) for s, r in results.items()}
+    out.emit({"factor": args.factor, "unit": FACTORS[args.factor][1], "values": list(values), "quality": quality,
+              "freq_margin": margin, "judgement": judged, "shapers": shapers_json, "plot": str(png),
+              "csv": str(csv_path)},
+             _text(args, name, values, results, quality, judged) + f"\nplot: {png}   table: {csv_path}")
+    return 0
+
+
+def _text(args, name: str, values, results: dict, quality: str, judged: str) -> str:
+    """The sweep as a table: per shaper and factor value, quality (µm) / print time (s), ! for lost steps."""
+    label, unit, _ = FACTORS[args.factor]
     word = quality.replace("_mm", "").replace("_", " ")
     lines = [f"{label} ({unit}) sweep on {name}, {args.firmware}; {word} in µm / print time in s; "
              f"quality judged {judged}:",
@@ -101,8 +102,4 @@ def run(args: argparse.Namespace, out) -> int:
             f"{q * 1000:7.1f}/{t:4.2f}" + ("!" if sl else " ")
             for q, t, sl in zip(r.quality_mm, r.print_time_s, r.step_loss)))
     lines.append("  (! = lost steps)")
-    lines.append(f"plot: {png}   table: {csv_path}")
-    shapers_json = {s: dataclasses.asdict(r) for s, r in results.items()}
-    out.emit({"factor": args.factor, "unit": unit, "values": list(values), "quality": quality,
-              "freq_margin": margin, "judgement": judged, "shapers": shapers_json, "plot": str(png), "csv": str(csv_path)}, "\n".join(lines))
-    return 0
+    return "\n".join(lines)

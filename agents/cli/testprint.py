@@ -12,10 +12,10 @@
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
 from ringtune.agents.cli.common import check_output_folder, firmware_name, load_config
+from ringtune.agents.cli.options import VALUES, Value
 from ringtune.agents.identify.testprints import accel_ladder, ringing_tower
 from ringtune.envs.printer import load_printer
 from ringtune.shaping import calibration_prints as cp
@@ -60,29 +60,29 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--nozzle", type=float, help="nozzle diameter, mm (0.4)")
     p.add_argument("--layer", type=float, help="layer height, mm (0.2)")
     p.add_argument("--filament", type=float, help="filament diameter, mm (1.75)")
-    p.add_argument("--hotend", type=float, help="nozzle temperature, °C (210, PLA)")
-    p.add_argument("--bed", type=float, help="bed temperature, °C (60, PLA)")
+    p.add_argument("--hotend", type=HOTEND, help="nozzle temperature, °C (210, PLA)")
+    p.add_argument("--bed", type=BED, help="bed temperature, °C (60, PLA)")
     r = p.add_argument_group("ringing")
-    r.add_argument("--speed", type=float, help="ringing: wall speed, mm/s (default 100, at most the "
+    r.add_argument("--speed", type=VALUES["speed"], help="ringing: wall speed, mm/s (default 100, at most the "
                    "printer's); accel: speed of the fast moves (default the printer's top speed)")
-    r.add_argument("--accel", type=float, help="ringing: acceleration, mm/s² (default the printer's)")
+    r.add_argument("--accel", type=VALUES["accel"], help="ringing: acceleration, mm/s² (default the printer's)")
     mode = r.add_mutually_exclusive_group()
-    mode.add_argument("--bands", metavar="F0:F1:N", help="N bands of shaper frequency from F0 to F1 Hz "
+    mode.add_argument("--bands", type=bands, metavar="F0:F1:N", help="N bands of shaper frequency from F0 to F1 Hz "
                       "(default 25:75:11)")
     mode.add_argument("--no-shaping", action="store_true", help="shaping off: measure ripples")
-    r.add_argument("--band-height", type=float, default=4.0, help="height of each band, mm (4)")
-    r.add_argument("--height", type=float, help="tower height with --no-shaping, mm (10)")
+    r.add_argument("--band-height", type=VALUES["length"], default=4.0, help="height of each band, mm (4)")
+    r.add_argument("--height", type=VALUES["length"], help="tower height with --no-shaping, mm (10)")
     r.add_argument("--shaper", help="shaper of the bands (default: the narrowest the firmware has, zv or mzv)")
-    r.add_argument("--damping", type=float, help="shaper damping of the bands (default: the firmware's)")
-    r.add_argument("--side", type=float, default=60.0, help="side of the square tower, mm (60)")
+    r.add_argument("--damping", type=VALUES["damping_ratio"], help="shaper damping of the bands (default: the firmware's)")
+    r.add_argument("--side", type=VALUES["length"], default=60.0, help="side of the square tower, mm (60)")
     a = p.add_argument_group("accel")
     a.add_argument("--config", metavar="best.json", help="accel: the tuned TuneConfig (its accel and shaper)")
-    a.add_argument("--from", dest="start_accel", type=float, metavar="A",
+    a.add_argument("--from", dest="start_accel", type=VALUES["accel"], metavar="A",
                    help="accel: first rung, mm/s² (default: the printer's current acceleration)")
-    a.add_argument("--rungs", type=int, default=5, help="accel: rungs from --from to the tuned value (5), "
+    a.add_argument("--rungs", type=VALUES["count"], default=5, help="accel: rungs from --from to the tuned value (5), "
                    "then 110 %% and 120 %%")
-    a.add_argument("--reach", type=float, default=40.0, help="accel: mm each way from the reference point (40)")
-    a.add_argument("--reps", type=int, default=3, help="accel: pattern repetitions per rung (3)")
+    a.add_argument("--reach", type=VALUES["length"], default=40.0, help="accel: mm each way from the reference point (40)")
+    a.add_argument("--reps", type=VALUES["count"], default=3, help="accel: pattern repetitions per rung (3)")
 
 
 def _centre(text: str | None, out) -> tuple[float, float]:
@@ -96,6 +96,10 @@ def _centre(text: str | None, out) -> tuple[float, float]:
     return x, y
 
 
+#: plausible targets: a nozzle hot enough to extrude anything printable and within what a hotend
+#: survives (PTFE-lined ones stop near 250 °C, all-metal ones near 300-450 °C); a bed off or up to 150 °C
+HOTEND = Value("a nozzle temperature", "°C", 150.0, 450.0, low_closed=True)
+BED = Value("a bed temperature", "°C", 0.0, 150.0, low_closed=True)
 #: what the print assumes when not told (said on stderr)
 MATERIAL = {"nozzle": 0.4, "layer": 0.2, "filament": 1.75, "hotend": 210.0, "bed": 60.0}
 
@@ -107,12 +111,6 @@ def _material(args, out) -> None:
     if missing:
         out.note("assumed " + ", ".join(f"--{k} {MATERIAL[k]:g}" for k in missing)
                  + " (mm, °C; PLA on a 0.4 mm nozzle)")
-    # plausible targets: a nozzle hot enough to extrude anything printable and within what a hotend
-    # survives (PTFE-lined ones stop near 250 °C, all-metal ones near 300-450 °C); a bed off or up to 150 °C
-    for key, lo, hi in (("hotend", 150.0, 450.0), ("bed", 0.0, 150.0)):
-        v = getattr(args, key)
-        if not (math.isfinite(v) and lo <= v <= hi):
-            raise RingtuneError(f"must be {lo:g} to {hi:g} °C, not {v:g}", f"--{key}")
 
 
 #: Hz: where a ringing tower's bands may lie — printers' X/Y resonances and the shapers that cancel
@@ -120,20 +118,26 @@ def _material(args, out) -> None:
 BAND_RANGE = (10.0, 150.0)
 
 
-def _bands(text: str | None) -> tuple[float, float, int]:
-    parts = (text or "25:75:11").split(":")
+def bands(text: str) -> tuple[float, float, int]:
+    """argparse type of --bands ``F0:F1:N`` -> (F0 Hz, F1 Hz, N bands), the bands within
+    :data:`BAND_RANGE`."""
+    parts = text.split(":")
     try:
         f0, f1, n = float(parts[0]), float(parts[1]), int(parts[2])
         if len(parts) != 3:
             raise ValueError
     except (ValueError, IndexError):
-        raise RingtuneError(f"expected F0:F1:N (Hz, Hz, bands), not {text!r}", "--bands") from None
+        raise argparse.ArgumentTypeError(f"expected F0:F1:N (Hz, Hz, bands), not {text!r}") from None
     for f in (f0, f1):
         if not BAND_RANGE[0] <= f <= BAND_RANGE[1]:
-            raise RingtuneError(f"a band at {f:g} Hz is outside {BAND_RANGE[0]:g}-{BAND_RANGE[1]:g} Hz, where "
-                                "printers resonate and shapers are tuned (FT_MOTION and Prusa start at 10 Hz, "
-                                "Klipper's rule tests up to 150 Hz)", "--bands")
+            raise argparse.ArgumentTypeError(
+                f"a band at {f:g} Hz is outside {BAND_RANGE[0]:g}-{BAND_RANGE[1]:g} Hz, where printers resonate "
+                "and shapers are tuned (FT_MOTION and Prusa start at 10 Hz, Klipper's rule tests up to 150 Hz)")
     return f0, f1, n
+
+
+#: the bands without --bands: 25 to 75 Hz in 5 Hz steps
+DEFAULT_BANDS = (25.0, 75.0, 11)
 
 
 def run(args, out) -> int:
@@ -144,6 +148,7 @@ def run(args, out) -> int:
     ext = cp.Extrusion(args.nozzle, args.layer, args.filament)
     ext.validate()
     lim = printer.limits
+    _check_kind(args)
     if args.kind == "ringing":
         result, text, gcode = _ringing(args, out, printer, lim, cx, cy, ext)
     else:
@@ -153,11 +158,6 @@ def run(args, out) -> int:
         out.note(f"wrote {args.output}")
     out.emit({"kind": args.kind, "firmware": args.firmware, "output": args.output, **result}, text)
     return 0
-
-
-def _positive(value, option):
-    if value is not None and not (math.isfinite(value) and value > 0):
-        raise RingtuneError(f"must be a positive number, not {value:g}", option)
 
 
 def _ladder_speed(given, config, velocity: float, name: str) -> tuple[float, str]:
@@ -180,32 +180,36 @@ def _on_the_bed(option: str, what: str, x_min: float, y_min: float) -> None:
                             "it smaller", option)
 
 
+#: options of one kind of print only: kind -> ((destination, flag), …)
+ONLY_FOR = {"accel": (("config", "--config"), ("start_accel", "--from")),
+            "ringing": (("bands", "--bands"), ("no_shaping", "--no-shaping"), ("accel", "--accel"))}
+
+
+def _check_kind(args) -> None:
+    """Refuse an option of the other kind of print."""
+    for kind, options in ONLY_FOR.items():
+        given = [flag for dest, flag in options if getattr(args, dest)]
+        if given and kind != args.kind:
+            flags = [flag for _, flag in options]
+            raise RingtuneError(f"{', '.join(flags[:-1])} and {flags[-1]} belong to testprint {kind}", given[0])
+
+
+def _tower_bands(args, out):
+    """(F0 Hz, F1 Hz, N) of the tower's bands, or None with --no-shaping."""
+    if args.no_shaping:
+        return None
+    if args.bands is None:
+        out.note("bands 25:75:11 (25 to 75 Hz in 5 Hz steps); give --bands F0:F1:N")
+        return DEFAULT_BANDS
+    return args.bands
+
+
 def _ringing(args, out, printer, lim, cx, cy, ext):
-    for opt in ("speed", "accel", "band_height", "height", "side"):
-        _positive(getattr(args, opt), "--" + opt.replace("_", "-"))
-    if args.config or args.start_accel:
-        raise RingtuneError("--config and --from belong to testprint accel", "--config" if args.config else "--from")
-    speed = args.speed
-    if speed is None:
-        speed = min(100.0, lim.velocity)
-        out.note(f"wall speed {speed:g} mm/s (--speed to change; faster spreads the ripples wider)")
-    if speed > lim.velocity:
-        raise RingtuneError(f"{speed:g} mm/s is above {printer.name}'s top speed {lim.velocity:g} mm/s", "--speed")
-    accel = args.accel
-    if accel is None:
-        accel = lim.accel
-        out.note(f"acceleration {accel:.0f} mm/s²: {printer.name}'s (--accel to change)")
-    # the wall must be long enough to reach the speed and then show several ripples
-    if speed ** 2 / accel > args.side / 3:
-        raise RingtuneError(f"at {accel:.0f} mm/s² the head needs {speed ** 2 / (2 * accel):.1f} mm to reach "
-                            f"{speed:g} mm/s: too much of a {args.side:g} mm wall; raise --accel or --side",
-                            "--speed")
     if args.height is not None and not args.no_shaping:
         raise RingtuneError("goes with --no-shaping (with bands the height is N × --band-height)", "--height")
+    speed, accel = _wall_speed_and_accel(args, out, printer, lim)
     height = 10.0 if args.height is None else args.height
-    bands = None if args.no_shaping else _bands(args.bands)
-    if bands is not None and args.bands is None:
-        out.note("bands 25:75:11 (25 to 75 Hz in 5 Hz steps); give --bands F0:F1:N")
+    bands = _tower_bands(args, out)
     # the prime line runs 12 mm in front of the tower, the brim 3 lines around it
     _on_the_bed("--side", f"a {args.side:g} mm tower at X{cx:g} Y{cy:g} with its brim and prime line",
                 cx - args.side / 2 - 3 * ext.line_width, cy - args.side / 2 - 12.0)
@@ -223,28 +227,34 @@ def _ringing(args, out, printer, lim, cx, cy, ext):
     return result, "\n".join(["band table:", *table, "", *plan.measure]), plan.gcode
 
 
+def _wall_speed_and_accel(args, out, printer, lim) -> tuple[float, float]:
+    """The tower's wall speed (mm/s) and acceleration (mm/s²): given, else the printer's (said);
+    the wall must be long enough to reach the speed and then show several ripples."""
+    speed = args.speed
+    if speed is None:
+        speed = min(100.0, lim.velocity)
+        out.note(f"wall speed {speed:g} mm/s (--speed to change; faster spreads the ripples wider)")
+    if speed > lim.velocity:
+        raise RingtuneError(f"{speed:g} mm/s is above {printer.name}'s top speed {lim.velocity:g} mm/s", "--speed")
+    accel = args.accel
+    if accel is None:
+        accel = lim.accel
+        out.note(f"acceleration {accel:.0f} mm/s²: {printer.name}'s (--accel to change)")
+    if speed ** 2 / accel > args.side / 3:
+        raise RingtuneError(f"at {accel:.0f} mm/s² the head needs {speed ** 2 / (2 * accel):.1f} mm to reach "
+                            f"{speed:g} mm/s: too much of a {args.side:g} mm wall; raise --accel or --side",
+                            "--speed")
+    return speed, accel
+
+
 def _accel(args, out, printer, lim, cx, cy, ext):
     if not args.config:
         raise RingtuneError("testprint accel needs the tuned configuration", "--config")
-    if args.bands or args.no_shaping or args.accel:
-        raise RingtuneError("--bands, --no-shaping and --accel belong to testprint ringing", "--accel")
-    for opt in ("speed", "start_accel", "reach"):
-        _positive(getattr(args, opt), "--from" if opt == "start_accel" else "--" + opt)
     config = load_config(args.config, out)
     if config.accel is None:
         raise RingtuneError("has no accel: nothing to check (tune with an acceleration search, or add "
                             '"accel": A)', args.config)
-    start = args.start_accel
-    if start is None:
-        current = getattr(printer, "current", None) or {}
-        if current.get("accel"):
-            start, whence = float(current["accel"]), f"what {printer.name} runs now ([current] accel)"
-        else:
-            start, whence = lim.accel, f"{printer.name}'s [limits] accel"
-        if config.accel is not None and start < float(config.accel):
-            out.note(f"first rung {start:.0f} mm/s²: {whence} (--from to change)")
-        else:
-            out.note(f"starting acceleration {start:.0f} mm/s²: {whence} (--from to change)")
+    start = args.start_accel if args.start_accel is not None else _start_accel(out, printer, lim, config)
     speed, whence = _ladder_speed(args.speed, config, lim.velocity, printer.name)
     if args.speed is None:
         out.note(f"fast moves at {speed:g} mm/s: {whence} (--speed to change)")
@@ -261,3 +271,17 @@ def _accel(args, out, printer, lim, cx, cy, ext):
     result = {"rungs": [{"number": k, "accel": a, "of_tuned": a / tuned} for k, a in enumerate(plan.accels, 1)],
               "tuned_accel": tuned, "measure": plan.table, "notes": plan.notes}
     return result, "\n".join(["ladder table:", *plan.table]), plan.gcode
+
+
+def _start_accel(out, printer, lim, config) -> float:
+    """The ladder's first rung without --from: what the printer runs now, else its limit (said)."""
+    current = getattr(printer, "current", None) or {}
+    if current.get("accel"):
+        start, whence = float(current["accel"]), f"what {printer.name} runs now ([current] accel)"
+    else:
+        start, whence = lim.accel, f"{printer.name}'s [limits] accel"
+    if start < float(config.accel):
+        out.note(f"first rung {start:.0f} mm/s²: {whence} (--from to change)")
+    else:
+        out.note(f"starting acceleration {start:.0f} mm/s²: {whence} (--from to change)")
+    return start

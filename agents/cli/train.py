@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ringtune.agents.cli.common import progress_interval
+from ringtune.agents.cli.options import VALUES, Value
 from ringtune.agents.ppo import policy as ppo
 from ringtune.agents.ppo.hpo import tune_hyperparameters
 from ringtune.agents.ppo.rl import rl
@@ -78,40 +79,28 @@ examples:
 """
 
 
+#: a training seed (seeds from MAX_TRAIN_SEED on are the held-out printers)
+SEED = Value("a training seed", "", 0, ppo.MAX_TRAIN_SEED, low_closed=True, high_closed=False, integer=True)
 #: library parameters whose option has another name (see agents/cli/main.py: as_flag)
 PARAMETER_FLAGS = {"n_trials": "--hpo-trials"}
 
 
 def add_arguments(p) -> None:
-    p.add_argument("--timesteps", type=int, default=DEFAULT_TIMESTEPS, metavar="N",
+    p.add_argument("--timesteps", type=VALUES["count"], default=DEFAULT_TIMESTEPS, metavar="N",
                    help=f"environment steps in total (default {DEFAULT_TIMESTEPS})")
-    p.add_argument("--envs", type=int, default=DEFAULT_N_ENVS, metavar="K",
+    p.add_argument("--envs", type=VALUES["count"], default=DEFAULT_N_ENVS, metavar="K",
                    help=f"parallel environments, in subprocesses when > 1 (default {DEFAULT_N_ENVS})")
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="seed (default 0; < 800000)")
+    p.add_argument("--seed", type=SEED, default=0, metavar="S",
+                   help=f"seed (default 0; < {ppo.MAX_TRAIN_SEED}: higher seeds are the held-out printers)")
     p.add_argument("-o", "--output", default="policy", metavar="DIR", help="output folder (default ./policy)")
     p.add_argument("--resume", action="store_true", help="continue from the newest checkpoint in DIR")
     p.add_argument("--hpo", action="store_true", help="tune PPO hyperparameters with Optuna first")
-    p.add_argument("--hpo-trials", type=int, default=6, metavar="N", help="Optuna trials for --hpo (default 6)")
+    p.add_argument("--hpo-trials", type=VALUES["count"], default=6, metavar="N", help="Optuna trials for --hpo (default 6)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def run(args, out) -> int:
-    if args.envs < 1:
-        raise RingtuneError("needs at least one environment", "--envs")
-    if args.timesteps < 1:
-        raise RingtuneError("must be ≥ 1", "--timesteps")
-    if not 0 <= args.seed < ppo.MAX_TRAIN_SEED:
-        raise RingtuneError(f"must be in [0, {ppo.MAX_TRAIN_SEED}) (higher seeds are the held-out printers)",
-                            "--seed")
-    hyper, hpo = None, None
-    if args.hpo:
-        if args.resume:
-            raise RingtuneError("--hpo starts a new run; it cannot resume", "--hpo")
-        out.note(f"tuning PPO hyperparameters: {args.hpo_trials} short runs ...")
-        hpo = tune_hyperparameters(Path(args.output) / "hpo", n_trials=args.hpo_trials,
-                                   budget=max(args.timesteps // 5, 256), n_envs=args.envs, seed=args.seed)
-        hyper = hpo["best_params"]
-        out.note(f"best hyperparameters: {hyper} (held-out cost {hpo['best_cost']:.3f})")
+    hyper, hpo = _hpo(args, out) if args.hpo else (None, None)
     hyper, rollout, planned = rollout_for(args.timesteps, args.envs, hyper, args.resume)
     if planned != args.timesteps:
         out.note(f"PPO collects whole rollouts of {rollout // args.envs} steps × {args.envs} env(s) = {rollout}: "
@@ -129,8 +118,24 @@ def run(args, out) -> int:
     files = {"policy": str(d / "policy.zip"), "vecnormalize": str(d / "vecnormalize.pkl"),
              "curve": str(d / "training_curve.png"), "final": str(d / "final.zip"),
              "meta": str(d / "meta.json")}
-    result = {**res.to_dict(), "timesteps_requested": args.timesteps, "rollout_steps": rollout,
-              "hpo": hpo, "files": files}
+    out.emit({**res.to_dict(), "timesteps_requested": args.timesteps, "rollout_steps": rollout,
+              "hpo": hpo, "files": files}, _text(res, files, d))
+    return 0
+
+
+def _hpo(args, out) -> tuple[dict, dict]:
+    """(best hyperparameters, the search's result) of --hpo: Optuna over short runs, a fifth of the budget."""
+    if args.resume:
+        raise RingtuneError("--hpo starts a new run; it cannot resume", "--hpo")
+    out.note(f"tuning PPO hyperparameters: {args.hpo_trials} short runs ...")
+    hpo = tune_hyperparameters(Path(args.output) / "hpo", n_trials=args.hpo_trials,
+                               budget=max(args.timesteps // 5, 256), n_envs=args.envs, seed=args.seed)
+    out.note(f"best hyperparameters: {hpo['best_params']} (held-out cost {hpo['best_cost']:.3f})")
+    return hpo["best_params"], hpo
+
+
+def _text(res, files: dict, d: Path) -> str:
+    """What was trained and where it went, in words."""
     text = [f"trained {res.timesteps} steps in {res.wall_s:.0f} s"
             + (f" (resumed from {res.resumed_from})" if res.resumed_from else "")]
     if res.eval_mean_cost:
@@ -138,8 +143,7 @@ def run(args, out) -> int:
             f"{c:.3f}@{t}" for t, c in zip(res.eval_timesteps, res.eval_mean_cost)))
     text.append(f"policy: {files['policy']} (+ {files['vecnormalize']}); curve: {files['curve']}")
     text.append(f"use it: ringtune recommend --method policy --policy {d} --printer default")
-    out.emit(result, "\n".join(text))
-    return 0
+    return "\n".join(text)
 
 
 def rollout_for(timesteps: int, n_envs: int, hyper: dict | None, resume: bool) -> tuple[dict | None, int, int]:

@@ -160,40 +160,65 @@ def build_description(fits: dict[str, AxisFit], *, name: str = "identified", kin
     firmware configuration's :class:`FirmwareFacts` (``description`` dict in this form, ``notes``,
     ``source``); ``motors``: ``{"all"|"x"|"y": {name, run_current, voltage}}`` from ``--motor``;
     ``measurement``: the ``[measurement]`` table (files and Klipper's recommendation)."""
-    masses, added, motors = masses or {}, added or {}, motors or {}
-    d: dict[str, Any] = {"name": name}
-    desc = Description(d)
+    desc = Description({"name": name})
     fw = dict(facts.description) if facts is not None else {}
     src = Path(facts.source).name if facts is not None else None
+    _kinematics(desc, fw.pop("kinematics", None), kinematics, src)
+    _configuration(desc, fw, facts)
+    _motors(desc, motors or {}, src)
+    base_name, base_modes = _base_modes(base)
+    added, masses = added or {}, masses or {}
+    _default_masses(desc, [_axis(desc, ax, fits.get(ax), (base_name, base_modes[ax]), added.get(ax), masses.get(ax))
+                           for ax in AXES])
+    if measurement:
+        desc.data["measurement"] = measurement
+    return desc
 
-    # kinematics
-    if kinematics:
-        d["kinematics"] = kinematics
-        if fw.get("kinematics") and fw["kinematics"] != kinematics:
-            desc.notes.append(f"--kinematics {kinematics} replaces {src}'s {fw['kinematics']}")
-    elif fw.get("kinematics"):
-        d["kinematics"] = fw["kinematics"]
+
+def _default_masses(desc: Description, said: list[str | None]) -> None:
+    """Say the axes whose mass is still the default (``said``: per axis, the default in words or None)."""
+    default_mass = [m for m in said if m]
+    if default_mass:
+        desc.defaults.append(f"masses: {', '.join(default_mass)} are the defaults (an Ender-3-class machine): "
+                             "the motor load and the acceleration headroom come from them (give --mass "
+                             "X=KG,Y=KG weighed, or --added-mass KG with a second resonance test)")
+
+
+def _kinematics(desc: Description, configured: str | None, given: str | None, src: str | None) -> None:
+    """``kinematics``: as given (--kinematics), else the configuration's, else cartesian (said)."""
+    if given:
+        desc.data["kinematics"] = given
+        if configured and configured != given:
+            desc.notes.append(f"--kinematics {given} replaces {src}'s {configured}")
+    elif configured:
+        desc.data["kinematics"] = configured
     else:
-        d["kinematics"] = "cartesian"
+        desc.data["kinematics"] = "cartesian"
         why = f"no --kinematics, and {src} does not give it" if src else "no --kinematics, no firmware configuration"
         desc.defaults.append(f"kinematics: cartesian is a default ({why}): a CoreXY or CoreXZ is simulated "
                              "with the wrong coupling of its axes and motors")
-    fw.pop("kinematics", None)
 
-    # limits and the rest of the configuration (motors, [current])
-    if facts is not None:
-        _merge(d, {k: v for k, v in fw.items() if k not in AXES})
-        for ax in AXES:
-            if isinstance(fw.get(ax), dict):
-                d.setdefault(ax, {}).update({k: v for k, v in fw[ax].items() if k != "modes"})
-        desc.comment("", f"limits, motors and the firmware's current shaping from {facts.source}")
-        desc.notes += list(facts.notes)
-    else:
+
+def _configuration(desc: Description, fw: dict, facts) -> None:
+    """Limits, motors and ``[current]`` from the firmware configuration (its axes' modes aside), or
+    the default limits (said)."""
+    if facts is None:
         desc.defaults.append("limits: the default printer's (accel 3000 mm/s², velocity 300 mm/s, square "
                              "corner velocity 5 mm/s): the print times and the acceleration range of tune come "
                              "from them (give --klipper-config, --marlin or --rrf)")
+        return
+    d = desc.data
+    _merge(d, {k: v for k, v in fw.items() if k not in AXES})
+    for ax in AXES:
+        if isinstance(fw.get(ax), dict):
+            d.setdefault(ax, {}).update({k: v for k, v in fw[ax].items() if k != "modes"})
+    desc.comment("", f"limits, motors and the firmware's current shaping from {facts.source}")
+    desc.notes += list(facts.notes)
 
-    # --motor: all axes or per axis
+
+def _motors(desc: Description, motors: dict, src: str | None) -> None:
+    """--motor into every motor table (``all``) or an axis's; a motor still unnamed is said."""
+    d = desc.data
     for key, spec in motors.items():
         if key == "all":          # every motor table: [motor] and the per-axis ones the configuration has
             targets = [d.setdefault("motor", {})] + [d[ax]["motor"] for ax in AXES if "motor" in d.get(ax, {})]
@@ -203,7 +228,12 @@ def build_description(fits: dict[str, AxisFit], *, name: str = "identified", kin
             if "name" in target and target["name"].casefold() != spec["name"].casefold():
                 desc.notes.append(f"--motor {spec['name']} replaces {src}'s motor {target['name']}")
             target.update(spec)
-    missing = [ax for ax in AXES if not _has_motor(d, ax)]
+    _unnamed_motors(desc)
+
+
+def _unnamed_motors(desc: Description) -> None:
+    """Say which axes still run the default motor."""
+    missing = [ax for ax in AXES if not _has_motor(desc.data, ax)]
     if missing:
         which = " and ".join(ax.upper() for ax in missing)
         desc.defaults.append(f"motor ({which}): the default 42-34 stepper ({DEFAULTS['motor_force']:g} N at the "
@@ -211,48 +241,43 @@ def build_description(fits: dict[str, AxisFit], *, name: str = "identified", kin
                              "motor load come from the default motor (give --motor NAME[:RUN_CURRENT[:VOLTAGE]] "
                              "or a firmware configuration that names it)")
 
-    # axes: modes, masses
-    base_name, base_modes = _base_modes(base)
-    default_mass = []
-    for ax in AXES:
-        table = d.setdefault(ax, {})
-        if ax in fits:
-            fit = fits[ax]
-            desc.comment(ax, f"modes fitted to {Path(fit.source).name} ({fit.kind}, {fit.method}, "
-                             f"r² = {fit.r2:.3f})")
-            table["modes"] = fitted_modes(fit)
-        else:
-            table["modes"] = base_modes[ax]
-            desc.comment(ax, f"not measured: the modes of {base_name}")
-            freqs = ", ".join(f"{m['freq']:g} Hz" for m in base_modes[ax])
-            desc.defaults.append(f"{ax.upper()} was not measured: its modes are {base_name}'s "
-                                 f"({freqs}); the shaper "
-                                 f"tuned for {ax.upper()} fits that printer, not yours (measure {ax.upper()} too)")
-        if ax in added:
-            a = added[ax]
-            table["mass"] = _round(a.mass, 4)
-            desc.comment(ax, f"mass by the added-mass method: {a.dm:g} kg moved the spectrum by ×{a.f1 / a.f0:.4f} "
-                             f"(fitted to both spectra), the dominant mode {a.f0:.2f} Hz to {a.f1:.2f} Hz; "
-                             f"m = dm/((f0/f1)² − 1) = {a.mass:.3f} ± {a.mass_error:.3f} kg (1 standard error), "
-                             f"stiffness k = m·(2π f0)² = {a.stiffness:.4g} N/m")
-            if ax in masses:
-                desc.notes.append(f"{ax.upper()}: --mass {masses[ax]:g} kg replaces the added-mass "
-                                  f"estimate {a.mass:.3f} kg")
-        if ax in masses:
-            table["mass"] = masses[ax]
-            desc.comment(ax, f"mass {masses[ax]:g} kg weighed (--mass)")
-        if "mass" not in table:
-            default_mass.append(f"{ax.upper()} {DEFAULTS[f'mass_{ax}']:g} kg")
-        # the per-axis tables come last in TOML order: put modes and mass first
-        d[ax] = {k: table[k] for k in ("mass", "modes") if k in table} | \
-            {k: v for k, v in table.items() if k not in ("mass", "modes")}
-    if default_mass:
-        desc.defaults.append(f"masses: {', '.join(default_mass)} are the defaults (an Ender-3-class machine): "
-                             "the motor load and the acceleration headroom come from them (give --mass "
-                             "X=KG,Y=KG weighed, or --added-mass KG with a second resonance test)")
-    if measurement:
-        d["measurement"] = measurement
-    return desc
+
+def _axis(desc: Description, ax: str, fit: AxisFit | None, base: tuple[str, list[dict]],
+          added: AddedMass | None, weighed: float | None) -> str | None:
+    """Axis ``ax``'s table: its fitted modes (else ``base``'s, said) and its mass (weighed, else by
+    the added-mass method); the default mass in words when neither gives it."""
+    table = desc.data.setdefault(ax, {})
+    if fit is not None:
+        desc.comment(ax, f"modes fitted to {Path(fit.source).name} ({fit.kind}, {fit.method}, r² = {fit.r2:.3f})")
+        table["modes"] = fitted_modes(fit)
+    else:
+        base_name, modes = base
+        table["modes"] = modes
+        desc.comment(ax, f"not measured: the modes of {base_name}")
+        freqs = ", ".join(f"{m['freq']:g} Hz" for m in modes)
+        desc.defaults.append(f"{ax.upper()} was not measured: its modes are {base_name}'s ({freqs}); the shaper "
+                             f"tuned for {ax.upper()} fits that printer, not yours (measure {ax.upper()} too)")
+    if added is not None:
+        _added_mass(desc, table, added, weighed)
+    if weighed is not None:
+        table["mass"] = weighed
+        desc.comment(ax, f"mass {weighed:g} kg weighed (--mass)")
+    # the per-axis tables come last in TOML order: put modes and mass first
+    desc.data[ax] = {k: table[k] for k in ("mass", "modes") if k in table} | \
+        {k: v for k, v in table.items() if k not in ("mass", "modes")}
+    return None if "mass" in table else f"{ax.upper()} {DEFAULTS[f'mass_{ax}']:g} kg"
+
+
+def _added_mass(desc: Description, table: dict, a: AddedMass, weighed: float | None) -> None:
+    """The added-mass method's mass, and how it was found, in the axis's table."""
+    table["mass"] = _round(a.mass, 4)
+    desc.comment(a.axis, f"mass by the added-mass method: {a.dm:g} kg moved the spectrum by ×{a.f1 / a.f0:.4f} "
+                         f"(fitted to both spectra), the dominant mode {a.f0:.2f} Hz to {a.f1:.2f} Hz; "
+                         f"m = dm/((f0/f1)² − 1) = {a.mass:.3f} ± {a.mass_error:.3f} kg (1 standard error), "
+                         f"stiffness k = m·(2π f0)² = {a.stiffness:.4g} N/m")
+    if weighed is not None:
+        desc.notes.append(f"{a.axis.upper()}: --mass {weighed:g} kg replaces the added-mass "
+                          f"estimate {a.mass:.3f} kg")
 
 
 #: file names that say nothing of the printer (its folder does: ``ender3/printer.cfg``)

@@ -186,46 +186,65 @@ def fit_shaper(name: str, datasets: Sequence[_Dataset], factory: ShaperFactory, 
                max_freq: float | None = None, max_smoothing: float | None = None,
                max_vibrations: float | None = None) -> tuple[ShaperFit, list[ShaperFit]]:
     """Klipper's ``fit_shaper`` for one shaper type: (selected result, results high -> low freq)."""
-    f_end = freq_range[1] or MAX_SHAPER_FREQ
-    f_start = min(freq_range[0] or SHAPER_MIN_FREQ[_base(name)], f_end - 1e-7)
-    test_freqs = np.arange(f_start, f_end, freq_range[2] or FREQ_STEP)
+    test_freqs = _test_frequencies(name, freq_range)
     max_freq = max(max_freq or MAX_FREQ, float(test_freqs.max()))
     cut = [(d.freqs[d.freqs <= max_freq], d.psd[d.freqs <= max_freq]) for d in datasets]
-
     freqs_desc = test_freqs[::-1]
     built = [factory(name, float(f), damping_ratio) for f in freqs_desc]
     amps = np.stack([np.asarray(b[0], dtype=float) for b in built])
     times = np.stack([np.asarray(b[1], dtype=float) for b in built])
     terms = smoothing_terms(amps, times, scv)
     smoothing = smoothing_from_terms(terms, SMOOTHING_ACCEL)
-    stopped = False
-    if max_smoothing:
-        over = np.nonzero(smoothing[1:] > max_smoothing)[0]   # Klipper stops once a result exists
-        if over.size:
-            stopped = True
-            keep = over[0] + 1
-            freqs_desc, amps, times, smoothing = freqs_desc[:keep], amps[:keep], times[:keep], smoothing[:keep]
-            terms = tuple(x[:keep] for x in terms)
-    vibrs = np.zeros(len(freqs_desc))
-    for freqs, psd in cut:
-        for dr in test_damping_ratios:
-            vibrs = np.maximum(vibrs, remaining_vibrations(amps, times, freqs, psd, dr))
+    keep = _smoothing_stop(smoothing, max_smoothing)
+    if keep is not None:
+        freqs_desc, amps, times, smoothing = freqs_desc[:keep], amps[:keep], times[:keep], smoothing[:keep]
+        terms = tuple(x[:keep] for x in terms)
+    vibrs = _worst_vibrations(amps, times, cut, test_damping_ratios)
     scores = smoothing * (vibrs ** 1.5 + vibrs * 0.2 + 0.01)
     max_accels = max_accel_from_terms(terms, TARGET_SMOOTHING)
-
-    best: ShaperFit | None = None
-    results: list[ShaperFit] = []
-    for i, freq in enumerate(freqs_desc):
-        res = ShaperFit(name, float(freq), float(vibrs[i]), float(smoothing[i]), float(scores[i]),
-                        float(max_accels[i]))
-        results.append(res)
-        if best is None or best.vibrs > res.vibrs:
-            best = res
-    selected = best
-    if stopped:
+    results = [ShaperFit(name, float(freq), float(vibrs[i]), float(smoothing[i]), float(scores[i]),
+                         float(max_accels[i])) for i, freq in enumerate(freqs_desc)]
+    best = min(results, key=lambda r: r.vibrs)          # the first of the lowest, as Klipper's strict >
+    if keep is not None:
         # Klipper's early exit (``return best_res``, every version): the lowest-vibration result of
         # the frequencies scanned so far, without the smoothing-saving selection below
-        return selected, results
+        return best, results
+    return _saving_smoothing(results, best, version, max_vibrations), results
+
+
+def _worst_vibrations(amps, times, datasets, damping_ratios) -> np.ndarray:
+    """Per candidate shaper, the largest remaining vibrations over the datasets and the tested
+    damping ratios (HEAD's pessimisation; one dataset in 0.13's)."""
+    vibrs = np.zeros(len(amps))
+    for freqs, psd in datasets:
+        for dr in damping_ratios:
+            vibrs = np.maximum(vibrs, remaining_vibrations(amps, times, freqs, psd, dr))
+    return vibrs
+
+
+def _test_frequencies(name: str, freq_range) -> np.ndarray:
+    """The frequencies Klipper tries for shaper ``name`` (Hz, rising): ``freq_range`` (start,
+    end, step), each None for Klipper's default."""
+    f_end = freq_range[1] or MAX_SHAPER_FREQ
+    f_start = min(freq_range[0] or SHAPER_MIN_FREQ[_base(name)], f_end - 1e-7)
+    return np.arange(f_start, f_end, freq_range[2] or FREQ_STEP)
+
+
+def _smoothing_stop(smoothing: np.ndarray, max_smoothing: float | None) -> int | None:
+    """How many results (high -> low frequency) Klipper scans under ``max_smoothing``, None when it
+    scans them all: it stops once a result exists and the smoothing passes the bound."""
+    if not max_smoothing:
+        return None
+    over = np.nonzero(smoothing[1:] > max_smoothing)[0]
+    return int(over[0] + 1) if over.size else None
+
+
+def _saving_smoothing(results: list[ShaperFit], best: ShaperFit, version: str,
+                      max_vibrations: float | None) -> ShaperFit:
+    """Klipper's selection from low to high frequency: a result with vibrations within 10 % of the
+    best (HEAD: + 0.0005) and a better score (HEAD: or any, while the best breaks
+    ``max_vibrations``)."""
+    selected = best
     for res in results[::-1]:
         if version == "head":
             ok = res.vibrs < best.vibrs * 1.1 + 0.0005 and (
@@ -234,7 +253,7 @@ def fit_shaper(name: str, datasets: Sequence[_Dataset], factory: ShaperFactory, 
             ok = res.vibrs < best.vibrs * 1.1 and res.score < selected.score
         if ok:
             selected = res
-    return selected, results
+    return selected
 
 
 def recommend_klipper(psds: Any, version: str = "head", scv: float = 5.0, *,
@@ -258,47 +277,73 @@ def recommend_klipper(psds: Any, version: str = "head", scv: float = 5.0, *,
         shaper_factory: ``(name, freq, damping) -> (amps, times)``; default get_shaper in the
             version's flavour.
     """
+    _check_rule(version, scv)
+    datasets = _datasets(psds, version, lowfreq or VERSION_LOWFREQ[version])
+    factory = shaper_factory or default_shaper_factory(VERSION_FLAVOR[version])
+    names = [_check_shaper_name(n) for n in shapers]
+    mv = max_vibrations if version == "head" else None
+    kw = dict(version=version, scv=scv, damping_ratio=damping_ratio or DEFAULT_DAMPING_RATIO,
+              test_damping_ratios=tuple(test_damping_ratios or TEST_DAMPING_RATIOS), freq_range=freq_range,
+              max_freq=max_freq, max_smoothing=max_smoothing, max_vibrations=mv)
+    fits = [(name, *fit_shaper(name, datasets, factory, **kw)) for name in names]
+    best, table = _best_shaper(fits, version, mv)
+    all_results = {name: results for name, _, results in fits}
+    return KlipperRecommendation(best=best, shapers=table, version=version, scv=float(scv), all_results=all_results)
+
+
+def _best_shaper(fits: list, version: str, max_vibrations: float | None) -> tuple[ShaperFit, list[ShaperFit]]:
+    """(Klipper's pick, the table of each shaper's fit) from [(name, fit, results)], in order: a
+    fit that is :func:`_better` replaces the best; HEAD then takes any result of that shaper with
+    fewer vibrations and less smoothing, and never keeps ZV where another shaper vibrates 10 % less."""
+    best: ShaperFit | None = None
+    table: list[ShaperFit] = []
+    for _, shaper, results in fits:
+        if best is None or _better(shaper, best, version, max_vibrations):
+            best = shaper
+        if version == "head":
+            best, shaper = _quieter_and_smoother(results, best, shaper)
+        table.append(shaper)
+    if version == "head" and best.name == "zv":
+        best = next((s for s in table if s.name != "zv" and s.vibrs * 1.1 < best.vibrs), best)
+    return best, table
+
+
+def _quieter_and_smoother(results: list[ShaperFit], best: ShaperFit, shaper: ShaperFit) -> tuple[ShaperFit, ShaperFit]:
+    """HEAD: (best, this shaper's entry) after taking, from low to high frequency, each result with
+    fewer vibrations and less smoothing than the best so far."""
+    for res in results[::-1]:
+        if res.vibrs < best.vibrs and res.smoothing < best.smoothing:
+            best = shaper = res
+    return best, shaper
+
+
+def _check_rule(version: str, scv) -> None:
+    """A Klipper version there is, and a square-corner velocity ≥ 0 mm/s."""
     if version not in VERSIONS:
         raise RingtuneError(f"Klipper version must be one of {', '.join(VERSIONS)}, not {version!r}",
                             "version")
     if not (isinstance(scv, (int, float)) and math.isfinite(scv) and scv >= 0):
         raise RingtuneError(f"square-corner velocity must be ≥ 0 mm/s, not {scv!r}", "scv")
-    lowfreq = lowfreq or VERSION_LOWFREQ[version]
+
+
+def _datasets(psds: Any, version: str, lowfreq: str) -> list[_Dataset]:
+    """The normalised datasets of one axis (0.13: several averaged into one, as its add_data)."""
     items = list(psds) if isinstance(psds, list) else [psds]
     if not items:
         raise RingtuneError("no PSD given", "recommend_klipper")
     datasets = [_as_dataset(p, lowfreq, getattr(p, "source", None) or f"PSD {i + 1}") for i, p in enumerate(items)]
     if version == "0.13" and len(datasets) > 1:
         datasets = [_average(datasets)]
-    factory = shaper_factory or default_shaper_factory(VERSION_FLAVOR[version])
-    names = [_check_shaper_name(n) for n in shapers]
-    kw = dict(version=version, scv=scv, damping_ratio=damping_ratio or DEFAULT_DAMPING_RATIO,
-              test_damping_ratios=tuple(test_damping_ratios or TEST_DAMPING_RATIOS), freq_range=freq_range,
-              max_freq=max_freq, max_smoothing=max_smoothing,
-              max_vibrations=max_vibrations if version == "head" else None)
+    return datasets
 
-    best: ShaperFit | None = None
-    table: list[ShaperFit] = []
-    all_results: dict[str, list[ShaperFit]] = {}
-    for name in names:
-        shaper, results = fit_shaper(name, datasets, factory, **kw)
-        all_results[name] = results
-        mv = kw["max_vibrations"]
-        if (best is None or shaper.score * 1.2 < best.score
-                or (shaper.score * 1.05 < best.score and shaper.smoothing * 1.1 < best.smoothing)
-                or (version == "head" and mv is not None and best.vibrs > mv and shaper.vibrs < best.vibrs)):
-            best = shaper
-        if version == "head":
-            for res in results[::-1]:
-                if res.vibrs < best.vibrs and res.smoothing < best.smoothing:
-                    best = shaper = res
-        table.append(shaper)
-    if version == "head" and best.name == "zv":
-        for s in table:
-            if s.name != "zv" and s.vibrs * 1.1 < best.vibrs:
-                best = s
-                break
-    return KlipperRecommendation(best=best, shapers=table, version=version, scv=float(scv), all_results=all_results)
+
+def _better(shaper: ShaperFit, best: ShaperFit, version: str, max_vibrations: float | None) -> bool:
+    """Klipper's ``find_best_shaper`` comparison: a fifth better score, or 5 % better with 10 % less
+    smoothing (HEAD: or fewer vibrations while the best breaks ``max_vibrations``)."""
+    return (shaper.score * 1.2 < best.score
+            or (shaper.score * 1.05 < best.score and shaper.smoothing * 1.1 < best.smoothing)
+            or (version == "head" and max_vibrations is not None and best.vibrs > max_vibrations
+                and shaper.vibrs < best.vibrs))
 
 
 def _average(datasets: list[_Dataset]) -> _Dataset:

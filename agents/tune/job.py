@@ -135,29 +135,14 @@ def accel_statement(chosen: Point, space, max_pe: float, reserve: float, points,
     info = {"range": [lo, hi], "searched": not space.accel_fixed, "basis": space.accel_basis, "chosen": a,
             "stopped_by": None, "headroom": {}, "defaults": []}
     tail = list(binding)
-    if printer is not None:
-        note = defaults_note(printer)
-        if note:
-            tail.append(note)
-            info["defaults"] = list(printer.defaulted)
+    note = defaults_note(printer) if printer is not None else ""
+    if note:
+        tail.append(note)
+        info["defaults"] = list(printer.defaulted)
     if space.accel_fixed:
         info["stopped_by"] = "not searched"
         return [f"{a:.0f} mm/s², {space.accel_basis}."] + tail, info
-    cands = []
-    load = chosen.metrics.get("motor_load")
-    if reserve > 0 and load:
-        cap = 1.0 - reserve
-        cands.append(("motor reserve", load / cap, f"motor load {load * 100:.0f} % of the force the motors have at "
-                      f"their speed; the reserve allows {cap * 100:.0f} % ({(cap - load) * 100:.0f} points free)"))
-        info["headroom"]["motor_load"] = cap - load
-    pe = chosen.metrics.get("path_error_mm")
-    if max_pe > 0 and pe is not None:
-        cands.append(("path error", pe / max_pe, f"path error {pe * 1000:.1f} µm of the {max_pe * 1000:g} µm bound "
-                      f"({(max_pe - pe) * 1000:.1f} µm free)"))
-        info["headroom"]["path_error_mm"] = max_pe - pe
-    cands.append(("range edge", a / hi, f"{hi:.0f} mm/s² ({space.accel_basis})"
-                  + ("; the choice is on it" if hi - a < 0.5 else f", {hi - a:.0f} mm/s² above the choice")))
-    info["headroom"]["accel_mm_s2"] = hi - a
+    cands = _accel_bounds(chosen, space, max_pe, reserve, info["headroom"])
     name, ratio, text = max(cands, key=lambda c: c[1])
     lines = [f"Chosen {a:.0f} mm/s² (searched {lo:.0f}–{hi:.0f})."]
     if ratio >= 0.9:
@@ -168,12 +153,44 @@ def accel_statement(chosen: Point, space, max_pe: float, reserve: float, points,
         lines.append("No bound is within 10 % of it: what stops it is quality — the faster front points have more "
                      "overshoot or path error than the choice allows.")
     lines += [f"  {'range edge: ' if n == 'range edge' else ''}{t}" for n, r, t in cands if n != name or ratio < 0.9]
+    return lines + _faster_trials(points, a) + tail, info
+
+
+def _accel_bounds(chosen: Point, space, max_pe: float, reserve: float, headroom: dict) -> list[tuple]:
+    """[(bound, how near the choice is to it (1 = on it), in words)] for the motor reserve, the
+    path-error bound and the range's edge; each one's free room goes into ``headroom``."""
+    a = float(chosen.config.accel or 0.0)
+    hi = space.accel[1]
+    cands = []
+    load = chosen.metrics.get("motor_load")
+    if reserve > 0 and load:
+        cap = 1.0 - reserve
+        cands.append(("motor reserve", load / cap, f"motor load {load * 100:.0f} % of the force the motors have at "
+                      f"their speed; the reserve allows {cap * 100:.0f} % ({(cap - load) * 100:.0f} points free)"))
+        headroom["motor_load"] = cap - load
+    pe = chosen.metrics.get("path_error_mm")
+    if max_pe > 0 and pe is not None:
+        cands.append(("path error", pe / max_pe, f"path error {pe * 1000:.1f} µm of the {max_pe * 1000:g} µm bound "
+                      f"({(max_pe - pe) * 1000:.1f} µm free)"))
+        headroom["path_error_mm"] = max_pe - pe
+    cands.append(("range edge", a / hi, f"{hi:.0f} mm/s² ({space.accel_basis})"
+                  + ("; the choice is on it" if hi - a < 0.5 else f", {hi - a:.0f} mm/s² above the choice")))
+    headroom["accel_mm_s2"] = hi - a
+    return cands
+
+
+#: why a faster trial was not chosen, the first that applies: (in words, test)
+HELD_BACK = (("lose steps", lambda p: p.step_loss), ("exceed the path-error bound", lambda p: p.too_rough),
+             ("break the motor reserve", lambda p: p.overloaded))
+
+
+def _faster_trials(points, a: float) -> list[str]:
+    """What held back the trials at a higher acceleration than ``a`` mm/s², in one sentence (or none)."""
     faster = [p for p in points if (p.config.accel or 0) > a]
-    if faster:
-        why = {"lose steps": sum(p.step_loss for p in faster),
-               "exceed the path-error bound": sum(p.too_rough and not p.step_loss for p in faster),
-               "break the motor reserve": sum(p.overloaded and not p.too_rough and not p.step_loss for p in faster)}
-        said = ", ".join(f"{n} {w}" for w, n in why.items() if n)
-        if said:
-            lines.append(f"Of the {len(faster)} trials at a higher acceleration, {said}.")
-    return lines + tail, info
+    why = dict.fromkeys((words for words, _ in HELD_BACK), 0)
+    for p in faster:
+        reason = next((words for words, test in HELD_BACK if test(p)), None)
+        if reason:
+            why[reason] += 1
+    said = ", ".join(f"{n} {w}" for w, n in why.items() if n)
+    return [f"Of the {len(faster)} trials at a higher acceleration, {said}."] if said else []
