@@ -11,6 +11,7 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
+from ringtune.agents.cli import train as train_cmd  # noqa: E402
 from ringtune.agents.ppo import policy as ppo  # noqa: E402
 from ringtune.agents.ppo import recommend as ppo_recommend  # noqa: E402
 from ringtune.envs.env import TuneEnv  # noqa: E402
@@ -185,7 +186,8 @@ def test_train_cli_json_keys_and_hpo_hands_its_best_to_training(tmp_path, monkey
         seen["train"] = kw
         return ppo.TrainResult(tmp_path / "pol", timesteps, 0.1)
 
-    monkeypatch.setattr(ppo_hpo, "tune_hyperparameters", fake_hpo)
+    # the command imports tune_hyperparameters by name (imports at the top): patch it where it is used
+    monkeypatch.setattr(train_cmd, "tune_hyperparameters", fake_hpo)
     monkeypatch.setattr(ppo, "train", fake_train)
     out = tmp_path / "pol"
     assert main(["train", "--json", "--hpo", "--hpo-trials", "3", "--timesteps", "2000", "--envs", "2",
