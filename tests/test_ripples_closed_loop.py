@@ -22,6 +22,7 @@ import pytest
 from ringtune.agents.cli.main import main
 from ringtune.envs.printer import load_printer
 from ringtune.envs.printer_model import Mode
+from ringtune.envs.ripples import TYPICAL_DAMPING
 
 SIDE, SPEED = 40.0, 100.0          # a 40 mm tower: walls long enough, a short job
 X0 = Y0 = 110.0 - SIDE / 2          # testprint's default centre 110,110
@@ -147,7 +148,7 @@ def test_ripple_spacing_recovers_the_dominant_mode(loop, name, capsys):
             assert abs(f / dom.freq - 1) < 0.03, (name, ax, f, dom, meas[ax])
         z = decay.axis(ax).modes[0].damping
         assert abs(z / dom.damping - 1) < 0.30, (name, ax, z, dom, meas[ax])
-        assert plain.axis(ax).modes[0].damping == pytest.approx(0.1)   # Klipper's default, said aloud
+        assert plain.axis(ax).modes[0].damping == pytest.approx(TYPICAL_DAMPING)   # a typical printer's, said aloud
 
 
 def test_identified_toml_records_the_source(loop):
