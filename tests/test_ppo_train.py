@@ -11,6 +11,7 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
+from ringtune.agents.cli import train as train_cmd  # noqa: E402
 from ringtune.agents.ppo import policy as ppo  # noqa: E402
 from ringtune.agents.ppo import recommend as ppo_recommend  # noqa: E402
 from ringtune.envs.env import TuneEnv  # noqa: E402
@@ -170,7 +171,6 @@ TRAIN_JSON_KEYS = {"out_dir", "timesteps", "wall_s", "resumed_from", "eval_times
 def test_train_cli_json_keys_and_hpo_hands_its_best_to_training(tmp_path, monkeypatch, capsys):
     """`ringtune train --hpo --json`: the documented keys; the hyperparameters Optuna found are the
     ones the final training uses; --hpo with --resume is one clear line."""
-    from ringtune.agents.cli import train as train_cmd
     from ringtune.agents.cli.main import main
 
     seen = {}

@@ -5,6 +5,8 @@ TuneConfig key has its option, so ``--config best.json`` and the same values as 
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 
 import numpy as np
@@ -32,16 +34,22 @@ def ripple_run(tmp_path_factory):
         assert main(["testprint", "ringing", "--firmware", fw, "--no-shaping", "--height", str(LAYER_Z),
                      "--side", str(SIDE), "--printer", str(toml), "-o", str(gf)]) == 0
     g = d / "ripples-marlin.gcode"
-    assert main(["simulate", "--printer", str(toml), "--gcode", str(g), "--trace", str(trace),
-                 "--backend", "lti", "--freq-margin", "0", "--json"]) == 0
-    return toml, g, load_trace(trace), d
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        assert main(["simulate", "--printer", str(toml), "--gcode", str(g), "--trace", str(trace),
+                     "--backend", "lti", "--freq-margin", "0", "--json"]) == 0
+    res = json.loads(buf.getvalue())
+    return toml, g, load_trace(trace), d, res
 
 
 def test_the_ripple_print_shows_ripples_on_a_printer_with_a_current_section(ripple_run, capsys):
-    toml, g, tr, _ = ripple_run
+    toml, g, tr, _, res = ripple_run
     printer = load_printer(str(toml))
-    # the job's M593 X F0 / M593 Y F0 turned shaping off: the motors follow the G-code path itself
-    moving = tr["t"] > 1.0
+    # the job's M593 X F0 / M593 Y F0 turned shaping off: from there on (its last change, plus the
+    # [current] shaper's tail) the motors follow the G-code path itself
+    off = res["job_shapers"][-1]
+    assert off["config"]["shaper_x"] == off["config"]["shaper_y"] == "none"
+    moving = tr["t"] > off["time"] + 0.1
     assert np.max(np.abs(tr["x_shaped"][moving] - tr["x_cmd"][moving])) < 1e-9
     assert np.max(np.abs(tr["y_shaped"][moving] - tr["y_cmd"][moving])) < 1e-9
     # ripples as a person measures them, at the spacing of the printer's dominant mode
@@ -71,7 +79,7 @@ def _current_config(printer):
 
 
 def test_simulate_says_it_applies_the_jobs_shaper_commands(ripple_run, capsys):
-    toml, g, _, _ = ripple_run
+    toml, g, _, _, _ = ripple_run
     assert main(["simulate", "--printer", str(toml), "--gcode", str(g), "--backend", "lti",
                  "--freq-margin", "0", "--json"]) == 0
     cap = capsys.readouterr()
@@ -82,7 +90,7 @@ def test_simulate_says_it_applies_the_jobs_shaper_commands(ripple_run, capsys):
 
 
 def test_klipper_set_input_shaper_in_a_job_is_applied_too(ripple_run, capsys):
-    toml, _, _, d = ripple_run
+    toml, _, _, d, _ = ripple_run
     g = d / "ripples-klipper.gcode"
     assert "SHAPER_FREQ_X=0" in g.read_text()
     assert main(["simulate", "--printer", str(toml), "--gcode", str(g), "--backend", "lti",

@@ -11,7 +11,6 @@ the planner alone (no physics), through :func:`ringtune.envs.evaluate.planned_jo
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
