@@ -148,12 +148,12 @@ def _excess(lead: np.ndarray, s: np.ndarray, run: np.ndarray, span: float):
     last = np.searchsorted(run_o, run_o, side="right") - 1    # last sample of each sample's run
     j = np.searchsorted(key, key + span, side="left")
     i_full = np.flatnonzero(j <= last)
-    firsts = np.flatnonzero(np.r_[True, run_o[1:] != run_o[:-1]])
+    firsts = np.flatnonzero(np.concatenate([[True], run_o[1:] != run_o[:-1]]))
     has_full = np.zeros(int(run_o.max()) + 1, bool)
     has_full[run_o[i_full]] = True
     short = firsts[~has_full[run_o[firsts]]]
     short = short[key[last[short]] - key[short] > 0.25 * span]
-    i_all = np.r_[i_full, short]
-    j_all = np.r_[j[i_full], last[short]]
+    i_all = np.concatenate([i_full, short])
+    j_all = np.concatenate([j[i_full], last[short]])
     length = np.maximum(key[j_all] - key[i_all], EPS_LEN)
     return (lead_o[j_all] - lead_o[i_all]) / length, i_all

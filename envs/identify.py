@@ -16,9 +16,8 @@ Two kinds of measurement:
 
 Shares are the modes' parts of the nozzle response, normalised to sum to 1 per axis. A spectrum fit
 warns when the data stop short of the band, a mode sits at its edge, a damping ratio is implausible
-or the fit is poor. The added-mass method (:func:`frequency_scale`, :func:`added_mass`): a known
-mass added to what moves lowers every mode by sqrt(m/(m+dm)), which gives the moving mass and the
-stiffness.
+or the fit is poor. The added-mass method (two spectra of one axis, with and without a known mass) is
+:mod:`ringtune.envs.added_mass`.
 """
 
 from __future__ import annotations
@@ -108,7 +107,7 @@ def find_peaks_psd(f: np.ndarray, p: np.ndarray, max_peaks: int = 3, rel: float 
     return [int(idx[k]) for k in order[:max_peaks]]
 
 
-def _psd_model(x: np.ndarray, f: np.ndarray) -> np.ndarray:
+def psd_model(x: np.ndarray, f: np.ndarray) -> np.ndarray:
     """The sweep PSD model ``C·(f/50)^p·|T(f)|² + b`` of parameters ``x = (ln C, p, ln b, (freq, damping,
     share)…)``."""
     m = np.asarray(x[3:]).reshape(-1, 3)
@@ -116,7 +115,29 @@ def _psd_model(x: np.ndarray, f: np.ndarray) -> np.ndarray:
     return np.exp(lc) * (f / 50.0) ** x[1] * np.abs(transmissibility(f, [tuple(r) for r in m])) ** 2 + np.exp(lb)
 
 
-def _weight(p: np.ndarray) -> np.ndarray:
+def psd_model_jacobian(x: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """d ln M / dx of the sweep PSD model ``M`` (:func:`psd_model`) at parameters ``x``: one row per
+    frequency ``f`` (Hz), one column per parameter (ln C, p, ln b, then freq, damping, share per mode).
+
+    With ``A = C·(f/50)^p·|T|²`` and ``r = f/fₙ``, ``D = 1 − r² + 2jζr``: ``∂T/∂s = r²/D``,
+    ``∂T/∂ζ = −2j·s·r³/D²``, ``∂T/∂fₙ = −2·s·r²·(1 + jζr)/(fₙ·D²)``, and
+    ``∂|T|²/∂θ = 2·Re(conj(T)·∂T/∂θ)``."""
+    m = np.asarray(x[3:]).reshape(-1, 3)
+    lc, lb = np.clip(x[0], -700.0, 700.0), np.clip(x[2], -700.0, 700.0)
+    t = transmissibility(f, [tuple(r) for r in m])
+    t2 = np.abs(t) ** 2
+    a = np.exp(lc) * (f / 50.0) ** x[1]
+    total = a * t2 + np.exp(lb)
+    cols = [a * t2, a * t2 * np.log(f / 50.0), np.full_like(f, np.exp(lb))]
+    for fn, z, s in m:
+        r = f / fn
+        d = 1.0 - r * r + 2j * z * r
+        for dt in (-2.0 * s * r * r * (1.0 + 1j * z * r) / (fn * d * d), -2j * s * r ** 3 / (d * d), r * r / d):
+            cols.append(a * 2.0 * np.real(np.conj(t) * dt))
+    return np.stack(cols, axis=1) / total[:, None]
+
+
+def psd_weights(p: np.ndarray) -> np.ndarray:
     """Log-space residual weights, heavier at the resonances (the peaks are what a shaper must hit)."""
     return 1.0 + 3.0 * p / p.max()
 
@@ -152,9 +173,9 @@ def identify_psd(freqs: np.ndarray, psd: np.ndarray, axis: str = "sum", source: 
         return lc, pw, lb, [(m[k, 0], m[k, 1], m[k, 2]) for k in range(n)]
 
     def model(x, ff):
-        return _psd_model(x, ff)
+        return psd_model(x, ff)
 
-    weight = _weight(p)
+    weight = psd_weights(p)
 
     def resid(x):
         return weight * (np.log(model(x, f)) - logp)
@@ -171,7 +192,10 @@ def identify_psd(freqs: np.ndarray, psd: np.ndarray, axis: str = "sum", source: 
     ipk = peaks[int(np.argmax(p[peaks]))]
     x0[0] = logp[ipk] - math.log(model(x0, f[ipk:ipk + 1])[0] + 1e-300)
     x0 = np.clip(x0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
-    sol = least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", max_nfev=4000)
+    def jac(x):
+        return weight[:, None] * psd_model_jacobian(x, f)
+
+    sol = least_squares(resid, x0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=4000)
     _, _, _, modes = unpack(sol.x)
     res = np.log(model(sol.x, f)) - logp
     r2 = float(1.0 - (res ** 2).sum() / ((logp - logp.mean()) ** 2).sum())
@@ -321,97 +345,3 @@ def plot_fits(fits: list[AxisFit], path: str | Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
-
-
-# -- added mass -------------------------------------------------------------------------------------
-
-def frequency_scale(base: AxisFit | list[AxisFit], loaded: AxisFit | list[AxisFit]) -> tuple[float, float]:
-    """The factor ``s`` by which every resonance of an axis moved between spectrum fits of it
-    (e.g. with a mass added), and its standard error (of ln s). ``base`` and ``loaded`` may each
-    be several tests (repeats average the measurement noise); the first base fit starts the modes.
-
-    All measured spectra are fitted together: one set of modes (frequency, damping, share) for
-    the base tests, the same modes at ``s·freq`` with damping ``s·damping`` for the loaded ones (a
-    mass added at unchanged stiffness and damping coefficient scales both by sqrt(m/(m+dm))), and a
-    level, slope and noise floor per spectrum. One factor fitted to the whole curves is far steadier
-    than pairing modes fitted separately, whose split between close modes the noise decides. The
-    error comes from the Jacobian and the residual scatter (every spectrum's noise included)."""
-    bases = list(base) if isinstance(base, list) else [base]
-    loads = list(loaded) if isinstance(loaded, list) else [loaded]
-    if not bases or not loads or any(f.params is None for f in bases + loads):
-        raise RingtuneError("needs spectrum fits of both measurements", bases[0].source if bases else "added_mass")
-    data = []
-    for fit in bases + loads:
-        f, p = np.asarray(fit.x_measured, dtype=float), np.asarray(fit.y_measured, dtype=float)
-        p = np.maximum(p, p.max() * 1e-9)
-        data.append((f, np.log(p), _weight(p)))
-    ref = bases[0]
-    n_spec, n_base = len(data), len(bases)
-
-    def dominant(fit):
-        return max(fit.modes, key=lambda m: m.share).freq
-
-    s_dom = dominant(loads[0]) / dominant(ref)
-    best = None
-    # starts: the modes of the first base fit, or of the first loaded fit brought back by 1/s (the
-    # two fits may split close modes differently); the factor from their dominant modes and a grid
-    # (the cost has local minima one mode apart)
-    for origin in (ref, loads[0]):
-        modes = origin.params[3:].reshape(-1, 3)
-        n_modes = len(modes)
-        k_modes = 1 + 3 * n_spec                        # x = [ln s, (ln C, p, ln b) per spectrum, modes]
-        lo = [math.log(0.3)] + [-np.inf, -2.0, -np.inf] * n_spec
-        hi = [math.log(3.0)] + [np.inf, 6.0, np.inf] * n_spec
-        for start in sorted({s_dom, 0.6, 0.8, 1.0, 1.25}):
-            m0 = modes.copy()
-            if origin is not ref:
-                m0[:, :2] /= start
-            lo_m = np.ravel([[0.5 * fn, PLAUSIBLE_DAMPING[0], 0.005] for fn in m0[:, 0]])
-            hi_m = np.ravel([[1.5 * fn, 0.5, 3.0] for fn in m0[:, 0]])
-            lb, ub = np.concatenate([lo, lo_m]), np.concatenate([hi, hi_m])
-
-            def split(x, n_modes=n_modes, k_modes=k_modes):
-                mm = x[k_modes:].reshape(n_modes, 3)
-                scaled = mm.copy()
-                scaled[:, :2] *= math.exp(x[0])
-                return [np.concatenate([x[1 + 3 * i:4 + 3 * i], (mm if i < n_base else scaled).ravel()])
-                        for i in range(n_spec)]
-
-            def resid(x, split=split):
-                return np.concatenate([w * (np.log(_psd_model(px, f)) - lp)
-                                       for px, (f, lp, w) in zip(split(x), data)])
-
-            x = np.concatenate([[math.log(start)], np.tile(origin.params[:3], n_spec), m0.ravel()])
-            for i, (px, (f, lp, _)) in enumerate(zip(split(x), data)):   # each spectrum's level met
-                x[1 + 3 * i] += float(np.median(lp - np.log(_psd_model(px, f))))
-            x = np.clip(x, lb + 1e-9, ub - 1e-9)
-            sol = least_squares(resid, x, bounds=(lb, ub), x_scale="jac", max_nfev=3000)
-            if best is None or sol.cost < best.cost:
-                best = sol
-    # covariance of a weighted fit (the weights are not inverse variances: the log-spectrum's scatter
-    # is the same in every bin): inv(JᵀWJ)·JᵀW²J·inv(JᵀWJ)·σ², σ² from the unweighted residuals
-    w = np.concatenate([d[2] for d in data])
-    n, k = best.fun.size, best.x.size
-    try:
-        jw = best.jac                                   # = W·J
-        bread = np.linalg.pinv(jw.T @ jw)
-        meat = (jw * w[:, None]).T @ (jw * w[:, None])
-        sigma2 = float(np.sum((best.fun / w) ** 2)) / max(n - k, 1)
-        err = float(math.sqrt(max((bread @ meat @ bread)[0, 0] * sigma2, 0.0)))
-    except np.linalg.LinAlgError:
-        err = float("nan")
-    return float(math.exp(best.x[0])), err
-
-
-def added_mass(f0: float, f1: float, dm: float) -> tuple[float, float]:
-    """Moving mass (kg) and stiffness (N/m) of a mode from the added-mass method: the same spring
-    carries the moving mass ``m`` at ``f0`` (Hz) and ``m + dm`` (``dm`` kg fixed to it) at ``f1``, so
-    ``(f0/f1)² = (m + dm)/m``: ``m = dm / ((f0/f1)² − 1)`` and ``k = m·(2π f0)²``."""
-    if not (f0 > 0 and f1 > 0 and dm > 0):
-        raise RingtuneError(f"need f0, f1 > 0 Hz and an added mass > 0 kg (got {f0}, {f1}, {dm})", "added_mass")
-    ratio = (f0 / f1) ** 2 - 1.0
-    if ratio <= 0:
-        raise RingtuneError(f"the loaded frequency {f1:.2f} Hz is not below the unloaded {f0:.2f} Hz: the "
-                            "added mass did not move with the axis, or the two tests differ", "added_mass")
-    m = dm / ratio
-    return m, m * (2.0 * math.pi * f0) ** 2

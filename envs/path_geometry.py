@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -51,7 +52,7 @@ class Legs:
     def length(self) -> np.ndarray:
         return _norm(self.end - self.start)
 
-    @property
+    @cached_property
     def run(self) -> np.ndarray:
         """(L,) index of the extrusion run each leg belongs to (a run: consecutive touching
         extruding legs; non-extruding legs get the run before them)."""

@@ -53,8 +53,9 @@ Y motor (stepper_y). CoreXZ: Z is still while a layer prints, so X moves turn A 
 Y is a bed slinger's (the print mass moves with it).
 
 ``[current]`` (what the printer runs today: ``source``, ``shaper_x``, ``freq_x``, ``damping_x``, the
-same for y, ``accel``, ``firmware``) and ``[measurement]`` (``source``, ``files = [{ name, sha256,
-axis }]``, ``[measurement.klipper]``) are kept as read in :attr:`Printer.current` /
+same for y, ``accel``, ``firmware``) and ``[measurement]`` (``source``, ``origin`` — whose files they
+are when not the user's, e.g. an embedded printer's —, ``files = [{ name, sha256, axis }]``,
+``[measurement.klipper]``) are kept as read in :attr:`Printer.current` /
 :attr:`Printer.measurement` and written back unchanged.
 
 ``[belts]`` (corexy only):
@@ -164,11 +165,27 @@ def _modes_from_chain(masses, stiffnesses, damping, where) -> tuple[list[Mode], 
     return modes, float(m.sum())
 
 
+#: kg: what moves on a printer axis (a toolhead with its carriage, a bed, a gantry) weighs within this
+MOVING_MASS_RANGE = (0.05, 30.0)
+
+
+def check_moving_mass(kg: float, where: str) -> float:
+    """``kg`` if it can be what moves on a printer axis (:data:`MOVING_MASS_RANGE`), else refused."""
+    lo, hi = MOVING_MASS_RANGE
+    if not lo <= kg <= hi:
+        raise RingtuneError(f"{kg:g} kg ({1000 * kg:g} g) is outside what moves on a printer axis ({lo:g}-{hi:g} "
+                            "kg: a toolhead with its carriage, a bed, a gantry); masses are in kg (600 g is 0.6)",
+                            where)
+    return kg
+
+
 def _axis_from_dict(d: dict, axis: str, where: str) -> AxisModel:
     w = f"{where}: [{axis}]"
     _unknown(d, _AXIS_KEYS, w)
     d = {k: v for k, v in d.items() if k != "motor"}
     mass = _num(d, "mass", w, DEFAULTS[f"mass_{axis}"], lo=0.0, lo_open=True)
+    if "mass" in d:
+        check_moving_mass(mass, f"{w}.mass")
     damping = _num(d, "damping", w, DEFAULTS["damping"], lo=0.0, hi=0.95)
     given = [k for k in ("modes", "stiffness", "masses") if k in d]
     if len(given) != 1:
@@ -228,7 +245,7 @@ def _axis_from_dict(d: dict, axis: str, where: str) -> AxisModel:
 #: keys of the pass-through sections that must be numbers / strings when present
 _NUMERIC = {"current": ("freq_x", "freq_y", "damping_x", "damping_y", "accel"),
             "measurement": ()}
-_STRINGS = {"current": ("source", "shaper_x", "shaper_y", "firmware"), "measurement": ("source",)}
+_STRINGS = {"current": ("source", "shaper_x", "shaper_y", "firmware"), "measurement": ("source", "origin")}
 
 
 def _passthrough(d: dict, sec: str, where: str) -> dict:

@@ -42,13 +42,27 @@ class RippleMode:
     damping_from: str
 
 
+#: damping ratio assumed when none is measured: the median of the dominant modes' damping that
+#: ``ringtune identify`` fits to the ten axes of real Klipper resonance tests in
+#: ``tests/data/accel/klipper_psd`` (Ender 3, Switchwire, Voron 0.1, Voron 2.4, CR-10S Pro, one
+#: unnamed printer; they span 0.04-0.23). A physical property of printers, not any firmware's shaper
+#: setting (Klipper builds shapers at 0.1, Marlin at 0.15: those choose a shaper, they measure nothing).
+TYPICAL_DAMPING = 0.12
+TYPICAL_DAMPING_SOURCE = ("the median damping of the dominant modes fitted to ten real Klipper resonance "
+                          "tests (tests/data/accel/klipper_psd: 0.04-0.23)")
+
+
 def damping_from_ratio(ratio: float, where: str = "ratio") -> float:
-    """Damping ratio from the ratio of successive ripple heights (either way round: 1.9 and
-    1/1.9 mean the same decay), by the logarithmic decrement ``δ = |ln R|``,
-    ``ζ = δ/√(4π² + δ²)``."""
+    """Damping ratio from the ratio ``R`` of a ripple's height over the next one's (> 1: ringing
+    decays), by the logarithmic decrement ``δ = ln R``, ``ζ = δ/√(4π² + δ²)``. Ripples that grow
+    (``R < 1``) are not a free decay: refused."""
     if not (isinstance(ratio, (int, float)) and math.isfinite(ratio) and ratio > 0):
         raise RingtuneError(f"a ratio of ripple heights must be a positive number, not {ratio!r}", where)
-    delta = abs(math.log(ratio))
+    if ratio < 1.0:
+        raise RingtuneError(f"ripples that grow (each {ratio:g} of the next one's height) are not a decay: "
+                            "something pumps the resonance (a zigzag, a fan), or the heights are in the wrong "
+                            "order — give a ripple's height over the NEXT one's, e.g. 1.6", where)
+    delta = math.log(ratio)
     if delta < 1e-6:
         raise RingtuneError("successive ripples of equal height show no decay: the damping cannot be "
                             "read from them (measure the first and a later ripple)", where)

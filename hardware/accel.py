@@ -99,9 +99,21 @@ def _detect(path: Path, lines: list[str]) -> str:
         return "m956"
     if head.startswith("#time") or _numeric_row(head, 4):
         return "klipper-raw"
+    _refuse_console_paste(path, lines)
     raise RingtuneError(
         f"unrecognised header {lines[i].strip()[:60]!r}; expected Klipper 'freq,psd_x,...', "
         "Klipper raw '#time,accel_x,accel_y,accel_z' or RRF M956 'Sample,X,Y,Z'", f"{path}:{i + 1}")
+
+
+def _refuse_console_paste(path: Path, lines: list[str]) -> None:
+    """A console paste of ACCELEROMETER_QUERY (``// adxl345 values (x, y, z): …``): one reading of the
+    accelerometer, not a measurement; refused with what to give instead."""
+    for n, line in enumerate(lines, 1):
+        text = line.lower()
+        if "values (x, y, z)" in text or "accelerometer_query" in text:
+            raise RingtuneError("an ACCELEROMETER_QUERY console paste: one reading of the accelerometer, not a "
+                                "resonance test; run TEST_RESONANCES AXIS=X and AXIS=Y and give the "
+                                "resonances_x_*.csv / resonances_y_*.csv files it writes (in /tmp)", f"{path}:{n}")
 
 
 def _numeric_row(line: str, n: int) -> bool:

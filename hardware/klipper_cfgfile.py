@@ -26,6 +26,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ringtune.hardware.config_dialect import refuse_other_dialect
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.textfile import read_text_file
 
@@ -43,14 +44,17 @@ class KlipperCfg:
     ``sections``: section name -> {option (lower case) -> raw value string}, section names as
     written; ``origin``: (section, option) -> ``"file:line"`` of the value in force; ``files``: every
     file read, in order; ``notes``: what could not be read (missing includes, files that are not
-    configurations); ``ignored_saved``: (section, option, note) for each SAVE_CONFIG value that the
-    file above overrides (a caller notes those of the sections it uses).
+    configurations); ``unread``: the files Klipper would read that could not be (a missing
+    include, a file that is not a configuration): what they set is unknown; ``ignored_saved``:
+    (section, option, note) for each SAVE_CONFIG value that the file above overrides (a caller notes
+    those of the sections it uses).
     """
 
     sections: dict[str, dict[str, str]] = field(default_factory=dict)
     origin: dict[tuple[str, str], str] = field(default_factory=dict)
     files: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    unread: list[str] = field(default_factory=list)
     ignored_saved: list[tuple[str, str, str]] = field(default_factory=list)
 
     def section(self, name: str) -> dict[str, str] | None:
@@ -139,6 +143,7 @@ class _Reader:
                 self.cfg.notes.append(f"{where}: warning: [include {spec}]: no such file "
                                       f"{os.path.normpath(pattern)} (Klipper itself would refuse to start; "
                                       "read on without it)")
+                self.cfg.unread.append(os.path.normpath(pattern))
             return
         for path in matches:
             self.read_file(path)
@@ -159,6 +164,7 @@ class _Reader:
             # could not read it either
             self.cfg.notes.append(f"{path}:1: warning: not a configuration (text before any [section]: "
                                   f"{first[:60]!r}, a symbolic link kept as text?); nothing read from it")
+            self.cfg.unread.append(path)
         else:
             self.cfg.files.append(path)
             self.feed(text, path)
@@ -184,6 +190,7 @@ def read_klipper_cfg(path: str | Path) -> KlipperCfg:
     """Read ``printer.cfg`` with its includes and SAVE_CONFIG block (see the module docstring)."""
     path = str(path)
     text = read_text_file(path, "Klipper configuration").replace("\r\n", "\n")
+    refuse_other_dialect(text, path, "klipper")
     cfg = KlipperCfg()
     reader = _Reader(cfg)
     regular, saved, first = split_autosave(text)

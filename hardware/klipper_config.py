@@ -68,6 +68,7 @@ class _Source:
     origin: dict = field(default_factory=dict)   # (section, option) -> "file:line"
     given: set | None = None                     # (section lower, option) the user wrote; None = all
     notes: list = field(default_factory=list)
+    unread: list = field(default_factory=list)   # files Klipper reads that could not be read here
 
     def name(self, section: str) -> str | None:
         """The section's name as written (sections are matched case-insensitively)."""
@@ -286,9 +287,16 @@ def _accel_cap(src: _Source, ax: str, accel: float, limited: str | None) -> floa
     return 0.0 if v is None else v
 
 
-def _current(src: _Source, accel: float) -> dict:
+def _current(src: _Source, accel: float) -> dict | None:
+    """``[current]``: the shaper the configuration sets; None (unknown) when it has no [input_shaper]
+    but parts of it could not be read (one of them may hold it)."""
     kalico = str(src.get("printer", "kinematics")).strip().startswith("limited_")
     cur = {"source": src.label, "firmware": "kalico" if kalico else "klipper"}
+    if src.name("input_shaper") is None and src.unread:
+        src.notes.append(f"no [input_shaper] in what could be read, and {', '.join(src.unread)} could not be "
+                         "read: the input shaping the printer runs today is unknown ([current] not written; "
+                         "give the missing files, or --moonraker to ask the running printer)")
+        return None
     if src.name("input_shaper") is None:
         src.notes.append("no [input_shaper] section: the printer runs without input shaping today")
         cur.update(shaper_x="none", shaper_y="none", accel=accel)
@@ -337,7 +345,9 @@ def facts_from_sections(src: _Source) -> FirmwareFacts:
                              "nor stepper_y names it")
     description = {"kinematics": kin, "limits": limits}
     place_motors(description, x, y)
-    description["current"] = _current(src, limits["accel"])
+    current = _current(src, limits["accel"])
+    if current is not None:
+        description["current"] = current
     return FirmwareFacts(description, src.notes, src.label)
 
 
@@ -348,7 +358,7 @@ def printer_facts_from_klipper(path: str | Path) -> FirmwareFacts:
     used = re.compile(r"(printer|input_shaper|stepper_[xyz]|(tmc\w+|autotune_tmc)\s+stepper_[xyz]"
                       r"|motor_constants\s.*)", re.I)
     notes += [note for section, _, note in cfg.ignored_saved if used.fullmatch(section)]
-    src = _Source(cfg.sections, str(path), cfg.origin, None, notes)
+    src = _Source(cfg.sections, str(path), cfg.origin, None, notes, list(cfg.unread))
     return facts_from_sections(src)
 
 

@@ -62,8 +62,8 @@ def klipper_reply_lines(messages: list[str]) -> tuple[list[str], list[str]]:
                 continue
             if line.startswith("!!"):
                 errors.append(line[2:].strip())
-            elif re.match(r"^(?://\s*)?Unknown command", line):
-                errors.append(line.lstrip("/ ").strip())
+            elif re.match(r"^(?://\s*|echo:\s*)?Unknown command", line):     # echo: Marlin's, a wrong firmware
+                errors.append(re.sub(r"^(?://|echo:)\s*", "", line).strip())
             else:
                 lines.append(line)
     return lines, errors
@@ -349,7 +349,10 @@ class GcodeLink:
                 reply.lines += info
                 reply.errors += errors
                 continue
-            if _looks_like_text(raw_line):
+            refusal = marlin_refusal(line) if self.mode == "marlin" else None
+            if refusal:
+                reply.errors.append(refusal)
+            elif _looks_like_text(raw_line):
                 reply.lines.append(line)
 
     def _replay(self, numbers: list[int]) -> None:
@@ -359,6 +362,16 @@ class GcodeLink:
             self._write(self.history[k] + b"\n")
             if k != numbers[-1]:
                 self._await_ok(f"(replay N{k})", k)
+
+
+def marlin_refusal(line: str) -> str | None:
+    """Marlin's own words when a line refuses a command (it still answers ``ok``):
+    ``echo:Unknown command: "M593 X F40"`` (``gcode.cpp``) and the ``?``-lines of a rejected
+    parameter (``?Frequency (F) must be greater than 40.00 or 0 to disable``, ``M593.cpp``)."""
+    text = re.sub(r"^(?:echo:|//)\s*", "", line.strip())      # "//": Klipper's form, a wrong firmware
+    if text.startswith("Unknown command:") or text.startswith("?"):
+        return text
+    return None
 
 
 def _looks_like_text(line: str) -> bool:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ringtune.hardware.config_dialect import console_line, refuse_other_dialect
 from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, gcode_words, place_gcode_motors, to_number
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.textfile import read_text_file
@@ -29,9 +30,12 @@ _READ = ("M92", "M201", "M203", "M204", "M205", "M906", "M593")
 
 
 def _lines(text: str):
-    """(line number, G-code words) of each command line of an M503 capture."""
+    """(line number, G-code words) of each command line of an M503 capture, as a terminal or host
+    saved it (timestamps, ``Recv:``, ``echo:``, ``//`` prefixes removed; lines the host sent skipped)."""
     for n, raw in enumerate(text.splitlines(), 1):
-        line = raw.strip()
+        line = console_line(raw)
+        if line is None:                       # what the host sent (Send: M503), not the report
+            continue
         while line.lower().startswith(("echo:", "//")):
             line = line.split(":", 1)[1] if line.lower().startswith("echo:") else line[2:]
             line = line.strip()
@@ -45,6 +49,7 @@ def printer_facts_from_marlin(path: str | Path, kinematics: str | None = None) -
     """Facts from a saved ``M503`` answer (see the module docstring)."""
     path = str(path)
     text = read_text_file(path, "M503 report")
+    refuse_other_dialect(text, path, "marlin")
     seen: dict[str, tuple[int, dict]] = {}
     notes: list[str] = []
     for n, (cmd, words) in _lines(text):

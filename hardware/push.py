@@ -32,6 +32,7 @@ from ringtune.hardware.dialects import Export, export_config
 from ringtune.hardware.link import (GcodeLink, LinkError, LinkTimeout, PrinterReset, Reply, frame,
     klipper_reply_lines, redact)
 from ringtune.hardware.moonraker import Moonraker
+from ringtune.hardware.push_checks import check_acceleration, check_frequencies, undo_note, wrong_firmware_note
 from ringtune.hardware.readback import compare, parse_report
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
@@ -199,10 +200,15 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
          moonraker: str | None = None, baud: int = 115200, save: bool = False, dry_run: bool = False,
          timeout: float = 10.0, crc: bool = False, api_key: str | None = None,
          save_path: str | Path | None = None, log: Callable[[str], None] | None = None,
-         max_resets: int = 3, link_options: dict | None = None, accel: bool = True) -> PushResult:
+         max_resets: int = 3, link_options: dict | None = None, accel: bool = True,
+         check_limits: bool = False) -> PushResult:
     """Apply ``config`` on the printer at ``port`` (or Moonraker at ``moonraker``) and verify it;
-    ``accel`` False leaves the printer's acceleration as it is."""
+    ``accel`` False leaves the printer's acceleration as it is. ``check_limits``: refuse, before
+    sending anything, a shaper frequency or an acceleration far outside what the printer is
+    configured for (:mod:`ringtune.hardware.push_checks`; the acceleration is read from it first)."""
     exp = export_config(config, firmware, accel=accel)
+    if check_limits:
+        check_frequencies(exp.expected)
     firmware = exp.firmware
     where = redact(moonraker) if moonraker else redact(port) if port else "(no port)"
     result = PushResult(firmware, where, dry_run, notes=list(exp.notes))
@@ -226,26 +232,67 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
         # refuse before touching the printer: after the push a failed write would hide its report
         raise RingtuneError("no such directory for the config file", f"--save-file {save_path}")
     if moonraker:
-        replies, report = _push_moonraker(exp, moonraker, api_key, timeout, log, result)
+        replies, report = _push_moonraker(exp, moonraker, api_key, timeout, log, result, check_limits)
     else:
         replies, report = _push_serial(exp, port, baud, crc, timeout, log, result, max_resets,
-                                       link_options or {}, save)
+                                       link_options or {}, save, check_limits)
     if not result.settings:
         result.settings = _statuses(exp, replies, report, firmware)
         result.ok = all(s.status in (APPLIED, ACKED) for s in result.settings)
-    if result.printer_state and result.printer_state.get("state") != "ready":
-        result.ok = False
+    _explain(result, exp, replies)
     if save:
         _save_file(exp, result, save_path)
     return result
 
 
-def _push_serial(exp, port, baud, crc, timeout, log, result, max_resets, link_options, save):
+def _explain(result: PushResult, exp: Export, replies: dict[int, Reply]) -> None:
+    """Notes beyond the statuses: the wrong firmware recognised from its refusals; a printer that
+    is not ready (:func:`_withdraw`); what stays applied after a partial push and how to undo it."""
+    wrong = wrong_firmware_note(exp.firmware, [e for r in replies.values() for e in r.errors])
+    if wrong:
+        result.notes.append(wrong)
+    _withdraw(result, exp)
+    if not result.ok:
+        note = undo_note(exp.firmware, [s.key for s in result.settings
+                                        if s.status in (APPLIED, ACKED) or s.detail.startswith("set, but")])
+        if note:
+            result.notes.append(note)
+
+
+def _withdraw(result: PushResult, exp: Export) -> None:
+    """A printer that is not ready after the push (Klipper shut down) holds none of it: every
+    setting is not applied, and the notes on what the settings would do are withdrawn."""
+    state = (result.printer_state or {}).get("state")
+    if not state or state == "ready":
+        return
+    result.ok = False
+    result.notes = [n for n in result.notes if n not in exp.notes]
+    for st in result.settings:
+        st.status, st.detail = NOT_APPLIED, (f"the printer is {state}: nothing of this push is in force"
+                                             + (f" ({st.detail})" if st.detail else ""))
+
+
+def _check_before(exp: Export, ask: Callable[[str], Reply], check_limits: bool) -> None:
+    """With ``check_limits``, read the printer's accelerations (``ask`` runs one command) and refuse
+    one far above them before anything is sent."""
+    if check_limits and "accel" in exp.expected:
+        check_acceleration(exp.expected["accel"], _configured(exp, [ask(c) for c in exp.readback]))
+
+
+def _configured(exp: Export, answers: list[Reply]) -> dict:
+    """The accelerations the printer reports before the push (mm/s²), by read-back key."""
+    reported = parse_report(exp.firmware, "\n".join(a.text for a in answers))
+    keys = ("accel", "travel_accel", "max_accel_x", "max_accel_y")
+    return {k: float(reported[k].value) for k in keys if k in reported}
+
+
+def _push_serial(exp, port, baud, crc, timeout, log, result, max_resets, link_options, save, check_limits=False):
     protocol = FIRMWARES[exp.firmware].protocol
     replies: dict[int, Reply] = {}
     link = GcodeLink(port, protocol, baud, crc=crc, timeout=timeout, log=log, **link_options)
     try:
         link.open()          # a handshake without answer is a timeout like any other: nothing applied
+        _check_before(exp, link.send, check_limits)
         for attempt in range(max_resets + 1):
             try:
                 replies.clear()
@@ -315,10 +362,11 @@ def _moonraker_run(mr, cmd: str, sink: dict | None = None, key: int = 0) -> Repl
     return reply
 
 
-def _push_moonraker(exp, url, api_key, timeout, log, result):
+def _push_moonraker(exp, url, api_key, timeout, log, result, check_limits=False):
     mr = Moonraker(url, api_key=api_key, timeout=timeout, log=log)
     replies: dict[int, Reply] = {}
     try:
+        _check_before(exp, lambda c: _moonraker_run(mr, c), check_limits)
         for i, cmd in enumerate(exp.lines):
             _moonraker_run(mr, cmd, replies, i)
         answers = [_moonraker_run(mr, c) for c in exp.readback]

@@ -20,8 +20,10 @@ colons (one per extruder) are read as their first entry.
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
+from ringtune.hardware.config_dialect import refuse_other_dialect
 from ringtune.hardware.firmware_facts import FirmwareFacts, gcode_words, place_gcode_motors, to_number
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.textfile import read_text_file
@@ -36,6 +38,7 @@ def printer_facts_from_rrf(path: str | Path) -> FirmwareFacts:
     """Facts from ``config.g`` (see the module docstring)."""
     path = str(path)
     text = read_text_file(path, "config.g")
+    refuse_other_dialect(text, path, "rrf")
     seen: dict[str, dict[str, tuple[int, str]]] = {}
     for n, raw in enumerate(text.splitlines(), 1):
         line = raw.split(";", 1)[0]
@@ -111,28 +114,56 @@ def printer_facts_from_rrf(path: str | Path) -> FirmwareFacts:
         notes.append("no M906: the motor current is unknown")
     notes.append("config.g names no motor and gives steps/mm only: rotation_distance, microsteps and the "
                  "motor's constants are unknown")
+    current = _current(path, text, seen, num, limits, notes)
+    if current is not None:
+        description["current"] = current
+    return FirmwareFacts(description, notes, path)
+
+
+#: lines of config.g that run other files (M98 P"file", M501 runs config-override.g): what they set is
+#: not read here
+_CALLS = re.compile(r'^\s*(?:M98\s+P"([^"]+)"|M501\b)', re.M | re.I)
+
+
+def _current(path, text, seen, num, limits, notes) -> dict | None:
+    """``[current]`` from M593; None (unknown) when config.g has no M593 but runs other files
+    (``M98 P"…"``, ``M501``) that may set it."""
+    calls = [m.group(1) or "config-override.g (M501)" for m in _CALLS.finditer(text)]
+    if "M593" not in seen and calls:
+        notes.append(f"no M593 in {path}, which runs {', '.join(calls)} (not read here): the input shaping the "
+                     "printer runs today is unknown ([current] not written)")
+        return None
     current: dict = {"source": path, "firmware": "rrf"}
-    shaper = seen.get("M593", {}).get("P")
-    if "M593" not in seen or (shaper is not None and shaper[1].strip().lower() == "none"):
-        current.update(shaper_x="none", shaper_y="none")
-        notes.append("no M593 (or P\"none\"): the printer runs without input shaping")
-    else:
-        name = shaper[1].strip().lower().replace("-", "").replace("_", "") if shaper else "zvd"
+    shaper = _m593(seen, num, notes)
+    for ax in "xy":                       # RRF shapes every axis with the one shaper
         if shaper is None:
-            notes.append("M593 without P: RepRapFirmware uses zvd when a frequency is given")
-        f = num("M593", "F")
-        if f is None:
-            f = 40.0
-            notes.append("M593 without F: RepRapFirmware's default 40 Hz")
-        d = num("M593", "S")
-        if d is None:
-            notes.append("M593 without S: the damping is RRF's default (0.1 up to 3.5, 0.05 in 3.6-dev)"
-                         " and unknown here")
-        for ax in "xy":                       # RRF shapes every axis with the one shaper
-            current.update({f"shaper_{ax}": name, f"freq_{ax}": f})
-            if d is not None:
-                current[f"damping_{ax}"] = d
+            current[f"shaper_{ax}"] = "none"
+            continue
+        name, f, d = shaper
+        current.update({f"shaper_{ax}": name, f"freq_{ax}": f})
+        if d is not None:
+            current[f"damping_{ax}"] = d
     if "accel" in limits:
         current["accel"] = limits["accel"]
-    description["current"] = current
-    return FirmwareFacts(description, notes, path)
+    return current
+
+
+def _m593(seen, num, notes) -> tuple[str, float, float | None] | None:
+    """(shaper, frequency Hz, damping or None) of config.g's M593, with RRF's defaults said; None
+    for no shaping."""
+    shaper = seen.get("M593", {}).get("P")
+    if "M593" not in seen or (shaper is not None and shaper[1].strip().lower() == "none"):
+        notes.append("no M593 (or P\"none\"): the printer runs without input shaping")
+        return None
+    name = shaper[1].strip().lower().replace("-", "").replace("_", "") if shaper else "zvd"
+    if shaper is None:
+        notes.append("M593 without P: RepRapFirmware uses zvd when a frequency is given")
+    f = num("M593", "F")
+    if f is None:
+        f = 40.0
+        notes.append("M593 without F: RepRapFirmware's default 40 Hz")
+    d = num("M593", "S")
+    if d is None:
+        notes.append("M593 without S: the damping is RRF's default (0.1 up to 3.5, 0.05 in 3.6-dev)"
+                     " and unknown here")
+    return name, f, d

@@ -88,7 +88,7 @@ class TuneConfig:
             name, freq, damping = self.axis(ax)
             if not isinstance(name, str) or not name:
                 raise RingtuneError("shaper name must be a non-empty string", f"{where}: shaper_{ax}")
-            _finite(freq, f"{where}: freq_{ax}", lo=0.0, hi=1000.0)
+            _finite(freq, f"{where}: freq_{ax}", lo=0.0, hi=1000.0, unit="Hz")
             _finite(damping, f"{where}: damping_{ax}", lo=0.0, hi=0.99)
             if name != "none" and freq <= 0:
                 raise RingtuneError(f"{freq:g} Hz is outside (0, 1000] Hz while shaper_{ax} is {name!r} "
@@ -96,14 +96,14 @@ class TuneConfig:
         if _is_daa(self.shaper_x) and _is_daa(self.shaper_y) and self.freq_x != self.freq_y:
             raise RingtuneError(f"DAA has one frequency for the whole machine (M593 F), but freq_x is "
                                 f"{self.freq_x:g} Hz and freq_y {self.freq_y:g} Hz", f"{where}: freq_y")
-        _finite(self.freq_limit_hz, f"{where}: freq_limit_hz", lo=0.0, hi=1000.0)
+        _finite(self.freq_limit_hz, f"{where}: freq_limit_hz", lo=0.0, hi=1000.0, unit="Hz")
         _finite(self.min_speed_factor, f"{where}: min_speed_factor", lo=0.01, hi=1.0)
         if self.freq_limit_method not in FREQ_LIMIT_METHODS:
             raise RingtuneError(f"must be one of {', '.join(FREQ_LIMIT_METHODS)}",
                                 f"{where}: freq_limit_method")
         for key in ("accel", "max_accel_x", "max_accel_y"):
             if getattr(self, key) is not None:
-                _finite(getattr(self, key), f"{where}: {key}", lo=1.0, hi=1e6)
+                _finite(getattr(self, key), f"{where}: {key}", lo=1.0, hi=1e6, unit="mm/s²")
 
     # -- JSON ------------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -164,11 +164,11 @@ class TuneConfig:
         Path(path).write_text(json.dumps(self.to_dict(), indent=2) + "\n")
 
 
-def _finite(value: Any, where: str, lo: float, hi: float) -> None:
+def _finite(value: Any, where: str, lo: float, hi: float, unit: str = "") -> None:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise RingtuneError(f"must be a finite number, not {value!r}", where)
     if not lo <= value <= hi:
-        raise RingtuneError(f"{value} is out of range [{lo:g}, {hi:g}]", where)
+        raise RingtuneError(f"{value}{unit and ' ' + unit} is out of range [{lo:g}, {hi:g}]{unit and ' ' + unit}", where)
 
 
 def _is_daa(name: Any) -> bool:

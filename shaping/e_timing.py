@@ -67,19 +67,36 @@ def extruder_command(raw: Motion, shapers: dict[str, Shaper | None], centred: bo
     ``raw`` are shaped by ``shape_motion(raw, shapers, centred)``; on that output's clock.
 
     ``timing``: one of :data:`E_TIMINGS` (default the firmware's own ``e_timing``). ``shaped``
-    uses the X shaper (else Y's): the firmwares that shape the extruder have one shaper for all
-    axes."""
+    follows the shaped X/Y along the path: each move's filament is split by its direction into an
+    X share (u_x²) and a Y share (u_y²), shaped with that axis's shaper (the same where the
+    firmware has one shaper for all axes, as RepRapFirmware; Kalico's ``enabled_extruders``
+    projects the shaped X/Y motion onto the extruder, which this is)."""
     timing = timing or firmware.e_timing
     if timing not in E_TIMINGS:
         raise ValueError(f"E timing must be one of {E_TIMINGS}, not {timing!r}")
     e = extruder_motion(raw)
-    active = [s for s in (shapers.get("x"), shapers.get("y")) if s is not None]
-    if not active:
+    if not any(shapers.get(ax) is not None for ax in ("x", "y")):
         return e
     if timing == "shaped":
-        return shape_motion(e, {"x": active[0]}, centred)
+        both = shape_motion(_split_by_direction(raw), {"x": shapers.get("x"), "y": shapers.get("y")}, centred)
+        return Motion(both.t, both.p.sum(axis=1), both.v.sum(axis=1), both.a.sum(axis=1), both.extruding, both.move)
     shift = extruder_shift(shapers, centred, firmware, timing)
     return e.shifted(shift) if shift else e
+
+
+def _split_by_direction(raw: Motion) -> Motion:
+    """Two-column motion (X share, Y share) of the extruder: each segment's filament times u_x² and
+    u_y² (u its X/Y direction; a segment without X/Y motion counts as X), the X share starting at
+    the extruder's position; their sum is the extruder."""
+    xy = np.where(np.abs(raw.v[:, :2]).sum(axis=1, keepdims=True) > 0, raw.v[:, :2], raw.a[:, :2])
+    norm = np.hypot(xy[:, 0], xy[:, 1])
+    wx = np.where(norm > 0, (xy[:, 0] / np.maximum(norm, 1e-300)) ** 2, 1.0)
+    w = np.stack([wx, 1.0 - wx], axis=1)
+    dt = raw.dt[:, None]
+    de = raw.v[:, 3:4] * dt + 0.5 * raw.a[:, 3:4] * dt * dt
+    p = np.cumsum(np.concatenate([np.zeros((1, 2)), de * w]), axis=0)[:-1]
+    p[:, 0] += raw.p[0, 3]
+    return Motion(raw.t, p, raw.v[:, 3:4] * w, raw.a[:, 3:4] * w, raw.extruding, raw.move)
 
 
 def firmware_trajectory(motion: Motion, config, rate: float) -> tuple[np.ndarray, np.ndarray]:

@@ -212,6 +212,13 @@ _E_KLIPPER = dict(
     e_source="Klipper klippy/chelper/kin_shaper.c init_shaper/shift_pulses (impulses shifted so that "
              "Σaᵢtᵢ = 0; only x, y, z are shaped); kin_extruder.c (the extruder is not shaped, only "
              "smoothed by pressure advance)")
+_E_KALICO = dict(
+    e_timing="neither", xy_delay="centred",
+    e_sync="set enabled_extruders: extruder in [input_shaper] (Kalico's \"synchronisation of extruder "
+           "motion with the input shaper\"; commented out in its example configuration)",
+    e_sync_timing="shaped",
+    e_source="Kalico klippy/extras/input_shaper.py InputShaper.__init__ (config.getlist('enabled_extruders', "
+             "[]): no extruder is shaped unless listed); otherwise Klipper's kin_shaper.c (centred impulses)")
 _E_RRF = dict(
     e_timing="shaped", xy_delay="causal",
     e_source="RepRapFirmware src/Movement/Move.cpp Move::AddLinearSegments (\"taking account of "
@@ -256,7 +263,7 @@ FIRMWARES: dict[str, Firmware] = {f.name: f for f in (
              axis_accel_kinematics=KALICO_LIMITED,
              persists=_KLIPPER_KEEPS.replace("max_accel in [printer]",
                                              "max_accel, max_x_accel, max_y_accel in [printer]"),
-             **_E_KLIPPER),
+             **_E_KALICO),
     Firmware("rrf", "RepRapFirmware 3.6", "rrf", "rrf", "rrf", True, Span(4.0, 1000.0, 2, why="RRF 3.6's minimum"),
              Span(0.0, 0.99, 3), False, "M204 P{a} T{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
              axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_RRF_ACCEL,

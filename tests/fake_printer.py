@@ -63,9 +63,13 @@ def _params(cmd: str) -> dict[str, str]:
 
 class MarlinCore:
     """Marlin classic ZV (M593 X/Y F D), M201 F S, M204 P R T S (report ``  M204 P.. R.. T..``,
-    Marlin ``M200-M205.cpp``), M500, M105."""
+    Marlin ``M200-M205.cpp``), M500, M105. ``input_shaping=False``: a build without it (M593 is
+    then an unknown command, ``gcode.cpp``); ``min_freq``: the build's lowest shaper frequency
+    (``M593.cpp``: ``?Frequency (F) must be greater than <min> or 0 to disable``)."""
 
-    def __init__(self):
+    def __init__(self, input_shaping: bool = True, min_freq: float = 0.0):
+        self.input_shaping = input_shaping
+        self.min_freq = min_freq
         self.reset()
         self.eeprom = None
 
@@ -90,8 +94,10 @@ class MarlinCore:
     def execute(self, cmd: str):
         word = cmd.split()[0].upper()
         p = _params(cmd)
-        if word == "M593":
+        if word == "M593" and self.input_shaping:
             axes = [a.lower() for a in "XY" if a in p] or ["x", "y"]
+            if "F" in p and 0 < float(p["F"]) <= self.min_freq:
+                return [], f"?Frequency (F) must be greater than {self.min_freq:.2f} or 0 to disable"
             if "F" not in p and "D" not in p:
                 return ["echo:Input Shaping:"] + [f"echo:  M593 {a.upper()} F{self.shaping[a][0]:.2f} "
                                                    f"D{self.shaping[a][1]:.2f}" for a in ("x", "y")], None
@@ -251,13 +257,15 @@ class KlipperCore:
     no parameter), STATUS. ``input_shaper=False``: a printer.cfg without ``[input_shaper]``, where
     SET_INPUT_SHAPER is an unknown command (answered with an info line, as Klipper does)."""
 
-    def __init__(self, input_shaper: bool = True):
+    def __init__(self, input_shaper: bool = True, shutdown_on: str | None = None):
         self.input_shaper = input_shaper
+        self.shutdown_on = shutdown_on          # a command that shuts the printer down (as M112 does)
         self.reset()
 
     def reset(self):
         self.axes = {"x": ["mzv", 0.0, 0.1], "y": ["mzv", 0.0, 0.1]}
         self.max_accel = 3000.0
+        self.state = ("ready", "Printer is ready")
 
     def execute(self, cmd: str):
         cmd = re.sub(r"^N\d+\s+", "", cmd)
@@ -265,6 +273,12 @@ class KlipperCore:
         parts = cmd.split()
         if not parts:
             return [], None
+        if self.shutdown_on and parts[0].upper() == self.shutdown_on:
+            self.state = ("shutdown", "Shutdown due to M112 command\nOnce the underlying issue is corrected, "
+                          "use the \"FIRMWARE_RESTART\" command to reset the firmware, reload the\nconfig, "
+                          "and restart the host software.\nPrinter is shutdown")
+        if self.state[0] != "ready":
+            return [], self.state[1].splitlines()[0]
         if parts[0].upper() == "SET_VELOCITY_LIMIT":
             kv = dict(p.split("=", 1) for p in parts[1:] if "=" in p)
             if "ACCEL" in kv:
@@ -478,7 +492,9 @@ class FakePrinter:
                 ok = ln
             else:
                 self.write(ln)
-        if err:
+        if err and err.startswith("?") and self.protocol == "marlin":
+            self.write(err)                      # Marlin prints a rejected parameter as is, then ok
+        elif err:
             self.write(("!! " if self.protocol == "klipper" else "Error:" if self.protocol == "marlin"
                         else "Error: ") + err)
         self.write(ok)
@@ -556,7 +572,8 @@ class FakeMoonraker:
                     return
                 url = urlsplit(self.path)
                 if url.path == "/printer/info":
-                    return self._reply(200, {"result": {"state": "ready", "state_message": "Printer is ready"}})
+                    state, message = getattr(fake.core, "state", ("ready", "Printer is ready"))
+                    return self._reply(200, {"result": {"state": state, "state_message": message}})
                 if url.path != "/server/gcode_store":
                     return self._reply(404, {"error": {"code": 404, "message": "Not Found"}})
                 count = int(parse_qs(url.query).get("count", ["100"])[0])

@@ -120,9 +120,10 @@ def test_a_file_cut_short_and_its_implausible_fit_are_warned_about(data_dir, tmp
     assert "sits at the edge of the data" in err
     damping = d["fits"][0]["modes"][0]["damping"]
     assert damping < 0.02 and f"damping {damping:.3f}" in err
-    # the whole file: none of these
+    # the whole file: none of these (what it does say: Klipper's rule on the model lands elsewhere)
     assert main(["identify", str(data_dir / ENDER3 / "resonances_x_20210821_152037.csv")]) == 0
-    assert "warning:" not in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert not any(w in err for w in ("the data end", "sits at the edge", "outside what printers show"))
 
 
 def test_nothing_is_written_when_the_plot_cannot_be(data_dir, tmp_path, capsys):
@@ -251,29 +252,32 @@ def test_the_help_examples_name_motors_the_table_has():
 
 
 def test_the_added_mass_error_it_states_is_the_error_it_makes_on_noisy_tests():
-    """With the simulated test's measurement noise (rng), one pair of tests cannot pin the mass to
-    5 %; the standard error identify states must then be the real scatter: over seeded pairs the
-    errors in units of the stated one have an RMS near 1 and none is beyond 3.5."""
-    from ringtune.envs.identify import frequency_scale
+    """With the simulated test's measurement noise (Welch scatter, seeded), one pair of tests cannot
+    pin the mass to 5 %; the standard error identify states must then be the real scatter: over 40
+    seeded pairs the errors in units of the stated one have an RMS within 0.7-1.4 and none is beyond
+    4. The truth is one mode per spectrum: modes a noisy fit invents must not shrink the stated error.
+    `.ci/run` runs this test again with OPENBLAS_CORETYPE=Haswell (other BLAS kernels, other last
+    digits), which must not change the verdict."""
+    from ringtune.envs.added_mass import frequency_scale
 
     known = printer_from_dict({"name": "known", "x": {"mass": 0.6, "modes": [{"freq": 52.0, "damping": 0.06}]},
                                "y": {"mass": 1.2, "modes": [{"freq": 38.0, "damping": 0.08}]}})
     loaded = replace(known, print_mass=1.2)              # Y: the mass doubled on the bed
     truth = math.log(math.sqrt(1.2 / 2.4))
     z = []
-    for seed in range(6):
+    for seed in range(40):
         rng = np.random.default_rng(seed)
         fits = [identify_psd(*resonance_test(pr, "y", rng=rng), "y") for pr in (known, loaded)]
         scale, err = frequency_scale(*fits)
         z.append((math.log(scale) - truth) / err)
     z = np.array(z)
-    assert 0.4 < math.sqrt(np.mean(z ** 2)) < 2.0 and np.abs(z).max() < 3.5, z
+    assert 0.7 < math.sqrt(np.mean(z ** 2)) < 1.4 and np.abs(z).max() < 4.0, z
 
 
 def test_repeated_added_mass_tests_are_fitted_together_and_narrow_the_error():
     """Four noisy tests of each state: one factor fitted to all eight spectra; its stated error is
     about half a single pair's (1/√4) and the estimate stays within it."""
-    from ringtune.envs.identify import frequency_scale
+    from ringtune.envs.added_mass import frequency_scale
 
     known = printer_from_dict({"name": "known", "x": {"mass": 0.6, "modes": [{"freq": 52.0, "damping": 0.06}]},
                                "y": {"mass": 1.2, "modes": [{"freq": 38.0, "damping": 0.08}]}})

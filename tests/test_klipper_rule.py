@@ -289,8 +289,8 @@ def test_fit_shaper_matches_klippers_loop_with_and_without_max_smoothing(data_di
 
 def test_recommend_takes_the_axis_from_the_file_name_and_says_when_it_cannot(data_dir, tmp_path, capsys):
     """One axis-from-file-name (hardware.accel.axis_from_file_name): a Z file is refused (the
-    config has no Z shaper), a file whose name says nothing is read as the larger of its psd_x /
-    psd_y columns, and recommend says so on stderr."""
+    config has no Z shaper), a file whose name says nothing is refused (its larger column is not
+    the axis tested on a CoreXY: the real Voron 2.4 X file), and --axes names it."""
     from ringtune.agents.cli.main import main
 
     src = _psd_dir(data_dir) / "bassco_ender3/resonances_x_20210821_152037.csv"
@@ -300,7 +300,8 @@ def test_recommend_takes_the_axis_from_the_file_name_and_says_when_it_cannot(dat
     assert "measured Z" in capsys.readouterr().err
     anon = tmp_path / "ender3_sweep.csv"
     anon.write_bytes(src.read_bytes())
-    assert main(["recommend", "--json", "--accel", str(anon)]) == 0
-    cap = capsys.readouterr()
-    assert "does not say the axis; taking X" in cap.err
-    assert json.loads(cap.out)["axes"]["x"]["shaper"] == "ei"      # SOURCES.md: Klipper's pick, ei
+    assert main(["recommend", "--json", "--accel", str(anon)]) == 2
+    err = capsys.readouterr().err
+    assert "cannot tell which axis" in err and "--axes" in err and err.count("\n") == 1
+    assert main(["recommend", "--json", "--accel", str(anon), "--axes", "x"]) == 0
+    assert json.loads(capsys.readouterr().out)["axes"]["x"]["shaper"] == "ei"      # SOURCES.md: Klipper's pick, ei

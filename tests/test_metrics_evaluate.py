@@ -26,7 +26,7 @@ def test_evaluate_many_is_one_batch_and_equals_single_evaluations(monkeypatch):
         calls.append(len(a[1]))
         return real(*a, **k)
 
-    monkeypatch.setattr(sim, "simulate_batch", counting)
+    monkeypatch.setattr(ev, "simulate_batch", counting)    # the name evaluate calls (imported at its top)
     many = ev.evaluate_many(CONFIGS, printer, backend="lti")
     assert len(calls) == 1 and calls[0] == sum(len(ev.planned_job(printer, None, c).windows) for c in CONFIGS)
     for cfg, m in zip(CONFIGS, many):

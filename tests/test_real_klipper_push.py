@@ -177,10 +177,10 @@ def test_a_config_with_per_axis_caps_still_parses_and_kalicos_part_keeps_them(kl
     Klipper's part is unchanged (the caps are said in a note: it has none); Kalico's keeps them with
     its own key names (limited_*.py: max_x_accel, max_y_accel), beside max_accel, as comment lines
     for the [printer] section; both parts still parse in real Klipper."""
-    # Kalico's shapers take no parameters (its shaper_defs.py builds each from frequency and damping only)
-    shaper_y = "mzv" if firmware == "kalico" else TUNED["shaper_y"]
-    cfg = _write(tmp_path, "best.json", {**TUNED, "firmware": firmware, "shaper_y": shaper_y, "max_accel_x": 10010,
-                                         "max_accel_y": 4130})
+    # Kalico's shaper_defs.py has no parametrised shapers (mzv(n=…, t=…) is mainline Klipper's)
+    shaper_y = TUNED["shaper_y"] if firmware == "klipper" else "mzv"
+    cfg = _write(tmp_path, "best.json", {**TUNED, "firmware": firmware, "shaper_y": shaper_y,
+                                         "max_accel_x": 10010, "max_accel_y": 4130})
     assert main(["export", str(cfg), "--part", "config"]) == 0
     section = capsys.readouterr().out
     has_caps = "#   max_x_accel: 10010" in section and "#   max_y_accel: 4130" in section

@@ -189,7 +189,8 @@ def test_default_printer_front_dominates_klippers_recommendation(tmp_path, capsy
     at the stated resolution, on overshoot, path error and print time together (issue 14). On the
     built-in print of issue 14 (kept in tests/data: a square, a zigzag and a circle at 80-100 mm/s),
     where 40 trials find it; the labelled modern miniature that replaced it (issue 21) needed about
-    70 trials in one seeded run, too long for the suite."""
+    70 trials in one seeded run, too long for the suite. Klipper's rule is the default printer's
+    recorded pick from the real files it was fitted to (issue 25)."""
     out = tmp_path / "out"
     job = data_dir / "gcode" / "ringtune_builtin_2025" / "test_print.gcode"
     rc = main(["tune", "--json", "--out", str(out), "--trials", "40", "--workers", "1", "--seed", "2",

@@ -287,13 +287,20 @@ def test_readme_same_command_keeps_the_trials_and_the_warm_start_sentence_reads(
 
 
 def test_warm_start_sentence_with_no_neighbour(tmp_path, capsys, fake_evaluator):
-    """A recorded recommendation (no per-shaper fits here) and a fixed acceleration leave Klipper's
-    pick alone to start from: the sentence says so without "and 0 neighbours"."""
-    toml = _printer_toml(tmp_path / "p.toml", klipper={"shaper_x": "mzv", "freq_x": 50.0, "shaper_y": "mzv",
-                                                       "freq_y": 44.0, "max_accel": 3000.0})
+    """A recorded recommendation equal to the rule's pick on the model, a firmware without the EI
+    family (Marlin: ZV only) and a fixed acceleration leave Klipper's pick alone to start from: the
+    sentence says so without "and 0 neighbours"."""
+    from ringtune.agents.klipper.baseline import klipper_rule_on_simulated_test
+    from ringtune.envs.printer import load_printer
+
+    toml = _printer_toml(tmp_path / "p.toml")
+    _, f = klipper_rule_on_simulated_test(load_printer(toml), "marlin")
+    toml = _printer_toml(tmp_path / "p.toml", klipper={"shaper_x": f["shaper_x"], "freq_x": f["freq_x"],
+                                                       "shaper_y": f["shaper_y"], "freq_y": f["freq_y"],
+                                                       "max_accel": 3000.0})
     out = tmp_path / "out"
     assert main(["tune", "--printer", str(toml), "--out", str(out), "--trials", "2", "--accel-range", "3000,3000",
-                 "--evaluator", fake_evaluator]) == 0
+                 "--firmware", "marlin", "--evaluator", fake_evaluator]) == 0
     summary = (out / "summary.txt").read_text()
     assert "The search was warm-started from Klipper's recommendation." in summary
     assert "neighbour" not in summary

@@ -47,7 +47,8 @@ def check_output_folder(option: str, path) -> None:
     """Refuse, before any work, an output file whose folder does not exist, or that is itself a
     folder (one-line error)."""
     if path and not Path(path).parent.is_dir():
-        raise RingtuneError("no such directory", f"{option} {path}")
+        raise RingtuneError(f"no such directory {str(Path(path).parent)!r} (a file's folder must exist: make it "
+                            "first; only folder outputs such as tune --out are created)", f"{option} {path}")
     if path and Path(path).is_dir():
         raise RingtuneError("is a directory; give a file name", f"{option} {path}")
 
@@ -59,3 +60,13 @@ def judgement(freq_margin: float) -> str:
         return "on the exact model (--freq-margin 0)"
     return (f"worst of the model and its resonances ±{freq_margin * 100:g} % "
             f"(--freq-margin {freq_margin * 100:g})")
+
+
+def say_unmeasured(printer, out) -> None:
+    """Say aloud that a description's modes are the defaults `printer from-…` wrote (its
+    ``[measurement] source = "none"``): every figure then rests on another printer's resonances."""
+    if (getattr(printer, "measurement", None) or {}).get("source") == "none":
+        out.note(f"note: {printer.name}: its modes were not measured ([measurement] source = \"none\", as "
+                 "`ringtune printer from-…` writes them): they are the embedded Ender-3-class printer's, and "
+                 "every figure here rests on them; run `ringtune identify` on your resonance files (or "
+                 "--ripples / --tower-band) to measure yours")

@@ -30,9 +30,10 @@ from ringtune.agents.cli.common import check_output_folder
 from ringtune.agents.identify.accelerometer import klipper_record, read_measurement
 from ringtune.agents.identify.belts import belts_into_description
 from ringtune.agents.identify.description import AddedMass, build_description, description_toml, printer_name
+from ringtune.agents.identify.model_check import pick_warnings
 from ringtune.envs.identify import plot_fits
 from ringtune.envs.motors import lookup_motor, unknown_motor_message
-from ringtune.envs.printer import printer_from_dict
+from ringtune.envs.printer import check_moving_mass, printer_from_dict
 from ringtune.hardware.klipper_config import printer_facts_from_klipper, printer_facts_from_moonraker
 from ringtune.hardware.marlin_config import printer_facts_from_marlin
 from ringtune.hardware.moonraker_files import fetch_printer_files
@@ -155,7 +156,9 @@ def _per_axis(text: str, option: str, parse) -> dict[str, object]:
     return out
 
 
-def _kg(option: str):
+def _kg(option: str, moving: bool = False):
+    """A parser of masses in kg for ``option``; ``moving``: what moves on an axis
+    (:func:`check_moving_mass`)."""
     def parse(v: str) -> float:
         try:
             kg = float(v)
@@ -163,7 +166,7 @@ def _kg(option: str):
             raise RingtuneError(f"not a mass in kg: {v!r}", option) from None
         if not 0 < kg < 100:
             raise RingtuneError(f"mass must be between 0 and 100 kg, not {v}", option)
-        return kg
+        return check_moving_mass(kg, option) if moving else kg
     return parse
 
 
@@ -264,8 +267,10 @@ def run(args, out) -> int:
                                       ("--belts", args.belts),
                                       ("--added-mass", args.added_mass)) if v]
         if given:
+            maker = {"--marlin": f"printer from-marlin {args.marlin}", "--rrf": f"printer from-rrf {args.rrf}"}.get(
+                given[0], f"printer from-klipper {args.klipper_config or 'printer.cfg'}")
             raise RingtuneError("goes with accelerometer files; with --ripples/--tower-band give the rest of "
-                                "the printer as --base P (e.g. from `ringtune printer from-klipper`)", given[0])
+                                f"the printer as --base P (e.g. from `ringtune {maker} -o P`)", given[0])
         args.name = args.name or "identified"
         return identify_ripples.run(args, out)
     if args.max_modes < 1 or args.max_modes > 5:
@@ -277,7 +282,7 @@ def run(args, out) -> int:
                             f"--plot {args.plot}")
     _check_output("-o", args.output)
     _check_output("--plot", args.plot)
-    masses = _per_axis(args.mass, "--mass", _kg("--mass")) if args.mass else {}
+    masses = _per_axis(args.mass, "--mass", _kg("--mass", moving=True)) if args.mass else {}
     if "all" in masses:
         raise RingtuneError("give the mass per axis: X=KG,Y=KG", "--mass")
     motors = _per_axis(args.motor, "--motor", _motor) if args.motor else {}
@@ -345,6 +350,9 @@ def run(args, out) -> int:
     if args.belts:
         belts = belts_into_description(desc, printer, args.belts)
         printer = _validate(description_toml(desc, header))
+    for w in pick_warnings(printer, klipper, meas.psds, fits):       # does the model give back the files' pick?
+        warnings.append(w)
+        desc.comment("measurement", w)
     for ax in ("x", "y"):                        # what a named motor's drive still assumes
         for sentence in printer.motor_for(ax).assumed:
             said = f"motor: {sentence}"

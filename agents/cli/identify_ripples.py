@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ringtune.agents.cli.common import check_output_folder, firmware_name
+from ringtune.agents.cli.common import check_output_folder
 from ringtune.agents.identify.ripples import identify_modes, printer_text
 from ringtune.shaping.errors import RingtuneError
 
@@ -25,8 +25,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--tower-band", metavar="X=N,Y=N", help="band of the ringing tower with the least "
                    "ringing, per axis (1 = lowest)")
     g.add_argument("--tower", metavar="ringing.gcode", help="the tower's G-code (its band table)")
-    g.add_argument("--firmware", type=firmware_name, default=None, help="whose default damping to assume when none is "
-                   "measured (default klipper: 0.1)")
+
 
 
 def wanted(args) -> bool:

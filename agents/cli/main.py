@@ -16,6 +16,7 @@ import importlib
 import json
 import os
 import sys
+import time
 from dataclasses import dataclass, field
 from types import ModuleType
 from typing import Any
@@ -61,15 +62,26 @@ every command takes --help and --json.
 """
 
 
+#: notes are held this long (s) after a command starts: one that fails in that time prints its error
+#: line alone; after it they go out as they come. Long commands (tune, train, push) release them
+#: once their input is checked, so their progress is live.
+NOTE_HOLD_S = 10.0
+
+
 @dataclass
 class Output:
-    """Where a command's result goes: JSON on stdout, or readable text."""
+    """Where a command's result goes: JSON on stdout, or readable text. Notes (stderr) are held
+    until the result, or until the command has run :data:`NOTE_HOLD_S`; a command that fails
+    before then drops them, so bad input gets its one error line and nothing before it."""
 
     json: bool = False
     stream: Any = field(default_factory=lambda: sys.stdout)
+    held: list[str] = field(default_factory=list)
+    started: float = field(default_factory=time.monotonic)
 
     def emit(self, result: dict, text: str | None = None) -> None:
         """Print ``result`` as JSON (``--json``) or ``text`` (else a readable rendering of result)."""
+        self.release()
         if self.json:
             json.dump(_jsonable(result), self.stream, indent=2, sort_keys=False)
             self.stream.write("\n")
@@ -78,7 +90,16 @@ class Output:
 
     def note(self, message: str) -> None:
         """A remark for the person at the terminal (stderr, so ``--json`` output stays clean)."""
-        print(message, file=sys.stderr)
+        self.held.append(message)
+        if time.monotonic() - self.started > NOTE_HOLD_S:
+            self.release()
+
+    def release(self) -> None:
+        """Print the held notes (from now on every note goes out as it comes)."""
+        for message in self.held:
+            print(message, file=sys.stderr)
+        self.held.clear()
+        self.started = -float("inf")
 
 
 def _jsonable(obj: Any) -> Any:
@@ -197,8 +218,10 @@ def main(argv: list[str] | None = None) -> int:
     if not args.command:
         parser.print_help()
         return 0
+    out = Output(json=args.json)
     try:
-        rc = int(module.run(args, Output(json=args.json)) or 0)
+        rc = int(module.run(args, out) or 0)
+        out.release()
         sys.stdout.flush()          # a closed pipe shows here, not in the interpreter's last flush
         return rc
     except BrokenPipeError:

@@ -167,6 +167,8 @@ def description_toml(name: str, description: dict, notes: list[str], source: str
         motor = description.get(ax, {}).get("motor")
         if motor:
             _table(lines, f"{ax}.motor", motor, comments.get(f"{ax}.motor", []))
+    lines += ["", f"# nothing measured yet: the modes above are the embedded {default['name']} printer's; tune, "
+              "recommend and simulate say so while this reads \"none\"", "[measurement]", 'source = "none"']
     return "\n".join(lines) + "\n"
 
 

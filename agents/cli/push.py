@@ -9,8 +9,10 @@
     save_file: config file written (RRF, Klipper) or null, notes: remarks,
     printer_state: after a failed line on Klipper, {state ("ready" | "shutdown" | "not ready" |
         "error" | "unknown"), message} (pty: STATUS; Moonraker: /printer/info), else null
-Exit status: 0 all applied, 1 something not applied (the same over the pty and Moonraker), 2 bad
-input (nothing sent) or the printer stopped answering.
+Exit status (also in --help): 0 every setting applied and read back; 1 sent, but something not
+applied (the report gives the firmware's own words, a wrong firmware it recognised, what stays in
+force and how to undo it); 2 nothing sent (bad input, or a value far outside what the printer is
+configured for without --force), or the printer stopped answering (the report says what was applied).
 """
 
 from __future__ import annotations
@@ -47,6 +49,19 @@ acceleration commands override it while it prints (see `ringtune export --slicer
 cannot save these from G-code: the lines are written to a file (--save-file) for config.g or
 printer.cfg. --dry-run prints exactly what would be sent and opens nothing.
 
+Before sending, a shaper frequency outside 10-150 Hz (where printers resonate) or an acceleration
+more than twice the highest the printer reports (read from it first) is refused; --force sends it
+anyway. A line the firmware refuses is reported in its own words (Marlin "?Frequency (F) must be
+greater than 40.00", "Unknown command"); a printer that refuses in another firmware's words is named
+(Marlin lines sent to Klipper), and after a partial push the report says what stays in force and
+how to undo it (Klipper FIRMWARE_RESTART, Marlin and Prusa M501, RepRapFirmware M98 P"config.g").
+
+exit status:
+  0  every setting applied and read back
+  1  sent, but something not applied (see the report: the firmware's words, what stays, how to undo)
+  2  nothing sent: bad input, or a value far outside the printer's limits (--force); or the printer
+     stopped answering (the report says what was applied before)
+
 examples:
   ringtune push best.json --firmware marlin --port /dev/ttyUSB0 --save
   ringtune push best.json --firmware rrf --port socket://192.168.1.40:23 --dry-run
@@ -71,6 +86,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--save-file", metavar="FILE", help="where --save writes config lines (RRF, Klipper)")
     p.add_argument("--no-accel", action="store_true", help="leave the printer's acceleration alone")
     p.add_argument("--dry-run", action="store_true", help="print exactly what would be sent; send nothing")
+    p.add_argument("--force", action="store_true", help="send values far outside what the printer is "
+                   "configured for (refused otherwise, nothing sent)")
     p.add_argument("-v", "--verbose", action="store_true", help="show the conversation on stderr")
 
 
@@ -85,11 +102,13 @@ def run(args, out) -> int:
     if args.timeout <= 0:
         raise RingtuneError("must be > 0 s", "--timeout")
     log = out.note if args.verbose else None
+    out.release()                        # the conversation (-v) goes out live
     try:
         result = push(cfg, args.firmware, port=args.port, moonraker=args.moonraker, baud=args.baud,
                       save=args.save, dry_run=args.dry_run, timeout=args.timeout, crc=args.crc,
                       api_key=args.api_key or os.environ.get("MOONRAKER_API_KEY"),
-                      save_path=args.save_file, log=log, accel=not args.no_accel)
+                      save_path=args.save_file, log=log, accel=not args.no_accel,
+                      check_limits=not args.force)
     except PushError as exc:
         out.emit(exc.result.to_dict(), exc.result.text())
         raise

@@ -71,7 +71,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "(default 5; --printer uses the printer's)")
     p.add_argument("--max-smoothing", type=VALUES["smoothing"], default=None,
                    help="Klipper's MAX_SMOOTHING, mm (at least 0.05, as Klipper's)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the simulated resonance test (--printer)")
+    p.add_argument("--seed", type=int, default=None, help="--printer: scatter the simulated resonance test's "
+                   "bins as a measurement would, from this seed (default: the model's expected spectrum, "
+                   "no noise, as tune's baseline); --method policy: its seed (default 0)")
     p.add_argument("-o", "--output", metavar="best.json", help="write the TuneConfig here")
     p.add_argument("--policy", metavar="DIR", help="--method policy: folder from `ringtune train` "
                    "(trusted source only: it is unpickled)")
@@ -129,7 +131,7 @@ def _run_policy(args, out) -> int:
     """
     if not args.policy:
         raise RingtuneError("needs --policy DIR (a folder written by `ringtune train -o DIR`)", "--policy")
-    pick = policy_pick(args.policy, args.firmware, args.accel, args.printer, args.axes, args.seed, args.refine,
+    pick = policy_pick(args.policy, args.firmware, args.accel, args.printer, args.axes, args.seed or 0, args.refine,
                        out.note)
     written = _save(pick.config, args.output)
     out.emit({"method": "policy", "firmware": args.firmware, "policy": str(pick.policy.path),

@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ringtune.agents.cli.common import firmware_name, judgement, load_config
+from ringtune.agents.cli.common import firmware_name, judgement, load_config, say_unmeasured
 from ringtune.agents.cli.trace_option import write_trace_option
 from ringtune.agents.tune.baselines import current_config
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
@@ -301,6 +301,7 @@ def run(args, out) -> int:
     if args.freq_margin is not None:    # a bad option is refused before any note is printed
         freq_margin(args)
     printer = resolve_printer(args.printer)
+    say_unmeasured(printer, out)
     config = build_config(args, out, printer)
     margin = freq_margin(args, config)
     if args.gcode and not Path(args.gcode).is_file():

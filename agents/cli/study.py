@@ -17,7 +17,7 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-from ringtune.agents.cli.common import firmware_name, judgement
+from ringtune.agents.cli.common import firmware_name, judgement, say_unmeasured
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 from ringtune.agents.tune.sweep import (FACTORS, factor_values, offered_shapers, plot_sweep, sweep,
     tuned_frequencies, write_csv)
@@ -71,6 +71,7 @@ def run(args: argparse.Namespace, out) -> int:
         raise RingtuneError(f"must be a percentage in [0, 50), not {args.freq_margin:g}", "--freq-margin")
     judged = judgement(margin)
     printer = resolve_printer(args.printer)
+    say_unmeasured(printer, out)
     quality = f"{args.quality}_mm"
     shapers = offered_shapers(args.firmware, args.shapers.split(",") if args.shapers else None)
     values = None

@@ -115,6 +115,11 @@ def _material(args, out) -> None:
             raise RingtuneError(f"must be {lo:g} to {hi:g} °C, not {v:g}", f"--{key}")
 
 
+#: Hz: where a ringing tower's bands may lie — printers' X/Y resonances and the shapers that cancel
+#: them (FT_MOTION and Prusa Buddy start at 10 Hz; Klipper's rule tests shaper frequencies up to 150 Hz)
+BAND_RANGE = (10.0, 150.0)
+
+
 def _bands(text: str | None) -> tuple[float, float, int]:
     parts = (text or "25:75:11").split(":")
     try:
@@ -123,6 +128,11 @@ def _bands(text: str | None) -> tuple[float, float, int]:
             raise ValueError
     except (ValueError, IndexError):
         raise RingtuneError(f"expected F0:F1:N (Hz, Hz, bands), not {text!r}", "--bands") from None
+    for f in (f0, f1):
+        if not BAND_RANGE[0] <= f <= BAND_RANGE[1]:
+            raise RingtuneError(f"a band at {f:g} Hz is outside {BAND_RANGE[0]:g}-{BAND_RANGE[1]:g} Hz, where "
+                                "printers resonate and shapers are tuned (FT_MOTION and Prusa start at 10 Hz, "
+                                "Klipper's rule tests up to 150 Hz)", "--bands")
     return f0, f1, n
 
 

@@ -117,6 +117,7 @@ def run(args, out) -> int:
         out.note(f"PPO collects whole rollouts of {rollout // args.envs} steps × {args.envs} env(s) = {rollout}: "
                  f"--timesteps {args.timesteps} trains {planned} steps")
     out.note(f"training PPO: {planned if planned else args.timesteps} steps on {args.envs} env(s) -> {args.output}")
+    out.release()                        # training runs long: its notes and progress go out live
     tty = sys.stderr.isatty()
     lines = [] if tty or args.no_progress else [progress_lines(args.output, planned or args.timesteps)]
     with _stdout_to_stderr():

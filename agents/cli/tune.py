@@ -30,7 +30,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from ringtune.agents.cli.common import firmware_name, progress_interval
+from ringtune.agents.cli.common import firmware_name, progress_interval, say_unmeasured
 from ringtune.agents.tune import pareto, report, storage, study as tune_study
 from ringtune.agents.tune.baselines import baselines_for, warm_start
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
@@ -159,6 +159,7 @@ def run(args: argparse.Namespace, out) -> int:
     if fw_note:
         out.note(f"ringtune tune: {fw_note}")
     printer = resolve_printer(args.printer)
+    say_unmeasured(printer, out)
     quality = f"{args.quality}_mm"
     facts = job_accel_facts(printer, args.gcode, args.job_accel)
     # no --gcode: the built-in print stands in for the user's, which may run up to the velocity limit
@@ -190,7 +191,7 @@ def run(args: argparse.Namespace, out) -> int:
         bl = None
         baselines: dict[str, pareto.Point] = {}
         if not args.no_baselines:
-            bl = baselines_for(printer, firmware, settings, evaluator, quality, seed=args.seed, note=out.note)
+            bl = baselines_for(printer, firmware, settings, evaluator, quality, note=out.note)
             baselines = bl.points
             k = baselines.get("klipper")
             if k is not None:   # start the search from what users do today, and its neighbours
@@ -204,6 +205,7 @@ def run(args: argparse.Namespace, out) -> int:
                 settings.enqueue = enq
 
         bar = Progress(quality, max_pe, reserve, space)
+        out.release()                    # the study runs long: its notes and progress go out live
         try:
             run_ = tune_study.run_study(settings, args.workers, printer=printer, progress=bar.update)
         finally:
@@ -237,8 +239,8 @@ def run(args: argparse.Namespace, out) -> int:
     n_warm = len(settings.enqueue)
     if n_warm:
         notes.append("The search was warm-started from Klipper's recommendation" + (
-            "." if n_warm == 1 else f" and {n_warm - 1} neighbour{'s' if n_warm > 2 else ''} of it (robust "
-            "shapers at Klipper's own frequencies, higher accelerations)."))
+            "." if n_warm == 1 else f" and {n_warm - 1} neighbour{'s' if n_warm > 2 else ''} of it (the rule's "
+            "pick and robust shapers at its frequencies on the model's simulated test, higher accelerations)."))
     result = report.write_report(
         out_dir, points=points, front=front, choice=choice, baselines=baselines, quality=quality,
         printer_name=getattr(printer, "name", "printer"), job_name=Path(args.gcode).name if args.gcode else

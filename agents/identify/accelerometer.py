@@ -14,8 +14,6 @@ import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from ringtune.agents.klipper.baseline import recommend_axes
 from ringtune.envs.identify import AxisFit, identify_decay, identify_psd
 from ringtune.hardware.accel import RawAccel, axis_from_file_name, read_accel, to_psd
@@ -57,18 +55,19 @@ def _named_axis(path) -> str | None:
     return ax
 
 
+#: why a file's columns do not tell which axis it measured
+UNNAMED_AXIS = ("its name does not say, and its columns cannot (on a CoreXY, or with the accelerometer "
+                "turned, the largest column is not the axis tested: a real Voron 2.4 X test is largest in psd_y)")
+
+
 def _axis(path, items, given: str | None) -> tuple[str, str | None]:
     if given:
         return given, None
     ax = _named_axis(path)
     if ax:
         return ax, None
-    first = items[0]
-    if first.psd_x is not None and first.psd_y is not None:
-        ax = "x" if float(np.sum(first.psd_x)) >= float(np.sum(first.psd_y)) else "y"
-        return ax, (f"{path}: the file name does not say the axis; taken as {ax.upper()} (its psd_{ax} "
-                    "column holds more energy); give --axis to decide")
-    raise RingtuneError("cannot tell which axis this file measured; give --axis", str(path))
+    raise RingtuneError(f"cannot tell which axis this file measured: {UNNAMED_AXIS}; rename it as Klipper "
+                        "names it (resonances_x_…, resonances_y_…) or give --axis", str(path))
 
 
 def read_measurement(paths, axis: str | None = None, max_modes: int = 3, fmin: float = SWEEP[0],
@@ -151,8 +150,8 @@ def recorded_files(measurement: dict, printer_path: str | Path | None) -> tuple[
 
 def resonance_psds(paths: list, axes: str | None = None, note=None) -> tuple[dict[str, list], dict[str, list[str]]]:
     """({axis: [PSD, …]}, {axis: [file, …]}) of resonance-test files; each file's axis from
-    ``axes`` (comma-separated, one per file), else its name, else the larger of its psd_x / psd_y
-    columns (said through ``note``)."""
+    ``axes`` (comma-separated, one per file), else its name (a file whose name does not say is
+    refused: its columns cannot tell)."""
     named = None
     if axes:
         named = [a.strip().lower() for a in axes.split(",")]
@@ -169,16 +168,12 @@ def resonance_psds(paths: list, axes: str | None = None, note=None) -> tuple[dic
 
 
 def _psd_axis(path, items, note=None) -> str:
-    """The axis a resonance file measured: from its name, else the larger of its psd_x / psd_y."""
+    """The axis a resonance file measured, from its name."""
     ax = axis_from_file_name(path)
     if ax == "z":
         raise RingtuneError("the file name says it measured Z; recommend fits X and Y (if it "
                             "measured X or Y, say so with --axes)", str(path))
-    if ax is None and items[0].psd_x is not None and items[0].psd_y is not None:
-        ax = "x" if float(np.sum(items[0].psd_x)) >= float(np.sum(items[0].psd_y)) else "y"
-        if note is not None:
-            note(f"{path}: the file name does not say the axis; taking {ax.upper()}, the larger of "
-                 "its psd_x and psd_y (--axes overrides)")
-    elif ax is None:
-        raise RingtuneError("cannot tell which axis this file measured; use --axes", str(path))
+    if ax is None:
+        raise RingtuneError(f"cannot tell which axis this file measured: {UNNAMED_AXIS}; rename it as Klipper "
+                            "names it (resonances_x_…, resonances_y_…) or give --axes (one per file)", str(path))
     return ax

@@ -10,11 +10,15 @@ by the command and written at the top of the TOML.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ringtune.envs.identify import AxisFit, added_mass, frequency_scale
+import numpy as np
+
+from ringtune.envs.added_mass import added_mass, frequency_scale
+from ringtune.envs.identify import AxisFit
 from ringtune.envs.printer import load_printer
 from ringtune.envs.printer_model import DEFAULTS
 from ringtune.envs.toml_writer import toml_key, toml_value
@@ -50,17 +54,43 @@ class AddedMass:
             raise RingtuneError("the added-mass method needs resonance sweeps (TEST_RESONANCES files) "
                                 f"of {axis.upper()}, not free-decay captures", "--added-mass")
         f0 = max(bases[0].modes, key=lambda m: m.share).freq
+        _same_spectra(bases, loads)
         scale, err = frequency_scale(bases, loads)
-        try:
-            m, k = added_mass(f0, f0 * scale, dm)
-        except RingtuneError as exc:
-            raise RingtuneError(f"axis {axis.upper()}: {exc.args[0]}", "--added-mass") from None
+        _check_shift(axis, scale, err)
+        m, k = added_mass(f0, f0 * scale, dm)
         u = scale ** -2                                  # m = dm/(u − 1): dm/d(ln s) = dm·2u/(u − 1)²
         return cls(axis, dm, f0, f0 * scale, m, k, dm * 2.0 * u / (u - 1.0) ** 2 * err)
 
     def to_dict(self) -> dict:
         return {"axis": self.axis, "added_mass_kg": self.dm, "f0_hz": self.f0, "f1_hz": self.f1,
                 "mass_kg": self.mass, "mass_error_kg": self.mass_error, "stiffness_n_m": self.stiffness}
+
+
+def _same_spectra(bases: list[AxisFit], loads: list[AxisFit]) -> None:
+    """Refuse a loaded test that is one of the unloaded ones (the same file twice, or a copy)."""
+    for b in bases:
+        for ld in loads:
+            if b.y_measured is not None and ld.y_measured is not None and \
+                    np.array_equal(b.y_measured, ld.y_measured) and np.array_equal(b.x_measured, ld.x_measured):
+                raise RingtuneError(f"axis {b.axis.upper()}: {ld.source} holds the same spectrum as {b.source}: "
+                                    "the loaded test must be a new TEST_RESONANCES run with the mass fixed on",
+                                    "--added-mass")
+
+
+#: the resonances must move by more than this many standard errors for the added mass to say anything
+SHIFT_RESOLUTION = 3.0
+
+
+def _check_shift(axis: str, scale: float, err: float) -> None:
+    """Refuse a loaded test whose resonances did not move down beyond the measurement's resolution
+    (:data:`SHIFT_RESOLUTION` standard errors of ln s): the mass it gives would be noise."""
+    shift = -math.log(scale)
+    if shift > SHIFT_RESOLUTION * err:
+        return
+    raise RingtuneError(f"axis {axis.upper()}: with the added mass the resonances moved by {-100 * shift:+.2f} % "
+                        f"(± {100 * err:.2f} %, one standard error), not down beyond the measurement's "
+                        f"resolution ({SHIFT_RESOLUTION:g} standard errors): the mass did not move with the axis, "
+                        "the files are of the same state, or the mass is too small to measure", "--added-mass")
 
 
 @dataclass

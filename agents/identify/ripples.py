@@ -2,7 +2,7 @@
 measured on a calibration print (``ringtune testprint ringing``), without an accelerometer.
 
 One mode per measured axis: from the ripple spacing and wall speed (seed 000; damping from the
-ratio of successive ripple heights, else the firmware's default), or from the ringing-tower band
+ratio of successive ripple heights, else a typical printer's damping, said), or from the ringing-tower band
 with the least ringing. The rest of the description (masses, motors, limits, the modes of an axis
 not measured) comes from ``--base``; ``[measurement]`` records the source (``"ripples"`` or
 ``"tower"``) and the numbers measured.
@@ -19,17 +19,16 @@ from pathlib import Path
 
 from ringtune.envs.printer import load_printer
 from ringtune.envs.printer_model import AxisModel, Mode
-from ringtune.envs.ripples import damping_from_ratio, mode_from_ripples, parse_axis_values, tower_frequency
+from ringtune.envs.ripples import (TYPICAL_DAMPING, TYPICAL_DAMPING_SOURCE, damping_from_ratio, mode_from_ripples,
+                                   parse_axis_values, tower_frequency)
 from ringtune.shaping.calibration_prints import read_band_table
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.firmware import Firmware
-from ringtune.shaping.shapers import default_damping
 
 
 def _default_damping(args, out) -> tuple[float, str]:
-    fw = Firmware.named(args.firmware or "klipper", "--firmware")
-    z = default_damping(fw.flavor)
-    return z, f"{fw.title}'s default shaper damping{'' if args.firmware else ' (--firmware)'}"
+    """A typical printer's damping (:data:`TYPICAL_DAMPING`, with its source), never a firmware's
+    shaper setting: the same whichever firmware is named."""
+    return TYPICAL_DAMPING, f"a typical printer's: {TYPICAL_DAMPING_SOURCE}"
 
 
 def identify_modes(args, out) -> tuple[dict, dict, list]:

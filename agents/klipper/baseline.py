@@ -80,11 +80,15 @@ def _as_list(p: Any) -> list:
 
 
 def klipper_rule_on_simulated_test(printer: Any = None, firmware: str = "klipper", version: str = "head",
-                          seed: int = 0, **kw) -> tuple[dict[str, KlipperRecommendation], dict[str, Any]]:
+                          seed: int | None = None, **kw) -> tuple[dict[str, KlipperRecommendation], dict[str, Any]]:
     """Klipper's rule on a modelled printer's simulated resonance test (one per axis), as a user
-    would run TEST_RESONANCES + calibrate_shaper.py; scv is the printer's square-corner velocity."""
+    would run TEST_RESONANCES + calibrate_shaper.py; scv is the printer's square-corner velocity.
+
+    Without ``seed`` the test is the model's expected spectrum (no measurement noise), so the pick
+    is the model's own and does not move with any study's seed; with one, each bin is scattered as a
+    Welch estimate (:func:`ringtune.envs.sim.resonance_test`)."""
     printer = resolve_printer(printer)
-    rng = np.random.default_rng(seed)
+    rng = None if seed is None else np.random.default_rng(seed)
     psds = {ax: resonance_test(printer, ax, rng=rng) for ax in ("x", "y")}
     scv = float(getattr(printer.limits, "square_corner_velocity", 5.0) or 5.0)
     return recommend_axes(psds, firmware, version, scv, **kw)

@@ -30,12 +30,13 @@ class KlipperPick:
 
 
 def klipper_pick(accel: list | None = None, printer: str | None = None, firmware: str = "klipper",
-                 version: str = "head", scv: float = 5.0, max_smoothing: float | None = None, seed: int = 0,
+                 version: str = "head", scv: float = 5.0, max_smoothing: float | None = None, seed: int | None = None,
                  axes: str | None = None, note=_silent) -> KlipperPick:
     """Klipper's rule on the resonance files ``accel`` (axes as :func:`resonance_psds` tells them;
     ``scv`` mm/s), else on ``printer`` (TOML or embedded name, ``"default"`` the embedded printer):
     the files its ``[measurement]`` records when they are all here unchanged, else what it
-    recorded from them, else its model's simulated resonance test (``seed`` its noise)."""
+    recorded from them, else its model's simulated resonance test (its expected spectrum; with ``seed``,
+    bins scattered as a measurement's)."""
     if accel:
         psds, sources = resonance_psds(accel, axes, note)
         fits, fields = recommend_axes(psds, firmware, version, scv, max_smoothing=max_smoothing)
@@ -60,6 +61,10 @@ def _from_printer(ref, firmware, version, scv, max_smoothing, seed, note):
         return _kept(kept, ref, note)       # the files moved: what identify recorded from them
     if printer.measurement.get("files"):
         note("note: Klipper's rule runs on the model's simulated resonance test instead")
+    if printer.measurement.get("source") == "none":
+        note(f"note: {printer.name}: its modes were not measured ([measurement] source = \"none\"): Klipper's "
+             "rule runs on the simulated test of the embedded Ender-3-class printer's modes; run `ringtune "
+             "identify` on your resonance files to measure yours")
     fits, fields = klipper_rule_on_simulated_test(printer, firmware, version, seed, max_smoothing=max_smoothing)
     sources = {ax: [f"printer:{getattr(printer, 'name', 'default')} (simulated resonance test)"]
                for ax in ("x", "y")}

@@ -21,12 +21,15 @@ from ringtune.agents.klipper.rule import DEFAULT_DAMPING_RATIO
 from ringtune.agents.tune import study as tune_study
 from ringtune.agents.tune.pareto import Point, point_from_metrics
 from ringtune.envs.printer_model import Printer
+from ringtune.hardware.firmware_check import check_available
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.shapers import parse_name, shapers_from_config
 
 SIMULATED = "on a simulated resonance test of the model"
-FROM_FILES = "from your resonance files"
+#: whose files [measurement.klipper] came from, unless [measurement] says (``origin``, e.g. an embedded printer's)
+FROM_FILES = "your resonance files"
 
 
 @dataclass
@@ -60,9 +63,28 @@ def recorded_klipper(printer: Printer, firmware: str) -> tuple[TuneConfig | None
                                                     "(recorded by ringtune identify)"})
         cfg.validate("[measurement.klipper]")
         shapers_from_config(cfg)          # Klipper's shapers may not be the firmware's (Marlin: zv only)
+        _runs_on(cfg, firmware)
     except (TypeError, ValueError, RingtuneError) as exc:
         return None, f"[measurement.klipper] cannot be used for {firmware}: {exc}"
     return cfg, ""
+
+
+def _model_fits(printer: Printer, firmware: str) -> dict:
+    """Klipper's per-axis fits on the model's simulated resonance test ({} when it cannot run)."""
+    try:
+        return klipper_baseline.klipper_rule_on_simulated_test(printer, firmware, "head")[0]
+    except (ImportError, RingtuneError):
+        return {}
+
+
+def _runs_on(cfg: TuneConfig, firmware: str) -> None:
+    """Refuse a recorded Klipper pick ``firmware`` cannot run: a shaper it lacks, or two axes' picks
+    on a firmware with one shaper for all axes (Klipper's rule is then aimed at it instead)."""
+    for ax in ("x", "y"):
+        check_available(cfg.axis(ax)[0], firmware, f"shaper_{ax}")
+    if FIRMWARES[firmware].one_shaper and cfg.axis("x")[:2] != cfg.axis("y")[:2]:
+        raise RingtuneError(f"{firmware} runs one shaper for all axes, the files' picks differ per axis",
+                            "[measurement.klipper]")
 
 
 def current_config(printer: Printer, firmware: str) -> tuple[TuneConfig | None, str]:
@@ -90,10 +112,11 @@ def current_config(printer: Printer, firmware: str) -> tuple[TuneConfig | None, 
     return cfg, ""
 
 
-def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable, quality: str, *, seed: int = 0,
+def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable, quality: str, *,
                   note: Callable[[str], None] = lambda s: None) -> Baselines:
     """Klipper's rule, what the printer runs now (when known) and no shaping, evaluated with the
-    study's evaluator, bounds and frequency margin (``settings``: a StudySettings)."""
+    study's evaluator, bounds and frequency margin (``settings``: a StudySettings). Klipper's rule on
+    a simulated test uses the model's expected spectrum: it does not depend on the study's seed."""
     out = Baselines()
     configs: dict[str, TuneConfig] = {}
     kcfg, why = recorded_klipper(printer, firmware)
@@ -101,11 +124,12 @@ def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable
         configs["klipper"] = kcfg
         rec = printer.measurement.get("klipper", {})
         version = f" (Klipper {rec['version']})" if rec.get("version") else ""
-        out.labels["klipper"] = f"Klipper's rule {FROM_FILES}{version}"
+        out.labels["klipper"] = f"Klipper's rule from {printer.measurement.get('origin') or FROM_FILES}{version}"
         out.sources["klipper"] = "measurement"
+        out.fits = _model_fits(printer, firmware)      # the model's own frequencies, for the warm start
     else:
         try:
-            out.fits, fields = klipper_baseline.klipper_rule_on_simulated_test(printer, firmware, "head", seed=seed)
+            out.fits, fields = klipper_baseline.klipper_rule_on_simulated_test(printer, firmware, "head")
             if fields.get("accel") is None:
                 fields["accel"] = float(printer.limits.accel)
             configs["klipper"] = TuneConfig(**fields, extra={"source": "Klipper's calibrate_shaper rule (HEAD) "
@@ -138,9 +162,11 @@ def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable
 
 def warm_start(kcfg: TuneConfig, fits: dict, space) -> list[TuneConfig]:
     """Klipper's pick at its max_accel and 1.1×, 1.25×, 1.5× it (and at 0.6× the range's top when its
-    max_accel is above that: the motors would need more than 60 % of their force, resonance not counted); the robust EI family at Klipper's own
-    per-shaper frequencies (when the rule ran here), at its max_accel, 1.25× it and the top of the
-    range (only points inside the space; one acceleration when it is not searched)."""
+    max_accel is above that: the motors would need more than 60 % of their force, resonance not counted);
+    the rule's pick on the model's simulated test (``fits``; it differs from a pick recorded from the
+    files) at that max_accel and 1.25× it; the robust EI family at the rule's per-shaper frequencies on
+    the model, at its max_accel, 1.25× it and the top of the range (only points inside the space; one
+    acceleration when it is not searched)."""
     def at(cfg, factor):
         a = min(space.accel[1], max(space.accel[0], round(kcfg.accel * factor / space.accel_step)
                                     * space.accel_step))
@@ -149,17 +175,11 @@ def warm_start(kcfg: TuneConfig, fits: dict, space) -> list[TuneConfig]:
     out = [at(kcfg, 1.0), at(kcfg, 1.1), at(kcfg, 1.25), at(kcfg, 1.5)]
     if kcfg.accel and kcfg.accel > 0.6 * space.accel[1]:   # a weak motor: also where its force keeps a reserve
         out.append(at(kcfg, 0.6 * space.accel[1] / kcfg.accel))
-    for name in ("ei", "2hump_ei", "3hump_ei"):
-        freqs = {}
-        for ax in ("x", "y"):
-            rec = fits.get(ax) if fits else None
-            row = next((f for f in rec.shapers if f.name == name), None) if rec else None
-            if row is not None:
-                freqs[ax] = round(row.freq, 1)
-        if len(freqs) == 2 and name in space.shapers:
-            fy = freqs["y"] if space.per_axis else freqs["x"]
-            cfg = dataclasses.replace(kcfg, shaper_x=name, shaper_y=name, freq_x=freqs["x"], freq_y=fy, extra={})
-            out += [at(cfg, 1.0), at(cfg, 1.25), at(cfg, space.accel[1] / kcfg.accel)]
+    model = _model_pick(kcfg, fits)
+    if model is not None:
+        out += [at(model, 1.0), at(model, 1.25)]
+    for cfg in _ei_family(kcfg, fits, space):
+        out += [at(cfg, 1.0), at(cfg, 1.25), at(cfg, space.accel[1] / kcfg.accel)]
     seen, unique = set(), []
     for c in out:
         key = (c.shaper_x, c.freq_x, c.shaper_y, c.freq_y, c.accel)
@@ -167,6 +187,32 @@ def warm_start(kcfg: TuneConfig, fits: dict, space) -> list[TuneConfig]:
             seen.add(key)
             unique.append(c)
     return unique
+
+
+def _model_pick(kcfg: TuneConfig, fits: dict) -> TuneConfig | None:
+    """Klipper's pick on the model's simulated test (``fits`` by axis), or None without both axes."""
+    if not fits or not all(ax in fits for ax in ("x", "y")):
+        return None
+    picks = {f"{k}_{ax}": v for ax in ("x", "y")
+             for k, v in (("shaper", fits[ax].best.name), ("freq", round(fits[ax].best.freq, 1)))}
+    return dataclasses.replace(kcfg, **picks, extra={})
+
+
+def _ei_family(kcfg: TuneConfig, fits: dict, space) -> list[TuneConfig]:
+    """EI, 2-hump and 3-hump EI at the rule's own per-shaper frequencies, where it ran on both axes."""
+    def row(ax, name):
+        rec = fits.get(ax) if fits else None
+        return next((f for f in rec.shapers if f.name == name), None) if rec else None
+
+    out = []
+    for name in ("ei", "2hump_ei", "3hump_ei"):
+        rows = {ax: row(ax, name) for ax in ("x", "y")}
+        if rows["x"] is None or rows["y"] is None or name not in space.shapers:
+            continue
+        fx, fy = round(rows["x"].freq, 1), round(rows["y"].freq, 1)
+        out.append(dataclasses.replace(kcfg, shaper_x=name, shaper_y=name, freq_x=fx,
+                                       freq_y=fy if space.per_axis else fx, extra={}))
+    return out
 
 
 def inside(cfg: TuneConfig, space) -> bool:

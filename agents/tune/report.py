@@ -26,7 +26,7 @@ from typing import Any, Sequence
 from ringtune.agents.tune.pareto import BASELINE_NAMES, DEFAULT_RESOLUTION, Choice, Point, Resolution, judge
 from ringtune.agents.tune.pareto_plot import plot_front
 from ringtune.hardware.dialects import export_config, limit_command
-from ringtune.shaping.firmware import Firmware
+from ringtune.shaping.firmware import FIRMWARES, Firmware
 from ringtune.shaping.smoothers import is_smoother
 
 QUALITY_LABEL = {"overshoot_mm": "overshoot", "path_error_mm": "path error"}
@@ -344,6 +344,15 @@ def _apply_lines(cfg, dialect: str | None = None) -> tuple[str, str]:
         return (f"# could not export for {dialect or cfg.firmware}: {exc}\n", f"apply.txt: {exc}")
 
 
+def _push_hint(best: Path, firmware: str) -> str:
+    """The push command for ``firmware``: Klipper is reached through its host (its pseudo-tty, or
+    Moonraker), never the MCU's USB line that /dev/ttyUSB0 is on a Klipper machine."""
+    if FIRMWARES[firmware].family == "klipper":
+        return (f"ringtune push {best} --firmware {firmware} --port ~/printer_data/comms/klippy.serial\n"
+                f"                     (Klipper's pty, on the Klipper host; or --moonraker http://HOST:7125)")
+    return f"ringtune push {best} --port /dev/ttyUSB0 --firmware {firmware}   (the printer's serial port)"
+
+
 def _readme(out_dir: Path, cfg, firmware: str, storage: str, command: str) -> str:
     return f"""ringtune tune results — start here
 =================================
@@ -361,7 +370,7 @@ def _readme(out_dir: Path, cfg, firmware: str, storage: str, command: str) -> st
                  (all ruled out); arrows at an edge are points beyond the scale. Lower-left is better.
 3. apply.txt     The exact {firmware} lines that put the chosen configuration on the printer.
                  Or: ringtune export {out_dir / 'best.json'} --firmware {firmware}
-                     ringtune push {out_dir / 'best.json'} --port /dev/ttyUSB0 --firmware {firmware}
+                     {_push_hint(out_dir / 'best.json', firmware)}
 4. best.json     The chosen configuration (TuneConfig) for ringtune simulate / export / push.
 5. front.csv, trials.csv   Every point of the front and every trial, for your own analysis.
 
