@@ -27,6 +27,7 @@ from ringtune.agents.tune.pareto import BASELINE_NAMES, DEFAULT_RESOLUTION, Choi
 from ringtune.agents.tune.pareto_plot import plot_front
 from ringtune.hardware.dialects import export_config, limit_command
 from ringtune.shaping.firmware import FIRMWARES, Firmware
+from ringtune.shaping.smoothers import is_smoother
 
 QUALITY_LABEL = {"overshoot_mm": "overshoot", "path_error_mm": "path error"}
 
@@ -103,17 +104,22 @@ def best_dominating(front: Sequence[Point], base: Point, res: Resolution = DEFAU
     return max(dom, key=gain)
 
 
+def _takes_damping(name: str) -> bool:
+    """A shaper with a damping ratio S (not "none", not one of Kalico's smoothers)."""
+    return name != "none" and not is_smoother(name)
+
+
 def describe(cfg) -> str:
     """One line: shapers, F, S (per axis where the axes' differ), frequency limit, acceleration and
     the per-axis caps the configuration carries of a TuneConfig."""
-    shaped = [a for a in "xy" if cfg.axis(a)[0] != "none"]
+    shaped = [a for a in "xy" if _takes_damping(cfg.axis(a)[0])]
     per_axis_s = len({cfg.axis(a)[2] for a in shaped}) > 1
 
     def ax(a):
         name, f, z = cfg.axis(a)
         if name == "none":
             return f"{a.upper()} {name}"
-        return f"{a.upper()} {name} @ {f:.1f} Hz" + (f" S {z:.3f}" if per_axis_s else "")
+        return f"{a.upper()} {name} @ {f:.1f} Hz" + (f" S {z:.3f}" if per_axis_s * (a in shaped) else "")
     parts = [ax("x"), ax("y")]
     if shaped and not per_axis_s:
         parts.append(f"S {cfg.axis(shaped[0])[2]:.3f}")
