@@ -179,13 +179,17 @@ def check_moving_mass(kg: float, where: str) -> float:
     return kg
 
 
+def _axis_mass(d: dict, axis: str, w: str) -> float:
+    """The axis's moving mass (kg): given (and checked by :func:`check_moving_mass`) or the default."""
+    mass = _num(d, "mass", w, DEFAULTS[f"mass_{axis}"], lo=0.0, lo_open=True)
+    return check_moving_mass(mass, f"{w}.mass") if "mass" in d else mass
+
+
 def _axis_from_dict(d: dict, axis: str, where: str) -> AxisModel:
     w = f"{where}: [{axis}]"
     _unknown(d, _AXIS_KEYS, w)
     d = {k: v for k, v in d.items() if k != "motor"}
-    mass = _num(d, "mass", w, DEFAULTS[f"mass_{axis}"], lo=0.0, lo_open=True)
-    if "mass" in d:
-        check_moving_mass(mass, f"{w}.mass")
+    mass = _axis_mass(d, axis, w)
     damping = _num(d, "damping", w, DEFAULTS["damping"], lo=0.0, hi=0.95)
     given = [k for k in ("modes", "stiffness", "masses") if k in d]
     if len(given) != 1:

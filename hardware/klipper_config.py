@@ -287,16 +287,24 @@ def _accel_cap(src: _Source, ax: str, accel: float, limited: str | None) -> floa
     return 0.0 if v is None else v
 
 
+def _shaping_unknown(src: _Source) -> bool:
+    """No [input_shaper] in what was read while parts could not be read: today's shaping is
+    unknown (said in a note), not "none"."""
+    if src.name("input_shaper") is not None or not src.unread:
+        return False
+    src.notes.append(f"no [input_shaper] in what could be read, and {', '.join(src.unread)} could not be "
+                     "read: the input shaping the printer runs today is unknown ([current] not written; "
+                     "give the missing files, or --moonraker to ask the running printer)")
+    return True
+
+
 def _current(src: _Source, accel: float) -> dict | None:
     """``[current]``: the shaper the configuration sets; None (unknown) when it has no [input_shaper]
     but parts of it could not be read (one of them may hold it)."""
+    if _shaping_unknown(src):
+        return None
     kalico = str(src.get("printer", "kinematics")).strip().startswith("limited_")
     cur = {"source": src.label, "firmware": "kalico" if kalico else "klipper"}
-    if src.name("input_shaper") is None and src.unread:
-        src.notes.append(f"no [input_shaper] in what could be read, and {', '.join(src.unread)} could not be "
-                         "read: the input shaping the printer runs today is unknown ([current] not written; "
-                         "give the missing files, or --moonraker to ask the running printer)")
-        return None
     if src.name("input_shaper") is None:
         src.notes.append("no [input_shaper] section: the printer runs without input shaping today")
         cur.update(shaper_x="none", shaper_y="none", accel=accel)
