@@ -219,7 +219,7 @@ def test_trace_of_a_long_job_is_its_quality_windows(tmp_path, monkeypatch, capsy
     from ringtune.agents.cli import trace_option
     from ringtune.envs import trace
 
-    monkeypatch.setattr(trace_option, "WHOLE_JOB_MAX_S", 0.5)      # where the command reads it
+    monkeypatch.setattr(trace, "WHOLE_JOB_MAX_S", 0.5)      # the command reads it when called
     out = tmp_path / "t.csv"
     assert main(["simulate", "--backend", "lti", "--trace", str(out)]) == 0
     assert "quality windows" in capsys.readouterr().err
