@@ -78,9 +78,9 @@ class _Dialect:
         out = []
         if "square_corner_velocity" in values or "min_cruise_ratio" in values:
             if self.family != "klipper":
-                raise RingtuneError(f"the {self.family} dialect has no square_corner_velocity or "
-                                    "minimum_cruise_ratio (Klipper's): give the printer its own junction rule",
-                                    "config: corner")
+                raise RingtuneError(f"the printer plans corners with Klipper's square_corner_velocity (junction "
+                                    f"scv), which {self.family} has no command for: describe the printer with its "
+                                    "own junction_deviation or jerk (--printer)", "config: corner")
             words = [f"{k}={_n(values[v])}" for k, v in (("SQUARE_CORNER_VELOCITY", "square_corner_velocity"),
                                                          ("MINIMUM_CRUISE_RATIO", "min_cruise_ratio")) if v in values]
             out.append("SET_VELOCITY_LIMIT " + " ".join(words))
