@@ -6,7 +6,8 @@ speeds. One shaper configuration for the job (firmwares shape per axis, not per 
 A hidden group (inner walls, infill, travel) is judged only by what shows through, extrusion and
 the constraints, and most of its moves are never simulated; so its range stops where the weakest
 motor keeps its reserve at the group's top speed, on the rigid machine
-(:func:`ringtune.agents.tune.space.motor_accel_limit` × (1 − reserve)). The visible group keeps the
+(:func:`ringtune.agents.tune.space.motor_accel_limit` with the reserve: the force asked, friction
+included, at most (1 − reserve) of what the motor has at that speed). The visible group keeps the
 space's ``accel`` range (judged by simulation, motor load included). Units: mm/s², mm/s, mm.
 """
 
@@ -58,8 +59,8 @@ def feature_space(space: SearchSpace, printer: Any, job: Any = None, reserve: fl
         if group == "visible":
             basis[group] = {"top_speed_mm_s": v, "range": list(space.accel), "basis": space.accel_basis}
             continue
-        limit, who = motor_accel_limit(printer, v)
-        hi = max(lo, min(fw_hi, math.floor(limit * (1.0 - reserve) / space.accel_step) * space.accel_step))
+        limit, who = motor_accel_limit(printer, v, reserve=reserve)
+        hi = max(lo, min(fw_hi, math.floor(limit / space.accel_step) * space.accel_step))
         groups.append((group, lo, float(hi)))
         basis[group] = {"top_speed_mm_s": v, "range": [lo, float(hi)],
                         "basis": f"the {who} keeps {reserve * 100:.0f} % of its force at {v:.0f} mm/s"}

@@ -213,7 +213,7 @@ def trial_axis_caps(space: SearchSpace, accel: float) -> dict[str, float]:
     return out
 
 
-def motor_accel_limit(printer: Any, speed: float, n_dir: int = 181) -> tuple[float, str]:
+def motor_accel_limit(printer: Any, speed: float, n_dir: int = 181, reserve: float = 0.0) -> tuple[float, str]:
     """(mm/s², motor name): the acceleration at which the weakest motor would need all its force
     while the head moves at ``speed`` (mm/s) in the worst direction, rigid machine.
 
@@ -224,7 +224,8 @@ def motor_accel_limit(printer: Any, speed: float, n_dir: int = 181) -> tuple[flo
     reflected mass m_r·a·(D_k·u) and its friction, at belt speed speed·|D_k·u|, where it has
     ``max_force(speed·|D_k·u|)``. The result is the smallest a over directions (``n_dir`` from 0
     to 180°; diagonals load one CoreXY motor most) and motors at which demand meets force; on pure
-    axis moves it equals ``Printer.motor_accel_limit``."""
+    axis moves it equals ``Printer.motor_accel_limit``. ``reserve``: the fraction of the force kept
+    free (demand, friction included, meets (1 − reserve)·max_force)."""
     th = np.linspace(0.0, np.pi, n_dir)
     u = np.stack([np.cos(th), np.sin(th)], axis=1)                      # (n, 2)
     motors = printer.drive_motors()
@@ -235,7 +236,7 @@ def motor_accel_limit(printer: Any, speed: float, n_dir: int = 181) -> tuple[flo
     for k, (name, mo, _d) in enumerate(motors):
         proj = u @ D[:, k]                                              # motor mm per head mm
         per_accel = np.abs(u @ (P[:, k] * mass) + mo.rotor_mass * proj) * 1e-3   # N per mm/s²
-        avail = np.asarray(mo.max_force(speed * np.abs(proj)), float) - mo.friction
+        avail = (1.0 - reserve) * np.asarray(mo.max_force(speed * np.abs(proj)), float) - mo.friction
         with np.errstate(divide="ignore", invalid="ignore"):
             a = np.where(per_accel > 1e-12, np.maximum(avail, 0.0) / per_accel, np.inf)
         i = int(np.argmin(a))
