@@ -14,8 +14,10 @@ binding (the firmware limits that hold some moves of the chosen configuration lo
 (the firmware's own: "M201 X", "max_y_accel", "M204 R"), value (mm/s²), what, moves, time_s,
 time_without_s (the planner with that limit removed)})},
 job_accel {mode, commands, cap_mm_s2, searched, print_time_as_sliced_s, print_time_replaced_s,
-replaced_accel, saved_s}, plot_arrows, files {readme, summary, plot, best,
-apply, front, trials}, storage, study, completed_now, interrupted, elapsed_s.
+replaced_accel, saved_s}, per_feature (null when not searched, else {accel {visible|hidden_walls|
+infill|solid_top|travel: mm/s²}, ranges {group: {top_speed_mm_s, range, basis}}, corner, junction,
+min_cruise_ratio, why (why it was searched)}), plot_arrows, files {readme, summary, plot, best, apply, front, trials, job (with
+--gcode: the rewritten job)}, storage, study, completed_now, interrupted, elapsed_s.
 """
 
 from __future__ import annotations
@@ -65,6 +67,15 @@ default: the print as sliced; the acceleration is then not searched where it has
 --job-accel replace the tuned acceleration replaces them (what re-slicing would give), and the
 summary gives both print times.
 
+Per feature (--per-feature, default auto: on when the acceleration is searched and the job has
+features nobody sees, unless --job-accel respect keeps the job's own accelerations): the visible
+walls (outer walls, overhangs, unlabelled moves) take the main acceleration; the hidden walls, the
+infill (with support), solid/top infill and travel each get their own, searched up to where the
+weakest motor keeps its reserve at that group's own top speed; the corner rule (Klipper's
+square_corner_velocity, Marlin's junction deviation or jerk, RRF's M566) and Klipper's
+minimum_cruise_ratio are searched too. One shaper configuration serves the whole job. With --gcode,
+job.gcode beside best.json is the job with the choice written in (as `ringtune rewrite` writes it).
+
 Baselines: Klipper's rule — the recommendation recorded from your resonance files by `ringtune
 identify` when the printer has one, else the rule on the model's simulated resonance test (said so);
 what the printer runs now, when the printer description has a [current] section; no shaping.
@@ -82,6 +93,7 @@ examples:
   ringtune tune
   ringtune tune --printer my-printer.toml --gcode benchy.gcode --firmware rrf --trials 400 --workers 2
   ringtune tune --gcode tower.gcode --job-accel replace      # what re-slicing at a tuned accel gives
+  ringtune tune --gcode part.gcode --per-feature on          # writes tuned/job.gcode with the choice in it
   ringtune tune --storage postgresql+psycopg2://user:pw@db-host/ringtune --study ender3 --workers 4
 """
 
@@ -185,7 +197,6 @@ def run(args: argparse.Namespace, out) -> int:
                                             args.job_accel)
     if per_feature:
         space = feature_space.feature_space(space, printer, args.gcode, reserve)
-    out.note(f"ringtune tune: per-feature search {'on' if per_feature else 'off'}: {why}")
 
     created = not out_dir.exists()
     try:
@@ -241,6 +252,8 @@ def run(args: argparse.Namespace, out) -> int:
         accel_lines.append(top_speed_load_note(printer, chosen.config.accel, reserve))
     ja_lines, ja_json = job_accel_section(facts, args.job_accel, printer, args.gcode, chosen.config)
     pf_lines, pf_json = feature_space.feature_section(chosen.config, space) if space.per_feature else ([], None)
+    if pf_json is not None:
+        pf_json["why"] = why
     ja_json["searched"] = not space.accel_fixed
     notes = [f"The {floor_note}."] if floor_note else []
     if margin:
