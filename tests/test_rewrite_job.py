@@ -176,3 +176,15 @@ def test_config_round_trip_and_refusals(tmp_path):
                        ({"corner": -2}, "corner"), ({"min_cruise_ratio": 1.0}, "min_cruise_ratio")):
         with pytest.raises(RingtuneError, match=where):
             TuneConfig.from_dict(bad)
+
+
+def test_simulate_takes_every_per_feature_key_as_an_option(capsys):
+    argv = ["simulate", "--backend", "lti", "--shaper", "mzv", "--freq", "45,40", "--accel", "5000", "--json",
+            "--feature-accel", "infill=10000,travel=9000", "--corner", "7", "--min-cruise-ratio", "0.2"]
+    assert main(argv) == 0
+    res = json.loads(capsys.readouterr().out)
+    cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=45.0, freq_y=40.0, accel=5000.0,
+                     feature_accel={"infill": 10000.0, "travel": 9000.0}, corner=7.0, min_cruise_ratio=0.2)
+    assert res["metrics"]["print_time_s"] == planned_job(load_printer(None), None, cfg).print_time
+    assert main(argv[:-6] + ["--feature-accel", "infill"]) == 2
+    assert "--feature-accel" in capsys.readouterr().err

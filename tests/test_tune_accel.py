@@ -58,7 +58,8 @@ def test_replace_says_what_re_slicing_at_the_chosen_acceleration_saves(tmp_path,
 
     out = tmp_path / "out"
     rc = main(["tune", "--json", "--gcode", str(TOWER), "--out", str(out), "--trials", "2", "--no-baselines",
-               "--max-path-error", "0", "--backend", "lti", "--job-accel", "replace", "--accel-range", "2500,5000"])
+               "--max-path-error", "0", "--backend", "lti", "--job-accel", "replace", "--accel-range", "2500,5000",
+               "--per-feature", "off"])     # one acceleration: what re-slicing at it gives
     assert rc == 0
     res = json.loads(capsys.readouterr().out)
     ja = res["job_accel"]

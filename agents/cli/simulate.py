@@ -37,6 +37,7 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import job_accel_mode
 from ringtune.shaping.e_timing import E_TIMING_WORDS
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.feature_settings import per_feature_text
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.job_shapers import describe_timeline, shaper_timeline
 from ringtune.shaping.shapers import default_damping, shapers_from_config
@@ -72,7 +73,8 @@ configuration, to the digit.
 
 The configuration comes from a TuneConfig JSON (--config, as written by `ringtune tune`) or from
 --shaper/--freq/--damping/--freq-limit (one value for both axes, or "X,Y"); every TuneConfig key
-has its option (--freq-limit-method, --min-speed-factor, --accel, --max-accel X,Y, --job-accel),
+has its option (--freq-limit-method, --min-speed-factor, --accel, --max-accel X,Y, --job-accel,
+--feature-accel CLASS=A,..., --corner V, --min-cruise-ratio R),
 which overrides the file's value.
 
 The job runs as the printer would run it, as `ringtune plan` plans it: its own acceleration
@@ -105,6 +107,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--accel", metavar="A", type=float, help="printing acceleration, mm/s² (default: the printer's)")
     parser.add_argument("--max-accel", metavar="X,Y", help="per-axis acceleration caps, mm/s² (TuneConfig "
                         "max_accel_x/max_accel_y; default: the printer's)")
+    parser.add_argument("--feature-accel", metavar="CLASS=A,...", help="acceleration per feature class, mm/s² "
+                        "(TuneConfig feature_accel, e.g. infill=10000,travel=9000,inner_wall=10000)")
+    parser.add_argument("--corner", metavar="V", type=float, help="the corner rule's value in the printer's junction "
+                        "rule: square_corner_velocity mm/s, junction deviation mm, jerk mm/s (TuneConfig corner)")
+    parser.add_argument("--min-cruise-ratio", metavar="R", type=float, help="Klipper's minimum_cruise_ratio in [0, 1)")
     parser.add_argument("--freq-limit-method", choices=("sections", "nophead", "marlin"),
                         help="how the frequency limit slows the zigzags (default sections)")
     parser.add_argument("--min-speed-factor", metavar="K", type=float,
@@ -199,8 +206,10 @@ def build_config(args, out=None, printer=None):
         key = (exc.where or "").rpartition(": ")[2]
         given = {"--freq": freq, "--damping": damping, "--shaper": shaper, "--firmware": args.firmware,
                  "--freq-limit": args.freq_limit, "--accel": args.accel, "--max-accel": args.max_accel,
-                 "--freq-limit-method": args.freq_limit_method, "--min-speed-factor": args.min_speed_factor}
-        flag = _KEY_FLAG.get(key)
+                 "--freq-limit-method": args.freq_limit_method, "--min-speed-factor": args.min_speed_factor,
+                 "--feature-accel": args.feature_accel, "--corner": args.corner,
+                 "--min-cruise-ratio": args.min_cruise_ratio}
+        flag = _KEY_FLAG.get(key.partition(".")[0])
         if flag and given.get(flag) is not None:
             raise RingtuneError(exc.bare, flag) from None
         raise
@@ -220,7 +229,8 @@ _KEY_FLAG = {"freq_x": "--freq", "freq_y": "--freq", "damping_x": "--damping", "
              "shaper_x": "--shaper", "shaper_y": "--shaper", "firmware": "--firmware",
              "freq_limit_hz": "--freq-limit", "accel": "--accel", "max_accel_x": "--max-accel",
              "max_accel_y": "--max-accel", "freq_limit_method": "--freq-limit-method",
-             "min_speed_factor": "--min-speed-factor"}
+             "min_speed_factor": "--min-speed-factor", "feature_accel": "--feature-accel", "corner": "--corner",
+             "min_cruise_ratio": "--min-cruise-ratio"}
 
 
 def _in_range(values, lo: float, hi: float, option: str, what: str) -> None:
@@ -237,8 +247,26 @@ def _other_keys(cfg: dict, args) -> None:
     msf = args.min_speed_factor
     _in_range((msf,), 0.01, 1.0, "--min-speed-factor", "a speed factor: give one in [0.01, 1]")
     given = {"accel": args.accel, "max_accel_x": caps[0], "max_accel_y": caps[1],
-             "freq_limit_method": args.freq_limit_method, "min_speed_factor": msf, "job_accel": args.job_accel}
+             "freq_limit_method": args.freq_limit_method, "min_speed_factor": msf, "job_accel": args.job_accel,
+             "feature_accel": _feature_accel(args.feature_accel), "corner": args.corner,
+             "min_cruise_ratio": args.min_cruise_ratio}
     cfg.update({k: v for k, v in given.items() if v is not None})
+
+
+def _feature_accel(text: str | None) -> dict | None:
+    """``CLASS=A,CLASS=A`` -> {class: mm/s²} (the classes are checked by TuneConfig)."""
+    if text is None:
+        return None
+    out = {}
+    for part in text.split(","):
+        name, eq, value = part.partition("=")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise RingtuneError(f"{part!r} is not CLASS=mm/s² (e.g. infill=10000)", "--feature-accel") from None
+        if not eq:
+            raise RingtuneError(f"{part!r} is not CLASS=mm/s² (e.g. infill=10000)", "--feature-accel")
+    return out
 
 
 def _check_options(freq, damping, args) -> None:
@@ -367,7 +395,7 @@ def _text(result: dict, m, c, printer, judged: str, n_variants: int) -> list[str
         f"config  {c.firmware}: X {_axis(c.shaper_x, c.freq_x, c.damping_x)}, "
         f"Y {_axis(c.shaper_y, c.freq_y, c.damping_y)}, freq limit "
         f"{(f'{c.freq_limit_hz:g} Hz' if c.freq_limit_hz else 'off')}"
-        + (f", accel {c.accel:g} mm/s²" if c.accel else ""),
+        + (f", accel {c.accel:g} mm/s²" if c.accel else "") + per_feature_text(c),
         f"judged  {judged}",
         f"print time   {m.print_time_s:10.3f} s",
         f"ripple       {m.ripple_mm * um:10.1f} µm peak-to-peak, worst visible wall "
