@@ -56,8 +56,9 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
         data, res = limit_gcode_bytes(data, float(config.freq_limit_hz), config.freq_limit_method,
                                       float(config.min_speed_factor), source=source)
         f_changed = res.lines_changed
-    text = data.decode("utf-8", errors="surrogateescape")
-    lines = text.splitlines(keepends=True)
+    # lines end at \n, \r\n or \r, as the G-code reader numbers them (str.splitlines would also split
+    # at form feeds and other separators a comment may hold)
+    lines = [ln.decode("utf-8", errors="surrogateescape") for ln in data.splitlines(keepends=True)]
     if not lines:
         raise RingtuneError("the job is empty", source)
     fc = FeatureCommands.from_config(config, limits)

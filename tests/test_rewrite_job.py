@@ -188,3 +188,17 @@ def test_simulate_takes_every_per_feature_key_as_an_option(capsys):
     assert res["metrics"]["print_time_s"] == planned_job(load_printer(None), None, cfg).print_time
     assert main(argv[:-6] + ["--feature-accel", "infill"]) == 2
     assert "--feature-accel" in capsys.readouterr().err
+
+
+def test_line_endings_and_odd_bytes_are_kept():
+    """CRLF endings, a form feed and a non-UTF-8 byte in comments: inserted lines take the file's
+    ending, every input byte is kept, and the commands sit before the right moves."""
+    src = (b"; made by hand \xff\r\n;TYPE:External perimeter\r\nG1 X10 Y0 E1 F3000 ; \x0c odd\r\n"
+           b";TYPE:Internal infill\r\nG1 X10 Y10 E2\r\n")
+    cfg = TuneConfig(accel=3000.0, feature_accel={"outer_wall": 1500.0, "infill": 9000.0})
+    done = rewrite_gcode_bytes(src, cfg, _printer("scv"))
+    out = done.data.split(b"\r\n")
+    assert b"".join(ln for ln in out if b"ringtune" not in ln) == src.replace(b"\r\n", b"")
+    assert out[out.index(b"G1 X10 Y10 E2") - 1] == b"SET_VELOCITY_LIMIT ACCEL=9000 ; ringtune: infill"
+    wall = out.index(b"G1 X10 Y0 E1 F3000 ; \x0c odd")
+    assert out[wall - 1] == b"SET_VELOCITY_LIMIT ACCEL=1500 ; ringtune: outer_wall"
