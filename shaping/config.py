@@ -35,6 +35,10 @@ class TuneConfig:
             mm/s² (Marlin/RRF ``M201 X Y``, Kalico ``max_x_accel``/``max_y_accel``; None = the
             printer's own, unchanged). ``export`` and ``push`` set and read them back before the
             acceleration; written to JSON only when set.
+        y_schedule: a bed slinger's Y shaper frequency by printed height, ``[{"z_mm": mm,
+            "freq_y": Hz, "accel": mm/s² (optional)}, ...]`` in rising ``z_mm``: from the layer at
+            ``z_mm`` on, Y runs at ``freq_y`` (the print's mass lowers the bed's modes); None = one
+            frequency for the whole job. Written to JSON only when set.
         extra: any other keys (provenance, metrics), carried through unchanged.
     """
 
@@ -51,6 +55,7 @@ class TuneConfig:
     accel: float | None = None
     max_accel_x: float | None = None
     max_accel_y: float | None = None
+    y_schedule: list[dict[str, float]] | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -104,12 +109,14 @@ class TuneConfig:
         for key in ("accel", "max_accel_x", "max_accel_y"):
             if getattr(self, key) is not None:
                 _finite(getattr(self, key), f"{where}: {key}", lo=1.0, hi=1e6, unit="mm/s²")
+        if self.y_schedule is not None:
+            self.y_schedule = _checked_schedule(self.y_schedule, f"{where}: y_schedule")
 
     # -- JSON ------------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
         extra = d.pop("extra")
-        for key in ("max_accel_x", "max_accel_y"):      # only when set: older files stay as they were
+        for key in ("max_accel_x", "max_accel_y", "y_schedule"):   # only when set: older files stay as they were
             if d[key] is None:
                 del d[key]
         d.update(extra)
@@ -169,6 +176,38 @@ def _finite(value: Any, where: str, lo: float, hi: float, unit: str = "") -> Non
         raise RingtuneError(f"must be a finite number, not {value!r}", where)
     if not lo <= value <= hi:
         raise RingtuneError(f"{value}{unit and ' ' + unit} is out of range [{lo:g}, {hi:g}]{unit and ' ' + unit}", where)
+
+
+#: keys of one y_schedule entry: required, optional
+_SCHEDULE_KEYS = (("z_mm", "freq_y"), ("accel",))
+
+
+def _checked_schedule(entries: Any, where: str) -> list[dict[str, float]]:
+    """``y_schedule`` as a list of {z_mm, freq_y[, accel]} floats in strictly rising z_mm."""
+    if not isinstance(entries, list):
+        raise RingtuneError("must be a list of {z_mm, freq_y[, accel]} objects", where)
+    out, last = [], -math.inf
+    for i, e in enumerate(entries):
+        w = f"{where}[{i}]"
+        if not isinstance(e, dict):
+            raise RingtuneError("must be an object {z_mm, freq_y[, accel]}", w)
+        unknown = set(e) - set(_SCHEDULE_KEYS[0]) - set(_SCHEDULE_KEYS[1])
+        if unknown:
+            raise RingtuneError(f"unknown key {sorted(unknown)[0]!r} (keys: z_mm, freq_y, accel)", w)
+        for k in _SCHEDULE_KEYS[0]:
+            if k not in e:
+                raise RingtuneError(f"{k} is missing", w)
+        _finite(e["z_mm"], f"{w}.z_mm", lo=0.0, hi=10000.0, unit="mm")
+        _finite(e["freq_y"], f"{w}.freq_y", lo=1.0, hi=1000.0, unit="Hz")
+        if e["z_mm"] <= last:
+            raise RingtuneError(f"z_mm {e['z_mm']} does not rise above the previous {last}", f"{w}.z_mm")
+        last = e["z_mm"]
+        d = {"z_mm": float(e["z_mm"]), "freq_y": float(e["freq_y"])}
+        if e.get("accel") is not None:
+            _finite(e["accel"], f"{w}.accel", lo=1.0, hi=1e6, unit="mm/s²")
+            d["accel"] = float(e["accel"])
+        out.append(d)
+    return out
 
 
 def _is_daa(name: Any) -> bool:

@@ -1,0 +1,227 @@
+"""Schedules by printed mass: a bed slinger's Y shaper frequency (and, where asked, acceleration)
+per band of layers, following the Y mode down as the print's mass grows on the bed.
+
+Per layer the mass on the bed halfway through it (the job's extruded filament, its diameter and
+density stated), the model's dominant Y mode at that mass (:mod:`ringtune.envs.bed_load`). A band
+runs while the mode stays within ``step`` (a fraction, 2 % by default) of the mode where the band
+started; its frequency is the tuned ``freq_y`` moved with the mode, ``freq_y·f(m)/f(0)`` at the
+band's middle mass m (the tuned frequency keeps its place among the modes; a config that targets the
+mode gets the mode). ``keep_smoothing`` also lowers the band's acceleration so that Klipper's
+smoothing estimate (:func:`ringtune.shaping.analysis.smoothing`) stays at the tuned config's: a
+lower shaper frequency smooths corners more at the same acceleration.
+
+What a fixed frequency costs is measured, not inferred: the job's last layer simulated on the model
+with its mass on the bed, once at the tuned frequency and once at the schedule's
+(:func:`last_layer_ripple`; ripple = the worst visible wall's peak-to-peak across the wall).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ringtune.envs.bed_load import dominant_y_mode, is_bed_slinger, loaded
+from ringtune.envs.evaluate import evaluate_many, resolve_job, resolve_printer
+from ringtune.envs.printer_model import Printer
+from ringtune.shaping.analysis import max_accel, residual_vibration, smoothing
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.layer_commands import PRUSA_WEIGHT_ADJUST, band_commands, layer_inserts, prusa_weight_frequency
+from ringtune.shaping.layers import FILAMENT_DENSITY_G_CM3, FILAMENT_DIAMETER_MM, Layer, job_layers, job_slice
+from ringtune.shaping.shapers import get_shaper
+from ringtune.shaping.textfile import read_text_file
+
+#: a new band starts when the Y mode has moved this fraction from where the band started
+BAND_STEP = 0.02
+
+
+@dataclass
+class Band:
+    """Layers ``first_layer``..``last_layer`` (from ``z_mm``), ``mass_kg`` of print on the bed at
+    the band's middle, the model's dominant Y mode there (``mode_hz``), the chosen ``freq_y`` (Hz),
+    ``accel`` (mm/s², None = unchanged), what Prusa's own rule would set (``prusa_hz``) and the
+    firmware lines inserted where the band begins."""
+
+    first_layer: int
+    last_layer: int
+    z_mm: float
+    mass_kg: float
+    mode_hz: float
+    freq_y: float
+    accel: float | None
+    prusa_hz: float
+    commands: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        return {"first_layer": self.first_layer, "last_layer": self.last_layer, "z_mm": self.z_mm,
+                "mass_g": self.mass_kg * 1e3, "mode_hz": self.mode_hz, "freq_y": self.freq_y,
+                "accel": self.accel, "prusa_rule_hz": self.prusa_hz, "commands": self.commands}
+
+
+@dataclass
+class MassSchedule:
+    """The schedule of one job on one printer: bands, layers, filament, the config it starts from."""
+
+    config: TuneConfig
+    bands: list[Band]
+    layers: list[Layer]
+    diameter_mm: float
+    density_g_cm3: float
+    empty_mode_hz: float
+    step: float
+    notes: list[str] = field(default_factory=list)
+    ripple: dict | None = None
+
+    @property
+    def total_kg(self) -> float:
+        last = self.layers[-1]
+        return last.mass_before + last.mass
+
+    def y_schedule(self) -> list[dict[str, float]]:
+        """The TuneConfig ``y_schedule`` entries."""
+        return [{"z_mm": b.z_mm, "freq_y": b.freq_y, **({"accel": b.accel} if b.accel else {})}
+                for b in self.bands]
+
+    def scheduled_config(self) -> TuneConfig:
+        return replace(self.config, y_schedule=self.y_schedule(), extra=dict(self.config.extra))
+
+    def inserts(self) -> dict[int, list[str]]:
+        """{layer index: lines} where each band begins."""
+        return {b.first_layer: b.commands for b in self.bands}
+
+    def to_dict(self) -> dict:
+        return {"firmware": self.config.firmware, "filament_diameter_mm": self.diameter_mm,
+                "filament_density_g_cm3": self.density_g_cm3, "print_mass_g": self.total_kg * 1e3,
+                "layers": len(self.layers), "empty_mode_hz": self.empty_mode_hz,
+                "tuned_freq_y": self.config.freq_y, "band_step": self.step,
+                "bands": [b.to_dict() for b in self.bands], "y_schedule": self.y_schedule(),
+                "last_layer": self.ripple, "notes": list(self.notes)}
+
+
+def _band_ranges(modes: np.ndarray, step: float) -> list[tuple[int, int]]:
+    """(first, last) layer of each band: a band ends before the layer whose mode has moved more
+    than ``step`` from the band's first layer's."""
+    out, a = [], 0
+    for j in range(1, len(modes)):
+        if abs(modes[j] / modes[a] - 1.0) > step:
+            out.append((a, j - 1))
+            a = j
+    out.append((a, len(modes) - 1))
+    return out
+
+
+def _smoothing_accel(config: TuneConfig, printer: Printer, freq_y: float) -> float:
+    """mm/s² at which Y's shaper at ``freq_y`` smooths as much as the tuned one at the tuned
+    acceleration (Klipper's smoothing estimate; never above the tuned acceleration)."""
+    accel = config.accel or printer.limits.accel
+    scv = printer.limits.square_corner_velocity
+    name, f0, z = config.axis("y")
+    target = smoothing(get_shaper(name, f0, z, config.flavor), accel, scv)
+    a = max_accel(get_shaper(name, freq_y, z, config.flavor), scv, target)
+    return float(min(accel, np.floor(a / 10.0) * 10.0))
+
+
+def _x_cost(config: TuneConfig, printer: Printer, freq: float) -> tuple[float, float]:
+    """(tuned, at ``freq``): X's residual vibration (share-weighted, % of unshaped) when the one
+    shaper of RepRapFirmware runs at ``freq`` instead of the tuned frequency."""
+    name, fx, z = config.axis("x")
+    modes = printer.effective_modes("x")
+    w = np.array([abs(m.share) for m in modes])
+    fm = np.array([m.freq for m in modes])
+    zm = [m.damping for m in modes]
+
+    def rv(f: float) -> float:
+        sh = get_shaper(name, f, z, config.flavor)
+        return float(sum(wi * residual_vibration(sh, [fi], zi)[0] for wi, fi, zi in zip(w, fm, zm)) / w.sum() * 100)
+    return rv(fx), rv(freq)
+
+
+def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: float = FILAMENT_DIAMETER_MM,
+                  density_g_cm3: float = FILAMENT_DENSITY_G_CM3, step: float = BAND_STEP,
+                  keep_smoothing: bool = False) -> MassSchedule:
+    """The Y schedule of ``job`` (path, text, Job; None: the built-in print) on ``printer``,
+    starting from ``config`` (tuned with the printer's own ``print_mass`` on the bed)."""
+    printer = resolve_printer(printer)
+    if not is_bed_slinger(printer):
+        raise RingtuneError(f"a {printer.kinematics} printer's bed does not move with Y: its Y modes do "
+                            "not depend on the print's mass (no schedule)", "--printer")
+    if not 0.001 <= step <= 0.5:
+        raise RingtuneError(f"band step must be within 0.1-50 %, not {step * 100:g} %", "--band-step")
+    if config.shaper_y == "none":
+        raise RingtuneError("Y is not shaped (shaper_y none): there is no frequency to schedule", "config: shaper_y")
+    _, parsed = resolve_job(job)
+    layers = job_layers(parsed, diameter_mm, density_g_cm3)
+    f_empty = dominant_y_mode(printer).freq
+    modes = np.array([dominant_y_mode(printer, la.mass_during).freq for la in layers])
+    fw = FIRMWARES[config.firmware]
+    lowest = max(fw.freq.lo, fw.build_min_freq)
+    notes: list[str] = []
+    bands = []
+    for a, b in _band_ranges(modes, step):
+        mass = 0.5 * (layers[a].mass_during + layers[b].mass_during)
+        mode = dominant_y_mode(printer, mass).freq
+        freq = config.freq_y * mode / f_empty
+        if freq < lowest:
+            notes.append(f"band from layer {a}: {freq:.2f} Hz is below {fw.title}'s {lowest:g} Hz; "
+                         f"{lowest:g} Hz is set instead")
+            freq = lowest
+        freq = round(freq, 2)
+        accel = _smoothing_accel(config, printer, freq) if keep_smoothing else None
+        grams = (printer.print_mass + mass) * 1e3
+        cmds = band_commands(config.firmware, freq, grams, accel=accel, shaper=config.shaper_y,
+                             damping=config.damping_y)
+        bands.append(Band(a, b, layers[a].z, mass, mode, freq, accel,
+                          prusa_weight_frequency(config.freq_y, grams), cmds))
+    notes.extend(_firmware_notes(config, printer, bands))
+    return MassSchedule(config, bands, layers, diameter_mm, density_g_cm3, f_empty, step, notes)
+
+
+def _firmware_notes(config: TuneConfig, printer: Printer, bands: list[Band]) -> list[str]:
+    fam = FIRMWARES[config.firmware].family
+    last = bands[-1]
+    if fam == "prusa":
+        d, m = PRUSA_WEIGHT_ADJUST
+        grams = (printer.print_mass + last.mass_kg) * 1e3
+        return [f"Prusa sets Y itself from M74 W (grams on the bed) by its linear rule f = F + A·min(W/M, 1), "
+                f"by default A = {d:g} Hz, M = {m:g} g (input_shaper_config.hpp): {last.prusa_hz:.1f} Hz "
+                f"at {grams:.0f} g where the model's mode says {last.freq_y:.1f} Hz; `M593 Y A"
+                f"{last.freq_y - config.freq_y:.1f} M{grams:.0f}` makes its line meet ours there"]
+    if fam == "rrf":
+        before, after = _x_cost(config, printer, last.freq_y)
+        return [f"RepRapFirmware has one shaper for all axes: moving it to {last.freq_y:.1f} Hz for Y moves "
+                f"X's too; X's residual vibration (share-weighted over its modes, % of unshaped) goes from "
+                f"{before:.1f} % to {after:.1f} % on the last band"]
+    return []
+
+
+def last_layer_ripple(schedule: MassSchedule, printer=None, job=None, backend: str = "mujoco") -> dict:
+    """The job's last layer simulated with its mass on the bed: ripple (mm, worst visible wall) at
+    the tuned frequency and at the schedule's last band's (and its acceleration)."""
+    printer = resolve_printer(printer)
+    _, parsed = resolve_job(job)
+    layer = schedule.layers[-1]
+    part = job_slice(parsed, layer.first_move, layer.last_move + 1)
+    heavy = loaded(printer, layer.mass_during)
+    band = schedule.bands[-1]
+    fixed = replace(schedule.config, y_schedule=None, extra={})
+    sched = replace(fixed, freq_y=band.freq_y, accel=band.accel or fixed.accel)
+    m_fixed, m_sched = evaluate_many([fixed, sched], heavy, part, backend, job_accel="replace")
+    out = {"layer": layer.index, "z_mm": layer.z, "mass_g": layer.mass_during * 1e3,
+           "mode_hz": dominant_y_mode(printer, layer.mass_during).freq,
+           "fixed": {"freq_y": fixed.freq_y, "ripple_mm": m_fixed.ripple_mm, "corner_out_mm": m_fixed.corner_out_mm},
+           "scheduled": {"freq_y": sched.freq_y, "ripple_mm": m_sched.ripple_mm,
+                         "corner_out_mm": m_sched.corner_out_mm},
+           "measured_against": "the commanded wall line, simulated on the model with the layer's mass on the bed"}
+    schedule.ripple = out
+    return out
+
+
+def scheduled_lines(schedule: MassSchedule, path: str | Path) -> list[str]:
+    """The job file's lines with each band's commands inserted where the band begins."""
+    text = read_text_file(Path(path), "G-code job")
+    lines = text.splitlines(keepends=True)
+    where = {la.index: la.line for la in schedule.layers}
+    return layer_inserts(lines, where, schedule.inserts())
