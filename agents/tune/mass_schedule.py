@@ -225,3 +225,49 @@ def scheduled_lines(schedule: MassSchedule, path: str | Path) -> list[str]:
     lines = text.splitlines(keepends=True)
     where = {la.index: la.line for la in schedule.layers}
     return layer_inserts(lines, where, schedule.inserts())
+
+
+def schedule_job(config: TuneConfig, printer=None, job=None, *, diameter_mm: float = FILAMENT_DIAMETER_MM,
+                 density_g_cm3: float = FILAMENT_DENSITY_G_CM3, step: float = BAND_STEP,
+                 keep_smoothing: bool = False, output: str | Path | None = None,
+                 config_out: str | Path | None = None, backend: str = "mujoco") -> MassSchedule:
+    """:func:`mass_schedule` with the last layer measured (:func:`last_layer_ripple`); writes the job
+    with the bands' lines inserted to ``output`` and the config with its ``y_schedule`` to
+    ``config_out`` when given (``job`` must then be a file)."""
+    if output is not None and not (isinstance(job, (str, Path)) and Path(job).is_file()):
+        raise RingtuneError("writing the scheduled job needs the job as a G-code file", "--gcode")
+    sched = mass_schedule(config, printer, job, diameter_mm=diameter_mm, density_g_cm3=density_g_cm3,
+                          step=step, keep_smoothing=keep_smoothing)
+    last_layer_ripple(sched, printer, job, backend)
+    if output is not None:
+        Path(output).write_text("".join(scheduled_lines(sched, job)), newline="")
+    if config_out is not None:
+        sched.scheduled_config().save(config_out)
+    return sched
+
+
+def schedule_summary(s: MassSchedule) -> str:
+    """The schedule in words: filament, bands, the last layer fixed against scheduled, notes."""
+    prusa = FIRMWARES[s.config.firmware].family == "prusa"
+    acc = any(b.accel for b in s.bands)
+    lines = [f"print mass {s.total_kg * 1e3:.0f} g over {len(s.layers)} layers (filament {s.diameter_mm:g} mm, "
+             f"{s.density_g_cm3:g} g/cm³: --filament-diameter, --filament-density); Y's dominant mode "
+             f"{s.empty_mode_hz:.1f} Hz with the bed as described, tuned freq_y {s.config.freq_y:g} Hz",
+             f"{len(s.bands)} bands (a new one where the model's Y mode has moved {s.step * 100:g} %):",
+             "  from z mm  layers     mass g  Y mode Hz  freq_y Hz" + ("  accel" if acc else "")
+             + ("  Prusa's rule Hz" if prusa else "")]
+    for b in s.bands:
+        lines.append(f"  {b.z_mm:9.2f}  {b.first_layer:>3}-{b.last_layer:<4} {b.mass_kg * 1e3:8.0f}  "
+                     f"{b.mode_hz:9.2f}  {b.freq_y:9.2f}" + (f"  {b.accel or '':>5}" if acc else "")
+                     + (f"  {b.prusa_hz:15.2f}" if prusa else ""))
+    lines.append(f"  inserted at each band's first layer: {' / '.join(s.bands[-1].commands)} (last band)")
+    if s.ripple:
+        r = s.ripple
+        fx, sc = r["fixed"], r["scheduled"]
+        ratio = fx["ripple_mm"] / sc["ripple_mm"] if sc["ripple_mm"] > 0 else float("inf")
+        lines.append(f"last layer (z {r['z_mm']:.2f} mm, {r['mass_g']:.0f} g on the bed, Y mode {r['mode_hz']:.1f} Hz), "
+                     f"ripple (worst visible wall, peak-to-peak across it, against the commanded wall line on "
+                     f"the model): fixed {fx['freq_y']:g} Hz {fx['ripple_mm'] * 1e3:.1f} µm, scheduled "
+                     f"{sc['freq_y']:g} Hz {sc['ripple_mm'] * 1e3:.1f} µm ({ratio:.1f}× less)")
+    lines.extend(f"note: {n}" for n in s.notes)
+    return "\n".join(lines)
