@@ -1,0 +1,218 @@
+"""Schedules by printed mass on a bed slinger (issue 22 item 3).
+
+Independent truths: the filament mass of a generated solid block from its own E values (π d²/4 ×
+length × density); the Y modes with the print on the bed by a generalised eigen-solve of the
+default printer's TOML numbers (stiffness = modal mass × ω² of the empty bed, masses grown by the
+print), and √(k/m) for a one-mode bed; Prusa's weight rule from its firmware source (``M74.cpp``:
+lerp from F to F + A by W/M, held beyond M; defaults A = −20 Hz, M = 800 g); the ripple from the
+MuJoCo model with the last layer's mass on the bed.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.linalg import eigh
+
+from ringtune.agents.cli import main as cli
+from ringtune.agents.tune.mass_schedule import mass_schedule, schedule_job
+from ringtune.envs.bed_load import dominant_y_mode
+from ringtune.envs.printer import load_printer, printer_from_dict
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.layer_commands import TAG, band_commands, prusa_weight_frequency
+from ringtune.shaping.layers import job_layers
+
+ENDER3_TOML = Path(__file__).resolve().parent.parent / "envs" / "data" / "ender3.toml"
+AREA = math.pi * 1.75 ** 2 / 4          # mm² of 1.75 mm filament
+PLA = 1.24e-6                            # kg/mm³
+
+
+def solid_block(size=60.0, height=90.0, layer=0.3, width=0.45):
+    """(G-code, E per layer in mm) of a solid block: an outer wall and rectilinear solid infill,
+    relative E, with a retraction and a z-hop travel each layer (neither deposits material)."""
+    per_mm = width * layer / AREA
+    out, e_layers = ["G90", "M83", "G28", "G92 E0"], []
+    x0 = y0 = 50.0
+    for k in range(int(round(height / layer))):
+        z = (k + 1) * layer
+        e = 0.0
+        out += [";LAYER_CHANGE", f"G1 Z{z:.2f} F600", f"G0 X{x0:.3f} Y{y0:.3f} F6000", "G1 E0.8 F2400",
+                ";TYPE:External perimeter"]
+        for x, y in ((x0 + size, y0), (x0 + size, y0 + size), (x0, y0 + size), (x0, y0)):
+            out.append(f"G1 X{x:.3f} Y{y:.3f} E{size * per_mm:.5f} F3600")
+            e += round(size * per_mm, 5)
+        out += ["G1 E-0.8 F2400", f"G0 Z{z + 0.4:.2f}", f"G0 X{x0 + width:.3f} Y{y0 + width:.3f}",
+                f"G0 Z{z:.2f}", "G1 E0.8", ";TYPE:Solid infill"]
+        inner = size - 2 * width
+        for i in range(1, int(size / width) - 1):
+            c = i * width
+            a, b = ((x0 + width, y0 + c), (x0 + width + inner, y0 + c)) if k % 2 == 0 else \
+                ((x0 + c, y0 + width), (x0 + c, y0 + width + inner))
+            if i % 2:
+                a, b = b, a
+            out.append(f"G1 X{a[0]:.3f} Y{a[1]:.3f} F6000")
+            out.append(f"G1 X{b[0]:.3f} Y{b[1]:.3f} E{inner * per_mm:.5f}")
+            e += round(inner * per_mm, 5)
+        out.append("G1 E-0.8 F2400")
+        e_layers.append(e)
+    return "\n".join(out) + "\n", np.array(e_layers)
+
+
+@pytest.fixture(scope="module")
+def block(tmp_path_factory):
+    text, e_layers = solid_block()
+    path = tmp_path_factory.mktemp("mass") / "block.gcode"
+    path.write_text(text)
+    return path, e_layers
+
+
+def _ender3_y_mode(load_kg: float) -> float:
+    """The dominant Y mode (Hz) of the default printer's TOML with ``load_kg`` on the bed: eigen-solve
+    of K = diag(share·M·ω²) (the springs, fixed) against diag(share·(M + load))."""
+    d = tomllib.loads(ENDER3_TOML.read_text())
+    m_bed, modes = d["y"]["mass"] + d["print_mass"], d["y"]["modes"]
+    share = np.array([m["share"] for m in modes])
+    k = np.diag(share * m_bed * (2 * np.pi * np.array([m["freq"] for m in modes])) ** 2)
+    w2, _ = eigh(k, np.diag(share * (m_bed + load_kg)))
+    order = np.argsort(w2)                            # mode j keeps its share: diagonal system
+    return float(np.sqrt(w2[order][int(np.argmax(share))]) / (2 * np.pi))
+
+
+def test_layers_and_mass_from_the_job_match_the_generator(block):
+    path, e_layers = block
+    layers = job_layers(read_gcode(path))
+    assert len(layers) == len(e_layers) == 300
+    assert [la.z for la in layers[:3]] == pytest.approx([0.3, 0.6, 0.9])
+    mass = e_layers * AREA * PLA
+    np.testing.assert_allclose([la.mass for la in layers], mass, rtol=1e-9)
+    np.testing.assert_allclose([la.mass_before for la in layers], np.concatenate([[0], np.cumsum(mass)[:-1]]),
+                               rtol=1e-9, atol=1e-12)
+    assert 0.39 < mass.sum() < 0.42          # 60×60×90 mm of PLA is 402 g
+    # a denser, thicker filament scales the mass by its area and density
+    heavier = job_layers(read_gcode(path), 2.85, 1.27)
+    assert heavier[-1].mass == pytest.approx(layers[-1].mass * (2.85 / 1.75) ** 2 * 1.27 / 1.24, rel=1e-9)
+
+
+def test_one_mode_bed_falls_as_one_over_root_mass():
+    p = printer_from_dict({"kinematics": "cartesian", "x": {"mass": 0.5, "stiffness": 50000.0},
+                           "y": {"mass": 1.0, "stiffness": 60000.0, "damping": 0.05}})
+    for load in (0.0, 0.25, 0.5, 2.0):
+        assert dominant_y_mode(p, load).freq == pytest.approx(math.sqrt(60000.0 / (1.0 + load)) / (2 * math.pi),
+                                                              rel=1e-12)
+
+
+def test_each_band_is_within_2_percent_of_the_y_mode_at_its_mass_and_ripple_halves(block):
+    """Acceptance: the default printer (Ender-3 class, a bed slinger), a 402 g solid block; the
+    config aims Y at the empty bed's dominant mode, as Klipper's rule aims at the peak."""
+    path, e_layers = block
+    f0 = _ender3_y_mode(0.0)
+    cfg = TuneConfig(shaper_x="mzv", freq_x=45.5, shaper_y="mzv", freq_y=round(f0, 2), accel=3000)
+    s = schedule_job(cfg, None, path)
+    mass = e_layers * AREA * PLA
+    during = np.concatenate([[0], np.cumsum(mass)[:-1]]) + mass / 2
+    assert len(s.bands) >= 5                          # the mode falls by 15 %: many bands
+    assert s.bands[0].first_layer == 0 and s.bands[-1].last_layer == len(mass) - 1
+    for b in s.bands:
+        band_mass = 0.5 * (during[b.first_layer] + during[b.last_layer])
+        assert b.freq_y == pytest.approx(_ender3_y_mode(band_mass), rel=0.02)
+        for k in range(b.first_layer, b.last_layer + 1):     # and every layer of it
+            assert b.freq_y == pytest.approx(_ender3_y_mode(during[k]), rel=0.02)
+    r = s.ripple
+    assert r["mass_g"] == pytest.approx(during[-1] * 1e3, rel=1e-9)
+    assert r["scheduled"]["ripple_mm"] <= 0.5 * r["fixed"]["ripple_mm"], r
+    assert r["fixed"]["ripple_mm"] > 0.005          # the fixed frequency really rings (> 5 µm)
+
+
+def test_the_schedule_goes_into_the_job_at_layer_changes_and_nothing_else_changes(block, tmp_path):
+    path, _ = block
+    cfg = TuneConfig(freq_x=45.5, freq_y=38.9)
+    out, cfg_out = tmp_path / "s.gcode", tmp_path / "s.json"
+    s = schedule_job(cfg, None, path, output=out, config_out=cfg_out, backend="lti")
+    before = path.read_text().splitlines()
+    after = out.read_text().splitlines()
+    assert [ln for ln in after if not ln.endswith(TAG)] == before
+    added = [i for i, ln in enumerate(after) if ln.endswith(TAG)]
+    assert len(added) == len(s.bands)
+    for i, b in zip(added, s.bands):      # after the last extrusion below, before the Z change up
+        if b.first_layer == 0:
+            assert "E" in after[i + 1] and "X" in after[i + 1]      # before the first extrusion
+            continue
+        assert "E" in after[i - 1] and "X" in after[i - 1] and "Y" in after[i - 1]
+        assert after[i + 1] == "G1 E-0.8 F2400" and after[i + 3] == f"G1 Z{b.z_mm:.2f} F600"
+    events = [e for e in read_gcode(out).shaper_events()]
+    assert [e.params["SHAPER_FREQ_Y"] for e in events] == [b.freq_y for b in s.bands]
+    back = TuneConfig.load(cfg_out)
+    assert back.y_schedule == s.y_schedule() and back.freq_y == 38.9
+
+
+def test_firmware_forms_and_prusas_own_rule():
+    assert band_commands("marlin", 33.47, 386) == ["M593 Y F33.47"]
+    assert band_commands("marlin-ftm", 33.47, 386) == ["M493 Y A33.47"]
+    assert band_commands("prusa", 33.47, 386.4, accel=2500) == ["M74 W386", "M204 P2500"]
+    assert band_commands("kalico", 33.4, 0, accel=2500) == ["SET_INPUT_SHAPER SHAPER_FREQ_Y=33.4",
+                                                           "SET_VELOCITY_LIMIT ACCEL=2500"]
+    assert band_commands("rrf", 33.4, 0, shaper="mzv", damping=0.1) == ['M593 P"mzv" F33.4 S0.1']
+    job = read_gcode("\n".join(band_commands("marlin", 33.47, 0) + band_commands("rrf", 33.4, 0)) + "\nG1 X1\n")
+    assert [e.params["F"] for e in job.shaper_events()] == [33.47, 33.4]
+    # M74.cpp: lerp(F, F + A, W/M), F + A beyond M; defaults A = -20 Hz, M = 800 g
+    assert prusa_weight_frequency(40.6, 0) == 40.6
+    assert prusa_weight_frequency(40.6, 400) == pytest.approx(30.6)
+    assert prusa_weight_frequency(40.6, 1200) == pytest.approx(20.6)
+
+
+def test_prusa_marlin_and_rrf_say_what_their_firmware_does(block):
+    path, _ = block
+    prusa = mass_schedule(TuneConfig(firmware="prusa", freq_x=45.5, freq_y=38.9), None, path)
+    assert all(b.commands[0].startswith("M74 W") for b in prusa.bands)
+    assert prusa.bands[-1].prusa_hz == pytest.approx(38.9 - 20 * prusa.bands[-1].mass_kg * 1e3 / 800, rel=1e-9)
+    assert any("linear rule" in n for n in prusa.notes)
+    marlin = mass_schedule(TuneConfig(firmware="marlin", shaper_x="zv", shaper_y="zv", freq_x=45.5, freq_y=38.9),
+                           None, path)
+    assert all(b.freq_y == 40.0 for b in marlin.bands)        # a stock build's SHAPING_MIN_FREQ
+    assert any("below" in n for n in marlin.notes)
+    rrf = mass_schedule(TuneConfig(firmware="rrf", freq_x=38.9, freq_y=38.9), None, path)
+    note = next(n for n in rrf.notes if "one shaper" in n)
+    before, after = (float(v) for v in note.split("from ")[1].split(" % on")[0].split(" % to "))
+    assert after > before                                      # X pays for following Y
+
+
+def test_keep_smoothing_lowers_the_acceleration_as_the_frequency_falls(block):
+    path, _ = block
+    s = mass_schedule(TuneConfig(freq_x=45.5, freq_y=38.9, accel=3000), None, path, keep_smoothing=True)
+    accels = [b.accel for b in s.bands]
+    assert all(a <= 3000 for a in accels) and accels == sorted(accels, reverse=True) and accels[-1] < accels[0]
+    # Klipper's smoothing grows as 1/f² at fixed acceleration: the acceleration falls about as f²
+    assert accels[-1] / 3000 == pytest.approx((s.bands[-1].freq_y / 38.9) ** 2, rel=0.1)
+
+
+def test_refusals_are_one_line(block, tmp_path, capsys):
+    path, _ = block
+    with pytest.raises(RingtuneError, match="does not move with Y"):
+        mass_schedule(TuneConfig(), load_printer("voron24"), path)
+    with pytest.raises(RingtuneError, match="extrudes nothing"):
+        job_layers(read_gcode("G1 X10 Y10\nG1 X20\n"))
+    cfg = tmp_path / "c.json"
+    cfg.write_text(json.dumps(TuneConfig(freq_y=38.9).to_dict()))
+    assert cli.main(["schedule", str(path), "--config", str(cfg), "--filament-diameter", "17.5"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--filament-diameter" in err and "Traceback" not in err
+    with pytest.raises(RingtuneError, match="y_schedule\\[0\\].freq_y"):
+        TuneConfig.from_dict({"y_schedule": [{"z_mm": 1.0, "freq_y": "fast"}]})
+
+
+def test_schedule_command_json(block, tmp_path, capsys):
+    path, _ = block
+    cfg = tmp_path / "c.json"
+    cfg.write_text(json.dumps(TuneConfig(freq_x=45.5, freq_y=38.9).to_dict()))
+    assert cli.main(["schedule", str(path), "--config", str(cfg), "--json", "--filament-density", "1.27"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["filament_density_g_cm3"] == 1.27 and d["filament_diameter_mm"] == 1.75
+    assert d["y_schedule"] == [{"z_mm": b["z_mm"], "freq_y": b["freq_y"]} for b in d["bands"]]
+    assert d["last_layer"]["fixed"]["ripple_mm"] > d["last_layer"]["scheduled"]["ripple_mm"]
