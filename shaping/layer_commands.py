@@ -4,8 +4,9 @@ changes (Hz, g, mm/s²).
 - Klipper, Kalico: ``SET_INPUT_SHAPER SHAPER_FREQ_Y=<Hz>`` (the rest of the shaper stays).
 - Marlin classic: ``M593 Y F<Hz>``; FT_MOTION: ``M493 Y A<Hz>``.
 - Prusa Buddy: ``M74 W<g>``, the mass on the bed; the firmware moves Y itself by its own linear
-  rule (``M74.cpp``, ``get_weight_adjusted_frequency``): ``f = f₀ + A·min(W/M, 1)`` with ``M593 Y
-  A<Hz> M<g>``, by default A = −20 Hz, M = 800 g (``input_shaper_config.hpp``; XL and iX: A = 0, off).
+  rule (``M74.cpp``, ``get_weight_adjusted_frequency``): ``f = F + A·min(W/M, 1)`` from Y's F, with
+  ``M593 A<Hz> M<g>`` (A < 0; it changes no axis), by default A = −20 Hz, M = 800 g
+  (``input_shaper_config.hpp``; XL and iX: A = 0).
 - RepRapFirmware: one shaper for every axis, ``M593 P"<type>" F<Hz> S<ζ>``: moving it for Y moves
   X's too.
 
@@ -49,7 +50,7 @@ def band_commands(firmware: str, freq_y: float, grams: float, *, accel: float | 
     if fw.family == "klipper":
         out = [f"SET_INPUT_SHAPER SHAPER_FREQ_Y={f}"]
     elif fw.family == "prusa":
-        out = [f"M74 W{grams:.0f}"]
+        out = [f"M74 W{max(grams, 1.0):.0f}"]      # Buddy refuses W ≤ 0
     elif fw.family == "marlin-ftm":
         out = [f"M493 Y A{f}"]
     elif fw.family == "marlin":

@@ -170,8 +170,13 @@ def test_firmware_forms_and_prusas_own_rule():
 def test_prusa_marlin_and_rrf_say_what_their_firmware_does(block):
     path, _ = block
     prusa = mass_schedule(TuneConfig(firmware="prusa", freq_x=45.5, freq_y=38.9), None, path)
-    assert all(b.commands[0].startswith("M74 W") for b in prusa.bands)
-    assert prusa.bands[-1].prusa_hz == pytest.approx(38.9 - 20 * prusa.bands[-1].mass_kg * 1e3 / 800, rel=1e-9)
+    first, last = prusa.bands[0], prusa.bands[-1]
+    assert first.commands[0] == f"M593 A{last.freq_y - 38.9:.2f} M{last.grams:.0f}"   # A < 0, no axis
+    assert all(b.commands[-1] == f"M74 W{b.mass_kg * 1e3:.0f}" for b in prusa.bands)
+    assert last.prusa_default_hz == pytest.approx(38.9 - 20 * last.mass_kg * 1e3 / 800, rel=1e-9)
+    for b in prusa.bands:            # the firmware's line, set by M593 A M, stays within 2 % of the mode
+        line = 38.9 + (last.freq_y - 38.9) * b.grams / last.grams
+        assert b.prusa_hz == pytest.approx(line, rel=1e-9) and b.prusa_hz == pytest.approx(b.mode_hz, rel=0.02)
     assert any("linear rule" in n for n in prusa.notes)
     marlin = mass_schedule(TuneConfig(firmware="marlin", shaper_x="zv", shaper_y="zv", freq_x=45.5, freq_y=38.9),
                            None, path)

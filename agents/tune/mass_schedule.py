@@ -42,8 +42,10 @@ BAND_STEP = 0.02
 class Band:
     """Layers ``first_layer``..``last_layer`` (from ``z_mm``), ``mass_kg`` of print on the bed at
     the band's middle, the model's dominant Y mode there (``mode_hz``), the chosen ``freq_y`` (Hz),
-    ``accel`` (mm/s², None = unchanged), what Prusa's own rule would set (``prusa_hz``) and the
-    firmware lines inserted where the band begins."""
+    ``accel`` (mm/s², None = unchanged), ``grams`` on the bed in all (with the printer's own
+    print_mass), what Prusa's linear rule sets from ``M74 W`` with the schedule's ``M593 A M``
+    (``prusa_hz``) and with its defaults (``prusa_default_hz``), and the firmware lines inserted
+    where the band begins."""
 
     first_layer: int
     last_layer: int
@@ -52,13 +54,16 @@ class Band:
     mode_hz: float
     freq_y: float
     accel: float | None
-    prusa_hz: float
+    grams: float
     commands: list[str] = field(default_factory=list)
+    prusa_hz: float = float("nan")
+    prusa_default_hz: float = float("nan")
 
     def to_dict(self) -> dict:
         return {"first_layer": self.first_layer, "last_layer": self.last_layer, "z_mm": self.z_mm,
                 "mass_g": self.mass_kg * 1e3, "mode_hz": self.mode_hz, "freq_y": self.freq_y,
-                "accel": self.accel, "prusa_rule_hz": self.prusa_hz, "commands": self.commands}
+                "accel": self.accel, "prusa_rule_hz": self.prusa_hz, "prusa_default_rule_hz": self.prusa_default_hz,
+                "commands": self.commands}
 
 
 @dataclass
@@ -173,8 +178,10 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
         grams = (printer.print_mass + mass) * 1e3
         cmds = band_commands(config.firmware, freq, grams, accel=accel, shaper=config.shaper_y,
                              damping=config.damping_y)
-        bands.append(Band(a, b, layers[a].z, mass, mode, freq, accel,
-                          prusa_weight_frequency(config.freq_y, grams), cmds))
+        bands.append(Band(a, b, layers[a].z, mass, mode, freq, accel, grams, cmds))
+    prusa_line = _prusa_line(config, bands)
+    if fw.family == "prusa" and prusa_line:
+        bands[0].commands.insert(0, prusa_line)
     notes.extend(_firmware_notes(config, printer, bands))
     return MassSchedule(config, bands, layers, diameter_mm, density_g_cm3, f_empty, step, notes)
 
@@ -184,17 +191,29 @@ def _firmware_notes(config: TuneConfig, printer: Printer, bands: list[Band]) -> 
     last = bands[-1]
     if fam == "prusa":
         d, m = PRUSA_WEIGHT_ADJUST
-        grams = (printer.print_mass + last.mass_kg) * 1e3
-        return [f"Prusa sets Y itself from M74 W (grams on the bed) by its linear rule f = F + A·min(W/M, 1), "
-                f"by default A = {d:g} Hz, M = {m:g} g (input_shaper_config.hpp): {last.prusa_hz:.1f} Hz "
-                f"at {grams:.0f} g where the model's mode says {last.freq_y:.1f} Hz; `M593 Y A"
-                f"{last.freq_y - config.freq_y:.1f} M{grams:.0f}` makes its line meet ours there"]
+        gap = max(abs(b.prusa_hz - b.freq_y) for b in bands)
+        return [f"Prusa moves Y itself from M74 W (grams on the bed) by its linear rule f = F + A·min(W/M, 1) "
+                f"(M74.cpp); the schedule sets A and M once (M593 A M) so that its line meets the model's "
+                f"curve at 0 g and at the last band ({last.grams:.0f} g), {gap:.2f} Hz from it at most "
+                f"over the bands; with its defaults A = {d:g} Hz, M = {m:g} g (input_shaper_config.hpp) it "
+                f"would set {last.prusa_default_hz:.1f} Hz there, where the model's mode says {last.freq_y:.1f} Hz"]
     if fam == "rrf":
         before, after = _x_cost(config, printer, last.freq_y)
         return [f"RepRapFirmware has one shaper for all axes: moving it to {last.freq_y:.1f} Hz for Y moves "
                 f"X's too; X's residual vibration (share-weighted over its modes, % of unshaped) goes from "
                 f"{before:.1f} % to {after:.1f} % on the last band"]
     return []
+
+
+def _prusa_line(config: TuneConfig, bands: list[Band]) -> str | None:
+    """Sets each band's Prusa frequencies; returns ``M593 A<Hz> M<g>`` that puts Prusa's linear
+    rule through (0 g, freq_y) and the last band (None when Y does not fall: A must be < 0)."""
+    last = bands[-1]
+    delta, limit = last.freq_y - config.freq_y, last.grams
+    for b in bands:
+        b.prusa_default_hz = prusa_weight_frequency(config.freq_y, b.grams)
+        b.prusa_hz = prusa_weight_frequency(config.freq_y, b.grams, delta, limit) if delta < 0 else config.freq_y
+    return f"M593 A{delta:.2f} M{limit:.0f}" if delta < 0 and limit >= 1 else None
 
 
 def last_layer_ripple(schedule: MassSchedule, printer=None, job=None, backend: str = "mujoco") -> dict:
@@ -207,16 +226,27 @@ def last_layer_ripple(schedule: MassSchedule, printer=None, job=None, backend: s
     heavy = loaded(printer, layer.mass_during)
     band = schedule.bands[-1]
     fixed = replace(schedule.config, y_schedule=None, extra={})
-    sched = replace(fixed, freq_y=band.freq_y, accel=band.accel or fixed.accel)
-    m_fixed, m_sched = evaluate_many([fixed, sched], heavy, part, backend, job_accel="replace")
+    fw = FIRMWARES[fixed.firmware]
+    runs = {"fixed": fixed, "scheduled": _at(fixed, band.freq_y, band.accel, fw.one_shaper)}
+    if fw.family == "prusa":     # what the firmware sets from M74 W by its own rule, ours and its defaults
+        runs["scheduled"] = _at(fixed, round(band.prusa_hz, 2), band.accel, False)
+        runs["prusa_default_rule"] = _at(fixed, round(band.prusa_default_hz, 2), band.accel, False)
+    metrics = evaluate_many(list(runs.values()), heavy, part, backend, job_accel="replace")
     out = {"layer": layer.index, "z_mm": layer.z, "mass_g": layer.mass_during * 1e3,
            "mode_hz": dominant_y_mode(printer, layer.mass_during).freq,
-           "fixed": {"freq_y": fixed.freq_y, "ripple_mm": m_fixed.ripple_mm, "corner_out_mm": m_fixed.corner_out_mm},
-           "scheduled": {"freq_y": sched.freq_y, "ripple_mm": m_sched.ripple_mm,
-                         "corner_out_mm": m_sched.corner_out_mm},
-           "measured_against": "the commanded wall line, simulated on the model with the layer's mass on the bed"}
+           "measured_against": "the commanded wall line, simulated on the exact model with the layer's "
+                               "mass on the bed"}
+    for (key, cfg), m in zip(runs.items(), metrics):
+        out[key] = {"freq_y": cfg.freq_y, "freq_x": cfg.freq_x, "ripple_mm": m.ripple_mm,
+                    "corner_out_mm": m.corner_out_mm}
     schedule.ripple = out
     return out
+
+
+def _at(config: TuneConfig, freq_y: float, accel: float | None, one_shaper: bool) -> TuneConfig:
+    """``config`` with Y at ``freq_y`` (and X too on a firmware with one shaper for all axes)."""
+    cfg = replace(config, freq_y=freq_y, accel=accel or config.accel)
+    return replace(cfg, freq_x=freq_y) if one_shaper else cfg
 
 
 def scheduled_lines(schedule: MassSchedule, path: str | Path) -> list[str]:
@@ -255,11 +285,11 @@ def schedule_summary(s: MassSchedule) -> str:
              f"{s.empty_mode_hz:.1f} Hz with the bed as described, tuned freq_y {s.config.freq_y:g} Hz",
              f"{len(s.bands)} bands (a new one where the model's Y mode has moved {s.step * 100:g} %):",
              "  from z mm  layers     mass g  Y mode Hz  freq_y Hz" + ("  accel" if acc else "")
-             + ("  Prusa's rule Hz" if prusa else "")]
+             + ("  Prusa sets Hz  (its defaults)" if prusa else "")]
     for b in s.bands:
         lines.append(f"  {b.z_mm:9.2f}  {b.first_layer:>3}-{b.last_layer:<4} {b.mass_kg * 1e3:8.0f}  "
-                     f"{b.mode_hz:9.2f}  {b.freq_y:9.2f}" + (f"  {b.accel or '':>5}" if acc else "")
-                     + (f"  {b.prusa_hz:15.2f}" if prusa else ""))
+                     f"{b.mode_hz:9.2f}  {b.freq_y:9.2f}" + (f"  {b.accel or 0:5.0f}" if acc else "")
+                     + (f"  {b.prusa_hz:12.2f}  {b.prusa_default_hz:13.2f}" if prusa else ""))
     lines.append(f"  inserted at each band's first layer: {' / '.join(s.bands[-1].commands)} (last band)")
     if s.ripple:
         r = s.ripple
@@ -269,5 +299,8 @@ def schedule_summary(s: MassSchedule) -> str:
                      f"ripple (worst visible wall, peak-to-peak across it, against the commanded wall line on "
                      f"the model): fixed {fx['freq_y']:g} Hz {fx['ripple_mm'] * 1e3:.1f} µm, scheduled "
                      f"{sc['freq_y']:g} Hz {sc['ripple_mm'] * 1e3:.1f} µm ({ratio:.1f}× less)")
+        if "prusa_default_rule" in r:
+            lines.append(f"  Prusa's rule with its default A, M: {r['prusa_default_rule']['freq_y']:g} Hz, "
+                         f"ripple {r['prusa_default_rule']['ripple_mm'] * 1e3:.1f} µm")
     lines.extend(f"note: {n}" for n in s.notes)
     return "\n".join(lines)
