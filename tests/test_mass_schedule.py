@@ -221,3 +221,16 @@ def test_schedule_command_json(block, tmp_path, capsys):
     assert d["filament_density_g_cm3"] == 1.27 and d["filament_diameter_mm"] == 1.75
     assert d["y_schedule"] == [{"z_mm": b["z_mm"], "freq_y": b["freq_y"]} for b in d["bands"]]
     assert d["last_layer"]["fixed"]["ripple_mm"] > d["last_layer"]["scheduled"]["ripple_mm"]
+
+
+def test_a_shaper_placed_off_the_mode_keeps_its_place_and_still_halves_the_ripple(block):
+    """tune's pick on the default printer (README: Y 3hump_ei @ 77.1 Hz, twice the mode): each band
+    keeps the tuned frequency's ratio to the eigen-solved mode, and the last layer rings less."""
+    path, e_layers = block
+    cfg = TuneConfig(shaper_x="zvd", freq_x=57.6, damping_x=0.01, shaper_y="3hump_ei", freq_y=77.1,
+                     damping_y=0.08, accel=4900)
+    s = schedule_job(cfg, None, path)
+    ratio = 77.1 / _ender3_y_mode(0.0)
+    for b in s.bands:
+        assert b.freq_y == pytest.approx(ratio * _ender3_y_mode(b.mass_kg), rel=2e-3)
+    assert s.ripple["scheduled"]["ripple_mm"] <= 0.5 * s.ripple["fixed"]["ripple_mm"], s.ripple
