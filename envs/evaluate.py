@@ -139,13 +139,16 @@ def job_accel_commands(job) -> dict[str, float]:
 
 def _plan_settings(config: TuneConfig | None) -> tuple:
     """What of ``config`` changes the plan: (frequency limit (Hz, method, speed factor), accel,
-    DAA frequency, per-axis caps)."""
+    DAA frequency, per-axis caps, per-feature settings (accelerations by class, corner, minimum
+    cruise ratio) or None)."""
     if config is None:
-        return (0.0, "", 0.0), None, None, (None, None)
+        return (0.0, "", 0.0), None, None, (None, None), None
     fl = ((float(config.freq_limit_hz), config.freq_limit_method, float(config.min_speed_factor))
           if config.freq_limit_hz > 0 else (0.0, "", 0.0))
     accel = None if config.accel is None else float(config.accel)
-    return fl, accel, config.daa_freq, config.axis_caps
+    feature = ((tuple(sorted(config.feature_accel.items())), config.corner, config.min_cruise_ratio)
+               if config.per_feature else None)
+    return fl, accel, config.daa_freq, config.axis_caps, feature
 
 
 def planned_job(printer, job=None, config: TuneConfig | None = None, *,
@@ -160,15 +163,16 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
     mode = job_accel_mode(config, job_accel)
     jkey, parsed = resolve_job(job)
     limits = printer.limits
-    fl, accel, daa, caps = _plan_settings(config)
+    settings = _plan_settings(config)
+    fl, accel, daa, caps, feature = settings
     if accel is None:
         mode = "replace"       # nothing to replace with: the job's and the machine's limits as they are
-    key = (jkey, repr(limits), fl, accel, daa, max_windows, span, mode, caps)
+    key = (jkey, repr(limits), fl, accel, daa, max_windows, span, mode, caps, feature)
     if key in _PLANS:
         _PLANS.move_to_end(key)
         return _PLANS[key]
     plan = plan_with_config(parsed, limits, config, job_accel=mode).plan
-    if (fl, accel, daa, caps) == _plan_settings(None):
+    if settings == _plan_settings(None):
         windows = testprints.quality_windows(plan, max_windows=max_windows, span=span)
     else:   # the corners and zigzags the printer's own plan chose, at this plan's times
         ref = planned_job(printer, job, None, max_windows=max_windows, span=span).windows

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.features import FEATURE_CLASSES
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.textfile import read_text_file
 
@@ -35,6 +36,16 @@ class TuneConfig:
             mm/s² (Marlin/RRF ``M201 X Y``, Kalico ``max_x_accel``/``max_y_accel``; None = the
             printer's own, unchanged). ``export`` and ``push`` set and read them back before the
             acceleration; written to JSON only when set.
+        feature_accel: acceleration per feature class of the job, mm/s² (class of
+            :data:`ringtune.shaping.features.FEATURE_CLASSES` -> value; a class absent takes
+            ``accel``); planned move by move (:mod:`ringtune.shaping.feature_settings`) and written
+            into the job at each feature change (:mod:`ringtune.shaping.rewrite`). Empty = one
+            acceleration for the whole job.
+        corner: the firmware's corner rule value for the whole job, in the printer's own rule:
+            Klipper ``square_corner_velocity`` mm/s, Marlin junction deviation mm (``M205 J``) or
+            classic jerk mm/s (``M205 X Y``), RepRapFirmware ``M566`` jerk mm/s (None = the
+            printer's / the job's own).
+        min_cruise_ratio: Klipper's ``minimum_cruise_ratio`` in [0, 1) (None = the printer's).
         y_schedule: a bed slinger's Y shaper frequency by printed height, ``[{"z_mm": mm,
             "freq_y": Hz, "accel": mm/s² (optional)}, ...]`` in rising ``z_mm``: from the layer at
             ``z_mm`` on, Y runs at ``freq_y`` (the print's mass lowers the bed's modes); None = one
@@ -55,6 +66,9 @@ class TuneConfig:
     accel: float | None = None
     max_accel_x: float | None = None
     max_accel_y: float | None = None
+    feature_accel: dict[str, float] = field(default_factory=dict)
+    corner: float | None = None
+    min_cruise_ratio: float | None = None
     y_schedule: list[dict[str, float]] | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
@@ -111,14 +125,36 @@ class TuneConfig:
                 _finite(getattr(self, key), f"{where}: {key}", lo=1.0, hi=1e6, unit="mm/s²")
         if self.y_schedule is not None:
             self.y_schedule = _checked_schedule(self.y_schedule, f"{where}: y_schedule")
+        self._validate_features(where)
+
+    def _validate_features(self, where: str) -> None:
+        if not isinstance(self.feature_accel, dict):
+            raise RingtuneError("must be an object {feature class: mm/s²}", f"{where}: feature_accel")
+        for cls, value in self.feature_accel.items():
+            if cls not in FEATURE_CLASSES:
+                raise RingtuneError(f"{cls!r} is not a feature class (one of {', '.join(FEATURE_CLASSES)})",
+                                    f"{where}: feature_accel")
+            _finite(value, f"{where}: feature_accel.{cls}", lo=1.0, hi=1e6, unit="mm/s²")
+        if self.corner is not None:
+            _finite(self.corner, f"{where}: corner", lo=0.0, hi=1000.0)
+        if self.min_cruise_ratio is not None:
+            _finite(self.min_cruise_ratio, f"{where}: min_cruise_ratio", lo=0.0, hi=0.99)
+
+    @property
+    def per_feature(self) -> bool:
+        """Whether the configuration sets anything per feature or the corner rule (planned move by
+        move, written into the job by the rewriter)."""
+        return bool(self.feature_accel) or self.corner is not None or self.min_cruise_ratio is not None
 
     # -- JSON ------------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
         extra = d.pop("extra")
-        for key in ("max_accel_x", "max_accel_y", "y_schedule"):   # only when set: older files stay as they were
-            if d[key] is None:
+        for key in ("max_accel_x", "max_accel_y", "corner", "min_cruise_ratio", "y_schedule"):   # only when
+            if d[key] is None:                                                                # set: older files stay
                 del d[key]
+        if not d["feature_accel"]:
+            del d["feature_accel"]
         d.update(extra)
         return d
 
@@ -135,11 +171,19 @@ class TuneConfig:
         kwargs = {k: v for k, v in data.items() if k in known}
         extra = {k: v for k, v in data.items() if k not in known}
         for k in ("freq_x", "freq_y", "damping_x", "damping_y", "freq_limit_hz", "min_speed_factor", "accel",
-                  "max_accel_x", "max_accel_y"):
+                  "max_accel_x", "max_accel_y", "corner", "min_cruise_ratio"):
             if k in kwargs and kwargs[k] is not None:
                 if isinstance(kwargs[k], bool) or not isinstance(kwargs[k], (int, float)):
                     raise RingtuneError(f"must be a number, not {kwargs[k]!r}", f"{where}: {k}")
                 kwargs[k] = float(kwargs[k])
+        fa = kwargs.get("feature_accel")
+        if isinstance(fa, dict):
+            for name, v in fa.items():
+                if isinstance(v, bool) or not isinstance(v, (int, float)):
+                    raise RingtuneError(f"must be a number, not {v!r}", f"{where}: feature_accel.{name}")
+            kwargs["feature_accel"] = {str(c): float(v) for c, v in fa.items()}
+        elif "feature_accel" in kwargs and fa is None:
+            kwargs["feature_accel"] = {}
         try:
             cfg = cls(**kwargs, extra=extra)
         except RingtuneError as exc:

@@ -12,7 +12,12 @@ and :func:`ringtune.envs.evaluate.planned_job` (every tuning trial) share.
 2. the config's frequency limit rewrites the requested feedrates (``shaping.freqlimit``); without
    one, a job's own Marlin ``M201 F`` (XY_FREQUENCY_LIMIT) does, as Marlin would, unless the job's
    own limits are ignored; Marlin's emulation takes the machine's per-axis maximum feedrates;
-3. the planner plans, with RepRapFirmware ≤ 3.3's DAA when the config (or the caller) selects it.
+3. a per-feature configuration (:attr:`TuneConfig.per_feature`: accelerations per feature class,
+   the corner rule, Klipper's minimum_cruise_ratio) becomes the job's own settings move by move
+   (:func:`ringtune.shaping.feature_settings.with_feature_settings`), over the job's own
+   printing and travel accelerations (and X/Y caps where it sets them) whatever the mode — what
+   the job rewriter writes into the file; the job's retract acceleration (M204 R) stays;
+4. the planner plans, with RepRapFirmware ≤ 3.3's DAA when the config (or the caller) selects it.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ import numpy as np
 
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.feature_settings import FeatureCommands, with_feature_settings
 from ringtune.shaping.freqlimit import apply_freq_limit
 from ringtune.shaping.job import SETTING_KEYS, Job
 from ringtune.shaping.planner import MachineLimits, Plan, plan
@@ -101,8 +107,11 @@ def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None 
     accel = None if config is None or config.accel is None else float(config.accel)
     if accel is not None:     # export sends it as printing and travel acceleration (M204 P T)
         limits = replace(limits, accel=accel, travel_accel=None)
-        if mode == "replace":
+        if mode == "replace" and not config.per_feature:
             job = without_job_accel(job)
+    if config is not None and config.per_feature:   # over the job's own, as the rewritten file has them
+        job = with_feature_settings(job, FeatureCommands.from_config(config, limits))
+        accel = None          # the settings are the job's own now, move by move
     freq_limit = None
     if config is not None and config.freq_limit_hz > 0:
         before = job.feed
