@@ -1,5 +1,5 @@
-"""A Y shaper frequency per layer band, in each firmware's own G-code, and its insertion at layer
-changes (Hz, g, mm/s²).
+"""A Y shaper frequency per layer band in each firmware's own G-code (Hz, g, mm/s²); the job
+rewriter (:func:`ringtune.shaping.rewrite.rewrite_job`, ``layer_inserts``) puts them at layer changes.
 
 - Klipper, Kalico: ``SET_INPUT_SHAPER SHAPER_FREQ_Y=<Hz>`` (the rest of the shaper stays).
 - Marlin classic: ``M593 Y F<Hz>``; FT_MOTION: ``M493 Y A<Hz>``.
@@ -60,25 +60,4 @@ def band_commands(firmware: str, freq_y: float, grams: float, *, accel: float | 
         out = [f'M593 P"{native}" F{f} S{_num(damping, fw.damping.decimals)}']
     if accel:
         out.append(f"SET_VELOCITY_LIMIT ACCEL={accel:.0f}" if fw.family == "klipper" else f"M204 P{accel:.0f}")
-    return out
-
-
-def layer_inserts(lines: list[str], layer_lines: dict[int, int], inserts: dict[int, list[str]]) -> list[str]:
-    """``lines`` (as read, with their line ends) with ``inserts[layer]`` placed before the source line
-    ``layer_lines[layer]`` (1-based) where each layer begins, each tagged with :data:`TAG`; every
-    other line unchanged."""
-    at: dict[int, list[str]] = {}
-    for layer, cmds in inserts.items():
-        if layer not in layer_lines:
-            raise RingtuneError(f"layer {layer} is not in the job", "layer inserts")
-        n = layer_lines[layer]
-        if not 1 <= n <= len(lines):
-            raise RingtuneError(f"line {n} is outside the job's {len(lines)} lines", "layer inserts")
-        at.setdefault(n, []).extend(cmds)
-    out = []
-    for i, line in enumerate(lines, start=1):
-        if i in at:
-            end = "\r\n" if line.endswith("\r\n") else "\n"
-            out.extend(f"{c} {TAG}{end}" for c in at[i])
-        out.append(line)
     return out

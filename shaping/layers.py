@@ -1,11 +1,11 @@
 """Layers of a parsed job and the filament mass laid down before each (units mm, kg).
 
-A layer starts where an extruding move (E rising while X/Y move) first runs at a height more than
-:data:`MIN_LAYER_STEP` above the previous layer's; it *begins* (where a firmware command for it is
-inserted) at the first move after the previous layer's last extrusion — the Z change and the travel
-to the layer's start — and, for the first layer, at its first extruding move. Deposited filament is
-the sum of E over extruding moves (retractions and their priming do not move X/Y and do not count);
-its mass is length × π d²/4 × density.
+Layers are the job rewriter's (:func:`ringtune.shaping.rewrite.layer_starts`): layer k is the k-th
+height at which the job extrudes above every height before it, and begins right after the last
+extrusion below it (its Z change and travel belong to it; layer 0 at the first move), which is
+where a command for it is inserted. Deposited filament is the sum of E over extruding moves (E
+rising while X/Y move: retractions and their priming do not count); its mass is length × π d²/4 ×
+density.
 """
 
 from __future__ import annotations
@@ -17,18 +17,18 @@ import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.job import Job
+from ringtune.shaping.rewrite import layer_starts
 
 #: the usual filament diameter, mm
 FILAMENT_DIAMETER_MM = 1.75
 #: PLA's density, g/cm³ (PETG ≈ 1.27, ABS ≈ 1.04, ASA ≈ 1.07)
 FILAMENT_DENSITY_G_CM3 = 1.24
-#: mm: a rise of extrusion height smaller than this stays in the same layer (vase mode, z-hop noise)
-MIN_LAYER_STEP = 0.02
 
 
 @dataclass
 class Layer:
-    """One layer: ``index`` (0-based), ``z`` (mm), ``first_move`` (move index where it begins),
+    """One layer: ``index`` (0-based), ``z`` (mm, its first extrusion's), ``first_move`` (move index
+    where it begins),
     ``line`` (1-based source line of that move), ``mass_before`` (kg of filament laid before it),
     ``mass`` (kg laid in it), ``last_move`` (index of its last extruding move)."""
 
@@ -65,21 +65,15 @@ def job_layers(job: Job, diameter_mm: float = FILAMENT_DIAMETER_MM,
     ext = np.flatnonzero(job.extruding)
     if not len(ext):
         raise RingtuneError("the job extrudes nothing: no layers, no mass on the bed", job.source)
-    z = job.end[ext, 2]
+    starts = layer_starts(job)
     de = filament_mass_kg(job.delta[ext, 3], diameter_mm, density_g_cm3)
-    starts = [0]
-    top = z[0]
-    for i in range(1, len(ext)):
-        if z[i] > top + MIN_LAYER_STEP:
-            starts.append(i)
-            top = z[i]
-    bounds = starts + [len(ext)]
     cum = np.concatenate([[0.0], np.cumsum(de)])
+    # the extruding moves of layer k: from its start to the next layer's start
+    bounds = list(np.searchsorted(ext, starts)) + [len(ext)]
     layers = []
     for k, (a, b) in enumerate(zip(bounds, bounds[1:])):
-        first = int(ext[a]) if k == 0 else int(ext[a - 1]) + 1
-        layers.append(Layer(k, float(z[a]), first, int(job.line[first]), float(cum[a]),
-                            float(cum[b] - cum[a]), int(ext[b - 1])))
+        layers.append(Layer(k, float(job.end[ext[a], 2]), int(starts[k]), int(job.line[starts[k]]),
+                            float(cum[a]), float(cum[b] - cum[a]), int(ext[b - 1])))
     return layers
 
 

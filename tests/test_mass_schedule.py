@@ -142,7 +142,7 @@ def test_the_schedule_goes_into_the_job_at_layer_changes_and_nothing_else_change
     assert len(added) == len(s.bands)
     for i, b in zip(added, s.bands):      # after the last extrusion below, before the Z change up
         if b.first_layer == 0:
-            assert "E" in after[i + 1] and "X" in after[i + 1]      # before the first extrusion
+            assert i == 5 and after[i + 1] == "G1 Z0.30 F600"          # before the first move (line 6)
             continue
         assert "E" in after[i - 1] and "X" in after[i - 1] and "Y" in after[i - 1]
         assert after[i + 1] == "G1 E-0.8 F2400" and after[i + 3] == f"G1 Z{b.z_mm:.2f} F600"

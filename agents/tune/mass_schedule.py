@@ -29,8 +29,9 @@ from ringtune.shaping.analysis import max_accel, residual_vibration, smoothing
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
-from ringtune.shaping.layer_commands import PRUSA_WEIGHT_ADJUST, band_commands, layer_inserts, prusa_weight_frequency
+from ringtune.shaping.layer_commands import PRUSA_WEIGHT_ADJUST, TAG, band_commands, prusa_weight_frequency
 from ringtune.shaping.layers import FILAMENT_DENSITY_G_CM3, FILAMENT_DIAMETER_MM, Layer, job_layers, job_slice
+from ringtune.shaping.rewrite import rewrite_job
 from ringtune.shaping.shapers import get_shaper
 from ringtune.shaping.textfile import read_text_file
 
@@ -250,11 +251,11 @@ def _at(config: TuneConfig, freq_y: float, accel: float | None, one_shaper: bool
 
 
 def scheduled_lines(schedule: MassSchedule, path: str | Path) -> list[str]:
-    """The job file's lines with each band's commands inserted where the band begins."""
+    """The job file's lines with each band's commands (tagged :data:`TAG`) inserted where the band's
+    first layer begins (:func:`ringtune.shaping.rewrite.rewrite_job`); every other line as it was."""
     text = read_text_file(Path(path), "G-code job")
-    lines = text.splitlines(keepends=True)
-    where = {la.index: la.line for la in schedule.layers}
-    return layer_inserts(lines, where, schedule.inserts())
+    inserts = {k: [f"{c} {TAG}" for c in cmds] for k, cmds in schedule.inserts().items()}
+    return rewrite_job(text.splitlines(keepends=True), schedule.config.firmware, None, layer_inserts=inserts)
 
 
 def schedule_job(config: TuneConfig, printer=None, job=None, *, diameter_mm: float = FILAMENT_DIAMETER_MM,
