@@ -4,7 +4,8 @@ JSON keys (stable): ``firmware``, ``filament_diameter_mm``, ``filament_density_g
 ``print_mass_g``, ``layers``, ``empty_mode_hz``, ``tuned_freq_y``, ``band_step``, ``bands`` (each:
 ``first_layer``, ``last_layer``, ``z_mm``, ``mass_g``, ``mode_hz``, ``freq_y``, ``accel``,
 ``prusa_rule_hz``, ``commands``), ``y_schedule``, ``last_layer`` (``layer``, ``z_mm``, ``mass_g``,
-``mode_hz``, ``fixed`` and ``scheduled``: {``freq_y``, ``ripple_mm``, ``corner_out_mm``},
+``mode_hz``, ``fixed``, ``scheduled`` and on Prusa ``prusa_default_rule``: {``freq_y``,
+``freq_x``, ``accel``, ``ripple_mm``, ``corner_in_mm``, ``corner_out_mm``, ``print_time_s``},
 ``measured_against``), ``notes``, ``output``, ``config_out``.
 """
 
@@ -12,7 +13,7 @@ from __future__ import annotations
 
 from ringtune.agents.cli.common import check_output_folder, firmware_name, load_config
 from ringtune.agents.cli.options import VALUES
-from ringtune.agents.tune.mass_schedule import BAND_STEP, schedule_job, schedule_summary
+from ringtune.agents.tune.mass_schedule import BAND_ACCEL, BAND_STEP, schedule_job, schedule_summary
 from ringtune.shaping.layers import FILAMENT_DENSITY_G_CM3, FILAMENT_DIAMETER_MM
 
 NAME = "schedule"
@@ -30,10 +31,15 @@ form: Klipper SET_INPUT_SHAPER SHAPER_FREQ_Y=, Marlin M593 Y F, FT_MOTION M493 Y
 (one shaper for every axis: what it costs X is said). Nothing else in the file changes.
 --config-out writes the config with its y_schedule.
 
+A lower shaper frequency smooths corners more at the same acceleration: where a band's shaper would
+round corners more than 5 % beyond the tuned one (Klipper's smoothing estimate), its acceleration
+is lowered until it does not (--band-accel auto, the default; keep: frequency only). The last-layer
+table shows what that costs in time and gives in corners.
+
 examples:
   ringtune schedule tall.gcode --config best.json -o tall_scheduled.gcode
   ringtune schedule tall.gcode --config best.json --firmware prusa --filament-density 1.27 --json
-  ringtune schedule tall.gcode --config best.json --keep-smoothing --config-out best_scheduled.json
+  ringtune schedule tall.gcode --config best.json --band-accel keep --config-out best_scheduled.json
 
 defaults: filament {FILAMENT_DIAMETER_MM} mm, {FILAMENT_DENSITY_G_CM3} g/cm³ (PLA); band step {BAND_STEP * 100:g} %.
 """
@@ -54,8 +60,10 @@ def add_arguments(parser) -> None:
                         help=f"filament density, g/cm³ (default {FILAMENT_DENSITY_G_CM3}, PLA)")
     parser.add_argument("--band-step", metavar="PCT", type=VALUES["margin_percent"], default=BAND_STEP * 100,
                         help=f"start a new band where the Y mode has moved this many per cent (default {BAND_STEP * 100:g})")
-    parser.add_argument("--keep-smoothing", action="store_true",
-                        help="also lower each band's acceleration so that the shaper smooths no more than tuned")
+    parser.add_argument("--band-accel", choices=BAND_ACCEL, default="auto",
+                        help="auto: lower a band's acceleration where its lower shaper frequency would round "
+                             "corners more than the tuned one (Klipper's smoothing, 5 %% tolerance); keep: never "
+                             "(default: auto)")
     parser.add_argument("-o", "--output", metavar="OUT", help="write the job with the schedule's lines")
     parser.add_argument("--config-out", metavar="OUT.json", help="write the config with its y_schedule")
 
@@ -69,7 +77,7 @@ def run(args, out) -> int:
         cfg.validate()
     s = schedule_job(cfg, args.printer, args.gcode, diameter_mm=args.filament_diameter,
                      density_g_cm3=args.filament_density, step=args.band_step / 100.0,
-                     keep_smoothing=args.keep_smoothing, output=args.output, config_out=args.config_out)
+                     band_accel=args.band_accel, output=args.output, config_out=args.config_out)
     result = {**s.to_dict(), "output": args.output, "config_out": args.config_out}
     text = schedule_summary(s)
     for path, what in ((args.output, "job"), (args.config_out, "config")):

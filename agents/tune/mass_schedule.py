@@ -1,14 +1,16 @@
-"""Schedules by printed mass: a bed slinger's Y shaper frequency (and, where asked, acceleration)
-per band of layers, following the Y mode down as the print's mass grows on the bed.
+"""Schedules by printed mass: a bed slinger's Y shaper frequency (and, where quality needs it, the
+acceleration) per band of layers, following the Y mode down as the print's mass grows on the bed.
 
 Per layer the mass on the bed halfway through it (the job's extruded filament, its diameter and
 density stated), the model's dominant Y mode at that mass (:mod:`ringtune.envs.bed_load`). A band
 runs while the mode stays within ``step`` (a fraction, 2 % by default) of the mode where the band
 started; its frequency is the tuned ``freq_y`` moved with the mode, ``freq_y·f(m)/f(0)`` at the
 band's middle mass m (the tuned frequency keeps its place among the modes; a config that targets the
-mode gets the mode). ``keep_smoothing`` also lowers the band's acceleration so that Klipper's
-smoothing estimate (:func:`ringtune.shaping.analysis.smoothing`) stays at the tuned config's: a
-lower shaper frequency smooths corners more at the same acceleration.
+mode gets the mode). A lower shaper frequency smooths corners more at the same acceleration (the
+visible corners round off): with ``band_accel="auto"`` a band whose shaper would smooth more than
+:data:`SMOOTHING_TOLERANCE` beyond the tuned one (Klipper's smoothing estimate,
+:func:`ringtune.shaping.analysis.smoothing`) gets the acceleration at which it smooths as the tuned
+one does; ``"keep"`` leaves the acceleration alone.
 
 What a fixed frequency costs is measured, not inferred: the job's last layer simulated on the model
 with its mass on the bed, once at the tuned frequency and once at the schedule's
@@ -22,8 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION
 from ringtune.envs.bed_load import dominant_y_mode, is_bed_slinger, loaded
-from ringtune.envs.evaluate import evaluate_many, resolve_job, resolve_printer
+from ringtune.envs.evaluate import evaluate_many, job_accel_commands, resolve_job, resolve_printer
 from ringtune.envs.printer_model import Printer
 from ringtune.shaping.analysis import max_accel, residual_vibration, smoothing
 from ringtune.shaping.config import TuneConfig
@@ -37,6 +40,11 @@ from ringtune.shaping.textfile import read_text_file
 
 #: a new band starts when the Y mode has moved this fraction from where the band started
 BAND_STEP = 0.02
+#: a band's shaper may smooth this fraction more than the tuned one before its acceleration is
+#: lowered: the relative resolution at which tune calls two distances the same
+SMOOTHING_TOLERANCE = DEFAULT_RESOLUTION.distance_rel
+#: how a band's acceleration is chosen
+BAND_ACCEL = ("auto", "keep")
 
 
 @dataclass
@@ -119,15 +127,22 @@ def _band_ranges(modes: np.ndarray, step: float) -> list[tuple[int, int]]:
     return out
 
 
-def _smoothing_accel(config: TuneConfig, printer: Printer, freq_y: float) -> float:
+def _band_accel(config: TuneConfig, printer: Printer, freq_y: float) -> float | None:
     """mm/s² at which Y's shaper at ``freq_y`` smooths as much as the tuned one at the tuned
-    acceleration (Klipper's smoothing estimate; never above the tuned acceleration)."""
+    acceleration (Klipper's smoothing estimate, rounded down to 10; on a firmware with one shaper,
+    as the smoother of the tuned X and Y), or None when at the tuned acceleration it smooths no more
+    than :data:`SMOOTHING_TOLERANCE` beyond it."""
     accel = config.accel or printer.limits.accel
     scv = printer.limits.square_corner_velocity
     name, f0, z = config.axis("y")
+    band = get_shaper(name, freq_y, z, config.flavor)
     target = smoothing(get_shaper(name, f0, z, config.flavor), accel, scv)
-    a = max_accel(get_shaper(name, freq_y, z, config.flavor), scv, target)
-    return float(min(accel, np.floor(a / 10.0) * 10.0))
+    if FIRMWARES[config.firmware].one_shaper:      # the band's shaper is X's too: keep X's smoothing
+        nx, fx, zx = config.axis("x")
+        target = min(target, smoothing(get_shaper(nx, fx, zx, config.flavor), accel, scv))
+    if smoothing(band, accel, scv) <= target * (1.0 + SMOOTHING_TOLERANCE):
+        return None
+    return float(min(accel, np.floor(max_accel(band, scv, target) / 10.0) * 10.0))
 
 
 def _x_cost(config: TuneConfig, printer: Printer, freq: float) -> tuple[float, float]:
@@ -147,7 +162,7 @@ def _x_cost(config: TuneConfig, printer: Printer, freq: float) -> tuple[float, f
 
 def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: float = FILAMENT_DIAMETER_MM,
                   density_g_cm3: float = FILAMENT_DENSITY_G_CM3, step: float = BAND_STEP,
-                  keep_smoothing: bool = False) -> MassSchedule:
+                  band_accel: str = "auto") -> MassSchedule:
     """The Y schedule of ``job`` (path, text, Job; None: the built-in print) on ``printer``,
     starting from ``config`` (tuned with the printer's own ``print_mass`` on the bed)."""
     printer = resolve_printer(printer)
@@ -156,6 +171,8 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
                             "not depend on the print's mass (no schedule)", "--printer")
     if not 0.001 <= step <= 0.5:
         raise RingtuneError(f"band step must be within 0.1-50 %, not {step * 100:g} %", "--band-step")
+    if band_accel not in BAND_ACCEL:
+        raise RingtuneError(f"must be one of {', '.join(BAND_ACCEL)}, not {band_accel!r}", "band_accel")
     if config.shaper_y == "none":
         raise RingtuneError("Y is not shaped (shaper_y none): there is no frequency to schedule", "config: shaper_y")
     _, parsed = resolve_job(job)
@@ -175,7 +192,7 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
                          f"{lowest:g} Hz is set instead")
             freq = lowest
         freq = round(freq, 2)
-        accel = _smoothing_accel(config, printer, freq) if keep_smoothing else None
+        accel = _band_accel(config, printer, freq) if band_accel == "auto" else None
         grams = (printer.print_mass + mass) * 1e3
         cmds = band_commands(config.firmware, freq, grams, accel=accel, shaper=config.shaper_y,
                              damping=config.damping_y)
@@ -184,6 +201,10 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
     if fw.family == "prusa" and prusa_line:
         bands[0].commands.insert(0, prusa_line)
     notes.extend(_firmware_notes(config, printer, bands))
+    if any(b.accel for b in bands) and job_accel_commands(parsed):
+        notes.append("the job sets its own accelerations (M204 / SET_VELOCITY_LIMIT): a band's acceleration "
+                     "holds only until the job's next one; rewrite them (`ringtune rewrite`, `limit --accel`) "
+                     "or run `--band-accel keep`")
     return MassSchedule(config, bands, layers, diameter_mm, density_g_cm3, f_empty, step, notes)
 
 
@@ -238,8 +259,9 @@ def last_layer_ripple(schedule: MassSchedule, printer=None, job=None, backend: s
            "measured_against": "the commanded wall line, simulated on the exact model with the layer's "
                                "mass on the bed"}
     for (key, cfg), m in zip(runs.items(), metrics):
-        out[key] = {"freq_y": cfg.freq_y, "freq_x": cfg.freq_x, "ripple_mm": m.ripple_mm,
-                    "corner_out_mm": m.corner_out_mm}
+        out[key] = {"freq_y": cfg.freq_y, "freq_x": cfg.freq_x, "accel": cfg.accel, "ripple_mm": m.ripple_mm,
+                    "corner_in_mm": m.corner_in_mm, "corner_out_mm": m.corner_out_mm,
+                    "print_time_s": m.print_time_s}
     schedule.ripple = out
     return out
 
@@ -260,7 +282,7 @@ def scheduled_lines(schedule: MassSchedule, path: str | Path) -> list[str]:
 
 def schedule_job(config: TuneConfig, printer=None, job=None, *, diameter_mm: float = FILAMENT_DIAMETER_MM,
                  density_g_cm3: float = FILAMENT_DENSITY_G_CM3, step: float = BAND_STEP,
-                 keep_smoothing: bool = False, output: str | Path | None = None,
+                 band_accel: str = "auto", output: str | Path | None = None,
                  config_out: str | Path | None = None, backend: str = "mujoco") -> MassSchedule:
     """:func:`mass_schedule` with the last layer measured (:func:`last_layer_ripple`); writes the job
     with the bands' lines inserted to ``output`` and the config with its ``y_schedule`` to
@@ -268,7 +290,7 @@ def schedule_job(config: TuneConfig, printer=None, job=None, *, diameter_mm: flo
     if output is not None and not (isinstance(job, (str, Path)) and Path(job).is_file()):
         raise RingtuneError("writing the scheduled job needs the job as a G-code file", "--gcode")
     sched = mass_schedule(config, printer, job, diameter_mm=diameter_mm, density_g_cm3=density_g_cm3,
-                          step=step, keep_smoothing=keep_smoothing)
+                          step=step, band_accel=band_accel)
     last_layer_ripple(sched, printer, job, backend)
     if output is not None:
         Path(output).write_text("".join(scheduled_lines(sched, job)), newline="")
@@ -294,14 +316,17 @@ def schedule_summary(s: MassSchedule) -> str:
     lines.append(f"  inserted at each band's first layer: {' / '.join(s.bands[-1].commands)} (last band)")
     if s.ripple:
         r = s.ripple
-        fx, sc = r["fixed"], r["scheduled"]
-        ratio = fx["ripple_mm"] / sc["ripple_mm"] if sc["ripple_mm"] > 0 else float("inf")
         lines.append(f"last layer (z {r['z_mm']:.2f} mm, {r['mass_g']:.0f} g on the bed, Y mode {r['mode_hz']:.1f} Hz), "
-                     f"ripple (worst visible wall, peak-to-peak across it, against the commanded wall line on "
-                     f"the model): fixed {fx['freq_y']:g} Hz {fx['ripple_mm'] * 1e3:.1f} µm, scheduled "
-                     f"{sc['freq_y']:g} Hz {sc['ripple_mm'] * 1e3:.1f} µm ({ratio:.1f}× less)")
-        if "prusa_default_rule" in r:
-            lines.append(f"  Prusa's rule with its default A, M: {r['prusa_default_rule']['freq_y']:g} Hz, "
-                         f"ripple {r['prusa_default_rule']['ripple_mm'] * 1e3:.1f} µm")
+                     "simulated on the exact model; ripple = worst visible wall's peak-to-peak across it, corner "
+                     "in = rounding, out = overshoot, all against the commanded path:")
+        lines.append("                         freq_y Hz  accel  ripple µm  corner in µm  corner out µm  time s")
+        names = {"fixed": "fixed", "scheduled": "scheduled", "prusa_default_rule": "Prusa's default rule"}
+        for key, label in names.items():
+            if key in r:
+                v = r[key]
+                lines.append(f"  {label:<22} {v['freq_y']:9.2f}  {v['accel'] or 0:5.0f}  {v['ripple_mm'] * 1e3:9.1f}  "
+                             f"{v['corner_in_mm'] * 1e3:12.1f}  {v['corner_out_mm'] * 1e3:13.1f}  {v['print_time_s']:6.2f}")
+        fx, sc = r["fixed"]["ripple_mm"], r["scheduled"]["ripple_mm"]
+        lines.append(f"  the schedule's ripple is {fx / sc:.1f}× less than the fixed frequency's" if sc > 0 else "")
     lines.extend(f"note: {n}" for n in s.notes)
     return "\n".join(lines)
