@@ -47,9 +47,10 @@ class TuneConfig:
             printer's / the job's own).
         min_cruise_ratio: Klipper's ``minimum_cruise_ratio`` in [0, 1) (None = the printer's).
         y_schedule: a bed slinger's Y shaper frequency by printed height, ``[{"z_mm": mm,
-            "freq_y": Hz, "accel": mm/s² (optional)}, ...]`` in rising ``z_mm``: from the layer at
-            ``z_mm`` on, Y runs at ``freq_y`` (the print's mass lowers the bed's modes); None = one
-            frequency for the whole job. Written to JSON only when set.
+            "freq_y": Hz, "accel": mm/s², "mass_g": g}, ...]`` in rising ``z_mm`` (``accel`` and
+            ``mass_g``, the mass on the bed it was chosen for, optional): from the layer at ``z_mm``
+            on, Y runs at ``freq_y`` (the print's mass lowers the bed's modes); None = one frequency
+            for the whole job. Written to JSON only when set.
         extra: any other keys (provenance, metrics), carried through unchanged.
     """
 
@@ -223,11 +224,11 @@ def _finite(value: Any, where: str, lo: float, hi: float, unit: str = "") -> Non
 
 
 #: keys of one y_schedule entry: required, optional
-_SCHEDULE_KEYS = (("z_mm", "freq_y"), ("accel",))
+_SCHEDULE_KEYS = (("z_mm", "freq_y"), ("accel", "mass_g"))
 
 
 def _checked_schedule(entries: Any, where: str) -> list[dict[str, float]]:
-    """``y_schedule`` as a list of {z_mm, freq_y[, accel]} floats in strictly rising z_mm."""
+    """``y_schedule`` as a list of {z_mm, freq_y[, accel, mass_g]} floats in strictly rising z_mm."""
     if not isinstance(entries, list):
         raise RingtuneError("must be a list of {z_mm, freq_y[, accel]} objects", where)
     out, last = [], -math.inf
@@ -237,7 +238,7 @@ def _checked_schedule(entries: Any, where: str) -> list[dict[str, float]]:
             raise RingtuneError("must be an object {z_mm, freq_y[, accel]}", w)
         unknown = set(e) - set(_SCHEDULE_KEYS[0]) - set(_SCHEDULE_KEYS[1])
         if unknown:
-            raise RingtuneError(f"unknown key {sorted(unknown)[0]!r} (keys: z_mm, freq_y, accel)", w)
+            raise RingtuneError(f"unknown key {sorted(unknown)[0]!r} (keys: z_mm, freq_y, accel, mass_g)", w)
         for k in _SCHEDULE_KEYS[0]:
             if k not in e:
                 raise RingtuneError(f"{k} is missing", w)
@@ -250,6 +251,9 @@ def _checked_schedule(entries: Any, where: str) -> list[dict[str, float]]:
         if e.get("accel") is not None:
             _finite(e["accel"], f"{w}.accel", lo=1.0, hi=1e6, unit="mm/s²")
             d["accel"] = float(e["accel"])
+        if e.get("mass_g") is not None:
+            _finite(e["mass_g"], f"{w}.mass_g", lo=0.0, hi=1e6, unit="g")
+            d["mass_g"] = float(e["mass_g"])
         out.append(d)
     return out
 

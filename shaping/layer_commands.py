@@ -15,6 +15,7 @@ An acceleration, where the band has one, follows with the firmware's own command
 
 from __future__ import annotations
 
+from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
 
@@ -60,4 +61,39 @@ def band_commands(firmware: str, freq_y: float, grams: float, *, accel: float | 
         out = [f'M593 P"{native}" F{f} S{_num(damping, fw.damping.decimals)}']
     if accel:
         out.append(f"SET_VELOCITY_LIMIT ACCEL={accel:.0f}" if fw.family == "klipper" else f"M204 P{accel:.0f}")
+    return out
+
+
+def prusa_weight_line(freq_y: float, schedule: list[dict]) -> str | None:
+    """``M593 A<Hz> M<g>`` that puts Prusa's linear rule through (0 g, ``freq_y``) and the last
+    entry of ``schedule`` (its ``freq_y`` at its ``mass_g``); None when Y does not fall there (A
+    must be < 0) or the mass is under 1 g."""
+    last = schedule[-1]
+    delta, limit = last["freq_y"] - freq_y, last.get("mass_g", 0.0)
+    return f"M593 A{delta:.2f} M{limit:.0f}" if delta < 0 and limit >= 1 else None
+
+
+def schedule_inserts(layer_z: list[float], config: TuneConfig) -> dict[int, list[str]]:
+    """{layer index: lines} of ``config.y_schedule`` for a job whose layers (in order) start at the
+    heights ``layer_z`` (mm): each entry's lines at the first layer at or above its ``z_mm``, in
+    ``config.firmware``'s form (:func:`band_commands`; Prusa also :func:`prusa_weight_line` first)."""
+    sched = config.y_schedule or []
+    fam = FIRMWARES[config.firmware].family
+    out: dict[int, list[str]] = {}
+    for i, e in enumerate(sched):
+        layer = next((k for k, z in enumerate(layer_z) if z >= e["z_mm"] - 1e-6), None)
+        if layer is None:
+            raise RingtuneError(f"z_mm {e['z_mm']:g} is above the job's last layer ({max(layer_z):g} mm)",
+                                f"config: y_schedule[{i}].z_mm")
+        if fam == "prusa" and "mass_g" not in e:
+            raise RingtuneError("Prusa's M74 W needs the mass on the bed: mass_g is missing",
+                                f"config: y_schedule[{i}]")
+        out.setdefault(layer, []).extend(band_commands(config.firmware, e["freq_y"], e.get("mass_g", 0.0),
+                                                       accel=e.get("accel"), shaper=config.shaper_y,
+                                                       damping=config.damping_y))
+    if fam == "prusa" and sched:
+        line = prusa_weight_line(config.freq_y, sched)
+        if line:
+            first = min(out)
+            out[first].insert(0, line)
     return out

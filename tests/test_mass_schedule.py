@@ -229,8 +229,8 @@ def test_schedule_command_json(block, tmp_path, capsys):
     assert cli.main(["schedule", str(path), "--config", str(cfg), "--json", "--filament-density", "1.27"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["filament_density_g_cm3"] == 1.27 and d["filament_diameter_mm"] == 1.75
-    assert d["y_schedule"] == [{"z_mm": b["z_mm"], "freq_y": b["freq_y"], **({"accel": b["accel"]} if b["accel"] else {})}
-                               for b in d["bands"]]
+    assert d["y_schedule"] == [{"z_mm": b["z_mm"], "freq_y": b["freq_y"], **({"accel": b["accel"]} if b["accel"] else {}),
+                                "mass_g": round(b["mass_g"], 3)} for b in d["bands"]]   # the default printer: empty bed
     assert d["last_layer"]["fixed"]["ripple_mm"] > d["last_layer"]["scheduled"]["ripple_mm"]
 
 
@@ -245,3 +245,21 @@ def test_a_shaper_placed_off_the_mode_keeps_its_place_and_still_halves_the_rippl
     for b in s.bands:
         assert b.freq_y == pytest.approx(ratio * _ender3_y_mode(b.mass_kg), rel=2e-3)
     assert s.ripple["scheduled"]["ripple_mm"] <= 0.5 * s.ripple["fixed"]["ripple_mm"], s.ripple
+
+
+def test_the_config_alone_writes_the_same_job_for_every_firmware(block, tmp_path):
+    """``y_schedule`` is a real configuration: from the saved config and the job (no printer, no
+    physics) the rewriter's layer_inserts give exactly the lines ``schedule -o`` wrote."""
+    from ringtune.shaping.layer_commands import schedule_inserts
+    from ringtune.shaping.rewrite import rewrite_job
+
+    path, _ = block
+    layer_z = [la.z for la in job_layers(read_gcode(path))]
+    for fw, shaper in (("klipper", "mzv"), ("prusa", "mzv"), ("marlin-ftm", "zv"), ("rrf", "mzv")):
+        cfg = TuneConfig(firmware=fw, shaper_x=shaper, shaper_y=shaper, freq_x=38.9, freq_y=38.9, accel=3000)
+        out, cfg_out = tmp_path / f"{fw}.gcode", tmp_path / f"{fw}.json"
+        schedule_job(cfg, None, path, output=out, config_out=cfg_out, backend="lti")
+        back = TuneConfig.load(cfg_out)
+        inserts = {k: [f"{c} {TAG}" for c in v] for k, v in schedule_inserts(layer_z, back).items()}
+        again = rewrite_job(path.read_text().splitlines(keepends=True), fw, None, layer_inserts=inserts)
+        assert "".join(again) == out.read_text(), fw

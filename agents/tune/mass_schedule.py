@@ -32,7 +32,7 @@ from ringtune.shaping.analysis import max_accel, residual_vibration, smoothing
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
-from ringtune.shaping.layer_commands import PRUSA_WEIGHT_ADJUST, TAG, band_commands, prusa_weight_frequency
+from ringtune.shaping.layer_commands import PRUSA_WEIGHT_ADJUST, TAG, prusa_weight_frequency, schedule_inserts
 from ringtune.shaping.layers import FILAMENT_DENSITY_G_CM3, FILAMENT_DIAMETER_MM, Layer, job_layers, job_slice
 from ringtune.shaping.rewrite import rewrite_job
 from ringtune.shaping.shapers import get_shaper
@@ -96,15 +96,16 @@ class MassSchedule:
 
     def y_schedule(self) -> list[dict[str, float]]:
         """The TuneConfig ``y_schedule`` entries."""
-        return [{"z_mm": b.z_mm, "freq_y": b.freq_y, **({"accel": b.accel} if b.accel else {})}
-                for b in self.bands]
+        return [{"z_mm": b.z_mm, "freq_y": b.freq_y, **({"accel": b.accel} if b.accel else {}),
+                 "mass_g": round(b.grams, 3)} for b in self.bands]
 
     def scheduled_config(self) -> TuneConfig:
         return replace(self.config, y_schedule=self.y_schedule(), extra=dict(self.config.extra))
 
     def inserts(self) -> dict[int, list[str]]:
-        """{layer index: lines} where each band begins."""
-        return {b.first_layer: b.commands for b in self.bands}
+        """{layer index: lines} where each band begins (:func:`schedule_inserts` of the scheduled
+        config: what any tool reading its ``y_schedule`` writes)."""
+        return schedule_inserts([la.z for la in self.layers], self.scheduled_config())
 
     def to_dict(self) -> dict:
         return {"firmware": self.config.firmware, "filament_diameter_mm": self.diameter_mm,
@@ -193,19 +194,17 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
             freq = lowest
         freq = round(freq, 2)
         accel = _band_accel(config, printer, freq) if band_accel == "auto" else None
-        grams = (printer.print_mass + mass) * 1e3
-        cmds = band_commands(config.firmware, freq, grams, accel=accel, shaper=config.shaper_y,
-                             damping=config.damping_y)
-        bands.append(Band(a, b, layers[a].z, mass, mode, freq, accel, grams, cmds))
-    prusa_line = _prusa_line(config, bands)
-    if fw.family == "prusa" and prusa_line:
-        bands[0].commands.insert(0, prusa_line)
+        bands.append(Band(a, b, layers[a].z, mass, mode, freq, accel, (printer.print_mass + mass) * 1e3))
+    sched = MassSchedule(config, bands, layers, diameter_mm, density_g_cm3, f_empty, step, notes)
+    for k, cmds in sched.inserts().items():
+        next(b for b in bands if b.first_layer == k).commands = cmds
+    _prusa_rule(config, bands)
     notes.extend(_firmware_notes(config, printer, bands))
     if any(b.accel for b in bands) and job_accel_commands(parsed):
         notes.append("the job sets its own accelerations (M204 / SET_VELOCITY_LIMIT): a band's acceleration "
                      "holds only until the job's next one; rewrite them (`ringtune rewrite`, `limit --accel`) "
                      "or run `--band-accel keep`")
-    return MassSchedule(config, bands, layers, diameter_mm, density_g_cm3, f_empty, step, notes)
+    return sched
 
 
 def _firmware_notes(config: TuneConfig, printer: Printer, bands: list[Band]) -> list[str]:
@@ -227,15 +226,14 @@ def _firmware_notes(config: TuneConfig, printer: Printer, bands: list[Band]) -> 
     return []
 
 
-def _prusa_line(config: TuneConfig, bands: list[Band]) -> str | None:
-    """Sets each band's Prusa frequencies; returns ``M593 A<Hz> M<g>`` that puts Prusa's linear
-    rule through (0 g, freq_y) and the last band (None when Y does not fall: A must be < 0)."""
+def _prusa_rule(config: TuneConfig, bands: list[Band]) -> None:
+    """Each band's Prusa frequencies: by the rule with the schedule's ``M593 A M`` and with its
+    defaults."""
     last = bands[-1]
     delta, limit = last.freq_y - config.freq_y, last.grams
     for b in bands:
         b.prusa_default_hz = prusa_weight_frequency(config.freq_y, b.grams)
         b.prusa_hz = prusa_weight_frequency(config.freq_y, b.grams, delta, limit) if delta < 0 else config.freq_y
-    return f"M593 A{delta:.2f} M{limit:.0f}" if delta < 0 and limit >= 1 else None
 
 
 def last_layer_ripple(schedule: MassSchedule, printer=None, job=None, backend: str = "mujoco") -> dict:
