@@ -20,7 +20,7 @@ import pytest
 from scipy.linalg import eigh
 
 from ringtune.agents.cli import main as cli
-from ringtune.agents.tune.mass_schedule import mass_schedule, schedule_job
+from ringtune.agents.tune.mass_schedule import mass_schedule, schedule_job, scheduled_lines
 from ringtune.envs.bed_load import dominant_y_mode
 from ringtune.envs.printer import load_printer, printer_from_dict
 from ringtune.shaping.config import TuneConfig
@@ -125,7 +125,9 @@ def test_each_band_is_within_2_percent_of_the_y_mode_at_its_mass_and_ripple_halv
         for k in range(b.first_layer, b.last_layer + 1):     # and every layer of it
             assert b.freq_y == pytest.approx(_ender3_y_mode(during[k]), rel=0.02)
     r = s.ripple
-    assert r["mass_g"] == pytest.approx(during[-1] * 1e3, rel=1e-9)
+    last = s.bands[-1]
+    assert (r["first_layer"], r["last_layer"]) == (last.first_layer, last.last_layer)
+    assert r["mass_g"] == pytest.approx(0.5 * (during[last.first_layer] + during[-1]) * 1e3, rel=1e-9)
     assert r["scheduled"]["ripple_mm"] <= 0.5 * r["fixed"]["ripple_mm"], r
     assert r["fixed"]["ripple_mm"] > 0.005          # the fixed frequency really rings (> 5 µm)
     # the lowered acceleration keeps the corners as the tuned config rounds them (tune's resolution)
@@ -144,10 +146,10 @@ def test_the_schedule_goes_into_the_job_at_layer_changes_and_nothing_else_change
     added = [i for i in tagged if i + 1 not in tagged]          # the last line of each band's group
     assert len(tagged) == sum(len(b.commands) for b in s.bands) and len(added) == len(s.bands)
     for i, b in zip(added, s.bands):      # after the last extrusion below, before the Z change up
-        if b.first_layer == 0:
-            assert i == 5 and after[i + 1] == "G1 Z0.30 F600"          # before the first move (line 6)
-            continue
         first = i - len(b.commands) + 1
+        if b.first_layer == 0:
+            assert first == 5 and after[i + 1] == "G1 Z0.30 F600"      # before the first move (line 6)
+            continue
         assert "E" in after[first - 1] and "X" in after[first - 1] and "Y" in after[first - 1]
         assert after[i + 1] == "G1 E-0.8 F2400" and after[i + 3] == f"G1 Z{b.z_mm:.2f} F600"
     job = read_gcode(out)
@@ -231,7 +233,7 @@ def test_schedule_command_json(block, tmp_path, capsys):
     assert d["filament_density_g_cm3"] == 1.27 and d["filament_diameter_mm"] == 1.75
     assert d["y_schedule"] == [{"z_mm": b["z_mm"], "freq_y": b["freq_y"], **({"accel": b["accel"]} if b["accel"] else {}),
                                 "mass_g": round(b["mass_g"], 3)} for b in d["bands"]]   # the default printer: empty bed
-    assert d["last_layer"]["fixed"]["ripple_mm"] > d["last_layer"]["scheduled"]["ripple_mm"]
+    assert d["last_band"]["fixed"]["ripple_mm"] > d["last_band"]["scheduled"]["ripple_mm"]
 
 
 def test_a_shaper_placed_off_the_mode_keeps_its_place_and_still_halves_the_ripple(block):
@@ -247,19 +249,23 @@ def test_a_shaper_placed_off_the_mode_keeps_its_place_and_still_halves_the_rippl
     assert s.ripple["scheduled"]["ripple_mm"] <= 0.5 * s.ripple["fixed"]["ripple_mm"], s.ripple
 
 
-def test_the_config_alone_writes_the_same_job_for_every_firmware(block, tmp_path):
+def test_the_config_alone_writes_the_same_job_for_every_firmware(tmp_path):
     """``y_schedule`` is a real configuration: from the saved config and the job (no printer, no
     physics) the rewriter's layer_inserts give exactly the lines ``schedule -o`` wrote."""
     from ringtune.shaping.layer_commands import schedule_inserts
     from ringtune.shaping.rewrite import rewrite_job
 
-    path, _ = block
+    path = tmp_path / "small.gcode"            # 40 × 40 × 60 mm in 0.6 mm layers: 119 g, 3 bands
+    path.write_text(solid_block(size=40.0, height=60.0, layer=0.6)[0])
     layer_z = [la.z for la in job_layers(read_gcode(path))]
     for fw, shaper in (("klipper", "mzv"), ("prusa", "mzv"), ("marlin-ftm", "zv"), ("rrf", "mzv")):
         cfg = TuneConfig(firmware=fw, shaper_x=shaper, shaper_y=shaper, freq_x=38.9, freq_y=38.9, accel=3000)
-        out, cfg_out = tmp_path / f"{fw}.gcode", tmp_path / f"{fw}.json"
-        schedule_job(cfg, None, path, output=out, config_out=cfg_out, backend="lti")
+        cfg_out = tmp_path / f"{fw}.json"
+        s = mass_schedule(cfg, None, path)
+        written = "".join(scheduled_lines(s, path))            # what `schedule -o` writes
+        s.scheduled_config().save(cfg_out)                     # and --config-out
         back = TuneConfig.load(cfg_out)
         inserts = {k: [f"{c} {TAG}" for c in v] for k, v in schedule_inserts(layer_z, back).items()}
         again = rewrite_job(path.read_text().splitlines(keepends=True), fw, None, layer_inserts=inserts)
-        assert "".join(again) == out.read_text(), fw
+        assert "".join(again) == written, fw
+        assert any(b.accel for b in s.bands) and len(s.bands) >= 3

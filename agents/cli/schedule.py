@@ -3,8 +3,8 @@
 JSON keys (stable): ``firmware``, ``filament_diameter_mm``, ``filament_density_g_cm3``,
 ``print_mass_g``, ``layers``, ``empty_mode_hz``, ``tuned_freq_y``, ``band_step``, ``bands`` (each:
 ``first_layer``, ``last_layer``, ``z_mm``, ``mass_g``, ``mode_hz``, ``freq_y``, ``accel``,
-``prusa_rule_hz``, ``commands``), ``y_schedule``, ``last_layer`` (``layer``, ``z_mm``, ``mass_g``,
-``mode_hz``, ``fixed``, ``scheduled`` and on Prusa ``prusa_default_rule``: {``freq_y``,
+``prusa_rule_hz``, ``prusa_default_rule_hz``, ``commands``), ``y_schedule``, ``last_band``
+(``first_layer``, ``last_layer``, ``z_mm``, ``z_top_mm``, ``mass_g``, ``mode_hz``, ``fixed``, ``scheduled`` and on Prusa ``prusa_default_rule``: {``freq_y``,
 ``freq_x``, ``accel``, ``ripple_mm``, ``corner_in_mm``, ``corner_out_mm``, ``print_time_s``},
 ``measured_against``), ``notes``, ``output``, ``config_out``.
 """
@@ -22,8 +22,9 @@ On a bed slinger the print rides on the Y axis: as it grows, Y's modes fall as 1
 and a Y shaper tuned on the empty bed drifts off them. This reads the job's extruded filament
 (diameter and density stated, PLA by default), the mass on the bed at each layer, the printer
 model's Y mode at that mass, and moves the config's freq_y with the mode: a new band of layers
-wherever the mode has moved --band-step per cent. The job's last layer is simulated with its mass
-on the bed at the fixed and at the scheduled frequency (ripple against the commanded wall line).
+wherever the mode has moved --band-step per cent. The job's last band of layers is simulated with
+its mass on the bed at the fixed and at the scheduled frequency (ripple, corners and time, against
+the commanded path).
 
 -o writes the job with each band's line inserted at its first layer change, in the firmware's
 form: Klipper SET_INPUT_SHAPER SHAPER_FREQ_Y=, Marlin M593 Y F, FT_MOTION M493 Y A, Prusa M74 W<g>
@@ -33,8 +34,9 @@ form: Klipper SET_INPUT_SHAPER SHAPER_FREQ_Y=, Marlin M593 Y F, FT_MOTION M493 Y
 
 A lower shaper frequency smooths corners more at the same acceleration: where a band's shaper would
 round corners more than 5 % beyond the tuned one (Klipper's smoothing estimate), its acceleration
-is lowered until it does not (--band-accel auto, the default; keep: frequency only). The last-layer
-table shows what that costs in time and gives in corners.
+is lowered until it does not, and the last band's corners are simulated to check it (held lower
+until they round no more than the fixed frequency's) (--band-accel auto, the default; keep:
+frequency only). The last-band table shows what that costs in time and gives in corners.
 
 examples:
   ringtune schedule tall.gcode --config best.json -o tall_scheduled.gcode
@@ -62,8 +64,8 @@ def add_arguments(parser) -> None:
                         help=f"start a new band where the Y mode has moved this many per cent (default {BAND_STEP * 100:g})")
     parser.add_argument("--band-accel", choices=BAND_ACCEL, default="auto",
                         help="auto: lower a band's acceleration where its lower shaper frequency would round "
-                             "corners more than the tuned one (Klipper's smoothing, 5 %% tolerance); keep: never "
-                             "(default: auto)")
+                             "corners more than the tuned one (Klipper's smoothing estimate, checked on the "
+                             "simulated last band); keep: never (default: auto)")
     parser.add_argument("-o", "--output", metavar="OUT", help="write the job with the schedule's lines")
     parser.add_argument("--config-out", metavar="OUT.json", help="write the config with its y_schedule")
 

@@ -12,9 +12,9 @@ visible corners round off): with ``band_accel="auto"`` a band whose shaper would
 :func:`ringtune.shaping.analysis.smoothing`) gets the acceleration at which it smooths as the tuned
 one does; ``"keep"`` leaves the acceleration alone.
 
-What a fixed frequency costs is measured, not inferred: the job's last layer simulated on the model
-with its mass on the bed, once at the tuned frequency and once at the schedule's
-(:func:`last_layer_ripple`; ripple = the worst visible wall's peak-to-peak across the wall).
+What a fixed frequency costs is measured, not inferred: the job's last band of layers simulated on
+the model with its mass on the bed, once at the tuned frequency and once at the schedule's
+(:func:`last_band_ripple`; ripple = the worst visible wall's peak-to-peak across the wall).
 """
 
 from __future__ import annotations
@@ -45,6 +45,9 @@ BAND_STEP = 0.02
 SMOOTHING_TOLERANCE = DEFAULT_RESOLUTION.distance_rel
 #: how a band's acceleration is chosen
 BAND_ACCEL = ("auto", "keep")
+#: fractions of the tuned smoothing the bands are held to, tried on the last band (largest first):
+#: Klipper's estimate leaves out the nozzle's own lag on a softer bed, so the corners are measured
+SMOOTHING_TARGETS = (1.0, 0.94, 0.88, 0.82, 0.76, 0.7)
 
 
 @dataclass
@@ -113,7 +116,7 @@ class MassSchedule:
                 "layers": len(self.layers), "empty_mode_hz": self.empty_mode_hz,
                 "tuned_freq_y": self.config.freq_y, "band_step": self.step,
                 "bands": [b.to_dict() for b in self.bands], "y_schedule": self.y_schedule(),
-                "last_layer": self.ripple, "notes": list(self.notes)}
+                "last_band": self.ripple, "notes": list(self.notes)}
 
 
 def _band_ranges(modes: np.ndarray, step: float) -> list[tuple[int, int]]:
@@ -128,11 +131,11 @@ def _band_ranges(modes: np.ndarray, step: float) -> list[tuple[int, int]]:
     return out
 
 
-def _band_accel(config: TuneConfig, printer: Printer, freq_y: float) -> float | None:
-    """mm/s² at which Y's shaper at ``freq_y`` smooths as much as the tuned one at the tuned
-    acceleration (Klipper's smoothing estimate, rounded down to 10; on a firmware with one shaper,
-    as the smoother of the tuned X and Y), or None when at the tuned acceleration it smooths no more
-    than :data:`SMOOTHING_TOLERANCE` beyond it."""
+def _band_accel(config: TuneConfig, printer: Printer, freq_y: float, factor: float = 1.0) -> float | None:
+    """mm/s² at which Y's shaper at ``freq_y`` smooths ``factor`` × as much as the tuned one at the
+    tuned acceleration (Klipper's smoothing estimate, rounded down to 10; on a firmware with one
+    shaper, as the smoother of the tuned X and Y), or None when at the tuned acceleration it smooths
+    no more than :data:`SMOOTHING_TOLERANCE` beyond that."""
     accel = config.accel or printer.limits.accel
     scv = printer.limits.square_corner_velocity
     name, f0, z = config.axis("y")
@@ -141,6 +144,7 @@ def _band_accel(config: TuneConfig, printer: Printer, freq_y: float) -> float | 
     if FIRMWARES[config.firmware].one_shaper:      # the band's shaper is X's too: keep X's smoothing
         nx, fx, zx = config.axis("x")
         target = min(target, smoothing(get_shaper(nx, fx, zx, config.flavor), accel, scv))
+    target *= factor
     if smoothing(band, accel, scv) <= target * (1.0 + SMOOTHING_TOLERANCE):
         return None
     return float(min(accel, np.floor(max_accel(band, scv, target) / 10.0) * 10.0))
@@ -163,9 +167,11 @@ def _x_cost(config: TuneConfig, printer: Printer, freq: float) -> tuple[float, f
 
 def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: float = FILAMENT_DIAMETER_MM,
                   density_g_cm3: float = FILAMENT_DENSITY_G_CM3, step: float = BAND_STEP,
-                  band_accel: str = "auto") -> MassSchedule:
+                  band_accel: str = "auto", smoothing_factor: float = 1.0) -> MassSchedule:
     """The Y schedule of ``job`` (path, text, Job; None: the built-in print) on ``printer``,
-    starting from ``config`` (tuned with the printer's own ``print_mass`` on the bed)."""
+    starting from ``config`` (tuned with the printer's own ``print_mass`` on the bed);
+    ``smoothing_factor``: the bands' accelerations hold their smoothing to this fraction of the
+    tuned one (``band_accel="auto"``)."""
     printer = resolve_printer(printer)
     if not is_bed_slinger(printer):
         raise RingtuneError(f"a {printer.kinematics} printer's bed does not move with Y: its Y modes do "
@@ -193,7 +199,7 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
                          f"{lowest:g} Hz is set instead")
             freq = lowest
         freq = round(freq, 2)
-        accel = _band_accel(config, printer, freq) if band_accel == "auto" else None
+        accel = _band_accel(config, printer, freq, smoothing_factor) if band_accel == "auto" else None
         bands.append(Band(a, b, layers[a].z, mass, mode, freq, accel, (printer.print_mass + mass) * 1e3))
     sched = MassSchedule(config, bands, layers, diameter_mm, density_g_cm3, f_empty, step, notes)
     for k, cmds in sched.inserts().items():
@@ -236,15 +242,14 @@ def _prusa_rule(config: TuneConfig, bands: list[Band]) -> None:
         b.prusa_hz = prusa_weight_frequency(config.freq_y, b.grams, delta, limit) if delta < 0 else config.freq_y
 
 
-def last_layer_ripple(schedule: MassSchedule, printer=None, job=None, backend: str = "mujoco") -> dict:
-    """The job's last layer simulated with its mass on the bed: ripple (mm, worst visible wall) at
-    the tuned frequency and at the schedule's last band's (and its acceleration)."""
+def last_band_ripple(schedule: MassSchedule, printer=None, job=None, backend: str = "mujoco") -> dict:
+    """The job's last band of layers simulated with the band's mass on the bed (its middle's):
+    ripple (mm, worst visible wall), corners and time at the tuned frequency and at the band's
+    (with its acceleration); on Prusa also at what its own rule sets with its defaults."""
     printer = resolve_printer(printer)
-    _, parsed = resolve_job(job)
-    layer = schedule.layers[-1]
-    part = job_slice(parsed, layer.first_move, layer.last_move + 1)
-    heavy = loaded(printer, layer.mass_during)
     band = schedule.bands[-1]
+    first, last = schedule.layers[band.first_layer], schedule.layers[band.last_layer]
+    part, heavy = _last_band(schedule, printer, job)
     fixed = replace(schedule.config, y_schedule=None, extra={})
     fw = FIRMWARES[fixed.firmware]
     runs = {"fixed": fixed, "scheduled": _at(fixed, band.freq_y, band.accel, fw.one_shaper)}
@@ -252,16 +257,45 @@ def last_layer_ripple(schedule: MassSchedule, printer=None, job=None, backend: s
         runs["scheduled"] = _at(fixed, round(band.prusa_hz, 2), band.accel, False)
         runs["prusa_default_rule"] = _at(fixed, round(band.prusa_default_hz, 2), band.accel, False)
     metrics = evaluate_many(list(runs.values()), heavy, part, backend, job_accel="replace")
-    out = {"layer": layer.index, "z_mm": layer.z, "mass_g": layer.mass_during * 1e3,
-           "mode_hz": dominant_y_mode(printer, layer.mass_during).freq,
-           "measured_against": "the commanded wall line, simulated on the exact model with the layer's "
-                               "mass on the bed"}
+    out = {"first_layer": band.first_layer, "last_layer": band.last_layer, "z_mm": first.z, "z_top_mm": last.z,
+           "mass_g": band.mass_kg * 1e3, "mode_hz": band.mode_hz,
+           "measured_against": "the commanded path, simulated on the exact model with the band's mass on the bed"}
     for (key, cfg), m in zip(runs.items(), metrics):
         out[key] = {"freq_y": cfg.freq_y, "freq_x": cfg.freq_x, "accel": cfg.accel, "ripple_mm": m.ripple_mm,
                     "corner_in_mm": m.corner_in_mm, "corner_out_mm": m.corner_out_mm,
                     "print_time_s": m.print_time_s}
     schedule.ripple = out
     return out
+
+
+def _last_band(schedule: MassSchedule, printer: Printer, job):
+    """(the job's moves of the last band, the printer with the band's mass on the bed)."""
+    _, parsed = resolve_job(job)
+    band = schedule.bands[-1]
+    first, last = schedule.layers[band.first_layer], schedule.layers[band.last_layer]
+    return job_slice(parsed, first.first_move, last.last_move + 1), loaded(printer, band.mass_kg)
+
+
+def measured_smoothing_factor(schedule: MassSchedule, printer=None, job=None,
+                              backend: str = "mujoco") -> tuple[float, str | None]:
+    """The largest of :data:`SMOOTHING_TARGETS` at which the last band, simulated with its mass on
+    the bed, rounds and overshoots its visible corners no more than the tuned config does there
+    (tune's resolution); (its smallest, a note) when none does."""
+    printer = resolve_printer(printer)
+    part, heavy = _last_band(schedule, printer, job)
+    cfg, band = replace(schedule.config, y_schedule=None, extra={}), schedule.bands[-1]
+    one = FIRMWARES[cfg.firmware].one_shaper
+    cands = [_at(cfg, band.freq_y, _band_accel(cfg, printer, band.freq_y, c), one) for c in SMOOTHING_TARGETS]
+    fixed, *got = evaluate_many([cfg] + cands, heavy, part, backend, job_accel="replace")
+    res = DEFAULT_RESOLUTION
+    for c, m in zip(SMOOTHING_TARGETS, got):
+        if all(getattr(m, k) <= getattr(fixed, k) + res.tolerance(k, getattr(m, k), getattr(fixed, k))
+               for k in ("corner_in_mm", "corner_out_mm")):
+            return c, None
+    m = got[-1]
+    return SMOOTHING_TARGETS[-1], (f"even at {SMOOTHING_TARGETS[-1] * 100:g} % of the tuned smoothing the last band "
+                                   f"rounds corners by {m.corner_in_mm * 1e3:.1f} µm against the fixed frequency's "
+                                   f"{fixed.corner_in_mm * 1e3:.1f} µm")
 
 
 def _at(config: TuneConfig, freq_y: float, accel: float | None, one_shaper: bool) -> TuneConfig:
@@ -282,14 +316,21 @@ def schedule_job(config: TuneConfig, printer=None, job=None, *, diameter_mm: flo
                  density_g_cm3: float = FILAMENT_DENSITY_G_CM3, step: float = BAND_STEP,
                  band_accel: str = "auto", output: str | Path | None = None,
                  config_out: str | Path | None = None, backend: str = "mujoco") -> MassSchedule:
-    """:func:`mass_schedule` with the last layer measured (:func:`last_layer_ripple`); writes the job
+    """:func:`mass_schedule` with the last band measured (:func:`last_band_ripple`); writes the job
     with the bands' lines inserted to ``output`` and the config with its ``y_schedule`` to
     ``config_out`` when given (``job`` must then be a file)."""
     if output is not None and not (isinstance(job, (str, Path)) and Path(job).is_file()):
         raise RingtuneError("writing the scheduled job needs the job as a G-code file", "--gcode")
-    sched = mass_schedule(config, printer, job, diameter_mm=diameter_mm, density_g_cm3=density_g_cm3,
-                          step=step, band_accel=band_accel)
-    last_layer_ripple(sched, printer, job, backend)
+    kw = dict(diameter_mm=diameter_mm, density_g_cm3=density_g_cm3, step=step, band_accel=band_accel)
+    sched = mass_schedule(config, printer, job, **kw)
+    if band_accel == "auto" and any(b.accel for b in sched.bands):
+        factor, note = measured_smoothing_factor(sched, printer, job, backend)
+        if factor != 1.0:
+            sched = mass_schedule(config, printer, job, smoothing_factor=factor, **kw)
+            sched.notes.append(f"the bands hold Klipper's smoothing estimate to {factor * 100:g} % of the tuned "
+                               "one: there the last band's corners, simulated, are no worse than the fixed "
+                               "frequency's (tune's resolution)" if note is None else note)
+    last_band_ripple(sched, printer, job, backend)
     if output is not None:
         Path(output).write_text("".join(scheduled_lines(sched, job)), newline="")
     if config_out is not None:
@@ -298,7 +339,7 @@ def schedule_job(config: TuneConfig, printer=None, job=None, *, diameter_mm: flo
 
 
 def schedule_summary(s: MassSchedule) -> str:
-    """The schedule in words: filament, bands, the last layer fixed against scheduled, notes."""
+    """The schedule in words: filament, bands, the last band fixed against scheduled, notes."""
     prusa = FIRMWARES[s.config.firmware].family == "prusa"
     acc = any(b.accel for b in s.bands)
     lines = [f"print mass {s.total_kg * 1e3:.0f} g over {len(s.layers)} layers (filament {s.diameter_mm:g} mm, "
@@ -314,8 +355,8 @@ def schedule_summary(s: MassSchedule) -> str:
     lines.append(f"  inserted at each band's first layer: {' / '.join(s.bands[-1].commands)} (last band)")
     if s.ripple:
         r = s.ripple
-        lines.append(f"last layer (z {r['z_mm']:.2f} mm, {r['mass_g']:.0f} g on the bed, Y mode {r['mode_hz']:.1f} Hz), "
-                     "simulated on the exact model; ripple = worst visible wall's peak-to-peak across it, corner "
+        lines.append(f"last band (layers {r['first_layer']}-{r['last_layer']}, z {r['z_mm']:.2f}-{r['z_top_mm']:.2f} mm, "
+                     f"{r['mass_g']:.0f} g on the bed, Y mode {r['mode_hz']:.1f} Hz) simulated on the exact model; ripple = worst visible wall's peak-to-peak across it, corner "
                      "in = rounding, out = overshoot, all against the commanded path:")
         lines.append("                         freq_y Hz  accel  ripple µm  corner in µm  corner out µm  time s")
         names = {"fixed": "fixed", "scheduled": "scheduled", "prusa_default_rule": "Prusa's default rule"}
