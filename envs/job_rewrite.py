@@ -1,5 +1,6 @@
 """A sliced job rewritten for a tuned configuration (``ringtune rewrite``, ``tune --gcode`` →
-``job.gcode``): the frequency limit of ``ringtune limit`` (F words) and the per-feature
+``job.gcode``): the frequency limit of ``ringtune limit`` (F words; not where the firmware applies
+it itself: :func:`native_limit`) and the per-feature
 accelerations and corner rule (:mod:`ringtune.shaping.rewrite`), with the planned time before and
 after on the printer, planned as ``tune`` plans (the printer's limits with the configuration's
 acceleration sent to it, the job's own commands).
@@ -15,6 +16,7 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import plan_with_config
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import FeatureCommands
+from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.gcode import read_gcode, read_gcode_bytes
 from ringtune.shaping.gcode_post import limit_gcode_bytes
 from ringtune.shaping.rewrite import rewrite_job
@@ -50,7 +52,7 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     before = plan_with_config(original, limits, None).plan.print_time
     config_s = plan_with_config(original, limits, config).plan.print_time
     f_changed = 0
-    if config.freq_limit_hz > 0:
+    if config.freq_limit_hz > 0 and not native_limit(config):
         data, res = limit_gcode_bytes(data, float(config.freq_limit_hz), config.freq_limit_method,
                                       float(config.min_speed_factor), source=source)
         f_changed = res.lines_changed
@@ -73,6 +75,12 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
               + (f", minimum_cruise_ratio {fc.min_cruise_ratio:g}" if fc.min_cruise_ratio is not None else "")
               + f"); planned {before:.1f} s as sliced -> {after:.1f} s; nothing else differs from the input")
     return RewrittenJob(header.encode() + nl.encode() + new, before, after, config_s, inserted, f_changed, header, fc)
+
+
+def native_limit(config: TuneConfig) -> bool:
+    """Whether the firmware applies the configuration's frequency limit itself (Marlin's
+    XY_FREQUENCY_LIMIT, ``M201 F S``, sent by ``export``/``push``): then the job keeps its F words."""
+    return config.freq_limit_method == "marlin" and FIRMWARES[config.firmware].freq_limit
 
 
 def _accels(fc: FeatureCommands) -> str:

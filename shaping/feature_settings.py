@@ -130,3 +130,21 @@ def with_feature_settings(job: Job, fc: FeatureCommands) -> Job:
     base[:, cols] = np.where(vals == -1.0, np.nan, vals)
     return replace(job, settings=np.asarray(new_index).reshape(-1).astype(job.settings.dtype),
                    settings_table=base)
+
+
+def per_feature_text(config) -> str:
+    """What a configuration sets per feature, for one line of a report: ``" (inner_wall 11000,
+    infill 11000, travel 9100; corner 5; minimum_cruise_ratio 0.3)"`` ("" when nothing)."""
+    parts = []
+    if config.feature_accel:
+        groups: dict[float, list[str]] = {}
+        for cls, a in config.feature_accel.items():
+            if a != config.accel:
+                groups.setdefault(a, []).append(cls)
+        if groups:
+            parts.append(", ".join(f"{'/'.join(names)} {a:.0f}" for a, names in sorted(groups.items())))
+    if config.corner is not None:
+        parts.append(f"corner {config.corner:g}")
+    if config.min_cruise_ratio is not None:
+        parts.append(f"minimum_cruise_ratio {config.min_cruise_ratio:g}")
+    return f" ({'; '.join(parts)})" if parts else ""

@@ -51,7 +51,8 @@ class Job:
     ``feed`` requested speed (mm/s, M220 applied), ``feature`` index into ``features``,
     ``settings`` index into ``settings_table`` (rows of :data:`SETTING_KEYS`, NaN = unset),
     ``stop_before`` the firmware is at rest before this move, ``dwell_before`` s of dwell before it,
-    ``arc`` the move is a chord of a G2/G3 arc.
+    ``arc`` the move is a chord of a G2/G3 arc. ``limited``: the frequency limit the file's F
+    words already carry, from the header ``ringtune limit`` writes in its first lines (None: none).
     """
 
     line: np.ndarray
@@ -70,6 +71,7 @@ class Job:
     source: str = "<text>"
     n_lines: int = 0
     arc_tolerance: float = 0.01
+    limited: tuple | None = None      # (Hz, method, min speed factor) of a ``ringtune limit`` header
 
     @property
     def n_moves(self) -> int:
