@@ -4,9 +4,10 @@ JSON keys (stable): ``firmware``, ``filament_diameter_mm``, ``filament_density_g
 ``print_mass_g``, ``layers``, ``empty_mode_hz``, ``tuned_freq_y``, ``band_step``, ``bands`` (each:
 ``first_layer``, ``last_layer``, ``z_mm``, ``mass_g``, ``mode_hz``, ``freq_y``, ``accel``,
 ``prusa_rule_hz``, ``prusa_default_rule_hz``, ``commands``), ``y_schedule``, ``last_band``
-(``first_layer``, ``last_layer``, ``z_mm``, ``z_top_mm``, ``mass_g``, ``mode_hz``, ``fixed``, ``scheduled`` and on Prusa ``prusa_default_rule``: {``freq_y``,
-``freq_x``, ``accel``, ``ripple_mm``, ``corner_in_mm``, ``corner_out_mm``, ``print_time_s``},
-``measured_against``), ``notes``, ``output``, ``config_out``.
+(``first_layer``, ``last_layer``, ``z_mm``, ``z_top_mm``, ``mass_g``, ``mode_hz``, ``fixed``,
+``scheduled`` and on Prusa ``prusa_default_rule``: {``freq_y``, ``freq_x``, ``accel``,
+``ripple_mm``, ``corner_in_mm``, ``corner_out_mm``, ``print_time_s``}, ``measured_against``),
+``notes``, ``output``, ``config_out``.
 """
 
 from __future__ import annotations
@@ -56,12 +57,14 @@ def add_arguments(parser) -> None:
     parser.add_argument("--printer", metavar="P", help="printer TOML or embedded name (default: ender3)")
     parser.add_argument("--firmware", type=firmware_name, default=None,
                         help="write the lines for this firmware (default: the config's)")
-    parser.add_argument("--filament-diameter", metavar="MM", type=VALUES["filament_diameter"], default=FILAMENT_DIAMETER_MM,
-                        help=f"filament diameter, mm (default {FILAMENT_DIAMETER_MM})")
-    parser.add_argument("--filament-density", metavar="G_CM3", type=VALUES["filament_density"], default=FILAMENT_DENSITY_G_CM3,
+    parser.add_argument("--filament-diameter", metavar="MM", type=VALUES["filament_diameter"],
+                        default=FILAMENT_DIAMETER_MM, help=f"filament diameter, mm (default {FILAMENT_DIAMETER_MM})")
+    parser.add_argument("--filament-density", metavar="G_CM3", type=VALUES["filament_density"],
+                        default=FILAMENT_DENSITY_G_CM3,
                         help=f"filament density, g/cm³ (default {FILAMENT_DENSITY_G_CM3}, PLA)")
     parser.add_argument("--band-step", metavar="PCT", type=VALUES["margin_percent"], default=BAND_STEP * 100,
-                        help=f"start a new band where the Y mode has moved this many per cent (default {BAND_STEP * 100:g})")
+                        help="start a new band where the Y mode has moved this many per cent "
+                             f"(default {BAND_STEP * 100:g})")
     parser.add_argument("--band-accel", choices=BAND_ACCEL, default="auto",
                         help="auto: lower a band's acceleration where its lower shaper frequency would round "
                              "corners more than the tuned one (Klipper's smoothing estimate, checked on the "
