@@ -108,6 +108,23 @@ def test_one_mode_bed_falls_as_one_over_root_mass():
                                                               rel=1e-12)
 
 
+def test_the_simulated_model_has_those_modes():
+    """The MuJoCo model's own matrices (the slip model: rotors on their magnetic springs, springs
+    re-solved in series), eigen-solved with 0.4 kg on the bed, hold the Y modes the schedule uses
+    and those of the TOML eigen-solve; the rotor modes sit far above (> 200 Hz)."""
+    from ringtune.envs.bed_load import loaded, y_modes
+    from ringtune.envs.mujoco_model import linear_system
+
+    p = load_printer(None)
+    sysm = linear_system(loaded(p, 0.4))
+    w2, _ = eigh(sysm.K, np.diag(sysm.mass))
+    freqs = np.sqrt(w2) / (2 * np.pi)
+    for m in y_modes(p, 0.4):
+        assert np.min(np.abs(freqs - m.freq)) < 1e-6 * m.freq
+    assert dominant_y_mode(p, 0.4).freq == pytest.approx(_ender3_y_mode(0.4), rel=1e-9)
+    assert len(sysm.rotors) == 2 and freqs[-2:].min() > 200
+
+
 def test_each_band_is_within_2_percent_of_the_y_mode_at_its_mass_and_ripple_halves(block):
     """Acceptance: the default printer (Ender-3 class, a bed slinger), a 402 g solid block; the
     config aims Y at the empty bed's dominant mode, as Klipper's rule aims at the peak."""
