@@ -1,7 +1,7 @@
 """Schedules by printed mass on a bed slinger (issue 22 item 3).
 
-Independent truths: the filament mass of a generated solid block from its own E values (π d²/4 ×
-length × density); the Y modes with the print on the bed by a generalised eigen-solve of the
+Independent truths: the filament mass of a generated solid block (:mod:`ringtune.shaping.solid_block`)
+from the E values it wrote (π d²/4 × length × density); the Y modes with the print on the bed by a generalised eigen-solve of the
 default printer's TOML numbers (stiffness = modal mass × ω² of the empty bed, masses grown by the
 print), and √(k/m) for a one-mode bed; Prusa's weight rule from its firmware source (``M74.cpp``:
 lerp from F to F + A by W/M, held beyond M; defaults A = −20 Hz, M = 800 g); the ripple from the
@@ -28,41 +28,11 @@ from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.layer_commands import TAG, band_commands, prusa_weight_frequency
 from ringtune.shaping.layers import job_layers
+from ringtune.shaping.solid_block import solid_block
 
 ENDER3_TOML = Path(__file__).resolve().parent.parent / "envs" / "data" / "ender3.toml"
 AREA = math.pi * 1.75 ** 2 / 4          # mm² of 1.75 mm filament
 PLA = 1.24e-6                            # kg/mm³
-
-
-def solid_block(size=60.0, height=90.0, layer=0.3, width=0.45):
-    """(G-code, E per layer in mm) of a solid block: an outer wall and rectilinear solid infill,
-    relative E, with a retraction and a z-hop travel each layer (neither deposits material)."""
-    per_mm = width * layer / AREA
-    out, e_layers = ["G90", "M83", "G28", "G92 E0"], []
-    x0 = y0 = 50.0
-    for k in range(int(round(height / layer))):
-        z = (k + 1) * layer
-        e = 0.0
-        out += [";LAYER_CHANGE", f"G1 Z{z:.2f} F600", f"G0 X{x0:.3f} Y{y0:.3f} F6000", "G1 E0.8 F2400",
-                ";TYPE:External perimeter"]
-        for x, y in ((x0 + size, y0), (x0 + size, y0 + size), (x0, y0 + size), (x0, y0)):
-            out.append(f"G1 X{x:.3f} Y{y:.3f} E{size * per_mm:.5f} F3600")
-            e += round(size * per_mm, 5)
-        out += ["G1 E-0.8 F2400", f"G0 Z{z + 0.4:.2f}", f"G0 X{x0 + width:.3f} Y{y0 + width:.3f}",
-                f"G0 Z{z:.2f}", "G1 E0.8", ";TYPE:Solid infill"]
-        inner = size - 2 * width
-        for i in range(1, int(size / width) - 1):
-            c = i * width
-            a, b = ((x0 + width, y0 + c), (x0 + width + inner, y0 + c)) if k % 2 == 0 else \
-                ((x0 + c, y0 + width), (x0 + c, y0 + width + inner))
-            if i % 2:
-                a, b = b, a
-            out.append(f"G1 X{a[0]:.3f} Y{a[1]:.3f} F6000")
-            out.append(f"G1 X{b[0]:.3f} Y{b[1]:.3f} E{inner * per_mm:.5f}")
-            e += round(inner * per_mm, 5)
-        out.append("G1 E-0.8 F2400")
-        e_layers.append(e)
-    return "\n".join(out) + "\n", np.array(e_layers)
 
 
 @pytest.fixture(scope="module")
@@ -274,7 +244,7 @@ def test_the_config_alone_writes_the_same_job_for_every_firmware(tmp_path):
     from ringtune.shaping.rewrite import rewrite_job
 
     path = tmp_path / "small.gcode"            # 40 × 40 × 60 mm in 0.6 mm layers: 119 g, 3 bands
-    path.write_text(solid_block(size=40.0, height=60.0, layer=0.6)[0])
+    path.write_text(solid_block(size_mm=40.0, height_mm=60.0, layer_mm=0.6)[0])
     layer_z = [la.z for la in job_layers(read_gcode(path))]
     for fw, shaper in (("klipper", "mzv"), ("prusa", "mzv"), ("marlin-ftm", "zv"), ("rrf", "mzv")):
         cfg = TuneConfig(firmware=fw, shaper_x=shaper, shaper_y=shaper, freq_x=38.9, freq_y=38.9, accel=3000)
