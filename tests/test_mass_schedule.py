@@ -70,6 +70,31 @@ def test_layers_and_mass_from_the_job_match_the_generator(block):
     assert heavier[-1].mass == pytest.approx(layers[-1].mass * (2.85 / 1.75) ** 2 * 1.27 / 1.24, rel=1e-9)
 
 
+GCODE = Path(__file__).resolve().parent / "data" / "gcode"
+
+
+@pytest.mark.parametrize("name, density, slicer_mm, slicer_g", [
+    ("ianalexis_ender3_marlin/ringing_tower.gcode", 1.04, 5518.28, 13.80),   # PrusaSlicer 2.9 header
+    ("bassco_ender3/ringing_tower.gcode", 1.25, 6043.4, 18.17),              # Simplify3D 4.1 header
+])
+def test_print_mass_of_real_jobs_matches_their_slicers(name, density, slicer_mm, slicer_g):
+    """The slicer's own filament figures, printed in each file (the density its profile used)."""
+    layers = job_layers(read_gcode(GCODE / name), 1.75, density)
+    grams = (layers[-1].mass_before + layers[-1].mass) * 1e3
+    assert grams == pytest.approx(slicer_g, rel=0.005)
+    assert grams / (density * AREA * 1e-3) == pytest.approx(slicer_mm, rel=0.005)
+
+
+def test_a_light_job_needs_no_schedule_and_stays_as_it_was(tmp_path):
+    """The 18 g vase-mode tower moves the default printer's Y mode by under 1 %: no band, no line."""
+    src = GCODE / "bassco_ender3/ringing_tower.gcode"
+    out, cfg_out = tmp_path / "t.gcode", tmp_path / "t.json"
+    s = schedule_job(TuneConfig(freq_x=45.5, freq_y=38.9), None, src, output=out, config_out=cfg_out)
+    assert not s.needed and s.ripple is None and s.y_schedule() is None
+    assert 0 < 1 - s.final_mode_hz / s.empty_mode_hz < 0.02
+    assert out.read_bytes() == src.read_bytes() and TuneConfig.load(cfg_out).y_schedule is None
+
+
 def test_one_mode_bed_falls_as_one_over_root_mass():
     p = printer_from_dict({"kinematics": "cartesian", "x": {"mass": 0.5, "stiffness": 50000.0},
                            "y": {"mass": 1.0, "stiffness": 60000.0, "damping": 0.05}})

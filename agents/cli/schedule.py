@@ -1,7 +1,9 @@
 """``ringtune schedule``: a bed slinger's Y shaper frequency by layer, from the print's mass.
 
 JSON keys (stable): ``firmware``, ``filament_diameter_mm``, ``filament_density_g_cm3``,
-``print_mass_g``, ``layers``, ``empty_mode_hz``, ``tuned_freq_y``, ``band_step``, ``bands`` (each:
+``print_mass_g``, ``layers``, ``empty_mode_hz``, ``final_mode_hz``, ``scheduled`` (false: the mode
+moves less than the band step, nothing is inserted, ``y_schedule`` and ``last_band`` are null),
+``tuned_freq_y``, ``band_step``, ``bands`` (each:
 ``first_layer``, ``last_layer``, ``z_mm``, ``mass_g``, ``mode_hz``, ``freq_y``, ``accel``,
 ``prusa_rule_hz``, ``prusa_default_rule_hz``, ``commands``), ``y_schedule``, ``last_band``
 (``first_layer``, ``last_layer``, ``z_mm``, ``z_top_mm``, ``mass_g``, ``mode_hz``, ``fixed``,

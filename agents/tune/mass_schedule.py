@@ -89,16 +89,24 @@ class MassSchedule:
     density_g_cm3: float
     empty_mode_hz: float
     step: float
+    final_mode_hz: float
     notes: list[str] = field(default_factory=list)
     ripple: dict | None = None
+
+    @property
+    def needed(self) -> bool:
+        """Whether the mode moves more than the band step over the job (more than one band)."""
+        return len(self.bands) > 1
 
     @property
     def total_kg(self) -> float:
         last = self.layers[-1]
         return last.mass_before + last.mass
 
-    def y_schedule(self) -> list[dict[str, float]]:
-        """The TuneConfig ``y_schedule`` entries."""
+    def y_schedule(self) -> list[dict[str, float]] | None:
+        """The TuneConfig ``y_schedule`` entries (None: one band, the tuned frequency holds)."""
+        if not self.needed:
+            return None
         return [{"z_mm": b.z_mm, "freq_y": b.freq_y, **({"accel": b.accel} if b.accel else {}),
                  "mass_g": round(b.grams, 3)} for b in self.bands]
 
@@ -114,6 +122,7 @@ class MassSchedule:
         return {"firmware": self.config.firmware, "filament_diameter_mm": self.diameter_mm,
                 "filament_density_g_cm3": self.density_g_cm3, "print_mass_g": self.total_kg * 1e3,
                 "layers": len(self.layers), "empty_mode_hz": self.empty_mode_hz,
+                "final_mode_hz": self.final_mode_hz, "scheduled": self.needed,
                 "tuned_freq_y": self.config.freq_y, "band_step": self.step,
                 "bands": [b.to_dict() for b in self.bands], "y_schedule": self.y_schedule(),
                 "last_band": self.ripple, "notes": list(self.notes)}
@@ -201,7 +210,7 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
         freq = round(freq, 2)
         accel = _band_accel(config, printer, freq, smoothing_factor) if band_accel == "auto" else None
         bands.append(Band(a, b, layers[a].z, mass, mode, freq, accel, (printer.print_mass + mass) * 1e3))
-    sched = MassSchedule(config, bands, layers, diameter_mm, density_g_cm3, f_empty, step, notes)
+    sched = MassSchedule(config, bands, layers, diameter_mm, density_g_cm3, f_empty, step, float(modes[-1]), notes)
     for k, cmds in sched.inserts().items():
         next(b for b in bands if b.first_layer == k).commands = cmds
     _prusa_rule(config, bands)
@@ -323,14 +332,15 @@ def schedule_job(config: TuneConfig, printer=None, job=None, *, diameter_mm: flo
         raise RingtuneError("writing the scheduled job needs the job as a G-code file", "--gcode")
     kw = dict(diameter_mm=diameter_mm, density_g_cm3=density_g_cm3, step=step, band_accel=band_accel)
     sched = mass_schedule(config, printer, job, **kw)
-    if band_accel == "auto" and any(b.accel for b in sched.bands):
+    if sched.needed and band_accel == "auto" and any(b.accel for b in sched.bands):
         factor, note = measured_smoothing_factor(sched, printer, job, backend)
         if factor != 1.0:
             sched = mass_schedule(config, printer, job, smoothing_factor=factor, **kw)
             sched.notes.append(f"the bands hold Klipper's smoothing estimate to {factor * 100:g} % of the tuned "
                                "one: there the last band's corners, simulated, are no worse than the fixed "
                                "frequency's (tune's resolution)" if note is None else note)
-    last_band_ripple(sched, printer, job, backend)
+    if sched.needed:
+        last_band_ripple(sched, printer, job, backend)
     if output is not None:
         Path(output).write_text("".join(scheduled_lines(sched, job)), newline="")
     if config_out is not None:
@@ -342,8 +352,13 @@ def schedule_summary(s: MassSchedule) -> str:
     """The schedule in words: filament, bands, the last band fixed against scheduled, notes."""
     lines = [f"print mass {s.total_kg * 1e3:.0f} g over {len(s.layers)} layers (filament {s.diameter_mm:g} mm, "
              f"{s.density_g_cm3:g} g/cm³: --filament-diameter, --filament-density); Y's dominant mode "
-             f"{s.empty_mode_hz:.1f} Hz with the bed as described, tuned freq_y {s.config.freq_y:g} Hz",
-             *_band_table(s)]
+             f"{s.empty_mode_hz:.1f} Hz with the bed as described, {s.final_mode_hz:.1f} Hz on the last layer; "
+             f"tuned freq_y {s.config.freq_y:g} Hz"]
+    if not s.needed:
+        lines.append(f"the mode moves {(1 - s.final_mode_hz / s.empty_mode_hz) * 100:.1f} % over this job, less than "
+                     f"the band step ({s.step * 100:g} %): the tuned frequency holds, nothing is inserted")
+        return "\n".join(lines + [f"note: {n}" for n in s.notes])
+    lines.extend(_band_table(s))
     if s.ripple:
         lines.extend(_last_band_table(s.ripple))
     lines.extend(f"note: {n}" for n in s.notes)
@@ -377,5 +392,5 @@ def _last_band_table(r: dict) -> list[str]:
                          f"{v['corner_in_mm'] * 1e3:12.1f}  {v['corner_out_mm'] * 1e3:13.1f}  {v['print_time_s']:7.1f}")
     fx, sc = r["fixed"]["ripple_mm"], r["scheduled"]["ripple_mm"]
     if sc > 0:
-        lines.append(f"  the schedule's ripple is {fx / sc:.1f}× less than the fixed frequency's")
+        lines.append(f"  ripple fixed / scheduled: {fx / sc:.2f}")
     return lines
