@@ -1,11 +1,13 @@
 """Schedules by printed mass on a bed slinger (issue 22 item 3).
 
-Independent truths: the filament mass of a generated solid block (:mod:`ringtune.shaping.solid_block`)
-from the E values it wrote (π d²/4 × length × density); the Y modes with the print on the bed by a generalised eigen-solve of the
-default printer's TOML numbers (stiffness = modal mass × ω² of the empty bed, masses grown by the
-print), and √(k/m) for a one-mode bed; Prusa's weight rule from its firmware source (``M74.cpp``:
-lerp from F to F + A by W/M, held beyond M; defaults A = −20 Hz, M = 800 g); the ripple from the
-MuJoCo model with the last layer's mass on the bed.
+Independent truths: the filament mass of a generated solid block
+(:mod:`ringtune.shaping.solid_block`) from the E values it wrote (π d²/4 × length × density), and
+of two real sliced jobs from their slicers' own header figures; the Y modes with the print on the
+bed by a generalised eigen-solve of the default printer's TOML numbers (stiffness = modal mass × ω²
+of the empty bed, masses grown by the print), of the MuJoCo model's own matrices, and √(k/m) for a
+one-mode bed; Prusa's weight rule from its firmware source (``M74.cpp``: lerp from F to F + A by
+W/M, held beyond M; defaults A = −20 Hz, M = 800 g); the ripple and corners from the MuJoCo model
+with the last band's mass on the bed.
 """
 
 from __future__ import annotations
@@ -202,6 +204,10 @@ def test_prusa_marlin_and_rrf_say_what_their_firmware_does(block):
                            None, path)
     assert all(b.freq_y == 40.0 for b in marlin.bands)        # a stock build's SHAPING_MIN_FREQ
     assert any("below" in n for n in marlin.notes)
+    built = mass_schedule(TuneConfig(firmware="marlin", shaper_x="zv", shaper_y="zv", freq_x=45.5, freq_y=38.9),
+                          None, path, min_freq=20.0)              # a build with SHAPING_MIN_FREQ 20
+    assert [b.freq_y for b in built.bands] == pytest.approx([b.mode_hz for b in built.bands], abs=0.006)
+    assert built.bands[-1].commands[0] == f"M593 Y F{built.bands[-1].freq_y:g}"
     rrf = mass_schedule(TuneConfig(firmware="rrf", freq_x=38.9, freq_y=38.9), None, path)
     note = next(n for n in rrf.notes if "one shaper" in n)
     before, after = (float(v) for v in note.split("from ")[1].split(" % on")[0].split(" % to "))

@@ -71,6 +71,9 @@ def add_arguments(parser) -> None:
                         help="auto: lower a band's acceleration where its lower shaper frequency would round "
                              "corners more than the tuned one (Klipper's smoothing estimate, checked on the "
                              "simulated last band); keep: never (default: auto)")
+    parser.add_argument("--shaping-min-freq", metavar="HZ", type=VALUES["freq"], default=None,
+                        help="your build's lowest shaper frequency (Marlin's SHAPING_MIN_FREQ; default: a "
+                             "stock build's, 40 Hz on Marlin); a band below it runs at it")
     parser.add_argument("-o", "--output", metavar="OUT", help="write the job with the schedule's lines")
     parser.add_argument("--config-out", metavar="OUT.json", help="write the config with its y_schedule")
 
@@ -84,7 +87,8 @@ def run(args, out) -> int:
         cfg.validate()
     s = schedule_job(cfg, args.printer, args.gcode, diameter_mm=args.filament_diameter,
                      density_g_cm3=args.filament_density, step=args.band_step / 100.0,
-                     band_accel=args.band_accel, output=args.output, config_out=args.config_out)
+                     band_accel=args.band_accel, min_freq=args.shaping_min_freq, output=args.output,
+                     config_out=args.config_out)
     result = {**s.to_dict(), "output": args.output, "config_out": args.config_out}
     text = schedule_summary(s)
     for path, what in ((args.output, "job"), (args.config_out, "config")):

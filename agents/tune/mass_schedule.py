@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION
+from ringtune.agents.tune.space import freq_floor
 from ringtune.envs.bed_load import dominant_y_mode, is_bed_slinger, loaded
 from ringtune.envs.evaluate import evaluate_many, job_accel_commands, resolve_job, resolve_printer
 from ringtune.envs.printer_model import Printer
@@ -176,11 +177,13 @@ def _x_cost(config: TuneConfig, printer: Printer, freq: float) -> tuple[float, f
 
 def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: float = FILAMENT_DIAMETER_MM,
                   density_g_cm3: float = FILAMENT_DENSITY_G_CM3, step: float = BAND_STEP,
-                  band_accel: str = "auto", smoothing_factor: float = 1.0) -> MassSchedule:
+                  band_accel: str = "auto", smoothing_factor: float = 1.0,
+                  min_freq: float | None = None) -> MassSchedule:
     """The Y schedule of ``job`` (path, text, Job; None: the built-in print) on ``printer``,
     starting from ``config`` (tuned with the printer's own ``print_mass`` on the bed);
     ``smoothing_factor``: the bands' accelerations hold their smoothing to this fraction of the
-    tuned one (``band_accel="auto"``)."""
+    tuned one (``band_accel="auto"``); ``min_freq``: the build's lowest shaper frequency, Hz (None:
+    the firmware's stock build, :func:`ringtune.agents.tune.space.freq_floor`)."""
     printer = resolve_printer(printer)
     if not is_bed_slinger(printer):
         raise RingtuneError(f"a {printer.kinematics} printer's bed does not move with Y: its Y modes do "
@@ -196,20 +199,23 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
     f_empty = dominant_y_mode(printer).freq
     modes = np.array([dominant_y_mode(printer, la.mass_during).freq for la in layers])
     fw = FIRMWARES[config.firmware]
-    lowest = max(fw.freq.lo, fw.build_min_freq)
+    lowest = freq_floor(config.firmware, min_freq)
     notes: list[str] = []
-    bands = []
+    bands, clamped = [], []
     for a, b in _band_ranges(modes, step):
         mass = 0.5 * (layers[a].mass_during + layers[b].mass_during)
         mode = dominant_y_mode(printer, mass).freq
         freq = config.freq_y * mode / f_empty
         if freq < lowest:
-            notes.append(f"band from layer {a}: {freq:.2f} Hz is below {fw.title}'s {lowest:g} Hz; "
-                         f"{lowest:g} Hz is set instead")
+            clamped.append(a)
             freq = lowest
         freq = round(freq, 2)
         accel = _band_accel(config, printer, freq, smoothing_factor) if band_accel == "auto" else None
         bands.append(Band(a, b, layers[a].z, mass, mode, freq, accel, (printer.print_mass + mass) * 1e3))
+    if clamped:
+        notes.append(f"{len(clamped)} band(s) (from layer {clamped[0]}) fall below {fw.title}'s {lowest:g} Hz"
+                     + (" (a stock build's SHAPING_MIN_FREQ; yours: --shaping-min-freq)"
+                        if min_freq is None and fw.build_min_freq else "") + f" and run at {lowest:g} Hz")
     sched = MassSchedule(config, bands, layers, diameter_mm, density_g_cm3, f_empty, step, float(modes[-1]), notes)
     for k, cmds in sched.inserts().items():
         next(b for b in bands if b.first_layer == k).commands = cmds
@@ -323,14 +329,15 @@ def scheduled_lines(schedule: MassSchedule, path: str | Path) -> list[str]:
 
 def schedule_job(config: TuneConfig, printer=None, job=None, *, diameter_mm: float = FILAMENT_DIAMETER_MM,
                  density_g_cm3: float = FILAMENT_DENSITY_G_CM3, step: float = BAND_STEP,
-                 band_accel: str = "auto", output: str | Path | None = None,
+                 band_accel: str = "auto", min_freq: float | None = None, output: str | Path | None = None,
                  config_out: str | Path | None = None, backend: str = "mujoco") -> MassSchedule:
     """:func:`mass_schedule` with the last band measured (:func:`last_band_ripple`); writes the job
     with the bands' lines inserted to ``output`` and the config with its ``y_schedule`` to
     ``config_out`` when given (``job`` must then be a file)."""
     if output is not None and not (isinstance(job, (str, Path)) and Path(job).is_file()):
         raise RingtuneError("writing the scheduled job needs the job as a G-code file", "--gcode")
-    kw = dict(diameter_mm=diameter_mm, density_g_cm3=density_g_cm3, step=step, band_accel=band_accel)
+    kw = dict(diameter_mm=diameter_mm, density_g_cm3=density_g_cm3, step=step, band_accel=band_accel,
+              min_freq=min_freq)
     sched = mass_schedule(config, printer, job, **kw)
     if sched.needed and band_accel == "auto" and any(b.accel for b in sched.bands):
         factor, note = measured_smoothing_factor(sched, printer, job, backend)
