@@ -223,6 +223,8 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
     for k, cmds in sched.inserts().items():
         next(b for b in bands if b.first_layer == k).commands = cmds
     _prusa_rule(config, bands)
+    if not sched.needed:
+        return sched
     notes.extend(_firmware_notes(config, printer, bands))
     if any(b.accel for b in bands) and job_accel_commands(parsed):
         notes.append("the job sets its own accelerations (M204 / SET_VELOCITY_LIMIT): a band's acceleration "
