@@ -22,7 +22,7 @@ import pytest
 from scipy.linalg import eigh
 
 from ringtune.agents.cli import main as cli
-from ringtune.agents.tune.mass_schedule import mass_schedule, schedule_job, scheduled_lines
+from ringtune.agents.tune.mass_schedule import filament, mass_schedule, schedule_job, scheduled_lines
 from ringtune.envs.bed_load import dominant_y_mode
 from ringtune.envs.printer import load_printer, printer_from_dict
 from ringtune.shaping.config import TuneConfig
@@ -80,11 +80,17 @@ GCODE = Path(__file__).resolve().parent / "data" / "gcode"
     ("bassco_ender3/ringing_tower.gcode", 1.25, 6043.4, 18.17),              # Simplify3D 4.1 header
 ])
 def test_print_mass_of_real_jobs_matches_their_slicers(name, density, slicer_mm, slicer_g):
-    """The slicer's own filament figures, printed in each file (the density its profile used)."""
+    """The slicer's own filament figures, printed in each file; the schedule reads the filament
+    the slicer sliced for from the file itself (its density differs from PLA's default here)."""
     layers = job_layers(read_gcode(GCODE / name), 1.75, density)
     grams = (layers[-1].mass_before + layers[-1].mass) * 1e3
     assert grams == pytest.approx(slicer_g, rel=0.005)
     assert grams / (density * AREA * 1e-3) == pytest.approx(slicer_mm, rel=0.005)
+    assert filament(GCODE / name) == (1.75, density, {"diameter_mm": "the job's", "density_g_cm3": "the job's"})
+    s = mass_schedule(TuneConfig(freq_y=38.9), None, GCODE / name)
+    assert s.total_kg * 1e3 == pytest.approx(grams, rel=1e-9)
+    assert filament(GCODE / name, density_g_cm3=1.24)[1:] == (1.24, {"diameter_mm": "the job's",
+                                                                      "density_g_cm3": "given"})
 
 
 def test_a_light_job_needs_no_schedule_and_stays_as_it_was(tmp_path):
@@ -249,6 +255,7 @@ def test_schedule_command_json(block, tmp_path, capsys):
     assert cli.main(["schedule", str(path), "--config", str(cfg), "--json", "--filament-density", "1.27"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["filament_density_g_cm3"] == 1.27 and d["filament_diameter_mm"] == 1.75
+    assert d["filament_source"] == {"diameter_mm": "default", "density_g_cm3": "given"}
     want = [{"z_mm": b["z_mm"], "freq_y": b["freq_y"], **({"accel": b["accel"]} if b["accel"] else {}),
              "mass_g": round(b["mass_g"], 3)} for b in d["bands"]]      # the default printer's bed is empty
     assert d["y_schedule"] == want

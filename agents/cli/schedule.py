@@ -1,6 +1,7 @@
 """``ringtune schedule``: a bed slinger's Y shaper frequency by layer, from the print's mass.
 
 JSON keys (stable): ``firmware``, ``filament_diameter_mm``, ``filament_density_g_cm3``,
+``filament_source`` ({``diameter_mm``, ``density_g_cm3``}: ``given``, ``the job's`` or ``default``),
 ``print_mass_g``, ``layers``, ``empty_mode_hz``, ``final_mode_hz``, ``scheduled`` (false: the mode
 moves less than the band step, nothing is inserted, ``y_schedule`` and ``last_band`` are null),
 ``tuned_freq_y``, ``band_step``, ``bands`` (each:
@@ -47,7 +48,8 @@ examples:
   ringtune schedule tall.gcode --config best.json --firmware prusa --filament-density 1.27 --json
   ringtune schedule tall.gcode --config best.json --band-accel keep --config-out best_scheduled.json
 
-defaults: filament {FILAMENT_DIAMETER_MM} mm, {FILAMENT_DENSITY_G_CM3} g/cm³ (PLA); band step {BAND_STEP * 100:g} %.
+defaults: the filament the job's slicer wrote in it (PrusaSlicer, SuperSlicer, OrcaSlicer, Simplify3D),
+else {FILAMENT_DIAMETER_MM} mm of PLA at {FILAMENT_DENSITY_G_CM3} g/cm³; band step {BAND_STEP * 100:g} %.
 """
 
 PARAMETER_FLAGS = {"diameter_mm": "--filament-diameter", "density_g_cm3": "--filament-density",
@@ -60,11 +62,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("--printer", metavar="P", help="printer TOML or embedded name (default: ender3)")
     parser.add_argument("--firmware", type=firmware_name, default=None,
                         help="write the lines for this firmware (default: the config's)")
-    parser.add_argument("--filament-diameter", metavar="MM", type=VALUES["filament_diameter"],
-                        default=FILAMENT_DIAMETER_MM, help=f"filament diameter, mm (default {FILAMENT_DIAMETER_MM})")
-    parser.add_argument("--filament-density", metavar="G_CM3", type=VALUES["filament_density"],
-                        default=FILAMENT_DENSITY_G_CM3,
-                        help=f"filament density, g/cm³ (default {FILAMENT_DENSITY_G_CM3}, PLA)")
+    parser.add_argument("--filament-diameter", metavar="MM", type=VALUES["filament_diameter"], default=None,
+                        help=f"filament diameter, mm (default: what the job's slicer wrote in it, else "
+                             f"{FILAMENT_DIAMETER_MM})")
+    parser.add_argument("--filament-density", metavar="G_CM3", type=VALUES["filament_density"], default=None,
+                        help=f"filament density, g/cm³ (default: what the job's slicer wrote in it, else "
+                             f"{FILAMENT_DENSITY_G_CM3}, PLA)")
     parser.add_argument("--band-step", metavar="PCT", type=VALUES["margin_percent"], default=BAND_STEP * 100,
                         help="start a new band where the Y mode has moved this many per cent "
                              f"(default {BAND_STEP * 100:g})")

@@ -9,8 +9,10 @@ from ringtune.shaping.firmware import FIRMWARES
 
 def schedule_summary(s: MassSchedule) -> str:
     """The schedule in words: filament, bands, the last band fixed against scheduled, notes."""
-    lines = [f"print mass {s.total_kg * 1e3:.0f} g over {len(s.layers)} layers (filament {s.diameter_mm:g} mm, "
-             f"{s.density_g_cm3:g} g/cm³: --filament-diameter, --filament-density); Y's dominant mode "
+    src = s.filament_source
+    lines = [f"print mass {s.total_kg * 1e3:.0f} g over {len(s.layers)} layers (filament {s.diameter_mm:g} mm "
+             f"({src['diameter_mm']}), {s.density_g_cm3:g} g/cm³ ({src['density_g_cm3']}); --filament-diameter, "
+             "--filament-density); Y's dominant mode "
              f"{s.empty_mode_hz:.1f} Hz with the bed as described, {s.final_mode_hz:.1f} Hz on the last layer; "
              f"tuned freq_y {s.config.freq_y:g} Hz"]
     if not s.needed:

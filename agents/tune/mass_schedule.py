@@ -39,6 +39,7 @@ from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.layer_commands import PRUSA_WEIGHT_ADJUST, TAG, prusa_weight_frequency, schedule_inserts
 from ringtune.shaping.layers import FILAMENT_DENSITY_G_CM3, FILAMENT_DIAMETER_MM, Layer, job_layers, job_slice
 from ringtune.shaping.rewrite import rewrite_job
+from ringtune.shaping.slicer import slicer_filament
 from ringtune.shaping.shapers import get_shaper
 from ringtune.shaping.textfile import read_text_file
 
@@ -91,6 +92,8 @@ class MassSchedule:
     layers: list[Layer]
     diameter_mm: float
     density_g_cm3: float
+    #: where each filament figure came from: "given", "the job's" (its slicer's header) or "default"
+    filament_source: dict[str, str]
     empty_mode_hz: float
     step: float
     final_mode_hz: float
@@ -124,7 +127,8 @@ class MassSchedule:
 
     def to_dict(self) -> dict:
         return {"firmware": self.config.firmware, "filament_diameter_mm": self.diameter_mm,
-                "filament_density_g_cm3": self.density_g_cm3, "print_mass_g": self.total_kg * 1e3,
+                "filament_density_g_cm3": self.density_g_cm3, "filament_source": dict(self.filament_source),
+                "print_mass_g": self.total_kg * 1e3,
                 "layers": len(self.layers), "empty_mode_hz": self.empty_mode_hz,
                 "final_mode_hz": self.final_mode_hz, "scheduled": self.needed,
                 "tuned_freq_y": self.config.freq_y, "band_step": self.step,
@@ -178,12 +182,28 @@ def _x_cost(config: TuneConfig, printer: Printer, freq: float) -> tuple[float, f
     return rv(fx), rv(freq)
 
 
-def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: float = FILAMENT_DIAMETER_MM,
-                  density_g_cm3: float = FILAMENT_DENSITY_G_CM3, step: float = BAND_STEP,
+def filament(job, diameter_mm: float | None = None, density_g_cm3: float | None = None
+             ) -> tuple[float, float, dict[str, str]]:
+    """(diameter mm, density g/cm³, where each came from): as given, else what the job's slicer wrote
+    into it (:func:`ringtune.shaping.slicer.slicer_filament`), else 1.75 mm of PLA."""
+    own = slicer_filament(job) if isinstance(job, (str, Path)) and "\n" not in str(job) else {}
+    out, source = [], {}
+    for key, given, default in (("diameter_mm", diameter_mm, FILAMENT_DIAMETER_MM),
+                                ("density_g_cm3", density_g_cm3, FILAMENT_DENSITY_G_CM3)):
+        v, where = ((given, "given") if given is not None else (own[key], "the job's") if key in own
+                    else (default, "default"))
+        out.append(float(v))
+        source[key] = where
+    return out[0], out[1], source
+
+
+def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: float | None = None,
+                  density_g_cm3: float | None = None, step: float = BAND_STEP,
                   band_accel: str = "auto", smoothing_factor: float = 1.0,
                   min_freq: float | None = None) -> MassSchedule:
     """The Y schedule of ``job`` (path, text, Job; None: the built-in print) on ``printer``,
-    starting from ``config`` (tuned with the printer's own ``print_mass`` on the bed);
+    starting from ``config`` (tuned with the printer's own ``print_mass`` on the bed); the filament
+    as given, else the job's own, else PLA (:func:`filament`);
     ``smoothing_factor``: the bands' accelerations hold their smoothing to this fraction of the
     tuned one (``band_accel="auto"``); ``min_freq``: the build's lowest shaper frequency, Hz (None:
     the firmware's stock build, :func:`ringtune.agents.tune.space.freq_floor`)."""
@@ -198,6 +218,7 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
     if config.shaper_y == "none":
         raise RingtuneError("Y is not shaped (shaper_y none): there is no frequency to schedule", "config: shaper_y")
     _, parsed = resolve_job(job)
+    diameter_mm, density_g_cm3, source = filament(job, diameter_mm, density_g_cm3)
     layers = job_layers(parsed, diameter_mm, density_g_cm3)
     f_empty = dominant_y_mode(printer).freq
     modes = np.array([dominant_y_mode(printer, la.mass_during).freq for la in layers])
@@ -219,7 +240,8 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
         notes.append(f"{len(clamped)} band(s) (from layer {clamped[0]}) fall below {fw.title}'s {lowest:g} Hz"
                      + (" (a stock build's SHAPING_MIN_FREQ; yours: --shaping-min-freq)"
                         if min_freq is None and fw.build_min_freq else "") + f" and run at {lowest:g} Hz")
-    sched = MassSchedule(config, bands, layers, diameter_mm, density_g_cm3, f_empty, step, float(modes[-1]), notes)
+    sched = MassSchedule(config, bands, layers, diameter_mm, density_g_cm3, source, f_empty, step, float(modes[-1]),
+                         notes)
     for k, cmds in sched.inserts().items():
         next(b for b in bands if b.first_layer == k).commands = cmds
     _prusa_rule(config, bands)
@@ -332,8 +354,8 @@ def scheduled_lines(schedule: MassSchedule, path: str | Path) -> list[str]:
     return rewrite_job(text.splitlines(keepends=True), schedule.config.firmware, None, layer_inserts=inserts)
 
 
-def schedule_job(config: TuneConfig, printer=None, job=None, *, diameter_mm: float = FILAMENT_DIAMETER_MM,
-                 density_g_cm3: float = FILAMENT_DENSITY_G_CM3, step: float = BAND_STEP,
+def schedule_job(config: TuneConfig, printer=None, job=None, *, diameter_mm: float | None = None,
+                 density_g_cm3: float | None = None, step: float = BAND_STEP,
                  band_accel: str = "auto", min_freq: float | None = None, output: str | Path | None = None,
                  config_out: str | Path | None = None, backend: str = "mujoco") -> MassSchedule:
     """:func:`mass_schedule` with the last band measured (:func:`last_band_ripple`); writes the job
