@@ -31,15 +31,11 @@ HOLES = (((15.0, 10.0), 5.0), ((45.0, 10.0), 3.0))   # centre, radius mm
 SHELF = (10.0, 40.0, 8.0)   # X from, X to, depth behind the back wall (mm)
 
 
-def _arc(cx, cy, r, a0, a1, n):
-    a = np.linspace(a0, a1, n + 1)
-    return np.column_stack([cx + r * np.cos(a), cy + r * np.sin(a)])
-
-
 STEP = 2.0                 # mm between outline points on straight edges (the holes' facets follow)
 
 
 def _arc(cx, cy, r, a0, a1, n):
+    """n + 1 points on the arc of radius r (mm) about (cx, cy) from angle a0 to a1 (rad)."""
     a = np.linspace(a0, a1, n + 1)
     return np.column_stack([cx + r * np.cos(a), cy + r * np.sin(a)])
 
