@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from prusaslicer import BASE, PART, STL, prusaslicer, slice_part
 
-from ringtune.agents.cli.main import main
+from ringtune.agents.cli.main import build_parser, main
 from ringtune.envs.evaluate import planned_job, resolve_printer
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.features import feature_class
@@ -87,3 +87,13 @@ def test_prusaslicer_slices_the_stl_to_the_shipped_job_again(tmp_path):
     printer = resolve_printer(None)
     assert planned_job(printer, again).print_time == pytest.approx(planned_job(printer, shipped).print_time, rel=1e-4)
     assert BASE.is_file()
+
+
+@pytest.mark.parametrize("argv", [["tune", "--gcode", "part"], ["study", "--factor", "accel", "--gcode", "part"],
+                                  ["graph", "speeds", "-o", "s.png", "--gcode", "part"], ["plan", "part"],
+                                  ["simulate", "--gcode", "part"]])
+def test_every_job_option_takes_the_part_by_name(argv):
+    parser, _ = build_parser(argv[0])
+    args = parser.parse_args(argv)
+    assert (args.file if argv[0] == "plan" else args.gcode) == job_path("part")
+    assert parser.parse_args([a if a != "part" else "./part" for a in argv]) != args   # a file so named stays a file
