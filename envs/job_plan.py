@@ -165,9 +165,10 @@ class JobPlan:
 
 def plan_job(path=None, printer=None, config: TuneConfig | None = None, junction: str = "auto",
              use_job_limits: bool = True, daa_freq: float | None = None, top: int = 5) -> JobPlan:
-    """Plan the G-code at ``path`` (a built-in job's name: its file; None: the built-in test print) with ``printer``'s limits (TOML
-    or embedded name; None: the planner's defaults), ``config``'s frequency limit and acceleration,
-    the junction rule of :func:`junction_rule`, and ``top`` frequencies of each kind."""
+    """Plan the G-code at ``path`` (a built-in job's name: its file; None: the built-in test print)
+    with ``printer``'s limits (TOML or embedded name; None: the planner's defaults), ``config``'s
+    frequency limit and acceleration, the junction rule of :func:`junction_rule`, and ``top``
+    frequencies of each kind."""
     path = job_path(path)
     t0 = time.perf_counter()
     job = read_gcode(Path(path)) if path else builtin_test_print()

@@ -96,7 +96,8 @@ examples:
 
 def add_arguments(parser) -> None:
     parser.add_argument("--printer", metavar="P", help="printer TOML or embedded name (default: ender3)")
-    parser.add_argument("--gcode", metavar="G", type=gcode_job, help=f"G-code file, {GCODE_JOB_HELP} (default: the built-in test print)")
+    parser.add_argument("--gcode", metavar="G", type=gcode_job,
+                        help=f"G-code file, {GCODE_JOB_HELP} (default: the built-in test print)")
     parser.add_argument("--config", metavar="C", help="TuneConfig JSON file")
     parser.add_argument("--shaper", metavar="S", help="shaper name, or X,Y (e.g. mzv or zv,ei); 'none' = off")
     parser.add_argument("--freq", metavar="F", help="shaper frequency in Hz, or X,Y")

@@ -51,7 +51,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="what to sweep (default freq-error)")
     p.add_argument("--values", metavar="A,B,...", type=number_list, help="factor values (default: a range per factor)")
     p.add_argument("--printer", metavar="P", help="printer TOML (default: the embedded Ender-3-class printer)")
-    p.add_argument("--gcode", metavar="G", type=gcode_job, help=f"G-code job, {GCODE_JOB_HELP} (default: the built-in test print)")
+    p.add_argument("--gcode", metavar="G", type=gcode_job,
+                   help=f"G-code job, {GCODE_JOB_HELP} (default: the built-in test print)")
     p.add_argument("--firmware", type=firmware_name, default="klipper", help="target firmware (default klipper)")
     p.add_argument("--shapers", metavar="S1,S2", help="shapers to compare (default: all the firmware offers)")
     p.add_argument("--quality", choices=("overshoot", "path_error"), default="overshoot")

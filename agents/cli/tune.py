@@ -87,7 +87,8 @@ examples:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--printer", metavar="P", help="printer TOML (default: the embedded Ender-3-class printer)")
-    p.add_argument("--gcode", metavar="G", type=gcode_job, help=f"G-code job, {GCODE_JOB_HELP} (default: the built-in test print)")
+    p.add_argument("--gcode", metavar="G", type=gcode_job,
+                   help=f"G-code job, {GCODE_JOB_HELP} (default: the built-in test print)")
     p.add_argument("--firmware", type=firmware_name, default="klipper",
                    help="target firmware: klipper (default), kalico, rrf, rrf35, rrf34, "
                    "marlin, marlin-ftm, prusa (any case)")
