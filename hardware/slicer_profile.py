@@ -132,8 +132,9 @@ def feature_accels(config: TuneConfig) -> dict[str, float]:
                             "config: feature_accel")
     missing = [c for c in FEATURE_CLASSES if c not in given]
     if missing and config.accel is None:
-        raise RingtuneError(f"the config has no accel (mm/s²) for the classes feature_accel leaves out "
-                            f"({', '.join(missing)})", "config: accel")
+        what = (f"for the classes feature_accel leaves out ({', '.join(missing)})" if given
+                else "and no feature_accel to put in the slicer profile")
+        raise RingtuneError(f"the config has no accel (mm/s²) {what}", "config: accel")
     return {c: float(given.get(c, config.accel)) for c in FEATURE_CLASSES}
 
 

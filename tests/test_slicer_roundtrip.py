@@ -115,3 +115,16 @@ def test_export_slicer_version_and_a_bad_one(tmp_path, capsys):
     assert main(["export", str(p), "--slicer", "prusaslicer", "--slicer-version", "two"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "--slicer-version" in err
+
+
+@pytest.mark.parametrize("config, says", [
+    ({"firmware": "klipper"}, "no feature_accel"),
+    ({"firmware": "klipper", "feature_accel": {"outer_wall": 2000}}, "leaves out (inner_wall"),
+    ({"firmware": "klipper", "accel": 3000, "feature_accel": {"outerwall": 2000}}, "'outerwall' is not a feature class"),
+])
+def test_a_config_the_slicer_keys_cannot_come_from_is_one_line(config, says, tmp_path, capsys):
+    p = tmp_path / "c.json"
+    p.write_text(json.dumps(config))
+    assert main(["export", str(p), "--slicer", "orcaslicer"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and says in err and str(p) in err and "Traceback" not in err
