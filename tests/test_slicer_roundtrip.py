@@ -44,10 +44,11 @@ def _accel_by_feature(job) -> dict[str, set]:
     by their label's class, X/Y moves without extrusion as ``travel``; before the first command, none."""
     accel = job.setting("accel_klipper")
     xy = np.hypot(job.delta[:, 0], job.delta[:, 1]) > 0
+    labels = np.array([feature_class(f) for f in job.features])[job.feature]
+    cls = np.where(job.extruding, labels, "travel")
     out: dict[str, set] = {}
     for i in np.flatnonzero(xy & ~np.isnan(accel)):
-        cls = feature_class(job.features[job.feature[i]]) if job.extruding[i] else "travel"
-        out.setdefault(cls, set()).add(float(accel[i]))
+        out.setdefault(str(cls[i]), set()).add(float(accel[i]))
     return out
 
 
