@@ -33,6 +33,7 @@ from ringtune.envs.bed_load import dominant_y_mode, is_bed_slinger, loaded
 from ringtune.envs.evaluate import evaluate_many, job_accel_commands, resolve_job, resolve_printer
 from ringtune.envs.printer_model import Printer
 from ringtune.shaping.analysis import max_accel, residual_vibration, smoothing
+from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
@@ -201,13 +202,13 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
                   density_g_cm3: float | None = None, step: float = BAND_STEP,
                   band_accel: str = "auto", smoothing_factor: float = 1.0,
                   min_freq: float | None = None) -> MassSchedule:
-    """The Y schedule of ``job`` (path, text, Job; None: the built-in print) on ``printer``,
-    starting from ``config`` (tuned with the printer's own ``print_mass`` on the bed); the filament
-    as given, else the job's own, else PLA (:func:`filament`);
+    """The Y schedule of ``job`` (path, text, Job, a built-in job's name; None: the built-in print)
+    on ``printer``, starting from ``config`` (tuned with the printer's own ``print_mass`` on the
+    bed); the filament as given, else the job's own, else PLA (:func:`filament`);
     ``smoothing_factor``: the bands' accelerations hold their smoothing to this fraction of the
     tuned one (``band_accel="auto"``); ``min_freq``: the build's lowest shaper frequency, Hz (None:
     the firmware's stock build, :func:`ringtune.agents.tune.space.freq_floor`)."""
-    printer = resolve_printer(printer)
+    printer, job = resolve_printer(printer), job_path(job)
     if not is_bed_slinger(printer):
         raise RingtuneError(f"a {printer.kinematics} printer's bed does not move with Y: its Y modes do "
                             "not depend on the print's mass (no schedule)", "--printer")
@@ -361,6 +362,7 @@ def schedule_job(config: TuneConfig, printer=None, job=None, *, diameter_mm: flo
     """:func:`mass_schedule` with the last band measured (:func:`last_band_ripple`); writes the job
     with the bands' lines inserted to ``output`` and the config with its ``y_schedule`` to
     ``config_out`` when given (``job`` must then be a file)."""
+    job = job_path(job)
     if output is not None and not (isinstance(job, (str, Path)) and Path(job).is_file()):
         raise RingtuneError("writing the scheduled job needs the job as a G-code file", "--gcode")
     kw = dict(diameter_mm=diameter_mm, density_g_cm3=density_g_cm3, step=step, band_accel=band_accel,
