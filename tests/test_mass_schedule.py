@@ -101,6 +101,9 @@ def test_a_light_job_needs_no_schedule_and_stays_as_it_was(tmp_path):
     assert not s.needed and s.ripple is None and s.y_schedule() is None
     assert 0 < 1 - s.final_mode_hz / s.empty_mode_hz < 0.02
     assert out.read_bytes() == src.read_bytes() and TuneConfig.load(cfg_out).y_schedule is None
+    part = mass_schedule(TuneConfig(freq_y=38.9), None, "part")      # the built-in part by name: 10 g
+    assert not part.needed and 0.005 < part.total_kg < 0.02
+    assert part.filament_source["density_g_cm3"] == "default"         # its header's density is 0: unset
 
 
 def test_one_mode_bed_falls_as_one_over_root_mass():
