@@ -46,6 +46,11 @@ class TuneConfig:
             classic jerk mm/s (``M205 X Y``), RepRapFirmware ``M566`` jerk mm/s (None = the
             printer's / the job's own).
         min_cruise_ratio: Klipper's ``minimum_cruise_ratio`` in [0, 1) (None = the printer's).
+        y_schedule: a bed slinger's Y shaper frequency by printed height, ``[{"z_mm": mm,
+            "freq_y": Hz, "accel": mm/s², "mass_g": g}, ...]`` in rising ``z_mm`` (``accel`` and
+            ``mass_g``, the mass on the bed it was chosen for, optional): from the layer at ``z_mm``
+            on, Y runs at ``freq_y`` (the print's mass lowers the bed's modes); None = one frequency
+            for the whole job. Written to JSON only when set.
         extra: any other keys (provenance, metrics), carried through unchanged.
     """
 
@@ -65,6 +70,7 @@ class TuneConfig:
     feature_accel: dict[str, float] = field(default_factory=dict)
     corner: float | None = None
     min_cruise_ratio: float | None = None
+    y_schedule: list[dict[str, float]] | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -118,6 +124,8 @@ class TuneConfig:
         for key in ("accel", "max_accel_x", "max_accel_y"):
             if getattr(self, key) is not None:
                 _finite(getattr(self, key), f"{where}: {key}", lo=1.0, hi=1e6, unit="mm/s²")
+        if self.y_schedule is not None:
+            self.y_schedule = _checked_schedule(self.y_schedule, f"{where}: y_schedule")
         self._validate_features(where)
 
     def _validate_features(self, where: str) -> None:
@@ -143,8 +151,8 @@ class TuneConfig:
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
         extra = d.pop("extra")
-        for key in ("max_accel_x", "max_accel_y", "corner", "min_cruise_ratio"):   # only when set:
-            if d[key] is None:                                                  # older files stay
+        for key in ("max_accel_x", "max_accel_y", "corner", "min_cruise_ratio", "y_schedule"):   # only when
+            if d[key] is None:                                                                # set: older files stay
                 del d[key]
         if not d["feature_accel"]:
             del d["feature_accel"]
@@ -213,6 +221,41 @@ def _finite(value: Any, where: str, lo: float, hi: float, unit: str = "") -> Non
         raise RingtuneError(f"must be a finite number, not {value!r}", where)
     if not lo <= value <= hi:
         raise RingtuneError(f"{value}{unit and ' ' + unit} is out of range [{lo:g}, {hi:g}]{unit and ' ' + unit}", where)
+
+
+#: keys of one y_schedule entry: required, optional
+_SCHEDULE_KEYS = (("z_mm", "freq_y"), ("accel", "mass_g"))
+
+
+def _checked_schedule(entries: Any, where: str) -> list[dict[str, float]]:
+    """``y_schedule`` as a list of {z_mm, freq_y[, accel, mass_g]} floats in strictly rising z_mm."""
+    if not isinstance(entries, list):
+        raise RingtuneError("must be a list of {z_mm, freq_y[, accel]} objects", where)
+    out, last = [], -math.inf
+    for i, e in enumerate(entries):
+        w = f"{where}[{i}]"
+        if not isinstance(e, dict):
+            raise RingtuneError("must be an object {z_mm, freq_y[, accel]}", w)
+        unknown = set(e) - set(_SCHEDULE_KEYS[0]) - set(_SCHEDULE_KEYS[1])
+        if unknown:
+            raise RingtuneError(f"unknown key {sorted(unknown)[0]!r} (keys: z_mm, freq_y, accel, mass_g)", w)
+        for k in _SCHEDULE_KEYS[0]:
+            if k not in e:
+                raise RingtuneError(f"{k} is missing", w)
+        _finite(e["z_mm"], f"{w}.z_mm", lo=0.0, hi=10000.0, unit="mm")
+        _finite(e["freq_y"], f"{w}.freq_y", lo=1.0, hi=1000.0, unit="Hz")
+        if e["z_mm"] <= last:
+            raise RingtuneError(f"z_mm {e['z_mm']} does not rise above the previous {last}", f"{w}.z_mm")
+        last = e["z_mm"]
+        d = {"z_mm": float(e["z_mm"]), "freq_y": float(e["freq_y"])}
+        if e.get("accel") is not None:
+            _finite(e["accel"], f"{w}.accel", lo=1.0, hi=1e6, unit="mm/s²")
+            d["accel"] = float(e["accel"])
+        if e.get("mass_g") is not None:
+            _finite(e["mass_g"], f"{w}.mass_g", lo=0.0, hi=1e6, unit="g")
+            d["mass_g"] = float(e["mass_g"])
+        out.append(d)
+    return out
 
 
 def _is_daa(name: Any) -> bool:
