@@ -195,44 +195,47 @@ def _axis_from_dict(d: dict, axis: str, where: str) -> AxisModel:
     if len(given) != 1:
         raise RingtuneError("give exactly one of modes, stiffness, or masses + stiffnesses", w)
     if "modes" in d:
-        raw = d["modes"]
-        if not isinstance(raw, list) or not raw:
-            raise RingtuneError("modes must be a non-empty list of {freq, damping, share}", f"{w}.modes")
-        modes: list[Mode] = []
-        free = []
-        total = 0.0
-        for i, md in enumerate(raw):
-            mw = f"{w}.modes[{i}]"
-            if not isinstance(md, dict):
-                raise RingtuneError("each mode must be a table like { freq = 50, damping = 0.06 }", mw)
-            _unknown(md, _MODE_KEYS, mw)
-            f = _num(md, "freq", mw, lo=0.0, lo_open=True, hi=2000.0)
-            z = _num(md, "damping", mw, damping, lo=0.0, hi=0.95)
-            if "share" in md:
-                # physical chains give higher modes small negative shares (nozzle against carriage)
-                sh = _num(md, "share", mw, lo=-2.0, hi=2.0)
-                if sh == 0.0:
-                    raise RingtuneError("share must not be 0 (drop the mode instead)", f"{mw}.share")
-                total += sh
-            else:
-                sh = float("nan")
-                free.append(i)
-            ms = _num(md, "mass_share", mw, lo=0.0, hi=1.0) if "mass_share" in md else None
-            modes.append(Mode(f, z, sh, ms))
-        if (free and total > 1.0 + 1e-6) or (not free and abs(total - 1.0) > 1e-3):
-            raise RingtuneError(f"mode shares sum to {total:g}; they must sum to 1 "
-                                "(leave one out to let it take what is left)", f"{w}.modes")
-        if free:
-            rest = 1.0 - total
-            if rest <= 1e-9:
-                raise RingtuneError("modes without a share get nothing: the given shares already sum to 1",
-                                    f"{w}.modes")
-            for i in free:
-                modes[i].share = rest / len(free)
-        return AxisModel(mass, modes)
+        return AxisModel(mass, _modes_from_list(d["modes"], damping, f"{w}.modes"))
     if "stiffness" in d:
         k = _num(d, "stiffness", w, lo=0.0, lo_open=True)
         return AxisModel(mass, [Mode(math.sqrt(k / mass) / (2 * math.pi), damping, 1.0)])
+    return _axis_from_chain(d, damping, w)
+
+
+def _mode_from_dict(md, damping: float, mw: str) -> Mode:
+    """One ``{freq, damping, share, mass_share}`` table; a mode without a share gets NaN (filled later)."""
+    if not isinstance(md, dict):
+        raise RingtuneError("each mode must be a table like { freq = 50, damping = 0.06 }", mw)
+    _unknown(md, _MODE_KEYS, mw)
+    f = _num(md, "freq", mw, lo=0.0, lo_open=True, hi=2000.0)
+    z = _num(md, "damping", mw, damping, lo=0.0, hi=0.95)
+    # physical chains give higher modes small negative shares (nozzle against carriage)
+    sh = _num(md, "share", mw, math.nan, lo=-2.0, hi=2.0)
+    if sh == 0.0:
+        raise RingtuneError("share must not be 0 (drop the mode instead)", f"{mw}.share")
+    ms = _num(md, "mass_share", mw, lo=0.0, hi=1.0) if "mass_share" in md else None
+    return Mode(f, z, sh, ms)
+
+
+def _modes_from_list(raw, damping: float, w: str) -> list[Mode]:
+    """An axis's ``modes``: each checked, the shares summing to 1 (modes without one split the rest)."""
+    if not isinstance(raw, list) or not raw:
+        raise RingtuneError("modes must be a non-empty list of {freq, damping, share}", w)
+    modes = [_mode_from_dict(md, damping, f"{w}[{i}]") for i, md in enumerate(raw)]
+    free = [m for m in modes if math.isnan(m.share)]
+    total = sum(m.share for m in modes if not math.isnan(m.share))
+    if (free and total > 1.0 + 1e-6) or (not free and abs(total - 1.0) > 1e-3):
+        raise RingtuneError(f"mode shares sum to {total:g}; they must sum to 1 "
+                            "(leave one out to let it take what is left)", w)
+    if free and 1.0 - total <= 1e-9:
+        raise RingtuneError("modes without a share get nothing: the given shares already sum to 1", w)
+    for m in free:
+        m.share = (1.0 - total) / len(free)
+    return modes
+
+
+def _axis_from_chain(d: dict, damping: float, w: str) -> AxisModel:
+    """An axis given as ``masses`` + ``stiffnesses`` (a chain whose last mass is the nozzle)."""
     ms, ks = d.get("masses"), d.get("stiffnesses")
     for key, v in (("masses", ms), ("stiffnesses", ks)):
         if not isinstance(v, list) or not v or not all(
@@ -296,9 +299,9 @@ def _inherit(base: dict, own: dict) -> dict:
     return {**{k: v for k, v in base.items() if k not in drop}, **own}
 
 
-def _motor_from_dict(mo: dict, mw: str) -> MotorModel:
-    """One motor table (``[motor]`` or an axis's, already merged over ``[motor]``)."""
-    _unknown(mo, _MOTOR_KEYS, mw)
+def _motor_constants(mo: dict, mw: str) -> dict:
+    """The datasheet constants a motor table gives: the named built-in motor's, overridden by the
+    table's own (empty: the old form, force and corner_speed)."""
     consts: dict = {}
     name = mo.get("name")
     if name is not None:
@@ -307,68 +310,82 @@ def _motor_from_dict(mo: dict, mw: str) -> MotorModel:
         ref = lookup_motor(name)
         if ref is None and not all(k in mo for k in MOTOR_CONSTANT_KEYS[:4]):
             raise RingtuneError(unknown_motor_message(name), f"{mw}.name")
-        if ref is not None:
-            consts = {k: getattr(ref, k) for k in MOTOR_CONSTANT_KEYS}
-    for k in MOTOR_CONSTANT_KEYS[:4]:
-        if k in mo:
-            consts[k] = _num(mo, k, mw, lo=0.0, lo_open=True)
+        consts = {k: getattr(ref, k) for k in MOTOR_CONSTANT_KEYS} if ref is not None else {}
+    consts.update({k: _num(mo, k, mw, lo=0.0, lo_open=True) for k in MOTOR_CONSTANT_KEYS[:4] if k in mo})
     if "steps_per_revolution" in mo:
         n = _num(mo, "steps_per_revolution", mw, lo=4.0)
         if n != int(n) or int(n) % 4:
             raise RingtuneError(f"steps_per_revolution = {n:g} must be a whole multiple of 4 (200, 400)",
                                 f"{mw}.steps_per_revolution")
         consts["steps_per_revolution"] = int(n)
-    datasheet = bool(consts)
-    if datasheet:
-        missing = [k for k in MOTOR_CONSTANT_KEYS[:4] if k not in consts]
-        if missing:
-            raise RingtuneError(f"a motor from datasheet constants needs {', '.join(missing)} too "
-                                "(or a built-in motor's name)", f"{mw}.{missing[0]}")
-        both = sorted(_OLD_FORM_KEYS & mo.keys())
-        if both:
-            raise RingtuneError(f"{both[0]} belongs to the old form: give either force/corner_speed or "
-                                "the motor (name or datasheet constants), whose force follows from them",
-                                f"{mw}.{both[0]}")
-        if "rotor_inertia" in mo and "rotor_mass" in mo:
-            raise RingtuneError("give either rotor_inertia (kg·m²) or rotor_mass (kg at the belt)",
-                                f"{mw}.rotor_mass")
-    drive = {}
-    for k in ("run_current", "voltage", "rotation_distance"):
-        if k in mo:
-            drive[k] = _num(mo, k, mw, lo=0.0, lo_open=True)
+    return consts
+
+
+def _check_motor_form(mo: dict, consts: dict, mw: str) -> None:
+    """A motor from datasheet constants is given in that form alone: all four constants, no
+    force/corner_speed, one of rotor_inertia/rotor_mass (nothing to check for the old form)."""
+    if not consts:
+        return
+    missing = [k for k in MOTOR_CONSTANT_KEYS[:4] if k not in consts]
+    if missing:
+        raise RingtuneError(f"a motor from datasheet constants needs {', '.join(missing)} too "
+                            "(or a built-in motor's name)", f"{mw}.{missing[0]}")
+    both = sorted(_OLD_FORM_KEYS & mo.keys())
+    if both:
+        raise RingtuneError(f"{both[0]} belongs to the old form: give either force/corner_speed or "
+                            "the motor (name or datasheet constants), whose force follows from them",
+                            f"{mw}.{both[0]}")
+    if "rotor_inertia" in mo and "rotor_mass" in mo:
+        raise RingtuneError("give either rotor_inertia (kg·m²) or rotor_mass (kg at the belt)", f"{mw}.rotor_mass")
+
+
+def _steps_per_mm(mo: dict, drive: dict, n_steps: int, microsteps: float, datasheet: bool, mw: str):
+    """steps/mm: from rotation_distance (a steps_per_mm beside it must agree), as given, None for a
+    datasheet motor without either (it assumes and says a rotation distance), else the default."""
+    if "rotation_distance" not in drive:
+        if datasheet and "steps_per_mm" not in mo:
+            return None
+        return _num(mo, "steps_per_mm", mw, DEFAULTS["steps_per_mm"], lo=0.0, lo_open=True)
+    derived = n_steps * microsteps / drive["rotation_distance"]
+    spm = _num(mo, "steps_per_mm", mw, derived, lo=0.0, lo_open=True)
+    if abs(spm - derived) > 1e-3 * derived:
+        raise RingtuneError(
+            f"steps_per_mm = {spm:g} disagrees with rotation_distance = {drive['rotation_distance']:g} "
+            f"({n_steps} steps/rev × {microsteps:g} microsteps / rotation_distance = {derived:g}); "
+            "give one of them", f"{mw}.steps_per_mm")
+    return derived
+
+
+#: the motor table's plain numbers: key -> (default, lowest, highest, lowest excluded)
+_MOTOR_NUMBERS = {
+    "force": (DEFAULTS["motor_force"], 0.0, None, True),
+    "corner_speed": (DEFAULTS["corner_speed"], 0.0, None, True),
+    "rotor_mass": (DEFAULTS["rotor_mass"], 0.0, None, False),
+    "friction": (DEFAULTS["friction"], 0.0, None, False),
+    "rotor_damping": (DEFAULTS["rotor_damping"], 0.0, 2.0, False),
+}
+
+
+def _motor_from_dict(mo: dict, mw: str) -> MotorModel:
+    """One motor table (``[motor]`` or an axis's, already merged over ``[motor]``)."""
+    _unknown(mo, _MOTOR_KEYS, mw)
+    consts = _motor_constants(mo, mw)
+    _check_motor_form(mo, consts, mw)
+    drive = {k: _num(mo, k, mw, lo=0.0, lo_open=True) for k in ("run_current", "voltage", "rotation_distance")
+             if k in mo}
     if "rotor_inertia" in mo:
         drive["rotor_inertia"] = _num(mo, "rotor_inertia", mw, lo=0.0)
     microsteps = _num(mo, "microsteps", mw, DEFAULTS["microsteps"], lo=1.0)
-    n_steps = consts.get("steps_per_revolution", 200)
-    if "rotation_distance" in drive:
-        derived = n_steps * microsteps / drive["rotation_distance"]
-        if "steps_per_mm" in mo:
-            spm = _num(mo, "steps_per_mm", mw, lo=0.0, lo_open=True)
-            if abs(spm - derived) > 1e-3 * derived:
-                raise RingtuneError(
-                    f"steps_per_mm = {spm:g} disagrees with rotation_distance = {drive['rotation_distance']:g} "
-                    f"({n_steps} steps/rev × {microsteps:g} microsteps / rotation_distance = {derived:g}); "
-                    "give one of them", f"{mw}.steps_per_mm")
-        steps_per_mm = derived
-    elif datasheet and "steps_per_mm" not in mo:
-        steps_per_mm = None                      # the motor assumes (and says) a rotation distance
-    else:
-        steps_per_mm = _num(mo, "steps_per_mm", mw, DEFAULTS["steps_per_mm"], lo=0.0, lo_open=True)
-    if not datasheet and "rotor_inertia" in drive:
+    steps_per_mm = _steps_per_mm(mo, drive, consts.get("steps_per_revolution", 200), microsteps, bool(consts), mw)
+    if not consts and "rotor_inertia" in drive:
         raise RingtuneError("rotor_inertia needs the motor (name or datasheet constants); give rotor_mass "
                             "(kg at the belt) instead", f"{mw}.rotor_inertia")
-    return MotorModel(
-        force=_num(mo, "force", mw, DEFAULTS["motor_force"], lo=0.0, lo_open=True),
-        corner_speed=_num(mo, "corner_speed", mw, DEFAULTS["corner_speed"], lo=0.0, lo_open=True),
-        rotor_mass=_num(mo, "rotor_mass", mw, DEFAULTS["rotor_mass"], lo=0.0),
-        friction=_num(mo, "friction", mw, DEFAULTS["friction"], lo=0.0),
-        steps_per_mm=steps_per_mm,
-        microsteps=microsteps,
-        rotor_damping=_num(mo, "rotor_damping", mw, DEFAULTS["rotor_damping"], lo=0.0, hi=2.0),
-        slip=_bool(mo, "slip", mw, None),
-        name=name.strip() if isinstance(name, str) else None,
-        **consts, **drive,
-    )
+    numbers = {k: _num(mo, k, mw, default, lo=lo, hi=hi, lo_open=lo_open)
+               for k, (default, lo, hi, lo_open) in _MOTOR_NUMBERS.items()}
+    name = mo.get("name")
+    return MotorModel(**numbers, steps_per_mm=steps_per_mm, microsteps=microsteps,
+                      slip=_bool(mo, "slip", mw, None), name=name.strip() if isinstance(name, str) else None,
+                      **consts, **drive)
 
 
 def _defaulted(d: dict, base_raw: dict) -> tuple[str, ...]:
