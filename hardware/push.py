@@ -215,22 +215,8 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
     if moonraker and FIRMWARES[firmware].family != "klipper":
         raise RingtuneError("Moonraker speaks only for Klipper; use --port for other firmware", "--moonraker")
     if dry_run:
-        result.wire = dry_run_wire(exp, save and bool(exp.save_lines), crc)
-        result.settings = [SettingStatus(k, v, status=DRY) for k, v in exp.expected.items()]
-        if "limit" in exp.setting_lines:
-            result.settings.append(SettingStatus("limit", exp.lines[exp.setting_lines["limit"]], status=DRY))
-        if save and exp.config_text:
-            result.notes.append(f"--save would write the {exp.config_target} lines to "
-                                f"{_save_target(exp, save_path)} (--save-file FILE for another)")
-        result.ok = True
-        return result
-    if not port and not moonraker:
-        raise RingtuneError("refusing to push without an explicit port: give --port /dev/ttyUSB0 "
-                            "(or socket://host:port, rfc2217://host:port) or --moonraker URL", "--port")
-    target = _save_target(exp, save_path) if save else None
-    if target is not None and not target.parent.is_dir():
-        # refuse before touching the printer: after the push a failed write would hide its report
-        raise RingtuneError("no such directory for the config file", f"--save-file {save_path}")
+        return _dry_run(exp, result, save, save_path, crc)
+    _check_destination(exp, port, moonraker, save, save_path)
     if moonraker:
         replies, report = _push_moonraker(exp, moonraker, api_key, timeout, log, result, check_limits)
     else:
@@ -243,6 +229,30 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
     if save:
         _save_file(exp, result, save_path)
     return result
+
+
+def _dry_run(exp: Export, result: PushResult, save: bool, save_path, crc: bool) -> PushResult:
+    """``result`` of a dry run: exactly the wire that would be sent, every setting "not sent"."""
+    result.wire = dry_run_wire(exp, save and bool(exp.save_lines), crc)
+    result.settings = [SettingStatus(k, v, status=DRY) for k, v in exp.expected.items()]
+    if "limit" in exp.setting_lines:
+        result.settings.append(SettingStatus("limit", exp.lines[exp.setting_lines["limit"]], status=DRY))
+    if save and exp.config_text:
+        result.notes.append(f"--save would write the {exp.config_target} lines to "
+                            f"{_save_target(exp, save_path)} (--save-file FILE for another)")
+    result.ok = True
+    return result
+
+
+def _check_destination(exp: Export, port, moonraker, save: bool, save_path) -> None:
+    """Refuse before touching the printer: no explicit port, or a --save file in no directory
+    (after the push a failed write would hide its report)."""
+    if not port and not moonraker:
+        raise RingtuneError("refusing to push without an explicit port: give --port /dev/ttyUSB0 "
+                            "(or socket://host:port, rfc2217://host:port) or --moonraker URL", "--port")
+    target = _save_target(exp, save_path) if save else None
+    if target is not None and not target.parent.is_dir():
+        raise RingtuneError("no such directory for the config file", f"--save-file {save_path}")
 
 
 def _explain(result: PushResult, exp: Export, replies: dict[int, Reply]) -> None:
