@@ -405,29 +405,42 @@ def custom_impulses(config: TuneConfig, axis: str = "x") -> tuple[list[float], l
         amps, times = rrf_custom(params.get("h"), params.get("t"), freq, damping,
                                  semantics, where=f"config: shaper_{axis} {name!r}")
         return [float(a) for a in amps], [float(t) for t in times]
-    spec = config.extra.get("custom")
+    amps, times = _spec_impulses(config.extra.get("custom"), where)
+    _check_impulses(amps, times, where)
+    return amps, times
+
+
+def _spec_impulses(spec, where: str) -> tuple[list[float], list[float]]:
+    """The config's ``"custom": {"amplitudes": [...], "times": [...]}`` as two lists of numbers."""
     if not isinstance(spec, dict) or "amplitudes" not in spec or "times" not in spec:
         raise RingtuneError('a custom shaper needs "custom": {"amplitudes": [...], "times": [...]} in '
                             "the config", where)
     try:
-        amps = [float(a) for a in spec["amplitudes"]]
-        times = [float(t) for t in spec["times"]]
+        return [float(a) for a in spec["amplitudes"]], [float(t) for t in spec["times"]]
     except (TypeError, ValueError):
         raise RingtuneError("amplitudes and times must be lists of numbers", where) from None
-    if len(amps) != len(times):
-        raise RingtuneError(f"{len(amps)} amplitudes but {len(times)} times", where)
-    if not 2 <= len(amps) <= 5:
-        raise RingtuneError(f"RepRapFirmware takes 2 to 5 impulses (at most 4 H values), not {len(amps)}",
-                            where)
-    if any(not math.isfinite(a) or a <= 0 for a in amps):
-        raise RingtuneError("amplitudes must be positive", where + ".amplitudes")
-    if not math.isclose(sum(amps), 1.0, abs_tol=1e-6):
-        raise RingtuneError(f"amplitudes must sum to 1, not {sum(amps):g}", where + ".amplitudes")
-    if times[0] != 0 or any(b <= a for a, b in zip(times, times[1:])):
-        raise RingtuneError("times must start at 0 and strictly increase", where + ".times")
-    if times[-1] > 0.5:
-        raise RingtuneError(f"last impulse at {times[-1]:g} s: times are in seconds", where + ".times")
-    return amps, times
+
+
+#: what RepRapFirmware's custom impulses must satisfy: (refused when, message, where suffix), in order
+_IMPULSE_RULES = (
+    (lambda a, t: len(a) != len(t), lambda a, t: f"{len(a)} amplitudes but {len(t)} times", ""),
+    (lambda a, t: not 2 <= len(a) <= 5,
+     lambda a, t: f"RepRapFirmware takes 2 to 5 impulses (at most 4 H values), not {len(a)}", ""),
+    (lambda a, t: any(not math.isfinite(x) or x <= 0 for x in a), lambda a, t: "amplitudes must be positive",
+     ".amplitudes"),
+    (lambda a, t: not math.isclose(sum(a), 1.0, abs_tol=1e-6), lambda a, t: f"amplitudes must sum to 1, not {sum(a):g}",
+     ".amplitudes"),
+    (lambda a, t: t[0] != 0 or any(y <= x for x, y in zip(t, t[1:])),
+     lambda a, t: "times must start at 0 and strictly increase", ".times"),
+    (lambda a, t: t[-1] > 0.5, lambda a, t: f"last impulse at {t[-1]:g} s: times are in seconds", ".times"),
+)
+
+
+def _check_impulses(amps: list[float], times: list[float], where: str) -> None:
+    """Refuse impulses that break one of :data:`_IMPULSE_RULES` (the first that applies)."""
+    for broken, message, suffix in _IMPULSE_RULES:
+        if broken(amps, times):
+            raise RingtuneError(message(amps, times), where + suffix)
 
 
 def _rrf_custom(config: TuneConfig, dialect: str) -> str:
