@@ -186,36 +186,36 @@ class MotorModel:
         """The ``[motor]`` table: only what was given (derived and assumed values are left out, so
         that reading it back gives the same motor; a named motor's constants only where they differ
         from the built-in table)."""
-        if not self.has_datasheet:
-            d: dict[str, Any] = {"force": self.force, "corner_speed": self.corner_speed,
-                                 "rotor_mass": self.rotor_mass, "friction": self.friction,
-                                 "steps_per_mm": self.steps_per_mm}
-            if self.microsteps != DEFAULTS["microsteps"] or self.rotor_damping != DEFAULTS["rotor_damping"]:
-                d.update(microsteps=self.microsteps, rotor_damping=self.rotor_damping)
-            if self.name is not None:
-                d["name"] = self.name
-            for k in MOTOR_DRIVE_KEYS:
-                if getattr(self, k) is not None:
-                    d[k] = getattr(self, k)
-        else:
-            d = {}
-            ref = lookup_motor(self.name) if self.name else None
-            if self.name is not None:
-                d["name"] = self.name
-            for k in MOTOR_CONSTANT_KEYS:
-                v = getattr(self, k)
-                if v is not None and (ref is None or getattr(ref, k) != v):
-                    d[k] = v
-            for k in MOTOR_DRIVE_KEYS:
-                if getattr(self, k) is not None:
-                    d[k] = getattr(self, k)
-            if self.rotation_distance is None:
-                d["steps_per_mm"] = self.steps_per_mm
-            if self.rotor_inertia is None:
-                d["rotor_mass"] = self.rotor_mass
-            d.update(friction=self.friction, microsteps=self.microsteps, rotor_damping=self.rotor_damping)
+        d = self._datasheet_dict() if self.has_datasheet else self._old_form_dict()
         if self.slip is not None:
             d["slip"] = self.slip
+        return d
+
+    def _given(self, keys) -> dict:
+        """{key: value} of ``keys`` that are set (not None), in order."""
+        return {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
+
+    def _old_form_dict(self) -> dict:
+        """:meth:`to_dict` of a motor given by force and corner speed."""
+        d: dict[str, Any] = {"force": self.force, "corner_speed": self.corner_speed,
+                             "rotor_mass": self.rotor_mass, "friction": self.friction,
+                             "steps_per_mm": self.steps_per_mm}
+        if self.microsteps != DEFAULTS["microsteps"] or self.rotor_damping != DEFAULTS["rotor_damping"]:
+            d.update(microsteps=self.microsteps, rotor_damping=self.rotor_damping)
+        return {**d, **self._given(("name",)), **self._given(MOTOR_DRIVE_KEYS)}
+
+    def _datasheet_dict(self) -> dict:
+        """:meth:`to_dict` of a motor from its name and/or datasheet constants (a named motor's
+        constants only where they differ from the built-in table)."""
+        ref = lookup_motor(self.name) if self.name else None
+        d = {**self._given(("name",)),
+             **{k: v for k, v in self._given(MOTOR_CONSTANT_KEYS).items() if ref is None or getattr(ref, k) != v},
+             **self._given(MOTOR_DRIVE_KEYS)}
+        if self.rotation_distance is None:
+            d["steps_per_mm"] = self.steps_per_mm
+        if self.rotor_inertia is None:
+            d["rotor_mass"] = self.rotor_mass
+        d.update(friction=self.friction, microsteps=self.microsteps, rotor_damping=self.rotor_damping)
         return d
 
 
