@@ -261,6 +261,42 @@ def _decay_basis(t: np.ndarray, params: np.ndarray) -> np.ndarray:
     return np.stack(cols, axis=1)
 
 
+def _ringing(t, accel, rate: float | None, start: float | None, source: str) -> tuple:
+    """(tt s from the start of the ringing, acceleration about its median there, sample rate Hz)."""
+    a = np.asarray(accel, dtype=float)
+    t = np.asarray(t, dtype=float) - t[0]
+    rate = rate or (len(t) - 1) / t[-1]
+    a = a - np.median(a)
+    i0 = int(np.searchsorted(t, start)) if start is not None else int(np.argmax(np.abs(a[: len(a) // 2])))
+    tt, yy = t[i0:] - t[i0], a[i0:]
+    if len(tt) < 50:
+        raise RingtuneError(f"only {len(tt)} samples after the start of the ringing", source or None)
+    return tt, yy, rate
+
+
+def _spectral_peaks(yy, rate: float, fmin: float, fmax: float, max_modes: int) -> list[float]:
+    """The ``max_modes`` most prominent peak frequencies (Hz, ascending) of the ringing's spectrum
+    between ``fmin`` and ``fmax`` (none prominent: the highest bin)."""
+    nfft = 1 << (len(yy) * 8 - 1).bit_length()
+    spec = np.abs(np.fft.rfft((yy - yy.mean()) * np.hanning(len(yy)), nfft))
+    fr = np.fft.rfftfreq(nfft, 1 / rate)
+    band = (fr >= fmin) & (fr <= fmax)
+    idx, _ = find_peaks(spec[band], prominence=0.2 * spec[band].max())
+    order = np.argsort(spec[band][idx])[::-1][:max_modes]
+    return sorted(float(fr[band][idx[k]]) for k in order) or [float(fr[band][np.argmax(spec[band])])]
+
+
+def _decay_warnings(r2: float, modes: list) -> list[str]:
+    """A poor fit, or a mode that hardly decays (a steady vibration, not ringing)."""
+    out = []
+    if r2 < 0.5:
+        out.append(f"the damped sinusoids explain only {100 * r2:.0f} % of the signal: the capture is "
+                   "mostly noise or steady vibration, not clean ringing")
+    out += [f"{m.freq:.1f} Hz hardly decays: a steady vibration (fan, motor) rather than ringing"
+            for m in modes if m.damping < 0.003]
+    return out
+
+
 def identify_decay(t: np.ndarray, accel: np.ndarray, axis: str, source: str = "capture",
                    rate: float | None = None, max_modes: int = 2, fmin: float = 5.0, fmax: float = 150.0,
                    start: float | None = None) -> AxisFit:
@@ -269,22 +305,9 @@ def identify_decay(t: np.ndarray, accel: np.ndarray, axis: str, source: str = "c
 
     The fit starts at ``start`` s, or by default at the largest acceleration (the end of the move's
     deceleration, where free ringing begins)."""
-    a = np.asarray(accel, dtype=float)
-    t = np.asarray(t, dtype=float) - t[0]
-    rate = rate or (len(t) - 1) / t[-1]
+    tt, yy, rate = _ringing(t, accel, rate, start, source)
     fmax = min(fmax, 0.4 * rate)
-    a = a - np.median(a)
-    i0 = int(np.searchsorted(t, start)) if start is not None else int(np.argmax(np.abs(a[: len(a) // 2])))
-    tt, yy = t[i0:] - t[i0], a[i0:]
-    if len(tt) < 50:
-        raise RingtuneError(f"only {len(tt)} samples after the start of the ringing", source or None)
-    nfft = 1 << (len(yy) * 8 - 1).bit_length()
-    spec = np.abs(np.fft.rfft((yy - yy.mean()) * np.hanning(len(yy)), nfft))
-    fr = np.fft.rfftfreq(nfft, 1 / rate)
-    band = (fr >= fmin) & (fr <= fmax)
-    idx, props = find_peaks(spec[band], prominence=0.2 * spec[band].max())
-    order = np.argsort(spec[band][idx])[::-1][:max_modes]
-    f0 = sorted(float(fr[band][idx[k]]) for k in order) or [float(fr[band][np.argmax(spec[band])])]
+    f0 = _spectral_peaks(yy, rate, fmin, fmax, max_modes)
     x0 = np.array([v for f in f0 for v in (f, 0.03)])
     lo = np.array([v for f in f0 for v in (max(fmin, f * 0.8), 0.0005)])
     hi = np.array([v for f in f0 for v in (min(fmax, f * 1.2), 0.6)])
@@ -308,13 +331,7 @@ def identify_decay(t: np.ndarray, accel: np.ndarray, axis: str, source: str = "c
     for m, d in zip(modes, disp):
         m.share = float(d / tot)
     fit = AxisFit(axis, "decay", source, modes, tt, yy, fitted, r2, "damped-sinusoid")
-    if r2 < 0.5:
-        fit.warnings.append(f"the damped sinusoids explain only {100 * r2:.0f} % of the signal: the capture is "
-                         "mostly noise or steady vibration, not clean ringing")
-    for m in modes:
-        if m.damping < 0.003:
-            fit.warnings.append(f"{m.freq:.1f} Hz hardly decays: a steady vibration (fan, motor) rather "
-                             "than ringing")
+    fit.warnings += _decay_warnings(r2, modes)
     return fit
 
 
