@@ -40,8 +40,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--freq", type=VALUES["freq"], required=True, help="shaper frequency, Hz (all shapers)")
     parser.add_argument("--damping", type=VALUES["damping_ratio"], default=None,
                         help="shaper damping ratio (firmware default)")
-    parser.add_argument("--flavor", type=flavor_name, default="klipper", help="firmware formulas (see `ringtune shaper --help`)")
-    parser.add_argument("--plant-damping", type=ListOf(VALUES["damping_ratio"]), default=list(KLIPPER_TEST_DAMPING),
+    parser.add_argument("--flavor", type=flavor_name, default="klipper",
+                        help="firmware formulas (see `ringtune shaper --help`)")
+    parser.add_argument("--plant-damping", type=ListOf(VALUES["damping_ratio"]),
+                        default=list(KLIPPER_TEST_DAMPING),
                         help="comma list of plant damping ratios; the curve is the max over them "
                         "(default 0.075,0.1,0.15 as Klipper)")
     parser.add_argument("--fmax", type=VALUES["freq"], default=None,
