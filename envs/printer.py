@@ -428,11 +428,8 @@ def _four_numbers(v) -> bool:
         isinstance(x, (int, float)) and not isinstance(x, bool) and x >= 0 for x in v)
 
 
-def printer_from_dict(d: dict, where: str = "printer") -> Printer:
-    """Validate a parsed TOML mapping and build a :class:`Printer` (errors name the key)."""
-    if not isinstance(d, dict):
-        raise RingtuneError("a printer description must be a table", where)
-    _unknown(d, _TOP_KEYS, where)
+def _name_and_kinematics(d: dict, where: str) -> tuple[str, str]:
+    """The description's ``name`` (a string) and ``kinematics`` (one of :data:`KINEMATICS`)."""
     name = d.get("name", "printer")
     if not isinstance(name, str):
         raise RingtuneError("name must be a string", f"{where}: name")
@@ -440,6 +437,54 @@ def printer_from_dict(d: dict, where: str = "printer") -> Printer:
     if kin not in KINEMATICS:
         raise RingtuneError(f"kinematics must be one of {', '.join(KINEMATICS)}, not {kin!r}",
                             f"{where}: kinematics")
+    return name, kin
+
+
+def _axis_motors(d: dict, base_raw: dict, motor: MotorModel, where: str) -> dict:
+    """{axis: motor} of the axes whose ``[x.motor]``/``[y.motor]`` changes the base motor."""
+    axis_motors = {}
+    for ax in ("x", "y"):
+        own = _table(_table(d, ax, where), "motor", f"{where}: [{ax}]")
+        if not own:
+            continue
+        m = _motor_from_dict(_inherit(base_raw, own), f"{where}: [{ax}.motor]")
+        if m != motor:                       # an axis table that changes nothing is no own motor
+            axis_motors[ax] = m
+    return axis_motors
+
+
+def _belts(belts: dict, kin: str, bw: str) -> tuple[float | None, float]:
+    """(belt stiffness N/m or None, mismatch) of ``[belts]``, a CoreXY's alone."""
+    if belts and kin != "corexy":
+        raise RingtuneError("[belts] applies only to kinematics = \"corexy\"", bw)
+    _unknown(belts, _BELT_KEYS, bw)
+    stiffness = _num(belts, "stiffness", bw, lo=0.0, lo_open=True) if "stiffness" in belts else None
+    return stiffness, _num(belts, "mismatch", bw, DEFAULTS["belt_mismatch"], lo=-1.9, hi=1.9)
+
+
+def _check_built(p: Printer, where: str, bw: str) -> None:
+    """The planner's own check of the limits, and a CoreXY's belts no stiffer than its first modes allow."""
+    try:
+        p.machine_limits()
+    except RingtuneError as exc:          # the planner's own check (e.g. scale_xy_accel without caps)
+        raise RingtuneError(exc.bare, f"{where}: [{exc.where}]" if exc.where else where) from None
+    if p.kinematics != "corexy":
+        return
+    ka, kb = p.belt_stiffnesses()
+    for ax in ("x", "y"):
+        if ka + kb > p.primary_stiffness(ax) * (1 + 1e-9):
+            raise RingtuneError(
+                f"belts (k_A + k_B = {ka + kb:.0f} N/m) are stiffer than the first {ax} mode allows "
+                f"({p.primary_stiffness(ax):.0f} N/m = modal mass × ω²); lower [belts].stiffness",
+                f"{bw}.stiffness")
+
+
+def printer_from_dict(d: dict, where: str = "printer") -> Printer:
+    """Validate a parsed TOML mapping and build a :class:`Printer` (errors name the key)."""
+    if not isinstance(d, dict):
+        raise RingtuneError("a printer description must be a table", where)
+    _unknown(d, _TOP_KEYS, where)
+    name, kin = _name_and_kinematics(d, where)
     limits = _table(d, "limits", where)
     lw = f"{where}: [limits]"
     _unknown(limits, set(LIMIT_KEYS), lw)
@@ -448,41 +493,21 @@ def printer_from_dict(d: dict, where: str = "printer") -> Printer:
     y = _axis_from_dict(_table(d, "y", where), "y", where)
     base_raw = _table(d, "motor", where)
     motor = _motor_from_dict(base_raw, f"{where}: [motor]")
-    axis_motors = {}
-    for ax in ("x", "y"):
-        own = _table(_table(d, ax, where), "motor", f"{where}: [{ax}]")
-        if own:
-            m = _motor_from_dict(_inherit(base_raw, own), f"{where}: [{ax}.motor]")
-            if m != motor:                       # an axis table that changes nothing is no own motor
-                axis_motors[ax] = m
+    axis_motors = _axis_motors(d, base_raw, motor, where)
     print_mass = _num(d, "print_mass", where, DEFAULTS["print_mass"], lo=0.0)
     belts = _table(d, "belts", where)
     bw = f"{where}: [belts]"
     passthrough = {sec: _passthrough(d, sec, where) for sec in ("current", "measurement")}
-    if belts and kin != "corexy":
-        raise RingtuneError("[belts] applies only to kinematics = \"corexy\"", bw)
-    _unknown(belts, _BELT_KEYS, bw)
+    belt_stiffness, belt_mismatch = _belts(belts, kin, bw)
     p = Printer(
         name=name, kinematics=kin, limits_dict=dict(limits), x=x, y=y, motor=motor,
         x_motor=axis_motors.get("x"), y_motor=axis_motors.get("y"), print_mass=print_mass,
         current=passthrough["current"], measurement=passthrough["measurement"],
-        belt_stiffness=_num(belts, "stiffness", bw, lo=0.0, lo_open=True) if "stiffness" in belts else None,
-        belt_mismatch=_num(belts, "mismatch", bw, DEFAULTS["belt_mismatch"], lo=-1.9, hi=1.9),
+        belt_stiffness=belt_stiffness, belt_mismatch=belt_mismatch,
         description=str(d.get("description", "")),
         defaulted=_defaulted(d, base_raw),
     )
-    try:
-        p.machine_limits()
-    except RingtuneError as exc:          # the planner's own check (e.g. scale_xy_accel without caps)
-        raise RingtuneError(exc.bare, f"{where}: [{exc.where}]" if exc.where else where) from None
-    if kin == "corexy":
-        ka, kb = p.belt_stiffnesses()
-        for ax in ("x", "y"):
-            if ka + kb > p.primary_stiffness(ax) * (1 + 1e-9):
-                raise RingtuneError(
-                    f"belts (k_A + k_B = {ka + kb:.0f} N/m) are stiffer than the first {ax} mode allows "
-                    f"({p.primary_stiffness(ax):.0f} N/m = modal mass × ω²); lower [belts].stiffness",
-                    f"{bw}.stiffness")
+    _check_built(p, where, bw)
     return p
 
 
