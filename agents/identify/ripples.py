@@ -14,7 +14,7 @@ from __future__ import annotations
 import hashlib
 import math
 import tomllib
-from dataclasses import fields, replace
+from dataclasses import replace
 from pathlib import Path
 
 from ringtune.envs.printer import load_printer
@@ -138,20 +138,13 @@ def printer_text(modes: dict, meas: dict, files: list, name: str, base: str | No
     new = replace(p, name=name, description=f"identified from {meas['source']} on a print; base {p.name}", **axes)
     if files:
         meas["files"] = files
-    readable = "measurement" in {f.name for f in fields(new)}   # the reader takes [measurement]
-    if readable:
-        new.measurement = meas
+    new.measurement = meas                  # written back as [measurement] with the TOML
     text = new.to_toml()
     head = [f"# identified without an accelerometer ({meas['source']}); base: {p.name}"]
     head += [f"# {ax.upper()}: {c}" for ax, (_, _, c) in sorted(modes.items())]
     if default_masses:
         head.append(f"# still defaults: masses {default_masses} (the base gives none); [x] mass / [y] mass "
                     "replace them")
-    if "[measurement]" not in text:
-        section = _measurement_toml(meas)
-        if not readable:          # kept as comments until the printer reader takes the section
-            section = "".join(f"# {line}\n" if line else "#\n" for line in section.splitlines())
-        text += "\n" + section
     return "\n".join(head) + "\n" + text
 
 
@@ -166,17 +159,3 @@ def _default_masses(base: str | None, p) -> str:
         raw = {}
     missing = [ax for ax in "xy" if not isinstance(raw.get(ax), dict) or "mass" not in raw[ax]]
     return ", ".join(f"{ax.upper()} {p.axis(ax).mass:g} kg" for ax in missing)
-
-
-def _measurement_toml(meas: dict) -> str:
-    def val(v):
-        return f'"{v}"' if isinstance(v, str) else repr(v)
-
-    lines = ["[measurement]", f"source = {val(meas['source'])}"]
-    if meas.get("files"):
-        items = ", ".join("{ " + ", ".join(f"{k} = {val(v)}" for k, v in f.items()) + " }" for f in meas["files"])
-        lines.append(f"files = [{items}]")
-    for key in ("ripples", "tower"):
-        if key in meas:
-            lines += ["", f"[measurement.{key}]"] + [f"{k} = {val(v)}" for k, v in meas[key].items()]
-    return "\n".join(lines) + "\n"
