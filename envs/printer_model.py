@@ -359,33 +359,25 @@ class Printer:
         d["limits"] = dict(self.limits_dict)
         for ax in ("x", "y"):
             a = self.axis(ax)
-            modes = []
-            for m in a.modes:
-                md = {"freq": m.freq, "damping": m.damping, "share": m.share}
-                if m.mass_share is not None:
-                    md["mass_share"] = m.mass_share
-                modes.append(md)
-            d[ax] = {"mass": a.mass, "modes": modes}
+            d[ax] = {"mass": a.mass, "modes": [_mode_dict(m) for m in a.modes]}
         d["motor"] = self.motor.to_dict()
-        base = d["motor"]
         for ax in ("x", "y"):
             own = getattr(self, f"{ax}_motor")
             if own is not None:
-                od = own.to_dict()
-                if od.get("name") != base.get("name") or own.has_datasheet != self.motor.has_datasheet:
-                    d[ax]["motor"] = od
-                else:
-                    d[ax]["motor"] = {k: v for k, v in od.items() if base.get(k, _MISSING) != v}
+                d[ax]["motor"] = self._own_motor_dict(own, d["motor"])
         if self.kinematics == "corexy":
-            belts: dict[str, Any] = {"mismatch": self.belt_mismatch}
-            if self.belt_stiffness is not None:
-                belts["stiffness"] = self.belt_stiffness
-            d["belts"] = belts
-        if self.current:
-            d["current"] = dict(self.current)
-        if self.measurement:
-            d["measurement"] = dict(self.measurement)
+            d["belts"] = {"mismatch": self.belt_mismatch, **({} if self.belt_stiffness is None
+                                                              else {"stiffness": self.belt_stiffness})}
+        d.update({k: dict(v) for k, v in (("current", self.current), ("measurement", self.measurement)) if v})
         return d
+
+    def _own_motor_dict(self, own: MotorModel, base: dict) -> dict:
+        """An axis's ``[x.motor]`` table: whole when it names another motor or form, else only what
+        differs from ``[motor]``."""
+        od = own.to_dict()
+        if od.get("name") != base.get("name") or own.has_datasheet != self.motor.has_datasheet:
+            return od
+        return {k: v for k, v in od.items() if base.get(k, _MISSING) != v}
 
     def to_toml(self) -> str:
         """TOML text that :func:`ringtune.envs.printer.load_printer` reads back to an equal printer.
@@ -407,3 +399,11 @@ class Printer:
 
 
 _MISSING = object()
+
+
+def _mode_dict(m: Mode) -> dict:
+    """A mode's TOML table: freq, damping, share and, when given, mass_share."""
+    md = {"freq": m.freq, "damping": m.damping, "share": m.share}
+    if m.mass_share is not None:
+        md["mass_share"] = m.mass_share
+    return md
