@@ -118,24 +118,8 @@ def _failed(replies: dict[int, Reply]) -> bool:
 def _statuses(exp: Export, replies: dict[int, Reply], report: str | None, firmware: str) -> list[SettingStatus]:
     reported = parse_report(firmware, report) if report is not None else {}
     cmp = compare(exp.expected, reported)
-    out = []
-    for key, meant in exp.expected.items():
-        idx = exp.setting_lines.get(key, 0)
-        st = SettingStatus(key, meant, cmp[key]["reported"])
-        reply = replies.get(idx)
-        if reply is None:
-            st.detail = "line not sent" if report is None else "line never acknowledged"
-        elif reply.errors:
-            st.detail = "printer said: " + "; ".join(reply.errors)
-        elif report is None:
-            st.status, st.detail = NOT_APPLIED, "acknowledged but not read back"
-        elif cmp[key]["ok"]:
-            st.status = APPLIED
-        elif cmp[key]["reported"] is None:
-            st.detail = "missing from the printer's report"
-        else:
-            st.detail = "printer reports a different value"
-        out.append(st)
+    out = [_status(key, meant, cmp[key], replies.get(exp.setting_lines.get(key, 0)), report)
+           for key, meant in exp.expected.items()]
     _judge_axis_caps(out, exp, reported)
     if "limit" in exp.setting_lines:
         idx = exp.setting_lines["limit"]
@@ -147,6 +131,22 @@ def _statuses(exp: Export, replies: dict[int, Reply], report: str | None, firmwa
             st.detail = "printer said: " + "; ".join(reply.errors) if reply else "line not sent"
         out.append(st)
     return out
+
+
+def _status(key: str, meant, cmp: dict, reply: Reply | None, report: str | None) -> SettingStatus:
+    """One setting: applied when acknowledged and read back as meant; else why not."""
+    st = SettingStatus(key, meant, cmp["reported"])
+    if reply is None:
+        st.detail = "line not sent" if report is None else "line never acknowledged"
+    elif reply.errors:
+        st.detail = "printer said: " + "; ".join(reply.errors)
+    elif report is None:
+        st.status, st.detail = NOT_APPLIED, "acknowledged but not read back"
+    elif cmp["ok"]:
+        st.status = APPLIED
+    else:
+        st.detail = "missing from the printer's report" if cmp["reported"] is None else "printer reports a different value"
+    return st
 
 
 def _caps_below(reported: dict, accel: float) -> dict[str, float]:
@@ -296,6 +296,24 @@ def _configured(exp: Export, answers: list[Reply]) -> dict:
     return {k: float(reported[k].value) for k in keys if k in reported}
 
 
+def _send_all(exp: Export, link: GcodeLink, result: PushResult, replies: dict, save: bool,
+              protocol: str) -> tuple[dict[int, Reply], str]:
+    """One attempt: every line sent (``replies`` filled), the read-back asked; Klipper's state after
+    a refusal, and --save's EEPROM write where the firmware has one. (replies, report text)."""
+    replies.clear()
+    for i, cmd in enumerate(exp.lines):
+        replies[i] = link.send(cmd)
+    answers = [link.send(c) for c in exp.readback]
+    report = "\n".join(a.text for a in answers)
+    if protocol == "klipper" and (_failed(replies) or any(a.errors for a in answers)):
+        result.printer_state = _klipper_state(link)
+    if save and exp.save_lines:
+        result.settings = _statuses(exp, replies, report, exp.firmware)
+        result.ok = all(s.status in (APPLIED, ACKED) for s in result.settings)
+        _save_eeprom(exp, result, link)
+    return replies, report
+
+
 def _push_serial(exp, port, baud, crc, timeout, log, result, max_resets, link_options, save, check_limits=False):
     protocol = FIRMWARES[exp.firmware].protocol
     replies: dict[int, Reply] = {}
@@ -305,18 +323,7 @@ def _push_serial(exp, port, baud, crc, timeout, log, result, max_resets, link_op
         _check_before(exp, link.send, check_limits)
         for attempt in range(max_resets + 1):
             try:
-                replies.clear()
-                for i, cmd in enumerate(exp.lines):
-                    replies[i] = link.send(cmd)
-                answers = [link.send(c) for c in exp.readback]
-                report = "\n".join(a.text for a in answers)
-                if protocol == "klipper" and (_failed(replies) or any(a.errors for a in answers)):
-                    result.printer_state = _klipper_state(link)
-                if save and exp.save_lines:
-                    result.settings = _statuses(exp, replies, report, exp.firmware)
-                    result.ok = all(s.status in (APPLIED, ACKED) for s in result.settings)
-                    _save_eeprom(exp, result, link)
-                return replies, report
+                return _send_all(exp, link, result, replies, save, protocol)
             except PrinterReset:
                 result.resets += 1
                 result.notes.append("the printer reset during the push (it said 'start'); "
