@@ -307,10 +307,8 @@ def _klipper_config_lines(ax: str, name: str | None, freq: float, damping: float
     return lines
 
 
-def _klipper(config: TuneConfig, dialect: str) -> Export:
-    fw = FIRMWARES[dialect]
-    params, cfg = [], ["[input_shaper]"]
-    expected: dict[str, object] = {}
+def _klipper_axes(config: TuneConfig, fw) -> dict:
+    """{axis: (shaper name with its parameters or None, freq Hz, damping)} as Klipper is told them."""
     per_axis = {}
     for ax in ("x", "y"):
         base, p, freq, damping = check_axis(config, fw, ax)
@@ -319,20 +317,33 @@ def _klipper(config: TuneConfig, dialect: str) -> Export:
             continue
         name = base + ("(" + ",".join(f"{k}={_klipper_value(v)}" for k, v in p.items()) + ")" if p else "")
         per_axis[ax] = (name, freq, damping)
-    for ax in ("x", "y"):
-        name, freq, _ = per_axis[ax]
+    return per_axis
+
+
+def _klipper_params(per_axis: dict, fw) -> tuple[list[str], dict]:
+    """SET_INPUT_SHAPER's parameters in Klipper's order (frequencies, damping ratios of shapers that
+    have one, types) and the values read back for each."""
+    params: list[str] = []
+    expected: dict[str, object] = {}
+    for ax, (name, freq, _) in per_axis.items():
         params += _freq_params(name, freq, ax, fw)
         expected[f"{ax}.freq"] = freq
-    for ax in ("x", "y"):
-        name, _, damping = per_axis[ax]
+    for ax, (name, _, damping) in per_axis.items():
         if name and not is_smoother(name):
             params.append(f"DAMPING_RATIO_{ax.upper()}={fmt(damping, fw.damping.decimals)}")
             expected[f"{ax}.damping"] = damping
-    for ax in ("x", "y"):
-        name, _, _ = per_axis[ax]
+    for ax, (name, _, _) in per_axis.items():
         if name:
             params.append(f"SHAPER_TYPE_{ax.upper()}={name}")
             expected[f"{ax}.type"] = name
+    return params, expected
+
+
+def _klipper(config: TuneConfig, dialect: str) -> Export:
+    fw = FIRMWARES[dialect]
+    per_axis = _klipper_axes(config, fw)
+    params, expected = _klipper_params(per_axis, fw)
+    cfg = ["[input_shaper]"]
     for ax in ("x", "y"):
         cfg += _klipper_config_lines(ax, *per_axis[ax], fw)
     line = "SET_INPUT_SHAPER " + " ".join(params)
