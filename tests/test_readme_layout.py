@@ -7,6 +7,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from ringtune.agents.cli.main import COMMANDS
+
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text(encoding="utf-8")
 
@@ -43,3 +45,11 @@ def test_every_row_and_named_module_exists():
         assert (ROOT / path).is_file(), path
     for module in re.findall(r"`(\w+\.py)`", README.split("## Development", 1)[1]):
         assert any(list((ROOT / top).rglob(module)) for top in ("shaping", "envs", "hardware", "agents")), module
+
+
+def test_every_cli_module_is_a_command_or_named_in_its_row():
+    """agents/cli/ holds one module per command; the others are named in its row."""
+    row = next(line for line in README.splitlines() if line.startswith("| `agents/cli/` |"))
+    for path in sorted((ROOT / "agents" / "cli").glob("*.py")):
+        if path.stem not in COMMANDS and path.name != "__init__.py":
+            assert f"`{path.name}`" in row, path.name
