@@ -297,6 +297,20 @@ def read_raw_accel(path: str | Path) -> RawAccel:
                     "use read_resonances_csv")
 
 
+def _bad_raw_line(path: Path, body: list[tuple[int, str]]) -> RingtuneError:
+    """The error naming the first line of a raw capture that is not four finite numbers (the slow
+    path, taken only when the fast reader failed)."""
+    for i, ln in body:
+        parts = ln.split(",")
+        if len(parts) != 4:
+            return RingtuneError(f"expected 4 values (time,accel_x,accel_y,accel_z), found {len(parts)}",
+                                 f"{path}:{i + 1}")
+        bad = next((p for p in parts if not _is_float(p) or not math.isfinite(float(p))), None)
+        if bad is not None:
+            return RingtuneError(f"not a finite number: {bad.strip()[:30]!r}", f"{path}:{i + 1}")
+    return RingtuneError("unreadable raw accelerometer data", str(path))  # pragma: no cover
+
+
 def _parse_klipper_raw(path: Path, lines: list[str]) -> RawAccel:
     body = [(i, ln) for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
     if len(body) < 2:
@@ -307,15 +321,7 @@ def _parse_klipper_raw(path: Path, lines: list[str]) -> RawAccel:
     except ValueError:
         ok = False
     if not ok:
-        for i, ln in body:  # slow path only to name the bad line
-            parts = ln.split(",")
-            if len(parts) != 4:
-                raise RingtuneError(f"expected 4 values (time,accel_x,accel_y,accel_z), found "
-                                    f"{len(parts)}", f"{path}:{i + 1}")
-            for p in parts:
-                if not _is_float(p) or not math.isfinite(float(p)):
-                    raise RingtuneError(f"not a finite number: {p.strip()[:30]!r}", f"{path}:{i + 1}")
-        raise RingtuneError("unreadable raw accelerometer data", str(path))  # pragma: no cover
+        raise _bad_raw_line(path, body)
     t = data[:, 0]
     dt = np.diff(t)
     if (dt <= 0).any():
