@@ -15,9 +15,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ringtune.agents.cli.options import VALUES, ListOf, flavor_name
-from ringtune.agents.cli.shaper import band_text, finite_or_none
+from ringtune.agents.cli.shaper import band_text
 from ringtune.hardware.accel import read_resonances_csv
-from ringtune.shaping.analysis import band, max_accel, residual_vibration, smoothing
+from ringtune.shaping.analysis import responses
 from ringtune.shaping.shapers import get_shaper
 
 NAME = "response"
@@ -59,12 +59,7 @@ def run(args, out) -> int:
     fmax = 3 * args.freq if args.fmax is None else args.fmax
     freqs = np.linspace(0, fmax, args.points + 1)[1:]
     shapers = [get_shaper(n, args.freq, args.damping, flavor, where=f"shaper {n!r}") for n in args.names]
-    rows = []
-    for s in shapers:
-        vals = np.max([residual_vibration(s, freqs, z) for z in dampings], axis=0)
-        rows.append({"name": s.name, "damping": s.damping, "residual": vals,
-                     "band90_hz": list(band(s, 0.9, s.damping)), "duration_s": s.duration,
-                     "smoothing_mm": smoothing(s), "max_accel": finite_or_none(max_accel(s))})
+    rows = responses(shapers, freqs, dampings)
     psd = None
     if args.psd:
         psd = read_resonances_csv(args.psd)
@@ -74,6 +69,12 @@ def run(args, out) -> int:
         _plot(args, flavor, freqs, rows, dampings, psd)
     result = {"freq": args.freq, "flavor": flavor, "plant_damping": dampings, "freqs_hz": freqs,
               "shapers": rows, "plot": args.plot, "psd": args.psd}
+    out.emit(result, _text(args, flavor, dampings, rows))
+    return 0
+
+
+def _text(args, flavor: str, dampings: list[float], rows: list[dict]) -> str:
+    """The table a person reads: each shaper's 90 % band, duration, smoothing and max_accel."""
     lines = [f"residual vibration at {args.freq:g} Hz design frequency ({flavor}; plant damping "
              f"{', '.join(f'{z:g}' for z in dampings)})",
              f"  {'shaper':<22} {'90% band':>20} {'duration ms':>12} {'smoothing':>10} {'max_accel':>10}"]
@@ -83,8 +84,7 @@ def run(args, out) -> int:
                      f"{r['smoothing_mm']:10.4f} {acc:>10}")
     if args.plot:
         lines.append(f"graph written to {args.plot}")
-    out.emit(result, "\n".join(lines))
-    return 0
+    return "\n".join(lines)
 
 
 def _plot(args, flavor, freqs, rows, dampings, psd) -> None:
