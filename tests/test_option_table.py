@@ -1,5 +1,5 @@
 """The option table (agents/cli/options.py) on the commands that branched on their own values
-before: shaper, response and push refuse an out-of-range value at parse time, in one line naming
+before: shaper, response, push and graph refuse an out-of-range value at parse time, in one line naming
 the option and the table's range, exit status 2, nothing on stdout."""
 
 from __future__ import annotations
@@ -23,6 +23,8 @@ from ringtune.agents.cli.options import VALUES, ListOf
     (["push", "c.json", "--dry-run", "--timeout", "0"], "--timeout: must be a time > 0 s"),
     (["push", "c.json", "--dry-run", "--baud", "-9600"], "--baud: must be a serial speed > 0 baud"),
     (["push", "c.json", "--port", "/tmp/p", "--moonraker", "http://h"], "--moonraker: not allowed with"),
+    (["graph", "shapers", "x.csv", "-o", "g.png", "--scv", "-1"], "--scv: must be a square-corner velocity ≥ 0"),
+    (["graph", "speeds", "-o", "g.png", "--step", "0"], "--step: must be a speed > 0 mm/s"),
 ])
 def test_out_of_range_is_refused_before_the_command_runs(capsys, argv, needle):
     assert main(argv) == 2
