@@ -117,6 +117,21 @@ class MotorModel:
                 self.steps_per_mm = DEFAULTS["steps_per_mm"]
             return
         n = int(self.steps_per_revolution or 200)
+        run, volt, rd, notes = self._drive_or_assumed(n)
+        self.steps_per_mm = n * self.microsteps / rd
+        consts = MotorConstants(self.name or "custom", self.resistance, self.inductance,
+                                self.holding_torque, self.rated_current, n)
+        drive = StepperDrive(consts, float(run), float(volt), float(rd))
+        self._stepper = drive
+        self.force = drive.standstill_force
+        self.corner_speed = drive.corner_speed
+        if self.rotor_inertia is not None:
+            self.rotor_mass = self.rotor_inertia / drive.radius ** 2
+        self.assumed = tuple(notes)
+
+    def _drive_or_assumed(self, n: int) -> tuple[float, float, float, list[str]]:
+        """(run current A RMS, voltage V, rotation distance mm, what was assumed) of a datasheet motor
+        with ``n`` steps per revolution: as given, else the typical value, said."""
         notes = []
         if self.steps_per_revolution is None:
             notes.append("steps_per_revolution = 200 (not given: a 1.8° motor assumed)")
@@ -137,16 +152,7 @@ class MotorModel:
             rd = n * self.microsteps / self.steps_per_mm
             notes.append(f"rotation_distance = {rd:.4g} mm (not given: from steps_per_mm = "
                          f"{self.steps_per_mm:g}, {self.microsteps:g} microsteps, {n} steps/rev)")
-        self.steps_per_mm = n * self.microsteps / rd
-        consts = MotorConstants(self.name or "custom", self.resistance, self.inductance,
-                                self.holding_torque, self.rated_current, n)
-        drive = StepperDrive(consts, float(run), float(volt), float(rd))
-        self._stepper = drive
-        self.force = drive.standstill_force
-        self.corner_speed = drive.corner_speed
-        if self.rotor_inertia is not None:
-            self.rotor_mass = self.rotor_inertia / drive.radius ** 2
-        self.assumed = tuple(notes)
+        return run, volt, rd, notes
 
     @property
     def has_datasheet(self) -> bool:
