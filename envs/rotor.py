@@ -245,30 +245,45 @@ def _solve_springs(K0, vecs, mass, k_init, targets, printer) -> np.ndarray:
         if np.max(np.abs(res)) < 1e-12:
             ok = True
             break
-        J = np.empty((nb, nb))
-        for j in range(nb):
-            dx = np.zeros(nb)
-            dx[j] = 1e-6
-            J[:, j] = (log_freqs(x + dx) - lf) / 1e-6
-        if not np.all(np.isfinite(J)):
+        step = _newton_step(log_freqs, x, lf, res)
+        if step is None:
             break
-        try:
-            step = np.linalg.solve(J, -res)
-        except np.linalg.LinAlgError:
-            break
-        step *= min(1.0, 2.0 / max(np.max(np.abs(step)), 1e-300))      # at most e² per iteration
         x = x + step
         if np.max(x) > 60:
             break
     if not ok:
-        mo = min((m for _n, m, _d in printer.drive_motors()), key=lambda m: m.magnetic_stiffness)
-        key = "[motor].run_current" if mo.has_datasheet else "[motor].force"
-        raise RingtuneError(
-            f"the motor's magnetic stiffness ({mo.magnetic_stiffness / 1e3:.0f} N/mm from force "
-            f"{mo.force:.3g} N over an electrical cycle of {mo.electrical_cycle:g} mm) cannot carry the "
-            f"described modes up to {targets[-1] / (2 * math.pi):.1f} Hz in series with the belts; raise "
-            f"{key}, lower the masses, or set [motor].slip = false", key)
+        raise _motor_too_weak(printer, targets)
     return np.exp(x)
+
+
+def _newton_step(log_freqs, x: np.ndarray, lf: np.ndarray, res: np.ndarray) -> np.ndarray | None:
+    """Newton's step on log-stiffness (finite-difference Jacobian, at most e² per iteration), None
+    when the Jacobian is not finite or singular."""
+    nb = len(x)
+    J = np.empty((nb, nb))
+    for j in range(nb):
+        dx = np.zeros(nb)
+        dx[j] = 1e-6
+        J[:, j] = (log_freqs(x + dx) - lf) / 1e-6
+    if not np.all(np.isfinite(J)):
+        return None
+    try:
+        step = np.linalg.solve(J, -res)
+    except np.linalg.LinAlgError:
+        return None
+    return step * min(1.0, 2.0 / max(np.max(np.abs(step)), 1e-300))
+
+
+def _motor_too_weak(printer, targets) -> RingtuneError:
+    """The refusal when no spring stiffness gives the described modes: the weakest motor's magnetic
+    stiffness cannot carry them in series with the belts."""
+    mo = min((m for _n, m, _d in printer.drive_motors()), key=lambda m: m.magnetic_stiffness)
+    key = "[motor].run_current" if mo.has_datasheet else "[motor].force"
+    return RingtuneError(
+        f"the motor's magnetic stiffness ({mo.magnetic_stiffness / 1e3:.0f} N/mm from force "
+        f"{mo.force:.3g} N over an electrical cycle of {mo.electrical_cycle:g} mm) cannot carry the "
+        f"described modes up to {targets[-1] / (2 * math.pi):.1f} Hz in series with the belts; raise "
+        f"{key}, lower the masses, or set [motor].slip = false", key)
 
 
 def _modal_damping(K, mass, omega, zeta, rotor_zeta, rotor_index) -> np.ndarray:
