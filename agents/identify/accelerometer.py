@@ -70,6 +70,20 @@ def _axis(path, items, given: str | None) -> tuple[str, str | None]:
                         "names it (resonances_x_…, resonances_y_…) or give --axis", str(path))
 
 
+def _free_decay_fit(path, data: RawAccel, axis: str | None, max_modes: int, fmin: float) -> tuple[AxisFit, str]:
+    """(fit, axis) of an RRF M956 capture: one move's free ringing (axis given, or named in the file's name)."""
+    ax = axis or _named_axis(path)
+    if ax is None:
+        raise RingtuneError("cannot tell which axis this capture measured; give --axis", str(path))
+    return identify_decay(data.t, data.axis(ax), ax, str(path), data.rate, max_modes=min(max_modes, 2), fmin=fmin), ax
+
+
+def _sweep_fits(path, items: list, ax: str, max_modes: int, fmin: float, fmax: float, damping: str) -> list[AxisFit]:
+    """The fits of a resonance sweep's spectra on axis ``ax`` (its own column, else the sum)."""
+    return [identify_psd(psd.freqs, psd.axis(ax) if psd.psd_x is not None else psd.psd_sum, ax,
+                         psd.source or str(path), max_modes, fmin, fmax, damping) for psd in items]
+
+
 def read_measurement(paths, axis: str | None = None, max_modes: int = 3, fmin: float = SWEEP[0],
                      fmax: float = SWEEP[1], damping: str = "fit") -> Measurement:
     """Read and fit every file (``axis``: the axis of all of them, default from each file)."""
@@ -81,26 +95,18 @@ def read_measurement(paths, axis: str | None = None, max_modes: int = 3, fmin: f
         data = read_accel(path)
         record = {"name": str(path), "sha256": sha256_of(path)}
         if isinstance(data, RawAccel) and data.fmt == "m956":
-            ax = axis or _named_axis(path)
-            if ax is None:
-                raise RingtuneError("cannot tell which axis this capture measured; give --axis", str(path))
-            fit = identify_decay(data.t, data.axis(ax), ax, str(path), data.rate,
-                                 max_modes=min(max_modes, 2), fmin=fmin)
-            fits.append(fit)
+            fit, ax = _free_decay_fit(path, data, axis, max_modes, fmin)
+            new = [fit]
             files.append({**record, "axis": ax, "kind": "free decay"})
-            warnings += [f"{path}: {w}" for w in fit.warnings]
-            continue
-        items = to_psd(data)
-        ax, warning = _axis(path, items, axis)
-        if warning:
-            warnings.append(warning)
-        files.append({**record, "axis": ax})
-        psds.setdefault(ax, []).extend(items)
-        for psd in items:
-            col = psd.axis(ax) if psd.psd_x is not None else psd.psd_sum
-            fit = identify_psd(psd.freqs, col, ax, psd.source or str(path), max_modes, fmin, fmax, damping)
-            fits.append(fit)
-            warnings += [f"{path}: {w}" for w in fit.warnings]
+        else:
+            items = to_psd(data)
+            ax, warning = _axis(path, items, axis)
+            warnings += [warning] if warning else []
+            files.append({**record, "axis": ax})
+            psds.setdefault(ax, []).extend(items)
+            new = _sweep_fits(path, items, ax, max_modes, fmin, fmax, damping)
+        fits += new
+        warnings += [f"{path}: {w}" for fit in new for w in fit.warnings]
     return Measurement(fits, psds, files, warnings)
 
 
