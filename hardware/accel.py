@@ -69,7 +69,7 @@ AccelData = Union[PSD, list, RawAccel]
 def _read_lines(path: str | Path) -> tuple[Path, list[str]]:
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
+        text = path.read_text(encoding="utf-8-sig", errors="replace")
     except FileNotFoundError:
         raise RingtuneError("no such file", str(path)) from None
     except IsADirectoryError:

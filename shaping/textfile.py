@@ -11,7 +11,7 @@ from ringtune.shaping.errors import RingtuneError
 def read_text_file(path, what: str) -> str:
     """The text of ``path`` (``what`` names the kind, e.g. "Klipper configuration"); binary data is a
     NUL byte in the first 64 KiB, or more than 1 % of the bytes not UTF-8 (a stray Latin-1 byte in a
-    comment is still text)."""
+    comment is still text). A leading byte-order mark is dropped."""
     p = Path(path)
     if p.is_dir():
         raise RingtuneError(f"is a directory, not a {what} file", str(path))
@@ -21,7 +21,7 @@ def read_text_file(path, what: str) -> str:
         raise RingtuneError("no such file", str(path)) from None
     except OSError as exc:
         raise RingtuneError(f"cannot read: {exc.strerror or exc}", str(path)) from None
-    text = data.decode("utf-8", errors="replace")
+    text = data.decode("utf-8", errors="replace").removeprefix("\ufeff")   # a Windows editor's byte-order mark
     if b"\0" in data[:65536] or text.count("\ufffd") > 0.01 * max(len(text), 1):
         raise RingtuneError(f"not a text file (binary data): not a {what}", str(path))
     return text

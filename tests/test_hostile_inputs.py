@@ -280,3 +280,30 @@ def test_the_table_is_large_enough_and_spans_the_commands():
     assert len(CASES) >= 80
     assert {"identify", "printer", "testprint", "simulate", "export", "push", "recommend", "tune", "plan",
             "limit", "shaper", "motor"} <= commands
+
+
+@pytest.mark.parametrize("kind", ["resonances", "printer.cfg", "m503"])
+def test_files_saved_by_a_windows_editor_read_as_the_plain_files(kind, data_dir, tmp_path, capsys):
+    """A byte-order mark and CRLF line ends (Notepad, Excel's "CSV UTF-8") change nothing: the same
+    JSON as the plain file's, apart from the file names."""
+    plain = {"resonances": data_dir / "accel/klipper_psd/bassco_ender3/resonances_x_20210821_152037.csv",
+             "printer.cfg": data_dir / "klipper_config/ender3/printer.cfg"}.get(kind)
+    if plain is None:
+        plain = tmp_path / "m503.txt"
+        plain.write_text(M503_HOST)
+    win = tmp_path / "win" / plain.name
+    win.parent.mkdir()
+    win.write_bytes(b"\xef\xbb\xbf" + plain.read_bytes().replace(b"\r\n", b"\n").replace(b"\n", b"\r\n"))
+    argv = {"resonances": ["identify", "--name", "p"], "printer.cfg": ["printer", "from-klipper", "--name", "p"],
+            "m503": ["printer", "from-marlin", "--name", "p"]}[kind]
+    got = []
+    for path in (plain, win):
+        assert main([*argv, str(path), "-o", str(tmp_path / "out.toml"), "--json"]) == 0, capsys.readouterr().err
+        text = capsys.readouterr().out.replace(str(path.parent), "DIR")
+        got.append(json.loads(text))
+    for d in got:
+        for key in ("files", "notes", "warnings", "output"):
+            d.pop(key, None)
+        if "toml" in d:                                  # the files' SHA-256 differ, nothing else
+            d["toml"] = "\n".join(ln for ln in d["toml"].splitlines() if "sha256" not in ln)
+    assert got[0] == got[1]
