@@ -76,6 +76,8 @@ def _files(t, d):
     (t / "m503_console.txt").write_text(M503_CONSOLE)
     (t / "query.txt").write_text(QUERY)
     (t / "empty.csv").write_text("")
+    (t / "resonances_x_semicolons.csv").write_text(        # a European spreadsheet's re-save
+        (d / "accel/klipper_psd/bassco_ender3/resonances_x_20210821_152037.csv").read_text().replace(",", ";"))
     (t / "binary.csv").write_bytes(bytes(range(256)) * 8)
     (t / "folder").mkdir()
     shutil.copy(d / "accel/klipper_psd/bassco_voron_v24/resonances_x_20230306_224517.csv", t / "voron_sweep_1.csv")
@@ -116,6 +118,8 @@ CASES = [
                                                                      "--axis"]),
     ("z-resonance-test", ["identify", "resonances_z_20210821_152037.csv"], R, ["Z resonance test"]),
     ("accelerometer-query-paste", ["identify", "query.txt"], R, ["query.txt", "ACCELEROMETER_QUERY", "TEST_RESONANCES"]),
+    ("semicolon-csv", ["identify", "resonances_x_semicolons.csv"], R, ["resonances_x_semicolons.csv", "semicolons",
+                                                                        "commas"]),
     ("empty-file", ["identify", "empty.csv"], R, ["empty.csv", "empty"]),
     ("binary-file", ["identify", "binary.csv"], R, ["binary.csv"]),
     ("missing-file", ["identify", "nowhere.csv"], R, ["nowhere.csv", "no such file"]),
