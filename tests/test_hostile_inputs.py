@@ -76,6 +76,8 @@ def _files(t, d):
     (t / "m503_console.txt").write_text(M503_CONSOLE)
     (t / "query.txt").write_text(QUERY)
     (t / "empty.csv").write_text("")
+    for name in ("resonances_axis=1.000,1.000,0.000_a.csv", "resonances_axis=1.000,-1.000,0.000_a.csv"):
+        shutil.copy(d / "accel/klipper_psd/bassco_voron_v24/resonances_x_20230306_224517.csv", t / name)   # one copied
     (t / "resonances_x_semicolons.csv").write_text(        # a European spreadsheet's re-save
         (d / "accel/klipper_psd/bassco_ender3/resonances_x_20210821_152037.csv").read_text().replace(",", ";"))
     (t / "binary.csv").write_bytes(bytes(range(256)) * 8)
@@ -234,6 +236,18 @@ CASES = [
     ("limit-negative-limit", ["limit", "job.gcode", "--freq-limit", "-5", "-o", "out.gcode"], R, ["--freq-limit"]),
     ("shaper-unknown", ["shaper", "supershaper", "--freq", "40"], R, ["supershaper"]),
     ("shaper-negative-freq", ["shaper", "mzv", "--freq", "-1"], R, ["frequency", "-1"]),
+    # -- graph: Klipper users' graphs ---------------------------------------------------------------
+    ("belts-from-axis-tests", ["graph", "belts", X, Y, "-o", "b.png"], R, ["a test of the X axis", "AXIS=1,1"]),
+    ("belts-same-test-twice", ["graph", "belts", "resonances_axis=1.000,1.000,0.000_a.csv",
+                               "resonances_axis=1.000,-1.000,0.000_a.csv", "-o", "b.png"], R, ["the same test twice"]),
+    ("belts-identify-same-test", ["identify", X, "--kinematics", "corexy", "--belts",
+                                  "resonances_axis=1.000,1.000,0.000_a.csv", "resonances_axis=1.000,-1.000,0.000_a.csv"],
+     R, ["--belts", "the same test twice"]),
+    ("shapers-graph-of-an-m956-capture", ["graph", "shapers", "{d}/accel/rrf_m956/owendare_cartesian_duet2/"
+                                          "1-T0-X54-161-0-none.csv", "-o", "g.png"], R, ["M956", "not a sweep"]),
+    ("shapers-graph-of-an-m503", ["graph", "shapers", "m503_host.txt", "-o", "g.png"], R, ["m503_host.txt"]),
+    ("speeds-graph-not-an-image", ["graph", "speeds", "-o", "s.txt"], R, ["-o", ".png"]),
+    ("speeds-graph-printer-missing", ["graph", "speeds", "--printer", "none.toml", "-o", "s.png"], R, ["none.toml"]),
     ("motor-unknown", ["motor", "nosuch-motor-42"], R, ["nosuch-motor-42"]),
     # -- accepted, with what the tool decided said aloud ---------------------------------------------
     ("m503-from-a-host-log", ["printer", "from-marlin", "m503_host.txt", "-o", "m.toml"], 0, ["M503 does not report"]),
@@ -283,7 +297,7 @@ def test_the_table_is_large_enough_and_spans_the_commands():
     commands = {c[1][0] for c in CASES}
     assert len(CASES) >= 80
     assert {"identify", "printer", "testprint", "simulate", "export", "push", "recommend", "tune", "plan",
-            "limit", "shaper", "motor"} <= commands
+            "limit", "shaper", "motor", "graph"} <= commands
 
 
 @pytest.mark.parametrize("kind", ["resonances", "printer.cfg", "m503"])
