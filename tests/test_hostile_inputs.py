@@ -76,6 +76,7 @@ def _files(t, d):
     (t / "m503_console.txt").write_text(M503_CONSOLE)
     (t / "query.txt").write_text(QUERY)
     (t / "empty.csv").write_text("")
+    shutil.copy(d / "accel/klipper_psd/bassco_ender3/resonances_x_20210821_152037.csv", t / "resonances_x_copy.csv")
     for name in ("resonances_axis=1.000,1.000,0.000_a.csv", "resonances_axis=1.000,-1.000,0.000_a.csv"):
         shutil.copy(d / "accel/klipper_psd/bassco_voron_v24/resonances_x_20230306_224517.csv", t / name)   # one copied
     (t / "resonances_x_semicolons.csv").write_text(        # a European spreadsheet's re-save
@@ -256,6 +257,9 @@ CASES = [
      ["shaper.cfg", "unknown"]),
     ("rrf-config-runs-a-macro", ["printer", "from-rrf", "config_calls.g", "-o", "p.toml"], 0,
      ["shaper.g", "unknown"]),
+    ("same-test-twice-is-read-once", ["identify", X, "resonances_x_copy.csv", "-o", "p.toml"], 0,
+     ["resonances_x_copy.csv: the same data as", "read once"]),
+    ("recommend-same-test-twice", ["recommend", "--accel", X, "resonances_x_copy.csv"], 0, ["read once"]),
     ("ripples-damping-not-measured", ["identify", *RIP, "-o", "p.toml"], 0, ["typical printer", "tests/data"]),
 ]
 

@@ -77,9 +77,14 @@ def read_measurement(paths, axis: str | None = None, max_modes: int = 3, fmin: f
     psds: dict[str, list] = {}
     files: list[dict] = []
     warnings: list[str] = []
+    seen: dict[str, str] = {}
     for path in paths:
         data = read_accel(path)
         record = {"name": str(path), "sha256": sha256_of(path)}
+        if record["sha256"] in seen:
+            warnings.append(f"{path}: the same data as {seen[record['sha256']]}: read once")
+            continue
+        seen[record["sha256"]] = str(path)
         if isinstance(data, RawAccel) and data.fmt == "m956":
             ax = axis or _named_axis(path)
             if ax is None:
@@ -151,7 +156,8 @@ def recorded_files(measurement: dict, printer_path: str | Path | None) -> tuple[
 def resonance_psds(paths: list, axes: str | None = None, note=None) -> tuple[dict[str, list], dict[str, list[str]]]:
     """({axis: [PSD, …]}, {axis: [file, …]}) of resonance-test files; each file's axis from
     ``axes`` (comma-separated, one per file), else its name (a file whose name does not say is
-    refused: its columns cannot tell)."""
+    refused: its columns cannot tell). A file with the same data as an earlier one is read once (said
+    through ``note``)."""
     named = None
     if axes:
         named = [a.strip().lower() for a in axes.split(",")]
@@ -159,8 +165,15 @@ def resonance_psds(paths: list, axes: str | None = None, note=None) -> tuple[dic
             raise RingtuneError(f"give one axis (x or y) per --accel file ({len(paths)} files)", "axes")
     psds: dict[str, list] = {}
     sources: dict[str, list[str]] = {}
+    seen: dict[str, str] = {}
     for i, path in enumerate(paths):
         items = to_psd(read_accel(path))
+        digest = sha256_of(path)
+        if digest in seen:
+            if note:
+                note(f"{path}: the same data as {seen[digest]}: read once")
+            continue
+        seen[digest] = str(path)
         ax = named[i] if named else _psd_axis(path, items, note)
         psds.setdefault(ax, []).extend(items)
         sources.setdefault(ax, []).append(str(path))
