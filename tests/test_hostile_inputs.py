@@ -139,6 +139,11 @@ CASES = [
     ("klipper-cfg-as-rrf", ["identify", X, "--rrf", CFG], R, ["Klipper", "--klipper-config"]),
     # -- identify without an accelerometer -------------------------------------------------------------
     ("ripples-that-grow", ["identify", *RIP, "--decay", "X=0.8"], R, ["--decay", "grow"]),
+    ("ripples-that-die-at-once", ["identify", *RIP, "--decay", "X=50"], R, ["--decay X", "damping 0.53",
+                                                                          "0.04-0.23"]),
+    ("ripples-of-2-hz", ["identify", "--ripples", "X=40,Y=2.6", "--speed", "100"], R, ["--ripples X", "2.5 Hz",
+                                                                                    "5-300 Hz"]),
+    ("ripples-of-1000-hz", ["identify", "--ripples", "X=0.1", "--speed", "100"], R, ["--ripples X", "1e+03 Hz"]),
     ("ripples-equal-heights", ["identify", *RIP, "--decay", "X=1"], R, ["--decay", "no decay"]),
     ("ripples-no-speed", ["identify", "--ripples", "X=2.2"], R, ["--speed"]),
     ("ripples-negative-spacing", ["identify", "--ripples", "X=-2", "--speed", "100"], R, ["--ripples", "positive"]),
