@@ -83,7 +83,6 @@ def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chos
                dict(s=16, c="tab:brown", marker="1", alpha=0.7))]
     for ax, key in zip(axes[0], keys):
         y_core = np.array([_value(p, key, quality) for p in core])
-        ys_all = np.array([_value(p, key, quality) for p in points] + list(y_core))
         log = bool(np.nanmin(y_core) > 0 and np.nanmax(y_core) / np.nanmin(y_core) > 30)
         y_lo, y_hi = _limits(np.concatenate([y_core, [max_path_error_mm]] if key == "path_error_mm"
                                             and max_path_error_mm > 0 else [y_core]), log)
