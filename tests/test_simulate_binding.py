@@ -61,10 +61,11 @@ def test_the_caps_that_hold_the_acceleration_are_named_and_measured(tmp_path, ca
         assert b["time_without_s"] < b["time_s"]
         assert f"{name} 500 mm/s² binds on {b['moves']} " in text
     assert "Limits that hold some moves below 3000 mm/s²" in text
+    assert "--max-accel X,Y runs it with other per-axis caps" in text
 
 
 def test_caps_raised_with_the_configuration_are_not_named(tmp_path, capsys):
     res, text, _ = _simulate(tmp_path, capsys, "--max-accel", "3000,3000")
     names = {b["name"] for b in res["binding"]}
     assert "M201 X" not in names and "M201 Y" not in names and "M204 R" in names
-    assert "M201 X 500" not in text
+    assert "M201 X 500" not in text and "--max-accel X,Y runs it" not in text

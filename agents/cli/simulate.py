@@ -351,8 +351,12 @@ def run(args, out) -> int:
         "binding": [dataclasses.asdict(b) for b in bindings],
         **({"trace": args.trace} if args.trace else {}),
     }
-    lines = (_text(result, m, config, printer, judged, len(evs)) + binding_sentences(bindings, config.accel)
-             + [f"plot: {p}" for p in plots])
+    said = binding_sentences(bindings, config.accel)
+    xy_caps = {"M201 X", "M201 Y", "max_x_accel", "max_y_accel"}      # binding.cap_names' per-axis caps
+    if config.max_accel_x is None and any(b.name in xy_caps for b in bindings):
+        said.append("  --max-accel X,Y runs it with other per-axis caps (tune's configurations carry the caps "
+                    "they were planned with, and export sets them)")
+    lines = _text(result, m, config, printer, judged, len(evs)) + said + [f"plot: {p}" for p in plots]
     out.emit(result, "\n".join(lines))
     return 0
 
