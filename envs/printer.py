@@ -81,7 +81,7 @@ from ringtune.envs.printer_model import (DEFAULTS, MOTOR_CONSTANT_KEYS, MOTOR_DR
                                          MotorModel, Printer)
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.planner import AXIS_RULES
-from ringtune.shaping.textfile import read_text_file
+from ringtune.shaping.textfile import firmware_config_hint, read_text_file
 
 KINEMATICS = ("cartesian", "corexy", "corexz")
 
@@ -490,7 +490,7 @@ def load_printer(path: str | Path | None = None) -> Printer:
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise RingtuneError(f"not valid TOML: {exc}", where) from None
+        raise RingtuneError(f"not valid TOML: {exc}{firmware_config_hint(text)}", where) from None
     return printer_from_dict(data, where)
 
 
