@@ -270,6 +270,8 @@ CASES = [
      ["shaper.g", "unknown"]),
     ("same-test-twice-is-read-once", ["identify", X, "resonances_x_copy.csv", "-o", "p.toml"], 0,
      ["resonances_x_copy.csv: the same data as", "read once"]),
+    ("two-printers-x-tests", ["identify", X, "{d}/accel/klipper_psd/bassco_voron_v24/resonances_x_20230306_224517.csv",
+                              "-o", "p.toml"], 0, ["X: 2 tests", "the best fit", "more than 10 %", "not the same printer"]),
     ("recommend-same-test-twice", ["recommend", "--accel", X, "resonances_x_copy.csv"], 0, ["read once"]),
     ("ripples-damping-not-measured", ["identify", *RIP, "-o", "p.toml"], 0, ["typical printer", "tests/data"]),
 ]

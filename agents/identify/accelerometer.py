@@ -106,7 +106,30 @@ def read_measurement(paths, axis: str | None = None, max_modes: int = 3, fmin: f
             fit = identify_psd(psd.freqs, col, ax, psd.source or str(path), max_modes, fmin, fmax, damping)
             fits.append(fit)
             warnings += [f"{path}: {w}" for w in fit.warnings]
-    return Measurement(fits, psds, files, warnings)
+    meas = Measurement(fits, psds, files, warnings)
+    meas.warnings += _several_tests_of_an_axis(meas)
+    return meas
+
+
+def _several_tests_of_an_axis(meas: Measurement) -> list[str]:
+    """Where one axis has several tests: which one's modes the description takes (the best fit), and
+    whether the others' strongest mode lies more than 10 % away from it (not the same machine state)."""
+    out = []
+    used = meas.by_axis()
+    for ax, best in used.items():
+        others = [f for f in meas.fits if f.axis == ax and f is not best]
+        if not others:
+            continue
+
+        def main(fit):
+            return max(fit.modes, key=lambda m: m.share).freq if fit.modes else float("nan")
+
+        far = [f"{f.source} ({main(f):.1f} Hz)" for f in others if abs(main(f) / main(best) - 1) > 0.10]
+        out.append(f"{ax.upper()}: {len(others) + 1} tests; the modes are {best.source}'s (the best fit, r² "
+                   f"{best.r2:.3f}), Klipper's rule reads them all"
+                   + (f"; the strongest mode of {', '.join(far)} is more than 10 % from its {main(best):.1f} Hz: "
+                      "not the same printer or the same state (belt tension, toolhead)?" if far else ""))
+    return out
 
 
 def klipper_record(psds: dict[str, list], scv: float = 5.0, version: str = "head") -> dict:
