@@ -115,15 +115,15 @@ def plot_accel(sim, out, *, title: str = "") -> Path:
     if acc is not None:
         acc = np.asarray(acc)
         for i, name in enumerate("xyz"[:acc.shape[1]]):
-            axes[0].plot(t, acc[:, i] / 1e3, lw=0.8, label=f"accelerometer {name}")
-    axes[0].set_ylabel("acceleration (m/s²)")
+            axes[0].plot(t, acc[:, i], lw=0.8, label=f"accelerometer {name}")
+    axes[0].set_ylabel("acceleration (mm/s²)")          # the unit every text of ringtune uses
     title = title or "Toolhead accelerometer"
     axes[0].set_title(title, fontsize=9)
     axes[0].legend(fontsize=8)
     head = np.linalg.norm(np.asarray(sim.head_accel)[:, :2], axis=1)
-    axes[1].plot(t, head / 1e3, "k-", lw=0.8, label="|head acceleration|")
+    axes[1].plot(t, head, "k-", lw=0.8, label="|head acceleration|")
     axes[1].set_xlabel("time (s)")
-    axes[1].set_ylabel("acceleration (m/s²)")
+    axes[1].set_ylabel("acceleration (mm/s²)")
     axes[1].legend(fontsize=8)
     for ax in axes:
         ax.grid(alpha=0.3)

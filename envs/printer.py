@@ -82,7 +82,7 @@ from ringtune.envs.printer_motor import inherit_motor, is_datasheet, motor_from_
 from ringtune.envs.toml_checks import flag, number, refuse_unknown, table
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.planner import AXIS_RULES
-from ringtune.shaping.textfile import read_text_file
+from ringtune.shaping.textfile import firmware_config_hint, read_text_file
 
 KINEMATICS = ("cartesian", "corexy", "corexz")
 
@@ -381,7 +381,7 @@ def load_printer(path: str | Path | None = None) -> Printer:
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise RingtuneError(f"not valid TOML: {exc}", where) from None
+        raise RingtuneError(f"not valid TOML: {exc}{firmware_config_hint(text)}", where) from None
     return printer_from_dict(data, where)
 
 

@@ -69,7 +69,7 @@ AccelData = Union[PSD, list, RawAccel]
 def _read_lines(path: str | Path) -> tuple[Path, list[str]]:
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
+        text = path.read_text(encoding="utf-8-sig", errors="replace")
     except FileNotFoundError:
         raise RingtuneError("no such file", str(path)) from None
     except IsADirectoryError:
@@ -100,6 +100,10 @@ def _detect(path: Path, lines: list[str]) -> str:
     if head.startswith("#time") or _numeric_row(head, 4):
         return "klipper-raw"
     _refuse_console_paste(path, lines)
+    for sep, word in ((";", "semicolons"), ("\t", "tabs")):
+        if head.replace(sep, ",").startswith(("freq,", "sample,", "#time,")):
+            raise RingtuneError(f"columns separated by {word} (a spreadsheet's re-save?): give the file as "
+                                "the firmware wrote it, with commas", f"{path}:{i + 1}")
     raise RingtuneError(
         f"unrecognised header {lines[i].strip()[:60]!r}; expected Klipper 'freq,psd_x,...', "
         "Klipper raw '#time,accel_x,accel_y,accel_z' or RRF M956 'Sample,X,Y,Z'", f"{path}:{i + 1}")

@@ -161,7 +161,7 @@ class _Reader:
             raise RingtuneError("includes itself (recursive [include])", path)
         self.visiting.add(real)
         try:
-            text = Path(path).read_text(errors="replace").replace("\r\n", "\n")
+            text = Path(path).read_text(encoding="utf-8-sig", errors="replace").replace("\r\n", "\n")
         except OSError as exc:
             raise RingtuneError(f"cannot read: {exc.strerror}", path) from None
         first = next((ln.strip() for ln in (_strip_comment(x) for x in text.split("\n"))

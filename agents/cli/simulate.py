@@ -17,17 +17,22 @@ records, else tune's default), ``judgement`` (that, in words), ``variants``
 ``kind``, ``step_loss`` and every scalar key of ``metrics``}, each the worst over the variants), ``plots`` (list of PNG paths, empty without
 ``--plot``), ``trace`` (with ``--trace`` only: the CSV path; columns in ``ringtune.envs.trace``; the printer as
 modelled, not a detuned variant), ``job_shapers`` (the job's own shaper changes applied: list of
-{``time``, ``config``}, empty when the job sets none), ``job_accel`` (``respect`` or ``replace``).
+{``time``, ``config``}, empty when the job sets none), ``job_accel`` (``respect`` or ``replace``),
+``binding`` (the firmware limits that hold some moves below the configuration's acceleration, each
+measured by the planner without it: list of {``name``, ``value`` mm/s², ``what``, ``moves``,
+``time_s``, ``time_without_s``}, as ``tune``'s).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
 from ringtune.agents.cli.common import (GCODE_JOB_HELP, firmware_name, gcode_job,
                                        judgement, load_config, say_unmeasured)
 from ringtune.agents.cli.trace_option import write_trace_option
+from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.baselines import current_config
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 from ringtune.envs.evaluate import (evaluate_judged, job_accel_commands, planned_job, resolve_job,
@@ -284,7 +289,8 @@ def _check_options(freq, damping, args) -> None:
         raise RingtuneError(f"{args.freq_limit:g} Hz is not a frequency limit: give one in [0, 1000] Hz "
                             "(0 = off)", "--freq-limit")
     if args.accel is not None and not (math.isfinite(args.accel) and 0 < args.accel <= 1e6):
-        raise RingtuneError(f"{args.accel:g} mm/s² is not an acceleration: give one > 0 mm/s²", "--accel")
+        raise RingtuneError(f"{args.accel:g} mm/s² is not a printing acceleration: give one in (0, 1e6] mm/s²",
+                            "--accel")
 
 
 def _axis(shaper: str, freq: float, damping: float) -> str:
@@ -344,6 +350,7 @@ def run(args, out) -> int:
                                 f"--plot {args.plot}") from None
     judged = judgement(margin)
     changes = job_commands(printer, args.gcode, config, out)
+    bindings = binding_limits(printer, args.gcode, config, job_accel=job_accel_mode(config))
     out.note(f"simulating {config.shaper_x}/{config.shaper_y} on {printer.name} ({args.backend}), {judged} ...")
     m, evs = evaluate_judged([config], printer, args.gcode, backend=args.backend, freq_margin=margin,
                              job_shapers=True)[0]
@@ -369,9 +376,15 @@ def run(args, out) -> int:
         "plots": plots,
         "job_shapers": changes,
         "job_accel": job_accel_mode(config),
+        "binding": [dataclasses.asdict(b) for b in bindings],
         **({"trace": args.trace} if args.trace else {}),
     }
-    lines = _text(result, m, config, printer, judged, len(evs)) + [f"plot: {p}" for p in plots]
+    said = binding_sentences(bindings, config.accel)
+    xy_caps = {"M201 X", "M201 Y", "max_x_accel", "max_y_accel"}      # binding.cap_names' per-axis caps
+    if config.max_accel_x is None and any(b.name in xy_caps for b in bindings):
+        said.append("  --max-accel X,Y runs it with other per-axis caps (tune's configurations carry the caps "
+                    "they were planned with, and export sets them)")
+    lines = _text(result, m, config, printer, judged, len(evs)) + said + [f"plot: {p}" for p in plots]
     out.emit(result, "\n".join(lines))
     return 0
 

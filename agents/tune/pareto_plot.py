@@ -4,11 +4,13 @@ Two panels share the print-time axis: the quality objective (overshoot or path e
 error with its bound. Every trial is drawn, the ruled-out ones too (lost steps, path error over the
 bound, motor load over the reserve); a point beyond a panel's scale is drawn as an arrow at the edge
 it lies beyond, with a count, so that the legend's counts and the picture agree. Baselines that
-break a bound are drawn with a red edge and say so in the legend.
+break a bound are drawn with a red edge and say so in the legend. The legend sits below each panel
+(it covers no point), with file paths cut to their names; a ring "dominates X" takes X's colour.
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Sequence
 
@@ -20,6 +22,20 @@ from ringtune.agents.tune.pareto import Point, pareto_front
 
 LABEL = {"overshoot_mm": "overshoot", "path_error_mm": "path error"}
 STYLE = {"klipper": ("s", "tab:orange"), "current": ("D", "tab:green"), "none": ("^", "black")}
+
+
+def short_label(text: str) -> str:
+    """A legend label with every path in parentheses cut to its file name (``(…/v24/printer.cfg)`` ->
+    ``(printer.cfg)``): the summary names the full path; the legend must not cover the points."""
+    return re.sub(r"\(([^()]*[/\\])([^()/\\]+)\)", r"(\2)", text)
+
+
+def _ring_colour(label: str, baseline_labels: dict[str, str], i: int) -> str:
+    """A ring ("dominates …") in the colour of the baseline it names, else one of its own."""
+    for bkey, lab in baseline_labels.items():
+        if lab and lab in label:
+            return STYLE.get(bkey, ("P", "tab:cyan"))[1]
+    return ("tab:pink", "tab:olive", "tab:cyan")[i % 3]
 
 
 def _value(p: Point, key: str, quality: str) -> float:
@@ -45,7 +61,8 @@ def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chos
                baselines: dict[str, Point], quality: str, title: str, *, max_path_error_mm: float = 0.0,
                baseline_labels: dict[str, str] | None = None, marked: dict[str, Point] | None = None) -> dict:
     """Write the PNG; returns {panel key: {"above_scale": n, "below_scale": n, "right_of_scale": n,
-    "left_of_scale": n, "legend": [labels]}} (what was drawn as arrows, and the legend).
+    "left_of_scale": n, "legend": [labels], "legend_over_points": bool, "rings": {label: colour}}}
+    (what was drawn as arrows, the legend, whether it overlaps the panel's plotting area, the rings).
     ``marked``: {label: point} drawn ringed (e.g. "dominates Klipper's rule")."""
     matplotlib.use("Agg")
     baseline_labels = baseline_labels or {}
@@ -66,7 +83,6 @@ def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chos
                dict(s=16, c="tab:brown", marker="1", alpha=0.7))]
     for ax, key in zip(axes[0], keys):
         y_core = np.array([_value(p, key, quality) for p in core])
-        ys_all = np.array([_value(p, key, quality) for p in points] + list(y_core))
         log = bool(np.nanmin(y_core) > 0 and np.nanmax(y_core) / np.nanmin(y_core) > 30)
         y_lo, y_hi = _limits(np.concatenate([y_core, [max_path_error_mm]] if key == "path_error_mm"
                                             and max_path_error_mm > 0 else [y_core]), log)
@@ -107,14 +123,16 @@ def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chos
             m, c = STYLE.get(bkey, ("P", "tab:cyan"))
             broke = [w for w, flag in (("loses steps", p.step_loss), ("path error over the bound", p.too_rough),
                                        ("motor load over the reserve", p.overloaded)) if flag]
-            lab = baseline_labels.get(bkey, bkey)
+            lab = short_label(baseline_labels.get(bkey, bkey))
             ax.scatter([p.print_time_s], [np.clip(_value(p, key, quality), y_lo, y_hi)], s=90, marker=m, c=c,
                        edgecolors="red" if broke else "white", linewidths=2 if broke else 1, zorder=5,
                        label=f"{lab}: {p.print_time_s:.2f} s, {_value(p, key, quality) * 1000:.1f} µm"
                        + (f" — BREAKS A BOUND ({', '.join(broke)})" if broke else ""))
-        for lab, p in (marked or {}).items():
-            ax.scatter([p.print_time_s], [_value(p, key, quality)], s=180, facecolors="none", edgecolors="tab:green",
-                       linewidths=1.8, zorder=4, label=lab)
+        counts["rings"] = {}
+        for i, (lab, p) in enumerate((marked or {}).items()):     # rings of different sizes: both show
+            colour = counts["rings"][short_label(lab)] = _ring_colour(lab, baseline_labels, i)
+            ax.scatter([p.print_time_s], [_value(p, key, quality)], s=180 + 120 * i, facecolors="none",
+                       edgecolors=colour, linewidths=1.8, zorder=4, label=short_label(lab))
         ax.scatter([chosen.print_time_s], [_value(chosen, key, quality)], s=260, marker="*", c="gold",
                    edgecolors="black", zorder=6,
                    label=f"chosen: {chosen.print_time_s:.2f} s, {_value(chosen, key, quality) * 1000:.1f} µm")
@@ -125,10 +143,14 @@ def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chos
         ax.set_xlabel("print time (s)")
         ax.set_ylabel(f"{LABEL.get(key, key)} (mm)")
         ax.grid(True, alpha=0.3)
-        leg = ax.legend(fontsize=7, loc="upper right")
+        # below the panel, not over the points
+        leg = ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.16), borderaxespad=0.0)
         counts["legend"] = [t.get_text() for t in leg.get_texts()]
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path)
+    fig.canvas.draw()
+    for ax, key in zip(axes[0], keys):     # whether a legend overlaps its panel's plotting area
+        arrows[key]["legend_over_points"] = bool(ax.get_legend().get_window_extent().overlaps(ax.get_window_extent()))
+    fig.savefig(path, bbox_inches="tight")
     plt.close(fig)
     return arrows
