@@ -17,6 +17,21 @@ from ringtune.shaping.textfile import read_text_file
 
 FREQ_LIMIT_METHODS = ("nophead", "sections", "marlin")
 
+#: range of each scalar setting: key -> (lo, hi, unit, may be None)
+_RANGES = {
+    "freq_limit_hz": (0.0, 1000.0, "Hz", False),
+    "min_speed_factor": (0.01, 1.0, "", False),
+    "accel": (1.0, 1e6, "mm/s²", True),
+    "max_accel_x": (1.0, 1e6, "mm/s²", True),
+    "max_accel_y": (1.0, 1e6, "mm/s²", True),
+    "corner": (0.0, 1000.0, "", True),
+    "min_cruise_ratio": (0.0, 0.99, "", True),
+}
+
+#: keys read from JSON as floats
+_NUMBER_KEYS = ("freq_x", "freq_y", "damping_x", "damping_y", "freq_limit_hz", "min_speed_factor", "accel",
+                "max_accel_x", "max_accel_y", "corner", "min_cruise_ratio")
+
 
 @dataclass
 class TuneConfig:
@@ -105,28 +120,36 @@ class TuneConfig:
             raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {self.firmware!r}",
                                 f"{where}: firmware")
         for ax in ("x", "y"):
-            name, freq, damping = self.axis(ax)
-            if not isinstance(name, str) or not name:
-                raise RingtuneError("shaper name must be a non-empty string", f"{where}: shaper_{ax}")
-            _finite(freq, f"{where}: freq_{ax}", lo=0.0, hi=1000.0, unit="Hz")
-            _finite(damping, f"{where}: damping_{ax}", lo=0.0, hi=0.99)
-            if name != "none" and freq <= 0:
-                raise RingtuneError(f"{freq:g} Hz is outside (0, 1000] Hz while shaper_{ax} is {name!r} "
-                                    f"(shaper_{ax} = \"none\" turns shaping off)", f"{where}: freq_{ax}")
+            self._validate_axis(ax, where)
         if _is_daa(self.shaper_x) and _is_daa(self.shaper_y) and self.freq_x != self.freq_y:
             raise RingtuneError(f"DAA has one frequency for the whole machine (M593 F), but freq_x is "
                                 f"{self.freq_x:g} Hz and freq_y {self.freq_y:g} Hz", f"{where}: freq_y")
-        _finite(self.freq_limit_hz, f"{where}: freq_limit_hz", lo=0.0, hi=1000.0, unit="Hz")
-        _finite(self.min_speed_factor, f"{where}: min_speed_factor", lo=0.01, hi=1.0)
+        self._check_ranges(where, "freq_limit_hz", "min_speed_factor")
         if self.freq_limit_method not in FREQ_LIMIT_METHODS:
             raise RingtuneError(f"must be one of {', '.join(FREQ_LIMIT_METHODS)}",
                                 f"{where}: freq_limit_method")
-        for key in ("accel", "max_accel_x", "max_accel_y"):
-            if getattr(self, key) is not None:
-                _finite(getattr(self, key), f"{where}: {key}", lo=1.0, hi=1e6, unit="mm/s²")
+        self._check_ranges(where, "accel", "max_accel_x", "max_accel_y")
         if self.y_schedule is not None:
             self.y_schedule = _checked_schedule(self.y_schedule, f"{where}: y_schedule")
         self._validate_features(where)
+
+    def _validate_axis(self, ax: str, where: str) -> None:
+        name, freq, damping = self.axis(ax)
+        if not isinstance(name, str) or not name:
+            raise RingtuneError("shaper name must be a non-empty string", f"{where}: shaper_{ax}")
+        _finite(freq, f"{where}: freq_{ax}", lo=0.0, hi=1000.0, unit="Hz")
+        _finite(damping, f"{where}: damping_{ax}", lo=0.0, hi=0.99)
+        if name != "none" and freq <= 0:
+            raise RingtuneError(f"{freq:g} Hz is outside (0, 1000] Hz while shaper_{ax} is {name!r} "
+                                f"(shaper_{ax} = \"none\" turns shaping off)", f"{where}: freq_{ax}")
+
+    def _check_ranges(self, where: str, *keys: str) -> None:
+        """Each of ``keys`` within its :data:`_RANGES` row (an optional key may be None)."""
+        for key in keys:
+            lo, hi, unit, optional = _RANGES[key]
+            value = getattr(self, key)
+            if not (optional and value is None):
+                _finite(value, f"{where}: {key}", lo=lo, hi=hi, unit=unit)
 
     def _validate_features(self, where: str) -> None:
         if not isinstance(self.feature_accel, dict):
@@ -136,10 +159,7 @@ class TuneConfig:
                 raise RingtuneError(f"{cls!r} is not a feature class (one of {', '.join(FEATURE_CLASSES)})",
                                     f"{where}: feature_accel")
             _finite(value, f"{where}: feature_accel.{cls}", lo=1.0, hi=1e6, unit="mm/s²")
-        if self.corner is not None:
-            _finite(self.corner, f"{where}: corner", lo=0.0, hi=1000.0)
-        if self.min_cruise_ratio is not None:
-            _finite(self.min_cruise_ratio, f"{where}: min_cruise_ratio", lo=0.0, hi=0.99)
+        self._check_ranges(where, "corner", "min_cruise_ratio")
 
     @property
     def per_feature(self) -> bool:
@@ -171,18 +191,12 @@ class TuneConfig:
         known = {f.name for f in fields(cls)} - {"extra"}
         kwargs = {k: v for k, v in data.items() if k in known}
         extra = {k: v for k, v in data.items() if k not in known}
-        for k in ("freq_x", "freq_y", "damping_x", "damping_y", "freq_limit_hz", "min_speed_factor", "accel",
-                  "max_accel_x", "max_accel_y", "corner", "min_cruise_ratio"):
-            if k in kwargs and kwargs[k] is not None:
-                if isinstance(kwargs[k], bool) or not isinstance(kwargs[k], (int, float)):
-                    raise RingtuneError(f"must be a number, not {kwargs[k]!r}", f"{where}: {k}")
-                kwargs[k] = float(kwargs[k])
+        for k in _NUMBER_KEYS:
+            if kwargs.get(k) is not None:
+                kwargs[k] = _number(kwargs[k], f"{where}: {k}")
         fa = kwargs.get("feature_accel")
         if isinstance(fa, dict):
-            for name, v in fa.items():
-                if isinstance(v, bool) or not isinstance(v, (int, float)):
-                    raise RingtuneError(f"must be a number, not {v!r}", f"{where}: feature_accel.{name}")
-            kwargs["feature_accel"] = {str(c): float(v) for c, v in fa.items()}
+            kwargs["feature_accel"] = {str(c): _number(v, f"{where}: feature_accel.{c}") for c, v in fa.items()}
         elif "feature_accel" in kwargs and fa is None:
             kwargs["feature_accel"] = {}
         try:
@@ -214,6 +228,13 @@ class TuneConfig:
 
     def save(self, path: str | Path) -> None:
         Path(path).write_text(json.dumps(self.to_dict(), indent=2) + "\n")
+
+
+def _number(value: Any, where: str) -> float:
+    """``value`` as a float; a bool or a non-number is an error at ``where``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise RingtuneError(f"must be a number, not {value!r}", where)
+    return float(value)
 
 
 def _finite(value: Any, where: str, lo: float, hi: float, unit: str = "") -> None:

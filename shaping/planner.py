@@ -107,26 +107,42 @@ class MachineLimits:
             raise RingtuneError(f"junction must be one of {', '.join(JUNCTIONS)}, not {self.junction!r}",
                                 f"{where}.junction")
         self._validate_axis_rule(where)
-        for name in ("accel", "velocity"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise RingtuneError(f"must be a positive number, not {v!r}", f"{where}.{name}")
-        for name in ("square_corner_velocity", "junction_deviation"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise RingtuneError(f"must be a number >= 0, not {v!r}", f"{where}.{name}")
-        if not 0 <= self.min_cruise_ratio < 1:
-            raise RingtuneError("must be in [0, 1)", f"{where}.min_cruise_ratio")
-        for name in ("jerk", "max_accel", "max_velocity"):
-            v = getattr(self, name)
-            if v is None:
-                continue
-            if len(v) != 4 or not all(math.isfinite(x) and x >= 0 for x in v):
-                raise RingtuneError("needs 4 numbers >= 0 (x, y, z, e)", f"{where}.{name}")
-        for name in ("travel_accel", "retract_accel"):
-            v = getattr(self, name)
-            if v is not None and not (math.isfinite(v) and v > 0):
-                raise RingtuneError("must be a positive number", f"{where}.{name}")
+        for names, ok, message in _LIMIT_CHECKS:
+            for name in names:
+                v = getattr(self, name)
+                if not ok(v):
+                    raise RingtuneError(message.format(v=v), f"{where}.{name}")
+
+
+def _positive(v) -> bool:
+    return isinstance(v, (int, float)) and math.isfinite(v) and v > 0
+
+
+def _non_negative(v) -> bool:
+    return isinstance(v, (int, float)) and math.isfinite(v) and v >= 0
+
+
+def _fraction(v) -> bool:
+    return 0 <= v < 1
+
+
+def _four_or_none(v) -> bool:
+    """None, or four finite values >= 0 (x, y, z, e)."""
+    return v is None or (len(v) == 4 and all(math.isfinite(x) and x >= 0 for x in v))
+
+
+def _positive_or_none(v) -> bool:
+    return v is None or (math.isfinite(v) and v > 0)
+
+
+#: checks of MachineLimits' fields: (names, test of the value, message; {v} is the value)
+_LIMIT_CHECKS = (
+    (("accel", "velocity"), _positive, "must be a positive number, not {v!r}"),
+    (("square_corner_velocity", "junction_deviation"), _non_negative, "must be a number >= 0, not {v!r}"),
+    (("min_cruise_ratio",), _fraction, "must be in [0, 1)"),
+    (("jerk", "max_accel", "max_velocity"), _four_or_none, "needs 4 numbers >= 0 (x, y, z, e)"),
+    (("travel_accel", "retract_accel"), _positive_or_none, "must be a positive number"),
+)
 
 
 @dataclass
@@ -299,6 +315,13 @@ def _build(job, limits, w, cruise2, acc, dec, d, u, vmax, extruding) -> Plan:
     return Plan(motion, table, print_time, events, limits)
 
 
+#: job header settings that set MachineLimits fields: (job's setting, field, 0 allowed)
+_JOB_LIMITS = (("accel_travel", "travel_accel", False), ("accel_retract", "retract_accel", False),
+               ("square_corner_velocity", "square_corner_velocity", False),
+               ("junction_deviation", "junction_deviation", False), ("velocity", "velocity", False),
+               ("min_cruise_ratio", "min_cruise_ratio", True))
+
+
 def limits_from_job(job: Job, base: MachineLimits | None = None, junction: str | None = None) -> MachineLimits:
     """Machine limits taking the first value the job sets for each (its header), over ``base``."""
     base = base or MachineLimits()
@@ -307,19 +330,24 @@ def limits_from_job(job: Job, base: MachineLimits | None = None, junction: str |
     a = fs("accel_klipper") if junction == "scv" else fs("accel_print")
     if a == a:
         kw["accel"] = a
-    for key, name in (("accel_travel", "travel_accel"), ("accel_retract", "retract_accel"),
-                      ("square_corner_velocity", "square_corner_velocity"),
-                      ("junction_deviation", "junction_deviation"), ("velocity", "velocity"),
-                      ("min_cruise_ratio", "min_cruise_ratio")):
+    for key, name, zero_ok in _JOB_LIMITS:
         v = fs(key)
-        if v == v and v > 0 or (v == 0 and key == "min_cruise_ratio"):
+        if v > 0 or (zero_ok and v == 0):     # NaN (unset) fails both
             kw[name] = v
-    jerk = [fs(f"jerk_{ax}") for ax in "xyze"]
-    if any(j == j for j in jerk):
-        kw["jerk"] = tuple(j if j == j else b for j, b in zip(jerk, base.jerk))
+    jerk = _job_jerk(job, base.jerk)
+    if jerk:
+        kw["jerk"] = jerk
     if junction:
         kw["junction"] = junction
     return replace(base, **kw)
+
+
+def _job_jerk(job: Job, base: tuple) -> tuple | None:
+    """(x, y, z, e) jerk the job's header sets, mm/s, ``base``'s where it sets none; None if none."""
+    jerk = [job.file_setting(f"jerk_{ax}") for ax in "xyze"]
+    if not any(j == j for j in jerk):
+        return None
+    return tuple(j if j == j else b for j, b in zip(jerk, base))
 
 
 def guess_junction(job: Job) -> str:
