@@ -183,16 +183,22 @@ def _modes_from_list(raw, damping: float, w: str) -> list[Mode]:
     if not isinstance(raw, list) or not raw:
         raise RingtuneError("modes must be a non-empty list of {freq, damping, share}", w)
     modes = [_mode_from_dict(md, damping, f"{w}[{i}]") for i, md in enumerate(raw)]
+    _fill_shares(modes, w)
+    return modes
+
+
+def _fill_shares(modes: list[Mode], w: str) -> None:
+    """Check the given shares and split what they leave of 1 evenly over the modes without one."""
     free = [m for m in modes if math.isnan(m.share)]
     total = sum(m.share for m in modes if not math.isnan(m.share))
-    if (free and total > 1.0 + 1e-6) or (not free and abs(total - 1.0) > 1e-3):
+    off = total > 1.0 + 1e-6 if free else abs(total - 1.0) > 1e-3     # free modes take what is left
+    if off:
         raise RingtuneError(f"mode shares sum to {total:g}; they must sum to 1 "
                             "(leave one out to let it take what is left)", w)
     if free and 1.0 - total <= 1e-9:
         raise RingtuneError("modes without a share get nothing: the given shares already sum to 1", w)
     for m in free:
         m.share = (1.0 - total) / len(free)
-    return modes
 
 
 def _axis_from_chain(d: dict, damping: float, w: str) -> AxisModel:
@@ -228,31 +234,35 @@ def _passthrough(d: dict, sec: str, where: str) -> dict:
         if k in t and not isinstance(t[k], str):
             raise RingtuneError(f"{k} must be a string, got {t[k]!r}", f"{w}.{k}")
     if sec == "measurement":
-        files = t.get("files", [])
-        if not isinstance(files, list) or not all(isinstance(f, dict) for f in files):
-            raise RingtuneError('files must be a list of tables like { name = "x.csv", sha256 = "…", axis = "x" }',
-                                f"{w}.files")
-        if "klipper" in t and not isinstance(t["klipper"], dict):
-            raise RingtuneError("[measurement.klipper] must be a table", f"{w}.klipper")
+        _check_measurement(t, w)
     return dict(t)
+
+
+def _check_measurement(t: dict, w: str) -> None:
+    """``[measurement]``'s ``files`` (a list of tables) and ``[measurement.klipper]`` (a table)."""
+    files = t.get("files", [])
+    if not isinstance(files, list) or not all(isinstance(f, dict) for f in files):
+        raise RingtuneError('files must be a list of tables like { name = "x.csv", sha256 = "…", axis = "x" }',
+                            f"{w}.files")
+    if "klipper" in t and not isinstance(t["klipper"], dict):
+        raise RingtuneError("[measurement.klipper] must be a table", f"{w}.klipper")
 
 
 def _defaulted(d: dict, base_raw: dict) -> tuple[str, ...]:
     """What the description leaves to DEFAULTS: an axis's moving mass (no ``mass``/``masses``) and an
     axis's motor force (its table over ``[motor]`` has neither a name, datasheet constants nor
     ``force``): ``Printer.defaulted``."""
-    out = []
-    for ax in ("x", "y"):
-        t = d.get(ax) if isinstance(d.get(ax), dict) else {}
-        if "mass" not in t and "masses" not in t:
-            out.append(f"{ax}.mass")
-    for ax in ("x", "y"):
-        t = d.get(ax) if isinstance(d.get(ax), dict) else {}
-        own = t.get("motor") if isinstance(t.get("motor"), dict) else {}
-        mo = inherit_motor(base_raw, own) if own else base_raw
-        if not (is_datasheet(mo) or "force" in mo):
-            out.append(f"{ax}.motor")
-    return tuple(out)
+    tables = {ax: d.get(ax) if isinstance(d.get(ax), dict) else {} for ax in ("x", "y")}
+    masses = [f"{ax}.mass" for ax, t in tables.items() if "mass" not in t and "masses" not in t]
+    return tuple(masses + [f"{ax}.motor" for ax, t in tables.items() if not _has_force(t, base_raw)])
+
+
+def _has_force(axis_table: dict, base_raw: dict) -> bool:
+    """Whether an axis's motor (its own ``motor`` table over ``[motor]``) gives its force: a named
+    motor, datasheet constants or ``force``."""
+    own = axis_table.get("motor") if isinstance(axis_table.get("motor"), dict) else {}
+    mo = inherit_motor(base_raw, own) if own else base_raw
+    return is_datasheet(mo) or "force" in mo
 
 
 def _check_limits(limits: dict, lw: str) -> None:
@@ -366,23 +376,25 @@ def load_printer(path: str | Path | None = None) -> Printer:
     A bare name of an embedded description (``"ender3"``, ``"voron24"``) also works."""
     if isinstance(path, Printer):
         return path
-    p = Path("ender3" if path is None else path)
-    embedded = resources.files("ringtune.envs.data") / f"{p.name}.toml"
-    if (path is None or not p.is_file()) and p.suffix == "" and embedded.is_file():
-        text = embedded.read_text()
-        where = f"<embedded {p.name}.toml>"
-    else:
-        if not p.exists() and not p.is_symlink():
-            hint = (f" (and not an embedded printer: {', '.join(embedded_printers())})"
-                    if p.suffix == "" and p.parent == Path(".") else "")
-            raise RingtuneError(f"cannot read printer description: no such file{hint}", str(path))
-        text = read_text_file(p, "printer description (TOML)")
-        where = str(path)
+    text, where = _printer_text(path)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise RingtuneError(f"not valid TOML: {exc}{firmware_config_hint(text)}", where) from None
     return printer_from_dict(data, where)
+
+
+def _printer_text(path: str | Path | None) -> tuple[str, str]:
+    """(TOML text, where to name in errors) of a printer file or of an embedded description."""
+    p = Path("ender3" if path is None else path)
+    embedded = resources.files("ringtune.envs.data") / f"{p.name}.toml"
+    if (path is None or not p.is_file()) and p.suffix == "" and embedded.is_file():
+        return embedded.read_text(), f"<embedded {p.name}.toml>"
+    if not p.exists() and not p.is_symlink():
+        hint = (f" (and not an embedded printer: {', '.join(embedded_printers())})"
+                if p.suffix == "" and p.parent == Path(".") else "")
+        raise RingtuneError(f"cannot read printer description: no such file{hint}", str(path))
+    return read_text_file(p, "printer description (TOML)"), str(path)
 
 
 def embedded_printers() -> tuple[str, ...]:
