@@ -123,23 +123,27 @@ def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None 
     if config is not None and config.per_feature:   # over the job's own, as the rewritten file has them
         job = with_feature_settings(job, FeatureCommands.from_config(config, limits))
         accel = None          # the settings are the job's own now, move by move
-    freq_limit = None
-    if config is not None and config.freq_limit_hz > 0 and _carries(job, config):
-        freq_limit = FreqLimitApplied(float(config.freq_limit_hz), config.freq_limit_method, 0, "job (ringtune limit)")
-    elif config is not None and config.freq_limit_hz > 0:
-        before = job.feed
-        job = apply_freq_limit(job, float(config.freq_limit_hz), config.freq_limit_method,
-                               float(config.min_speed_factor), max_velocity=limits.max_velocity)
-        freq_limit = FreqLimitApplied(float(config.freq_limit_hz), config.freq_limit_method,
-                                      int(np.sum(job.feed < before)), "config")
-    elif use_job_limits and job.file_setting("freq_limit_hz") > 0:
-        before = job.feed
-        job = apply_freq_limit(job, None, "marlin", max_velocity=limits.max_velocity)
-        freq_limit = FreqLimitApplied(job.file_setting("freq_limit_hz"), "marlin",
-                                      int(np.sum(job.feed < before)), "job M201 F")
+    job, freq_limit = _freq_limited(job, limits, config, use_job_limits)
     daa = daa_freq if daa_freq is not None else (None if config is None else config.daa_freq)
     # replace: the config's acceleration wins over the job's own commands (a tuning knob);
     # respect: it is the machine's acceleration (limits.accel), the job's commands stand
     planned = plan(job, limits, daa_freq=daa, use_job_limits=use_job_limits,
                    accel=accel if mode == "replace" else None)
     return ConfiguredPlan(planned, limits, freq_limit, daa, job)
+
+
+def _freq_limited(job: Job, limits: MachineLimits, config: TuneConfig | None,
+                  use_job_limits: bool) -> tuple[Job, FreqLimitApplied | None]:
+    """``job`` under the direction-change frequency limit that applies, and which one: the config's
+    (already carried by a rewritten job, or applied here), else the job's own M201 F, else none."""
+    if config is not None and config.freq_limit_hz > 0:
+        hz, method = float(config.freq_limit_hz), config.freq_limit_method
+        if _carries(job, config):
+            return job, FreqLimitApplied(hz, method, 0, "job (ringtune limit)")
+        limited = apply_freq_limit(job, hz, method, float(config.min_speed_factor), max_velocity=limits.max_velocity)
+        return limited, FreqLimitApplied(hz, method, int(np.sum(limited.feed < job.feed)), "config")
+    if use_job_limits and job.file_setting("freq_limit_hz") > 0:
+        limited = apply_freq_limit(job, None, "marlin", max_velocity=limits.max_velocity)
+        return limited, FreqLimitApplied(job.file_setting("freq_limit_hz"), "marlin",
+                                         int(np.sum(limited.feed < job.feed)), "job M201 F")
+    return job, None
