@@ -231,33 +231,36 @@ class _Reader(SettingCommands):
         for lineno, raw in enumerate(lines, 1):
             semi = raw.find(";")
             if semi >= 0:
-                comment = raw[semi + 1:]
+                self._comment(raw[semi + 1:], lineno)
                 code = raw[:semi].strip()
-                m = _FEATURE.match(comment)
-                if m:
-                    self._feature(m.group(1) or m.group(2))
-                elif lineno <= 3 and (m := _LIMITED.match(comment)):
-                    self.limited = (float(m.group(2)), m.group(1), float(m.group(3)))
             else:
                 code = raw.strip()
+            if code and ("(" in code or code[0] in "Nn" or "*" in code):
+                code = self._bare_code(code, lineno)
             if not code:
                 continue
-            if "(" in code:          # RS-274 parenthesised comments
-                code = re.sub(r"\([^)]*\)", "", code).strip()
-                if not code:
-                    continue
-            first = code[0]
-            if first in "Nn" or "*" in code:
-                code = _strip_line_number(code, self._where(lineno))
-                if not code:
-                    continue
-                first = code[0]
-            if first in "Gg" and len(code) > 2 and code[1] in "01" and not code[2].isdigit() \
+            if code[0] in "Gg" and len(code) > 2 and code[1] in "01" and not code[2].isdigit() \
                     and code[2] != ".":
                 self._fast_move(code[2:], lineno)
-                continue
-            self._command(code, lineno)
+            else:
+                self._command(code, lineno)
         self.n_lines = lineno
+
+    def _comment(self, comment: str, lineno: int) -> None:
+        """A line's comment: a slicer's feature marker, or (first 3 lines) ringtune's limit header."""
+        m = _FEATURE.match(comment)
+        if m:
+            self._feature(m.group(1) or m.group(2))
+        elif lineno <= 3 and (m := _LIMITED.match(comment)):
+            self.limited = (float(m.group(2)), m.group(1), float(m.group(3)))
+
+    def _bare_code(self, code: str, lineno: int) -> str:
+        """``code`` without RS-274 parenthesised comments, its line number and its checksum."""
+        if "(" in code:
+            code = re.sub(r"\([^)]*\)", "", code).strip()
+        if code and (code[0] in "Nn" or "*" in code):
+            code = _strip_line_number(code, self._where(lineno))
+        return code
 
     def _words(self, text: str, lineno: int) -> dict[str, float]:
         words = {}

@@ -209,38 +209,21 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
     tuned one (``band_accel="auto"``); ``min_freq``: the build's lowest shaper frequency, Hz (None:
     the firmware's stock build, :func:`ringtune.agents.tune.space.freq_floor`)."""
     printer, job = resolve_printer(printer), job_path(job)
-    if not is_bed_slinger(printer):
-        raise RingtuneError(f"a {printer.kinematics} printer's bed does not move with Y: its Y modes do "
-                            "not depend on the print's mass (no schedule)", "--printer")
-    if not 0.001 <= step <= 0.5:
-        raise RingtuneError(f"band step must be within 0.1-50 %, not {step * 100:g} %", "--band-step")
-    if band_accel not in BAND_ACCEL:
-        raise RingtuneError(f"must be one of {', '.join(BAND_ACCEL)}, not {band_accel!r}", "band_accel")
-    if config.shaper_y == "none":
-        raise RingtuneError("Y is not shaped (shaper_y none): there is no frequency to schedule", "config: shaper_y")
+    _refuse(config, printer, step, band_accel)
     _, parsed = resolve_job(job)
     diameter_mm, density_g_cm3, source = filament(job, diameter_mm, density_g_cm3)
     layers = job_layers(parsed, diameter_mm, density_g_cm3)
     f_empty = dominant_y_mode(printer).freq
     modes = np.array([dominant_y_mode(printer, la.mass_during).freq for la in layers])
-    fw = FIRMWARES[config.firmware]
     lowest = freq_floor(config.firmware, min_freq)
-    notes: list[str] = []
+    smoothing = smoothing_factor if band_accel == "auto" else None
     bands, clamped = [], []
     for a, b in _band_ranges(modes, step):
-        mass = 0.5 * (layers[a].mass_during + layers[b].mass_during)
-        mode = dominant_y_mode(printer, mass).freq
-        freq = config.freq_y * mode / f_empty
-        if freq < lowest:
+        band, held = _band(config, printer, layers, a, b, f_empty, lowest, smoothing)
+        bands.append(band)
+        if held:
             clamped.append(a)
-            freq = lowest
-        freq = round(freq, 2)
-        accel = _band_accel(config, printer, freq, smoothing_factor) if band_accel == "auto" else None
-        bands.append(Band(a, b, layers[a].z, mass, mode, freq, accel, (printer.print_mass + mass) * 1e3))
-    if clamped:
-        notes.append(f"{len(clamped)} band(s) (from layer {clamped[0]}) fall below {fw.title}'s {lowest:g} Hz"
-                     + (" (a stock build's SHAPING_MIN_FREQ; yours: --shaping-min-freq)"
-                        if min_freq is None and fw.build_min_freq else "") + f" and run at {lowest:g} Hz")
+    notes = [_clamp_note(config, clamped, lowest, min_freq)] if clamped else []
     sched = MassSchedule(config, bands, layers, diameter_mm, density_g_cm3, source, f_empty, step, float(modes[-1]),
                          notes)
     for k, cmds in sched.inserts().items():
@@ -254,6 +237,41 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
                      "holds only until the job's next one; rewrite them (`ringtune rewrite`, `limit --accel`) "
                      "or run `--band-accel keep`")
     return sched
+
+
+def _refuse(config: TuneConfig, printer: Printer, step: float, band_accel: str) -> None:
+    """Refuse what has no schedule: a bed that does not carry Y, an unshaped Y, a bad step or mode."""
+    if not is_bed_slinger(printer):
+        raise RingtuneError(f"a {printer.kinematics} printer's bed does not move with Y: its Y modes do "
+                            "not depend on the print's mass (no schedule)", "--printer")
+    if not 0.001 <= step <= 0.5:
+        raise RingtuneError(f"band step must be within 0.1-50 %, not {step * 100:g} %", "--band-step")
+    if band_accel not in BAND_ACCEL:
+        raise RingtuneError(f"must be one of {', '.join(BAND_ACCEL)}, not {band_accel!r}", "band_accel")
+    if config.shaper_y == "none":
+        raise RingtuneError("Y is not shaped (shaper_y none): there is no frequency to schedule", "config: shaper_y")
+
+
+def _band(config: TuneConfig, printer: Printer, layers: list, a: int, b: int, f_empty: float, lowest: float,
+          smoothing: float | None) -> tuple[Band, bool]:
+    """Layers ``a``..``b`` as one band, and whether it is held at ``lowest``: the tuned Y frequency
+    scaled by the band's mode over the empty bed's, Hz (not below ``lowest``); its acceleration when
+    ``smoothing`` (a factor) is given."""
+    mass = 0.5 * (layers[a].mass_during + layers[b].mass_during)
+    mode = dominant_y_mode(printer, mass).freq
+    scaled = config.freq_y * mode / f_empty
+    freq = round(max(scaled, lowest), 2)
+    accel = None if smoothing is None else _band_accel(config, printer, freq, smoothing)
+    return Band(a, b, layers[a].z, mass, mode, freq, accel, (printer.print_mass + mass) * 1e3), scaled < lowest
+
+
+def _clamp_note(config: TuneConfig, clamped: list[int], lowest: float, min_freq: float | None) -> str:
+    """The note on bands held at the firmware's lowest shaper frequency ``lowest``, Hz."""
+    fw = FIRMWARES[config.firmware]
+    build = (" (a stock build's SHAPING_MIN_FREQ; yours: --shaping-min-freq)"
+             if min_freq is None and fw.build_min_freq else "")
+    return (f"{len(clamped)} band(s) (from layer {clamped[0]}) fall below {fw.title}'s {lowest:g} Hz{build}"
+            f" and run at {lowest:g} Hz")
 
 
 def _firmware_notes(config: TuneConfig, printer: Printer, bands: list[Band]) -> list[str]:
@@ -369,16 +387,24 @@ def schedule_job(config: TuneConfig, printer=None, job=None, *, diameter_mm: flo
               min_freq=min_freq)
     sched = mass_schedule(config, printer, job, **kw)
     if sched.needed and band_accel == "auto" and any(b.accel for b in sched.bands):
-        factor, note = measured_smoothing_factor(sched, printer, job, backend)
-        if factor != 1.0:
-            sched = mass_schedule(config, printer, job, smoothing_factor=factor, **kw)
-            sched.notes.append(f"the bands hold Klipper's smoothing estimate to {factor * 100:g} % of the tuned "
-                               "one: there the last band's corners, simulated, are no worse than the fixed "
-                               "frequency's (tune's resolution)" if note is None else note)
+        sched = _smoothing_measured(sched, printer, job, backend, kw)
     if sched.needed:
         last_band_ripple(sched, printer, job, backend)
     if output is not None:
         Path(output).write_text("".join(scheduled_lines(sched, job)), newline="")
     if config_out is not None:
         sched.scheduled_config().save(config_out)
+    return sched
+
+
+def _smoothing_measured(sched: MassSchedule, printer, job, backend: str, kw: dict) -> MassSchedule:
+    """``sched`` again with its bands' accelerations at :func:`measured_smoothing_factor` (as it is
+    when that factor is 1), noting the factor."""
+    factor, note = measured_smoothing_factor(sched, printer, job, backend)
+    if factor == 1.0:
+        return sched
+    sched = mass_schedule(sched.config, printer, job, smoothing_factor=factor, **kw)
+    sched.notes.append(f"the bands hold Klipper's smoothing estimate to {factor * 100:g} % of the tuned "
+                       "one: there the last band's corners, simulated, are no worse than the fixed "
+                       "frequency's (tune's resolution)" if note is None else note)
     return sched
