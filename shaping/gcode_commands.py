@@ -54,6 +54,13 @@ WORD_SETTINGS = {
     "M566": tuple((ax, f"jerk_{ax.lower()}", lambda v: v / 60.0) for ax in AXES),
 }
 
+#: Klipper's SET_VELOCITY_LIMIT parameters -> the settings they set
+VELOCITY_LIMIT_SETTINGS = {
+    "VELOCITY": "velocity", "ACCEL": "accel_klipper", "SQUARE_CORNER_VELOCITY": "square_corner_velocity",
+    "ACCEL_TO_DECEL": "accel_to_decel", "MINIMUM_CRUISE_RATIO": "min_cruise_ratio",
+    # Kalico's limited_* kinematics (toolhead.py: only when the kinematics has them)
+    "X_ACCEL": "max_accel_x", "Y_ACCEL": "max_accel_y"}
+
 
 class SettingCommands:
     """Mixin: needs ``_where``, ``_set``, ``_event``, ``speed_factor``, ``stop`` and ``tower*``
@@ -98,33 +105,33 @@ class SettingCommands:
         for key, value in _EXT_PARAM.findall(rest):
             params[key.upper()] = value.strip('"')
         if cmd == "SET_VELOCITY_LIMIT":
-            keys = {"VELOCITY": "velocity", "ACCEL": "accel_klipper",
-                    "SQUARE_CORNER_VELOCITY": "square_corner_velocity",
-                    "ACCEL_TO_DECEL": "accel_to_decel", "MINIMUM_CRUISE_RATIO": "min_cruise_ratio",
-                    # Kalico's limited_* kinematics (toolhead.py: only when the kinematics has them)
-                    "X_ACCEL": "max_accel_x", "Y_ACCEL": "max_accel_y"}
-            for k, v in params.items():
-                if k not in keys:
-                    continue
-                x = num(v, k + "=", where)
-                if x < 0 or (k == "MINIMUM_CRUISE_RATIO" and x >= 1):
-                    raise RingtuneError(f"SET_VELOCITY_LIMIT {k}={v} is out of range", where)
-                self._set(keys[k], x)
-                if k == "ACCEL":
-                    self._set("accel_print", x)
-                    self._set("accel_travel", x)
-                params[k] = x
+            self._velocity_limit(params, where)
             self._event("limits", cmd, params, lineno, code)
         elif cmd == "TUNING_TOWER":
             self._tower_start(params, lineno, code)
         elif cmd == "SET_INPUT_SHAPER":
             for k, v in list(params.items()):
-                if k.startswith("SHAPER_FREQ") or k.startswith("DAMPING"):
+                if k.startswith(("SHAPER_FREQ", "DAMPING")):
                     params[k] = num(v, k + "=", where)
             self.stop = True
             self._event("shaper", cmd, params, lineno, code)
         else:
             self._event("other", cmd, params, lineno, code)
+
+    def _velocity_limit(self, params: dict, where: str) -> None:
+        """SET_VELOCITY_LIMIT: each known parameter sets its setting (ACCEL also the print and travel
+        accelerations) and is turned into a number in ``params``."""
+        for k, v in params.items():
+            if k not in VELOCITY_LIMIT_SETTINGS:
+                continue
+            x = num(v, k + "=", where)
+            if x < 0 or (k == "MINIMUM_CRUISE_RATIO" and x >= 1):
+                raise RingtuneError(f"SET_VELOCITY_LIMIT {k}={v} is out of range", where)
+            self._set(VELOCITY_LIMIT_SETTINGS[k], x)
+            if k == "ACCEL":
+                self._set("accel_print", x)
+                self._set("accel_travel", x)
+            params[k] = x
 
     # -- Klipper TUNING_TOWER: a command re-run with a parameter that follows the print height --
     def _tower_start(self, params: dict, lineno: int, code: str) -> None:
