@@ -413,3 +413,14 @@ def _mode_dict(m: Mode) -> dict:
     if m.mass_share is not None:
         md["mass_share"] = m.mass_share
     return md
+
+
+def unmeasured_note(printer) -> str | None:
+    """The note that a description's modes are the defaults `printer from-…` wrote (its
+    ``[measurement] source = "none"``): every figure then rests on another printer's resonances."""
+    if (getattr(printer, "measurement", None) or {}).get("source") != "none":
+        return None
+    return (f"note: {printer.name}: its modes were not measured ([measurement] source = \"none\", as "
+            "`ringtune printer from-…` writes them): they are the embedded Ender-3-class printer's, and "
+            "every figure here rests on them; run `ringtune identify` on your resonance files (or "
+            "--ripples / --tower-band) to measure yours")

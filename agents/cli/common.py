@@ -11,6 +11,7 @@ import argparse
 import os
 from pathlib import Path
 
+from ringtune.envs.printer_model import unmeasured_note
 from ringtune.shaping.builtin_jobs import BUILTIN_JOBS, job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
@@ -73,10 +74,7 @@ def judgement(freq_margin: float) -> str:
 
 
 def say_unmeasured(printer, out) -> None:
-    """Say aloud that a description's modes are the defaults `printer from-…` wrote (its
-    ``[measurement] source = "none"``): every figure then rests on another printer's resonances."""
-    if (getattr(printer, "measurement", None) or {}).get("source") == "none":
-        out.note(f"note: {printer.name}: its modes were not measured ([measurement] source = \"none\", as "
-                 "`ringtune printer from-…` writes them): they are the embedded Ender-3-class printer's, and "
-                 "every figure here rests on them; run `ringtune identify` on your resonance files (or "
-                 "--ripples / --tower-band) to measure yours")
+    """Say aloud that a description's modes were not measured (:func:`unmeasured_note`)."""
+    message = unmeasured_note(printer)
+    if message:
+        out.note(message)
