@@ -32,11 +32,12 @@ from tqdm import tqdm
 
 from ringtune.agents.cli.common import firmware_name, progress_interval, say_unmeasured
 from ringtune.agents.tune import pareto, report, storage, study as tune_study
-from ringtune.agents.tune.baselines import baselines_for, warm_start
+from ringtune.agents.tune.baselines import baselines_for, inside, warm_start
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
-from ringtune.agents.tune.pareto import pareto_front
+from ringtune.agents.tune.pareto import VISIBLE_KEYS, pareto_front
 from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config, top_speed_load_note
+from ringtune.agents.tune.stop import Bounds, measured_stop
 from ringtune.agents.tune.study import study_points
 from ringtune.envs.evaluate import resolve_printer
 from ringtune.shaping.errors import RingtuneError
@@ -103,8 +104,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(default), the knee, or the one minimising print time + W × error (--weight)")
     p.add_argument("--weight", type=float, default=None, metavar="W",
                    help="with --pick weight (implied): seconds of print time worth 1 mm less error")
-    p.add_argument("--quality", choices=("overshoot", "path_error"), default="overshoot",
-                   help="quality objective: overshoot_mm (default) or path_error_mm")
+    p.add_argument("--quality", choices=("ripple", "overshoot", "path_error"), default="ripple",
+                   help="the study's second objective besides print time and corner deviation: ripple_mm "
+                        "(default: the worst visible wall's peak-to-peak), overshoot_mm or path_error_mm; the "
+                        "choice judges every visible measure whichever it is")
+    p.add_argument("--max-show-through", type=float, default=None, metavar="MM",
+                   help="rule out configurations whose hidden features (infill, inner walls) reach the outer wall "
+                        "by more than MM (default 0.05, inside a slicer's usual infill/wall overlap; 0 = no bound)")
     p.add_argument("--max-path-error", type=float, default=None, metavar="MM",
                    help="rule out configurations whose path error (corner rounding, overshoot and ringing) "
                         "exceeds MM (default 0.1; 0 = no bound)")
@@ -151,6 +157,9 @@ def run(args: argparse.Namespace, out) -> int:
     reserve = pareto.DEFAULT_MOTOR_RESERVE if args.motor_reserve is None else args.motor_reserve / 100.0
     if not 0 <= reserve < 1:
         raise RingtuneError("must be in [0, 100) per cent", "--motor-reserve")
+    max_st = pareto.DEFAULT_MAX_SHOW_THROUGH_MM if args.max_show_through is None else args.max_show_through
+    if not max_st >= 0:
+        raise RingtuneError("must be ≥ 0 (mm; 0 = no bound)", "--max-show-through")
     accel_range = _accel_range(args.accel_range)
     if args.gcode and not Path(args.gcode).is_file():
         raise RingtuneError("no such G-code file", "--gcode")
@@ -185,7 +194,8 @@ def run(args: argparse.Namespace, out) -> int:
             printer=str(Path(args.printer).resolve()) if args.printer and Path(args.printer).exists() else args.printer,
             job=str(Path(args.gcode).resolve()) if args.gcode else None, firmware=firmware,
             backend=args.backend, evaluator=args.evaluator or tune_study.DEFAULT_EVALUATOR, space=space.to_dict(),
-            max_path_error_mm=max_pe, freq_margin=margin, motor_reserve=reserve, job_accel=args.job_accel)
+            max_path_error_mm=max_pe, freq_margin=margin, motor_reserve=reserve, job_accel=args.job_accel,
+            max_show_through_mm=max_st)
         evaluator = tune_study.resolve_evaluator(settings.evaluator)
 
         bl = None
@@ -196,7 +206,8 @@ def run(args: argparse.Namespace, out) -> int:
             k = baselines.get("klipper")
             if k is not None:   # start the search from what users do today, and its neighbours
                 seen, enq = set(), []
-                for c in warm_start(k.config, bl.fits, space):
+                cur = [baselines["current"].config] if "current" in baselines else []
+                for c in warm_start(k.config, bl.fits, space) + [c for c in cur if inside(c, space)]:
                     p = params_from_config(c, space)
                     key = tuple(sorted(p.items()))
                     if key not in seen:
@@ -215,15 +226,24 @@ def run(args: argparse.Namespace, out) -> int:
             _remove_if_empty(out_dir)
         raise
     st = run_.study
-    points = tune_study.study_points(st, space, quality, max_pe, reserve)
-    # the front over print time, the quality objective and path error: the two figures of quality
-    # every comparison judges (a point with a little more overshoot and far less path error stays)
-    front = pareto.pareto_front(points, also=("path_error_mm",) if quality != "path_error_mm" else ())
+    points = tune_study.study_points(st, space, quality, max_pe, reserve, max_st)
+    front = pareto.pareto_front(points, also=_also(points, quality))
     choice = pareto.pick(front, baselines, how, args.weight)
+    stop = None
+    if choice.baseline is not None:       # step the acceleration up with the same judgement
+        stop = _measured_stop(choice, baselines, bl.labels if bl else {}, evaluator, settings, printer, space,
+                              max_pe, reserve, max_st)
+        if stop.moved:
+            choice = dataclasses.replace(choice, point=stop.point, sentence=(
+                f"{choice.sentence}; then stepped up by the measured stop from {stop.start.config.accel:.0f} to "
+                f"{stop.point.config.accel:.0f} mm/s², every visible measure still no worse"))
     chosen = choice.point
     bindings = binding_limits(printer, args.gcode, chosen.config, firmware, args.job_accel)
     accel_lines, accel_json = accel_statement(chosen, space, max_pe, reserve, points, printer,
-                                              binding_sentences(bindings, chosen.config.accel))
+                                              binding_sentences(bindings, chosen.config.accel),
+                                              None if stop is None or stop.kind == "not searched"
+                                              else (stop.sentence, stop.kind if stop.kind != "measure"
+                                                    and stop.kind != "bound" else stop.key))
     accel_json["binding"] = [dataclasses.asdict(b) for b in bindings]
     if not args.gcode and chosen.config.accel:
         accel_lines.append(top_speed_load_note(printer, chosen.config.accel, reserve))
@@ -248,14 +268,15 @@ def run(args: argparse.Namespace, out) -> int:
         study_name=args.study, command=command_line(args), max_path_error_mm=max_pe, motor_reserve=reserve,
         baseline_labels=bl.labels if bl else None,
         sections=[("ACCELERATION", accel_lines)] + ([("THE JOB'S OWN ACCELERATIONS", ja_lines)] if ja_lines else []),
-        notes=notes, export_firmware=dialect,
+        notes=notes, export_firmware=dialect, max_show_through_mm=max_st,
         best_extra={"job_accel": args.job_accel, "freq_margin": margin, "motor_reserve": reserve,
-                    "top_speed_mm_s": facts.top_speed if args.gcode else float(printer.limits.velocity)})
+                    "top_speed_mm_s": facts.top_speed if args.gcode else float(printer.limits.velocity),
+                    **({"stop": stop.to_dict()} if stop else {})})
     text = result.pop("summary_text")
     if bl:
         for k, src in bl.sources.items():
             result["baselines"][k]["source"] = src
-    result.update({"freq_margin": margin, "accel": accel_json, "job_accel": ja_json, "storage": store,
+    result.update({"stop": stop.to_dict() if stop else None, "freq_margin": margin, "accel": accel_json, "job_accel": ja_json, "storage": store,
                    "study": args.study, "completed_now": run_.completed_now, "interrupted": run_.interrupted,
                    "elapsed_s": time.time() - t_start})
     lines = [text.rstrip("\n"), "", f"Results in {out_dir}/ — open {out_dir / 'README.txt'} first."]
@@ -264,6 +285,25 @@ def run(args: argparse.Namespace, out) -> int:
                      "run the same command again to resume.")
     out.emit(result, "\n".join(lines))
     return 130 if run_.interrupted else 0
+
+
+def _also(points, quality: str) -> tuple[str, ...]:
+    """The figures the front is taken over besides print time and the quality objective: the other
+    visible measures (the choice may make none worse), or path error for a custom evaluator's
+    overshoot (a point with a little more overshoot and far less path error stays)."""
+    if any("ripple_mm" in p.metrics for p in points):
+        return tuple(k for k in VISIBLE_KEYS if k != quality)
+    return ("path_error_mm",) if quality != "path_error_mm" else ()
+
+
+def _measured_stop(choice, baselines, labels, evaluator, settings, printer, space, max_pe, reserve, max_st):
+    """:func:`ringtune.agents.tune.stop.measured_stop` from the choice, against the baseline it was held to."""
+    def evaluate(configs):
+        return evaluator(list(configs), printer, settings.job, **tune_study.evaluator_kwargs(settings))
+
+    bounds = Bounds(max_pe, 1.0 - reserve if reserve > 0 else 0.0, max_st)
+    label = labels.get(choice.baseline, pareto.BASELINE_NAMES.get(choice.baseline, choice.baseline))
+    return measured_stop(choice.point, baselines[choice.baseline], evaluate, space, bounds, base_label=label)
 
 
 def firmware_names(name: str) -> tuple[str, str, str]:
@@ -363,7 +403,7 @@ class Progress:
             return "no feasible configuration yet"
         f = front[0]
         q = min(front, key=lambda p: p.quality_mm)
-        word = "overshoot" if self.quality == "overshoot_mm" else "path error"
+        word = {"overshoot_mm": "overshoot", "ripple_mm": "ripple"}.get(self.quality, "path error")
         return (f"best so far: fastest feasible {f.print_time_s:.2f} s at {f.quality_mm * 1000:.1f} µm {word}, "
                 f"lowest {word} {q.quality_mm * 1000:.1f} µm at {q.print_time_s:.2f} s ({len(front)} on the front)")
 
@@ -374,7 +414,7 @@ class Progress:
 
 _DEFAULTS = {"printer": None, "gcode": None, "firmware": "klipper", "trials": 200, "storage": None,
              "study": "ringtune", "workers": 1, "seed": 0, "out": "ringtune-out", "pick": None, "weight": None,
-             "quality": "overshoot", "max_path_error": None, "motor_reserve": None, "freq_margin": None,
+             "quality": "ripple", "max_path_error": None, "max_show_through": None, "motor_reserve": None, "freq_margin": None,
              "accel_range": None, "job_accel": "respect", "backend": "mujoco", "evaluator": None,
              "no_baselines": False}
 
