@@ -116,3 +116,24 @@ def test_voron_reported_stop_is_the_measure_that_stops_it(v24_printer, tmp_path,
         assert bound
     else:                                                                    # print time no longer falls
         assert up.print_time_s >= mine.print_time_s
+
+
+def test_simulate_shows_every_visible_measure_against_klippers_pick(capsys):
+    """simulate --json: each visible measure of the configuration against Klipper's pick, both values
+    from fresh simulations, and the verdict from the resolution written out here."""
+    assert main(["simulate", "--json", "--shaper", "zv", "--freq", "40", "--accel", "6000"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    printer = load_printer(None)
+    klipper = TuneConfig.from_dict(res["baselines"]["klipper"]["config"])
+    mine, theirs = evaluate_many([TuneConfig.from_dict(res["config"]), klipper], printer, None,
+                                 freq_margin=res["freq_margin"])
+    vs = res["versus"]["klipper"]
+    assert set(vs) == {"print_time_s", *SEEN, "extrusion_over_pct", "extrusion_under_pct"}
+    for key, v in vs.items():
+        assert v["value"] == pytest.approx(getattr(mine, key), rel=1e-9, abs=1e-12)
+        assert v["baseline"] == pytest.approx(getattr(theirs, key), rel=1e-9, abs=1e-12)
+        if key != "print_time_s":
+            expect = ("worse" if _worse(key, v["value"], v["baseline"]) else
+                      "better" if _worse(key, v["baseline"], v["value"]) else "same")
+            assert v["verdict"] == expect, key
+    assert "none" in res["versus"] and res["baselines"]["none"]["config"]["shaper_x"] == "none"

@@ -17,7 +17,11 @@ records, else tune's default), ``judgement`` (that, in words), ``variants``
 ``kind``, ``step_loss`` and every scalar key of ``metrics``}, each the worst over the variants), ``plots`` (list of PNG paths, empty without
 ``--plot``), ``trace`` (with ``--trace`` only: the CSV path; columns in ``ringtune.envs.trace``; the printer as
 modelled, not a detuned variant), ``job_shapers`` (the job's own shaper changes applied: list of
-{``time``, ``config``}, empty when the job sets none), ``job_accel`` (``respect`` or ``replace``).
+{``time``, ``config``}, empty when the job sets none), ``job_accel`` (``respect`` or ``replace``),
+``baselines`` ({klipper|current|none: {``label``, ``config``, ``metrics``}}, judged as the
+configuration is; empty with ``--no-baselines``), ``versus`` ({baseline: {measure: {``value``,
+``baseline``, ``verdict`` better|same|worse}}} for print time and every visible measure, at tune's
+resolution; ringtune.agents.tune.versus).
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from ringtune.agents.cli.common import firmware_name, judgement, load_config, sa
 from ringtune.agents.cli.trace_option import write_trace_option
 from ringtune.agents.tune.baselines import current_config
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
+from ringtune.agents.tune.versus import baseline_metrics, table as versus_table, versus_all
 from ringtune.envs.evaluate import (evaluate_judged, job_accel_commands, planned_job, resolve_job,
                                     resolve_printer, variant_factors)
 from ringtune.envs.metrics import Metrics
@@ -118,6 +123,9 @@ def add_arguments(parser) -> None:
                         help="judge also with every resonance PCT %% lower and higher, the worst counts, as "
                              f"tune does (default: the margin a tune best.json records, else {DEFAULT_FREQ_MARGIN * 100:g}; "
                              "0 = the exact model only)")
+    parser.add_argument("--no-baselines", action="store_true",
+                        help="skip the baselines (Klipper's pick, what the printer runs now, no shaping) that every "
+                             "visible measure is compared with")
     parser.add_argument("--plot", metavar="DIR", help="write path, ringing and accelerometer plots (PNG) to DIR")
     parser.add_argument("--trace", metavar="OUT.csv", help="write the simulated nozzle path (t, commanded and "
                         "nozzle x y, ...) of the whole job, or of its quality windows if it is long")
@@ -341,9 +349,25 @@ def run(args, out) -> int:
         "job_accel": job_accel_mode(config),
         **({"trace": args.trace} if args.trace else {}),
     }
-    lines = _text(result, m, config, printer, judged, len(evs)) + [f"plot: {p}" for p in plots]
+    lines = _text(result, m, config, printer, judged, len(evs))
+    lines += _baselines(result, m, config, printer, args, margin, out)
+    lines += [f"plot: {p}" for p in plots]
     out.emit(result, "\n".join(lines))
     return 0
+
+
+def _baselines(result: dict, m, config, printer, args, margin: float, out) -> list[str]:
+    """Fill ``baselines`` and ``versus`` of ``result`` (judged as the configuration is); the text table."""
+    result["baselines"], result["versus"] = {}, {}
+    if getattr(args, "no_baselines", False):
+        return []
+    ms, labels, cfgs = baseline_metrics(printer, config.firmware, args.gcode, backend=args.backend,
+                                        freq_margin=margin, job_accel=job_accel_mode(config),
+                                        note=lambda s: out.note(s.replace("ringtune tune", "ringtune simulate")))
+    result["baselines"] = {k: {"label": labels[k], "config": cfgs[k].to_dict(), "metrics": ms[k]} for k in ms}
+    mine = m.to_dict()
+    result["versus"] = versus_all(mine, ms)
+    return ["", "against each baseline (the same job and judgement):"] + versus_table(mine, ms, labels, name="this")
 
 
 def _windows(evs) -> list[dict]:

@@ -9,10 +9,12 @@ baseline's, and the verdict from the configuration's side (``better``, ``same`` 
 
 from __future__ import annotations
 
-from typing import Mapping
+from typing import Callable, Mapping
 
+from ringtune.agents.tune.baselines import baseline_configs
 from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, VISIBLE_KEYS, WORDS, Point, Resolution, shown,
                                          verdict)
+from ringtune.envs.evaluate import evaluate_many
 
 #: the figures compared, in the order shown
 SHOWN = ("print_time_s",) + VISIBLE_KEYS
@@ -60,5 +62,15 @@ def table(point: Point | Mapping, baselines: Mapping[str, Point | Mapping], labe
         lines.append(row.rstrip())
     for i, c in enumerate(cols):
         lines.append(f"  [{i + 1}] {labels.get(c, c)}")
-    lines.append(f"  (verdicts are the {name} configuration's against each; {res.describe()}.)")
+    lines.append(f"  (verdicts: {name} against each; {res.describe()}.)")
     return lines
+
+
+def baseline_metrics(printer, firmware: str, job=None, *, backend: str = "mujoco", freq_margin: float = 0.0,
+                     job_accel: str | None = None, note: Callable[[str], None] = lambda s: None
+                     ) -> tuple[dict, dict, dict]:
+    """Klipper's pick, what the printer runs now (when known) and no shaping, simulated as ``tune``
+    judges them (one ``evaluate_many`` call): ({key: metrics dict}, {key: label}, {key: TuneConfig})."""
+    bl = baseline_configs(printer, firmware, note=note)
+    ms = evaluate_many(list(bl.configs.values()), printer, job, backend, freq_margin=freq_margin, job_accel=job_accel)
+    return {k: m.to_dict() for k, m in zip(bl.configs, ms)}, bl.labels, bl.configs
