@@ -29,7 +29,7 @@ def test_json_matches_evaluate_and_shaping_helps(capsys):
     res = json.loads(out)
     assert set(res) == {"printer", "job", "backend", "config", "metrics", "freq_margin", "judgement",
                         "variants", "windows", "plots", "e_timing", "e_sync",
-                        "job_shapers", "job_accel"}
+                        "job_shapers", "job_accel", "baselines", "versus"}
     assert set(res["metrics"]) == METRIC_KEYS | NESTED_KEYS and res["plots"] == []
     assert res["e_timing"] == "neither" and res["e_sync"] == ""   # Klipper: centred X/Y, E unshaped
     cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=45.5, freq_y=38.9, damping_x=0.1, damping_y=0.1)

@@ -28,9 +28,10 @@ from typing import Any, Sequence
 from ringtune.agents.tune.pareto import (BASELINE_NAMES, DEFAULT_RESOLUTION, VISIBLE_KEYS, WORDS, Choice, Point,
                                          Resolution, judge, shown)
 from ringtune.agents.tune.pareto_plot import plot_front
+from ringtune.agents.tune.readme_text import readme_text
 from ringtune.agents.tune.versus import table as versus_table, versus_all
 from ringtune.hardware.dialects import export_config, limit_command
-from ringtune.shaping.firmware import FIRMWARES, Firmware
+from ringtune.shaping.firmware import Firmware
 from ringtune.shaping.smoothers import is_smoother
 
 QUALITY_LABEL = {"overshoot_mm": "overshoot", "path_error_mm": "path error", "ripple_mm": "ripple"}
@@ -295,7 +296,7 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         s.append(apply_note)
     summary_text = "\n".join(s) + "\n"
     (out_dir / "summary.txt").write_text(summary_text)
-    (out_dir / "README.txt").write_text(_readme(out_dir, best_cfg, dialect, storage, command))
+    (out_dir / "README.txt").write_text(readme_text(out_dir, dialect, storage, command))
 
     def base_dict(k, b):
         return {"config": b.config.to_dict(), "print_time_s": b.print_time_s, "quality_mm": b.quality_mm,
@@ -386,41 +387,3 @@ def _apply_lines(cfg, dialect: str | None = None) -> tuple[str, str]:
         return export_config(cfg, dialect).render(), ""
     except Exception as exc:  # a firmware range refusal: say so instead of failing the study
         return (f"# could not export for {dialect or cfg.firmware}: {exc}\n", f"apply.txt: {exc}")
-
-
-def _push_hint(best: Path, firmware: str) -> str:
-    """The push command for ``firmware``: Klipper is reached through its host (its pseudo-tty, or
-    Moonraker), never the MCU's USB line that /dev/ttyUSB0 is on a Klipper machine."""
-    if FIRMWARES[firmware].family == "klipper":
-        return (f"ringtune push {best} --firmware {firmware} --port ~/printer_data/comms/klippy.serial\n"
-                f"                     (Klipper's pty, on the Klipper host; or --moonraker http://HOST:7125)")
-    return f"ringtune push {best} --port /dev/ttyUSB0 --firmware {firmware}   (the printer's serial port)"
-
-
-def _readme(out_dir: Path, cfg, firmware: str, storage: str, command: str) -> str:
-    return f"""ringtune tune results — start here
-=================================
-
-1. summary.txt   The answer: the chosen input-shaping configuration, and how it compares with
-                 Klipper's own rule, with what the printer runs now (when known) and with no
-                 shaping on the same printer and job (seconds and micrometres). Then what stops
-                 the acceleration, and the whole trade-off (the Pareto front) as a table.
-2. pareto.png    The trade-off as a picture: print time (s) against overshoot and against path
-                 error (mm). Grey dots are trials, blue the best trade-offs, the gold star the
-                 chosen point, the orange square Klipper's rule, the green diamond what the printer
-                 runs now, the black triangle no shaping (a red edge: it breaks a bound). Red
-                 crosses lost steps, purple plus signs left the path by more than
-                 --max-path-error, brown marks asked a motor for more than --motor-reserve allows
-                 (all ruled out); arrows at an edge are points beyond the scale. Lower-left is better.
-3. apply.txt     The exact {firmware} lines that put the chosen configuration on the printer.
-                 Or: ringtune export {out_dir / 'best.json'} --firmware {firmware}
-                     {_push_hint(out_dir / 'best.json', firmware)}
-4. best.json     The chosen configuration (TuneConfig) for ringtune simulate / export / push.
-5. front.csv, trials.csv   Every point of the front and every trial, for your own analysis.
-
-To pick another point of the front: rerun with --pick knee, or --weight W (seconds of print time
-you would give for 1 mm less error; e.g. --weight 100). The study itself is kept in {storage}:
-running the same command again resumes it with nothing lost:
-  {command}
-(--trials N extends it to N trials).
-"""
