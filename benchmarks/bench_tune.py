@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -53,9 +54,12 @@ def main() -> int:
         print(proc.stderr[-2000:])
         return 1
     res = json.loads(proc.stdout)
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = ru.ru_utime + ru.ru_stime
     print(f"ringtune tune --trials {args.trials} --workers {args.workers}: {wall:.1f} s wall on "
           f"{os.cpu_count()} cores (target ≤ 30 s): {'PASS' if wall <= 30 else 'FAIL'}; "
-          f"load average {os.getloadavg()[0]:.1f} at the end")
+          f"load average {os.getloadavg()[0]:.1f} at the end (other work shares the cores); CPU time of the "
+          f"command and its workers {cpu:.1f} s = {cpu / os.cpu_count():.1f} s on {os.cpu_count()} otherwise idle cores")
     vs = res.get("versus", {}).get("klipper")
     if vs:
         print(f"  chosen ({res['chosen']['chosen_by']}) against Klipper's pick, same simulation: "

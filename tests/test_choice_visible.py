@@ -60,6 +60,12 @@ def test_200_trials_on_the_default_printer_never_choose_more_ripple_or_worse_cor
     _check_same_quality(res, load_printer(None))
     summary = (tmp_path / "out" / "summary.txt").read_text()
     assert "WHAT A PERSON SEES" in summary and "What stops it at" in summary
+    best = json.loads((tmp_path / "out" / "best.json").read_text())
+    assert best["stop"] == res["stop"] and best["versus"]["klipper"]["ripple_mm"] == \
+        res["versus"]["klipper"]["ripple_mm"]["verdict"]
+    for name in ("front.csv", "trials.csv"):
+        header = (tmp_path / "out" / name).read_text().splitlines()[0].split(",")
+        assert {*SEEN, "extrusion_over_pct", "extrusion_under_pct", "e_lag_mm", "show_through_mm"} <= set(header)
 
 
 @pytest.mark.slow

@@ -1,11 +1,17 @@
 """``ringtune tune``: the main job — an Optuna Pareto study of print time against quality.
 
 ``--json`` keys (stable): out, trials, front_size, quality, max_path_error_mm, motor_reserve,
-freq_margin, resolution {distance_mm, distance_rel, time_rel}, chosen {config, print_time_s,
-quality_mm, path_error_mm, overshoot_mm, motor_load, chosen_by, against, why, rewrite_jobs (the
+max_show_through_mm, freq_margin, resolution {distance_mm, distance_rel, time_rel, pct_abs},
+chosen {config, print_time_s, quality_mm, path_error_mm, overshoot_mm, motor_load, measures (every
+metrics figure: ripple_mm, ripple_p90_mm, corner_in_mm, corner_out_mm, extrusion_over_pct,
+extrusion_under_pct, e_lag_mm, show_through_mm, ...), chosen_by, against, why, rewrite_jobs (the
 `ringtune limit` command every job needs, or null)}, baselines
 {klipper|current|none: {config, print_time_s, quality_mm, path_error_mm, overshoot_mm, motor_load,
-step_loss, breaks, label, source}}, vs_baselines {key: {baseline, faster_s, faster_pct, better_mm,
+measures, step_loss, breaks, label, source}}, versus {baseline: {print_time_s|ripple_mm|ripple_p90_mm|
+corner_in_mm|corner_out_mm|extrusion_over_pct|extrusion_under_pct: {value, baseline, verdict
+better|same|worse}}}, stop (null, or the measured stop: {kind measure|bound|ceiling|time|budget|not
+searched, key, value, baseline_value, accel (the step that stops it, mm/s²), config, moved,
+from_accel, to_accel, evaluations, sentence}), vs_baselines {key: {baseline, faster_s, faster_pct, better_mm,
 better_pct, dominates, metrics {print_time_s|overshoot_mm|path_error_mm|feasible: better|same|worse},
 path_error_better_mm, path_error_better_pct}}, dominates_klipper, dominates_current (null or {config,
 print_time_s, quality_mm, ...comparison}), accel {range, searched, basis, chosen, stopped_by,
@@ -67,10 +73,15 @@ summary gives both print times.
 Baselines: Klipper's rule — the recommendation recorded from your resonance files by `ringtune
 identify` when the printer has one, else the rule on the model's simulated resonance test (said so);
 what the printer runs now, when the printer description has a [current] section; no shaping.
-The configuration chosen by default is the fastest front point whose overshoot and path error are
-no worse than the best baseline's ("same quality, faster"); where there is none, the knee
-(--pick knee|fastest-at-baseline-quality|weight, --weight W). Differences under 1 µm or 5 % of a
-distance and 0.5 % of print time count as the same.
+Objectives: print time, the worst visible wall's ripple and corner deviation (rounding or
+overshoot); hidden features reaching the outer wall by more than --max-show-through are ruled out.
+The configuration chosen by default is the fastest one with no visible measure (ripple and its
+90th percentile, corner rounding and overshoot, over- and under-extrusion) worse than the best
+baseline's ("same quality, faster"); where there is none, the knee (--pick
+knee|fastest-at-baseline-quality|weight, --weight W). Then its acceleration is stepped up 5 % at a
+time with the same judgement until a measure gets worse or a bound binds (the summary names it,
+with both values). Differences under 1 µm or 5 % of a distance, 1 point or 5 % of extrusion and
+0.5 % of print time count as the same.
 
 With no arguments it tunes the built-in Ender-3-class printer on the built-in test print into
 ./ringtune-out/ in about a minute; open ringtune-out/README.txt first. Running the same command
