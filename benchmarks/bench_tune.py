@@ -69,7 +69,8 @@ def main() -> int:
     dk = res.get("dominates_klipper")
     if dk:
         print(f"  front point dominating Klipper's rule: {dk['faster_s']:.3f} s faster ({dk['faster_pct']:.1f} %), "
-              f"{dk['better_mm'] * 1000:.1f} µm less overshoot ({dk['better_pct']:.1f} %)")
+              f"{dk['better_mm'] * 1000:.1f} µm less {res['quality'].removesuffix('_mm').replace('_', ' ')} "
+              f"({dk['better_pct']:.1f} %), no visible measure worse")
     else:
         print("  no front point dominates Klipper's rule")
     if args.skip_grid or not args.grid:
