@@ -59,7 +59,8 @@ def main() -> int:
     print(f"ringtune tune --trials {args.trials} --workers {args.workers}: {wall:.1f} s wall on "
           f"{os.cpu_count()} cores (target ≤ 30 s): {'PASS' if wall <= 30 else 'FAIL'}; "
           f"load average {os.getloadavg()[0]:.1f} at the end (other work shares the cores); CPU time of the "
-          f"command and its workers {cpu:.1f} s = {cpu / os.cpu_count():.1f} s on {os.cpu_count()} otherwise idle cores")
+          f"command and its workers {cpu:.1f} s (÷ {os.cpu_count()} = {cpu / os.cpu_count():.1f} s: the wall time on idle cores if "
+          "both stayed busy)")
     vs = res.get("versus", {}).get("klipper")
     if vs:
         print(f"  chosen ({res['chosen']['chosen_by']}) against Klipper's pick, same simulation: "
