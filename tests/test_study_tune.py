@@ -81,7 +81,7 @@ def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evalua
                         "versus", "stop", "dominates_klipper", "dominates_current", "accel", "job_accel",
                         "plot_arrows", "files", "storage", "study", "completed_now", "interrupted", "elapsed_s"}
     assert set(res["chosen"]) == {"config", "print_time_s", "quality_mm", "path_error_mm", "overshoot_mm",
-                                  "motor_load", "measures", "chosen_by", "against", "why", "rewrite_jobs"}
+                                  "motor_load", "measures", "chosen_by", "against", "held_to", "why", "rewrite_jobs"}
     assert set(res["accel"]) == {"range", "searched", "basis", "chosen", "stopped_by", "headroom", "defaults",
                                  "binding"}
     assert set(res["vs_baselines"]["klipper"]) == {"baseline", "faster_s", "faster_pct", "better_mm",

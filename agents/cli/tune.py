@@ -4,13 +4,14 @@
 max_show_through_mm, freq_margin, resolution {distance_mm, distance_rel, time_rel, pct_abs},
 chosen {config, print_time_s, quality_mm, path_error_mm, overshoot_mm, motor_load, measures (every
 metrics figure: ripple_mm, ripple_p90_mm, corner_in_mm, corner_out_mm, extrusion_over_pct,
-extrusion_under_pct, e_lag_mm, show_through_mm, ...), chosen_by, against, why, rewrite_jobs (the
+extrusion_under_pct, e_lag_mm, show_through_mm, ...), chosen_by, against (the baseline it is at least
+as fast as), held_to (every baseline it has no visible measure worse than), why, rewrite_jobs (the
 `ringtune limit` command every job needs, or null)}, baselines
 {klipper|current|none: {config, print_time_s, quality_mm, path_error_mm, overshoot_mm, motor_load,
 measures, step_loss, breaks, label, source}}, versus {baseline: {print_time_s|ripple_mm|ripple_p90_mm|
 corner_in_mm|corner_out_mm|extrusion_over_pct|extrusion_under_pct: {value, baseline, verdict
 better|same|worse}}}, stop (null, or the measured stop: {kind measure|bound|ceiling|time|budget|not
-searched, key, value, baseline_value, accel (the step that stops it, mm/s²), config, moved,
+searched, key, baseline (whose value it exceeds, for a measure), value, baseline_value, accel (the step that stops it, mm/s²), config, moved,
 from_accel, to_accel, evaluations, sentence}), vs_baselines {key: {baseline, faster_s, faster_pct, better_mm,
 better_pct, dominates, metrics {print_time_s|overshoot_mm|path_error_mm|feasible: better|same|worse},
 path_error_better_mm, path_error_better_pct}}, dominates_klipper, dominates_current (null or {config,
@@ -315,8 +316,9 @@ def _measured_stop(choice, baselines, labels, evaluator, settings, printer, spac
         return evaluator(list(configs), printer, settings.job, **tune_study.evaluator_kwargs(settings))
 
     bounds = Bounds(max_pe, 1.0 - reserve if reserve > 0 else 0.0, max_st)
-    label = labels.get(choice.baseline, pareto.BASELINE_NAMES.get(choice.baseline, choice.baseline))
-    return measured_stop(choice.point, baselines[choice.baseline], evaluate, space, bounds, base_label=label)
+    held = choice.held_to or (choice.baseline,)
+    names = {k: labels.get(k, pareto.BASELINE_NAMES.get(k, k)) for k in held}
+    return measured_stop(choice.point, {k: baselines[k] for k in held}, evaluate, space, bounds, labels=names)
 
 
 def firmware_names(name: str) -> tuple[str, str, str]:

@@ -282,13 +282,15 @@ PICKS = ("fastest-at-baseline-quality", "knee", "weight")
 
 @dataclass
 class Choice:
-    """The chosen point, how (``by``: one of :data:`PICKS`), against which baseline (key or None)
-    and a sentence saying so."""
+    """The chosen point, how (``by``: one of :data:`PICKS`), against which baseline (key or None:
+    the one it is at least as fast as), every baseline it is held to (``held_to``: no visible
+    measure worse than any of them) and a sentence saying so."""
 
     point: Point
     by: str
     baseline: str | None
     sentence: str
+    held_to: tuple = ()
 
 
 def _no_front() -> RingtuneError:
@@ -380,19 +382,29 @@ def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastes
     refs = reference_baselines(baselines, res)
     words = "overshoot and path error" if _quality_keys(front) != VISIBLE_KEYS else "visible measure"
     worse = f"no worse {words}"
-    for key, b in refs:
-        cands = at_baseline_quality(front, b, res)
+    # held to every shaped baseline at once (no chaining: "same as the printer's, which is the same
+    # as Klipper's" must not end worse than Klipper's), then to Klipper's pick alone (or, without
+    # it, to each other baseline alone)
+    keys = [k for k, _ in refs]
+    tries = ([tuple(keys)] if len(keys) > 1 else []) + ([("klipper",)] if "klipper" in keys else [(k,) for k in keys])
+    by_key = dict(refs)
+    for held in tries:
+        key, b = held[0], by_key[held[0]]
+        cands = [p for p in at_baseline_quality(front, b, res)
+                 if all(no_worse(p, by_key[k], res, _quality_keys([p, by_key[k]])) for k in held[1:])]
         if cands:
             p = min(cands, key=lambda p: (p.print_time_s, p.quality_mm))
-            lead = "" if key == refs[0][0] else \
-                f"no front point matches {BASELINE_NAMES.get(refs[0][0], refs[0][0])} at its speed; "
-            name = BASELINE_NAMES.get(key, key)
+            lead = "" if held == tries[0] else \
+                "no front point is as fast as " + " and ".join(BASELINE_NAMES.get(k, k) for k in tries[0]) + \
+                f" with {worse} than each; "
+            name = " and ".join(BASELINE_NAMES.get(k, k) for k in held)
+            first = BASELINE_NAMES.get(key, key)
             if p.print_time_s < b.print_time_s:
-                why = (f"{lead}the fastest front point with {worse} than {name}'s (same quality, faster)")
+                why = f"{lead}the fastest front point with {worse} than {name} (same quality, faster than {first})"
             else:
-                why = (f"{lead}no front point is faster than {name} with {worse}: the search found nothing "
-                       f"better than {name} itself at that quality (more --trials may)")
-            return Choice(p, "fastest-at-baseline-quality", key, why)
+                why = (f"{lead}no front point is faster than {first} with {worse} than {name}: the search found "
+                       f"nothing better than {first} itself at that quality (more --trials may)")
+            return Choice(p, "fastest-at-baseline-quality", key, why, held)
     why = "there is no usable baseline to match" if not refs else \
         "no front point is as fast as " + " or ".join(BASELINE_NAMES.get(k, k) for k, _ in refs) + \
         f" with {worse}"

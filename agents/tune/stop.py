@@ -2,8 +2,9 @@
 
 From the choice, the acceleration is raised in steps of :data:`STEP_REL` (5 %, at least one
 ``accel_step`` of the search space), each step judged exactly as every trial (the study's
-evaluator, frequency margin and bounds) and held to the same baseline as the choice (no visible
-measure worse at the resolution, every bound kept, print time lower than the step below). Steps are
+evaluator, frequency margin and bounds) and held to the same baselines as the choice (no visible
+measure worse than any of them at the resolution, every bound kept, print time lower than the step
+below). Steps are
 evaluated :data:`LADDER` at a time in one ``evaluate_many`` call. Where a step fails, each shaper
 frequency is tried :data:`FREQ_REL` (2 %) up and down at that acceleration (one batch); a variant
 that passes becomes the new start. A step that passes becomes the choice ("a faster point with no
@@ -56,6 +57,7 @@ class Stop:
     start: Point
     kind: str
     key: str | None = None
+    baseline: str | None = None
     value: float | None = None
     base_value: float | None = None
     accel: float | None = None
@@ -68,7 +70,8 @@ class Stop:
         return self.point is not self.start
 
     def to_dict(self) -> dict[str, Any]:
-        return {"kind": self.kind, "key": self.key, "value": self.value, "baseline_value": self.base_value,
+        return {"kind": self.kind, "key": self.key, "baseline": self.baseline, "value": self.value,
+                "baseline_value": self.base_value,
                 "accel": self.accel, "config": self.config.to_dict() if self.config else None,
                 "moved": self.moved, "from_accel": self.start.config.accel, "to_accel": self.point.config.accel,
                 "evaluations": self.evaluations, "sentence": self.sentence}
@@ -109,9 +112,10 @@ def freq_variants(cfg: TuneConfig, space: SearchSpace) -> list[TuneConfig]:
     return out
 
 
-def _failure(p: Point, base: Point, faster_than: Point, bounds: Bounds,
-             res: Resolution) -> tuple[str, str, float, float] | None:
-    """Why ``p`` may not replace ``faster_than`` against ``base``: (kind, key, value, limit), or None."""
+def _failure(p: Point, bases: dict[str, Point], faster_than: Point, bounds: Bounds,
+             res: Resolution) -> tuple[str, str, str | None, float, float] | None:
+    """Why ``p`` may not replace ``faster_than``: (kind, key, baseline key or None, value, limit), or
+    None. A bound first; else the visible measure worse than a baseline's by the largest ratio."""
     m = p.metrics
     broken = (("step_loss", p.step_loss, 1.0, 0.0),
               ("motor_load", p.overloaded, m.get("motor_load", 0.0), bounds.max_motor_load),
@@ -119,21 +123,24 @@ def _failure(p: Point, base: Point, faster_than: Point, bounds: Bounds,
               ("path_error_mm", p.too_rough, m.get("path_error_mm", 0.0), bounds.max_path_error_mm))
     for key, flag, value, limit in broken:
         if flag:
-            return "bound", key, float(value), float(limit)
-    worse = [k for k, v in judge(p, base, res, VISIBLE_KEYS).verdicts.items() if v == "worse"]
+            return "bound", key, None, float(value), float(limit)
+    worse = [(p.value(k) / max(base.value(k), 1e-12), k, name) for name, base in bases.items()
+             for k, v in judge(p, base, res, VISIBLE_KEYS).verdicts.items() if v == "worse"]
     if worse:
-        k = max(worse, key=lambda k: p.value(k) / max(base.value(k), 1e-12))
-        return "measure", k, float(p.value(k)), float(base.value(k))
+        _ratio, k, name = max(worse)
+        return "measure", k, name, float(p.value(k)), float(bases[name].value(k))
     if p.print_time_s >= faster_than.print_time_s:
-        return "time", "print_time_s", p.print_time_s, faster_than.print_time_s
+        return "time", "print_time_s", None, p.print_time_s, faster_than.print_time_s
     return None
 
 
-def measured_stop(start: Point, base: Point, evaluate: Callable[[Sequence[TuneConfig]], list], space: SearchSpace,
-                  bounds: Bounds, *, base_label: str = "the baseline", res: Resolution = DEFAULT_RESOLUTION,
-                  max_evaluations: int = MAX_EVALUATIONS) -> Stop:
+def measured_stop(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[TuneConfig]], list],
+                  space: SearchSpace, bounds: Bounds, *, labels: dict[str, str] | None = None,
+                  res: Resolution = DEFAULT_RESOLUTION, max_evaluations: int = MAX_EVALUATIONS) -> Stop:
     """Walk the acceleration up from ``start`` (module docstring); ``evaluate(configs) -> metrics``
-    judges as the study does; ``base`` is the baseline the choice was held to."""
+    judges as the study does; ``bases``: the baselines the choice was held to, by key (``labels``
+    names them in the sentence)."""
+    labels = labels or {}
     if space.accel_fixed or start.config.accel is None:
         return Stop(start, start, "not searched", sentence="The acceleration is not searched, so nothing is stepped.")
     fw_top = float(FIRMWARES[space.firmware].accel.hi)
@@ -153,10 +160,10 @@ def measured_stop(start: Point, base: Point, evaluate: Callable[[Sequence[TuneCo
         if not accs:
             why = (space.accel_basis or "the search range's top") if top < fw_top else \
                 f"{FIRMWARES[space.firmware].title}'s largest acceleration"
-            return _stop(start, cur, "ceiling", "accel", float(cur.config.accel), top, None, n, base_label, why)
+            return _stop(start, cur, ("ceiling", "accel", None, float(cur.config.accel), top), None, n, labels, why)
         failed = None
         for p in points([with_accel(cur.config, a, space) for a in accs]):
-            why = _failure(p, base, cur, bounds, res)
+            why = _failure(p, bases, cur, bounds, res)
             if why:
                 failed = (p, why)
                 break
@@ -164,19 +171,20 @@ def measured_stop(start: Point, base: Point, evaluate: Callable[[Sequence[TuneCo
         if failed is None:
             continue
         p, why = failed
-        variants = [v for v in points(freq_variants(p.config, space)) if _failure(v, base, cur, bounds, res) is None]
+        variants = [v for v in points(freq_variants(p.config, space)) if _failure(v, bases, cur, bounds, res) is None]
         if variants:
             cur = min(variants, key=lambda v: (v.print_time_s, v.quality_mm))
             continue
-        return _stop(start, cur, *why, p.config, n, base_label)
-    return _stop(start, cur, "budget", None, None, None, None, n, base_label)
+        return _stop(start, cur, why, p.config, n, labels)
+    return _stop(start, cur, ("budget", None, None, None, None), None, n, labels)
 
 
-def _stop(start: Point, cur: Point, kind: str, key, value, limit, cfg, n: int, base_label: str,
-          why: str = "") -> Stop:
+def _stop(start: Point, cur: Point, why: tuple, cfg, n: int, labels: dict, basis: str = "") -> Stop:
+    kind, key, base, value, limit = why
     acc = None if cfg is None else float(cfg.accel)
-    return Stop(cur, start, kind, key, value, limit, acc, cfg, n, _sentence(kind, key, value, limit, acc, cur,
-                                                                         base_label, why))
+    label = labels.get(base, base or "")
+    return Stop(cur, start, kind, key, base, value, limit, acc, cfg, n,
+                _sentence(kind, key, value, limit, acc, cur, label, basis))
 
 
 def _sentence(kind, key, value, limit, acc, cur: Point, base_label: str, why: str) -> str:
