@@ -50,6 +50,8 @@ MODE_COMMANDS = {"G20": {"unit": 25.4}, "G21": {"unit": 1.0}, "G90": {"abs_xyz":
                  "G91": {"abs_xyz": False, "abs_e": False}, "M82": {"abs_e": True}, "M83": {"abs_e": False}}
 _CLASSIC = re.compile(r"^([GMTgmt])\s*(\d+(?:\.\d+)?)")
 _QUOTED = re.compile(r'([A-Za-z])\s*"([^"]*)"')     # RepRapFirmware string parameters: P"mzv"
+#: the header ``ringtune limit`` writes: the file's F words already carry that frequency limit
+_LIMITED = re.compile(r"^\s*ringtune limit: method=(\w+) freq_limit=([\d.eE+-]+) Hz min_speed_factor=([\d.eE+-]+)")
 _FEATURE = re.compile(r"^\s*(?:TYPE|FEATURE)\s*:\s*(.+?)\s*$|^\s*feature\s+(.+?)\s*$", re.IGNORECASE)
 
 _AXIS_INDEX = {"X": 0, "Y": 1, "Z": 2, "E": 3}
@@ -124,6 +126,7 @@ class _Reader(SettingCommands):
         self.n_done = 0                          # moves already moved into ``chunks``
         self.chunks: list[list[np.ndarray]] = []
         self.n_lines = 0
+        self.limited: tuple | None = None
 
     # -- helpers ---------------------------------------------------------------------------------
     def _where(self, lineno: int) -> str:
@@ -233,6 +236,8 @@ class _Reader(SettingCommands):
                 m = _FEATURE.match(comment)
                 if m:
                     self._feature(m.group(1) or m.group(2))
+                elif lineno <= 3 and (m := _LIMITED.match(comment)):
+                    self.limited = (float(m.group(2)), m.group(1), float(m.group(3)))
             else:
                 code = raw.strip()
             if not code:
@@ -414,6 +419,7 @@ class _Reader(SettingCommands):
             source=self.source,
             n_lines=self.n_lines,
             arc_tolerance=self.tol,
+            limited=self.limited,
         )
 
 

@@ -69,6 +69,8 @@ VALUES: dict[str, Value] = {
     "scv": Value("a square-corner velocity", "mm/s", 0.0, low_closed=True),
     "smoothing": Value("a smoothing", "mm", 0.05, low_closed=True),
     "mass": Value("a mass", "kg", 0.0, 100.0, high_closed=False),
+    "filament_diameter": Value("a filament diameter", "mm", 0.5, 5.0, low_closed=True),
+    "filament_density": Value("a filament density", "g/cm³", 0.5, 5.0, low_closed=True),
     "current": Value("a run current", "A", 0.0),
     "voltage": Value("a voltage", "V", 0.0),
     "fraction": Value("a fraction", "", 0.0, 1.0),
