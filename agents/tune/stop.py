@@ -1,7 +1,8 @@
 """What stops the chosen acceleration, measured: step it up with the same judgement until it fails.
 
 From the choice, the acceleration is raised in steps of :data:`STEP_REL` (5 %, at least one
-``accel_step`` of the search space), each step judged exactly as every trial (the study's
+``accel_step`` of the search space; a per-feature configuration's group accelerations in the same
+ratio, each up to its own motor bound), each step judged exactly as every trial (the study's
 evaluator, frequency margin and bounds) and held to the same baselines as the choice (no visible
 measure worse than any of them at the resolution, every bound kept, print time lower than the step
 below). Steps are
@@ -91,9 +92,15 @@ def next_accels(accel: float, top: float, step: float, n: int = LADDER) -> list[
 
 
 def with_accel(cfg: TuneConfig, accel: float, space: SearchSpace) -> TuneConfig:
-    """``cfg`` at ``accel`` mm/s², with the per-axis caps a trial at that acceleration carries."""
+    """``cfg`` at ``accel`` mm/s², with the per-axis caps a trial at that acceleration carries; a
+    per-feature space's group accelerations raised in the same ratio (each within its range)."""
     params = params_from_config(cfg, space)
+    ratio = accel / float(cfg.accel) if cfg.accel else 1.0
     params["accel"] = accel
+    for group, lo, hi in space.feature_accel:
+        key = f"accel_{group}"
+        if key in params:
+            params[key] = min(max(params[key] * ratio, lo), hi)
     return config_from_params(params, space) if not space.accel_fixed else dataclasses.replace(cfg, accel=accel)
 
 
