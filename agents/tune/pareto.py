@@ -295,8 +295,8 @@ class Choice:
 
 def _no_front() -> RingtuneError:
     return RingtuneError("no feasible configuration was found (every trial lost steps, exceeded "
-                         "--max-path-error or left less than --motor-reserve of the motors' force); lower the "
-                         "acceleration range, raise --max-path-error or run more trials", "tune")
+                         "--max-path-error or --max-show-through or left less than --motor-reserve of the motors' "
+                         "force); lower the acceleration range, raise --max-path-error or run more trials", "tune")
 
 
 def knee(front: Sequence[Point]) -> Point:
