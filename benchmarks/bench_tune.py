@@ -44,7 +44,7 @@ def main() -> int:
     args = ap.parse_args()
 
     from ringtune.agents.tune.grid import hypervolume, run_grid
-    from ringtune.agents.tune.space import SearchSpace, default_space, grid_params
+    from ringtune.agents.tune.space import SearchSpace, grid_params
     from ringtune.agents.tune.pareto import pareto_front, scalar_objective
     from ringtune.agents.tune.study import StudySettings, open_study, study_points
     from ringtune.envs.printer import load_printer
