@@ -344,10 +344,9 @@ def test_pareto_plot_draws_every_ruled_out_point_and_marks_a_baseline_over_a_bou
     drawn = plot_front(tmp_path / "p.png", front + far + near, front, front[1], {"klipper": klipper},
                        "overshoot_mm", "t", max_path_error_mm=0.1, baseline_labels={"klipper": "Klipper's rule"})
     assert (tmp_path / "p.png").read_bytes()[:4] == b"\x89PNG"
-    assert set(drawn) == {"overshoot_mm", "path_error_mm"}
+    assert list(drawn)[:1] == ["overshoot_mm"] and "path_error_mm" in drawn     # no ripple in these points
     assert drawn["overshoot_mm"]["above_scale"] == 4
     assert drawn["path_error_mm"]["above_scale"] == 5        # the near one is over 0.1 mm of path error too
-    for panel in drawn.values():
-        assert "path error over the bound, excluded (5)" in panel["legend"]
-        assert any(t.startswith("Klipper's rule") and "BREAKS A BOUND (path error over the bound)" in t
-                   for t in panel["legend"])
+    legend = drawn["overshoot_mm"]["legend"]                 # the large panel's legend names every group
+    assert "path error over the bound, excluded (5)" in legend
+    assert any(t.startswith("Klipper's rule") and "BREAKS A BOUND (path error over the bound)" in t for t in legend)
