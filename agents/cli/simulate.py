@@ -27,7 +27,8 @@ from pathlib import Path
 
 from ringtune.agents.cli.common import firmware_name, judgement, load_config, say_unmeasured
 from ringtune.agents.cli.trace_option import write_trace_option
-from ringtune.agents.tune.baselines import current_config
+from ringtune.agents.klipper.baseline import klipper_rule_on_simulated_test
+from ringtune.agents.tune.baselines import current_config, recorded_klipper
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 from ringtune.envs.evaluate import (evaluate_judged, job_accel_commands, planned_job, resolve_job,
                                     resolve_printer, variant_factors)
@@ -323,7 +324,9 @@ def run(args, out) -> int:
     factors = variant_factors(margin)
     plots = []
     if args.plot:
-        plots = [str(p) for p in plot_evaluation(evs, args.plot, factors=factors, judged=judged)]
+        label, base = _plot_baseline(printer, config, args, margin, out)
+        plots = [str(p) for p in plot_evaluation(evs, args.plot, factors=factors, judged=judged, baseline=base,
+                                                 baseline_label=label)]
     result = {
         "printer": printer.name,
         "job": args.gcode or "built-in test print",
@@ -344,6 +347,25 @@ def run(args, out) -> int:
     lines = _text(result, m, config, printer, judged, len(evs)) + [f"plot: {p}" for p in plots]
     out.emit(result, "\n".join(lines))
     return 0
+
+
+def _plot_baseline(printer, config: TuneConfig, args, margin: float, out):
+    """(label, Evaluations per variant) of Klipper's pick on this printer and job for the plots:
+    the pick recorded from the resonance files, else Klipper's rule on the model's simulated
+    resonance test; judged as the configuration is. (label, None) when the rule cannot run."""
+    kcfg, _why = recorded_klipper(printer, config.firmware)
+    label = "Klipper's pick from the resonance files"
+    if kcfg is None:
+        try:
+            fields = klipper_rule_on_simulated_test(printer, config.firmware, "head")[1]
+        except RingtuneError as exc:
+            out.note(f"plots without Klipper's pick: {exc}")
+            return label, None
+        fields["accel"] = fields.get("accel") or float(printer.limits.accel)
+        kcfg, label = TuneConfig(**fields), "Klipper's pick on the simulated resonance test"
+    label += f" ({kcfg.shaper_x} {kcfg.freq_x:.1f} / {kcfg.shaper_y} {kcfg.freq_y:.1f} Hz, {kcfg.accel:.0f} mm/s²)"
+    base = evaluate_judged([kcfg], printer, args.gcode, backend=args.backend, freq_margin=margin)[0][1]
+    return label, base
 
 
 def _windows(evs) -> list[dict]:
