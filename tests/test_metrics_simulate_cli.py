@@ -77,7 +77,7 @@ def test_plot_folder_that_cannot_be_made_fails_before_simulating(tmp_path, capsy
     def no_simulation(*a, **k):
         raise AssertionError("simulated before checking --plot")
 
-    monkeypatch.setattr(evaluate_module, "evaluate_detailed", no_simulation)
+    monkeypatch.setattr(evaluate_module, "simulate_batch", no_simulation)
     blocker = tmp_path / "plots"
     blocker.write_text("a file, not a folder")
     code, out, err = run_cli(["simulate", "--backend", "lti", "--plot", str(blocker / "sub")], capsys)
