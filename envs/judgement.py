@@ -6,7 +6,7 @@ bound). As a cost, on one printer and job (all from :class:`ringtune.envs.metric
 measures named there):
 
     cost = w_time · T / T0
-         + w_worse · Σ_k max(0, m_k − b_k − tol_k) / max(b_k, tol_k)      k in JUDGED_KEYS
+         + w_worse · Σ_k ln(1 + max(0, m_k − b_k − tol_k) / max(b_k, tol_k))      k in JUDGED_KEYS
          + P · step_loss + P · max(0, load − (1 − reserve)) / reserve
          + P · max(0, path_error − bound) / bound
 
@@ -16,15 +16,20 @@ MZV on each axis's resonance peak at the printer's own acceleration, Klipper's u
 same printer, ``tol_k = max(distance_mm, distance_rel · max(m_k, b_k))`` the resolution below which
 two figures are the same (``agents.tune.pareto.Resolution``'s), ``P`` the step-loss penalty. A
 configuration no worse than the baseline in every judged measure pays only its print time;
-each measure worse than the baseline's costs its relative excess. The defaults equal ``tune``'s
-(``tests/test_ppo_judgement.py`` checks that they do).
+each measure worse than the baseline's costs the logarithm of one plus its relative excess (as the
+relative excess while it is small; a measure 100 times the baseline's, on a printer whose baseline
+barely ripples, costs 4.6 rather than 99, so that one such printer does not drown the others in a
+mean or in the policy's reward scale). The defaults equal ``tune``'s (``tests/test_ppo_judgement.py``
+checks that they do).
 
 *Example*: T/T0 = 0.9, the baseline's ripple 5 µm, the configuration's 7 µm (tolerance
-max(1 µm, 0.35 µm) = 1 µm), every other measure no worse, nothing violated: cost = 0.9 + 5 · (7 − 5 −
-1)/5 = 1.9.
+max(1 µm, 0.35 µm) = 1 µm), every other measure no worse, nothing violated: cost = 0.9 + 5 · ln(1 +
+(7 − 5 − 1)/5) = 0.9 + 5 · ln 1.2 = 1.81.
 """
 
 from __future__ import annotations
+
+import math
 
 from ringtune.envs.metrics import EXTRUSION_KEYS, SEEN_KEYS, Metrics
 from ringtune.shaping.config import TuneConfig
@@ -81,5 +86,5 @@ def violations(m: Metrics, penalty: float, judgement: dict = JUDGEMENT) -> float
 def judged_cost(m: Metrics, base: Metrics | None, t0: float, weights: dict, penalty: float,
                 judgement: dict = JUDGEMENT) -> float:
     """The cost above (``t0`` s; ``weights`` keys time and worse)."""
-    return (weights["time"] * float(m.print_time_s) / t0
-            + weights["worse"] * sum(worse_by(m, base, judgement).values()) + violations(m, penalty, judgement))
+    worse = sum(math.log1p(x) for x in worse_by(m, base, judgement).values())
+    return weights["time"] * float(m.print_time_s) / t0 + weights["worse"] * worse + violations(m, penalty, judgement)

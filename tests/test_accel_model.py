@@ -97,7 +97,7 @@ def test_anchor_keeps_the_force_reserve():
 
 def test_anchor_balances_print_time_against_scaled_deviations():
     """With ripple r mm at 4000 mm/s² against a baseline's 5 µm, the anchor minimises the env's
-    judgement T(a)/T0 + 5·max(0, r·a/4000 − 5 µm − tol)/5 µm over the grid (tol = max(1 µm, 5 %)):
+    judgement T(a)/T0 + 5·ln(1 + max(0, r·a/4000 − 5 µm − tol)/5 µm) over the grid (tol = max(1 µm, 5 %)):
     brute force over the planner's own print times agrees, and more ripple means a lower anchor."""
     p = resolve_printer(None)
     t0 = _baseline(p)
@@ -109,7 +109,7 @@ def test_anchor_balances_print_time_against_scaled_deviations():
         a = model_accel(p, None, MZV, m, lambda x: judged_cost(x, base, t0, DEFAULT_WEIGHTS, 10.0), RANGE)
         ripple = r * GRID / 4000.0
         tol = np.maximum(0.001, 0.05 * np.maximum(ripple, 0.005))
-        cost = times / t0 + 5.0 * np.maximum(0.0, ripple - 0.005 - tol) / np.maximum(0.005, tol)
+        cost = times / t0 + 5.0 * np.log1p(np.maximum(0.0, ripple - 0.005 - tol) / np.maximum(0.005, tol))
         cost[GRID > LOAD_CAP * 4000 / 0.1] = np.inf
         assert a == GRID[np.argmin(cost)]
         found.append(a)

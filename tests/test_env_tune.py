@@ -131,7 +131,7 @@ def test_reward_is_tunes_judgement_against_the_baseline():
     worse = 0.0
     for k in JUDGED_KEYS:
         tol = max(0.001, 0.05 * max(m[k], b[k]))
-        worse += max(0.0, m[k] - b[k] - tol) / max(b[k], tol)
+        worse += np.log1p(max(0.0, m[k] - b[k] - tol) / max(b[k], tol))
     assert worse > 0                                    # ZV far below the modes at 9000 mm/s² rings more
     load = 7.0 * max(0.0, m["motor_load"] - 0.8) / 0.2 + 7.0 * max(0.0, m["path_error_mm"] - 0.1) / 0.1
     expect = -(2.0 * m["print_time_s"] / info["baseline_print_time_s"] + 3.0 * worse + load

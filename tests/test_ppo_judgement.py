@@ -3,6 +3,7 @@ constraints as agents/tune, the same verdict "worse" on every measure, the docst
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from ringtune.agents.tune.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MOTOR_RESERVE, DEFAULT_RESOLUTION,
@@ -45,8 +46,9 @@ def test_worse_where_tunes_judge_says_worse_on_real_evaluations():
 def test_the_docstrings_example():
     base = Metrics(print_time_s=10.0, ripple_mm=0.005)
     m = Metrics(print_time_s=9.0, ripple_mm=0.007)
-    assert judged_cost(m, base, 10.0, DEFAULT_WEIGHTS, 10.0) == pytest.approx(0.9 + 5 * (0.007 - 0.005 - 0.001) / 0.005)
-    assert judged_cost(m, base, 10.0, DEFAULT_WEIGHTS, 10.0) == pytest.approx(1.9)
+    assert judged_cost(m, base, 10.0, DEFAULT_WEIGHTS, 10.0) == pytest.approx(
+        0.9 + 5 * np.log(1 + (0.007 - 0.005 - 0.001) / 0.005))
+    assert judged_cost(m, base, 10.0, DEFAULT_WEIGHTS, 10.0) == pytest.approx(1.81, abs=0.002)
     # constraints: lost steps cost the penalty; a motor load of 0.9 is half the 20 % reserve over
     over = Metrics(print_time_s=9.0, ripple_mm=0.005, motor_load=0.9, step_loss=True)
     assert judged_cost(over, base, 10.0, DEFAULT_WEIGHTS, 10.0) == pytest.approx(0.9 + 10.0 + 10.0 * 0.5)
