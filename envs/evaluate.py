@@ -39,6 +39,7 @@ from ringtune.envs.printer import load_printer
 from ringtune.envs.sim import auto_timestep, simulate_batch
 from ringtune.shaping import gcode, testprints
 from ringtune.shaping.apply import shape_motion
+from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import JOB_ACCEL_SETTINGS, job_accel_mode, plan_with_config
 from ringtune.shaping.e_timing import extruder_command
@@ -104,7 +105,9 @@ def resolve_printer(printer):
 
 
 def resolve_job(job):
-    """(cache key, parsed Job) from a path, G-code text, a Job, or None (built-in test print)."""
+    """(cache key, parsed Job) from a path, G-code text, a Job, the name of a built-in job
+    (:data:`ringtune.shaping.builtin_jobs.BUILTIN_JOBS`), or None (built-in test print)."""
+    job = job_path(job)
     if job is None:
         key = ("builtin",)
     elif isinstance(job, (str, os.PathLike)):

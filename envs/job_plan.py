@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ringtune.envs.printer import load_printer
+from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import ConfiguredPlan, plan_with_config
 from ringtune.shaping.freqlimit import commanded_frequencies as per_move
@@ -164,9 +165,11 @@ class JobPlan:
 
 def plan_job(path=None, printer=None, config: TuneConfig | None = None, junction: str = "auto",
              use_job_limits: bool = True, daa_freq: float | None = None, top: int = 5) -> JobPlan:
-    """Plan the G-code at ``path`` (None: the built-in test print) with ``printer``'s limits (TOML
-    or embedded name; None: the planner's defaults), ``config``'s frequency limit and acceleration,
-    the junction rule of :func:`junction_rule`, and ``top`` frequencies of each kind."""
+    """Plan the G-code at ``path`` (a built-in job's name: its file; None: the built-in test print)
+    with ``printer``'s limits (TOML or embedded name; None: the planner's defaults), ``config``'s
+    frequency limit and acceleration, the junction rule of :func:`junction_rule`, and ``top``
+    frequencies of each kind."""
+    path = job_path(path)
     t0 = time.perf_counter()
     job = read_gcode(Path(path)) if path else builtin_test_print()
     t_read = time.perf_counter() - t0

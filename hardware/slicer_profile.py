@@ -1,21 +1,35 @@
-"""A config's acceleration as a slicer's own profile settings, so the tuned value reaches the G-code.
+"""A config's accelerations as a slicer's own profile settings, so re-slicing puts them in the G-code.
 
-A slicer writes acceleration commands into every sliced file (``M204`` from its machine limits and
-per-feature accelerations; Klipper reads ``M204 S``/``P``+``T`` as ``SET_VELOCITY_LIMIT ACCEL``),
-and those override what the printer was told. The setting keys are the slicers' own:
+A slicer writes an acceleration command (``M204``) at each feature change from its per-feature
+acceleration settings, and those override what the printer was told. A :class:`TuneConfig` has
+one acceleration (``accel``) and, per feature class of :data:`ringtune.shaping.features.FEATURE_CLASSES`,
+``feature_accel`` (mm/s²; a class absent takes ``accel``). Each slicer's keys (their own names)
+and the classes each one governs:
 
-- PrusaSlicer (``PrintConfig.cpp``): printer profile ``machine_max_acceleration_extruding`` (emitted
-  as ``M204 P``; two values: normal, stealth), ``machine_max_acceleration_travel`` (``M204 T``),
-  ``machine_limits_usage = emit_to_gcode`` (the limits go into the G-code); print profile
-  ``default_acceleration`` (the acceleration restored after the per-feature ones; 0 = not set).
-- OrcaSlicer: machine profile ``machine_max_acceleration_extruding`` / ``_travel`` (string arrays:
-  normal, silent), process profile ``default_acceleration`` ("Normal printing").
+- PrusaSlicer 2.6 and later (``PrintConfig.cpp``, Print Settings > Speed > Acceleration control):
+  ``external_perimeter_acceleration``, ``perimeter_acceleration``,
+  ``top_solid_infill_acceleration``, ``solid_infill_acceleration``, ``infill_acceleration``,
+  ``bridge_acceleration``, ``travel_acceleration``, ``default_acceleration`` (everything else,
+  and the value restored after each feature);
+- PrusaSlicer 2.5 (Debian 12's ``prusa-slicer``; ``prusa-slicer --help-fff``) has only
+  ``perimeter_acceleration`` (every perimeter, the external and overhang ones too),
+  ``infill_acceleration`` (sparse, solid and top infill), ``bridge_acceleration`` and
+  ``default_acceleration`` (restored after each feature, so travel moves take it);
+- OrcaSlicer (process profile): ``outer_wall_acceleration``, ``inner_wall_acceleration``,
+  ``top_surface_acceleration``, ``internal_solid_infill_acceleration``,
+  ``sparse_infill_acceleration``, ``bridge_acceleration``, ``travel_acceleration``,
+  ``default_acceleration``; it caps them at the machine profile's
+  ``machine_max_acceleration_extruding`` / ``_travel``;
 - Cura (``fdmprinter.def.json``): ``acceleration_enabled`` (without it Cura writes no M204),
-  ``acceleration_print`` (the per-feature accelerations default to it), ``machine_acceleration``.
+  ``acceleration_wall_0``, ``acceleration_wall_x``, ``acceleration_topbottom``,
+  ``acceleration_roofing``, ``acceleration_infill``, ``acceleration_travel``,
+  ``acceleration_skirt_brim``, ``acceleration_support``, ``acceleration_print``; Cura has no
+  bridge acceleration and labels no bridge or overhang (they are printed as walls and skin).
 
-Per-feature accelerations a profile already sets (PrusaSlicer ``perimeter_acceleration``,
-``infill_acceleration``…, Orca ``outer_wall_acceleration``…, Cura ``acceleration_wall``…) still
-override these where non-zero: the notes say so.
+Where one key governs several classes, it takes the lowest of their accelerations (the visible
+class is never printed faster than chosen) and :attr:`SlicerProfile.effective` says what each class
+then gets. First-layer accelerations (``first_layer_acceleration``, ``initial_layer_acceleration``,
+``acceleration_layer_0``) are left as the profile has them.
 """
 
 from __future__ import annotations
@@ -25,6 +39,7 @@ from dataclasses import asdict, dataclass, field
 
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.features import FEATURE_CLASSES
 from ringtune.shaping.firmware import Firmware
 
 SLICERS = ("prusaslicer", "orcaslicer", "cura")
@@ -32,17 +47,64 @@ SLICERS = ("prusaslicer", "orcaslicer", "cura")
 _PRUSA_FLAVOR = {"klipper": "klipper", "rrf": "reprapfirmware", "marlin": "marlin2", "marlin-ftm": "marlin2",
                  "prusa": "marlin2"}
 
+#: per slicer: (key, the feature classes it governs), in order; a class's own key is the first
+#: that governs it (what :attr:`SlicerProfile.effective` reports for it)
+KEYS: dict[str, tuple[tuple[str, tuple[str, ...]], ...]] = {
+    "prusaslicer": (
+        ("external_perimeter_acceleration", ("outer_wall",)),
+        ("perimeter_acceleration", ("inner_wall",)),
+        ("top_solid_infill_acceleration", ("top_surface",)),
+        ("solid_infill_acceleration", ("solid_infill",)),
+        ("infill_acceleration", ("infill",)),
+        ("bridge_acceleration", ("bridge_overhang",)),
+        ("travel_acceleration", ("travel",)),
+        ("default_acceleration", ("other", "support")),
+    ),
+    "prusaslicer-2.5": (
+        ("perimeter_acceleration", ("outer_wall", "inner_wall")),
+        ("infill_acceleration", ("infill", "solid_infill", "top_surface")),
+        ("bridge_acceleration", ("bridge_overhang",)),
+        ("default_acceleration", ("travel", "other", "support")),
+    ),
+    "orcaslicer": (
+        ("outer_wall_acceleration", ("outer_wall",)),
+        ("inner_wall_acceleration", ("inner_wall",)),
+        ("top_surface_acceleration", ("top_surface",)),
+        ("internal_solid_infill_acceleration", ("solid_infill",)),
+        ("sparse_infill_acceleration", ("infill",)),
+        ("bridge_acceleration", ("bridge_overhang",)),
+        ("travel_acceleration", ("travel",)),
+        ("default_acceleration", ("other", "support")),
+    ),
+    "cura": (
+        ("acceleration_wall_0", ("outer_wall",)),
+        ("acceleration_wall_x", ("inner_wall",)),
+        ("acceleration_topbottom", ("top_surface", "solid_infill")),
+        ("acceleration_roofing", ("top_surface",)),
+        ("acceleration_infill", ("infill",)),
+        ("acceleration_travel", ("travel",)),
+        ("acceleration_skirt_brim", ("support",)),
+        ("acceleration_support", ("support",)),
+        ("acceleration_print", ("other",)),
+    ),
+}
+#: classes a slicer has no label or key for, and the key whose value they get
+CARRIED = {"cura": {"bridge_overhang": "acceleration_wall_0"}}
+
 
 @dataclass
 class SlicerProfile:
     """Settings for one slicer: ``settings`` key -> value as the slicer writes it; ``text`` is the
-    fragment to paste (``.ini`` lines, a JSON object, Cura ``[values]``)."""
+    fragment to load or paste (``.ini`` lines, a JSON object, Cura ``[values]``); ``effective``:
+    feature class -> the acceleration (mm/s²) the re-sliced G-code gives it."""
 
     slicer: str
     extension: str
     settings: dict[str, object]
     text: str
     notes: list[str] = field(default_factory=list)
+    effective: dict[str, float] = field(default_factory=dict)
+    version: str | None = None
 
     def render(self) -> str:
         c = "#" if self.extension in ("ini", "cfg") else None
@@ -58,43 +120,113 @@ def _n(a: float) -> str:
     return f"{a:.0f}" if a == int(a) else f"{a:g}"
 
 
-def _caps_note(caps: dict) -> str:
-    """What the slicer's M201 (machine_max_acceleration_x/_y, emitted to the G-code) must be."""
+def feature_accels(config: TuneConfig) -> dict[str, float]:
+    """Class -> mm/s² the config asks for: its ``feature_accel`` (the TuneConfig field, or the key
+    of that name among its extra keys), ``accel`` for a class it leaves out."""
+    given = getattr(config, "feature_accel", None) or config.extra.get("feature_accel") or {}
+    if not isinstance(given, dict):
+        raise RingtuneError("must be an object {feature class: mm/s²}", "config: feature_accel")
+    unknown = sorted(set(given) - set(FEATURE_CLASSES))
+    if unknown:
+        raise RingtuneError(f"{unknown[0]!r} is not a feature class ({', '.join(FEATURE_CLASSES)})",
+                            "config: feature_accel")
+    missing = [c for c in FEATURE_CLASSES if c not in given]
+    if missing and config.accel is None:
+        what = (f"for the classes feature_accel leaves out ({', '.join(missing)})" if given
+                else "and no feature_accel to put in the slicer profile")
+        raise RingtuneError(f"the config has no accel (mm/s²) {what}", "config: accel")
+    return {c: float(given.get(c, config.accel)) for c in FEATURE_CLASSES}
+
+
+def key_values(slicer: str, wanted: dict[str, float]) -> tuple[dict[str, float], dict[str, float]]:
+    """({key: mm/s²}, {class: mm/s² the slicer then gives it}) for ``slicer`` (a key of :data:`KEYS`):
+    each key at the lowest acceleration of the classes it governs, each class at its own key's."""
+    values = {key: min(wanted[c] for c in classes) for key, classes in KEYS[slicer]}
+    own = dict(CARRIED.get(slicer, {}))
+    for key, classes in KEYS[slicer]:
+        for c in classes:
+            own.setdefault(c, key)
+    return values, {c: values[own[c]] for c in FEATURE_CLASSES}
+
+
+def _version_key(slicer: str, version: str | None) -> str:
+    """The :data:`KEYS` entry for ``slicer`` at ``version`` ("2.5"; None: the current release)."""
+    if version is None or slicer != "prusaslicer":
+        return slicer
+    try:
+        major, minor = (int(p) for p in str(version).split(".")[:2])
+    except ValueError:
+        raise RingtuneError(f"must be a version such as 2.5 or 2.8, not {version!r}", "--slicer-version") from None
+    return "prusaslicer-2.5" if (major, minor) < (2, 6) else "prusaslicer"
+
+
+def _shared_notes(keys: str, wanted: dict, effective: dict) -> list[str]:
+    """One note per class the slicer cannot give its own acceleration."""
+    out = []
+    for c in FEATURE_CLASSES:
+        if c in CARRIED.get(keys, {}):
+            out.append(f"{c}: no key of its own; printed as walls and skin ({CARRIED[keys][c]} for outer walls)")
+        elif effective[c] != wanted[c]:
+            key = next(k for k, cls in KEYS[keys] if c in cls)
+            out.append(f"{c}: {_n(effective[c])} mm/s², not {_n(wanted[c])}: {key} also governs "
+                       f"{', '.join(x for x in dict(KEYS[keys])[key] if x != c)} and takes the lowest")
+    return out
+
+
+def slicer_profile(config: TuneConfig, slicer: str, firmware: str | None = None,
+                   version: str | None = None) -> SlicerProfile:
+    """The per-feature acceleration settings of ``slicer``'s profile for ``config`` (mm/s²);
+    ``version``: the slicer's (PrusaSlicer before 2.6 has fewer keys; None: the current release)."""
+    if slicer not in SLICERS:
+        raise RingtuneError(f"must be one of {', '.join(SLICERS)}, not {slicer!r}", "--slicer")
+    fw = Firmware.named(firmware or config.firmware)
+    keys = _version_key(slicer, version)
+    wanted = feature_accels(config)
+    values, effective = key_values(keys, wanted)
+    top = max(values.values())
+    common = [f"per-feature accelerations tuned for {fw.title} (mm/s²); the first-layer acceleration "
+              "is left as the profile has it"] + _shared_notes(keys, wanted, effective)
+    caps = {f"machine_max_acceleration_{ax}": _n(c) for ax, c in zip("xy", config.axis_caps) if c is not None}
+    build = {"prusaslicer": _prusaslicer, "orcaslicer": _orcaslicer, "cura": _cura}[slicer]
+    prof = build({k: _n(v) for k, v in values.items()}, _n(top), caps, common, fw, keys)
+    prof.effective, prof.version = effective, version
+    return prof
+
+
+def _caps_note(caps: dict, top: str) -> str:
+    """What the machine's per-axis caps (M201 X Y, when the slicer emits its machine limits) must be."""
     if caps:
         return ("machine_max_acceleration_x/_y are the per-axis caps this config was planned with "
                 "(the slicer writes them as M201 X Y)")
-    return "machine_max_acceleration_x/_y must be at least this value, or M201 caps it"
+    return f"machine_max_acceleration_x/_y must be at least {top}, or M201 caps the features above it"
 
 
-def slicer_profile(config: TuneConfig, slicer: str, firmware: str | None = None) -> SlicerProfile:
-    """The acceleration settings of ``slicer``'s profile for ``config.accel`` (mm/s²)."""
-    if slicer not in SLICERS:
-        raise RingtuneError(f"must be one of {', '.join(SLICERS)}, not {slicer!r}", "--slicer")
-    if config.accel is None:
-        raise RingtuneError("the config has no accel (mm/s²) to put in the slicer profile", "config: accel")
-    fw = Firmware.named(firmware or config.firmware)
-    a = _n(config.accel)
-    common = [f"tuned acceleration {a} mm/s² for {fw.title}; per-feature accelerations already set "
-              "in the profile override it where they are not 0: set them to 0 (or to this value)"]
-    caps = {f"machine_max_acceleration_{ax}": _n(c) for ax, c in zip("xy", config.axis_caps) if c is not None}
-    if slicer == "prusaslicer":
-        machine = {"machine_limits_usage": "emit_to_gcode", "machine_max_acceleration_extruding": f"{a},{a}",
-                   "machine_max_acceleration_travel": f"{a},{a}", **{k: f"{v},{v}" for k, v in caps.items()}}
-        settings = {**machine, "default_acceleration": a}
-        text = ("# printer profile (Printer Settings > Machine limits)\n"
-                + "".join(f"{k} = {v}\n" for k, v in machine.items())
-                + "# print profile (Print Settings > Speed > Acceleration control)\n"
-                + f"default_acceleration = {a}\n")
-        notes = common + [_caps_note(caps), f"gcode_flavor = {_PRUSA_FLAVOR[fw.family]} for {fw.title}"]
-        return SlicerProfile(slicer, "ini", settings, text, notes)
-    if slicer == "orcaslicer":
-        settings = {"machine_max_acceleration_extruding": [a, a], "machine_max_acceleration_travel": [a, a],
-                    **{k: [v, v] for k, v in caps.items()}, "default_acceleration": a}
-        notes = common + ["machine profile: machine_max_acceleration_*; process profile: default_acceleration"]
-        text = json.dumps({**settings, "_ringtune": notes}, indent=2) + "\n"
-        return SlicerProfile(slicer, "json", settings, text, notes)
-    settings = {"acceleration_enabled": "True", "acceleration_print": a, "machine_acceleration": a}
+def _prusaslicer(values, top, caps, notes, fw, keys) -> SlicerProfile:
+    machine = {"machine_max_acceleration_extruding": f"{top},{top}",
+               "machine_max_acceleration_travel": f"{top},{top}", **{k: f"{v},{v}" for k, v in caps.items()}}
+    text = ("# printer profile (Printer Settings > Machine limits): no feature is capped below its value\n"
+            + "".join(f"{k} = {v}\n" for k, v in machine.items())
+            + "# print profile (Print Settings > Speed > Acceleration control)\n"
+            + "".join(f"{k} = {v}\n" for k, v in values.items()))
+    flavor = _PRUSA_FLAVOR[fw.family]
+    if keys == "prusaslicer-2.5" and flavor == "klipper":
+        flavor = "marlin2 (2.5 has no klipper flavour)"
+    notes = notes + [_caps_note(caps, top), f"gcode_flavor = {flavor} for {fw.title}"]
+    return SlicerProfile("prusaslicer", "ini", {**machine, **values}, text, notes)
+
+
+def _orcaslicer(values, top, caps, notes, fw, keys) -> SlicerProfile:
+    settings = {"machine_max_acceleration_extruding": [top, top], "machine_max_acceleration_travel": [top, top],
+                **{k: [v, v] for k, v in caps.items()}, **values}
+    notes = notes + ["machine profile: machine_max_acceleration_* (Orca caps every feature at them); "
+                     "process profile: the *_acceleration keys"]
+    text = json.dumps({**settings, "_ringtune": notes}, indent=2) + "\n"
+    return SlicerProfile("orcaslicer", "json", settings, text, notes)
+
+
+def _cura(values, top, caps, notes, fw, keys) -> SlicerProfile:
+    settings = {"acceleration_enabled": "True", **values, "machine_acceleration": top}
     text = "[values]\n" + "".join(f"{k} = {v}\n" for k, v in settings.items())
-    notes = common + ["Cura writes M204 only with acceleration_enabled; the per-feature "
-                      "accelerations (acceleration_wall, acceleration_infill, ...) default to acceleration_print"]
-    return SlicerProfile(slicer, "cfg", settings, text, notes)
+    notes = notes + ["Cura writes M204 only with acceleration_enabled; acceleration_roofing applies "
+                     "where top surface skin layers (roofing_layer_count) are on"]
+    return SlicerProfile("cura", "cfg", settings, text, notes)

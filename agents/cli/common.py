@@ -11,6 +11,7 @@ import argparse
 import os
 from pathlib import Path
 
+from ringtune.shaping.builtin_jobs import BUILTIN_JOBS, job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import Firmware
@@ -32,6 +33,15 @@ def firmware_name(text: str) -> str:
         return Firmware.named(text).name
     except RingtuneError as exc:
         raise argparse.ArgumentTypeError(exc.bare) from None
+
+
+#: what --gcode's help adds: the built-in jobs by name
+GCODE_JOB_HELP = f"or a built-in job: {', '.join(BUILTIN_JOBS)} (a sliced test part, about 20 min)"
+
+
+def gcode_job(text: str) -> str:
+    """argparse type of a G-code job option: a built-in job's name (``part``) becomes its file."""
+    return job_path(text)
 
 
 def load_config(path, out=None):

@@ -21,7 +21,8 @@ The output has up to three parts:
     readback: commands that report the settings
     expected: setting -> value the read-back should show
     notes: remarks (e.g. no frequency limit here, and the `ringtune limit` command to use instead)
-    slicer: {name, format, text, notes} or null
+    slicer: {slicer, extension, settings, text, notes, effective (feature class -> mm/s² the
+        re-sliced G-code gives it), version} or null
     output: path written (the commands, or the part asked for), or null; files: every path written
 """
 
@@ -49,8 +50,10 @@ Turn a TuneConfig (JSON from `ringtune tune` or `recommend`) into the firmware's
 
 The config's acceleration is set too (SET_VELOCITY_LIMIT ACCEL= on Klipper, M204 P elsewhere)
 unless --no-accel. A sliced file's own acceleration commands override it while it prints:
---slicer prusaslicer|orcaslicer|cura writes that slicer's acceleration settings to paste into
-its profile (or rewrite a sliced file with `ringtune limit FILE.gcode --accel A`).
+--slicer prusaslicer|orcaslicer|cura writes that slicer's own per-feature acceleration keys (from
+the config's feature_accel, else its accel) to load into its profile and re-slice; where one key
+governs several feature classes it takes the lowest, and the notes say what each class gets
+(--slicer-version 2.5: PrusaSlicer 2.5's fewer keys).
 
 Every value is checked as `ringtune shaper` checks it, plus the firmware's range and precision: a
 value that would round to another one is refused, never changed; a shaper the firmware lacks is
@@ -66,6 +69,7 @@ examples:
   ringtune export best.json --firmware klipper --part config >> printer.cfg
   ringtune export best.json --firmware rrf -o config-shaping.g
   ringtune export best.json --firmware marlin --slicer prusaslicer
+  ringtune export best.json --slicer prusaslicer --slicer-version 2.5 --part slicer -o tuned.ini
 """
 
 PARTS = ("commands", "config", "slicer")
@@ -80,7 +84,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--part", choices=PARTS, help="only this part (default: all there are)")
     p.add_argument("--no-accel", action="store_true", help="leave the printer's acceleration alone")
     p.add_argument("--slicer", choices=("prusaslicer", "orcaslicer", "cura"),
-                   help="also write this slicer's profile acceleration settings")
+                   help="also write this slicer's per-feature acceleration settings")
+    p.add_argument("--slicer-version", metavar="X.Y", help="the slicer's version where its keys differ "
+                   "(PrusaSlicer before 2.6: perimeter, infill, bridge and default only; default: the current)")
 
 
 def _sibling(output, suffix: str):
@@ -93,7 +99,7 @@ def run(args, out) -> int:
     cfg = load_config(args.config, out)
     try:
         exp = export_config(cfg, args.firmware, accel=not args.no_accel)
-        slicer = slicer_profile(cfg, args.slicer, exp.firmware) if args.slicer else None
+        slicer = slicer_profile(cfg, args.slicer, exp.firmware, args.slicer_version) if args.slicer else None
     except RingtuneError as exc:   # name the file the user gave, not the abstract "config"
         raise exc.relocated("config", args.config) from None
     parts = _parts(exp, slicer, args)

@@ -30,7 +30,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ringtune.agents.cli.common import check_output_folder, load_config
+from ringtune.agents.cli.common import GCODE_JOB_HELP, check_output_folder, gcode_job, load_config
 from ringtune.agents.identify.belts import compare_belts, read_belt_tests
 from ringtune.agents.identify.belts_plot import pair_rows, plot_belts, summary_lines
 from ringtune.agents.identify.graph import shaper_graph
@@ -92,7 +92,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     sp.add_argument("-o", "--output", required=True, metavar="OUT.png", help="the graph (.png, .pdf or .svg)")
     sp.add_argument("--printer", metavar="P", help="printer TOML or embedded name (default: the embedded ender3)")
-    sp.add_argument("--gcode", metavar="G", help="the job whose walls to judge (default: a 40 mm square's walls)")
+    sp.add_argument("--gcode", metavar="G", type=gcode_job, help=f"the job whose walls to judge, {GCODE_JOB_HELP} "
+                    "(default: a 40 mm square's walls)")
     sp.add_argument("--config", metavar="best.json", help="shaping and acceleration printed with (default: "
                     "shaping off at the printer's acceleration)")
     sp.add_argument("--step", type=float, default=5.0, help="speed step, mm/s (default 5)")

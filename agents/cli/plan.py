@@ -24,7 +24,7 @@ import sys
 
 import numpy as np
 
-from ringtune.agents.cli.common import load_config
+from ringtune.agents.cli.common import GCODE_JOB_HELP, gcode_job, load_config
 from ringtune.agents.cli.options import VALUES
 from ringtune.envs.job_plan import JUNCTION_NAMES, hms, plan_job
 from ringtune.shaping.e_timing import firmware_trajectory, sample_features
@@ -72,7 +72,8 @@ examples:
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("file", nargs="?", metavar="FILE.gcode", help="G-code job (default: the built-in test print)")
+    parser.add_argument("file", nargs="?", metavar="FILE.gcode", type=gcode_job,
+                        help=f"G-code job, {GCODE_JOB_HELP} (default: the built-in test print)")
     parser.add_argument("--printer", metavar="P", help="printer TOML or embedded name: its limits and junction rule")
     parser.add_argument("--config", metavar="C", help="TuneConfig JSON: frequency limit, accel, shapers for --trajectory")
     parser.add_argument("--junction", choices=("auto", "scv", "jd", "jerk"), default="auto",

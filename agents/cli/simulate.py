@@ -25,7 +25,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ringtune.agents.cli.common import firmware_name, judgement, load_config, say_unmeasured
+from ringtune.agents.cli.common import (GCODE_JOB_HELP, firmware_name, gcode_job,
+                                       judgement, load_config, say_unmeasured)
 from ringtune.agents.cli.trace_option import write_trace_option
 from ringtune.agents.klipper.baseline import klipper_rule_on_simulated_test
 from ringtune.agents.tune.baselines import current_config, recorded_klipper
@@ -96,7 +97,8 @@ examples:
 
 def add_arguments(parser) -> None:
     parser.add_argument("--printer", metavar="P", help="printer TOML or embedded name (default: ender3)")
-    parser.add_argument("--gcode", metavar="G", help="G-code file (default: the built-in test print)")
+    parser.add_argument("--gcode", metavar="G", type=gcode_job,
+                        help=f"G-code file, {GCODE_JOB_HELP} (default: the built-in test print)")
     parser.add_argument("--config", metavar="C", help="TuneConfig JSON file")
     parser.add_argument("--shaper", metavar="S", help="shaper name, or X,Y (e.g. mzv or zv,ei); 'none' = off")
     parser.add_argument("--freq", metavar="F", help="shaper frequency in Hz, or X,Y")

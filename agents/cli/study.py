@@ -17,7 +17,7 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-from ringtune.agents.cli.common import firmware_name, judgement, say_unmeasured
+from ringtune.agents.cli.common import GCODE_JOB_HELP, firmware_name, gcode_job, judgement, say_unmeasured
 from ringtune.agents.cli.options import VALUES, number_list
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 from ringtune.agents.tune.sweep import (FACTORS, factor_values, offered_shapers, plot_sweep, sweep,
@@ -51,7 +51,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="what to sweep (default freq-error)")
     p.add_argument("--values", metavar="A,B,...", type=number_list, help="factor values (default: a range per factor)")
     p.add_argument("--printer", metavar="P", help="printer TOML (default: the embedded Ender-3-class printer)")
-    p.add_argument("--gcode", metavar="G", help="G-code job (default: the built-in test print)")
+    p.add_argument("--gcode", metavar="G", type=gcode_job,
+                   help=f"G-code job, {GCODE_JOB_HELP} (default: the built-in test print)")
     p.add_argument("--firmware", type=firmware_name, default="klipper", help="target firmware (default klipper)")
     p.add_argument("--shapers", metavar="S1,S2", help="shapers to compare (default: all the firmware offers)")
     p.add_argument("--quality", choices=("overshoot", "path_error"), default="overshoot")

@@ -30,7 +30,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from ringtune.agents.cli.common import firmware_name, progress_interval, say_unmeasured
+from ringtune.agents.cli.common import (GCODE_JOB_HELP, firmware_name, gcode_job,
+                                       progress_interval, say_unmeasured)
 from ringtune.agents.tune import pareto, report, storage, study as tune_study
 from ringtune.agents.tune.baselines import baselines_for, warm_start
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
@@ -86,7 +87,8 @@ examples:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--printer", metavar="P", help="printer TOML (default: the embedded Ender-3-class printer)")
-    p.add_argument("--gcode", metavar="G", help="G-code job (default: the built-in test print)")
+    p.add_argument("--gcode", metavar="G", type=gcode_job,
+                   help=f"G-code job, {GCODE_JOB_HELP} (default: the built-in test print)")
     p.add_argument("--firmware", type=firmware_name, default="klipper",
                    help="target firmware: klipper (default), kalico, rrf, rrf35, rrf34, "
                    "marlin, marlin-ftm, prusa (any case)")

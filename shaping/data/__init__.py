@@ -1,0 +1,1 @@
+"""Data shipped with the package: the built-in part job (part.gcode; see tests/data/part/SOURCES.md)."""
