@@ -9,6 +9,10 @@ per axis, S levels, acceleration levels over the whole range, frequency limit of
 also use a frequency limit, which only slows the print on this job).
 
 Run: ``python benchmarks/bench_tune.py [--trials 200] [--workers 2] [--grid-freqs 5] [--grid-accels 6]``
+
+``--gcode JOB`` (issue 22: real jobs are fast to tune): ``tune --gcode JOB`` with the same trials
+and workers after the built-in print's run, its wall time against the target (≤ 30 s on 2 cores)
+and its ratio to the built-in print's, measured in the same run; no grid.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ def main() -> int:
                     "whole range (default 6)")
     ap.add_argument("--weights", default="20,100", help="W values, s/mm")
     ap.add_argument("--skip-grid", action="store_true")
+    ap.add_argument("--gcode", default=None, help="also tune this sliced job and print the ratio to the built-in print")
     args = ap.parse_args()
 
     from ringtune.agents.tune.grid import hypervolume, run_grid
@@ -59,6 +64,8 @@ def main() -> int:
               f"{dk['better_mm'] * 1000:.1f} µm less overshoot ({dk['better_pct']:.1f} %)")
     else:
         print("  no front point dominates Klipper's rule")
+    if args.gcode:
+        return _job_run(args, wall)
     if args.skip_grid:
         return 0
 
@@ -93,6 +100,30 @@ def main() -> int:
     print(f"  hypervolume study/grid = {hypervolume(fs, ref) / hypervolume(fg, ref):.3f} "
           f"(fronts of {len(fs)} and {len(fg)} points; study {len(pts)} evaluations, grid {len(grid)})")
     print("convergence:", "PASS" if ok else "FAIL")
+    return 0
+
+
+def _job_run(args, builtin_wall: float) -> int:
+    """``tune --gcode JOB``: wall time, its target and its ratio to the built-in print's run."""
+    from ringtune.envs.evaluate import planned_job
+    from ringtune.envs.printer import load_printer
+
+    planned = planned_job(load_printer(None), args.gcode, None).print_time
+    out = Path(tempfile.mkdtemp(prefix="bench-tune-job-"))
+    cmd = [sys.executable, "-m", "ringtune.agents.cli.main", "tune", "--gcode", args.gcode, "--trials",
+           str(args.trials), "--workers", str(args.workers), "--out", str(out), "--json"]
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        print(proc.stderr[-2000:])
+        return 1
+    res = json.loads(proc.stdout)
+    pf = res.get("per_feature") or {}
+    print(f"ringtune tune --gcode {args.gcode} ({planned / 60:.1f} min planned on the default printer) "
+          f"--trials {args.trials} --workers {args.workers}: {wall:.1f} s wall (target ≤ 30 s): "
+          f"{'PASS' if wall <= 30 else 'FAIL'}; {wall / builtin_wall:.2f}× the built-in print's {builtin_wall:.1f} s "
+          f"in this run; per feature: {pf.get('accel') or 'off'}")
     return 0
 
 

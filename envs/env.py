@@ -331,6 +331,39 @@ def peak_features(peaks, spectrum_range: tuple[float, float] = (10.0, 160.0)) ->
     return _log_position(np.clip(np.asarray(peaks, float), lo, hi), lo, hi).astype(np.float32)
 
 
+def _checked_shapers(firmware: str, shapers) -> tuple[str, ...]:
+    """The shapers the policy chooses from: ``shapers`` (default: every one the firmware offers but
+    custom), refused when the firmware lacks one."""
+    flavor = TuneConfig(firmware=firmware, shaper_x="none", shaper_y="none").flavor
+    have = [s for s in available_shapers(flavor) if s != "custom"]
+    shapers = tuple(have) if shapers is None else tuple(shapers)
+    bad = [s for s in shapers if s not in have]
+    if bad:
+        raise RingtuneError(f"{firmware} offers no {', '.join(bad)} (available: {', '.join(have)})", "shapers")
+    return shapers
+
+
+def _check_anchors(freq_anchor: str, accel_anchor: str, metrics_of_start: bool) -> None:
+    """Refuse an unknown anchor, or the model anchor without a simulated start (tune_accel and
+    observe_metrics) to take it from."""
+    if freq_anchor not in ("absolute", "peak"):
+        raise RingtuneError(f"must be 'absolute' or 'peak', not {freq_anchor!r}", "freq_anchor")
+    if accel_anchor not in ("absolute", "model"):
+        raise RingtuneError(f"must be 'absolute' or 'model', not {accel_anchor!r}", "accel_anchor")
+    if accel_anchor == "model" and not metrics_of_start:
+        raise RingtuneError("'model' needs tune_accel and observe_metrics (the anchor comes from the "
+                            "starting configuration's metrics)", "accel_anchor")
+
+
+def _start_action(start_action, spec: ActionSpec) -> np.ndarray:
+    """The starting action clipped to [-1, 1], one entry per action of ``spec``."""
+    action = np.clip(np.asarray(start_action, dtype=np.float32).ravel(), -1.0, 1.0)
+    if action.shape != (spec.size,):
+        raise RingtuneError(f"must have {spec.size} entries ({', '.join(spec.labels())}), "
+                            f"not {np.size(start_action)}", "start_action")
+    return action
+
+
 class TuneEnv(gym.Env):
     """Choose an input-shaping configuration for a printer; one shot per episode.
 
@@ -452,21 +485,8 @@ class TuneEnv(gym.Env):
         self.base_printer = resolve_printer(printer)
         self.randomize = bool(randomize)
         self.job = job
-        flavor = TuneConfig(firmware=firmware, shaper_x="none", shaper_y="none").flavor
-        have = [s for s in available_shapers(flavor) if s != "custom"]
-        if shapers is None:
-            shapers = tuple(have)
-        bad = [s for s in shapers if s not in have]
-        if bad:
-            raise RingtuneError(f"{firmware} offers no {', '.join(bad)} (available: {', '.join(have)})",
-                                "shapers")
-        if freq_anchor not in ("absolute", "peak"):
-            raise RingtuneError(f"must be 'absolute' or 'peak', not {freq_anchor!r}", "freq_anchor")
-        if accel_anchor not in ("absolute", "model"):
-            raise RingtuneError(f"must be 'absolute' or 'model', not {accel_anchor!r}", "accel_anchor")
-        if accel_anchor == "model" and not (tune_accel and observe_metrics):
-            raise RingtuneError("'model' needs tune_accel and observe_metrics (the anchor comes from the "
-                                "starting configuration's metrics)", "accel_anchor")
+        shapers = _checked_shapers(firmware, shapers)
+        _check_anchors(freq_anchor, accel_anchor, tune_accel and observe_metrics)
         self.spec_ = ActionSpec(firmware=firmware, shapers=tuple(shapers), per_axis=per_axis,
                                 tune_accel=tune_accel, freq_anchor=freq_anchor,
                                 freq_limit_gate=bool(freq_limit_gate), accel_anchor=accel_anchor)
@@ -490,12 +510,7 @@ class TuneEnv(gym.Env):
         self.observe_metrics = bool(observe_metrics)
         self.backend = backend
         n = self.spec_.size
-        self.start_action = None
-        if start_action is not None:
-            self.start_action = np.clip(np.asarray(start_action, dtype=np.float32).ravel(), -1.0, 1.0)
-            if self.start_action.shape != (n,):
-                raise RingtuneError(f"must have {n} entries ({', '.join(self.spec_.labels())}), "
-                                    f"not {np.size(start_action)}", "start_action")
+        self.start_action = None if start_action is None else _start_action(start_action, self.spec_)
         self.start_metrics_: Metrics | None = None
         self.action_space = spaces.Box(-1.0, 1.0, (n,), np.float32)
         self._n_peak_obs = 2 if freq_anchor == "peak" else 0

@@ -64,6 +64,9 @@ CORNER_TAIL_MIN, CORNER_TAIL_MAX = 0.005, 0.03
 _JOBS: "OrderedDict[Any, Any]" = OrderedDict()
 _PLANS: "OrderedDict[Any, Any]" = OrderedDict()
 _CACHE_SIZE = 64
+#: job settings the window choice leaves out (the printer's own limits rule there)
+REFERENCE_FREE = (*JOB_ACCEL_SETTINGS, "square_corner_velocity", "junction_deviation", "jerk_x", "jerk_y",
+                  "min_cruise_ratio", "accel_to_decel")
 
 
 @dataclasses.dataclass
@@ -142,13 +145,16 @@ def job_accel_commands(job) -> dict[str, float]:
 
 def _plan_settings(config: TuneConfig | None) -> tuple:
     """What of ``config`` changes the plan: (frequency limit (Hz, method, speed factor), accel,
-    DAA frequency, per-axis caps)."""
+    DAA frequency, per-axis caps, per-feature settings (accelerations by class, corner, minimum
+    cruise ratio) or None)."""
     if config is None:
-        return (0.0, "", 0.0), None, None, (None, None)
+        return (0.0, "", 0.0), None, None, (None, None), None
     fl = ((float(config.freq_limit_hz), config.freq_limit_method, float(config.min_speed_factor))
           if config.freq_limit_hz > 0 else (0.0, "", 0.0))
     accel = None if config.accel is None else float(config.accel)
-    return fl, accel, config.daa_freq, config.axis_caps
+    feature = ((tuple(sorted(config.feature_accel.items())), config.corner, config.min_cruise_ratio)
+               if config.per_feature else None)
+    return fl, accel, config.daa_freq, config.axis_caps, feature
 
 
 def planned_job(printer, job=None, config: TuneConfig | None = None, *,
@@ -158,28 +164,43 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
 
     ``job_accel``: how ``config.accel`` meets the job's own acceleration commands
     (:func:`ringtune.shaping.config_plan.job_accel_mode`). The quality windows are chosen once, on
-    the plan at the printer's own limits without frequency limit, and every configuration is judged
-    on those same corners and zigzags (:func:`ringtune.shaping.testprints.relocate_windows`)."""
+    the plan at the printer's own limits without frequency limit (the job's own accelerations and
+    corner settings left out: :func:`_reference_windows`), and every configuration is judged on
+    those same corners and zigzags (:func:`ringtune.shaping.testprints.relocate_windows`)."""
     mode = job_accel_mode(config, job_accel)
     jkey, parsed = resolve_job(job)
     limits = printer.limits
-    fl, accel, daa, caps = _plan_settings(config)
+    settings = _plan_settings(config)
+    fl, accel, daa, caps, feature = settings
     if accel is None:
         mode = "replace"       # nothing to replace with: the job's and the machine's limits as they are
-    key = (jkey, repr(limits), fl, accel, daa, max_windows, span, mode, caps)
+    key = (jkey, repr(limits), fl, accel, daa, max_windows, span, mode, caps, feature)
     if key in _PLANS:
         _PLANS.move_to_end(key)
         return _PLANS[key]
     plan = plan_with_config(parsed, limits, config, job_accel=mode).plan
-    if (fl, accel, daa, caps) == _plan_settings(None):
-        windows = testprints.quality_windows(plan, max_windows=max_windows, span=span)
-    else:   # the corners and zigzags the printer's own plan chose, at this plan's times
-        ref = planned_job(printer, job, None, max_windows=max_windows, span=span).windows
-        windows = testprints.relocate_windows(plan, ref, span=span)
+    # the corners and zigzags the printer's own plan chose, at this plan's times
+    windows = testprints.relocate_windows(plan, _reference_windows(jkey, parsed, limits, max_windows, span), span=span)
     pj = PlannedJob(plan, list(windows))
     if key[0][0] == "object":  # keep the job alive so its id is not reused while cached
         pj.source = parsed  # type: ignore[attr-defined]
     return _remember(_PLANS, key, pj)
+
+
+def _reference_windows(jkey, parsed, limits, max_windows: int, span: float) -> list:
+    """The quality windows of a job, chosen on its plan at the printer's own limits: the job's own
+    accelerations, X/Y caps and corner settings left out (:data:`REFERENCE_FREE`), so a job and
+    the same job rewritten with per-feature commands (``ringtune rewrite``) are judged on the
+    same corners and zigzags (cached)."""
+    key = ("windows", jkey, repr(limits), max_windows, span)
+    if key not in _PLANS:
+        cols = [SETTING_KEYS.index(k) for k in REFERENCE_FREE]
+        table = np.array(parsed.settings_table, dtype=float, copy=True)
+        table[:, cols] = np.nan
+        plan = plan_with_config(dataclasses.replace(parsed, settings_table=table), limits, None).plan
+        _remember(_PLANS, key, testprints.quality_windows(plan, max_windows=max_windows, span=span))
+    _PLANS.move_to_end(key)
+    return _PLANS[key]
 
 
 # -- shaping the windows -------------------------------------------------------------------------

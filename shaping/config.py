@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.features import FEATURE_CLASSES
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.textfile import read_text_file
 
@@ -35,6 +36,21 @@ class TuneConfig:
             mm/s² (Marlin/RRF ``M201 X Y``, Kalico ``max_x_accel``/``max_y_accel``; None = the
             printer's own, unchanged). ``export`` and ``push`` set and read them back before the
             acceleration; written to JSON only when set.
+        feature_accel: acceleration per feature class of the job, mm/s² (class of
+            :data:`ringtune.shaping.features.FEATURE_CLASSES` -> value; a class absent takes
+            ``accel``); planned move by move (:mod:`ringtune.shaping.feature_settings`) and written
+            into the job at each feature change (:mod:`ringtune.shaping.rewrite`). Empty = one
+            acceleration for the whole job.
+        corner: the firmware's corner rule value for the whole job, in the printer's own rule:
+            Klipper ``square_corner_velocity`` mm/s, Marlin junction deviation mm (``M205 J``) or
+            classic jerk mm/s (``M205 X Y``), RepRapFirmware ``M566`` jerk mm/s (None = the
+            printer's / the job's own).
+        min_cruise_ratio: Klipper's ``minimum_cruise_ratio`` in [0, 1) (None = the printer's).
+        y_schedule: a bed slinger's Y shaper frequency by printed height, ``[{"z_mm": mm,
+            "freq_y": Hz, "accel": mm/s², "mass_g": g}, ...]`` in rising ``z_mm`` (``accel`` and
+            ``mass_g``, the mass on the bed it was chosen for, optional): from the layer at ``z_mm``
+            on, Y runs at ``freq_y`` (the print's mass lowers the bed's modes); None = one frequency
+            for the whole job. Written to JSON only when set.
         extra: any other keys (provenance, metrics), carried through unchanged.
     """
 
@@ -51,6 +67,10 @@ class TuneConfig:
     accel: float | None = None
     max_accel_x: float | None = None
     max_accel_y: float | None = None
+    feature_accel: dict[str, float] = field(default_factory=dict)
+    corner: float | None = None
+    min_cruise_ratio: float | None = None
+    y_schedule: list[dict[str, float]] | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -104,14 +124,38 @@ class TuneConfig:
         for key in ("accel", "max_accel_x", "max_accel_y"):
             if getattr(self, key) is not None:
                 _finite(getattr(self, key), f"{where}: {key}", lo=1.0, hi=1e6, unit="mm/s²")
+        if self.y_schedule is not None:
+            self.y_schedule = _checked_schedule(self.y_schedule, f"{where}: y_schedule")
+        self._validate_features(where)
+
+    def _validate_features(self, where: str) -> None:
+        if not isinstance(self.feature_accel, dict):
+            raise RingtuneError("must be an object {feature class: mm/s²}", f"{where}: feature_accel")
+        for cls, value in self.feature_accel.items():
+            if cls not in FEATURE_CLASSES:
+                raise RingtuneError(f"{cls!r} is not a feature class (one of {', '.join(FEATURE_CLASSES)})",
+                                    f"{where}: feature_accel")
+            _finite(value, f"{where}: feature_accel.{cls}", lo=1.0, hi=1e6, unit="mm/s²")
+        if self.corner is not None:
+            _finite(self.corner, f"{where}: corner", lo=0.0, hi=1000.0)
+        if self.min_cruise_ratio is not None:
+            _finite(self.min_cruise_ratio, f"{where}: min_cruise_ratio", lo=0.0, hi=0.99)
+
+    @property
+    def per_feature(self) -> bool:
+        """Whether the configuration sets anything per feature or the corner rule (planned move by
+        move, written into the job by the rewriter)."""
+        return bool(self.feature_accel) or self.corner is not None or self.min_cruise_ratio is not None
 
     # -- JSON ------------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
         extra = d.pop("extra")
-        for key in ("max_accel_x", "max_accel_y"):      # only when set: older files stay as they were
-            if d[key] is None:
+        for key in ("max_accel_x", "max_accel_y", "corner", "min_cruise_ratio", "y_schedule"):   # only when
+            if d[key] is None:                                                                # set: older files stay
                 del d[key]
+        if not d["feature_accel"]:
+            del d["feature_accel"]
         d.update(extra)
         return d
 
@@ -128,11 +172,19 @@ class TuneConfig:
         kwargs = {k: v for k, v in data.items() if k in known}
         extra = {k: v for k, v in data.items() if k not in known}
         for k in ("freq_x", "freq_y", "damping_x", "damping_y", "freq_limit_hz", "min_speed_factor", "accel",
-                  "max_accel_x", "max_accel_y"):
+                  "max_accel_x", "max_accel_y", "corner", "min_cruise_ratio"):
             if k in kwargs and kwargs[k] is not None:
                 if isinstance(kwargs[k], bool) or not isinstance(kwargs[k], (int, float)):
                     raise RingtuneError(f"must be a number, not {kwargs[k]!r}", f"{where}: {k}")
                 kwargs[k] = float(kwargs[k])
+        fa = kwargs.get("feature_accel")
+        if isinstance(fa, dict):
+            for name, v in fa.items():
+                if isinstance(v, bool) or not isinstance(v, (int, float)):
+                    raise RingtuneError(f"must be a number, not {v!r}", f"{where}: feature_accel.{name}")
+            kwargs["feature_accel"] = {str(c): float(v) for c, v in fa.items()}
+        elif "feature_accel" in kwargs and fa is None:
+            kwargs["feature_accel"] = {}
         try:
             cfg = cls(**kwargs, extra=extra)
         except RingtuneError as exc:
@@ -169,6 +221,41 @@ def _finite(value: Any, where: str, lo: float, hi: float, unit: str = "") -> Non
         raise RingtuneError(f"must be a finite number, not {value!r}", where)
     if not lo <= value <= hi:
         raise RingtuneError(f"{value}{unit and ' ' + unit} is out of range [{lo:g}, {hi:g}]{unit and ' ' + unit}", where)
+
+
+#: keys of one y_schedule entry: required, optional
+_SCHEDULE_KEYS = (("z_mm", "freq_y"), ("accel", "mass_g"))
+
+
+def _checked_schedule(entries: Any, where: str) -> list[dict[str, float]]:
+    """``y_schedule`` as a list of {z_mm, freq_y[, accel, mass_g]} floats in strictly rising z_mm."""
+    if not isinstance(entries, list):
+        raise RingtuneError("must be a list of {z_mm, freq_y[, accel]} objects", where)
+    out, last = [], -math.inf
+    for i, e in enumerate(entries):
+        w = f"{where}[{i}]"
+        if not isinstance(e, dict):
+            raise RingtuneError("must be an object {z_mm, freq_y[, accel]}", w)
+        unknown = set(e) - set(_SCHEDULE_KEYS[0]) - set(_SCHEDULE_KEYS[1])
+        if unknown:
+            raise RingtuneError(f"unknown key {sorted(unknown)[0]!r} (keys: z_mm, freq_y, accel, mass_g)", w)
+        for k in _SCHEDULE_KEYS[0]:
+            if k not in e:
+                raise RingtuneError(f"{k} is missing", w)
+        _finite(e["z_mm"], f"{w}.z_mm", lo=0.0, hi=10000.0, unit="mm")
+        _finite(e["freq_y"], f"{w}.freq_y", lo=1.0, hi=1000.0, unit="Hz")
+        if e["z_mm"] <= last:
+            raise RingtuneError(f"z_mm {e['z_mm']} does not rise above the previous {last}", f"{w}.z_mm")
+        last = e["z_mm"]
+        d = {"z_mm": float(e["z_mm"]), "freq_y": float(e["freq_y"])}
+        if e.get("accel") is not None:
+            _finite(e["accel"], f"{w}.accel", lo=1.0, hi=1e6, unit="mm/s²")
+            d["accel"] = float(e["accel"])
+        if e.get("mass_g") is not None:
+            _finite(e["mass_g"], f"{w}.mass_g", lo=0.0, hi=1e6, unit="g")
+            d["mass_g"] = float(e["mass_g"])
+        out.append(d)
+    return out
 
 
 def _is_daa(name: Any) -> bool:

@@ -9,10 +9,16 @@ and :func:`ringtune.envs.evaluate.planned_job` (every tuning trial) share.
    (M204, SET_VELOCITY_LIMIT ACCEL and the X/Y caps of M201), what re-slicing at that acceleration
    with the machine limits raised to it gives; ``respect`` — the job's commands stand and
    ``config.accel`` rules wherever the job sets none (the print as sliced);
-2. the config's frequency limit rewrites the requested feedrates (``shaping.freqlimit``); without
+2. the config's frequency limit rewrites the requested feedrates (``shaping.freqlimit``), unless
+   the job's header says ``ringtune limit`` already did, with the same settings; without
    one, a job's own Marlin ``M201 F`` (XY_FREQUENCY_LIMIT) does, as Marlin would, unless the job's
    own limits are ignored; Marlin's emulation takes the machine's per-axis maximum feedrates;
-3. the planner plans, with RepRapFirmware ≤ 3.3's DAA when the config (or the caller) selects it.
+3. a per-feature configuration (:attr:`TuneConfig.per_feature`: accelerations per feature class,
+   the corner rule, Klipper's minimum_cruise_ratio) becomes the job's own settings move by move
+   (:func:`ringtune.shaping.feature_settings.with_feature_settings`), over the job's own
+   printing and travel accelerations (and X/Y caps where it sets them) whatever the mode — what
+   the job rewriter writes into the file; the job's retract acceleration (M204 R) stays;
+4. the planner plans, with RepRapFirmware ≤ 3.3's DAA when the config (or the caller) selects it.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ import numpy as np
 
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.feature_settings import FeatureCommands, with_feature_settings
 from ringtune.shaping.freqlimit import apply_freq_limit
 from ringtune.shaping.job import SETTING_KEYS, Job
 from ringtune.shaping.planner import MachineLimits, Plan, plan
@@ -87,6 +94,16 @@ def with_axis_caps(limits: MachineLimits, config: TuneConfig | None) -> MachineL
     return replace(limits, max_accel=new)
 
 
+def _carries(job: Job, config: TuneConfig) -> bool:
+    """Whether the job's F words already carry the config's frequency limit (its ``ringtune limit``
+    header names the same Hz, method and speed floor): then it is not applied twice."""
+    if job.limited is None:
+        return False
+    hz, method, floor = job.limited
+    return (method == config.freq_limit_method and abs(hz - config.freq_limit_hz) <= 1e-5 * hz
+            and abs(floor - config.min_speed_factor) <= 1e-5 * max(floor, 1e-9))
+
+
 def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None = None, *,
                      use_job_limits: bool = True, daa_freq: float | None = None,
                      job_accel: str | None = None) -> ConfiguredPlan:
@@ -101,10 +118,15 @@ def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None 
     accel = None if config is None or config.accel is None else float(config.accel)
     if accel is not None:     # export sends it as printing and travel acceleration (M204 P T)
         limits = replace(limits, accel=accel, travel_accel=None)
-        if mode == "replace":
+        if mode == "replace" and not config.per_feature:
             job = without_job_accel(job)
+    if config is not None and config.per_feature:   # over the job's own, as the rewritten file has them
+        job = with_feature_settings(job, FeatureCommands.from_config(config, limits))
+        accel = None          # the settings are the job's own now, move by move
     freq_limit = None
-    if config is not None and config.freq_limit_hz > 0:
+    if config is not None and config.freq_limit_hz > 0 and _carries(job, config):
+        freq_limit = FreqLimitApplied(float(config.freq_limit_hz), config.freq_limit_method, 0, "job (ringtune limit)")
+    elif config is not None and config.freq_limit_hz > 0:
         before = job.feed
         job = apply_freq_limit(job, float(config.freq_limit_hz), config.freq_limit_method,
                                float(config.min_speed_factor), max_velocity=limits.max_velocity)

@@ -1,5 +1,5 @@
 """Setting and firmware-extension commands of the G-code reader (mixin of its reader class):
-Marlin's M201/M203/M204/M205/M220, Klipper's extended commands (SET_VELOCITY_LIMIT,
+Marlin's M201/M203/M204/M205/M220, RepRapFirmware's M566 (mm/min), Klipper's extended commands (SET_VELOCITY_LIMIT,
 SET_INPUT_SHAPER, TUNING_TOWER and any other ``NAME KEY=VALUE`` command, kept as an event).
 Units: mm, mm/s, mm/s², Hz."""
 
@@ -50,6 +50,8 @@ WORD_SETTINGS = {
     "M201": (*_per_axis("max_accel"), ("F", "freq_limit_hz", lambda v: min(v, 100.0))),
     "M203": _per_axis("max_vel"),
     "M205": (*_per_axis("jerk"), ("J", "junction_deviation", None)),
+    # RepRapFirmware's "jerk" (instantaneous speed change) is in mm/min
+    "M566": tuple((ax, f"jerk_{ax.lower()}", lambda v: v / 60.0) for ax in AXES),
 }
 
 

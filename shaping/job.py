@@ -19,7 +19,7 @@ SETTING_KEYS = (
     "freq_limit_hz", "freq_limit_min_factor",
 )
 SHAPER_COMMANDS = ("M593", "M493", "SET_INPUT_SHAPER")
-LIMIT_COMMANDS = ("M201", "M203", "M204", "M205", "M220", "SET_VELOCITY_LIMIT")
+LIMIT_COMMANDS = ("M201", "M203", "M204", "M205", "M220", "M566", "SET_VELOCITY_LIMIT")
 STOP_COMMANDS = {"G4", "G28", "G29", "M400", "M109", "M190", "M0", "M1", "M600", *SHAPER_COMMANDS}
 AXES = "XYZE"
 
@@ -51,7 +51,8 @@ class Job:
     ``feed`` requested speed (mm/s, M220 applied), ``feature`` index into ``features``,
     ``settings`` index into ``settings_table`` (rows of :data:`SETTING_KEYS`, NaN = unset),
     ``stop_before`` the firmware is at rest before this move, ``dwell_before`` s of dwell before it,
-    ``arc`` the move is a chord of a G2/G3 arc.
+    ``arc`` the move is a chord of a G2/G3 arc. ``limited``: the frequency limit the file's F
+    words already carry, from the header ``ringtune limit`` writes in its first lines (None: none).
     """
 
     line: np.ndarray
@@ -70,6 +71,7 @@ class Job:
     source: str = "<text>"
     n_lines: int = 0
     arc_tolerance: float = 0.01
+    limited: tuple | None = None      # (Hz, method, min speed factor) of a ``ringtune limit`` header
 
     @property
     def n_moves(self) -> int:

@@ -60,3 +60,34 @@ def slicer_flavor(path) -> str | None:
         if m:
             return m.group(1).lower()
     return None
+
+
+#: the filament a slicer says it sliced for (first extruder): PrusaSlicer / SuperSlicer / OrcaSlicer
+#: ``; filament_diameter = 1.75`` and ``; filament_density = 1.24`` (several extruders: ``1.24,1.27``
+#: or ``1.24;1.27``), Simplify3D ``;   filamentDiameters,1.75|…`` and ``;   filamentDensities,1.25|…``
+_FILAMENT = {
+    "diameter_mm": (re.compile(r"^;\s*filament_diameter\s*=\s*([\d.]+)", re.M | re.I),
+                    re.compile(r"^;\s*filamentDiameters,([\d.]+)", re.M)),
+    "density_g_cm3": (re.compile(r"^;\s*filament_density\s*=\s*([\d.]+)", re.M | re.I),
+                      re.compile(r"^;\s*filamentDensities,([\d.]+)", re.M)),
+}
+
+
+def slicer_filament(path) -> dict[str, float]:
+    """The filament diameter (mm) and density (g/cm³) the slicer wrote into the file, as far as it
+    wrote them: ``{"diameter_mm": …, "density_g_cm3": …}`` (keys absent when not found; a density
+    of 0, a slicer's "unset", is left out)."""
+    text = _text(path)
+    out: dict[str, float] = {}
+    for key, rxs in _FILAMENT.items():
+        for rx in rxs if text is not None else ():
+            m = rx.search(text)
+            if m:
+                try:
+                    v = float(m.group(1))
+                except ValueError:
+                    continue
+                if v > 0:
+                    out[key] = v
+                break
+    return out

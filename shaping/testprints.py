@@ -217,8 +217,10 @@ def _same_path(ext, connected, a, b) -> np.ndarray:
 WINDOW_SHARES = (("seen-corner", 0.5), ("zigzag", 0.25), ("hidden-corner", 0.25))
 
 
-def _candidates(plan, span: float) -> dict:
-    """Per window kind: (t0 of the window, score, line, feature class, order best first)."""
+def _candidates(plan, span: float, order: bool = True) -> dict:
+    """Per window kind: (t0 of the window, score, line, feature class, order best first; None
+    without ``order``). Support, skirt and brim (class ``support``: not the part) offer none while
+    the part offers any."""
     tc, sc, lc, mc = _corner_candidates(plan)
     tz, fz, lz = direction_change_frequencies(plan)
     mv = plan.moves
@@ -227,13 +229,16 @@ def _candidates(plan, span: float) -> dict:
     line_to_move = {int(line): i for i, line in enumerate(mv.line)}
     cls_z = np.array([names[mv.feature[line_to_move[int(x)]]] for x in lz], dtype=names.dtype)
     seen = np.isin(cls_c, list(VISIBLE))
+    part_c, part_z = cls_c != "support", cls_z != "support"
+    if not (part_c.any() or part_z.any()):          # nothing but support: judge it rather than nothing
+        part_c, part_z = np.ones(len(cls_c), bool), np.ones(len(cls_z), bool)
     out = {}
     for kind, pick, t0, score, line, cls in (
-            ("seen-corner", seen, tc - 0.2 * span, sc, lc, cls_c),
-            ("hidden-corner", ~seen, tc - 0.2 * span, sc, lc, cls_c),
-            ("zigzag", np.ones(len(tz), bool), tz - 0.5 * span, fz, lz, cls_z)):
+            ("seen-corner", seen & part_c, tc - 0.2 * span, sc, lc, cls_c),
+            ("hidden-corner", ~seen & part_c, tc - 0.2 * span, sc, lc, cls_c),
+            ("zigzag", part_z, tz - 0.5 * span, fz, lz, cls_z)):
         t0, score, line, cls = t0[pick], score[pick], line[pick], cls[pick]
-        out[kind] = (t0, score, line, cls, _best_per_class_first(score, cls))
+        out[kind] = (t0, score, line, cls, _best_per_class_first(score, cls) if order else None)
     return out
 
 
@@ -297,7 +302,7 @@ def relocate_windows(plan, reference: list[Window], span: float = 0.25) -> list[
     duration = plan.motion.end_time
     span = min(span, duration)
     lo_t, hi_t = plan.motion.start_time, duration - span
-    c = _candidates(plan, span)
+    c = _candidates(plan, span, order=False)
     corners = tuple(np.concatenate([c["seen-corner"][j], c["hidden-corner"][j]]) for j in range(4))
     cands = {"corner": corners, "zigzag": c["zigzag"][:4]}
     out = []

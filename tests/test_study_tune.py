@@ -78,7 +78,8 @@ def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evalua
     # the --json keys tune.py documents as stable
     assert set(res) == {"out", "trials", "front_size", "quality", "max_path_error_mm", "motor_reserve",
                         "freq_margin", "resolution", "chosen", "baselines", "vs_baselines", "dominates_klipper",
-                        "dominates_current", "accel", "job_accel", "plot_arrows", "files", "storage", "study",
+                        "dominates_current", "accel", "job_accel", "per_feature", "plot_arrows", "files",
+                        "storage", "study",
                         "completed_now", "interrupted", "elapsed_s"}
     assert set(res["chosen"]) == {"config", "print_time_s", "quality_mm", "path_error_mm", "overshoot_mm",
                                   "motor_load", "chosen_by", "against", "why", "rewrite_jobs"}

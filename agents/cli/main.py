@@ -38,7 +38,9 @@ COMMANDS = {
     "response": "residual vibration vs frequency for several shapers (Klipper-style graph)",
     "graph": "Klipper-style graphs: shapers over the spectrum, CoreXY belts, vibration against speed (PNG + --json)",
     "plan": "plan a G-code job: print time, moves, time by feature, highest direction-change frequencies",
+    "schedule": "bed slingers: the Y shaper frequency by layer as the print's mass grows, inserted into the job",
     "limit": "slow only the zigzags that shake: rewrite F words so direction changes stay under a frequency",
+    "rewrite": "write a tuned configuration into a sliced job: acceleration per feature, corner rule, frequency limit",
     "identify": "the printer from your files: modes from accelerometer data, the rest from your config (TOML)",
     "testprint": "calibration prints: ringing tower (ripples / shaper bands) and acceleration ladder",
     "printer": "the printer description (TOML) from its firmware configuration: Klipper, Moonraker, "

@@ -14,8 +14,11 @@ binding (the firmware limits that hold some moves of the chosen configuration lo
 (the firmware's own: "M201 X", "max_y_accel", "M204 R"), value (mm/s²), what, moves, time_s,
 time_without_s (the planner with that limit removed)})},
 job_accel {mode, commands, cap_mm_s2, searched, print_time_as_sliced_s, print_time_replaced_s,
-replaced_accel, saved_s}, plot_arrows, files {readme, summary, plot, best,
-apply, front, trials}, storage, study, completed_now, interrupted, elapsed_s.
+replaced_accel, saved_s}, per_feature (null when not searched, else {accel {visible|hidden_walls|
+infill|solid_top|travel: mm/s²}, ranges {group: {top_speed_mm_s, range, basis}}, corner, junction,
+min_cruise_ratio, why (why it was searched)}), plot_arrows, files {readme, summary, plot, best, apply,
+front, trials, job (with --gcode: the rewritten job)}, storage, study, completed_now, interrupted,
+elapsed_s.
 """
 
 from __future__ import annotations
@@ -34,12 +37,14 @@ from ringtune.agents.cli.common import (GCODE_JOB_HELP, firmware_name, gcode_job
                                        progress_interval, say_unmeasured)
 from ringtune.agents.tune import pareto, report, storage, study as tune_study
 from ringtune.agents.tune.baselines import baselines_for, warm_start
+from ringtune.agents.tune import feature_space
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
 from ringtune.agents.tune.pareto import pareto_front
 from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config, top_speed_load_note
 from ringtune.agents.tune.study import study_points
 from ringtune.envs.evaluate import resolve_printer
+from ringtune.envs.job_rewrite import rewrite_file
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import Firmware
 
@@ -64,6 +69,15 @@ default: the print as sliced; the acceleration is then not searched where it has
 --job-accel replace the tuned acceleration replaces them (what re-slicing would give), and the
 summary gives both print times.
 
+Per feature (--per-feature, default auto: on when the acceleration is searched and the job has
+features nobody sees, unless --job-accel respect keeps the job's own accelerations): the visible
+walls (outer walls, overhangs, unlabelled moves) take the main acceleration; the hidden walls, the
+infill (with support), solid/top infill and travel each get their own, searched up to where the
+weakest motor keeps its reserve at that group's own top speed; the corner rule (Klipper's
+square_corner_velocity, Marlin's junction deviation or jerk, RRF's M566) and Klipper's
+minimum_cruise_ratio are searched too. One shaper configuration serves the whole job. With --gcode,
+job.gcode beside best.json is the job with the choice written in (as `ringtune rewrite` writes it).
+
 Baselines: Klipper's rule — the recommendation recorded from your resonance files by `ringtune
 identify` when the printer has one, else the rule on the model's simulated resonance test (said so);
 what the printer runs now, when the printer description has a [current] section; no shaping.
@@ -81,6 +95,7 @@ examples:
   ringtune tune
   ringtune tune --printer my-printer.toml --gcode benchy.gcode --firmware rrf --trials 400 --workers 2
   ringtune tune --gcode tower.gcode --job-accel replace      # what re-slicing at a tuned accel gives
+  ringtune tune --gcode part.gcode --per-feature on          # writes tuned/job.gcode with the choice in it
   ringtune tune --storage postgresql+psycopg2://user:pw@db-host/ringtune --study ender3 --workers 4
 """
 
@@ -125,6 +140,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--job-accel", choices=("respect", "replace"), default="respect",
                    help="a job's own M201/M204/SET_VELOCITY_LIMIT accelerations: respect them (default, the "
                         "print as sliced) or replace them by the tuned acceleration (what re-slicing would give)")
+    p.add_argument("--per-feature", choices=("auto", "on", "off"), default="auto",
+                   help="search an acceleration per feature group (hidden walls, infill, solid/top, travel; the "
+                        "visible walls take the main one), the corner rule and minimum_cruise_ratio (default auto: "
+                        "when the acceleration is searched and the job has features nobody sees)")
     p.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco", help="physics (default mujoco)")
     p.add_argument("--evaluator", metavar="MODULE:FUNC", default=None,
                    help="advanced: score configs with your own f(configs, printer, job) -> metrics")
@@ -177,6 +196,10 @@ def run(args: argparse.Namespace, out) -> int:
                                     "commands rule every move (--job-accel respect)")
     for line in facts.notes(args.job_accel, space):
         out.note(f"ringtune tune: {line}")
+    per_feature, why = feature_space.wanted(args.per_feature, space, printer, args.gcode, bool(facts.commands),
+                                            args.job_accel)
+    if per_feature:
+        space = feature_space.feature_space(space, printer, args.gcode, reserve)
 
     created = not out_dir.exists()
     try:
@@ -198,12 +221,13 @@ def run(args: argparse.Namespace, out) -> int:
             k = baselines.get("klipper")
             if k is not None:   # start the search from what users do today, and its neighbours
                 seen, enq = set(), []
-                for c in warm_start(k.config, bl.fits, space):
-                    p = params_from_config(c, space)
-                    key = tuple(sorted(p.items()))
-                    if key not in seen:
-                        seen.add(key)
-                        enq.append(p)
+                for i, c in enumerate(warm_start(k.config, bl.fits, space)):
+                    p = params_from_config(c, space)   # the rule's pick also with the hidden groups at their tops
+                    for q in (p, feature_space.at_ceilings(p, space)) if space.per_feature and i == 0 else (p,):
+                        key = tuple(sorted(q.items()))
+                        if key not in seen:
+                            seen.add(key)
+                            enq.append(q)
                 settings.enqueue = enq
 
         bar = Progress(quality, max_pe, reserve, space)
@@ -230,6 +254,9 @@ def run(args: argparse.Namespace, out) -> int:
     if not args.gcode and chosen.config.accel:
         accel_lines.append(top_speed_load_note(printer, chosen.config.accel, reserve))
     ja_lines, ja_json = job_accel_section(facts, args.job_accel, printer, args.gcode, chosen.config)
+    pf_lines, pf_json = feature_space.feature_section(chosen.config, space) if space.per_feature else ([], None)
+    if pf_json is not None:
+        pf_json["why"] = why
     ja_json["searched"] = not space.accel_fixed
     notes = [f"The {floor_note}."] if floor_note else []
     if margin:
@@ -249,11 +276,22 @@ def run(args: argparse.Namespace, out) -> int:
         "built-in test print", firmware=firmware, n_trials=args.trials, storage=store,
         study_name=args.study, command=command_line(args), max_path_error_mm=max_pe, motor_reserve=reserve,
         baseline_labels=bl.labels if bl else None,
-        sections=[("ACCELERATION", accel_lines)] + ([("THE JOB'S OWN ACCELERATIONS", ja_lines)] if ja_lines else []),
+        sections=[("ACCELERATION", accel_lines)] + ([("PER FEATURE", pf_lines)] if pf_lines else [])
+        + ([("THE JOB'S OWN ACCELERATIONS", ja_lines)] if ja_lines else []),
         notes=notes, export_firmware=dialect,
         best_extra={"job_accel": args.job_accel, "freq_margin": margin, "motor_reserve": reserve,
                     "top_speed_mm_s": facts.top_speed if args.gcode else float(printer.limits.velocity)})
     text = result.pop("summary_text")
+    result["per_feature"] = pf_json
+    if args.gcode:     # the job with the choice written in, beside best.json
+        try:
+            done = rewrite_file(args.gcode, out_dir / "job.gcode", chosen.config, printer)
+            result["files"]["job"] = str(out_dir / "job.gcode")
+            text += (f"\nThe job with the choice written in: {out_dir / 'job.gcode'} ({done.lines_inserted} lines "
+                     f"inserted; planned {done.before_s:.1f} s as sliced -> {done.after_s:.1f} s).")
+        except RingtuneError as exc:       # the study stands; say why the job could not be written
+            result["files"]["job"] = None
+            out.note(f"ringtune tune: job.gcode not written: {exc}")
     if bl:
         for k, src in bl.sources.items():
             result["baselines"][k]["source"] = src

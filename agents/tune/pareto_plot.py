@@ -9,7 +9,8 @@ reserve); a point beyond a panel's scale is drawn as an arrow at the edge it lie
 count. The baselines (Klipper's pick, what the printer runs now, no shaping) and the chosen point
 are marked and labelled on every panel, with their values. A measure the trials do not carry (a
 study from before it existed) gets a panel that says so; without ripple the large panel shows the
-study's quality objective and says so.
+study's quality objective and says so. The legend sits below the large panel (it covers no point),
+with file paths cut to their names; a ring "dominates X" takes X's colour.
 
 The plotted values are written into the PNG's ``Data`` text chunk as JSON (``{panel key: {"unit",
 "scale", series: [[print time s, value in the unit], …]}}``, read from the drawn artists), so a
@@ -19,6 +20,7 @@ test or tool can compare the picture with ``front.csv`` without reading pixels.
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Sequence
 
@@ -39,6 +41,20 @@ MAIN = ("ripple_mm", "wall ripple, peak-to-peak (visible walls)", "µm", 1000.0)
 QUALITY = {"overshoot_mm": ("overshoot", "µm", 1000.0), "path_error_mm": ("path error", "µm", 1000.0)}
 STYLE = {"klipper": ("s", "tab:orange"), "current": ("D", "tab:green"), "none": ("^", "black")}
 SHORT = {"klipper": "Klipper", "current": "now", "none": "none"}
+
+
+def short_label(text: str) -> str:
+    """A legend label with every path in parentheses cut to its file name (``(…/v24/printer.cfg)`` ->
+    ``(printer.cfg)``): the summary names the full path; the legend must not cover the points."""
+    return re.sub(r"\(([^()]*[/\\])([^()/\\]+)\)", r"(\2)", text)
+
+
+def _ring_colour(label: str, baseline_labels: dict[str, str], i: int) -> str:
+    """A ring ("dominates …") in the colour of the baseline it names, else one of its own."""
+    for bkey, lab in baseline_labels.items():
+        if lab and lab in label:
+            return STYLE.get(bkey, ("P", "tab:cyan"))[1]
+    return ("tab:pink", "tab:olive", "tab:cyan")[i % 3]
 
 
 def _value(p: Point, key: str, quality: str) -> float:
@@ -106,7 +122,7 @@ def _panel(ax, key, name, unit, factor, ctx, full_legend: bool) -> dict:
                 ha="center", va="center", transform=ax.transAxes, fontsize=8, color="0.3")
         ax.set_title(f"{name} ({unit})", fontsize=8)
         ax.set_xlim(t_box[0], t_box[1])
-        return {**counts, "missing": True, "legend": [], "series": series}
+        return {**counts, "missing": True, "legend": [], "rings": {}, "series": series}
     extra = [bound * factor] if key == "path_error_mm" and bound > 0 else []
     y_lo, y_hi = _limits(np.array(core + extra, float))
     box = (t_box[0], t_box[1], y_lo, y_hi)
@@ -127,7 +143,7 @@ def _panel(ax, key, name, unit, factor, ctx, full_legend: bool) -> dict:
                                    ("motor load over the reserve", p.overloaded)) if flag]
         y = ys[id(p)]
         txt = f"{y:.1f} {unit}" if np.isfinite(y) else "not measured"
-        lab = (f"{labels.get(bkey, bkey)}: {p.print_time_s:.2f} s, {txt}"
+        lab = (f"{short_label(labels.get(bkey, bkey))}: {p.print_time_s:.2f} s, {txt}"
                + (f" — BREAKS A BOUND ({', '.join(broke)})" if broke else ""))
         if np.isfinite(y):
             art = ax.scatter([p.print_time_s], [np.clip(y, y_lo, y_hi)], s=90, marker=m, c=c, zorder=5, label=lab,
@@ -136,9 +152,11 @@ def _panel(ax, key, name, unit, factor, ctx, full_legend: bool) -> dict:
             ax.annotate(SHORT.get(bkey, bkey) + ("" if full_legend else f" {y:.1f}"),
                         (p.print_time_s, float(np.clip(y, y_lo, y_hi))), fontsize=7,
                         xytext=(6, -9), textcoords="offset points", color=c)
-    for lab, p in (marked or {}).items():
-        ax.scatter([p.print_time_s], [ys[id(p)]], s=180, facecolors="none", edgecolors="tab:green", linewidths=1.8,
-                   zorder=4, label=lab)
+    rings = {}
+    for i, (lab, p) in enumerate((marked or {}).items()):     # rings of different sizes: both show
+        colour = rings[short_label(lab)] = _ring_colour(lab, labels, i)
+        ax.scatter([p.print_time_s], [_value(p, key, quality) * factor], s=180 + 120 * i, facecolors="none",
+                   edgecolors=colour, linewidths=1.8, zorder=4, label=short_label(lab))
     y = ys[id(chosen)]
     ax.scatter([chosen.print_time_s], [y], s=260, marker="*", c="gold", edgecolors="black", zorder=6,
                label=f"chosen: {chosen.print_time_s:.2f} s, {y:.1f} {unit}")
@@ -153,17 +171,20 @@ def _panel(ax, key, name, unit, factor, ctx, full_legend: bool) -> dict:
     ax.set_ylabel(f"{name} ({unit})" if full_legend else unit, fontsize=10 if full_legend else 8)
     ax.grid(True, alpha=0.3)
     legend = []
-    if full_legend:
-        legend = [t.get_text() for t in ax.legend(fontsize=7, loc="best").get_texts()]
-    return {**counts, "missing": False, "legend": legend, "series": series}
+    if full_legend:       # below the panel, not over the points
+        leg = ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.07), borderaxespad=0.0)
+        legend = [t.get_text() for t in leg.get_texts()]
+    return {**counts, "missing": False, "legend": legend, "rings": rings, "series": series}
 
 
 def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chosen: Point,
                baselines: dict[str, Point], quality: str, title: str, *, max_path_error_mm: float = 0.0,
                baseline_labels: dict[str, str] | None = None, marked: dict[str, Point] | None = None) -> dict:
     """Write the PNG; returns {panel key: {"above_scale": n, "below_scale": n, "right_of_scale": n,
-    "left_of_scale": n, "missing": bool, "legend": [labels]}} (what was drawn as arrows, whether
-    the trials lack the measure, and the legend). The first key is the large panel's (ripple, or
+    "left_of_scale": n, "missing": bool, "legend": [labels], "legend_over_points": bool, "rings":
+    {label: colour}}} (what was drawn as arrows, whether the trials lack the measure, the legend (the
+    large panel's; the small panels label their marks in place), whether it overlaps a plotting
+    area, the rings). The first key is the large panel's (ripple, or
     the quality objective when the trials carry no ripple). ``marked``: {label: point} drawn
     ringed (e.g. "dominates Klipper's rule")."""
     matplotlib.use("Agg")
@@ -197,8 +218,13 @@ def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chos
     fig.suptitle(f"{title}\nprint time against wall ripple; every measure of the same points, lower is better; "
                  "baselines and the chosen point marked on each", fontsize=10)
     fig.tight_layout()
+    fig.canvas.draw()
+    leg = ax_main.get_legend()
+    boxes = [a.get_window_extent() for a in fig.axes]
+    for v in drawn.values():      # whether the legend overlaps any panel's plotting area
+        v["legend_over_points"] = bool(leg is not None and any(leg.get_window_extent().overlaps(b) for b in boxes))
     data = {k: {"unit": dict((m[0], m[2]) for m in (main, *small))[k],
                 "scale": dict((m[0], m[3]) for m in (main, *small))[k], **v.pop("series")} for k, v in drawn.items()}
-    fig.savefig(path, metadata={"Title": title, "Data": json.dumps(data)})
+    fig.savefig(path, metadata={"Title": title, "Data": json.dumps(data)}, bbox_inches="tight")
     plt.close(fig)
     return drawn

@@ -26,6 +26,7 @@ from typing import Any, Sequence
 from ringtune.agents.tune.pareto import BASELINE_NAMES, DEFAULT_RESOLUTION, Choice, Point, Resolution, judge
 from ringtune.agents.tune.pareto_plot import plot_front
 from ringtune.hardware.dialects import export_config, limit_command
+from ringtune.shaping.feature_settings import per_feature_text
 from ringtune.shaping.firmware import FIRMWARES, Firmware
 from ringtune.shaping.smoothers import is_smoother
 
@@ -127,7 +128,7 @@ def describe(cfg) -> str:
                  f"freq limit {cfg.freq_limit_hz:.1f} Hz ({cfg.freq_limit_method})")
     caps = ", ".join(f"{a.upper()} {c:.0f}" for a, c in zip("xy", cfg.axis_caps) if c is not None)
     parts.append((f"accel {cfg.accel:.0f} mm/s²" if cfg.accel else "printer's accel")
-                 + (f" (axis caps {caps})" if caps else ""))
+                 + (f" (axis caps {caps})" if caps else "") + per_feature_text(cfg))
     return ", ".join(parts)
 
 

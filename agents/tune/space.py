@@ -20,6 +20,11 @@ Parameters (Optuna names):
   Prusa: ``M201 X Y``, which ``export`` then sends before ``M204``), kept as they are where they
   are the owner's per-axis limits in the firmware's configuration (Kalico's limited_* kinematics:
   ``max_x_accel``/``max_y_accel``; and on mainline Klipper, which has none, said by ``export``).
+- per feature (a space from :func:`ringtune.agents.tune.feature_space.feature_space`):
+  ``accel_<group>`` for each group of :data:`ACCEL_GROUPS` but ``visible`` (whose acceleration is
+  ``accel``), mm/s²; ``corner`` (the printer's junction rule's value) and ``min_cruise_ratio``
+  (Klipper) when searched; they become the config's ``feature_accel``, ``corner`` and
+  ``min_cruise_ratio``.
 
 :func:`config_from_params` turns a parameter dict into a :class:`TuneConfig`; the same function
 serves Optuna trials, grid points and stored trials, so they can never disagree.
@@ -38,6 +43,15 @@ from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.shapers import available_shapers, max_damping, parse_name
 from ringtune.shaping.smoothers import is_smoother
+
+#: acceleration groups of feature classes searched apart (``visible``: the config's ``accel``); solid
+#: and top infill together, judged as seen (top surfaces are); support goes with the infill
+ACCEL_GROUPS = {"visible": ("outer_wall", "bridge_overhang", "other"), "hidden_walls": ("inner_wall",),
+                "infill": ("infill", "support"), "solid_top": ("solid_infill", "top_surface"),
+                "travel": ("travel",)}
+#: rounding of the corner rule's value per junction rule (mm/s, mm, mm/s) and of minimum_cruise_ratio
+CORNER_STEP = {"scv": 0.5, "jd": 0.001, "jerk": 0.5}
+MCR_STEP = 0.05
 
 #: search families of Klipper's parametrised shapers, per shaper flavour that has them
 PARAMETRISED = {"klipper": ("mzv(n,t)", "ei(v_tol)")}
@@ -70,6 +84,13 @@ class SearchSpace:
     accel_basis: str = ""               # what sets the acceleration range's top (for the summary)
     axis_caps: tuple[float, float] | None = None   # the printer's X/Y caps, mm/s² (0 = none)
     raise_axis_caps: bool = False       # the firmware sets them by G-code: raised to the trial's acceleration
+    feature_accel: tuple = ()           # ((group, lo, hi), ...) searched apart from ``accel``, mm/s²
+    corner: tuple[float, float] | None = None        # the corner rule's range, in ``junction``'s unit
+    junction: str = ""                  # the printer's junction rule (scv, jd, jerk) the corner is in
+    min_cruise_ratio: tuple[float, float] | None = None   # Klipper's, searched when set
+    feature_basis: dict | None = None   # per group: its top speed (mm/s) and what caps its range
+    corner_now: float | None = None     # the printer's own corner value (a config without one runs it)
+    mcr_now: float | None = None        # the printer's own minimum_cruise_ratio
 
     @property
     def accel_fixed(self) -> bool:
@@ -84,10 +105,17 @@ class SearchSpace:
         kw = dict(d)
         for k in ("shapers", "freq_limit_methods"):
             kw[k] = tuple(kw[k])
-        for k in ("freq_x", "freq_y", "damping", "freq_limit_hz", "accel", "axis_caps"):
+        for k in ("freq_x", "freq_y", "damping", "freq_limit_hz", "accel", "axis_caps", "corner",
+                  "min_cruise_ratio"):
             if kw.get(k) is not None:
                 kw[k] = tuple(float(v) for v in kw[k])
+        kw["feature_accel"] = tuple((str(g), float(lo), float(hi)) for g, lo, hi in kw.get("feature_accel") or ())
         return cls(**kw)
+
+    @property
+    def per_feature(self) -> bool:
+        """Whether accelerations per feature group, the corner rule or minimum_cruise_ratio are searched."""
+        return bool(self.feature_accel) or self.corner is not None or self.min_cruise_ratio is not None
 
 
 def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float, float] | None = None,
@@ -185,7 +213,7 @@ def trial_axis_caps(space: SearchSpace, accel: float) -> dict[str, float]:
     return out
 
 
-def motor_accel_limit(printer: Any, speed: float, n_dir: int = 181) -> tuple[float, str]:
+def motor_accel_limit(printer: Any, speed: float, n_dir: int = 181, reserve: float = 0.0) -> tuple[float, str]:
     """(mm/s², motor name): the acceleration at which the weakest motor would need all its force
     while the head moves at ``speed`` (mm/s) in the worst direction, rigid machine.
 
@@ -196,7 +224,8 @@ def motor_accel_limit(printer: Any, speed: float, n_dir: int = 181) -> tuple[flo
     reflected mass m_r·a·(D_k·u) and its friction, at belt speed speed·|D_k·u|, where it has
     ``max_force(speed·|D_k·u|)``. The result is the smallest a over directions (``n_dir`` from 0
     to 180°; diagonals load one CoreXY motor most) and motors at which demand meets force; on pure
-    axis moves it equals ``Printer.motor_accel_limit``."""
+    axis moves it equals ``Printer.motor_accel_limit``. ``reserve``: the fraction of the force kept
+    free (demand, friction included, meets (1 − reserve)·max_force)."""
     th = np.linspace(0.0, np.pi, n_dir)
     u = np.stack([np.cos(th), np.sin(th)], axis=1)                      # (n, 2)
     motors = printer.drive_motors()
@@ -207,7 +236,7 @@ def motor_accel_limit(printer: Any, speed: float, n_dir: int = 181) -> tuple[flo
     for k, (name, mo, _d) in enumerate(motors):
         proj = u @ D[:, k]                                              # motor mm per head mm
         per_accel = np.abs(u @ (P[:, k] * mass) + mo.rotor_mass * proj) * 1e-3   # N per mm/s²
-        avail = np.asarray(mo.max_force(speed * np.abs(proj)), float) - mo.friction
+        avail = (1.0 - reserve) * np.asarray(mo.max_force(speed * np.abs(proj)), float) - mo.friction
         with np.errstate(divide="ignore", invalid="ignore"):
             a = np.where(per_accel > 1e-12, np.maximum(avail, 0.0) / per_accel, np.inf)
         i = int(np.argmin(a))
@@ -299,7 +328,30 @@ def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
         p["accel"] = space.accel[0]      # not searched: it has no effect (or was fixed)
     else:
         p["accel"] = trial.suggest_float("accel", *space.accel)
+    for group, lo, hi in space.feature_accel:
+        p[f"accel_{group}"] = trial.suggest_float(f"accel_{group}", lo, hi) if hi > lo else lo
+    if space.corner is not None:
+        p["corner"] = trial.suggest_float("corner", *space.corner)
+    if space.min_cruise_ratio is not None:
+        p["min_cruise_ratio"] = trial.suggest_float("min_cruise_ratio", *space.min_cruise_ratio)
     return p
+
+
+def feature_params(params: dict[str, Any], space: SearchSpace) -> dict[str, Any]:
+    """The per-feature keys of a TuneConfig (``feature_accel``, ``corner``, ``min_cruise_ratio``)
+    from a parameter dict, rounded as :func:`config_from_params` rounds (empty without them)."""
+    out: dict[str, Any] = {}
+    fa = {}
+    for group, lo, _hi in space.feature_accel:
+        a = _q(params.get(f"accel_{group}", lo), space.accel_step)
+        fa.update(dict.fromkeys(ACCEL_GROUPS[group], a))
+    if fa:
+        out["feature_accel"] = fa
+    if space.corner is not None:
+        out["corner"] = _q(params.get("corner", space.corner[0]), CORNER_STEP.get(space.junction, 0.001))
+    if space.min_cruise_ratio is not None:
+        out["min_cruise_ratio"] = _q(params.get("min_cruise_ratio", space.min_cruise_ratio[1]), MCR_STEP)
+    return out
 
 
 def _suggest_family(trial: Any, family: str, ax: str) -> dict[str, Any]:
@@ -370,12 +422,14 @@ def config_from_params(params: dict[str, Any], space: SearchSpace, extra: dict |
     zx, zy = (_q(params.get(f"damping_{ax}", z), 0.005) for ax in "xy")
     method = params.get("freq_limit", "off")
     accel = _q(params.get("accel", space.accel[0]) if not space.accel_fixed else space.accel[0], space.accel_step)
+    per_feature = feature_params(params, space)
+    top = max([accel, *per_feature.get("feature_accel", {}).values()])
     return TuneConfig(firmware=space.firmware, shaper_x=sx, shaper_y=sy, freq_x=float(fx), freq_y=float(fy),
                       damping_x=zx, damping_y=zy,
                       freq_limit_hz=0.0 if method == "off" else _q(params["freq_limit_hz"], 0.5),
                       freq_limit_method="sections" if method == "off" else method,
                       min_speed_factor=space.min_speed_factor, accel=accel,
-                      **trial_axis_caps(space, accel), extra=dict(extra or {}))
+                      **trial_axis_caps(space, top), **per_feature, extra=dict(extra or {}))
 
 
 def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]:
@@ -399,6 +453,16 @@ def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]
         p["freq_limit_hz"] = config.freq_limit_hz
     if not space.accel_fixed:
         p["accel"] = config.accel
+    for group, lo, hi in space.feature_accel:
+        a = config.feature_accel.get(ACCEL_GROUPS[group][0], config.accel if config.accel is not None else lo)
+        p[f"accel_{group}"] = min(max(float(a), lo), hi)
+    if space.corner is not None:
+        c = config.corner if config.corner is not None else space.corner_now
+        p["corner"] = min(max(float(c if c is not None else space.corner[0]), space.corner[0]), space.corner[1])
+    if space.min_cruise_ratio is not None:
+        lo, hi = space.min_cruise_ratio
+        m = config.min_cruise_ratio if config.min_cruise_ratio is not None else space.mcr_now
+        p["min_cruise_ratio"] = min(max(float(m if m is not None else hi), lo), hi)
     return p
 
 

@@ -1,0 +1,64 @@
+"""``ringtune rewrite``: a sliced job rewritten for a tuned configuration.
+
+JSON keys (stable): ``input``, ``output``, ``firmware``, ``junction``, ``lines_inserted``,
+``f_lines_changed`` (the frequency limit's F words), ``print_time_before_s`` (as sliced),
+``print_time_after_s`` (the rewritten file), ``print_time_config_s`` (the configuration on the
+original, as ``tune`` reports it), ``feature_accel`` ({class: mm/s²}), ``corner``,
+``min_cruise_ratio``, ``header``.
+"""
+
+from __future__ import annotations
+
+from ringtune.agents.cli.common import check_output_folder, load_config
+from ringtune.envs.job_rewrite import rewrite_file
+
+NAME = "rewrite"
+DESCRIPTION = """\
+Write a tuned configuration into a sliced job, in the firmware's own dialect: before each feature
+change (and, on Klipper, each travel) the acceleration of that feature class, the corner rule and
+minimum_cruise_ratio once at the start, the per-axis caps raised once where the firmware has them
+(Marlin, Prusa, RRF: M201 X Y), and the configuration's frequency limit (as `ringtune limit`).
+Lines are only inserted, never changed (apart from the limit's F words); a comment on the first
+line says what was done. The same commands follow any acceleration command of the job itself, so
+the job's own values never rule a move.
+
+  Klipper/Kalico  SET_VELOCITY_LIMIT ACCEL=... [SQUARE_CORNER_VELOCITY=... MINIMUM_CRUISE_RATIO=...]
+  Marlin, Prusa   M204 P... T...  (+ M205 J... or M205 X... Y..., M201 X... Y...)
+  RepRapFirmware  M204 P... T...  (+ M566 X... Y... in mm/min, M201 X... Y...)
+
+The planned time before (as sliced) and after (the rewritten file) are printed, planned on
+--printer as `tune` plans: the rewritten file's time is the one tune reported for the configuration.
+
+examples:
+  ringtune rewrite part.gcode --config tuned/best.json -o part_tuned.gcode
+  ringtune rewrite part.gcode --config best.json --printer my.toml -o out.gcode --json
+"""
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("file", metavar="JOB.gcode", help="sliced G-code job")
+    parser.add_argument("--config", metavar="C", required=True, help="TuneConfig JSON (tune's best.json)")
+    parser.add_argument("-o", "--output", metavar="OUT", required=True, help="rewritten G-code file")
+    parser.add_argument("--printer", metavar="P", help="printer TOML or embedded name (default: the built-in printer, "
+                        "as tune)")
+
+
+def run(args, out) -> int:
+    check_output_folder("--output", args.output)
+    cfg = load_config(args.config, out)
+    done = rewrite_file(args.file, args.output, cfg, args.printer)
+    from_cfg = done.commands
+    result = {"input": args.file, "output": args.output, "firmware": cfg.firmware, "junction": from_cfg.junction,
+              "lines_inserted": done.lines_inserted, "f_lines_changed": done.f_lines_changed,
+              "print_time_before_s": done.before_s, "print_time_after_s": done.after_s,
+              "print_time_config_s": done.config_s, "feature_accel": dict(from_cfg.accel),
+              "corner": from_cfg.corner, "min_cruise_ratio": from_cfg.min_cruise_ratio, "header": done.header}
+    saved = done.before_s - done.after_s
+    text = (f"{args.file} -> {args.output}: {done.lines_inserted} lines inserted"
+            + (f", F changed on {done.f_lines_changed} lines (frequency limit)" if done.f_lines_changed else "")
+            + f"\n  planned on the printer: {done.before_s:.1f} s as sliced -> {done.after_s:.1f} s rewritten "
+            f"({saved:+.1f} s saved, {100 * saved / max(done.before_s, 1e-9):.1f} %); the configuration on the "
+            f"original as tune plans it: {done.config_s:.1f} s")
+    out.emit(result, text)
+    return 0
+

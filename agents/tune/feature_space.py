@@ -1,0 +1,133 @@
+"""The per-feature part of the search space (issue 22): an acceleration per group of feature
+classes (:data:`ringtune.agents.tune.space.ACCEL_GROUPS`), the corner rule and Klipper's
+minimum_cruise_ratio — within the firmware's limits and each motor's reserve at that group's own
+speeds. One shaper configuration for the job (firmwares shape per axis, not per feature).
+
+A hidden group (inner walls, infill, travel) is judged only by what shows through, extrusion and
+the constraints, and most of its moves are never simulated; so its range stops where the weakest
+motor keeps its reserve at the group's top speed, on the rigid machine
+(:func:`ringtune.agents.tune.space.motor_accel_limit` with the reserve: the force asked, friction
+included, at most (1 − reserve) of what the motor has at that speed). The visible group keeps the
+space's ``accel`` range (judged by simulation, motor load included). Units: mm/s², mm/s, mm.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+
+from ringtune.agents.tune.space import ACCEL_GROUPS, SearchSpace, motor_accel_limit
+from ringtune.envs.evaluate import planned_job, resolve_job
+from ringtune.shaping.feature_settings import effective_classes
+from ringtune.shaping.features import FEATURE_CLASSES
+from ringtune.shaping.firmware import FIRMWARES
+
+#: ranges of the corner rule per junction rule: Klipper square_corner_velocity (mm/s), Marlin
+#: junction deviation (mm), classic jerk / RRF M566 (mm/s)
+CORNER_RANGE = {"scv": (2.0, 15.0), "jd": (0.005, 0.08), "jerk": (4.0, 20.0)}
+#: Klipper's minimum_cruise_ratio searched from 0 (no smoothing) to its default 0.5
+MCR_RANGE = (0.0, 0.5)
+
+
+def group_speeds(printer: Any, job: Any = None) -> dict[str, float]:
+    """{group: top speed of its moves with X/Y motion, mm/s} for the groups the job has (planned
+    at the printer's limits: the speed each move asks for after the velocity limits)."""
+    _, parsed = resolve_job(job)
+    moves = planned_job(printer, job, None).plan.moves
+    xy = np.hypot(*(moves.end - moves.start)[:, :2].T) > 0
+    cls = effective_classes(parsed)
+    out = {}
+    for group, members in ACCEL_GROUPS.items():
+        sel = xy & np.isin(cls, [FEATURE_CLASSES.index(c) for c in members])
+        if sel.any():
+            out[group] = float(moves.v_nominal[sel].max())
+    return out
+
+
+def feature_space(space: SearchSpace, printer: Any, job: Any = None, reserve: float = 0.2,
+                  corner: bool = True, min_cruise_ratio: bool = True) -> SearchSpace:
+    """``space`` with an acceleration range per group the job has (``visible`` stays ``accel``),
+    the corner rule (``corner``) and, under Klipper's junction rule, minimum_cruise_ratio."""
+    speeds = group_speeds(printer, job)
+    lo = space.accel[0]
+    fw_hi = FIRMWARES[space.firmware].accel.hi
+    groups, basis = [], {}
+    for group, v in speeds.items():
+        if group == "visible":
+            basis[group] = {"top_speed_mm_s": v, "range": list(space.accel), "basis": space.accel_basis}
+            continue
+        limit, who = motor_accel_limit(printer, v, reserve=reserve)
+        hi = max(lo, min(fw_hi, math.floor(limit / space.accel_step) * space.accel_step))
+        groups.append((group, lo, float(hi)))
+        basis[group] = {"top_speed_mm_s": v, "range": [lo, float(hi)],
+                        "basis": f"the {who} keeps {reserve * 100:.0f} % of its force at {v:.0f} mm/s"}
+    lim = printer.limits
+    junction = lim.junction
+    now = {"scv": lim.square_corner_velocity, "jd": lim.junction_deviation, "jerk": min(lim.jerk[:2])}[junction]
+    klipper = FIRMWARES[space.firmware].family == "klipper"
+    sayable = junction != "scv" or klipper       # square_corner_velocity is Klipper's alone
+    return dataclasses.replace(
+        space, feature_accel=tuple(groups), junction=junction,
+        corner=CORNER_RANGE[junction] if (corner and sayable) else None,
+        min_cruise_ratio=MCR_RANGE if (min_cruise_ratio and junction == "scv" and klipper) else None,
+        feature_basis=basis, corner_now=float(now), mcr_now=float(lim.min_cruise_ratio))
+
+
+def hidden_groups(printer: Any, job: Any = None) -> list[str]:
+    """The groups other than ``visible`` that the job has moves of (travel included)."""
+    return [g for g in group_speeds(printer, job) if g != "visible"]
+
+
+def at_ceilings(params: dict[str, Any], space: SearchSpace) -> dict[str, Any]:
+    """A parameter dict with every searched group's acceleration at the top of its range (the
+    fastest the motors allow for the features nobody sees): a warm start."""
+    out = dict(params)
+    for group, _lo, hi in space.feature_accel:
+        if group not in ("solid_top",):        # top surfaces are seen
+            out[f"accel_{group}"] = hi
+    return out
+
+
+def wanted(mode: str, space: SearchSpace, printer: Any, job: Any, job_sets_accel: bool,
+           job_accel: str) -> tuple[bool, str]:
+    """(search per feature, why) for ``--per-feature`` ``mode`` (``auto``, ``on``, ``off``):
+    ``auto`` searches it when the acceleration is searched, the job has features nobody sees, and
+    its own acceleration commands are not to be respected (they would be overruled)."""
+    if mode == "off":
+        return False, "--per-feature off"
+    hidden = hidden_groups(printer, job)
+    if not hidden:
+        return False, "the job has no features apart from the visible ones (no labels, no travel)"
+    if mode == "on":
+        return True, "--per-feature on"
+    if space.accel_fixed:
+        return False, "the acceleration is not searched"
+    if job_sets_accel and job_accel == "respect":
+        return False, ("the job sets its own accelerations and --job-accel respect keeps them "
+                       "(--per-feature on overrules them, as the rewritten job.gcode does)")
+    return True, f"the job has {', '.join(hidden)} apart from the visible features"
+
+
+def feature_section(config, space: SearchSpace) -> tuple[list[str], dict]:
+    """Summary lines and JSON of the chosen per-feature settings: each group's acceleration with
+    its range and what bounds it, the corner rule, minimum_cruise_ratio."""
+    info = {"accel": {"visible": config.accel}, "ranges": dict(space.feature_basis or {}),
+            "corner": config.corner, "junction": space.junction, "min_cruise_ratio": config.min_cruise_ratio}
+    basis = space.feature_basis or {}
+    lines = [f"  visible walls (outer walls, overhangs, unlabelled): {config.accel:.0f} mm/s² "
+             f"(searched {space.accel[0]:.0f}–{space.accel[1]:.0f}; judged by ripple, corners, extrusion)"]
+    for group, lo, hi in space.feature_accel:
+        a = config.feature_accel.get(ACCEL_GROUPS[group][0], config.accel)
+        info["accel"][group] = a
+        b = basis.get(group, {})
+        lines.append(f"  {group.replace('_', ' ')} ({', '.join(ACCEL_GROUPS[group])}): {a:.0f} mm/s² "
+                     f"(searched {lo:.0f}–{hi:.0f}: {b.get('basis', '')})")
+    unit = {"scv": "mm/s square_corner_velocity", "jd": "mm junction deviation", "jerk": "mm/s jerk"}
+    if config.corner is not None:
+        lines.append(f"  corner rule: {config.corner:g} {unit.get(space.junction, '')}")
+    if config.min_cruise_ratio is not None:
+        lines.append(f"  minimum_cruise_ratio: {config.min_cruise_ratio:g}")
+    return lines, info

@@ -1,0 +1,106 @@
+"""A sliced job rewritten for a tuned configuration (``ringtune rewrite``, ``tune --gcode`` →
+``job.gcode``): the frequency limit of ``ringtune limit`` (F words; not where the firmware applies
+it itself: :func:`native_limit`) and the per-feature
+accelerations and corner rule (:mod:`ringtune.shaping.rewrite`), with the planned time before and
+after on the printer, planned as ``tune`` plans (the printer's limits with the configuration's
+acceleration sent to it, the job's own commands).
+Units: s, mm/s²."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from ringtune.envs.evaluate import resolve_printer
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.config_plan import plan_with_config
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.feature_settings import FeatureCommands
+from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.gcode import read_gcode, read_gcode_bytes
+from ringtune.shaping.gcode_post import limit_gcode_bytes
+from ringtune.shaping.layer_commands import TAG, schedule_inserts
+from ringtune.shaping.layers import job_layers
+from ringtune.shaping.rewrite import rewrite_job
+
+HEADER = "; ringtune rewrite"
+
+
+@dataclass
+class RewrittenJob:
+    """The rewritten bytes; planned times (s) of the job as sliced, of the rewritten file and of
+    the configuration on the original (what ``tune`` reported; equal to ``after_s`` up to the F
+    words' 0.1 mm/min rounding when a frequency limit is on); lines inserted; the header; what
+    was set (resolved for the printer)."""
+
+    data: bytes
+    before_s: float
+    after_s: float
+    config_s: float
+    lines_inserted: int
+    f_lines_changed: int
+    header: str
+    commands: FeatureCommands
+
+
+def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: str = "<gcode>",
+                        layer_inserts: dict[int, list[str]] | None = None) -> RewrittenJob:
+    """``data`` with the configuration's frequency limit, per-feature commands and Y schedule
+    (``config.y_schedule`` at layer changes, unless ``layer_inserts`` is given) written in for
+    ``config.firmware`` (``printer``: a Printer, TOML path or None for the embedded default; its
+    limits plan the times and give the junction rule the corner value is written in)."""
+    printer = resolve_printer(printer)
+    limits = printer.limits
+    original = read_gcode(data, source=source)
+    before = plan_with_config(original, limits, None).plan.print_time
+    if layer_inserts is None and config.y_schedule:
+        sched = schedule_inserts([la.z for la in job_layers(original)], config)
+        layer_inserts = {k: [f"{c} {TAG}" for c in v] for k, v in sched.items()}
+    config_s = plan_with_config(original, limits, config).plan.print_time
+    f_changed = 0
+    if config.freq_limit_hz > 0 and not native_limit(config):
+        data, res = limit_gcode_bytes(data, float(config.freq_limit_hz), config.freq_limit_method,
+                                      float(config.min_speed_factor), source=source)
+        f_changed = res.lines_changed
+    # lines end at \n, \r\n or \r, as the G-code reader numbers them (str.splitlines would also split
+    # at form feeds and other separators a comment may hold)
+    lines = [ln.decode("utf-8", errors="surrogateescape") for ln in data.splitlines(keepends=True)]
+    if not lines:
+        raise RingtuneError("the job is empty", source)
+    fc = FeatureCommands.from_config(config, limits)
+    out = rewrite_job(lines, config.firmware, fc, layer_inserts)
+    inserted = len(out) - len(lines)
+    nl = "\r\n" if lines[0].endswith("\r\n") else "\n"
+    new = "".join(out).encode("utf-8", errors="surrogateescape")
+    # the printer runs the configuration (its acceleration is the machine's, its retract fallback
+    # too); the limit is in the F words already
+    after = plan_with_config(read_gcode(new, source=source), limits,
+                             replace(config, freq_limit_hz=0.0)).plan.print_time
+    header = (f"{HEADER} for {config.firmware} ({limits.junction}): {inserted} lines inserted at feature "
+              f"changes (accelerations {_accels(fc)} mm/s²"
+              + (f", corner {fc.corner:g}" if fc.corner is not None else "")
+              + (f", minimum_cruise_ratio {fc.min_cruise_ratio:g}" if fc.min_cruise_ratio is not None else "")
+              + f"); planned {before:.1f} s as sliced -> {after:.1f} s; nothing else differs from the input")
+    return RewrittenJob(header.encode() + nl.encode() + new, before, after, config_s, inserted, f_changed, header, fc)
+
+
+def native_limit(config: TuneConfig) -> bool:
+    """Whether the firmware applies the configuration's frequency limit itself (Marlin's
+    XY_FREQUENCY_LIMIT, ``M201 F S``, sent by ``export``/``push``): then the job keeps its F words."""
+    return config.freq_limit_method == "marlin" and FIRMWARES[config.firmware].freq_limit
+
+
+def _accels(fc: FeatureCommands) -> str:
+    groups: dict[float, list[str]] = {}
+    for cls, a in fc.accel.items():
+        groups.setdefault(a, []).append(cls)
+    return "; ".join(f"{'/'.join(names)} {a:.0f}" for a, names in sorted(groups.items()))
+
+
+def rewrite_file(src, dst, config: TuneConfig, printer=None,
+                 layer_inserts: dict[int, list[str]] | None = None) -> RewrittenJob:
+    """:func:`rewrite_gcode_bytes` of the file ``src``, written to ``dst`` (None: not written)."""
+    done = rewrite_gcode_bytes(read_gcode_bytes(src), config, printer, str(src), layer_inserts)
+    if dst is not None:
+        Path(dst).write_bytes(done.data)
+    return done

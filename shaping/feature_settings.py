@@ -1,0 +1,150 @@
+"""Acceleration and corner rule per feature class, move by move (mm/s², mm/s, mm).
+
+One function decides, for every move of a parsed job, the acceleration and corner settings a
+per-feature :class:`~ringtune.shaping.config.TuneConfig` puts in force there
+(:func:`move_settings`). The planner uses them through :func:`with_feature_settings` (they become
+the job's own settings, as if the job had set them), and the job rewriter
+(:mod:`ringtune.shaping.rewrite`) writes the same values into the file as firmware commands
+wherever they change — so a rewritten file plans to the same time as the configuration did.
+
+How each firmware takes an acceleration per feature:
+
+- Klipper / Kalico (junction rule ``scv``): one acceleration for every move
+  (``SET_VELOCITY_LIMIT ACCEL``), so the value in force follows the move's *effective class*: the
+  class of its feature label when it extrudes; ``travel`` for an X/Y move that does not; a move
+  without X/Y motion (retract, unretract, Z hop) keeps the class of the move before it, so it never
+  costs a command of its own;
+- Marlin, Prusa, RepRapFirmware (``jd`` / ``jerk``): ``M204 P`` is the printing acceleration,
+  taken by every move with E (the label's class), ``M204 T`` the travel acceleration, taken by
+  moves without E — set together at each label change; ``M204 R`` (retraction) is left as it is.
+
+The corner value is one for the whole job (``square_corner_velocity``, ``M205 J``, ``M205 X Y`` or
+``M566 X Y``, by the printer's junction rule), as is Klipper's ``minimum_cruise_ratio``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ringtune.shaping.features import FEATURE_CLASSES, class_indices
+from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.job import SETTING_KEYS, Job
+
+TRAVEL = FEATURE_CLASSES.index("travel")
+
+
+@dataclass(frozen=True)
+class FeatureCommands:
+    """What a per-feature configuration sets, resolved for one printer.
+
+    accel: class -> mm/s² for every class of :data:`FEATURE_CLASSES` (absent ones at ``default``);
+    corner: the corner rule value in the junction rule's unit (None: left as it is); junction:
+    ``scv`` | ``jd`` | ``jerk``; min_cruise_ratio: Klipper's (None: left as it is); caps: (X, Y)
+    per-axis acceleration caps, mm/s² (``M201 X Y``; None: none, Klipper)."""
+
+    accel: dict
+    junction: str
+    corner: float | None = None
+    min_cruise_ratio: float | None = None
+    caps: tuple | None = None
+
+    @classmethod
+    def from_config(cls, config, limits) -> "FeatureCommands":
+        """From a :class:`TuneConfig` and the printer's :class:`MachineLimits` (its junction rule
+        and, where the config has no ``accel``, its acceleration)."""
+        default = float(config.accel if config.accel is not None else limits.accel)
+        accel = {c: float(config.feature_accel.get(c, default)) for c in FEATURE_CLASSES}
+        mcr = config.min_cruise_ratio if limits.junction == "scv" else None
+        return cls(accel, limits.junction, config.corner, mcr, _caps(config.firmware, limits, accel))
+
+
+def _caps(firmware: str, limits, accel: dict) -> tuple | None:
+    """The X/Y caps a per-feature job runs with, mm/s²: the machine's (the config's own already in
+    ``limits``); on a firmware set by ``M201`` an axis without a known cap gets the highest feature
+    acceleration, so the printer's stored M201 cannot hold the job back; None on Klipper without caps."""
+    known = [float(c) if c and c > 0 else None for c in (limits.max_accel or (0, 0))[:2]]
+    fw = FIRMWARES[firmware]
+    if fw.axis_accel_set and not fw.axis_accel_config:
+        top = max(accel.values())
+        return tuple(c if c is not None else top for c in known)
+    return None if None in known else tuple(known)
+
+
+def effective_classes(job: Job) -> np.ndarray:
+    """(n,) class index per move as Klipper's one acceleration follows it (module docstring):
+    label class when extruding, ``travel`` for X/Y moves without E, moves without X/Y motion keep
+    the class of the move before them."""
+    d = job.delta
+    label = class_indices(job.features)[job.feature] if job.n_moves else np.zeros(0, np.int64)
+    xy = np.hypot(d[:, 0], d[:, 1]) > 0
+    cls = np.where(xy & ~(d[:, 3] > 0), TRAVEL, label)
+    idx = np.arange(job.n_moves)
+    last = np.maximum.accumulate(np.where(xy, idx, -1))     # the latest move with X/Y motion
+    return np.where(last >= 0, cls[np.maximum(last, 0)], label)
+
+
+def move_settings(job: Job, fc: FeatureCommands) -> dict[str, np.ndarray]:
+    """{setting key of :data:`SETTING_KEYS`: (n,) value in force at each move} for ``fc``."""
+    n = job.n_moves
+    table = np.array([fc.accel[c] for c in FEATURE_CLASSES])
+    out: dict[str, np.ndarray] = {}
+    if fc.junction == "scv":
+        a = table[effective_classes(job)]
+        out.update(accel_klipper=a, accel_print=a, accel_travel=a)
+        if fc.corner is not None:
+            out["square_corner_velocity"] = np.full(n, float(fc.corner))
+        if fc.min_cruise_ratio is not None:
+            out["min_cruise_ratio"] = np.full(n, float(fc.min_cruise_ratio))
+            out["accel_to_decel"] = np.full(n, np.nan)
+    else:
+        label = class_indices(job.features)[job.feature] if n else np.zeros(0, np.int64)
+        p, t = table[label], np.full(n, fc.accel["travel"])
+        out.update(accel_print=p, accel_travel=t, accel_klipper=np.minimum(p, t))
+        if fc.corner is not None:
+            keys = ("junction_deviation",) if fc.junction == "jd" else ("jerk_x", "jerk_y")
+            out.update({k: np.full(n, float(fc.corner)) for k in keys})
+    if fc.caps is not None:
+        for ax, cap in zip("xy", fc.caps):
+            if cap is not None:
+                out[f"max_accel_{ax}"] = np.full(n, float(cap))
+    return out
+
+
+def with_feature_settings(job: Job, fc: FeatureCommands) -> Job:
+    """A copy of ``job`` whose per-move settings carry ``fc`` (:func:`move_settings`), over
+    whatever the job set itself — as the rewritten file will."""
+    values = move_settings(job, fc)
+    if not values or job.n_moves == 0:
+        return job
+    keys = list(values)
+    cols = [SETTING_KEYS.index(k) for k in keys]
+    stacked = np.stack([np.nan_to_num(values[k], nan=-1.0) for k in keys], axis=1)
+    combos, code = np.unique(stacked, axis=0, return_inverse=True)
+    code = np.asarray(code).reshape(-1)
+    pair = job.settings.astype(np.int64) * len(combos) + code
+    rows, new_index = np.unique(pair, return_inverse=True)
+    base = np.asarray(job.settings_table, float)[rows // len(combos)].copy()
+    vals = combos[rows % len(combos)]
+    base[:, cols] = np.where(vals == -1.0, np.nan, vals)
+    return replace(job, settings=np.asarray(new_index).reshape(-1).astype(job.settings.dtype),
+                   settings_table=base)
+
+
+def per_feature_text(config) -> str:
+    """What a configuration sets per feature, for one line of a report: ``" (inner_wall 11000,
+    infill 11000, travel 9100; corner 5; minimum_cruise_ratio 0.3)"`` ("" when nothing)."""
+    parts = []
+    if config.feature_accel:
+        groups: dict[float, list[str]] = {}
+        for cls, a in config.feature_accel.items():
+            if a != config.accel:
+                groups.setdefault(a, []).append(cls)
+        if groups:
+            parts.append(", ".join(f"{'/'.join(names)} {a:.0f}" for a, names in sorted(groups.items())))
+    if config.corner is not None:
+        parts.append(f"corner {config.corner:g}")
+    if config.min_cruise_ratio is not None:
+        parts.append(f"minimum_cruise_ratio {config.min_cruise_ratio:g}")
+    return f" ({'; '.join(parts)})" if parts else ""

@@ -1,0 +1,161 @@
+"""The job rewriter: a sliced job with the tuned acceleration (and corner rule) written in at each
+feature change, in the firmware's own dialect; nothing else of the file changes.
+
+:func:`rewrite_job` inserts lines, never edits one:
+
+- before a move where the settings of :func:`ringtune.shaping.feature_settings.move_settings`
+  change (a feature change, or for Klipper's one acceleration a travel), the commands that set
+  them: Klipper/Kalico ``SET_VELOCITY_LIMIT ACCEL=… [SQUARE_CORNER_VELOCITY=…]
+  [MINIMUM_CRUISE_RATIO=…]``; Marlin, Prusa ``M204 P… T…`` (+ ``M205 J…`` or ``M205 X… Y…``);
+  RepRapFirmware ``M204 P… T…`` (+ ``M566 X… Y…``, mm/min);
+- the corner rule and the per-axis caps (``M201 X Y``; Kalico ``SET_VELOCITY_LIMIT X_ACCEL=
+  Y_ACCEL=``) once before the first move, and again after any acceleration or corner command of
+  the job itself (a slicer's own ``M204`` at a feature change), so the job's own values never rule
+  a move;
+- ``layer_inserts`` ({layer index: [lines]}) before the first move of each layer
+  (:func:`layer_starts`): the hook for schedules by printed mass.
+
+Planned by :func:`ringtune.shaping.config_plan.plan_with_config` the rewritten file gives every
+move the settings the configuration gave it, so its planned time is the configuration's.
+:func:`rewrite_gcode_bytes` composes it with the frequency limit of ``ringtune limit``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.feature_settings import FeatureCommands, effective_classes, move_settings
+from ringtune.shaping.features import FEATURE_CLASSES
+from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.job import Job
+
+#: settings a block sets at every change, and those it sets once (and after the job's own commands)
+_ACCEL_KEYS = ("accel_klipper", "accel_print", "accel_travel")
+_ONCE_KEYS = ("square_corner_velocity", "junction_deviation", "jerk_x", "jerk_y", "min_cruise_ratio",
+              "max_accel_x", "max_accel_y")
+
+
+def _n(v: float) -> str:
+    return f"{float(v):.10g}"
+
+
+def layer_starts(job: Job) -> list[int]:
+    """Move index where each layer starts: layer k is the k-th height (mm) at which the job
+    extrudes above every height before it; it starts right after the last extruding move below it
+    (so its Z move and travel belong to it). Layer 0 starts at the first move (or after a lower
+    purge)."""
+    ext = np.flatnonzero(job.extruding)
+    if not len(ext):
+        return []
+    z = np.round(job.end[ext, 2], 4)
+    new = np.concatenate(([True], z[1:] > np.maximum.accumulate(z)[:-1]))
+    firsts = ext[new]
+    starts = []
+    for i, f in enumerate(firsts):
+        prev = ext[ext < f]
+        starts.append(int(prev[-1]) + 1 if len(prev) and i > 0 else 0)
+    return starts
+
+
+@dataclass(frozen=True)
+class _Dialect:
+    family: str
+    junction: str
+    caps_set: str
+
+    def accel(self, values: dict) -> str:
+        if self.junction == "scv" and self.family == "klipper":
+            return f"SET_VELOCITY_LIMIT ACCEL={_n(values['accel_klipper'])}"
+        if self.junction == "scv":
+            return f"M204 P{_n(values['accel_klipper'])} T{_n(values['accel_klipper'])}"
+        return f"M204 P{_n(values['accel_print'])} T{_n(values['accel_travel'])}"
+
+    def once(self, values: dict) -> list[str]:
+        out = []
+        if "square_corner_velocity" in values or "min_cruise_ratio" in values:
+            if self.family != "klipper":
+                raise RingtuneError(f"the printer plans corners with Klipper's square_corner_velocity (junction "
+                                    f"scv), which {self.family} has no command for: describe the printer with its "
+                                    "own junction_deviation or jerk (--printer)", "config: corner")
+            words = [f"{k}={_n(values[v])}" for k, v in (("SQUARE_CORNER_VELOCITY", "square_corner_velocity"),
+                                                         ("MINIMUM_CRUISE_RATIO", "min_cruise_ratio")) if v in values]
+            out.append("SET_VELOCITY_LIMIT " + " ".join(words))
+        if "junction_deviation" in values:
+            out.append(f"M205 J{_n(values['junction_deviation'])}")
+        if "jerk_x" in values:
+            if self.family == "rrf":
+                out.append(f"M566 X{_n(values['jerk_x'] * 60)} Y{_n(values['jerk_y'] * 60)}")
+            else:
+                out.append(f"M205 X{_n(values['jerk_x'])} Y{_n(values['jerk_y'])}")
+        if "max_accel_x" in values and self.caps_set:
+            out.append(self.caps_set.format(x=_n(values["max_accel_x"]), y=_n(values["max_accel_y"])))
+        return out
+
+
+def _dialect(firmware: str, fc: FeatureCommands) -> _Dialect:
+    fw = FIRMWARES.get(str(firmware).lower())
+    if fw is None:
+        raise RingtuneError(f"must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "firmware")
+    return _Dialect(fw.family if fw.family in ("klipper", "rrf") else "marlin", fc.junction, fw.axis_accel_set)
+
+
+def _feature_inserts(job: Job, firmware: str, fc: FeatureCommands) -> dict[int, list[str]]:
+    """{source line (1-based): lines to insert before it} for the per-feature commands."""
+    dialect = _dialect(firmware, fc)
+    values = move_settings(job, fc)
+    accel_keys = [k for k in _ACCEL_KEYS if k in values]
+    once_keys = [k for k in _ONCE_KEYS if k in values]
+    accel = np.stack([values[k] for k in accel_keys], axis=1)
+    changed = np.ones(job.n_moves, bool)
+    changed[1:] = np.any(accel[1:] != accel[:-1], axis=1)
+    again = np.zeros(job.n_moves, bool)          # the job's own limit commands stand before these moves
+    for ev in job.events:
+        if ev.kind == "limits" and ev.move < job.n_moves:
+            again[ev.move] = True
+    again[0] = True
+    first_of_line = np.concatenate(([True], job.line[1:] != job.line[:-1]))
+    cls = effective_classes(job) if fc.junction == "scv" else None
+    out: dict[int, list[str]] = {}
+    for i in np.flatnonzero((changed | again) & first_of_line):
+        row = {k: float(values[k][i]) for k in accel_keys + once_keys}
+        lines = dialect.once(row) if again[i] else []
+        what = FEATURE_CLASSES[cls[i]] if cls is not None else job.features[job.feature[i]]
+        lines.append(f"{dialect.accel(row)} ; ringtune: {what}")
+        out[int(job.line[i])] = lines
+    return out
+
+
+def rewrite_job(lines: list[str], firmware: str, feature_cmds: FeatureCommands | None,
+                layer_inserts: dict[int, list[str]] | None = None) -> list[str]:
+    """The job's lines with the per-feature commands and ``layer_inserts`` inserted (module
+    docstring); every input line is kept as it is, in order.
+
+    Args:
+        lines: the job's lines, with or without their line endings (the output keeps the form).
+        firmware: a firmware name of :data:`ringtune.shaping.firmware.FIRMWARES` (its dialect).
+        feature_cmds: what to set per feature (:meth:`FeatureCommands.from_config`), or None.
+        layer_inserts: {layer index (0 = first layer, :func:`layer_starts`): [G-code lines]},
+            inserted before the first move of that layer, ahead of any feature command there.
+    """
+    keep = bool(lines) and lines[0].endswith("\n")
+    nl = ("\r\n" if lines[0].endswith("\r\n") else "\n") if keep else ""
+    job = read_gcode("".join(ln if keep else ln + "\n" for ln in lines), source="job")
+    inserts: dict[int, list[str]] = {}
+    if layer_inserts:
+        starts = layer_starts(job)
+        for k, extra in layer_inserts.items():
+            if not 0 <= int(k) < len(starts):
+                raise RingtuneError(f"layer {k} is not in the job (it has {len(starts)} layers)", "layer_inserts")
+            inserts.setdefault(int(job.line[starts[int(k)]]), []).extend(extra)
+    if feature_cmds is not None and job.n_moves:
+        for ln, extra in _feature_inserts(job, firmware, feature_cmds).items():
+            inserts.setdefault(ln, []).extend(extra)
+    out: list[str] = []
+    for ln, line in enumerate(lines, 1):
+        out.extend(x + nl for x in inserts.get(ln, ()))
+        out.append(line)
+    return out

@@ -1,0 +1,204 @@
+"""The job rewriter (issue 22): real files of three slicers (PrusaSlicer for Marlin, Simplify3D for
+Klipper, Cura for an Ultimaker read as RepRapFirmware) get the chosen commands at every feature
+change and nothing else; the rewritten file plans to the time ``tune`` reports for the
+configuration; the layer hook inserts where a layer starts.
+
+The expected acceleration of each move is computed here from the raw label (``feature_class``) and
+the move itself (extruding or not), and the acceleration in force read back from the rewritten
+file by the G-code reader — what a firmware would hold at that move."""
+
+from __future__ import annotations
+
+import difflib
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from ringtune.agents.cli.main import main
+from ringtune.envs.evaluate import planned_job
+from ringtune.envs.job_rewrite import HEADER, rewrite_gcode_bytes
+from ringtune.envs.printer import load_printer
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.config_plan import plan_with_config
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.feature_settings import FeatureCommands
+from ringtune.shaping.features import feature_class
+from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.planner import MachineLimits
+from ringtune.shaping.rewrite import layer_starts, rewrite_job
+
+FEATURES = {"outer_wall": 2500.0, "top_surface": 3500.0, "support": 4000.0, "infill": 9000.0,
+            "travel": 12000.0}
+#: (file, firmware, junction rule, corner value in that rule's unit)
+SLICED = [("gcode/ianalexis_ender3_marlin/ringing_tower.gcode", "marlin", "jerk", 9.0),      # PrusaSlicer
+          ("gcode/bassco_ender3/ringing_tower.gcode", "klipper", "scv", 8.0),                # Simplify3D
+          ("gcode/fastlb_cura_um2/platte_klein_cut.gcode", "rrf", "jerk", 9.0)]              # Cura
+
+
+def _printer(junction: str):
+    """The default printer with the junction rule of the firmware under test."""
+    return replace(load_printer(None), limits_dict={"accel": 3000, "velocity": 300, "junction": junction})
+
+
+def _config(firmware: str, junction: str, corner: float, **kw) -> TuneConfig:
+    return TuneConfig(firmware=firmware, shaper_x="zv", shaper_y="zv", freq_x=45.0, freq_y=40.0, accel=6000.0,
+                      feature_accel=dict(FEATURES), corner=corner,
+                      min_cruise_ratio=0.25 if junction == "scv" else None, **kw)
+
+
+def _expected_accel(job, cfg: TuneConfig, junction: str) -> tuple[np.ndarray, np.ndarray]:
+    """(printing, travel) acceleration each move must run with, from the label and the move."""
+    def acc(cls):
+        return cfg.feature_accel.get(cls, cfg.accel)
+    labels = np.array([acc(feature_class(job.features[f])) for f in job.feature])
+    if junction != "scv":          # M204 P by the label, T for travel
+        return labels, np.full(job.n_moves, acc("travel"))
+    out, prev = np.empty(job.n_moves), None       # Klipper: one acceleration, travel apart; a move
+    for i, (a, b) in enumerate(zip(job.start, job.end)):   # without X/Y keeps the one before it
+        if np.hypot(*(b - a)[:2]) > 0:
+            prev = labels[i] if b[3] > a[3] else acc("travel")
+        out[i] = labels[i] if prev is None else prev
+    return out, out
+
+
+@pytest.mark.parametrize("path,firmware,junction,corner", SLICED)
+def test_every_feature_change_carries_the_commands_and_nothing_else_changes(data_dir, path, firmware,
+                                                                            junction, corner):
+    src = (data_dir / path).read_bytes()
+    cfg = _config(firmware, junction, corner)
+    printer = _printer(junction)
+    done = rewrite_gcode_bytes(src, cfg, printer, path)
+    old = src.decode("utf-8", "surrogateescape").splitlines()
+    new = done.data.decode("utf-8", "surrogateescape").splitlines()
+    # the diff: only inserted lines, each one of ours (the header, a command of the firmware's dialect)
+    ops = difflib.SequenceMatcher(None, old, new, autojunk=False).get_opcodes()
+    assert {op for op, *_ in ops} <= {"equal", "insert"}
+    added = [line for op, _, _, j1, j2 in ops if op == "insert" for line in new[j1:j2]]
+    assert len(added) == done.lines_inserted + 1 and added[0].startswith(HEADER)
+    words = {"klipper": ("SET_VELOCITY_LIMIT ",), "marlin": ("M204 P", "M205 X", "M201 X"),
+             "rrf": ("M204 P", "M566 X", "M201 X")}[firmware]
+    assert all(line.startswith(words) for line in added[1:])
+    # every move runs with its feature's acceleration, as the reader (the firmware) holds it
+    job = read_gcode(done.data, source="out")
+    want_p, want_t = _expected_accel(job, cfg, junction)
+    if junction == "scv":
+        assert np.array_equal(job.setting("accel_klipper"), want_p)
+        assert np.all(job.setting("square_corner_velocity") == corner)
+        assert np.all(job.setting("min_cruise_ratio") == 0.25)
+    else:
+        assert np.array_equal(job.setting("accel_print"), want_p)
+        assert np.array_equal(job.setting("accel_travel"), want_t)
+        assert np.allclose(job.setting("jerk_x"), corner) and np.allclose(job.setting("jerk_y"), corner)
+        assert np.all(job.setting("max_accel_x") >= max(FEATURES.values()))
+    # the planned time of the rewritten file is tune's figure for the configuration
+    tune_s = planned_job(printer, (data_dir / path), cfg).print_time
+    assert done.config_s == pytest.approx(tune_s, rel=1e-12)
+    assert done.after_s == pytest.approx(tune_s, rel=1e-9)
+    assert plan_with_config(job, printer.limits, cfg).plan.print_time == pytest.approx(tune_s, rel=1e-9)
+    if firmware != "rrf":     # the file sets every acceleration a move takes (Marlin's M204 R is in the job)
+        assert plan_with_config(job, printer.limits, None).plan.print_time == pytest.approx(tune_s, rel=1e-9)
+
+
+def test_job_accelerations_after_ours_are_overruled_and_the_retract_one_stays():
+    """A slicer's own M204 at a feature change comes after our line would: ours follows it again;
+    the job's retract acceleration (M204 R) is left alone."""
+    text = ("M204 P1000 R700 T1000\n;TYPE:External perimeter\nM204 P800\nG1 X20 Y0 E1 F6000\nG1 E0.2\n"
+            ";TYPE:Internal infill\nM204 P5000\nG1 X20 Y20 E2\nG1 X0 Y20 E3\n")
+    cfg = TuneConfig(firmware="marlin", accel=4000.0, feature_accel={"outer_wall": 2000.0, "infill": 8000.0})
+    limits = MachineLimits(accel=3000, junction="jd")
+    out = rewrite_job(text.splitlines(keepends=True), "marlin", FeatureCommands.from_config(cfg, limits))
+    job = read_gcode("".join(out))
+    assert job.setting("accel_print").tolist() == [2000.0, 2000.0, 8000.0, 8000.0]
+    assert np.all(job.setting("accel_retract") == 700.0)
+    assert "".join(out).count("M204 P2000 T4000") == 1 and "".join(out).count("M204 P8000 T4000") == 1
+
+
+def test_a_move_runs_at_its_feature_acceleration_analytically():
+    """Two moves from rest to rest (a dwell between): each takes d/v + v/a with its own class's a."""
+    text = ";TYPE:External perimeter\nG1 X100 Y0 E5 F6000\nG4 P0\n;TYPE:Internal infill\nG1 X0 Y0 E10\n"
+    limits = MachineLimits(accel=3000, velocity=300, junction="scv", min_cruise_ratio=0.0)
+    cfg = TuneConfig(accel=4000.0, feature_accel={"outer_wall": 1000.0, "infill": 5000.0})
+    plan = plan_with_config(read_gcode(text), limits, cfg).plan
+    v, d = 100.0, 100.0
+    assert plan.moves.duration.tolist() == pytest.approx([d / v + v / 1000.0, d / v + v / 5000.0], rel=1e-12)
+
+
+def test_layer_inserts_go_before_each_layers_first_move():
+    text = ("G28\nG1 Z0.2 F600\nG1 X10 Y0 E1 F3000\nG1 X10 Y10 E2\n"      # layer 0 at Z 0.2
+            "G1 Z0.6\nG1 Z0.4\nG1 X0 Y10 E3\n"                             # hop, then layer 1 at Z 0.4
+            "G1 X0 Y0 Z0.8 F3000\nG1 X5 Y0 E4\n")                           # layer 2 at Z 0.8
+    lines = text.splitlines(keepends=True)
+    job = read_gcode(text)
+    assert len(layer_starts(job)) == 3
+    out = rewrite_job(lines, "klipper", None, {1: ["SET_INPUT_SHAPER SHAPER_FREQ_Y=40"], 2: ["; two"]})
+    assert [ln for ln in out if ln not in lines] == ["SET_INPUT_SHAPER SHAPER_FREQ_Y=40\n", "; two\n"]
+    assert out.index("SET_INPUT_SHAPER SHAPER_FREQ_Y=40\n") == out.index("G1 Z0.6\n") - 1
+    assert out.index("; two\n") == out.index("G1 X0 Y0 Z0.8 F3000\n") - 1
+    with pytest.raises(RingtuneError, match="layer 5"):
+        rewrite_job(lines, "klipper", None, {5: ["x"]})
+
+
+def test_frequency_limit_composes_with_the_rewrite(data_dir):
+    path = data_dir / "gcode/ringtune_builtin_2025/test_print.gcode"    # zigzags sweeping 10-80 Hz
+    cfg = _config("marlin", "jerk", 9.0, freq_limit_hz=20.0)
+    printer = _printer("jerk")
+    done = rewrite_gcode_bytes(path.read_bytes(), cfg, printer, str(path))
+    assert done.f_lines_changed > 0 and done.data.splitlines()[1].startswith(b"; ringtune limit")
+    # F words are written to 0.1 mm/min: the rewritten file plans within 0.01 % of tune's figure
+    assert done.after_s == pytest.approx(planned_job(printer, path, cfg).print_time, rel=1e-4)
+
+
+def test_rewrite_command(tmp_path, data_dir, capsys):
+    cfg = _config("klipper", "scv", 8.0)
+    (tmp_path / "best.json").write_text(json.dumps(cfg.to_dict()))
+    src = data_dir / "gcode/bassco_ender3/ringing_tower.gcode"
+    out = tmp_path / "job.gcode"
+    assert main(["rewrite", str(src), "--config", str(tmp_path / "best.json"), "-o", str(out), "--json"]) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert r["print_time_after_s"] == pytest.approx(r["print_time_config_s"], rel=1e-9)
+    assert r["print_time_after_s"] < r["print_time_before_s"] and r["feature_accel"]["travel"] == 12000.0
+    assert out.read_bytes().startswith(HEADER.encode())
+    (tmp_path / "bad.json").write_text('{"feature_accel": {"walls": 3000}}')
+    assert main(["rewrite", str(src), "--config", str(tmp_path / "bad.json"), "-o", str(out)]) == 2
+    assert "not a feature class" in capsys.readouterr().err
+
+
+def test_config_round_trip_and_refusals(tmp_path):
+    cfg = _config("klipper", "scv", 8.0)
+    cfg.save(tmp_path / "c.json")
+    back = TuneConfig.load(tmp_path / "c.json")
+    assert back == cfg and back.feature_accel == FEATURES and back.per_feature
+    assert "feature_accel" not in TuneConfig().to_dict() and not TuneConfig().per_feature
+    for bad, where in (({"feature_accel": {"infill": 0}}, "feature_accel.infill"),
+                       ({"feature_accel": {"infill": "fast"}}, "feature_accel.infill"),
+                       ({"corner": -2}, "corner"), ({"min_cruise_ratio": 1.0}, "min_cruise_ratio")):
+        with pytest.raises(RingtuneError, match=where):
+            TuneConfig.from_dict(bad)
+
+
+def test_simulate_takes_every_per_feature_key_as_an_option(capsys):
+    argv = ["simulate", "--backend", "lti", "--shaper", "mzv", "--freq", "45,40", "--accel", "5000", "--json",
+            "--feature-accel", "infill=10000,travel=9000", "--corner", "7", "--min-cruise-ratio", "0.2"]
+    assert main(argv) == 0
+    res = json.loads(capsys.readouterr().out)
+    cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=45.0, freq_y=40.0, accel=5000.0,
+                     feature_accel={"infill": 10000.0, "travel": 9000.0}, corner=7.0, min_cruise_ratio=0.2)
+    assert res["metrics"]["print_time_s"] == planned_job(load_printer(None), None, cfg).print_time
+    assert main(argv[:-6] + ["--feature-accel", "infill"]) == 2
+    assert "--feature-accel" in capsys.readouterr().err
+
+
+def test_line_endings_and_odd_bytes_are_kept():
+    """CRLF endings, a form feed and a non-UTF-8 byte in comments: inserted lines take the file's
+    ending, every input byte is kept, and the commands sit before the right moves."""
+    src = (b"; made by hand \xff\r\n;TYPE:External perimeter\r\nG1 X10 Y0 E1 F3000 ; \x0c odd\r\n"
+           b";TYPE:Internal infill\r\nG1 X10 Y10 E2\r\n")
+    cfg = TuneConfig(accel=3000.0, feature_accel={"outer_wall": 1500.0, "infill": 9000.0})
+    done = rewrite_gcode_bytes(src, cfg, _printer("scv"))
+    out = done.data.split(b"\r\n")
+    assert b"".join(ln for ln in out if b"ringtune" not in ln) == src.replace(b"\r\n", b"")
+    assert out[out.index(b"G1 X10 Y10 E2") - 1] == b"SET_VELOCITY_LIMIT ACCEL=9000 ; ringtune: infill"
+    wall = out.index(b"G1 X10 Y0 E1 F3000 ; \x0c odd")
+    assert out[wall - 1] == b"SET_VELOCITY_LIMIT ACCEL=1500 ; ringtune: outer_wall"

@@ -1,0 +1,42 @@
+"""``tune --gcode JOB`` writes the job with the choice in it (``job.gcode`` beside ``best.json``),
+and ``simulate --config best.json --gcode job.gcode`` prints tune's figures: the rewritten file is
+planned to the same time and judged on the same corners and zigzags (issue 22)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+RINGTUNE = [sys.executable, "-m", "ringtune.agents.cli.main"]
+
+
+def _run(argv):
+    return subprocess.run(RINGTUNE + argv, capture_output=True, text=True, timeout=900)
+
+
+@pytest.mark.slow
+def test_simulate_of_the_rewritten_job_prints_tunes_figures(tmp_path, data_dir):
+    job = data_dir / "gcode/ringtune_builtin_2025/test_print.gcode"      # labelled: walls and infill
+    out = tmp_path / "out"
+    tuned = _run(["tune", "--gcode", str(job), "--trials", "6", "--seed", "2", "--no-baselines",
+                  "--per-feature", "on", "--backend", "lti", "--out", str(out), "--json"])
+    assert tuned.returncode == 0, tuned.stderr
+    report = json.loads(tuned.stdout)
+    best = json.loads((out / "best.json").read_text())
+    assert report["files"]["job"] == str(out / "job.gcode") and report["per_feature"]["accel"]
+    rewritten = (out / "job.gcode").read_text()
+    assert rewritten.startswith("; ringtune rewrite") and "SET_VELOCITY_LIMIT ACCEL=" in rewritten
+    sim = _run(["simulate", "--config", str(out / "best.json"), "--gcode", str(out / "job.gcode"),
+                "--backend", "lti", "--json"])
+    assert sim.returncode == 0, sim.stderr
+    res = json.loads(sim.stdout)
+    for key, value in best["metrics"].items():
+        if key not in ("features", "print_time_s"):
+            assert res["metrics"][key] == pytest.approx(value, rel=1e-9, abs=1e-12), key
+    # a frequency limit's slowed F words are written to 0.1 mm/min (the file says it carries the
+    # limit, which is then not applied twice): the same time to that rounding
+    tol = 1e-5 if best["freq_limit_hz"] > 0 else 1e-9
+    assert res["metrics"]["print_time_s"] == pytest.approx(report["chosen"]["print_time_s"], rel=tol)
