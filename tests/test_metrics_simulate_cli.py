@@ -95,7 +95,7 @@ def test_the_accelerometer_plot_is_in_mm_per_s2_as_every_text(tmp_path, monkeypa
 
     seen = {}
 
-    def keep(plt, fig, out, title=""):
+    def keep(plt, fig, out, title="", data=None):
         seen["axes"] = [(ax.get_ylabel(), [line.get_ydata() for line in ax.get_lines()]) for ax in fig.axes]
         plt.close(fig)
         return out
