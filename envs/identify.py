@@ -142,6 +142,51 @@ def psd_weights(p: np.ndarray) -> np.ndarray:
     return 1.0 + 3.0 * p / p.max()
 
 
+def _usable_band(freqs, psd, fmin: float, fmax: float, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """(f Hz, psd) between ``fmin`` and ``fmax``, the psd floored at 1e-9 of its peak (its log is
+    fitted); refused with fewer than 8 finite, positive bins."""
+    band = (freqs >= fmin) & (freqs <= fmax)
+    f, p = freqs[band], psd[band]
+    if len(f) < 8 or not np.all(np.isfinite(p)) or p.max() <= 0:
+        raise RingtuneError(f"too few usable bins between {fmin:g} and {fmax:g} Hz", where)
+    return f, np.maximum(p, p.max() * 1e-9)
+
+
+def _start_and_bounds(f, p, logp, peaks: list[int], z0: list[float], df: float) -> tuple[np.ndarray, list, list]:
+    """(x0, lower, upper) of :func:`psd_model`'s parameters: C, exponent, background, then per peak
+    frequency (±max(3 bins, 10 %)), damping and share (equal); C scaled so that the start meets
+    the data at the highest peak."""
+    fpk = f[peaks]
+    x0 = [0.0, 2.0, math.log(p.min())]
+    lo, hi = [-np.inf, -2.0, -np.inf], [np.inf, 6.0, np.inf]
+    for k in range(len(peaks)):
+        x0 += [fpk[k], z0[k], 1.0 / len(peaks)]
+        lo += [fpk[k] - max(3 * df, 0.1 * fpk[k]), 0.005, 0.005]
+        hi += [fpk[k] + max(3 * df, 0.1 * fpk[k]), 0.5, 3.0]
+    x0 = np.array(x0, dtype=float)
+    ipk = peaks[int(np.argmax(p[peaks]))]
+    x0[0] = logp[ipk] - math.log(psd_model(x0, f[ipk:ipk + 1])[0] + 1e-300)
+    return np.clip(x0, np.array(lo) + 1e-9, np.array(hi) - 1e-9), lo, hi
+
+
+def _fitted_modes(x: np.ndarray, fpk, hp: list, damping: str, f) -> tuple[list, np.ndarray, np.ndarray]:
+    """(modes, fine grid, model curve) from the fitted parameters: shares normalised, damping from the
+    fit or the half-power points, each mode's peak on the fitted curve within 15 % of it."""
+    m = x[3:].reshape(len(fpk), 3)
+    total = sum(m[:, 2])
+    out = []
+    for k in range(len(fpk)):
+        fn, z, s = m[k, 0], m[k, 1], m[k, 2]
+        zz = z if damping == "fit" else (hp[k] if hp[k] is not None else z)
+        out.append(FittedMode(float(fn), float(zz), float(s / total), float(fpk[k])))
+    fine = np.linspace(f[0], f[-1], 2000)
+    curve = psd_model(x, fine)
+    for mode in out:
+        near = np.abs(fine - mode.freq) <= 0.15 * mode.freq
+        mode.fitted_peak = float(fine[near][np.argmax(curve[near])]) if near.any() else None
+    return out, fine, curve
+
+
 def identify_psd(freqs: np.ndarray, psd: np.ndarray, axis: str = "sum", source: str = "psd",
                  max_modes: int = 3, fmin: float = 5.0, fmax: float = 135.0,
                  damping: str = "fit") -> AxisFit:
@@ -149,66 +194,22 @@ def identify_psd(freqs: np.ndarray, psd: np.ndarray, axis: str = "sum", source: 
     ``axis`` ("x", "y" or "sum"), measured in ``source`` (named in errors and notes)."""
     if damping not in ("fit", "half-power"):
         raise RingtuneError("must be 'fit' or 'half-power'", "damping")
-    freqs, col = np.asarray(freqs, dtype=float), np.asarray(psd, dtype=float)
-    band = (freqs >= fmin) & (freqs <= fmax)
-    f, p = freqs[band], col[band]
+    freqs = np.asarray(freqs, dtype=float)
     where = source or "psd"
-    if len(f) < 8 or not np.all(np.isfinite(p)) or p.max() <= 0:
-        raise RingtuneError(f"too few usable bins between {fmin:g} and {fmax:g} Hz", where)
-    p = np.maximum(p, p.max() * 1e-9)
-    peaks = find_peaks_psd(f, p, max_modes)
-    if not peaks:
-        peaks = [int(np.argmax(p))]
-    peaks.sort(key=lambda i: f[i])
+    f, p = _usable_band(freqs, np.asarray(psd, dtype=float), fmin, fmax, where)
+    peaks = sorted(find_peaks_psd(f, p, max_modes) or [int(np.argmax(p))], key=lambda i: f[i])
     hp = [_half_power(f, p, i) for i in peaks]
     z0 = [min(max(h if h else 0.05, 0.01), 0.4) for h in hp]
-    n = len(peaks)
-    fpk = f[peaks]
     df = float(np.median(np.diff(f)))
     logp = np.log(p)
-
-    def unpack(x):
-        lc, pw, lb = x[:3]
-        m = x[3:].reshape(n, 3)
-        return lc, pw, lb, [(m[k, 0], m[k, 1], m[k, 2]) for k in range(n)]
-
-    def model(x, ff):
-        return psd_model(x, ff)
-
     weight = psd_weights(p)
-
-    def resid(x):
-        return weight * (np.log(model(x, f)) - logp)
-
-    shares0 = [1.0 / n] * n
-    x0 = [0.0, 2.0, math.log(p.min())]
-    lo, hi = [-np.inf, -2.0, -np.inf], [np.inf, 6.0, np.inf]
-    for k in range(n):
-        x0 += [fpk[k], z0[k], shares0[k]]
-        lo += [fpk[k] - max(3 * df, 0.1 * fpk[k]), 0.005, 0.005]
-        hi += [fpk[k] + max(3 * df, 0.1 * fpk[k]), 0.5, 3.0]
-    # scale C so that the initial model meets the data at the highest peak
-    x0 = np.array(x0, dtype=float)
-    ipk = peaks[int(np.argmax(p[peaks]))]
-    x0[0] = logp[ipk] - math.log(model(x0, f[ipk:ipk + 1])[0] + 1e-300)
-    x0 = np.clip(x0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
-    def jac(x):
-        return weight[:, None] * psd_model_jacobian(x, f)
-
-    sol = least_squares(resid, x0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=4000)
-    _, _, _, modes = unpack(sol.x)
-    res = np.log(model(sol.x, f)) - logp
+    x0, lo, hi = _start_and_bounds(f, p, logp, peaks, z0, df)
+    sol = least_squares(lambda x: weight * (np.log(psd_model(x, f)) - logp), x0,
+                        jac=lambda x: weight[:, None] * psd_model_jacobian(x, f),
+                        bounds=(lo, hi), x_scale="jac", max_nfev=4000)
+    res = np.log(psd_model(sol.x, f)) - logp
     r2 = float(1.0 - (res ** 2).sum() / ((logp - logp.mean()) ** 2).sum())
-    total = sum(s for _, _, s in modes)
-    out = []
-    for k, (fn, z, s) in enumerate(modes):
-        zz = z if damping == "fit" else (hp[k] if hp[k] is not None else z)
-        out.append(FittedMode(float(fn), float(zz), float(s / total), float(fpk[k])))
-    fine = np.linspace(f[0], f[-1], 2000)
-    curve = model(sol.x, fine)
-    for m in out:
-        near = np.abs(fine - m.freq) <= 0.15 * m.freq
-        m.fitted_peak = float(fine[near][np.argmax(curve[near])]) if near.any() else None
+    out, fine, curve = _fitted_modes(sol.x, f[peaks], hp, damping, f)
     fit = AxisFit(axis, "psd", where, out, fine, np.interp(fine, f, p), curve, r2, damping,
                   x_measured=f, y_measured=p, params=np.asarray(sol.x, dtype=float))
     if damping == "half-power" and any(h is None for h in hp):
@@ -260,6 +261,42 @@ def _decay_basis(t: np.ndarray, params: np.ndarray) -> np.ndarray:
     return np.stack(cols, axis=1)
 
 
+def _ringing(t, accel, rate: float | None, start: float | None, source: str) -> tuple:
+    """(tt s from the start of the ringing, acceleration about its median there, sample rate Hz)."""
+    a = np.asarray(accel, dtype=float)
+    t = np.asarray(t, dtype=float) - t[0]
+    rate = rate or (len(t) - 1) / t[-1]
+    a = a - np.median(a)
+    i0 = int(np.searchsorted(t, start)) if start is not None else int(np.argmax(np.abs(a[: len(a) // 2])))
+    tt, yy = t[i0:] - t[i0], a[i0:]
+    if len(tt) < 50:
+        raise RingtuneError(f"only {len(tt)} samples after the start of the ringing", source or None)
+    return tt, yy, rate
+
+
+def _spectral_peaks(yy, rate: float, fmin: float, fmax: float, max_modes: int) -> list[float]:
+    """The ``max_modes`` most prominent peak frequencies (Hz, ascending) of the ringing's spectrum
+    between ``fmin`` and ``fmax`` (none prominent: the highest bin)."""
+    nfft = 1 << (len(yy) * 8 - 1).bit_length()
+    spec = np.abs(np.fft.rfft((yy - yy.mean()) * np.hanning(len(yy)), nfft))
+    fr = np.fft.rfftfreq(nfft, 1 / rate)
+    band = (fr >= fmin) & (fr <= fmax)
+    idx, _ = find_peaks(spec[band], prominence=0.2 * spec[band].max())
+    order = np.argsort(spec[band][idx])[::-1][:max_modes]
+    return sorted(float(fr[band][idx[k]]) for k in order) or [float(fr[band][np.argmax(spec[band])])]
+
+
+def _decay_warnings(r2: float, modes: list) -> list[str]:
+    """A poor fit, or a mode that hardly decays (a steady vibration, not ringing)."""
+    out = []
+    if r2 < 0.5:
+        out.append(f"the damped sinusoids explain only {100 * r2:.0f} % of the signal: the capture is "
+                   "mostly noise or steady vibration, not clean ringing")
+    out += [f"{m.freq:.1f} Hz hardly decays: a steady vibration (fan, motor) rather than ringing"
+            for m in modes if m.damping < 0.003]
+    return out
+
+
 def identify_decay(t: np.ndarray, accel: np.ndarray, axis: str, source: str = "capture",
                    rate: float | None = None, max_modes: int = 2, fmin: float = 5.0, fmax: float = 150.0,
                    start: float | None = None) -> AxisFit:
@@ -268,22 +305,9 @@ def identify_decay(t: np.ndarray, accel: np.ndarray, axis: str, source: str = "c
 
     The fit starts at ``start`` s, or by default at the largest acceleration (the end of the move's
     deceleration, where free ringing begins)."""
-    a = np.asarray(accel, dtype=float)
-    t = np.asarray(t, dtype=float) - t[0]
-    rate = rate or (len(t) - 1) / t[-1]
+    tt, yy, rate = _ringing(t, accel, rate, start, source)
     fmax = min(fmax, 0.4 * rate)
-    a = a - np.median(a)
-    i0 = int(np.searchsorted(t, start)) if start is not None else int(np.argmax(np.abs(a[: len(a) // 2])))
-    tt, yy = t[i0:] - t[i0], a[i0:]
-    if len(tt) < 50:
-        raise RingtuneError(f"only {len(tt)} samples after the start of the ringing", source or None)
-    nfft = 1 << (len(yy) * 8 - 1).bit_length()
-    spec = np.abs(np.fft.rfft((yy - yy.mean()) * np.hanning(len(yy)), nfft))
-    fr = np.fft.rfftfreq(nfft, 1 / rate)
-    band = (fr >= fmin) & (fr <= fmax)
-    idx, props = find_peaks(spec[band], prominence=0.2 * spec[band].max())
-    order = np.argsort(spec[band][idx])[::-1][:max_modes]
-    f0 = sorted(float(fr[band][idx[k]]) for k in order) or [float(fr[band][np.argmax(spec[band])])]
+    f0 = _spectral_peaks(yy, rate, fmin, fmax, max_modes)
     x0 = np.array([v for f in f0 for v in (f, 0.03)])
     lo = np.array([v for f in f0 for v in (max(fmin, f * 0.8), 0.0005)])
     hi = np.array([v for f in f0 for v in (min(fmax, f * 1.2), 0.6)])
@@ -307,13 +331,7 @@ def identify_decay(t: np.ndarray, accel: np.ndarray, axis: str, source: str = "c
     for m, d in zip(modes, disp):
         m.share = float(d / tot)
     fit = AxisFit(axis, "decay", source, modes, tt, yy, fitted, r2, "damped-sinusoid")
-    if r2 < 0.5:
-        fit.warnings.append(f"the damped sinusoids explain only {100 * r2:.0f} % of the signal: the capture is "
-                         "mostly noise or steady vibration, not clean ringing")
-    for m in modes:
-        if m.damping < 0.003:
-            fit.warnings.append(f"{m.freq:.1f} Hz hardly decays: a steady vibration (fan, motor) rather "
-                             "than ringing")
+    fit.warnings += _decay_warnings(r2, modes)
     return fit
 
 

@@ -19,6 +19,8 @@ from ringtune.shaping.feature_settings import FeatureCommands
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.gcode import read_gcode, read_gcode_bytes
 from ringtune.shaping.gcode_post import limit_gcode_bytes
+from ringtune.shaping.layer_commands import TAG, schedule_inserts
+from ringtune.shaping.layers import job_layers
 from ringtune.shaping.rewrite import rewrite_job
 
 HEADER = "; ringtune rewrite"
@@ -43,21 +45,26 @@ class RewrittenJob:
 
 def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: str = "<gcode>",
                         layer_inserts: dict[int, list[str]] | None = None) -> RewrittenJob:
-    """``data`` with the configuration's frequency limit and per-feature commands written in for
+    """``data`` with the configuration's frequency limit, per-feature commands and Y schedule
+    (``config.y_schedule`` at layer changes, unless ``layer_inserts`` is given) written in for
     ``config.firmware`` (``printer``: a Printer, TOML path or None for the embedded default; its
     limits plan the times and give the junction rule the corner value is written in)."""
     printer = resolve_printer(printer)
     limits = printer.limits
     original = read_gcode(data, source=source)
     before = plan_with_config(original, limits, None).plan.print_time
+    if layer_inserts is None and config.y_schedule:
+        sched = schedule_inserts([la.z for la in job_layers(original)], config)
+        layer_inserts = {k: [f"{c} {TAG}" for c in v] for k, v in sched.items()}
     config_s = plan_with_config(original, limits, config).plan.print_time
     f_changed = 0
     if config.freq_limit_hz > 0 and not native_limit(config):
         data, res = limit_gcode_bytes(data, float(config.freq_limit_hz), config.freq_limit_method,
                                       float(config.min_speed_factor), source=source)
         f_changed = res.lines_changed
-    text = data.decode("utf-8", errors="surrogateescape")
-    lines = text.splitlines(keepends=True)
+    # lines end at \n, \r\n or \r, as the G-code reader numbers them (str.splitlines would also split
+    # at form feeds and other separators a comment may hold)
+    lines = [ln.decode("utf-8", errors="surrogateescape") for ln in data.splitlines(keepends=True)]
     if not lines:
         raise RingtuneError("the job is empty", source)
     fc = FeatureCommands.from_config(config, limits)

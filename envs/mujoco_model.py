@@ -116,6 +116,55 @@ def linear_system(printer: Printer) -> LinearSystem:
                         K, C, js, np.diag(C).copy(), belts, printer.kinematics)
 
 
+#: the slide direction of each axis's coordinates (x, y)
+_AXIS_DIRS = ("1 0 0", "0 1 0")
+
+
+def _body(sysm, i: int, name: str, y: float, rotor, grav: float, site: str) -> str:
+    """MJCF body of modal coordinate ``i``: a slide on its axis, or a rotor's hinge (a pendulum under
+    the model's gravity ``grav``: torque −m_r·G·ρ·sin φ = −F_hold·(λ/2π)·sin φ, envs.rotor)."""
+    if rotor is None:
+        return (f'<body name="{name}" pos="0 {y:g} 0">'
+                f'<inertial pos="0 0 0" mass="{sysm.mass[i]:.12g}" diaginertia="1e-6 1e-6 1e-6"/>'
+                f'<joint name="q_{name}" type="slide" axis="{_AXIS_DIRS[sysm.axis[i]]}" '
+                f'stiffness="{sysm.joint_stiffness[i]:.12g}" damping="{sysm.joint_damping[i]:.12g}"/>'
+                f'<geom type="box" size="5 5 5" contype="0" conaffinity="0"/>{site}</body>')
+    rho = rotor.peak * rotor.scale / (rotor.mass * grav)
+    inertia = rotor.mass * (rotor.scale ** 2 - rho ** 2)
+    return (f'<body name="{name}" pos="0 {y:g} 0">'
+            f'<inertial pos="0 0 {-rho:.12g}" mass="{rotor.mass:.12g}" '
+            f'diaginertia="{inertia:.12g} {inertia:.12g} {inertia:.12g}"/>'
+            f'<joint name="q_{name}" type="hinge" axis="0 1 0" '
+            f'damping="{sysm.joint_damping[i] * rotor.scale ** 2:.12g}"/></body>')
+
+
+def _tendons(sysm, sfx: str, scale) -> list[str]:
+    """MJCF tendons of one replica: CoreXY's belts, then the motors' springs (scaled coordinates)."""
+    out = []
+    for bname, coefs, k in sysm.belts:
+        joints = "".join(f'<joint joint="q_{sysm.names[i]}{sfx}" coef="{c:g}"/>' for i, c in coefs.items())
+        out.append(f'<fixed name="{bname}{sfx}" stiffness="{k:.12g}">{joints}</fixed>')
+    for bname, coefs, k, c in sysm.springs:
+        joints = "".join(f'<joint joint="q_{sysm.names[i]}{sfx}" coef="{cf * scale[i]:.12g}"/>'
+                         for i, cf in coefs.items())
+        out.append(f'<fixed name="{bname}{sfx}" stiffness="{k:.12g}" damping="{c:.12g}" '
+                   f'springlength="0">{joints}</fixed>')
+    return out
+
+
+def _replica(sysm, sfx: str, first_row: int, grav: float, accelerometer: bool) -> tuple[list, list, list]:
+    """(bodies, tendons, motors) of one printer's replica, its bodies from row ``first_row`` on."""
+    rot = {r.index: r for r in sysm.rotors}
+    scale = sysm.scale if sysm.scale is not None else np.ones(sysm.n)
+    bodies, motors = [], []
+    for i, name in enumerate(sysm.names):
+        site = f'<site name="toolhead{sfx}" size="2"/>' if accelerometer and name == "x0" else ""
+        bodies.append(_body(sysm, i, f"{name}{sfx}", 20.0 * (first_row + i), rot.get(i), grav, site))
+        motors.append(f'<motor name="drive_{name}{sfx}" joint="q_{name}{sfx}" '
+                      f'gear="{sysm.mass[i] * scale[i]:.12g}" ctrllimited="false"/>')
+    return bodies, _tendons(sysm, sfx, scale), motors
+
+
 def build_mjcf(printer: Printer | list, timestep: float = TIMESTEP, integrator: str = INTEGRATOR,
                accelerometer: bool = False) -> str:
     """MJCF text: one slide-jointed body per modal coordinate, belt tendons for CoreXY, one motor
@@ -126,57 +175,18 @@ def build_mjcf(printer: Printer | list, timestep: float = TIMESTEP, integrator: 
     ``_r<k>``) in coordinate order: a single rollout then advances many windows at once, which
     amortises MuJoCo's fixed per-step cost (about 3× cheaper per window at 8 replicas)."""
     printers = printer if isinstance(printer, (list, tuple)) else [printer]
-    dirs = ("1 0 0", "0 1 0")
-    bodies, tendons, motors = [], [], []
-    row = 0
-    gravity = False
     systems = [linear_system(pr) for pr in printers]
+    sfxs = [f"_r{r}" if len(printers) > 1 else "" for r in range(len(printers))]
     # magnet gravity: large enough that every pendulum arm is ≤ λ/2π / 4
     grav = max([_MAGNET_G] + [4.0 * r.peak / r.mass for s_ in systems for r in s_.rotors])
-    for r, (pr, sysm) in enumerate(zip(printers, systems)):
-        sfx = f"_r{r}" if len(printers) > 1 else ""
-        rot = {r.index: r for r in sysm.rotors}
-        scale = sysm.scale if sysm.scale is not None else np.ones(sysm.n)
-        drive = sysm.B
-        for i, name in enumerate(sysm.names):
-            site = ""
-            if accelerometer and name == "x0":
-                site = f'<site name="toolhead{sfx}" size="2"/>'
-            r = rot.get(i)
-            if r is None:
-                bodies.append(
-                    f'<body name="{name}{sfx}" pos="0 {20.0 * row:g} 0">'
-                    f'<inertial pos="0 0 0" mass="{sysm.mass[i]:.12g}" diaginertia="1e-6 1e-6 1e-6"/>'
-                    f'<joint name="q_{name}{sfx}" type="slide" axis="{dirs[sysm.axis[i]]}" '
-                    f'stiffness="{sysm.joint_stiffness[i]:.12g}" damping="{sysm.joint_damping[i]:.12g}"/>'
-                    f'<geom type="box" size="5 5 5" contype="0" conaffinity="0"/>{site}</body>')
-            else:
-                # rotor hinge (angle = 2π·lag/λ), a pendulum under the model's gravity G:
-                # torque −m_r·G·ρ·sin φ = −F_hold·(λ/2π)·sin φ (envs.rotor)
-                rho = r.peak * r.scale / (r.mass * grav)
-                inertia = r.mass * (r.scale ** 2 - rho ** 2)
-                bodies.append(
-                    f'<body name="{name}{sfx}" pos="0 {20.0 * row:g} 0">'
-                    f'<inertial pos="0 0 {-rho:.12g}" mass="{r.mass:.12g}" '
-                    f'diaginertia="{inertia:.12g} {inertia:.12g} {inertia:.12g}"/>'
-                    f'<joint name="q_{name}{sfx}" type="hinge" axis="0 1 0" '
-                    f'damping="{sysm.joint_damping[i] * r.scale ** 2:.12g}"/></body>')
-                gravity = True
-            motors.append(f'<motor name="drive_{name}{sfx}" joint="q_{name}{sfx}" '
-                          f'gear="{sysm.mass[i] * scale[i]:.12g}" ctrllimited="false"/>')
-            row += 1
-        for bname, coefs, k in sysm.belts:
-            joints = "".join(f'<joint joint="q_{sysm.names[i]}{sfx}" coef="{c:g}"/>' for i, c in coefs.items())
-            tendons.append(f'<fixed name="{bname}{sfx}" stiffness="{k:.12g}">{joints}</fixed>')
-        for bname, coefs, k, c in sysm.springs:
-            joints = "".join(f'<joint joint="q_{sysm.names[i]}{sfx}" coef="{cf * scale[i]:.12g}"/>'
-                             for i, cf in coefs.items())
-            tendons.append(f'<fixed name="{bname}{sfx}" stiffness="{k:.12g}" damping="{c:.12g}" '
-                           f'springlength="0">{joints}</fixed>')
-        del drive
+    gravity = any(s_.rotors for s_ in systems)
+    bodies, tendons, motors = [], [], []
+    row = 0
+    for sysm, sfx in zip(systems, sfxs):
+        b, t, m = _replica(sysm, sfx, row, grav, accelerometer)
+        bodies, tendons, motors, row = bodies + b, tendons + t, motors + m, row + len(b)
     sensors = ""
     if accelerometer:
-        sfxs = [f"_r{r}" if len(printers) > 1 else "" for r in range(len(printers))]
         sensors = "<sensor>" + "".join(f'<accelerometer name="accel{x}" site="toolhead{x}"/>'
                                        for x in sfxs) + "</sensor>"
     name = _xml_escape(printers[0].name) + (f" x{len(printers)}" if len(printers) > 1 else "")

@@ -64,7 +64,8 @@ see :meth:`Printer.belt_stiffnesses`) and ``mismatch`` ((k_A − k_B)/mean, 0 = 
 
 The data types (:class:`Printer`, :class:`AxisModel`, :class:`Mode`, :class:`MotorModel`,
 :data:`DEFAULTS`) and their derived physics live in :mod:`ringtune.envs.printer_model`;
-this module reads and validates descriptions.
+this module reads and validates descriptions (the ``[motor]`` tables in :mod:`ringtune.envs.printer_motor`,
+the checked values in :mod:`ringtune.envs.toml_checks`).
 """
 
 from __future__ import annotations
@@ -76,12 +77,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ringtune.envs.motors import lookup_motor, unknown_motor_message
-from ringtune.envs.printer_model import (DEFAULTS, MOTOR_CONSTANT_KEYS, MOTOR_DRIVE_KEYS, AxisModel, Mode,
-                                         MotorModel, Printer)
+from ringtune.envs.printer_model import DEFAULTS, AxisModel, Mode, MotorModel, Printer
+from ringtune.envs.printer_motor import inherit_motor, is_datasheet, motor_from_dict
+from ringtune.envs.toml_checks import flag, number, refuse_unknown, table
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.planner import AXIS_RULES
-from ringtune.shaping.textfile import read_text_file
+from ringtune.shaping.textfile import firmware_config_hint, read_text_file
 
 KINEMATICS = ("cartesian", "corexy", "corexz")
 
@@ -97,47 +98,7 @@ _TOP_KEYS = {"name", "kinematics", "limits", "x", "y", "motor", "belts", "print_
              "current", "measurement"}
 _AXIS_KEYS = {"mass", "modes", "stiffness", "masses", "stiffnesses", "damping", "motor"}
 _MODE_KEYS = {"freq", "damping", "share", "mass_share"}
-_OLD_FORM_KEYS = {"force", "corner_speed"}
-_MOTOR_KEYS = {"force", "corner_speed", "rotor_mass", "friction", "steps_per_mm", "microsteps",
-               "rotor_damping", "slip", "name", *MOTOR_CONSTANT_KEYS, *MOTOR_DRIVE_KEYS}
 _BELT_KEYS = {"stiffness", "mismatch"}
-
-
-# -- validation -------------------------------------------------------------------------------------
-def _num(d: dict, key: str, where: str, default=None, lo=None, hi=None, lo_open=False):
-    if key not in d:
-        if default is None:
-            raise RingtuneError(f"missing required key {key!r}", where)
-        return default
-    v = d[key]
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise RingtuneError(f"{key} must be a finite number, got {v!r}", f"{where}.{key}")
-    v = float(v)
-    if lo is not None and (v < lo or (lo_open and v == lo)):
-        raise RingtuneError(f"{key} = {v:g} must be {'>' if lo_open else '≥'} {lo:g}", f"{where}.{key}")
-    if hi is not None and v > hi:
-        raise RingtuneError(f"{key} = {v:g} must be ≤ {hi:g}", f"{where}.{key}")
-    return v
-
-
-def _bool(d: dict, key: str, where: str, default: bool | None) -> bool | None:
-    v = d.get(key, default)
-    if v is not None and not isinstance(v, bool):
-        raise RingtuneError(f"{key} must be true or false, got {v!r}", f"{where}.{key}")
-    return v
-
-
-def _table(d: dict, key: str, where: str) -> dict:
-    v = d.get(key, {})
-    if not isinstance(v, dict):
-        raise RingtuneError(f"[{key}] must be a table, got {type(v).__name__}", f"{where}: {key}")
-    return v
-
-
-def _unknown(d: dict, allowed: set, where: str) -> None:
-    extra = sorted(set(d) - allowed)
-    if extra:
-        raise RingtuneError(f"unknown key {extra[0]!r} (allowed: {', '.join(sorted(allowed))})", where)
 
 
 def _modes_from_chain(masses, stiffnesses, damping, where) -> tuple[list[Mode], float]:
@@ -181,58 +142,61 @@ def check_moving_mass(kg: float, where: str) -> float:
 
 def _axis_mass(d: dict, axis: str, w: str) -> float:
     """The axis's moving mass (kg): given (and checked by :func:`check_moving_mass`) or the default."""
-    mass = _num(d, "mass", w, DEFAULTS[f"mass_{axis}"], lo=0.0, lo_open=True)
+    mass = number(d, "mass", w, DEFAULTS[f"mass_{axis}"], lo=0.0, lo_open=True)
     return check_moving_mass(mass, f"{w}.mass") if "mass" in d else mass
 
 
 def _axis_from_dict(d: dict, axis: str, where: str) -> AxisModel:
     w = f"{where}: [{axis}]"
-    _unknown(d, _AXIS_KEYS, w)
+    refuse_unknown(d, _AXIS_KEYS, w)
     d = {k: v for k, v in d.items() if k != "motor"}
     mass = _axis_mass(d, axis, w)
-    damping = _num(d, "damping", w, DEFAULTS["damping"], lo=0.0, hi=0.95)
+    damping = number(d, "damping", w, DEFAULTS["damping"], lo=0.0, hi=0.95)
     given = [k for k in ("modes", "stiffness", "masses") if k in d]
     if len(given) != 1:
         raise RingtuneError("give exactly one of modes, stiffness, or masses + stiffnesses", w)
     if "modes" in d:
-        raw = d["modes"]
-        if not isinstance(raw, list) or not raw:
-            raise RingtuneError("modes must be a non-empty list of {freq, damping, share}", f"{w}.modes")
-        modes: list[Mode] = []
-        free = []
-        total = 0.0
-        for i, md in enumerate(raw):
-            mw = f"{w}.modes[{i}]"
-            if not isinstance(md, dict):
-                raise RingtuneError("each mode must be a table like { freq = 50, damping = 0.06 }", mw)
-            _unknown(md, _MODE_KEYS, mw)
-            f = _num(md, "freq", mw, lo=0.0, lo_open=True, hi=2000.0)
-            z = _num(md, "damping", mw, damping, lo=0.0, hi=0.95)
-            if "share" in md:
-                # physical chains give higher modes small negative shares (nozzle against carriage)
-                sh = _num(md, "share", mw, lo=-2.0, hi=2.0)
-                if sh == 0.0:
-                    raise RingtuneError("share must not be 0 (drop the mode instead)", f"{mw}.share")
-                total += sh
-            else:
-                sh = float("nan")
-                free.append(i)
-            ms = _num(md, "mass_share", mw, lo=0.0, hi=1.0) if "mass_share" in md else None
-            modes.append(Mode(f, z, sh, ms))
-        if (free and total > 1.0 + 1e-6) or (not free and abs(total - 1.0) > 1e-3):
-            raise RingtuneError(f"mode shares sum to {total:g}; they must sum to 1 "
-                                "(leave one out to let it take what is left)", f"{w}.modes")
-        if free:
-            rest = 1.0 - total
-            if rest <= 1e-9:
-                raise RingtuneError("modes without a share get nothing: the given shares already sum to 1",
-                                    f"{w}.modes")
-            for i in free:
-                modes[i].share = rest / len(free)
-        return AxisModel(mass, modes)
+        return AxisModel(mass, _modes_from_list(d["modes"], damping, f"{w}.modes"))
     if "stiffness" in d:
-        k = _num(d, "stiffness", w, lo=0.0, lo_open=True)
+        k = number(d, "stiffness", w, lo=0.0, lo_open=True)
         return AxisModel(mass, [Mode(math.sqrt(k / mass) / (2 * math.pi), damping, 1.0)])
+    return _axis_from_chain(d, damping, w)
+
+
+def _mode_from_dict(md, damping: float, mw: str) -> Mode:
+    """One ``{freq, damping, share, mass_share}`` table; a mode without a share gets NaN (filled later)."""
+    if not isinstance(md, dict):
+        raise RingtuneError("each mode must be a table like { freq = 50, damping = 0.06 }", mw)
+    refuse_unknown(md, _MODE_KEYS, mw)
+    f = number(md, "freq", mw, lo=0.0, lo_open=True, hi=2000.0)
+    z = number(md, "damping", mw, damping, lo=0.0, hi=0.95)
+    # physical chains give higher modes small negative shares (nozzle against carriage)
+    sh = number(md, "share", mw, math.nan, lo=-2.0, hi=2.0)
+    if sh == 0.0:
+        raise RingtuneError("share must not be 0 (drop the mode instead)", f"{mw}.share")
+    ms = number(md, "mass_share", mw, lo=0.0, hi=1.0) if "mass_share" in md else None
+    return Mode(f, z, sh, ms)
+
+
+def _modes_from_list(raw, damping: float, w: str) -> list[Mode]:
+    """An axis's ``modes``: each checked, the shares summing to 1 (modes without one split the rest)."""
+    if not isinstance(raw, list) or not raw:
+        raise RingtuneError("modes must be a non-empty list of {freq, damping, share}", w)
+    modes = [_mode_from_dict(md, damping, f"{w}[{i}]") for i, md in enumerate(raw)]
+    free = [m for m in modes if math.isnan(m.share)]
+    total = sum(m.share for m in modes if not math.isnan(m.share))
+    if (free and total > 1.0 + 1e-6) or (not free and abs(total - 1.0) > 1e-3):
+        raise RingtuneError(f"mode shares sum to {total:g}; they must sum to 1 "
+                            "(leave one out to let it take what is left)", w)
+    if free and 1.0 - total <= 1e-9:
+        raise RingtuneError("modes without a share get nothing: the given shares already sum to 1", w)
+    for m in free:
+        m.share = (1.0 - total) / len(free)
+    return modes
+
+
+def _axis_from_chain(d: dict, damping: float, w: str) -> AxisModel:
+    """An axis given as ``masses`` + ``stiffnesses`` (a chain whose last mass is the nozzle)."""
     ms, ks = d.get("masses"), d.get("stiffnesses")
     for key, v in (("masses", ms), ("stiffnesses", ks)):
         if not isinstance(v, list) or not v or not all(
@@ -255,11 +219,11 @@ _STRINGS = {"current": ("source", "shaper_x", "shaper_y", "firmware"), "measurem
 def _passthrough(d: dict, sec: str, where: str) -> dict:
     """``[current]`` / ``[measurement]``: kept as read (written back unchanged); the keys the tools
     read are type-checked."""
-    t = _table(d, sec, where)
+    t = table(d, sec, where)
     w = f"{where}: [{sec}]"
     for k in _NUMERIC[sec]:
         if k in t:
-            _num(t, k, w, lo=0.0)
+            number(t, k, w, lo=0.0)
     for k in _STRINGS[sec]:
         if k in t and not isinstance(t[k], str):
             raise RingtuneError(f"{k} must be a string, got {t[k]!r}", f"{w}.{k}")
@@ -271,104 +235,6 @@ def _passthrough(d: dict, sec: str, where: str) -> dict:
         if "klipper" in t and not isinstance(t["klipper"], dict):
             raise RingtuneError("[measurement.klipper] must be a table", f"{w}.klipper")
     return dict(t)
-
-
-def _is_datasheet(raw: dict) -> bool:
-    return "name" in raw or any(k in raw for k in MOTOR_CONSTANT_KEYS)
-
-
-def _inherit(base: dict, own: dict) -> dict:
-    """An axis's motor table over ``[motor]``: the axis's keys win; a motor named or described on the
-    axis replaces the base's motor (its name, constants and old-form force) but keeps its drive; an
-    axis's rotation_distance (rotor_inertia) replaces the base's steps_per_mm (rotor_mass) and vice versa."""
-    if _is_datasheet(own):
-        drop = {"name", *MOTOR_CONSTANT_KEYS, *_OLD_FORM_KEYS, "rotor_inertia"}
-    elif own.keys() & _OLD_FORM_KEYS:
-        drop = {"name", *MOTOR_CONSTANT_KEYS, "rotor_inertia"}
-    else:
-        drop = set()
-    # given on the axis in either form, the belt per revolution and the rotor win over the base's
-    for a, b in (("rotation_distance", "steps_per_mm"), ("rotor_inertia", "rotor_mass")):
-        if a in own:
-            drop.add(b)
-        if b in own:
-            drop.add(a)
-    return {**{k: v for k, v in base.items() if k not in drop}, **own}
-
-
-def _motor_from_dict(mo: dict, mw: str) -> MotorModel:
-    """One motor table (``[motor]`` or an axis's, already merged over ``[motor]``)."""
-    _unknown(mo, _MOTOR_KEYS, mw)
-    consts: dict = {}
-    name = mo.get("name")
-    if name is not None:
-        if not isinstance(name, str) or not name.strip():
-            raise RingtuneError("name must be a motor name (string)", f"{mw}.name")
-        ref = lookup_motor(name)
-        if ref is None and not all(k in mo for k in MOTOR_CONSTANT_KEYS[:4]):
-            raise RingtuneError(unknown_motor_message(name), f"{mw}.name")
-        if ref is not None:
-            consts = {k: getattr(ref, k) for k in MOTOR_CONSTANT_KEYS}
-    for k in MOTOR_CONSTANT_KEYS[:4]:
-        if k in mo:
-            consts[k] = _num(mo, k, mw, lo=0.0, lo_open=True)
-    if "steps_per_revolution" in mo:
-        n = _num(mo, "steps_per_revolution", mw, lo=4.0)
-        if n != int(n) or int(n) % 4:
-            raise RingtuneError(f"steps_per_revolution = {n:g} must be a whole multiple of 4 (200, 400)",
-                                f"{mw}.steps_per_revolution")
-        consts["steps_per_revolution"] = int(n)
-    datasheet = bool(consts)
-    if datasheet:
-        missing = [k for k in MOTOR_CONSTANT_KEYS[:4] if k not in consts]
-        if missing:
-            raise RingtuneError(f"a motor from datasheet constants needs {', '.join(missing)} too "
-                                "(or a built-in motor's name)", f"{mw}.{missing[0]}")
-        both = sorted(_OLD_FORM_KEYS & mo.keys())
-        if both:
-            raise RingtuneError(f"{both[0]} belongs to the old form: give either force/corner_speed or "
-                                "the motor (name or datasheet constants), whose force follows from them",
-                                f"{mw}.{both[0]}")
-        if "rotor_inertia" in mo and "rotor_mass" in mo:
-            raise RingtuneError("give either rotor_inertia (kg·m²) or rotor_mass (kg at the belt)",
-                                f"{mw}.rotor_mass")
-    drive = {}
-    for k in ("run_current", "voltage", "rotation_distance"):
-        if k in mo:
-            drive[k] = _num(mo, k, mw, lo=0.0, lo_open=True)
-    if "rotor_inertia" in mo:
-        drive["rotor_inertia"] = _num(mo, "rotor_inertia", mw, lo=0.0)
-    microsteps = _num(mo, "microsteps", mw, DEFAULTS["microsteps"], lo=1.0)
-    n_steps = consts.get("steps_per_revolution", 200)
-    if "rotation_distance" in drive:
-        derived = n_steps * microsteps / drive["rotation_distance"]
-        if "steps_per_mm" in mo:
-            spm = _num(mo, "steps_per_mm", mw, lo=0.0, lo_open=True)
-            if abs(spm - derived) > 1e-3 * derived:
-                raise RingtuneError(
-                    f"steps_per_mm = {spm:g} disagrees with rotation_distance = {drive['rotation_distance']:g} "
-                    f"({n_steps} steps/rev × {microsteps:g} microsteps / rotation_distance = {derived:g}); "
-                    "give one of them", f"{mw}.steps_per_mm")
-        steps_per_mm = derived
-    elif datasheet and "steps_per_mm" not in mo:
-        steps_per_mm = None                      # the motor assumes (and says) a rotation distance
-    else:
-        steps_per_mm = _num(mo, "steps_per_mm", mw, DEFAULTS["steps_per_mm"], lo=0.0, lo_open=True)
-    if not datasheet and "rotor_inertia" in drive:
-        raise RingtuneError("rotor_inertia needs the motor (name or datasheet constants); give rotor_mass "
-                            "(kg at the belt) instead", f"{mw}.rotor_inertia")
-    return MotorModel(
-        force=_num(mo, "force", mw, DEFAULTS["motor_force"], lo=0.0, lo_open=True),
-        corner_speed=_num(mo, "corner_speed", mw, DEFAULTS["corner_speed"], lo=0.0, lo_open=True),
-        rotor_mass=_num(mo, "rotor_mass", mw, DEFAULTS["rotor_mass"], lo=0.0),
-        friction=_num(mo, "friction", mw, DEFAULTS["friction"], lo=0.0),
-        steps_per_mm=steps_per_mm,
-        microsteps=microsteps,
-        rotor_damping=_num(mo, "rotor_damping", mw, DEFAULTS["rotor_damping"], lo=0.0, hi=2.0),
-        slip=_bool(mo, "slip", mw, None),
-        name=name.strip() if isinstance(name, str) else None,
-        **consts, **drive,
-    )
 
 
 def _defaulted(d: dict, base_raw: dict) -> tuple[str, ...]:
@@ -383,8 +249,8 @@ def _defaulted(d: dict, base_raw: dict) -> tuple[str, ...]:
     for ax in ("x", "y"):
         t = d.get(ax) if isinstance(d.get(ax), dict) else {}
         own = t.get("motor") if isinstance(t.get("motor"), dict) else {}
-        mo = _inherit(base_raw, own) if own else base_raw
-        if not (_is_datasheet(mo) or "force" in mo):
+        mo = inherit_motor(base_raw, own) if own else base_raw
+        if not (is_datasheet(mo) or "force" in mo):
             out.append(f"{ax}.motor")
     return tuple(out)
 
@@ -394,13 +260,13 @@ def _check_limits(limits: dict, lw: str) -> None:
     for key in ("accel", "velocity", "square_corner_velocity", "junction_deviation", "travel_accel",
                 "retract_accel"):
         if key in limits:
-            _num(limits, key, lw, lo=0.0, lo_open=True)
+            number(limits, key, lw, lo=0.0, lo_open=True)
     if "min_cruise_ratio" in limits:
-        _num(limits, "min_cruise_ratio", lw, lo=0.0, hi=1.0)
+        number(limits, "min_cruise_ratio", lw, lo=0.0, hi=1.0)
     for key, allowed in (("junction", ("scv", "jd", "jerk")), ("axis_rule", AXIS_RULES)):
         if key in limits and limits[key] not in allowed:
             raise RingtuneError(f"{key} must be one of {', '.join(allowed)}, not {limits[key]!r}", f"{lw}.{key}")
-    _bool(limits, "scale_xy_accel", lw, None)
+    flag(limits, "scale_xy_accel", lw, None)
     for key in ("jerk", "max_accel", "max_velocity"):
         if key in limits and not _four_numbers(limits[key]):
             raise RingtuneError(f"{key} must be a list of 4 non-negative numbers (x, y, z, e)", f"{lw}.{key}")
@@ -411,11 +277,8 @@ def _four_numbers(v) -> bool:
         isinstance(x, (int, float)) and not isinstance(x, bool) and x >= 0 for x in v)
 
 
-def printer_from_dict(d: dict, where: str = "printer") -> Printer:
-    """Validate a parsed TOML mapping and build a :class:`Printer` (errors name the key)."""
-    if not isinstance(d, dict):
-        raise RingtuneError("a printer description must be a table", where)
-    _unknown(d, _TOP_KEYS, where)
+def _name_and_kinematics(d: dict, where: str) -> tuple[str, str]:
+    """The description's ``name`` (a string) and ``kinematics`` (one of :data:`KINEMATICS`)."""
     name = d.get("name", "printer")
     if not isinstance(name, str):
         raise RingtuneError("name must be a string", f"{where}: name")
@@ -423,49 +286,77 @@ def printer_from_dict(d: dict, where: str = "printer") -> Printer:
     if kin not in KINEMATICS:
         raise RingtuneError(f"kinematics must be one of {', '.join(KINEMATICS)}, not {kin!r}",
                             f"{where}: kinematics")
-    limits = _table(d, "limits", where)
-    lw = f"{where}: [limits]"
-    _unknown(limits, set(LIMIT_KEYS), lw)
-    _check_limits(limits, lw)
-    x = _axis_from_dict(_table(d, "x", where), "x", where)
-    y = _axis_from_dict(_table(d, "y", where), "y", where)
-    base_raw = _table(d, "motor", where)
-    motor = _motor_from_dict(base_raw, f"{where}: [motor]")
+    return name, kin
+
+
+def _axis_motors(d: dict, base_raw: dict, motor: MotorModel, where: str) -> dict:
+    """{axis: motor} of the axes whose ``[x.motor]``/``[y.motor]`` changes the base motor."""
     axis_motors = {}
     for ax in ("x", "y"):
-        own = _table(_table(d, ax, where), "motor", f"{where}: [{ax}]")
-        if own:
-            m = _motor_from_dict(_inherit(base_raw, own), f"{where}: [{ax}.motor]")
-            if m != motor:                       # an axis table that changes nothing is no own motor
-                axis_motors[ax] = m
-    print_mass = _num(d, "print_mass", where, DEFAULTS["print_mass"], lo=0.0)
-    belts = _table(d, "belts", where)
-    bw = f"{where}: [belts]"
-    passthrough = {sec: _passthrough(d, sec, where) for sec in ("current", "measurement")}
+        own = table(table(d, ax, where), "motor", f"{where}: [{ax}]")
+        if not own:
+            continue
+        m = motor_from_dict(inherit_motor(base_raw, own), f"{where}: [{ax}.motor]")
+        if m != motor:                       # an axis table that changes nothing is no own motor
+            axis_motors[ax] = m
+    return axis_motors
+
+
+def _belts(belts: dict, kin: str, bw: str) -> tuple[float | None, float]:
+    """(belt stiffness N/m or None, mismatch) of ``[belts]``, a CoreXY's alone."""
     if belts and kin != "corexy":
         raise RingtuneError("[belts] applies only to kinematics = \"corexy\"", bw)
-    _unknown(belts, _BELT_KEYS, bw)
-    p = Printer(
-        name=name, kinematics=kin, limits_dict=dict(limits), x=x, y=y, motor=motor,
-        x_motor=axis_motors.get("x"), y_motor=axis_motors.get("y"), print_mass=print_mass,
-        current=passthrough["current"], measurement=passthrough["measurement"],
-        belt_stiffness=_num(belts, "stiffness", bw, lo=0.0, lo_open=True) if "stiffness" in belts else None,
-        belt_mismatch=_num(belts, "mismatch", bw, DEFAULTS["belt_mismatch"], lo=-1.9, hi=1.9),
-        description=str(d.get("description", "")),
-        defaulted=_defaulted(d, base_raw),
-    )
+    refuse_unknown(belts, _BELT_KEYS, bw)
+    stiffness = number(belts, "stiffness", bw, lo=0.0, lo_open=True) if "stiffness" in belts else None
+    return stiffness, number(belts, "mismatch", bw, DEFAULTS["belt_mismatch"], lo=-1.9, hi=1.9)
+
+
+def _check_built(p: Printer, where: str, bw: str) -> None:
+    """The planner's own check of the limits, and a CoreXY's belts no stiffer than its first modes allow."""
     try:
         p.machine_limits()
     except RingtuneError as exc:          # the planner's own check (e.g. scale_xy_accel without caps)
         raise RingtuneError(exc.bare, f"{where}: [{exc.where}]" if exc.where else where) from None
-    if kin == "corexy":
-        ka, kb = p.belt_stiffnesses()
-        for ax in ("x", "y"):
-            if ka + kb > p.primary_stiffness(ax) * (1 + 1e-9):
-                raise RingtuneError(
-                    f"belts (k_A + k_B = {ka + kb:.0f} N/m) are stiffer than the first {ax} mode allows "
-                    f"({p.primary_stiffness(ax):.0f} N/m = modal mass × ω²); lower [belts].stiffness",
-                    f"{bw}.stiffness")
+    if p.kinematics != "corexy":
+        return
+    ka, kb = p.belt_stiffnesses()
+    for ax in ("x", "y"):
+        if ka + kb > p.primary_stiffness(ax) * (1 + 1e-9):
+            raise RingtuneError(
+                f"belts (k_A + k_B = {ka + kb:.0f} N/m) are stiffer than the first {ax} mode allows "
+                f"({p.primary_stiffness(ax):.0f} N/m = modal mass × ω²); lower [belts].stiffness",
+                f"{bw}.stiffness")
+
+
+def printer_from_dict(d: dict, where: str = "printer") -> Printer:
+    """Validate a parsed TOML mapping and build a :class:`Printer` (errors name the key)."""
+    if not isinstance(d, dict):
+        raise RingtuneError("a printer description must be a table", where)
+    refuse_unknown(d, _TOP_KEYS, where)
+    name, kin = _name_and_kinematics(d, where)
+    limits = table(d, "limits", where)
+    lw = f"{where}: [limits]"
+    refuse_unknown(limits, set(LIMIT_KEYS), lw)
+    _check_limits(limits, lw)
+    x = _axis_from_dict(table(d, "x", where), "x", where)
+    y = _axis_from_dict(table(d, "y", where), "y", where)
+    base_raw = table(d, "motor", where)
+    motor = motor_from_dict(base_raw, f"{where}: [motor]")
+    axis_motors = _axis_motors(d, base_raw, motor, where)
+    print_mass = number(d, "print_mass", where, DEFAULTS["print_mass"], lo=0.0)
+    belts = table(d, "belts", where)
+    bw = f"{where}: [belts]"
+    passthrough = {sec: _passthrough(d, sec, where) for sec in ("current", "measurement")}
+    belt_stiffness, belt_mismatch = _belts(belts, kin, bw)
+    p = Printer(
+        name=name, kinematics=kin, limits_dict=dict(limits), x=x, y=y, motor=motor,
+        x_motor=axis_motors.get("x"), y_motor=axis_motors.get("y"), print_mass=print_mass,
+        current=passthrough["current"], measurement=passthrough["measurement"],
+        belt_stiffness=belt_stiffness, belt_mismatch=belt_mismatch,
+        description=str(d.get("description", "")),
+        defaulted=_defaulted(d, base_raw),
+    )
+    _check_built(p, where, bw)
     return p
 
 
@@ -490,7 +381,7 @@ def load_printer(path: str | Path | None = None) -> Printer:
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise RingtuneError(f"not valid TOML: {exc}", where) from None
+        raise RingtuneError(f"not valid TOML: {exc}{firmware_config_hint(text)}", where) from None
     return printer_from_dict(data, where)
 
 

@@ -117,6 +117,21 @@ class MotorModel:
                 self.steps_per_mm = DEFAULTS["steps_per_mm"]
             return
         n = int(self.steps_per_revolution or 200)
+        run, volt, rd, notes = self._drive_or_assumed(n)
+        self.steps_per_mm = n * self.microsteps / rd
+        consts = MotorConstants(self.name or "custom", self.resistance, self.inductance,
+                                self.holding_torque, self.rated_current, n)
+        drive = StepperDrive(consts, float(run), float(volt), float(rd))
+        self._stepper = drive
+        self.force = drive.standstill_force
+        self.corner_speed = drive.corner_speed
+        if self.rotor_inertia is not None:
+            self.rotor_mass = self.rotor_inertia / drive.radius ** 2
+        self.assumed = tuple(notes)
+
+    def _drive_or_assumed(self, n: int) -> tuple[float, float, float, list[str]]:
+        """(run current A RMS, voltage V, rotation distance mm, what was assumed) of a datasheet motor
+        with ``n`` steps per revolution: as given, else the typical value, said."""
         notes = []
         if self.steps_per_revolution is None:
             notes.append("steps_per_revolution = 200 (not given: a 1.8° motor assumed)")
@@ -137,16 +152,7 @@ class MotorModel:
             rd = n * self.microsteps / self.steps_per_mm
             notes.append(f"rotation_distance = {rd:.4g} mm (not given: from steps_per_mm = "
                          f"{self.steps_per_mm:g}, {self.microsteps:g} microsteps, {n} steps/rev)")
-        self.steps_per_mm = n * self.microsteps / rd
-        consts = MotorConstants(self.name or "custom", self.resistance, self.inductance,
-                                self.holding_torque, self.rated_current, n)
-        drive = StepperDrive(consts, float(run), float(volt), float(rd))
-        self._stepper = drive
-        self.force = drive.standstill_force
-        self.corner_speed = drive.corner_speed
-        if self.rotor_inertia is not None:
-            self.rotor_mass = self.rotor_inertia / drive.radius ** 2
-        self.assumed = tuple(notes)
+        return run, volt, rd, notes
 
     @property
     def has_datasheet(self) -> bool:
@@ -186,36 +192,36 @@ class MotorModel:
         """The ``[motor]`` table: only what was given (derived and assumed values are left out, so
         that reading it back gives the same motor; a named motor's constants only where they differ
         from the built-in table)."""
-        if not self.has_datasheet:
-            d: dict[str, Any] = {"force": self.force, "corner_speed": self.corner_speed,
-                                 "rotor_mass": self.rotor_mass, "friction": self.friction,
-                                 "steps_per_mm": self.steps_per_mm}
-            if self.microsteps != DEFAULTS["microsteps"] or self.rotor_damping != DEFAULTS["rotor_damping"]:
-                d.update(microsteps=self.microsteps, rotor_damping=self.rotor_damping)
-            if self.name is not None:
-                d["name"] = self.name
-            for k in MOTOR_DRIVE_KEYS:
-                if getattr(self, k) is not None:
-                    d[k] = getattr(self, k)
-        else:
-            d = {}
-            ref = lookup_motor(self.name) if self.name else None
-            if self.name is not None:
-                d["name"] = self.name
-            for k in MOTOR_CONSTANT_KEYS:
-                v = getattr(self, k)
-                if v is not None and (ref is None or getattr(ref, k) != v):
-                    d[k] = v
-            for k in MOTOR_DRIVE_KEYS:
-                if getattr(self, k) is not None:
-                    d[k] = getattr(self, k)
-            if self.rotation_distance is None:
-                d["steps_per_mm"] = self.steps_per_mm
-            if self.rotor_inertia is None:
-                d["rotor_mass"] = self.rotor_mass
-            d.update(friction=self.friction, microsteps=self.microsteps, rotor_damping=self.rotor_damping)
+        d = self._datasheet_dict() if self.has_datasheet else self._old_form_dict()
         if self.slip is not None:
             d["slip"] = self.slip
+        return d
+
+    def _given(self, keys) -> dict:
+        """{key: value} of ``keys`` that are set (not None), in order."""
+        return {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
+
+    def _old_form_dict(self) -> dict:
+        """:meth:`to_dict` of a motor given by force and corner speed."""
+        d: dict[str, Any] = {"force": self.force, "corner_speed": self.corner_speed,
+                             "rotor_mass": self.rotor_mass, "friction": self.friction,
+                             "steps_per_mm": self.steps_per_mm}
+        if self.microsteps != DEFAULTS["microsteps"] or self.rotor_damping != DEFAULTS["rotor_damping"]:
+            d.update(microsteps=self.microsteps, rotor_damping=self.rotor_damping)
+        return {**d, **self._given(("name",)), **self._given(MOTOR_DRIVE_KEYS)}
+
+    def _datasheet_dict(self) -> dict:
+        """:meth:`to_dict` of a motor from its name and/or datasheet constants (a named motor's
+        constants only where they differ from the built-in table)."""
+        ref = lookup_motor(self.name) if self.name else None
+        d = {**self._given(("name",)),
+             **{k: v for k, v in self._given(MOTOR_CONSTANT_KEYS).items() if ref is None or getattr(ref, k) != v},
+             **self._given(MOTOR_DRIVE_KEYS)}
+        if self.rotation_distance is None:
+            d["steps_per_mm"] = self.steps_per_mm
+        if self.rotor_inertia is None:
+            d["rotor_mass"] = self.rotor_mass
+        d.update(friction=self.friction, microsteps=self.microsteps, rotor_damping=self.rotor_damping)
         return d
 
 
@@ -359,33 +365,25 @@ class Printer:
         d["limits"] = dict(self.limits_dict)
         for ax in ("x", "y"):
             a = self.axis(ax)
-            modes = []
-            for m in a.modes:
-                md = {"freq": m.freq, "damping": m.damping, "share": m.share}
-                if m.mass_share is not None:
-                    md["mass_share"] = m.mass_share
-                modes.append(md)
-            d[ax] = {"mass": a.mass, "modes": modes}
+            d[ax] = {"mass": a.mass, "modes": [_mode_dict(m) for m in a.modes]}
         d["motor"] = self.motor.to_dict()
-        base = d["motor"]
         for ax in ("x", "y"):
             own = getattr(self, f"{ax}_motor")
             if own is not None:
-                od = own.to_dict()
-                if od.get("name") != base.get("name") or own.has_datasheet != self.motor.has_datasheet:
-                    d[ax]["motor"] = od
-                else:
-                    d[ax]["motor"] = {k: v for k, v in od.items() if base.get(k, _MISSING) != v}
+                d[ax]["motor"] = self._own_motor_dict(own, d["motor"])
         if self.kinematics == "corexy":
-            belts: dict[str, Any] = {"mismatch": self.belt_mismatch}
-            if self.belt_stiffness is not None:
-                belts["stiffness"] = self.belt_stiffness
-            d["belts"] = belts
-        if self.current:
-            d["current"] = dict(self.current)
-        if self.measurement:
-            d["measurement"] = dict(self.measurement)
+            d["belts"] = {"mismatch": self.belt_mismatch, **({} if self.belt_stiffness is None
+                                                              else {"stiffness": self.belt_stiffness})}
+        d.update({k: dict(v) for k, v in (("current", self.current), ("measurement", self.measurement)) if v})
         return d
+
+    def _own_motor_dict(self, own: MotorModel, base: dict) -> dict:
+        """An axis's ``[x.motor]`` table: whole when it names another motor or form, else only what
+        differs from ``[motor]``."""
+        od = own.to_dict()
+        if od.get("name") != base.get("name") or own.has_datasheet != self.motor.has_datasheet:
+            return od
+        return {k: v for k, v in od.items() if base.get(k, _MISSING) != v}
 
     def to_toml(self) -> str:
         """TOML text that :func:`ringtune.envs.printer.load_printer` reads back to an equal printer.
@@ -407,3 +405,11 @@ class Printer:
 
 
 _MISSING = object()
+
+
+def _mode_dict(m: Mode) -> dict:
+    """A mode's TOML table: freq, damping, share and, when given, mass_share."""
+    md = {"freq": m.freq, "damping": m.damping, "share": m.share}
+    if m.mass_share is not None:
+        md["mass_share"] = m.mass_share
+    return md

@@ -52,6 +52,14 @@ TYPICAL_DAMPING_SOURCE = ("the median damping of the dominant modes fitted to te
                           "tests (tests/data/accel/klipper_psd: 0.04-0.23)")
 
 
+#: the largest damping ripples are read for: twice the highest of the real tests (0.23) would still
+#: leave a ripple 1/7 of the one before; beyond it the ripples are gone after one or two
+MAX_RIPPLE_DAMPING = 0.3
+#: ringing frequencies a ripple spacing can be (Hz): Klipper's resonance sweep starts at 5 Hz, and
+#: no printer frame rings above 300 Hz with a ripple one could count (the real tests peak at 130 Hz)
+RIPPLE_FREQ_RANGE = (5.0, 300.0)
+
+
 def damping_from_ratio(ratio: float, where: str = "ratio") -> float:
     """Damping ratio from the ratio ``R`` of a ripple's height over the next one's (> 1: ringing
     decays), by the logarithmic decrement ``δ = ln R``, ``ζ = δ/√(4π² + δ²)``. Ripples that grow
@@ -66,7 +74,13 @@ def damping_from_ratio(ratio: float, where: str = "ratio") -> float:
     if delta < 1e-6:
         raise RingtuneError("successive ripples of equal height show no decay: the damping cannot be "
                             "read from them (measure the first and a later ripple)", where)
-    return delta / math.sqrt(4.0 * math.pi ** 2 + delta ** 2)
+    zeta = delta / math.sqrt(4.0 * math.pi ** 2 + delta ** 2)
+    if zeta > MAX_RIPPLE_DAMPING:
+        raise RingtuneError(f"a ripple {ratio:g} times the next one's height means damping {zeta:.2f}, beyond "
+                            f"{MAX_RIPPLE_DAMPING:g} (real printers: 0.04-0.23): ripples that die that fast leave "
+                            "none to measure; give one ripple's height over the very next one's "
+                            f"(at most {ratio_from_damping(MAX_RIPPLE_DAMPING):.1f})", where)
+    return zeta
 
 
 def ratio_from_damping(damping: float) -> float:
@@ -84,9 +98,11 @@ def mode_from_ripples(axis: str, spacing: float, speed: float, damping: float,
     if not 0 <= damping < 1:
         raise RingtuneError(f"damping ratio must be in [0, 1), not {damping:g}", where)
     fd = speed / spacing
-    if not 1.0 <= fd <= 500.0:
+    lo, hi = RIPPLE_FREQ_RANGE
+    if not lo <= fd <= hi:
         raise RingtuneError(f"{speed:g} mm/s over {spacing:g} mm is {fd:.3g} Hz: not a printer resonance "
-                            "(expected 1-500 Hz); is the spacing in mm and the speed in mm/s?", where)
+                            f"(expected {lo:g}-{hi:g} Hz); is the spacing in mm, between adjacent ripples, and the "
+                            "speed the wall's, in mm/s?", where)
     return RippleMode(axis, fd / math.sqrt(1.0 - damping ** 2), fd, damping, spacing, speed, damping_from)
 
 

@@ -102,9 +102,8 @@ class Rotor:
         return self.cycle / (2.0 * math.pi)
 
 
-def slip_system(printer):
-    """The printer's linearised slip model as a :class:`~ringtune.envs.modal_system.LinearSystem` (rotors
-    included, springs solved so the described frequencies and shares hold exactly)."""
+def _modal_coordinates(printer) -> tuple[list, list, list, list, list, list]:
+    """(names, axis index, mass kg, nozzle share, damping ratio, ω rad/s) of each described mode."""
     names, axis, mass, share, zeta, omega = [], [], [], [], [], []
     for ai, ax in enumerate(("x", "y")):
         total = printer.moving_mass(ax)
@@ -115,26 +114,28 @@ def slip_system(printer):
             share.append(m.share)
             zeta.append(m.damping)
             omega.append(m.omega)
-    nb = len(names)
+    return names, axis, mass, share, zeta, omega
+
+
+def _rotor_coordinates(printer, names: list, axis: list, mass: list, share: list) -> tuple[list, list]:
+    """(rotors, their motors), each rotor appended as one more coordinate to the lists given."""
     corexy = printer.kinematics == "corexy"
     rotors, motor_of = [], []
     for k, (mname, mo, drv) in enumerate(printer.drive_motors()):
-        rotors.append(Rotor(nb + k, mname, np.array(drv), mo.electrical_cycle, mo.force * 1e3,
+        rotors.append(Rotor(len(names), mname, np.array(drv), mo.electrical_cycle, mo.force * 1e3,
                             mo.magnetic_stiffness, 0.0, max(mo.rotor_mass, 1e-4)))
         motor_of.append(mo)
         names.append(f"motor_{mname}")
         axis.append(0 if mname in ("x", "a") or (mname == "b" and not corexy) else 1)
         mass.append(rotors[-1].mass)
         share.append(0.0)
-    n = len(names)
-    mass = np.array(mass, float)
-    axis = np.array(axis, int)
-    drive = np.zeros((n, 2))
-    drive[np.arange(nb), axis[:nb]] = 1.0
-    for r in rotors:
-        drive[r.index] = r.drive
-    # the motor side of each axis, as weights on the rotor coordinates: the least-squares inverse
-    # of the drive (cartesian: X, Y; CoreXY x = (A + B)/2, y = (A − B)/2; CoreXZ x = (A + B)/2, y = Y)
+    return rotors, motor_of
+
+
+def _mode_spring_vectors(rotors: list, axis: np.ndarray, nb: int, n: int) -> tuple[np.ndarray, list]:
+    """(base, vecs): the motor side of each axis as weights on the rotor coordinates (the least-squares
+    inverse of the drive: cartesian X, Y; CoreXY x = (A + B)/2, y = (A − B)/2; CoreXZ x = (A + B)/2,
+    y = Y), and each mode's spring stretch vector (its coordinate minus its axis's motor side)."""
     D = np.stack([r.drive for r in rotors], axis=1)                 # (2, k) belt per unit axis
     base = np.zeros((2, n))
     base[:, nb:] = np.linalg.pinv(D.T)
@@ -143,11 +144,16 @@ def slip_system(printer):
         v = -base[axis[i]].copy()
         v[i] += 1.0
         vecs.append(v)
+    return base, vecs
+
+
+def _rotor_and_belt_stiffness(printer, names: list, rotors: list, n: int) -> tuple[np.ndarray, list]:
+    """(K0, belts): the rotors' magnetic stiffness and, on a CoreXY, its two belts (N/m)."""
     belts = []
     K0 = np.zeros((n, n))
     for r in rotors:
         K0[r.index, r.index] += r.stiffness
-    if corexy:
+    if printer.kinematics == "corexy":
         ix, iy = names.index("x0"), names.index("y0")
         ka, kb = printer.belt_stiffnesses()
         for bname, sgn, kk, r in (("belt_a", 1.0, ka, rotors[0]), ("belt_b", -1.0, kb, rotors[1])):
@@ -155,6 +161,34 @@ def slip_system(printer):
             v[ix], v[iy], v[r.index] = 1.0, sgn, -1.0
             K0 += kk * np.outer(v, v)
             belts.append((bname, v, kk, 0.0))
+    return K0, belts
+
+
+def _check_rk4_step(K: np.ndarray, mass: np.ndarray) -> None:
+    """Refuse a rotor mode too stiff for RK4 at :data:`TIMESTEP` (ω·h over :data:`MAX_OMEGA_H`)."""
+    w_top = undamped_frequencies(K, mass)[-1]
+    if w_top * TIMESTEP > MAX_OMEGA_H:
+        raise RingtuneError(
+            f"the rotor mode at {w_top / (2 * math.pi):.0f} Hz is too stiff for RK4 at "
+            f"{TIMESTEP * 1e3:g} ms (ω·h = {w_top * TIMESTEP:.2f} > {MAX_OMEGA_H:g}); raise "
+            "[motor].rotor_mass or set [motor].slip = false", "[motor].rotor_mass")
+
+
+def slip_system(printer):
+    """The printer's linearised slip model as a :class:`~ringtune.envs.modal_system.LinearSystem` (rotors
+    included, springs solved so the described frequencies and shares hold exactly)."""
+    names, axis, mass, share, zeta, omega = _modal_coordinates(printer)
+    nb = len(names)
+    rotors, motor_of = _rotor_coordinates(printer, names, axis, mass, share)
+    n = len(names)
+    mass = np.array(mass, float)
+    axis = np.array(axis, int)
+    drive = np.zeros((n, 2))
+    drive[np.arange(nb), axis[:nb]] = 1.0
+    for r in rotors:
+        drive[r.index] = r.drive
+    base, vecs = _mode_spring_vectors(rotors, axis, nb, n)
+    K0, belts = _rotor_and_belt_stiffness(printer, names, rotors, n)
     targets = np.sort(np.array(omega))
     kmode = _solve_springs(K0, vecs, mass, np.array(mass[:nb]) * np.array(omega) ** 2, targets, printer)
     K = K0.copy()
@@ -162,21 +196,15 @@ def slip_system(printer):
     for i, (v, k) in enumerate(zip(vecs, kmode)):
         K += k * np.outer(v, v)
         springs.append((f"spring_{names[i]}", v, k, 0.0))
-    w_top = undamped_frequencies(K, mass)[-1]
-    if w_top * TIMESTEP > MAX_OMEGA_H:
-        raise RingtuneError(
-            f"the rotor mode at {w_top / (2 * math.pi):.0f} Hz is too stiff for RK4 at "
-            f"{TIMESTEP * 1e3:g} ms (ω·h = {w_top * TIMESTEP:.2f} > {MAX_OMEGA_H:g}); raise "
-            "[motor].rotor_mass or set [motor].slip = false", "[motor].rotor_mass")
+    _check_rk4_step(K, mass)
     C = _modal_damping(K, mass, np.array(omega), np.array(zeta),
                        np.array([m.rotor_damping for m in motor_of]), np.array([r.index for r in rotors]))
     springs, joint_damping = _damper_tendons(C, springs)
-    for r in rotors:
-        r.damping = float(C[r.index, r.index])
-    W = _nozzle_weights(K, mass, drive, base, axis[:nb], np.array(share[:nb]), np.array(omega))
     scale = np.ones(n)
     for r in rotors:
+        r.damping = float(C[r.index, r.index])
         scale[r.index] = r.scale
+    W = _nozzle_weights(K, mass, drive, base, axis[:nb], np.array(share[:nb]), np.array(omega))
     springs = [(nm, {j: float(c) for j, c in enumerate(v) if c != 0.0}, k, c) for nm, v, k, c in springs]
     return LinearSystem(names, axis, mass, np.array(share, float), K, C, np.zeros(n), joint_damping,
                         [], printer.kinematics, drive=drive, nozzle_w=W, scale=scale, rotors=rotors,
@@ -217,30 +245,45 @@ def _solve_springs(K0, vecs, mass, k_init, targets, printer) -> np.ndarray:
         if np.max(np.abs(res)) < 1e-12:
             ok = True
             break
-        J = np.empty((nb, nb))
-        for j in range(nb):
-            dx = np.zeros(nb)
-            dx[j] = 1e-6
-            J[:, j] = (log_freqs(x + dx) - lf) / 1e-6
-        if not np.all(np.isfinite(J)):
+        step = _newton_step(log_freqs, x, lf, res)
+        if step is None:
             break
-        try:
-            step = np.linalg.solve(J, -res)
-        except np.linalg.LinAlgError:
-            break
-        step *= min(1.0, 2.0 / max(np.max(np.abs(step)), 1e-300))      # at most e² per iteration
         x = x + step
         if np.max(x) > 60:
             break
     if not ok:
-        mo = min((m for _n, m, _d in printer.drive_motors()), key=lambda m: m.magnetic_stiffness)
-        key = "[motor].run_current" if mo.has_datasheet else "[motor].force"
-        raise RingtuneError(
-            f"the motor's magnetic stiffness ({mo.magnetic_stiffness / 1e3:.0f} N/mm from force "
-            f"{mo.force:.3g} N over an electrical cycle of {mo.electrical_cycle:g} mm) cannot carry the "
-            f"described modes up to {targets[-1] / (2 * math.pi):.1f} Hz in series with the belts; raise "
-            f"{key}, lower the masses, or set [motor].slip = false", key)
+        raise _motor_too_weak(printer, targets)
     return np.exp(x)
+
+
+def _newton_step(log_freqs, x: np.ndarray, lf: np.ndarray, res: np.ndarray) -> np.ndarray | None:
+    """Newton's step on log-stiffness (finite-difference Jacobian, at most e² per iteration), None
+    when the Jacobian is not finite or singular."""
+    nb = len(x)
+    J = np.empty((nb, nb))
+    for j in range(nb):
+        dx = np.zeros(nb)
+        dx[j] = 1e-6
+        J[:, j] = (log_freqs(x + dx) - lf) / 1e-6
+    if not np.all(np.isfinite(J)):
+        return None
+    try:
+        step = np.linalg.solve(J, -res)
+    except np.linalg.LinAlgError:
+        return None
+    return step * min(1.0, 2.0 / max(np.max(np.abs(step)), 1e-300))
+
+
+def _motor_too_weak(printer, targets) -> RingtuneError:
+    """The refusal when no spring stiffness gives the described modes: the weakest motor's magnetic
+    stiffness cannot carry them in series with the belts."""
+    mo = min((m for _n, m, _d in printer.drive_motors()), key=lambda m: m.magnetic_stiffness)
+    key = "[motor].run_current" if mo.has_datasheet else "[motor].force"
+    return RingtuneError(
+        f"the motor's magnetic stiffness ({mo.magnetic_stiffness / 1e3:.0f} N/mm from force "
+        f"{mo.force:.3g} N over an electrical cycle of {mo.electrical_cycle:g} mm) cannot carry the "
+        f"described modes up to {targets[-1] / (2 * math.pi):.1f} Hz in series with the belts; raise "
+        f"{key}, lower the masses, or set [motor].slip = false", key)
 
 
 def _modal_damping(K, mass, omega, zeta, rotor_zeta, rotor_index) -> np.ndarray:

@@ -291,6 +291,42 @@ def simulate(printer: Printer | None, motion, backend: str = "mujoco", rate: flo
                           timestep=timestep, initial=initial, nthread=1)[0]
 
 
+def _batch_printers(printer_or_list, motions: list) -> list[Printer]:
+    """One printer per motion: the list given (loaded where a name or path), or one for all."""
+    if not isinstance(printer_or_list, (list, tuple)):
+        pr = printer_or_list if isinstance(printer_or_list, Printer) else load_printer(printer_or_list)
+        return [pr] * len(motions)
+    printers = [load_printer(p) if not isinstance(p, Printer) else p for p in printer_or_list]
+    if len(printers) != len(motions):
+        raise RingtuneError(f"{len(printers)} printers for {len(motions)} motions", "simulate_batch")
+    return printers
+
+
+def _batch_timestep(printers: list[Printer], backend: str, timestep: float | None) -> float:
+    """The step (s): as given, TIMESTEP for the exact backend (it only sets the output sampling),
+    else the finest automatic step of the printers."""
+    if timestep is not None:
+        h = float(timestep)
+    elif backend == "lti":
+        h = TIMESTEP
+    else:
+        h = min(auto_timestep(p) for p in {id(p): p for p in printers}.values())
+    if not (h > 0 and np.isfinite(h)):
+        raise RingtuneError(f"timestep must be a positive number of seconds, not {timestep!r}", "timestep")
+    return h
+
+
+def _lti_batch(printers, systems, motions, h, dec, tail, initial) -> list[SimResult]:
+    """Each motion through the exact linear response (the ``lti`` backend)."""
+    out = []
+    for p, mo in zip(printers, motions):
+        sysm = systems[id(p)]
+        t = mo.start_time + np.arange(0, _grid(mo, h, tail, dec) + 1, dec) * h
+        q, qd = _lti_response(sysm, mo, t, _initial(sysm, mo, initial))
+        out.append(_post(p, sysm, _kinematics(mo, mo.start_time, h * dec, len(t)), t, q, qd, "lti"))
+    return out
+
+
 def simulate_batch(printer_or_list, motions: list, backend: str = "mujoco", nthread: int | None = None,
                    rate: float | None = None, tail: float = 0.0, timestep: float | None = None,
                    initial: str = "rest") -> list[SimResult]:
@@ -304,40 +340,17 @@ def simulate_batch(printer_or_list, motions: list, backend: str = "mujoco", nthr
     if backend not in BACKENDS:
         raise RingtuneError(f"backend must be one of {', '.join(BACKENDS)}, not {backend!r}", "backend")
     motions = list(motions)
-    if isinstance(printer_or_list, (list, tuple)):
-        printers = [load_printer(p) if not isinstance(p, Printer) else p for p in printer_or_list]
-        if len(printers) != len(motions):
-            raise RingtuneError(f"{len(printers)} printers for {len(motions)} motions", "simulate_batch")
-    else:
-        pr = printer_or_list if isinstance(printer_or_list, Printer) else load_printer(printer_or_list)
-        printers = [pr] * len(motions)
+    printers = _batch_printers(printer_or_list, motions)
     if not motions:
         return []
-    if timestep is not None:
-        h = float(timestep)
-    elif backend == "lti":  # exact at any sample grid: the step only sets the output sampling
-        h = TIMESTEP
-    else:
-        h = min(auto_timestep(p) for p in {id(p): p for p in printers}.values())
-    if not (h > 0 and np.isfinite(h)):
-        raise RingtuneError(f"timestep must be a positive number of seconds, not {timestep!r}", "timestep")
+    h = _batch_timestep(printers, backend, timestep)
     if not tail >= 0:
         raise RingtuneError(f"tail must be ≥ 0 s, not {tail!r}", "tail")
     # output grid: ``rate``, or 1/TIMESTEP (2 kHz) when the step is automatic, whatever the step
     dec = _decimation(h, rate if rate is not None or timestep is not None else 1.0 / TIMESTEP)
-    systems = {}
-    for p in printers:
-        if id(p) not in systems:
-            systems[id(p)] = linear_system(p)
+    systems = {id(p): linear_system(p) for p in {id(p): p for p in printers}.values()}
     if backend == "lti":
-        out = []
-        for p, mo in zip(printers, motions):
-            sysm = systems[id(p)]
-            nstep = _grid(mo, h, tail, dec)
-            t = mo.start_time + np.arange(0, nstep + 1, dec) * h
-            q, qd = _lti_response(sysm, mo, t, _initial(sysm, mo, initial))
-            out.append(_post(p, sysm, _kinematics(mo, mo.start_time, h * dec, len(t)), t, q, qd, "lti"))
-        return out
+        return _lti_batch(printers, systems, motions, h, dec, tail, initial)
     return _rollout(printers, systems, motions, h, dec, tail, initial, nthread)
 
 
@@ -371,7 +384,47 @@ def _datas(model, n: int) -> list:
     return got[1][:n]
 
 
+def _pack(group: list[int], chunks, m0, printers, systems, motions, nsteps, h, initial):
+    """Initial states and controls of one rollout batch (a row per replica model of ``group``) and
+    where each motion sits in it: (init, ctrl, [(batch row, motion, dof offset, kinematics)])."""
+    nstate = mujoco.mj_stateSize(m0, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    members = [i for ci in group for i in chunks[ci]]
+    init = np.zeros((len(group), nstate))
+    ctrl = np.zeros((len(group), max(nsteps[i] for i in members), m0.nu))
+    init[:, 0] = min(motions[i].start_time for i in members)
+    layout = []
+    for b, ci in enumerate(group):
+        off = 0
+        for i in chunks[ci]:
+            sysm, mo, n = systems[id(printers[i])], motions[i], systems[id(printers[i])].n
+            x0 = _initial(sysm, mo, initial, nonlinear=True)
+            sc = _scale(sysm)
+            init[b, 1 + off:1 + off + n] = x0[:n] / sc
+            init[b, 1 + m0.nq + off:1 + m0.nq + off + n] = x0[n:] / sc
+            kin = _kinematics(mo, mo.start_time, h, nsteps[i] + 1)
+            u = _step_controls(kin[0], kin[1], h)                     # (nstep, 2) = −a
+            ctrl[b, :nsteps[i], off:off + n] = u @ sysm.B.T if sysm.rotors else u[:, sysm.axis]
+            layout.append((b, i, off, kin))
+            off += n
+    return init, ctrl, layout
+
+
+def _unpack(layout, init, state, nq, printers, systems, motions, nsteps, h, dec, results) -> None:
+    """Each motion's result from a rollout's states, on the output grid (every ``dec``-th step)."""
+    for b, i, off, kin in layout:
+        sysm, n = systems[id(printers[i])], systems[id(printers[i])].n
+        rows = np.arange(0, nsteps[i] + 1, dec)
+        st = np.concatenate([init[b][None], state[b, :nsteps[i]]])[rows]
+        t = motions[i].start_time + rows * h
+        kin = tuple(k[rows] for k in kin) if dec > 1 else kin
+        qs, qds = st[:, 1 + off:1 + off + n], st[:, 1 + nq + off:1 + nq + off + n]
+        if sysm.scale is not None:
+            qs, qds = qs * sysm.scale, qds * sysm.scale
+        results[i] = _post(printers[i], sysm, kin, t, qs, qds, "mujoco")
+
+
 def _rollout(printers, systems, motions, h, dec, tail, initial, nthread):
+    """The motions as replicas of MuJoCo models, rolled out in threads (models of one shape together)."""
     if nthread is None:                 # threads only for full replica models: replicas are cheaper
         nthread = min(os.cpu_count() or 1, -(-len(motions) // MAX_REPLICAS))
     nsteps = [_grid(m, h, tail, dec) for m in motions]
@@ -385,45 +438,12 @@ def _rollout(printers, systems, motions, h, dec, tail, initial, nthread):
     results: list = [None] * len(motions)
     for cis in groups.values():
         m0 = models[cis[0]]
-        nstate = mujoco.mj_stateSize(m0, mujoco.mjtState.mjSTATE_FULLPHYSICS)
-        nmax = max(nsteps[i] for ci in cis for i in chunks[ci])
-        t_start = min(motions[i].start_time for ci in cis for i in chunks[ci])
-        init = np.zeros((len(cis), nstate))
-        ctrl = np.zeros((len(cis), nmax, m0.nu))
-        layout = []                                          # (batch row, motion, dof offset)
-        for b, ci in enumerate(cis):
-            init[b, 0] = t_start
-            off = 0
-            for i in chunks[ci]:
-                sysm = systems[id(printers[i])]
-                mo = motions[i]
-                n = sysm.n
-                x0 = _initial(sysm, mo, initial, nonlinear=True)
-                sc = _scale(sysm)
-                init[b, 1 + off:1 + off + n] = x0[:n] / sc
-                init[b, 1 + m0.nq + off:1 + m0.nq + off + n] = x0[n:] / sc
-                kin = _kinematics(mo, mo.start_time, h, nsteps[i] + 1)
-                u = _step_controls(kin[0], kin[1], h)                     # (nstep, 2) = −a
-                ctrl[b, :nsteps[i], off:off + n] = u @ sysm.B.T if sysm.rotors else u[:, sysm.axis]
-                layout.append((b, i, off, kin))
-                off += n
+        init, ctrl, layout = _pack(cis, chunks, m0, printers, systems, motions, nsteps, h, initial)
         nth = max(1, min(nthread, len(cis)))
         datas = _datas(m0, nth)
         mlist = [models[ci] for ci in cis] if len(cis) > 1 else m0
         state, _ = rollout.rollout(mlist, datas if nth > 1 else datas[0], init, ctrl)
-        nq = m0.nq
-        for b, i, off, kin in layout:
-            sysm = systems[id(printers[i])]
-            n = sysm.n
-            rows = np.arange(0, nsteps[i] + 1, dec)
-            st = np.concatenate([init[b][None], state[b, :nsteps[i]]])[rows]
-            mo = motions[i]
-            t = mo.start_time + rows * h
-            kin = tuple(k[rows] for k in kin) if dec > 1 else kin
-            qs, qds = st[:, 1 + off:1 + off + n], st[:, 1 + nq + off:1 + nq + off + n]
-            if sysm.scale is not None:
-                qs, qds = qs * sysm.scale, qds * sysm.scale
-            results[i] = _post(printers[i], sysm, kin, t, qs, qds, "mujoco")
+        _unpack(layout, init, state, m0.nq, printers, systems, motions, nsteps, h, dec, results)
     return results
 
 

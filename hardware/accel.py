@@ -69,7 +69,7 @@ AccelData = Union[PSD, list, RawAccel]
 def _read_lines(path: str | Path) -> tuple[Path, list[str]]:
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
+        text = path.read_text(encoding="utf-8-sig", errors="replace")
     except FileNotFoundError:
         raise RingtuneError("no such file", str(path)) from None
     except IsADirectoryError:
@@ -100,6 +100,10 @@ def _detect(path: Path, lines: list[str]) -> str:
     if head.startswith("#time") or _numeric_row(head, 4):
         return "klipper-raw"
     _refuse_console_paste(path, lines)
+    for sep, word in ((";", "semicolons"), ("\t", "tabs")):
+        if head.replace(sep, ",").startswith(("freq,", "sample,", "#time,")):
+            raise RingtuneError(f"columns separated by {word} (a spreadsheet's re-save?): give the file as "
+                                "the firmware wrote it, with commas", f"{path}:{i + 1}")
     raise RingtuneError(
         f"unrecognised header {lines[i].strip()[:60]!r}; expected Klipper 'freq,psd_x,...', "
         "Klipper raw '#time,accel_x,accel_y,accel_z' or RRF M956 'Sample,X,Y,Z'", f"{path}:{i + 1}")
@@ -297,6 +301,20 @@ def read_raw_accel(path: str | Path) -> RawAccel:
                     "use read_resonances_csv")
 
 
+def _bad_raw_line(path: Path, body: list[tuple[int, str]]) -> RingtuneError:
+    """The error naming the first line of a raw capture that is not four finite numbers (the slow
+    path, taken only when the fast reader failed)."""
+    for i, ln in body:
+        parts = ln.split(",")
+        if len(parts) != 4:
+            return RingtuneError(f"expected 4 values (time,accel_x,accel_y,accel_z), found {len(parts)}",
+                                 f"{path}:{i + 1}")
+        bad = next((p for p in parts if not _is_float(p) or not math.isfinite(float(p))), None)
+        if bad is not None:
+            return RingtuneError(f"not a finite number: {bad.strip()[:30]!r}", f"{path}:{i + 1}")
+    return RingtuneError("unreadable raw accelerometer data", str(path))  # pragma: no cover
+
+
 def _parse_klipper_raw(path: Path, lines: list[str]) -> RawAccel:
     body = [(i, ln) for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
     if len(body) < 2:
@@ -307,15 +325,7 @@ def _parse_klipper_raw(path: Path, lines: list[str]) -> RawAccel:
     except ValueError:
         ok = False
     if not ok:
-        for i, ln in body:  # slow path only to name the bad line
-            parts = ln.split(",")
-            if len(parts) != 4:
-                raise RingtuneError(f"expected 4 values (time,accel_x,accel_y,accel_z), found "
-                                    f"{len(parts)}", f"{path}:{i + 1}")
-            for p in parts:
-                if not _is_float(p) or not math.isfinite(float(p)):
-                    raise RingtuneError(f"not a finite number: {p.strip()[:30]!r}", f"{path}:{i + 1}")
-        raise RingtuneError("unreadable raw accelerometer data", str(path))  # pragma: no cover
+        raise _bad_raw_line(path, body)
     t = data[:, 0]
     dt = np.diff(t)
     if (dt <= 0).any():
@@ -328,49 +338,57 @@ def _parse_klipper_raw(path: Path, lines: list[str]) -> RawAccel:
 
 # -- RRF M956 ------------------------------------------------------------------------------------
 
+def _m956_axes(line: str, where: str) -> list[str]:
+    """The axes of an M956 header: 'Sample' then some of X, Y, Z, each once."""
+    header = [h.strip().upper() for h in line.split(",")]
+    axes = header[1:]
+    if header[0] != "SAMPLE" or not axes or any(h not in ("X", "Y", "Z") for h in axes) or len(set(axes)) != len(axes):
+        raise RingtuneError(f"M956 header must be 'Sample' then some of X,Y,Z, not {line.strip()!r}", where)
+    return axes
+
+
+def _m956_row(s: str, axes: list[str], rows: list, where: str) -> list[float]:
+    """One sample row (index, then a value per axis), refused when it does not follow the last."""
+    if s.lower().startswith("failed"):
+        raise RingtuneError(f"the capture failed on the printer: {s!r}", where)
+    parts = s.split(",")
+    if len(parts) != len(axes) + 1:
+        raise RingtuneError(f"expected {len(axes) + 1} values (Sample,{','.join(axes)}), found {len(parts)}", where)
+    vals = _finite_floats(parts, where)
+    if rows and vals[0] != rows[-1][0] + 1:
+        raise RingtuneError(f"sample index {vals[0]:g} does not follow {rows[-1][0]:g}", where)
+    return vals
+
+
+def _m956_trailer(m: re.Match, where: str) -> tuple[float, int]:
+    """(sample rate Hz, overflows) of the 'Rate N, overflows M' trailer."""
+    rate = float(m.group(1))
+    if not rate > 0:
+        raise RingtuneError("sample rate must be > 0", where)
+    return rate, int(m.group(2))
+
+
 def _parse_m956(path: Path, lines: list[str]) -> RawAccel:
     hi = _first_content(lines)
-    header = [h.strip().upper() for h in lines[hi].split(",")]
-    where_h = f"{path}:{hi + 1}"
-    if header[0] != "SAMPLE" or not header[1:] or any(h not in ("X", "Y", "Z") for h in header[1:]) \
-            or len(set(header[1:])) != len(header) - 1:
-        raise RingtuneError(f"M956 header must be 'Sample' then some of X,Y,Z, not {lines[hi].strip()!r}",
-                            where_h)
-    axes = header[1:]
+    axes = _m956_axes(lines[hi], f"{path}:{hi + 1}")
     rows = []
-    rate = None
-    overflows = 0
-    trailer_line = None
+    trailer = None
     for i in range(hi + 1, len(lines)):
         s = lines[i].strip()
-        if not s:
-            continue
         where = f"{path}:{i + 1}"
-        if trailer_line is not None:
+        if s and trailer is not None:
             raise RingtuneError("data after the 'Rate N, overflows M' trailer", where)
-        m = _M956_TRAILER.match(s)
+        m = _M956_TRAILER.match(s) if s else None
         if m:
-            rate = float(m.group(1))
-            overflows = int(m.group(2))
-            trailer_line = i
-            if not rate > 0:
-                raise RingtuneError("sample rate must be > 0", where)
-            continue
-        if s.lower().startswith("failed"):
-            raise RingtuneError(f"the capture failed on the printer: {s!r}", where)
-        parts = s.split(",")
-        if len(parts) != len(axes) + 1:
-            raise RingtuneError(f"expected {len(axes) + 1} values (Sample,{','.join(axes)}), found "
-                                f"{len(parts)}", where)
-        vals = _finite_floats(parts, where)
-        if rows and vals[0] != rows[-1][0] + 1:
-            raise RingtuneError(f"sample index {vals[0]:g} does not follow {rows[-1][0]:g}", where)
-        rows.append(vals)
-    if rate is None:
+            trailer = _m956_trailer(m, where)
+        elif s:
+            rows.append(_m956_row(s, axes, rows, where))
+    if trailer is None:
         raise RingtuneError("missing the 'Rate <Hz>, overflows <n>' trailer line (truncated capture?)",
                             f"{path}:{len(lines)}")
     if len(rows) < 2:
         raise RingtuneError("fewer than two samples", str(path))
+    rate, overflows = trailer
     data = np.asarray(rows, dtype=float)
     t = data[:, 0] / rate
     acc = {ax: data[:, 1 + j] * G_MM_S2 for j, ax in enumerate(axes)}

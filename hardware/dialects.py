@@ -307,10 +307,8 @@ def _klipper_config_lines(ax: str, name: str | None, freq: float, damping: float
     return lines
 
 
-def _klipper(config: TuneConfig, dialect: str) -> Export:
-    fw = FIRMWARES[dialect]
-    params, cfg = [], ["[input_shaper]"]
-    expected: dict[str, object] = {}
+def _klipper_axes(config: TuneConfig, fw) -> dict:
+    """{axis: (shaper name with its parameters or None, freq Hz, damping)} as Klipper is told them."""
     per_axis = {}
     for ax in ("x", "y"):
         base, p, freq, damping = check_axis(config, fw, ax)
@@ -319,20 +317,33 @@ def _klipper(config: TuneConfig, dialect: str) -> Export:
             continue
         name = base + ("(" + ",".join(f"{k}={_klipper_value(v)}" for k, v in p.items()) + ")" if p else "")
         per_axis[ax] = (name, freq, damping)
-    for ax in ("x", "y"):
-        name, freq, _ = per_axis[ax]
+    return per_axis
+
+
+def _klipper_params(per_axis: dict, fw) -> tuple[list[str], dict]:
+    """SET_INPUT_SHAPER's parameters in Klipper's order (frequencies, damping ratios of shapers that
+    have one, types) and the values read back for each."""
+    params: list[str] = []
+    expected: dict[str, object] = {}
+    for ax, (name, freq, _) in per_axis.items():
         params += _freq_params(name, freq, ax, fw)
         expected[f"{ax}.freq"] = freq
-    for ax in ("x", "y"):
-        name, _, damping = per_axis[ax]
+    for ax, (name, _, damping) in per_axis.items():
         if name and not is_smoother(name):
             params.append(f"DAMPING_RATIO_{ax.upper()}={fmt(damping, fw.damping.decimals)}")
             expected[f"{ax}.damping"] = damping
-    for ax in ("x", "y"):
-        name, _, _ = per_axis[ax]
+    for ax, (name, _, _) in per_axis.items():
         if name:
             params.append(f"SHAPER_TYPE_{ax.upper()}={name}")
             expected[f"{ax}.type"] = name
+    return params, expected
+
+
+def _klipper(config: TuneConfig, dialect: str) -> Export:
+    fw = FIRMWARES[dialect]
+    per_axis = _klipper_axes(config, fw)
+    params, expected = _klipper_params(per_axis, fw)
+    cfg = ["[input_shaper]"]
     for ax in ("x", "y"):
         cfg += _klipper_config_lines(ax, *per_axis[ax], fw)
     line = "SET_INPUT_SHAPER " + " ".join(params)
@@ -405,29 +416,42 @@ def custom_impulses(config: TuneConfig, axis: str = "x") -> tuple[list[float], l
         amps, times = rrf_custom(params.get("h"), params.get("t"), freq, damping,
                                  semantics, where=f"config: shaper_{axis} {name!r}")
         return [float(a) for a in amps], [float(t) for t in times]
-    spec = config.extra.get("custom")
+    amps, times = _spec_impulses(config.extra.get("custom"), where)
+    _check_impulses(amps, times, where)
+    return amps, times
+
+
+def _spec_impulses(spec, where: str) -> tuple[list[float], list[float]]:
+    """The config's ``"custom": {"amplitudes": [...], "times": [...]}`` as two lists of numbers."""
     if not isinstance(spec, dict) or "amplitudes" not in spec or "times" not in spec:
         raise RingtuneError('a custom shaper needs "custom": {"amplitudes": [...], "times": [...]} in '
                             "the config", where)
     try:
-        amps = [float(a) for a in spec["amplitudes"]]
-        times = [float(t) for t in spec["times"]]
+        return [float(a) for a in spec["amplitudes"]], [float(t) for t in spec["times"]]
     except (TypeError, ValueError):
         raise RingtuneError("amplitudes and times must be lists of numbers", where) from None
-    if len(amps) != len(times):
-        raise RingtuneError(f"{len(amps)} amplitudes but {len(times)} times", where)
-    if not 2 <= len(amps) <= 5:
-        raise RingtuneError(f"RepRapFirmware takes 2 to 5 impulses (at most 4 H values), not {len(amps)}",
-                            where)
-    if any(not math.isfinite(a) or a <= 0 for a in amps):
-        raise RingtuneError("amplitudes must be positive", where + ".amplitudes")
-    if not math.isclose(sum(amps), 1.0, abs_tol=1e-6):
-        raise RingtuneError(f"amplitudes must sum to 1, not {sum(amps):g}", where + ".amplitudes")
-    if times[0] != 0 or any(b <= a for a, b in zip(times, times[1:])):
-        raise RingtuneError("times must start at 0 and strictly increase", where + ".times")
-    if times[-1] > 0.5:
-        raise RingtuneError(f"last impulse at {times[-1]:g} s: times are in seconds", where + ".times")
-    return amps, times
+
+
+#: what RepRapFirmware's custom impulses must satisfy: (refused when, message, where suffix), in order
+_IMPULSE_RULES = (
+    (lambda a, t: len(a) != len(t), lambda a, t: f"{len(a)} amplitudes but {len(t)} times", ""),
+    (lambda a, t: not 2 <= len(a) <= 5,
+     lambda a, t: f"RepRapFirmware takes 2 to 5 impulses (at most 4 H values), not {len(a)}", ""),
+    (lambda a, t: any(not math.isfinite(x) or x <= 0 for x in a), lambda a, t: "amplitudes must be positive",
+     ".amplitudes"),
+    (lambda a, t: not math.isclose(sum(a), 1.0, abs_tol=1e-6), lambda a, t: f"amplitudes must sum to 1, not {sum(a):g}",
+     ".amplitudes"),
+    (lambda a, t: t[0] != 0 or any(y <= x for x, y in zip(t, t[1:])),
+     lambda a, t: "times must start at 0 and strictly increase", ".times"),
+    (lambda a, t: t[-1] > 0.5, lambda a, t: f"last impulse at {t[-1]:g} s: times are in seconds", ".times"),
+)
+
+
+def _check_impulses(amps: list[float], times: list[float], where: str) -> None:
+    """Refuse impulses that break one of :data:`_IMPULSE_RULES` (the first that applies)."""
+    for broken, message, suffix in _IMPULSE_RULES:
+        if broken(amps, times):
+            raise RingtuneError(message(amps, times), where + suffix)
 
 
 def _rrf_custom(config: TuneConfig, dialect: str) -> str:

@@ -100,37 +100,44 @@ class _Reader:
             indent = len(line) - len(line.lstrip())
             if self.opt is not None and indent > self.indent:
                 old = self.cfg.sections[self.cur][self.opt]
-                more = _strip_inline_semicolon(stripped)
-                self.cfg.sections[self.cur][self.opt] = (old + "\n" + more).strip()
+                self.cfg.sections[self.cur][self.opt] = (old + "\n" + _strip_inline_semicolon(stripped)).strip()
                 continue
             self.opt = None
-            where = f"{name}:{n}"
             m = _SECTION.match(stripped)
             if m:
-                header = m.group("header").strip()
-                if header.startswith("include ") and not saved:
-                    self.include(header[8:].strip(), name, where)
-                    self.cur = None
-                    continue
-                self.cur = header
-                self.cfg.sections.setdefault(header, {})
-                continue
-            if self.cur is None:
-                raise RingtuneError(f"an option before any [section]: {stripped!r}", where)
-            m = _OPTION.match(stripped)
-            if not m or not m.group("option"):
-                raise RingtuneError(f"not an 'option: value' line: {stripped!r}", where)
-            option = m.group("option").strip().lower()
-            value = _strip_inline_semicolon(m.group("value")).strip()
-            if saved and option in self.cfg.sections.get(self.cur, {}) \
-                    and not self.cfg.origin[(self.cur, option)].endswith("(saved)"):
-                self.cfg.ignored_saved.append((self.cur, option,
-                    f"{where}: SAVE_CONFIG value [{self.cur}] {option} = {value} is ignored: "
-                    f"{self.cfg.origin[(self.cur, option)]} sets {self.cfg.sections[self.cur][option]!r}, "
-                    "and Klipper lets the value above the SAVE_CONFIG block win"))
-                continue
-            self.set(self.cur, option, value, where + (" (saved)" if saved else ""))
-            self.opt, self.indent = option, indent
+                self._section(m.group("header").strip(), name, f"{name}:{n}", saved)
+            else:
+                self._option(stripped, indent, f"{name}:{n}", saved)
+
+    def _section(self, header: str, name: str, where: str, saved: bool) -> None:
+        """A ``[section]`` line: an include is followed (not in the SAVE_CONFIG block), else the
+        options that follow belong to ``header``."""
+        if header.startswith("include ") and not saved:
+            self.include(header[8:].strip(), name, where)
+            self.cur = None
+            return
+        self.cur = header
+        self.cfg.sections.setdefault(header, {})
+
+    def _option(self, stripped: str, indent: int, where: str, saved: bool) -> None:
+        """An ``option: value`` line of the current section; a SAVE_CONFIG value that a line above
+        the block already sets is ignored (Klipper lets that one win), and said."""
+        if self.cur is None:
+            raise RingtuneError(f"an option before any [section]: {stripped!r}", where)
+        m = _OPTION.match(stripped)
+        if not m or not m.group("option"):
+            raise RingtuneError(f"not an 'option: value' line: {stripped!r}", where)
+        option = m.group("option").strip().lower()
+        value = _strip_inline_semicolon(m.group("value")).strip()
+        if saved and option in self.cfg.sections.get(self.cur, {}) \
+                and not self.cfg.origin[(self.cur, option)].endswith("(saved)"):
+            self.cfg.ignored_saved.append((self.cur, option,
+                f"{where}: SAVE_CONFIG value [{self.cur}] {option} = {value} is ignored: "
+                f"{self.cfg.origin[(self.cur, option)]} sets {self.cfg.sections[self.cur][option]!r}, "
+                "and Klipper lets the value above the SAVE_CONFIG block win"))
+            return
+        self.set(self.cur, option, value, where + (" (saved)" if saved else ""))
+        self.opt, self.indent = option, indent
 
     def include(self, spec: str, including: str, where: str) -> None:
         pattern = os.path.join(os.path.dirname(including), spec)
@@ -154,7 +161,7 @@ class _Reader:
             raise RingtuneError("includes itself (recursive [include])", path)
         self.visiting.add(real)
         try:
-            text = Path(path).read_text(errors="replace").replace("\r\n", "\n")
+            text = Path(path).read_text(encoding="utf-8-sig", errors="replace").replace("\r\n", "\n")
         except OSError as exc:
             raise RingtuneError(f"cannot read: {exc.strerror}", path) from None
         first = next((ln.strip() for ln in (_strip_comment(x) for x in text.split("\n"))

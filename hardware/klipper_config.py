@@ -219,24 +219,7 @@ def _stepper_motor(src: _Source, stepper: str) -> dict:
         micro = src.number(tmc, "microsteps", integer=True)      # old configurations kept it there
     full = src.number(stepper, "full_steps_per_rotation", KLIPPER_DEFAULTS["full_steps_per_rotation"],
                       integer=True)
-    rd = src.number(stepper, "rotation_distance")
-    if rd is None and src.get(stepper, "step_distance") is not None:
-        sd = src.number(stepper, "step_distance")
-        if micro is None:
-            src.notes.append(f"{src.where(stepper, 'step_distance')}: old step_distance {sd:g} mm but no "
-                             "microsteps: rotation_distance unknown")
-        else:
-            rd = sd * full * micro
-            src.notes.append(f"{src.where(stepper, 'step_distance')}: old step_distance {sd:g} mm -> "
-                             f"rotation_distance = {sd:g} × {full} × {micro} = {rd:g} mm")
-    elif rd is None:
-        src.notes.append(f"[{stepper}] has no rotation_distance")
-    gearing = _gearing(src, stepper)
-    if rd is not None and gearing != 1.0:
-        src.notes.append(f"{src.where(stepper, 'gear_ratio')}: gear_ratio {gearing:g}: the motor turns "
-                         f"{gearing:g}× per rotation_distance, so {rd / gearing:g} mm of belt per motor "
-                         "revolution")
-        rd = rd / gearing
+    rd = _rotation_distance(src, stepper, micro, full)
     if rd is not None:
         table["rotation_distance"] = rd
     if micro is not None:
@@ -244,10 +227,44 @@ def _stepper_motor(src: _Source, stepper: str) -> dict:
     table["steps_per_revolution"] = int(full)
     if tmc is None:
         src.notes.append(f"no [tmc… {stepper}] section: {stepper}'s run current is unknown")
-    else:
-        rc = src.number(tmc, "run_current")
-        if rc is not None:
-            table["run_current"] = rc
+    elif (rc := src.number(tmc, "run_current")) is not None:
+        table["run_current"] = rc
+    return _named_motor(src, stepper, full, table)
+
+
+def _rotation_distance(src: _Source, stepper: str, micro: int | None, full: int) -> float | None:
+    """mm of belt per motor revolution: rotation_distance (or the old step_distance × full steps ×
+    microsteps) over the gear ratio; None (said in a note) when unknown."""
+    rd = _given_rotation_distance(src, stepper, micro, full)
+    gearing = _gearing(src, stepper)
+    if rd is None or gearing == 1.0:
+        return rd
+    src.notes.append(f"{src.where(stepper, 'gear_ratio')}: gear_ratio {gearing:g}: the motor turns "
+                     f"{gearing:g}× per rotation_distance, so {rd / gearing:g} mm of belt per motor "
+                     "revolution")
+    return rd / gearing
+
+
+def _given_rotation_distance(src: _Source, stepper: str, micro: int | None, full: int) -> float | None:
+    """The stepper's rotation_distance, or the old step_distance × full steps × microsteps."""
+    rd = src.number(stepper, "rotation_distance")
+    if rd is None and src.get(stepper, "step_distance") is not None:
+        sd = src.number(stepper, "step_distance")
+        if micro is None:
+            src.notes.append(f"{src.where(stepper, 'step_distance')}: old step_distance {sd:g} mm but no "
+                             "microsteps: rotation_distance unknown")
+            return None
+        rd = sd * full * micro
+        src.notes.append(f"{src.where(stepper, 'step_distance')}: old step_distance {sd:g} mm -> "
+                         f"rotation_distance = {sd:g} × {full} × {micro} = {rd:g} mm")
+    elif rd is None:
+        src.notes.append(f"[{stepper}] has no rotation_distance")
+    return rd
+
+
+def _named_motor(src: _Source, stepper: str, full: int, table: dict) -> dict:
+    """``table`` with the motor [autotune_tmc] names: its name, the supply voltage and the constants
+    of a motor defined in the configuration (unnamed: what is assumed, said)."""
     auto = f"autotune_tmc {stepper}"
     motor = src.get(auto, "motor")
     if motor is None:
@@ -263,18 +280,23 @@ def _stepper_motor(src: _Source, stepper: str) -> dict:
         src.notes.append(f"[autotune_tmc {stepper}] gives no voltage: the supply voltage is unknown")
     inline = _motor_constants(src, motor)
     if inline is not None:
-        for key, out in _MOTOR_CONSTANTS:
-            v = src.number(inline, key)
-            if v is None:
-                raise RingtuneError(f"[{inline}] has no {key}", src.label)
-            table[out] = v
-        steps = src.number(inline, "steps_per_revolution", integer=True)
-        src.notes.append(f"{stepper}: motor {motor}: constants from [{inline}] at "
-                         f"{src.where(inline, 'resistance')}")
-        if steps is not None and steps != full:
-            src.notes.append(f"{stepper}: [{inline}] steps_per_revolution {steps} but full_steps_per_rotation "
-                             f"{full}; {full} is written (it is how Klipper steps the motor)")
+        _inline_constants(src, stepper, motor, inline, full, table)
     return table
+
+
+def _inline_constants(src: _Source, stepper: str, motor: str, inline: str, full: int, table: dict) -> None:
+    """The constants of a motor defined in the configuration (section ``inline``) into ``table``."""
+    for key, out in _MOTOR_CONSTANTS:
+        v = src.number(inline, key)
+        if v is None:
+            raise RingtuneError(f"[{inline}] has no {key}", src.label)
+        table[out] = v
+    steps = src.number(inline, "steps_per_revolution", integer=True)
+    src.notes.append(f"{stepper}: motor {motor}: constants from [{inline}] at "
+                     f"{src.where(inline, 'resistance')}")
+    if steps is not None and steps != full:
+        src.notes.append(f"{stepper}: [{inline}] steps_per_revolution {steps} but full_steps_per_rotation "
+                         f"{full}; {full} is written (it is how Klipper steps the motor)")
 
 
 def _accel_cap(src: _Source, ax: str, accel: float, limited: str | None) -> float:

@@ -30,6 +30,7 @@ Ports are anything ``serial.serial_for_url`` opens: ``/dev/ttyUSB0``, ``/tmp/pri
 
 from __future__ import annotations
 
+import math
 import re
 import time
 from dataclasses import dataclass, field
@@ -140,6 +141,21 @@ class Reply:
     @property
     def text(self) -> str:
         return "\n".join(self.lines)
+
+
+@dataclass
+class _Waiting:
+    """One command waiting for its ``ok``: its reply, line number (None: Klipper) and clocks
+    (``time.monotonic()`` s): last sign of life, last send, and a resend's lines and replay time."""
+
+    reply: Reply
+    n: int | None
+    last_life: float
+    last_send: float
+    pending: list[int] = field(default_factory=list)
+    resend_deadline: float | None = None
+    last_resend: int | None = None
+    same_resend: int = 0
 
 
 class GcodeLink:
@@ -256,104 +272,114 @@ class GcodeLink:
         return line
 
     def _await_ok(self, command: str, n: int | None, handshake: bool = False) -> Reply:
-        reply = Reply(command)
+        """Read until the ``ok`` of ``command`` (line ``n``; None: Klipper's unnumbered lines)."""
         start = time.monotonic()
-        last_life = start
-        last_send = start
-        same_resend = 0
-        last_resend = None
-        pending: list[int] = []       # line numbers to replay once the resend's ok has come / timed out
-        resend_deadline = None
+        w = _Waiting(Reply(command), n, start, start)
         while True:
-            now = time.monotonic()
-            if pending and resend_deadline is not None and now >= resend_deadline:
-                self._replay(pending)
-                pending, resend_deadline = [], None
-                last_send = now
-            wait_until = min(last_life + self.timeout,
-                             resend_deadline if resend_deadline else float("inf"),
-                             last_send + self.retry_after if self.mode == "rrf" and n is not None
-                             else float("inf"))
-            line = self._readline(wait_until)
+            self._replay_due(w, time.monotonic())
+            line = self._readline(self._wait_until(w))
             now = time.monotonic()
             if line is None:
-                if pending:
-                    continue  # resend_deadline passed: replay at the top of the loop
-                if now >= last_life + self.timeout:
-                    raise LinkTimeout(f"no answer to {command!r} within {self.timeout:g} s", command,
-                                      redact(self.port))
-                if self.mode == "rrf" and n is not None and now >= last_send + self.retry_after:
-                    # RRF drops a corrupted line without a word: send it again, same number
-                    self.log(f"no answer to N{n} after {self.retry_after:g} s; sending it again")
-                    self._write(self.history[n] + b"\n")
-                    reply.sends += 1
-                    last_send = now
-                continue
-            raw_line, line = line, _LEADING_NOISE.sub("", line)
-            if not line:
-                continue
-            low = line.lower()
-            if low == "start":
-                self.resets += 1
-                self.log("printer reset (it said 'start'); handshaking again")
-                if not handshake and self.mode != "klipper":
-                    self.handshake()
-                raise PrinterReset(f"the printer reset (said 'start') while {command!r} was waiting; "
-                                   "its runtime settings are gone", redact(self.port))
-            m = _RESEND.match(line)
-            if m and n is not None:
-                want = int(m.group(1))
-                last_life = now
-                if want > n:
-                    self.log(f"ignoring resend request for N{want}, not sent yet")
-                    continue
-                same_resend = same_resend + 1 if want == last_resend else 1
-                last_resend = want
-                if same_resend > self.max_resends:
-                    raise LinkError(f"the printer asked for line N{want} {same_resend} times in a row",
-                                    redact(self.port))
-                missing = [k for k in range(want, n + 1) if k not in self.history]
-                if missing:
-                    raise LinkError(f"the printer asked for N{want}, which is older than this session",
-                                    redact(self.port))
-                pending = list(range(want, n + 1))
-                resend_deadline = now + self.resend_ok_wait
-                reply.sends += 1
-                continue
-            if low.startswith("ok"):
-                last_life = now
-                if pending:       # the ok that goes with a Resend request: now replay
-                    self._replay(pending)
-                    pending, resend_deadline = [], None
-                    last_send = now
-                    continue
-                rest = line[2:].strip()
-                if rest and not re.match(r"^N\d+\b", rest) and not _TEMP.match(line):
-                    reply.lines.append(rest)
-                elif rest and _TEMP.match(line):
-                    reply.lines.append(rest)
-                return reply
-            if _BUSY.match(line):
-                last_life = now
-                continue
-            if _TEMP.match(line) or low == "wait":
-                continue
-            if low.startswith("error") or line.startswith("!!"):
-                text = re.sub(r"^(?:error:?|!!)\s*", "", line, flags=re.IGNORECASE)
-                if self.mode != "klipper" and _PROTOCOL_ERROR.search(text):
-                    continue  # a Resend follows; handled there
+                self._on_silence(w, now)
+            elif self._on_line(w, line, now, handshake):
+                return w.reply
+
+    def _wait_until(self, w: "_Waiting") -> float:
+        """When to stop reading: the answer timeout, a resend's replay, RRF's silent-drop retry."""
+        retry = w.last_send + self.retry_after if self.mode == "rrf" and w.n is not None else math.inf
+        return min(w.last_life + self.timeout, w.resend_deadline or math.inf, retry)
+
+    def _replay_due(self, w: "_Waiting", now: float) -> None:
+        """Replay the lines a resend asked for once its ``ok`` has come or its wait is over."""
+        if w.pending and now >= w.resend_deadline:
+            self._replay(w.pending)
+            w.pending, w.resend_deadline, w.last_send = [], None, now
+
+    def _on_silence(self, w: "_Waiting", now: float) -> None:
+        """Nothing read before :meth:`_wait_until`: a replay is due, a timeout, or RRF's retry."""
+        if w.pending:
+            return                      # the resend's wait passed: replayed at the top of the loop
+        if now >= w.last_life + self.timeout:
+            raise LinkTimeout(f"no answer to {w.reply.command!r} within {self.timeout:g} s", w.reply.command,
+                              redact(self.port))
+        if self.mode == "rrf" and w.n is not None and now >= w.last_send + self.retry_after:
+            # RRF drops a corrupted line without a word: send it again, same number
+            self.log(f"no answer to N{w.n} after {self.retry_after:g} s; sending it again")
+            self._write(self.history[w.n] + b"\n")
+            w.reply.sends += 1
+            w.last_send = now
+
+    def _on_line(self, w: "_Waiting", raw_line: str, now: float, handshake: bool) -> bool:
+        """Take one line read while waiting; True when it is the awaited ``ok``."""
+        line = _LEADING_NOISE.sub("", raw_line)
+        low = line.lower()
+        resend = _RESEND.match(line) if w.n is not None else None
+        if low == "start":
+            self._on_reset(w.reply.command, handshake)
+        if resend:
+            self._on_resend(w, int(resend.group(1)), now)
+        elif low.startswith("ok"):
+            return self._on_ok(w, line, now)
+        elif _BUSY.match(line):
+            w.last_life = now
+        elif line:
+            self._on_text(w.reply, line, raw_line)
+        return False
+
+    def _on_reset(self, command: str, handshake: bool) -> None:
+        """The printer said ``start``: handshake again (unless handshaking) and raise :class:`PrinterReset`."""
+        self.resets += 1
+        self.log("printer reset (it said 'start'); handshaking again")
+        if not handshake and self.mode != "klipper":
+            self.handshake()
+        raise PrinterReset(f"the printer reset (said 'start') while {command!r} was waiting; "
+                           "its runtime settings are gone", redact(self.port))
+
+    def _on_resend(self, w: "_Waiting", want: int, now: float) -> None:
+        """``Resend: want``: replay ``want``…``n`` after the ``ok`` that may follow (or a short wait)."""
+        w.last_life = now
+        if want > w.n:
+            self.log(f"ignoring resend request for N{want}, not sent yet")
+            return
+        w.same_resend = w.same_resend + 1 if want == w.last_resend else 1
+        w.last_resend = want
+        if w.same_resend > self.max_resends:
+            raise LinkError(f"the printer asked for line N{want} {w.same_resend} times in a row", redact(self.port))
+        if any(k not in self.history for k in range(want, w.n + 1)):
+            raise LinkError(f"the printer asked for N{want}, which is older than this session", redact(self.port))
+        w.pending = list(range(want, w.n + 1))
+        w.resend_deadline = now + self.resend_ok_wait
+        w.reply.sends += 1
+
+    def _on_ok(self, w: "_Waiting", line: str, now: float) -> bool:
+        """An ``ok``: the one after a resend request starts the replay; else the reply is complete
+        (text after ``ok`` kept unless it is only the echoed line number)."""
+        w.last_life = now
+        if w.pending:               # the ok that goes with a Resend request: replay now
+            w.resend_deadline = now
+            return False
+        rest = line[2:].strip()
+        if rest and (_TEMP.match(line) or not re.match(r"^N\d+\b", rest)):
+            w.reply.lines.append(rest)
+        return True
+
+    def _on_text(self, reply: Reply, line: str, raw_line: str) -> None:
+        """Any other line: temperatures and ``wait`` dropped; errors, refusals and text kept."""
+        low = line.lower()
+        if _TEMP.match(line) or low == "wait":
+            return
+        if low.startswith("error") or line.startswith("!!"):
+            text = re.sub(r"^(?:error:?|!!)\s*", "", line, flags=re.IGNORECASE)
+            if self.mode == "klipper" or not _PROTOCOL_ERROR.search(text):   # else a Resend follows
                 reply.errors.append(text)
-                continue
-            if self.mode == "klipper":
-                info, errors = klipper_reply_lines([line])
-                reply.lines += info
-                reply.errors += errors
-                continue
-            refusal = marlin_refusal(line) if self.mode == "marlin" else None
-            if refusal:
-                reply.errors.append(refusal)
-            elif _looks_like_text(raw_line):
-                reply.lines.append(line)
+        elif self.mode == "klipper":
+            info, errors = klipper_reply_lines([line])
+            reply.lines += info
+            reply.errors += errors
+        elif self.mode == "marlin" and (refusal := marlin_refusal(line)):
+            reply.errors.append(refusal)
+        elif _looks_like_text(raw_line):
+            reply.lines.append(line)
 
     def _replay(self, numbers: list[int]) -> None:
         """Resend exactly the lines asked for; all but the last wait for their own ok first."""

@@ -45,102 +45,134 @@ def _lines(text: str):
             yield n, words
 
 
+#: lines whose words add up over several lines (an axis per line in some reports)
+_MERGED = ("M906", "M203", "M201", "M92")
+
+
+def _skipped(cmd: str, words: dict, where: str) -> str | None:
+    """The note for a line that is not read (a second stepper's current, FT_MOTION's M493), else None."""
+    if cmd == "M906" and words.get("I", "0") not in ("", "0"):
+        return f"{where}: M906 I{words['I']} (a second stepper of an axis) is not read"
+    if cmd == "M493":
+        return f"{where}: M493 (fixed-time motion) is not read; [current] is the classic M593 ZV shaper"
+    return None
+
+
+class _Report:
+    """The lines of an M503 report that are read: ``seen[code] = (line number, words)``, M593 per
+    axis as ``"M593 X"``; ``notes`` collects the lines skipped."""
+
+    def __init__(self, text: str, path: str, notes: list[str]):
+        self.path, self.seen = path, {}
+        for n, (cmd, words) in _lines(text):
+            note = _skipped(cmd, words, f"{path}:{n}")
+            if note:
+                notes.append(note)
+            elif cmd == "M593":
+                for a in [a for a in "XY" if a in words] or ["X", "Y"]:    # no axis letter: every shaped axis
+                    self.seen[f"M593 {a}"] = (n, words)
+            elif cmd in _READ:
+                prev = self.seen.get(cmd, (n, {}))[1] if cmd in _MERGED else {}
+                self.seen[cmd] = (n, {**prev, **words})
+        if not any(k in self.seen for k in _READ):
+            raise RingtuneError("no M92/M201/M203/M204/M205/M906/M593 line: not an M503 report", path)
+
+    def num(self, cmd: str, letter: str) -> float | None:
+        """The number of ``cmd``'s word ``letter``, None when not reported."""
+        if self.seen.get(cmd, (0, {}))[1].get(letter) in (None, ""):
+            return None
+        n, words = self.seen[cmd]
+        return to_number(words[letter].split(":")[0], f"{self.path}:{n}: {cmd} {letter}")
+
+    def per_axis(self, cmd: str) -> list[float] | None:
+        """``cmd``'s X Y Z E numbers (0 where missing), None when it gives none."""
+        vals = [self.num(cmd, a) for a in "XYZE"]
+        return None if all(v is None for v in vals) else [v or 0.0 for v in vals]
+
+
+def _kinematics(kinematics: str | None, notes: list[str]) -> dict:
+    """The description's kinematics as the caller gives it (M503 does not say)."""
+    if kinematics is None:
+        notes.append("M503 does not report the kinematics: not written, so the description loads as cartesian "
+                     "(a CoreXY or CoreXZ machine: give --kinematics, or add kinematics = \"corexy\")")
+        return {}
+    if kinematics not in KINEMATICS:
+        raise RingtuneError(f"must be one of {', '.join(KINEMATICS)}, not {kinematics!r}", "kinematics")
+    return {"kinematics": kinematics}
+
+
+def _accels(report: _Report, notes: list[str]) -> dict:
+    """``limits`` from M204: print (P, old S), travel (T) and retract (R) accelerations."""
+    limits = {}
+    accel = report.num("M204", "P") or report.num("M204", "S")
+    if accel is None:
+        notes.append("no M204 P (print acceleration): limits.accel unknown")
+    else:
+        limits["accel"] = accel
+    if report.num("M204", "T"):
+        limits["travel_accel"] = report.num("M204", "T")
+    if report.num("M204", "R"):
+        limits["retract_accel"] = report.num("M204", "R")
+    else:
+        notes.append("no M204 R (retract acceleration): retractions are planned at the print acceleration")
+    return limits
+
+
+def _caps_and_junction(report: _Report, notes: list[str]) -> dict:
+    """``limits`` from M203 (per-axis speeds, their X/Y maximum), M201 (per-axis accelerations) and
+    M205 (junction deviation J, else classic jerk)."""
+    limits: dict = {}
+    vmax = report.per_axis("M203")
+    if vmax is not None:
+        limits.update(max_velocity=vmax, velocity=max(vmax[0], vmax[1]))
+        notes.append(f"limits.velocity = {limits['velocity']:g} mm/s, the larger of M203 X and Y (Marlin has "
+                     "no overall speed limit; the G-code's F decides)")
+    if report.per_axis("M201") is not None:
+        limits["max_accel"] = report.per_axis("M201")
+    if report.num("M205", "J") is not None:
+        limits.update(junction="jd", junction_deviation=report.num("M205", "J"))
+    elif report.per_axis("M205") is not None:
+        limits.update(junction="jerk", jerk=report.per_axis("M205"))
+    else:
+        notes.append("no M205 J or X/Y jerk: the junction rule is unknown")
+    return limits
+
+
+def _current_shaper(report: _Report, ax: str, notes: list[str]) -> dict:
+    """``[current]``'s keys for axis ``ax`` from its M593 (F 0 or none: no shaping)."""
+    a = ax.lower()
+    if f"M593 {ax}" not in report.seen:
+        notes.append(f"no M593 for {ax}: no input shaping on {ax} (or the firmware has none)")
+        return {f"shaper_{a}": "none"}
+    n, words = report.seen[f"M593 {ax}"]
+    f = to_number(words["F"], f"{report.path}:{n}: M593 F") if words.get("F") else None
+    d = to_number(words["D"], f"{report.path}:{n}: M593 D") if words.get("D") else None
+    if not f:
+        return {f"shaper_{a}": "none"}
+    if d is None:
+        notes.append(f"{report.path}:{n}: M593 gives no D: the damping ratio on {ax} is unknown")
+        return {f"shaper_{a}": "zv", f"freq_{a}": f}
+    return {f"shaper_{a}": "zv", f"freq_{a}": f, f"damping_{a}": d}
+
+
 def printer_facts_from_marlin(path: str | Path, kinematics: str | None = None) -> FirmwareFacts:
     """Facts from a saved ``M503`` answer (see the module docstring)."""
     path = str(path)
     text = read_text_file(path, "M503 report")
     refuse_other_dialect(text, path, "marlin")
-    seen: dict[str, tuple[int, dict]] = {}
     notes: list[str] = []
-    for n, (cmd, words) in _lines(text):
-        if cmd == "M906" and words.get("I", "0") not in ("", "0"):
-            notes.append(f"{path}:{n}: M906 I{words['I']} (a second stepper of an axis) is not read")
-            continue
-        if cmd == "M593":
-            axes = [a for a in "XY" if a in words] or ["X", "Y"]     # no axis letter: every shaped axis
-            for a in axes:
-                seen[f"M593 {a}"] = (n, words)
-            continue
-        if cmd == "M493":
-            notes.append(f"{path}:{n}: M493 (fixed-time motion) is not read; [current] is the classic "
-                         "M593 ZV shaper")
-            continue
-        if cmd in _READ:
-            prev = seen.get(cmd, (n, {}))[1] if cmd in ("M906", "M203", "M201", "M92") else {}
-            seen[cmd] = (n, {**prev, **words})
-    if not any(k in seen for k in _READ):
-        raise RingtuneError("no M92/M201/M203/M204/M205/M906/M593 line: not an M503 report", path)
-
-    def num(cmd: str, letter: str) -> float | None:
-        if cmd not in seen or seen[cmd][1].get(letter) in (None, ""):
-            return None
-        n, words = seen[cmd]
-        return to_number(words[letter].split(":")[0], f"{path}:{n}: {cmd} {letter}")
-
-    def per_axis(cmd: str) -> list[float] | None:
-        vals = [num(cmd, a) for a in "XYZE"]
-        return None if all(v is None for v in vals) else [v or 0.0 for v in vals]
-
-    description: dict = {}
-    if kinematics is not None:
-        if kinematics not in KINEMATICS:
-            raise RingtuneError(f"must be one of {', '.join(KINEMATICS)}, not {kinematics!r}", "kinematics")
-        description["kinematics"] = kinematics
-    else:
-        notes.append("M503 does not report the kinematics: not written, so the description loads as cartesian "
-                     "(a CoreXY or CoreXZ machine: give --kinematics, or add kinematics = \"corexy\")")
-    limits: dict = {}
-    accel = num("M204", "P") or num("M204", "S")
-    if accel is None:
-        notes.append("no M204 P (print acceleration): limits.accel unknown")
-    else:
-        limits["accel"] = accel
-    if num("M204", "T"):
-        limits["travel_accel"] = num("M204", "T")
-    if num("M204", "R"):
-        limits["retract_accel"] = num("M204", "R")
-    else:
-        notes.append("no M204 R (retract acceleration): retractions are planned at the print acceleration")
-    vmax = per_axis("M203")
-    if vmax is not None:
-        limits["max_velocity"] = vmax
-        limits["velocity"] = max(vmax[0], vmax[1])
-        notes.append(f"limits.velocity = {limits['velocity']:g} mm/s, the larger of M203 X and Y (Marlin has "
-                     "no overall speed limit; the G-code's F decides)")
-    amax = per_axis("M201")
-    if amax is not None:
-        limits["max_accel"] = amax
-    if num("M205", "J") is not None:
-        limits.update(junction="jd", junction_deviation=num("M205", "J"))
-    elif per_axis("M205") is not None:
-        limits.update(junction="jerk", jerk=per_axis("M205"))
-    else:
-        notes.append("no M205 J or X/Y jerk: the junction rule is unknown")
-    description["limits"] = limits
-    place_gcode_motors(description, num, 1e-3)          # Marlin's M906: mA RMS
-    if "M906" not in seen:
+    report = _Report(text, path, notes)
+    description: dict = _kinematics(kinematics, notes)
+    description["limits"] = {**_accels(report, notes), **_caps_and_junction(report, notes)}
+    place_gcode_motors(description, report.num, 1e-3)          # Marlin's M906: mA RMS
+    if "M906" not in report.seen:
         notes.append("no M906 (TMC driver current): the run current is unknown")
     notes.append("M503 names no motor and gives steps/mm only: rotation_distance, microsteps and the "
                  "motor's constants are unknown")
     current: dict = {"source": path, "firmware": "marlin"}
     for ax in "XY":
-        key = f"M593 {ax}"
-        if key not in seen:
-            current[f"shaper_{ax.lower()}"] = "none"
-            notes.append(f"no M593 for {ax}: no input shaping on {ax} (or the firmware has none)")
-            continue
-        n, words = seen[key]
-        f = to_number(words["F"], f"{path}:{n}: M593 F") if words.get("F") else None
-        d = to_number(words["D"], f"{path}:{n}: M593 D") if words.get("D") else None
-        if not f:
-            current[f"shaper_{ax.lower()}"] = "none"
-            continue
-        current.update({f"shaper_{ax.lower()}": "zv", f"freq_{ax.lower()}": f})
-        if d is not None:
-            current[f"damping_{ax.lower()}"] = d
-        else:
-            notes.append(f"{path}:{n}: M593 gives no D: the damping ratio on {ax} is unknown")
-    if accel is not None:
-        current["accel"] = accel
+        current.update(_current_shaper(report, ax, notes))
+    if "accel" in description["limits"]:
+        current["accel"] = description["limits"]["accel"]
     description["current"] = current
     return FirmwareFacts(description, notes, path)

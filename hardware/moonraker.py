@@ -53,8 +53,8 @@ class Moonraker:
         result = self._request("GET", f"/server/files/list?root={quote(root)}").get("result")
         return [f for f in result if isinstance(f, dict) and "path" in f] if isinstance(result, list) else []
 
-    def _open(self, method: str, path: str, body: dict | None) -> bytes:
-        """The answer's bytes (errors as :class:`LinkError`, Moonraker's own message kept)."""
+    def _http_request(self, method: str, path: str, body: dict | None) -> urllib.request.Request:
+        """The HTTP request: JSON body, API key or basic-auth header, the URL's own query kept."""
         url = self.base + path
         if self.query:
             url += ("&" if "?" in url else "?") + self.query
@@ -68,27 +68,24 @@ class Moonraker:
         if self.user is not None:
             token = base64.b64encode(f"{self.user}:{self.password or ''}".encode()).decode()
             req.add_header("Authorization", f"Basic {token}")
-        self.log(f"{method} {redact(url)}")     # credentials are not in self.base; tokens redacted
+        return req
+
+    def _open(self, method: str, path: str, body: dict | None) -> bytes:
+        """The answer's bytes (errors as :class:`LinkError`, Moonraker's own message kept)."""
+        req = self._http_request(method, path, body)
+        self.log(f"{method} {redact(req.full_url)}")     # credentials are not in self.base; tokens redacted
         try:
             with urllib.request.urlopen(req, timeout=self.timeout) as resp:
-                payload = resp.read()
+                return resp.read()
         except urllib.error.HTTPError as exc:
-            try:
-                err = json.loads(exc.read() or b"{}").get("error", {})
-                msg = err.get("message") if isinstance(err, dict) else str(err)
-            except (json.JSONDecodeError, AttributeError):
-                msg = None
+            msg = _error_message(exc)
             err = LinkError(f"HTTP {exc.code} from {path}: {msg or exc.reason}", self.shown)
             err.message = msg      # Klipper's own words (e.g. "Unsupported shaper type: ei2")
             raise err from None
-        except TimeoutError:
-            raise LinkTimeout(f"no answer from {path} within {self.timeout:g} s", path, self.shown) from None
-        except urllib.error.URLError as exc:
-            if isinstance(exc.reason, TimeoutError):
-                raise LinkTimeout(f"no answer from {path} within {self.timeout:g} s", path,
-                                  self.shown) from None
+        except (TimeoutError, urllib.error.URLError) as exc:
+            if isinstance(exc, TimeoutError) or isinstance(exc.reason, TimeoutError):
+                raise LinkTimeout(f"no answer from {path} within {self.timeout:g} s", path, self.shown) from None
             raise LinkError(f"cannot reach Moonraker: {exc.reason}", self.shown) from None
-        return payload
 
     def script(self, lines: str | list[str]) -> None:
         """Run G-code lines; returns when all have completed (LinkError if one fails)."""
@@ -133,3 +130,12 @@ class Moonraker:
         if not isinstance(status, dict):
             raise LinkError(f"unexpected answer to objects/query {str(result)[:80]!r}", self.shown)
         return status
+
+
+def _error_message(exc: urllib.error.HTTPError) -> str | None:
+    """Moonraker's own message in an HTTP error's JSON body (``{"error": {"message": …}}``), if any."""
+    try:
+        err = json.loads(exc.read() or b"{}").get("error", {})
+    except (json.JSONDecodeError, AttributeError):
+        return None
+    return err.get("message") if isinstance(err, dict) else str(err)

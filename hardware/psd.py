@@ -124,12 +124,9 @@ def welch_psd(x: np.ndarray, fs: float, nfft: int) -> tuple[np.ndarray, np.ndarr
     return np.fft.rfftfreq(nfft, 1.0 / fs), power.mean(axis=-1)
 
 
-def klipper_psd(raw: RawAccel) -> PSD:
-    """PSD of a raw capture computed exactly as Klipper's ``calc_freq_response``.
-
-    fs = N / (t_last − t_first); window M = ``klipper_window_size(fs)``; Klipper refuses captures of
-    N ≤ M samples, and so does this (RingtuneError). Axes not captured count as zero.
-    """
+def _capture_rate_and_window(raw: RawAccel) -> tuple[float, int]:
+    """(fs Hz, Klipper's window M) of a capture: fs = N / (t_last − t_first); refused as Klipper
+    refuses it when N ≤ M."""
     n = len(raw.t)
     span = float(raw.t[-1] - raw.t[0])
     if n < 2 or span <= 0:
@@ -140,19 +137,21 @@ def klipper_psd(raw: RawAccel) -> PSD:
         raise RingtuneError(f"{n} samples is not more than Klipper's {m}-sample analysis window "
                             f"(0.5 s at {fs:.0f} Hz); Klipper cannot compute a PSD from it",
                             raw.source or None)
-    out = {}
-    freqs = None
-    for ax in ("x", "y", "z"):
-        a = getattr(raw, f"a{ax}")
-        if a is None:
-            out[ax] = None
-            continue
-        freqs, out[ax] = welch_psd(a, fs, m)
-    present = [v for v in out.values() if v is not None]
-    if not present:
+    return fs, m
+
+
+def klipper_psd(raw: RawAccel) -> PSD:
+    """PSD of a raw capture computed exactly as Klipper's ``calc_freq_response``.
+
+    fs = N / (t_last − t_first); window M = ``klipper_window_size(fs)``; Klipper refuses captures of
+    N ≤ M samples, and so does this (RingtuneError). Axes not captured count as zero.
+    """
+    fs, m = _capture_rate_and_window(raw)
+    spectra = {ax: welch_psd(getattr(raw, f"a{ax}"), fs, m) for ax in "xyz" if getattr(raw, f"a{ax}") is not None}
+    if not spectra:
         raise RingtuneError("no axis captured", raw.source or None)
-    total = np.sum(present, axis=0)
+    freqs = spectra[list(spectra)[-1]][0]
+    total = np.sum([p for _, p in spectra.values()], axis=0)
     zero = np.zeros_like(total)
-    return PSD(freqs, out["x"] if out["x"] is not None else zero,
-               out["y"] if out["y"] is not None else zero,
-               out["z"] if out["z"] is not None else zero, total, raw.source, "", False)
+    x, y, z = (spectra[ax][1] if ax in spectra else zero for ax in "xyz")
+    return PSD(freqs, x, y, z, total, raw.source, "", False)

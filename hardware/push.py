@@ -118,24 +118,8 @@ def _failed(replies: dict[int, Reply]) -> bool:
 def _statuses(exp: Export, replies: dict[int, Reply], report: str | None, firmware: str) -> list[SettingStatus]:
     reported = parse_report(firmware, report) if report is not None else {}
     cmp = compare(exp.expected, reported)
-    out = []
-    for key, meant in exp.expected.items():
-        idx = exp.setting_lines.get(key, 0)
-        st = SettingStatus(key, meant, cmp[key]["reported"])
-        reply = replies.get(idx)
-        if reply is None:
-            st.detail = "line not sent" if report is None else "line never acknowledged"
-        elif reply.errors:
-            st.detail = "printer said: " + "; ".join(reply.errors)
-        elif report is None:
-            st.status, st.detail = NOT_APPLIED, "acknowledged but not read back"
-        elif cmp[key]["ok"]:
-            st.status = APPLIED
-        elif cmp[key]["reported"] is None:
-            st.detail = "missing from the printer's report"
-        else:
-            st.detail = "printer reports a different value"
-        out.append(st)
+    out = [_status(key, meant, cmp[key], replies.get(exp.setting_lines.get(key, 0)), report)
+           for key, meant in exp.expected.items()]
     _judge_axis_caps(out, exp, reported)
     if "limit" in exp.setting_lines:
         idx = exp.setting_lines["limit"]
@@ -147,6 +131,22 @@ def _statuses(exp: Export, replies: dict[int, Reply], report: str | None, firmwa
             st.detail = "printer said: " + "; ".join(reply.errors) if reply else "line not sent"
         out.append(st)
     return out
+
+
+def _status(key: str, meant, cmp: dict, reply: Reply | None, report: str | None) -> SettingStatus:
+    """One setting: applied when acknowledged and read back as meant; else why not."""
+    st = SettingStatus(key, meant, cmp["reported"])
+    if reply is None:
+        st.detail = "line not sent" if report is None else "line never acknowledged"
+    elif reply.errors:
+        st.detail = "printer said: " + "; ".join(reply.errors)
+    elif report is None:
+        st.status, st.detail = NOT_APPLIED, "acknowledged but not read back"
+    elif cmp["ok"]:
+        st.status = APPLIED
+    else:
+        st.detail = "missing from the printer's report" if cmp["reported"] is None else "printer reports a different value"
+    return st
 
 
 def _caps_below(reported: dict, accel: float) -> dict[str, float]:
@@ -215,22 +215,8 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
     if moonraker and FIRMWARES[firmware].family != "klipper":
         raise RingtuneError("Moonraker speaks only for Klipper; use --port for other firmware", "--moonraker")
     if dry_run:
-        result.wire = dry_run_wire(exp, save and bool(exp.save_lines), crc)
-        result.settings = [SettingStatus(k, v, status=DRY) for k, v in exp.expected.items()]
-        if "limit" in exp.setting_lines:
-            result.settings.append(SettingStatus("limit", exp.lines[exp.setting_lines["limit"]], status=DRY))
-        if save and exp.config_text:
-            result.notes.append(f"--save would write the {exp.config_target} lines to "
-                                f"{_save_target(exp, save_path)} (--save-file FILE for another)")
-        result.ok = True
-        return result
-    if not port and not moonraker:
-        raise RingtuneError("refusing to push without an explicit port: give --port /dev/ttyUSB0 "
-                            "(or socket://host:port, rfc2217://host:port) or --moonraker URL", "--port")
-    target = _save_target(exp, save_path) if save else None
-    if target is not None and not target.parent.is_dir():
-        # refuse before touching the printer: after the push a failed write would hide its report
-        raise RingtuneError("no such directory for the config file", f"--save-file {save_path}")
+        return _dry_run(exp, result, save, save_path, crc)
+    _check_destination(exp, port, moonraker, save, save_path)
     if moonraker:
         replies, report = _push_moonraker(exp, moonraker, api_key, timeout, log, result, check_limits)
     else:
@@ -243,6 +229,30 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
     if save:
         _save_file(exp, result, save_path)
     return result
+
+
+def _dry_run(exp: Export, result: PushResult, save: bool, save_path, crc: bool) -> PushResult:
+    """``result`` of a dry run: exactly the wire that would be sent, every setting "not sent"."""
+    result.wire = dry_run_wire(exp, save and bool(exp.save_lines), crc)
+    result.settings = [SettingStatus(k, v, status=DRY) for k, v in exp.expected.items()]
+    if "limit" in exp.setting_lines:
+        result.settings.append(SettingStatus("limit", exp.lines[exp.setting_lines["limit"]], status=DRY))
+    if save and exp.config_text:
+        result.notes.append(f"--save would write the {exp.config_target} lines to "
+                            f"{_save_target(exp, save_path)} (--save-file FILE for another)")
+    result.ok = True
+    return result
+
+
+def _check_destination(exp: Export, port, moonraker, save: bool, save_path) -> None:
+    """Refuse before touching the printer: no explicit port, or a --save file in no directory
+    (after the push a failed write would hide its report)."""
+    if not port and not moonraker:
+        raise RingtuneError("refusing to push without an explicit port: give --port /dev/ttyUSB0 "
+                            "(or socket://host:port, rfc2217://host:port) or --moonraker URL", "--port")
+    target = _save_target(exp, save_path) if save else None
+    if target is not None and not target.parent.is_dir():
+        raise RingtuneError("no such directory for the config file", f"--save-file {save_path}")
 
 
 def _explain(result: PushResult, exp: Export, replies: dict[int, Reply]) -> None:
@@ -286,6 +296,24 @@ def _configured(exp: Export, answers: list[Reply]) -> dict:
     return {k: float(reported[k].value) for k in keys if k in reported}
 
 
+def _send_all(exp: Export, link: GcodeLink, result: PushResult, replies: dict, save: bool,
+              protocol: str) -> tuple[dict[int, Reply], str]:
+    """One attempt: every line sent (``replies`` filled), the read-back asked; Klipper's state after
+    a refusal, and --save's EEPROM write where the firmware has one. (replies, report text)."""
+    replies.clear()
+    for i, cmd in enumerate(exp.lines):
+        replies[i] = link.send(cmd)
+    answers = [link.send(c) for c in exp.readback]
+    report = "\n".join(a.text for a in answers)
+    if protocol == "klipper" and (_failed(replies) or any(a.errors for a in answers)):
+        result.printer_state = _klipper_state(link)
+    if save and exp.save_lines:
+        result.settings = _statuses(exp, replies, report, exp.firmware)
+        result.ok = all(s.status in (APPLIED, ACKED) for s in result.settings)
+        _save_eeprom(exp, result, link)
+    return replies, report
+
+
 def _push_serial(exp, port, baud, crc, timeout, log, result, max_resets, link_options, save, check_limits=False):
     protocol = FIRMWARES[exp.firmware].protocol
     replies: dict[int, Reply] = {}
@@ -295,18 +323,7 @@ def _push_serial(exp, port, baud, crc, timeout, log, result, max_resets, link_op
         _check_before(exp, link.send, check_limits)
         for attempt in range(max_resets + 1):
             try:
-                replies.clear()
-                for i, cmd in enumerate(exp.lines):
-                    replies[i] = link.send(cmd)
-                answers = [link.send(c) for c in exp.readback]
-                report = "\n".join(a.text for a in answers)
-                if protocol == "klipper" and (_failed(replies) or any(a.errors for a in answers)):
-                    result.printer_state = _klipper_state(link)
-                if save and exp.save_lines:
-                    result.settings = _statuses(exp, replies, report, exp.firmware)
-                    result.ok = all(s.status in (APPLIED, ACKED) for s in result.settings)
-                    _save_eeprom(exp, result, link)
-                return replies, report
+                return _send_all(exp, link, result, replies, save, protocol)
             except PrinterReset:
                 result.resets += 1
                 result.notes.append("the printer reset during the push (it said 'start'); "

@@ -55,45 +55,59 @@ def _klipper_shapers(text: str) -> dict[str, Reported]:
 
 def parse_report(firmware: str, text: str) -> dict[str, Reported]:
     """Settings found in the firmware's reply text (keys as :attr:`Export.expected`)."""
-    out: dict[str, Reported] = {}
     dialect = FIRMWARES[firmware].family
-    out.update(_acceleration_fields(dialect, text))
-    if dialect == "klipper":
-        out.update(_klipper_shapers(text))
-    elif dialect == "rrf":
-        if re.search(r"Input shaping is disabled", text, re.I):
-            out["all.type"] = Reported("none")
-        m = re.search(rf"Input shaping '([^']+)' at {_NUM}\s*Hz damping factor {_NUM}", text, re.I)
-        if m:
-            out["all.type"] = Reported(m.group(1).lower())
-            out["all.freq"] = _num(m.group(2))
-            out["all.damping"] = _num(m.group(3))
-    elif dialect == "marlin":
-        for m in re.finditer(rf"M593\s+([XYZ])\s+F{_NUM}(?:\s+D{_NUM})?", text):
-            ax = m.group(1).lower()
-            out[f"{ax}.freq"] = _num(m.group(2))
-            if m.group(3) is not None and float(m.group(2)) != 0:
-                out[f"{ax}.damping"] = _num(m.group(3))
-    elif dialect == "marlin-ftm":
-        for m in re.finditer(r"M493[ \t]+([XYZE])((?:[ \t]+[A-Z]-?[0-9.]+)+)", text):
-            ax = m.group(1).lower()
-            fields = dict(re.findall(r"([A-Z])(-?[0-9.]+)", m.group(2)))
-            if "C" in fields:
-                out[f"{ax}.mode"] = Reported(int(float(fields["C"])), 0)
-            mode = int(float(fields.get("C", 0)))
-            if mode:
-                for key, letter in (("freq", "A"), ("damping", "I"), ("vtol", "Q")):
-                    if letter in fields:
-                        out[f"{ax}.{key}"] = _num(fields[letter])
-    elif dialect == "prusa":
-        for m in re.finditer(r"axis\s+([XYZ])\s+disabled", text, re.I):
-            out[f"{m.group(1).lower()}.type"] = Reported("none")
-        for m in re.finditer(rf"axis\s+([XYZ])\s+type=(\w+)\s+freq={_NUM}\s+damp={_NUM}", text, re.I):
-            ax = m.group(1).lower()
-            out[f"{ax}.type"] = Reported(m.group(2).lower().replace("ei_2hump", "2hump_ei")
-                                         .replace("ei_3hump", "3hump_ei"))
-            out[f"{ax}.freq"] = _num(m.group(3))
-            out[f"{ax}.damping"] = _num(m.group(4))
+    out = _acceleration_fields(dialect, text)
+    out.update(_SHAPER_READERS[dialect](text) if dialect in _SHAPER_READERS else {})
+    return out
+
+
+def _rrf_shapers(text: str) -> dict[str, Reported]:
+    """RepRapFirmware's M593 answer: one shaper for all axes, or disabled."""
+    out = {}
+    if re.search(r"Input shaping is disabled", text, re.I):
+        out["all.type"] = Reported("none")
+    m = re.search(rf"Input shaping '([^']+)' at {_NUM}\s*Hz damping factor {_NUM}", text, re.I)
+    if m:
+        out.update({"all.type": Reported(m.group(1).lower()), "all.freq": _num(m.group(2)),
+                    "all.damping": _num(m.group(3))})
+    return out
+
+
+def _marlin_shapers(text: str) -> dict[str, Reported]:
+    """Marlin's classic M593 report, per axis (a damping only where the shaper is on)."""
+    out = {}
+    for m in re.finditer(rf"M593\s+([XYZ])\s+F{_NUM}(?:\s+D{_NUM})?", text):
+        ax = m.group(1).lower()
+        out[f"{ax}.freq"] = _num(m.group(2))
+        if m.group(3) is not None and float(m.group(2)) != 0:
+            out[f"{ax}.damping"] = _num(m.group(3))
+    return out
+
+
+def _ftm_shapers(text: str) -> dict[str, Reported]:
+    """Marlin FT_MOTION's M493 report, per axis: its mode (C) and, when on, frequency, damping, vtol."""
+    out = {}
+    for m in re.finditer(r"M493[ \t]+([XYZE])((?:[ \t]+[A-Z]-?[0-9.]+)+)", text):
+        ax = m.group(1).lower()
+        fields = dict(re.findall(r"([A-Z])(-?[0-9.]+)", m.group(2)))
+        if "C" in fields:
+            out[f"{ax}.mode"] = Reported(int(float(fields["C"])), 0)
+        if int(float(fields.get("C", 0))):
+            out.update({f"{ax}.{key}": _num(fields[letter])
+                        for key, letter in (("freq", "A"), ("damping", "I"), ("vtol", "Q")) if letter in fields})
+    return out
+
+
+def _prusa_shapers(text: str) -> dict[str, Reported]:
+    """Prusa Buddy's M593 report, per axis: disabled, or type, frequency and damping."""
+    out = {}
+    for m in re.finditer(r"axis\s+([XYZ])\s+disabled", text, re.I):
+        out[f"{m.group(1).lower()}.type"] = Reported("none")
+    for m in re.finditer(rf"axis\s+([XYZ])\s+type=(\w+)\s+freq={_NUM}\s+damp={_NUM}", text, re.I):
+        ax = m.group(1).lower()
+        out[f"{ax}.type"] = Reported(m.group(2).lower().replace("ei_2hump", "2hump_ei").replace("ei_3hump", "3hump_ei"))
+        out[f"{ax}.freq"] = _num(m.group(3))
+        out[f"{ax}.damping"] = _num(m.group(4))
     return out
 
 
@@ -155,3 +169,8 @@ def compare(expected: dict[str, object], reported: dict[str, Reported]) -> dict[
         out[key] = {"meant": want, "reported": None if got is None else got.value,
                     "ok": got is not None and matches(want, got)}
     return out
+
+
+#: dialect -> the reader of its shaper report
+_SHAPER_READERS = {"klipper": _klipper_shapers, "rrf": _rrf_shapers, "marlin": _marlin_shapers,
+                   "marlin-ftm": _ftm_shapers, "prusa": _prusa_shapers}

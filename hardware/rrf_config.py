@@ -34,55 +34,61 @@ _KINEMATICS = {"0": "cartesian", "1": "corexy", "2": "corexz",
 _READ = ("M669", "M92", "M201", "M203", "M204", "M566", "M906", "M593")
 
 
-def printer_facts_from_rrf(path: str | Path) -> FirmwareFacts:
-    """Facts from ``config.g`` (see the module docstring)."""
-    path = str(path)
-    text = read_text_file(path, "config.g")
-    refuse_other_dialect(text, path, "rrf")
-    seen: dict[str, dict[str, tuple[int, str]]] = {}
-    for n, raw in enumerate(text.splitlines(), 1):
-        line = raw.split(";", 1)[0]
-        words = gcode_words(line)
-        if words is None or words[0] not in _READ:
-            continue
-        cmd, params = words
-        for letter, value in params.items():
-            seen.setdefault(cmd, {})[letter] = (n, value)
-    if not seen:
-        raise RingtuneError("no M669/M92/M201/M203/M204/M566/M906/M593 line: not a config.g", path)
-    notes: list[str] = []
+class _Config:
+    """The words of config.g's lines that are read: ``seen[code][letter] = (line number, value)``,
+    the last line setting a word winning."""
 
-    def where(cmd: str, letter: str) -> str:
-        return f"{path}:{seen[cmd][letter][0]}: {cmd} {letter}"
+    def __init__(self, text: str, path: str):
+        self.path, self.seen = path, {}
+        for n, raw in enumerate(text.splitlines(), 1):
+            words = gcode_words(raw.split(";", 1)[0])
+            if words is not None and words[0] in _READ:
+                for letter, value in words[1].items():
+                    self.seen.setdefault(words[0], {})[letter] = (n, value)
+        if not self.seen:
+            raise RingtuneError("no M669/M92/M201/M203/M204/M566/M906/M593 line: not a config.g", path)
 
-    def num(cmd: str, letter: str) -> float | None:
-        n_value = seen.get(cmd, {}).get(letter)
+    def where(self, cmd: str, letter: str) -> str:
+        """``config.g:<line>: <cmd> <letter>`` of a word that was read."""
+        return f"{self.path}:{self.seen[cmd][letter][0]}: {cmd} {letter}"
+
+    def num(self, cmd: str, letter: str) -> float | None:
+        """The number of ``cmd``'s word ``letter`` (the first of a colon list), None when not set;
+        an expression ``{…}`` is refused."""
+        n_value = self.seen.get(cmd, {}).get(letter)
         if n_value is None or n_value[1] == "":
             return None
         value = n_value[1].split(":")[0]
         if value.startswith("{"):
             raise RingtuneError(f"an expression {value!r} cannot be read here; write the number",
-                                where(cmd, letter))
-        return to_number(value, where(cmd, letter))
+                                self.where(cmd, letter))
+        return to_number(value, self.where(cmd, letter))
 
-    def per_axis(cmd: str, scale: float = 1.0) -> list[float] | None:
-        vals = [num(cmd, a) for a in "XYZE"]
+    def per_axis(self, cmd: str, scale: float = 1.0) -> list[float] | None:
+        """``cmd``'s X Y Z E numbers times ``scale`` (0 where missing), None when it gives none."""
+        vals = [self.num(cmd, a) for a in "XYZE"]
         return None if all(v is None for v in vals) else [(v or 0.0) * scale for v in vals]
 
-    description: dict = {}
-    k = seen.get("M669", {}).get("K")
+
+def _kinematics(cfg: _Config, notes: list[str]) -> str:
+    """M669 K, RepRapFirmware's default (Cartesian) when not given."""
+    k = cfg.seen.get("M669", {}).get("K")
     if k is None:
-        description["kinematics"] = "cartesian"
         notes.append("no M669 K: RepRapFirmware's default kinematics, Cartesian")
-    else:
-        kin = _KINEMATICS.get(k[1].strip().lower())
-        if kin is None:
-            raise RingtuneError(f"kinematics K{k[1]} is not one the printer model has (0/cartesian, "
-                                "1/coreXY, 2/coreXZ)", where("M669", "K"))
-        description["kinematics"] = kin
+        return "cartesian"
+    kin = _KINEMATICS.get(k[1].strip().lower())
+    if kin is None:
+        raise RingtuneError(f"kinematics K{k[1]} is not one the printer model has (0/cartesian, "
+                            "1/coreXY, 2/coreXZ)", cfg.where("M669", "K"))
+    return kin
+
+
+def _accels(cfg: _Config, notes: list[str]) -> dict:
+    """``limits`` from M204 (P printing, T travel) and M201 (per-axis; the printing acceleration
+    when M204 P is missing)."""
     limits: dict = {}
-    accel = num("M204", "P")
-    amax = per_axis("M201")
+    accel = cfg.num("M204", "P")
+    amax = cfg.per_axis("M201")
     if accel is not None:
         limits["accel"] = accel
     elif amax is not None:
@@ -91,30 +97,47 @@ def printer_facts_from_rrf(path: str | Path) -> FirmwareFacts:
                      "(RRF then limits printing moves by M201 only)")
     else:
         notes.append("no M204 P nor M201: the acceleration is unknown")
-    if num("M204", "T"):
-        limits["travel_accel"] = num("M204", "T")
+    if cfg.num("M204", "T"):
+        limits["travel_accel"] = cfg.num("M204", "T")
     if amax is not None:
         limits["max_accel"] = amax
         notes.append("RepRapFirmware's M204 has no retract acceleration: retractions (E-only moves) are "
                      "planned at the printing acceleration under M201 E")
-    vmax = per_axis("M203", 1 / 60)
+    return limits
+
+
+def _speeds_and_jerk(cfg: _Config, notes: list[str]) -> dict:
+    """``limits`` from M203 (per-axis speeds, mm/min) and M566 (per-axis jerk, mm/min)."""
+    limits: dict = {}
+    vmax = cfg.per_axis("M203", 1 / 60)
     if vmax is not None:
-        limits["max_velocity"] = vmax
-        limits["velocity"] = max(vmax[0], vmax[1])
-    jerk = per_axis("M566", 1 / 60)
+        limits.update(max_velocity=vmax, velocity=max(vmax[0], vmax[1]))
+    jerk = cfg.per_axis("M566", 1 / 60)
     if jerk is not None:
         limits.update(junction="jerk", jerk=jerk)
     else:
         notes.append("no M566: the allowed speed change at corners is unknown")
+    return limits
+
+
+def printer_facts_from_rrf(path: str | Path) -> FirmwareFacts:
+    """Facts from ``config.g`` (see the module docstring)."""
+    path = str(path)
+    text = read_text_file(path, "config.g")
+    refuse_other_dialect(text, path, "rrf")
+    cfg = _Config(text, path)
+    notes: list[str] = []
+    description: dict = {"kinematics": _kinematics(cfg, notes)}
+    limits = {**_accels(cfg, notes), **_speeds_and_jerk(cfg, notes)}
     description["limits"] = limits
-    place_gcode_motors(description, num, 1e-3 / math.sqrt(2.0))   # RRF's M906: mA peak
-    if "M906" in seen:
+    place_gcode_motors(description, cfg.num, 1e-3 / math.sqrt(2.0))   # RRF's M906: mA peak
+    if "M906" in cfg.seen:
         notes.append("M906 currents are peak values (RRF); run_current = peak / √2 (RMS)")
     else:
         notes.append("no M906: the motor current is unknown")
     notes.append("config.g names no motor and gives steps/mm only: rotation_distance, microsteps and the "
                  "motor's constants are unknown")
-    current = _current(path, text, seen, num, limits, notes)
+    current = _current(path, text, cfg.seen, cfg.num, limits, notes)
     if current is not None:
         description["current"] = current
     return FirmwareFacts(description, notes, path)

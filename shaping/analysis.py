@@ -179,3 +179,17 @@ def summary(shaper: Shaper, centred: bool, accel: float = SMOOTHING_ACCEL, scv: 
         "residual_at_freq": float(residual_vibration(shaper, [shaper.freq], zp)[0]),
         "plant_damping": zp,
     }
+
+
+def responses(shapers: list[Shaper], freqs, plant_dampings) -> list[dict]:
+    """What Klipper's shaper graph shows of each shaper: ``residual`` at ``freqs`` (Hz; the maximum
+    over the plant damping ratios, as Klipper draws it), ``band90_hz``, ``duration_s``,
+    ``smoothing_mm`` and ``max_accel`` (mm/s², None when the shaper never smooths)."""
+    rows = []
+    for s in shapers:
+        ma = max_accel(s)
+        rows.append({"name": s.name, "damping": s.damping,
+                     "residual": np.max([residual_vibration(s, freqs, z) for z in plant_dampings], axis=0),
+                     "band90_hz": list(band(s, 0.9, s.damping)), "duration_s": s.duration,
+                     "smoothing_mm": smoothing(s), "max_accel": ma if math.isfinite(ma) else None})
+    return rows

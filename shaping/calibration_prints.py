@@ -147,59 +147,63 @@ def end_lines(z: float) -> list[str]:
     return ["G1 E-1 F2400", f"G1 Z{z + 10:.2f} F600", "M104 S0", "M140 S0", "M84"]
 
 
+def _prime_and_brim(g: TowerGeometry, ext: Extrusion) -> list[str]:
+    """A prime line in front of the tower, then a 3-loop brim around the first layer (the travel from
+    the homed corner runs 2 mm up, clear of bed clips and an unlevel bed's high side)."""
+    x0, y0, s, z = g.x0, g.y0, g.side, ext.layer
+    out = [f"G1 Z{z + 2:.3f} F600", f"G1 X{x0:.3f} Y{y0 - 12:.3f} F{g.travel_speed * 60:.0f}",
+           f"G1 Z{z:.3f} F600",
+           f"G1 X{x0 + s:.3f} Y{y0 - 12:.3f} E{_e(ext, x0, 0, x0 + s, 0)} F{g.first_layer_speed * 60:.0f}"]
+    for k in (3, 2, 1):
+        d = k * ext.line_width
+        pts = [(x0 - d, y0 - d), (x0 + s + d, y0 - d), (x0 + s + d, y0 + s + d), (x0 - d, y0 + s + d),
+               (x0 - d, y0 - d)]
+        out.append(f"G1 X{pts[0][0]:.3f} Y{pts[0][1]:.3f} F{g.travel_speed * 60:.0f}")
+        out.append(f"G1 F{g.first_layer_speed * 60:.0f}")
+        out += [f"G1 X{bx:.3f} Y{by:.3f} E{_e(ext, ax, ay, bx, by)}" for (ax, ay), (bx, by) in zip(pts, pts[1:])]
+    out.append(f"G1 X{x0:.3f} Y{y0:.3f} F{g.travel_speed * 60:.0f}")
+    return out
+
+
+def _layer(i: int, band: Band, first_of_band: bool, g: TowerGeometry, ext: Extrusion) -> list[str]:
+    """Layer ``i`` (from 0): its comment, the band's lines before its first layer, then the
+    counter-clockwise square from the front-left corner."""
+    z = (i + 1) * ext.layer
+    out = [f"{C} layer {i + 1}, z {z:.3f} mm, band {band.number}"]
+    if first_of_band:
+        out += [f"{C} band {band.number} starts", *band.lines]
+    out += [f"G1 Z{z:.3f} F600", f"G1 F{(g.first_layer_speed if i == 0 else g.speed) * 60:.0f}"]
+    corners = [(g.x0, g.y0), (g.x0 + g.side, g.y0), (g.x0 + g.side, g.y0 + g.side), (g.x0, g.y0 + g.side),
+               (g.x0, g.y0)]
+    out += [f"G1 X{qx:.3f} Y{qy:.3f} E{_e(ext, px, py, qx, qy)}" for (px, py), (qx, qy) in zip(corners, corners[1:])]
+    return out
+
+
 def ringing_tower(bands: list[Band], geometry: TowerGeometry, ext: Extrusion, *, header: list[str],
                   start: list[str], end_note: list[str]) -> str:
     """G-code of the ringing tower: ``header`` comments, the band table, ``start`` lines, a prime
     line and a 3-loop brim, then every layer (counter-clockwise square, seam at the front-left
     corner) with each band's lines just before its first layer."""
     ext.validate()
-    g = geometry
     if not bands:
         raise RingtuneError("a tower needs at least one band", "--bands")
     out = [f"{C} {h}" if h else C for h in header]
     out += [C, f"{C} band table (band 1 is the lowest; frequencies of the shaper each band is printed with):"]
     out += [b.table_line() for b in bands]
     out += [C] + start
-    x0, y0, s = g.x0, g.y0, g.side
-    z = ext.layer
     # band 1 holds the first layer, prime line and brim included
     out += [f"{C} band {bands[0].number} starts", *bands[0].lines]
-    # prime line in front of the tower, then a brim around the first layer
-    # (the travel from the homed corner runs 2 mm up, clear of bed clips and an unlevel bed's high side)
-    out += [f"G1 Z{z + 2:.3f} F600", f"G1 X{x0:.3f} Y{y0 - 12:.3f} F{g.travel_speed * 60:.0f}",
-            f"G1 Z{z:.3f} F600",
-            f"G1 X{x0 + s:.3f} Y{y0 - 12:.3f} E{_e(ext, x0, 0, x0 + s, 0)} F{g.first_layer_speed * 60:.0f}"]
-    w = ext.line_width
-    for k in (3, 2, 1):
-        d = k * w
-        pts = [(x0 - d, y0 - d), (x0 + s + d, y0 - d), (x0 + s + d, y0 + s + d), (x0 - d, y0 + s + d),
-               (x0 - d, y0 - d)]
-        out.append(f"G1 X{pts[0][0]:.3f} Y{pts[0][1]:.3f} F{g.travel_speed * 60:.0f}")
-        out.append(f"G1 F{g.first_layer_speed * 60:.0f}")
-        for (ax, ay), (bx, by) in zip(pts, pts[1:]):
-            out.append(f"G1 X{bx:.3f} Y{by:.3f} E{_e(ext, ax, ay, bx, by)}")
-    out.append(f"G1 X{x0:.3f} Y{y0:.3f} F{g.travel_speed * 60:.0f}")
-    square = [(x0 + s, y0), (x0 + s, y0 + s), (x0, y0 + s), (x0, y0)]
+    out += _prime_and_brim(geometry, ext)
     n_layers = int(round(bands[-1].z1 / ext.layer))
     band_iter = iter(bands)
     band = next(band_iter)
     for i in range(n_layers):
-        z = (i + 1) * ext.layer
         first_of_band = False
-        while z > band.z1 + 1e-9:
+        while (i + 1) * ext.layer > band.z1 + 1e-9:
             band = next(band_iter)
             first_of_band = True
-        out.append(f"{C} layer {i + 1}, z {z:.3f} mm, band {band.number}")
-        if first_of_band:
-            out.append(f"{C} band {band.number} starts")
-            out += band.lines
-        speed = g.first_layer_speed if i == 0 else g.speed
-        out += [f"G1 Z{z:.3f} F600", f"G1 F{speed * 60:.0f}"]
-        px, py = x0, y0
-        for qx, qy in square:
-            out.append(f"G1 X{qx:.3f} Y{qy:.3f} E{_e(ext, px, py, qx, qy)}")
-            px, py = qx, qy
-    out += end_lines(z)
+        out += _layer(i, band, first_of_band, geometry, ext)
+    out += end_lines(n_layers * ext.layer if n_layers else ext.layer)
     out += [f"{C} {h}" for h in end_note]
     return "\n".join(out) + "\n"
 

@@ -357,48 +357,20 @@ class _Reader(SettingCommands):
         self._feedrate(w, where)
         end = self._target(w)
         x0, y0 = self.pos[0], self.pos[1]
-        x1, y1 = end[0], end[1]
-        if "R" in w:
-            r = w["R"]
-            dx, dy = x1 - x0, y1 - y0
-            chord = math.hypot(dx, dy)
-            if chord == 0 or abs(r) * 2 < chord - 1e-9:
-                raise RingtuneError(f"arc radius R{r:g} cannot join points {chord:.4g} mm apart", where)
-            h = math.sqrt(max(r * r - chord * chord / 4, 0.0))
-            # centre left of the chord for CCW with R>0 (and right for CW); R<0 takes the long way
-            sign = (-1 if clockwise else 1) * (1 if r > 0 else -1)
-            cx = x0 + dx / 2 - sign * h * dy / chord
-            cy = y0 + dy / 2 + sign * h * dx / chord
-        elif "I" in w or "J" in w:
-            cx, cy = x0 + w.get("I", 0.0), y0 + w.get("J", 0.0)
-        else:
-            raise RingtuneError(f"{'G2' if clockwise else 'G3'} needs I/J or R", where)
+        cx, cy = _arc_centre(clockwise, w, x0, y0, end[0], end[1], where)
         radius = math.hypot(x0 - cx, y0 - cy)
         if radius <= 0:
             raise RingtuneError("arc has zero radius", where)
         a0 = math.atan2(y0 - cy, x0 - cx)
-        a1 = math.atan2(y1 - cy, x1 - cx)
-        sweep = a1 - a0
-        if clockwise:
-            if sweep >= -1e-12:
-                sweep -= 2 * math.pi
-        elif sweep <= 1e-12:
-            sweep += 2 * math.pi
-        if radius <= self.tol:
-            n = 1
-        else:
-            step = 2 * math.acos(1 - self.tol / radius)
-            n = max(1, math.ceil(abs(sweep) / step))
+        sweep = _arc_sweep(clockwise, a0, math.atan2(end[1] - cy, end[0] - cx))
+        n = 1 if radius <= self.tol else max(1, math.ceil(abs(sweep) / (2 * math.acos(1 - self.tol / radius))))
         start = list(self.pos)
-        for k in range(1, n + 1):
+        for k in range(1, n):
             f = k / n
-            if k == n:
-                pt = list(end)
-            else:
-                ang = a0 + sweep * f
-                pt = [cx + radius * math.cos(ang), cy + radius * math.sin(ang),
-                      start[2] + (end[2] - start[2]) * f, start[3] + (end[3] - start[3]) * f]
-            self._emit(pt, lineno, arc=True)
+            ang = a0 + sweep * f
+            self._emit([cx + radius * math.cos(ang), cy + radius * math.sin(ang),
+                        start[2] + (end[2] - start[2]) * f, start[3] + (end[3] - start[3]) * f], lineno, arc=True)
+        self._emit(list(end), lineno, arc=True)
 
     def job(self) -> Job:
         self._flush()
@@ -492,3 +464,31 @@ def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = N
         reader.feed_lines(io.StringIO(text, newline=None))
     return reader.job()
 
+
+def _arc_centre(clockwise: bool, w: dict[str, float], x0: float, y0: float, x1: float, y1: float,
+                where: str) -> tuple[float, float]:
+    """The centre (mm) of a G2/G3 arc from (x0, y0) to (x1, y1): offsets I/J, or radius R (centre left
+    of the chord for CCW with R > 0, right for CW; R < 0 takes the long way)."""
+    if "R" in w:
+        r = w["R"]
+        dx, dy = x1 - x0, y1 - y0
+        chord = math.hypot(dx, dy)
+        if chord == 0 or abs(r) * 2 < chord - 1e-9:
+            raise RingtuneError(f"arc radius R{r:g} cannot join points {chord:.4g} mm apart", where)
+        h = math.sqrt(max(r * r - chord * chord / 4, 0.0))
+        sign = (-1 if clockwise else 1) * (1 if r > 0 else -1)
+        return x0 + dx / 2 - sign * h * dy / chord, y0 + dy / 2 + sign * h * dx / chord
+    if "I" in w or "J" in w:
+        return x0 + w.get("I", 0.0), y0 + w.get("J", 0.0)
+    raise RingtuneError(f"{'G2' if clockwise else 'G3'} needs I/J or R", where)
+
+
+def _arc_sweep(clockwise: bool, a0: float, a1: float) -> float:
+    """The angle (rad) swept from ``a0`` to ``a1``: negative clockwise, positive counter-clockwise,
+    a full turn when they coincide."""
+    sweep = a1 - a0
+    if clockwise and sweep >= -1e-12:
+        return sweep - 2 * math.pi
+    if not clockwise and sweep <= 1e-12:
+        return sweep + 2 * math.pi
+    return sweep

@@ -165,15 +165,8 @@ def _accel_words(code: bytes, word: bytes):
             if m.group(1).upper() in _SCALED[word]]
 
 
-def rewrite_accel_bytes(data: bytes, accel: float, source: str = "<gcode>") -> tuple[bytes, AccelResult]:
-    """Scale every acceleration command of a sliced file so its highest printing acceleration
-    (M204 P/S, SET_VELOCITY_LIMIT ACCEL) becomes ``accel`` mm/s², keeping the ratios between
-    features (and M204 T, M201 X/Y in the same ratio, so the caps do not undo it). Only those
-    numbers change; a header comment says what was done; checksummed lines get a new checksum."""
-    if not (accel > 0 and np.isfinite(accel)):
-        raise RingtuneError(f"must be an acceleration > 0 mm/s², not {accel!r}", "--accel")
-    lines = data.splitlines(keepends=True)
-    nl = b"\r\n" if lines and lines[0].endswith(b"\r\n") else b"\n"
+def _printing_accels(lines: list[bytes], source: str) -> list[float]:
+    """Every printing acceleration the file sets (M204 P/S, SET_VELOCITY_LIMIT ACCEL), mm/s²."""
     printing = []
     for ln, line in enumerate(lines, 1):
         code = _split_code(line)[0]
@@ -188,6 +181,34 @@ def rewrite_accel_bytes(data: bytes, accel: float, source: str = "<gcode>") -> t
                 raise RingtuneError(f"{letter.decode()}{w.group(2).decode()} is not a number", f"{source}:{ln}") from None
             if letter == b"ACCEL" or letter in _PRINTING.get(word, ()):
                 printing.append(value)
+    return printing
+
+
+def _scaled_line(line: bytes, factor: float) -> bytes | None:
+    """``line`` with every acceleration of its command scaled by ``factor`` (new checksum), or None
+    when it has none or none changes."""
+    code, cs, tail = _split_code(line)
+    m = _ACCEL_LINE.match(code)
+    if not m:
+        return None
+    new, pos = b"", 0
+    for w, _ in _accel_words(code, m.group(2).upper()):
+        new += code[pos:w.start(2)] + _fmt(float(w.group(2)) * factor)
+        pos = w.end(2)
+    new += code[pos:]
+    return None if new == code else _with_checksum(new, cs) + tail
+
+
+def rewrite_accel_bytes(data: bytes, accel: float, source: str = "<gcode>") -> tuple[bytes, AccelResult]:
+    """Scale every acceleration command of a sliced file so its highest printing acceleration
+    (M204 P/S, SET_VELOCITY_LIMIT ACCEL) becomes ``accel`` mm/s², keeping the ratios between
+    features (and M204 T, M201 X/Y in the same ratio, so the caps do not undo it). Only those
+    numbers change; a header comment says what was done; checksummed lines get a new checksum."""
+    if not (accel > 0 and np.isfinite(accel)):
+        raise RingtuneError(f"must be an acceleration > 0 mm/s², not {accel!r}", "--accel")
+    lines = data.splitlines(keepends=True)
+    nl = b"\r\n" if lines and lines[0].endswith(b"\r\n") else b"\n"
+    printing = _printing_accels(lines, source)
     notes: list[str] = []
     if not printing or max(printing) <= 0:
         header = (f"; ringtune limit --accel {accel:g}: the file sets no printing acceleration (no M204 P/S, "
@@ -196,23 +217,9 @@ def rewrite_accel_bytes(data: bytes, accel: float, source: str = "<gcode>") -> t
         return header.encode() + nl + data, AccelResult(0, None, 1.0, header, notes)
     reference = max(printing)
     factor = accel / reference
-    out, changed = [], 0
-    for line in lines:
-        code, cs, tail = _split_code(line)
-        m = _ACCEL_LINE.match(code)
-        if not m:
-            out.append(line)
-            continue
-        new, pos = b"", 0
-        for w, _ in _accel_words(code, m.group(2).upper()):
-            new += code[pos:w.start(2)] + _fmt(float(w.group(2)) * factor)
-            pos = w.end(2)
-        new += code[pos:]
-        if new == code:
-            out.append(line)
-            continue
-        out.append(_with_checksum(new, cs) + tail)
-        changed += 1
+    scaled = [_scaled_line(line, factor) for line in lines]
+    changed = sum(s is not None for s in scaled)
+    out = [line if s is None else s for line, s in zip(lines, scaled)]
     if len(set(printing)) > 1:
         notes.append(f"{len(set(printing))} printing accelerations in the file (features): all scaled by "
                      f"{factor:.4g}, so their ratios stay")

@@ -42,14 +42,9 @@ def _binary(head: bytes, text: str) -> bool:
     return bad > max(2.0, 0.01 * len(head))
 
 
-def not_gcode(head: bytes) -> str | None:
-    """Why ``head`` (a file's first bytes) is not G-code, in words, or None if it may be."""
-    for sig, what in _SIGNATURES:
-        if head.startswith(sig):
-            return f"{what}, not G-code"
-    text = head.decode("utf-8", "replace")
-    if b"\x00" in head or _binary(head, text):
-        return "not a text file (binary data), not G-code"
+def _first_code(head: bytes, text: str) -> list[str]:
+    """The first :data:`LINES` non-empty command lines of ``text`` (comments stripped; a last line
+    cut off by the head's end is left out)."""
     code = []
     for line in text.splitlines()[:-1] if len(head) >= HEAD else text.splitlines():
         s = line.split(";", 1)[0].strip()
@@ -57,12 +52,27 @@ def not_gcode(head: bytes) -> str | None:
             code.append(s)
             if len(code) >= LINES:
                 break
+    return code
+
+
+#: what a file whose first lines are not G-code looks like instead, tried in order
+_KINDS = (("a TOML file (a printer description? give it with --printer)", _TOML),
+          ("a configuration file (printer.cfg?)", _CFG), ("a CSV table", _CSV))
+
+
+def not_gcode(head: bytes) -> str | None:
+    """Why ``head`` (a file's first bytes) is not G-code, in words, or None if it may be."""
+    what = next((what for sig, what in _SIGNATURES if head.startswith(sig)), None)
+    if what:
+        return f"{what}, not G-code"
+    text = head.decode("utf-8", "replace")
+    if b"\x00" in head or _binary(head, text):
+        return "not a text file (binary data), not G-code"
+    code = _first_code(head, text)
     # G-code if the first command is one, or most are (a stray header line is not a verdict)
     if not code or _GCODE.match(code[0]) or sum(bool(_GCODE.match(s)) for s in code) >= 0.5 * len(code):
         return None
-    kinds = (("a TOML file (a printer description? give it with --printer)", _TOML),
-             ("a configuration file (printer.cfg?)", _CFG), ("a CSV table", _CSV))
-    for what, rx in kinds:
+    for what, rx in _KINDS:
         if sum(bool(rx.match(s)) or s.startswith("#") for s in code) >= 0.5 * len(code):
             return f"looks like {what}, not G-code: its first lines are not G-code commands"
     return "does not look like G-code: its first lines are not G-code commands (G0/G1, M…, T…)"

@@ -233,6 +233,32 @@ def canonical_name(name: str) -> str:
     return parse_name(name)[0]
 
 
+def _parameter_value(value: str):
+    """A shaper parameter's value: a colon list of numbers, a whole number, or a number."""
+    if ":" in value:
+        return [float(x) for x in value.split(":")]
+    return int(value) if re.fullmatch(r"\s*\d+\s*", value) else float(value)
+
+
+def _parameter_list(args: str, name: str, where: str) -> dict:
+    """``n=5,t=1.1`` -> {"n": 5, "t": 1.1}; positional values under ``"_positional"`` (not both)."""
+    params: dict = {}
+    positional = []
+    for part in filter(None, (p.strip() for p in args.split(","))):
+        key, _, value = part.rpartition("=")
+        try:
+            val = _parameter_value(value)
+        except ValueError:
+            raise RingtuneError(f"bad shaper parameter {part!r} in {name!r}", where) from None
+        if key.strip():
+            params[key.strip()] = val
+        else:
+            positional.append(val)
+    if positional and params:
+        raise RingtuneError(f"give shaper parameters by name or by position, not both: {name!r}", where)
+    return {"_positional": positional} if positional else params
+
+
 def parse_name(name: str, where: str = "shaper") -> tuple[str, dict]:
     """Split ``"mzv(n=5,t=1.1)"`` into ``("mzv", {"n": 5, "t": 1.1})``; resolve aliases.
 
@@ -245,26 +271,7 @@ def parse_name(name: str, where: str = "shaper") -> tuple[str, dict]:
     params: dict = {}
     m = _PARAM_RE.match(text)
     if m:
-        text, args = m.group(1), m.group(2).strip()
-        positional = []
-        for part in filter(None, (p.strip() for p in args.split(","))):
-            key, _, value = part.rpartition("=")
-            key = key.strip()
-            try:
-                if ":" in value:
-                    val = [float(x) for x in value.split(":")]
-                else:
-                    val = int(value) if re.fullmatch(r"\s*\d+\s*", value) else float(value)
-            except ValueError:
-                raise RingtuneError(f"bad shaper parameter {part!r} in {name!r}", where) from None
-            if key:
-                params[key] = val
-            else:
-                positional.append(val)
-        if positional and params:
-            raise RingtuneError(f"give shaper parameters by name or by position, not both: {name!r}", where)
-        if positional:
-            params["_positional"] = positional
+        text, params = m.group(1), _parameter_list(m.group(2).strip(), name, where)
     elif "(" in text or ")" in text:
         raise RingtuneError(f"cannot parse shaper {name!r}; expected e.g. 'mzv(n=5,t=1.1)'", where)
     text = text.replace("-", "_").replace(" ", "")

@@ -38,7 +38,8 @@ def _rigid_limit(printer, speed: float, reserve: float) -> float:
 def test_hidden_ranges_are_the_motor_reserve_at_each_groups_speed():
     space = feature_space(default_space(BASE, "klipper"), BASE, None, reserve=0.2)
     speeds = group_speeds(BASE, None)
-    assert {g for g, *_ in space.feature_accel} == set(hidden_groups(BASE, None)) == {"hidden_walls", "infill", "travel"}
+    groups = {g for g, *_ in space.feature_accel}
+    assert groups == set(hidden_groups(BASE, None)) == {"hidden_walls", "infill", "travel"}
     for group, lo, hi in space.feature_accel:
         assert lo == space.accel[0]
         want = _rigid_limit(BASE, speeds[group], 0.2)

@@ -5,6 +5,7 @@ the same command prints, and Klipper's pick equal to what Klipper recorded for t
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -90,3 +91,34 @@ def test_shaper_graph_refuses_a_bad_output_name(capsys, tmp_path, data_dir):
     code, out, err = _run(capsys, "graph", "shapers", *files, "-o", str(tmp_path / "g.txt"))
     assert code == 2 and out == "" and err.count("\n") == 1 and "ringtune graph: error:" in err
     assert not (tmp_path / "g.txt").exists()
+
+
+#: the other real Klipper file sets (the Ender 3's is drawn above)
+SETS = sorted(p.name for p in (Path(__file__).resolve().parent / "data/accel/klipper_psd").iterdir()
+              if p.is_dir() and p.name != ENDER.rsplit("/", 1)[1])
+
+
+@pytest.mark.parametrize("name", SETS)
+def test_every_real_file_set_draws_the_json_numbers_and_recommends_pick(name, capsys, tmp_path, data_dir):
+    """Every other Klipper file set in tests/data (one or two axes): the PNG is drawn, its table holds the
+    JSON's numbers, and Klipper's pick on it is the one `recommend --accel` gives for the same files."""
+    files = sorted(str(p) for p in (data_dir / "accel/klipper_psd" / name).glob("*.csv"))
+    png = tmp_path / "g.png"
+    code, out, _ = _run(capsys, "graph", "shapers", *files, "-o", str(png), "--json")
+    assert code == 0
+    d = json.loads(out)
+    im = _not_empty(png)
+    tables = _tables(im)
+    assert len(tables) == len(d["axes"]) == len(files)
+    code, out, _ = _run(capsys, "recommend", "--accel", *files, "--json")
+    rec = json.loads(out)["axes"]
+    for a, rows in zip(d["axes"], tables):
+        k = a["klipper"]
+        assert (k["shaper"], k["freq"]) == (rec[a["axis"]]["shaper"], rec[a["axis"]]["freq"])
+        assert rows[k["shaper"], "Klipper"][1] == f"{k['freq']:.1f}"
+        assert len(rows) == len(a["shapers"])
+        for s in a["shapers"]:
+            pick = "Klipper" if (s["shaper"], s["freq"]) == (k["shaper"], k["freq"]) else ""
+            cells = rows[s["shaper"], pick]
+            assert (float(cells[1]), float(cells[4])) == (s["freq"], s["max_accel"])
+            assert float(cells[2]) == pytest.approx(s["vibrations_pct"], abs=0.05)

@@ -101,3 +101,43 @@ def test_speed_graph_shows_the_json_numbers(capsys, tmp_path):
     for k, v in d["orcaslicer"].items():
         assert f"{k} = {v}" in text
     assert d["wall_length_mm"] == pytest.approx(40.0)
+
+
+def test_speed_graph_of_the_real_ender3_and_its_real_tower(capsys, tmp_path, data_dir):
+    """Drawn from the real files in tests/data: the Ender 3 identified from its Klipper resonance
+    tests and printer.cfg, and the ringing tower sliced for it. The PNG is drawn and holds the JSON's
+    bands and OrcaSlicer keys; each band is the run of the JSON's own curve at ≥ 1/√2 of that
+    direction's worst (widened half a step), and the worst band holds the curve's maximum."""
+    acc = data_dir / "accel/klipper_psd/bassco_ender3"
+    toml = tmp_path / "e3.toml"
+    assert main(["identify", *sorted(map(str, acc.glob("*.csv"))), "--klipper-config",
+                 str(data_dir / "klipper_config/ender3/printer.cfg"), "-o", str(toml)]) == 0
+    capsys.readouterr()
+    png = tmp_path / "speeds.png"
+    assert main(["graph", "speeds", "--printer", str(toml), "--gcode",
+                 str(data_dir / "gcode/bassco_ender3/ringing_tower.gcode"), "-o", str(png), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    im = Image.open(png)
+    px = np.asarray(im.convert("RGB"), dtype=float)
+    assert im.size[0] > 800 and 0.02 < (px.sum(axis=2) < 600).mean() < 0.6
+    text = im.text["Description"]
+    speeds = np.array(d["speeds_mm_s"])
+    step = float(np.median(np.diff(speeds)))
+    assert d["bands"] and {b["direction"] for b in d["bands"]} == {"x", "y"}
+    for b in d["bands"]:
+        assert (f"{b['direction']}: {b['lo']:g}-{b['hi']:g} mm/s (worst {1000 * b['peak_ripple_mm']:.1f} µm at "
+                f"{b['peak_speed']:g} mm/s)") in text
+        r = np.array(d["ripple_mm"][b["direction"]])
+        inside = (speeds > b["lo"]) & (speeds < b["hi"])
+        assert np.all(r[inside] >= d["band_level"] * r.max())
+        for edge in (b["lo"] - step / 2, b["hi"] + step / 2):        # the grid speeds just outside
+            out = np.isclose(speeds, edge)
+            assert np.all(r[out] < d["band_level"] * r.max())
+        assert b["peak_ripple_mm"] == pytest.approx(r[inside].max())
+        assert b["peak_speed"] == speeds[inside][r[inside].argmax()]
+    worst = max(d["bands"], key=lambda b: b["peak_ripple_mm"])
+    top = max(d["ripple_mm"].values(), key=max)
+    assert worst["peak_ripple_mm"] == pytest.approx(max(top))
+    for k, v in d["orcaslicer"].items():
+        assert f"{k} = {v}" in text
+    assert d["orcaslicer"]["min_resonance_avoidance_speed"] == f"{worst['lo']:g}"

@@ -76,6 +76,11 @@ def _files(t, d):
     (t / "m503_console.txt").write_text(M503_CONSOLE)
     (t / "query.txt").write_text(QUERY)
     (t / "empty.csv").write_text("")
+    shutil.copy(d / "accel/klipper_psd/bassco_ender3/resonances_x_20210821_152037.csv", t / "resonances_x_copy.csv")
+    for name in ("resonances_axis=1.000,1.000,0.000_a.csv", "resonances_axis=1.000,-1.000,0.000_a.csv"):
+        shutil.copy(d / "accel/klipper_psd/bassco_voron_v24/resonances_x_20230306_224517.csv", t / name)   # one copied
+    (t / "resonances_x_semicolons.csv").write_text(        # a European spreadsheet's re-save
+        (d / "accel/klipper_psd/bassco_ender3/resonances_x_20210821_152037.csv").read_text().replace(",", ";"))
     (t / "binary.csv").write_bytes(bytes(range(256)) * 8)
     (t / "folder").mkdir()
     shutil.copy(d / "accel/klipper_psd/bassco_voron_v24/resonances_x_20230306_224517.csv", t / "voron_sweep_1.csv")
@@ -116,6 +121,8 @@ CASES = [
                                                                      "--axis"]),
     ("z-resonance-test", ["identify", "resonances_z_20210821_152037.csv"], R, ["Z resonance test"]),
     ("accelerometer-query-paste", ["identify", "query.txt"], R, ["query.txt", "ACCELEROMETER_QUERY", "TEST_RESONANCES"]),
+    ("semicolon-csv", ["identify", "resonances_x_semicolons.csv"], R, ["resonances_x_semicolons.csv", "semicolons",
+                                                                        "commas"]),
     ("empty-file", ["identify", "empty.csv"], R, ["empty.csv", "empty"]),
     ("binary-file", ["identify", "binary.csv"], R, ["binary.csv"]),
     ("missing-file", ["identify", "nowhere.csv"], R, ["nowhere.csv", "no such file"]),
@@ -132,6 +139,11 @@ CASES = [
     ("klipper-cfg-as-rrf", ["identify", X, "--rrf", CFG], R, ["Klipper", "--klipper-config"]),
     # -- identify without an accelerometer -------------------------------------------------------------
     ("ripples-that-grow", ["identify", *RIP, "--decay", "X=0.8"], R, ["--decay", "grow"]),
+    ("ripples-that-die-at-once", ["identify", *RIP, "--decay", "X=50"], R, ["--decay X", "damping 0.53",
+                                                                          "0.04-0.23"]),
+    ("ripples-of-2-hz", ["identify", "--ripples", "X=40,Y=2.6", "--speed", "100"], R, ["--ripples X", "2.5 Hz",
+                                                                                    "5-300 Hz"]),
+    ("ripples-of-1000-hz", ["identify", "--ripples", "X=0.1", "--speed", "100"], R, ["--ripples X", "1e+03 Hz"]),
     ("ripples-equal-heights", ["identify", *RIP, "--decay", "X=1"], R, ["--decay", "no decay"]),
     ("ripples-no-speed", ["identify", "--ripples", "X=2.2"], R, ["--speed"]),
     ("ripples-negative-spacing", ["identify", "--ripples", "X=-2", "--speed", "100"], R, ["--ripples", "positive"]),
@@ -194,6 +206,12 @@ CASES = [
     ("simulate-printer-missing", ["simulate", "--printer", "none.toml"], R, ["none.toml"]),
     ("simulate-printer-negative-mass", ["simulate", "--printer", "bad_mass.toml"], R, ["bad_mass.toml", "mass"]),
     ("printer-toml-10-grams", ["simulate", "--printer", "tiny.toml"], R, ["tiny.toml", "[x].mass", "10 g"]),
+    ("simulate-printer-is-printer-cfg", ["simulate", "--printer", CFG], R, ["not valid TOML", "Klipper's printer.cfg",
+                                                                           "printer from-klipper"]),
+    ("tune-printer-is-m503", ["tune", "--printer", "m503_host.txt", "--out", "o"], R, ["Marlin's M503 report",
+                                                                                    "printer from-marlin"]),
+    ("recommend-printer-is-config-g", ["recommend", "--printer", "config.g"], R, ["RepRapFirmware's config.g",
+                                                                                "printer from-rrf"]),
     ("simulate-printer-not-toml", ["simulate", "--printer", "not.toml"], R, ["not.toml", "TOML"]),
     ("simulate-gcode-missing", ["simulate", "--gcode", "none.gcode", "--shaper", "mzv", "--freq", "40"], R,
      ["none.gcode"]),
@@ -230,6 +248,18 @@ CASES = [
     ("limit-negative-limit", ["limit", "job.gcode", "--freq-limit", "-5", "-o", "out.gcode"], R, ["--freq-limit"]),
     ("shaper-unknown", ["shaper", "supershaper", "--freq", "40"], R, ["supershaper"]),
     ("shaper-negative-freq", ["shaper", "mzv", "--freq", "-1"], R, ["frequency", "-1"]),
+    # -- graph: Klipper users' graphs ---------------------------------------------------------------
+    ("belts-from-axis-tests", ["graph", "belts", X, Y, "-o", "b.png"], R, ["a test of the X axis", "AXIS=1,1"]),
+    ("belts-same-test-twice", ["graph", "belts", "resonances_axis=1.000,1.000,0.000_a.csv",
+                               "resonances_axis=1.000,-1.000,0.000_a.csv", "-o", "b.png"], R, ["the same test twice"]),
+    ("belts-identify-same-test", ["identify", X, "--kinematics", "corexy", "--belts",
+                                  "resonances_axis=1.000,1.000,0.000_a.csv", "resonances_axis=1.000,-1.000,0.000_a.csv"],
+     R, ["--belts", "the same test twice"]),
+    ("shapers-graph-of-an-m956-capture", ["graph", "shapers", "{d}/accel/rrf_m956/owendare_cartesian_duet2/"
+                                          "1-T0-X54-161-0-none.csv", "-o", "g.png"], R, ["M956", "not a sweep"]),
+    ("shapers-graph-of-an-m503", ["graph", "shapers", "m503_host.txt", "-o", "g.png"], R, ["m503_host.txt"]),
+    ("speeds-graph-not-an-image", ["graph", "speeds", "-o", "s.txt"], R, ["-o", ".png"]),
+    ("speeds-graph-printer-missing", ["graph", "speeds", "--printer", "none.toml", "-o", "s.png"], R, ["none.toml"]),
     ("motor-unknown", ["motor", "nosuch-motor-42"], R, ["nosuch-motor-42"]),
     # -- accepted, with what the tool decided said aloud ---------------------------------------------
     ("m503-from-a-host-log", ["printer", "from-marlin", "m503_host.txt", "-o", "m.toml"], 0, ["M503 does not report"]),
@@ -238,6 +268,11 @@ CASES = [
      ["shaper.cfg", "unknown"]),
     ("rrf-config-runs-a-macro", ["printer", "from-rrf", "config_calls.g", "-o", "p.toml"], 0,
      ["shaper.g", "unknown"]),
+    ("same-test-twice-is-read-once", ["identify", X, "resonances_x_copy.csv", "-o", "p.toml"], 0,
+     ["resonances_x_copy.csv: the same data as", "read once"]),
+    ("two-printers-x-tests", ["identify", X, "{d}/accel/klipper_psd/bassco_voron_v24/resonances_x_20230306_224517.csv",
+                              "-o", "p.toml"], 0, ["X: 2 tests", "the best fit", "more than 10 %", "not the same printer"]),
+    ("recommend-same-test-twice", ["recommend", "--accel", X, "resonances_x_copy.csv"], 0, ["read once"]),
     ("ripples-damping-not-measured", ["identify", *RIP, "-o", "p.toml"], 0, ["typical printer", "tests/data"]),
 ]
 
@@ -279,4 +314,31 @@ def test_the_table_is_large_enough_and_spans_the_commands():
     commands = {c[1][0] for c in CASES}
     assert len(CASES) >= 80
     assert {"identify", "printer", "testprint", "simulate", "export", "push", "recommend", "tune", "plan",
-            "limit", "shaper", "motor"} <= commands
+            "limit", "shaper", "motor", "graph"} <= commands
+
+
+@pytest.mark.parametrize("kind", ["resonances", "printer.cfg", "m503"])
+def test_files_saved_by_a_windows_editor_read_as_the_plain_files(kind, data_dir, tmp_path, capsys):
+    """A byte-order mark and CRLF line ends (Notepad, Excel's "CSV UTF-8") change nothing: the same
+    JSON as the plain file's, apart from the file names."""
+    plain = {"resonances": data_dir / "accel/klipper_psd/bassco_ender3/resonances_x_20210821_152037.csv",
+             "printer.cfg": data_dir / "klipper_config/ender3/printer.cfg"}.get(kind)
+    if plain is None:
+        plain = tmp_path / "m503.txt"
+        plain.write_text(M503_HOST)
+    win = tmp_path / "win" / plain.name
+    win.parent.mkdir()
+    win.write_bytes(b"\xef\xbb\xbf" + plain.read_bytes().replace(b"\r\n", b"\n").replace(b"\n", b"\r\n"))
+    argv = {"resonances": ["identify", "--name", "p"], "printer.cfg": ["printer", "from-klipper", "--name", "p"],
+            "m503": ["printer", "from-marlin", "--name", "p"]}[kind]
+    got = []
+    for path in (plain, win):
+        assert main([*argv, str(path), "-o", str(tmp_path / "out.toml"), "--json"]) == 0, capsys.readouterr().err
+        text = capsys.readouterr().out.replace(str(path.parent), "DIR")
+        got.append(json.loads(text))
+    for d in got:
+        for key in ("files", "notes", "warnings", "output"):
+            d.pop(key, None)
+        if "toml" in d:                                  # the files' SHA-256 differ, nothing else
+            d["toml"] = "\n".join(ln for ln in d["toml"].splitlines() if "sha256" not in ln)
+    assert got[0] == got[1]

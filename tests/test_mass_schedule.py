@@ -298,3 +298,21 @@ def test_the_config_alone_writes_the_same_job_for_every_firmware(tmp_path):
         again = rewrite_job(path.read_text().splitlines(keepends=True), fw, None, layer_inserts=inserts)
         assert "".join(again) == written, fw
         assert any(b.accel for b in s.bands) and len(s.bands) >= 3
+
+
+def test_rewrite_applies_the_configs_schedule_as_schedule_writes_it(tmp_path):
+    """A config with a ``y_schedule`` (``schedule --config-out``) given to ``ringtune rewrite``: the
+    rewritten job carries each band's lines at the same layer changes as ``schedule -o`` wrote."""
+    from ringtune.envs.job_rewrite import rewrite_file
+
+    path = tmp_path / "small.gcode"
+    path.write_text(solid_block(size_mm=40.0, height_mm=60.0, layer_mm=0.6)[0])
+    cfg = TuneConfig(firmware="klipper", freq_x=38.9, freq_y=38.9, accel=3000)
+    s = mass_schedule(cfg, None, path)
+    written = [ln for ln in "".join(scheduled_lines(s, path)).splitlines() if ln.endswith(TAG)]
+    out = tmp_path / "r.gcode"
+    rewrite_file(path, out, s.scheduled_config())
+    tagged = [ln for ln in out.read_text().splitlines() if ln.endswith(TAG)]
+    assert tagged == written and len(tagged) >= 3
+    freqs = [e.params["SHAPER_FREQ_Y"] for e in read_gcode(out).shaper_events()]
+    assert freqs == [b.freq_y for b in s.bands]

@@ -176,3 +176,29 @@ def test_config_round_trip_and_refusals(tmp_path):
                        ({"corner": -2}, "corner"), ({"min_cruise_ratio": 1.0}, "min_cruise_ratio")):
         with pytest.raises(RingtuneError, match=where):
             TuneConfig.from_dict(bad)
+
+
+def test_simulate_takes_every_per_feature_key_as_an_option(capsys):
+    argv = ["simulate", "--backend", "lti", "--shaper", "mzv", "--freq", "45,40", "--accel", "5000", "--json",
+            "--feature-accel", "infill=10000,travel=9000", "--corner", "7", "--min-cruise-ratio", "0.2"]
+    assert main(argv) == 0
+    res = json.loads(capsys.readouterr().out)
+    cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=45.0, freq_y=40.0, accel=5000.0,
+                     feature_accel={"infill": 10000.0, "travel": 9000.0}, corner=7.0, min_cruise_ratio=0.2)
+    assert res["metrics"]["print_time_s"] == planned_job(load_printer(None), None, cfg).print_time
+    assert main(argv[:-6] + ["--feature-accel", "infill"]) == 2
+    assert "--feature-accel" in capsys.readouterr().err
+
+
+def test_line_endings_and_odd_bytes_are_kept():
+    """CRLF endings, a form feed and a non-UTF-8 byte in comments: inserted lines take the file's
+    ending, every input byte is kept, and the commands sit before the right moves."""
+    src = (b"; made by hand \xff\r\n;TYPE:External perimeter\r\nG1 X10 Y0 E1 F3000 ; \x0c odd\r\n"
+           b";TYPE:Internal infill\r\nG1 X10 Y10 E2\r\n")
+    cfg = TuneConfig(accel=3000.0, feature_accel={"outer_wall": 1500.0, "infill": 9000.0})
+    done = rewrite_gcode_bytes(src, cfg, _printer("scv"))
+    out = done.data.split(b"\r\n")
+    assert b"".join(ln for ln in out if b"ringtune" not in ln) == src.replace(b"\r\n", b"")
+    assert out[out.index(b"G1 X10 Y10 E2") - 1] == b"SET_VELOCITY_LIMIT ACCEL=9000 ; ringtune: infill"
+    wall = out.index(b"G1 X10 Y0 E1 F3000 ; \x0c odd")
+    assert out[wall - 1] == b"SET_VELOCITY_LIMIT ACCEL=1500 ; ringtune: outer_wall"

@@ -58,7 +58,8 @@ def test_replace_says_what_re_slicing_at_the_chosen_acceleration_saves(tmp_path,
 
     out = tmp_path / "out"
     rc = main(["tune", "--json", "--gcode", str(TOWER), "--out", str(out), "--trials", "2", "--no-baselines",
-               "--max-path-error", "0", "--backend", "lti", "--job-accel", "replace", "--accel-range", "2500,5000"])
+               "--max-path-error", "0", "--backend", "lti", "--job-accel", "replace", "--accel-range", "2500,5000",
+               "--per-feature", "off"])     # one acceleration: what re-slicing at it gives
     assert rc == 0
     res = json.loads(capsys.readouterr().out)
     ja = res["job_accel"]
@@ -322,3 +323,21 @@ def test_every_cap_the_summary_names_is_checked_against_the_planner_without_it(v
         assert without < base
         assert f"{b['name']} {b['value']:.0f} mm/s² binds on {b['moves']} " in summary
     assert "max_y_accel" in {b["name"] for b in named}
+
+
+def test_with_a_job_the_range_is_judged_at_the_jobs_own_top_speed(tmp_path, capsys):
+    """A job whose fastest XY move is 250 mm/s (under the printer's 300 mm/s limit, above the motor's
+    150 mm/s corner speed): the range top is where the motor needs all its force at 250 mm/s (rigid:
+    (F·150/250 − friction)/(m_y + m_rotor)), not at the velocity limit, and the JSON records 250."""
+    toml = _printer(tmp_path / "p.toml", 20.0, 0.8, 1.6, 42.0, 36.0)
+    job = tmp_path / "fast.gcode"
+    job.write_text("G90\nM83\nG1 X20 Y20 Z0.3 F6000\n;TYPE:Outer wall\n"
+                   + "".join(f"G1 X{x} Y{y} E2 F15000\n" for x, y in ((220, 20), (220, 220), (20, 220), (20, 20)))
+                   + "G1 X40 Y40 E1 F3000\n")
+    out = tmp_path / "out"
+    assert main(["tune", "--json", "--printer", str(toml), "--gcode", str(job), "--out", str(out), "--trials", "3",
+                 "--backend", "lti", "--seed", "2"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["chosen"]["config"]["top_speed_mm_s"] == pytest.approx(250.0)
+    top = (20.0 * 150.0 / 250.0 - 1.0) / (1.6 + 0.13) * 1000.0
+    assert res["accel"]["range"][1] == math.floor(top / 100.0) * 100.0

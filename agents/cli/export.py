@@ -102,6 +102,10 @@ def run(args, out) -> int:
         slicer = slicer_profile(cfg, args.slicer, exp.firmware, args.slicer_version) if args.slicer else None
     except RingtuneError as exc:   # name the file the user gave, not the abstract "config"
         raise exc.relocated("config", args.config) from None
+    if cfg.per_feature:      # a firmware holds one acceleration: the per-feature ones belong in the job
+        out.note(f"ringtune export: {args.config} sets accelerations per feature (or the corner rule): the lines "
+                 f"below carry the visible walls' {cfg.accel or 0:g} mm/s²; `ringtune rewrite JOB --config "
+                 f"{args.config} -o OUT` writes the rest into a job at each feature change")
     parts = _parts(exp, slicer, args)
     files = _write(parts, args) if args.output else []
     out.emit({"firmware": exp.firmware, "lines": exp.lines, "save_lines": exp.save_lines,

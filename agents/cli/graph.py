@@ -31,6 +31,7 @@ import argparse
 from pathlib import Path
 
 from ringtune.agents.cli.common import GCODE_JOB_HELP, check_output_folder, gcode_job, load_config
+from ringtune.agents.cli.options import VALUES
 from ringtune.agents.identify.belts import compare_belts, read_belt_tests
 from ringtune.agents.identify.belts_plot import pair_rows, plot_belts, summary_lines
 from ringtune.agents.identify.graph import shaper_graph
@@ -78,7 +79,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     sh.add_argument("files", nargs="+", metavar="ACCEL.csv", help="Klipper resonance files (one or more per axis)")
     sh.add_argument("-o", "--output", required=True, metavar="OUT.png", help="the graph (.png, .pdf or .svg)")
     sh.add_argument("--config", metavar="best.json", help="a TuneConfig (tune's best.json): mark its shapers")
-    sh.add_argument("--scv", type=float, default=5.0, help="square-corner velocity, mm/s (default 5, Klipper's)")
+    sh.add_argument("--scv", type=VALUES["scv"], default=5.0, help="square-corner velocity, mm/s (default 5, Klipper's)")
     sh.add_argument("--axis", choices=("x", "y"), help="axis of every file (default: from the file name)")
     _json_flag(sh)
     be = sub.add_parser("belts", help="CoreXY belt comparison from the two diagonal tests",
@@ -96,7 +97,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                     "(default: a 40 mm square's walls)")
     sp.add_argument("--config", metavar="best.json", help="shaping and acceleration printed with (default: "
                     "shaping off at the printer's acceleration)")
-    sp.add_argument("--step", type=float, default=5.0, help="speed step, mm/s (default 5)")
+    sp.add_argument("--step", type=VALUES["speed"], default=5.0, help="speed step, mm/s (default 5)")
     _json_flag(sp)
 
 
@@ -151,8 +152,6 @@ def _run_belts(args, out) -> int:
 
 def _run_shapers(args, out) -> int:
     check_plot_path(args.output)
-    if not args.scv >= 0:
-        raise RingtuneError(f"must be ≥ 0 mm/s, not {args.scv}", "--scv")
     config = load_config(args.config, out) if args.config else None
     graphs, warnings = shaper_graph(args.files, config, args.scv, args.axis)
     if not graphs:

@@ -236,12 +236,17 @@ def run(args, out) -> int:
         for sentence in sentences:
             out.note(f"{prefix}: {sentence}")
     _write(args, got, out)
-    out.emit({"fits": [f.to_dict() for f in got.measurement.fits], "loaded_fits": [f.to_dict() for f in got.loaded_fits],
-              "added_mass": {ax: a.to_dict() for ax, a in got.added.items()}, "klipper": got.klipper,
-              "belts": None if got.belts is None else {k: v for k, v in got.belts.to_dict().items() if k in BELT_KEYS},
-              "defaults": got.description.defaults, "warnings": got.warnings, "toml": got.toml,
-              "output": args.output, "plot": args.plot}, _text(got, args.output))
+    out.emit(_result(got, args), _text(got, args.output))
     return 0
+
+
+def _result(got, args) -> dict:
+    """The ``--json`` object of an identification from accelerometer files."""
+    return {"fits": [f.to_dict() for f in got.measurement.fits], "loaded_fits": [f.to_dict() for f in got.loaded_fits],
+            "added_mass": {ax: a.to_dict() for ax, a in got.added.items()}, "klipper": got.klipper,
+            "belts": None if got.belts is None else {k: v for k, v in got.belts.to_dict().items() if k in BELT_KEYS},
+            "defaults": got.description.defaults, "warnings": got.warnings, "toml": got.toml,
+            "output": args.output, "plot": args.plot}
 
 
 def _without_accelerometer(args, out) -> int:

@@ -95,17 +95,26 @@ def run(args, out) -> int:
 def _result(args, done) -> dict:
     """The JSON of one run (keys in the module docstring)."""
     res, acc = done.limited, done.accel
+    limited = ({"method": args.method, "min_speed_factor": res.min_speed_factor, "moves_slowed": res.moves_slowed,
+                "lines_changed": res.lines_changed, "f_words_replaced": res.f_words_changed,
+                "f_words_added": res.f_words_added} if res else _NOT_LIMITED)
+    scaled = ({"accel_reference": acc.reference, "accel_factor": acc.factor, "accel_lines_changed": acc.lines_changed,
+               "notes": acc.notes} if acc else dict(_NOT_SCALED, notes=[]))
     return {
-        "input": args.file, "output": args.output, "method": args.method if res else None,
-        "freq_limit_hz": args.freq_limit, "min_speed_factor": res.min_speed_factor if res else None,
-        "moves_slowed": res.moves_slowed if res else 0, "lines_changed": res.lines_changed if res else 0,
-        "f_words_replaced": res.f_words_changed if res else 0, "f_words_added": res.f_words_added if res else 0,
+        "input": args.file, "output": args.output, "method": limited["method"],
+        "freq_limit_hz": args.freq_limit, **{k: limited[k] for k in _LIMITED_KEYS},
         "header": "\n".join(h.header for h in (res, acc) if h is not None),
-        "accel": args.accel, "accel_reference": acc.reference if acc else None,
-        "accel_factor": acc.factor if acc else None, "accel_lines_changed": acc.lines_changed if acc else 0,
-        "notes": acc.notes if acc else [],
+        "accel": args.accel, **scaled,
         "frequencies": done.frequencies,
     }
+
+
+#: the limit's JSON keys after freq_limit_hz, and their values when no limit was applied
+_LIMITED_KEYS = ("min_speed_factor", "moves_slowed", "lines_changed", "f_words_replaced", "f_words_added")
+_NOT_LIMITED = {"method": None, "min_speed_factor": None, "moves_slowed": 0, "lines_changed": 0,
+                "f_words_replaced": 0, "f_words_added": 0}
+#: the --accel keys when the accelerations were not scaled
+_NOT_SCALED = {"accel_reference": None, "accel_factor": None, "accel_lines_changed": 0, "notes": []}
 
 
 def _said(freqs: dict) -> str:

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from ringtune.envs.motors import lookup_motor, unknown_motor_message
 from ringtune.envs.printer import check_moving_mass
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.shapers import FLAVORS
 
 
 @dataclass(frozen=True)
@@ -82,6 +84,7 @@ VALUES: dict[str, Value] = {
     "top": Value("a whole number", "", 0, integer=True, low_closed=True),
     "modes": Value("a number of modes", "", 1, 5, low_closed=True, integer=True),
     "points": Value("a number of points", "", 10, 100_000, low_closed=True, integer=True),
+    "baud": Value("a serial speed", "baud", 0, integer=True),
 }
 
 
@@ -110,6 +113,19 @@ class PerAxis:
         return out
 
 
+class ListOf:
+    """argparse type of ``A,B,…`` -> [a, b, …], each read by ``value`` (at least one)."""
+
+    def __init__(self, value: Value):
+        self.value = value
+
+    def __call__(self, text: str) -> list:
+        items = [v.strip() for v in text.split(",") if v.strip()]
+        if not items:
+            raise argparse.ArgumentTypeError(f"expected values separated by commas, not {text!r}")
+        return [self.value(v) for v in items]
+
+
 def moving_mass(text: str) -> float:
     """argparse type of a mass that moves on an axis, kg (:func:`check_moving_mass`'s range)."""
     kg = VALUES["mass"](text)
@@ -134,6 +150,16 @@ def motor_spec(text: str) -> dict:
         except argparse.ArgumentTypeError as exc:
             raise argparse.ArgumentTypeError(f"{key}: {exc}") from None
     return spec
+
+
+def flavor_name(text: str) -> str:
+    """argparse type of a shaper flavour: one of :data:`FLAVORS`, or a firmware name (its formulas)."""
+    name = text.lower()
+    flavor = FIRMWARES[name].flavor if name in FIRMWARES else name
+    if flavor not in FLAVORS:
+        raise argparse.ArgumentTypeError(f"unknown flavour {text!r}; one of {', '.join(FLAVORS)}, or a firmware "
+                                         f"({', '.join(FIRMWARES)})")
+    return flavor
 
 
 def number_list(text: str) -> list[float]:

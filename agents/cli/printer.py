@@ -119,7 +119,8 @@ def check_motor_names(description: dict, notes: list[str], comments: dict[str, l
 
 # -- TOML ---------------------------------------------------------------------------------------
 _KEY_COMMENTS = {
-    "accel": "mm/s²", "travel_accel": "mm/s²", "velocity": "mm/s", "square_corner_velocity": "mm/s",
+    "accel": "mm/s²", "travel_accel": "mm/s²", "retract_accel": "mm/s² (E-only moves)", "velocity": "mm/s",
+    "square_corner_velocity": "mm/s",
     "junction_deviation": "mm", "max_accel": "mm/s² per axis x, y, z, e (0 = no cap)",
     "max_velocity": "mm/s per axis x, y, z, e (0 = no cap)", "jerk": "mm/s per axis x, y, z, e",
     "rotation_distance": "mm of belt per motor revolution", "run_current": "A RMS", "voltage": "V",

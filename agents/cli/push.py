@@ -21,6 +21,7 @@ import argparse
 import os
 
 from ringtune.agents.cli.common import firmware_name, load_config
+from ringtune.agents.cli.options import VALUES
 from ringtune.hardware.push import PushError, push
 from ringtune.shaping.errors import RingtuneError
 
@@ -74,13 +75,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("config", metavar="CONFIG", help="TuneConfig JSON")
     p.add_argument("--firmware", type=firmware_name, help="klipper, kalico, rrf, rrf35, rrf34, marlin, marlin-ftm, prusa "
                    "(default: the config's firmware)")
-    p.add_argument("--port", metavar="PORT", help="serial device or pyserial URL (required unless "
-                   "--moonraker or --dry-run)")
-    p.add_argument("--moonraker", metavar="URL", help="Klipper through Moonraker's HTTP API")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--port", metavar="PORT", help="serial device or pyserial URL (required unless "
+                       "--moonraker or --dry-run)")
+    where.add_argument("--moonraker", metavar="URL", help="Klipper through Moonraker's HTTP API")
     p.add_argument("--api-key", metavar="KEY", help="Moonraker API key (default $MOONRAKER_API_KEY)")
-    p.add_argument("--baud", type=int, default=115200, help="serial speed (default 115200)")
+    p.add_argument("--baud", type=VALUES["baud"], default=115200, help="serial speed (default 115200)")
     p.add_argument("--crc", action="store_true", help="RepRapFirmware: CRC-16 instead of XOR checksums")
-    p.add_argument("--timeout", type=float, default=10.0,
+    p.add_argument("--timeout", type=VALUES["seconds"], default=10.0,
                    help="seconds without any answer before giving up (default 10)")
     p.add_argument("--save", action="store_true", help="persist the settings (see above)")
     p.add_argument("--save-file", metavar="FILE", help="where --save writes config lines (RRF, Klipper)")
@@ -97,10 +99,6 @@ def run(args, out) -> int:
         raise RingtuneError("refusing to push without an explicit port: give --port /dev/ttyUSB0 (or "
                             "socket://host:port, rfc2217://host:port, /tmp/printer) or --moonraker URL; "
                             "--dry-run shows what would be sent", "--port")
-    if args.port and args.moonraker:
-        raise RingtuneError("give --port or --moonraker, not both", "--moonraker")
-    if args.timeout <= 0:
-        raise RingtuneError("must be > 0 s", "--timeout")
     log = out.note if args.verbose else None
     out.release()                        # the conversation (-v) goes out live
     try:

@@ -14,10 +14,10 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ringtune.agents.cli.shaper import band_text, finite_or_none, resolve_flavor
+from ringtune.agents.cli.options import VALUES, ListOf, flavor_name
+from ringtune.agents.cli.shaper import band_text
 from ringtune.hardware.accel import read_resonances_csv
-from ringtune.shaping.analysis import band, max_accel, residual_vibration, smoothing
-from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.analysis import responses
 from ringtune.shaping.shapers import get_shaper
 
 NAME = "response"
@@ -37,46 +37,29 @@ KLIPPER_TEST_DAMPING = (0.075, 0.1, 0.15)
 
 def add_arguments(parser) -> None:
     parser.add_argument("names", metavar="NAME", nargs="+", help="shaper names (see `ringtune shaper --help`)")
-    parser.add_argument("--freq", type=float, required=True, help="shaper frequency, Hz (all shapers)")
-    parser.add_argument("--damping", type=float, default=None, help="shaper damping ratio (firmware default)")
-    parser.add_argument("--flavor", default="klipper", help="firmware formulas (see `ringtune shaper --help`)")
-    parser.add_argument("--plant-damping", default=",".join(map(str, KLIPPER_TEST_DAMPING)),
+    parser.add_argument("--freq", type=VALUES["freq"], required=True, help="shaper frequency, Hz (all shapers)")
+    parser.add_argument("--damping", type=VALUES["damping_ratio"], default=None,
+                        help="shaper damping ratio (firmware default)")
+    parser.add_argument("--flavor", type=flavor_name, default="klipper",
+                        help="firmware formulas (see `ringtune shaper --help`)")
+    parser.add_argument("--plant-damping", type=ListOf(VALUES["damping_ratio"]),
+                        default=list(KLIPPER_TEST_DAMPING),
                         help="comma list of plant damping ratios; the curve is the max over them "
                         "(default 0.075,0.1,0.15 as Klipper)")
-    parser.add_argument("--fmax", type=float, default=None, help="highest frequency shown, Hz (default 3×freq)")
-    parser.add_argument("--points", type=int, default=400, help="grid points (default 400)")
+    parser.add_argument("--fmax", type=VALUES["freq"], default=None,
+                        help="highest frequency shown, Hz (default 3×freq)")
+    parser.add_argument("--points", type=VALUES["points"], default=400, help="grid points (default 400)")
     parser.add_argument("--plot", default=None, metavar="OUT.png", help="write the graph here")
     parser.add_argument("--psd", default=None, metavar="CSV", help="Klipper resonances CSV to draw behind")
 
 
-def _parse_dampings(text: str) -> list[float]:
-    try:
-        vals = [float(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise RingtuneError(f"expected numbers separated by commas, not {text!r}", "--plant-damping") from None
-    if not vals or any(not 0 <= v < 1 for v in vals):
-        raise RingtuneError(f"each value must be in [0, 1): {text!r}", "--plant-damping")
-    return vals
-
-
 def run(args, out) -> int:
-    flavor = resolve_flavor(args.flavor)
-    dampings = _parse_dampings(args.plant_damping)
-    if not args.freq > 0:
-        raise RingtuneError(f"must be > 0 Hz, not {args.freq}", "--freq")
+    flavor = args.flavor
+    dampings = args.plant_damping
     fmax = 3 * args.freq if args.fmax is None else args.fmax
-    if not fmax > 0:
-        raise RingtuneError(f"must be > 0 Hz, not {fmax}", "--fmax")
-    if not 10 <= args.points <= 100_000:
-        raise RingtuneError("must be between 10 and 100000", "--points")
     freqs = np.linspace(0, fmax, args.points + 1)[1:]
     shapers = [get_shaper(n, args.freq, args.damping, flavor, where=f"shaper {n!r}") for n in args.names]
-    rows = []
-    for s in shapers:
-        vals = np.max([residual_vibration(s, freqs, z) for z in dampings], axis=0)
-        rows.append({"name": s.name, "damping": s.damping, "residual": vals,
-                     "band90_hz": list(band(s, 0.9, s.damping)), "duration_s": s.duration,
-                     "smoothing_mm": smoothing(s), "max_accel": finite_or_none(max_accel(s))})
+    rows = responses(shapers, freqs, dampings)
     psd = None
     if args.psd:
         psd = read_resonances_csv(args.psd)
@@ -86,6 +69,12 @@ def run(args, out) -> int:
         _plot(args, flavor, freqs, rows, dampings, psd)
     result = {"freq": args.freq, "flavor": flavor, "plant_damping": dampings, "freqs_hz": freqs,
               "shapers": rows, "plot": args.plot, "psd": args.psd}
+    out.emit(result, _text(args, flavor, dampings, rows))
+    return 0
+
+
+def _text(args, flavor: str, dampings: list[float], rows: list[dict]) -> str:
+    """The table a person reads: each shaper's 90 % band, duration, smoothing and max_accel."""
     lines = [f"residual vibration at {args.freq:g} Hz design frequency ({flavor}; plant damping "
              f"{', '.join(f'{z:g}' for z in dampings)})",
              f"  {'shaper':<22} {'90% band':>20} {'duration ms':>12} {'smoothing':>10} {'max_accel':>10}"]
@@ -95,8 +84,7 @@ def run(args, out) -> int:
                      f"{r['smoothing_mm']:10.4f} {acc:>10}")
     if args.plot:
         lines.append(f"graph written to {args.plot}")
-    out.emit(result, "\n".join(lines))
-    return 0
+    return "\n".join(lines)
 
 
 def _plot(args, flavor, freqs, rows, dampings, psd) -> None:

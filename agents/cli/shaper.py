@@ -18,10 +18,9 @@ from __future__ import annotations
 
 import math
 
+from ringtune.agents.cli.options import VALUES, flavor_name
 from ringtune.shaping.analysis import summary
-from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.firmware import FIRMWARES
-from ringtune.shaping.shapers import FLAVORS, get_shaper, is_centred
+from ringtune.shaping.shapers import get_shaper, is_centred
 
 NAME = "shaper"
 DESCRIPTION = """\
@@ -49,13 +48,14 @@ example:
 
 def add_arguments(parser) -> None:
     parser.add_argument("name", metavar="NAME", help="shaper name, e.g. zv, mzv, ei, 'mzv(n=5,t=1.1)'")
-    parser.add_argument("--freq", type=float, required=True, help="shaper frequency, Hz")
-    parser.add_argument("--damping", type=float, default=None,
+    parser.add_argument("--freq", type=VALUES["freq"], required=True, help="shaper frequency, Hz")
+    parser.add_argument("--damping", type=VALUES["damping_ratio"], default=None,
                         help="damping ratio (default: the firmware's default, e.g. 0.1 for Klipper)")
-    parser.add_argument("--flavor", default="klipper",
+    parser.add_argument("--flavor", type=flavor_name, default="klipper",
                         help="firmware formulas: klipper, klipper-legacy, prusa, rrf, rrf35, marlin, marlin-ftm")
-    parser.add_argument("--accel", type=float, default=5000.0, help="accel for the smoothing figure, mm/s² (5000)")
-    parser.add_argument("--scv", type=float, default=5.0, help="square corner velocity, mm/s (5)")
+    parser.add_argument("--accel", type=VALUES["accel"], default=5000.0,
+                        help="accel for the smoothing figure, mm/s² (5000)")
+    parser.add_argument("--scv", type=VALUES["scv"], default=5.0, help="square corner velocity, mm/s (5)")
 
 
 def finite_or_none(x: float) -> float | None:
@@ -65,15 +65,6 @@ def finite_or_none(x: float) -> float | None:
 
 def band_text(lo: float, hi: float) -> str:
     return "none" if not (math.isfinite(lo) and math.isfinite(hi)) else f"{lo:.2f} – {hi:.2f} Hz"
-
-
-def resolve_flavor(flavor: str) -> str:
-    name = flavor.lower()
-    flavor = FIRMWARES[name].flavor if name in FIRMWARES else name    # a firmware name: its formulas
-    if flavor not in FLAVORS:
-        raise RingtuneError(f"unknown flavour {flavor!r}; one of {', '.join(FLAVORS)}, or a firmware "
-                            f"({', '.join(FIRMWARES)})", "--flavor")
-    return flavor
 
 
 def _impulse_lines(shaper) -> list[str]:
@@ -91,11 +82,7 @@ def _impulse_lines(shaper) -> list[str]:
 
 
 def run(args, out) -> int:
-    flavor = resolve_flavor(args.flavor)
-    if not args.accel > 0:
-        raise RingtuneError(f"must be > 0, not {args.accel}", "--accel")
-    if not args.scv >= 0:
-        raise RingtuneError(f"must be >= 0, not {args.scv}", "--scv")
+    flavor = args.flavor
     shaper = get_shaper(args.name, args.freq, args.damping, flavor, where=f"shaper {args.name!r}")
     centred = is_centred(flavor)
     info = summary(shaper, centred, args.accel, args.scv)

@@ -21,18 +21,24 @@ modelled, not a detuned variant), ``job_shapers`` (the job's own shaper changes 
 ``baselines`` ({klipper|current|none: {``label``, ``config``, ``metrics``}}, judged as the
 configuration is; empty with ``--no-baselines``), ``versus`` ({baseline: {measure: {``value``,
 ``baseline``, ``verdict`` better|same|worse}}} for print time and every visible measure, at tune's
-resolution; ringtune.agents.tune.versus).
+resolution; ringtune.agents.tune.versus),
+``binding`` (the firmware limits that hold some moves below the configuration's acceleration, each
+measured by the planner without it: list of {``name``, ``value`` mm/s², ``what``, ``moves``,
+``time_s``, ``time_without_s``}, as ``tune``'s).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
 from ringtune.agents.cli.common import (GCODE_JOB_HELP, firmware_name, gcode_job,
                                        judgement, load_config, say_unmeasured)
 from ringtune.agents.cli.trace_option import write_trace_option
-from ringtune.agents.tune.baselines import current_config
+from ringtune.agents.klipper.baseline import klipper_rule_on_simulated_test
+from ringtune.agents.tune.baselines import current_config, recorded_klipper
+from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 from ringtune.agents.tune.versus import baseline_metrics, table as versus_table, versus_all
 from ringtune.envs.evaluate import (evaluate_judged, job_accel_commands, planned_job, resolve_job,
@@ -43,6 +49,7 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import job_accel_mode
 from ringtune.shaping.e_timing import E_TIMING_WORDS
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.feature_settings import per_feature_text
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.job_shapers import describe_timeline, shaper_timeline
 from ringtune.shaping.shapers import default_damping, shapers_from_config
@@ -78,7 +85,8 @@ configuration, to the digit.
 
 The configuration comes from a TuneConfig JSON (--config, as written by `ringtune tune`) or from
 --shaper/--freq/--damping/--freq-limit (one value for both axes, or "X,Y"); every TuneConfig key
-has its option (--freq-limit-method, --min-speed-factor, --accel, --max-accel X,Y, --job-accel),
+has its option (--freq-limit-method, --min-speed-factor, --accel, --max-accel X,Y, --job-accel,
+--feature-accel CLASS=A,..., --corner V, --min-cruise-ratio R),
 which overrides the file's value.
 
 The job runs as the printer would run it, as `ringtune plan` plans it: its own acceleration
@@ -112,6 +120,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--accel", metavar="A", type=float, help="printing acceleration, mm/s² (default: the printer's)")
     parser.add_argument("--max-accel", metavar="X,Y", help="per-axis acceleration caps, mm/s² (TuneConfig "
                         "max_accel_x/max_accel_y; default: the printer's)")
+    parser.add_argument("--feature-accel", metavar="CLASS=A,...", help="acceleration per feature class, mm/s² "
+                        "(TuneConfig feature_accel, e.g. infill=10000,travel=9000,inner_wall=10000)")
+    parser.add_argument("--corner", metavar="V", type=float, help="the corner rule's value in the printer's junction "
+                        "rule: square_corner_velocity mm/s, junction deviation mm, jerk mm/s (TuneConfig corner)")
+    parser.add_argument("--min-cruise-ratio", metavar="R", type=float, help="Klipper's minimum_cruise_ratio in [0, 1)")
     parser.add_argument("--freq-limit-method", choices=("sections", "nophead", "marlin"),
                         help="how the frequency limit slows the zigzags (default sections)")
     parser.add_argument("--min-speed-factor", metavar="K", type=float,
@@ -209,8 +222,10 @@ def build_config(args, out=None, printer=None):
         key = (exc.where or "").rpartition(": ")[2]
         given = {"--freq": freq, "--damping": damping, "--shaper": shaper, "--firmware": args.firmware,
                  "--freq-limit": args.freq_limit, "--accel": args.accel, "--max-accel": args.max_accel,
-                 "--freq-limit-method": args.freq_limit_method, "--min-speed-factor": args.min_speed_factor}
-        flag = _KEY_FLAG.get(key)
+                 "--freq-limit-method": args.freq_limit_method, "--min-speed-factor": args.min_speed_factor,
+                 "--feature-accel": args.feature_accel, "--corner": args.corner,
+                 "--min-cruise-ratio": args.min_cruise_ratio}
+        flag = _KEY_FLAG.get(key.partition(".")[0])
         if flag and given.get(flag) is not None:
             raise RingtuneError(exc.bare, flag) from None
         raise
@@ -230,7 +245,8 @@ _KEY_FLAG = {"freq_x": "--freq", "freq_y": "--freq", "damping_x": "--damping", "
              "shaper_x": "--shaper", "shaper_y": "--shaper", "firmware": "--firmware",
              "freq_limit_hz": "--freq-limit", "accel": "--accel", "max_accel_x": "--max-accel",
              "max_accel_y": "--max-accel", "freq_limit_method": "--freq-limit-method",
-             "min_speed_factor": "--min-speed-factor"}
+             "min_speed_factor": "--min-speed-factor", "feature_accel": "--feature-accel", "corner": "--corner",
+             "min_cruise_ratio": "--min-cruise-ratio"}
 
 
 def _in_range(values, lo: float, hi: float, option: str, what: str) -> None:
@@ -247,8 +263,26 @@ def _other_keys(cfg: dict, args) -> None:
     msf = args.min_speed_factor
     _in_range((msf,), 0.01, 1.0, "--min-speed-factor", "a speed factor: give one in [0.01, 1]")
     given = {"accel": args.accel, "max_accel_x": caps[0], "max_accel_y": caps[1],
-             "freq_limit_method": args.freq_limit_method, "min_speed_factor": msf, "job_accel": args.job_accel}
+             "freq_limit_method": args.freq_limit_method, "min_speed_factor": msf, "job_accel": args.job_accel,
+             "feature_accel": _feature_accel(args.feature_accel), "corner": args.corner,
+             "min_cruise_ratio": args.min_cruise_ratio}
     cfg.update({k: v for k, v in given.items() if v is not None})
+
+
+def _feature_accel(text: str | None) -> dict | None:
+    """``CLASS=A,CLASS=A`` -> {class: mm/s²} (the classes are checked by TuneConfig)."""
+    if text is None:
+        return None
+    out = {}
+    for part in text.split(","):
+        name, eq, value = part.partition("=")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise RingtuneError(f"{part!r} is not CLASS=mm/s² (e.g. infill=10000)", "--feature-accel") from None
+        if not eq:
+            raise RingtuneError(f"{part!r} is not CLASS=mm/s² (e.g. infill=10000)", "--feature-accel")
+    return out
 
 
 def _check_options(freq, damping, args) -> None:
@@ -264,7 +298,8 @@ def _check_options(freq, damping, args) -> None:
         raise RingtuneError(f"{args.freq_limit:g} Hz is not a frequency limit: give one in [0, 1000] Hz "
                             "(0 = off)", "--freq-limit")
     if args.accel is not None and not (math.isfinite(args.accel) and 0 < args.accel <= 1e6):
-        raise RingtuneError(f"{args.accel:g} mm/s² is not an acceleration: give one > 0 mm/s²", "--accel")
+        raise RingtuneError(f"{args.accel:g} mm/s² is not a printing acceleration: give one in (0, 1e6] mm/s²",
+                            "--accel")
 
 
 def _axis(shaper: str, freq: float, damping: float) -> str:
@@ -324,6 +359,7 @@ def run(args, out) -> int:
                                 f"--plot {args.plot}") from None
     judged = judgement(margin)
     changes = job_commands(printer, args.gcode, config, out)
+    bindings = binding_limits(printer, args.gcode, config, job_accel=job_accel_mode(config))
     out.note(f"simulating {config.shaper_x}/{config.shaper_y} on {printer.name} ({args.backend}), {judged} ...")
     m, evs = evaluate_judged([config], printer, args.gcode, backend=args.backend, freq_margin=margin,
                              job_shapers=True)[0]
@@ -333,7 +369,9 @@ def run(args, out) -> int:
     factors = variant_factors(margin)
     plots = []
     if args.plot:
-        plots = [str(p) for p in plot_evaluation(evs, args.plot, factors=factors, judged=judged)]
+        label, base = _plot_baseline(printer, config, args, margin, out)
+        plots = [str(p) for p in plot_evaluation(evs, args.plot, factors=factors, judged=judged, baseline=base,
+                                                 baseline_label=label)]
     result = {
         "printer": printer.name,
         "job": args.gcode or "built-in test print",
@@ -349,9 +387,15 @@ def run(args, out) -> int:
         "plots": plots,
         "job_shapers": changes,
         "job_accel": job_accel_mode(config),
+        "binding": [dataclasses.asdict(b) for b in bindings],
         **({"trace": args.trace} if args.trace else {}),
     }
-    lines = _text(result, m, config, printer, judged, len(evs))
+    said = binding_sentences(bindings, config.accel)
+    xy_caps = {"M201 X", "M201 Y", "max_x_accel", "max_y_accel"}      # binding.cap_names' per-axis caps
+    if config.max_accel_x is None and any(b.name in xy_caps for b in bindings):
+        said.append("  --max-accel X,Y runs it with other per-axis caps (tune's configurations carry the caps "
+                    "they were planned with, and export sets them)")
+    lines = _text(result, m, config, printer, judged, len(evs)) + said
     lines += _baselines(result, m, config, printer, args, margin, out)
     lines += [f"plot: {p}" for p in plots]
     out.emit(result, "\n".join(lines))
@@ -370,6 +414,25 @@ def _baselines(result: dict, m, config, printer, args, margin: float, out) -> li
     mine = m.to_dict()
     result["versus"] = versus_all(mine, ms)
     return ["", "against each baseline (the same job and judgement):"] + versus_table(mine, ms, labels, name="this")
+
+
+def _plot_baseline(printer, config: TuneConfig, args, margin: float, out):
+    """(label, Evaluations per variant) of Klipper's pick on this printer and job for the plots:
+    the pick recorded from the resonance files, else Klipper's rule on the model's simulated
+    resonance test; judged as the configuration is. (label, None) when the rule cannot run."""
+    kcfg, _why = recorded_klipper(printer, config.firmware)
+    label = "Klipper's pick from the resonance files"
+    if kcfg is None:
+        try:
+            fields = klipper_rule_on_simulated_test(printer, config.firmware, "head")[1]
+        except RingtuneError as exc:
+            out.note(f"plots without Klipper's pick: {exc}")
+            return label, None
+        fields["accel"] = fields.get("accel") or float(printer.limits.accel)
+        kcfg, label = TuneConfig(**fields), "Klipper's pick on the simulated resonance test"
+    label += f" ({kcfg.shaper_x} {kcfg.freq_x:.1f} / {kcfg.shaper_y} {kcfg.freq_y:.1f} Hz, {kcfg.accel:.0f} mm/s²)"
+    base = evaluate_judged([kcfg], printer, args.gcode, backend=args.backend, freq_margin=margin)[0][1]
+    return label, base
 
 
 def _windows(evs) -> list[dict]:
@@ -393,7 +456,7 @@ def _text(result: dict, m, c, printer, judged: str, n_variants: int) -> list[str
         f"config  {c.firmware}: X {_axis(c.shaper_x, c.freq_x, c.damping_x)}, "
         f"Y {_axis(c.shaper_y, c.freq_y, c.damping_y)}, freq limit "
         f"{(f'{c.freq_limit_hz:g} Hz' if c.freq_limit_hz else 'off')}"
-        + (f", accel {c.accel:g} mm/s²" if c.accel else ""),
+        + (f", accel {c.accel:g} mm/s²" if c.accel else "") + per_feature_text(c),
         f"judged  {judged}",
         f"print time   {m.print_time_s:10.3f} s",
         f"ripple       {m.ripple_mm * um:10.1f} µm peak-to-peak, worst visible wall "

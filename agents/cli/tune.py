@@ -23,8 +23,9 @@ time_without_s (the planner with that limit removed)})},
 job_accel {mode, commands, cap_mm_s2, searched, print_time_as_sliced_s, print_time_replaced_s,
 replaced_accel, saved_s}, per_feature (null when not searched, else {accel {visible|hidden_walls|
 infill|solid_top|travel: mm/s²}, ranges {group: {top_speed_mm_s, range, basis}}, corner, junction,
-min_cruise_ratio, why (why it was searched)}), plot_arrows, files {readme, summary, plot, best, apply, front, trials, job (with
---gcode: the rewritten job)}, storage, study, completed_now, interrupted, elapsed_s.
+min_cruise_ratio, why (why it was searched)}), plot_arrows, files {readme, summary, plot, best, apply,
+front, trials, job (with --gcode: the rewritten job)}, storage, study, completed_now, interrupted,
+elapsed_s.
 """
 
 from __future__ import annotations
@@ -243,9 +244,9 @@ def run(args: argparse.Namespace, out) -> int:
             if k is not None:   # start the search from what users do today, and its neighbours
                 seen, enq = set(), []
                 cur = [baselines["current"].config] if "current" in baselines else []
-                for c in warm_start(k.config, bl.fits, space) + [c for c in cur if inside(c, space)]:
-                    p = params_from_config(c, space)
-                    for q in (p, feature_space.at_ceilings(p, space)) if space.per_feature else (p,):
+                for i, c in enumerate(warm_start(k.config, bl.fits, space) + [c for c in cur if inside(c, space)]):
+                    p = params_from_config(c, space)   # the rule's pick also with the hidden groups at their tops
+                    for q in (p, feature_space.at_ceilings(p, space)) if space.per_feature and i == 0 else (p,):
                         key = tuple(sorted(q.items()))
                         if key not in seen:
                             seen.add(key)
@@ -316,10 +317,14 @@ def run(args: argparse.Namespace, out) -> int:
     text = result.pop("summary_text")
     result["per_feature"] = pf_json
     if args.gcode:     # the job with the choice written in, beside best.json
-        done = rewrite_file(args.gcode, out_dir / "job.gcode", chosen.config, printer)
-        result["files"]["job"] = str(out_dir / "job.gcode")
-        text += (f"\nThe job with the choice written in: {out_dir / 'job.gcode'} ({done.lines_inserted} lines "
-                 f"inserted; planned {done.before_s:.1f} s as sliced -> {done.after_s:.1f} s).")
+        try:
+            done = rewrite_file(args.gcode, out_dir / "job.gcode", chosen.config, printer)
+            result["files"]["job"] = str(out_dir / "job.gcode")
+            text += (f"\nThe job with the choice written in: {out_dir / 'job.gcode'} ({done.lines_inserted} lines "
+                     f"inserted; planned {done.before_s:.1f} s as sliced -> {done.after_s:.1f} s).")
+        except RingtuneError as exc:       # the study stands; say why the job could not be written
+            result["files"]["job"] = None
+            out.note(f"ringtune tune: job.gcode not written: {exc}")
     if bl:
         for k, src in bl.sources.items():
             result["baselines"][k]["source"] = src

@@ -70,6 +70,20 @@ def _axis(path, items, given: str | None) -> tuple[str, str | None]:
                         "names it (resonances_x_…, resonances_y_…) or give --axis", str(path))
 
 
+def _free_decay_fit(path, data: RawAccel, axis: str | None, max_modes: int, fmin: float) -> tuple[AxisFit, str]:
+    """(fit, axis) of an RRF M956 capture: one move's free ringing (axis given, or named in the file's name)."""
+    ax = axis or _named_axis(path)
+    if ax is None:
+        raise RingtuneError("cannot tell which axis this capture measured; give --axis", str(path))
+    return identify_decay(data.t, data.axis(ax), ax, str(path), data.rate, max_modes=min(max_modes, 2), fmin=fmin), ax
+
+
+def _sweep_fits(path, items: list, ax: str, max_modes: int, fmin: float, fmax: float, damping: str) -> list[AxisFit]:
+    """The fits of a resonance sweep's spectra on axis ``ax`` (its own column, else the sum)."""
+    return [identify_psd(psd.freqs, psd.axis(ax) if psd.psd_x is not None else psd.psd_sum, ax,
+                         psd.source or str(path), max_modes, fmin, fmax, damping) for psd in items]
+
+
 def read_measurement(paths, axis: str | None = None, max_modes: int = 3, fmin: float = SWEEP[0],
                      fmax: float = SWEEP[1], damping: str = "fit") -> Measurement:
     """Read and fit every file (``axis``: the axis of all of them, default from each file)."""
@@ -77,31 +91,51 @@ def read_measurement(paths, axis: str | None = None, max_modes: int = 3, fmin: f
     psds: dict[str, list] = {}
     files: list[dict] = []
     warnings: list[str] = []
+    seen: dict[str, str] = {}
     for path in paths:
         data = read_accel(path)
         record = {"name": str(path), "sha256": sha256_of(path)}
-        if isinstance(data, RawAccel) and data.fmt == "m956":
-            ax = axis or _named_axis(path)
-            if ax is None:
-                raise RingtuneError("cannot tell which axis this capture measured; give --axis", str(path))
-            fit = identify_decay(data.t, data.axis(ax), ax, str(path), data.rate,
-                                 max_modes=min(max_modes, 2), fmin=fmin)
-            fits.append(fit)
-            files.append({**record, "axis": ax, "kind": "free decay"})
-            warnings += [f"{path}: {w}" for w in fit.warnings]
+        if record["sha256"] in seen:
+            warnings.append(f"{path}: the same data as {seen[record['sha256']]}: read once")
             continue
-        items = to_psd(data)
-        ax, warning = _axis(path, items, axis)
-        if warning:
-            warnings.append(warning)
-        files.append({**record, "axis": ax})
-        psds.setdefault(ax, []).extend(items)
-        for psd in items:
-            col = psd.axis(ax) if psd.psd_x is not None else psd.psd_sum
-            fit = identify_psd(psd.freqs, col, ax, psd.source or str(path), max_modes, fmin, fmax, damping)
-            fits.append(fit)
-            warnings += [f"{path}: {w}" for w in fit.warnings]
-    return Measurement(fits, psds, files, warnings)
+        seen[record["sha256"]] = str(path)
+        if isinstance(data, RawAccel) and data.fmt == "m956":
+            fit, ax = _free_decay_fit(path, data, axis, max_modes, fmin)
+            new = [fit]
+            files.append({**record, "axis": ax, "kind": "free decay"})
+        else:
+            items = to_psd(data)
+            ax, warning = _axis(path, items, axis)
+            warnings += [warning] if warning else []
+            files.append({**record, "axis": ax})
+            psds.setdefault(ax, []).extend(items)
+            new = _sweep_fits(path, items, ax, max_modes, fmin, fmax, damping)
+        fits += new
+        warnings += [f"{path}: {w}" for fit in new for w in fit.warnings]
+    meas = Measurement(fits, psds, files, warnings)
+    meas.warnings += _several_tests_of_an_axis(meas)
+    return meas
+
+
+def _several_tests_of_an_axis(meas: Measurement) -> list[str]:
+    """Where one axis has several tests: which one's modes the description takes (the best fit), and
+    whether the others' strongest mode lies more than 10 % away from it (not the same machine state)."""
+    out = []
+    used = meas.by_axis()
+    for ax, best in used.items():
+        others = [f for f in meas.fits if f.axis == ax and f is not best]
+        if not others:
+            continue
+
+        def main(fit):
+            return max(fit.modes, key=lambda m: m.share).freq if fit.modes else float("nan")
+
+        far = [f"{f.source} ({main(f):.1f} Hz)" for f in others if abs(main(f) / main(best) - 1) > 0.10]
+        out.append(f"{ax.upper()}: {len(others) + 1} tests; the modes are {best.source}'s (the best fit, r² "
+                   f"{best.r2:.3f}), Klipper's rule reads them all"
+                   + (f"; the strongest mode of {', '.join(far)} is more than 10 % from its {main(best):.1f} Hz: "
+                      "not the same printer or the same state (belt tension, toolhead)?" if far else ""))
+    return out
 
 
 def klipper_record(psds: dict[str, list], scv: float = 5.0, version: str = "head") -> dict:
@@ -151,7 +185,8 @@ def recorded_files(measurement: dict, printer_path: str | Path | None) -> tuple[
 def resonance_psds(paths: list, axes: str | None = None, note=None) -> tuple[dict[str, list], dict[str, list[str]]]:
     """({axis: [PSD, …]}, {axis: [file, …]}) of resonance-test files; each file's axis from
     ``axes`` (comma-separated, one per file), else its name (a file whose name does not say is
-    refused: its columns cannot tell)."""
+    refused: its columns cannot tell). A file with the same data as an earlier one is read once (said
+    through ``note``)."""
     named = None
     if axes:
         named = [a.strip().lower() for a in axes.split(",")]
@@ -159,8 +194,15 @@ def resonance_psds(paths: list, axes: str | None = None, note=None) -> tuple[dic
             raise RingtuneError(f"give one axis (x or y) per --accel file ({len(paths)} files)", "axes")
     psds: dict[str, list] = {}
     sources: dict[str, list[str]] = {}
+    seen: dict[str, str] = {}
     for i, path in enumerate(paths):
         items = to_psd(read_accel(path))
+        digest = sha256_of(path)
+        if digest in seen:
+            if note:
+                note(f"{path}: the same data as {seen[digest]}: read once")
+            continue
+        seen[digest] = str(path)
         ax = named[i] if named else _psd_axis(path, items, note)
         psds.setdefault(ax, []).extend(items)
         sources.setdefault(ax, []).append(str(path))

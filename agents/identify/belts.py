@@ -34,7 +34,7 @@ from ringtune.agents.identify.accelerometer import sha256_of
 from ringtune.envs.identify import find_peaks_psd
 from ringtune.envs.printer_model import Printer
 from ringtune.envs.sim import resonance_test
-from ringtune.hardware.accel import direction_from_file_name, read_resonances_csv
+from ringtune.hardware.accel import axis_from_file_name, direction_from_file_name, read_resonances_csv
 from ringtune.shaping.errors import RingtuneError
 
 #: the two tests: belt A (motor A, stepper_x) is shaken by AXIS=1,1; belt B (stepper_y) by AXIS=1,-1
@@ -223,6 +223,15 @@ def _belt_keys(paths: list[str]) -> tuple[list[str], list[str]]:
     dirs = [direction_from_file_name(p) for p in paths]
     if any(d is not None and d[0] * d[1] == 0 for d in dirs):
         raise RingtuneError("not a diagonal test (the file name says an axis direction with a zero)", "belts")
+    for p in paths:
+        ax = axis_from_file_name(p)
+        if ax is not None:
+            raise RingtuneError(f"a test of the {ax.upper()} axis (its name says so), not a diagonal one: give the "
+                                "AXIS=1,1 and AXIS=1,-1 tests (resonances_axis=1.000,1.000,… and "
+                                "resonances_axis=1.000,-1.000,…)", str(p))
+    if len(paths) == 2 and all(Path(p).is_file() for p in paths) and sha256_of(paths[0]) == sha256_of(paths[1]):
+        raise RingtuneError(f"the same test twice ({paths[0]} and {paths[1]} hold the same data): give the AXIS=1,1 "
+                            "and the AXIS=1,-1 test", "belts")
     if None in dirs:
         return ["a", "b"], [f"the file names do not say the test direction: {paths[0]} taken as AXIS=1,1 (belt A, "
                             f"stepper_x) and {paths[1]} as AXIS=1,-1 (belt B, stepper_y)"]

@@ -158,15 +158,18 @@ class _Dataset:
     psd: np.ndarray        # normalised psd_sum
 
 
+def _psd_columns(obj: Any, where: str) -> tuple[Any, Any, bool]:
+    """(freqs, psd_sum, already normalised) of a PSD object (``.freqs``, ``.psd_sum``) or a pair."""
+    if isinstance(obj, (tuple, list)) and len(obj) == 2:
+        return obj[0], obj[1], False
+    if hasattr(obj, "freqs") and hasattr(obj, "psd_sum"):
+        return obj.freqs, obj.psd_sum, bool(getattr(obj, "normalized", False) or getattr(obj, "normalised", False))
+    raise RingtuneError("expected a PSD (freqs, psd_sum) to fit shapers to", where)
+
+
 def _as_dataset(obj: Any, lowfreq: str, where: str) -> _Dataset:
     """A PSD object (``.freqs``, ``.psd_sum``) or a ``(freqs, psd_sum)`` pair -> normalised dataset."""
-    if isinstance(obj, (tuple, list)) and len(obj) == 2:
-        freqs, psd, normalised = obj[0], obj[1], False
-    elif hasattr(obj, "freqs") and hasattr(obj, "psd_sum"):
-        freqs, psd = obj.freqs, obj.psd_sum
-        normalised = bool(getattr(obj, "normalized", False) or getattr(obj, "normalised", False))
-    else:
-        raise RingtuneError("expected a PSD (freqs, psd_sum) to fit shapers to", where)
+    freqs, psd, normalised = _psd_columns(obj, where)
     freqs = np.asarray(freqs, dtype=float)
     psd = np.asarray(psd, dtype=float)
     if freqs.ndim != 1 or freqs.shape != psd.shape or freqs.size < 4:
@@ -174,9 +177,7 @@ def _as_dataset(obj: Any, lowfreq: str, where: str) -> _Dataset:
                             where)
     if not (np.all(np.isfinite(freqs)) and np.all(np.isfinite(psd))) or np.any(psd < 0):
         raise RingtuneError("PSD has non-finite or negative values", where)
-    if not normalised:
-        psd = normalize_to_frequencies(freqs, psd, lowfreq)
-    return _Dataset(freqs, psd)
+    return _Dataset(freqs, psd if normalised else normalize_to_frequencies(freqs, psd, lowfreq))
 
 
 def fit_shaper(name: str, datasets: Sequence[_Dataset], factory: ShaperFactory, *, version: str = "head",

@@ -177,76 +177,46 @@ def latest_checkpoint(out_dir: str | Path) -> tuple[Path, Path] | None:
     return None if best is None else (best[1], best[2])
 
 
-def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int = DEFAULT_N_ENVS,
-          seed: int = 0, *, resume: bool = False, env_kwargs: dict | None = None,
-          hyper: dict | None = None, eval_freq: int | None = None, checkpoint_freq: int | None = None,
-          progress_bar: bool = True, subprocess: bool = True, verbose: int = 0,
-          callbacks: Sequence = ()) -> TrainResult:
-    """Train PPO on ``ringtune/Tune-v0`` (random printers) and write the output folder.
-
-    ``timesteps``: total environment steps (= episodes = evaluated configurations), counting
-    those of a resumed run. ``eval_freq`` / ``checkpoint_freq``: in total steps (default: eight
-    evaluations and checkpoints per run). ``resume``: continue from the newest checkpoint in
-    ``out_dir`` (error if none). ``hyper`` overrides :data:`DEFAULT_HYPER`. ``callbacks``: more
-    stable-baselines3 callbacks (e.g. the CLI's progress lines).
-    """
-    sb3 = rl()
+def _check_train_args(seed: int, n_envs: int, timesteps: int) -> None:
+    """Refuse a training seed among the held-out printers', no environment, or no step."""
     if not 0 <= seed < MAX_TRAIN_SEED:
         raise RingtuneError(f"must be in [0, {MAX_TRAIN_SEED}) (higher seeds are the held-out printers)", "seed")
     if n_envs < 1:
         raise RingtuneError("needs at least one environment", "n_envs")
     if timesteps < 1:
         raise RingtuneError("must be ≥ 1", "timesteps")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    env_kwargs = resolve_env_kwargs(env_kwargs)
-    hyper = {**DEFAULT_HYPER, **(hyper or {})}
-    sb3.torch.set_num_threads(1)
-    t0 = time.perf_counter()
-    venv, eval_env = make_vec_envs(n_envs, seed, env_kwargs, subprocess, hyper)
-    resumed = None
-    try:
-        if resume:
-            ck = latest_checkpoint(out)
-            if ck is None:
-                raise RingtuneError("no checkpoint to resume from (train without --resume first)", str(out))
-            venv = sb3.VecNormalize.load(str(ck[1]), venv)
-            model = sb3.PPO.load(str(ck[0]), env=venv, device="cpu")
-            resumed = str(ck[0])
-        else:
-            venv = sb3.VecNormalize(venv, norm_obs=True, norm_reward=True, clip_obs=10.0, gamma=0.99)
-            policy_kwargs = {"net_arch": list(hyper["net_arch"]), "log_std_init": hyper["log_std_init"]}
-            model = sb3.PPO("MlpPolicy", venv, learning_rate=hyper["learning_rate"], n_steps=hyper["n_steps"],
-                            batch_size=hyper["batch_size"], n_epochs=hyper["n_epochs"], gamma=hyper["gamma"],
-                            gae_lambda=hyper["gae_lambda"], ent_coef=hyper["ent_coef"],
-                            clip_range=hyper["clip_range"], policy_kwargs=policy_kwargs, seed=seed,
-                            device="cpu", verbose=verbose)
-            _set_prior(model, env_kwargs, hyper)
-        eval_venv = sb3.VecNormalize(eval_env, training=False, norm_obs=True, norm_reward=False, clip_obs=10.0)
-        every = max(eval_freq or timesteps // 8, n_envs) // n_envs
-        ck_every = max(checkpoint_freq or timesteps // 8, n_envs) // n_envs
-        curve = curve_callback()
-        previous = np.load(out / "evaluations.npz") if resume and (out / "evaluations.npz").is_file() else None
-        previous_best = float(np.max(np.mean(previous["results"], axis=1))) if previous is not None else None
-        callbacks = sb3.CallbackList([
-            held_out_callback(eval_venv, len(EVAL_SEEDS), every, out, previous_best),
-            sb3.CheckpointCallback(save_freq=ck_every, save_path=str(out / "checkpoints"), name_prefix="ppo",
-                                   save_vecnormalize=True),
-            curve,
-            *callbacks,
-        ])
-        remaining = timesteps - model.num_timesteps
-        if remaining > 0:
-            model.learn(total_timesteps=remaining, callback=callbacks, progress_bar=progress_bar,
-                        reset_num_timesteps=not resume)
-        model.save(str(out / "final.zip"))
-        venv.save(str(out / "final_vecnormalize.pkl"))
-        _publish_best(out)
-    finally:
-        venv.close()
-        eval_env.close()
-    wall = time.perf_counter() - t0
-    res = TrainResult(out, int(model.num_timesteps), wall, resumed_from=resumed)
+
+
+def _start_model(sb3, venv, out: Path, resume: bool, env_kwargs: dict, hyper: dict, seed: int, verbose: int):
+    """(normalised env, PPO model, checkpoint resumed from or None): the newest checkpoint in ``out``
+    (``resume``), else a new model with ``hyper`` and the prior answer."""
+    if resume:
+        ck = latest_checkpoint(out)
+        if ck is None:
+            raise RingtuneError("no checkpoint to resume from (train without --resume first)", str(out))
+        venv = sb3.VecNormalize.load(str(ck[1]), venv)
+        return venv, sb3.PPO.load(str(ck[0]), env=venv, device="cpu"), str(ck[0])
+    venv = sb3.VecNormalize(venv, norm_obs=True, norm_reward=True, clip_obs=10.0, gamma=0.99)
+    policy_kwargs = {"net_arch": list(hyper["net_arch"]), "log_std_init": hyper["log_std_init"]}
+    model = sb3.PPO("MlpPolicy", venv, learning_rate=hyper["learning_rate"], n_steps=hyper["n_steps"],
+                    batch_size=hyper["batch_size"], n_epochs=hyper["n_epochs"], gamma=hyper["gamma"],
+                    gae_lambda=hyper["gae_lambda"], ent_coef=hyper["ent_coef"],
+                    clip_range=hyper["clip_range"], policy_kwargs=policy_kwargs, seed=seed,
+                    device="cpu", verbose=verbose)
+    _set_prior(model, env_kwargs, hyper)
+    return venv, model, None
+
+
+def _previous_best(out: Path, resume: bool) -> float | None:
+    """The best held-out mean reward of the run resumed (None: a new run, or none evaluated)."""
+    if not (resume and (out / "evaluations.npz").is_file()):
+        return None
+    return float(np.max(np.mean(np.load(out / "evaluations.npz")["results"], axis=1)))
+
+
+def _curves(res: TrainResult, out: Path, resume: bool, curve) -> None:
+    """``res``'s held-out evaluations and training curve (a resumed run's before this one's), the
+    curve saved to ``training_curve.npz``."""
     ev = out / "evaluations.npz"
     if ev.is_file():
         d = np.load(ev)
@@ -266,6 +236,56 @@ def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int =
         res.train_reference_cost = []
     np.savez(prev, train_timesteps=np.asarray(res.train_timesteps), train_mean_cost=np.asarray(res.train_mean_cost),
              train_reference_cost=np.asarray(res.train_reference_cost))
+
+
+def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int = DEFAULT_N_ENVS,
+          seed: int = 0, *, resume: bool = False, env_kwargs: dict | None = None,
+          hyper: dict | None = None, eval_freq: int | None = None, checkpoint_freq: int | None = None,
+          progress_bar: bool = True, subprocess: bool = True, verbose: int = 0,
+          callbacks: Sequence = ()) -> TrainResult:
+    """Train PPO on ``ringtune/Tune-v0`` (random printers) and write the output folder.
+
+    ``timesteps``: total environment steps (= episodes = evaluated configurations), counting
+    those of a resumed run. ``eval_freq`` / ``checkpoint_freq``: in total steps (default: eight
+    evaluations and checkpoints per run). ``resume``: continue from the newest checkpoint in
+    ``out_dir`` (error if none). ``hyper`` overrides :data:`DEFAULT_HYPER`. ``callbacks``: more
+    stable-baselines3 callbacks (e.g. the CLI's progress lines).
+    """
+    sb3 = rl()
+    _check_train_args(seed, n_envs, timesteps)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    env_kwargs = resolve_env_kwargs(env_kwargs)
+    hyper = {**DEFAULT_HYPER, **(hyper or {})}
+    sb3.torch.set_num_threads(1)
+    t0 = time.perf_counter()
+    venv, eval_env = make_vec_envs(n_envs, seed, env_kwargs, subprocess, hyper)
+    try:
+        venv, model, resumed = _start_model(sb3, venv, out, resume, env_kwargs, hyper, seed, verbose)
+        eval_venv = sb3.VecNormalize(eval_env, training=False, norm_obs=True, norm_reward=False, clip_obs=10.0)
+        every = max(eval_freq or timesteps // 8, n_envs) // n_envs
+        ck_every = max(checkpoint_freq or timesteps // 8, n_envs) // n_envs
+        curve = curve_callback()
+        callbacks = sb3.CallbackList([
+            held_out_callback(eval_venv, len(EVAL_SEEDS), every, out, _previous_best(out, resume)),
+            sb3.CheckpointCallback(save_freq=ck_every, save_path=str(out / "checkpoints"), name_prefix="ppo",
+                                   save_vecnormalize=True),
+            curve,
+            *callbacks,
+        ])
+        remaining = timesteps - model.num_timesteps
+        if remaining > 0:
+            model.learn(total_timesteps=remaining, callback=callbacks, progress_bar=progress_bar,
+                        reset_num_timesteps=not resume)
+        model.save(str(out / "final.zip"))
+        venv.save(str(out / "final_vecnormalize.pkl"))
+        _publish_best(out)
+    finally:
+        venv.close()
+        eval_env.close()
+    wall = time.perf_counter() - t0
+    res = TrainResult(out, int(model.num_timesteps), wall, resumed_from=resumed)
+    _curves(res, out, resume, curve)
     meta = {"env_id": "ringtune/Tune-v0", "env_kwargs": env_kwargs, "hyper": hyper, "seed": seed,
             "n_envs": n_envs, "timesteps": res.timesteps, "wall_s": wall, "eval_seeds": list(EVAL_SEEDS),
             "resumed_from": resumed}

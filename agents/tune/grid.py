@@ -1,4 +1,4 @@
-"""Dense grid search over the tuning space (agents.space), for checking the study's convergence.
+"""Dense grid search over the tuning space (:mod:`ringtune.agents.tune.space`), for checking the study's convergence.
 
 Every grid point is evaluated with the same evaluator as the study (``envs.evaluate.evaluate_many``
 by default, batched so that one ``simulate_batch`` call covers many configurations), and the

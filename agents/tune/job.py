@@ -11,7 +11,7 @@ the planner alone (no physics), through :func:`ringtune.envs.evaluate.planned_jo
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -34,6 +34,10 @@ class JobAccelFacts:
     cap: float | None = None                         # mm/s²: the largest acceleration the job lets any move have
 
     def time(self, config: TuneConfig, mode: str) -> float:
+        """Planned time under ``mode``; ``respect`` is the job as sliced, so a per-feature
+        configuration's own accelerations and corner rule are left out there."""
+        if mode == "respect" and config.per_feature:
+            config = replace(config, feature_accel={}, corner=None, min_cruise_ratio=None)
         return planned_job(self.printer, self.job, config, job_accel=mode).print_time
 
     def accel_matters(self, space) -> bool:

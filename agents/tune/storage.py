@@ -15,7 +15,6 @@ import socket
 import sqlite3
 import warnings
 from pathlib import Path
-from typing import Any
 
 import optuna
 from optuna.storages import RDBStorage, RetryHeartbeatStaleTrialCallback
@@ -45,37 +44,46 @@ def make_storage(url: str):
       re-run once.
     """
     if isinstance(url, (str, os.PathLike)) and (str(url).startswith("journal:") or str(url).endswith(".journal")):
-        path = str(url)[len("journal:"):] if str(url).startswith("journal:") else str(url)
-        path = path[2:] if path.startswith("//") else path
-        if not path:
-            raise RingtuneError("journal storage needs a file path, e.g. journal:out/study.journal", "storage")
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        try:
-            return optuna.storages.JournalStorage(
-                JournalFileBackend(path, lock_obj=JournalFileOpenLock(path, grace_period=5)))
-        except OSError as exc:
-            raise RingtuneError(f"cannot open journal storage: {exc}", "storage") from None
+        return _journal_storage(str(url))
     if not isinstance(url, str) or "://" not in url:
         raise RingtuneError("storage must be journal:PATH or an Optuna RDB URL such as sqlite:///study.db "
                             f"or postgresql+psycopg2://user:pw@host/db, not {url!r}", "storage")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-            kwargs: dict[str, Any] = {}
-            if url.startswith("sqlite"):
-                kwargs["engine_kwargs"] = {"connect_args": {"timeout": 60}}
-                _sqlite_wal(url)
-            storage = RDBStorage(url, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S,
-                                 heartbeat_stale_trial_callback=RetryHeartbeatStaleTrialCallback(max_retry=1),
-                                 **kwargs)
-            if url.startswith("sqlite"):
-                _sqlite_fast(storage)
-            return storage
+            return _rdb_storage(url)
     except ImportError as exc:
         raise RingtuneError(f"storage {url.split(':')[0]!r} needs a driver that is not installed ({exc})",
                             "storage") from None
     except Exception as exc:  # sqlalchemy OperationalError etc.: one line, naming the option
         raise RingtuneError(f"cannot open storage: {str(exc).splitlines()[0]}", "storage") from None
+
+
+def _journal_storage(url: str):
+    """Optuna's journal file storage at ``journal:PATH`` (``journal://PATH``) or ``PATH.journal``."""
+    path = url[len("journal:"):] if url.startswith("journal:") else url
+    path = path[2:] if path.startswith("//") else path
+    if not path:
+        raise RingtuneError("journal storage needs a file path, e.g. journal:out/study.journal", "storage")
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    try:
+        return optuna.storages.JournalStorage(JournalFileBackend(path, lock_obj=JournalFileOpenLock(path, grace_period=5)))
+    except OSError as exc:
+        raise RingtuneError(f"cannot open journal storage: {exc}", "storage") from None
+
+
+def _rdb_storage(url: str) -> RDBStorage:
+    """An RDB storage with Optuna's heartbeat (stale trials retried once); SQLite in WAL mode with a
+    60 s busy timeout."""
+    sqlite = url.startswith("sqlite")
+    if sqlite:
+        _sqlite_wal(url)
+    storage = RDBStorage(url, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S,
+                         heartbeat_stale_trial_callback=RetryHeartbeatStaleTrialCallback(max_retry=1),
+                         **({"engine_kwargs": {"connect_args": {"timeout": 60}}} if sqlite else {}))
+    if sqlite:
+        _sqlite_fast(storage)
+    return storage
 
 
 def _sqlite_wal(url: str) -> None:

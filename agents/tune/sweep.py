@@ -72,13 +72,17 @@ def factor_values(factor: str, printer: Any, values: list[float] | None = None) 
         vals = [round(float(v), 4) for v in np.linspace(lo, hi, n)]
     if not vals:
         raise RingtuneError("no values", "values")
-    if factor == "freq-error" and any(v <= -0.9 for v in vals):
-        raise RingtuneError("frequency errors must be > -0.9 (fractions, e.g. -0.2 for 20 % low)", "values")
-    if factor == "mass" and any(v < 0 for v in vals):
-        raise RingtuneError("print mass must be ≥ 0 kg", "values")
-    if factor == "accel" and any(v <= 0 for v in vals):
-        raise RingtuneError("accelerations must be > 0 mm/s²", "values")
+    if factor in _VALUE_RULES and any(_VALUE_RULES[factor][0](v) for v in vals):
+        raise RingtuneError(_VALUE_RULES[factor][1], "values")
     return vals
+
+
+#: factor -> (a value it refuses, what the values must be)
+_VALUE_RULES = {
+    "freq-error": (lambda v: v <= -0.9, "frequency errors must be > -0.9 (fractions, e.g. -0.2 for 20 % low)"),
+    "mass": (lambda v: v < 0, "print mass must be ≥ 0 kg"),
+    "accel": (lambda v: v <= 0, "accelerations must be > 0 mm/s²"),
+}
 
 
 def tuned_frequencies(printer: Any, firmware: str, shapers: list[str],
