@@ -187,15 +187,7 @@ def _base_config(args, printer) -> tuple[dict, list[str]]:
 def build_config(args, out=None, printer=None):
     """The TuneConfig from --config and/or the individual options (options override the file);
     without either, what ``printer`` runs now (``[current]``), else no shaping."""
-    notes: list[str] = []   # said once the options are known to be good
-    if args.config:
-        cfg = load_config(args.config, out).to_dict()
-    elif args.shaper is None and args.freq is None and args.damping is None:
-        cfg, notes = _base_config(args, printer)
-    else:
-        cfg = {"shaper_x": "none", "shaper_y": "none"}
-    if args.firmware:
-        cfg["firmware"] = args.firmware
+    cfg, notes = _start(args, out, printer)     # the notes are said once the options are known to be good
     shaper = _pair(args.shaper, "--shaper", False)
     freq = _pair(args.freq, "--freq", True)
     damping = _pair(args.damping, "--damping", True)
@@ -208,13 +200,42 @@ def build_config(args, out=None, printer=None):
     if damping:
         cfg["damping_x"], cfg["damping_y"] = damping
     elif shaper and not args.config:
-        record = FIRMWARES.get(str(cfg.get("firmware", "klipper")).lower())
-        if record is not None:  # an unknown firmware is reported by TuneConfig below
-            cfg["damping_x"] = cfg["damping_y"] = default_damping(record.flavor)
+        _default_damping(cfg)
     if args.freq_limit is not None:
         cfg["freq_limit_hz"] = args.freq_limit
     _other_keys(cfg, args)
     _check_options(freq, damping, args)
+    config = _named_config(cfg, args, shaper, freq, damping)
+    for n in notes if out is not None else ():
+        out.note(n)
+    return config
+
+
+def _start(args, out, printer) -> tuple[dict, list[str]]:
+    """(config dict the options then override, notes): --config's, else (no shaper option) what the
+    printer runs now, else no shaping; with --firmware's firmware."""
+    notes: list[str] = []
+    if args.config:
+        cfg = load_config(args.config, out).to_dict()
+    elif args.shaper is None and args.freq is None and args.damping is None:
+        cfg, notes = _base_config(args, printer)
+    else:
+        cfg = {"shaper_x": "none", "shaper_y": "none"}
+    if args.firmware:
+        cfg["firmware"] = args.firmware
+    return cfg, notes
+
+
+def _default_damping(cfg: dict) -> None:
+    """Shapers given without --damping take their firmware's default damping ratio."""
+    record = FIRMWARES.get(str(cfg.get("firmware", "klipper")).lower())
+    if record is not None:  # an unknown firmware is reported by TuneConfig below
+        cfg["damping_x"] = cfg["damping_y"] = default_damping(record.flavor)
+
+
+def _named_config(cfg: dict, args, shaper, freq, damping) -> TuneConfig:
+    """The TuneConfig of ``cfg``; a bad value is refused naming the option that gave it (or the
+    file), and shapers the firmware does not offer naming --shaper (or the file)."""
     where = args.config or "options"
     try:
         config = TuneConfig.from_dict(cfg, where)
@@ -235,8 +256,6 @@ def build_config(args, out=None, printer=None):
         if shaper:
             raise RingtuneError(exc.bare, "--shaper") from None
         raise exc.relocated("config", where) from None
-    for n in notes if out is not None else ():
-        out.note(n)
     return config
 
 
@@ -343,20 +362,7 @@ def job_commands(printer, gcode, config, out) -> list[dict]:
 
 
 def run(args, out) -> int:
-    if args.freq_margin is not None:    # a bad option is refused before any note is printed
-        freq_margin(args)
-    printer = resolve_printer(args.printer)
-    say_unmeasured(printer, out)
-    config = build_config(args, out, printer)
-    margin = freq_margin(args, config)
-    if args.gcode and not Path(args.gcode).is_file():
-        raise RingtuneError("no such G-code file", f"--gcode {args.gcode}")
-    if args.plot:  # before simulating: a folder that cannot be made fails now, in one line
-        try:
-            Path(args.plot).mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise RingtuneError(f"cannot create the plot folder: {exc.strerror or exc}",
-                                f"--plot {args.plot}") from None
+    printer, config, margin = _inputs(args, out)
     judged = judgement(margin)
     changes = job_commands(printer, args.gcode, config, out)
     bindings = binding_limits(printer, args.gcode, config, job_accel=job_accel_mode(config))
@@ -367,11 +373,7 @@ def run(args, out) -> int:
         write_trace_option(args.trace, evs[0], config, printer, args.gcode, args.backend, out)
     windows = _windows(evs)
     factors = variant_factors(margin)
-    plots = []
-    if args.plot:
-        label, base = _plot_baseline(printer, config, args, margin, out)
-        plots = [str(p) for p in plot_evaluation(evs, args.plot, factors=factors, judged=judged, baseline=base,
-                                                 baseline_label=label)]
+    plots = _plots(evs, args, printer, config, margin, judged, out) if args.plot else []
     result = {
         "printer": printer.name,
         "job": args.gcode or "built-in test print",
@@ -390,16 +392,49 @@ def run(args, out) -> int:
         "binding": [dataclasses.asdict(b) for b in bindings],
         **({"trace": args.trace} if args.trace else {}),
     }
+    lines = _text(result, m, config, printer, judged, len(evs)) + _binding_said(bindings, config)
+    lines += _baselines(result, m, config, printer, args, margin, out)
+    lines += [f"plot: {p}" for p in plots]
+    out.emit(result, "\n".join(lines))
+    return 0
+
+
+def _inputs(args, out) -> tuple:
+    """(printer, config, frequency margin) the options give; a bad option, a missing job or a plot
+    folder that cannot be made is refused before anything is simulated."""
+    if args.freq_margin is not None:    # a bad option is refused before any note is printed
+        freq_margin(args)
+    printer = resolve_printer(args.printer)
+    say_unmeasured(printer, out)
+    config = build_config(args, out, printer)
+    margin = freq_margin(args, config)
+    if args.gcode and not Path(args.gcode).is_file():
+        raise RingtuneError("no such G-code file", f"--gcode {args.gcode}")
+    if args.plot:  # before simulating: a folder that cannot be made fails now, in one line
+        try:
+            Path(args.plot).mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RingtuneError(f"cannot create the plot folder: {exc.strerror or exc}",
+                                f"--plot {args.plot}") from None
+    return printer, config, margin
+
+
+def _plots(evs, args, printer, config, margin: float, judged: str, out) -> list[str]:
+    """The evaluation's plots in ``--plot``, against the baseline it is compared with."""
+    label, base = _plot_baseline(printer, config, args, margin, out)
+    return [str(p) for p in plot_evaluation(evs, args.plot, factors=variant_factors(margin), judged=judged,
+                                            baseline=base, baseline_label=label)]
+
+
+def _binding_said(bindings, config) -> list[str]:
+    """The sentences on the firmware limits that hold moves lower, and how to run with other
+    per-axis caps when such a cap binds and the config sets none."""
     said = binding_sentences(bindings, config.accel)
     xy_caps = {"M201 X", "M201 Y", "max_x_accel", "max_y_accel"}      # binding.cap_names' per-axis caps
     if config.max_accel_x is None and any(b.name in xy_caps for b in bindings):
         said.append("  --max-accel X,Y runs it with other per-axis caps (tune's configurations carry the caps "
                     "they were planned with, and export sets them)")
-    lines = _text(result, m, config, printer, judged, len(evs)) + said
-    lines += _baselines(result, m, config, printer, args, margin, out)
-    lines += [f"plot: {p}" for p in plots]
-    out.emit(result, "\n".join(lines))
-    return 0
+    return said
 
 
 def _baselines(result: dict, m, config, printer, args, margin: float, out) -> list[str]:

@@ -204,29 +204,19 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     chosen = choice.point
-    word = QUALITY_LABEL.get(quality, quality)
     labels = {k: (baseline_labels or {}).get(k, BASELINE_NAMES.get(k, k)) for k in baselines}
     dialect = export_firmware or firmware
 
     best_cfg = chosen.config
     vs = versus_all(chosen, baselines, resolution)
-    best_cfg.extra.update({"source": "ringtune tune", "printer": printer_name, "job": job_name,
-                           "metrics": {k: chosen.metrics.get(k) for k in _ROW_KEYS if k in chosen.metrics},
-                           "chosen_by": choice.by, "against": choice.baseline,
-                           "versus": {k: {m: v["verdict"] for m, v in d.items()} for k, d in vs.items()},
-                           **(best_extra or {})})
-    best_cfg.save(out_dir / "best.json")
+    _save_best(out_dir, choice, vs, {"source": "ringtune tune", "printer": printer_name, "job": job_name},
+               best_extra or {})
 
     apply_text, apply_note = _apply_lines(best_cfg, dialect)
     (out_dir / "apply.txt").write_text(apply_text)
 
     comparisons = {k: compare(chosen, b, resolution) for k, b in baselines.items()}
-    dominating = {}
-    for k in ("klipper", "current"):
-        if k in baselines:
-            d = best_dominating(front, baselines[k], resolution)
-            if d is not None:
-                dominating[k] = (d, compare(d, baselines[k], resolution))
+    dominating = _dominating(front, baselines, resolution)
 
     title = f"{printer_name} · {job_name} · {firmware} · {len(points)} trials"
     marked = {f"dominates {labels[k]} (at the resolution)": d for k, (d, _c) in dominating.items()}
@@ -236,61 +226,21 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
     _write_csv(out_dir / "front.csv", front)
     _write_csv(out_dir / "trials.csv", sorted(points, key=lambda p: p.number if p.number is not None else -1))
 
-    s = [f"ringtune tune — {title}", ""]
-    s.append(f"CHOSEN ({choice.sentence}):")
-    s.append(f"  {describe(best_cfg)}")
-    s.append("  " + _figures(chosen, quality))
+    s = [f"ringtune tune — {title}", "", f"CHOSEN ({choice.sentence}):", f"  {describe(best_cfg)}",
+         "  " + _figures(chosen, quality)]
     rewrite, rewrite_line = _job_rewrite(best_cfg, dialect)
     if rewrite_line:
         s.append("  " + rewrite_line)
-    s.append("")
-    s.append("BASELINES (same printer, job and simulation):")
-    for k, b in baselines.items():
-        s.append(f"  {labels[k]}: {describe(b.config)}")
-        s.append("    " + _figures(b, quality)
-                 + ("  (LOSES STEPS)" if b.step_loss else "")
-                 + ("  (PATH ERROR OVER THE BOUND)" if b.too_rough else "")
-                 + ("  (MOTOR LOAD OVER THE RESERVE)" if b.overloaded else "")
-                 + ("  (SHOW-THROUGH OVER THE BOUND)" if b.shows_through else ""))
-        s.append(f"    chosen vs this: {comparisons[k].sentence(quality)}")
-    for k in ("klipper", "current"):
-        if k not in baselines:
-            continue
-        if comparisons[k].dominates:
-            continue                    # the chosen point itself dominates it (said above)
-        if k in dominating:
-            d, c = dominating[k]
-            s.append(f"  Best front point dominating {labels[k]}: {describe(d.config)}")
-            s.append(f"    {c.sentence(quality)}")
-        else:
-            s.append(f"  No front point dominates {labels[k]} in this run (try more --trials).")
-    s.append(f"  (\"the same\", \"dominates\": {resolution.describe()}.)")
+    s += ["", "BASELINES (same printer, job and simulation):"]
+    s += _baseline_lines(baselines, labels, comparisons, dominating, quality, resolution)
     if baselines and "ripple_mm" in chosen.metrics:
-        s.append("")
-        s.append("WHAT A PERSON SEES (the chosen configuration against each baseline, same simulation):")
+        s += ["", "WHAT A PERSON SEES (the chosen configuration against each baseline, same simulation):"]
         s.extend(versus_table(chosen, baselines, labels, resolution))
     for head, lines in sections:
-        s.append("")
-        s.append(f"{head}:")
-        s.extend(f"  {line}" for line in lines)
-    s.append("")
-    dims = ("print time and every visible measure" if "ripple_mm" in chosen.metrics else
-            "print time and " + word + ("" if quality == "path_error_mm" else ", path error"))
-    s.append(f"PARETO FRONT over {dims} ({len(front)} of {len(points)} trials; * = chosen):")
-    s.append(front_table(front, chosen, quality))
-    s.append("")
-    n_rough = sum(p.too_rough and not p.step_loss for p in points)
-    n_lost = sum(p.step_loss for p in points)
-    n_load = sum(p.overloaded and not p.too_rough and not p.step_loss for p in points)
-    ruled = [f"{n_lost} trials that lose steps"]
-    ruled.append(f"{n_rough} whose path error (corner rounding, overshoot, ringing) exceeds {max_path_error_mm:g} mm "
-                 "(--max-path-error)" if max_path_error_mm > 0 else "path error not bounded (--max-path-error 0)")
-    ruled.append(f"{n_load} that ask a motor for more than {(1 - motor_reserve) * 100:.0f} % of its force "
-                 "(--motor-reserve)" if motor_reserve > 0 else "motor load not bounded (--motor-reserve 0)")
-    n_show = sum(p.shows_through and not (p.overloaded or p.too_rough or p.step_loss) for p in points)
-    ruled.append(f"{n_show} whose hidden features reach the outer wall by more than {max_show_through_mm * 1000:g} µm "
-                 "(--max-show-through)" if max_show_through_mm > 0 else "show-through not bounded (--max-show-through 0)")
-    s.append("Ruled out: " + "; ".join(ruled) + ". All are drawn in pareto.png.")
+        s += ["", f"{head}:"] + [f"  {line}" for line in lines]
+    s += ["", _front_head(chosen, quality, len(front), len(points)), front_table(front, chosen, quality), ""]
+    s.append("Ruled out: " + "; ".join(_ruled_out(points, max_path_error_mm, motor_reserve, max_show_through_mm))
+             + ". All are drawn in pareto.png.")
     s.extend(notes)
     s.append(f"Study '{study_name}' in {storage}; rerun the same command to resume or extend it (--trials).")
     if apply_note:
@@ -298,25 +248,6 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
     summary_text = "\n".join(s) + "\n"
     (out_dir / "summary.txt").write_text(summary_text)
     (out_dir / "README.txt").write_text(readme_text(out_dir, dialect, storage, command))
-
-    def base_dict(k, b):
-        return {"config": b.config.to_dict(), "print_time_s": b.print_time_s, "quality_mm": b.quality_mm,
-                "path_error_mm": b.metrics.get("path_error_mm"), "overshoot_mm": b.metrics.get("overshoot_mm"),
-                "motor_load": b.metrics.get("motor_load"), "step_loss": b.step_loss,
-                "measures": {k: b.metrics.get(k) for k in _ROW_KEYS[1:] if k in b.metrics},
-                "breaks": [w for w, f in (("step_loss", b.step_loss), ("max_path_error", b.too_rough),
-                                          ("motor_reserve", b.overloaded), ("max_show_through", b.shows_through))
-                           if f],
-                "label": labels[k]}
-
-    def dom_dict(k):
-        if k not in baselines:
-            return None
-        if k not in dominating:
-            return None
-        d, c = dominating[k]
-        return {"config": d.config.to_dict(), "print_time_s": d.print_time_s, "quality_mm": d.quality_mm,
-                **c.to_dict()}
 
     result = {
         "out": str(out_dir),
@@ -328,25 +259,123 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         "max_show_through_mm": max_show_through_mm,
         "resolution": {"distance_mm": resolution.distance_mm, "distance_rel": resolution.distance_rel,
                        "time_rel": resolution.time_rel, "pct_abs": resolution.pct_abs},
-        "chosen": {"config": best_cfg.to_dict(), "print_time_s": chosen.print_time_s, "quality_mm": chosen.quality_mm,
-                   "path_error_mm": chosen.metrics.get("path_error_mm"),
-                   "overshoot_mm": chosen.metrics.get("overshoot_mm"), "motor_load": chosen.metrics.get("motor_load"),
-                   "measures": {k: chosen.metrics.get(k) for k in _ROW_KEYS[1:] if k in chosen.metrics},
-                   "chosen_by": choice.by, "against": choice.baseline, "held_to": list(choice.held_to),
-                   "why": choice.sentence,
-                   "rewrite_jobs": rewrite},
-        "baselines": {k: base_dict(k, b) for k, b in baselines.items()},
+        "chosen": _chosen_dict(choice, rewrite),
+        "baselines": {k: _baseline_dict(b, labels[k]) for k, b in baselines.items()},
         "vs_baselines": {k: c.to_dict() for k, c in comparisons.items()},
         "versus": vs,
-        "dominates_klipper": dom_dict("klipper"),
-        "dominates_current": dom_dict("current"),
+        "dominates_klipper": _dominating_dict(dominating, "klipper"),
+        "dominates_current": _dominating_dict(dominating, "current"),
         "plot_arrows": arrows,
-        "files": {k: str(out_dir / v) for k, v in (("readme", "README.txt"), ("summary", "summary.txt"),
-                                                   ("plot", "pareto.png"), ("best", "best.json"),
-                                                   ("apply", "apply.txt"), ("front", "front.csv"),
-                                                   ("trials", "trials.csv"))},
+        "files": {k: str(out_dir / v) for k, v in _FILES},
     }
     return {"summary_text": summary_text, **result}
+
+
+def _front_head(chosen: Point, quality: str, n_front: int, n_points: int) -> str:
+    """The PARETO FRONT heading: what the front is taken over, how many trials it holds."""
+    dims = ("print time and every visible measure" if "ripple_mm" in chosen.metrics else
+            "print time and " + QUALITY_LABEL.get(quality, quality) + ("" if quality == "path_error_mm" else ", path error"))
+    return f"PARETO FRONT over {dims} ({n_front} of {n_points} trials; * = chosen):"
+
+
+#: the report folder's files: --json ``files`` key, file name
+_FILES = (("readme", "README.txt"), ("summary", "summary.txt"), ("plot", "pareto.png"), ("best", "best.json"),
+          ("apply", "apply.txt"), ("front", "front.csv"), ("trials", "trials.csv"))
+
+
+def _save_best(out_dir: Path, choice: Choice, vs: dict, where: dict, extra: dict) -> None:
+    """best.json: the chosen configuration with where it comes from (``where``), its figures, how it
+    was chosen and its verdicts against each baseline, and ``extra``'s keys."""
+    cfg, metrics = choice.point.config, choice.point.metrics
+    cfg.extra.update({**where, "metrics": {k: metrics.get(k) for k in _ROW_KEYS if k in metrics},
+                      "chosen_by": choice.by, "against": choice.baseline,
+                      "versus": {k: {m: v["verdict"] for m, v in d.items()} for k, d in vs.items()}, **extra})
+    cfg.save(out_dir / "best.json")
+
+
+def _dominating(front: Sequence[Point], baselines: dict[str, Point], res: Resolution) -> dict:
+    """{klipper|current: (the best front point dominating that baseline, its comparison)}, for the
+    baselines some front point dominates."""
+    out = {}
+    for k in ("klipper", "current"):
+        d = best_dominating(front, baselines[k], res) if k in baselines else None
+        if d is not None:
+            out[k] = (d, compare(d, baselines[k], res))
+    return out
+
+
+#: a baseline's broken bounds: (its flag on the point, the word in the summary, the key in --json)
+_BREAKS = (("step_loss", "LOSES STEPS", "step_loss"), ("too_rough", "PATH ERROR OVER THE BOUND", "max_path_error"),
+           ("overloaded", "MOTOR LOAD OVER THE RESERVE", "motor_reserve"),
+           ("shows_through", "SHOW-THROUGH OVER THE BOUND", "max_show_through"))
+
+
+def _baseline_lines(baselines: dict[str, Point], labels: dict[str, str], comparisons: dict, dominating: dict,
+                    quality: str, res: Resolution) -> list[str]:
+    """The summary's BASELINES section: each baseline, its figures and bounds broken, the chosen
+    point against it, and the best front point dominating Klipper's or the current one."""
+    s = []
+    for k, b in baselines.items():
+        s.append(f"  {labels[k]}: {describe(b.config)}")
+        s.append("    " + _figures(b, quality) + "".join(f"  ({word})" for flag, word, _ in _BREAKS
+                                                          if getattr(b, flag)))
+        s.append(f"    chosen vs this: {comparisons[k].sentence(quality)}")
+    for k in ("klipper", "current"):
+        if k not in baselines or comparisons[k].dominates:
+            continue                    # the chosen point itself dominates it (said above)
+        if k in dominating:
+            d, c = dominating[k]
+            s += [f"  Best front point dominating {labels[k]}: {describe(d.config)}", f"    {c.sentence(quality)}"]
+        else:
+            s.append(f"  No front point dominates {labels[k]} in this run (try more --trials).")
+    s.append(f"  (\"the same\", \"dominates\": {res.describe()}.)")
+    return s
+
+
+def _ruled_out(points: Sequence[Point], max_pe: float, reserve: float, max_st: float) -> list[str]:
+    """What the bounds ruled out, counted (each trial under the first bound it breaks), or that a
+    bound is off."""
+    n_lost = sum(p.step_loss for p in points)
+    n_rough = sum(p.too_rough and not p.step_loss for p in points)
+    n_load = sum(p.overloaded and not p.too_rough and not p.step_loss for p in points)
+    n_show = sum(p.shows_through and not (p.overloaded or p.too_rough or p.step_loss) for p in points)
+    return [f"{n_lost} trials that lose steps",
+            f"{n_rough} whose path error (corner rounding, overshoot, ringing) exceeds {max_pe:g} mm "
+            "(--max-path-error)" if max_pe > 0 else "path error not bounded (--max-path-error 0)",
+            f"{n_load} that ask a motor for more than {(1 - reserve) * 100:.0f} % of its force "
+            "(--motor-reserve)" if reserve > 0 else "motor load not bounded (--motor-reserve 0)",
+            f"{n_show} whose hidden features reach the outer wall by more than {max_st * 1000:g} µm "
+            "(--max-show-through)" if max_st > 0 else "show-through not bounded (--max-show-through 0)"]
+
+
+def _measures(p: Point) -> dict:
+    return {k: p.metrics.get(k) for k in _ROW_KEYS[1:] if k in p.metrics}
+
+
+def _chosen_dict(choice: Choice, rewrite: str | None) -> dict:
+    """--json ``chosen``: the configuration, its figures, how and against what it was chosen."""
+    p = choice.point
+    return {"config": p.config.to_dict(), "print_time_s": p.print_time_s, "quality_mm": p.quality_mm,
+            "path_error_mm": p.metrics.get("path_error_mm"), "overshoot_mm": p.metrics.get("overshoot_mm"),
+            "motor_load": p.metrics.get("motor_load"), "measures": _measures(p), "chosen_by": choice.by,
+            "against": choice.baseline, "held_to": list(choice.held_to), "why": choice.sentence,
+            "rewrite_jobs": rewrite}
+
+
+def _baseline_dict(b: Point, label: str) -> dict:
+    """--json ``baselines.<key>``: the configuration, its figures and the bounds it breaks."""
+    return {"config": b.config.to_dict(), "print_time_s": b.print_time_s, "quality_mm": b.quality_mm,
+            "path_error_mm": b.metrics.get("path_error_mm"), "overshoot_mm": b.metrics.get("overshoot_mm"),
+            "motor_load": b.metrics.get("motor_load"), "step_loss": b.step_loss, "measures": _measures(b),
+            "breaks": [key for flag, _, key in _BREAKS if getattr(b, flag)], "label": label}
+
+
+def _dominating_dict(dominating: dict, k: str) -> dict | None:
+    """--json ``dominates_<k>``: the best front point dominating baseline ``k`` and how, or None."""
+    if k not in dominating:
+        return None
+    d, c = dominating[k]
+    return {"config": d.config.to_dict(), "print_time_s": d.print_time_s, "quality_mm": d.quality_mm, **c.to_dict()}
 
 
 def _figures(p: Point, quality: str) -> str:

@@ -1,0 +1,365 @@
+"""One ``ringtune tune`` run between parsing and printing: the options checked against their ranges
+(a table), the search space for the printer and job, the study with its baselines and warm start,
+the choice and the measured acceleration stop, the report folder and the job rewritten with the
+choice. The command parses its options into a :class:`TuneRequest`, calls :func:`tune` and prints."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+from ringtune.agents.tune import feature_space, pareto, report, storage, study as tune_study
+from ringtune.agents.tune.baselines import baselines_for, inside, warm_start
+from ringtune.agents.tune.binding import binding_limits, binding_sentences
+from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
+from ringtune.agents.tune.out_dir import check_out, remove_if_empty
+from ringtune.agents.tune.pareto import VISIBLE_KEYS
+from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config, top_speed_load_note
+from ringtune.agents.tune.stop import Bounds, measured_stop
+from ringtune.envs.evaluate import resolve_printer
+from ringtune.envs.job_rewrite import rewrite_file
+from ringtune.envs.printer_model import unmeasured_note
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import Firmware
+
+
+@dataclass(frozen=True)
+class TuneRequest:
+    """What ``tune`` is asked, as the command line gives it (percentages in %, lengths in mm;
+    None: the default)."""
+
+    printer: str | None = None
+    gcode: str | None = None
+    firmware: str = "klipper"
+    trials: int = 200
+    storage: str | None = None
+    study: str = "ringtune"
+    workers: int = 1
+    seed: int = 0
+    out: str = "ringtune-out"
+    pick: str | None = None
+    weight: float | None = None          # s per mm
+    quality: str = "ripple"
+    max_show_through: float | None = None
+    max_path_error: float | None = None
+    motor_reserve: float | None = None   # %
+    freq_margin: float | None = None     # %
+    shaping_min_freq: float | None = None   # Hz
+    accel_range: str | None = None       # "LO,HI", mm/s²
+    job_accel: str = "respect"
+    per_feature: str = "auto"
+    backend: str = "mujoco"
+    evaluator: str | None = None
+    no_baselines: bool = False
+    command: str = "ringtune tune"       # the command line that reproduces the run
+
+
+@dataclass(frozen=True)
+class Tuned:
+    """A finished (or interrupted) run: the summary dict (``--json``), its text and whether Ctrl-C
+    cut the study short."""
+
+    result: dict
+    text: str
+    interrupted: bool
+
+
+@dataclass(frozen=True)
+class _Limits:
+    """The judgement's bounds as fractions and mm, and how the choice is made."""
+
+    how: str
+    max_pe: float
+    margin: float
+    reserve: float
+    max_st: float
+    accel_range: tuple[float, float] | None
+
+
+#: the run's size: (field, flag, test, message); a value failing its test is refused
+_RUN_CHECKS = (
+    ("trials", "--trials", lambda v: v >= 1, "must be ≥ 1"),
+    ("workers", "--workers", lambda v: v >= 1, "must be ≥ 1"),
+    ("weight", "--weight", lambda v: v is None or v >= 0, "must be ≥ 0 (seconds per mm)"),
+)
+
+#: the judgement's bounds: (field, flag, default, scale of a given value, test, message)
+_BOUNDS = (
+    ("max_path_error", "--max-path-error", pareto.DEFAULT_MAX_PATH_ERROR_MM, 1.0, lambda v: v >= 0,
+     "must be ≥ 0 (mm; 0 = no bound)"),
+    ("freq_margin", "--freq-margin", tune_study.DEFAULT_FREQ_MARGIN, 0.01, lambda v: 0 <= v < 0.5,
+     "must be in [0, 50) per cent"),
+    ("motor_reserve", "--motor-reserve", pareto.DEFAULT_MOTOR_RESERVE, 0.01, lambda v: 0 <= v < 1,
+     "must be in [0, 100) per cent"),
+    ("max_show_through", "--max-show-through", pareto.DEFAULT_MAX_SHOW_THROUGH_MM, 1.0, lambda v: v >= 0,
+     "must be ≥ 0 (mm; 0 = no bound)"),
+)
+
+
+def check_request(req: TuneRequest) -> _Limits:
+    """The request's bounds and pick, refused in one line naming the option when out of range."""
+    for name, flag, ok, message in _RUN_CHECKS:
+        if not ok(getattr(req, name)):
+            raise RingtuneError(message, flag)
+    how = req.pick or ("weight" if req.weight is not None else "fastest-at-baseline-quality")
+    if how == "weight" and req.weight is None:
+        raise RingtuneError("--pick weight needs --weight W (seconds per mm)", "--pick")
+    bounds = {}
+    for name, flag, default, scale, ok, message in _BOUNDS:
+        given = getattr(req, name)
+        bounds[name] = default if given is None else given * scale
+        if not ok(bounds[name]):
+            raise RingtuneError(message, flag)
+    accel_range = _accel_range(req.accel_range)
+    if req.gcode and not Path(req.gcode).is_file():
+        raise RingtuneError("no such G-code file", "--gcode")
+    return _Limits(how, bounds["max_path_error"], bounds["freq_margin"], bounds["motor_reserve"],
+                   bounds["max_show_through"], accel_range)
+
+
+def _accel_range(text: str | None) -> tuple[float, float] | None:
+    if text is None:
+        return None
+    try:
+        lo, hi = (float(v) for v in text.split(","))
+    except ValueError:
+        raise RingtuneError(f"must be LO,HI in mm/s² (e.g. 1000,8000), not {text!r}", "--accel-range") from None
+    if not (0 < lo <= hi < 1e6):
+        raise RingtuneError(f"must be 0 < LO ≤ HI (mm/s²), not {text!r}", "--accel-range")
+    return (lo, hi)
+
+
+def _shaping_min_freq(value: float | None) -> float | None:
+    if value is not None and not (0 < value <= 1000):
+        raise RingtuneError(f"{value:g} Hz is not a frequency: give one in (0, 1000] Hz", "--shaping-min-freq")
+    return value
+
+
+def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release: Callable[[], None] = lambda: None,
+         progress: Callable | None = None) -> Tuned:
+    """Run ``req``: the study (resumed when its storage holds one), the choice, the report folder.
+
+    ``note``: where notes go; ``release``: called before the study runs long (notes go out live
+    from then on); ``progress``: ``progress(quality, max_pe, reserve, space)`` gives an object with
+    ``update(done, total, study)`` and ``close()``."""
+    t_start = time.time()
+    fw = Firmware.named(req.firmware, "--firmware")
+    lim = check_request(req)
+    out_dir = Path(req.out)
+    check_out(out_dir)
+    printer = resolve_printer(req.printer)
+    if unmeasured_note(printer):
+        note(unmeasured_note(printer))
+    quality = f"{req.quality}_mm"
+    facts = job_accel_facts(printer, req.gcode, req.job_accel)
+    space, floor_note, why = _space(req, lim, fw.name, printer, facts, note)
+    run_, settings, evaluator, bl, store = _study(req, lim, fw.name, printer, space, quality, out_dir, note,
+                                                  release, progress)
+    baselines = bl.points if bl else {}
+    points = tune_study.study_points(run_.study, space, quality, lim.max_pe, lim.reserve, lim.max_st)
+    front = pareto.pareto_front(points, also=_also(points, quality))
+    choice = pareto.pick(front, baselines, lim.how, req.weight)
+    choice, stop = _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim)
+    result, text, accel_json, ja_json = _report(req, lim, fw, printer, facts, space, quality, points, front, choice,
+                                                stop, bl, settings, floor_note, why, out_dir, store, note)
+    result.update({"stop": stop.to_dict() if stop else None, "freq_margin": lim.margin,
+                   "accel": accel_json, "job_accel": ja_json, "storage": store,
+                   "study": req.study, "completed_now": run_.completed_now, "interrupted": run_.interrupted,
+                   "elapsed_s": time.time() - t_start})
+    lines = [text.rstrip("\n"), "", f"Results in {out_dir}/ — open {out_dir / 'README.txt'} first."]
+    if run_.interrupted:
+        lines.append(f"Interrupted after {run_.completed_before + run_.completed_now} complete trials; "
+                     "run the same command again to resume.")
+    return Tuned(result, "\n".join(lines), run_.interrupted)
+
+
+def _study(req: TuneRequest, lim: _Limits, firmware: str, printer, space, quality: str, out_dir: Path,
+           note: Callable[[str], None], release: Callable[[], None], progress: Callable | None):
+    """(the study's run, its settings, evaluator, baselines or None, storage URL): the baselines
+    evaluated, the search warm-started from Klipper's pick, the study run or resumed in ``out_dir``
+    (removed again when a failure leaves it empty and this run created it)."""
+    created = not out_dir.exists()
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        store = req.storage or storage.default_storage(out_dir)
+        settings = _settings(req, lim, firmware, quality, space, store)
+        evaluator = tune_study.resolve_evaluator(settings.evaluator)
+        bl = None if req.no_baselines else baselines_for(printer, firmware, settings, evaluator, quality, note=note)
+        if bl and "klipper" in bl.points:   # start the search from what users do today, and its neighbours
+            settings.enqueue = _warm_points(bl, space)
+        bar = progress(quality, lim.max_pe, lim.reserve, space) if progress else None
+        release()                    # the study runs long: its notes and progress go out live
+        try:
+            run_ = tune_study.run_study(settings, req.workers, printer=printer, progress=bar and bar.update)
+        finally:
+            if bar:
+                bar.close()
+    except BaseException:
+        if created:
+            remove_if_empty(out_dir)
+        raise
+    return run_, settings, evaluator, bl, store
+
+
+def _space(req: TuneRequest, lim: _Limits, firmware: str, printer, facts, note: Callable[[str], None]):
+    """(search space, the firmware's frequency floor note or "", why per feature is searched)."""
+    # no --gcode: the built-in print stands in for the user's, which may run up to the velocity limit
+    min_freq = _shaping_min_freq(req.shaping_min_freq)
+    space = default_space(printer, firmware, accel=lim.accel_range, speed=facts.top_speed if req.gcode else None,
+                          min_freq=min_freq)
+    floor_note = freq_floor_note(firmware, min_freq, space)
+    if floor_note:
+        note(f"ringtune tune: {floor_note}")
+    if lim.accel_range is None and req.job_accel == "respect" and facts.commands and not facts.accel_matters(space):
+        a = float(printer.limits.accel)
+        space = dataclasses.replace(space, accel=(a, a), accel_basis="not searched: the job's own acceleration "
+                                    "commands rule every move (--job-accel respect)")
+    for line in facts.notes(req.job_accel, space):
+        note(f"ringtune tune: {line}")
+    per_feature, why = feature_space.wanted(req.per_feature, space, printer, req.gcode, bool(facts.commands),
+                                            req.job_accel)
+    if per_feature:
+        space = feature_space.feature_space(space, printer, req.gcode, lim.reserve)
+    return space, floor_note, why
+
+
+def _settings(req: TuneRequest, lim: _Limits, firmware: str, quality: str, space, store: str):
+    """The study's settings (what a resumed study must match)."""
+    printer = req.printer
+    if printer and Path(printer).exists():
+        printer = str(Path(printer).resolve())
+    return tune_study.StudySettings(
+        storage=store, study_name=req.study, n_trials=req.trials, seed=req.seed, quality=quality, printer=printer,
+        job=str(Path(req.gcode).resolve()) if req.gcode else None, firmware=firmware,
+        backend=req.backend, evaluator=req.evaluator or tune_study.DEFAULT_EVALUATOR, space=space.to_dict(),
+        max_path_error_mm=lim.max_pe, freq_margin=lim.margin, motor_reserve=lim.reserve, job_accel=req.job_accel,
+        max_show_through_mm=lim.max_st)
+
+
+def _warm_points(bl, space) -> list[dict]:
+    """The study's first trials: Klipper's pick (searching per feature, also with the hidden groups
+    at their tops) and its neighbours, what the printer runs now (when inside the space); no point
+    twice."""
+    cur = [bl.points["current"].config] if "current" in bl.points else []
+    seen, enq = set(), []
+    for i, c in enumerate(warm_start(bl.points["klipper"].config, bl.fits, space) + [c for c in cur if inside(c, space)]):
+        p = params_from_config(c, space)
+        for q in (p, feature_space.at_ceilings(p, space)) if space.per_feature and i == 0 else (p,):
+            key = tuple(sorted(q.items()))
+            if key not in seen:
+                seen.add(key)
+                enq.append(q)
+    return enq
+
+
+def _also(points, quality: str) -> tuple[str, ...]:
+    """The figures the front is taken over besides print time and the quality objective: the other
+    visible measures (the choice may make none worse), or path error for a custom evaluator's
+    overshoot (a point with a little more overshoot and far less path error stays)."""
+    if any("ripple_mm" in p.metrics for p in points):
+        return tuple(k for k in VISIBLE_KEYS if k != quality)
+    return ("path_error_mm",) if quality != "path_error_mm" else ()
+
+
+def _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim: _Limits):
+    """(the choice, the measured stop or None): the choice held to a baseline, its acceleration
+    stepped up with the same judgement (:func:`ringtune.agents.tune.stop.measured_stop`)."""
+    if choice.baseline is None:
+        return choice, None
+
+    def evaluate(configs):
+        return evaluator(list(configs), printer, settings.job, **tune_study.evaluator_kwargs(settings))
+
+    labels = bl.labels if bl else {}
+    bounds = Bounds(lim.max_pe, 1.0 - lim.reserve if lim.reserve > 0 else 0.0, lim.max_st)
+    held = choice.held_to or (choice.baseline,)
+    names = {k: labels.get(k, pareto.BASELINE_NAMES.get(k, k)) for k in held}
+    stop = measured_stop(choice.point, {k: baselines[k] for k in held}, evaluate, space, bounds, labels=names)
+    if stop.moved:
+        choice = dataclasses.replace(choice, point=stop.point, sentence=(
+            f"{choice.sentence}; then stepped up by the measured stop from {stop.start.config.accel:.0f} to "
+            f"{stop.point.config.accel:.0f} mm/s², every visible measure still no worse"))
+    return choice, stop
+
+
+def _report(req: TuneRequest, lim: _Limits, fw: Firmware, printer, facts, space, quality: str, points, front,
+            choice, stop, bl, settings, floor_note: str, why: str, out_dir: Path, store: str,
+            note: Callable[[str], None]):
+    """Write the report folder (and, with a job, the job with the choice written in): (summary dict,
+    summary text, the ACCELERATION section's dict, the job's own accelerations' dict)."""
+    chosen = choice.point
+    accel_lines, accel_json = _accel_section(req, lim, fw.name, printer, space, points, chosen, stop)
+    ja_lines, ja_json = job_accel_section(facts, req.job_accel, printer, req.gcode, chosen.config)
+    pf_lines, pf_json = feature_space.feature_section(chosen.config, space) if space.per_feature else ([], None)
+    if pf_json is not None:
+        pf_json["why"] = why
+    ja_json["searched"] = not space.accel_fixed
+    result = report.write_report(
+        out_dir, points=points, front=front, choice=choice, baselines=bl.points if bl else {}, quality=quality,
+        printer_name=getattr(printer, "name", "printer"), job_name=Path(req.gcode).name if req.gcode else
+        "built-in test print", firmware=fw.name, n_trials=req.trials, storage=store,
+        study_name=req.study, command=req.command, max_path_error_mm=lim.max_pe, motor_reserve=lim.reserve,
+        baseline_labels=bl.labels if bl else None,
+        sections=[("ACCELERATION", accel_lines)] + ([("PER FEATURE", pf_lines)] if pf_lines else [])
+        + ([("THE JOB'S OWN ACCELERATIONS", ja_lines)] if ja_lines else []),
+        notes=_notes(floor_note, lim.margin, len(settings.enqueue)), export_firmware=fw.name,
+        max_show_through_mm=lim.max_st,
+        best_extra={"job_accel": req.job_accel, "freq_margin": lim.margin, "motor_reserve": lim.reserve,
+                    "top_speed_mm_s": facts.top_speed if req.gcode else float(printer.limits.velocity),
+                    **({"stop": stop.to_dict()} if stop else {})})
+    text = result.pop("summary_text")
+    result["per_feature"] = pf_json
+    if req.gcode:     # the job with the choice written in, beside best.json
+        text += _write_job(req.gcode, out_dir, chosen.config, printer, result, note)
+    for k, src in (bl.sources if bl else {}).items():
+        result["baselines"][k]["source"] = src
+    return result, text, accel_json, ja_json
+
+
+def _write_job(gcode: str, out_dir: Path, config, printer, result: dict, note: Callable[[str], None]) -> str:
+    """Write ``out_dir``/job.gcode, the job with ``config`` written in, and name it in ``result``'s
+    files; the summary's sentence on it. A job that cannot be rewritten leaves the study standing:
+    its file is None and a note says why."""
+    try:
+        done = rewrite_file(gcode, out_dir / "job.gcode", config, printer)
+    except RingtuneError as exc:
+        result["files"]["job"] = None
+        note(f"ringtune tune: job.gcode not written: {exc}")
+        return ""
+    result["files"]["job"] = str(out_dir / "job.gcode")
+    return (f"\nThe job with the choice written in: {out_dir / 'job.gcode'} ({done.lines_inserted} lines "
+            f"inserted; planned {done.before_s:.1f} s as sliced -> {done.after_s:.1f} s).")
+
+
+def _accel_section(req: TuneRequest, lim: _Limits, firmware: str, printer, space, points, chosen, stop):
+    """(lines, dict) of the report's ACCELERATION section: the chosen acceleration, what limits it
+    (the measured stop, the firmware's binding limits) and, without a job, the load at top speed."""
+    bindings = binding_limits(printer, req.gcode, chosen.config, firmware, req.job_accel)
+    stopped = None
+    if stop is not None and stop.kind != "not searched":
+        stopped = (stop.sentence, stop.kind if stop.kind not in ("measure", "bound") else stop.key)
+    lines, out = accel_statement(chosen, space, lim.max_pe, lim.reserve, points, printer,
+                                 binding_sentences(bindings, chosen.config.accel), stopped)
+    out["binding"] = [dataclasses.asdict(b) for b in bindings]
+    if not req.gcode and chosen.config.accel:
+        lines.append(top_speed_load_note(printer, chosen.config.accel, lim.reserve))
+    return lines, out
+
+
+def _notes(floor_note: str, margin: float, n_warm: int) -> list[str]:
+    """The report's notes: the firmware's frequency floor, the frequency margin, the warm start."""
+    notes = [f"The {floor_note}."] if floor_note else []
+    if margin:
+        notes.append(f"Every figure is the worst of the printer as modelled and with all its resonances "
+                     f"{margin * 100:g} % lower and higher (--freq-margin; `ringtune simulate --freq-margin "
+                     f"{margin * 100:g}` gives the same figures).")
+    else:
+        notes.append("Every figure is on the exact model (--freq-margin 0).")
+    if n_warm:
+        notes.append("The search was warm-started from Klipper's recommendation" + (
+            "." if n_warm == 1 else f" and {n_warm - 1} neighbour{'s' if n_warm > 2 else ''} of it (the rule's "
+            "pick and robust shapers at its frequencies on the model's simulated test, higher accelerations)."))
+    return notes
