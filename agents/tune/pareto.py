@@ -379,6 +379,12 @@ def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastes
                       "scaled by the front's range, ripple by its range but at least 10 µm)")
     if how != "fastest-at-baseline-quality":
         raise RingtuneError(f"must be one of {', '.join(PICKS)}, not {how!r}", "--pick")
+    return _fastest_at_baseline_quality(front, baselines, res)
+
+
+def _fastest_at_baseline_quality(front: list[Point], baselines: dict[str, Point], res: Resolution) -> Choice:
+    """:func:`pick`'s default: the fastest front point with no visible measure worse than the
+    reference baselines, tried together then one at a time; else the knee, saying why."""
     refs = reference_baselines(baselines, res)
     words = "overshoot and path error" if _quality_keys(front) != VISIBLE_KEYS else "visible measure"
     worse = f"no worse {words}"
@@ -389,26 +395,30 @@ def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastes
     tries = ([tuple(keys)] if len(keys) > 1 else []) + ([("klipper",)] if "klipper" in keys else [(k,) for k in keys])
     by_key = dict(refs)
     for held in tries:
-        key, b = held[0], by_key[held[0]]
+        b = by_key[held[0]]
         cands = [p for p in at_baseline_quality(front, b, res)
                  if all(no_worse(p, by_key[k], res, _quality_keys([p, by_key[k]])) for k in held[1:])]
         if cands:
             p = min(cands, key=lambda p: (p.print_time_s, p.quality_mm))
-            lead = "" if held == tries[0] else \
-                "no front point is as fast as " + " and ".join(BASELINE_NAMES.get(k, k) for k in tries[0]) + \
-                f" with {worse} than each; "
-            name = " and ".join(BASELINE_NAMES.get(k, k) for k in held)
-            first = BASELINE_NAMES.get(key, key)
-            if p.print_time_s < b.print_time_s:
-                why = f"{lead}the fastest front point with {worse} than {name} (same quality, faster than {first})"
-            else:
-                why = (f"{lead}no front point is faster than {first} with {worse} than {name}: the search found "
-                       f"nothing better than {first} itself at that quality (more --trials may)")
-            return Choice(p, "fastest-at-baseline-quality", key, why, held)
+            return Choice(p, "fastest-at-baseline-quality", held[0], _held_why(p, b, held, tries, worse), held)
     why = "there is no usable baseline to match" if not refs else \
         "no front point is as fast as " + " or ".join(BASELINE_NAMES.get(k, k) for k, _ in refs) + \
         f" with {worse}"
     return Choice(knee(front), "knee", None, f"the knee of the front, because {why}")
+
+
+def _held_why(p: Point, b: Point, held: tuple, tries: list[tuple], worse: str) -> str:
+    """Why ``p`` was chosen, held to the baselines ``held`` (``b``: the first's point), saying when
+    an earlier try (``tries[0]``) found nothing."""
+    lead = "" if held == tries[0] else \
+        "no front point is as fast as " + " and ".join(BASELINE_NAMES.get(k, k) for k in tries[0]) + \
+        f" with {worse} than each; "
+    name = " and ".join(BASELINE_NAMES.get(k, k) for k in held)
+    first = BASELINE_NAMES.get(held[0], held[0])
+    if p.print_time_s < b.print_time_s:
+        return f"{lead}the fastest front point with {worse} than {name} (same quality, faster than {first})"
+    return (f"{lead}no front point is faster than {first} with {worse} than {name}: the search found "
+            f"nothing better than {first} itself at that quality (more --trials may)")
 
 
 #: short names of the baselines in sentences

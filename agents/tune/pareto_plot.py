@@ -118,11 +118,7 @@ def _panel(ax, key, name, unit, factor, ctx, full_legend: bool) -> dict:
     core += [ys[id(p)] for p in points if p.feasible]
     series: dict = {}
     if not np.isfinite(core).any():
-        ax.text(0.5, 0.5, f"{name}:\nnot recorded for these trials",
-                ha="center", va="center", transform=ax.transAxes, fontsize=8, color="0.3")
-        ax.set_title(f"{name} ({unit})", fontsize=8)
-        ax.set_xlim(t_box[0], t_box[1])
-        return {**counts, "missing": True, "legend": [], "rings": {}, "series": series}
+        return {**counts, **_missing(ax, name, unit, t_box), "series": series}
     extra = [bound * factor] if key == "path_error_mm" and bound > 0 else []
     y_lo, y_hi = _limits(np.array(core + extra, float))
     box = (t_box[0], t_box[1], y_lo, y_hi)
@@ -131,50 +127,88 @@ def _panel(ax, key, name, unit, factor, ctx, full_legend: bool) -> dict:
             _scatter_clipped(ax, np.array([p.print_time_s for p in pts]), np.array([ys[id(p)] for p in pts]), box,
                              style, counts, f"{label} ({len(pts)})" if full_legend else None)
     if front:
-        ft = [p.print_time_s for p in front]
-        fy = [ys[id(p)] for p in front]
-        art = ax.scatter(ft, fy, s=22, c="tab:blue", zorder=3, label=f"Pareto front ({len(front)})")
-        series["front"] = np.asarray(art.get_offsets(), float).tolist()
+        series["front"] = _front(ax, front, [ys[id(p)] for p in front])
     if key == "path_error_mm" and bound > 0:
         ax.axhline(bound * factor, c="tab:purple", ls="--", lw=1, label=f"path-error bound {bound * 1000:g} µm")
     for bkey, p in baselines.items():
-        m, c = STYLE.get(bkey, ("P", "tab:cyan"))
-        broke = [w for w, flag in (("loses steps", p.step_loss), ("path error over the bound", p.too_rough),
-                                   ("motor load over the reserve", p.overloaded)) if flag]
-        y = ys[id(p)]
-        txt = f"{y:.1f} {unit}" if np.isfinite(y) else "not measured"
-        lab = (f"{short_label(labels.get(bkey, bkey))}: {p.print_time_s:.2f} s, {txt}"
-               + (f" — BREAKS A BOUND ({', '.join(broke)})" if broke else ""))
-        if np.isfinite(y):
-            art = ax.scatter([p.print_time_s], [np.clip(y, y_lo, y_hi)], s=90, marker=m, c=c, zorder=5, label=lab,
-                             edgecolors="red" if broke else "white", linewidths=2 if broke else 1)
-            series[f"baseline:{bkey}"] = [[p.print_time_s, y]]
-            ax.annotate(SHORT.get(bkey, bkey) + ("" if full_legend else f" {y:.1f}"),
-                        (p.print_time_s, float(np.clip(y, y_lo, y_hi))), fontsize=7,
-                        xytext=(6, -9), textcoords="offset points", color=c)
+        _baseline(ax, bkey, p, ys[id(p)], (y_lo, y_hi), unit, labels, full_legend, series)
+    rings = _rings(ax, marked or {}, labels, lambda p: _value(p, key, quality) * factor)
+    _chosen(ax, chosen, ys[id(chosen)], unit, full_legend, series)
+    legend = _finish(ax, counts, f"{name} ({unit})" if full_legend else unit, full_legend, box)
+    return {**counts, "missing": False, "legend": legend, "rings": rings, "series": series}
+
+
+def _missing(ax, name: str, unit: str, t_box) -> dict:
+    """A panel whose measure no point recorded: says so."""
+    ax.text(0.5, 0.5, f"{name}:\nnot recorded for these trials",
+            ha="center", va="center", transform=ax.transAxes, fontsize=8, color="0.3")
+    ax.set_title(f"{name} ({unit})", fontsize=8)
+    ax.set_xlim(t_box[0], t_box[1])
+    return {"missing": True, "legend": [], "rings": {}}
+
+
+def _baseline(ax, bkey: str, p: Point, y: float, y_box, unit: str, labels: dict, full_legend: bool,
+              series: dict) -> None:
+    """One baseline's marker (edged red when it breaks a bound) and label; a baseline without the
+    measure is named in the legend only."""
+    m, c = STYLE.get(bkey, ("P", "tab:cyan"))
+    broke = [w for w, flag in (("loses steps", p.step_loss), ("path error over the bound", p.too_rough),
+                               ("motor load over the reserve", p.overloaded)) if flag]
+    txt = f"{y:.1f} {unit}" if np.isfinite(y) else "not measured"
+    lab = (f"{short_label(labels.get(bkey, bkey))}: {p.print_time_s:.2f} s, {txt}"
+           + (f" — BREAKS A BOUND ({', '.join(broke)})" if broke else ""))
+    if not np.isfinite(y):
+        return
+    y_lo, y_hi = y_box
+    ax.scatter([p.print_time_s], [np.clip(y, y_lo, y_hi)], s=90, marker=m, c=c, zorder=5, label=lab,
+               edgecolors="red" if broke else "white", linewidths=2 if broke else 1)
+    series[f"baseline:{bkey}"] = [[p.print_time_s, y]]
+    ax.annotate(SHORT.get(bkey, bkey) + ("" if full_legend else f" {y:.1f}"),
+                (p.print_time_s, float(np.clip(y, y_lo, y_hi))), fontsize=7,
+                xytext=(6, -9), textcoords="offset points", color=c)
+
+
+def _front(ax, front: Sequence[Point], ys: list[float]) -> list:
+    """The front's points (``ys``: their values), drawn; [[time, value], ...] as drawn."""
+    art = ax.scatter([p.print_time_s for p in front], ys, s=22, c="tab:blue", zorder=3,
+                     label=f"Pareto front ({len(front)})")
+    return np.asarray(art.get_offsets(), float).tolist()
+
+
+def _rings(ax, marked: dict, labels: dict, value) -> dict:
+    """Rings around the ``marked`` points ({label: point}; ``value(point)``: its y), of different
+    sizes so that both show on one point; {short label: colour}."""
     rings = {}
-    for i, (lab, p) in enumerate((marked or {}).items()):     # rings of different sizes: both show
+    for i, (lab, p) in enumerate(marked.items()):
         colour = rings[short_label(lab)] = _ring_colour(lab, labels, i)
-        ax.scatter([p.print_time_s], [_value(p, key, quality) * factor], s=180 + 120 * i, facecolors="none",
+        ax.scatter([p.print_time_s], [value(p)], s=180 + 120 * i, facecolors="none",
                    edgecolors=colour, linewidths=1.8, zorder=4, label=short_label(lab))
-    y = ys[id(chosen)]
+    return rings
+
+
+def _chosen(ax, chosen: Point, y: float, unit: str, full_legend: bool, series: dict) -> None:
+    """The chosen point: a gold star, labelled."""
     ax.scatter([chosen.print_time_s], [y], s=260, marker="*", c="gold", edgecolors="black", zorder=6,
                label=f"chosen: {chosen.print_time_s:.2f} s, {y:.1f} {unit}")
     series["chosen"] = [[chosen.print_time_s, y]]
     ax.annotate("chosen" + ("" if full_legend else f" {y:.1f}"), (chosen.print_time_s, y), fontsize=7, xytext=(7, 5),
                 textcoords="offset points")
+
+
+def _finish(ax, counts: dict, ylabel: str, full_legend: bool, box) -> list[str]:
+    """A panel's off-scale note, limits, axis label and grid; its legend (below the panel, not over
+    the points) when ``full_legend``, as the texts drawn."""
     notes = [f"{n} {where.replace('_', ' ')} (arrows)" for where, n in counts.items() if n]
     if notes:
         ax.text(0.01, 0.99, "; ".join(notes), transform=ax.transAxes, va="top", fontsize=7, color="0.3")
-    ax.set_xlim(t_box[0], t_box[1])
-    ax.set_ylim(y_lo, y_hi)
-    ax.set_ylabel(f"{name} ({unit})" if full_legend else unit, fontsize=10 if full_legend else 8)
+    ax.set_xlim(box[0], box[1])
+    ax.set_ylim(box[2], box[3])
+    ax.set_ylabel(ylabel, fontsize=10 if full_legend else 8)
     ax.grid(True, alpha=0.3)
-    legend = []
-    if full_legend:       # below the panel, not over the points
-        leg = ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.07), borderaxespad=0.0)
-        legend = [t.get_text() for t in leg.get_texts()]
-    return {**counts, "missing": False, "legend": legend, "rings": rings, "series": series}
+    if not full_legend:
+        return []
+    leg = ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.07), borderaxespad=0.0)
+    return [t.get_text() for t in leg.get_texts()]
 
 
 def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chosen: Point,

@@ -349,36 +349,45 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
         run_worker(settings, 0, printer=printer, on_trial=on_trial, stop=stop)
         interrupted = stop.requested
     else:
-        for params in settings.enqueue:      # once, here: workers racing to enqueue would duplicate
-            _enqueue_once(study, params)
-        payload = json.dumps({**settings.to_dict(), "enqueue": []})
-        procs = [subprocess.Popen([sys.executable, "-m", "ringtune.agents.tune.study", "worker", str(i)],
-                                  stdin=subprocess.PIPE, text=True) for i in range(workers)]
-        for p in procs:
-            p.stdin.write(payload)
-            p.stdin.close()
-        try:
-            while any(p.poll() is None for p in procs):
-                time.sleep(0.3)
-                if progress:
-                    progress(count_states(study)["COMPLETE"], settings.n_trials, study)
-        except KeyboardInterrupt:
-            interrupted = True   # the workers got the same Ctrl-C: they finish their trial and stop
-            deadline = time.time() + 30
-            for p in procs:
-                try:
-                    p.wait(max(0.1, deadline - time.time()))
-                except subprocess.TimeoutExpired:
-                    p.terminate()
-        codes = [p.wait() for p in procs]
-        bad = [c for c in codes if c != 0 and not interrupted]
-        if bad:
-            raise RingtuneError(f"{len(bad)} worker process(es) failed (exit codes {bad}); "
-                                "rerun to resume", "workers")
+        interrupted = _run_workers(settings, study, workers, progress)
     after = count_states(study)["COMPLETE"]
     if progress:
         progress(after, settings.n_trials, study)
     return StudyRun(study, before, after - before, interrupted)
+
+
+def _run_workers(settings: StudySettings, study, workers: int,
+                 progress: Callable[[int, int, Any], None] | None) -> bool:
+    """The study in ``workers`` spawned processes sharing its storage, this one watching and reporting
+    progress; whether Ctrl-C stopped it (a worker that fails otherwise is an error)."""
+    interrupted = False
+    for params in settings.enqueue:      # once, here: workers racing to enqueue would duplicate
+        _enqueue_once(study, params)
+    payload = json.dumps({**settings.to_dict(), "enqueue": []})
+    procs = [subprocess.Popen([sys.executable, "-m", "ringtune.agents.tune.study", "worker", str(i)],
+                              stdin=subprocess.PIPE, text=True) for i in range(workers)]
+    for p in procs:
+        p.stdin.write(payload)
+        p.stdin.close()
+    try:
+        while any(p.poll() is None for p in procs):
+            time.sleep(0.3)
+            if progress:
+                progress(count_states(study)["COMPLETE"], settings.n_trials, study)
+    except KeyboardInterrupt:
+        interrupted = True   # the workers got the same Ctrl-C: they finish their trial and stop
+        deadline = time.time() + 30
+        for p in procs:
+            try:
+                p.wait(max(0.1, deadline - time.time()))
+            except subprocess.TimeoutExpired:
+                p.terminate()
+    codes = [p.wait() for p in procs]
+    bad = [c for c in codes if c != 0 and not interrupted]
+    if bad:
+        raise RingtuneError(f"{len(bad)} worker process(es) failed (exit codes {bad}); "
+                            "rerun to resume", "workers")
+    return interrupted
 
 
 # -- reading results -----------------------------------------------------------------------------

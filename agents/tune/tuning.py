@@ -69,7 +69,9 @@ class Tuned:
 
 @dataclass(frozen=True)
 class _Limits:
-    """The judgement's bounds as fractions and mm, and how the choice is made."""
+    """How the choice is made and the judgement's bounds: path error and show-through in mm, the
+    frequency margin and motor reserve as fractions, the acceleration range in mm/s² (None: from
+    the motors)."""
 
     how: str
     max_pe: float
@@ -99,7 +101,7 @@ _BOUNDS = (
 )
 
 
-def check_request(req: TuneRequest) -> _Limits:
+def _check_request(req: TuneRequest) -> _Limits:
     """The request's bounds and pick, refused in one line naming the option when out of range."""
     for name, flag, ok, message in _RUN_CHECKS:
         if not ok(getattr(req, name)):
@@ -147,7 +149,7 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     ``update(done, total, study)`` and ``close()``."""
     t_start = time.time()
     fw = Firmware.named(req.firmware, "--firmware")
-    lim = check_request(req)
+    lim = _check_request(req)
     out_dir = Path(req.out)
     check_out(out_dir)
     printer = resolve_printer(req.printer)
