@@ -29,7 +29,11 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import tempfile
 import time
+from pathlib import Path
+
+import numpy as np
 
 from ringtune.agents.tune.baselines import recorded_klipper
 from ringtune.agents.tune.feature_space import feature_space
@@ -93,12 +97,50 @@ def row(name, m) -> str:
             f"{hidden_extrusion(m):7.1f} {m.motor_load * 100:6.0f} %")
 
 
+def walls_swapped(job):
+    """The job with PrusaSlicer's inner and outer wall labels exchanged (a temporary file), or None
+    when it has no such labels: judged as tune judges, its visible-wall windows fall on the inner
+    walls, which otherwise no window holds. Inner walls abut the outer wall, so what they ripple
+    pushes it: they must keep the outer walls' measures."""
+    if job is None:
+        return None
+    text = Path(job).read_text(encoding="utf-8", errors="replace")
+    if ";TYPE:Perimeter\n" not in text or ";TYPE:External perimeter\n" not in text:
+        return None
+    swap = {";TYPE:Perimeter": ";TYPE:External perimeter", ";TYPE:External perimeter": ";TYPE:Perimeter"}
+    out = Path(tempfile.mkdtemp()) / "walls_swapped.gcode"
+    out.write_text("\n".join(swap.get(line, line) for line in text.split("\n")))
+    return str(out)
+
+
+def inner_walls_top(printer, swapped, base_cfg, ladder) -> float | None:
+    """The highest of ``ladder`` (mm/s²) at which the inner walls (the visible windows of the
+    ``swapped`` job) ripple and round or overshoot their corners no more than at ``base_cfg``'s
+    acceleration (1 µm or 5 %); None when none does."""
+    a0 = float(base_cfg.accel)
+    rest = {c: a0 for c in ("bridge_overhang", "other")}
+
+    def cfg(a):
+        return dataclasses.replace(base_cfg, feature_accel={**rest, "outer_wall": a, "inner_wall": a0})
+
+    ref, *ms = evaluate_many([cfg(a0)] + [cfg(a) for a in ladder], printer, swapped, freq_margin=MARGIN)
+    seen = ("ripple_mm", "ripple_p90_mm", "corner_in_mm", "corner_out_mm")
+    base = ref.features.get("outer_wall", {})
+    for a, m in sorted(zip(ladder, ms), key=lambda am: -am[0]):
+        f = m.features.get("outer_wall", {})
+        if all(f.get(k, 0.0) <= base.get(k, 0.0) + max(1e-3, 0.05 * base.get(k, 0.0)) for k in seen):
+            return a
+    return None
+
+
 def per_feature(printer, job, base_cfg, ref, steps=(1.0, 0.85, 0.7, 0.55, 0.4, 0.25)):
     """The fastest per-feature configuration (visible acceleration and shapers of ``base_cfg``)
     not worse than ``ref`` on the visible measures: each hidden group alone at fractions ``steps``
     of its range's top (never below the visible walls' acceleration), the highest that keeps the
     judgement; then all groups together at their own (checked again; a group that breaks it in
-    company drops back step by step). Returns (config, metrics, space)."""
+    company drops back step by step); the inner walls, which no window of a sliced job may hold, are
+   judged on the job with inner and outer wall labels exchanged (:func:`walls_swapped`). Returns
+   (config, metrics, space)."""
     space = feature_space(default_space(printer, base_cfg.firmware), printer, job, RESERVE,
                           corner=False, min_cruise_ratio=False)
     base_a = float(base_cfg.accel)
@@ -117,6 +159,14 @@ def per_feature(printer, job, base_cfg, ref, steps=(1.0, 0.85, 0.7, 0.55, 0.4, 0
     for (g, a), m in zip(alone, ms):
         if not_worse(m, ref) and a > best.get(g, 0.0):
             best[g] = a
+    swapped = walls_swapped(job)
+    if swapped and "hidden_walls" in best:           # no window of the job holds an inner wall
+        fine = [a for a in np.arange(base_a + 500.0, best["hidden_walls"] + 1.0, 500.0)]   # 500 mm/s² steps
+        top = inner_walls_top(printer, swapped, base_cfg, fine)
+        if top is None:
+            del best["hidden_walls"]
+        else:
+            best["hidden_walls"] = top
     while best:
         m = evaluate_many([cfg(best)], printer, job, freq_margin=MARGIN)[0]
         if not_worse(m, ref):
