@@ -9,7 +9,7 @@ own: every visible measure stays the pick's (1 µm or 5 %; 0.5 points of extrusi
 motors stay within their reserve, the infill's show-through stays inside the gap the job's slicer
 left between it and the outer wall (:mod:`ringtune.shaping.wall_gap`), and the job is faster. The
 issue's 15 % is not reached on the part: ``benchmarks/bench_feature_accel.py --gcode part``
-measures 9.8 % against the best single acceleration and the planner's ceiling (README).
+measures 8.8 % against the best single acceleration and the planner's ceiling (README).
 """
 
 from __future__ import annotations
