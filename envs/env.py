@@ -18,7 +18,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ringtune.envs.accel_model import model_accel
-from ringtune.envs.evaluate import evaluate, planned_job, resolve_printer
+from ringtune.envs.evaluate import evaluate_many, planned_job, resolve_printer
+from ringtune.envs.judgement import DEFAULT_WEIGHTS, JUDGEMENT, baseline_config, judged_cost
 from ringtune.envs.metrics import Metrics
 from ringtune.envs.mujoco_model import linear_system
 from ringtune.envs.printer import printer_from_dict
@@ -27,7 +28,6 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.shapers import available_shapers, max_damping
 
-DEFAULT_WEIGHTS = {"time": 1.0, "path_error": 2.0, "overshoot": 5.0, "ringing": 20.0}
 #: scales s in the squashing m / (m + s) of the observed metrics
 METRIC_SCALES = {"time_ratio": 1.0, "path_error_mm": 0.1, "overshoot_mm": 0.1, "ringing_mm": 0.02}
 #: entries of the observation's metrics part (see :class:`TuneEnv`)
@@ -419,12 +419,17 @@ class TuneEnv(gym.Env):
     chosen configuration and its metrics.
 
     ## Rewards
-    ``r = −(w_time · T/T0 + w_path · path_error + w_over · overshoot + w_ring · ringing) −
-    step_loss_penalty · step_loss`` with ``T`` the print time (s), ``T0`` the print time of the
-    job at the printer's own acceleration without frequency limit, quality terms in mm and
-    ``weights`` = {"time", "path_error", "overshoot", "ringing"} (default :data:`DEFAULT_WEIGHTS`).
-    A configuration the firmware rejects (e.g. impulses colliding on its time grid) ends the
-    episode with reward ``−step_loss_penalty``.
+    ``r = −cost``, ``tune``'s judgement as one number (:mod:`ringtune.envs.judgement`): the print
+    time over ``T0`` (the job at the printer's own acceleration without frequency limit), plus
+    ``weights["worse"]`` × the summed relative excess of every judged measure (ripple, corners,
+    extrusion, show-through) over the baseline's beyond the resolution, plus the constraints
+    (``step_loss_penalty`` for lost steps; the same × the relative excess over the motor reserve
+    and the path-error bound). The baseline is MZV on each axis's resonance peak at the printer's
+    own acceleration (:func:`ringtune.envs.judgement.baseline_config`), evaluated at reset
+    (``baseline_metrics_``; one more evaluation per printer). Every evaluation is judged as
+    ``tune`` judges, on the printer and, with ``freq_margin``, its twins with every resonance that
+    fraction lower and higher (the worst counts). A configuration the firmware rejects (e.g.
+    impulses colliding on its time grid) ends the episode with reward ``−step_loss_penalty``.
 
     ## Starting State
     Fixed env: the given printer. Randomised env: :func:`random_printer_dict` drawn from
@@ -449,7 +454,9 @@ class TuneEnv(gym.Env):
     | ``freq_anchor`` | "absolute" | "absolute" or "peak": how the F entries decode (see Action Space) |
     | ``freq_limit_gate`` | False | frequency limit off for the lower half of its entry |
     | ``accel_anchor`` | "absolute" | "absolute" or "model": how the acceleration entry decodes (see Observation Space) |
-    | ``weights`` | :data:`DEFAULT_WEIGHTS` | reward weights (missing keys take the default) |
+    | ``weights`` | :data:`ringtune.envs.judgement.DEFAULT_WEIGHTS` | reward weights ``time``, ``worse`` (missing keys take the default) |
+    | ``judgement`` | :data:`ringtune.envs.judgement.JUDGEMENT` | resolution and constraints of the judgement (missing keys take tune's default) |
+    | ``freq_margin`` | 0.0 | also judge on the printer with its resonances this fraction lower and higher (tune: 0.05) |
     | ``step_loss_penalty`` | 10.0 | subtracted when the motor loses steps |
     | ``n_bins`` | 24 | spectrum bins per axis |
     | ``spectrum_range`` | (10, 160) | Hz covered by the bins |
@@ -470,7 +477,8 @@ class TuneEnv(gym.Env):
                  freq_anchor: str = "absolute", freq_limit_gate: bool = False, accel_anchor: str = "absolute",
                  weights: dict | None = None, step_loss_penalty: float = 10.0, n_bins: int = 24,
                  spectrum_range: tuple[float, float] = (10.0, 160.0), observe_metrics: bool = True,
-                 start_action=None, backend: str = "mujoco", render_mode: str | None = None):
+                 start_action=None, backend: str = "mujoco", render_mode: str | None = None,
+                 judgement: dict | None = None, freq_margin: float = 0.0):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise RingtuneError(f"render_mode must be None or 'rgb_array', not {render_mode!r}", "render_mode")
         self.render_mode = render_mode
@@ -488,6 +496,15 @@ class TuneEnv(gym.Env):
             raise RingtuneError(f"unknown reward weights {sorted(unknown)}; known: {sorted(DEFAULT_WEIGHTS)}",
                                 "weights")
         self.step_loss_penalty = float(step_loss_penalty)
+        self.judgement = {**JUDGEMENT, **(judgement or {})}
+        if set(self.judgement) != set(JUDGEMENT):
+            raise RingtuneError(f"unknown judgement keys {sorted(set(self.judgement) - set(JUDGEMENT))}; known: "
+                                f"{sorted(JUDGEMENT)}", "judgement")
+        if not 0 <= float(freq_margin) < 1:
+            raise RingtuneError(f"must be in [0, 1), not {freq_margin}", "freq_margin")
+        self.freq_margin = float(freq_margin)
+        self.baseline_metrics_: Metrics | None = None
+        self._baseline_key = None
         self.n_bins = int(n_bins)
         self.spectrum_range = (float(spectrum_range[0]), float(spectrum_range[1]))
         self.observe_metrics = bool(observe_metrics)
@@ -561,15 +578,35 @@ class TuneEnv(gym.Env):
             parts.append(_log_position([min(max(self.accel_anchor_, lo), hi)], lo, hi).astype(np.float32))
         return np.concatenate(parts).astype(np.float32)
 
+    def cost(self, m: Metrics) -> float:
+        """``tune``'s judgement of metrics ``m`` on the current printer against its baseline (see
+        the class docstring; :func:`ringtune.envs.judgement.judged_cost`)."""
+        return judged_cost(m, self.baseline_metrics_, self._baseline, self.weights, self.step_loss_penalty,
+                           self.judgement)
+
     def reward(self, m: Metrics) -> float:
-        """The reward of metrics ``m`` on the current printer (see the class docstring)."""
-        w = self.weights
-        cost = (w["time"] * m.print_time_s / self._baseline + w["path_error"] * m.path_error_mm
-                + w["overshoot"] * m.overshoot_mm + w["ringing"] * m.ringing_mm)
-        return float(-cost - (self.step_loss_penalty if m.step_loss else 0.0))
+        """The reward of metrics ``m`` on the current printer: −:meth:`cost`."""
+        return -float(self.cost(m))
 
     def evaluate(self, config: TuneConfig) -> Metrics:
-        return evaluate(config, self.printer, self.job, backend=self.backend)
+        """``config`` judged as ``tune`` judges it: the worst of the printer and, with
+        ``freq_margin``, its detuned twins (:func:`ringtune.envs.evaluate.evaluate_many`)."""
+        return evaluate_many([config], self.printer, self.job, backend=self.backend, freq_margin=self.freq_margin)[0]
+
+    def baseline_config(self) -> TuneConfig:
+        """What every configuration is judged against on this printer (:func:`ringtune.envs.judgement.baseline_config`)."""
+        return baseline_config(self.peaks_, self.spec_.firmware, self.printer.limits.accel)
+
+    def _judge_baseline(self) -> None:
+        """Evaluate the baseline on the current printer and peaks (``baseline_metrics_``; once per both)."""
+        key = (self.printer, tuple(self.peaks_))
+        if self._baseline_key is not None and key[0] is self._baseline_key[0] and key[1] == self._baseline_key[1]:
+            return
+        try:
+            self.baseline_metrics_ = self.evaluate(self.baseline_config())
+        except RingtuneError:        # a baseline the firmware cannot run: judged on time and constraints only
+            self.baseline_metrics_ = None
+        self._baseline_key = key
 
     def _draw_printer(self, attempts: int = 20):
         """A random printer whose linear model can be built (a draw on which the slip model's
@@ -609,6 +646,7 @@ class TuneEnv(gym.Env):
         anchor from those metrics."""
         if peaks is not None:
             self.peaks_ = (float(peaks[0]), float(peaks[1]))
+        self._judge_baseline()
         self.accel_anchor_ = self.spec_.accel_start
         if config is None:
             config = (self.decode(self.start_action) if self.start_action is not None
@@ -625,7 +663,7 @@ class TuneEnv(gym.Env):
                 self._metrics_obs = self._metrics_vector(self.start_metrics_)
                 if self.spec_.accel_anchor == "model":
                     self.accel_anchor_ = model_accel(self.printer, self.job, config, self.start_metrics_,
-                                                     self.weights, self._baseline, self.spec_.accel_range)
+                                                     self.cost, self.spec_.accel_range)
         self._config_obs = self.encode(config)
 
     def step(self, action):
@@ -647,6 +685,7 @@ class TuneEnv(gym.Env):
 
     def _info(self) -> dict:
         return {"printer": self.printer.name, "baseline_print_time_s": self._baseline,
+                "baseline_config": self.baseline_config().to_dict(),
                 "peaks_hz": tuple(self.peaks_), "accel_anchor": self.accel_anchor_}
 
     def render(self):

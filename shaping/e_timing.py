@@ -115,3 +115,21 @@ def firmware_trajectory(motion: Motion, config, rate: float) -> tuple[np.ndarray
     pos = pos[:, :4].copy()
     pos[:, 3] = e.position(t)[:, 0]
     return t, pos
+
+
+def sample_features(plan, config, t: np.ndarray) -> list[str]:
+    """The feature label (as the job names it, e.g. ``External perimeter``, ``WALL-OUTER``;
+    ``""`` outside any move) of the move the commanded X/Y of :func:`firmware_trajectory` are on at
+    each time ``t`` (s): the planned move at ``t``, or at ``t`` minus the causal shapers' lag where
+    the firmware delays X/Y by their centroid ΣAᵢTᵢ (time-centred shapers: no lag)."""
+    lag = 0.0
+    if config is not None:
+        shapers, centred = shapers_from_config(config)
+        lag = 0.0 if centred else shaped_axes_lag(shapers, centred)
+    motion, moves = plan.motion, plan.moves
+    tu = np.asarray(t, float) - lag
+    move = motion.move[motion.segment_index(tu)]
+    inside = (tu >= motion.t[0]) & (tu <= motion.t[-1]) & (move >= 0)
+    labels = np.array(list(moves.features) + [""], dtype=object)
+    idx = np.where(inside, moves.feature[np.clip(move, 0, None)], len(moves.features))
+    return labels[idx].tolist()

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from ringtune.envs.accel_model import LOAD_CAP, model_accel
-from ringtune.envs.env import DEFAULT_WEIGHTS
+from ringtune.envs.judgement import DEFAULT_WEIGHTS, judged_cost
 from ringtune.envs.evaluate import evaluate, planned_job, resolve_printer
 from ringtune.envs.metrics import Metrics
 from ringtune.shaping.config import TuneConfig
@@ -42,8 +42,10 @@ def test_metrics_scale_with_acceleration_on_the_linear_printer(shaper):
     slow = job.with_feed(np.minimum(job.feed, 100.0))
     m1, m2 = (evaluate(dataclasses.replace(cfg, accel=a), p, slow, backend="lti") for a in (3000.0, 6000.0))
 
+    weight = {"path_error_mm": 2.0, "overshoot_mm": 5.0, "ringing_mm": 20.0}     # a fixed mix of deviations
+
     def q(m):
-        return sum(DEFAULT_WEIGHTS[k.removesuffix("_mm")] * getattr(m, k) for k in Metrics.QUALITY_KEYS)
+        return sum(w * getattr(m, k) for k, w in weight.items())
 
     assert 1.2 < q(m2) / q(m1) < 3.0
     fric = p.motor.friction / p.motor.force
@@ -81,26 +83,33 @@ def test_anchor_keeps_the_force_reserve():
     """No deviation at all: the fastest acceleration whose load, scaled from 0.5 at 4000 mm/s²,
     stays at or under the cap (0.7 · 4000 / 0.5 = 5600 mm/s²)."""
     p = resolve_printer(None)
+    t0 = _baseline(p)
+
+    def cost(m):
+        return m.print_time_s / t0
     m = Metrics(print_time_s=1.0, motor_load=0.5)
-    a = model_accel(p, None, MZV, m, DEFAULT_WEIGHTS, _baseline(p), RANGE)
+    a = model_accel(p, None, MZV, m, cost, RANGE)
     assert a == GRID[GRID <= LOAD_CAP * 4000 / 0.5].max()
     # no load reported (not simulated): the top of the range; overloaded already: the bottom
-    assert model_accel(p, None, MZV, Metrics(print_time_s=1.0), DEFAULT_WEIGHTS, _baseline(p), RANGE) == RANGE[1]
-    assert model_accel(p, None, MZV, Metrics(print_time_s=1.0, motor_load=5.0), DEFAULT_WEIGHTS,
-                       _baseline(p), RANGE) == pytest.approx(RANGE[0])
+    assert model_accel(p, None, MZV, Metrics(print_time_s=1.0), cost, RANGE) == RANGE[1]
+    assert model_accel(p, None, MZV, Metrics(print_time_s=1.0, motor_load=5.0), cost, RANGE) == pytest.approx(RANGE[0])
 
 
 def test_anchor_balances_print_time_against_scaled_deviations():
-    """With ringing r mm at 4000 mm/s², the anchor minimises T(a)/T0 + 20·r·a/4000 over the grid:
-    brute force over the planner's own print times agrees, and more ringing means a lower anchor."""
+    """With ripple r mm at 4000 mm/s² against a baseline's 5 µm, the anchor minimises the env's
+    judgement T(a)/T0 + 5·ln(1 + max(0, r·a/4000 − 5 µm − tol)/5 µm) over the grid (tol = max(1 µm, 5 %)):
+    brute force over the planner's own print times agrees, and more ripple means a lower anchor."""
     p = resolve_printer(None)
     t0 = _baseline(p)
     times = np.array([planned_job(p, None, dataclasses.replace(MZV, accel=float(a))).print_time for a in GRID])
+    base = Metrics(print_time_s=1.0, ripple_mm=0.005)
     found = []
     for r in (0.001, 0.005, 0.02):
-        m = Metrics(print_time_s=1.0, ringing_mm=r, motor_load=0.1)
-        a = model_accel(p, None, MZV, m, DEFAULT_WEIGHTS, t0, RANGE)
-        cost = times / t0 + 20.0 * r * GRID / 4000.0
+        m = Metrics(print_time_s=1.0, ripple_mm=r, motor_load=0.1)
+        a = model_accel(p, None, MZV, m, lambda x: judged_cost(x, base, t0, DEFAULT_WEIGHTS, 10.0), RANGE)
+        ripple = r * GRID / 4000.0
+        tol = np.maximum(0.001, 0.05 * np.maximum(ripple, 0.005))
+        cost = times / t0 + 5.0 * np.log1p(np.maximum(0.0, ripple - 0.005 - tol) / np.maximum(0.005, tol))
         cost[GRID > LOAD_CAP * 4000 / 0.1] = np.inf
         assert a == GRID[np.argmin(cost)]
         found.append(a)

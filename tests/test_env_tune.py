@@ -113,16 +113,33 @@ def test_observation_shows_the_resonances():
     assert not obs[-6:].any()
 
 
-def test_reward_is_the_documented_weighted_sum():
-    w = {"time": 2.0, "path_error": 3.0, "overshoot": 4.0, "ringing": 5.0}
+def test_reward_is_tunes_judgement_against_the_baseline():
+    """r = −(w_time·T/T0 + w_worse·Σ relative excess over the baseline beyond the resolution +
+    constraints), the baseline (MZV on the peaks at the printer's accel) evaluated independently."""
+    from ringtune.envs.evaluate import evaluate
+    from ringtune.envs.judgement import JUDGED_KEYS, baseline_config
+
+    w = {"time": 2.0, "worse": 3.0}
     env = TuneEnv(backend="lti", weights=w, step_loss_penalty=7.0, observe_metrics=False)
-    env.reset(seed=0)
-    cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=50.0, freq_y=45.0)
+    _, info0 = env.reset(seed=0)
+    base_cfg = baseline_config(env.peaks_, "klipper", env.printer.limits.accel)
+    assert info0["baseline_config"] == base_cfg.to_dict()
+    b = evaluate(base_cfg, env.printer, None, backend="lti").to_dict()
+    cfg = TuneConfig(shaper_x="zv", shaper_y="zv", freq_x=30.0, freq_y=30.0, accel=9000.0)
     _, r, *_, info = env.step(encode_config(cfg, env.spec_))
     m = info["metrics"]
-    expect = -(2.0 * m["print_time_s"] / info["baseline_print_time_s"] + 3.0 * m["path_error_mm"]
-               + 4.0 * m["overshoot_mm"] + 5.0 * m["ringing_mm"]) - (7.0 if m["step_loss"] else 0.0)
-    assert r == pytest.approx(expect, rel=1e-12)
+    worse = 0.0
+    for k in JUDGED_KEYS:
+        tol = max(0.001, 0.05 * max(m[k], b[k]))
+        worse += np.log1p(max(0.0, m[k] - b[k] - tol) / max(b[k], tol))
+    assert worse > 0                                    # ZV far below the modes at 9000 mm/s² rings more
+    load = 7.0 * max(0.0, m["motor_load"] - 0.8) / 0.2 + 7.0 * max(0.0, m["path_error_mm"] - 0.1) / 0.1
+    expect = -(2.0 * m["print_time_s"] / info["baseline_print_time_s"] + 3.0 * worse + load
+               + (7.0 if m["step_loss"] else 0.0))
+    assert r == pytest.approx(expect, rel=1e-9)
+    # the baseline itself pays only its print time ratio (1: it runs at the printer's own accel)
+    _, r0, *_ = env.step(encode_config(base_cfg, env.spec_))
+    assert r0 == pytest.approx(-2.0, rel=1e-3)
     with pytest.raises(RingtuneError, match="weights"):
         TuneEnv(weights={"speed": 1.0})
 

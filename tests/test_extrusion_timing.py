@@ -169,7 +169,7 @@ def test_plan_trajectory_writes_the_extruder_as_the_firmware_commands_it(tmp_pat
     traj = tmp_path / "t.csv"
     assert main(["plan", str(job), "--config", str(cfg), "--trajectory", str(traj), "--rate", "2000"]) == 0
     capsys.readouterr()
-    t, x, _, _, e = np.loadtxt(traj, delimiter=",", skiprows=1).T
+    t, x, _, _, e = np.loadtxt(traj, delimiter=",", skiprows=1, usecols=range(5)).T
     cruise = (x > 40) & (x < 80)                     # well away from the ends, at 100 mm/s
     asked = 0.033 * (x[cruise] - 10.0)               # filament the path holds up to x (E from 0)
     lead = (e[cruise] - asked) / 0.033

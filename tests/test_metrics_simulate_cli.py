@@ -29,7 +29,7 @@ def test_json_matches_evaluate_and_shaping_helps(capsys):
     res = json.loads(out)
     assert set(res) == {"printer", "job", "backend", "config", "metrics", "freq_margin", "judgement",
                         "variants", "windows", "plots", "e_timing", "e_sync",
-                        "job_shapers", "job_accel", "binding"}
+                        "job_shapers", "job_accel", "binding", "baselines", "versus"}
     assert set(res["metrics"]) == METRIC_KEYS | NESTED_KEYS and res["plots"] == []
     assert res["e_timing"] == "neither" and res["e_sync"] == ""   # Klipper: centred X/Y, E unshaped
     cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=45.5, freq_y=38.9, damping_x=0.1, damping_y=0.1)
@@ -77,7 +77,7 @@ def test_plot_folder_that_cannot_be_made_fails_before_simulating(tmp_path, capsy
     def no_simulation(*a, **k):
         raise AssertionError("simulated before checking --plot")
 
-    monkeypatch.setattr(evaluate_module, "evaluate_detailed", no_simulation)
+    monkeypatch.setattr(evaluate_module, "simulate_batch", no_simulation)
     blocker = tmp_path / "plots"
     blocker.write_text("a file, not a folder")
     code, out, err = run_cli(["simulate", "--backend", "lti", "--plot", str(blocker / "sub")], capsys)
@@ -95,7 +95,7 @@ def test_the_accelerometer_plot_is_in_mm_per_s2_as_every_text(tmp_path, monkeypa
 
     seen = {}
 
-    def keep(plt, fig, out, title=""):
+    def keep(plt, fig, out, title="", data=None):
         seen["axes"] = [(ax.get_ylabel(), [line.get_ydata() for line in ax.get_lines()]) for ax in fig.axes]
         plt.close(fig)
         return out

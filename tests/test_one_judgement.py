@@ -28,7 +28,8 @@ def test_simulate_of_tunes_best_json_prints_tunes_figures_to_the_digit(tmp_path)
     process (no shared cache): every metric tune recorded for the chosen configuration is the
     same float, and the printed figures are the same digits."""
     out = tmp_path / "out"
-    tuned = _run(["tune", "--trials", "4", "--seed", "1", "--no-baselines", "--out", str(out), "--json"])
+    tuned = _run(["tune", "--trials", "4", "--seed", "1", "--no-baselines", "--max-show-through", "0",
+                  "--out", str(out), "--json"])
     assert tuned.returncode == 0, tuned.stderr
     report = json.loads(tuned.stdout)
     best = json.loads((out / "best.json").read_text())
@@ -48,15 +49,20 @@ def test_simulate_of_tunes_best_json_prints_tunes_figures_to_the_digit(tmp_path)
     # the text a person reads: tune's summary line for the chosen point and simulate's table
     text = _run(["simulate", "--config", str(out / "best.json")]).stdout
     summary = (out / "summary.txt").read_text()
-    chosen = re.search(r"print time ([\d.]+) s, overshoot ([\d.]+) µm, path error ([\d.]+) µm"
+    chosen = re.search(r"print time ([\d.]+) s, ripple ([\d.]+) µm \(p90 ([\d.]+) µm\), corners in ([\d.]+) µm / "
+                       r"out ([\d.]+) µm, extrusion \+([\d.]+) / −([\d.]+) %, show-through ([\d.]+) µm"
                        r"(?:, motor load (\d+) %)?", summary)
     assert chosen, summary
-    t, os_um, pe_um, load = chosen.groups()
+    t, ripple, p90, c_in, c_out, over, under, show, load = chosen.groups()
     if load is not None:
         assert re.search(rf"motor load\s+{load} %", text), text
     assert re.search(rf"print time\s+{re.escape(t)} s", text), text
-    assert re.search(rf"overshoot\s+{re.escape(os_um)} µm", text), text
-    assert re.search(rf"path error\s+{re.escape(pe_um)} µm", text), text
+    assert re.search(rf"ripple\s+{re.escape(ripple)} µm peak-to-peak, worst visible wall \(90th percentile "
+                     rf"{re.escape(p90)} µm\)", text), text
+    assert re.search(rf"corner in\s+{re.escape(c_in)} µm", text), text
+    assert re.search(rf"corner out\s+{re.escape(c_out)} µm", text), text
+    assert re.search(rf"extrusion\s+\+{re.escape(over)} % / -{re.escape(under)} %", text), text
+    assert re.search(rf"show-through\s+{re.escape(show)} µm", text), text
     assert "judged  worst of the model and its resonances ±5 %" in text
 
 

@@ -44,7 +44,7 @@ def test_plan_builtin_with_config_and_trajectory(tmp_path, capsys):
     assert res["job"] == "built-in test print"
     assert res["freq_limit"]["moves_slowed"] > 0
     assert res["limits"]["accel"] == 2000
-    data = np.loadtxt(traj, delimiter=",", skiprows=1)
+    data = np.loadtxt(traj, delimiter=",", skiprows=1, usecols=range(5))
     assert data.shape[1] == 5
     np.testing.assert_allclose(np.diff(data[:, 0]), 1 / 500, atol=1e-6)
     assert data[-1, 0] == pytest.approx(res["print_time_s"], abs=2 / 500)
@@ -72,8 +72,8 @@ def test_plan_trajectory_is_shaped_by_the_config(tmp_path, capsys):
     cfg.write_text(json.dumps({"firmware": "klipper", "shaper_x": "mzv", "shaper_y": "mzv",
                                "freq_x": 40, "freq_y": 40, "damping_x": 0.1, "damping_y": 0.1}))
     _plan_json(capsys, "--config", str(cfg), "--trajectory", str(shaped), "--rate", "1000")
-    a = np.loadtxt(plain, delimiter=",", skiprows=1)
-    b = np.loadtxt(shaped, delimiter=",", skiprows=1)
+    a = np.loadtxt(plain, delimiter=",", skiprows=1, usecols=range(5))
+    b = np.loadtxt(shaped, delimiter=",", skiprows=1, usecols=range(5))
     n = min(len(a), len(b))
     # shaping smooths the corners (positions differ) but keeps where the job ends
     assert np.abs(a[:n, 1:3] - b[:n, 1:3]).max() > 0.01
@@ -115,8 +115,8 @@ def test_trajectory_to_standard_output(tmp_path, capsys):
     job.write_text("G28\nG1 X10 Y5 E1 F3000\nG1 X0 E2\n")
     assert main(["plan", str(job), "--trajectory", "-", "--rate", "200"]) == 0
     cap = capsys.readouterr()
-    assert cap.out.startswith("t,x,y,z,e\n") and "planned with" in cap.err
-    data = np.loadtxt(cap.out.splitlines()[1:], delimiter=",")
+    assert cap.out.startswith("t,x,y,z,e,feature\n") and "planned with" in cap.err
+    data = np.loadtxt(cap.out.splitlines()[1:], delimiter=",", usecols=range(5))
     assert data[-1, 1:5] == pytest.approx([0.0, 5.0, 0.0, 2.0], abs=0.005)   # last 5 ms sample, decelerating
     assert np.allclose(np.diff(data[:, 0]), 0.005)
     assert main(["plan", str(job), "--trajectory", "-", "--json"]) == 2

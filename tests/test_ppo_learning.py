@@ -25,7 +25,7 @@ def _env():
          "y": {**base["y"], "modes": [{"freq": 90.0, "damping": 0.05}]}}
     env = TuneEnv(printer=printer_from_dict(d, "test printer"), job=SQUARE_JOB, shapers=("zv",),
                   per_axis=False, backend="lti", observe_metrics=False,
-                  weights={"ringing": 200.0, "overshoot": 50.0})
+                  weights={"worse": 20.0})
     env.reset(seed=0)
     return env
 

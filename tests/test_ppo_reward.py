@@ -71,8 +71,9 @@ def test_sb3_checker_passes_on_the_wrapped_training_env():
 
 def test_training_env_observes_the_prior_and_its_evaluation_is_the_reference():
     """The training env starts from PRIOR and observes its metrics; without a reference action the
-    wrapper takes the reference reward from that reset evaluation (one evaluation per printer, not
-    two), and it is the same number an independent evaluation of that configuration gives."""
+    wrapper takes the reference reward from that reset evaluation (two evaluations per printer: the
+    baseline the cost judges against, and the prior; not three), and it is the same number an
+    independent evaluation of that configuration gives."""
     assert KW["observe_metrics"] and np.array_equal(np.float32(KW["start_action"]), ppo.prior_action(KW))
     env = ReferenceRelative(TuneEnv(randomize=True, **KW), None, 2)
     base = env.unwrapped
@@ -80,8 +81,8 @@ def test_training_env_observes_the_prior_and_its_evaluation_is_the_reference():
     plain = base.evaluate
     base.evaluate = lambda c: calls.append(c) or plain(c)
     obs, info = env.reset(seed=21)
-    assert len(calls) == 1
-    start = calls[0]      # PRIOR: MZV on the peaks, S 0.075, at the starting acceleration
+    assert len(calls) == 2 and calls[0].to_dict() == info["baseline_config"]
+    start = calls[1]      # PRIOR: MZV on the peaks, S 0.075, at the starting acceleration
     assert (start.shaper_x, start.shaper_y, start.accel) == ("mzv", "mzv", base.spec_.accel_start)
     assert start.freq_x == pytest.approx(info["peaks_hz"][0]) and start.damping_x == pytest.approx(0.075)
     # the observation's metrics part is the prior's metrics on this printer, not zeros
@@ -90,6 +91,7 @@ def test_training_env_observes_the_prior_and_its_evaluation_is_the_reference():
     assert np.allclose(metrics_part, base._metrics_vector(base.start_metrics_)) and metrics_part[1:4].max() > 0
     fresh = TuneEnv(printer=base.printer, **{**KW, "observe_metrics": False, "accel_anchor": "absolute"})
     fresh.reset(seed=0)
+    fresh.observe_start(peaks=base.peaks_)      # the same resonance peaks: the same baseline
     assert info["reference_cost"] == pytest.approx(-fresh.reward(fresh.evaluate(start)), rel=1e-9)
     env.reset()                # the same printer again: no evaluation
-    assert len(calls) == 1
+    assert len(calls) == 2

@@ -19,6 +19,7 @@ count}), ``slicer_estimate_s`` (what the slicer wrote in the file, or null), ``v
 
 from __future__ import annotations
 
+import csv
 import sys
 
 import numpy as np
@@ -26,7 +27,7 @@ import numpy as np
 from ringtune.agents.cli.common import GCODE_JOB_HELP, gcode_job, load_config
 from ringtune.agents.cli.options import VALUES
 from ringtune.envs.job_plan import JUNCTION_NAMES, hms, plan_job
-from ringtune.shaping.e_timing import firmware_trajectory
+from ringtune.shaping.e_timing import firmware_trajectory, sample_features
 from ringtune.shaping.errors import RingtuneError
 
 NAME = "plan"
@@ -55,8 +56,9 @@ on), and planned, with the accelerations and corners of the rule above (what the
 --config applies a TuneConfig's frequency limit, acceleration and per-axis caps (its accel replaces
 the job's M204/SET_VELOCITY_LIMIT accelerations unless its job_accel is "respect"); a shaper "daa"
 in it (or --daa F) plans with RepRapFirmware 3.3's Dynamic Acceleration Adjustment. --trajectory writes the commanded
-toolhead position t,x,y,z,e (after planning, frequency limit and the config's input shaping);
-its e column is the extruder as that firmware commands it under shaping: shaped with X/Y
+toolhead position t,x,y,z,e (after planning, frequency limit and the config's input shaping)
+and a feature column: the job's own label of the move X/Y are on (`External perimeter`, `WALL-OUTER`,
+…; empty outside any move), so the outer walls can be picked out; its e column is the extruder as that firmware commands it under shaping: shaped with X/Y
 (RepRapFirmware), delayed with them, or on the planner's clock (Klipper and Prusa, whose X/Y are
 time-centred; Marlin, whose X/Y lag by the shaper's ΣAᵢTᵢ, so E leads them): compare it with the
 path to see the extrusion error `simulate` reports.
@@ -79,7 +81,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-job-limits", action="store_true", help="ignore the limits the job itself sets")
     parser.add_argument("--daa", metavar="HZ", type=VALUES["freq"], help="RRF <= 3.3 Dynamic Acceleration Adjustment at HZ")
     parser.add_argument("--top", metavar="N", type=VALUES["top"], default=5, help="how many top frequencies to list (default 5)")
-    parser.add_argument("--trajectory", metavar="OUT.csv", help="write the commanded position t,x,y,z,e "
+    parser.add_argument("--trajectory", metavar="OUT.csv", help="write the commanded position t,x,y,z,e and the "
+                        "feature label of the move X/Y are on "
                         "(- for standard output; the summary then goes to standard error)")
     parser.add_argument("--rate", metavar="HZ", type=VALUES["rate"], default=1000.0, help="trajectory sample rate (default 1000)")
 
@@ -132,10 +135,18 @@ def _text(r: dict) -> str:
 
 
 def _write_trajectory(p, cfg, path, rate) -> str:
-    """Write t,x,y,z,e as the firmware commands them (X/Y shaped, E with the firmware's own
-    timing under shaping: ringtune.shaping.e_timing) to ``path`` ('-': standard output)."""
+    """Write t,x,y,z,e,feature as the firmware commands them (X/Y shaped, E with the firmware's own
+    timing under shaping: ringtune.shaping.e_timing; feature: the job's label of the move X/Y are
+    on) to ``path`` ('-': standard output)."""
     t, pos = firmware_trajectory(p.motion, cfg, rate)
-    data = np.column_stack([t, pos[:, :4]])
-    target = sys.stdout if path == "-" else path
-    np.savetxt(target, data, delimiter=",", header="t,x,y,z,e", comments="", fmt="%.6f")
+    labels = sample_features(p, cfg, t)
+    target = sys.stdout if path == "-" else open(path, "w", newline="")
+    try:
+        target.write("t,x,y,z,e,feature\n")
+        w = csv.writer(target, lineterminator="\n")
+        nums = np.char.mod("%.6f", np.column_stack([t, pos[:, :4]]))
+        w.writerows(row.tolist() + [label] for row, label in zip(nums, labels))
+    finally:
+        if target is not sys.stdout:
+            target.close()
     return "-" if path == "-" else str(path)

@@ -18,6 +18,10 @@ records, else tune's default), ``judgement`` (that, in words), ``variants``
 ``--plot``), ``trace`` (with ``--trace`` only: the CSV path; columns in ``ringtune.envs.trace``; the printer as
 modelled, not a detuned variant), ``job_shapers`` (the job's own shaper changes applied: list of
 {``time``, ``config``}, empty when the job sets none), ``job_accel`` (``respect`` or ``replace``),
+``baselines`` ({klipper|current|none: {``label``, ``config``, ``metrics``}}, judged as the
+configuration is; empty with ``--no-baselines``), ``versus`` ({baseline: {measure: {``value``,
+``baseline``, ``verdict`` better|same|worse}}} for print time and every visible measure, at tune's
+resolution; ringtune.agents.tune.versus),
 ``binding`` (the firmware limits that hold some moves below the configuration's acceleration, each
 measured by the planner without it: list of {``name``, ``value`` mm/s², ``what``, ``moves``,
 ``time_s``, ``time_without_s``}, as ``tune``'s).
@@ -32,9 +36,11 @@ from pathlib import Path
 from ringtune.agents.cli.common import (GCODE_JOB_HELP, firmware_name, gcode_job,
                                        judgement, load_config, say_unmeasured)
 from ringtune.agents.cli.trace_option import write_trace_option
+from ringtune.agents.klipper.baseline import klipper_rule_on_simulated_test
+from ringtune.agents.tune.baselines import current_config, recorded_klipper
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
-from ringtune.agents.tune.baselines import current_config
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
+from ringtune.agents.tune.versus import baseline_metrics, table as versus_table, versus_all
 from ringtune.envs.evaluate import (evaluate_judged, job_accel_commands, planned_job, resolve_job,
                                     resolve_printer, variant_factors)
 from ringtune.envs.metrics import Metrics
@@ -132,6 +138,9 @@ def add_arguments(parser) -> None:
                         help="judge also with every resonance PCT %% lower and higher, the worst counts, as "
                              f"tune does (default: the margin a tune best.json records, else {DEFAULT_FREQ_MARGIN * 100:g}; "
                              "0 = the exact model only)")
+    parser.add_argument("--no-baselines", action="store_true",
+                        help="skip the baselines (Klipper's pick, what the printer runs now, no shaping) that every "
+                             "visible measure is compared with")
     parser.add_argument("--plot", metavar="DIR", help="write path, ringing and accelerometer plots (PNG) to DIR")
     parser.add_argument("--trace", metavar="OUT.csv", help="write the simulated nozzle path (t, commanded and "
                         "nozzle x y, ...) of the whole job, or of its quality windows if it is long")
@@ -360,7 +369,9 @@ def run(args, out) -> int:
     factors = variant_factors(margin)
     plots = []
     if args.plot:
-        plots = [str(p) for p in plot_evaluation(evs, args.plot, factors=factors, judged=judged)]
+        label, base = _plot_baseline(printer, config, args, margin, out)
+        plots = [str(p) for p in plot_evaluation(evs, args.plot, factors=factors, judged=judged, baseline=base,
+                                                 baseline_label=label)]
     result = {
         "printer": printer.name,
         "job": args.gcode or "built-in test print",
@@ -384,9 +395,44 @@ def run(args, out) -> int:
     if config.max_accel_x is None and any(b.name in xy_caps for b in bindings):
         said.append("  --max-accel X,Y runs it with other per-axis caps (tune's configurations carry the caps "
                     "they were planned with, and export sets them)")
-    lines = _text(result, m, config, printer, judged, len(evs)) + said + [f"plot: {p}" for p in plots]
+    lines = _text(result, m, config, printer, judged, len(evs)) + said
+    lines += _baselines(result, m, config, printer, args, margin, out)
+    lines += [f"plot: {p}" for p in plots]
     out.emit(result, "\n".join(lines))
     return 0
+
+
+def _baselines(result: dict, m, config, printer, args, margin: float, out) -> list[str]:
+    """Fill ``baselines`` and ``versus`` of ``result`` (judged as the configuration is); the text table."""
+    result["baselines"], result["versus"] = {}, {}
+    if getattr(args, "no_baselines", False):
+        return []
+    ms, labels, cfgs = baseline_metrics(printer, config.firmware, args.gcode, backend=args.backend,
+                                        freq_margin=margin, job_accel=job_accel_mode(config),
+                                        note=lambda s: out.note(s.replace("ringtune tune", "ringtune simulate")))
+    result["baselines"] = {k: {"label": labels[k], "config": cfgs[k].to_dict(), "metrics": ms[k]} for k in ms}
+    mine = m.to_dict()
+    result["versus"] = versus_all(mine, ms)
+    return ["", "against each baseline (the same job and judgement):"] + versus_table(mine, ms, labels, name="this")
+
+
+def _plot_baseline(printer, config: TuneConfig, args, margin: float, out):
+    """(label, Evaluations per variant) of Klipper's pick on this printer and job for the plots:
+    the pick recorded from the resonance files, else Klipper's rule on the model's simulated
+    resonance test; judged as the configuration is. (label, None) when the rule cannot run."""
+    kcfg, _why = recorded_klipper(printer, config.firmware)
+    label = "Klipper's pick from the resonance files"
+    if kcfg is None:
+        try:
+            fields = klipper_rule_on_simulated_test(printer, config.firmware, "head")[1]
+        except RingtuneError as exc:
+            out.note(f"plots without Klipper's pick: {exc}")
+            return label, None
+        fields["accel"] = fields.get("accel") or float(printer.limits.accel)
+        kcfg, label = TuneConfig(**fields), "Klipper's pick on the simulated resonance test"
+    label += f" ({kcfg.shaper_x} {kcfg.freq_x:.1f} / {kcfg.shaper_y} {kcfg.freq_y:.1f} Hz, {kcfg.accel:.0f} mm/s²)"
+    base = evaluate_judged([kcfg], printer, args.gcode, backend=args.backend, freq_margin=margin)[0][1]
+    return label, base
 
 
 def _windows(evs) -> list[dict]:

@@ -1,11 +1,18 @@
 """``ringtune tune``: the main job — an Optuna Pareto study of print time against quality.
 
 ``--json`` keys (stable): out, trials, front_size, quality, max_path_error_mm, motor_reserve,
-freq_margin, resolution {distance_mm, distance_rel, time_rel}, chosen {config, print_time_s,
-quality_mm, path_error_mm, overshoot_mm, motor_load, chosen_by, against, why, rewrite_jobs (the
+max_show_through_mm, freq_margin, resolution {distance_mm, distance_rel, time_rel, pct_abs},
+chosen {config, print_time_s, quality_mm, path_error_mm, overshoot_mm, motor_load, measures (every
+metrics figure: ripple_mm, ripple_p90_mm, corner_in_mm, corner_out_mm, extrusion_over_pct,
+extrusion_under_pct, e_lag_mm, show_through_mm, ...), chosen_by, against (the baseline it is at least
+as fast as), held_to (every baseline it has no visible measure worse than), why, rewrite_jobs (the
 `ringtune limit` command every job needs, or null)}, baselines
 {klipper|current|none: {config, print_time_s, quality_mm, path_error_mm, overshoot_mm, motor_load,
-step_loss, breaks, label, source}}, vs_baselines {key: {baseline, faster_s, faster_pct, better_mm,
+measures, step_loss, breaks, label, source}}, versus {baseline: {print_time_s|ripple_mm|ripple_p90_mm|
+corner_in_mm|corner_out_mm|extrusion_over_pct|extrusion_under_pct: {value, baseline, verdict
+better|same|worse}}}, stop (null, or the measured stop: {kind measure|bound|ceiling|time|budget|not
+searched, key, baseline (whose value it exceeds, for a measure), value, baseline_value, accel (the step that stops it, mm/s²), config, moved,
+from_accel, to_accel, evaluations, sentence}), vs_baselines {key: {baseline, faster_s, faster_pct, better_mm,
 better_pct, dominates, metrics {print_time_s|overshoot_mm|path_error_mm|feasible: better|same|worse},
 path_error_better_mm, path_error_better_pct}}, dominates_klipper, dominates_current (null or {config,
 print_time_s, quality_mm, ...comparison}), accel {range, searched, basis, chosen, stopped_by,
@@ -36,12 +43,13 @@ from tqdm import tqdm
 from ringtune.agents.cli.common import (GCODE_JOB_HELP, firmware_name, gcode_job,
                                        progress_interval, say_unmeasured)
 from ringtune.agents.tune import pareto, report, storage, study as tune_study
-from ringtune.agents.tune.baselines import baselines_for, warm_start
+from ringtune.agents.tune.baselines import baselines_for, inside, warm_start
 from ringtune.agents.tune import feature_space
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
-from ringtune.agents.tune.pareto import pareto_front
+from ringtune.agents.tune.pareto import VISIBLE_KEYS, pareto_front
 from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config, top_speed_load_note
+from ringtune.agents.tune.stop import Bounds, measured_stop
 from ringtune.agents.tune.study import study_points
 from ringtune.envs.evaluate import resolve_printer
 from ringtune.envs.job_rewrite import rewrite_file
@@ -81,10 +89,15 @@ job.gcode beside best.json is the job with the choice written in (as `ringtune r
 Baselines: Klipper's rule — the recommendation recorded from your resonance files by `ringtune
 identify` when the printer has one, else the rule on the model's simulated resonance test (said so);
 what the printer runs now, when the printer description has a [current] section; no shaping.
-The configuration chosen by default is the fastest front point whose overshoot and path error are
-no worse than the best baseline's ("same quality, faster"); where there is none, the knee
-(--pick knee|fastest-at-baseline-quality|weight, --weight W). Differences under 1 µm or 5 % of a
-distance and 0.5 % of print time count as the same.
+Objectives: print time, the worst visible wall's ripple and corner deviation (rounding or
+overshoot); hidden features reaching the outer wall by more than --max-show-through are ruled out.
+The configuration chosen by default is the fastest one with no visible measure (ripple and its
+90th percentile, corner rounding and overshoot, over- and under-extrusion) worse than the best
+baseline's ("same quality, faster"); where there is none, the knee (--pick
+knee|fastest-at-baseline-quality|weight, --weight W). Then its acceleration is stepped up 5 % at a
+time with the same judgement until a measure gets worse or a bound binds (the summary names it,
+with both values). Differences under 1 µm or 5 % of a distance, 1 point or 5 % of extrusion and
+0.5 % of print time count as the same.
 
 With no arguments it tunes the built-in Ender-3-class printer on the built-in test print into
 ./ringtune-out/ in about a minute; open ringtune-out/README.txt first. Running the same command
@@ -120,8 +133,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(default), the knee, or the one minimising print time + W × error (--weight)")
     p.add_argument("--weight", type=float, default=None, metavar="W",
                    help="with --pick weight (implied): seconds of print time worth 1 mm less error")
-    p.add_argument("--quality", choices=("overshoot", "path_error"), default="overshoot",
-                   help="quality objective: overshoot_mm (default) or path_error_mm")
+    p.add_argument("--quality", choices=("ripple", "overshoot", "path_error"), default="ripple",
+                   help="the study's second objective besides print time and corner deviation: ripple_mm "
+                        "(default: the worst visible wall's peak-to-peak), overshoot_mm or path_error_mm; the "
+                        "choice judges every visible measure whichever it is")
+    p.add_argument("--max-show-through", type=float, default=None, metavar="MM",
+                   help="rule out configurations whose hidden features (infill, inner walls) reach the outer wall "
+                        "by more than MM (default 0.05, inside a slicer's usual infill/wall overlap; 0 = no bound)")
     p.add_argument("--max-path-error", type=float, default=None, metavar="MM",
                    help="rule out configurations whose path error (corner rounding, overshoot and ringing) "
                         "exceeds MM (default 0.1; 0 = no bound)")
@@ -172,6 +190,9 @@ def run(args: argparse.Namespace, out) -> int:
     reserve = pareto.DEFAULT_MOTOR_RESERVE if args.motor_reserve is None else args.motor_reserve / 100.0
     if not 0 <= reserve < 1:
         raise RingtuneError("must be in [0, 100) per cent", "--motor-reserve")
+    max_st = pareto.DEFAULT_MAX_SHOW_THROUGH_MM if args.max_show_through is None else args.max_show_through
+    if not max_st >= 0:
+        raise RingtuneError("must be ≥ 0 (mm; 0 = no bound)", "--max-show-through")
     accel_range = _accel_range(args.accel_range)
     if args.gcode and not Path(args.gcode).is_file():
         raise RingtuneError("no such G-code file", "--gcode")
@@ -210,7 +231,8 @@ def run(args: argparse.Namespace, out) -> int:
             printer=str(Path(args.printer).resolve()) if args.printer and Path(args.printer).exists() else args.printer,
             job=str(Path(args.gcode).resolve()) if args.gcode else None, firmware=firmware,
             backend=args.backend, evaluator=args.evaluator or tune_study.DEFAULT_EVALUATOR, space=space.to_dict(),
-            max_path_error_mm=max_pe, freq_margin=margin, motor_reserve=reserve, job_accel=args.job_accel)
+            max_path_error_mm=max_pe, freq_margin=margin, motor_reserve=reserve, job_accel=args.job_accel,
+            max_show_through_mm=max_st)
         evaluator = tune_study.resolve_evaluator(settings.evaluator)
 
         bl = None
@@ -221,7 +243,8 @@ def run(args: argparse.Namespace, out) -> int:
             k = baselines.get("klipper")
             if k is not None:   # start the search from what users do today, and its neighbours
                 seen, enq = set(), []
-                for i, c in enumerate(warm_start(k.config, bl.fits, space)):
+                cur = [baselines["current"].config] if "current" in baselines else []
+                for i, c in enumerate(warm_start(k.config, bl.fits, space) + [c for c in cur if inside(c, space)]):
                     p = params_from_config(c, space)   # the rule's pick also with the hidden groups at their tops
                     for q in (p, feature_space.at_ceilings(p, space)) if space.per_feature and i == 0 else (p,):
                         key = tuple(sorted(q.items()))
@@ -241,15 +264,24 @@ def run(args: argparse.Namespace, out) -> int:
             _remove_if_empty(out_dir)
         raise
     st = run_.study
-    points = tune_study.study_points(st, space, quality, max_pe, reserve)
-    # the front over print time, the quality objective and path error: the two figures of quality
-    # every comparison judges (a point with a little more overshoot and far less path error stays)
-    front = pareto.pareto_front(points, also=("path_error_mm",) if quality != "path_error_mm" else ())
+    points = tune_study.study_points(st, space, quality, max_pe, reserve, max_st)
+    front = pareto.pareto_front(points, also=_also(points, quality))
     choice = pareto.pick(front, baselines, how, args.weight)
+    stop = None
+    if choice.baseline is not None:       # step the acceleration up with the same judgement
+        stop = _measured_stop(choice, baselines, bl.labels if bl else {}, evaluator, settings, printer, space,
+                              max_pe, reserve, max_st)
+        if stop.moved:
+            choice = dataclasses.replace(choice, point=stop.point, sentence=(
+                f"{choice.sentence}; then stepped up by the measured stop from {stop.start.config.accel:.0f} to "
+                f"{stop.point.config.accel:.0f} mm/s², every visible measure still no worse"))
     chosen = choice.point
     bindings = binding_limits(printer, args.gcode, chosen.config, firmware, args.job_accel)
     accel_lines, accel_json = accel_statement(chosen, space, max_pe, reserve, points, printer,
-                                              binding_sentences(bindings, chosen.config.accel))
+                                              binding_sentences(bindings, chosen.config.accel),
+                                              None if stop is None or stop.kind == "not searched"
+                                              else (stop.sentence, stop.kind if stop.kind != "measure"
+                                                    and stop.kind != "bound" else stop.key))
     accel_json["binding"] = [dataclasses.asdict(b) for b in bindings]
     if not args.gcode and chosen.config.accel:
         accel_lines.append(top_speed_load_note(printer, chosen.config.accel, reserve))
@@ -278,9 +310,10 @@ def run(args: argparse.Namespace, out) -> int:
         baseline_labels=bl.labels if bl else None,
         sections=[("ACCELERATION", accel_lines)] + ([("PER FEATURE", pf_lines)] if pf_lines else [])
         + ([("THE JOB'S OWN ACCELERATIONS", ja_lines)] if ja_lines else []),
-        notes=notes, export_firmware=dialect,
+        notes=notes, export_firmware=dialect, max_show_through_mm=max_st,
         best_extra={"job_accel": args.job_accel, "freq_margin": margin, "motor_reserve": reserve,
-                    "top_speed_mm_s": facts.top_speed if args.gcode else float(printer.limits.velocity)})
+                    "top_speed_mm_s": facts.top_speed if args.gcode else float(printer.limits.velocity),
+                    **({"stop": stop.to_dict()} if stop else {})})
     text = result.pop("summary_text")
     result["per_feature"] = pf_json
     if args.gcode:     # the job with the choice written in, beside best.json
@@ -295,7 +328,7 @@ def run(args: argparse.Namespace, out) -> int:
     if bl:
         for k, src in bl.sources.items():
             result["baselines"][k]["source"] = src
-    result.update({"freq_margin": margin, "accel": accel_json, "job_accel": ja_json, "storage": store,
+    result.update({"stop": stop.to_dict() if stop else None, "freq_margin": margin, "accel": accel_json, "job_accel": ja_json, "storage": store,
                    "study": args.study, "completed_now": run_.completed_now, "interrupted": run_.interrupted,
                    "elapsed_s": time.time() - t_start})
     lines = [text.rstrip("\n"), "", f"Results in {out_dir}/ — open {out_dir / 'README.txt'} first."]
@@ -304,6 +337,26 @@ def run(args: argparse.Namespace, out) -> int:
                      "run the same command again to resume.")
     out.emit(result, "\n".join(lines))
     return 130 if run_.interrupted else 0
+
+
+def _also(points, quality: str) -> tuple[str, ...]:
+    """The figures the front is taken over besides print time and the quality objective: the other
+    visible measures (the choice may make none worse), or path error for a custom evaluator's
+    overshoot (a point with a little more overshoot and far less path error stays)."""
+    if any("ripple_mm" in p.metrics for p in points):
+        return tuple(k for k in VISIBLE_KEYS if k != quality)
+    return ("path_error_mm",) if quality != "path_error_mm" else ()
+
+
+def _measured_stop(choice, baselines, labels, evaluator, settings, printer, space, max_pe, reserve, max_st):
+    """:func:`ringtune.agents.tune.stop.measured_stop` from the choice, against the baseline it was held to."""
+    def evaluate(configs):
+        return evaluator(list(configs), printer, settings.job, **tune_study.evaluator_kwargs(settings))
+
+    bounds = Bounds(max_pe, 1.0 - reserve if reserve > 0 else 0.0, max_st)
+    held = choice.held_to or (choice.baseline,)
+    names = {k: labels.get(k, pareto.BASELINE_NAMES.get(k, k)) for k in held}
+    return measured_stop(choice.point, {k: baselines[k] for k in held}, evaluate, space, bounds, labels=names)
 
 
 def firmware_names(name: str) -> tuple[str, str, str]:
@@ -403,7 +456,7 @@ class Progress:
             return "no feasible configuration yet"
         f = front[0]
         q = min(front, key=lambda p: p.quality_mm)
-        word = "overshoot" if self.quality == "overshoot_mm" else "path error"
+        word = {"overshoot_mm": "overshoot", "ripple_mm": "ripple"}.get(self.quality, "path error")
         return (f"best so far: fastest feasible {f.print_time_s:.2f} s at {f.quality_mm * 1000:.1f} µm {word}, "
                 f"lowest {word} {q.quality_mm * 1000:.1f} µm at {q.print_time_s:.2f} s ({len(front)} on the front)")
 
@@ -414,7 +467,7 @@ class Progress:
 
 _DEFAULTS = {"printer": None, "gcode": None, "firmware": "klipper", "trials": 200, "storage": None,
              "study": "ringtune", "workers": 1, "seed": 0, "out": "ringtune-out", "pick": None, "weight": None,
-             "quality": "overshoot", "max_path_error": None, "motor_reserve": None, "freq_margin": None,
+             "quality": "ripple", "max_path_error": None, "max_show_through": None, "motor_reserve": None, "freq_margin": None,
              "accel_range": None, "job_accel": "respect", "backend": "mujoco", "evaluator": None,
              "no_baselines": False}
 

@@ -8,6 +8,9 @@
 - ``current`` — what the printer runs now (``[current]``: shaper, frequency and damping per axis and
   the acceleration, from its firmware configuration), when known.
 - ``none`` — no shaping at the printer's own acceleration.
+
+Each is judged by every visible measure (ripple, corners, extrusion) and the bounds, like every
+trial; the default choice is held to the best of them (:func:`ringtune.agents.tune.pareto.reference_baselines`).
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ class Baselines:
     Klipper's per-axis fits when the rule ran here (for the warm start)."""
 
     points: dict[str, Point] = field(default_factory=dict)
+    configs: dict[str, TuneConfig] = field(default_factory=dict)
     labels: dict[str, str] = field(default_factory=dict)
     sources: dict[str, str] = field(default_factory=dict)
     fits: dict = field(default_factory=dict)
@@ -112,13 +116,12 @@ def current_config(printer: Printer, firmware: str) -> tuple[TuneConfig | None, 
     return cfg, ""
 
 
-def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable, quality: str, *,
-                  note: Callable[[str], None] = lambda s: None) -> Baselines:
-    """Klipper's rule, what the printer runs now (when known) and no shaping, evaluated with the
-    study's evaluator, bounds and frequency margin (``settings``: a StudySettings). Klipper's rule on
-    a simulated test uses the model's expected spectrum: it does not depend on the study's seed."""
+def baseline_configs(printer: Printer, firmware: str, *, note: Callable[[str], None] = lambda s: None) -> Baselines:
+    """Klipper's rule, what the printer runs now (when known) and no shaping as configurations, with
+    their labels and sources (not evaluated: ``points`` is empty). Klipper's rule on a simulated test
+    uses the model's expected spectrum: it does not depend on any seed."""
     out = Baselines()
-    configs: dict[str, TuneConfig] = {}
+    configs = out.configs
     kcfg, why = recorded_klipper(printer, firmware)
     if kcfg is not None:
         configs["klipper"] = kcfg
@@ -152,10 +155,20 @@ def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable
                                  accel=float(printer.limits.accel), extra={"source": "no shaping"})
     out.labels["none"] = "no shaping"
     out.sources["none"] = "no shaping"
+    return out
+
+
+def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable, quality: str, *,
+                  note: Callable[[str], None] = lambda s: None) -> Baselines:
+    """:func:`baseline_configs` evaluated with the study's evaluator, bounds and frequency margin
+    (``settings``: a StudySettings)."""
+    out = baseline_configs(printer, firmware, note=note)
+    configs = out.configs
     metrics = evaluator(list(configs.values()), printer, settings.job, **tune_study.evaluator_kwargs(settings))
     max_load = 1.0 - settings.motor_reserve if settings.motor_reserve > 0 else 0.0
     out.points = {key: point_from_metrics(cfg, m, quality, label=key, max_path_error_mm=settings.max_path_error_mm,
-                                          max_motor_load=max_load)
+                                          max_motor_load=max_load,
+                                          max_show_through_mm=getattr(settings, "max_show_through_mm", 0.0))
                   for (key, cfg), m in zip(configs.items(), metrics)}
     return out
 

@@ -127,12 +127,14 @@ def job_accel_section(facts: JobAccelFacts, mode: str, printer, job, chosen: Tun
 
 
 def accel_statement(chosen: Point, space, max_pe: float, reserve: float, points,
-                    printer=None, binding: list[str] = ()) -> tuple[list[str], dict]:
+                    printer=None, binding: list[str] = (), measured: tuple[str, str] | None = None
+                    ) -> tuple[list[str], dict]:
     """Which limit stops the chosen acceleration and how far it is from it: the motor reserve,
     the path-error bound, the range's edge (the motors' force, or ``--accel-range``), or none of
     them (then the choice of quality stops it). ``binding``: the firmware limits that hold some
     moves lower (:func:`ringtune.agents.tune.binding.binding_sentences`). With ``printer``: whether
-    the motor bound rests on defaults."""
+    the motor bound rests on defaults. ``measured``: (sentence, what) of the measured stop
+    (:mod:`ringtune.agents.tune.stop`), which then replaces the bounds' inference."""
     a = float(chosen.config.accel or 0.0)
     lo, hi = space.accel
     info = {"range": [lo, hi], "searched": not space.accel_fixed, "basis": space.accel_basis, "chosen": a,
@@ -148,7 +150,11 @@ def accel_statement(chosen: Point, space, max_pe: float, reserve: float, points,
     cands = _accel_bounds(chosen, space, max_pe, reserve, info["headroom"])
     name, ratio, text = max(cands, key=lambda c: c[1])
     lines = [f"Chosen {a:.0f} mm/s² (searched {lo:.0f}–{hi:.0f})."]
-    if ratio >= 0.9:
+    if measured is not None:
+        info["stopped_by"] = measured[1]
+        lines.append(measured[0])
+        ratio = 0.0                     # every bound's room is said below
+    elif ratio >= 0.9:
         info["stopped_by"] = name
         lines.append(f"Stopped by the {name}: {text}.")
     else:

@@ -1,10 +1,16 @@
 """Points, Pareto fronts, comparison at a stated resolution, and the choice of one point (shared by
 the study, the grid and reports).
 
+What is judged is what a person sees on the part (:mod:`ringtune.envs.metrics`): on the visible
+features, the wall ripple (worst wall and 90th percentile), corner rounding inwards and overshoot
+outwards, and over- and under-extrusion (:data:`VISIBLE_KEYS`); step loss, the motor reserve, the
+hidden features' show-through and the path error are bounds (a point breaking one is infeasible).
+
 Comparisons ("better", "same", "worse", "dominates") are made at a resolution (:class:`Resolution`):
-differences of distances smaller than 1 µm or 5 % of the larger value, whichever is larger, and of
-print time smaller than 0.5 %, are "the same" — below what the model resolves or a print shows.
-A configuration dominates another when no compared figure is worse and at least one is better.
+differences of distances smaller than 1 µm or 5 % of the larger value, whichever is larger, of
+extrusion smaller than 1 percentage point or 5 %, and of print time smaller than 0.5 %, are "the
+same" — below what the model resolves or a print shows. A configuration dominates another when no
+compared figure is worse and at least one is better.
 """
 
 from __future__ import annotations
@@ -30,10 +36,52 @@ DEFAULT_MAX_PATH_ERROR_MM = 0.1
 #: resonance) does not turn into skipped steps
 DEFAULT_MOTOR_RESERVE = 0.2
 
+#: mm: default bound on how far hidden features (infill, inner walls) reach towards the outer wall
+#: (``show_through_mm``). Slicers overlap infill and walls by 10–25 % of a line width (0.04–0.1 mm
+#: at 0.4 mm), which absorbs an excursion smaller than that; 0.05 mm keeps inside the overlap of a
+#: typical profile. Klipper's pick on the default printer reaches 17 µm, no shaping 71 µm.
+DEFAULT_MAX_SHOW_THROUGH_MM = 0.05
+
+#: what a person sees, all smaller-is-better: the figures the default choice may not make worse
+#: than the baseline's (mm, except extrusion in %)
+VISIBLE_KEYS = ("ripple_mm", "ripple_p90_mm", "corner_in_mm", "corner_out_mm", "extrusion_over_pct",
+                "extrusion_under_pct")
 METRIC_KEYS = ("print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss",
-               "motor_load")
-#: the figures a comparison judges: print time and the two quality figures every report shows
-COMPARED = ("print_time_s", "overshoot_mm", "path_error_mm")
+               "motor_load") + VISIBLE_KEYS + ("e_lag_mm", "show_through_mm")
+#: the figures a comparison judges: print time and every visible measure
+COMPARED = ("print_time_s",) + VISIBLE_KEYS
+#: the study's objectives (all minimised). Three, not all seven figures: TPE's multi-objective
+#: sampler spreads its trials over the front, and each objective more thins them; print time is the
+#: trade, the worst wall's ripple and the worse corner deviation (``corner_mm``, the larger of
+#: rounding and overshoot) are what a person sees first. The 90th percentile of ripple and the
+#: extrusion follow them closely (both grow with the same ringing and lag) and are judged in the
+#: choice and the front (``also``); the bounds are Optuna constraints.
+OBJECTIVES = ("print_time_s", "ripple_mm", "corner_mm")
+#: the words for each figure in sentences, and its unit
+WORDS = {"print_time_s": ("print time", "s"), "ripple_mm": ("ripple", "µm"), "ripple_p90_mm": ("ripple p90", "µm"),
+         "corner_in_mm": ("corner rounding", "µm"), "corner_out_mm": ("corner overshoot", "µm"),
+         "extrusion_over_pct": ("over-extrusion", "%"), "extrusion_under_pct": ("under-extrusion", "%"),
+         "overshoot_mm": ("overshoot", "µm"), "path_error_mm": ("path error", "µm"),
+         "show_through_mm": ("show-through", "µm"), "e_lag_mm": ("extruder lag", "µm"),
+         "corner_mm": ("corner deviation", "µm")}
+
+
+def objective_value(m, key: str) -> float:
+    """The study's objective ``key`` of a metrics object (``corner_mm``: the larger of
+    ``corner_in_mm`` and ``corner_out_mm``); an injected evaluator's object without the visible
+    measures gives its ``overshoot_mm`` for them."""
+    if key == "corner_mm":
+        return max(objective_value(m, "corner_in_mm"), objective_value(m, "corner_out_mm"))
+    v = getattr(m, key, None)
+    return float(getattr(m, "overshoot_mm") if v is None else v)
+
+
+def shown(key: str, value: float) -> str:
+    """A figure in its unit: µm for mm, % for percentages, s for time."""
+    unit = WORDS.get(key, (key, "µm"))[1]
+    if unit == "µm":
+        return f"{value * 1000:.1f} µm"
+    return f"{value:.2f} %" if unit == "%" else f"{value:.3f} s"
 
 
 @dataclass(frozen=True)
@@ -45,16 +93,20 @@ class Resolution:
     distance_mm: float = 0.001
     distance_rel: float = 0.05
     time_rel: float = 0.005
+    pct_abs: float = 1.0          # percentage points, for the extrusion figures (%)
 
     def tolerance(self, key: str, a: float, b: float) -> float:
         big = max(abs(a), abs(b))
         if key == "print_time_s":
             return self.time_rel * big
+        if key.endswith("_pct"):
+            return max(self.pct_abs, self.distance_rel * big)
         return max(self.distance_mm, self.distance_rel * big)
 
     def describe(self) -> str:
         return (f"differences under {self.distance_mm * 1000:g} µm or {self.distance_rel * 100:g} % "
-                f"(whichever is larger) for distances and under {self.time_rel * 100:g} % for print time "
+                f"(whichever is larger) for distances, under {self.pct_abs:g} percentage point or "
+                f"{self.distance_rel * 100:g} % for extrusion and under {self.time_rel * 100:g} % for print time "
                 "count as the same")
 
 
@@ -64,8 +116,10 @@ DEFAULT_RESOLUTION = Resolution()
 @dataclass
 class Point:
     """One evaluated configuration (a trial, a grid point or a baseline). A point is feasible
-    unless it loses steps, its path error is over the bound it was judged with (``too_rough``) or
-    its motor load is over 1 − the motor reserve (``overloaded``)."""
+    unless it loses steps, its path error is over the bound it was judged with (``too_rough``), its
+    motor load is over 1 − the motor reserve (``overloaded``) or its hidden features reach the outer
+    wall by more than the show-through bound (``shows_through``). ``quality_mm`` is the study's
+    second objective (the worst wall's ripple, mm; a custom evaluator's own figure)."""
 
     config: TuneConfig
     print_time_s: float
@@ -76,10 +130,11 @@ class Point:
     number: int | None = None
     too_rough: bool = False
     overloaded: bool = False
+    shows_through: bool = False
 
     @property
     def feasible(self) -> bool:
-        return not (self.step_loss or self.too_rough or self.overloaded)
+        return not (self.step_loss or self.too_rough or self.overloaded or self.shows_through)
 
     def dominates(self, other: "Point") -> bool:
         """Strict Pareto dominance on the two objectives (no resolution; the front's relation)."""
@@ -89,6 +144,8 @@ class Point:
     def value(self, key: str) -> float | None:
         if key == "print_time_s":
             return self.print_time_s
+        if key == "corner_mm" and "corner_in_mm" in self.metrics:
+            return max(float(self.metrics["corner_in_mm"]), float(self.metrics.get("corner_out_mm", 0.0)))
         v = self.metrics.get(key)
         return None if v is None else float(v)
 
@@ -115,8 +172,11 @@ def verdict(key: str, mine: float, theirs: float, res: Resolution = DEFAULT_RESO
 
 
 def judge(point: Point, base: Point, res: Resolution = DEFAULT_RESOLUTION,
-          keys: Sequence[str] = COMPARED) -> Judgement:
-    """Compare ``point`` with ``base`` on ``keys`` (figures both have) and on feasibility."""
+          keys: Sequence[str] | None = None) -> Judgement:
+    """Compare ``point`` with ``base`` on ``keys`` (figures both have; default print time and the
+    visible measures, or a custom evaluator's overshoot and path error) and on feasibility."""
+    if keys is None:
+        keys = ("print_time_s",) + _quality_keys([point, base])
     v = {}
     for k in keys:
         a, b = point.value(k), base.value(k)
@@ -142,13 +202,14 @@ def metrics_dict(m) -> dict:
     return out
 
 
-def point_from_metrics(config: TuneConfig, m, quality: str, *, label: str = "", number: int | None = None,
-                       max_path_error_mm: float = 0.0, max_motor_load: float = 0.0) -> Point:
+def point_from_metrics(config: TuneConfig, m, quality: str = "ripple_mm", *, label: str = "",
+                       number: int | None = None, max_path_error_mm: float = 0.0, max_motor_load: float = 0.0,
+                       max_show_through_mm: float = 0.0) -> Point:
     """A :class:`Point` from a metrics object; ``max_path_error_mm`` > 0 bounds the path error (mm),
-    ``max_motor_load`` > 0 the motor load (fraction)."""
-    p = Point(config, float(m.print_time_s), float(getattr(m, quality)), bool(m.step_loss), metrics_dict(m),
+    ``max_motor_load`` > 0 the motor load (fraction), ``max_show_through_mm`` > 0 the show-through (mm)."""
+    p = Point(config, float(m.print_time_s), objective_value(m, quality), bool(m.step_loss), metrics_dict(m),
               label, number)
-    return judge_bounds(p, max_path_error_mm, max_motor_load)
+    return judge_bounds(p, max_path_error_mm, max_motor_load, max_show_through_mm)
 
 
 def judge_path_error(p: Point, max_path_error_mm: float) -> Point:
@@ -166,9 +227,19 @@ def judge_motor_load(p: Point, max_motor_load: float) -> Point:
     return p
 
 
-def judge_bounds(p: Point, max_path_error_mm: float = 0.0, max_motor_load: float = 0.0) -> Point:
-    """Both bounds at once (0 = no bound)."""
+def judge_bounds(p: Point, max_path_error_mm: float = 0.0, max_motor_load: float = 0.0,
+                 max_show_through_mm: float = 0.0) -> Point:
+    """Every bound at once (0 = no bound); show-through in mm."""
+    st = p.metrics.get("show_through_mm")
+    p.shows_through = bool(max_show_through_mm > 0 and st is not None and st > max_show_through_mm)
     return judge_motor_load(judge_path_error(p, max_path_error_mm), max_motor_load)
+
+
+def broken_bounds(p: Point) -> list[str]:
+    """The bounds ``p`` breaks, in words (empty when feasible)."""
+    return [w for w, f in (("loses steps", p.step_loss), ("path error over the bound", p.too_rough),
+                           ("motor load over the reserve", p.overloaded),
+                           ("show-through over the bound", p.shows_through)) if f]
 
 
 def pareto_front(points: Sequence[Point], also: Sequence[str] = ()) -> list[Point]:
@@ -211,19 +282,21 @@ PICKS = ("fastest-at-baseline-quality", "knee", "weight")
 
 @dataclass
 class Choice:
-    """The chosen point, how (``by``: one of :data:`PICKS`), against which baseline (key or None)
-    and a sentence saying so."""
+    """The chosen point, how (``by``: one of :data:`PICKS`), against which baseline (key or None:
+    the one it is at least as fast as), every baseline it is held to (``held_to``: no visible
+    measure worse than any of them) and a sentence saying so."""
 
     point: Point
     by: str
     baseline: str | None
     sentence: str
+    held_to: tuple = ()
 
 
 def _no_front() -> RingtuneError:
     return RingtuneError("no feasible configuration was found (every trial lost steps, exceeded "
-                         "--max-path-error or left less than --motor-reserve of the motors' force); lower the "
-                         "acceleration range, raise --max-path-error or run more trials", "tune")
+                         "--max-path-error or --max-show-through or left less than --motor-reserve of the motors' "
+                         "force); lower the acceleration range, raise --max-path-error or run more trials", "tune")
 
 
 def knee(front: Sequence[Point]) -> Point:
@@ -248,60 +321,93 @@ def choose(front: Sequence[Point], weight: float | None = None) -> Point:
     return knee(front)
 
 
+def no_worse(p: Point, base: Point, res: Resolution = DEFAULT_RESOLUTION, keys: Sequence[str] = VISIBLE_KEYS) -> bool:
+    """No figure of ``keys`` (that both have) worse than ``base``'s at the resolution (feasibility aside)."""
+    return all(v != "worse" for k, v in judge(p, base, res, keys).verdicts.items() if k != "feasible")
+
+
+def _quality_keys(points: Sequence[Point]) -> tuple[str, ...]:
+    """The visible measures the points have; a custom evaluator's without them: its overshoot and path error."""
+    if any("ripple_mm" in p.metrics for p in points):
+        return VISIBLE_KEYS
+    return ("overshoot_mm", "path_error_mm")
+
+
 def at_baseline_quality(front: Sequence[Point], base: Point, res: Resolution = DEFAULT_RESOLUTION) -> list[Point]:
-    """Front points at least as fast as ``base`` whose overshoot and path error are no worse than
-    its (at the resolution; "same" counts as no worse)."""
-    out = []
-    for p in front:
-        j = judge(p, base, res)
-        if all(j.verdicts.get(k) in ("better", "same", None) for k in COMPARED) and \
-                p.print_time_s <= base.print_time_s:
-            out.append(p)
-    return out
+    """Feasible points at least as fast as ``base`` with no visible measure (:data:`VISIBLE_KEYS`)
+    worse than its at the resolution ("same" counts as no worse)."""
+    keys = _quality_keys([base, *front])
+    return [p for p in front if p.feasible and p.print_time_s <= base.print_time_s and no_worse(p, base, res, keys)]
+
+
+def reference_baselines(baselines: dict[str, Point], res: Resolution = DEFAULT_RESOLUTION) -> list[tuple[str, Point]]:
+    """The baselines the default choice is held to, best first: the feasible shaped ones (no
+    shaping only when there is no other). What the printer runs now comes first where it is known
+    and no visible measure of it is worse than Klipper's pick; otherwise Klipper's pick does (the
+    choice is then never worse than either where it matches the first)."""
+    usable = {k: b for k, b in baselines.items() if b.feasible}
+    shaped = {k: b for k, b in usable.items() if k != "none"} or usable
+    order = [k for k in ("current", "klipper") if k in shaped] + [k for k in shaped if k not in ("current", "klipper")]
+    cur, kl = shaped.get("current"), shaped.get("klipper")
+    if cur is not None and kl is not None:
+        keys = _quality_keys([cur, kl])
+        if any(v == "worse" for k, v in judge(cur, kl, res, keys).verdicts.items() if k != "feasible"):
+            order.remove("klipper")
+            order.insert(0, "klipper")
+    return [(k, shaped[k]) for k in order]
 
 
 def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastest-at-baseline-quality",
          weight: float | None = None, res: Resolution = DEFAULT_RESOLUTION) -> Choice:
     """Choose the configuration to use.
 
-    ``fastest-at-baseline-quality`` (default): the reference baselines are the feasible shaped
-    ones (Klipper's rule, what the printer runs now; no shaping only when there is no other),
-    best quality first; for the first the front can match — a front point at least as fast with
-    no worse overshoot and path error — the fastest such point ("same quality, faster"). Where the
-    front matches none, the knee, and the sentence says so. ``knee``: :func:`knee`. ``weight``:
-    minimises print time + ``weight`` × quality (s/mm)."""
-    if not front:
+    ``fastest-at-baseline-quality`` (default): against the first reference baseline
+    (:func:`reference_baselines`) the front can match, the fastest front point at least as fast
+    with no visible measure worse at the resolution ("same quality, faster"). Pass every feasible
+    point as ``front`` to search them all. Where nothing matches any, the knee, and the sentence says
+    so. ``knee``: :func:`knee`. ``weight``: minimises print time + ``weight`` × quality (s/mm)."""
+    if not [p for p in front if p.feasible]:
         raise _no_front()
+    front = [p for p in front if p.feasible]
     if how == "weight":
         if weight is None:
             raise RingtuneError("--pick weight needs --weight W (seconds per mm)", "--pick")
         return Choice(choose(front, weight), "weight", None,
-                      f"minimises print time + {weight:g} s/mm × quality")
+                      f"minimises print time + {weight:g} s/mm × ripple")
     if how == "knee":
         return Choice(knee(front), "knee", None, "the knee of the front (closest to the ideal corner, time "
-                      "scaled by the front's range, quality by its range but at least 10 µm)")
+                      "scaled by the front's range, ripple by its range but at least 10 µm)")
     if how != "fastest-at-baseline-quality":
         raise RingtuneError(f"must be one of {', '.join(PICKS)}, not {how!r}", "--pick")
-    usable = {k: b for k, b in baselines.items() if b.feasible}
-    shaped = {k: b for k, b in usable.items() if k != "none"}
-    refs = sorted((shaped or usable).items(), key=lambda kv: kv[1].quality_mm)
-    for key, b in refs:
-        cands = at_baseline_quality(front, b, res)
+    refs = reference_baselines(baselines, res)
+    words = "overshoot and path error" if _quality_keys(front) != VISIBLE_KEYS else "visible measure"
+    worse = f"no worse {words}"
+    # held to every shaped baseline at once (no chaining: "same as the printer's, which is the same
+    # as Klipper's" must not end worse than Klipper's), then to Klipper's pick alone (or, without
+    # it, to each other baseline alone)
+    keys = [k for k, _ in refs]
+    tries = ([tuple(keys)] if len(keys) > 1 else []) + ([("klipper",)] if "klipper" in keys else [(k,) for k in keys])
+    by_key = dict(refs)
+    for held in tries:
+        key, b = held[0], by_key[held[0]]
+        cands = [p for p in at_baseline_quality(front, b, res)
+                 if all(no_worse(p, by_key[k], res, _quality_keys([p, by_key[k]])) for k in held[1:])]
         if cands:
             p = min(cands, key=lambda p: (p.print_time_s, p.quality_mm))
-            lead = "" if key == refs[0][0] else \
-                f"no front point matches the quality of {BASELINE_NAMES.get(refs[0][0], refs[0][0])} at its speed; "
-            name = BASELINE_NAMES.get(key, key)
+            lead = "" if held == tries[0] else \
+                "no front point is as fast as " + " and ".join(BASELINE_NAMES.get(k, k) for k in tries[0]) + \
+                f" with {worse} than each; "
+            name = " and ".join(BASELINE_NAMES.get(k, k) for k in held)
+            first = BASELINE_NAMES.get(key, key)
             if p.print_time_s < b.print_time_s:
-                why = (f"{lead}the fastest front point whose overshoot and path error are no worse than those of {name} "
-                       "(same quality, faster)")
+                why = f"{lead}the fastest front point with {worse} than {name} (same quality, faster than {first})"
             else:
-                why = (f"{lead}no front point is faster than {name} at its quality: the search found nothing "
-                       f"better than {name} itself at that quality (more --trials may)")
-            return Choice(p, "fastest-at-baseline-quality", key, why)
+                why = (f"{lead}no front point is faster than {first} with {worse} than {name}: the search found "
+                       f"nothing better than {first} itself at that quality (more --trials may)")
+            return Choice(p, "fastest-at-baseline-quality", key, why, held)
     why = "there is no usable baseline to match" if not refs else \
         "no front point is as fast as " + " or ".join(BASELINE_NAMES.get(k, k) for k, _ in refs) + \
-        " with no worse overshoot and path error"
+        f" with {worse}"
     return Choice(knee(front), "knee", None, f"the knee of the front, because {why}")
 
 

@@ -4,9 +4,11 @@ Files (all in ``out_dir``):
 
 - ``README.txt``   — what each file is and which to open first;
 - ``summary.txt``  — the chosen configuration and why, how it compares with each baseline (Klipper's
-  rule, what the printer runs now, no shaping: by how much, in s and µm, and per figure better /
-  same / worse at the resolution of :class:`ringtune.agents.tune.pareto.Resolution`), what stops the
-  acceleration, the job's own accelerations, and the Pareto front as a table;
+  rule, what the printer runs now, no shaping: every visible measure — ripple, corners, extrusion —
+  with both values and the verdict better / same / worse at the resolution of
+  :class:`ringtune.agents.tune.pareto.Resolution`, :mod:`ringtune.agents.tune.versus`), what stops
+  the acceleration (measured, :mod:`ringtune.agents.tune.stop`), the job's own accelerations, and
+  the Pareto front as a table;
 - ``pareto.png``   — print time (s) against overshoot and against path error (mm): every trial
   (ruled-out ones too; off-scale ones as counted arrows), the front, the chosen point, the
   baselines (marked when they break a bound) and the point dominating a baseline
@@ -23,14 +25,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
-from ringtune.agents.tune.pareto import BASELINE_NAMES, DEFAULT_RESOLUTION, Choice, Point, Resolution, judge
+from ringtune.agents.tune.pareto import (BASELINE_NAMES, DEFAULT_RESOLUTION, VISIBLE_KEYS, WORDS, Choice, Point,
+                                         Resolution, judge, shown)
 from ringtune.agents.tune.pareto_plot import plot_front
+from ringtune.agents.tune.readme_text import readme_text
+from ringtune.agents.tune.versus import table as versus_table, versus_all
 from ringtune.hardware.dialects import export_config, limit_command
 from ringtune.shaping.feature_settings import per_feature_text
-from ringtune.shaping.firmware import FIRMWARES, Firmware
+from ringtune.shaping.firmware import Firmware
 from ringtune.shaping.smoothers import is_smoother
 
-QUALITY_LABEL = {"overshoot_mm": "overshoot", "path_error_mm": "path error"}
+QUALITY_LABEL = {"overshoot_mm": "overshoot", "path_error_mm": "path error", "ripple_mm": "ripple"}
 
 
 @dataclass
@@ -70,7 +75,7 @@ class Comparison:
         return dict(self.__dict__)
 
 
-_NAMES = {"print_time_s": "print time", "overshoot_mm": "overshoot", "path_error_mm": "path error",
+_NAMES = {**{k: w for k, (w, _u) in WORDS.items()},
           "feasible": "feasibility (it breaks a bound the baseline keeps)"}
 
 
@@ -132,7 +137,8 @@ def describe(cfg) -> str:
     return ", ".join(parts)
 
 
-_ROW_KEYS = ("print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss", "motor_load")
+_ROW_KEYS = ("print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss",
+             "motor_load") + VISIBLE_KEYS + ("e_lag_mm", "show_through_mm")
 
 
 def _row(p: Point) -> dict[str, Any]:
@@ -159,15 +165,26 @@ def _write_csv(path: Path, points: Sequence[Point]) -> None:
 
 
 def front_table(front: Sequence[Point], chosen: Point, quality: str) -> str:
-    word = QUALITY_LABEL.get(quality, quality)
-    pe = quality != "path_error_mm"
-    lines = [f"  {'':2}{'time s':>8} {word + ' µm':>14}" + (f" {'path error µm':>14}" if pe else "")
-             + "  configuration"]
+    """The front as text: time, then the visible measures the points have (µm, %), then the configuration."""
+    keys = [k for k in VISIBLE_KEYS if front and k in front[0].metrics] or \
+        [quality] + (["path_error_mm"] if quality != "path_error_mm" else [])
+    short = {"ripple_mm": "ripple", "ripple_p90_mm": "p90", "corner_in_mm": "in", "corner_out_mm": "out",
+             "extrusion_over_pct": "over%", "extrusion_under_pct": "under%"}
+    head = "".join(f" {short.get(k, QUALITY_LABEL.get(k, k)) + ('' if k.endswith('_pct') else ' µm'):>12}"
+                   for k in keys)
+    lines = [f"  {'':2}{'time s':>8}{head}  configuration"]
     for p in front:
         mark = "*" if p is chosen else " "
-        extra = f" {p.metrics.get('path_error_mm', float('nan')) * 1000:14.1f}" if pe else ""
-        lines.append(f"  {mark:2}{p.print_time_s:8.3f} {p.quality_mm * 1000:14.1f}{extra}  {describe(p.config)}")
+        vals = "".join(f" {_num(p, k):>12}" for k in keys)
+        lines.append(f"  {mark:2}{p.print_time_s:8.3f}{vals}  {describe(p.config)}")
     return "\n".join(lines)
+
+
+def _num(p: Point, k: str) -> str:
+    v = p.value(k)
+    if v is None:
+        return "—"
+    return f"{v:.2f}" if k.endswith("_pct") else f"{v * 1000:.1f}"
 
 
 def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Point], choice: Choice,
@@ -176,7 +193,8 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
                  command: str = "ringtune tune", notes: Sequence[str] = (), max_path_error_mm: float = 0.0,
                  motor_reserve: float = 0.0, resolution: Resolution = DEFAULT_RESOLUTION,
                  baseline_labels: dict[str, str] | None = None, sections: Sequence[tuple[str, list[str]]] = (),
-                 export_firmware: str | None = None, best_extra: dict | None = None) -> dict[str, Any]:
+                 export_firmware: str | None = None, best_extra: dict | None = None,
+                 max_show_through_mm: float = 0.0) -> dict[str, Any]:
     """Write the output folder; returns the summary dict (also the CLI's --json).
 
     ``baseline_labels``: how each baseline is named (e.g. "Klipper's rule on a simulated resonance
@@ -191,9 +209,12 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
     dialect = export_firmware or firmware
 
     best_cfg = chosen.config
+    vs = versus_all(chosen, baselines, resolution)
     best_cfg.extra.update({"source": "ringtune tune", "printer": printer_name, "job": job_name,
                            "metrics": {k: chosen.metrics.get(k) for k in _ROW_KEYS if k in chosen.metrics},
-                           "chosen_by": choice.by, **(best_extra or {})})
+                           "chosen_by": choice.by, "against": choice.baseline,
+                           "versus": {k: {m: v["verdict"] for m, v in d.items()} for k, d in vs.items()},
+                           **(best_extra or {})})
     best_cfg.save(out_dir / "best.json")
 
     apply_text, apply_note = _apply_lines(best_cfg, dialect)
@@ -229,11 +250,14 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         s.append("    " + _figures(b, quality)
                  + ("  (LOSES STEPS)" if b.step_loss else "")
                  + ("  (PATH ERROR OVER THE BOUND)" if b.too_rough else "")
-                 + ("  (MOTOR LOAD OVER THE RESERVE)" if b.overloaded else ""))
+                 + ("  (MOTOR LOAD OVER THE RESERVE)" if b.overloaded else "")
+                 + ("  (SHOW-THROUGH OVER THE BOUND)" if b.shows_through else ""))
         s.append(f"    chosen vs this: {comparisons[k].sentence(quality)}")
     for k in ("klipper", "current"):
         if k not in baselines:
             continue
+        if comparisons[k].dominates:
+            continue                    # the chosen point itself dominates it (said above)
         if k in dominating:
             d, c = dominating[k]
             s.append(f"  Best front point dominating {labels[k]}: {describe(d.config)}")
@@ -241,12 +265,17 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         else:
             s.append(f"  No front point dominates {labels[k]} in this run (try more --trials).")
     s.append(f"  (\"the same\", \"dominates\": {resolution.describe()}.)")
+    if baselines and "ripple_mm" in chosen.metrics:
+        s.append("")
+        s.append("WHAT A PERSON SEES (the chosen configuration against each baseline, same simulation):")
+        s.extend(versus_table(chosen, baselines, labels, resolution))
     for head, lines in sections:
         s.append("")
         s.append(f"{head}:")
         s.extend(f"  {line}" for line in lines)
     s.append("")
-    dims = "print time and " + word + ("" if quality == "path_error_mm" else ", path error")
+    dims = ("print time and every visible measure" if "ripple_mm" in chosen.metrics else
+            "print time and " + word + ("" if quality == "path_error_mm" else ", path error"))
     s.append(f"PARETO FRONT over {dims} ({len(front)} of {len(points)} trials; * = chosen):")
     s.append(front_table(front, chosen, quality))
     s.append("")
@@ -258,6 +287,9 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
                  "(--max-path-error)" if max_path_error_mm > 0 else "path error not bounded (--max-path-error 0)")
     ruled.append(f"{n_load} that ask a motor for more than {(1 - motor_reserve) * 100:.0f} % of its force "
                  "(--motor-reserve)" if motor_reserve > 0 else "motor load not bounded (--motor-reserve 0)")
+    n_show = sum(p.shows_through and not (p.overloaded or p.too_rough or p.step_loss) for p in points)
+    ruled.append(f"{n_show} whose hidden features reach the outer wall by more than {max_show_through_mm * 1000:g} µm "
+                 "(--max-show-through)" if max_show_through_mm > 0 else "show-through not bounded (--max-show-through 0)")
     s.append("Ruled out: " + "; ".join(ruled) + ". All are drawn in pareto.png.")
     s.extend(notes)
     s.append(f"Study '{study_name}' in {storage}; rerun the same command to resume or extend it (--trials).")
@@ -265,14 +297,16 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         s.append(apply_note)
     summary_text = "\n".join(s) + "\n"
     (out_dir / "summary.txt").write_text(summary_text)
-    (out_dir / "README.txt").write_text(_readme(out_dir, best_cfg, dialect, storage, command))
+    (out_dir / "README.txt").write_text(readme_text(out_dir, dialect, storage, command))
 
     def base_dict(k, b):
         return {"config": b.config.to_dict(), "print_time_s": b.print_time_s, "quality_mm": b.quality_mm,
                 "path_error_mm": b.metrics.get("path_error_mm"), "overshoot_mm": b.metrics.get("overshoot_mm"),
                 "motor_load": b.metrics.get("motor_load"), "step_loss": b.step_loss,
+                "measures": {k: b.metrics.get(k) for k in _ROW_KEYS[1:] if k in b.metrics},
                 "breaks": [w for w, f in (("step_loss", b.step_loss), ("max_path_error", b.too_rough),
-                                          ("motor_reserve", b.overloaded)) if f],
+                                          ("motor_reserve", b.overloaded), ("max_show_through", b.shows_through))
+                           if f],
                 "label": labels[k]}
 
     def dom_dict(k):
@@ -291,15 +325,19 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         "quality": quality,
         "max_path_error_mm": max_path_error_mm,
         "motor_reserve": motor_reserve,
+        "max_show_through_mm": max_show_through_mm,
         "resolution": {"distance_mm": resolution.distance_mm, "distance_rel": resolution.distance_rel,
-                       "time_rel": resolution.time_rel},
+                       "time_rel": resolution.time_rel, "pct_abs": resolution.pct_abs},
         "chosen": {"config": best_cfg.to_dict(), "print_time_s": chosen.print_time_s, "quality_mm": chosen.quality_mm,
                    "path_error_mm": chosen.metrics.get("path_error_mm"),
                    "overshoot_mm": chosen.metrics.get("overshoot_mm"), "motor_load": chosen.metrics.get("motor_load"),
-                   "chosen_by": choice.by, "against": choice.baseline, "why": choice.sentence,
+                   "measures": {k: chosen.metrics.get(k) for k in _ROW_KEYS[1:] if k in chosen.metrics},
+                   "chosen_by": choice.by, "against": choice.baseline, "held_to": list(choice.held_to),
+                   "why": choice.sentence,
                    "rewrite_jobs": rewrite},
         "baselines": {k: base_dict(k, b) for k, b in baselines.items()},
         "vs_baselines": {k: c.to_dict() for k, c in comparisons.items()},
+        "versus": vs,
         "dominates_klipper": dom_dict("klipper"),
         "dominates_current": dom_dict("current"),
         "plot_arrows": arrows,
@@ -312,11 +350,19 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
 
 
 def _figures(p: Point, quality: str) -> str:
-    """print time, quality, path error and motor load of a point, one line."""
-    word = QUALITY_LABEL.get(quality, quality)
-    out = f"print time {p.print_time_s:.3f} s, {word} {p.quality_mm * 1000:.1f} µm"
-    if quality != "path_error_mm" and "path_error_mm" in p.metrics:
-        out += f", path error {p.metrics['path_error_mm'] * 1000:.1f} µm"
+    """print time, the visible measures (or the quality figure and path error of a custom
+    evaluator), show-through and motor load of a point, one line."""
+    out = f"print time {p.print_time_s:.3f} s"
+    if "ripple_mm" in p.metrics:
+        m = p.metrics
+        out += (f", ripple {shown('ripple_mm', m['ripple_mm'])} (p90 {shown('ripple_mm', m.get('ripple_p90_mm', 0.0))})"
+                f", corners in {shown('corner_in_mm', m.get('corner_in_mm', 0.0))} / out "
+                f"{shown('corner_out_mm', m.get('corner_out_mm', 0.0))}, extrusion +{m.get('extrusion_over_pct', 0.0):.1f} "
+                f"/ −{m.get('extrusion_under_pct', 0.0):.1f} %, show-through {shown('ripple_mm', m.get('show_through_mm', 0.0))}")
+    else:
+        out += f", {QUALITY_LABEL.get(quality, quality)} {p.quality_mm * 1000:.1f} µm"
+        if quality != "path_error_mm" and "path_error_mm" in p.metrics:
+            out += f", path error {p.metrics['path_error_mm'] * 1000:.1f} µm"
     if p.metrics.get("motor_load"):
         out += f", motor load {p.metrics['motor_load'] * 100:.0f} %"
     return out
@@ -343,41 +389,3 @@ def _apply_lines(cfg, dialect: str | None = None) -> tuple[str, str]:
         return export_config(cfg, dialect).render(), ""
     except Exception as exc:  # a firmware range refusal: say so instead of failing the study
         return (f"# could not export for {dialect or cfg.firmware}: {exc}\n", f"apply.txt: {exc}")
-
-
-def _push_hint(best: Path, firmware: str) -> str:
-    """The push command for ``firmware``: Klipper is reached through its host (its pseudo-tty, or
-    Moonraker), never the MCU's USB line that /dev/ttyUSB0 is on a Klipper machine."""
-    if FIRMWARES[firmware].family == "klipper":
-        return (f"ringtune push {best} --firmware {firmware} --port ~/printer_data/comms/klippy.serial\n"
-                f"                     (Klipper's pty, on the Klipper host; or --moonraker http://HOST:7125)")
-    return f"ringtune push {best} --port /dev/ttyUSB0 --firmware {firmware}   (the printer's serial port)"
-
-
-def _readme(out_dir: Path, cfg, firmware: str, storage: str, command: str) -> str:
-    return f"""ringtune tune results — start here
-=================================
-
-1. summary.txt   The answer: the chosen input-shaping configuration, and how it compares with
-                 Klipper's own rule, with what the printer runs now (when known) and with no
-                 shaping on the same printer and job (seconds and micrometres). Then what stops
-                 the acceleration, and the whole trade-off (the Pareto front) as a table.
-2. pareto.png    The trade-off as a picture: print time (s) against overshoot and against path
-                 error (mm). Grey dots are trials, blue the best trade-offs, the gold star the
-                 chosen point, the orange square Klipper's rule, the green diamond what the printer
-                 runs now, the black triangle no shaping (a red edge: it breaks a bound). Red
-                 crosses lost steps, purple plus signs left the path by more than
-                 --max-path-error, brown marks asked a motor for more than --motor-reserve allows
-                 (all ruled out); arrows at an edge are points beyond the scale. Lower-left is better.
-3. apply.txt     The exact {firmware} lines that put the chosen configuration on the printer.
-                 Or: ringtune export {out_dir / 'best.json'} --firmware {firmware}
-                     {_push_hint(out_dir / 'best.json', firmware)}
-4. best.json     The chosen configuration (TuneConfig) for ringtune simulate / export / push.
-5. front.csv, trials.csv   Every point of the front and every trial, for your own analysis.
-
-To pick another point of the front: rerun with --pick knee, or --weight W (seconds of print time
-you would give for 1 mm less error; e.g. --weight 100). The study itself is kept in {storage}:
-running the same command again resumes it with nothing lost:
-  {command}
-(--trials N extends it to N trials).
-"""

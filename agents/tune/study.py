@@ -1,14 +1,17 @@
-"""The Optuna Pareto study behind ``ringtune tune``: print time against quality, step loss a constraint.
+"""The Optuna Pareto study behind ``ringtune tune``: print time against what a person sees.
 
-- Objectives (both minimised): ``print_time_s`` and ``path_error_mm`` or ``overshoot_mm``
-  (:data:`QUALITY_METRICS`), from ``ringtune.envs.evaluate.evaluate_many`` or an injected
-  evaluator ``f(configs, printer, job) -> [Metrics]`` (given as ``"module:function"`` so that
-  worker processes can import it).
+- Objectives (all minimised, :data:`ringtune.agents.tune.pareto.OBJECTIVES`): ``print_time_s``,
+  ``ripple_mm`` (the worst visible wall's peak-to-peak ripple; ``settings.quality`` may name
+  another figure) and ``corner_mm`` (the larger of visible corners' rounding and overshoot), from
+  ``ringtune.envs.evaluate.evaluate_many`` or an injected evaluator ``f(configs, printer, job) ->
+  [Metrics]`` (given as ``"module:function"`` so that worker processes can import it). Why these
+  three and not every visible measure: see ``OBJECTIVES``; the others are judged in the choice.
 - Constraints: step loss (``trial.set_constraint("step_loss", 1.0 | 0.0)``), the path-error
-  bound (``"path_error"``: path_error_mm − ``max_path_error_mm``; corner rounding by heavy
-  smoothing is not quality) and the motor reserve (``"motor_load"``: motor_load − (1 − reserve),
-  judged like quality on the printer and its detuned twins); infeasible trials never reach the
-  front. The bounds are applied again when the results are read, so a resumed study may be
+  bound (``"path_error"``: path_error_mm − ``max_path_error_mm``), the motor reserve
+  (``"motor_load"``: motor_load − (1 − reserve), judged like quality on the printer and its
+  detuned twins) and the hidden features' bound (``"show_through"``: show_through_mm −
+  ``max_show_through_mm``: infill or inner walls reaching the outer wall); infeasible trials never
+  reach the front. The bounds are applied again when the results are read, so a resumed study may be
   judged with other bounds.
 - Storage (:func:`make_storage`): a journal file in the output folder by default
   (``journal:out/study.journal``), or any RDB URL (``sqlite:///study.db``,
@@ -39,15 +42,14 @@ import numpy as np
 import optuna
 from optuna.trial import TrialState
 
-from ringtune.agents.tune.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MOTOR_RESERVE, Point,
-    judge_bounds, metrics_dict)
+from ringtune.agents.tune.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MAX_SHOW_THROUGH_MM,
+    DEFAULT_MOTOR_RESERVE, OBJECTIVES, Point, judge_bounds, metrics_dict, objective_value)
 from ringtune.agents.tune.space import SearchSpace, config_from_params, default_space, suggest_params
 from ringtune.agents.tune.storage import _this_worker, make_storage, reap_dead_workers
 from ringtune.envs.printer import load_printer
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
-QUALITY_METRICS = ("overshoot_mm", "path_error_mm")
 #: fraction: by default every configuration is judged on the printer and on the printer with all
 #: resonances 5 % lower and 5 % higher, and the worst quality counts (``evaluate_many``'s
 #: ``freq_margin``): a real printer's frequencies drift by that much (print mass on the bed,
@@ -65,7 +67,7 @@ class StudySettings:
     study_name: str = "ringtune"
     n_trials: int = 100
     seed: int | None = 0
-    quality: str = "overshoot_mm"
+    quality: str = "ripple_mm"         # the second objective (a metrics key)
     printer: str | None = None          # TOML path or embedded name; None = default printer
     job: str | None = None              # G-code path; None = built-in test print
     firmware: str = "klipper"
@@ -77,10 +79,16 @@ class StudySettings:
     max_path_error_mm: float = DEFAULT_MAX_PATH_ERROR_MM   # mm; 0 = no bound
     freq_margin: float = DEFAULT_FREQ_MARGIN   # fraction: also judged with resonances ± this (worst counts)
     motor_reserve: float = DEFAULT_MOTOR_RESERVE   # fraction of the motors' force kept free; 0 = no bound
+    max_show_through_mm: float = DEFAULT_MAX_SHOW_THROUGH_MM   # mm; 0 = no bound
     job_accel: str = "replace"          # "respect": the job's M201/M204 stand; "replace": config.accel replaces them
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def objectives(settings: StudySettings) -> list[str]:
+    """The study's objective keys: print time, ``settings.quality`` and the corner deviation."""
+    return [OBJECTIVES[0], settings.quality, *OBJECTIVES[2:]]
 
 
 def resolve_evaluator(spec: str | Callable) -> Callable:
@@ -128,11 +136,11 @@ def open_study(settings: StudySettings, seed: int | None = None):
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     storage = make_storage(settings.storage)
     study = optuna.create_study(storage=storage, study_name=settings.study_name,
-                                directions=["minimize", "minimize"], load_if_exists=True,
+                                directions=["minimize"] * len(OBJECTIVES), load_if_exists=True,
                                 sampler=make_sampler(settings.seed if seed is None else seed,
                                                      settings.n_startup_trials))
     names = study.user_attrs.get("objectives")
-    wanted = ["print_time_s", settings.quality]
+    wanted = objectives(settings)
     if names is None:
         study.set_user_attr("objectives", wanted)
         study.set_user_attr("settings", {k: v for k, v in settings.to_dict().items() if k != "storage"})
@@ -232,7 +240,9 @@ def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any =
         load = getattr(m, "motor_load", None)
         trial.set_constraint("motor_load", float(load) - (1.0 - reserve) if reserve > 0 and load is not None
                              else -1.0)
-        return float(m.print_time_s), float(getattr(m, settings.quality))
+        st, bound = getattr(m, "show_through_mm", None), settings.max_show_through_mm
+        trial.set_constraint("show_through", float(st) - bound if bound > 0 and st is not None else -1.0)
+        return tuple(objective_value(m, k) for k in objectives(settings))
 
     def callback(st, frozen):
         nonlocal done
@@ -374,12 +384,14 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
 # -- reading results -----------------------------------------------------------------------------
 
 def study_points(study, space: SearchSpace | None = None, quality: str | None = None,
-                 max_path_error_mm: float | None = None, motor_reserve: float | None = None) -> list[Point]:
+                 max_path_error_mm: float | None = None, motor_reserve: float | None = None,
+                 max_show_through_mm: float | None = None) -> list[Point]:
     """All complete trials as points, flagged ``step_loss``, ``too_rough`` (path error over
-    ``max_path_error_mm``, mm) or ``overloaded`` (motor load over 1 − ``motor_reserve``); default
-    bounds: those the study was created with; 0 = no bound."""
+    ``max_path_error_mm``, mm), ``overloaded`` (motor load over 1 − ``motor_reserve``) or
+    ``shows_through`` (show-through over ``max_show_through_mm``, mm); default bounds: those the
+    study was created with; 0 = no bound."""
     settings = study.user_attrs.get("settings", {})
-    quality = quality or study.user_attrs.get("objectives", ["", "overshoot_mm"])[1]
+    quality = quality or study.user_attrs.get("objectives", ["", "ripple_mm"])[1]
     if space is None:
         space = SearchSpace.from_dict(study.user_attrs["space"]) if "space" in study.user_attrs else \
             load_space(StudySettings(storage="", **{k: v for k, v in settings.items() if k != "storage"}))
@@ -387,14 +399,18 @@ def study_points(study, space: SearchSpace | None = None, quality: str | None = 
         max_path_error_mm = float(settings.get("max_path_error_mm", 0.0) or 0.0)
     if motor_reserve is None:
         motor_reserve = float(settings.get("motor_reserve", 0.0) or 0.0)
+    if max_show_through_mm is None:
+        max_show_through_mm = float(settings.get("max_show_through_mm", 0.0) or 0.0)
     max_load = 1.0 - motor_reserve if motor_reserve > 0 else 0.0
     pts = []
     for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)):
         metrics = dict(t.user_attrs.get("metrics", {}))
         pts.append(judge_bounds(Point(config_from_params(t.params, space), float(t.values[0]),
                                       float(t.values[1]), bool(metrics.get("step_loss", False)), metrics,
-                                      f"trial {t.number}", t.number), max_path_error_mm, max_load))
+                                      f"trial {t.number}", t.number), max_path_error_mm, max_load,
+                                max_show_through_mm))
     return pts
+
 
 if __name__ == "__main__":
     import sys

@@ -1,0 +1,214 @@
+"""What stops the chosen acceleration, measured: step it up with the same judgement until it fails.
+
+From the choice, the acceleration is raised in steps of :data:`STEP_REL` (5 %, at least one
+``accel_step`` of the search space; a per-feature configuration's group accelerations in the same
+ratio, each up to its own motor bound), each step judged exactly as every trial (the study's
+evaluator, frequency margin and bounds) and held to the same baselines as the choice (no visible
+measure worse than any of them at the resolution, every bound kept, print time lower than the step
+below). Steps are
+evaluated :data:`LADDER` at a time in one ``evaluate_many`` call. Where a step fails, each shaper
+frequency is tried :data:`FREQ_REL` (2 %) up and down at that acceleration (one batch); a variant
+that passes becomes the new start. A step that passes becomes the choice ("a faster point with no
+worse measure"). The walk ends at the first step that fails with every frequency variant, and what
+failed there is reported with both values — the measure that got worse than the baseline's (the
+largest relative excess), or the bound that binds (step loss, the motor reserve, the show-through
+or path-error bound) —, or at the top of the range (the motors' force, or the firmware's largest
+acceleration), or where print time stops falling (the job's speeds bound it, not acceleration).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
+
+from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, VISIBLE_KEYS, Point, Resolution, WORDS, judge,
+                                         point_from_metrics, shown)
+from ringtune.agents.tune.space import SearchSpace, config_from_params, params_from_config
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.firmware import FIRMWARES
+
+#: fraction by which each step raises the acceleration (at least one ``accel_step``)
+STEP_REL = 0.05
+#: fraction by which each shaper frequency is moved up and down where a step fails
+FREQ_REL = 0.02
+#: steps evaluated per batch
+LADDER = 4
+#: most configurations evaluated by one walk
+MAX_EVALUATIONS = 80
+
+
+@dataclass
+class Bounds:
+    """The study's bounds: path error (mm), motor load (fraction), show-through (mm); 0 = none."""
+
+    max_path_error_mm: float = 0.0
+    max_motor_load: float = 0.0
+    max_show_through_mm: float = 0.0
+
+
+@dataclass
+class Stop:
+    """The walk's end: the (possibly new) choice, what stops it there (``kind``: ``measure``,
+    ``bound``, ``ceiling``, ``time`` or ``not searched``; ``key``: the measure or bound; its
+    ``value`` at the stopping step against ``base_value``, the baseline's or the bound), the stopping
+    step's configuration and acceleration (mm/s²), the evaluations spent, and a sentence."""
+
+    point: Point
+    start: Point
+    kind: str
+    key: str | None = None
+    baseline: str | None = None
+    value: float | None = None
+    base_value: float | None = None
+    accel: float | None = None
+    config: TuneConfig | None = None
+    evaluations: int = 0
+    sentence: str = ""
+
+    @property
+    def moved(self) -> bool:
+        return self.point is not self.start
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind, "key": self.key, "baseline": self.baseline, "value": self.value,
+                "baseline_value": self.base_value,
+                "accel": self.accel, "config": self.config.to_dict() if self.config else None,
+                "moved": self.moved, "from_accel": self.start.config.accel, "to_accel": self.point.config.accel,
+                "evaluations": self.evaluations, "sentence": self.sentence}
+
+
+def next_accels(accel: float, top: float, step: float, n: int = LADDER) -> list[float]:
+    """Up to ``n`` accelerations above ``accel`` (mm/s²), each :data:`STEP_REL` above the last
+    (rounded to ``step``, at least one ``step`` higher), none above ``top``."""
+    out, a = [], float(accel)
+    for _ in range(n):
+        nxt = max(round(a * (1 + STEP_REL) / step) * step, a + step)
+        if nxt > top + 1e-9:
+            break
+        out.append(float(nxt))
+        a = nxt
+    return out
+
+
+def with_accel(cfg: TuneConfig, accel: float, space: SearchSpace) -> TuneConfig:
+    """``cfg`` at ``accel`` mm/s², with the per-axis caps a trial at that acceleration carries; a
+    per-feature space's group accelerations raised in the same ratio (each within its range)."""
+    params = params_from_config(cfg, space)
+    ratio = accel / float(cfg.accel) if cfg.accel else 1.0
+    params["accel"] = accel
+    for group, lo, hi in space.feature_accel:
+        key = f"accel_{group}"
+        if key in params:
+            params[key] = min(max(params[key] * ratio, lo), hi)
+    return config_from_params(params, space) if not space.accel_fixed else dataclasses.replace(cfg, accel=accel)
+
+
+def freq_variants(cfg: TuneConfig, space: SearchSpace) -> list[TuneConfig]:
+    """``cfg`` with each shaped axis's frequency :data:`FREQ_REL` up and down (one frequency for
+    all axes where the firmware has one shaper), inside the space's ranges."""
+    params = params_from_config(cfg, space)
+    keys = [k for k in (("freq_x", "freq_y") if space.per_axis else ("freq",)) if k in params]
+    out = []
+    for k in keys:
+        lo, hi = getattr(space, "freq_x" if k == "freq" else k)
+        for sign in (-1, 1):
+            f = params[k] * (1 + sign * FREQ_REL)
+            if lo <= f <= hi:
+                out.append(config_from_params({**params, k: f}, space))
+    return out
+
+
+def _failure(p: Point, bases: dict[str, Point], faster_than: Point, bounds: Bounds,
+             res: Resolution) -> tuple[str, str, str | None, float, float] | None:
+    """Why ``p`` may not replace ``faster_than``: (kind, key, baseline key or None, value, limit), or
+    None. A bound first; else the visible measure worse than a baseline's by the largest ratio."""
+    m = p.metrics
+    broken = (("step_loss", p.step_loss, 1.0, 0.0),
+              ("motor_load", p.overloaded, m.get("motor_load", 0.0), bounds.max_motor_load),
+              ("show_through_mm", p.shows_through, m.get("show_through_mm", 0.0), bounds.max_show_through_mm),
+              ("path_error_mm", p.too_rough, m.get("path_error_mm", 0.0), bounds.max_path_error_mm))
+    for key, flag, value, limit in broken:
+        if flag:
+            return "bound", key, None, float(value), float(limit)
+    worse = [(p.value(k) / max(base.value(k), 1e-12), k, name) for name, base in bases.items()
+             for k, v in judge(p, base, res, VISIBLE_KEYS).verdicts.items() if v == "worse"]
+    if worse:
+        _ratio, k, name = max(worse)
+        return "measure", k, name, float(p.value(k)), float(bases[name].value(k))
+    if p.print_time_s >= faster_than.print_time_s:
+        return "time", "print_time_s", None, p.print_time_s, faster_than.print_time_s
+    return None
+
+
+def measured_stop(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[TuneConfig]], list],
+                  space: SearchSpace, bounds: Bounds, *, labels: dict[str, str] | None = None,
+                  res: Resolution = DEFAULT_RESOLUTION, max_evaluations: int = MAX_EVALUATIONS) -> Stop:
+    """Walk the acceleration up from ``start`` (module docstring); ``evaluate(configs) -> metrics``
+    judges as the study does; ``bases``: the baselines the choice was held to, by key (``labels``
+    names them in the sentence)."""
+    labels = labels or {}
+    if space.accel_fixed or start.config.accel is None:
+        return Stop(start, start, "not searched", sentence="The acceleration is not searched, so nothing is stepped.")
+    fw_top = float(FIRMWARES[space.firmware].accel.hi)
+    top = min(space.accel[1], fw_top)
+    cur, n = start, 0
+
+    def points(cfgs):
+        nonlocal n
+        n += len(cfgs)
+        return [point_from_metrics(c, m, label="stop step", max_path_error_mm=bounds.max_path_error_mm,
+                                   max_motor_load=bounds.max_motor_load,
+                                   max_show_through_mm=bounds.max_show_through_mm)
+                for c, m in zip(cfgs, evaluate(cfgs))]
+
+    while n < max_evaluations:
+        accs = next_accels(cur.config.accel, top, space.accel_step)
+        if not accs:
+            why = (space.accel_basis or "the search range's top") if top < fw_top else \
+                f"{FIRMWARES[space.firmware].title}'s largest acceleration"
+            return _stop(start, cur, ("ceiling", "accel", None, float(cur.config.accel), top), None, n, labels, why)
+        failed = None
+        for p in points([with_accel(cur.config, a, space) for a in accs]):
+            why = _failure(p, bases, cur, bounds, res)
+            if why:
+                failed = (p, why)
+                break
+            cur = p
+        if failed is None:
+            continue
+        p, why = failed
+        variants = [v for v in points(freq_variants(p.config, space)) if _failure(v, bases, cur, bounds, res) is None]
+        if variants:
+            cur = min(variants, key=lambda v: (v.print_time_s, v.quality_mm))
+            continue
+        return _stop(start, cur, why, p.config, n, labels)
+    return _stop(start, cur, ("budget", None, None, None, None), None, n, labels)
+
+
+def _stop(start: Point, cur: Point, why: tuple, cfg, n: int, labels: dict, basis: str = "") -> Stop:
+    kind, key, base, value, limit = why
+    acc = None if cfg is None else float(cfg.accel)
+    label = labels.get(base, base or "")
+    return Stop(cur, start, kind, key, base, value, limit, acc, cfg, n,
+                _sentence(kind, key, value, limit, acc, cur, label, basis))
+
+
+def _sentence(kind, key, value, limit, acc, cur: Point, base_label: str, why: str) -> str:
+    here = f"{cur.config.accel:.0f} mm/s²"
+    if kind == "measure":
+        word = WORDS.get(key, (key,))[0]
+        return (f"What stops it at {here}: {word} {shown(key, value)} > {shown(key, limit)} of {base_label} "
+                f"at {acc:.0f} mm/s² (the next step, measured).")
+    if kind == "bound":
+        text = {"step_loss": "a motor loses steps",
+                "motor_load": f"motor load {value * 100:.0f} % > the reserve's {limit * 100:.0f} %",
+                "show_through_mm": f"show-through {shown(key, value)} > the {shown(key, limit)} bound",
+                "path_error_mm": f"path error {shown(key, value)} > the {shown(key, limit)} bound"}[key]
+        return f"What stops it at {here}: {text} at {acc:.0f} mm/s² (the next step, measured)."
+    if kind == "time":
+        return (f"What stops it at {here}: print time no longer falls at {acc:.0f} mm/s² ({value:.3f} s against "
+                f"{limit:.3f} s): the job's speeds, not its acceleration, bound it.")
+    if kind == "ceiling":
+        return f"What stops it at {here}: the top of the acceleration range, {limit:.0f} mm/s² ({why})."
+    return f"The measured stop ended at {here} after its budget of evaluations, every step passing."

@@ -1,0 +1,163 @@
+"""Issue 21, acceptance 3: the search and the choice judge what a person sees.
+
+- On the default printer and on a printer built from ripple measurements (X 44 Hz, Marlin: the
+  Ender-3 V2 case of the issue), 200 seeded trials never choose, as "same quality", a configuration
+  with more ripple or worse corners than Klipper's pick: the choice and Klipper's pick are simulated
+  again in a fresh ``evaluate_many`` call (not read back from the study) and compared with the
+  resolution written out here (1 µm or 5 % for distances, 1 point or 5 % for extrusion).
+- The Voron 2.4 from its real resonance files and printer.cfg: the reported stop is the measure (or
+  bound) that really stops it — the choice re-simulated one acceleration step higher shows that
+  measure worse than the baseline's (or that bound broken).
+The 200-trial runs take about a minute each on two shared cores (marked slow).
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from ringtune.agents.cli.main import main
+from ringtune.agents.tune.stop import next_accels
+from ringtune.envs.evaluate import evaluate_many
+from ringtune.envs.printer import load_printer
+from ringtune.shaping.config import TuneConfig
+
+SEEN = ("ripple_mm", "ripple_p90_mm", "corner_in_mm", "corner_out_mm")
+
+
+def _worse(key: str, mine: float, theirs: float) -> bool:
+    """Worse beyond the resolution the summary states, written out independently of pareto.Resolution."""
+    big = max(abs(mine), abs(theirs))
+    tol = max(1.0, 0.05 * big) if key.endswith("_pct") else max(0.001, 0.05 * big)
+    return mine - theirs > tol
+
+
+def _tune(args, capsys) -> dict:
+    assert main(["tune", "--json", "--workers", "1", "--seed", "0", *args]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def _check_same_quality(res: dict, printer, job=None) -> None:
+    chosen = TuneConfig.from_dict(res["chosen"]["config"])
+    klipper = TuneConfig.from_dict(res["baselines"]["klipper"]["config"])
+    mine, theirs = evaluate_many([chosen, klipper], printer, job, freq_margin=res["freq_margin"])
+    assert res["chosen"]["chosen_by"] == "fastest-at-baseline-quality" and "klipper" in res["chosen"]["held_to"]
+    for key in SEEN + ("extrusion_over_pct", "extrusion_under_pct"):
+        assert not _worse(key, getattr(mine, key), getattr(theirs, key)), (
+            key, getattr(mine, key), getattr(theirs, key))
+    assert mine.print_time_s <= theirs.print_time_s
+    assert not mine.step_loss and mine.motor_load <= 1 - res["motor_reserve"]
+    # what the report says is what a fresh simulation gives
+    for key in SEEN:
+        assert res["versus"]["klipper"][key]["value"] == pytest.approx(getattr(mine, key), rel=1e-9, abs=1e-12)
+        assert res["versus"]["klipper"][key]["baseline"] == pytest.approx(getattr(theirs, key), rel=1e-9, abs=1e-12)
+
+
+@pytest.mark.slow
+def test_200_trials_on_the_default_printer_never_choose_more_ripple_or_worse_corners(tmp_path, capsys):
+    res = _tune(["--out", str(tmp_path / "out"), "--trials", "200"], capsys)
+    _check_same_quality(res, load_printer(None))
+    summary = (tmp_path / "out" / "summary.txt").read_text()
+    assert "WHAT A PERSON SEES" in summary and "What stops it at" in summary
+    best = json.loads((tmp_path / "out" / "best.json").read_text())
+    assert best["stop"] == res["stop"] and best["versus"]["klipper"]["ripple_mm"] == \
+        res["versus"]["klipper"]["ripple_mm"]["verdict"]
+    for name in ("front.csv", "trials.csv"):
+        header = (tmp_path / "out" / name).read_text().splitlines()[0].split(",")
+        assert {*SEEN, "extrusion_over_pct", "extrusion_under_pct", "e_lag_mm", "show_through_mm"} <= set(header)
+
+
+@pytest.mark.slow
+def test_200_trials_on_a_printer_from_ripples_never_choose_more_ripple_or_worse_corners(tmp_path, capsys):
+    toml = tmp_path / "v2.toml"     # X 44 Hz from ripples 2.27 mm apart at 100 mm/s (the issue's Ender-3 V2)
+    assert main(["identify", "--ripples", "X=2.27,Y=2.4", "--speed", "100", "-o", str(toml)]) == 0
+    capsys.readouterr()
+    printer = load_printer(str(toml))
+    assert printer.x.modes[0].freq == pytest.approx(44.4, abs=0.1)
+    res = _tune(["--printer", str(toml), "--firmware", "marlin", "--out", str(tmp_path / "out"), "--trials", "200"],
+                capsys)
+    _check_same_quality(res, printer)
+
+
+@pytest.fixture(scope="module")
+def v24_printer(tmp_path_factory, data_dir):
+    d = tmp_path_factory.mktemp("v24")
+    files = sorted((data_dir / "accel/klipper_psd/bassco_voron_v24").glob("*.csv"))
+    toml = d / "v24.toml"
+    assert main(["identify", *map(str, files), "--klipper-config",
+                 str(data_dir / "klipper_config/v24/printer.cfg"), "-o", str(toml)]) == 0
+    return toml
+
+
+@pytest.mark.slow
+def test_voron_reported_stop_is_the_measure_that_stops_it(v24_printer, tmp_path, capsys):
+    capsys.readouterr()
+    res = _tune(["--printer", str(v24_printer), "--out", str(tmp_path / "out"), "--trials", "60"], capsys)
+    stop = res["stop"]
+    assert stop is not None and stop["kind"] in ("measure", "bound", "ceiling", "time")
+    chosen = TuneConfig.from_dict(res["chosen"]["config"])
+    summary = (tmp_path / "out" / "summary.txt").read_text()
+    assert stop["sentence"] in summary and res["accel"]["stopped_by"] in (stop["key"], stop["kind"])
+    if stop["kind"] == "ceiling":
+        assert next_accels(chosen.accel, res["accel"]["range"][1], 100.0) == []
+        return
+    # the next step up, re-simulated independently from its configuration
+    step = TuneConfig.from_dict(stop["config"])
+    assert step.accel == next_accels(chosen.accel, 1e9, 100.0, 1)[0]
+    same = ("shaper_x", "shaper_y", "freq_x", "freq_y", "damping_x", "damping_y", "freq_limit_hz")
+    assert [getattr(step, k) for k in same] == [getattr(chosen, k) for k in same]
+    assert stop["baseline"] in res["chosen"]["held_to"] if stop["kind"] == "measure" else stop["baseline"] is None
+    base = TuneConfig.from_dict(res["baselines"][stop["baseline"] or res["chosen"]["against"]]["config"])
+    printer = load_printer(str(v24_printer))
+    up, mine, theirs = evaluate_many([step, chosen, base], printer, None, freq_margin=res["freq_margin"])
+    key = stop["key"]
+    if stop["kind"] == "measure":
+        assert _worse(key, getattr(up, key), getattr(theirs, key))          # the stopping measure got worse
+        assert not _worse(key, getattr(mine, key), getattr(theirs, key))    # and was not at the choice
+        assert getattr(up, key) == pytest.approx(stop["value"], rel=1e-9)
+    elif stop["kind"] == "bound":
+        bound = {"motor_load": up.motor_load > 1 - res["motor_reserve"], "step_loss": up.step_loss,
+                 "show_through_mm": up.show_through_mm > res["max_show_through_mm"],
+                 "path_error_mm": up.path_error_mm > res["max_path_error_mm"]}[key]
+        assert bound
+    else:                                                                    # print time no longer falls
+        assert up.print_time_s >= mine.print_time_s
+
+
+def test_simulate_shows_every_visible_measure_against_klippers_pick(capsys):
+    """simulate --json: each visible measure of the configuration against Klipper's pick, both values
+    from fresh simulations, and the verdict from the resolution written out here."""
+    assert main(["simulate", "--json", "--shaper", "zv", "--freq", "40", "--accel", "6000"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    printer = load_printer(None)
+    klipper = TuneConfig.from_dict(res["baselines"]["klipper"]["config"])
+    mine, theirs = evaluate_many([TuneConfig.from_dict(res["config"]), klipper], printer, None,
+                                 freq_margin=res["freq_margin"])
+    vs = res["versus"]["klipper"]
+    assert set(vs) == {"print_time_s", *SEEN, "extrusion_over_pct", "extrusion_under_pct"}
+    for key, v in vs.items():
+        assert v["value"] == pytest.approx(getattr(mine, key), rel=1e-9, abs=1e-12)
+        assert v["baseline"] == pytest.approx(getattr(theirs, key), rel=1e-9, abs=1e-12)
+        if key != "print_time_s":
+            expect = ("worse" if _worse(key, v["value"], v["baseline"]) else
+                      "better" if _worse(key, v["baseline"], v["value"]) else "same")
+            assert v["verdict"] == expect, key
+    assert "none" in res["versus"] and res["baselines"]["none"]["config"]["shaper_x"] == "none"
+
+
+def test_the_choice_is_held_to_every_baseline_at_once_not_a_chain_of_sames():
+    """What the printer runs now 4 % more ripple than Klipper's pick (the same at 5 %), a point 4 %
+    more than that (the same as the printer's, 8 % more than Klipper's): not "same quality"."""
+    from ringtune.agents.tune.pareto import Point, pick
+
+    def pt(t, ripple, label):
+        m = {k: 0.02 for k in SEEN} | {"ripple_mm": ripple, "extrusion_over_pct": 5.0, "extrusion_under_pct": 5.0}
+        return Point(TuneConfig(accel=1000), t, ripple, False, m, label)
+
+    klipper, current = pt(10.0, 0.100, "klipper"), pt(10.0, 0.104, "current")
+    chained, honest = pt(8.0, 0.108, "chained"), pt(9.0, 0.101, "honest")
+    c = pick([chained, honest], {"klipper": klipper, "current": current, "none": pt(12.0, 0.5, "none")})
+    assert c.point is honest and set(c.held_to) == {"klipper", "current"}
+    c = pick([chained], {"klipper": klipper, "current": current})
+    assert c.by == "knee"         # nothing is "same quality" as both: the knee, said as such
