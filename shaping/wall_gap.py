@@ -23,6 +23,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from ringtune.shaping.builtin_jobs import job_path
+
 _NUM = r"([\d.]+)"
 _RX = {
     "perimeters": re.compile(r"^;\s*(?:perimeters|wall_loops)\s*=\s*(\d+)\s*$", re.M),
@@ -74,3 +76,18 @@ def infill_wall_gap(path) -> WallGap | None:
         return None
     s = spacing(w, h)
     return WallGap(max(0.0, (n - 1) * s - ov), n, w, s, ov, h)
+
+
+def show_through_bound(job, given_mm: float | None, default_mm: float) -> tuple[float, str]:
+    """(bound mm, where it comes from) for hidden features reaching the outer wall: ``given_mm``
+    when the user gave one; else the job's own infill-to-wall gap (:func:`infill_wall_gap`) where
+    the job states it; else ``default_mm``, said to be an assumption."""
+    if given_mm is not None:
+        return given_mm, f"show-through bound {given_mm * 1000:g} µm (--max-show-through)"
+    gap = infill_wall_gap(job_path(job)) if job else None
+    if gap is not None and gap.gap_mm > 0:
+        return gap.gap_mm, (f"show-through bound {gap.describe()}: the job's own gap between its infill and "
+                            "its outer wall (--max-show-through overrides)")
+    why = "the job does not state its perimeters, widths and infill overlap" if job else "the built-in print"
+    return default_mm, (f"show-through bound {default_mm * 1000:g} µm, assumed ({why}; about 10 % of a "
+                        "0.45 mm line; --max-show-through sets it)")

@@ -9,6 +9,7 @@ match its median within 20 µm. The inner perimeter's centre lies one spacing fr
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -65,3 +66,22 @@ def test_one_perimeter_leaves_no_gap_and_an_unstated_job_gives_none():
     assert infill_wall_gap(f"{GCODE}/fastlb_cura_um2/platte_klein_cut.gcode") is None     # Cura states none
     assert infill_wall_gap("/nonexistent/job.gcode") is None
     assert spacing(0.45, 0.0) == 0.45
+
+
+def test_tunes_show_through_bound_is_the_jobs_gap_or_a_stated_assumption():
+    """The bound tune rules hidden features out with: the user's, else the job's own gap (the part:
+    the gap computed in this test from the numbers the file states), else 0.05 mm said aloud."""
+    from ringtune.shaping.builtin_jobs import job_path
+    from ringtune.shaping.wall_gap import show_through_bound
+
+    text = open(job_path("part"), encoding="utf-8").read()
+    n = int(re.search(r"^; perimeters = (\d+)", text, re.M).group(1))
+    w = float(re.search(r"^; perimeters extrusion width = ([\d.]+)mm", text, re.M).group(1))
+    h = float(re.search(r"^; layer_height = ([\d.]+)", text, re.M).group(1))
+    ov = float(re.search(r"^; infill_overlap = ([\d.]+)%", text, re.M).group(1)) / 100 * w
+    expected = (n - 1) * (w - h * (1 - math.pi / 4)) - ov
+    bound, why = show_through_bound("part", None, 0.05)
+    assert bound == pytest.approx(expected, rel=1e-9) and "the job's own gap" in why
+    assert show_through_bound("part", 0.2, 0.05) == (0.2, "show-through bound 200 µm (--max-show-through)")
+    bound, why = show_through_bound(None, None, 0.05)
+    assert bound == 0.05 and "assumed" in why and "built-in print" in why

@@ -55,6 +55,7 @@ from ringtune.envs.evaluate import resolve_printer
 from ringtune.envs.job_rewrite import rewrite_file
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import Firmware
+from ringtune.shaping.wall_gap import show_through_bound
 
 NAME = "tune"
 DESCRIPTION = """\
@@ -139,7 +140,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "choice judges every visible measure whichever it is")
     p.add_argument("--max-show-through", type=float, default=None, metavar="MM",
                    help="rule out configurations whose hidden features (infill, inner walls) reach the outer wall "
-                        "by more than MM (default 0.05, inside a slicer's usual infill/wall overlap; 0 = no bound)")
+                        "by more than MM (default: the job's own gap between infill and outer wall where the job states "
+                        "its perimeters, widths and infill overlap (PrusaSlicer family), else 0.05; 0 = no bound)")
     p.add_argument("--max-path-error", type=float, default=None, metavar="MM",
                    help="rule out configurations whose path error (corner rounding, overshoot and ringing) "
                         "exceeds MM (default 0.1; 0 = no bound)")
@@ -190,9 +192,9 @@ def run(args: argparse.Namespace, out) -> int:
     reserve = pareto.DEFAULT_MOTOR_RESERVE if args.motor_reserve is None else args.motor_reserve / 100.0
     if not 0 <= reserve < 1:
         raise RingtuneError("must be in [0, 100) per cent", "--motor-reserve")
-    max_st = pareto.DEFAULT_MAX_SHOW_THROUGH_MM if args.max_show_through is None else args.max_show_through
-    if not max_st >= 0:
+    if args.max_show_through is not None and not args.max_show_through >= 0:
         raise RingtuneError("must be ≥ 0 (mm; 0 = no bound)", "--max-show-through")
+    max_st, st_source = show_through_bound(args.gcode, args.max_show_through, pareto.DEFAULT_MAX_SHOW_THROUGH_MM)
     accel_range = _accel_range(args.accel_range)
     if args.gcode and not Path(args.gcode).is_file():
         raise RingtuneError("no such G-code file", "--gcode")
@@ -217,6 +219,7 @@ def run(args: argparse.Namespace, out) -> int:
                                     "commands rule every move (--job-accel respect)")
     for line in facts.notes(args.job_accel, space):
         out.note(f"ringtune tune: {line}")
+    out.note(f"ringtune tune: {st_source}")
     per_feature, why = feature_space.wanted(args.per_feature, space, printer, args.gcode, bool(facts.commands),
                                             args.job_accel)
     if per_feature:
@@ -291,6 +294,7 @@ def run(args: argparse.Namespace, out) -> int:
         pf_json["why"] = why
     ja_json["searched"] = not space.accel_fixed
     notes = [f"The {floor_note}."] if floor_note else []
+    notes.append(st_source[0].upper() + st_source[1:] + ".")
     if margin:
         notes.append(f"Every figure is the worst of the printer as modelled and with all its resonances "
                      f"{margin * 100:g} % lower and higher (--freq-margin; `ringtune simulate --freq-margin "
