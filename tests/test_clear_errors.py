@@ -68,7 +68,7 @@ def test_gcode_sniff_knows_real_files_from_the_data(data_dir):
     (["--shaper", "mzv", "--freq", "-40"], "--freq: -40 Hz is not a shaper frequency"),
     (["--shaper", "mzv", "--freq", "40", "--damping", "1.5"], "--damping: 1.5 is not a damping ratio"),
     (["--freq-limit", "-3"], "--freq-limit: -3 Hz is not a frequency limit"),
-    (["--accel", "0"], "--accel: 0 mm/s² is not an acceleration"),
+    (["--accel", "0"], "--accel: 0 mm/s² is not a printing acceleration"),
     (["--shaper", "mzv", "--freq", "0"], "--freq: "),
 ])
 def test_simulate_names_the_option_not_the_config_key(argv, expected, capsys):

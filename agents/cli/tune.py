@@ -125,7 +125,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "choice judges every visible measure whichever it is")
     p.add_argument("--max-show-through", type=float, default=None, metavar="MM",
                    help="rule out configurations whose hidden features (infill, inner walls) reach the outer wall "
-                        "by more than MM (default 0.05, inside a slicer's usual infill/wall overlap; 0 = no bound)")
+                        "by more than MM (default: the job's own gap between infill and outer wall where the job states "
+                        "its perimeters, widths and infill overlap (PrusaSlicer family), else 0.05; 0 = no bound)")
     p.add_argument("--max-path-error", type=float, default=None, metavar="MM",
                    help="rule out configurations whose path error (corner rounding, overshoot and ringing) "
                         "exceeds MM (default 0.1; 0 = no bound)")

@@ -24,6 +24,7 @@ from ringtune.envs.job_rewrite import rewrite_file
 from ringtune.envs.printer_model import unmeasured_note
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import Firmware
+from ringtune.shaping.wall_gap import show_through_bound
 
 
 @dataclass(frozen=True)
@@ -78,6 +79,7 @@ class _Limits:
     margin: float
     reserve: float
     max_st: float
+    st_source: str             # where the show-through bound comes from, in words
     accel_range: tuple[float, float] | None
 
 
@@ -88,7 +90,8 @@ _RUN_CHECKS = (
     ("weight", "--weight", lambda v: v is None or v >= 0, "must be ≥ 0 (seconds per mm)"),
 )
 
-#: the judgement's bounds: (field, flag, default, scale of a given value, test, message)
+#: the judgement's bounds: (field, flag, default, scale of a given value, test, message); the
+#: show-through bound not given is the job's own (:func:`ringtune.shaping.wall_gap.show_through_bound`)
 _BOUNDS = (
     ("max_path_error", "--max-path-error", pareto.DEFAULT_MAX_PATH_ERROR_MM, 1.0, lambda v: v >= 0,
      "must be ≥ 0 (mm; 0 = no bound)"),
@@ -115,11 +118,12 @@ def _check_request(req: TuneRequest) -> _Limits:
         bounds[name] = default if given is None else given * scale
         if not ok(bounds[name]):
             raise RingtuneError(message, flag)
+    max_st, st_source = show_through_bound(req.gcode, req.max_show_through, pareto.DEFAULT_MAX_SHOW_THROUGH_MM)
     accel_range = _accel_range(req.accel_range)
     if req.gcode and not Path(req.gcode).is_file():
         raise RingtuneError("no such G-code file", "--gcode")
-    return _Limits(how, bounds["max_path_error"], bounds["freq_margin"], bounds["motor_reserve"],
-                   bounds["max_show_through"], accel_range)
+    return _Limits(how, bounds["max_path_error"], bounds["freq_margin"], bounds["motor_reserve"], max_st, st_source,
+                   accel_range)
 
 
 def _accel_range(text: str | None) -> tuple[float, float] | None:
@@ -221,6 +225,7 @@ def _space(req: TuneRequest, lim: _Limits, firmware: str, printer, facts, note: 
                                     "commands rule every move (--job-accel respect)")
     for line in facts.notes(req.job_accel, space):
         note(f"ringtune tune: {line}")
+    note(f"ringtune tune: {lim.st_source}")
     per_feature, why = feature_space.wanted(req.per_feature, space, printer, req.gcode, bool(facts.commands),
                                             req.job_accel)
     if per_feature:
@@ -307,7 +312,7 @@ def _report(req: TuneRequest, lim: _Limits, fw: Firmware, printer, facts, space,
         baseline_labels=bl.labels if bl else None,
         sections=[("ACCELERATION", accel_lines)] + ([("PER FEATURE", pf_lines)] if pf_lines else [])
         + ([("THE JOB'S OWN ACCELERATIONS", ja_lines)] if ja_lines else []),
-        notes=_notes(floor_note, lim.margin, len(settings.enqueue)), export_firmware=fw.name,
+        notes=_notes(floor_note, lim.st_source, lim.margin, len(settings.enqueue)), export_firmware=fw.name,
         max_show_through_mm=lim.max_st,
         best_extra={"job_accel": req.job_accel, "freq_margin": lim.margin, "motor_reserve": lim.reserve,
                     "top_speed_mm_s": facts.top_speed if req.gcode else float(printer.limits.velocity),
@@ -351,9 +356,11 @@ def _accel_section(req: TuneRequest, lim: _Limits, firmware: str, printer, space
     return lines, out
 
 
-def _notes(floor_note: str, margin: float, n_warm: int) -> list[str]:
-    """The report's notes: the firmware's frequency floor, the frequency margin, the warm start."""
+def _notes(floor_note: str, st_source: str, margin: float, n_warm: int) -> list[str]:
+    """The report's notes: the firmware's frequency floor, the show-through bound's source, the
+    frequency margin, the warm start."""
     notes = [f"The {floor_note}."] if floor_note else []
+    notes.append(st_source[0].upper() + st_source[1:] + ".")
     if margin:
         notes.append(f"Every figure is the worst of the printer as modelled and with all its resonances "
                      f"{margin * 100:g} % lower and higher (--freq-margin; `ringtune simulate --freq-margin "
