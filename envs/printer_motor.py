@@ -41,23 +41,32 @@ def inherit_motor(base: dict, own: dict) -> dict:
 def _motor_constants(mo: dict, mw: str) -> dict:
     """The datasheet constants a motor table gives: the named built-in motor's, overridden by the
     table's own (empty: the old form, force and corner_speed)."""
-    consts: dict = {}
-    name = mo.get("name")
-    if name is not None:
-        if not isinstance(name, str) or not name.strip():
-            raise RingtuneError("name must be a motor name (string)", f"{mw}.name")
-        ref = lookup_motor(name)
-        if ref is None and not all(k in mo for k in MOTOR_CONSTANT_KEYS[:4]):
-            raise RingtuneError(unknown_motor_message(name), f"{mw}.name")
-        consts = {k: getattr(ref, k) for k in MOTOR_CONSTANT_KEYS} if ref is not None else {}
+    consts = _named_motor(mo, mw) if mo.get("name") is not None else {}
     consts.update({k: number(mo, k, mw, lo=0.0, lo_open=True) for k in MOTOR_CONSTANT_KEYS[:4] if k in mo})
     if "steps_per_revolution" in mo:
-        n = number(mo, "steps_per_revolution", mw, lo=4.0)
-        if n != int(n) or int(n) % 4:
-            raise RingtuneError(f"steps_per_revolution = {n:g} must be a whole multiple of 4 (200, 400)",
-                                f"{mw}.steps_per_revolution")
-        consts["steps_per_revolution"] = int(n)
+        consts["steps_per_revolution"] = _steps_per_revolution(mo, mw)
     return consts
+
+
+def _named_motor(mo: dict, mw: str) -> dict:
+    """The constants of the built-in motor ``mo`` names ({} for a name the table is not, when the
+    table gives the four constants itself)."""
+    name = mo["name"]
+    if not isinstance(name, str) or not name.strip():
+        raise RingtuneError("name must be a motor name (string)", f"{mw}.name")
+    ref = lookup_motor(name)
+    if ref is None and not all(k in mo for k in MOTOR_CONSTANT_KEYS[:4]):
+        raise RingtuneError(unknown_motor_message(name), f"{mw}.name")
+    return {k: getattr(ref, k) for k in MOTOR_CONSTANT_KEYS} if ref is not None else {}
+
+
+def _steps_per_revolution(mo: dict, mw: str) -> int:
+    """The table's full steps per revolution: a whole multiple of 4 (200, 400)."""
+    n = number(mo, "steps_per_revolution", mw, lo=4.0)
+    if n != int(n) or int(n) % 4:
+        raise RingtuneError(f"steps_per_revolution = {n:g} must be a whole multiple of 4 (200, 400)",
+                            f"{mw}.steps_per_revolution")
+    return int(n)
 
 
 def _check_motor_form(mo: dict, consts: dict, mw: str) -> None:
