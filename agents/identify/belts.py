@@ -221,6 +221,18 @@ def compare_belts(tests: dict[str, tuple[np.ndarray, np.ndarray, str]],
 def _belt_keys(paths: list[str]) -> tuple[list[str], list[str]]:
     """Which belt each file tests ("a" for AXIS=1,1, "b" for AXIS=1,-1), from the names, and notes."""
     dirs = [direction_from_file_name(p) for p in paths]
+    _refuse_not_diagonal(paths, dirs)
+    if None in dirs:
+        return ["a", "b"], [f"the file names do not say the test direction: {paths[0]} taken as AXIS=1,1 (belt A, "
+                            f"stepper_x) and {paths[1]} as AXIS=1,-1 (belt B, stepper_y)"]
+    keys = ["a" if d[0] * d[1] > 0 else "b" for d in dirs]
+    if keys[0] == keys[1]:
+        raise RingtuneError(f"both files are tests along the same diagonal ({', '.join(paths)})", "belts")
+    return keys, []
+
+
+def _refuse_not_diagonal(paths: list[str], dirs: list) -> None:
+    """Refuse files whose names say an axis test or an axis direction, and the same test twice."""
     if any(d is not None and d[0] * d[1] == 0 for d in dirs):
         raise RingtuneError("not a diagonal test (the file name says an axis direction with a zero)", "belts")
     for p in paths:
@@ -232,13 +244,6 @@ def _belt_keys(paths: list[str]) -> tuple[list[str], list[str]]:
     if len(paths) == 2 and all(Path(p).is_file() for p in paths) and sha256_of(paths[0]) == sha256_of(paths[1]):
         raise RingtuneError(f"the same test twice ({paths[0]} and {paths[1]} hold the same data): give the AXIS=1,1 "
                             "and the AXIS=1,-1 test", "belts")
-    if None in dirs:
-        return ["a", "b"], [f"the file names do not say the test direction: {paths[0]} taken as AXIS=1,1 (belt A, "
-                            f"stepper_x) and {paths[1]} as AXIS=1,-1 (belt B, stepper_y)"]
-    keys = ["a" if d[0] * d[1] > 0 else "b" for d in dirs]
-    if keys[0] == keys[1]:
-        raise RingtuneError(f"both files are tests along the same diagonal ({', '.join(paths)})", "belts")
-    return keys, []
 
 
 def read_belt_tests(paths: list[str]) -> tuple[dict[str, tuple[np.ndarray, np.ndarray, str]], list[str]]:
