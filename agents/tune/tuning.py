@@ -196,6 +196,7 @@ def _study(req: TuneRequest, lim: _Limits, firmware: str, printer, space, qualit
         bl = None if req.no_baselines else baselines_for(printer, firmware, settings, evaluator, quality, note=note)
         if bl and "klipper" in bl.points:   # start the search from what users do today, and its neighbours
             settings.enqueue = _warm_points(bl, space)
+        tune_study.open_study(settings)   # a storage that cannot be opened fails here, its one line alone
         bar = progress(quality, lim.max_pe, lim.reserve, space) if progress else None
         release()                    # the study runs long: its notes and progress go out live
         try:
