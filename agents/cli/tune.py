@@ -286,6 +286,8 @@ def run(args: argparse.Namespace, out) -> int:
                                               else (stop.sentence, stop.kind if stop.kind != "measure"
                                                     and stop.kind != "bound" else stop.key))
     accel_json["binding"] = [dataclasses.asdict(b) for b in bindings]
+    baseline_binding = {k: binding_limits(printer, args.gcode, b.config, firmware, args.job_accel)
+                        for k, b in baselines.items()}
     if not args.gcode and chosen.config.accel:
         accel_lines.append(top_speed_load_note(printer, chosen.config.accel, reserve))
     ja_lines, ja_json = job_accel_section(facts, args.job_accel, printer, args.gcode, chosen.config)
@@ -314,7 +316,7 @@ def run(args: argparse.Namespace, out) -> int:
         baseline_labels=bl.labels if bl else None,
         sections=[("ACCELERATION", accel_lines)] + ([("PER FEATURE", pf_lines)] if pf_lines else [])
         + ([("THE JOB'S OWN ACCELERATIONS", ja_lines)] if ja_lines else []),
-        notes=notes, export_firmware=dialect, max_show_through_mm=max_st,
+        notes=notes, export_firmware=dialect, max_show_through_mm=max_st, baseline_binding=baseline_binding,
         best_extra={"job_accel": args.job_accel, "freq_margin": margin, "motor_reserve": reserve,
                     "top_speed_mm_s": facts.top_speed if args.gcode else float(printer.limits.velocity),
                     **({"stop": stop.to_dict()} if stop else {})})

@@ -21,6 +21,7 @@ Files (all in ``out_dir``):
 from __future__ import annotations
 
 import csv
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
@@ -194,7 +195,8 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
                  motor_reserve: float = 0.0, resolution: Resolution = DEFAULT_RESOLUTION,
                  baseline_labels: dict[str, str] | None = None, sections: Sequence[tuple[str, list[str]]] = (),
                  export_firmware: str | None = None, best_extra: dict | None = None,
-                 max_show_through_mm: float = 0.0) -> dict[str, Any]:
+                 max_show_through_mm: float = 0.0, baseline_binding: dict[str, list] | None = None
+                 ) -> dict[str, Any]:
     """Write the output folder; returns the summary dict (also the CLI's --json).
 
     ``baseline_labels``: how each baseline is named (e.g. "Klipper's rule on a simulated resonance
@@ -252,6 +254,7 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
                  + ("  (PATH ERROR OVER THE BOUND)" if b.too_rough else "")
                  + ("  (MOTOR LOAD OVER THE RESERVE)" if b.overloaded else "")
                  + ("  (SHOW-THROUGH OVER THE BOUND)" if b.shows_through else ""))
+        s.extend(f"    {b.sentence()}" for b in (baseline_binding or {}).get(k, []))
         s.append(f"    chosen vs this: {comparisons[k].sentence(quality)}")
     for k in ("klipper", "current"):
         if k not in baselines:
@@ -307,6 +310,7 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
                 "breaks": [w for w, f in (("step_loss", b.step_loss), ("max_path_error", b.too_rough),
                                           ("motor_reserve", b.overloaded), ("max_show_through", b.shows_through))
                            if f],
+                "binding": [dataclasses.asdict(x) for x in (baseline_binding or {}).get(k, [])],
                 "label": labels[k]}
 
     def dom_dict(k):
