@@ -38,7 +38,7 @@ from ringtune.shaping.config import TuneConfig
 #: extruder's timing, and what hidden features push into the walls
 JUDGED_KEYS = SEEN_KEYS + EXTRUSION_KEYS + ("show_through_mm",)
 #: the resolution (mm and fraction) and constraints (fraction of the motors' force, mm) of the judgement
-JUDGEMENT = {"distance_mm": 0.001, "distance_rel": 0.05, "motor_reserve": 0.2, "max_path_error_mm": 0.1}
+JUDGEMENT = {"distance_mm": 0.001, "distance_rel": 0.05, "pct_abs": 1.0, "motor_reserve": 0.2, "max_path_error_mm": 0.1}
 #: reward weights: the print-time ratio and the summed relative excess over the baseline
 DEFAULT_WEIGHTS = {"time": 1.0, "worse": 5.0}
 #: the baseline's damping ratio
@@ -53,9 +53,11 @@ def baseline_config(peaks, firmware: str, accel: float) -> TuneConfig:
                       accel=float(accel))
 
 
-def tolerance(a: float, b: float, judgement: dict = JUDGEMENT) -> float:
-    """Below this two figures are the same: max(distance_mm, distance_rel · the larger)."""
-    return max(judgement["distance_mm"], judgement["distance_rel"] * max(abs(a), abs(b)))
+def tolerance(key: str, a: float, b: float, judgement: dict = JUDGEMENT) -> float:
+    """Below this two figures of measure ``key`` are the same: max(distance_mm, distance_rel · the
+    larger) for distances (mm), max(pct_abs, distance_rel · the larger) for extrusion (``*_pct``, %)."""
+    floor = judgement["pct_abs"] if key.endswith("_pct") else judgement["distance_mm"]
+    return max(floor, judgement["distance_rel"] * max(abs(a), abs(b)))
 
 
 def worse_by(m: Metrics, base: Metrics | None, judgement: dict = JUDGEMENT) -> dict[str, float]:
@@ -64,7 +66,7 @@ def worse_by(m: Metrics, base: Metrics | None, judgement: dict = JUDGEMENT) -> d
     out = {}
     for k in JUDGED_KEYS if base is not None else ():
         a, b = float(getattr(m, k)), float(getattr(base, k))
-        tol = tolerance(a, b, judgement)
+        tol = tolerance(k, a, b, judgement)
         if a - b > tol:
             out[k] = (a - b - tol) / max(b, tol)
     return out

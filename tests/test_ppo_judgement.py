@@ -16,11 +16,12 @@ from ringtune.shaping.config import TuneConfig
 
 def test_defaults_are_tunes():
     assert JUDGEMENT == {"distance_mm": DEFAULT_RESOLUTION.distance_mm, "distance_rel": DEFAULT_RESOLUTION.distance_rel,
+                         "pct_abs": DEFAULT_RESOLUTION.pct_abs,
                          "motor_reserve": DEFAULT_MOTOR_RESERVE, "max_path_error_mm": DEFAULT_MAX_PATH_ERROR_MM}
     assert set(SEEN_KEYS) | set(EXTRUSION_KEYS) | {"show_through_mm"} == set(JUDGED_KEYS)
     for a, b in ((0.0, 0.0), (0.004, 0.0045), (0.05, 0.2), (12.0, 3.0)):
         for k in JUDGED_KEYS:
-            assert tolerance(a, b) == DEFAULT_RESOLUTION.tolerance(k, a, b)
+            assert tolerance(k, a, b) == DEFAULT_RESOLUTION.tolerance(k, a, b)
 
 
 def test_worse_where_tunes_judge_says_worse_on_real_evaluations():

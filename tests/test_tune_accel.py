@@ -323,6 +323,27 @@ def test_every_cap_the_summary_names_is_checked_against_the_planner_without_it(v
         assert without < base
         assert f"{b['name']} {b['value']:.0f} mm/s² binds on {b['moves']} " in summary
     assert "max_y_accel" in {b["name"] for b in named}
+    # the baselines too: Klipper's pick at its own acceleration runs under the same Kalico caps, and
+    # its summary lines name each cap that holds some of its moves, at the planner's figures
+    seen = 0
+    for k, base_res in res["baselines"].items():
+        bcfg = TuneConfig.from_dict(base_res["config"])
+        if bcfg.accel is None:
+            continue
+        blim = replace(printer.limits, accel=bcfg.accel)
+        caps_b = [bcfg.max_accel_x or blim.max_accel[0], bcfg.max_accel_y or blim.max_accel[1], *blim.max_accel[2:]]
+        blim = replace(blim, max_accel=tuple(caps_b))
+        with_caps = plan(job, blim, accel=bcfg.accel).print_time
+        for b in base_res["binding"]:
+            i = {"max_x_accel": 0, "max_y_accel": 1, "max_z_accel": 2}[b["name"]]
+            caps = list(blim.max_accel)
+            caps[i] = 0.0
+            without = plan(job, replace(blim, max_accel=tuple(caps)), accel=bcfg.accel).print_time
+            assert b["time_s"] == pytest.approx(with_caps, rel=1e-12)
+            assert b["time_without_s"] == pytest.approx(without, rel=1e-12) and without < with_caps
+            assert f"    {b['name']} {b['value']:.0f} mm/s² binds on {b['moves']} " in summary
+            seen += 1
+    assert seen, "no baseline names the Kalico cap that holds it"
 
 
 def test_with_a_job_the_range_is_judged_at_the_jobs_own_top_speed(tmp_path, capsys):

@@ -21,6 +21,7 @@ Files (all in ``out_dir``):
 from __future__ import annotations
 
 import csv
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
@@ -194,7 +195,8 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
                  motor_reserve: float = 0.0, resolution: Resolution = DEFAULT_RESOLUTION,
                  baseline_labels: dict[str, str] | None = None, sections: Sequence[tuple[str, list[str]]] = (),
                  export_firmware: str | None = None, best_extra: dict | None = None,
-                 max_show_through_mm: float = 0.0) -> dict[str, Any]:
+                 max_show_through_mm: float = 0.0, baseline_binding: dict[str, list] | None = None
+                 ) -> dict[str, Any]:
     """Write the output folder; returns the summary dict (also the CLI's --json).
 
     ``baseline_labels``: how each baseline is named (e.g. "Klipper's rule on a simulated resonance
@@ -232,7 +234,7 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
     if rewrite_line:
         s.append("  " + rewrite_line)
     s += ["", "BASELINES (same printer, job and simulation):"]
-    s += _baseline_lines(baselines, labels, comparisons, dominating, quality, resolution)
+    s += _baseline_lines(baselines, labels, comparisons, dominating, quality, resolution, baseline_binding or {})
     if baselines and "ripple_mm" in chosen.metrics:
         s += ["", "WHAT A PERSON SEES (the chosen configuration against each baseline, same simulation):"]
         s.extend(versus_table(chosen, baselines, labels, resolution))
@@ -260,7 +262,7 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         "resolution": {"distance_mm": resolution.distance_mm, "distance_rel": resolution.distance_rel,
                        "time_rel": resolution.time_rel, "pct_abs": resolution.pct_abs},
         "chosen": _chosen_dict(choice, rewrite),
-        "baselines": {k: _baseline_dict(b, labels[k]) for k, b in baselines.items()},
+        "baselines": {k: _baseline_dict(b, labels[k], (baseline_binding or {}).get(k, [])) for k, b in baselines.items()},
         "vs_baselines": {k: c.to_dict() for k, c in comparisons.items()},
         "versus": vs,
         "dominates_klipper": _dominating_dict(dominating, "klipper"),
@@ -311,14 +313,16 @@ _BREAKS = (("step_loss", "LOSES STEPS", "step_loss"), ("too_rough", "PATH ERROR 
 
 
 def _baseline_lines(baselines: dict[str, Point], labels: dict[str, str], comparisons: dict, dominating: dict,
-                    quality: str, res: Resolution) -> list[str]:
-    """The summary's BASELINES section: each baseline, its figures and bounds broken, the chosen
-    point against it, and the best front point dominating Klipper's or the current one."""
+                    quality: str, res: Resolution, binding: dict[str, list]) -> list[str]:
+    """The summary's BASELINES section: each baseline, its figures and bounds broken, the firmware
+    limits that bind it (``binding``: {key: [BindingLimit]}), the chosen point against it, and the
+    best front point dominating Klipper's or the current one."""
     s = []
     for k, b in baselines.items():
         s.append(f"  {labels[k]}: {describe(b.config)}")
         s.append("    " + _figures(b, quality) + "".join(f"  ({word})" for flag, word, _ in _BREAKS
                                                           if getattr(b, flag)))
+        s.extend(f"    {x.sentence()}" for x in binding.get(k, []))
         s.append(f"    chosen vs this: {comparisons[k].sentence(quality)}")
     for k in ("klipper", "current"):
         if k not in baselines or comparisons[k].dominates:
@@ -362,12 +366,14 @@ def _chosen_dict(choice: Choice, rewrite: str | None) -> dict:
             "rewrite_jobs": rewrite}
 
 
-def _baseline_dict(b: Point, label: str) -> dict:
-    """--json ``baselines.<key>``: the configuration, its figures and the bounds it breaks."""
+def _baseline_dict(b: Point, label: str, binding: list) -> dict:
+    """--json ``baselines.<key>``: the configuration, its figures, the bounds it breaks and the
+    firmware limits that bind it."""
     return {"config": b.config.to_dict(), "print_time_s": b.print_time_s, "quality_mm": b.quality_mm,
             "path_error_mm": b.metrics.get("path_error_mm"), "overshoot_mm": b.metrics.get("overshoot_mm"),
             "motor_load": b.metrics.get("motor_load"), "step_loss": b.step_loss, "measures": _measures(b),
-            "breaks": [key for flag, _, key in _BREAKS if getattr(b, flag)], "label": label}
+            "breaks": [key for flag, _, key in _BREAKS if getattr(b, flag)],
+            "binding": [dataclasses.asdict(x) for x in binding], "label": label}
 
 
 def _dominating_dict(dominating: dict, k: str) -> dict | None:

@@ -301,6 +301,8 @@ def _report(req: TuneRequest, lim: _Limits, fw: Firmware, printer, facts, space,
     chosen = choice.point
     accel_lines, accel_json = _accel_section(req, lim, fw.name, printer, space, points, chosen, stop)
     ja_lines, ja_json = job_accel_section(facts, req.job_accel, printer, req.gcode, chosen.config)
+    baseline_binding = {k: binding_limits(printer, req.gcode, b.config, fw.name, req.job_accel)
+                        for k, b in (bl.points if bl else {}).items()}
     pf_lines, pf_json = feature_space.feature_section(chosen.config, space) if space.per_feature else ([], None)
     if pf_json is not None:
         pf_json["why"] = why
@@ -314,7 +316,7 @@ def _report(req: TuneRequest, lim: _Limits, fw: Firmware, printer, facts, space,
         sections=[("ACCELERATION", accel_lines)] + ([("PER FEATURE", pf_lines)] if pf_lines else [])
         + ([("THE JOB'S OWN ACCELERATIONS", ja_lines)] if ja_lines else []),
         notes=_notes(floor_note, lim.st_source, lim.margin, len(settings.enqueue)), export_firmware=fw.name,
-        max_show_through_mm=lim.max_st,
+        max_show_through_mm=lim.max_st, baseline_binding=baseline_binding,
         best_extra={"job_accel": req.job_accel, "freq_margin": lim.margin, "motor_reserve": lim.reserve,
                     "top_speed_mm_s": facts.top_speed if req.gcode else float(printer.limits.velocity),
                     **({"stop": stop.to_dict()} if stop else {})})
