@@ -206,7 +206,8 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     chosen = choice.point
-    labels = {k: (baseline_labels or {}).get(k, BASELINE_NAMES.get(k, k)) for k in baselines}
+    labels = _labels(baselines, baseline_labels or {})
+    binding = baseline_binding or {}
     dialect = export_firmware or firmware
 
     best_cfg = chosen.config
@@ -234,7 +235,7 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
     if rewrite_line:
         s.append("  " + rewrite_line)
     s += ["", "BASELINES (same printer, job and simulation):"]
-    s += _baseline_lines(baselines, labels, comparisons, dominating, quality, resolution, baseline_binding or {})
+    s += _baseline_lines(baselines, labels, comparisons, dominating, quality, resolution, binding)
     if baselines and "ripple_mm" in chosen.metrics:
         s += ["", "WHAT A PERSON SEES (the chosen configuration against each baseline, same simulation):"]
         s.extend(versus_table(chosen, baselines, labels, resolution))
@@ -262,7 +263,7 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         "resolution": {"distance_mm": resolution.distance_mm, "distance_rel": resolution.distance_rel,
                        "time_rel": resolution.time_rel, "pct_abs": resolution.pct_abs},
         "chosen": _chosen_dict(choice, rewrite),
-        "baselines": {k: _baseline_dict(b, labels[k], (baseline_binding or {}).get(k, [])) for k, b in baselines.items()},
+        "baselines": {k: _baseline_dict(b, labels[k], binding.get(k, [])) for k, b in baselines.items()},
         "vs_baselines": {k: c.to_dict() for k, c in comparisons.items()},
         "versus": vs,
         "dominates_klipper": _dominating_dict(dominating, "klipper"),
@@ -271,6 +272,11 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         "files": {k: str(out_dir / v) for k, v in _FILES},
     }
     return {"summary_text": summary_text, **result}
+
+
+def _labels(baselines: dict[str, Point], given: dict[str, str]) -> dict[str, str]:
+    """How each baseline is named: as ``given``, else its short name."""
+    return {k: given.get(k, BASELINE_NAMES.get(k, k)) for k in baselines}
 
 
 def _front_head(chosen: Point, quality: str, n_front: int, n_points: int) -> str:
