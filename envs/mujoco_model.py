@@ -100,7 +100,6 @@ def linear_system(printer: Printer) -> LinearSystem:
             share.append(m.share)
             k.append(mi * m.omega ** 2)
             c.append(2.0 * m.damping * m.omega * mi)
-    n = len(names)
     K = np.diag(np.array(k, float))
     C = np.diag(np.array(c, float))
     js = np.array(k, float)

@@ -214,7 +214,6 @@ def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any =
     N = settings.n_trials
 
     def objective(trial):
-        nonlocal done
         trial.set_user_attr("worker", _this_worker())
         ahead = 0
         if trial.number >= N - 32:   # earlier trials cannot have N others ahead of them
@@ -422,6 +421,4 @@ def study_points(study, space: SearchSpace | None = None, quality: str | None = 
 
 
 if __name__ == "__main__":
-    import sys
-
     sys.exit(_worker_main(sys.argv[1:]))
