@@ -27,12 +27,24 @@ def test_klipper_takes_every_band_line_and_reports_the_last_band(real_klipper, t
     s = mass_schedule(TuneConfig(freq_x=45.5, freq_y=38.9, accel=3000), None, path)
     lines = [c for b in s.bands for c in b.commands]
     assert len(s.bands) > 5 and any(ln.startswith("SET_VELOCITY_LIMIT") for ln in lines)
+    state = lambda: dict(re.findall(r"(\w+_[xy]|max_accel):\s*(\S+)",             # noqa: E731
+                                    real_klipper.send("SET_INPUT_SHAPER", "SET_VELOCITY_LIMIT")))
+    before = state()
+    try:
+        _check_bands(real_klipper, s, lines, state)
+    finally:      # the Klipper fixture is shared by the session: leave it as it was found
+        real_klipper.send(f"SET_VELOCITY_LIMIT ACCEL={before['max_accel']}",
+                          "SET_INPUT_SHAPER " + " ".join(f"{k.upper()}={v}" for k, v in before.items()
+                                                        if k.startswith(("shaper_freq", "damping_ratio"))))
+    assert state() == before
+
+
+def _check_bands(real_klipper, s, lines, state):
     transcript = real_klipper.send(*[f"{ln} ; ringtune mass schedule" for ln in lines])
     replies = [ln for ln in transcript.splitlines() if ln.startswith("< ")]
     assert len([r for r in replies if r == "< ok"]) == len(lines), transcript
     assert "Unknown command" not in transcript and "!!" not in transcript, transcript
-    report = dict(re.findall(r"(\w+_[xy]|max_accel):\s*(\S+)", real_klipper.send("SET_INPUT_SHAPER",
-                                                                                  "SET_VELOCITY_LIMIT")))
+    report = state()
     last = s.bands[-1]
     assert float(report["shaper_freq_y"]) == pytest.approx(last.freq_y)
     assert float(report["max_accel"]) == pytest.approx(last.accel)
