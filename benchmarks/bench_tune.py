@@ -29,6 +29,21 @@ import time
 from pathlib import Path
 
 
+
+def run_tune(args, prefix: str, *extra: str):
+    """(the ``--json`` result, wall time s, output folder) of ``ringtune tune`` with the benchmark's trials and
+    workers (and ``extra`` options) in a fresh folder; (None, wall, folder) after printing its error."""
+    out = Path(tempfile.mkdtemp(prefix=prefix))
+    cmd = [sys.executable, "-m", "ringtune.agents.cli.main", "tune", *extra, "--trials", str(args.trials),
+           "--workers", str(args.workers), "--out", str(out), "--json"]
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        print(proc.stderr[-2000:])
+        return None, wall, out
+    return json.loads(proc.stdout), wall, out
+
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--trials", type=int, default=200)
@@ -49,16 +64,9 @@ def main() -> int:
     from ringtune.agents.tune.study import StudySettings, open_study, study_points
     from ringtune.envs.printer import load_printer
 
-    out = Path(tempfile.mkdtemp(prefix="bench-tune-"))
-    cmd = [sys.executable, "-m", "ringtune.agents.cli.main", "tune", "--trials", str(args.trials), "--workers",
-           str(args.workers), "--out", str(out), "--json"]
-    t0 = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    wall = time.perf_counter() - t0
-    if proc.returncode != 0:
-        print(proc.stderr[-2000:])
+    res, wall, out = run_tune(args, "bench-tune-")
+    if res is None:
         return 1
-    res = json.loads(proc.stdout)
     ru = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = ru.ru_utime + ru.ru_stime
     print(f"ringtune tune --trials {args.trials} --workers {args.workers}: {wall:.1f} s wall on "
@@ -124,16 +132,9 @@ def _job_run(args, builtin_wall: float) -> int:
     from ringtune.envs.printer import load_printer
 
     planned = planned_job(load_printer(None), args.gcode, None).print_time
-    out = Path(tempfile.mkdtemp(prefix="bench-tune-job-"))
-    cmd = [sys.executable, "-m", "ringtune.agents.cli.main", "tune", "--gcode", args.gcode, "--trials",
-           str(args.trials), "--workers", str(args.workers), "--out", str(out), "--json"]
-    t0 = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    wall = time.perf_counter() - t0
-    if proc.returncode != 0:
-        print(proc.stderr[-2000:])
+    res, wall, _ = run_tune(args, "bench-tune-job-", "--gcode", args.gcode)
+    if res is None:
         return 1
-    res = json.loads(proc.stdout)
     pf = res.get("per_feature") or {}
     print(f"ringtune tune --gcode {args.gcode} ({planned / 60:.1f} min planned on the default printer) "
           f"--trials {args.trials} --workers {args.workers}: {wall:.1f} s wall (target ≤ 30 s): "
