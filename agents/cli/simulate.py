@@ -36,11 +36,10 @@ from pathlib import Path
 from ringtune.agents.cli.common import (GCODE_JOB_HELP, firmware_name, gcode_job,
                                        judgement, load_config, say_unmeasured)
 from ringtune.agents.cli.trace_option import write_trace_option
-from ringtune.agents.klipper.baseline import klipper_rule_on_simulated_test
-from ringtune.agents.tune.baselines import current_config, recorded_klipper
+from ringtune.agents.tune.baselines import current_config
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
-from ringtune.agents.tune.versus import baseline_metrics, table as versus_table, versus_all
+from ringtune.agents.tune.versus import baseline_evaluations, table as versus_table, versus_all
 from ringtune.envs.evaluate import (evaluate_judged, job_accel_commands, planned_job, resolve_job,
                                     resolve_printer, variant_factors)
 from ringtune.envs.metrics import Metrics
@@ -373,7 +372,8 @@ def run(args, out) -> int:
         write_trace_option(args.trace, evs[0], config, printer, args.gcode, args.backend, out)
     windows = _windows(evs)
     factors = variant_factors(margin)
-    plots = _plots(evs, args, printer, config, margin, judged, out) if args.plot else []
+    base = _baseline_runs(args, printer, config, margin, out)
+    plots = _plots(evs, args, margin, judged, base) if args.plot else []
     result = {
         "printer": printer.name,
         "job": args.gcode or "built-in test print",
@@ -393,7 +393,7 @@ def run(args, out) -> int:
         **({"trace": args.trace} if args.trace else {}),
     }
     lines = _text(result, m, config, printer, judged, len(evs)) + _binding_said(bindings, config)
-    lines += _baselines(result, m, config, printer, args, margin, out)
+    lines += _baselines(result, m, args, base)
     lines += [f"plot: {p}" for p in plots]
     out.emit(result, "\n".join(lines))
     return 0
@@ -419,11 +419,11 @@ def _inputs(args, out) -> tuple:
     return printer, config, margin
 
 
-def _plots(evs, args, printer, config, margin: float, judged: str, out) -> list[str]:
-    """The evaluation's plots in ``--plot``, against the baseline it is compared with."""
-    label, base = _plot_baseline(printer, config, args, margin, out)
+def _plots(evs, args, margin: float, judged: str, base) -> list[str]:
+    """The evaluation's plots in ``--plot``, against Klipper's pick (``base``: :func:`_baseline_runs`)."""
+    label, kevs = _plot_baseline(base)
     return [str(p) for p in plot_evaluation(evs, args.plot, factors=variant_factors(margin), judged=judged,
-                                            baseline=base, baseline_label=label)]
+                                            baseline=kevs, baseline_label=label)]
 
 
 def _binding_said(bindings, config) -> list[str]:
@@ -437,37 +437,43 @@ def _binding_said(bindings, config) -> list[str]:
     return said
 
 
-def _baselines(result: dict, m, config, printer, args, margin: float, out) -> list[str]:
-    """Fill ``baselines`` and ``versus`` of ``result`` (judged as the configuration is); the text table."""
+def _baseline_runs(args, printer, config: TuneConfig, margin: float, out):
+    """(Baselines, {key: (judged Metrics, Evaluations)}) of the baselines, simulated once for the
+    comparison table and the plots, judged as the configuration is; None when neither wants them."""
+    if getattr(args, "no_baselines", False) and not args.plot:
+        return None
+    return baseline_evaluations(printer, config.firmware, args.gcode, backend=args.backend, freq_margin=margin,
+                                job_accel=job_accel_mode(config),
+                                note=lambda s: out.note(s.replace("ringtune tune", "ringtune simulate")))
+
+
+def _baselines(result: dict, m, args, base) -> list[str]:
+    """Fill ``baselines`` and ``versus`` of ``result``; the text table."""
     result["baselines"], result["versus"] = {}, {}
-    if getattr(args, "no_baselines", False):
+    if getattr(args, "no_baselines", False) or base is None:
         return []
-    ms, labels, cfgs = baseline_metrics(printer, config.firmware, args.gcode, backend=args.backend,
-                                        freq_margin=margin, job_accel=job_accel_mode(config),
-                                        note=lambda s: out.note(s.replace("ringtune tune", "ringtune simulate")))
-    result["baselines"] = {k: {"label": labels[k], "config": cfgs[k].to_dict(), "metrics": ms[k]} for k in ms}
+    bl, runs = base
+    ms = {k: judged.to_dict() for k, (judged, _) in runs.items()}
+    result["baselines"] = {k: {"label": bl.labels[k], "config": bl.configs[k].to_dict(), "metrics": ms[k]}
+                           for k in ms}
     mine = m.to_dict()
     result["versus"] = versus_all(mine, ms)
-    return ["", "against each baseline (the same job and judgement):"] + versus_table(mine, ms, labels, name="this")
+    return ["", "against each baseline (the same job and judgement):"] + versus_table(mine, ms, bl.labels, name="this")
 
 
-def _plot_baseline(printer, config: TuneConfig, args, margin: float, out):
-    """(label, Evaluations per variant) of Klipper's pick on this printer and job for the plots:
-    the pick recorded from the resonance files, else Klipper's rule on the model's simulated
-    resonance test; judged as the configuration is. (label, None) when the rule cannot run."""
-    kcfg, _why = recorded_klipper(printer, config.firmware)
-    label = "Klipper's pick from the resonance files"
-    if kcfg is None:
-        try:
-            fields = klipper_rule_on_simulated_test(printer, config.firmware, "head")[1]
-        except RingtuneError as exc:
-            out.note(f"plots without Klipper's pick: {exc}")
-            return label, None
-        fields["accel"] = fields.get("accel") or float(printer.limits.accel)
-        kcfg, label = TuneConfig(**fields), "Klipper's pick on the simulated resonance test"
+def _plot_baseline(base):
+    """(label, Evaluations per variant) of Klipper's pick for the plots: the pick recorded from the
+    resonance files, else Klipper's rule on the model's simulated resonance test; (label, None)
+    when there is none (the baselines say why)."""
+    label = "Klipper's pick"
+    if base is None or "klipper" not in base[0].configs:
+        return label, None
+    bl, runs = base
+    kcfg = bl.configs["klipper"]
+    label += (" from the resonance files" if bl.sources.get("klipper") == "measurement"
+              else " on the simulated resonance test")
     label += f" ({kcfg.shaper_x} {kcfg.freq_x:.1f} / {kcfg.shaper_y} {kcfg.freq_y:.1f} Hz, {kcfg.accel:.0f} mm/s²)"
-    base = evaluate_judged([kcfg], printer, args.gcode, backend=args.backend, freq_margin=margin)[0][1]
-    return label, base
+    return label, runs["klipper"][1]
 
 
 def _windows(evs) -> list[dict]:

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 from typing import Callable, Mapping
 
-from ringtune.agents.tune.baselines import baseline_configs
+from ringtune.agents.tune.baselines import Baselines, baseline_configs
 from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, VISIBLE_KEYS, WORDS, Point, Resolution, shown,
                                          verdict)
-from ringtune.envs.evaluate import evaluate_many
+from ringtune.envs.evaluate import evaluate_judged
 
 #: the figures compared, in the order shown
 SHOWN = ("print_time_s",) + VISIBLE_KEYS
@@ -66,11 +66,13 @@ def table(point: Point | Mapping, baselines: Mapping[str, Point | Mapping], labe
     return lines
 
 
-def baseline_metrics(printer, firmware: str, job=None, *, backend: str = "mujoco", freq_margin: float = 0.0,
-                     job_accel: str | None = None, note: Callable[[str], None] = lambda s: None
-                     ) -> tuple[dict, dict, dict]:
+def baseline_evaluations(printer, firmware: str, job=None, *, backend: str = "mujoco", freq_margin: float = 0.0,
+                         job_accel: str | None = None, note: Callable[[str], None] = lambda s: None
+                         ) -> tuple[Baselines, dict]:
     """Klipper's pick, what the printer runs now (when known) and no shaping, simulated as ``tune``
-    judges them (one ``evaluate_many`` call): ({key: metrics dict}, {key: label}, {key: TuneConfig})."""
+    judges them (one ``evaluate_judged`` call): (their :class:`Baselines`, {key: (judged Metrics,
+    Evaluation per printer variant)})."""
     bl = baseline_configs(printer, firmware, note=note)
-    ms = evaluate_many(list(bl.configs.values()), printer, job, backend, freq_margin=freq_margin, job_accel=job_accel)
-    return {k: m.to_dict() for k, m in zip(bl.configs, ms)}, bl.labels, bl.configs
+    judged = evaluate_judged(list(bl.configs.values()), printer, job, backend, freq_margin=freq_margin,
+                             job_accel=job_accel)
+    return bl, dict(zip(bl.configs, judged))
