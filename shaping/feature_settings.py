@@ -72,12 +72,17 @@ def _caps(firmware: str, limits, accel: dict) -> tuple | None:
     return None if None in known else tuple(known)
 
 
+def label_classes(job: Job) -> np.ndarray:
+    """(n,) index into :data:`FEATURE_CLASSES` of each move's feature label."""
+    return class_indices(job.features)[job.feature] if job.n_moves else np.zeros(0, np.int64)
+
+
 def effective_classes(job: Job) -> np.ndarray:
     """(n,) class index per move as Klipper's one acceleration follows it (module docstring):
     label class when extruding, ``travel`` for X/Y moves without E, moves without X/Y motion keep
     the class of the move before them."""
     d = job.delta
-    label = class_indices(job.features)[job.feature] if job.n_moves else np.zeros(0, np.int64)
+    label = label_classes(job)
     xy = np.hypot(d[:, 0], d[:, 1]) > 0
     cls = np.where(xy & ~(d[:, 3] > 0), TRAVEL, label)
     idx = np.arange(job.n_moves)
@@ -85,30 +90,32 @@ def effective_classes(job: Job) -> np.ndarray:
     return np.where(last >= 0, cls[np.maximum(last, 0)], label)
 
 
+#: the settings the corner value sets, by junction rule
+_CORNER_KEYS = {"scv": ("square_corner_velocity",), "jd": ("junction_deviation",), "jerk": ("jerk_x", "jerk_y")}
+
+
+def _accels(job: Job, fc: FeatureCommands) -> dict[str, np.ndarray]:
+    """{accel_klipper, accel_print, accel_travel: (n,) mm/s² in force at each move} for ``fc``
+    (module docstring: Klipper's one acceleration, or Marlin/RRF's print and travel pair)."""
+    table = np.array([fc.accel[c] for c in FEATURE_CLASSES])
+    if fc.junction == "scv":
+        a = table[effective_classes(job)]
+        return dict(accel_klipper=a, accel_print=a, accel_travel=a)
+    p, t = table[label_classes(job)], np.full(job.n_moves, fc.accel["travel"])
+    return dict(accel_print=p, accel_travel=t, accel_klipper=np.minimum(p, t))
+
+
 def move_settings(job: Job, fc: FeatureCommands) -> dict[str, np.ndarray]:
     """{setting key of :data:`SETTING_KEYS`: (n,) value in force at each move} for ``fc``."""
     n = job.n_moves
-    table = np.array([fc.accel[c] for c in FEATURE_CLASSES])
-    out: dict[str, np.ndarray] = {}
-    if fc.junction == "scv":
-        a = table[effective_classes(job)]
-        out.update(accel_klipper=a, accel_print=a, accel_travel=a)
-        if fc.corner is not None:
-            out["square_corner_velocity"] = np.full(n, float(fc.corner))
-        if fc.min_cruise_ratio is not None:
-            out["min_cruise_ratio"] = np.full(n, float(fc.min_cruise_ratio))
-            out["accel_to_decel"] = np.full(n, np.nan)
-    else:
-        label = class_indices(job.features)[job.feature] if n else np.zeros(0, np.int64)
-        p, t = table[label], np.full(n, fc.accel["travel"])
-        out.update(accel_print=p, accel_travel=t, accel_klipper=np.minimum(p, t))
-        if fc.corner is not None:
-            keys = ("junction_deviation",) if fc.junction == "jd" else ("jerk_x", "jerk_y")
-            out.update({k: np.full(n, float(fc.corner)) for k in keys})
-    if fc.caps is not None:
-        for ax, cap in zip("xy", fc.caps):
-            if cap is not None:
-                out[f"max_accel_{ax}"] = np.full(n, float(cap))
+    out = _accels(job, fc)
+    if fc.corner is not None:
+        out.update({k: np.full(n, float(fc.corner)) for k in _CORNER_KEYS[fc.junction]})
+    if fc.junction == "scv" and fc.min_cruise_ratio is not None:
+        out.update(min_cruise_ratio=np.full(n, float(fc.min_cruise_ratio)), accel_to_decel=np.full(n, np.nan))
+    for ax, cap in zip("xy", fc.caps or ()):
+        if cap is not None:
+            out[f"max_accel_{ax}"] = np.full(n, float(cap))
     return out
 
 

@@ -33,10 +33,8 @@ from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.job import Job
 
-#: settings a block sets at every change, and those it sets once (and after the job's own commands)
+#: settings a block sets at every change (the others once, and after the job's own commands)
 _ACCEL_KEYS = ("accel_klipper", "accel_print", "accel_travel")
-_ONCE_KEYS = ("square_corner_velocity", "junction_deviation", "jerk_x", "jerk_y", "min_cruise_ratio",
-              "max_accel_x", "max_accel_y")
 
 
 def _n(v: float) -> str:
@@ -107,9 +105,7 @@ def _feature_inserts(job: Job, firmware: str, fc: FeatureCommands) -> dict[int, 
     """{source line (1-based): lines to insert before it} for the per-feature commands."""
     dialect = _dialect(firmware, fc)
     values = move_settings(job, fc)
-    accel_keys = [k for k in _ACCEL_KEYS if k in values]
-    once_keys = [k for k in _ONCE_KEYS if k in values]
-    accel = np.stack([values[k] for k in accel_keys], axis=1)
+    accel = np.stack([values[k] for k in _ACCEL_KEYS], axis=1)
     changed = np.ones(job.n_moves, bool)
     changed[1:] = np.any(accel[1:] != accel[:-1], axis=1)
     again = np.zeros(job.n_moves, bool)          # the job's own limit commands stand before these moves
@@ -118,13 +114,13 @@ def _feature_inserts(job: Job, firmware: str, fc: FeatureCommands) -> dict[int, 
             again[ev.move] = True
     again[0] = True
     first_of_line = np.concatenate(([True], job.line[1:] != job.line[:-1]))
-    cls = effective_classes(job) if fc.junction == "scv" else None
+    # what the comment names: the class Klipper's one acceleration follows, else the feature label
+    names, index = (FEATURE_CLASSES, effective_classes(job)) if fc.junction == "scv" else (job.features, job.feature)
     out: dict[int, list[str]] = {}
     for i in np.flatnonzero((changed | again) & first_of_line):
-        row = {k: float(values[k][i]) for k in accel_keys + once_keys}
+        row = {k: float(v[i]) for k, v in values.items()}
         lines = dialect.once(row) if again[i] else []
-        what = FEATURE_CLASSES[cls[i]] if cls is not None else job.features[job.feature[i]]
-        lines.append(f"{dialect.accel(row)} ; ringtune: {what}")
+        lines.append(f"{dialect.accel(row)} ; ringtune: {names[index[i]]}")
         out[int(job.line[i])] = lines
     return out
 
