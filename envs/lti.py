@@ -83,13 +83,6 @@ def response(sysm: LinearSystem, motion, times: np.ndarray, x0: np.ndarray | Non
     return x[:, :n], x[:, n:]
 
 
-def frequency_response(sysm: LinearSystem, freqs: np.ndarray, axis: int) -> np.ndarray:
-    """Complex head-acceleration transmissibility on ``axis`` (0 x, 1 y) for commanded
-    acceleration on the same axis: ``(a_cmd + Σ share·q̈)/a_cmd`` at ``freqs`` (Hz), (F,)."""
-    unit = (1.0, 0.0) if axis == 0 else (0.0, 1.0)
-    return frequency_response_along(sysm, freqs, unit)[:, axis]
-
-
 def frequency_response_along(sysm: LinearSystem, freqs: np.ndarray, direction) -> np.ndarray:
     """Complex head acceleration on x and y, (F, 2), per unit of commanded acceleration along the
     unit vector ``direction`` (dx, dy) at ``freqs`` (Hz): ``d + Σ share·q̈`` per axis. A diagonal

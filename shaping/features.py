@@ -101,11 +101,6 @@ def feature_class(label: str) -> str:
     return "other"
 
 
-def is_visible(label: str) -> bool:
-    """Whether moves with this raw label are on the surface a person sees (:data:`VISIBLE`)."""
-    return feature_class(label) in VISIBLE
-
-
 def class_indices(labels: list[str]) -> np.ndarray:
     """(len(labels),) index into :data:`FEATURE_CLASSES` of each raw label's class."""
     return np.array([FEATURE_CLASSES.index(feature_class(lab)) for lab in labels], np.int64)

@@ -135,13 +135,6 @@ def builtin_test_print() -> Job:
 
 
 # -- windows ------------------------------------------------------------------------------------
-def move_visibility(plan) -> np.ndarray:
-    """(n moves,) True where the move's feature label is a visible class (unlabelled included)."""
-    mv = plan.moves
-    seen = np.array([feature_class(name) in VISIBLE for name in mv.features], bool)
-    return seen[mv.feature] if len(mv.feature) else np.zeros(0, bool)
-
-
 def _corner_candidates(plan, tau: float = 0.02):
     """Junctions inside extrusion: time, xy velocity change over ±tau (mm/s), line, index of the
     move after the junction."""
