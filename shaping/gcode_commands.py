@@ -54,12 +54,14 @@ WORD_SETTINGS = {
     "M566": tuple((ax, f"jerk_{ax.lower()}", lambda v: v / 60.0) for ax in AXES),
 }
 
-#: Klipper's SET_VELOCITY_LIMIT parameters -> the settings they set
+#: Klipper's SET_VELOCITY_LIMIT parameters -> the settings they set (ACCEL: also the print and
+#: travel accelerations)
 VELOCITY_LIMIT_SETTINGS = {
-    "VELOCITY": "velocity", "ACCEL": "accel_klipper", "SQUARE_CORNER_VELOCITY": "square_corner_velocity",
-    "ACCEL_TO_DECEL": "accel_to_decel", "MINIMUM_CRUISE_RATIO": "min_cruise_ratio",
+    "VELOCITY": ("velocity",), "ACCEL": ("accel_klipper", "accel_print", "accel_travel"),
+    "SQUARE_CORNER_VELOCITY": ("square_corner_velocity",),
+    "ACCEL_TO_DECEL": ("accel_to_decel",), "MINIMUM_CRUISE_RATIO": ("min_cruise_ratio",),
     # Kalico's limited_* kinematics (toolhead.py: only when the kinematics has them)
-    "X_ACCEL": "max_accel_x", "Y_ACCEL": "max_accel_y"}
+    "X_ACCEL": ("max_accel_x",), "Y_ACCEL": ("max_accel_y",)}
 
 
 class SettingCommands:
@@ -87,14 +89,12 @@ class SettingCommands:
     def _m204(self, s, p, t, r) -> None:
         """M204 S (print, travel and Klipper's one acceleration), P (print), T (travel), R (retract);
         without S, Klipper's acceleration is the lower of P and T."""
-        if s is not None:
-            for k in ("accel_print", "accel_travel", "accel_klipper"):
-                self._set(k, s)
-        for key, v in (("accel_print", p), ("accel_travel", t), ("accel_retract", r)):
+        klipper = s if s is not None else min((x for x in (p, t) if x is not None), default=None)
+        given = (("accel_print", p if p is not None else s), ("accel_travel", t if t is not None else s),
+                 ("accel_retract", r), ("accel_klipper", klipper))
+        for key, v in given:
             if v is not None:
                 self._set(key, v)
-        if s is None and (p is not None or t is not None):
-            self._set("accel_klipper", min(x for x in (p, t) if x is not None))
 
     def _extended(self, code: str, lineno: int) -> None:
         where = self._where(lineno)
@@ -127,16 +127,14 @@ class SettingCommands:
             x = num(v, k + "=", where)
             if x < 0 or (k == "MINIMUM_CRUISE_RATIO" and x >= 1):
                 raise RingtuneError(f"SET_VELOCITY_LIMIT {k}={v} is out of range", where)
-            self._set(VELOCITY_LIMIT_SETTINGS[k], x)
-            if k == "ACCEL":
-                self._set("accel_print", x)
-                self._set("accel_travel", x)
+            for key in VELOCITY_LIMIT_SETTINGS[k]:
+                self._set(key, x)
             params[k] = x
 
     # -- Klipper TUNING_TOWER: a command re-run with a parameter that follows the print height --
     def _tower_start(self, params: dict, lineno: int, code: str) -> None:
         where = self._where(lineno)
-        if "COMMAND" not in params or "PARAMETER" not in params:
+        if not {"COMMAND", "PARAMETER"} <= params.keys():
             raise RingtuneError("TUNING_TOWER needs COMMAND= and PARAMETER=", where)
         nums = {}
         for key in ("START", "FACTOR", "BAND", "SKIP", "STEP_DELTA", "STEP_HEIGHT"):

@@ -44,6 +44,12 @@ def _num(v) -> float | None:
     return x if math.isfinite(x) else None
 
 
+def _indexed(table: tuple, v) -> str | None:
+    """``table[int(v)]`` for a numeric ``v`` inside the table, else None."""
+    i = _num(v)
+    return table[int(i)] if i is not None and 0 <= int(i) < len(table) else None
+
+
 def _set_axis(cfg: dict, ax: str, shaper: str | None, freq: float | None, damping: float | None) -> None:
     """Apply one axis's change: frequency 0 or shaper ``none`` turns it off."""
     if freq is not None and freq <= 0 or shaper == "none":
@@ -75,9 +81,7 @@ def _m593(cfg: dict, p: dict) -> None:
         for ax in "xy":
             _set_axis(cfg, ax, _RRF_NAMES.get(name, name), _num(p.get("F")), _num(p.get("S")))
         return
-    kind = None
-    if "T" in p and _num(p["T"]) is not None:       # Prusa: T<type index>
-        kind = _PRUSA_TYPES[int(_num(p["T"]))] if 0 <= int(_num(p["T"])) < len(_PRUSA_TYPES) else None
+    kind = _indexed(_PRUSA_TYPES, p.get("T"))     # Prusa: T<type index>
     for ax in _axes(p):
         freq = _num(p.get("F"))
         shaper = kind
@@ -91,10 +95,9 @@ def _m493(cfg: dict, p: dict) -> None:
         for ax in "xy":
             _set_axis(cfg, ax, "none", None, None)
         return
-    if "C" not in p and "A" not in p and "I" not in p:
+    if not any(k in p for k in "CAI"):
         return
-    mode = _num(p.get("C"))
-    kind = _FTM_MODES[int(mode)] if mode is not None and 0 <= int(mode) < len(_FTM_MODES) else None
+    kind = _indexed(_FTM_MODES, p.get("C"))
     for ax in _axes(p):
         _set_axis(cfg, ax, kind, _num(p.get("A")), _num(p.get("I")))
 
