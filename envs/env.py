@@ -2,12 +2,12 @@
 
 Registered ids (see ``ringtune.envs``): ``ringtune/Tune-v0`` (a new random printer every episode)
 and ``ringtune/TuneFixed-v0`` (one fixed printer, default the embedded Ender-3-class machine).
+The action encoding is :mod:`ringtune.envs.actions`, the observation's spectrum parts
+:mod:`ringtune.envs.observation`, the randomised printers :mod:`ringtune.envs.random_printer`.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
@@ -18,15 +18,18 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ringtune.envs.accel_model import model_accel
+from ringtune.envs.actions import ActionSpec, decode_action, encode_config
 from ringtune.envs.evaluate import evaluate_many, planned_job, resolve_printer
 from ringtune.envs.judgement import DEFAULT_WEIGHTS, JUDGEMENT, baseline_config, judged_cost
 from ringtune.envs.metrics import Metrics
 from ringtune.envs.mujoco_model import linear_system
+from ringtune.envs.observation import log_position, peak_features, spectrum_features, spectrum_peaks
 from ringtune.envs.printer import printer_from_dict
+from ringtune.envs.random_printer import random_printer_dict
 from ringtune.envs.sim import resonance_test
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.shapers import available_shapers, max_damping
+from ringtune.shaping.shapers import available_shapers
 
 #: scales s in the squashing m / (m + s) of the observed metrics
 METRIC_SCALES = {"time_ratio": 1.0, "path_error_mm": 0.1, "overshoot_mm": 0.1, "ringing_mm": 0.02}
@@ -34,303 +37,7 @@ METRIC_SCALES = {"time_ratio": 1.0, "path_error_mm": 0.1, "overshoot_mm": 0.1, "
 N_METRICS = 7
 
 
-# -- the action encoding -------------------------------------------------------------------------
-@dataclass(frozen=True)
-class ActionSpec:
-    """How a normalised action in [-1, 1]^n maps to a :class:`TuneConfig` (see :func:`decode_action`).
-
-    Attributes:
-        firmware: target firmware (decides the shaper flavour, centred or causal).
-        shapers: shaper types the action chooses among (``"none"`` allowed).
-        per_axis: separate type, F, S for X and Y (else one set shared by both axes).
-        freq_range: Hz, shaper frequency range (log scale).
-        damping_range: shaper damping ratio range (linear; clipped to what the shaper allows).
-        freq_limit_max: Hz, top of the frequency-limit range; ``freq_limit_off`` Hz and below = off.
-        tune_accel: whether the last action entry chooses the acceleration.
-        accel_range: mm/s², acceleration range (log scale) when ``tune_accel``.
-        freq_anchor: ``"absolute"`` (F on a log scale over ``freq_range``) or ``"peak"`` (F
-            relative to the axis's resonance peak: ``f_peak·anchor_span^v``, v in [-1, 1]).
-        anchor_span: with ``freq_anchor="peak"``, F covers ``[f_peak/span, f_peak·span]``.
-        freq_limit_gate: the frequency limit is off for the lower half of its action entry and
-            spans ``freq_limit_off``–``freq_limit_max`` Hz over the upper half (off unless chosen).
-        accel_anchor: ``"absolute"`` (acceleration on a log scale over ``accel_range``) or
-            ``"model"`` (relative to an anchor acceleration ``a_anchor·anchor_span^v``, v in [-1, 1];
-            the env computes the anchor from the starting configuration's metrics, see
-            :func:`model_accel`).
-        accel_start: mm/s², the anchor before it is known (what the starting action decodes with).
-    """
-
-    firmware: str = "klipper"
-    shapers: tuple[str, ...] = ("none", "zv", "mzv", "zvd", "ei", "2hump_ei", "3hump_ei")
-    per_axis: bool = True
-    freq_range: tuple[float, float] = (15.0, 150.0)
-    damping_range: tuple[float, float] = (0.02, 0.25)
-    freq_limit_max: float = 120.0
-    freq_limit_off: float = 10.0
-    tune_accel: bool = False
-    accel_range: tuple[float, float] = (1000.0, 10000.0)
-    freq_anchor: str = "absolute"
-    anchor_span: float = 2.0
-    freq_limit_gate: bool = False
-    accel_anchor: str = "absolute"
-    accel_start: float = 4000.0
-
-    @property
-    def size(self) -> int:
-        return (6 if self.per_axis else 3) + 1 + (1 if self.tune_accel else 0)
-
-    def labels(self) -> list[str]:
-        axis = (["shaper_x", "freq_x", "damping_x", "shaper_y", "freq_y", "damping_y"] if self.per_axis
-                else ["shaper", "freq", "damping"])
-        return axis + ["freq_limit_hz"] + (["accel"] if self.tune_accel else [])
-
-
-def _unit(u: float) -> float:
-    """[-1, 1] -> [0, 1] (clipped)."""
-    return (min(max(float(u), -1.0), 1.0) + 1.0) / 2.0
-
-
-def _log_position(x, lo: float, hi: float):
-    """Where ``x`` sits on a log scale from ``lo`` (−1) to ``hi`` (+1); numbers or arrays."""
-    return 2.0 * np.log(np.asarray(x, float) / lo) / math.log(hi / lo) - 1.0
-
-
-def _around(anchor: float, span: float, u: float, lo: float, hi: float) -> float:
-    """``anchor·span^v`` with ``v = 2u − 1`` (``u`` in [0, 1]), clipped to [lo, hi]: a residual
-    around a physical anchor, from ``anchor/span`` to ``anchor·span``."""
-    return min(max(anchor * span ** (2.0 * u - 1.0), lo), hi)
-
-
-def _unit_around(x: float, anchor: float, span: float) -> float:
-    """The ``u`` for which :func:`_around` gives ``x`` (before clipping)."""
-    return (math.log(x / anchor) / math.log(span) + 1.0) / 2.0
-
-
-def _anchors(spec: ActionSpec, peaks) -> tuple[float, float] | None:
-    """(X, Y) anchor frequencies in Hz for ``spec`` (None for absolute decoding); a shared
-    setting anchors both axes at the geometric mean of the peaks."""
-    if spec.freq_anchor == "absolute":
-        return None
-    if spec.freq_anchor != "peak":
-        raise RingtuneError(f"freq_anchor must be 'absolute' or 'peak', not {spec.freq_anchor!r}", "freq_anchor")
-    if peaks is None:
-        raise RingtuneError("peak-relative actions need the resonance peaks (X, Y) in Hz", "peaks")
-    fx, fy = (float(peaks[0]), float(peaks[1]))
-    if not (fx > 0 and fy > 0):
-        raise RingtuneError(f"resonance peaks must be > 0 Hz, not {peaks}", "peaks")
-    return (fx, fy) if spec.per_axis else (math.sqrt(fx * fy),) * 2
-
-
-def decode_action(action, spec: ActionSpec, peaks=None, accel_anchor: float | None = None) -> TuneConfig:
-    """The configuration an action in [-1, 1]^spec.size stands for.
-
-    Per axis (or shared) triple ``(type, F, S)``: type = ``spec.shapers[k]`` with ``k`` the index
-    of the equal-width bin of [-1, 1] the value falls in; F = ``f_lo·(f_hi/f_lo)^u`` (log scale,
-    ``u`` = value mapped to [0, 1]) or, with ``spec.freq_anchor == "peak"``, F =
-    ``f_peak·span^v`` (``v`` the value in [-1, 1], ``f_peak`` the axis's entry of ``peaks`` (X, Y)
-    in Hz, span = ``spec.anchor_span``), clipped to ``freq_range``; S = ``s_lo + u·(s_hi − s_lo)``,
-    clipped to the shaper's largest allowed damping. Then frequency limit ``u·freq_limit_max`` Hz,
-    off (0) at or below ``freq_limit_off`` (with ``freq_limit_gate``: off for ``u ≤ 1/2``, else
-    ``off + (2u − 1)·(max − off)`` Hz); and, with ``tune_accel``, acceleration
-    ``a_lo·(a_hi/a_lo)^u`` mm/s² (with ``spec.accel_anchor == "model"``: ``a·span^v`` clipped to
-    ``accel_range``, ``a`` = ``accel_anchor`` mm/s², default ``spec.accel_start``). Values outside
-    [-1, 1] are clipped.
-    """
-    a = np.asarray(action, dtype=float).ravel()
-    if a.shape != (spec.size,):
-        raise RingtuneError(f"action must have {spec.size} entries ({', '.join(spec.labels())}), "
-                            f"not shape {np.shape(action)}", "action")
-    flavor = TuneConfig(firmware=spec.firmware, shaper_x="none", shaper_y="none").flavor
-    anchors = _anchors(spec, peaks)
-
-    def triple(i, axis):
-        k = min(int(_unit(a[i]) * len(spec.shapers)), len(spec.shapers) - 1)
-        name = spec.shapers[k]
-        f_lo, f_hi = spec.freq_range
-        if anchors is None:
-            freq = f_lo * (f_hi / f_lo) ** _unit(a[i + 1])
-        else:
-            freq = _around(anchors[axis], spec.anchor_span, _unit(a[i + 1]), f_lo, f_hi)
-        s_lo, s_hi = spec.damping_range
-        damping = s_lo + _unit(a[i + 2]) * (s_hi - s_lo)
-        if name != "none":
-            damping = min(damping, max_damping(name, flavor))
-        return name, freq, damping
-
-    x = triple(0, 0)
-    y = triple(3, 1) if spec.per_axis else x
-    j = 6 if spec.per_axis else 3
-    if spec.freq_limit_gate:
-        u = _unit(a[j])
-        limit = 0.0 if u <= 0.5 else spec.freq_limit_off + (2.0 * u - 1.0) * (spec.freq_limit_max - spec.freq_limit_off)
-    else:
-        limit = _unit(a[j]) * spec.freq_limit_max
-    accel = None
-    if spec.tune_accel:
-        lo, hi = spec.accel_range
-        if spec.accel_anchor == "model":
-            accel = _around(float(accel_anchor or spec.accel_start), spec.anchor_span, _unit(a[j + 1]), lo, hi)
-        else:
-            accel = lo * (hi / lo) ** _unit(a[j + 1])
-    return TuneConfig(firmware=spec.firmware, shaper_x=x[0], freq_x=x[1], damping_x=x[2],
-                      shaper_y=y[0], freq_y=y[1], damping_y=y[2],
-                      freq_limit_hz=limit if limit > spec.freq_limit_off else 0.0, accel=accel)
-
-
-def encode_config(config: TuneConfig, spec: ActionSpec, peaks=None, accel_anchor: float | None = None) -> np.ndarray:
-    """The action (centre of the shaper's bin) that decodes to ``config`` (up to clipping);
-    ``peaks`` (X, Y) Hz and ``accel_anchor`` mm/s² as for :func:`decode_action`."""
-    anchors = _anchors(spec, peaks)
-
-    def back(u):
-        return 2.0 * min(max(u, 0.0), 1.0) - 1.0
-
-    def triple(ax, i):
-        name, freq, damping = config.axis(ax)
-        k = spec.shapers.index(name) if name in spec.shapers else 0
-        f_lo, f_hi = spec.freq_range
-        s_lo, s_hi = spec.damping_range
-        f = min(max(freq, f_lo), f_hi)
-        if anchors is None:
-            uf = math.log(f / f_lo) / math.log(f_hi / f_lo)
-        else:
-            uf = _unit_around(f, anchors[i], spec.anchor_span)
-        return [back((k + 0.5) / len(spec.shapers)), back(uf), back((damping - s_lo) / (s_hi - s_lo))]
-
-    out = triple("x", 0) + (triple("y", 1) if spec.per_axis else [])
-    if config.freq_limit_hz <= 0:
-        out.append(-1.0)
-    elif spec.freq_limit_gate:
-        lim = max(config.freq_limit_hz, spec.freq_limit_off)
-        out.append(back((1.0 + (lim - spec.freq_limit_off) / (spec.freq_limit_max - spec.freq_limit_off)) / 2.0))
-    else:
-        out.append(back(config.freq_limit_hz / spec.freq_limit_max))
-    if spec.tune_accel:
-        lo, hi = spec.accel_range
-        acc = min(max(config.accel or lo, lo), hi)
-        if spec.accel_anchor == "model":
-            out.append(back(_unit_around(acc, float(accel_anchor or spec.accel_start), spec.anchor_span)))
-        else:
-            out.append(back(math.log(acc / lo) / math.log(hi / lo)))
-    return np.asarray(out, dtype=np.float32)
-
-
-# -- random printers -------------------------------------------------------------------------------
-def random_printer_dict(rng: np.random.Generator, base: dict | None = None) -> dict:
-    """A printer description (TOML mapping) drawn from the randomisation ranges.
-
-    Per axis: primary mode 20–130 Hz (log-uniform), damping 0.02–0.2 (log-uniform); with
-    probability 1/2 one extra mode at 1.3–3× the primary carrying 5–30 % of the response; moving
-    mass 0.3–1.5 kg (X) / 0.5–2.5 kg (Y). Print mass 0–0.5 kg, motor force 15–60 N, kinematics
-    cartesian (3/4) or corexy with belt mismatch ±0.1. Limits are ``base``'s (so plans are shared).
-    """
-    def logu(lo, hi):
-        return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
-
-    def axis(mass_lo, mass_hi):
-        f = logu(20.0, 130.0)
-        modes = [{"freq": f, "damping": logu(0.02, 0.2)}]
-        if rng.uniform() < 0.5:
-            share = float(rng.uniform(0.05, 0.3))
-            modes[0]["share"] = 1.0 - share
-            modes.append({"freq": f * float(rng.uniform(1.3, 3.0)), "damping": logu(0.02, 0.2),
-                          "share": share})
-        return {"mass": float(rng.uniform(mass_lo, mass_hi)), "modes": modes}
-
-    corexy = rng.uniform() < 0.25
-    d = {
-        "name": "random",
-        "kinematics": "corexy" if corexy else "cartesian",
-        "limits": dict((base or {}).get("limits", {})),
-        "x": axis(0.3, 1.5),
-        "y": axis(0.5, 2.5),
-        "print_mass": float(rng.uniform(0.0, 0.5)),
-        "motor": {"force": float(rng.uniform(15.0, 60.0))},
-    }
-    if corexy:
-        d["belts"] = {"mismatch": float(rng.uniform(-0.1, 0.1))}
-    return d
-
-
 # -- the environment ---------------------------------------------------------------------------------
-def spectrum_features(spectra: dict, n_bins: int = 24,
-                      spectrum_range: tuple[float, float] = (10.0, 160.0)) -> np.ndarray:
-    """The observation's spectrum part from resonance-test PSDs ``{"x": (freqs Hz, psd), "y": …}``
-    (simulated here, measured when a policy is applied to a real printer).
-
-    Mean PSD per bin of ``n_bins`` equal bins over ``spectrum_range`` Hz, X then Y,
-    ``1 + log10(psd / max)/3`` clipped to [-1, 1] (X and Y share the max). A missing axis takes
-    the other's spectrum. Returns float32 (2·n_bins,)."""
-    if not spectra:
-        raise RingtuneError("needs at least one resonance spectrum (x or y)", "psd")
-    edges = np.linspace(spectrum_range[0], spectrum_range[1], n_bins + 1)
-    binned = []
-    for axis in ("x", "y"):
-        freqs, psd = spectra.get(axis) or spectra.get("y" if axis == "x" else "x")
-        freqs, psd = np.asarray(freqs, float), np.asarray(psd, float)
-        if freqs.shape != psd.shape or freqs.ndim != 1:
-            raise RingtuneError(f"frequency and PSD columns differ in shape ({freqs.shape} vs {psd.shape})",
-                                f"psd {axis}")
-        idx = np.digitize(freqs, edges) - 1
-        ok = (idx >= 0) & (idx < n_bins)
-        total = np.bincount(idx[ok], weights=psd[ok], minlength=n_bins)
-        count = np.bincount(idx[ok], minlength=n_bins)
-        binned.append(total / np.maximum(count, 1))
-    b = np.concatenate(binned)
-    b = np.log10(np.maximum(b, 1e-300) / max(b.max(), 1e-300))
-    return np.clip(1.0 + b / 3.0, -1.0, 1.0).astype(np.float32)
-
-
-def spectrum_peaks(spectra: dict, spectrum_range: tuple[float, float] = (10.0, 160.0)) -> tuple[float, float]:
-    """(X, Y) Hz: the dominant resonance of each axis's resonance-test PSD (``{"x": (freqs Hz,
-    psd), …}``, simulated or measured): the maximum of ``psd/f`` smoothed over 3 neighbouring
-    bins, searched within ``spectrum_range``. A missing axis takes the other's.
-
-    Why ``psd/f``: Klipper's sweep commands an acceleration amplitude ∝ f, so the PSD is
-    ∝ f²·|T(f)|² (T the transmissibility); the raw maximum drifts to the top of the sweep when a
-    mode sits above it, ``psd/f²`` = |T|² is lifted at low f by the sensor noise; ``psd/f`` picks
-    the resonance on the simulated printers and on the real files (e.g. the Ender-3's 45 Hz X
-    mode rather than its 58 Hz hump)."""
-    if not spectra:
-        raise RingtuneError("needs at least one resonance spectrum (x or y)", "psd")
-    out = []
-    for axis in ("x", "y"):
-        freqs, psd = spectra.get(axis) or spectra.get("y" if axis == "x" else "x")
-        freqs, psd = np.asarray(freqs, float), np.asarray(psd, float)
-        ok = (freqs >= spectrum_range[0]) & (freqs <= spectrum_range[1]) & np.isfinite(psd)
-        if not ok.any():
-            raise RingtuneError(f"no PSD bins within {spectrum_range[0]:g}-{spectrum_range[1]:g} Hz", f"psd {axis}")
-        f, p = freqs[ok], psd[ok] / np.maximum(freqs[ok], 1e-9)
-        if p.size >= 3:
-            p = np.convolve(p, np.ones(3) / 3.0, mode="same")
-        out.append(_refine_peak(f, psd[ok] / np.maximum(f, 1e-9), int(np.argmax(p))))
-    return out[0], out[1]
-
-
-def _refine_peak(f: np.ndarray, p: np.ndarray, k: int) -> float:
-    """Hz: the peak near bin ``k`` of ``p`` between the bins: the vertex of the parabola through
-    the largest unsmoothed bin (``k`` or a neighbour) and its two neighbours in log p, on a uniform
-    grid (a PSD's resolution is fs/nperseg, e.g. 1.56 Hz: 3 % of a 50 Hz resonance, enough to
-    matter for a shaper on it). Falls back to the bin's frequency at the edges or off-grid."""
-    lo, hi = max(k - 1, 0), min(k + 2, p.size)
-    j = lo + int(np.argmax(p[lo:hi]))
-    if j < 1 or j > p.size - 2 or np.any(p[j - 1:j + 2] <= 0):
-        return float(f[k])
-    df = f[j + 1] - f[j]
-    if not (df > 0 and abs((f[j] - f[j - 1]) - df) <= 1e-6 * df):
-        return float(f[j])
-    a, b, c = np.log(p[j - 1:j + 2])
-    den = a - 2.0 * b + c
-    shift = 0.5 * (a - c) / den if den < 0 else 0.0
-    return float(f[j] + float(np.clip(shift, -0.5, 0.5)) * df)
-
-
-def peak_features(peaks, spectrum_range: tuple[float, float] = (10.0, 160.0)) -> np.ndarray:
-    """The observation's peak part: ``2·ln(f/lo)/ln(hi/lo) − 1`` per axis (X, Y), float32 in [-1, 1]."""
-    lo, hi = spectrum_range
-    return _log_position(np.clip(np.asarray(peaks, float), lo, hi), lo, hi).astype(np.float32)
-
-
 def _checked_shapers(firmware: str, shapers) -> tuple[str, ...]:
     """The shapers the policy chooses from: ``shapers`` (default: every one the firmware offers but
     custom), refused when the firmware lacks one."""
@@ -575,7 +282,7 @@ class TuneEnv(gym.Env):
             parts.append(peak_features(self.peaks_, self.spectrum_range))
         if self._n_accel_obs:
             lo, hi = self.spec_.accel_range
-            parts.append(_log_position([min(max(self.accel_anchor_, lo), hi)], lo, hi).astype(np.float32))
+            parts.append(log_position([min(max(self.accel_anchor_, lo), hi)], lo, hi).astype(np.float32))
         return np.concatenate(parts).astype(np.float32)
 
     def cost(self, m: Metrics) -> float:

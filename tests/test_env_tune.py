@@ -11,7 +11,9 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 import ringtune.envs  # noqa: F401  (registers the ids)
-from ringtune.envs.env import ActionSpec, TuneEnv, decode_action, encode_config, random_printer_dict
+from ringtune.envs.actions import ActionSpec, decode_action, encode_config
+from ringtune.envs.env import TuneEnv
+from ringtune.envs.random_printer import random_printer_dict
 from ringtune.envs.printer import printer_from_dict
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
@@ -236,7 +238,7 @@ def test_peak_anchored_encode_then_decode_gives_the_config_back(px, py, vx, vy, 
 
 
 def test_peak_env_finds_the_modes_and_observes_them():
-    from ringtune.envs.env import peak_features
+    from ringtune.envs.observation import peak_features
 
     printer = printer_from_dict({"name": "two-mode", "x": {"modes": [{"freq": 72.0, "damping": 0.05}]},
                                  "y": {"modes": [{"freq": 33.0, "damping": 0.05}]}})

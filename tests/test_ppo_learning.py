@@ -11,7 +11,8 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from ringtune.envs.env import TuneEnv, decode_action  # noqa: E402
+from ringtune.envs.actions import decode_action  # noqa: E402
+from ringtune.envs.env import TuneEnv  # noqa: E402
 from ringtune.envs.printer import load_printer, printer_from_dict  # noqa: E402
 
 SQUARE_JOB = "G21\nG90\nM83\nG1 X20 Y20 F12000\n" + "".join(

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from gymnasium.utils.seeding import np_random
 
-from ringtune.envs.env import TuneEnv, spectrum_features
+from ringtune.envs.env import TuneEnv
+from ringtune.envs.observation import spectrum_features
 from ringtune.envs.sim import resonance_test
 
 
@@ -16,7 +17,7 @@ def test_spectrum_observation_reproduces_the_env_bins():
     obs, _ = env.reset(seed=77)
     # the env draws the printer, then the X and Y resonance tests, from one seeded generator
     rng, _ = np_random(77)
-    from ringtune.envs.env import random_printer_dict
+    from ringtune.envs.random_printer import random_printer_dict
 
     random_printer_dict(rng, env.base_printer.to_dict())
     spectra = {ax: resonance_test(env.printer, ax, rng=rng) for ax in ("x", "y")}
@@ -44,7 +45,7 @@ def test_missing_axis_takes_the_other_and_real_file_is_in_range(data_dir):
 def test_peaks_of_real_files_are_the_known_resonances(data_dir):
     """The anchor of the policy's frequencies on real files: the Ender-3's X resonance is 45 Hz
     (envs/data/ender3.toml, from this file), not its broader 54-68 Hz hump."""
-    from ringtune.envs.env import spectrum_peaks
+    from ringtune.envs.observation import spectrum_peaks
     from ringtune.hardware.accel import read_resonances_csv
 
     p = read_resonances_csv(data_dir / "accel" / "klipper_psd" / "bassco_ender3" / "resonances_x_20210821_152037.csv")
@@ -58,7 +59,7 @@ def test_peak_is_found_between_the_bins(f0):
     """A single resonance |T(f)|² (ζ = 0.05) seen the way Klipper's sweep records it (PSD ∝ f²·|T|²)
     on Klipper's 1.5625 Hz grid: the anchor lands within 1.5 % of the peak of psd/f, not on the
     nearest bin (up to 0.78 Hz = 3 % off at 24 Hz)."""
-    from ringtune.envs.env import spectrum_peaks
+    from ringtune.envs.observation import spectrum_peaks
 
     f = np.arange(0.0, 200.0, 200.0 / 128)
     r = f / f0

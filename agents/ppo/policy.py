@@ -48,7 +48,8 @@ import numpy as np
 from ringtune.agents.ppo.callbacks import curve_callback, held_out_callback
 from ringtune.agents.ppo.reward import ReferenceRelative
 from ringtune.agents.ppo.rl import rl
-from ringtune.envs.env import TuneEnv, encode_config
+from ringtune.envs.actions import encode_config
+from ringtune.envs.env import TuneEnv
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
