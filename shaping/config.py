@@ -197,7 +197,7 @@ class TuneConfig:
         fa = kwargs.get("feature_accel")
         if isinstance(fa, dict):
             kwargs["feature_accel"] = {str(c): _number(v, f"{where}: feature_accel.{c}") for c, v in fa.items()}
-        elif "feature_accel" in kwargs and fa is None:
+        elif fa is None:                 # null, as absent: one acceleration for the whole job
             kwargs["feature_accel"] = {}
         try:
             cfg = cls(**kwargs, extra=extra)

@@ -56,6 +56,11 @@ def _split_code(line: bytes) -> tuple[bytes, bytes, bytes]:
     return code, cs, comment + end
 
 
+def _line_end(lines: list[bytes]) -> bytes:
+    """The file's line ending (its first line's): CR LF or LF."""
+    return b"\r\n" if lines and lines[0].endswith(b"\r\n") else b"\n"
+
+
 def _with_checksum(code: bytes, cs: bytes) -> bytes:
     if not cs:
         return code
@@ -81,7 +86,7 @@ def limit_gcode_bytes(data: bytes, limit_hz: float, method: str = "sections",
     for ln, r in zip(job.line.tolist(), ratio.tolist()):
         line_ratio[ln] = min(r, line_ratio.get(ln, 1.0))
     lines = data.splitlines(keepends=True)
-    nl = b"\r\n" if lines and lines[0].endswith(b"\r\n") else b"\n"
+    nl = _line_end(lines)
     out = []
     modal_in = modal_out = 1500.0      # F (mm/min) the input / output file commands here (F1500 default)
     changed = added = replaced = 0
@@ -90,7 +95,7 @@ def limit_gcode_bytes(data: bytes, limit_hz: float, method: str = "sections",
             out.append(line)
             continue
         code, cs, tail = _split_code(line)
-        m = _F_WORD.search(code, _MOVE.match(code).end()) if _MOVE.match(code) else None
+        m = _F_WORD.search(code, _MOVE.match(code).end())      # the move word is before any comment or checksum
         if m:
             try:
                 modal_in = float(m.group(2))
@@ -144,7 +149,7 @@ _ACCEL_LINE = re.compile(rb"^(\s*(?:[Nn]\s*-?\d+\s*)?)(M204|M201|SET_VELOCITY_LI
 _LETTER_WORD = re.compile(rb"(?<![A-Za-z_])([A-Za-z])\s*([-+]?(?:\d+\.?\d*|\.\d+))")
 _KLIPPER_ACCEL = re.compile(rb"(?i)(?<![A-Za-z_])(ACCEL(?:_TO_DECEL)?)\s*=\s*([-+]?(?:\d+\.?\d*|\.\d+))")
 _SCALED = {b"M204": (b"P", b"S", b"T"), b"M201": (b"X", b"Y")}
-_PRINTING = {b"M204": (b"P", b"S")}
+_PRINTING = {b"M204": (b"P", b"S"), b"SET_VELOCITY_LIMIT": (b"ACCEL",)}
 
 
 @dataclass
@@ -165,22 +170,17 @@ def _accel_words(code: bytes, word: bytes):
             if m.group(1).upper() in _SCALED[word]]
 
 
-def _printing_accels(lines: list[bytes], source: str) -> list[float]:
-    """Every printing acceleration the file sets (M204 P/S, SET_VELOCITY_LIMIT ACCEL), mm/s²."""
+def _printing_accels(lines: list[bytes]) -> list[float]:
+    """Every printing acceleration the file sets (M204 P/S, SET_VELOCITY_LIMIT ACCEL), mm/s² (the
+    patterns match numbers only)."""
     printing = []
-    for ln, line in enumerate(lines, 1):
+    for line in lines:
         code = _split_code(line)[0]
         m = _ACCEL_LINE.match(code)
         if not m:
             continue
         word = m.group(2).upper()
-        for w, letter in _accel_words(code, word):
-            try:
-                value = float(w.group(2))
-            except ValueError:  # pragma: no cover - the pattern only matches numbers
-                raise RingtuneError(f"{letter.decode()}{w.group(2).decode()} is not a number", f"{source}:{ln}") from None
-            if letter == b"ACCEL" or letter in _PRINTING.get(word, ()):
-                printing.append(value)
+        printing += [float(w.group(2)) for w, letter in _accel_words(code, word) if letter in _PRINTING.get(word, ())]
     return printing
 
 
@@ -207,10 +207,10 @@ def rewrite_accel_bytes(data: bytes, accel: float, source: str = "<gcode>") -> t
     if not (accel > 0 and np.isfinite(accel)):
         raise RingtuneError(f"must be an acceleration > 0 mm/s², not {accel!r}", "--accel")
     lines = data.splitlines(keepends=True)
-    nl = b"\r\n" if lines and lines[0].endswith(b"\r\n") else b"\n"
-    printing = _printing_accels(lines, source)
+    nl = _line_end(lines)
+    printing = _printing_accels(lines)
     notes: list[str] = []
-    if not printing or max(printing) <= 0:
+    if max(printing, default=0.0) <= 0:
         header = (f"; ringtune limit --accel {accel:g}: the file sets no printing acceleration (no M204 P/S, "
                   "no SET_VELOCITY_LIMIT ACCEL), so nothing was changed: the printer's own acceleration applies")
         notes.append("the file sets no printing acceleration: set the printer's (ringtune push / export)")
@@ -219,7 +219,7 @@ def rewrite_accel_bytes(data: bytes, accel: float, source: str = "<gcode>") -> t
     factor = accel / reference
     scaled = [_scaled_line(line, factor) for line in lines]
     changed = sum(s is not None for s in scaled)
-    out = [line if s is None else s for line, s in zip(lines, scaled)]
+    out = [s or line for line, s in zip(lines, scaled)]
     if len(set(printing)) > 1:
         notes.append(f"{len(set(printing))} printing accelerations in the file (features): all scaled by "
                      f"{factor:.4g}, so their ratios stay")

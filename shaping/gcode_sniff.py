@@ -70,7 +70,8 @@ def not_gcode(head: bytes) -> str | None:
         return "not a text file (binary data), not G-code"
     code = _first_code(head, text)
     # G-code if the first command is one, or most are (a stray header line is not a verdict)
-    if not code or _GCODE.match(code[0]) or sum(bool(_GCODE.match(s)) for s in code) >= 0.5 * len(code):
+    # (no code lines at all: nothing contradicts G-code)
+    if sum(bool(_GCODE.match(s)) for s in code) >= 0.5 * len(code) or _GCODE.match(code[0]):
         return None
     for what, rx in _KINDS:
         if sum(bool(rx.match(s)) or s.startswith("#") for s in code) >= 0.5 * len(code):

@@ -39,6 +39,12 @@ def prusa_weight_frequency(f0: float, grams: float, delta: float = PRUSA_WEIGHT_
     return f0 + delta * min(max(grams, 0.0) / limit, 1.0)
 
 
+#: the line that sets Y's frequency, by firmware family: ``f`` Hz, ``grams`` g on the bed (Prusa;
+#: Buddy refuses W ≤ 0), RepRapFirmware's one shaper for all axes (``shaper``, ``damping``)
+_BAND_LINES = {"klipper": "SET_INPUT_SHAPER SHAPER_FREQ_Y={f}", "prusa": "M74 W{grams:.0f}",
+               "marlin-ftm": "M493 Y A{f}", "marlin": "M593 Y F{f}", "rrf": 'M593 P"{shaper}" F{f} S{damping}'}
+
+
 def band_commands(firmware: str, freq_y: float, grams: float, *, accel: float | None = None,
                   shaper: str = "mzv", damping: float = 0.1) -> list[str]:
     """The lines that set Y's shaper frequency ``freq_y`` (Hz) for a band with ``grams`` of print on
@@ -47,18 +53,8 @@ def band_commands(firmware: str, freq_y: float, grams: float, *, accel: float | 
     if firmware not in FIRMWARES:
         raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "firmware")
     fw = FIRMWARES[firmware]
-    f = _num(freq_y, min(fw.freq.decimals, 2))
-    if fw.family == "klipper":
-        out = [f"SET_INPUT_SHAPER SHAPER_FREQ_Y={f}"]
-    elif fw.family == "prusa":
-        out = [f"M74 W{max(grams, 1.0):.0f}"]      # Buddy refuses W ≤ 0
-    elif fw.family == "marlin-ftm":
-        out = [f"M493 Y A{f}"]
-    elif fw.family == "marlin":
-        out = [f"M593 Y F{f}"]
-    else:                      # RepRapFirmware: one shaper, all axes
-        native = dict(fw.native_names).get(shaper, shaper)
-        out = [f'M593 P"{native}" F{f} S{_num(damping, fw.damping.decimals)}']
+    out = [_BAND_LINES[fw.family].format(f=_num(freq_y, min(fw.freq.decimals, 2)), grams=max(grams, 1.0),
+                                         shaper=fw.native(shaper), damping=_num(damping, fw.damping.decimals))]
     if accel:
         out.append(f"SET_VELOCITY_LIMIT ACCEL={accel:.0f}" if fw.family == "klipper" else f"M204 P{accel:.0f}")
     return out
