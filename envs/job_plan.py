@@ -122,6 +122,11 @@ def hms(seconds: float) -> str:
     return f"{h}h {m:02d}m {s:02d}s" if h else f"{m}m {s:02d}s"
 
 
+def _highest(freqs: list[dict]) -> float:
+    """Hz of the highest of planned or commanded ``freqs`` (ranked, highest first), 0 when none."""
+    return freqs[0]["freq_hz"] if freqs else 0.0
+
+
 @dataclass
 class JobPlan:
     """A planned job: what ``ringtune plan`` reports (:meth:`to_dict`: its JSON keys but
@@ -153,8 +158,7 @@ class JobPlan:
             "moves": len(p.moves), "extruding_moves": int(p.moves.extruding.sum()), "lines": self.job.n_lines,
             "path_length_mm": float(p.moves.length.sum()), "time_by_feature": p.time_by_feature(),
             "top_frequencies": self.top, "top_commanded_frequencies": self.top_commanded,
-            "max_planned_freq_hz": self.top[0]["freq_hz"] if self.top else 0.0,
-            "max_commanded_freq_hz": self.top_commanded[0]["freq_hz"] if self.top_commanded else 0.0,
+            "max_planned_freq_hz": _highest(self.top), "max_commanded_freq_hz": _highest(self.top_commanded),
             "shaper_events": shaper_events, "events": kinds,
             "slicer_estimate_s": self.estimate,
             "vs_slicer": (p.print_time / self.estimate - 1) if self.estimate else None,
@@ -215,9 +219,7 @@ def _frequencies(path, limited: bytes, printer=None) -> dict:
     for key, job in (("before", read_gcode(path)), ("after", read_gcode(limited, source=str(path)))):
         limits, junction, why = planning_limits(job, path, printer)
         configured = plan_with_config(job, limits)
-        top = planned_frequencies(configured.plan, 1)
-        cmd = commanded_frequencies(configured.job, 1)
-        out["planned_hz"][key] = top[0]["freq_hz"] if top else 0.0
-        out["commanded_hz"][key] = cmd[0]["freq_hz"] if cmd else 0.0
+        out["planned_hz"][key] = _highest(planned_frequencies(configured.plan, 1))
+        out["commanded_hz"][key] = _highest(commanded_frequencies(configured.job, 1))
     out.update(junction=junction, junction_reason=why)
     return out

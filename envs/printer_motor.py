@@ -10,6 +10,10 @@ from ringtune.envs.toml_checks import flag, number, refuse_unknown
 from ringtune.shaping.errors import RingtuneError
 
 _OLD_FORM_KEYS = {"force", "corner_speed"}
+#: given on an axis, each of these replaces the base's other form of the same thing (the belt per
+#: revolution, the rotor)
+_OTHER_FORM = {"rotation_distance": "steps_per_mm", "steps_per_mm": "rotation_distance",
+               "rotor_inertia": "rotor_mass", "rotor_mass": "rotor_inertia"}
 _MOTOR_KEYS = {"force", "corner_speed", "rotor_mass", "friction", "steps_per_mm", "microsteps",
                "rotor_damping", "slip", "name", *MOTOR_CONSTANT_KEYS, *MOTOR_DRIVE_KEYS}
 
@@ -29,12 +33,7 @@ def inherit_motor(base: dict, own: dict) -> dict:
         drop = {"name", *MOTOR_CONSTANT_KEYS, "rotor_inertia"}
     else:
         drop = set()
-    # given on the axis in either form, the belt per revolution and the rotor win over the base's
-    for a, b in (("rotation_distance", "steps_per_mm"), ("rotor_inertia", "rotor_mass")):
-        if a in own:
-            drop.add(b)
-        if b in own:
-            drop.add(a)
+    drop |= {_OTHER_FORM[k] for k in own.keys() & _OTHER_FORM.keys()}
     return {**{k: v for k, v in base.items() if k not in drop}, **own}
 
 

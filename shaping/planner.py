@@ -353,11 +353,8 @@ def _job_jerk(job: Job, base: tuple) -> tuple | None:
 def guess_junction(job: Job) -> str:
     """The junction rule a job's own commands point to: Klipper's SET_VELOCITY_LIMIT
     SQUARE_CORNER_VELOCITY -> scv, M205 J -> jd, M205 X/Y -> jerk, else scv."""
-    fs = job.file_setting
-    if fs("square_corner_velocity") == fs("square_corner_velocity"):
-        return "scv"
-    if fs("junction_deviation") == fs("junction_deviation"):
-        return "jd"
-    if fs("jerk_x") == fs("jerk_x") or fs("jerk_y") == fs("jerk_y"):
-        return "jerk"
+    for key, rule in (("square_corner_velocity", "scv"), ("junction_deviation", "jd"), ("jerk_x", "jerk"),
+                      ("jerk_y", "jerk")):
+        if job.file_setting(key) == job.file_setting(key):      # set (not NaN)
+            return rule
     return "scv"
