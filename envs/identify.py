@@ -297,6 +297,11 @@ def _decay_warnings(r2: float, modes: list) -> list[str]:
     return out
 
 
+def _per_mode(freqs, damping: float) -> np.ndarray:
+    """The decay fit's parameter vector [f₀, ζ, f₁, ζ, …]: each mode's frequency (Hz) with ``damping``."""
+    return np.column_stack([freqs, np.full(len(freqs), damping)]).ravel()
+
+
 def identify_decay(t: np.ndarray, accel: np.ndarray, axis: str, source: str = "capture",
                    rate: float | None = None, max_modes: int = 2, fmin: float = 5.0, fmax: float = 150.0,
                    start: float | None = None) -> AxisFit:
@@ -308,9 +313,9 @@ def identify_decay(t: np.ndarray, accel: np.ndarray, axis: str, source: str = "c
     tt, yy, rate = _ringing(t, accel, rate, start, source)
     fmax = min(fmax, 0.4 * rate)
     f0 = _spectral_peaks(yy, rate, fmin, fmax, max_modes)
-    x0 = np.array([v for f in f0 for v in (f, 0.03)])
-    lo = np.array([v for f in f0 for v in (max(fmin, f * 0.8), 0.0005)])
-    hi = np.array([v for f in f0 for v in (min(fmax, f * 1.2), 0.6)])
+    x0 = _per_mode(f0, 0.03)
+    lo = _per_mode(np.maximum(fmin, np.multiply(f0, 0.8)), 0.0005)
+    hi = _per_mode(np.minimum(fmax, np.multiply(f0, 1.2)), 0.6)
 
     def resid(x):
         B = _decay_basis(tt, x)
@@ -348,14 +353,13 @@ def plot_fits(fits: list[AxisFit], path: str | Path) -> None:
             ax.semilogy(fit.x, fit.fitted, "-", lw=2, label="fitted modes")
             ax.set_xlabel("frequency (Hz)")
             ax.set_ylabel("PSD ((mm/s²)²/Hz)")
+            for m in fit.modes:
+                ax.axvline(m.freq, color="grey", ls=":", lw=1)
         else:
             ax.plot(fit.x, fit.measured / 1000, lw=1, label="measured acceleration")
             ax.plot(fit.x, fit.fitted / 1000, lw=1.5, label="fitted damped sinusoids")
             ax.set_xlabel("time after the start of ringing (s)")
             ax.set_ylabel("acceleration (m/s²)")
-        for m in fit.modes:
-            if fit.kind == "psd":
-                ax.axvline(m.freq, color="grey", ls=":", lw=1)
         label = ", ".join(f"{m.freq:.1f} Hz ζ={m.damping:.3f} share {m.share:.2f}" for m in fit.modes)
         ax.set_title(title + "\n" + label, fontsize=9)
         ax.grid(True, which="both", alpha=0.3)

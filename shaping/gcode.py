@@ -460,11 +460,12 @@ def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = N
         reader = _Reader(str(path), arc_tolerance)
         reader.feed_lines(_open_lines(path))
     else:
+        source = source or "<gcode>"
         if isinstance(path_or_text, bytes):
-            _refuse_non_gcode(path_or_text[:HEAD], source or "<gcode>")
-        text = path_or_text.decode("utf-8", "replace") if isinstance(path_or_text, bytes) else str(path_or_text)
-        reader = _Reader(source or "<gcode>", arc_tolerance)
-        reader.feed_lines(io.StringIO(text, newline=None))
+            _refuse_non_gcode(path_or_text[:HEAD], source)
+            path_or_text = path_or_text.decode("utf-8", "replace")
+        reader = _Reader(source, arc_tolerance)
+        reader.feed_lines(io.StringIO(str(path_or_text), newline=None))
     return reader.job()
 
 
