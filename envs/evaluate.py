@@ -266,10 +266,10 @@ def shaper_timing(shapers, centred: bool) -> tuple[float, float, float, float]:
     turning (centred shapers only)."""
     active = [s for s in shapers.values() if s is not None]
     duration = max((s.duration for s in active), default=0.0)
-    lag = 0.0 if centred else max((s.centroid for s in active), default=0.0)
-    after = max((s.duration - (s.centre_delay if centred else 0.0) for s in active), default=0.0)
-    before = max((s.centre_delay for s in active), default=0.0) if centred else 0.0
-    return duration, lag, after, before
+    if not centred:        # a causal command runs straight once its longest train has passed
+        return duration, max((s.centroid for s in active), default=0.0), duration, 0.0
+    return (duration, 0.0, max((s.duration - s.centre_delay for s in active), default=0.0),
+            max((s.centre_delay for s in active), default=0.0))
 
 
 def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN,

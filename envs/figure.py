@@ -17,9 +17,10 @@ def figure_texts(fig) -> list[str]:
     tab-separated (one line per row)."""
     out = [t.get_text() for t in fig.findobj(Text) if t.get_visible() and t.get_text().strip()]
     for table in fig.findobj(Table):
-        cells = table.get_celld()
-        for r in sorted({r for r, _ in cells}):
-            out.append("\t".join(cells[r, c].get_text().get_text() for c in sorted(c for rr, c in cells if rr == r)))
+        rows: dict[int, list[str]] = {}
+        for (r, c), cell in sorted(table.get_celld().items()):
+            rows.setdefault(r, []).append(cell.get_text().get_text())
+        out += ["\t".join(row) for row in rows.values()]
     return out
 
 

@@ -16,6 +16,15 @@ def log_position(x, lo: float, hi: float):
     return 2.0 * np.log(np.asarray(x, float) / lo) / math.log(hi / lo) - 1.0
 
 
+def _axis_spectra(spectra: dict) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """[(axis, freqs Hz, psd)] of X then Y from ``{"x": (freqs, psd), "y": …}``; a missing axis takes
+    the other's."""
+    if not spectra:
+        raise RingtuneError("needs at least one resonance spectrum (x or y)", "psd")
+    return [(axis, *(np.asarray(col, float) for col in spectra.get(axis) or spectra.get(other)))
+            for axis, other in (("x", "y"), ("y", "x"))]
+
+
 def spectrum_features(spectra: dict, n_bins: int = 24,
                       spectrum_range: tuple[float, float] = (10.0, 160.0)) -> np.ndarray:
     """The observation's spectrum part from resonance-test PSDs ``{"x": (freqs Hz, psd), "y": …}``
@@ -24,13 +33,9 @@ def spectrum_features(spectra: dict, n_bins: int = 24,
     Mean PSD per bin of ``n_bins`` equal bins over ``spectrum_range`` Hz, X then Y,
     ``1 + log10(psd / max)/3`` clipped to [-1, 1] (X and Y share the max). A missing axis takes
     the other's spectrum. Returns float32 (2·n_bins,)."""
-    if not spectra:
-        raise RingtuneError("needs at least one resonance spectrum (x or y)", "psd")
     edges = np.linspace(spectrum_range[0], spectrum_range[1], n_bins + 1)
     binned = []
-    for axis in ("x", "y"):
-        freqs, psd = spectra.get(axis) or spectra.get("y" if axis == "x" else "x")
-        freqs, psd = np.asarray(freqs, float), np.asarray(psd, float)
+    for axis, freqs, psd in _axis_spectra(spectra):
         if freqs.shape != psd.shape or freqs.ndim != 1:
             raise RingtuneError(f"frequency and PSD columns differ in shape ({freqs.shape} vs {psd.shape})",
                                 f"psd {axis}")
@@ -54,12 +59,8 @@ def spectrum_peaks(spectra: dict, spectrum_range: tuple[float, float] = (10.0, 1
     mode sits above it, ``psd/f²`` = |T|² is lifted at low f by the sensor noise; ``psd/f`` picks
     the resonance on the simulated printers and on the real files (e.g. the Ender-3's 45 Hz X
     mode rather than its 58 Hz hump)."""
-    if not spectra:
-        raise RingtuneError("needs at least one resonance spectrum (x or y)", "psd")
     out = []
-    for axis in ("x", "y"):
-        freqs, psd = spectra.get(axis) or spectra.get("y" if axis == "x" else "x")
-        freqs, psd = np.asarray(freqs, float), np.asarray(psd, float)
+    for axis, freqs, psd in _axis_spectra(spectra):
         ok = (freqs >= spectrum_range[0]) & (freqs <= spectrum_range[1]) & np.isfinite(psd)
         if not ok.any():
             raise RingtuneError(f"no PSD bins within {spectrum_range[0]:g}-{spectrum_range[1]:g} Hz", f"psd {axis}")
