@@ -62,6 +62,15 @@ def _check_anchors(freq_anchor: str, accel_anchor: str, metrics_of_start: bool) 
                             "starting configuration's metrics)", "accel_anchor")
 
 
+def _over_defaults(given: dict | None, defaults: dict, what: str, where: str) -> dict:
+    """``defaults`` with ``given``'s values over them; a key ``defaults`` lacks is refused."""
+    merged = {**defaults, **(given or {})}
+    unknown = sorted(set(merged) - set(defaults))
+    if unknown:
+        raise RingtuneError(f"unknown {what} {unknown}; known: {sorted(defaults)}", where)
+    return merged
+
+
 def _start_action(start_action, spec: ActionSpec) -> np.ndarray:
     """The starting action clipped to [-1, 1], one entry per action of ``spec``."""
     action = np.clip(np.asarray(start_action, dtype=np.float32).ravel(), -1.0, 1.0)
@@ -197,16 +206,9 @@ class TuneEnv(gym.Env):
         self.spec_ = ActionSpec(firmware=firmware, shapers=tuple(shapers), per_axis=per_axis,
                                 tune_accel=tune_accel, freq_anchor=freq_anchor,
                                 freq_limit_gate=bool(freq_limit_gate), accel_anchor=accel_anchor)
-        self.weights = {**DEFAULT_WEIGHTS, **(weights or {})}
-        unknown = set(self.weights) - set(DEFAULT_WEIGHTS)
-        if unknown:
-            raise RingtuneError(f"unknown reward weights {sorted(unknown)}; known: {sorted(DEFAULT_WEIGHTS)}",
-                                "weights")
+        self.weights = _over_defaults(weights, DEFAULT_WEIGHTS, "reward weights", "weights")
         self.step_loss_penalty = float(step_loss_penalty)
-        self.judgement = {**JUDGEMENT, **(judgement or {})}
-        if set(self.judgement) != set(JUDGEMENT):
-            raise RingtuneError(f"unknown judgement keys {sorted(set(self.judgement) - set(JUDGEMENT))}; known: "
-                                f"{sorted(JUDGEMENT)}", "judgement")
+        self.judgement = _over_defaults(judgement, JUDGEMENT, "judgement keys", "judgement")
         if not 0 <= float(freq_margin) < 1:
             raise RingtuneError(f"must be in [0, 1), not {freq_margin}", "freq_margin")
         self.freq_margin = float(freq_margin)

@@ -15,7 +15,7 @@ from ringtune.envs.evaluate import resolve_printer
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import plan_with_config
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.feature_settings import FeatureCommands
+from ringtune.shaping.feature_settings import FeatureCommands, accel_groups, corner_words
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.gcode import read_gcode, read_gcode_bytes
 from ringtune.shaping.gcode_post import limit_gcode_bytes
@@ -77,9 +77,8 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     after = plan_with_config(read_gcode(new, source=source), limits,
                              replace(config, freq_limit_hz=0.0)).plan.print_time
     header = (f"{HEADER} for {config.firmware} ({limits.junction}): {inserted} lines inserted at feature "
-              f"changes (accelerations {_accels(fc)} mm/s²"
-              + (f", corner {fc.corner:g}" if fc.corner is not None else "")
-              + (f", minimum_cruise_ratio {fc.min_cruise_ratio:g}" if fc.min_cruise_ratio is not None else "")
+              f"changes (accelerations {'; '.join(accel_groups(fc.accel))} mm/s²"
+              + "".join(f", {w}" for w in corner_words(fc.corner, fc.min_cruise_ratio))
               + f"); planned {before:.1f} s as sliced -> {after:.1f} s; nothing else differs from the input")
     return RewrittenJob(header.encode() + nl.encode() + new, before, after, config_s, inserted, f_changed, header, fc)
 
@@ -88,13 +87,6 @@ def native_limit(config: TuneConfig) -> bool:
     """Whether the firmware applies the configuration's frequency limit itself (Marlin's
     XY_FREQUENCY_LIMIT, ``M201 F S``, sent by ``export``/``push``): then the job keeps its F words."""
     return config.freq_limit_method == "marlin" and FIRMWARES[config.firmware].freq_limit
-
-
-def _accels(fc: FeatureCommands) -> str:
-    groups: dict[float, list[str]] = {}
-    for cls, a in fc.accel.items():
-        groups.setdefault(a, []).append(cls)
-    return "; ".join(f"{'/'.join(names)} {a:.0f}" for a, names in sorted(groups.items()))
 
 
 def rewrite_file(src, dst, config: TuneConfig, printer=None,

@@ -19,7 +19,7 @@ def number(d: dict, key: str, where: str, default=None, lo=None, hi=None, lo_ope
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
         raise RingtuneError(f"{key} must be a finite number, got {v!r}", f"{where}.{key}")
     v = float(v)
-    if lo is not None and (v < lo or (lo_open and v == lo)):
+    if lo is not None and (v <= lo if lo_open else v < lo):
         raise RingtuneError(f"{key} = {v:g} must be {'>' if lo_open else '≥'} {lo:g}", f"{where}.{key}")
     if hi is not None and v > hi:
         raise RingtuneError(f"{key} = {v:g} must be ≤ {hi:g}", f"{where}.{key}")

@@ -143,15 +143,23 @@ def per_feature_text(config) -> str:
     """What a configuration sets per feature, for one line of a report: ``" (inner_wall 11000,
     infill 11000, travel 9100; corner 5; minimum_cruise_ratio 0.3)"`` ("" when nothing)."""
     parts = []
-    if config.feature_accel:
-        groups: dict[float, list[str]] = {}
-        for cls, a in config.feature_accel.items():
-            if a != config.accel:
-                groups.setdefault(a, []).append(cls)
-        if groups:
-            parts.append(", ".join(f"{'/'.join(names)} {a:.0f}" for a, names in sorted(groups.items())))
-    if config.corner is not None:
-        parts.append(f"corner {config.corner:g}")
-    if config.min_cruise_ratio is not None:
-        parts.append(f"minimum_cruise_ratio {config.min_cruise_ratio:g}")
+    groups = accel_groups({c: a for c, a in config.feature_accel.items() if a != config.accel})
+    if groups:
+        parts.append(", ".join(groups))
+    parts += corner_words(config.corner, config.min_cruise_ratio)
     return f" ({'; '.join(parts)})" if parts else ""
+
+
+def accel_groups(accel: dict) -> list[str]:
+    """``["inner_wall/infill 11000", "travel 9100"]``: the classes of ``accel`` (class -> mm/s²)
+    grouped by their acceleration, lowest first."""
+    groups: dict[float, list[str]] = {}
+    for cls, a in accel.items():
+        groups.setdefault(a, []).append(cls)
+    return [f"{'/'.join(names)} {a:.0f}" for a, names in sorted(groups.items())]
+
+
+def corner_words(corner: float | None, min_cruise_ratio: float | None) -> list[str]:
+    """``["corner 5", "minimum_cruise_ratio 0.3"]``: those of the two that are set (not None)."""
+    return [f"{name} {v:g}" for name, v in (("corner", corner), ("minimum_cruise_ratio", min_cruise_ratio))
+            if v is not None]
