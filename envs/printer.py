@@ -265,14 +265,17 @@ def _has_force(axis_table: dict, base_raw: dict) -> bool:
     return is_datasheet(mo) or "force" in mo
 
 
+#: ``[limits]``' plain numbers and their bounds (as :func:`number` takes them)
+_LIMIT_BOUNDS = {**dict.fromkeys(("accel", "velocity", "square_corner_velocity", "junction_deviation", "travel_accel",
+                                  "retract_accel"), {"lo": 0.0, "lo_open": True}),
+                 "min_cruise_ratio": {"lo": 0.0, "hi": 1.0}}
+
+
 def _check_limits(limits: dict, lw: str) -> None:
     """Validate ``[limits]`` (errors name the key); the planner's own check runs on top."""
-    for key in ("accel", "velocity", "square_corner_velocity", "junction_deviation", "travel_accel",
-                "retract_accel"):
+    for key, bounds in _LIMIT_BOUNDS.items():
         if key in limits:
-            number(limits, key, lw, lo=0.0, lo_open=True)
-    if "min_cruise_ratio" in limits:
-        number(limits, "min_cruise_ratio", lw, lo=0.0, hi=1.0)
+            number(limits, key, lw, **bounds)
     for key, allowed in (("junction", ("scv", "jd", "jerk")), ("axis_rule", AXIS_RULES)):
         if key in limits and limits[key] not in allowed:
             raise RingtuneError(f"{key} must be one of {', '.join(allowed)}, not {limits[key]!r}", f"{lw}.{key}")

@@ -177,9 +177,8 @@ def simulate(printer: Printer | None, motion, backend: str = "mujoco", rate: flo
 def _batch_printers(printer_or_list, motions: list) -> list[Printer]:
     """One printer per motion: the list given (loaded where a name or path), or one for all."""
     if not isinstance(printer_or_list, (list, tuple)):
-        pr = printer_or_list if isinstance(printer_or_list, Printer) else load_printer(printer_or_list)
-        return [pr] * len(motions)
-    printers = [load_printer(p) if not isinstance(p, Printer) else p for p in printer_or_list]
+        return [load_printer(printer_or_list)] * len(motions)
+    printers = [load_printer(p) for p in printer_or_list]
     if len(printers) != len(motions):
         raise RingtuneError(f"{len(printers)} printers for {len(motions)} motions", "simulate_batch")
     return printers
@@ -351,7 +350,7 @@ def resonance_test(printer: Printer | None, axis, rng: np.random.Generator | Non
 
     With ``rng`` each bin is scattered like a Welch estimate (Gamma with ``dof`` degrees of freedom,
     mean preserved); without it the expected PSD is returned. Returns (freqs, psd)."""
-    pr = printer if isinstance(printer, Printer) else load_printer(printer)
+    pr = load_printer(printer)
     direction = _test_direction(axis)
     if freqs is None:
         nfft = 1 << int(np.ceil(np.log2(sample_rate * 0.5)))

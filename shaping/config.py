@@ -114,11 +114,11 @@ class TuneConfig:
         return float(getattr(self, f"freq_{axes[0]}")) if axes else None
 
     def validate(self, where: str = "config") -> None:
-        if isinstance(self.firmware, str) and self.firmware.strip().lower() in FIRMWARES:
-            self.firmware = self.firmware.strip().lower()
-        if self.firmware not in FIRMWARES:
+        firmware = self.firmware.strip().lower() if isinstance(self.firmware, str) else self.firmware
+        if firmware not in FIRMWARES:
             raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {self.firmware!r}",
                                 f"{where}: firmware")
+        self.firmware = firmware
         for ax in ("x", "y"):
             self._validate_axis(ax, where)
         if _is_daa(self.shaper_x) and _is_daa(self.shaper_y) and self.freq_x != self.freq_y:

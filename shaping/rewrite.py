@@ -51,12 +51,8 @@ def layer_starts(job: Job) -> list[int]:
         return []
     z = np.round(job.end[ext, 2], 4)
     new = np.concatenate(([True], z[1:] > np.maximum.accumulate(z)[:-1]))
-    firsts = ext[new]
-    starts = []
-    for i, f in enumerate(firsts):
-        prev = ext[ext < f]
-        starts.append(int(prev[-1]) + 1 if len(prev) and i > 0 else 0)
-    return starts
+    # each later layer starts after the extruding move before its first one
+    return [0] + [int(ext[k - 1]) + 1 for k in np.searchsorted(ext, ext[new][1:])]
 
 
 @dataclass(frozen=True)
@@ -74,13 +70,13 @@ class _Dialect:
 
     def once(self, values: dict) -> list[str]:
         out = []
-        if "square_corner_velocity" in values or "min_cruise_ratio" in values:
+        words = [f"{k}={_n(values[v])}" for k, v in (("SQUARE_CORNER_VELOCITY", "square_corner_velocity"),
+                                                     ("MINIMUM_CRUISE_RATIO", "min_cruise_ratio")) if v in values]
+        if words:
             if self.family != "klipper":
                 raise RingtuneError(f"the printer plans corners with Klipper's square_corner_velocity (junction "
                                     f"scv), which {self.family} has no command for: describe the printer with its "
                                     "own junction_deviation or jerk (--printer)", "config: corner")
-            words = [f"{k}={_n(values[v])}" for k, v in (("SQUARE_CORNER_VELOCITY", "square_corner_velocity"),
-                                                         ("MINIMUM_CRUISE_RATIO", "min_cruise_ratio")) if v in values]
             out.append("SET_VELOCITY_LIMIT " + " ".join(words))
         if "junction_deviation" in values:
             out.append(f"M205 J{_n(values['junction_deviation'])}")
