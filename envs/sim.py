@@ -322,9 +322,8 @@ def _rollout(printers, systems, motions, h, dec, tail, initial, nthread):
         m0 = models[cis[0]]
         init, ctrl, layout = _pack(cis, chunks, m0, printers, systems, motions, nsteps, h, initial)
         nth = max(1, min(nthread, len(cis)))
-        datas = _datas(m0, nth)
-        mlist = [models[ci] for ci in cis] if len(cis) > 1 else m0
-        state, _ = rollout.rollout(mlist, datas if nth > 1 else datas[0], init, ctrl)
+        # one model per batch row, one MjData per thread (rollout runs a single one unthreaded)
+        state, _ = rollout.rollout([models[ci] for ci in cis], _datas(m0, nth), init, ctrl)
         _unpack(layout, init, state, m0.nq, printers, systems, motions, nsteps, h, dec, results)
     return results
 
