@@ -380,7 +380,7 @@ def evaluate_judged(configs: Sequence[TuneConfig], printer=None, job=None, backe
     variants = [printer if f == 1.0 else printer.detuned(f) for f in variant_factors(freq_margin)]
     runs = evaluate_variants(configs, variants, job, backend, settle=settle, nthread=nthread, job_accel=job_accel,
                              job_shapers=job_shapers)
-    per_config = [[r[i] for r in runs] for i in range(len(configs))]
+    per_config = [list(evs) for evs in zip(*runs)]        # per config, its Evaluation per variant
     return [(evs[0].metrics if len(evs) == 1 else worst_case(e.metrics for e in evs), evs)
             for evs in per_config]
 

@@ -177,8 +177,9 @@ def build_mjcf(printer: Printer | list, timestep: float = TIMESTEP, integrator: 
     systems = [linear_system(pr) for pr in printers]
     sfxs = [f"_r{r}" if len(printers) > 1 else "" for r in range(len(printers))]
     # magnet gravity: large enough that every pendulum arm is ≤ λ/2π / 4
-    grav = max([_MAGNET_G] + [4.0 * r.peak / r.mass for s_ in systems for r in s_.rotors])
-    gravity = any(s_.rotors for s_ in systems)
+    rotors = [r for s_ in systems for r in s_.rotors]
+    grav = max([_MAGNET_G] + [4.0 * r.peak / r.mass for r in rotors])
+    gravity = bool(rotors)
     bodies, tendons, motors = [], [], []
     row = 0
     for sysm, sfx in zip(systems, sfxs):

@@ -363,14 +363,12 @@ class Printer:
             d["description"] = self.description
         d["print_mass"] = self.print_mass
         d["limits"] = dict(self.limits_dict)
+        motor = self.motor.to_dict()
         for ax in ("x", "y"):
-            a = self.axis(ax)
-            d[ax] = {"mass": a.mass, "modes": [_mode_dict(m) for m in a.modes]}
-        d["motor"] = self.motor.to_dict()
-        for ax in ("x", "y"):
-            own = getattr(self, f"{ax}_motor")
-            if own is not None:
-                d[ax]["motor"] = self._own_motor_dict(own, d["motor"])
+            a, own = self.axis(ax), getattr(self, f"{ax}_motor")
+            d[ax] = {"mass": a.mass, "modes": [_mode_dict(m) for m in a.modes],
+                     **({} if own is None else {"motor": self._own_motor_dict(own, motor)})}
+        d["motor"] = motor
         if self.kinematics == "corexy":
             d["belts"] = {"mismatch": self.belt_mismatch, **({} if self.belt_stiffness is None
                                                               else {"stiffness": self.belt_stiffness})}

@@ -179,6 +179,11 @@ def _layer(i: int, band: Band, first_of_band: bool, g: TowerGeometry, ext: Extru
     return out
 
 
+def _comments(lines: list[str]) -> list[str]:
+    """``lines`` as G-code comments (an empty line as a bare ``;``)."""
+    return [f"{C} {h}" if h else C for h in lines]
+
+
 def ringing_tower(bands: list[Band], geometry: TowerGeometry, ext: Extrusion, *, header: list[str],
                   start: list[str], end_note: list[str]) -> str:
     """G-code of the ringing tower: ``header`` comments, the band table, ``start`` lines, a prime
@@ -187,7 +192,7 @@ def ringing_tower(bands: list[Band], geometry: TowerGeometry, ext: Extrusion, *,
     ext.validate()
     if not bands:
         raise RingtuneError("a tower needs at least one band", "--bands")
-    out = [f"{C} {h}" if h else C for h in header]
+    out = _comments(header)
     out += [C, f"{C} band table (band 1 is the lowest; frequencies of the shaper each band is printed with):"]
     out += [b.table_line() for b in bands]
     out += [C] + start
@@ -268,7 +273,7 @@ def accel_ladder(accels: list[float], firmware: str, g: LadderGeometry, ext: Ext
     ext.validate()
     if g.reps < 1:
         raise RingtuneError("at least one repetition per rung", "--reps")
-    out = [f"{C} {h}" if h else C for h in header] + [C] + start + shaper_lines
+    out = _comments(header) + [C] + start + shaper_lines
     z, zh = ext.layer, ext.layer + g.hop
     travel = f"F{g.speed * 60:.0f}"
 

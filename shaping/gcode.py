@@ -27,7 +27,9 @@ from __future__ import annotations
 
 import io
 import math
+import operator
 import re
+from functools import reduce
 from pathlib import Path
 from typing import Iterable, Iterator
 
@@ -62,6 +64,11 @@ _OTHER_WORD = (1e9, -1)
 _CHUNK = 1 << 16          # moves collected in Python lists before they go into numpy arrays
 
 
+def checksum(data: bytes) -> int:
+    """The RepRap checksum of a line's bytes before its ``*``: the XOR of them all."""
+    return reduce(operator.xor, data, 0)
+
+
 def _strip_line_number(code: str, where: str) -> str:
     """Remove a leading ``N<n>`` and a trailing ``*<checksum>`` (verifying XOR checksums)."""
     if not code or code[0] not in "Nn":
@@ -74,9 +81,7 @@ def _strip_line_number(code: str, where: str) -> str:
         if not cs.isdigit():
             raise RingtuneError(f"checksum {cs!r} is not a number", where)
         if len(cs) <= 3:
-            x = 0
-            for ch in code[:star].encode("latin-1", "replace"):
-                x ^= ch
+            x = checksum(code[:star].encode("latin-1", "replace"))
             if x != int(cs):
                 raise RingtuneError(f"checksum mismatch: line says {cs}, XOR of the line is {x}", where)
         code = code[:star]

@@ -98,10 +98,9 @@ class SettingCommands:
 
     def _extended(self, code: str, lineno: int) -> None:
         where = self._where(lineno)
-        parts = code.split(None, 1)
-        cmd = parts[0].upper()
+        parts = code.split(None, 1) + [""]          # the command, and its parameters or nothing
+        cmd, rest = parts[0].upper(), parts[1]
         params: dict = {}
-        rest = parts[1] if len(parts) > 1 else ""
         for key, value in _EXT_PARAM.findall(rest):
             params[key.upper()] = value.strip('"')
         if cmd == "SET_VELOCITY_LIMIT":

@@ -20,7 +20,7 @@ import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.freqlimit import apply_freq_limit, resolve_min_speed_factor
-from ringtune.shaping.gcode import read_gcode, read_gcode_bytes
+from ringtune.shaping.gcode import checksum, read_gcode, read_gcode_bytes
 
 _MOVE = re.compile(rb"^\s*(?:[Nn]\s*-?\d+\s*)?[Gg]0*[0-3](?![0-9.])")
 _F_WORD = re.compile(rb"([Ff])\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
@@ -65,10 +65,7 @@ def _with_checksum(code: bytes, cs: bytes) -> bytes:
     if not cs:
         return code
     body = code.rstrip()
-    x = 0
-    for ch in body:
-        x ^= ch
-    return body + b"*" + str(x).encode()
+    return body + b"*" + str(checksum(body)).encode()
 
 
 def limit_gcode_bytes(data: bytes, limit_hz: float, method: str = "sections",
