@@ -189,8 +189,10 @@ class TuneConfig:
         if not isinstance(data, dict):
             raise RingtuneError("a TuneConfig must be a JSON object", where)
         known = {f.name for f in fields(cls)} - {"extra"}
-        kwargs = {k: v for k, v in data.items() if k in known}
-        extra = {k: v for k, v in data.items() if k not in known}
+        kwargs: dict[str, Any] = {}
+        extra: dict[str, Any] = {}
+        for k, v in data.items():
+            (kwargs if k in known else extra)[k] = v
         for k in _NUMBER_KEYS:
             if kwargs.get(k) is not None:
                 kwargs[k] = _number(kwargs[k], f"{where}: {k}")
@@ -241,7 +243,8 @@ def _finite(value: Any, where: str, lo: float, hi: float, unit: str = "") -> Non
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise RingtuneError(f"must be a finite number, not {value!r}", where)
     if not lo <= value <= hi:
-        raise RingtuneError(f"{value}{unit and ' ' + unit} is out of range [{lo:g}, {hi:g}]{unit and ' ' + unit}", where)
+        unit = unit and " " + unit
+        raise RingtuneError(f"{value}{unit} is out of range [{lo:g}, {hi:g}]{unit}", where)
 
 
 #: keys of one y_schedule entry: required, optional
