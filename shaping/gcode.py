@@ -216,11 +216,10 @@ class _Reader(SettingCommands):
 
     def _target(self, words: dict[str, float]) -> list[float]:
         end = list(self.pos)
-        for i, ax in enumerate("XYZ"):
+        absolute = (self.abs_xyz, self.abs_xyz, self.abs_xyz, self.abs_e)
+        for i, ax in enumerate("XYZE"):
             if ax in words:
-                end[i] = words[ax] + self.offset[i] if self.abs_xyz else self.pos[i] + words[ax]
-        if "E" in words:
-            end[3] = words["E"] + self.offset[3] if self.abs_e else self.pos[3] + words["E"]
+                end[i] = words[ax] + self.offset[i] if absolute[i] else self.pos[i] + words[ax]
         return end
 
     def _feedrate(self, words: dict[str, float], where: str) -> None:

@@ -37,6 +37,10 @@ from ringtune.shaping.job import Job
 _ACCEL_KEYS = ("accel_klipper", "accel_print", "accel_travel")
 
 
+#: the classic-jerk command by family and its unit per mm/s (RepRapFirmware's M566: mm/min; else M205)
+_JERK_COMMANDS = {"rrf": ("M566", 60)}
+
+
 def _n(v: float) -> str:
     return f"{float(v):.10g}"
 
@@ -81,10 +85,8 @@ class _Dialect:
         if "junction_deviation" in values:
             out.append(f"M205 J{_n(values['junction_deviation'])}")
         if "jerk_x" in values:
-            if self.family == "rrf":
-                out.append(f"M566 X{_n(values['jerk_x'] * 60)} Y{_n(values['jerk_y'] * 60)}")
-            else:
-                out.append(f"M205 X{_n(values['jerk_x'])} Y{_n(values['jerk_y'])}")
+            cmd, per_s = _JERK_COMMANDS.get(self.family, ("M205", 1))
+            out.append(f"{cmd} X{_n(values['jerk_x'] * per_s)} Y{_n(values['jerk_y'] * per_s)}")
         if "max_accel_x" in values and self.caps_set:
             out.append(self.caps_set.format(x=_n(values["max_accel_x"]), y=_n(values["max_accel_y"])))
         return out
