@@ -253,7 +253,7 @@ def _defaulted(d: dict, base_raw: dict) -> tuple[str, ...]:
     axis's motor force (its table over ``[motor]`` has neither a name, datasheet constants nor
     ``force``): ``Printer.defaulted``."""
     tables = {ax: d.get(ax) if isinstance(d.get(ax), dict) else {} for ax in ("x", "y")}
-    masses = [f"{ax}.mass" for ax, t in tables.items() if "mass" not in t and "masses" not in t]
+    masses = [f"{ax}.mass" for ax, t in tables.items() if not t.keys() & {"mass", "masses"}]
     return tuple(masses + [f"{ax}.motor" for ax, t in tables.items() if not _has_force(t, base_raw)])
 
 

@@ -195,11 +195,5 @@ class Motion:
     def concatenate(parts: list["Motion"]) -> "Motion":
         """Join motions that follow each other in time (each part's t[0] = previous t[-1])."""
         t = np.concatenate([parts[0].t[:1]] + [m.t[1:] for m in parts])
-        return Motion(
-            t,
-            np.concatenate([m.p for m in parts]),
-            np.concatenate([m.v for m in parts]),
-            np.concatenate([m.a for m in parts]),
-            np.concatenate([m.extruding for m in parts]),
-            np.concatenate([m.move for m in parts]),
-        )
+        return Motion(t, *(np.concatenate([getattr(m, name) for m in parts])
+                           for name in ("p", "v", "a", "extruding", "move")))
