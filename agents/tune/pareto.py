@@ -399,7 +399,8 @@ def _named(keys, joiner: str) -> str:
 def _held_why(p: Point, b: Point, held: tuple, tries: list[tuple], worse: str) -> str:
     """Why ``p`` was chosen, held to the baselines ``held`` (``b``: the first's point), saying when
     an earlier try (``tries[0]``) found nothing."""
-    lead = "" if held == tries[0] else f"no front point is as fast as {_named(tries[0], ' and ')} with {worse} than each; "
+    lead = "" if held == tries[0] else \
+        f"no front point is as fast as {_named(tries[0], ' and ')} with {worse} than each; "
     name = _named(held, " and ")
     first = BASELINE_NAMES.get(held[0], held[0])
     if p.print_time_s < b.print_time_s:
