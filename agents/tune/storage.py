@@ -61,8 +61,7 @@ def make_storage(url: str):
 
 def _journal_storage(url: str):
     """Optuna's journal file storage at ``journal:PATH`` (``journal://PATH``) or ``PATH.journal``."""
-    path = url[len("journal:"):] if url.startswith("journal:") else url
-    path = path[2:] if path.startswith("//") else path
+    path = url.removeprefix("journal:").removeprefix("//")
     if not path:
         raise RingtuneError("journal storage needs a file path, e.g. journal:out/study.journal", "storage")
     Path(path).parent.mkdir(parents=True, exist_ok=True)
@@ -89,7 +88,7 @@ def _rdb_storage(url: str) -> RDBStorage:
 def _sqlite_wal(url: str) -> None:
     """Put a SQLite study file in WAL mode (persistent; many readers, one writer, far fewer fsyncs)."""
     path = url.split(":///", 1)[-1]
-    if not path or path == ":memory:":
+    if path in ("", ":memory:"):
         return
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     con = sqlite3.connect(path, timeout=60)
