@@ -74,14 +74,13 @@ def _journal_storage(url: str):
 def _rdb_storage(url: str) -> RDBStorage:
     """An RDB storage with Optuna's heartbeat (stale trials retried once); SQLite in WAL mode with a
     60 s busy timeout."""
-    sqlite = url.startswith("sqlite")
-    if sqlite:
-        _sqlite_wal(url)
-    storage = RDBStorage(url, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S,
-                         heartbeat_stale_trial_callback=RetryHeartbeatStaleTrialCallback(max_retry=1),
-                         **({"engine_kwargs": {"connect_args": {"timeout": 60}}} if sqlite else {}))
-    if sqlite:
-        _sqlite_fast(storage)
+    heartbeat = dict(heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S,
+                     heartbeat_stale_trial_callback=RetryHeartbeatStaleTrialCallback(max_retry=1))
+    if not url.startswith("sqlite"):
+        return RDBStorage(url, **heartbeat)
+    _sqlite_wal(url)
+    storage = RDBStorage(url, **heartbeat, engine_kwargs={"connect_args": {"timeout": 60}})
+    _sqlite_fast(storage)
     return storage
 
 
