@@ -308,6 +308,10 @@ def no_worse(p: Point, base: Point, res: Resolution = DEFAULT_RESOLUTION, keys: 
     return all(v != "worse" for k, v in judge(p, base, res, keys).verdicts.items() if k != "feasible")
 
 
+#: each set of measures :func:`_quality_keys` gives, in words
+_QUALITY_WORDS = {VISIBLE_KEYS: "visible measure", ("overshoot_mm", "path_error_mm"): "overshoot and path error"}
+
+
 def _quality_keys(points: Sequence[Point]) -> tuple[str, ...]:
     """The visible measures the points have; a custom evaluator's without them: its overshoot and path error."""
     if any("ripple_mm" in p.metrics for p in points):
@@ -369,8 +373,7 @@ def _fastest_at_baseline_quality(front: list[Point], baselines: dict[str, Point]
     """:func:`pick`'s default: the fastest front point with no visible measure worse than the
     reference baselines, tried together then one at a time; else the knee, saying why."""
     by_key = dict(reference_baselines(baselines, res))
-    words = "overshoot and path error" if _quality_keys(front) != VISIBLE_KEYS else "visible measure"
-    worse = f"no worse {words}"
+    worse = f"no worse {_QUALITY_WORDS[_quality_keys(front)]}"
     tries = _tries(list(by_key))
     for held in tries:
         first, *rest = (by_key[k] for k in held)
