@@ -14,7 +14,7 @@ import pytest
 
 from ringtune.agents.cli.main import main
 from ringtune.agents.tune.pareto import Point, judge, pareto_front, pick
-from ringtune.agents.tune.report import compare
+from ringtune.agents.tune.versus import compare
 from ringtune.shaping.config import TuneConfig
 
 TESTS = Path(__file__).resolve().parent

@@ -15,12 +15,12 @@ def check_out(out_dir: Path) -> None:
     if out_dir.exists() and not out_dir.is_dir():
         raise RingtuneError(f"{out_dir} is a file, not a folder: give a folder for the results "
                             f"(e.g. --out {out_dir.with_suffix('')}-tune)", "--out")
-    probe = out_dir.resolve()
+    probe = out_dir.resolve()     # the nearest existing folder (at worst the root)
     while not probe.exists() and probe.parent != probe:
         probe = probe.parent
-    if probe.exists() and not probe.is_dir():
+    if not probe.is_dir():
         raise RingtuneError(f"{probe} is a file, so {out_dir} cannot be created", "--out")
-    if probe.exists() and not os.access(probe, os.W_OK | os.X_OK):
+    if not os.access(probe, os.W_OK | os.X_OK):
         what = "folder" if probe == out_dir else f"folder {probe}, where {out_dir} would be created,"
         raise RingtuneError(f"cannot write in the {what} (no permission or a read-only file system); "
                             "choose another --out", "--out")

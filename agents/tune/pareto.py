@@ -48,8 +48,6 @@ VISIBLE_KEYS = ("ripple_mm", "ripple_p90_mm", "corner_in_mm", "corner_out_mm", "
                 "extrusion_under_pct")
 METRIC_KEYS = ("print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss",
                "motor_load") + VISIBLE_KEYS + ("e_lag_mm", "show_through_mm")
-#: the figures a comparison judges: print time and every visible measure
-COMPARED = ("print_time_s",) + VISIBLE_KEYS
 #: the study's objectives (all minimised). Three, not all seven figures: TPE's multi-objective
 #: sampler spreads its trials over the front, and each objective more thins them; print time is the
 #: trade, the worst wall's ripple and the worse corner deviation (``corner_mm``, the larger of
@@ -113,6 +111,11 @@ class Resolution:
 DEFAULT_RESOLUTION = Resolution()
 
 
+#: the bounds a point may break, in the order they are reported: (its flag on :class:`Point`, the words)
+BOUNDS = (("step_loss", "loses steps"), ("too_rough", "path error over the bound"),
+          ("overloaded", "motor load over the reserve"), ("shows_through", "show-through over the bound"))
+
+
 @dataclass
 class Point:
     """One evaluated configuration (a trial, a grid point or a baseline). A point is feasible
@@ -134,7 +137,7 @@ class Point:
 
     @property
     def feasible(self) -> bool:
-        return not (self.step_loss or self.too_rough or self.overloaded or self.shows_through)
+        return not any(getattr(self, flag) for flag, _words in BOUNDS)
 
     def dominates(self, other: "Point") -> bool:
         """Strict Pareto dominance on the two objectives (no resolution; the front's relation)."""
@@ -160,8 +163,9 @@ class Judgement:
     dominates: bool
     resolution: Resolution
 
-    def worse(self) -> list[str]:
-        return [k for k, v in self.verdicts.items() if v == "worse"]
+
+#: (point feasible, base feasible) -> the feasibility verdict from the point's side; else "same"
+_FEASIBLE_VERDICT = {(False, True): "worse", (True, False): "better"}
 
 
 def verdict(key: str, mine: float, theirs: float, res: Resolution = DEFAULT_RESOLUTION) -> str:
@@ -175,19 +179,10 @@ def judge(point: Point, base: Point, res: Resolution = DEFAULT_RESOLUTION,
           keys: Sequence[str] | None = None) -> Judgement:
     """Compare ``point`` with ``base`` on ``keys`` (figures both have; default print time and the
     visible measures, or a custom evaluator's overshoot and path error) and on feasibility."""
-    if keys is None:
-        keys = ("print_time_s",) + _quality_keys([point, base])
-    v = {}
-    for k in keys:
-        a, b = point.value(k), base.value(k)
-        if a is not None and b is not None:
-            v[k] = verdict(k, a, b, res)
-    if not point.feasible and base.feasible:
-        v["feasible"] = "worse"
-    elif point.feasible and not base.feasible:
-        v["feasible"] = "better"
-    else:
-        v["feasible"] = "same"
+    keys = keys if keys is not None else ("print_time_s",) + _quality_keys([point, base])
+    pairs = {k: (point.value(k), base.value(k)) for k in keys}
+    v = {k: verdict(k, a, b, res) for k, (a, b) in pairs.items() if a is not None and b is not None}
+    v["feasible"] = _FEASIBLE_VERDICT.get((point.feasible, base.feasible), "same")
     vals = list(v.values())
     return Judgement(v, "worse" not in vals and "better" in vals, res)
 
@@ -212,34 +207,30 @@ def point_from_metrics(config: TuneConfig, m, quality: str = "ripple_mm", *, lab
     return judge_bounds(p, max_path_error_mm, max_motor_load, max_show_through_mm)
 
 
+def _over(p: Point, key: str, bound: float) -> bool:
+    """Whether ``p``'s figure ``key`` exceeds ``bound`` (0 = no bound; a figure ``p`` lacks never does)."""
+    value = p.metrics.get(key)
+    return bool(bound > 0 and value is not None and value > bound)
+
+
 def judge_path_error(p: Point, max_path_error_mm: float) -> Point:
     """Mark ``p`` too rough when its path error exceeds ``max_path_error_mm`` (mm; 0 = no bound)."""
-    pe = p.metrics.get("path_error_mm")
-    p.too_rough = bool(max_path_error_mm > 0 and pe is not None and pe > max_path_error_mm)
-    return p
-
-
-def judge_motor_load(p: Point, max_motor_load: float) -> Point:
-    """Mark ``p`` overloaded when its motor load exceeds ``max_motor_load`` (fraction of the force
-    the motor has at its speed; 0 = no bound)."""
-    load = p.metrics.get("motor_load")
-    p.overloaded = bool(max_motor_load > 0 and load is not None and load > max_motor_load)
+    p.too_rough = _over(p, "path_error_mm", max_path_error_mm)
     return p
 
 
 def judge_bounds(p: Point, max_path_error_mm: float = 0.0, max_motor_load: float = 0.0,
                  max_show_through_mm: float = 0.0) -> Point:
-    """Every bound at once (0 = no bound); show-through in mm."""
-    st = p.metrics.get("show_through_mm")
-    p.shows_through = bool(max_show_through_mm > 0 and st is not None and st > max_show_through_mm)
-    return judge_motor_load(judge_path_error(p, max_path_error_mm), max_motor_load)
+    """Every bound at once (0 = no bound): path error and show-through in mm, motor load as a
+    fraction of the force the motor has at its speed."""
+    p.shows_through = _over(p, "show_through_mm", max_show_through_mm)
+    p.overloaded = _over(p, "motor_load", max_motor_load)
+    return judge_path_error(p, max_path_error_mm)
 
 
 def broken_bounds(p: Point) -> list[str]:
-    """The bounds ``p`` breaks, in words (empty when feasible)."""
-    return [w for w, f in (("loses steps", p.step_loss), ("path error over the bound", p.too_rough),
-                           ("motor load over the reserve", p.overloaded),
-                           ("show-through over the bound", p.shows_through)) if f]
+    """The bounds ``p`` breaks, in words (:data:`BOUNDS`; empty when feasible)."""
+    return [words for flag, words in BOUNDS if getattr(p, flag)]
 
 
 def pareto_front(points: Sequence[Point], also: Sequence[str] = ()) -> list[Point]:
@@ -259,20 +250,11 @@ def pareto_front(points: Sequence[Point], also: Sequence[str] = ()) -> list[Poin
                 best_q = p.quality_mm
         return front
     v = np.array([[p.print_time_s, p.quality_mm] + [float(p.metrics.get(k, np.inf)) for k in also] for p in feas])
-    keep = []
-    for i in range(len(feas)):
-        le = np.all(v <= v[i], axis=1)
-        lt = np.any(v < v[i], axis=1)
-        if not np.any(le & lt):
-            keep.append(feas[i])
-    # identical figures: keep the first only
-    out, seen = [], set()
-    for p in keep:
-        key = (p.print_time_s, p.quality_mm, *(p.metrics.get(k) for k in also))
-        if key not in seen:
-            seen.add(key)
-            out.append(p)
-    return out
+    kept: dict = {}     # the non-dominated points by their figures: of identical ones, the first only
+    for p, row in zip(feas, v):
+        if not np.any(np.all(v <= row, axis=1) & np.any(v < row, axis=1)):
+            kept.setdefault((p.print_time_s, p.quality_mm, *(p.metrics.get(k) for k in also)), p)
+    return list(kept.values())
 
 
 #: mm: quality differences smaller than this are not worth print time when choosing the knee
@@ -326,11 +308,20 @@ def no_worse(p: Point, base: Point, res: Resolution = DEFAULT_RESOLUTION, keys: 
     return all(v != "worse" for k, v in judge(p, base, res, keys).verdicts.items() if k != "feasible")
 
 
+#: each set of measures :func:`_quality_keys` gives, in words
+_QUALITY_WORDS = {VISIBLE_KEYS: "visible measure", ("overshoot_mm", "path_error_mm"): "overshoot and path error"}
+
+
 def _quality_keys(points: Sequence[Point]) -> tuple[str, ...]:
     """The visible measures the points have; a custom evaluator's without them: its overshoot and path error."""
     if any("ripple_mm" in p.metrics for p in points):
         return VISIBLE_KEYS
     return ("overshoot_mm", "path_error_mm")
+
+
+def _no_worse_seen(p: Point, base: Point, res: Resolution) -> bool:
+    """:func:`no_worse` on the visible measures both have (:func:`_quality_keys`)."""
+    return no_worse(p, base, res, _quality_keys([p, base]))
 
 
 def at_baseline_quality(front: Sequence[Point], base: Point, res: Resolution = DEFAULT_RESOLUTION) -> list[Point]:
@@ -347,14 +338,10 @@ def reference_baselines(baselines: dict[str, Point], res: Resolution = DEFAULT_R
     choice is then never worse than either where it matches the first)."""
     usable = {k: b for k, b in baselines.items() if b.feasible}
     shaped = {k: b for k, b in usable.items() if k != "none"} or usable
-    order = [k for k in ("current", "klipper") if k in shaped] + [k for k in shaped if k not in ("current", "klipper")]
-    cur, kl = shaped.get("current"), shaped.get("klipper")
-    if cur is not None and kl is not None:
-        keys = _quality_keys([cur, kl])
-        if any(v == "worse" for k, v in judge(cur, kl, res, keys).verdicts.items() if k != "feasible"):
-            order.remove("klipper")
-            order.insert(0, "klipper")
-    return [(k, shaped[k]) for k in order]
+    rank = {"current": 0, "klipper": 1}
+    if "current" in shaped and "klipper" in shaped and not _no_worse_seen(shaped["current"], shaped["klipper"], res):
+        rank = {"klipper": 0, "current": 1}
+    return sorted(shaped.items(), key=lambda kb: rank.get(kb[0], 2))
 
 
 def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastest-at-baseline-quality",
@@ -366,9 +353,9 @@ def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastes
     with no visible measure worse at the resolution ("same quality, faster"). Pass every feasible
     point as ``front`` to search them all. Where nothing matches any, the knee, and the sentence says
     so. ``knee``: :func:`knee`. ``weight``: minimises print time + ``weight`` × quality (s/mm)."""
-    if not [p for p in front if p.feasible]:
-        raise _no_front()
     front = [p for p in front if p.feasible]
+    if not front:
+        raise _no_front()
     if how == "weight":
         if weight is None:
             raise RingtuneError("--pick weight needs --weight W (seconds per mm)", "--pick")
@@ -385,35 +372,39 @@ def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastes
 def _fastest_at_baseline_quality(front: list[Point], baselines: dict[str, Point], res: Resolution) -> Choice:
     """:func:`pick`'s default: the fastest front point with no visible measure worse than the
     reference baselines, tried together then one at a time; else the knee, saying why."""
-    refs = reference_baselines(baselines, res)
-    words = "overshoot and path error" if _quality_keys(front) != VISIBLE_KEYS else "visible measure"
-    worse = f"no worse {words}"
-    # held to every shaped baseline at once (no chaining: "same as the printer's, which is the same
-    # as Klipper's" must not end worse than Klipper's), then to Klipper's pick alone (or, without
-    # it, to each other baseline alone)
-    keys = [k for k, _ in refs]
-    tries = ([tuple(keys)] if len(keys) > 1 else []) + ([("klipper",)] if "klipper" in keys else [(k,) for k in keys])
-    by_key = dict(refs)
+    by_key = dict(reference_baselines(baselines, res))
+    worse = f"no worse {_QUALITY_WORDS[_quality_keys(front)]}"
+    tries = _tries(list(by_key))
     for held in tries:
-        b = by_key[held[0]]
-        cands = [p for p in at_baseline_quality(front, b, res)
-                 if all(no_worse(p, by_key[k], res, _quality_keys([p, by_key[k]])) for k in held[1:])]
+        first, *rest = (by_key[k] for k in held)
+        cands = [p for p in at_baseline_quality(front, first, res) if all(_no_worse_seen(p, b, res) for b in rest)]
         if cands:
             p = min(cands, key=lambda p: (p.print_time_s, p.quality_mm))
-            return Choice(p, "fastest-at-baseline-quality", held[0], _held_why(p, b, held, tries, worse), held)
-    why = "there is no usable baseline to match" if not refs else \
-        "no front point is as fast as " + " or ".join(BASELINE_NAMES.get(k, k) for k, _ in refs) + \
-        f" with {worse}"
+            return Choice(p, "fastest-at-baseline-quality", held[0], _held_why(p, first, held, tries, worse), held)
+    why = f"no front point is as fast as {_named(by_key, ' or ')} with {worse}" if by_key else \
+        "there is no usable baseline to match"
     return Choice(knee(front), "knee", None, f"the knee of the front, because {why}")
+
+
+def _tries(keys: list[str]) -> list[tuple]:
+    """The sets of reference baselines (by key, best first) the default choice is held to, in turn:
+    every one at once (no chaining: "same as the printer's, which is the same as Klipper's" must not
+    end worse than Klipper's), then Klipper's pick alone (or, without it, each other one alone)."""
+    together = [tuple(keys)] if len(keys) > 1 else []
+    return together + ([("klipper",)] if "klipper" in keys else [(k,) for k in keys])
+
+
+def _named(keys, joiner: str) -> str:
+    """The baselines ``keys`` by their short names, joined."""
+    return joiner.join(BASELINE_NAMES.get(k, k) for k in keys)
 
 
 def _held_why(p: Point, b: Point, held: tuple, tries: list[tuple], worse: str) -> str:
     """Why ``p`` was chosen, held to the baselines ``held`` (``b``: the first's point), saying when
     an earlier try (``tries[0]``) found nothing."""
     lead = "" if held == tries[0] else \
-        "no front point is as fast as " + " and ".join(BASELINE_NAMES.get(k, k) for k in tries[0]) + \
-        f" with {worse} than each; "
-    name = " and ".join(BASELINE_NAMES.get(k, k) for k in held)
+        f"no front point is as fast as {_named(tries[0], ' and ')} with {worse} than each; "
+    name = _named(held, " and ")
     first = BASELINE_NAMES.get(held[0], held[0])
     if p.print_time_s < b.print_time_s:
         return f"{lead}the fastest front point with {worse} than {name} (same quality, faster than {first})"

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import re
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
@@ -28,7 +29,7 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ringtune.agents.tune.pareto import Point
+from ringtune.agents.tune.pareto import Point, broken_bounds
 
 #: the small panels: (metrics key, label, unit, factor from the stored unit to the drawn one)
 MEASURES = (("corner_in_mm", "corner rounding (visible corners)", "µm", 1000.0),
@@ -73,69 +74,91 @@ def _limits(vals: np.ndarray) -> tuple[float, float]:
     return (0.0 if 0 <= lo < 0.5 * hi else lo - pad), hi + pad
 
 
+#: the trials drawn as groups: (the group: "trials" off the front, or a ruled-out trial's first broken
+#: bound in :func:`ringtune.agents.tune.pareto.broken_bounds`' words; legend label; marker style).
+#: Trials over the show-through bound alone are not drawn.
+_GROUPS = (("trials", "trials", dict(s=10, c="0.7", marker="o")),
+           ("loses steps", "lost steps, excluded", dict(s=16, c="tab:red", marker="x", alpha=0.6)),
+           ("path error over the bound", "path error over the bound, excluded",
+            dict(s=16, c="tab:purple", marker="+", alpha=0.6)),
+           ("motor load over the reserve", "motor load over the reserve, excluded",
+            dict(s=16, c="tab:brown", marker="1", alpha=0.7)))
+
+
 def _groups(points: Sequence[Point], front: Sequence[Point]) -> list:
+    """(label, points, style) of each of :data:`_GROUPS`."""
     ids = {id(p) for p in front}
-    return [("trials", [p for p in points if p.feasible and id(p) not in ids], dict(s=10, c="0.7", marker="o")),
-            ("lost steps, excluded", [p for p in points if p.step_loss], dict(s=16, c="tab:red", marker="x", alpha=0.6)),
-            ("path error over the bound, excluded", [p for p in points if p.too_rough and not p.step_loss],
-             dict(s=16, c="tab:purple", marker="+", alpha=0.6)),
-            ("motor load over the reserve, excluded",
-             [p for p in points if p.overloaded and not p.too_rough and not p.step_loss],
-             dict(s=16, c="tab:brown", marker="1", alpha=0.7))]
-
-
-_EDGES = (("above_scale", "^"), ("below_scale", "v"), ("right_of_scale", ">"), ("left_of_scale", "<"))
+    group = [(broken_bounds(p) or ["front" if id(p) in ids else "trials"])[0] for p in points]
+    return [(label, [p for p, g in zip(points, group) if g == key], style) for key, label, style in _GROUPS]
 
 
 def _scatter_clipped(ax, t, y, box, style, counts, label=None):
     """Points inside ``box`` (t_lo, t_hi, y_lo, y_hi) as they are; the others as arrows at the edge
-    they lie beyond (counted in ``counts``)."""
+    they lie beyond (counted in ``counts``): their values clipped into the box."""
     t_lo, t_hi, y_lo, y_hi = box
     ok = np.isfinite(y)
     inside = ok & (t >= t_lo) & (t <= t_hi) & (y >= y_lo) & (y <= y_hi)
     ax.scatter(t[inside], y[inside], label=label, zorder=1, **style)
     in_y = (y >= y_lo) & (y <= y_hi)
-    sel = {"above_scale": ok & (y > y_hi), "below_scale": ok & (y < y_lo),
-           "right_of_scale": ok & in_y & (t > t_hi), "left_of_scale": ok & in_y & (t < t_lo)}
-    for name, marker in _EDGES:
-        s = sel[name]
-        if not s.any():
-            continue
-        counts[name] += int(s.sum())
-        if name in ("above_scale", "below_scale"):
-            xx, yy = np.clip(t[s], t_lo, t_hi), np.full(int(s.sum()), y_hi if name == "above_scale" else y_lo)
-        else:
-            xx, yy = np.full(int(s.sum()), t_hi if name == "right_of_scale" else t_lo), y[s]
-        ax.scatter(xx, yy, marker=marker, s=30, c=style["c"], alpha=0.8, zorder=1, clip_on=False)
+    for name, marker, s in (("above_scale", "^", ok & (y > y_hi)), ("below_scale", "v", ok & (y < y_lo)),
+                            ("right_of_scale", ">", ok & in_y & (t > t_hi)),
+                            ("left_of_scale", "<", ok & in_y & (t < t_lo))):
+        if s.any():
+            counts[name] += int(s.sum())
+            ax.scatter(np.clip(t[s], t_lo, t_hi), np.clip(y[s], y_lo, y_hi), marker=marker, s=30, c=style["c"],
+                       alpha=0.8, zorder=1, clip_on=False)
 
 
-def _panel(ax, key, name, unit, factor, ctx, full_legend: bool) -> dict:
+@dataclass(frozen=True)
+class _Scene:
+    """What every panel draws: every trial, the front, the chosen point, the baselines by key and
+    their labels, the ringed points ({label: point}), the quality objective's key, the path-error
+    bound (mm; 0 = none); ``scaled``: the points the scales are fitted to (the front, the
+    baselines, the chosen point and every feasible trial) and ``t_box``: the print-time range drawn (s)."""
+
+    points: list
+    front: list
+    chosen: Point
+    baselines: dict
+    labels: dict
+    marked: dict
+    quality: str
+    max_path_error_mm: float
+    scaled: list
+    t_box: tuple
+
+
+def _panel(ax, key, name, unit, factor, scene: _Scene, full_legend: bool) -> dict:
     """Draw one measure against print time; returns its counts, legend and drawn series."""
-    points, front, chosen, baselines, quality, labels, marked, bound, t_box = ctx
+    def y(p: Point) -> float:
+        return _value(p, key, scene.quality) * factor
+
     counts = {"above_scale": 0, "below_scale": 0, "right_of_scale": 0, "left_of_scale": 0}
-    ys = {id(p): _value(p, key, quality) * factor for p in points + list(front) + list(baselines.values()) + [chosen]}
-    core = [ys[id(p)] for p in list(front) + list(baselines.values()) + [chosen]]
-    core += [ys[id(p)] for p in points if p.feasible]
-    series: dict = {}
-    if not np.isfinite(core).any():
-        return {**counts, **_missing(ax, name, unit, t_box), "series": series}
-    extra = [bound * factor] if key == "path_error_mm" and bound > 0 else []
-    y_lo, y_hi = _limits(np.array(core + extra, float))
-    box = (t_box[0], t_box[1], y_lo, y_hi)
-    for label, pts, style in _groups(points, front):
-        if pts:
-            _scatter_clipped(ax, np.array([p.print_time_s for p in pts]), np.array([ys[id(p)] for p in pts]), box,
-                             style, counts, f"{label} ({len(pts)})" if full_legend else None)
-    if front:
-        series["front"] = _front(ax, front, [ys[id(p)] for p in front])
-    if key == "path_error_mm" and bound > 0:
-        ax.axhline(bound * factor, c="tab:purple", ls="--", lw=1, label=f"path-error bound {bound * 1000:g} µm")
-    for bkey, p in baselines.items():
-        _baseline(ax, bkey, p, ys[id(p)], (y_lo, y_hi), unit, labels, full_legend, series)
-    rings = _rings(ax, marked or {}, labels, lambda p: _value(p, key, quality) * factor)
-    _chosen(ax, chosen, ys[id(chosen)], unit, full_legend, series)
+    scaled = [y(p) for p in scene.scaled]
+    if not np.isfinite(scaled).any():
+        return {**counts, **_missing(ax, name, unit, scene.t_box), "series": {}}
+    bound = scene.max_path_error_mm * factor if key == "path_error_mm" and scene.max_path_error_mm > 0 else np.nan
+    box = (*scene.t_box, *_limits(np.array(scaled + [bound], float)))    # no bound: NaN, left out
+    _trials(ax, scene, y, box, counts, full_legend)
+    series = {"front": _front(ax, scene.front, [y(p) for p in scene.front])} if scene.front else {}
+    if np.isfinite(bound):
+        ax.axhline(bound, c="tab:purple", ls="--", lw=1,
+                   label=f"path-error bound {scene.max_path_error_mm * 1000:g} µm")
+    for bkey, p in scene.baselines.items():
+        _baseline(ax, bkey, p, y(p), box[2:], unit, scene.labels, full_legend, series)
+    rings = _rings(ax, scene.marked, scene.labels, y)
+    _chosen(ax, scene.chosen, y(scene.chosen), unit, full_legend, series)
     legend = _finish(ax, counts, f"{name} ({unit})" if full_legend else unit, full_legend, box)
     return {**counts, "missing": False, "legend": legend, "rings": rings, "series": series}
+
+
+def _trials(ax, scene: _Scene, y, box, counts: dict, full_legend: bool) -> None:
+    """Every trial off the front and every ruled-out one (:func:`_groups`) at its value ``y(point)``,
+    those beyond ``box`` as arrows counted in ``counts``; labelled with their numbers when ``full_legend``."""
+    for label, pts, style in _groups(scene.points, scene.front):
+        if pts:
+            _scatter_clipped(ax, np.array([p.print_time_s for p in pts]), np.array([y(p) for p in pts]), box,
+                             style, counts, f"{label} ({len(pts)})" if full_legend else None)
 
 
 def _missing(ax, name: str, unit: str, t_box) -> dict:
@@ -149,19 +172,19 @@ def _missing(ax, name: str, unit: str, t_box) -> dict:
 
 def _baseline(ax, bkey: str, p: Point, y: float, y_box, unit: str, labels: dict, full_legend: bool,
               series: dict) -> None:
-    """One baseline's marker (edged red when it breaks a bound) and label; a baseline without the
-    measure is named in the legend only."""
-    m, c = STYLE.get(bkey, ("P", "tab:cyan"))
-    broke = [w for w, flag in (("loses steps", p.step_loss), ("path error over the bound", p.too_rough),
-                               ("motor load over the reserve", p.overloaded)) if flag]
-    txt = f"{y:.1f} {unit}" if np.isfinite(y) else "not measured"
-    lab = (f"{short_label(labels.get(bkey, bkey))}: {p.print_time_s:.2f} s, {txt}"
-           + (f" — BREAKS A BOUND ({', '.join(broke)})" if broke else ""))
+    """One baseline's marker (edged red when it breaks a bound other than show-through, the legend
+    naming them) and label; a baseline without the measure is not drawn."""
     if not np.isfinite(y):
         return
+    m, c = STYLE.get(bkey, ("P", "tab:cyan"))
+    broke = [w for w in broken_bounds(p) if w != "show-through over the bound"]
+    lab = f"{short_label(labels.get(bkey, bkey))}: {p.print_time_s:.2f} s, {y:.1f} {unit}"
+    edge, width = ("white", 1)
+    if broke:
+        lab, edge, width = f"{lab} — BREAKS A BOUND ({', '.join(broke)})", "red", 2
     y_lo, y_hi = y_box
     ax.scatter([p.print_time_s], [np.clip(y, y_lo, y_hi)], s=90, marker=m, c=c, zorder=5, label=lab,
-               edgecolors="red" if broke else "white", linewidths=2 if broke else 1)
+               edgecolors=edge, linewidths=width)
     series[f"baseline:{bkey}"] = [[p.print_time_s, y]]
     ax.annotate(SHORT.get(bkey, bkey) + ("" if full_legend else f" {y:.1f}"),
                 (p.print_time_s, float(np.clip(y, y_lo, y_hi))), fontsize=7,
@@ -211,6 +234,15 @@ def _finish(ax, counts: dict, ylabel: str, full_legend: bool, box) -> list[str]:
     return [t.get_text() for t in leg.get_texts()]
 
 
+def _main_measure(scene: _Scene) -> tuple[tuple, str]:
+    """The large panel's measure (as a row of :data:`MEASURES`): the ripple, or the quality
+    objective when no point carries it, with a note saying so ("" with the ripple)."""
+    if any(np.isfinite(_value(p, "ripple_mm", scene.quality)) for p in scene.scaled + scene.points):
+        return MAIN, ""
+    word, unit, factor = QUALITY.get(scene.quality, (scene.quality, "µm", 1000.0))
+    return (scene.quality, word, unit, factor), f"ripple not recorded for these trials: {word} shown instead"
+
+
 def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chosen: Point,
                baselines: dict[str, Point], quality: str, title: str, *, max_path_error_mm: float = 0.0,
                baseline_labels: dict[str, str] | None = None, marked: dict[str, Point] | None = None) -> dict:
@@ -223,28 +255,21 @@ def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chos
     ringed (e.g. "dominates Klipper's rule")."""
     matplotlib.use("Agg")
     points = list(points)
-    core = list(front) + list(baselines.values()) + [chosen]
-    t_lo, t_hi = _limits(np.array([p.print_time_s for p in core] + [p.print_time_s for p in points if p.feasible]))
-    ctx = (points, list(front), chosen, baselines, quality, baseline_labels or {}, marked,
-           max_path_error_mm, (t_lo, t_hi))
-    main = MAIN
-    has_ripple = any(np.isfinite(_value(p, "ripple_mm", quality)) for p in core + points)
-    note = ""
-    if not has_ripple:
-        word, unit, factor = QUALITY.get(quality, (quality, "µm", 1000.0))
-        main = (quality, word, unit, factor)
-        note = f"ripple not recorded for these trials: {word} shown instead"
+    scaled = list(front) + list(baselines.values()) + [chosen] + [p for p in points if p.feasible]
+    scene = _Scene(points, list(front), chosen, baselines, baseline_labels or {}, marked or {}, quality,
+                   max_path_error_mm, scaled, _limits(np.array([p.print_time_s for p in scaled])))
+    main, note = _main_measure(scene)
     fig = plt.figure(figsize=(16, 10), dpi=110)
     grid = fig.add_gridspec(3, 4)
     ax_main = fig.add_subplot(grid[:, :2])
-    drawn = {main[0]: _panel(ax_main, *main, ctx, True)}
+    drawn = {main[0]: _panel(ax_main, *main, scene, True)}
     ax_main.set_xlabel("print time (s)")
     if note:
         ax_main.text(0.01, 0.02, note, transform=ax_main.transAxes, fontsize=8, color="tab:red")
     small = [m for m in MEASURES if m[0] != main[0]][:6]
     for i, m in enumerate(small):
         ax = fig.add_subplot(grid[i // 2, 2 + i % 2], sharex=ax_main)
-        drawn[m[0]] = _panel(ax, *m, ctx, False)
+        drawn[m[0]] = _panel(ax, *m, scene, False)
         ax.set_title(f"{m[1]} ({m[2]})", fontsize=8)
         ax.tick_params(labelsize=7)
         if i >= len(small) - 2:
@@ -253,12 +278,13 @@ def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chos
                  "baselines and the chosen point marked on each", fontsize=10)
     fig.tight_layout()
     fig.canvas.draw()
-    leg = ax_main.get_legend()
-    boxes = [a.get_window_extent() for a in fig.axes]
-    for v in drawn.values():      # whether the legend overlaps any panel's plotting area
-        v["legend_over_points"] = bool(leg is not None and any(leg.get_window_extent().overlaps(b) for b in boxes))
-    data = {k: {"unit": dict((m[0], m[2]) for m in (main, *small))[k],
-                "scale": dict((m[0], m[3]) for m in (main, *small))[k], **v.pop("series")} for k, v in drawn.items()}
+    leg = ax_main.get_legend()      # whether it overlaps any panel's plotting area
+    over = bool(leg is not None and any(leg.get_window_extent().overlaps(a.get_window_extent()) for a in fig.axes))
+    spec = {m[0]: m for m in (main, *small)}
+    data = {}
+    for k, v in drawn.items():
+        v["legend_over_points"] = over
+        data[k] = {"unit": spec[k][2], "scale": spec[k][3], **v.pop("series")}
     fig.savefig(path, metadata={"Title": title, "Data": json.dumps(data)}, bbox_inches="tight")
     plt.close(fig)
     return drawn

@@ -22,94 +22,19 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-from dataclasses import dataclass, field
+from collections import Counter
 from pathlib import Path
 from typing import Any, Sequence
 
-from ringtune.agents.tune.pareto import (BASELINE_NAMES, DEFAULT_RESOLUTION, VISIBLE_KEYS, WORDS, Choice, Point,
-                                         Resolution, judge, shown)
+from ringtune.agents.tune.pareto import (BASELINE_NAMES, DEFAULT_RESOLUTION, METRIC_KEYS, VISIBLE_KEYS, Choice, Point,
+                                         Resolution, broken_bounds, shown)
 from ringtune.agents.tune.pareto_plot import plot_front
 from ringtune.agents.tune.readme_text import readme_text
-from ringtune.agents.tune.versus import table as versus_table, versus_all
+from ringtune.agents.tune.versus import QUALITY_LABEL, best_dominating, compare, table as versus_table, versus_all
 from ringtune.hardware.dialects import export_config, limit_command
 from ringtune.shaping.feature_settings import per_feature_text
 from ringtune.shaping.firmware import Firmware
 from ringtune.shaping.smoothers import is_smoother
-
-QUALITY_LABEL = {"overshoot_mm": "overshoot", "path_error_mm": "path error", "ripple_mm": "ripple"}
-
-
-@dataclass
-class Comparison:
-    """How ``point`` compares with a baseline (positive = better than the baseline), with the
-    verdict per figure at the resolution (``better|same|worse``) and ``dominates`` (nothing worse,
-    something better; :func:`ringtune.agents.tune.pareto.judge`)."""
-
-    baseline: str
-    faster_s: float
-    faster_pct: float
-    better_mm: float
-    better_pct: float
-    dominates: bool
-    metrics: dict = field(default_factory=dict)
-    path_error_better_mm: float | None = None
-    path_error_better_pct: float | None = None
-
-    def sentence(self, quality: str) -> str:
-        word = QUALITY_LABEL.get(quality, quality)
-
-        def same(key):
-            return ": the same" if self.metrics.get(key) == "same" else ""
-        t = (f"{self.faster_s:.3f} s faster ({self.faster_pct:.1f} %{same('print_time_s')})" if self.faster_s >= 0
-             else f"{-self.faster_s:.3f} s slower ({-self.faster_pct:.1f} %{same('print_time_s')})")
-        parts = [t, _diff(self.better_mm, self.better_pct, word, same(quality))]
-        if quality != "path_error_mm" and self.path_error_better_mm is not None:
-            parts.append(_diff(self.path_error_better_mm, self.path_error_better_pct, "path error",
-                               same("path_error_mm")))
-        worse = [_NAMES.get(k, k) for k, v in self.metrics.items() if v == "worse"]
-        tail = (" — dominates it" if self.dominates else
-                f" — does not dominate it (worse {', '.join(worse)})" if worse else
-                " — the same within the resolution")
-        return "; ".join(parts) + tail
-
-    def to_dict(self) -> dict:
-        return dict(self.__dict__)
-
-
-_NAMES = {**{k: w for k, (w, _u) in WORDS.items()},
-          "feasible": "feasibility (it breaks a bound the baseline keeps)"}
-
-
-def _diff(better_mm: float, pct: float | None, word: str, same: str = "") -> str:
-    p = f" ({abs(pct):.1f} %{same})" if pct is not None else (f" ({same[2:]})" if same else "")
-    return (f"{better_mm * 1000:.1f} µm less {word}{p}" if better_mm >= 0
-            else f"{-better_mm * 1000:.1f} µm more {word}{p}")
-
-
-def compare(point: Point, base: Point, res: Resolution = DEFAULT_RESOLUTION) -> Comparison:
-    dt = base.print_time_s - point.print_time_s
-    dq = base.quality_mm - point.quality_mm
-    j = judge(point, base, res)
-    pe_p, pe_b = point.value("path_error_mm"), base.value("path_error_mm")
-    dpe = None if pe_p is None or pe_b is None else pe_b - pe_p
-    return Comparison(base.label, dt, 100.0 * dt / base.print_time_s if base.print_time_s else 0.0,
-                      dq, 100.0 * dq / base.quality_mm if base.quality_mm else 0.0, j.dominates, j.verdicts,
-                      dpe, None if dpe is None or not pe_b else 100.0 * dpe / pe_b)
-
-
-def best_dominating(front: Sequence[Point], base: Point, res: Resolution = DEFAULT_RESOLUTION) -> Point | None:
-    """The front point dominating ``base`` at the resolution with the largest summed relative
-    gain, or None."""
-    dom = [p for p in front if judge(p, base, res).dominates]
-    if not dom:
-        return None
-
-    def gain(p: Point) -> float:
-        return ((base.print_time_s - p.print_time_s) / max(base.print_time_s, 1e-12)
-                + (base.quality_mm - p.quality_mm) / max(base.quality_mm, 1e-12))
-
-    return max(dom, key=gain)
-
 
 def _takes_damping(name: str) -> bool:
     """A shaper with a damping ratio S (not "none", not one of Kalico's smoothers)."""
@@ -120,7 +45,8 @@ def describe(cfg) -> str:
     """One line: shapers, F, S (per axis where the axes' differ), frequency limit, acceleration and
     the per-axis caps the configuration carries of a TuneConfig."""
     shaped = [a for a in "xy" if _takes_damping(cfg.axis(a)[0])]
-    per_axis_s = len({cfg.axis(a)[2] for a in shaped}) > 1
+    dampings = {cfg.axis(a)[2] for a in shaped}
+    per_axis_s = len(dampings) > 1
 
     def ax(a):
         name, f, z = cfg.axis(a)
@@ -128,7 +54,7 @@ def describe(cfg) -> str:
             return f"{a.upper()} {name}"
         return f"{a.upper()} {name} @ {f:.1f} Hz" + (f" S {z:.3f}" if per_axis_s * (a in shaped) else "")
     parts = [ax("x"), ax("y")]
-    if shaped and not per_axis_s:
+    if len(dampings) == 1:     # one S for both shaped axes
         parts.append(f"S {cfg.axis(shaped[0])[2]:.3f}")
     parts.append("no freq limit" if cfg.freq_limit_hz <= 0 else
                  f"freq limit {cfg.freq_limit_hz:.1f} Hz ({cfg.freq_limit_method})")
@@ -138,14 +64,10 @@ def describe(cfg) -> str:
     return ", ".join(parts)
 
 
-_ROW_KEYS = ("print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss",
-             "motor_load") + VISIBLE_KEYS + ("e_lag_mm", "show_through_mm")
-
-
 def _row(p: Point) -> dict[str, Any]:
     c = p.config
     row = {"label": p.label, "print_time_s": round(p.print_time_s, 4)}
-    for k in _ROW_KEYS[1:]:
+    for k in METRIC_KEYS[1:]:
         v = p.metrics.get(k)
         row[k] = v if not isinstance(v, float) else round(v, 6)
     row.update({"shaper_x": c.shaper_x, "freq_x": c.freq_x, "shaper_y": c.shaper_y, "freq_y": c.freq_y,
@@ -165,14 +87,16 @@ def _write_csv(path: Path, points: Sequence[Point]) -> None:
         w.writerows(rows)
 
 
+#: the front table's column heads of the visible measures (a quality objective's: its label in µm)
+_COLUMNS = {"ripple_mm": "ripple µm", "ripple_p90_mm": "p90 µm", "corner_in_mm": "in µm", "corner_out_mm": "out µm",
+            "extrusion_over_pct": "over%", "extrusion_under_pct": "under%"}
+
+
 def front_table(front: Sequence[Point], chosen: Point, quality: str) -> str:
     """The front as text: time, then the visible measures the points have (µm, %), then the configuration."""
-    keys = [k for k in VISIBLE_KEYS if front and k in front[0].metrics] or \
-        [quality] + (["path_error_mm"] if quality != "path_error_mm" else [])
-    short = {"ripple_mm": "ripple", "ripple_p90_mm": "p90", "corner_in_mm": "in", "corner_out_mm": "out",
-             "extrusion_over_pct": "over%", "extrusion_under_pct": "under%"}
-    head = "".join(f" {short.get(k, QUALITY_LABEL.get(k, k)) + ('' if k.endswith('_pct') else ' µm'):>12}"
-                   for k in keys)
+    keys = [k for k in VISIBLE_KEYS if k in (front[0].metrics if front else {})] or \
+        list(dict.fromkeys((quality, "path_error_mm")))
+    head = "".join(f" {_COLUMNS.get(k, QUALITY_LABEL.get(k, k) + ' µm'):>12}" for k in keys)
     lines = [f"  {'':2}{'time s':>8}{head}  configuration"]
     for p in front:
         mark = "*" if p is chosen else " "
@@ -215,7 +139,7 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
     _save_best(out_dir, choice, vs, {"source": "ringtune tune", "printer": printer_name, "job": job_name},
                best_extra or {})
 
-    apply_text, apply_note = _apply_lines(best_cfg, dialect)
+    apply_text, apply_notes = _apply_lines(best_cfg, dialect)
     (out_dir / "apply.txt").write_text(apply_text)
 
     comparisons = {k: compare(chosen, b, resolution) for k, b in baselines.items()}
@@ -231,9 +155,8 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
 
     s = [f"ringtune tune — {title}", "", f"CHOSEN ({choice.sentence}):", f"  {describe(best_cfg)}",
          "  " + _figures(chosen, quality)]
-    rewrite, rewrite_line = _job_rewrite(best_cfg, dialect)
-    if rewrite_line:
-        s.append("  " + rewrite_line)
+    rewrite, rewrite_lines = _job_rewrite(best_cfg, dialect)
+    s += rewrite_lines
     s += ["", "BASELINES (same printer, job and simulation):"]
     s += _baseline_lines(baselines, labels, comparisons, dominating, quality, resolution, binding)
     if baselines and "ripple_mm" in chosen.metrics:
@@ -246,8 +169,7 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
              + ". All are drawn in pareto.png.")
     s.extend(notes)
     s.append(f"Study '{study_name}' in {storage}; rerun the same command to resume or extend it (--trials).")
-    if apply_note:
-        s.append(apply_note)
+    s.extend(apply_notes)
     summary_text = "\n".join(s) + "\n"
     (out_dir / "summary.txt").write_text(summary_text)
     (out_dir / "README.txt").write_text(readme_text(out_dir, dialect, storage, command))
@@ -260,8 +182,7 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         "max_path_error_mm": max_path_error_mm,
         "motor_reserve": motor_reserve,
         "max_show_through_mm": max_show_through_mm,
-        "resolution": {"distance_mm": resolution.distance_mm, "distance_rel": resolution.distance_rel,
-                       "time_rel": resolution.time_rel, "pct_abs": resolution.pct_abs},
+        "resolution": dataclasses.asdict(resolution),
         "chosen": _chosen_dict(choice, rewrite),
         "baselines": {k: _baseline_dict(b, labels[k], binding.get(k, [])) for k, b in baselines.items()},
         "vs_baselines": {k: c.to_dict() for k, c in comparisons.items()},
@@ -294,8 +215,8 @@ _FILES = (("readme", "README.txt"), ("summary", "summary.txt"), ("plot", "pareto
 def _save_best(out_dir: Path, choice: Choice, vs: dict, where: dict, extra: dict) -> None:
     """best.json: the chosen configuration with where it comes from (``where``), its figures, how it
     was chosen and its verdicts against each baseline, and ``extra``'s keys."""
-    cfg, metrics = choice.point.config, choice.point.metrics
-    cfg.extra.update({**where, "metrics": {k: metrics.get(k) for k in _ROW_KEYS if k in metrics},
+    cfg = choice.point.config
+    cfg.extra.update({**where, "metrics": _measures(choice.point, METRIC_KEYS),
                       "chosen_by": choice.by, "against": choice.baseline,
                       "versus": {k: {m: v["verdict"] for m, v in d.items()} for k, d in vs.items()}, **extra})
     cfg.save(out_dir / "best.json")
@@ -312,10 +233,9 @@ def _dominating(front: Sequence[Point], baselines: dict[str, Point], res: Resolu
     return out
 
 
-#: a baseline's broken bounds: (its flag on the point, the word in the summary, the key in --json)
-_BREAKS = (("step_loss", "LOSES STEPS", "step_loss"), ("too_rough", "PATH ERROR OVER THE BOUND", "max_path_error"),
-           ("overloaded", "MOTOR LOAD OVER THE RESERVE", "motor_reserve"),
-           ("shows_through", "SHOW-THROUGH OVER THE BOUND", "max_show_through"))
+#: a broken bound (:func:`ringtune.agents.tune.pareto.broken_bounds`' words) -> its key in --json
+_BREAK_KEYS = {"loses steps": "step_loss", "path error over the bound": "max_path_error",
+               "motor load over the reserve": "motor_reserve", "show-through over the bound": "max_show_through"}
 
 
 def _baseline_lines(baselines: dict[str, Point], labels: dict[str, str], comparisons: dict, dominating: dict,
@@ -326,8 +246,7 @@ def _baseline_lines(baselines: dict[str, Point], labels: dict[str, str], compari
     s = []
     for k, b in baselines.items():
         s.append(f"  {labels[k]}: {describe(b.config)}")
-        s.append("    " + _figures(b, quality) + "".join(f"  ({word})" for flag, word, _ in _BREAKS
-                                                          if getattr(b, flag)))
+        s.append("    " + _figures(b, quality) + "".join(f"  ({words.upper()})" for words in broken_bounds(b)))
         s.extend(f"    {x.sentence()}" for x in binding.get(k, []))
         s.append(f"    chosen vs this: {comparisons[k].sentence(quality)}")
     for k in ("klipper", "current"):
@@ -345,21 +264,20 @@ def _baseline_lines(baselines: dict[str, Point], labels: dict[str, str], compari
 def _ruled_out(points: Sequence[Point], max_pe: float, reserve: float, max_st: float) -> list[str]:
     """What the bounds ruled out, counted (each trial under the first bound it breaks), or that a
     bound is off."""
-    n_lost = sum(p.step_loss for p in points)
-    n_rough = sum(p.too_rough and not p.step_loss for p in points)
-    n_load = sum(p.overloaded and not p.too_rough and not p.step_loss for p in points)
-    n_show = sum(p.shows_through and not (p.overloaded or p.too_rough or p.step_loss) for p in points)
-    return [f"{n_lost} trials that lose steps",
-            f"{n_rough} whose path error (corner rounding, overshoot, ringing) exceeds {max_pe:g} mm "
-            "(--max-path-error)" if max_pe > 0 else "path error not bounded (--max-path-error 0)",
-            f"{n_load} that ask a motor for more than {(1 - reserve) * 100:.0f} % of its force "
-            "(--motor-reserve)" if reserve > 0 else "motor load not bounded (--motor-reserve 0)",
-            f"{n_show} whose hidden features reach the outer wall by more than {max_st * 1000:g} µm "
-            "(--max-show-through)" if max_st > 0 else "show-through not bounded (--max-show-through 0)"]
+    n = Counter(broken_bounds(p)[0] for p in points if not p.feasible)
+    bounded = ((max_pe, f"{n['path error over the bound']} whose path error (corner rounding, overshoot, ringing) "
+                f"exceeds {max_pe:g} mm (--max-path-error)", "path error not bounded (--max-path-error 0)"),
+               (reserve, f"{n['motor load over the reserve']} that ask a motor for more than "
+                f"{(1 - reserve) * 100:.0f} % of its force (--motor-reserve)",
+                "motor load not bounded (--motor-reserve 0)"),
+               (max_st, f"{n['show-through over the bound']} whose hidden features reach the outer wall by more "
+                f"than {max_st * 1000:g} µm (--max-show-through)", "show-through not bounded (--max-show-through 0)"))
+    return [f"{n['loses steps']} trials that lose steps"] + [on if bound > 0 else off for bound, on, off in bounded]
 
 
-def _measures(p: Point) -> dict:
-    return {k: p.metrics.get(k) for k in _ROW_KEYS[1:] if k in p.metrics}
+def _measures(p: Point, keys: Sequence[str] = METRIC_KEYS[1:]) -> dict:
+    """The figures of ``keys`` ``p`` has (default: all but print time)."""
+    return {k: p.metrics[k] for k in keys if k in p.metrics}
 
 
 def _chosen_dict(choice: Choice, rewrite: str | None) -> dict:
@@ -378,7 +296,7 @@ def _baseline_dict(b: Point, label: str, binding: list) -> dict:
     return {"config": b.config.to_dict(), "print_time_s": b.print_time_s, "quality_mm": b.quality_mm,
             "path_error_mm": b.metrics.get("path_error_mm"), "overshoot_mm": b.metrics.get("overshoot_mm"),
             "motor_load": b.metrics.get("motor_load"), "step_loss": b.step_loss, "measures": _measures(b),
-            "breaks": [key for flag, _, key in _BREAKS if getattr(b, flag)],
+            "breaks": [_BREAK_KEYS[words] for words in broken_bounds(b)],
             "binding": [dataclasses.asdict(x) for x in binding], "label": label}
 
 
@@ -409,24 +327,25 @@ def _figures(p: Point, quality: str) -> str:
     return out
 
 
-def _job_rewrite(cfg, dialect: str | None = None) -> tuple[str | None, str]:
-    """(the ``ringtune limit`` command, one summary line) when the chosen frequency limit cannot be
-    set on the firmware and every job must be rewritten with it (no limit of the firmware's own, or
-    Marlin's ``M201 F`` with another method than Marlin's); (None, "") otherwise."""
+def _job_rewrite(cfg, dialect: str | None = None) -> tuple[str | None, list[str]]:
+    """(the ``ringtune limit`` command, the summary's line saying so) when the chosen frequency
+    limit cannot be set on the firmware and every job must be rewritten with it (no limit of the
+    firmware's own, or Marlin's ``M201 F`` with another method than Marlin's); (None, []) otherwise."""
     if cfg.freq_limit_hz <= 0:
-        return None, ""
+        return None, []
     fw = Firmware.named(dialect or cfg.firmware)
     if fw.freq_limit and cfg.freq_limit_method == "marlin":
-        return None, ""
+        return None, []
     cmd = limit_command(cfg)
     why = (f"{fw.title} has no frequency limit of its own" if not fw.freq_limit else
            f"{fw.title}'s M201 F runs Marlin's method, not '{cfg.freq_limit_method}'")
-    return cmd, (f"The {cfg.freq_limit_hz:g} Hz frequency limit is not a printer setting ({why}): rewrite every "
-                 f"job with `{cmd}` before printing it.")
+    return cmd, [f"  The {cfg.freq_limit_hz:g} Hz frequency limit is not a printer setting ({why}): rewrite every "
+                 f"job with `{cmd}` before printing it."]
 
 
-def _apply_lines(cfg, dialect: str | None = None) -> tuple[str, str]:
+def _apply_lines(cfg, dialect: str | None = None) -> tuple[str, list[str]]:
+    """apply.txt's text, and the summary's notes on it: none, or why the firmware refused it."""
     try:
-        return export_config(cfg, dialect).render(), ""
+        return export_config(cfg, dialect).render(), []
     except Exception as exc:  # a firmware range refusal: say so instead of failing the study
-        return (f"# could not export for {dialect or cfg.firmware}: {exc}\n", f"apply.txt: {exc}")
+        return (f"# could not export for {dialect or cfg.firmware}: {exc}\n", [f"apply.txt: {exc}"])

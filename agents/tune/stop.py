@@ -108,10 +108,11 @@ def freq_variants(cfg: TuneConfig, space: SearchSpace) -> list[TuneConfig]:
     """``cfg`` with each shaped axis's frequency :data:`FREQ_REL` up and down (one frequency for
     all axes where the firmware has one shaper), inside the space's ranges."""
     params = params_from_config(cfg, space)
-    keys = [k for k in (("freq_x", "freq_y") if space.per_axis else ("freq",)) if k in params]
+    ranges = {"freq_x": space.freq_x, "freq_y": space.freq_y} if space.per_axis else {"freq": space.freq_x}
     out = []
-    for k in keys:
-        lo, hi = getattr(space, "freq_x" if k == "freq" else k)
+    for k, (lo, hi) in ranges.items():
+        if k not in params:
+            continue
         for sign in (-1, 1):
             f = params[k] * (1 + sign * FREQ_REL)
             if lo <= f <= hi:

@@ -61,8 +61,7 @@ def make_storage(url: str):
 
 def _journal_storage(url: str):
     """Optuna's journal file storage at ``journal:PATH`` (``journal://PATH``) or ``PATH.journal``."""
-    path = url[len("journal:"):] if url.startswith("journal:") else url
-    path = path[2:] if path.startswith("//") else path
+    path = url.removeprefix("journal:").removeprefix("//")
     if not path:
         raise RingtuneError("journal storage needs a file path, e.g. journal:out/study.journal", "storage")
     Path(path).parent.mkdir(parents=True, exist_ok=True)
@@ -75,21 +74,20 @@ def _journal_storage(url: str):
 def _rdb_storage(url: str) -> RDBStorage:
     """An RDB storage with Optuna's heartbeat (stale trials retried once); SQLite in WAL mode with a
     60 s busy timeout."""
-    sqlite = url.startswith("sqlite")
-    if sqlite:
-        _sqlite_wal(url)
-    storage = RDBStorage(url, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S,
-                         heartbeat_stale_trial_callback=RetryHeartbeatStaleTrialCallback(max_retry=1),
-                         **({"engine_kwargs": {"connect_args": {"timeout": 60}}} if sqlite else {}))
-    if sqlite:
-        _sqlite_fast(storage)
+    heartbeat = dict(heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S,
+                     heartbeat_stale_trial_callback=RetryHeartbeatStaleTrialCallback(max_retry=1))
+    if not url.startswith("sqlite"):
+        return RDBStorage(url, **heartbeat)
+    _sqlite_wal(url)
+    storage = RDBStorage(url, **heartbeat, engine_kwargs={"connect_args": {"timeout": 60}})
+    _sqlite_fast(storage)
     return storage
 
 
 def _sqlite_wal(url: str) -> None:
     """Put a SQLite study file in WAL mode (persistent; many readers, one writer, far fewer fsyncs)."""
     path = url.split(":///", 1)[-1]
-    if not path or path == ":memory:":
+    if path in ("", ":memory:"):
         return
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     con = sqlite3.connect(path, timeout=60)

@@ -35,6 +35,7 @@ import subprocess
 import sys
 import time
 import warnings
+from collections import Counter
 from dataclasses import asdict, dataclass, field
 from typing import Any, Callable
 
@@ -139,26 +140,36 @@ def open_study(settings: StudySettings, seed: int | None = None):
                                 directions=["minimize"] * len(OBJECTIVES), load_if_exists=True,
                                 sampler=make_sampler(settings.seed if seed is None else seed,
                                                      settings.n_startup_trials))
-    names = study.user_attrs.get("objectives")
-    wanted = objectives(settings)
-    if names is None:
-        study.set_user_attr("objectives", wanted)
+    if study.user_attrs.get("objectives") is None:
+        study.set_user_attr("objectives", objectives(settings))
         study.set_user_attr("settings", {k: v for k, v in settings.to_dict().items() if k != "storage"})
         if settings.space:
             study.set_user_attr("space", settings.space)
-    elif list(names) != wanted:
+    else:
+        _check_resumed(study, settings)
+    return study
+
+
+#: the settings a resumed study must have been run with (the bounds may change: they are applied
+#: again when the results are read)
+_SAME_SETTINGS = ("printer", "job", "firmware", "backend", "evaluator", "space", "freq_margin", "job_accel")
+
+
+def _check_resumed(study, settings: StudySettings) -> None:
+    """Refuse to resume a stored study that optimises other objectives or was run with other
+    :data:`_SAME_SETTINGS` (a study given no space takes the stored one)."""
+    names, wanted = study.user_attrs["objectives"], objectives(settings)
+    if list(names) != wanted:
         raise RingtuneError(f"study {settings.study_name!r} in this storage optimises {names}, not {wanted}; "
                             "use another --study name or --out folder", "study_name")
-    else:
-        stored = study.user_attrs.get("settings", {})
-        mine = json.loads(json.dumps(settings.to_dict()))
-        for key in ("printer", "job", "firmware", "backend", "evaluator", "space", "freq_margin", "job_accel"):
-            if key in stored and stored[key] != mine[key] and not (key == "space" and mine[key] is None):
-                raise RingtuneError(f"study {settings.study_name!r} in this storage was run with a different "
-                                    f"{key} ({_setting_text(key, stored[key])}; now "
-                                    f"{_setting_text(key, mine[key])}); use another --out folder or --study name",
-                                    "study_name")
-    return study
+    stored = study.user_attrs.get("settings", {})
+    mine = json.loads(json.dumps(settings.to_dict()))
+    for key in _SAME_SETTINGS:
+        if key in stored and stored[key] != mine[key] and not (key == "space" and mine[key] is None):
+            raise RingtuneError(f"study {settings.study_name!r} in this storage was run with a different "
+                                f"{key} ({_setting_text(key, stored[key])}; now "
+                                f"{_setting_text(key, mine[key])}); use another --out folder or --study name",
+                                "study_name")
 
 
 def _setting_text(key: str, value) -> str:
@@ -174,8 +185,9 @@ def _setting_text(key: str, value) -> str:
 
 
 def count_states(study) -> dict[str, int]:
-    trials = study.get_trials(deepcopy=False)
-    return {s.name: sum(1 for t in trials if t.state == s) for s in TrialState}
+    """How many trials the study holds in each state, by the state's name (every state, 0 too)."""
+    n = Counter(t.state.name for t in study.get_trials(deepcopy=False))
+    return {s.name: n[s.name] for s in TrialState}
 
 
 # -- one worker ------------------------------------------------------------------------------------
@@ -253,8 +265,7 @@ def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any =
             st.stop()
 
     try:
-        for params in settings.enqueue:
-            _enqueue_once(study, params)
+        _enqueue_new(study, settings.enqueue)
         while not stop.requested:
             reap_dead_workers(study)
             counts = count_states(study)
@@ -275,14 +286,14 @@ def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any =
     return done
 
 
-def _enqueue_once(study, params: dict) -> None:
-    """Enqueue a parameter set unless a trial (any state but FAIL) already has exactly it."""
-    key = sorted(params.items())
-    for t in study.get_trials(deepcopy=False):
-        if t.state != TrialState.FAIL and (sorted(t.params.items()) == key or
-                                           t.system_attrs.get("fixed_params") == dict(params)):
-            return
-    study.enqueue_trial(params, skip_if_exists=False)
+def _enqueue_new(study, enqueue: list[dict]) -> None:
+    """Enqueue each parameter set unless a trial (any state but FAIL) already has exactly it."""
+    for params in enqueue:
+        key = sorted(params.items())
+        if not any(t.state != TrialState.FAIL and (sorted(t.params.items()) == key or
+                                                   t.system_attrs.get("fixed_params") == dict(params))
+                   for t in study.get_trials(deepcopy=False)):
+            study.enqueue_trial(params, skip_if_exists=False)
 
 
 def evaluator_kwargs(settings: StudySettings) -> dict:
@@ -360,14 +371,8 @@ def _run_workers(settings: StudySettings, study, workers: int,
     """The study in ``workers`` spawned processes sharing its storage, this one watching and reporting
     progress; whether Ctrl-C stopped it (a worker that fails otherwise is an error)."""
     interrupted = False
-    for params in settings.enqueue:      # once, here: workers racing to enqueue would duplicate
-        _enqueue_once(study, params)
-    payload = json.dumps({**settings.to_dict(), "enqueue": []})
-    procs = [subprocess.Popen([sys.executable, "-m", "ringtune.agents.tune.study", "worker", str(i)],
-                              stdin=subprocess.PIPE, text=True) for i in range(workers)]
-    for p in procs:
-        p.stdin.write(payload)
-        p.stdin.close()
+    _enqueue_new(study, settings.enqueue)      # once, here: workers racing to enqueue would duplicate
+    procs = _spawn_workers({**settings.to_dict(), "enqueue": []}, workers)
     try:
         while any(p.poll() is None for p in procs):
             time.sleep(0.3)
@@ -375,18 +380,34 @@ def _run_workers(settings: StudySettings, study, workers: int,
                 progress(count_states(study)["COMPLETE"], settings.n_trials, study)
     except KeyboardInterrupt:
         interrupted = True   # the workers got the same Ctrl-C: they finish their trial and stop
-        deadline = time.time() + 30
-        for p in procs:
-            try:
-                p.wait(max(0.1, deadline - time.time()))
-            except subprocess.TimeoutExpired:
-                p.terminate()
+        _let_finish(procs, 30)
     codes = [p.wait() for p in procs]
-    bad = [c for c in codes if c != 0 and not interrupted]
+    bad = [] if interrupted else [c for c in codes if c != 0]
     if bad:
         raise RingtuneError(f"{len(bad)} worker process(es) failed (exit codes {bad}); "
                             "rerun to resume", "workers")
     return interrupted
+
+
+def _spawn_workers(settings: dict, workers: int) -> list[subprocess.Popen]:
+    """``workers`` worker processes (:func:`_worker_main`), each given ``settings`` as JSON on stdin."""
+    payload = json.dumps(settings)
+    procs = [subprocess.Popen([sys.executable, "-m", "ringtune.agents.tune.study", "worker", str(i)],
+                              stdin=subprocess.PIPE, text=True) for i in range(workers)]
+    for p in procs:
+        p.stdin.write(payload)
+        p.stdin.close()
+    return procs
+
+
+def _let_finish(procs: list[subprocess.Popen], grace_s: float) -> None:
+    """Wait up to ``grace_s`` (s) in all for the processes to end; terminate those still running."""
+    deadline = time.time() + grace_s
+    for p in procs:
+        try:
+            p.wait(max(0.1, deadline - time.time()))
+        except subprocess.TimeoutExpired:
+            p.terminate()
 
 
 # -- reading results -----------------------------------------------------------------------------
@@ -397,27 +418,34 @@ def study_points(study, space: SearchSpace | None = None, quality: str | None = 
     """All complete trials as points, flagged ``step_loss``, ``too_rough`` (path error over
     ``max_path_error_mm``, mm), ``overloaded`` (motor load over 1 − ``motor_reserve``) or
     ``shows_through`` (show-through over ``max_show_through_mm``, mm); default bounds: those the
-    study was created with; 0 = no bound."""
+    study was created with; 0 = no bound. ``quality`` is not used: a point's quality is the
+    study's second objective."""
     settings = study.user_attrs.get("settings", {})
-    quality = quality or study.user_attrs.get("objectives", ["", "ripple_mm"])[1]
-    if space is None:
-        space = SearchSpace.from_dict(study.user_attrs["space"]) if "space" in study.user_attrs else \
-            load_space(StudySettings(storage="", **{k: v for k, v in settings.items() if k != "storage"}))
-    if max_path_error_mm is None:
-        max_path_error_mm = float(settings.get("max_path_error_mm", 0.0) or 0.0)
-    if motor_reserve is None:
-        motor_reserve = float(settings.get("motor_reserve", 0.0) or 0.0)
-    if max_show_through_mm is None:
-        max_show_through_mm = float(settings.get("max_show_through_mm", 0.0) or 0.0)
-    max_load = 1.0 - motor_reserve if motor_reserve > 0 else 0.0
-    pts = []
-    for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)):
-        metrics = dict(t.user_attrs.get("metrics", {}))
-        pts.append(judge_bounds(Point(config_from_params(t.params, space), float(t.values[0]),
-                                      float(t.values[1]), bool(metrics.get("step_loss", False)), metrics,
-                                      f"trial {t.number}", t.number), max_path_error_mm, max_load,
-                                max_show_through_mm))
-    return pts
+    space = space if space is not None else _stored_space(study, settings)
+    reserve = _or_stored(motor_reserve, settings, "motor_reserve")
+    bounds = (_or_stored(max_path_error_mm, settings, "max_path_error_mm"), 1.0 - reserve if reserve > 0 else 0.0,
+              _or_stored(max_show_through_mm, settings, "max_show_through_mm"))
+    return [judge_bounds(_trial_point(t, space), *bounds)
+            for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))]
+
+
+def _stored_space(study, settings: dict) -> SearchSpace:
+    """The search space a stored study was run with (from its settings where it recorded none)."""
+    if "space" in study.user_attrs:
+        return SearchSpace.from_dict(study.user_attrs["space"])
+    return load_space(StudySettings(storage="", **{k: v for k, v in settings.items() if k != "storage"}))
+
+
+def _or_stored(given: float | None, settings: dict, key: str) -> float:
+    """``given``, else the stored study setting ``key`` (0 where it has none)."""
+    return float(settings.get(key, 0.0) or 0.0) if given is None else given
+
+
+def _trial_point(t, space: SearchSpace) -> Point:
+    """A complete trial as a point not yet judged against the bounds."""
+    metrics = dict(t.user_attrs.get("metrics", {}))
+    return Point(config_from_params(t.params, space), float(t.values[0]), float(t.values[1]),
+                 bool(metrics.get("step_loss", False)), metrics, f"trial {t.number}", t.number)
 
 
 if __name__ == "__main__":

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Callable
 
 from ringtune.agents.tune import feature_space, pareto, report, storage, study as tune_study
-from ringtune.agents.tune.baselines import baselines_for, inside, warm_start
+from ringtune.agents.tune.baselines import Baselines, baselines_for, inside, warm_start
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
 from ringtune.agents.tune.out_dir import check_out, remove_if_empty
@@ -83,15 +83,16 @@ class _Limits:
     accel_range: tuple[float, float] | None
 
 
-#: the run's size: (field, flag, test, message); a value failing its test is refused
+#: the run's size: (field, flag, default, scale of a given value, test, message); a value failing
+#: its test is refused
 _RUN_CHECKS = (
-    ("trials", "--trials", lambda v: v >= 1, "must be ≥ 1"),
-    ("workers", "--workers", lambda v: v >= 1, "must be ≥ 1"),
-    ("weight", "--weight", lambda v: v is None or v >= 0, "must be ≥ 0 (seconds per mm)"),
+    ("trials", "--trials", None, 1, lambda v: v >= 1, "must be ≥ 1"),
+    ("workers", "--workers", None, 1, lambda v: v >= 1, "must be ≥ 1"),
+    ("weight", "--weight", None, 1, lambda v: v is None or v >= 0, "must be ≥ 0 (seconds per mm)"),
 )
 
-#: the judgement's bounds: (field, flag, default, scale of a given value, test, message); the
-#: show-through bound not given is the job's own (:func:`ringtune.shaping.wall_gap.show_through_bound`)
+#: the judgement's bounds, as :data:`_RUN_CHECKS`; the show-through bound not given is the job's
+#: own (:func:`ringtune.shaping.wall_gap.show_through_bound`)
 _BOUNDS = (
     ("max_path_error", "--max-path-error", pareto.DEFAULT_MAX_PATH_ERROR_MM, 1.0, lambda v: v >= 0,
      "must be ≥ 0 (mm; 0 = no bound)"),
@@ -106,24 +107,29 @@ _BOUNDS = (
 
 def _check_request(req: TuneRequest) -> _Limits:
     """The request's bounds and pick, refused in one line naming the option when out of range."""
-    for name, flag, ok, message in _RUN_CHECKS:
-        if not ok(getattr(req, name)):
-            raise RingtuneError(message, flag)
+    _checked(req, _RUN_CHECKS)
     how = req.pick or ("weight" if req.weight is not None else "fastest-at-baseline-quality")
     if how == "weight" and req.weight is None:
         raise RingtuneError("--pick weight needs --weight W (seconds per mm)", "--pick")
-    bounds = {}
-    for name, flag, default, scale, ok, message in _BOUNDS:
-        given = getattr(req, name)
-        bounds[name] = default if given is None else given * scale
-        if not ok(bounds[name]):
-            raise RingtuneError(message, flag)
+    bounds = _checked(req, _BOUNDS)
     max_st, st_source = show_through_bound(req.gcode, req.max_show_through, pareto.DEFAULT_MAX_SHOW_THROUGH_MM)
     accel_range = _accel_range(req.accel_range)
     if req.gcode and not Path(req.gcode).is_file():
         raise RingtuneError("no such G-code file", "--gcode")
     return _Limits(how, bounds["max_path_error"], bounds["freq_margin"], bounds["motor_reserve"], max_st, st_source,
                    accel_range)
+
+
+def _checked(req: TuneRequest, rows) -> dict:
+    """{field: value} of ``rows`` (:data:`_RUN_CHECKS`, :data:`_BOUNDS`): the default where not
+    given, else the given value scaled; refused in one line naming the flag when its test fails."""
+    values = {}
+    for name, flag, default, scale, ok, message in rows:
+        given = getattr(req, name)
+        values[name] = default if given is None else given * scale
+        if not ok(values[name]):
+            raise RingtuneError(message, flag)
+    return values
 
 
 def _accel_range(text: str | None) -> tuple[float, float] | None:
@@ -164,7 +170,7 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     space, floor_note, why = _space(req, lim, fw.name, printer, facts, note)
     run_, settings, evaluator, bl, store = _study(req, lim, fw.name, printer, space, quality, out_dir, note,
                                                   release, progress)
-    baselines = bl.points if bl else {}
+    baselines = bl.points
     points = tune_study.study_points(run_.study, space, quality, lim.max_pe, lim.reserve, lim.max_st)
     front = pareto.pareto_front(points, also=_also(points, quality))
     choice = pareto.pick(front, baselines, lim.how, req.weight)
@@ -184,17 +190,18 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
 
 def _study(req: TuneRequest, lim: _Limits, firmware: str, printer, space, quality: str, out_dir: Path,
            note: Callable[[str], None], release: Callable[[], None], progress: Callable | None):
-    """(the study's run, its settings, evaluator, baselines or None, storage URL): the baselines
-    evaluated, the search warm-started from Klipper's pick, the study run or resumed in ``out_dir``
-    (removed again when a failure leaves it empty and this run created it)."""
+    """(the study's run, its settings, evaluator, baselines (none with ``--no-baselines``), storage
+    URL): the baselines evaluated, the search warm-started from Klipper's pick, the study run or
+    resumed in ``out_dir`` (removed again when a failure leaves it empty and this run created it)."""
     created = not out_dir.exists()
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         store = req.storage or storage.default_storage(out_dir)
         settings = _settings(req, lim, firmware, quality, space, store)
         evaluator = tune_study.resolve_evaluator(settings.evaluator)
-        bl = None if req.no_baselines else baselines_for(printer, firmware, settings, evaluator, quality, note=note)
-        if bl and "klipper" in bl.points:   # start the search from what users do today, and its neighbours
+        bl = Baselines() if req.no_baselines else baselines_for(printer, firmware, settings, evaluator, quality,
+                                                                 note=note)
+        if "klipper" in bl.points:   # start the search from what users do today, and its neighbours
             settings.enqueue = _warm_points(bl, space)
         tune_study.open_study(settings)   # a storage that cannot be opened fails here, its one line alone
         bar = progress(quality, lim.max_pe, lim.reserve, space) if progress else None
@@ -251,25 +258,25 @@ def _warm_points(bl, space) -> list[dict]:
     """The study's first trials: Klipper's pick (searching per feature, also with the hidden groups
     at their tops) and its neighbours, what the printer runs now (when inside the space); no point
     twice."""
-    cur = [bl.points["current"].config] if "current" in bl.points else []
-    seen, enq = set(), []
-    for i, c in enumerate(warm_start(bl.points["klipper"].config, bl.fits, space) + [c for c in cur if inside(c, space)]):
-        p = params_from_config(c, space)
-        for q in (p, feature_space.at_ceilings(p, space)) if space.per_feature and i == 0 else (p,):
-            key = tuple(sorted(q.items()))
-            if key not in seen:
-                seen.add(key)
-                enq.append(q)
-    return enq
+    configs = warm_start(bl.points["klipper"].config, bl.fits, space)
+    current = bl.points.get("current")
+    if current is not None and inside(current.config, space):
+        configs.append(current.config)
+    params = [params_from_config(c, space) for c in configs]
+    if space.per_feature and params:
+        params.insert(1, feature_space.at_ceilings(params[0], space))
+    unique: dict = {}
+    for q in params:
+        unique.setdefault(tuple(sorted(q.items())), q)
+    return list(unique.values())
 
 
 def _also(points, quality: str) -> tuple[str, ...]:
     """The figures the front is taken over besides print time and the quality objective: the other
     visible measures (the choice may make none worse), or path error for a custom evaluator's
     overshoot (a point with a little more overshoot and far less path error stays)."""
-    if any("ripple_mm" in p.metrics for p in points):
-        return tuple(k for k in VISIBLE_KEYS if k != quality)
-    return ("path_error_mm",) if quality != "path_error_mm" else ()
+    keys = VISIBLE_KEYS if any("ripple_mm" in p.metrics for p in points) else ("path_error_mm",)
+    return tuple(k for k in keys if k != quality)
 
 
 def _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim: _Limits):
@@ -281,10 +288,9 @@ def _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim:
     def evaluate(configs):
         return evaluator(list(configs), printer, settings.job, **tune_study.evaluator_kwargs(settings))
 
-    labels = bl.labels if bl else {}
     bounds = Bounds(lim.max_pe, 1.0 - lim.reserve if lim.reserve > 0 else 0.0, lim.max_st)
     held = choice.held_to or (choice.baseline,)
-    names = {k: labels.get(k, pareto.BASELINE_NAMES.get(k, k)) for k in held}
+    names = {k: bl.labels.get(k, pareto.BASELINE_NAMES.get(k, k)) for k in held}
     stop = measured_stop(choice.point, {k: baselines[k] for k in held}, evaluate, space, bounds, labels=names)
     if stop.moved:
         choice = dataclasses.replace(choice, point=stop.point, sentence=(
@@ -302,19 +308,20 @@ def _report(req: TuneRequest, lim: _Limits, fw: Firmware, printer, facts, space,
     accel_lines, accel_json = _accel_section(req, lim, fw.name, printer, space, points, chosen, stop)
     ja_lines, ja_json = job_accel_section(facts, req.job_accel, printer, req.gcode, chosen.config)
     baseline_binding = {k: binding_limits(printer, req.gcode, b.config, fw.name, req.job_accel)
-                        for k, b in (bl.points if bl else {}).items()}
-    pf_lines, pf_json = feature_space.feature_section(chosen.config, space) if space.per_feature else ([], None)
-    if pf_json is not None:
+                        for k, b in bl.points.items()}
+    pf_lines, pf_json = [], None
+    if space.per_feature:
+        pf_lines, pf_json = feature_space.feature_section(chosen.config, space)
         pf_json["why"] = why
     ja_json["searched"] = not space.accel_fixed
     result = report.write_report(
-        out_dir, points=points, front=front, choice=choice, baselines=bl.points if bl else {}, quality=quality,
+        out_dir, points=points, front=front, choice=choice, baselines=bl.points, quality=quality,
         printer_name=getattr(printer, "name", "printer"), job_name=Path(req.gcode).name if req.gcode else
         "built-in test print", firmware=fw.name, n_trials=req.trials, storage=store,
         study_name=req.study, command=req.command, max_path_error_mm=lim.max_pe, motor_reserve=lim.reserve,
-        baseline_labels=bl.labels if bl else None,
-        sections=[("ACCELERATION", accel_lines)] + ([("PER FEATURE", pf_lines)] if pf_lines else [])
-        + ([("THE JOB'S OWN ACCELERATIONS", ja_lines)] if ja_lines else []),
+        baseline_labels=bl.labels,
+        sections=[(head, lines) for head, lines in (("ACCELERATION", accel_lines), ("PER FEATURE", pf_lines),
+                                                    ("THE JOB'S OWN ACCELERATIONS", ja_lines)) if lines],
         notes=_notes(floor_note, lim.st_source, lim.margin, len(settings.enqueue)), export_firmware=fw.name,
         max_show_through_mm=lim.max_st, baseline_binding=baseline_binding,
         best_extra={"job_accel": req.job_accel, "freq_margin": lim.margin, "motor_reserve": lim.reserve,
@@ -324,7 +331,7 @@ def _report(req: TuneRequest, lim: _Limits, fw: Firmware, printer, facts, space,
     result["per_feature"] = pf_json
     if req.gcode:     # the job with the choice written in, beside best.json
         text += _write_job(req.gcode, out_dir, chosen.config, printer, result, note)
-    for k, src in (bl.sources if bl else {}).items():
+    for k, src in bl.sources.items():
         result["baselines"][k]["source"] = src
     return result, text, accel_json, ja_json
 

@@ -1,18 +1,21 @@
-"""Every visible measure of one configuration against each baseline: values, verdicts, a text table.
+"""One configuration against each baseline: every visible measure with values, verdicts and a text
+table, and how it compares in print time and quality (:class:`Comparison`).
 
 Shared by ``tune`` (summary.txt, ``--json``, best.json) and ``simulate``: for each measure of
 :data:`ringtune.agents.tune.pareto.VISIBLE_KEYS` (and print time), the configuration's value, the
 baseline's, and the verdict from the configuration's side (``better``, ``same`` or ``worse`` at the
 :class:`ringtune.agents.tune.pareto.Resolution`). Values in the JSON are in the metrics' own units
-(mm, %, s); the text shows µm, % and s.
+(mm, %, s); the text shows µm, % and s. :func:`compare` gives ``tune``'s "chosen vs this" sentence
+and :func:`best_dominating` the front point that dominates a baseline.
 """
 
 from __future__ import annotations
 
-from typing import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Callable, Mapping, Sequence
 
 from ringtune.agents.tune.baselines import Baselines, baseline_configs
-from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, VISIBLE_KEYS, WORDS, Point, Resolution, shown,
+from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, VISIBLE_KEYS, WORDS, Point, Resolution, judge, shown,
                                          verdict)
 from ringtune.envs.evaluate import evaluate_judged
 
@@ -64,6 +67,82 @@ def table(point: Point | Mapping, baselines: Mapping[str, Point | Mapping], labe
         lines.append(f"  [{i + 1}] {labels.get(c, c)}")
     lines.append(f"  (verdicts: {name} against each; {res.describe()}.)")
     return lines
+
+
+#: the words for the study's quality objective in sentences
+QUALITY_LABEL = {"overshoot_mm": "overshoot", "path_error_mm": "path error", "ripple_mm": "ripple"}
+
+
+@dataclass
+class Comparison:
+    """How ``point`` compares with a baseline (positive = better than the baseline), with the
+    verdict per figure at the resolution (``better|same|worse``) and ``dominates`` (nothing worse,
+    something better; :func:`ringtune.agents.tune.pareto.judge`)."""
+
+    baseline: str
+    faster_s: float
+    faster_pct: float
+    better_mm: float
+    better_pct: float
+    dominates: bool
+    metrics: dict = field(default_factory=dict)
+    path_error_better_mm: float | None = None
+    path_error_better_pct: float | None = None
+
+    def sentence(self, quality: str) -> str:
+        word = QUALITY_LABEL.get(quality, quality)
+
+        def same(key):
+            return ": the same" if self.metrics.get(key) == "same" else ""
+        t = (f"{self.faster_s:.3f} s faster ({self.faster_pct:.1f} %{same('print_time_s')})" if self.faster_s >= 0
+             else f"{-self.faster_s:.3f} s slower ({-self.faster_pct:.1f} %{same('print_time_s')})")
+        parts = [t, _diff(self.better_mm, self.better_pct, word, same(quality))]
+        if quality != "path_error_mm" and self.path_error_better_mm is not None:
+            parts.append(_diff(self.path_error_better_mm, self.path_error_better_pct, "path error",
+                               same("path_error_mm")))
+        worse = [_NAMES.get(k, k) for k, v in self.metrics.items() if v == "worse"]
+        tail = (" — dominates it" if self.dominates else
+                f" — does not dominate it (worse {', '.join(worse)})" if worse else
+                " — the same within the resolution")
+        return "; ".join(parts) + tail
+
+    def to_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+_NAMES = {**{k: w for k, (w, _u) in WORDS.items()},
+          "feasible": "feasibility (it breaks a bound the baseline keeps)"}
+
+
+def _diff(better_mm: float, pct: float | None, word: str, same: str = "") -> str:
+    p = f" ({abs(pct):.1f} %{same})" if pct is not None else (f" ({same[2:]})" if same else "")
+    return (f"{better_mm * 1000:.1f} µm less {word}{p}" if better_mm >= 0
+            else f"{-better_mm * 1000:.1f} µm more {word}{p}")
+
+
+def compare(point: Point, base: Point, res: Resolution = DEFAULT_RESOLUTION) -> Comparison:
+    dt = base.print_time_s - point.print_time_s
+    dq = base.quality_mm - point.quality_mm
+    j = judge(point, base, res)
+    pe_p, pe_b = point.value("path_error_mm"), base.value("path_error_mm")
+    dpe = None if pe_p is None or pe_b is None else pe_b - pe_p
+    return Comparison(base.label, dt, 100.0 * dt / base.print_time_s if base.print_time_s else 0.0,
+                      dq, 100.0 * dq / base.quality_mm if base.quality_mm else 0.0, j.dominates, j.verdicts,
+                      dpe, None if dpe is None or not pe_b else 100.0 * dpe / pe_b)
+
+
+def best_dominating(front: Sequence[Point], base: Point, res: Resolution = DEFAULT_RESOLUTION) -> Point | None:
+    """The front point dominating ``base`` at the resolution with the largest summed relative
+    gain, or None."""
+    dom = [p for p in front if judge(p, base, res).dominates]
+    if not dom:
+        return None
+
+    def gain(p: Point) -> float:
+        return ((base.print_time_s - p.print_time_s) / max(base.print_time_s, 1e-12)
+                + (base.quality_mm - p.quality_mm) / max(base.quality_mm, 1e-12))
+
+    return max(dom, key=gain)
 
 
 def baseline_evaluations(printer, firmware: str, job=None, *, backend: str = "mujoco", freq_margin: float = 0.0,
