@@ -49,8 +49,8 @@ def load_config(path, out=None):
     """``TuneConfig.load(path)``, with a note on stderr (through ``out``) for each key that looks
     misspelt."""
     cfg = TuneConfig.load(path)
-    for message in cfg.likely_typos() if out is not None else ():
-        out.note(f"{path}: warning: {message}")
+    if out is not None:
+        out.note(*cfg.likely_typos(), kind=f"{path}: warning")
     return cfg
 
 

@@ -85,8 +85,7 @@ def run(args, out) -> int:
     if args.output is None:
         sys.stdout.buffer.write(done.data)
         sys.stdout.flush()
-        for line in (result["header"], *result["notes"], _said(done.frequencies)):
-            out.note(line)
+        out.note(result["header"], *result["notes"], _said(done.frequencies))
         return 0
     out.emit(result, _text(args, done))
     return 0

@@ -174,19 +174,21 @@ def description_toml(name: str, description: dict, notes: list[str], source: str
 
 
 # -- the command --------------------------------------------------------------------------------
+#: source -> how its file is read (from-klipper's --moonraker: :func:`_read`)
+_READERS = {"from-klipper": lambda args: printer_facts_from_klipper(args.file),
+            "from-marlin": lambda args: printer_facts_from_marlin(args.file, args.kinematics),
+            "from-rrf": lambda args: printer_facts_from_rrf(args.file)}
+
+
 def _read(args):
-    if args.source == "from-klipper":
-        if (args.file is None) == (args.moonraker is None):
-            raise RingtuneError("give printer.cfg or --moonraker URL (one of them)", "from-klipper")
-        if args.moonraker:
-            facts = printer_facts_from_moonraker(args.moonraker,
-                                                 api_key=args.api_key or os.environ.get("MOONRAKER_API_KEY"))
-            return facts, urlsplit(args.moonraker).hostname or "printer"
-        facts = printer_facts_from_klipper(args.file)
-    elif args.source == "from-marlin":
-        facts = printer_facts_from_marlin(args.file, args.kinematics)
-    else:
-        facts = printer_facts_from_rrf(args.file)
+    """(FirmwareFacts, the printer's name when --name gives none): from the file, or from Moonraker."""
+    if args.source == "from-klipper" and (args.file is None) == (args.moonraker is None):
+        raise RingtuneError("give printer.cfg or --moonraker URL (one of them)", "from-klipper")
+    if getattr(args, "moonraker", None):
+        facts = printer_facts_from_moonraker(args.moonraker,
+                                             api_key=args.api_key or os.environ.get("MOONRAKER_API_KEY"))
+        return facts, urlsplit(args.moonraker).hostname or "printer"
+    facts = _READERS[args.source](args)
     p = Path(args.file)
     default_name = p.resolve().parent.name if p.stem in ("printer", "config", "M503", "m503") else p.stem
     return facts, default_name or "printer"
@@ -194,8 +196,6 @@ def _read(args):
 
 def run(args, out) -> int:
     check_output_folder("--output", args.output)
-    if args.output and Path(args.output).is_dir():
-        raise RingtuneError("is a directory; give a file name such as printer.toml", f"--output {args.output}")
     facts, default_name = _read(args)
     description = facts.description
     notes = list(facts.notes)

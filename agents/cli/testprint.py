@@ -218,8 +218,7 @@ def _ringing(args, out, printer, lim, cx, cy, ext):
     plan = ringing_tower(args.firmware, speed=speed, accel=accel, bands=bands, band_height=args.band_height,
                          height=height, shaper=args.shaper, damping=args.damping, geometry=geom,
                          ext=ext, hotend=args.hotend, bed=args.bed, printer_name=printer.name)
-    for n in plan.notes:
-        out.note(n)
+    out.note(*plan.notes)
     table = [b.table_line().lstrip("; ") for b in plan.bands]
     result = {"bands": [{"number": b.number, "z0": b.z0, "z1": b.z1, "freq_x": b.freq_x, "freq_y": b.freq_y,
                          "shaper": b.shaper, "damping": b.damping, "lines": b.lines} for b in plan.bands],
@@ -265,8 +264,7 @@ def _accel(args, out, printer, lim, cx, cy, ext):
                             ext=ext, hotend=args.hotend, bed=args.bed, printer_name=printer.name)
     except RingtuneError as exc:
         raise exc.relocated("config", args.config) from None
-    for n in plan.notes:
-        out.note(n)
+    out.note(*plan.notes)
     tuned = float(config.accel)
     result = {"rungs": [{"number": k, "accel": a, "of_tuned": a / tuned} for k, a in enumerate(plan.accels, 1)],
               "tuned_accel": tuned, "measure": plan.table, "notes": plan.notes}
