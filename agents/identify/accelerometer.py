@@ -187,11 +187,7 @@ def resonance_psds(paths: list, axes: str | None = None, note=None) -> tuple[dic
     ``axes`` (comma-separated, one per file), else its name (a file whose name does not say is
     refused: its columns cannot tell). A file with the same data as an earlier one is read once (said
     through ``note``)."""
-    named = None
-    if axes:
-        named = [a.strip().lower() for a in axes.split(",")]
-        if len(named) != len(paths) or any(a not in ("x", "y") for a in named):
-            raise RingtuneError(f"give one axis (x or y) per --accel file ({len(paths)} files)", "axes")
+    named = _named_axes(axes, len(paths))
     psds: dict[str, list] = {}
     sources: dict[str, list[str]] = {}
     seen: dict[str, str] = {}
@@ -203,13 +199,23 @@ def resonance_psds(paths: list, axes: str | None = None, note=None) -> tuple[dic
                 note(f"{path}: the same data as {seen[digest]}: read once")
             continue
         seen[digest] = str(path)
-        ax = named[i] if named else _psd_axis(path, items, note)
+        ax = named[i] if named else _psd_axis(path)     # said by the name only once the file is new
         psds.setdefault(ax, []).extend(items)
         sources.setdefault(ax, []).append(str(path))
     return psds, sources
 
 
-def _psd_axis(path, items, note=None) -> str:
+def _named_axes(axes: str | None, n_files: int) -> list[str] | None:
+    """``axes`` ("x,y,…", one per file) as a list; None when not given."""
+    if not axes:
+        return None
+    named = [a.strip().lower() for a in axes.split(",")]
+    if len(named) != n_files or any(a not in ("x", "y") for a in named):
+        raise RingtuneError(f"give one axis (x or y) per --accel file ({n_files} files)", "axes")
+    return named
+
+
+def _psd_axis(path) -> str:
     """The axis a resonance file measured, from its name."""
     ax = axis_from_file_name(path)
     if ax == "z":
