@@ -47,7 +47,9 @@ def gcode_job(text: str) -> str:
 
 def load_config(path, out=None):
     """``TuneConfig.load(path)``, with a note on stderr (through ``out``) for each key that looks
-    misspelt."""
+    misspelt; None without a path (an optional --config not given)."""
+    if not path:
+        return None
     cfg = TuneConfig.load(path)
     if out is not None:
         out.note(*cfg.likely_typos(), kind=f"{path}: warning")

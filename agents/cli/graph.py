@@ -122,7 +122,7 @@ def _run_speeds(args, out) -> int:
     printer = load_printer(args.printer)
     if not args.printer:
         out.note(f"note: no --printer: the embedded {printer.name}")
-    config = load_config(args.config, out) if args.config else None
+    config = load_config(args.config, out)
     advice = speed_advice(printer, args.gcode, config, step=args.step)
     out.note(*advice.notes, kind="note")
     plot_speeds(advice, args.output, printer.name)
@@ -150,7 +150,7 @@ def _run_belts(args, out) -> int:
 
 def _run_shapers(args, out) -> int:
     check_plot_path(args.output)
-    config = load_config(args.config, out) if args.config else None
+    config = load_config(args.config, out)
     graphs, warnings = shaper_graph(args.files, config, args.scv, args.axis)
     if not graphs:
         raise RingtuneError("no resonance spectrum among the files (an M956 capture is one move's "

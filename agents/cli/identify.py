@@ -225,7 +225,7 @@ def run(args, out) -> int:
     got = identify_from_files(
         args.files, configs={"klipper_config": args.klipper_config, "marlin": args.marlin, "rrf": args.rrf},
         axis=args.axis, max_modes=args.max_modes, fmin=args.fmin, fmax=args.fmax, damping=args.damping_method,
-        kinematics=args.kinematics, base=args.base, masses=args.mass or {}, motors=args.motor or {},
+        kinematics=args.kinematics, base=args.base, masses=args.mass, motors=args.motor,
         added_mass=dm, loaded_files=loaded_files, name=args.name, facts=getattr(args, "facts", None),
         belts=args.belts, note=out.note)
     out.note(*got.warnings, kind="warning")

@@ -210,8 +210,7 @@ def run(args, out) -> int:
 def _inputs(args, out) -> tuple:
     """(printer, config, frequency margin) the options give; a bad option, a missing job or a plot
     folder that cannot be made is refused before anything is simulated."""
-    if args.freq_margin is not None:    # a bad option is refused before any note is printed
-        freq_margin(args)
+    freq_margin(args)                   # a bad option is refused before any note is printed
     printer = resolve_printer(args.printer)
     say_unmeasured(printer, out)
     config = build_config(args, out, printer)

@@ -49,10 +49,11 @@ def build_config(args, out=None, printer=None):
     shaper = _pair(args.shaper, "--shaper")
     freq = _pair(args.freq, "--freq", float)
     damping = _pair(args.damping, "--damping", float)
-    if shaper and not (freq or args.config) and any(s != "none" for s in shaper):
-        raise RingtuneError("a shaper needs a frequency", "--freq")
-    if shaper and not (damping or args.config):
-        _default_damping(cfg)
+    if shaper and not args.config:     # shapers given alone: they need a frequency, and take a damping
+        if not freq and any(s != "none" for s in shaper):
+            raise RingtuneError("a shaper needs a frequency", "--freq")
+        if not damping:
+            _default_damping(cfg)
     for key, pair in (("shaper", shaper), ("freq", freq), ("damping", damping)):
         if pair:
             cfg[f"{key}_x"], cfg[f"{key}_y"] = pair

@@ -121,12 +121,10 @@ BAND_RANGE = (10.0, 150.0)
 def bands(text: str) -> tuple[float, float, int]:
     """argparse type of --bands ``F0:F1:N`` -> (F0 Hz, F1 Hz, N bands), the bands within
     :data:`BAND_RANGE`."""
-    parts = text.split(":")
     try:
-        f0, f1, n = float(parts[0]), float(parts[1]), int(parts[2])
-        if len(parts) != 3:
-            raise ValueError
-    except (ValueError, IndexError):
+        f0, f1, n = text.split(":")              # not three parts: a ValueError too
+        f0, f1, n = float(f0), float(f1), int(n)
+    except ValueError:
         raise argparse.ArgumentTypeError(f"expected F0:F1:N (Hz, Hz, bands), not {text!r}") from None
     for f in (f0, f1):
         if not BAND_RANGE[0] <= f <= BAND_RANGE[1]:
@@ -167,7 +165,7 @@ def _ladder_speed(given, config, velocity: float, name: str) -> tuple[float, str
     if given is not None:
         return float(given), "--speed"
     top = config.extra.get("top_speed_mm_s")
-    if isinstance(top, (int, float)) and not isinstance(top, bool) and 0 < top <= velocity:
+    if type(top) in (int, float) and 0 < top <= velocity:     # a number, not a bool
         return float(top), "the top speed the tuned acceleration was judged at (the config's top_speed_mm_s)"
     return float(velocity), f"{name}'s top speed"
 
@@ -273,7 +271,7 @@ def _accel(args, out, printer, lim, cx, cy, ext):
 
 def _start_accel(out, printer, lim, config) -> float:
     """The ladder's first rung without --from: what the printer runs now, else its limit (said)."""
-    current = getattr(printer, "current", None) or {}
+    current = printer.current
     if current.get("accel"):
         start, whence = float(current["accel"]), f"what {printer.name} runs now ([current] accel)"
     else:

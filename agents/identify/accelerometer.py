@@ -126,16 +126,18 @@ def _several_tests_of_an_axis(meas: Measurement) -> list[str]:
         others = [f for f in meas.fits if f.axis == ax and f is not best]
         if not others:
             continue
-
-        def main(fit):
-            return max(fit.modes, key=lambda m: m.share).freq if fit.modes else float("nan")
-
-        far = [f"{f.source} ({main(f):.1f} Hz)" for f in others if abs(main(f) / main(best) - 1) > 0.10]
+        f0 = _strongest_freq(best)
+        far = [f"{f.source} ({_strongest_freq(f):.1f} Hz)" for f in others if abs(_strongest_freq(f) / f0 - 1) > 0.10]
         out.append(f"{ax.upper()}: {len(others) + 1} tests; the modes are {best.source}'s (the best fit, r² "
                    f"{best.r2:.3f}), Klipper's rule reads them all"
-                   + (f"; the strongest mode of {', '.join(far)} is more than 10 % from its {main(best):.1f} Hz: "
+                   + (f"; the strongest mode of {', '.join(far)} is more than 10 % from its {f0:.1f} Hz: "
                       "not the same printer or the same state (belt tension, toolhead)?" if far else ""))
     return out
+
+
+def _strongest_freq(fit: AxisFit) -> float:
+    """Frequency (Hz) of the fit's strongest mode (largest share); NaN without modes."""
+    return max(fit.modes, key=lambda m: m.share).freq if fit.modes else float("nan")
 
 
 def klipper_record(psds: dict[str, list], scv: float = 5.0, version: str = "head") -> dict:

@@ -160,8 +160,7 @@ def build_description(fits: dict[str, AxisFit], *, name: str = "identified", kin
     ``source``); ``motors``: ``{"all"|"x"|"y": {name, run_current, voltage}}`` from ``--motor``;
     ``measurement``: the ``[measurement]`` table (files and Klipper's recommendation)."""
     desc = Description({"name": name})
-    fw = dict(facts.description) if facts is not None else {}
-    src = Path(facts.source).name if facts is not None else None
+    fw, src = (dict(facts.description), Path(facts.source).name) if facts is not None else ({}, None)
     _kinematics(desc, fw.pop("kinematics", None), kinematics, src)
     _configuration(desc, fw, facts)
     _motors(desc, motors or {}, src)
