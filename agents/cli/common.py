@@ -59,10 +59,12 @@ def load_config(path, out=None):
 def check_output_folder(option: str, path) -> None:
     """Refuse, before any work, an output file whose folder does not exist, or that is itself a
     folder (one-line error)."""
-    if path and not Path(path).parent.is_dir():
+    if not path:
+        return
+    if not Path(path).parent.is_dir():
         raise RingtuneError(f"no such directory {str(Path(path).parent)!r} (a file's folder must exist: make it "
                             "first; only folder outputs such as tune --out are created)", f"{option} {path}")
-    if path and Path(path).is_dir():
+    if Path(path).is_dir():
         raise RingtuneError("is a directory; give a file name", f"{option} {path}")
 
 

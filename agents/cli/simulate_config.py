@@ -109,7 +109,7 @@ def _start(args, out, printer) -> tuple[dict, list[str]]:
     notes: list[str] = []
     if args.config:
         cfg = load_config(args.config, out).to_dict()
-    elif args.shaper is None and args.freq is None and args.damping is None:
+    elif all(v is None for v in (args.shaper, args.freq, args.damping)):     # no shaper option
         cfg, notes = _base_config(args, printer)
     else:
         cfg = {"shaper_x": "none", "shaper_y": "none"}

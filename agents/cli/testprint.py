@@ -147,10 +147,7 @@ def run(args, out) -> int:
     ext.validate()
     lim = printer.limits
     _check_kind(args)
-    if args.kind == "ringing":
-        result, text, gcode = _ringing(args, out, printer, lim, cx, cy, ext)
-    else:
-        result, text, gcode = _accel(args, out, printer, lim, cx, cy, ext)
+    result, text, gcode = _PRINTS[args.kind](args, out, printer, lim, cx, cy, ext)
     if args.output:
         Path(args.output).write_text(gcode)
         out.note(f"wrote {args.output}")
@@ -281,3 +278,7 @@ def _start_accel(out, printer, lim, config) -> float:
     else:
         out.note(f"starting acceleration {start:.0f} mm/s²: {whence} (--from to change)")
     return start
+
+
+#: kind -> the function that makes that print: (result, text, G-code)
+_PRINTS = {"ringing": _ringing, "accel": _accel}
