@@ -16,7 +16,7 @@ def test_every_listed_command_is_implemented():
     """Each name of the registry is a module ``cli/NAME.py`` with the command contract, and every
     command module of the folder is listed."""
     folder = Path(__file__).resolve().parent.parent / "agents" / "cli"
-    helpers = {"__init__", "main", "common", "options", "identify_ripples", "trace_option"}
+    helpers = {"__init__", "main", "common", "options", "identify_ripples", "trace_option", "simulate_config"}
     assert {p.stem for p in folder.glob("*.py")} - helpers == set(cli.COMMANDS)
     for name in cli.COMMANDS:
         _, module = cli.build_parser(name)

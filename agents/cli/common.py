@@ -47,20 +47,24 @@ def gcode_job(text: str) -> str:
 
 def load_config(path, out=None):
     """``TuneConfig.load(path)``, with a note on stderr (through ``out``) for each key that looks
-    misspelt."""
+    misspelt; None without a path (an optional --config not given)."""
+    if not path:
+        return None
     cfg = TuneConfig.load(path)
-    for message in cfg.likely_typos() if out is not None else ():
-        out.note(f"{path}: warning: {message}")
+    if out is not None:
+        out.note(*cfg.likely_typos(), kind=f"{path}: warning")
     return cfg
 
 
 def check_output_folder(option: str, path) -> None:
     """Refuse, before any work, an output file whose folder does not exist, or that is itself a
     folder (one-line error)."""
-    if path and not Path(path).parent.is_dir():
+    if not path:
+        return
+    if not Path(path).parent.is_dir():
         raise RingtuneError(f"no such directory {str(Path(path).parent)!r} (a file's folder must exist: make it "
                             "first; only folder outputs such as tune --out are created)", f"{option} {path}")
-    if path and Path(path).is_dir():
+    if Path(path).is_dir():
         raise RingtuneError("is a directory; give a file name", f"{option} {path}")
 
 

@@ -112,7 +112,7 @@ def run(args, out) -> int:
               "config_text": exp.config_text, "config_target": exp.config_target,
               "readback": exp.readback, "expected": exp.expected, "notes": exp.notes,
               "slicer": slicer.to_dict() if slicer else None,
-              "output": files[0] if files else None, "files": files},
+              "output": next(iter(files), None), "files": files},
              "\n".join(f"wrote {f}" for f in files) if files else "\n".join(t for t, _ in parts.values()).rstrip("\n"))
     return 0
 

@@ -122,10 +122,9 @@ def _run_speeds(args, out) -> int:
     printer = load_printer(args.printer)
     if not args.printer:
         out.note(f"note: no --printer: the embedded {printer.name}")
-    config = load_config(args.config, out) if args.config else None
+    config = load_config(args.config, out)
     advice = speed_advice(printer, args.gcode, config, step=args.step)
-    for n in advice.notes:
-        out.note(f"note: {n}")
+    out.note(*advice.notes, kind="note")
     plot_speeds(advice, args.output, printer.name)
     orca = advice.orcaslicer()
     lines = ["speeds to avoid (ripple ≥ 1/√2 of the direction's worst):", *("  " + b for b in band_lines(advice)),
@@ -140,8 +139,7 @@ def _run_belts(args, out) -> int:
     printer = load_printer(args.printer) if args.printer else None
     tests, notes = read_belt_tests(args.files)
     c = compare_belts(tests, printer)
-    for n in notes + c.notes:
-        out.note(f"note: {n}")
+    out.note(*notes, *c.notes, kind="note")
     plot_belts(c, args.output)
     lines = summary_lines(c) + ["paired peaks: " + "; ".join(
         f"A {a} Hz / B {b} Hz (B − A {d} Hz, amplitude A − B {p} %)" for a, b, d, p in pair_rows(c)),
@@ -152,13 +150,12 @@ def _run_belts(args, out) -> int:
 
 def _run_shapers(args, out) -> int:
     check_plot_path(args.output)
-    config = load_config(args.config, out) if args.config else None
+    config = load_config(args.config, out)
     graphs, warnings = shaper_graph(args.files, config, args.scv, args.axis)
     if not graphs:
         raise RingtuneError("no resonance spectrum among the files (an M956 capture is one move's "
                             "ringing, not a sweep)", args.files[0])
-    for w in warnings:
-        out.note(f"warning: {w}")
+    out.note(*warnings, kind="warning")
     plot_shaper_graph(graphs, args.output)
     lines = []
     for g in graphs:

@@ -146,8 +146,6 @@ def _check_output(option: str, path) -> None:
     if not path:
         return
     p = Path(path)
-    if p.is_dir():
-        raise RingtuneError("is a directory", f"{option} {path}")
     folder = p.parent
     if not os.access(folder, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
         raise RingtuneError("not writable (permission denied)", f"{option} {path}")
@@ -190,8 +188,7 @@ def _from_moonraker(args, out) -> None:
     dest = _fetch_dir(args)
     key = args.api_key or os.environ.get("MOONRAKER_API_KEY")
     got = fetch_printer_files(args.moonraker, dest, api_key=key)
-    for n in got.notes:
-        out.note(f"note: {n}")
+    out.note(*got.notes, kind="note")
     args.files = [str(p) for p in got.axes]
     args.facts = _moonraker_facts(args, got.config, key, out)
     kinematics = args.kinematics or args.facts.description.get("kinematics")
@@ -228,13 +225,12 @@ def run(args, out) -> int:
     got = identify_from_files(
         args.files, configs={"klipper_config": args.klipper_config, "marlin": args.marlin, "rrf": args.rrf},
         axis=args.axis, max_modes=args.max_modes, fmin=args.fmin, fmax=args.fmax, damping=args.damping_method,
-        kinematics=args.kinematics, base=args.base, masses=args.mass or {}, motors=args.motor or {},
+        kinematics=args.kinematics, base=args.base, masses=args.mass, motors=args.motor,
         added_mass=dm, loaded_files=loaded_files, name=args.name, facts=getattr(args, "facts", None),
         belts=args.belts, note=out.note)
-    for prefix, sentences in (("warning", got.warnings), ("note", got.description.notes),
-                              ("default", got.description.defaults)):
-        for sentence in sentences:
-            out.note(f"{prefix}: {sentence}")
+    out.note(*got.warnings, kind="warning")
+    out.note(*got.description.notes, kind="note")
+    out.note(*got.description.defaults, kind="default")
     _write(args, got, out)
     out.emit(_result(got, args), _text(got, args.output))
     return 0
@@ -265,17 +261,20 @@ def _without_accelerometer(args, out) -> int:
 def _write(args, got, out) -> None:
     """The plot, then the TOML (a failed plot leaves nothing half-written)."""
     if args.plot:
-        try:
-            plot_fits(got.measurement.fits + got.loaded_fits, args.plot)
-        except OSError as exc:
-            raise RingtuneError(f"cannot write the plot ({exc.strerror or exc})", f"--plot {args.plot}") from None
-        out.note(f"wrote {args.plot}")
+        _written(lambda: plot_fits(got.measurement.fits + got.loaded_fits, args.plot),
+                 "cannot write the plot", "--plot", args.plot, out)
     if args.output:
-        try:
-            Path(args.output).write_text(got.toml)
-        except OSError as exc:
-            raise RingtuneError(f"cannot write ({exc.strerror or exc})", f"-o {args.output}") from None
-        out.note(f"wrote {args.output}")
+        _written(lambda: Path(args.output).write_text(got.toml), "cannot write", "-o", args.output, out)
+
+
+def _written(write, refusal: str, option: str, path: str, out) -> None:
+    """Run ``write`` (it writes ``path``, given by ``option``) and say so; an OSError is refused in
+    one line naming the option."""
+    try:
+        write()
+    except OSError as exc:
+        raise RingtuneError(f"{refusal} ({exc.strerror or exc})", f"{option} {path}") from None
+    out.note(f"wrote {path}")
 
 
 def _fit_lines(fit) -> list[str]:

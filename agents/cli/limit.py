@@ -79,15 +79,13 @@ def run(args, out) -> int:
     if args.output is None and args.json:
         raise RingtuneError("--json needs -o OUT (stdout carries the JSON)", "--output")
     done = limit_job(args.file, args.freq_limit, args.method, args.min_speed_factor, args.accel, args.printer)
-    if args.output is not None:
-        Path(args.output).write_bytes(done.data)
     result = _result(args, done)
     if args.output is None:
         sys.stdout.buffer.write(done.data)
         sys.stdout.flush()
-        for line in (result["header"], *result["notes"], _said(done.frequencies)):
-            out.note(line)
+        out.note(result["header"], *result["notes"], _said(done.frequencies))
         return 0
+    Path(args.output).write_bytes(done.data)
     out.emit(result, _text(args, done))
     return 0
 

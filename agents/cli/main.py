@@ -90,9 +90,10 @@ class Output:
         else:
             self.stream.write((text if text is not None else _render(result)).rstrip("\n") + "\n")
 
-    def note(self, message: str) -> None:
-        """A remark for the person at the terminal (stderr, so ``--json`` output stays clean)."""
-        self.held.append(message)
+    def note(self, *messages: str, kind: str = "") -> None:
+        """Remarks for the person at the terminal, one line each (stderr, so ``--json`` output stays
+        clean); ``kind`` (``"note"``, ``"warning"``) leads each as ``kind: message``."""
+        self.held += [f"{kind}: {m}" for m in messages] if kind else messages
         if time.monotonic() - self.started > NOTE_HOLD_S:
             self.release()
 

@@ -9,7 +9,6 @@ JSON keys (stable): ``motor`` (name), ``constants`` {``holding_torque_nm``, ``ra
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import matplotlib
 import matplotlib.pyplot as plt
@@ -82,13 +81,10 @@ def add_arguments(parser) -> None:
 
 def run(args, out) -> int:
     check_output_folder("--plot", args.plot)
-    if args.plot and Path(args.plot).is_dir():
-        raise RingtuneError("is a directory; give a file name such as force.png", f"--plot {args.plot}")
     given = {key: getattr(args, key) for key in CONSTANT_KEYS if getattr(args, key) is not None}
     _check_known(args.name, given)
     report = motor_report(args.name, given, args.run_current, args.voltage, args.rotation_distance, args.mass)
-    for note in report.notes:
-        out.note(note)
+    out.note(*report.notes)
     result = {**report.result, "plot": args.plot}
     if args.plot:
         _plot(args, report.drive, result)

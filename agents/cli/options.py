@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import operator
 from dataclasses import dataclass
 
 from ringtune.envs.motors import lookup_motor, unknown_motor_message
@@ -17,6 +18,13 @@ from ringtune.envs.printer import check_moving_mass
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.shapers import FLAVORS
+
+
+#: end closed -> whether a value is beyond or at it (``a ≥ b``), else strictly beyond (``a > b``)
+_AT_LEAST = {True: operator.ge, False: operator.gt}
+#: (low end closed, high end closed) -> a bounded range in words
+_RANGE_WORDS = {(True, True): "{:g} to {:g}", (False, False): "between {:g} and {:g}",
+                (True, False): "in [{:g}, {:g})", (False, True): "in ({:g}, {:g}]"}
 
 
 @dataclass(frozen=True)
@@ -37,17 +45,12 @@ class Value:
         unit = f" {self.unit}" if self.unit else ""
         if self.high is None:
             return f"{'≥' if self.low_closed else '>'} {self.low:g}{unit}"
-        if self.low_closed and self.high_closed:
-            return f"{self.low:g} to {self.high:g}{unit}"
-        if not (self.low_closed or self.high_closed):
-            return f"between {self.low:g} and {self.high:g}{unit}"
-        return (f"in {'[' if self.low_closed else '('}{self.low:g}, {self.high:g}"
-                f"{']' if self.high_closed else ')'}{unit}")
+        return _RANGE_WORDS[self.low_closed, self.high_closed].format(self.low, self.high) + unit
 
     def holds(self, v: float) -> bool:
         """Whether ``v`` lies in the range."""
-        above = self.low is None or (v >= self.low if self.low_closed else v > self.low)
-        below = self.high is None or (v <= self.high if self.high_closed else v < self.high)
+        above = self.low is None or _AT_LEAST[self.low_closed](v, self.low)
+        below = self.high is None or _AT_LEAST[self.high_closed](self.high, v)
         return math.isfinite(v) and above and below
 
     def __call__(self, text: str) -> float | int:

@@ -91,7 +91,7 @@ def run(args, out) -> int:
     if args.trajectory == "-" and args.json:
         raise RingtuneError("'-' writes the CSV to standard output, which --json needs; give a file",
                             "--trajectory")
-    cfg = load_config(args.config, out) if args.config else None
+    cfg = load_config(args.config, out)
     planned = plan_job(args.file, args.printer, cfg, args.junction, not args.no_job_limits, args.daa, args.top)
     traj = _write_trajectory(planned.configured.plan, cfg, args.trajectory, args.rate) if args.trajectory else None
     result = {**planned.to_dict(), "trajectory": traj}

@@ -20,7 +20,7 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 from ringtune.agents.cli.common import check_output_folder
-from ringtune.envs.motors import lookup_motor as table_lookup
+from ringtune.envs.motors import lookup_motor
 from ringtune.envs.printer import printer_from_dict
 from ringtune.envs.printer_model import DEFAULTS
 from ringtune.envs.toml_writer import toml_value
@@ -84,13 +84,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                        help="print one JSON object with stable keys")
 
 
-# -- the built-in motor table (helper `motors`: ringtune.envs.motors) ------------------------------
-def lookup_motor(name: str):
-    """The built-in motor ``name`` (with ``resistance``, ``inductance``, ``holding_torque``,
-    ``rated_current``, ``steps_per_revolution``), or ``None`` when the table does not know it."""
-    return table_lookup(name)
-
-
+# -- the built-in motor table (ringtune.envs.motors.lookup_motor) -----------------------------------
 def check_motor_names(description: dict, notes: list[str], comments: dict[str, list[str]]) -> None:
     """Keep a motor ``name`` when the built-in table knows it or the configuration gives its
     constants; else drop it, say so, and leave a comment where its constants belong."""
@@ -130,6 +124,10 @@ _KEY_COMMENTS = {
 }
 
 
+#: the comment a table always carries
+_TABLE_COMMENTS = {"current": ["what the printer runs today (firmware configuration): a baseline for tune"]}
+
+
 def _table(lines: list[str], name: str, table: dict, comments: list[str] = ()) -> None:
     lines.append("")
     lines.extend(f"# {c}" for c in comments)
@@ -156,9 +154,7 @@ def description_toml(name: str, description: dict, notes: list[str], source: str
         lines.append(f"kinematics = {toml_value(description['kinematics'])}")
     for key in ("limits", "current", "motor"):
         if description.get(key):
-            cm = ["what the printer runs today (firmware configuration): a baseline for tune"] \
-                if key == "current" else []
-            _table(lines, key, description[key], cm + comments.get(key, []))
+            _table(lines, key, description[key], _TABLE_COMMENTS.get(key, []) + comments.get(key, []))
     for ax in ("x", "y"):
         lines.append("")
         lines.append(f"# default modes (the embedded {default['name']} printer's), not this printer's: "
@@ -174,19 +170,21 @@ def description_toml(name: str, description: dict, notes: list[str], source: str
 
 
 # -- the command --------------------------------------------------------------------------------
+#: source -> how its file is read (from-klipper's --moonraker: :func:`_read`)
+_READERS = {"from-klipper": lambda args: printer_facts_from_klipper(args.file),
+            "from-marlin": lambda args: printer_facts_from_marlin(args.file, args.kinematics),
+            "from-rrf": lambda args: printer_facts_from_rrf(args.file)}
+
+
 def _read(args):
-    if args.source == "from-klipper":
-        if (args.file is None) == (args.moonraker is None):
-            raise RingtuneError("give printer.cfg or --moonraker URL (one of them)", "from-klipper")
-        if args.moonraker:
-            facts = printer_facts_from_moonraker(args.moonraker,
-                                                 api_key=args.api_key or os.environ.get("MOONRAKER_API_KEY"))
-            return facts, urlsplit(args.moonraker).hostname or "printer"
-        facts = printer_facts_from_klipper(args.file)
-    elif args.source == "from-marlin":
-        facts = printer_facts_from_marlin(args.file, args.kinematics)
-    else:
-        facts = printer_facts_from_rrf(args.file)
+    """(FirmwareFacts, the printer's name when --name gives none): from the file, or from Moonraker."""
+    if args.source == "from-klipper" and (args.file is None) == (args.moonraker is None):
+        raise RingtuneError("give printer.cfg or --moonraker URL (one of them)", "from-klipper")
+    if getattr(args, "moonraker", None):
+        facts = printer_facts_from_moonraker(args.moonraker,
+                                             api_key=args.api_key or os.environ.get("MOONRAKER_API_KEY"))
+        return facts, urlsplit(args.moonraker).hostname or "printer"
+    facts = _READERS[args.source](args)
     p = Path(args.file)
     default_name = p.resolve().parent.name if p.stem in ("printer", "config", "M503", "m503") else p.stem
     return facts, default_name or "printer"
@@ -194,8 +192,6 @@ def _read(args):
 
 def run(args, out) -> int:
     check_output_folder("--output", args.output)
-    if args.output and Path(args.output).is_dir():
-        raise RingtuneError("is a directory; give a file name such as printer.toml", f"--output {args.output}")
     facts, default_name = _read(args)
     description = facts.description
     notes = list(facts.notes)

@@ -94,11 +94,11 @@ def _plot(args, flavor, freqs, rows, dampings, psd) -> None:
         keep = psd.freqs <= freqs[-1]
         ax.plot(psd.freqs[keep], psd.psd_sum[keep], color="steelblue", lw=2, label="measured PSD (sum)")
         ax.set_ylabel("power spectral density")
-        ax2 = ax.twinx()
+        ax2, ls = ax.twinx(), "--"
     else:
-        ax2 = ax          # one axis: the residual scale keeps its ticks
+        ax2, ls = ax, "-"          # one axis: the residual scale keeps its ticks
     for r in rows:
-        ax2.plot(freqs, 100 * r["residual"], ls="--" if psd is not None else "-",
+        ax2.plot(freqs, 100 * r["residual"], ls=ls,
                  label=f"{r['name']} (smoothing {r['smoothing_mm']:.3f} mm, max accel "
                        f"{'-' if r['max_accel'] is None else format(r['max_accel'], '.0f')})")
     ax2.axhline(10, color="grey", lw=0.8, ls=":")

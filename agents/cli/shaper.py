@@ -67,18 +67,20 @@ def band_text(lo: float, hi: float) -> str:
     return "none" if not (math.isfinite(lo) and math.isfinite(hi)) else f"{lo:.2f} – {hi:.2f} Hz"
 
 
-def _impulse_lines(shaper) -> list[str]:
-    """The impulses, or a smoother's kernel (a continuous weight, not impulses)."""
+def _impulses(shaper) -> tuple[list[str], dict]:
+    """(lines, JSON keys) of the impulses, or of a smoother's kernel (a continuous weight, not
+    impulses: ``kernel_coeffs``, ``smooth_time_s``, ``offset_s``)."""
     if hasattr(shaper, "coeffs"):
         terms = " ".join(f"{c:+.6g}·τ^{k}" for k, c in enumerate(shaper.coeffs))
+        kernel = {"kernel_coeffs": list(shaper.coeffs), "smooth_time_s": shaper.smooth_time, "offset_s": shaper.offset}
         return [f"  continuous kernel w(τ) = {terms} (τ in s, unit integral)",
                 f"  on [−{shaper.smooth_time * 500:.3f}, +{shaper.smooth_time * 500:.3f}] ms, centroid "
                 f"{shaper.offset * 1e3:+.4f} ms (the firmware shifts the kernel by it); ringtune convolves with "
-                f"its {int((shaper.amplitudes > 0).sum())}-node Gauss–Legendre quadrature"]
+                f"its {int((shaper.amplitudes > 0).sum())}-node Gauss–Legendre quadrature"], kernel
     lines = ["  impulse   amplitude   time (ms)"]
     for i, (a, t) in enumerate(zip(shaper.amplitudes, shaper.times)):
         lines.append(f"  {i + 1:7d}   {a:9.4f}   {t * 1e3:9.3f}")
-    return lines
+    return lines, {}
 
 
 def run(args, out) -> int:
@@ -95,10 +97,9 @@ def run(args, out) -> int:
         "smoothing_mm": info["smoothing_mm"], "max_accel": finite_or_none(info["max_accel"]),
         "residual_at_freq": info["residual_at_freq"], "accel": args.accel, "scv": args.scv,
     }
-    lines = [f"{shaper.name} ({flavor}) at {shaper.freq:g} Hz, damping {shaper.damping:g}"] + _impulse_lines(shaper)
-    if hasattr(shaper, "coeffs"):
-        result.update({"kernel_coeffs": list(shaper.coeffs), "smooth_time_s": shaper.smooth_time,
-                       "offset_s": shaper.offset})
+    impulse_lines, kernel = _impulses(shaper)
+    result.update(kernel)
+    lines = [f"{shaper.name} ({flavor}) at {shaper.freq:g} Hz, damping {shaper.damping:g}"] + impulse_lines
     lo, hi = info["band90_hz"]
     plo, phi = info["band90_pct"]
     lines += [

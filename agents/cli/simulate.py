@@ -30,13 +30,11 @@ measured by the planner without it: list of {``name``, ``value`` mm/s², ``what`
 from __future__ import annotations
 
 import dataclasses
-import math
 from pathlib import Path
 
-from ringtune.agents.cli.common import (GCODE_JOB_HELP, firmware_name, gcode_job,
-                                       judgement, load_config, say_unmeasured)
+from ringtune.agents.cli.common import GCODE_JOB_HELP, firmware_name, gcode_job, judgement, say_unmeasured
+from ringtune.agents.cli.simulate_config import build_config, freq_margin
 from ringtune.agents.cli.trace_option import write_trace_option
-from ringtune.agents.tune.baselines import current_config
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 from ringtune.agents.tune.versus import baseline_evaluations, table as versus_table, versus_all
@@ -51,7 +49,6 @@ from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import per_feature_text
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.job_shapers import describe_timeline, shaper_timeline
-from ringtune.shaping.shapers import default_damping, shapers_from_config
 
 NAME = "simulate"
 DESCRIPTION = """\
@@ -145,198 +142,10 @@ def add_arguments(parser) -> None:
                         "nozzle x y, ...) of the whole job, or of its quality windows if it is long")
 
 
-def _pair(text: str | None, option: str, number: bool) -> tuple | None:
-    if text is None:
-        return None
-    parts = [p.strip() for p in str(text).split(",")]
-    if len(parts) == 1:
-        parts = parts * 2
-    if len(parts) != 2 or not all(parts):
-        raise RingtuneError("give one value or two separated by a comma (X,Y)", option)
-    if not number:
-        return tuple(parts)
-    try:
-        return tuple(float(p) for p in parts)
-    except ValueError:
-        raise RingtuneError(f"not a number: {text!r}", option) from None
-
-
-def _base_config(args, printer) -> tuple[dict, list[str]]:
-    """What is simulated when neither --config nor --shaper/--freq/--damping says: what the printer
-    runs now (its ``[current]`` section), else no shaping; and the notes that say so."""
-    notes: list[str] = []
-    note = notes.append
-    if printer is not None and printer.current:
-        cur = printer.current
-        firmware = args.firmware or str(cur.get("firmware") or "klipper")
-        cfg, why = current_config(printer, firmware)
-        if cfg is not None:
-            note(f"no --config: simulating what the printer runs now, from [current] "
-                 f"({cur.get('source') or printer.name})")
-            d = cfg.to_dict()
-            d.pop("extra", None)
-            d["job_accel"] = "respect"    # the printer runs the job's own acceleration commands
-            return d, notes
-        note(why)
-    note("no --config or --shaper: simulating with input shaping off (give --config best.json or "
-         "--shaper S --freq F to simulate a configuration)")
-    return {"shaper_x": "none", "shaper_y": "none"}, notes
-
-
-def build_config(args, out=None, printer=None):
-    """The TuneConfig from --config and/or the individual options (options override the file);
-    without either, what ``printer`` runs now (``[current]``), else no shaping."""
-    cfg, notes = _start(args, out, printer)     # the notes are said once the options are known to be good
-    shaper = _pair(args.shaper, "--shaper", False)
-    freq = _pair(args.freq, "--freq", True)
-    damping = _pair(args.damping, "--damping", True)
-    if shaper:
-        cfg["shaper_x"], cfg["shaper_y"] = shaper
-        if not freq and not args.config and any(s != "none" for s in shaper):
-            raise RingtuneError("a shaper needs a frequency", "--freq")
-    if freq:
-        cfg["freq_x"], cfg["freq_y"] = freq
-    if damping:
-        cfg["damping_x"], cfg["damping_y"] = damping
-    elif shaper and not args.config:
-        _default_damping(cfg)
-    if args.freq_limit is not None:
-        cfg["freq_limit_hz"] = args.freq_limit
-    _other_keys(cfg, args)
-    _check_options(freq, damping, args)
-    config = _named_config(cfg, args, shaper, freq, damping)
-    for n in notes if out is not None else ():
-        out.note(n)
-    return config
-
-
-def _start(args, out, printer) -> tuple[dict, list[str]]:
-    """(config dict the options then override, notes): --config's, else (no shaper option) what the
-    printer runs now, else no shaping; with --firmware's firmware."""
-    notes: list[str] = []
-    if args.config:
-        cfg = load_config(args.config, out).to_dict()
-    elif args.shaper is None and args.freq is None and args.damping is None:
-        cfg, notes = _base_config(args, printer)
-    else:
-        cfg = {"shaper_x": "none", "shaper_y": "none"}
-    if args.firmware:
-        cfg["firmware"] = args.firmware
-    return cfg, notes
-
-
-def _default_damping(cfg: dict) -> None:
-    """Shapers given without --damping take their firmware's default damping ratio."""
-    record = FIRMWARES.get(str(cfg.get("firmware", "klipper")).lower())
-    if record is not None:  # an unknown firmware is reported by TuneConfig below
-        cfg["damping_x"] = cfg["damping_y"] = default_damping(record.flavor)
-
-
-def _named_config(cfg: dict, args, shaper, freq, damping) -> TuneConfig:
-    """The TuneConfig of ``cfg``; a bad value is refused naming the option that gave it (or the
-    file), and shapers the firmware does not offer naming --shaper (or the file)."""
-    where = args.config or "options"
-    try:
-        config = TuneConfig.from_dict(cfg, where)
-    except RingtuneError as exc:   # a value an option gave: name the option, not the config key
-        key = (exc.where or "").rpartition(": ")[2]
-        given = {"--freq": freq, "--damping": damping, "--shaper": shaper, "--firmware": args.firmware,
-                 "--freq-limit": args.freq_limit, "--accel": args.accel, "--max-accel": args.max_accel,
-                 "--freq-limit-method": args.freq_limit_method, "--min-speed-factor": args.min_speed_factor,
-                 "--feature-accel": args.feature_accel, "--corner": args.corner,
-                 "--min-cruise-ratio": args.min_cruise_ratio}
-        flag = _KEY_FLAG.get(key.partition(".")[0])
-        if flag and given.get(flag) is not None:
-            raise RingtuneError(exc.bare, flag) from None
-        raise
-    try:  # the firmware must offer the shapers: say which option (or file) asked for them
-        shapers_from_config(config)
-    except RingtuneError as exc:
-        if shaper:
-            raise RingtuneError(exc.bare, "--shaper") from None
-        raise exc.relocated("config", where) from None
-    return config
-
-
-#: TuneConfig key -> the option that sets it
-_KEY_FLAG = {"freq_x": "--freq", "freq_y": "--freq", "damping_x": "--damping", "damping_y": "--damping",
-             "shaper_x": "--shaper", "shaper_y": "--shaper", "firmware": "--firmware",
-             "freq_limit_hz": "--freq-limit", "accel": "--accel", "max_accel_x": "--max-accel",
-             "max_accel_y": "--max-accel", "freq_limit_method": "--freq-limit-method",
-             "min_speed_factor": "--min-speed-factor", "feature_accel": "--feature-accel", "corner": "--corner",
-             "min_cruise_ratio": "--min-cruise-ratio"}
-
-
-def _in_range(values, lo: float, hi: float, option: str, what: str) -> None:
-    bad = [v for v in values if v is not None and not (math.isfinite(v) and lo <= v <= hi)]
-    if bad:
-        raise RingtuneError(f"{bad[0]:g} is not {what}", option)
-
-
-def _other_keys(cfg: dict, args) -> None:
-    """The TuneConfig keys without a shaper of their own: acceleration, caps, limit method and
-    speed factor, the job-acceleration mode (an extra key of tune's best.json)."""
-    caps = _pair(args.max_accel, "--max-accel", True) or (None, None)
-    _in_range(caps, 1.0, 1e6, "--max-accel", "an acceleration cap: give mm/s² > 0")
-    msf = args.min_speed_factor
-    _in_range((msf,), 0.01, 1.0, "--min-speed-factor", "a speed factor: give one in [0.01, 1]")
-    given = {"accel": args.accel, "max_accel_x": caps[0], "max_accel_y": caps[1],
-             "freq_limit_method": args.freq_limit_method, "min_speed_factor": msf, "job_accel": args.job_accel,
-             "feature_accel": _feature_accel(args.feature_accel), "corner": args.corner,
-             "min_cruise_ratio": args.min_cruise_ratio}
-    cfg.update({k: v for k, v in given.items() if v is not None})
-
-
-def _feature_accel(text: str | None) -> dict | None:
-    """``CLASS=A,CLASS=A`` -> {class: mm/s²} (the classes are checked by TuneConfig)."""
-    if text is None:
-        return None
-    out = {}
-    for part in text.split(","):
-        name, eq, value = part.partition("=")
-        try:
-            out[name.strip()] = float(value)
-        except ValueError:
-            raise RingtuneError(f"{part!r} is not CLASS=mm/s² (e.g. infill=10000)", "--feature-accel") from None
-        if not eq:
-            raise RingtuneError(f"{part!r} is not CLASS=mm/s² (e.g. infill=10000)", "--feature-accel")
-    return out
-
-
-def _check_options(freq, damping, args) -> None:
-    """The options' values in their own units, named by option (TuneConfig's own check would name
-    its keys: ``options: freq_x: -40.0 is out of range``)."""
-    for f in freq or ():
-        if not (math.isfinite(f) and 0 <= f <= 1000):
-            raise RingtuneError(f"{f:g} Hz is not a shaper frequency: give one in (0, 1000] Hz", "--freq")
-    for z in damping or ():
-        if not (math.isfinite(z) and 0 <= z <= 0.99):
-            raise RingtuneError(f"{z:g} is not a damping ratio: give one in [0, 0.99] (e.g. 0.1)", "--damping")
-    if args.freq_limit is not None and not (math.isfinite(args.freq_limit) and 0 <= args.freq_limit <= 1000):
-        raise RingtuneError(f"{args.freq_limit:g} Hz is not a frequency limit: give one in [0, 1000] Hz "
-                            "(0 = off)", "--freq-limit")
-    if args.accel is not None and not (math.isfinite(args.accel) and 0 < args.accel <= 1e6):
-        raise RingtuneError(f"{args.accel:g} mm/s² is not a printing acceleration: give one in (0, 1e6] mm/s²",
-                            "--accel")
-
-
 def _axis(shaper: str, freq: float, damping: float) -> str:
     """One axis of the configuration line: ``mzv 48 Hz S 0.1``, or ``none`` alone (no shaping has
     no frequency or damping)."""
     return "none" if shaper == "none" else f"{shaper} {freq:g} Hz S {damping:g}"
-
-
-def freq_margin(args, config=None) -> float:
-    """--freq-margin PCT as a fraction; default: the margin the configuration was tuned with
-    (``freq_margin`` in a best.json from tune), else tune's default."""
-    if args.freq_margin is None:
-        recorded = (config.extra or {}).get("freq_margin") if config is not None else None
-        if isinstance(recorded, (int, float)) and not isinstance(recorded, bool) and 0 <= recorded < 0.5:
-            return float(recorded)
-        return DEFAULT_FREQ_MARGIN
-    if not 0 <= args.freq_margin < 50:
-        raise RingtuneError(f"must be a percentage in [0, 50), not {args.freq_margin:g}", "--freq-margin")
-    return args.freq_margin / 100.0
 
 
 def job_commands(printer, gcode, config, out) -> list[dict]:
@@ -355,8 +164,7 @@ def job_commands(printer, gcode, config, out) -> list[dict]:
         notes.append("the job's own acceleration commands " + (
             "stand (--job-accel respect), as the printer would run them" if mode == "respect" else
             f"are replaced by the configuration's {config.accel:g} mm/s² (--job-accel replace)"))
-    for n in notes:
-        out.note(n)
+    out.note(*notes)
     return [{"time": t, "config": c.to_dict()} for t, c in timeline[1:]]
 
 
@@ -402,8 +210,7 @@ def run(args, out) -> int:
 def _inputs(args, out) -> tuple:
     """(printer, config, frequency margin) the options give; a bad option, a missing job or a plot
     folder that cannot be made is refused before anything is simulated."""
-    if args.freq_margin is not None:    # a bad option is refused before any note is printed
-        freq_margin(args)
+    freq_margin(args)                   # a bad option is refused before any note is printed
     printer = resolve_printer(args.printer)
     say_unmeasured(printer, out)
     config = build_config(args, out, printer)
@@ -477,15 +284,12 @@ def _plot_baseline(base):
 
 
 def _windows(evs) -> list[dict]:
-    """Per quality window: its span and kind, each measure the worst over the printer variants."""
+    """Per quality window: its span and kind, each measure the worst over the printer variants
+    (step loss, a bool: whether any variant lost steps)."""
     keys = ("step_loss",) + Metrics.SCALAR_KEYS
-    windows = []
-    for i, w in enumerate(evs[0].planned.windows):
-        parts = [e.metrics.details["windows"][i] for e in evs]
-        windows.append({"t0": float(w.t0), "t1": float(w.t1), "kind": str(getattr(w, "kind", "")),
-                        **{k: (any(p[k] for p in parts) if k == "step_loss" else max(p[k] for p in parts))
-                           for k in keys}})
-    return windows
+    per_window = zip(evs[0].planned.windows, zip(*(e.metrics.details["windows"] for e in evs)))
+    return [{"t0": float(w.t0), "t1": float(w.t1), "kind": str(getattr(w, "kind", "")),
+             **{k: max(p[k] for p in parts) for k in keys}} for w, parts in per_window]
 
 
 def _text(result: dict, m, c, printer, judged: str, n_variants: int) -> list[str]:

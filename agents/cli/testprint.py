@@ -121,12 +121,10 @@ BAND_RANGE = (10.0, 150.0)
 def bands(text: str) -> tuple[float, float, int]:
     """argparse type of --bands ``F0:F1:N`` -> (F0 Hz, F1 Hz, N bands), the bands within
     :data:`BAND_RANGE`."""
-    parts = text.split(":")
     try:
-        f0, f1, n = float(parts[0]), float(parts[1]), int(parts[2])
-        if len(parts) != 3:
-            raise ValueError
-    except (ValueError, IndexError):
+        f0, f1, n = text.split(":")              # not three parts: a ValueError too
+        f0, f1, n = float(f0), float(f1), int(n)
+    except ValueError:
         raise argparse.ArgumentTypeError(f"expected F0:F1:N (Hz, Hz, bands), not {text!r}") from None
     for f in (f0, f1):
         if not BAND_RANGE[0] <= f <= BAND_RANGE[1]:
@@ -149,10 +147,7 @@ def run(args, out) -> int:
     ext.validate()
     lim = printer.limits
     _check_kind(args)
-    if args.kind == "ringing":
-        result, text, gcode = _ringing(args, out, printer, lim, cx, cy, ext)
-    else:
-        result, text, gcode = _accel(args, out, printer, lim, cx, cy, ext)
+    result, text, gcode = _PRINTS[args.kind](args, out, printer, lim, cx, cy, ext)
     if args.output:
         Path(args.output).write_text(gcode)
         out.note(f"wrote {args.output}")
@@ -167,7 +162,7 @@ def _ladder_speed(given, config, velocity: float, name: str) -> tuple[float, str
     if given is not None:
         return float(given), "--speed"
     top = config.extra.get("top_speed_mm_s")
-    if isinstance(top, (int, float)) and not isinstance(top, bool) and 0 < top <= velocity:
+    if type(top) in (int, float) and 0 < top <= velocity:     # a number, not a bool
         return float(top), "the top speed the tuned acceleration was judged at (the config's top_speed_mm_s)"
     return float(velocity), f"{name}'s top speed"
 
@@ -218,8 +213,7 @@ def _ringing(args, out, printer, lim, cx, cy, ext):
     plan = ringing_tower(args.firmware, speed=speed, accel=accel, bands=bands, band_height=args.band_height,
                          height=height, shaper=args.shaper, damping=args.damping, geometry=geom,
                          ext=ext, hotend=args.hotend, bed=args.bed, printer_name=printer.name)
-    for n in plan.notes:
-        out.note(n)
+    out.note(*plan.notes)
     table = [b.table_line().lstrip("; ") for b in plan.bands]
     result = {"bands": [{"number": b.number, "z0": b.z0, "z1": b.z1, "freq_x": b.freq_x, "freq_y": b.freq_y,
                          "shaper": b.shaper, "damping": b.damping, "lines": b.lines} for b in plan.bands],
@@ -265,8 +259,7 @@ def _accel(args, out, printer, lim, cx, cy, ext):
                             ext=ext, hotend=args.hotend, bed=args.bed, printer_name=printer.name)
     except RingtuneError as exc:
         raise exc.relocated("config", args.config) from None
-    for n in plan.notes:
-        out.note(n)
+    out.note(*plan.notes)
     tuned = float(config.accel)
     result = {"rungs": [{"number": k, "accel": a, "of_tuned": a / tuned} for k, a in enumerate(plan.accels, 1)],
               "tuned_accel": tuned, "measure": plan.table, "notes": plan.notes}
@@ -275,7 +268,7 @@ def _accel(args, out, printer, lim, cx, cy, ext):
 
 def _start_accel(out, printer, lim, config) -> float:
     """The ladder's first rung without --from: what the printer runs now, else its limit (said)."""
-    current = getattr(printer, "current", None) or {}
+    current = printer.current
     if current.get("accel"):
         start, whence = float(current["accel"]), f"what {printer.name} runs now ([current] accel)"
     else:
@@ -285,3 +278,7 @@ def _start_accel(out, printer, lim, config) -> float:
     else:
         out.note(f"starting acceleration {start:.0f} mm/s²: {whence} (--from to change)")
     return start
+
+
+#: kind -> the function that makes that print: (result, text, G-code)
+_PRINTS = {"ringing": _ringing, "accel": _accel}

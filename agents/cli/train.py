@@ -105,10 +105,11 @@ def run(args, out) -> int:
     if planned != args.timesteps:
         out.note(f"PPO collects whole rollouts of {rollout // args.envs} steps × {args.envs} env(s) = {rollout}: "
                  f"--timesteps {args.timesteps} trains {planned} steps")
-    out.note(f"training PPO: {planned if planned else args.timesteps} steps on {args.envs} env(s) -> {args.output}")
+    steps = planned or args.timesteps    # a resumed run's steps are known once its checkpoint loads
+    out.note(f"training PPO: {steps} steps on {args.envs} env(s) -> {args.output}")
     out.release()                        # training runs long: its notes and progress go out live
     tty = sys.stderr.isatty()
-    lines = [] if tty or args.no_progress else [progress_lines(args.output, planned or args.timesteps)]
+    lines = [] if tty or args.no_progress else [progress_lines(args.output, steps)]
     with _stdout_to_stderr():
         res = ppo.train(args.output, args.timesteps, args.envs, args.seed, resume=args.resume, hyper=hyper,
                         progress_bar=tty and not args.no_progress, callbacks=lines)

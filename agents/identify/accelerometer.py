@@ -126,16 +126,18 @@ def _several_tests_of_an_axis(meas: Measurement) -> list[str]:
         others = [f for f in meas.fits if f.axis == ax and f is not best]
         if not others:
             continue
-
-        def main(fit):
-            return max(fit.modes, key=lambda m: m.share).freq if fit.modes else float("nan")
-
-        far = [f"{f.source} ({main(f):.1f} Hz)" for f in others if abs(main(f) / main(best) - 1) > 0.10]
+        f0 = _strongest_freq(best)
+        far = [f"{f.source} ({_strongest_freq(f):.1f} Hz)" for f in others if abs(_strongest_freq(f) / f0 - 1) > 0.10]
         out.append(f"{ax.upper()}: {len(others) + 1} tests; the modes are {best.source}'s (the best fit, r² "
                    f"{best.r2:.3f}), Klipper's rule reads them all"
-                   + (f"; the strongest mode of {', '.join(far)} is more than 10 % from its {main(best):.1f} Hz: "
+                   + (f"; the strongest mode of {', '.join(far)} is more than 10 % from its {f0:.1f} Hz: "
                       "not the same printer or the same state (belt tension, toolhead)?" if far else ""))
     return out
+
+
+def _strongest_freq(fit: AxisFit) -> float:
+    """Frequency (Hz) of the fit's strongest mode (largest share); NaN without modes."""
+    return max(fit.modes, key=lambda m: m.share).freq if fit.modes else float("nan")
 
 
 def klipper_record(psds: dict[str, list], scv: float = 5.0, version: str = "head") -> dict:
@@ -187,11 +189,7 @@ def resonance_psds(paths: list, axes: str | None = None, note=None) -> tuple[dic
     ``axes`` (comma-separated, one per file), else its name (a file whose name does not say is
     refused: its columns cannot tell). A file with the same data as an earlier one is read once (said
     through ``note``)."""
-    named = None
-    if axes:
-        named = [a.strip().lower() for a in axes.split(",")]
-        if len(named) != len(paths) or any(a not in ("x", "y") for a in named):
-            raise RingtuneError(f"give one axis (x or y) per --accel file ({len(paths)} files)", "axes")
+    named = _named_axes(axes, len(paths))
     psds: dict[str, list] = {}
     sources: dict[str, list[str]] = {}
     seen: dict[str, str] = {}
@@ -203,13 +201,23 @@ def resonance_psds(paths: list, axes: str | None = None, note=None) -> tuple[dic
                 note(f"{path}: the same data as {seen[digest]}: read once")
             continue
         seen[digest] = str(path)
-        ax = named[i] if named else _psd_axis(path, items, note)
+        ax = named[i] if named else _psd_axis(path)     # said by the name only once the file is new
         psds.setdefault(ax, []).extend(items)
         sources.setdefault(ax, []).append(str(path))
     return psds, sources
 
 
-def _psd_axis(path, items, note=None) -> str:
+def _named_axes(axes: str | None, n_files: int) -> list[str] | None:
+    """``axes`` ("x,y,…", one per file) as a list; None when not given."""
+    if not axes:
+        return None
+    named = [a.strip().lower() for a in axes.split(",")]
+    if len(named) != n_files or any(a not in ("x", "y") for a in named):
+        raise RingtuneError(f"give one axis (x or y) per --accel file ({n_files} files)", "axes")
+    return named
+
+
+def _psd_axis(path) -> str:
     """The axis a resonance file measured, from its name."""
     ax = axis_from_file_name(path)
     if ax == "z":

@@ -174,10 +174,13 @@ def fit_mismatch(printer: Printer, freqs: dict[str, np.ndarray], psd: dict[str, 
            & (psd[k] > 0) for k in DIRECTIONS}
     meas = {k: np.log(psd[k][sel[k]]) for k in DIRECTIONS}
 
+    def residuals(model: dict[str, np.ndarray]) -> np.ndarray:
+        """ln(measured / modelled) over the selected bins of both tests."""
+        return np.concatenate([meas[k] - model[k][sel[k]] for k in DIRECTIONS])
+
     def ssr(mu: float) -> float:
         """Gamma (Welch) likelihood with the common scale at its optimum: n·ln mean(x/m) + Σ ln m."""
-        model = _model_logs(printer, mu, freqs)
-        r = np.concatenate([meas[k] - model[k][sel[k]] for k in DIRECTIONS])
+        r = residuals(_model_logs(printer, mu, freqs))
         return float(len(r) * math.log(np.mean(np.exp(r))) - r.sum())
 
     grid = np.linspace(-MAX_MISMATCH, MAX_MISMATCH, 41)
@@ -187,11 +190,11 @@ def fit_mismatch(printer: Printer, freqs: dict[str, np.ndarray], psd: dict[str, 
     h = 0.01
     curv = (ssr(mu + h) - 2 * ssr(mu) + ssr(mu - h)) / (h * h)
     model = _model_logs(printer, mu, freqs)
-    ratio = np.exp(np.concatenate([meas[k] - model[k][sel[k]] for k in DIRECTIONS]))
+    r = residuals(model)
+    ratio = np.exp(r)
     shape = 1.0 / max(float(np.var(ratio / ratio.mean())), 1e-12)   # Gamma shape: scatter and misfit alike
     err = math.sqrt(1.0 / (shape * curv)) if curv > 0 else math.inf
-    model = _model_logs(printer, mu, freqs)
-    shift = np.mean(np.concatenate([meas[k] - model[k][sel[k]] for k in DIRECTIONS]))
+    shift = np.mean(r)
     return mu, err, {k: np.exp(model[k] + shift) for k in DIRECTIONS}
 
 
@@ -241,7 +244,7 @@ def _refuse_not_diagonal(paths: list[str], dirs: list) -> None:
             raise RingtuneError(f"a test of the {ax.upper()} axis (its name says so), not a diagonal one: give the "
                                 "AXIS=1,1 and AXIS=1,-1 tests (resonances_axis=1.000,1.000,… and "
                                 "resonances_axis=1.000,-1.000,…)", str(p))
-    if len(paths) == 2 and all(Path(p).is_file() for p in paths) and sha256_of(paths[0]) == sha256_of(paths[1]):
+    if all(Path(p).is_file() for p in paths) and sha256_of(paths[0]) == sha256_of(paths[1]):   # the two tests
         raise RingtuneError(f"the same test twice ({paths[0]} and {paths[1]} hold the same data): give the AXIS=1,1 "
                             "and the AXIS=1,-1 test", "belts")
 

@@ -43,6 +43,14 @@ def plot_belts(c: BeltComparison, path: str | Path) -> Path:
     """Spectra on the left, the numbers on the right."""
     matplotlib.use("Agg")
     fig, (ax, side) = plt.subplots(1, 2, figsize=(15, 6.2), gridspec_kw={"width_ratios": [2.4, 1.6]})
+    _spectra(ax, c)
+    _numbers(side, c)
+    fig.tight_layout()
+    return save_figure(fig, path, f"ringtune graph belts — similarity {c.similarity:.1f} %")
+
+
+def _spectra(ax, c: BeltComparison) -> None:
+    """The two tests' spectra, the model fitted to them, and their peaks numbered by pair."""
     for k, (label, colour) in _STYLE.items():
         ax.plot(c.freqs[k], c.psd[k], color=colour, lw=1.8, label=f"{label}: {Path(c.sources[k]).name}")
         if k in c.model:
@@ -60,6 +68,10 @@ def plot_belts(c: BeltComparison, path: str | Path) -> Path:
     ax.set_title(f"CoreXY belts: the two diagonal resonance tests (similarity {c.similarity:.1f} %)", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="upper right")
+
+
+def _numbers(side, c: BeltComparison) -> None:
+    """The peak pairs' table, the summary and what it means, with the notes."""
     side.axis("off")
     rows = pair_rows(c)
     if rows:
@@ -69,5 +81,3 @@ def plot_belts(c: BeltComparison, path: str | Path) -> Path:
         tab.set_fontsize(8)
     text = summary_lines(c) + [""] + textwrap.wrap(c.meaning(), 70) + [t for n in c.notes for t in textwrap.wrap(n, 70)]
     side.text(0.0, 0.0, "\n".join(text), fontsize=8, va="bottom", transform=side.transAxes)
-    fig.tight_layout()
-    return save_figure(fig, path, f"ringtune graph belts — similarity {c.similarity:.1f} %")

@@ -160,8 +160,7 @@ def build_description(fits: dict[str, AxisFit], *, name: str = "identified", kin
     ``source``); ``motors``: ``{"all"|"x"|"y": {name, run_current, voltage}}`` from ``--motor``;
     ``measurement``: the ``[measurement]`` table (files and Klipper's recommendation)."""
     desc = Description({"name": name})
-    fw = dict(facts.description) if facts is not None else {}
-    src = Path(facts.source).name if facts is not None else None
+    fw, src = (dict(facts.description), Path(facts.source).name) if facts is not None else ({}, None)
     _kinematics(desc, fw.pop("kinematics", None), kinematics, src)
     _configuration(desc, fw, facts)
     _motors(desc, motors or {}, src)
@@ -246,16 +245,7 @@ def _axis(desc: Description, ax: str, fit: AxisFit | None, base: tuple[str, list
     """Axis ``ax``'s table: its fitted modes (else ``base``'s, said) and its mass (weighed, else by
     the added-mass method); the default mass in words when neither gives it."""
     table = desc.data.setdefault(ax, {})
-    if fit is not None:
-        desc.comment(ax, f"modes fitted to {Path(fit.source).name} ({fit.kind}, {fit.method}, r² = {fit.r2:.3f})")
-        table["modes"] = fitted_modes(fit)
-    else:
-        base_name, modes = base
-        table["modes"] = modes
-        desc.comment(ax, f"not measured: the modes of {base_name}")
-        freqs = ", ".join(f"{m['freq']:g} Hz" for m in modes)
-        desc.defaults.append(f"{ax.upper()} was not measured: its modes are {base_name}'s ({freqs}); the shaper "
-                             f"tuned for {ax.upper()} fits that printer, not yours (measure {ax.upper()} too)")
+    table["modes"] = _modes(desc, ax, fit, base)
     if added is not None:
         _added_mass(desc, table, added, weighed)
     if weighed is not None:
@@ -265,6 +255,19 @@ def _axis(desc: Description, ax: str, fit: AxisFit | None, base: tuple[str, list
     desc.data[ax] = {k: table[k] for k in ("mass", "modes") if k in table} | \
         {k: v for k, v in table.items() if k not in ("mass", "modes")}
     return None if "mass" in table else f"{ax.upper()} {DEFAULTS[f'mass_{ax}']:g} kg"
+
+
+def _modes(desc: Description, ax: str, fit: AxisFit | None, base: tuple[str, list[dict]]) -> list[dict]:
+    """Axis ``ax``'s modes: fitted, else ``base``'s (a default, said); where they came from in its comment."""
+    if fit is not None:
+        desc.comment(ax, f"modes fitted to {Path(fit.source).name} ({fit.kind}, {fit.method}, r² = {fit.r2:.3f})")
+        return fitted_modes(fit)
+    base_name, modes = base
+    desc.comment(ax, f"not measured: the modes of {base_name}")
+    freqs = ", ".join(f"{m['freq']:g} Hz" for m in modes)
+    desc.defaults.append(f"{ax.upper()} was not measured: its modes are {base_name}'s ({freqs}); the shaper "
+                         f"tuned for {ax.upper()} fits that printer, not yours (measure {ax.upper()} too)")
+    return modes
 
 
 def _added_mass(desc: Description, table: dict, a: AddedMass, weighed: float | None) -> None:
@@ -307,12 +310,10 @@ def description_toml(desc: Description, header: list[str] = ()) -> str:
     """TOML text of ``desc``: ``header`` and the defaults as comments at the top, then the top-level
     keys, then each table (sub-tables ``[x.motor]`` after their parent) with its comments."""
     lines = [f"# {h}" for h in header]
-    if desc.defaults:
-        lines.append("# Still defaults (not known from your files):")
-        lines += [f"#   - {s}" for s in desc.defaults]
-    if desc.notes:
-        lines.append("# Notes (what the configuration does not say, and what was mapped):")
-        lines += [f"#   - {n}" for n in desc.notes]
+    for title, said in (("Still defaults (not known from your files):", desc.defaults),
+                        ("Notes (what the configuration does not say, and what was mapped):", desc.notes)):
+        if said:
+            lines += [f"# {title}"] + [f"#   - {s}" for s in said]
     lines += [f"# {c}" for c in desc.comments.get("", [])]
 
     def emit(path: str, table: dict) -> None:

@@ -79,8 +79,8 @@ def identify_from_files(files: list, *, configs: dict | None = None, axis: str |
     if name is None:
         name, whence = printer_name(config_path, files)
         note(f"note: name {name!r}, from {whence} (give --name to choose another)")
-    desc = build_description(meas.by_axis(), name=name, kinematics=kinematics, base=base, masses=masses or {},
-                             added=added, facts=facts, motors=motors or {},
+    desc = build_description(meas.by_axis(), name=name, kinematics=kinematics, base=base, masses=masses,
+                             added=added, facts=facts, motors=motors,
                              measurement=_measurement(meas, loaded, added, klipper))
     header = ["Printer description written by `ringtune identify` from "
               + ", ".join(Path(f).name for f in [*files, *loaded_files])]

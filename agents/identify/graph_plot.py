@@ -18,7 +18,9 @@ import matplotlib.pyplot as plt
 from ringtune.agents.identify.graph import AxisGraph, ShaperCurve
 from ringtune.envs.figure import save_figure
 
-_PSD_STYLE = {"x": ("X", "tab:red"), "y": ("Y", "tab:green"), "z": ("Z", "tab:blue"), "sum": ("X+Y+Z", "tab:purple")}
+#: column -> (label, colour, line width, alpha): the sum bold, the axes' columns thin and faint
+_PSD_STYLE = {"x": ("X", "tab:red", 1, 0.6), "y": ("Y", "tab:green", 1, 0.6), "z": ("Z", "tab:blue", 1, 0.6),
+              "sum": ("X+Y+Z", "tab:purple", 2, 1)}
 TABLE_HEADER = ("shaper", "freq Hz", "vibr %", "smooth. mm", "max_accel", "pick")
 
 
@@ -40,10 +42,9 @@ def _row(c: ShaperCurve, pick: str) -> tuple[str, ...]:
 
 
 def _spectrum(ax, g: AxisGraph) -> None:
-    for key, (label, colour) in _PSD_STYLE.items():
+    for key, (label, colour, lw, alpha) in _PSD_STYLE.items():
         if key in g.psd:
-            ax.plot(g.freqs, g.psd[key], color=colour, lw=2 if key == "sum" else 1,
-                    alpha=1 if key == "sum" else 0.6, label=label)
+            ax.plot(g.freqs, g.psd[key], color=colour, lw=lw, alpha=alpha, label=label)
     ax.plot(g.freqs, g.after_shaper, color="black", lw=1.2, ls="--",
             label=f"after {g.klipper.fit.name} (Klipper's pick)")
     ax.plot(g.freqs, g.fitted, color="grey", lw=1, label=f"fitted modes ({g.axis.upper()} column)")
@@ -62,8 +63,8 @@ def _spectrum(ax, g: AxisGraph) -> None:
 
 def _curves(ax2, g: AxisGraph) -> None:
     for c in g.shapers:
-        bold = c is g.klipper
-        ax2.plot(g.freqs, c.residual, ls="-" if bold else ":", lw=2 if bold else 1.2, label=c.label)
+        ls, lw = ("-", 2) if c is g.klipper else (":", 1.2)       # Klipper's pick bold
+        ax2.plot(g.freqs, c.residual, ls=ls, lw=lw, label=c.label)
     if g.ringtune is not None:
         ax2.plot(g.freqs, g.ringtune.residual, ls="--", lw=2, color="black", label="ringtune: " + g.ringtune.label)
     ax2.set_ylabel("shaper vibration reduction (ratio)")

@@ -105,13 +105,19 @@ def compare_picks(printer: Printer, record: dict, psds: dict[str, list[PSD]],
     for ax in axes:
         fit = fits.get(ax)
         measured = psds.get(ax, [])
-        peaks = None
-        if measured and not measured[0].normalized:
-            peaks = (weighed_peak(measured[0].freqs, measured[0].psd_sum), weighed_peak(*resonance_test(printer, ax)))
         out.append(PickComparison(ax, (str(record[f"shaper_{ax}"]), float(record[f"freq_{ax}"])),
                                   (str(fields[f"shaper_{ax}"]), float(fields[f"freq_{ax}"])),
-                                  off_axis_share(measured, ax), fit.r2 if fit else None, peaks))
+                                  off_axis_share(measured, ax), fit.r2 if fit else None,
+                                  _weighed_peaks(printer, ax, measured)))
     return out
+
+
+def _weighed_peaks(printer: Printer, ax: str, measured: list[PSD]) -> tuple[float, float] | None:
+    """(files, model): where the spectrum Klipper's rule weighs peaks on axis ``ax``, Hz; None
+    without a raw spectrum of the axis."""
+    if not measured or measured[0].normalized:
+        return None
+    return weighed_peak(measured[0].freqs, measured[0].psd_sum), weighed_peak(*resonance_test(printer, ax))
 
 
 def pick_warnings(printer: Printer, record: dict, psds: dict[str, list[PSD]],

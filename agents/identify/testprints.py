@@ -27,8 +27,8 @@ TOWER_SHAPERS = ("zv", "mzv", "zvd", "ei")
 def shaper_lines(firmware: str, shaper: str, freq: float, damping: float) -> list[str]:
     """What ``ringtune export --firmware FIRMWARE`` writes for ``shaper`` at ``freq`` Hz on both
     axes (``shaper`` "none": shaping off)."""
-    cfg = TuneConfig(firmware=firmware, shaper_x=shaper, shaper_y=shaper,
-                     freq_x=freq if shaper != "none" else 0.0, freq_y=freq if shaper != "none" else 0.0,
+    freq_set = freq if shaper != "none" else 0.0
+    cfg = TuneConfig(firmware=firmware, shaper_x=shaper, shaper_y=shaper, freq_x=freq_set, freq_y=freq_set,
                      damping_x=damping, damping_y=damping)
     try:
         return export_config(cfg, firmware, accel=False).lines

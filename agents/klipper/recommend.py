@@ -51,7 +51,7 @@ def _from_printer(ref, firmware, version, scv, max_smoothing, seed, note):
     """(fits, TuneConfig fields, sources) of Klipper's rule for the printer description ``ref``."""
     printer = resolve_printer(None if ref in (None, "default") else ref)
     recorded = _recorded(printer, ref, note)
-    kept = (printer.measurement or {}).get("klipper", {})
+    kept = printer.measurement.get("klipper", {})
     if recorded is not None:        # identify recorded the files: their recommendation, not the model's
         psds, sources = resonance_psds([p for p, _ in recorded], ",".join(ax for _, ax in recorded), note)
         fits, fields = recommend_axes(psds, firmware, version, float(kept.get("scv", scv)),
@@ -92,8 +92,7 @@ def _kept(kept: dict, ref, note):
 def _recorded(printer, ref, note) -> list[tuple[str, str]] | None:
     """The resonance files ``printer`` records in ``[measurement]`` (written by ``ringtune identify``)
     when they are all still here and unchanged, else None (with a note when some are missing)."""
-    files = printer.measurement.get("files") if printer.measurement else None
-    if not files:
+    if not printer.measurement.get("files"):
         return None
     found, missing = recorded_files(printer.measurement, ref)
     if missing:

@@ -196,10 +196,9 @@ def fit_shaper(name: str, datasets: Sequence[_Dataset], factory: ShaperFactory, 
     times = np.stack([np.asarray(b[1], dtype=float) for b in built])
     terms = smoothing_terms(amps, times, scv)
     smoothing = smoothing_from_terms(terms, SMOOTHING_ACCEL)
-    keep = _smoothing_stop(smoothing, max_smoothing)
-    if keep is not None:
-        freqs_desc, amps, times, smoothing = freqs_desc[:keep], amps[:keep], times[:keep], smoothing[:keep]
-        terms = tuple(x[:keep] for x in terms)
+    keep = _smoothing_stop(smoothing, max_smoothing)     # None: all of them ([:None] is the whole array)
+    freqs_desc, amps, times, smoothing = freqs_desc[:keep], amps[:keep], times[:keep], smoothing[:keep]
+    terms = tuple(x[:keep] for x in terms)
     vibrs = _worst_vibrations(amps, times, cut, test_damping_ratios)
     scores = smoothing * (vibrs ** 1.5 + vibrs * 0.2 + 0.01)
     max_accels = max_accel_from_terms(terms, TARGET_SMOOTHING)
@@ -365,10 +364,9 @@ def _base(name: str) -> str:
 
 
 def _check_shaper_name(name: str) -> str:
-    m = _SHAPER_RE.match(str(name))
-    base = m.group(1).lower() if m else str(name)
+    base = _base(name)
     if base not in SHAPER_MIN_FREQ:
         raise RingtuneError(f"unknown shaper {name!r}; Klipper's rule fits {', '.join(SHAPER_MIN_FREQ)}",
                             "shapers")
-    return str(name).strip().lower() if m and m.group(2) else base
+    return str(name).strip().lower() if _SHAPER_RE.match(str(name)).group(2) else base
 

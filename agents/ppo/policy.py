@@ -221,22 +221,22 @@ def _curves(res: TrainResult, out: Path, resume: bool, curve) -> None:
     ev = out / "evaluations.npz"
     if ev.is_file():
         d = np.load(ev)
-        res.eval_timesteps = [int(t) for t in d["timesteps"]]
+        res.eval_timesteps = d["timesteps"].astype(int).tolist()
         res.eval_mean_cost = [float(-np.mean(r)) for r in d["results"]]
     prev = out / "training_curve.npz"
-    if resume and prev.is_file():
-        d = np.load(prev)
-        res.train_timesteps = [int(t) for t in d["train_timesteps"]]
-        res.train_mean_cost = [float(c) for c in d["train_mean_cost"]]
-        if "train_reference_cost" in d:
-            res.train_reference_cost = [float(c) for c in d["train_reference_cost"]]
-    res.train_timesteps += curve.timesteps
-    res.train_mean_cost += curve.costs
-    res.train_reference_cost += curve.reference_costs
+    before = np.load(prev) if resume and prev.is_file() else {}
+    res.train_timesteps = _saved(before, "train_timesteps", int) + curve.timesteps
+    res.train_mean_cost = _saved(before, "train_mean_cost", float) + curve.costs
+    res.train_reference_cost = _saved(before, "train_reference_cost", float) + curve.reference_costs
     if len(res.train_reference_cost) != len(res.train_mean_cost):
         res.train_reference_cost = []
     np.savez(prev, train_timesteps=np.asarray(res.train_timesteps), train_mean_cost=np.asarray(res.train_mean_cost),
              train_reference_cost=np.asarray(res.train_reference_cost))
+
+
+def _saved(npz, key: str, kind: type) -> list:
+    """The curve ``key`` a resumed run saved (an ``.npz`` mapping), as a list of ``kind``; [] when absent."""
+    return npz[key].astype(kind).tolist() if key in npz else []
 
 
 def train(out_dir: str | Path, timesteps: int = DEFAULT_TIMESTEPS, n_envs: int = DEFAULT_N_ENVS,

@@ -60,7 +60,7 @@ class ReferenceRelative(gym.Wrapper):
         self._ref = 0.0
 
     def reset(self, *, seed=None, options=None):
-        if seed is not None or options or self._left <= 0 or self._first is None:
+        if seed is not None or options or self._left <= 0:   # a new printer (none is left before the first)
             obs, info = self.env.reset(seed=seed, options=options)
             base = self.env.unwrapped
             if self.reference_action is None:        # the starting configuration, evaluated by the reset
