@@ -28,7 +28,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from ringtune.hardware.dialects import Export, export_config
+from ringtune.hardware.dialects import export_config
+from ringtune.hardware.export import Export
 from ringtune.hardware.link import (GcodeLink, LinkError, LinkTimeout, PrinterReset, Reply, frame,
     klipper_reply_lines, redact)
 from ringtune.hardware.moonraker import Moonraker
