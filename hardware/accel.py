@@ -376,12 +376,14 @@ def _parse_m956(path: Path, lines: list[str]) -> RawAccel:
     for i in range(hi + 1, len(lines)):
         s = lines[i].strip()
         where = f"{path}:{i + 1}"
-        if s and trailer is not None:
+        if not s:
+            continue
+        if trailer is not None:
             raise RingtuneError("data after the 'Rate N, overflows M' trailer", where)
-        m = _M956_TRAILER.match(s) if s else None
+        m = _M956_TRAILER.match(s)
         if m:
             trailer = _m956_trailer(m, where)
-        elif s:
+        else:
             rows.append(_m956_row(s, axes, rows, where))
     if trailer is None:
         raise RingtuneError("missing the 'Rate <Hz>, overflows <n>' trailer line (truncated capture?)",

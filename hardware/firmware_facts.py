@@ -73,6 +73,13 @@ def place_gcode_motors(description: dict, num, amps_per_m906_unit: float) -> Non
     place_motors(description, motors["X"], motors["Y"])
 
 
+def axis_numbers(num, cmd: str, scale: float = 1.0) -> list[float] | None:
+    """``cmd``'s X Y Z E numbers times ``scale`` (0 where missing), None when it gives none;
+    ``num(code, letter)`` gives a word's number or None (an M503 report's, a config.g's)."""
+    vals = [num(cmd, a) for a in "XYZE"]
+    return None if all(v is None for v in vals) else [(v or 0.0) * scale for v in vals]
+
+
 def motor_tables(description: dict) -> dict[str, dict]:
     """The motor tables of a description by where they sit: ``motor``, ``x.motor``, ``y.motor``."""
     found = {}

@@ -35,6 +35,8 @@ AUTOSAVE_LINE = "#*# <---------------------- SAVE_CONFIG ---------------------->
 
 _SECTION = re.compile(r"\[(?P<header>.+)\]")
 _OPTION = re.compile(r"(?P<option>.*?)\s*[=:]\s*(?P<value>.*)$")
+#: what starts each line of the SAVE_CONFIG block (``#*# `` or a bare ``#*#``)
+_SAVED_PREFIX = re.compile(r"^#\*# ?")
 
 
 @dataclass
@@ -185,8 +187,7 @@ def split_autosave(text: str) -> tuple[str, str, int]:
     lines = text.split("\n")
     for i, line in enumerate(lines):
         if line.strip() == AUTOSAVE_LINE:
-            saved = [ln[4:] if ln.startswith("#*# ") else ln[3:] if ln.startswith("#*#") else ln
-                     for ln in lines[i + 1:]]
+            saved = [_SAVED_PREFIX.sub("", ln, count=1) for ln in lines[i + 1:]]
             if saved and saved[0].startswith("DO NOT EDIT"):
                 saved[0] = ""
             return "\n".join(lines[:i]), "\n".join(saved), i + 2

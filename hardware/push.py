@@ -112,8 +112,15 @@ def state_sentence(state: dict) -> str:
             f"recover with FIRMWARE_RESTART, then push again")
 
 
-def _failed(replies: dict[int, Reply]) -> bool:
-    return any(r.errors for r in replies.values())
+def _refused(replies) -> bool:
+    """Whether the printer refused any of ``replies`` (:class:`Reply` objects)."""
+    return any(r.errors for r in replies)
+
+
+def _judge(result: PushResult, exp: Export, replies: dict[int, Reply], report: str | None) -> None:
+    """Each setting's status from the replies and the read-back; ``ok`` when all hold."""
+    result.settings = _statuses(exp, replies, report, exp.firmware)
+    result.ok = all(s.status in (APPLIED, ACKED) for s in result.settings)
 
 
 def _statuses(exp: Export, replies: dict[int, Reply], report: str | None, firmware: str) -> list[SettingStatus]:
@@ -192,9 +199,8 @@ def dry_run_wire(exp: Export, save: bool = False, crc: bool = False) -> list[str
     cmds = exp.lines + exp.readback + (exp.save_lines if save else [])
     if protocol == "klipper":
         return list(cmds)
-    framed = [frame(0, "M110 N0", crc and protocol == "rrf").decode()]
-    framed += [frame(i + 1, c, crc and protocol == "rrf").decode() for i, c in enumerate(cmds)]
-    return framed
+    crc = crc and protocol == "rrf"
+    return [frame(n, c, crc).decode() for n, c in enumerate(["M110 N0", *cmds])]     # N0: the handshake
 
 
 def push(config: TuneConfig, firmware: str | None = None, port: str | None = None,
@@ -224,8 +230,7 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
         replies, report = _push_serial(exp, port, baud, crc, timeout, log, result, max_resets,
                                        link_options or {}, save, check_limits)
     if not result.settings:
-        result.settings = _statuses(exp, replies, report, firmware)
-        result.ok = all(s.status in (APPLIED, ACKED) for s in result.settings)
+        _judge(result, exp, replies, report)
     _explain(result, exp, replies)
     if save:
         _save_file(exp, result, save_path)
@@ -306,11 +311,10 @@ def _send_all(exp: Export, link: GcodeLink, result: PushResult, replies: dict, s
         replies[i] = link.send(cmd)
     answers = [link.send(c) for c in exp.readback]
     report = "\n".join(a.text for a in answers)
-    if protocol == "klipper" and (_failed(replies) or any(a.errors for a in answers)):
+    if protocol == "klipper" and _refused([*replies.values(), *answers]):
         result.printer_state = _klipper_state(link)
     if save and exp.save_lines:
-        result.settings = _statuses(exp, replies, report, exp.firmware)
-        result.ok = all(s.status in (APPLIED, ACKED) for s in result.settings)
+        _judge(result, exp, replies, report)
         _save_eeprom(exp, result, link)
     return replies, report
 
@@ -388,7 +392,7 @@ def _push_moonraker(exp, url, api_key, timeout, log, result, check_limits=False)
         for i, cmd in enumerate(exp.lines):
             _moonraker_run(mr, cmd, replies, i)
         answers = [_moonraker_run(mr, c) for c in exp.readback]
-        if _failed(replies) or any(a.errors for a in answers):
+        if _refused([*replies.values(), *answers]):
             result.printer_state = mr.state()
     except LinkTimeout as exc:
         result.settings = _timeout_statuses(exp, replies, "Moonraker")

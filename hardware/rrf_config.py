@@ -24,7 +24,7 @@ import re
 from pathlib import Path
 
 from ringtune.hardware.config_dialect import refuse_other_dialect
-from ringtune.hardware.firmware_facts import FirmwareFacts, gcode_words, place_gcode_motors, to_number
+from ringtune.hardware.firmware_facts import FirmwareFacts, axis_numbers, gcode_words, place_gcode_motors, to_number
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.textfile import read_text_file
 
@@ -64,11 +64,6 @@ class _Config:
                                 self.where(cmd, letter))
         return to_number(value, self.where(cmd, letter))
 
-    def per_axis(self, cmd: str, scale: float = 1.0) -> list[float] | None:
-        """``cmd``'s X Y Z E numbers times ``scale`` (0 where missing), None when it gives none."""
-        vals = [self.num(cmd, a) for a in "XYZE"]
-        return None if all(v is None for v in vals) else [(v or 0.0) * scale for v in vals]
-
 
 def _kinematics(cfg: _Config, notes: list[str]) -> str:
     """M669 K, RepRapFirmware's default (Cartesian) when not given."""
@@ -88,7 +83,7 @@ def _accels(cfg: _Config, notes: list[str]) -> dict:
     when M204 P is missing)."""
     limits: dict = {}
     accel = cfg.num("M204", "P")
-    amax = cfg.per_axis("M201")
+    amax = axis_numbers(cfg.num, "M201")
     if accel is not None:
         limits["accel"] = accel
     elif amax is not None:
@@ -109,10 +104,10 @@ def _accels(cfg: _Config, notes: list[str]) -> dict:
 def _speeds_and_jerk(cfg: _Config, notes: list[str]) -> dict:
     """``limits`` from M203 (per-axis speeds, mm/min) and M566 (per-axis jerk, mm/min)."""
     limits: dict = {}
-    vmax = cfg.per_axis("M203", 1 / 60)
+    vmax = axis_numbers(cfg.num, "M203", 1 / 60)
     if vmax is not None:
         limits.update(max_velocity=vmax, velocity=max(vmax[0], vmax[1]))
-    jerk = cfg.per_axis("M566", 1 / 60)
+    jerk = axis_numbers(cfg.num, "M566", 1 / 60)
     if jerk is not None:
         limits.update(junction="jerk", jerk=jerk)
     else:
