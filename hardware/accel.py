@@ -77,14 +77,13 @@ def _read_lines(path: str | Path) -> tuple[Path, list[str]]:
     return path, text.splitlines()
 
 
-def _first_content(lines: list[str], skip_comments: bool = True) -> int:
+def _first_content(lines: list[str]) -> int:
+    """Index of the first line that is neither blank nor a ``#`` comment (``#time`` is Klipper's raw
+    header, not a comment); -1 when there is none."""
     for i, line in enumerate(lines):
-        s = line.strip()
-        if not s:
-            continue
-        if skip_comments and s.startswith("#") and not s.lower().startswith("#time"):
-            continue
-        return i
+        s = line.strip().lower()
+        if s and (not s.startswith("#") or s.startswith("#time")):
+            return i
     return -1
 
 

@@ -176,13 +176,13 @@ def _accel_caps(src: _Source, limits: dict, accel: float) -> None:
     if kin == "limited_corexy":
         limits["axis_rule"] = "limited_corexy"
     scale = src.get("printer", "scale_xy_accel")
-    if limited and scale is not None and str(scale).strip().lower() in ("true", "1", "yes"):
+    if limited and str(scale).strip().lower() in ("true", "1", "yes"):       # str(None): "none"
         limits["scale_xy_accel"] = True
 
 
 def _gearing(src: _Source, stepper: str) -> float:
     raw = src.get(stepper, "gear_ratio")
-    if raw is None or raw == "" or raw == ():
+    if raw in (None, "", ()):
         return 1.0
     pairs = raw if isinstance(raw, (list, tuple)) else [p.split(":") for p in str(raw).split(",") if p.strip()]
     g = 1.0

@@ -72,14 +72,16 @@ class PushResult:
         return d
 
     def summary(self) -> str:
-        applied = [s.key for s in self.settings if s.status in (APPLIED, ACKED)]
-        missing = [s.key for s in self.settings if s.status not in (APPLIED, ACKED)]
-        return (f"applied: {', '.join(applied) or 'nothing'}; "
-                f"not applied: {', '.join(missing) or 'nothing'}")
+        held: dict[bool, list[str]] = {True: [], False: []}
+        for s in self.settings:
+            held[s.status in (APPLIED, ACKED)].append(s.key)
+        return (f"applied: {', '.join(held[True]) or 'nothing'}; "
+                f"not applied: {', '.join(held[False]) or 'nothing'}")
 
     def text(self) -> str:
-        out = [f"{FIRMWARES[self.firmware].title} on {self.port}" + (" (dry run)" if self.dry_run else "")]
+        out = [f"{FIRMWARES[self.firmware].title} on {self.port}"]
         if self.dry_run:
+            out[0] += " (dry run)"
             out.append("would send exactly:")
             out += ["  " + w for w in self.wire]
         for s in self.settings:
@@ -217,7 +219,7 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
     if check_limits:
         check_frequencies(exp.expected)
     firmware = exp.firmware
-    where = redact(moonraker) if moonraker else redact(port) if port else "(no port)"
+    where = redact(moonraker or port or "(no port)")
     result = PushResult(firmware, where, dry_run, notes=list(exp.notes))
     if moonraker and FIRMWARES[firmware].family != "klipper":
         raise RingtuneError("Moonraker speaks only for Klipper; use --port for other firmware", "--moonraker")
@@ -239,10 +241,10 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
 
 def _dry_run(exp: Export, result: PushResult, save: bool, save_path, crc: bool) -> PushResult:
     """``result`` of a dry run: exactly the wire that would be sent, every setting "not sent"."""
-    result.wire = dry_run_wire(exp, save and bool(exp.save_lines), crc)
-    result.settings = [SettingStatus(k, v, status=DRY) for k, v in exp.expected.items()]
-    if "limit" in exp.setting_lines:
-        result.settings.append(SettingStatus("limit", exp.lines[exp.setting_lines["limit"]], status=DRY))
+    result.wire = dry_run_wire(exp, save, crc)
+    result.settings = _statuses(exp, {}, None, exp.firmware)      # the settings a push reports
+    for st in result.settings:
+        st.status, st.detail = DRY, ""
     if save and exp.config_text:
         result.notes.append(f"--save would write the {exp.config_target} lines to "
                             f"{_save_target(exp, save_path)} (--save-file FILE for another)")
@@ -279,7 +281,7 @@ def _withdraw(result: PushResult, exp: Export) -> None:
     """A printer that is not ready after the push (Klipper shut down) holds none of it: every
     setting is not applied, and the notes on what the settings would do are withdrawn."""
     state = (result.printer_state or {}).get("state")
-    if not state or state == "ready":
+    if state in (None, "", "ready"):
         return
     result.ok = False
     result.notes = [n for n in result.notes if n not in exp.notes]
@@ -413,12 +415,20 @@ def _save_eeprom(exp: Export, result: PushResult, link: GcodeLink) -> None:
     result.saved = f"{' '.join(exp.save_lines)} sent (the printer stores it in EEPROM)"
 
 
+#: family of a firmware that cannot persist the config from G-code -> (--save's default file, what
+#: to do with it)
+_SAVE_FILES = {
+    "klipper": ("ringtune-input_shaper.cfg", "replace the [input_shaper] section of printer.cfg with it "
+                "(SET_INPUT_SHAPER's values are lost at a restart, and SAVE_CONFIG does not save them)"),
+    "rrf": ("ringtune-config.g", "add these lines to config.g (RepRapFirmware's M500 does not store M593)"),
+}
+
+
 def _save_target(exp: Export, save_path) -> Path | None:
     """Where ``--save`` writes the config lines (firmware that cannot persist them), else None."""
     if exp.save_lines or not exp.config_text:
         return None
-    default = "ringtune-input_shaper.cfg" if exp.record.family == "klipper" else "ringtune-config.g"
-    return Path(save_path or default)
+    return Path(save_path or _SAVE_FILES[exp.record.family][0])
 
 
 def _save_file(exp: Export, result: PushResult, save_path) -> None:
@@ -435,7 +445,5 @@ def _save_file(exp: Export, result: PushResult, save_path) -> None:
                             f"{exp.config_target} are:\n{exp.config_text.rstrip()}")
         return
     result.save_file = str(path)
-    what = ("replace the [input_shaper] section of printer.cfg with it (SET_INPUT_SHAPER's values are "
-            "lost at a restart, and SAVE_CONFIG does not save them)" if exp.record.family == "klipper" else "add these lines to config.g "
-            "(RepRapFirmware's M500 does not store M593)")
-    result.saved = f"{FIRMWARES[exp.firmware].title} cannot persist this from G-code: wrote {path}; {what}"
+    result.saved = (f"{FIRMWARES[exp.firmware].title} cannot persist this from G-code: wrote {path}; "
+                    f"{_SAVE_FILES[exp.record.family][1]}")
