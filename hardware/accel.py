@@ -190,7 +190,7 @@ def _resonance_header(path: Path, lines: list[str]) -> tuple[int, list[str], lis
         shaper_names = list(cols[k + 1:])
         cols = cols[:k]
     else:
-        while cols and _SHAPER_COL.match(cols[-1]) and cols[-1].lower() not in ("psd_xyz",):
+        while cols and _SHAPER_COL.match(cols[-1]):
             shaper_names.insert(0, cols.pop())
     if not cols:
         raise RingtuneError("no PSD columns after 'freq'", where_h)

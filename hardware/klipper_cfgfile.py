@@ -37,6 +37,8 @@ _SECTION = re.compile(r"\[(?P<header>.+)\]")
 _OPTION = re.compile(r"(?P<option>.*?)\s*[=:]\s*(?P<value>.*)$")
 #: what starts each line of the SAVE_CONFIG block (``#*# `` or a bare ``#*#``)
 _SAVED_PREFIX = re.compile(r"^#\*# ?")
+#: an inline comment: ``;`` after whitespace (``configparser``'s inline_comment_prefixes)
+_INLINE_SEMICOLON = re.compile(r"(?<=\s);")
 
 
 @dataclass
@@ -73,10 +75,8 @@ def _strip_comment(line: str) -> str:
 
 
 def _strip_inline_semicolon(value: str) -> str:
-    for i, ch in enumerate(value):
-        if ch == ";" and i > 0 and value[i - 1].isspace():
-            return value[:i]
-    return value
+    """``value`` up to its first ``;`` after whitespace (an inline comment)."""
+    return _INLINE_SEMICOLON.split(value, maxsplit=1)[0]
 
 
 class _Reader:
@@ -166,8 +166,8 @@ class _Reader:
             text = Path(path).read_text(encoding="utf-8-sig", errors="replace").replace("\r\n", "\n")
         except OSError as exc:
             raise RingtuneError(f"cannot read: {exc.strerror}", path) from None
-        first = next((ln.strip() for ln in (_strip_comment(x) for x in text.split("\n"))
-                      if ln.strip() and not ln.strip().startswith(";")), "")
+        first = next((ln for ln in (_strip_comment(x).strip() for x in text.split("\n"))
+                      if ln and not ln.startswith(";")), "")
         if first and not _SECTION.match(first):
             # e.g. a symbolic link kept as a one-line text file (git without symlinks): Klipper
             # could not read it either

@@ -19,6 +19,7 @@ report). Read here, in Marlin's units:
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from ringtune.hardware.config_dialect import console_line, refuse_other_dialect
@@ -28,6 +29,8 @@ from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.textfile import read_text_file
 
 _READ = ("M92", "M201", "M203", "M204", "M205", "M906", "M593")
+#: what Marlin (``echo:``) or a host (``//``) puts before a report line, possibly repeated
+_REPORT_PREFIX = re.compile(r"^(?:(?:echo:|//)\s*)+", re.I)
 
 
 def _lines(text: str):
@@ -37,10 +40,7 @@ def _lines(text: str):
         line = console_line(raw)
         if line is None:                       # what the host sent (Send: M503), not the report
             continue
-        while line.lower().startswith(("echo:", "//")):
-            line = line.split(":", 1)[1] if line.lower().startswith("echo:") else line[2:]
-            line = line.strip()
-        line = line.split(";", 1)[0]
+        line = _REPORT_PREFIX.sub("", line, count=1).split(";", 1)[0]
         words = gcode_words(line)
         if words is not None:
             yield n, words

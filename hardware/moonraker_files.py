@@ -114,8 +114,6 @@ def _fetch_config(mr: Moonraker, listed: list[dict], dest: Path, out: FetchedFil
     configs = [str(e["path"]) for e in listed if str(e["path"]).lower().endswith(CONFIG_SUFFIXES)]
     if "printer.cfg" not in configs:
         return
-    for rel in configs:
-        path = _save(dest, rel, mr.download("config", rel))
-        if rel == "printer.cfg":
-            out.config = path
+    saved = {rel: _save(dest, rel, mr.download("config", rel)) for rel in configs}
+    out.config = saved["printer.cfg"]
     out.notes.append(f"fetched the configuration (printer.cfg and {len(configs) - 1} other .cfg files) to {dest}")

@@ -173,9 +173,11 @@ def _m593(seen, num, notes) -> tuple[str, float, float | None] | None:
     if "M593" not in seen or (shaper is not None and shaper[1].strip().lower() == "none"):
         notes.append("no M593 (or P\"none\"): the printer runs without input shaping")
         return None
-    name = shaper[1].strip().lower().replace("-", "").replace("_", "") if shaper else "zvd"
     if shaper is None:
+        name = "zvd"
         notes.append("M593 without P: RepRapFirmware uses zvd when a frequency is given")
+    else:
+        name = shaper[1].strip().lower().replace("-", "").replace("_", "")
     f = num("M593", "F")
     if f is None:
         f = 40.0
