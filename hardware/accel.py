@@ -341,7 +341,8 @@ def _m956_axes(line: str, where: str) -> list[str]:
     """The axes of an M956 header: 'Sample' then some of X, Y, Z, each once."""
     header = [h.strip().upper() for h in line.split(",")]
     axes = header[1:]
-    if header[0] != "SAMPLE" or not axes or any(h not in ("X", "Y", "Z") for h in axes) or len(set(axes)) != len(axes):
+    distinct_xyz = set(axes) <= {"X", "Y", "Z"} and len(set(axes)) == len(axes)
+    if header[0] != "SAMPLE" or not axes or not distinct_xyz:
         raise RingtuneError(f"M956 header must be 'Sample' then some of X,Y,Z, not {line.strip()!r}", where)
     return axes
 

@@ -17,6 +17,7 @@ version's H/T meaning); it is converted to the H/T meaning of the chosen version
 from __future__ import annotations
 
 import math
+from itertools import accumulate
 
 from ringtune.hardware.export import Export
 from ringtune.hardware.firmware_check import canonical, check_available, check_axis, check_value, fmt
@@ -95,7 +96,7 @@ def custom_impulses(config: TuneConfig, axis: str = "x") -> tuple[list[float], l
 
 def _spec_impulses(spec, where: str) -> tuple[list[float], list[float]]:
     """The config's ``"custom": {"amplitudes": [...], "times": [...]}`` as two lists of numbers."""
-    if not isinstance(spec, dict) or "amplitudes" not in spec or "times" not in spec:
+    if not isinstance(spec, dict) or not {"amplitudes", "times"} <= spec.keys():
         raise RingtuneError('a custom shaper needs "custom": {"amplitudes": [...], "times": [...]} in '
                             "the config", where)
     try:
@@ -140,6 +141,6 @@ def _rrf_custom(config: TuneConfig, dialect: str) -> str:
             raise RingtuneError("H must sum to less than 1", "config: custom")
         t = times[1:]
     else:                   # 3.4/3.5: cumulative amplitudes except the last; durations between impulses
-        h = [sum(amps[:i + 1]) for i in range(len(amps) - 1)]
+        h = list(accumulate(amps))[:-1]
         t = [b - a for a, b in zip(times, times[1:])]
     return "H" + ":".join(fmt(v, 4) for v in h) + " T" + ":".join(fmt(v, 6) for v in t)

@@ -134,8 +134,8 @@ def _no_axis_caps(fw: Firmware, exp: Export, text: str) -> None:
 
 def _axis_caps_line(fw: Firmware, sent: dict[str, float]) -> str:
     """The record's command for the caps given (``M201 X.. Y..``; an axis not given is left out)."""
-    words = [w for w in fw.axis_accel_set.split()
-             if not any("{" + ax + "}" in w for ax in "xy" if ax not in sent)]
+    unsent = set("xy") - set(sent)
+    words = [w for w in fw.axis_accel_set.split() if not any("{" + ax + "}" in w for ax in unsent)]
     return " ".join(words).format(**{ax: fmt(v, fw.axis_accel.decimals) for ax, v in sent.items()})
 
 
@@ -193,20 +193,20 @@ def _freq_limit(config: TuneConfig, fw: Firmware, exp: Export) -> None:
     hz = config.freq_limit_hz
     if hz <= 0:
         return
-    if fw.freq_limit and config.freq_limit_method == "marlin":
-        f = check_value(hz, Span(0.0, 100.0, 2, lo_open=True), "frequency limit F", "Hz", "config: freq_limit_hz",
-                        "Marlin M201 F")
-        pct = check_value(config.min_speed_factor * 100, Span(1.0, 100.0, 0), "minimum speed S", "%",
-                          "config: min_speed_factor", "Marlin M201 S")
-        exp.setting_lines["limit"] = len(exp.lines)
-        exp.lines.append(f"M201 F{fmt(f, 2)} S{fmt(pct, 0)}")
-        exp.notes.append("M201 F/S needs XY_FREQUENCY_LIMIT compiled in (older Marlin uses G<min%> "
-                         "instead of S)")
+    if not fw.freq_limit:
+        exp.notes.append(f"{fw.title} has no XY frequency limit; apply it to the G-code instead: "
+                         f"{limit_command(config)}")
         return
-    if fw.freq_limit:
+    if config.freq_limit_method != "marlin":
         exp.notes.append(f"this config's frequency limit was tuned with the '{config.freq_limit_method}' "
                          f"method, which Marlin's M201 F does not run, so no M201 F is sent: apply it to "
                          f"the G-code instead: {limit_command(config)}")
         return
-    exp.notes.append(f"{fw.title} has no XY frequency limit; apply it to the G-code instead: "
-                     f"{limit_command(config)}")
+    f = check_value(hz, Span(0.0, 100.0, 2, lo_open=True), "frequency limit F", "Hz", "config: freq_limit_hz",
+                    "Marlin M201 F")
+    pct = check_value(config.min_speed_factor * 100, Span(1.0, 100.0, 0), "minimum speed S", "%",
+                      "config: min_speed_factor", "Marlin M201 S")
+    exp.setting_lines["limit"] = len(exp.lines)
+    exp.lines.append(f"M201 F{fmt(f, 2)} S{fmt(pct, 0)}")
+    exp.notes.append("M201 F/S needs XY_FREQUENCY_LIMIT compiled in (older Marlin uses G<min%> "
+                     "instead of S)")

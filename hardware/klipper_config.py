@@ -156,9 +156,11 @@ def _speed_caps(src: _Source, limits: dict, velocity: float) -> None:
     caps = [0.0, 0.0, 0.0, 0.0]
     for i, ax in enumerate("xyz"):
         v = src.number("printer", f"max_{ax}_velocity")
-        if v is not None and v < velocity:
+        if v is None:
+            continue
+        if v < velocity:
             caps[i] = v
-        elif v is not None:
+        else:
             src.notes.append(f"{src.where('printer', f'max_{ax}_velocity')}: max_{ax}_velocity {v:g} is not "
                              f"below max_velocity {velocity:g}, which limits every move: no speed cap of its "
                              f"own on {ax.upper()}")
