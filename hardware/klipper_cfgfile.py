@@ -74,6 +74,12 @@ def _strip_comment(line: str) -> str:
     return line if pos < 0 else line[:pos]
 
 
+def _content(raw: str) -> str:
+    """A line without its comment, stripped; "" for a blank or comment line (``;`` at its start)."""
+    line = _strip_comment(raw).strip()
+    return "" if line.startswith(";") else line
+
+
 def _strip_inline_semicolon(value: str) -> str:
     """``value`` up to its first ``;`` after whitespace (an inline comment)."""
     return _INLINE_SEMICOLON.split(value, maxsplit=1)[0]
@@ -95,11 +101,10 @@ class _Reader:
         """Read lines of ``name`` (``first_line`` = number of the first); includes are followed."""
         self.cur = self.opt = None
         for n, raw in enumerate(text.split("\n"), first_line):
-            line = _strip_comment(raw)
-            stripped = line.strip()
-            if not stripped or stripped.startswith(";"):
+            stripped = _content(raw)
+            if not stripped:
                 continue                      # blank and comment lines never end a value here
-            indent = len(line) - len(line.lstrip())
+            indent = len(raw) - len(raw.lstrip())
             if self.opt is not None and indent > self.indent:
                 old = self.cfg.sections[self.cur][self.opt]
                 self.cfg.sections[self.cur][self.opt] = (old + "\n" + _strip_inline_semicolon(stripped)).strip()
@@ -166,8 +171,7 @@ class _Reader:
             text = Path(path).read_text(encoding="utf-8-sig", errors="replace").replace("\r\n", "\n")
         except OSError as exc:
             raise RingtuneError(f"cannot read: {exc.strerror}", path) from None
-        first = next((ln for ln in (_strip_comment(x).strip() for x in text.split("\n"))
-                      if ln and not ln.startswith(";")), "")
+        first = next((ln for ln in map(_content, text.split("\n")) if ln), "")
         if first and not _SECTION.match(first):
             # e.g. a symbolic link kept as a one-line text file (git without symlinks): Klipper
             # could not read it either

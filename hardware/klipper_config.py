@@ -183,17 +183,17 @@ def _accel_caps(src: _Source, limits: dict, accel: float) -> None:
 
 
 def _gearing(src: _Source, stepper: str) -> float:
+    """The stepper's gear_ratio (``a:b[, c:d…]``, or Moonraker's list of pairs) as one factor."""
     raw = src.get(stepper, "gear_ratio")
     if raw in (None, "", ()):
         return 1.0
+    where = src.where(stepper, "gear_ratio")
     pairs = raw if isinstance(raw, (list, tuple)) else [p.split(":") for p in str(raw).split(",") if p.strip()]
     g = 1.0
     for pair in pairs:
         if len(pair) != 2:
-            raise RingtuneError(f"gear_ratio must be 'a:b[, c:d…]', not {raw!r}",
-                                src.where(stepper, "gear_ratio"))
-        a, b = (to_number(p, src.where(stepper, "gear_ratio")) for p in pair)
-        g *= a / b
+            raise RingtuneError(f"gear_ratio must be 'a:b[, c:d…]', not {raw!r}", where)
+        g *= to_number(pair[0], where) / to_number(pair[1], where)
     return g
 
 

@@ -154,25 +154,19 @@ def _current(path, text, seen, num, limits, notes) -> dict | None:
     current: dict = {"source": path, "firmware": "rrf"}
     shaper = _m593(seen, num, notes)
     for ax in "xy":                       # RRF shapes every axis with the one shaper
-        if shaper is None:
-            current[f"shaper_{ax}"] = "none"
-            continue
-        name, f, d = shaper
-        current.update({f"shaper_{ax}": name, f"freq_{ax}": f})
-        if d is not None:
-            current[f"damping_{ax}"] = d
+        current.update({f"{key}_{ax}": value for key, value in shaper.items()})
     if "accel" in limits:
         current["accel"] = limits["accel"]
     return current
 
 
-def _m593(seen, num, notes) -> tuple[str, float, float | None] | None:
-    """(shaper, frequency Hz, damping or None) of config.g's M593, with RRF's defaults said; None
-    for no shaping."""
+def _m593(seen, num, notes) -> dict:
+    """The one shaper of config.g's M593 as ``{"shaper", "freq" (Hz), "damping" (when given)}``, with
+    RRF's defaults said; ``{"shaper": "none"}`` for no shaping."""
     shaper = seen.get("M593", {}).get("P")
     if "M593" not in seen or (shaper is not None and shaper[1].strip().lower() == "none"):
         notes.append("no M593 (or P\"none\"): the printer runs without input shaping")
-        return None
+        return {"shaper": "none"}
     if shaper is None:
         name = "zvd"
         notes.append("M593 without P: RepRapFirmware uses zvd when a frequency is given")
@@ -182,8 +176,11 @@ def _m593(seen, num, notes) -> tuple[str, float, float | None] | None:
     if f is None:
         f = 40.0
         notes.append("M593 without F: RepRapFirmware's default 40 Hz")
+    found = {"shaper": name, "freq": f}
     d = num("M593", "S")
     if d is None:
         notes.append("M593 without S: the damping is RRF's default (0.1 up to 3.5, 0.05 in 3.6-dev)"
                      " and unknown here")
-    return name, f, d
+    else:
+        found["damping"] = d
+    return found
