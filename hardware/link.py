@@ -105,9 +105,7 @@ def redact(url: str) -> str:
         return "***"
     if not parts.scheme or not parts.netloc:
         return url
-    netloc = parts.netloc
-    if "@" in netloc:
-        netloc = "***@" + netloc.rsplit("@", 1)[1]
+    netloc = re.sub(r"^.*@", "***@", parts.netloc)       # user and password, up to the last @
     query = re.sub(r"(?i)(^|&)((?:api[_-]?key|token|access_token|password|pass|key|secret)=)[^&]*",
                    r"\1\2***", parts.query)
     return urlunsplit((parts.scheme, netloc, parts.path, query, ""))

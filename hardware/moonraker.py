@@ -83,7 +83,7 @@ class Moonraker:
             err.message = msg      # Klipper's own words (e.g. "Unsupported shaper type: ei2")
             raise err from None
         except (TimeoutError, urllib.error.URLError) as exc:
-            if isinstance(exc, TimeoutError) or isinstance(exc.reason, TimeoutError):
+            if isinstance(getattr(exc, "reason", exc), TimeoutError):     # itself, or a URLError's reason
                 raise LinkTimeout(f"no answer from {path} within {self.timeout:g} s", path, self.shown) from None
             raise LinkError(f"cannot reach Moonraker: {exc.reason}", self.shown) from None
 

@@ -57,7 +57,7 @@ def parse_report(firmware: str, text: str) -> dict[str, Reported]:
     """Settings found in the firmware's reply text (keys as :attr:`Export.expected`)."""
     dialect = FIRMWARES[firmware].family
     out = _acceleration_fields(dialect, text)
-    out.update(_SHAPER_READERS[dialect](text) if dialect in _SHAPER_READERS else {})
+    out.update(_SHAPER_READERS[dialect](text))
     return out
 
 
