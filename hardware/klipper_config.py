@@ -250,17 +250,19 @@ def _rotation_distance(src: _Source, stepper: str, micro: int | None, full: int)
 def _given_rotation_distance(src: _Source, stepper: str, micro: int | None, full: int) -> float | None:
     """The stepper's rotation_distance, or the old step_distance × full steps × microsteps."""
     rd = src.number(stepper, "rotation_distance")
-    if rd is None and src.get(stepper, "step_distance") is not None:
-        sd = src.number(stepper, "step_distance")
-        if micro is None:
-            src.notes.append(f"{src.where(stepper, 'step_distance')}: old step_distance {sd:g} mm but no "
-                             "microsteps: rotation_distance unknown")
-            return None
-        rd = sd * full * micro
-        src.notes.append(f"{src.where(stepper, 'step_distance')}: old step_distance {sd:g} mm -> "
-                         f"rotation_distance = {sd:g} × {full} × {micro} = {rd:g} mm")
-    elif rd is None:
+    if rd is not None:
+        return rd
+    if src.get(stepper, "step_distance") is None:
         src.notes.append(f"[{stepper}] has no rotation_distance")
+        return None
+    sd = src.number(stepper, "step_distance")
+    if micro is None:
+        src.notes.append(f"{src.where(stepper, 'step_distance')}: old step_distance {sd:g} mm but no "
+                         "microsteps: rotation_distance unknown")
+        return None
+    rd = sd * full * micro
+    src.notes.append(f"{src.where(stepper, 'step_distance')}: old step_distance {sd:g} mm -> "
+                     f"rotation_distance = {sd:g} × {full} × {micro} = {rd:g} mm")
     return rd
 
 
@@ -296,7 +298,7 @@ def _inline_constants(src: _Source, stepper: str, motor: str, inline: str, full:
     steps = src.number(inline, "steps_per_revolution", integer=True)
     src.notes.append(f"{stepper}: motor {motor}: constants from [{inline}] at "
                      f"{src.where(inline, 'resistance')}")
-    if steps is not None and steps != full:
+    if steps not in (None, full):
         src.notes.append(f"{stepper}: [{inline}] steps_per_revolution {steps} but full_steps_per_rotation "
                          f"{full}; {full} is written (it is how Klipper steps the motor)")
 

@@ -169,8 +169,8 @@ def _judge_axis_caps(statuses: list[SettingStatus], exp: Export, reported: dict)
     """An acceleration the printer's own per-axis caps (read back) hold lower is not claimed as
     applied: the printer would not print at it. Caps the config itself sets are settings of their
     own (it was planned with them)."""
-    st = next((s for s in statuses if s.key == "accel"), None)
-    if st is None or st.status != APPLIED or any(k.startswith("max_accel_") for k in exp.expected):
+    st = {s.key: s for s in statuses}.get("accel")
+    if st is None or st.status != APPLIED or {"max_accel_x", "max_accel_y"} & exp.expected.keys():
         return
     low = _caps_below(reported, float(st.meant))
     if not low:

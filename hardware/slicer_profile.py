@@ -107,10 +107,9 @@ class SlicerProfile:
     version: str | None = None
 
     def render(self) -> str:
-        c = "#" if self.extension in ("ini", "cfg") else None
-        if c is None:           # JSON has no comments: the notes go in a "_ringtune" key
+        if self.extension not in ("ini", "cfg"):     # JSON has no comments: the notes go in a "_ringtune" key
             return self.text
-        return "\n".join([f"{c} {n}" for n in self.notes] + [self.text.rstrip("\n")]) + "\n"
+        return "\n".join([f"# {n}" for n in self.notes] + [self.text.rstrip("\n")]) + "\n"
 
     def to_dict(self) -> dict:
         return asdict(self)
