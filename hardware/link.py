@@ -59,7 +59,7 @@ def klipper_reply_lines(messages: list[str]) -> tuple[list[str], list[str]]:
     for message in messages:
         for line in str(message).splitlines():
             line = line.strip()
-            if not line or line.lower() == "ok":
+            if line.lower() in ("", "ok"):
                 continue
             if line.startswith("!!"):
                 errors.append(line[2:].strip())
