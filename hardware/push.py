@@ -9,8 +9,9 @@ Flow (serial: Marlin, Prusa, RRF over :class:`GcodeLink`; Klipper over its pty o
    ``SET_VELOCITY_LIMIT``), parsed and compared with the intent; every setting is reported
    ``applied`` / ``not applied`` (with why) / ``acknowledged (no read-back)`` (Marlin's ``M201 F S``
    has no report; :mod:`ringtune.hardware.push_status`). Klipper answers an unknown command with
-   an info line (``// Unknown command``), not an error: it counts as the line failing. Over Moonraker each line's replies are read from
-   the console store, so the report is the same as over the pty;
+   an info line (``// Unknown command``), not an error: it counts as the line failing. Over
+   Moonraker each line's replies are read from the console store, so the report is the same as
+   over the pty;
 3. after a failed line, Klipper is asked for its state (``STATUS`` on the pty, ``/printer/info``
    through Moonraker); a printer that shut down is said, with how to recover (``FIRMWARE_RESTART``);
 4. ``--save``: ``M500`` (Marlin), ``M593 W`` (Prusa) once everything was verified; RRF and Klipper
