@@ -77,14 +77,13 @@ def _read_lines(path: str | Path) -> tuple[Path, list[str]]:
     return path, text.splitlines()
 
 
-def _first_content(lines: list[str], skip_comments: bool = True) -> int:
+def _first_content(lines: list[str]) -> int:
+    """Index of the first line that is neither blank nor a ``#`` comment (``#time`` is Klipper's raw
+    header, not a comment); -1 when there is none."""
     for i, line in enumerate(lines):
-        s = line.strip()
-        if not s:
-            continue
-        if skip_comments and s.startswith("#") and not s.lower().startswith("#time"):
-            continue
-        return i
+        s = line.strip().lower()
+        if s and (not s.startswith("#") or s.startswith("#time")):
+            return i
     return -1
 
 
@@ -191,7 +190,7 @@ def _resonance_header(path: Path, lines: list[str]) -> tuple[int, list[str], lis
         shaper_names = list(cols[k + 1:])
         cols = cols[:k]
     else:
-        while cols and _SHAPER_COL.match(cols[-1]) and cols[-1].lower() not in ("psd_xyz",):
+        while cols and _SHAPER_COL.match(cols[-1]):
             shaper_names.insert(0, cols.pop())
     if not cols:
         raise RingtuneError("no PSD columns after 'freq'", where_h)
@@ -342,7 +341,8 @@ def _m956_axes(line: str, where: str) -> list[str]:
     """The axes of an M956 header: 'Sample' then some of X, Y, Z, each once."""
     header = [h.strip().upper() for h in line.split(",")]
     axes = header[1:]
-    if header[0] != "SAMPLE" or not axes or any(h not in ("X", "Y", "Z") for h in axes) or len(set(axes)) != len(axes):
+    distinct_xyz = set(axes) <= {"X", "Y", "Z"} and len(set(axes)) == len(axes)
+    if header[0] != "SAMPLE" or not axes or not distinct_xyz:
         raise RingtuneError(f"M956 header must be 'Sample' then some of X,Y,Z, not {line.strip()!r}", where)
     return axes
 
@@ -376,12 +376,14 @@ def _parse_m956(path: Path, lines: list[str]) -> RawAccel:
     for i in range(hi + 1, len(lines)):
         s = lines[i].strip()
         where = f"{path}:{i + 1}"
-        if s and trailer is not None:
+        if not s:
+            continue
+        if trailer is not None:
             raise RingtuneError("data after the 'Rate N, overflows M' trailer", where)
-        m = _M956_TRAILER.match(s) if s else None
+        m = _M956_TRAILER.match(s)
         if m:
             trailer = _m956_trailer(m, where)
-        elif s:
+        else:
             rows.append(_m956_row(s, axes, rows, where))
     if trailer is None:
         raise RingtuneError("missing the 'Rate <Hz>, overflows <n>' trailer line (truncated capture?)",

@@ -77,11 +77,11 @@ def check_value(value: float, span: Span, what: str, unit: str, where: str, titl
     """``value`` as the firmware gets it; a refusal naming the allowed range when it is outside
     ``span`` or would round to another value at the firmware's precision."""
     why = f"; {span.why}" if span.why else ""
+    shown = f"{what} {value:g}{unit and ' ' + unit}"
     if not span.contains(value):
-        raise RingtuneError(f"{what} {value:g}{unit and ' ' + unit} is outside {title}'s range "
-                            f"{span.text(unit)}{why}", where)
+        raise RingtuneError(f"{shown} is outside {title}'s range {span.text(unit)}{why}", where)
     if span.changes(value):
-        raise RingtuneError(f"{what} {value:g}{unit and ' ' + unit} would be sent as "
+        raise RingtuneError(f"{shown} would be sent as "
                             f"{fmt(value, span.decimals)} (values go to {title} with {span.decimals} decimals, the "
                             f"precision read back); give a "
                             f"value in {span.text(unit)} at that precision", where)

@@ -46,15 +46,13 @@ def to_number(value, where: str, integer: bool = False) -> float | int:
 def place_motors(description: dict, x: dict, y: dict) -> None:
     """Put the X and Y motor tables into ``description``: one ``[motor]`` when they are equal, else
     ``[x.motor]`` and ``[y.motor]`` (on CoreXY/CoreXZ: motor A and motor B / the Y motor)."""
-    if not x and not y:
-        return
     if x == y:
-        description["motor"] = dict(x)
+        if x:
+            description["motor"] = dict(x)
         return
-    if x:
-        description.setdefault("x", {})["motor"] = dict(x)
-    if y:
-        description.setdefault("y", {})["motor"] = dict(y)
+    for ax, table in (("x", x), ("y", y)):
+        if table:
+            description.setdefault(ax, {})["motor"] = dict(table)
 
 
 def place_gcode_motors(description: dict, num, amps_per_m906_unit: float) -> None:
@@ -73,16 +71,18 @@ def place_gcode_motors(description: dict, num, amps_per_m906_unit: float) -> Non
     place_motors(description, motors["X"], motors["Y"])
 
 
+def axis_numbers(num, cmd: str, scale: float = 1.0) -> list[float] | None:
+    """``cmd``'s X Y Z E numbers times ``scale`` (0 where missing), None when it gives none;
+    ``num(code, letter)`` gives a word's number or None (an M503 report's, a config.g's)."""
+    vals = [num(cmd, a) for a in "XYZE"]
+    return None if all(v is None for v in vals) else [(v or 0.0) * scale for v in vals]
+
+
 def motor_tables(description: dict) -> dict[str, dict]:
     """The motor tables of a description by where they sit: ``motor``, ``x.motor``, ``y.motor``."""
-    found = {}
-    if isinstance(description.get("motor"), dict):
-        found["motor"] = description["motor"]
-    for ax in ("x", "y"):
-        table = description.get(ax, {}).get("motor") if isinstance(description.get(ax), dict) else None
-        if isinstance(table, dict):
-            found[f"{ax}.motor"] = table
-    return found
+    parents = {"motor": description, "x.motor": description.get("x"), "y.motor": description.get("y")}
+    return {where: parent["motor"] for where, parent in parents.items()
+            if isinstance(parent, dict) and isinstance(parent.get("motor"), dict)}
 
 
 def gcode_words(line: str) -> tuple[str, dict[str, str]] | None:
@@ -109,11 +109,11 @@ def without_motor(table: dict, notes: list[str], where: str) -> None:
     alone: it is dropped, and when it is not the 200 the loader then assumes, ``rotation_distance``
     (+ ``microsteps``) is replaced by the ``steps_per_mm`` they give, so the step size stays right.
     """
-    if "name" in table or any(k in table for k in MOTOR_CONSTANTS):
+    if {"name", *MOTOR_CONSTANTS} & table.keys():
         return
     steps = table.pop("steps_per_revolution", None)
     rd, micro = table.get("rotation_distance"), table.get("microsteps")
-    if steps is not None and steps != 200 and rd and micro:
+    if steps not in (None, 200) and rd and micro:
         table["steps_per_mm"] = steps * micro / rd
         del table["rotation_distance"]
         notes.append(f"{where}: no motor named, so its {steps} steps per revolution are kept as "

@@ -35,6 +35,10 @@ AUTOSAVE_LINE = "#*# <---------------------- SAVE_CONFIG ---------------------->
 
 _SECTION = re.compile(r"\[(?P<header>.+)\]")
 _OPTION = re.compile(r"(?P<option>.*?)\s*[=:]\s*(?P<value>.*)$")
+#: what starts each line of the SAVE_CONFIG block (``#*# `` or a bare ``#*#``)
+_SAVED_PREFIX = re.compile(r"^#\*# ?")
+#: an inline comment: ``;`` after whitespace (``configparser``'s inline_comment_prefixes)
+_INLINE_SEMICOLON = re.compile(r"(?<=\s);")
 
 
 @dataclass
@@ -70,11 +74,15 @@ def _strip_comment(line: str) -> str:
     return line if pos < 0 else line[:pos]
 
 
+def _content(raw: str) -> str:
+    """A line without its comment, stripped; "" for a blank or comment line (``;`` at its start)."""
+    line = _strip_comment(raw).strip()
+    return "" if line.startswith(";") else line
+
+
 def _strip_inline_semicolon(value: str) -> str:
-    for i, ch in enumerate(value):
-        if ch == ";" and i > 0 and value[i - 1].isspace():
-            return value[:i]
-    return value
+    """``value`` up to its first ``;`` after whitespace (an inline comment)."""
+    return _INLINE_SEMICOLON.split(value, maxsplit=1)[0]
 
 
 class _Reader:
@@ -93,11 +101,10 @@ class _Reader:
         """Read lines of ``name`` (``first_line`` = number of the first); includes are followed."""
         self.cur = self.opt = None
         for n, raw in enumerate(text.split("\n"), first_line):
-            line = _strip_comment(raw)
-            stripped = line.strip()
-            if not stripped or stripped.startswith(";"):
+            stripped = _content(raw)
+            if not stripped:
                 continue                      # blank and comment lines never end a value here
-            indent = len(line) - len(line.lstrip())
+            indent = len(raw) - len(raw.lstrip())
             if self.opt is not None and indent > self.indent:
                 old = self.cfg.sections[self.cur][self.opt]
                 self.cfg.sections[self.cur][self.opt] = (old + "\n" + _strip_inline_semicolon(stripped)).strip()
@@ -164,8 +171,7 @@ class _Reader:
             text = Path(path).read_text(encoding="utf-8-sig", errors="replace").replace("\r\n", "\n")
         except OSError as exc:
             raise RingtuneError(f"cannot read: {exc.strerror}", path) from None
-        first = next((ln.strip() for ln in (_strip_comment(x) for x in text.split("\n"))
-                      if ln.strip() and not ln.strip().startswith(";")), "")
+        first = next((ln for ln in map(_content, text.split("\n")) if ln), "")
         if first and not _SECTION.match(first):
             # e.g. a symbolic link kept as a one-line text file (git without symlinks): Klipper
             # could not read it either
@@ -185,8 +191,7 @@ def split_autosave(text: str) -> tuple[str, str, int]:
     lines = text.split("\n")
     for i, line in enumerate(lines):
         if line.strip() == AUTOSAVE_LINE:
-            saved = [ln[4:] if ln.startswith("#*# ") else ln[3:] if ln.startswith("#*#") else ln
-                     for ln in lines[i + 1:]]
+            saved = [_SAVED_PREFIX.sub("", ln, count=1) for ln in lines[i + 1:]]
             if saved and saved[0].startswith("DO NOT EDIT"):
                 saved[0] = ""
             return "\n".join(lines[:i]), "\n".join(saved), i + 2

@@ -156,9 +156,11 @@ def _speed_caps(src: _Source, limits: dict, velocity: float) -> None:
     caps = [0.0, 0.0, 0.0, 0.0]
     for i, ax in enumerate("xyz"):
         v = src.number("printer", f"max_{ax}_velocity")
-        if v is not None and v < velocity:
+        if v is None:
+            continue
+        if v < velocity:
             caps[i] = v
-        elif v is not None:
+        else:
             src.notes.append(f"{src.where('printer', f'max_{ax}_velocity')}: max_{ax}_velocity {v:g} is not "
                              f"below max_velocity {velocity:g}, which limits every move: no speed cap of its "
                              f"own on {ax.upper()}")
@@ -176,22 +178,22 @@ def _accel_caps(src: _Source, limits: dict, accel: float) -> None:
     if kin == "limited_corexy":
         limits["axis_rule"] = "limited_corexy"
     scale = src.get("printer", "scale_xy_accel")
-    if limited and scale is not None and str(scale).strip().lower() in ("true", "1", "yes"):
+    if limited and str(scale).strip().lower() in ("true", "1", "yes"):       # str(None): "none"
         limits["scale_xy_accel"] = True
 
 
 def _gearing(src: _Source, stepper: str) -> float:
+    """The stepper's gear_ratio (``a:b[, c:d…]``, or Moonraker's list of pairs) as one factor."""
     raw = src.get(stepper, "gear_ratio")
-    if raw is None or raw == "" or raw == ():
+    if raw in (None, "", ()):
         return 1.0
+    where = src.where(stepper, "gear_ratio")
     pairs = raw if isinstance(raw, (list, tuple)) else [p.split(":") for p in str(raw).split(",") if p.strip()]
     g = 1.0
     for pair in pairs:
         if len(pair) != 2:
-            raise RingtuneError(f"gear_ratio must be 'a:b[, c:d…]', not {raw!r}",
-                                src.where(stepper, "gear_ratio"))
-        a, b = (to_number(p, src.where(stepper, "gear_ratio")) for p in pair)
-        g *= a / b
+            raise RingtuneError(f"gear_ratio must be 'a:b[, c:d…]', not {raw!r}", where)
+        g *= to_number(pair[0], where) / to_number(pair[1], where)
     return g
 
 
@@ -248,17 +250,19 @@ def _rotation_distance(src: _Source, stepper: str, micro: int | None, full: int)
 def _given_rotation_distance(src: _Source, stepper: str, micro: int | None, full: int) -> float | None:
     """The stepper's rotation_distance, or the old step_distance × full steps × microsteps."""
     rd = src.number(stepper, "rotation_distance")
-    if rd is None and src.get(stepper, "step_distance") is not None:
-        sd = src.number(stepper, "step_distance")
-        if micro is None:
-            src.notes.append(f"{src.where(stepper, 'step_distance')}: old step_distance {sd:g} mm but no "
-                             "microsteps: rotation_distance unknown")
-            return None
-        rd = sd * full * micro
-        src.notes.append(f"{src.where(stepper, 'step_distance')}: old step_distance {sd:g} mm -> "
-                         f"rotation_distance = {sd:g} × {full} × {micro} = {rd:g} mm")
-    elif rd is None:
+    if rd is not None:
+        return rd
+    if src.get(stepper, "step_distance") is None:
         src.notes.append(f"[{stepper}] has no rotation_distance")
+        return None
+    sd = src.number(stepper, "step_distance")
+    if micro is None:
+        src.notes.append(f"{src.where(stepper, 'step_distance')}: old step_distance {sd:g} mm but no "
+                         "microsteps: rotation_distance unknown")
+        return None
+    rd = sd * full * micro
+    src.notes.append(f"{src.where(stepper, 'step_distance')}: old step_distance {sd:g} mm -> "
+                     f"rotation_distance = {sd:g} × {full} × {micro} = {rd:g} mm")
     return rd
 
 
@@ -294,7 +298,7 @@ def _inline_constants(src: _Source, stepper: str, motor: str, inline: str, full:
     steps = src.number(inline, "steps_per_revolution", integer=True)
     src.notes.append(f"{stepper}: motor {motor}: constants from [{inline}] at "
                      f"{src.where(inline, 'resistance')}")
-    if steps is not None and steps != full:
+    if steps not in (None, full):
         src.notes.append(f"{stepper}: [{inline}] steps_per_revolution {steps} but full_steps_per_rotation "
                          f"{full}; {full} is written (it is how Klipper steps the motor)")
 

@@ -59,7 +59,7 @@ def klipper_reply_lines(messages: list[str]) -> tuple[list[str], list[str]]:
     for message in messages:
         for line in str(message).splitlines():
             line = line.strip()
-            if not line or line.lower() == "ok":
+            if line.lower() in ("", "ok"):
                 continue
             if line.startswith("!!"):
                 errors.append(line[2:].strip())
@@ -105,9 +105,7 @@ def redact(url: str) -> str:
         return "***"
     if not parts.scheme or not parts.netloc:
         return url
-    netloc = parts.netloc
-    if "@" in netloc:
-        netloc = "***@" + netloc.rsplit("@", 1)[1]
+    netloc = re.sub(r"^.*@", "***@", parts.netloc)       # user and password, up to the last @
     query = re.sub(r"(?i)(^|&)((?:api[_-]?key|token|access_token|password|pass|key|secret)=)[^&]*",
                    r"\1\2***", parts.query)
     return urlunsplit((parts.scheme, netloc, parts.path, query, ""))
@@ -264,8 +262,7 @@ class GcodeLink:
                 chunk = self.ser.read(max(1, getattr(self.ser, "in_waiting", 0) or 1))
             except Exception as exc:
                 raise LinkError(f"read failed: {exc}", redact(self.port)) from None
-            if chunk:
-                self._buf += chunk
+            self._buf += chunk
         raw, _, self._buf = self._buf.partition(b"\n")
         line = raw.decode("utf-8", "replace").strip("\r\x00 ")
         self.log("< " + line)
@@ -286,8 +283,11 @@ class GcodeLink:
 
     def _wait_until(self, w: "_Waiting") -> float:
         """When to stop reading: the answer timeout, a resend's replay, RRF's silent-drop retry."""
-        retry = w.last_send + self.retry_after if self.mode == "rrf" and w.n is not None else math.inf
-        return min(w.last_life + self.timeout, w.resend_deadline or math.inf, retry)
+        return min(w.last_life + self.timeout, w.resend_deadline or math.inf, self._retry_at(w))
+
+    def _retry_at(self, w: "_Waiting") -> float:
+        """When RRF's silent-drop retry of a numbered line is due (never for other firmware)."""
+        return w.last_send + self.retry_after if self.mode == "rrf" and w.n is not None else math.inf
 
     def _replay_due(self, w: "_Waiting", now: float) -> None:
         """Replay the lines a resend asked for once its ``ok`` has come or its wait is over."""
@@ -302,7 +302,7 @@ class GcodeLink:
         if now >= w.last_life + self.timeout:
             raise LinkTimeout(f"no answer to {w.reply.command!r} within {self.timeout:g} s", w.reply.command,
                               redact(self.port))
-        if self.mode == "rrf" and w.n is not None and now >= w.last_send + self.retry_after:
+        if now >= self._retry_at(w):
             # RRF drops a corrupted line without a word: send it again, same number
             self.log(f"no answer to N{w.n} after {self.retry_after:g} s; sending it again")
             self._write(self.history[w.n] + b"\n")

@@ -19,14 +19,18 @@ report). Read here, in Marlin's units:
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from ringtune.hardware.config_dialect import console_line, refuse_other_dialect
-from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, gcode_words, place_gcode_motors, to_number
+from ringtune.hardware.firmware_facts import (KINEMATICS, FirmwareFacts, axis_numbers, gcode_words,
+    place_gcode_motors, to_number)
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.textfile import read_text_file
 
 _READ = ("M92", "M201", "M203", "M204", "M205", "M906", "M593")
+#: what Marlin (``echo:``) or a host (``//``) puts before a report line, possibly repeated
+_REPORT_PREFIX = re.compile(r"^(?:(?:echo:|//)\s*)+", re.I)
 
 
 def _lines(text: str):
@@ -36,10 +40,7 @@ def _lines(text: str):
         line = console_line(raw)
         if line is None:                       # what the host sent (Send: M503), not the report
             continue
-        while line.lower().startswith(("echo:", "//")):
-            line = line.split(":", 1)[1] if line.lower().startswith("echo:") else line[2:]
-            line = line.strip()
-        line = line.split(";", 1)[0]
+        line = _REPORT_PREFIX.sub("", line, count=1).split(";", 1)[0]
         words = gcode_words(line)
         if words is not None:
             yield n, words
@@ -84,11 +85,6 @@ class _Report:
         n, words = self.seen[cmd]
         return to_number(words[letter].split(":")[0], f"{self.path}:{n}: {cmd} {letter}")
 
-    def per_axis(self, cmd: str) -> list[float] | None:
-        """``cmd``'s X Y Z E numbers (0 where missing), None when it gives none."""
-        vals = [self.num(cmd, a) for a in "XYZE"]
-        return None if all(v is None for v in vals) else [v or 0.0 for v in vals]
-
 
 def _kinematics(kinematics: str | None, notes: list[str]) -> dict:
     """The description's kinematics as the caller gives it (M503 does not say)."""
@@ -122,17 +118,17 @@ def _caps_and_junction(report: _Report, notes: list[str]) -> dict:
     """``limits`` from M203 (per-axis speeds, their X/Y maximum), M201 (per-axis accelerations) and
     M205 (junction deviation J, else classic jerk)."""
     limits: dict = {}
-    vmax = report.per_axis("M203")
+    vmax = axis_numbers(report.num, "M203")
     if vmax is not None:
         limits.update(max_velocity=vmax, velocity=max(vmax[0], vmax[1]))
         notes.append(f"limits.velocity = {limits['velocity']:g} mm/s, the larger of M203 X and Y (Marlin has "
                      "no overall speed limit; the G-code's F decides)")
-    if report.per_axis("M201") is not None:
-        limits["max_accel"] = report.per_axis("M201")
+    if axis_numbers(report.num, "M201") is not None:
+        limits["max_accel"] = axis_numbers(report.num, "M201")
     if report.num("M205", "J") is not None:
         limits.update(junction="jd", junction_deviation=report.num("M205", "J"))
-    elif report.per_axis("M205") is not None:
-        limits.update(junction="jerk", jerk=report.per_axis("M205"))
+    elif axis_numbers(report.num, "M205") is not None:
+        limits.update(junction="jerk", jerk=axis_numbers(report.num, "M205"))
     else:
         notes.append("no M205 J or X/Y jerk: the junction rule is unknown")
     return limits

@@ -83,7 +83,7 @@ class Moonraker:
             err.message = msg      # Klipper's own words (e.g. "Unsupported shaper type: ei2")
             raise err from None
         except (TimeoutError, urllib.error.URLError) as exc:
-            if isinstance(exc, TimeoutError) or isinstance(exc.reason, TimeoutError):
+            if isinstance(getattr(exc, "reason", exc), TimeoutError):     # itself, or a URLError's reason
                 raise LinkTimeout(f"no answer from {path} within {self.timeout:g} s", path, self.shown) from None
             raise LinkError(f"cannot reach Moonraker: {exc.reason}", self.shown) from None
 
@@ -105,20 +105,22 @@ class Moonraker:
             return {"state": "unknown", "message": exc.bare}
         return {"state": str(info.get("state", "unknown")), "message": str(info.get("state_message", ""))}
 
+    def _gcode_store(self, count: int) -> list[dict]:
+        """The last ``count`` items of the console store, ``GET /server/gcode_store?count=N``."""
+        result = self._request("GET", f"/server/gcode_store?count={int(count)}")
+        return [item for item in result.get("result", {}).get("gcode_store", []) if isinstance(item, dict)]
+
     def console(self, count: int = 50, since: float | None = None) -> list[str]:
         """The last ``count`` console messages (commands and responses), only those stored after
         Moonraker's time ``since`` (see :meth:`newest`) when given."""
-        result = self._request("GET", f"/server/gcode_store?count={int(count)}")
-        store = [item for item in result.get("result", {}).get("gcode_store", []) if isinstance(item, dict)]
-        return [str(item.get("message", "")) for item in store
+        return [str(item.get("message", "")) for item in self._gcode_store(count)
                 if since is None or float(item.get("time", 0.0)) > since]
 
     def newest(self) -> float:
         """Moonraker's time of the newest console message (0 when there is none): what was stored
         before a command, so that its replies are told from those of earlier ones."""
-        result = self._request("GET", "/server/gcode_store?count=1")
-        store = result.get("result", {}).get("gcode_store", [])
-        return float(store[-1].get("time", 0.0)) if store and isinstance(store[-1], dict) else 0.0
+        store = self._gcode_store(1)
+        return float(store[-1].get("time", 0.0)) if store else 0.0
 
     def query_objects(self, objects: dict[str, list[str] | None]) -> dict:
         """``GET /printer/objects/query``: ``{object: {attribute: value}}`` for each object (the

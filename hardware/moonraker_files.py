@@ -31,6 +31,8 @@ ROOTS = ("config", "gcodes")
 #: Klipper's resonance output (not raw captures: those are large and name no processed spectrum)
 RESONANCE_FILE = re.compile(r"^(?:resonances|calibration_data)_.+\.csv$", re.IGNORECASE)
 CONFIG_SUFFIXES = (".cfg",)
+#: the sign of a diagonal test's dx·dy -> its name
+_DIAGONALS = {1: "1,1", -1: "1,-1"}
 
 
 @dataclass
@@ -49,8 +51,8 @@ def resonance_test_of(name: str) -> str | None:
     if not RESONANCE_FILE.match(PurePosixPath(name).name):
         return None
     d = direction_from_file_name(name)
-    if d is not None:
-        return None if d[0] * d[1] == 0 else ("1,1" if d[0] * d[1] > 0 else "1,-1")
+    if d is not None:               # the sign of dx·dy: 0 is a single axis, named as a direction
+        return _DIAGONALS.get((d[0] * d[1] > 0) - (d[0] * d[1] < 0))
     ax = axis_from_file_name(name)
     return ax if ax in ("x", "y") else None
 
@@ -86,7 +88,7 @@ def fetch_printer_files(url: str, dest: str | Path, api_key: str | None = None, 
     dest = Path(dest)
     listed = {root: mr.list_files(root) for root in ROOTS}
     tests = newest_tests([(root, e) for root, files in listed.items() for e in files])
-    if not any(k in tests for k in ("x", "y")):
+    if not {"x", "y"} & tests.keys():
         raise RingtuneError("no resonance file (resonances_x_….csv, resonances_y_….csv) in Moonraker's "
                             f"{' or '.join(ROOTS)} folders; Klipper writes them to /tmp, which Moonraker does not "
                             "serve: copy them into the config folder (cp /tmp/resonances_*.csv ~/printer_data/config/)",
@@ -98,12 +100,14 @@ def fetch_printer_files(url: str, dest: str | Path, api_key: str | None = None, 
 
 
 def _fetch_tests(mr: Moonraker, tests: dict, dest: Path, out: FetchedFiles) -> None:
-    for key, target in (("x", out.axes), ("y", out.axes), ("1,1", out.belts), ("1,-1", out.belts)):
+    """Each test's newest file saved under its own name: the axes' into ``out.axes``, the diagonals'
+    into ``out.belts`` (both or none)."""
+    for key, target, what in (("x", out.axes, "x"), ("y", out.axes, "y"), ("1,1", out.belts, "AXIS=1,1"),
+                              ("1,-1", out.belts, "AXIS=1,-1")):
         if key not in tests:
             continue
         root, e = tests[key]
         target.append(_save(dest, PurePosixPath(e["path"]).name, mr.download(root, e["path"])))
-        what = key if "," not in key else "AXIS=" + key
         out.notes.append(f"fetched {root}/{e['path']} (the newest {what} test) to {target[-1]}")
     if len(out.belts) == 1:
         out.notes.append(f"only one diagonal test ({out.belts[0].name}) on the printer: belts not compared")
@@ -114,8 +118,6 @@ def _fetch_config(mr: Moonraker, listed: list[dict], dest: Path, out: FetchedFil
     configs = [str(e["path"]) for e in listed if str(e["path"]).lower().endswith(CONFIG_SUFFIXES)]
     if "printer.cfg" not in configs:
         return
-    for rel in configs:
-        path = _save(dest, rel, mr.download("config", rel))
-        if rel == "printer.cfg":
-            out.config = path
+    saved = {rel: _save(dest, rel, mr.download("config", rel)) for rel in configs}
+    out.config = saved["printer.cfg"]
     out.notes.append(f"fetched the configuration (printer.cfg and {len(configs) - 1} other .cfg files) to {dest}")

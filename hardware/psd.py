@@ -153,5 +153,5 @@ def klipper_psd(raw: RawAccel) -> PSD:
     freqs = spectra[list(spectra)[-1]][0]
     total = np.sum([p for _, p in spectra.values()], axis=0)
     zero = np.zeros_like(total)
-    x, y, z = (spectra[ax][1] if ax in spectra else zero for ax in "xyz")
+    x, y, z = (spectra.get(ax, (freqs, zero))[1] for ax in "xyz")
     return PSD(freqs, x, y, z, total, raw.source, "", False)

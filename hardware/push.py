@@ -8,9 +8,10 @@ Flow (serial: Marlin, Prusa, RRF over :class:`GcodeLink`; Klipper over its pty o
 2. the read-back commands (``M593``, ``M493``, ``SET_INPUT_SHAPER``; ``M204``,
    ``SET_VELOCITY_LIMIT``), parsed and compared with the intent; every setting is reported
    ``applied`` / ``not applied`` (with why) / ``acknowledged (no read-back)`` (Marlin's ``M201 F S``
-   has no report). Klipper answers an unknown command with an info line (``// Unknown command``),
-   not an error: it counts as the line failing. Over Moonraker each line's replies are read from
-   the console store, so the report is the same as over the pty;
+   has no report; :mod:`ringtune.hardware.push_status`). Klipper answers an unknown command with
+   an info line (``// Unknown command``), not an error: it counts as the line failing. Over
+   Moonraker each line's replies are read from the console store, so the report is the same as
+   over the pty;
 3. after a failed line, Klipper is asked for its state (``STATUS`` on the pty, ``/printer/info``
    through Moonraker); a printer that shut down is said, with how to recover (``FIRMWARE_RESTART``);
 4. ``--save``: ``M500`` (Marlin), ``M593 W`` (Prusa) once everything was verified; RRF and Klipper
@@ -24,72 +25,21 @@ and what was not. ``dry_run`` returns exactly the bytes that would be sent, numb
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from ringtune.hardware.dialects import Export, export_config
+from ringtune.hardware.dialects import export_config
+from ringtune.hardware.export import Export
 from ringtune.hardware.link import (GcodeLink, LinkError, LinkTimeout, PrinterReset, Reply, frame,
     klipper_reply_lines, redact)
 from ringtune.hardware.moonraker import Moonraker
 from ringtune.hardware.push_checks import check_acceleration, check_frequencies, undo_note, wrong_firmware_note
-from ringtune.hardware.readback import compare, parse_report
+from ringtune.hardware.push_status import (ACKED, APPLIED, DRY, NOT_APPLIED, PushResult, judge_settings,
+    setting_statuses, timeout_statuses)
+from ringtune.hardware.readback import parse_report
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
-APPLIED, NOT_APPLIED, ACKED, DRY = "applied", "not applied", "acknowledged (no read-back)", "not sent (dry run)"
-
-
-@dataclass
-class SettingStatus:
-    key: str
-    meant: object
-    reported: object = None
-    status: str = NOT_APPLIED
-    detail: str = ""
-
-
-@dataclass
-class PushResult:
-    """Outcome of a push; ``to_dict()`` is the ``--json`` output of ``ringtune push``."""
-
-    firmware: str
-    port: str
-    dry_run: bool
-    wire: list[str] = field(default_factory=list)
-    settings: list[SettingStatus] = field(default_factory=list)
-    resets: int = 0
-    saved: str | None = None
-    save_file: str | None = None
-    notes: list[str] = field(default_factory=list)
-    printer_state: dict | None = None
-    ok: bool = False
-
-    def to_dict(self) -> dict:
-        d = asdict(self)
-        d["settings"] = {s.key: {k: v for k, v in asdict(s).items() if k != "key"} for s in self.settings}
-        return d
-
-    def summary(self) -> str:
-        applied = [s.key for s in self.settings if s.status in (APPLIED, ACKED)]
-        missing = [s.key for s in self.settings if s.status not in (APPLIED, ACKED)]
-        return (f"applied: {', '.join(applied) or 'nothing'}; "
-                f"not applied: {', '.join(missing) or 'nothing'}")
-
-    def text(self) -> str:
-        out = [f"{FIRMWARES[self.firmware].title} on {self.port}" + (" (dry run)" if self.dry_run else "")]
-        if self.dry_run:
-            out.append("would send exactly:")
-            out += ["  " + w for w in self.wire]
-        for s in self.settings:
-            rep = "" if s.reported is None else f" (printer reports {s.reported})"
-            out.append(f"  {s.key:<12} {str(s.meant):<10} {s.status}{rep}{' - ' + s.detail if s.detail else ''}")
-        out += [f"note: {n}" for n in self.notes]
-        if self.printer_state:
-            out.append(state_sentence(self.printer_state))
-        if self.saved:
-            out.append(f"saved: {self.saved}")
-        return "\n".join(out)
 
 
 class PushError(RingtuneError):
@@ -100,89 +50,9 @@ class PushError(RingtuneError):
         self.result = result
 
 
-def state_sentence(state: dict) -> str:
-    """What the printer's state after a failed line means for the user."""
-    if state.get("state") == "ready":
-        return "printer state after the failed line: ready (it did not shut down)"
-    if state.get("state") in (None, "unknown"):
-        return f"printer state after the failed line: unknown ({state.get('message') or 'no answer'})"
-    msg = " ".join(str(state.get("message") or "").split())
-    return (f"printer state after the failed line: {state['state']} ({msg}); the printer is not ready: "
-            f"recover with FIRMWARE_RESTART, then push again")
-
-
-def _failed(replies: dict[int, Reply]) -> bool:
-    return any(r.errors for r in replies.values())
-
-
-def _statuses(exp: Export, replies: dict[int, Reply], report: str | None, firmware: str) -> list[SettingStatus]:
-    reported = parse_report(firmware, report) if report is not None else {}
-    cmp = compare(exp.expected, reported)
-    out = [_status(key, meant, cmp[key], replies.get(exp.setting_lines.get(key, 0)), report)
-           for key, meant in exp.expected.items()]
-    _judge_axis_caps(out, exp, reported)
-    if "limit" in exp.setting_lines:
-        idx = exp.setting_lines["limit"]
-        st = SettingStatus("limit", exp.lines[idx])
-        reply = replies.get(idx)
-        if reply is not None and not reply.errors:
-            st.status = ACKED
-        else:
-            st.detail = "printer said: " + "; ".join(reply.errors) if reply else "line not sent"
-        out.append(st)
-    return out
-
-
-def _status(key: str, meant, cmp: dict, reply: Reply | None, report: str | None) -> SettingStatus:
-    """One setting: applied when acknowledged and read back as meant; else why not."""
-    st = SettingStatus(key, meant, cmp["reported"])
-    if reply is None:
-        st.detail = "line not sent" if report is None else "line never acknowledged"
-    elif reply.errors:
-        st.detail = "printer said: " + "; ".join(reply.errors)
-    elif report is None:
-        st.status, st.detail = NOT_APPLIED, "acknowledged but not read back"
-    elif cmp["ok"]:
-        st.status = APPLIED
-    else:
-        st.detail = "missing from the printer's report" if cmp["reported"] is None else "printer reports a different value"
-    return st
-
-
-def _caps_below(reported: dict, accel: float) -> dict[str, float]:
-    """The read-back X/Y caps (mm/s²) below ``accel``."""
-    caps = {ax: float(reported[f"max_accel_{ax}"].value) for ax in "xy" if f"max_accel_{ax}" in reported}
-    return {ax: v for ax, v in caps.items() if v < accel}
-
-
-def _judge_axis_caps(statuses: list[SettingStatus], exp: Export, reported: dict) -> None:
-    """An acceleration the printer's own per-axis caps (read back) hold lower is not claimed as
-    applied: the printer would not print at it. Caps the config itself sets are settings of their
-    own (it was planned with them)."""
-    st = next((s for s in statuses if s.key == "accel"), None)
-    if st is None or st.status != APPLIED or any(k.startswith("max_accel_") for k in exp.expected):
-        return
-    low = _caps_below(reported, float(st.meant))
-    if not low:
-        return
-    caps = ", ".join(f"{ax.upper()} {v:g}" for ax, v in low.items())
-    raise_line = exp.record.axis_accel_set.format(x=f"{float(st.meant):g}", y=f"{float(st.meant):g}")
-    st.status = NOT_APPLIED
-    st.detail = (f"set, but the printer's own per-axis caps ({caps} mm/s²) hold those moves lower, so it "
-                 f"will not print at {float(st.meant):g}: push a config that carries the caps it was planned "
-                 f"with (max_accel_x/max_accel_y, which tune writes), or raise them ({raise_line})")
-
-
-def _timeout_statuses(exp: Export, replies: dict[int, Reply], who: str) -> list[SettingStatus]:
-    """Statuses when ``who`` stopped answering before the read-back: a setting whose line was
-    acknowledged without error was carried out (Marlin, RRF and Klipper acknowledge after executing;
-    Moonraker answers ``ok`` once the script has run); the others were not applied."""
-    out = _statuses(exp, replies, None, exp.firmware)
-    for s in out:
-        idx = exp.setting_lines.get(s.key, -1)
-        if idx in replies and not replies[idx].errors:
-            s.status, s.detail = ACKED, f"acknowledged before {who} stopped answering"
-    return out
+def _refused(replies) -> bool:
+    """Whether the printer refused any of ``replies`` (:class:`Reply` objects)."""
+    return any(r.errors for r in replies)
 
 
 def dry_run_wire(exp: Export, save: bool = False, crc: bool = False) -> list[str]:
@@ -191,9 +61,8 @@ def dry_run_wire(exp: Export, save: bool = False, crc: bool = False) -> list[str
     cmds = exp.lines + exp.readback + (exp.save_lines if save else [])
     if protocol == "klipper":
         return list(cmds)
-    framed = [frame(0, "M110 N0", crc and protocol == "rrf").decode()]
-    framed += [frame(i + 1, c, crc and protocol == "rrf").decode() for i, c in enumerate(cmds)]
-    return framed
+    crc = crc and protocol == "rrf"
+    return [frame(n, c, crc).decode() for n, c in enumerate(["M110 N0", *cmds])]     # N0: the handshake
 
 
 def push(config: TuneConfig, firmware: str | None = None, port: str | None = None,
@@ -210,7 +79,7 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
     if check_limits:
         check_frequencies(exp.expected)
     firmware = exp.firmware
-    where = redact(moonraker) if moonraker else redact(port) if port else "(no port)"
+    where = redact(moonraker or port or "(no port)")
     result = PushResult(firmware, where, dry_run, notes=list(exp.notes))
     if moonraker and FIRMWARES[firmware].family != "klipper":
         raise RingtuneError("Moonraker speaks only for Klipper; use --port for other firmware", "--moonraker")
@@ -223,8 +92,7 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
         replies, report = _push_serial(exp, port, baud, crc, timeout, log, result, max_resets,
                                        link_options or {}, save, check_limits)
     if not result.settings:
-        result.settings = _statuses(exp, replies, report, firmware)
-        result.ok = all(s.status in (APPLIED, ACKED) for s in result.settings)
+        judge_settings(result, exp, replies, report)
     _explain(result, exp, replies)
     if save:
         _save_file(exp, result, save_path)
@@ -233,10 +101,10 @@ def push(config: TuneConfig, firmware: str | None = None, port: str | None = Non
 
 def _dry_run(exp: Export, result: PushResult, save: bool, save_path, crc: bool) -> PushResult:
     """``result`` of a dry run: exactly the wire that would be sent, every setting "not sent"."""
-    result.wire = dry_run_wire(exp, save and bool(exp.save_lines), crc)
-    result.settings = [SettingStatus(k, v, status=DRY) for k, v in exp.expected.items()]
-    if "limit" in exp.setting_lines:
-        result.settings.append(SettingStatus("limit", exp.lines[exp.setting_lines["limit"]], status=DRY))
+    result.wire = dry_run_wire(exp, save, crc)
+    result.settings = setting_statuses(exp, {}, None, exp.firmware)      # the settings a push reports
+    for st in result.settings:
+        st.status, st.detail = DRY, ""
     if save and exp.config_text:
         result.notes.append(f"--save would write the {exp.config_target} lines to "
                             f"{_save_target(exp, save_path)} (--save-file FILE for another)")
@@ -273,7 +141,7 @@ def _withdraw(result: PushResult, exp: Export) -> None:
     """A printer that is not ready after the push (Klipper shut down) holds none of it: every
     setting is not applied, and the notes on what the settings would do are withdrawn."""
     state = (result.printer_state or {}).get("state")
-    if not state or state == "ready":
+    if state in (None, "", "ready"):
         return
     result.ok = False
     result.notes = [n for n in result.notes if n not in exp.notes]
@@ -305,11 +173,10 @@ def _send_all(exp: Export, link: GcodeLink, result: PushResult, replies: dict, s
         replies[i] = link.send(cmd)
     answers = [link.send(c) for c in exp.readback]
     report = "\n".join(a.text for a in answers)
-    if protocol == "klipper" and (_failed(replies) or any(a.errors for a in answers)):
+    if protocol == "klipper" and _refused([*replies.values(), *answers]):
         result.printer_state = _klipper_state(link)
     if save and exp.save_lines:
-        result.settings = _statuses(exp, replies, report, exp.firmware)
-        result.ok = all(s.status in (APPLIED, ACKED) for s in result.settings)
+        judge_settings(result, exp, replies, report)
         _save_eeprom(exp, result, link)
     return replies, report
 
@@ -330,7 +197,7 @@ def _push_serial(exp, port, baud, crc, timeout, log, result, max_resets, link_op
                                     "re-handshook and sent every setting again")
         raise RingtuneError(f"the printer reset {result.resets} times during the push; giving up", redact(port))
     except LinkTimeout as exc:
-        result.settings = _timeout_statuses(exp, replies, "the printer")
+        result.settings = timeout_statuses(exp, replies, "the printer")
         raise PushError(f"printer stopped answering ({exc.bare}); {result.summary()}", result,
                         redact(port)) from None
     finally:
@@ -387,10 +254,10 @@ def _push_moonraker(exp, url, api_key, timeout, log, result, check_limits=False)
         for i, cmd in enumerate(exp.lines):
             _moonraker_run(mr, cmd, replies, i)
         answers = [_moonraker_run(mr, c) for c in exp.readback]
-        if _failed(replies) or any(a.errors for a in answers):
+        if _refused([*replies.values(), *answers]):
             result.printer_state = mr.state()
     except LinkTimeout as exc:
-        result.settings = _timeout_statuses(exp, replies, "Moonraker")
+        result.settings = timeout_statuses(exp, replies, "Moonraker")
         raise PushError(f"Moonraker stopped answering ({exc.bare}); {result.summary()}", result,
                         redact(url)) from None
     return replies, "\n".join(a.text for a in answers)
@@ -408,12 +275,20 @@ def _save_eeprom(exp: Export, result: PushResult, link: GcodeLink) -> None:
     result.saved = f"{' '.join(exp.save_lines)} sent (the printer stores it in EEPROM)"
 
 
+#: family of a firmware that cannot persist the config from G-code -> (--save's default file, what
+#: to do with it)
+_SAVE_FILES = {
+    "klipper": ("ringtune-input_shaper.cfg", "replace the [input_shaper] section of printer.cfg with it "
+                "(SET_INPUT_SHAPER's values are lost at a restart, and SAVE_CONFIG does not save them)"),
+    "rrf": ("ringtune-config.g", "add these lines to config.g (RepRapFirmware's M500 does not store M593)"),
+}
+
+
 def _save_target(exp: Export, save_path) -> Path | None:
     """Where ``--save`` writes the config lines (firmware that cannot persist them), else None."""
     if exp.save_lines or not exp.config_text:
         return None
-    default = "ringtune-input_shaper.cfg" if exp.record.family == "klipper" else "ringtune-config.g"
-    return Path(save_path or default)
+    return Path(save_path or _SAVE_FILES[exp.record.family][0])
 
 
 def _save_file(exp: Export, result: PushResult, save_path) -> None:
@@ -430,7 +305,5 @@ def _save_file(exp: Export, result: PushResult, save_path) -> None:
                             f"{exp.config_target} are:\n{exp.config_text.rstrip()}")
         return
     result.save_file = str(path)
-    what = ("replace the [input_shaper] section of printer.cfg with it (SET_INPUT_SHAPER's values are "
-            "lost at a restart, and SAVE_CONFIG does not save them)" if exp.record.family == "klipper" else "add these lines to config.g "
-            "(RepRapFirmware's M500 does not store M593)")
-    result.saved = f"{FIRMWARES[exp.firmware].title} cannot persist this from G-code: wrote {path}; {what}"
+    result.saved = (f"{FIRMWARES[exp.firmware].title} cannot persist this from G-code: wrote {path}; "
+                    f"{_SAVE_FILES[exp.record.family][1]}")

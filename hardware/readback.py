@@ -57,7 +57,7 @@ def parse_report(firmware: str, text: str) -> dict[str, Reported]:
     """Settings found in the firmware's reply text (keys as :attr:`Export.expected`)."""
     dialect = FIRMWARES[firmware].family
     out = _acceleration_fields(dialect, text)
-    out.update(_SHAPER_READERS[dialect](text) if dialect in _SHAPER_READERS else {})
+    out.update(_SHAPER_READERS[dialect](text))
     return out
 
 
@@ -111,34 +111,28 @@ def _prusa_shapers(text: str) -> dict[str, Reported]:
     return out
 
 
+#: setting -> dialect ("marlin" also for Marlin FT_MOTION and Prusa) -> the pattern whose first group
+#: is its value in the reply (None: the dialect does not report it)
+_ACCEL_REPORTS = {
+    "accel": {"klipper": re.compile(rf"max_accel:\s*{_NUM}"),
+              "rrf": re.compile(rf"Maximum printing acceleration {_NUM}", re.I),
+              "marlin": re.compile(rf"M204(?:\s+S-?[0-9]+(?:\.[0-9]*)?)?\s+P{_NUM}")},
+    "travel_accel": {"klipper": None,
+                     "rrf": re.compile(rf"maximum travel acceleration {_NUM}", re.I),
+                     "marlin": re.compile(rf"M204\b[^\n]*?\sT{_NUM}")},
+}
+
+
 def _acceleration_fields(dialect: str, text: str) -> dict[str, Reported]:
-    """``accel``, ``travel_accel``, ``max_accel_x``/``y`` where the reply reports them."""
-    found = {"accel": _accel(dialect, text), "travel_accel": _travel_accel(dialect, text),
-             **_axis_caps(dialect, text)}
-    return {k: v for k, v in found.items() if v is not None}
+    """``accel``, ``travel_accel`` (M204's T), ``max_accel_x``/``y`` where the reply reports them."""
+    patterns = {key: by_dialect.get(dialect, by_dialect["marlin"]) for key, by_dialect in _ACCEL_REPORTS.items()}
+    matched = {key: pattern.search(text) for key, pattern in patterns.items() if pattern is not None}
+    return {**{key: _num(m.group(1)) for key, m in matched.items() if m}, **_axis_caps(dialect, text)}
 
 
-def _travel_accel(dialect: str, text: str) -> Reported | None:
-    """M204's travel acceleration: Marlin/Prusa ``T`` of the report, RRF ``maximum travel acceleration``."""
-    if dialect == "klipper":
-        return None
-    if dialect == "rrf":
-        m = re.search(rf"maximum travel acceleration {_NUM}", text, re.I)
-    else:
-        m = re.search(rf"M204\b[^\n]*?\sT{_NUM}", text)
-    return _num(m.group(1)) if m else None
-
-
-def _accel(dialect: str, text: str) -> Reported | None:
-    if dialect == "klipper":
-        m = re.search(rf"max_accel:\s*{_NUM}", text)
-    elif dialect == "rrf":
-        m = re.search(rf"Maximum printing acceleration {_NUM}", text, re.I)
-    else:
-        m = re.search(rf"M204(?:\s+S{_NUM})?\s+P{_NUM}", text)
-        if m:
-            return _num(m.group(2))
-    return _num(m.group(1)) if m else None
+#: RRF's and Marlin's (also Prusa's) M201 reports: X and Y caps in the first two groups
+_CAPS_REPORTS = {"rrf": re.compile(rf"Accelerations \(mm/sec\^2\):\s*X:\s*{_NUM},\s*Y:\s*{_NUM}", re.I),
+                 "marlin": re.compile(rf"M201\s+X{_NUM}\s+Y{_NUM}")}
 
 
 def _axis_caps(dialect: str, text: str) -> dict[str, Reported]:
@@ -146,10 +140,7 @@ def _axis_caps(dialect: str, text: str) -> dict[str, Reported]:
     if dialect == "klipper":
         found = {ax: re.search(rf"max_{ax}_accel:\s*{_NUM}", text) for ax in "xy"}
         return {f"max_accel_{ax}": _num(m.group(1)) for ax, m in found.items() if m}
-    if dialect == "rrf":
-        m = re.search(rf"Accelerations \(mm/sec\^2\):\s*X:\s*{_NUM},\s*Y:\s*{_NUM}", text, re.I)
-    else:
-        m = re.search(rf"M201\s+X{_NUM}\s+Y{_NUM}", text)
+    m = _CAPS_REPORTS.get(dialect, _CAPS_REPORTS["marlin"]).search(text)
     return {"max_accel_x": _num(m.group(1)), "max_accel_y": _num(m.group(2))} if m else {}
 
 

@@ -24,7 +24,7 @@ import re
 from pathlib import Path
 
 from ringtune.hardware.config_dialect import refuse_other_dialect
-from ringtune.hardware.firmware_facts import FirmwareFacts, gcode_words, place_gcode_motors, to_number
+from ringtune.hardware.firmware_facts import FirmwareFacts, axis_numbers, gcode_words, place_gcode_motors, to_number
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.textfile import read_text_file
 
@@ -64,11 +64,6 @@ class _Config:
                                 self.where(cmd, letter))
         return to_number(value, self.where(cmd, letter))
 
-    def per_axis(self, cmd: str, scale: float = 1.0) -> list[float] | None:
-        """``cmd``'s X Y Z E numbers times ``scale`` (0 where missing), None when it gives none."""
-        vals = [self.num(cmd, a) for a in "XYZE"]
-        return None if all(v is None for v in vals) else [(v or 0.0) * scale for v in vals]
-
 
 def _kinematics(cfg: _Config, notes: list[str]) -> str:
     """M669 K, RepRapFirmware's default (Cartesian) when not given."""
@@ -88,7 +83,7 @@ def _accels(cfg: _Config, notes: list[str]) -> dict:
     when M204 P is missing)."""
     limits: dict = {}
     accel = cfg.num("M204", "P")
-    amax = cfg.per_axis("M201")
+    amax = axis_numbers(cfg.num, "M201")
     if accel is not None:
         limits["accel"] = accel
     elif amax is not None:
@@ -109,10 +104,10 @@ def _accels(cfg: _Config, notes: list[str]) -> dict:
 def _speeds_and_jerk(cfg: _Config, notes: list[str]) -> dict:
     """``limits`` from M203 (per-axis speeds, mm/min) and M566 (per-axis jerk, mm/min)."""
     limits: dict = {}
-    vmax = cfg.per_axis("M203", 1 / 60)
+    vmax = axis_numbers(cfg.num, "M203", 1 / 60)
     if vmax is not None:
         limits.update(max_velocity=vmax, velocity=max(vmax[0], vmax[1]))
-    jerk = cfg.per_axis("M566", 1 / 60)
+    jerk = axis_numbers(cfg.num, "M566", 1 / 60)
     if jerk is not None:
         limits.update(junction="jerk", jerk=jerk)
     else:
@@ -159,34 +154,33 @@ def _current(path, text, seen, num, limits, notes) -> dict | None:
     current: dict = {"source": path, "firmware": "rrf"}
     shaper = _m593(seen, num, notes)
     for ax in "xy":                       # RRF shapes every axis with the one shaper
-        if shaper is None:
-            current[f"shaper_{ax}"] = "none"
-            continue
-        name, f, d = shaper
-        current.update({f"shaper_{ax}": name, f"freq_{ax}": f})
-        if d is not None:
-            current[f"damping_{ax}"] = d
+        current.update({f"{key}_{ax}": value for key, value in shaper.items()})
     if "accel" in limits:
         current["accel"] = limits["accel"]
     return current
 
 
-def _m593(seen, num, notes) -> tuple[str, float, float | None] | None:
-    """(shaper, frequency Hz, damping or None) of config.g's M593, with RRF's defaults said; None
-    for no shaping."""
+def _m593(seen, num, notes) -> dict:
+    """The one shaper of config.g's M593 as ``{"shaper", "freq" (Hz), "damping" (when given)}``, with
+    RRF's defaults said; ``{"shaper": "none"}`` for no shaping."""
     shaper = seen.get("M593", {}).get("P")
     if "M593" not in seen or (shaper is not None and shaper[1].strip().lower() == "none"):
         notes.append("no M593 (or P\"none\"): the printer runs without input shaping")
-        return None
-    name = shaper[1].strip().lower().replace("-", "").replace("_", "") if shaper else "zvd"
+        return {"shaper": "none"}
     if shaper is None:
+        name = "zvd"
         notes.append("M593 without P: RepRapFirmware uses zvd when a frequency is given")
+    else:
+        name = shaper[1].strip().lower().replace("-", "").replace("_", "")
     f = num("M593", "F")
     if f is None:
         f = 40.0
         notes.append("M593 without F: RepRapFirmware's default 40 Hz")
+    found = {"shaper": name, "freq": f}
     d = num("M593", "S")
     if d is None:
         notes.append("M593 without S: the damping is RRF's default (0.1 up to 3.5, 0.05 in 3.6-dev)"
                      " and unknown here")
-    return name, f, d
+    else:
+        found["damping"] = d
+    return found

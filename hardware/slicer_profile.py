@@ -107,10 +107,9 @@ class SlicerProfile:
     version: str | None = None
 
     def render(self) -> str:
-        c = "#" if self.extension in ("ini", "cfg") else None
-        if c is None:           # JSON has no comments: the notes go in a "_ringtune" key
+        if self.extension not in ("ini", "cfg"):     # JSON has no comments: the notes go in a "_ringtune" key
             return self.text
-        return "\n".join([f"{c} {n}" for n in self.notes] + [self.text.rstrip("\n")]) + "\n"
+        return "\n".join([f"# {n}" for n in self.notes] + [self.text.rstrip("\n")]) + "\n"
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -121,15 +120,9 @@ def _n(a: float) -> str:
 
 
 def feature_accels(config: TuneConfig) -> dict[str, float]:
-    """Class -> mm/s² the config asks for: its ``feature_accel`` (the TuneConfig field, or the key
-    of that name among its extra keys), ``accel`` for a class it leaves out."""
-    given = getattr(config, "feature_accel", None) or config.extra.get("feature_accel") or {}
-    if not isinstance(given, dict):
-        raise RingtuneError("must be an object {feature class: mm/s²}", "config: feature_accel")
-    unknown = sorted(set(given) - set(FEATURE_CLASSES))
-    if unknown:
-        raise RingtuneError(f"{unknown[0]!r} is not a feature class ({', '.join(FEATURE_CLASSES)})",
-                            "config: feature_accel")
+    """Class -> mm/s² the config asks for: its ``feature_accel`` (classes and values checked by
+    :class:`TuneConfig`), ``accel`` for a class it leaves out."""
+    given = config.feature_accel
     missing = [c for c in FEATURE_CLASSES if c not in given]
     if missing and config.accel is None:
         what = (f"for the classes feature_accel leaves out ({', '.join(missing)})" if given

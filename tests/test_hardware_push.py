@@ -12,7 +12,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fake_printer import FakeMoonraker, FakePrinter, Faults  # noqa: E402
 
 from ringtune.hardware.link import GcodeLink, LinkTimeout, crc16_ccitt, frame, redact  # noqa: E402
-from ringtune.hardware.push import APPLIED, PushError, dry_run_wire, push  # noqa: E402
+from ringtune.hardware.push import PushError, dry_run_wire, push  # noqa: E402
+from ringtune.hardware.push_status import APPLIED  # noqa: E402
 from ringtune.hardware.dialects import export_config  # noqa: E402
 from ringtune.shaping.config import TuneConfig  # noqa: E402
 from ringtune.shaping.errors import RingtuneError  # noqa: E402

@@ -17,7 +17,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fake_printer import FakePrinter  # noqa: E402
 
 from ringtune.hardware.dialects import export_config  # noqa: E402
-from ringtune.hardware.push import APPLIED, NOT_APPLIED, push  # noqa: E402
+from ringtune.hardware.push import push  # noqa: E402
+from ringtune.hardware.push_status import APPLIED, NOT_APPLIED  # noqa: E402
 from ringtune.shaping.config import TuneConfig  # noqa: E402
 
 pytestmark = pytest.mark.timeout(60)

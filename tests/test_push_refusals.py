@@ -18,7 +18,8 @@ sys.path.insert(0, os.path.dirname(__file__))
 from fake_printer import FakeMoonraker, FakePrinter, KlipperCore, MarlinCore  # noqa: E402
 
 from ringtune.agents.cli.main import main  # noqa: E402
-from ringtune.hardware.push import APPLIED, NOT_APPLIED, push  # noqa: E402
+from ringtune.hardware.push import push  # noqa: E402
+from ringtune.hardware.push_status import APPLIED, NOT_APPLIED  # noqa: E402
 from ringtune.shaping.config import TuneConfig  # noqa: E402
 from ringtune.shaping.errors import RingtuneError  # noqa: E402
 
