@@ -295,7 +295,8 @@ _ONE_DEFAULT_MOTOR = {("corexz", "x"): "A and B motors (stepper_x, stepper_z)"}
 
 def defaults_note(printer: Any) -> str:
     """One sentence when the motor bound rests on defaults (``Printer.defaulted``: a motor with
-    neither a name, datasheet constants nor ``force``; an axis with no ``mass``), else ""."""
+    neither a name, datasheet constants nor ``force``; an axis with no ``mass``), else "" (also
+    for ``printer`` None)."""
     d = set(getattr(printer, "defaulted", ()) or ())
     motors = [ax for ax in "xy" if f"{ax}.motor" in d]
     masses = [ax for ax in "xy" if f"{ax}.mass" in d]
