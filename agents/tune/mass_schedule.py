@@ -386,9 +386,9 @@ def schedule_job(config: TuneConfig, printer=None, job=None, *, diameter_mm: flo
     kw = dict(diameter_mm=diameter_mm, density_g_cm3=density_g_cm3, step=step, band_accel=band_accel,
               min_freq=min_freq)
     sched = mass_schedule(config, printer, job, **kw)
-    if sched.needed and band_accel == "auto" and any(b.accel for b in sched.bands):
-        sched = _smoothing_measured(sched, printer, job, backend, kw)
     if sched.needed:
+        if any(b.accel for b in sched.bands):        # band_accel "auto" lowered some (keep: none)
+            sched = _smoothing_measured(sched, printer, job, backend, kw)
         last_band_ripple(sched, printer, job, backend)
     if output is not None:
         Path(output).write_text("".join(scheduled_lines(sched, job)), newline="")

@@ -35,7 +35,7 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import asdict, dataclass
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -158,10 +158,15 @@ def _offered_shapers(firmware: str, shapers: tuple[str, ...] | None) -> tuple[st
     ``custom``, with Klipper's parametrised families where its flavour has them."""
     flavor = FIRMWARES[firmware].flavor
     offered = tuple(n for n in available_shapers(flavor) if n != "custom") + PARAMETRISED.get(flavor, ())
-    bad = [s for s in shapers or () if s not in offered]
+    return tuple(checked_shapers(firmware, shapers or offered, offered))
+
+
+def checked_shapers(firmware: str, chosen: Sequence[str], offered: Sequence[str]) -> Sequence[str]:
+    """``chosen``, refused unless ``firmware`` offers each of them (``offered``)."""
+    bad = [s for s in chosen if s not in offered]
     if bad:
         raise RingtuneError(f"{firmware} does not offer {', '.join(bad)} (offers {', '.join(offered)})", "shapers")
-    return tuple(shapers) if shapers else offered
+    return chosen
 
 
 def _freq_range(printer: Any, ax: str, floor: float) -> tuple[float, float]:
