@@ -193,13 +193,8 @@ def warm_start(kcfg: TuneConfig, fits: dict, space) -> list[TuneConfig]:
         out += [at(model, 1.0), at(model, 1.25)]
     for cfg in _ei_family(kcfg, fits, space):
         out += [at(cfg, 1.0), at(cfg, 1.25), at(cfg, space.accel[1] / kcfg.accel)]
-    seen, unique = set(), []
-    for c in out:
-        key = (c.shaper_x, c.freq_x, c.shaper_y, c.freq_y, c.accel)
-        if key not in seen and inside(c, space):
-            seen.add(key)
-            unique.append(c)
-    return unique
+    # once each (points with the same shapers, frequencies and acceleration are the same configuration)
+    return list({(c.shaper_x, c.freq_x, c.shaper_y, c.freq_y, c.accel): c for c in out if inside(c, space)}.values())
 
 
 def _model_pick(kcfg: TuneConfig, fits: dict) -> TuneConfig | None:

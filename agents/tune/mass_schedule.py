@@ -226,8 +226,9 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
     notes = [_clamp_note(config, clamped, lowest, min_freq)] if clamped else []
     sched = MassSchedule(config, bands, layers, diameter_mm, density_g_cm3, source, f_empty, step, float(modes[-1]),
                          notes)
-    for k, cmds in sched.inserts().items():
-        next(b for b in bands if b.first_layer == k).commands = cmds
+    inserts = sched.inserts()
+    for b in bands:
+        b.commands = inserts.get(b.first_layer, [])
     _prusa_rule(config, bands)
     if not sched.needed:
         return sched

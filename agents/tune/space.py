@@ -275,8 +275,10 @@ def accel_ceiling(printer: Any, speed: float | None = None) -> tuple[float, str]
     applied by the planner to the moves along that axis, as each trial carries it
     (:func:`trial_axis_caps`); the summary says which caps bind
     (:mod:`ringtune.agents.tune.binding`)."""
-    what = "the job's top speed" if speed is not None else "the printer's velocity limit"
-    v = float(speed if speed is not None else printer.limits.velocity)
+    what = "the job's top speed"
+    if speed is None:
+        what, speed = "the printer's velocity limit", printer.limits.velocity
+    v = float(speed)
     a, who = motor_accel_limit(printer, v)
     return a, f"the {who} would need all its force at {v:.0f} mm/s ({what})"
 
@@ -302,9 +304,8 @@ def defaults_note(printer: Any) -> str:
     """One sentence when the motor bound rests on defaults (``Printer.defaulted``: a motor with
     neither a name, datasheet constants nor ``force``; an axis with no ``mass``), else "" (also
     for ``printer`` None)."""
-    d = set(getattr(printer, "defaulted", ()) or ())
-    motors = [ax for ax in "xy" if f"{ax}.motor" in d]
-    masses = [ax for ax in "xy" if f"{ax}.mass" in d]
+    d = set(getattr(printer, "defaulted", ()))
+    motors, masses = ([ax for ax in "xy" if f"{ax}.{kind}" in d] for kind in ("motor", "mass"))
     parts = []
     if motors:
         what = ("motor" if len(motors) == 2 else
@@ -505,8 +506,10 @@ def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel
     each method at each of ``freq_limits`` Hz. ``dampings`` / ``accels`` give explicit levels instead.
     """
     plain = tuple(s for s in shapers or space.shapers if "(" not in s)
-    per_axis = [_axis_options(plain, getattr(space, f"freq_{ax}"), s, n_freq) for ax, s in _axes(space)]
-    shaping = [{k: v for part in parts for k, v in part.items()} for parts in itertools.product(*per_axis)]
+    shaping: list[dict] = [{}]
+    for ax, s in _axes(space):
+        options = _axis_options(plain, getattr(space, f"freq_{ax}"), s, n_freq)
+        shaping = [{**sh, **o} for sh in shaping for o in options]
     if dampings is None:
         dampings = [round(float(z), 3) for z in np.linspace(space.damping[0], space.damping[1], n_damping)]
     if accels is None:
@@ -514,8 +517,9 @@ def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel
     accels = sorted({round(float(a) / space.accel_step) * space.accel_step for a in accels})
     limits = [{"freq_limit": "off"}] + [{"freq_limit": m, "freq_limit_hz": float(h)}
                                          for m in space.freq_limit_methods for h in freq_limits]
-    return [{**sh, **dict.fromkeys(_damping_keys(sh, space), z), **lim, "accel": a}
-            for sh in shaping for z in (dampings if _shaped(sh) else [None]) for lim in limits for a in accels]
+    damped = [{**sh, **dict.fromkeys(_damping_keys(sh, space), z)}
+              for sh in shaping for z in (dampings if _shaped(sh) else [None])]
+    return [{**point, **lim, "accel": a} for point, lim, a in itertools.product(damped, limits, accels)]
 
 
 def _shaped(point: dict[str, Any]) -> bool:
