@@ -47,6 +47,12 @@ class Baselines:
     sources: dict[str, str] = field(default_factory=dict)
     fits: dict = field(default_factory=dict)
 
+    def add(self, key: str, config: TuneConfig, label: str, source: str) -> None:
+        """One baseline's configuration, name and source (not evaluated)."""
+        self.configs[key] = config
+        self.labels[key] = label
+        self.sources[key] = source
+
 
 def recorded_klipper(printer: Printer, firmware: str) -> tuple[TuneConfig | None, str]:
     """Klipper's recommendation recorded from the resonance files, as a TuneConfig (or None, and
@@ -121,41 +127,42 @@ def baseline_configs(printer: Printer, firmware: str, *, note: Callable[[str], N
     their labels and sources (not evaluated: ``points`` is empty). Klipper's rule on a simulated test
     uses the model's expected spectrum: it does not depend on any seed."""
     out = Baselines()
-    configs = out.configs
-    kcfg, why = recorded_klipper(printer, firmware)
-    if kcfg is not None:
-        configs["klipper"] = kcfg
-        rec = printer.measurement.get("klipper", {})
-        version = f" (Klipper {rec['version']})" if rec.get("version") else ""
-        out.labels["klipper"] = f"Klipper's rule from {printer.measurement.get('origin') or FROM_FILES}{version}"
-        out.sources["klipper"] = "measurement"
-        out.fits = _model_fits(printer, firmware)      # the model's own frequencies, for the warm start
-    else:
-        try:
-            out.fits, fields = klipper_baseline.klipper_rule_on_simulated_test(printer, firmware, "head")
-            if fields.get("accel") is None:
-                fields["accel"] = float(printer.limits.accel)
-            configs["klipper"] = TuneConfig(**fields, extra={"source": "Klipper's calibrate_shaper rule (HEAD) "
-                                                             + SIMULATED})
-            out.labels["klipper"] = f"Klipper's rule {SIMULATED}"
-            out.sources["klipper"] = "simulated resonance test"
-            if printer.measurement.get("klipper"):
-                note(f"ringtune tune: {why}; Klipper's rule is computed {SIMULATED} instead")
-        except (ImportError, RingtuneError) as exc:
-            note(f"ringtune tune: Klipper's-rule baseline skipped: {exc}")
+    _klipper_baseline(printer, firmware, out, note)
     ccfg, why = current_config(printer, firmware)
     if ccfg is not None:
-        configs["current"] = ccfg
         src = printer.current.get("source")
-        out.labels["current"] = "what the printer runs now" + (f" ({src})" if src else "")
-        out.sources["current"] = "[current]"
+        out.add("current", ccfg, "what the printer runs now" + (f" ({src})" if src else ""), "[current]")
     elif why:
         note(f"ringtune tune: {why}")
-    configs["none"] = TuneConfig(firmware=firmware, shaper_x="none", shaper_y="none", freq_x=0.0, freq_y=0.0,
-                                 accel=float(printer.limits.accel), extra={"source": "no shaping"})
-    out.labels["none"] = "no shaping"
-    out.sources["none"] = "no shaping"
+    out.add("none", TuneConfig(firmware=firmware, shaper_x="none", shaper_y="none", freq_x=0.0, freq_y=0.0,
+                               accel=float(printer.limits.accel), extra={"source": "no shaping"}),
+            "no shaping", "no shaping")
     return out
+
+
+def _klipper_baseline(printer: Printer, firmware: str, out: Baselines, note: Callable[[str], None]) -> None:
+    """Klipper's rule into ``out``: its recommendation recorded from the resonance files, else the
+    rule on the model's simulated resonance test (``note`` says why a recorded one is not used, or
+    that the rule could not run)."""
+    kcfg, why = recorded_klipper(printer, firmware)
+    if kcfg is not None:
+        rec = printer.measurement.get("klipper", {})
+        version = f" (Klipper {rec['version']})" if rec.get("version") else ""
+        out.add("klipper", kcfg, f"Klipper's rule from {printer.measurement.get('origin') or FROM_FILES}{version}",
+                "measurement")
+        out.fits = _model_fits(printer, firmware)      # the model's own frequencies, for the warm start
+        return
+    try:
+        out.fits, fields = klipper_baseline.klipper_rule_on_simulated_test(printer, firmware, "head")
+        if fields.get("accel") is None:
+            fields["accel"] = float(printer.limits.accel)
+        source = "Klipper's calibrate_shaper rule (HEAD) " + SIMULATED
+        out.add("klipper", TuneConfig(**fields, extra={"source": source}), f"Klipper's rule {SIMULATED}",
+                "simulated resonance test")
+        if printer.measurement.get("klipper"):
+            note(f"ringtune tune: {why}; Klipper's rule is computed {SIMULATED} instead")
+    except (ImportError, RingtuneError) as exc:
+        note(f"ringtune tune: Klipper's-rule baseline skipped: {exc}")
 
 
 def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable, quality: str, *,

@@ -158,8 +158,12 @@ def accel_statement(chosen: Point, space, max_pe: float, reserve: float, points,
         info["stopped_by"] = "quality"
         lines.append("No bound is within 10 % of it: what stops it is quality — the faster front points have more "
                      "overshoot or path error than the choice allows.")
-    lines += [f"  {'range edge: ' if n == 'range edge' else ''}{t}" for n, r, t in cands if n != name or ratio < 0.9]
+    lines += [f"  {LISTED_AS.get(n, '')}{t}" for n, r, t in cands if n != name or ratio < 0.9]
     return lines + _faster_trials(points, a) + tail, info
+
+
+#: how a bound's line starts where the bounds are listed (the other bounds' words begin with their name)
+LISTED_AS = {"range edge": "range edge: "}
 
 
 def _accel_bounds(chosen: Point, space, max_pe: float, reserve: float, headroom: dict) -> list[tuple]:

@@ -116,7 +116,7 @@ class SearchSpace:
     @property
     def per_feature(self) -> bool:
         """Whether accelerations per feature group, the corner rule or minimum_cruise_ratio are searched."""
-        return bool(self.feature_accel) or self.corner is not None or self.min_cruise_ratio is not None
+        return bool(_per_feature(self))
 
 
 def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float, float] | None = None,
