@@ -67,16 +67,21 @@ def recorded_klipper(printer: Printer, firmware: str) -> tuple[TuneConfig | None
             fields[f"shaper_{ax}"] = name
             fields[f"freq_{ax}"] = round(float(rec.get(f"freq_{ax}") or 0.0), 1) if name != "none" else 0.0
             fields[f"damping_{ax}"] = DEFAULT_DAMPING_RATIO
-        acc = rec.get("max_accel")
-        fields["accel"] = float(acc) if acc else float(printer.limits.accel)
-        cfg = TuneConfig(**fields, extra={"source": "Klipper's calibrate_shaper rule on the resonance files "
-                                                    "(recorded by ringtune identify)"})
-        cfg.validate("[measurement.klipper]")
+        cfg = _checked(fields, rec.get("max_accel"), printer, "[measurement.klipper]",
+                       "Klipper's calibrate_shaper rule on the resonance files (recorded by ringtune identify)")
         shapers_from_config(cfg)          # Klipper's shapers may not be the firmware's (Marlin: zv only)
         _runs_on(cfg, firmware)
     except (TypeError, ValueError, RingtuneError) as exc:
         return None, f"[measurement.klipper] cannot be used for {firmware}: {exc}"
     return cfg, ""
+
+
+def _checked(fields: dict[str, Any], accel: Any, printer: Printer, where: str, source: str) -> TuneConfig:
+    """The TuneConfig of a recorded baseline's ``fields`` at ``accel`` mm/s² (none: the printer's own),
+    validated as ``where`` says, its ``source`` in ``extra``."""
+    cfg = TuneConfig(**fields, accel=float(accel) if accel else float(printer.limits.accel), extra={"source": source})
+    cfg.validate(where)
+    return cfg
 
 
 def _model_fits(printer: Printer, firmware: str) -> dict:
@@ -112,11 +117,8 @@ def current_config(printer: Printer, firmware: str) -> tuple[TuneConfig | None, 
             fields[f"freq_{ax}"] = float(freq) if name != "none" else 0.0
             z = cur.get(f"damping_{ax}", cur.get("damping"))
             fields[f"damping_{ax}"] = float(z) if z is not None else DEFAULT_DAMPING_RATIO
-        acc = cur.get("accel")
-        fields["accel"] = float(acc) if acc else float(printer.limits.accel)
-        src = cur.get("source")
-        cfg = TuneConfig(**fields, extra={"source": f"what the printer runs now ({src or '[current]'})"})
-        cfg.validate("[current]")
+        cfg = _checked(fields, cur.get("accel"), printer, "[current]",
+                       f"what the printer runs now ({cur.get('source') or '[current]'})")
     except (TypeError, ValueError, RingtuneError) as exc:
         return None, f"what the printer runs now ([current]) cannot be compared on {firmware}: {exc}"
     return cfg, ""

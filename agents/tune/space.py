@@ -486,6 +486,17 @@ def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]
     return p
 
 
+def _shaping_points(space: SearchSpace, shapers: tuple[str, ...], n_freq: int) -> list[dict]:
+    """The grid's shaping parameters: every combination of the axes' options (:func:`_axis_options`),
+    the parametrised families left out (Optuna searches them)."""
+    plain = tuple(s for s in shapers if "(" not in s)
+    points: list[dict] = [{}]
+    for ax, s in _axes(space):
+        options = _axis_options(plain, getattr(space, f"freq_{ax}"), s, n_freq)
+        points = [{**p, **o} for p in points for o in options]
+    return points
+
+
 def _axis_options(shapers: tuple[str, ...], lo_hi: tuple[float, float], suffix: str, n_freq: int) -> list[dict]:
     """One axis's grid points: each shaper at ``n_freq`` frequencies over ``lo_hi`` Hz (``none`` once)."""
     freqs = [round(float(f), 1) for f in np.linspace(lo_hi[0], lo_hi[1], n_freq)]
@@ -505,11 +516,7 @@ def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel
     acceleration on ``n_accel`` levels (multiples of ``accel_step``); the frequency limit off plus
     each method at each of ``freq_limits`` Hz. ``dampings`` / ``accels`` give explicit levels instead.
     """
-    plain = tuple(s for s in shapers or space.shapers if "(" not in s)
-    shaping: list[dict] = [{}]
-    for ax, s in _axes(space):
-        options = _axis_options(plain, getattr(space, f"freq_{ax}"), s, n_freq)
-        shaping = [{**sh, **o} for sh in shaping for o in options]
+    shaping = _shaping_points(space, shapers or space.shapers, n_freq)
     if dampings is None:
         dampings = [round(float(z), 3) for z in np.linspace(space.damping[0], space.damping[1], n_damping)]
     if accels is None:
