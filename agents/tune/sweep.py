@@ -95,16 +95,11 @@ def tuned_frequencies(printer: Any, firmware: str, shapers: list[str],
     except (ImportError, RingtuneError) as exc:
         note(f"Klipper's fit unavailable ({exc}); shapers tuned to the main mode")
         fits = {}
-    tuned: dict[str, dict[str, float]] = {}
-    for s in shapers:
-        tuned[s] = {}
-        for ax in ("x", "y"):
-            table = {f.name: f.freq for f in fits[ax].shapers} if ax in fits else {}
-            main = max(getattr(printer, ax).modes, key=lambda m: m.share or 0).freq
-            tuned[s][ax] = round(table.get(s, main), 1)
-        if FIRMWARES[firmware].one_shaper:
-            tuned[s]["y"] = tuned[s]["x"]
-    return tuned
+    fitted = {ax: {f.name: f.freq for f in fit.shapers} for ax, fit in fits.items()}
+    main = {ax: max(getattr(printer, ax).modes, key=lambda m: m.share or 0).freq for ax in ("x", "y")}
+    y = "x" if FIRMWARES[firmware].one_shaper else "y"          # one shaper for all axes: Y runs X's
+    return {s: {"x": round(fitted.get("x", {}).get(s, main["x"]), 1), "y": round(fitted.get(y, {}).get(s, main[y]), 1)}
+            for s in shapers}
 
 
 def sweep(printer: Any, job: Any, firmware: str, factor: str, values: list[float],
@@ -115,17 +110,13 @@ def sweep(printer: Any, job: Any, firmware: str, factor: str, values: list[float
     ``freq_margin``: judged as ``evaluate_many`` judges with it (fraction; 0 = the exact model)."""
     results = {s: ShaperSweep(f["x"], f["y"]) for s, f in tuned.items()}
     for v in values:
-        configs = []
-        for s, f in tuned.items():
-            fx, fy, acc = f["x"], f["y"], None
-            if factor == "freq-error":
-                fx, fy = fx * (1 + v), fy * (1 + v)
-            elif factor == "accel":
-                acc = float(v)
-            configs.append(TuneConfig(firmware=firmware, shaper_x=s, shaper_y=s,
-                                      freq_x=0.0 if s == "none" else round(fx, 2),
-                                      freq_y=0.0 if s == "none" else round(fy, 2), accel=acc))
+        scale = 1 + v if factor == "freq-error" else 1.0      # the shapers' frequencies off by v
+        acc = float(v) if factor == "accel" else None
         pr = dataclasses.replace(printer, print_mass=float(v)) if factor == "mass" else printer
+        configs = [TuneConfig(firmware=firmware, shaper_x=s, shaper_y=s,
+                              freq_x=0.0 if s == "none" else round(f["x"] * scale, 2),
+                              freq_y=0.0 if s == "none" else round(f["y"] * scale, 2), accel=acc)
+                   for s, f in tuned.items()]
         for s, m in zip(tuned, evaluate_many(configs, pr, job, backend=backend, freq_margin=freq_margin)):
             results[s].print_time_s.append(float(m.print_time_s))
             results[s].quality_mm.append(float(getattr(m, quality)))
