@@ -105,10 +105,10 @@ def job_accel_section(facts: JobAccelFacts, mode: str, printer, job, chosen: Tun
         return [], info
     sliced = facts.time(chosen, "respect")
     replaced = facts.time(chosen, "replace")
-    info.update(print_time_as_sliced_s=sliced, print_time_replaced_s=replaced, saved_s=sliced - replaced)
+    saved = sliced - replaced
+    info.update(print_time_as_sliced_s=sliced, print_time_replaced_s=replaced, saved_s=saved)
     lines = [f"The job sets its own accelerations ({facts.described()}, mm/s²)"
              + (f": the file caps acceleration at {facts.cap:.0f} mm/s²." if facts.cap else ".")]
-    saved = sliced - replaced
     pct = 100.0 * saved / sliced if sliced else 0.0
     if mode == "respect":
         lines.append(f"--job-accel respect (the print as sliced): chosen configuration {sliced:.1f} s.")
