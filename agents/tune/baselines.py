@@ -47,6 +47,12 @@ class Baselines:
     sources: dict[str, str] = field(default_factory=dict)
     fits: dict = field(default_factory=dict)
 
+    def add(self, key: str, config: TuneConfig, label: str, source: str) -> None:
+        """One baseline's configuration, name and source (not evaluated)."""
+        self.configs[key] = config
+        self.labels[key] = label
+        self.sources[key] = source
+
 
 def recorded_klipper(printer: Printer, firmware: str) -> tuple[TuneConfig | None, str]:
     """Klipper's recommendation recorded from the resonance files, as a TuneConfig (or None, and
@@ -61,16 +67,21 @@ def recorded_klipper(printer: Printer, firmware: str) -> tuple[TuneConfig | None
             fields[f"shaper_{ax}"] = name
             fields[f"freq_{ax}"] = round(float(rec.get(f"freq_{ax}") or 0.0), 1) if name != "none" else 0.0
             fields[f"damping_{ax}"] = DEFAULT_DAMPING_RATIO
-        acc = rec.get("max_accel")
-        fields["accel"] = float(acc) if acc else float(printer.limits.accel)
-        cfg = TuneConfig(**fields, extra={"source": "Klipper's calibrate_shaper rule on the resonance files "
-                                                    "(recorded by ringtune identify)"})
-        cfg.validate("[measurement.klipper]")
+        cfg = _checked(fields, rec.get("max_accel"), printer, "[measurement.klipper]",
+                       "Klipper's calibrate_shaper rule on the resonance files (recorded by ringtune identify)")
         shapers_from_config(cfg)          # Klipper's shapers may not be the firmware's (Marlin: zv only)
         _runs_on(cfg, firmware)
     except (TypeError, ValueError, RingtuneError) as exc:
         return None, f"[measurement.klipper] cannot be used for {firmware}: {exc}"
     return cfg, ""
+
+
+def _checked(fields: dict[str, Any], accel: Any, printer: Printer, where: str, source: str) -> TuneConfig:
+    """The TuneConfig of a recorded baseline's ``fields`` at ``accel`` mm/s² (none: the printer's own),
+    validated as ``where`` says, its ``source`` in ``extra``."""
+    cfg = TuneConfig(**fields, accel=float(accel) if accel else float(printer.limits.accel), extra={"source": source})
+    cfg.validate(where)
+    return cfg
 
 
 def _model_fits(printer: Printer, firmware: str) -> dict:
@@ -106,11 +117,8 @@ def current_config(printer: Printer, firmware: str) -> tuple[TuneConfig | None, 
             fields[f"freq_{ax}"] = float(freq) if name != "none" else 0.0
             z = cur.get(f"damping_{ax}", cur.get("damping"))
             fields[f"damping_{ax}"] = float(z) if z is not None else DEFAULT_DAMPING_RATIO
-        acc = cur.get("accel")
-        fields["accel"] = float(acc) if acc else float(printer.limits.accel)
-        src = cur.get("source")
-        cfg = TuneConfig(**fields, extra={"source": f"what the printer runs now ({src or '[current]'})"})
-        cfg.validate("[current]")
+        cfg = _checked(fields, cur.get("accel"), printer, "[current]",
+                       f"what the printer runs now ({cur.get('source') or '[current]'})")
     except (TypeError, ValueError, RingtuneError) as exc:
         return None, f"what the printer runs now ([current]) cannot be compared on {firmware}: {exc}"
     return cfg, ""
@@ -121,41 +129,42 @@ def baseline_configs(printer: Printer, firmware: str, *, note: Callable[[str], N
     their labels and sources (not evaluated: ``points`` is empty). Klipper's rule on a simulated test
     uses the model's expected spectrum: it does not depend on any seed."""
     out = Baselines()
-    configs = out.configs
-    kcfg, why = recorded_klipper(printer, firmware)
-    if kcfg is not None:
-        configs["klipper"] = kcfg
-        rec = printer.measurement.get("klipper", {})
-        version = f" (Klipper {rec['version']})" if rec.get("version") else ""
-        out.labels["klipper"] = f"Klipper's rule from {printer.measurement.get('origin') or FROM_FILES}{version}"
-        out.sources["klipper"] = "measurement"
-        out.fits = _model_fits(printer, firmware)      # the model's own frequencies, for the warm start
-    else:
-        try:
-            out.fits, fields = klipper_baseline.klipper_rule_on_simulated_test(printer, firmware, "head")
-            if fields.get("accel") is None:
-                fields["accel"] = float(printer.limits.accel)
-            configs["klipper"] = TuneConfig(**fields, extra={"source": "Klipper's calibrate_shaper rule (HEAD) "
-                                                             + SIMULATED})
-            out.labels["klipper"] = f"Klipper's rule {SIMULATED}"
-            out.sources["klipper"] = "simulated resonance test"
-            if printer.measurement.get("klipper"):
-                note(f"ringtune tune: {why}; Klipper's rule is computed {SIMULATED} instead")
-        except (ImportError, RingtuneError) as exc:
-            note(f"ringtune tune: Klipper's-rule baseline skipped: {exc}")
+    _klipper_baseline(printer, firmware, out, note)
     ccfg, why = current_config(printer, firmware)
     if ccfg is not None:
-        configs["current"] = ccfg
         src = printer.current.get("source")
-        out.labels["current"] = "what the printer runs now" + (f" ({src})" if src else "")
-        out.sources["current"] = "[current]"
+        out.add("current", ccfg, "what the printer runs now" + (f" ({src})" if src else ""), "[current]")
     elif why:
         note(f"ringtune tune: {why}")
-    configs["none"] = TuneConfig(firmware=firmware, shaper_x="none", shaper_y="none", freq_x=0.0, freq_y=0.0,
-                                 accel=float(printer.limits.accel), extra={"source": "no shaping"})
-    out.labels["none"] = "no shaping"
-    out.sources["none"] = "no shaping"
+    out.add("none", TuneConfig(firmware=firmware, shaper_x="none", shaper_y="none", freq_x=0.0, freq_y=0.0,
+                               accel=float(printer.limits.accel), extra={"source": "no shaping"}),
+            "no shaping", "no shaping")
     return out
+
+
+def _klipper_baseline(printer: Printer, firmware: str, out: Baselines, note: Callable[[str], None]) -> None:
+    """Klipper's rule into ``out``: its recommendation recorded from the resonance files, else the
+    rule on the model's simulated resonance test (``note`` says why a recorded one is not used, or
+    that the rule could not run)."""
+    kcfg, why = recorded_klipper(printer, firmware)
+    if kcfg is not None:
+        rec = printer.measurement.get("klipper", {})
+        version = f" (Klipper {rec['version']})" if rec.get("version") else ""
+        out.add("klipper", kcfg, f"Klipper's rule from {printer.measurement.get('origin') or FROM_FILES}{version}",
+                "measurement")
+        out.fits = _model_fits(printer, firmware)      # the model's own frequencies, for the warm start
+        return
+    try:
+        out.fits, fields = klipper_baseline.klipper_rule_on_simulated_test(printer, firmware, "head")
+        if fields.get("accel") is None:
+            fields["accel"] = float(printer.limits.accel)
+        source = "Klipper's calibrate_shaper rule (HEAD) " + SIMULATED
+        out.add("klipper", TuneConfig(**fields, extra={"source": source}), f"Klipper's rule {SIMULATED}",
+                "simulated resonance test")
+        if printer.measurement.get("klipper"):
+            note(f"ringtune tune: {why}; Klipper's rule is computed {SIMULATED} instead")
+    except (ImportError, RingtuneError) as exc:
+        note(f"ringtune tune: Klipper's-rule baseline skipped: {exc}")
 
 
 def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable, quality: str, *,
@@ -193,13 +202,8 @@ def warm_start(kcfg: TuneConfig, fits: dict, space) -> list[TuneConfig]:
         out += [at(model, 1.0), at(model, 1.25)]
     for cfg in _ei_family(kcfg, fits, space):
         out += [at(cfg, 1.0), at(cfg, 1.25), at(cfg, space.accel[1] / kcfg.accel)]
-    seen, unique = set(), []
-    for c in out:
-        key = (c.shaper_x, c.freq_x, c.shaper_y, c.freq_y, c.accel)
-        if key not in seen and inside(c, space):
-            seen.add(key)
-            unique.append(c)
-    return unique
+    # once each (points with the same shapers, frequencies and acceleration are the same configuration)
+    return list({(c.shaper_x, c.freq_x, c.shaper_y, c.freq_y, c.accel): c for c in out if inside(c, space)}.values())
 
 
 def _model_pick(kcfg: TuneConfig, fits: dict) -> TuneConfig | None:

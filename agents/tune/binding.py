@@ -51,33 +51,31 @@ class Binding:
                 f"({self.cost_s:+.2f} s, {pct:+.1f} %)")
 
 
+#: the limits' own names per firmware family (``x``, ``y``, ``z``: the per-axis caps), Marlin's G-code where
+#: the family has none of its own
+_CAP_NAMES = {"klipper": {"x": "max_x_accel", "y": "max_y_accel", "z": "max_z_accel",
+                          "retract": "retract acceleration", "travel": "travel acceleration"}}
+_GCODE_CAP_NAMES = {"x": "M201 X", "y": "M201 Y", "z": "M201 Z", "retract": "M204 R", "travel": "M204 T"}
+
+
 def cap_names(firmware: str) -> dict[str, str]:
     """The firmware's own names of the limits (``x``, ``y``: the per-axis caps; ``retract``,
     ``travel``): ``M201 X``/``M204 R`` on Marlin, ``max_x_accel`` on Kalico/Klipper, and so on."""
-    fw = FIRMWARES[firmware]
-    if fw.family == "klipper":
-        return {"x": "max_x_accel", "y": "max_y_accel", "z": "max_z_accel", "retract": "retract acceleration",
-                "travel": "travel acceleration"}
-    return {"x": "M201 X", "y": "M201 Y", "z": "M201 Z", "retract": "M204 R", "travel": "M204 T"}
+    return dict(_CAP_NAMES.get(FIRMWARES[firmware].family, _GCODE_CAP_NAMES))
 
 
-def _variants(limits: MachineLimits) -> list[tuple[str, MachineLimits, str]]:
-    """(key, the limits with that limit removed, what it acts on) for every limit there is."""
+def _variants(limits: MachineLimits) -> list[tuple[str, float, MachineLimits, str]]:
+    """(key, its value mm/s², the limits with that limit removed, what it acts on) for every limit
+    there is."""
     caps = tuple(limits.max_accel or ())
-    out = [(ax, replace(limits, max_accel=tuple(0.0 if j == i else c for j, c in enumerate(caps)),
-                        scale_xy_accel=False), f"moves with {ax.upper()} travel")
-           for i, ax in enumerate("xyz") if i < len(caps) and caps[i] > 0]
+    out = [(ax, float(cap), replace(limits, max_accel=tuple(0.0 if j == i else c for j, c in enumerate(caps)),
+                                    scale_xy_accel=False), f"moves with {ax.upper()} travel")
+           for i, (ax, cap) in enumerate(zip("xyz", caps)) if cap > 0]
     if limits.junction == "scv":          # Klipper: one acceleration for every move
         return out
     roles = (("retract", "retract_accel", "retractions (E-only moves)"), ("travel", "travel_accel", "travel moves"))
-    return out + [(key, replace(limits, **{attr: limits.accel}), what) for key, attr, what in roles
-                  if getattr(limits, attr) is not None]
-
-
-def _value(key: str, limits: MachineLimits) -> float:
-    if key in "xyz":
-        return float(limits.max_accel["xyz".index(key)])
-    return float(limits.retract_accel if key == "retract" else limits.travel_accel)
+    return out + [(key, float(getattr(limits, attr)), replace(limits, **{attr: limits.accel}), what)
+                  for key, attr, what in roles if getattr(limits, attr) is not None]
 
 
 def binding_limits(printer, job, config: TuneConfig, firmware: str | None = None,
@@ -92,12 +90,12 @@ def binding_limits(printer, job, config: TuneConfig, firmware: str | None = None
     base = plan_with_config(parsed, limits, plain, job_accel=job_accel).plan
     names = cap_names(firmware or config.firmware)
     out = []
-    for key, without, what in _variants(limits):
+    for key, value, without, what in _variants(limits):
         other = plan_with_config(parsed, without, plain, job_accel=job_accel).plan
         lowered = base.moves.accel < other.moves.accel * (1 - _TOL)
         if not lowered.any():
             continue
-        out.append(Binding(names[key], _value(key, limits), what, int(np.sum(lowered)), float(base.print_time),
+        out.append(Binding(names[key], value, what, int(np.sum(lowered)), float(base.print_time),
                            float(other.print_time)))
     return out
 

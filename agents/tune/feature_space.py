@@ -114,9 +114,9 @@ def wanted(mode: str, space: SearchSpace, printer: Any, job: Any, job_sets_accel
 def feature_section(config, space: SearchSpace) -> tuple[list[str], dict]:
     """Summary lines and JSON of the chosen per-feature settings: each group's acceleration with
     its range and what bounds it, the corner rule, minimum_cruise_ratio."""
-    info = {"accel": {"visible": config.accel}, "ranges": dict(space.feature_basis or {}),
-            "corner": config.corner, "junction": space.junction, "min_cruise_ratio": config.min_cruise_ratio}
     basis = space.feature_basis or {}
+    info = {"accel": {"visible": config.accel}, "ranges": dict(basis),
+            "corner": config.corner, "junction": space.junction, "min_cruise_ratio": config.min_cruise_ratio}
     lines = [f"  visible walls (outer walls, overhangs, unlabelled): {config.accel:.0f} mm/s² "
              f"(searched {space.accel[0]:.0f}–{space.accel[1]:.0f}; judged by ripple, corners, extrusion)"]
     for group, lo, hi in space.feature_accel:

@@ -11,6 +11,7 @@ the planner alone (no physics), through :func:`ringtune.envs.evaluate.planned_jo
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -21,7 +22,9 @@ from ringtune.agents.tune.space import defaults_note
 from ringtune.envs.evaluate import job_accel_commands, planned_job, resolve_job
 from ringtune.shaping.config import TuneConfig
 
-#: how the job's acceleration settings are written in G-code
+#: how the job's acceleration settings are written in G-code: command -> (setting, its word)
+GCODE_WORDS = {"M201": (("max_accel_x", "X"), ("max_accel_y", "Y")),
+               "M204": (("accel_print", "P"), ("accel_travel", "T"), ("accel_retract", "R"))}
 
 @dataclass
 class JobAccelFacts:
@@ -49,17 +52,11 @@ class JobAccelFacts:
 
     def described(self) -> str:
         """The commands as G-code would write them (largest value of each), e.g.
-        ``M201 X1500 Y1500, M204 P1500 T1500 R1000``."""
+        ``M201 X1500 Y1500, M204 P1500 T1500 R1000``; Klipper's own where no M204 word is set."""
         c = self.commands
-        parts = []
-        if "max_accel_x" in c or "max_accel_y" in c:
-            parts.append("M201" + "".join(f" {a.upper()}{c[f'max_accel_{a}']:.0f}" for a in "xy"
-                                          if f"max_accel_{a}" in c))
-        m204 = "".join(f" {w}{c[k]:.0f}" for k, w in (("accel_print", "P"), ("accel_travel", "T"),
-                                                     ("accel_retract", "R")) if k in c)
-        if m204:
-            parts.append("M204" + m204)
-        elif "accel_klipper" in c:
+        words = {cmd: "".join(f" {w}{c[k]:.0f}" for k, w in pairs if k in c) for cmd, pairs in GCODE_WORDS.items()}
+        parts = [cmd + said for cmd, said in words.items() if said]
+        if "accel_klipper" in c and not words["M204"]:
             parts.append(f"SET_VELOCITY_LIMIT ACCEL={c['accel_klipper']:.0f} (or M204 S)")
         return ", ".join(parts)
 
@@ -108,10 +105,10 @@ def job_accel_section(facts: JobAccelFacts, mode: str, printer, job, chosen: Tun
         return [], info
     sliced = facts.time(chosen, "respect")
     replaced = facts.time(chosen, "replace")
-    info.update(print_time_as_sliced_s=sliced, print_time_replaced_s=replaced, saved_s=sliced - replaced)
+    saved = sliced - replaced
+    info.update(print_time_as_sliced_s=sliced, print_time_replaced_s=replaced, saved_s=saved)
     lines = [f"The job sets its own accelerations ({facts.described()}, mm/s²)"
              + (f": the file caps acceleration at {facts.cap:.0f} mm/s²." if facts.cap else ".")]
-    saved = sliced - replaced
     pct = 100.0 * saved / sliced if sliced else 0.0
     if mode == "respect":
         lines.append(f"--job-accel respect (the print as sliced): chosen configuration {sliced:.1f} s.")
@@ -140,7 +137,7 @@ def accel_statement(chosen: Point, space, max_pe: float, reserve: float, points,
     info = {"range": [lo, hi], "searched": not space.accel_fixed, "basis": space.accel_basis, "chosen": a,
             "stopped_by": None, "headroom": {}, "defaults": []}
     tail = list(binding)
-    note = defaults_note(printer) if printer is not None else ""
+    note = defaults_note(printer)
     if note:
         tail.append(note)
         info["defaults"] = list(printer.defaulted)
@@ -161,8 +158,12 @@ def accel_statement(chosen: Point, space, max_pe: float, reserve: float, points,
         info["stopped_by"] = "quality"
         lines.append("No bound is within 10 % of it: what stops it is quality — the faster front points have more "
                      "overshoot or path error than the choice allows.")
-    lines += [f"  {'range edge: ' if n == 'range edge' else ''}{t}" for n, r, t in cands if n != name or ratio < 0.9]
+    lines += [f"  {LISTED_AS.get(n, '')}{t}" for n, r, t in cands if n != name or ratio < 0.9]
     return lines + _faster_trials(points, a) + tail, info
+
+
+#: how a bound's line starts where the bounds are listed (the other bounds' words begin with their name)
+LISTED_AS = {"range edge": "range edge: "}
 
 
 def _accel_bounds(chosen: Point, space, max_pe: float, reserve: float, headroom: dict) -> list[tuple]:
@@ -196,10 +197,6 @@ HELD_BACK = (("lose steps", lambda p: p.step_loss), ("exceed the path-error boun
 def _faster_trials(points, a: float) -> list[str]:
     """What held back the trials at a higher acceleration than ``a`` mm/s², in one sentence (or none)."""
     faster = [p for p in points if (p.config.accel or 0) > a]
-    why = dict.fromkeys((words for words, _ in HELD_BACK), 0)
-    for p in faster:
-        reason = next((words for words, test in HELD_BACK if test(p)), None)
-        if reason:
-            why[reason] += 1
-    said = ", ".join(f"{n} {w}" for w, n in why.items() if n)
+    why = Counter(next((words for words, test in HELD_BACK if test(p)), None) for p in faster)
+    said = ", ".join(f"{why[words]} {words}" for words, _ in HELD_BACK if why[words])
     return [f"Of the {len(faster)} trials at a higher acceleration, {said}."] if said else []

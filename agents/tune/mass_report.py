@@ -18,10 +18,10 @@ def schedule_summary(s: MassSchedule) -> str:
     if not s.needed:
         lines.append(f"the mode moves {(1 - s.final_mode_hz / s.empty_mode_hz) * 100:.1f} % over this job, less than "
                      f"the band step ({s.step * 100:g} %): the tuned frequency holds, nothing is inserted")
-        return "\n".join(lines + [f"note: {n}" for n in s.notes])
-    lines.extend(_band_table(s))
-    if s.ripple:
-        lines.extend(_last_band_table(s.ripple))
+    else:
+        lines.extend(_band_table(s))
+        if s.ripple:
+            lines.extend(_last_band_table(s.ripple))
     lines.extend(f"note: {n}" for n in s.notes)
     return "\n".join(lines)
 

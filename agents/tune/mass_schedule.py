@@ -226,8 +226,9 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
     notes = [_clamp_note(config, clamped, lowest, min_freq)] if clamped else []
     sched = MassSchedule(config, bands, layers, diameter_mm, density_g_cm3, source, f_empty, step, float(modes[-1]),
                          notes)
-    for k, cmds in sched.inserts().items():
-        next(b for b in bands if b.first_layer == k).commands = cmds
+    inserts = sched.inserts()
+    for b in bands:
+        b.commands = inserts.get(b.first_layer, [])
     _prusa_rule(config, bands)
     if not sched.needed:
         return sched
@@ -386,9 +387,9 @@ def schedule_job(config: TuneConfig, printer=None, job=None, *, diameter_mm: flo
     kw = dict(diameter_mm=diameter_mm, density_g_cm3=density_g_cm3, step=step, band_accel=band_accel,
               min_freq=min_freq)
     sched = mass_schedule(config, printer, job, **kw)
-    if sched.needed and band_accel == "auto" and any(b.accel for b in sched.bands):
-        sched = _smoothing_measured(sched, printer, job, backend, kw)
     if sched.needed:
+        if any(b.accel for b in sched.bands):        # band_accel "auto" lowered some (keep: none)
+            sched = _smoothing_measured(sched, printer, job, backend, kw)
         last_band_ripple(sched, printer, job, backend)
     if output is not None:
         Path(output).write_text("".join(scheduled_lines(sched, job)), newline="")

@@ -32,9 +32,10 @@ serves Optuna trials, grid points and stored trials, so they can never disagree.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -115,7 +116,7 @@ class SearchSpace:
     @property
     def per_feature(self) -> bool:
         """Whether accelerations per feature group, the corner rule or minimum_cruise_ratio are searched."""
-        return bool(self.feature_accel) or self.corner is not None or self.min_cruise_ratio is not None
+        return bool(_per_feature(self))
 
 
 def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float, float] | None = None,
@@ -135,39 +136,54 @@ def default_space(printer: Any, firmware: str = "klipper", *, accel: tuple[float
     """
     if firmware not in FIRMWARES:
         raise RingtuneError(f"firmware must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "firmware")
-    flavor = FIRMWARES[firmware].flavor
-    offered = tuple(n for n in available_shapers(flavor) if n != "custom") + PARAMETRISED.get(flavor, ())
-    if shapers:
-        bad = [s for s in shapers if s not in offered]
-        if bad:
-            raise RingtuneError(f"{firmware} does not offer {', '.join(bad)} (offers {', '.join(offered)})",
-                                "shapers")
-        offered = tuple(shapers)
-    zmax = min([0.2] + [max_damping(n.split("(")[0], flavor) for n in offered if n != "none"])
+    fw = FIRMWARES[firmware]
+    offered = _offered_shapers(firmware, shapers)
+    zmax = min([0.2] + [max_damping(n.split("(")[0], fw.flavor) for n in offered if n != "none"])
     floor = freq_floor(firmware, min_freq)
-    ranges = {}
-    for ax in ("x", "y"):
-        freqs = [m.freq for m in getattr(printer, ax).modes] or [40.0]
-        lo = max(10.0, floor, round(0.6 * min(freqs), 1))
-        hi = max(min(200.0, round(1.8 * max(freqs), 1)), round(1.5 * lo, 1))
-        ranges[ax] = (lo, hi)
-    per_axis = not FIRMWARES[firmware].one_shaper
-    if not per_axis:
-        ranges["x"] = ranges["y"] = (min(ranges["x"][0], ranges["y"][0]), max(ranges["x"][1], ranges["y"][1]))
-    if accel is not None:
-        acc, basis = accel, "--accel-range"
-    else:
-        top, basis = accel_ceiling(printer, speed)
-        hi = max(100.0, math.floor(top / 100.0) * 100.0)
-        lo = min(max(100.0, round(0.3 * float(printer.limits.accel), -2)), max(100.0, round(hi / 3.0, -2)))
-        acc = (lo, hi)
+    fx, fy = (_freq_range(printer, ax, floor) for ax in "xy")
+    if fw.one_shaper:
+        fx = fy = (min(fx[0], fy[0]), max(fx[1], fy[1]))
+    acc, basis = (accel, "--accel-range") if accel is not None else _accel_range(printer, speed)
     if not (0 < acc[0] <= acc[1]):
         raise RingtuneError(f"acceleration range must be 0 < lo ≤ hi, not {acc}", "accel")
     caps, raise_caps = printer_axis_caps(printer, firmware)
-    return SearchSpace(firmware=firmware, shapers=offered, per_axis=per_axis, freq_x=ranges["x"],
-                       freq_y=ranges["y"], damping=(0.0, float(zmax)), freq_limit_methods=FREQ_LIMIT_METHODS,
+    return SearchSpace(firmware=firmware, shapers=offered, per_axis=not fw.one_shaper, freq_x=fx,
+                       freq_y=fy, damping=(0.0, float(zmax)), freq_limit_methods=FREQ_LIMIT_METHODS,
                        freq_limit_hz=(10.0, 80.0), accel=(float(acc[0]), float(acc[1])), accel_basis=basis,
                        axis_caps=caps, raise_axis_caps=raise_caps)
+
+
+def _offered_shapers(firmware: str, shapers: tuple[str, ...] | None) -> tuple[str, ...]:
+    """The shapers searched: ``shapers`` (each one the firmware offers) or all it offers but
+    ``custom``, with Klipper's parametrised families where its flavour has them."""
+    flavor = FIRMWARES[firmware].flavor
+    offered = tuple(n for n in available_shapers(flavor) if n != "custom") + PARAMETRISED.get(flavor, ())
+    return tuple(checked_shapers(firmware, shapers or offered, offered))
+
+
+def checked_shapers(firmware: str, chosen: Sequence[str], offered: Sequence[str]) -> Sequence[str]:
+    """``chosen``, refused unless ``firmware`` offers each of them (``offered``)."""
+    bad = [s for s in chosen if s not in offered]
+    if bad:
+        raise RingtuneError(f"{firmware} does not offer {', '.join(bad)} (offers {', '.join(offered)})", "shapers")
+    return chosen
+
+
+def _freq_range(printer: Any, ax: str, floor: float) -> tuple[float, float]:
+    """(lo, hi) Hz of axis ``ax``: 0.6×–1.8× its lowest/highest mode (40 Hz without modes), within
+    10–200 Hz, from ``floor`` up, the top at least 1.5× the bottom."""
+    freqs = [m.freq for m in getattr(printer, ax).modes] or [40.0]
+    lo = max(10.0, floor, round(0.6 * min(freqs), 1))
+    return lo, max(min(200.0, round(1.8 * max(freqs), 1)), round(1.5 * lo, 1))
+
+
+def _accel_range(printer: Any, speed: float | None) -> tuple[tuple[float, float], str]:
+    """((lo, hi) mm/s², what sets the top): up to :func:`accel_ceiling` at ``speed`` (to 100 below),
+    from 0.3× the printer's own acceleration but at most a third of the top (each at least 100)."""
+    top, basis = accel_ceiling(printer, speed)
+    hi = max(100.0, math.floor(top / 100.0) * 100.0)
+    lo = min(max(100.0, round(0.3 * float(printer.limits.accel), -2)), max(100.0, round(hi / 3.0, -2)))
+    return (lo, hi), basis
 
 
 def freq_floor(firmware: str, min_freq: float | None = None) -> float:
@@ -259,8 +275,10 @@ def accel_ceiling(printer: Any, speed: float | None = None) -> tuple[float, str]
     applied by the planner to the moves along that axis, as each trial carries it
     (:func:`trial_axis_caps`); the summary says which caps bind
     (:mod:`ringtune.agents.tune.binding`)."""
-    what = "the job's top speed" if speed is not None else "the printer's velocity limit"
-    v = float(speed if speed is not None else printer.limits.velocity)
+    what = "the job's top speed"
+    if speed is None:
+        what, speed = "the printer's velocity limit", printer.limits.velocity
+    v = float(speed)
     a, who = motor_accel_limit(printer, v)
     return a, f"the {who} would need all its force at {v:.0f} mm/s ({what})"
 
@@ -278,62 +296,86 @@ def top_speed_load_note(printer: Any, accel: float, reserve: float) -> str:
             f"{accel:.0f} mm/s² asks the {who} for {load * 100:.0f} % of its force there (rigid machine): {kept}.")
 
 
+#: how the note names one defaulted axis motor where it is not "X motor" / "Y motor": (kinematics, axis) -> name
+_ONE_DEFAULT_MOTOR = {("corexz", "x"): "A and B motors (stepper_x, stepper_z)"}
+
+
 def defaults_note(printer: Any) -> str:
     """One sentence when the motor bound rests on defaults (``Printer.defaulted``: a motor with
-    neither a name, datasheet constants nor ``force``; an axis with no ``mass``), else ""."""
-    d = set(getattr(printer, "defaulted", ()) or ())
-    motors = [ax for ax in "xy" if f"{ax}.motor" in d]
-    masses = [ax for ax in "xy" if f"{ax}.mass" in d]
-    if not motors and not masses:
-        return ""
+    neither a name, datasheet constants nor ``force``; an axis with no ``mass``), else "" (also
+    for ``printer`` None)."""
+    d = set(getattr(printer, "defaulted", ()))
+    motors, masses = ([ax for ax in "xy" if f"{ax}.{kind}" in d] for kind in ("motor", "mass"))
     parts = []
     if motors:
-        force = printer.motor_for(motors[0]).force
-        if len(motors) == 2:
-            parts.append(f"the default motor ({force:g} N)")
-        else:
-            names = dict(_MOTOR_NAMES) if printer.kinematics == "corexy" else {"x": "X motor", "y": "Y motor"}
-            if printer.kinematics == "corexz":
-                names["x"] = "A and B motors (stepper_x, stepper_z)"
-            parts.append(f"the default {names.get(motors[0], motors[0])} ({force:g} N)")
+        what = ("motor" if len(motors) == 2 else
+                _ONE_DEFAULT_MOTOR.get((printer.kinematics, motors[0]), f"{motors[0].upper()} motor"))
+        parts.append(f"the default {what} ({printer.motor_for(motors[0]).force:g} N)")
     if masses:
         kg = ", ".join(f"{ax.upper()} {getattr(printer, ax).mass:g} kg" for ax in masses)
         parts.append(f"default mass{'es' if len(masses) == 2 else ''} ({kg})")
+    if not parts:
+        return ""
     them = "them" if len(motors) + len(masses) > 1 else "it"
     return (f"The motor bound comes from {' and '.join(parts)}: give {them} (see ringtune identify "
             "--motor/--mass, or ringtune printer from-klipper).")
 
 
+def _axes(space: SearchSpace) -> tuple[tuple[str, str], ...]:
+    """(axis, suffix of its shaping parameters) per axis searched apart: ``x``, ``y`` with ``_x``,
+    ``_y``; where one shaper serves all axes (RepRapFirmware) ``x`` alone with "" (``shaper``,
+    ``freq``, ``damping``), which Y runs too."""
+    return (("x", "_x"), ("y", "_y")) if space.per_axis else (("x", ""),)
+
+
+@dataclass(frozen=True)
+class _Ranged:
+    """A per-feature parameter searched on [lo, hi] (in its config key's unit): the config's
+    rounding ``step``, the value of a point without it (``missing``), the value a configuration
+    runs (``now``; None: unset) and, for a group's acceleration, the feature classes it sets."""
+
+    key: str
+    lo: float
+    hi: float
+    step: float
+    missing: float
+    now: Callable[[TuneConfig], float | None]
+    classes: tuple[str, ...] = ()
+
+
+def _per_feature(space: SearchSpace) -> list[_Ranged]:
+    """The per-feature parameters ``space`` searches: each group's acceleration (missing: the
+    range's bottom; a configuration without one runs its ``accel``), the corner rule (the printer's
+    own, else the range's bottom) and minimum_cruise_ratio (the printer's own, else the range's top)."""
+    rows = [_Ranged(f"accel_{g}", lo, hi, space.accel_step, lo,
+                    lambda c, cls=ACCEL_GROUPS[g][0]: c.feature_accel.get(cls, c.accel), ACCEL_GROUPS[g])
+            for g, lo, hi in space.feature_accel]
+    if space.corner is not None:
+        rows.append(_Ranged("corner", *space.corner, CORNER_STEP.get(space.junction, 0.001), space.corner[0],
+                            lambda c: c.corner if c.corner is not None else space.corner_now))
+    if space.min_cruise_ratio is not None:
+        rows.append(_Ranged("min_cruise_ratio", *space.min_cruise_ratio, MCR_STEP, space.min_cruise_ratio[1],
+                            lambda c: c.min_cruise_ratio if c.min_cruise_ratio is not None else space.mcr_now))
+    return rows
+
+
 def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
     """Ask an Optuna trial for one point of ``space`` (returns the parameter dict)."""
-    p: dict[str, Any] = {}
-    if space.per_axis:
-        p["shaper_x"] = trial.suggest_categorical("shaper_x", list(space.shapers))
-        p["shaper_y"] = trial.suggest_categorical("shaper_y", list(space.shapers))
-        for ax in ("x", "y"):
-            if p[f"shaper_{ax}"] != "none":
-                lo, hi = getattr(space, f"freq_{ax}")
-                p[f"freq_{ax}"] = trial.suggest_float(f"freq_{ax}", lo, hi)
-            p.update(_suggest_family(trial, p[f"shaper_{ax}"], ax))
-    else:
-        p["shaper"] = trial.suggest_categorical("shaper", list(space.shapers))
-        if p["shaper"] != "none":
-            p["freq"] = trial.suggest_float("freq", *space.freq_x)
+    axes = _axes(space)
+    p: dict[str, Any] = {f"shaper{s}": trial.suggest_categorical(f"shaper{s}", list(space.shapers)) for _, s in axes}
+    for ax, s in axes:
+        if p[f"shaper{s}"] != "none":
+            p[f"freq{s}"] = trial.suggest_float(f"freq{s}", *getattr(space, f"freq_{ax}"))
+        p.update(_suggest_family(trial, p[f"shaper{s}"], ax))
     for key in _damping_keys(p, space):
         p[key] = trial.suggest_float(key, *space.damping)
     p["freq_limit"] = trial.suggest_categorical("freq_limit", ["off", *space.freq_limit_methods])
     if p["freq_limit"] != "off":
         p["freq_limit_hz"] = trial.suggest_float("freq_limit_hz", *space.freq_limit_hz)
-    if space.accel_fixed:
-        p["accel"] = space.accel[0]      # not searched: it has no effect (or was fixed)
-    else:
-        p["accel"] = trial.suggest_float("accel", *space.accel)
-    for group, lo, hi in space.feature_accel:
-        p[f"accel_{group}"] = trial.suggest_float(f"accel_{group}", lo, hi) if hi > lo else lo
-    if space.corner is not None:
-        p["corner"] = trial.suggest_float("corner", *space.corner)
-    if space.min_cruise_ratio is not None:
-        p["min_cruise_ratio"] = trial.suggest_float("min_cruise_ratio", *space.min_cruise_ratio)
+    # a fixed acceleration is not searched: it has no effect (or was fixed)
+    p["accel"] = space.accel[0] if space.accel_fixed else trial.suggest_float("accel", *space.accel)
+    for r in _per_feature(space):
+        p[r.key] = trial.suggest_float(r.key, r.lo, r.hi) if r.hi > r.lo else r.lo
     return p
 
 
@@ -341,16 +383,12 @@ def feature_params(params: dict[str, Any], space: SearchSpace) -> dict[str, Any]
     """The per-feature keys of a TuneConfig (``feature_accel``, ``corner``, ``min_cruise_ratio``)
     from a parameter dict, rounded as :func:`config_from_params` rounds (empty without them)."""
     out: dict[str, Any] = {}
-    fa = {}
-    for group, lo, _hi in space.feature_accel:
-        a = _q(params.get(f"accel_{group}", lo), space.accel_step)
-        fa.update(dict.fromkeys(ACCEL_GROUPS[group], a))
-    if fa:
-        out["feature_accel"] = fa
-    if space.corner is not None:
-        out["corner"] = _q(params.get("corner", space.corner[0]), CORNER_STEP.get(space.junction, 0.001))
-    if space.min_cruise_ratio is not None:
-        out["min_cruise_ratio"] = _q(params.get("min_cruise_ratio", space.min_cruise_ratio[1]), MCR_STEP)
+    for r in _per_feature(space):
+        value = _q(params.get(r.key, r.missing), r.step)
+        if r.classes:
+            out.setdefault("feature_accel", {}).update(dict.fromkeys(r.classes, value))
+        else:
+            out[r.key] = value
     return out
 
 
@@ -394,11 +432,9 @@ def _takes_damping(family: str) -> bool:
 
 def _damping_keys(shaping: dict[str, Any], space: SearchSpace) -> list[str]:
     """The damping parameters a point with these shapers has: ``damping_x``/``damping_y`` for each
-    shaped axis (per-axis firmwares; not for Kalico's smoothers, which take none), else ``damping``
-    when shaping is on."""
-    if space.per_axis:
-        return [f"damping_{ax}" for ax in "xy" if _takes_damping(shaping.get(f"shaper_{ax}", "none"))]
-    return ["damping"] if shaping.get("shaper", "none") != "none" else []
+    shaped axis (not for Kalico's smoothers, which take none), or ``damping`` where one shaper serves
+    all axes and shaping is on."""
+    return [f"damping{s}" for _, s in _axes(space) if _takes_damping(shaping.get(f"shaper{s}", "none"))]
 
 
 def _q(value: float, step: float) -> float:
@@ -411,17 +447,13 @@ def config_from_params(params: dict[str, Any], space: SearchSpace, extra: dict |
     Values are rounded to what a user would type and a firmware keeps: F to ``freq_step``
     (0.1 Hz), S to 0.005, the frequency limit to 0.5 Hz, acceleration to ``accel_step``. (Optuna
     samples them continuously: TPE's discrete kernels cost far more per trial.)"""
-    if space.per_axis:
-        sx, sy = (shaper_name(params[f"shaper_{ax}"], params, ax) for ax in ("x", "y"))
-        fx, fy = params.get("freq_x", 0.0), params.get("freq_y", 0.0)
-    else:
-        sx = sy = params["shaper"]
-        fx = fy = params.get("freq", 0.0)
-    fx, fy = _q(fx, space.freq_step), _q(fy, space.freq_step)
+    shaping = {ax: (shaper_name(params[f"shaper{s}"], params, ax), _q(params.get(f"freq{s}", 0.0), space.freq_step))
+               for ax, s in _axes(space)}
+    (sx, fx), (sy, fy) = shaping["x"], shaping.get("y", shaping["x"])
     z = params.get("damping", 0.1)
     zx, zy = (_q(params.get(f"damping_{ax}", z), 0.005) for ax in "xy")
     method = params.get("freq_limit", "off")
-    accel = _q(params.get("accel", space.accel[0]) if not space.accel_fixed else space.accel[0], space.accel_step)
+    accel = _q(space.accel[0] if space.accel_fixed else params.get("accel", space.accel[0]), space.accel_step)
     per_feature = feature_params(params, space)
     top = max([accel, *per_feature.get("feature_accel", {}).values()])
     return TuneConfig(firmware=space.firmware, shaper_x=sx, shaper_y=sy, freq_x=float(fx), freq_y=float(fy),
@@ -435,17 +467,12 @@ def config_from_params(params: dict[str, Any], space: SearchSpace, extra: dict |
 def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]:
     """Inverse of :func:`config_from_params` (for enqueuing a known configuration)."""
     p: dict[str, Any] = {}
-    if space.per_axis:
-        for ax in ("x", "y"):
-            family, extra = family_params(getattr(config, f"shaper_{ax}"), ax)
-            p[f"shaper_{ax}"] = family
-            p.update(extra)
-            if p[f"shaper_{ax}"] != "none":
-                p[f"freq_{ax}"] = getattr(config, f"freq_{ax}")
-    else:
-        p["shaper"] = config.shaper_x
-        if config.shaper_x != "none":
-            p["freq"] = config.freq_x
+    for ax, s in _axes(space):
+        family, extra = family_params(getattr(config, f"shaper_{ax}"), ax)
+        p[f"shaper{s}"] = family
+        p.update(extra)
+        if family != "none":
+            p[f"freq{s}"] = getattr(config, f"freq_{ax}")
     for key in _damping_keys(p, space):
         p[key] = getattr(config, key if key != "damping" else "damping_x")
     p["freq_limit"] = "off" if config.freq_limit_hz <= 0 else config.freq_limit_method
@@ -453,22 +480,30 @@ def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]
         p["freq_limit_hz"] = config.freq_limit_hz
     if not space.accel_fixed:
         p["accel"] = config.accel
-    for group, lo, hi in space.feature_accel:
-        a = config.feature_accel.get(ACCEL_GROUPS[group][0], config.accel if config.accel is not None else lo)
-        p[f"accel_{group}"] = min(max(float(a), lo), hi)
-    if space.corner is not None:
-        c = config.corner if config.corner is not None else space.corner_now
-        p["corner"] = min(max(float(c if c is not None else space.corner[0]), space.corner[0]), space.corner[1])
-    if space.min_cruise_ratio is not None:
-        lo, hi = space.min_cruise_ratio
-        m = config.min_cruise_ratio if config.min_cruise_ratio is not None else space.mcr_now
-        p["min_cruise_ratio"] = min(max(float(m if m is not None else hi), lo), hi)
+    for r in _per_feature(space):
+        now = r.now(config)
+        p[r.key] = min(max(float(now if now is not None else r.missing), r.lo), r.hi)
     return p
 
 
-def _plain(shapers: tuple[str, ...]) -> tuple[str, ...]:
-    """The shapers without the parametrised families."""
-    return tuple(s for s in shapers if "(" not in s)
+def _shaping_points(space: SearchSpace, shapers: tuple[str, ...], n_freq: int) -> list[dict]:
+    """The grid's shaping parameters: every combination of the axes' options (:func:`_axis_options`),
+    the parametrised families left out (Optuna searches them)."""
+    plain = tuple(s for s in shapers if "(" not in s)
+    points: list[dict] = [{}]
+    for ax, s in _axes(space):
+        options = _axis_options(plain, getattr(space, f"freq_{ax}"), s, n_freq)
+        points = [{**p, **o} for p in points for o in options]
+    return points
+
+
+def _axis_options(shapers: tuple[str, ...], lo_hi: tuple[float, float], suffix: str, n_freq: int) -> list[dict]:
+    """One axis's grid points: each shaper at ``n_freq`` frequencies over ``lo_hi`` Hz (``none`` once)."""
+    freqs = [round(float(f), 1) for f in np.linspace(lo_hi[0], lo_hi[1], n_freq)]
+    out: list[dict] = []
+    for s in shapers:
+        out += [{f"shaper{suffix}": s}] if s == "none" else [{f"shaper{suffix}": s, f"freq{suffix}": f} for f in freqs]
+    return out
 
 
 def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel: int = 6,
@@ -477,45 +512,23 @@ def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel
     """A dense Cartesian grid over ``space`` (parameter dicts), for convergence checks.
 
     Per axis: every shaper × ``n_freq`` frequencies (``none`` once; the parametrised families are
-    left to Optuna); S on ``n_damping`` levels;
+    left to Optuna); S on ``n_damping`` levels (once where no axis is shaped);
     acceleration on ``n_accel`` levels (multiples of ``accel_step``); the frequency limit off plus
     each method at each of ``freq_limits`` Hz. ``dampings`` / ``accels`` give explicit levels instead.
     """
-    shapers = _plain(shapers or space.shapers)
-
-    def axis_options(lo_hi, key_s, key_f):
-        opts = []
-        for s in shapers:
-            if s == "none":
-                opts.append({key_s: "none"})
-            else:
-                for f in np.linspace(lo_hi[0], lo_hi[1], n_freq):
-                    opts.append({key_s: s, key_f: round(float(f), 1)})
-        return opts
-
-    if space.per_axis:
-        shaping = [{**a, **b} for a in axis_options(space.freq_x, "shaper_x", "freq_x")
-                   for b in axis_options(space.freq_y, "shaper_y", "freq_y")]
-    else:
-        shaping = axis_options(space.freq_x, "shaper", "freq")
+    shaping = _shaping_points(space, shapers or space.shapers, n_freq)
     if dampings is None:
         dampings = [round(float(z), 3) for z in np.linspace(space.damping[0], space.damping[1], n_damping)]
-    step = space.accel_step
     if accels is None:
         accels = np.linspace(space.accel[0], space.accel[1], n_accel)
-    accels = sorted({round(float(a) / step) * step for a in accels})
+    accels = sorted({round(float(a) / space.accel_step) * space.accel_step for a in accels})
     limits = [{"freq_limit": "off"}] + [{"freq_limit": m, "freq_limit_hz": float(h)}
                                          for m in space.freq_limit_methods for h in freq_limits]
-    out = []
-    for sh in shaping:
-        any_on = any(v != "none" for k, v in sh.items() if k.startswith("shaper"))
-        for z in (dampings if any_on else [None]):
-            for lim in limits:
-                for a in accels:
-                    p = dict(sh)
-                    if z is not None:
-                        p.update(dict.fromkeys(_damping_keys(sh, space), z))
-                    p.update(lim)
-                    p["accel"] = a
-                    out.append(p)
-    return out
+    damped = [{**sh, **dict.fromkeys(_damping_keys(sh, space), z)}
+              for sh in shaping for z in (dampings if _shaped(sh) else [None])]
+    return [{**point, **lim, "accel": a} for point, lim, a in itertools.product(damped, limits, accels)]
+
+
+def _shaped(point: dict[str, Any]) -> bool:
+    """Whether a grid point shapes any axis."""
+    return any(v != "none" for k, v in point.items() if k.startswith("shaper"))

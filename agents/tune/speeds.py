@@ -159,20 +159,13 @@ def find_bands(direction: str, speeds: np.ndarray, ripple: np.ndarray, level: fl
     top = float(ripple.max()) if len(ripple) else 0.0
     if top <= 0:
         return []
-    above = ripple >= level * top
     step = float(np.median(np.diff(speeds))) if len(speeds) > 1 else 0.0
-    bands, i = [], 0
-    while i < len(speeds):
-        if not above[i]:
-            i += 1
-            continue
-        j = i
-        while j + 1 < len(speeds) and above[j + 1]:
-            j += 1
-        k = i + int(np.argmax(ripple[i:j + 1]))
-        bands.append(Band(direction, max(float(speeds[i]) - step / 2, 0.0), float(speeds[j]) + step / 2,
+    edges = np.flatnonzero(np.diff(np.r_[0, (ripple >= level * top).astype(int), 0]))   # run starts, ends + 1
+    bands = []
+    for i, end in zip(edges[::2], edges[1::2]):
+        k = i + int(np.argmax(ripple[i:end]))
+        bands.append(Band(direction, max(float(speeds[i]) - step / 2, 0.0), float(speeds[end - 1]) + step / 2,
                           float(speeds[k]), float(ripple[k])))
-        i = j + 1
     return bands
 
 

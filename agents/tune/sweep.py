@@ -20,6 +20,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ringtune.agents.klipper.baseline import klipper_rule_on_simulated_test
+from ringtune.agents.tune.space import checked_shapers
 from ringtune.envs.evaluate import evaluate_many
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
@@ -30,6 +31,8 @@ from ringtune.shaping.shapers import available_shapers
 FACTORS = {"freq-error": ("shaper frequency error", "fraction", (-0.3, 0.3, 13)),
            "mass": ("print mass on the bed", "kg", (0.0, 1.0, 6)),
            "accel": ("acceleration", "mm/s²", None)}
+#: how a factor's unit is shown on the plot's axis: unit -> (scale, shown unit)
+_AXIS_UNITS = {"fraction": (100, "%")}
 
 
 @dataclass
@@ -50,11 +53,7 @@ def offered_shapers(firmware: str, shapers: list[str] | None = None) -> list[str
     if firmware not in FIRMWARES:
         raise RingtuneError(f"must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "firmware")
     offered = [s for s in available_shapers(FIRMWARES[firmware].flavor) if s != "custom"]
-    chosen = [s.strip().lower() for s in shapers] if shapers else offered
-    bad = [s for s in chosen if s not in offered]
-    if bad:
-        raise RingtuneError(f"{firmware} does not offer {', '.join(bad)} (offers {', '.join(offered)})", "shapers")
-    return chosen
+    return checked_shapers(firmware, [s.strip().lower() for s in shapers] if shapers else offered, offered)
 
 
 def factor_values(factor: str, printer: Any, values: list[float] | None = None) -> list[float]:
@@ -72,8 +71,9 @@ def factor_values(factor: str, printer: Any, values: list[float] | None = None) 
         vals = [round(float(v), 4) for v in np.linspace(lo, hi, n)]
     if not vals:
         raise RingtuneError("no values", "values")
-    if factor in _VALUE_RULES and any(_VALUE_RULES[factor][0](v) for v in vals):
-        raise RingtuneError(_VALUE_RULES[factor][1], "values")
+    refused, must = _VALUE_RULES[factor]
+    if any(refused(v) for v in vals):
+        raise RingtuneError(must, "values")
     return vals
 
 
@@ -95,16 +95,11 @@ def tuned_frequencies(printer: Any, firmware: str, shapers: list[str],
     except (ImportError, RingtuneError) as exc:
         note(f"Klipper's fit unavailable ({exc}); shapers tuned to the main mode")
         fits = {}
-    tuned: dict[str, dict[str, float]] = {}
-    for s in shapers:
-        tuned[s] = {}
-        for ax in ("x", "y"):
-            table = {f.name: f.freq for f in fits[ax].shapers} if ax in fits else {}
-            main = max(getattr(printer, ax).modes, key=lambda m: m.share or 0).freq
-            tuned[s][ax] = round(table.get(s, main), 1)
-        if FIRMWARES[firmware].one_shaper:
-            tuned[s]["y"] = tuned[s]["x"]
-    return tuned
+    fitted = {ax: {f.name: f.freq for f in fit.shapers} for ax, fit in fits.items()}
+    main = {ax: max(getattr(printer, ax).modes, key=lambda m: m.share or 0).freq for ax in ("x", "y")}
+    y = "x" if FIRMWARES[firmware].one_shaper else "y"          # one shaper for all axes: Y runs X's
+    return {s: {"x": round(fitted.get("x", {}).get(s, main["x"]), 1), "y": round(fitted.get(y, {}).get(s, main[y]), 1)}
+            for s in shapers}
 
 
 def sweep(printer: Any, job: Any, firmware: str, factor: str, values: list[float],
@@ -115,17 +110,13 @@ def sweep(printer: Any, job: Any, firmware: str, factor: str, values: list[float
     ``freq_margin``: judged as ``evaluate_many`` judges with it (fraction; 0 = the exact model)."""
     results = {s: ShaperSweep(f["x"], f["y"]) for s, f in tuned.items()}
     for v in values:
-        configs = []
-        for s, f in tuned.items():
-            fx, fy, acc = f["x"], f["y"], None
-            if factor == "freq-error":
-                fx, fy = fx * (1 + v), fy * (1 + v)
-            elif factor == "accel":
-                acc = float(v)
-            configs.append(TuneConfig(firmware=firmware, shaper_x=s, shaper_y=s,
-                                      freq_x=0.0 if s == "none" else round(fx, 2),
-                                      freq_y=0.0 if s == "none" else round(fy, 2), accel=acc))
+        scale = 1 + v if factor == "freq-error" else 1.0      # the shapers' frequencies off by v
+        acc = float(v) if factor == "accel" else None
         pr = dataclasses.replace(printer, print_mass=float(v)) if factor == "mass" else printer
+        configs = [TuneConfig(firmware=firmware, shaper_x=s, shaper_y=s,
+                              freq_x=0.0 if s == "none" else round(f["x"] * scale, 2),
+                              freq_y=0.0 if s == "none" else round(f["y"] * scale, 2), accel=acc)
+                   for s, f in tuned.items()]
         for s, m in zip(tuned, evaluate_many(configs, pr, job, backend=backend, freq_margin=freq_margin)):
             results[s].print_time_s.append(float(m.print_time_s))
             results[s].quality_mm.append(float(getattr(m, quality)))
@@ -149,19 +140,19 @@ def plot_sweep(path: str | Path, factor: str, values: list[float], results: dict
     """Two panels against the factor (print time, quality), one line per shaper; red x = lost steps."""
     matplotlib.use("Agg")
     label, unit, _ = FACTORS[factor]
+    scale, shown = _AXIS_UNITS.get(unit, (1, unit))
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 7.5), dpi=120, sharex=True)
-    xs = [100 * v for v in values] if unit == "fraction" else values
-    xlabel = f"{label} (%)" if unit == "fraction" else f"{label} ({unit})"
+    xs = [scale * v for v in values]
     for s, r in results.items():
         ls = "--" if s == "none" else "-"
         a1.plot(xs, r.print_time_s, ls, marker="o", ms=3, label=s)
         a2.plot(xs, r.quality_mm, ls, marker="o", ms=3, label=s)
-        bad = [i for i, b in enumerate(r.step_loss) if b]
-        if bad:
-            a2.scatter([xs[i] for i in bad], [r.quality_mm[i] for i in bad], marker="x", c="red", zorder=5)
+        bad = np.flatnonzero(r.step_loss)
+        if bad.size:
+            a2.scatter(np.take(xs, bad), np.take(r.quality_mm, bad), marker="x", c="red", zorder=5)
     a1.set_ylabel("print time (s)")
     a2.set_ylabel(f"{quality.replace('_mm', '').replace('_', ' ')} (mm)")
-    a2.set_xlabel(xlabel)
+    a2.set_xlabel(f"{label} ({shown})")
     for a in (a1, a2):
         a.grid(True, alpha=0.3)
     a1.legend(fontsize=8, ncol=4)
