@@ -22,7 +22,7 @@ from typing import Any, Callable
 from ringtune.agents.klipper import baseline as klipper_baseline
 from ringtune.agents.klipper.rule import DEFAULT_DAMPING_RATIO
 from ringtune.agents.tune import study as tune_study
-from ringtune.agents.tune.pareto import Point, point_from_metrics
+from ringtune.agents.tune.pareto import Point, max_motor_load, point_from_metrics
 from ringtune.envs.printer_model import Printer
 from ringtune.hardware.firmware_check import check_available
 from ringtune.shaping.config import TuneConfig
@@ -174,7 +174,7 @@ def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable
     out = baseline_configs(printer, firmware, note=note)
     configs = out.configs
     metrics = evaluator(list(configs.values()), printer, settings.job, **tune_study.evaluator_kwargs(settings))
-    max_load = 1.0 - settings.motor_reserve if settings.motor_reserve > 0 else 0.0
+    max_load = max_motor_load(settings.motor_reserve)
     out.points = {key: point_from_metrics(cfg, m, quality, label=key, max_path_error_mm=settings.max_path_error_mm,
                                           max_motor_load=max_load,
                                           max_show_through_mm=getattr(settings, "max_show_through_mm", 0.0))

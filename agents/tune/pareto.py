@@ -219,6 +219,11 @@ def judge_path_error(p: Point, max_path_error_mm: float) -> Point:
     return p
 
 
+def max_motor_load(reserve: float) -> float:
+    """The highest motor load (fraction of the force the motors have) a reserve allows; 0 = no bound."""
+    return 1.0 - reserve if reserve > 0 else 0.0
+
+
 def judge_bounds(p: Point, max_path_error_mm: float = 0.0, max_motor_load: float = 0.0,
                  max_show_through_mm: float = 0.0) -> Point:
     """Every bound at once (0 = no bound): path error and show-through in mm, motor load as a

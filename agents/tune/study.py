@@ -44,7 +44,7 @@ import optuna
 from optuna.trial import TrialState
 
 from ringtune.agents.tune.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MAX_SHOW_THROUGH_MM,
-    DEFAULT_MOTOR_RESERVE, OBJECTIVES, Point, judge_bounds, metrics_dict, objective_value)
+    DEFAULT_MOTOR_RESERVE, OBJECTIVES, Point, judge_bounds, max_motor_load, metrics_dict, objective_value)
 from ringtune.agents.tune.space import SearchSpace, config_from_params, default_space, suggest_params
 from ringtune.agents.tune.storage import _this_worker, make_storage, reap_dead_workers
 from ringtune.envs.printer import load_printer
@@ -423,7 +423,7 @@ def study_points(study, space: SearchSpace | None = None, quality: str | None = 
     settings = study.user_attrs.get("settings", {})
     space = space if space is not None else _stored_space(study, settings)
     reserve = _or_stored(motor_reserve, settings, "motor_reserve")
-    bounds = (_or_stored(max_path_error_mm, settings, "max_path_error_mm"), 1.0 - reserve if reserve > 0 else 0.0,
+    bounds = (_or_stored(max_path_error_mm, settings, "max_path_error_mm"), max_motor_load(reserve),
               _or_stored(max_show_through_mm, settings, "max_show_through_mm"))
     return [judge_bounds(_trial_point(t, space), *bounds)
             for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))]

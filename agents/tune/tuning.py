@@ -288,7 +288,7 @@ def _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim:
     def evaluate(configs):
         return evaluator(list(configs), printer, settings.job, **tune_study.evaluator_kwargs(settings))
 
-    bounds = Bounds(lim.max_pe, 1.0 - lim.reserve if lim.reserve > 0 else 0.0, lim.max_st)
+    bounds = Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st)
     held = choice.held_to or (choice.baseline,)
     names = {k: bl.labels.get(k, pareto.BASELINE_NAMES.get(k, k)) for k in held}
     stop = measured_stop(choice.point, {k: baselines[k] for k in held}, evaluate, space, bounds, labels=names)
