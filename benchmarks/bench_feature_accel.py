@@ -13,10 +13,14 @@ judged as ``tune`` judges (the printer and its resonances ±5 %, the worst count
    (:mod:`ringtune.shaping.wall_gap`; where the job states no perimeters, :data:`SHOW_THROUGH_MM`)
    or no worse than the baseline's where that is already beyond it; of inner walls (they abut the
    outer wall) no worse than the baseline's;
-3. per feature: the same shapers and visible-wall acceleration, each hidden group (inner walls,
-   infill, solid/top, travel) at its range's top (the motor reserve at the group's own top speed)
-   or a lower step, the fastest with no visible measure worse than (2)'s and the simulated motor
-   load within the reserve, show-through within its bounds (as in (2), against (2)'s).
+3. per feature: the same shapers and visible-wall acceleration, each group apart from the visible
+   walls (top surfaces, judged as seen; inner walls, infill, solid infill, travel) at its range's
+   top (the motor reserve at the group's own top speed) or a lower step, the fastest with no
+   visible measure worse than (2)'s and the simulated motor load within the reserve, show-through
+   within its bounds (as in (2), against (2)'s); then the corners nobody sees (infill, support,
+   solid infill, travel: :data:`~ringtune.agents.tune.space.HIDDEN_CORNERS`) with Klipper's
+   square_corner_velocity from the top of their range down and minimum_cruise_ratio 0 or the
+   printer's, the fastest that keeps the same judgement.
 
 Prints the print times, the ratio, every visible measure of (2) and (3), show-through, motor load,
 what the planner alone allows (every hidden group at its motor's top; at no motor limit), and the
@@ -37,7 +41,7 @@ import numpy as np
 
 from ringtune.agents.tune.baselines import recorded_klipper
 from ringtune.agents.tune.feature_space import feature_space
-from ringtune.agents.tune.space import ACCEL_GROUPS, default_space
+from ringtune.agents.tune.space import ACCEL_GROUPS, HIDDEN_CORNERS, default_space
 from ringtune.envs.evaluate import evaluate_many, planned_job
 from ringtune.envs.printer import load_printer, printer_from_dict
 from ringtune.shaping.builtin_jobs import job_path
@@ -170,7 +174,7 @@ def per_feature(printer, job, base_cfg, ref, steps=(1.0, 0.85, 0.7, 0.55, 0.4, 0
     while best:
         m = evaluate_many([cfg(best)], printer, job, freq_margin=MARGIN)[0]
         if not_worse(m, ref):
-            return cfg(best), m, space
+            return (*hidden_corners(printer, job, cfg(best), m, ref), space)
         g = max(best, key=lambda k: best[k])          # the fastest group steps down
         lower = [a for a in ladders[g] if a < best[g]]
         if lower:
@@ -178,6 +182,19 @@ def per_feature(printer, job, base_cfg, ref, steps=(1.0, 0.85, 0.7, 0.55, 0.4, 0
         else:
             del best[g]
     return None, None, space
+
+
+def hidden_corners(printer, job, config, metrics, ref, corners=(30.0, 22.5, 15.0, 10.0, 7.5)):
+    """``config`` with the corners nobody sees at the fastest of ``corners`` (square_corner_velocity,
+    mm/s) × minimum_cruise_ratio (0, the printer's) that keeps the judgement against ``ref`` (else
+    ``config`` as it is, with ``metrics``)."""
+    mcr_now = float(printer.limits.min_cruise_ratio)
+    cands = [dataclasses.replace(config, feature_corner=dict.fromkeys(HIDDEN_CORNERS, c),
+                                 feature_min_cruise_ratio=dict.fromkeys(HIDDEN_CORNERS, r))
+             for c in corners for r in (0.0, mcr_now)]
+    ms = evaluate_many(cands, printer, job, freq_margin=MARGIN)
+    ok = [(c, m) for c, m in zip(cands, ms) if not_worse(m, ref) and m.print_time_s < metrics.print_time_s]
+    return min(ok, key=lambda cm: cm[1].print_time_s) if ok else (config, metrics)
 
 
 def _with_motor(printer, force: float):
@@ -220,7 +237,11 @@ def main() -> int:
         print("  per feature: no candidate keeps every visible measure")
         return 1
     hidden = {g: feat_cfg.feature_accel.get(ACCEL_GROUPS[g][0], feat_cfg.accel) for g, *_ in space.feature_accel}
-    print(row("per feature", feat) + "  (" + ", ".join(f"{g} {a:.0f}" for g, a in hidden.items()) + " mm/s²)")
+    corner = (f"; corners nobody sees: square_corner_velocity {feat_cfg.feature_corner[HIDDEN_CORNERS[0]]:g}, "
+              f"minimum_cruise_ratio {feat_cfg.feature_min_cruise_ratio[HIDDEN_CORNERS[0]]:g}"
+              if feat_cfg.feature_corner else "; corners as the printer's")
+    print(row("per feature", feat) + "  (" + ", ".join(f"{g} {a:.0f}" for g, a in hidden.items()) + " mm/s²"
+          + corner + ")")
     gain = 1 - feat.print_time_s / single.print_time_s
     print(f"per feature: {gain * 100:.1f} % faster than the best single acceleration "
           f"({feat.print_time_s:.3f} s against {single.print_time_s:.3f} s; target ≥ 15 %): "
@@ -229,12 +250,17 @@ def main() -> int:
     print(f"show-through bounds: infill, solid infill {BOUND['mm'] * 1000:.0f} µm ({BOUND['why']}); inner walls "
           f"(they abut the outer wall) no worse than the best single's")
     ceiling = {}
-    for name, level in (("every hidden group at its motor's top", None), ("hidden groups at no motor limit", 1e6)):
+    free = {"feature_corner": dict.fromkeys(HIDDEN_CORNERS, 30.0), "feature_min_cruise_ratio": dict.fromkeys(HIDDEN_CORNERS, 0.0)}
+    for name, level, corners in (("every other group at its motor's top", None, {}),
+                                 ("the same, corners nobody sees at square_corner_velocity 30, minimum_cruise_ratio 0",
+                                  None, free),
+                                 ("every other group at no motor limit", 1e6, {})):
         fa = {}
         for g, _lo, hi in space.feature_accel:
             fa.update(dict.fromkeys(ACCEL_GROUPS[g], level or hi))
         caps = {"max_accel_x": 1e6, "max_accel_y": 1e6} if level else {}
-        ceiling[name] = planned_job(printer, job, dataclasses.replace(single_cfg, feature_accel=fa, **caps)).print_time
+        ceiling[name] = planned_job(printer, job, dataclasses.replace(single_cfg, feature_accel=fa, **caps,
+                                                                      **corners)).print_time
         print(f"  planner alone, visible walls at {single_cfg.accel:.0f} mm/s², {name}: {ceiling[name]:.1f} s, "
               f"{(1 - ceiling[name] / single.print_time_s) * 100:.1f} % faster than the best single (no judgement)")
     tops = {}

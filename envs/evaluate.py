@@ -152,7 +152,8 @@ def _plan_settings(config: TuneConfig | None) -> tuple:
     fl = ((float(config.freq_limit_hz), config.freq_limit_method, float(config.min_speed_factor))
           if config.freq_limit_hz > 0 else (0.0, "", 0.0))
     accel = None if config.accel is None else float(config.accel)
-    feature = ((tuple(sorted(config.feature_accel.items())), config.corner, config.min_cruise_ratio)
+    feature = ((tuple(sorted(config.feature_accel.items())), config.corner, config.min_cruise_ratio,
+                tuple(sorted(config.feature_corner.items())), tuple(sorted(config.feature_min_cruise_ratio.items())))
                if config.per_feature else None)
     return fl, accel, config.daa_freq, config.axis_caps, feature
 

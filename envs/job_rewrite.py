@@ -15,7 +15,7 @@ from ringtune.envs.evaluate import resolve_printer
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import plan_with_config
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.feature_settings import FeatureCommands, accel_groups, corner_words
+from ringtune.shaping.feature_settings import FeatureCommands, accel_groups, class_corner_words, corner_words
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.gcode import read_gcode, read_gcode_bytes
 from ringtune.shaping.gcode_post import limit_gcode_bytes
@@ -78,7 +78,8 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
                              replace(config, freq_limit_hz=0.0)).plan.print_time
     header = (f"{HEADER} for {config.firmware} ({limits.junction}): {inserted} lines inserted at feature "
               f"changes (accelerations {'; '.join(accel_groups(fc.accel))} mm/s²"
-              + "".join(f", {w}" for w in corner_words(fc.corner, fc.min_cruise_ratio))
+              + "".join(f", {w}" for w in corner_words(fc.corner, fc.min_cruise_ratio)
+                        + class_corner_words(fc.class_corner, fc.class_mcr))
               + f"); planned {before:.1f} s as sliced -> {after:.1f} s; nothing else differs from the input")
     return RewrittenJob(header.encode() + nl.encode() + new, before, after, config_s, inserted, f_changed, header, fc)
 

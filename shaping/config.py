@@ -28,6 +28,10 @@ _RANGES = {
     "min_cruise_ratio": (0.0, 0.99, "", True),
 }
 
+#: per-class tables ({feature class: value}) and the range of their values
+_PER_CLASS = {"feature_accel": (1.0, 1e6, "mm/s²", False), "feature_corner": _RANGES["corner"],
+              "feature_min_cruise_ratio": _RANGES["min_cruise_ratio"]}
+
 #: keys read from JSON as floats
 _NUMBER_KEYS = ("freq_x", "freq_y", "damping_x", "damping_y", "freq_limit_hz", "min_speed_factor", "accel",
                 "max_accel_x", "max_accel_y", "corner", "min_cruise_ratio")
@@ -61,6 +65,10 @@ class TuneConfig:
             classic jerk mm/s (``M205 X Y``), RepRapFirmware ``M566`` jerk mm/s (None = the
             printer's / the job's own).
         min_cruise_ratio: Klipper's ``minimum_cruise_ratio`` in [0, 1) (None = the printer's).
+        feature_corner, feature_min_cruise_ratio: the corner rule value (unit as ``corner``) and
+            Klipper's minimum_cruise_ratio per feature class (class -> value; a class absent takes
+            ``corner`` / ``min_cruise_ratio``, or the printer's own); planned and written into the
+            job like ``feature_accel``. Empty = one value for the whole job.
         y_schedule: a bed slinger's Y shaper frequency by printed height, ``[{"z_mm": mm,
             "freq_y": Hz, "accel": mm/s², "mass_g": g}, ...]`` in rising ``z_mm`` (``accel`` and
             ``mass_g``, the mass on the bed it was chosen for, optional): from the layer at ``z_mm``
@@ -85,6 +93,8 @@ class TuneConfig:
     feature_accel: dict[str, float] = field(default_factory=dict)
     corner: float | None = None
     min_cruise_ratio: float | None = None
+    feature_corner: dict[str, float] = field(default_factory=dict)
+    feature_min_cruise_ratio: dict[str, float] = field(default_factory=dict)
     y_schedule: list[dict[str, float]] | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
@@ -152,20 +162,23 @@ class TuneConfig:
                 _finite(value, f"{where}: {key}", lo=lo, hi=hi, unit=unit)
 
     def _validate_features(self, where: str) -> None:
-        if not isinstance(self.feature_accel, dict):
-            raise RingtuneError("must be an object {feature class: mm/s²}", f"{where}: feature_accel")
-        for cls, value in self.feature_accel.items():
-            if cls not in FEATURE_CLASSES:
-                raise RingtuneError(f"{cls!r} is not a feature class (one of {', '.join(FEATURE_CLASSES)})",
-                                    f"{where}: feature_accel")
-            _finite(value, f"{where}: feature_accel.{cls}", lo=1.0, hi=1e6, unit="mm/s²")
+        for key, (lo, hi, unit, _opt) in _PER_CLASS.items():
+            table = getattr(self, key)
+            if not isinstance(table, dict):
+                raise RingtuneError(f"must be an object {{feature class: {unit or 'value'}}}", f"{where}: {key}")
+            for cls, value in table.items():
+                if cls not in FEATURE_CLASSES:
+                    raise RingtuneError(f"{cls!r} is not a feature class (one of {', '.join(FEATURE_CLASSES)})",
+                                        f"{where}: {key}")
+                _finite(value, f"{where}: {key}.{cls}", lo=lo, hi=hi, unit=unit)
         self._check_ranges(where, "corner", "min_cruise_ratio")
 
     @property
     def per_feature(self) -> bool:
         """Whether the configuration sets anything per feature or the corner rule (planned move by
         move, written into the job by the rewriter)."""
-        return bool(self.feature_accel) or self.corner is not None or self.min_cruise_ratio is not None
+        return (any(getattr(self, k) for k in _PER_CLASS) or self.corner is not None
+                or self.min_cruise_ratio is not None)
 
     # -- JSON ------------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -174,8 +187,9 @@ class TuneConfig:
         for key in ("max_accel_x", "max_accel_y", "corner", "min_cruise_ratio", "y_schedule"):   # only when
             if d[key] is None:                                                                # set: older files stay
                 del d[key]
-        if not d["feature_accel"]:
-            del d["feature_accel"]
+        for key in _PER_CLASS:
+            if not d[key]:
+                del d[key]
         d.update(extra)
         return d
 
@@ -196,11 +210,12 @@ class TuneConfig:
         for k in _NUMBER_KEYS:
             if kwargs.get(k) is not None:
                 kwargs[k] = _number(kwargs[k], f"{where}: {k}")
-        fa = kwargs.get("feature_accel")
-        if isinstance(fa, dict):
-            kwargs["feature_accel"] = {str(c): _number(v, f"{where}: feature_accel.{c}") for c, v in fa.items()}
-        elif fa is None:                 # null, as absent: one acceleration for the whole job
-            kwargs["feature_accel"] = {}
+        for key in _PER_CLASS:
+            table = kwargs.get(key)
+            if isinstance(table, dict):
+                kwargs[key] = {str(c): _number(v, f"{where}: {key}.{c}") for c, v in table.items()}
+            elif table is None:          # null, as absent: one value for the whole job
+                kwargs[key] = {}
         try:
             cfg = cls(**kwargs, extra=extra)
         except RingtuneError as exc:

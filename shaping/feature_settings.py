@@ -18,13 +18,16 @@ How each firmware takes an acceleration per feature:
   taken by every move with E (the label's class), ``M204 T`` the travel acceleration, taken by
   moves without E — set together at each label change; ``M204 R`` (retraction) is left as it is.
 
-The corner value is one for the whole job (``square_corner_velocity``, ``M205 J``, ``M205 X Y`` or
-``M566 X Y``, by the printer's junction rule), as is Klipper's ``minimum_cruise_ratio``.
+The corner value (``square_corner_velocity``, ``M205 J``, ``M205 X Y`` or ``M566 X Y``, by the
+printer's junction rule) and Klipper's ``minimum_cruise_ratio`` are one for the whole job, or per
+class where the configuration sets them so (``feature_corner``, ``feature_min_cruise_ratio``): then
+the value in force follows the move's effective class in every dialect (one command sets it for
+printing and travel alike), and the rewriter writes it at each change.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -42,13 +45,19 @@ class FeatureCommands:
     accel: class -> mm/s² for every class of :data:`FEATURE_CLASSES` (absent ones at ``default``);
     corner: the corner rule value in the junction rule's unit (None: left as it is); junction:
     ``scv`` | ``jd`` | ``jerk``; min_cruise_ratio: Klipper's (None: left as it is); caps: (X, Y)
-    per-axis acceleration caps, mm/s² (``M201 X Y``; None: none, Klipper)."""
+    per-axis acceleration caps, mm/s² (``M201 X Y``; None: none, Klipper); class_corner,
+    class_mcr: class -> the corner value / minimum_cruise_ratio where a class has its own (the
+    others take ``corner`` / ``min_cruise_ratio``, or ``corner_now`` / ``mcr_now``, the printer's)."""
 
     accel: dict
     junction: str
     corner: float | None = None
     min_cruise_ratio: float | None = None
     caps: tuple | None = None
+    class_corner: dict = field(default_factory=dict)
+    class_mcr: dict = field(default_factory=dict)
+    corner_now: float | None = None
+    mcr_now: float | None = None
 
     @classmethod
     def from_config(cls, config, limits) -> "FeatureCommands":
@@ -56,8 +65,13 @@ class FeatureCommands:
         and, where the config has no ``accel``, its acceleration)."""
         default = float(config.accel if config.accel is not None else limits.accel)
         accel = {c: float(config.feature_accel.get(c, default)) for c in FEATURE_CLASSES}
-        mcr = config.min_cruise_ratio if limits.junction == "scv" else None
-        return cls(accel, limits.junction, config.corner, mcr, _caps(config.firmware, limits, accel))
+        scv = limits.junction == "scv"
+        mcr = config.min_cruise_ratio if scv else None
+        now = {"scv": limits.square_corner_velocity, "jd": limits.junction_deviation,
+               "jerk": min(limits.jerk[:2])}[limits.junction]
+        return cls(accel, limits.junction, config.corner, mcr, _caps(config.firmware, limits, accel),
+                   dict(config.feature_corner), dict(config.feature_min_cruise_ratio) if scv else {},
+                   float(now), float(limits.min_cruise_ratio))
 
 
 def _caps(firmware: str, limits, accel: dict) -> tuple | None:
@@ -105,14 +119,26 @@ def _accels(job: Job, fc: FeatureCommands) -> dict[str, np.ndarray]:
     return dict(accel_print=p, accel_travel=t, accel_klipper=np.minimum(p, t))
 
 
+def _per_class(job: Job, by_class: dict, whole: float | None, now: float | None) -> np.ndarray | None:
+    """(n,) value in force at each move: ``by_class`` (class -> value) following the effective
+    class, the others ``whole`` (else ``now``, the printer's); None when neither is set."""
+    if not by_class and whole is None:
+        return None
+    default = float(whole if whole is not None else now)
+    table = np.array([float(by_class.get(c, default)) for c in FEATURE_CLASSES])
+    return table[effective_classes(job)] if by_class else np.full(job.n_moves, default)
+
+
 def move_settings(job: Job, fc: FeatureCommands) -> dict[str, np.ndarray]:
     """{setting key of :data:`SETTING_KEYS`: (n,) value in force at each move} for ``fc``."""
     n = job.n_moves
     out = _accels(job, fc)
-    if fc.corner is not None:
-        out.update({k: np.full(n, float(fc.corner)) for k in _CORNER_KEYS[fc.junction]})
-    if fc.junction == "scv" and fc.min_cruise_ratio is not None:
-        out.update(min_cruise_ratio=np.full(n, float(fc.min_cruise_ratio)), accel_to_decel=np.full(n, np.nan))
+    corner = _per_class(job, fc.class_corner, fc.corner, fc.corner_now)
+    if corner is not None:
+        out.update(dict.fromkeys(_CORNER_KEYS[fc.junction], corner))
+    mcr = _per_class(job, fc.class_mcr, fc.min_cruise_ratio, fc.mcr_now) if fc.junction == "scv" else None
+    if mcr is not None:
+        out.update(min_cruise_ratio=mcr, accel_to_decel=np.full(n, np.nan))
     for ax, cap in zip("xy", fc.caps or ()):
         if cap is not None:
             out[f"max_accel_{ax}"] = np.full(n, float(cap))
@@ -147,6 +173,7 @@ def per_feature_text(config) -> str:
     if groups:
         parts.append(", ".join(groups))
     parts += corner_words(config.corner, config.min_cruise_ratio)
+    parts += class_corner_words(config.feature_corner, config.feature_min_cruise_ratio)
     return f" ({'; '.join(parts)})" if parts else ""
 
 
@@ -157,6 +184,18 @@ def accel_groups(accel: dict) -> list[str]:
     for cls, a in accel.items():
         groups.setdefault(a, []).append(cls)
     return [f"{'/'.join(names)} {a:.0f}" for a, names in sorted(groups.items())]
+
+
+def class_corner_words(corner: dict, min_cruise_ratio: dict) -> list[str]:
+    """``["corner infill/travel 15", "minimum_cruise_ratio infill/travel 0"]``: the per-class values
+    (class -> value) grouped by value."""
+    out = []
+    for name, table in (("corner", corner), ("minimum_cruise_ratio", min_cruise_ratio)):
+        groups: dict[float, list[str]] = {}
+        for cls, v in table.items():
+            groups.setdefault(v, []).append(cls)
+        out += [f"{name} {'/'.join(names)} {v:g}" for v, names in sorted(groups.items())]
+    return out
 
 
 def corner_words(corner: float | None, min_cruise_ratio: float | None) -> list[str]:

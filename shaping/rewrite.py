@@ -7,7 +7,8 @@ feature change, in the firmware's own dialect; nothing else of the file changes.
   change (a feature change, or for Klipper's one acceleration a travel), the commands that set
   them: Klipper/Kalico ``SET_VELOCITY_LIMIT ACCEL=… [SQUARE_CORNER_VELOCITY=…]
   [MINIMUM_CRUISE_RATIO=…]``; Marlin, Prusa ``M204 P… T…`` (+ ``M205 J…`` or ``M205 X… Y…``);
-  RepRapFirmware ``M204 P… T…`` (+ ``M566 X… Y…``, mm/min);
+  RepRapFirmware ``M204 P… T…`` (+ ``M566 X… Y…``, mm/min); the corner settings there only where
+  the configuration sets them per class (else once, below);
 - the corner rule and the per-axis caps (``M201 X Y``; Kalico ``SET_VELOCITY_LIMIT X_ACCEL=
   Y_ACCEL=``) once before the first move, and again after any acceleration or corner command of
   the job itself (a slicer's own ``M204`` at a feature change), so the job's own values never rule
@@ -65,31 +66,47 @@ class _Dialect:
     junction: str
     caps_set: str
 
-    def accel(self, values: dict) -> str:
+    def accel(self, values: dict, corner_keys: tuple = ()) -> list[str]:
+        """The lines setting the acceleration (and the corner settings ``corner_keys`` that change
+        with it, per class) — on Klipper one ``SET_VELOCITY_LIMIT``."""
         if self.junction == "scv" and self.family == "klipper":
-            return f"SET_VELOCITY_LIMIT ACCEL={_n(values['accel_klipper'])}"
+            words = [f"ACCEL={_n(values['accel_klipper'])}"] + _klipper_words(values, corner_keys)
+            return ["SET_VELOCITY_LIMIT " + " ".join(words)]
         if self.junction == "scv":
-            return f"M204 P{_n(values['accel_klipper'])} T{_n(values['accel_klipper'])}"
-        return f"M204 P{_n(values['accel_print'])} T{_n(values['accel_travel'])}"
+            return [f"M204 P{_n(values['accel_klipper'])} T{_n(values['accel_klipper'])}"] + self.corner(values, corner_keys)
+        return [f"M204 P{_n(values['accel_print'])} T{_n(values['accel_travel'])}"] + self.corner(values, corner_keys)
 
-    def once(self, values: dict) -> list[str]:
+    def corner(self, values: dict, keys) -> list[str]:
+        """The commands setting the corner settings ``keys`` of ``values`` (not Klipper's, which
+        :meth:`accel` and :meth:`once` write as words of ``SET_VELOCITY_LIMIT``)."""
         out = []
-        words = [f"{k}={_n(values[v])}" for k, v in (("SQUARE_CORNER_VELOCITY", "square_corner_velocity"),
-                                                     ("MINIMUM_CRUISE_RATIO", "min_cruise_ratio")) if v in values]
-        if words:
+        if _klipper_words(values, keys):
             if self.family != "klipper":
                 raise RingtuneError(f"the printer plans corners with Klipper's square_corner_velocity (junction "
                                     f"scv), which {self.family} has no command for: describe the printer with its "
                                     "own junction_deviation or jerk (--printer)", "config: corner")
-            out.append("SET_VELOCITY_LIMIT " + " ".join(words))
-        if "junction_deviation" in values:
+            out.append("SET_VELOCITY_LIMIT " + " ".join(_klipper_words(values, keys)))
+        if "junction_deviation" in keys:
             out.append(f"M205 J{_n(values['junction_deviation'])}")
-        if "jerk_x" in values:
+        if "jerk_x" in keys:
             cmd, per_s = _JERK_COMMANDS.get(self.family, ("M205", 1))
             out.append(f"{cmd} X{_n(values['jerk_x'] * per_s)} Y{_n(values['jerk_y'] * per_s)}")
+        return out
+
+    def once(self, values: dict) -> list[str]:
+        out = self.corner(values, [k for k in _CORNER_KEYS if k in values])
         if "max_accel_x" in values and self.caps_set:
             out.append(self.caps_set.format(x=_n(values["max_accel_x"]), y=_n(values["max_accel_y"])))
         return out
+
+
+#: the corner settings a configuration may set, whole-job or per class
+_CORNER_KEYS = ("square_corner_velocity", "min_cruise_ratio", "junction_deviation", "jerk_x", "jerk_y")
+_KLIPPER_WORDS = (("SQUARE_CORNER_VELOCITY", "square_corner_velocity"), ("MINIMUM_CRUISE_RATIO", "min_cruise_ratio"))
+
+
+def _klipper_words(values: dict, keys) -> list[str]:
+    return [f"{word}={_n(values[k])}" for word, k in _KLIPPER_WORDS if k in keys]
 
 
 def _dialect(firmware: str, fc: FeatureCommands) -> _Dialect:
@@ -103,9 +120,11 @@ def _feature_inserts(job: Job, firmware: str, fc: FeatureCommands) -> dict[int, 
     """{source line (1-based): lines to insert before it} for the per-feature commands."""
     dialect = _dialect(firmware, fc)
     values = move_settings(job, fc)
-    accel = np.stack([values[k] for k in _ACCEL_KEYS], axis=1)
+    # corner settings set per class change with the feature, as the accelerations do
+    varying = tuple(k for k in _CORNER_KEYS if k in values and np.ptp(values[k]) > 0)
+    stack = np.stack([values[k] for k in _ACCEL_KEYS + varying], axis=1)
     changed = np.ones(job.n_moves, bool)
-    changed[1:] = np.any(accel[1:] != accel[:-1], axis=1)
+    changed[1:] = np.any(stack[1:] != stack[:-1], axis=1)
     again = np.zeros(job.n_moves, bool)          # the job's own limit commands stand before these moves
     for ev in job.events:
         if ev.kind == "limits" and ev.move < job.n_moves:
@@ -118,7 +137,8 @@ def _feature_inserts(job: Job, firmware: str, fc: FeatureCommands) -> dict[int, 
     for i in np.flatnonzero((changed | again) & first_of_line):
         row = {k: float(v[i]) for k, v in values.items()}
         lines = dialect.once(row) if again[i] else []
-        lines.append(f"{dialect.accel(row)} ; ringtune: {names[index[i]]}")
+        first, *rest = dialect.accel(row, varying)
+        lines += [f"{first} ; ringtune: {names[index[i]]}", *rest]
         out[int(job.line[i])] = lines
     return out
 

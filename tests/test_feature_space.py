@@ -11,7 +11,7 @@ import json
 import pytest
 
 from ringtune.agents.tune.feature_space import at_ceilings, feature_space, group_speeds, hidden_groups, wanted
-from ringtune.agents.tune.space import (ACCEL_GROUPS, SearchSpace, config_from_params, default_space,
+from ringtune.agents.tune.space import (ACCEL_GROUPS, SEEN_GROUPS, SearchSpace, config_from_params, default_space,
                                         params_from_config)
 from ringtune.envs.printer import load_printer, printer_from_dict
 from ringtune.shaping.config import TuneConfig
@@ -55,11 +55,11 @@ def test_a_weak_motor_gets_lower_hidden_accelerations_than_a_strong_one():
     for name, p in (("weak", weak), ("strong", strong)):
         space = feature_space(default_space(p, "klipper"), p, None, reserve=0.2)
         tops[name] = {g: hi for g, _lo, hi in space.feature_accel}
-        # the warm start puts every hidden group at the top of its range
+        # the warm start puts every hidden group at the top of its range (top surfaces are seen)
         cfg = config_from_params(at_ceilings({"shaper_x": "mzv", "shaper_y": "mzv", "freq_x": 45.0, "freq_y": 40.0,
                                               "freq_limit": "off", "accel": 3000.0}, space), space)
         for g, hi in tops[name].items():
-            assert cfg.feature_accel[ACCEL_GROUPS[g][0]] == hi
+            assert cfg.feature_accel[ACCEL_GROUPS[g][0]] == (hi if g not in SEEN_GROUPS else space.accel[0])
     for g in tops["weak"]:
         assert tops["weak"][g] < tops["strong"][g]
 
@@ -69,10 +69,15 @@ def test_parameters_and_configs_map_both_ways_and_the_space_survives_json():
     assert SearchSpace.from_dict(json.loads(json.dumps(space.to_dict()))) == space
     params = {"shaper_x": "ei", "shaper_y": "mzv", "freq_x": 51.4, "freq_y": 46.6, "damping_x": 0.1,
               "damping_y": 0.1, "freq_limit": "off", "accel": 5000.0, "accel_hidden_walls": 8000.0,
-              "accel_infill": 9000.0, "accel_travel": 7000.0, "corner": 7.5, "min_cruise_ratio": 0.2}
+              "accel_infill": 9000.0, "accel_travel": 7000.0, "corner": 7.5, "min_cruise_ratio": 0.2,
+              "corner_hidden": 21.0, "min_cruise_ratio_hidden": 0.0}
     cfg = config_from_params(params, space)
     assert cfg.feature_accel == {"inner_wall": 8000.0, "infill": 9000.0, "support": 9000.0, "travel": 7000.0}
     assert (cfg.corner, cfg.min_cruise_ratio) == (7.5, 0.2)
+    # the corners nobody sees (the built-in print has no solid infill: its class is set all the same)
+    assert cfg.feature_corner == dict.fromkeys(("infill", "support", "solid_infill", "travel"), 21.0)
+    assert cfg.feature_min_cruise_ratio == dict.fromkeys(("infill", "support", "solid_infill", "travel"), 0.0)
+    assert TuneConfig.from_dict(json.loads(json.dumps(cfg.to_dict()))) == cfg
     assert params_from_config(cfg, space) == params
     # a configuration without per-feature values runs the printer's own corner and ratio
     plain = params_from_config(TuneConfig(shaper_x="ei", shaper_y="mzv", freq_x=51.4, freq_y=46.6, accel=5000.0),

@@ -55,19 +55,36 @@ def _expected_accel(job, cfg: TuneConfig, junction: str) -> tuple[np.ndarray, np
     labels = np.array([acc(feature_class(job.features[f])) for f in job.feature])
     if junction != "scv":          # M204 P by the label, T for travel
         return labels, np.full(job.n_moves, acc("travel"))
-    out, prev = np.empty(job.n_moves), None       # Klipper: one acceleration, travel apart; a move
-    for i, (a, b) in enumerate(zip(job.start, job.end)):   # without X/Y keeps the one before it
-        if np.hypot(*(b - a)[:2]) > 0:
-            prev = labels[i] if b[3] > a[3] else acc("travel")
-        out[i] = labels[i] if prev is None else prev
+    out = _one_value(job, acc)
     return out, out
 
 
+def _one_value(job, value_of) -> np.ndarray:
+    """The value each move runs with where one command sets it for printing and travel alike:
+    ``value_of(class)`` of its label when it extrudes, of ``travel`` for an X/Y move without E; a
+    move without X/Y keeps the one before it."""
+    labels = np.array([value_of(feature_class(job.features[f])) for f in job.feature])
+    out, prev = np.empty(job.n_moves), None
+    for i, (a, b) in enumerate(zip(job.start, job.end)):
+        if np.hypot(*(b - a)[:2]) > 0:
+            prev = labels[i] if b[3] > a[3] else value_of("travel")
+        out[i] = labels[i] if prev is None else prev
+    return out
+
+
+#: per-class corner settings (the corners nobody sees): twice the job-wide corner, no cruise smoothing
+BEHIND = ("infill", "support", "solid_infill", "travel")
+
+
+@pytest.mark.parametrize("per_class", [False, True], ids=["job-wide corner", "corner per class"])
 @pytest.mark.parametrize("path,firmware,junction,corner", SLICED)
 def test_every_feature_change_carries_the_commands_and_nothing_else_changes(data_dir, path, firmware,
-                                                                            junction, corner):
+                                                                            junction, corner, per_class):
     src = (data_dir / path).read_bytes()
     cfg = _config(firmware, junction, corner)
+    if per_class:
+        cfg = replace(cfg, feature_corner=dict.fromkeys(BEHIND, 2 * corner),
+                      feature_min_cruise_ratio=dict.fromkeys(BEHIND, 0.0) if junction == "scv" else {})
     printer = _printer(junction)
     done = rewrite_gcode_bytes(src, cfg, printer, path)
     old = src.decode("utf-8", "surrogateescape").splitlines()
@@ -83,14 +100,17 @@ def test_every_feature_change_carries_the_commands_and_nothing_else_changes(data
     # every move runs with its feature's acceleration, as the reader (the firmware) holds it
     job = read_gcode(done.data, source="out")
     want_p, want_t = _expected_accel(job, cfg, junction)
+    want_corner = _one_value(job, lambda c: cfg.feature_corner.get(c, corner))
+    assert (np.ptp(want_corner) > 0) == per_class        # the job has moves of both kinds
     if junction == "scv":
         assert np.array_equal(job.setting("accel_klipper"), want_p)
-        assert np.all(job.setting("square_corner_velocity") == corner)
-        assert np.all(job.setting("min_cruise_ratio") == 0.25)
+        assert np.array_equal(job.setting("square_corner_velocity"), want_corner)
+        assert np.array_equal(job.setting("min_cruise_ratio"),
+                              _one_value(job, lambda c: cfg.feature_min_cruise_ratio.get(c, 0.25)))
     else:
         assert np.array_equal(job.setting("accel_print"), want_p)
         assert np.array_equal(job.setting("accel_travel"), want_t)
-        assert np.allclose(job.setting("jerk_x"), corner) and np.allclose(job.setting("jerk_y"), corner)
+        assert np.allclose(job.setting("jerk_x"), want_corner) and np.allclose(job.setting("jerk_y"), want_corner)
         assert np.all(job.setting("max_accel_x") >= max(FEATURES.values()))
     # the planned time of the rewritten file is tune's figure for the configuration
     tune_s = planned_job(printer, (data_dir / path), cfg).print_time

@@ -21,8 +21,8 @@ binding (the firmware limits that hold some moves of the chosen configuration lo
 (the firmware's own: "M201 X", "max_y_accel", "M204 R"), value (mm/s²), what, moves, time_s,
 time_without_s (the planner with that limit removed)})},
 job_accel {mode, commands, cap_mm_s2, searched, print_time_as_sliced_s, print_time_replaced_s,
-replaced_accel, saved_s}, per_feature (null when not searched, else {accel {visible|hidden_walls|
-infill|solid_top|travel: mm/s²}, ranges {group: {top_speed_mm_s, range, basis}}, corner, junction,
+replaced_accel, saved_s}, per_feature (null when not searched, else {accel {visible|top_surface|
+hidden_walls|infill|solid_infill|travel: mm/s²}, ranges {group: {top_speed_mm_s, range, basis}}, corner, junction,
 min_cruise_ratio, why (why it was searched)}), plot_arrows, files {readme, summary, plot, best, apply,
 front, trials, job (with --gcode: the rewritten job)}, storage, study, completed_now, interrupted,
 elapsed_s.
@@ -65,9 +65,10 @@ summary gives both print times.
 
 Per feature (--per-feature, default auto: on when the acceleration is searched and the job has
 features nobody sees, unless --job-accel respect keeps the job's own accelerations): the visible
-walls (outer walls, overhangs, unlabelled moves) take the main acceleration; the hidden walls, the
-infill (with support), solid/top infill and travel each get their own, searched up to where the
-weakest motor keeps its reserve at that group's own top speed; the corner rule (Klipper's
+walls (outer walls, overhangs, unlabelled moves) take the main acceleration; top surfaces (seen,
+judged as the walls are), the hidden walls, the infill (with support), internal solid infill and
+travel each get their own, searched up to where the weakest motor keeps its reserve at that group's
+own top speed; the corner rule (Klipper's
 square_corner_velocity, Marlin's junction deviation or jerk, RRF's M566) and Klipper's
 minimum_cruise_ratio are searched too. One shaper configuration serves the whole job. With --gcode,
 job.gcode beside best.json is the job with the choice written in (as `ringtune rewrite` writes it).
@@ -146,7 +147,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="a job's own M201/M204/SET_VELOCITY_LIMIT accelerations: respect them (default, the "
                         "print as sliced) or replace them by the tuned acceleration (what re-slicing would give)")
     p.add_argument("--per-feature", choices=("auto", "on", "off"), default="auto",
-                   help="search an acceleration per feature group (hidden walls, infill, solid/top, travel; the "
+                   help="search an acceleration per feature group (top surfaces, hidden walls, infill, solid infill, "
+                        "travel; the "
                         "visible walls take the main one), the corner rule and minimum_cruise_ratio (default auto: "
                         "when the acceleration is searched and the job has features nobody sees)")
     p.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco", help="physics (default mujoco)")

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ringtune.agents.tune.space import ACCEL_GROUPS, SearchSpace, motor_accel_limit
+from ringtune.agents.tune.space import ACCEL_GROUPS, HIDDEN_CORNERS, SEEN_GROUPS, SearchSpace, motor_accel_limit
 from ringtune.envs.evaluate import planned_job, resolve_job
 from ringtune.shaping.feature_settings import effective_classes
 from ringtune.shaping.features import FEATURE_CLASSES
@@ -30,6 +30,10 @@ from ringtune.shaping.firmware import FIRMWARES
 CORNER_RANGE = {"scv": (2.0, 15.0), "jd": (0.005, 0.08), "jerk": (4.0, 20.0)}
 #: Klipper's minimum_cruise_ratio searched from 0 (no smoothing) to its default 0.5
 MCR_RANGE = (0.0, 0.5)
+#: the corner rule of the classes whose corners nobody sees (:data:`HIDDEN_CORNERS`): up to twice the
+#: visible walls' top — there only the show-through within the wall gap, extrusion and the motors'
+#: reserve bound it, all judged on the simulated windows
+HIDDEN_CORNER_RANGE = {k: (lo, 2.0 * hi) for k, (lo, hi) in CORNER_RANGE.items()}
 
 
 def group_speeds(printer: Any, job: Any = None) -> dict[str, float]:
@@ -69,25 +73,36 @@ def feature_space(space: SearchSpace, printer: Any, job: Any = None, reserve: fl
     now = {"scv": lim.square_corner_velocity, "jd": lim.junction_deviation, "jerk": min(lim.jerk[:2])}[junction]
     klipper = FIRMWARES[space.firmware].family == "klipper"
     sayable = junction != "scv" or klipper       # square_corner_velocity is Klipper's alone
+    mcr = min_cruise_ratio and junction == "scv" and klipper
+    behind = any(c in HIDDEN_CORNERS for g in speeds for c in ACCEL_GROUPS[g])
     return dataclasses.replace(
         space, feature_accel=tuple(groups), junction=junction,
         corner=CORNER_RANGE[junction] if (corner and sayable) else None,
-        min_cruise_ratio=MCR_RANGE if (min_cruise_ratio and junction == "scv" and klipper) else None,
+        min_cruise_ratio=MCR_RANGE if mcr else None,
+        hidden_corner=HIDDEN_CORNER_RANGE[junction] if (corner and sayable and behind) else None,
+        hidden_min_cruise_ratio=MCR_RANGE if (mcr and behind) else None,
         feature_basis=basis, corner_now=float(now), mcr_now=float(lim.min_cruise_ratio))
 
 
 def hidden_groups(printer: Any, job: Any = None) -> list[str]:
-    """The groups other than ``visible`` that the job has moves of (travel included)."""
-    return [g for g in group_speeds(printer, job) if g != "visible"]
+    """The groups nobody sees (not ``visible``, not :data:`SEEN_GROUPS`) that the job has moves of
+    (travel included)."""
+    return [g for g in group_speeds(printer, job) if g != "visible" and g not in SEEN_GROUPS]
 
 
-def at_ceilings(params: dict[str, Any], space: SearchSpace) -> dict[str, Any]:
-    """A parameter dict with every searched group's acceleration at the top of its range (the
-    fastest the motors allow for the features nobody sees): a warm start."""
+def at_ceilings(params: dict[str, Any], space: SearchSpace, corners: bool = False) -> dict[str, Any]:
+    """A parameter dict with every hidden group's acceleration at the top of its range (the
+    fastest the motors allow for the features nobody sees; top surfaces are seen): a warm start.
+    ``corners``: the corners nobody sees at the top of their corner rule's range and with no cruise
+    smoothing (minimum_cruise_ratio 0) too."""
     out = dict(params)
     for group, _lo, hi in space.feature_accel:
-        if group not in ("solid_top",):        # top surfaces are seen
+        if group not in SEEN_GROUPS:
             out[f"accel_{group}"] = hi
+    if corners and space.hidden_corner is not None:
+        out["corner_hidden"] = space.hidden_corner[1]
+    if corners and space.hidden_min_cruise_ratio is not None:
+        out["min_cruise_ratio_hidden"] = space.hidden_min_cruise_ratio[0]
     return out
 
 
@@ -116,8 +131,10 @@ def feature_section(config, space: SearchSpace) -> tuple[list[str], dict]:
     its range and what bounds it, the corner rule, minimum_cruise_ratio."""
     basis = space.feature_basis or {}
     info = {"accel": {"visible": config.accel}, "ranges": dict(basis),
-            "corner": config.corner, "junction": space.junction, "min_cruise_ratio": config.min_cruise_ratio}
-    lines = [f"  visible walls (outer walls, overhangs, unlabelled): {config.accel:.0f} mm/s² "
+            "corner": config.corner, "junction": space.junction, "min_cruise_ratio": config.min_cruise_ratio,
+            "corner_hidden": _hidden(config.feature_corner), "min_cruise_ratio_hidden":
+            _hidden(config.feature_min_cruise_ratio), "hidden_corner_classes": list(HIDDEN_CORNERS)}
+    lines = [f"  visible walls (outer walls, overhangs, unlabelled moves): {config.accel:.0f} mm/s² "
              f"(searched {space.accel[0]:.0f}–{space.accel[1]:.0f}; judged by ripple, corners, extrusion)"]
     for group, lo, hi in space.feature_accel:
         a = config.feature_accel.get(ACCEL_GROUPS[group][0], config.accel)
@@ -130,4 +147,15 @@ def feature_section(config, space: SearchSpace) -> tuple[list[str], dict]:
         lines.append(f"  corner rule: {config.corner:g} {unit.get(space.junction, '')}")
     if config.min_cruise_ratio is not None:
         lines.append(f"  minimum_cruise_ratio: {config.min_cruise_ratio:g}")
+    for name, value, rng, u in (("corner rule", info["corner_hidden"], space.hidden_corner, unit.get(space.junction, "")),
+                                ("minimum_cruise_ratio", info["min_cruise_ratio_hidden"], space.hidden_min_cruise_ratio, "")):
+        if value is not None:
+            lines.append(f"  {name} of {', '.join(HIDDEN_CORNERS)} (corners nobody sees): {value:g}{' ' + u if u else ''}"
+                         + (f" (searched {rng[0]:g}–{rng[1]:g})" if rng else ""))
     return lines, info
+
+
+def _hidden(table: dict) -> float | None:
+    """The value a per-class table gives the classes of :data:`HIDDEN_CORNERS` (None: none set)."""
+    values = {table[c] for c in HIDDEN_CORNERS if c in table}
+    return values.pop() if len(values) == 1 else None

@@ -40,7 +40,8 @@ class JobAccelFacts:
         """Planned time under ``mode``; ``respect`` is the job as sliced, so a per-feature
         configuration's own accelerations and corner rule are left out there."""
         if mode == "respect" and config.per_feature:
-            config = replace(config, feature_accel={}, corner=None, min_cruise_ratio=None)
+            config = replace(config, feature_accel={}, corner=None, min_cruise_ratio=None, feature_corner={},
+                             feature_min_cruise_ratio={})
         return planned_job(self.printer, self.job, config, job_accel=mode).print_time
 
     def accel_matters(self, space) -> bool:

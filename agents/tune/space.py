@@ -23,8 +23,9 @@ Parameters (Optuna names):
 - per feature (a space from :func:`ringtune.agents.tune.feature_space.feature_space`):
   ``accel_<group>`` for each group of :data:`ACCEL_GROUPS` but ``visible`` (whose acceleration is
   ``accel``), mm/s²; ``corner`` (the printer's junction rule's value) and ``min_cruise_ratio``
-  (Klipper) when searched; they become the config's ``feature_accel``, ``corner`` and
-  ``min_cruise_ratio``.
+  (Klipper) when searched; ``corner_hidden`` and ``min_cruise_ratio_hidden``, the same for the
+  classes of :data:`HIDDEN_CORNERS`; they become the config's ``feature_accel``, ``corner``,
+  ``min_cruise_ratio``, ``feature_corner`` and ``feature_min_cruise_ratio``.
 
 :func:`config_from_params` turns a parameter dict into a :class:`TuneConfig`; the same function
 serves Optuna trials, grid points and stored trials, so they can never disagree.
@@ -45,11 +46,19 @@ from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.shapers import available_shapers, max_damping, parse_name
 from ringtune.shaping.smoothers import is_smoother
 
-#: acceleration groups of feature classes searched apart (``visible``: the config's ``accel``); solid
-#: and top infill together, judged as seen (top surfaces are); support goes with the infill
-ACCEL_GROUPS = {"visible": ("outer_wall", "bridge_overhang", "other"), "hidden_walls": ("inner_wall",),
-                "infill": ("infill", "support"), "solid_top": ("solid_infill", "top_surface"),
-                "travel": ("travel",)}
+#: acceleration groups of feature classes searched apart (``visible``: the config's ``accel``); top
+#: surfaces have their own, judged as seen; internal solid infill its own, hidden (a top surface's
+#: judgement does not hold it back); support goes with the infill
+ACCEL_GROUPS = {"visible": ("outer_wall", "bridge_overhang", "other"), "top_surface": ("top_surface",),
+                "hidden_walls": ("inner_wall",), "infill": ("infill", "support"),
+                "solid_infill": ("solid_infill",), "travel": ("travel",)}
+#: groups apart from ``visible`` that a person sees: searched like the hidden ones, never warm-started
+#: at their motor's top
+SEEN_GROUPS = ("top_surface",)
+#: classes whose corners nobody sees: infill, support and solid infill lie behind the perimeters,
+#: travel prints nothing; their corner rule and minimum_cruise_ratio are searched apart from the
+#: visible walls' (inner walls abut the outer wall: they keep the job-wide ones)
+HIDDEN_CORNERS = ("infill", "support", "solid_infill", "travel")
 #: rounding of the corner rule's value per junction rule (mm/s, mm, mm/s) and of minimum_cruise_ratio
 CORNER_STEP = {"scv": 0.5, "jd": 0.001, "jerk": 0.5}
 MCR_STEP = 0.05
@@ -89,6 +98,8 @@ class SearchSpace:
     corner: tuple[float, float] | None = None        # the corner rule's range, in ``junction``'s unit
     junction: str = ""                  # the printer's junction rule (scv, jd, jerk) the corner is in
     min_cruise_ratio: tuple[float, float] | None = None   # Klipper's, searched when set
+    hidden_corner: tuple[float, float] | None = None      # the corner rule of HIDDEN_CORNERS, searched when set
+    hidden_min_cruise_ratio: tuple[float, float] | None = None   # their minimum_cruise_ratio (Klipper)
     feature_basis: dict | None = None   # per group: its top speed (mm/s) and what caps its range
     corner_now: float | None = None     # the printer's own corner value (a config without one runs it)
     mcr_now: float | None = None        # the printer's own minimum_cruise_ratio
@@ -107,7 +118,7 @@ class SearchSpace:
         for k in ("shapers", "freq_limit_methods"):
             kw[k] = tuple(kw[k])
         for k in ("freq_x", "freq_y", "damping", "freq_limit_hz", "accel", "axis_caps", "corner",
-                  "min_cruise_ratio"):
+                  "min_cruise_ratio", "hidden_corner", "hidden_min_cruise_ratio"):
             if kw.get(k) is not None:
                 kw[k] = tuple(float(v) for v in kw[k])
         kw["feature_accel"] = tuple((str(g), float(lo), float(hi)) for g, lo, hi in kw.get("feature_accel") or ())
@@ -332,7 +343,8 @@ def _axes(space: SearchSpace) -> tuple[tuple[str, str], ...]:
 class _Ranged:
     """A per-feature parameter searched on [lo, hi] (in its config key's unit): the config's
     rounding ``step``, the value of a point without it (``missing``), the value a configuration
-    runs (``now``; None: unset) and, for a group's acceleration, the feature classes it sets."""
+    runs (``now``; None: unset) and, for a per-class value, the feature classes it sets in the
+    config's table ``into`` (``feature_accel``, ``feature_corner``, ``feature_min_cruise_ratio``)."""
 
     key: str
     lo: float
@@ -341,6 +353,7 @@ class _Ranged:
     missing: float
     now: Callable[[TuneConfig], float | None]
     classes: tuple[str, ...] = ()
+    into: str = ""
 
 
 def _per_feature(space: SearchSpace) -> list[_Ranged]:
@@ -348,7 +361,7 @@ def _per_feature(space: SearchSpace) -> list[_Ranged]:
     range's bottom; a configuration without one runs its ``accel``), the corner rule (the printer's
     own, else the range's bottom) and minimum_cruise_ratio (the printer's own, else the range's top)."""
     rows = [_Ranged(f"accel_{g}", lo, hi, space.accel_step, lo,
-                    lambda c, cls=ACCEL_GROUPS[g][0]: c.feature_accel.get(cls, c.accel), ACCEL_GROUPS[g])
+                    lambda c, cls=ACCEL_GROUPS[g][0]: c.feature_accel.get(cls, c.accel), ACCEL_GROUPS[g], "feature_accel")
             for g, lo, hi in space.feature_accel]
     if space.corner is not None:
         rows.append(_Ranged("corner", *space.corner, CORNER_STEP.get(space.junction, 0.001), space.corner[0],
@@ -356,6 +369,28 @@ def _per_feature(space: SearchSpace) -> list[_Ranged]:
     if space.min_cruise_ratio is not None:
         rows.append(_Ranged("min_cruise_ratio", *space.min_cruise_ratio, MCR_STEP, space.min_cruise_ratio[1],
                             lambda c: c.min_cruise_ratio if c.min_cruise_ratio is not None else space.mcr_now))
+    rows += _hidden_corner_rows(space)
+    return rows
+
+
+def _hidden_corner_rows(space: SearchSpace) -> list[_Ranged]:
+    """The corner rule and minimum_cruise_ratio of :data:`HIDDEN_CORNERS`, where searched (missing:
+    the printer's own, within the range; a configuration without one runs the job-wide value)."""
+    def clip(v, lo_hi):
+        return min(max(float(v), lo_hi[0]), lo_hi[1])
+    rows = []
+    cls = HIDDEN_CORNERS[0]
+    if space.hidden_corner is not None and space.corner_now is not None:
+        rows.append(_Ranged("corner_hidden", *space.hidden_corner, CORNER_STEP.get(space.junction, 0.001),
+                            clip(space.corner_now, space.hidden_corner),
+                            lambda c: c.feature_corner.get(cls, c.corner if c.corner is not None else space.corner_now),
+                            HIDDEN_CORNERS, "feature_corner"))
+    if space.hidden_min_cruise_ratio is not None and space.mcr_now is not None:
+        rows.append(_Ranged("min_cruise_ratio_hidden", *space.hidden_min_cruise_ratio, MCR_STEP,
+                            clip(space.mcr_now, space.hidden_min_cruise_ratio),
+                            lambda c: c.feature_min_cruise_ratio.get(
+                                cls, c.min_cruise_ratio if c.min_cruise_ratio is not None else space.mcr_now),
+                            HIDDEN_CORNERS, "feature_min_cruise_ratio"))
     return rows
 
 
@@ -386,7 +421,7 @@ def feature_params(params: dict[str, Any], space: SearchSpace) -> dict[str, Any]
     for r in _per_feature(space):
         value = _q(params.get(r.key, r.missing), r.step)
         if r.classes:
-            out.setdefault("feature_accel", {}).update(dict.fromkeys(r.classes, value))
+            out.setdefault(r.into, {}).update(dict.fromkeys(r.classes, value))
         else:
             out[r.key] = value
     return out

@@ -256,7 +256,7 @@ def _settings(req: TuneRequest, lim: _Limits, firmware: str, quality: str, space
 
 def _warm_points(bl, space) -> list[dict]:
     """The study's first trials: Klipper's pick (searching per feature, also with the hidden groups
-    at their tops) and its neighbours, what the printer runs now (when inside the space); no point
+    at their tops, then with their corners free too) and its neighbours, what the printer runs now (when inside the space); no point
     twice."""
     configs = warm_start(bl.points["klipper"].config, bl.fits, space)
     current = bl.points.get("current")
@@ -264,7 +264,7 @@ def _warm_points(bl, space) -> list[dict]:
         configs.append(current.config)
     params = [params_from_config(c, space) for c in configs]
     if space.per_feature and params:
-        params.insert(1, feature_space.at_ceilings(params[0], space))
+        params[1:1] = [feature_space.at_ceilings(params[0], space, corners=c) for c in (False, True)]
     unique: dict = {}
     for q in params:
         unique.setdefault(tuple(sorted(q.items())), q)
