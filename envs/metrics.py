@@ -79,9 +79,11 @@ What a person sees (all mm unless stated):
 Diagnostics and constraints:
 
 ``path_error_mm``
-    max over extruding samples of the distance from the nozzle to the nearest *extruding* leg of
+    max over extruding samples of visible classes (hidden ones are bounded by what shows through,
+    ``show_through_mm``) of the distance from the nozzle to the nearest *extruding* leg of
     the commanded path active within ``match_window`` s of the sample (the time restriction keeps
-    adjacent parallel infill lines from being mistaken for the line being printed).
+    adjacent parallel infill lines from being mistaken for the line being printed); each class's
+    own in ``features``.
 ``overshoot_mm``
     max over corners (direction change ≥ ``corner_angle_deg``, either side extruding) of the
     outward excursion after the corner: an extruding sample belongs to the latest corner the
@@ -289,7 +291,8 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
     cls = cls_seg[seg[extruding]]
     ex = (tu[extruding], nozzle[extruding], dist[extruding], vec[extruding], leg[extruding])
     w = walls(ex[0], ex[1], legs, settle - lag, anticipate + lag, min_wall)
-    old = dict(path_error_mm=path_error(ex[0], ex[1], ex[2], details),
+    seen = _VISIBLE[cls]        # the bound on the path is what a person sees (hidden ones: show-through)
+    old = dict(path_error_mm=path_error(ex[0][seen], ex[1][seen], ex[2][seen], details),
                overshoot_mm=overshoot(*ex, legs, corner_angle_deg, corner_window, anticipate + lag, details),
                ringing_mm=ringing_rms(w, legs, corner_angle_deg, details))
     per_cls = _seen(ex[0], ex[1], ex[2], cls, legs, w, corner_angle_deg, settle - lag,

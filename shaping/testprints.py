@@ -251,7 +251,10 @@ def quality_windows(plan, max_windows: int = 8, span: float = 0.25) -> list[Wind
     """Up to ``max_windows`` non-overlapping windows of ``span`` s each, shared per feature class
     as :data:`WINDOW_SHARES` says: the sharpest corners (largest velocity change while extruding)
     of visible features, window starting just before the corner so the wall after it is inside;
-    the highest-frequency zigzags; the sharpest corners of hidden features. Sorted by start time;
+    the highest-frequency zigzags; the sharpest corners of hidden features. Then one more for each
+    feature class of the part with corners that none of those holds (its sharpest corner): a
+    class no window holds would go unjudged (the inner walls of a sliced part, whose hidden-corner
+    places the infills' sharper corners take, abut the outer wall). Sorted by start time;
     ``kind`` is ``corner`` or ``zigzag``, ``feature`` the class there."""
     duration = plan.motion.end_time
     span = min(span, duration)
@@ -279,6 +282,14 @@ def quality_windows(plan, max_windows: int = 8, span: float = 0.25) -> list[Wind
         left -= take(kind, min(left, max(1, round(share * max_windows))))
     for kind, _ in WINDOW_SHARES:      # places a kind could not fill go to the others
         left -= take(kind, left)
+    for kind in ("seen-corner", "hidden-corner"):   # a class with corners the shares left out: its sharpest
+        t0s, scores, lines, classes, order = cands[kind]
+        covered = {w.feature for w in chosen}
+        for i in order:
+            t0 = float(min(max(t0s[i], lo_t), hi_t))
+            if classes[i] not in covered and all(t0 + span <= w.t0 or t0 >= w.t1 for w in chosen):
+                chosen.append(Window(t0, t0 + span, "corner", float(scores[i]), int(lines[i]), str(classes[i])))
+                covered.add(str(classes[i]))
     return sorted(chosen, key=lambda w: w.t0)
 
 

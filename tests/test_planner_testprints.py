@@ -62,7 +62,9 @@ def test_direction_change_frequency_of_a_slow_zigzag_is_exact():
 def test_quality_windows_pick_corners_and_fast_zigzags():
     p = plan(builtin_test_print(), MachineLimits(accel=3000))
     wins = quality_windows(p, max_windows=6, span=0.2)
-    assert len(wins) == 6
+    # six by the shares, one more for each class with corners they left without a window
+    shared = {w.feature for w in wins}
+    assert 6 <= len(wins) <= 6 + 1 and shared == {"outer_wall", "inner_wall", "infill"}
     kinds = {w.kind for w in wins}
     assert kinds == {"corner", "zigzag"}
     for a, b in zip(wins, wins[1:]):

@@ -5,7 +5,8 @@
   step (the physics backends are checked against that closed form in test_physics_accuracy);
 - corner rounding: a 90° corner shaped by each shaper, on a stiff machine, against the deepest
   cut of the shaped command computed here from the impulses by brute force;
-- show-through and per-feature: hidden features are judged only by what reaches the walls.
+- show-through and per-feature: hidden features are judged only by what reaches the walls (and
+  their extrusion); the path-error bound counts visible samples only.
 """
 
 from __future__ import annotations
@@ -184,6 +185,9 @@ def test_hidden_features_count_only_through_show_through():
     assert set(hidden.features) == {"infill"} and set(seen.features) == {"outer_wall"}
     assert set(seen.features["outer_wall"]) == set(FEATURE_KEYS)
     assert hidden.features["infill"]["ripple_mm"] == pytest.approx(seen.ripple_mm)
+    # the path-error bound is on what is seen: hidden samples keep their own figure only
+    assert seen.path_error_mm > 0.1 and hidden.path_error_mm == 0
+    assert hidden.features["infill"]["path_error_mm"] == pytest.approx(seen.path_error_mm)
 
 
 def test_worst_combines_windows_and_recomputes_the_percentile():

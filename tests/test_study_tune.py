@@ -78,7 +78,7 @@ def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evalua
     # the --json keys tune.py documents as stable
     assert set(res) == {"out", "trials", "front_size", "quality", "max_path_error_mm", "motor_reserve",
                         "max_show_through_mm", "freq_margin", "resolution", "chosen", "baselines", "vs_baselines",
-                        "versus", "stop", "per_feature", "dominates_klipper", "dominates_current", "accel", "job_accel",
+                        "versus", "stop", "hidden_raise", "per_feature", "dominates_klipper", "dominates_current", "accel", "job_accel",
                         "plot_arrows", "files", "storage", "study", "completed_now", "interrupted", "elapsed_s"}
     assert set(res["chosen"]) == {"config", "print_time_s", "quality_mm", "path_error_mm", "overshoot_mm",
                                   "motor_load", "measures", "chosen_by", "against", "held_to", "why", "rewrite_jobs"}
@@ -208,14 +208,21 @@ def test_default_printer_choice_is_no_worse_than_klippers_recommendation_on_what
     mine, klip, *dom = evaluate_many(cfgs, None, str(job), freq_margin=0.05)
     assert not mine.step_loss and not klip.step_loss
 
+    def val(m, key):                  # a job's figure, or a class's own ("outer_wall:ripple_mm")
+        cls, _, k = key.rpartition(":")
+        return m.features[cls][k] if cls else getattr(m, k)
+
     def worse(a, b, key):
-        big = max(abs(getattr(a, key)), abs(getattr(b, key)))
+        big = max(abs(val(a, key)), abs(val(b, key)))
         tol = max(1.0, 0.05 * big) if key.endswith("_pct") else max(1e-3, 0.05 * big)
-        return getattr(a, key) - getattr(b, key) > tol
+        return val(a, key) - val(b, key) > tol
 
     keys = ("ripple_mm", "ripple_p90_mm", "corner_in_mm", "corner_out_mm", "extrusion_over_pct", "extrusion_under_pct")
+    seen = ("outer_wall", "top_surface", "bridge_overhang", "other")      # each visible class on its own too
     for p in [mine, *dom]:
         assert not any(worse(p, klip, key) for key in keys)
+        assert not any(worse(p, klip, f"{c}:{k}") for c in seen if c in p.features and c in klip.features
+                       for k in keys if k != "ripple_p90_mm")
         assert p.print_time_s <= klip.print_time_s * 1.005
     summary = (out / "summary.txt").read_text()
     assert "WHAT A PERSON SEES" in summary and res["stop"]["sentence"] in summary

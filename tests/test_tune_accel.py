@@ -301,15 +301,17 @@ def test_every_cap_the_summary_names_is_checked_against_the_planner_without_it(v
     from ringtune.envs.printer import load_printer
     from ringtune.shaping.testprints import builtin_test_print
     from ringtune.shaping.config import TuneConfig
+    from ringtune.shaping.config_plan import plan_with_config
     from ringtune.shaping.planner import plan
 
     res, summary, toml = v24_run
     printer = load_printer(toml)
     cfg = TuneConfig.from_dict(res["chosen"]["config"])
     assert (cfg.max_accel_x, cfg.max_accel_y) == (_cfg_value(V24, "max_x_accel"), _cfg_value(V24, "max_y_accel"))
-    job = builtin_test_print()
     lim = replace(printer.limits, accel=cfg.accel)
-    base = plan(job, lim, accel=cfg.accel).print_time
+    job = builtin_test_print()
+    plain = replace(cfg, max_accel_x=None, max_accel_y=None)     # the per-feature settings; caps from ``lim``
+    base = plan_with_config(job, lim, plain).plan.print_time
     named = res["accel"]["binding"]
     assert named, summary
     for b in named:
@@ -317,7 +319,7 @@ def test_every_cap_the_summary_names_is_checked_against_the_planner_without_it(v
         caps = list(lim.max_accel)
         assert caps[i] == b["value"]
         caps[i] = 0.0
-        without = plan(job, replace(lim, max_accel=tuple(caps)), accel=cfg.accel).print_time
+        without = plan_with_config(job, replace(lim, max_accel=tuple(caps)), plain).plan.print_time
         assert b["time_s"] == pytest.approx(base, rel=1e-12)
         assert b["time_without_s"] == pytest.approx(without, rel=1e-12)
         assert without < base

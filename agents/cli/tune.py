@@ -9,10 +9,12 @@ as fast as), held_to (every baseline it has no visible measure worse than), why,
 `ringtune limit` command every job needs, or null)}, baselines
 {klipper|current|none: {config, print_time_s, quality_mm, path_error_mm, overshoot_mm, motor_load,
 measures, step_loss, breaks, label, source}}, versus {baseline: {print_time_s|ripple_mm|ripple_p90_mm|
-corner_in_mm|corner_out_mm|extrusion_over_pct|extrusion_under_pct: {value, baseline, verdict
-better|same|worse}}}, stop (null, or the measured stop: {kind measure|bound|ceiling|time|budget|not
-searched, key, baseline (whose value it exceeds, for a measure), value, baseline_value, accel (the step that stops it, mm/s²), config, moved,
-from_accel, to_accel, evaluations, sentence}), vs_baselines {key: {baseline, faster_s, faster_pct, better_mm,
+corner_in_mm|corner_out_mm|extrusion_over_pct|extrusion_under_pct|outer_wall:<the same five>: {value,
+baseline, verdict better|same|worse}}}, stop (null, or the measured stop: {kind measure|bound|ceiling|time|budget|not
+searched, key (a job's figure, or a class's own as "outer_wall:ripple_mm"), baseline (whose value it exceeds,
+for a measure), value, baseline_value, accel (the step that stops it, mm/s²), config, moved,
+from_accel, to_accel, evaluations, sentence}), hidden_raise (null, or the walk raising the features nobody
+sees: {raised [{parameter, from, to}], from_print_time_s, to_print_time_s, evaluations, sentence}), vs_baselines {key: {baseline, faster_s, faster_pct, better_mm,
 better_pct, dominates, metrics {print_time_s|overshoot_mm|path_error_mm|feasible: better|same|worse},
 path_error_better_mm, path_error_better_pct}}, dominates_klipper, dominates_current (null or {config,
 print_time_s, quality_mm, ...comparison}), accel {range, searched, basis, chosen, stopped_by,

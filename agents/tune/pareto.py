@@ -22,6 +22,7 @@ import numpy as np
 
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.features import VISIBLE
 
 
 #: mm: default bound on the path error of a usable configuration. Path error is the largest
@@ -46,6 +47,14 @@ DEFAULT_MAX_SHOW_THROUGH_MM = 0.05
 #: than the baseline's (mm, except extrusion in %)
 VISIBLE_KEYS = ("ripple_mm", "ripple_p90_mm", "corner_in_mm", "corner_out_mm", "extrusion_over_pct",
                 "extrusion_under_pct")
+#: each visible feature class judged on its own as well (the worst over them can hide one getting
+#: worse: an outer wall's ripple under a top surface's larger one), and the inner walls, which abut
+#: the outer wall, on what they push into it: keys ``"<class>:<measure>"`` of a point's metrics
+CLASS_MEASURES = {**{c: ("ripple_mm", "corner_in_mm", "corner_out_mm", "extrusion_over_pct", "extrusion_under_pct")
+                     for c in sorted(VISIBLE)}, "inner_wall": ("show_through_mm",)}
+CLASS_KEYS = tuple(f"{c}:{k}" for c, keys in CLASS_MEASURES.items() for k in keys)
+#: what the choice may make no worse than the baseline's: the job's figures and each class's
+JUDGED_KEYS = VISIBLE_KEYS + CLASS_KEYS
 METRIC_KEYS = ("print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss",
                "motor_load") + VISIBLE_KEYS + ("e_lag_mm", "show_through_mm")
 #: the study's objectives (all minimised). Three, not all seven figures: TPE's multi-objective
@@ -74,9 +83,17 @@ def objective_value(m, key: str) -> float:
     return float(getattr(m, "overshoot_mm") if v is None else v)
 
 
+def words(key: str) -> tuple[str, str]:
+    """(the words for a figure, its unit); a class's own figure (``"outer_wall:ripple_mm"``) as
+    "outer wall ripple"."""
+    cls, _, k = key.rpartition(":")
+    name, unit = WORDS.get(k, (k, "µm"))
+    return (f"{cls.replace('_', ' ')} {name}" if cls else name), unit
+
+
 def shown(key: str, value: float) -> str:
     """A figure in its unit: µm for mm, % for percentages, s for time."""
-    unit = WORDS.get(key, (key, "µm"))[1]
+    unit = words(key)[1]
     if unit == "µm":
         return f"{value * 1000:.1f} µm"
     return f"{value:.2f} %" if unit == "%" else f"{value:.3f} s"
@@ -189,11 +206,16 @@ def judge(point: Point, base: Point, res: Resolution = DEFAULT_RESOLUTION,
 
 def metrics_dict(m) -> dict:
     """The :data:`METRIC_KEYS` of a metrics object as plain floats (``step_loss`` a bool; a
-    figure the object lacks, e.g. ``motor_load`` of a custom evaluator, is left out)."""
+    figure the object lacks, e.g. ``motor_load`` of a custom evaluator, is left out), and the
+    :data:`CLASS_KEYS` of the feature classes its windows hold."""
     out = {}
     for k in METRIC_KEYS:
         if hasattr(m, k):
             out[k] = bool(getattr(m, k)) if k == "step_loss" else float(getattr(m, k))
+    for cls, values in (getattr(m, "features", None) or {}).items():
+        for k in CLASS_MEASURES.get(cls, ()):
+            if k in values:
+                out[f"{cls}:{k}"] = float(values[k])
     return out
 
 
@@ -308,19 +330,20 @@ def choose(front: Sequence[Point], weight: float | None = None) -> Point:
     return knee(front)
 
 
-def no_worse(p: Point, base: Point, res: Resolution = DEFAULT_RESOLUTION, keys: Sequence[str] = VISIBLE_KEYS) -> bool:
+def no_worse(p: Point, base: Point, res: Resolution = DEFAULT_RESOLUTION, keys: Sequence[str] = JUDGED_KEYS) -> bool:
     """No figure of ``keys`` (that both have) worse than ``base``'s at the resolution (feasibility aside)."""
     return all(v != "worse" for k, v in judge(p, base, res, keys).verdicts.items() if k != "feasible")
 
 
 #: each set of measures :func:`_quality_keys` gives, in words
-_QUALITY_WORDS = {VISIBLE_KEYS: "visible measure", ("overshoot_mm", "path_error_mm"): "overshoot and path error"}
+_QUALITY_WORDS = {JUDGED_KEYS: "visible measure", ("overshoot_mm", "path_error_mm"): "overshoot and path error"}
 
 
 def _quality_keys(points: Sequence[Point]) -> tuple[str, ...]:
-    """The visible measures the points have; a custom evaluator's without them: its overshoot and path error."""
+    """The visible measures the points have (the job's and each class's: :data:`JUDGED_KEYS`); a
+    custom evaluator's without them: its overshoot and path error."""
     if any("ripple_mm" in p.metrics for p in points):
-        return VISIBLE_KEYS
+        return JUDGED_KEYS
     return ("overshoot_mm", "path_error_mm")
 
 

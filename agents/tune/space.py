@@ -55,6 +55,10 @@ ACCEL_GROUPS = {"visible": ("outer_wall", "bridge_overhang", "other"), "top_surf
 #: groups apart from ``visible`` that a person sees: searched like the hidden ones, never warm-started
 #: at their motor's top
 SEEN_GROUPS = ("top_surface",)
+#: groups that lie against what is seen (inner walls abut the outer wall: what they ripple pushes it,
+#: which no bound of the study measures apart); the study searches them, but they are not walked
+#: up to their tops (:mod:`ringtune.agents.tune.hidden_raise`)
+ABUTTING_GROUPS = ("hidden_walls",)
 #: classes whose corners nobody sees: infill, support and solid infill lie behind the perimeters,
 #: travel prints nothing; their corner rule and minimum_cruise_ratio are searched apart from the
 #: visible walls' (inner walls abut the outer wall: they keep the job-wide ones)

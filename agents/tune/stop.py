@@ -22,8 +22,8 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
-from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, VISIBLE_KEYS, Point, Resolution, WORDS, judge,
-                                         point_from_metrics, shown)
+from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, JUDGED_KEYS, Point, Resolution, judge,
+                                         point_from_metrics, shown, words)
 from ringtune.agents.tune.space import SearchSpace, config_from_params, params_from_config
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.firmware import FIRMWARES
@@ -120,7 +120,7 @@ def freq_variants(cfg: TuneConfig, space: SearchSpace) -> list[TuneConfig]:
     return out
 
 
-def _failure(p: Point, bases: dict[str, Point], faster_than: Point, bounds: Bounds,
+def failure(p: Point, bases: dict[str, Point], faster_than: Point, bounds: Bounds,
              res: Resolution) -> tuple[str, str, str | None, float, float] | None:
     """Why ``p`` may not replace ``faster_than``: (kind, key, baseline key or None, value, limit), or
     None. A bound first; else the visible measure worse than a baseline's by the largest ratio."""
@@ -133,7 +133,7 @@ def _failure(p: Point, bases: dict[str, Point], faster_than: Point, bounds: Boun
         if flag:
             return "bound", key, None, float(value), float(limit)
     worse = [(p.value(k) / max(base.value(k), 1e-12), k, name) for name, base in bases.items()
-             for k, v in judge(p, base, res, VISIBLE_KEYS).verdicts.items() if v == "worse"]
+             for k, v in judge(p, base, res, JUDGED_KEYS).verdicts.items() if v == "worse"]
     if worse:
         _ratio, k, name = max(worse)
         return "measure", k, name, float(p.value(k)), float(bases[name].value(k))
@@ -171,7 +171,7 @@ def measured_stop(start: Point, bases: dict[str, Point], evaluate: Callable[[Seq
             return _stop(start, cur, ("ceiling", "accel", None, float(cur.config.accel), top), None, n, labels, why)
         failed = None
         for p in points([with_accel(cur.config, a, space) for a in accs]):
-            why = _failure(p, bases, cur, bounds, res)
+            why = failure(p, bases, cur, bounds, res)
             if why:
                 failed = (p, why)
                 break
@@ -179,7 +179,7 @@ def measured_stop(start: Point, bases: dict[str, Point], evaluate: Callable[[Seq
         if failed is None:
             continue
         p, why = failed
-        variants = [v for v in points(freq_variants(p.config, space)) if _failure(v, bases, cur, bounds, res) is None]
+        variants = [v for v in points(freq_variants(p.config, space)) if failure(v, bases, cur, bounds, res) is None]
         if variants:
             cur = min(variants, key=lambda v: (v.print_time_s, v.quality_mm))
             continue
@@ -198,7 +198,7 @@ def _stop(start: Point, cur: Point, why: tuple, cfg, n: int, labels: dict, basis
 def _sentence(kind, key, value, limit, acc, cur: Point, base_label: str, why: str) -> str:
     here = f"{cur.config.accel:.0f} mm/s²"
     if kind == "measure":
-        word = WORDS.get(key, (key,))[0]
+        word = words(key)[0]
         return (f"What stops it at {here}: {word} {shown(key, value)} > {shown(key, limit)} of {base_label} "
                 f"at {acc:.0f} mm/s² (the next step, measured).")
     if kind == "bound":

@@ -18,6 +18,7 @@ from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel
 from ringtune.agents.tune.out_dir import check_out, remove_if_empty
 from ringtune.agents.tune.pareto import VISIBLE_KEYS
 from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config, top_speed_load_note
+from ringtune.agents.tune.hidden_raise import raise_hidden
 from ringtune.agents.tune.stop import Bounds, measured_stop
 from ringtune.envs.evaluate import resolve_printer
 from ringtune.envs.job_rewrite import rewrite_file
@@ -174,10 +175,11 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     points = tune_study.study_points(run_.study, space, quality, lim.max_pe, lim.reserve, lim.max_st)
     front = pareto.pareto_front(points, also=_also(points, quality))
     choice = pareto.pick(front, baselines, lim.how, req.weight)
-    choice, stop = _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim)
+    choice, stop, lift = _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim)
     result, text, accel_json, ja_json = _report(req, lim, fw, printer, facts, space, quality, points, front, choice,
-                                                stop, bl, settings, floor_note, why, out_dir, store, note)
-    result.update({"stop": stop.to_dict() if stop else None, "freq_margin": lim.margin,
+                                                (stop, lift), bl, settings, floor_note, why, out_dir, store, note)
+    result.update({"stop": stop.to_dict() if stop else None, "hidden_raise": lift.to_dict() if lift else None,
+                   "freq_margin": lim.margin,
                    "accel": accel_json, "job_accel": ja_json, "storage": store,
                    "study": req.study, "completed_now": run_.completed_now, "interrupted": run_.interrupted,
                    "elapsed_s": time.time() - t_start})
@@ -256,7 +258,7 @@ def _settings(req: TuneRequest, lim: _Limits, firmware: str, quality: str, space
 
 def _warm_points(bl, space) -> list[dict]:
     """The study's first trials: Klipper's pick (searching per feature, also with the hidden groups
-    at their tops, then with their corners free too) and its neighbours, what the printer runs now (when inside the space); no point
+    at their tops and halfway there, each with their corners as they are and free) and its neighbours, what the printer runs now (when inside the space); no point
     twice."""
     configs = warm_start(bl.points["klipper"].config, bl.fits, space)
     current = bl.points.get("current")
@@ -264,7 +266,8 @@ def _warm_points(bl, space) -> list[dict]:
         configs.append(current.config)
     params = [params_from_config(c, space) for c in configs]
     if space.per_feature and params:
-        params[1:1] = [feature_space.at_ceilings(params[0], space, corners=c) for c in (False, True)]
+        params[1:1] = [feature_space.at_ceilings(params[0], space, corners=c, share=f)
+                       for f in (1.0, 0.5) for c in (False, True)]
     unique: dict = {}
     for q in params:
         unique.setdefault(tuple(sorted(q.items())), q)
@@ -280,10 +283,12 @@ def _also(points, quality: str) -> tuple[str, ...]:
 
 
 def _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim: _Limits):
-    """(the choice, the measured stop or None): the choice held to a baseline, its acceleration
-    stepped up with the same judgement (:func:`ringtune.agents.tune.stop.measured_stop`)."""
+    """(the choice, the measured stop or None, the raise where nobody looks or None): the choice
+    held to a baseline, its acceleration stepped up with the same judgement
+    (:func:`ringtune.agents.tune.stop.measured_stop`), then, searching per feature, the features
+    nobody sees raised toward their tops (:func:`ringtune.agents.tune.hidden_raise.raise_hidden`)."""
     if choice.baseline is None:
-        return choice, None
+        return choice, None, None
 
     def evaluate(configs):
         return evaluator(list(configs), printer, settings.job, **tune_study.evaluator_kwargs(settings))
@@ -296,14 +301,23 @@ def _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim:
         choice = dataclasses.replace(choice, point=stop.point, sentence=(
             f"{choice.sentence}; then stepped up by the measured stop from {stop.start.config.accel:.0f} to "
             f"{stop.point.config.accel:.0f} mm/s², every visible measure still no worse"))
-    return choice, stop
+    lift = None
+    if space.per_feature:
+        lift = raise_hidden(choice.point, {k: baselines[k] for k in held}, evaluate, space, bounds)
+        if lift.moved:
+            choice = dataclasses.replace(choice, point=lift.point, sentence=(
+                f"{choice.sentence}; then the features nobody sees raised toward their tops, every visible "
+                f"measure still no worse"))
+    return choice, stop, lift
 
 
 def _report(req: TuneRequest, lim: _Limits, fw: Firmware, printer, facts, space, quality: str, points, front,
-            choice, stop, bl, settings, floor_note: str, why: str, out_dir: Path, store: str,
+            choice, stops, bl, settings, floor_note: str, why: str, out_dir: Path, store: str,
             note: Callable[[str], None]):
     """Write the report folder (and, with a job, the job with the choice written in): (summary dict,
-    summary text, the ACCELERATION section's dict, the job's own accelerations' dict)."""
+    summary text, the ACCELERATION section's dict, the job's own accelerations' dict). ``stops``:
+    (the measured stop, the raise where nobody looks), each or None."""
+    stop, lift = stops
     chosen = choice.point
     accel_lines, accel_json = _accel_section(req, lim, fw.name, printer, space, points, chosen, stop)
     ja_lines, ja_json = job_accel_section(facts, req.job_accel, printer, req.gcode, chosen.config)
@@ -313,6 +327,8 @@ def _report(req: TuneRequest, lim: _Limits, fw: Firmware, printer, facts, space,
     if space.per_feature:
         pf_lines, pf_json = feature_space.feature_section(chosen.config, space)
         pf_json["why"] = why
+        if lift is not None:
+            pf_lines.append(f"  {lift.sentence()}")
     ja_json["searched"] = not space.accel_fixed
     result = report.write_report(
         out_dir, points=points, front=front, choice=choice, baselines=bl.points, quality=quality,

@@ -15,12 +15,13 @@ from dataclasses import dataclass, field
 from typing import Callable, Mapping, Sequence
 
 from ringtune.agents.tune.baselines import Baselines, baseline_configs
-from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, VISIBLE_KEYS, WORDS, Point, Resolution, judge, shown,
-                                         verdict)
+from ringtune.agents.tune.pareto import (CLASS_KEYS, DEFAULT_RESOLUTION, VISIBLE_KEYS, Point, Resolution, judge,
+                                         shown, verdict, words)
 from ringtune.envs.evaluate import evaluate_judged
 
-#: the figures compared, in the order shown
-SHOWN = ("print_time_s",) + VISIBLE_KEYS
+#: the figures compared, in the order shown: the job's, then the outer wall's own (the surface a
+#: person looks at first; every visible class's own is judged, :data:`~ringtune.agents.tune.pareto.JUDGED_KEYS`)
+SHOWN = ("print_time_s",) + VISIBLE_KEYS + tuple(k for k in CLASS_KEYS if k.startswith("outer_wall:"))
 
 
 def _value(p: Point | Mapping, key: str) -> float | None:
@@ -53,11 +54,11 @@ def table(point: Point | Mapping, baselines: Mapping[str, Point | Mapping], labe
     the verdict of the configuration against it; a legend naming the baselines and the resolution."""
     keys = [k for k in SHOWN if _value(point, k) is not None]
     cols = list(baselines)
-    head = f"  {'measure':<18}{name:>12}" + "".join(f"  {'[' + str(i + 1) + ']':>12} {'':7}"
+    head = f"  {'measure':<22}{name:>12}" + "".join(f"  {'[' + str(i + 1) + ']':>12} {'':7}"
                                                    for i in range(len(cols)))
     lines = [head]
     for k in keys:
-        row = f"  {WORDS.get(k, (k,))[0]:<18}{shown(k, _value(point, k)):>12}"
+        row = f"  {words(k)[0]:<22}{shown(k, _value(point, k)):>12}"
         for c in cols:
             b = _value(baselines[c], k)
             row += (f"  {shown(k, b):>12} {verdict(k, _value(point, k), b, res):<7}" if b is not None
@@ -100,7 +101,7 @@ class Comparison:
         if quality != "path_error_mm" and self.path_error_better_mm is not None:
             parts.append(_diff(self.path_error_better_mm, self.path_error_better_pct, "path error",
                                same("path_error_mm")))
-        worse = [_NAMES.get(k, k) for k, v in self.metrics.items() if v == "worse"]
+        worse = [_FEASIBLE if k == "feasible" else words(k)[0] for k, v in self.metrics.items() if v == "worse"]
         tail = (" — dominates it" if self.dominates else
                 f" — does not dominate it (worse {', '.join(worse)})" if worse else
                 " — the same within the resolution")
@@ -110,8 +111,7 @@ class Comparison:
         return dict(self.__dict__)
 
 
-_NAMES = {**{k: w for k, (w, _u) in WORDS.items()},
-          "feasible": "feasibility (it breaks a bound the baseline keeps)"}
+_FEASIBLE = "feasibility (it breaks a bound the baseline keeps)"
 
 
 def _diff(better_mm: float, pct: float | None, word: str, same: str = "") -> str:

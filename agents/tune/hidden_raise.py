@@ -1,0 +1,123 @@
+"""Fast where nobody looks, measured: the features nobody sees raised toward their tops.
+
+After the measured stop (:mod:`ringtune.agents.tune.stop`), for each acceleration group of a
+per-feature space that nobody sees and that does not lie against what is seen (not
+:data:`~ringtune.agents.tune.space.SEEN_GROUPS` nor
+:data:`~ringtune.agents.tune.space.ABUTTING_GROUPS`: the infill, solid infill, travel), the
+group's acceleration is tried at :data:`LEVELS` of the way from where the choice has it to the top
+of its range (the motor reserve at the group's own top speed), one batch per group; then the
+corners nobody sees (:data:`~ringtune.agents.tune.space.HIDDEN_CORNERS`): their corner rule at
+those levels of the way to its range's top, each with minimum_cruise_ratio at its range's bottom
+(no cruise smoothing) and as it is. Every candidate is judged exactly as every trial (the study's
+evaluator, frequency margin and bounds) and held to the same baselines as the choice: every bound
+kept (step loss, motor reserve, show-through, path error), no visible measure worse than any of
+them at the resolution, print time lower than the current choice's. The fastest candidate that
+passes becomes the choice; where none does, the group stays where it was.
+
+Why a walk and not only the study: the study samples a dozen per-feature dimensions besides the
+shapers with a few hundred trials, and rarely visits every hidden group's top at once; each group's
+top is a known, cheap direction to try (units: mm/s², the corner rule in the junction rule's unit).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution, point_from_metrics
+from ringtune.agents.tune.space import (ABUTTING_GROUPS, SEEN_GROUPS, SearchSpace, config_from_params,
+                                        params_from_config)
+from ringtune.agents.tune.stop import Bounds, failure
+from ringtune.shaping.config import TuneConfig
+
+#: shares of the way from the current value to the range's top that are tried, fastest first
+LEVELS = (1.0, 0.75, 0.5, 0.25)
+
+
+@dataclass
+class Raise:
+    """The walk's end: the (possibly new) choice, the start, each raised setting as
+    ``(parameter, from, to)``, and the evaluations spent."""
+
+    point: Point
+    start: Point
+    raised: list = field(default_factory=list)
+    evaluations: int = 0
+
+    @property
+    def moved(self) -> bool:
+        return self.point is not self.start
+
+    def sentence(self) -> str:
+        if not self.raised:
+            return (f"No feature nobody sees could go faster with every visible measure kept "
+                    f"({self.evaluations} evaluations).")
+        parts = ", ".join(f"{_name(k)} {a:g} → {b:g}" for k, a, b in self.raised)
+        return (f"Raised where nobody looks, every visible measure and bound still kept ({self.evaluations} "
+                f"evaluations): {parts}; {self.start.print_time_s:.1f} s → {self.point.print_time_s:.1f} s.")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"raised": [{"parameter": k, "from": a, "to": b} for k, a, b in self.raised],
+                "from_print_time_s": self.start.print_time_s, "to_print_time_s": self.point.print_time_s,
+                "evaluations": self.evaluations, "sentence": self.sentence()}
+
+
+def _name(key: str) -> str:
+    """``accel_infill`` -> "infill", ``corner_hidden`` -> "corner rule of the corners nobody sees"."""
+    return {"corner_hidden": "their corner rule", "min_cruise_ratio_hidden": "their minimum_cruise_ratio"}.get(
+        key, key.removeprefix("accel_").replace("_", " "))
+
+
+def steps(params: dict[str, Any], space: SearchSpace) -> list[str]:
+    """What the walk raises, in order: each such group's acceleration parameter, then
+    ``corner_hidden`` (the corners nobody sees) where the space searches it."""
+    out = [f"accel_{g}" for g, _lo, _hi in space.feature_accel
+           if g not in SEEN_GROUPS + ABUTTING_GROUPS and f"accel_{g}" in params]
+    return out + (["corner_hidden"] if space.hidden_corner is not None and "corner_hidden" in params else [])
+
+
+def batch(key: str, params: dict[str, Any], space: SearchSpace) -> list[dict[str, Any]]:
+    """The candidates for ``key`` from ``params``: its value at :data:`LEVELS` of the way to its
+    range's top; for ``corner_hidden`` each also with minimum_cruise_ratio at its range's bottom and
+    as it is (the current point itself left out)."""
+    if key != "corner_hidden":
+        top = dict((f"accel_{g}", hi) for g, _lo, hi in space.feature_accel)[key]
+        return _levels(params, key, top)
+    out = _levels(params, key, space.hidden_corner[1]) + [dict(params)]
+    if space.hidden_min_cruise_ratio is not None and "min_cruise_ratio_hidden" in params:
+        ratios = sorted({space.hidden_min_cruise_ratio[0], float(params["min_cruise_ratio_hidden"])})
+        out = [dict(p, min_cruise_ratio_hidden=r) for p in out for r in ratios]
+    return [p for p in out if p != params]
+
+
+def _levels(params: dict[str, Any], key: str, top: float) -> list[dict[str, Any]]:
+    now = float(params[key])
+    return [dict(params, **{key: v}) for v in sorted({now + f * (top - now) for f in LEVELS if top > now}, reverse=True)]
+
+
+def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[TuneConfig]], list],
+                 space: SearchSpace, bounds: Bounds, *, res: Resolution = DEFAULT_RESOLUTION) -> Raise:
+    """Walk the features nobody sees up from ``start`` (module docstring); ``evaluate(configs) ->
+    metrics`` judges as the study does; ``bases``: the baselines the choice was held to."""
+    cur, n, raised = start, 0, []
+    if not space.per_feature:
+        return Raise(start, start)
+    params = params_from_config(start.config, space)
+    for key in steps(params, space):
+        configs = [config_from_params(p, space, extra=start.config.extra) for p in batch(key, params, space)]
+        configs = [c for c in configs if c != cur.config]
+        if not configs:
+            continue
+        n += len(configs)
+        points = [point_from_metrics(c, m, label="hidden raise", max_path_error_mm=bounds.max_path_error_mm,
+                                     max_motor_load=bounds.max_motor_load,
+                                     max_show_through_mm=bounds.max_show_through_mm)
+                  for c, m in zip(configs, evaluate(configs))]
+        ok = [p for p in points if failure(p, bases, cur, bounds, res) is None]
+        if ok:
+            best = min(ok, key=lambda p: (p.print_time_s, p.quality_mm))
+            new = params_from_config(best.config, space)
+            raised += [(k, params[k], new[k]) for k in (key, "min_cruise_ratio_hidden")
+                       if k in new and new[k] != params.get(k)]
+            cur, params = best, new
+    return Raise(cur, start, raised, n)

@@ -1,0 +1,91 @@
+"""The walk where nobody looks (issue 22): after the choice, each hidden group is raised toward its
+motor top and the corners nobody sees toward their range's top, only as far as the same judgement
+allows — checked with an evaluator whose verdicts are known in advance, on the real per-feature
+space of the built-in part."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+from ringtune.agents.tune.feature_space import feature_space
+from ringtune.agents.tune.hidden_raise import LEVELS, raise_hidden
+from ringtune.agents.tune.pareto import point_from_metrics
+from ringtune.agents.tune.space import config_from_params, default_space, params_from_config
+from ringtune.agents.tune.stop import Bounds
+from ringtune.envs.printer import load_printer
+from ringtune.shaping.config import TuneConfig
+
+RIPPLE_TOP = 10_000.0      # mm/s²: the infill above this makes the (visible) ripple worse
+SHOW_PER_CORNER = 0.01     # mm of show-through per mm/s of the hidden corner rule
+BOUNDS = Bounds(max_path_error_mm=0.1, max_motor_load=0.8, max_show_through_mm=0.2)
+
+
+def _metrics(cfg: TuneConfig, travel_overloads: bool = False):
+    """Known verdicts: print time falls with every hidden acceleration, the hidden corner rule and
+    a lower minimum_cruise_ratio; the infill above RIPPLE_TOP ripples the walls more; the corner
+    rule shows through; the travel may overload a motor at any raise."""
+    fa = cfg.feature_accel
+    corner = cfg.feature_corner.get("infill", 5.0)
+    mcr = cfg.feature_min_cruise_ratio.get("infill", 0.5)
+    t = (1000.0 + sum(1e6 / a for a in fa.values()) - corner + 10.0 * mcr)
+    return SimpleNamespace(print_time_s=t, step_loss=False, path_error_mm=0.05, overshoot_mm=0.03, ringing_mm=0.01,
+                           peak_accel=5000.0, motor_load=0.9 if travel_overloads and fa.get("travel", 0) > 5000 else 0.5,
+                           ripple_mm=0.08 if fa.get("infill", 0) > RIPPLE_TOP else 0.05, ripple_p90_mm=0.04,
+                           corner_in_mm=0.1, corner_out_mm=0.04, extrusion_over_pct=10.0, extrusion_under_pct=8.0,
+                           e_lag_mm=0.05, show_through_mm=SHOW_PER_CORNER * corner)
+
+
+@pytest.fixture(scope="module")
+def space():
+    printer = load_printer(None)
+    return feature_space(default_space(printer, "klipper"), printer, "part")
+
+
+def _start(space):
+    params = {"shaper_x": "ei", "shaper_y": "mzv", "freq_x": 51.4, "freq_y": 46.6, "damping_x": 0.1,
+              "damping_y": 0.1, "freq_limit": "off", "accel": 5000.0, "corner": 5.0, "min_cruise_ratio": 0.5,
+              "corner_hidden": 5.0, "min_cruise_ratio_hidden": 0.5,
+              **{f"accel_{g}": 5000.0 for g, _lo, _hi in space.feature_accel}}
+    return config_from_params(params, space)
+
+
+def _walk(space, **kw):
+    start_cfg = _start(space)
+    start = point_from_metrics(start_cfg, _metrics(start_cfg, **kw), max_path_error_mm=0.1, max_motor_load=0.8,
+                               max_show_through_mm=0.2)
+    calls = []
+
+    def evaluate(configs):
+        calls.append(len(configs))
+        return [_metrics(c, **kw) for c in configs]
+
+    return raise_hidden(start, {"klipper": start}, evaluate, space, BOUNDS), calls
+
+
+def test_each_group_goes_as_high_as_the_judgement_allows(space):
+    tops = {g: hi for g, _lo, hi in space.feature_accel}
+    lift, calls = _walk(space)
+    got = params_from_config(lift.point.config, space)
+    # the highest level of the way from 5000 to the top that keeps the ripple: infill at 3/4 breaks it
+    levels = sorted(5000.0 + f * (tops["infill"] - 5000.0) for f in LEVELS)
+    assert got["accel_infill"] == max(round(a / 100) * 100 for a in levels if a <= RIPPLE_TOP)
+    assert got["accel_solid_infill"] == tops["solid_infill"] and got["accel_travel"] == tops["travel"]
+    # seen top surfaces and inner walls (they abut the outer wall) are left to the search
+    assert got["accel_top_surface"] == 5000.0 and got["accel_hidden_walls"] == 5000.0
+    # the corners nobody sees: the highest level within the show-through bound, no cruise smoothing
+    corner_levels = [5.0 + f * (space.hidden_corner[1] - 5.0) for f in LEVELS]
+    want = max(round(c * 2) / 2 for c in corner_levels if SHOW_PER_CORNER * c <= BOUNDS.max_show_through_mm)
+    assert got["corner_hidden"] == want and got["min_cruise_ratio_hidden"] == 0.0
+    assert lift.moved and lift.point.print_time_s < lift.start.print_time_s
+    assert lift.evaluations == sum(calls) and len(calls) == 4      # infill, solid infill, travel, corners
+    assert {k for k, _a, _b in lift.raised} == {"accel_infill", "accel_solid_infill", "accel_travel",
+                                                 "corner_hidden", "min_cruise_ratio_hidden"}
+    assert "infill 5000 → " in lift.sentence() and lift.to_dict()["to_print_time_s"] == lift.point.print_time_s
+
+
+def test_a_group_that_breaks_a_bound_at_every_level_stays(space):
+    lift, _calls = _walk(space, travel_overloads=True)
+    assert params_from_config(lift.point.config, space)["accel_travel"] == 5000.0
+    assert "accel_travel" not in {k for k, _a, _b in lift.raised}
