@@ -6,13 +6,14 @@ judged as ``tune`` judges (the printer and its resonances ±5 %, the worst count
 1. the baseline: Klipper's pick from the printer's files ([measurement.klipper]);
 2. the best single-acceleration configuration: the baseline's shapers at every acceleration of the
    search range (100 mm/s² steps), the fastest with no visible measure (ripple, its 90th
-   percentile, corner rounding and overshoot, over- and under-extrusion of the visible classes)
-   worse than the baseline's at the reports' resolution (1 µm or 5 %; 0.5 percentage points of
-   extrusion), no motor over its reserve; show-through of infill (and solid infill, support)
-   within the gap the job's slicer left between it and the outer wall
-   (:mod:`ringtune.shaping.wall_gap`; where the job states no perimeters, :data:`SHOW_THROUGH_MM`)
-   or no worse than the baseline's where that is already beyond it; of inner walls (they abut the
-   outer wall) no worse than the baseline's;
+   percentile, corner rounding and overshoot, over- and under-extrusion) worse than the
+   baseline's at the reports' resolution (1 µm or 5 %; 1 percentage point or 5 % of extrusion),
+   as ``tune`` holds its choice: the job's figures, each visible class's own and what the inner
+   walls push into the outer wall (:data:`~ringtune.agents.tune.pareto.JUDGED_KEYS`); no motor
+   over its reserve; show-through of infill (and solid infill, support) within the gap the job's
+   slicer left between it and the outer wall (:mod:`ringtune.shaping.wall_gap`; where the job
+   states no perimeters, :data:`SHOW_THROUGH_MM`) or no worse than the baseline's where that is
+   already beyond it;
 3. per feature: the same shapers and visible-wall acceleration, each group apart from the visible
    walls (top surfaces, judged as seen; inner walls, infill, solid infill, travel) at its range's
    top (the motor reserve at the group's own top speed) or a lower step, the fastest with no
@@ -33,18 +34,17 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import tempfile
 import time
-from pathlib import Path
 
-import numpy as np
 
 from ringtune.agents.tune.baselines import recorded_klipper
 from ringtune.agents.tune.feature_space import feature_space
+from ringtune.agents.tune.pareto import no_worse, point_from_metrics
 from ringtune.agents.tune.space import ACCEL_GROUPS, HIDDEN_CORNERS, default_space
 from ringtune.envs.evaluate import evaluate_many, planned_job
 from ringtune.envs.printer import load_printer, printer_from_dict
 from ringtune.shaping.builtin_jobs import job_path
+from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.features import VISIBLE as SEEN
 from ringtune.shaping.wall_gap import infill_wall_gap
 
@@ -55,9 +55,11 @@ RESERVE, MARGIN = 0.2, 0.05
 #: 10 % of a 0.45 mm line); a job that states them gets the gap its slicer left between the infill
 #: and the outer wall (:func:`ringtune.shaping.wall_gap.infill_wall_gap`)
 SHOW_THROUGH_MM = 0.045
-#: hidden classes whose excursion must cross the inner perimeters to reach the outer wall; the
-#: other hidden ones (inner walls) abut it: no worse than the reference's
+#: hidden classes whose excursion must cross the inner perimeters to reach the outer wall (the inner
+#: walls abut it: their push is one of the judged figures)
 BEHIND_PERIMETERS = ("infill", "solid_infill", "support")
+#: a configuration for wrapping metrics into the study's points (only their figures are compared)
+CFG = TuneConfig()
 BOUND = {"mm": SHOW_THROUGH_MM, "why": "assumed: 10 % of a 0.45 mm line (the job states no perimeters)"}
 
 
@@ -76,22 +78,18 @@ def hidden_extrusion(m) -> float:
 
 
 def not_worse(m, ref) -> bool:
-    """No visible measure of ``m`` worse than ``ref``'s beyond the resolution; show-through within
-    its bound or no worse than ``ref``'s; the motors within their reserve."""
-    for k in VISIBLE:
-        a, b = visible(m, k), visible(ref, k)
-        tol = 0.5 if k.endswith("_pct") else max(1e-3, 0.05 * abs(b))
-        if a > b + tol:
-            return False
+    """As ``tune`` holds its choice (:func:`ringtune.agents.tune.pareto.no_worse` on
+    :data:`~ringtune.agents.tune.pareto.JUDGED_KEYS`): no figure of ``m`` worse than ``ref``'s beyond
+    the resolution — the job's, each visible class's own, the inner walls' push into the outer wall
+    —; show-through of the classes behind the perimeters within the job's gap (or no worse than
+    ``ref``'s); no step lost, the motors within their reserve."""
+    if not no_worse(point_from_metrics(CFG, m), point_from_metrics(CFG, ref)):
+        return False
     for cls, v in m.features.items():
-        if cls in SEEN:
-            continue
-        r = ref.features.get(cls, {}).get("show_through_mm", 0.0)
-        through = r + max(1e-3, 0.05 * r)
         if cls in BEHIND_PERIMETERS:
-            through = max(BOUND["mm"], through)
-        if v["show_through_mm"] > through:
-            return False
+            r = ref.features.get(cls, {}).get("show_through_mm", 0.0)
+            if v["show_through_mm"] > max(BOUND["mm"], r + max(1e-3, 0.05 * r)):
+                return False
     return m.motor_load <= 1 - RESERVE and not m.step_loss
 
 
@@ -101,50 +99,13 @@ def row(name, m) -> str:
             f"{hidden_extrusion(m):7.1f} {m.motor_load * 100:6.0f} %")
 
 
-def walls_swapped(job):
-    """The job with PrusaSlicer's inner and outer wall labels exchanged (a temporary file), or None
-    when it has no such labels: judged as tune judges, its visible-wall windows fall on the inner
-    walls, which otherwise no window holds. Inner walls abut the outer wall, so what they ripple
-    pushes it: they must keep the outer walls' measures."""
-    if job is None:
-        return None
-    text = Path(job).read_text(encoding="utf-8", errors="replace")
-    if ";TYPE:Perimeter\n" not in text or ";TYPE:External perimeter\n" not in text:
-        return None
-    swap = {";TYPE:Perimeter": ";TYPE:External perimeter", ";TYPE:External perimeter": ";TYPE:Perimeter"}
-    out = Path(tempfile.mkdtemp()) / "walls_swapped.gcode"
-    out.write_text("\n".join(swap.get(line, line) for line in text.split("\n")))
-    return str(out)
-
-
-def inner_walls_top(printer, swapped, base_cfg, ladder) -> float | None:
-    """The highest of ``ladder`` (mm/s²) at which the inner walls (the visible windows of the
-    ``swapped`` job) ripple and round or overshoot their corners no more than at ``base_cfg``'s
-    acceleration (1 µm or 5 %); None when none does."""
-    a0 = float(base_cfg.accel)
-    rest = {c: a0 for c in ("bridge_overhang", "other")}
-
-    def cfg(a):
-        return dataclasses.replace(base_cfg, feature_accel={**rest, "outer_wall": a, "inner_wall": a0})
-
-    ref, *ms = evaluate_many([cfg(a0)] + [cfg(a) for a in ladder], printer, swapped, freq_margin=MARGIN)
-    seen = ("ripple_mm", "ripple_p90_mm", "corner_in_mm", "corner_out_mm")
-    base = ref.features.get("outer_wall", {})
-    for a, m in sorted(zip(ladder, ms), key=lambda am: -am[0]):
-        f = m.features.get("outer_wall", {})
-        if all(f.get(k, 0.0) <= base.get(k, 0.0) + max(1e-3, 0.05 * base.get(k, 0.0)) for k in seen):
-            return a
-    return None
-
-
 def per_feature(printer, job, base_cfg, ref, steps=(1.0, 0.85, 0.7, 0.55, 0.4, 0.25)):
     """The fastest per-feature configuration (visible acceleration and shapers of ``base_cfg``)
     not worse than ``ref`` on the visible measures: each hidden group alone at fractions ``steps``
     of its range's top (never below the visible walls' acceleration), the highest that keeps the
     judgement; then all groups together at their own (checked again; a group that breaks it in
-    company drops back step by step); the inner walls, which no window of a sliced job may hold, are
-   judged on the job with inner and outer wall labels exchanged (:func:`walls_swapped`). Returns
-   (config, metrics, space)."""
+    company drops back step by step); then the corners nobody sees (:func:`hidden_corners`).
+    Returns (config, metrics, space)."""
     space = feature_space(default_space(printer, base_cfg.firmware), printer, job, RESERVE,
                           corner=False, min_cruise_ratio=False)
     base_a = float(base_cfg.accel)
@@ -163,14 +124,6 @@ def per_feature(printer, job, base_cfg, ref, steps=(1.0, 0.85, 0.7, 0.55, 0.4, 0
     for (g, a), m in zip(alone, ms):
         if not_worse(m, ref) and a > best.get(g, 0.0):
             best[g] = a
-    swapped = walls_swapped(job)
-    if swapped and "hidden_walls" in best:           # no window of the job holds an inner wall
-        fine = [a for a in np.arange(base_a + 500.0, best["hidden_walls"] + 1.0, 500.0)]   # 500 mm/s² steps
-        top = inner_walls_top(printer, swapped, base_cfg, fine)
-        if top is None:
-            del best["hidden_walls"]
-        else:
-            best["hidden_walls"] = top
     while best:
         m = evaluate_many([cfg(best)], printer, job, freq_margin=MARGIN)[0]
         if not_worse(m, ref):

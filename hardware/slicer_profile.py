@@ -179,6 +179,12 @@ def slicer_profile(config: TuneConfig, slicer: str, firmware: str | None = None,
     top = max(values.values())
     common = [f"per-feature accelerations tuned for {fw.title} (mm/s²); the first-layer acceleration "
               "is left as the profile has it"] + _shared_notes(keys, wanted, effective)
+    if config.feature_corner or config.feature_min_cruise_ratio:
+        orca = (" (OrcaSlicer's per-feature jerk, infill_jerk and travel_jerk, could carry the corner rule; "
+                "this profile does not write them)" if slicer == "orcaslicer" else "")
+        common.append("the corner rule and minimum_cruise_ratio per feature class (feature_corner, "
+                      f"feature_min_cruise_ratio) are not in this profile{orca}: `ringtune rewrite` writes them "
+                      "into the sliced job at each feature change")
     caps = {f"machine_max_acceleration_{ax}": _n(c) for ax, c in zip("xy", config.axis_caps) if c is not None}
     build = {"prusaslicer": _prusaslicer, "orcaslicer": _orcaslicer, "cura": _cura}[slicer]
     prof = build({k: _n(v) for k, v in values.items()}, _n(top), caps, common, fw, keys)

@@ -10,9 +10,9 @@ import json
 
 import pytest
 
-from ringtune.agents.tune.feature_space import at_ceilings, feature_space, group_speeds, hidden_groups, wanted
-from ringtune.agents.tune.space import (ACCEL_GROUPS, SEEN_GROUPS, SearchSpace, config_from_params, default_space,
-                                        params_from_config)
+from ringtune.agents.tune.feature_space import feature_space, group_speeds, hidden_groups, wanted
+from ringtune.agents.tune.space import (ACCEL_GROUPS, SearchSpace, config_from_params, default_space,
+                                        params_from_config, suggest_params, walked_keys)
 from ringtune.envs.printer import load_printer, printer_from_dict
 from ringtune.shaping.config import TuneConfig
 
@@ -55,11 +55,13 @@ def test_a_weak_motor_gets_lower_hidden_accelerations_than_a_strong_one():
     for name, p in (("weak", weak), ("strong", strong)):
         space = feature_space(default_space(p, "klipper"), p, None, reserve=0.2)
         tops[name] = {g: hi for g, _lo, hi in space.feature_accel}
-        # the warm start puts every hidden group at the top of its range (top surfaces are seen)
-        cfg = config_from_params(at_ceilings({"shaper_x": "mzv", "shaper_y": "mzv", "freq_x": 45.0, "freq_y": 40.0,
-                                              "freq_limit": "off", "accel": 3000.0}, space), space)
-        for g, hi in tops[name].items():
-            assert cfg.feature_accel[ACCEL_GROUPS[g][0]] == (hi if g not in SEEN_GROUPS else space.accel[0])
+        # a point of the study (no group sampled) runs every group at the visible walls' acceleration,
+        # within the group's range
+        for accel in (3000.0, 20_000.0):
+            cfg = config_from_params({"shaper_x": "mzv", "shaper_y": "mzv", "freq_x": 45.0, "freq_y": 40.0,
+                                      "freq_limit": "off", "accel": accel}, space)
+            for g, hi in tops[name].items():
+                assert cfg.feature_accel[ACCEL_GROUPS[g][0]] == min(accel, hi)
     for g in tops["weak"]:
         assert tops["weak"][g] < tops["strong"][g]
 
@@ -106,3 +108,18 @@ def test_auto_searches_per_feature_only_where_it_can_matter(data_dir):
     # a job with one visible feature and no travel has nothing apart from the visible walls
     one = ";TYPE:External perimeter\nG1 X0 Y0 F6000\nG1 X20 Y0 E1\nG1 X20 Y20 E2\n"
     assert hidden_groups(BASE, one) == [] and not wanted("on", space, BASE, one, False, "replace")[0]
+
+
+def test_the_study_samples_no_walked_parameter():
+    """The study samples the shapers, the visible acceleration and the job's corner rule; the group
+    accelerations and the corners nobody sees are the walk's (a FixedTrial refuses any parameter it
+    is not given)."""
+    import optuna
+
+    space = feature_space(default_space(BASE, "klipper"), BASE, None)
+    walked = set(walked_keys(space))
+    assert walked == {f"accel_{g}" for g, _lo, _hi in space.feature_accel} | {"corner_hidden", "min_cruise_ratio_hidden"}
+    given = {"shaper_x": "zv", "shaper_y": "zv", "freq_x": 45.0, "freq_y": 40.0, "damping_x": 0.1, "damping_y": 0.1,
+             "freq_limit": "off", "accel": 4000.0, "corner": 6.0, "min_cruise_ratio": 0.3}
+    p = suggest_params(optuna.trial.FixedTrial(given), space)
+    assert not walked & set(p)

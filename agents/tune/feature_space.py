@@ -90,25 +90,6 @@ def hidden_groups(printer: Any, job: Any = None) -> list[str]:
     return [g for g in group_speeds(printer, job) if g != "visible" and g not in SEEN_GROUPS]
 
 
-def at_ceilings(params: dict[str, Any], space: SearchSpace, corners: bool = False,
-                share: float = 1.0) -> dict[str, Any]:
-    """A parameter dict with every hidden group's acceleration at the top of its range (the
-    fastest the motors allow for the features nobody sees; top surfaces are seen): a warm start.
-    ``share`` < 1: that share of the way from the visible acceleration (``params["accel"]``) to the
-    top. ``corners``: the corners nobody sees at the top of their corner rule's range and with no
-    cruise smoothing (minimum_cruise_ratio 0) too."""
-    out = dict(params)
-    base = float(params.get("accel", space.accel[0]))
-    for group, _lo, hi in space.feature_accel:
-        if group not in SEEN_GROUPS:
-            out[f"accel_{group}"] = hi if share >= 1.0 else max(base, base + share * (hi - base))
-    if corners and space.hidden_corner is not None:
-        out["corner_hidden"] = space.hidden_corner[1]
-    if corners and space.hidden_min_cruise_ratio is not None:
-        out["min_cruise_ratio_hidden"] = space.hidden_min_cruise_ratio[0]
-    return out
-
-
 def wanted(mode: str, space: SearchSpace, printer: Any, job: Any, job_sets_accel: bool,
            job_accel: str) -> tuple[bool, str]:
     """(search per feature, why) for ``--per-feature`` ``mode`` (``auto``, ``on``, ``off``):

@@ -21,11 +21,16 @@ Parameters (Optuna names):
   are the owner's per-axis limits in the firmware's configuration (Kalico's limited_* kinematics:
   ``max_x_accel``/``max_y_accel``; and on mainline Klipper, which has none, said by ``export``).
 - per feature (a space from :func:`ringtune.agents.tune.feature_space.feature_space`):
-  ``accel_<group>`` for each group of :data:`ACCEL_GROUPS` but ``visible`` (whose acceleration is
-  ``accel``), mm/s²; ``corner`` (the printer's junction rule's value) and ``min_cruise_ratio``
-  (Klipper) when searched; ``corner_hidden`` and ``min_cruise_ratio_hidden``, the same for the
-  classes of :data:`HIDDEN_CORNERS`; they become the config's ``feature_accel``, ``corner``,
-  ``min_cruise_ratio``, ``feature_corner`` and ``feature_min_cruise_ratio``.
+  ``corner`` (the printer's junction rule's value) and ``min_cruise_ratio`` (Klipper), sampled by
+  the study; ``accel_<group>`` for each group of :data:`ACCEL_GROUPS` but ``visible`` (whose
+  acceleration is ``accel``), mm/s², and ``corner_hidden`` and ``min_cruise_ratio_hidden`` (the
+  same for the classes of :data:`HIDDEN_CORNERS`), *walked*: the study leaves them where a point
+  without them has them (each group at the visible walls' acceleration, within its range; the
+  corners as the printer has them) and :mod:`ringtune.agents.tune.hidden_raise` raises them from
+  the study's choice, one at a time, as far as the judgement allows — a study sampling a dozen
+  more dimensions found slower choices in the same trials (measured: issue 22's note). They become
+  the config's ``feature_accel``, ``corner``, ``min_cruise_ratio``, ``feature_corner`` and
+  ``feature_min_cruise_ratio``.
 
 :func:`config_from_params` turns a parameter dict into a :class:`TuneConfig`; the same function
 serves Optuna trials, grid points and stored trials, so they can never disagree.
@@ -52,12 +57,10 @@ from ringtune.shaping.smoothers import is_smoother
 ACCEL_GROUPS = {"visible": ("outer_wall", "bridge_overhang", "other"), "top_surface": ("top_surface",),
                 "hidden_walls": ("inner_wall",), "infill": ("infill", "support"),
                 "solid_infill": ("solid_infill",), "travel": ("travel",)}
-#: groups apart from ``visible`` that a person sees: searched like the hidden ones, never warm-started
-#: at their motor's top
+#: groups apart from ``visible`` that a person sees: walked last (:mod:`ringtune.agents.tune.hidden_raise`)
 SEEN_GROUPS = ("top_surface",)
-#: groups that lie against what is seen (inner walls abut the outer wall: what they ripple pushes it,
-#: which no bound of the study measures apart); the study searches them, but they are not walked
-#: up to their tops (:mod:`ringtune.agents.tune.hidden_raise`)
+#: groups that lie against what is seen (inner walls abut the outer wall: what they push into it is
+#: judged, :data:`ringtune.agents.tune.pareto.CLASS_KEYS`); walked after those nobody sees
 ABUTTING_GROUPS = ("hidden_walls",)
 #: classes whose corners nobody sees: infill, support and solid infill lie behind the perimeters,
 #: travel prints nothing; their corner rule and minimum_cruise_ratio are searched apart from the
@@ -358,6 +361,7 @@ class _Ranged:
     now: Callable[[TuneConfig], float | None]
     classes: tuple[str, ...] = ()
     into: str = ""
+    walked: bool = False      # set by the walk after the study (hidden_raise), not sampled by it
 
 
 def _per_feature(space: SearchSpace) -> list[_Ranged]:
@@ -365,7 +369,8 @@ def _per_feature(space: SearchSpace) -> list[_Ranged]:
     range's bottom; a configuration without one runs its ``accel``), the corner rule (the printer's
     own, else the range's bottom) and minimum_cruise_ratio (the printer's own, else the range's top)."""
     rows = [_Ranged(f"accel_{g}", lo, hi, space.accel_step, lo,
-                    lambda c, cls=ACCEL_GROUPS[g][0]: c.feature_accel.get(cls, c.accel), ACCEL_GROUPS[g], "feature_accel")
+                    lambda c, cls=ACCEL_GROUPS[g][0]: c.feature_accel.get(cls, c.accel), ACCEL_GROUPS[g], "feature_accel",
+                    walked=True)
             for g, lo, hi in space.feature_accel]
     if space.corner is not None:
         rows.append(_Ranged("corner", *space.corner, CORNER_STEP.get(space.junction, 0.001), space.corner[0],
@@ -388,14 +393,19 @@ def _hidden_corner_rows(space: SearchSpace) -> list[_Ranged]:
         rows.append(_Ranged("corner_hidden", *space.hidden_corner, CORNER_STEP.get(space.junction, 0.001),
                             clip(space.corner_now, space.hidden_corner),
                             lambda c: c.feature_corner.get(cls, c.corner if c.corner is not None else space.corner_now),
-                            HIDDEN_CORNERS, "feature_corner"))
+                            HIDDEN_CORNERS, "feature_corner", walked=True))
     if space.hidden_min_cruise_ratio is not None and space.mcr_now is not None:
         rows.append(_Ranged("min_cruise_ratio_hidden", *space.hidden_min_cruise_ratio, MCR_STEP,
                             clip(space.mcr_now, space.hidden_min_cruise_ratio),
                             lambda c: c.feature_min_cruise_ratio.get(
                                 cls, c.min_cruise_ratio if c.min_cruise_ratio is not None else space.mcr_now),
-                            HIDDEN_CORNERS, "feature_min_cruise_ratio"))
+                            HIDDEN_CORNERS, "feature_min_cruise_ratio", walked=True))
     return rows
+
+
+def walked_keys(space: SearchSpace) -> list[str]:
+    """The per-feature parameters the study leaves to the walk after it (module docstring)."""
+    return [r.key for r in _per_feature(space) if r.walked]
 
 
 def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
@@ -414,7 +424,8 @@ def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
     # a fixed acceleration is not searched: it has no effect (or was fixed)
     p["accel"] = space.accel[0] if space.accel_fixed else trial.suggest_float("accel", *space.accel)
     for r in _per_feature(space):
-        p[r.key] = trial.suggest_float(r.key, r.lo, r.hi) if r.hi > r.lo else r.lo
+        if not r.walked:
+            p[r.key] = trial.suggest_float(r.key, r.lo, r.hi) if r.hi > r.lo else r.lo
     return p
 
 
@@ -423,12 +434,20 @@ def feature_params(params: dict[str, Any], space: SearchSpace) -> dict[str, Any]
     from a parameter dict, rounded as :func:`config_from_params` rounds (empty without them)."""
     out: dict[str, Any] = {}
     for r in _per_feature(space):
-        value = _q(params.get(r.key, r.missing), r.step)
+        value = _q(params.get(r.key, _missing(r, params)), r.step)
         if r.classes:
             out.setdefault(r.into, {}).update(dict.fromkeys(r.classes, value))
         else:
             out[r.key] = value
     return out
+
+
+def _missing(r: _Ranged, params: dict[str, Any]) -> float:
+    """The value of a per-feature parameter a point lacks: a group's acceleration is the visible
+    walls' (within the group's range: its motor's top at the group's own speed), else ``r.missing``."""
+    if r.into == "feature_accel" and params.get("accel") is not None:
+        return min(max(float(params["accel"]), r.lo), r.hi)
+    return r.missing
 
 
 def _suggest_family(trial: Any, family: str, ax: str) -> dict[str, Any]:

@@ -17,7 +17,8 @@ from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
 from ringtune.agents.tune.out_dir import check_out, remove_if_empty
 from ringtune.agents.tune.pareto import VISIBLE_KEYS
-from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config, top_speed_load_note
+from ringtune.agents.tune.space import (default_space, freq_floor_note, params_from_config, top_speed_load_note,
+                                        walked_keys)
 from ringtune.agents.tune.hidden_raise import raise_hidden
 from ringtune.agents.tune.stop import Bounds, measured_stop
 from ringtune.envs.evaluate import resolve_printer
@@ -257,17 +258,14 @@ def _settings(req: TuneRequest, lim: _Limits, firmware: str, quality: str, space
 
 
 def _warm_points(bl, space) -> list[dict]:
-    """The study's first trials: Klipper's pick (searching per feature, also with the hidden groups
-    at their tops and halfway there, each with their corners as they are and free) and its neighbours, what the printer runs now (when inside the space); no point
-    twice."""
+    """The study's first trials: Klipper's pick and its neighbours, what the printer runs now (when
+    inside the space); no point twice (the walked per-feature parameters are not the study's)."""
     configs = warm_start(bl.points["klipper"].config, bl.fits, space)
     current = bl.points.get("current")
     if current is not None and inside(current.config, space):
         configs.append(current.config)
-    params = [params_from_config(c, space) for c in configs]
-    if space.per_feature and params:
-        params[1:1] = [feature_space.at_ceilings(params[0], space, corners=c, share=f)
-                       for f in (1.0, 0.5) for c in (False, True)]
+    walked = set(walked_keys(space))
+    params = [{k: v for k, v in params_from_config(c, space).items() if k not in walked} for c in configs]
     unique: dict = {}
     for q in params:
         unique.setdefault(tuple(sorted(q.items())), q)
