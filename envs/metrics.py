@@ -47,7 +47,10 @@ What a person sees (all mm unless stated):
     ``SPAN_MM`` = 1 mm of the nozzle's path within a run (a shorter run: the run), the material
     laid against the asked is 1 + Δlead/length, lead being the filament pushed beyond what the
     path holds up to the nozzle's position, in mm of path; the largest excess and the largest
-    shortfall, in %, over all extruding classes (they arise at starts, stops and corners).
+    shortfall, in %, over the classes whose material a person sees (:data:`EXTRUSION_SEEN`: the
+    visible ones, and the inner walls and solid infill that lie against them; they arise at starts,
+    stops and corners). Sparse infill and support are nobody's to see: their own figures stay in
+    ``features``.
     *Example*: Marlin classic ZV at 40 Hz (no damping: halves 12.5 ms apart, lag ΣAᵢTᵢ = 6.25 ms)
     leaves the extruder 0.625 mm ahead at 100 mm/s; a line started from rest whose acceleration
     ends within its first mm gets 62.5 % too much material there and 62.5 % too little over its
@@ -70,7 +73,8 @@ What a person sees (all mm unless stated):
 ``features``
     ``{class: {key: value}}`` for each feature class with extruding samples in the judged
     windows, keys :data:`FEATURE_KEYS` (``show_through_mm`` 0 for visible classes); the values
-    above are the worst over the visible (respectively hidden, or all for extrusion) classes.
+    above are the worst over the visible (respectively hidden; for extrusion :data:`EXTRUSION_SEEN`)
+    classes.
 ``extrusion_if_synced``
     where the firmware can synchronise its extruder and does not by default
     (:attr:`ringtune.shaping.firmware.Firmware.e_sync`), ``extrusion_over_pct``,
@@ -127,9 +131,13 @@ FEATURE_KEYS = ("ripple_mm", "ripple_p90_mm", "corner_in_mm", "corner_out_mm", "
                 "extrusion_over_pct", "extrusion_under_pct", "e_lag_mm", "path_error_mm")
 #: what a person sees on the visible features (all: smaller is better)
 SEEN_KEYS = ("ripple_mm", "ripple_p90_mm", "corner_in_mm", "corner_out_mm")
-#: the extruder's timing measures (all features)
+#: the extruder's timing measures (per class; the job's over :data:`EXTRUSION_SEEN`)
 EXTRUSION_KEYS = ("extrusion_over_pct", "extrusion_under_pct", "e_lag_mm")
 _VISIBLE = np.array([c in VISIBLE for c in FEATURE_CLASSES])
+#: classes whose extrusion a person sees: the visible ones, the inner walls (behind the outer wall:
+#: what they lay too much pushes it) and solid infill (under the top surface)
+EXTRUSION_SEEN = VISIBLE | {"inner_wall", "solid_infill"}
+_EXTRUSION_SEEN = np.array([c in EXTRUSION_SEEN for c in FEATURE_CLASSES])
 _OTHER = FEATURE_CLASSES.index("other")
 _N = len(FEATURE_CLASSES)
 #: s after the shaped command finished turning a corner that still belongs to it, by default
@@ -365,12 +373,15 @@ def _extruded(made, tu, pts, vec, leg, legs: Legs, before: float, after: float) 
 
 def _top(per_cls: dict[str, np.ndarray]) -> dict[str, float]:
     """The job-level values: seen measures over visible classes, show-through over hidden ones,
-    extrusion over all (the ripple's p90 is set from the walls, :func:`_p90_from_walls`)."""
+    extrusion over :data:`EXTRUSION_SEEN` (the ripple's p90 is set from the walls,
+    :func:`_p90_from_walls`)."""
     out = {}
     for k, v in per_cls.items():
         if k in SEEN_KEYS:
             out[k] = float(np.max(v[_VISIBLE]))
-        elif k in EXTRUSION_KEYS or k == "show_through_mm":
+        elif k in EXTRUSION_KEYS:
+            out[k] = float(np.max(v[_EXTRUSION_SEEN]))
+        elif k == "show_through_mm":
             out[k] = float(np.max(v))
     return out
 

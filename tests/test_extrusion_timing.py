@@ -19,6 +19,7 @@ from ringtune.envs.metrics import compute_metrics
 from ringtune.shaping.apply import shape_motion
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.e_timing import E_TIMINGS, XY_DELAYS, extruder_command
+from ringtune.shaping.features import FEATURE_CLASSES
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.motion import Motion
 from ringtune.shaping.shapers import shapers_from_config
@@ -132,6 +133,15 @@ def test_extrusion_worked_example_of_the_docstring():
     assert m.e_lag_mm == pytest.approx(0.625, rel=1e-3)
     assert m.extrusion_over_pct == pytest.approx(62.5, rel=2e-3)
     assert m.extrusion_under_pct == pytest.approx(62.5, rel=2e-3)
+    # the same line as sparse infill: nobody sees its material, so the job's figures leave it out
+    # and its own stay in features; as solid infill (under a top surface) it counts
+    sim = StiffSim(t, shaped.position(t)[:, :2], np.zeros((len(t), 2)))
+    for label, counted in (("infill", False), ("solid_infill", True)):
+        cls = np.full(mo.n_segments, FEATURE_CLASSES.index(label))
+        lm = compute_metrics(sim, mo, lag=0.00625, settle=0.0125, classes=cls,
+                             e_command=extruder_command(mo, shapers, centred, FIRMWARES["marlin"]))
+        assert lm.features[label]["extrusion_over_pct"] == pytest.approx(62.5, rel=2e-3)
+        assert lm.extrusion_over_pct == (pytest.approx(62.5, rel=2e-3) if counted else 0.0)
 
 
 def test_retraction_after_the_line_is_not_material_taken_back():

@@ -54,11 +54,12 @@ def table(point: Point | Mapping, baselines: Mapping[str, Point | Mapping], labe
     the verdict of the configuration against it; a legend naming the baselines and the resolution."""
     keys = [k for k in SHOWN if _value(point, k) is not None]
     cols = list(baselines)
-    head = f"  {'measure':<22}{name:>12}" + "".join(f"  {'[' + str(i + 1) + ']':>12} {'':7}"
+    w = max([len("measure")] + [len(words(k)[0]) for k in keys]) + 2
+    head = f"  {'measure':<{w}}{name:>12}" + "".join(f"  {'[' + str(i + 1) + ']':>12} {'':7}"
                                                    for i in range(len(cols)))
     lines = [head]
     for k in keys:
-        row = f"  {words(k)[0]:<22}{shown(k, _value(point, k)):>12}"
+        row = f"  {words(k)[0]:<{w}}{shown(k, _value(point, k)):>12}"
         for c in cols:
             b = _value(baselines[c], k)
             row += (f"  {shown(k, b):>12} {verdict(k, _value(point, k), b, res):<7}" if b is not None
