@@ -111,15 +111,16 @@ def test_auto_searches_per_feature_only_where_it_can_matter(data_dir):
 
 
 def test_the_study_samples_no_walked_parameter():
-    """The study samples the shapers, the visible acceleration and the job's corner rule; the group
-    accelerations and the corners nobody sees are the walk's (a FixedTrial refuses any parameter it
-    is not given)."""
+    """The study samples what a single-acceleration study samples (shapers, the visible walls'
+    acceleration); the group accelerations and the corner rules are the walk's (a FixedTrial
+    refuses any parameter it is not given)."""
     import optuna
 
     space = feature_space(default_space(BASE, "klipper"), BASE, None)
     walked = set(walked_keys(space))
-    assert walked == {f"accel_{g}" for g, _lo, _hi in space.feature_accel} | {"corner_hidden", "min_cruise_ratio_hidden"}
+    assert walked == {f"accel_{g}" for g, _lo, _hi in space.feature_accel} | {
+        "corner", "min_cruise_ratio", "corner_hidden", "min_cruise_ratio_hidden"}
     given = {"shaper_x": "zv", "shaper_y": "zv", "freq_x": 45.0, "freq_y": 40.0, "damping_x": 0.1, "damping_y": 0.1,
-             "freq_limit": "off", "accel": 4000.0, "corner": 6.0, "min_cruise_ratio": 0.3}
+             "freq_limit": "off", "accel": 4000.0}
     p = suggest_params(optuna.trial.FixedTrial(given), space)
     assert not walked & set(p)

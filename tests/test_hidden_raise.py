@@ -79,8 +79,9 @@ def test_each_group_goes_as_high_as_the_judgement_allows(space):
     want = max(round(c * 2) / 2 for c in corner_levels if SHOW_PER_CORNER * c <= BOUNDS.max_show_through_mm)
     assert got["corner_hidden"] == want and got["min_cruise_ratio_hidden"] == 0.0
     assert lift.moved and lift.point.print_time_s < lift.start.print_time_s
-    # one batch each: infill, solid infill, travel, inner walls, top surfaces, the corners
-    assert lift.evaluations == sum(calls) and len(calls) == 6
+    # one batch each: infill, solid infill, travel, inner walls, top surfaces, the job's corner rule
+    # (it saves no time here: not taken), the corners nobody sees
+    assert lift.evaluations == sum(calls) and len(calls) == 7
     assert [k for k, _a, _b in lift.raised] == ["accel_infill", "accel_solid_infill", "accel_travel",
                                                 "accel_hidden_walls", "accel_top_surface", "corner_hidden",
                                                 "min_cruise_ratio_hidden"]

@@ -67,12 +67,14 @@ summary gives both print times.
 
 Per feature (--per-feature, default auto: on when the acceleration is searched and the job has
 features nobody sees, unless --job-accel respect keeps the job's own accelerations): the visible
-walls (outer walls, overhangs, unlabelled moves) take the main acceleration; top surfaces (seen,
-judged as the walls are), the hidden walls, the infill (with support), internal solid infill and
-travel each get their own, searched up to where the weakest motor keeps its reserve at that group's
-own top speed; the corner rule (Klipper's
-square_corner_velocity, Marlin's junction deviation or jerk, RRF's M566) and Klipper's
-minimum_cruise_ratio are searched too. One shaper configuration serves the whole job. With --gcode,
+walls (outer walls, overhangs, unlabelled moves) take the main acceleration, which the study
+searches with the shapers as it would without per-feature settings. From its choice, each other
+group (infill with support, internal solid infill, travel, then the inner walls and the top
+surfaces) is walked up toward the top of its range, where the weakest motor keeps its reserve at
+that group's own top speed; then the corner rule (Klipper's square_corner_velocity, Marlin's
+junction deviation or jerk, RRF's M566) and Klipper's minimum_cruise_ratio, for the job and apart
+for the corners nobody sees (infill, support, solid infill, travel): each step judged as every
+trial, kept only with no visible measure worse. One shaper configuration serves the whole job. With --gcode,
 job.gcode beside best.json is the job with the choice written in (as `ringtune rewrite` writes it).
 
 Baselines: Klipper's rule — the recommendation recorded from your resonance files by `ringtune
@@ -149,10 +151,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="a job's own M201/M204/SET_VELOCITY_LIMIT accelerations: respect them (default, the "
                         "print as sliced) or replace them by the tuned acceleration (what re-slicing would give)")
     p.add_argument("--per-feature", choices=("auto", "on", "off"), default="auto",
-                   help="search an acceleration per feature group (top surfaces, hidden walls, infill, solid infill, "
-                        "travel; the "
-                        "visible walls take the main one), the corner rule and minimum_cruise_ratio (default auto: "
-                        "when the acceleration is searched and the job has features nobody sees)")
+                   help="an acceleration per feature group (infill, solid infill, travel, inner walls, top "
+                        "surfaces; the visible walls take the main one), the corner rule and minimum_cruise_ratio, "
+                        "and apart for the corners nobody sees, walked up from the study's choice as far as every "
+                        "visible measure allows (default auto: when the acceleration is searched and the job has "
+                        "features nobody sees)")
     p.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco", help="physics (default mujoco)")
     p.add_argument("--evaluator", metavar="MODULE:FUNC", default=None,
                    help="advanced: score configs with your own f(configs, printer, job) -> metrics")

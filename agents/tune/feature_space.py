@@ -1,10 +1,13 @@
 """The per-feature part of the search space (issue 22): an acceleration per group of feature
 classes (:data:`ringtune.agents.tune.space.ACCEL_GROUPS`), the corner rule and Klipper's
-minimum_cruise_ratio — within the firmware's limits and each motor's reserve at that group's own
-speeds. One shaper configuration for the job (firmwares shape per axis, not per feature).
+minimum_cruise_ratio, for the job and for the corners nobody sees — within the firmware's limits
+and each motor's reserve at that group's own speeds. One shaper configuration for the job
+(firmwares shape per axis, not per feature). The study leaves them all to the walk from its choice
+(:mod:`ringtune.agents.tune.hidden_raise`).
 
-A hidden group (inner walls, infill, travel) is judged only by what shows through, extrusion and
-the constraints, and most of its moves are never simulated; so its range stops where the weakest
+A hidden group (inner walls, infill, travel) is judged by what shows through, what the inner walls
+push into the outer wall, extrusion where a person sees the material, and the constraints, and
+most of its moves are never simulated; so its range stops where the weakest
 motor keeps its reserve at the group's top speed, on the rigid machine
 (:func:`ringtune.agents.tune.space.motor_accel_limit` with the reserve: the force asked, friction
 included, at most (1 − reserve) of what the motor has at that speed). The visible group keeps the
@@ -125,7 +128,7 @@ def feature_section(config, space: SearchSpace) -> tuple[list[str], dict]:
         info["accel"][group] = a
         b = basis.get(group, {})
         lines.append(f"  {group.replace('_', ' ')} ({', '.join(ACCEL_GROUPS[group])}): {a:.0f} mm/s² "
-                     f"(searched {lo:.0f}–{hi:.0f}: {b.get('basis', '')})")
+                     f"(walked within {lo:.0f}–{hi:.0f}: {b.get('basis', '')})")
     unit = {"scv": "mm/s square_corner_velocity", "jd": "mm junction deviation", "jerk": "mm/s jerk"}
     if config.corner is not None:
         lines.append(f"  corner rule: {config.corner:g} {unit.get(space.junction, '')}")
@@ -135,7 +138,7 @@ def feature_section(config, space: SearchSpace) -> tuple[list[str], dict]:
                                 ("minimum_cruise_ratio", info["min_cruise_ratio_hidden"], space.hidden_min_cruise_ratio, "")):
         if value is not None:
             lines.append(f"  {name} of {', '.join(HIDDEN_CORNERS)} (corners nobody sees): {value:g}{' ' + u if u else ''}"
-                         + (f" (searched {rng[0]:g}–{rng[1]:g})" if rng else ""))
+                         + (f" (walked within {rng[0]:g}–{rng[1]:g})" if rng else ""))
     return lines, info
 
 

@@ -1,13 +1,13 @@
 """Fast where nobody looks, measured: each feature group raised from the study's choice toward its top.
 
-The study (:mod:`ringtune.agents.tune.study`) samples the shapers, the visible walls' acceleration
-and the job's corner rule; every other group runs the visible walls' acceleration there (within
-its range). From the choice, after the measured stop (:mod:`ringtune.agents.tune.stop`), each
+The study (:mod:`ringtune.agents.tune.study`) samples what a single-acceleration study samples (the
+shapers, the visible walls' acceleration); every other group runs the visible walls' acceleration
+there (within its range), and the corner rules are the printer's. From the choice, after the measured stop (:mod:`ringtune.agents.tune.stop`), each
 group's acceleration is tried at :data:`LEVELS` of the way from where it is to the top of its range
 (the motor reserve at the group's own top speed), one batch per group: first those nobody sees
 (infill, solid infill, travel), then the inner walls (they abut the outer wall: judged by what they
 push into it) and the top surfaces (seen: judged by their own ripple, corners and extrusion);
-then the corners nobody sees (:data:`~ringtune.agents.tune.space.HIDDEN_CORNERS`): their corner
+then the job's corner rule (the visible walls' too) and the corners nobody sees (:data:`~ringtune.agents.tune.space.HIDDEN_CORNERS`): their corner
 rule at those levels of the way to its range's top, each with minimum_cruise_ratio at its range's
 bottom (no cruise smoothing) and as it is. Every candidate is judged exactly as every trial (the
 study's evaluator, frequency margin and bounds) and held to the same baselines as the choice: every
@@ -66,33 +66,40 @@ class Raise:
 
 
 def _name(key: str) -> str:
-    """``accel_infill`` -> "infill", ``corner_hidden`` -> "corner rule of the corners nobody sees"."""
-    return {"corner_hidden": "their corner rule", "min_cruise_ratio_hidden": "their minimum_cruise_ratio"}.get(
+    """``accel_infill`` -> "infill", ``corner_hidden`` -> "their corner rule" (the corners nobody sees)."""
+    return {"corner_hidden": "their corner rule", "min_cruise_ratio_hidden": "their minimum_cruise_ratio",
+            "corner": "the job's corner rule", "min_cruise_ratio": "the job's minimum_cruise_ratio"}.get(
         key, key.removeprefix("accel_").replace("_", " "))
 
 
 def steps(params: dict[str, Any], space: SearchSpace) -> list[str]:
     """What the walk raises, in order: the acceleration parameter of each group nobody sees, of the
-    abutting ones, of the seen ones (module docstring), then ``corner_hidden`` (the corners nobody
-    sees) where the space has it."""
+    abutting ones, of the seen ones (module docstring), then the job's corner rule and that of the
+    corners nobody sees, where the space has them."""
     groups = [g for g, _lo, _hi in space.feature_accel if f"accel_{g}" in params]
     order = [g for g in groups if g not in SEEN_GROUPS + ABUTTING_GROUPS] + \
         [g for g in groups if g in ABUTTING_GROUPS] + [g for g in groups if g in SEEN_GROUPS]
-    return [f"accel_{g}" for g in order] + \
-        (["corner_hidden"] if space.hidden_corner is not None and "corner_hidden" in params else [])
+    corners = [k for k, (_m, rng, _r) in CORNERS.items() if getattr(space, rng) is not None and k in params]
+    return [f"accel_{g}" for g in order] + corners
+
+
+#: each corner rule parameter with its minimum_cruise_ratio and the space's fields of their ranges
+CORNERS = {"corner": ("min_cruise_ratio", "corner", "min_cruise_ratio"),
+           "corner_hidden": ("min_cruise_ratio_hidden", "hidden_corner", "hidden_min_cruise_ratio")}
 
 
 def batch(key: str, params: dict[str, Any], space: SearchSpace) -> list[dict[str, Any]]:
     """The candidates for ``key`` from ``params``: its value at :data:`LEVELS` of the way to its
-    range's top; for ``corner_hidden`` each also with minimum_cruise_ratio at its range's bottom and
-    as it is (the current point itself left out)."""
-    if key != "corner_hidden":
+    range's top; for a corner rule (:data:`CORNERS`) each also with its minimum_cruise_ratio at the
+    range's bottom and as it is (the current point itself left out)."""
+    if key not in CORNERS:
         top = dict((f"accel_{g}", hi) for g, _lo, hi in space.feature_accel)[key]
         return _levels(params, key, top)
-    out = _levels(params, key, space.hidden_corner[1]) + [dict(params)]
-    if space.hidden_min_cruise_ratio is not None and "min_cruise_ratio_hidden" in params:
-        ratios = sorted({space.hidden_min_cruise_ratio[0], float(params["min_cruise_ratio_hidden"])})
-        out = [dict(p, min_cruise_ratio_hidden=r) for p in out for r in ratios]
+    mcr_key, corner_range, mcr_range = CORNERS[key]
+    out = _levels(params, key, getattr(space, corner_range)[1]) + [dict(params)]
+    if getattr(space, mcr_range) is not None and mcr_key in params:
+        ratios = sorted({getattr(space, mcr_range)[0], float(params[mcr_key])})
+        out = [dict(p, **{mcr_key: r}) for p in out for r in ratios]
     return [p for p in out if p != params]
 
 
@@ -123,7 +130,7 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
         if ok:
             best = min(ok, key=lambda p: (p.print_time_s, p.quality_mm))
             new = params_from_config(best.config, space)
-            raised += [(k, params[k], new[k]) for k in (key, "min_cruise_ratio_hidden")
+            raised += [(k, params[k], new[k]) for k in (key, CORNERS.get(key, ("",))[0])
                        if k in new and new[k] != params.get(k)]
             cur, params = best, new
     return Raise(cur, start, raised, n)

@@ -21,15 +21,16 @@ Parameters (Optuna names):
   are the owner's per-axis limits in the firmware's configuration (Kalico's limited_* kinematics:
   ``max_x_accel``/``max_y_accel``; and on mainline Klipper, which has none, said by ``export``).
 - per feature (a space from :func:`ringtune.agents.tune.feature_space.feature_space`):
-  ``corner`` (the printer's junction rule's value) and ``min_cruise_ratio`` (Klipper), sampled by
-  the study; ``accel_<group>`` for each group of :data:`ACCEL_GROUPS` but ``visible`` (whose
-  acceleration is ``accel``), mm/s², and ``corner_hidden`` and ``min_cruise_ratio_hidden`` (the
-  same for the classes of :data:`HIDDEN_CORNERS`), *walked*: the study leaves them where a point
-  without them has them (each group at the visible walls' acceleration, within its range; the
-  corners as the printer has them) and :mod:`ringtune.agents.tune.hidden_raise` raises them from
-  the study's choice, one at a time, as far as the judgement allows — a study sampling a dozen
-  more dimensions found slower choices in the same trials (measured: issue 22's note). They become
-  the config's ``feature_accel``, ``corner``, ``min_cruise_ratio``, ``feature_corner`` and
+  ``accel_<group>`` for each group of :data:`ACCEL_GROUPS` but ``visible`` (whose acceleration is
+  ``accel``), mm/s²; ``corner`` (the printer's junction rule's value) and ``min_cruise_ratio``
+  (Klipper); ``corner_hidden`` and ``min_cruise_ratio_hidden`` (the same for the classes of
+  :data:`HIDDEN_CORNERS`). All *walked*: the study samples what a single-acceleration study
+  samples and leaves them where a point without them has them (each group at the visible walls'
+  acceleration, within its range; the corners as the printer has them), so that it finds what the
+  single-acceleration study finds; :mod:`ringtune.agents.tune.hidden_raise` raises them from its
+  choice, one at a time, as far as the judgement allows (a study sampling a dozen more dimensions
+  found slower choices in the same trials: issue 22's note). They become the config's
+  ``feature_accel``, ``corner``, ``min_cruise_ratio``, ``feature_corner`` and
   ``feature_min_cruise_ratio``.
 
 :func:`config_from_params` turns a parameter dict into a :class:`TuneConfig`; the same function
@@ -373,30 +374,36 @@ def _per_feature(space: SearchSpace) -> list[_Ranged]:
                     walked=True)
             for g, lo, hi in space.feature_accel]
     if space.corner is not None:
-        rows.append(_Ranged("corner", *space.corner, CORNER_STEP.get(space.junction, 0.001), space.corner[0],
-                            lambda c: c.corner if c.corner is not None else space.corner_now))
+        rows.append(_Ranged("corner", *space.corner, CORNER_STEP.get(space.junction, 0.001),
+                            _clip(space.corner_now, space.corner),
+                            lambda c: c.corner if c.corner is not None else space.corner_now, walked=True))
     if space.min_cruise_ratio is not None:
-        rows.append(_Ranged("min_cruise_ratio", *space.min_cruise_ratio, MCR_STEP, space.min_cruise_ratio[1],
-                            lambda c: c.min_cruise_ratio if c.min_cruise_ratio is not None else space.mcr_now))
+        rows.append(_Ranged("min_cruise_ratio", *space.min_cruise_ratio, MCR_STEP,
+                            _clip(space.mcr_now, space.min_cruise_ratio),
+                            lambda c: c.min_cruise_ratio if c.min_cruise_ratio is not None else space.mcr_now,
+                            walked=True))
     rows += _hidden_corner_rows(space)
     return rows
+
+
+def _clip(value: float | None, lo_hi: tuple[float, float]) -> float:
+    """``value`` within ``lo_hi`` (None: the range's bottom)."""
+    return lo_hi[0] if value is None else min(max(float(value), lo_hi[0]), lo_hi[1])
 
 
 def _hidden_corner_rows(space: SearchSpace) -> list[_Ranged]:
     """The corner rule and minimum_cruise_ratio of :data:`HIDDEN_CORNERS`, where searched (missing:
     the printer's own, within the range; a configuration without one runs the job-wide value)."""
-    def clip(v, lo_hi):
-        return min(max(float(v), lo_hi[0]), lo_hi[1])
     rows = []
     cls = HIDDEN_CORNERS[0]
     if space.hidden_corner is not None and space.corner_now is not None:
         rows.append(_Ranged("corner_hidden", *space.hidden_corner, CORNER_STEP.get(space.junction, 0.001),
-                            clip(space.corner_now, space.hidden_corner),
+                            _clip(space.corner_now, space.hidden_corner),
                             lambda c: c.feature_corner.get(cls, c.corner if c.corner is not None else space.corner_now),
                             HIDDEN_CORNERS, "feature_corner", walked=True))
     if space.hidden_min_cruise_ratio is not None and space.mcr_now is not None:
         rows.append(_Ranged("min_cruise_ratio_hidden", *space.hidden_min_cruise_ratio, MCR_STEP,
-                            clip(space.mcr_now, space.hidden_min_cruise_ratio),
+                            _clip(space.mcr_now, space.hidden_min_cruise_ratio),
                             lambda c: c.feature_min_cruise_ratio.get(
                                 cls, c.min_cruise_ratio if c.min_cruise_ratio is not None else space.mcr_now),
                             HIDDEN_CORNERS, "feature_min_cruise_ratio", walked=True))
