@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import pytest
 
 from ringtune.agents.tune.feature_space import feature_space
-from ringtune.agents.tune.hidden_raise import LEVELS, raise_hidden
+from ringtune.agents.tune.hidden_raise import FINER, LEVELS, raise_hidden
 from ringtune.agents.tune.pareto import point_from_metrics
 from ringtune.agents.tune.space import config_from_params, default_space, params_from_config
 from ringtune.agents.tune.stop import Bounds
@@ -68,9 +68,13 @@ def test_each_group_goes_as_high_as_the_judgement_allows(space):
     tops = {g: hi for g, _lo, hi in space.feature_accel}
     lift, calls = _walk(space)
     got = params_from_config(lift.point.config, space)
-    # the highest level of the way from 5000 to the top that keeps the ripple: infill at 3/4 breaks it
+    # the highest level of the way from 5000 to the top that keeps the ripple (3/4 breaks it), then
+    # the highest of the finer steps into the gap above it
     levels = sorted(5000.0 + f * (tops["infill"] - 5000.0) for f in LEVELS)
-    assert got["accel_infill"] == max(round(a / 100) * 100 for a in levels if a <= RIPPLE_TOP)
+    kept = max(round(a / 100) * 100 for a in levels if a <= RIPPLE_TOP)
+    above = min(round(a / 100) * 100 for a in levels if a > RIPPLE_TOP)
+    finer = [round((kept + f * (above - kept)) / 100) * 100 for f in FINER]
+    assert got["accel_infill"] == max([kept] + [a for a in finer if a <= RIPPLE_TOP])
     assert got["accel_solid_infill"] == tops["solid_infill"] and got["accel_travel"] == tops["travel"]
     # the inner walls and the top surfaces after them (here nothing they would make worse)
     assert got["accel_hidden_walls"] == tops["hidden_walls"] and got["accel_top_surface"] == tops["top_surface"]
@@ -79,9 +83,10 @@ def test_each_group_goes_as_high_as_the_judgement_allows(space):
     want = max(round(c * 2) / 2 for c in corner_levels if SHOW_PER_CORNER * c <= BOUNDS.max_show_through_mm)
     assert got["corner_hidden"] == want and got["min_cruise_ratio_hidden"] == 0.0
     assert lift.moved and lift.point.print_time_s < lift.start.print_time_s
-    # one batch each: infill, solid infill, travel, inner walls, top surfaces, the job's corner rule
-    # (it saves no time here: not taken), the corners nobody sees
-    assert lift.evaluations == sum(calls) and len(calls) == 7
+    # one batch each: infill (and its finer steps: the only group stopped below its top), solid
+    # infill, travel, inner walls, top surfaces, the job's corner rule (it saves no time here: not
+    # taken), the corners nobody sees
+    assert lift.evaluations == sum(calls) and len(calls) == 8
     assert [k for k, _a, _b in lift.raised] == ["accel_infill", "accel_solid_infill", "accel_travel",
                                                 "accel_hidden_walls", "accel_top_surface", "corner_hidden",
                                                 "min_cruise_ratio_hidden"]

@@ -2,17 +2,19 @@
 
 The study (:mod:`ringtune.agents.tune.study`) samples what a single-acceleration study samples (the
 shapers, the visible walls' acceleration); every other group runs the visible walls' acceleration
-there (within its range), and the corner rules are the printer's. From the choice, after the measured stop (:mod:`ringtune.agents.tune.stop`), each
-group's acceleration is tried at :data:`LEVELS` of the way from where it is to the top of its range
-(the motor reserve at the group's own top speed), one batch per group: first those nobody sees
-(infill, solid infill, travel), then the inner walls (they abut the outer wall: judged by what they
-push into it) and the top surfaces (seen: judged by their own ripple, corners and extrusion);
-then the job's corner rule (the visible walls' too) and the corners nobody sees (:data:`~ringtune.agents.tune.space.HIDDEN_CORNERS`): their corner
-rule at those levels of the way to its range's top, each with minimum_cruise_ratio at its range's
-bottom (no cruise smoothing) and as it is. Every candidate is judged exactly as every trial (the
-study's evaluator, frequency margin and bounds) and held to the same baselines as the choice: every
-bound kept (step loss, motor reserve, show-through, path error), no visible measure worse than any
-of them at the resolution (the job's and each visible class's own,
+there (within its range), and the corner rules are the printer's. From the choice, after the
+measured stop (:mod:`ringtune.agents.tune.stop`), each group's acceleration is tried at
+:data:`LEVELS` of the way from where it is to the top of its range (the motor reserve at the group's
+own top speed), one batch per group, and a second batch of :data:`FINER` steps into the gap above
+the highest level kept: first those nobody sees (infill, solid infill, travel), then the inner walls
+(they abut the outer wall: judged by what they push into it) and the top surfaces (seen: judged by
+their own ripple, corners and extrusion); then the job's corner rule (the visible walls' too) and
+the corners nobody sees (:data:`~ringtune.agents.tune.space.HIDDEN_CORNERS`): their corner rule at
+those levels of the way to its range's top, each with minimum_cruise_ratio at its range's bottom (no
+cruise smoothing) and as it is. Every candidate is judged exactly as every trial (the study's
+evaluator, frequency margin and bounds) and held to the same baselines as the choice: every bound
+kept (step loss, motor reserve, show-through, path error), no visible measure worse than any of them
+at the resolution (the job's and each visible class's own,
 :data:`~ringtune.agents.tune.pareto.JUDGED_KEYS`), print time lower than the current choice's. The
 fastest candidate that passes becomes the choice; where none does, the group stays where it was.
 
@@ -35,6 +37,9 @@ from ringtune.shaping.config import TuneConfig
 
 #: shares of the way from the current value to the range's top that are tried, fastest first
 LEVELS = (1.0, 0.75, 0.5, 0.25)
+#: then, for an acceleration, these shares of the way from the highest level kept to the lowest
+#: one above it (the ladder's gaps are a quarter of the range)
+FINER = (2 / 3, 1 / 3)
 
 
 @dataclass
@@ -112,25 +117,37 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
                  space: SearchSpace, bounds: Bounds, *, res: Resolution = DEFAULT_RESOLUTION) -> Raise:
     """Walk the features nobody sees up from ``start`` (module docstring); ``evaluate(configs) ->
     metrics`` judges as the study does; ``bases``: the baselines the choice was held to."""
-    cur, n, raised = start, 0, []
     if not space.per_feature:
         return Raise(start, start)
+    walk = Raise(start, start)
     params = params_from_config(start.config, space)
-    for key in steps(params, space):
-        configs = [config_from_params(p, space, extra=start.config.extra) for p in batch(key, params, space)]
-        configs = [c for c in configs if c != cur.config]
+
+    def judged(candidates: list[dict[str, Any]]) -> Point | None:
+        """The fastest of ``candidates`` that passes against the current choice, or None."""
+        configs = [c for c in (config_from_params(p, space, extra=start.config.extra) for p in candidates)
+                   if c != walk.point.config]
         if not configs:
-            continue
-        n += len(configs)
+            return None
+        walk.evaluations += len(configs)
         points = [point_from_metrics(c, m, label="hidden raise", max_path_error_mm=bounds.max_path_error_mm,
                                      max_motor_load=bounds.max_motor_load,
                                      max_show_through_mm=bounds.max_show_through_mm)
                   for c, m in zip(configs, evaluate(configs))]
-        ok = [p for p in points if failure(p, bases, cur, bounds, res) is None]
-        if ok:
-            best = min(ok, key=lambda p: (p.print_time_s, p.quality_mm))
+        ok = [p for p in points if failure(p, bases, walk.point, bounds, res) is None]
+        return min(ok, key=lambda p: (p.print_time_s, p.quality_mm)) if ok else None
+
+    for key in steps(params, space):
+        cands = batch(key, params, space)
+        best = judged(cands)
+        if key not in CORNERS:          # between the highest level kept and the lowest one above it
+            kept = float(params_from_config(best.config, space)[key]) if best else float(params[key])
+            step = space.accel_step         # the levels as the configurations ran them
+            above = [v for v in (round(float(p[key]) / step) * step for p in cands) if v > kept]
+            if above:
+                best = judged([dict(params, **{key: kept + f * (min(above) - kept)}) for f in FINER]) or best
+        if best is not None:
             new = params_from_config(best.config, space)
-            raised += [(k, params[k], new[k]) for k in (key, CORNERS.get(key, ("",))[0])
-                       if k in new and new[k] != params.get(k)]
-            cur, params = best, new
-    return Raise(cur, start, raised, n)
+            walk.raised += [(k, params[k], new[k]) for k in (key, CORNERS.get(key, ("",))[0])
+                            if k in new and new[k] != params.get(k)]
+            walk.point, params = best, new
+    return walk
