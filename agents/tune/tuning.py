@@ -284,28 +284,33 @@ def _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim:
     """(the choice, the measured stop or None, the raise where nobody looks or None): the choice
     held to a baseline, its acceleration stepped up with the same judgement
     (:func:`ringtune.agents.tune.stop.measured_stop`), then, searching per feature, the features
-    nobody sees raised toward their tops (:func:`ringtune.agents.tune.hidden_raise.raise_hidden`)."""
-    if choice.baseline is None:
-        return choice, None, None
-
+    nobody sees raised toward their tops (:func:`ringtune.agents.tune.hidden_raise.raise_hidden`),
+    held to the same baselines — or, where the choice is held to none (``--no-baselines``, ``--pick
+    knee``), to the choice itself."""
     def evaluate(configs):
         return evaluator(list(configs), printer, settings.job, **tune_study.evaluator_kwargs(settings))
 
     bounds = Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st)
-    held = choice.held_to or (choice.baseline,)
-    names = {k: bl.labels.get(k, pareto.BASELINE_NAMES.get(k, k)) for k in held}
-    stop = measured_stop(choice.point, {k: baselines[k] for k in held}, evaluate, space, bounds, labels=names)
-    if stop.moved:
-        choice = dataclasses.replace(choice, point=stop.point, sentence=(
-            f"{choice.sentence}; then stepped up by the measured stop from {stop.start.config.accel:.0f} to "
-            f"{stop.point.config.accel:.0f} mm/s², every visible measure still no worse"))
+    stop = None
+    if choice.baseline is not None:
+        held = choice.held_to or (choice.baseline,)
+        bases = {k: baselines[k] for k in held}
+        names = {k: bl.labels.get(k, pareto.BASELINE_NAMES.get(k, k)) for k in held}
+        stop = measured_stop(choice.point, bases, evaluate, space, bounds, labels=names)
+        if stop.moved:
+            choice = dataclasses.replace(choice, point=stop.point, sentence=(
+                f"{choice.sentence}; then stepped up by the measured stop from {stop.start.config.accel:.0f} to "
+                f"{stop.point.config.accel:.0f} mm/s², every visible measure still no worse"))
+    else:
+        bases = {"choice": choice.point}
     lift = None
     if space.per_feature:
-        lift = raise_hidden(choice.point, {k: baselines[k] for k in held}, evaluate, space, bounds)
+        lift = raise_hidden(choice.point, bases, evaluate, space, bounds)
         if lift.moved:
+            held = "than the baseline's" if choice.baseline is not None else "than the choice's own"
             choice = dataclasses.replace(choice, point=lift.point, sentence=(
-                f"{choice.sentence}; then the features nobody sees raised toward their tops, every visible "
-                f"measure still no worse"))
+                f"{choice.sentence}; then the features nobody sees raised toward their tops, no visible "
+                f"measure worse {held}"))
     return choice, stop, lift
 
 
