@@ -97,3 +97,16 @@ def test_a_group_that_breaks_a_bound_at_every_level_stays(space):
     lift, _calls = _walk(space, travel_overloads=True)
     assert params_from_config(lift.point.config, space)["accel_travel"] == 5000.0
     assert "accel_travel" not in {k for k, _a, _b in lift.raised}
+
+
+def test_the_walk_stops_at_its_budget(space):
+    """No step begins once the budget is spent (tune gives the study's trials: a short study, a
+    short walk); the sentence says it was cut."""
+    start_cfg = _start(space)
+    start = point_from_metrics(start_cfg, _metrics(start_cfg), max_path_error_mm=0.1, max_motor_load=0.8,
+                               max_show_through_mm=0.2)
+    lift = raise_hidden(start, {"klipper": start}, lambda cs: [_metrics(c) for c in cs], space, BOUNDS,
+                        max_evaluations=5)
+    # the infill's batch (4 levels) and its finer steps (2) start before the budget is spent, nothing after
+    assert lift.cut and lift.evaluations == 6 and [k for k, _a, _b in lift.raised] == ["accel_infill"]
+    assert "budget of 5 evaluations" in lift.sentence() and lift.to_dict()["cut"] is True

@@ -14,7 +14,8 @@ baseline, verdict better|same|worse}}}, stop (null, or the measured stop: {kind 
 searched, key (a job's figure, or a class's own as "outer_wall:ripple_mm"), baseline (whose value it exceeds,
 for a measure), value, baseline_value, accel (the step that stops it, mm/s²), config, moved,
 from_accel, to_accel, evaluations, sentence}), hidden_raise (null, or the walk raising the features nobody
-sees: {raised [{parameter, from, to}], from_print_time_s, to_print_time_s, evaluations, sentence}), vs_baselines {key: {baseline, faster_s, faster_pct, better_mm,
+sees: {raised [{parameter, from, to}], from_print_time_s, to_print_time_s, evaluations, budget (the study's
+trials), cut (it stopped at that budget), sentence}), vs_baselines {key: {baseline, faster_s, faster_pct, better_mm,
 better_pct, dominates, metrics {print_time_s|overshoot_mm|path_error_mm|feasible: better|same|worse},
 path_error_better_mm, path_error_better_pct}}, dominates_klipper, dominates_current (null or {config,
 print_time_s, quality_mm, ...comparison}), accel {range, searched, basis, chosen, stopped_by,

@@ -51,23 +51,28 @@ class Raise:
     start: Point
     raised: list = field(default_factory=list)
     evaluations: int = 0
+    budget: int | None = None        # the most evaluations it may spend (None: no limit)
+    cut: bool = False                # it stopped at its budget before its last step
 
     @property
     def moved(self) -> bool:
         return self.point is not self.start
 
     def sentence(self) -> str:
+        cut = (f"; it stopped at its budget of {self.budget} evaluations (the study's trials) before its last "
+               "step" if self.cut else "")
         if not self.raised:
             return (f"No feature nobody sees could go faster with every visible measure kept "
-                    f"({self.evaluations} evaluations).")
+                    f"({self.evaluations} evaluations{cut}).")
         parts = ", ".join(f"{_name(k)} {a:g} → {b:g}" for k, a, b in self.raised)
         return (f"Raised where nobody looks, every visible measure and bound still kept ({self.evaluations} "
-                f"evaluations): {parts}; {self.start.print_time_s:.1f} s → {self.point.print_time_s:.1f} s.")
+                f"evaluations{cut}): {parts}; {self.start.print_time_s:.1f} s → {self.point.print_time_s:.1f} s.")
 
     def to_dict(self) -> dict[str, Any]:
         return {"raised": [{"parameter": k, "from": a, "to": b} for k, a, b in self.raised],
                 "from_print_time_s": self.start.print_time_s, "to_print_time_s": self.point.print_time_s,
-                "evaluations": self.evaluations, "sentence": self.sentence()}
+                "evaluations": self.evaluations, "budget": self.budget, "cut": self.cut,
+                "sentence": self.sentence()}
 
 
 def _name(key: str) -> str:
@@ -114,12 +119,15 @@ def _levels(params: dict[str, Any], key: str, top: float) -> list[dict[str, Any]
 
 
 def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[TuneConfig]], list],
-                 space: SearchSpace, bounds: Bounds, *, res: Resolution = DEFAULT_RESOLUTION) -> Raise:
+                 space: SearchSpace, bounds: Bounds, *, res: Resolution = DEFAULT_RESOLUTION,
+                 max_evaluations: int | None = None) -> Raise:
     """Walk the features nobody sees up from ``start`` (module docstring); ``evaluate(configs) ->
-    metrics`` judges as the study does; ``bases``: the baselines the choice was held to."""
+    metrics`` judges as the study does; ``bases``: the baselines the choice was held to;
+    ``max_evaluations``: no step begins once the walk has spent that many (``tune`` gives it the
+    study's trials: a short study gets a short walk)."""
     if not space.per_feature:
         return Raise(start, start)
-    walk = Raise(start, start)
+    walk = Raise(start, start, budget=max_evaluations)
     params = params_from_config(start.config, space)
 
     def judged(candidates: list[dict[str, Any]]) -> Point | None:
@@ -137,6 +145,9 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
         return min(ok, key=lambda p: (p.print_time_s, p.quality_mm)) if ok else None
 
     for key in steps(params, space):
+        if max_evaluations is not None and walk.evaluations >= max_evaluations:
+            walk.cut = True
+            break
         cands = batch(key, params, space)
         best = judged(cands)
         if key not in CORNERS:          # between the highest level kept and the lowest one above it

@@ -305,7 +305,7 @@ def _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim:
         bases = {"choice": choice.point}
     lift = None
     if space.per_feature:
-        lift = raise_hidden(choice.point, bases, evaluate, space, bounds)
+        lift = raise_hidden(choice.point, bases, evaluate, space, bounds, max_evaluations=settings.n_trials)
         if lift.moved:
             held = "than the baseline's" if choice.baseline is not None else "than the choice's own"
             choice = dataclasses.replace(choice, point=lift.point, sentence=(
