@@ -207,7 +207,7 @@ def test_per_axis_cap_does_not_cap_the_tuned_acceleration(v24_run):
     tuned value becomes max_accel, so the range reaches the motor bound, above the 8994 mm/s² of
     max_accel the baselines run at, judged at the printer's velocity limit (500 mm/s: no job was
     given, the built-in print stands in for prints that may run that fast)."""
-    from ringtune.agents.tune.space import motor_accel_limit
+    from ringtune.agents.tune.motor_bound import motor_accel_limit
     from ringtune.envs.printer import load_printer
 
     res, summary, toml = v24_run
@@ -253,7 +253,7 @@ def test_summary_says_the_motor_bound_rests_on_default_masses(v24_run):
     ({"motor": {"run_current": 0.8, "rotation_distance": 40.0}}, ("x.mass", "y.mass", "x.motor", "y.motor")),
 ])
 def test_loader_records_what_the_description_leaves_to_defaults(desc, defaulted):
-    from ringtune.agents.tune.space import defaults_note
+    from ringtune.agents.tune.motor_bound import defaults_note
     from ringtune.envs.printer import printer_from_dict
 
     p = printer_from_dict({"x": {"modes": [{"freq": 50.0, "damping": 0.05}]},

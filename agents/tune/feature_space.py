@@ -9,7 +9,7 @@ A hidden group (inner walls, infill, travel) is judged by what shows through, wh
 push into the outer wall, extrusion where a person sees the material, and the constraints, and
 most of its moves are never simulated; so its range stops where the weakest
 motor keeps its reserve at the group's top speed, on the rigid machine
-(:func:`ringtune.agents.tune.space.motor_accel_limit` with the reserve: the force asked, friction
+(:func:`ringtune.agents.tune.motor_bound.motor_accel_limit` with the reserve: the force asked, friction
 included, at most (1 − reserve) of what the motor has at that speed). The visible group keeps the
 space's ``accel`` range (judged by simulation, motor load included). Units: mm/s², mm/s, mm.
 """
@@ -22,7 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from ringtune.agents.tune.space import ACCEL_GROUPS, HIDDEN_CORNERS, SEEN_GROUPS, SearchSpace, motor_accel_limit
+from ringtune.agents.tune.motor_bound import motor_accel_limit
+from ringtune.agents.tune.space import ACCEL_GROUPS, HIDDEN_CORNERS, SEEN_GROUPS, SearchSpace
 from ringtune.envs.evaluate import planned_job, resolve_job
 from ringtune.shaping.feature_settings import effective_classes
 from ringtune.shaping.features import FEATURE_CLASSES

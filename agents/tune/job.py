@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point
-from ringtune.agents.tune.space import defaults_note
+from ringtune.agents.tune.motor_bound import defaults_note
 from ringtune.envs.evaluate import job_accel_commands, planned_job, resolve_job
 from ringtune.shaping.config import TuneConfig
 

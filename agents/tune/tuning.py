@@ -14,12 +14,12 @@ from typing import Callable
 from ringtune.agents.tune import feature_space, pareto, report, storage, study as tune_study
 from ringtune.agents.tune.baselines import Baselines, baselines_for, inside, warm_start
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
+from ringtune.agents.tune.hidden_raise import raise_hidden
 from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
+from ringtune.agents.tune.motor_bound import top_speed_load_note
 from ringtune.agents.tune.out_dir import check_out, remove_if_empty
 from ringtune.agents.tune.pareto import VISIBLE_KEYS
-from ringtune.agents.tune.space import (default_space, freq_floor_note, params_from_config, top_speed_load_note,
-                                        walked_keys)
-from ringtune.agents.tune.hidden_raise import raise_hidden
+from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config, walked_keys
 from ringtune.agents.tune.stop import Bounds, measured_stop
 from ringtune.envs.evaluate import resolve_printer
 from ringtune.envs.job_rewrite import rewrite_file
