@@ -67,11 +67,18 @@ class FeatureCommands:
         accel = {c: float(config.feature_accel.get(c, default)) for c in FEATURE_CLASSES}
         scv = limits.junction == "scv"
         mcr = config.min_cruise_ratio if scv else None
-        now = {"scv": limits.square_corner_velocity, "jd": limits.junction_deviation,
-               "jerk": min(limits.jerk[:2])}[limits.junction]
+        now = corner_value(limits)
         return cls(accel, limits.junction, config.corner, mcr, _caps(config.firmware, limits, accel),
                    dict(config.feature_corner), dict(config.feature_min_cruise_ratio) if scv else {},
                    float(now), float(limits.min_cruise_ratio))
+
+
+def corner_value(limits) -> float:
+    """The printer's own corner value in its junction rule's unit (``MachineLimits``): Klipper's
+    square_corner_velocity (mm/s), Marlin's junction deviation (mm), or the lower of its X/Y jerks
+    (mm/s)."""
+    return float({"scv": limits.square_corner_velocity, "jd": limits.junction_deviation,
+                  "jerk": min(limits.jerk[:2])}[limits.junction])
 
 
 def _caps(firmware: str, limits, accel: dict) -> tuple | None:

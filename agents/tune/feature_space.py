@@ -25,7 +25,7 @@ import numpy as np
 from ringtune.agents.tune.motor_bound import motor_accel_limit
 from ringtune.agents.tune.space import ACCEL_GROUPS, HIDDEN_CORNERS, SEEN_GROUPS, SearchSpace
 from ringtune.envs.evaluate import planned_job, resolve_job
-from ringtune.shaping.feature_settings import effective_classes
+from ringtune.shaping.feature_settings import corner_value, effective_classes
 from ringtune.shaping.features import FEATURE_CLASSES
 from ringtune.shaping.firmware import FIRMWARES
 
@@ -74,7 +74,7 @@ def feature_space(space: SearchSpace, printer: Any, job: Any = None, reserve: fl
                         "basis": f"the {who} keeps {reserve * 100:.0f} % of its force at {v:.0f} mm/s"}
     lim = printer.limits
     junction = lim.junction
-    now = {"scv": lim.square_corner_velocity, "jd": lim.junction_deviation, "jerk": min(lim.jerk[:2])}[junction]
+    now = corner_value(lim)
     klipper = FIRMWARES[space.firmware].family == "klipper"
     sayable = junction != "scv" or klipper       # square_corner_velocity is Klipper's alone
     mcr = min_cruise_ratio and junction == "scv" and klipper

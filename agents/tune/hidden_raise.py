@@ -29,10 +29,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
-from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution, point_from_metrics
+from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution
 from ringtune.agents.tune.space import (ABUTTING_GROUPS, SEEN_GROUPS, SearchSpace, config_from_params,
                                         params_from_config)
-from ringtune.agents.tune.stop import Bounds, failure
+from ringtune.agents.tune.stop import Bounds, evaluated, failure
 from ringtune.shaping.config import TuneConfig
 
 #: shares of the way from the current value to the range's top that are tried, fastest first
@@ -137,11 +137,8 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
         if not configs:
             return None
         walk.evaluations += len(configs)
-        points = [point_from_metrics(c, m, label="hidden raise", max_path_error_mm=bounds.max_path_error_mm,
-                                     max_motor_load=bounds.max_motor_load,
-                                     max_show_through_mm=bounds.max_show_through_mm)
-                  for c, m in zip(configs, evaluate(configs))]
-        ok = [p for p in points if failure(p, bases, walk.point, bounds, res) is None]
+        ok = [p for p in evaluated(configs, evaluate, bounds, "hidden raise")
+              if failure(p, bases, walk.point, bounds, res) is None]
         return min(ok, key=lambda p: (p.print_time_s, p.quality_mm)) if ok else None
 
     for key in steps(params, space):

@@ -120,6 +120,15 @@ def freq_variants(cfg: TuneConfig, space: SearchSpace) -> list[TuneConfig]:
     return out
 
 
+def evaluated(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[TuneConfig]], list], bounds: Bounds,
+              label: str) -> list[Point]:
+    """``configs`` judged as every trial: their metrics from ``evaluate``, as points marked against
+    the study's ``bounds``."""
+    return [point_from_metrics(c, m, label=label, max_path_error_mm=bounds.max_path_error_mm,
+                               max_motor_load=bounds.max_motor_load, max_show_through_mm=bounds.max_show_through_mm)
+            for c, m in zip(configs, evaluate(configs))]
+
+
 def failure(p: Point, bases: dict[str, Point], faster_than: Point, bounds: Bounds,
              res: Resolution) -> tuple[str, str, str | None, float, float] | None:
     """Why ``p`` may not replace ``faster_than``: (kind, key, baseline key or None, value, limit), or
@@ -158,10 +167,7 @@ def measured_stop(start: Point, bases: dict[str, Point], evaluate: Callable[[Seq
     def points(cfgs):
         nonlocal n
         n += len(cfgs)
-        return [point_from_metrics(c, m, label="stop step", max_path_error_mm=bounds.max_path_error_mm,
-                                   max_motor_load=bounds.max_motor_load,
-                                   max_show_through_mm=bounds.max_show_through_mm)
-                for c, m in zip(cfgs, evaluate(cfgs))]
+        return evaluated(cfgs, evaluate, bounds, "stop step")
 
     while n < max_evaluations:
         accs = next_accels(cur.config.accel, top, space.accel_step)
