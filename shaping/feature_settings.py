@@ -184,25 +184,20 @@ def per_feature_text(config) -> str:
     return f" ({'; '.join(parts)})" if parts else ""
 
 
-def accel_groups(accel: dict) -> list[str]:
-    """``["inner_wall/infill 11000", "travel 9100"]``: the classes of ``accel`` (class -> mm/s²)
-    grouped by their acceleration, lowest first."""
+def accel_groups(accel: dict, fmt: str = ".0f") -> list[str]:
+    """``["inner_wall/infill 11000", "travel 9100"]``: the classes of a per-class table (class ->
+    value, here mm/s²) grouped by their value, lowest first, each value in format ``fmt``."""
     groups: dict[float, list[str]] = {}
     for cls, a in accel.items():
         groups.setdefault(a, []).append(cls)
-    return [f"{'/'.join(names)} {a:.0f}" for a, names in sorted(groups.items())]
+    return [f"{'/'.join(names)} {a:{fmt}}" for a, names in sorted(groups.items())]
 
 
 def class_corner_words(corner: dict, min_cruise_ratio: dict) -> list[str]:
     """``["corner infill/travel 15", "minimum_cruise_ratio infill/travel 0"]``: the per-class values
-    (class -> value) grouped by value."""
-    out = []
-    for name, table in (("corner", corner), ("minimum_cruise_ratio", min_cruise_ratio)):
-        groups: dict[float, list[str]] = {}
-        for cls, v in table.items():
-            groups.setdefault(v, []).append(cls)
-        out += [f"{name} {'/'.join(names)} {v:g}" for v, names in sorted(groups.items())]
-    return out
+    (class -> value) grouped by value (:func:`accel_groups`)."""
+    return [f"{name} {g}" for name, table in (("corner", corner), ("minimum_cruise_ratio", min_cruise_ratio))
+            for g in accel_groups(table, "g")]
 
 
 def corner_words(corner: float | None, min_cruise_ratio: float | None) -> list[str]:

@@ -271,26 +271,24 @@ class _Ranged:
     now: Callable[[TuneConfig], float | None]
     classes: tuple[str, ...] = ()
     into: str = ""
-    walked: bool = False      # set by the walk after the study (hidden_raise), not sampled by it
 
 
 def _per_feature(space: SearchSpace) -> list[_Ranged]:
-    """The per-feature parameters ``space`` searches: each group's acceleration (missing: the
-    range's bottom; a configuration without one runs its ``accel``), the corner rule (the printer's
-    own, else the range's bottom) and minimum_cruise_ratio (the printer's own, else the range's top)."""
+    """The per-feature parameters of ``space`` (all walked, none sampled by the study): each group's
+    acceleration (a point without it: the visible walls' acceleration within the group's range,
+    :func:`_missing`), the job's corner rule and minimum_cruise_ratio and those of the corners nobody
+    sees (a point without them: the printer's own, within the range)."""
     rows = [_Ranged(f"accel_{g}", lo, hi, space.accel_step, lo,
-                    lambda c, cls=ACCEL_GROUPS[g][0]: c.feature_accel.get(cls, c.accel), ACCEL_GROUPS[g], "feature_accel",
-                    walked=True)
+                    lambda c, cls=ACCEL_GROUPS[g][0]: c.feature_accel.get(cls, c.accel), ACCEL_GROUPS[g], "feature_accel")
             for g, lo, hi in space.feature_accel]
     if space.corner is not None:
         rows.append(_Ranged("corner", *space.corner, CORNER_STEP.get(space.junction, 0.001),
                             _clip(space.corner_now, space.corner),
-                            lambda c: c.corner if c.corner is not None else space.corner_now, walked=True))
+                            lambda c: c.corner if c.corner is not None else space.corner_now))
     if space.min_cruise_ratio is not None:
         rows.append(_Ranged("min_cruise_ratio", *space.min_cruise_ratio, MCR_STEP,
                             _clip(space.mcr_now, space.min_cruise_ratio),
-                            lambda c: c.min_cruise_ratio if c.min_cruise_ratio is not None else space.mcr_now,
-                            walked=True))
+                            lambda c: c.min_cruise_ratio if c.min_cruise_ratio is not None else space.mcr_now))
     rows += _hidden_corner_rows(space)
     return rows
 
@@ -309,19 +307,19 @@ def _hidden_corner_rows(space: SearchSpace) -> list[_Ranged]:
         rows.append(_Ranged("corner_hidden", *space.hidden_corner, CORNER_STEP.get(space.junction, 0.001),
                             _clip(space.corner_now, space.hidden_corner),
                             lambda c: c.feature_corner.get(cls, c.corner if c.corner is not None else space.corner_now),
-                            HIDDEN_CORNERS, "feature_corner", walked=True))
+                            HIDDEN_CORNERS, "feature_corner"))
     if space.hidden_min_cruise_ratio is not None and space.mcr_now is not None:
         rows.append(_Ranged("min_cruise_ratio_hidden", *space.hidden_min_cruise_ratio, MCR_STEP,
                             _clip(space.mcr_now, space.hidden_min_cruise_ratio),
                             lambda c: c.feature_min_cruise_ratio.get(
                                 cls, c.min_cruise_ratio if c.min_cruise_ratio is not None else space.mcr_now),
-                            HIDDEN_CORNERS, "feature_min_cruise_ratio", walked=True))
+                            HIDDEN_CORNERS, "feature_min_cruise_ratio"))
     return rows
 
 
 def walked_keys(space: SearchSpace) -> list[str]:
     """The per-feature parameters the study leaves to the walk after it (module docstring)."""
-    return [r.key for r in _per_feature(space) if r.walked]
+    return [r.key for r in _per_feature(space)]
 
 
 def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
@@ -339,10 +337,7 @@ def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
         p["freq_limit_hz"] = trial.suggest_float("freq_limit_hz", *space.freq_limit_hz)
     # a fixed acceleration is not searched: it has no effect (or was fixed)
     p["accel"] = space.accel[0] if space.accel_fixed else trial.suggest_float("accel", *space.accel)
-    for r in _per_feature(space):
-        if not r.walked:
-            p[r.key] = trial.suggest_float(r.key, r.lo, r.hi) if r.hi > r.lo else r.lo
-    return p
+    return p        # the per-feature parameters are the walk's (:func:`walked_keys`)
 
 
 def feature_params(params: dict[str, Any], space: SearchSpace) -> dict[str, Any]:
