@@ -35,6 +35,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ringtune.envs.metrics import CORNER_TAIL, Metrics, compute_metrics, worst_case
+from ringtune.envs.plan_load import plan_load
 from ringtune.envs.printer import load_printer
 from ringtune.envs.sim import auto_timestep, simulate_batch
 from ringtune.shaping import gcode, testprints
@@ -326,6 +327,26 @@ def metrics_of(runs: list[WindowRun], sims: list, print_time: float) -> Metrics:
     return Metrics.worst(parts, print_time_s=print_time)
 
 
+def with_plan_load(metrics: Metrics, printer, pj: PlannedJob) -> Metrics:
+    """``metrics`` with the motors' load over every move of the job (rigid machine,
+    :func:`ringtune.envs.plan_load.plan_load`, once per plan; the printer's variants share its
+    masses and motors) taken into ``motor_load`` beside the simulated windows' (the larger counts;
+    above 1 a motor loses steps: ``step_loss``). ``details["plan_load"]``: the plan's figure, the
+    motor, the time (s) and the G-code line of the move."""
+    key = repr((printer.moving_mass("x"), printer.moving_mass("y"), printer.drive_motors()))
+    cached = getattr(pj, "_plan_load", None)
+    if cached is None or cached[0] != key:
+        cached = (key, plan_load(printer, pj.plan.motion))
+        pj._plan_load = cached  # type: ignore[attr-defined]
+    load = cached[1]
+    moves = pj.plan.moves
+    line = int(moves.line[load.move]) if 0 <= load.move < len(moves) else None
+    metrics.details["plan_load"] = {"load": load.load, "motor": load.motor, "t_s": load.t, "line": line}
+    metrics.motor_load = max(metrics.motor_load, load.load)
+    metrics.step_loss = metrics.step_loss or load.load > 1.0
+    return metrics
+
+
 # -- the public calls -------------------------------------------------------------------------------
 def evaluate(config: TuneConfig, printer=None, job=None, backend: str = "mujoco", *,
              settle: float | None = None, nthread: int | None = None, job_accel: str | None = None) -> Metrics:
@@ -434,7 +455,8 @@ def evaluate_variants(configs: Sequence[TuneConfig], printers: Sequence, job=Non
         evs, i = [], 0
         for cfg, pj, runs in pp:
             part = psims[i:i + len(runs)]
-            evs.append(Evaluation(cfg, metrics_of(runs, part, pj.print_time), pj, runs, part))
+            metrics = with_plan_load(metrics_of(runs, part, pj.print_time), printers[0], pj)
+            evs.append(Evaluation(cfg, metrics, pj, runs, part))
             i += len(runs)
         out.append(evs)
     return out

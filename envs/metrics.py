@@ -106,7 +106,9 @@ Diagnostics and constraints:
     the simulator's flag, or any sample where ``|motor_force| > motor_force_max``.
 ``motor_load``
     max over all samples and motors of ``|motor_force| / motor_force_max``: how much of the force a
-    motor has at its speed the motion asks of it (above 1 it loses steps).
+    motor has at its speed the motion asks of it (above 1 it loses steps). The evaluator
+    (:func:`ringtune.envs.evaluate.with_plan_load`) takes in the same fraction over every move of
+    the whole planned job, rigid machine (:mod:`ringtune.envs.plan_load`): the larger counts.
 ``print_time_s``
     not computed here: the planner's print time over the whole job (s), filled in by
     :func:`ringtune.envs.evaluate.evaluate`.
@@ -156,7 +158,8 @@ class Metrics:
         peak_accel: largest head acceleration magnitude, mm/s².
         step_loss: whether a motor was asked for more force than it has at that speed.
         motor_load: largest fraction of the force a motor has at its speed that it was asked for
-            (``max |force| / max_force(speed)``; 1 is the edge of step loss; 0 if not simulated).
+            (``max |force| / max_force(speed)``; 1 is the edge of step loss; 0 if not simulated;
+            the evaluator takes in the whole planned job's, rigid machine).
         details: diagnostics (per-window values, where the worst error occurred); not part of
             the stable ``to_dict()`` keys unless asked for.
         ripple_mm: worst visible wall's peak-to-peak deviation across the wall, mm.

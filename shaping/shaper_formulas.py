@@ -77,6 +77,7 @@ def mzv_coeffs(n: int, t: float) -> np.ndarray:
         raise RingtuneError(f"mzv needs an integer n and t > 0 (got n={n}, t={t:g})")
     if n < 3 or n <= 2 * t + 1 + 1e-7:                 # Klipper's test, with its 1e-7 margin
         raise RingtuneError(f"mzv needs n >= 3 and n > 2t+1 (got n={n}, t={t:g})")
+    n = int(n)                    # 5.0 from a parsed name: the cache takes it for 5, the arrays need an int
     tau = t * (n - 2) / (n - 2 * t - 1)
     T = np.arange(n) * t / (n - 1)
     rows = [np.ones(n)]

@@ -20,3 +20,33 @@ def data_dir() -> Path:
 
 
 from real_klipper import real_klipper  # noqa: E402,F401  (session fixture: real Klipper + Moonraker)
+
+
+
+#: the test modules that use the real Klipper (fixture ``real_klipper``): under pytest-xdist
+#: (the README runs the suite with ``-n auto``) they run on one worker, since the session fixture
+#: starts one Klipper in ``.klipper-test/`` and a second worker starting its own there would stop it
+REAL_KLIPPER_MODULES = ("tests/test_real_klipper_push.py", "tests/test_fwconfig_moonraker.py",
+                        "tests/test_identify_moonraker.py", "tests/test_mass_schedule_klipper.py")
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """xdist's scheduling by scope, each test its own scope (as ``--dist load``) but the real-Klipper
+    modules one scope together."""
+    from xdist.scheduler import LoadScopeScheduling
+
+    class RealKlipperOnOneWorker(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return "real_klipper" if nodeid.split("::", 1)[0] in REAL_KLIPPER_MODULES else nodeid
+
+    return RealKlipperOnOneWorker(config, log)
+
+
+def pytest_collection_modifyitems(config, items):
+    """A test using ``real_klipper`` outside :data:`REAL_KLIPPER_MODULES` would start a second
+    Klipper under xdist: refused at collection, with its name."""
+    for item in items:
+        if "real_klipper" in getattr(item, "fixturenames", ()) and item.nodeid.split("::", 1)[0] not in REAL_KLIPPER_MODULES:
+            raise pytest.UsageError(f"{item.nodeid} uses real_klipper: add its module to "
+                                    "REAL_KLIPPER_MODULES in tests/conftest.py")

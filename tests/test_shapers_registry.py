@@ -351,3 +351,18 @@ def test_shapers_from_config():
     bad = TuneConfig(firmware="rrf", shaper_x="zv", shaper_y="zvd")
     with pytest.raises(RingtuneError, match="shaper_x.*closest it offers is 'mzv'"):
         shapers_from_config(bad)
+
+
+def test_an_integer_parameter_written_with_a_point_gives_the_same_shaper_on_a_cold_cache():
+    """``mzv(5.0, 1.1)`` is Klipper's mzv(n=5, t=1.1): the same impulses whether or not ``mzv(5, …)``
+    was computed before (the coefficients' cache takes 5.0 for 5 either way)."""
+    from ringtune.shaping.shaper_formulas import mzv_coeffs
+    from ringtune.shaping.shapers import get_shaper
+
+    mzv_coeffs.cache_clear()
+    dotted = get_shaper("mzv(5.0, 1.1)", 40.0, 0.1)
+    mzv_coeffs.cache_clear()
+    plain = get_shaper("mzv(5, 1.1)", 40.0, 0.1)
+    assert len(dotted.amplitudes) == 5
+    np.testing.assert_array_equal(dotted.amplitudes, plain.amplitudes)
+    np.testing.assert_array_equal(dotted.times, plain.times)
