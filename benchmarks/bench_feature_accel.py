@@ -42,6 +42,7 @@ from ringtune.agents.tune.feature_space import feature_space
 from ringtune.agents.tune.pareto import no_worse, point_from_metrics
 from ringtune.agents.tune.space import ACCEL_GROUPS, HIDDEN_CORNERS, default_space
 from ringtune.envs.evaluate import evaluate_many, planned_job
+from ringtune.envs.plan_load import plan_load
 from ringtune.envs.printer import load_printer, printer_from_dict
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
@@ -150,6 +151,27 @@ def hidden_corners(printer, job, config, metrics, ref, corners=(30.0, 22.5, 15.0
     return min(ok, key=lambda cm: cm[1].print_time_s) if ok else (config, metrics)
 
 
+def plan_load_tops(printer, job, single_cfg, space, steps: int = 10) -> dict[str, float]:
+    """{group: mm/s²} the highest acceleration of each group other than the visible walls (the others
+    at the single's) at which no move of the whole job asks a motor for more than 1 − reserve of its
+    force (:func:`ringtune.envs.plan_load.plan_load`, rigid machine): bisection between the group's
+    range top (the worst direction at its top speed: always within the reserve) and four times it."""
+    tops = {}
+    for g, _lo, hi in space.feature_accel:
+        def load(a):
+            cfg = dataclasses.replace(single_cfg, feature_accel=dict.fromkeys(ACCEL_GROUPS[g], a))
+            return plan_load(printer, planned_job(printer, job, cfg).plan.motion).load
+        ok, bad = hi, 4.0 * hi
+        if load(bad) <= 1 - RESERVE:
+            tops[g] = bad
+            continue
+        for _ in range(steps):
+            mid = 0.5 * (ok + bad)
+            ok, bad = (mid, bad) if load(mid) <= 1 - RESERVE else (ok, mid)
+        tops[g] = ok
+    return tops
+
+
 def _with_motor(printer, force: float):
     d = printer.to_dict()
     d["motor"] = {**d.get("motor", {}), "force": force}
@@ -160,6 +182,10 @@ def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--gcode", default=None)
     ap.add_argument("--printer", default=None)
+    ap.add_argument("--single", default=None, metavar="BEST_JSON",
+                    help="the single-acceleration configuration to beat (e.g. best.json of `tune --per-feature "
+                         "off`), judged no worse than Klipper's pick; default: the best single of Klipper's pick's "
+                         "shapers over the acceleration range")
     args = ap.parse_args()
     t0 = time.perf_counter()
     printer = load_printer(args.printer)
@@ -174,18 +200,27 @@ def main() -> int:
     base = evaluate_many([kcfg], printer, job, freq_margin=MARGIN)[0]
     lo, hi = default_space(printer, "klipper").accel
     accels = [a * 100.0 for a in range(int(lo // 100), int(hi // 100) + 1)]
-    singles = [dataclasses.replace(kcfg, accel=a) for a in accels]
-    ms = evaluate_many(singles, printer, job, freq_margin=MARGIN)
-    ok = [(c, m) for c, m in zip(singles, ms) if not_worse(m, base)]
-    single_cfg, single = min(ok, key=lambda cm: cm[1].print_time_s)
+    if args.single:
+        given = TuneConfig.load(args.single)
+        single_cfg = dataclasses.replace(given, feature_accel={}, feature_corner={}, feature_min_cruise_ratio={})
+        singles, (single,) = [single_cfg], evaluate_many([single_cfg], printer, job, freq_margin=MARGIN)
+        if not not_worse(single, base):
+            print(f"{args.single}: some visible measure is worse than Klipper's pick's; not a single to compare with")
+            return 1
+    else:
+        singles = [dataclasses.replace(kcfg, accel=a) for a in accels]
+        ms = evaluate_many(singles, printer, job, freq_margin=MARGIN)
+        ok = [(c, m) for c, m in zip(singles, ms) if not_worse(m, base)]
+        single_cfg, single = min(ok, key=lambda cm: cm[1].print_time_s)
     feat_cfg, feat, space = per_feature(printer, job, single_cfg, single)
     print(f"printer {printer.name}, job {job or 'built-in test print'}; judged on the printer and its resonances "
           f"±{MARGIN * 100:g} % (worst counts); visible measures in µm (extrusion in %)")
     print(f"  {'':<20} {'time':>10} " + " ".join(f"{k[:8]:>8}" for k in VISIBLE)
           + " show-thr hid.ext  motor   (extrusion: visible classes; hid.ext: worst % of hidden ones)")
     print(row("Klipper's pick", base) + f"  ({kcfg.accel:.0f} mm/s²)")
-    print(row("best single accel", single) + f"  ({single_cfg.accel:.0f} mm/s², of {len(accels)} levels "
-          f"{lo:.0f}-{hi:.0f})")
+    print(row("best single accel", single) + (f"  ({args.single}: {single_cfg.accel:.0f} mm/s²)" if args.single else
+                                               f"  ({single_cfg.accel:.0f} mm/s², of {len(accels)} levels "
+                                               f"{lo:.0f}-{hi:.0f})"))
     if feat is None:
         print("  per feature: no candidate keeps every visible measure")
         return 1
@@ -216,6 +251,14 @@ def main() -> int:
                                                                       **corners)).print_time
         print(f"  planner alone, visible walls at {single_cfg.accel:.0f} mm/s², {name}: {ceiling[name]:.1f} s, "
               f"{(1 - ceiling[name] / single.print_time_s) * 100:.1f} % faster than the best single (no judgement)")
+    reserve_tops = plan_load_tops(printer, job, single_cfg, space)
+    t = planned_job(printer, job, dataclasses.replace(single_cfg, feature_accel={
+        c: a for g, a in reserve_tops.items() for c in ACCEL_GROUPS[g]}, **free)).print_time
+    print(f"  planner alone, visible walls at {single_cfg.accel:.0f} mm/s², every other group where a move of the whole "
+          f"job first asks a motor for {(1 - RESERVE) * 100:.0f} % of its force (rigid machine; "
+          + ", ".join(f"{g} {a:.0f}" for g, a in reserve_tops.items())
+          + f" mm/s²), corners nobody sees at 30 / 0: {t:.1f} s, {(1 - t / single.print_time_s) * 100:.1f} % faster than "
+          "the best single (no quality judged: the ceiling under the motors' reserve)")
     tops = {}
     for name, force in (("weak", 18.0), ("strong", 45.0)):
         p = _with_motor(printer, force)
