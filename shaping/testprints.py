@@ -30,6 +30,7 @@ from ringtune.shaping.features import VISIBLE, feature_class
 from ringtune.shaping.freqlimit import CYCLES
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.job import Job
+from ringtune.shaping.seams import SEAM_ORDER, seam_candidates
 
 ZIGZAG_FREQS = (10.0, 15.0, 20.0, 30.0, 40.0, 55.0, 80.0)    # Hz at the commanded speed
 ZIGZAG_SPEED = 250.0         # mm/s
@@ -49,8 +50,9 @@ INNER_LOOP = ((22.0, 22.0), (88.0, 22.0), (88.0, 42.0), (22.0, 42.0))
 
 @dataclass(frozen=True)
 class Window:
-    """A stretch of a planned job worth simulating: [t0, t1] s, ``kind`` ``corner`` | ``zigzag``,
-    ``score`` (corner: velocity change across it, mm/s; zigzag: direction-change frequency, Hz),
+    """A stretch of a planned job worth simulating: [t0, t1] s, ``kind`` ``corner`` | ``zigzag`` |
+    ``seam-in`` | ``seam-out``, ``score`` (corner: velocity change across it, mm/s; zigzag:
+    direction-change frequency, Hz; seam: cruise speed of the motion beside it, mm/s),
     ``line``: the G-code line at its centre, ``feature``: the feature class there
     (:data:`ringtune.shaping.features.FEATURE_CLASSES`)."""
 
@@ -208,6 +210,10 @@ def _same_path(ext, connected, a, b) -> np.ndarray:
 #: mostly infill) and corners of hidden features; a kind short of candidates leaves its places to
 #: the next, then to any kind with candidates left
 WINDOW_SHARES = (("seen-corner", 0.5), ("zigzag", 0.25), ("hidden-corner", 0.25))
+#: windows on seams, beyond ``max_windows``: a visible class's entry (``seam-in``) and exit
+#: (``seam-out``) in :data:`ringtune.shaping.seams.SEAM_ORDER` — the outer wall's, then the top
+#: surfaces' — where per-feature settings of the motion beside them land on what is seen
+SEAM_WINDOWS = 4
 
 
 def _candidates(plan, span: float, order: bool = True) -> dict:
@@ -247,15 +253,17 @@ def _best_per_class_first(score: np.ndarray, cls: np.ndarray) -> np.ndarray:
     return np.lexsort((-score, rank))
 
 
-def quality_windows(plan, max_windows: int = 8, span: float = 0.25) -> list[Window]:
+def quality_windows(plan, max_windows: int = 8, span: float = 0.25, seams: int = SEAM_WINDOWS) -> list[Window]:
     """Up to ``max_windows`` non-overlapping windows of ``span`` s each, shared per feature class
     as :data:`WINDOW_SHARES` says: the sharpest corners (largest velocity change while extruding)
     of visible features, window starting just before the corner so the wall after it is inside;
     the highest-frequency zigzags; the sharpest corners of hidden features. Then one more for each
     feature class of the part with corners that none of those holds (its sharpest corner): a
     class no window holds would go unjudged (the inner walls of a sliced part, whose hidden-corner
-    places the infills' sharper corners take, abut the outer wall). Sorted by start time;
-    ``kind`` is ``corner`` or ``zigzag``, ``feature`` the class there."""
+    places the infills' sharper corners take, abut the outer wall). Then up to ``seams`` on the
+    seams of visible classes (:data:`SEAM_WINDOWS`; each the one whose neighbouring motion runs
+    fastest). Sorted by start time; ``kind`` is ``corner``, ``zigzag``, ``seam-in`` or
+    ``seam-out``, ``feature`` the class there."""
     duration = plan.motion.end_time
     span = min(span, duration)
     cands = _candidates(plan, span)
@@ -290,6 +298,18 @@ def quality_windows(plan, max_windows: int = 8, span: float = 0.25) -> list[Wind
             if classes[i] not in covered and all(t0 + span <= w.t0 or t0 >= w.t1 for w in chosen):
                 chosen.append(Window(t0, t0 + span, "corner", float(scores[i]), int(lines[i]), str(classes[i])))
                 covered.add(str(classes[i]))
+    sides = seam_candidates(plan, span)
+    for cls, side in [(c, k) for c in SEAM_ORDER for k in ("seam-in", "seam-out")]:
+        if seams <= 0:
+            break
+        t0s, scores, lines, classes = sides[side]
+        pick = np.flatnonzero(classes == cls)
+        for i in pick[np.argsort(-scores[pick], kind="stable")]:
+            t0 = float(min(max(t0s[i], lo_t), hi_t))
+            if all(t0 + span <= w.t0 or t0 >= w.t1 for w in chosen):
+                chosen.append(Window(t0, t0 + span, side, float(scores[i]), int(lines[i]), cls))
+                seams -= 1
+                break
     return sorted(chosen, key=lambda w: w.t0)
 
 
@@ -308,7 +328,7 @@ def relocate_windows(plan, reference: list[Window], span: float = 0.25) -> list[
     lo_t, hi_t = plan.motion.start_time, duration - span
     c = _candidates(plan, span, order=False)
     corners = tuple(np.concatenate([c["seen-corner"][j], c["hidden-corner"][j]]) for j in range(4))
-    cands = {"corner": corners, "zigzag": c["zigzag"][:4]}
+    cands = {"corner": corners, "zigzag": c["zigzag"][:4], **seam_candidates(plan, span)}
     out = []
     for w in reference:
         t0s, scores, lines, classes = cands.get(w.kind, cands["corner"])

@@ -218,13 +218,16 @@ def test_trace_of_a_long_job_is_its_quality_windows(tmp_path, monkeypatch, capsy
     rows carry their window number and the nozzle stays near the commanded path."""
     from ringtune.agents.cli import trace_option
     from ringtune.envs import trace
+    from ringtune.envs.evaluate import planned_job
+    from ringtune.envs.printer import load_printer
 
     monkeypatch.setattr(trace, "WHOLE_JOB_MAX_S", 0.5)      # the command reads it when called
     out = tmp_path / "t.csv"
     assert main(["simulate", "--backend", "lti", "--trace", str(out)]) == 0
     assert "quality windows" in capsys.readouterr().err
     tr = trace.read_trace(out)
-    assert set(np.unique(tr["window"])) == set(range(1, 9))
+    judged = len(planned_job(load_printer(None)).windows)      # 8 by the shares and a seam
+    assert judged == 9 and set(np.unique(tr["window"])) == set(range(1, judged + 1))
     dev = np.hypot(tr["x_nozzle"] - tr["x_shaped"], tr["y_nozzle"] - tr["y_shaped"])
     assert 0 < dev.max() < 1.0
 

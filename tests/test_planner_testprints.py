@@ -61,7 +61,7 @@ def test_direction_change_frequency_of_a_slow_zigzag_is_exact():
 
 def test_quality_windows_pick_corners_and_fast_zigzags():
     p = plan(builtin_test_print(), MachineLimits(accel=3000))
-    wins = quality_windows(p, max_windows=6, span=0.2)
+    wins = quality_windows(p, max_windows=6, span=0.2, seams=0)
     # six by the shares, one more for each class with corners they left without a window
     shared = {w.feature for w in wins}
     assert 6 <= len(wins) <= 6 + 1 and shared == {"outer_wall", "inner_wall", "infill"}
@@ -81,13 +81,13 @@ def test_quality_windows_pick_corners_and_fast_zigzags():
     assert all(w.score > 50 for w in corners)
     assert [w.feature for w in corners].count("outer_wall") >= 2
     # with the default eight windows, every labelled class with corners is judged somewhere
-    eight = quality_windows(p)
+    eight = quality_windows(p, seams=0)
     assert {w.feature for w in eight} == {"outer_wall", "inner_wall", "infill"}
 
 
 def test_quality_windows_on_a_long_real_job(data_dir):
     job = read_gcode(data_dir / "gcode/ianalexis_ender3_marlin/ringing_tower.gcode")
     p = plan(job, MachineLimits(junction="jd"))
-    wins = quality_windows(p, max_windows=8, span=0.25)
+    wins = quality_windows(p, max_windows=8, span=0.25, seams=0)
     assert 1 <= len(wins) <= 8
     assert sum(w.t1 - w.t0 for w in wins) < 0.01 * p.print_time

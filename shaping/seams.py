@@ -1,0 +1,70 @@
+"""Seams: where a visible feature starts or ends next to motion of another class (mm/s, s).
+
+A visible wall begins after a travel hop or an inner wall and ends into a travel. With one
+acceleration for the job those moves are planned like the wall; with settings per feature
+(``feature_accel``, the corners nobody sees) they are not, and what they do lands on the wall: the
+hop's deceleration rings into the wall's first millimetres (the seam a person sees), and a
+shaper spreads the next travel's acceleration back over the wall's last ones. The sharpest
+corners of a visible class need not be near a seam, so the quality windows hold seams of their own
+(:func:`ringtune.shaping.testprints.quality_windows`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ringtune.shaping.features import VISIBLE, feature_class
+
+#: moves looked at on the other side of a seam (stopping at the visible class itself)
+REACH = 5
+#: visible classes in the order their seams get windows (what is seen most first)
+SEAM_ORDER = ("outer_wall", "top_surface", "bridge_overhang", "other")
+
+
+def move_classes(plan) -> np.ndarray:
+    """(n_moves,) feature class of each planned move; a move that does not extrude is ``travel``."""
+    mv = plan.moves
+    names = np.array([feature_class(n) for n in mv.features] or ["other"])
+    return np.where(mv.extruding, names[mv.feature], "travel") if len(mv) else np.zeros(0, names.dtype)
+
+
+def _peak_beside(cls: np.ndarray, v: np.ndarray, idx: np.ndarray, step: int) -> np.ndarray:
+    """Per move index in ``idx``: the highest cruise speed (mm/s) of the up to :data:`REACH` moves
+    on side ``step`` (−1 before, +1 after) up to the next move of the same class."""
+    n = len(cls)
+    peak = np.zeros(len(idx))
+    going = np.ones(len(idx), bool)
+    for k in range(1, REACH + 1):
+        j = idx + step * k
+        inside = (j >= 0) & (j < n)
+        jj = np.clip(j, 0, n - 1)
+        going &= inside & (cls[jj] != cls[idx])
+        peak = np.where(going, np.maximum(peak, v[jj]), peak)
+    return peak
+
+
+def seam_candidates(plan, span: float) -> dict[str, tuple]:
+    """Per side (``seam-in``: a visible run's first move; ``seam-out``: its last; ``other`` only
+    in a job that labels nothing visible), arrays
+    (t0 of a window of ``span`` s, score, line, class): an entry's window starts 0.2·span before
+    the run, so the wall after the seam fills it; an exit's ends 0.2·span after the run. Score: the
+    highest cruise speed (mm/s) of the other class's moves beside it, the harder they are driven
+    the more they leave on the wall."""
+    mv = plan.moves
+    cls = move_classes(plan)
+    empty = (np.zeros(0), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, dtype=cls.dtype))
+    if len(cls) < 2:
+        return {"seam-in": empty, "seam-out": empty}
+    visible = np.isin(cls, list(VISIBLE))
+    if np.isin(cls, list(VISIBLE - {"other"})).any():
+        visible &= cls != "other"       # a labelled job's unlabelled extrusion (a purge line) is not the part
+    change = cls[1:] != cls[:-1]
+    first = np.flatnonzero(visible[1:] & change) + 1
+    last = np.flatnonzero(visible[:-1] & change)
+    t_end = mv.t_start + mv.duration
+    return {
+        "seam-in": (mv.t_start[first] - 0.2 * span, _peak_beside(cls, mv.v_cruise, first, -1),
+                    mv.line[first], cls[first]),
+        "seam-out": (t_end[last] - 0.8 * span, _peak_beside(cls, mv.v_cruise, last, +1),
+                     mv.line[last], cls[last]),
+    }
