@@ -79,6 +79,21 @@ def test_default_pick_is_the_fastest_point_at_the_best_baselines_quality():
     assert pick(front, {"klipper": klipper}, "weight", weight=0.0).point.label == "fast but rough"
 
 
+def test_the_default_pick_searches_behind_the_front():
+    """Over print time and overshoot a rough point hides one that matches Klipper's quality on every
+    figure (path error too); the front is the rough one alone, yet the choice is the match when
+    every point is a candidate, and the knee of the front (said as such) only when none is."""
+    klipper = _pt(5.0, 0.0037, 0.0459, "klipper")
+    rough = _pt(4.5, 0.0030, 0.095, "rough")
+    match = _pt(4.8, 0.0036, 0.046, "match")
+    front = pareto_front([rough, match])
+    assert [p.label for p in front] == ["rough"]
+    c = pick(front, {"klipper": klipper}, candidates=[rough, match])
+    assert c.point is match and c.by == "fastest-at-baseline-quality" and "same quality, faster" in c.sentence
+    c = pick(front, {"klipper": klipper}, candidates=[rough])
+    assert c.point is rough and c.by == "knee" and "because no front point" in c.sentence
+
+
 def test_the_front_keeps_a_point_with_less_path_error_so_the_pick_can_match_the_baseline():
     """Over print time and overshoot alone, a faster point with less overshoot but twice the path
     error hides the one that matches Klipper's quality; the front over both figures keeps it, and

@@ -373,13 +373,16 @@ def reference_baselines(baselines: dict[str, Point], res: Resolution = DEFAULT_R
 
 
 def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastest-at-baseline-quality",
-         weight: float | None = None, res: Resolution = DEFAULT_RESOLUTION) -> Choice:
+         weight: float | None = None, res: Resolution = DEFAULT_RESOLUTION,
+         candidates: Sequence[Point] | None = None) -> Choice:
     """Choose the configuration to use.
 
     ``fastest-at-baseline-quality`` (default): against the first reference baseline
-    (:func:`reference_baselines`) the front can match, the fastest front point at least as fast
-    with no visible measure worse at the resolution ("same quality, faster"). Pass every feasible
-    point as ``front`` to search them all. Where nothing matches any, the knee, and the sentence says
+    (:func:`reference_baselines`) the search can match, the fastest of ``candidates`` (default:
+    the front) at least as fast with no visible measure worse at the resolution ("same quality,
+    faster"). Pass every point of the study as ``candidates``: the front is over print time and a
+    few figures, and a point no worse on every judged one can lie behind a front point that is
+    worse on another. Where nothing matches any, the knee of the front, and the sentence says
     so. ``knee``: :func:`knee`. ``weight``: minimises print time + ``weight`` × quality (s/mm)."""
     front = [p for p in front if p.feasible]
     if not front:
@@ -394,18 +397,21 @@ def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastes
                       "scaled by the front's range, ripple by its range but at least 10 µm)")
     if how != "fastest-at-baseline-quality":
         raise RingtuneError(f"must be one of {', '.join(PICKS)}, not {how!r}", "--pick")
-    return _fastest_at_baseline_quality(front, baselines, res)
+    pool = front if candidates is None else [p for p in candidates if p.feasible] or front
+    return _fastest_at_baseline_quality(front, baselines, res, pool)
 
 
-def _fastest_at_baseline_quality(front: list[Point], baselines: dict[str, Point], res: Resolution) -> Choice:
-    """:func:`pick`'s default: the fastest front point with no visible measure worse than the
-    reference baselines, tried together then one at a time; else the knee, saying why."""
+def _fastest_at_baseline_quality(front: list[Point], baselines: dict[str, Point], res: Resolution,
+                                 pool: list[Point]) -> Choice:
+    """:func:`pick`'s default: the fastest point of ``pool`` with no visible measure worse than
+    the reference baselines, tried together then one at a time; else the knee of ``front``,
+    saying why."""
     by_key = dict(reference_baselines(baselines, res))
     worse = f"no worse {_QUALITY_WORDS[_quality_keys(front)]}"
     tries = _tries(list(by_key))
     for held in tries:
         first, *rest = (by_key[k] for k in held)
-        cands = [p for p in at_baseline_quality(front, first, res) if all(_no_worse_seen(p, b, res) for b in rest)]
+        cands = [p for p in at_baseline_quality(pool, first, res) if all(_no_worse_seen(p, b, res) for b in rest)]
         if cands:
             p = min(cands, key=lambda p: (p.print_time_s, p.quality_mm))
             return Choice(p, "fastest-at-baseline-quality", held[0], _held_why(p, first, held, tries, worse), held)

@@ -175,7 +175,7 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     baselines = bl.points
     points = tune_study.study_points(run_.study, space, quality, lim.max_pe, lim.reserve, lim.max_st)
     front = pareto.pareto_front(points, also=_also(points, quality))
-    choice = pareto.pick(front, baselines, lim.how, req.weight)
+    choice = pareto.pick(front, baselines, lim.how, req.weight, candidates=points)
     choice, stop, lift = _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim)
     result, text, accel_json, ja_json = _report(req, lim, fw, printer, facts, space, quality, points, front, choice,
                                                 (stop, lift), bl, settings, floor_note, why, out_dir, store, note)
