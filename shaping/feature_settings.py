@@ -11,12 +11,16 @@ How each firmware takes an acceleration per feature:
 
 - Klipper / Kalico (junction rule ``scv``): one acceleration for every move
   (``SET_VELOCITY_LIMIT ACCEL``), so the value in force follows the move's *effective class*: the
-  class of its feature label when it extrudes; ``travel`` for an X/Y move that does not; a move
+  class of its feature label when it extrudes; ``travel`` for an X/Y move that does not, unless it
+  lands on or leaves a visible extrusion (the hop into an outer wall's seam, the move off its
+  end): then the class of that extrusion, so what a person sees at the seam is the wall's; a move
   without X/Y motion (retract, unretract, Z hop) keeps the class of the move before it, so it never
   costs a command of its own;
 - Marlin, Prusa, RepRapFirmware (``jd`` / ``jerk``): ``M204 P`` is the printing acceleration,
   taken by every move with E (the label's class), ``M204 T`` the travel acceleration, taken by
-  moves without E — set together at each label change; ``M204 R`` (retraction) is left as it is.
+  moves without E — set together at each label change (the seam's travel too: these firmwares
+  have one travel acceleration, and the judgement sees what it leaves on the seam);
+  ``M204 R`` (retraction) is left as it is.
 
 The corner value (``square_corner_velocity``, ``M205 J``, ``M205 X Y`` or ``M566 X Y``, by the
 printer's junction rule) and Klipper's ``minimum_cruise_ratio`` are one for the whole job, or per
@@ -31,7 +35,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ringtune.shaping.features import FEATURE_CLASSES, class_indices
+from ringtune.shaping.features import FEATURE_CLASSES, VISIBLE, class_indices
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.job import SETTING_KEYS, Job
 
@@ -100,15 +104,41 @@ def label_classes(job: Job) -> np.ndarray:
 
 def effective_classes(job: Job) -> np.ndarray:
     """(n,) class index per move as Klipper's one acceleration follows it (module docstring):
-    label class when extruding, ``travel`` for X/Y moves without E, moves without X/Y motion keep
-    the class of the move before them."""
+    label class when extruding, ``travel`` for X/Y moves without E — except a travel next to a
+    visible extrusion, which takes its class (:func:`_seam_travel`) —, moves without X/Y motion
+    keep the class of the move before them."""
     d = job.delta
     label = label_classes(job)
     xy = np.hypot(d[:, 0], d[:, 1]) > 0
-    cls = np.where(xy & ~(d[:, 3] > 0), TRAVEL, label)
+    extruding = xy & (d[:, 3] > 0)
+    cls = _seam_travel(np.where(xy & ~extruding, TRAVEL, label), xy, extruding)
     idx = np.arange(job.n_moves)
     last = np.maximum.accumulate(np.where(xy, idx, -1))     # the latest move with X/Y motion
     return np.where(last >= 0, cls[np.maximum(last, 0)], label)
+
+
+def _seam_travel(cls: np.ndarray, xy: np.ndarray, extruding: np.ndarray) -> np.ndarray:
+    """``cls`` with each travel move (X/Y without E) next to a visible extrusion (moves without X/Y
+    motion between skipped) in that extrusion's class: the one it lands on, else the one it
+    leaves. Why: the travel's deceleration rings into the wall it lands on (the seam a person
+    sees) and a shaper spreads its acceleration back over the end of the wall it leaves
+    (:mod:`ringtune.shaping.seams`); at the wall's own settings the seam is the wall's. ``other``
+    counts as visible only in a job that labels nothing visible (else it is a purge line)."""
+    k = np.flatnonzero(xy)
+    if len(k) < 2:
+        return cls
+    c, ext = cls[k], extruding[k]
+    seen = [FEATURE_CLASSES.index(v) for v in VISIBLE if v != "other"]
+    if not np.isin(c[ext], seen).any():
+        seen.append(FEATURE_CLASSES.index("other"))
+    vis = ext & np.isin(c, seen)
+    travel = ~ext & (c == TRAVEL)
+    lands = travel & np.r_[vis[1:], False]
+    leaves = travel & ~lands & np.r_[False, vis[:-1]]
+    out = cls.copy()
+    out[k[lands]] = c[np.flatnonzero(lands) + 1]
+    out[k[leaves]] = c[np.flatnonzero(leaves) - 1]
+    return out
 
 
 #: the settings the corner value sets, by junction rule

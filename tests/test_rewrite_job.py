@@ -61,13 +61,31 @@ def _expected_accel(job, cfg: TuneConfig, junction: str) -> tuple[np.ndarray, np
 
 def _one_value(job, value_of) -> np.ndarray:
     """The value each move runs with where one command sets it for printing and travel alike:
-    ``value_of(class)`` of its label when it extrudes, of ``travel`` for an X/Y move without E; a
-    move without X/Y keeps the one before it."""
+    ``value_of(class)`` of its label when it extrudes, of ``travel`` for an X/Y move without E —
+    unless the next X/Y move (else the one before) extrudes a visible class: then that class's (the
+    seam's travel, ``shaping/feature_settings.py``; ``other`` is visible only in a job labelling
+    nothing visible) —; a move without X/Y keeps the one before it."""
+    xy = [i for i, (a, b) in enumerate(zip(job.start, job.end)) if np.hypot(*(b - a)[:2]) > 0]
+    cls = {i: feature_class(job.features[job.feature[i]]) if job.end[i][3] > job.start[i][3] else "travel"
+           for i in xy}
+    seen = {"outer_wall", "top_surface", "bridge_overhang"}
+    if not any(cls[i] in seen for i in xy):
+        seen.add("other")
+    eff = dict(cls)
+    for n, i in enumerate(xy):
+        if cls[i] != "travel":
+            continue
+        nxt = cls[xy[n + 1]] if n + 1 < len(xy) else None
+        prv = cls[xy[n - 1]] if n > 0 else None
+        if nxt in seen:
+            eff[i] = nxt
+        elif prv in seen:
+            eff[i] = prv
     labels = np.array([value_of(feature_class(job.features[f])) for f in job.feature])
     out, prev = np.empty(job.n_moves), None
-    for i, (a, b) in enumerate(zip(job.start, job.end)):
-        if np.hypot(*(b - a)[:2]) > 0:
-            prev = labels[i] if b[3] > a[3] else value_of("travel")
+    for i in range(job.n_moves):
+        if i in eff:
+            prev = value_of(eff[i])
         out[i] = labels[i] if prev is None else prev
     return out
 

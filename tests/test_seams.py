@@ -2,9 +2,10 @@
 motion of another class, so settings per feature that land on the wall are judged there.
 
 The candidates are checked against the trapezoid by hand; the judgement against the physics it
-exposes: on the sliced part, raising only the travel's (and infill's) acceleration leaves the outer
-wall's own corners and ripple worse at its seams — which windows on the sharpest corners alone do
-not see."""
+exposes: on the sliced part under RepRapFirmware (one travel acceleration for every move without
+E), raising the travel's acceleration leaves the outer wall overshooting and under-extruding at its
+seam — which windows on the sharpest corners alone do not see; under Klipper the seam's travel runs
+at the wall's own acceleration and the wall stays as it was."""
 
 from __future__ import annotations
 
@@ -19,6 +20,8 @@ from ringtune.envs.printer import load_printer
 from ringtune.shaping import testprints
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.feature_settings import effective_classes
+from ringtune.shaping.features import FEATURE_CLASSES
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.planner import MachineLimits, plan
 from ringtune.shaping.seams import seam_candidates
@@ -59,6 +62,19 @@ def test_a_wall_between_two_travels_has_one_seam_each_side_scored_by_the_travel_
     assert set(c["seam-in"][3]) == set(c["seam-out"][3]) == {"outer_wall"}
 
 
+def test_the_seams_travel_takes_the_walls_class_for_klippers_one_acceleration():
+    """The travel landing on the wall and the one leaving it run with the wall's settings; a travel
+    between two hidden extrusions stays travel."""
+    job = read_gcode(WALL + "G1 X90 Y50 F15000\nG1 X90 Y70 E4 F3000\n")
+    cls = [FEATURE_CLASSES[c] for c in effective_classes(job)]
+    lines = WALL.splitlines() + ["G1 X90 Y50 F15000", "G1 X90 Y70 E4 F3000"]
+    by_line = {lines[ln - 1]: c for ln, c in zip(job.line, cls)}
+    assert by_line["G1 X0 Y10 F15000"] == "outer_wall"       # lands on the wall's seam
+    assert by_line["G1 X70 Y30 F15000"] == "outer_wall"      # leaves the wall's end
+    assert by_line["G1 X90 Y50 F15000"] == "travel"          # infill to infill
+    assert by_line["G1 X70 Y50 E3 F3000"] == "infill"
+
+
 def test_the_windows_hold_the_seams_and_keep_them_on_another_plan():
     p = plan(read_gcode(WALL), MachineLimits(accel=3000))
     wins = testprints.quality_windows(p, max_windows=2, span=0.1)
@@ -71,32 +87,42 @@ def test_the_windows_hold_the_seams_and_keep_them_on_another_plan():
 
 PART_SINGLE = TuneConfig(firmware="klipper", shaper_x="zvd", shaper_y="mzv", freq_x=65.0, freq_y=42.7,
                          damping_x=0.145, damping_y=0.09, accel=6100.0)
-FAST_HIDDEN = dataclasses.replace(PART_SINGLE, feature_accel={"infill": 13800.0, "support": 13800.0,
-                                                              "travel": 10800.0})
-
-
+FAST_HIDDEN = {"infill": 13800.0, "support": 13800.0, "travel": 10800.0}
 QUALITY_WINDOWS = testprints.quality_windows
 
 
-def _outer_wall(configs, seams: int, monkeypatch):
+def _outer_wall(firmware: str, junction: str, seams: int, monkeypatch):
+    """The outer wall's judged figures of the part's single acceleration and of the same with the
+    infill and travel driven hard, under ``firmware`` and its junction rule."""
+    base = load_printer(None)
+    printer = dataclasses.replace(base, limits_dict={**(base.limits_dict or {}), "junction": junction})
+    single = dataclasses.replace(PART_SINGLE, firmware=firmware)
+    fast = dataclasses.replace(single, feature_accel=dict(FAST_HIDDEN))
     monkeypatch.setattr(testprints, "quality_windows", functools.partial(QUALITY_WINDOWS, seams=seams))
     ev.clear_cache()
     try:
-        ms = ev.evaluate_many(configs, load_printer(None), str(job_path("part")), freq_margin=0.05)
+        ms = ev.evaluate_many([single, fast], printer, str(job_path("part")), freq_margin=0.05)
     finally:
         ev.clear_cache()
     return [m.features["outer_wall"] for m in ms]
 
 
-def test_hidden_motion_driven_harder_shows_on_the_outer_wall_at_its_seams(monkeypatch):
+def test_travel_driven_harder_shows_on_the_outer_wall_at_its_seams_unless_the_seams_travel_is_the_walls(monkeypatch):
+    # RepRapFirmware: M204 T is every travel's, the hop into the outer wall's seam too
     with monkeypatch.context() as mp:
-        single, fast = _outer_wall([PART_SINGLE, FAST_HIDDEN], 0, mp)
+        single, fast = _outer_wall("rrf", "jerk", 0, mp)
     # on the sharpest corners alone the outer wall cannot tell the two apart
-    for k in ("ripple_mm", "corner_in_mm", "corner_out_mm"):
+    for k in ("ripple_mm", "corner_in_mm", "corner_out_mm", "extrusion_under_pct"):
         assert fast[k] == pytest.approx(single[k], abs=1e-6), k
     with monkeypatch.context() as mp:
-        single, fast = _outer_wall([PART_SINGLE, FAST_HIDDEN], testprints.SEAM_WINDOWS, mp)
-    # with its seams judged, the hop from the inner wall at 10,800 mm/s² rings into the wall's
-    # start: its ripple and overshoot grow beyond the reports' resolution (1 µm or 5 %)
-    for k in ("ripple_mm", "corner_out_mm"):
-        assert fast[k] > max(single[k] * 1.05, single[k] + 1e-3), k
+        single, fast = _outer_wall("rrf", "jerk", testprints.SEAM_WINDOWS, mp)
+    # with its seams judged, the hop at 10,800 mm/s² rings into the wall's start: it overshoots and
+    # under-extrudes beyond the reports' resolution (1 µm or 5 %; 1 point or 5 %)
+    assert fast["corner_out_mm"] > max(single["corner_out_mm"] * 1.05, single["corner_out_mm"] + 1e-3)
+    assert fast["extrusion_under_pct"] > max(single["extrusion_under_pct"] * 1.05, single["extrusion_under_pct"] + 1)
+    # Klipper's one acceleration follows the move's class, and the seam's travel takes the wall's
+    # (shaping/feature_settings.py): the same hidden settings leave the wall as it was
+    with monkeypatch.context() as mp:
+        single, fast = _outer_wall("klipper", "scv", testprints.SEAM_WINDOWS, mp)
+    for k in ("ripple_mm", "corner_in_mm", "corner_out_mm", "extrusion_over_pct", "extrusion_under_pct"):
+        assert fast[k] == pytest.approx(single[k], rel=1e-6, abs=1e-9), k
