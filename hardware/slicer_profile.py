@@ -185,6 +185,12 @@ def slicer_profile(config: TuneConfig, slicer: str, firmware: str | None = None,
         common.append("the corner rule and minimum_cruise_ratio per feature class (feature_corner, "
                       f"feature_min_cruise_ratio) are not in this profile{orca}: `ringtune rewrite` writes them "
                       "into the sliced job at each feature change")
+    seam = {c: wanted[c] for c in ("outer_wall", "top_surface", "bridge_overhang") if wanted[c] < wanted["travel"]}
+    if seam and fw.family == "klipper":
+        common.append("the seam's travel (the hop onto a visible wall, the move off its end) was judged at the wall's "
+                      f"acceleration ({', '.join(f'{c} {_n(a)}' for c, a in seam.items())}); a slicer gives every "
+                      f"travel {_n(wanted['travel'])}: `ringtune rewrite` of the sliced job writes the seam's travel "
+                      "as judged")
     caps = {f"machine_max_acceleration_{ax}": _n(c) for ax, c in zip("xy", config.axis_caps) if c is not None}
     build = {"prusaslicer": _prusaslicer, "orcaslicer": _orcaslicer, "cura": _cura}[slicer]
     prof = build({k: _n(v) for k, v in values.items()}, _n(top), caps, common, fw, keys)
