@@ -186,7 +186,7 @@ def slicer_profile(config: TuneConfig, slicer: str, firmware: str | None = None,
                       f"feature_min_cruise_ratio) are not in this profile{orca}: `ringtune rewrite` writes them "
                       "into the sliced job at each feature change")
     seam = {c: wanted[c] for c in ("outer_wall", "top_surface", "bridge_overhang") if wanted[c] < wanted["travel"]}
-    if seam and fw.family == "klipper":
+    if seam:
         common.append("the seam's travel (the hop onto a visible wall, the move off its end) was judged at the wall's "
                       f"acceleration ({', '.join(f'{c} {_n(a)}' for c, a in seam.items())}); a slicer gives every "
                       f"travel {_n(wanted['travel'])}: `ringtune rewrite` of the sliced job writes the seam's travel "

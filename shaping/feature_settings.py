@@ -18,9 +18,8 @@ How each firmware takes an acceleration per feature:
   costs a command of its own;
 - Marlin, Prusa, RepRapFirmware (``jd`` / ``jerk``): ``M204 P`` is the printing acceleration,
   taken by every move with E (the label's class), ``M204 T`` the travel acceleration, taken by
-  moves without E — set together at each label change (the seam's travel too: these firmwares
-  have one travel acceleration, and the judgement sees what it leaves on the seam);
-  ``M204 R`` (retraction) is left as it is.
+  moves without E — set together at each label change, and around the seam's travel, whose
+  ``T`` is the wall's; ``M204 R`` (retraction) is left as it is.
 
 The corner value (``square_corner_velocity``, ``M205 J``, ``M205 X Y`` or ``M566 X Y``, by the
 printer's junction rule) and Klipper's ``minimum_cruise_ratio`` are one for the whole job, or per
@@ -107,14 +106,22 @@ def effective_classes(job: Job) -> np.ndarray:
     label class when extruding, ``travel`` for X/Y moves without E — except a travel next to a
     visible extrusion, which takes its class (:func:`_seam_travel`) —, moves without X/Y motion
     keep the class of the move before them."""
+    return _classes(job)[0]
+
+
+def _classes(job: Job) -> tuple[np.ndarray, np.ndarray]:
+    """(:func:`effective_classes`, (n,) True on the seam's travel: the travel moves that took a
+    visible extrusion's class, and the moves without X/Y motion after them)."""
     d = job.delta
     label = label_classes(job)
     xy = np.hypot(d[:, 0], d[:, 1]) > 0
     extruding = xy & (d[:, 3] > 0)
-    cls = _seam_travel(np.where(xy & ~extruding, TRAVEL, label), xy, extruding)
+    own = np.where(xy & ~extruding, TRAVEL, label)
+    cls = _seam_travel(own, xy, extruding)
     idx = np.arange(job.n_moves)
     last = np.maximum.accumulate(np.where(xy, idx, -1))     # the latest move with X/Y motion
-    return np.where(last >= 0, cls[np.maximum(last, 0)], label)
+    at = np.maximum(last, 0)
+    return np.where(last >= 0, cls[at], label), (last >= 0) & (cls[at] != own[at])
 
 
 def _seam_travel(cls: np.ndarray, xy: np.ndarray, extruding: np.ndarray) -> np.ndarray:
@@ -149,10 +156,11 @@ def _accels(job: Job, fc: FeatureCommands) -> dict[str, np.ndarray]:
     """{accel_klipper, accel_print, accel_travel: (n,) mm/s² in force at each move} for ``fc``
     (module docstring: Klipper's one acceleration, or Marlin/RRF's print and travel pair)."""
     table = np.array([fc.accel[c] for c in FEATURE_CLASSES])
+    eff, seam = _classes(job)
     if fc.junction == "scv":
-        a = table[effective_classes(job)]
+        a = table[eff]
         return dict(accel_klipper=a, accel_print=a, accel_travel=a)
-    p, t = table[label_classes(job)], np.full(job.n_moves, fc.accel["travel"])
+    p, t = table[label_classes(job)], np.where(seam, table[eff], fc.accel["travel"])   # M204 T: the seam's the wall's
     return dict(accel_print=p, accel_travel=t, accel_klipper=np.minimum(p, t))
 
 

@@ -53,41 +53,45 @@ def _expected_accel(job, cfg: TuneConfig, junction: str) -> tuple[np.ndarray, np
     def acc(cls):
         return cfg.feature_accel.get(cls, cfg.accel)
     labels = np.array([acc(feature_class(job.features[f])) for f in job.feature])
-    if junction != "scv":          # M204 P by the label, T for travel
-        return labels, np.full(job.n_moves, acc("travel"))
+    if junction != "scv":          # M204 P by the label, T for travel: the seam's travel's the wall's
+        return labels, np.array([acc(c) if seam else acc("travel") for c, seam in _effective(job)])
     out = _one_value(job, acc)
     return out, out
 
 
-def _one_value(job, value_of) -> np.ndarray:
-    """The value each move runs with where one command sets it for printing and travel alike:
-    ``value_of(class)`` of its label when it extrudes, of ``travel`` for an X/Y move without E —
-    unless the next X/Y move (else the one before) extrudes a visible class: then that class's (the
-    seam's travel, ``shaping/feature_settings.py``; ``other`` is visible only in a job labelling
-    nothing visible) —; a move without X/Y keeps the one before it."""
+def _effective(job) -> list[tuple]:
+    """Per move: (the class its settings follow, True on the seam's travel), by a loop: the label's
+    class when it extrudes, ``travel`` for an X/Y move without E — unless the next X/Y move (else
+    the one before) extrudes a visible class: then that class (the seam's travel,
+    ``shaping/feature_settings.py``; ``other`` is visible only in a job labelling nothing visible);
+    a move without X/Y keeps the one before it (before any X/Y move: its label's, no seam)."""
     xy = [i for i, (a, b) in enumerate(zip(job.start, job.end)) if np.hypot(*(b - a)[:2]) > 0]
     cls = {i: feature_class(job.features[job.feature[i]]) if job.end[i][3] > job.start[i][3] else "travel"
            for i in xy}
     seen = {"outer_wall", "top_surface", "bridge_overhang"}
     if not any(cls[i] in seen for i in xy):
         seen.add("other")
-    eff = dict(cls)
+    eff = {i: (c, False) for i, c in cls.items()}
     for n, i in enumerate(xy):
         if cls[i] != "travel":
             continue
         nxt = cls[xy[n + 1]] if n + 1 < len(xy) else None
         prv = cls[xy[n - 1]] if n > 0 else None
         if nxt in seen:
-            eff[i] = nxt
+            eff[i] = (nxt, True)
         elif prv in seen:
-            eff[i] = prv
-    labels = np.array([value_of(feature_class(job.features[f])) for f in job.feature])
-    out, prev = np.empty(job.n_moves), None
+            eff[i] = (prv, True)
+    out, prev = [], None
     for i in range(job.n_moves):
-        if i in eff:
-            prev = value_of(eff[i])
-        out[i] = labels[i] if prev is None else prev
+        prev = eff.get(i, prev)
+        out.append(prev if prev is not None else (feature_class(job.features[job.feature[i]]), False))
     return out
+
+
+def _one_value(job, value_of) -> np.ndarray:
+    """The value each move runs with where one command sets it for printing and travel alike:
+    ``value_of`` of the class :func:`_effective` gives it."""
+    return np.array([value_of(c) for c, _seam in _effective(job)])
 
 
 #: per-class corner settings (the corners nobody sees): twice the job-wide corner, no cruise smoothing

@@ -2,10 +2,9 @@
 motion of another class, so settings per feature that land on the wall are judged there.
 
 The candidates are checked against the trapezoid by hand; the judgement against the physics it
-exposes: on the sliced part under RepRapFirmware (one travel acceleration for every move without
-E), raising the travel's acceleration leaves the outer wall overshooting and under-extruding at its
-seam — which windows on the sharpest corners alone do not see; under Klipper the seam's travel runs
-at the wall's own acceleration and the wall stays as it was."""
+exposes: on the sliced part, inner walls driven harder ring into the outer wall's seam — which
+windows on the sharpest corners alone do not see — while the seam's travel, run at the wall's own
+acceleration (Klipper and RepRapFirmware alike), leaves the wall as it was."""
 
 from __future__ import annotations
 
@@ -91,13 +90,13 @@ FAST_HIDDEN = {"infill": 13800.0, "support": 13800.0, "travel": 10800.0}
 QUALITY_WINDOWS = testprints.quality_windows
 
 
-def _outer_wall(firmware: str, junction: str, seams: int, monkeypatch):
-    """The outer wall's judged figures of the part's single acceleration and of the same with the
-    infill and travel driven hard, under ``firmware`` and its junction rule."""
+def _outer_wall(firmware: str, junction: str, seams: int, feature_accel: dict, monkeypatch):
+    """The outer wall's judged figures of the part's single acceleration and of the same with
+    ``feature_accel``, under ``firmware`` and its junction rule."""
     base = load_printer(None)
     printer = dataclasses.replace(base, limits_dict={**(base.limits_dict or {}), "junction": junction})
     single = dataclasses.replace(PART_SINGLE, firmware=firmware)
-    fast = dataclasses.replace(single, feature_accel=dict(FAST_HIDDEN))
+    fast = dataclasses.replace(single, feature_accel=dict(feature_accel))
     monkeypatch.setattr(testprints, "quality_windows", functools.partial(QUALITY_WINDOWS, seams=seams))
     ev.clear_cache()
     try:
@@ -107,22 +106,26 @@ def _outer_wall(firmware: str, junction: str, seams: int, monkeypatch):
     return [m.features["outer_wall"] for m in ms]
 
 
-def test_travel_driven_harder_shows_on_the_outer_wall_at_its_seams_unless_the_seams_travel_is_the_walls(monkeypatch):
-    # RepRapFirmware: M204 T is every travel's, the hop into the outer wall's seam too
+def test_inner_walls_driven_harder_show_on_the_outer_wall_at_its_seam(monkeypatch):
+    # the inner wall ends 0.6 mm before the outer wall starts: at 13,800 mm/s² (walls 6100) its stop
+    # rings into the seam
     with monkeypatch.context() as mp:
-        single, fast = _outer_wall("rrf", "jerk", 0, mp)
+        single, fast = _outer_wall("klipper", "scv", 0, {"inner_wall": 13800.0}, mp)
     # on the sharpest corners alone the outer wall cannot tell the two apart
     for k in ("ripple_mm", "corner_in_mm", "corner_out_mm", "extrusion_under_pct"):
         assert fast[k] == pytest.approx(single[k], abs=1e-6), k
     with monkeypatch.context() as mp:
-        single, fast = _outer_wall("rrf", "jerk", testprints.SEAM_WINDOWS, mp)
-    # with its seams judged, the hop at 10,800 mm/s² rings into the wall's start: it overshoots and
-    # under-extrudes beyond the reports' resolution (1 µm or 5 %; 1 point or 5 %)
-    assert fast["corner_out_mm"] > max(single["corner_out_mm"] * 1.05, single["corner_out_mm"] + 1e-3)
-    assert fast["extrusion_under_pct"] > max(single["extrusion_under_pct"] * 1.05, single["extrusion_under_pct"] + 1)
-    # Klipper's one acceleration follows the move's class, and the seam's travel takes the wall's
-    # (shaping/feature_settings.py): the same hidden settings leave the wall as it was
-    with monkeypatch.context() as mp:
-        single, fast = _outer_wall("klipper", "scv", testprints.SEAM_WINDOWS, mp)
+        single, fast = _outer_wall("klipper", "scv", testprints.SEAM_WINDOWS, {"inner_wall": 13800.0}, mp)
+    # with its seams judged: ripple and overshoot beyond the reports' resolution (1 µm or 5 %)
+    for k in ("ripple_mm", "corner_out_mm"):
+        assert fast[k] > max(single[k] * 1.05, single[k] + 1e-3), k
+
+
+@pytest.mark.parametrize("firmware,junction", [("klipper", "scv"), ("rrf", "jerk")])
+def test_the_seams_travel_at_the_walls_acceleration_leaves_the_wall_as_it_was(firmware, junction, monkeypatch):
+    """Infill at 13,800 and travel at 10,800 mm/s²: the hop onto the outer wall and the move off its
+    end run at the wall's (Klipper's one acceleration by class; M204 T written around them), so the
+    wall's judged figures, seams included, are the single acceleration's."""
+    single, fast = _outer_wall(firmware, junction, testprints.SEAM_WINDOWS, FAST_HIDDEN, monkeypatch)
     for k in ("ripple_mm", "corner_in_mm", "corner_out_mm", "extrusion_over_pct", "extrusion_under_pct"):
         assert fast[k] == pytest.approx(single[k], rel=1e-6, abs=1e-9), k

@@ -103,12 +103,14 @@ def test_a_key_governing_several_classes_takes_the_slowest_and_says_so():
         assert all(prof.effective[c] <= wanted[c] for c in FEATURE_CLASSES if c != "bridge_overhang" or slicer != "cura")
     p26 = slicer_profile(config, "prusaslicer")     # 2.6 and later: every class but other/support its own key
     assert p26.effective == {**wanted, "support": 3500.0}
-    # a slicer's travel acceleration is every travel's: the seam's travel, judged at the wall's on
-    # Klipper, is said to differ (outer wall 2000 < travel 8000)
-    seam = [n for n in p26.notes if n.startswith("the seam's travel")]
-    assert len(seam) == 1 and "outer_wall 2000" in seam[0] and "8000" in seam[0]
-    marlin = slicer_profile(TuneConfig.from_dict({**CONFIGS["per feature"], "firmware": "marlin"}), "prusaslicer")
-    assert not [n for n in marlin.notes if n.startswith("the seam's travel")]   # M204 T is every travel's there too
+    # a slicer's travel acceleration is every travel's: the seam's travel, judged at the wall's, is
+    # said to differ (outer wall 2000 < travel 8000), for every firmware
+    for fw in ("klipper", "marlin"):
+        prof = slicer_profile(TuneConfig.from_dict({**CONFIGS["per feature"], "firmware": fw}), "prusaslicer")
+        seam = [n for n in prof.notes if n.startswith("the seam's travel")]
+        assert len(seam) == 1 and "outer_wall 2000" in seam[0] and "8000" in seam[0]
+    slow_travel = TuneConfig.from_dict({**CONFIGS["per feature"], "feature_accel": {**PER_FEATURE, "travel": 1000}})
+    assert not [n for n in slicer_profile(slow_travel, "prusaslicer").notes if n.startswith("the seam's travel")]
 
 
 def test_export_slicer_version_and_a_bad_one(tmp_path, capsys):
