@@ -349,6 +349,10 @@ def _seen(tu, pts, dist, cls, legs: Legs, w: Walls, angle: float, settle: float,
                                 "x": float(legs.start[k, 0]), "y": float(legs.start[k, 1]),
                                 "feature": FEATURE_CLASSES[legs.cls[k]]}
     inward, outward = corner_deviation(tu, pts, legs, angle, early, max(settle, 0.0) + tail)
+    # never further from the corner than from the path: after chords shorter than the corner's
+    # span, a sample on the next leg would be measured from legs it has left
+    near = np.where(np.isfinite(dist), dist, np.inf)
+    inward, outward = np.minimum(inward, near), np.minimum(outward, near)
     out = per_class_max(outward, cls, _N)
     hidden_reach = np.maximum(out, per_class_max(w.offset, w.cls, _N))
     finite = np.isfinite(dist)

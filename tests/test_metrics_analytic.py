@@ -73,6 +73,22 @@ def test_lag_along_the_path_costs_nothing():
     assert m.path_error_mm < 1e-9
 
 
+def test_lag_along_the_path_costs_nothing_at_corners_after_short_chords():
+    """A slicer's arc: a corner split by a 0.15 mm chord (two 45° turns) at 90 mm/s; the nozzle runs
+    on the path 10 ms behind the command. It is never off the path, so no corner is rounded or
+    overshot — though the second corner's span, by time, reaches back to where the nozzle is still
+    on the first leg (0.9 mm before a chord of 0.15 mm)."""
+    c = 0.15 / math.sqrt(2.0)
+    pts = [(0, 0), (20, 0), (20 + c, c), (20 + c, 20)]
+    lengths = [20.0, 0.15, 20.0 - c]
+    path = polyline_motion(pts, [d / 90.0 for d in lengths])
+    t = np.arange(int(path.end_time * RATE) + 1) / RATE
+    noz = path.position(np.maximum(t - 0.010, 0.0))[:, :2]
+    m = compute_metrics(FakeSim(t, noz, np.zeros((len(t), 2))), path)
+    assert m.path_error_mm < 1e-9
+    assert m.corner_in_mm < 1e-9 and m.corner_out_mm < 1e-9
+
+
 def test_corner_overshoot_and_wall_ringing_match_closed_forms():
     A, f, zeta, tc = 0.12, 40.0, 0.05, 0.1
     dx, sigma, wd = decaying(A, f, zeta)
