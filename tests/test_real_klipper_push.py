@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import re
 import sys
+import time
 import urllib.request
 from pathlib import Path
 
@@ -50,12 +51,24 @@ def _write(tmp_path: Path, name: str, data: dict) -> Path:
     return p
 
 
-def _store(url: str) -> tuple:
-    """The newest entry of Moonraker's console store (time, message): it changes with anything
-    Klipper answers, on the pty or through Moonraker."""
+def _newest(url: str) -> tuple:
     with urllib.request.urlopen(f"{url}/server/gcode_store?count=1", timeout=10) as r:
         last = json.load(r)["result"]["gcode_store"]
     return (last[-1]["time"], last[-1]["message"]) if last else None
+
+
+def _store(url: str, settle: float = 0.3, wait: float = 5.0) -> tuple:
+    """The newest entry of Moonraker's console store (time, message), once it has stood for
+    ``settle`` s (a command's "ok" lands just after its report): it changes with anything Klipper
+    answers, on the pty or through Moonraker."""
+    last, end = _newest(url), time.monotonic() + wait
+    while time.monotonic() < end:
+        time.sleep(settle)
+        now = _newest(url)
+        if now == last:
+            break
+        last = now
+    return last
 
 
 def _klipper_report(svc) -> dict[str, str]:
