@@ -74,7 +74,7 @@ def test_default_pick_is_the_fastest_point_at_the_best_baselines_quality():
     assert c.baseline == "klipper"
     # nothing as fast with no worse quality: the knee, and the sentence says why
     c = pick(front[:1] + front[3:], {"klipper": klipper})
-    assert c.by == "knee" and "because no front point is as fast as Klipper's rule" in c.sentence
+    assert c.by == "knee" and "because no configuration the study tried is as fast as Klipper's rule" in c.sentence
     assert pick(front, {"klipper": klipper}, "knee").by == "knee"
     assert pick(front, {"klipper": klipper}, "weight", weight=0.0).point.label == "fast but rough"
 
@@ -91,7 +91,7 @@ def test_the_default_pick_searches_behind_the_front():
     c = pick(front, {"klipper": klipper}, candidates=[rough, match])
     assert c.point is match and c.by == "fastest-at-baseline-quality" and "same quality, faster" in c.sentence
     c = pick(front, {"klipper": klipper}, candidates=[rough])
-    assert c.point is rough and c.by == "knee" and "because no front point" in c.sentence
+    assert c.point is rough and c.by == "knee" and "because no configuration the study tried" in c.sentence
 
 
 def test_the_front_keeps_a_point_with_less_path_error_so_the_pick_can_match_the_baseline():
@@ -108,7 +108,7 @@ def test_the_front_keeps_a_point_with_less_path_error_so_the_pick_can_match_the_
     assert c.point is match and "same quality, faster" in c.sentence
     # the baseline's own configuration found again is not "faster": the sentence says so
     c = pick([rough_fast, _pt(5.087, 0.0037, 0.0459, "itself")], {"klipper": klipper})
-    assert c.point.label == "itself" and "no front point is faster than Klipper's rule" in c.sentence
+    assert c.point.label == "itself" and "no configuration the study tried is faster than Klipper's rule" in c.sentence
 
 
 def _no_worse(p, b):

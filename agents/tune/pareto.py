@@ -415,7 +415,7 @@ def _fastest_at_baseline_quality(front: list[Point], baselines: dict[str, Point]
         if cands:
             p = min(cands, key=lambda p: (p.print_time_s, p.quality_mm))
             return Choice(p, "fastest-at-baseline-quality", held[0], _held_why(p, first, held, tries, worse), held)
-    why = f"no front point is as fast as {_named(by_key, ' or ')} with {worse}" if by_key else \
+    why = f"no configuration the study tried is as fast as {_named(by_key, ' or ')} with {worse}" if by_key else \
         "there is no usable baseline to match"
     return Choice(knee(front), "knee", None, f"the knee of the front, because {why}")
 
@@ -437,12 +437,13 @@ def _held_why(p: Point, b: Point, held: tuple, tries: list[tuple], worse: str) -
     """Why ``p`` was chosen, held to the baselines ``held`` (``b``: the first's point), saying when
     an earlier try (``tries[0]``) found nothing."""
     lead = "" if held == tries[0] else \
-        f"no front point is as fast as {_named(tries[0], ' and ')} with {worse} than each; "
+        f"no configuration the study tried is as fast as {_named(tries[0], ' and ')} with {worse} than each; "
     name = _named(held, " and ")
     first = BASELINE_NAMES.get(held[0], held[0])
     if p.print_time_s < b.print_time_s:
-        return f"{lead}the fastest front point with {worse} than {name} (same quality, faster than {first})"
-    return (f"{lead}no front point is faster than {first} with {worse} than {name}: the search found "
+        return (f"{lead}the fastest configuration the study tried with {worse} than {name} "
+                f"(same quality, faster than {first})")
+    return (f"{lead}no configuration the study tried is faster than {first} with {worse} than {name}: the search found "
             f"nothing better than {first} itself at that quality (more --trials may)")
 
 
