@@ -36,9 +36,10 @@ What a person sees (all mm unless stated):
     nearest point of the corner's two legs, inward (cutting the corner: the shaper's smoothing)
     or outward (past the corner, outside the turn: overshoot) by the side of the corner's
     bisector it lies on, never more than the sample's distance to the path (after chords shorter
-    than the corner's span the nozzle is already on the next leg); the worst of each. *Example*: a 90° corner taken at a constant 100 mm/s,
-    Klipper ZV at 50 Hz with no damping (two halves 10 ms apart, centred), a stiff machine: the
-    shaped command cuts the corner by v·Δt/4 = 0.25 mm (corner_in 0.25 mm, corner_out 0).
+    than the corner's span the nozzle is already on the next leg); the worst of each. *Example*: a
+    90° corner taken at a constant 100 mm/s, Klipper ZV at 50 Hz with no damping (two halves 10 ms
+    apart, centred), a stiff machine: the shaped command cuts the corner by v·Δt/4 = 0.25 mm
+    (corner_in 0.25 mm, corner_out 0).
 ``extrusion_over_pct`` / ``extrusion_under_pct``
     seed 002's extruder timing. The firmware pushes filament as its extruder command says
     (running maximum: retracted filament is not taken back from the part); the G-code asks, per mm

@@ -39,7 +39,7 @@ from dataclasses import asdict, dataclass, field
 
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.features import FEATURE_CLASSES
+from ringtune.shaping.features import FEATURE_CLASSES, LABELLED_VISIBLE
 from ringtune.shaping.firmware import Firmware
 
 SLICERS = ("prusaslicer", "orcaslicer", "cura")
@@ -185,7 +185,7 @@ def slicer_profile(config: TuneConfig, slicer: str, firmware: str | None = None,
         common.append("the corner rule and minimum_cruise_ratio per feature class (feature_corner, "
                       f"feature_min_cruise_ratio) are not in this profile{orca}: `ringtune rewrite` writes them "
                       "into the sliced job at each feature change")
-    seam = {c: wanted[c] for c in ("outer_wall", "top_surface", "bridge_overhang") if wanted[c] < wanted["travel"]}
+    seam = {c: wanted[c] for c in FEATURE_CLASSES if c in LABELLED_VISIBLE and wanted[c] < wanted["travel"]}
     if seam:
         common.append("the seam's travel (the hop onto a visible wall, the move off its end) was judged at the wall's "
                       f"acceleration ({', '.join(f'{c} {_n(a)}' for c, a in seam.items())}); a slicer gives every "

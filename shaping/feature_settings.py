@@ -34,7 +34,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ringtune.shaping.features import FEATURE_CLASSES, VISIBLE, class_indices
+from ringtune.shaping.features import FEATURE_CLASSES, class_indices, seen_classes
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.job import SETTING_KEYS, Job
 
@@ -135,10 +135,8 @@ def _seam_travel(cls: np.ndarray, xy: np.ndarray, extruding: np.ndarray) -> np.n
     if len(k) < 2:
         return cls
     c, ext = cls[k], extruding[k]
-    seen = [FEATURE_CLASSES.index(v) for v in VISIBLE if v != "other"]
-    if not np.isin(c[ext], seen).any():
-        seen.append(FEATURE_CLASSES.index("other"))
-    vis = ext & np.isin(c, seen)
+    seen = seen_classes(FEATURE_CLASSES[i] for i in np.unique(c[ext]))
+    vis = ext & np.isin(c, [FEATURE_CLASSES.index(v) for v in seen])
     travel = ~ext & (c == TRAVEL)
     lands = travel & np.r_[vis[1:], False]
     leaves = travel & ~lands & np.r_[False, vis[:-1]]
@@ -152,11 +150,11 @@ def _seam_travel(cls: np.ndarray, xy: np.ndarray, extruding: np.ndarray) -> np.n
 _CORNER_KEYS = {"scv": ("square_corner_velocity",), "jd": ("junction_deviation",), "jerk": ("jerk_x", "jerk_y")}
 
 
-def _accels(job: Job, fc: FeatureCommands) -> dict[str, np.ndarray]:
+def _accels(job: Job, fc: FeatureCommands, eff: np.ndarray, seam: np.ndarray) -> dict[str, np.ndarray]:
     """{accel_klipper, accel_print, accel_travel: (n,) mm/s² in force at each move} for ``fc``
-    (module docstring: Klipper's one acceleration, or Marlin/RRF's print and travel pair)."""
+    (module docstring: Klipper's one acceleration, or Marlin/RRF's print and travel pair);
+    ``eff``, ``seam``: :func:`_classes`."""
     table = np.array([fc.accel[c] for c in FEATURE_CLASSES])
-    eff, seam = _classes(job)
     if fc.junction == "scv":
         a = table[eff]
         return dict(accel_klipper=a, accel_print=a, accel_travel=a)
@@ -164,24 +162,25 @@ def _accels(job: Job, fc: FeatureCommands) -> dict[str, np.ndarray]:
     return dict(accel_print=p, accel_travel=t, accel_klipper=np.minimum(p, t))
 
 
-def _per_class(job: Job, by_class: dict, whole: float | None, now: float | None) -> np.ndarray | None:
+def _per_class(eff: np.ndarray, by_class: dict, whole: float | None, now: float | None) -> np.ndarray | None:
     """(n,) value in force at each move: ``by_class`` (class -> value) following the effective
-    class, the others ``whole`` (else ``now``, the printer's); None when neither is set."""
+    class ``eff``, the others ``whole`` (else ``now``, the printer's); None when neither is set."""
     if not by_class and whole is None:
         return None
     default = float(whole if whole is not None else now)
     table = np.array([float(by_class.get(c, default)) for c in FEATURE_CLASSES])
-    return table[effective_classes(job)] if by_class else np.full(job.n_moves, default)
+    return table[eff] if by_class else np.full(len(eff), default)
 
 
 def move_settings(job: Job, fc: FeatureCommands) -> dict[str, np.ndarray]:
     """{setting key of :data:`SETTING_KEYS`: (n,) value in force at each move} for ``fc``."""
     n = job.n_moves
-    out = _accels(job, fc)
-    corner = _per_class(job, fc.class_corner, fc.corner, fc.corner_now)
+    eff, seam = _classes(job)
+    out = _accels(job, fc, eff, seam)
+    corner = _per_class(eff, fc.class_corner, fc.corner, fc.corner_now)
     if corner is not None:
         out.update(dict.fromkeys(_CORNER_KEYS[fc.junction], corner))
-    mcr = _per_class(job, fc.class_mcr, fc.min_cruise_ratio, fc.mcr_now) if fc.junction == "scv" else None
+    mcr = _per_class(eff, fc.class_mcr, fc.min_cruise_ratio, fc.mcr_now) if fc.junction == "scv" else None
     if mcr is not None:
         out.update(min_cruise_ratio=mcr, accel_to_decel=np.full(n, np.nan))
     for ax, cap in zip("xy", fc.caps or ()):

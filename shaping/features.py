@@ -35,6 +35,15 @@ FEATURE_CLASSES = ("outer_wall", "inner_wall", "infill", "solid_infill", "top_su
                    "bridge_overhang", "travel", "support", "other")
 VISIBLE = frozenset({"outer_wall", "top_surface", "bridge_overhang", "other"})
 HIDDEN = frozenset(FEATURE_CLASSES) - VISIBLE
+#: the visible classes a slicer labels (``other`` is what has no label)
+LABELLED_VISIBLE = VISIBLE - {"other"}
+
+
+def seen_classes(present) -> frozenset:
+    """The classes of the part a person sees among ``present`` (class names of a job's extrusion):
+    :data:`VISIBLE`, but ``other`` only in a job that labels nothing visible — in a labelled job
+    unlabelled extrusion is a purge line, not the part."""
+    return LABELLED_VISIBLE if LABELLED_VISIBLE & set(present) else VISIBLE
 
 #: normalised label (lower case, ``-``/``_``/``/`` as spaces, single spaces) -> class; the
 #: spellings of PrusaSlicer/SuperSlicer, OrcaSlicer/Bambu Studio, Cura, Simplify3D and ideaMaker

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ringtune.shaping.features import VISIBLE, feature_class
+from ringtune.shaping.features import feature_class, seen_classes
 
 #: moves looked at on the other side of a seam (stopping at the visible class itself)
 REACH = 5
@@ -55,9 +55,7 @@ def seam_candidates(plan, span: float) -> dict[str, tuple]:
     empty = (np.zeros(0), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, dtype=cls.dtype))
     if len(cls) < 2:
         return {"seam-in": empty, "seam-out": empty}
-    visible = np.isin(cls, list(VISIBLE))
-    if np.isin(cls, list(VISIBLE - {"other"})).any():
-        visible &= cls != "other"       # a labelled job's unlabelled extrusion (a purge line) is not the part
+    visible = np.isin(cls, list(seen_classes(np.unique(cls).tolist())))
     change = cls[1:] != cls[:-1]
     first = np.flatnonzero(visible[1:] & change) + 1
     last = np.flatnonzero(visible[:-1] & change)
