@@ -216,7 +216,6 @@ def test_bad_ripple_input_is_a_one_line_error(argv, where, capsys):
 def test_trace_of_a_long_job_is_its_quality_windows(tmp_path, monkeypatch, capsys):
     """A job longer than the whole-job limit is traced over the windows the metrics judged: the
     rows carry their window number and the nozzle stays near the commanded path."""
-    from ringtune.agents.cli import trace_option
     from ringtune.envs import trace
     from ringtune.envs.evaluate import planned_job
     from ringtune.envs.printer import load_printer

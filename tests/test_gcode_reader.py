@@ -40,7 +40,7 @@ def test_zero_length_and_feed_only_lines_are_not_moves():
 @pytest.mark.parametrize("tol", [0.1, 0.01, 0.001])
 def test_arc_chords_stay_within_tolerance(tol):
     # quarter circle radius 10 around (0,0) from (10,0) to (0,10), counter-clockwise
-    job = read_gcode(f"G1 X10 Y0 F600\nG3 X0 Y10 I-10 J0 E2\n", arc_tolerance=tol)
+    job = read_gcode("G1 X10 Y0 F600\nG3 X0 Y10 I-10 J0 E2\n", arc_tolerance=tol)
     arc = job.arc
     pts = np.vstack([job.start[arc][:1], job.end[arc]])
     np.testing.assert_allclose(pts[-1, :2], [0, 10], atol=1e-12)
@@ -98,7 +98,7 @@ def test_malformed_values_name_file_and_line(tmp_path, line, what):
     path.write_text("G28\nG1 X5 F600\n" + line + "\n")
     with pytest.raises(RingtuneError) as err:
         read_gcode(path)
-    assert f"bad.gcode:3" in str(err.value)
+    assert "bad.gcode:3" in str(err.value)
     assert what in str(err.value)
 
 

@@ -47,7 +47,7 @@ def ref_scv(prev, cur, lim):
 
 
 def ref_jd(prev, cur, lim):
-    (up, dp, ep, Ap), (uc, dc, ec, Ac) = prev, cur
+    (up, _, ep, _), (uc, dc, ec, Ac) = prev, cur
     vp = [0, 0, 0, math.copysign(1, up[3])] if ep else [up[0], up[1], up[2], 0]
     vc = [0, 0, 0, math.copysign(1, uc[3])] if ec else [uc[0], uc[1], uc[2], 0]
     cos_t = -sum(a * b for a, b in zip(vp, vc))

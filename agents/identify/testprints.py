@@ -81,8 +81,8 @@ def ringing_tower(firmware: str, *, speed: float, accel: float, bands: tuple[flo
               f"layers {ext.layer:g} mm, line {ext.line_width:.3g} mm wide, {ext.filament:g} mm filament, "
               f"nozzle {hotend:.0f} °C, bed {bed:.0f} °C (start: heat, G28)",
               "", *measure]
-    end = ([f"the shaper of the last band stays active until the firmware restarts or you send your own "
-            f"settings (ringtune export)"] if bands is not None else
+    end = (["the shaper of the last band stays active until the firmware restarts or you send your own "
+            "settings (ringtune export)"] if bands is not None else
            ["shaping stays off until the firmware restarts or you send your own settings (ringtune export)"])
     accel_set = cp.accel_lines(firmware, accel)
     end.append(f"the acceleration set at the start ({'; '.join(accel_set)}) stays too: "
@@ -149,9 +149,9 @@ def accel_ladder(firmware: str, config: TuneConfig, *, start_accel: float, rungs
     exp = export_config(config, firmware, accel=False)     # the shaper; the ladder sets the acceleration
     table = [f"{'rung':>4}  {'accel mm/s²':>11}  {'of tuned':>8}"]
     table += [f"{k:>4}  {a:>11.0f}  {a / tuned * 100:>7.0f}%" for k, a in enumerate(accels, 1)]
-    look = [f"Rung 0 draws the reference dashes; rung K draws dash K further out, after its fast moves.",
+    look = ["Rung 0 draws the reference dashes; rung K draws dash K further out, after its fast moves.",
             f"Dashes along Y (going +Y from X{g.cx:g} Y{g.cy:g}) must stay on one line in X; dashes along X",
-            f"(going +X from the same point) on one line in Y. A dash out of line means the motors skipped",
+            "(going +X from the same point) on one line in Y. A dash out of line means the motors skipped",
             "steps on that rung or an earlier one: the first such dash names the rung (table above).",
             "Also listen: grinding or a loud knock at a rung is the same warning.",
             f"Print with the tuned acceleration ({tuned:.0f} mm/s²) only if every dash up to rung "
