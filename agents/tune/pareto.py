@@ -15,6 +15,7 @@ compared figure is worse and at least one is better.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -443,6 +444,9 @@ def _held_why(p: Point, b: Point, held: tuple, tries: list[tuple], worse: str) -
     if p.print_time_s < b.print_time_s:
         return (f"{lead}the fastest configuration the study tried with {worse} than {name} "
                 f"(same quality, faster than {first})")
+    if dataclasses.replace(p.config, extra={}) != dataclasses.replace(b.config, extra={}):
+        return (f"{lead}no configuration the study tried is faster than {first} with {worse} than {name}; of those "
+                f"as fast, the best on the study's quality objective (--quality)")
     return (f"{lead}no configuration the study tried is faster than {first} with {worse} than {name}: the search found "
             f"nothing better than {first} itself at that quality (more --trials may)")
 

@@ -19,6 +19,7 @@ from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel
 from ringtune.agents.tune.motor_bound import top_speed_load_note
 from ringtune.agents.tune.out_dir import check_out, remove_if_empty
 from ringtune.agents.tune.pareto import VISIBLE_KEYS
+from ringtune.agents.tune.shaper_ladder import climb, shaping_text
 from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config, walked_keys
 from ringtune.agents.tune.stop import Bounds, measured_stop
 from ringtune.envs.evaluate import resolve_printer
@@ -176,10 +177,11 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     points = tune_study.study_points(run_.study, space, quality, lim.max_pe, lim.reserve, lim.max_st)
     front = pareto.pareto_front(points, also=_also(points, quality))
     choice = pareto.pick(front, baselines, lim.how, req.weight, candidates=points)
-    choice, stop, lift = _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim)
+    choice, stop, lift, ladder = _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim)
     result, text, accel_json, ja_json = _report(req, lim, fw, printer, facts, space, quality, points, front, choice,
-                                                (stop, lift), bl, settings, floor_note, why, out_dir, store, note)
-    result.update({"stop": stop.to_dict() if stop else None, "hidden_raise": lift.to_dict() if lift else None,
+                                                (stop, lift, ladder), bl, settings, floor_note, why, out_dir, store, note)
+    result.update({"stop": stop.to_dict() if stop else None,
+                   "shaper_ladder": ladder.to_dict() if ladder else None, "hidden_raise": lift.to_dict() if lift else None,
                    "freq_margin": lim.margin,
                    "accel": accel_json, "job_accel": ja_json, "storage": store,
                    "study": req.study, "completed_now": run_.completed_now, "interrupted": run_.interrupted,
@@ -281,9 +283,10 @@ def _also(points, quality: str) -> tuple[str, ...]:
 
 
 def _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim: _Limits):
-    """(the choice, the measured stop or None, the raise where nobody looks or None): the choice
-    held to a baseline, its acceleration stepped up with the same judgement
-    (:func:`ringtune.agents.tune.stop.measured_stop`), then, searching per feature, the features
+    """(the choice, the measured stop or None, the raise where nobody looks or None, the shaper
+    ladder or None): the choice held to a baseline, each shaper of Klipper's rule tried at higher
+    accelerations (:func:`ringtune.agents.tune.shaper_ladder.climb`), the acceleration stepped up
+    with the same judgement (:func:`ringtune.agents.tune.stop.measured_stop`), then, searching per feature, the features
     nobody sees raised toward their tops (:func:`ringtune.agents.tune.hidden_raise.raise_hidden`),
     held to the same baselines — or, where the choice is held to none (``--no-baselines``, ``--pick
     knee``), to the choice itself."""
@@ -291,11 +294,16 @@ def _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim:
         return evaluator(list(configs), printer, settings.job, **tune_study.evaluator_kwargs(settings))
 
     bounds = Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st)
-    stop = None
+    stop = ladder = None
     if choice.baseline is not None:
         held = choice.held_to or (choice.baseline,)
         bases = {k: baselines[k] for k in held}
         names = {k: bl.labels.get(k, pareto.BASELINE_NAMES.get(k, k)) for k in held}
+        ladder = climb(choice.point, bases, evaluate, space, bounds, bl.fits, max_evaluations=settings.n_trials)
+        if ladder.moved:
+            choice = dataclasses.replace(choice, point=ladder.point, sentence=(
+                f"{choice.sentence}; then {shaping_text(ladder.point.config)} of Klipper's rule's table, measured "
+                f"faster at {ladder.point.config.accel:.0f} mm/s², every visible measure still no worse"))
         stop = measured_stop(choice.point, bases, evaluate, space, bounds, labels=names)
         if stop.moved:
             choice = dataclasses.replace(choice, point=stop.point, sentence=(
@@ -311,7 +319,7 @@ def _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim:
             choice = dataclasses.replace(choice, point=lift.point, sentence=(
                 f"{choice.sentence}; then the features nobody sees raised toward their tops, no visible "
                 f"measure worse {held}"))
-    return choice, stop, lift
+    return choice, stop, lift, ladder
 
 
 def _report(req: TuneRequest, lim: _Limits, fw: Firmware, printer, facts, space, quality: str, points, front,
@@ -319,10 +327,12 @@ def _report(req: TuneRequest, lim: _Limits, fw: Firmware, printer, facts, space,
             note: Callable[[str], None]):
     """Write the report folder (and, with a job, the job with the choice written in): (summary dict,
     summary text, the ACCELERATION section's dict, the job's own accelerations' dict). ``stops``:
-    (the measured stop, the raise where nobody looks), each or None."""
-    stop, lift = stops
+    (the measured stop, the raise where nobody looks, the shaper ladder), each or None."""
+    stop, lift, ladder = stops
     chosen = choice.point
     accel_lines, accel_json = _accel_section(req, lim, fw.name, printer, space, points, chosen, stop)
+    if ladder is not None and not space.accel_fixed:
+        accel_lines.insert(1, f"  {ladder.sentence()}")
     ja_lines, ja_json = job_accel_section(facts, req.job_accel, printer, req.gcode, chosen.config)
     baseline_binding = {k: binding_limits(printer, req.gcode, b.config, fw.name, req.job_accel)
                         for k, b in bl.points.items()}

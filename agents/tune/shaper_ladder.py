@@ -1,0 +1,160 @@
+"""Every shaper Klipper's rule fits, at the highest acceleration the judgement allows.
+
+Klipper's calibrate_shaper gives each shaper a frequency and a max_accel from its smoothing
+formula. This step measures instead. From the choice, each shaper the rule fitted on the model's
+simulated resonance test — the same shaper on both axes at the rule's own per-shaper frequencies
+times :data:`FREQ_SCALES` (on a firmware with one shaper for all axes, at each axis's frequency in
+turn), designed for each damping ratio of :data:`DAMPINGS`, and the rule's own pick — climbs
+:data:`RUNGS` times the choice's acceleration (rounded to the space's step, none above the range's
+top), everything else of the choice kept (frequency limit; per-feature settings raised in the same
+ratio). Every shaping still climbing is judged at the next rung in one batch, exactly as every
+trial (the study's evaluator, frequency margin and bounds), and held to the same baselines as the
+choice (:func:`ringtune.agents.tune.stop.failure`); a shaping stops at its first failing rung. The
+fastest configuration that passed replaces the choice; the measured stop then walks it on in 5 %
+steps. At most ``max_evaluations`` configurations are judged (tune: the study's trials); where the
+first rung alone would take more, the shapings are taken in the rule's table order.
+
+Why: the study samples a dozen dimensions at once and seldom meets the narrow region where a
+shorter shaper at a higher acceleration keeps the baseline's quality (on the part, the fastest
+single acceleration at Klipper's quality was found by one study in eight). The rule knows each
+shaper's frequency; it weighs remaining vibration against smoothing with a formula, and a higher
+frequency smooths less (smoothing falls as 1/f²), as does a shaper designed for more damping (its
+first impulse is larger), which lets the acceleration rise at the same corner rounding for a little
+more remaining vibration. The judgement settles that trade. On the part, every shaping that keeps
+Klipper's pick's quality 10 % faster than it is 1.16–1.24× the rule's frequency, most designed for
+damping 0.15–0.2; at the rule's own frequencies the outer wall's corners round 30–110 % more.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+from ringtune.agents.klipper.rule import DEFAULT_DAMPING_RATIO
+from ringtune.agents.tune.baselines import inside
+from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution
+from ringtune.agents.tune.space import SearchSpace
+from ringtune.agents.tune.stop import Bounds, evaluated, failure, with_accel
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.firmware import FIRMWARES
+
+#: accelerations tried, as multiples of the choice's
+RUNGS = (1.1, 1.2, 1.35, 1.5, 1.7, 2.0)
+#: each shaper's frequencies tried, as multiples of the rule's own for it
+FREQ_SCALES = (1.0, 1.08, 1.16, 1.24)
+#: the damping ratios each shaper is designed for (the rule designs for 0.1)
+DAMPINGS = (DEFAULT_DAMPING_RATIO, 0.15, 0.2)
+#: most configurations judged by one ladder
+MAX_EVALUATIONS = 200
+
+
+@dataclass
+class Ladder:
+    """The step's outcome: the (possibly new) choice, where it started, each shaping tried with its
+    highest passing acceleration (mm/s², None: no rung passed), the evaluations spent, how many
+    shapings the rule's table gave (``offered``; more than were tried when the budget cut it) and
+    the first rung (mm/s², None: the choice is at the range's top)."""
+
+    point: Point
+    start: Point
+    tried: list[tuple[str, float | None]] = field(default_factory=list)
+    evaluations: int = 0
+    offered: int = 0
+    first_rung: float | None = None
+
+    @property
+    def moved(self) -> bool:
+        return self.point is not self.start
+
+    def sentence(self) -> str:
+        if not self.offered:
+            return "No shaper of Klipper's rule was tried (the rule did not run on both axes)."
+        if self.first_rung is None:
+            return "No shaper of Klipper's rule was tried: the choice is at the top of the acceleration range."
+        cut = "" if len(self.tried) == self.offered else f", {len(self.tried)} of {self.offered} within the budget"
+        head = (f"Each shaper Klipper's rule fits ({self.offered} shapings: the rule's frequency × "
+                f"{', '.join(f'{k:g}' for k in FREQ_SCALES)}, designed for damping "
+                f"{', '.join(f'{z:g}' for z in DAMPINGS)}{cut}) climbed from {RUNGS[0]:g}× to {RUNGS[-1]:g}× the "
+                f"choice's acceleration until a visible measure was worse than the baselines' or a bound broke "
+                f"({self.evaluations} evaluations)")
+        n = sum(a is not None for _, a in self.tried)
+        if not self.moved:
+            return (f"{head}: none faster than the choice (" + (f"{n} passed a rung, none faster)." if n else
+                    f"none passed the first rung, {self.first_rung:.0f} mm/s²)."))
+        return (f"{head}: the fastest, {shaping_text(self.point.config)} at {self.point.config.accel:.0f} mm/s² "
+                f"({n} shaping{'s' if n > 1 else ''} passed a rung).")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"moved": self.moved, "from_accel": self.start.config.accel, "to_accel": self.point.config.accel,
+                "config": self.point.config.to_dict(), "evaluations": self.evaluations, "offered": self.offered,
+                "tried": [{"shaping": name, "highest_passing_accel": a} for name, a in self.tried],
+                "sentence": self.sentence()}
+
+
+def shaping_text(cfg: TuneConfig) -> str:
+    """``X mzv @ 53.6 Hz S 0.15, Y mzv @ 42.7 Hz S 0.15``, or one axis's words when both are the same."""
+    x, y = cfg.axis("x"), cfg.axis("y")
+    if x == y:
+        return f"{x[0]} @ {x[1]:.1f} Hz S {x[2]:.3g}"
+    return f"X {x[0]} @ {x[1]:.1f} Hz S {x[2]:.3g}, Y {y[0]} @ {y[1]:.1f} Hz S {y[2]:.3g}"
+
+
+def rule_shapings(cfg: TuneConfig, fits: dict, space: SearchSpace) -> list[TuneConfig]:
+    """``cfg`` with each shaper the rule fitted on both axes (``fits``: axis -> Klipper's
+    recommendation) at its per-shaper frequencies times :data:`FREQ_SCALES`, designed for each of
+    :data:`DAMPINGS`, and with the rule's pick (S 0.1); only what the space holds, each once, the
+    shaping ``cfg`` already has left out, in the rule's table order."""
+    if not fits or not all(ax in fits for ax in ("x", "y")):
+        return []
+    rows = {ax: {f.name: f.freq for f in fits[ax].shapers} for ax in ("x", "y")}
+    pairs = [((name, rows["x"][name] * k), (name, rows["y"][name] * k), z)
+             for name in rows["x"] if name in rows["y"] for k in FREQ_SCALES for z in DAMPINGS]
+    pairs.append(((fits["x"].best.name, fits["x"].best.freq), (fits["y"].best.name, fits["y"].best.freq),
+                  DEFAULT_DAMPING_RATIO))
+    if not space.per_axis:        # one shaper for all axes: each shaper at each axis's frequency
+        pairs = [(a, a, z) for *pair, z in pairs for a in pair if pair[0][0] == pair[1][0]]
+    out: dict = {}
+    for (sx, fx), (sy, fy), z in pairs:
+        c = dataclasses.replace(cfg, shaper_x=sx, freq_x=round(fx, 1), shaper_y=sy, freq_y=round(fy, 1),
+                                damping_x=z, damping_y=z)
+        key = (c.axis("x"), c.axis("y"))
+        if inside(c, space) and key != (cfg.axis("x"), cfg.axis("y")):
+            out.setdefault(key, c)
+    return list(out.values())
+
+
+def rungs(accel: float, space: SearchSpace) -> list[float]:
+    """:data:`RUNGS` × ``accel`` (mm/s²), rounded to the space's step, above ``accel``, none above
+    the range's top or the firmware's largest acceleration, each once."""
+    top = min(space.accel[1], float(FIRMWARES[space.firmware].accel.hi))
+    out = sorted({round(accel * r / space.accel_step) * space.accel_step for r in RUNGS})
+    return [float(a) for a in out if accel < a <= top + 1e-9]
+
+
+def climb(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[TuneConfig]], list],
+          space: SearchSpace, bounds: Bounds, fits: dict, *, res: Resolution = DEFAULT_RESOLUTION,
+          max_evaluations: int = MAX_EVALUATIONS) -> Ladder:
+    """The step (module docstring) from ``start``, held to ``bases``; ``evaluate(configs) ->
+    metrics`` judges as the study does; ``fits``: Klipper's per-axis recommendations on the model."""
+    if space.accel_fixed or not start.config.accel:
+        return Ladder(start, start)
+    offered = rule_shapings(start.config, fits, space)
+    shapings = offered[:max(max_evaluations, 0)]
+    steps = rungs(float(start.config.accel), space)
+    highest: list[float | None] = [None] * len(shapings)
+    best, n, climbing = start, 0, list(range(len(shapings)))
+    for a in steps:
+        climbing = climbing[:max_evaluations - n]
+        if not climbing:
+            break
+        points = evaluated([with_accel(shapings[i], a, space) for i in climbing], evaluate, bounds, "shaper ladder")
+        n += len(points)
+        passed = [(i, p) for i, p in zip(climbing, points) if failure(p, bases, start, bounds, res) is None]
+        for i, p in passed:
+            highest[i] = float(p.config.accel)
+            if (p.print_time_s, p.quality_mm) < (best.print_time_s, best.quality_mm):
+                best = p
+        climbing = [i for i, _ in passed]
+    return Ladder(best, start, [(shaping_text(c), a) for c, a in zip(shapings, highest)], n, len(offered),
+                  steps[0] if steps else None)
