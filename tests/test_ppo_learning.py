@@ -40,12 +40,14 @@ def _cost(env, action) -> float:
 def test_short_ppo_run_beats_random_policy_and_its_start():
     import torch
     from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import Logger
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
     torch.set_num_threads(1)
     venv = VecNormalize(DummyVecEnv([_env]), norm_obs=False, norm_reward=True, gamma=0.0)
     model = PPO("MlpPolicy", venv, n_steps=32, batch_size=32, n_epochs=10, learning_rate=3e-3, gamma=0.0,
                 gae_lambda=1.0, seed=0, device="cpu", policy_kwargs={"net_arch": [32, 32], "log_std_init": -0.5})
+    model.set_logger(Logger(None, []))     # no SB3-<date> folder left in the temporary directory
     env = _env()
     obs, _ = env.reset(seed=1)
     start = model.predict(obs, deterministic=True)[0]

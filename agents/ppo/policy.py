@@ -35,6 +35,7 @@ from __future__ import annotations
 import json
 import pickle
 import shutil
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -196,7 +197,9 @@ def _start_model(sb3, venv, out: Path, resume: bool, env_kwargs: dict, hyper: di
         if ck is None:
             raise RingtuneError("no checkpoint to resume from (train without --resume first)", str(out))
         venv = sb3.VecNormalize.load(str(ck[1]), venv)
-        return venv, sb3.PPO.load(str(ck[0]), env=venv, device="cpu"), str(ck[0])
+        model = sb3.PPO.load(str(ck[0]), env=venv, device="cpu")
+        model.set_logger(_logger(sb3, verbose))
+        return venv, model, str(ck[0])
     venv = sb3.VecNormalize(venv, norm_obs=True, norm_reward=True, clip_obs=10.0, gamma=0.99)
     policy_kwargs = {"net_arch": list(hyper["net_arch"]), "log_std_init": hyper["log_std_init"]}
     model = sb3.PPO("MlpPolicy", venv, learning_rate=hyper["learning_rate"], n_steps=hyper["n_steps"],
@@ -204,8 +207,15 @@ def _start_model(sb3, venv, out: Path, resume: bool, env_kwargs: dict, hyper: di
                     gae_lambda=hyper["gae_lambda"], ent_coef=hyper["ent_coef"],
                     clip_range=hyper["clip_range"], policy_kwargs=policy_kwargs, seed=seed,
                     device="cpu", verbose=verbose)
+    model.set_logger(_logger(sb3, verbose))
     _set_prior(model, env_kwargs, hyper)
     return venv, model, None
+
+
+def _logger(sb3, verbose: int):
+    """stable-baselines3's logger writing to stdout when ``verbose`` and nowhere else (its default
+    makes an empty SB3-<date> folder in the temporary directory at every learn)."""
+    return sb3.Logger(None, [sb3.HumanOutputFormat(sys.stdout)] if verbose else [])
 
 
 def _previous_best(out: Path, resume: bool) -> float | None:

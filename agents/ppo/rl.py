@@ -27,6 +27,7 @@ def rl() -> SimpleNamespace:
         import torch
         from stable_baselines3 import PPO
         from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback, EvalCallback
+        from stable_baselines3.common.logger import HumanOutputFormat, Logger
         from stable_baselines3.common.monitor import Monitor
         from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
     except ImportError as exc:
@@ -34,4 +35,5 @@ def rl() -> SimpleNamespace:
                             f"not installed: {INSTALL}") from None
     return SimpleNamespace(torch=torch, PPO=PPO, BaseCallback=BaseCallback, CallbackList=CallbackList,
                            CheckpointCallback=CheckpointCallback, EvalCallback=EvalCallback, Monitor=Monitor,
-                           DummyVecEnv=DummyVecEnv, SubprocVecEnv=SubprocVecEnv, VecNormalize=VecNormalize)
+                           DummyVecEnv=DummyVecEnv, SubprocVecEnv=SubprocVecEnv, VecNormalize=VecNormalize,
+                           HumanOutputFormat=HumanOutputFormat, Logger=Logger)
