@@ -52,9 +52,10 @@ MAX_EVALUATIONS = 200
 @dataclass
 class Ladder:
     """The step's outcome: the (possibly new) choice, where it started, each shaping tried with its
-    highest passing acceleration (mm/s², None: no rung passed), the evaluations spent, how many
-    shapings the rule's table gave (``offered``; more than were tried when the budget cut it) and
-    the first rung (mm/s², None: the choice is at the range's top)."""
+    highest passing acceleration (mm/s², None: no rung passed), the evaluations judged, how many
+    shapings the rule's table gave (``offered``; more than were tried when the budget cut it), the
+    first rung (mm/s², None: the choice is at the range's top) and the configurations screened on
+    the exact model first (0: no screen)."""
 
     point: Point
     start: Point
@@ -62,6 +63,7 @@ class Ladder:
     evaluations: int = 0
     offered: int = 0
     first_rung: float | None = None
+    screened: int = 0
 
     @property
     def moved(self) -> bool:
@@ -77,7 +79,8 @@ class Ladder:
                 f"{', '.join(f'{k:g}' for k in FREQ_SCALES)}, designed for damping "
                 f"{', '.join(f'{z:g}' for z in DAMPINGS)}{cut}) climbed from {RUNGS[0]:g}× to {RUNGS[-1]:g}× the "
                 f"choice's acceleration until a visible measure was worse than the baselines' or a bound broke "
-                f"({self.evaluations} evaluations)")
+                f"({self.evaluations} evaluations" + (f", {self.screened} screened on the exact model first)"
+                                                      if self.screened else ")"))
         n = sum(a is not None for _, a in self.tried)
         if not self.moved:
             return (f"{head}: none faster than the choice (" + (f"{n} passed a rung, none faster)." if n else
@@ -87,7 +90,8 @@ class Ladder:
 
     def to_dict(self) -> dict[str, Any]:
         return {"moved": self.moved, "from_accel": self.start.config.accel, "to_accel": self.point.config.accel,
-                "config": self.point.config.to_dict(), "evaluations": self.evaluations, "offered": self.offered,
+                "config": self.point.config.to_dict(), "evaluations": self.evaluations, "screened": self.screened,
+                "offered": self.offered,
                 "tried": [{"shaping": name, "highest_passing_accel": a} for name, a in self.tried],
                 "sentence": self.sentence()}
 
@@ -134,21 +138,34 @@ def rungs(accel: float, space: SearchSpace) -> list[float]:
 
 def climb(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[TuneConfig]], list],
           space: SearchSpace, bounds: Bounds, fits: dict, *, res: Resolution = DEFAULT_RESOLUTION,
-          max_evaluations: int = MAX_EVALUATIONS) -> Ladder:
+          max_evaluations: int = MAX_EVALUATIONS, screen: Callable[[Sequence[TuneConfig]], list] | None = None
+          ) -> Ladder:
     """The step (module docstring) from ``start``, held to ``bases``; ``evaluate(configs) ->
-    metrics`` judges as the study does; ``fits``: Klipper's per-axis recommendations on the model."""
+    metrics`` judges as the study does; ``fits``: Klipper's per-axis recommendations on the model.
+
+    ``screen``: the same evaluation on the exact model alone, where ``evaluate`` takes the worst
+    of the printer and its detuned twins. A shaping that fails on the exact model fails the
+    judgement too (the worst case is no better on any measure, and print time is the same), so
+    each rung is screened first and only what passes is judged (a third of the cost for what
+    fails); ``max_evaluations`` counts the judged ones."""
     if space.accel_fixed or not start.config.accel:
         return Ladder(start, start)
     offered = rule_shapings(start.config, fits, space)
     shapings = offered[:max(max_evaluations, 0)]
     steps = rungs(float(start.config.accel), space)
     highest: list[float | None] = [None] * len(shapings)
-    best, n, climbing = start, 0, list(range(len(shapings)))
+    best, n, screened, climbing = start, 0, 0, list(range(len(shapings)))
     for a in steps:
         climbing = climbing[:max_evaluations - n]
         if not climbing:
             break
-        points = evaluated([with_accel(shapings[i], a, space) for i in climbing], evaluate, bounds, "shaper ladder")
+        configs = [with_accel(shapings[i], a, space) for i in climbing]
+        if screen is not None:
+            keep = [failure(p, bases, start, bounds, res) is None for p in evaluated(configs, screen, bounds, "")]
+            screened += len(configs)
+            climbing = [i for i, k in zip(climbing, keep) if k]
+            configs = [c for c, k in zip(configs, keep) if k]
+        points = evaluated(configs, evaluate, bounds, "shaper ladder") if configs else []
         n += len(points)
         passed = [(i, p) for i, p in zip(climbing, points) if failure(p, bases, start, bounds, res) is None]
         for i, p in passed:
@@ -157,4 +174,4 @@ def climb(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[Tu
                 best = p
         climbing = [i for i, _ in passed]
     return Ladder(best, start, [(shaping_text(c), a) for c, a in zip(shapings, highest)], n, len(offered),
-                  steps[0] if steps else None)
+                  steps[0] if steps else None, screened)

@@ -290,8 +290,13 @@ def _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim:
     nobody sees raised toward their tops (:func:`ringtune.agents.tune.hidden_raise.raise_hidden`),
     held to the same baselines — or, where the choice is held to none (``--no-baselines``, ``--pick
     knee``), to the choice itself."""
-    def evaluate(configs):
-        return evaluator(list(configs), printer, settings.job, **tune_study.evaluator_kwargs(settings))
+    kwargs = tune_study.evaluator_kwargs(settings)
+
+    def evaluate(configs, margin=kwargs.get("freq_margin")):
+        return evaluator(list(configs), printer, settings.job, **({**kwargs, "freq_margin": margin} if kwargs else {}))
+
+    # the default evaluator on the exact model alone: a sound screen where the worst of the twins is judged
+    exact = (lambda configs: evaluate(configs, 0.0)) if kwargs.get("freq_margin") else None
 
     bounds = Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st)
     stop = ladder = None
@@ -299,11 +304,13 @@ def _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim:
         held = choice.held_to or (choice.baseline,)
         bases = {k: baselines[k] for k in held}
         names = {k: bl.labels.get(k, pareto.BASELINE_NAMES.get(k, k)) for k in held}
-        ladder = climb(choice.point, bases, evaluate, space, bounds, bl.fits, max_evaluations=settings.n_trials)
+        ladder = climb(choice.point, bases, evaluate, space, bounds, bl.fits, max_evaluations=settings.n_trials,
+                       screen=exact)
         if ladder.moved:
             choice = dataclasses.replace(choice, point=ladder.point, sentence=(
-                f"{choice.sentence}; then {shaping_text(ladder.point.config)} of Klipper's rule's table, measured "
-                f"faster at {ladder.point.config.accel:.0f} mm/s², every visible measure still no worse"))
+                f"{choice.sentence}; then, climbing the shapers of Klipper's rule's table, "
+                f"{shaping_text(ladder.point.config)} at {ladder.point.config.accel:.0f} mm/s², every visible "
+                f"measure still no worse"))
         stop = measured_stop(choice.point, bases, evaluate, space, bounds, labels=names)
         if stop.moved:
             choice = dataclasses.replace(choice, point=stop.point, sentence=(
