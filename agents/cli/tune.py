@@ -88,9 +88,11 @@ overshoot); hidden features reaching the outer wall by more than --max-show-thro
 The configuration chosen by default is the fastest one with no visible measure (ripple and its
 90th percentile, corner rounding and overshoot, over- and under-extrusion) worse than the best
 baseline's ("same quality, faster"); where there is none, the knee (--pick
-knee|fastest-at-baseline-quality|weight, --weight W). Then its acceleration is stepped up 5 % at a
-time with the same judgement until a measure gets worse or a bound binds (the summary names it,
-with both values). Differences under 1 µm or 5 % of a distance, 1 point or 5 % of extrusion and
+knee|fastest-at-baseline-quality|weight, --weight W). Then each shaper Klipper's rule fits climbs
+higher accelerations at its frequency and above, designed for more damping (the shaper ladder: the
+rule's max_accel, measured), and the fastest that keeps every measure becomes the choice. Then its
+acceleration is stepped up 5 % at a time with the same judgement until a measure gets worse or a
+bound binds (the summary names it, with both values). Differences under 1 µm or 5 % of a distance, 1 point or 5 % of extrusion and
 0.5 % of print time count as the same.
 
 With no arguments it tunes the built-in Ender-3-class printer on the built-in test print into

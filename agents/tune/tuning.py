@@ -14,14 +14,13 @@ from typing import Callable
 from ringtune.agents.tune import feature_space, pareto, report, storage, study as tune_study
 from ringtune.agents.tune.baselines import Baselines, baselines_for, inside, warm_start
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
-from ringtune.agents.tune.hidden_raise import raise_hidden
 from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
 from ringtune.agents.tune.motor_bound import top_speed_load_note
 from ringtune.agents.tune.out_dir import check_out, remove_if_empty
 from ringtune.agents.tune.pareto import VISIBLE_KEYS
-from ringtune.agents.tune.shaper_ladder import climb, shaping_text
+from ringtune.agents.tune.refine import refine
 from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config, walked_keys
-from ringtune.agents.tune.stop import Bounds, measured_stop
+from ringtune.agents.tune.stop import Bounds
 from ringtune.envs.evaluate import resolve_printer
 from ringtune.envs.job_rewrite import rewrite_file
 from ringtune.envs.printer_model import unmeasured_note
@@ -177,7 +176,8 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     points = tune_study.study_points(run_.study, space, quality, lim.max_pe, lim.reserve, lim.max_st)
     front = pareto.pareto_front(points, also=_also(points, quality))
     choice = pareto.pick(front, baselines, lim.how, req.weight, candidates=points)
-    choice, stop, lift, ladder = _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim)
+    choice, stop, lift, ladder = refine(choice, bl, evaluator, settings, printer, space,
+                                        Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st))
     result, text, accel_json, ja_json = _report(req, lim, fw, printer, facts, space, quality, points, front, choice,
                                                 (stop, lift, ladder), bl, settings, floor_note, why, out_dir, store, note)
     result.update({"stop": stop.to_dict() if stop else None,
@@ -280,53 +280,6 @@ def _also(points, quality: str) -> tuple[str, ...]:
     overshoot (a point with a little more overshoot and far less path error stays)."""
     keys = VISIBLE_KEYS if any("ripple_mm" in p.metrics for p in points) else ("path_error_mm",)
     return tuple(k for k in keys if k != quality)
-
-
-def _stepped_up(choice, baselines, bl, evaluator, settings, printer, space, lim: _Limits):
-    """(the choice, the measured stop or None, the raise where nobody looks or None, the shaper
-    ladder or None): the choice held to a baseline, each shaper of Klipper's rule tried at higher
-    accelerations (:func:`ringtune.agents.tune.shaper_ladder.climb`), the acceleration stepped up
-    with the same judgement (:func:`ringtune.agents.tune.stop.measured_stop`), then, searching per feature, the features
-    nobody sees raised toward their tops (:func:`ringtune.agents.tune.hidden_raise.raise_hidden`),
-    held to the same baselines — or, where the choice is held to none (``--no-baselines``, ``--pick
-    knee``), to the choice itself."""
-    kwargs = tune_study.evaluator_kwargs(settings)
-
-    def evaluate(configs, margin=kwargs.get("freq_margin")):
-        return evaluator(list(configs), printer, settings.job, **({**kwargs, "freq_margin": margin} if kwargs else {}))
-
-    # the default evaluator on the exact model alone: a sound screen where the worst of the twins is judged
-    exact = (lambda configs: evaluate(configs, 0.0)) if kwargs.get("freq_margin") else None
-
-    bounds = Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st)
-    stop = ladder = None
-    if choice.baseline is not None:
-        held = choice.held_to or (choice.baseline,)
-        bases = {k: baselines[k] for k in held}
-        names = {k: bl.labels.get(k, pareto.BASELINE_NAMES.get(k, k)) for k in held}
-        ladder = climb(choice.point, bases, evaluate, space, bounds, bl.fits, max_evaluations=settings.n_trials,
-                       screen=exact)
-        if ladder.moved:
-            choice = dataclasses.replace(choice, point=ladder.point, sentence=(
-                f"{choice.sentence}; then, climbing the shapers of Klipper's rule's table, "
-                f"{shaping_text(ladder.point.config)} at {ladder.point.config.accel:.0f} mm/s², every visible "
-                f"measure still no worse"))
-        stop = measured_stop(choice.point, bases, evaluate, space, bounds, labels=names)
-        if stop.moved:
-            choice = dataclasses.replace(choice, point=stop.point, sentence=(
-                f"{choice.sentence}; then stepped up by the measured stop from {stop.start.config.accel:.0f} to "
-                f"{stop.point.config.accel:.0f} mm/s², every visible measure still no worse"))
-    else:
-        bases = {"choice": choice.point}
-    lift = None
-    if space.per_feature:
-        lift = raise_hidden(choice.point, bases, evaluate, space, bounds, max_evaluations=settings.n_trials)
-        if lift.moved:
-            held = "than the baseline's" if choice.baseline is not None else "than the choice's own"
-            choice = dataclasses.replace(choice, point=lift.point, sentence=(
-                f"{choice.sentence}; then the features nobody sees raised toward their tops, no visible "
-                f"measure worse {held}"))
-    return choice, stop, lift, ladder
 
 
 def _report(req: TuneRequest, lim: _Limits, fw: Firmware, printer, facts, space, quality: str, points, front,

@@ -1,0 +1,70 @@
+"""After the study: the choice refined with the study's own judgement, in three walks.
+
+1. The shaper ladder (:mod:`ringtune.agents.tune.shaper_ladder`): each shaper of Klipper's rule
+   climbs higher accelerations; the fastest that passes replaces the choice.
+2. The measured stop (:mod:`ringtune.agents.tune.stop`): the acceleration stepped up 5 % at a time
+   (and each shaper frequency 2 % either way where a step fails) until a measure is worse.
+3. Per feature, the walk where nobody looks (:mod:`ringtune.agents.tune.hidden_raise`).
+
+Each is held to the baselines the choice was held to, with the study's evaluator, frequency margin
+and bounds; each appends what it did to the choice's sentence.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable
+
+from ringtune.agents.tune import pareto
+from ringtune.agents.tune.baselines import Baselines
+from ringtune.agents.tune.hidden_raise import Raise, raise_hidden
+from ringtune.agents.tune.pareto import Choice
+from ringtune.agents.tune.shaper_ladder import Ladder, climb, shaping_text
+from ringtune.agents.tune.space import SearchSpace
+from ringtune.agents.tune.stop import Bounds, Stop, measured_stop
+from ringtune.agents.tune.study import StudySettings, evaluator_kwargs
+
+
+def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySettings, printer, space: SearchSpace,
+           bounds: Bounds) -> tuple[Choice, Stop | None, Raise | None, Ladder | None]:
+    """(the choice, the measured stop or None, the raise where nobody looks or None, the shaper
+    ladder or None): a choice held to baselines climbs the ladder and takes the measured stop; then,
+    searching per feature, the raise, held to the same baselines — or, where the choice is held to
+    none (``--no-baselines``, ``--pick knee``), to the choice itself. ``evaluator``: the study's
+    (``f(configs, printer, job, **kwargs)``); ``bounds``: the study's."""
+    kwargs = evaluator_kwargs(settings)
+
+    def evaluate(configs, margin=kwargs.get("freq_margin")):
+        return evaluator(list(configs), printer, settings.job, **({**kwargs, "freq_margin": margin} if kwargs else {}))
+
+    # the default evaluator on the exact model alone: a sound screen where the worst of the twins is judged
+    exact = (lambda configs: evaluate(configs, 0.0)) if kwargs.get("freq_margin") else None
+
+    stop = ladder = None
+    if choice.baseline is not None:
+        held = choice.held_to or (choice.baseline,)
+        bases = {k: bl.points[k] for k in held}
+        names = {k: bl.labels.get(k, pareto.BASELINE_NAMES.get(k, k)) for k in held}
+        ladder = climb(choice.point, bases, evaluate, space, bounds, bl.fits, max_evaluations=settings.n_trials,
+                       screen=exact)
+        if ladder.moved:
+            choice = dataclasses.replace(choice, point=ladder.point, sentence=(
+                f"{choice.sentence}; then, climbing the shapers of Klipper's rule's table, "
+                f"{shaping_text(ladder.point.config)} at {ladder.point.config.accel:.0f} mm/s², every visible "
+                f"measure still no worse"))
+        stop = measured_stop(choice.point, bases, evaluate, space, bounds, labels=names)
+        if stop.moved:
+            choice = dataclasses.replace(choice, point=stop.point, sentence=(
+                f"{choice.sentence}; then stepped up by the measured stop from {stop.start.config.accel:.0f} to "
+                f"{stop.point.config.accel:.0f} mm/s², every visible measure still no worse"))
+    else:
+        bases = {"choice": choice.point}
+    lift = None
+    if space.per_feature:
+        lift = raise_hidden(choice.point, bases, evaluate, space, bounds, max_evaluations=settings.n_trials)
+        if lift.moved:
+            held = "than the baseline's" if choice.baseline is not None else "than the choice's own"
+            choice = dataclasses.replace(choice, point=lift.point, sentence=(
+                f"{choice.sentence}; then the features nobody sees raised toward their tops, no visible "
+                f"measure worse {held}"))
+    return choice, stop, lift, ladder
