@@ -5,7 +5,7 @@ every visible measure against Klipper's pick (the same simulation); its best obj
 a dense grid's (``--grid``). "Objective" is the scalar the user's ``--weight`` W picks by, J = print_time_s + W ·
 overshoot_mm (W in s/mm; printed for two W), best feasible point of each (no step loss, path error
 within the study's bound, 0.1 mm by default); the hypervolume ratio of the two fronts is printed as
-well. The grid spans the same space (agents.space.grid_params: every shaper on each axis × F levels
+well. The grid spans the same space (agents.tune.grid.grid_params: every shaper on each axis × F levels
 per axis, S levels, acceleration levels over the whole range, frequency limit off; the study may
 also use a frequency limit, which only slows the print on this job).
 
@@ -59,7 +59,8 @@ def main() -> int:
     args = ap.parse_args()
 
     from ringtune.agents.tune.grid import hypervolume, run_grid
-    from ringtune.agents.tune.space import SearchSpace, grid_params
+    from ringtune.agents.tune.grid import grid_params
+    from ringtune.agents.tune.space import SearchSpace
     from ringtune.agents.tune.pareto import pareto_front, scalar_objective
     from ringtune.agents.tune.study import StudySettings, open_study, study_points
     from ringtune.envs.printer import load_printer

@@ -10,7 +10,8 @@ import pytest
 
 from ringtune.agents.tune.grid import hypervolume, run_grid
 from ringtune.agents.tune.pareto import Point, pareto_front
-from ringtune.agents.tune.space import SearchSpace, config_from_params, grid_params
+from ringtune.agents.tune.grid import grid_params
+from ringtune.agents.tune.space import SearchSpace, config_from_params
 from ringtune.shaping.config import TuneConfig
 
 TESTS = Path(__file__).resolve().parent

@@ -39,12 +39,10 @@ serves Optuna trials, grid points and stored trials, so they can never disagree.
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import asdict, dataclass
 from typing import Any, Callable, Sequence
 
-import numpy as np
 
 from ringtune.agents.tune.motor_bound import accel_ceiling
 from ringtune.shaping.config import FREQ_LIMIT_METHODS, TuneConfig
@@ -249,7 +247,7 @@ def trial_axis_caps(space: SearchSpace, accel: float) -> dict[str, float]:
     return out
 
 
-def _axes(space: SearchSpace) -> tuple[tuple[str, str], ...]:
+def shaping_axes(space: SearchSpace) -> tuple[tuple[str, str], ...]:
     """(axis, suffix of its shaping parameters) per axis searched apart: ``x``, ``y`` with ``_x``,
     ``_y``; where one shaper serves all axes (RepRapFirmware) ``x`` alone with "" (``shaper``,
     ``freq``, ``damping``), which Y runs too."""
@@ -324,13 +322,13 @@ def walked_keys(space: SearchSpace) -> list[str]:
 
 def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
     """Ask an Optuna trial for one point of ``space`` (returns the parameter dict)."""
-    axes = _axes(space)
+    axes = shaping_axes(space)
     p: dict[str, Any] = {f"shaper{s}": trial.suggest_categorical(f"shaper{s}", list(space.shapers)) for _, s in axes}
     for ax, s in axes:
         if p[f"shaper{s}"] != "none":
             p[f"freq{s}"] = trial.suggest_float(f"freq{s}", *getattr(space, f"freq_{ax}"))
         p.update(_suggest_family(trial, p[f"shaper{s}"], ax))
-    for key in _damping_keys(p, space):
+    for key in damping_keys(p, space):
         p[key] = trial.suggest_float(key, *space.damping)
     p["freq_limit"] = trial.suggest_categorical("freq_limit", ["off", *space.freq_limit_methods])
     if p["freq_limit"] != "off":
@@ -399,11 +397,11 @@ def _takes_damping(family: str) -> bool:
     return family != "none" and not is_smoother(family)
 
 
-def _damping_keys(shaping: dict[str, Any], space: SearchSpace) -> list[str]:
+def damping_keys(shaping: dict[str, Any], space: SearchSpace) -> list[str]:
     """The damping parameters a point with these shapers has: ``damping_x``/``damping_y`` for each
     shaped axis (not for Kalico's smoothers, which take none), or ``damping`` where one shaper serves
     all axes and shaping is on."""
-    return [f"damping{s}" for _, s in _axes(space) if _takes_damping(shaping.get(f"shaper{s}", "none"))]
+    return [f"damping{s}" for _, s in shaping_axes(space) if _takes_damping(shaping.get(f"shaper{s}", "none"))]
 
 
 def _q(value: float, step: float) -> float:
@@ -417,7 +415,7 @@ def config_from_params(params: dict[str, Any], space: SearchSpace, extra: dict |
     (0.1 Hz), S to 0.005, the frequency limit to 0.5 Hz, acceleration to ``accel_step``. (Optuna
     samples them continuously: TPE's discrete kernels cost far more per trial.)"""
     shaping = {ax: (shaper_name(params[f"shaper{s}"], params, ax), _q(params.get(f"freq{s}", 0.0), space.freq_step))
-               for ax, s in _axes(space)}
+               for ax, s in shaping_axes(space)}
     (sx, fx), (sy, fy) = shaping["x"], shaping.get("y", shaping["x"])
     z = params.get("damping", 0.1)
     zx, zy = (_q(params.get(f"damping_{ax}", z), 0.005) for ax in "xy")
@@ -436,13 +434,13 @@ def config_from_params(params: dict[str, Any], space: SearchSpace, extra: dict |
 def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]:
     """Inverse of :func:`config_from_params` (for enqueuing a known configuration)."""
     p: dict[str, Any] = {}
-    for ax, s in _axes(space):
+    for ax, s in shaping_axes(space):
         family, extra = family_params(getattr(config, f"shaper_{ax}"), ax)
         p[f"shaper{s}"] = family
         p.update(extra)
         if family != "none":
             p[f"freq{s}"] = getattr(config, f"freq_{ax}")
-    for key in _damping_keys(p, space):
+    for key in damping_keys(p, space):
         p[key] = getattr(config, key if key != "damping" else "damping_x")
     p["freq_limit"] = "off" if config.freq_limit_hz <= 0 else config.freq_limit_method
     if config.freq_limit_hz > 0:
@@ -453,51 +451,3 @@ def params_from_config(config: TuneConfig, space: SearchSpace) -> dict[str, Any]
         now = r.now(config)
         p[r.key] = min(max(float(now if now is not None else r.missing), r.lo), r.hi)
     return p
-
-
-def _shaping_points(space: SearchSpace, shapers: tuple[str, ...], n_freq: int) -> list[dict]:
-    """The grid's shaping parameters: every combination of the axes' options (:func:`_axis_options`),
-    the parametrised families left out (Optuna searches them)."""
-    plain = tuple(s for s in shapers if "(" not in s)
-    points: list[dict] = [{}]
-    for ax, s in _axes(space):
-        options = _axis_options(plain, getattr(space, f"freq_{ax}"), s, n_freq)
-        points = [{**p, **o} for p in points for o in options]
-    return points
-
-
-def _axis_options(shapers: tuple[str, ...], lo_hi: tuple[float, float], suffix: str, n_freq: int) -> list[dict]:
-    """One axis's grid points: each shaper at ``n_freq`` frequencies over ``lo_hi`` Hz (``none`` once)."""
-    freqs = [round(float(f), 1) for f in np.linspace(lo_hi[0], lo_hi[1], n_freq)]
-    out: list[dict] = []
-    for s in shapers:
-        out += [{f"shaper{suffix}": s}] if s == "none" else [{f"shaper{suffix}": s, f"freq{suffix}": f} for f in freqs]
-    return out
-
-
-def grid_params(space: SearchSpace, n_freq: int = 9, n_damping: int = 3, n_accel: int = 6,
-                freq_limits: tuple[float, ...] = (), shapers: tuple[str, ...] | None = None,
-                dampings: tuple[float, ...] | None = None, accels: tuple[float, ...] | None = None) -> list[dict]:
-    """A dense Cartesian grid over ``space`` (parameter dicts), for convergence checks.
-
-    Per axis: every shaper × ``n_freq`` frequencies (``none`` once; the parametrised families are
-    left to Optuna); S on ``n_damping`` levels (once where no axis is shaped);
-    acceleration on ``n_accel`` levels (multiples of ``accel_step``); the frequency limit off plus
-    each method at each of ``freq_limits`` Hz. ``dampings`` / ``accels`` give explicit levels instead.
-    """
-    shaping = _shaping_points(space, shapers or space.shapers, n_freq)
-    if dampings is None:
-        dampings = [round(float(z), 3) for z in np.linspace(space.damping[0], space.damping[1], n_damping)]
-    if accels is None:
-        accels = np.linspace(space.accel[0], space.accel[1], n_accel)
-    accels = sorted({round(float(a) / space.accel_step) * space.accel_step for a in accels})
-    limits = [{"freq_limit": "off"}] + [{"freq_limit": m, "freq_limit_hz": float(h)}
-                                         for m in space.freq_limit_methods for h in freq_limits]
-    damped = [{**sh, **dict.fromkeys(_damping_keys(sh, space), z)}
-              for sh in shaping for z in (dampings if _shaped(sh) else [None])]
-    return [{**point, **lim, "accel": a} for point, lim, a in itertools.product(damped, limits, accels)]
-
-
-def _shaped(point: dict[str, Any]) -> bool:
-    """Whether a grid point shapes any axis."""
-    return any(v != "none" for k, v in point.items() if k.startswith("shaper"))
