@@ -110,3 +110,30 @@ def test_the_walk_stops_at_its_budget(space):
     # the infill's batch (4 levels) and its finer steps (2) start before the budget is spent, nothing after
     assert lift.cut and lift.evaluations == 6 and [k for k, _a, _b in lift.raised] == ["accel_infill"]
     assert "budget of 5 evaluations" in lift.sentence() and lift.to_dict()["cut"] is True
+
+
+def test_screening_on_the_exact_model_changes_the_walk_in_nothing_but_its_cost(space):
+    """Each batch screened first on an exact model no worse than the judgement (here the same
+    figures): the walk ends at the same point, and what fails is never judged."""
+    start_cfg = _start(space)
+    start = point_from_metrics(start_cfg, _metrics(start_cfg), max_path_error_mm=0.1, max_motor_load=0.8,
+                               max_show_through_mm=0.2)
+    judged, screened = [], []
+
+    def evaluate(configs):
+        judged.append(len(configs))
+        return [_metrics(c) for c in configs]
+
+    def exact(configs):
+        screened.append(len(configs))
+        return [_metrics(c) for c in configs]
+
+    plain = raise_hidden(start, {"klipper": start}, evaluate, space, BOUNDS)
+    n_plain = sum(judged)
+    judged.clear()
+    lift = raise_hidden(start, {"klipper": start}, evaluate, space, BOUNDS, screen=exact)
+    assert lift.point.config == plain.point.config and lift.raised == plain.raised
+    # every candidate screened; judged only what passed: the infill above RIPPLE_TOP, the corners
+    # beyond the show-through bound and what saves no time are never judged
+    assert lift.screened == sum(screened) == n_plain and lift.evaluations == sum(judged) < n_plain
+    assert f"{lift.screened} screened on the exact model first" in lift.sentence()

@@ -17,6 +17,8 @@ kept (step loss, motor reserve, show-through, path error), no visible measure wo
 at the resolution (the job's and each visible class's own,
 :data:`~ringtune.agents.tune.pareto.JUDGED_KEYS`), print time lower than the current choice's. The
 fastest candidate that passes becomes the choice; where none does, the group stays where it was.
+Where the judgement is the worst of the printer and its detuned twins, each batch is screened on the
+exact model first and only what passes is judged (:func:`ringtune.agents.tune.stop.passing`).
 
 Why a walk and not the study: sampling a dozen more dimensions besides the shapers, the study found
 slower choices in the same number of trials (issue 22's note: 1110–1167 s against 1057–1120 s on
@@ -32,7 +34,7 @@ from typing import Any, Callable, Sequence
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution
 from ringtune.agents.tune.space import (ABUTTING_GROUPS, SEEN_GROUPS, SearchSpace, config_from_params,
                                         params_from_config)
-from ringtune.agents.tune.stop import Bounds, evaluated, failure
+from ringtune.agents.tune.stop import Bounds, passing
 from ringtune.shaping.config import TuneConfig
 
 #: shares of the way from the current value to the range's top that are tried, fastest first
@@ -45,7 +47,7 @@ FINER = (2 / 3, 1 / 3)
 @dataclass
 class Raise:
     """The walk's end: the (possibly new) choice, the start, each raised setting as
-    ``(parameter, from, to)``, and the evaluations spent."""
+    ``(parameter, from, to)``, the evaluations judged and those screened on the exact model first."""
 
     point: Point
     start: Point
@@ -53,6 +55,7 @@ class Raise:
     evaluations: int = 0
     budget: int | None = None        # the most evaluations it may spend (None: no limit)
     cut: bool = False                # it stopped at its budget before its last step
+    screened: int = 0
 
     @property
     def moved(self) -> bool:
@@ -61,17 +64,18 @@ class Raise:
     def sentence(self) -> str:
         cut = (f"; it stopped at its budget of {self.budget} evaluations (the study's trials) before its last "
                "step" if self.cut else "")
+        spent = f"{self.evaluations} evaluations" + (f", {self.screened} screened on the exact model first"
+                                                     if self.screened else "")
         if not self.raised:
-            return (f"No feature nobody sees could go faster with every visible measure kept "
-                    f"({self.evaluations} evaluations{cut}).")
+            return f"No feature nobody sees could go faster with every visible measure kept ({spent}{cut})."
         parts = ", ".join(f"{_name(k)} {a:g} → {b:g}" for k, a, b in self.raised)
-        return (f"Raised where nobody looks, every visible measure and bound still kept ({self.evaluations} "
-                f"evaluations{cut}): {parts}; {self.start.print_time_s:.1f} s → {self.point.print_time_s:.1f} s.")
+        return (f"Raised where nobody looks, every visible measure and bound still kept ({spent}{cut}): {parts}; "
+                f"{self.start.print_time_s:.1f} s → {self.point.print_time_s:.1f} s.")
 
     def to_dict(self) -> dict[str, Any]:
         return {"raised": [{"parameter": k, "from": a, "to": b} for k, a, b in self.raised],
                 "from_print_time_s": self.start.print_time_s, "to_print_time_s": self.point.print_time_s,
-                "evaluations": self.evaluations, "budget": self.budget, "cut": self.cut,
+                "evaluations": self.evaluations, "screened": self.screened, "budget": self.budget, "cut": self.cut,
                 "sentence": self.sentence()}
 
 
@@ -120,11 +124,13 @@ def _levels(params: dict[str, Any], key: str, top: float) -> list[dict[str, Any]
 
 def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[TuneConfig]], list],
                  space: SearchSpace, bounds: Bounds, *, res: Resolution = DEFAULT_RESOLUTION,
-                 max_evaluations: int | None = None) -> Raise:
+                 max_evaluations: int | None = None,
+                 screen: Callable[[Sequence[TuneConfig]], list] | None = None) -> Raise:
     """Walk the features nobody sees up from ``start`` (module docstring); ``evaluate(configs) ->
     metrics`` judges as the study does; ``bases``: the baselines the choice was held to;
-    ``max_evaluations``: no step begins once the walk has spent that many (``tune`` gives it the
-    study's trials: a short study gets a short walk)."""
+    ``max_evaluations``: no step begins once the walk has judged that many (``tune`` gives it the
+    study's trials: a short study gets a short walk); ``screen``: the exact model alone, where
+    ``evaluate`` judges the worst of the twins."""
     if not space.per_feature:
         return Raise(start, start)
     walk = Raise(start, start, budget=max_evaluations)
@@ -136,9 +142,11 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
                    if c != walk.point.config]
         if not configs:
             return None
-        walk.evaluations += len(configs)
-        ok = [p for p in evaluated(configs, evaluate, bounds, "hidden raise")
-              if failure(p, bases, walk.point, bounds, res) is None]
+        points, judged_n, screened_n = passing(configs, evaluate, screen, bases, walk.point, bounds, res,
+                                               "hidden raise")
+        walk.evaluations += judged_n
+        walk.screened += screened_n
+        ok = [p for p in points if p is not None]
         return min(ok, key=lambda p: (p.print_time_s, p.quality_mm)) if ok else None
 
     for key in steps(params, space):

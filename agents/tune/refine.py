@@ -61,7 +61,8 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
         bases = {"choice": choice.point}
     lift = None
     if space.per_feature:
-        lift = raise_hidden(choice.point, bases, evaluate, space, bounds, max_evaluations=settings.n_trials)
+        lift = raise_hidden(choice.point, bases, evaluate, space, bounds, max_evaluations=settings.n_trials,
+                            screen=exact)
         if lift.moved:
             held = "than the baseline's" if choice.baseline is not None else "than the choice's own"
             choice = dataclasses.replace(choice, point=lift.point, sentence=(

@@ -35,7 +35,7 @@ from ringtune.agents.klipper.rule import DEFAULT_DAMPING_RATIO
 from ringtune.agents.tune.baselines import inside
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution
 from ringtune.agents.tune.space import SearchSpace
-from ringtune.agents.tune.stop import Bounds, evaluated, failure, with_accel
+from ringtune.agents.tune.stop import Bounds, passing, with_accel
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.firmware import FIRMWARES
 
@@ -147,7 +147,7 @@ def climb(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[Tu
     of the printer and its detuned twins. A shaping that fails on the exact model fails the
     judgement too (the worst case is no better on any measure, and print time is the same), so
     each rung is screened first and only what passes is judged (a third of the cost for what
-    fails); ``max_evaluations`` counts the judged ones."""
+    fails; :func:`ringtune.agents.tune.stop.passing`); ``max_evaluations`` counts the judged ones."""
     if space.accel_fixed or not start.config.accel:
         return Ladder(start, start)
     offered = rule_shapings(start.config, fits, space)
@@ -159,15 +159,10 @@ def climb(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[Tu
         climbing = climbing[:max_evaluations - n]
         if not climbing:
             break
-        configs = [with_accel(shapings[i], a, space) for i in climbing]
-        if screen is not None:
-            keep = [failure(p, bases, start, bounds, res) is None for p in evaluated(configs, screen, bounds, "")]
-            screened += len(configs)
-            climbing = [i for i, k in zip(climbing, keep) if k]
-            configs = [c for c, k in zip(configs, keep) if k]
-        points = evaluated(configs, evaluate, bounds, "shaper ladder") if configs else []
-        n += len(points)
-        passed = [(i, p) for i, p in zip(climbing, points) if failure(p, bases, start, bounds, res) is None]
+        points, judged, screens = passing([with_accel(shapings[i], a, space) for i in climbing], evaluate, screen,
+                                          bases, start, bounds, res, "shaper ladder")
+        n, screened = n + judged, screened + screens
+        passed = [(i, p) for i, p in zip(climbing, points) if p is not None]
         for i, p in passed:
             highest[i] = float(p.config.accel)
             if (p.print_time_s, p.quality_mm) < (best.print_time_s, best.quality_mm):

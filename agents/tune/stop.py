@@ -129,6 +129,26 @@ def evaluated(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[TuneCo
             for c, m in zip(configs, evaluate(configs))]
 
 
+def passing(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[TuneConfig]], list],
+            screen: Callable[[Sequence[TuneConfig]], list] | None, bases: dict[str, Point], faster_than: Point,
+            bounds: Bounds, res: Resolution, label: str) -> tuple[list[Point | None], int, int]:
+    """(per config, its judged point where it passes against ``bases`` and ``faster_than``
+    (:func:`failure`), else None; how many were judged; how many screened).
+
+    ``screen``: the same evaluation on the exact model alone, where ``evaluate`` takes the worst of
+    the printer and its detuned twins. What fails on the exact model fails the judgement too (the
+    worst case is no better on any measure, and print time is the same), so only what passes the
+    screen is judged: a third of the cost for what fails."""
+    keep = [True] * len(configs)
+    if screen is not None and configs:
+        keep = [failure(p, bases, faster_than, bounds, res) is None for p in evaluated(configs, screen, bounds, "")]
+    todo = [c for c, k in zip(configs, keep) if k]
+    judged = iter(evaluated(todo, evaluate, bounds, label) if todo else [])
+    out = [next(judged) if k else None for k in keep]
+    out = [p if p is not None and failure(p, bases, faster_than, bounds, res) is None else None for p in out]
+    return out, len(todo), len(configs) if screen is not None else 0
+
+
 def failure(p: Point, bases: dict[str, Point], faster_than: Point, bounds: Bounds,
              res: Resolution) -> tuple[str, str, str | None, float, float] | None:
     """Why ``p`` may not replace ``faster_than``: (kind, key, baseline key or None, value, limit), or
