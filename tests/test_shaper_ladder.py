@@ -107,6 +107,25 @@ def test_the_budget_cuts_the_shapings_in_the_tables_order(space):
     assert f"{V + 5} of {4 * V - 1} within the budget" in ladder.sentence()
 
 
+def test_with_a_screen_the_budget_counts_what_is_judged(space):
+    calls = []
+
+    def exact(configs):
+        calls.append(len(configs))
+        return [_metrics(c) for c in configs]
+
+    start, ladder, judged = _climb(space, _fits(), max_evaluations=V + 5, screen=exact)
+    # every shaping is screened at 5500; of those passing (zvd's and 2hump_ei's, in the table's
+    # order) the first V + 5 are judged, and the budget is spent
+    assert calls == [4 * V - 1] and judged == [V + 5] and ladder.evaluations == V + 5
+    assert dict(ladder.tried) == {**_variants("ei", None), **_variants("zvd", 5500.0), **_variants("mzv", None),
+                                  **dict((k, 5500.0 if i < 5 else None)
+                                         for i, k in enumerate(_variants("2hump_ei", None)))}
+    # at 5500 the 2hump_ei shapings ripple least (22 against zvd's 44 µm): the first of them is chosen
+    cfg = ladder.point.config
+    assert (cfg.shaper_x, cfg.freq_x, cfg.damping_x, cfg.accel) == ("2hump_ei", 66.0, 0.1, 5500.0)
+
+
 def test_nothing_faster_at_the_baselines_quality_leaves_the_choice(space):
     start, ladder, calls = _climb(space, _fits(("ei", "mzv")))
     assert not ladder.moved and ladder.point is start
@@ -202,3 +221,14 @@ def test_the_exact_model_is_no_worse_than_the_judged_worst_case():
         for cls, measures in ex.features.items():
             for key, value in measures.items():
                 assert value <= worst.features[cls][key] + 1e-12, (cls, key)
+
+
+def test_a_smoother_is_tried_at_one_damping():
+    """Kalico's smoothers take no damping ratio: one shaping per frequency, not one per damping."""
+    kalico = default_space(load_printer(None), "kalico")
+    start = TuneConfig(firmware="kalico", shaper_x="ei", freq_x=55.0, shaper_y="ei", freq_y=44.0, accel=5000.0)
+    rows = {ax: [SimpleNamespace(name="smooth_mzv", freq=f)] for ax, f in (("x", 50.0), ("y", 40.0))}
+    fits = {ax: SimpleNamespace(shapers=rows[ax], best=rows[ax][0]) for ax in "xy"}
+    got = rule_shapings(start, fits, kalico)
+    assert [(c.shaper_x, c.freq_x, c.freq_y) for c in got] == \
+        [("smooth_mzv", round(50.0 * k, 1), round(40.0 * k, 1)) for k in FREQ_SCALES]

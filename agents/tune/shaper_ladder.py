@@ -4,7 +4,7 @@ Klipper's calibrate_shaper gives each shaper a frequency and a max_accel from it
 formula. This step measures instead. From the choice, each shaper the rule fitted on the model's
 simulated resonance test — the same shaper on both axes at the rule's own per-shaper frequencies
 times :data:`FREQ_SCALES` (on a firmware with one shaper for all axes, at each axis's frequency in
-turn), designed for each damping ratio of :data:`DAMPINGS`, and the rule's own pick — climbs
+turn), designed for each damping ratio of :data:`DAMPINGS` (a smoother takes none), and the rule's own pick — climbs
 :data:`RUNGS` times the choice's acceleration (rounded to the space's step, none above the range's
 top), everything else of the choice kept (frequency limit; per-feature settings raised in the same
 ratio). Every shaping still climbing is judged at the next rung in one batch, exactly as every
@@ -38,6 +38,7 @@ from ringtune.agents.tune.space import SearchSpace
 from ringtune.agents.tune.stop import Bounds, passing, with_accel
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.smoothers import is_smoother
 
 #: accelerations tried, as multiples of the choice's
 RUNGS = (1.1, 1.2, 1.35, 1.5, 1.7, 2.0)
@@ -113,7 +114,8 @@ def rule_shapings(cfg: TuneConfig, fits: dict, space: SearchSpace) -> list[TuneC
         return []
     rows = {ax: {f.name: f.freq for f in fits[ax].shapers} for ax in ("x", "y")}
     pairs = [((name, rows["x"][name] * k), (name, rows["y"][name] * k), z)
-             for name in rows["x"] if name in rows["y"] for k in FREQ_SCALES for z in DAMPINGS]
+             for name in rows["x"] if name in rows["y"] for k in FREQ_SCALES
+             for z in (DAMPINGS if not is_smoother(name) else DAMPINGS[:1])]
     pairs.append(((fits["x"].best.name, fits["x"].best.freq), (fits["y"].best.name, fits["y"].best.freq),
                   DEFAULT_DAMPING_RATIO))
     if not space.per_axis:        # one shaper for all axes: each shaper at each axis's frequency
@@ -151,16 +153,18 @@ def climb(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[Tu
     if space.accel_fixed or not start.config.accel:
         return Ladder(start, start)
     offered = rule_shapings(start.config, fits, space)
-    shapings = offered[:max(max_evaluations, 0)]
+    # without a screen the first rung alone judges every shaping: the budget cuts the table
+    shapings = offered if screen is not None else offered[:max(max_evaluations, 0)]
     steps = rungs(float(start.config.accel), space)
     highest: list[float | None] = [None] * len(shapings)
     best, n, screened, climbing = start, 0, 0, list(range(len(shapings)))
     for a in steps:
-        climbing = climbing[:max_evaluations - n]
-        if not climbing:
+        if screen is None:
+            climbing = climbing[:max_evaluations - n]
+        if not climbing or n >= max_evaluations:
             break
         points, judged, screens = passing([with_accel(shapings[i], a, space) for i in climbing], evaluate, screen,
-                                          bases, start, bounds, res, "shaper ladder")
+                                          bases, start, bounds, res, "shaper ladder", max_judged=max_evaluations - n)
         n, screened = n + judged, screened + screens
         passed = [(i, p) for i, p in zip(climbing, points) if p is not None]
         for i, p in passed:

@@ -131,9 +131,11 @@ def evaluated(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[TuneCo
 
 def passing(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[TuneConfig]], list],
             screen: Callable[[Sequence[TuneConfig]], list] | None, bases: dict[str, Point], faster_than: Point,
-            bounds: Bounds, res: Resolution, label: str) -> tuple[list[Point | None], int, int]:
+            bounds: Bounds, res: Resolution, label: str, max_judged: int | None = None
+            ) -> tuple[list[Point | None], int, int]:
     """(per config, its judged point where it passes against ``bases`` and ``faster_than``
-    (:func:`failure`), else None; how many were judged; how many screened).
+    (:func:`failure`), else None; how many were judged; how many screened). ``max_judged``: judge
+    at most that many, the first in ``configs``' order (the rest count as not passing).
 
     ``screen``: the same evaluation on the exact model alone, where ``evaluate`` takes the worst of
     the printer and its detuned twins. What fails on the exact model fails the judgement too (the
@@ -142,6 +144,9 @@ def passing(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[TuneConf
     keep = [True] * len(configs)
     if screen is not None and configs:
         keep = [failure(p, bases, faster_than, bounds, res) is None for p in evaluated(configs, screen, bounds, "")]
+    if max_judged is not None:
+        kept = [i for i, k in enumerate(keep) if k][:max(max_judged, 0)]
+        keep = [i in kept for i in range(len(configs))]
     todo = [c for c, k in zip(configs, keep) if k]
     judged = iter(evaluated(todo, evaluate, bounds, label) if todo else [])
     out = [next(judged) if k else None for k in keep]
