@@ -232,3 +232,13 @@ def test_a_smoother_is_tried_at_one_damping():
     got = rule_shapings(start, fits, kalico)
     assert [(c.shaper_x, c.freq_x, c.freq_y) for c in got] == \
         [("smooth_mzv", round(50.0 * k, 1), round(40.0 * k, 1)) for k in FREQ_SCALES]
+
+
+def test_the_rules_pick_of_two_shapers_is_tried_like_the_others(space):
+    rows = {ax: [SimpleNamespace(name=n, freq=FREQS[ax][n]) for n in ("ei", "mzv")] for ax in "xy"}
+    fits = {"x": SimpleNamespace(shapers=rows["x"], best=rows["x"][0]),     # X ei, Y mzv
+            "y": SimpleNamespace(shapers=rows["y"], best=rows["y"][1])}
+    start = TuneConfig(shaper_x="zv", freq_x=50.0, shaper_y="zv", freq_y=40.0, accel=5000.0)
+    got = [(c.shaper_x, c.freq_x, c.shaper_y, c.freq_y, c.damping_x) for c in rule_shapings(start, fits, space)]
+    pick = [("ei", round(55.0 * k, 1), "mzv", round(41.0 * k, 1), z) for k in FREQ_SCALES for z in DAMPINGS]
+    assert got[-len(pick):] == pick and len(got) == 3 * len(pick)

@@ -4,15 +4,18 @@ Klipper's calibrate_shaper gives each shaper a frequency and a max_accel from it
 formula. This step measures instead. From the choice, each shaper the rule fitted on the model's
 simulated resonance test — the same shaper on both axes at the rule's own per-shaper frequencies
 times :data:`FREQ_SCALES` (on a firmware with one shaper for all axes, at each axis's frequency in
-turn), designed for each damping ratio of :data:`DAMPINGS` (a smoother takes none), and the rule's own pick — climbs
-:data:`RUNGS` times the choice's acceleration (rounded to the space's step, none above the range's
-top), everything else of the choice kept (frequency limit; per-feature settings raised in the same
-ratio). Every shaping still climbing is judged at the next rung in one batch, exactly as every
-trial (the study's evaluator, frequency margin and bounds), and held to the same baselines as the
-choice (:func:`ringtune.agents.tune.stop.failure`); a shaping stops at its first failing rung. The
-fastest configuration that passed replaces the choice; the measured stop then walks it on in 5 %
-steps. At most ``max_evaluations`` configurations are judged (tune: the study's trials); where the
-first rung alone would take more, the shapings are taken in the rule's table order.
+turn), designed for each damping ratio of :data:`DAMPINGS` (a smoother takes none), and the rule's
+own pick the same way — climbs :data:`RUNGS` times the choice's acceleration (rounded to the
+space's step, none above the range's top), everything else of the choice kept (frequency limit;
+per-feature settings raised in the same ratio). Every shaping still climbing is judged at the next
+rung in one batch, exactly as every trial (the study's evaluator, frequency margin and bounds), and
+held to the same baselines as the choice (:func:`ringtune.agents.tune.stop.failure`); a shaping
+stops at its first failing rung. The fastest configuration that passed replaces the choice; the
+measured stop then walks it on in 5 % steps. Where the judgement is the worst of the printer and
+its detuned twins, each rung is screened on the exact model first
+(:func:`ringtune.agents.tune.stop.passing`). At most ``max_evaluations`` configurations are judged
+(tune: the study's trials), the shapings taken in the rule's table order where a rung would judge
+more.
 
 Why: the study samples a dozen dimensions at once and seldom meets the narrow region where a
 shorter shaper at a higher acceleration keeps the baseline's quality (on the part, the fastest
@@ -20,9 +23,10 @@ single acceleration at Klipper's quality was found by one study in eight). The r
 shaper's frequency; it weighs remaining vibration against smoothing with a formula, and a higher
 frequency smooths less (smoothing falls as 1/f²), as does a shaper designed for more damping (its
 first impulse is larger), which lets the acceleration rise at the same corner rounding for a little
-more remaining vibration. The judgement settles that trade. On the part, every shaping that keeps
-Klipper's pick's quality 10 % faster than it is 1.16–1.24× the rule's frequency, most designed for
-damping 0.15–0.2; at the rule's own frequencies the outer wall's corners round 30–110 % more.
+more remaining vibration. The judgement settles that trade. On the part at 1.1× Klipper's pick's
+acceleration, every shaping that keeps the pick's quality is at 1.16–1.24× the rule's frequency,
+six of eight designed for damping 0.15–0.2; at the rule's own frequencies the outer wall's corners
+round 80–140 % more than the pick's.
 """
 
 from __future__ import annotations
@@ -108,16 +112,17 @@ def shaping_text(cfg: TuneConfig) -> str:
 def rule_shapings(cfg: TuneConfig, fits: dict, space: SearchSpace) -> list[TuneConfig]:
     """``cfg`` with each shaper the rule fitted on both axes (``fits``: axis -> Klipper's
     recommendation) at its per-shaper frequencies times :data:`FREQ_SCALES`, designed for each of
-    :data:`DAMPINGS`, and with the rule's pick (S 0.1); only what the space holds, each once, the
-    shaping ``cfg`` already has left out, in the rule's table order."""
+    :data:`DAMPINGS`, and the rule's pick the same way; only what the space holds, each once, the
+    shaping ``cfg`` already has left out, in the rule's table order, the pick last."""
     if not fits or not all(ax in fits for ax in ("x", "y")):
         return []
     rows = {ax: {f.name: f.freq for f in fits[ax].shapers} for ax in ("x", "y")}
     pairs = [((name, rows["x"][name] * k), (name, rows["y"][name] * k), z)
              for name in rows["x"] if name in rows["y"] for k in FREQ_SCALES
              for z in (DAMPINGS if not is_smoother(name) else DAMPINGS[:1])]
-    pairs.append(((fits["x"].best.name, fits["x"].best.freq), (fits["y"].best.name, fits["y"].best.freq),
-                  DEFAULT_DAMPING_RATIO))
+    bx, by = fits["x"].best, fits["y"].best          # the rule's pick (two shapers where it picks two)
+    pairs += [((bx.name, bx.freq * k), (by.name, by.freq * k), z) for k in FREQ_SCALES
+              for z in (DAMPINGS if not (is_smoother(bx.name) or is_smoother(by.name)) else DAMPINGS[:1])]
     if not space.per_axis:        # one shaper for all axes: each shaper at each axis's frequency
         pairs = [(a, a, z) for *pair, z in pairs for a in pair if pair[0][0] == pair[1][0]]
     out: dict = {}
