@@ -10,8 +10,10 @@ space's step, none above the range's top), everything else of the choice kept (f
 per-feature settings raised in the same ratio). Every shaping still climbing is judged at the next
 rung in one batch, exactly as every trial (the study's evaluator, frequency margin and bounds), and
 held to the same baselines as the choice (:func:`ringtune.agents.tune.stop.failure`); a shaping
-stops at its first failing rung. The fastest configuration that passed replaces the choice; the
-measured stop then walks it on in 5 % steps. Where the judgement is the worst of the printer and
+stops at its first failing rung. Then, in one batch, each shaping whose failing rung lies above the
+fastest passing acceleration is tried at :data:`FINER` of the way into that gap (the rungs are 7–15 %
+apart: a coarse winner is not the fine one). The fastest configuration that passed replaces the
+choice; the measured stop then walks it on in 5 % steps. Where the judgement is the worst of the printer and
 its detuned twins, each rung is screened on the exact model first
 (:func:`ringtune.agents.tune.stop.passing`). At most ``max_evaluations`` configurations are judged
 (tune: the study's trials), the shapings taken in the rule's table order where a rung would judge
@@ -46,6 +48,9 @@ from ringtune.shaping.smoothers import is_smoother
 
 #: accelerations tried, as multiples of the choice's
 RUNGS = (1.1, 1.2, 1.35, 1.5, 1.7, 2.0)
+#: then, for a shaping whose next rung failed above the fastest one's, these shares of the way from
+#: its highest passing rung to the failing one (one batch)
+FINER = (2 / 3, 1 / 3)
 #: each shaper's frequencies tried, as multiples of the rule's own for it
 FREQ_SCALES = (1.0, 1.08, 1.16, 1.24)
 #: the damping ratios each shaper is designed for (the rule designs for 0.1)
@@ -83,7 +88,8 @@ class Ladder:
         head = (f"Each shaper Klipper's rule fits ({self.offered} shapings: the rule's frequency × "
                 f"{', '.join(f'{k:g}' for k in FREQ_SCALES)}, designed for damping "
                 f"{', '.join(f'{z:g}' for z in DAMPINGS)}{cut}) climbed from {RUNGS[0]:g}× to {RUNGS[-1]:g}× the "
-                f"choice's acceleration until a visible measure was worse than the baselines' or a bound broke "
+                f"choice's acceleration until a visible measure was worse than the baselines' or a bound broke, then "
+                f"into the gaps above the fastest "
                 f"({self.evaluations} evaluations" + (f", {self.screened} screened on the exact model first)"
                                                       if self.screened else ")"))
         n = sum(a is not None for _, a in self.tried)
@@ -163,6 +169,7 @@ def climb(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[Tu
     steps = rungs(float(start.config.accel), space)
     highest: list[float | None] = [None] * len(shapings)
     best, n, screened, climbing = start, 0, 0, list(range(len(shapings)))
+    failed_at: dict[int, float] = {}
     for a in steps:
         if screen is None:
             climbing = climbing[:max_evaluations - n]
@@ -176,6 +183,33 @@ def climb(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[Tu
             highest[i] = float(p.config.accel)
             if (p.print_time_s, p.quality_mm) < (best.print_time_s, best.quality_mm):
                 best = p
+        failed_at.update({i: a for i, p in zip(climbing, points) if p is None})
         climbing = [i for i, _ in passed]
+    gaps = [] if n >= max_evaluations else _gaps(highest, failed_at, float(best.config.accel), space.accel_step)
+    if gaps:
+        points, judged, screens = passing([with_accel(shapings[i], a, space) for i, a in gaps], evaluate, screen,
+                                          bases, start, bounds, res, "shaper ladder", max_judged=max_evaluations - n)
+        n, screened = n + judged, screened + screens
+        for (i, a), p in zip(gaps, points):
+            if p is not None:
+                highest[i] = max(highest[i] or 0.0, a)
+                if (p.print_time_s, p.quality_mm) < (best.print_time_s, best.quality_mm):
+                    best = p
     return Ladder(best, start, [(shaping_text(c), a) for c, a in zip(shapings, highest)], n, len(offered),
                   steps[0] if steps else None, screened)
+
+
+def _gaps(highest: list[float | None], failed_at: dict[int, float], best: float, step: float
+          ) -> list[tuple[int, float]]:
+    """(shaping, acceleration mm/s²) at :data:`FINER` of the way from each shaping's highest passing
+    rung to the rung it failed at, on the space's ``step``, where that is above ``best`` (the
+    fastest shaping's acceleration: only those can beat it)."""
+    out = []
+    for i, f in failed_at.items():
+        h = highest[i]
+        if h is None:
+            continue
+        for a in sorted({round((h + k * (f - h)) / step) * step for k in FINER}, reverse=True):
+            if max(h, best) < a < f:
+                out.append((i, float(a)))
+    return out
