@@ -85,7 +85,7 @@ class Ladder:
         if self.first_rung is None:
             return "No shaper of Klipper's rule was tried: the choice is at the top of the acceleration range."
         cut = "" if len(self.tried) == self.offered else f", {len(self.tried)} of {self.offered} within the budget"
-        head = (f"Each shaper Klipper's rule fits ({self.offered} shapings: the rule's frequency × "
+        head = (f"Each shaper Klipper's rule fits, and its pick ({self.offered} shapings: the rule's frequency × "
                 f"{', '.join(f'{k:g}' for k in FREQ_SCALES)}, designed for damping "
                 f"{', '.join(f'{z:g}' for z in DAMPINGS)}{cut}) climbed from {RUNGS[0]:g}× to {RUNGS[-1]:g}× the "
                 f"choice's acceleration until a visible measure was worse than the baselines' or a bound broke, then "
