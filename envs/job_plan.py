@@ -20,6 +20,7 @@ from ringtune.envs.printer import load_printer
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import ConfiguredPlan, plan_with_config
+from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.freqlimit import commanded_frequencies as per_move
 from ringtune.shaping.gcode import read_gcode, read_gcode_bytes
 from ringtune.shaping.gcode_post import AccelResult, LimitResult, limit_file, rewrite_accel_bytes
@@ -48,16 +49,21 @@ CORNER_JUNCTION = {"square_corner_velocity": "scv", "junction_deviation": "jd", 
 
 
 def junction_rule(job: Job, path=None, printer=None, given: dict | None = None,
-                  junction: str = "auto") -> tuple[str, str]:
+                  junction: str = "auto", firmware: str | None = None) -> tuple[str, str]:
     """(rule, why in words): ``junction`` if not ``"auto"``; else the printer's ``[limits]
-    junction`` (``given``: its limits); else what the job's own commands imply; else the slicer's
-    flavour (:data:`FLAVOR_JUNCTION`, read from the file at ``path``); else the printer's corner
-    setting; else scv."""
+    junction`` (``given``: its limits); else, for a configuration made for Klipper or Kalico
+    (``firmware``), scv, their one rule; else what the job's own commands imply; else the
+    slicer's flavour (:data:`FLAVOR_JUNCTION`, read from the file at ``path``); else the printer's
+    corner setting; else scv."""
     given = given or {}
     if junction != "auto":
         return junction, "--junction"
     if "junction" in given:
         return given["junction"], f"the printer's [limits] junction ({printer})"
+    fw = FIRMWARES.get(firmware or "")
+    if fw is not None and fw.family == "klipper":
+        return "scv", (f"the configuration is for {fw.title}, whose one corner rule is square_corner_velocity "
+                       "(a job's M205 and its slicer's flavour do not apply there)")
     for setting, rule, why in JOB_JUNCTION:
         if not math.isnan(job.file_setting(setting)):
             return rule, why
@@ -71,17 +77,17 @@ def junction_rule(job: Job, path=None, printer=None, given: dict | None = None,
                    "flavour): Klipper's, the default; --junction jd|jerk for Marlin")
 
 
-def planning_limits(job: Job, path=None, printer=None, junction: str = "auto"):
+def planning_limits(job: Job, path=None, printer=None, junction: str = "auto", firmware: str | None = None):
     """(the machine limits the job is planned with, the junction rule, why in words): the limits of
     ``printer`` (TOML or embedded name; else the planner's defaults) with the rule of
-    :func:`junction_rule`."""
+    :func:`junction_rule` (``firmware``: the configuration's, if any)."""
     given: dict = {}
     if printer:
         pr = load_printer(printer)
         limits, given = pr.machine_limits(), dict(pr.limits_dict)
     else:
         limits = MachineLimits()
-    junction, why = junction_rule(job, path, printer, given, junction)
+    junction, why = junction_rule(job, path, printer, given, junction, firmware)
     limits = replace(limits, junction=junction)
     if junction != "scv":
         limits = replace(limits, min_cruise_ratio=0.0)
@@ -177,7 +183,7 @@ def plan_job(path=None, printer=None, config: TuneConfig | None = None, junction
     t0 = time.perf_counter()
     job = read_gcode(Path(path)) if path else builtin_test_print()
     t_read = time.perf_counter() - t0
-    limits, junction, why = planning_limits(job, path, printer, junction)
+    limits, junction, why = planning_limits(job, path, printer, junction, config.firmware if config else None)
     t1 = time.perf_counter()
     configured = plan_with_config(job, limits, config, use_job_limits=use_job_limits, daa_freq=daa_freq)
     t_plan = time.perf_counter() - t1

@@ -130,3 +130,26 @@ def test_plan_of_a_folder_says_it_is_a_folder(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and f"{tmp_path}: is a directory" in err, err
     assert "no such" not in err
+
+
+def test_a_klipper_configuration_plans_with_klippers_corner_rule(tmp_path, capsys):
+    """The part was sliced for Marlin 2 (junction deviation); a configuration made for Klipper is
+    planned as Klipper runs it, with square_corner_velocity, so `plan --config best.json` gives
+    tune's print time (tune plans the printer with its own rule); one for Marlin keeps the
+    slicer's flavour."""
+    from ringtune.envs.evaluate import planned_job
+    from ringtune.envs.printer import load_printer
+    from ringtune.shaping.config import TuneConfig
+    times = {}
+    for fw in ("klipper", "marlin"):
+        cfg = TuneConfig(firmware=fw, shaper_x="zv", freq_x=50.0, shaper_y="zv", freq_y=40.0, accel=6000.0)
+        path = tmp_path / f"{fw}.json"
+        path.write_text(json.dumps(cfg.to_dict()))
+        assert main(["plan", "part", "--config", str(path), "--json"]) == 0
+        r = json.loads(capsys.readouterr().out)
+        times[fw] = (r["junction"], r["print_time_s"])
+    assert times["klipper"][0] == "scv" and times["marlin"][0] == "jd"
+    klipper_cfg = TuneConfig(shaper_x="zv", freq_x=50.0, shaper_y="zv", freq_y=40.0, accel=6000.0)
+    tuned = planned_job(load_printer(None), "part", klipper_cfg).plan.print_time
+    assert times["klipper"][1] == pytest.approx(tuned, rel=1e-9)
+    assert times["marlin"][1] != pytest.approx(tuned, rel=1e-3)

@@ -39,7 +39,8 @@ over the whole job and the firmware's junction rule:
   jd    Marlin junction deviation
   jerk  classic jerk (Marlin, and PrusaSlicer's own time estimator)
 
-Without --junction the rule is the printer's `junction` (--printer), else what the job's own
+Without --junction the rule is the printer's `junction` (--printer), else scv for a --config made
+for Klipper or Kalico (their one rule), else what the job's own
 commands imply (SET_VELOCITY_LIMIT SQUARE_CORNER_VELOCITY -> scv, M205 J -> jd, M205 X/Y ->
 jerk), else the firmware the slicer wrote it for (gcode_flavor / FLAVOR: klipper -> scv,
 marlin2 -> jd as Marlin 2 ships, marlin (legacy), reprapfirmware, repetier -> jerk), else the
