@@ -14,9 +14,10 @@ baseline, verdict better|same|worse}}}, stop (null, or the measured stop: {kind 
 searched, key (a job's figure, or a class's own as "outer_wall:ripple_mm"), baseline (whose value it exceeds,
 for a measure), value, baseline_value, accel (the step that stops it, mm/s²), config, moved,
 from_accel, to_accel, evaluations, sentence}), shaper_ladder (null, or each shaper of Klipper's rule
-climbing the accelerations: {moved, from_accel, to_accel, config, evaluations, tried [{shaping,
-highest_passing_accel}], sentence}), hidden_raise (null, or the walk raising the features nobody
-sees: {raised [{parameter, from, to}], from_print_time_s, to_print_time_s, evaluations, budget (the study's
+climbing the accelerations: {moved, from_accel, to_accel, config, evaluations, screened, offered,
+tried [{shaping, highest_passing_accel}], sentence}), hidden_raise (null, or the walk raising the features nobody
+sees: {raised [{parameter, from, to}], from_print_time_s, to_print_time_s, evaluations, screened (on the
+exact model first), budget (the study's
 trials), cut (it stopped at that budget), sentence}), vs_baselines {key: {baseline, faster_s, faster_pct, better_mm,
 better_pct, dominates, metrics {print_time_s|overshoot_mm|path_error_mm|feasible: better|same|worse},
 path_error_better_mm, path_error_better_pct}}, dominates_klipper, dominates_current (null or {config,
