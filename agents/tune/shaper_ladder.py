@@ -13,10 +13,10 @@ held to the same baselines as the choice (:func:`ringtune.agents.tune.stop.failu
 stops at its first failing rung. Then, in one batch, each shaping whose failing rung lies above the
 fastest passing acceleration is tried at :data:`FINER` of the way into that gap (the rungs are 7–15 %
 apart: a coarse winner is not the fine one). The fastest configuration that passed replaces the
-choice; the measured stop then walks it on in 5 % steps. Where the judgement is the worst of the printer and
-its detuned twins, each rung is screened on the exact model first
+choice; the measured stop then walks it on in 5 % steps. Where the judgement is the worst of the
+printer and its detuned twins, each batch is screened on the exact model first
 (:func:`ringtune.agents.tune.stop.passing`). At most ``max_evaluations`` configurations are judged
-(tune: the study's trials), the shapings taken in the rule's table order where a rung would judge
+(tune: the study's trials), the shapings taken in the rule's table order where a batch would judge
 more.
 
 Why: the study samples a dozen dimensions at once and seldom meets the narrow region where a
@@ -123,12 +123,11 @@ def rule_shapings(cfg: TuneConfig, fits: dict, space: SearchSpace) -> list[TuneC
     if not fits or not all(ax in fits for ax in ("x", "y")):
         return []
     rows = {ax: {f.name: f.freq for f in fits[ax].shapers} for ax in ("x", "y")}
-    pairs = [((name, rows["x"][name] * k), (name, rows["y"][name] * k), z)
-             for name in rows["x"] if name in rows["y"] for k in FREQ_SCALES
-             for z in (DAMPINGS if not is_smoother(name) else DAMPINGS[:1])]
     bx, by = fits["x"].best, fits["y"].best          # the rule's pick (two shapers where it picks two)
-    pairs += [((bx.name, bx.freq * k), (by.name, by.freq * k), z) for k in FREQ_SCALES
-              for z in (DAMPINGS if not (is_smoother(bx.name) or is_smoother(by.name)) else DAMPINGS[:1])]
+    stems = [((name, rows["x"][name]), (name, rows["y"][name])) for name in rows["x"] if name in rows["y"]]
+    stems.append(((bx.name, bx.freq), (by.name, by.freq)))
+    pairs = [((sx, fx * k), (sy, fy * k), z) for (sx, fx), (sy, fy) in stems for k in FREQ_SCALES
+             for z in (DAMPINGS[:1] if is_smoother(sx) or is_smoother(sy) else DAMPINGS)]
     if not space.per_axis:        # one shaper for all axes: each shaper at each axis's frequency
         pairs = [(a, a, z) for *pair, z in pairs for a in pair if pair[0][0] == pair[1][0]]
     out: dict = {}
@@ -168,33 +167,33 @@ def climb(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[Tu
     shapings = offered if screen is not None else offered[:max(max_evaluations, 0)]
     steps = rungs(float(start.config.accel), space)
     highest: list[float | None] = [None] * len(shapings)
-    best, n, screened, climbing = start, 0, 0, list(range(len(shapings)))
-    failed_at: dict[int, float] = {}
+    best, n, screened = start, 0, 0
+
+    def judge(batch: list[tuple[int, float]]) -> list[Point | None]:
+        """Each (shaping, acceleration) of ``batch`` judged (screened first), within the budget; the
+        highest passing accelerations and the fastest point updated; per item its point or None."""
+        nonlocal best, n, screened
+        points, judged, screens = passing([with_accel(shapings[i], a, space) for i, a in batch], evaluate, screen,
+                                          bases, start, bounds, res, "shaper ladder", max_judged=max_evaluations - n)
+        n, screened = n + judged, screened + screens
+        for (i, a), p in zip(batch, points):
+            if p is not None:
+                highest[i] = max(highest[i] or 0.0, a)
+                if (p.print_time_s, p.quality_mm) < (best.print_time_s, best.quality_mm):
+                    best = p
+        return points
+
+    climbing, failed_at = list(range(len(shapings))), {}
     for a in steps:
         if screen is None:
             climbing = climbing[:max_evaluations - n]
         if not climbing or n >= max_evaluations:
             break
-        points, judged, screens = passing([with_accel(shapings[i], a, space) for i in climbing], evaluate, screen,
-                                          bases, start, bounds, res, "shaper ladder", max_judged=max_evaluations - n)
-        n, screened = n + judged, screened + screens
-        passed = [(i, p) for i, p in zip(climbing, points) if p is not None]
-        for i, p in passed:
-            highest[i] = float(p.config.accel)
-            if (p.print_time_s, p.quality_mm) < (best.print_time_s, best.quality_mm):
-                best = p
+        points = judge([(i, a) for i in climbing])
         failed_at.update({i: a for i, p in zip(climbing, points) if p is None})
-        climbing = [i for i, _ in passed]
-    gaps = [] if n >= max_evaluations else _gaps(highest, failed_at, float(best.config.accel), space.accel_step)
-    if gaps:
-        points, judged, screens = passing([with_accel(shapings[i], a, space) for i, a in gaps], evaluate, screen,
-                                          bases, start, bounds, res, "shaper ladder", max_judged=max_evaluations - n)
-        n, screened = n + judged, screened + screens
-        for (i, a), p in zip(gaps, points):
-            if p is not None:
-                highest[i] = max(highest[i] or 0.0, a)
-                if (p.print_time_s, p.quality_mm) < (best.print_time_s, best.quality_mm):
-                    best = p
+        climbing = [i for i, p in zip(climbing, points) if p is not None]
+    if n < max_evaluations:
+        judge(_gaps(highest, failed_at, float(best.config.accel), space.accel_step))
     return Ladder(best, start, [(shaping_text(c), a) for c, a in zip(shapings, highest)], n, len(offered),
                   steps[0] if steps else None, screened)
 
