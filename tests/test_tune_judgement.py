@@ -111,6 +111,19 @@ def test_the_front_keeps_a_point_with_less_path_error_so_the_pick_can_match_the_
     assert c.point.label == "itself" and "no configuration the study tried is faster than Klipper's rule" in c.sentence
 
 
+def test_a_choice_as_fast_as_the_baseline_but_another_configuration_is_not_called_the_baseline():
+    """Where every configuration plans the same time (the job's own accelerations rule), the choice
+    is the best of those as fast, and the sentence says that, not "nothing better than Klipper's rule
+    itself", which it is not."""
+    klipper = _pt(5.0, 0.0037, 0.0459, "klipper")
+    other = Point(TuneConfig(shaper_x="zv", freq_x=48.0, shaper_y="zv", freq_y=40.0), 5.0, 0.0020, False,
+                  {"overshoot_mm": 0.0020, "path_error_mm": 0.030}, "other")
+    c = pick([other], {"klipper": klipper})
+    assert c.point is other and c.by == "fastest-at-baseline-quality"
+    assert "of those as fast, the best on the study's quality objective" in c.sentence
+    assert "itself" not in c.sentence
+
+
 def _no_worse(p, b):
     """Independent of pareto.judge: quality no worse than b's beyond 1 µm / 5 % of the larger."""
     def ok(a, c):
