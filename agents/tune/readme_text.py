@@ -25,8 +25,9 @@ def readme_text(out_dir: Path, firmware: str, storage: str, command: str) -> str
                  Klipper's own rule, with what the printer runs now (when known) and with no
                  shaping on the same printer and job: every visible measure (wall ripple, corner
                  rounding and overshoot, over- and under-extrusion) with both values and the
-                 verdict better / same / worse. Then what stops the acceleration (measured one
-                 step higher), and the whole trade-off (the Pareto front) as a table.
+                 verdict better / same / worse. Then how far each shaper of Klipper's rule
+                 climbed (the shaper ladder), what stops the acceleration (measured one step
+                 higher), and the whole trade-off (the Pareto front) as a table.
 2. pareto.png    The trade-off as a picture: print time (s) against the measures a person sees;
                  every trial, the best trade-offs, the chosen point and the baselines (Klipper's
                  rule, what the printer runs now, no shaping), ruled-out trials marked; its legend
