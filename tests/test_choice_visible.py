@@ -152,7 +152,8 @@ def test_simulate_shows_every_visible_measure_against_klippers_pick(capsys):
 def test_the_choice_is_held_to_every_baseline_at_once_not_a_chain_of_sames():
     """What the printer runs now 4 % more ripple than Klipper's pick (the same at 5 %), a point 4 %
     more than that (the same as the printer's, 8 % more than Klipper's): not "same quality"."""
-    from ringtune.agents.tune.pareto import Point, pick
+    from ringtune.agents.tune.choice import pick
+    from ringtune.agents.tune.pareto import Point
 
     def pt(t, ripple, label):
         m = {k: 0.02 for k in SEEN} | {"ripple_mm": ripple, "extrusion_over_pct": 5.0, "extrusion_under_pct": 5.0}

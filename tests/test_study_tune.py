@@ -14,7 +14,8 @@ from pathlib import Path
 import pytest
 
 from ringtune.agents.cli.main import main
-from ringtune.agents.tune.pareto import Point, choose, pareto_front
+from ringtune.agents.tune.choice import choose
+from ringtune.agents.tune.pareto import Point, pareto_front
 from ringtune.shaping.config import TuneConfig
 
 TESTS = Path(__file__).resolve().parent

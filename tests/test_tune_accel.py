@@ -273,7 +273,8 @@ def test_loader_records_what_the_description_leaves_to_defaults(desc, defaulted)
 ])
 def test_chosen_block_says_every_job_needs_ringtune_limit(tmp_path, firmware, method, rewrite):
     from ringtune.agents.tune import report
-    from ringtune.agents.tune.pareto import Choice, Point
+    from ringtune.agents.tune.choice import Choice
+    from ringtune.agents.tune.pareto import Point
     from ringtune.shaping.config import TuneConfig
 
     cfg = TuneConfig(firmware=firmware, shaper_x="mzv", shaper_y="mzv", freq_x=50.0, freq_y=40.0,

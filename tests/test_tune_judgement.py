@@ -13,7 +13,8 @@ from pathlib import Path
 import pytest
 
 from ringtune.agents.cli.main import main
-from ringtune.agents.tune.pareto import Point, judge, pareto_front, pick
+from ringtune.agents.tune.choice import pick
+from ringtune.agents.tune.pareto import Point, judge, pareto_front
 from ringtune.agents.tune.versus import compare
 from ringtune.shaping.config import TuneConfig
 

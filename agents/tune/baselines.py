@@ -10,7 +10,7 @@
 - ``none`` — no shaping at the printer's own acceleration.
 
 Each is judged by every visible measure (ripple, corners, extrusion) and the bounds, like every
-trial; the default choice is held to the best of them (:func:`ringtune.agents.tune.pareto.reference_baselines`).
+trial; the default choice is held to the best of them (:func:`ringtune.agents.tune.choice.reference_baselines`).
 """
 
 from __future__ import annotations

@@ -15,10 +15,9 @@ from __future__ import annotations
 import dataclasses
 from typing import Callable
 
-from ringtune.agents.tune import pareto
 from ringtune.agents.tune.baselines import Baselines
 from ringtune.agents.tune.hidden_raise import Raise, raise_hidden
-from ringtune.agents.tune.pareto import Choice
+from ringtune.agents.tune.choice import BASELINE_NAMES, Choice
 from ringtune.agents.tune.shaper_ladder import Ladder, climb, shaping_text
 from ringtune.agents.tune.space import SearchSpace
 from ringtune.agents.tune.stop import Bounds, Stop, measured_stop
@@ -44,7 +43,7 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
     if choice.baseline is not None:
         held = choice.held_to or (choice.baseline,)
         bases = {k: bl.points[k] for k in held}
-        names = {k: bl.labels.get(k, pareto.BASELINE_NAMES.get(k, k)) for k in held}
+        names = {k: bl.labels.get(k, BASELINE_NAMES.get(k, k)) for k in held}
         ladder = climb(choice.point, bases, evaluate, space, bounds, bl.fits, max_evaluations=settings.n_trials,
                        screen=exact)
         if ladder.moved:

@@ -26,8 +26,9 @@ from collections import Counter
 from pathlib import Path
 from typing import Any, Sequence
 
-from ringtune.agents.tune.pareto import (BASELINE_NAMES, DEFAULT_RESOLUTION, METRIC_KEYS, VISIBLE_KEYS, Choice, Point,
-                                         Resolution, broken_bounds, shown)
+from ringtune.agents.tune.choice import BASELINE_NAMES, Choice
+from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, METRIC_KEYS, VISIBLE_KEYS, Point, Resolution, broken_bounds,
+                                         shown)
 from ringtune.agents.tune.pareto_plot import plot_front
 from ringtune.agents.tune.readme_text import readme_text
 from ringtune.agents.tune.versus import QUALITY_LABEL, best_dominating, compare, table as versus_table, versus_all

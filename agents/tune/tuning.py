@@ -17,6 +17,7 @@ from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
 from ringtune.agents.tune.motor_bound import top_speed_load_note
 from ringtune.agents.tune.out_dir import check_out, remove_if_empty
+from ringtune.agents.tune.choice import pick
 from ringtune.agents.tune.pareto import VISIBLE_KEYS
 from ringtune.agents.tune.refine import refine
 from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config, walked_keys
@@ -175,7 +176,7 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     baselines = bl.points
     points = tune_study.study_points(run_.study, space, quality, lim.max_pe, lim.reserve, lim.max_st)
     front = pareto.pareto_front(points, also=_also(points, quality))
-    choice = pareto.pick(front, baselines, lim.how, req.weight, candidates=points)
+    choice = pick(front, baselines, lim.how, req.weight, candidates=points)
     choice, stop, lift, ladder = refine(choice, bl, evaluator, settings, printer, space,
                                         Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st))
     result, text, accel_json, ja_json = _report(req, lim, fw, printer, facts, space, quality, points, front, choice,

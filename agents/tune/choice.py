@@ -1,0 +1,168 @@
+"""The choice of one point of a study: the default "same quality, faster" against the reference
+baselines, the knee of the front, or a weight of seconds per mm (``--pick``, ``--weight``), each with
+a sentence saying what was chosen and why."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, QUALITY_WORDS, Point, Resolution, no_worse,
+                                         quality_keys)
+from ringtune.shaping.errors import RingtuneError
+
+
+#: mm: quality differences smaller than this are not worth print time when choosing the knee
+KNEE_QUALITY_SCALE = 0.01
+PICKS = ("fastest-at-baseline-quality", "knee", "weight")
+
+
+@dataclass
+class Choice:
+    """The chosen point, how (``by``: one of :data:`PICKS`), against which baseline (key or None:
+    the one it is at least as fast as), every baseline it is held to (``held_to``: no visible
+    measure worse than any of them) and a sentence saying so."""
+
+    point: Point
+    by: str
+    baseline: str | None
+    sentence: str
+    held_to: tuple = ()
+
+
+def _no_front() -> RingtuneError:
+    return RingtuneError("no feasible configuration was found (every trial lost steps, exceeded "
+                         "--max-path-error or --max-show-through or left less than --motor-reserve of the motors' "
+                         "force); lower the acceleration range, raise --max-path-error or run more trials", "tune")
+
+
+def knee(front: Sequence[Point]) -> Point:
+    """The front point closest to the ideal corner after scaling print time by the front's range
+    and quality by its range but at least :data:`KNEE_QUALITY_SCALE` (10 µm; so that a front whose
+    points all lie within a few micrometres is not bought with seconds)."""
+    if not front:
+        raise _no_front()
+    t = np.array([p.print_time_s for p in front])
+    q = np.array([p.quality_mm for p in front])
+    tn = (t - t.min()) / max(t.max() - t.min(), 1e-12)
+    qn = (q - q.min()) / max(q.max() - q.min(), KNEE_QUALITY_SCALE)
+    return front[int(np.argmin(np.hypot(tn, qn)))]
+
+
+def choose(front: Sequence[Point], weight: float | None = None) -> Point:
+    """The point minimising ``print_time_s + weight·quality_mm`` (weight in s/mm), or else the knee."""
+    if not front:
+        raise _no_front()
+    if weight is not None:
+        return min(front, key=lambda p: p.print_time_s + weight * p.quality_mm)
+    return knee(front)
+
+
+def _no_worse_seen(p: Point, base: Point, res: Resolution) -> bool:
+    """:func:`no_worse` on the visible measures both have (:func:`ringtune.agents.tune.pareto.quality_keys`)."""
+    return no_worse(p, base, res, quality_keys([p, base]))
+
+
+def at_baseline_quality(front: Sequence[Point], base: Point, res: Resolution = DEFAULT_RESOLUTION) -> list[Point]:
+    """Feasible points at least as fast as ``base`` with no visible measure (:data:`VISIBLE_KEYS`)
+    worse than its at the resolution ("same" counts as no worse)."""
+    keys = quality_keys([base, *front])
+    return [p for p in front if p.feasible and p.print_time_s <= base.print_time_s and no_worse(p, base, res, keys)]
+
+
+def reference_baselines(baselines: dict[str, Point], res: Resolution = DEFAULT_RESOLUTION) -> list[tuple[str, Point]]:
+    """The baselines the default choice is held to, best first: the feasible shaped ones (no
+    shaping only when there is no other). What the printer runs now comes first where it is known
+    and no visible measure of it is worse than Klipper's pick; otherwise Klipper's pick does (the
+    choice is then never worse than either where it matches the first)."""
+    usable = {k: b for k, b in baselines.items() if b.feasible}
+    shaped = {k: b for k, b in usable.items() if k != "none"} or usable
+    rank = {"current": 0, "klipper": 1}
+    if "current" in shaped and "klipper" in shaped and not _no_worse_seen(shaped["current"], shaped["klipper"], res):
+        rank = {"klipper": 0, "current": 1}
+    return sorted(shaped.items(), key=lambda kb: rank.get(kb[0], 2))
+
+
+def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastest-at-baseline-quality",
+         weight: float | None = None, res: Resolution = DEFAULT_RESOLUTION,
+         candidates: Sequence[Point] | None = None) -> Choice:
+    """Choose the configuration to use.
+
+    ``fastest-at-baseline-quality`` (default): against the first reference baseline
+    (:func:`reference_baselines`) the search can match, the fastest of ``candidates`` (default:
+    the front) at least as fast with no visible measure worse at the resolution ("same quality,
+    faster"). Pass every point of the study as ``candidates``: the front is over print time and a
+    few figures, and a point no worse on every judged one can lie behind a front point that is
+    worse on another. Where nothing matches any, the knee of the front, and the sentence says
+    so. ``knee``: :func:`knee`. ``weight``: minimises print time + ``weight`` × quality (s/mm)."""
+    front = [p for p in front if p.feasible]
+    if not front:
+        raise _no_front()
+    if how == "weight":
+        if weight is None:
+            raise RingtuneError("--pick weight needs --weight W (seconds per mm)", "--pick")
+        return Choice(choose(front, weight), "weight", None,
+                      f"minimises print time + {weight:g} s/mm × ripple")
+    if how == "knee":
+        return Choice(knee(front), "knee", None, "the knee of the front (closest to the ideal corner, time "
+                      "scaled by the front's range, ripple by its range but at least 10 µm)")
+    if how != "fastest-at-baseline-quality":
+        raise RingtuneError(f"must be one of {', '.join(PICKS)}, not {how!r}", "--pick")
+    pool = front if candidates is None else [p for p in candidates if p.feasible] or front
+    return _fastest_at_baseline_quality(front, baselines, res, pool)
+
+
+def _fastest_at_baseline_quality(front: list[Point], baselines: dict[str, Point], res: Resolution,
+                                 pool: list[Point]) -> Choice:
+    """:func:`pick`'s default: the fastest point of ``pool`` with no visible measure worse than
+    the reference baselines, tried together then one at a time; else the knee of ``front``,
+    saying why."""
+    by_key = dict(reference_baselines(baselines, res))
+    worse = f"no worse {QUALITY_WORDS[quality_keys(front)]}"
+    tries = _tries(list(by_key))
+    for held in tries:
+        first, *rest = (by_key[k] for k in held)
+        cands = [p for p in at_baseline_quality(pool, first, res) if all(_no_worse_seen(p, b, res) for b in rest)]
+        if cands:
+            p = min(cands, key=lambda p: (p.print_time_s, p.quality_mm))
+            return Choice(p, "fastest-at-baseline-quality", held[0], _held_why(p, first, held, tries, worse), held)
+    why = f"no configuration the study tried is as fast as {_named(by_key, ' or ')} with {worse}" if by_key else \
+        "there is no usable baseline to match"
+    return Choice(knee(front), "knee", None, f"the knee of the front, because {why}")
+
+
+def _tries(keys: list[str]) -> list[tuple]:
+    """The sets of reference baselines (by key, best first) the default choice is held to, in turn:
+    every one at once (no chaining: "same as the printer's, which is the same as Klipper's" must not
+    end worse than Klipper's), then Klipper's pick alone (or, without it, each other one alone)."""
+    together = [tuple(keys)] if len(keys) > 1 else []
+    return together + ([("klipper",)] if "klipper" in keys else [(k,) for k in keys])
+
+
+def _named(keys, joiner: str) -> str:
+    """The baselines ``keys`` by their short names, joined."""
+    return joiner.join(BASELINE_NAMES.get(k, k) for k in keys)
+
+
+def _held_why(p: Point, b: Point, held: tuple, tries: list[tuple], worse: str) -> str:
+    """Why ``p`` was chosen, held to the baselines ``held`` (``b``: the first's point), saying when
+    an earlier try (``tries[0]``) found nothing."""
+    lead = "" if held == tries[0] else \
+        f"no configuration the study tried is as fast as {_named(tries[0], ' and ')} with {worse} than each; "
+    name = _named(held, " and ")
+    first = BASELINE_NAMES.get(held[0], held[0])
+    if p.print_time_s < b.print_time_s:
+        return (f"{lead}the fastest configuration the study tried with {worse} than {name} "
+                f"(same quality, faster than {first})")
+    if dataclasses.replace(p.config, extra={}) != dataclasses.replace(b.config, extra={}):
+        return (f"{lead}no configuration the study tried is faster than {first} with {worse} than {name}; of those "
+                f"as fast, the best on the study's quality objective (--quality)")
+    return (f"{lead}no configuration the study tried is faster than {first} with {worse} than {name}: the search found "
+            f"nothing better than {first} itself at that quality (more --trials may)")
+
+
+#: short names of the baselines in sentences
+BASELINE_NAMES = {"klipper": "Klipper's rule", "current": "what the printer runs now", "none": "no shaping"}
