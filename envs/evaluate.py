@@ -407,6 +407,18 @@ def evaluate_judged(configs: Sequence[TuneConfig], printer=None, job=None, backe
             for evs in per_config]
 
 
+def evaluate_twins(configs: Sequence[TuneConfig], exact: Sequence[Metrics], printer=None, job=None,
+                   backend: str = "mujoco", *, freq_margin: float, job_accel: str | None = None) -> list[Metrics]:
+    """:func:`evaluate_many` with ``freq_margin`` for configurations whose figures on the exact model
+    (``exact``: :func:`evaluate_many` with no margin, same printer, job and backend) are known: only
+    the detuned twins are simulated, and the worst of the three counts, as :func:`evaluate_judged`
+    takes it (a screen on the exact model that passes costs no second simulation of it)."""
+    printer = resolve_printer(printer)
+    twins = [printer.detuned(f) for f in variant_factors(freq_margin) if f != 1.0]
+    runs = evaluate_variants(configs, twins, job, backend, settle=auto_settle(printer), job_accel=job_accel)
+    return [worst_case([m, *(e.metrics for e in evs)]) for m, evs in zip(exact, zip(*runs))]
+
+
 @dataclasses.dataclass
 class Evaluation:
     """Everything one evaluation produced (for plots and reports)."""

@@ -245,3 +245,20 @@ def test_the_rules_pick_of_two_shapers_is_tried_like_the_others(space):
     got = [(c.shaper_x, c.freq_x, c.shaper_y, c.freq_y, c.damping_x) for c in rule_shapings(start, fits, space)]
     pick = [("ei", round(55.0 * k, 1), "mzv", round(41.0 * k, 1), z) for k in FREQ_SCALES for z in DAMPINGS]
     assert got[-len(pick):] == pick and len(got) == 3 * len(pick)
+
+
+@pytest.mark.parametrize("job", [None, "part"])
+def test_judging_what_the_screen_passed_simulates_only_the_twins_for_the_same_figures(job):
+    """evaluate_twins (the screen's exact-model figures reused, the ±5 % twins simulated) gives
+    exactly evaluate_many's judgement, per feature class too: the built-in print and the part, a
+    single acceleration and a per-feature configuration."""
+    from ringtune.envs.evaluate import evaluate_many, evaluate_twins
+    printer = load_printer(None)
+    cfgs = [TuneConfig(shaper_x="mzv", freq_x=53.1, shaper_y="mzv", freq_y=42.7, damping_x=0.2, damping_y=0.2,
+                       accel=6300.0),
+            TuneConfig(shaper_x="ei", freq_x=51.4, shaper_y="mzv", freq_y=46.6, accel=4800.0,
+                       feature_accel={"infill": 9000.0, "travel": 8000.0})]
+    exact = evaluate_many(cfgs, printer, job, freq_margin=0.0)
+    for a, b in zip(evaluate_twins(cfgs, exact, printer, job, freq_margin=0.05),
+                    evaluate_many(cfgs, printer, job, freq_margin=0.05)):
+        assert a.to_dict() == b.to_dict() and a.features == b.features

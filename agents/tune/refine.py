@@ -13,6 +13,7 @@ and bounds; each appends what it did to the choice's sentence.
 from __future__ import annotations
 
 import dataclasses
+import json
 from typing import Callable
 
 from ringtune.agents.tune.baselines import Baselines
@@ -22,6 +23,7 @@ from ringtune.agents.tune.shaper_ladder import Ladder, climb, shaping_text
 from ringtune.agents.tune.space import SearchSpace
 from ringtune.agents.tune.stop import Bounds, Stop, measured_stop
 from ringtune.agents.tune.study import StudySettings, evaluator_kwargs
+from ringtune.envs.evaluate import evaluate_twins
 
 
 def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySettings, printer, space: SearchSpace,
@@ -31,13 +33,7 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
     searching per feature, the raise, held to the same baselines — or, where the choice is held to
     none (``--no-baselines``, ``--pick knee``), to the choice itself. ``evaluator``: the study's
     (``f(configs, printer, job, **kwargs)``); ``bounds``: the study's."""
-    kwargs = evaluator_kwargs(settings)
-
-    def evaluate(configs, margin=kwargs.get("freq_margin")):
-        return evaluator(list(configs), printer, settings.job, **({**kwargs, "freq_margin": margin} if kwargs else {}))
-
-    # the default evaluator on the exact model alone: a sound screen where the worst of the twins is judged
-    exact = (lambda configs: evaluate(configs, 0.0)) if kwargs.get("freq_margin") else None
+    evaluate, exact = _evaluators(evaluator, settings, printer)
 
     stop = ladder = None
     if choice.baseline is not None:
@@ -68,3 +64,32 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
                 f"{choice.sentence}; then the features nobody sees raised toward their tops, no visible "
                 f"measure worse {held}"))
     return choice, stop, lift, ladder
+
+
+def _evaluators(evaluator: Callable, settings: StudySettings, printer) -> tuple[Callable, Callable | None]:
+    """(judge, screen): ``judge(configs)`` as the study judges; ``screen(configs)`` the default
+    evaluator on the exact model alone where the judgement is the worst of the printer and its
+    detuned twins (else None). What the screen evaluated and is then judged has only its twins
+    simulated (:func:`ringtune.envs.evaluate.evaluate_twins`: the same figures)."""
+    kwargs = evaluator_kwargs(settings)
+    margin = kwargs.get("freq_margin")
+    seen: dict[str, object] = {}
+
+    def key(cfg) -> str:
+        return json.dumps(cfg.to_dict(), sort_keys=True)
+
+    def judge(configs):
+        configs = list(configs)
+        known = [seen.get(key(c)) for c in configs] if margin else [None]
+        if configs and all(m is not None for m in known):
+            return evaluate_twins(configs, known, printer, settings.job, kwargs["backend"], freq_margin=margin,
+                                  job_accel=kwargs["job_accel"])
+        return evaluator(configs, printer, settings.job, **kwargs)
+
+    def screen(configs):
+        configs = list(configs)
+        out = evaluator(configs, printer, settings.job, **{**kwargs, "freq_margin": 0.0})
+        seen.update((key(c), m) for c, m in zip(configs, out))
+        return out
+
+    return judge, (screen if margin else None)
