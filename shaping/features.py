@@ -45,6 +45,7 @@ def seen_classes(present) -> frozenset:
     unlabelled extrusion is a purge line, not the part."""
     return LABELLED_VISIBLE if LABELLED_VISIBLE & set(present) else VISIBLE
 
+
 #: normalised label (lower case, ``-``/``_``/``/`` as spaces, single spaces) -> class; the
 #: spellings of PrusaSlicer/SuperSlicer, OrcaSlicer/Bambu Studio, Cura, Simplify3D and ideaMaker
 _EXACT = {

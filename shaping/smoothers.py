@@ -60,6 +60,11 @@ def is_smoother(name: str) -> bool:
     return name in KALICO_SMOOTHERS
 
 
+def takes_damping(name: str) -> bool:
+    """A shaper designed for a damping ratio S: not "none", not one of Kalico's smoothers."""
+    return name != "none" and not is_smoother(name)
+
+
 def unit_kernel(name: str) -> Polynomial:
     """Kalico's ``name`` as a polynomial in ``u = τ/T_sm`` on ``[−½, ½]``, scaled to unit integral."""
     table = KALICO_SMOOTHERS[name][0]

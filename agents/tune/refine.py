@@ -80,7 +80,7 @@ def _evaluators(evaluator: Callable, settings: StudySettings, printer) -> tuple[
 
     def judge(configs):
         configs = list(configs)
-        known = [seen.get(key(c)) for c in configs] if margin else [None]
+        known = [seen.get(key(c)) for c in configs]          # empty without a screen
         if configs and all(m is not None for m in known):
             return evaluate_twins(configs, known, printer, settings.job, kwargs["backend"], freq_margin=margin,
                                   job_accel=kwargs["job_accel"])

@@ -35,17 +35,13 @@ from ringtune.agents.tune.versus import QUALITY_LABEL, best_dominating, compare,
 from ringtune.hardware.dialects import export_config, limit_command
 from ringtune.shaping.feature_settings import per_feature_text
 from ringtune.shaping.firmware import Firmware
-from ringtune.shaping.smoothers import is_smoother
-
-def _takes_damping(name: str) -> bool:
-    """A shaper with a damping ratio S (not "none", not one of Kalico's smoothers)."""
-    return name != "none" and not is_smoother(name)
+from ringtune.shaping.smoothers import takes_damping
 
 
 def describe(cfg) -> str:
     """One line: shapers, F, S (per axis where the axes' differ), frequency limit, acceleration and
     the per-axis caps the configuration carries of a TuneConfig."""
-    shaped = [a for a in "xy" if _takes_damping(cfg.axis(a)[0])]
+    shaped = [a for a in "xy" if takes_damping(cfg.axis(a)[0])]
     dampings = {cfg.axis(a)[2] for a in shaped}
     per_axis_s = len(dampings) > 1
 

@@ -44,7 +44,7 @@ from ringtune.agents.tune.space import SearchSpace
 from ringtune.agents.tune.stop import Bounds, passing, with_accel
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.firmware import FIRMWARES
-from ringtune.shaping.smoothers import is_smoother
+from ringtune.shaping.smoothers import takes_damping
 
 #: accelerations tried, as multiples of the choice's
 RUNGS = (1.1, 1.2, 1.35, 1.5, 1.7, 2.0)
@@ -127,7 +127,7 @@ def rule_shapings(cfg: TuneConfig, fits: dict, space: SearchSpace) -> list[TuneC
     stems = [((name, rows["x"][name]), (name, rows["y"][name])) for name in rows["x"] if name in rows["y"]]
     stems.append(((bx.name, bx.freq), (by.name, by.freq)))
     pairs = [((sx, fx * k), (sy, fy * k), z) for (sx, fx), (sy, fy) in stems for k in FREQ_SCALES
-             for z in (DAMPINGS[:1] if is_smoother(sx) or is_smoother(sy) else DAMPINGS)]
+             for z in (DAMPINGS if takes_damping(sx) and takes_damping(sy) else DAMPINGS[:1])]
     if not space.per_axis:        # one shaper for all axes: each shaper at each axis's frequency
         pairs = [(a, a, z) for *pair, z in pairs for a in pair if pair[0][0] == pair[1][0]]
     out: dict = {}

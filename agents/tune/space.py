@@ -49,7 +49,7 @@ from ringtune.shaping.config import FREQ_LIMIT_METHODS, TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.shapers import available_shapers, max_damping, parse_name
-from ringtune.shaping.smoothers import is_smoother
+from ringtune.shaping.smoothers import takes_damping
 
 #: acceleration groups of feature classes searched apart (``visible``: the config's ``accel``); top
 #: surfaces have their own, judged as seen; internal solid infill its own, hidden (a top surface's
@@ -393,15 +393,11 @@ def family_params(name: str, ax: str) -> tuple[str, dict[str, Any]]:
     return name, {}
 
 
-def _takes_damping(family: str) -> bool:
-    return family != "none" and not is_smoother(family)
-
-
 def damping_keys(shaping: dict[str, Any], space: SearchSpace) -> list[str]:
     """The damping parameters a point with these shapers has: ``damping_x``/``damping_y`` for each
     shaped axis (not for Kalico's smoothers, which take none), or ``damping`` where one shaper serves
     all axes and shaping is on."""
-    return [f"damping{s}" for _, s in shaping_axes(space) if _takes_damping(shaping.get(f"shaper{s}", "none"))]
+    return [f"damping{s}" for _, s in shaping_axes(space) if takes_damping(shaping.get(f"shaper{s}", "none"))]
 
 
 def _q(value: float, step: float) -> float:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from itertools import accumulate
 from typing import Any, Callable, Sequence
 
 from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, JUDGED_KEYS, Point, Resolution, judge,
@@ -144,9 +145,8 @@ def passing(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[TuneConf
     keep = [True] * len(configs)
     if screen is not None and configs:
         keep = [failure(p, bases, faster_than, bounds, res) is None for p in evaluated(configs, screen, bounds, "")]
-    if max_judged is not None:
-        kept = [i for i, k in enumerate(keep) if k][:max(max_judged, 0)]
-        keep = [i in kept for i in range(len(configs))]
+    if max_judged is not None:          # the first max_judged of those kept, in order
+        keep = [k and n <= max_judged for k, n in zip(keep, accumulate(keep))]
     todo = [c for c, k in zip(configs, keep) if k]
     judged = iter(evaluated(todo, evaluate, bounds, label) if todo else [])
     out = [next(judged) if k else None for k in keep]
