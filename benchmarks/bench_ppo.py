@@ -7,7 +7,7 @@ in ``ringtune.agents.ppo.policy.BENCH_SEEDS``; training uses seeds < 800000 and 
 measure, extrusion and show-through over the baseline's — MZV on the printer's resonance peaks at
 its own acceleration — beyond tune's resolution, + the constraints: lost steps +10, motor load over
 the 20 % reserve, path error over 0.1 mm), every evaluation judged as ``tune`` judges (the worst of
-the printer and its resonances ±5 %, ``--freq-margin``), of:
+the printer and its resonances ±5 % with damping ×0.75, ``--freq-margin``), of:
 
 - policy: the policy's one-shot recommendation from the printer's simulated resonance test;
 - prior: the answer training starts from (``ringtune.agents.ppo.policy.PRIOR``: MZV on the detected
@@ -120,7 +120,7 @@ def simulated_table(policy_dir: str | None, n: int, workers: int, backend: str, 
     if not policy_dir:
         return {"rows": rows}
     print(f"\n{n} unseen printers (seeds {jobs[0][1]}..{jobs[-1][1]}), backend {backend}, judged on the printer "
-          f"and its resonances ±{margin * 100:g} %, {wall:.0f} s wall")
+          f"and its resonances ±{margin * 100:g} % (damping ×0.75), {wall:.0f} s wall")
     print(f"{'method':<18}{'mean cost':>11}{'worst cost':>12}{'mean / optuna200':>18}")
     ref = np.mean([r["optuna200"] for r in rows])
     summary = {}
@@ -214,7 +214,7 @@ def main(argv=None) -> int:
     ap.add_argument("--baselines-only", action="store_true", help="only optuna200, klipper, none (into --cache)")
     ap.add_argument("--cache", type=Path, help="JSON cache of the policy-independent baselines")
     ap.add_argument("--freq-margin", type=float, default=0.05,
-                    help="judge every evaluation on the printer and its resonances ± this fraction (tune's 0.05)")
+                    help="judge every evaluation on the printer and its resonances ± this fraction, damping ×0.75 (tune's 0.05)")
     a = ap.parse_args(argv)
     data = Path(__file__).resolve().parents[1] / "tests" / "data" / "accel" / "klipper_psd"
     if not a.real_only:

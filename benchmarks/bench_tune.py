@@ -109,7 +109,7 @@ def main() -> int:
     grid = run_grid(space, printer=printer, params=params, batch=128, freq_margin=margin)
     tg = time.perf_counter() - t1
     print(f"dense grid: {len(grid)} points in {tg:.0f} s ({1000 * tg / len(grid):.0f} ms/point); accelerations "
-          f"{top}, {args.grid_freqs} F per axis and shaper, S {zs}; resonances ±{100 * margin:g} % as in the study")
+          f"{top}, {args.grid_freqs} F per axis and shaper, S {zs}; resonances ±{100 * margin:g} % (damping ×0.75) as in the study")
     ok = True
     for w in (float(x) for x in args.weights.split(",")):
         bs = min((p for p in pts if p.feasible), key=lambda p: scalar_objective(p, w))

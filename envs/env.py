@@ -172,7 +172,7 @@ class TuneEnv(gym.Env):
     | ``accel_anchor`` | "absolute" | "absolute" or "model": how the acceleration entry decodes (see Observation Space) |
     | ``weights`` | :data:`ringtune.envs.judgement.DEFAULT_WEIGHTS` | reward weights ``time``, ``worse`` (missing keys take the default) |
     | ``judgement`` | :data:`ringtune.envs.judgement.JUDGEMENT` | resolution and constraints of the judgement (missing keys take tune's default) |
-    | ``freq_margin`` | 0.0 | also judge on the printer with its resonances this fraction lower and higher (tune: 0.05) |
+    | ``freq_margin`` | 0.0 | also judge on the printer with its resonances this fraction lower and higher, damping ×0.75 (tune: 0.05) |
     | ``step_loss_penalty`` | 10.0 | subtracted when the motor loses steps |
     | ``n_bins`` | 24 | spectrum bins per axis |
     | ``spectrum_range`` | (10, 160) | Hz covered by the bins |

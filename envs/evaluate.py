@@ -30,13 +30,14 @@ import os
 from collections import OrderedDict
 from pathlib import Path
 from types import SimpleNamespace
-from typing import Any, Sequence
+from typing import Any, NamedTuple, Sequence
 
 import numpy as np
 
 from ringtune.envs.metrics import CORNER_TAIL, Metrics, compute_metrics, worst_case
 from ringtune.envs.plan_load import plan_load
 from ringtune.envs.printer import load_printer
+from ringtune.envs.printer_model import TWIN_DAMPING
 from ringtune.envs.sim import auto_timestep, simulate_batch
 from ringtune.shaping import gcode, testprints
 from ringtune.shaping.apply import shape_motion
@@ -371,18 +372,47 @@ def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend
     """:func:`evaluate` for many configs, all their windows simulated in one ``simulate_batch``.
 
     ``freq_margin`` > 0 (a fraction, e.g. 0.05): each config is also judged on the printer with
-    every resonance ``freq_margin`` lower and higher (:meth:`Printer.detuned`), and the worst
-    quality counts (:func:`ringtune.envs.metrics.worst_case`), so that a shaper tuned to the edge
-    of its band on the exact model is not preferred to one that survives the drift of a real
-    printer."""
+    every resonance ``freq_margin`` lower and higher and its damping ratios × ``TWIN_DAMPING``
+    (:func:`variant_factors`), and the worst quality counts
+    (:func:`ringtune.envs.metrics.worst_case`), so that a shaper tuned to the edge of its band on
+    the exact model is not preferred to one that survives the drift of a real printer or a damping
+    ratio fitted high."""
     return [m for m, _ in evaluate_judged(configs, printer, job, backend, settle=settle, nthread=nthread,
                                           freq_margin=freq_margin, job_accel=job_accel)]
 
 
-def variant_factors(freq_margin: float) -> tuple[float, ...]:
-    """Resonance factors of the printer variants a configuration is judged on: (1,) for the exact
-    model; (1, 1 − margin, 1 + margin) with a margin (fraction; every mode's frequency × factor)."""
-    return (1.0,) if not freq_margin else (1.0, 1.0 - freq_margin, 1.0 + freq_margin)
+class Variant(NamedTuple):
+    """A printer variant a configuration is judged on: every mode's frequency × ``freq`` and damping
+    ratio × ``damping`` (:meth:`Printer.detuned`)."""
+
+    freq: float
+    damping: float = 1.0
+
+    @property
+    def exact(self) -> bool:
+        """Whether this is the printer as modelled."""
+        return self.freq == 1.0 and self.damping == 1.0
+
+    def of(self, printer):
+        """``printer`` as this variant."""
+        return printer if self.exact else printer.detuned(self.freq, self.damping)
+
+    def words(self) -> str:
+        """The variant in words (plot titles, notes)."""
+        if self.exact:
+            return "the printer as modelled"
+        way = "lower" if self.freq < 1 else "higher"
+        return (f"the printer with its resonances {abs(self.freq - 1) * 100:g} % {way}"
+                + (f" and damping ×{self.damping:g}" if self.damping != 1.0 else ""))
+
+
+def variant_factors(freq_margin: float) -> tuple[Variant, ...]:
+    """The printer variants a configuration is judged on: the exact model alone without a margin;
+    with one (a fraction), also its twins with every mode's frequency × (1 ∓ margin) and damping
+    ratio × :data:`TWIN_DAMPING`."""
+    if not freq_margin:
+        return (Variant(1.0),)
+    return (Variant(1.0), Variant(1.0 - freq_margin, TWIN_DAMPING), Variant(1.0 + freq_margin, TWIN_DAMPING))
 
 
 def evaluate_judged(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
@@ -399,7 +429,7 @@ def evaluate_judged(configs: Sequence[TuneConfig], printer=None, job=None, backe
     printer = resolve_printer(printer)
     if settle is None:
         settle = auto_settle(printer)
-    variants = [printer if f == 1.0 else printer.detuned(f) for f in variant_factors(freq_margin)]
+    variants = [v.of(printer) for v in variant_factors(freq_margin)]
     runs = evaluate_variants(configs, variants, job, backend, settle=settle, nthread=nthread, job_accel=job_accel,
                              job_shapers=job_shapers)
     per_config = [list(evs) for evs in zip(*runs)]        # per config, its Evaluation per variant
@@ -414,7 +444,7 @@ def evaluate_twins(configs: Sequence[TuneConfig], exact: Sequence[Metrics], prin
     the detuned twins are simulated, and the worst of the three counts, as :func:`evaluate_judged`
     takes it (a screen on the exact model that passes costs no second simulation of it)."""
     printer = resolve_printer(printer)
-    twins = [printer.detuned(f) for f in variant_factors(freq_margin) if f != 1.0]
+    twins = [v.of(printer) for v in variant_factors(freq_margin) if not v.exact]
     runs = evaluate_variants(configs, twins, job, backend, settle=auto_settle(printer), job_accel=job_accel)
     return [worst_case([m, *(e.metrics for e in evs)]) for m, evs in zip(exact, zip(*runs))]
 

@@ -194,9 +194,12 @@ def plot_accel(sim, out, *, title: str = "", t0: float = 0.0, baseline: Overlay 
     return _save(plt, fig, out, title, data)
 
 
-def _variant_name(factor: float) -> str:
-    return "the printer as modelled" if factor == 1.0 else \
-        f"the printer with its resonances {abs(factor - 1) * 100:g} % {'lower' if factor < 1 else 'higher'}"
+def _variant_name(variant) -> str:
+    """A variant (:class:`ringtune.envs.evaluate.Variant`, or a bare resonance factor) in words."""
+    if hasattr(variant, "words"):
+        return variant.words()
+    return "the printer as modelled" if variant == 1.0 else \
+        f"the printer with its resonances {abs(variant - 1) * 100:g} % {'lower' if variant < 1 else 'higher'}"
 
 
 def _overlay(base, label: str, v: int, i: int) -> tuple[Overlay | None, float]:

@@ -40,6 +40,14 @@ DEFAULTS: dict[str, Any] = {
 }
 
 
+#: damping ratio factor of the detuned twins a configuration is judged on
+#: (:func:`ringtune.envs.evaluate.variant_factors`): a damping ratio fitted to a resonance test is
+#: less certain than its frequency, and a longer ring after each corner is the side that hurts;
+#: Klipper's calibrate_shaper likewise takes the worst remaining vibration over test dampings
+#: 0.075–0.15 around its 0.1 (its low end, 0.75×)
+TWIN_DAMPING = 0.75
+
+
 @dataclass
 class Mode:
     """One vibration mode of an axis: the nozzle deviation carries ``share`` of a base-excited
@@ -318,14 +326,18 @@ class Printer:
         s = math.sqrt(r)
         return [replace(m, freq=m.freq * s, damping=m.damping * s) for m in ax.modes]
 
-    def detuned(self, factor: float) -> "Printer":
+    def detuned(self, factor: float, damping: float = 1.0) -> "Printer":
         """The same machine with every resonance moved by ``factor`` (each mode's frequency ×
-        factor, so every stiffness × factor²; masses, damping ratios and the motor unchanged): what
-        drift in a real printer looks like (print mass on the bed, toolhead position, an
-        identification off by a few per cent)."""
+        factor, so every stiffness × factor²; masses and the motor unchanged) and every mode's
+        damping ratio × ``damping``: what drift in a real printer looks like (print mass on the
+        bed, toolhead position, an identification off by a few per cent in frequency and more in
+        damping)."""
         if not factor > 0:
             raise RingtuneError(f"detuning factor must be > 0, not {factor}")
-        axes = {a: AxisModel(getattr(self, a).mass, [replace(m, freq=m.freq * factor) for m in getattr(self, a).modes])
+        if not damping > 0:
+            raise RingtuneError(f"damping factor must be > 0, not {damping}")
+        axes = {a: AxisModel(getattr(self, a).mass, [replace(m, freq=m.freq * factor, damping=m.damping * damping)
+                                                     for m in getattr(self, a).modes])
                 for a in ("x", "y")}
         k = None if self.belt_stiffness is None else self.belt_stiffness * factor ** 2
         return replace(self, **axes, belt_stiffness=k)

@@ -33,7 +33,7 @@ def _stiff_printer():
 @pytest.mark.parametrize("name", ["ender3", "voron24", "stiff"])
 def test_batched_variants_give_the_figures_of_one_call_per_variant(name):
     printer = _stiff_printer() if name == "stiff" else load_printer(name)
-    variants = [printer, printer.detuned(0.95), printer.detuned(1.05)]
+    variants = [printer, printer.detuned(0.95, 0.75), printer.detuned(1.05, 0.75)]    # tune's twins
     if name == "stiff":
         assert len({auto_timestep(v) for v in variants}) == 2      # two batches, by step
     batched = evaluate_judged(CONFIGS, printer, None, freq_margin=0.05)

@@ -2,7 +2,7 @@
 from the default printer's files, and the same with the infill and travel each at the top of its
 range (the weakest motor keeps 20 % of its force at the group's own top speed).
 
-Judged as tune judges (the printer and its resonances ±5 %, the outer wall's seams among the
+Judged as tune judges (the printer and its resonances ±5 % with damping ×0.75, the outer wall's seams among the
 windows), each configuration simulated on its own: every visible measure stays the pick's (1 µm or
 5 %; 0.5 points of extrusion), the motors stay within their reserve, the infill's show-through
 stays inside the gap the job's slicer left between it and the outer wall

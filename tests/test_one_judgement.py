@@ -85,6 +85,7 @@ def test_simulate_says_which_judgement_and_margin_zero_is_the_exact_model(capsys
         assert judged["metrics"][key] == getattr(m5, key)
     # the worst of three printers: never better than the exact model's, and each variant listed
     assert [v["factor"] for v in judged["variants"]] == [1.0, 0.95, 1.05]
+    assert [v["damping_factor"] for v in judged["variants"]] == [1.0, 0.75, 0.75]
     assert judged["variants"][0]["metrics"] == exact["metrics"]
     for key in ("path_error_mm", "overshoot_mm", "ringing_mm"):
         assert judged["metrics"][key] == max(v["metrics"][key] for v in judged["variants"])

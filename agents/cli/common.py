@@ -11,7 +11,7 @@ import argparse
 import os
 from pathlib import Path
 
-from ringtune.envs.printer_model import unmeasured_note
+from ringtune.envs.printer_model import TWIN_DAMPING, unmeasured_note
 from ringtune.shaping.builtin_jobs import BUILTIN_JOBS, job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
@@ -73,7 +73,7 @@ def judgement(freq_margin: float) -> str:
     the exact model, or the worst of it and its resonances ± the margin (as ``tune`` judges)."""
     if not freq_margin:
         return "on the exact model (--freq-margin 0)"
-    return (f"worst of the model and its resonances ±{freq_margin * 100:g} % "
+    return (f"worst of the model and its resonances ±{freq_margin * 100:g} % with damping ×{TWIN_DAMPING:g} "
             f"(--freq-margin {freq_margin * 100:g})")
 
 

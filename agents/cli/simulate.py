@@ -13,7 +13,7 @@ synchronise it, "" where not applicable), ``freq_margin``
 (fraction: the metrics are the worst of the printer and its resonances this much lower and
 higher, as ``tune`` judges; 0 = the exact model; default: the ``freq_margin`` a tune best.json
 records, else tune's default), ``judgement`` (that, in words), ``variants``
-(list of {``factor`` (every resonance × it), ``metrics``}), ``windows`` (list of {``t0``, ``t1``,
+(list of {``factor`` (every resonance × it), ``damping_factor`` (every damping ratio × it), ``metrics``}), ``windows`` (list of {``t0``, ``t1``,
 ``kind``, ``step_loss`` and every scalar key of ``metrics``}, each the worst over the variants), ``plots`` (list of PNG paths, empty without
 ``--plot``), ``trace`` (with ``--trace`` only: the CSV path; columns in ``ringtune.envs.trace``; the printer as
 modelled, not a detuned variant), ``job_shapers`` (the job's own shaper changes applied: list of
@@ -73,8 +73,9 @@ the job's quality windows (sharpest corners, fastest zigzags):
   motor_load     largest fraction of that force it was asked for (1 = the edge of step loss)
 
 Every figure is judged as `ringtune tune` judges its trials: the worst of the printer as modelled
-and of the printer with all its resonances --freq-margin per cent lower and higher (default 5; a
-real printer's frequencies drift by that much; a best.json from tune that records another margin
+and of the printer with all its resonances --freq-margin per cent lower and higher and its damping
+ratios ×0.75 (default 5; a real printer's frequencies drift by that much, and a fitted damping ratio
+is less certain still; a best.json from tune that records another margin
 is judged with that one). --freq-margin 0 judges the exact model only. So
 `simulate --config best.json` on tune's printer and job prints tune's figures for that
 configuration, to the digit.
@@ -192,7 +193,8 @@ def run(args, out) -> int:
         "e_sync": FIRMWARES[config.firmware].e_sync,
         "freq_margin": margin,
         "judgement": judged,
-        "variants": [{"factor": f, "metrics": e.metrics.to_dict()} for f, e in zip(factors, evs)],
+        "variants": [{"factor": v.freq, "damping_factor": v.damping, "metrics": e.metrics.to_dict()}
+                     for v, e in zip(factors, evs)],
         "windows": windows,
         "plots": plots,
         "job_shapers": changes,

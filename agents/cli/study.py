@@ -34,7 +34,7 @@ Sweep one factor and see how every shaper of the firmware responds, in print tim
 
 Each shaper is tuned first (Klipper's rule on the printer's simulated resonance test) and then
 the factor is varied. Quality is judged as `ringtune tune` judges it, the worst of the model and
-of its resonances --freq-margin per cent lower and higher (default 5), except for freq-error,
+of its resonances --freq-margin per cent lower and higher with damping ×0.75 (default 5), except for freq-error,
 whose sweep itself moves the shaper against the resonances: that one judges the exact model unless
 --freq-margin is given. The output says which. Writes a PNG (two panels: print time and quality against the factor, one
 line per shaper) and a CSV.

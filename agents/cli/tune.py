@@ -58,7 +58,9 @@ configuration is ruled out when it loses steps, when its nozzle leaves the path 
 would not see), or when it asks a motor for more than 1 − --motor-reserve of the force it has at
 its speed (80 %: modelling error must not become skipped steps). Every configuration is judged on
 the printer and on the printer with all resonances --freq-margin per cent lower and higher
-(default 5): the worst counts, because a real printer's frequencies drift.
+(default 5) and every damping ratio ×0.75: the worst counts, because a real printer's
+frequencies drift and a damping ratio fitted to a resonance test is less certain still (Klipper
+judges its shapers over dampings 0.075–0.15 for the same reason).
 
 The acceleration is searched up to where the weakest motor would need all its force at the job's
 top speed (from the printer's motors and moving masses; --accel-range LO,HI overrides). The

@@ -24,7 +24,7 @@ from ringtune.agents.tune.space import default_space, freq_floor_note, params_fr
 from ringtune.agents.tune.stop import Bounds
 from ringtune.envs.evaluate import resolve_printer
 from ringtune.envs.job_rewrite import rewrite_file
-from ringtune.envs.printer_model import unmeasured_note
+from ringtune.envs.printer_model import TWIN_DAMPING, unmeasured_note
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import Firmware
 from ringtune.shaping.wall_gap import show_through_bound
@@ -363,7 +363,7 @@ def _notes(floor_note: str, st_source: str, margin: float, n_warm: int) -> list[
     notes.append(st_source[0].upper() + st_source[1:] + ".")
     if margin:
         notes.append(f"Every figure is the worst of the printer as modelled and with all its resonances "
-                     f"{margin * 100:g} % lower and higher (--freq-margin; `ringtune simulate --freq-margin "
+                     f"{margin * 100:g} % lower and higher and damping ratios ×{TWIN_DAMPING:g} (--freq-margin; `ringtune simulate --freq-margin "
                      f"{margin * 100:g}` gives the same figures).")
     else:
         notes.append("Every figure is on the exact model (--freq-margin 0).")
