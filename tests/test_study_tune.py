@@ -129,6 +129,33 @@ def test_max_path_error_is_a_constraint_of_the_study(tmp_path, capsys, fake_eval
     assert main(["tune", "--max-path-error", "-1", "--out", str(out)]) == 2
 
 
+def test_a_study_judged_before_the_damped_twins_is_not_resumed_under_them(tmp_path, capsys, fake_evaluator):
+    """A study stored before the twins' damping was recorded was judged with the twins' damping
+    ratios unchanged (×1): resuming it under today's ×0.75 would mix two judgements in one front, so
+    it is refused with one line; with --freq-margin 0 (no twins) the same study resumes."""
+    import optuna
+
+    from ringtune.agents.tune.storage import make_storage
+
+    out = tmp_path / "out"
+    argv = ["tune", "--json", "--out", str(out), "--trials", "8", "--evaluator", fake_evaluator, "--no-baselines"]
+    assert main(argv) == 0
+    res = json.loads(capsys.readouterr().out)
+    st = optuna.load_study(study_name="ringtune", storage=make_storage(res["storage"]))
+    assert st.user_attrs["settings"]["twin_damping"] == 0.75
+    st.set_user_attr("settings", {k: v for k, v in st.user_attrs["settings"].items() if k != "twin_damping"})
+    assert main(argv + ["--trials", "10"]) == 2
+    assert "twins' damping ratios ×1; now twins' damping ratios ×0.75" in capsys.readouterr().err
+
+    zero = tmp_path / "zero"
+    argv0 = ["tune", "--json", "--out", str(zero), "--evaluator", fake_evaluator, "--no-baselines", "--freq-margin", "0"]
+    assert main(argv0 + ["--trials", "8"]) == 0
+    st0 = optuna.load_study(study_name="ringtune", storage=make_storage(json.loads(capsys.readouterr().out)["storage"]))
+    st0.set_user_attr("settings", {k: v for k, v in st0.user_attrs["settings"].items() if k != "twin_damping"})
+    assert main(argv0 + ["--trials", "10"]) == 0
+    assert json.loads(capsys.readouterr().out)["completed_now"] == 2
+
+
 def test_ctrl_c_on_tune_then_rerun_resumes(tmp_path, fake_evaluator):
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "ringtune.agents.cli.main", "tune", "--out", str(out), "--trials", "14", "--no-baselines",

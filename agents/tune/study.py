@@ -48,6 +48,7 @@ from ringtune.agents.tune.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MAX_
 from ringtune.agents.tune.space import SearchSpace, config_from_params, default_space, suggest_params
 from ringtune.agents.tune.storage import _this_worker, make_storage, reap_dead_workers
 from ringtune.envs.printer import load_printer
+from ringtune.envs.printer_model import TWIN_DAMPING
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
@@ -82,6 +83,7 @@ class StudySettings:
     motor_reserve: float = DEFAULT_MOTOR_RESERVE   # fraction of the motors' force kept free; 0 = no bound
     max_show_through_mm: float = DEFAULT_MAX_SHOW_THROUGH_MM   # mm; 0 = no bound
     job_accel: str = "replace"          # "respect": the job's M201/M204 stand; "replace": config.accel replaces them
+    twin_damping: float = TWIN_DAMPING  # the twins' damping factor the study is judged with (recorded, not chosen)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -152,7 +154,10 @@ def open_study(settings: StudySettings, seed: int | None = None):
 
 #: the settings a resumed study must have been run with (the bounds may change: they are applied
 #: again when the results are read)
-_SAME_SETTINGS = ("printer", "job", "firmware", "backend", "evaluator", "space", "freq_margin", "job_accel")
+_SAME_SETTINGS = ("printer", "job", "firmware", "backend", "evaluator", "space", "freq_margin", "job_accel",
+                  "twin_damping")
+#: what a study stored before a setting was recorded was run with
+_BEFORE_RECORDED = {"twin_damping": 1.0}
 
 
 def _check_resumed(study, settings: StudySettings) -> None:
@@ -164,7 +169,10 @@ def _check_resumed(study, settings: StudySettings) -> None:
                             "use another --study name or --out folder", "study_name")
     stored = study.user_attrs.get("settings", {})
     mine = json.loads(json.dumps(settings.to_dict()))
+    stored = {**_BEFORE_RECORDED, **stored}
     for key in _SAME_SETTINGS:
+        if key == "twin_damping" and not mine["freq_margin"]:
+            continue                    # no twins: nothing judged with their damping
         if key in stored and stored[key] != mine[key] and not (key == "space" and mine[key] is None):
             raise RingtuneError(f"study {settings.study_name!r} in this storage was run with a different "
                                 f"{key} ({_setting_text(key, stored[key])}; now "
@@ -177,6 +185,8 @@ def _setting_text(key: str, value) -> str:
     if value is None:
         return {"printer": "the built-in default printer", "job": "the built-in test print",
                 "space": "the default search space"}.get(key, "none")
+    if key == "twin_damping":
+        return f"twins' damping ratios ×{value:g}"
     if key == "space" and isinstance(value, dict):
         acc = value.get("accel")
         return (f"acceleration {acc[0]:g}–{acc[1]:g} mm/s², F X {value.get('freq_x')}, F Y {value.get('freq_y')} Hz"
