@@ -62,7 +62,8 @@ def main() -> int:
     from ringtune.agents.tune.grid import grid_params
     from ringtune.agents.tune.space import SearchSpace
     from ringtune.agents.tune.pareto import pareto_front, scalar_objective
-    from ringtune.agents.tune.study import StudySettings, open_study, study_points
+    from ringtune.agents.tune.study import StudySettings, open_study
+    from ringtune.agents.tune.study_results import study_points
     from ringtune.envs.printer import load_printer
 
     res, wall, out = run_tune(args, "bench-tune-")

@@ -45,7 +45,7 @@ from tqdm import tqdm
 
 from ringtune.agents.cli.common import GCODE_JOB_HELP, firmware_name, gcode_job, progress_interval
 from ringtune.agents.tune.pareto import pareto_front
-from ringtune.agents.tune.study import study_points
+from ringtune.agents.tune.study_results import study_points
 from ringtune.agents.tune.tuning import TuneRequest, tune
 
 NAME = "tune"

@@ -44,7 +44,7 @@ import optuna
 from optuna.trial import TrialState
 
 from ringtune.agents.tune.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MAX_SHOW_THROUGH_MM,
-    DEFAULT_MOTOR_RESERVE, OBJECTIVES, Point, judge_bounds, max_motor_load, metrics_dict, objective_value)
+    DEFAULT_MOTOR_RESERVE, OBJECTIVES, metrics_dict, objective_value)
 from ringtune.agents.tune.space import SearchSpace, config_from_params, default_space, suggest_params
 from ringtune.agents.tune.storage import _this_worker, make_storage, reap_dead_workers
 from ringtune.envs.printer import load_printer
@@ -418,44 +418,6 @@ def _let_finish(procs: list[subprocess.Popen], grace_s: float) -> None:
             p.wait(max(0.1, deadline - time.time()))
         except subprocess.TimeoutExpired:
             p.terminate()
-
-
-# -- reading results -----------------------------------------------------------------------------
-
-def study_points(study, space: SearchSpace | None = None, quality: str | None = None,
-                 max_path_error_mm: float | None = None, motor_reserve: float | None = None,
-                 max_show_through_mm: float | None = None) -> list[Point]:
-    """All complete trials as points, flagged ``step_loss``, ``too_rough`` (path error over
-    ``max_path_error_mm``, mm), ``overloaded`` (motor load over 1 − ``motor_reserve``) or
-    ``shows_through`` (show-through over ``max_show_through_mm``, mm); default bounds: those the
-    study was created with; 0 = no bound. ``quality`` is not used: a point's quality is the
-    study's second objective."""
-    settings = study.user_attrs.get("settings", {})
-    space = space if space is not None else _stored_space(study, settings)
-    reserve = _or_stored(motor_reserve, settings, "motor_reserve")
-    bounds = (_or_stored(max_path_error_mm, settings, "max_path_error_mm"), max_motor_load(reserve),
-              _or_stored(max_show_through_mm, settings, "max_show_through_mm"))
-    return [judge_bounds(_trial_point(t, space), *bounds)
-            for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))]
-
-
-def _stored_space(study, settings: dict) -> SearchSpace:
-    """The search space a stored study was run with (from its settings where it recorded none)."""
-    if "space" in study.user_attrs:
-        return SearchSpace.from_dict(study.user_attrs["space"])
-    return load_space(StudySettings(storage="", **{k: v for k, v in settings.items() if k != "storage"}))
-
-
-def _or_stored(given: float | None, settings: dict, key: str) -> float:
-    """``given``, else the stored study setting ``key`` (0 where it has none)."""
-    return float(settings.get(key, 0.0) or 0.0) if given is None else given
-
-
-def _trial_point(t, space: SearchSpace) -> Point:
-    """A complete trial as a point not yet judged against the bounds."""
-    metrics = dict(t.user_attrs.get("metrics", {}))
-    return Point(config_from_params(t.params, space), float(t.values[0]), float(t.values[1]),
-                 bool(metrics.get("step_loss", False)), metrics, f"trial {t.number}", t.number)
 
 
 if __name__ == "__main__":

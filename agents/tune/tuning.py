@@ -22,6 +22,7 @@ from ringtune.agents.tune.pareto import VISIBLE_KEYS
 from ringtune.agents.tune.refine import refine
 from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config, walked_keys
 from ringtune.agents.tune.stop import Bounds
+from ringtune.agents.tune.study_results import study_points
 from ringtune.envs.evaluate import resolve_printer
 from ringtune.envs.job_rewrite import rewrite_file
 from ringtune.envs.printer_model import TWIN_DAMPING, unmeasured_note
@@ -174,7 +175,7 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     run_, settings, evaluator, bl, store = _study(req, lim, fw.name, printer, space, quality, out_dir, note,
                                                   release, progress)
     baselines = bl.points
-    points = tune_study.study_points(run_.study, space, quality, lim.max_pe, lim.reserve, lim.max_st)
+    points = study_points(run_.study, space, quality, lim.max_pe, lim.reserve, lim.max_st)
     front = pareto.pareto_front(points, also=_also(points, quality))
     choice = pick(front, baselines, lim.how, req.weight, candidates=points)
     choice, stop, lift, ladder = refine(choice, bl, evaluator, settings, printer, space,
