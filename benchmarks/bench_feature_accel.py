@@ -47,6 +47,7 @@ from ringtune.agents.tune.space import ACCEL_GROUPS, HIDDEN_CORNERS, default_spa
 from ringtune.envs.evaluate import evaluate_many, planned_job
 from ringtune.envs.plan_load import plan_load
 from ringtune.envs.printer import load_printer, printer_from_dict
+from ringtune.envs.printer_model import TWIN_DAMPING
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.features import VISIBLE as SEEN
@@ -217,7 +218,7 @@ def main() -> int:
         single_cfg, single = min(ok, key=lambda cm: cm[1].print_time_s)
     feat_cfg, feat, space = per_feature(printer, job, single_cfg, single)
     print(f"printer {printer.name}, job {job or 'built-in test print'}; judged on the printer and its resonances "
-          f"±{MARGIN * 100:g} % (worst counts); visible measures in µm (extrusion in %)")
+          f"±{MARGIN * 100:g} % with damping ×{TWIN_DAMPING:g} (worst counts); visible measures in µm (extrusion in %)")
     print(f"  {'':<20} {'time':>10} " + " ".join(f"{k[:8]:>8}" for k in VISIBLE)
           + " show-thr hid.ext  motor   (extrusion: visible classes; hid.ext: worst % of hidden ones)")
     print(row("Klipper's pick", base) + f"  ({kcfg.accel:.0f} mm/s²)")

@@ -296,13 +296,21 @@ def _unpack(layout, init, state, nq, printers, systems, motions, nsteps, h, dec,
     for b, i, off, kin in layout:
         sysm, n = systems[id(printers[i])], systems[id(printers[i])].n
         rows = np.arange(0, nsteps[i] + 1, dec)
-        st = np.concatenate([init[b][None], state[b, :nsteps[i]]])[rows]
         t = motions[i].start_time + rows * h
         kin = tuple(k[rows] for k in kin) if dec > 1 else kin
-        qs, qds = st[:, 1 + off:1 + off + n], st[:, 1 + nq + off:1 + nq + off + n]
+        qs, qds = (_rows(init[b], state[b], rows, slice(c, c + n)) for c in (1 + off, 1 + nq + off))
         if sysm.scale is not None:
             qs, qds = qs * sysm.scale, qds * sysm.scale
         results[i] = post_process(printers[i], sysm, kin, t, qs, qds, "mujoco")
+
+
+def _rows(init_row: np.ndarray, states: np.ndarray, rows: np.ndarray, cols: slice) -> np.ndarray:
+    """Columns ``cols`` of the states at steps ``rows`` (step 0 the initial state, step k the
+    rollout's state k − 1), copying only those columns of one replica, not the batch row's."""
+    out = np.empty((len(rows), cols.stop - cols.start))
+    out[0] = init_row[cols]                   # rows[0] is step 0
+    out[1:] = states[rows[1:] - 1, cols]
+    return out
 
 
 def _rollout(printers, systems, motions, h, dec, tail, initial, nthread):
