@@ -22,8 +22,9 @@ from ringtune.agents.tune.choice import BASELINE_NAMES, Choice
 from ringtune.agents.tune.shaper_ladder import Ladder, climb, shaping_text
 from ringtune.agents.tune.space import SearchSpace
 from ringtune.agents.tune.stop import Bounds, Stop, measured_stop
-from ringtune.agents.tune.study import StudySettings, evaluator_kwargs
+from ringtune.agents.tune.study import DEFAULT_EVALUATOR, StudySettings, evaluator_kwargs
 from ringtune.envs.evaluate import evaluate_twins
+from ringtune.envs.forked import split_map
 
 
 def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySettings, printer, space: SearchSpace,
@@ -78,17 +79,22 @@ def _evaluators(evaluator: Callable, settings: StudySettings, printer) -> tuple[
     def key(cfg) -> str:
         return json.dumps(cfg.to_dict(), sort_keys=True)
 
+    # the real simulation's batches are split over the cores (the same figures); an injected
+    # evaluator runs as given, in this process
+    split = split_map if settings.evaluator == DEFAULT_EVALUATOR else (lambda fn, items: list(fn(list(items))))
+
     def judge(configs):
         configs = list(configs)
         known = [seen.get(key(c)) for c in configs]          # empty without a screen
         if configs and all(m is not None for m in known):
-            return evaluate_twins(configs, known, printer, settings.job, kwargs["backend"], freq_margin=margin,
-                                  job_accel=kwargs["job_accel"])
-        return evaluator(configs, printer, settings.job, **kwargs)
+            return split(lambda part: evaluate_twins([c for c, _ in part], [m for _, m in part], printer,
+                                                     settings.job, kwargs["backend"], freq_margin=margin,
+                                                     job_accel=kwargs["job_accel"]), list(zip(configs, known)))
+        return split(lambda part: evaluator(part, printer, settings.job, **kwargs), configs)
 
     def screen(configs):
         configs = list(configs)
-        out = evaluator(configs, printer, settings.job, **{**kwargs, "freq_margin": 0.0})
+        out = split(lambda part: evaluator(part, printer, settings.job, **{**kwargs, "freq_margin": 0.0}), configs)
         seen.update((key(c), m) for c, m in zip(configs, out))
         return out
 
