@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -221,9 +222,12 @@ def _install_sigint(flag: _Stop):
 
 
 def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any = None,
-               on_trial: Callable[[Any], None] | None = None, stop: _Stop | None = None) -> int:
+               on_trial: Callable[[Any], None] | None = None, stop: _Stop | None = None,
+               nthread: int | None = None) -> int:
     """Run trials of the study until it has ``n_trials`` complete ones (or Ctrl-C). Returns the
-    number this worker completed. Each extra worker uses seed + 1009·index."""
+    number this worker completed. Each extra worker uses seed + 1009·index. ``nthread``: simulation
+    threads of the default evaluator (None: its own choice; workers sharing the cores take their
+    share: the figures do not depend on it)."""
     seed = None if settings.seed is None else settings.seed + 1009 * worker_index
     study = open_study(settings, seed=seed)
     evaluator = resolve_evaluator(settings.evaluator)
@@ -249,7 +253,7 @@ def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any =
         params = suggest_params(trial, space)
         config = config_from_params(params, space)
         try:
-            m = _call_evaluator(evaluator, settings, config, printer)
+            m = _call_evaluator(evaluator, settings, config, printer, nthread)
         except KeyboardInterrupt:
             trial.set_user_attr("interrupted", True)
             raise
@@ -314,19 +318,24 @@ def evaluator_kwargs(settings: StudySettings) -> dict:
     return {"backend": settings.backend, "freq_margin": settings.freq_margin, "job_accel": settings.job_accel}
 
 
-def _call_evaluator(evaluator, settings: StudySettings, config: TuneConfig, printer):
-    out = evaluator([config], printer if printer is not None else settings.printer, settings.job,
-                    **evaluator_kwargs(settings))
+def _call_evaluator(evaluator, settings: StudySettings, config: TuneConfig, printer, nthread: int | None = None):
+    kwargs = evaluator_kwargs(settings)
+    if nthread is not None and settings.evaluator == DEFAULT_EVALUATOR:
+        kwargs["nthread"] = nthread
+    out = evaluator([config], printer if printer is not None else settings.printer, settings.job, **kwargs)
     return out[0]
 
 
 def _worker_main(argv: list[str]) -> int:
-    """``python -m ringtune.agents.tune.study worker INDEX`` with the settings as JSON on stdin."""
-    if len(argv) != 2 or argv[0] != "worker":
-        print("usage: python -m ringtune.agents.tune.study worker INDEX  (settings JSON on stdin)", file=sys.stderr)
+    """``python -m ringtune.agents.tune.study worker INDEX [WORKERS]`` with the settings as JSON on
+    stdin (``WORKERS``: how many share the cores; each then simulates with its share of threads)."""
+    if len(argv) not in (2, 3) or argv[0] != "worker":
+        print("usage: python -m ringtune.agents.tune.study worker INDEX [WORKERS]  (settings JSON on stdin)",
+              file=sys.stderr)
         return 2
+    share = None if len(argv) == 2 else max(1, (os.cpu_count() or 1) // max(1, int(argv[2])))
     try:
-        run_worker(StudySettings(**json.loads(sys.stdin.read())), int(argv[1]))
+        run_worker(StudySettings(**json.loads(sys.stdin.read())), int(argv[1]), nthread=share)
     except KeyboardInterrupt:
         return 130
     except RingtuneError as exc:
@@ -402,7 +411,7 @@ def _run_workers(settings: StudySettings, study, workers: int,
 def _spawn_workers(settings: dict, workers: int) -> list[subprocess.Popen]:
     """``workers`` worker processes (:func:`_worker_main`), each given ``settings`` as JSON on stdin."""
     payload = json.dumps(settings)
-    procs = [subprocess.Popen([sys.executable, "-m", "ringtune.agents.tune.study", "worker", str(i)],
+    procs = [subprocess.Popen([sys.executable, "-m", "ringtune.agents.tune.study", "worker", str(i), str(workers)],
                               stdin=subprocess.PIPE, text=True) for i in range(workers)]
     for p in procs:
         p.stdin.write(payload)
