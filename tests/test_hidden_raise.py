@@ -9,11 +9,15 @@ from types import SimpleNamespace
 
 import pytest
 
+from ringtune.agents.tune.baselines import Baselines
+from ringtune.agents.tune.choice import Choice
 from ringtune.agents.tune.feature_space import feature_space
 from ringtune.agents.tune.hidden_raise import FINER, LEVELS, raise_hidden
 from ringtune.agents.tune.pareto import point_from_metrics
+from ringtune.agents.tune.refine import refine
 from ringtune.agents.tune.space import config_from_params, default_space, params_from_config
 from ringtune.agents.tune.stop import Bounds
+from ringtune.agents.tune.study import StudySettings
 from ringtune.envs.printer import load_printer
 from ringtune.shaping.config import TuneConfig
 
@@ -137,3 +141,39 @@ def test_screening_on_the_exact_model_changes_the_walk_in_nothing_but_its_cost(s
     # beyond the show-through bound and what saves no time are never judged
     assert lift.screened == sum(screened) == n_plain and lift.evaluations == sum(judged) < n_plain
     assert f"{lift.screened} screened on the exact model first" in lift.sentence()
+
+
+def test_tunes_walk_spends_no_visible_quality_the_choice_had(space):
+    """``tune`` (refine) holds the walk to the baselines and to the choice it starts from: with
+    Klipper's pick rippling 0.08 mm and the choice 0.05, infill above RIPPLE_TOP (ripple 0.08: no
+    worse than the pick, worse than the choice) is not taken — the walk held to the pick alone takes
+    it — while the groups that change no visible measure still go to their tops."""
+    start_cfg = _start(space)
+    start = point_from_metrics(start_cfg, _metrics(start_cfg), max_path_error_mm=0.1, max_motor_load=0.8,
+                               max_show_through_mm=0.2)
+    pick_m = _metrics(start_cfg)
+    pick_m.ripple_mm, pick_m.print_time_s = 0.08, pick_m.print_time_s + 100.0
+    pick = point_from_metrics(start_cfg, pick_m, max_path_error_mm=0.1, max_motor_load=0.8, max_show_through_mm=0.2)
+    tops = {g: hi for g, _lo, hi in space.feature_accel}
+
+    def metrics(c):
+        """The visible walls above the choice's acceleration ripple more than the pick (the
+        measured stop keeps it)."""
+        m = _metrics(c)
+        m.ripple_mm = 0.09 if c.accel > start_cfg.accel else m.ripple_mm
+        return m
+
+    alone = raise_hidden(start, {"klipper": pick}, lambda cs: [metrics(c) for c in cs], space, BOUNDS)
+    assert params_from_config(alone.point.config, space)["accel_infill"] == tops["infill"] > RIPPLE_TOP
+
+    choice = Choice(start, "fastest-at-baseline-quality", "klipper", "as fast as the pick", ("klipper",))
+    bl = Baselines(points={"klipper": pick}, labels={"klipper": "Klipper's pick"})
+    settings = StudySettings(storage="", evaluator="tests.fake:evaluate", n_trials=200)
+    got, stop, lift, _ladder = refine(choice, bl, lambda cs, printer, job: [metrics(c) for c in cs], settings,
+                                      load_printer(None), space, BOUNDS)
+    assert not stop.moved
+    params = params_from_config(got.point.config, space)
+    assert lift.moved and params["accel_infill"] <= RIPPLE_TOP
+    assert got.point.metrics["ripple_mm"] == pytest.approx(0.05)
+    assert params["accel_travel"] == tops["travel"] and params["accel_solid_infill"] == tops["solid_infill"]
+    assert "than the baseline's or the choice's own before" in got.sentence

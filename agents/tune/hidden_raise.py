@@ -12,9 +12,10 @@ their own ripple, corners and extrusion); then the job's corner rule (the visibl
 the corners nobody sees (:data:`~ringtune.agents.tune.space.HIDDEN_CORNERS`): their corner rule at
 those levels of the way to its range's top, each with minimum_cruise_ratio at its range's bottom (no
 cruise smoothing) and as it is. Every candidate is judged exactly as every trial (the study's
-evaluator, frequency margin and bounds) and held to the same baselines as the choice: every bound
-kept (step loss, motor reserve, show-through, path error), no visible measure worse than any of them
-at the resolution (the job's and each visible class's own,
+evaluator, frequency margin and bounds) and held to the same baselines as the choice and to the
+choice it starts from (``tune`` passes both in ``bases``: the walk spends no visible quality, the
+top surfaces being seen): every bound kept (step loss, motor reserve, show-through, path error),
+no visible measure worse than any of them at the resolution (the job's and each visible class's own,
 :data:`~ringtune.agents.tune.pareto.JUDGED_KEYS`), print time lower than the current choice's. The
 fastest candidate that passes becomes the choice; where none does, the group stays where it was.
 Where the judgement is the worst of the printer and its detuned twins, each batch is screened on the

@@ -7,7 +7,8 @@
 3. Per feature, the walk where nobody looks (:mod:`ringtune.agents.tune.hidden_raise`).
 
 Each is held to the baselines the choice was held to, with the study's evaluator, frequency margin
-and bounds; each appends what it did to the choice's sentence.
+and bounds, the walk also to the choice it starts from (it spends no visible quality: the top
+surfaces are seen); each appends what it did to the choice's sentence.
 """
 
 from __future__ import annotations
@@ -31,8 +32,8 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
            bounds: Bounds) -> tuple[Choice, Stop | None, Raise | None, Ladder | None]:
     """(the choice, the measured stop or None, the raise where nobody looks or None, the shaper
     ladder or None): a choice held to baselines climbs the ladder and takes the measured stop; then,
-    searching per feature, the raise, held to the same baselines — or, where the choice is held to
-    none (``--no-baselines``, ``--pick knee``), to the choice itself. ``evaluator``: the study's
+    searching per feature, the raise, held to the same baselines and to the choice it starts from
+    (or, where the choice is held to none: ``--no-baselines``, ``--pick knee``, to that alone). ``evaluator``: the study's
     (``f(configs, printer, job, **kwargs)``); ``bounds``: the study's."""
     evaluate, exact = _evaluators(evaluator, settings, printer)
 
@@ -57,10 +58,13 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
         bases = {"choice": choice.point}
     lift = None
     if space.per_feature:
-        lift = raise_hidden(choice.point, bases, evaluate, space, bounds, max_evaluations=settings.n_trials,
-                            screen=exact)
+        # quality is spent only where nobody looks: every visible measure also no worse than the
+        # choice's own before the walk (the top surfaces are seen)
+        lift = raise_hidden(choice.point, {**bases, "choice": choice.point}, evaluate, space, bounds,
+                            max_evaluations=settings.n_trials, screen=exact)
         if lift.moved:
-            held = "than the baseline's" if choice.baseline is not None else "than the choice's own"
+            held = ("than the baseline's or the choice's own before" if choice.baseline is not None
+                    else "than the choice's own")
             choice = dataclasses.replace(choice, point=lift.point, sentence=(
                 f"{choice.sentence}; then the features nobody sees raised toward their tops, no visible "
                 f"measure worse {held}"))
