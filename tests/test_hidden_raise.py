@@ -82,15 +82,20 @@ def test_each_group_goes_as_high_as_the_judgement_allows(space):
     assert got["accel_solid_infill"] == tops["solid_infill"] and got["accel_travel"] == tops["travel"]
     # the inner walls and the top surfaces after them (here nothing they would make worse)
     assert got["accel_hidden_walls"] == tops["hidden_walls"] and got["accel_top_surface"] == tops["top_surface"]
-    # the corners nobody sees: the highest level within the show-through bound, no cruise smoothing
+    # the corners nobody sees: the highest level within the show-through bound, then the highest of
+    # the finer steps into the gap above it, no cruise smoothing
+    within = (lambda c: SHOW_PER_CORNER * c <= BOUNDS.max_show_through_mm)
     corner_levels = [5.0 + f * (space.hidden_corner[1] - 5.0) for f in LEVELS]
-    want = max(round(c * 2) / 2 for c in corner_levels if SHOW_PER_CORNER * c <= BOUNDS.max_show_through_mm)
+    kept_c = max(c for c in corner_levels if within(c))
+    above_c = min(c for c in corner_levels if not within(c))
+    want = max(round(c * 2) / 2 for c in [kept_c] + [kept_c + f * (above_c - kept_c) for f in FINER] if within(c))
+    assert want > round(kept_c * 2) / 2
     assert got["corner_hidden"] == want and got["min_cruise_ratio_hidden"] == 0.0
     assert lift.moved and lift.point.print_time_s < lift.start.print_time_s
     # one batch each: infill (and its finer steps: the only group stopped below its top), solid
     # infill, travel, inner walls, top surfaces, the job's corner rule (it saves no time here: not
-    # taken), the corners nobody sees
-    assert lift.evaluations == sum(calls) and len(calls) == 8
+    # taken; its finer steps neither), the corners nobody sees and their finer steps
+    assert lift.evaluations == sum(calls) and len(calls) == 10
     assert [k for k, _a, _b in lift.raised] == ["accel_infill", "accel_solid_infill", "accel_travel",
                                                 "accel_hidden_walls", "accel_top_surface", "corner_hidden",
                                                 "min_cruise_ratio_hidden"]

@@ -10,8 +10,8 @@ the highest level kept: first those nobody sees (infill, solid infill, travel), 
 (they abut the outer wall: judged by what they push into it) and the top surfaces (seen: judged by
 their own ripple, corners and extrusion); then the job's corner rule (the visible walls' too) and
 the corners nobody sees (:data:`~ringtune.agents.tune.space.HIDDEN_CORNERS`): their corner rule at
-those levels of the way to its range's top, each with minimum_cruise_ratio at its range's bottom (no
-cruise smoothing) and as it is. Every candidate is judged exactly as every trial (the study's
+those levels of the way to its range's top and then the finer steps into the gap, each with
+minimum_cruise_ratio at its range's bottom (no cruise smoothing) and as it is. Every candidate is judged exactly as every trial (the study's
 evaluator, frequency margin and bounds) and held to the same baselines as the choice and to the
 choice it starts from (``tune`` passes both in ``bases``: the walk spends no visible quality, the
 top surfaces being seen): every bound kept (step loss, motor reserve, show-through, path error),
@@ -110,12 +110,18 @@ def batch(key: str, params: dict[str, Any], space: SearchSpace) -> list[dict[str
     if key not in CORNERS:
         top = dict((f"accel_{g}", hi) for g, _lo, hi in space.feature_accel)[key]
         return _levels(params, key, top)
-    mcr_key, corner_range, mcr_range = CORNERS[key]
-    out = _levels(params, key, getattr(space, corner_range)[1]) + [dict(params)]
+    return _with_ratios(key, _levels(params, key, getattr(space, CORNERS[key][1])[1]) + [dict(params)], params,
+                        space)
+
+
+def _with_ratios(key: str, cands: list[dict[str, Any]], params: dict[str, Any], space: SearchSpace) -> list[dict]:
+    """Corner-rule candidates each with its minimum_cruise_ratio at its range's bottom and as it is
+    (the current point itself left out)."""
+    mcr_key, _corner_range, mcr_range = CORNERS[key]
     if getattr(space, mcr_range) is not None and mcr_key in params:
         ratios = sorted({getattr(space, mcr_range)[0], float(params[mcr_key])})
-        out = [dict(p, **{mcr_key: r}) for p in out for r in ratios]
-    return [p for p in out if p != params]
+        cands = [dict(p, **{mcr_key: r}) for p in cands for r in ratios]
+    return [p for p in cands if p != params]
 
 
 def _levels(params: dict[str, Any], key: str, top: float) -> list[dict[str, Any]]:
@@ -156,12 +162,18 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
             break
         cands = batch(key, params, space)
         best = judged(cands)
-        if key not in CORNERS:          # between the highest level kept and the lowest one above it
-            kept = float(params_from_config(best.config, space)[key]) if best else float(params[key])
+        # then between the highest level kept and the lowest one above it
+        kept = float(params_from_config(best.config, space)[key]) if best else float(params[key])
+        if key not in CORNERS:
             step = space.accel_step         # the levels as the configurations ran them
             above = [v for v in (round(float(p[key]) / step) * step for p in cands) if v > kept]
             if above:
                 best = judged([dict(params, **{key: kept + f * (min(above) - kept)}) for f in FINER]) or best
+        else:
+            above = [float(p[key]) for p in cands if float(p[key]) > kept]
+            if above:
+                gap = [dict(params, **{key: kept + f * (min(above) - kept)}) for f in FINER]
+                best = judged(_with_ratios(key, gap, params, space)) or best
         if best is not None:
             new = params_from_config(best.config, space)
             walk.raised += [(k, params[k], new[k]) for k in (key, CORNERS.get(key, ("",))[0])
