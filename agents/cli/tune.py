@@ -80,7 +80,8 @@ surfaces) is walked up toward the top of its range, where the weakest motor keep
 that group's own top speed; then the corner rule (Klipper's square_corner_velocity, Marlin's
 junction deviation or jerk, RRF's M566) and Klipper's minimum_cruise_ratio, for the job and apart
 for the corners nobody sees (infill, support, solid infill, travel): each step judged as every
-trial, kept only with no visible measure worse. One shaper configuration serves the whole job. With --gcode,
+trial, kept only with no visible measure worse than the baselines' or than the choice's own before
+the walk (it spends no visible quality). One shaper configuration serves the whole job. With --gcode,
 job.gcode beside best.json is the job with the choice written in (as `ringtune rewrite` writes it).
 
 Baselines: Klipper's rule — the recommendation recorded from your resonance files by `ringtune
@@ -162,7 +163,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="an acceleration per feature group (infill, solid infill, travel, inner walls, top "
                         "surfaces; the visible walls take the main one), the corner rule and minimum_cruise_ratio, "
                         "and apart for the corners nobody sees, walked up from the study's choice as far as every "
-                        "visible measure allows (default auto: when the acceleration is searched and the job has "
+                        "visible measure stays the choice's own (default auto: when the acceleration is searched and the job has "
                         "features nobody sees)")
     p.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco", help="physics (default mujoco)")
     p.add_argument("--evaluator", metavar="MODULE:FUNC", default=None,
