@@ -11,10 +11,11 @@ synchronisation on, empty where it has none off by default)} (definitions: ringt
 ``e_timing`` (the firmware's extruder under shaping: shaped, delayed or neither), ``e_sync`` (how to
 synchronise it, "" where not applicable), ``freq_margin``
 (fraction: the metrics are the worst of the printer and its resonances this much lower and
-higher, as ``tune`` judges; 0 = the exact model; default: the ``freq_margin`` a tune best.json
-records, else tune's default), ``judgement`` (that, in words), ``variants``
-(list of {``factor`` (every resonance × it), ``damping_factor`` (every damping ratio × it), ``metrics``}), ``windows`` (list of {``t0``, ``t1``,
-``kind``, ``step_loss`` and every scalar key of ``metrics``}, each the worst over the variants), ``plots`` (list of PNG paths, empty without
+higher, damping ×0.75, as ``tune`` judges; 0 = the exact model; default: the ``freq_margin`` a tune
+best.json records, else tune's default), ``judgement`` (that, in words), ``variants`` (list of
+{``factor`` (every resonance × it), ``damping_factor`` (every damping ratio × it), ``metrics``}),
+``windows`` (list of {``t0``, ``t1``, ``kind``, ``step_loss`` and every scalar key of ``metrics``},
+each the worst over the variants), ``plots`` (list of PNG paths, empty without
 ``--plot``), ``trace`` (with ``--trace`` only: the CSV path; columns in ``ringtune.envs.trace``; the printer as
 modelled, not a detuned variant), ``job_shapers`` (the job's own shaper changes applied: list of
 {``time``, ``config``}, empty when the job sets none), ``job_accel`` (``respect`` or ``replace``),

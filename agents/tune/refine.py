@@ -33,8 +33,8 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
     """(the choice, the measured stop or None, the raise where nobody looks or None, the shaper
     ladder or None): a choice held to baselines climbs the ladder and takes the measured stop; then,
     searching per feature, the raise, held to the same baselines and to the choice it starts from
-    (or, where the choice is held to none: ``--no-baselines``, ``--pick knee``, to that alone). ``evaluator``: the study's
-    (``f(configs, printer, job, **kwargs)``); ``bounds``: the study's."""
+    (or, where the choice is held to none: ``--no-baselines``, ``--pick knee``, to that alone).
+    ``evaluator``: the study's (``f(configs, printer, job, **kwargs)``); ``bounds``: the study's."""
     evaluate, exact = _evaluators(evaluator, settings, printer)
 
     stop = ladder = None
@@ -85,7 +85,7 @@ def _evaluators(evaluator: Callable, settings: StudySettings, printer) -> tuple[
 
     # the real simulation's batches are split over the cores (the same figures); an injected
     # evaluator runs as given, in this process
-    split = split_map if settings.evaluator == DEFAULT_EVALUATOR else (lambda fn, items: list(fn(list(items))))
+    split = split_map if settings.evaluator == DEFAULT_EVALUATOR else _in_process
 
     def judge(configs):
         configs = list(configs)
@@ -103,3 +103,8 @@ def _evaluators(evaluator: Callable, settings: StudySettings, printer) -> tuple[
         return out
 
     return judge, (screen if margin else None)
+
+
+def _in_process(fn, items) -> list:
+    """``fn(items)`` here (:func:`ringtune.envs.forked.split_map`'s signature, unsplit)."""
+    return list(fn(list(items)))

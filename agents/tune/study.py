@@ -54,10 +54,10 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
 #: fraction: by default every configuration is judged on the printer and on the printer with all
-#: resonances 5 % lower and 5 % higher (damping ratios × TWIN_DAMPING), and the worst quality counts (``evaluate_many``'s
-#: ``freq_margin``): a real printer's frequencies drift by that much (print mass on the bed,
-#: toolhead position, a resonance test's 1.5 Hz bins), and a shaper at the edge of its band on the
-#: exact model does not survive it
+#: resonances 5 % lower and 5 % higher (damping ratios × TWIN_DAMPING), and the worst quality
+#: counts (``evaluate_many``'s ``freq_margin``): a real printer's frequencies drift by that much
+#: (print mass on the bed, toolhead position, a resonance test's 1.5 Hz bins), its damping is less
+#: certain still, and a shaper at the edge of its band on the exact model does not survive it
 DEFAULT_FREQ_MARGIN = 0.05
 DEFAULT_EVALUATOR = "ringtune.envs.evaluate:evaluate_many"
 
