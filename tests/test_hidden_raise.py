@@ -12,7 +12,7 @@ import pytest
 from ringtune.agents.tune.baselines import Baselines
 from ringtune.agents.tune.choice import Choice
 from ringtune.agents.tune.feature_space import feature_space
-from ringtune.agents.tune.hidden_raise import FINER, LEVELS, raise_hidden
+from ringtune.agents.tune.hidden_raise import FINER, LEVELS, batch, raise_hidden
 from ringtune.agents.tune.pareto import point_from_metrics
 from ringtune.agents.tune.refine import refine
 from ringtune.agents.tune.space import config_from_params, default_space, params_from_config
@@ -92,13 +92,13 @@ def test_each_group_goes_as_high_as_the_judgement_allows(space):
     assert want > round(kept_c * 2) / 2
     assert got["corner_hidden"] == want and got["min_cruise_ratio_hidden"] == 0.0
     assert lift.moved and lift.point.print_time_s < lift.start.print_time_s
-    # one batch each: infill (and its finer steps: the only group stopped below its top), solid
-    # infill, travel, inner walls, top surfaces, the job's corner rule (it saves no time here: not
-    # taken; its finer steps neither), the corners nobody sees and their finer steps
+    # one batch each: the corners nobody sees and their finer steps, infill (and its finer steps:
+    # the only group stopped below its top), solid infill, travel, inner walls, top surfaces, the
+    # job's corner rule (it saves no time here: not taken; its finer steps neither)
     assert lift.evaluations == sum(calls) and len(calls) == 10
-    assert [k for k, _a, _b in lift.raised] == ["accel_infill", "accel_solid_infill", "accel_travel",
-                                                "accel_hidden_walls", "accel_top_surface", "corner_hidden",
-                                                "min_cruise_ratio_hidden"]
+    assert [k for k, _a, _b in lift.raised] == ["corner_hidden", "min_cruise_ratio_hidden", "accel_infill",
+                                                "accel_solid_infill", "accel_travel", "accel_hidden_walls",
+                                                "accel_top_surface"]
     assert "infill 5000 → " in lift.sentence() and lift.to_dict()["to_print_time_s"] == lift.point.print_time_s
 
 
@@ -116,8 +116,13 @@ def test_the_walk_stops_at_its_budget(space):
                                max_show_through_mm=0.2)
     lift = raise_hidden(start, {"klipper": start}, lambda cs: [_metrics(c) for c in cs], space, BOUNDS,
                         max_evaluations=5)
-    # the infill's batch (4 levels) and its finer steps (2) start before the budget is spent, nothing after
-    assert lift.cut and lift.evaluations == 6 and [k for k, _a, _b in lift.raised] == ["accel_infill"]
+    # the first step, the corners nobody sees (4 levels and the corner as it is, each with and
+    # without cruise smoothing, less the start itself) and its finer steps (2, each both ways),
+    # starts before the budget is spent; nothing after
+    first = len(batch("corner_hidden", params_from_config(start_cfg, space), space)) + 2 * len(FINER)
+    assert first == 9 + 4
+    assert lift.cut and lift.evaluations == first
+    assert [k for k, _a, _b in lift.raised] == ["corner_hidden", "min_cruise_ratio_hidden"]
     assert "budget of 5 evaluations" in lift.sentence() and lift.to_dict()["cut"] is True
 
 
