@@ -47,7 +47,7 @@ from ringtune.agents.tune.space import ACCEL_GROUPS, HIDDEN_CORNERS, default_spa
 from ringtune.envs.evaluate import evaluate_many, planned_job
 from ringtune.envs.plan_load import plan_load
 from ringtune.envs.printer import load_printer, printer_from_dict
-from ringtune.envs.printer_model import TWIN_DAMPING
+from ringtune.envs.variants import TWIN_DAMPING
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.features import VISIBLE as SEEN

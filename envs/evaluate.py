@@ -30,15 +30,15 @@ import os
 from collections import OrderedDict
 from pathlib import Path
 from types import SimpleNamespace
-from typing import Any, NamedTuple, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
 from ringtune.envs.metrics import CORNER_TAIL, Metrics, compute_metrics, worst_case
 from ringtune.envs.plan_load import plan_load
 from ringtune.envs.printer import load_printer
-from ringtune.envs.printer_model import TWIN_DAMPING
 from ringtune.envs.sim import auto_timestep, simulate_batch
+from ringtune.envs.variants import variant_factors
 from ringtune.shaping import gcode, testprints
 from ringtune.shaping.apply import shape_motion
 from ringtune.shaping.builtin_jobs import job_path
@@ -379,40 +379,6 @@ def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend
     ratio fitted high."""
     return [m for m, _ in evaluate_judged(configs, printer, job, backend, settle=settle, nthread=nthread,
                                           freq_margin=freq_margin, job_accel=job_accel)]
-
-
-class Variant(NamedTuple):
-    """A printer variant a configuration is judged on: every mode's frequency × ``freq`` and damping
-    ratio × ``damping`` (:meth:`Printer.detuned`)."""
-
-    freq: float
-    damping: float = 1.0
-
-    @property
-    def exact(self) -> bool:
-        """Whether this is the printer as modelled."""
-        return self.freq == 1.0 and self.damping == 1.0
-
-    def of(self, printer):
-        """``printer`` as this variant."""
-        return printer if self.exact else printer.detuned(self.freq, self.damping)
-
-    def words(self) -> str:
-        """The variant in words (plot titles, notes)."""
-        if self.exact:
-            return "the printer as modelled"
-        way = "lower" if self.freq < 1 else "higher"
-        return (f"the printer with its resonances {abs(self.freq - 1) * 100:g} % {way}"
-                + (f" and damping ×{self.damping:g}" if self.damping != 1.0 else ""))
-
-
-def variant_factors(freq_margin: float) -> tuple[Variant, ...]:
-    """The printer variants a configuration is judged on: the exact model alone without a margin;
-    with one (a fraction), also its twins with every mode's frequency × (1 ∓ margin) and damping
-    ratio × :data:`TWIN_DAMPING`."""
-    if not freq_margin:
-        return (Variant(1.0),)
-    return (Variant(1.0), Variant(1.0 - freq_margin, TWIN_DAMPING), Variant(1.0 + freq_margin, TWIN_DAMPING))
 
 
 def evaluate_judged(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,

@@ -195,7 +195,7 @@ def plot_accel(sim, out, *, title: str = "", t0: float = 0.0, baseline: Overlay 
 
 
 def _variant_name(variant) -> str:
-    """A variant (:class:`ringtune.envs.evaluate.Variant`, or a bare resonance factor) in words."""
+    """A variant (:class:`ringtune.envs.variants.Variant`, or a bare resonance factor) in words."""
     if hasattr(variant, "words"):
         return variant.words()
     return "the printer as modelled" if variant == 1.0 else \

@@ -40,14 +40,6 @@ DEFAULTS: dict[str, Any] = {
 }
 
 
-#: damping ratio factor of the detuned twins a configuration is judged on
-#: (:func:`ringtune.envs.evaluate.variant_factors`): a damping ratio fitted to a resonance test is
-#: less certain than its frequency, and a longer ring after each corner is the side that hurts;
-#: Klipper's calibrate_shaper likewise takes the worst remaining vibration over test dampings
-#: 0.075–0.15 around its 0.1 (its low end, 0.75×)
-TWIN_DAMPING = 0.75
-
-
 @dataclass
 class Mode:
     """One vibration mode of an axis: the nozzle deviation carries ``share`` of a base-excited

@@ -11,7 +11,8 @@ import argparse
 import os
 from pathlib import Path
 
-from ringtune.envs.printer_model import TWIN_DAMPING, unmeasured_note
+from ringtune.envs.printer_model import unmeasured_note
+from ringtune.envs.variants import TWIN_DAMPING
 from ringtune.shaping.builtin_jobs import BUILTIN_JOBS, job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError

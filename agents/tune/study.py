@@ -49,7 +49,7 @@ from ringtune.agents.tune.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MAX_
 from ringtune.agents.tune.space import SearchSpace, config_from_params, default_space, suggest_params
 from ringtune.agents.tune.storage import _this_worker, make_storage, reap_dead_workers
 from ringtune.envs.printer import load_printer
-from ringtune.envs.printer_model import TWIN_DAMPING
+from ringtune.envs.variants import TWIN_DAMPING
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 

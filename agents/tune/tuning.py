@@ -25,7 +25,8 @@ from ringtune.agents.tune.stop import Bounds
 from ringtune.agents.tune.study_results import study_points
 from ringtune.envs.evaluate import resolve_printer
 from ringtune.envs.job_rewrite import rewrite_file
-from ringtune.envs.printer_model import TWIN_DAMPING, unmeasured_note
+from ringtune.envs.printer_model import unmeasured_note
+from ringtune.envs.variants import TWIN_DAMPING
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import Firmware
 from ringtune.shaping.wall_gap import show_through_bound

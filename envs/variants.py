@@ -1,0 +1,48 @@
+"""The printer variants a configuration is judged on: the model as fitted and, with a frequency
+margin, its twins with every resonance moved and every damping ratio lowered (``tune`` takes the
+worst of them: :func:`ringtune.envs.evaluate.evaluate_judged`)."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+#: damping ratio factor of the detuned twins a configuration is judged on (:func:`variant_factors`):
+#: a damping ratio fitted to a resonance test is less certain than its frequency, and a longer ring
+#: after each corner is the side that hurts;
+#: Klipper's calibrate_shaper likewise takes the worst remaining vibration over test dampings
+#: 0.075–0.15 around its 0.1 (its low end, 0.75×)
+TWIN_DAMPING = 0.75
+
+
+class Variant(NamedTuple):
+    """A printer variant a configuration is judged on: every mode's frequency × ``freq`` and damping
+    ratio × ``damping`` (:meth:`ringtune.envs.printer_model.Printer.detuned`)."""
+
+    freq: float
+    damping: float = 1.0
+
+    @property
+    def exact(self) -> bool:
+        """Whether this is the printer as modelled."""
+        return self.freq == 1.0 and self.damping == 1.0
+
+    def of(self, printer):
+        """``printer`` as this variant."""
+        return printer if self.exact else printer.detuned(self.freq, self.damping)
+
+    def words(self) -> str:
+        """The variant in words (plot titles, notes)."""
+        if self.exact:
+            return "the printer as modelled"
+        way = "lower" if self.freq < 1 else "higher"
+        return (f"the printer with its resonances {abs(self.freq - 1) * 100:g} % {way}"
+                + (f" and damping ×{self.damping:g}" if self.damping != 1.0 else ""))
+
+
+def variant_factors(freq_margin: float) -> tuple[Variant, ...]:
+    """The printer variants a configuration is judged on: the exact model alone without a margin;
+    with one (a fraction), also its twins with every mode's frequency × (1 ∓ margin) and damping
+    ratio × :data:`TWIN_DAMPING`."""
+    if not freq_margin:
+        return (Variant(1.0),)
+    return (Variant(1.0), Variant(1.0 - freq_margin, TWIN_DAMPING), Variant(1.0 + freq_margin, TWIN_DAMPING))
