@@ -172,4 +172,8 @@ def test_tuned_on_the_ripple_model_beats_no_shaping_on_the_true_printer(loop, tm
     best = TuneConfig.load(out / "best.json")
     m = evaluate(best, true)
     assert m.print_time_s <= none.print_time_s * (1 + 1e-9), (m.print_time_s, none.print_time_s, best)
-    assert m.overshoot_mm <= 0.5 * none.overshoot_mm, (m.overshoot_mm, none.overshoot_mm, best)
+    # what a person sees: the visible classes' corner overshoot (the job-wide overshoot_mm also
+    # counts the infill's corners, which the walk where nobody looks may round faster: those are
+    # held by the show-through bound, not by what is seen)
+    assert m.corner_out_mm <= 0.5 * none.corner_out_mm, (m.corner_out_mm, none.corner_out_mm, best)
+    assert m.show_through_mm <= 0.05 + 1e-9, (m.show_through_mm, best)      # tune's bound on this job
