@@ -26,6 +26,7 @@ from ringtune.envs.evaluate import _trimmed
 from ringtune.envs.figure import figure_texts
 from ringtune.envs.metrics import compute_metrics
 from ringtune.envs.path_geometry import path_legs
+from ringtune.envs.variants import Variant
 from ringtune.shaping.motion import Motion
 
 
@@ -194,14 +195,6 @@ def plot_accel(sim, out, *, title: str = "", t0: float = 0.0, baseline: Overlay 
     return _save(plt, fig, out, title, data)
 
 
-def _variant_name(variant) -> str:
-    """A variant (:class:`ringtune.envs.variants.Variant`, or a bare resonance factor) in words."""
-    if hasattr(variant, "words"):
-        return variant.words()
-    return "the printer as modelled" if variant == 1.0 else \
-        f"the printer with its resonances {abs(variant - 1) * 100:g} % {'lower' if variant < 1 else 'higher'}"
-
-
 def _overlay(base, label: str, v: int, i: int) -> tuple[Overlay | None, float]:
     """The baseline's window ``i`` on variant ``v`` (and its start, s), or (None, 0) without one."""
     if not base or v >= len(base) or i >= len(base[v].runs):
@@ -215,14 +208,14 @@ def plot_evaluation(ev, out_dir, prefix: str = "", *, factors=None, judged: str 
     """Write path, ringing and accelerometer plots of an evaluation's worst windows to ``out_dir``.
 
     ``ev`` is a :class:`ringtune.envs.evaluate.Evaluation`, or a list of them: one per printer
-    variant (``factors``: each variant's resonance factor, as ``evaluate_judged`` returns them).
+    variant (``factors``: each one's :class:`ringtune.envs.variants.Variant`, as ``variant_factors`` gives them).
     Each plot shows the window and variant where its figure is worst, so its title states the
     figure the command reports for the job (``judged``: how it was judged, in words). ``baseline``:
     the Evaluations of a baseline configuration on the same job and variants (e.g. Klipper's pick),
     drawn on the same axes as ``baseline_label``. Returns the files written."""
     evs = list(ev) if isinstance(ev, (list, tuple)) else [ev]
     base = list(baseline) if isinstance(baseline, (list, tuple)) else ([baseline] if baseline is not None else [])
-    factors = list(factors) if factors is not None else [1.0] * len(evs)
+    factors = list(factors) if factors is not None else [Variant(1.0)] * len(evs)
     out_dir = Path(out_dir)
     if not evs or not evs[0].runs:
         return []
@@ -239,7 +232,7 @@ def plot_evaluation(ev, out_dir, prefix: str = "", *, factors=None, judged: str 
         return at
 
     def on(v):
-        return f"\nshown on {_variant_name(factors[v])}" if len(evs) > 1 else ""
+        return f"\nshown on {factors[v].words()}" if len(evs) > 1 else ""
 
     files = []
     v, i = worst("path_error_mm")

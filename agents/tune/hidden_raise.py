@@ -119,6 +119,19 @@ def batch(key: str, params: dict[str, Any], space: SearchSpace) -> list[dict[str
                         space)
 
 
+def gap(key: str, kept: float, cands: list[dict[str, Any]], params: dict[str, Any], space: SearchSpace) -> list[dict]:
+    """The candidates :data:`FINER` of the way from ``kept`` (the highest level of ``cands`` that
+    passed, or where ``key`` was) to the lowest level above it (none when none is above); a corner
+    rule's each with its minimum_cruise_ratio both ways, as :func:`batch` gives them."""
+    step = None if key in CORNERS else space.accel_step     # accelerations: the levels as they ran
+    levels = (float(p[key]) if step is None else round(float(p[key]) / step) * step for p in cands)
+    above = [v for v in levels if v > kept]
+    if not above:
+        return []
+    out = [dict(params, **{key: kept + f * (min(above) - kept)}) for f in FINER]
+    return _with_ratios(key, out, params, space) if key in CORNERS else out
+
+
 def _with_ratios(key: str, cands: list[dict[str, Any]], params: dict[str, Any], space: SearchSpace) -> list[dict]:
     """Corner-rule candidates each with its minimum_cruise_ratio at its range's bottom and as it is
     (the current point itself left out)."""
@@ -167,18 +180,8 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
             break
         cands = batch(key, params, space)
         best = judged(cands)
-        # then between the highest level kept and the lowest one above it
         kept = float(params_from_config(best.config, space)[key]) if best else float(params[key])
-        if key not in CORNERS:
-            step = space.accel_step         # the levels as the configurations ran them
-            above = [v for v in (round(float(p[key]) / step) * step for p in cands) if v > kept]
-            if above:
-                best = judged([dict(params, **{key: kept + f * (min(above) - kept)}) for f in FINER]) or best
-        else:
-            above = [float(p[key]) for p in cands if float(p[key]) > kept]
-            if above:
-                gap = [dict(params, **{key: kept + f * (min(above) - kept)}) for f in FINER]
-                best = judged(_with_ratios(key, gap, params, space)) or best
+        best = judged(gap(key, kept, cands, params, space)) or best
         if best is not None:
             new = params_from_config(best.config, space)
             walk.raised += [(k, params[k], new[k]) for k in (key, CORNERS.get(key, ("",))[0])
