@@ -109,9 +109,17 @@ def effective_classes(job: Job) -> np.ndarray:
     return _classes(job)[0]
 
 
-def _classes(job: Job) -> tuple[np.ndarray, np.ndarray]:
-    """(:func:`effective_classes`, (n,) True on the seam's travel: the travel moves that took a
-    visible extrusion's class, and the moves without X/Y motion after them)."""
+#: the jobs whose classes were worked out last (a tuning run plans one job hundreds of times)
+_CLASSES: dict[int, tuple] = {}
+
+
+def _classes(job: Job) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(:func:`effective_classes`, :func:`label_classes`, (n,) True on the seam's travel: the
+    travel moves that took a visible extrusion's class, and the moves without X/Y motion after
+    them); cached for the last few jobs (a job's moves are not changed in place)."""
+    hit = _CLASSES.get(id(job))
+    if hit is not None and hit[0] is job:
+        return hit[1]
     d = job.delta
     label = label_classes(job)
     xy = np.hypot(d[:, 0], d[:, 1]) > 0
@@ -121,7 +129,11 @@ def _classes(job: Job) -> tuple[np.ndarray, np.ndarray]:
     idx = np.arange(job.n_moves)
     last = np.maximum.accumulate(np.where(xy, idx, -1))     # the latest move with X/Y motion
     at = np.maximum(last, 0)
-    return np.where(last >= 0, cls[at], label), (last >= 0) & (cls[at] != own[at])
+    out = (np.where(last >= 0, cls[at], label), label, (last >= 0) & (cls[at] != own[at]))
+    if len(_CLASSES) >= 8:
+        _CLASSES.pop(next(iter(_CLASSES)))
+    _CLASSES[id(job)] = (job, out)    # the job kept alive so its id is not reused while cached
+    return out
 
 
 def _seam_travel(cls: np.ndarray, xy: np.ndarray, extruding: np.ndarray) -> np.ndarray:
@@ -150,15 +162,15 @@ def _seam_travel(cls: np.ndarray, xy: np.ndarray, extruding: np.ndarray) -> np.n
 _CORNER_KEYS = {"scv": ("square_corner_velocity",), "jd": ("junction_deviation",), "jerk": ("jerk_x", "jerk_y")}
 
 
-def _accels(job: Job, fc: FeatureCommands, eff: np.ndarray, seam: np.ndarray) -> dict[str, np.ndarray]:
-    """{accel_klipper, accel_print, accel_travel: (n,) mm/s² in force at each move} for ``fc``
-    (module docstring: Klipper's one acceleration, or Marlin/RRF's print and travel pair);
-    ``eff``, ``seam``: :func:`_classes`."""
+def _accels(fc: FeatureCommands, eff: np.ndarray, label: np.ndarray, seam: np.ndarray) -> dict[str, np.ndarray]:
+    """{accel_klipper, accel_print, accel_travel: mm/s² in force at each move} for ``fc`` (module
+    docstring: Klipper's one acceleration, or Marlin/RRF's print and travel pair); ``eff``,
+    ``label``, ``seam``: :func:`_classes`."""
     table = np.array([fc.accel[c] for c in FEATURE_CLASSES])
     if fc.junction == "scv":
         a = table[eff]
         return dict(accel_klipper=a, accel_print=a, accel_travel=a)
-    p, t = table[label_classes(job)], np.where(seam, table[eff], fc.accel["travel"])   # M204 T: the seam's the wall's
+    p, t = table[label], np.where(seam, table[eff], fc.accel["travel"])   # M204 T: the seam's the wall's
     return dict(accel_print=p, accel_travel=t, accel_klipper=np.minimum(p, t))
 
 
@@ -174,9 +186,14 @@ def _per_class(eff: np.ndarray, by_class: dict, whole: float | None, now: float 
 
 def move_settings(job: Job, fc: FeatureCommands) -> dict[str, np.ndarray]:
     """{setting key of :data:`SETTING_KEYS`: (n,) value in force at each move} for ``fc``."""
-    n = job.n_moves
-    eff, seam = _classes(job)
-    out = _accels(job, fc, eff, seam)
+    return _settings(fc, *_classes(job))
+
+
+def _settings(fc: FeatureCommands, eff: np.ndarray, label: np.ndarray, seam: np.ndarray) -> dict[str, np.ndarray]:
+    """:func:`move_settings` for moves of effective class ``eff``, label class ``label`` and seam
+    flag ``seam`` (each (n,)): every value is a function of those three."""
+    n = len(eff)
+    out = _accels(fc, eff, label, seam)
     corner = _per_class(eff, fc.class_corner, fc.corner, fc.corner_now)
     if corner is not None:
         out.update(dict.fromkeys(_CORNER_KEYS[fc.junction], corner))
@@ -191,22 +208,46 @@ def move_settings(job: Job, fc: FeatureCommands) -> dict[str, np.ndarray]:
 
 def with_feature_settings(job: Job, fc: FeatureCommands) -> Job:
     """A copy of ``job`` whose per-move settings carry ``fc`` (:func:`move_settings`), over
-    whatever the job set itself — as the rewritten file will."""
-    values = move_settings(job, fc)
-    if not values or job.n_moves == 0:
+    whatever the job set itself — as the rewritten file will.
+
+    The values are worked out once per (effective class, label class, seam) that occurs, not per
+    move (they depend on nothing else), so a tuning run re-plans a long job cheaply."""
+    if job.n_moves == 0:
+        return job
+    eff, label, seam = _classes(job)
+    nc = len(FEATURE_CLASSES)
+    key = (eff * nc + label) * 2 + seam
+    first = np.full(2 * nc * nc, -1)
+    first[key[::-1]] = np.arange(job.n_moves)[::-1]
+    reps = first[first >= 0]                     # one move of each key that occurs
+    values = _settings(fc, eff[reps], label[reps], seam[reps])
+    if not values:
         return job
     keys = list(values)
     cols = [SETTING_KEYS.index(k) for k in keys]
     stacked = np.stack([np.nan_to_num(values[k], nan=-1.0) for k in keys], axis=1)
-    combos, code = np.unique(stacked, axis=0, return_inverse=True)
-    code = np.asarray(code).reshape(-1)
-    pair = job.settings.astype(np.int64) * len(combos) + code
-    rows, new_index = np.unique(pair, return_inverse=True)
+    combos, rep_code = np.unique(stacked, axis=0, return_inverse=True)
+    lookup = np.zeros(2 * nc * nc, np.int64)
+    lookup[key[reps]] = np.asarray(rep_code).reshape(-1)
+    pair = job.settings.astype(np.int64) * len(combos) + lookup[key]
+    rows, new_index = _dense_unique(pair)
     base = np.asarray(job.settings_table, float)[rows // len(combos)].copy()
     vals = combos[rows % len(combos)]
     base[:, cols] = np.where(vals == -1.0, np.nan, vals)
-    return replace(job, settings=np.asarray(new_index).reshape(-1).astype(job.settings.dtype),
-                   settings_table=base)
+    return replace(job, settings=new_index.astype(job.settings.dtype), settings_table=base)
+
+
+def _dense_unique(codes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(codes, return_inverse=True)`` for non-negative integers, by a table when their
+    range is small (no sort)."""
+    top = int(codes.max()) + 1
+    if top > 4 * len(codes) + 1024:
+        rows, inv = np.unique(codes, return_inverse=True)
+        return rows, np.asarray(inv).reshape(-1)
+    present = np.zeros(top, bool)
+    present[codes] = True
+    rank = np.cumsum(present) - 1
+    return np.flatnonzero(present), rank[codes]
 
 
 def per_feature_text(config) -> str:
