@@ -102,6 +102,49 @@ def test_each_group_goes_as_high_as_the_judgement_allows(space):
     assert "infill 5000 → " in lift.sentence() and lift.to_dict()["to_print_time_s"] == lift.point.print_time_s
 
 
+def test_each_setting_walked_says_what_holds_it_with_the_value_that_failed(space):
+    """Held: the lowest value above where a setting stays that the walk tried, and why it failed,
+    with both figures — the known evaluator's: the infill's ripple above RIPPLE_TOP against the
+    baseline's, the hidden corner rule's show-through against the bound; a group at its top says so."""
+    tops = {g: hi for g, _lo, hi in space.feature_accel}
+    lift, _calls = _walk(space)
+    held = {h.key: h for h in lift.held}
+    assert list(held) == ["corner_hidden", "accel_infill", "accel_solid_infill", "accel_travel",
+                          "accel_hidden_walls", "accel_top_surface", "corner"]
+    got = params_from_config(lift.point.config, space)
+    infill = held["accel_infill"]
+    levels = [round((5000.0 + f * (tops["infill"] - 5000.0)) / 100) * 100 for f in LEVELS]
+    finer = [round((max(a for a in levels if a <= RIPPLE_TOP) + f * (min(a for a in levels if a > RIPPLE_TOP)
+                                                                     - max(a for a in levels if a <= RIPPLE_TOP))) / 100) * 100
+             for f in FINER]
+    assert infill.value == got["accel_infill"]
+    assert infill.tried == min(a for a in levels + finer if a > RIPPLE_TOP)
+    assert infill.why == ("measure", "ripple_mm", "klipper", 0.08, 0.05) and not infill.screened
+    corner = held["corner_hidden"]
+    assert corner.value == got["corner_hidden"] and SHOW_PER_CORNER * corner.tried > BOUNDS.max_show_through_mm
+    assert corner.why[:3] == ("bound", "show_through_mm", None)
+    assert corner.why[3] == pytest.approx(SHOW_PER_CORNER * corner.tried)
+    assert corner.why[4] == BOUNDS.max_show_through_mm
+    assert held["accel_travel"].tried is None and held["accel_travel"].value == held["accel_travel"].top == tops["travel"]
+    lines = lift.held_lines({"klipper": "Klipper's rule"}, " mm/s")
+    assert f"infill at {infill.value:g} mm/s²: at {infill.tried:g}, ripple 80.0 µm > 50.0 µm of Klipper's rule" in lines
+    assert f"travel at {tops['travel']:g} mm/s²: the top of its range" in lines
+    assert lift.to_dict()["held"][1]["tried"] == infill.tried
+
+
+def test_a_failure_the_screen_saw_is_said_to_be_on_the_model_as_fitted(space):
+    """With the screen, what fails on the exact model is never judged: its Held says it was seen there."""
+    start_cfg = _start(space)
+    start = point_from_metrics(start_cfg, _metrics(start_cfg), max_path_error_mm=0.1, max_motor_load=0.8,
+                               max_show_through_mm=0.2)
+    lift = raise_hidden(start, {"klipper": start}, lambda cs: [_metrics(c) for c in cs], space, BOUNDS,
+                        screen=lambda cs: [_metrics(c) for c in cs])
+    infill = next(h for h in lift.held if h.key == "accel_infill")
+    assert infill.screened and infill.why[:2] == ("measure", "ripple_mm")
+    assert any(line.endswith("(on the model as fitted)") and line.startswith("infill")
+               for line in lift.held_lines({}, " mm/s"))
+
+
 def test_a_group_that_breaks_a_bound_at_every_level_stays(space):
     lift, _calls = _walk(space, travel_overloads=True)
     assert params_from_config(lift.point.config, space)["accel_travel"] == 5000.0

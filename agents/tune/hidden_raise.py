@@ -39,7 +39,7 @@ from typing import Any, Callable, Sequence
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution
 from ringtune.agents.tune.space import (ABUTTING_GROUPS, SEEN_GROUPS, SearchSpace, config_from_params,
                                         params_from_config)
-from ringtune.agents.tune.stop import Bounds, passing
+from ringtune.agents.tune.stop import Bounds, failure_words, passing_why
 from ringtune.shaping.config import TuneConfig
 
 #: shares of the way from the current value to the range's top that are tried, fastest first
@@ -47,6 +47,37 @@ LEVELS = (1.0, 0.75, 0.5, 0.25)
 #: then, for an acceleration, these shares of the way from the highest level kept to the lowest
 #: one above it (the ladder's gaps are a quarter of the range)
 FINER = (2 / 3, 1 / 3)
+
+
+@dataclass
+class Held:
+    """Where one walked setting stays and what holds it there, measured: ``tried``, the lowest value
+    above it that the walk tried (None: it stays at its range's top, ``top``), and why that failed
+    (:func:`ringtune.agents.tune.stop.failure`'s (kind, key, baseline, value, limit)); ``screened``:
+    the failure was seen on the exact model alone (the screen), not on the twins' judgement."""
+
+    key: str
+    value: float
+    top: float
+    tried: float | None = None
+    why: tuple | None = None
+    screened: bool = False
+
+    def words(self, labels: dict[str, str], unit: str) -> str:
+        """``"hidden walls at 5900 mm/s²: at 8100, outer wall under-extrusion 29.90 % > 28.20 % of the
+        choice before the walk"``; ``labels`` names the baselines, ``unit`` is the value's."""
+        name = {"corner_hidden": "corner rule of the corners nobody sees"}.get(self.key, _name(self.key))
+        head = f"{name} at {self.value:g}{unit}"
+        if self.tried is None:
+            return f"{head}: " + ("the top of its range" if self.value >= self.top else "nothing above it was tried")
+        kind, key, base, value, limit = self.why
+        seen = " (on the model as fitted)" if self.screened else ""
+        return f"{head}: at {self.tried:g}, {failure_words(kind, key, value, limit, labels.get(base, base or ''))}{seen}"
+
+    def to_dict(self) -> dict[str, Any]:
+        kind, key, base, value, limit = self.why or (None,) * 5
+        return {"parameter": self.key, "value": self.value, "top": self.top, "tried": self.tried, "kind": kind,
+                "key": key, "baseline": base, "measured": value, "limit": limit, "screened": self.screened}
 
 
 @dataclass
@@ -61,6 +92,7 @@ class Raise:
     budget: int | None = None        # the most evaluations it may spend (None: no limit)
     cut: bool = False                # it stopped at its budget before its last step
     screened: int = 0
+    held: list = field(default_factory=list)     # Held per setting walked, in the walk's order
 
     @property
     def moved(self) -> bool:
@@ -81,7 +113,12 @@ class Raise:
         return {"raised": [{"parameter": k, "from": a, "to": b} for k, a, b in self.raised],
                 "from_print_time_s": self.start.print_time_s, "to_print_time_s": self.point.print_time_s,
                 "evaluations": self.evaluations, "screened": self.screened, "budget": self.budget, "cut": self.cut,
-                "sentence": self.sentence()}
+                "sentence": self.sentence(), "held": [h.to_dict() for h in self.held]}
+
+    def held_lines(self, labels: dict[str, str], corner_unit: str) -> list[str]:
+        """One line per setting walked: where it stays and what holds it there (:class:`Held`);
+        ``labels`` names the baselines, ``corner_unit`` the corner rule's unit."""
+        return [h.words(labels, corner_unit if h.key in CORNERS else " mm/s²") for h in self.held]
 
 
 def _name(key: str) -> str:
@@ -161,30 +198,55 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
     walk = Raise(start, start, budget=max_evaluations)
     params = params_from_config(start.config, space)
 
-    def judged(candidates: list[dict[str, Any]]) -> Point | None:
-        """The fastest of ``candidates`` that passes against the current choice, or None."""
-        configs = [c for c in (config_from_params(p, space, extra=start.config.extra) for p in candidates)
-                   if c != walk.point.config]
-        if not configs:
-            return None
-        points, judged_n, screened_n = passing(configs, evaluate, screen, bases, walk.point, bounds, res,
-                                               "hidden raise")
+    def judged(candidates: list[dict[str, Any]]) -> tuple[Point | None, list[tuple[dict, tuple, bool]]]:
+        """(the fastest of ``candidates`` that passes against the current choice, or None; each
+        that failed as (its parameters, why, seen by the screen))."""
+        pairs = [(p, c) for p, c in ((p, config_from_params(p, space, extra=start.config.extra)) for p in candidates)
+                 if c != walk.point.config]
+        if not pairs:
+            return None, []
+        points, why, judged_n, screened_n = passing_why([c for _p, c in pairs], evaluate, screen, bases,
+                                                         walk.point, bounds, res, "hidden raise")
         walk.evaluations += judged_n
         walk.screened += screened_n
         ok = [p for p in points if p is not None]
-        return min(ok, key=lambda p: (p.print_time_s, p.quality_mm)) if ok else None
+        fails = [(params_from_config(c, space), *w) for (_p, c), w in zip(pairs, why) if w is not None]
+        return (min(ok, key=lambda p: (p.print_time_s, p.quality_mm)) if ok else None), fails
 
     for key in steps(params, space):
         if max_evaluations is not None and walk.evaluations >= max_evaluations:
             walk.cut = True
             break
         cands = batch(key, params, space)
-        best = judged(cands)
+        best, fails = judged(cands)
         kept = float(params_from_config(best.config, space)[key]) if best else float(params[key])
-        best = judged(gap(key, kept, cands, params, space)) or best
+        finer, more = judged(gap(key, kept, cands, params, space))
+        best = finer or best
         if best is not None:
             new = params_from_config(best.config, space)
             walk.raised += [(k, params[k], new[k]) for k in (key, CORNERS.get(key, ("",))[0])
                             if k in new and new[k] != params.get(k)]
             walk.point, params = best, new
+        walk.held.append(_held(key, params, fails + more, space))
     return walk
+
+
+def _held(key: str, params: dict[str, Any], fails: list[tuple[dict, tuple, bool]], space: SearchSpace) -> Held:
+    """What holds ``key`` where ``params`` has it: the failed candidate (parameters, why, screened)
+    with the lowest value of ``key`` above it (for a corner rule, the one with its
+    minimum_cruise_ratio as kept where both were tried)."""
+    value = float(params[key])
+    top = _top(key, space)
+    mcr = CORNERS.get(key, ("",))[0]
+    above = [(float(p[key]), p.get(mcr) != params.get(mcr), why, scr) for p, why, scr in fails if float(p[key]) > value]
+    if not above:
+        return Held(key, value, top)
+    tried, _other, why, scr = min(above, key=lambda f: (f[0], f[1]))
+    return Held(key, value, top, tried, why, scr)
+
+
+def _top(key: str, space: SearchSpace) -> float:
+    """The top of ``key``'s range."""
+    if key in CORNERS:
+        return float(getattr(space, CORNERS[key][1])[1])
+    return float(dict((f"accel_{g}", hi) for g, _lo, hi in space.feature_accel)[key])

@@ -142,16 +142,34 @@ def passing(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[TuneConf
     the printer and its detuned twins. What fails on the exact model fails the judgement too (the
     worst case is no better on any measure, and print time is the same), so only what passes the
     screen is judged: a third of the cost for what fails."""
+    out, _why, judged, screened = passing_why(configs, evaluate, screen, bases, faster_than, bounds, res, label,
+                                              max_judged)
+    return out, judged, screened
+
+
+def passing_why(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[TuneConfig]], list],
+                screen: Callable[[Sequence[TuneConfig]], list] | None, bases: dict[str, Point], faster_than: Point,
+                bounds: Bounds, res: Resolution, label: str, max_judged: int | None = None
+                ) -> tuple[list[Point | None], list[tuple | None], int, int]:
+    """:func:`passing`, with why each config failed: per config (:func:`failure`'s tuple, and
+    whether it was seen on the exact model alone, by the screen), or None where it passed or was
+    left unjudged by ``max_judged``."""
     keep = [True] * len(configs)
+    why: list[tuple | None] = [None] * len(configs)
     if screen is not None and configs:
-        keep = [failure(p, bases, faster_than, bounds, res) is None for p in evaluated(configs, screen, bounds, "")]
+        fails = [failure(p, bases, faster_than, bounds, res) for p in evaluated(configs, screen, bounds, "")]
+        keep = [f is None for f in fails]
+        why = [None if f is None else (f, True) for f in fails]
     if max_judged is not None:          # the first max_judged of those kept, in order
         keep = [k and n <= max_judged for k, n in zip(keep, accumulate(keep))]
     todo = [c for c, k in zip(configs, keep) if k]
     judged = iter(evaluated(todo, evaluate, bounds, label) if todo else [])
-    out = [next(judged) if k else None for k in keep]
-    out = [p if p is not None and failure(p, bases, faster_than, bounds, res) is None else None for p in out]
-    return out, len(todo), len(configs) if screen is not None else 0
+    out: list[Point | None] = [next(judged) if k else None for k in keep]
+    for i, p in enumerate(out):
+        f = None if p is None else failure(p, bases, faster_than, bounds, res)
+        if f is not None:
+            out[i], why[i] = None, (f, False)
+    return out, why, len(todo), len(configs) if screen is not None else 0
 
 
 def failure(p: Point, bases: dict[str, Point], faster_than: Point, bounds: Bounds,
@@ -228,19 +246,25 @@ def _stop(start: Point, cur: Point, why: tuple, cfg, n: int, labels: dict, basis
 
 def _sentence(kind, key, value, limit, acc, cur: Point, base_label: str, why: str) -> str:
     here = f"{cur.config.accel:.0f} mm/s²"
-    if kind == "measure":
-        word = words(key)[0]
-        return (f"What stops it at {here}: {word} {shown(key, value)} > {shown(key, limit)} of {base_label} "
-                f"at {acc:.0f} mm/s² (the next step, measured).")
-    if kind == "bound":
-        text = {"step_loss": "a motor loses steps",
-                "motor_load": f"motor load {value * 100:.0f} % > the reserve's {limit * 100:.0f} %",
-                "show_through_mm": f"show-through {shown(key, value)} > the {shown(key, limit)} bound",
-                "path_error_mm": f"path error {shown(key, value)} > the {shown(key, limit)} bound"}[key]
-        return f"What stops it at {here}: {text} at {acc:.0f} mm/s² (the next step, measured)."
+    if kind in ("measure", "bound"):
+        return f"What stops it at {here}: {failure_words(kind, key, value, limit, base_label)} at {acc:.0f} mm/s² (the next step, measured)."
     if kind == "time":
         return (f"What stops it at {here}: print time no longer falls at {acc:.0f} mm/s² ({value:.3f} s against "
                 f"{limit:.3f} s): the job's speeds, not its acceleration, bound it.")
     if kind == "ceiling":
         return f"What stops it at {here}: the top of the acceleration range, {limit:.0f} mm/s² ({why})."
     return f"The measured stop ended at {here} after its budget of evaluations, every step passing."
+
+
+def failure_words(kind: str, key: str, value: float, limit: float, base_label: str) -> str:
+    """What failed, with both values: ``"outer wall ripple 31.0 µm > 29.8 µm of Klipper's rule"``,
+    ``"motor load 84 % > the reserve's 80 %"``, ``"print time 5.702 s, not below 5.700 s"``
+    (:func:`failure`'s kind, key, value and limit; ``base_label`` names the baseline)."""
+    if kind == "measure":
+        return f"{words(key)[0]} {shown(key, value)} > {shown(key, limit)} of {base_label}"
+    if kind == "time":
+        return f"print time {value:.3f} s, not below {limit:.3f} s"
+    return {"step_loss": "a motor loses steps",
+            "motor_load": f"motor load {value * 100:.0f} % > the reserve's {limit * 100:.0f} %",
+            "show_through_mm": f"show-through {shown(key, value)} > the {shown(key, limit)} bound",
+            "path_error_mm": f"path error {shown(key, value)} > the {shown(key, limit)} bound"}[key]

@@ -17,7 +17,7 @@ from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
 from ringtune.agents.tune.motor_bound import top_speed_load_note
 from ringtune.agents.tune.out_dir import check_out, remove_if_empty
-from ringtune.agents.tune.choice import pick
+from ringtune.agents.tune.choice import BASELINE_NAMES, pick
 from ringtune.agents.tune.pareto import VISIBLE_KEYS
 from ringtune.agents.tune.refine import refine
 from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config, walked_keys
@@ -305,6 +305,14 @@ def _report(req: TuneRequest, lim: _Limits, fw: Firmware, printer, facts, space,
         pf_json["why"] = why
         if lift is not None:
             pf_lines.append(f"  {lift.sentence()}")
+            labels = {**{k: bl.labels.get(k, BASELINE_NAMES.get(k, k)) for k in bl.points},
+                      "choice": "the choice before the walk"}
+            unit = {"scv": " mm/s", "jd": " mm", "jerk": " mm/s"}.get(space.junction, "")
+            held = lift.held_lines(labels, unit)
+            if held:
+                pf_lines.append("  What holds each where it is (the next value the walk tried, measured as every trial; "
+                                "µm and % the worst of the model and its twins unless said):")
+                pf_lines += [f"    {line}" for line in held]
     ja_json["searched"] = not space.accel_fixed
     result = report.write_report(
         out_dir, points=points, front=front, choice=choice, baselines=bl.points, quality=quality,
