@@ -18,7 +18,9 @@ climbing the accelerations: {moved, from_accel, to_accel, config, evaluations, s
 tried [{shaping, highest_passing_accel}], sentence}), hidden_raise (null, or the walk raising the features nobody
 sees: {raised [{parameter, from, to}], from_print_time_s, to_print_time_s, evaluations, screened (on the
 exact model first), budget (the study's
-trials), cut (it stopped at that budget), sentence}), vs_baselines {key: {baseline, faster_s, faster_pct, better_mm,
+trials), cut (it stopped at that budget), sentence, held [{parameter, value, top, tried (the next value tried,
+null at its top), kind (measure|bound|time), key, baseline, measured, limit, screened (seen on the exact model
+alone)}]: what holds each setting walked}), vs_baselines {key: {baseline, faster_s, faster_pct, better_mm,
 better_pct, dominates, metrics {print_time_s|overshoot_mm|path_error_mm|feasible: better|same|worse},
 path_error_better_mm, path_error_better_pct}}, dominates_klipper, dominates_current (null or {config,
 print_time_s, quality_mm, ...comparison}), accel {range, searched, basis, chosen, stopped_by,
