@@ -225,8 +225,7 @@ def _candidates(plan, span: float, order: bool = True) -> dict:
     mv = plan.moves
     names = np.array([feature_class(n) for n in mv.features] or ["other"])
     cls_c = names[mv.feature[mc]] if len(mc) else np.zeros(0, str)
-    line_to_move = {int(line): i for i, line in enumerate(mv.line)}
-    cls_z = np.array([names[mv.feature[line_to_move[int(x)]]] for x in lz], dtype=names.dtype)
+    cls_z = names[mv.feature[_last_move_of(mv.line, lz)]] if len(lz) else np.zeros(0, names.dtype)
     seen = np.isin(cls_c, list(VISIBLE))
     part_c, part_z = cls_c != "support", cls_z != "support"
     if not (part_c.any() or part_z.any()):          # nothing but support: judge it rather than nothing
@@ -239,6 +238,16 @@ def _candidates(plan, span: float, order: bool = True) -> dict:
         t0, score, line, cls = t0[pick], score[pick], line[pick], cls[pick]
         out[kind] = (t0, score, line, cls, _best_per_class_first(score, cls) if order else None)
     return out
+
+
+def _last_move_of(move_lines: np.ndarray, lines: np.ndarray) -> np.ndarray:
+    """Index of the last move on each of ``lines`` (source line numbers that moves have)."""
+    move_lines = np.asarray(move_lines, np.int64)
+    lines = np.asarray(lines, np.int64)
+    if np.all(move_lines[1:] >= move_lines[:-1]):          # a file read in order: a search
+        return np.searchsorted(move_lines, lines, side="right") - 1
+    last = {int(line): i for i, line in enumerate(move_lines)}
+    return np.array([last[int(x)] for x in lines], np.int64)
 
 
 def _best_per_class_first(score: np.ndarray, cls: np.ndarray) -> np.ndarray:
