@@ -121,7 +121,7 @@ def test_a_choice_as_fast_as_the_baseline_but_another_configuration_is_not_calle
                   {"overshoot_mm": 0.0020, "path_error_mm": 0.030}, "other")
     c = pick([other], {"klipper": klipper})
     assert c.point is other and c.by == "fastest-at-baseline-quality"
-    assert "of those as fast, the best on the study's quality objective" in c.sentence
+    assert "of those as fast, one no other beats on a visible measure, then the best on the study's quality objective" in c.sentence
     assert "itself" not in c.sentence
 
 

@@ -10,13 +10,16 @@ from typing import Sequence
 
 import numpy as np
 
-from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, QUALITY_WORDS, Point, Resolution, no_worse,
+from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, QUALITY_WORDS, Point, Resolution, judge, no_worse,
                                          quality_keys)
 from ringtune.shaping.errors import RingtuneError
 
 
 #: mm: quality differences smaller than this are not worth print time when choosing the knee
 KNEE_QUALITY_SCALE = 0.01
+#: print times closer than this (relative) are one plan: configurations that differ only in what
+#: the planner does not see (the shapers), e.g. every trial of a job whose own accelerations rule
+SAME_PLAN_REL = 1e-9
 PICKS = ("fastest-at-baseline-quality", "knee", "weight")
 
 
@@ -127,11 +130,24 @@ def _fastest_at_baseline_quality(front: list[Point], baselines: dict[str, Point]
         first, *rest = (by_key[k] for k in held)
         cands = [p for p in at_baseline_quality(pool, first, res) if all(_no_worse_seen(p, b, res) for b in rest)]
         if cands:
-            p = min(cands, key=lambda p: (p.print_time_s, p.quality_mm))
-            return Choice(p, "fastest-at-baseline-quality", held[0], _held_why(p, first, held, tries, worse), held)
+            p = fastest(cands, res)
+            return Choice(p, "fastest-at-baseline-quality", held[0], _held_why(p, first, held, tries, worse, res), held)
     why = f"no configuration the study tried is as fast as {_named(by_key, ' or ')} with {worse}" if by_key else \
         "there is no usable baseline to match"
     return Choice(knee(front), "knee", None, f"the knee of the front, because {why}")
+
+
+def fastest(cands: Sequence[Point], res: Resolution = DEFAULT_RESOLUTION) -> Point:
+    """The fastest of ``cands``; of those equally fast (one plan, :data:`SAME_PLAN_REL`), one that no
+    other beats — better on a visible measure at the resolution and worse on none —, then the lowest
+    on the study's quality objective. Why: where the planner gives every shaping one time (a job
+    whose own accelerations rule), the fastest is a tie, and the quality objective alone (ripple)
+    can prefer, by a margin under the resolution, a shaping that corners or extrudes worse."""
+    t = min(p.print_time_s for p in cands)
+    tied = [p for p in cands if p.print_time_s <= t + SAME_PLAN_REL * abs(t)]
+    keys = quality_keys(tied)
+    unbeaten = [p for p in tied if not any(q is not p and judge(q, p, res, keys).dominates for q in tied)]
+    return min(unbeaten or tied, key=lambda p: p.quality_mm)
 
 
 def _tries(keys: list[str]) -> list[tuple]:
@@ -147,7 +163,8 @@ def _named(keys, joiner: str) -> str:
     return joiner.join(BASELINE_NAMES.get(k, k) for k in keys)
 
 
-def _held_why(p: Point, b: Point, held: tuple, tries: list[tuple], worse: str) -> str:
+def _held_why(p: Point, b: Point, held: tuple, tries: list[tuple], worse: str,
+              res: Resolution = DEFAULT_RESOLUTION) -> str:
     """Why ``p`` was chosen, held to the baselines ``held`` (``b``: the first's point), saying when
     an earlier try (``tries[0]``) found nothing."""
     lead = "" if held == tries[0] else \
@@ -155,11 +172,17 @@ def _held_why(p: Point, b: Point, held: tuple, tries: list[tuple], worse: str) -
     name = _named(held, " and ")
     first = BASELINE_NAMES.get(held[0], held[0])
     if p.print_time_s < b.print_time_s:
+        v = judge(p, b, res).verdicts
+        if v.get("print_time_s") == "same":       # faster by less than the resolution
+            better = sum(x == "better" for k, x in v.items() if k not in ("print_time_s", "feasible"))
+            gain = f"better on {better} of its visible measures" if better else "the same quality"
+            return (f"{lead}the fastest configuration the study tried with {worse} than {name} "
+                    f"(as fast as {first} at the resolution, {gain})")
         return (f"{lead}the fastest configuration the study tried with {worse} than {name} "
                 f"(same quality, faster than {first})")
     if dataclasses.replace(p.config, extra={}) != dataclasses.replace(b.config, extra={}):
         return (f"{lead}no configuration the study tried is faster than {first} with {worse} than {name}; of those "
-                f"as fast, the best on the study's quality objective (--quality)")
+                f"as fast, one no other beats on a visible measure, then the best on the study's quality objective (--quality)")
     return (f"{lead}no configuration the study tried is faster than {first} with {worse} than {name}: the search found "
             f"nothing better than {first} itself at that quality (more --trials may)")
 

@@ -1,0 +1,49 @@
+"""The default choice among equally fast configurations: where the planner gives several shapings
+one print time (a sliced job whose own accelerations rule every move, so only the shapers differ),
+the choice is one that no other beats on what a person sees — not the lowest ripple by a margin
+under the resolution with worse corners and extrusion."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+from ringtune.agents.tune.choice import fastest, pick
+from ringtune.agents.tune.pareto import point_from_metrics
+from ringtune.shaping.config import TuneConfig
+
+PLAN_S = 933.3326182627112      # one plan: every shaping of the job gets this time
+
+
+def _point(label: str, shaper: str, time_s: float, ripple: float, corner_in: float, under: float):
+    """A point with the given figures (mm, %); the rest alike for all."""
+    cfg = TuneConfig(firmware="klipper", shaper_x=shaper, shaper_y=shaper, freq_x=120.0, freq_y=80.0, accel=25000.0)
+    m = SimpleNamespace(print_time_s=time_s, step_loss=False, path_error_mm=corner_in, overshoot_mm=0.015,
+                        ringing_mm=0.007, peak_accel=14000.0, motor_load=0.6, ripple_mm=ripple,
+                        ripple_p90_mm=0.9 * ripple, corner_in_mm=corner_in, corner_out_mm=0.0146,
+                        extrusion_over_pct=6.5, extrusion_under_pct=under, e_lag_mm=0.9, show_through_mm=0.013)
+    return point_from_metrics(cfg, m, label=label)
+
+
+def test_of_equally_fast_shapings_the_one_nothing_beats_is_chosen_not_the_lowest_ripple():
+    klipper = _point("klipper", "mzv", PLAN_S, 0.0256, 0.0241, 13.1)
+    # the same plan: 0.4 µm more ripple (the same at 1 µm / 5 %), 7 µm less corner rounding and
+    # 4.6 points less under-extrusion (better at 1 µm / 5 % and 1 point / 5 %)
+    better = _point("ei", "ei", PLAN_S, 0.0260, 0.0170, 8.5)
+    choice = pick([klipper, better], {"klipper": klipper})
+    assert choice.point is better and "one no other beats on a visible measure" in choice.sentence
+    # a hair faster than Klipper's pick (under the resolution): said so, not "faster"
+    hair = _point("ei", "ei", PLAN_S - 0.004, 0.0260, 0.0170, 8.5)
+    choice = pick([klipper, hair], {"klipper": klipper})
+    assert choice.point is hair and "as fast as Klipper's rule at the resolution, better on 2 of" in choice.sentence
+    # the lowest ripple alone would have kept Klipper's pick
+    assert min([klipper, better], key=lambda p: p.quality_mm) is klipper
+
+
+def test_a_faster_plan_still_wins_and_a_tie_nothing_beats_keeps_the_lowest_ripple():
+    klipper = _point("klipper", "mzv", PLAN_S, 0.0256, 0.0241, 13.1)
+    faster = _point("faster", "mzv", PLAN_S - 0.01, 0.0256, 0.0241, 13.1)
+    better = _point("ei", "ei", PLAN_S, 0.0260, 0.0170, 8.5)
+    assert fastest([klipper, faster, better]) is faster
+    # neither beats the other (one ripples less by more than the resolution, the other corners better)
+    low_ripple = _point("zv", "zv", PLAN_S, 0.0150, 0.0241, 13.1)
+    assert fastest([low_ripple, better]) is low_ripple
