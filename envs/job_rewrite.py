@@ -72,16 +72,26 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     inserted = len(out) - len(lines)
     nl = "\r\n" if lines[0].endswith("\r\n") else "\n"
     new = "".join(out).encode("utf-8", errors="surrogateescape")
-    # the printer runs the configuration (its acceleration is the machine's, its retract fallback
-    # too); the limit is in the F words already
-    after = plan_with_config(read_gcode(new, source=source), limits,
-                             replace(config, freq_limit_hz=0.0)).plan.print_time
+    # the file as the printer runs it: the configuration's machine settings (its acceleration is the
+    # machine's, its retract fallback too; its caps as export sends them), the file's own commands
+    # per feature — not the configuration's per-feature tables over them; the limit is in the F words
+    after = plan_with_config(read_gcode(new, source=source), limits, machine_part(config),
+                             job_accel="respect").plan.print_time
     header = (f"{HEADER} for {config.firmware} ({limits.junction}): {inserted} lines inserted at feature "
               f"changes (accelerations {'; '.join(accel_groups(fc.accel))} mm/s²"
               + "".join(f", {w}" for w in corner_words(fc.corner, fc.min_cruise_ratio)
                         + class_corner_words(fc.class_corner, fc.class_mcr))
               + f"); planned {before:.1f} s as sliced -> {after:.1f} s; nothing else differs from the input")
     return RewrittenJob(header.encode() + nl.encode() + new, before, after, config_s, inserted, f_changed, header, fc)
+
+
+def machine_part(config: TuneConfig) -> TuneConfig:
+    """What of ``config`` the printer holds itself (``export`` sends it): shapers, acceleration,
+    per-axis caps — without the frequency limit (in the file's F words, or the firmware's own
+    where :func:`native_limit`) and the per-feature settings (in the file's commands)."""
+    return replace(config, freq_limit_hz=0.0 if not native_limit(config) else config.freq_limit_hz,
+                   feature_accel={}, feature_corner={}, feature_min_cruise_ratio={}, corner=None,
+                   min_cruise_ratio=None)
 
 
 def native_limit(config: TuneConfig) -> bool:

@@ -71,7 +71,7 @@ class FeatureCommands:
         scv = limits.junction == "scv"
         mcr = config.min_cruise_ratio if scv else None
         now = corner_value(limits)
-        return cls(accel, limits.junction, config.corner, mcr, _caps(config.firmware, limits, accel),
+        return cls(accel, limits.junction, config.corner, mcr, _caps(config.firmware, limits, accel, config.axis_caps),
                    dict(config.feature_corner), dict(config.feature_min_cruise_ratio) if scv else {},
                    float(now), float(limits.min_cruise_ratio))
 
@@ -84,11 +84,13 @@ def corner_value(limits) -> float:
                   "jerk": min(limits.jerk[:2])}[limits.junction])
 
 
-def _caps(firmware: str, limits, accel: dict) -> tuple | None:
-    """The X/Y caps a per-feature job runs with, mm/s²: the machine's (the config's own already in
-    ``limits``); on a firmware set by ``M201`` an axis without a known cap gets the highest feature
-    acceleration, so the printer's stored M201 cannot hold the job back; None on Klipper without caps."""
-    known = [float(c) if c and c > 0 else None for c in (limits.max_accel or (0, 0))[:2]]
+def _caps(firmware: str, limits, accel: dict, own: tuple = (None, None)) -> tuple | None:
+    """The X/Y caps a per-feature job runs with, mm/s²: the configuration's own (``own``:
+    :attr:`TuneConfig.axis_caps`, None per axis where it has none), else the machine's; on a
+    firmware set by ``M201`` an axis without a known cap gets the highest feature acceleration, so
+    the printer's stored M201 cannot hold the job back; None on Klipper without caps."""
+    machine = (limits.max_accel or (0, 0))[:2]
+    known = [float(o) if o else (float(c) if c and c > 0 else None) for o, c in zip(own, machine)]
     fw = FIRMWARES[firmware]
     if fw.axis_accel_set and not fw.axis_accel_config:
         top = max(accel.values())
