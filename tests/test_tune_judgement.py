@@ -4,6 +4,8 @@ and the small errors found by trying it as a new user."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import json
 import os
 import subprocess
@@ -207,6 +209,32 @@ def test_klippers_rule_is_the_recommendation_recorded_from_the_files(data_dir, t
     assert "simulated resonance test" not in summary
 
 
+def test_klippers_max_accel_is_judged_with_the_stored_axis_caps_raised_where_gcode_sets_them(tmp_path):
+    """A Marlin printer whose M503 stored M201 X500 Y500: Klipper's rule at its max_accel is judged
+    with the caps raised to it (as every trial and export run it: M201 X Y before M204), so its
+    print time is the planner's at that acceleration, not at 500; what the printer runs now keeps its
+    caps; on Klipper, which stores no caps to raise, nothing is added."""
+    from ringtune.agents.tune.baselines import baseline_configs
+    from ringtune.envs.evaluate import planned_job
+    from ringtune.envs.printer import load_printer
+
+    rec = {"shaper_x": "zv", "freq_x": 51.0, "shaper_y": "zv", "freq_y": 46.0, "max_accel": 7800.0}
+    toml = _printer_toml(tmp_path / "p.toml", klipper=rec, current={"firmware": "marlin", "shaper_x": "zv",
+                                                                    "freq_x": 40.0, "accel": 500.0})
+    text = toml.read_text().replace("[limits]\n", "[limits]\nmax_accel = [500, 500, 100, 5000]\njunction = \"jd\"\n"
+                                    "junction_deviation = 0.08\n")
+    toml.write_text(text.replace("square_corner_velocity = 5\n", ""))
+    printer = load_printer(str(toml))
+    bl = baseline_configs(printer, "marlin")
+    k = bl.configs["klipper"]
+    assert (k.accel, k.max_accel_x, k.max_accel_y) == (7800.0, 7800.0, 7800.0)
+    assert bl.configs["current"].max_accel_x is None
+    t_raised = planned_job(printer, "part", k).print_time
+    t_stored = planned_job(printer, "part", dataclasses.replace(k, max_accel_x=None, max_accel_y=None)).print_time
+    assert t_raised < 0.75 * t_stored
+    assert baseline_configs(printer, "klipper").configs["klipper"].max_accel_x is None
+
+
 def test_without_a_recorded_recommendation_the_baseline_says_simulated_and_current_is_a_third(tmp_path, capsys,
                                                                                              fake_evaluator):
     toml = _printer_toml(tmp_path / "p.toml", current={"source": "printer.cfg", "shaper_x": "mzv", "freq_x": 48.2,
@@ -300,6 +328,29 @@ def test_tune_accepts_the_firmware_names_export_accepts_in_any_case(tmp_path, ca
     assert res["chosen"]["config"]["firmware"] == expect
     if expect == "rrf34":
         assert "M593" in (out / "apply.txt").read_text()
+
+
+def test_the_firmware_is_the_printer_descriptions_unless_given(tmp_path, capsys, fake_evaluator):
+    """A printer described from Marlin's M503 ([current] firmware = "marlin") is tuned for Marlin —
+    its export, job and apply.txt in Marlin's commands —, said in a note; --firmware overrides it;
+    a description naming none gets Klipper, said too."""
+    toml = _printer_toml(tmp_path / "p.toml", current={"source": "m503.txt", "firmware": "marlin", "shaper_x": "zv",
+                                                       "freq_x": 40.0, "shaper_y": "zv", "freq_y": 40.0,
+                                                       "accel": 1500.0})
+    args = ["--trials", "3", "--no-baselines", "--evaluator", fake_evaluator, "--accel-range", "1000,5000"]
+    assert main(["tune", "--json", "--printer", str(toml), "--out", str(tmp_path / "a"), *args]) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["chosen"]["config"]["firmware"] == "marlin"
+    assert "firmware marlin, as the printer description's [current] names it" in captured.err
+    assert "M593" in (tmp_path / "a" / "apply.txt").read_text()
+    assert main(["tune", "--json", "--printer", str(toml), "--firmware", "klipper", "--out", str(tmp_path / "b"),
+                 *args]) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["chosen"]["config"]["firmware"] == "klipper" and "[current]" not in captured.err
+    assert main(["tune", "--json", "--out", str(tmp_path / "c"), *args]) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["chosen"]["config"]["firmware"] == "klipper"
+    assert "firmware klipper: the printer description names none" in captured.err
 
 
 def test_readme_same_command_keeps_the_trials_and_the_warm_start_sentence_reads(tmp_path, capsys, fake_evaluator):

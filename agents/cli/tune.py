@@ -119,9 +119,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--printer", metavar="P", help="printer TOML (default: the embedded Ender-3-class printer)")
     p.add_argument("--gcode", metavar="G", type=gcode_job,
                    help=f"G-code job, {GCODE_JOB_HELP} (default: the built-in test print)")
-    p.add_argument("--firmware", type=firmware_name, default="klipper",
-                   help="target firmware: klipper (default), kalico, rrf, rrf35, rrf34, "
-                   "marlin, marlin-ftm, prusa (any case)")
+    p.add_argument("--firmware", type=firmware_name, default=None,
+                   help="target firmware: klipper, kalico, rrf, rrf35, rrf34, marlin, marlin-ftm, prusa (any "
+                   "case); default: the one the printer description names ([current] firmware, as `ringtune "
+                   "printer from-klipper|from-marlin|from-rrf` writes it), else klipper")
     p.add_argument("--trials", type=int, default=200, help="total complete trials of the study (default 200)")
     p.add_argument("--storage", metavar="URL", help="Optuna storage: journal:PATH (default "
                    "journal:OUT/study.journal), sqlite:///file.db, postgresql+psycopg2://user:pw@host/db")
@@ -231,7 +232,7 @@ class Progress:
             self._bar.close()
 
 
-_DEFAULTS = {"printer": None, "gcode": None, "firmware": "klipper", "trials": 200, "storage": None,
+_DEFAULTS = {"printer": None, "gcode": None, "firmware": None, "trials": 200, "storage": None,
              "study": "ringtune", "workers": 1, "seed": 0, "out": "ringtune-out", "pick": None, "weight": None,
              "quality": "ripple", "max_path_error": None, "max_show_through": None, "motor_reserve": None, "freq_margin": None,
              "accel_range": None, "job_accel": "respect", "backend": "mujoco", "evaluator": None,

@@ -23,6 +23,7 @@ from ringtune.agents.klipper import baseline as klipper_baseline
 from ringtune.agents.klipper.rule import DEFAULT_DAMPING_RATIO
 from ringtune.agents.tune import study as tune_study
 from ringtune.agents.tune.pareto import Point, max_motor_load, point_from_metrics
+from ringtune.agents.tune.space import printer_axis_caps
 from ringtune.envs.printer_model import Printer
 from ringtune.hardware.firmware_check import check_available
 from ringtune.shaping.config import TuneConfig
@@ -130,6 +131,8 @@ def baseline_configs(printer: Printer, firmware: str, *, note: Callable[[str], N
     uses the model's expected spectrum: it does not depend on any seed."""
     out = Baselines()
     _klipper_baseline(printer, firmware, out, note)
+    if "klipper" in out.configs:
+        out.configs["klipper"] = with_raised_caps(out.configs["klipper"], printer, firmware)
     ccfg, why = current_config(printer, firmware)
     if ccfg is not None:
         src = printer.current.get("source")
@@ -140,6 +143,17 @@ def baseline_configs(printer: Printer, firmware: str, *, note: Callable[[str], N
                                accel=float(printer.limits.accel), extra={"source": "no shaping"}),
             "no shaping", "no shaping")
     return out
+
+
+def with_raised_caps(cfg: TuneConfig, printer: Printer, firmware: str) -> TuneConfig:
+    """``cfg`` as ``firmware`` runs its acceleration: where the firmware sets its X/Y caps by G-code
+    (``M201 X Y``: Marlin, Prusa, RepRapFirmware), raised to it, as every trial's are and as
+    ``export`` sends them — Klipper's max_accel behind a stored 500 mm/s² cap would be judged at
+    500; elsewhere as it is."""
+    caps, raise_caps = printer_axis_caps(printer, firmware)
+    if not caps or not raise_caps or cfg.accel is None:
+        return cfg
+    return dataclasses.replace(cfg, **{f"max_accel_{ax}": max(c, float(cfg.accel)) for ax, c in zip("xy", caps) if c > 0})
 
 
 def _klipper_baseline(printer: Printer, firmware: str, out: Baselines, note: Callable[[str], None]) -> None:

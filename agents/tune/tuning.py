@@ -39,7 +39,7 @@ class TuneRequest:
 
     printer: str | None = None
     gcode: str | None = None
-    firmware: str = "klipper"
+    firmware: str | None = None          # None: the printer description's [current] firmware, else klipper
     trials: int = 200
     storage: str | None = None
     study: str = "ringtune"
@@ -163,11 +163,13 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     from then on); ``progress``: ``progress(quality, max_pe, reserve, space)`` gives an object with
     ``update(done, total, study)`` and ``close()``."""
     t_start = time.time()
-    fw = Firmware.named(req.firmware, "--firmware")
+    if req.firmware is not None:
+        Firmware.named(req.firmware, "--firmware")
     lim = _check_request(req)
     out_dir = Path(req.out)
     check_out(out_dir)
     printer = resolve_printer(req.printer)
+    fw = target_firmware(req.firmware, printer, note)
     if unmeasured_note(printer):
         note(unmeasured_note(printer))
     quality = f"{req.quality}_mm"
@@ -194,6 +196,22 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
         lines.append(f"Interrupted after {run_.completed_before + run_.completed_now} complete trials; "
                      "run the same command again to resume.")
     return Tuned(result, "\n".join(lines), run_.interrupted)
+
+
+def target_firmware(given: str | None, printer, note: Callable[[str], None] = lambda s: None) -> Firmware:
+    """The firmware ``tune`` writes for: ``given`` (--firmware), else the one the printer
+    description names in ``[current]`` (``printer from-klipper``/``from-marlin``/``from-rrf`` record
+    it), else Klipper — the last two said in a note."""
+    if given is not None:
+        return Firmware.named(given, "--firmware")
+    named = (getattr(printer, "current", None) or {}).get("firmware")
+    if named:
+        fw = Firmware.named(str(named), "[current] firmware")
+        note(f"ringtune tune: firmware {fw.name}, as the printer description's [current] names it (--firmware sets another)")
+        return fw
+    note("ringtune tune: firmware klipper: the printer description names none ([current] firmware); "
+         "--firmware sets it")
+    return Firmware.named("klipper", "--firmware")
 
 
 def _study(req: TuneRequest, lim: _Limits, firmware: str, printer, space, quality: str, out_dir: Path,
@@ -347,8 +365,15 @@ def _write_job(gcode: str, out_dir: Path, config, printer, result: dict, note: C
         note(f"ringtune tune: job.gcode not written: {exc}")
         return ""
     result["files"]["job"] = str(out_dir / "job.gcode")
-    return (f"\nThe job with the choice written in: {out_dir / 'job.gcode'} ({done.lines_inserted} lines "
-            f"inserted; planned {done.before_s:.1f} s as sliced -> {done.after_s:.1f} s).")
+    text = (f"\nThe job with the choice written in: {out_dir / 'job.gcode'} ({done.lines_inserted} lines "
+            f"inserted; planned {done.before_s:.1f} s as sliced -> {done.after_s:.1f} s, the file as the printer "
+            "runs it).")
+    if abs(done.after_s - done.config_s) > 1e-4 * done.config_s:     # the F words' rounding aside
+        warn = (f"job.gcode plans at {done.after_s:.1f} s as the printer runs it, not the {done.config_s:.1f} s "
+                "tune judged the choice at: a setting the file cannot carry differs (please report it)")
+        note(f"ringtune tune: {warn}")
+        text += f"\nWARNING: {warn}."
+    return text
 
 
 def _accel_section(req: TuneRequest, lim: _Limits, firmware: str, printer, space, points, chosen, stop):
