@@ -38,6 +38,8 @@ def main() -> None:
     import numpy as np
 
     from ringtune.envs import evaluate as ev
+    from ringtune.envs.planned_job import planned_job
+    from ringtune.envs.windows import auto_settle, corner_tail, metrics_of, window_runs
     from ringtune.envs.printer import load_printer
     from ringtune.envs.sim import simulate_batch
     from ringtune.shaping.config import TuneConfig
@@ -64,7 +66,7 @@ def main() -> None:
     from ringtune.envs.metrics import worst_case
 
     variants = [printer, printer.detuned(1 - DEFAULT_FREQ_MARGIN), printer.detuned(1 + DEFAULT_FREQ_MARGIN)]
-    settle = ev.auto_settle(printer)
+    settle = auto_settle(printer)
 
     def per_variant(cfg):
         """Before the batching: one simulate_batch per printer variant."""
@@ -83,16 +85,16 @@ def main() -> None:
 
     # parts of a warm evaluation
     cfg = config()
-    pj = ev.planned_job(printer, None, cfg)
+    pj = planned_job(printer, None, cfg)
     t0 = clock()
-    runs = ev.window_runs(pj, cfg, ev.auto_settle(printer), ev.corner_tail(printer))
+    runs = window_runs(pj, cfg, auto_settle(printer), corner_tail(printer))
     t_shape = clock() - t0
     motions = [r.shaped for r in runs]
     t0 = clock()
     sims = simulate_batch(printer, motions, nthread=1, initial="static")
     t_sim = clock() - t0
     t0 = clock()
-    ev.metrics_of(runs, sims, pj.print_time)
+    metrics_of(runs, sims, pj.print_time)
     t_metrics = clock() - t0
 
     # baseline: raw rollout of the same steps

@@ -44,7 +44,8 @@ from ringtune.agents.tune.baselines import recorded_klipper
 from ringtune.agents.tune.feature_space import feature_space
 from ringtune.agents.tune.pareto import no_worse, point_from_metrics
 from ringtune.agents.tune.space import ACCEL_GROUPS, HIDDEN_CORNERS, default_space
-from ringtune.envs.evaluate import evaluate_many, planned_job
+from ringtune.envs.evaluate import evaluate_many
+from ringtune.envs.planned_job import planned_job
 from ringtune.envs.plan_load import plan_load
 from ringtune.envs.printer import load_printer, printer_from_dict
 from ringtune.envs.variants import TWIN_DAMPING

@@ -130,7 +130,7 @@ def main() -> int:
 
 def _job_run(args, builtin_wall: float) -> int:
     """``tune --gcode JOB``: wall time, its target and its ratio to the built-in print's run."""
-    from ringtune.envs.evaluate import planned_job
+    from ringtune.envs.planned_job import planned_job
     from ringtune.envs.printer import load_printer
 
     planned = planned_job(load_printer(None), args.gcode, None).print_time

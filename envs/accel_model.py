@@ -22,7 +22,7 @@ from typing import Callable
 
 import numpy as np
 
-from ringtune.envs.evaluate import planned_job
+from ringtune.envs.planned_job import planned_job
 from ringtune.envs.metrics import Metrics
 from ringtune.shaping.config import TuneConfig
 

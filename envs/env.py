@@ -19,7 +19,8 @@ from matplotlib.figure import Figure
 
 from ringtune.envs.accel_model import model_accel
 from ringtune.envs.actions import ActionSpec, decode_action, encode_config
-from ringtune.envs.evaluate import evaluate_many, planned_job, resolve_printer
+from ringtune.envs.evaluate import evaluate_many
+from ringtune.envs.planned_job import planned_job, resolve_printer
 from ringtune.envs.judgement import DEFAULT_WEIGHTS, JUDGEMENT, baseline_config, judged_cost
 from ringtune.envs.metrics import Metrics
 from ringtune.envs.mujoco_model import linear_system

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from ringtune.envs.evaluate import resolve_printer
+from ringtune.envs.planned_job import resolve_printer
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import plan_with_config
 from ringtune.shaping.errors import RingtuneError

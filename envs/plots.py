@@ -22,7 +22,7 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ringtune.envs.evaluate import _trimmed
+from ringtune.envs.windows import _trimmed
 from ringtune.envs.figure import figure_texts
 from ringtune.envs.metrics import compute_metrics
 from ringtune.envs.path_geometry import path_legs

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ringtune.envs.evaluate import planned_job, resolve_printer
+from ringtune.envs.planned_job import planned_job, resolve_printer
 from ringtune.envs.sim import simulate
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.job_shapers import shape_timeline, shaper_timeline

@@ -1,5 +1,5 @@
 """A job planned under a TuneConfig: the one path from a parsed job to its plan that ``ringtune plan``
-and :func:`ringtune.envs.evaluate.planned_job` (every tuning trial) share.
+and :func:`ringtune.envs.planned_job.planned_job` (every tuning trial) share.
 
 1. the config's acceleration (mm/s²) is the machine's printing and travel acceleration (export
    sends ``M204 P T``; a retract acceleration, Marlin's ``M204 R``, stays), and its per-axis caps (``max_accel_x``/``y``)

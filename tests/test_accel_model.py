@@ -12,7 +12,8 @@ import pytest
 
 from ringtune.envs.accel_model import LOAD_CAP, model_accel
 from ringtune.envs.judgement import DEFAULT_WEIGHTS, judged_cost
-from ringtune.envs.evaluate import evaluate, planned_job, resolve_printer
+from ringtune.envs.evaluate import evaluate
+from ringtune.envs.planned_job import planned_job, resolve_printer
 from ringtune.envs.metrics import Metrics
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.testprints import builtin_test_print

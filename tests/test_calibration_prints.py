@@ -217,7 +217,7 @@ def test_trace_of_a_long_job_is_its_quality_windows(tmp_path, monkeypatch, capsy
     """A job longer than the whole-job limit is traced over the windows the metrics judged: the
     rows carry their window number and the nozzle stays near the commanded path."""
     from ringtune.envs import trace
-    from ringtune.envs.evaluate import planned_job
+    from ringtune.envs.planned_job import planned_job
     from ringtune.envs.printer import load_printer
 
     monkeypatch.setattr(trace, "WHOLE_JOB_MAX_S", 0.5)      # the command reads it when called

@@ -17,7 +17,7 @@ import pytest
 
 import ringtune.envs
 from ringtune.agents.cli.main import main
-from ringtune.envs.evaluate import clear_cache, planned_job
+from ringtune.envs.planned_job import clear_cache, planned_job
 from ringtune.envs.printer import load_printer
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import plan_with_config

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from ringtune.envs.evaluate import clear_cache, evaluate, planned_job, resolve_printer
+from ringtune.envs.evaluate import evaluate
+from ringtune.envs.planned_job import clear_cache, planned_job, resolve_printer
 from ringtune.shaping import planner
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.gcode import read_gcode

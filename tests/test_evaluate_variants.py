@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from ringtune.envs.evaluate import auto_settle, evaluate_detailed, evaluate_judged
+from ringtune.envs.evaluate import evaluate_detailed, evaluate_judged
+from ringtune.envs.windows import auto_settle
 from ringtune.envs.metrics import worst_case
 from ringtune.envs.printer import load_printer, printer_from_dict
 from ringtune.envs.sim import auto_timestep

@@ -7,7 +7,8 @@ import dataclasses
 
 import numpy as np
 
-from ringtune.envs.evaluate import evaluate, planned_job
+from ringtune.envs.evaluate import evaluate
+from ringtune.envs.planned_job import planned_job
 from ringtune.envs.printer import load_printer
 from ringtune.shaping.config import TuneConfig
 

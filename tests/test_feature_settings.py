@@ -10,7 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ringtune.envs.evaluate import resolve_job
+from ringtune.envs.planned_job import resolve_job
 from ringtune.envs.printer import load_printer
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.feature_settings import FeatureCommands, move_settings, with_feature_settings

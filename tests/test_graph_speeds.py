@@ -14,7 +14,8 @@ from PIL import Image
 
 from ringtune.agents.cli.main import main
 from ringtune.agents.tune.speeds import speed_advice, typical_wall
-from ringtune.envs.evaluate import evaluate, resolve_job
+from ringtune.envs.evaluate import evaluate
+from ringtune.envs.planned_job import resolve_job
 from ringtune.envs.printer import printer_from_dict
 from ringtune.shaping.config import TuneConfig
 

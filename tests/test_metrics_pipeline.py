@@ -11,7 +11,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from ringtune.envs.evaluate import PlannedJob, metrics_of, window_runs
+from ringtune.envs.planned_job import PlannedJob
+from ringtune.envs.windows import metrics_of, window_runs
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.motion import Motion
 

@@ -137,7 +137,7 @@ def test_a_klipper_configuration_plans_with_klippers_corner_rule(tmp_path, capsy
     planned as Klipper runs it, with square_corner_velocity, so `plan --config best.json` gives
     tune's print time (tune plans the printer with its own rule); one for Marlin keeps the
     slicer's flavour."""
-    from ringtune.envs.evaluate import planned_job
+    from ringtune.envs.planned_job import planned_job
     from ringtune.envs.printer import load_printer
     from ringtune.shaping.config import TuneConfig
     times = {}

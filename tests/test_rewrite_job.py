@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from ringtune.agents.cli.main import main
-from ringtune.envs.evaluate import planned_job
+from ringtune.envs.planned_job import planned_job
 from ringtune.envs.job_rewrite import HEADER, rewrite_gcode_bytes
 from ringtune.envs.printer import load_printer
 from ringtune.shaping.config import TuneConfig

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from ringtune.envs import evaluate as ev
+from ringtune.envs.windows import auto_settle
 from ringtune.envs.metrics import Metrics, worst_case
 from ringtune.envs.printer import printer_from_dict
 from ringtune.envs.sim import simulate
@@ -82,7 +83,7 @@ def test_margin_is_the_worst_of_the_detuned_printers_and_punishes_a_narrow_shape
     every damping ratio × 0.75 (checked against evaluating the twins directly). ZV, whose band is ±6 % (seed 000), loses much of
     its cancellation there; EI (±39 %) hardly changes — the reason the study judges this way."""
     p = _printer()
-    settle = ev.auto_settle(p)
+    settle = auto_settle(p)
     ratio = {}
     for name in ("zv", "ei"):
         c = TuneConfig(shaper_x=name, shaper_y=name, freq_x=50.0, freq_y=40.0, damping_x=0.05, damping_y=0.05,

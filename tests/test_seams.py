@@ -15,6 +15,7 @@ import math
 import pytest
 
 from ringtune.envs import evaluate as ev
+from ringtune.envs.planned_job import clear_cache
 from ringtune.envs.printer import load_printer
 from ringtune.shaping import testprints
 from ringtune.shaping.builtin_jobs import job_path
@@ -98,11 +99,11 @@ def _outer_wall(firmware: str, junction: str, seams: int, feature_accel: dict, m
     single = dataclasses.replace(PART_SINGLE, firmware=firmware)
     fast = dataclasses.replace(single, feature_accel=dict(feature_accel))
     monkeypatch.setattr(testprints, "quality_windows", functools.partial(QUALITY_WINDOWS, seams=seams))
-    ev.clear_cache()
+    clear_cache()
     try:
         ms = ev.evaluate_many([single, fast], printer, str(job_path("part")), freq_margin=0.05)
     finally:
-        ev.clear_cache()
+        clear_cache()
     return [m.features["outer_wall"] for m in ms]
 
 

@@ -18,7 +18,7 @@ import pytest
 from prusaslicer import BASE, PART, STL, prusaslicer, slice_part
 
 from ringtune.agents.cli.main import build_parser, main
-from ringtune.envs.evaluate import planned_job, resolve_printer
+from ringtune.envs.planned_job import planned_job, resolve_printer
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.features import feature_class
 from ringtune.shaping.gcode import read_gcode

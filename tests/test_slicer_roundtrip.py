@@ -18,7 +18,7 @@ import pytest
 from prusaslicer import prusaslicer, slice_part
 
 from ringtune.agents.cli.main import main
-from ringtune.envs.evaluate import planned_job, resolve_printer
+from ringtune.envs.planned_job import planned_job, resolve_printer
 from ringtune.hardware.slicer_profile import KEYS, feature_accels, slicer_profile
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.features import FEATURE_CLASSES, feature_class

@@ -215,7 +215,7 @@ def test_klippers_max_accel_is_judged_with_the_stored_axis_caps_raised_where_gco
     print time is the planner's at that acceleration, not at 500; what the printer runs now keeps its
     caps; on Klipper, which stores no caps to raise, nothing is added."""
     from ringtune.agents.tune.baselines import baseline_configs
-    from ringtune.envs.evaluate import planned_job
+    from ringtune.envs.planned_job import planned_job
     from ringtune.envs.printer import load_printer
 
     rec = {"shaper_x": "zv", "freq_x": 51.0, "shaper_y": "zv", "freq_y": 46.0, "max_accel": 7800.0}

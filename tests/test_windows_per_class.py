@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ringtune.envs.evaluate import planned_job
+from ringtune.envs.planned_job import planned_job
 from ringtune.envs.printer import load_printer
 from ringtune.shaping.features import feature_class
 from ringtune.shaping.gcode import read_gcode

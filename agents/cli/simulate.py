@@ -39,7 +39,8 @@ from ringtune.agents.cli.trace_option import write_trace_option
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 from ringtune.agents.tune.versus import baseline_evaluations, table as versus_table, versus_all
-from ringtune.envs.evaluate import evaluate_judged, job_accel_commands, planned_job, resolve_job, resolve_printer
+from ringtune.envs.evaluate import evaluate_judged
+from ringtune.envs.planned_job import job_accel_commands, planned_job, resolve_job, resolve_printer
 from ringtune.envs.metrics import Metrics
 from ringtune.envs.plots import plot_evaluation
 from ringtune.envs.variants import variant_factors

@@ -22,7 +22,7 @@ from ringtune.agents.cli.options import VALUES, number_list
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 from ringtune.agents.tune.sweep import (FACTORS, factor_values, offered_shapers, plot_sweep, sweep,
     tuned_frequencies, write_csv)
-from ringtune.envs.evaluate import resolve_printer
+from ringtune.envs.planned_job import resolve_printer
 
 NAME = "study"
 DESCRIPTION = """\

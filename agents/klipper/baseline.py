@@ -13,7 +13,7 @@ import numpy as np
 
 from ringtune.agents.klipper.rule import (AUTOTUNE_SHAPERS, DEFAULT_DAMPING_RATIO, VERSION_FLAVOR,
     KlipperRecommendation, default_shaper_factory, recommend_klipper)
-from ringtune.envs.evaluate import resolve_printer
+from ringtune.envs.planned_job import resolve_printer
 from ringtune.envs.sim import resonance_test
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from ringtune.agents.identify.accelerometer import recorded_files, resonance_psds
 from ringtune.agents.klipper.baseline import klipper_rule_on_simulated_test, recommend_axes
 from ringtune.agents.klipper.rule import DEFAULT_DAMPING_RATIO
-from ringtune.envs.evaluate import resolve_printer
+from ringtune.envs.planned_job import resolve_printer
 from ringtune.shaping.config import TuneConfig
 
 

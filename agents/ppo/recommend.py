@@ -13,7 +13,7 @@ import numpy as np
 from ringtune.agents.identify.accelerometer import resonance_psds
 from ringtune.agents.ppo.policy import Policy, load_policy
 from ringtune.agents.ppo.refine import PrinterCost, optuna_search
-from ringtune.envs.evaluate import resolve_printer
+from ringtune.envs.planned_job import resolve_printer
 from ringtune.envs.identify import identify_psd
 from ringtune.envs.printer import printer_from_dict
 from ringtune.shaping.config import TuneConfig

@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ringtune.envs.evaluate import resolve_job
+from ringtune.envs.planned_job import resolve_job
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import plan_with_config, with_axis_caps
 from ringtune.shaping.firmware import FIRMWARES

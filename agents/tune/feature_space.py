@@ -24,7 +24,7 @@ import numpy as np
 
 from ringtune.agents.tune.motor_bound import motor_accel_limit
 from ringtune.agents.tune.space import ACCEL_GROUPS, HIDDEN_CORNERS, SEEN_GROUPS, SearchSpace
-from ringtune.envs.evaluate import planned_job, resolve_job
+from ringtune.envs.planned_job import planned_job, resolve_job
 from ringtune.shaping.feature_settings import corner_value, effective_classes
 from ringtune.shaping.features import FEATURE_CLASSES
 from ringtune.shaping.firmware import FIRMWARES

@@ -6,7 +6,7 @@ A sliced job often sets its own accelerations (Marlin ``M201``/``M204``, Klipper
 sliced) and the tuned acceleration only rules where the job sets none — where it has no effect it
 is not searched; with ``--job-accel replace`` the tuned acceleration replaces them (what
 re-slicing at it, with the machine limits raised to it, would give). Print times here come from
-the planner alone (no physics), through :func:`ringtune.envs.evaluate.planned_job`.
+the planner alone (no physics), through :func:`ringtune.envs.planned_job.planned_job`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import numpy as np
 
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point
 from ringtune.agents.tune.motor_bound import defaults_note
-from ringtune.envs.evaluate import job_accel_commands, planned_job, resolve_job
+from ringtune.envs.planned_job import job_accel_commands, planned_job, resolve_job
 from ringtune.shaping.config import TuneConfig
 
 #: how the job's acceleration settings are written in G-code: command -> (setting, its word)

@@ -30,7 +30,8 @@ import numpy as np
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION
 from ringtune.agents.tune.space import freq_floor
 from ringtune.envs.bed_load import dominant_y_mode, is_bed_slinger, loaded
-from ringtune.envs.evaluate import evaluate_many, job_accel_commands, resolve_job, resolve_printer
+from ringtune.envs.evaluate import evaluate_many
+from ringtune.envs.planned_job import job_accel_commands, resolve_job, resolve_printer
 from ringtune.envs.printer_model import Printer
 from ringtune.shaping.analysis import max_accel, residual_vibration, smoothing
 from ringtune.shaping.builtin_jobs import job_path

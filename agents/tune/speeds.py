@@ -31,7 +31,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ringtune.envs.evaluate import evaluate, resolve_job
+from ringtune.envs.evaluate import evaluate
+from ringtune.envs.planned_job import resolve_job
 from ringtune.envs.printer_model import Printer
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError

@@ -23,7 +23,7 @@ from ringtune.agents.tune.refine import refine
 from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config, walked_keys
 from ringtune.agents.tune.stop import Bounds
 from ringtune.agents.tune.study_results import study_points
-from ringtune.envs.evaluate import resolve_printer
+from ringtune.envs.planned_job import resolve_printer
 from ringtune.envs.job_rewrite import rewrite_file
 from ringtune.envs.printer_model import unmeasured_note
 from ringtune.envs.variants import TWIN_DAMPING

@@ -1,0 +1,181 @@
+"""A job planned for a printer under a configuration, with its quality windows (cached).
+
+1. The job (G-code path, G-code text, a parsed ``Job``, a built-in job's name, or None for the
+   built-in test print) is parsed once;
+2. :func:`ringtune.shaping.config_plan.plan_with_config` plans it with the printer's limits (the
+   config's acceleration per the job-acceleration mode ``job_accel``, its frequency limit, DAA,
+   per-feature settings) → print time, s;
+3. the quality windows (sharpest corners, fastest zigzags, seams) are chosen once per job on the
+   plan at the printer's own limits and relocated onto every configuration's plan, so all are
+   judged on the same corners.
+
+Parsed jobs and plans are cached per (job, limits, planning settings): configurations that only
+change the shaper skip parsing and planning. Everything is deterministic.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections import OrderedDict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ringtune.envs.printer import load_printer
+from ringtune.shaping import gcode, testprints
+from ringtune.shaping.builtin_jobs import job_path
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.config_plan import JOB_ACCEL_SETTINGS, job_accel_mode, plan_with_config
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.job import SETTING_KEYS
+from ringtune.shaping.motion import Motion
+
+#: quality windows per job and their span, s
+MAX_WINDOWS = 8
+WINDOW_SPAN = 0.25
+
+_JOBS: "OrderedDict[Any, Any]" = OrderedDict()
+_PLANS: "OrderedDict[Any, Any]" = OrderedDict()
+_CACHE_SIZE = 64
+#: job settings the window choice leaves out (the printer's own limits rule there)
+REFERENCE_FREE = (*JOB_ACCEL_SETTINGS, "square_corner_velocity", "junction_deviation", "jerk_x", "jerk_y",
+                  "min_cruise_ratio", "accel_to_decel")
+
+
+@dataclasses.dataclass
+class PlannedJob:
+    """A planned job and its quality windows (cached)."""
+
+    plan: Any                 # shaping.planner.Plan
+    windows: list             # [Window(t0, t1, kind, score)]
+
+    @property
+    def print_time(self) -> float:
+        return float(self.plan.print_time)
+
+    @property
+    def motion(self) -> Motion:
+        return self.plan.motion
+
+
+def _remember(cache: OrderedDict, key, value):
+    cache[key] = value
+    cache.move_to_end(key)
+    while len(cache) > _CACHE_SIZE:
+        cache.popitem(last=False)
+    return value
+
+
+def clear_cache() -> None:
+    """Forget cached jobs and plans (e.g. after a G-code file changed in place)."""
+    _JOBS.clear()
+    _PLANS.clear()
+
+
+# -- inputs ------------------------------------------------------------------------------------
+def resolve_printer(printer):
+    """A ``Printer`` from a Printer, a TOML path, or None (the embedded default)."""
+    if printer is None or isinstance(printer, (str, os.PathLike)):
+        return load_printer(printer)
+    return printer
+
+
+def resolve_job(job):
+    """(cache key, parsed Job) from a path, G-code text, a Job, the name of a built-in job
+    (:data:`ringtune.shaping.builtin_jobs.BUILTIN_JOBS`), or None (built-in test print)."""
+    job = job_path(job)
+    if job is None:
+        key = ("builtin",)
+    elif isinstance(job, (str, os.PathLike)):
+        p = Path(job)
+        if isinstance(job, str) and "\n" in job:
+            key = ("text", hash(job))
+        elif p.is_file():
+            st = p.stat()
+            key = ("file", str(p.resolve()), st.st_mtime_ns, st.st_size)
+        else:
+            raise RingtuneError("no such G-code file", str(job))
+    else:
+        return ("object", id(job)), job
+    if key in _JOBS:
+        _JOBS.move_to_end(key)
+        return key, _JOBS[key]
+    parsed = testprints.builtin_test_print() if job is None else gcode.read_gcode(job)
+    return key, _remember(_JOBS, key, parsed)
+
+
+def job_accel_commands(job) -> dict[str, float]:
+    """The acceleration commands a parsed job sets itself: {setting: largest value it sets}
+    (mm/s²; keys of :data:`ringtune.shaping.config_plan.JOB_ACCEL_SETTINGS`; empty when it sets none)."""
+    out = {}
+    for k in JOB_ACCEL_SETTINGS:
+        col = np.asarray(job.settings_table)[:, SETTING_KEYS.index(k)]
+        col = col[~np.isnan(col)]
+        if len(col):
+            out[k] = float(col.max())
+    return out
+
+
+def _plan_settings(config: TuneConfig | None) -> tuple:
+    """What of ``config`` changes the plan: (frequency limit (Hz, method, speed factor), accel,
+    DAA frequency, per-axis caps, per-feature settings (accelerations by class, corner, minimum
+    cruise ratio) or None)."""
+    if config is None:
+        return (0.0, "", 0.0), None, None, (None, None), None
+    fl = ((float(config.freq_limit_hz), config.freq_limit_method, float(config.min_speed_factor))
+          if config.freq_limit_hz > 0 else (0.0, "", 0.0))
+    accel = None if config.accel is None else float(config.accel)
+    feature = ((tuple(sorted(config.feature_accel.items())), config.corner, config.min_cruise_ratio,
+                tuple(sorted(config.feature_corner.items())), tuple(sorted(config.feature_min_cruise_ratio.items())))
+               if config.per_feature else None)
+    return fl, accel, config.daa_freq, config.axis_caps, feature
+
+
+def planned_job(printer, job=None, config: TuneConfig | None = None, *,
+                max_windows: int = MAX_WINDOWS, span: float = WINDOW_SPAN,
+                job_accel: str | None = None) -> PlannedJob:
+    """Parse, frequency-limit and plan ``job`` for ``printer`` under ``config`` (cached).
+
+    ``job_accel``: how ``config.accel`` meets the job's own acceleration commands
+    (:func:`ringtune.shaping.config_plan.job_accel_mode`). The quality windows are chosen once, on
+    the plan at the printer's own limits without frequency limit (the job's own accelerations and
+    corner settings left out: :func:`_reference_windows`), and every configuration is judged on
+    those same corners and zigzags (:func:`ringtune.shaping.testprints.relocate_windows`)."""
+    mode = job_accel_mode(config, job_accel)
+    jkey, parsed = resolve_job(job)
+    limits = printer.limits
+    settings = _plan_settings(config)
+    fl, accel, daa, caps, feature = settings
+    if accel is None:
+        mode = "replace"       # nothing to replace with: the job's and the machine's limits as they are
+    key = (jkey, repr(limits), fl, accel, daa, max_windows, span, mode, caps, feature)
+    if key in _PLANS:
+        _PLANS.move_to_end(key)
+        return _PLANS[key]
+    plan = plan_with_config(parsed, limits, config, job_accel=mode).plan
+    # the corners and zigzags the printer's own plan chose, at this plan's times
+    windows = testprints.relocate_windows(plan, _reference_windows(jkey, parsed, limits, max_windows, span), span=span)
+    pj = PlannedJob(plan, list(windows))
+    if key[0][0] == "object":  # keep the job alive so its id is not reused while cached
+        pj.source = parsed  # type: ignore[attr-defined]
+    return _remember(_PLANS, key, pj)
+
+
+def _reference_windows(jkey, parsed, limits, max_windows: int, span: float) -> list:
+    """The quality windows of a job, chosen on its plan at the printer's own limits: the job's own
+    accelerations, X/Y caps and corner settings left out (:data:`REFERENCE_FREE`), so a job and
+    the same job rewritten with per-feature commands (``ringtune rewrite``) are judged on the
+    same corners and zigzags (cached)."""
+    key = ("windows", jkey, repr(limits), max_windows, span)
+    if key not in _PLANS:
+        cols = [SETTING_KEYS.index(k) for k in REFERENCE_FREE]
+        table = np.array(parsed.settings_table, dtype=float, copy=True)
+        table[:, cols] = np.nan
+        plan = plan_with_config(dataclasses.replace(parsed, settings_table=table), limits, None).plan
+        _remember(_PLANS, key, testprints.quality_windows(plan, max_windows=max_windows, span=span))
+    _PLANS.move_to_end(key)
+    return _PLANS[key]
+
+
