@@ -22,7 +22,8 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import ConfiguredPlan, plan_with_config
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.freqlimit import commanded_frequencies as per_move
-from ringtune.shaping.gcode import read_gcode, read_gcode_bytes
+from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.gcode_file import read_gcode_bytes
 from ringtune.shaping.gcode_post import AccelResult, LimitResult, limit_file, rewrite_accel_bytes
 from ringtune.shaping.job import Job
 from ringtune.shaping.planner import MachineLimits

@@ -17,7 +17,8 @@ from ringtune.shaping.config_plan import plan_with_config
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import FeatureCommands, accel_groups, class_corner_words, corner_words
 from ringtune.shaping.firmware import FIRMWARES
-from ringtune.shaping.gcode import read_gcode, read_gcode_bytes
+from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.gcode_file import read_gcode_bytes
 from ringtune.shaping.gcode_post import limit_gcode_bytes
 from ringtune.shaping.layer_commands import TAG, schedule_inserts
 from ringtune.shaping.layers import job_layers

@@ -31,12 +31,14 @@ import operator
 import re
 from functools import reduce
 from pathlib import Path
-from typing import Iterable, Iterator
+from typing import Iterable
 
 import numpy as np
 
+from ringtune.shaping.arcs import arc_chords
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.gcode_sniff import HEAD, not_gcode
+from ringtune.shaping.gcode_file import open_lines, read_head, refuse_non_gcode
+from ringtune.shaping.gcode_sniff import HEAD
 from ringtune.shaping.job import (AXES, LIMIT_COMMANDS, SETTING_KEYS, SHAPER_COMMANDS, STOP_COMMANDS,
                                   Event, Job)
 from ringtune.shaping.gcode_commands import BOUNDS as _BOUNDS
@@ -363,21 +365,8 @@ class _Reader(SettingCommands):
             w = {k: v * self.unit if k in "XYZEIJRF" else v for k, v in w.items()}
         self._feedrate(w, where)
         end = self._target(w)
-        x0, y0 = self.pos[0], self.pos[1]
-        cx, cy = _arc_centre(clockwise, w, x0, y0, end[0], end[1], where)
-        radius = math.hypot(x0 - cx, y0 - cy)
-        if radius <= 0:
-            raise RingtuneError("arc has zero radius", where)
-        a0 = math.atan2(y0 - cy, x0 - cx)
-        sweep = _arc_sweep(clockwise, a0, math.atan2(end[1] - cy, end[0] - cx))
-        n = 1 if radius <= self.tol else max(1, math.ceil(abs(sweep) / (2 * math.acos(1 - self.tol / radius))))
-        start = list(self.pos)
-        for k in range(1, n):
-            f = k / n
-            ang = a0 + sweep * f
-            self._emit([cx + radius * math.cos(ang), cy + radius * math.sin(ang),
-                        start[2] + (end[2] - start[2]) * f, start[3] + (end[3] - start[3]) * f], lineno, arc=True)
-        self._emit(list(end), lineno, arc=True)
+        for point in arc_chords(clockwise, w, list(self.pos), end, self.tol, where):
+            self._emit(point, lineno, arc=True)
 
     def job(self) -> Job:
         self._flush()
@@ -409,40 +398,6 @@ def _finite(words: dict[str, float], where: str) -> dict[str, float]:
     return words
 
 
-def _open_lines(path: Path) -> Iterator[str]:
-    with open(path, "r", encoding="utf-8", errors="replace", newline=None) as fh:
-        yield from fh
-
-
-def _refuse_non_gcode(head: bytes, where: str) -> None:
-    why = not_gcode(head)
-    if why:
-        raise RingtuneError(why, where)
-
-
-def _read_head(path: Path, size: int | None = HEAD) -> bytes:
-    """The first ``size`` bytes of the G-code file ``path`` (all of it when None), with one-line
-    errors for a missing file, a folder and a file that cannot be read."""
-    if path.is_dir():
-        raise RingtuneError("is a directory, not a G-code file", str(path))
-    if not path.is_file():
-        raise RingtuneError("no such G-code file", str(path))
-    try:
-        with open(path, "rb") as fh:
-            return fh.read(size) if size is not None else fh.read()
-    except OSError as exc:
-        raise RingtuneError(f"cannot read: {exc.strerror or exc}", str(path)) from None
-
-
-def read_gcode_bytes(path: str | Path) -> bytes:
-    """The bytes of the G-code file ``path``, refused in one line (naming the file) when it is
-    missing, a folder, unreadable or not G-code (binary data, a PNG, a TOML description...)."""
-    path = Path(path)
-    data = _read_head(path, None)
-    _refuse_non_gcode(data[:HEAD], str(path))
-    return data
-
-
 def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = None) -> Job:
     """Read a G-code job from a file path (streamed line by line) or from G-code text/bytes.
 
@@ -460,43 +415,14 @@ def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = N
             is_path = False
     if is_path:
         path = Path(path_or_text)
-        _refuse_non_gcode(_read_head(path), str(path))
+        refuse_non_gcode(read_head(path), str(path))
         reader = _Reader(str(path), arc_tolerance)
-        reader.feed_lines(_open_lines(path))
+        reader.feed_lines(open_lines(path))
     else:
         source = source or "<gcode>"
         if isinstance(path_or_text, bytes):
-            _refuse_non_gcode(path_or_text[:HEAD], source)
+            refuse_non_gcode(path_or_text[:HEAD], source)
             path_or_text = path_or_text.decode("utf-8", "replace")
         reader = _Reader(source, arc_tolerance)
         reader.feed_lines(io.StringIO(str(path_or_text), newline=None))
     return reader.job()
-
-
-def _arc_centre(clockwise: bool, w: dict[str, float], x0: float, y0: float, x1: float, y1: float,
-                where: str) -> tuple[float, float]:
-    """The centre (mm) of a G2/G3 arc from (x0, y0) to (x1, y1): offsets I/J, or radius R (centre left
-    of the chord for CCW with R > 0, right for CW; R < 0 takes the long way)."""
-    if "R" in w:
-        r = w["R"]
-        dx, dy = x1 - x0, y1 - y0
-        chord = math.hypot(dx, dy)
-        if chord == 0 or abs(r) * 2 < chord - 1e-9:
-            raise RingtuneError(f"arc radius R{r:g} cannot join points {chord:.4g} mm apart", where)
-        h = math.sqrt(max(r * r - chord * chord / 4, 0.0))
-        sign = (-1 if clockwise else 1) * (1 if r > 0 else -1)
-        return x0 + dx / 2 - sign * h * dy / chord, y0 + dy / 2 + sign * h * dx / chord
-    if "I" in w or "J" in w:
-        return x0 + w.get("I", 0.0), y0 + w.get("J", 0.0)
-    raise RingtuneError(f"{'G2' if clockwise else 'G3'} needs I/J or R", where)
-
-
-def _arc_sweep(clockwise: bool, a0: float, a1: float) -> float:
-    """The angle (rad) swept from ``a0`` to ``a1``: negative clockwise, positive counter-clockwise,
-    a full turn when they coincide."""
-    sweep = a1 - a0
-    if clockwise and sweep >= -1e-12:
-        return sweep - 2 * math.pi
-    if not clockwise and sweep <= 1e-12:
-        return sweep + 2 * math.pi
-    return sweep

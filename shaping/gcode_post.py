@@ -20,7 +20,8 @@ import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.freqlimit import apply_freq_limit, resolve_min_speed_factor
-from ringtune.shaping.gcode import checksum, read_gcode, read_gcode_bytes
+from ringtune.shaping.gcode import checksum, read_gcode
+from ringtune.shaping.gcode_file import read_gcode_bytes
 
 _MOVE = re.compile(rb"^\s*(?:[Nn]\s*-?\d+\s*)?[Gg]0*[0-3](?![0-9.])")
 _F_WORD = re.compile(rb"([Ff])\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
