@@ -8,8 +8,8 @@ import numpy as np
 import optuna
 import pytest
 
-from ringtune.agents.tune.space import (MZV_N, config_from_params, default_space, mzv_t_max, params_from_config,
-                                        suggest_params)
+from ringtune.agents.tune.shaper_families import MZV_N, mzv_t_max
+from ringtune.agents.tune.space import config_from_params, default_space, params_from_config, suggest_params
 from ringtune.envs.evaluate import evaluate
 from ringtune.envs.printer import load_printer
 from ringtune.shaping.analysis import residual_vibration

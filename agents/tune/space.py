@@ -5,7 +5,7 @@ Parameters (Optuna names):
 - ``shaper`` (RepRapFirmware: one shaper for all axes) or ``shaper_x``, ``shaper_y``: the shaper
   types the target firmware offers (``none`` included; RRF ``custom`` excluded) and, where its
   shapers take Klipper's parameters (flavour ``klipper``: Klipper HEAD), the families
-  ``mzv(n,t)`` — ``mzv_n_<ax>`` impulses (3–6) over ``mzv_t_<ax>`` damped periods (0.5 to just under
+  ``mzv(n,t)`` (:mod:`ringtune.agents.tune.shaper_families`) — ``mzv_n_<ax>`` impulses (3–6) over ``mzv_t_<ax>`` damped periods (0.5 to just under
   (n − 1)/2, where Klipper's generalised MZV stays non-negative; sampled as a fraction of that
   span) — and ``ei(v_tol)`` — ``ei_vtol_<ax>`` the tolerated vibration (0.01–0.2; plain EI is 0.05);
 - ``freq`` (RRF) or ``freq_x``, ``freq_y``: shaper frequency F, Hz, around the printer's modes;
@@ -45,10 +45,11 @@ from typing import Any, Callable, Sequence
 
 
 from ringtune.agents.tune.motor_bound import accel_ceiling
+from ringtune.agents.tune.shaper_families import PARAMETRISED, family_params, shaper_name, suggest_family
 from ringtune.shaping.config import FREQ_LIMIT_METHODS, TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
-from ringtune.shaping.shapers import available_shapers, max_damping, parse_name
+from ringtune.shaping.shapers import available_shapers, max_damping
 from ringtune.shaping.smoothers import takes_damping
 
 #: acceleration groups of feature classes searched apart (``visible``: the config's ``accel``); top
@@ -69,18 +70,6 @@ HIDDEN_CORNERS = ("infill", "support", "solid_infill", "travel")
 #: rounding of the corner rule's value per junction rule (mm/s, mm, mm/s) and of minimum_cruise_ratio
 CORNER_STEP = {"scv": 0.5, "jd": 0.001, "jerk": 0.5}
 MCR_STEP = 0.05
-
-#: search families of Klipper's parametrised shapers, per shaper flavour that has them
-PARAMETRISED = {"klipper": ("mzv(n,t)", "ei(v_tol)")}
-MZV_N = (3, 6)
-MZV_T_MIN = 0.5
-EI_VTOL = (0.01, 0.2)
-
-
-def mzv_t_max(n: int) -> float:
-    """Longest duration (damped periods) searched for ``mzv(n=…)``: just under Klipper's n > 2t + 1."""
-    return (n - 1) / 2.0 - 0.01
-
 
 @dataclass(frozen=True)
 class SearchSpace:
@@ -327,7 +316,7 @@ def suggest_params(trial: Any, space: SearchSpace) -> dict[str, Any]:
     for ax, s in axes:
         if p[f"shaper{s}"] != "none":
             p[f"freq{s}"] = trial.suggest_float(f"freq{s}", *getattr(space, f"freq_{ax}"))
-        p.update(_suggest_family(trial, p[f"shaper{s}"], ax))
+        p.update(suggest_family(trial, p[f"shaper{s}"], ax))
     for key in damping_keys(p, space):
         p[key] = trial.suggest_float(key, *space.damping)
     p["freq_limit"] = trial.suggest_categorical("freq_limit", ["off", *space.freq_limit_methods])
@@ -357,40 +346,6 @@ def _missing(r: _Ranged, params: dict[str, Any]) -> float:
     if r.into == "feature_accel" and params.get("accel") is not None:
         return min(max(float(params["accel"]), r.lo), r.hi)
     return r.missing
-
-
-def _suggest_family(trial: Any, family: str, ax: str) -> dict[str, Any]:
-    """The parameters of a parametrised family on axis ``ax`` ({} for a plain shaper)."""
-    if family == "mzv(n,t)":
-        return {f"mzv_n_{ax}": trial.suggest_int(f"mzv_n_{ax}", *MZV_N),
-                f"mzv_t_{ax}": trial.suggest_float(f"mzv_t_{ax}", 0.0, 1.0)}
-    if family == "ei(v_tol)":
-        return {f"ei_vtol_{ax}": trial.suggest_float(f"ei_vtol_{ax}", *EI_VTOL)}
-    return {}
-
-
-def shaper_name(family: str, params: dict[str, Any], ax: str) -> str:
-    """The firmware's shaper name of a search family and its parameters: ``mzv(n=5,t=1.1)``,
-    ``ei(v_tol=0.08)``, or the plain name (t to 0.01 period, v_tol to 0.005, as a user would type)."""
-    if family == "mzv(n,t)":
-        n = int(params[f"mzv_n_{ax}"])
-        t = MZV_T_MIN + float(params[f"mzv_t_{ax}"]) * (mzv_t_max(n) - MZV_T_MIN)
-        return f"mzv(n={n},t={round(t, 2):g})"
-    if family == "ei(v_tol)":
-        return f"ei(v_tol={_q(params[f'ei_vtol_{ax}'], 0.005):g})"
-    return family
-
-
-def family_params(name: str, ax: str) -> tuple[str, dict[str, Any]]:
-    """Inverse of :func:`shaper_name`: (family, parameters) of a configuration's shaper name."""
-    base, params = parse_name(name)
-    if base == "mzv" and params:
-        n = int(params.get("n", 3))
-        t = float(params.get("t", 0.75))
-        return "mzv(n,t)", {f"mzv_n_{ax}": n, f"mzv_t_{ax}": (t - MZV_T_MIN) / (mzv_t_max(n) - MZV_T_MIN)}
-    if base == "ei" and params:
-        return "ei(v_tol)", {f"ei_vtol_{ax}": float(params.get("v_tol", 0.05))}
-    return name, {}
 
 
 def damping_keys(shaping: dict[str, Any], space: SearchSpace) -> list[str]:
