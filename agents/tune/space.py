@@ -5,9 +5,10 @@ Parameters (Optuna names):
 - ``shaper`` (RepRapFirmware: one shaper for all axes) or ``shaper_x``, ``shaper_y``: the shaper
   types the target firmware offers (``none`` included; RRF ``custom`` excluded) and, where its
   shapers take Klipper's parameters (flavour ``klipper``: Klipper HEAD), the families
-  ``mzv(n,t)`` (:mod:`ringtune.agents.tune.shaper_families`) — ``mzv_n_<ax>`` impulses (3–6) over ``mzv_t_<ax>`` damped periods (0.5 to just under
-  (n − 1)/2, where Klipper's generalised MZV stays non-negative; sampled as a fraction of that
-  span) — and ``ei(v_tol)`` — ``ei_vtol_<ax>`` the tolerated vibration (0.01–0.2; plain EI is 0.05);
+  (:mod:`ringtune.agents.tune.shaper_families`) ``mzv(n,t)`` — ``mzv_n_<ax>`` impulses (3–6) over
+  ``mzv_t_<ax>`` damped periods (0.5 to just under (n − 1)/2, where Klipper's generalised MZV
+  stays non-negative; sampled as a fraction of that span) — and ``ei(v_tol)`` — ``ei_vtol_<ax>``
+  the tolerated vibration (0.01–0.2; plain EI is 0.05);
 - ``freq`` (RRF) or ``freq_x``, ``freq_y``: shaper frequency F, Hz, around the printer's modes;
 - ``damping_x``, ``damping_y`` (or ``damping`` on RepRapFirmware, one shaper for all axes): shaper
   damping ratio S per axis, as Klipper, Marlin and Prusa take it (``damping_ratio_x``, ``M593 X
