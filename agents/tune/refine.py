@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import time
 from typing import Callable
 
 from ringtune.agents.tune.baselines import Baselines
@@ -29,19 +30,26 @@ from ringtune.envs.forked import split_map
 
 
 def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySettings, printer, space: SearchSpace,
-           bounds: Bounds) -> tuple[Choice, Stop | None, Raise | None, Ladder | None]:
+           bounds: Bounds, note: Callable[[str], None] = lambda s: None
+           ) -> tuple[Choice, Stop | None, Raise | None, Ladder | None]:
     """(the choice, the measured stop or None, the raise where nobody looks or None, the shaper
     ladder or None): a choice held to baselines climbs the ladder and takes the measured stop; then,
     searching per feature, the raise, held to the same baselines and to the choice it starts from
     (or, where the choice is held to none: ``--no-baselines``, ``--pick knee``, to that alone).
-    ``evaluator``: the study's (``f(configs, printer, job, **kwargs)``); ``bounds``: the study's."""
+    ``evaluator``: the study's (``f(configs, printer, job, **kwargs)``); ``bounds``: the study's;
+    ``note``: one progress line as each walk starts and ends (they take a while on a long job)."""
     evaluate, exact = _evaluators(evaluator, settings, printer)
+    t0 = time.monotonic()
+
+    def step(what: str) -> None:
+        note(f"ringtune tune: after the study ({time.monotonic() - t0:.0f} s): {what}")
 
     stop = ladder = None
     if choice.baseline is not None:
         held = choice.held_to or (choice.baseline,)
         bases = {k: bl.points[k] for k in held}
         names = {k: bl.labels.get(k, BASELINE_NAMES.get(k, k)) for k in held}
+        step("climbing the shapers of Klipper's rule's table ...")
         ladder = climb(choice.point, bases, evaluate, space, bounds, bl.fits, max_evaluations=settings.n_trials,
                        screen=exact)
         if ladder.moved:
@@ -49,6 +57,7 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
                 f"{choice.sentence}; then, climbing the shapers of Klipper's rule's table, "
                 f"{shaping_text(ladder.point.config)} at {ladder.point.config.accel:.0f} mm/s², every visible "
                 f"measure still no worse"))
+        step(f"{ladder.evaluations} judged; the measured stop, stepping the acceleration up ...")
         stop = measured_stop(choice.point, bases, evaluate, space, bounds, labels=names)
         if stop.moved:
             choice = dataclasses.replace(choice, point=stop.point, sentence=(
@@ -60,8 +69,10 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
     if space.per_feature:
         # quality is spent only where nobody looks: every visible measure also no worse than the
         # choice's own before the walk (the top surfaces are seen)
+        step("the walk where nobody looks, each feature group toward its top ...")
         lift = raise_hidden(choice.point, {**bases, "choice": choice.point}, evaluate, space, bounds,
                             max_evaluations=settings.n_trials, screen=exact)
+        step(f"done ({lift.evaluations} judged, {lift.screened} screened)")
         if lift.moved:
             held = ("than the baseline's or the choice's own before" if choice.baseline is not None
                     else "than the choice's own")

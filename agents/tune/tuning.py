@@ -182,7 +182,7 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     front = pareto.pareto_front(points, also=_also(points, quality))
     choice = pick(front, baselines, lim.how, req.weight, candidates=points)
     choice, stop, lift, ladder = refine(choice, bl, evaluator, settings, printer, space,
-                                        Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st))
+                                        Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st), note)
     result, text, accel_json, ja_json = _report(req, lim, fw, printer, facts, space, quality, points, front, choice,
                                                 (stop, lift, ladder), bl, settings, floor_note, why, out_dir, store, note)
     result.update({"stop": stop.to_dict() if stop else None,
