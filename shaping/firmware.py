@@ -117,6 +117,8 @@ class Firmware:
             default ("" where it already does or cannot).
         e_sync_timing: the ``e_timing`` that ``e_sync`` gives ("" without it).
         e_source: where ``e_timing`` and ``xy_delay`` were read (file and function).
+        junctions: the junction rules its planner can corner by (``scv``: Klipper's
+            square_corner_velocity; ``jd``: junction deviation; ``jerk``: classic jerk, RRF's M566).
     """
 
     name: str
@@ -149,6 +151,7 @@ class Firmware:
     e_sync: str = ""
     e_sync_timing: str = ""
     e_source: str = ""
+    junctions: tuple[str, ...] = ("jd", "jerk")
 
     @property
     def shapers(self) -> tuple[str, ...]:
@@ -168,6 +171,17 @@ class Firmware:
         parameters: unknown ones, Klipper's mzv ``n >= 3``, the ``v_tol`` range, ...)."""
         get_shaper(name, freq, damping, self.flavor, where=where)
 
+    def junction_note(self, junction: str) -> str:
+        """"" where the firmware corners by ``junction`` (a printer description's ``[limits]
+        junction``), else what that means, in one sentence."""
+        if junction in self.junctions:
+            return ""
+        own = " or ".join(JUNCTION_WORDS[j] for j in self.junctions)
+        return (f"the printer description corners by {JUNCTION_WORDS.get(junction, junction)} ([limits] junction = "
+                f"\"{junction}\"), which {self.title} does not have (it corners by {own}): corners and print time "
+                f"are planned that way, not as {self.title} would; describe the printer with its own (`ringtune "
+                "printer from-klipper|from-marlin|from-rrf` reads it)")
+
     @staticmethod
     def named(name: str, where: str = "firmware") -> "Firmware":
         """The record of ``name`` (case-insensitive: ``Klipper`` is ``klipper``); a refusal naming
@@ -178,6 +192,8 @@ class Firmware:
         return FIRMWARES[key]
 
 
+#: each junction rule in words
+JUNCTION_WORDS = {"scv": "Klipper's square_corner_velocity", "jd": "junction deviation", "jerk": "classic jerk"}
 _KLIPPER_ACCEL = Span(1.0, 1e6, 3, why="Klipper takes any ACCEL > 0")
 _KLIPPER_FREQ = Span(1.0, 1000.0, 3, why="ringtune's bound: Klipper takes any F > 0, but below 1 Hz one shaper "
                                          "outlasts half a second and delays every step by that")
@@ -249,7 +265,7 @@ _E_PRUSA = dict(
 FIRMWARES: dict[str, Firmware] = {f.name: f for f in (
     Firmware("klipper", "Klipper", "klipper", "klipper", "klipper", False, _KLIPPER_FREQ,
              Span(0.0, 0.99, 6), False, "SET_VELOCITY_LIMIT ACCEL={a}", "SET_VELOCITY_LIMIT",
-             _KLIPPER_ACCEL, ";", (), "printer.cfg", persists=_KLIPPER_KEEPS, **_E_KLIPPER),
+             _KLIPPER_ACCEL, ";", (), "printer.cfg", persists=_KLIPPER_KEEPS, junctions=("scv",), **_E_KLIPPER),
     # Kalico (the Klipper fork formerly Danger Klipper): Klipper's toolhead, shapers and commands, plus
     # per-axis acceleration caps on its limited_* kinematics: [printer] max_x_accel / max_y_accel,
     # set at run time by SET_VELOCITY_LIMIT X_ACCEL= Y_ACCEL= (reported as max_x_accel: ...).
@@ -263,19 +279,19 @@ FIRMWARES: dict[str, Firmware] = {f.name: f for f in (
              axis_accel_kinematics=KALICO_LIMITED,
              persists=_KLIPPER_KEEPS.replace("max_accel in [printer]",
                                              "max_accel, max_x_accel, max_y_accel in [printer]"),
-             **_E_KALICO),
+             junctions=("scv",), **_E_KALICO),
     Firmware("rrf", "RepRapFirmware 3.6", "rrf", "rrf", "rrf", True, Span(4.0, 1000.0, 2, why="RRF 3.6's minimum"),
              Span(0.0, 0.99, 3), False, "M204 P{a} T{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
              axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_RRF_ACCEL,
-             accel_roles=("print", "travel"), persists=_RRF_KEEPS, **_E_RRF),
+             accel_roles=("print", "travel"), persists=_RRF_KEEPS, junctions=("jerk",), **_E_RRF),
     Firmware("rrf35", "RepRapFirmware 3.5", "rrf35", "rrf", "rrf", True, _RRF35_FREQ,
              Span(0.0, 0.99, 3), False, "M204 P{a} T{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
              axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_RRF_ACCEL,
-             accel_roles=("print", "travel"), persists=_RRF_KEEPS, **_E_RRF),
+             accel_roles=("print", "travel"), persists=_RRF_KEEPS, junctions=("jerk",), **_E_RRF),
     Firmware("rrf34", "RepRapFirmware 3.4", "rrf35", "rrf", "rrf", True, _RRF35_FREQ,
              Span(0.0, 0.99, 3), False, "M204 P{a} T{a}", "M204", _RRF_ACCEL, ";", (), "config.g", _RRF_NAMES,
              axis_accel_set=_M201_XY, axis_accel_report="M201", axis_accel=_RRF_ACCEL,
-             accel_roles=("print", "travel"), persists=_RRF_KEEPS, **_E_RRF),
+             accel_roles=("print", "travel"), persists=_RRF_KEEPS, junctions=("jerk",), **_E_RRF),
     Firmware("marlin", "Marlin (classic input shaping)", "marlin", "marlin", "marlin", False,
              Span(0.0, 1000.0, 2, lo_open=True, why="Marlin's own minimum F depends on the board"),
              Span(0.0, 1.0, 3), True, "M204 P{a} T{a}", "M204", _M204_2, ";", ("M500",),

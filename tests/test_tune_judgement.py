@@ -353,6 +353,23 @@ def test_the_firmware_is_the_printer_descriptions_unless_given(tmp_path, capsys,
     assert "firmware klipper: the printer description names none" in captured.err
 
 
+def test_a_junction_rule_the_firmware_lacks_is_said(tmp_path, capsys, fake_evaluator):
+    """The embedded printer corners by Klipper's square_corner_velocity; tuned for Marlin, which has
+    no such rule, the tool says so (stderr and the summary's notes) rather than plan silently; for
+    Klipper it says nothing of it."""
+    from ringtune.shaping.firmware import FIRMWARES
+
+    assert FIRMWARES["marlin"].junction_note("jd") == "" and FIRMWARES["rrf"].junction_note("jd") != ""
+    args = ["--trials", "3", "--no-baselines", "--evaluator", fake_evaluator, "--accel-range", "1000,5000"]
+    assert main(["tune", "--firmware", "marlin", "--out", str(tmp_path / "m"), *args]) == 0
+    err = capsys.readouterr().err
+    assert "corners by Klipper's square_corner_velocity" in err and "which Marlin" in err
+    assert "The printer description corners by Klipper's square_corner_velocity" in \
+        (tmp_path / "m" / "summary.txt").read_text()
+    assert main(["tune", "--firmware", "klipper", "--out", str(tmp_path / "k"), *args]) == 0
+    assert "square_corner_velocity ([limits]" not in capsys.readouterr().err
+
+
 def test_readme_same_command_keeps_the_trials_and_the_warm_start_sentence_reads(tmp_path, capsys, fake_evaluator):
     out = tmp_path / "out"
     assert main(["tune", "--out", str(out), "--trials", "7", "--seed", "3", "--evaluator", fake_evaluator]) == 0

@@ -170,6 +170,8 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     check_out(out_dir)
     printer = resolve_printer(req.printer)
     fw = target_firmware(req.firmware, printer, note)
+    if fw.junction_note(printer.limits.junction):
+        note(f"ringtune tune: {fw.junction_note(printer.limits.junction)}")
     if unmeasured_note(printer):
         note(unmeasured_note(printer))
     quality = f"{req.quality}_mm"
@@ -340,7 +342,8 @@ def _report(req: TuneRequest, lim: _Limits, fw: Firmware, printer, facts, space,
         baseline_labels=bl.labels,
         sections=[(head, lines) for head, lines in (("ACCELERATION", accel_lines), ("PER FEATURE", pf_lines),
                                                     ("THE JOB'S OWN ACCELERATIONS", ja_lines)) if lines],
-        notes=_notes(floor_note, lim.st_source, lim.margin, len(settings.enqueue)), export_firmware=fw.name,
+        notes=_notes(floor_note, lim.st_source, lim.margin, len(settings.enqueue))
+        + [f"The {n[4:]}." for n in (fw.junction_note(printer.limits.junction),) if n], export_firmware=fw.name,
         max_show_through_mm=lim.max_st, baseline_binding=baseline_binding,
         best_extra={"job_accel": req.job_accel, "freq_margin": lim.margin, "motor_reserve": lim.reserve,
                     "top_speed_mm_s": facts.top_speed if req.gcode else float(printer.limits.velocity),
