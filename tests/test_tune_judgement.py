@@ -353,6 +353,20 @@ def test_the_firmware_is_the_printer_descriptions_unless_given(tmp_path, capsys,
     assert "firmware klipper: the printer description names none" in captured.err
 
 
+def test_recommend_aims_klippers_rule_at_the_printer_descriptions_firmware(tmp_path, capsys):
+    """``recommend --printer`` of a Marlin printer (from its M503) gives Marlin's shapers (ZV only),
+    said in a note, as tune does; --firmware overrides."""
+    toml = _printer_toml(tmp_path / "p.toml", current={"source": "m503.txt", "firmware": "marlin"})
+    assert main(["recommend", "--printer", str(toml), "--json"]) == 0
+    captured = capsys.readouterr()
+    res = json.loads(captured.out)
+    assert res["firmware"] == "marlin" and res["config"]["firmware"] == "marlin"
+    assert {res["config"]["shaper_x"], res["config"]["shaper_y"]} <= {"zv", "none"}
+    assert "firmware marlin, as the printer description's [current] names it" in captured.err
+    assert main(["recommend", "--printer", str(toml), "--firmware", "klipper", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["firmware"] == "klipper"
+
+
 def test_a_junction_rule_the_firmware_lacks_is_said(tmp_path, capsys, fake_evaluator):
     """The embedded printer corners by Klipper's square_corner_velocity; tuned for Marlin, which has
     no such rule, the tool says so (stderr and the summary's notes) rather than plan silently; for

@@ -17,6 +17,8 @@ from __future__ import annotations
 import argparse
 
 from ringtune.agents.cli.common import firmware_name
+from ringtune.agents.tune.tuning import target_firmware
+from ringtune.envs.planned_job import resolve_printer
 from ringtune.agents.cli.options import VALUES
 from ringtune.agents.klipper.recommend import klipper_pick
 from ringtune.agents.ppo.recommend import policy_pick
@@ -64,8 +66,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="klipper: Klipper's calibrate_shaper rule (default); policy: a trained PPO policy")
     p.add_argument("--klipper-version", choices=("head", "0.13"), default="head",
                    help="Klipper's current rules (head, default) or the older v0.13 ones")
-    p.add_argument("--firmware", type=firmware_name, default="klipper", help="target firmware (klipper, kalico, rrf, rrf35, marlin, "
-                   "marlin-ftm, prusa); default klipper")
+    p.add_argument("--firmware", type=firmware_name, default=None, help="target firmware (klipper, kalico, rrf, rrf35, marlin, "
+                   "marlin-ftm, prusa); default: the one --printer's description names ([current] firmware), "
+                   "else klipper")
     p.add_argument("--axes", metavar="A,B", help="axis of each --accel file in order, e.g. x,y")
     p.add_argument("--scv", type=VALUES["scv"], default=5.0, help="square-corner velocity for smoothing, mm/s "
                    "(default 5; --printer uses the printer's)")
@@ -84,6 +87,10 @@ def run(args: argparse.Namespace, out) -> int:
     if not args.accel and not args.printer:
         raise RingtuneError("give --accel CSV… (a measured resonance test) or --printer P (a simulated one)",
                             "recommend")
+    if args.firmware is None:
+        printer = resolve_printer(None if args.printer in (None, "default") else args.printer)
+        args.firmware = target_firmware(None, printer if args.printer else None,
+                                        lambda m: out.note(m.replace("ringtune tune", "ringtune recommend"))).name
     if args.method == "policy":
         return _run_policy(args, out)
     if args.accel and args.printer:

@@ -206,13 +206,14 @@ def target_firmware(given: str | None, printer, note: Callable[[str], None] = la
     it), else Klipper — the last two said in a note."""
     if given is not None:
         return Firmware.named(given, "--firmware")
-    named = (getattr(printer, "current", None) or {}).get("firmware")
+    named = (getattr(printer, "current", None) or {}).get("firmware") if printer is not None else None
     if named:
         fw = Firmware.named(str(named), "[current] firmware")
         note(f"ringtune tune: firmware {fw.name}, as the printer description's [current] names it (--firmware sets another)")
         return fw
-    note("ringtune tune: firmware klipper: the printer description names none ([current] firmware); "
-         "--firmware sets it")
+    note("ringtune tune: firmware klipper: " + ("the printer description names none ([current] firmware)"
+                                                 if printer is not None else "no printer description names one")
+         + "; --firmware sets it")
     return Firmware.named("klipper", "--firmware")
 
 
