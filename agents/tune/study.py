@@ -177,7 +177,8 @@ def _check_resumed(study, settings: StudySettings) -> None:
         if key in stored and stored[key] != mine[key] and not (key == "space" and mine[key] is None):
             raise RingtuneError(f"study {settings.study_name!r} in this storage was run with a different "
                                 f"{key} ({_setting_text(key, stored[key])}; now "
-                                f"{_setting_text(key, mine[key])}); use another --out folder or --study name",
+                                f"{_setting_text(key, mine[key])}); use another --out folder or --study name"
+                                + (f", or --firmware {stored[key]} to resume it" if key == "firmware" else ""),
                                 "study_name")
 
 
