@@ -88,9 +88,8 @@ def run(args: argparse.Namespace, out) -> int:
         raise RingtuneError("give --accel CSV… (a measured resonance test) or --printer P (a simulated one)",
                             "recommend")
     if args.firmware is None:
-        printer = resolve_printer(None if args.printer in (None, "default") else args.printer)
-        args.firmware = target_firmware(None, printer if args.printer else None,
-                                        lambda m: out.note(m.replace("ringtune tune", "ringtune recommend"))).name
+        printer = resolve_printer(None if args.printer == "default" else args.printer) if args.printer else None
+        args.firmware = target_firmware(None, printer, out.note, "ringtune recommend").name
     if args.method == "policy":
         return _run_policy(args, out)
     if args.accel and args.printer:

@@ -200,18 +200,20 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     return Tuned(result, "\n".join(lines), run_.interrupted)
 
 
-def target_firmware(given: str | None, printer, note: Callable[[str], None] = lambda s: None) -> Firmware:
-    """The firmware ``tune`` writes for: ``given`` (--firmware), else the one the printer
-    description names in ``[current]`` (``printer from-klipper``/``from-marlin``/``from-rrf`` record
-    it), else Klipper — the last two said in a note."""
+def target_firmware(given: str | None, printer, note: Callable[[str], None] = lambda s: None,
+                    who: str = "ringtune tune") -> Firmware:
+    """The firmware ``tune`` (``who``: the command, for the note) writes for: ``given``
+    (--firmware), else the one the printer description names in ``[current]`` (``printer
+    from-klipper``/``from-marlin``/``from-rrf`` record it), else Klipper — the last two said in a
+    note. ``printer``: None where there is no description (recommend from files)."""
     if given is not None:
         return Firmware.named(given, "--firmware")
     named = (getattr(printer, "current", None) or {}).get("firmware") if printer is not None else None
     if named:
         fw = Firmware.named(str(named), "[current] firmware")
-        note(f"ringtune tune: firmware {fw.name}, as the printer description's [current] names it (--firmware sets another)")
+        note(f"{who}: firmware {fw.name}, as the printer description's [current] names it (--firmware sets another)")
         return fw
-    note("ringtune tune: firmware klipper: " + ("the printer description names none ([current] firmware)"
+    note(f"{who}: firmware klipper: " + ("the printer description names none ([current] firmware)"
                                                  if printer is not None else "no printer description names one")
          + "; --firmware sets it")
     return Firmware.named("klipper", "--firmware")
