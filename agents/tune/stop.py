@@ -7,8 +7,9 @@ evaluator, frequency margin and bounds) and held to the same baselines as the ch
 measure worse than any of them at the resolution, every bound kept, print time lower than the step
 below). Steps are
 evaluated :data:`LADDER` at a time in one ``evaluate_many`` call. Where a step fails, each shaper
-frequency is tried :data:`FREQ_REL` (2 %) up and down at that acceleration (one batch); a variant
-that passes becomes the new start. A step that passes becomes the choice ("a faster point with no
+frequency is tried :data:`FREQ_REL` (2 %) up and down at that acceleration, and that step and the
+current choice without their frequency limit, where they have one (one batch); a variant that
+passes becomes the new start. A step that passes becomes the choice ("a faster point with no
 worse measure"). The walk ends at the first step that fails with every frequency variant, and what
 failed there is reported with both values — the measure that got worse than the baseline's (the
 largest relative excess), or the bound that binds (step loss, the motor reserve, the show-through
@@ -121,6 +122,12 @@ def freq_variants(cfg: TuneConfig, space: SearchSpace) -> list[TuneConfig]:
     return out
 
 
+def without_limit(cfg: TuneConfig) -> list[TuneConfig]:
+    """``cfg`` without its frequency limit, where it has one ([] otherwise): a limit the study's
+    match carried may only slow zigzags once the acceleration is higher."""
+    return [dataclasses.replace(cfg, freq_limit_hz=0.0, extra={})] if cfg.freq_limit_hz > 0 else []
+
+
 def evaluated(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[TuneConfig]], list], bounds: Bounds,
               label: str) -> list[Point]:
     """``configs`` judged as every trial: their metrics from ``evaluate``, as points marked against
@@ -228,7 +235,8 @@ def measured_stop(start: Point, bases: dict[str, Point], evaluate: Callable[[Seq
         if failed is None:
             continue
         p, why = failed
-        variants = [v for v in points(freq_variants(p.config, space)) if failure(v, bases, cur, bounds, res) is None]
+        tried = freq_variants(p.config, space) + without_limit(p.config) + without_limit(cur.config)
+        variants = [v for v in points(tried) if failure(v, bases, cur, bounds, res) is None]
         if variants:
             cur = min(variants, key=lambda v: (v.print_time_s, v.quality_mm))
             continue

@@ -1,0 +1,70 @@
+"""The measured stop (agents/tune/stop.py), with an evaluator whose verdicts are known in advance:
+it climbs the acceleration in 5 % steps while nothing a person sees gets worse, names what stops
+it, and sheds a frequency limit that only costs time — one the study's match carried, which slows
+zigzags more the higher the acceleration climbs."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+from ringtune.agents.tune.pareto import point_from_metrics
+from ringtune.agents.tune.space import default_space
+from ringtune.agents.tune.stop import Bounds, measured_stop, next_accels
+from ringtune.envs.printer import load_printer
+from ringtune.shaping.config import TuneConfig
+
+RIPPLE_TOP = 7000.0         # mm/s²: above it the walls ripple more
+LIMIT_COST = 0.01           # s per mm/s² above 5000 that a frequency limit adds (zigzags slowed)
+BOUNDS = Bounds(max_path_error_mm=0.1, max_motor_load=0.8, max_show_through_mm=0.2)
+
+
+def _metrics(cfg: TuneConfig):
+    """Print time falls with the acceleration; a frequency limit costs LIMIT_COST per mm/s² above
+    5000 and changes nothing seen; the ripple is worse above RIPPLE_TOP."""
+    a = float(cfg.accel)
+    t = 1000.0 + 1e6 / a + (LIMIT_COST * max(a - 5000.0, 0.0) if cfg.freq_limit_hz > 0 else 0.0)
+    return SimpleNamespace(print_time_s=t, step_loss=False, path_error_mm=0.05, overshoot_mm=0.03, ringing_mm=0.01,
+                           peak_accel=a, motor_load=0.5, ripple_mm=0.08 if a > RIPPLE_TOP else 0.05,
+                           ripple_p90_mm=0.04, corner_in_mm=0.03, corner_out_mm=0.02, extrusion_over_pct=8.0,
+                           extrusion_under_pct=8.0, e_lag_mm=0.05, show_through_mm=0.01)
+
+
+@pytest.fixture(scope="module")
+def space():
+    return default_space(load_printer(None), "klipper")
+
+
+def _stop(space, limit_hz: float):
+    cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=54.2, freq_y=42.7, damping_x=0.15, damping_y=0.15,
+                     accel=5000.0, freq_limit_hz=limit_hz, freq_limit_method="nophead")
+    start = point_from_metrics(cfg, _metrics(cfg), max_path_error_mm=0.1, max_motor_load=0.8, max_show_through_mm=0.2)
+    return measured_stop(start, {"klipper": start}, lambda cs: [_metrics(c) for c in cs], space, BOUNDS,
+                         labels={"klipper": "Klipper's rule"})
+
+
+def _highest_step_within(space) -> float:
+    """The 5 % ladder from 5000 mm/s², worked out here: its last rung within RIPPLE_TOP."""
+    a, top = 5000.0, 5000.0
+    while True:
+        nxt = next_accels(a, space.accel[1], space.accel_step, n=1)
+        if not nxt or nxt[0] > RIPPLE_TOP:
+            return top
+        a = top = nxt[0]
+
+
+def test_the_stop_climbs_to_the_last_step_nothing_seen_gets_worse_and_names_the_ripple(space):
+    stop = _stop(space, 0.0)
+    assert stop.point.config.accel == _highest_step_within(space) and stop.kind == "measure"
+    assert stop.key == "ripple_mm" and (stop.value, stop.base_value) == (0.08, 0.05)
+    assert stop.accel > RIPPLE_TOP and "ripple 80.0 µm > 50.0 µm of Klipper's rule" in stop.sentence
+
+
+def test_a_frequency_limit_that_only_costs_time_is_shed(space):
+    """From a choice with a frequency limit: the same acceleration as without one, and no limit —
+    at that acceleration the limit costs LIMIT_COST × (a − 5000) s and changes nothing seen."""
+    stop = _stop(space, 18.0)
+    top = _highest_step_within(space)
+    assert stop.point.config.accel == top and stop.point.config.freq_limit_hz == 0.0
+    assert stop.point.print_time_s == pytest.approx(1000.0 + 1e6 / top)
