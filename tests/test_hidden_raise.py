@@ -145,6 +145,30 @@ def test_a_failure_the_screen_saw_is_said_to_be_on_the_model_as_fitted(space):
                for line in lift.held_lines({}, " mm/s"))
 
 
+def test_a_raise_that_saves_less_than_the_least_step_is_not_taken(space):
+    """Travel that takes almost no time (its raise saves under MIN_STEP_SAVING of the print time)
+    stays where it was, more motor load for nothing; Held says the time it needed to beat."""
+    from ringtune.agents.tune.hidden_raise import MIN_STEP_SAVING
+
+    def metrics(cfg):
+        m = _metrics(cfg)
+        travel = cfg.feature_accel.get("travel", 5000.0)
+        m.print_time_s -= 1e6 / travel * (1 - 1e-4)        # travel's share: 1e-4 of the others'
+        return m
+
+    start_cfg = _start(space)
+    start = point_from_metrics(start_cfg, metrics(start_cfg), max_path_error_mm=0.1, max_motor_load=0.8,
+                               max_show_through_mm=0.2)
+    lift = raise_hidden(start, {"klipper": start}, lambda cs: [metrics(c) for c in cs], space, BOUNDS)
+    got = params_from_config(lift.point.config, space)
+    assert got["accel_travel"] == 5000.0 and got["accel_solid_infill"] > 5000.0
+    held = next(h for h in lift.held if h.key == "accel_travel")
+    kind, key, _base, value, limit = held.why
+    assert (kind, key) == ("time", "print_time_s") and held.tried is not None
+    before = limit / (1 - MIN_STEP_SAVING)       # the choice's time when the travel was walked
+    assert value < before and before - value < MIN_STEP_SAVING * before   # faster, by too little
+
+
 def test_a_group_that_breaks_a_bound_at_every_level_stays(space):
     lift, _calls = _walk(space, travel_overloads=True)
     assert params_from_config(lift.point.config, space)["accel_travel"] == 5000.0

@@ -20,7 +20,8 @@ evaluator, frequency margin and bounds) and held to the same baselines as the ch
 choice it starts from (``tune`` passes both in ``bases``: the walk spends no visible quality, the
 top surfaces being seen): every bound kept (step loss, motor reserve, show-through, path error),
 no visible measure worse than any of them at the resolution (the job's and each visible class's own,
-:data:`~ringtune.agents.tune.pareto.JUDGED_KEYS`), print time lower than the current choice's. The
+:data:`~ringtune.agents.tune.pareto.JUDGED_KEYS`), print time lower than the current choice's by
+at least :data:`MIN_STEP_SAVING` (a raise that buys nothing is not worth its motor load). The
 fastest candidate that passes becomes the choice; where none does, the group stays where it was.
 Where the judgement is the worst of the printer and its detuned twins, each batch is screened on the
 exact model first and only what passes is judged (:func:`ringtune.agents.tune.stop.passing`).
@@ -33,6 +34,7 @@ the corner rule in the junction rule's unit).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
@@ -47,6 +49,9 @@ LEVELS = (1.0, 0.75, 0.5, 0.25)
 #: then, for an acceleration, these shares of the way from the highest level kept to the lowest
 #: one above it (the ladder's gaps are a quarter of the range)
 FINER = (2 / 3, 1 / 3)
+#: the least share of the print time a step must save to be taken (a tenth of the 0.5 % that counts
+#: as faster): a raise that buys nothing — more motor load, more show-through — is left out
+MIN_STEP_SAVING = 0.0005
 
 
 @dataclass
@@ -104,7 +109,8 @@ class Raise:
         spent = f"{self.evaluations} evaluations" + (f", {self.screened} screened on the exact model first"
                                                      if self.screened else "")
         if not self.raised:
-            return f"No feature nobody sees could go faster with every visible measure kept ({spent}{cut})."
+            return (f"No feature nobody sees could go faster (by at least {MIN_STEP_SAVING * 100:g} % of the print time) "
+                    f"with every visible measure kept ({spent}{cut}).")
         parts = ", ".join(f"{_name(k)} {a:g} → {b:g}" for k, a, b in self.raised)
         return (f"Raised where nobody looks, every visible measure and bound still kept ({spent}{cut}): {parts}; "
                 f"{self.start.print_time_s:.1f} s → {self.point.print_time_s:.1f} s.")
@@ -205,8 +211,10 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
                  if c != walk.point.config]
         if not pairs:
             return None, []
+        # a step must save MIN_STEP_SAVING of the print time: a raise that buys nothing is not taken
+        beat = dataclasses.replace(walk.point, print_time_s=walk.point.print_time_s * (1.0 - MIN_STEP_SAVING))
         points, why, judged_n, screened_n = passing_why([c for _p, c in pairs], evaluate, screen, bases,
-                                                         walk.point, bounds, res, "hidden raise")
+                                                         beat, bounds, res, "hidden raise")
         walk.evaluations += judged_n
         walk.screened += screened_n
         ok = [p for p in points if p is not None]
