@@ -367,6 +367,36 @@ def test_recommend_aims_klippers_rule_at_the_printer_descriptions_firmware(tmp_p
     assert json.loads(capsys.readouterr().out)["firmware"] == "klipper"
 
 
+def test_per_feature_on_searches_the_acceleration_a_job_sets_itself_from_its_seen_walls(tmp_path):
+    """A job with its own accelerations (walls 4000 mm/s² above a first layer at 1500, infill 9000)
+    on a printer at 25000: --job-accel respect alone keeps them and searches no acceleration;
+    --per-feature on overrules them as job.gcode does, so the walls' acceleration is searched, from
+    the job's own for what is seen above the first layer (the printer's 0.3 × 25000 starts above it)."""
+    from ringtune.agents.tune.job import job_accel_facts
+    from ringtune.agents.tune.tuning import TuneRequest, _check_request, _space
+    from ringtune.envs.printer import load_printer
+
+    layer = (";TYPE:External perimeter\nG1 X20 Y0 E1 F6000\nG1 X20 Y20 E1\n;TYPE:Internal infill\nM204 P9000\n"
+             "G1 X0 Y20 E1 F9000\nG1 X0 Y0 E1\n")
+    job = tmp_path / "own.gcode"
+    job.write_text("G90\nM83\nM204 P1500\nG1 Z0.2 F600\n" + layer
+                   + "".join(f"G1 Z{0.2 * k + 0.2:.1f}\nM204 P4000\n" + layer for k in range(1, 4)))
+    toml = _printer_toml(tmp_path / "p.toml")
+    toml.write_text(toml.read_text().replace("accel = 3000", "accel = 25000"))
+    printer = load_printer(str(toml))
+    facts = job_accel_facts(printer, str(job), "respect")
+    assert facts.seen_low == 4000.0
+    notes = []
+    for mode, searched_from in (("auto", None), ("on", 4000.0)):
+        req = TuneRequest(printer=str(toml), gcode=str(job), per_feature=mode)
+        space, _floor, _why = _space(req, _check_request(req), "klipper", printer, facts, notes.append)
+        if searched_from is None:
+            assert space.accel_fixed and space.accel == (25000.0, 25000.0)
+        else:
+            assert not space.accel_fixed and space.accel[0] == searched_from and space.per_feature
+    assert any("searched from 4000 mm/s², the lowest the job gives what is seen" in n for n in notes)
+
+
 def test_a_junction_rule_the_firmware_lacks_is_said(tmp_path, capsys, fake_evaluator):
     """The embedded printer corners by Klipper's square_corner_velocity; tuned for Marlin, which has
     no such rule, the tool says so (stderr and the summary's notes) rather than plan silently; for

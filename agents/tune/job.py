@@ -21,6 +21,7 @@ from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point
 from ringtune.agents.tune.motor_bound import defaults_note
 from ringtune.envs.planned_job import job_accel_commands, planned_job, resolve_job
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.features import FEATURE_CLASSES, LABELLED_VISIBLE, class_indices
 
 #: how the job's acceleration settings are written in G-code: command -> (setting, its word)
 GCODE_WORDS = {"M201": (("max_accel_x", "X"), ("max_accel_y", "Y")),
@@ -35,6 +36,8 @@ class JobAccelFacts:
     commands: dict = field(default_factory=dict)     # setting -> largest value set, mm/s²
     top_speed: float = 0.0
     cap: float | None = None                         # mm/s²: the largest acceleration the job lets any move have
+    seen_low: float | None = None                    # mm/s²: the lowest its commands give a seen wall or surface
+    #                                                  above the first layer (whose own the slicer sets for adhesion)
 
     def time(self, config: TuneConfig, mode: str) -> float:
         """Planned time under ``mode``; ``respect`` is the job as sliced, so a per-feature
@@ -93,6 +96,11 @@ def job_accel_facts(printer, job, mode: str) -> JobAccelFacts:
         far = planned_job(printer, job, TuneConfig(accel=1e6), job_accel="respect").plan.moves
         sel = xy & ruled
         facts.cap = float(far.accel[sel].max()) if sel.any() else None
+        seen = sel & far.extruding & np.isin(class_indices(list(far.features))[far.feature],
+                                             [FEATURE_CLASSES.index(c) for c in LABELLED_VISIBLE])
+        z = far.end[:, 2]
+        seen &= z > (z[far.extruding].min() + 1e-6 if far.extruding.any() else -np.inf)    # the first layer aside
+        facts.seen_low = float(far.accel[seen].min()) if seen.any() else None
     return facts
 
 

@@ -258,10 +258,19 @@ def _space(req: TuneRequest, lim: _Limits, firmware: str, printer, facts, note: 
     floor_note = freq_floor_note(firmware, min_freq, space)
     if floor_note:
         note(f"ringtune tune: {floor_note}")
-    if lim.accel_range is None and req.job_accel == "respect" and facts.commands and not facts.accel_matters(space):
+    # --per-feature on overrules the job's own commands (as job.gcode does): the acceleration is searched
+    if (lim.accel_range is None and req.job_accel == "respect" and req.per_feature != "on" and facts.commands
+            and not facts.accel_matters(space)):
         a = float(printer.limits.accel)
         space = dataclasses.replace(space, accel=(a, a), accel_basis="not searched: the job's own acceleration "
                                     "commands rule every move (--job-accel respect)")
+    if req.per_feature == "on" and req.job_accel == "respect" and facts.seen_low and lim.accel_range is None:
+        # the walls' acceleration reaches down to the job's own for what is seen (the baseline: as sliced)
+        low = max(100.0, round(facts.seen_low, -2))
+        if low < space.accel[0]:
+            space = dataclasses.replace(space, accel=(low, space.accel[1]))
+            note(f"ringtune tune: the walls' acceleration is searched from {low:.0f} mm/s², the lowest the job "
+                 "gives what is seen, since --per-feature on overrules the job's own")
     for line in facts.notes(req.job_accel, space):
         note(f"ringtune tune: {line}")
     note(f"ringtune tune: {lim.st_source}")
