@@ -66,9 +66,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="klipper: Klipper's calibrate_shaper rule (default); policy: a trained PPO policy")
     p.add_argument("--klipper-version", choices=("head", "0.13"), default="head",
                    help="Klipper's current rules (head, default) or the older v0.13 ones")
-    p.add_argument("--firmware", type=firmware_name, default=None, help="target firmware (klipper, kalico, rrf, rrf35, marlin, "
-                   "marlin-ftm, prusa); default: the one --printer's description names ([current] firmware), "
-                   "else klipper")
+    p.add_argument("--firmware", type=firmware_name, default=None,
+                   help="target firmware (klipper, kalico, rrf, rrf35, marlin, marlin-ftm, prusa); default: the "
+                   "one --printer's description names ([current] firmware), else klipper")
     p.add_argument("--axes", metavar="A,B", help="axis of each --accel file in order, e.g. x,y")
     p.add_argument("--scv", type=VALUES["scv"], default=5.0, help="square-corner velocity for smoothing, mm/s "
                    "(default 5; --printer uses the printer's)")

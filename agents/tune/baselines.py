@@ -153,7 +153,8 @@ def with_raised_caps(cfg: TuneConfig, printer: Printer, firmware: str) -> TuneCo
     caps, raise_caps = printer_axis_caps(printer, firmware)
     if not caps or not raise_caps or cfg.accel is None:
         return cfg
-    return dataclasses.replace(cfg, **{f"max_accel_{ax}": max(c, float(cfg.accel)) for ax, c in zip("xy", caps) if c > 0})
+    raised = {f"max_accel_{ax}": max(c, float(cfg.accel)) for ax, c in zip("xy", caps) if c > 0}
+    return dataclasses.replace(cfg, **raised)
 
 
 def _klipper_baseline(printer: Printer, firmware: str, out: Baselines, note: Callable[[str], None]) -> None:

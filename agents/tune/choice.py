@@ -182,7 +182,8 @@ def _held_why(p: Point, b: Point, held: tuple, tries: list[tuple], worse: str,
                 f"(same quality, faster than {first})")
     if dataclasses.replace(p.config, extra={}) != dataclasses.replace(b.config, extra={}):
         return (f"{lead}no configuration the study tried is faster than {first} with {worse} than {name}; of those "
-                f"as fast, one no other beats on a visible measure, then the best on the study's quality objective (--quality)")
+                "as fast, one no other beats on a visible measure, then the best on the study's quality objective "
+                "(--quality)")
     return (f"{lead}no configuration the study tried is faster than {first} with {worse} than {name}: the search found "
             f"nothing better than {first} itself at that quality (more --trials may)")
 

@@ -77,7 +77,8 @@ class Held:
             return f"{head}: " + ("the top of its range" if self.value >= self.top else "nothing above it was tried")
         kind, key, base, value, limit = self.why
         seen = " (on the model as fitted)" if self.screened else ""
-        return f"{head}: at {self.tried:g}, {failure_words(kind, key, value, limit, labels.get(base, base or ''))}{seen}"
+        what = failure_words(kind, key, value, limit, labels.get(base, base or ""))
+        return f"{head}: at {self.tried:g}, {what}{seen}"
 
     def to_dict(self) -> dict[str, Any]:
         kind, key, base, value, limit = self.why or (None,) * 5
@@ -109,8 +110,8 @@ class Raise:
         spent = f"{self.evaluations} evaluations" + (f", {self.screened} screened on the exact model first"
                                                      if self.screened else "")
         if not self.raised:
-            return (f"No feature nobody sees could go faster (by at least {MIN_STEP_SAVING * 100:g} % of the print time) "
-                    f"with every visible measure kept ({spent}{cut}).")
+            return (f"No feature nobody sees could go faster (by at least {MIN_STEP_SAVING * 100:g} % of the print "
+                    f"time) with every visible measure kept ({spent}{cut}).")
         parts = ", ".join(f"{_name(k)} {a:g} → {b:g}" for k, a, b in self.raised)
         return (f"Raised where nobody looks, every visible measure and bound still kept ({spent}{cut}): {parts}; "
                 f"{self.start.print_time_s:.1f} s → {self.point.print_time_s:.1f} s.")

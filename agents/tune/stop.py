@@ -255,7 +255,8 @@ def _stop(start: Point, cur: Point, why: tuple, cfg, n: int, labels: dict, basis
 def _sentence(kind, key, value, limit, acc, cur: Point, base_label: str, why: str) -> str:
     here = f"{cur.config.accel:.0f} mm/s²"
     if kind in ("measure", "bound"):
-        return f"What stops it at {here}: {failure_words(kind, key, value, limit, base_label)} at {acc:.0f} mm/s² (the next step, measured)."
+        what = failure_words(kind, key, value, limit, base_label)
+        return f"What stops it at {here}: {what} at {acc:.0f} mm/s² (the next step, measured)."
     if kind == "time":
         return (f"What stops it at {here}: print time no longer falls at {acc:.0f} mm/s² ({value:.3f} s against "
                 f"{limit:.3f} s): the job's speeds, not its acceleration, bound it.")

@@ -342,8 +342,8 @@ def _report(req: TuneRequest, lim: _Limits, fw: Firmware, printer, facts, space,
             unit = {"scv": " mm/s", "jd": " mm", "jerk": " mm/s"}.get(space.junction, "")
             held = lift.held_lines(labels, unit)
             if held:
-                pf_lines.append("  What holds each where it is (the next value the walk tried, measured as every trial; "
-                                "µm and % the worst of the model and its twins unless said):")
+                pf_lines.append("  What holds each where it is (the next value the walk tried, measured as every "
+                                "trial; µm and % the worst of the model and its twins unless said):")
                 pf_lines += [f"    {line}" for line in held]
     ja_json["searched"] = not space.accel_fixed
     result = report.write_report(
