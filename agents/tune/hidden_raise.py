@@ -157,10 +157,8 @@ def batch(key: str, params: dict[str, Any], space: SearchSpace) -> list[dict[str
     range's top; for a corner rule (:data:`CORNERS`) each also with its minimum_cruise_ratio at the
     range's bottom and as it is (the current point itself left out)."""
     if key not in CORNERS:
-        top = dict((f"accel_{g}", hi) for g, _lo, hi in space.feature_accel)[key]
-        return _levels(params, key, top)
-    return _with_ratios(key, _levels(params, key, getattr(space, CORNERS[key][1])[1]) + [dict(params)], params,
-                        space)
+        return _levels(params, key, _top(key, space))
+    return _with_ratios(key, _levels(params, key, _top(key, space)) + [dict(params)], params, space)
 
 
 def gap(key: str, kept: float, cands: list[dict[str, Any]], params: dict[str, Any], space: SearchSpace) -> list[dict]:
