@@ -11,6 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import numpy as np
+
 from ringtune.envs.planned_job import resolve_printer
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import plan_with_config
@@ -22,7 +24,8 @@ from ringtune.shaping.gcode_file import read_gcode_bytes
 from ringtune.shaping.gcode_post import limit_gcode_bytes
 from ringtune.shaping.layer_commands import TAG, schedule_inserts
 from ringtune.shaping.layers import job_layers
-from ringtune.shaping.rewrite import rewrite_job
+from ringtune.shaping.job import Job
+from ringtune.shaping.rewrite import layer_starts, rewrite_job
 
 HEADER = "; ringtune rewrite"
 
@@ -42,6 +45,7 @@ class RewrittenJob:
     f_lines_changed: int
     header: str
     commands: FeatureCommands
+    first_layer: tuple[float, float] | None = None   # (the job's own lowest, the file's highest) where raised
 
 
 def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: str = "<gcode>",
@@ -76,14 +80,43 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     # the file as the printer runs it: the configuration's machine settings (its acceleration is the
     # machine's, its retract fallback too; its caps as export sends them), the file's own commands
     # per feature — not the configuration's per-feature tables over them; the limit is in the F words
-    after = plan_with_config(read_gcode(new, source=source), limits, machine_part(config),
-                             job_accel="respect").plan.print_time
+    rewritten = read_gcode(new, source=source)
+    after = plan_with_config(rewritten, limits, machine_part(config), job_accel="respect").plan.print_time
     header = (f"{HEADER} for {config.firmware} ({limits.junction}): {inserted} lines inserted at feature "
               f"changes (accelerations {'; '.join(accel_groups(fc.accel))} mm/s²"
               + "".join(f", {w}" for w in corner_words(fc.corner, fc.min_cruise_ratio)
                         + class_corner_words(fc.class_corner, fc.class_mcr))
               + f"); planned {before:.1f} s as sliced -> {after:.1f} s; nothing else differs from the input")
-    return RewrittenJob(header.encode() + nl.encode() + new, before, after, config_s, inserted, f_changed, header, fc)
+    raised = first_layer_raised(original, rewritten, "accel_klipper" if fc.junction == "scv" else "accel_print")
+    return RewrittenJob(header.encode() + nl.encode() + new, before, after, config_s, inserted, f_changed, header, fc,
+                        raised)
+
+
+def first_layer_words(raised: tuple[float, float]) -> str:
+    """What :func:`first_layer_raised` found, in one sentence for the user."""
+    own, ours = raised
+    return (f"the job slows its own first layer to {own:.0f} mm/s² and the per-feature commands raise it to up to "
+            f"{ours:.0f} mm/s²: first-layer adhesion is not judged here; re-slice with the exported per-feature "
+            "accelerations (ringtune export --slicer) to keep the slicer's first layer, or watch the first layer")
+
+
+def first_layer_raised(original: Job, rewritten: Job, key: str) -> tuple[float, float] | None:
+    """(the lowest acceleration the job itself gives a printing move of its first layer, the highest
+    the rewritten file gives one), mm/s², where the file raised it; None otherwise. ``key``: the
+    setting a printing move runs with (Klipper's one ``accel_klipper``, else M204's
+    ``accel_print``). A slicer slows its first layer for adhesion, which the model does not judge:
+    the caller says so."""
+    starts = layer_starts(original)
+    if len(starts) < 2 or original.n_moves != rewritten.n_moves:
+        return None
+    first = np.zeros(original.n_moves, bool)
+    first[starts[0]:starts[1]] = True
+    first &= original.extruding
+    own, ours = (j.setting(key)[first] for j in (original, rewritten))
+    own = own[~np.isnan(own)]
+    if not len(own) or not np.any(ours > own.min() + 0.5):
+        return None
+    return float(own.min()), float(np.nanmax(ours))
 
 
 def machine_part(config: TuneConfig) -> TuneConfig:

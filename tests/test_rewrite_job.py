@@ -166,6 +166,28 @@ def test_stored_axis_caps_the_configuration_raises_are_raised_in_the_file(data_d
     assert capped > 1.05 * tune_s
 
 
+def test_a_first_layer_the_job_slows_itself_and_the_rewrite_raises_is_said(tmp_path, capsys):
+    """A job that slows its first layer (M204 P1500, as slicers do for adhesion) rewritten per
+    feature: the rewriter reports (the job's own 1500, the highest it now gives the first layer),
+    and ``ringtune rewrite`` says it on stderr; a job that sets no first-layer acceleration of its
+    own gets nothing said."""
+    layer = ";TYPE:External perimeter\nG1 X20 Y0 E1 F6000\n;TYPE:Internal infill\nG1 X20 Y20 E1\nG1 X0 Y20 E1\n"
+    slowed = "G90\nM83\nM204 P1500\nG1 Z0.2 F600\n" + layer + "G1 Z0.4\nM204 P4000\n" + layer
+    plain = "G90\nM83\nG1 Z0.2 F600\n" + layer + "G1 Z0.4\n" + layer
+    cfg = TuneConfig(firmware="marlin", accel=3000.0, feature_accel={"infill": 9000.0}, corner=9.0)
+    printer = _printer("jerk")
+    done = rewrite_gcode_bytes(slowed.encode(), cfg, printer, "slowed")
+    assert done.first_layer == (1500.0, 9000.0)
+    assert rewrite_gcode_bytes(plain.encode(), cfg, printer, "plain").first_layer is None
+    src, conf = tmp_path / "slowed.gcode", tmp_path / "best.json"
+    src.write_text(slowed)
+    conf.write_text(json.dumps(replace(cfg, firmware="klipper", corner=None).to_dict()))   # the built-in printer
+    assert main(["rewrite", str(src), "--config", str(conf), "-o", str(tmp_path / "out.gcode"), "--json"]) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["first_layer_raised"] == [1500.0, 9000.0]
+    assert "slows its own first layer to 1500 mm/s²" in captured.err
+
+
 def test_job_accelerations_after_ours_are_overruled_and_the_retract_one_stays():
     """A slicer's own M204 at a feature change comes after our line would: ours follows it again;
     the job's retract acceleration (M204 R) is left alone."""

@@ -4,13 +4,15 @@ JSON keys (stable): ``input``, ``output``, ``firmware``, ``junction``, ``lines_i
 ``f_lines_changed`` (the frequency limit's F words), ``print_time_before_s`` (as sliced),
 ``print_time_after_s`` (the rewritten file), ``print_time_config_s`` (the configuration on the
 original, as ``tune`` reports it), ``feature_accel`` ({class: mm/s²}), ``corner``,
-``min_cruise_ratio``, ``header``.
+``min_cruise_ratio``, ``header``, ``first_layer_raised`` (null, or [the job's own lowest
+first-layer acceleration, the file's highest there], mm/s², where the rewrite raised it: said on
+stderr too, since first-layer adhesion is not judged).
 """
 
 from __future__ import annotations
 
 from ringtune.agents.cli.common import check_output_folder, load_config
-from ringtune.envs.job_rewrite import rewrite_file
+from ringtune.envs.job_rewrite import first_layer_words, rewrite_file
 
 NAME = "rewrite"
 DESCRIPTION = """\
@@ -52,7 +54,10 @@ def run(args, out) -> int:
               "lines_inserted": done.lines_inserted, "f_lines_changed": done.f_lines_changed,
               "print_time_before_s": done.before_s, "print_time_after_s": done.after_s,
               "print_time_config_s": done.config_s, "feature_accel": dict(from_cfg.accel),
-              "corner": from_cfg.corner, "min_cruise_ratio": from_cfg.min_cruise_ratio, "header": done.header}
+              "corner": from_cfg.corner, "min_cruise_ratio": from_cfg.min_cruise_ratio, "header": done.header,
+              "first_layer_raised": list(done.first_layer) if done.first_layer else None}
+    if done.first_layer:
+        out.note(f"ringtune rewrite: {first_layer_words(done.first_layer)}")
     saved = done.before_s - done.after_s
     text = (f"{args.file} -> {args.output}: {done.lines_inserted} lines inserted"
             + (f", F changed on {done.f_lines_changed} lines (frequency limit)" if done.f_lines_changed else "")

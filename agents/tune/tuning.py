@@ -24,7 +24,7 @@ from ringtune.agents.tune.space import default_space, freq_floor_note, params_fr
 from ringtune.agents.tune.stop import Bounds
 from ringtune.agents.tune.study_results import study_points
 from ringtune.envs.planned_job import resolve_printer
-from ringtune.envs.job_rewrite import rewrite_file
+from ringtune.envs.job_rewrite import first_layer_words, rewrite_file
 from ringtune.envs.printer_model import unmeasured_note
 from ringtune.envs.variants import TWIN_DAMPING
 from ringtune.shaping.errors import RingtuneError
@@ -383,6 +383,9 @@ def _write_job(gcode: str, out_dir: Path, config, printer, result: dict, note: C
     text = (f"\nThe job with the choice written in: {out_dir / 'job.gcode'} ({done.lines_inserted} lines "
             f"inserted; planned {done.before_s:.1f} s as sliced -> {done.after_s:.1f} s, the file as the printer "
             "runs it).")
+    if done.first_layer:
+        note(f"ringtune tune: job.gcode: {first_layer_words(done.first_layer)}")
+        text += f"\nNote: {first_layer_words(done.first_layer)}."
     if abs(done.after_s - done.config_s) > 1e-4 * done.config_s:     # the F words' rounding aside
         warn = (f"job.gcode plans at {done.after_s:.1f} s as the printer runs it, not the {done.config_s:.1f} s "
                 "tune judged the choice at: a setting the file cannot carry differs (please report it)")
