@@ -102,19 +102,24 @@ def first_layer_words(raised: tuple[float, float]) -> str:
 
 def first_layer_raised(original: Job, rewritten: Job, key: str) -> tuple[float, float] | None:
     """(the lowest acceleration the job itself gives a printing move of its first layer, the highest
-    the rewritten file gives one), mm/s², where the file raised it; None otherwise. ``key``: the
-    setting a printing move runs with (Klipper's one ``accel_klipper``, else M204's
-    ``accel_print``). A slicer slows its first layer for adhesion, which the model does not judge:
-    the caller says so."""
+    the rewritten file gives one), mm/s², where the job slows its first layer — its own value there
+    below the highest it gives a printing move later (a value set once for the whole job is no
+    slowdown) — and the file raised it; None otherwise. ``key``: the setting a printing move runs
+    with (Klipper's one ``accel_klipper``, else M204's ``accel_print``). A slicer slows its first
+    layer for adhesion, which the model does not judge: the caller says so."""
     starts = layer_starts(original)
     if len(starts) < 2 or original.n_moves != rewritten.n_moves:
         return None
     first = np.zeros(original.n_moves, bool)
     first[starts[0]:starts[1]] = True
-    first &= original.extruding
-    own, ours = (j.setting(key)[first] for j in (original, rewritten))
-    own = own[~np.isnan(own)]
-    if not len(own) or not np.any(ours > own.min() + 0.5):
+    own_all = original.setting(key)
+    own = own_all[first & original.extruding]
+    later = own_all[~first & original.extruding]
+    own, later = own[~np.isnan(own)], later[~np.isnan(later)]
+    if not len(own) or not len(later) or own.min() >= later.max():
+        return None
+    ours = rewritten.setting(key)[first & original.extruding]
+    if not np.any(ours > own.min() + 0.5):
         return None
     return float(own.min()), float(np.nanmax(ours))
 

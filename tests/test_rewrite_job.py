@@ -179,6 +179,9 @@ def test_a_first_layer_the_job_slows_itself_and_the_rewrite_raises_is_said(tmp_p
     done = rewrite_gcode_bytes(slowed.encode(), cfg, printer, "slowed")
     assert done.first_layer == (1500.0, 9000.0)
     assert rewrite_gcode_bytes(plain.encode(), cfg, printer, "plain").first_layer is None
+    # one value set for the whole job (a slicer's machine-limits header) is no first-layer slowdown
+    header = "G90\nM83\nM204 P1500\nG1 Z0.2 F600\n" + layer + "G1 Z0.4\n" + layer
+    assert rewrite_gcode_bytes(header.encode(), cfg, printer, "header").first_layer is None
     src, conf = tmp_path / "slowed.gcode", tmp_path / "best.json"
     src.write_text(slowed)
     conf.write_text(json.dumps(replace(cfg, firmware="klipper", corner=None).to_dict()))   # the built-in printer
