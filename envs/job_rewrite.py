@@ -25,7 +25,8 @@ from ringtune.shaping.gcode_post import limit_gcode_bytes
 from ringtune.shaping.layer_commands import TAG, schedule_inserts
 from ringtune.shaping.layers import job_layers
 from ringtune.shaping.job import Job
-from ringtune.shaping.rewrite import layer_starts, rewrite_job
+from ringtune.shaping.layers import layer_starts
+from ringtune.shaping.rewrite import rewrite_job
 
 HEADER = "; ringtune rewrite"
 

@@ -1,6 +1,6 @@
 """Layers of a parsed job and the filament mass laid down before each (units mm, kg).
 
-Layers are the job rewriter's (:func:`ringtune.shaping.rewrite.layer_starts`): layer k is the k-th
+Layers as the job rewriter inserts at them (:func:`layer_starts`): layer k is the k-th
 height at which the job extrudes above every height before it, and begins right after the last
 extrusion below it (its Z change and travel belong to it; layer 0 at the first move), which is
 where a command for it is inserted. Deposited filament is the sum of E over extruding moves (E
@@ -17,13 +17,25 @@ import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.job import Job
-from ringtune.shaping.rewrite import layer_starts
 
 #: the usual filament diameter, mm
 FILAMENT_DIAMETER_MM = 1.75
 #: PLA's density, g/cm³ (PETG ≈ 1.27, ABS ≈ 1.04, ASA ≈ 1.07)
 FILAMENT_DENSITY_G_CM3 = 1.24
 
+
+def layer_starts(job: Job) -> list[int]:
+    """Move index where each layer starts: layer k is the k-th height (mm) at which the job
+    extrudes above every height before it; it starts right after the last extruding move below it
+    (so its Z move and travel belong to it). Layer 0 starts at the first move (or after a lower
+    purge)."""
+    ext = np.flatnonzero(job.extruding)
+    if not len(ext):
+        return []
+    z = np.round(job.end[ext, 2], 4)
+    new = np.concatenate(([True], z[1:] > np.maximum.accumulate(z)[:-1]))
+    # each later layer starts after the extruding move before its first one
+    return [0] + [int(ext[k - 1]) + 1 for k in np.searchsorted(ext, ext[new][1:])]
 
 @dataclass
 class Layer:

@@ -33,6 +33,7 @@ from ringtune.shaping.features import FEATURE_CLASSES
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.job import Job
+from ringtune.shaping.layers import layer_starts
 
 #: settings a block sets at every change (the others once, and after the job's own commands)
 _ACCEL_KEYS = ("accel_klipper", "accel_print", "accel_travel")
@@ -44,20 +45,6 @@ _JERK_COMMANDS = {"rrf": ("M566", 60)}
 
 def _n(v: float) -> str:
     return f"{float(v):.10g}"
-
-
-def layer_starts(job: Job) -> list[int]:
-    """Move index where each layer starts: layer k is the k-th height (mm) at which the job
-    extrudes above every height before it; it starts right after the last extruding move below it
-    (so its Z move and travel belong to it). Layer 0 starts at the first move (or after a lower
-    purge)."""
-    ext = np.flatnonzero(job.extruding)
-    if not len(ext):
-        return []
-    z = np.round(job.end[ext, 2], 4)
-    new = np.concatenate(([True], z[1:] > np.maximum.accumulate(z)[:-1]))
-    # each later layer starts after the extruding move before its first one
-    return [0] + [int(ext[k - 1]) + 1 for k in np.searchsorted(ext, ext[new][1:])]
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,8 @@ from ringtune.shaping.feature_settings import FeatureCommands
 from ringtune.shaping.features import feature_class
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.planner import MachineLimits
-from ringtune.shaping.rewrite import layer_starts, rewrite_job
+from ringtune.shaping.layers import layer_starts
+from ringtune.shaping.rewrite import rewrite_job
 
 FEATURES = {"outer_wall": 2500.0, "top_surface": 3500.0, "support": 4000.0, "infill": 9000.0,
             "travel": 12000.0}
