@@ -17,7 +17,8 @@ from ringtune.envs.planned_job import resolve_printer
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import plan_with_config
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.feature_settings import FeatureCommands, accel_groups, class_corner_words, corner_words
+from ringtune.shaping.feature_settings import (FeatureCommands, accel_groups, class_corner_words, corner_words,
+                                              first_layer_caps)
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.gcode_file import read_gcode_bytes
@@ -25,7 +26,6 @@ from ringtune.shaping.gcode_post import limit_gcode_bytes
 from ringtune.shaping.layer_commands import TAG, schedule_inserts
 from ringtune.shaping.layers import job_layers
 from ringtune.shaping.job import Job
-from ringtune.shaping.layers import layer_starts
 from ringtune.shaping.rewrite import rewrite_job
 
 HEADER = "; ringtune rewrite"
@@ -46,7 +46,7 @@ class RewrittenJob:
     f_lines_changed: int
     header: str
     commands: FeatureCommands
-    first_layer: tuple[float, float] | None = None   # (the job's own lowest, the file's highest) where raised
+    first_layer: float | None = None     # mm/s²: the job's own first-layer acceleration kept (first_layer_kept)
 
 
 def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: str = "<gcode>",
@@ -88,41 +88,22 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
               + "".join(f", {w}" for w in corner_words(fc.corner, fc.min_cruise_ratio)
                         + class_corner_words(fc.class_corner, fc.class_mcr))
               + f"); planned {before:.1f} s as sliced -> {after:.1f} s; nothing else differs from the input")
-    raised = first_layer_raised(original, rewritten, "accel_klipper" if fc.junction == "scv" else "accel_print")
     return RewrittenJob(header.encode() + nl.encode() + new, before, after, config_s, inserted, f_changed, header, fc,
-                        raised)
+                        first_layer_kept(original))
 
 
-def first_layer_words(raised: tuple[float, float]) -> str:
-    """What :func:`first_layer_raised` found, in one sentence for the user."""
-    own, ours = raised
-    return (f"the job slows its own first layer to {own:.0f} mm/s² and the per-feature commands raise it to up to "
-            f"{ours:.0f} mm/s²: first-layer adhesion is not judged here; re-slice with the exported per-feature "
-            "accelerations (ringtune export --slicer) to keep the slicer's first layer, or watch the first layer")
+def first_layer_words(kept: float) -> str:
+    """One sentence on the first layer the job slows itself (:func:`first_layer_kept`)."""
+    return (f"the job slows its own first layer to {kept:.0f} mm/s² (for adhesion, which is not judged here): the "
+            "rewritten job keeps the job's own acceleration there wherever it is lower than the per-feature one")
 
 
-def first_layer_raised(original: Job, rewritten: Job, key: str) -> tuple[float, float] | None:
-    """(the lowest acceleration the job itself gives a printing move of its first layer, the highest
-    the rewritten file gives one), mm/s², where the job slows its first layer — its own value there
-    below the highest it gives a printing move later (a value set once for the whole job is no
-    slowdown) — and the file raised it; None otherwise. ``key``: the setting a printing move runs
-    with (Klipper's one ``accel_klipper``, else M204's ``accel_print``). A slicer slows its first
-    layer for adhesion, which the model does not judge: the caller says so."""
-    starts = layer_starts(original)
-    if len(starts) < 2 or original.n_moves != rewritten.n_moves:
-        return None
-    first = np.zeros(original.n_moves, bool)
-    first[starts[0]:starts[1]] = True
-    own_all = original.setting(key)
-    own = own_all[first & original.extruding]
-    later = own_all[~first & original.extruding]
-    own, later = own[~np.isnan(own)], later[~np.isnan(later)]
-    if not len(own) or not len(later) or own.min() >= later.max():
-        return None
-    ours = rewritten.setting(key)[first & original.extruding]
-    if not np.any(ours > own.min() + 0.5):
-        return None
-    return float(own.min()), float(np.nanmax(ours))
+def first_layer_kept(job: Job) -> float | None:
+    """The lowest acceleration the job gives its first layer where it slows that layer itself
+    (:func:`ringtune.shaping.feature_settings.first_layer_caps`: kept by the rewrite), mm/s²; None."""
+    caps = first_layer_caps(job)
+    low = [float(np.nanmin(v)) for v in caps.values() if np.any(~np.isnan(v))]
+    return min(low) if low else None
 
 
 def machine_part(config: TuneConfig) -> TuneConfig:

@@ -21,6 +21,11 @@ How each firmware takes an acceleration per feature:
   moves without E — set together at each label change, and around the seam's travel, whose
   ``T`` is the wall's; ``M204 R`` (retraction) is left as it is.
 
+On a first layer the job slows itself (its own acceleration there below what it gives a printing
+move later: a slicer's first-layer acceleration, for adhesion, which the model does not judge),
+every move keeps the job's own acceleration where it is lower than the class's
+(:func:`first_layer_caps`), as re-slicing with the tuned accelerations would.
+
 The corner value (``square_corner_velocity``, ``M205 J``, ``M205 X Y`` or ``M566 X Y``, by the
 printer's junction rule) and Klipper's ``minimum_cruise_ratio`` are one for the whole job, or per
 class where the configuration sets them so (``feature_corner``, ``feature_min_cruise_ratio``): then
@@ -37,6 +42,7 @@ import numpy as np
 from ringtune.shaping.features import FEATURE_CLASSES, class_indices, seen_classes
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.job import SETTING_KEYS, Job
+from ringtune.shaping.layers import layer_starts
 
 TRAVEL = FEATURE_CLASSES.index("travel")
 
@@ -138,6 +144,37 @@ def _classes(job: Job) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return out
 
 
+#: the accelerations a first layer the job slows itself keeps at the job's own where that is lower
+FIRST_LAYER_KEYS = ("accel_klipper", "accel_print", "accel_travel")
+_CAPS: dict[int, tuple] = {}
+
+
+def first_layer_caps(job: Job) -> dict[str, np.ndarray]:
+    """{setting of :data:`FIRST_LAYER_KEYS`: (n,) the job's own value on the moves of its first
+    layer, NaN elsewhere} for each setting whose first-layer value the job keeps below the highest
+    it gives a printing move later (a slicer's first-layer acceleration, for adhesion, which the
+    model does not judge; a value set once for the whole job is no slowdown); cached per job."""
+    hit = _CAPS.get(id(job))
+    if hit is not None and hit[0] is job:
+        return hit[1]
+    out: dict[str, np.ndarray] = {}
+    starts = layer_starts(job) if job.n_moves else []
+    if len(starts) >= 2:
+        first = np.zeros(job.n_moves, bool)
+        first[starts[0]:starts[1]] = True
+        ext = job.extruding
+        for key in FIRST_LAYER_KEYS:
+            own = job.setting(key)
+            here, later = own[first & ext], own[~first & ext]
+            here, later = here[~np.isnan(here)], later[~np.isnan(later)]
+            if len(here) and len(later) and here.min() < later.max():
+                out[key] = np.where(first, own, np.nan)
+    if len(_CAPS) >= 8:
+        _CAPS.pop(next(iter(_CAPS)))
+    _CAPS[id(job)] = (job, out)       # the job kept alive so its id is not reused while cached
+    return out
+
+
 def _seam_travel(cls: np.ndarray, xy: np.ndarray, extruding: np.ndarray) -> np.ndarray:
     """``cls`` with each travel move (X/Y without E) next to a visible extrusion (moves without X/Y
     motion between skipped) in that extrusion's class: the one it lands on, else the one it
@@ -187,15 +224,20 @@ def _per_class(eff: np.ndarray, by_class: dict, whole: float | None, now: float 
 
 
 def move_settings(job: Job, fc: FeatureCommands) -> dict[str, np.ndarray]:
-    """{setting key of :data:`SETTING_KEYS`: (n,) value in force at each move} for ``fc``."""
-    return _settings(fc, *_classes(job))
+    """{setting key of :data:`SETTING_KEYS`: (n,) value in force at each move} for ``fc``; on a
+    first layer the job slows itself, its own acceleration where lower (:func:`first_layer_caps`)."""
+    return _settings(fc, *_classes(job), first_layer_caps(job))
 
 
-def _settings(fc: FeatureCommands, eff: np.ndarray, label: np.ndarray, seam: np.ndarray) -> dict[str, np.ndarray]:
+def _settings(fc: FeatureCommands, eff: np.ndarray, label: np.ndarray, seam: np.ndarray,
+              caps: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
     """:func:`move_settings` for moves of effective class ``eff``, label class ``label`` and seam
-    flag ``seam`` (each (n,)): every value is a function of those three."""
+    flag ``seam`` (each (n,)) under the first-layer ``caps`` (each (n,), NaN: none): every value is
+    a function of those."""
     n = len(eff)
     out = _accels(fc, eff, label, seam)
+    for key, cap in (caps or {}).items():
+        out[key] = np.fmin(out[key], cap)          # NaN (no cap) keeps ours
     corner = _per_class(eff, fc.class_corner, fc.corner, fc.corner_now)
     if corner is not None:
         out.update(dict.fromkeys(_CORNER_KEYS[fc.junction], corner))
@@ -217,19 +259,22 @@ def with_feature_settings(job: Job, fc: FeatureCommands) -> Job:
     if job.n_moves == 0:
         return job
     eff, label, seam = _classes(job)
+    caps = first_layer_caps(job)
+    capped, n_caps = _cap_codes(caps, job.n_moves)
     nc = len(FEATURE_CLASSES)
-    key = (eff * nc + label) * 2 + seam
-    first = np.full(2 * nc * nc, -1)
+    size = 2 * nc * nc * n_caps
+    key = ((eff * nc + label) * 2 + seam) * n_caps + capped
+    first = np.full(size, -1)
     first[key[::-1]] = np.arange(job.n_moves)[::-1]
     reps = first[first >= 0]                     # one move of each key that occurs
-    values = _settings(fc, eff[reps], label[reps], seam[reps])
+    values = _settings(fc, eff[reps], label[reps], seam[reps], {k: v[reps] for k, v in caps.items()})
     if not values:
         return job
     keys = list(values)
     cols = [SETTING_KEYS.index(k) for k in keys]
     stacked = np.stack([np.nan_to_num(values[k], nan=-1.0) for k in keys], axis=1)
     combos, rep_code = np.unique(stacked, axis=0, return_inverse=True)
-    lookup = np.zeros(2 * nc * nc, np.int64)
+    lookup = np.zeros(size, np.int64)
     lookup[key[reps]] = np.asarray(rep_code).reshape(-1)
     pair = job.settings.astype(np.int64) * len(combos) + lookup[key]
     rows, new_index = _dense_unique(pair)
@@ -237,6 +282,20 @@ def with_feature_settings(job: Job, fc: FeatureCommands) -> Job:
     vals = combos[rows % len(combos)]
     base[:, cols] = np.where(vals == -1.0, np.nan, vals)
     return replace(job, settings=new_index.astype(job.settings.dtype), settings_table=base)
+
+
+def _cap_codes(caps: dict[str, np.ndarray], n: int) -> tuple[np.ndarray, int]:
+    """((n,) code of each move's first-layer caps, 0 for none; how many codes there are)."""
+    if not caps:
+        return np.zeros(n, np.int64), 1
+    stack = np.stack([np.nan_to_num(v, nan=-1.0) for v in caps.values()], axis=1)
+    rows = np.flatnonzero(np.any(stack != -1.0, axis=1))
+    codes = np.zeros(n, np.int64)
+    if not len(rows):
+        return codes, 1
+    uniq, inv = np.unique(stack[rows], axis=0, return_inverse=True)
+    codes[rows] = np.asarray(inv).reshape(-1) + 1
+    return codes, len(uniq) + 1
 
 
 def _dense_unique(codes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -167,29 +167,38 @@ def test_stored_axis_caps_the_configuration_raises_are_raised_in_the_file(data_d
     assert capped > 1.05 * tune_s
 
 
-def test_a_first_layer_the_job_slows_itself_and_the_rewrite_raises_is_said(tmp_path, capsys):
-    """A job that slows its first layer (M204 P1500, as slicers do for adhesion) rewritten per
-    feature: the rewriter reports (the job's own 1500, the highest it now gives the first layer),
-    and ``ringtune rewrite`` says it on stderr; a job that sets no first-layer acceleration of its
-    own gets nothing said."""
+def test_a_first_layer_the_job_slows_itself_keeps_its_own_acceleration(data_dir):
+    """A job that slows its first layer (M204 P1500, then 4000 above, as slicers do for adhesion)
+    rewritten per feature: every printing move of the first layer runs at the lower of the job's
+    1500 and its class's, as re-slicing would keep it; above it the classes' values; the planned
+    time is the configuration's; a value set once for the whole job (a machine-limits header) is no
+    slowdown and is overruled as before. Expected values worked out here from the layers by hand."""
     layer = ";TYPE:External perimeter\nG1 X20 Y0 E1 F6000\n;TYPE:Internal infill\nG1 X20 Y20 E1\nG1 X0 Y20 E1\n"
     slowed = "G90\nM83\nM204 P1500\nG1 Z0.2 F600\n" + layer + "G1 Z0.4\nM204 P4000\n" + layer
-    plain = "G90\nM83\nG1 Z0.2 F600\n" + layer + "G1 Z0.4\n" + layer
+    header = "G90\nM83\nM204 P1500\nG1 Z0.2 F600\n" + layer + "G1 Z0.4\n" + layer
     cfg = TuneConfig(firmware="marlin", accel=3000.0, feature_accel={"infill": 9000.0}, corner=9.0)
     printer = _printer("jerk")
     done = rewrite_gcode_bytes(slowed.encode(), cfg, printer, "slowed")
-    assert done.first_layer == (1500.0, 9000.0)
-    assert rewrite_gcode_bytes(plain.encode(), cfg, printer, "plain").first_layer is None
-    # one value set for the whole job (a slicer's machine-limits header) is no first-layer slowdown
-    header = "G90\nM83\nM204 P1500\nG1 Z0.2 F600\n" + layer + "G1 Z0.4\n" + layer
-    assert rewrite_gcode_bytes(header.encode(), cfg, printer, "header").first_layer is None
+    job = read_gcode(done.data, source="out")
+    ext = job.extruding
+    # moves: Z, wall, infill, infill (layer 0, at Z 0.2) | Z, wall, infill, infill (layer 1)
+    assert job.setting("accel_print")[ext].tolist() == [1500.0, 1500.0, 1500.0, 3000.0, 9000.0, 9000.0]
+    assert done.first_layer == 1500.0 and done.after_s == pytest.approx(done.config_s, rel=1e-9)
+    assert done.config_s == pytest.approx(planned_job(printer, slowed, cfg).print_time, rel=1e-12)
+    kept = rewrite_gcode_bytes(header.encode(), cfg, printer, "header")
+    assert read_gcode(kept.data).setting("accel_print")[ext].tolist() == [3000.0, 9000.0, 9000.0] * 2
+    assert kept.first_layer is None
+
+
+def test_rewrite_says_the_first_layer_it_keeps(tmp_path, capsys):
+    layer = ";TYPE:External perimeter\nG1 X20 Y0 E1 F6000\n;TYPE:Internal infill\nG1 X20 Y20 E1\nG1 X0 Y20 E1\n"
     src, conf = tmp_path / "slowed.gcode", tmp_path / "best.json"
-    src.write_text(slowed)
-    conf.write_text(json.dumps(replace(cfg, firmware="klipper", corner=None).to_dict()))   # the built-in printer
+    src.write_text("G90\nM83\nM204 P1500\nG1 Z0.2 F600\n" + layer + "G1 Z0.4\nM204 P4000\n" + layer)
+    conf.write_text(json.dumps(TuneConfig(accel=3000.0, feature_accel={"infill": 9000.0}).to_dict()))
     assert main(["rewrite", str(src), "--config", str(conf), "-o", str(tmp_path / "out.gcode"), "--json"]) == 0
     captured = capsys.readouterr()
-    assert json.loads(captured.out)["first_layer_raised"] == [1500.0, 9000.0]
-    assert "slows its own first layer to 1500 mm/s²" in captured.err
+    assert json.loads(captured.out)["first_layer_kept"] == 1500.0
+    assert "slows its own first layer to 1500 mm/s²" in captured.err and "keeps the job's own" in captured.err
 
 
 def test_job_accelerations_after_ours_are_overruled_and_the_retract_one_stays():

@@ -4,9 +4,9 @@ JSON keys (stable): ``input``, ``output``, ``firmware``, ``junction``, ``lines_i
 ``f_lines_changed`` (the frequency limit's F words), ``print_time_before_s`` (as sliced),
 ``print_time_after_s`` (the rewritten file), ``print_time_config_s`` (the configuration on the
 original, as ``tune`` reports it), ``feature_accel`` ({class: mm/s²}), ``corner``,
-``min_cruise_ratio``, ``header``, ``first_layer_raised`` (null, or [the job's own lowest
-first-layer acceleration, the file's highest there], mm/s², where the rewrite raised it: said on
-stderr too, since first-layer adhesion is not judged).
+``min_cruise_ratio``, ``header``, ``first_layer_kept`` (null, or the lowest acceleration the
+job gives the first layer it slows itself, mm/s², which the rewrite keeps wherever it is lower than
+the per-feature one: said on stderr too).
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ def run(args, out) -> int:
               "print_time_before_s": done.before_s, "print_time_after_s": done.after_s,
               "print_time_config_s": done.config_s, "feature_accel": dict(from_cfg.accel),
               "corner": from_cfg.corner, "min_cruise_ratio": from_cfg.min_cruise_ratio, "header": done.header,
-              "first_layer_raised": list(done.first_layer) if done.first_layer else None}
+              "first_layer_kept": done.first_layer}
     if done.first_layer:
         out.note(f"ringtune rewrite: {first_layer_words(done.first_layer)}")
     saved = done.before_s - done.after_s
