@@ -35,7 +35,9 @@ printing and travel alike), and the rewriter writes it at each change.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field, replace
+from typing import Any, Callable
 
 import numpy as np
 
@@ -117,17 +119,30 @@ def effective_classes(job: Job) -> np.ndarray:
     return _classes(job)[0]
 
 
-#: the jobs whose classes were worked out last (a tuning run plans one job hundreds of times)
-_CLASSES: dict[int, tuple] = {}
+def _per_job(fn: Callable[[Job], Any]) -> Callable[[Job], Any]:
+    """``fn(job)`` cached for the last few jobs by identity: a tuning run plans one job hundreds of
+    times, and a job's moves are not changed in place (each job is kept alive while cached, so its
+    id is not reused)."""
+    cache: dict[int, tuple] = {}
+
+    @functools.wraps(fn)
+    def cached(job: Job):
+        hit = cache.get(id(job))
+        if hit is not None and hit[0] is job:
+            return hit[1]
+        out = fn(job)
+        if len(cache) >= 8:
+            cache.pop(next(iter(cache)))
+        cache[id(job)] = (job, out)
+        return out
+    return cached
 
 
+@_per_job
 def _classes(job: Job) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(:func:`effective_classes`, :func:`label_classes`, (n,) True on the seam's travel: the
     travel moves that took a visible extrusion's class, and the moves without X/Y motion after
-    them); cached for the last few jobs (a job's moves are not changed in place)."""
-    hit = _CLASSES.get(id(job))
-    if hit is not None and hit[0] is job:
-        return hit[1]
+    them); cached per job."""
     d = job.delta
     label = label_classes(job)
     xy = np.hypot(d[:, 0], d[:, 1]) > 0
@@ -137,26 +152,19 @@ def _classes(job: Job) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     idx = np.arange(job.n_moves)
     last = np.maximum.accumulate(np.where(xy, idx, -1))     # the latest move with X/Y motion
     at = np.maximum(last, 0)
-    out = (np.where(last >= 0, cls[at], label), label, (last >= 0) & (cls[at] != own[at]))
-    if len(_CLASSES) >= 8:
-        _CLASSES.pop(next(iter(_CLASSES)))
-    _CLASSES[id(job)] = (job, out)    # the job kept alive so its id is not reused while cached
-    return out
+    return np.where(last >= 0, cls[at], label), label, (last >= 0) & (cls[at] != own[at])
 
 
 #: the accelerations a first layer the job slows itself keeps at the job's own where that is lower
 FIRST_LAYER_KEYS = ("accel_klipper", "accel_print", "accel_travel")
-_CAPS: dict[int, tuple] = {}
 
 
+@_per_job
 def first_layer_caps(job: Job) -> dict[str, np.ndarray]:
     """{setting of :data:`FIRST_LAYER_KEYS`: (n,) the job's own value on the moves of its first
     layer, NaN elsewhere} for each setting whose first-layer value the job keeps below the highest
     it gives a printing move later (a slicer's first-layer acceleration, for adhesion, which the
     model does not judge; a value set once for the whole job is no slowdown); cached per job."""
-    hit = _CAPS.get(id(job))
-    if hit is not None and hit[0] is job:
-        return hit[1]
     out: dict[str, np.ndarray] = {}
     starts = layer_starts(job) if job.n_moves else []
     if len(starts) >= 2:
@@ -169,9 +177,6 @@ def first_layer_caps(job: Job) -> dict[str, np.ndarray]:
             here, later = here[~np.isnan(here)], later[~np.isnan(later)]
             if len(here) and len(later) and here.min() < later.max():
                 out[key] = np.where(first, own, np.nan)
-    if len(_CAPS) >= 8:
-        _CAPS.pop(next(iter(_CAPS)))
-    _CAPS[id(job)] = (job, out)       # the job kept alive so its id is not reused while cached
     return out
 
 
