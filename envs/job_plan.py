@@ -30,9 +30,6 @@ from ringtune.shaping.planner import MachineLimits
 from ringtune.shaping.slicer import slicer_estimate, slicer_flavor
 from ringtune.shaping.testprints import builtin_test_print, direction_change_frequencies
 
-#: the junction rules, in words
-JUNCTION_NAMES = {"scv": "Klipper's square-corner velocity", "jd": "Marlin's junction deviation",
-                  "jerk": "classic jerk"}
 #: slicer G-code flavour -> the rule that firmware plans corners with by default (Marlin 2 ships
 #: with junction deviation, CLASSIC_JERK off; legacy Marlin, RepRapFirmware's M566 and Repetier
 #: use jerk; Smoothieware junction deviation)

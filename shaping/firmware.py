@@ -176,8 +176,8 @@ class Firmware:
         junction``), else what that means, in one sentence."""
         if junction in self.junctions:
             return ""
-        own = " or ".join(JUNCTION_WORDS[j] for j in self.junctions)
-        return (f"the printer description corners by {JUNCTION_WORDS.get(junction, junction)} ([limits] junction = "
+        own = " or ".join(JUNCTION_NAMES[j] for j in self.junctions)
+        return (f"the printer description corners by {JUNCTION_NAMES.get(junction, junction)} ([limits] junction = "
                 f"\"{junction}\"), which {self.title} does not have (it corners by {own}): corners and print time "
                 f"are planned that way, not as {self.title} would; describe the printer with its own (`ringtune "
                 "printer from-klipper|from-marlin|from-rrf` reads it)")
@@ -193,7 +193,8 @@ class Firmware:
 
 
 #: each junction rule in words
-JUNCTION_WORDS = {"scv": "Klipper's square_corner_velocity", "jd": "junction deviation", "jerk": "classic jerk"}
+JUNCTION_NAMES = {"scv": "Klipper's square-corner velocity", "jd": "Marlin's junction deviation",
+                  "jerk": "classic jerk"}
 _KLIPPER_ACCEL = Span(1.0, 1e6, 3, why="Klipper takes any ACCEL > 0")
 _KLIPPER_FREQ = Span(1.0, 1000.0, 3, why="ringtune's bound: Klipper takes any F > 0, but below 1 Hz one shaper "
                                          "outlasts half a second and delays every step by that")

@@ -407,11 +407,11 @@ def test_a_junction_rule_the_firmware_lacks_is_said(tmp_path, capsys, fake_evalu
     args = ["--trials", "3", "--no-baselines", "--evaluator", fake_evaluator, "--accel-range", "1000,5000"]
     assert main(["tune", "--firmware", "marlin", "--out", str(tmp_path / "m"), *args]) == 0
     err = capsys.readouterr().err
-    assert "corners by Klipper's square_corner_velocity" in err and "which Marlin" in err
-    assert "The printer description corners by Klipper's square_corner_velocity" in \
+    assert "corners by Klipper's square-corner velocity" in err and "which Marlin" in err
+    assert "The printer description corners by Klipper's square-corner velocity" in \
         (tmp_path / "m" / "summary.txt").read_text()
     assert main(["tune", "--firmware", "klipper", "--out", str(tmp_path / "k"), *args]) == 0
-    assert "square_corner_velocity ([limits]" not in capsys.readouterr().err
+    assert "square-corner velocity ([limits]" not in capsys.readouterr().err
 
 
 def test_readme_same_command_keeps_the_trials_and_the_warm_start_sentence_reads(tmp_path, capsys, fake_evaluator):

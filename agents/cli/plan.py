@@ -26,7 +26,8 @@ import numpy as np
 
 from ringtune.agents.cli.common import GCODE_JOB_HELP, gcode_job, load_config
 from ringtune.agents.cli.options import VALUES
-from ringtune.envs.job_plan import JUNCTION_NAMES, hms, plan_job
+from ringtune.envs.job_plan import hms, plan_job
+from ringtune.shaping.firmware import JUNCTION_NAMES
 from ringtune.shaping.e_timing import firmware_trajectory, sample_features
 from ringtune.shaping.errors import RingtuneError
 

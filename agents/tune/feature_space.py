@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from ringtune.agents.tune.motor_bound import motor_accel_limit
-from ringtune.agents.tune.space import ACCEL_GROUPS, HIDDEN_CORNERS, SEEN_GROUPS, SearchSpace
+from ringtune.agents.tune.space import ACCEL_GROUPS, CORNER_UNIT, HIDDEN_CORNERS, SEEN_GROUPS, SearchSpace
 from ringtune.envs.planned_job import planned_job, resolve_job
 from ringtune.shaping.feature_settings import corner_value, effective_classes
 from ringtune.shaping.features import FEATURE_CLASSES
@@ -130,7 +130,8 @@ def feature_section(config, space: SearchSpace) -> tuple[list[str], dict]:
         b = basis.get(group, {})
         lines.append(f"  {group.replace('_', ' ')} ({', '.join(ACCEL_GROUPS[group])}): {a:.0f} mm/s² "
                      f"(walked within {lo:.0f}–{hi:.0f}: {b.get('basis', '')})")
-    unit = {"scv": "mm/s square_corner_velocity", "jd": "mm junction deviation", "jerk": "mm/s jerk"}
+    rule = {"scv": "square_corner_velocity", "jd": "junction deviation", "jerk": "jerk"}
+    unit = {j: f"{CORNER_UNIT[j]} {name}" for j, name in rule.items()}
     if config.corner is not None:
         lines.append(f"  corner rule: {config.corner:g} {unit.get(space.junction, '')}")
     if config.min_cruise_ratio is not None:

@@ -70,6 +70,8 @@ ABUTTING_GROUPS = ("hidden_walls",)
 HIDDEN_CORNERS = ("infill", "support", "solid_infill", "travel")
 #: rounding of the corner rule's value per junction rule (mm/s, mm, mm/s) and of minimum_cruise_ratio
 CORNER_STEP = {"scv": 0.5, "jd": 0.001, "jerk": 0.5}
+#: the unit of the corner rule's value per junction rule
+CORNER_UNIT = {"scv": "mm/s", "jd": "mm", "jerk": "mm/s"}
 MCR_STEP = 0.05
 
 @dataclass(frozen=True)

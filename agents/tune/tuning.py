@@ -20,7 +20,7 @@ from ringtune.agents.tune.out_dir import check_out, remove_if_empty
 from ringtune.agents.tune.choice import BASELINE_NAMES, pick
 from ringtune.agents.tune.pareto import VISIBLE_KEYS
 from ringtune.agents.tune.refine import refine
-from ringtune.agents.tune.space import default_space, freq_floor_note, params_from_config, walked_keys
+from ringtune.agents.tune.space import CORNER_UNIT, default_space, freq_floor_note, params_from_config, walked_keys
 from ringtune.agents.tune.stop import Bounds
 from ringtune.agents.tune.study_results import study_points
 from ringtune.envs.planned_job import resolve_printer
@@ -339,7 +339,7 @@ def _report(req: TuneRequest, lim: _Limits, fw: Firmware, printer, facts, space,
             pf_lines.append(f"  {lift.sentence()}")
             labels = {**{k: bl.labels.get(k, BASELINE_NAMES.get(k, k)) for k in bl.points},
                       "choice": "the choice before the walk"}
-            unit = {"scv": " mm/s", "jd": " mm", "jerk": " mm/s"}.get(space.junction, "")
+            unit = f" {CORNER_UNIT[space.junction]}" if space.junction in CORNER_UNIT else ""
             held = lift.held_lines(labels, unit)
             if held:
                 pf_lines.append("  What holds each where it is (the next value the walk tried, measured as every "
