@@ -110,9 +110,7 @@ def machine_part(config: TuneConfig) -> TuneConfig:
     """What of ``config`` the printer holds itself (``export`` sends it): shapers, acceleration,
     per-axis caps — without the frequency limit (in the file's F words, or the firmware's own
     where :func:`native_limit`) and the per-feature settings (in the file's commands)."""
-    return replace(config, freq_limit_hz=0.0 if not native_limit(config) else config.freq_limit_hz,
-                   feature_accel={}, feature_corner={}, feature_min_cruise_ratio={}, corner=None,
-                   min_cruise_ratio=None)
+    return replace(config.without_per_feature(), freq_limit_hz=config.freq_limit_hz if native_limit(config) else 0.0)
 
 
 def native_limit(config: TuneConfig) -> bool:

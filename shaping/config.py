@@ -6,7 +6,7 @@ from __future__ import annotations
 import difflib
 import json
 import math
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -172,6 +172,12 @@ class TuneConfig:
                                         f"{where}: {key}")
                 _finite(value, f"{where}: {key}.{cls}", lo=lo, hi=hi, unit=unit)
         self._check_ranges(where, "corner", "min_cruise_ratio")
+
+    def without_per_feature(self) -> "TuneConfig":
+        """This configuration without what it sets per feature or as the corner rule (what a job's
+        own commands, or a rewritten job's, set instead)."""
+        return replace(self, feature_accel={}, feature_corner={}, feature_min_cruise_ratio={}, corner=None,
+                       min_cruise_ratio=None)
 
     @property
     def per_feature(self) -> bool:

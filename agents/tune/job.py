@@ -12,7 +12,7 @@ the planner alone (no physics), through :func:`ringtune.envs.planned_job.planned
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -22,6 +22,7 @@ from ringtune.agents.tune.motor_bound import defaults_note
 from ringtune.envs.planned_job import job_accel_commands, planned_job, resolve_job
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.features import FEATURE_CLASSES, LABELLED_VISIBLE, class_indices
+from ringtune.shaping.layers import layer_starts
 
 #: how the job's acceleration settings are written in G-code: command -> (setting, its word)
 GCODE_WORDS = {"M201": (("max_accel_x", "X"), ("max_accel_y", "Y")),
@@ -43,8 +44,7 @@ class JobAccelFacts:
         """Planned time under ``mode``; ``respect`` is the job as sliced, so a per-feature
         configuration's own accelerations and corner rule are left out there."""
         if mode == "respect" and config.per_feature:
-            config = replace(config, feature_accel={}, corner=None, min_cruise_ratio=None, feature_corner={},
-                             feature_min_cruise_ratio={})
+            config = config.without_per_feature()
         return planned_job(self.printer, self.job, config, job_accel=mode).print_time
 
     def accel_matters(self, space) -> bool:
@@ -98,8 +98,9 @@ def job_accel_facts(printer, job, mode: str) -> JobAccelFacts:
         facts.cap = float(far.accel[sel].max()) if sel.any() else None
         seen = sel & far.extruding & np.isin(class_indices(list(far.features))[far.feature],
                                              [FEATURE_CLASSES.index(c) for c in LABELLED_VISIBLE])
-        z = far.end[:, 2]
-        seen &= z > (z[far.extruding].min() + 1e-6 if far.extruding.any() else -np.inf)    # the first layer aside
+        starts = layer_starts(parsed)
+        if len(starts) >= 2:
+            seen[starts[0]:starts[1]] = False          # the first layer aside
         facts.seen_low = float(far.accel[seen].min()) if seen.any() else None
     return facts
 
