@@ -94,11 +94,11 @@ def evaluate_judged(configs: Sequence[TuneConfig], printer=None, job=None, backe
     printer = resolve_printer(printer)
     if settle is None:
         settle = auto_settle(printer)
-    variants = [v.of(printer) for v in variant_factors(freq_margin)]
-    runs = evaluate_variants(configs, variants, job, backend, settle=settle, nthread=nthread, job_accel=job_accel,
-                             job_shapers=job_shapers)
+    factors = variant_factors(freq_margin)
+    runs = evaluate_variants(configs, [v.of(printer) for v in factors], job, backend, settle=settle, nthread=nthread,
+                             job_accel=job_accel, job_shapers=job_shapers)
     per_config = [list(evs) for evs in zip(*runs)]        # per config, its Evaluation per variant
-    return [(evs[0].metrics if len(evs) == 1 else worst_case(e.metrics for e in evs), evs)
+    return [(evs[0].metrics if len(evs) == 1 else worst_case((e.metrics for e in evs), factors), evs)
             for evs in per_config]
 
 
@@ -109,9 +109,10 @@ def evaluate_twins(configs: Sequence[TuneConfig], exact: Sequence[Metrics], prin
     the detuned twins are simulated, and the worst of the three counts, as :func:`evaluate_judged`
     takes it (a screen on the exact model that passes costs no second simulation of it)."""
     printer = resolve_printer(printer)
-    twins = [v.of(printer) for v in variant_factors(freq_margin) if not v.exact]
+    factors = variant_factors(freq_margin)
+    twins = [v.of(printer) for v in factors if not v.exact]
     runs = evaluate_variants(configs, twins, job, backend, settle=auto_settle(printer), job_accel=job_accel)
-    return [worst_case([m, *(e.metrics for e in evs)]) for m, evs in zip(exact, zip(*runs))]
+    return [worst_case([m, *(e.metrics for e in evs)], factors) for m, evs in zip(exact, zip(*runs))]
 
 
 @dataclasses.dataclass

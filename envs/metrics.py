@@ -119,7 +119,7 @@ Diagnostics and constraints:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Iterable
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 
@@ -251,13 +251,19 @@ def _p90_from_walls(out: Metrics, walls_all: list) -> None:
         vals["ripple_p90_mm"] = p90(np.array(by_class.get(cls, [])))
 
 
-def worst_case(results: Iterable[Metrics]) -> Metrics:
+def worst_case(results: Iterable[Metrics], variants: Sequence | None = None) -> Metrics:
     """One :class:`Metrics` for a configuration judged on several variants of a printer: the
     first's print time (the planner does not see resonances), the largest of every measure (the
-    90th percentiles included, per printer), and step loss if any variant lost steps."""
+    90th percentiles included, per printer), and step loss if any variant lost steps.
+    ``details["variants"]``: each variant's own metrics (``to_dict``), with ``"variant"``: its
+    (frequency factor, damping factor) where ``variants`` (:class:`ringtune.envs.variants.Variant`,
+    in the order of ``results``) names them — a comparison variant by variant needs them."""
     results = list(results)
     worst = _combined(results, results[0].print_time_s)
     worst.details = {"variants": [m.to_dict() for m in results]}
+    if variants is not None:
+        for d, v in zip(worst.details["variants"], variants, strict=True):
+            d["variant"] = [float(v.freq), float(v.damping)]
     return worst
 
 

@@ -119,7 +119,8 @@ def test_each_setting_walked_says_what_holds_it_with_the_value_that_failed(space
              for f in FINER]
     assert infill.value == got["accel_infill"]
     assert infill.tried == min(a for a in levels + finer if a > RIPPLE_TOP)
-    assert infill.why == ("measure", "ripple_mm", "klipper", 0.08, 0.05) and not infill.screened
+    assert infill.why[:5] == ("measure", "ripple_mm", "klipper", 0.08, 0.05) and not infill.screened
+    assert infill.why.variant is None
     corner = held["corner_hidden"]
     assert corner.value == got["corner_hidden"] and SHOW_PER_CORNER * corner.tried > BOUNDS.max_show_through_mm
     assert corner.why[:3] == ("bound", "show_through_mm", None)
@@ -163,7 +164,7 @@ def test_a_raise_that_saves_less_than_the_least_step_is_not_taken(space):
     got = params_from_config(lift.point.config, space)
     assert got["accel_travel"] == 5000.0 and got["accel_solid_infill"] > 5000.0
     held = next(h for h in lift.held if h.key == "accel_travel")
-    kind, key, _base, value, limit = held.why
+    kind, key, _base, value, limit, _variant = held.why
     assert (kind, key) == ("time", "print_time_s") and held.tried is not None
     before = limit / (1 - MIN_STEP_SAVING)       # the choice's time when the travel was walked
     assert value < before and before - value < MIN_STEP_SAVING * before   # faster, by too little

@@ -41,7 +41,7 @@ from typing import Any, Callable, Sequence
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution
 from ringtune.agents.tune.space import (ABUTTING_GROUPS, SEEN_GROUPS, SearchSpace, config_from_params,
                                         params_from_config)
-from ringtune.agents.tune.stop import Bounds, failure_words, passing_why
+from ringtune.agents.tune.stop import Bounds, Failure, failure_words, passing_why
 from ringtune.shaping.config import TuneConfig
 
 #: shares of the way from the current value to the range's top that are tried, fastest first
@@ -58,14 +58,14 @@ MIN_STEP_SAVING = 0.0005
 class Held:
     """Where one walked setting stays and what holds it there, measured: ``tried``, the lowest value
     above it that the walk tried (None: it stays at its range's top, ``top``), and why that failed
-    (:func:`ringtune.agents.tune.stop.failure`'s (kind, key, baseline, value, limit)); ``screened``:
+    (:class:`ringtune.agents.tune.stop.Failure`); ``screened``:
     the failure was seen on the exact model alone (the screen), not on the twins' judgement."""
 
     key: str
     value: float
     top: float
     tried: float | None = None
-    why: tuple | None = None
+    why: Failure | None = None
     screened: bool = False
 
     def words(self, labels: dict[str, str], unit: str) -> str:
@@ -75,15 +75,15 @@ class Held:
         head = f"{name} at {self.value:g}{unit}"
         if self.tried is None:
             return f"{head}: " + ("the top of its range" if self.value >= self.top else "nothing above it was tried")
-        kind, key, base, value, limit = self.why
         seen = " (on the model as fitted)" if self.screened else ""
-        what = failure_words(kind, key, value, limit, labels.get(base, base or ""))
+        what = failure_words(self.why, labels.get(self.why.baseline, self.why.baseline or ""))
         return f"{head}: at {self.tried:g}, {what}{seen}"
 
     def to_dict(self) -> dict[str, Any]:
-        kind, key, base, value, limit = self.why or (None,) * 5
-        return {"parameter": self.key, "value": self.value, "top": self.top, "tried": self.tried, "kind": kind,
-                "key": key, "baseline": base, "measured": value, "limit": limit, "screened": self.screened}
+        why = self.why or Failure(None, None, None, None, None)
+        return {"parameter": self.key, "value": self.value, "top": self.top, "tried": self.tried, "kind": why.kind,
+                "key": why.key, "baseline": why.baseline, "measured": why.value, "limit": why.limit,
+                "variant": None if why.variant is None else list(why.variant), "screened": self.screened}
 
 
 @dataclass

@@ -150,6 +150,9 @@ class Point:
     too_rough: bool = False
     overloaded: bool = False
     shows_through: bool = False
+    #: its visible measures on each printer variant it was judged on (:func:`variant_figures`):
+    #: ((frequency factor, damping factor), {key: value}) each; () where judged on one printer
+    variants: tuple = ()
 
     @property
     def feasible(self) -> bool:
@@ -169,15 +172,30 @@ class Point:
         return None if v is None else float(v)
 
 
+@dataclass(frozen=True)
+class Figure:
+    """How one figure of a point compares with a baseline's: the verdict and the two values it
+    comes from, and ``variant``: the printer variant (frequency factor, damping factor) where the
+    point is worse on that variant although the worst over the variants is not (None: the values
+    are the worst over the variants, or of the one printer)."""
+
+    verdict: str
+    mine: float
+    theirs: float
+    variant: tuple[float, float] | None = None
+
+
 @dataclass
 class Judgement:
     """How ``point`` compares with ``base`` at a resolution: per figure ``better|same|worse``
     (from the point's side), ``feasible`` both ways, and ``dominates`` (nothing worse, something
-    better, and the point not ruled out where the base is not)."""
+    better, and the point not ruled out where the base is not); ``figures``: each figure's
+    :class:`Figure` (the values behind its verdict)."""
 
     verdicts: dict
     dominates: bool
     resolution: Resolution
+    figures: dict = field(default_factory=dict)
 
 
 #: (point feasible, base feasible) -> the feasibility verdict from the point's side; else "same"
@@ -191,16 +209,69 @@ def verdict(key: str, mine: float, theirs: float, res: Resolution = DEFAULT_RESO
     return "worse" if d > tol else "better" if d < -tol else "same"
 
 
+def compare_figure(point: Point, base: Point, key: str, res: Resolution = DEFAULT_RESOLUTION) -> Figure | None:
+    """How ``point``'s figure ``key`` compares with ``base``'s (None where either lacks it).
+
+    Where both were judged on the same printer variants (the model and its detuned twins), the
+    figure is compared on each variant as well as over their worst: a point is worse where it is
+    worse on any variant — on a printer whose resonances are 5 % higher its outer wall may ripple
+    more than the baseline's there while its worst over the three still matches the baseline's
+    worst (which comes from another variant). The variant reported is the one it is worse on by
+    the largest ratio."""
+    a, b = point.value(key), base.value(key)
+    if a is None or b is None:
+        return None
+    out = Figure(verdict(key, a, b, res), a, b)
+    if out.verdict == "worse" or not point.variants or not base.variants:
+        return out
+    theirs = dict(base.variants)
+    worst = None
+    for f, figs in point.variants:
+        x, y = figs.get(key), theirs.get(f, {}).get(key)
+        if x is not None and y is not None and verdict(key, x, y, res) == "worse":
+            ratio = x / max(y, 1e-12)
+            if worst is None or ratio > worst[0]:
+                worst = (ratio, Figure("worse", float(x), float(y), f))
+    return out if worst is None else worst[1]
+
+
 def judge(point: Point, base: Point, res: Resolution = DEFAULT_RESOLUTION,
           keys: Sequence[str] | None = None) -> Judgement:
     """Compare ``point`` with ``base`` on ``keys`` (figures both have; default print time and the
-    visible measures, or a custom evaluator's overshoot and path error) and on feasibility."""
+    visible measures, or a custom evaluator's overshoot and path error), each over the printer
+    variants both were judged on and on each of them (:func:`compare_figure`), and on feasibility."""
     keys = keys if keys is not None else ("print_time_s",) + quality_keys([point, base])
-    pairs = {k: (point.value(k), base.value(k)) for k in keys}
-    v = {k: verdict(k, a, b, res) for k, (a, b) in pairs.items() if a is not None and b is not None}
+    figs = {k: f for k in keys if (f := compare_figure(point, base, k, res)) is not None}
+    v = {k: f.verdict for k, f in figs.items()}
     v["feasible"] = _FEASIBLE_VERDICT.get((point.feasible, base.feasible), "same")
     vals = list(v.values())
-    return Judgement(v, "worse" not in vals and "better" in vals, res)
+    return Judgement(v, "worse" not in vals and "better" in vals, res, figs)
+
+
+def variant_figures(m) -> tuple:
+    """A worst-case metrics object's visible measures (:data:`JUDGED_KEYS`) on each printer variant
+    it was judged on (``details["variants"]`` of :func:`ringtune.envs.metrics.worst_case`, each
+    naming its variant): ((frequency factor, damping factor), {key: value}) each; () where it was
+    judged on one printer or the variants are not named."""
+    out = []
+    for d in (getattr(m, "details", None) or {}).get("variants", ()):
+        if "variant" not in d:
+            return ()
+        figs = {k: float(d[k]) for k in VISIBLE_KEYS if k in d}
+        for cls, values in (d.get("features") or {}).items():
+            figs.update({f"{cls}:{k}": float(values[k]) for k in CLASS_MEASURES.get(cls, ()) if k in values})
+        out.append((tuple(float(x) for x in d["variant"]), figs))
+    return tuple(out)
+
+
+def variants_to_json(variants: tuple) -> list:
+    """:attr:`Point.variants` as JSON (a trial's user attribute): [[freq, damping], {key: value}] each."""
+    return [[list(f), dict(figs)] for f, figs in variants]
+
+
+def variants_from_json(data) -> tuple:
+    """:func:`variants_to_json`'s inverse."""
+    return tuple((tuple(float(x) for x in f), {k: float(v) for k, v in figs.items()}) for f, figs in (data or ()))
 
 
 def metrics_dict(m) -> dict:
@@ -224,7 +295,7 @@ def point_from_metrics(config: TuneConfig, m, quality: str = "ripple_mm", *, lab
     """A :class:`Point` from a metrics object; ``max_path_error_mm`` > 0 bounds the path error (mm),
     ``max_motor_load`` > 0 the motor load (fraction), ``max_show_through_mm`` > 0 the show-through (mm)."""
     p = Point(config, float(m.print_time_s), objective_value(m, quality), bool(m.step_loss), metrics_dict(m),
-              label, number)
+              label, number, variants=variant_figures(m))
     return judge_bounds(p, max_path_error_mm, max_motor_load, max_show_through_mm)
 
 

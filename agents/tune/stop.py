@@ -22,11 +22,12 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from itertools import accumulate
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, NamedTuple, Sequence
 
 from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, JUDGED_KEYS, Point, Resolution, judge,
                                          point_from_metrics, shown, words)
 from ringtune.agents.tune.space import SearchSpace, config_from_params, params_from_config
+from ringtune.envs.variants import Variant
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.firmware import FIRMWARES
 
@@ -67,6 +68,7 @@ class Stop:
     config: TuneConfig | None = None
     evaluations: int = 0
     sentence: str = ""
+    variant: tuple[float, float] | None = None    # where the measure is worse on one printer variant
 
     @property
     def moved(self) -> bool:
@@ -77,7 +79,8 @@ class Stop:
                 "baseline_value": self.base_value,
                 "accel": self.accel, "config": self.config.to_dict() if self.config else None,
                 "moved": self.moved, "from_accel": self.start.config.accel, "to_accel": self.point.config.accel,
-                "evaluations": self.evaluations, "sentence": self.sentence}
+                "evaluations": self.evaluations, "sentence": self.sentence,
+                "variant": None if self.variant is None else list(self.variant)}
 
 
 def next_accels(accel: float, top: float, step: float, n: int = LADDER) -> list[float]:
@@ -179,10 +182,26 @@ def passing_why(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[Tune
     return out, why, len(todo), len(configs) if screen is not None else 0
 
 
+class Failure(NamedTuple):
+    """Why a point may not replace another (:func:`failure`): ``kind`` (``bound``, ``measure``,
+    ``time``, ``ceiling``, ``budget``), the bound's or measure's ``key``, the baseline's key (a
+    measure), the point's ``value`` against ``limit`` (the bound, the baseline's figure, the time
+    to beat), and ``variant``: the printer variant (frequency, damping factors) those figures are of
+    where the measure is worse there and not over the worst of the variants (None otherwise)."""
+
+    kind: str
+    key: str | None
+    baseline: str | None
+    value: float | None
+    limit: float | None
+    variant: tuple[float, float] | None = None
+
+
 def failure(p: Point, bases: dict[str, Point], faster_than: Point, bounds: Bounds,
-             res: Resolution) -> tuple[str, str, str | None, float, float] | None:
-    """Why ``p`` may not replace ``faster_than``: (kind, key, baseline key or None, value, limit), or
-    None. A bound first; else the visible measure worse than a baseline's by the largest ratio."""
+            res: Resolution) -> Failure | None:
+    """Why ``p`` may not replace ``faster_than``, or None. A bound first; else the visible measure
+    worse than a baseline's by the largest ratio (over the printer variants, or on one of them:
+    :func:`ringtune.agents.tune.pareto.compare_figure`)."""
     m = p.metrics
     broken = (("step_loss", p.step_loss, 1.0, 0.0),
               ("motor_load", p.overloaded, m.get("motor_load", 0.0), bounds.max_motor_load),
@@ -190,14 +209,14 @@ def failure(p: Point, bases: dict[str, Point], faster_than: Point, bounds: Bound
               ("path_error_mm", p.too_rough, m.get("path_error_mm", 0.0), bounds.max_path_error_mm))
     for key, flag, value, limit in broken:
         if flag:
-            return "bound", key, None, float(value), float(limit)
-    worse = [(p.value(k) / max(base.value(k), 1e-12), k, name) for name, base in bases.items()
-             for k, v in judge(p, base, res, JUDGED_KEYS).verdicts.items() if v == "worse"]
+            return Failure("bound", key, None, float(value), float(limit))
+    worse = [(f.mine / max(f.theirs, 1e-12), k, name, f) for name, base in bases.items()
+             for k, f in judge(p, base, res, JUDGED_KEYS).figures.items() if f.verdict == "worse"]
     if worse:
-        _ratio, k, name = max(worse)
-        return "measure", k, name, float(p.value(k)), float(bases[name].value(k))
+        _ratio, k, name, f = max(worse, key=lambda w: w[:3])
+        return Failure("measure", k, name, float(f.mine), float(f.theirs), f.variant)
     if p.print_time_s >= faster_than.print_time_s:
-        return "time", "print_time_s", None, p.print_time_s, faster_than.print_time_s
+        return Failure("time", "print_time_s", None, p.print_time_s, faster_than.print_time_s)
     return None
 
 
@@ -224,7 +243,8 @@ def measured_stop(start: Point, bases: dict[str, Point], evaluate: Callable[[Seq
         if not accs:
             why = (space.accel_basis or "the search range's top") if top < fw_top else \
                 f"{FIRMWARES[space.firmware].title}'s largest acceleration"
-            return _stop(start, cur, ("ceiling", "accel", None, float(cur.config.accel), top), None, n, labels, why)
+            return _stop(start, cur, Failure("ceiling", "accel", None, float(cur.config.accel), top), None, n, labels,
+                         why)
         failed = None
         for p in points([with_accel(cur.config, a, space) for a in accs]):
             why = failure(p, bases, cur, bounds, res)
@@ -241,36 +261,39 @@ def measured_stop(start: Point, bases: dict[str, Point], evaluate: Callable[[Seq
             cur = min(variants, key=lambda v: (v.print_time_s, v.quality_mm))
             continue
         return _stop(start, cur, why, p.config, n, labels)
-    return _stop(start, cur, ("budget", None, None, None, None), None, n, labels)
+    return _stop(start, cur, Failure("budget", None, None, None, None), None, n, labels)
 
 
-def _stop(start: Point, cur: Point, why: tuple, cfg, n: int, labels: dict, basis: str = "") -> Stop:
-    kind, key, base, value, limit = why
+def _stop(start: Point, cur: Point, why: Failure, cfg, n: int, labels: dict, basis: str = "") -> Stop:
     acc = None if cfg is None else float(cfg.accel)
-    label = labels.get(base, base or "")
-    return Stop(cur, start, kind, key, base, value, limit, acc, cfg, n,
-                _sentence(kind, key, value, limit, acc, cur, label, basis))
+    label = labels.get(why.baseline, why.baseline or "")
+    return Stop(cur, start, why.kind, why.key, why.baseline, why.value, why.limit, acc, cfg, n,
+                _sentence(why, acc, cur, label, basis), why.variant)
 
 
-def _sentence(kind, key, value, limit, acc, cur: Point, base_label: str, why: str) -> str:
+def _sentence(why: Failure, acc, cur: Point, base_label: str, basis: str) -> str:
+    kind, value, limit = why.kind, why.value, why.limit
     here = f"{cur.config.accel:.0f} mm/s²"
     if kind in ("measure", "bound"):
-        what = failure_words(kind, key, value, limit, base_label)
+        what = failure_words(why, base_label)
         return f"What stops it at {here}: {what} at {acc:.0f} mm/s² (the next step, measured)."
     if kind == "time":
         return (f"What stops it at {here}: print time no longer falls at {acc:.0f} mm/s² ({value:.3f} s against "
                 f"{limit:.3f} s): the job's speeds, not its acceleration, bound it.")
     if kind == "ceiling":
-        return f"What stops it at {here}: the top of the acceleration range, {limit:.0f} mm/s² ({why})."
+        return f"What stops it at {here}: the top of the acceleration range, {limit:.0f} mm/s² ({basis})."
     return f"The measured stop ended at {here} after its budget of evaluations, every step passing."
 
 
-def failure_words(kind: str, key: str, value: float, limit: float, base_label: str) -> str:
-    """What failed, with both values: ``"outer wall ripple 31.0 µm > 29.8 µm of Klipper's rule"``,
-    ``"motor load 84 % > the reserve's 80 %"``, ``"print time 5.702 s, not below 5.700 s"``
-    (:func:`failure`'s kind, key, value and limit; ``base_label`` names the baseline)."""
+def failure_words(why: Failure, base_label: str) -> str:
+    """What failed, with both values: ``"outer wall ripple 31.0 µm > 29.8 µm of Klipper's rule"``
+    (``"… on the printer with its resonances 5 % higher and damping ×0.75"`` where it is worse on
+    that variant), ``"motor load 84 % > the reserve's 80 %"``, ``"print time 5.702 s, not below
+    5.700 s"`` (``base_label`` names the baseline)."""
+    kind, key, value, limit = why.kind, why.key, why.value, why.limit
     if kind == "measure":
-        return f"{words(key)[0]} {shown(key, value)} > {shown(key, limit)} of {base_label}"
+        on = "" if why.variant is None else f" on {Variant(*why.variant).words()}"
+        return f"{words(key)[0]} {shown(key, value)} > {shown(key, limit)} of {base_label}{on}"
     if kind == "time":
         return f"print time {value:.3f} s, not below {limit:.3f} s"
     return {"step_loss": "a motor loses steps",

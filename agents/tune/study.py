@@ -45,7 +45,7 @@ import optuna
 from optuna.trial import TrialState
 
 from ringtune.agents.tune.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MAX_SHOW_THROUGH_MM,
-    DEFAULT_MOTOR_RESERVE, OBJECTIVES, metrics_dict, objective_value)
+    DEFAULT_MOTOR_RESERVE, OBJECTIVES, metrics_dict, objective_value, variant_figures, variants_to_json)
 from ringtune.agents.tune.space import SearchSpace, config_from_params, default_space, suggest_params
 from ringtune.agents.tune.storage import _this_worker, make_storage, reap_dead_workers
 from ringtune.envs.printer import load_printer
@@ -259,6 +259,8 @@ def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any =
             trial.set_user_attr("interrupted", True)
             raise
         trial.set_user_attr("metrics", metrics_dict(m))
+        if variants := variant_figures(m):
+            trial.set_user_attr("variants", variants_to_json(variants))
         trial.set_constraint("step_loss", 1.0 if m.step_loss else 0.0)
         bound = settings.max_path_error_mm
         trial.set_constraint("path_error", float(m.path_error_mm) - bound if bound > 0 else -1.0)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from optuna.trial import TrialState
 
-from ringtune.agents.tune.pareto import Point, judge_bounds, max_motor_load
+from ringtune.agents.tune.pareto import Point, judge_bounds, max_motor_load, variants_from_json
 from ringtune.agents.tune.space import SearchSpace, config_from_params
 from ringtune.agents.tune.study import StudySettings, load_space
 
@@ -43,4 +43,5 @@ def _trial_point(t, space: SearchSpace) -> Point:
     """A complete trial as a point not yet judged against the bounds."""
     metrics = dict(t.user_attrs.get("metrics", {}))
     return Point(config_from_params(t.params, space), float(t.values[0]), float(t.values[1]),
-                 bool(metrics.get("step_loss", False)), metrics, f"trial {t.number}", t.number)
+                 bool(metrics.get("step_loss", False)), metrics, f"trial {t.number}", t.number,
+                 variants=variants_from_json(t.user_attrs.get("variants")))

@@ -15,9 +15,10 @@ from dataclasses import dataclass, field
 from typing import Callable, Mapping, Sequence
 
 from ringtune.agents.tune.baselines import Baselines, baseline_configs
-from ringtune.agents.tune.pareto import (CLASS_KEYS, DEFAULT_RESOLUTION, VISIBLE_KEYS, Point, Resolution, judge,
-                                         shown, verdict, words)
+from ringtune.agents.tune.pareto import (CLASS_KEYS, DEFAULT_RESOLUTION, VISIBLE_KEYS, Figure, Point, Resolution,
+                                         compare_figure, judge, shown, verdict, words)
 from ringtune.envs.evaluate import evaluate_judged
+from ringtune.envs.variants import Variant
 
 #: the figures compared, in the order shown: the job's, then the outer wall's own (the surface a
 #: person looks at first; every visible class's own is judged, :data:`~ringtune.agents.tune.pareto.JUDGED_KEYS`)
@@ -31,14 +32,27 @@ def _value(p: Point | Mapping, key: str) -> float | None:
     return None if v is None else float(v)
 
 
+def _figure(point: Point | Mapping, base: Point | Mapping, key: str, res: Resolution) -> Figure | None:
+    """:func:`ringtune.agents.tune.pareto.compare_figure` where both are points (variant by
+    variant), else the verdict on the two values."""
+    if isinstance(point, Point) and isinstance(base, Point):
+        return compare_figure(point, base, key, res)
+    a, b = _value(point, key), _value(base, key)
+    return None if a is None or b is None else Figure(verdict(key, a, b, res), a, b)
+
+
 def versus(point: Point | Mapping, base: Point | Mapping, res: Resolution = DEFAULT_RESOLUTION) -> dict:
     """``{key: {value, baseline, verdict}}`` for every figure of :data:`SHOWN` both have (a Point or a
-    metrics dict on each side)."""
+    metrics dict on each side): the values are the worst over the printer variants; where the
+    verdict is "worse" on one variant only, ``on`` names it (frequency and damping factors) with the
+    two values there (``value_there``, ``baseline_there``)."""
     out = {}
     for k in SHOWN:
-        a, b = _value(point, k), _value(base, k)
-        if a is not None and b is not None:
-            out[k] = {"value": a, "baseline": b, "verdict": verdict(k, a, b, res)}
+        f = _figure(point, base, k, res)
+        if f is not None:
+            out[k] = {"value": _value(point, k), "baseline": _value(base, k), "verdict": f.verdict}
+            if f.variant is not None:
+                out[k].update(on=list(f.variant), value_there=f.mine, baseline_there=f.theirs)
     return out
 
 
@@ -57,17 +71,27 @@ def table(point: Point | Mapping, baselines: Mapping[str, Point | Mapping], labe
     w = max([len("measure")] + [len(words(k)[0]) for k in keys]) + 2
     head = f"  {'measure':<{w}}{name:>12}" + "".join(f"  {'[' + str(i + 1) + ']':>12} {'':7}"
                                                    for i in range(len(cols)))
-    lines = [head]
+    lines, notes = [head], []
     for k in keys:
         row = f"  {words(k)[0]:<{w}}{shown(k, _value(point, k)):>12}"
-        for c in cols:
-            b = _value(baselines[c], k)
-            row += (f"  {shown(k, b):>12} {verdict(k, _value(point, k), b, res):<7}" if b is not None
-                    else f"  {'—':>12} {'':7}")
+        for i, c in enumerate(cols):
+            f = _figure(point, baselines[c], k, res)
+            if f is None:
+                row += f"  {'—':>12} {'':7}"
+                continue
+            mark = "*" if f.variant is not None else ""
+            row += f"  {shown(k, _value(baselines[c], k)):>12} {f.verdict + mark:<7}"
+            if f.variant is not None:
+                notes.append(f"  * {words(k)[0]} against [{i + 1}]: {shown(k, f.mine)} against {shown(k, f.theirs)} "
+                             f"on {Variant(*f.variant).words()}")
         lines.append(row.rstrip())
     for i, c in enumerate(cols):
         lines.append(f"  [{i + 1}] {labels.get(c, c)}")
-    lines.append(f"  (verdicts: {name} against each; {res.describe()}.)")
+    lines += notes
+    lines.append(f"  (values: the worst over the printer and its twins where judged on them; verdicts: {name} "
+                 f"against each, on each of them as well as over the worst (* worse on one of them only); "
+                 f"{res.describe()}.)" if any(isinstance(p, Point) and p.variants for p in (point, *baselines.values()))
+                 else f"  (verdicts: {name} against each; {res.describe()}.)")
     return lines
 
 
