@@ -9,7 +9,7 @@ import pytest
 
 from ringtune.agents.tune.pareto import (Point, compare_figure, judge, point_from_metrics, variants_from_json,
                                          variants_to_json)
-from ringtune.agents.tune.stop import Bounds, failure, failure_words
+from ringtune.agents.tune.stop import Bounds, as_exact_variant, failure, failure_words
 from ringtune.agents.tune.study import StudySettings, run_study
 from ringtune.agents.tune.study_results import study_points
 from ringtune.agents.tune.versus import table, versus
@@ -97,3 +97,15 @@ def test_the_table_marks_and_explains_a_verdict_from_one_variant():
     assert "30.5 µm" in row and "29.6 µm worse*" in row
     assert ("  * outer wall ripple against [1]: 14.8 µm against 11.1 µm on the printer with its resonances 5 % "
             "higher and damping ×0.75") in lines
+
+
+def test_the_screen_is_the_judgements_exact_variant():
+    """The screen (the exact model alone) fails a configuration on the exact model's own figures
+    against the baseline's there only where the judgement does too: they are the same figures."""
+    printer = resolve_printer(None)
+    cfg = TuneConfig(shaper_x="mzv", freq_x=50.0, shaper_y="ei", freq_y=44.0, accel=7000.0)
+    exact = as_exact_variant(point_from_metrics(cfg, evaluate_many([cfg], printer, None)[0]))
+    judged = point_from_metrics(cfg, evaluate_many([cfg], printer, None, freq_margin=0.05)[0])
+    (f, figs), = exact.variants
+    assert f == EXACT and dict(judged.variants)[EXACT] == pytest.approx(figs, rel=1e-12)
+    assert set(figs) == set(dict(judged.variants)[EXACT])

@@ -75,7 +75,7 @@ class Held:
         head = f"{name} at {self.value:g}{unit}"
         if self.tried is None:
             return f"{head}: " + ("the top of its range" if self.value >= self.top else "nothing above it was tried")
-        seen = " (on the model as fitted)" if self.screened else ""
+        seen = " (on the model as fitted)" if self.screened and self.why.variant is None else ""
         what = failure_words(self.why, labels.get(self.why.baseline, self.why.baseline or ""))
         return f"{head}: at {self.tried:g}, {what}{seen}"
 

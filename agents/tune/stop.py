@@ -150,11 +150,20 @@ def passing(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[TuneConf
 
     ``screen``: the same evaluation on the exact model alone, where ``evaluate`` takes the worst of
     the printer and its detuned twins. What fails on the exact model fails the judgement too (the
-    worst case is no better on any measure, and print time is the same), so only what passes the
-    screen is judged: a third of the cost for what fails."""
+    worst case is no better on any measure, the exact model is one of the variants judged
+    (:func:`as_exact_variant`), and print time is the same), so only what passes the screen is
+    judged: a third of the cost for what fails."""
     out, _why, judged, screened = passing_why(configs, evaluate, screen, bases, faster_than, bounds, res, label,
                                               max_judged)
     return out, judged, screened
+
+
+def as_exact_variant(p: Point) -> Point:
+    """A point judged on the exact model alone (the screen) as that variant of the judgement
+    (frequency and damping factors 1): compared with a baseline's own figures on the exact model as
+    well as with its worst, either of which the judgement of the worst case fails too."""
+    figs = {k: float(p.metrics[k]) for k in JUDGED_KEYS if k in p.metrics}
+    return dataclasses.replace(p, variants=(((1.0, 1.0), figs),))
 
 
 def passing_why(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[TuneConfig]], list],
@@ -167,7 +176,8 @@ def passing_why(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[Tune
     keep = [True] * len(configs)
     why: list[tuple | None] = [None] * len(configs)
     if screen is not None and configs:
-        fails = [failure(p, bases, faster_than, bounds, res) for p in evaluated(configs, screen, bounds, "")]
+        fails = [failure(as_exact_variant(p), bases, faster_than, bounds, res)
+                 for p in evaluated(configs, screen, bounds, "")]
         keep = [f is None for f in fails]
         why = [None if f is None else (f, True) for f in fails]
     if max_judged is not None:          # the first max_judged of those kept, in order
