@@ -105,10 +105,12 @@ def row(name, m) -> str:
             f"{hidden_extrusion(m):7.1f} {m.motor_load * 100:6.0f} %")
 
 
-def per_feature(printer, job, base_cfg, ref, steps=(1.0, 0.85, 0.7, 0.55, 0.4, 0.25)):
+def per_feature(printer, job, base_cfg, ref, steps=(1.0, 0.85, 0.7, 0.55, 0.4, 0.25),
+                above=(1.1, 1.25, 1.5, 2.0)):
     """The fastest per-feature configuration (visible acceleration and shapers of ``base_cfg``)
     not worse than ``ref`` on the visible measures: each hidden group alone at fractions ``steps``
-    of its range's top (never below the visible walls' acceleration), the highest that keeps the
+    of its range's top and at multiples ``above`` of the visible walls' acceleration (so that two
+    motors' ladders share their lowest rungs; never below the walls'), the highest that keeps the
     judgement; then all groups together at their own (checked again; a group that breaks it in
     company drops back step by step); then the corners nobody sees (:func:`hidden_corners`).
     Returns (config, metrics, space)."""
@@ -122,7 +124,9 @@ def per_feature(printer, job, base_cfg, ref, steps=(1.0, 0.85, 0.7, 0.55, 0.4, 0
             fa.update(dict.fromkeys(ACCEL_GROUPS[group], a))
         return dataclasses.replace(base_cfg, feature_accel=fa)
 
-    ladders = {g: [a for a in sorted({max(base_a, round(hi * f / 100.0) * 100.0) for f in steps}, reverse=True)
+    ladders = {g: [a for a in sorted({max(base_a, round(hi * f / 100.0) * 100.0) for f in steps}
+                                     | {round(base_a * k / 100.0) * 100.0 for k in above if base_a * k <= hi},
+                                     reverse=True)
                    if a > base_a] for g, _lo, hi in space.feature_accel}
     alone = [(g, a) for g, ladder in ladders.items() for a in ladder]
     ms = evaluate_many([cfg({g: a}) for g, a in alone], printer, job, freq_margin=MARGIN)
@@ -264,7 +268,7 @@ def main() -> int:
           + ", ".join(f"{g} {a:.0f}" for g, a in reserve_tops.items())
           + f" mm/s²), corners nobody sees at 30 / 0: {t:.1f} s, {(1 - t / single.print_time_s) * 100:.1f} % faster than "
           "the best single (no quality judged: the ceiling under the motors' reserve)")
-    tops = {}
+    tops, picked = {}, {}
     for name, force in (("weak", 18.0), ("strong", 45.0)):
         p = _with_motor(printer, force)
         own = evaluate_many([single_cfg], p, job, freq_margin=MARGIN)[0]     # the single on this motor
@@ -272,12 +276,19 @@ def main() -> int:
         tops[name] = {g: hi for g, _lo, hi in sp.feature_accel}
         if c:
             chosen = {g: c.feature_accel.get(ACCEL_GROUPS[g][0], c.accel) for g, *_ in sp.feature_accel}
+            picked[name] = chosen
         else:
             chosen = (f"no group above the visible walls' {single_cfg.accel:.0f} mm/s² (the single itself loads a motor "
                       f"{own.motor_load * 100:.0f} %, {(1 - RESERVE) * 100:.0f} % allowed)")
         print(f"  {name} motor ({force:g} N): hidden ranges' tops {tops[name]}; chosen {chosen}")
     lower = all(tops["weak"][g] < tops["strong"][g] for g in tops["weak"])
     print(f"weak motor's hidden groups' range tops lower than the strong one's (each motor judged against the single on itself): {'PASS' if lower else 'FAIL'}")
+    w, st = picked.get("weak", {}), picked.get("strong", {})
+    if w and st:
+        ok = all(w[g] <= st[g] for g in w) and any(w[g] < st[g] for g in w)
+        print("weak motor's chosen hidden accelerations no higher than the strong one's in any group and lower in "
+              f"one at least: {'PASS' if ok else 'FAIL'} ("
+              + ", ".join(f"{g} {w[g]:.0f} / {st[g]:.0f}" for g in w) + " mm/s²)")
     print(f"({time.perf_counter() - t0:.0f} s)")
     return 0
 
