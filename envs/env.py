@@ -145,7 +145,8 @@ class TuneEnv(gym.Env):
     own acceleration (:func:`ringtune.envs.judgement.baseline_config`), evaluated at reset
     (``baseline_metrics_``; one more evaluation per printer). Every evaluation is judged as
     ``tune`` judges, on the printer and, with ``freq_margin``, its twins with every resonance that
-    fraction lower and higher (the worst counts). A configuration the firmware rejects (e.g.
+    fraction lower and higher (the worst counts, and a measure's excess is the largest over the
+    worst and on each of them). A configuration the firmware rejects (e.g.
     impulses colliding on its time grid) ends the episode with reward ``−step_loss_penalty``.
 
     ## Starting State

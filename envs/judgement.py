@@ -62,14 +62,32 @@ def tolerance(key: str, a: float, b: float, judgement: dict = JUDGEMENT) -> floa
 
 def worse_by(m: Metrics, base: Metrics | None, judgement: dict = JUDGEMENT) -> dict[str, float]:
     """{measure: relative excess over the baseline beyond the resolution} for the judged measures
-    where ``m`` is worse (empty when nothing is, or without a baseline)."""
+    where ``m`` is worse (empty when nothing is, or without a baseline). Where both were judged on
+    the same printer variants (:func:`ringtune.envs.metrics.worst_case` names them), the largest
+    excess over their worst and on each variant, as ``tune`` judges (a measure worse on one variant
+    is worse)."""
     out = {}
-    for k in JUDGED_KEYS if base is not None else ():
-        a, b = float(getattr(m, k)), float(getattr(base, k))
-        tol = tolerance(k, a, b, judgement)
-        if a - b > tol:
-            out[k] = (a - b - tol) / max(b, tol)
+    if base is None:
+        return out
+    pairs = [(m.to_dict(), base.to_dict())] + _variant_pairs(m, base)
+    for k in JUDGED_KEYS:
+        excess = []
+        for mine, theirs in pairs:
+            a, b = float(mine[k]), float(theirs[k])
+            tol = tolerance(k, a, b, judgement)
+            if a - b > tol:
+                excess.append((a - b - tol) / max(b, tol))
+        if excess:
+            out[k] = max(excess)
     return out
+
+
+def _variant_pairs(m: Metrics, base: Metrics) -> list[tuple[dict, dict]]:
+    """(m's, base's) metrics on each printer variant both were judged on, matched by its name."""
+    def named(x):
+        return {tuple(d["variant"]): d for d in (x.details or {}).get("variants", ()) if "variant" in d}
+    theirs = named(base)
+    return [(d, theirs[v]) for v, d in named(m).items() if v in theirs]
 
 
 def violations(m: Metrics, penalty: float, judgement: dict = JUDGEMENT) -> float:
