@@ -109,3 +109,19 @@ def test_the_screen_is_the_judgements_exact_variant():
     (f, figs), = exact.variants
     assert f == EXACT and dict(judged.variants)[EXACT] == pytest.approx(figs, rel=1e-12)
     assert set(figs) == set(dict(judged.variants)[EXACT])
+
+
+def test_trials_stored_without_their_variants_are_said(tmp_path, monkeypatch, capsys):
+    """A study begun by an earlier ringtune kept only the worst over the variants: its trials are
+    held to the baselines over that alone, and tune says how many."""
+    from ringtune.agents.cli.main import main
+    import ringtune.agents.tune.study as study_module
+    monkeypatch.setattr(study_module, "variant_figures", lambda m: ())
+    assert main(["tune", "--trials", "3", "--workers", "1", "--seed", "0", "--out", str(tmp_path / "out"),
+                 "--per-feature", "off"]) == 0
+    err = capsys.readouterr().err
+    assert "3 of the study's 3 trials were stored without their figures on each printer variant" in err
+    monkeypatch.undo()
+    assert main(["tune", "--trials", "3", "--workers", "1", "--seed", "0", "--out", str(tmp_path / "new"),
+                 "--per-feature", "off"]) == 0
+    assert "stored without their figures" not in capsys.readouterr().err

@@ -181,6 +181,11 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
                                                   release, progress)
     baselines = bl.points
     points = study_points(run_.study, space, quality, lim.max_pe, lim.reserve, lim.max_st)
+    unsplit = sum(not p.variants for p in points)
+    if unsplit and any(b.variants for b in baselines.values()):
+        note(f"ringtune tune: {unsplit} of the study's {len(points)} trials were stored without their figures on each "
+             "printer variant (a study begun by an earlier ringtune): they are held to the baselines over the worst of "
+             "the variants alone")
     front = pareto.pareto_front(points, also=_also(points, quality))
     choice = pick(front, baselines, lim.how, req.weight, candidates=points)
     choice, stop, lift, ladder = refine(choice, bl, evaluator, settings, printer, space,
