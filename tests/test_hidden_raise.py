@@ -142,7 +142,7 @@ def test_a_failure_the_screen_saw_is_said_to_be_on_the_model_as_fitted(space):
                         screen=lambda cs: [_metrics(c) for c in cs])
     infill = next(h for h in lift.held if h.key == "accel_infill")
     assert infill.screened and infill.why[:2] == ("measure", "ripple_mm")
-    assert any(line.endswith("(on the model as fitted, against the worst of the baseline's)")
+    assert any(line.endswith("(on the model as fitted, against the baseline's worst over the model and its twins)")
                and line.startswith("infill")
                for line in lift.held_lines({}, " mm/s"))
 
