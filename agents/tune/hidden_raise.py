@@ -75,9 +75,10 @@ class Held:
         head = f"{name} at {self.value:g}{unit}"
         if self.tried is None:
             return f"{head}: " + ("the top of its range" if self.value >= self.top else "nothing above it was tried")
-        seen = "" if not self.screened or self.why.variant is not None else \
-            " (on the model as fitted, against the baseline's worst over the model and its twins)" if self.why.kind == "measure" else \
-            " (on the model as fitted)"
+        seen = ""
+        if self.screened and self.why.variant is None:
+            seen = (" (on the model as fitted, against the baseline's worst over the model and its twins)"
+                    if self.why.kind == "measure" else " (on the model as fitted)")
         what = failure_words(self.why, labels.get(self.why.baseline, self.why.baseline or ""))
         return f"{head}: at {self.tried:g}, {what}{seen}"
 
