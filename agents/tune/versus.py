@@ -88,10 +88,11 @@ def table(point: Point | Mapping, baselines: Mapping[str, Point | Mapping], labe
     for i, c in enumerate(cols):
         lines.append(f"  [{i + 1}] {labels.get(c, c)}")
     lines += notes
-    lines.append(f"  (values: the worst over the printer and its twins where judged on them; verdicts: {name} "
-                 f"against each, on each of them as well as over the worst (* worse on one of them only); "
-                 f"{res.describe()}.)" if any(isinstance(p, Point) and p.variants for p in (point, *baselines.values()))
-                 else f"  (verdicts: {name} against each; {res.describe()}.)")
+    on_twins = any(isinstance(p, Point) and p.variants for p in (point, *baselines.values()))
+    how = (f"values: the worst over the printer and its twins where judged on them; verdicts: {name} against each, "
+           "on each of them as well as over the worst (* worse on one of them only)" if on_twins
+           else f"verdicts: {name} against each")
+    lines.append(f"  ({how}; {res.describe()}.)")
     return lines
 
 
