@@ -31,7 +31,7 @@ from ringtune.shaping.errors import RingtuneError
 COMMANDS = {
     "tune": "find the best print-time / quality trade-offs (Optuna Pareto study) — the main job",
     "recommend": "instant shaper config from a resonance test (Klipper's calibrate_shaper rule)",
-    "simulate": "simulate a configuration on a job: print time, path error, overshoot, ringing, step loss",
+    "simulate": "simulate a configuration on a job: print time and what a person sees, against Klipper's pick",
     "study": "trade-off study: sweep one factor and plot each shaper's print time and quality",
     "train": "train a PPO policy that recommends a configuration from a resonance test (random printers)",
     "shaper": "impulses, duration, lag, 90 % band and smoothing of one input shaper",
@@ -183,8 +183,8 @@ def build_parser(command: str | None = None) -> tuple[argparse.ArgumentParser, M
     parser = _Parser(
         prog="ringtune",
         description="Measured input-shaping tuning for 3D printers: firmware-faithful shapers and "
-        "planners drive a MuJoCo printer; Optuna and PPO trade print time against overshoot; the "
-        "result goes out in the printer's own firmware dialect.",
+        "planners drive a MuJoCo printer; Optuna and PPO trade print time against what a person sees on "
+        "the part; the result goes out in the printer's own firmware dialect.",
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

@@ -39,8 +39,11 @@ DESCRIPTION = """\
 Train a PPO policy (stable-baselines3) on the domain-randomised environment ringtune/Tune-v0: every
 episode is a new random printer; the policy sees its simulated resonance-test spectra (X and Y)
 and answers with a whole configuration (shaper type, F and S per axis, infill frequency limit,
-acceleration); the reward is minus the configuration's cost (print-time ratio plus weighted path
-error, overshoot and ringing; step loss penalised).
+acceleration); the reward is minus the configuration's cost, tune's judgement as one number: the
+print-time ratio to the printer's own acceleration, plus 5 x the summed ln(1 + relative excess) of
+every visible measure (ripple, its 90th percentile, corner rounding and overshoot, extrusion,
+show-through) over a baseline's (MZV on the resonance peaks) beyond tune's resolution, plus
+penalties for lost steps, the motor reserve and the path-error bound.
 
 --timesteps N trains N steps when N is a multiple of PPO's rollout (256 steps per env, so 512
 with the default 2 envs); a smaller N shortens the rollout to N (rounded up to a multiple of

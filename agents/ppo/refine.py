@@ -2,8 +2,9 @@
 
 Used by ``ringtune recommend --method policy --refine N`` (the policy's recommendation is the first
 trial of an N-trial study) and by ``benchmarks/bench_ppo.py`` (Optuna alone, policy + Optuna).
-The cost is exactly the environment's: ``−reward`` of :class:`ringtune.envs.env.TuneEnv` (print
-time ratio + weighted path error, overshoot and ringing in mm; step loss adds the penalty; a
+The cost is exactly the environment's: ``−reward`` of :class:`ringtune.envs.env.TuneEnv`
+(:func:`ringtune.envs.judgement.judged_cost`: the print-time ratio plus the relative excess of every
+visible measure over the baseline's beyond tune's resolution, plus the constraints' penalties; a
 configuration the firmware rejects costs the penalty).
 """
 
