@@ -10,18 +10,21 @@ as fast as), held_to (every baseline it has no visible measure worse than), why,
 {klipper|current|none: {config, print_time_s, quality_mm, path_error_mm, overshoot_mm, motor_load,
 measures, step_loss, breaks, label, source}}, versus {baseline: {print_time_s|ripple_mm|ripple_p90_mm|
 corner_in_mm|corner_out_mm|extrusion_over_pct|extrusion_under_pct|outer_wall:<the same five>: {value,
-baseline, verdict better|same|worse}}}, stop (null, or the measured stop: {kind measure|bound|ceiling|time|budget|not
+baseline (each the worst over the printer and its twins), verdict better|same|worse (worse where worse on any
+of them), and where the verdict comes from one twin only: on [freq factor, damping factor], value_there,
+baseline_there}}}, stop (null, or the measured stop: {kind measure|bound|ceiling|time|budget|not
 searched, key (a job's figure, or a class's own as "outer_wall:ripple_mm"), baseline (whose value it exceeds,
-for a measure), value, baseline_value, accel (the step that stops it, mm/s²), config, moved,
+for a measure), value, baseline_value, variant (null, or the [freq factor, damping factor] of the printer
+variant those two values are of), accel (the step that stops it, mm/s²), config, moved,
 from_accel, to_accel, evaluations, sentence}), shaper_ladder (null, or each shaper of Klipper's rule
 climbing the accelerations: {moved, from_accel, to_accel, config, evaluations, screened, offered,
 tried [{shaping, highest_passing_accel}], sentence}), hidden_raise (null, or the walk raising the features nobody
 sees: {raised [{parameter, from, to}], from_print_time_s, to_print_time_s, evaluations, screened (on the
 exact model first), budget (the study's
 trials), cut (it stopped at that budget), sentence, held [{parameter, value, top, tried (the next value tried,
-null at its top), kind (measure|bound|time), key, baseline, measured, limit, screened (seen on the exact model
-alone)}]: what holds each setting walked}), vs_baselines {key: {baseline, faster_s, faster_pct, better_mm,
-better_pct, dominates, metrics {print_time_s|overshoot_mm|path_error_mm|feasible: better|same|worse},
+null at its top), kind (measure|bound|time), key, baseline, measured, limit, variant (as the stop's),
+screened (seen on the exact model alone)}]: what holds each setting walked}), vs_baselines {key: {baseline, faster_s, faster_pct, better_mm,
+better_pct, dominates, metrics {print_time_s|every visible measure|feasible: better|same|worse},
 path_error_better_mm, path_error_better_pct}}, dominates_klipper, dominates_current (null or {config,
 print_time_s, quality_mm, ...comparison}), accel {range, searched, basis, chosen, stopped_by,
 headroom, defaults (what of the motor bound is a default: "x.mass", "y.motor", ...; [] when none),
