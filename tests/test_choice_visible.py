@@ -20,6 +20,7 @@ import pytest
 from ringtune.agents.cli.main import main
 from ringtune.agents.tune.stop import next_accels
 from ringtune.envs.evaluate import evaluate_many
+from ringtune.envs.variants import variant_factors
 from ringtune.envs.windows import auto_settle
 from ringtune.envs.printer import load_printer
 from ringtune.shaping.config import TuneConfig
@@ -49,6 +50,14 @@ def _check_same_quality(res: dict, printer, job=None) -> None:
             key, getattr(mine, key), getattr(theirs, key))
     assert mine.print_time_s <= theirs.print_time_s
     assert not mine.step_loss and mine.motor_load <= 1 - res["motor_reserve"]
+    # and on each printer it was judged on, simulated on its own (not only over their worst)
+    for v in variant_factors(res["freq_margin"]):
+        mine_v, theirs_v = evaluate_many([chosen, klipper], v.of(printer), job, settle=auto_settle(printer))
+        for key in SEEN + ("extrusion_over_pct", "extrusion_under_pct"):
+            assert not _worse(key, getattr(mine_v, key), getattr(theirs_v, key)), (v, key)
+        for key, value in mine_v.features.get("outer_wall", {}).items():
+            if key in ("ripple_mm", "corner_in_mm", "corner_out_mm", "extrusion_over_pct", "extrusion_under_pct"):
+                assert not _worse(key, value, theirs_v.features["outer_wall"][key]), (v, "outer_wall", key)
     # what the report says is what a fresh simulation gives
     for key in SEEN:
         assert res["versus"]["klipper"][key]["value"] == pytest.approx(getattr(mine, key), rel=1e-9, abs=1e-12)
