@@ -68,8 +68,9 @@ The policy's shaper frequencies are residuals around each axis's resonance peak 
 same resonance-test PSD it observes): 0 puts the shaper on the peak, +-1 an octave above or below,
 so the answer transfers to measured spectra; the frequency limit stays off unless chosen.
 
-The defaults (12,288 steps, 2 envs) train in 6 min 42 s on 2 otherwise idle cores (the policy
-measured in the README), and took 16.1 min on cores shared with other work (load average ~3).
+The defaults (12,288 steps, 2 envs) train in 10 min 34 s on 2 otherwise idle cores (the policy
+measured in the README; 6 min 42 s before the judgement measured what a person sees), and took
+16.1 min then on cores shared with other work (load average ~3).
 
 Policy files are stable-baselines3 zips plus a pickle: loading one runs code from it, so only use
 policies you trained or trust.
