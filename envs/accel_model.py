@@ -47,10 +47,20 @@ def model_accel(printer, job, config: TuneConfig, metrics: Metrics, cost: Callab
     for a in grid:
         t = planned_job(printer, job, dataclasses.replace(config, accel=float(a))).print_time
         scaled = {k: float(getattr(metrics, k)) * a / a0 for k in SCALED}
-        costs.append(cost(dataclasses.replace(metrics, print_time_s=t, step_loss=False, **scaled)))
+        costs.append(cost(dataclasses.replace(metrics, print_time_s=t, step_loss=False, **scaled,
+                                              details=_scaled_details(metrics.details, a / a0, t))))
     costs = np.array(costs)
     if metrics.motor_load > 0:
         allowed = grid <= load_cap * a0 / metrics.motor_load
         allowed[0] = True              # the lowest candidate is always allowed
         costs = np.where(allowed, costs, np.inf)
     return float(grid[int(np.argmin(costs))])
+
+
+def _scaled_details(details: dict, ratio: float, print_time_s: float) -> dict:
+    """``details`` with each printer variant's own figures (``details["variants"]`` of a worst-case
+    metrics object, which the cost compares variant by variant) predicted as the job's are: the
+    :data:`SCALED` measures × ``ratio``, the print time ``print_time_s``; other details dropped."""
+    variants = [{**d, "print_time_s": print_time_s, **{k: float(d[k]) * ratio for k in SCALED if k in d}}
+                for d in (details or {}).get("variants", ())]
+    return {"variants": variants} if variants else {}

@@ -115,3 +115,37 @@ def test_anchor_balances_print_time_against_scaled_deviations():
         assert a == GRID[np.argmin(cost)]
         found.append(a)
     assert found[0] > found[1] > found[2]
+
+
+def test_anchor_scales_each_printer_variant_as_the_job():
+    """Metrics judged on the printer and its twins (the env's ``freq_margin``), compared variant by
+    variant: each variant's ripple is scaled with the acceleration as the worst is. By hand: a
+    ripple of 6 µm on the model and 2 µm on each twin at 4000 mm/s², against a baseline's 5 µm on
+    each (its worst 5 µm too): the cost at a is that of the larger relative excess, the model's."""
+    from ringtune.envs.metrics import worst_case
+    from ringtune.envs.variants import variant_factors
+    p = resolve_printer(None)
+    t0 = _baseline(p)
+    factors = variant_factors(0.05)
+    m = worst_case([Metrics(print_time_s=1.0, ripple_mm=r, motor_load=0.1) for r in (0.006, 0.002, 0.002)], factors)
+    base = worst_case([Metrics(print_time_s=1.0, ripple_mm=0.005)] * 3, factors)
+    a = model_accel(p, None, MZV, m, lambda x: judged_cost(x, base, t0, DEFAULT_WEIGHTS, 10.0), RANGE)
+    times = np.array([planned_job(p, None, dataclasses.replace(MZV, accel=float(g))).print_time for g in GRID])
+    ripple = 0.006 * GRID / 4000.0
+    tol = np.maximum(0.001, 0.05 * np.maximum(ripple, 0.005))
+    cost = times / t0 + 5.0 * np.log1p(np.maximum(0.0, ripple - 0.005 - tol) / np.maximum(0.005, tol))
+    cost[GRID > LOAD_CAP * 4000 / 0.1] = np.inf
+    assert a == GRID[np.argmin(cost)]
+    # a twin that ripples more than the baseline there, though the worst is the baseline's worst
+    m2 = worst_case([Metrics(print_time_s=1.0, ripple_mm=r, motor_load=0.1) for r in (0.004, 0.003, 0.004)],
+                    factors)
+    base2 = worst_case([Metrics(print_time_s=1.0, ripple_mm=r) for r in (0.004, 0.001, 0.004)], factors)
+    a2 = model_accel(p, None, MZV, m2, lambda x: judged_cost(x, base2, t0, DEFAULT_WEIGHTS, 10.0), RANGE)
+    twin = 0.003 * GRID / 4000.0                              # against 1 µm on that twin (tolerance 1 µm)
+    worst = 0.004 * GRID / 4000.0                             # against 4 µm over the worst
+    ex_twin = np.maximum(0.0, twin - 0.001 - np.maximum(0.001, 0.05 * twin)) / 0.001
+    tol_w = np.maximum(0.001, 0.05 * np.maximum(worst, 0.004))
+    ex_worst = np.maximum(0.0, worst - 0.004 - tol_w) / np.maximum(0.004, tol_w)
+    cost2 = times / t0 + 5.0 * np.log1p(np.maximum(ex_twin, ex_worst))
+    cost2[GRID > LOAD_CAP * 4000 / 0.1] = np.inf
+    assert a2 == GRID[np.argmin(cost2)]
