@@ -157,14 +157,25 @@ def test_simulate_shows_every_visible_measure_against_klippers_pick(capsys):
     mine, theirs = evaluate_many([TuneConfig.from_dict(res["config"]), klipper], printer, None,
                                  freq_margin=res["freq_margin"])
     vs = res["versus"]["klipper"]
-    assert set(vs) == {"print_time_s", *SEEN, "extrusion_over_pct", "extrusion_under_pct"}
+    measures = ("ripple_mm", "corner_in_mm", "corner_out_mm", "extrusion_over_pct", "extrusion_under_pct")
+    assert set(vs) == {"print_time_s", *SEEN, "extrusion_over_pct", "extrusion_under_pct",
+                       *(f"outer_wall:{k}" for k in measures)}
+
+    def val(d, key):                # a job's figure, or the outer wall's own, from a metrics dict
+        cls, _, k = key.rpartition(":")
+        return d["features"][cls][k] if cls else d[key]
+    mine_d, theirs_d = mine.to_dict(), theirs.to_dict()
     for key, v in vs.items():
-        assert v["value"] == pytest.approx(getattr(mine, key), rel=1e-9, abs=1e-12)
-        assert v["baseline"] == pytest.approx(getattr(theirs, key), rel=1e-9, abs=1e-12)
+        assert v["value"] == pytest.approx(val(mine_d, key), rel=1e-9, abs=1e-12)
+        assert v["baseline"] == pytest.approx(val(theirs_d, key), rel=1e-9, abs=1e-12)
         if key != "print_time_s":
-            expect = ("worse" if _worse(key, v["value"], v["baseline"]) else
+            # worse over the worst of the printer and its twins, or on any one of them
+            pairs = [(mine_d, theirs_d)] + list(zip(mine.details["variants"], theirs.details["variants"]))
+            worse_on = [i for i, (a, b) in enumerate(pairs) if _worse(key, val(a, key), val(b, key))]
+            expect = ("worse" if worse_on else
                       "better" if _worse(key, v["baseline"], v["value"]) else "same")
             assert v["verdict"] == expect, key
+            assert ("on" in v) == (bool(worse_on) and worse_on[0] > 0 and 0 not in worse_on), key
     assert "none" in res["versus"] and res["baselines"]["none"]["config"]["shaper_x"] == "none"
 
 

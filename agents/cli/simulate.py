@@ -38,6 +38,7 @@ from ringtune.agents.cli.simulate_config import build_config, freq_margin
 from ringtune.agents.cli.trace_option import write_trace_option
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
+from ringtune.agents.tune.pareto import point_from_metrics
 from ringtune.agents.tune.versus import baseline_evaluations, table as versus_table, versus_all
 from ringtune.envs.evaluate import evaluate_judged
 from ringtune.envs.planned_job import job_accel_commands, planned_job, resolve_job, resolve_printer
@@ -267,9 +268,12 @@ def _baselines(result: dict, m, args, base) -> list[str]:
     ms = {k: judged.to_dict() for k, (judged, _) in runs.items()}
     result["baselines"] = {k: {"label": bl.labels[k], "config": bl.configs[k].to_dict(), "metrics": ms[k]}
                            for k in ms}
-    mine = m.to_dict()
-    result["versus"] = versus_all(mine, ms)
-    return ["", "against each baseline (the same job and judgement):"] + versus_table(mine, ms, bl.labels, name="this")
+    # as tune compares them: every visible class's own measures, and on each printer variant
+    mine = point_from_metrics(TuneConfig(), m)
+    points = {k: point_from_metrics(bl.configs[k], judged) for k, (judged, _) in runs.items()}
+    result["versus"] = versus_all(mine, points)
+    return ["", "against each baseline (the same job and judgement):"] + versus_table(mine, points, bl.labels,
+                                                                                        name="this")
 
 
 def _plot_baseline(base):
