@@ -425,6 +425,10 @@ def test_readme_same_command_keeps_the_trials_and_the_warm_start_sentence_reads(
     import argparse
     ns = argparse.Namespace(**{"trials": 200, "out": "ringtune-out", "job_accel": "replace"})
     assert command_line(ns) == "ringtune tune --job-accel replace"
+    # a built-in job by its name, not the installed file's path
+    from ringtune.shaping.builtin_jobs import job_path
+    assert command_line(argparse.Namespace(gcode=str(job_path("part")))) == "ringtune tune --gcode part"
+    assert command_line(argparse.Namespace(gcode="/tmp/my job.gcode")) == "ringtune tune --gcode '/tmp/my job.gcode'"
 
 
 def test_warm_start_sentence_with_no_neighbour(tmp_path, capsys, fake_evaluator):

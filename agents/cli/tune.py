@@ -52,6 +52,7 @@ from ringtune.agents.cli.common import GCODE_JOB_HELP, firmware_name, gcode_job,
 from ringtune.agents.tune.pareto import pareto_front
 from ringtune.agents.tune.study_results import study_points
 from ringtune.agents.tune.tuning import TuneRequest, tune
+from ringtune.shaping.builtin_jobs import BUILTIN_JOBS, job_path
 
 NAME = "tune"
 DESCRIPTION = """\
@@ -254,6 +255,11 @@ def command_line(args) -> str:
         if v is True:
             parts.append(flag)
         else:
-            text = str(v)
+            text = _builtin_name(str(v)) if opt == "gcode" else str(v)
             parts.append(f"{flag} {text!r}" if " " in text else f"{flag} {text}")
     return " ".join(parts)
+
+
+def _builtin_name(path: str) -> str:
+    """A built-in job by its name (``part``), as the user gave it; any other job as its path."""
+    return next((name for name in BUILTIN_JOBS if str(job_path(name)) == path), path)
