@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 from typing import Callable, Mapping, Sequence
 
 from ringtune.agents.tune.baselines import Baselines, baseline_configs
-from ringtune.agents.tune.pareto import (CLASS_KEYS, DEFAULT_RESOLUTION, VISIBLE_KEYS, Figure, Point, Resolution,
-                                         compare_figure, judge, shown, verdict, words)
+from ringtune.agents.tune.pareto import (CLASS_KEYS, DEFAULT_RESOLUTION, VISIBLE_KEYS, Point, Resolution,
+                                         compare_figure, judge, shown, words)
 from ringtune.envs.evaluate import evaluate_judged
 from ringtune.envs.variants import Variant
 
@@ -25,62 +25,45 @@ from ringtune.envs.variants import Variant
 SHOWN = ("print_time_s",) + VISIBLE_KEYS + tuple(k for k in CLASS_KEYS if k.startswith("outer_wall:"))
 
 
-def _value(p: Point | Mapping, key: str) -> float | None:
-    if isinstance(p, Point):
-        return p.value(key)
-    v = p.get(key)
-    return None if v is None else float(v)
-
-
-def _figure(point: Point | Mapping, base: Point | Mapping, key: str, res: Resolution) -> Figure | None:
-    """:func:`ringtune.agents.tune.pareto.compare_figure` where both are points (variant by
-    variant), else the verdict on the two values."""
-    if isinstance(point, Point) and isinstance(base, Point):
-        return compare_figure(point, base, key, res)
-    a, b = _value(point, key), _value(base, key)
-    return None if a is None or b is None else Figure(verdict(key, a, b, res), a, b)
-
-
-def versus(point: Point | Mapping, base: Point | Mapping, res: Resolution = DEFAULT_RESOLUTION) -> dict:
-    """``{key: {value, baseline, verdict}}`` for every figure of :data:`SHOWN` both have (a Point or a
-    metrics dict on each side): the values are the worst over the printer variants; where the
-    verdict is "worse" on one variant only, ``on`` names it (frequency and damping factors) with the
-    two values there (``value_there``, ``baseline_there``)."""
+def versus(point: Point, base: Point, res: Resolution = DEFAULT_RESOLUTION) -> dict:
+    """``{key: {value, baseline, verdict}}`` for every figure of :data:`SHOWN` both have
+    (:func:`ringtune.agents.tune.pareto.compare_figure`): the values are the worst over the printer
+    variants; where the verdict is "worse" on one variant only, ``on`` names it (frequency and
+    damping factors) with the two values there (``value_there``, ``baseline_there``)."""
     out = {}
     for k in SHOWN:
-        f = _figure(point, base, k, res)
+        f = compare_figure(point, base, k, res)
         if f is not None:
-            out[k] = {"value": _value(point, k), "baseline": _value(base, k), "verdict": f.verdict}
+            out[k] = {"value": point.value(k), "baseline": base.value(k), "verdict": f.verdict}
             if f.variant is not None:
                 out[k].update(on=list(f.variant), value_there=f.mine, baseline_there=f.theirs)
     return out
 
 
-def versus_all(point: Point | Mapping, baselines: Mapping[str, Point | Mapping],
-               res: Resolution = DEFAULT_RESOLUTION) -> dict:
+def versus_all(point: Point, baselines: Mapping[str, Point], res: Resolution = DEFAULT_RESOLUTION) -> dict:
     """:func:`versus` against each baseline, by the baselines' keys."""
     return {k: versus(point, b, res) for k, b in baselines.items()}
 
 
-def table(point: Point | Mapping, baselines: Mapping[str, Point | Mapping], labels: Mapping[str, str],
+def table(point: Point, baselines: Mapping[str, Point], labels: Mapping[str, str],
           res: Resolution = DEFAULT_RESOLUTION, name: str = "chosen") -> list[str]:
     """Text lines: one row per measure, the configuration's value, then each baseline's value and
     the verdict of the configuration against it; a legend naming the baselines and the resolution."""
-    keys = [k for k in SHOWN if _value(point, k) is not None]
+    keys = [k for k in SHOWN if point.value(k) is not None]
     cols = list(baselines)
     w = max([len("measure")] + [len(words(k)[0]) for k in keys]) + 2
     head = f"  {'measure':<{w}}{name:>12}" + "".join(f"  {'[' + str(i + 1) + ']':>12} {'':7}"
                                                    for i in range(len(cols)))
     lines, notes = [head], []
     for k in keys:
-        row = f"  {words(k)[0]:<{w}}{shown(k, _value(point, k)):>12}"
+        row = f"  {words(k)[0]:<{w}}{shown(k, point.value(k)):>12}"
         for i, c in enumerate(cols):
-            f = _figure(point, baselines[c], k, res)
+            f = compare_figure(point, baselines[c], k, res)
             if f is None:
                 row += f"  {'—':>12} {'':7}"
                 continue
             mark = "*" if f.variant is not None else ""
-            row += f"  {shown(k, _value(baselines[c], k)):>12} {f.verdict + mark:<7}"
+            row += f"  {shown(k, baselines[c].value(k)):>12} {f.verdict + mark:<7}"
             if f.variant is not None:
                 notes.append(f"  * {words(k)[0]} against [{i + 1}]: {shown(k, f.mine)} against {shown(k, f.theirs)} "
                              f"on {Variant(*f.variant).words()}")
@@ -88,7 +71,7 @@ def table(point: Point | Mapping, baselines: Mapping[str, Point | Mapping], labe
     for i, c in enumerate(cols):
         lines.append(f"  [{i + 1}] {labels.get(c, c)}")
     lines += notes
-    on_twins = any(isinstance(p, Point) and p.variants for p in (point, *baselines.values()))
+    on_twins = any(p.variants for p in (point, *baselines.values()))
     how = (f"values: the worst over the printer and its twins where judged on them; verdicts: {name} against each, "
            "on each of them as well as over the worst (* worse on one of them only)" if on_twins
            else f"verdicts: {name} against each")
