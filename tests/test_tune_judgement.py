@@ -373,7 +373,8 @@ def test_per_feature_on_searches_the_acceleration_a_job_sets_itself_from_its_see
     --per-feature on overrules them as job.gcode does, so the walls' acceleration is searched, from
     the job's own for what is seen above the first layer (the printer's 0.3 × 25000 starts above it)."""
     from ringtune.agents.tune.job import job_accel_facts
-    from ringtune.agents.tune.tuning import TuneRequest, _check_request, _space
+    from ringtune.agents.tune.request import TuneRequest, check_request
+    from ringtune.agents.tune.tuning import _space
     from ringtune.envs.printer import load_printer
 
     layer = (";TYPE:External perimeter\nG1 X20 Y0 E1 F6000\nG1 X20 Y20 E1\n;TYPE:Internal infill\nM204 P9000\n"
@@ -389,7 +390,7 @@ def test_per_feature_on_searches_the_acceleration_a_job_sets_itself_from_its_see
     notes = []
     for mode, searched_from in (("auto", None), ("on", 4000.0)):
         req = TuneRequest(printer=str(toml), gcode=str(job), per_feature=mode)
-        space, _floor, _why = _space(req, _check_request(req), "klipper", printer, facts, notes.append)
+        space, _floor, _why = _space(req, check_request(req), "klipper", printer, facts, notes.append)
         if searched_from is None:
             assert space.accel_fixed and space.accel == (25000.0, 25000.0)
         else:

@@ -51,7 +51,8 @@ from tqdm import tqdm
 from ringtune.agents.cli.common import GCODE_JOB_HELP, firmware_name, gcode_job, progress_interval
 from ringtune.agents.tune.pareto import pareto_front
 from ringtune.agents.tune.study_results import study_points
-from ringtune.agents.tune.tuning import TuneRequest, tune
+from ringtune.agents.tune.request import TuneRequest
+from ringtune.agents.tune.tuning import tune
 from ringtune.shaping.builtin_jobs import BUILTIN_JOBS, job_path
 
 NAME = "tune"

@@ -1,5 +1,5 @@
-"""One ``ringtune tune`` run between parsing and printing: the options checked against their ranges
-(a table), the search space for the printer and job, the study with its baselines and warm start,
+"""One ``ringtune tune`` run between parsing and printing: the options checked
+(:mod:`ringtune.agents.tune.request`), the search space for the printer and job, the study with its baselines and warm start,
 the choice and the measured acceleration stop, the report folder and the job rewritten with the
 choice. The command parses its options into a :class:`TuneRequest`, calls :func:`tune` and prints."""
 
@@ -20,6 +20,7 @@ from ringtune.agents.tune.out_dir import check_out, remove_if_empty
 from ringtune.agents.tune.choice import BASELINE_NAMES, pick
 from ringtune.agents.tune.pareto import VISIBLE_KEYS
 from ringtune.agents.tune.refine import refine
+from ringtune.agents.tune.request import Limits, TuneRequest, check_request, shaping_min_freq
 from ringtune.agents.tune.space import CORNER_UNIT, default_space, freq_floor_note, params_from_config, walked_keys
 from ringtune.agents.tune.stop import Bounds
 from ringtune.agents.tune.study_results import study_points
@@ -29,38 +30,6 @@ from ringtune.envs.printer_model import unmeasured_note
 from ringtune.envs.variants import TWIN_DAMPING
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import Firmware
-from ringtune.shaping.wall_gap import show_through_bound
-
-
-@dataclass(frozen=True)
-class TuneRequest:
-    """What ``tune`` is asked, as the command line gives it (percentages in %, lengths in mm;
-    None: the default)."""
-
-    printer: str | None = None
-    gcode: str | None = None
-    firmware: str | None = None          # None: the printer description's [current] firmware, else klipper
-    trials: int = 200
-    storage: str | None = None
-    study: str = "ringtune"
-    workers: int = 1
-    seed: int = 0
-    out: str = "ringtune-out"
-    pick: str | None = None
-    weight: float | None = None          # s per mm
-    quality: str = "ripple"
-    max_show_through: float | None = None
-    max_path_error: float | None = None
-    motor_reserve: float | None = None   # %
-    freq_margin: float | None = None     # %
-    shaping_min_freq: float | None = None   # Hz
-    accel_range: str | None = None       # "LO,HI", mm/s²
-    job_accel: str = "respect"
-    per_feature: str = "auto"
-    backend: str = "mujoco"
-    evaluator: str | None = None
-    no_baselines: bool = False
-    command: str = "ringtune tune"       # the command line that reproduces the run
 
 
 @dataclass(frozen=True)
@@ -73,88 +42,6 @@ class Tuned:
     interrupted: bool
 
 
-@dataclass(frozen=True)
-class _Limits:
-    """How the choice is made and the judgement's bounds: path error and show-through in mm, the
-    frequency margin and motor reserve as fractions, the acceleration range in mm/s² (None: from
-    the motors)."""
-
-    how: str
-    max_pe: float
-    margin: float
-    reserve: float
-    max_st: float
-    st_source: str             # where the show-through bound comes from, in words
-    accel_range: tuple[float, float] | None
-
-
-#: the run's size: (field, flag, default, scale of a given value, test, message); a value failing
-#: its test is refused
-_RUN_CHECKS = (
-    ("trials", "--trials", None, 1, lambda v: v >= 1, "must be ≥ 1"),
-    ("workers", "--workers", None, 1, lambda v: v >= 1, "must be ≥ 1"),
-    ("weight", "--weight", None, 1, lambda v: v is None or v >= 0, "must be ≥ 0 (seconds per mm)"),
-)
-
-#: the judgement's bounds, as :data:`_RUN_CHECKS`; the show-through bound not given is the job's
-#: own (:func:`ringtune.shaping.wall_gap.show_through_bound`)
-_BOUNDS = (
-    ("max_path_error", "--max-path-error", pareto.DEFAULT_MAX_PATH_ERROR_MM, 1.0, lambda v: v >= 0,
-     "must be ≥ 0 (mm; 0 = no bound)"),
-    ("freq_margin", "--freq-margin", tune_study.DEFAULT_FREQ_MARGIN, 0.01, lambda v: 0 <= v < 0.5,
-     "must be in [0, 50) per cent"),
-    ("motor_reserve", "--motor-reserve", pareto.DEFAULT_MOTOR_RESERVE, 0.01, lambda v: 0 <= v < 1,
-     "must be in [0, 100) per cent"),
-    ("max_show_through", "--max-show-through", pareto.DEFAULT_MAX_SHOW_THROUGH_MM, 1.0, lambda v: v >= 0,
-     "must be ≥ 0 (mm; 0 = no bound)"),
-)
-
-
-def _check_request(req: TuneRequest) -> _Limits:
-    """The request's bounds and pick, refused in one line naming the option when out of range."""
-    _checked(req, _RUN_CHECKS)
-    how = req.pick or ("weight" if req.weight is not None else "fastest-at-baseline-quality")
-    if how == "weight" and req.weight is None:
-        raise RingtuneError("--pick weight needs --weight W (seconds per mm)", "--pick")
-    bounds = _checked(req, _BOUNDS)
-    max_st, st_source = show_through_bound(req.gcode, req.max_show_through, pareto.DEFAULT_MAX_SHOW_THROUGH_MM)
-    accel_range = _accel_range(req.accel_range)
-    if req.gcode and not Path(req.gcode).is_file():
-        raise RingtuneError("no such G-code file", "--gcode")
-    return _Limits(how, bounds["max_path_error"], bounds["freq_margin"], bounds["motor_reserve"], max_st, st_source,
-                   accel_range)
-
-
-def _checked(req: TuneRequest, rows) -> dict:
-    """{field: value} of ``rows`` (:data:`_RUN_CHECKS`, :data:`_BOUNDS`): the default where not
-    given, else the given value scaled; refused in one line naming the flag when its test fails."""
-    values = {}
-    for name, flag, default, scale, ok, message in rows:
-        given = getattr(req, name)
-        values[name] = default if given is None else given * scale
-        if not ok(values[name]):
-            raise RingtuneError(message, flag)
-    return values
-
-
-def _accel_range(text: str | None) -> tuple[float, float] | None:
-    if text is None:
-        return None
-    try:
-        lo, hi = (float(v) for v in text.split(","))
-    except ValueError:
-        raise RingtuneError(f"must be LO,HI in mm/s² (e.g. 1000,8000), not {text!r}", "--accel-range") from None
-    if not (0 < lo <= hi < 1e6):
-        raise RingtuneError(f"must be 0 < LO ≤ HI (mm/s²), not {text!r}", "--accel-range")
-    return (lo, hi)
-
-
-def _shaping_min_freq(value: float | None) -> float | None:
-    if value is not None and not (0 < value <= 1000):
-        raise RingtuneError(f"{value:g} Hz is not a frequency: give one in (0, 1000] Hz", "--shaping-min-freq")
-    return value
-
-
 def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release: Callable[[], None] = lambda: None,
          progress: Callable | None = None) -> Tuned:
     """Run ``req``: the study (resumed when its storage holds one), the choice, the report folder.
@@ -165,7 +52,7 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     t_start = time.time()
     if req.firmware is not None:
         Firmware.named(req.firmware, "--firmware")
-    lim = _check_request(req)
+    lim = check_request(req)
     out_dir = Path(req.out)
     check_out(out_dir)
     printer = resolve_printer(req.printer)
@@ -224,7 +111,7 @@ def target_firmware(given: str | None, printer, note: Callable[[str], None] = la
     return Firmware.named("klipper", "--firmware")
 
 
-def _study(req: TuneRequest, lim: _Limits, firmware: str, printer, space, quality: str, out_dir: Path,
+def _study(req: TuneRequest, lim: Limits, firmware: str, printer, space, quality: str, out_dir: Path,
            note: Callable[[str], None], release: Callable[[], None], progress: Callable | None):
     """(the study's run, its settings, evaluator, baselines (none with ``--no-baselines``), storage
     URL): the baselines evaluated, the search warm-started from Klipper's pick, the study run or
@@ -254,10 +141,10 @@ def _study(req: TuneRequest, lim: _Limits, firmware: str, printer, space, qualit
     return run_, settings, evaluator, bl, store
 
 
-def _space(req: TuneRequest, lim: _Limits, firmware: str, printer, facts, note: Callable[[str], None]):
+def _space(req: TuneRequest, lim: Limits, firmware: str, printer, facts, note: Callable[[str], None]):
     """(search space, the firmware's frequency floor note or "", why per feature is searched)."""
     # no --gcode: the built-in print stands in for the user's, which may run up to the velocity limit
-    min_freq = _shaping_min_freq(req.shaping_min_freq)
+    min_freq = shaping_min_freq(req.shaping_min_freq)
     space = default_space(printer, firmware, accel=lim.accel_range, speed=facts.top_speed if req.gcode else None,
                           min_freq=min_freq)
     floor_note = freq_floor_note(firmware, min_freq, space)
@@ -286,7 +173,7 @@ def _space(req: TuneRequest, lim: _Limits, firmware: str, printer, facts, note: 
     return space, floor_note, why
 
 
-def _settings(req: TuneRequest, lim: _Limits, firmware: str, quality: str, space, store: str):
+def _settings(req: TuneRequest, lim: Limits, firmware: str, quality: str, space, store: str):
     """The study's settings (what a resumed study must match)."""
     printer = req.printer
     if printer and Path(printer).exists():
@@ -322,7 +209,7 @@ def _also(points, quality: str) -> tuple[str, ...]:
     return tuple(k for k in keys if k != quality)
 
 
-def _report(req: TuneRequest, lim: _Limits, fw: Firmware, printer, facts, space, quality: str, points, front,
+def _report(req: TuneRequest, lim: Limits, fw: Firmware, printer, facts, space, quality: str, points, front,
             choice, stops, bl, settings, floor_note: str, why: str, out_dir: Path, store: str,
             note: Callable[[str], None]):
     """Write the report folder (and, with a job, the job with the choice written in): (summary dict,
@@ -399,7 +286,7 @@ def _write_job(gcode: str, out_dir: Path, config, printer, result: dict, note: C
     return text
 
 
-def _accel_section(req: TuneRequest, lim: _Limits, firmware: str, printer, space, points, chosen, stop):
+def _accel_section(req: TuneRequest, lim: Limits, firmware: str, printer, space, points, chosen, stop):
     """(lines, dict) of the report's ACCELERATION section: the chosen acceleration, what limits it
     (the measured stop, the firmware's binding limits) and, without a job, the load at top speed."""
     bindings = binding_limits(printer, req.gcode, chosen.config, firmware, req.job_accel)
