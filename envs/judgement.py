@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 
-from ringtune.envs.metrics import EXTRUSION_KEYS, SEEN_KEYS, Metrics
+from ringtune.envs.metrics import EXTRUSION_KEYS, SEEN_KEYS, Metrics, by_variant
 from ringtune.shaping.config import TuneConfig
 
 #: the measures judged against the baseline: what a person sees on visible features, the
@@ -83,11 +83,9 @@ def worse_by(m: Metrics, base: Metrics | None, judgement: dict = JUDGEMENT) -> d
 
 
 def _variant_pairs(m: Metrics, base: Metrics) -> list[tuple[dict, dict]]:
-    """(m's, base's) metrics on each printer variant both were judged on, matched by its name."""
-    def named(x):
-        return {tuple(d["variant"]): d for d in (x.details or {}).get("variants", ()) if "variant" in d}
-    theirs = named(base)
-    return [(d, theirs[v]) for v, d in named(m).items() if v in theirs]
+    """(m's, base's) metrics on each printer variant both were judged on (:func:`by_variant`)."""
+    theirs = by_variant(base)
+    return [(d, theirs[v]) for v, d in by_variant(m).items() if v in theirs]
 
 
 def violations(m: Metrics, penalty: float, judgement: dict = JUDGEMENT) -> float:

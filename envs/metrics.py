@@ -267,6 +267,18 @@ def worst_case(results: Iterable[Metrics], variants: Sequence | None = None) -> 
     return worst
 
 
+def by_variant(m: Metrics) -> dict[tuple[float, float], dict[str, Any]]:
+    """A :func:`worst_case` object's own metrics on each printer variant (``to_dict``), by the
+    variant's (frequency factor, damping factor); {} where it was judged on one printer or its
+    variants are not named."""
+    out = {}
+    for d in (getattr(m, "details", None) or {}).get("variants", ()):
+        if "variant" not in d:
+            return {}
+        out[(float(d["variant"][0]), float(d["variant"][1]))] = d
+    return out
+
+
 # -- the measures of one window ----------------------------------------------------------------------
 def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float = 0.0,
                     anticipate: float = 0.0,

@@ -20,6 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ringtune.envs.metrics import by_variant
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.features import VISIBLE
 
@@ -254,13 +255,11 @@ def variant_figures(m) -> tuple:
     naming its variant): ((frequency factor, damping factor), {key: value}) each; () where it was
     judged on one printer or the variants are not named."""
     out = []
-    for d in (getattr(m, "details", None) or {}).get("variants", ()):
-        if "variant" not in d:
-            return ()
+    for variant, d in by_variant(m).items():
         figs = {k: float(d[k]) for k in VISIBLE_KEYS if k in d}
         for cls, values in (d.get("features") or {}).items():
             figs.update({f"{cls}:{k}": float(values[k]) for k in CLASS_MEASURES.get(cls, ()) if k in values})
-        out.append((tuple(float(x) for x in d["variant"]), figs))
+        out.append((variant, figs))
     return tuple(out)
 
 

@@ -1,7 +1,7 @@
 """One ``ringtune tune`` run between parsing and printing: the options checked
-(:mod:`ringtune.agents.tune.request`), the search space for the printer and job, the study with its baselines and warm start,
-the choice and the measured acceleration stop, the report folder and the job rewritten with the
-choice. The command parses its options into a :class:`TuneRequest`, calls :func:`tune` and prints."""
+(:mod:`ringtune.agents.tune.request`), the search space for the printer and job, the study with its
+baselines and warm start, the choice and the measured acceleration stop, the report folder and the
+job rewritten with the choice. The command parses its options into a :class:`TuneRequest`, calls :func:`tune` and prints."""
 
 from __future__ import annotations
 
