@@ -75,9 +75,14 @@ def test_default_pick_is_the_fastest_point_at_the_best_baselines_quality():
     c = pick(front, {"klipper": klipper, "none": _pt(11.0, 0.07, 0.07, "none")})
     assert c.point.label == "same quality, faster" and c.by == "fastest-at-baseline-quality"
     assert c.baseline == "klipper"
-    # nothing as fast with no worse quality: the knee, and the sentence says why
+    # nothing the study tried as fast with no worse quality: Klipper's pick itself, said so
     c = pick(front[:1] + front[3:], {"klipper": klipper})
-    assert c.by == "knee" and "because no configuration the study tried is as fast as Klipper's rule" in c.sentence
+    assert c.point is klipper and c.by == "fastest-at-baseline-quality"
+    assert "no configuration the study tried is as fast as Klipper's rule with no worse" in c.sentence
+    assert "Klipper's rule itself" in c.sentence
+    # no usable baseline: the knee, and the sentence says why
+    c = pick(front[:1] + front[3:], {})
+    assert c.by == "knee" and "because there is no usable baseline" in c.sentence
     assert pick(front, {"klipper": klipper}, "knee").by == "knee"
     assert pick(front, {"klipper": klipper}, "weight", weight=0.0).point.label == "fast but rough"
 
@@ -85,7 +90,7 @@ def test_default_pick_is_the_fastest_point_at_the_best_baselines_quality():
 def test_the_default_pick_searches_behind_the_front():
     """Over print time and overshoot a rough point hides one that matches Klipper's quality on every
     figure (path error too); the front is the rough one alone, yet the choice is the match when
-    every point is a candidate, and the knee of the front (said as such) only when none is."""
+    every point is a candidate, and Klipper's pick itself (said as such) when none is."""
     klipper = _pt(5.0, 0.0037, 0.0459, "klipper")
     rough = _pt(4.5, 0.0030, 0.095, "rough")
     match = _pt(4.8, 0.0036, 0.046, "match")
@@ -94,7 +99,7 @@ def test_the_default_pick_searches_behind_the_front():
     c = pick(front, {"klipper": klipper}, candidates=[rough, match])
     assert c.point is match and c.by == "fastest-at-baseline-quality" and "same quality, faster" in c.sentence
     c = pick(front, {"klipper": klipper}, candidates=[rough])
-    assert c.point is rough and c.by == "knee" and "because no configuration the study tried" in c.sentence
+    assert c.point is klipper and c.by == "fastest-at-baseline-quality" and "Klipper's rule itself" in c.sentence
 
 
 def test_the_front_keeps_a_point_with_less_path_error_so_the_pick_can_match_the_baseline():

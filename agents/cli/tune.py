@@ -70,7 +70,8 @@ frequencies drift and a damping ratio fitted to a resonance test is less certain
 judges its shapers over dampings 0.075–0.15 for the same reason).
 
 The acceleration is searched up to where the weakest motor would need all its force at the job's
-top speed (from the printer's motors and moving masses; --accel-range LO,HI overrides). The
+top speed (from the printer's motors and moving masses; --accel-range LO,HI overrides), from 0.3×
+the printer's own acceleration, or lower to reach Klipper's pick and what the printer runs now. The
 firmware's max_accel does not cap it (the tuned value is what you set as max_accel); a per-axis cap
 (max_y_accel, M201 Y) still limits that axis's moves, in every trial alike. A job that
 sets its own accelerations (M201/M204, SET_VELOCITY_LIMIT) keeps them with --job-accel respect (the
@@ -98,8 +99,10 @@ Objectives: print time, the worst visible wall's ripple and corner deviation (ro
 overshoot); hidden features reaching the outer wall by more than --max-show-through are ruled out.
 The configuration chosen by default is the fastest one with no visible measure (ripple and its
 90th percentile, corner rounding and overshoot, over- and under-extrusion) worse than the best
-baseline's ("same quality, faster"); where there is none, the knee (--pick
-knee|fastest-at-baseline-quality|weight, --weight W). Then each shaper Klipper's rule fits climbs
+baseline's ("same quality, faster"); the baselines are candidates too, so where the study tried
+none as fast at their quality the choice is the baseline itself, and what follows climbs from it
+(the knee of the front only without a usable baseline; --pick knee|fastest-at-baseline-quality|weight,
+--weight W). Then each shaper Klipper's rule fits climbs
 higher accelerations at its frequency and above, designed for more damping (the shaper ladder: the
 rule's max_accel, measured), and the fastest that keeps every measure becomes the choice. Then its
 acceleration is stepped up 5 % at a time with the same judgement until a measure gets worse or a

@@ -183,10 +183,10 @@ def _klipper_baseline(printer: Printer, firmware: str, out: Baselines, note: Cal
 
 
 def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable, quality: str, *,
-                  note: Callable[[str], None] = lambda s: None) -> Baselines:
-    """:func:`baseline_configs` evaluated with the study's evaluator, bounds and frequency margin
-    (``settings``: a StudySettings)."""
-    out = baseline_configs(printer, firmware, note=note)
+                  note: Callable[[str], None] = lambda s: None, configs: Baselines | None = None) -> Baselines:
+    """:func:`baseline_configs` (or ``configs``, what it gave already) evaluated with the study's
+    evaluator, bounds and frequency margin (``settings``: a StudySettings)."""
+    out = configs if configs is not None else baseline_configs(printer, firmware, note=note)
     configs = out.configs
     metrics = evaluator(list(configs.values()), printer, settings.job, **tune_study.evaluator_kwargs(settings))
     max_load = max_motor_load(settings.motor_reserve)

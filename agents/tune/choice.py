@@ -99,8 +99,10 @@ def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastes
     the front) at least as fast with no visible measure worse at the resolution ("same quality,
     faster"). Pass every point of the study as ``candidates``: the front is over print time and a
     few figures, and a point no worse on every judged one can lie behind a front point that is
-    worse on another. Where nothing matches any, the knee of the front, and the sentence says
-    so. ``knee``: :func:`knee`. ``weight``: minimises print time + ``weight`` × quality (s/mm)."""
+    worse on another. The reference baselines are candidates too (the study may not have tried them:
+    its acceleration range can start above theirs), so where the study tried nothing as fast at their
+    quality the choice is the first baseline itself; the knee of the front only where there is no
+    usable baseline, and the sentence says so. ``knee``: :func:`knee`. ``weight``: minimises print time + ``weight`` × quality (s/mm)."""
     front = [p for p in front if p.feasible]
     if not front:
         raise _no_front()
@@ -120,18 +122,25 @@ def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastes
 
 def _fastest_at_baseline_quality(front: list[Point], baselines: dict[str, Point], res: Resolution,
                                  pool: list[Point]) -> Choice:
-    """:func:`pick`'s default: the fastest point of ``pool`` with no visible measure worse than
-    the reference baselines, tried together then one at a time; else the knee of ``front``,
-    saying why."""
+    """:func:`pick`'s default: the fastest point of ``pool`` and the reference baselines with no
+    visible measure worse than the reference baselines, tried together then one at a time; without
+    any usable baseline, the knee of ``front``, saying why."""
     by_key = dict(reference_baselines(baselines, res))
     worse = f"no worse {QUALITY_WORDS[quality_keys(front)]}"
+    # the baselines are configurations too: where the study tried nothing as fast at their quality
+    # (e.g. its acceleration range starts above theirs), the choice starts from the baseline itself,
+    # never from a knee that is worse on what a person sees
+    pool = [*pool, *(b for b in by_key.values() if all(b is not p for p in pool))]
     tries = _tries(list(by_key))
     for held in tries:
         first, *rest = (by_key[k] for k in held)
         cands = [p for p in at_baseline_quality(pool, first, res) if all(_no_worse_seen(p, b, res) for b in rest)]
         if cands:
             p = fastest(cands, res)
-            return Choice(p, "fastest-at-baseline-quality", held[0], _held_why(p, first, held, tries, worse, res), held)
+            own = next((k for k, b in by_key.items() if b is p), None)
+            why = _held_why(p, first, held, tries, worse, res) if own is None else _baseline_why(
+                p, own, held, tries, worse)
+            return Choice(p, "fastest-at-baseline-quality", held[0], why, held)
     why = f"no configuration the study tried is as fast as {_named(by_key, ' or ')} with {worse}" if by_key else \
         "there is no usable baseline to match"
     return Choice(knee(front), "knee", None, f"the knee of the front, because {why}")
@@ -186,6 +195,17 @@ def _held_why(p: Point, b: Point, held: tuple, tries: list[tuple], worse: str,
                 "(--quality)")
     return (f"{lead}no configuration the study tried is faster than {first} with {worse} than {name}: the search found "
             f"nothing better than {first} itself at that quality (more --trials may)")
+
+
+def _baseline_why(p: Point, key: str, held: tuple, tries: list[tuple], worse: str) -> str:
+    """Why the baseline ``key`` itself (its point ``p``) was chosen: the study tried nothing as fast
+    with ``worse`` than the baselines ``held``."""
+    lead = "" if held == tries[0] else \
+        f"no configuration the study tried is as fast as {_named(tries[0], ' and ')} with {worse} than each; "
+    at = f", at {p.config.accel:.0f} mm/s²" if p.config.accel else ""
+    return (f"{lead}no configuration the study tried is as fast as {_named(held, ' and ')} with {worse}: "
+            f"{BASELINE_NAMES.get(key, key)} itself{at} (more --trials, or an --accel-range reaching down to it, "
+            "may find a faster one)")
 
 
 #: short names of the baselines in sentences

@@ -6,13 +6,14 @@ job rewritten with the choice. The command parses its options into a :class:`Tun
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 from ringtune.agents.tune import feature_space, pareto, report, storage, study as tune_study
-from ringtune.agents.tune.baselines import Baselines, baselines_for, inside, warm_start
+from ringtune.agents.tune.baselines import Baselines, baseline_configs, baselines_for, inside, warm_start
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
 from ringtune.agents.tune.motor_bound import top_speed_load_note
@@ -63,9 +64,10 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
         note(unmeasured_note(printer))
     quality = f"{req.quality}_mm"
     facts = job_accel_facts(printer, req.gcode, req.job_accel)
-    space, floor_note, why = _space(req, lim, fw.name, printer, facts, note)
+    configs = None if req.no_baselines else baseline_configs(printer, fw.name, note=note)
+    space, floor_note, why = _space(req, lim, fw.name, printer, facts, note, configs)
     run_, settings, evaluator, bl, store = _study(req, lim, fw.name, printer, space, quality, out_dir, note,
-                                                  release, progress)
+                                                  release, progress, configs)
     baselines = bl.points
     points = study_points(run_.study, space, quality, lim.max_pe, lim.reserve, lim.max_st)
     unsplit = sum(not p.variants for p in points)
@@ -112,18 +114,19 @@ def target_firmware(given: str | None, printer, note: Callable[[str], None] = la
 
 
 def _study(req: TuneRequest, lim: Limits, firmware: str, printer, space, quality: str, out_dir: Path,
-           note: Callable[[str], None], release: Callable[[], None], progress: Callable | None):
+           note: Callable[[str], None], release: Callable[[], None], progress: Callable | None,
+           configs: Baselines | None):
     """(the study's run, its settings, evaluator, baselines (none with ``--no-baselines``), storage
-    URL): the baselines evaluated, the search warm-started from Klipper's pick, the study run or
-    resumed in ``out_dir`` (removed again when a failure leaves it empty and this run created it)."""
+    URL): the baselines (``configs``) evaluated, the search warm-started from Klipper's pick, the study
+    run or resumed in ``out_dir`` (removed again when a failure leaves it empty and this run created it)."""
     created = not out_dir.exists()
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         store = req.storage or storage.default_storage(out_dir)
         settings = _settings(req, lim, firmware, quality, space, store)
         evaluator = tune_study.resolve_evaluator(settings.evaluator)
-        bl = Baselines() if req.no_baselines else baselines_for(printer, firmware, settings, evaluator, quality,
-                                                                 note=note)
+        bl = Baselines() if configs is None else baselines_for(printer, firmware, settings, evaluator, quality,
+                                                                note=note, configs=configs)
         if "klipper" in bl.points:   # start the search from what users do today, and its neighbours
             settings.enqueue = _warm_points(bl, space)
         tune_study.open_study(settings)   # a storage that cannot be opened fails here, its one line alone
@@ -141,12 +144,15 @@ def _study(req: TuneRequest, lim: Limits, firmware: str, printer, space, quality
     return run_, settings, evaluator, bl, store
 
 
-def _space(req: TuneRequest, lim: Limits, firmware: str, printer, facts, note: Callable[[str], None]):
+def _space(req: TuneRequest, lim: Limits, firmware: str, printer, facts, note: Callable[[str], None],
+           configs: Baselines | None = None):
     """(search space, the firmware's frequency floor note or "", why per feature is searched)."""
     # no --gcode: the built-in print stands in for the user's, which may run up to the velocity limit
     min_freq = shaping_min_freq(req.shaping_min_freq)
     space = default_space(printer, firmware, accel=lim.accel_range, speed=facts.top_speed if req.gcode else None,
                           min_freq=min_freq)
+    if lim.accel_range is None and configs is not None:
+        space = _reaching_baselines(space, configs, note)
     floor_note = freq_floor_note(firmware, min_freq, space)
     if floor_note:
         note(f"ringtune tune: {floor_note}")
@@ -171,6 +177,22 @@ def _space(req: TuneRequest, lim: Limits, firmware: str, printer, facts, note: C
     if per_feature:
         space = feature_space.feature_space(space, printer, req.gcode, lim.reserve)
     return space, floor_note, why
+
+
+def _reaching_baselines(space, configs: Baselines, note: Callable[[str], None]):
+    """``space`` with its acceleration range reaching down to the shaped baselines' (Klipper's pick,
+    what the printer runs now), so that they, their neighbours and a walk from them per feature lie
+    inside it (the range's own floor, 0.3× the printer's acceleration, can sit above Klipper's
+    max_accel on a printer set fast); said in a note."""
+    lows = {k: float(c.accel) for k, c in configs.configs.items()
+            if k in ("klipper", "current") and c.accel and c.accel < space.accel[0]}
+    if not lows:
+        return space
+    lo = max(100.0, math.floor(min(lows.values()) / space.accel_step) * space.accel_step)
+    who = " and ".join(f"{BASELINE_NAMES.get(k, k)}'s {a:.0f}" for k, a in lows.items())
+    note(f"ringtune tune: the acceleration is searched from {lo:.0f} mm/s² (not {space.accel[0]:.0f}, 0.3× the "
+         f"printer's own): the range reaches down to {who} mm/s², so the search starts from {'them' if len(lows) > 1 else 'it'}")
+    return dataclasses.replace(space, accel=(lo, space.accel[1]))
 
 
 def _settings(req: TuneRequest, lim: Limits, firmware: str, quality: str, space, store: str):
