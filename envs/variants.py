@@ -34,6 +34,8 @@ class Variant(NamedTuple):
         """The variant in words (plot titles, notes)."""
         if self.exact:
             return "the printer as modelled"
+        if self.freq == 1.0:
+            return f"the printer with its resonances as modelled and damping ×{self.damping:g}"
         way = "lower" if self.freq < 1 else "higher"
         return (f"the printer with its resonances {abs(self.freq - 1) * 100:g} % {way}"
                 + (f" and damping ×{self.damping:g}" if self.damping != 1.0 else ""))

@@ -89,7 +89,7 @@ that group's own top speed; then the corner rule (Klipper's square_corner_veloci
 junction deviation or jerk, RRF's M566) and Klipper's minimum_cruise_ratio, for the job and apart
 for the corners nobody sees (infill, support, solid infill, travel): each step judged as every
 trial, kept only with no visible measure worse than the baselines' or than the choice's own before
-the walk (it spends no visible quality). One shaper configuration serves the whole job. With --gcode,
+the walk, on the judged printers and on wider ones (it spends no visible quality). One shaper configuration serves the whole job. With --gcode,
 job.gcode beside best.json is the job with the choice written in (as `ringtune rewrite` writes it).
 
 Baselines: Klipper's rule — the recommendation recorded from your resonance files by `ringtune
@@ -106,7 +106,11 @@ none as fast at their quality the choice is the baseline itself, and what follow
 higher accelerations at its frequency and above, designed for more damping (the shaper ladder: the
 rule's max_accel, measured), and the fastest that keeps every measure becomes the choice. Then its
 acceleration is stepped up 5 % at a time with the same judgement until a measure gets worse or a
-bound binds (the summary names it, with both values). Differences under 1 µm or 5 % of a distance, 1 point or 5 % of extrusion and
+bound binds (the summary names it, with both values). The stop and the walk also simulate each step
+that passes on five printers further off the model than the twins (resonances ×0.85, ×1 and ×1.15
+at half the damping, ×0.9 and ×1.1 as fitted), each alone: a step worse there than the baselines
+(and than where it started) is not taken, since a step that only rides the twins' resolution ripples
+more on a printer a little further off. Differences under 1 µm or 5 % of a distance, 1 point or 5 % of extrusion and
 0.5 % of print time count as the same.
 
 With no arguments it tunes the built-in Ender-3-class printer on the built-in test print into

@@ -195,12 +195,15 @@ def _levels(params: dict[str, Any], key: str, top: float) -> list[dict[str, Any]
 def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[TuneConfig]], list],
                  space: SearchSpace, bounds: Bounds, *, res: Resolution = DEFAULT_RESOLUTION,
                  max_evaluations: int | None = None,
-                 screen: Callable[[Sequence[TuneConfig]], list] | None = None) -> Raise:
+                 screen: Callable[[Sequence[TuneConfig]], list] | None = None,
+                 wider: Callable[[TuneConfig], Failure | None] | None = None) -> Raise:
     """Walk the features nobody sees up from ``start`` (module docstring); ``evaluate(configs) ->
     metrics`` judges as the study does; ``bases``: the baselines the choice was held to;
     ``max_evaluations``: no step begins once the walk has judged that many (``tune`` gives it the
     study's trials: a short study gets a short walk); ``screen``: the exact model alone, where
-    ``evaluate`` judges the worst of the twins."""
+    ``evaluate`` judges the worst of the twins; ``wider(config)``: why a step that passes fails on
+    printers further off the model (:mod:`ringtune.agents.tune.wider`), or None — asked of the
+    passing candidates fastest first, until one holds there too."""
     if not space.per_feature:
         return Raise(start, start)
     walk = Raise(start, start, budget=max_evaluations)
@@ -219,9 +222,16 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
                                                          beat, bounds, res, "hidden raise")
         walk.evaluations += judged_n
         walk.screened += screened_n
-        ok = [p for p in points if p is not None]
+        best = None
+        for i in sorted((i for i, p in enumerate(points) if p is not None),
+                        key=lambda i: (points[i].print_time_s, points[i].quality_mm)):
+            off = wider(points[i].config) if wider is not None else None
+            if off is None:
+                best = points[i]
+                break
+            why[i] = (off, False)
         fails = [(params_from_config(c, space), *w) for (_p, c), w in zip(pairs, why) if w is not None]
-        return (min(ok, key=lambda p: (p.print_time_s, p.quality_mm)) if ok else None), fails
+        return best, fails
 
     for key in steps(params, space):
         if max_evaluations is not None and walk.evaluations >= max_evaluations:

@@ -3,7 +3,9 @@
 1. The shaper ladder (:mod:`ringtune.agents.tune.shaper_ladder`): each shaper of Klipper's rule
    climbs higher accelerations; the fastest that passes replaces the choice.
 2. The measured stop (:mod:`ringtune.agents.tune.stop`): the acceleration stepped up 5 % at a time
-   (and each shaper frequency 2 % either way where a step fails) until a measure is worse.
+   (and each shaper frequency 2 % either way where a step fails) until a measure is worse, on the
+   judged printers or on wider ones (:mod:`ringtune.agents.tune.wider`; where the study judges on
+   twins with its own evaluator).
 3. Per feature, the walk where nobody looks (:mod:`ringtune.agents.tune.hidden_raise`).
 
 Each is held to the baselines the choice was held to, with the study's evaluator, frequency margin
@@ -25,6 +27,7 @@ from ringtune.agents.tune.shaper_ladder import Ladder, climb, shaping_text
 from ringtune.agents.tune.space import SearchSpace
 from ringtune.agents.tune.stop import Bounds, Stop, measured_stop
 from ringtune.agents.tune.study import DEFAULT_EVALUATOR, StudySettings, evaluator_kwargs
+from ringtune.agents.tune.wider import study_evaluate_on, wider_check
 from ringtune.envs.evaluate import evaluate_twins
 from ringtune.envs.forked import split_map
 
@@ -40,6 +43,14 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
     ``note``: one progress line as each walk starts and ends (they take a while on a long job)."""
     evaluate, exact = _evaluators(evaluator, settings, printer)
     t0 = time.monotonic()
+
+    def widen(held: dict, start):
+        """The wider check against ``held`` from ``start`` (None where the study judges on one printer
+        or with an evaluator of its own)."""
+        if exact is None or settings.evaluator != DEFAULT_EVALUATOR:
+            return None
+        on = study_evaluate_on(evaluator, settings.job, evaluator_kwargs(settings), printer)
+        return wider_check({k: b.config for k, b in held.items()}, on, printer, start=start.config)
 
     def step(what: str) -> None:
         note(f"ringtune tune: after the study ({time.monotonic() - t0:.0f} s): {what}")
@@ -58,7 +69,8 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
                 f"{shaping_text(ladder.point.config)} at {ladder.point.config.accel:.0f} mm/s², every visible "
                 f"measure still no worse"))
         step(f"{ladder.evaluations} judged; the measured stop, stepping the acceleration up ...")
-        stop = measured_stop(choice.point, bases, evaluate, space, bounds, labels=names)
+        stop = measured_stop(choice.point, bases, evaluate, space, bounds, labels=names,
+                             wider=widen(bases, choice.point))
         if stop.moved:
             choice = dataclasses.replace(choice, point=stop.point, sentence=(
                 f"{choice.sentence}; then stepped up by the measured stop from {stop.start.config.accel:.0f} to "
@@ -70,8 +82,9 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
         # quality is spent only where nobody looks: every visible measure also no worse than the
         # choice's own before the walk (the top surfaces are seen)
         step("the walk where nobody looks, each feature group toward its top ...")
-        lift = raise_hidden(choice.point, {**bases, "choice": choice.point}, evaluate, space, bounds,
-                            max_evaluations=settings.n_trials, screen=exact)
+        held = {**bases, "choice": choice.point}
+        lift = raise_hidden(choice.point, held, evaluate, space, bounds, max_evaluations=settings.n_trials,
+                            screen=exact, wider=widen(held, choice.point))
         step(f"done ({lift.evaluations} judged, {lift.screened} screened)")
         if lift.moved:
             held = ("than the baseline's or the choice's own before" if choice.baseline is not None

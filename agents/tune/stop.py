@@ -10,7 +10,9 @@ evaluated :data:`LADDER` at a time in one ``evaluate_many`` call. Where a step f
 frequency is tried :data:`FREQ_REL` (2 %) up and down at that acceleration, and that step and the
 current choice without their frequency limit, where they have one (one batch); a variant that
 passes becomes the new start. A step that passes becomes the choice ("a faster point with no
-worse measure"). The walk ends at the first step that fails with every frequency variant, and what
+worse measure"), where it also holds on printers further off the model than the judged twins
+(``wider``: :mod:`ringtune.agents.tune.wider`). The walk ends at the first step that fails with
+every frequency variant, and what
 failed there is reported with both values — the measure that got worse than the baseline's (the
 largest relative excess), or the bound that binds (step loss, the motor reserve, the show-through
 or path-error bound) —, or at the top of the range (the motors' force, or the firmware's largest
@@ -232,11 +234,18 @@ def failure(p: Point, bases: dict[str, Point], faster_than: Point, bounds: Bound
 
 def measured_stop(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[TuneConfig]], list],
                   space: SearchSpace, bounds: Bounds, *, labels: dict[str, str] | None = None,
-                  res: Resolution = DEFAULT_RESOLUTION, max_evaluations: int = MAX_EVALUATIONS) -> Stop:
+                  res: Resolution = DEFAULT_RESOLUTION, max_evaluations: int = MAX_EVALUATIONS,
+                  wider: Callable[[TuneConfig], Failure | None] | None = None) -> Stop:
     """Walk the acceleration up from ``start`` (module docstring); ``evaluate(configs) -> metrics``
     judges as the study does; ``bases``: the baselines the choice was held to, by key (``labels``
-    names them in the sentence)."""
+    names them in the sentence); ``wider(config)``: why a step that passes the judgement fails on
+    printers further off the model (:mod:`ringtune.agents.tune.wider`), or None."""
     labels = labels or {}
+    wider = wider or (lambda cfg: None)
+
+    def fails(p: Point, than: Point) -> Failure | None:
+        return failure(p, bases, than, bounds, res) or wider(p.config)
+
     if space.accel_fixed or start.config.accel is None:
         return Stop(start, start, "not searched", sentence="The acceleration is not searched, so nothing is stepped.")
     fw_top = float(FIRMWARES[space.firmware].accel.hi)
@@ -257,7 +266,7 @@ def measured_stop(start: Point, bases: dict[str, Point], evaluate: Callable[[Seq
                          why)
         failed = None
         for p in points([with_accel(cur.config, a, space) for a in accs]):
-            why = failure(p, bases, cur, bounds, res)
+            why = fails(p, cur)
             if why:
                 failed = (p, why)
                 break
@@ -266,7 +275,7 @@ def measured_stop(start: Point, bases: dict[str, Point], evaluate: Callable[[Seq
             continue
         p, why = failed
         tried = freq_variants(p.config, space) + without_limit(p.config) + without_limit(cur.config)
-        variants = [v for v in points(tried) if failure(v, bases, cur, bounds, res) is None]
+        variants = [v for v in points(tried) if fails(v, cur) is None]
         if variants:
             cur = min(variants, key=lambda v: (v.print_time_s, v.quality_mm))
             continue

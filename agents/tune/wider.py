@@ -1,0 +1,87 @@
+"""The measured stop's wider check: a step up of the acceleration is taken only where no visible
+measure is worse than the baselines' on printers further off the model than the judged twins.
+
+``tune`` judges every configuration on the model and two twins (resonances ±5 %, damping ×0.75).
+The measured stop (:mod:`ringtune.agents.tune.stop`) climbs until a measure reaches the resolution
+on one of them, so it ends at that edge, and a short wall's ripple is the sum of the transients of
+its two ends, whose phase a small change of acceleration moves: three printers sample few phases.
+Found by ``benchmarks/bench_robustness.py`` on a Voron 0 described from its printer.cfg: the stop's
+one step (3900 → 4100 mm/s², 0.2 % of the part's print time) left every measure the same on the
+judged printers and rippled the outer wall 16.0 µm against Klipper's pick's 13.7 µm on the printer
+with resonances 15 % lower and damping ×0.5. Each step that passes the judgement is simulated on
+:data:`WIDER` as well, each printer on its own (as ``bench_robustness`` and ``simulate`` do: the
+model's lead-in), against the baselines there.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Sequence
+
+from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, JUDGED_KEYS, Point, Resolution, judge, point_from_metrics
+from ringtune.agents.tune.stop import Failure
+from ringtune.envs.variants import Variant
+from ringtune.envs.windows import auto_settle
+from ringtune.shaping.config import TuneConfig
+
+#: the printers beyond the judged ones a step must also hold on: the frequency ends of
+#: ``bench_robustness``'s grid at half the damping (where ringing lasts longest), the model at half
+#: its damping, and ±10 % at the damping as fitted
+WIDER = (Variant(0.85, 0.5), Variant(1.0, 0.5), Variant(1.15, 0.5), Variant(0.9, 1.0), Variant(1.1, 1.0))
+_START = "\0start"
+
+
+def wider_check(bases: dict[str, TuneConfig], evaluate_on: Callable[[Sequence[TuneConfig], object], list],
+                printer, start: TuneConfig | None = None, variants: Sequence[Variant] = WIDER,
+                res: Resolution = DEFAULT_RESOLUTION) -> Callable[[TuneConfig], Failure | None]:
+    """``check(config)``: the visible measure (:data:`~ringtune.agents.tune.pareto.JUDGED_KEYS`)
+    worse than a baseline's (``bases``: configurations by key) on one of ``variants`` of ``printer``
+    — and worse than ``start``'s there, the configuration the stop climbs from (what the choice
+    already was is not the step's to answer for) — by the largest ratio, as a
+    :class:`~ringtune.agents.tune.stop.Failure` naming that variant; None where none is.
+    ``evaluate_on(configs, printer_variant)``: their metrics on that printer alone. The baselines
+    and ``start`` are simulated once per variant."""
+    settled: dict[Variant, dict[str, Point]] = {}
+    refs = {**bases, **({} if start is None else {_START: start})}
+
+    def points(configs: Sequence[TuneConfig], v: Variant) -> list[Point]:
+        return [point_from_metrics(c, m) for c, m in zip(configs, evaluate_on(configs, v.of(printer)))]
+
+    def check(config: TuneConfig) -> Failure | None:
+        worse = []
+        for v in variants:
+            if v not in settled:
+                mine, *theirs = points([config, *refs.values()], v)
+                settled[v] = dict(zip(refs, theirs))
+            else:
+                (mine,) = points([config], v)
+            before = settled[v].get(_START)
+            for name, base in settled[v].items():
+                if name == _START:
+                    continue
+                for key, f in judge(mine, base, res, JUDGED_KEYS).figures.items():
+                    if f.verdict == "worse" and _worse_than(mine, before, key, res):
+                        worse.append((f.mine / max(f.theirs, 1e-12), key, name, f.mine, f.theirs, v))
+        if not worse:
+            return None
+        _ratio, key, name, mine, theirs, v = max(worse, key=lambda w: w[:3])
+        return Failure("measure", key, name, float(mine), float(theirs), (v.freq, v.damping))
+
+    return check
+
+
+def _worse_than(mine: Point, before: Point | None, key: str, res: Resolution) -> bool:
+    """Whether ``mine``'s figure ``key`` is worse than ``before``'s (True without ``before`` or its figure)."""
+    f = None if before is None else judge(mine, before, res, (key,)).figures.get(key)
+    return f is None or f.verdict == "worse"
+
+
+def study_evaluate_on(evaluator: Callable, job, kwargs: dict, printer) -> Callable[[Sequence[TuneConfig], object], list]:
+    """``evaluate_on(configs, printer_variant)`` with the study's evaluator and options, one printer
+    (no frequency margin), the model's lead-in."""
+    settle = auto_settle(printer)
+    options = {**kwargs, "freq_margin": 0.0}
+
+    def evaluate_on(configs, variant_printer):
+        return evaluator(list(configs), variant_printer, job, settle=settle, **options)
+
+    return evaluate_on
