@@ -262,3 +262,21 @@ def test_judging_what_the_screen_passed_simulates_only_the_twins_for_the_same_fi
     for a, b in zip(evaluate_twins(cfgs, exact, printer, job, freq_margin=0.05),
                     evaluate_many(cfgs, printer, job, freq_margin=0.05)):
         assert a.to_dict() == b.to_dict() and a.features == b.features
+
+
+def test_the_wider_check_refuses_the_fastest_and_takes_the_next_that_holds(space):
+    """Wider printers (agents/tune/wider.py) that find every zvd shaping above 7500 mm/s² worse: the
+    ladder takes the fastest passing point at or below it (zvd at 7500, by hand from the test above),
+    and says how many faster ones it refused; with no point holding, the choice stays."""
+    asked = []
+
+    def wider(cfg):
+        asked.append((cfg.shaper_x, cfg.accel))
+        return "worse" if cfg.shaper_x == "zvd" and cfg.accel > 7500 else None
+
+    start, ladder, _ = _climb(space, _fits(), wider=wider)
+    assert (ladder.point.config.shaper_x, ladder.point.config.accel) == ("zvd", 7500.0)
+    assert ladder.held_off == V and asked[:V] == [("zvd", 7800.0)] * V and asked[V] == ("zvd", 7500.0)
+    assert f"{V} faster ones refused: worse on a printer further off the model" in ladder.sentence()
+    start, ladder, _ = _climb(space, _fits(), wider=lambda cfg: "worse")
+    assert ladder.point is start and not ladder.moved and ladder.to_dict()["held_off"] > 0

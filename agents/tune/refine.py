@@ -1,12 +1,15 @@
 """After the study: the choice refined with the study's own judgement, in three walks.
 
 1. The shaper ladder (:mod:`ringtune.agents.tune.shaper_ladder`): each shaper of Klipper's rule
-   climbs higher accelerations; the fastest that passes replaces the choice.
+   climbs higher accelerations; the fastest that passes, and holds on the wider printers of
+   :mod:`ringtune.agents.tune.wider`, replaces the choice.
 2. The measured stop (:mod:`ringtune.agents.tune.stop`): the acceleration stepped up 5 % at a time
    (and each shaper frequency 2 % either way where a step fails) until a measure is worse, on the
-   judged printers or on wider ones (:mod:`ringtune.agents.tune.wider`; where the study judges on
-   twins with its own evaluator).
-3. Per feature, the walk where nobody looks (:mod:`ringtune.agents.tune.hidden_raise`).
+   judged printers or on the wider ones.
+3. Per feature, the walk where nobody looks (:mod:`ringtune.agents.tune.hidden_raise`), each step
+   held on the wider printers too.
+
+The wider check runs where the study judges on twins with its own evaluator.
 
 Each is held to the baselines the choice was held to, with the study's evaluator, frequency margin
 and bounds, the walk also to the choice it starts from (it spends no visible quality: the top
@@ -62,7 +65,7 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
         names = {k: bl.labels.get(k, BASELINE_NAMES.get(k, k)) for k in held}
         step("climbing the shapers of Klipper's rule's table ...")
         ladder = climb(choice.point, bases, evaluate, space, bounds, bl.fits, max_evaluations=settings.n_trials,
-                       screen=exact)
+                       screen=exact, wider=widen(bases, choice.point))
         if ladder.moved:
             choice = dataclasses.replace(choice, point=ladder.point, sentence=(
                 f"{choice.sentence}; then, climbing the shapers of Klipper's rule's table, "

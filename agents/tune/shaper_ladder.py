@@ -74,6 +74,7 @@ class Ladder:
     offered: int = 0
     first_rung: float | None = None
     screened: int = 0
+    held_off: int = 0        # faster passing points refused by the wider check
 
     @property
     def moved(self) -> bool:
@@ -93,16 +94,18 @@ class Ladder:
                 f"({self.evaluations} evaluations" + (f", {self.screened} screened on the exact model first)"
                                                       if self.screened else ")"))
         n = sum(a is not None for _, a in self.tried)
+        off = (f"; {self.held_off} faster one{'s' if self.held_off > 1 else ''} refused: worse on a printer "
+               "further off the model" if self.held_off else "")
         if not self.moved:
-            return (f"{head}: none faster than the choice (" + (f"{n} passed a rung, none faster)." if n else
+            return (f"{head}: none faster than the choice (" + (f"{n} passed a rung, none faster{off})." if n else
                     f"none passed the first rung, {self.first_rung:.0f} mm/s²)."))
         return (f"{head}: the fastest, {shaping_text(self.point.config)} at {self.point.config.accel:.0f} mm/s² "
-                f"({n} shaping{'s' if n > 1 else ''} passed a rung).")
+                f"({n} shaping{'s' if n > 1 else ''} passed a rung{off}).")
 
     def to_dict(self) -> dict[str, Any]:
         return {"moved": self.moved, "from_accel": self.start.config.accel, "to_accel": self.point.config.accel,
                 "config": self.point.config.to_dict(), "evaluations": self.evaluations, "screened": self.screened,
-                "offered": self.offered,
+                "offered": self.offered, "held_off": self.held_off,
                 "tried": [{"shaping": name, "highest_passing_accel": a} for name, a in self.tried],
                 "sentence": self.sentence()}
 
@@ -150,8 +153,8 @@ def rungs(accel: float, space: SearchSpace) -> list[float]:
 
 def climb(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[TuneConfig]], list],
           space: SearchSpace, bounds: Bounds, fits: dict, *, res: Resolution = DEFAULT_RESOLUTION,
-          max_evaluations: int = MAX_EVALUATIONS, screen: Callable[[Sequence[TuneConfig]], list] | None = None
-          ) -> Ladder:
+          max_evaluations: int = MAX_EVALUATIONS, screen: Callable[[Sequence[TuneConfig]], list] | None = None,
+          wider: Callable[[TuneConfig], Any] | None = None) -> Ladder:
     """The step (module docstring) from ``start``, held to ``bases``; ``evaluate(configs) ->
     metrics`` judges as the study does; ``fits``: Klipper's per-axis recommendations on the model.
 
@@ -159,7 +162,10 @@ def climb(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[Tu
     of the printer and its detuned twins. A shaping that fails on the exact model fails the
     judgement too (the worst case is no better on any measure, and print time is the same), so
     each rung is screened first and only what passes is judged (a third of the cost for what
-    fails; :func:`ringtune.agents.tune.stop.passing`); ``max_evaluations`` counts the judged ones."""
+    fails; :func:`ringtune.agents.tune.stop.passing`); ``max_evaluations`` counts the judged ones.
+    ``wider(config)``: why a passing point fails on printers further off the model
+    (:mod:`ringtune.agents.tune.wider`), or None: the fastest passing point that holds there too
+    replaces the choice (asked fastest first); ``held_off`` counts those it refused."""
     if space.accel_fixed or not start.config.accel:
         return Ladder(start, start)
     offered = rule_shapings(start.config, fits, space)
@@ -168,6 +174,7 @@ def climb(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[Tu
     steps = rungs(float(start.config.accel), space)
     highest: list[float | None] = [None] * len(shapings)
     best, n, screened = start, 0, 0
+    passed: list[Point] = []
 
     def judge(batch: list[tuple[int, float]]) -> list[Point | None]:
         """Each (shaping, acceleration) of ``batch`` judged (screened first), within the budget; the
@@ -179,6 +186,7 @@ def climb(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[Tu
         for (i, a), p in zip(batch, points):
             if p is not None:
                 highest[i] = max(highest[i] or 0.0, a)
+                passed.append(p)
                 if (p.print_time_s, p.quality_mm) < (best.print_time_s, best.quality_mm):
                     best = p
         return points
@@ -194,8 +202,18 @@ def climb(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[Tu
         climbing = [i for i, p in zip(climbing, points) if p is not None]
     if n < max_evaluations:
         judge(_gaps(highest, failed_at, float(best.config.accel), space.accel_step))
+    held_off = 0
+    if wider is not None:
+        best = start
+        for p in sorted(passed, key=lambda q: (q.print_time_s, q.quality_mm)):
+            if (p.print_time_s, p.quality_mm) >= (start.print_time_s, start.quality_mm):
+                break
+            if wider(p.config) is None:
+                best = p
+                break
+            held_off += 1
     return Ladder(best, start, [(shaping_text(c), a) for c, a in zip(shapings, highest)], n, len(offered),
-                  steps[0] if steps else None, screened)
+                  steps[0] if steps else None, screened, held_off)
 
 
 def _gaps(highest: list[float | None], failed_at: dict[int, float], best: float, step: float

@@ -1,5 +1,6 @@
-"""The measured stop's wider check: a step up of the acceleration is taken only where no visible
-measure is worse than the baselines' on printers further off the model than the judged twins.
+"""The wider check of the walks after the study (the shaper ladder, the measured stop, the walk
+where nobody looks): a step is taken only where no visible measure is worse than the baselines' on
+printers further off the model than the judged twins.
 
 ``tune`` judges every configuration on the model and two twins (resonances ±5 %, damping ×0.75).
 The measured stop (:mod:`ringtune.agents.tune.stop`) climbs until a measure reaches the resolution
