@@ -76,6 +76,19 @@ def test_the_check_names_the_worst_measure_and_where_and_spares_what_the_start_w
     assert check(start) is not None and spare(start) is None and spare(TuneConfig(accel=5300.0)) is not None
 
 
+def test_a_start_within_the_resolution_does_not_let_steps_drift():
+    """The start 3 % over the baseline (the same at 5 %), a step 8 % over it but under 5 % over the
+    start: worse than the baseline, and the start was not, so the step fails."""
+    ripple = {4800.0: 0.0500, 5000.0: 0.0515, 5300.0: 0.0540}
+
+    def on(configs, printer):
+        return [_m(float(c.accel), ripple[float(c.accel)] if printer == Variant(0.85, 0.5) else 0.05)
+                for c in configs]
+    check = wider_check({"klipper": TuneConfig(accel=4800.0)}, on, _Detunable(), start=TuneConfig(accel=5000.0))
+    why = check(TuneConfig(accel=5300.0))
+    assert why is not None and (why.value, why.limit, why.variant) == (0.054, 0.05, (0.85, 0.5))
+
+
 def test_the_stop_ends_where_the_wider_check_fails(space):
     cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=54.2, freq_y=42.7, accel=4800.0)
     start = point_from_metrics(cfg, _m(4800.0, 0.05), max_path_error_mm=0.1, max_motor_load=0.8)

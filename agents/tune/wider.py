@@ -36,8 +36,9 @@ def wider_check(bases: dict[str, TuneConfig], evaluate_on: Callable[[Sequence[Tu
                 res: Resolution = DEFAULT_RESOLUTION) -> Callable[[TuneConfig], Failure | None]:
     """``check(config)``: the visible measure (:data:`~ringtune.agents.tune.pareto.JUDGED_KEYS`)
     worse than a baseline's (``bases``: configurations by key) on one of ``variants`` of ``printer``
-    — and worse than ``start``'s there, the configuration the stop climbs from (what the choice
-    already was is not the step's to answer for) — by the largest ratio, as a
+    — where ``start`` (the configuration the walk climbs from) is already worse than that baseline
+    there, only if worse than ``start``'s too: what the choice already was is not the step's to
+    answer for — by the largest ratio, as a
     :class:`~ringtune.agents.tune.stop.Failure` naming that variant; None where none is.
     ``evaluate_on(configs, printer_variant)``: their metrics on that printer alone. The baselines
     and ``start`` are simulated once per variant."""
@@ -59,8 +60,9 @@ def wider_check(bases: dict[str, TuneConfig], evaluate_on: Callable[[Sequence[Tu
             for name, base in settled[v].items():
                 if name == _START:
                     continue
+                already = {} if before is None else judge(before, base, res, JUDGED_KEYS).verdicts
                 for key, f in judge(mine, base, res, JUDGED_KEYS).figures.items():
-                    if f.verdict == "worse" and _worse_than(mine, before, key, res):
+                    if f.verdict == "worse" and (already.get(key) != "worse" or _worse_than(mine, before, key, res)):
                         worse.append((f.mine / max(f.theirs, 1e-12), key, name, f.mine, f.theirs, v))
         if not worse:
             return None
