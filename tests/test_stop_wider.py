@@ -43,11 +43,9 @@ def _m(accel: float, ripple: float):
                            extrusion_under_pct=8.0, e_lag_mm=0.05, show_through_mm=0.01)
 
 
-class _Detunable:
-    """A stand-in printer: ``detuned(f, d)`` gives the variant itself."""
-
-    def detuned(self, f, d):
-        return Variant(f, d)
+def _per_variant(fake):
+    """``evaluate_on(configs, variants)`` from ``fake(configs, variant)``."""
+    return lambda configs, variants: [fake(configs, v) for v in variants]
 
 
 def _evaluate_on(configs, printer, start_ripple: float = 0.05):
@@ -66,13 +64,13 @@ def _start_at_60(configs, printer):
 
 def test_the_check_names_the_worst_measure_and_where_and_spares_what_the_start_was():
     base, start = TuneConfig(accel=4800.0), TuneConfig(accel=5000.0)
-    check = wider_check({"klipper": base}, _start_at_60, _Detunable())
+    check = wider_check({"klipper": base}, _per_variant(_start_at_60))
     assert check(TuneConfig(accel=5100.0)) is None
     why = check(TuneConfig(accel=5300.0))
     assert (why.kind, why.key, why.baseline, why.value, why.limit, why.variant) == (
         "measure", "ripple_mm", "klipper", 0.08, 0.05, (0.85, 0.5))
     # the start ripples 60 µm there itself: a step at 60 µm is not the step's doing, one at 80 µm is
-    spare = wider_check({"klipper": base}, _start_at_60, _Detunable(), start=start)
+    spare = wider_check({"klipper": base}, _per_variant(_start_at_60), start=start)
     assert check(start) is not None and spare(start) is None and spare(TuneConfig(accel=5300.0)) is not None
 
 
@@ -84,7 +82,7 @@ def test_a_start_within_the_resolution_does_not_let_steps_drift():
     def on(configs, printer):
         return [_m(float(c.accel), ripple[float(c.accel)] if printer == Variant(0.85, 0.5) else 0.05)
                 for c in configs]
-    check = wider_check({"klipper": TuneConfig(accel=4800.0)}, on, _Detunable(), start=TuneConfig(accel=5000.0))
+    check = wider_check({"klipper": TuneConfig(accel=4800.0)}, _per_variant(on), start=TuneConfig(accel=5000.0))
     why = check(TuneConfig(accel=5300.0))
     assert why is not None and (why.value, why.limit, why.variant) == (0.054, 0.05, (0.85, 0.5))
 
@@ -95,7 +93,7 @@ def test_the_stop_ends_where_the_wider_check_fails(space):
     evaluate = lambda cs: [_m(float(c.accel), 0.05) for c in cs]           # the judged printers: all the same
     free = measured_stop(start, {"klipper": start}, evaluate, space, BOUNDS, max_evaluations=12)
     held = measured_stop(start, {"klipper": start}, evaluate, space, BOUNDS, labels={"klipper": "Klipper's rule"},
-                         wider=wider_check({"klipper": cfg}, _evaluate_on, _Detunable()))
+                         wider=wider_check({"klipper": cfg}, _per_variant(_evaluate_on)))
     top = max(a for a in [4800.0, *next_accels(4800.0, 1e9, space.accel_step, n=10)] if a <= 5200)
     assert free.point.config.accel > top
     assert held.point.config.accel == top and held.kind == "measure" and held.variant == (0.85, 0.5)
@@ -119,9 +117,9 @@ def test_on_the_default_printer_the_check_holds_a_step_that_is_worse_off_the_mod
     bases = {"klipper": start}
     free = measured_stop(start, bases, evaluate, space, BOUNDS, max_evaluations=4)
     assert free.point.config.accel > pick.accel                 # the judged printers alone let it climb
-    on = study_evaluate_on(judged_by, None, kwargs, printer)
+    on = study_evaluate_on(None, kwargs, printer)
     held = measured_stop(start, bases, evaluate, space, BOUNDS, max_evaluations=4,
-                         wider=wider_check({"klipper": pick}, on, printer, start=pick))
+                         wider=wider_check({"klipper": pick}, on, start=pick))
     assert held.point is start and held.kind == "measure" and tuple(held.variant) in {(v.freq, v.damping) for v in WIDER}
     # the refused step on that printer alone, re-simulated here
     step = TuneConfig.from_dict(held.config.to_dict())

@@ -107,8 +107,8 @@ higher accelerations at its frequency and above, designed for more damping (the 
 rule's max_accel, measured), and the fastest that keeps every measure becomes the choice. Then its
 acceleration is stepped up 5 % at a time with the same judgement until a measure gets worse or a
 bound binds (the summary names it, with both values). The stop and the walk also simulate each step
-that passes on five printers further off the model than the twins (resonances ×0.85, ×1 and ×1.15
-at half the damping, ×0.9 and ×1.1 as fitted), each alone: a step worse there than the baselines
+that passes on three printers further off the model than the twins (resonances ×0.85, ×1 and ×1.15
+at half the damping), each alone: a step worse there than the baselines
 (and than where it started) is not taken, since a step that only rides the twins' resolution ripples
 more on a printer a little further off. Differences under 1 µm or 5 % of a distance, 1 point or 5 % of extrusion and
 0.5 % of print time count as the same.

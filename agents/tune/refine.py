@@ -52,8 +52,8 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
         or with an evaluator of its own)."""
         if exact is None or settings.evaluator != DEFAULT_EVALUATOR:
             return None
-        on = study_evaluate_on(evaluator, settings.job, evaluator_kwargs(settings), printer)
-        return wider_check({k: b.config for k, b in held.items()}, on, printer, start=start.config)
+        on = study_evaluate_on(settings.job, evaluator_kwargs(settings), printer)
+        return wider_check({k: b.config for k, b in held.items()}, on, start=start.config)
 
     def step(what: str) -> None:
         note(f"ringtune tune: after the study ({time.monotonic() - t0:.0f} s): {what}")
