@@ -137,3 +137,22 @@ def test_a_wider_printer_is_named_in_words():
     assert Variant(1.0, 0.5).words() == "the printer with its resonances as modelled and damping ×0.5"
     assert Variant(0.85, 0.5).words() == "the printer with its resonances 15 % lower and damping ×0.5"
     assert Variant(1.1).words() == "the printer with its resonances 10 % higher"
+
+
+def test_the_studys_choice_worse_off_the_model_gives_way_to_the_baseline():
+    """A study point faster than the pick, the same on the judged printers but 80 µm against 50 µm
+    on the printer 15 % lower at half its damping: the walks start from the pick itself, and why is
+    kept; a point that holds there, or the pick's own configuration, stays."""
+    from ringtune.agents.tune.wider import held_wider
+
+    pick_cfg = TuneConfig(accel=4800.0)
+    pick = point_from_metrics(pick_cfg, _m(4800.0, 0.05))
+    check = wider_check({"klipper": pick_cfg}, _per_variant(_evaluate_on))
+    fast = point_from_metrics(TuneConfig(accel=5300.0), _m(5300.0, 0.05))
+    start, why = held_wider(fast, pick, check)
+    assert start is pick and (why.key, why.value, why.limit, why.variant) == ("ripple_mm", 0.08, 0.05, (0.85, 0.5))
+    ok = point_from_metrics(TuneConfig(accel=5100.0), _m(5100.0, 0.05))
+    assert held_wider(ok, pick, check) == (ok, None)
+    same = point_from_metrics(TuneConfig(accel=4800.0), _m(4800.0, 0.05))
+    assert held_wider(same, pick, lambda cfg: 1 / 0) == (same, None)     # the pick's own shaping: not asked
+    assert held_wider(fast, pick, None) == (fast, None)                  # no check (one printer judged)

@@ -1,5 +1,8 @@
 """After the study: the choice refined with the study's own judgement, in three walks.
 
+0. The study's choice, judged on the model and its twins, is held on the wider printers of
+   :mod:`ringtune.agents.tune.wider` too; where it is worse there, the walks start from the first
+   baseline it was held to instead.
 1. The shaper ladder (:mod:`ringtune.agents.tune.shaper_ladder`): each shaper of Klipper's rule
    climbs higher accelerations; the fastest that passes, and holds on the wider printers of
    :mod:`ringtune.agents.tune.wider`, replaces the choice.
@@ -28,9 +31,9 @@ from ringtune.agents.tune.hidden_raise import Raise, raise_hidden
 from ringtune.agents.tune.choice import BASELINE_NAMES, Choice
 from ringtune.agents.tune.shaper_ladder import Ladder, climb, shaping_text
 from ringtune.agents.tune.space import SearchSpace
-from ringtune.agents.tune.stop import Bounds, Stop, measured_stop
+from ringtune.agents.tune.stop import Bounds, Stop, failure_words, measured_stop
 from ringtune.agents.tune.study import DEFAULT_EVALUATOR, StudySettings, evaluator_kwargs
-from ringtune.agents.tune.wider import study_evaluate_on, wider_check
+from ringtune.agents.tune.wider import held_wider, study_evaluate_on, wider_check
 from ringtune.envs.evaluate import evaluate_twins
 from ringtune.envs.forked import split_map
 
@@ -53,7 +56,7 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
         if exact is None or settings.evaluator != DEFAULT_EVALUATOR:
             return None
         on = study_evaluate_on(settings.job, evaluator_kwargs(settings), printer)
-        return wider_check({k: b.config for k, b in held.items()}, on, start=start.config)
+        return wider_check({k: b.config for k, b in held.items()}, on, start=start and start.config)
 
     def step(what: str) -> None:
         note(f"ringtune tune: after the study ({time.monotonic() - t0:.0f} s): {what}")
@@ -63,6 +66,12 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
         held = choice.held_to or (choice.baseline,)
         bases = {k: bl.points[k] for k in held}
         names = {k: bl.labels.get(k, BASELINE_NAMES.get(k, k)) for k in held}
+        start, off = held_wider(choice.point, bases[held[0]], widen(bases, None))
+        if off is not None:
+            choice = dataclasses.replace(choice, point=start, sentence=(
+                f"{choice.sentence}; but that is worse on a printer further off the model "
+                f"({failure_words(off, names.get(off.baseline, off.baseline))}), so the choice starts from "
+                f"{names[held[0]]} itself"))
         step("climbing the shapers of Klipper's rule's table ...")
         ladder = climb(choice.point, bases, evaluate, space, bounds, bl.fits, max_evaluations=settings.n_trials,
                        screen=exact, wider=widen(bases, choice.point))

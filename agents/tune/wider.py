@@ -89,3 +89,15 @@ def study_evaluate_on(job, kwargs: dict, printer) -> Callable[[Sequence[TuneConf
         return [[e.metrics for e in evs] for evs in runs]
 
     return evaluate_on
+
+
+def held_wider(point: Point, first: Point, check: Callable[[TuneConfig], Failure | None] | None
+               ) -> tuple[Point, Failure | None]:
+    """(the point the walks start from, why ``point`` was set aside or None): the study's choice
+    ``point`` where it holds on the wider printers (``check``), else the first reference baseline
+    ``first`` itself — the study judged its choice on the model and its twins alone, and a faster
+    shaping that only rides their resolution ripples more a little further off."""
+    if check is None or point is first or point.config == first.config:
+        return point, None
+    off = check(point.config)
+    return (point, None) if off is None else (first, off)
