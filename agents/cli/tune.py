@@ -89,29 +89,30 @@ that group's own top speed; then the corner rule (Klipper's square_corner_veloci
 junction deviation or jerk, RRF's M566) and Klipper's minimum_cruise_ratio, for the job and apart
 for the corners nobody sees (infill, support, solid infill, travel): each step judged as every
 trial, kept only with no visible measure worse than the baselines' or than the choice's own before
-the walk, on the judged printers and on wider ones (it spends no visible quality). One shaper configuration serves the whole job. With --gcode,
-job.gcode beside best.json is the job with the choice written in (as `ringtune rewrite` writes it).
+the walk, on the judged printers and on wider ones (it spends no visible quality). One shaper
+configuration serves the whole job. With --gcode, job.gcode beside best.json is the job with the
+choice written in (as `ringtune rewrite` writes it).
 
 Baselines: Klipper's rule — the recommendation recorded from your resonance files by `ringtune
 identify` when the printer has one, else the rule on the model's simulated resonance test (said so);
 what the printer runs now, when the printer description has a [current] section; no shaping.
 Objectives: print time, the worst visible wall's ripple and corner deviation (rounding or
 overshoot); hidden features reaching the outer wall by more than --max-show-through are ruled out.
-The configuration chosen by default is the fastest one with no visible measure (ripple and its
-90th percentile, corner rounding and overshoot, over- and under-extrusion) worse than the best
-baseline's ("same quality, faster"); the baselines are candidates too, so where the study tried
-none as fast at their quality the choice is the baseline itself, and what follows climbs from it
-(the knee of the front only without a usable baseline; --pick knee|fastest-at-baseline-quality|weight,
---weight W). Then each shaper Klipper's rule fits climbs
-higher accelerations at its frequency and above, designed for more damping (the shaper ladder: the
-rule's max_accel, measured), and the fastest that keeps every measure becomes the choice. Then its
-acceleration is stepped up 5 % at a time with the same judgement until a measure gets worse or a
-bound binds (the summary names it, with both values). The stop and the walk also simulate each step
-that passes on three printers further off the model than the twins (resonances ×0.85, ×1 and ×1.15
-at half the damping), each alone: a step worse there than the baselines
-(and than where it started) is not taken, since a step that only rides the twins' resolution ripples
-more on a printer a little further off. Differences under 1 µm or 5 % of a distance, 1 point or 5 % of extrusion and
-0.5 % of print time count as the same.
+The configuration chosen by default is the fastest one with no visible measure (ripple and its 90th
+percentile, corner rounding and overshoot, over- and under-extrusion) worse than the best baseline's
+("same quality, faster"); the baselines are candidates too, so where the study tried none as fast at
+their quality the choice is the baseline itself, and what follows climbs from it (the knee of the
+front only without a usable baseline; --pick knee|fastest-at-baseline-quality|weight, --weight W).
+Then each shaper Klipper's rule fits climbs higher accelerations at its frequency and above,
+designed for more damping (the shaper ladder: the rule's max_accel, measured), and the fastest that
+keeps every measure becomes the choice. Then its acceleration is stepped up 5 % at a time with the
+same judgement until a measure gets worse or a bound binds (the summary names it, with both values).
+The study's choice, the ladder, the stop and the walk also simulate what they take on three printers
+further off the model than the twins (resonances ×0.85, ×1 and ×1.15 at half the damping), each
+alone: what is worse there than the baselines is not taken (the study's choice gives way to the
+baseline), since a step that only rides the twins' resolution ripples more on a printer a little
+further off. Differences under 1 µm or 5 % of a distance, 1 point or 5 % of extrusion and 0.5 % of
+print time count as the same.
 
 With no arguments it tunes the built-in Ender-3-class printer on the built-in test print into
 ./ringtune-out/ in about a minute; open ringtune-out/README.txt first. Running the same command
