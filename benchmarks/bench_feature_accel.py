@@ -1,7 +1,9 @@
 """Benchmark (issue 22 acceptance): acceleration per feature against the best single acceleration.
 
 On a printer (default: the built-in Ender-3 class) and a job (default: the built-in test print),
-judged as ``tune`` judges (the printer and its resonances ±5 % with damping ×0.75, the worst counts):
+judged as ``tune`` judges its trials (the printer and its resonances ±5 % with damping ×0.75, on
+each and over their worst) — not on the three wider printers ``tune``'s walks also hold their
+steps on (:mod:`ringtune.agents.tune.wider`), so the bench's own walk can end faster than tune's:
 
 1. the baseline: Klipper's pick from the printer's files ([measurement.klipper]);
 2. the best single-acceleration configuration: the baseline's shapers at every acceleration of the
