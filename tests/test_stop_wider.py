@@ -139,20 +139,37 @@ def test_a_wider_printer_is_named_in_words():
     assert Variant(1.1).words() == "the printer with its resonances 10 % higher"
 
 
-def test_the_studys_choice_worse_off_the_model_gives_way_to_the_baseline():
+def test_the_studys_choice_worse_off_the_model_gives_way_to_a_runner_up_or_the_baseline():
     """A study point faster than the pick, the same on the judged printers but 80 µm against 50 µm
-    on the printer 15 % lower at half its damping: the walks start from the pick itself, and why is
-    kept; a point that holds there, or the pick's own configuration, stays."""
+    on the printer 15 % lower at half its damping: the walks start from the next fastest point that
+    holds there, else from the pick itself, and why is kept; a point that holds there, or the pick's
+    own configuration, stays."""
     from ringtune.agents.tune.wider import held_wider
 
     pick_cfg = TuneConfig(accel=4800.0)
     pick = point_from_metrics(pick_cfg, _m(4800.0, 0.05))
     check = wider_check({"klipper": pick_cfg}, _per_variant(_evaluate_on))
     fast = point_from_metrics(TuneConfig(accel=5300.0), _m(5300.0, 0.05))
-    start, why = held_wider(fast, pick, check)
+    runner = point_from_metrics(TuneConfig(accel=5100.0), _m(5100.0, 0.05))
+    start, why = held_wider([fast], pick, check)
     assert start is pick and (why.key, why.value, why.limit, why.variant) == ("ripple_mm", 0.08, 0.05, (0.85, 0.5))
-    ok = point_from_metrics(TuneConfig(accel=5100.0), _m(5100.0, 0.05))
-    assert held_wider(ok, pick, check) == (ok, None)
+    start, why = held_wider([fast, runner], pick, check)
+    assert start is runner and why.variant == (0.85, 0.5)
+    assert held_wider([runner, fast], pick, check) == (runner, None)
     same = point_from_metrics(TuneConfig(accel=4800.0), _m(4800.0, 0.05))
-    assert held_wider(same, pick, lambda cfg: 1 / 0) == (same, None)     # the pick's own shaping: not asked
-    assert held_wider(fast, pick, None) == (fast, None)                  # no check (one printer judged)
+    assert held_wider([same], pick, lambda cfg: 1 / 0) == (same, None)     # the pick's own shaping: not asked
+    assert held_wider([fast], pick, None) == (fast, None)                  # no check (one printer judged)
+
+
+def test_runners_up_are_what_the_default_rule_would_take_next():
+    from ringtune.agents.tune.choice import pick, runners_up
+
+    klipper = point_from_metrics(TuneConfig(accel=4800.0), _m(4800.0, 0.05))
+    rough = point_from_metrics(TuneConfig(accel=6000.0), _m(6000.0, 0.09))      # faster, visibly worse
+    a, b, c = (point_from_metrics(TuneConfig(accel=x), _m(x, 0.05)) for x in (5600.0, 5300.0, 5000.0))
+    slow = point_from_metrics(TuneConfig(accel=4000.0), _m(4000.0, 0.05))
+    pool = [rough, c, a, slow, b]
+    choice = pick(pool, {"klipper": klipper}, candidates=pool)
+    assert choice.point is a
+    assert runners_up(choice, pool, {"klipper": klipper}) == [b, c]
+    assert runners_up(pick(pool, {"klipper": klipper}, "knee"), pool, {"klipper": klipper}) == []

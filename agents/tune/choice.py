@@ -146,6 +146,21 @@ def _fastest_at_baseline_quality(front: list[Point], baselines: dict[str, Point]
     return Choice(knee(front), "knee", None, f"the knee of the front, because {why}")
 
 
+def runners_up(choice: Choice, pool: Sequence[Point], baselines: dict[str, Point], res: Resolution = DEFAULT_RESOLUTION,
+               n: int = 4) -> list[Point]:
+    """Up to ``n`` points of ``pool`` the default rule would take after ``choice.point``, fastest
+    first: feasible, at least as fast as the first baseline ``choice`` is held to and no visible
+    measure worse than any of them; faster than that baseline only (it is the fallback itself).
+    Empty for another rule."""
+    if choice.by != "fastest-at-baseline-quality" or not choice.held_to:
+        return []
+    first, *rest = (baselines[k] for k in choice.held_to)
+    cands = [p for p in at_baseline_quality([q for q in pool if q.feasible], first, res)
+             if p is not choice.point and p.print_time_s < first.print_time_s
+             and all(_no_worse_seen(p, b, res) for b in rest)]
+    return sorted(cands, key=lambda p: (p.print_time_s, p.quality_mm))[:n]
+
+
 def fastest(cands: Sequence[Point], res: Resolution = DEFAULT_RESOLUTION) -> Point:
     """The fastest of ``cands``; of those equally fast (one plan, :data:`SAME_PLAN_REL`), one that no
     other beats — better on a visible measure at the resolution and worse on none —, then the lowest

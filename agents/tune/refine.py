@@ -1,8 +1,9 @@
 """After the study: the choice refined with the study's own judgement, in three walks.
 
 0. The study's choice, judged on the model and its twins, is held on the wider printers of
-   :mod:`ringtune.agents.tune.wider` too; where it is worse there, the walks start from the first
-   baseline it was held to instead.
+   :mod:`ringtune.agents.tune.wider` too; where it is worse there, the walks start from the next
+   fastest point the rule would take that holds there (``runners_up``), else from the first
+   baseline it was held to.
 1. The shaper ladder (:mod:`ringtune.agents.tune.shaper_ladder`): each shaper of Klipper's rule
    climbs higher accelerations; the fastest that passes, and holds on the wider printers of
    :mod:`ringtune.agents.tune.wider`, replaces the choice.
@@ -24,12 +25,13 @@ from __future__ import annotations
 import dataclasses
 import json
 import time
-from typing import Callable
+from typing import Callable, Sequence
 
 from ringtune.agents.tune.baselines import Baselines
 from ringtune.agents.tune.hidden_raise import Raise, raise_hidden
 from ringtune.agents.tune.choice import BASELINE_NAMES, Choice
 from ringtune.agents.tune.shaper_ladder import Ladder, climb, shaping_text
+from ringtune.agents.tune.pareto import Point
 from ringtune.agents.tune.space import SearchSpace
 from ringtune.agents.tune.stop import Bounds, Stop, failure_words, measured_stop
 from ringtune.agents.tune.study import DEFAULT_EVALUATOR, StudySettings, evaluator_kwargs
@@ -39,7 +41,7 @@ from ringtune.envs.forked import split_map
 
 
 def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySettings, printer, space: SearchSpace,
-           bounds: Bounds, note: Callable[[str], None] = lambda s: None
+           bounds: Bounds, note: Callable[[str], None] = lambda s: None, runners_up: Sequence[Point] = ()
            ) -> tuple[Choice, Stop | None, Raise | None, Ladder | None]:
     """(the choice, the measured stop or None, the raise where nobody looks or None, the shaper
     ladder or None): a choice held to baselines climbs the ladder and takes the measured stop; then,
@@ -66,12 +68,14 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
         held = choice.held_to or (choice.baseline,)
         bases = {k: bl.points[k] for k in held}
         names = {k: bl.labels.get(k, BASELINE_NAMES.get(k, k)) for k in held}
-        start, off = held_wider(choice.point, bases[held[0]], widen(bases, None))
+        start, off = held_wider([choice.point, *runners_up], bases[held[0]], widen(bases, None))
         if off is not None:
+            then = (f"{names[held[0]]} itself" if start is bases[held[0]] else
+                    f"the next fastest the study tried that holds there ({start.label or 'a trial'}, "
+                    f"{start.print_time_s:.3f} s)")
             choice = dataclasses.replace(choice, point=start, sentence=(
                 f"{choice.sentence}; but that is worse on a printer further off the model "
-                f"({failure_words(off, names.get(off.baseline, off.baseline))}), so the choice starts from "
-                f"{names[held[0]]} itself"))
+                f"({failure_words(off, names.get(off.baseline, off.baseline))}), so the choice starts from {then}"))
         step("climbing the shapers of Klipper's rule's table ...")
         ladder = climb(choice.point, bases, evaluate, space, bounds, bl.fits, max_evaluations=settings.n_trials,
                        screen=exact, wider=widen(bases, choice.point))

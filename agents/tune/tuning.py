@@ -18,7 +18,7 @@ from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
 from ringtune.agents.tune.motor_bound import top_speed_load_note
 from ringtune.agents.tune.out_dir import check_out, remove_if_empty
-from ringtune.agents.tune.choice import BASELINE_NAMES, pick
+from ringtune.agents.tune.choice import BASELINE_NAMES, pick, runners_up
 from ringtune.agents.tune.pareto import VISIBLE_KEYS
 from ringtune.agents.tune.refine import refine
 from ringtune.agents.tune.request import Limits, TuneRequest, check_request, shaping_min_freq
@@ -78,7 +78,8 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     front = pareto.pareto_front(points, also=_also(points, quality))
     choice = pick(front, baselines, lim.how, req.weight, candidates=points)
     choice, stop, lift, ladder = refine(choice, bl, evaluator, settings, printer, space,
-                                        Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st), note)
+                                        Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st), note,
+                                        runners_up(choice, points, baselines))
     result, text, accel_json, ja_json = _report(req, lim, fw, printer, facts, space, quality, points, front, choice,
                                                 (stop, lift, ladder), bl, settings, floor_note, why, out_dir, store, note)
     result.update({"stop": stop.to_dict() if stop else None,

@@ -91,13 +91,21 @@ def study_evaluate_on(job, kwargs: dict, printer) -> Callable[[Sequence[TuneConf
     return evaluate_on
 
 
-def held_wider(point: Point, first: Point, check: Callable[[TuneConfig], Failure | None] | None
+def held_wider(points: Sequence[Point], first: Point, check: Callable[[TuneConfig], Failure | None] | None
                ) -> tuple[Point, Failure | None]:
-    """(the point the walks start from, why ``point`` was set aside or None): the study's choice
-    ``point`` where it holds on the wider printers (``check``), else the first reference baseline
-    ``first`` itself — the study judged its choice on the model and its twins alone, and a faster
-    shaping that only rides their resolution ripples more a little further off."""
-    if check is None or point is first or point.config == first.config:
-        return point, None
-    off = check(point.config)
-    return (point, None) if off is None else (first, off)
+    """(the point the walks start from, why the study's choice ``points[0]`` was set aside or None):
+    the first of ``points`` (the study's choice, then its runners-up, fastest first) that holds on
+    the wider printers (``check``), else the first reference baseline ``first`` itself — the study
+    judged its points on the model and its twins alone, and a faster shaping that only rides their
+    resolution ripples more a little further off. The baseline's own shaping is not asked."""
+    if check is None or not points:
+        return (points[0] if points else first), None
+    off = None
+    for p in points:
+        if p is first or p.config == first.config:
+            return p, off
+        why = check(p.config)
+        if why is None:
+            return p, off
+        off = off or why
+    return first, off
