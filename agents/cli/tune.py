@@ -109,10 +109,10 @@ keeps every measure becomes the choice. Then its acceleration is stepped up 5 % 
 same judgement until a measure gets worse or a bound binds (the summary names it, with both values).
 The study's choice, the ladder, the stop and the walk also simulate what they take on three printers
 further off the model than the twins (resonances ×0.85, ×1 and ×1.15 at half the damping), each
-alone: what is worse there than the baselines is not taken (the study's choice gives way to the
-baseline), since a step that only rides the twins' resolution ripples more on a printer a little
-further off. Differences under 1 µm or 5 % of a distance, 1 point or 5 % of extrusion and 0.5 % of
-print time count as the same.
+alone: what is worse there than the baselines is not taken (the study's choice gives way to a slower
+study point that holds there, or to the baseline), since a step that only rides the twins'
+resolution ripples more on a printer a little further off. Differences under 1 µm or 5 % of a
+distance, 1 point or 5 % of extrusion and 0.5 % of print time count as the same.
 
 With no arguments it tunes the built-in Ender-3-class printer on the built-in test print into
 ./ringtune-out/ in about a minute; open ringtune-out/README.txt first. Running the same command

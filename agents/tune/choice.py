@@ -102,7 +102,8 @@ def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastes
     worse on another. The reference baselines are candidates too (the study may not have tried them:
     its acceleration range can start above theirs), so where the study tried nothing as fast at their
     quality the choice is the first baseline itself; the knee of the front only where there is no
-    usable baseline, and the sentence says so. ``knee``: :func:`knee`. ``weight``: minimises print time + ``weight`` × quality (s/mm)."""
+    usable baseline, and the sentence says so. ``knee``: :func:`knee`. ``weight``: minimises print
+    time + ``weight`` × quality (s/mm)."""
     front = [p for p in front if p.feasible]
     if not front:
         raise _no_front()

@@ -52,13 +52,15 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
     evaluate, exact = _evaluators(evaluator, settings, printer)
     t0 = time.monotonic()
 
+    # the wider printers' simulations, shared by the four checks below (each baseline simulated once)
+    on = (study_evaluate_on(settings.job, evaluator_kwargs(settings), printer)
+          if exact is not None and settings.evaluator == DEFAULT_EVALUATOR else None)
+
     def widen(held: dict, start):
         """The wider check against ``held`` from ``start`` (None where the study judges on one printer
         or with an evaluator of its own)."""
-        if exact is None or settings.evaluator != DEFAULT_EVALUATOR:
-            return None
-        on = study_evaluate_on(settings.job, evaluator_kwargs(settings), printer)
-        return wider_check({k: b.config for k, b in held.items()}, on, start=start and start.config)
+        return None if on is None else wider_check({k: b.config for k, b in held.items()}, on,
+                                                   start=start and start.config)
 
     def step(what: str) -> None:
         note(f"ringtune tune: after the study ({time.monotonic() - t0:.0f} s): {what}")

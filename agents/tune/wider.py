@@ -16,6 +16,7 @@ model's lead-in), against the baselines there.
 
 from __future__ import annotations
 
+import json
 from typing import Callable, Sequence
 
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, JUDGED_KEYS, Point, Resolution, judge, point_from_metrics
@@ -80,13 +81,23 @@ def _worse_than(mine: Point, before: Point | None, key: str, res: Resolution) ->
 def study_evaluate_on(job, kwargs: dict, printer) -> Callable[[Sequence[TuneConfig], Sequence[Variant]], list]:
     """``evaluate_on(configs, variants)`` as the study's default evaluator judges (its backend and
     job-acceleration mode), each variant of ``printer`` alone with the model's lead-in, all in one
-    batch (:func:`ringtune.envs.evaluate.evaluate_variants`: the same figures as one call each)."""
+    batch (:func:`ringtune.envs.evaluate.evaluate_variants`: the same figures as one call each).
+    What it simulated once (the baselines, a walk's start) it remembers, so the walks that share it
+    do not simulate it again."""
     settle = auto_settle(printer)
+    known: dict[tuple[str, Variant], object] = {}
+
+    def key(cfg: TuneConfig) -> str:
+        return json.dumps(cfg.to_dict(), sort_keys=True)
 
     def evaluate_on(configs, variants):
-        runs = evaluate_variants(list(configs), [v.of(printer) for v in variants], job,
-                                 kwargs.get("backend", "mujoco"), settle=settle, job_accel=kwargs.get("job_accel"))
-        return [[e.metrics for e in evs] for evs in runs]
+        todo = list({key(c): c for c in configs if any((key(c), v) not in known for v in variants)}.values())
+        if todo:
+            runs = evaluate_variants(todo, [v.of(printer) for v in variants], job, kwargs.get("backend", "mujoco"),
+                                     settle=settle, job_accel=kwargs.get("job_accel"))
+            for v, evs in zip(variants, runs):
+                known.update(((key(c), v), e.metrics) for c, e in zip(todo, evs))
+        return [[known[(key(c), v)] for c in configs] for v in variants]
 
     return evaluate_on
 
