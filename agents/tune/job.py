@@ -186,7 +186,7 @@ def _accel_bounds(chosen: Point, space, max_pe: float, reserve: float, headroom:
     if reserve > 0 and load:
         cap = 1.0 - reserve
         cands.append(("motor reserve", load / cap, f"motor load {load * 100:.0f} % of the force the motors have at "
-                      f"their speed; the reserve allows {cap * 100:.0f} % ({(cap - load) * 100:.0f} points free)"))
+                      f"their speed; the reserve allows {cap * 100:.0f} % ({_points((cap - load) * 100)} free)"))
         headroom["motor_load"] = cap - load
     pe = chosen.metrics.get("path_error_mm")
     if max_pe > 0 and pe is not None:
@@ -210,3 +210,9 @@ def _faster_trials(points, a: float) -> list[str]:
     why = Counter(next((words for words, test in HELD_BACK if test(p)), None) for p in faster)
     said = ", ".join(f"{why[words]} {words}" for words, _ in HELD_BACK if why[words])
     return [f"Of the {len(faster)} trials at a higher acceleration, {said}."] if said else []
+
+
+def _points(pct: float) -> str:
+    """``"1 point"``, ``"66 points"``: a number of percentage points, rounded, in words."""
+    n = round(pct)
+    return f"{n:.0f} point" + ("" if n == 1 else "s")
