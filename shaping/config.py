@@ -199,6 +199,10 @@ class TuneConfig:
         d.update(extra)
         return d
 
+    def key(self) -> str:
+        """A string equal for equal configurations (their JSON, keys sorted): for caches."""
+        return json.dumps(self.to_dict(), sort_keys=True)
+
     @property
     def axis_caps(self) -> tuple[float | None, float | None]:
         """(X, Y) per-axis acceleration caps this configuration runs with, mm/s² (None: the printer's)."""

@@ -135,7 +135,7 @@ def _fastest_at_baseline_quality(front: list[Point], baselines: dict[str, Point]
     tries = _tries(list(by_key))
     for held in tries:
         first, *rest = (by_key[k] for k in held)
-        cands = [p for p in at_baseline_quality(pool, first, res) if all(_no_worse_seen(p, b, res) for b in rest)]
+        cands = _held_to_all(pool, first, rest, res)
         if cands:
             p = fastest(cands, res)
             own = next((k for k, b in by_key.items() if b is p), None)
@@ -156,10 +156,15 @@ def runners_up(choice: Choice, pool: Sequence[Point], baselines: dict[str, Point
     if choice.by != "fastest-at-baseline-quality" or not choice.held_to:
         return []
     first, *rest = (baselines[k] for k in choice.held_to)
-    cands = [p for p in at_baseline_quality([q for q in pool if q.feasible], first, res)
-             if p is not choice.point and p.print_time_s < first.print_time_s
-             and all(_no_worse_seen(p, b, res) for b in rest)]
+    cands = [p for p in _held_to_all(pool, first, rest, res)
+             if p is not choice.point and p.print_time_s < first.print_time_s]
     return sorted(cands, key=lambda p: (p.print_time_s, p.quality_mm))[:n]
+
+
+def _held_to_all(pool: Sequence[Point], first: Point, rest: Sequence[Point], res: Resolution) -> list[Point]:
+    """The feasible points of ``pool`` at least as fast as ``first`` with no visible measure worse
+    than ``first``'s or any of ``rest``'s."""
+    return [p for p in at_baseline_quality(pool, first, res) if all(_no_worse_seen(p, b, res) for b in rest)]
 
 
 def fastest(cands: Sequence[Point], res: Resolution = DEFAULT_RESOLUTION) -> Point:

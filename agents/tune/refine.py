@@ -23,7 +23,6 @@ surfaces are seen); each appends what it did to the choice's sentence.
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
 from typing import Callable, Sequence
 
@@ -100,9 +99,9 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
         # quality is spent only where nobody looks: every visible measure also no worse than the
         # choice's own before the walk (the top surfaces are seen)
         step("the walk where nobody looks, each feature group toward its top ...")
-        held = {**bases, "choice": choice.point}
-        lift = raise_hidden(choice.point, held, evaluate, space, bounds, max_evaluations=settings.n_trials,
-                            screen=exact, wider=widen(held, choice.point))
+        walk_bases = {**bases, "choice": choice.point}
+        lift = raise_hidden(choice.point, walk_bases, evaluate, space, bounds, max_evaluations=settings.n_trials,
+                            screen=exact, wider=widen(walk_bases, choice.point))
         step(f"done ({lift.evaluations} judged, {lift.screened} screened)")
         if lift.moved:
             held = ("than the baseline's or the choice's own before" if choice.baseline is not None
@@ -122,16 +121,13 @@ def _evaluators(evaluator: Callable, settings: StudySettings, printer) -> tuple[
     margin = kwargs.get("freq_margin")
     seen: dict[str, object] = {}
 
-    def key(cfg) -> str:
-        return json.dumps(cfg.to_dict(), sort_keys=True)
-
     # the real simulation's batches are split over the cores (the same figures); an injected
     # evaluator runs as given, in this process
     split = split_map if settings.evaluator == DEFAULT_EVALUATOR else _in_process
 
     def judge(configs):
         configs = list(configs)
-        known = [seen.get(key(c)) for c in configs]          # empty without a screen
+        known = [seen.get(c.key()) for c in configs]          # empty without a screen
         if configs and all(m is not None for m in known):
             return split(lambda part: evaluate_twins([c for c, _ in part], [m for _, m in part], printer,
                                                      settings.job, kwargs["backend"], freq_margin=margin,
@@ -141,7 +137,7 @@ def _evaluators(evaluator: Callable, settings: StudySettings, printer) -> tuple[
     def screen(configs):
         configs = list(configs)
         out = split(lambda part: evaluator(part, printer, settings.job, **{**kwargs, "freq_margin": 0.0}), configs)
-        seen.update((key(c), m) for c, m in zip(configs, out))
+        seen.update((c.key(), m) for c, m in zip(configs, out))
         return out
 
     return judge, (screen if margin else None)

@@ -209,6 +209,23 @@ class Failure(NamedTuple):
     variant: tuple[float, float] | None = None
 
 
+def worst_measure(p: Point, bases: dict[str, Point], res: Resolution,
+                  excused: Callable[[str, str], bool] = lambda name, key: False,
+                  variant: tuple[float, float] | None = None) -> Failure | None:
+    """The visible measure (:data:`~ringtune.agents.tune.pareto.JUDGED_KEYS`) of ``p`` worse than a
+    baseline's by the largest ratio (over the printer variants, or on one of them:
+    :func:`ringtune.agents.tune.pareto.compare_figure`), as a ``measure`` :class:`Failure`; None
+    where none is. ``excused(baseline, key)``: a figure not held against that baseline;
+    ``variant``: the printer variant ``p`` and ``bases`` were simulated on, where it is one."""
+    worse = [(f.mine / max(f.theirs, 1e-12), k, name, f) for name, base in bases.items()
+             for k, f in judge(p, base, res, JUDGED_KEYS).figures.items()
+             if f.verdict == "worse" and not excused(name, k)]
+    if not worse:
+        return None
+    _ratio, k, name, f = max(worse, key=lambda w: w[:3])
+    return Failure("measure", k, name, float(f.mine), float(f.theirs), variant or f.variant)
+
+
 def failure(p: Point, bases: dict[str, Point], faster_than: Point, bounds: Bounds,
             res: Resolution) -> Failure | None:
     """Why ``p`` may not replace ``faster_than``, or None. A bound first; else the visible measure
@@ -222,11 +239,9 @@ def failure(p: Point, bases: dict[str, Point], faster_than: Point, bounds: Bound
     for key, flag, value, limit in broken:
         if flag:
             return Failure("bound", key, None, float(value), float(limit))
-    worse = [(f.mine / max(f.theirs, 1e-12), k, name, f) for name, base in bases.items()
-             for k, f in judge(p, base, res, JUDGED_KEYS).figures.items() if f.verdict == "worse"]
+    worse = worst_measure(p, bases, res)
     if worse:
-        _ratio, k, name, f = max(worse, key=lambda w: w[:3])
-        return Failure("measure", k, name, float(f.mine), float(f.theirs), f.variant)
+        return worse
     if p.print_time_s >= faster_than.print_time_s:
         return Failure("time", "print_time_s", None, p.print_time_s, faster_than.print_time_s)
     return None

@@ -16,11 +16,10 @@ model's lead-in), against the baselines there.
 
 from __future__ import annotations
 
-import json
 from typing import Callable, Sequence
 
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, JUDGED_KEYS, Point, Resolution, judge, point_from_metrics
-from ringtune.agents.tune.stop import Failure
+from ringtune.agents.tune.stop import Failure, worst_measure
 from ringtune.envs.evaluate import evaluate_variants
 from ringtune.envs.variants import Variant
 from ringtune.envs.windows import auto_settle
@@ -46,35 +45,37 @@ def wider_check(bases: dict[str, TuneConfig], evaluate_on: Callable[[Sequence[Tu
     metrics on that printer alone. The baselines and ``start`` are simulated once, with the first
     check."""
     refs = {**bases, **({} if start is None else {_START: start})}
-    settled: dict[Variant, dict[str, Point]] = {}
+    # per variant: the bases there, the (baseline, measure) pairs the start is already worse on, the start
+    settled: dict[Variant, tuple[dict[str, Point], set, Point | None]] = {}
+
+    def settle(v: Variant, points: list[Point]) -> None:
+        there = dict(zip(refs, points))
+        before = there.pop(_START, None)
+        excuses = set() if before is None else {(name, k) for name, base in there.items()
+                                                for k, verdict in judge(before, base, res, JUDGED_KEYS).verdicts.items()
+                                                if verdict == "worse"}
+        settled[v] = (there, excuses, before)
 
     def check(config: TuneConfig) -> Failure | None:
         configs = [config] if settled else [config, *refs.values()]
-        per_variant = evaluate_on(configs, variants)
-        worse = []
-        for v, metrics in zip(variants, per_variant):
+        found = []
+        for v, metrics in zip(variants, evaluate_on(configs, variants)):
             mine, *theirs = [point_from_metrics(c, m) for c, m in zip(configs, metrics)]
             if theirs:
-                settled[v] = dict(zip(refs, theirs))
-            before = settled[v].get(_START)
-            for name, base in settled[v].items():
-                if name == _START:
-                    continue
-                already = {} if before is None else judge(before, base, res, JUDGED_KEYS).verdicts
-                for key, f in judge(mine, base, res, JUDGED_KEYS).figures.items():
-                    if f.verdict == "worse" and (already.get(key) != "worse" or _worse_than(mine, before, key, res)):
-                        worse.append((f.mine / max(f.theirs, 1e-12), key, name, f.mine, f.theirs, v))
-        if not worse:
-            return None
-        _ratio, key, name, mine_v, theirs_v, v = max(worse, key=lambda w: w[:3])
-        return Failure("measure", key, name, float(mine_v), float(theirs_v), (v.freq, v.damping))
+                settle(v, theirs)
+            there, excuses, before = settled[v]
+            why = worst_measure(mine, there, res, variant=(v.freq, v.damping),
+                                excused=lambda name, k: (name, k) in excuses and not _worse_than(mine, before, k, res))
+            if why is not None:
+                found.append(why)
+        return max(found, key=lambda f: (f.value / max(f.limit, 1e-12), f.key, f.baseline)) if found else None
 
     return check
 
 
-def _worse_than(mine: Point, before: Point | None, key: str, res: Resolution) -> bool:
-    """Whether ``mine``'s figure ``key`` is worse than ``before``'s (True without ``before`` or its figure)."""
-    f = None if before is None else judge(mine, before, res, (key,)).figures.get(key)
+def _worse_than(mine: Point, before: Point, key: str, res: Resolution) -> bool:
+    """Whether ``mine``'s figure ``key`` is worse than ``before``'s (True where ``before`` lacks it)."""
+    f = judge(mine, before, res, (key,)).figures.get(key)
     return f is None or f.verdict == "worse"
 
 
@@ -87,17 +88,14 @@ def study_evaluate_on(job, kwargs: dict, printer) -> Callable[[Sequence[TuneConf
     settle = auto_settle(printer)
     known: dict[tuple[str, Variant], object] = {}
 
-    def key(cfg: TuneConfig) -> str:
-        return json.dumps(cfg.to_dict(), sort_keys=True)
-
     def evaluate_on(configs, variants):
-        todo = list({key(c): c for c in configs if any((key(c), v) not in known for v in variants)}.values())
+        todo = list({c.key(): c for c in configs if any((c.key(), v) not in known for v in variants)}.values())
         if todo:
             runs = evaluate_variants(todo, [v.of(printer) for v in variants], job, kwargs.get("backend", "mujoco"),
                                      settle=settle, job_accel=kwargs.get("job_accel"))
             for v, evs in zip(variants, runs):
-                known.update(((key(c), v), e.metrics) for c, e in zip(todo, evs))
-        return [[known[(key(c), v)] for c in configs] for v in variants]
+                known.update(((c.key(), v), e.metrics) for c, e in zip(todo, evs))
+        return [[known[(c.key(), v)] for c in configs] for v in variants]
 
     return evaluate_on
 
