@@ -22,7 +22,7 @@ steps on (:mod:`ringtune.agents.tune.wider`), so the bench's own walk can end fa
    top (the motor reserve at the group's own top speed) or a lower step, the fastest with no
    visible measure worse than (2)'s and the simulated motor load within the reserve, show-through
    within its bounds (as in (2), against (2)'s); then the corners nobody sees (infill, support,
-   solid infill, travel: :data:`~ringtune.agents.tune.space.HIDDEN_CORNERS`) with Klipper's
+   solid infill, travel: :data:`~ringtune.agents.tune.space.CORNER_GROUPS`, solid infill's apart) with Klipper's
    square_corner_velocity from the top of their range down and minimum_cruise_ratio 0 or the
    printer's, the fastest that keeps the same judgement.
 
@@ -46,7 +46,7 @@ import time
 from ringtune.agents.tune.baselines import recorded_klipper
 from ringtune.agents.tune.feature_space import feature_space
 from ringtune.agents.tune.pareto import no_worse, point_from_metrics
-from ringtune.agents.tune.space import ACCEL_GROUPS, HIDDEN_CORNERS, SEEN_GROUPS, default_space
+from ringtune.agents.tune.space import ACCEL_GROUPS, CORNER_GROUPS, HIDDEN_CORNERS, SEEN_GROUPS, default_space
 from ringtune.envs.evaluate import evaluate_many
 from ringtune.envs.planned_job import planned_job
 from ringtune.envs.plan_load import plan_load
@@ -151,16 +151,22 @@ def per_feature(printer, job, base_cfg, ref, steps=(1.0, 0.85, 0.7, 0.55, 0.4, 0
 
 
 def hidden_corners(printer, job, config, metrics, ref, corners=(30.0, 22.5, 15.0, 10.0, 7.5)):
-    """``config`` with the corners nobody sees at the fastest of ``corners`` (square_corner_velocity,
-    mm/s) × minimum_cruise_ratio (0, the printer's) that keeps the judgement against ``ref`` (else
-    ``config`` as it is, with ``metrics``)."""
+    """``config`` with the corners nobody sees, one group of
+    :data:`~ringtune.agents.tune.space.CORNER_GROUPS` after the other (sparse infill and travel, then
+    solid infill, whose extrusion is judged as seen), each at the fastest of ``corners``
+    (square_corner_velocity, mm/s) × minimum_cruise_ratio (0, the printer's) that keeps the
+    judgement against ``ref`` (else as it is), with its metrics."""
     mcr_now = float(printer.limits.min_cruise_ratio)
-    cands = [dataclasses.replace(config, feature_corner=dict.fromkeys(HIDDEN_CORNERS, c),
-                                 feature_min_cruise_ratio=dict.fromkeys(HIDDEN_CORNERS, r))
-             for c in corners for r in (0.0, mcr_now)]
-    ms = evaluate_many(cands, printer, job, freq_margin=MARGIN)
-    ok = [(c, m) for c, m in zip(cands, ms) if not_worse(m, ref) and m.print_time_s < metrics.print_time_s]
-    return min(ok, key=lambda cm: cm[1].print_time_s) if ok else (config, metrics)
+    for classes in CORNER_GROUPS.values():
+        cands = [dataclasses.replace(config, feature_corner={**config.feature_corner, **dict.fromkeys(classes, c)},
+                                     feature_min_cruise_ratio={**config.feature_min_cruise_ratio,
+                                                               **dict.fromkeys(classes, r)})
+                 for c in corners for r in (0.0, mcr_now)]
+        ms = evaluate_many(cands, printer, job, freq_margin=MARGIN)
+        ok = [(c, m) for c, m in zip(cands, ms) if not_worse(m, ref) and m.print_time_s < metrics.print_time_s]
+        if ok:
+            config, metrics = min(ok, key=lambda cm: cm[1].print_time_s)
+    return config, metrics
 
 
 def plan_load_tops(printer, job, single_cfg, space, steps: int = 10) -> dict[str, float]:
@@ -237,9 +243,11 @@ def main() -> int:
         print("  per feature: no candidate keeps every visible measure")
         return 1
     hidden = {g: feat_cfg.feature_accel.get(ACCEL_GROUPS[g][0], feat_cfg.accel) for g, *_ in space.feature_accel}
-    corner = (f"; corners nobody sees: square_corner_velocity {feat_cfg.feature_corner[HIDDEN_CORNERS[0]]:g}, "
-              f"minimum_cruise_ratio {feat_cfg.feature_min_cruise_ratio[HIDDEN_CORNERS[0]]:g}"
-              if feat_cfg.feature_corner else "; corners as the printer's")
+    corner = "".join(f"; corners of {'/'.join(classes)}: square_corner_velocity "
+                     f"{feat_cfg.feature_corner[classes[0]]:g}, minimum_cruise_ratio "
+                     f"{feat_cfg.feature_min_cruise_ratio[classes[0]]:g}"
+                     for classes in CORNER_GROUPS.values() if classes[0] in feat_cfg.feature_corner) \
+        or "; corners as the printer's"
     print(row("per feature", feat) + "  (" + ", ".join(f"{g} {a:.0f}" for g, a in hidden.items()) + " mm/s²"
           + corner + ")")
     gain = 1 - feat.print_time_s / single.print_time_s

@@ -76,9 +76,10 @@ def test_parameters_and_configs_map_both_ways_and_the_space_survives_json():
     cfg = config_from_params(params, space)
     assert cfg.feature_accel == {"inner_wall": 8000.0, "infill": 9000.0, "support": 9000.0, "travel": 7000.0}
     assert (cfg.corner, cfg.min_cruise_ratio) == (7.5, 0.2)
-    # the corners nobody sees (the built-in print has no solid infill: its class is set all the same)
-    assert cfg.feature_corner == dict.fromkeys(("infill", "support", "solid_infill", "travel"), 21.0)
-    assert cfg.feature_min_cruise_ratio == dict.fromkeys(("infill", "support", "solid_infill", "travel"), 0.0)
+    # the corners nobody sees (the built-in print has no solid infill: solid infill's own corner
+    # rule, walked apart, is not in its space)
+    assert cfg.feature_corner == dict.fromkeys(("infill", "support", "travel"), 21.0)
+    assert cfg.feature_min_cruise_ratio == dict.fromkeys(("infill", "support", "travel"), 0.0)
     assert TuneConfig.from_dict(json.loads(json.dumps(cfg.to_dict()))) == cfg
     assert params_from_config(cfg, space) == params
     # a configuration without per-feature values runs the printer's own corner and ratio
@@ -120,7 +121,18 @@ def test_the_study_samples_no_walked_parameter():
     walked = set(walked_keys(space))
     assert walked == {f"accel_{g}" for g, _lo, _hi in space.feature_accel} | {
         "corner", "min_cruise_ratio", "corner_hidden", "min_cruise_ratio_hidden"}
+    # a job with solid infill walks its corners apart (their extrusion is judged as seen)
+    part = set(walked_keys(feature_space(default_space(BASE, "klipper"), BASE, "part")))
+    assert part - walked == {"accel_solid_infill", "accel_top_surface", "corner_solid", "min_cruise_ratio_solid"}
     given = {"shaper_x": "zv", "shaper_y": "zv", "freq_x": 45.0, "freq_y": 40.0, "damping_x": 0.1, "damping_y": 0.1,
              "freq_limit": "off", "accel": 4000.0}
     p = suggest_params(optuna.trial.FixedTrial(given), space)
     assert not walked & set(p)
+    part_space = feature_space(default_space(BASE, "klipper"), BASE, "part")
+    params = {**given, **{f"accel_{g}": 5000.0 for g, _lo, _hi in part_space.feature_accel}, "corner": 5.0,
+              "min_cruise_ratio": 0.5, "corner_hidden": 21.0, "min_cruise_ratio_hidden": 0.0, "corner_solid": 9.0,
+              "min_cruise_ratio_solid": 0.5}
+    cfg = config_from_params(params, part_space)
+    assert cfg.feature_corner == {"infill": 21.0, "support": 21.0, "travel": 21.0, "solid_infill": 9.0}
+    assert cfg.feature_min_cruise_ratio == {"infill": 0.0, "support": 0.0, "travel": 0.0, "solid_infill": 0.5}
+    assert params_from_config(cfg, part_space) == params

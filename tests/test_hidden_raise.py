@@ -23,21 +23,25 @@ from ringtune.shaping.config import TuneConfig
 
 RIPPLE_TOP = 10_000.0      # mm/s²: the infill above this makes the (visible) ripple worse
 SHOW_PER_CORNER = 0.01     # mm of show-through per mm/s of the hidden corner rule
+SOLID_TOP = 12.0           # mm/s: solid infill's corner rule above this over-extrudes it (judged as seen)
 BOUNDS = Bounds(max_path_error_mm=0.1, max_motor_load=0.8, max_show_through_mm=0.2)
 
 
 def _metrics(cfg: TuneConfig, travel_overloads: bool = False):
-    """Known verdicts: print time falls with every hidden acceleration, the hidden corner rule and
-    a lower minimum_cruise_ratio; the infill above RIPPLE_TOP ripples the walls more; the corner
-    rule shows through; the travel may overload a motor at any raise."""
+    """Known verdicts: print time falls with every hidden acceleration, the hidden corner rules and
+    a lower minimum_cruise_ratio; the infill above RIPPLE_TOP ripples the walls more; the sparse
+    infill's corner rule shows through, solid infill's above SOLID_TOP over-extrudes (its extrusion
+    is seen); the travel may overload a motor at any raise."""
     fa = cfg.feature_accel
     corner = cfg.feature_corner.get("infill", 5.0)
+    solid = cfg.feature_corner.get("solid_infill", 5.0)
     mcr = cfg.feature_min_cruise_ratio.get("infill", 0.5)
-    t = (1000.0 + sum(1e6 / a for a in fa.values()) - corner + 10.0 * mcr)
+    t = (1000.0 + sum(1e6 / a for a in fa.values()) - corner - 0.5 * solid + 10.0 * mcr)
     return SimpleNamespace(print_time_s=t, step_loss=False, path_error_mm=0.05, overshoot_mm=0.03, ringing_mm=0.01,
                            peak_accel=5000.0, motor_load=0.9 if travel_overloads and fa.get("travel", 0) > 5000 else 0.5,
                            ripple_mm=0.08 if fa.get("infill", 0) > RIPPLE_TOP else 0.05, ripple_p90_mm=0.04,
-                           corner_in_mm=0.1, corner_out_mm=0.04, extrusion_over_pct=10.0, extrusion_under_pct=8.0,
+                           corner_in_mm=0.1, corner_out_mm=0.04, extrusion_over_pct=15.0 if solid > SOLID_TOP else 10.0,
+                           extrusion_under_pct=8.0,
                            e_lag_mm=0.05, show_through_mm=SHOW_PER_CORNER * corner)
 
 
@@ -50,7 +54,7 @@ def space():
 def _start(space):
     params = {"shaper_x": "ei", "shaper_y": "mzv", "freq_x": 51.4, "freq_y": 46.6, "damping_x": 0.1,
               "damping_y": 0.1, "freq_limit": "off", "accel": 5000.0, "corner": 5.0, "min_cruise_ratio": 0.5,
-              "corner_hidden": 5.0, "min_cruise_ratio_hidden": 0.5,
+              "corner_hidden": 5.0, "min_cruise_ratio_hidden": 0.5, "corner_solid": 5.0, "min_cruise_ratio_solid": 0.5,
               **{f"accel_{g}": 5000.0 for g, _lo, _hi in space.feature_accel}}
     return config_from_params(params, space)
 
@@ -91,14 +95,17 @@ def test_each_group_goes_as_high_as_the_judgement_allows(space):
     want = max(round(c * 2) / 2 for c in [kept_c] + [kept_c + f * (above_c - kept_c) for f in FINER] if within(c))
     assert want > round(kept_c * 2) / 2
     assert got["corner_hidden"] == want and got["min_cruise_ratio_hidden"] == 0.0
+    # solid infill's corners apart: held by their own extrusion, which does not hold the others'
+    assert want > SOLID_TOP >= got["corner_solid"] > 5.0 and got["min_cruise_ratio_solid"] == 0.0
     assert lift.moved and lift.point.print_time_s < lift.start.print_time_s
-    # one batch each: the corners nobody sees and their finer steps, infill (and its finer steps:
-    # the only group stopped below its top), solid infill, travel, inner walls, top surfaces, the
-    # job's corner rule (it saves no time here: not taken; its finer steps neither)
-    assert lift.evaluations == sum(calls) and len(calls) == 10
-    assert [k for k, _a, _b in lift.raised] == ["corner_hidden", "min_cruise_ratio_hidden", "accel_infill",
-                                                "accel_solid_infill", "accel_travel", "accel_hidden_walls",
-                                                "accel_top_surface"]
+    # one batch each: the corners nobody sees and their finer steps, solid infill's and theirs,
+    # infill (and its finer steps: the only group stopped below its top), solid infill, travel,
+    # inner walls, top surfaces, the job's corner rule (it saves no time here: not taken; its
+    # finer steps neither)
+    assert lift.evaluations == sum(calls) and len(calls) == 12
+    assert [k for k, _a, _b in lift.raised] == ["corner_hidden", "min_cruise_ratio_hidden", "corner_solid",
+                                                "min_cruise_ratio_solid", "accel_infill", "accel_solid_infill",
+                                                "accel_travel", "accel_hidden_walls", "accel_top_surface"]
     assert "infill 5000 → " in lift.sentence() and lift.to_dict()["to_print_time_s"] == lift.point.print_time_s
 
 
@@ -109,7 +116,7 @@ def test_each_setting_walked_says_what_holds_it_with_the_value_that_failed(space
     tops = {g: hi for g, _lo, hi in space.feature_accel}
     lift, _calls = _walk(space)
     held = {h.key: h for h in lift.held}
-    assert list(held) == ["corner_hidden", "accel_infill", "accel_solid_infill", "accel_travel",
+    assert list(held) == ["corner_hidden", "corner_solid", "accel_infill", "accel_solid_infill", "accel_travel",
                           "accel_hidden_walls", "accel_top_surface", "corner"]
     got = params_from_config(lift.point.config, space)
     infill = held["accel_infill"]
@@ -126,11 +133,15 @@ def test_each_setting_walked_says_what_holds_it_with_the_value_that_failed(space
     assert corner.why[:3] == ("bound", "show_through_mm", None)
     assert corner.why[3] == pytest.approx(SHOW_PER_CORNER * corner.tried)
     assert corner.why[4] == BOUNDS.max_show_through_mm
+    solid = held["corner_solid"]
+    assert solid.value == got["corner_solid"] and solid.tried > SOLID_TOP
+    assert solid.why[:5] == ("measure", "extrusion_over_pct", "klipper", 15.0, 10.0)
     assert held["accel_travel"].tried is None and held["accel_travel"].value == held["accel_travel"].top == tops["travel"]
     lines = lift.held_lines({"klipper": "Klipper's rule"}, " mm/s")
     assert f"infill at {infill.value:g} mm/s²: at {infill.tried:g}, ripple 80.0 µm > 50.0 µm of Klipper's rule" in lines
     assert f"travel at {tops['travel']:g} mm/s²: the top of its range" in lines
-    assert lift.to_dict()["held"][1]["tried"] == infill.tried
+    assert lift.to_dict()["held"][2]["tried"] == infill.tried
+    assert f"corner rule of solid infill at {solid.value:g} mm/s: at {solid.tried:g}, over-extrusion" in " ".join(lines)
 
 
 def test_a_failure_the_screen_saw_is_said_to_be_on_the_model_as_fitted(space):

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from ringtune.agents.tune.motor_bound import motor_accel_limit
-from ringtune.agents.tune.space import ACCEL_GROUPS, CORNER_UNIT, HIDDEN_CORNERS, SEEN_GROUPS, SearchSpace
+from ringtune.agents.tune.space import ACCEL_GROUPS, CORNER_GROUPS, CORNER_UNIT, HIDDEN_CORNERS, SEEN_GROUPS, SearchSpace
 from ringtune.envs.planned_job import planned_job, resolve_job
 from ringtune.shaping.feature_settings import corner_value, effective_classes
 from ringtune.shaping.features import FEATURE_CLASSES
@@ -120,8 +120,10 @@ def feature_section(config, space: SearchSpace) -> tuple[list[str], dict]:
     basis = space.feature_basis or {}
     info = {"accel": {"visible": config.accel}, "ranges": dict(basis),
             "corner": config.corner, "junction": space.junction, "min_cruise_ratio": config.min_cruise_ratio,
-            "corner_hidden": _hidden(config.feature_corner), "min_cruise_ratio_hidden":
-            _hidden(config.feature_min_cruise_ratio), "hidden_corner_classes": list(HIDDEN_CORNERS)}
+            **{f"{what}_{name}": _group_value(table, CORNER_GROUPS[name])
+               for name in CORNER_GROUPS for what, table in (("corner", config.feature_corner),
+                                                             ("min_cruise_ratio", config.feature_min_cruise_ratio))},
+            **{f"{name}_corner_classes": list(CORNER_GROUPS[name]) for name in CORNER_GROUPS}}
     lines = [f"  visible walls (outer walls, overhangs, unlabelled moves): {config.accel:.0f} mm/s² "
              f"(searched {space.accel[0]:.0f}–{space.accel[1]:.0f}; judged by ripple, corners, extrusion)"]
     for group, lo, hi in space.feature_accel:
@@ -136,15 +138,23 @@ def feature_section(config, space: SearchSpace) -> tuple[list[str], dict]:
         lines.append(f"  corner rule: {config.corner:g} {unit.get(space.junction, '')}")
     if config.min_cruise_ratio is not None:
         lines.append(f"  minimum_cruise_ratio: {config.min_cruise_ratio:g}")
-    for name, value, rng, u in (("corner rule", info["corner_hidden"], space.hidden_corner, unit.get(space.junction, "")),
-                                ("minimum_cruise_ratio", info["min_cruise_ratio_hidden"], space.hidden_min_cruise_ratio, "")):
-        if value is not None:
-            lines.append(f"  {name} of {', '.join(HIDDEN_CORNERS)} (corners nobody sees): {value:g}{' ' + u if u else ''}"
-                         + (f" (walked within {rng[0]:g}–{rng[1]:g})" if rng else ""))
+    for group in CORNER_GROUPS:
+        why = _CORNER_WHY[group]
+        for name, value, rng, u in (("corner rule", info[f"corner_{group}"], space.hidden_corner,
+                                     unit.get(space.junction, "")),
+                                    ("minimum_cruise_ratio", info[f"min_cruise_ratio_{group}"],
+                                     space.hidden_min_cruise_ratio, "")):
+            if value is not None:
+                lines.append(f"  {name} of {', '.join(CORNER_GROUPS[group])} ({why}): {value:g}{' ' + u if u else ''}"
+                             + (f" (walked within {rng[0]:g}–{rng[1]:g})" if rng else ""))
     return lines, info
 
 
-def _hidden(table: dict) -> float | None:
-    """The value a per-class table gives the classes of :data:`HIDDEN_CORNERS` (None: none set)."""
-    values = {table[c] for c in HIDDEN_CORNERS if c in table}
+#: what each group of :data:`CORNER_GROUPS` is, in the summary
+_CORNER_WHY = {"hidden": "corners nobody sees", "solid": "corners nobody sees; its extrusion judged as seen"}
+
+
+def _group_value(table: dict, classes: tuple[str, ...]) -> float | None:
+    """The value a per-class table gives ``classes`` (None: none set, or not one value)."""
+    values = {table[c] for c in classes if c in table}
     return values.pop() if len(values) == 1 else None

@@ -71,7 +71,8 @@ class Held:
     def words(self, labels: dict[str, str], unit: str) -> str:
         """``"hidden walls at 5900 mm/s²: at 8100, outer wall under-extrusion 29.90 % > 28.20 % of the
         choice before the walk"``; ``labels`` names the baselines, ``unit`` is the value's."""
-        name = {"corner_hidden": "corner rule of the corners nobody sees"}.get(self.key, _name(self.key))
+        name = {"corner_hidden": "corner rule of the corners nobody sees",
+                "corner_solid": "corner rule of solid infill"}.get(self.key, _name(self.key))
         head = f"{name} at {self.value:g}{unit}"
         if self.tried is None:
             return f"{head}: " + ("the top of its range" if self.value >= self.top else "nothing above it was tried")
@@ -134,25 +135,28 @@ class Raise:
 def _name(key: str) -> str:
     """``accel_infill`` -> "infill", ``corner_hidden`` -> "their corner rule" (the corners nobody sees)."""
     return {"corner_hidden": "their corner rule", "min_cruise_ratio_hidden": "their minimum_cruise_ratio",
+            "corner_solid": "solid infill's corner rule", "min_cruise_ratio_solid": "solid infill's minimum_cruise_ratio",
             "corner": "the job's corner rule", "min_cruise_ratio": "the job's minimum_cruise_ratio"}.get(
         key, key.removeprefix("accel_").replace("_", " "))
 
 
 def steps(params: dict[str, Any], space: SearchSpace) -> list[str]:
-    """What the walk raises, in order (module docstring): the corner rule of the corners nobody sees,
-    the acceleration parameter of each group nobody sees, of the abutting ones, of the seen ones,
-    then the job's corner rule, each where the space has it."""
+    """What the walk raises, in order (module docstring): the corner rules of the corners nobody sees
+    (sparse infill and travel, then solid infill), the acceleration parameter of each group nobody
+    sees, of the abutting ones, of the seen ones, then the job's corner rule, each where the space
+    has it."""
     groups = [g for g, _lo, _hi in space.feature_accel if f"accel_{g}" in params]
     order = [g for g in groups if g not in SEEN_GROUPS + ABUTTING_GROUPS] + \
         [g for g in groups if g in ABUTTING_GROUPS] + [g for g in groups if g in SEEN_GROUPS]
     corners = [k for k, (_m, rng, _r) in CORNERS.items() if getattr(space, rng) is not None and k in params]
-    first = [k for k in corners if k == "corner_hidden"]
+    first = [k for k in corners if k in ("corner_hidden", "corner_solid")]
     return first + [f"accel_{g}" for g in order] + [k for k in corners if k not in first]
 
 
 #: each corner rule parameter with its minimum_cruise_ratio and the space's fields of their ranges
 CORNERS = {"corner": ("min_cruise_ratio", "corner", "min_cruise_ratio"),
-           "corner_hidden": ("min_cruise_ratio_hidden", "hidden_corner", "hidden_min_cruise_ratio")}
+           "corner_hidden": ("min_cruise_ratio_hidden", "hidden_corner", "hidden_min_cruise_ratio"),
+           "corner_solid": ("min_cruise_ratio_solid", "hidden_corner", "hidden_min_cruise_ratio")}
 
 
 def batch(key: str, params: dict[str, Any], space: SearchSpace) -> list[dict[str, Any]]:

@@ -64,10 +64,16 @@ SEEN_GROUPS = ("top_surface",)
 #: groups that lie against what is seen (inner walls abut the outer wall: what they push into it is
 #: judged, :data:`ringtune.agents.tune.pareto.CLASS_KEYS`); walked after those nobody sees
 ABUTTING_GROUPS = ("hidden_walls",)
-#: classes whose corners nobody sees: infill, support and solid infill lie behind the perimeters,
-#: travel prints nothing; their corner rule and minimum_cruise_ratio are searched apart from the
-#: visible walls' (inner walls abut the outer wall: they keep the job-wide ones)
-HIDDEN_CORNERS = ("infill", "support", "solid_infill", "travel")
+#: classes whose corners nobody sees, in two groups, each with its own corner rule and
+#: minimum_cruise_ratio searched apart from the visible walls' (inner walls abut the outer wall:
+#: they keep the job-wide ones): ``hidden``, sparse infill and support behind the perimeters and
+#: travel, which prints nothing; ``solid``, solid infill, whose corners are as hidden but whose
+#: extrusion is judged as seen (it lies under the top surface and forms the bottom:
+#: :data:`ringtune.envs.metrics.EXTRUSION_SEEN`), so that its extrusion does not hold the others'
+#: corner rule down (on the built-in part it held all four at 9 mm/s; apart, the others reach 30)
+CORNER_GROUPS = {"hidden": ("infill", "support", "travel"), "solid": ("solid_infill",)}
+#: every class whose corners nobody sees
+HIDDEN_CORNERS = tuple(c for classes in CORNER_GROUPS.values() for c in classes)
 #: rounding of the corner rule's value per junction rule (mm/s, mm, mm/s) and of minimum_cruise_ratio
 CORNER_STEP = {"scv": 0.5, "jd": 0.001, "jerk": 0.5}
 #: the unit of the corner rule's value per junction rule
@@ -288,22 +294,31 @@ def _clip(value: float | None, lo_hi: tuple[float, float]) -> float:
     return lo_hi[0] if value is None else min(max(float(value), lo_hi[0]), lo_hi[1])
 
 
+def corner_groups(space: SearchSpace) -> list[str]:
+    """The groups of :data:`CORNER_GROUPS` the job has classes of (from its acceleration groups)."""
+    present = {c for g, _lo, _hi in space.feature_accel for c in ACCEL_GROUPS[g]}
+    return [name for name, classes in CORNER_GROUPS.items() if present & set(classes)]
+
+
 def _hidden_corner_rows(space: SearchSpace) -> list[_Ranged]:
-    """The corner rule and minimum_cruise_ratio of :data:`HIDDEN_CORNERS`, where searched (missing:
-    the printer's own, within the range; a configuration without one runs the job-wide value)."""
+    """The corner rule and minimum_cruise_ratio of each group of :data:`CORNER_GROUPS` the job has
+    (``corner_hidden``, ``corner_solid``, …), where searched (missing: the printer's own, within
+    the range; a configuration without one runs the job-wide value)."""
     rows = []
-    cls = HIDDEN_CORNERS[0]
-    if space.hidden_corner is not None and space.corner_now is not None:
-        rows.append(_Ranged("corner_hidden", *space.hidden_corner, CORNER_STEP.get(space.junction, 0.001),
-                            _clip(space.corner_now, space.hidden_corner),
-                            lambda c: c.feature_corner.get(cls, c.corner if c.corner is not None else space.corner_now),
-                            HIDDEN_CORNERS, "feature_corner"))
-    if space.hidden_min_cruise_ratio is not None and space.mcr_now is not None:
-        rows.append(_Ranged("min_cruise_ratio_hidden", *space.hidden_min_cruise_ratio, MCR_STEP,
-                            _clip(space.mcr_now, space.hidden_min_cruise_ratio),
-                            lambda c: c.feature_min_cruise_ratio.get(
-                                cls, c.min_cruise_ratio if c.min_cruise_ratio is not None else space.mcr_now),
-                            HIDDEN_CORNERS, "feature_min_cruise_ratio"))
+    for name in corner_groups(space):
+        classes, cls = CORNER_GROUPS[name], CORNER_GROUPS[name][0]
+        if space.hidden_corner is not None and space.corner_now is not None:
+            rows.append(_Ranged(f"corner_{name}", *space.hidden_corner, CORNER_STEP.get(space.junction, 0.001),
+                                _clip(space.corner_now, space.hidden_corner),
+                                lambda c, cls=cls: c.feature_corner.get(
+                                    cls, c.corner if c.corner is not None else space.corner_now),
+                                classes, "feature_corner"))
+        if space.hidden_min_cruise_ratio is not None and space.mcr_now is not None:
+            rows.append(_Ranged(f"min_cruise_ratio_{name}", *space.hidden_min_cruise_ratio, MCR_STEP,
+                                _clip(space.mcr_now, space.hidden_min_cruise_ratio),
+                                lambda c, cls=cls: c.feature_min_cruise_ratio.get(
+                                    cls, c.min_cruise_ratio if c.min_cruise_ratio is not None else space.mcr_now),
+                                classes, "feature_min_cruise_ratio"))
     return rows
 
 
