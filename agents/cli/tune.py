@@ -87,7 +87,8 @@ group (infill with support, internal solid infill, travel, then the inner walls 
 surfaces) is walked up toward the top of its range, where the weakest motor keeps its reserve at
 that group's own top speed; then the corner rule (Klipper's square_corner_velocity, Marlin's
 junction deviation or jerk, RRF's M566) and Klipper's minimum_cruise_ratio, for the job and apart
-for the corners nobody sees (infill, support, solid infill, travel): each step judged as every
+for the corners nobody sees (infill, support and travel; solid infill's apart, its extrusion being
+judged as seen): each step judged as every
 trial, kept only with no visible measure worse than the baselines' or than the choice's own before
 the walk, on the judged printers and on wider ones (it spends no visible quality). One shaper
 configuration serves the whole job. With --gcode, job.gcode beside best.json is the job with the
@@ -178,7 +179,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--per-feature", choices=("auto", "on", "off"), default="auto",
                    help="an acceleration per feature group (infill, solid infill, travel, inner walls, top "
                         "surfaces; the visible walls take the main one), the corner rule and minimum_cruise_ratio, "
-                        "and apart for the corners nobody sees, walked up from the study's choice as far as every "
+                        "and apart for the corners nobody sees (solid infill's on their own), walked up from the study's choice as far as every "
                         "visible measure stays the choice's own (default auto: when the acceleration is searched and the job has "
                         "features nobody sees)")
     p.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco", help="physics (default mujoco)")
