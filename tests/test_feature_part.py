@@ -48,3 +48,39 @@ def test_hidden_groups_at_their_motor_tops_keep_the_parts_visible_measures_and_r
     gap = infill_wall_gap(job_path("part"))
     assert gap is not None and m.features["infill"]["show_through_mm"] < gap.gap_mm
     assert m.print_time_s < 0.93 * ref.print_time_s
+
+
+def test_solid_infills_corners_are_walked_apart_since_its_extrusion_is_seen():
+    """The corners of infill, support and travel at the top of their range with no cruise smoothing
+    (plus the infill and travel at their motor tops) keep every measure a person sees the pick's;
+    solid infill's corners taken as far over-extrude the solid infill (under the top surface, the
+    bottom: its extrusion counts as seen) beyond the resolution (1 point or 5 %), which is why the
+    walk gives them a corner rule of their own (:data:`ringtune.agents.tune.space.CORNER_GROUPS`)."""
+    from ringtune.agents.tune.feature_space import HIDDEN_CORNER_RANGE
+    from ringtune.agents.tune.space import CORNER_GROUPS
+
+    printer = load_printer(None)
+    pick, _ = recorded_klipper(printer, "klipper")
+    space = feature_space(default_space(printer, "klipper"), printer, "part", RESERVE)
+    fa = {c: hi for g, _lo, hi in space.feature_accel if g in ("infill", "travel") for c in ACCEL_GROUPS[g]}
+    top = HIDDEN_CORNER_RANGE["scv"][1]
+    hidden, solid = CORNER_GROUPS["hidden"], CORNER_GROUPS["solid"]
+    assert set(hidden) == {"infill", "support", "travel"} and solid == ("solid_infill",)
+
+    def corners(classes):
+        return dataclasses.replace(pick, feature_accel=fa, feature_corner=dict.fromkeys(classes, top),
+                                   feature_min_cruise_ratio=dict.fromkeys(classes, 0.0))
+
+    ref, accel_only, apart, together = evaluate_many(
+        [pick, dataclasses.replace(pick, feature_accel=fa), corners(hidden), corners(hidden + solid)],
+        printer, "part", freq_margin=0.05)
+    for k in SEEN:
+        assert getattr(apart, k) <= getattr(ref, k) + max(1e-3, 0.05 * getattr(ref, k)), k
+    for cls in ("outer_wall", "top_surface", "bridge_overhang", "inner_wall", "solid_infill"):
+        for k in ("extrusion_over_pct", "extrusion_under_pct"):
+            mine, theirs = apart.features[cls][k], ref.features[cls][k]
+            assert mine <= theirs + max(1.0, 0.05 * theirs), (cls, k)
+    assert apart.motor_load <= 1 - RESERVE and apart.print_time_s < accel_only.print_time_s - 5.0
+    over, base = together.features["solid_infill"]["extrusion_over_pct"], ref.features["solid_infill"]["extrusion_over_pct"]
+    assert over > base + max(1.0, 0.05 * base)
+    assert together.extrusion_over_pct == over        # the job's figure, which the choice is held to
