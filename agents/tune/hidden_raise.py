@@ -3,9 +3,10 @@
 The study (:mod:`ringtune.agents.tune.study`) samples what a single-acceleration study samples (the
 shapers, the visible walls' acceleration); every other group runs the visible walls' acceleration
 there (within its range), and the corner rules are the printer's. From the choice, after the
-measured stop (:mod:`ringtune.agents.tune.stop`), the walk first takes the corners nobody sees
-(:data:`~ringtune.agents.tune.space.HIDDEN_CORNERS`): their corner rule at :data:`LEVELS` of the
-way to its range's top, then :data:`FINER` steps into the gap above the highest level kept, each
+measured stop (:mod:`ringtune.agents.tune.stop`), the walk first takes the corners nobody sees,
+a group at a time (:data:`~ringtune.agents.tune.space.CORNER_GROUPS`: sparse infill, support and
+travel, then solid infill, whose extrusion is judged as seen): their corner rule at :data:`LEVELS`
+of the way to its range's top, then :data:`FINER` steps into the gap above the highest level kept, each
 with minimum_cruise_ratio at its range's bottom (no cruise smoothing) and as it is. Then each
 group's acceleration at those levels of the way from where it is to the top of its range (the
 motor reserve at the group's own top speed) and the finer steps, one batch each: those nobody sees

@@ -24,8 +24,8 @@ Parameters (Optuna names):
 - per feature (a space from :func:`ringtune.agents.tune.feature_space.feature_space`):
   ``accel_<group>`` for each group of :data:`ACCEL_GROUPS` but ``visible`` (whose acceleration is
   ``accel``), mm/s²; ``corner`` (the printer's junction rule's value) and ``min_cruise_ratio``
-  (Klipper); ``corner_hidden`` and ``min_cruise_ratio_hidden`` (the same for the classes of
-  :data:`HIDDEN_CORNERS`). All *walked*: the study samples what a single-acceleration study
+  (Klipper); ``corner_<group>`` and ``min_cruise_ratio_<group>`` (the same for each group of
+  :data:`CORNER_GROUPS` the job has: ``hidden``, ``solid``). All *walked*: the study samples what a single-acceleration study
   samples and leaves them where a point without them has them (each group at the visible walls'
   acceleration, within its range; the corners as the printer has them), so that it finds what the
   single-acceleration study finds; :mod:`ringtune.agents.tune.hidden_raise` raises them from its
