@@ -22,7 +22,7 @@ steps on (:mod:`ringtune.agents.tune.wider`), so the bench's own walk can end fa
    top (the motor reserve at the group's own top speed) or a lower step, the fastest with no
    visible measure worse than (2)'s and the simulated motor load within the reserve, show-through
    within its bounds (as in (2), against (2)'s); then the corners nobody sees (infill, support,
-   solid infill, travel: :data:`~ringtune.agents.tune.space.CORNER_GROUPS`, solid infill's apart) with Klipper's
+   solid infill, travel: :data:`~ringtune.agents.tune.feature_groups.CORNER_GROUPS`, solid infill's apart) with Klipper's
    square_corner_velocity from the top of their range down and minimum_cruise_ratio 0 or the
    printer's, the fastest that keeps the same judgement.
 
@@ -46,7 +46,8 @@ import time
 from ringtune.agents.tune.baselines import recorded_klipper
 from ringtune.agents.tune.feature_space import feature_space
 from ringtune.agents.tune.pareto import no_worse, point_from_metrics
-from ringtune.agents.tune.space import ACCEL_GROUPS, CORNER_GROUPS, HIDDEN_CORNERS, SEEN_GROUPS, default_space
+from ringtune.agents.tune.feature_groups import ACCEL_GROUPS, CORNER_GROUPS, HIDDEN_CORNERS, SEEN_GROUPS
+from ringtune.agents.tune.space import default_space
 from ringtune.envs.evaluate import evaluate_many
 from ringtune.envs.planned_job import planned_job
 from ringtune.envs.plan_load import plan_load
@@ -152,7 +153,7 @@ def per_feature(printer, job, base_cfg, ref, steps=(1.0, 0.85, 0.7, 0.55, 0.4, 0
 
 def hidden_corners(printer, job, config, metrics, ref, corners=(30.0, 22.5, 15.0, 10.0, 7.5)):
     """``config`` with the corners nobody sees, one group of
-    :data:`~ringtune.agents.tune.space.CORNER_GROUPS` after the other (sparse infill and travel, then
+    :data:`~ringtune.agents.tune.feature_groups.CORNER_GROUPS` after the other (sparse infill and travel, then
     solid infill, whose extrusion is judged as seen), each at the fastest of ``corners``
     (square_corner_velocity, mm/s) × minimum_cruise_ratio (0, the printer's) that keeps the
     judgement against ``ref`` (else as it is), with its metrics."""

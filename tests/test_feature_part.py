@@ -16,8 +16,9 @@ from __future__ import annotations
 import dataclasses
 
 from ringtune.agents.tune.baselines import recorded_klipper
-from ringtune.agents.tune.feature_space import feature_space
-from ringtune.agents.tune.space import ACCEL_GROUPS, default_space
+from ringtune.agents.tune.feature_space import HIDDEN_CORNER_RANGE, feature_space
+from ringtune.agents.tune.feature_groups import ACCEL_GROUPS, CORNER_GROUPS
+from ringtune.agents.tune.space import default_space
 from ringtune.envs.evaluate import evaluate_many
 from ringtune.envs.printer import load_printer
 from ringtune.shaping.builtin_jobs import job_path
@@ -55,10 +56,7 @@ def test_solid_infills_corners_are_walked_apart_since_its_extrusion_is_seen():
     (plus the infill and travel at their motor tops) keep every measure a person sees the pick's;
     solid infill's corners taken as far over-extrude the solid infill (under the top surface, the
     bottom: its extrusion counts as seen) beyond the resolution (1 point or 5 %), which is why the
-    walk gives them a corner rule of their own (:data:`ringtune.agents.tune.space.CORNER_GROUPS`)."""
-    from ringtune.agents.tune.feature_space import HIDDEN_CORNER_RANGE
-    from ringtune.agents.tune.space import CORNER_GROUPS
-
+    walk gives them a corner rule of their own (:data:`ringtune.agents.tune.feature_groups.CORNER_GROUPS`)."""
     printer = load_printer(None)
     pick, _ = recorded_klipper(printer, "klipper")
     space = feature_space(default_space(printer, "klipper"), printer, "part", RESERVE)

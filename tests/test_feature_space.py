@@ -11,8 +11,9 @@ import json
 import pytest
 
 from ringtune.agents.tune.feature_space import feature_space, group_speeds, hidden_groups, wanted
-from ringtune.agents.tune.space import (ACCEL_GROUPS, SearchSpace, config_from_params, default_space,
-                                        params_from_config, suggest_params, walked_keys)
+from ringtune.agents.tune.feature_groups import ACCEL_GROUPS
+from ringtune.agents.tune.space import (SearchSpace, config_from_params, default_space, params_from_config,
+                                        suggest_params, walked_keys)
 from ringtune.envs.printer import load_printer, printer_from_dict
 from ringtune.shaping.config import TuneConfig
 

@@ -1,5 +1,5 @@
 """The per-feature part of the search space (issue 22): an acceleration per group of feature
-classes (:data:`ringtune.agents.tune.space.ACCEL_GROUPS`), the corner rule and Klipper's
+classes (:data:`ringtune.agents.tune.feature_groups.ACCEL_GROUPS`), the corner rule and Klipper's
 minimum_cruise_ratio, for the job and for the corners nobody sees — within the firmware's limits
 and each motor's reserve at that group's own speeds. One shaper configuration for the job
 (firmwares shape per axis, not per feature). The study leaves them all to the walk from its choice
@@ -23,7 +23,8 @@ from typing import Any
 import numpy as np
 
 from ringtune.agents.tune.motor_bound import motor_accel_limit
-from ringtune.agents.tune.space import ACCEL_GROUPS, CORNER_GROUPS, CORNER_UNIT, HIDDEN_CORNERS, SEEN_GROUPS, SearchSpace
+from ringtune.agents.tune.feature_groups import ACCEL_GROUPS, CORNER_GROUPS, HIDDEN_CORNERS, SEEN_GROUPS
+from ringtune.agents.tune.space import CORNER_UNIT, SearchSpace
 from ringtune.envs.planned_job import planned_job, resolve_job
 from ringtune.shaping.feature_settings import corner_value, effective_classes
 from ringtune.shaping.features import FEATURE_CLASSES

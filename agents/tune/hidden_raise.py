@@ -4,7 +4,7 @@ The study (:mod:`ringtune.agents.tune.study`) samples what a single-acceleration
 shapers, the visible walls' acceleration); every other group runs the visible walls' acceleration
 there (within its range), and the corner rules are the printer's. From the choice, after the
 measured stop (:mod:`ringtune.agents.tune.stop`), the walk first takes the corners nobody sees,
-a group at a time (:data:`~ringtune.agents.tune.space.CORNER_GROUPS`: sparse infill, support and
+a group at a time (:data:`~ringtune.agents.tune.feature_groups.CORNER_GROUPS`: sparse infill, support and
 travel, then solid infill, whose extrusion is judged as seen): their corner rule at :data:`LEVELS`
 of the way to its range's top, then :data:`FINER` steps into the gap above the highest level kept, each
 with minimum_cruise_ratio at its range's bottom (no cruise smoothing) and as it is. Then each
@@ -41,7 +41,8 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution
-from ringtune.agents.tune.space import (ABUTTING_GROUPS, SEEN_GROUPS, SearchSpace, config_from_params,
+from ringtune.agents.tune.feature_groups import ABUTTING_GROUPS, SEEN_GROUPS
+from ringtune.agents.tune.space import (SearchSpace, config_from_params,
                                         params_from_config)
 from ringtune.agents.tune.stop import Bounds, Failure, failure_words, passing_why
 from ringtune.shaping.config import TuneConfig

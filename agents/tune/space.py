@@ -22,10 +22,10 @@ Parameters (Optuna names):
   are the owner's per-axis limits in the firmware's configuration (Kalico's limited_* kinematics:
   ``max_x_accel``/``max_y_accel``; and on mainline Klipper, which has none, said by ``export``).
 - per feature (a space from :func:`ringtune.agents.tune.feature_space.feature_space`):
-  ``accel_<group>`` for each group of :data:`ACCEL_GROUPS` but ``visible`` (whose acceleration is
+  ``accel_<group>`` for each group of :data:`~ringtune.agents.tune.feature_groups.ACCEL_GROUPS` but ``visible`` (whose acceleration is
   ``accel``), mm/s²; ``corner`` (the printer's junction rule's value) and ``min_cruise_ratio``
   (Klipper); ``corner_<group>`` and ``min_cruise_ratio_<group>`` (the same for each group of
-  :data:`CORNER_GROUPS` the job has: ``hidden``, ``solid``). All *walked*: the study samples what a single-acceleration study
+  :data:`~ringtune.agents.tune.feature_groups.CORNER_GROUPS` the job has: ``hidden``, ``solid``). All *walked*: the study samples what a single-acceleration study
   samples and leaves them where a point without them has them (each group at the visible walls'
   acceleration, within its range; the corners as the printer has them), so that it finds what the
   single-acceleration study finds; :mod:`ringtune.agents.tune.hidden_raise` raises them from its
@@ -45,6 +45,7 @@ from dataclasses import asdict, dataclass
 from typing import Any, Callable, Sequence
 
 
+from ringtune.agents.tune.feature_groups import ACCEL_GROUPS, CORNER_GROUPS, corner_groups
 from ringtune.agents.tune.motor_bound import accel_ceiling
 from ringtune.agents.tune.shaper_families import PARAMETRISED, family_params, shaper_name, suggest_family
 from ringtune.shaping.config import FREQ_LIMIT_METHODS, TuneConfig
@@ -53,27 +54,6 @@ from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.shapers import available_shapers, max_damping
 from ringtune.shaping.smoothers import takes_damping
 
-#: acceleration groups of feature classes searched apart (``visible``: the config's ``accel``); top
-#: surfaces have their own, judged as seen; internal solid infill its own, hidden (a top surface's
-#: judgement does not hold it back); support goes with the infill
-ACCEL_GROUPS = {"visible": ("outer_wall", "bridge_overhang", "other"), "top_surface": ("top_surface",),
-                "hidden_walls": ("inner_wall",), "infill": ("infill", "support"),
-                "solid_infill": ("solid_infill",), "travel": ("travel",)}
-#: groups apart from ``visible`` that a person sees: walked last (:mod:`ringtune.agents.tune.hidden_raise`)
-SEEN_GROUPS = ("top_surface",)
-#: groups that lie against what is seen (inner walls abut the outer wall: what they push into it is
-#: judged, :data:`ringtune.agents.tune.pareto.CLASS_KEYS`); walked after those nobody sees
-ABUTTING_GROUPS = ("hidden_walls",)
-#: classes whose corners nobody sees, in two groups, each with its own corner rule and
-#: minimum_cruise_ratio searched apart from the visible walls' (inner walls abut the outer wall:
-#: they keep the job-wide ones): ``hidden``, sparse infill and support behind the perimeters and
-#: travel, which prints nothing; ``solid``, solid infill, whose corners are as hidden but whose
-#: extrusion is judged as seen (it lies under the top surface and forms the bottom:
-#: :data:`ringtune.envs.metrics.EXTRUSION_SEEN`), so that its extrusion does not hold the others'
-#: corner rule down (on the built-in part it held all four at 9 mm/s; apart, the others reach 30)
-CORNER_GROUPS = {"hidden": ("infill", "support", "travel"), "solid": ("solid_infill",)}
-#: every class whose corners nobody sees
-HIDDEN_CORNERS = tuple(c for classes in CORNER_GROUPS.values() for c in classes)
 #: rounding of the corner rule's value per junction rule (mm/s, mm, mm/s) and of minimum_cruise_ratio
 CORNER_STEP = {"scv": 0.5, "jd": 0.001, "jerk": 0.5}
 #: the unit of the corner rule's value per junction rule
@@ -103,7 +83,7 @@ class SearchSpace:
     corner: tuple[float, float] | None = None        # the corner rule's range, in ``junction``'s unit
     junction: str = ""                  # the printer's junction rule (scv, jd, jerk) the corner is in
     min_cruise_ratio: tuple[float, float] | None = None   # Klipper's, searched when set
-    hidden_corner: tuple[float, float] | None = None      # the corner rule of HIDDEN_CORNERS, searched when set
+    hidden_corner: tuple[float, float] | None = None      # the corner rule of the corner groups, searched when set
     hidden_min_cruise_ratio: tuple[float, float] | None = None   # their minimum_cruise_ratio (Klipper)
     feature_basis: dict | None = None   # per group: its top speed (mm/s) and what caps its range
     corner_now: float | None = None     # the printer's own corner value (a config without one runs it)
@@ -294,14 +274,9 @@ def _clip(value: float | None, lo_hi: tuple[float, float]) -> float:
     return lo_hi[0] if value is None else min(max(float(value), lo_hi[0]), lo_hi[1])
 
 
-def corner_groups(space: SearchSpace) -> list[str]:
-    """The groups of :data:`CORNER_GROUPS` the job has classes of (from its acceleration groups)."""
-    present = {c for g, _lo, _hi in space.feature_accel for c in ACCEL_GROUPS[g]}
-    return [name for name, classes in CORNER_GROUPS.items() if present & set(classes)]
-
-
 def _hidden_corner_rows(space: SearchSpace) -> list[_Ranged]:
-    """The corner rule and minimum_cruise_ratio of each group of :data:`CORNER_GROUPS` the job has
+    """The corner rule and minimum_cruise_ratio of each group of
+    :data:`~ringtune.agents.tune.feature_groups.CORNER_GROUPS` the job has
     (``corner_hidden``, ``corner_solid``, …), where searched (missing: the printer's own, within
     the range; a configuration without one runs the job-wide value)."""
     rows = []
