@@ -107,6 +107,9 @@ def test_each_group_goes_as_high_as_the_judgement_allows(space):
                                                 "min_cruise_ratio_solid", "accel_infill", "accel_solid_infill",
                                                 "accel_travel", "accel_hidden_walls", "accel_top_surface"]
     assert "infill 5000 → " in lift.sentence() and lift.to_dict()["to_print_time_s"] == lift.point.print_time_s
+    for said in (f"their corner rule 5 → {want:g}", "their minimum_cruise_ratio 0.5 → 0,",
+                 f"solid infill's corner rule 5 → {got['corner_solid']:g}", "solid infill's minimum_cruise_ratio 0.5 → 0,"):
+        assert said in lift.sentence(), said
 
 
 def test_each_setting_walked_says_what_holds_it_with_the_value_that_failed(space):

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution
-from ringtune.agents.tune.feature_groups import ABUTTING_GROUPS, SEEN_GROUPS
+from ringtune.agents.tune.feature_groups import ABUTTING_GROUPS, CORNER_GROUPS, CORNER_WORDS, SEEN_GROUPS
 from ringtune.agents.tune.space import (SearchSpace, config_from_params,
                                         params_from_config)
 from ringtune.agents.tune.stop import Bounds, Failure, failure_words, passing_why
@@ -74,8 +74,8 @@ class Held:
     def words(self, labels: dict[str, str], unit: str) -> str:
         """``"hidden walls at 5900 mm/s²: at 8100, outer wall under-extrusion 29.90 % > 28.20 % of the
         choice before the walk"``; ``labels`` names the baselines, ``unit`` is the value's."""
-        name = {"corner_hidden": "corner rule of the corners nobody sees",
-                "corner_solid": "corner rule of solid infill"}.get(self.key, _name(self.key))
+        group = self.key.removeprefix("corner_")
+        name = f"corner rule of {CORNER_WORDS[group][0]}" if group in CORNER_WORDS else _name(self.key)
         head = f"{name} at {self.value:g}{unit}"
         if self.tried is None:
             return f"{head}: " + ("the top of its range" if self.value >= self.top else "nothing above it was tried")
@@ -136,10 +136,13 @@ class Raise:
 
 
 def _name(key: str) -> str:
-    """``accel_infill`` -> "infill", ``corner_hidden`` -> "their corner rule" (the corners nobody sees)."""
-    return {"corner_hidden": "their corner rule", "min_cruise_ratio_hidden": "their minimum_cruise_ratio",
-            "corner_solid": "solid infill's corner rule", "min_cruise_ratio_solid": "solid infill's minimum_cruise_ratio",
-            "corner": "the job's corner rule", "min_cruise_ratio": "the job's minimum_cruise_ratio"}.get(
+    """``accel_infill`` -> "infill", ``corner_hidden`` -> "their corner rule" (the corners nobody
+    sees), ``min_cruise_ratio_solid`` -> "solid infill's minimum_cruise_ratio"."""
+    for prefix, setting in (("corner_", "corner rule"), ("min_cruise_ratio_", "minimum_cruise_ratio")):
+        group = key.removeprefix(prefix)
+        if group in CORNER_WORDS:
+            return f"{CORNER_WORDS[group][1]} {setting}"
+    return {"corner": "the job's corner rule", "min_cruise_ratio": "the job's minimum_cruise_ratio"}.get(
         key, key.removeprefix("accel_").replace("_", " "))
 
 
@@ -152,14 +155,15 @@ def steps(params: dict[str, Any], space: SearchSpace) -> list[str]:
     order = [g for g in groups if g not in SEEN_GROUPS + ABUTTING_GROUPS] + \
         [g for g in groups if g in ABUTTING_GROUPS] + [g for g in groups if g in SEEN_GROUPS]
     corners = [k for k, (_m, rng, _r) in CORNERS.items() if getattr(space, rng) is not None and k in params]
-    first = [k for k in corners if k in ("corner_hidden", "corner_solid")]
+    first = [k for k in corners if k != "corner"]
     return first + [f"accel_{g}" for g in order] + [k for k in corners if k not in first]
 
 
-#: each corner rule parameter with its minimum_cruise_ratio and the space's fields of their ranges
+#: each corner rule parameter with its minimum_cruise_ratio and the space's fields of their ranges:
+#: the job's, then one per corner group (:data:`~ringtune.agents.tune.feature_groups.CORNER_GROUPS`)
 CORNERS = {"corner": ("min_cruise_ratio", "corner", "min_cruise_ratio"),
-           "corner_hidden": ("min_cruise_ratio_hidden", "hidden_corner", "hidden_min_cruise_ratio"),
-           "corner_solid": ("min_cruise_ratio_solid", "hidden_corner", "hidden_min_cruise_ratio")}
+           **{f"corner_{g}": (f"min_cruise_ratio_{g}", "hidden_corner", "hidden_min_cruise_ratio")
+              for g in CORNER_GROUPS}}
 
 
 def batch(key: str, params: dict[str, Any], space: SearchSpace) -> list[dict[str, Any]]:
