@@ -23,8 +23,10 @@ ABUTTING_GROUPS = ("hidden_walls",)
 #: :data:`ringtune.envs.metrics.EXTRUSION_SEEN`), so that its extrusion does not hold the others'
 #: corner rule down (on the built-in part it held all four at 9 mm/s; apart, the others reach 30)
 CORNER_GROUPS = {"hidden": ("infill", "support", "travel"), "solid": ("solid_infill",)}
-#: each corner group in words: whose corners they are, and whose rule (the walk's summary lines)
-CORNER_WORDS = {"hidden": ("the corners nobody sees", "their"), "solid": ("solid infill", "solid infill's")}
+#: each corner group in words: whose corners they are and whose rule (the walk's lines), and how
+#: they are judged (the summary's per-feature section)
+CORNER_WORDS = {"hidden": ("the corners nobody sees", "their", "corners nobody sees"),
+                "solid": ("solid infill", "solid infill's", "corners nobody sees; its extrusion judged as seen")}
 #: every class whose corners nobody sees
 HIDDEN_CORNERS = tuple(c for classes in CORNER_GROUPS.values() for c in classes)
 

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from ringtune.agents.tune.motor_bound import motor_accel_limit
-from ringtune.agents.tune.feature_groups import ACCEL_GROUPS, CORNER_GROUPS, HIDDEN_CORNERS, SEEN_GROUPS
+from ringtune.agents.tune.feature_groups import ACCEL_GROUPS, CORNER_GROUPS, CORNER_WORDS, HIDDEN_CORNERS, SEEN_GROUPS
 from ringtune.agents.tune.space import CORNER_UNIT, SearchSpace
 from ringtune.envs.planned_job import planned_job, resolve_job
 from ringtune.shaping.feature_settings import corner_value, effective_classes
@@ -140,7 +140,7 @@ def feature_section(config, space: SearchSpace) -> tuple[list[str], dict]:
     if config.min_cruise_ratio is not None:
         lines.append(f"  minimum_cruise_ratio: {config.min_cruise_ratio:g}")
     for group in CORNER_GROUPS:
-        why = _CORNER_WHY[group]
+        why = CORNER_WORDS[group][2]
         for name, value, rng, u in (("corner rule", info[f"corner_{group}"], space.hidden_corner,
                                      unit.get(space.junction, "")),
                                     ("minimum_cruise_ratio", info[f"min_cruise_ratio_{group}"],
@@ -149,10 +149,6 @@ def feature_section(config, space: SearchSpace) -> tuple[list[str], dict]:
                 lines.append(f"  {name} of {', '.join(CORNER_GROUPS[group])} ({why}): {value:g}{' ' + u if u else ''}"
                              + (f" (walked within {rng[0]:g}–{rng[1]:g})" if rng else ""))
     return lines, info
-
-
-#: what each group of :data:`CORNER_GROUPS` is, in the summary
-_CORNER_WHY = {"hidden": "corners nobody sees", "solid": "corners nobody sees; its extrusion judged as seen"}
 
 
 def _group_value(table: dict, classes: tuple[str, ...]) -> float | None:
