@@ -46,7 +46,7 @@ import time
 from ringtune.agents.tune.baselines import recorded_klipper
 from ringtune.agents.tune.feature_space import feature_space
 from ringtune.agents.tune.pareto import no_worse, point_from_metrics
-from ringtune.agents.tune.feature_groups import ACCEL_GROUPS, CORNER_GROUPS, HIDDEN_CORNERS, SEEN_GROUPS
+from ringtune.agents.tune.feature_groups import ACCEL_GROUPS, CORNER_GROUPS, HIDDEN_CORNERS, SEEN_GROUPS, corner_groups
 from ringtune.agents.tune.space import default_space
 from ringtune.envs.evaluate import evaluate_many
 from ringtune.envs.planned_job import planned_job
@@ -141,7 +141,7 @@ def per_feature(printer, job, base_cfg, ref, steps=(1.0, 0.85, 0.7, 0.55, 0.4, 0
     while best:
         m = evaluate_many([cfg(best)], printer, job, freq_margin=MARGIN)[0]
         if not_worse(m, ref):
-            return (*hidden_corners(printer, job, cfg(best), m, ref), space)
+            return (*hidden_corners(printer, job, cfg(best), m, ref, corner_groups(space)), space)
         g = max(best, key=lambda k: best[k])          # the fastest group steps down
         lower = [a for a in ladders[g] if a < best[g]]
         if lower:
@@ -151,14 +151,14 @@ def per_feature(printer, job, base_cfg, ref, steps=(1.0, 0.85, 0.7, 0.55, 0.4, 0
     return None, None, space
 
 
-def hidden_corners(printer, job, config, metrics, ref, corners=(30.0, 22.5, 15.0, 10.0, 7.5)):
+def hidden_corners(printer, job, config, metrics, ref, groups, corners=(30.0, 22.5, 15.0, 10.0, 7.5)):
     """``config`` with the corners nobody sees, one group of
-    :data:`~ringtune.agents.tune.feature_groups.CORNER_GROUPS` after the other (sparse infill and travel, then
-    solid infill, whose extrusion is judged as seen), each at the fastest of ``corners``
+    :data:`~ringtune.agents.tune.feature_groups.CORNER_GROUPS` after the other (``groups``: those the
+    job has; sparse infill and travel, then solid infill, whose extrusion is judged as seen), each at the fastest of ``corners``
     (square_corner_velocity, mm/s) × minimum_cruise_ratio (0, the printer's) that keeps the
     judgement against ``ref`` (else as it is), with its metrics."""
     mcr_now = float(printer.limits.min_cruise_ratio)
-    for classes in CORNER_GROUPS.values():
+    for classes in (CORNER_GROUPS[g] for g in groups):
         cands = [dataclasses.replace(config, feature_corner={**config.feature_corner, **dict.fromkeys(classes, c)},
                                      feature_min_cruise_ratio={**config.feature_min_cruise_ratio,
                                                                **dict.fromkeys(classes, r)})
