@@ -62,8 +62,9 @@ are when not the user's, e.g. an embedded printer's —, ``files = [{ name, sha2
 ``stiffness`` (N/m of each belt at the head; default: half the stiffer-than-needed axis stiffness,
 see :meth:`Printer.belt_stiffnesses`) and ``mismatch`` ((k_A − k_B)/mean, 0 = matched belts).
 
-The data types (:class:`Printer`, :class:`AxisModel`, :class:`Mode`, :class:`MotorModel`,
-:data:`DEFAULTS`) and their derived physics live in :mod:`ringtune.envs.printer_model`;
+The data types (:class:`Printer`, :class:`AxisModel`, :class:`Mode`) and their derived physics live
+in :mod:`ringtune.envs.printer_model`, :class:`MotorModel` in :mod:`ringtune.envs.motor_model`,
+:data:`DEFAULTS` in :mod:`ringtune.envs.printer_defaults`;
 this module reads and validates descriptions (the ``[motor]`` tables in :mod:`ringtune.envs.printer_motor`,
 the checked values in :mod:`ringtune.envs.toml_checks`).
 """
@@ -77,7 +78,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ringtune.envs.printer_model import DEFAULTS, AxisModel, Mode, MotorModel, Printer
+from ringtune.envs.motor_model import MotorModel
+from ringtune.envs.printer_defaults import DEFAULTS
+from ringtune.envs.printer_model import AxisModel, Mode, Printer
 from ringtune.envs.printer_motor import inherit_motor, is_datasheet, motor_from_dict
 from ringtune.envs.toml_checks import flag, number, refuse_unknown, table
 from ringtune.shaping.errors import RingtuneError

@@ -4,8 +4,9 @@ axis's table over ``[motor]``. Units: N, mm/s, kg, A, V, mm, Ω, H, N·m (see :m
 
 from __future__ import annotations
 
+from ringtune.envs.motor_model import MOTOR_CONSTANT_KEYS, MOTOR_DRIVE_KEYS, MotorModel
 from ringtune.envs.motors import lookup_motor, unknown_motor_message
-from ringtune.envs.printer_model import DEFAULTS, MOTOR_CONSTANT_KEYS, MOTOR_DRIVE_KEYS, MotorModel
+from ringtune.envs.printer_defaults import DEFAULTS
 from ringtune.envs.toml_checks import flag, number, refuse_unknown
 from ringtune.shaping.errors import RingtuneError
 

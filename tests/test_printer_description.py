@@ -10,7 +10,8 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from ringtune.envs.printer import embedded_printers, load_printer, printer_from_dict
-from ringtune.envs.printer_model import DEFAULTS, Mode
+from ringtune.envs.printer_defaults import DEFAULTS
+from ringtune.envs.printer_model import Mode
 from ringtune.shaping.errors import RingtuneError
 
 

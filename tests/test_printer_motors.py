@@ -10,7 +10,8 @@ import pytest
 
 from ringtune.envs.motors import MOTOR_TABLE, lookup_motor
 from ringtune.envs.printer import printer_from_dict
-from ringtune.envs.printer_model import DEFAULTS, MotorModel
+from ringtune.envs.motor_model import MotorModel
+from ringtune.envs.printer_defaults import DEFAULTS
 from ringtune.shaping.errors import RingtuneError
 
 AXES = {"x": {"mass": 0.7, "modes": [{"freq": 60.0, "damping": 0.06}]},

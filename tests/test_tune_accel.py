@@ -235,7 +235,7 @@ def test_range_edge_is_named_as_the_edge_with_its_distance_from_the_choice(v24_r
 
 def test_summary_says_the_motor_bound_rests_on_default_masses(v24_run):
     """The v24 TOML names its motor (autotune's ldo-42sth40-2004mah) but no [x]/[y] mass."""
-    from ringtune.envs.printer_model import DEFAULTS
+    from ringtune.envs.printer_defaults import DEFAULTS
 
     res, summary, toml = v24_run
     text = toml.read_text()

@@ -22,7 +22,7 @@ from urllib.parse import urlsplit
 from ringtune.agents.cli.common import check_output_folder
 from ringtune.envs.motors import lookup_motor
 from ringtune.envs.printer import printer_from_dict
-from ringtune.envs.printer_model import DEFAULTS
+from ringtune.envs.printer_defaults import DEFAULTS
 from ringtune.envs.toml_writer import toml_value
 from ringtune.hardware.firmware_facts import MOTOR_CONSTANTS, motor_tables, without_motor
 from ringtune.hardware.klipper_config import printer_facts_from_klipper, printer_facts_from_moonraker

@@ -19,7 +19,7 @@ import numpy as np
 from ringtune.envs.added_mass import added_mass, frequency_scale
 from ringtune.envs.identify import AxisFit
 from ringtune.envs.printer import load_printer
-from ringtune.envs.printer_model import DEFAULTS
+from ringtune.envs.printer_defaults import DEFAULTS
 from ringtune.envs.toml_writer import toml_key, toml_value
 from ringtune.shaping.errors import RingtuneError
 
