@@ -19,6 +19,10 @@ write M82/M83 after G90, so real jobs read the same). Commands that make a firmw
 ``M190``, ``M0/M1``, ``M600``, shaper changes) set ``stop_before`` on the next move: the planner
 comes to rest there.
 
+The commands' handlers are mixins of the reader: settings and firmware extensions in
+:mod:`ringtune.shaping.gcode_commands`, arcs, dwells, G92 and G28 in
+:mod:`ringtune.shaping.gcode_motion_commands`.
+
 Own code rather than a library: the maintained pure-Python parser (gcodeparser) drops Klipper's
 extended commands and is slower than this reader's one-regex-per-line path.
 """
@@ -35,15 +39,15 @@ from typing import Iterable
 
 import numpy as np
 
-from ringtune.shaping.arcs import arc_chords
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.gcode_file import open_lines, read_head, refuse_non_gcode
 from ringtune.shaping.gcode_sniff import HEAD
-from ringtune.shaping.job import (AXES, LIMIT_COMMANDS, SETTING_KEYS, SHAPER_COMMANDS, STOP_COMMANDS,
+from ringtune.shaping.job import (LIMIT_COMMANDS, SETTING_KEYS, SHAPER_COMMANDS, STOP_COMMANDS,
                                   Event, Job)
 from ringtune.shaping.gcode_commands import BOUNDS as _BOUNDS
 from ringtune.shaping.gcode_commands import SettingCommands
 from ringtune.shaping.gcode_commands import num as _num
+from ringtune.shaping.gcode_motion_commands import MotionCommands
 
 
 _WORD = re.compile(r"([A-Za-z])\s*([^A-Za-z\s]*)")
@@ -93,7 +97,7 @@ def _strip_line_number(code: str, where: str) -> str:
     return code[m.end():]
 
 
-class _Reader(SettingCommands):
+class _Reader(SettingCommands, MotionCommands):
     """State machine of one job being read."""
 
     def __init__(self, source: str, arc_tolerance: float):
@@ -216,21 +220,6 @@ class _Reader(SettingCommands):
         self.settings[key] = value
         self.settings_dirty = True
 
-    def _target(self, words: dict[str, float]) -> list[float]:
-        end = list(self.pos)
-        absolute = (self.abs_xyz, self.abs_xyz, self.abs_xyz, self.abs_e)
-        for i, ax in enumerate("XYZE"):
-            if ax in words:
-                end[i] = words[ax] + self.offset[i] if absolute[i] else self.pos[i] + words[ax]
-        return end
-
-    def _feedrate(self, words: dict[str, float], where: str) -> None:
-        if "F" in words:
-            f = words["F"]
-            if f <= 0:
-                raise RingtuneError(f"feedrate F{f:g} must be > 0", where)
-            self.feed = f / 60.0
-
     # -- the line loop -----------------------------------------------------------------------------
     def feed_lines(self, lines: Iterable[str]) -> None:
         lineno = 0
@@ -311,37 +300,6 @@ class _Reader(SettingCommands):
         else:
             self._other(cmd, words, lineno, code)
 
-    def _arc_command(self, cmd: str, words: dict, lineno: int, code: str) -> None:
-        self._arc(cmd == "G2", _finite(words, self._where(lineno)), lineno)
-
-    def _dwell(self, cmd: str, words: dict, lineno: int, code: str) -> None:
-        """G4 P<ms> S<s>: a pause (the planner stops there)."""
-        t = words.get("P", 0.0) / 1000.0 + words.get("S", 0.0)
-        if not t >= 0 or not math.isfinite(t):
-            raise RingtuneError("dwell time must be >= 0", self._where(lineno))
-        self.dwell += t
-        self.stop = True
-        self._event("dwell", cmd, {"seconds": t}, lineno, code)
-
-    def _set_position(self, cmd: str, words: dict, lineno: int, code: str) -> None:
-        """G92: the named axes (all without words) read the given value (NaN: 0) from here on."""
-        if not words:
-            words = {a: 0.0 for a in AXES}
-        for i, ax in enumerate(AXES):
-            if ax in words:
-                v = 0.0 if math.isnan(words[ax]) else words[ax] * self.unit
-                self.offset[i] = self.pos[i] - v
-
-    def _home(self, cmd: str, words: dict, lineno: int, code: str) -> None:
-        """G28: the named axes (all without words) to 0, offsets cleared; the planner stops."""
-        named = [i for i, ax in enumerate("XYZ") if ax in words]
-        self.pos = list(self.pos)
-        for i in named or (0, 1, 2):
-            self.pos[i] = 0.0
-            self.offset[i] = 0.0
-        self.stop = True
-        self._event("other", cmd, words, lineno, code)
-
     def _other(self, cmd: str, words: dict, lineno: int, code: str) -> None:
         """Limit commands (applied and recorded), shaper commands, and the rest (recorded; some stop
         the planner)."""
@@ -355,18 +313,6 @@ class _Reader(SettingCommands):
             if cmd in STOP_COMMANDS:
                 self.stop = True
             self._event("other", cmd, words, lineno, code)
-
-    #: classic commands with their own handler (moves, modes and the rest aside)
-    _HANDLERS = {"G2": _arc_command, "G3": _arc_command, "G4": _dwell, "G92": _set_position, "G28": _home}
-
-    def _arc(self, clockwise: bool, w: dict[str, float], lineno: int) -> None:
-        where = self._where(lineno)
-        if self.unit != 1.0:
-            w = {k: v * self.unit if k in "XYZEIJRF" else v for k, v in w.items()}
-        self._feedrate(w, where)
-        end = self._target(w)
-        for point in arc_chords(clockwise, w, list(self.pos), end, self.tol, where):
-            self._emit(point, lineno, arc=True)
 
     def job(self) -> Job:
         self._flush()
@@ -389,13 +335,6 @@ class _Reader(SettingCommands):
             arc_tolerance=self.tol,
             limited=self.limited,
         )
-
-
-def _finite(words: dict[str, float], where: str) -> dict[str, float]:
-    for k, v in words.items():
-        if math.isnan(v):
-            raise RingtuneError(f"{k} needs a value", where)
-    return words
 
 
 def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = None) -> Job:
