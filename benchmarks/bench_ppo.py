@@ -1,7 +1,7 @@
 """Does the PPO policy earn its place? (issue 6, acceptance 3 and 5)
 
 On randomised printers never seen in training (``reset(seed=s)`` of ``ringtune/Tune-v0`` for ``s``
-in ``ringtune.agents.ppo.policy.BENCH_SEEDS``; training uses seeds < 800000 and the evaluation callback
+in ``ringtune.agents.ppo.training.BENCH_SEEDS``; training uses seeds < 800000 and the evaluation callback
 900000–900007), the environment's cost (−reward), which is ``tune``'s judgement as one number
 (``ringtune.envs.judgement``: print-time ratio + 5 × the summed relative excess of every visible
 measure, extrusion and show-through over the baseline's — MZV on the printer's resonance peaks at
@@ -100,7 +100,7 @@ def simulated_table(policy_dir: str | None, n: int, workers: int, backend: str, 
     import json
     import multiprocessing as mp
 
-    from ringtune.agents.ppo.policy import BENCH_SEEDS
+    from ringtune.agents.ppo.training import BENCH_SEEDS
 
     store = json.loads(cache.read_text()) if cache and cache.is_file() else {}
     key = lambda s: f"{s}:{backend}:{n_optuna}:{n_refine}:{margin}:judged"  # noqa: E731

@@ -3,7 +3,8 @@
 Registered ids (see ``ringtune.envs``): ``ringtune/Tune-v0`` (a new random printer every episode)
 and ``ringtune/TuneFixed-v0`` (one fixed printer, default the embedded Ender-3-class machine).
 The action encoding is :mod:`ringtune.envs.actions`, the observation's spectrum parts
-:mod:`ringtune.envs.observation`, the randomised printers :mod:`ringtune.envs.random_printer`.
+:mod:`ringtune.envs.observation`, the randomised printers :mod:`ringtune.envs.random_printer`,
+the checks of the arguments :mod:`ringtune.envs.env_arguments`.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from matplotlib.figure import Figure
 
 from ringtune.envs.accel_model import model_accel
 from ringtune.envs.actions import ActionSpec, decode_action, encode_config
+from ringtune.envs.env_arguments import _check_anchors, _checked_shapers, _over_defaults, _start_action
 from ringtune.envs.evaluate import evaluate_many
 from ringtune.envs.planned_job import planned_job, resolve_printer
 from ringtune.envs.judgement import DEFAULT_WEIGHTS, JUDGEMENT, baseline_config, judged_cost
@@ -30,7 +32,6 @@ from ringtune.envs.random_printer import random_printer_dict
 from ringtune.envs.sim import resonance_test
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.shapers import available_shapers
 
 #: scales s in the squashing m / (m + s) of the observed metrics
 METRIC_SCALES = {"time_ratio": 1.0, "path_error_mm": 0.1, "overshoot_mm": 0.1, "ringing_mm": 0.02}
@@ -39,48 +40,6 @@ N_METRICS = 7
 
 
 # -- the environment ---------------------------------------------------------------------------------
-def _checked_shapers(firmware: str, shapers) -> tuple[str, ...]:
-    """The shapers the policy chooses from: ``shapers`` (default: every one the firmware offers but
-    custom), refused when the firmware lacks one."""
-    flavor = TuneConfig(firmware=firmware, shaper_x="none", shaper_y="none").flavor
-    have = [s for s in available_shapers(flavor) if s != "custom"]
-    shapers = tuple(have) if shapers is None else tuple(shapers)
-    bad = [s for s in shapers if s not in have]
-    if bad:
-        raise RingtuneError(f"{firmware} offers no {', '.join(bad)} (available: {', '.join(have)})", "shapers")
-    return shapers
-
-
-def _check_anchors(freq_anchor: str, accel_anchor: str, metrics_of_start: bool) -> None:
-    """Refuse an unknown anchor, or the model anchor without a simulated start (tune_accel and
-    observe_metrics) to take it from."""
-    if freq_anchor not in ("absolute", "peak"):
-        raise RingtuneError(f"must be 'absolute' or 'peak', not {freq_anchor!r}", "freq_anchor")
-    if accel_anchor not in ("absolute", "model"):
-        raise RingtuneError(f"must be 'absolute' or 'model', not {accel_anchor!r}", "accel_anchor")
-    if accel_anchor == "model" and not metrics_of_start:
-        raise RingtuneError("'model' needs tune_accel and observe_metrics (the anchor comes from the "
-                            "starting configuration's metrics)", "accel_anchor")
-
-
-def _over_defaults(given: dict | None, defaults: dict, what: str, where: str) -> dict:
-    """``defaults`` with ``given``'s values over them; a key ``defaults`` lacks is refused."""
-    merged = {**defaults, **(given or {})}
-    unknown = sorted(set(merged) - set(defaults))
-    if unknown:
-        raise RingtuneError(f"unknown {what} {unknown}; known: {sorted(defaults)}", where)
-    return merged
-
-
-def _start_action(start_action, spec: ActionSpec) -> np.ndarray:
-    """The starting action clipped to [-1, 1], one entry per action of ``spec``."""
-    action = np.clip(np.asarray(start_action, dtype=np.float32).ravel(), -1.0, 1.0)
-    if action.shape != (spec.size,):
-        raise RingtuneError(f"must have {spec.size} entries ({', '.join(spec.labels())}), "
-                            f"not {np.size(start_action)}", "start_action")
-    return action
-
-
 class TuneEnv(gym.Env):
     """Choose an input-shaping configuration for a printer; one shot per episode.
 

@@ -14,6 +14,7 @@ pytest.importorskip("stable_baselines3")
 from ringtune.agents.cli import train as train_cmd  # noqa: E402
 from ringtune.agents.ppo import policy as ppo  # noqa: E402
 from ringtune.agents.ppo import recommend as ppo_recommend  # noqa: E402
+from ringtune.agents.ppo import training as ppo_training  # noqa: E402
 from ringtune.envs.env import TuneEnv  # noqa: E402
 from ringtune.shaping.config import TuneConfig  # noqa: E402
 from ringtune.shaping.errors import RingtuneError  # noqa: E402
@@ -39,14 +40,14 @@ def test_both_checkers_pass_on_the_training_env():
 
 
 def test_held_out_seeds_are_disjoint_from_training_and_benchmark():
-    assert max(ppo.EVAL_SEEDS) < min(ppo.BENCH_SEEDS)
-    assert ppo.MAX_TRAIN_SEED <= min(ppo.EVAL_SEEDS)
+    assert max(ppo_training.EVAL_SEEDS) < min(ppo_training.BENCH_SEEDS)
+    assert ppo_training.MAX_TRAIN_SEED <= min(ppo_training.EVAL_SEEDS)
     with pytest.raises(RingtuneError, match="held-out"):
-        ppo.train("/nonexistent", 10, seed=ppo.EVAL_SEEDS[0])
+        ppo_training.train("/nonexistent", 10, seed=ppo_training.EVAL_SEEDS[0])
 
 
 def test_pinned_eval_env_shows_the_same_printer_every_reset():
-    env = ppo._pinned_env(ppo.EVAL_SEEDS[0], ppo.resolve_env_kwargs({"job": SQUARE_JOB}))
+    env = ppo_training._pinned_env(ppo_training.EVAL_SEEDS[0], ppo.resolve_env_kwargs({"job": SQUARE_JOB}))
     o1, _ = env.reset()
     p1 = env.unwrapped.printer.to_dict()
     o2, _ = env.reset(seed=123)
@@ -58,8 +59,8 @@ def test_subprocess_training_writes_policy_resumes_and_recommends(tmp_path):
     kw = {"job": SQUARE_JOB}
     hyper = {"n_steps": 16, "batch_size": 16, "n_epochs": 2, "net_arch": [16, 16]}
     out = tmp_path / "pol"
-    res = ppo.train(out, timesteps=32, n_envs=2, seed=3, env_kwargs=kw, hyper=hyper, eval_freq=32,
-                    checkpoint_freq=32, progress_bar=True)
+    res = ppo_training.train(out, timesteps=32, n_envs=2, seed=3, env_kwargs=kw, hyper=hyper, eval_freq=32,
+                             checkpoint_freq=32, progress_bar=True)
     assert res.timesteps == 32
     for name in ("policy.zip", "vecnormalize.pkl", "final.zip", "final_vecnormalize.pkl", "meta.json",
                  "training_curve.png", "evaluations.npz", "best/best_model.zip", "best/vecnormalize.pkl"):
@@ -72,11 +73,11 @@ def test_subprocess_training_writes_policy_resumes_and_recommends(tmp_path):
     # the policy to use is the held-out best, with the statistics it was trained under
     assert (out / "policy.zip").read_bytes() == (out / "best" / "best_model.zip").read_bytes()
     assert (out / "vecnormalize.pkl").read_bytes() == (out / "best" / "vecnormalize.pkl").read_bytes()
-    assert ppo.latest_checkpoint(out)[0].name == "ppo_32_steps.zip"
+    assert ppo_training.latest_checkpoint(out)[0].name == "ppo_32_steps.zip"
 
     # resume (in-process envs to keep the test short)
-    res2 = ppo.train(out, timesteps=64, n_envs=2, seed=3, env_kwargs=kw, hyper=hyper, eval_freq=1000,
-                     checkpoint_freq=32, resume=True, progress_bar=False, subprocess=False)
+    res2 = ppo_training.train(out, timesteps=64, n_envs=2, seed=3, env_kwargs=kw, hyper=hyper, eval_freq=1000,
+                              checkpoint_freq=32, resume=True, progress_bar=False, subprocess=False)
     assert res2.resumed_from.endswith("ppo_32_steps.zip") and res2.timesteps == 64
     assert len(res2.train_timesteps) > len(res.train_timesteps)     # the curve continues
 
@@ -183,10 +184,10 @@ def test_train_cli_json_keys_and_hpo_hands_its_best_to_training(tmp_path, monkey
 
     def fake_train(out_dir, timesteps, n_envs, seed, **kw):
         seen["train"] = kw
-        return ppo.TrainResult(tmp_path / "pol", timesteps, 0.1)
+        return ppo_training.TrainResult(tmp_path / "pol", timesteps, 0.1)
 
     monkeypatch.setattr(train_cmd, "tune_hyperparameters", fake_hpo)     # as the command calls it
-    monkeypatch.setattr(ppo, "train", fake_train)
+    monkeypatch.setattr(ppo_training, "train", fake_train)
     out = tmp_path / "pol"
     assert main(["train", "--json", "--hpo", "--hpo-trials", "3", "--timesteps", "2000", "--envs", "2",
                  "--seed", "5", "-o", str(out)]) == 0

@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from ringtune.agents.ppo import policy as ppo
+from ringtune.agents.ppo import training as ppo
 from ringtune.agents.cli.main import main
 from ringtune.agents.cli.train import rollout_for
 

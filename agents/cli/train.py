@@ -28,10 +28,10 @@ import numpy as np
 
 from ringtune.agents.cli.common import progress_interval
 from ringtune.agents.cli.options import VALUES, Value
-from ringtune.agents.ppo import policy as ppo
+from ringtune.agents.ppo import training as ppo
 from ringtune.agents.ppo.hpo import tune_hyperparameters
 from ringtune.agents.ppo.rl import rl
-from ringtune.agents.ppo.policy import DEFAULT_HYPER, DEFAULT_N_ENVS, DEFAULT_TIMESTEPS
+from ringtune.agents.ppo.training import DEFAULT_HYPER, DEFAULT_N_ENVS, DEFAULT_TIMESTEPS
 from ringtune.shaping.errors import RingtuneError
 
 NAME = "train"

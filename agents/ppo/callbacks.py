@@ -1,4 +1,4 @@
-"""Callbacks of :func:`ringtune.agents.ppo.policy.train` (stable-baselines3's classes come from
+"""Callbacks of :func:`ringtune.agents.ppo.training.train` (stable-baselines3's classes come from
 :func:`ringtune.agents.ppo.rl.rl`: the ``rl`` extra is optional)."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Optuna tunes PPO's own hyperparameters (``ringtune train --hpo``).
 
-Each trial is a short :func:`ringtune.agents.ppo.policy.train` run (``budget`` steps) in its own folder;
+Each trial is a short :func:`ringtune.agents.ppo.training.train` run (``budget`` steps) in its own folder;
 its objective is the held-out printers' mean cost at the last evaluation (the evaluation callback's
 printers, never trained on). Seeded TPE, sequential, in-memory study; the trials' results go to
 ``out_dir/hpo.json``.
@@ -13,12 +13,12 @@ from pathlib import Path
 
 import optuna
 
-from ringtune.agents.ppo.policy import train
+from ringtune.agents.ppo.training import train
 from ringtune.shaping.errors import RingtuneError
 
 
 def suggest_hyper(trial) -> dict:
-    """PPO hyperparameters searched (others keep :data:`ringtune.agents.ppo.policy.DEFAULT_HYPER`)."""
+    """PPO hyperparameters searched (others keep :data:`ringtune.agents.ppo.training.DEFAULT_HYPER`)."""
     width = trial.suggest_categorical("width", [64, 128, 256])
     return {
         "learning_rate": trial.suggest_float("learning_rate", 1e-4, 3e-3, log=True),
