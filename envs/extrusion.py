@@ -1,5 +1,5 @@
 """Material laid along the nozzle's real path against what the G-code asks (seed 002; definitions in
-:mod:`ringtune.envs.metrics`; mm of path, mm of filament, %).
+:mod:`ringtune.envs.window_metrics`; mm of path, mm of filament, %).
 
 The firmware commands the extruder on its own clock (:mod:`ringtune.shaping.e_timing`: shaped with
 X/Y, delayed by their lag, or neither); the nozzle follows the shaped X/Y command through the

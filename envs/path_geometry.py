@@ -3,7 +3,7 @@
 :func:`path_legs` merges the planned motion's segments into straight legs (collinear, touching,
 same extruding state and same feature class); :func:`nearest_leg` finds, for each sample of the
 simulated nozzle, the nearest extruding leg active around the sample's time — the geometry every
-measure of :mod:`ringtune.envs.metrics` is taken against.
+measure of :mod:`ringtune.envs.window_metrics` is taken against.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """The first quality measures, kept as diagnostics beside what a person sees (definitions in
-:mod:`ringtune.envs.metrics`: ``path_error_mm``, ``overshoot_mm``, ``ringing_mm``; mm, s).
+:mod:`ringtune.envs.window_metrics`: ``path_error_mm``, ``overshoot_mm``, ``ringing_mm``; mm, s).
 
 Each takes the extruding samples of one window on the unshaped clock (``tu``, s), the nozzle's
 x/y (``pts``, mm) and their nearest extruding leg (:func:`ringtune.envs.path_geometry.nearest_leg`).

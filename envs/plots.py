@@ -24,9 +24,9 @@ import numpy as np
 
 from ringtune.envs.windows import _trimmed
 from ringtune.envs.figure import figure_texts
-from ringtune.envs.metrics import compute_metrics
 from ringtune.envs.path_geometry import path_legs
 from ringtune.envs.variants import Variant
+from ringtune.envs.window_metrics import compute_metrics
 from ringtune.shaping.motion import Motion
 
 

@@ -1,5 +1,6 @@
 """Ripple on walls, corner rounding and overshoot, and what hidden features push through to the
-outer wall: the geometric measures of :mod:`ringtune.envs.metrics` (definitions there; mm, s).
+outer wall: the geometric measures of :mod:`ringtune.envs.window_metrics` (definitions there;
+mm, s).
 
 Every function takes the extruding samples of one simulated window on the unshaped clock (``tu``,
 s, sorted) with the nozzle's x/y (``pts``, mm) and the commanded path's legs

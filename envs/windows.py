@@ -4,8 +4,8 @@ Each window ``[t0, t1]`` is cut from the unshaped motion with margins, shaped wi
 shapers (centred or causal per the firmware flavour), and cut again to ``[t0 − lead, t1 + tail]``
 where the shaped command is exact (``lead = shaper duration + settle``, ``tail = shaper
 duration``; ``settle`` defaults to :func:`auto_settle` of the printer); after simulation,
-:func:`ringtune.envs.metrics.compute_metrics` on the samples inside each ``[t0, t1]`` (unshaped
-clock), the job's metrics the worst window's (:meth:`Metrics.worst`).
+:func:`ringtune.envs.window_metrics.compute_metrics` on the samples inside each ``[t0, t1]``
+(unshaped clock), the job's metrics the worst window's (:meth:`Metrics.worst`).
 """
 
 from __future__ import annotations
@@ -16,8 +16,9 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ringtune.envs.metrics import CORNER_TAIL, Metrics, compute_metrics
+from ringtune.envs.metrics import Metrics
 from ringtune.envs.planned_job import PlannedJob
+from ringtune.envs.window_metrics import CORNER_TAIL, compute_metrics
 from ringtune.shaping.apply import shape_motion
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.e_timing import extruder_command

@@ -25,13 +25,8 @@ What is taken (Klipper's option -> description key):
   ``limited_*.py`` reads it), ``limited_corexy`` -> ``limits.axis_rule = "limited_corexy"`` (the
   belts' shares bind, not each axis's), ``scale_xy_accel`` -> ``limits.scale_xy_accel``;
 - per motor (``stepper_x`` -> ``[x.motor]``, ``stepper_y`` -> ``[y.motor]``, one ``[motor]`` when
-  both are the same): ``rotation_distance`` (mm of belt per *motor* revolution: divided by
-  ``gear_ratio``; from the old ``step_distance``: ``step_distance · full_steps_per_rotation ·
-  microsteps``), ``microsteps``, ``full_steps_per_rotation`` -> ``steps_per_revolution``,
-  ``[tmc… stepper_x] run_current`` (A RMS, any TMC driver), ``[autotune_tmc stepper_x] motor`` ->
-  ``name`` and ``voltage``; a ``[motor_constants NAME]`` of the user's files gives ``resistance``,
-  ``inductance``, ``holding_torque``, ``max_current`` -> ``rated_current`` (they take precedence
-  over a built-in table entry of that name);
+  both are the same): rotation distance, microsteps, run current and the named motor's constants,
+  as :mod:`ringtune.hardware.klipper_motors` takes them;
 - ``[input_shaper]`` -> ``[current]``: ``shaper_x``/``freq_x``/``damping_x`` (and y) as Klipper runs
   them (``shaper_type_x`` else ``shaper_type`` else Klipper's ``mzv``; damping 0.1 by default; a
   zero or missing frequency is ``"none"``), ``accel`` = ``max_accel``, ``firmware = "klipper"``.
@@ -42,67 +37,20 @@ Every default taken and every mapping made is a note; nothing is guessed silentl
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
 from pathlib import Path
 
-from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, place_motors, to_number, without_motor
+from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, place_motors
 from ringtune.hardware.klipper_cfgfile import read_klipper_cfg
+from ringtune.hardware.klipper_motors import stepper_motor
+from ringtune.hardware.klipper_source import KLIPPER_DEFAULTS, Source
 from ringtune.hardware.moonraker import Moonraker
 from ringtune.shaping.errors import RingtuneError
 
 #: shapers Klipper 84104bb has (``klippy/extras/shaper_defs.py``), unparameterised names
 KLIPPER_SHAPERS = ("zv", "mzv", "zvd", "ei", "2hump_ei", "3hump_ei")
-#: Klipper's defaults for what is taken here (toolhead.py, stepper.py, extras/input_shaper.py)
-KLIPPER_DEFAULTS = {"square_corner_velocity": 5.0, "minimum_cruise_ratio": 0.5, "full_steps_per_rotation": 200,
-            "shaper_type": "mzv", "damping_ratio": 0.1}
-_MOTOR_CONSTANTS = (("resistance", "resistance"), ("inductance", "inductance"),
-                    ("holding_torque", "holding_torque"), ("max_current", "rated_current"))
 
 
-@dataclass
-class _Source:
-    """Sections to read facts from, and how to say where a value came from."""
-
-    sections: dict
-    label: str                                   # file or URL
-    origin: dict = field(default_factory=dict)   # (section, option) -> "file:line"
-    given: set | None = None                     # (section lower, option) the user wrote; None = all
-    notes: list = field(default_factory=list)
-    unread: list = field(default_factory=list)   # files Klipper reads that could not be read here
-
-    def name(self, section: str) -> str | None:
-        """The section's name as written (sections are matched case-insensitively)."""
-        for key in self.sections:
-            if key.lower() == section.lower():
-                return key
-        return None
-
-    def get(self, section: str, option: str):
-        real = self.name(section)
-        return None if real is None else self.sections[real].get(option)
-
-    def where(self, section: str, option: str) -> str:
-        real = self.name(section) or section
-        return self.origin.get((real, option)) or f"{self.label}: [{real}] {option}"
-
-    def given_by_user(self, section: str, option: str) -> bool:
-        if self.get(section, option) is None:
-            return False
-        return self.given is None or (section.lower(), option) in self.given
-
-    def number(self, section: str, option: str, default=None, integer=False, unit=""):
-        """The option as a number; Klipper's ``default`` (with a note) when the user did not set it."""
-        v = self.get(section, option)
-        if v is None and default is None:
-            return None
-        value = default if v is None else to_number(v, self.where(section, option), integer)
-        if not self.given_by_user(section, option) and default is not None:
-            self.notes.append(f"[{self.name(section) or section}] {option} not set: Klipper's default "
-                              f"{value:g}{unit} is used")
-        return value
-
-
-def _kinematics(src: _Source) -> str:
+def _kinematics(src: Source) -> str:
     kin = src.get("printer", "kinematics")
     if kin is None:
         raise RingtuneError("no kinematics: [printer] kinematics is missing", src.label)
@@ -118,7 +66,7 @@ def _kinematics(src: _Source) -> str:
                         f"({', '.join(KINEMATICS)})", src.where("printer", "kinematics"))
 
 
-def _limits(src: _Source) -> dict:
+def _limits(src: Source) -> dict:
     if src.name("printer") is None:
         raise RingtuneError("no [printer] section", src.label)
     accel = src.number("printer", "max_accel")
@@ -151,7 +99,7 @@ def _limits(src: _Source) -> dict:
     return limits
 
 
-def _speed_caps(src: _Source, limits: dict, velocity: float) -> None:
+def _speed_caps(src: Source, limits: dict, velocity: float) -> None:
     """Per-axis speed caps that bind (under max_velocity, which ringtune does not tune)."""
     caps = [0.0, 0.0, 0.0, 0.0]
     for i, ax in enumerate("xyz"):
@@ -168,7 +116,7 @@ def _speed_caps(src: _Source, limits: dict, velocity: float) -> None:
         limits["max_velocity"] = caps
 
 
-def _accel_caps(src: _Source, limits: dict, accel: float) -> None:
+def _accel_caps(src: Source, limits: dict, accel: float) -> None:
     """Per-axis acceleration caps, kept whatever their value (module docstring)."""
     kin = str(src.get("printer", "kinematics")).strip()
     limited = kin.startswith("limited_")
@@ -182,128 +130,7 @@ def _accel_caps(src: _Source, limits: dict, accel: float) -> None:
         limits["scale_xy_accel"] = True
 
 
-def _gearing(src: _Source, stepper: str) -> float:
-    """The stepper's gear_ratio (``a:b[, c:d…]``, or Moonraker's list of pairs) as one factor."""
-    raw = src.get(stepper, "gear_ratio")
-    if raw in (None, "", ()):
-        return 1.0
-    where = src.where(stepper, "gear_ratio")
-    pairs = raw if isinstance(raw, (list, tuple)) else [p.split(":") for p in str(raw).split(",") if p.strip()]
-    g = 1.0
-    for pair in pairs:
-        if len(pair) != 2:
-            raise RingtuneError(f"gear_ratio must be 'a:b[, c:d…]', not {raw!r}", where)
-        g *= to_number(pair[0], where) / to_number(pair[1], where)
-    return g
-
-
-def _tmc_section(src: _Source, stepper: str) -> str | None:
-    found = [s for s in src.sections if re.fullmatch(rf"tmc\w+\s+{re.escape(stepper)}", s, re.I)]
-    if len(found) > 1:
-        src.notes.append(f"{stepper}: several driver sections ({', '.join(found)}); {found[-1]} is read")
-    return found[-1] if found else None
-
-
-def _motor_constants(src: _Source, name: str) -> str | None:
-    want = f"motor_constants {name}".lower()
-    return next((s for s in src.sections if " ".join(s.split()).lower() == want), None)
-
-
-def _stepper_motor(src: _Source, stepper: str) -> dict:
-    """The motor table of one stepper (see the module docstring)."""
-    if src.name(stepper) is None:
-        src.notes.append(f"no [{stepper}] section: its rotation_distance and microsteps are unknown")
-        return {}
-    table: dict = {}
-    micro = src.number(stepper, "microsteps", integer=True)
-    tmc = _tmc_section(src, stepper)
-    if micro is None and tmc is not None:
-        micro = src.number(tmc, "microsteps", integer=True)      # old configurations kept it there
-    full = src.number(stepper, "full_steps_per_rotation", KLIPPER_DEFAULTS["full_steps_per_rotation"],
-                      integer=True)
-    rd = _rotation_distance(src, stepper, micro, full)
-    if rd is not None:
-        table["rotation_distance"] = rd
-    if micro is not None:
-        table["microsteps"] = int(micro)
-    table["steps_per_revolution"] = int(full)
-    if tmc is None:
-        src.notes.append(f"no [tmc… {stepper}] section: {stepper}'s run current is unknown")
-    elif (rc := src.number(tmc, "run_current")) is not None:
-        table["run_current"] = rc
-    return _named_motor(src, stepper, full, table)
-
-
-def _rotation_distance(src: _Source, stepper: str, micro: int | None, full: int) -> float | None:
-    """mm of belt per motor revolution: rotation_distance (or the old step_distance × full steps ×
-    microsteps) over the gear ratio; None (said in a note) when unknown."""
-    rd = _given_rotation_distance(src, stepper, micro, full)
-    gearing = _gearing(src, stepper)
-    if rd is None or gearing == 1.0:
-        return rd
-    src.notes.append(f"{src.where(stepper, 'gear_ratio')}: gear_ratio {gearing:g}: the motor turns "
-                     f"{gearing:g}× per rotation_distance, so {rd / gearing:g} mm of belt per motor "
-                     "revolution")
-    return rd / gearing
-
-
-def _given_rotation_distance(src: _Source, stepper: str, micro: int | None, full: int) -> float | None:
-    """The stepper's rotation_distance, or the old step_distance × full steps × microsteps."""
-    rd = src.number(stepper, "rotation_distance")
-    if rd is not None:
-        return rd
-    if src.get(stepper, "step_distance") is None:
-        src.notes.append(f"[{stepper}] has no rotation_distance")
-        return None
-    sd = src.number(stepper, "step_distance")
-    if micro is None:
-        src.notes.append(f"{src.where(stepper, 'step_distance')}: old step_distance {sd:g} mm but no "
-                         "microsteps: rotation_distance unknown")
-        return None
-    rd = sd * full * micro
-    src.notes.append(f"{src.where(stepper, 'step_distance')}: old step_distance {sd:g} mm -> "
-                     f"rotation_distance = {sd:g} × {full} × {micro} = {rd:g} mm")
-    return rd
-
-
-def _named_motor(src: _Source, stepper: str, full: int, table: dict) -> dict:
-    """``table`` with the motor [autotune_tmc] names: its name, the supply voltage and the constants
-    of a motor defined in the configuration (unnamed: what is assumed, said)."""
-    auto = f"autotune_tmc {stepper}"
-    motor = src.get(auto, "motor")
-    if motor is None:
-        src.notes.append(f"no [autotune_tmc {stepper}] motor: {stepper}'s motor is not named")
-        without_motor(table, src.notes, stepper)
-        return table
-    motor = str(motor).strip()
-    table["name"] = motor
-    volts = src.number(auto, "voltage")
-    if volts is not None:
-        table["voltage"] = volts
-    else:
-        src.notes.append(f"[autotune_tmc {stepper}] gives no voltage: the supply voltage is unknown")
-    inline = _motor_constants(src, motor)
-    if inline is not None:
-        _inline_constants(src, stepper, motor, inline, full, table)
-    return table
-
-
-def _inline_constants(src: _Source, stepper: str, motor: str, inline: str, full: int, table: dict) -> None:
-    """The constants of a motor defined in the configuration (section ``inline``) into ``table``."""
-    for key, out in _MOTOR_CONSTANTS:
-        v = src.number(inline, key)
-        if v is None:
-            raise RingtuneError(f"[{inline}] has no {key}", src.label)
-        table[out] = v
-    steps = src.number(inline, "steps_per_revolution", integer=True)
-    src.notes.append(f"{stepper}: motor {motor}: constants from [{inline}] at "
-                     f"{src.where(inline, 'resistance')}")
-    if steps not in (None, full):
-        src.notes.append(f"{stepper}: [{inline}] steps_per_revolution {steps} but full_steps_per_rotation "
-                         f"{full}; {full} is written (it is how Klipper steps the motor)")
-
-
-def _accel_cap(src: _Source, ax: str, accel: float, limited: str | None) -> float:
+def _accel_cap(src: Source, ax: str, accel: float, limited: str | None) -> float:
     """max_<ax>_accel (0 = none); on a limited_* kinematics an unset X/Y cap is max_accel."""
     v = src.number("printer", f"max_{ax}_accel")
     if v is None and limited:
@@ -313,7 +140,7 @@ def _accel_cap(src: _Source, ax: str, accel: float, limited: str | None) -> floa
     return 0.0 if v is None else v
 
 
-def _shaping_unknown(src: _Source) -> bool:
+def _shaping_unknown(src: Source) -> bool:
     """No [input_shaper] in what was read while parts could not be read: today's shaping is
     unknown (said in a note), not "none"."""
     if src.name("input_shaper") is not None or not src.unread:
@@ -324,7 +151,7 @@ def _shaping_unknown(src: _Source) -> bool:
     return True
 
 
-def _current(src: _Source, accel: float) -> dict | None:
+def _current(src: Source, accel: float) -> dict | None:
     """``[current]``: the shaper the configuration sets; None (unknown) when it has no [input_shaper]
     but parts of it could not be read (one of them may hold it)."""
     if _shaping_unknown(src):
@@ -358,15 +185,15 @@ def _current(src: _Source, accel: float) -> dict | None:
     return cur
 
 
-def facts_from_sections(src: _Source) -> FirmwareFacts:
+def facts_from_sections(src: Source) -> FirmwareFacts:
     """The facts of a configuration already merged into sections (file or Moonraker)."""
     kin = _kinematics(src)
     limits = _limits(src)
-    x = _stepper_motor(src, "stepper_x")
-    y = _stepper_motor(src, "stepper_y")
+    x = stepper_motor(src, "stepper_x")
+    y = stepper_motor(src, "stepper_y")
     if kin == "corexz":
         zn = len(src.notes)
-        z = _stepper_motor(src, "stepper_z")
+        z = stepper_motor(src, "stepper_z")
         del src.notes[zn:]
         if z != x:
             src.notes.append("corexz: motor B (stepper_z) differs from motor A (stepper_x); [x.motor] "
@@ -392,7 +219,7 @@ def printer_facts_from_klipper(path: str | Path) -> FirmwareFacts:
     used = re.compile(r"(printer|input_shaper|stepper_[xyz]|(tmc\w+|autotune_tmc)\s+stepper_[xyz]"
                       r"|motor_constants\s.*)", re.I)
     notes += [note for section, _, note in cfg.ignored_saved if used.fullmatch(section)]
-    src = _Source(cfg.sections, str(path), cfg.origin, None, notes, list(cfg.unread))
+    src = Source(cfg.sections, str(path), cfg.origin, None, notes, list(cfg.unread))
     return facts_from_sections(src)
 
 
@@ -410,5 +237,5 @@ def printer_facts_from_moonraker(url: str, api_key: str | None = None, timeout: 
     for name, opts in parsed.items():
         if isinstance(opts, dict):
             sections.setdefault(real.get(name.lower(), name), {}).update(opts)
-    src = _Source(sections, mr.shown, {}, given, [])
+    src = Source(sections, mr.shown, {}, given, [])
     return facts_from_sections(src)

@@ -70,8 +70,8 @@ def test_motor_load_is_the_closed_form_force_ratio():
     metric equals the analytic demanded/available force maximum."""
     import test_physics_steploss as ps
 
-    from ringtune.envs.metrics import compute_metrics
     from ringtune.envs.sim import simulate
+    from ringtune.envs.window_metrics import compute_metrics
 
     a = 0.8 * ps._threshold()[0]
     sim = simulate(ps._printer(), ps._motion(a), backend="lti")

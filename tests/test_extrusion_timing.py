@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ringtune.envs.metrics import compute_metrics
+from ringtune.envs.window_metrics import compute_metrics
 from ringtune.shaping.apply import shape_motion
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.e_timing import E_TIMINGS, XY_DELAYS, extruder_command

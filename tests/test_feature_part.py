@@ -20,8 +20,8 @@ from ringtune.agents.tune.feature_groups import ACCEL_GROUPS, CORNER_GROUPS
 from ringtune.agents.tune.feature_space import HIDDEN_CORNER_RANGE, feature_space
 from ringtune.agents.tune.space import default_space
 from ringtune.envs.evaluate import evaluate_many
-from ringtune.envs.metrics import EXTRUSION_SEEN
 from ringtune.envs.printer import load_printer
+from ringtune.envs.window_metrics import EXTRUSION_SEEN
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.features import VISIBLE
 from ringtune.shaping.wall_gap import infill_wall_gap

@@ -10,8 +10,9 @@ import pytest
 from hypothesis import given, settings, strategies as st
 from scipy.integrate import quad
 
-from ringtune.envs.metrics import Metrics, compute_metrics
+from ringtune.envs.metrics import Metrics
 from ringtune.envs.path_geometry import path_legs
+from ringtune.envs.window_metrics import compute_metrics
 from ringtune.shaping.motion import Motion
 
 RATE = 10_000.0  # Hz, synthetic sample rate

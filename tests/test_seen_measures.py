@@ -17,9 +17,10 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from ringtune.envs.metrics import FEATURE_KEYS, Metrics, compute_metrics
+from ringtune.envs.metrics import FEATURE_KEYS, Metrics
 from ringtune.envs.printer import printer_from_dict
 from ringtune.envs.sim import simulate
+from ringtune.envs.window_metrics import compute_metrics
 from ringtune.shaping.apply import shape_motion
 from ringtune.shaping.features import FEATURE_CLASSES
 from ringtune.shaping.motion import Motion

@@ -7,9 +7,9 @@ JSON keys (stable): ``printer`` (name), ``job`` (G-code path or ``"built-in test
 ``extrusion_under_pct``, ``e_lag_mm``, ``show_through_mm``, ``features`` ({class: {the same measures
 per feature class, ringtune.envs.metrics.FEATURE_KEYS}}), ``extrusion_if_synced``
 ({``extrusion_over_pct``, ``extrusion_under_pct``, ``e_lag_mm``} with the firmware's E
-synchronisation on, empty where it has none off by default)} (definitions: ringtune.envs.metrics),
-``e_timing`` (the firmware's extruder under shaping: shaped, delayed or neither), ``e_sync`` (how to
-synchronise it, "" where not applicable), ``freq_margin``
+synchronisation on, empty where it has none off by default)} (definitions:
+ringtune.envs.window_metrics), ``e_timing`` (the firmware's extruder under shaping: shaped, delayed
+or neither), ``e_sync`` (how to synchronise it, "" where not applicable), ``freq_margin``
 (fraction: the metrics are the worst of the printer and its resonances this much lower and
 higher, damping ×0.75, as ``tune`` judges; 0 = the exact model; default: the ``freq_margin`` a tune
 best.json records, else tune's default), ``judgement`` (that, in words), ``variants`` (list of

@@ -20,8 +20,9 @@ ABUTTING_GROUPS = ("hidden_walls",)
 #: they keep the job-wide ones): ``hidden``, sparse infill and support behind the perimeters and
 #: travel, which prints nothing; ``solid``, solid infill, whose corners are as hidden but whose
 #: extrusion is judged as seen (it lies under the top surface and forms the bottom:
-#: :data:`ringtune.envs.metrics.EXTRUSION_SEEN`), so that its extrusion does not hold the others'
-#: corner rule down (on the built-in part it held all four at 9 mm/s; apart, the others reach 30)
+#: :data:`ringtune.envs.window_metrics.EXTRUSION_SEEN`), so that its extrusion does not hold the
+#: others' corner rule down (on the built-in part it held all four at 9 mm/s; apart, the others
+#: reach 30)
 CORNER_GROUPS = {"hidden": ("infill", "support", "travel"), "solid": ("solid_infill",)}
 #: each corner group in words: whose corners they are and whose rule (the walk's lines), and how
 #: they are judged (the summary's per-feature section)

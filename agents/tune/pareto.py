@@ -1,10 +1,11 @@
 """Points, Pareto fronts and comparison at a stated resolution (shared by the study, the grid and
 reports; the choice of one point: :mod:`ringtune.agents.tune.choice`).
 
-What is judged is what a person sees on the part (:mod:`ringtune.envs.metrics`): on the visible
-features, the wall ripple (worst wall and 90th percentile), corner rounding inwards and overshoot
-outwards, and over- and under-extrusion (:data:`VISIBLE_KEYS`); step loss, the motor reserve, the
-hidden features' show-through and the path error are bounds (a point breaking one is infeasible).
+What is judged is what a person sees on the part (:mod:`ringtune.envs.window_metrics`): on the
+visible features, the wall ripple (worst wall and 90th percentile), corner rounding inwards and
+overshoot outwards, and over- and under-extrusion (:data:`VISIBLE_KEYS`); step loss, the motor
+reserve, the hidden features' show-through and the path error are bounds (a point breaking one is
+infeasible).
 
 Comparisons ("better", "same", "worse", "dominates") are made at a resolution (:class:`Resolution`):
 differences of distances smaller than 1 µm or 5 % of the larger value, whichever is larger, of
