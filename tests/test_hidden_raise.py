@@ -5,6 +5,7 @@ on the real per-feature space of the built-in part."""
 
 from __future__ import annotations
 
+import dataclasses
 from types import SimpleNamespace
 
 import pytest
@@ -12,12 +13,13 @@ import pytest
 from ringtune.agents.tune.baselines import Baselines
 from ringtune.agents.tune.choice import Choice
 from ringtune.agents.tune.feature_space import feature_space
-from ringtune.agents.tune.hidden_raise import FINER, LEVELS, batch, raise_hidden
+from ringtune.agents.tune.hidden_raise import FINER, LEVELS, Raise, batch, raise_hidden, unseen_tops
 from ringtune.agents.tune.pareto import point_from_metrics
 from ringtune.agents.tune.refine import refine
 from ringtune.agents.tune.space import config_from_params, default_space, params_from_config
 from ringtune.agents.tune.stop import Bounds
 from ringtune.agents.tune.study import StudySettings
+from ringtune.envs.planned_job import planned_job
 from ringtune.envs.printer import load_printer
 from ringtune.shaping.config import TuneConfig
 
@@ -270,3 +272,37 @@ def test_tunes_walk_spends_no_visible_quality_the_choice_had(space):
     assert got.point.metrics["ripple_mm"] == pytest.approx(0.05)
     assert params["accel_travel"] == tops["travel"] and params["accel_solid_infill"] == tops["solid_infill"]
     assert "than the baseline's or the choice's own before" in got.sentence
+
+
+def test_the_walks_ceiling_puts_every_setting_nobody_sees_at_its_top_and_keeps_what_is_seen(space):
+    start = _start(space)
+    tops = {g: hi for g, _lo, hi in space.feature_accel}
+    ceiling = unseen_tops(start, space)
+    # by hand: each group nobody sees at its range's top (inner walls and solid infill too), the top
+    # surfaces, the visible walls and the job's corner rule as they were
+    assert ceiling.accel == start.accel and ceiling.corner == start.corner
+    assert ceiling.min_cruise_ratio == start.min_cruise_ratio
+    assert ceiling.feature_accel["top_surface"] == start.feature_accel["top_surface"]
+    for cls, group in (("inner_wall", "hidden_walls"), ("infill", "infill"), ("support", "infill"),
+                       ("solid_infill", "solid_infill"), ("travel", "travel")):
+        assert ceiling.feature_accel[cls] == tops[group], cls
+    for cls in ("infill", "support", "travel", "solid_infill"):
+        assert ceiling.feature_corner[cls] == space.hidden_corner[1]
+        assert ceiling.feature_min_cruise_ratio[cls] == 0.0
+    # planned, the part at that ceiling is faster than the start and no faster than with the groups
+    # nobody sees at no limit at all
+    printer = load_printer(None)
+    t_start = planned_job(printer, "part", start).print_time
+    t_ceiling = planned_job(printer, "part", ceiling).print_time
+    free = dataclasses.replace(ceiling, feature_accel={**ceiling.feature_accel, **dict.fromkeys(
+        ("inner_wall", "infill", "support", "solid_infill", "travel"), 1e6)}, max_accel_x=1e6, max_accel_y=1e6)
+    assert planned_job(printer, "part", free).print_time < t_ceiling < t_start
+
+
+def test_the_ceiling_sentence_says_what_share_of_the_room_the_walk_took():
+    def point(t):
+        return SimpleNamespace(print_time_s=t)
+    walk = Raise(point(1000.0), point(1200.0))
+    text = walk.ceiling_sentence(950.0)
+    assert "950.0 s" in text and "took 200.0 of the 250.0 s" in text and "(1200.0 s)" in text and "(80 %)" in text
+    assert "No faster than the walk's start (1200.0 s)" in walk.ceiling_sentence(1200.0)

@@ -47,3 +47,17 @@ def test_simulate_of_the_rewritten_job_prints_tunes_figures(tmp_path, data_dir):
     # limit, which is then not applied twice): the same time to that rounding
     tol = 1e-5 if best["freq_limit_hz"] > 0 else 1e-9
     assert res["metrics"]["print_time_s"] == pytest.approx(report["chosen"]["print_time_s"], rel=tol)
+    # the walk's ceiling: the choice with every group nobody sees at the top of its range as the
+    # summary states the ranges, the corners nobody sees at 30 mm/s (twice the visible walls' 15) with
+    # no cruise smoothing, planned by `ringtune plan`
+    pf = report["per_feature"]
+    tops = {g: r["range"][1] for g, r in pf["ranges"].items()}
+    ceiling = dict(best, feature_accel={**best.get("feature_accel", {}), "inner_wall": tops["hidden_walls"],
+                                        "infill": tops["infill"], "support": tops["infill"], "travel": tops["travel"]},
+                   feature_corner=dict.fromkeys(("infill", "support", "travel"), 30.0),
+                   feature_min_cruise_ratio=dict.fromkeys(("infill", "support", "travel"), 0.0))
+    (tmp_path / "ceiling.json").write_text(json.dumps(ceiling))
+    plan = _run(["plan", str(job), "--config", str(tmp_path / "ceiling.json"), "--json"])
+    assert plan.returncode == 0, plan.stderr
+    assert pf["ceiling_print_time_s"] == pytest.approx(json.loads(plan.stdout)["print_time_s"], rel=1e-9)
+    assert pf["ceiling_print_time_s"] < report["chosen"]["print_time_s"]

@@ -129,6 +129,19 @@ class Raise:
                 "evaluations": self.evaluations, "screened": self.screened, "budget": self.budget, "cut": self.cut,
                 "sentence": self.sentence(), "held": [h.to_dict() for h in self.held]}
 
+    def ceiling_sentence(self, ceiling_s: float) -> str:
+        """What the walk took of what it could reach: ``ceiling_s``, the planned print time (s) of
+        :func:`unseen_tops` of the choice."""
+        head = (f"Ceiling of the walk (the planner alone; neither quality nor the simulated motor load judged): every "
+                f"setting nobody sees at the top of its range, the corners' minimum_cruise_ratio 0, what a person sees "
+                f"as chosen: {ceiling_s:.1f} s.")
+        room = self.start.print_time_s - ceiling_s
+        if room <= 0:
+            return f"{head} No faster than the walk's start ({self.start.print_time_s:.1f} s)."
+        took = self.start.print_time_s - self.point.print_time_s
+        return (f"{head} The walk took {took:.1f} of the {room:.1f} s between its start "
+                f"({self.start.print_time_s:.1f} s) and that ({took / room * 100:.0f} %).")
+
     def held_lines(self, labels: dict[str, str], corner_unit: str) -> list[str]:
         """One line per setting walked: where it stays and what holds it there (:class:`Held`);
         ``labels`` names the baselines, ``corner_unit`` the corner rule's unit."""
@@ -274,6 +287,23 @@ def _held(key: str, params: dict[str, Any], fails: list[tuple[dict, tuple, bool]
         return Held(key, value, top)
     tried, _other, why, scr = min(above, key=lambda f: (f[0], f[1]))
     return Held(key, value, top, tried, why, scr)
+
+
+def unseen_tops(config: TuneConfig, space: SearchSpace) -> TuneConfig:
+    """``config`` with every setting the walk raises where nobody sees it at the top of its range
+    (the acceleration of each group not in :data:`SEEN_GROUPS`, inner walls and solid infill
+    included; each corner group's rule, its minimum_cruise_ratio at the range's bottom, 0: no
+    cruise smoothing); what a person sees (the visible walls, the top surfaces, the job's corner
+    rule) as in ``config``. Planned alone, it is the most the walk could reach if no quality and no
+    simulated motor load held it back."""
+    params = params_from_config(config, space)
+    for key in steps(params, space):
+        if key == "corner" or key.removeprefix("accel_") in SEEN_GROUPS:
+            continue
+        params[key] = _top(key, space)
+        if key in CORNERS:
+            params[CORNERS[key][0]] = float(getattr(space, CORNERS[key][2])[0])
+    return config_from_params(params, space, extra=config.extra)
 
 
 def _top(key: str, space: SearchSpace) -> float:

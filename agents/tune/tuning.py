@@ -19,13 +19,14 @@ from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel
 from ringtune.agents.tune.motor_bound import top_speed_load_note
 from ringtune.agents.tune.out_dir import check_out, remove_if_empty
 from ringtune.agents.tune.choice import BASELINE_NAMES, pick, runners_up
+from ringtune.agents.tune.hidden_raise import unseen_tops
 from ringtune.agents.tune.pareto import VISIBLE_KEYS
 from ringtune.agents.tune.refine import refine
 from ringtune.agents.tune.request import Limits, TuneRequest, check_request, shaping_min_freq
 from ringtune.agents.tune.space import CORNER_UNIT, default_space, freq_floor_note, params_from_config, walked_keys
 from ringtune.agents.tune.stop import Bounds
 from ringtune.agents.tune.study_results import study_points
-from ringtune.envs.planned_job import resolve_printer
+from ringtune.envs.planned_job import planned_job, resolve_printer
 from ringtune.envs.job_rewrite import first_layer_words, rewrite_file
 from ringtune.envs.printer_model import unmeasured_note
 from ringtune.envs.variants import TWIN_DAMPING
@@ -260,6 +261,9 @@ def _report(req: TuneRequest, lim: Limits, fw: Firmware, printer, facts, space, 
                 pf_lines.append("  What holds each where it is (the next value the walk tried, measured as every "
                                 "trial; µm and % the worst of the model and its twins unless said):")
                 pf_lines += [f"    {line}" for line in held]
+            ceiling = planned_job(printer, req.gcode, unseen_tops(chosen.config, space), job_accel=req.job_accel).print_time
+            pf_lines.append(f"  {lift.ceiling_sentence(ceiling)}")
+            pf_json["ceiling_print_time_s"] = ceiling
     ja_json["searched"] = not space.accel_fixed
     result = report.write_report(
         out_dir, points=points, front=front, choice=choice, baselines=bl.points, quality=quality,
