@@ -17,7 +17,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from ringtune.agents.tune.mass_schedule import schedule_job
+from ringtune.agents.tune.mass_check import schedule_job
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.solid_block import solid_block
 

@@ -10,9 +10,9 @@ Formats (see ``shared/reference/firmware.md`` §1.3, §1.4, §3.4):
   either ``,shapers:,zv(34.4),mzv(...)`` (rows: an empty column, then one response per shaper) or,
   in older Klipper, the shaper columns ``zv(34.4),...`` straight after ``psd_xyz``. With a shaper block
   the PSD is already normalised to frequencies (:attr:`PSD.normalized`).
-- Klipper raw accelerometer CSV ``#time,accel_x,accel_y,accel_z`` (s, mm/s²).
-- RepRapFirmware ``M956`` CSV ``Sample,X,Y,Z`` (only the captured axes; values in g) ending with the
-  trailer ``Rate <Hz>, overflows <n>``; time = sample / rate; converted to mm/s².
+- Klipper raw accelerometer CSV ``#time,accel_x,accel_y,accel_z`` and RepRapFirmware ``M956`` CSV
+  ``Sample,X,Y,Z``: detected here, parsed into a :class:`RawAccel` (s, mm/s²) by
+  :mod:`ringtune.hardware.raw_accel`.
 
 Every malformed file raises :class:`RingtuneError` naming the file and line.
 """
@@ -20,46 +20,18 @@ Every malformed file raises :class:`RingtuneError` naming the file and line.
 from __future__ import annotations
 
 import csv
-import math
 import re
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Union
 
 import numpy as np
 
+from ringtune.hardware.accel_lines import finite_floats, first_content
 from ringtune.hardware.psd import PSD, klipper_psd
+from ringtune.hardware.raw_accel import RawAccel, parse_klipper_raw, parse_m956
 from ringtune.shaping.errors import RingtuneError
 
-#: standard gravity in mm/s² (Klipper's FREEFALL_ACCEL)
-G_MM_S2 = 9.80665 * 1000.0
-
 _SHAPER_COL = re.compile(r"^\s*([A-Za-z_][\w]*(?:\([^()]*\))?)\s*\(\s*([0-9.]+)\s*\)\s*$")
-_M956_TRAILER = re.compile(r"^\s*Rate\s+([0-9.]+)\s*,\s*overflows\s+(\d+)\s*$", re.IGNORECASE)
-
-@dataclass
-class RawAccel:
-    """A raw accelerometer capture: time (s) and acceleration per axis (mm/s²).
-
-    Axes that were not captured (M956 with only some axes) are None.
-    ``rate`` is the sample rate the file states (M956 trailer) or N / (t_last − t_first).
-    """
-
-    t: np.ndarray
-    ax: np.ndarray | None
-    ay: np.ndarray | None
-    az: np.ndarray | None
-    source: str = ""
-    rate: float = 0.0
-    overflows: int = 0
-    fmt: str = "klipper-raw"
-
-    def axis(self, axis: str) -> np.ndarray:
-        arr = getattr(self, f"a{axis}", None)
-        if arr is None:
-            raise RingtuneError(f"axis {axis.upper()} was not captured", self.source or None)
-        return arr
-
 
 AccelData = Union[PSD, list, RawAccel]
 
@@ -77,18 +49,8 @@ def _read_lines(path: str | Path) -> tuple[Path, list[str]]:
     return path, text.splitlines()
 
 
-def _first_content(lines: list[str]) -> int:
-    """Index of the first line that is neither blank nor a ``#`` comment (``#time`` is Klipper's raw
-    header, not a comment); -1 when there is none."""
-    for i, line in enumerate(lines):
-        s = line.strip().lower()
-        if s and (not s.startswith("#") or s.startswith("#time")):
-            return i
-    return -1
-
-
 def _detect(path: Path, lines: list[str]) -> str:
-    i = _first_content(lines)
+    i = first_content(lines)
     if i < 0:
         raise RingtuneError("empty file: no header line", str(path))
     head = lines[i].strip().lower()
@@ -146,7 +108,7 @@ def _read_as(path: str | Path, accepted: tuple[str, ...], refusal: str) -> Accel
     kind = _detect(path, lines)
     if kind not in accepted:
         raise RingtuneError(refusal.format(kind=kind), str(path))
-    parse = {"resonances": _parse_resonances, "m956": _parse_m956, "klipper-raw": _parse_klipper_raw}
+    parse = {"resonances": _parse_resonances, "m956": parse_m956, "klipper-raw": parse_klipper_raw}
     return parse[kind](path, lines)
 
 
@@ -177,7 +139,7 @@ def _resonance_header(path: Path, lines: list[str]) -> tuple[int, list[str], lis
     """(header line index, PSD columns, shaper columns, whether an empty column and ``shapers:``
     separate them) of a Klipper resonance CSV; old Klipper puts ``name(freq)`` shaper columns
     straight after the PSD columns."""
-    hi = _first_content(lines)
+    hi = first_content(lines)
     header = [h.strip() for h in next(csv.reader([lines[hi].strip()]))]
     where_h = f"{path}:{hi + 1}"
     if header[0].lower() != "freq":
@@ -224,31 +186,10 @@ def _resonance_row(parts: list[str], n_psd: int, has_gap: bool, n_expected: int,
         if parts[1 + n_psd].strip():
             raise RingtuneError(f"column {n_psd + 2} before the shaper block must be empty", where)
         del parts[1 + n_psd]
-    vals = _finite_floats(parts, where)
+    vals = finite_floats(parts, where)
     if any(v < 0 for v in vals[1:1 + n_psd]):
         raise RingtuneError("negative power spectral density", where)
     return vals
-
-
-def _finite_floats(parts: list[str], where: str) -> list[float]:
-    """The comma-separated fields of one data row as finite floats; RingtuneError at ``where``
-    names the first field that is not a number, or says a value is not finite."""
-    try:
-        vals = [float(p) for p in parts]
-    except ValueError:
-        bad = next(p for p in parts if not _is_float(p))
-        raise RingtuneError(f"not a number: {bad.strip()[:30]!r}", where) from None
-    if not all(math.isfinite(v) for v in vals):
-        raise RingtuneError("non-finite value", where)
-    return vals
-
-
-def _is_float(s: str) -> bool:
-    try:
-        float(s)
-        return True
-    except ValueError:
-        return False
 
 
 #: Klipper's ``resonances_<axis>_…``, ``calibration_data_<axis>_…``, ``raw_data_<axis>_…`` (firmware.md §1.4)
@@ -291,110 +232,13 @@ def direction_from_file_name(path: str | Path) -> tuple[float, float] | None:
     return (dx, dy) if (dx, dy) != (0.0, 0.0) else None
 
 
-# -- Klipper raw accelerometer CSV ---------------------------------------------------------------
+# -- raw accelerometer captures (Klipper raw, RRF M956) ------------------------------------------
 
 def read_raw_accel(path: str | Path) -> RawAccel:
     """Klipper raw ``#time,accel_x,accel_y,accel_z`` or RRF M956 CSV -> RawAccel (mm/s²)."""
     return _read_as(path, ("m956", "klipper-raw"),
                     "this is a PSD file (header 'freq,...'), not a raw accelerometer capture; "
                     "use read_resonances_csv")
-
-
-def _bad_raw_line(path: Path, body: list[tuple[int, str]]) -> RingtuneError:
-    """The error naming the first line of a raw capture that is not four finite numbers (the slow
-    path, taken only when the fast reader failed)."""
-    for i, ln in body:
-        parts = ln.split(",")
-        if len(parts) != 4:
-            return RingtuneError(f"expected 4 values (time,accel_x,accel_y,accel_z), found {len(parts)}",
-                                 f"{path}:{i + 1}")
-        bad = next((p for p in parts if not _is_float(p) or not math.isfinite(float(p))), None)
-        if bad is not None:
-            return RingtuneError(f"not a finite number: {bad.strip()[:30]!r}", f"{path}:{i + 1}")
-    return RingtuneError("unreadable raw accelerometer data", str(path))  # pragma: no cover
-
-
-def _parse_klipper_raw(path: Path, lines: list[str]) -> RawAccel:
-    body = [(i, ln) for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
-    if len(body) < 2:
-        raise RingtuneError("fewer than two samples", str(path))
-    try:
-        data = np.loadtxt([ln for _, ln in body], delimiter=",", dtype=float, ndmin=2)
-        ok = data.shape[1] == 4 and np.isfinite(data).all()
-    except ValueError:
-        ok = False
-    if not ok:
-        raise _bad_raw_line(path, body)
-    t = data[:, 0]
-    dt = np.diff(t)
-    if (dt <= 0).any():
-        k = int(np.argmax(dt <= 0)) + 1
-        raise RingtuneError("time must increase", f"{path}:{body[k][0] + 1}")
-    rate = (len(t)) / (t[-1] - t[0])
-    return RawAccel(t, data[:, 1].copy(), data[:, 2].copy(), data[:, 3].copy(), str(path), rate, 0,
-                    "klipper-raw")
-
-
-# -- RRF M956 ------------------------------------------------------------------------------------
-
-def _m956_axes(line: str, where: str) -> list[str]:
-    """The axes of an M956 header: 'Sample' then some of X, Y, Z, each once."""
-    header = [h.strip().upper() for h in line.split(",")]
-    axes = header[1:]
-    distinct_xyz = set(axes) <= {"X", "Y", "Z"} and len(set(axes)) == len(axes)
-    if header[0] != "SAMPLE" or not axes or not distinct_xyz:
-        raise RingtuneError(f"M956 header must be 'Sample' then some of X,Y,Z, not {line.strip()!r}", where)
-    return axes
-
-
-def _m956_row(s: str, axes: list[str], rows: list, where: str) -> list[float]:
-    """One sample row (index, then a value per axis), refused when it does not follow the last."""
-    if s.lower().startswith("failed"):
-        raise RingtuneError(f"the capture failed on the printer: {s!r}", where)
-    parts = s.split(",")
-    if len(parts) != len(axes) + 1:
-        raise RingtuneError(f"expected {len(axes) + 1} values (Sample,{','.join(axes)}), found {len(parts)}", where)
-    vals = _finite_floats(parts, where)
-    if rows and vals[0] != rows[-1][0] + 1:
-        raise RingtuneError(f"sample index {vals[0]:g} does not follow {rows[-1][0]:g}", where)
-    return vals
-
-
-def _m956_trailer(m: re.Match, where: str) -> tuple[float, int]:
-    """(sample rate Hz, overflows) of the 'Rate N, overflows M' trailer."""
-    rate = float(m.group(1))
-    if not rate > 0:
-        raise RingtuneError("sample rate must be > 0", where)
-    return rate, int(m.group(2))
-
-
-def _parse_m956(path: Path, lines: list[str]) -> RawAccel:
-    hi = _first_content(lines)
-    axes = _m956_axes(lines[hi], f"{path}:{hi + 1}")
-    rows = []
-    trailer = None
-    for i in range(hi + 1, len(lines)):
-        s = lines[i].strip()
-        where = f"{path}:{i + 1}"
-        if not s:
-            continue
-        if trailer is not None:
-            raise RingtuneError("data after the 'Rate N, overflows M' trailer", where)
-        m = _M956_TRAILER.match(s)
-        if m:
-            trailer = _m956_trailer(m, where)
-        else:
-            rows.append(_m956_row(s, axes, rows, where))
-    if trailer is None:
-        raise RingtuneError("missing the 'Rate <Hz>, overflows <n>' trailer line (truncated capture?)",
-                            f"{path}:{len(lines)}")
-    if len(rows) < 2:
-        raise RingtuneError("fewer than two samples", str(path))
-    rate, overflows = trailer
-    data = np.asarray(rows, dtype=float)
-    t = data[:, 0] / rate
-    acc = {ax: data[:, 1 + j] * G_MM_S2 for j, ax in enumerate(axes)}
-    return RawAccel(t, acc.get("X"), acc.get("Y"), acc.get("Z"), str(path), rate, overflows, "m956")
 
 
 # -- any reader result as spectra ----------------------------------------------------------------

@@ -12,14 +12,11 @@ Units: Hz, (mm/s²)²/Hz.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ringtune.hardware.raw_accel import RawAccel
 from ringtune.shaping.errors import RingtuneError
-
-if TYPE_CHECKING:  # the reader module imports this one, not the other way round
-    from ringtune.hardware.accel import RawAccel
 
 #: Klipper's Welch window length, s (shaper_calibrate.WINDOW_T_SEC)
 WINDOW_T_SEC = 0.5

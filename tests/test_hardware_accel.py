@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from ringtune.hardware.accel import (G_MM_S2, RawAccel, axis_from_file_name, read_accel, read_raw_accel,
-                                    read_resonances_csv)
+from ringtune.hardware.accel import axis_from_file_name, read_accel, read_raw_accel, read_resonances_csv
 from ringtune.hardware.psd import PSD, klipper_psd, klipper_window_size
+from ringtune.hardware.raw_accel import G_MM_S2, RawAccel
 from ringtune.shaping.errors import RingtuneError
 
 

@@ -22,7 +22,8 @@ import pytest
 from scipy.linalg import eigh
 
 from ringtune.agents.cli import main as cli
-from ringtune.agents.tune.mass_schedule import filament, mass_schedule, schedule_job, scheduled_lines
+from ringtune.agents.tune.mass_check import schedule_job
+from ringtune.agents.tune.mass_schedule import filament, mass_schedule, scheduled_lines
 from ringtune.envs.bed_load import dominant_y_mode
 from ringtune.envs.printer import load_printer, printer_from_dict
 from ringtune.shaping.config import TuneConfig

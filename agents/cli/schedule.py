@@ -17,8 +17,9 @@ from __future__ import annotations
 
 from ringtune.agents.cli.common import check_output_folder, firmware_name, load_config
 from ringtune.agents.cli.options import VALUES
+from ringtune.agents.tune.mass_check import schedule_job
 from ringtune.agents.tune.mass_report import schedule_summary
-from ringtune.agents.tune.mass_schedule import BAND_ACCEL, BAND_STEP, schedule_job
+from ringtune.agents.tune.mass_schedule import BAND_ACCEL, BAND_STEP
 from ringtune.shaping.layers import FILAMENT_DENSITY_G_CM3, FILAMENT_DIAMETER_MM
 
 NAME = "schedule"

@@ -16,7 +16,8 @@ from pathlib import Path
 
 from ringtune.agents.klipper.baseline import recommend_axes
 from ringtune.envs.identify import AxisFit, identify_decay, identify_psd
-from ringtune.hardware.accel import RawAccel, axis_from_file_name, read_accel, to_psd
+from ringtune.hardware.accel import axis_from_file_name, read_accel, to_psd
+from ringtune.hardware.raw_accel import RawAccel
 from ringtune.shaping.errors import RingtuneError
 
 #: Klipper's default resonance sweep, Hz ([resonance_tester] min_freq, max_freq)
