@@ -20,7 +20,7 @@ from matplotlib.figure import Figure
 
 from ringtune.envs.accel_model import model_accel
 from ringtune.envs.actions import ActionSpec, decode_action, encode_config
-from ringtune.envs.env_arguments import _check_anchors, _checked_shapers, _over_defaults, _start_action
+from ringtune.envs.env_arguments import check_anchors, checked_shapers, checked_start_action, over_defaults
 from ringtune.envs.evaluate import evaluate_many
 from ringtune.envs.planned_job import planned_job, resolve_printer
 from ringtune.envs.judgement import DEFAULT_WEIGHTS, JUDGEMENT, baseline_config, judged_cost
@@ -162,14 +162,14 @@ class TuneEnv(gym.Env):
         self.base_printer = resolve_printer(printer)
         self.randomize = bool(randomize)
         self.job = job
-        shapers = _checked_shapers(firmware, shapers)
-        _check_anchors(freq_anchor, accel_anchor, tune_accel and observe_metrics)
+        shapers = checked_shapers(firmware, shapers)
+        check_anchors(freq_anchor, accel_anchor, tune_accel and observe_metrics)
         self.spec_ = ActionSpec(firmware=firmware, shapers=tuple(shapers), per_axis=per_axis,
                                 tune_accel=tune_accel, freq_anchor=freq_anchor,
                                 freq_limit_gate=bool(freq_limit_gate), accel_anchor=accel_anchor)
-        self.weights = _over_defaults(weights, DEFAULT_WEIGHTS, "reward weights", "weights")
+        self.weights = over_defaults(weights, DEFAULT_WEIGHTS, "reward weights", "weights")
         self.step_loss_penalty = float(step_loss_penalty)
-        self.judgement = _over_defaults(judgement, JUDGEMENT, "judgement keys", "judgement")
+        self.judgement = over_defaults(judgement, JUDGEMENT, "judgement keys", "judgement")
         if not 0 <= float(freq_margin) < 1:
             raise RingtuneError(f"must be in [0, 1), not {freq_margin}", "freq_margin")
         self.freq_margin = float(freq_margin)
@@ -180,7 +180,7 @@ class TuneEnv(gym.Env):
         self.observe_metrics = bool(observe_metrics)
         self.backend = backend
         n = self.spec_.size
-        self.start_action = None if start_action is None else _start_action(start_action, self.spec_)
+        self.start_action = None if start_action is None else checked_start_action(start_action, self.spec_)
         self.start_metrics_: Metrics | None = None
         self.action_space = spaces.Box(-1.0, 1.0, (n,), np.float32)
         self._n_peak_obs = 2 if freq_anchor == "peak" else 0

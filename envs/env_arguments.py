@@ -12,7 +12,7 @@ from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.shapers import available_shapers
 
 
-def _checked_shapers(firmware: str, shapers) -> tuple[str, ...]:
+def checked_shapers(firmware: str, shapers) -> tuple[str, ...]:
     """The shapers the policy chooses from: ``shapers`` (default: every one the firmware offers but
     custom), refused when the firmware lacks one."""
     flavor = TuneConfig(firmware=firmware, shaper_x="none", shaper_y="none").flavor
@@ -24,7 +24,7 @@ def _checked_shapers(firmware: str, shapers) -> tuple[str, ...]:
     return shapers
 
 
-def _check_anchors(freq_anchor: str, accel_anchor: str, metrics_of_start: bool) -> None:
+def check_anchors(freq_anchor: str, accel_anchor: str, metrics_of_start: bool) -> None:
     """Refuse an unknown anchor, or the model anchor without a simulated start (tune_accel and
     observe_metrics) to take it from."""
     if freq_anchor not in ("absolute", "peak"):
@@ -36,7 +36,7 @@ def _check_anchors(freq_anchor: str, accel_anchor: str, metrics_of_start: bool) 
                             "starting configuration's metrics)", "accel_anchor")
 
 
-def _over_defaults(given: dict | None, defaults: dict, what: str, where: str) -> dict:
+def over_defaults(given: dict | None, defaults: dict, what: str, where: str) -> dict:
     """``defaults`` with ``given``'s values over them; a key ``defaults`` lacks is refused."""
     merged = {**defaults, **(given or {})}
     unknown = sorted(set(merged) - set(defaults))
@@ -45,7 +45,7 @@ def _over_defaults(given: dict | None, defaults: dict, what: str, where: str) ->
     return merged
 
 
-def _start_action(start_action, spec: ActionSpec) -> np.ndarray:
+def checked_start_action(start_action, spec: ActionSpec) -> np.ndarray:
     """The starting action clipped to [-1, 1], one entry per action of ``spec``."""
     action = np.clip(np.asarray(start_action, dtype=np.float32).ravel(), -1.0, 1.0)
     if action.shape != (spec.size,):
