@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from ringtune.agents.tune.mass_schedule import (BAND_STEP, MassSchedule, _band_accel, mass_schedule,
+from ringtune.agents.tune.mass_schedule import (BAND_STEP, MassSchedule, accel_at_band_frequency, mass_schedule,
                                                 scheduled_lines)
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION
 from ringtune.envs.bed_load import loaded
@@ -76,7 +76,7 @@ def measured_smoothing_factor(schedule: MassSchedule, printer=None, job=None,
     part, heavy = _last_band(schedule, printer, job)
     cfg, band = replace(schedule.config, y_schedule=None, extra={}), schedule.bands[-1]
     one = FIRMWARES[cfg.firmware].one_shaper
-    cands = [_at(cfg, band.freq_y, _band_accel(cfg, printer, band.freq_y, c), one) for c in SMOOTHING_TARGETS]
+    cands = [_at(cfg, band.freq_y, accel_at_band_frequency(cfg, printer, band.freq_y, c), one) for c in SMOOTHING_TARGETS]
     fixed, *got = evaluate_many([cfg] + cands, heavy, part, backend, job_accel="replace")
     res = DEFAULT_RESOLUTION
     for c, m in zip(SMOOTHING_TARGETS, got):

@@ -146,7 +146,7 @@ def _band_ranges(modes: np.ndarray, step: float) -> list[tuple[int, int]]:
     return out
 
 
-def _band_accel(config: TuneConfig, printer: Printer, freq_y: float, factor: float = 1.0) -> float | None:
+def accel_at_band_frequency(config: TuneConfig, printer: Printer, freq_y: float, factor: float = 1.0) -> float | None:
     """mm/s² at which Y's shaper at ``freq_y`` smooths ``factor`` × as much as the tuned one at the
     tuned acceleration (Klipper's smoothing estimate, rounded down to 10; on a firmware with one
     shaper, as the smoother of the tuned X and Y), or None when at the tuned acceleration it smooths
@@ -259,7 +259,7 @@ def _band(config: TuneConfig, printer: Printer, layers: list, a: int, b: int, f_
     mode = dominant_y_mode(printer, mass).freq
     scaled = config.freq_y * mode / f_empty
     freq = round(max(scaled, lowest), 2)
-    accel = None if smoothing is None else _band_accel(config, printer, freq, smoothing)
+    accel = None if smoothing is None else accel_at_band_frequency(config, printer, freq, smoothing)
     return Band(a, b, layers[a].z, mass, mode, freq, accel, (printer.print_mass + mass) * 1e3), scaled < lowest
 
 
