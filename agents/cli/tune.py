@@ -90,7 +90,9 @@ junction deviation or jerk, RRF's M566) and Klipper's minimum_cruise_ratio, for 
 for the corners nobody sees (infill, support and travel; solid infill's apart, its extrusion being
 judged as seen): each step judged as every
 trial, kept only with no visible measure worse than the baselines' or than the choice's own before
-the walk, on the judged printers and on wider ones (it spends no visible quality). One shaper
+the walk, on the judged printers and on wider ones (it spends no visible quality). The summary
+says what holds each setting where it stays (measured at the next value tried) and the walk's
+ceiling: the planned time with every setting nobody sees at its top, no quality judged. One shaper
 configuration serves the whole job. With --gcode, job.gcode beside best.json is the job with the
 choice written in (as `ringtune rewrite` writes it).
 
