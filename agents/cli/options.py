@@ -14,7 +14,7 @@ import operator
 from dataclasses import dataclass
 
 from ringtune.envs.motors import lookup_motor, unknown_motor_message
-from ringtune.envs.printer import check_moving_mass
+from ringtune.envs.printer_axes import check_moving_mass
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.shapers import FLAVORS
