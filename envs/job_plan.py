@@ -26,6 +26,7 @@ from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.gcode_file import read_gcode_bytes
 from ringtune.shaping.gcode_post import AccelResult, LimitResult, limit_file, rewrite_accel_bytes
 from ringtune.shaping.job import Job
+from ringtune.shaping.klipper_ignores import klipper_ignored, klipper_ignored_note
 from ringtune.shaping.planner import MachineLimits
 from ringtune.shaping.slicer import slicer_estimate, slicer_flavor
 from ringtune.shaping.testprints import builtin_test_print, direction_change_frequencies
@@ -168,6 +169,9 @@ class JobPlan:
             "vs_slicer": (p.print_time / self.estimate - 1) if self.estimate else None,
             "freq_limit": None if fl is None else asdict(fl), "daa_hz": self.configured.daa_hz,
             "read_s": self.read_s, "plan_s": self.plan_s,
+            # under Klipper's rule: the job's limit lines Klipper does not act on ({command: [lines]})
+            "ignored_by_firmware": klipper_ignored(self.job) if self.junction == "scv" else {},
+            "ignored_note": klipper_ignored_note(self.job) if self.junction == "scv" else None,
         }
 
 

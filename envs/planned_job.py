@@ -106,11 +106,18 @@ def resolve_job(job):
     return key, _remember(_JOBS, key, parsed)
 
 
-def job_accel_commands(job) -> dict[str, float]:
-    """The acceleration commands a parsed job sets itself: {setting: largest value it sets}
-    (mm/s²; keys of :data:`ringtune.shaping.config_plan.JOB_ACCEL_SETTINGS`; empty when it sets none)."""
+#: the job's acceleration settings Klipper and Kalico take (:func:`job_accel_commands`): M204 S or
+#: P and T together, SET_VELOCITY_LIMIT ACCEL, Kalico's X_ACCEL/Y_ACCEL — no M201, no lone M204 P or T
+KLIPPER_ACCEL_SETTINGS = ("accel_klipper", "limited_accel_x", "limited_accel_y")
+
+
+def job_accel_commands(job, junction: str) -> dict[str, float]:
+    """The acceleration commands a parsed job sets itself that a firmware with ``junction``'s rule
+    takes: {setting: largest value it sets} (mm/s²; keys of
+    :data:`ringtune.shaping.config_plan.JOB_ACCEL_SETTINGS`, under Klipper's ``scv`` those of
+    :data:`KLIPPER_ACCEL_SETTINGS`; empty when it sets none)."""
     out = {}
-    for k in JOB_ACCEL_SETTINGS:
+    for k in (KLIPPER_ACCEL_SETTINGS if junction == "scv" else JOB_ACCEL_SETTINGS):
         col = np.asarray(job.settings_table)[:, SETTING_KEYS.index(k)]
         col = col[~np.isnan(col)]
         if len(col):

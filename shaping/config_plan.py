@@ -38,7 +38,7 @@ from ringtune.shaping.planner import MachineLimits, Plan, plan
 JOB_ACCEL_MODES = ("replace", "respect")
 #: the job settings that "replace" removes (the job's own accelerations and X/Y acceleration caps)
 JOB_ACCEL_SETTINGS = ("accel_print", "accel_travel", "accel_retract", "accel_klipper", "max_accel_x",
-                      "max_accel_y")
+                      "max_accel_y", "limited_accel_x", "limited_accel_y")
 
 
 @dataclass(frozen=True)
@@ -142,7 +142,7 @@ def _freq_limited(job: Job, limits: MachineLimits, config: TuneConfig | None,
             return job, FreqLimitApplied(hz, method, 0, "job (ringtune limit)")
         limited = apply_freq_limit(job, hz, method, float(config.min_speed_factor), max_velocity=limits.max_velocity)
         return limited, FreqLimitApplied(hz, method, int(np.sum(limited.feed < job.feed)), "config")
-    if use_job_limits and job.file_setting("freq_limit_hz") > 0:
+    if use_job_limits and job.file_setting("freq_limit_hz") > 0 and limits.junction != "scv":   # Klipper has no M201
         limited = apply_freq_limit(job, None, "marlin", max_velocity=limits.max_velocity)
         return limited, FreqLimitApplied(job.file_setting("freq_limit_hz"), "marlin",
                                          int(np.sum(limited.feed < job.feed)), "job M201 F")

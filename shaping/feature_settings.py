@@ -249,9 +249,10 @@ def _settings(fc: FeatureCommands, eff: np.ndarray, label: np.ndarray, seam: np.
     mcr = _per_class(eff, fc.class_mcr, fc.min_cruise_ratio, fc.mcr_now) if fc.junction == "scv" else None
     if mcr is not None:
         out.update(min_cruise_ratio=mcr, accel_to_decel=np.full(n, np.nan))
+    caps_key = "limited_accel" if fc.junction == "scv" else "max_accel"     # Kalico's X_ACCEL/Y_ACCEL; M201
     for ax, cap in zip("xy", fc.caps or ()):
         if cap is not None:
-            out[f"max_accel_{ax}"] = np.full(n, float(cap))
+            out[f"{caps_key}_{ax}"] = np.full(n, float(cap))
     return out
 
 

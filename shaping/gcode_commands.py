@@ -61,7 +61,7 @@ VELOCITY_LIMIT_SETTINGS = {
     "SQUARE_CORNER_VELOCITY": ("square_corner_velocity",),
     "ACCEL_TO_DECEL": ("accel_to_decel",), "MINIMUM_CRUISE_RATIO": ("min_cruise_ratio",),
     # Kalico's limited_* kinematics (toolhead.py: only when the kinematics has them)
-    "X_ACCEL": ("max_accel_x",), "Y_ACCEL": ("max_accel_y",)}
+    "X_ACCEL": ("limited_accel_x",), "Y_ACCEL": ("limited_accel_y",)}
 
 
 class SettingCommands:
@@ -88,8 +88,11 @@ class SettingCommands:
 
     def _m204(self, s, p, t, r) -> None:
         """M204 S (print, travel and Klipper's one acceleration), P (print), T (travel), R (retract);
-        without S, Klipper's acceleration is the lower of P and T."""
-        klipper = s if s is not None else min((x for x in (p, t) if x is not None), default=None)
+        without S, Klipper's acceleration is the lower of P and T, given together: Klipper and
+        Kalico answer a lone P or T (what PrusaSlicer and OrcaSlicer write for Marlin 2 and RRF,
+        one per feature) with "Invalid M204 command" and keep their acceleration (toolhead.py
+        cmd_M204)."""
+        klipper = s if s is not None else (min(p, t) if p is not None and t is not None else None)
         given = (("accel_print", p if p is not None else s), ("accel_travel", t if t is not None else s),
                  ("accel_retract", r), ("accel_klipper", klipper))
         for key, v in given:

@@ -39,12 +39,19 @@ def job_value(job: Job, key: str, default, use: bool) -> np.ndarray:
     return np.where(np.isnan(v), base, v)
 
 
-def axis_caps(job: Job, prefix: str, machine: tuple | None, use: bool) -> np.ndarray:
-    """(n, 4) per-axis caps (inf = none)."""
+#: the job's per-axis caps Klipper and Kalico take, by (prefix, axis): they have no M201 or M203
+#: (unknown commands), only Kalico's SET_VELOCITY_LIMIT X_ACCEL/Y_ACCEL in limited kinematics
+KLIPPER_AXIS_SETTINGS = {("max_accel", "x"): "limited_accel_x", ("max_accel", "y"): "limited_accel_y"}
+
+
+def axis_caps(job: Job, prefix: str, machine: tuple | None, use: bool, klipper: bool = False) -> np.ndarray:
+    """(n, 4) per-axis caps (inf = none): the machine's, over them the job's own — under
+    ``klipper`` only those Klipper and Kalico take (:data:`KLIPPER_AXIS_SETTINGS`)."""
     cols = []
     for i, ax in enumerate("xyze"):
         default = np.inf if machine is None or machine[i] <= 0 else machine[i]
-        v = job_value(job, f"{prefix}_{ax}", default, use)
+        key = KLIPPER_AXIS_SETTINGS.get((prefix, ax)) if klipper else f"{prefix}_{ax}"
+        v = job_value(job, key, default, use and key is not None)
         cols.append(np.where(v > 0, v, np.inf))       # Marlin: 0 means "no limit" for M201/M203
     return np.stack(cols, axis=1)
 

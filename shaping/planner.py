@@ -219,11 +219,12 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
     # -- speeds and accelerations per move --
     velocity = job_value(job, "velocity", limits.velocity, use)
     vmax = np.minimum(job.feed, velocity)
-    vmax = scale_by_axes(vmax, u, axis_caps(job, "max_vel", limits.max_velocity, use))
+    klipper = limits.junction == "scv"      # Klipper's and Kalico's rule: the job's M201/M203 do not exist there
+    vmax = scale_by_axes(vmax, u, axis_caps(job, "max_vel", limits.max_velocity, use, klipper))
     if limits.axis_rule == "limited_corexy":
         vmax = corexy_speed_cap(vmax, velocity, u)
     accel = move_accels(job, limits, use, delta, e_only, accel_override)
-    amax_axes = axis_caps(job, "max_accel", limits.max_accel, use)
+    amax_axes = axis_caps(job, "max_accel", limits.max_accel, use, klipper)
     accel = kinematic_accel(accel, u, amax_axes, limits.axis_rule, limits.scale_xy_accel,
                             skip=marlin_retractions(job, limits, use, e_only))
     if np.any(~(vmax > 0)) or np.any(~(accel > 0)):

@@ -210,3 +210,18 @@ def test_inch_units():
     job = read_gcode("G20\nG1 X1 Y2 F60\nG92 X0\nG1 X1\nG21\nG1 X30\n")
     np.testing.assert_allclose(job.end[:, :2], [[25.4, 50.8], [50.8, 50.8], [55.4, 50.8]])
     np.testing.assert_allclose(job.feed, 25.4)             # 60 in/min = 25.4 mm/s
+
+
+@pytest.mark.parametrize("line, klipper", [("M204 S900", 900), ("M204 P1500 T2000", 1500), ("M204 T800 P1200", 800),
+                                           ("M204 P1500", None), ("M204 T2000", None), ("M204 R700", None)])
+def test_klipper_takes_m204_s_or_p_and_t_together_and_ignores_a_lone_p_or_t(line, klipper):
+    # Klipper's and Kalico's toolhead.cmd_M204: S, else the lower of P and T when both are given;
+    # a lone P or T is answered "Invalid M204 command" and the acceleration stays (what PrusaSlicer
+    # and OrcaSlicer write per feature for Marlin 2 / RRF, run on a Klipper printer)
+    job = read_gcode(line + "\nG1 X10 F600\n")
+    got = job.file_setting("accel_klipper")
+    assert (math.isnan(got) if klipper is None else got == klipper), got
+    words = dict((w[0], float(w[1:])) for w in line.split()[1:])
+    want = words.get("P", words.get("S"))
+    got = job.file_setting("accel_print")
+    assert (math.isnan(got) if want is None else got == want), got            # Marlin's roles as given

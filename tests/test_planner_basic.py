@@ -173,3 +173,19 @@ def test_accel_override_replaces_job_accel_but_keeps_axis_caps():
     lim = MachineLimits(accel=3000, junction="jd")
     np.testing.assert_allclose(plan(job, lim).moves.accel, [500, 500])          # the job's M204
     np.testing.assert_allclose(plan(job, lim, accel=2000).moves.accel, [1000, 2000])  # X capped by M201
+
+
+def test_a_lone_m204_p_changes_nothing_on_klipper_but_sets_marlins_print_acceleration():
+    # per-feature lines as PrusaSlicer writes them for Marlin 2: M204 P before extrusions, M204 T
+    # before travel; Klipper ignores each (toolhead.cmd_M204 needs S, or P and T together)
+    body = "G1 X50 E1 F6000\nG1 X50 Y50 E2\nG1 X70 Y50\nG1 X0 Y50 E3\n"
+    lone = "M204 P500\n" + body.replace("G1 X70 Y50", "M204 T500\nG1 X70 Y50")
+    klipper = MachineLimits(accel=3000, junction="scv", square_corner_velocity=5, min_cruise_ratio=0)
+    assert plan(read_gcode(lone), klipper).print_time == pytest.approx(plan(read_gcode(body), klipper).print_time,
+                                                                      rel=1e-12)
+    both = plan(read_gcode("M204 P500 T500\n" + body), klipper).print_time
+    marlin = MachineLimits(accel=3000, junction="jd", junction_deviation=0.013)
+    slow = plan(read_gcode("M204 S500\n" + body), marlin).print_time
+    assert both > plan(read_gcode(body), klipper).print_time
+    # Marlin takes them: the extruding moves run at M204 P, the travel at M204 T, all at 500 here
+    assert plan(read_gcode(lone), marlin).print_time == pytest.approx(slow, rel=1e-12)

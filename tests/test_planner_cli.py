@@ -153,3 +153,17 @@ def test_a_klipper_configuration_plans_with_klippers_corner_rule(tmp_path, capsy
     tuned = planned_job(load_printer(None), "part", klipper_cfg).plan.print_time
     assert times["klipper"][1] == pytest.approx(tuned, rel=1e-9)
     assert times["marlin"][1] != pytest.approx(tuned, rel=1e-3)
+
+
+def test_plan_names_the_marlin_lines_klipper_does_not_act_on(data_dir, capsys):
+    path = data_dir / "gcode/ianalexis_ender3_marlin/ringing_tower.gcode"
+    lines = path.read_text(errors="replace").splitlines()
+    want = {cmd: [i + 1 for i, ln in enumerate(lines) if ln.split(";")[0].split()[:1] == [cmd]]
+            for cmd in ("M201", "M203", "M205")}
+    res = _plan_json(capsys, str(path), "--junction", "scv")
+    assert res["ignored_by_firmware"] == {k: v for k, v in want.items() if v}
+    assert res["ignored_note"].startswith("Klipper does not act on")
+    # as the Marlin it was sliced for plans it (its own classic jerk), nothing is ignored
+    assert _plan_json(capsys, str(path))["ignored_by_firmware"] == {}
+    assert main(["plan", str(path), "--junction", "scv"]) == 0
+    assert "Klipper does not act on" in capsys.readouterr().out

@@ -10,12 +10,15 @@ within 1 % of Klipper's own planner under Klipper's rules).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
+from ringtune.shaping.config_plan import plan_with_config
 from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.klipper_ignores import LONE_M204, klipper_ignored
 from ringtune.shaping.planner import MachineLimits, plan
 
 
@@ -129,3 +132,63 @@ def test_real_klipper_job_matches(data_dir):
     assert ours == pytest.approx(ref, rel=1e-9)
     # and it lands near what Simplify3D wrote (1 hour 4 minutes) with the printer's own settings
     assert abs(ours / 3840 - 1) < 0.05
+
+
+#: what PrusaSlicer writes for Marlin 2 (machine limits in the start, M204 P per feature, M204 T
+#: before travel) and a Marlin 1 frequency limit (M201 F)
+MARLIN2_LINES = "M201 X500 Y400 F20 S50\nM203 X40 Y40\nM205 X8 Y8 J0.02\nM566 X600 Y600\n"
+
+
+def _marlin2_job(seed: int = 3) -> str:
+    rng = np.random.default_rng(seed)
+    out, x, y, e = [MARLIN2_LINES], 0.0, 0.0, 0.0
+    for i in range(40):
+        if i % 8 == 0:
+            out.append(f"M204 P{rng.choice([600, 900, 1200])}\n;TYPE:Perimeter")
+        if i % 8 == 5:
+            out.append(f"M204 T{rng.choice([700, 1500])}")
+            x, y = rng.uniform(0, 100, 2)
+            out.append(f"G1 X{x:.3f} Y{y:.3f} F9000")
+            continue
+        x, y = x + rng.uniform(-15, 15), y + rng.uniform(-15, 15)
+        e += 0.5
+        out.append(f"G1 X{x:.3f} Y{y:.3f} E{e:.4f} F{rng.choice([3000, 6000, 9000])}")
+    return "\n".join(out) + "\n"
+
+
+def test_klipper_acts_on_none_of_marlins_limit_lines_nor_on_a_lone_m204():
+    # Klipper has no M201, M203, M205 or M566, and toolhead.py's cmd_M204 takes S, or P and T
+    # together, answering a lone P or T with "Invalid M204 command": every move of such a job runs
+    # at the printer's max_accel and velocity, as Klipper's own look-ahead (the port above) plans it
+    job = read_gcode(_marlin2_job())
+    lim = MachineLimits(accel=3000, velocity=1e6, junction="scv", square_corner_velocity=5, min_cruise_ratio=0.5)
+    ref = klipper_time(job.start, job.end, job.feed, 3000.0, 5.0, 0.5)
+    assert plan(job, lim).print_time == pytest.approx(ref, rel=1e-9)
+    # the job's M201 F (Marlin's XY frequency limit) slows nothing there either
+    configured = plan_with_config(job, lim)
+    assert configured.freq_limit is None and configured.plan.print_time == pytest.approx(ref, rel=1e-9)
+    # under Marlin's junction deviation the same lines rule: slower, and its frequency limit applies
+    marlin = plan_with_config(job, MachineLimits(accel=3000, velocity=1e6, junction="jd"))
+    assert marlin.freq_limit is not None and marlin.plan.print_time > 1.2 * ref
+    # and the report names each ignored line
+    ignored = klipper_ignored(job)
+    lone = [i + 1 for i, ln in enumerate(_marlin2_job().splitlines()) if ln.startswith("M204")]
+    assert ignored == {"M201": [1], "M203": [2], "M205": [3], "M566": [4], LONE_M204: lone}
+
+
+def test_klipper_takes_m204_s_and_p_with_t_and_kalicos_per_axis_accelerations():
+    body = _marlin2_job().replace(MARLIN2_LINES, "")
+    for line, accel in (("M204 S1000", 1000.0), ("M204 P1000 T1400", 1000.0),
+                        ("SET_VELOCITY_LIMIT ACCEL=1000", 1000.0)):
+        job = read_gcode(line + "\n" + "\n".join(ln for ln in body.splitlines() if not ln.startswith("M204")) + "\n")
+        lim = MachineLimits(accel=3000, velocity=1e6, junction="scv", square_corner_velocity=5, min_cruise_ratio=0.5)
+        assert plan(job, lim).print_time == pytest.approx(
+            klipper_time(job.start, job.end, job.feed, accel, 5.0, 0.5), rel=1e-9), line
+        assert klipper_ignored(job) == {}
+    # Kalico's limited kinematics: SET_VELOCITY_LIMIT X_ACCEL/Y_ACCEL cap the axes, as M201 X/Y does
+    # on Marlin (the same per-axis rule)
+    moves = "\n".join(ln for ln in body.splitlines() if not ln.startswith("M204")) + "\n"
+    lim = MachineLimits(accel=3000, velocity=1e6, junction="scv", square_corner_velocity=5, min_cruise_ratio=0.5)
+    capped = plan(read_gcode("SET_VELOCITY_LIMIT X_ACCEL=500 Y_ACCEL=400\n" + moves), lim).print_time
+    same = plan(read_gcode(moves), dataclasses.replace(lim, max_accel=(500.0, 400.0, 0.0, 0.0))).print_time
+    assert capped == pytest.approx(same, rel=1e-12) and capped > plan(read_gcode(moves), lim).print_time

@@ -163,7 +163,7 @@ def job_commands(printer, gcode, config, out) -> list[dict]:
     notes = []
     if len(timeline) > 1:
         notes.append(describe_timeline(timeline, plan.events))
-    if job_accel_commands(parsed):
+    if job_accel_commands(parsed, resolve_printer(printer).limits.junction):
         mode = job_accel_mode(config) if config.accel is not None else "respect"
         notes.append("the job's own acceleration commands " + (
             "stand (--job-accel respect), as the printer would run them" if mode == "respect" else

@@ -22,11 +22,13 @@ from ringtune.agents.tune.motor_bound import defaults_note
 from ringtune.envs.planned_job import job_accel_commands, planned_job, resolve_job
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.features import FEATURE_CLASSES, LABELLED_VISIBLE, class_indices
+from ringtune.shaping.klipper_ignores import klipper_ignored_note
 from ringtune.shaping.layers import layer_starts
 
 #: how the job's acceleration settings are written in G-code: command -> (setting, its word)
 GCODE_WORDS = {"M201": (("max_accel_x", "X"), ("max_accel_y", "Y")),
-               "M204": (("accel_print", "P"), ("accel_travel", "T"), ("accel_retract", "R"))}
+               "M204": (("accel_print", "P"), ("accel_travel", "T"), ("accel_retract", "R")),
+               "SET_VELOCITY_LIMIT": (("limited_accel_x", " X_ACCEL="), ("limited_accel_y", " Y_ACCEL="))}
 
 @dataclass
 class JobAccelFacts:
@@ -65,8 +67,12 @@ class JobAccelFacts:
         return ", ".join(parts)
 
     def notes(self, mode: str, space) -> list[str]:
+        """What the job's own acceleration commands do under ``mode``; under Klipper's rule, first the
+        limit lines Klipper does not act on (:func:`ringtune.shaping.klipper_ignores.klipper_ignored_note`)."""
+        ignored = klipper_ignored_note(resolve_job(self.job)[1]) if self.printer.limits.junction == "scv" else None
+        out = [ignored] if ignored else []
         if not self.commands:
-            return []
+            return out
         head = f"the job sets its own accelerations ({self.described()}, mm/s²)" + (
             f": the file caps acceleration at {self.cap:.0f} mm/s²" if self.cap else "")
         if mode == "respect":
@@ -75,7 +81,7 @@ class JobAccelFacts:
                     + ". --job-accel replace tunes the acceleration that re-slicing would use.")
         else:
             tail = "; --job-accel replace: the tuned acceleration replaces them (what re-slicing would give)."
-        return [head + tail]
+        return out + [head + tail]
 
 
 def job_accel_facts(printer, job, mode: str) -> JobAccelFacts:
@@ -84,7 +90,7 @@ def job_accel_facts(printer, job, mode: str) -> JobAccelFacts:
     velocity limit instead when no job is given) and the acceleration cap those commands put on it
     (under ``respect``, planned at a very high machine acceleration)."""
     _, parsed = resolve_job(job)
-    facts = JobAccelFacts(printer, job, job_accel_commands(parsed))
+    facts = JobAccelFacts(printer, job, job_accel_commands(parsed, printer.limits.junction))
     pj = planned_job(printer, job, None)
     m = pj.plan.moves
     xy = np.hypot(*(m.end - m.start)[:, :2].T) > 0

@@ -230,7 +230,7 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
     if not sched.needed:
         return sched
     notes.extend(_firmware_notes(config, printer, bands))
-    if any(b.accel for b in bands) and job_accel_commands(parsed):
+    if any(b.accel for b in bands) and job_accel_commands(parsed, printer.limits.junction):
         notes.append("the job sets its own accelerations (M204 / SET_VELOCITY_LIMIT): a band's acceleration "
                      "holds only until the job's next one; rewrite them (`ringtune rewrite`, `limit --accel`) "
                      "or run `--band-accel keep`")

@@ -1,0 +1,44 @@
+"""The limit commands of a job a Klipper (or Kalico) printer does not act on: Marlin's and RRF's
+M201 (per-axis accelerations, the XY frequency limit), M203 (per-axis speeds), M205 (jerk, junction
+deviation) and M566 (RRF's jerk), which Klipper does not have, and M204 without S or both P and T,
+which it answers with "Invalid M204 command" (toolhead.py ``cmd_M204``) — what PrusaSlicer and
+OrcaSlicer write, one per feature, for Marlin 2 or RRF. The planner runs a job under Klipper's rule
+as Klipper would (:func:`ringtune.shaping.lookahead.axis_caps`, the job's M204 in
+:mod:`ringtune.shaping.gcode_commands`); this says so."""
+
+from __future__ import annotations
+
+#: Marlin and RRF limit commands Klipper has no handler for
+KLIPPER_UNKNOWN = ("M201", "M203", "M205", "M566")
+#: how a lone M204 is named
+LONE_M204 = "M204 without S or both P and T"
+
+
+def klipper_ignored(job) -> dict[str, list[int]]:
+    """{command: the job's line numbers, in order} of its limit commands Klipper does not act on
+    (a parsed :class:`ringtune.shaping.job.Job`)."""
+    out: dict[str, list[int]] = {}
+    for ev in job.events:
+        if ev.kind != "limits":
+            continue
+        if ev.command in KLIPPER_UNKNOWN:
+            what = ev.command
+        elif ev.command == "M204" and "S" not in ev.params and not {"P", "T"} <= set(ev.params):
+            what = LONE_M204
+        else:
+            continue
+        out.setdefault(what, []).append(int(ev.line))
+    return out
+
+
+def klipper_ignored_note(job) -> str | None:
+    """One sentence on the lines of :func:`klipper_ignored` (None: there are none)."""
+    ignored = klipper_ignored(job)
+    if not ignored:
+        return None
+    n = sum(len(lines) for lines in ignored.values())
+    parts = ", ".join(f"{what} ×{len(lines)} (first on line {lines[0]})" for what, lines in ignored.items())
+    return (f"Klipper does not act on {n} of the job's limit lines — {parts}: it has no M201, M203, M205 or "
+            "M566, and answers an M204 without S or both P and T with \"Invalid M204 command\"; planned as "
+            "Klipper runs the file (sliced for Marlin 2 or RRF? slice it for Klipper, or `ringtune rewrite` "
+            "writes the accelerations in Klipper's own SET_VELOCITY_LIMIT)")
