@@ -19,16 +19,20 @@ def klipper_ignored(job) -> dict[str, list[int]]:
     (a parsed :class:`ringtune.shaping.job.Job`)."""
     out: dict[str, list[int]] = {}
     for ev in job.events:
-        if ev.kind != "limits":
-            continue
-        if ev.command in KLIPPER_UNKNOWN:
-            what = ev.command
-        elif ev.command == "M204" and "S" not in ev.params and not {"P", "T"} <= set(ev.params):
-            what = LONE_M204
-        else:
-            continue
-        out.setdefault(what, []).append(int(ev.line))
+        what = _ignored_as(ev)
+        if what:
+            out.setdefault(what, []).append(int(ev.line))
     return out
+
+
+def _ignored_as(ev) -> str | None:
+    """How :func:`klipper_ignored` names a job event Klipper does not act on (None: it does)."""
+    if ev.kind != "limits":
+        return None
+    if ev.command in KLIPPER_UNKNOWN:
+        return ev.command
+    lone = ev.command == "M204" and "S" not in ev.params and not {"P", "T"} <= set(ev.params)
+    return LONE_M204 if lone else None
 
 
 def klipper_ignored_note(job) -> str | None:

@@ -50,10 +50,15 @@ def axis_caps(job: Job, prefix: str, machine: tuple | None, use: bool, klipper: 
     cols = []
     for i, ax in enumerate("xyze"):
         default = np.inf if machine is None or machine[i] <= 0 else machine[i]
-        key = KLIPPER_AXIS_SETTINGS.get((prefix, ax)) if klipper else f"{prefix}_{ax}"
+        key = _cap_setting(prefix, ax, klipper)
         v = job_value(job, key, default, use and key is not None)
         cols.append(np.where(v > 0, v, np.inf))       # Marlin: 0 means "no limit" for M201/M203
     return np.stack(cols, axis=1)
+
+
+def _cap_setting(prefix: str, ax: str, klipper: bool) -> str | None:
+    """The job's setting of ``prefix``'s cap on ``ax`` the firmware takes (None: none)."""
+    return KLIPPER_AXIS_SETTINGS.get((prefix, ax)) if klipper else f"{prefix}_{ax}"
 
 
 def move_accels(job: Job, limits, use: bool, delta: np.ndarray, e_only: np.ndarray,

@@ -82,9 +82,9 @@ class _Dialect:
 
     def once(self, values: dict) -> list[str]:
         out = self.corner(values, [k for k in _CORNER_KEYS if k in values])
-        for caps in ("max_accel", "limited_accel"):      # M201 X Y; Kalico's SET_VELOCITY_LIMIT X_ACCEL Y_ACCEL
-            if f"{caps}_x" in values and self.caps_set:
-                out.append(self.caps_set.format(x=_n(values[f"{caps}_x"]), y=_n(values[f"{caps}_y"])))
+        caps = "limited_accel" if self.junction == "scv" else "max_accel"   # Kalico's X_ACCEL Y_ACCEL; M201 X Y
+        if f"{caps}_x" in values and self.caps_set:
+            out.append(self.caps_set.format(x=_n(values[f"{caps}_x"]), y=_n(values[f"{caps}_y"])))
         return out
 
 

@@ -66,11 +66,15 @@ class JobAccelFacts:
             parts.append(f"SET_VELOCITY_LIMIT ACCEL={c['accel_klipper']:.0f} (or M204 S)")
         return ", ".join(parts)
 
+    def _ignored(self) -> list[str]:
+        """Under Klipper's rule, the sentence on the job's limit lines Klipper does not act on (or none)."""
+        note = klipper_ignored_note(resolve_job(self.job)[1]) if self.printer.limits.junction == "scv" else None
+        return [note] if note else []
+
     def notes(self, mode: str, space) -> list[str]:
         """What the job's own acceleration commands do under ``mode``; under Klipper's rule, first the
         limit lines Klipper does not act on (:func:`ringtune.shaping.klipper_ignores.klipper_ignored_note`)."""
-        ignored = klipper_ignored_note(resolve_job(self.job)[1]) if self.printer.limits.junction == "scv" else None
-        out = [ignored] if ignored else []
+        out = self._ignored()
         if not self.commands:
             return out
         head = f"the job sets its own accelerations ({self.described()}, mm/s²)" + (
