@@ -206,17 +206,28 @@ def _caps_note(caps: dict, top: str) -> str:
     return f"machine_max_acceleration_x/_y must be at least {top}, or M201 caps the features above it"
 
 
+def _prusa_flavor(fw: Firmware, keys: str) -> tuple[str, str]:
+    """(PrusaSlicer's gcode_flavor for ``fw``, why): Klipper takes M204 S, or P and T together, and
+    answers the lone M204 P (print) and T (travel) that ``marlin2`` writes per feature with "Invalid
+    M204 command"; PrusaSlicer 2.5 has no ``klipper`` flavour, and its legacy ``marlin`` writes M204 S."""
+    flavor = _PRUSA_FLAVOR[fw.family]
+    if keys == "prusaslicer-2.5" and flavor == "klipper":
+        return "marlin", ("legacy Marlin: PrusaSlicer 2.5 has no klipper flavour, and marlin2's lone M204 P and T, "
+                          "one per feature, Klipper answers with \"Invalid M204 command\"; legacy Marlin writes M204 S, "
+                          "which Klipper takes")
+    return flavor, ""
+
+
 def _prusaslicer(values, top, caps, notes, fw, keys) -> SlicerProfile:
-    machine = {"machine_max_acceleration_extruding": f"{top},{top}",
+    flavor, why = _prusa_flavor(fw, keys)
+    machine = {"gcode_flavor": flavor, "machine_max_acceleration_extruding": f"{top},{top}",
                "machine_max_acceleration_travel": f"{top},{top}", **{k: f"{v},{v}" for k, v in caps.items()}}
-    text = ("# printer profile (Printer Settings > Machine limits): no feature is capped below its value\n"
+    text = ("# printer profile (Printer Settings > General: the G-code flavour; > Machine limits: no feature is "
+            "capped below its value)\n"
             + "".join(f"{k} = {v}\n" for k, v in machine.items())
             + "# print profile (Print Settings > Speed > Acceleration control)\n"
             + "".join(f"{k} = {v}\n" for k, v in values.items()))
-    flavor = _PRUSA_FLAVOR[fw.family]
-    if keys == "prusaslicer-2.5" and flavor == "klipper":
-        flavor = "marlin2 (2.5 has no klipper flavour)"
-    notes = notes + [_caps_note(caps, top), f"gcode_flavor = {flavor} for {fw.title}"]
+    notes = notes + [_caps_note(caps, top), f"gcode_flavor = {flavor} for {fw.title}" + (f" ({why})" if why else "")]
     return SlicerProfile("prusaslicer", "ini", {**machine, **values}, text, notes)
 
 

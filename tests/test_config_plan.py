@@ -112,10 +112,13 @@ def test_the_jobs_own_m201_f_applies_unless_job_limits_are_ignored(tmp_path):
     path = tmp_path / "with_m201.gcode"
     path.write_text("M201 F60 S30\n" + (tmp_path / "zigzag.gcode").read_text())
     job = read_gcode(path)
-    limits = MachineLimits(accel=20000.0, velocity=500.0)     # fast enough that the limit binds
+    limits = MachineLimits(accel=20000.0, velocity=500.0, junction="jd")   # Marlin's; fast enough that the limit binds
     own = plan_with_config(job, limits, None)
     assert own.freq_limit.source == "job M201 F" and own.freq_limit.hz == 60.0
     assert own.freq_limit.moves_slowed > 30
     ignored = plan_with_config(job, limits, None, use_job_limits=False)
     assert ignored.freq_limit is None
     assert own.plan.print_time > ignored.plan.print_time
+    # Klipper has no M201: under its corner rule the job's M201 F limits nothing
+    klipper = plan_with_config(job, MachineLimits(accel=20000.0, velocity=500.0, junction="scv"), None)
+    assert klipper.freq_limit is None

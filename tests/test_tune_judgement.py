@@ -382,11 +382,12 @@ def test_per_feature_on_searches_the_acceleration_a_job_sets_itself_from_its_see
     from ringtune.agents.tune.tuning import _space
     from ringtune.envs.printer import load_printer
 
-    layer = (";TYPE:External perimeter\nG1 X20 Y0 E1 F6000\nG1 X20 Y20 E1\n;TYPE:Internal infill\nM204 P9000\n"
+    # M204 S, which Klipper takes (a lone M204 P it answers with "Invalid M204 command")
+    layer = (";TYPE:External perimeter\nG1 X20 Y0 E1 F6000\nG1 X20 Y20 E1\n;TYPE:Internal infill\nM204 S9000\n"
              "G1 X0 Y20 E1 F9000\nG1 X0 Y0 E1\n")
     job = tmp_path / "own.gcode"
-    job.write_text("G90\nM83\nM204 P1500\nG1 Z0.2 F600\n" + layer
-                   + "".join(f"G1 Z{0.2 * k + 0.2:.1f}\nM204 P4000\n" + layer for k in range(1, 4)))
+    job.write_text("G90\nM83\nM204 S1500\nG1 Z0.2 F600\n" + layer
+                   + "".join(f"G1 Z{0.2 * k + 0.2:.1f}\nM204 S4000\n" + layer for k in range(1, 4)))
     toml = _printer_toml(tmp_path / "p.toml")
     toml.write_text(toml.read_text().replace("accel = 3000", "accel = 25000"))
     printer = load_printer(str(toml))
