@@ -232,10 +232,11 @@ def _prusaslicer(values, top, caps, notes, fw, keys) -> SlicerProfile:
 
 
 def _orcaslicer(values, top, caps, notes, fw, keys) -> SlicerProfile:
-    settings = {"machine_max_acceleration_extruding": [top, top], "machine_max_acceleration_travel": [top, top],
-                **{k: [v, v] for k, v in caps.items()}, **values}
-    notes = notes + ["machine profile: machine_max_acceleration_* (Orca caps every feature at them); "
-                     "process profile: the *_acceleration keys"]
+    settings = {"gcode_flavor": _PRUSA_FLAVOR[fw.family], "machine_max_acceleration_extruding": [top, top],
+                "machine_max_acceleration_travel": [top, top], **{k: [v, v] for k, v in caps.items()}, **values}
+    notes = notes + ["machine profile: gcode_flavor (on Klipper: klipper, whose SET_VELOCITY_LIMIT Klipper takes; "
+                     "marlin2's lone M204 P and T it ignores) and machine_max_acceleration_* (Orca caps every feature "
+                     "at them); process profile: the *_acceleration keys"]
     text = json.dumps({**settings, "_ringtune": notes}, indent=2) + "\n"
     return SlicerProfile("orcaslicer", "json", settings, text, notes)
 

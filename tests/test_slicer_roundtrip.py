@@ -137,3 +137,17 @@ def test_a_config_the_slicer_keys_cannot_come_from_is_one_line(config, says, tmp
     assert main(["export", str(p), "--slicer", "orcaslicer"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and says in err and str(p) in err and "Traceback" not in err
+
+
+def test_the_profile_sets_a_gcode_flavour_whose_acceleration_lines_the_firmware_takes():
+    # Klipper takes M204 S, or P and T together (toolhead.py cmd_M204); PrusaSlicer's marlin2 writes a
+    # lone M204 P per feature and T for travel, its legacy marlin M204 S, its klipper (2.6+) and
+    # OrcaSlicer's klipper SET_VELOCITY_LIMIT ACCEL (GCodeWriter::set_acceleration_internal)
+    klipper = TuneConfig.from_dict(CONFIGS["per feature"])
+    marlin = TuneConfig.from_dict({**CONFIGS["per feature"], "firmware": "marlin"})
+    assert slicer_profile(klipper, "prusaslicer", version="2.5").settings["gcode_flavor"] == "marlin"
+    assert slicer_profile(klipper, "prusaslicer").settings["gcode_flavor"] == "klipper"
+    assert slicer_profile(klipper, "orcaslicer").settings["gcode_flavor"] == "klipper"
+    for version in ("2.5", None):
+        assert slicer_profile(marlin, "prusaslicer", version=version).settings["gcode_flavor"] == "marlin2"
+    assert "gcode_flavor = marlin\n" in slicer_profile(klipper, "prusaslicer", version="2.5").render()
