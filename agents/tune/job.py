@@ -28,7 +28,7 @@ from ringtune.shaping.layers import layer_starts
 #: how the job's acceleration settings are written in G-code: command -> (setting, its word)
 GCODE_WORDS = {"M201": (("max_accel_x", "X"), ("max_accel_y", "Y")),
                "M204": (("accel_print", "P"), ("accel_travel", "T"), ("accel_retract", "R")),
-               "SET_VELOCITY_LIMIT": (("limited_accel_x", " X_ACCEL="), ("limited_accel_y", " Y_ACCEL="))}
+               "SET_VELOCITY_LIMIT": (("limited_accel_x", "X_ACCEL="), ("limited_accel_y", "Y_ACCEL="))}
 
 @dataclass
 class JobAccelFacts:
