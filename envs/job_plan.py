@@ -229,5 +229,7 @@ def _frequencies(path, limited: bytes, printer=None) -> dict:
         configured = plan_with_config(job, limits)
         out["planned_hz"][key] = _highest(planned_frequencies(configured.plan, 1))
         out["commanded_hz"][key] = _highest(commanded_frequencies(configured.job, 1))
-    out.update(junction=junction, junction_reason=why)
+    # the output's limit lines Klipper does not act on (a lone M204 P scaled is still ignored there)
+    out.update(junction=junction, junction_reason=why,
+               ignored_note=klipper_ignored_note(job) if junction == "scv" else None)
     return out

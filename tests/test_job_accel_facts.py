@@ -7,6 +7,7 @@ lines are the job's own accelerations."""
 from __future__ import annotations
 
 from ringtune.agents.tune.job import job_accel_facts
+from ringtune.envs.job_plan import limit_job
 from ringtune.envs.printer import load_printer, printer_from_dict
 
 LAYER = ";TYPE:External perimeter\nG1 X20 Y0 E1 F6000\nG1 X20 Y20 E1\n;TYPE:Internal infill\n{infill}\nG1 X0 Y20 E1\n"
@@ -43,3 +44,15 @@ def test_klippers_own_forms_and_marlins_are_each_the_jobs_accelerations_on_their
     assert facts.commands == {"accel_print": 9000.0, "max_accel_x": 500.0, "max_accel_y": 400.0}
     assert facts.described() == "M201 X500 Y400, M204 P9000"
     assert not any("Klipper" in n for n in facts.notes("replace", None))
+
+
+def test_limit_says_a_scaled_lone_m204_still_does_nothing_on_klipper(tmp_path):
+    d = load_printer(None).to_dict()
+    d["limits"] = {**d.get("limits", {}), "junction": "scv"}
+    klipper = printer_from_dict(d)
+    job = _job(tmp_path, ";FLAVOR:Marlin 2\nM204 P1500\n", "M204 P3000")
+    done = limit_job(job, accel=6000, printer=klipper)
+    assert done.accel is not None and done.frequencies["junction"] == "scv"
+    assert "M204 without S or both P and T ×2" in done.frequencies["ignored_note"]
+    d["limits"]["junction"] = "jd"
+    assert limit_job(job, accel=6000, printer=printer_from_dict(d)).frequencies["ignored_note"] is None

@@ -8,7 +8,8 @@ JSON keys (stable): ``input``, ``output`` (path or null when printed to stdout),
 null / 0. ``frequencies`` ({``commanded_hz``: {``before``, ``after``}: the highest
 direction-change frequency at the G-code's speeds F, what a frequency limit acts on;
 ``planned_hz``: {``before``, ``after``}: the highest after planning, as ``ringtune plan`` reports
-it with the same printer; ``junction``, ``junction_reason``}).
+it with the same printer; ``junction``, ``junction_reason``, ``ignored_note``: under Klipper's rule, the
+output's limit lines Klipper does not act on, in words, else null}).
 """
 
 from __future__ import annotations
@@ -134,4 +135,6 @@ def _text(args, done) -> str:
     if acc:
         text.append(acc.header.lstrip("; ") + "".join(f"\nnote: {n}" for n in acc.notes))
     text.append(f"  {_said(done.frequencies)}")
+    if done.frequencies["ignored_note"]:
+        text.append(f"  {done.frequencies['ignored_note']}")
     return "\n".join(text)
