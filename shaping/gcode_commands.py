@@ -54,10 +54,10 @@ WORD_SETTINGS = {
     "M566": tuple((ax, f"jerk_{ax.lower()}", lambda v: v / 60.0) for ax in AXES),
 }
 
-#: Klipper's SET_VELOCITY_LIMIT parameters -> the settings they set (ACCEL: also the print and
-#: travel accelerations)
+#: Klipper's SET_VELOCITY_LIMIT parameters -> the settings they set: Klipper's own, which Marlin and
+#: RRF, who do not have the command, never read
 VELOCITY_LIMIT_SETTINGS = {
-    "VELOCITY": ("velocity",), "ACCEL": ("accel_klipper", "accel_print", "accel_travel"),
+    "VELOCITY": ("velocity",), "ACCEL": ("accel_klipper",),
     "SQUARE_CORNER_VELOCITY": ("square_corner_velocity",),
     "ACCEL_TO_DECEL": ("accel_to_decel",), "MINIMUM_CRUISE_RATIO": ("min_cruise_ratio",),
     # Kalico's limited_* kinematics (toolhead.py: only when the kinematics has them)

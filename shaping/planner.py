@@ -217,9 +217,9 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
     extruding = (delta[:, 3] > 0) & (np.hypot(delta[:, 0], delta[:, 1]) > 0)
 
     # -- speeds and accelerations per move --
-    velocity = job_value(job, "velocity", limits.velocity, use)
+    klipper = limits.junction == "scv"      # Klipper's and Kalico's rule: the job's M201/M203 do not exist there,
+    velocity = job_value(job, "velocity", limits.velocity, use and klipper)   # nor SET_VELOCITY_LIMIT on Marlin/RRF
     vmax = np.minimum(job.feed, velocity)
-    klipper = limits.junction == "scv"      # Klipper's and Kalico's rule: the job's M201/M203 do not exist there
     vmax = scale_by_axes(vmax, u, axis_caps(job, "max_vel", limits.max_velocity, use, klipper))
     if limits.axis_rule == "limited_corexy":
         vmax = corexy_speed_cap(vmax, velocity, u)

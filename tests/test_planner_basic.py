@@ -189,3 +189,16 @@ def test_a_lone_m204_p_changes_nothing_on_klipper_but_sets_marlins_print_acceler
     assert both > plan(read_gcode(body), klipper).print_time
     # Marlin takes them: the extruding moves run at M204 P, the travel at M204 T, all at 500 here
     assert plan(read_gcode(lone), marlin).print_time == pytest.approx(slow, rel=1e-12)
+
+
+@pytest.mark.parametrize("junction", ["jd", "jerk"])
+def test_marlin_and_rrf_do_not_act_on_klippers_set_velocity_limit(junction):
+    # SET_VELOCITY_LIMIT is Klipper's (and Kalico's) alone: Marlin and RRF answer it as an unknown
+    # command, so under their corner rules it changes nothing; under Klipper's it rules
+    body = "G1 X50 E1 F6000\nG1 X50 Y50 E2\nG1 X0 Y0 E3\n"
+    klipperish = "SET_VELOCITY_LIMIT ACCEL=500 VELOCITY=20 SQUARE_CORNER_VELOCITY=1\n" + body
+    lim = MachineLimits(accel=3000, junction=junction)
+    assert plan(read_gcode(klipperish), lim).print_time == pytest.approx(plan(read_gcode(body), lim).print_time,
+                                                                          rel=1e-12)
+    scv = MachineLimits(accel=3000, junction="scv", min_cruise_ratio=0)
+    assert plan(read_gcode(klipperish), scv).print_time > 2 * plan(read_gcode(body), scv).print_time
