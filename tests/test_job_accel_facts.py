@@ -6,6 +6,7 @@ lines are the job's own accelerations."""
 
 from __future__ import annotations
 
+from ringtune.agents.cli.main import main
 from ringtune.agents.tune.job import job_accel_facts
 from ringtune.envs.job_plan import limit_job
 from ringtune.envs.printer import load_printer, printer_from_dict
@@ -56,3 +57,9 @@ def test_limit_says_a_scaled_lone_m204_still_does_nothing_on_klipper(tmp_path):
     assert "M204 without S or both P and T ×2" in done.frequencies["ignored_note"]
     d["limits"]["junction"] = "jd"
     assert limit_job(job, accel=6000, printer=printer_from_dict(d)).frequencies["ignored_note"] is None
+
+
+def test_simulate_says_it_too(tmp_path, capsys):
+    job = _job(tmp_path, "M201 X500 Y400\nM204 P1500\n", "M204 P9000")
+    assert main(["simulate", "--gcode", job, "--backend", "lti", "--no-baselines", "--freq-margin", "0"]) == 0
+    assert "Klipper does not act on 3 of the job's limit lines" in capsys.readouterr().err

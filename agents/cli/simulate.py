@@ -52,6 +52,7 @@ from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import per_feature_text
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.job_shapers import describe_timeline, shaper_timeline
+from ringtune.shaping.klipper_ignores import klipper_ignored_note
 
 NAME = "simulate"
 DESCRIPTION = """\
@@ -163,7 +164,11 @@ def job_commands(printer, gcode, config, out) -> list[dict]:
     notes = []
     if len(timeline) > 1:
         notes.append(describe_timeline(timeline, plan.events))
-    if job_accel_commands(parsed, resolve_printer(printer).limits.junction):
+    junction = resolve_printer(printer).limits.junction
+    ignored = klipper_ignored_note(parsed) if junction == "scv" else None
+    if ignored:
+        notes.append(ignored)
+    if job_accel_commands(parsed, junction):
         mode = job_accel_mode(config) if config.accel is not None else "respect"
         notes.append("the job's own acceleration commands " + (
             "stand (--job-accel respect), as the printer would run them" if mode == "respect" else
