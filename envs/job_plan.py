@@ -156,6 +156,7 @@ class JobPlan:
         kinds: dict[str, int] = {}
         for e in p.events:
             kinds[e.kind] = kinds.get(e.kind, 0) + 1
+        ignored = klipper_ignored(self.job, self.junction)
         return {
             "job": self.name, "junction": self.junction, "junction_reason": self.why,
             "limits": dict(asdict(self.configured.limits)),
@@ -170,8 +171,7 @@ class JobPlan:
             "freq_limit": None if fl is None else asdict(fl), "daa_hz": self.configured.daa_hz,
             "read_s": self.read_s, "plan_s": self.plan_s,
             # under Klipper's rule: the job's limit lines Klipper does not act on ({command: [lines]})
-            "ignored_by_firmware": klipper_ignored(self.job) if self.junction == "scv" else {},
-            "ignored_note": klipper_ignored_note(self.job) if self.junction == "scv" else None,
+            "ignored_by_firmware": ignored, "ignored_note": klipper_ignored_note(ignored),
         }
 
 
@@ -231,5 +231,5 @@ def _frequencies(path, limited: bytes, printer=None) -> dict:
         out["commanded_hz"][key] = _highest(commanded_frequencies(configured.job, 1))
     # the output's limit lines Klipper does not act on (a lone M204 P scaled is still ignored there)
     out.update(junction=junction, junction_reason=why,
-               ignored_note=klipper_ignored_note(job) if junction == "scv" else None)
+               ignored_note=klipper_ignored_note(klipper_ignored(job, junction)))
     return out

@@ -30,6 +30,7 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import JOB_ACCEL_SETTINGS, job_accel_mode, plan_with_config
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.job import SETTING_KEYS
+from ringtune.shaping.lookahead import KLIPPER_AXIS_SETTINGS
 from ringtune.shaping.motion import Motion
 
 #: quality windows per job and their span, s
@@ -108,7 +109,7 @@ def resolve_job(job):
 
 #: the job's acceleration settings Klipper and Kalico take (:func:`job_accel_commands`): M204 S or
 #: P and T together, SET_VELOCITY_LIMIT ACCEL, Kalico's X_ACCEL/Y_ACCEL — no M201, no lone M204 P or T
-KLIPPER_ACCEL_SETTINGS = ("accel_klipper", "limited_accel_x", "limited_accel_y")
+KLIPPER_ACCEL_SETTINGS = ("accel_klipper", *KLIPPER_AXIS_SETTINGS.values())
 
 
 def job_accel_commands(job, junction: str) -> dict[str, float]:

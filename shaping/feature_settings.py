@@ -249,11 +249,17 @@ def _settings(fc: FeatureCommands, eff: np.ndarray, label: np.ndarray, seam: np.
     mcr = _per_class(eff, fc.class_mcr, fc.min_cruise_ratio, fc.mcr_now) if fc.junction == "scv" else None
     if mcr is not None:
         out.update(min_cruise_ratio=mcr, accel_to_decel=np.full(n, np.nan))
-    caps_key = "limited_accel" if fc.junction == "scv" else "max_accel"     # Kalico's X_ACCEL/Y_ACCEL; M201
     for ax, cap in zip("xy", fc.caps or ()):
         if cap is not None:
-            out[f"{caps_key}_{ax}"] = np.full(n, float(cap))
+            out[f"{caps_setting(fc.junction)}_{ax}"] = np.full(n, float(cap))
     return out
+
+
+def caps_setting(junction: str) -> str:
+    """The prefix of the job settings that carry the X/Y acceleration caps under ``junction``'s
+    rule: Kalico's SET_VELOCITY_LIMIT X_ACCEL/Y_ACCEL (``limited_accel``) under Klipper's, M201 X Y
+    (``max_accel``) under Marlin's and RRF's."""
+    return "limited_accel" if junction == "scv" else "max_accel"
 
 
 def with_feature_settings(job: Job, fc: FeatureCommands) -> Job:

@@ -14,11 +14,12 @@ KLIPPER_UNKNOWN = ("M201", "M203", "M205", "M566")
 LONE_M204 = "M204 without S or both P and T"
 
 
-def klipper_ignored(job) -> dict[str, list[int]]:
+def klipper_ignored(job, junction: str) -> dict[str, list[int]]:
     """{command: the job's line numbers, in order} of its limit commands Klipper does not act on
-    (a parsed :class:`ringtune.shaping.job.Job`)."""
+    (a parsed :class:`ringtune.shaping.job.Job`) where it is planned under Klipper's corner rule
+    (``junction`` ``scv``); empty under any other rule."""
     out: dict[str, list[int]] = {}
-    for ev in job.events:
+    for ev in job.events if junction == "scv" else ():
         what = _ignored_as(ev)
         if what:
             out.setdefault(what, []).append(int(ev.line))
@@ -35,9 +36,8 @@ def _ignored_as(ev) -> str | None:
     return LONE_M204 if lone else None
 
 
-def klipper_ignored_note(job) -> str | None:
-    """One sentence on the lines of :func:`klipper_ignored` (None: there are none)."""
-    ignored = klipper_ignored(job)
+def klipper_ignored_note(ignored: dict[str, list[int]]) -> str | None:
+    """One sentence on ``ignored``, what :func:`klipper_ignored` found (None: nothing)."""
     if not ignored:
         return None
     n = sum(len(lines) for lines in ignored.values())

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.feature_settings import FeatureCommands, effective_classes, move_settings
+from ringtune.shaping.feature_settings import FeatureCommands, caps_setting, effective_classes, move_settings
 from ringtune.shaping.features import FEATURE_CLASSES
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.gcode import read_gcode
@@ -82,7 +82,7 @@ class _Dialect:
 
     def once(self, values: dict) -> list[str]:
         out = self.corner(values, [k for k in _CORNER_KEYS if k in values])
-        caps = "limited_accel" if self.junction == "scv" else "max_accel"   # Kalico's X_ACCEL Y_ACCEL; M201 X Y
+        caps = caps_setting(self.junction)
         if f"{caps}_x" in values and self.caps_set:
             out.append(self.caps_set.format(x=_n(values[f"{caps}_x"]), y=_n(values[f"{caps}_y"])))
         return out

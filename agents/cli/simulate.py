@@ -52,7 +52,7 @@ from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import per_feature_text
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.job_shapers import describe_timeline, shaper_timeline
-from ringtune.shaping.klipper_ignores import klipper_ignored_note
+from ringtune.shaping.klipper_ignores import klipper_ignored, klipper_ignored_note
 
 NAME = "simulate"
 DESCRIPTION = """\
@@ -165,7 +165,7 @@ def job_commands(printer, gcode, config, out) -> list[dict]:
     if len(timeline) > 1:
         notes.append(describe_timeline(timeline, plan.events))
     junction = resolve_printer(printer).limits.junction
-    ignored = klipper_ignored_note(parsed) if junction == "scv" else None
+    ignored = klipper_ignored_note(klipper_ignored(parsed, junction))
     if ignored:
         notes.append(ignored)
     if job_accel_commands(parsed, junction):

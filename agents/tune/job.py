@@ -22,7 +22,7 @@ from ringtune.agents.tune.motor_bound import defaults_note
 from ringtune.envs.planned_job import job_accel_commands, planned_job, resolve_job
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.features import FEATURE_CLASSES, LABELLED_VISIBLE, class_indices
-from ringtune.shaping.klipper_ignores import klipper_ignored_note
+from ringtune.shaping.klipper_ignores import klipper_ignored, klipper_ignored_note
 from ringtune.shaping.layers import layer_starts
 
 #: how the job's acceleration settings are written in G-code: command -> (setting, its word)
@@ -68,7 +68,7 @@ class JobAccelFacts:
 
     def _ignored(self) -> list[str]:
         """Under Klipper's rule, the sentence on the job's limit lines Klipper does not act on (or none)."""
-        note = klipper_ignored_note(resolve_job(self.job)[1]) if self.printer.limits.junction == "scv" else None
+        note = klipper_ignored_note(klipper_ignored(resolve_job(self.job)[1], self.printer.limits.junction))
         return [note] if note else []
 
     def notes(self, mode: str, space) -> list[str]:
