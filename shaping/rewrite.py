@@ -5,8 +5,9 @@ feature change, in the firmware's own dialect; nothing else of the file changes.
 
 - before a move where the settings of :func:`ringtune.shaping.feature_settings.move_settings`
   change (a feature change, or for Klipper's one acceleration a travel), the commands that set
-  them: Klipper/Kalico ``SET_VELOCITY_LIMIT ACCEL=… [SQUARE_CORNER_VELOCITY=…]
-  [MINIMUM_CRUISE_RATIO=…]``; Marlin, Prusa ``M204 P… T…`` (+ ``M205 J…`` or ``M205 X… Y…``);
+  them: Klipper/Kalico ``SET_VELOCITY_LIMIT ACCEL=… ACCEL_TO_DECEL=… [SQUARE_CORNER_VELOCITY=…]
+  [MINIMUM_CRUISE_RATIO=…]`` (ACCEL_TO_DECEL = ACCEL × (1 − minimum_cruise_ratio), for a Klipper from
+  before 2024, which has no MINIMUM_CRUISE_RATIO; a newer one ignores it); Marlin, Prusa ``M204 P… T…`` (+ ``M205 J…`` or ``M205 X… Y…``);
   RepRapFirmware ``M204 P… T…`` (+ ``M566 X… Y…``, mm/min); the corner settings there only where
   the configuration sets them per class (else once, below);
 - the corner rule and the per-axis caps (``M201 X Y``; Kalico ``SET_VELOCITY_LIMIT X_ACCEL=
@@ -57,8 +58,8 @@ class _Dialect:
         """The lines setting the acceleration (and the corner settings ``corner_keys`` that change
         with it, per class) — on Klipper one ``SET_VELOCITY_LIMIT``."""
         if self.junction == "scv" and self.family == "klipper":
-            words = [f"ACCEL={_n(values['accel_klipper'])}"] + _klipper_words(values, corner_keys)
-            return ["SET_VELOCITY_LIMIT " + " ".join(words)]
+            words = [f"ACCEL={_n(values['accel_klipper'])}", *_accel_to_decel(values)]
+            return ["SET_VELOCITY_LIMIT " + " ".join(words + _klipper_words(values, corner_keys))]
         if self.junction == "scv":
             return [f"M204 P{_n(values['accel_klipper'])} T{_n(values['accel_klipper'])}"] + self.corner(values, corner_keys)
         return [f"M204 P{_n(values['accel_print'])} T{_n(values['accel_travel'])}"] + self.corner(values, corner_keys)
@@ -91,6 +92,16 @@ class _Dialect:
 #: the corner settings a configuration may set, whole-job or per class
 _CORNER_KEYS = ("square_corner_velocity", "min_cruise_ratio", "junction_deviation", "jerk_x", "jerk_y")
 _KLIPPER_WORDS = (("SQUARE_CORNER_VELOCITY", "square_corner_velocity"), ("MINIMUM_CRUISE_RATIO", "min_cruise_ratio"))
+
+
+def _accel_to_decel(values: dict) -> list[str]:
+    """``ACCEL_TO_DECEL=`` ACCEL × (1 − minimum_cruise_ratio) in force: a Klipper from before 2024
+    has no MINIMUM_CRUISE_RATIO and keeps its accel_to_decel in mm/s² (the config's, default half
+    its max_accel) whatever ACCEL becomes, so a raised ACCEL alone would be hill-capped there below
+    what was planned; a newer Klipper takes MINIMUM_CRUISE_RATIO first and ignores the word."""
+    if "min_cruise_ratio" not in values:
+        return []
+    return [f"ACCEL_TO_DECEL={_n(values['accel_klipper'] * (1.0 - values['min_cruise_ratio']))}"]
 
 
 def _klipper_words(values: dict, keys) -> list[str]:

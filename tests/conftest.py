@@ -27,7 +27,8 @@ from real_klipper import real_klipper  # noqa: E402,F401  (session fixture: real
 #: (the README runs the suite with ``-n auto``) they run on one worker, since the session fixture
 #: starts one Klipper in ``.klipper-test/`` and a second worker starting its own there would stop it
 REAL_KLIPPER_MODULES = ("tests/test_real_klipper_push.py", "tests/test_fwconfig_moonraker.py",
-                        "tests/test_identify_moonraker.py", "tests/test_mass_schedule_klipper.py")
+                        "tests/test_identify_moonraker.py", "tests/test_mass_schedule_klipper.py",
+                        "tests/test_rewrite_klipper.py")
 
 
 @pytest.hookimpl(optionalhook=True)

@@ -12,14 +12,18 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
 
+from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import plan_with_config
+from ringtune.shaping.feature_settings import FeatureCommands
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.klipper_ignores import LONE_M204, klipper_ignored
 from ringtune.shaping.planner import MachineLimits, plan
+from ringtune.shaping.rewrite import rewrite_job
 
 
 def klipper_time(start, end, feed, accel, scv, mcr, velocity=1e9):
@@ -193,3 +197,31 @@ def test_klipper_takes_m204_s_and_p_with_t_and_kalicos_per_axis_accelerations():
     capped = plan(read_gcode("SET_VELOCITY_LIMIT X_ACCEL=500 Y_ACCEL=400\n" + moves), lim).print_time
     same = plan(read_gcode(moves), dataclasses.replace(lim, max_accel=(500.0, 400.0, 0.0, 0.0))).print_time
     assert capped == pytest.approx(same, rel=1e-12) and capped > plan(read_gcode(moves), lim).print_time
+
+
+def _velocity_limit_words(text: str) -> dict[str, float]:
+    """The words of the file's SET_VELOCITY_LIMIT lines, the last value of each (read as text)."""
+    return {k: float(v) for k, v in re.findall(r"\b(ACCEL|ACCEL_TO_DECEL|MINIMUM_CRUISE_RATIO)=([0-9.]+)", text)}
+
+
+def test_rewritten_klipper_job_runs_as_planned_on_a_klipper_from_before_minimum_cruise_ratio():
+    """A Klipper from before 2024 has no MINIMUM_CRUISE_RATIO: it keeps accel_to_decel in mm/s² (the
+    config's, default half its max_accel) whatever ACCEL becomes, and caps each hill at
+    min(accel_to_decel, ACCEL). The rewrite's ACCEL_TO_DECEL word makes that Klipper (scalar port
+    at its values) and a current one (port at ACCEL and MINIMUM_CRUISE_RATIO) both run the
+    rewritten zigzag in the time the planner gives it; without the word the old one is slower."""
+    zigzag = "".join(f"G1 X{50 + 5 * (i % 2)} Y{10 + 0.4 * i:.1f} E0.2 F12000\n" for i in range(60))
+    text = "M83\n;TYPE:Internal infill\n" + zigzag
+    limits = MachineLimits(accel=3000, velocity=300, junction="scv", square_corner_velocity=5, min_cruise_ratio=0.5)
+    cfg = TuneConfig(accel=3000.0, feature_accel={"infill": 9000.0}, feature_min_cruise_ratio={"infill": 0.1})
+    out = "".join(rewrite_job(text.splitlines(keepends=True), "klipper", FeatureCommands.from_config(cfg, limits)))
+    words = _velocity_limit_words(out)
+    assert words["ACCEL"] == 9000 and words["MINIMUM_CRUISE_RATIO"] == 0.1
+    job = read_gcode(out)
+    planned = plan(job, limits).print_time
+    s, e, f = job.start, job.end, job.feed
+    current = klipper_time(s, e, f, 9000.0, 5.0, 0.1)
+    old = klipper_time(s, e, f, 9000.0, 5.0, 1 - min(words["ACCEL_TO_DECEL"], 9000.0) / 9000.0)
+    assert planned == pytest.approx(current, rel=1e-9) and planned == pytest.approx(old, rel=1e-9)
+    without = klipper_time(s, e, f, 9000.0, 5.0, 1 - 1500.0 / 9000.0)   # its config's 3000 / 2
+    assert without > 1.1 * old

@@ -1,0 +1,49 @@
+"""The rewriter's Klipper lines against the real thing: Klipper 84104bb (session fixture
+``real_klipper``, tests/real_klipper.py). Every line the rewrite inserts into a job (per feature
+``SET_VELOCITY_LIMIT ACCEL= ACCEL_TO_DECEL=`` with the corner words where they change per class) is
+answered ``ok`` with no error, and Klipper's own ``SET_VELOCITY_LIMIT`` report after them gives the
+last feature's acceleration, minimum_cruise_ratio and square_corner_velocity."""
+
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from ringtune.shaping.config import TuneConfig  # noqa: E402
+from ringtune.shaping.feature_settings import FeatureCommands  # noqa: E402
+from ringtune.shaping.planner import MachineLimits  # noqa: E402
+from ringtune.shaping.rewrite import rewrite_job  # noqa: E402
+
+pytestmark = [pytest.mark.timeout(600), pytest.mark.slow]
+
+JOB = ("M83\n;TYPE:External perimeter\nG1 X20 Y0 E1 F3000\nG1 X20 Y20 E1\n"
+       ";TYPE:Internal infill\nG1 X0 Y0 E1 F9000\nG1 X20 Y1 E1\n")
+
+
+def test_klipper_takes_every_inserted_line_and_ends_on_the_last_features_settings(real_klipper):
+    limits = MachineLimits(accel=3000, velocity=300, junction="scv", square_corner_velocity=5, min_cruise_ratio=0.5)
+    cfg = TuneConfig(accel=2500.0, feature_accel={"infill": 9000.0}, feature_corner={"infill": 12.0},
+                     feature_min_cruise_ratio={"infill": 0.0})
+    out = rewrite_job(JOB.splitlines(keepends=True), "klipper", FeatureCommands.from_config(cfg, limits))
+    inserted = [ln.split(";")[0].strip() for ln in out if ln not in JOB.splitlines(keepends=True)]
+    assert [ln for ln in inserted if not ln.startswith("SET_VELOCITY_LIMIT")] == []
+    assert any("ACCEL_TO_DECEL=1250" in ln for ln in inserted) and "ACCEL_TO_DECEL=9000" in inserted[-1]
+    state = lambda: dict(re.findall(r"(max_accel|minimum_cruise_ratio|square_corner_velocity):\s*(\S+)",  # noqa: E731
+                                    real_klipper.send("SET_VELOCITY_LIMIT")))
+    before = state()
+    try:
+        transcript = real_klipper.send(*inserted)
+        replies = [ln for ln in transcript.splitlines() if ln.startswith("< ")]
+        assert len([r for r in replies if r == "< ok"]) == len(inserted), transcript
+        assert "Unknown command" not in transcript and "!!" not in transcript, transcript
+        now = {k: float(v) for k, v in state().items()}
+        assert now == {"max_accel": 9000.0, "minimum_cruise_ratio": 0.0, "square_corner_velocity": 12.0}
+    finally:      # the Klipper fixture is shared by the session: leave it as it was found
+        real_klipper.send("SET_VELOCITY_LIMIT " + " ".join(f"{k.upper() if k != 'max_accel' else 'ACCEL'}={v}"
+                                                           for k, v in before.items()))
+    assert state() == before
