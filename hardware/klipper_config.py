@@ -90,7 +90,10 @@ def _limits(src: Source) -> dict:
     else:
         mcr = min(max(1.0 - mad / accel, 0.0), 0.99)
         src.notes.append(f"{src.where('printer', 'max_accel_to_decel')}: old max_accel_to_decel {mad:g} "
-                         f"-> minimum_cruise_ratio = 1 - {mad:g}/{accel:g} = {mcr:g}")
+                         f"-> minimum_cruise_ratio = 1 - {mad:g}/{accel:g} = {mcr:g} (a Klipper this old keeps "
+                         f"{mad:g} mm/s² whatever ACCEL becomes: `ringtune rewrite` writes ACCEL_TO_DECEL beside "
+                         "each ACCEL; any other acceleration set alone is planned with this ratio, which that Klipper does "
+                         "not keep)")
     if not 0 <= mcr < 1:
         raise RingtuneError(f"must be in [0, 1), not {mcr:g}", src.where("printer", "minimum_cruise_ratio"))
     limits["min_cruise_ratio"] = mcr
