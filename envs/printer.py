@@ -92,10 +92,11 @@ KINEMATICS = ("cartesian", "corexy", "corexz")
 #: M204 P, RRF M204 P, Klipper max_accel), ``travel_accel`` (M204 T), ``retract_accel`` (Marlin M204
 #: R: E-only moves), ``max_accel``/``max_velocity`` (per-axis caps x, y, z, e; 0 = none), ``axis_rule``
 #: (how those caps bind: ``per_axis`` or Kalico's ``limited_corexy``), ``scale_xy_accel`` (Kalico),
-#: the corner rule and Klipper's ``min_cruise_ratio`` (see :class:`ringtune.shaping.planner.MachineLimits`)
+#: the corner rule, Klipper's ``min_cruise_ratio`` and an old Klipper's ``accel_to_decel`` (mm/s²; see
+#: :class:`ringtune.shaping.planner.MachineLimits`)
 LIMIT_KEYS = ("accel", "velocity", "junction", "square_corner_velocity", "junction_deviation",
-              "jerk", "max_accel", "max_velocity", "min_cruise_ratio", "travel_accel", "retract_accel",
-              "axis_rule", "scale_xy_accel")
+              "jerk", "max_accel", "max_velocity", "min_cruise_ratio", "accel_to_decel", "travel_accel",
+              "retract_accel", "axis_rule", "scale_xy_accel")
 _TOP_KEYS = {"name", "kinematics", "limits", "x", "y", "motor", "belts", "print_mass", "description",
              "current", "measurement"}
 _BELT_KEYS = {"stiffness", "mismatch"}
@@ -152,7 +153,7 @@ def _has_force(axis_table: dict, base_raw: dict) -> bool:
 
 #: ``[limits]``' plain numbers and their bounds (as :func:`number` takes them)
 _LIMIT_BOUNDS = {**dict.fromkeys(("accel", "velocity", "square_corner_velocity", "junction_deviation", "travel_accel",
-                                  "retract_accel"), {"lo": 0.0, "lo_open": True}),
+                                  "retract_accel", "accel_to_decel"), {"lo": 0.0, "lo_open": True}),
                  "min_cruise_ratio": {"lo": 0.0, "hi": 1.0}}
 
 

@@ -16,7 +16,8 @@ What is taken (Klipper's option -> description key):
   anything else is refused);
 - ``max_accel`` -> ``limits.accel``, ``max_velocity`` -> ``limits.velocity``,
   ``square_corner_velocity`` (default 5 mm/s), ``minimum_cruise_ratio`` -> ``limits.min_cruise_ratio``
-  (default 0.5; from the old ``max_accel_to_decel``: ``1 − max_accel_to_decel / max_accel``),
+  (default 0.5; from the old ``max_accel_to_decel``: ``1 − max_accel_to_decel / max_accel``, and
+  that value itself as ``limits.accel_to_decel``: a Klipper from before 2024),
   ``max_z_velocity`` (and ``limited_*``'s ``max_x_velocity``/``max_y_velocity``) -> the per-axis
   speed caps ``limits.max_velocity`` (x, y, z, e; 0 = no cap) when they bind (under
   ``max_velocity``); ``max_z_accel`` and ``limited_*``'s ``max_x_accel``/``max_y_accel`` ->
@@ -89,11 +90,12 @@ def _limits(src: Source) -> dict:
                              "ignored: minimum_cruise_ratio is set too")
     else:
         mcr = min(max(1.0 - mad / accel, 0.0), 0.99)
-        src.notes.append(f"{src.where('printer', 'max_accel_to_decel')}: old max_accel_to_decel {mad:g} "
-                         f"-> minimum_cruise_ratio = 1 - {mad:g}/{accel:g} = {mcr:g} (a Klipper this old keeps "
-                         f"{mad:g} mm/s² whatever ACCEL becomes: `ringtune rewrite` writes ACCEL_TO_DECEL beside "
-                         "each ACCEL; any other acceleration set alone is planned with this ratio, which that Klipper does "
-                         "not keep)")
+        limits["accel_to_decel"] = mad
+        src.notes.append(f"{src.where('printer', 'max_accel_to_decel')}: a Klipper from before 2024 (no "
+                         f"minimum_cruise_ratio): planned as it runs, {mad:g} mm/s² kept whatever ACCEL becomes "
+                         f"([limits] accel_to_decel); its ratio at max_accel, 1 - {mad:g}/{accel:g} = {mcr:g}, is the "
+                         "minimum_cruise_ratio tune starts from; `ringtune rewrite` writes ACCEL_TO_DECEL wherever a "
+                         "configuration sets a ratio")
     if not 0 <= mcr < 1:
         raise RingtuneError(f"must be in [0, 1), not {mcr:g}", src.where("printer", "minimum_cruise_ratio"))
     limits["min_cruise_ratio"] = mcr

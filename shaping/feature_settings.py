@@ -36,6 +36,7 @@ printing and travel alike), and the rewriter writes it at each change.
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
@@ -58,7 +59,9 @@ class FeatureCommands:
     ``scv`` | ``jd`` | ``jerk``; min_cruise_ratio: Klipper's (None: left as it is); caps: (X, Y)
     per-axis acceleration caps, mm/s² (``M201 X Y``; None: none, Klipper); class_corner,
     class_mcr: class -> the corner value / minimum_cruise_ratio where a class has its own (the
-    others take ``corner`` / ``min_cruise_ratio``, or ``corner_now`` / ``mcr_now``, the printer's)."""
+    others take ``corner`` / ``min_cruise_ratio``, or ``corner_now`` / ``mcr_now``, the printer's);
+    atd_now: a Klipper from before 2024, its max_accel_to_decel (mm/s², kept where no
+    minimum_cruise_ratio is set; None: a current Klipper)."""
 
     accel: dict
     junction: str
@@ -69,6 +72,7 @@ class FeatureCommands:
     class_mcr: dict = field(default_factory=dict)
     corner_now: float | None = None
     mcr_now: float | None = None
+    atd_now: float | None = None
 
     @classmethod
     def from_config(cls, config, limits) -> "FeatureCommands":
@@ -81,7 +85,7 @@ class FeatureCommands:
         now = corner_value(limits)
         return cls(accel, limits.junction, config.corner, mcr, _caps(config.firmware, limits, accel, config.axis_caps),
                    dict(config.feature_corner), dict(config.feature_min_cruise_ratio) if scv else {},
-                   float(now), float(limits.min_cruise_ratio))
+                   float(now), float(limits.min_cruise_ratio), limits.accel_to_decel if scv else None)
 
 
 def corner_value(limits) -> float:
@@ -248,11 +252,24 @@ def _settings(fc: FeatureCommands, eff: np.ndarray, label: np.ndarray, seam: np.
         out.update(dict.fromkeys(_CORNER_KEYS[fc.junction], corner))
     mcr = _per_class(eff, fc.class_mcr, fc.min_cruise_ratio, fc.mcr_now) if fc.junction == "scv" else None
     if mcr is not None:
-        out.update(min_cruise_ratio=mcr, accel_to_decel=np.full(n, np.nan))
+        out.update(min_cruise_ratio=mcr, accel_to_decel=_accel_to_decel(fc, eff, out["accel_klipper"], mcr))
     for ax, cap in zip("xy", fc.caps or ()):
         if cap is not None:
             out[f"{caps_setting(fc.junction)}_{ax}"] = np.full(n, float(cap))
     return out
+
+
+def _accel_to_decel(fc: FeatureCommands, eff: np.ndarray, accel: np.ndarray, mcr: np.ndarray) -> np.ndarray:
+    """(n,) ACCEL_TO_DECEL, mm/s², as the rewrite writes it beside each ACCEL for a Klipper from
+    before 2024 (no MINIMUM_CRUISE_RATIO): the acceleration × (1 − minimum_cruise_ratio); on such a
+    Klipper (``fc.atd_now``), where the configuration sets no ratio, its own max_accel_to_decel as
+    it runs it, min(that, the acceleration)."""
+    atd = accel * (1.0 - mcr)
+    if fc.atd_now is None:
+        return atd
+    own = _per_class(eff, fc.class_mcr, fc.min_cruise_ratio, math.nan)     # NaN: none set
+    unset = np.ones(len(eff), bool) if own is None else np.isnan(own)
+    return np.where(unset, np.minimum(fc.atd_now, accel), atd)
 
 
 def caps_setting(junction: str) -> str:

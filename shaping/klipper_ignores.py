@@ -2,9 +2,11 @@
 M201 (per-axis accelerations, the XY frequency limit), M203 (per-axis speeds), M205 (jerk, junction
 deviation) and M566 (RRF's jerk), which Klipper does not have, and M204 without S or both P and T,
 which it answers with "Invalid M204 command" (toolhead.py ``cmd_M204``) — what PrusaSlicer and
-OrcaSlicer write, one per feature, for Marlin 2 or RRF. The planner runs a job under Klipper's rule
-as Klipper would (:func:`ringtune.shaping.lookahead.axis_caps`, the job's M204 in
-:mod:`ringtune.shaping.gcode_commands`); this says so."""
+OrcaSlicer write, one per feature, for Marlin 2 or RRF; and the word of SET_VELOCITY_LIMIT its
+version does not read: ACCEL_TO_DECEL since 2024 (what OrcaSlicer writes beside each ACCEL),
+MINIMUM_CRUISE_RATIO before. The planner runs a job under Klipper's rule as Klipper would
+(:func:`ringtune.shaping.lookahead.axis_caps`, :func:`ringtune.shaping.lookahead.klipper_smoothing`,
+the job's M204 in :mod:`ringtune.shaping.gcode_commands`); this says so."""
 
 from __future__ import annotations
 
@@ -12,26 +14,31 @@ from __future__ import annotations
 KLIPPER_UNKNOWN = ("M201", "M203", "M205", "M566")
 #: how a lone M204 is named
 LONE_M204 = "M204 without S or both P and T"
+#: the SET_VELOCITY_LIMIT word a current Klipper ignores, and the one a Klipper from before 2024 does
+WORD_IGNORED = {False: "ACCEL_TO_DECEL", True: "MINIMUM_CRUISE_RATIO"}
 
 
-def klipper_ignored(job, junction: str) -> dict[str, list[int]]:
+def klipper_ignored(job, junction: str, old: bool = False) -> dict[str, list[int]]:
     """{command: the job's line numbers, in order} of its limit commands Klipper does not act on
     (a parsed :class:`ringtune.shaping.job.Job`) where it is planned under Klipper's corner rule
-    (``junction`` ``scv``); empty under any other rule."""
+    (``junction`` ``scv``); empty under any other rule. ``old``: a Klipper from before 2024
+    (``MachineLimits.accel_to_decel`` set)."""
     out: dict[str, list[int]] = {}
     for ev in job.events if junction == "scv" else ():
-        what = _ignored_as(ev)
+        what = _ignored_as(ev, old)
         if what:
             out.setdefault(what, []).append(int(ev.line))
     return out
 
 
-def _ignored_as(ev) -> str | None:
+def _ignored_as(ev, old: bool) -> str | None:
     """How :func:`klipper_ignored` names a job event Klipper does not act on (None: it does)."""
     if ev.kind != "limits":
         return None
     if ev.command in KLIPPER_UNKNOWN:
         return ev.command
+    if ev.command == "SET_VELOCITY_LIMIT":
+        return f"SET_VELOCITY_LIMIT {WORD_IGNORED[old]}" if WORD_IGNORED[old] in ev.params else None
     lone = ev.command == "M204" and "S" not in ev.params and not {"P", "T"} <= set(ev.params)
     return LONE_M204 if lone else None
 
@@ -42,7 +49,15 @@ def klipper_ignored_note(ignored: dict[str, list[int]]) -> str | None:
         return None
     n = sum(len(lines) for lines in ignored.values())
     parts = ", ".join(f"{what} ×{len(lines)} (first on line {lines[0]})" for what, lines in ignored.items())
-    return (f"Klipper does not act on {n} of the job's limit lines — {parts}: it has no M201, M203, M205 or "
-            "M566, and answers an M204 without S or both P and T with \"Invalid M204 command\"; planned as "
-            "Klipper runs the file (sliced for Marlin 2 or RRF? slice it for Klipper, or `ringtune rewrite` "
-            "writes the accelerations in Klipper's own SET_VELOCITY_LIMIT)")
+    why = []
+    if set(ignored) - {f"SET_VELOCITY_LIMIT {w}" for w in WORD_IGNORED.values()}:
+        why.append("it has no M201, M203, M205 or M566, and answers an M204 without S or both P and T with "
+                   "\"Invalid M204 command\" (sliced for Marlin 2 or RRF? slice it for Klipper, or `ringtune "
+                   "rewrite` writes the accelerations in Klipper's own SET_VELOCITY_LIMIT)")
+    if f"SET_VELOCITY_LIMIT {WORD_IGNORED[False]}" in ignored:
+        why.append("since 2024 it reads no ACCEL_TO_DECEL: its minimum_cruise_ratio rules (a Klipper from before "
+                   "then: [limits] accel_to_decel, its max_accel_to_decel, in the printer description)")
+    if f"SET_VELOCITY_LIMIT {WORD_IGNORED[True]}" in ignored:
+        why.append("this Klipper, from before 2024 ([limits] accel_to_decel), has no MINIMUM_CRUISE_RATIO")
+    return (f"Klipper does not act on {n} of the job's limit lines or words — {parts}: " + "; ".join(why)
+            + "; planned as Klipper runs the file")

@@ -264,10 +264,17 @@ def segmented_cummin(values: np.ndarray, run_start: np.ndarray) -> np.ndarray:
 
 def klipper_smoothing(job, limits, use, cj, w, cruise2, accel, d, dv2, v2):
     """Klipper's minimum_cruise_ratio: cap each accelerate/decelerate hill at the peak reached
-    with the smoothed acceleration, then re-run the passes so junctions stay reachable."""
-    mcr = job_value(job, "min_cruise_ratio", limits.min_cruise_ratio, use)
-    atd = job_value(job, "accel_to_decel", None, use)
-    a_s = np.where(np.isnan(atd), accel * (1 - mcr), np.minimum(atd, accel))
+    with the smoothed acceleration, then re-run the passes so junctions stay reachable.
+
+    The smoothed acceleration (mm/s²) is the acceleration × (1 − minimum_cruise_ratio), the job's
+    MINIMUM_CRUISE_RATIO over the machine's: a current Klipper and Kalico ignore ACCEL_TO_DECEL.
+    On a Klipper from before 2024 (``limits.accel_to_decel`` set: its max_accel_to_decel) it is
+    min(accel_to_decel, acceleration), the job's ACCEL_TO_DECEL over the machine's, whatever ACCEL
+    becomes; that Klipper has no MINIMUM_CRUISE_RATIO."""
+    if limits.accel_to_decel is None:
+        a_s = accel * (1 - job_value(job, "min_cruise_ratio", limits.min_cruise_ratio, use))
+    else:
+        a_s = np.minimum(job_value(job, "accel_to_decel", limits.accel_to_decel, use), accel)
     if np.all(a_s >= accel):
         return cruise2, w
     ds = 2 * a_s * d

@@ -73,6 +73,9 @@ class MachineLimits:
     accel: printing acceleration; velocity: top speed; junction: ``scv`` | ``jd`` | ``jerk``;
     square_corner_velocity (Klipper), junction_deviation (Marlin), jerk (x, y, z, e classic jerk);
     max_accel / max_velocity: per-axis caps (x, y, z, e) or None; min_cruise_ratio (Klipper only);
+    accel_to_decel: a Klipper from before 2024 (no minimum_cruise_ratio), its max_accel_to_decel in
+    mm/s², kept whatever ACCEL becomes (None: a current Klipper or Kalico, which ignore a job's
+    ACCEL_TO_DECEL);
     travel_accel / retract_accel: Marlin's M204 T / R, RRF's M204 T (None = accel; the junction
     rules ``jd`` and ``jerk`` use them, Klipper has one acceleration); axis_rule: how the per-axis
     caps bind (:data:`AXIS_RULES`, module docstring); scale_xy_accel: Kalico's ``scale_xy_accel``.
@@ -87,6 +90,7 @@ class MachineLimits:
     max_accel: tuple | None = None
     max_velocity: tuple | None = None
     min_cruise_ratio: float = 0.5
+    accel_to_decel: float | None = None
     travel_accel: float | None = None
     retract_accel: float | None = None
     axis_rule: str = "per_axis"
@@ -141,7 +145,7 @@ _LIMIT_CHECKS = (
     (("square_corner_velocity", "junction_deviation"), _non_negative, "must be a number >= 0, not {v!r}"),
     (("min_cruise_ratio",), _fraction, "must be in [0, 1)"),
     (("jerk", "max_accel", "max_velocity"), _four_or_none, "needs 4 numbers >= 0 (x, y, z, e)"),
-    (("travel_accel", "retract_accel"), _positive_or_none, "must be a positive number"),
+    (("travel_accel", "retract_accel", "accel_to_decel"), _positive_or_none, "must be a positive number"),
 )
 
 

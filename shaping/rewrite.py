@@ -5,9 +5,10 @@ feature change, in the firmware's own dialect; nothing else of the file changes.
 
 - before a move where the settings of :func:`ringtune.shaping.feature_settings.move_settings`
   change (a feature change, or for Klipper's one acceleration a travel), the commands that set
-  them: Klipper/Kalico ``SET_VELOCITY_LIMIT ACCEL=… ACCEL_TO_DECEL=… [SQUARE_CORNER_VELOCITY=…]
-  [MINIMUM_CRUISE_RATIO=…]`` (ACCEL_TO_DECEL = ACCEL × (1 − minimum_cruise_ratio), for a Klipper from
-  before 2024, which has no MINIMUM_CRUISE_RATIO; a newer one ignores it); Marlin, Prusa ``M204 P… T…`` (+ ``M205 J…`` or ``M205 X… Y…``);
+  them: Klipper/Kalico ``SET_VELOCITY_LIMIT ACCEL=… [ACCEL_TO_DECEL=…] [SQUARE_CORNER_VELOCITY=…]
+  [MINIMUM_CRUISE_RATIO=…]`` (where the configuration sets a minimum_cruise_ratio, ACCEL_TO_DECEL =
+  ACCEL × (1 − it) for a Klipper from before 2024, which has no MINIMUM_CRUISE_RATIO and keeps its
+  ACCEL_TO_DECEL whatever ACCEL becomes; a newer one ignores it); Marlin, Prusa ``M204 P… T…`` (+ ``M205 J…`` or ``M205 X… Y…``);
   RepRapFirmware ``M204 P… T…`` (+ ``M566 X… Y…``, mm/min); the corner settings there only where
   the configuration sets them per class (else once, below);
 - the corner rule and the per-axis caps (``M201 X Y``; Kalico ``SET_VELOCITY_LIMIT X_ACCEL=
@@ -95,13 +96,11 @@ _KLIPPER_WORDS = (("SQUARE_CORNER_VELOCITY", "square_corner_velocity"), ("MINIMU
 
 
 def _accel_to_decel(values: dict) -> list[str]:
-    """``ACCEL_TO_DECEL=`` ACCEL × (1 − minimum_cruise_ratio) in force: a Klipper from before 2024
-    has no MINIMUM_CRUISE_RATIO and keeps its accel_to_decel in mm/s² (the config's, default half
-    its max_accel) whatever ACCEL becomes, so a raised ACCEL alone would be hill-capped there below
-    what was planned; a newer Klipper takes MINIMUM_CRUISE_RATIO first and ignores the word."""
-    if "min_cruise_ratio" not in values:
-        return []
-    return [f"ACCEL_TO_DECEL={_n(values['accel_klipper'] * (1.0 - values['min_cruise_ratio']))}"]
+    """``ACCEL_TO_DECEL=`` in force where the configuration sets a minimum_cruise_ratio
+    (:func:`ringtune.shaping.feature_settings.move_settings`: ACCEL × (1 − it)): a Klipper from
+    before 2024 has no MINIMUM_CRUISE_RATIO and keeps its accel_to_decel in mm/s² (the config's,
+    default half its max_accel) whatever ACCEL becomes; a newer Klipper ignores the word."""
+    return [f"ACCEL_TO_DECEL={_n(values['accel_to_decel'])}"] if "accel_to_decel" in values else []
 
 
 def _klipper_words(values: dict, keys) -> list[str]:

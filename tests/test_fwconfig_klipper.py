@@ -228,12 +228,14 @@ def test_old_names_step_distance_and_max_accel_to_decel(tmp_path):
     assert "steps_per_revolution" not in d["y"]["motor"]
     assert d["limits"]["min_cruise_ratio"] == pytest.approx(1 - 1000 / 4000)
     assert any("old step_distance" in n for n in facts.notes)
-    assert any("old max_accel_to_decel" in n for n in facts.notes)
+    assert d["limits"]["accel_to_decel"] == 1000
+    assert any("a Klipper from before 2024" in n for n in facts.notes)
     # the successor wins when both are there
     (tmp_path / "printer.cfg").write_text(
         "[printer]\nkinematics: cartesian\nmax_velocity: 300\nmax_accel: 4000\nmax_accel_to_decel: 1000\n"
         "minimum_cruise_ratio: 0.3\n")
-    assert printer_facts_from_klipper(tmp_path / "printer.cfg").description["limits"]["min_cruise_ratio"] == 0.3
+    limits = printer_facts_from_klipper(tmp_path / "printer.cfg").description["limits"]
+    assert limits["min_cruise_ratio"] == 0.3 and "accel_to_decel" not in limits     # a Klipper of 2024 on
 
 
 def test_syntax_comments_multiline_repeated_sections_and_glob_includes(tmp_path):

@@ -225,3 +225,44 @@ def test_rewritten_klipper_job_runs_as_planned_on_a_klipper_from_before_minimum_
     assert planned == pytest.approx(current, rel=1e-9) and planned == pytest.approx(old, rel=1e-9)
     without = klipper_time(s, e, f, 9000.0, 5.0, 1 - 1500.0 / 9000.0)   # its config's 3000 / 2
     assert without > 1.1 * old
+
+
+ZIGZAG = "".join(f"G1 X{50 + 5 * (i % 2)} Y{10 + 0.4 * i:.1f} E0.2 F12000\n" for i in range(60))
+
+
+@pytest.mark.parametrize("old", [False, True])
+def test_accel_to_decel_of_a_job_counts_only_on_a_klipper_from_before_2024(old):
+    """OrcaSlicer writes ``SET_VELOCITY_LIMIT ACCEL= ACCEL_TO_DECEL=`` (half of ACCEL by default). A
+    current Klipper ignores the word: its minimum_cruise_ratio rules (port at 0 here). A Klipper
+    from before 2024 (``accel_to_decel`` in the limits) takes it, and has no MINIMUM_CRUISE_RATIO:
+    the port at 1 − 2500/5000. Each is named among what that Klipper does not act on."""
+    job = read_gcode("M83\nSET_VELOCITY_LIMIT ACCEL=5000 ACCEL_TO_DECEL=2500\nSET_VELOCITY_LIMIT MINIMUM_CRUISE_RATIO=0\n"
+                     + ZIGZAG)
+    lim = MachineLimits(accel=3000, velocity=300, junction="scv", square_corner_velocity=5, min_cruise_ratio=0.5,
+                        accel_to_decel=1500.0 if old else None)
+    ref = klipper_time(job.start, job.end, job.feed, 5000.0, 5.0, 0.5 if old else 0.0)
+    assert plan(job, lim).print_time == pytest.approx(ref, rel=1e-9)
+    ignored = klipper_ignored(job, "scv", old)
+    assert ignored == {("SET_VELOCITY_LIMIT MINIMUM_CRUISE_RATIO" if old else "SET_VELOCITY_LIMIT ACCEL_TO_DECEL"):
+                       [3 if old else 2]}
+
+
+def test_an_old_klipper_keeps_its_accel_to_decel_where_the_configuration_sets_no_ratio():
+    """On a Klipper from before 2024 with max_accel_to_decel 2000, a configuration at 6000 mm/s² runs
+    the hills of a class it sets no minimum_cruise_ratio for at min(2000, 6000): with no ratio at all
+    the rewrite writes no ACCEL_TO_DECEL (the printer's own stands), with a ratio for another class
+    (outer walls) it writes the printer's own, 2000, where that class's would otherwise stay. Tune's
+    plan, the rewritten file's and the scalar port agree. On a current Klipper with the same ratio at
+    its max_accel (1 − 2000/4000 = 0.5) the ratio scales with ACCEL: 3000."""
+    text = "M83\n;TYPE:Internal infill\n" + ZIGZAG
+    job = read_gcode(text)
+    for old, ratios, written, atd in ((True, {}, None, 2000.0), (True, {"outer_wall": 0.2}, 2000.0, 2000.0),
+                                      (False, {"outer_wall": 0.2}, 3000.0, 3000.0), (False, {}, None, 3000.0)):
+        lim = MachineLimits(accel=4000, velocity=300, junction="scv", square_corner_velocity=5, min_cruise_ratio=0.5,
+                            accel_to_decel=2000.0 if old else None)
+        cfg = TuneConfig(accel=6000.0, feature_accel={"infill": 6000.0}, feature_min_cruise_ratio=ratios)
+        out = "".join(rewrite_job(text.splitlines(keepends=True), "klipper", FeatureCommands.from_config(cfg, lim)))
+        assert _velocity_limit_words(out).get("ACCEL_TO_DECEL") == written
+        ref = klipper_time(job.start, job.end, job.feed, 6000.0, 5.0, 1 - atd / 6000.0)
+        assert plan_with_config(job, lim, cfg).plan.print_time == pytest.approx(ref, rel=1e-9)
+        assert plan(read_gcode(out), lim).print_time == pytest.approx(ref, rel=1e-9)

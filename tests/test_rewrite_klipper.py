@@ -2,7 +2,9 @@
 ``real_klipper``, tests/real_klipper.py). Every line the rewrite inserts into a job (per feature
 ``SET_VELOCITY_LIMIT ACCEL= ACCEL_TO_DECEL=`` with the corner words where they change per class) is
 answered ``ok`` with no error, and Klipper's own ``SET_VELOCITY_LIMIT`` report after them gives the
-last feature's acceleration, minimum_cruise_ratio and square_corner_velocity."""
+last feature's acceleration, minimum_cruise_ratio and square_corner_velocity. And what a job's own
+ACCEL_TO_DECEL (OrcaSlicer's, beside each ACCEL) does on this Klipper: nothing, as the planner
+plans it."""
 
 from __future__ import annotations
 
@@ -16,10 +18,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from ringtune.shaping.config import TuneConfig  # noqa: E402
 from ringtune.shaping.feature_settings import FeatureCommands  # noqa: E402
-from ringtune.shaping.planner import MachineLimits  # noqa: E402
+from ringtune.shaping.gcode import read_gcode  # noqa: E402
+from ringtune.shaping.planner import MachineLimits, plan  # noqa: E402
 from ringtune.shaping.rewrite import rewrite_job  # noqa: E402
 
 pytestmark = [pytest.mark.timeout(600), pytest.mark.slow]
+
+STATE = re.compile(r"(max_accel|minimum_cruise_ratio|square_corner_velocity):\s*(\S+)")
 
 JOB = ("M83\n;TYPE:External perimeter\nG1 X20 Y0 E1 F3000\nG1 X20 Y20 E1\n"
        ";TYPE:Internal infill\nG1 X0 Y0 E1 F9000\nG1 X20 Y1 E1\n")
@@ -33,8 +38,7 @@ def test_klipper_takes_every_inserted_line_and_ends_on_the_last_features_setting
     inserted = [ln.split(";")[0].strip() for ln in out if ln not in JOB.splitlines(keepends=True)]
     assert [ln for ln in inserted if not ln.startswith("SET_VELOCITY_LIMIT")] == []
     assert any("ACCEL_TO_DECEL=1250" in ln for ln in inserted) and "ACCEL_TO_DECEL=9000" in inserted[-1]
-    state = lambda: dict(re.findall(r"(max_accel|minimum_cruise_ratio|square_corner_velocity):\s*(\S+)",  # noqa: E731
-                                    real_klipper.send("SET_VELOCITY_LIMIT")))
+    state = lambda: dict(STATE.findall(real_klipper.send("SET_VELOCITY_LIMIT")))  # noqa: E731
     before = state()
     try:
         transcript = real_klipper.send(*inserted)
@@ -47,3 +51,23 @@ def test_klipper_takes_every_inserted_line_and_ends_on_the_last_features_setting
         real_klipper.send("SET_VELOCITY_LIMIT " + " ".join(f"{k.upper() if k != 'max_accel' else 'ACCEL'}={v}"
                                                            for k, v in before.items()))
     assert state() == before
+
+
+def test_a_jobs_accel_to_decel_does_nothing_on_this_klipper_nor_in_the_plan(real_klipper):
+    lines = ["SET_VELOCITY_LIMIT ACCEL=5000 ACCEL_TO_DECEL=1000 MINIMUM_CRUISE_RATIO=0.25",
+             "SET_VELOCITY_LIMIT ACCEL=6000 ACCEL_TO_DECEL=300"]
+    state = lambda: dict(STATE.findall(real_klipper.send("SET_VELOCITY_LIMIT")))  # noqa: E731
+    before = state()
+    try:
+        transcript = real_klipper.send(*lines)
+        assert "!!" not in transcript and "Unknown" not in transcript, transcript
+        now = {k: float(v) for k, v in state().items()}
+    finally:
+        real_klipper.send("SET_VELOCITY_LIMIT " + " ".join(f"{k.upper() if k != 'max_accel' else 'ACCEL'}={v}"
+                                                           for k, v in before.items()))
+    assert now["max_accel"] == 6000 and now["minimum_cruise_ratio"] == 0.25
+    zigzag = "".join(f"G1 X{50 + 5 * (i % 2)} Y{10 + 0.4 * i:.1f} E0.2 F12000\n" for i in range(40))
+    limits = MachineLimits(accel=3000, velocity=300, junction="scv", square_corner_velocity=5, min_cruise_ratio=0.5)
+    as_klipper = read_gcode("M83\nSET_VELOCITY_LIMIT ACCEL=6000 MINIMUM_CRUISE_RATIO=0.25\n" + zigzag)
+    assert plan(read_gcode("M83\n" + "\n".join(lines) + "\n" + zigzag), limits).print_time == \
+        pytest.approx(plan(as_klipper, limits).print_time, rel=1e-12)

@@ -24,10 +24,10 @@ Lines are only inserted, never changed (apart from the limit's F words); a comme
 line says what was done. The same commands follow any acceleration command of the job itself, so
 the job's own values never rule a move.
 
-  Klipper/Kalico  SET_VELOCITY_LIMIT ACCEL=... ACCEL_TO_DECEL=... [SQUARE_CORNER_VELOCITY=...
-                  MINIMUM_CRUISE_RATIO=...]   (ACCEL_TO_DECEL = ACCEL x (1 - minimum_cruise_ratio):
-                  a Klipper from before 2024 has no MINIMUM_CRUISE_RATIO and would keep its own;
-                  a newer one ignores the word)
+  Klipper/Kalico  SET_VELOCITY_LIMIT ACCEL=... [SQUARE_CORNER_VELOCITY=... MINIMUM_CRUISE_RATIO=...
+                  ACCEL_TO_DECEL=...]   (ACCEL_TO_DECEL = ACCEL x (1 - minimum_cruise_ratio) where
+                  the configuration sets a ratio: a Klipper from before 2024 has no
+                  MINIMUM_CRUISE_RATIO and would keep its own; a newer one ignores the word)
   Marlin, Prusa   M204 P... T...  (+ M205 J... or M205 X... Y..., M201 X... Y...)
   RepRapFirmware  M204 P... T...  (+ M566 X... Y... in mm/min, M201 X... Y...)
 

@@ -164,8 +164,9 @@ def job_commands(printer, gcode, config, out) -> list[dict]:
     notes = []
     if len(timeline) > 1:
         notes.append(describe_timeline(timeline, plan.events))
-    junction = resolve_printer(printer).limits.junction
-    ignored = klipper_ignored_note(klipper_ignored(parsed, junction))
+    limits = resolve_printer(printer).limits
+    junction = limits.junction
+    ignored = klipper_ignored_note(klipper_ignored(parsed, junction, limits.accel_to_decel is not None))
     if ignored:
         notes.append(ignored)
     if job_accel_commands(parsed, junction):

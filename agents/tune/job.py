@@ -68,7 +68,9 @@ class JobAccelFacts:
 
     def _ignored(self) -> list[str]:
         """Under Klipper's rule, the sentence on the job's limit lines Klipper does not act on (or none)."""
-        note = klipper_ignored_note(klipper_ignored(resolve_job(self.job)[1], self.printer.limits.junction))
+        limits = self.printer.limits
+        note = klipper_ignored_note(klipper_ignored(resolve_job(self.job)[1], limits.junction,
+                                                    limits.accel_to_decel is not None))
         return [note] if note else []
 
     def notes(self, mode: str, space) -> list[str]:
