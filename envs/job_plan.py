@@ -66,6 +66,8 @@ def junction_rule(job: Job, path=None, printer=None, given: dict | None = None,
     for setting, rule, why in JOB_JUNCTION:
         if not math.isnan(job.file_setting(setting)):
             return rule, why
+    if any(ev.command == "SET_VELOCITY_LIMIT" for ev in job.events):
+        return "scv", "the job uses SET_VELOCITY_LIMIT, which only Klipper and Kalico have"
     flavor = slicer_flavor(path) if path else None
     if flavor in FLAVOR_JUNCTION:
         return FLAVOR_JUNCTION[flavor], f"the slicer wrote the job for {flavor}"
