@@ -21,6 +21,7 @@ from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import ConfiguredPlan, plan_with_config
 from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions
 from ringtune.shaping.freqlimit import commanded_frequencies as per_move
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.gcode_file import read_gcode_bytes
@@ -159,6 +160,7 @@ class JobPlan:
         for e in p.events:
             kinds[e.kind] = kinds.get(e.kind, 0) + 1
         ignored = klipper_ignored(self.job, self.junction, self.configured.limits.accel_to_decel is not None)
+        retractions = firmware_retractions(self.job)
         return {
             "job": self.name, "junction": self.junction, "junction_reason": self.why,
             "limits": dict(asdict(self.configured.limits)),
@@ -174,6 +176,8 @@ class JobPlan:
             "read_s": self.read_s, "plan_s": self.plan_s,
             # under Klipper's rule: the job's limit lines Klipper does not act on ({command: [lines]})
             "ignored_by_firmware": ignored, "ignored_note": klipper_ignored_note(ignored),
+            # G10/G11 firmware retractions ({command: [lines]}), planned as taking no time
+            "firmware_retraction": retractions, "firmware_retraction_note": firmware_retraction_note(retractions),
         }
 
 

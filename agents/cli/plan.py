@@ -5,7 +5,9 @@ JSON keys (stable): ``job`` (path or ``"built-in test print"``), ``junction`` (s
 lines, which apply from where they appear unless ``--no-job-limits`` — under Klipper's rule only
 those Klipper acts on), ``ignored_by_firmware`` ({command: [line numbers]} of the limit lines
 Klipper does not act on, under its rule; else empty) and ``ignored_note`` (that in words, or
-null), ``print_time_s``,
+null), ``firmware_retraction`` ({``G10``/``G11``: [line numbers]} of the job's firmware
+retractions, planned as taking no time: their length and speeds are the printer's) and
+``firmware_retraction_note`` (that in words, or null), ``print_time_s``,
 ``print_time``, ``moves``, ``extruding_moves``, ``lines``, ``path_length_mm``,
 ``time_by_feature`` ({feature: s}), ``junction_reason`` (why that junction rule, in words),
 ``top_frequencies`` (list of {``freq_hz``, ``line``, ``t``}: highest *planned* direction-change
@@ -122,8 +124,9 @@ def _text(r: dict) -> str:
         lines.append(f"  frequency limit {fl['hz']:g} Hz ({fl['method']}): {fl['moves_slowed']} moves slowed")
     if r["daa_hz"]:
         lines.append(f"  DAA at {r['daa_hz']:g} Hz")
-    if r["ignored_note"]:
-        lines.append(f"  {r['ignored_note']}")
+    for key in ("ignored_note", "firmware_retraction_note"):
+        if r[key]:
+            lines.append(f"  {r[key]}")
     lines.append("  time by feature:")
     for k, v in sorted(r["time_by_feature"].items(), key=lambda kv: -kv[1]):
         lines.append(f"    {k:<28} {hms(v):>10}  {100 * v / max(t, 1e-12):5.1f} %")

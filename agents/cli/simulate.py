@@ -51,6 +51,7 @@ from ringtune.shaping.e_timing import E_TIMING_WORDS
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import per_feature_text
 from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions
 from ringtune.shaping.job_shapers import describe_timeline, shaper_timeline
 from ringtune.shaping.klipper_ignores import klipper_ignored, klipper_ignored_note
 
@@ -166,9 +167,10 @@ def job_commands(printer, gcode, config, out) -> list[dict]:
         notes.append(describe_timeline(timeline, plan.events))
     limits = resolve_printer(printer).limits
     junction = limits.junction
-    ignored = klipper_ignored_note(klipper_ignored(parsed, junction, limits.accel_to_decel is not None))
-    if ignored:
-        notes.append(ignored)
+    for note in (klipper_ignored_note(klipper_ignored(parsed, junction, limits.accel_to_decel is not None)),
+                 firmware_retraction_note(firmware_retractions(parsed))):
+        if note:
+            notes.append(note)
     if job_accel_commands(parsed, junction):
         mode = job_accel_mode(config) if config.accel is not None else "respect"
         notes.append("the job's own acceleration commands " + (

@@ -22,6 +22,7 @@ from ringtune.agents.tune.motor_bound import defaults_note
 from ringtune.envs.planned_job import job_accel_commands, planned_job, resolve_job
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.features import FEATURE_CLASSES, LABELLED_VISIBLE, class_indices
+from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions
 from ringtune.shaping.klipper_ignores import klipper_ignored, klipper_ignored_note
 from ringtune.shaping.layers import layer_starts
 
@@ -67,15 +68,17 @@ class JobAccelFacts:
         return ", ".join(parts)
 
     def _ignored(self) -> list[str]:
-        """Under Klipper's rule, the sentence on the job's limit lines Klipper does not act on (or none)."""
-        limits = self.printer.limits
-        note = klipper_ignored_note(klipper_ignored(resolve_job(self.job)[1], limits.junction,
-                                                    limits.accel_to_decel is not None))
-        return [note] if note else []
+        """Under Klipper's rule, the sentence on the job's limit lines Klipper does not act on, and
+        the one on its firmware retractions (each or none)."""
+        limits, job = self.printer.limits, resolve_job(self.job)[1]
+        notes = (klipper_ignored_note(klipper_ignored(job, limits.junction, limits.accel_to_decel is not None)),
+                 firmware_retraction_note(firmware_retractions(job)))
+        return [n for n in notes if n]
 
     def notes(self, mode: str, space) -> list[str]:
-        """What the job's own acceleration commands do under ``mode``; under Klipper's rule, first the
-        limit lines Klipper does not act on (:func:`ringtune.shaping.klipper_ignores.klipper_ignored_note`)."""
+        """What the job's own acceleration commands do under ``mode``; first, under Klipper's rule, the
+        limit lines Klipper does not act on (:func:`ringtune.shaping.klipper_ignores.klipper_ignored_note`)
+        and the firmware retractions (:func:`ringtune.shaping.firmware_retraction.firmware_retraction_note`)."""
         out = self._ignored()
         if not self.commands:
             return out

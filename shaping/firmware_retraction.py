@@ -1,0 +1,34 @@
+"""Firmware retraction: ``G10`` and ``G11`` without parameters ask the printer to retract and restore
+the filament by its own settings — Klipper's ``[firmware_retraction]`` (``SET_RETRACTION``; no
+section: an unknown command, nothing moves), Marlin's M207/M208 (FWRETRACT), RepRapFirmware's M207
+(``G10`` with ``P`` or ``L`` is RRF's tool offset or temperature, not a retraction). The length and
+speeds are the printer's, not in the file, so the planner plans these E-only moves as taking no
+time; this counts them and says what that leaves out (s)."""
+
+from __future__ import annotations
+
+#: for the sentence's example: Klipper's default speeds (mm/s) at a 1 mm retraction
+EXAMPLE_MM, EXAMPLE_OUT_MM_S, EXAMPLE_BACK_MM_S = 1.0, 20.0, 10.0
+
+
+def firmware_retractions(job) -> dict[str, list[int]]:
+    """{``"G10"`` / ``"G11"``: the job's line numbers, in order} of its firmware retractions and
+    restores (a parsed :class:`ringtune.shaping.job.Job`); empty when it has none."""
+    out: dict[str, list[int]] = {}
+    for ev in job.events:
+        if ev.command in ("G10", "G11") and not {"P", "L"} & set(ev.params):
+            out.setdefault(ev.command, []).append(int(ev.line))
+    return out
+
+
+def firmware_retraction_note(found: dict[str, list[int]]) -> str | None:
+    """One sentence on what :func:`firmware_retractions` found (None: nothing)."""
+    if not found:
+        return None
+    n = max(len(v) for v in found.values())
+    each = EXAMPLE_MM / EXAMPLE_OUT_MM_S + EXAMPLE_MM / EXAMPLE_BACK_MM_S
+    parts = ", ".join(f"{cmd} ×{len(lines)} (first on line {lines[0]})" for cmd, lines in sorted(found.items()))
+    return (f"the job retracts by firmware — {parts}: the length and speeds are the printer's (Klipper's "
+            "[firmware_retraction], Marlin's M207/M208, RRF's M207), not in the file, so these moves are planned "
+            f"as taking no time; at {EXAMPLE_MM:g} mm out at {EXAMPLE_OUT_MM_S:g} mm/s and back at "
+            f"{EXAMPLE_BACK_MM_S:g} mm/s they would add {each:.2f} s each, {n * each:.1f} s in all")

@@ -1,0 +1,42 @@
+"""Firmware retraction said aloud: G10/G11 without parameters (the real Cura UltiGCode job retracts
+only so) are counted with their lines, RRF's G10 P/L (tool offsets, temperatures) is not a
+retraction, and plan says the moves are planned as taking no time, with the sum its example
+settings would add: 1 mm at 20 mm/s out and 10 mm/s back, 0.05 + 0.1 s each."""
+
+from __future__ import annotations
+
+import json
+
+from ringtune.agents.cli.main import main
+from ringtune.agents.tune.job import job_accel_facts
+from ringtune.envs.printer import load_printer
+from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions
+from ringtune.shaping.gcode import read_gcode
+
+
+def test_the_cura_job_retracts_by_firmware_and_plan_says_what_that_leaves_out(data_dir, capsys):
+    path = data_dir / "gcode" / "fastlb_cura_um2" / "platte_klein_cut.gcode"
+    lines = path.read_text().splitlines()
+    want = {c: [i for i, ln in enumerate(lines, 1) if ln.split(";")[0].strip() == c] for c in ("G10", "G11")}
+    assert len(want["G10"]) == 4 == len(want["G11"])
+    assert firmware_retractions(read_gcode(path)) == want
+    assert main(["plan", str(path), "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["firmware_retraction"] == want
+    note = res["firmware_retraction_note"]
+    assert "planned as taking no time" in note and f"{4 * (1 / 20 + 1 / 10):.1f} s in all" in note
+
+
+def test_rrf_tool_offsets_are_not_retractions_and_a_job_without_any_says_nothing():
+    job = read_gcode("G10 P0 S210 R150\nG10 L2 P1 X5\nM83\nG1 X10 E1 F1200\nG10\nG1 X0\nG11\n")
+    assert firmware_retractions(job) == {"G10": [5], "G11": [7]}
+    plain = read_gcode("M83\nG1 X10 E1 F1200\n")
+    assert firmware_retractions(plain) == {} and firmware_retraction_note({}) is None
+
+
+
+def test_tune_says_it_too(tmp_path):
+    path = tmp_path / "fw.gcode"
+    path.write_text("M83\n;TYPE:External perimeter\nG1 X20 Y0 E1 F6000\nG10\nG1 X20 Y20 F9000\nG11\nG1 X0 Y20 E1\n")
+    notes = job_accel_facts(load_printer(None), str(path), "respect").notes("respect", None)
+    assert [n for n in notes if n.startswith("the job retracts by firmware — G10 ×1 (first on line 4), G11 ×1")]
