@@ -159,7 +159,7 @@ class JobPlan:
         kinds: dict[str, int] = {}
         for e in p.events:
             kinds[e.kind] = kinds.get(e.kind, 0) + 1
-        ignored = klipper_ignored(self.job, self.junction, self.configured.limits.accel_to_decel is not None)
+        ignored = klipper_ignored(self.job, self.configured.limits)
         retractions = firmware_retractions(self.job)
         return {
             "job": self.name, "junction": self.junction, "junction_reason": self.why,
@@ -237,5 +237,5 @@ def _frequencies(path, limited: bytes, printer=None) -> dict:
         out["commanded_hz"][key] = _highest(commanded_frequencies(configured.job, 1))
     # the output's limit lines Klipper does not act on (a lone M204 P scaled is still ignored there)
     out.update(junction=junction, junction_reason=why,
-               ignored_note=klipper_ignored_note(klipper_ignored(job, junction, limits.accel_to_decel is not None)))
+               ignored_note=klipper_ignored_note(klipper_ignored(job, limits)))
     return out

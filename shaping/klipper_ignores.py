@@ -18,13 +18,14 @@ LONE_M204 = "M204 without S or both P and T"
 WORD_IGNORED = {False: "ACCEL_TO_DECEL", True: "MINIMUM_CRUISE_RATIO"}
 
 
-def klipper_ignored(job, junction: str, old: bool = False) -> dict[str, list[int]]:
+def klipper_ignored(job, limits) -> dict[str, list[int]]:
     """{command: the job's line numbers, in order} of its limit commands Klipper does not act on
     (a parsed :class:`ringtune.shaping.job.Job`) where it is planned under Klipper's corner rule
-    (``junction`` ``scv``); empty under any other rule. ``old``: a Klipper from before 2024
-    (``MachineLimits.accel_to_decel`` set)."""
+    (``limits``, the :class:`ringtune.shaping.planner.MachineLimits` it is planned with: junction
+    ``scv``; ``accel_to_decel`` set: a Klipper from before 2024); empty under any other rule."""
     out: dict[str, list[int]] = {}
-    for ev in job.events if junction == "scv" else ():
+    old = limits.accel_to_decel is not None
+    for ev in job.events if limits.junction == "scv" else ():
         what = _ignored_as(ev, old)
         if what:
             out.setdefault(what, []).append(int(ev.line))

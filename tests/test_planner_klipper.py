@@ -175,10 +175,10 @@ def test_klipper_acts_on_none_of_marlins_limit_lines_nor_on_a_lone_m204():
     marlin = plan_with_config(job, MachineLimits(accel=3000, velocity=1e6, junction="jd"))
     assert marlin.freq_limit is not None and marlin.plan.print_time > 1.2 * ref
     # and the report names each ignored line
-    ignored = klipper_ignored(job, "scv")
+    ignored = klipper_ignored(job, lim)
     lone = [i + 1 for i, ln in enumerate(_marlin2_job().splitlines()) if ln.startswith("M204")]
     assert ignored == {"M201": [1], "M203": [2], "M205": [3], "M566": [4], LONE_M204: lone}
-    assert klipper_ignored(job, "jd") == {}                     # Marlin acts on every one of them
+    assert klipper_ignored(job, dataclasses.replace(lim, junction="jd")) == {}     # Marlin acts on every one
 
 
 def test_klipper_takes_m204_s_and_p_with_t_and_kalicos_per_axis_accelerations():
@@ -189,7 +189,7 @@ def test_klipper_takes_m204_s_and_p_with_t_and_kalicos_per_axis_accelerations():
         lim = MachineLimits(accel=3000, velocity=1e6, junction="scv", square_corner_velocity=5, min_cruise_ratio=0.5)
         assert plan(job, lim).print_time == pytest.approx(
             klipper_time(job.start, job.end, job.feed, accel, 5.0, 0.5), rel=1e-9), line
-        assert klipper_ignored(job, "scv") == {}
+        assert klipper_ignored(job, lim) == {}
     # Kalico's limited kinematics: SET_VELOCITY_LIMIT X_ACCEL/Y_ACCEL cap the axes, as M201 X/Y does
     # on Marlin (the same per-axis rule)
     moves = "\n".join(ln for ln in body.splitlines() if not ln.startswith("M204")) + "\n"
@@ -242,7 +242,7 @@ def test_accel_to_decel_of_a_job_counts_only_on_a_klipper_from_before_2024(old):
                         accel_to_decel=1500.0 if old else None)
     ref = klipper_time(job.start, job.end, job.feed, 5000.0, 5.0, 0.5 if old else 0.0)
     assert plan(job, lim).print_time == pytest.approx(ref, rel=1e-9)
-    ignored = klipper_ignored(job, "scv", old)
+    ignored = klipper_ignored(job, lim)
     assert ignored == {("SET_VELOCITY_LIMIT MINIMUM_CRUISE_RATIO" if old else "SET_VELOCITY_LIMIT ACCEL_TO_DECEL"):
                        [3 if old else 2]}
 

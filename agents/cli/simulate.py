@@ -167,7 +167,7 @@ def job_commands(printer, gcode, config, out) -> list[dict]:
         notes.append(describe_timeline(timeline, plan.events))
     limits = resolve_printer(printer).limits
     junction = limits.junction
-    for note in (klipper_ignored_note(klipper_ignored(parsed, junction, limits.accel_to_decel is not None)),
+    for note in (klipper_ignored_note(klipper_ignored(parsed, limits)),
                  firmware_retraction_note(firmware_retractions(parsed))):
         if note:
             notes.append(note)

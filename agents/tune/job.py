@@ -71,7 +71,7 @@ class JobAccelFacts:
         """Under Klipper's rule, the sentence on the job's limit lines Klipper does not act on, and
         the one on its firmware retractions (each or none)."""
         limits, job = self.printer.limits, resolve_job(self.job)[1]
-        notes = (klipper_ignored_note(klipper_ignored(job, limits.junction, limits.accel_to_decel is not None)),
+        notes = (klipper_ignored_note(klipper_ignored(job, limits)),
                  firmware_retraction_note(firmware_retractions(job)))
         return [n for n in notes if n]
 
