@@ -27,7 +27,7 @@ from ringtune.envs.printer import load_printer
 from ringtune.shaping import gcode, testprints
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
-from ringtune.shaping.config_plan import JOB_ACCEL_SETTINGS, job_accel_mode, plan_with_config
+from ringtune.shaping.config_plan import JOB_ACCEL_SETTINGS, for_firmware, job_accel_mode, plan_with_config
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.job import SETTING_KEYS
 from ringtune.shaping.lookahead import KLIPPER_AXIS_SETTINGS
@@ -158,7 +158,7 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
     fl, accel, daa, caps, feature = settings
     if accel is None:
         mode = "replace"       # nothing to replace with: the job's and the machine's limits as they are
-    key = (jkey, repr(limits), fl, accel, daa, max_windows, span, mode, caps, feature)
+    key = (jkey, repr(for_firmware(limits, config)), fl, accel, daa, max_windows, span, mode, caps, feature)
     if key in _PLANS:
         _PLANS.move_to_end(key)
         return _PLANS[key]

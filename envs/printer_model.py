@@ -21,6 +21,7 @@ from ringtune.envs.motor_model import MotorModel
 from ringtune.envs.printer_defaults import DEFAULTS
 from ringtune.envs.toml_writer import toml_value, write_table
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.planner import MachineLimits
 
 
@@ -177,12 +178,14 @@ class Printer:
         return m.mass_fraction * self.moving_mass(axis) * m.omega ** 2
 
     def machine_limits(self):
-        """The firmware limits as :class:`ringtune.shaping.planner.MachineLimits`."""
+        """The firmware limits as :class:`ringtune.shaping.planner.MachineLimits` (a printer that
+        runs RepRapFirmware, ``[current] firmware``, reads a job's M203 in mm/min)."""
         kw = dict(self.limits_dict)
         for key in ("jerk", "max_accel", "max_velocity"):
             if key in kw and kw[key] is not None:
                 kw[key] = tuple(kw[key])
-        return MachineLimits(**kw)
+        fw = FIRMWARES.get(str(self.current.get("firmware", "")).lower())
+        return MachineLimits(**kw, m203_per_minute=fw is not None and fw.family == "rrf")
 
     @property
     def limits(self):

@@ -30,6 +30,7 @@ import numpy as np
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import FeatureCommands, with_feature_settings
+from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.freqlimit import apply_freq_limit
 from ringtune.shaping.job import SETTING_KEYS, Job
 from ringtune.shaping.planner import MachineLimits, Plan, plan
@@ -104,6 +105,12 @@ def _carries(job: Job, config: TuneConfig) -> bool:
             and abs(floor - config.min_speed_factor) <= 1e-5 * max(floor, 1e-9))
 
 
+def for_firmware(limits: MachineLimits, config: TuneConfig | None) -> MachineLimits:
+    """``limits`` as the firmware the configuration is for reads a job: RepRapFirmware its M203
+    in mm/min (None: the printer's own, ``[current] firmware``)."""
+    return limits if config is None else replace(limits, m203_per_minute=FIRMWARES[config.firmware].family == "rrf")
+
+
 def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None = None, *,
                      use_job_limits: bool = True, daa_freq: float | None = None,
                      job_accel: str | None = None) -> ConfiguredPlan:
@@ -114,7 +121,7 @@ def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None 
     ``job_accel``: ``replace`` or ``respect`` (:func:`job_accel_mode`).
     """
     mode = job_accel_mode(config, job_accel)
-    limits = with_axis_caps(limits, config)
+    limits = for_firmware(with_axis_caps(limits, config), config)
     accel = None if config is None or config.accel is None else float(config.accel)
     if accel is not None:     # export sends it as printing and travel acceleration (M204 P T)
         limits = replace(limits, accel=accel, travel_accel=None)

@@ -39,9 +39,30 @@ def _ignored_as(ev, old: bool) -> str | None:
     if ev.command in KLIPPER_UNKNOWN:
         return ev.command
     if ev.command == "SET_VELOCITY_LIMIT":
-        return f"SET_VELOCITY_LIMIT {WORD_IGNORED[old]}" if WORD_IGNORED[old] in ev.params else None
-    lone = ev.command == "M204" and "S" not in ev.params and not {"P", "T"} <= set(ev.params)
-    return LONE_M204 if lone else None
+        return _word_ignored(ev.params, old)
+    return LONE_M204 if _lone_m204(ev) else None
+
+
+def _word_ignored(params: dict, old: bool) -> str | None:
+    """The SET_VELOCITY_LIMIT word among ``params`` that Klipper's version does not read, named."""
+    word = WORD_IGNORED[old]
+    return f"SET_VELOCITY_LIMIT {word}" if word in params else None
+
+
+def _lone_m204(ev) -> bool:
+    """An M204 without S or both P and T (Klipper: "Invalid M204 command")."""
+    return ev.command == "M204" and "S" not in ev.params and not {"P", "T"} <= set(ev.params)
+
+
+#: why Klipper does not act on each kind of line (``"M2xx"``: Marlin's and RRF's lines)
+WHY = {"M2xx": "it has no M201, M203, M205 or M566, and answers an M204 without S or both P and T with \"Invalid "
+               "M204 command\" (sliced for Marlin 2 or RRF? slice it for Klipper, or `ringtune rewrite` writes the "
+               "accelerations in Klipper's own SET_VELOCITY_LIMIT)",
+       f"SET_VELOCITY_LIMIT {WORD_IGNORED[False]}": "since 2024 it reads no ACCEL_TO_DECEL: its minimum_cruise_ratio "
+               "rules (a Klipper from before then: [limits] accel_to_decel, its max_accel_to_decel, in the printer "
+               "description)",
+       f"SET_VELOCITY_LIMIT {WORD_IGNORED[True]}": "this Klipper, from before 2024 ([limits] accel_to_decel), has no "
+               "MINIMUM_CRUISE_RATIO"}
 
 
 def klipper_ignored_note(ignored: dict[str, list[int]]) -> str | None:
@@ -50,15 +71,6 @@ def klipper_ignored_note(ignored: dict[str, list[int]]) -> str | None:
         return None
     n = sum(len(lines) for lines in ignored.values())
     parts = ", ".join(f"{what} ×{len(lines)} (first on line {lines[0]})" for what, lines in ignored.items())
-    why = []
-    if set(ignored) - {f"SET_VELOCITY_LIMIT {w}" for w in WORD_IGNORED.values()}:
-        why.append("it has no M201, M203, M205 or M566, and answers an M204 without S or both P and T with "
-                   "\"Invalid M204 command\" (sliced for Marlin 2 or RRF? slice it for Klipper, or `ringtune "
-                   "rewrite` writes the accelerations in Klipper's own SET_VELOCITY_LIMIT)")
-    if f"SET_VELOCITY_LIMIT {WORD_IGNORED[False]}" in ignored:
-        why.append("since 2024 it reads no ACCEL_TO_DECEL: its minimum_cruise_ratio rules (a Klipper from before "
-                   "then: [limits] accel_to_decel, its max_accel_to_decel, in the printer description)")
-    if f"SET_VELOCITY_LIMIT {WORD_IGNORED[True]}" in ignored:
-        why.append("this Klipper, from before 2024 ([limits] accel_to_decel), has no MINIMUM_CRUISE_RATIO")
-    return (f"Klipper does not act on {n} of the job's limit lines or words — {parts}: " + "; ".join(why)
-            + "; planned as Klipper runs the file")
+    kinds = {what if what in WHY else "M2xx" for what in ignored}
+    why = "; ".join(text for kind, text in WHY.items() if kind in kinds)
+    return f"Klipper does not act on {n} of the job's limit lines or words — {parts}: {why}; planned as Klipper runs the file"

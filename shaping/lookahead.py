@@ -44,14 +44,17 @@ def job_value(job: Job, key: str, default, use: bool) -> np.ndarray:
 KLIPPER_AXIS_SETTINGS = {("max_accel", "x"): "limited_accel_x", ("max_accel", "y"): "limited_accel_y"}
 
 
-def axis_caps(job: Job, prefix: str, machine: tuple | None, use: bool, klipper: bool = False) -> np.ndarray:
-    """(n, 4) per-axis caps (inf = none): the machine's, over them the job's own — under
-    ``klipper`` only those Klipper and Kalico take (:data:`KLIPPER_AXIS_SETTINGS`)."""
+def axis_caps(job: Job, prefix: str, machine: tuple | None, use: bool, klipper: bool = False,
+              unit: float = 1.0) -> np.ndarray:
+    """(n, 4) per-axis caps (inf = none): the machine's, over them the job's own (× ``unit``:
+    RepRapFirmware's M203 is in mm/min) — under ``klipper`` only those Klipper and Kalico take
+    (:data:`KLIPPER_AXIS_SETTINGS`)."""
     cols = []
     for i, ax in enumerate("xyze"):
         default = np.inf if machine is None or machine[i] <= 0 else machine[i]
         key = _cap_setting(prefix, ax, klipper)
-        v = job_value(job, key, default, use and key is not None)
+        own = job_value(job, key, None, use and key is not None) * unit
+        v = np.where(np.isnan(own), default, own)
         cols.append(np.where(v > 0, v, np.inf))       # Marlin: 0 means "no limit" for M201/M203
     return np.stack(cols, axis=1)
 

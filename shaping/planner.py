@@ -75,7 +75,8 @@ class MachineLimits:
     max_accel / max_velocity: per-axis caps (x, y, z, e) or None; min_cruise_ratio (Klipper only);
     accel_to_decel: a Klipper from before 2024 (no minimum_cruise_ratio), its max_accel_to_decel in
     mm/s², kept whatever ACCEL becomes (None: a current Klipper or Kalico, which ignore a job's
-    ACCEL_TO_DECEL);
+    ACCEL_TO_DECEL); m203_per_minute: the firmware reads a job's M203 speeds in mm/min
+    (RepRapFirmware; Marlin: mm/s);
     travel_accel / retract_accel: Marlin's M204 T / R, RRF's M204 T (None = accel; the junction
     rules ``jd`` and ``jerk`` use them, Klipper has one acceleration); axis_rule: how the per-axis
     caps bind (:data:`AXIS_RULES`, module docstring); scale_xy_accel: Kalico's ``scale_xy_accel``.
@@ -91,6 +92,7 @@ class MachineLimits:
     max_velocity: tuple | None = None
     min_cruise_ratio: float = 0.5
     accel_to_decel: float | None = None
+    m203_per_minute: bool = False
     travel_accel: float | None = None
     retract_accel: float | None = None
     axis_rule: str = "per_axis"
@@ -224,7 +226,8 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
     klipper = limits.junction == "scv"      # Klipper's and Kalico's rule: the job's M201/M203 do not exist there,
     velocity = job_value(job, "velocity", limits.velocity, use and klipper)   # nor SET_VELOCITY_LIMIT on Marlin/RRF
     vmax = np.minimum(job.feed, velocity)
-    vmax = scale_by_axes(vmax, u, axis_caps(job, "max_vel", limits.max_velocity, use, klipper))
+    vmax = scale_by_axes(vmax, u, axis_caps(job, "max_vel", limits.max_velocity, use, klipper,
+                                            1 / 60 if limits.m203_per_minute else 1.0))
     if limits.axis_rule == "limited_corexy":
         vmax = corexy_speed_cap(vmax, velocity, u)
     accel = move_accels(job, limits, use, delta, e_only, accel_override)

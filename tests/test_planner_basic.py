@@ -7,6 +7,9 @@ import math
 import numpy as np
 import pytest
 
+from ringtune.envs.printer import load_printer, printer_from_dict
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.config_plan import plan_with_config
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.lookahead import backward_pass, forward_pass
 from ringtune.shaping.planner import MachineLimits, limits_from_job, plan
@@ -202,3 +205,20 @@ def test_marlin_and_rrf_do_not_act_on_klippers_set_velocity_limit(junction):
                                                                           rel=1e-12)
     scv = MachineLimits(accel=3000, junction="scv", min_cruise_ratio=0)
     assert plan(read_gcode(klipperish), scv).print_time > 2 * plan(read_gcode(body), scv).print_time
+
+
+def test_rrf_reads_a_jobs_m203_in_mm_per_minute():
+    """PrusaSlicer's RepRapFirmware flavour writes ``M203 X18000`` (mm/min, as RRF reads it); Marlin
+    reads M203 in mm/s. One 100 mm move from rest to rest at F6000 (100 mm/s) under M203 X600:
+    RRF caps it at 10 mm/s, d/v + v/a = 10.01 s at 1000 mm/s²; Marlin at 100 mm/s, 1.1 s. The
+    firmware is the configuration's, else the printer's [current] one."""
+    job = read_gcode("M203 X600 Y600 Z600 E600\nG1 X100 F6000\n")
+    lim = MachineLimits(accel=1000, velocity=300, junction="jd")
+    times = {fw: plan_with_config(job, lim, TuneConfig(firmware=fw)).plan.print_time for fw in ("rrf", "marlin")}
+    assert times["rrf"] == pytest.approx(100 / 10 + 10 / 1000, rel=1e-9)
+    assert times["marlin"] == pytest.approx(100 / 100 + 100 / 1000, rel=1e-9)
+    d = load_printer(None).to_dict()
+    d["limits"] = {**d["limits"], "junction": "jerk"}
+    for fw, per_minute in (("rrf", True), ("marlin", False)):
+        d["current"] = {**d.get("current", {}), "firmware": fw}
+        assert printer_from_dict(d).machine_limits().m203_per_minute is per_minute
