@@ -42,7 +42,7 @@ _PLANS: "OrderedDict[Any, Any]" = OrderedDict()
 _CACHE_SIZE = 64
 #: job settings the window choice leaves out (the printer's own limits rule there)
 REFERENCE_FREE = (*JOB_ACCEL_SETTINGS, "square_corner_velocity", "junction_deviation", "jerk_x", "jerk_y",
-                  "min_cruise_ratio", "accel_to_decel")
+                  "m205_jerk_x", "m205_jerk_y", "min_cruise_ratio", "accel_to_decel")
 
 
 @dataclasses.dataclass

@@ -21,6 +21,7 @@ from ringtune.envs.motor_model import MotorModel
 from ringtune.envs.printer_defaults import DEFAULTS
 from ringtune.envs.toml_writer import toml_value, write_table
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.config_plan import firmware_reading
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.planner import MachineLimits
 
@@ -178,14 +179,15 @@ class Printer:
         return m.mass_fraction * self.moving_mass(axis) * m.omega ** 2
 
     def machine_limits(self):
-        """The firmware limits as :class:`ringtune.shaping.planner.MachineLimits` (a printer that
-        runs RepRapFirmware, ``[current] firmware``, reads a job's M203 in mm/min)."""
+        """The firmware limits as :class:`ringtune.shaping.planner.MachineLimits`, read as the
+        firmware it runs (``[current] firmware``) reads a job: RRF's M203 in mm/min, no M566 on
+        Marlin (:func:`ringtune.shaping.config_plan.firmware_reading`)."""
         kw = dict(self.limits_dict)
         for key in ("jerk", "max_accel", "max_velocity"):
             if key in kw and kw[key] is not None:
                 kw[key] = tuple(kw[key])
         fw = FIRMWARES.get(str(self.current.get("firmware", "")).lower())
-        return MachineLimits(**kw, m203_per_minute=fw is not None and fw.family == "rrf")
+        return MachineLimits(**kw, **firmware_reading(fw.family if fw else None))
 
     @property
     def limits(self):

@@ -107,8 +107,15 @@ def _carries(job: Job, config: TuneConfig) -> bool:
 
 def for_firmware(limits: MachineLimits, config: TuneConfig | None) -> MachineLimits:
     """``limits`` as the firmware the configuration is for reads a job: RepRapFirmware its M203
-    in mm/min (None: the printer's own, ``[current] firmware``)."""
-    return limits if config is None else replace(limits, m203_per_minute=FIRMWARES[config.firmware].family == "rrf")
+    in mm/min, Marlin and Prusa without RRF's M566 (None: the printer's own, ``[current]
+    firmware``)."""
+    return limits if config is None else replace(limits, **firmware_reading(FIRMWARES[config.firmware].family))
+
+
+def firmware_reading(family: str | None) -> dict:
+    """The :class:`MachineLimits` fields of how a firmware family reads a job's limit commands
+    (None: not known: M203 in mm/s, M566 read)."""
+    return {"m203_per_minute": family == "rrf", "reads_m566": family not in ("marlin", "marlin-ftm", "prusa")}
 
 
 def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None = None, *,

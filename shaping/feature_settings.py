@@ -207,7 +207,8 @@ def _seam_travel(cls: np.ndarray, xy: np.ndarray, extruding: np.ndarray) -> np.n
 
 
 #: the settings the corner value sets, by junction rule
-_CORNER_KEYS = {"scv": ("square_corner_velocity",), "jd": ("junction_deviation",), "jerk": ("jerk_x", "jerk_y")}
+_CORNER_KEYS = {"scv": ("square_corner_velocity",), "jd": ("junction_deviation",),
+                "jerk": ("jerk_x", "jerk_y", "m205_jerk_x", "m205_jerk_y")}
 
 
 def _accels(fc: FeatureCommands, eff: np.ndarray, label: np.ndarray, seam: np.ndarray) -> dict[str, np.ndarray]:

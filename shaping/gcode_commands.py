@@ -49,7 +49,7 @@ def _per_axis(prefix: str) -> tuple:
 WORD_SETTINGS = {
     "M201": (*_per_axis("max_accel"), ("F", "freq_limit_hz", lambda v: min(v, 100.0))),
     "M203": _per_axis("max_vel"),
-    "M205": (*_per_axis("jerk"), ("J", "junction_deviation", None)),
+    "M205": (*_per_axis("jerk"), *_per_axis("m205_jerk"), ("J", "junction_deviation", None)),
     # RepRapFirmware's "jerk" (instantaneous speed change) is in mm/min
     "M566": tuple((ax, f"jerk_{ax.lower()}", lambda v: v / 60.0) for ax in AXES),
 }

@@ -11,13 +11,15 @@ import numpy as np
 
 #: Setting keys a job can change (NaN = never set in the file; the planner then uses the machine's).
 #: ``max_accel_*``/``max_vel_*`` are Marlin's and RRF's M201/M203, which Klipper does not have;
-#: ``limited_accel_x``/``y`` Kalico's SET_VELOCITY_LIMIT X_ACCEL/Y_ACCEL (its limited kinematics).
+#: ``limited_accel_x``/``y`` Kalico's SET_VELOCITY_LIMIT X_ACCEL/Y_ACCEL (its limited kinematics);
+#: ``jerk_*`` what M205 X… and RRF's M566 set (RRF has both), ``m205_jerk_*`` what M205 alone sets
+#: (Marlin and Prusa have no M566).
 SETTING_KEYS = (
     "accel_print", "accel_travel", "accel_retract", "accel_klipper", "accel_to_decel",
     "max_accel_x", "max_accel_y", "max_accel_z", "max_accel_e",
     "max_vel_x", "max_vel_y", "max_vel_z", "max_vel_e",
     "limited_accel_x", "limited_accel_y",
-    "jerk_x", "jerk_y", "jerk_z", "jerk_e",
+    "jerk_x", "jerk_y", "jerk_z", "jerk_e", "m205_jerk_x", "m205_jerk_y", "m205_jerk_z", "m205_jerk_e",
     "junction_deviation", "square_corner_velocity", "velocity", "min_cruise_ratio",
     "freq_limit_hz", "freq_limit_min_factor",
 )

@@ -202,9 +202,15 @@ def junction_limits(job, limits, use, u, d, e_only, vmax, accel, amax_axes):
     return c, safe
 
 
+def jerk_setting(limits) -> str:
+    """The prefix of the job settings that carry its jerk on this firmware: M205's and M566's
+    (``jerk``), or on a firmware without M566 (Marlin, Prusa) M205's alone (``m205_jerk``)."""
+    return "jerk" if limits.reads_m566 else "m205_jerk"
+
+
 def jerk_limits(job, limits, use) -> np.ndarray:
-    return np.stack([job_value(job, f"jerk_{ax}", limits.jerk[i], use) for i, ax in enumerate("xyze")],
-                    axis=1)
+    key = jerk_setting(limits)
+    return np.stack([job_value(job, f"{key}_{ax}", limits.jerk[i], use) for i, ax in enumerate("xyze")], axis=1)
 
 
 def jerk_safe_speeds(job, limits, use, u, vmax) -> np.ndarray:

@@ -53,9 +53,9 @@ from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.job import Job
 from ringtune.shaping.lookahead import (axis_caps, backward_pass, corexy_speed_cap, daa_adjust,
-                                        forward_pass, job_value, junction_limits, kinematic_accel,
-                                        klipper_smoothing, marlin_retractions, move_accels,
-                                        scale_by_axes)
+                                        forward_pass, jerk_setting, job_value, junction_limits,
+                                        kinematic_accel, klipper_smoothing, marlin_retractions,
+                                        move_accels, scale_by_axes)
 from ringtune.shaping.motion import Motion
 
 __all__ = ["MachineLimits", "MoveTable", "Plan", "plan", "limits_from_job", "guess_junction", "JUNCTIONS",
@@ -76,7 +76,8 @@ class MachineLimits:
     accel_to_decel: a Klipper from before 2024 (no minimum_cruise_ratio), its max_accel_to_decel in
     mm/s², kept whatever ACCEL becomes (None: a current Klipper or Kalico, which ignore a job's
     ACCEL_TO_DECEL); m203_per_minute: the firmware reads a job's M203 speeds in mm/min
-    (RepRapFirmware; Marlin: mm/s);
+    (RepRapFirmware; Marlin: mm/s); reads_m566: the firmware has RRF's M566 jerk beside M205
+    (Marlin and Prusa have M205 alone);
     travel_accel / retract_accel: Marlin's M204 T / R, RRF's M204 T (None = accel; the junction
     rules ``jd`` and ``jerk`` use them, Klipper has one acceleration); axis_rule: how the per-axis
     caps bind (:data:`AXIS_RULES`, module docstring); scale_xy_accel: Kalico's ``scale_xy_accel``.
@@ -93,6 +94,7 @@ class MachineLimits:
     min_cruise_ratio: float = 0.5
     accel_to_decel: float | None = None
     m203_per_minute: bool = False
+    reads_m566: bool = True
     travel_accel: float | None = None
     retract_accel: float | None = None
     axis_rule: str = "per_axis"
@@ -342,7 +344,7 @@ def limits_from_job(job: Job, base: MachineLimits | None = None, junction: str |
         v = fs(key)
         if v > 0 or (zero_ok and v == 0):     # NaN (unset) fails both
             kw[name] = v
-    jerk = _job_jerk(job, base.jerk)
+    jerk = _job_jerk(job, base)
     if jerk:
         kw["jerk"] = jerk
     if junction:
@@ -350,12 +352,13 @@ def limits_from_job(job: Job, base: MachineLimits | None = None, junction: str |
     return replace(base, **kw)
 
 
-def _job_jerk(job: Job, base: tuple) -> tuple | None:
-    """(x, y, z, e) jerk the job's header sets, mm/s, ``base``'s where it sets none; None if none."""
-    jerk = [job.file_setting(f"jerk_{ax}") for ax in "xyze"]
+def _job_jerk(job: Job, base: MachineLimits) -> tuple | None:
+    """(x, y, z, e) jerk the job's header sets (as ``base``'s firmware reads it), mm/s, ``base``'s
+    where it sets none; None if none."""
+    jerk = [job.file_setting(f"{jerk_setting(base)}_{ax}") for ax in "xyze"]
     if not any(j == j for j in jerk):
         return None
-    return tuple(j if j == j else b for j, b in zip(jerk, base))
+    return tuple(j if j == j else b for j, b in zip(jerk, base.jerk))
 
 
 def guess_junction(job: Job) -> str:

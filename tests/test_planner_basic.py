@@ -222,3 +222,22 @@ def test_rrf_reads_a_jobs_m203_in_mm_per_minute():
     for fw, per_minute in (("rrf", True), ("marlin", False)):
         d["current"] = {**d.get("current", {}), "firmware": fw}
         assert printer_from_dict(d).machine_limits().m203_per_minute is per_minute
+
+
+def test_marlin_has_no_m566_and_rrf_reads_both_jerk_commands():
+    """RRF's M566 (mm/min) sets the jerk on RRF, which also takes M205 X Y (mm/s); Marlin and Prusa
+    have no M566 (an unknown command): there only M205 sets it. A square of 20 mm sides at
+    100 mm/s with the machine's jerk 1 mm/s: M566 X6000 Y6000 (100 mm/s) lets RRF take the corners
+    near full speed, and leaves Marlin at its own 1 mm/s — as if the line were not there."""
+    square = "G1 X20 Y0 F6000\nG1 X20 Y20\nG1 X0 Y20\nG1 X0 Y0\n" * 3
+    lim = MachineLimits(accel=1000, velocity=300, junction="jerk", jerk=(1.0, 1.0, 0.4, 5.0))
+
+    def t(text, fw):
+        return plan_with_config(read_gcode(text), lim, TuneConfig(firmware=fw)).plan.print_time
+
+    for fw in ("marlin", "prusa"):
+        assert t("M566 X6000 Y6000\n" + square, fw) == t(square, fw)
+        assert t("M205 X100 Y100\n" + square, fw) < 0.9 * t(square, fw)
+    assert t("M566 X6000 Y6000\n" + square, "rrf") == pytest.approx(t("M205 X100 Y100\n" + square, "rrf"), rel=1e-12)
+    assert t("M566 X6000 Y6000\n" + square, "rrf") < 0.9 * t(square, "rrf")
+    assert t("M205 X100 Y100\nM566 X60 Y60\n" + square, "rrf") == pytest.approx(t(square, "rrf"), rel=1e-12)
