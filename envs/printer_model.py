@@ -20,8 +20,8 @@ import numpy as np
 from ringtune.envs.motor_model import MotorModel
 from ringtune.envs.printer_defaults import DEFAULTS
 from ringtune.envs.toml_writer import toml_value, write_table
-from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.config_plan import firmware_reading
+from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.planner import MachineLimits
 
