@@ -20,9 +20,8 @@ import numpy as np
 from ringtune.envs.motor_model import MotorModel
 from ringtune.envs.printer_defaults import DEFAULTS
 from ringtune.envs.toml_writer import toml_value, write_table
-from ringtune.shaping.config_plan import firmware_reading
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.firmware import job_reading
 from ringtune.shaping.planner import MachineLimits
 
 
@@ -181,13 +180,12 @@ class Printer:
     def machine_limits(self):
         """The firmware limits as :class:`ringtune.shaping.planner.MachineLimits`, read as the
         firmware it runs (``[current] firmware``) reads a job: RRF's M203 in mm/min, no M566 on
-        Marlin (:func:`ringtune.shaping.config_plan.firmware_reading`)."""
+        Marlin (:func:`ringtune.shaping.firmware.job_reading`)."""
         kw = dict(self.limits_dict)
         for key in ("jerk", "max_accel", "max_velocity"):
             if key in kw and kw[key] is not None:
                 kw[key] = tuple(kw[key])
-        fw = FIRMWARES.get(str(self.current.get("firmware", "")).lower())
-        return MachineLimits(**kw, **firmware_reading(fw.family if fw else None))
+        return MachineLimits(**kw, **job_reading(self.current.get("firmware")))
 
     @property
     def limits(self):

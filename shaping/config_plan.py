@@ -30,7 +30,7 @@ import numpy as np
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import FeatureCommands, with_feature_settings
-from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.firmware import job_reading
 from ringtune.shaping.freqlimit import apply_freq_limit
 from ringtune.shaping.job import SETTING_KEYS, Job
 from ringtune.shaping.planner import MachineLimits, Plan, plan
@@ -109,13 +109,7 @@ def for_firmware(limits: MachineLimits, config: TuneConfig | None) -> MachineLim
     """``limits`` as the firmware the configuration is for reads a job: RepRapFirmware its M203
     in mm/min, Marlin and Prusa without RRF's M566 (None: the printer's own, ``[current]
     firmware``)."""
-    return limits if config is None else replace(limits, **firmware_reading(FIRMWARES[config.firmware].family))
-
-
-def firmware_reading(family: str | None) -> dict:
-    """The :class:`MachineLimits` fields of how a firmware family reads a job's limit commands
-    (None: not known: M203 in mm/s, M566 read)."""
-    return {"m203_per_minute": family == "rrf", "reads_m566": family not in ("marlin", "marlin-ftm", "prusa")}
+    return limits if config is None else replace(limits, **job_reading(config.firmware))
 
 
 def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None = None, *,

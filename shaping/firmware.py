@@ -192,6 +192,16 @@ class Firmware:
         return FIRMWARES[key]
 
 
+def job_reading(name) -> dict:
+    """How the firmware ``name`` (a key of :data:`FIRMWARES`; None or unknown: not known) reads a
+    job's limit commands, as :class:`ringtune.shaping.planner.MachineLimits` fields:
+    RepRapFirmware takes M203 in mm/min (Marlin: mm/s); Marlin and Prusa have no M566 (RRF's
+    jerk), only M205 X Y. Not known: M203 in mm/s, M566 read."""
+    fw = FIRMWARES.get(str(name or "").strip().lower())
+    family = fw.family if fw else None
+    return {"m203_per_minute": family == "rrf", "reads_m566": family not in ("marlin", "marlin-ftm", "prusa")}
+
+
 #: each junction rule in words
 JUNCTION_NAMES = {"scv": "Klipper's square-corner velocity", "jd": "Marlin's junction deviation",
                   "jerk": "classic jerk"}
