@@ -103,7 +103,8 @@ def evaluate_judged(configs: Sequence[TuneConfig], printer=None, job=None, backe
 
 
 def evaluate_twins(configs: Sequence[TuneConfig], exact: Sequence[Metrics], printer=None, job=None,
-                   backend: str = "mujoco", *, freq_margin: float, job_accel: str | None = None) -> list[Metrics]:
+                   backend: str = "mujoco", *, freq_margin: float, job_accel: str | None = None,
+                   nthread: int | None = None) -> list[Metrics]:
     """:func:`evaluate_many` with ``freq_margin`` for configurations whose figures on the exact model
     (``exact``: :func:`evaluate_many` with no margin, same printer, job and backend) are known: only
     the detuned twins are simulated, and the worst of the three counts, as :func:`evaluate_judged`
@@ -111,7 +112,8 @@ def evaluate_twins(configs: Sequence[TuneConfig], exact: Sequence[Metrics], prin
     printer = resolve_printer(printer)
     factors = variant_factors(freq_margin)
     twins = [v.of(printer) for v in factors if not v.exact]
-    runs = evaluate_variants(configs, twins, job, backend, settle=auto_settle(printer), job_accel=job_accel)
+    runs = evaluate_variants(configs, twins, job, backend, settle=auto_settle(printer), nthread=nthread,
+                             job_accel=job_accel)
     return [worst_case([m, *(e.metrics for e in evs)], factors) for m, evs in zip(exact, zip(*runs))]
 
 

@@ -76,8 +76,10 @@ def test_the_variants_a_point_carries_are_each_variant_simulated_on_its_own():
 
 def test_a_study_keeps_each_trials_variants(tmp_path):
     """What a trial was judged on, variant by variant, survives the storage (a resumed study judges
-    its trials as the run that made them)."""
-    settings = StudySettings(storage=f"journal:{tmp_path / 'study.journal'}", n_trials=2, seed=1, freq_margin=0.05)
+    its trials as the run that made them). No bounds: no trial is settled on the model alone
+    (test_trial_screen)."""
+    settings = StudySettings(storage=f"journal:{tmp_path / 'study.journal'}", n_trials=2, seed=1, freq_margin=0.05,
+                             max_path_error_mm=0.0, motor_reserve=0.0, max_show_through_mm=0.0)
     run_study(settings)
     points = study_points(run_study(settings).study)
     assert len(points) == 2

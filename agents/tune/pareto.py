@@ -129,9 +129,11 @@ class Resolution:
 DEFAULT_RESOLUTION = Resolution()
 
 
-#: the bounds a point may break, in the order they are reported: (its flag on :class:`Point`, the words)
+#: the bounds a point may break, in the order they are reported: (its flag on :class:`Point`, the
+#: words); the last is a study trial settled on the model alone (its figures are lower bounds)
 BOUNDS = (("step_loss", "loses steps"), ("too_rough", "path error over the bound"),
-          ("overloaded", "motor load over the reserve"), ("shows_through", "show-through over the bound"))
+          ("overloaded", "motor load over the reserve"), ("shows_through", "show-through over the bound"),
+          ("screened", "judged on the model alone"))
 
 
 @dataclass
@@ -139,7 +141,8 @@ class Point:
     """One evaluated configuration (a trial, a grid point or a baseline). A point is feasible
     unless it loses steps, its path error is over the bound it was judged with (``too_rough``), its
     motor load is over 1 − the motor reserve (``overloaded``) or its hidden features reach the outer
-    wall by more than the show-through bound (``shows_through``). ``quality_mm`` is the study's
+    wall by more than the show-through bound (``shows_through``), or it is a study trial whose
+    figures are the model's alone (``screened``). ``quality_mm`` is the study's
     second objective (the worst wall's ripple, mm; a custom evaluator's own figure)."""
 
     config: TuneConfig
@@ -155,6 +158,10 @@ class Point:
     #: its visible measures on each printer variant it was judged on (:func:`variant_figures`):
     #: ((frequency factor, damping factor), {key: value}) each; () where judged on one printer
     variants: tuple = ()
+    #: why a study trial was settled on the printer as modelled, its twins not simulated ("" where
+    #: it was judged on all): its figures are lower bounds, so it is ruled out
+    #: (:mod:`ringtune.agents.tune.trial_screen`)
+    screened: str = ""
 
     @property
     def feasible(self) -> bool:
@@ -255,13 +262,21 @@ def variant_figures(m) -> tuple:
     it was judged on (``details["variants"]`` of :func:`ringtune.envs.metrics.worst_case`, each
     naming its variant): ((frequency factor, damping factor), {key: value}) each; () where it was
     judged on one printer or the variants are not named."""
-    out = []
-    for variant, d in by_variant(m).items():
-        figs = {k: float(d[k]) for k in VISIBLE_KEYS if k in d}
-        for cls, values in (d.get("features") or {}).items():
-            figs.update({f"{cls}:{k}": float(values[k]) for k in CLASS_MEASURES.get(cls, ()) if k in values})
-        out.append((variant, figs))
-    return tuple(out)
+    return tuple((variant, _judged(d)) for variant, d in by_variant(m).items())
+
+
+def judged_figures(m) -> dict:
+    """A metrics object's own visible measures (:data:`JUDGED_KEYS`: the job's and each class's),
+    as :func:`variant_figures` gives them per variant."""
+    return _judged(m.to_dict())
+
+
+def _judged(d: dict) -> dict:
+    """The :data:`JUDGED_KEYS` of a metrics dict (``Metrics.to_dict``) as plain floats."""
+    figs = {k: float(d[k]) for k in VISIBLE_KEYS if k in d}
+    for cls, values in (d.get("features") or {}).items():
+        figs.update({f"{cls}:{k}": float(values[k]) for k in CLASS_MEASURES.get(cls, ()) if k in values})
+    return figs
 
 
 def variants_to_json(variants: tuple) -> list:

@@ -82,7 +82,9 @@ _GROUPS = (("trials", "trials", dict(s=10, c="0.7", marker="o")),
            ("path error over the bound", "path error over the bound, excluded",
             dict(s=16, c="tab:purple", marker="+", alpha=0.6)),
            ("motor load over the reserve", "motor load over the reserve, excluded",
-            dict(s=16, c="tab:brown", marker="1", alpha=0.7)))
+            dict(s=16, c="tab:brown", marker="1", alpha=0.7)),
+           ("judged on the model alone", "beaten on the model alone (twins not simulated)",
+            dict(s=8, c="0.82", marker=".")))
 
 
 def _groups(points: Sequence[Point], front: Sequence[Point]) -> list:

@@ -26,6 +26,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any, Sequence
 
+from ringtune.agents.tune import trial_screen
 from ringtune.agents.tune.choice import BASELINE_NAMES, Choice
 from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, METRIC_KEYS, VISIBLE_KEYS, Point, Resolution, broken_bounds,
                                          shown)
@@ -69,7 +70,10 @@ def _row(p: Point) -> dict[str, Any]:
         row[k] = v if not isinstance(v, float) else round(v, 6)
     row.update({"shaper_x": c.shaper_x, "freq_x": c.freq_x, "shaper_y": c.shaper_y, "freq_y": c.freq_y,
                 "damping_x": c.damping_x, "damping_y": c.damping_y, "freq_limit_hz": c.freq_limit_hz,
-                "freq_limit_method": c.freq_limit_method if c.freq_limit_hz > 0 else "off", "accel": c.accel})
+                "freq_limit_method": c.freq_limit_method if c.freq_limit_hz > 0 else "off", "accel": c.accel,
+                # the twins can only make a figure worse: a trial settled without them has lower bounds
+                "judged_on": f"the model alone ({p.screened}): lower bounds" if p.screened else
+                "the model and its twins" if p.variants else "one printer"})
     return row
 
 
@@ -232,7 +236,8 @@ def _dominating(front: Sequence[Point], baselines: dict[str, Point], res: Resolu
 
 #: a broken bound (:func:`ringtune.agents.tune.pareto.broken_bounds`' words) -> its key in --json
 _BREAK_KEYS = {"loses steps": "step_loss", "path error over the bound": "max_path_error",
-               "motor load over the reserve": "motor_reserve", "show-through over the bound": "max_show_through"}
+               "motor load over the reserve": "motor_reserve", "show-through over the bound": "max_show_through",
+               "judged on the model alone": "screened"}
 
 
 def _baseline_lines(baselines: dict[str, Point], labels: dict[str, str], comparisons: dict, dominating: dict,
@@ -269,7 +274,15 @@ def _ruled_out(points: Sequence[Point], max_pe: float, reserve: float, max_st: f
                 "motor load not bounded (--motor-reserve 0)"),
                (max_st, f"{n['show-through over the bound']} whose hidden features reach the outer wall by more "
                 f"than {max_st * 1000:g} µm (--max-show-through)", "show-through not bounded (--max-show-through 0)"))
-    return [f"{n['loses steps']} trials that lose steps"] + [on if bound > 0 else off for bound, on, off in bounded]
+    out = [f"{n['loses steps']} trials that lose steps"] + [on if bound > 0 else off for bound, on, off in bounded]
+    settled = Counter(p.screened for p in points if p.screened)
+    if settled:
+        over = settled[trial_screen.OVER_A_BOUND]
+        out.append(f"{settled[trial_screen.BEATEN]} beaten on the printer as modelled by a trial judged on it and its "
+                   "twins, and worse than Klipper's pick there on a visible measure: their twins, which can only "
+                   "make a figure worse, were not simulated" + (f" (nor those of {over} counted above, which broke "
+                   "a bound on the model alone)" if over else ""))
+    return out
 
 
 def _measures(p: Point, keys: Sequence[str] = METRIC_KEYS[1:]) -> dict:

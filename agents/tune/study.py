@@ -6,6 +6,8 @@
   ``ringtune.envs.evaluate.evaluate_many`` or an injected evaluator ``f(configs, printer, job) ->
   [Metrics]`` (given as ``"module:function"`` so that worker processes can import it). Why these
   three and not every visible measure: see ``OBJECTIVES``; the others are judged in the choice.
+  The default evaluator simulates a trial's detuned twins only where they can count
+  (:mod:`ringtune.agents.tune.trial_screen`).
 - Constraints: step loss (``trial.set_constraint("step_loss", 1.0 | 0.0)``), the path-error
   bound (``"path_error"``: path_error_mm − ``max_path_error_mm``), the motor reserve
   (``"motor_load"``: motor_load − (1 − reserve), judged like quality on the printer and its
@@ -48,6 +50,7 @@ from ringtune.agents.tune.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MAX_
     DEFAULT_MOTOR_RESERVE, OBJECTIVES, metrics_dict, objective_value, variant_figures, variants_to_json)
 from ringtune.agents.tune.space import SearchSpace, config_from_params, default_space, suggest_params
 from ringtune.agents.tune.storage import _this_worker, make_storage, reap_dead_workers
+from ringtune.agents.tune import trial_screen
 from ringtune.agents.tune.study_resume import check_resumed
 from ringtune.envs.printer import load_printer
 from ringtune.envs.variants import TWIN_DAMPING
@@ -86,6 +89,9 @@ class StudySettings:
     max_show_through_mm: float = DEFAULT_MAX_SHOW_THROUGH_MM   # mm; 0 = no bound
     job_accel: str = "replace"          # "respect": the job's M201/M204 stand; "replace": config.accel replaces them
     twin_damping: float = TWIN_DAMPING  # the twins' damping factor the study is judged with (recorded, not chosen)
+    #: Klipper's pick's judged visible measures on the model itself (trial_screen.base_figures):
+    #: a trial worse there and beaten on the model alone is not simulated on the twins; None: no such screen
+    screen_against: dict | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -212,10 +218,12 @@ def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any =
         params = suggest_params(trial, space)
         config = config_from_params(params, space)
         try:
-            m = _call_evaluator(evaluator, settings, config, printer, nthread)
+            m, screened = _judge(evaluator, settings, config, printer, nthread, study)
         except KeyboardInterrupt:
             trial.set_user_attr("interrupted", True)
             raise
+        if screened:
+            trial.set_user_attr(trial_screen.SCREENED, screened)
         trial.set_user_attr("metrics", metrics_dict(m))
         if variants := variant_figures(m):
             trial.set_user_attr("variants", variants_to_json(variants))
@@ -285,6 +293,16 @@ def _call_evaluator(evaluator, settings: StudySettings, config: TuneConfig, prin
         kwargs["nthread"] = nthread
     out = evaluator([config], printer if printer is not None else settings.printer, settings.job, **kwargs)
     return out[0]
+
+
+def _judge(evaluator, settings: StudySettings, config: TuneConfig, printer, nthread: int | None, study):
+    """(metrics, why settled on the model alone or ""): the default evaluator judging on the
+    printer and its twins simulates the twins only where they can count
+    (:mod:`ringtune.agents.tune.trial_screen`); any other, as given."""
+    if settings.evaluator == DEFAULT_EVALUATOR and settings.freq_margin > 0:
+        return trial_screen.evaluate_trial(config, printer if printer is not None else settings.printer, settings,
+                                           study, nthread)
+    return _call_evaluator(evaluator, settings, config, printer, nthread), ""
 
 
 def _worker_main(argv: list[str]) -> int:

@@ -8,6 +8,7 @@ from optuna.trial import TrialState
 from ringtune.agents.tune.pareto import Point, judge_bounds, max_motor_load, variants_from_json
 from ringtune.agents.tune.space import SearchSpace, config_from_params
 from ringtune.agents.tune.study import StudySettings, load_space
+from ringtune.agents.tune.trial_screen import SCREENED
 
 
 def study_points(study, space: SearchSpace | None = None, quality: str | None = None,
@@ -44,4 +45,4 @@ def _trial_point(t, space: SearchSpace) -> Point:
     metrics = dict(t.user_attrs.get("metrics", {}))
     return Point(config_from_params(t.params, space), float(t.values[0]), float(t.values[1]),
                  bool(metrics.get("step_loss", False)), metrics, f"trial {t.number}", t.number,
-                 variants=variants_from_json(t.user_attrs.get("variants")))
+                 variants=variants_from_json(t.user_attrs.get("variants")), screened=t.user_attrs.get(SCREENED, ""))

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from ringtune.agents.tune import feature_space, pareto, report, storage, study as tune_study
+from ringtune.agents.tune import feature_space, pareto, report, storage, study as tune_study, trial_screen
 from ringtune.agents.tune.baselines import Baselines, baseline_configs, baselines_for, inside, warm_start
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
@@ -131,6 +131,7 @@ def _study(req: TuneRequest, lim: Limits, firmware: str, printer, space, quality
                                                                 note=note, configs=configs)
         if "klipper" in bl.points:   # start the search from what users do today, and its neighbours
             settings.enqueue = _warm_points(bl, space)
+            settings.screen_against = trial_screen.base_figures(bl.points["klipper"])
         tune_study.open_study(settings)   # a storage that cannot be opened fails here, its one line alone
         bar = progress(quality, lim.max_pe, lim.reserve, space) if progress else None
         release()                    # the study runs long: its notes and progress go out live
