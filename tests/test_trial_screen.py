@@ -94,3 +94,25 @@ def test_judged_trials_carry_every_variant_and_the_report_counts_the_settled(stu
                                 settings.max_show_through_mm))
     assert f"{beaten} beaten on the printer as modelled" in line
     assert f"nor those of {over} counted above" in line
+
+
+def test_tune_counts_the_settled_trials_and_does_not_call_them_old(tmp_path, capsys):
+    """A settled trial has no figures per variant, as a trial of a study begun by an earlier
+    ringtune had none: tune must not say that of it."""
+    from ringtune.agents.cli.main import main
+    assert main(["tune", "--trials", "16", "--workers", "1", "--seed", "0", "--out", str(tmp_path / "out"),
+                 "--per-feature", "off"]) == 0
+    out, err = capsys.readouterr()
+    settled = [p for p in study_points_of(tmp_path / "out") if p.screened]
+    assert settled, "this run settles some trials on the model alone"
+    assert f"nor those of {sum(p.screened == trial_screen.OVER_A_BOUND for p in settled)} counted above" in out
+    assert "stored without their figures" not in err
+    rows = (tmp_path / "out" / "trials.csv").read_text().splitlines()
+    assert sum("the model alone (" in r for r in rows[1:]) == len(settled)
+
+
+def study_points_of(out_dir):
+    """The points of the study ``tune`` left in ``out_dir``."""
+    import optuna
+    from ringtune.agents.tune.storage import default_storage, make_storage
+    return study_points(optuna.load_study(study_name="ringtune", storage=make_storage(default_storage(out_dir))))

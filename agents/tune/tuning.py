@@ -71,7 +71,7 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
                                                   release, progress, configs)
     baselines = bl.points
     points = study_points(run_.study, space, quality, lim.max_pe, lim.reserve, lim.max_st)
-    unsplit = sum(not p.variants for p in points)
+    unsplit = sum(not p.variants and not p.screened for p in points)
     if unsplit and any(b.variants for b in baselines.values()):
         note(f"ringtune tune: {unsplit} of the study's {len(points)} trials were stored without their figures on each "
              "printer variant (a study begun by an earlier ringtune): they are held to the baselines over the worst of "
