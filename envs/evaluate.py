@@ -18,7 +18,7 @@ from typing import Sequence
 
 from ringtune.envs.metrics import Metrics, worst_case
 from ringtune.envs.plan_load import plan_load
-from ringtune.envs.planned_job import PlannedJob, planned_job, resolve_printer
+from ringtune.envs.planned_job import PlannedJob, planned_job, require_windows, resolve_printer
 from ringtune.envs.sim import auto_timestep, simulate_batch
 from ringtune.envs.variants import variant_factors
 from ringtune.envs.windows import SETTLE_MIN, WindowRun, auto_settle, corner_tail, metrics_of, window_runs
@@ -151,7 +151,7 @@ def evaluate_variants(configs: Sequence[TuneConfig], printers: Sequence, job=Non
     printers = [resolve_printer(p) for p in printers]
     prepared = []
     for cfg in configs:
-        pj = planned_job(printers[0], job, cfg, job_accel=job_accel)
+        pj = require_windows(planned_job(printers[0], job, cfg, job_accel=job_accel), job)
         prepared.append((cfg, pj, window_runs(pj, cfg, settle, corner_tail(printers[0]), job_shapers)))
     per_printer = []
     for p in printers:

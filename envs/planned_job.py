@@ -171,6 +171,19 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
     return _remember(_PLANS, key, pj)
 
 
+def require_windows(pj: PlannedJob, job) -> PlannedJob:
+    """``pj`` where it has quality windows to judge; else a :class:`RingtuneError` naming the job
+    and why (a job that extrudes nothing: a "no extrusion" flavour, a dry run)."""
+    if pj.windows:
+        return pj
+    _key, parsed = resolve_job(job)
+    why = ("the job extrudes nothing (no move adds filament while X/Y move; a slicer's \"no extrusion\" G-code "
+           "flavour writes no E)" if not parsed.extruding.any() else
+           "the job has no corner, zigzag or seam of printed lines to judge")
+    raise RingtuneError(f"{why}: ringtune judges what a printed part shows, so there is nothing to judge here "
+                        "(`ringtune plan` gives its print time)", parsed.source)
+
+
 def _reference_windows(jkey, parsed, limits, max_windows: int, span: float) -> list:
     """The quality windows of a job, chosen on its plan at the printer's own limits: the job's own
     accelerations, X/Y caps and corner settings left out (:data:`REFERENCE_FREE`), so a job and

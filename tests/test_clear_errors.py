@@ -126,3 +126,27 @@ def test_gcode_with_a_latin1_comment_is_still_gcode(capsys):
 
     job = read_gcode("; nozzle 210 \xb0C\nG1 X10 F600\nG1 Y10\n".encode("cp1252"), source="t.gcode")
     assert job.n_moves == 2
+
+
+def _dry_run(tmp_path):
+    """A job that moves and extrudes nothing (a "no extrusion" flavour's: no E words)."""
+    moves = "".join(f"G1 X{x} Y{y} F6000\n" for x, y in [(10, 10), (60, 10), (60, 60), (10, 60), (10, 10)] * 20)
+    path = tmp_path / "dry.gcode"
+    path.write_text(";TYPE:External perimeter\nG28\nG1 Z0.2 F3000\n" + moves)
+    return path
+
+
+def test_a_job_that_extrudes_nothing_is_refused_by_what_judges_it(tmp_path, capsys):
+    """simulate of a no-extrusion job crashed with a KeyError, and tune "tuned" it on print time alone
+    (no quality window: nothing printed to judge); both now say so, and plan still times it."""
+    job = _dry_run(tmp_path)
+    line = _error(capsys, ["simulate", "--gcode", str(job)])
+    assert line.startswith(f"ringtune simulate: error: {job}: the job extrudes nothing")
+    assert "`ringtune plan`" in line
+    assert main(["tune", "--gcode", str(job), "--trials", "2", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and err.strip().splitlines()[-1].startswith(
+        f"ringtune tune: error: {job}: the job extrudes nothing")
+    assert not (tmp_path / "out").exists()
+    assert main(["plan", str(job), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["print_time_s"] > 0
