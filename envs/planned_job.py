@@ -40,6 +40,9 @@ WINDOW_SPAN = 0.25
 _JOBS: "OrderedDict[Any, Any]" = OrderedDict()
 _PLANS: "OrderedDict[Any, Any]" = OrderedDict()
 _CACHE_SIZE = 64
+#: bytes of planned jobs the cache holds at most besides the newest (a plan of a 1.5-hour job is
+#: 65 MB: a count alone let one tune hold 64 of them, 3 GB)
+_CACHE_BYTES = 768_000_000
 #: job settings the window choice leaves out (the printer's own limits rule there)
 REFERENCE_FREE = (*JOB_ACCEL_SETTINGS, "square_corner_velocity", "junction_deviation", "jerk_x", "jerk_y",
                   "m205_jerk_x", "m205_jerk_y", "min_cruise_ratio", "accel_to_decel")
@@ -62,11 +65,24 @@ class PlannedJob:
 
 
 def _remember(cache: OrderedDict, key, value):
+    """Cache ``value`` as the newest; the oldest go beyond :data:`_CACHE_SIZE` entries or
+    :data:`_CACHE_BYTES` of arrays."""
     cache[key] = value
     cache.move_to_end(key)
-    while len(cache) > _CACHE_SIZE:
-        cache.popitem(last=False)
+    sizes = {k: _nbytes(v) for k, v in cache.items()}
+    total = sum(sizes.values())
+    while len(cache) > 1 and (len(cache) > _CACHE_SIZE or total > _CACHE_BYTES):
+        old, _ = cache.popitem(last=False)
+        total -= sizes[old]
     return value
+
+
+def _nbytes(value) -> int:
+    """Bytes of the arrays of a cached planned job (its motion and move table; 0 for a window list)."""
+    plan = getattr(value, "plan", None)
+    parts = [getattr(plan, "motion", None), getattr(plan, "moves", None)]
+    return sum(a.nbytes for part in parts if part is not None and hasattr(part, "__dict__")
+               for a in vars(part).values() if isinstance(a, np.ndarray))
 
 
 def clear_cache() -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ringtune.envs.planned_job as pjm
 from ringtune.envs.evaluate import evaluate
 from ringtune.envs.planned_job import clear_cache, planned_job, resolve_printer
 from ringtune.shaping import planner
@@ -42,3 +43,21 @@ def test_daa_is_planned_not_shaped():
     assert pj.plan.print_time == m_daa.print_time_s
     assert m_daa.print_time_s > m_none.print_time_s
     assert m_daa.ringing_mm < m_none.ringing_mm
+
+
+def test_the_plan_cache_holds_a_bounded_number_of_bytes(monkeypatch):
+    """A plan of a long job is tens of MB: the cache of planned jobs keeps the newest within its byte
+    budget (a 1.5-hour job's tune held 3 GB with a count alone), and what it keeps is reused."""
+    clear_cache()
+    printer = resolve_printer(None)
+    first = planned_job(printer, "part", TuneConfig(accel=3000.0))
+    size = pjm._nbytes(first)
+    motion = first.plan.motion
+    assert size >= sum(getattr(motion, k).nbytes for k in ("t", "p", "v", "a")) > 1_000_000
+    monkeypatch.setattr(pjm, "_CACHE_BYTES", int(2.5 * size))
+    plans = [first] + [planned_job(printer, "part", TuneConfig(accel=a)) for a in (3100.0, 3200.0, 3300.0)]
+    held = [v for v in pjm._PLANS.values() if pjm._nbytes(v)]
+    assert held == plans[-2:]                       # two plans fit in 2.5 plans' bytes: the newest two
+    assert planned_job(printer, "part", TuneConfig(accel=3300.0)) is plans[-1]
+    assert planned_job(printer, "part", TuneConfig(accel=3000.0)) is not first
+    clear_cache()
