@@ -47,6 +47,12 @@ def test_simulate_of_the_rewritten_job_prints_tunes_figures(tmp_path, data_dir):
     # limit, which is then not applied twice): the same time to that rounding
     tol = 1e-5 if best["freq_limit_hz"] > 0 else 1e-9
     assert res["metrics"]["print_time_s"] == pytest.approx(report["chosen"]["print_time_s"], rel=tol)
+    written = report["job_gcode"]          # --json says what the summary says of the file
+    assert written["path"] == str(out / "job.gcode") and written["print_time_s"] == pytest.approx(
+        res["metrics"]["print_time_s"], rel=1e-9)
+    assert f"{written['lines_inserted']} lines inserted" in rewritten.splitlines()[0]
+    assert written["print_time_as_sliced_s"] == pytest.approx(
+        json.loads(_run(["plan", str(job), "--json"]).stdout)["print_time_s"], rel=1e-9)
     # the walk's ceiling: the choice with every group nobody sees at the top of its range as the
     # summary states the ranges, the corners nobody sees at 30 mm/s (twice the visible walls' 15) with
     # no cruise smoothing, planned by `ringtune plan`

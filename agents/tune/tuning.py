@@ -300,6 +300,9 @@ def _write_job(gcode: str, out_dir: Path, config, printer, result: dict, note: C
         note(f"ringtune tune: job.gcode not written: {exc}")
         return ""
     result["files"]["job"] = str(out_dir / "job.gcode")
+    result["job_gcode"] = {"path": str(out_dir / "job.gcode"), "lines_inserted": done.lines_inserted,
+                           "print_time_as_sliced_s": done.before_s, "print_time_s": done.after_s,
+                           "first_layer_kept_mm_s2": done.first_layer}
     text = (f"\nThe job with the choice written in: {out_dir / 'job.gcode'} ({done.lines_inserted} lines "
             f"inserted; planned {done.before_s:.1f} s as sliced -> {done.after_s:.1f} s, the file as the printer "
             "runs it).")
