@@ -7,9 +7,12 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
+import pytest
+
 from ringtune.agents.tune.choice import fastest, pick
-from ringtune.agents.tune.pareto import point_from_metrics
+from ringtune.agents.tune.pareto import judge_bounds, point_from_metrics
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
 
 PLAN_S = 933.3326182627112      # one plan: every shaping of the job gets this time
 
@@ -47,3 +50,22 @@ def test_a_faster_plan_still_wins_and_a_tie_nothing_beats_keeps_the_lowest_rippl
     # neither beats the other (one ripples less by more than the resolution, the other corners better)
     low_ripple = _point("zv", "zv", PLAN_S, 0.0150, 0.0241, 13.1)
     assert fastest([low_ripple, better]) is low_ripple
+
+
+def test_when_no_trial_is_feasible_a_feasible_baseline_is_chosen_else_the_error_counts_the_bounds():
+    """With every trial over a bound, the default choice fell into an error although Klipper's pick
+    (a candidate too) was feasible; and the error did not say which bound ruled the trials out."""
+    klipper = _point("klipper", "mzv", PLAN_S, 0.0256, 0.0241, 13.1)
+    rough = [judge_bounds(_point(f"trial {i}", "zv", PLAN_S - 10 * i, 0.03, 0.12, 9.0), 0.1, 0.8, 0.05)
+             for i in range(1, 4)]
+    assert all(p.too_rough and not p.feasible for p in rough)
+    choice = pick([], {"klipper": klipper}, candidates=rough)
+    assert choice.point is klipper and choice.baseline == "klipper"
+    judge_bounds(klipper, 0.02, 0.8, 0.05)                     # now over the bound too
+    with pytest.raises(RingtuneError) as err:
+        pick([], {"klipper": klipper}, candidates=rough)
+    assert "every trial and every baseline" in str(err.value)
+    assert "of the 3 trials: 3 with a path error over --max-path-error" in str(err.value)
+    with pytest.raises(RingtuneError) as err:
+        pick([], {"klipper": klipper}, how="knee", candidates=rough)
+    assert "every trial lost steps or broke a bound" in str(err.value)

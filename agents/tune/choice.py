@@ -5,13 +5,14 @@ a sentence saying what was chosen and why."""
 from __future__ import annotations
 
 import dataclasses
+from collections import Counter
 from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
-from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, QUALITY_WORDS, Point, Resolution, judge, no_worse,
-                                         quality_keys)
+from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, QUALITY_WORDS, Point, Resolution, broken_bounds, judge,
+                                         no_worse, quality_keys)
 from ringtune.shaping.errors import RingtuneError
 
 
@@ -36,10 +37,29 @@ class Choice:
     held_to: tuple = ()
 
 
-def _no_front() -> RingtuneError:
-    return RingtuneError("no feasible configuration was found (every trial lost steps, exceeded "
-                         "--max-path-error or --max-show-through or left less than --motor-reserve of the motors' "
-                         "force); lower the acceleration range, raise --max-path-error or run more trials", "tune")
+def _broken_counts(points: Sequence[Point]) -> str:
+    """`` (of the N trials: k with …, …)``: how many of ``points`` broke each bound; "" for none."""
+    n = Counter(w for p in points for w in broken_bounds(p) if w in _BROKEN_WORDS)
+    if not n:
+        return ""
+    return (f" (of the {len(points)} trials: " + ", ".join(f"{k} with {_BROKEN_WORDS[w]}" for w, k in n.most_common())
+            + "; a trial may break several)")
+
+
+#: each bound a point may break (:func:`broken_bounds`' words) as the error names it, with its option
+_BROKEN_WORDS = {"loses steps": "lost steps", "path error over the bound": "a path error over --max-path-error",
+                 "motor load over the reserve": "a motor load over what --motor-reserve leaves",
+                 "show-through over the bound": "hidden features reaching the outer wall by more than "
+                                                "--max-show-through"}
+
+
+def _no_front(points: Sequence[Point] = (), baselines_too: bool = True) -> RingtuneError:
+    """The error when nothing is feasible, counting what ``points`` (every trial, when known) broke;
+    ``baselines_too``: the baselines were candidates as well (the default choice)."""
+    who = "every trial and every baseline" if baselines_too else "every trial"
+    return RingtuneError(f"no feasible configuration was found: {who} lost steps or broke a "
+                         f"bound{_broken_counts(points)}; raise the bound that rules most out, lower the acceleration range "
+                         "(--accel-range) or run more trials", "tune")
 
 
 def knee(front: Sequence[Point]) -> Point:
@@ -47,7 +67,7 @@ def knee(front: Sequence[Point]) -> Point:
     and quality by its range but at least :data:`KNEE_QUALITY_SCALE` (10 µm; so that a front whose
     points all lie within a few micrometres is not bought with seconds)."""
     if not front:
-        raise _no_front()
+        raise _no_front((), False)
     t = np.array([p.print_time_s for p in front])
     q = np.array([p.quality_mm for p in front])
     tn = (t - t.min()) / max(t.max() - t.min(), 1e-12)
@@ -58,7 +78,7 @@ def knee(front: Sequence[Point]) -> Point:
 def choose(front: Sequence[Point], weight: float | None = None) -> Point:
     """The point minimising ``print_time_s + weight·quality_mm`` (weight in s/mm), or else the knee."""
     if not front:
-        raise _no_front()
+        raise _no_front((), False)
     if weight is not None:
         return min(front, key=lambda p: p.print_time_s + weight * p.quality_mm)
     return knee(front)
@@ -104,30 +124,45 @@ def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastes
     quality the choice is the first baseline itself; the knee of the front only where there is no
     usable baseline, and the sentence says so. ``knee``: :func:`knee`. ``weight``: minimises print
     time + ``weight`` × quality (s/mm)."""
-    front = [p for p in front if p.feasible]
-    if not front:
-        raise _no_front()
-    if how == "weight":
-        if weight is None:
-            raise RingtuneError("--pick weight needs --weight W (seconds per mm)", "--pick")
-        return Choice(choose(front, weight), "weight", None,
-                      f"minimises print time + {weight:g} s/mm × ripple")
-    if how == "knee":
-        return Choice(knee(front), "knee", None, "the knee of the front (closest to the ideal corner, time "
-                      "scaled by the front's range, ripple by its range but at least 10 µm)")
-    if how != "fastest-at-baseline-quality":
+    rule = _RULES.get(how)
+    if rule is None:
         raise RingtuneError(f"must be one of {', '.join(PICKS)}, not {how!r}", "--pick")
+    return rule([p for p in front if p.feasible], baselines, weight, res, candidates)
+
+
+def _by_weight(front, _baselines, weight, _res, candidates) -> Choice:
+    if weight is None:
+        raise RingtuneError("--pick weight needs --weight W (seconds per mm)", "--pick")
+    if not front:
+        raise _no_front(candidates or (), False)
+    return Choice(choose(front, weight), "weight", None, f"minimises print time + {weight:g} s/mm × ripple")
+
+
+def _by_knee(front, _baselines, _weight, _res, candidates) -> Choice:
+    if not front:
+        raise _no_front(candidates or (), False)
+    return Choice(knee(front), "knee", None, "the knee of the front (closest to the ideal corner, time "
+                  "scaled by the front's range, ripple by its range but at least 10 µm)")
+
+
+def _by_baselines(front, baselines, _weight, res, candidates) -> Choice:
+    if not front and not any(b.feasible for b in baselines.values()):
+        raise _no_front(candidates or ())
     pool = front if candidates is None else [p for p in candidates if p.feasible] or front
-    return _fastest_at_baseline_quality(front, baselines, res, pool)
+    return _fastest_at_baseline_quality(front, baselines, res, pool, candidates or ())
+
+
+#: each rule of :func:`pick` by its name (:data:`PICKS`)
+_RULES = {"fastest-at-baseline-quality": _by_baselines, "knee": _by_knee, "weight": _by_weight}
 
 
 def _fastest_at_baseline_quality(front: list[Point], baselines: dict[str, Point], res: Resolution,
-                                 pool: list[Point]) -> Choice:
+                                 pool: list[Point], trials: Sequence[Point] = ()) -> Choice:
     """:func:`pick`'s default: the fastest point of ``pool`` and the reference baselines with no
     visible measure worse than the reference baselines, tried together then one at a time; without
     any usable baseline, the knee of ``front``, saying why."""
     by_key = dict(reference_baselines(baselines, res))
-    worse = f"no worse {QUALITY_WORDS[quality_keys(front)]}"
+    worse = f"no worse {QUALITY_WORDS[quality_keys(front or list(by_key.values()))]}"
     # the baselines are configurations too: where the study tried nothing as fast at their quality
     # (e.g. its acceleration range starts above theirs), the choice starts from the baseline itself,
     # never from a knee that is worse on what a person sees
@@ -144,6 +179,8 @@ def _fastest_at_baseline_quality(front: list[Point], baselines: dict[str, Point]
             return Choice(p, "fastest-at-baseline-quality", held[0], why, held)
     why = f"no configuration the study tried is as fast as {_named(by_key, ' or ')} with {worse}" if by_key else \
         "there is no usable baseline to match"
+    if not front:
+        raise _no_front(trials)
     return Choice(knee(front), "knee", None, f"the knee of the front, because {why}")
 
 

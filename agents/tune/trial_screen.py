@@ -89,14 +89,14 @@ def beaten(figures: dict, judged: Sequence[dict], keys: Sequence[str]) -> bool:
 def judged_trials(study) -> list[dict]:
     """The figures (``metrics`` attribute, with print time) of the study's complete trials judged
     on the printer and its twins and within every bound they were run with."""
-    out = []
-    for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)):
-        if SCREENED in t.user_attrs or "metrics" not in t.user_attrs:
-            continue
-        if any(v > 0 for k, v in t.system_attrs.items() if k.startswith("constraints:")):
-            continue
-        out.append(t.user_attrs["metrics"])
-    return out
+    return [t.user_attrs["metrics"] for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
+            if _judged_within_bounds(t)]
+
+
+def _judged_within_bounds(trial) -> bool:
+    """A trial judged on all variants (not settled, with figures) that broke none of its bounds."""
+    return (SCREENED not in trial.user_attrs and "metrics" in trial.user_attrs
+            and not any(v > 0 for k, v in trial.system_attrs.items() if k.startswith("constraints:")))
 
 
 def evaluate_trial(config, printer, settings, study, nthread: int | None = None) -> tuple[Any, str]:
