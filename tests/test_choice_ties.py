@@ -11,6 +11,8 @@ import pytest
 
 from ringtune.agents.tune.choice import fastest, pick
 from ringtune.agents.tune.pareto import judge_bounds, point_from_metrics
+from ringtune.agents.tune.space import default_space, unshaped_modes_note
+from ringtune.envs.planned_job import resolve_printer
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
@@ -69,3 +71,18 @@ def test_when_no_trial_is_feasible_a_feasible_baseline_is_chosen_else_the_error_
     with pytest.raises(RingtuneError) as err:
         pick([], {"klipper": klipper}, how="knee", candidates=rough)
     assert "every trial lost steps or broke a bound" in str(err.value)
+
+
+def test_a_resonance_below_the_firmwares_lowest_shaper_frequency_is_named_when_nothing_is_feasible():
+    """A stock Marlin shapes from 40 Hz: a printer ringing at 33 Hz cannot be shaped there, which is
+    why nothing was feasible for it — the error now says so."""
+    printer = resolve_printer(None)      # X 45.5 / 58.1 Hz, Y 38.9 / 51.3 Hz: within 5 % of 40 Hz a ZV there holds
+    assert unshaped_modes_note(printer, default_space(printer, "marlin")) == ""
+    low = printer.detuned(0.85, 1.0)     # X 38.7 Hz (within 5 %), Y 33.1 Hz (not)
+    assert unshaped_modes_note(low, default_space(low, "klipper")) == ""
+    note = unshaped_modes_note(low, default_space(low, "marlin"))
+    assert note.startswith("the printer resonates at 33.1 Hz on Y, below the 40 Hz the search shapes from")
+    rough = [judge_bounds(_point("trial 1", "zv", PLAN_S, 0.03, 0.12, 9.0), 0.1, 0.8, 0.05)]
+    with pytest.raises(RingtuneError) as err:
+        pick([], {}, candidates=rough, why_none=note)
+    assert str(err.value).endswith("no shaper cancels that ringing")

@@ -53,11 +53,15 @@ _BROKEN_WORDS = {"loses steps": "lost steps", "path error over the bound": "a pa
                                                 "--max-show-through"}
 
 
+class NoFeasible(RingtuneError):
+    """Nothing the choice may take is feasible."""
+
+
 def _no_front(points: Sequence[Point] = (), baselines_too: bool = True) -> RingtuneError:
     """The error when nothing is feasible, counting what ``points`` (every trial, when known) broke;
     ``baselines_too``: the baselines were candidates as well (the default choice)."""
     who = "every trial and every baseline" if baselines_too else "every trial"
-    return RingtuneError(f"no feasible configuration was found: {who} lost steps or broke a "
+    return NoFeasible(f"no feasible configuration was found: {who} lost steps or broke a "
                          f"bound{_broken_counts(points)}; raise the bound that rules most out, lower the acceleration range "
                          "(--accel-range) or run more trials", "tune")
 
@@ -111,7 +115,7 @@ def reference_baselines(baselines: dict[str, Point], res: Resolution = DEFAULT_R
 
 def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastest-at-baseline-quality",
          weight: float | None = None, res: Resolution = DEFAULT_RESOLUTION,
-         candidates: Sequence[Point] | None = None) -> Choice:
+         candidates: Sequence[Point] | None = None, why_none: str = "") -> Choice:
     """Choose the configuration to use.
 
     ``fastest-at-baseline-quality`` (default): against the first reference baseline
@@ -123,11 +127,15 @@ def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastes
     its acceleration range can start above theirs), so where the study tried nothing as fast at their
     quality the choice is the first baseline itself; the knee of the front only where there is no
     usable baseline, and the sentence says so. ``knee``: :func:`knee`. ``weight``: minimises print
-    time + ``weight`` × quality (s/mm)."""
+    time + ``weight`` × quality (s/mm). ``why_none``: a likely cause added to the error where
+    nothing is feasible."""
     rule = _RULES.get(how)
     if rule is None:
         raise RingtuneError(f"must be one of {', '.join(PICKS)}, not {how!r}", "--pick")
-    return rule([p for p in front if p.feasible], baselines, weight, res, candidates)
+    try:
+        return rule([p for p in front if p.feasible], baselines, weight, res, candidates)
+    except NoFeasible as exc:
+        raise NoFeasible(f"{exc.bare}; {why_none}" if why_none else exc.bare, exc.where) from None
 
 
 def _by_weight(front, _baselines, weight, _res, candidates) -> Choice:

@@ -202,6 +202,20 @@ def freq_floor_note(firmware: str, min_freq: float | None, space: "SearchSpace")
     return f"shaper frequencies searched from {floor:g} Hz: {where}"
 
 
+def unshaped_modes_note(printer: Any, space: "SearchSpace") -> str:
+    """Where the printer has a resonance more than 5 % below the lowest shaper frequency the search
+    offers on an axis (a firmware's build minimum; within 5 % a ZV there still cancels most of it):
+    those modes ring unshaped, said; "" where none does."""
+    low = [f"{m.freq:.1f} Hz on {ax.upper()}" for ax, rng in (("x", space.freq_x), ("y", space.freq_y))
+           for m in getattr(printer, ax).modes if m.freq < 0.95 * rng[0]]
+    if not low:
+        return ""
+    floor = min(space.freq_x[0], space.freq_y[0])
+    return (f"the printer resonates at {', '.join(low)}, below the {floor:g} Hz the search shapes from (the "
+            "firmware's lowest shaper frequency; --shaping-min-freq if your build shapes lower): no shaper "
+            "cancels that ringing")
+
+
 def printer_axis_caps(printer: Any, firmware: str) -> tuple[tuple[float, float] | None, bool]:
     """(the printer's X/Y acceleration caps or None, whether trials raise them to their acceleration):
     raised where ``firmware`` sets them by G-code (``M201``), kept where they live in its

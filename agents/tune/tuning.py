@@ -23,7 +23,8 @@ from ringtune.agents.tune.hidden_raise import unseen_tops
 from ringtune.agents.tune.pareto import VISIBLE_KEYS
 from ringtune.agents.tune.refine import refine
 from ringtune.agents.tune.request import Limits, TuneRequest, check_request, shaping_min_freq
-from ringtune.agents.tune.space import CORNER_UNIT, default_space, freq_floor_note, params_from_config, walked_keys
+from ringtune.agents.tune.space import (CORNER_UNIT, default_space, freq_floor_note, params_from_config,
+                                       unshaped_modes_note, walked_keys)
 from ringtune.agents.tune.stop import Bounds
 from ringtune.agents.tune.study_results import study_points
 from ringtune.envs.planned_job import planned_job, resolve_printer
@@ -77,7 +78,7 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
              "printer variant (a study begun by an earlier ringtune): they are held to the baselines over the worst of "
              "the variants alone")
     front = pareto.pareto_front(points, also=_also(points, quality))
-    choice = pick(front, baselines, lim.how, req.weight, candidates=points)
+    choice = pick(front, baselines, lim.how, req.weight, candidates=points, why_none=unshaped_modes_note(printer, space))
     choice, stop, lift, ladder = refine(choice, bl, evaluator, settings, printer, space,
                                         Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st), note,
                                         runners_up(choice, points, baselines))
