@@ -105,7 +105,10 @@ def test_tune_counts_the_settled_trials_and_does_not_call_them_old(tmp_path, cap
     out, err = capsys.readouterr()
     settled = [p for p in study_points_of(tmp_path / "out") if p.screened]
     assert settled, "this run settles some trials on the model alone"
-    assert f"nor those of {sum(p.screened == trial_screen.OVER_A_BOUND for p in settled)} counted above" in out
+    beaten = sum(p.screened == trial_screen.BEATEN for p in settled)
+    over = sum(p.screened == trial_screen.OVER_A_BOUND for p in settled)
+    assert (f"{beaten} beaten on the printer as modelled" in out) == (beaten > 0)
+    assert (f"nor those of {over} counted above" if beaten else f"the twins of {over} counted above") in out
     assert "stored without their figures" not in err
     rows = (tmp_path / "out" / "trials.csv").read_text().splitlines()
     assert sum("the model alone (" in r for r in rows[1:]) == len(settled)

@@ -276,12 +276,15 @@ def _ruled_out(points: Sequence[Point], max_pe: float, reserve: float, max_st: f
                 f"than {max_st * 1000:g} µm (--max-show-through)", "show-through not bounded (--max-show-through 0)"))
     out = [f"{n['loses steps']} trials that lose steps"] + [on if bound > 0 else off for bound, on, off in bounded]
     settled = Counter(p.screened for p in points if p.screened)
-    if settled:
-        over = settled[trial_screen.OVER_A_BOUND]
-        out.append(f"{settled[trial_screen.BEATEN]} beaten on the printer as modelled by a trial judged on it and its "
-                   "twins, and worse than Klipper's pick there on a visible measure: their twins, which can only "
-                   "make a figure worse, were not simulated" + (f" (nor those of {over} counted above, which broke "
-                   "a bound on the model alone)" if over else ""))
+    beaten, over = settled[trial_screen.BEATEN], settled[trial_screen.OVER_A_BOUND]
+    if beaten:
+        out.append(f"{beaten} beaten on the printer as modelled by a trial judged on it and its twins, and worse "
+                   "than Klipper's pick there on a visible measure: their twins, which can only make a figure "
+                   "worse, were not simulated" + (f" (nor those of {over} counted above, which broke a bound on "
+                   "the model alone)" if over else ""))
+    elif over:
+        out.append(f"the twins of {over} counted above, which broke a bound on the printer as modelled, were not "
+                   "simulated (they can only make a figure worse)")
     return out
 
 
