@@ -289,16 +289,27 @@ class _Reader(SettingCommands, MotionCommands):
         if cmd in TEXT_COMMANDS:
             self._event("other", cmd, {"text": rest.strip()}, lineno, code)
             return
-        words = self._words(rest, lineno)
         if cmd in ("G0", "G1"):
+            self._words(rest, lineno)          # a malformed move is an error, named
             self._fast_move(rest, lineno)
         elif cmd in MODE_COMMANDS:
             for attr, value in MODE_COMMANDS[cmd].items():
                 setattr(self, attr, value)
         elif cmd in self._HANDLERS:
-            self._HANDLERS[cmd](self, cmd, words, lineno, code)
+            self._HANDLERS[cmd](self, cmd, self._words(rest, lineno), lineno, code)
+        elif cmd in LIMIT_COMMANDS or cmd in SHAPER_COMMANDS:
+            self._other(cmd, self._words(rest, lineno), lineno, code)
         else:
-            self._other(cmd, words, lineno, code)
+            self._other(cmd, self._loose_words(rest, lineno), lineno, code)
+
+    def _loose_words(self, text: str, lineno: int) -> dict:
+        """The words of a command the planner does not act on; its text where they are not numbers
+        (a vendor's own command, e.g. Bambu Studio's ``M1002 judge_flag timelapse_record_flag``,
+        which the job's own firmware reads and which is no error in the file)."""
+        try:
+            return self._words(text, lineno)
+        except RingtuneError:
+            return {"text": text.strip()}
 
     def _other(self, cmd: str, words: dict, lineno: int, code: str) -> None:
         """Limit commands (applied and recorded), shaper commands, and the rest (recorded; some stop

@@ -225,3 +225,23 @@ def test_klipper_takes_m204_s_or_p_and_t_together_and_ignores_a_lone_p_or_t(line
     want = words.get("P", words.get("S"))
     got = job.file_setting("accel_print")
     assert (math.isnan(got) if want is None else got == want), got            # Marlin's roles as given
+
+
+def test_a_vendors_own_commands_with_words_that_are_no_numbers_are_kept_not_refused(tmp_path):
+    """Every Bambu Studio job holds ``M1002 judge_flag timelapse_record_flag`` (its firmware's own
+    command): the reader refused the whole file at that line. A command the planner does not act on
+    is recorded with its text; what it acts on stays strict (test above)."""
+    path = tmp_path / "vendor.gcode"
+    path.write_text("G90\nM83\nM1002 judge_flag timelapse_record_flag\nM622.1 S1\nM991 S0 P0\n"
+                    "G1 X10 Y10 F6000\n; FEATURE: Outer wall\nM204 S500\nG1 X20 Y10 E0.5 F3000\n"
+                    "G17\nG3 Z.6 I1.5 J0 P1 F42000\n")
+    job = read_gcode(path)
+    vendor = [e for e in job.events if e.command == "M1002"]
+    assert len(vendor) == 1 and vendor[0].params == {"text": "judge_flag timelapse_record_flag"}
+    wall = np.flatnonzero(job.extruding)[0]
+    assert job.features[job.feature[wall]] == "Outer wall" and job.setting("accel_print")[wall] == 500.0
+    # the spiral lift: a full circle of radius 1.5 mm about (11.5, 10) rising 0.4 mm, back where it began
+    arc = np.flatnonzero(job.arc)
+    assert job.start[arc[0], :3] == pytest.approx([20, 10, 0]) and job.end[arc[-1], :3] == pytest.approx([20, 10, 0.6])
+    centre = np.array([21.5, 10.0])
+    assert np.hypot(*(job.end[arc, :2] - centre).T) == pytest.approx(1.5, abs=0.01)
