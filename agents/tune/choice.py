@@ -66,12 +66,13 @@ def _no_front(points: Sequence[Point] = (), baselines_too: bool = True) -> Ringt
                          "(--accel-range) or run more trials", "tune")
 
 
-def knee(front: Sequence[Point]) -> Point:
+def knee(front: Sequence[Point], trials: Sequence[Point] | None = None) -> Point:
     """The front point closest to the ideal corner after scaling print time by the front's range
     and quality by its range but at least :data:`KNEE_QUALITY_SCALE` (10 µm; so that a front whose
-    points all lie within a few micrometres is not bought with seconds)."""
+    points all lie within a few micrometres is not bought with seconds). Where there is none, the
+    error counts what ``trials`` broke (given: the default choice, whose baselines failed too)."""
     if not front:
-        raise _no_front((), False)
+        raise _no_front(trials or (), trials is not None)
     t = np.array([p.print_time_s for p in front])
     q = np.array([p.quality_mm for p in front])
     tn = (t - t.min()) / max(t.max() - t.min(), 1e-12)
@@ -187,9 +188,7 @@ def _fastest_at_baseline_quality(front: list[Point], baselines: dict[str, Point]
             return Choice(p, "fastest-at-baseline-quality", held[0], why, held)
     why = f"no configuration the study tried is as fast as {_named(by_key, ' or ')} with {worse}" if by_key else \
         "there is no usable baseline to match"
-    if not front:
-        raise _no_front(trials)
-    return Choice(knee(front), "knee", None, f"the knee of the front, because {why}")
+    return Choice(knee(front, trials), "knee", None, f"the knee of the front, because {why}")
 
 
 def runners_up(choice: Choice, pool: Sequence[Point], baselines: dict[str, Point], res: Resolution = DEFAULT_RESOLUTION,

@@ -262,21 +262,13 @@ def variant_figures(m) -> tuple:
     it was judged on (``details["variants"]`` of :func:`ringtune.envs.metrics.worst_case`, each
     naming its variant): ((frequency factor, damping factor), {key: value}) each; () where it was
     judged on one printer or the variants are not named."""
-    return tuple((variant, _judged(d)) for variant, d in by_variant(m).items())
-
-
-def judged_figures(m) -> dict:
-    """A metrics object's own visible measures (:data:`JUDGED_KEYS`: the job's and each class's),
-    as :func:`variant_figures` gives them per variant."""
-    return _judged(m.to_dict())
-
-
-def _judged(d: dict) -> dict:
-    """The :data:`JUDGED_KEYS` of a metrics dict (``Metrics.to_dict``) as plain floats."""
-    figs = {k: float(d[k]) for k in VISIBLE_KEYS if k in d}
-    for cls, values in (d.get("features") or {}).items():
-        figs.update({f"{cls}:{k}": float(values[k]) for k in CLASS_MEASURES.get(cls, ()) if k in values})
-    return figs
+    out = []
+    for variant, d in by_variant(m).items():
+        figs = {k: float(d[k]) for k in VISIBLE_KEYS if k in d}
+        for cls, values in (d.get("features") or {}).items():
+            figs.update({f"{cls}:{k}": float(values[k]) for k in CLASS_MEASURES.get(cls, ()) if k in values})
+        out.append((variant, figs))
+    return tuple(out)
 
 
 def variants_to_json(variants: tuple) -> list:

@@ -274,18 +274,24 @@ def _ruled_out(points: Sequence[Point], max_pe: float, reserve: float, max_st: f
                 "motor load not bounded (--motor-reserve 0)"),
                (max_st, f"{n['show-through over the bound']} whose hidden features reach the outer wall by more "
                 f"than {max_st * 1000:g} µm (--max-show-through)", "show-through not bounded (--max-show-through 0)"))
-    out = [f"{n['loses steps']} trials that lose steps"] + [on if bound > 0 else off for bound, on, off in bounded]
+    return ([f"{n['loses steps']} trials that lose steps"] + [on if bound > 0 else off for bound, on, off in bounded]
+            + _settled(points))
+
+
+def _settled(points: Sequence[Point]) -> list[str]:
+    """The trials settled on the model alone (:mod:`ringtune.agents.tune.trial_screen`), in words
+    (none: [])."""
     settled = Counter(p.screened for p in points if p.screened)
     beaten, over = settled[trial_screen.BEATEN], settled[trial_screen.OVER_A_BOUND]
     if beaten:
-        out.append(f"{beaten} beaten on the printer as modelled by a trial judged on it and its twins, and worse "
-                   "than Klipper's pick there on a visible measure: their twins, which can only make a figure "
-                   "worse, were not simulated" + (f" (nor those of {over} counted above, which broke a bound on "
-                   "the model alone)" if over else ""))
-    elif over:
-        out.append(f"the twins of {over} counted above, which broke a bound on the printer as modelled, were not "
-                   "simulated (they can only make a figure worse)")
-    return out
+        return [f"{beaten} beaten on the printer as modelled by a trial judged on it and its twins, and worse "
+                "than Klipper's pick there on a visible measure: their twins, which can only make a figure "
+                "worse, were not simulated" + (f" (nor those of {over} counted above, which broke a bound on "
+                "the model alone)" if over else "")]
+    if over:
+        return [f"the twins of {over} counted above, which broke a bound on the printer as modelled, were not "
+                "simulated (they can only make a figure worse)"]
+    return []
 
 
 def _measures(p: Point, keys: Sequence[str] = METRIC_KEYS[1:]) -> dict:

@@ -206,14 +206,19 @@ def unshaped_modes_note(printer: Any, space: "SearchSpace") -> str:
     """Where the printer has a resonance more than 5 % below the lowest shaper frequency the search
     offers on an axis (a firmware's build minimum; within 5 % a ZV there still cancels most of it):
     those modes ring unshaped, said; "" where none does."""
-    low = [f"{m.freq:.1f} Hz on {ax.upper()}" for ax, rng in (("x", space.freq_x), ("y", space.freq_y))
-           for m in getattr(printer, ax).modes if m.freq < 0.95 * rng[0]]
+    low = _below_floor(printer, space)
     if not low:
         return ""
     floor = min(space.freq_x[0], space.freq_y[0])
     return (f"the printer resonates at {', '.join(low)}, below the {floor:g} Hz the search shapes from (the "
             "firmware's lowest shaper frequency; --shaping-min-freq if your build shapes lower): no shaper "
             "cancels that ringing")
+
+
+def _below_floor(printer: Any, space: "SearchSpace") -> list[str]:
+    """``"<f> Hz on <axis>"`` of each mode more than 5 % below its axis's lowest searched frequency."""
+    return [f"{m.freq:.1f} Hz on {ax.upper()}" for ax, rng in (("x", space.freq_x), ("y", space.freq_y))
+            for m in getattr(printer, ax).modes if m.freq < 0.95 * rng[0]]
 
 
 def printer_axis_caps(printer: Any, firmware: str) -> tuple[tuple[float, float] | None, bool]:

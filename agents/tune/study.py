@@ -46,11 +46,11 @@ import numpy as np
 import optuna
 from optuna.trial import TrialState
 
+from ringtune.agents.tune import trial_screen
 from ringtune.agents.tune.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MAX_SHOW_THROUGH_MM,
     DEFAULT_MOTOR_RESERVE, OBJECTIVES, metrics_dict, objective_value, variant_figures, variants_to_json)
 from ringtune.agents.tune.space import SearchSpace, config_from_params, default_space, suggest_params
 from ringtune.agents.tune.storage import _this_worker, make_storage, reap_dead_workers
-from ringtune.agents.tune import trial_screen
 from ringtune.agents.tune.study_resume import check_resumed
 from ringtune.envs.printer import load_printer
 from ringtune.envs.variants import TWIN_DAMPING

@@ -28,8 +28,8 @@ from typing import Any, Sequence
 import numpy as np
 from optuna.trial import TrialState
 
-from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, JUDGED_KEYS, VISIBLE_KEYS, judged_figures,
-                                         metrics_dict, verdict)
+from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, JUDGED_KEYS, VISIBLE_KEYS, max_motor_load,
+                                         point_from_metrics, verdict)
 from ringtune.envs.evaluate import evaluate_many, evaluate_twins
 
 #: the user attribute of a trial settled on the model alone, and its values (why)
@@ -54,27 +54,13 @@ def front_keys(quality: str) -> tuple[str, ...]:
     return tuple(dict.fromkeys(("print_time_s", quality, *VISIBLE_KEYS)))
 
 
-def over_a_bound(m, settings) -> bool:
-    """Whether metrics ``m`` break one of the study's bounds (0 = no bound)."""
-    reserve = settings.motor_reserve
-    return bool(m.step_loss) or any(_over(getattr(m, key, None), bound) for key, bound in (
-        ("path_error_mm", settings.max_path_error_mm), ("motor_load", 1.0 - reserve if reserve > 0 else 0.0),
-        ("show_through_mm", settings.max_show_through_mm)))
-
-
-def _over(value, bound: float) -> bool:
-    """``value`` above ``bound`` (0: no bound; a figure the metrics lack never is)."""
-    return bound > 0 and value is not None and float(value) > bound
-
-
-def worse_than_base(m, base: dict | None) -> bool:
-    """Whether ``m`` (figures on the model itself) is worse than the base's on a judged measure,
-    at the default resolution."""
+def worse_than_base(figures: dict, base: dict | None) -> bool:
+    """Whether ``figures`` (a point's metrics on the model itself) are worse than the base's on a
+    judged measure, at the default resolution."""
     if not base:
         return False
-    mine = judged_figures(m)
-    return any(verdict(k, mine[k], base[k], DEFAULT_RESOLUTION) == "worse"
-               for k in JUDGED_KEYS if k in mine and k in base)
+    return any(verdict(k, figures[k], base[k], DEFAULT_RESOLUTION) == "worse"
+               for k in JUDGED_KEYS if k in figures and k in base)
 
 
 def beaten(figures: dict, judged: Sequence[dict], keys: Sequence[str]) -> bool:
@@ -104,10 +90,13 @@ def evaluate_trial(config, printer, settings, study, nthread: int | None = None)
     only where they can count (see the module docstring)."""
     kw = {"job_accel": settings.job_accel}
     exact = evaluate_many([config], printer, settings.job, settings.backend, nthread=nthread, **kw)[0]
-    if over_a_bound(exact, settings):
+    p = point_from_metrics(config, exact, settings.quality, max_path_error_mm=settings.max_path_error_mm,
+                           max_motor_load=max_motor_load(settings.motor_reserve),
+                           max_show_through_mm=settings.max_show_through_mm)
+    if not p.feasible:
         return exact, OVER_A_BOUND
-    if worse_than_base(exact, settings.screen_against) and beaten(
-            metrics_dict(exact), judged_trials(study), front_keys(settings.quality)):
+    if worse_than_base(p.metrics, settings.screen_against) and beaten(
+            p.metrics, judged_trials(study), front_keys(settings.quality)):
         return exact, BEATEN
     return evaluate_twins([config], [exact], printer, settings.job, settings.backend,
                           freq_margin=settings.freq_margin, nthread=nthread, **kw)[0], ""
