@@ -6,6 +6,8 @@ judgements as without them."""
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from ringtune.agents.tune import trial_screen
@@ -105,6 +107,10 @@ def test_tune_counts_the_settled_trials_and_does_not_call_them_old(tmp_path, cap
     out, err = capsys.readouterr()
     settled = [p for p in study_points_of(tmp_path / "out") if p.screened]
     assert settled, "this run settles some trials on the model alone"
+    assert main(["tune", "--trials", "16", "--workers", "1", "--seed", "0", "--out", str(tmp_path / "out"),
+                 "--per-feature", "off", "--json"]) == 0      # resumed: nothing left to run, the same report
+    counts = json.loads(capsys.readouterr()[0])["settled_on_model"]
+    assert counts == {k: sum(p.screened == k for p in settled) for k in {p.screened for p in settled}}
     beaten = sum(p.screened == trial_screen.BEATEN for p in settled)
     over = sum(p.screened == trial_screen.OVER_A_BOUND for p in settled)
     assert (f"{beaten} beaten on the printer as modelled" in out) == (beaten > 0)

@@ -179,6 +179,8 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         "out": str(out_dir),
         "trials": len(points),
         "front_size": len(front),
+        # trials whose twins were not simulated (agents/tune/trial_screen.py), by why
+        "settled_on_model": dict(Counter(p.screened for p in points if p.screened)),
         "quality": quality,
         "max_path_error_mm": max_path_error_mm,
         "motor_reserve": motor_reserve,
