@@ -180,7 +180,7 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         "trials": len(points),
         "front_size": len(front),
         # trials whose twins were not simulated (agents/tune/trial_screen.py), by why
-        "settled_on_model": dict(Counter(p.screened for p in points if p.screened)),
+        "settled_on_model": trial_screen.settled_counts(points),
         "quality": quality,
         "max_path_error_mm": max_path_error_mm,
         "motor_reserve": motor_reserve,
@@ -283,8 +283,8 @@ def _ruled_out(points: Sequence[Point], max_pe: float, reserve: float, max_st: f
 def _settled(points: Sequence[Point]) -> list[str]:
     """The trials settled on the model alone (:mod:`ringtune.agents.tune.trial_screen`), in words
     (none: [])."""
-    settled = Counter(p.screened for p in points if p.screened)
-    beaten, over = settled[trial_screen.BEATEN], settled[trial_screen.OVER_A_BOUND]
+    settled = trial_screen.settled_counts(points)
+    beaten, over = settled.get(trial_screen.BEATEN, 0), settled.get(trial_screen.OVER_A_BOUND, 0)
     if beaten:
         return [f"{beaten} beaten on the printer as modelled by a trial judged on it and its twins, and worse "
                 "than Klipper's pick there on a visible measure: their twins, which can only make a figure "

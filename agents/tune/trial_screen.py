@@ -23,6 +23,7 @@ read with other bounds.
 
 from __future__ import annotations
 
+from collections import Counter
 from typing import Any, Sequence
 
 import numpy as np
@@ -36,6 +37,11 @@ from ringtune.envs.evaluate import evaluate_many, evaluate_twins
 SCREENED = "screened"
 OVER_A_BOUND = "over a bound on the model alone"
 BEATEN = "beaten on the model alone"
+
+
+def settled_counts(points) -> dict[str, int]:
+    """How many of ``points`` (a study read back) were settled on the model alone, by why."""
+    return dict(Counter(p.screened for p in points if p.screened))
 
 
 def base_figures(point) -> dict | None:
