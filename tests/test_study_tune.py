@@ -77,7 +77,7 @@ def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evalua
     assert "Klipper's rule" in summary and "no shaping" in summary and "CHOSEN" in summary
     assert set(res["baselines"]) == {"klipper", "none"} and res["trials"] == 10
     # the --json keys tune.py documents as stable
-    assert set(res) == {"out", "trials", "front_size", "quality", "max_path_error_mm", "motor_reserve",
+    assert set(res) == {"out", "trials", "front_size", "settled_on_model", "quality", "max_path_error_mm", "motor_reserve",
                         "max_show_through_mm", "freq_margin", "resolution", "chosen", "baselines", "vs_baselines",
                         "versus", "stop", "shaper_ladder", "hidden_raise", "per_feature", "dominates_klipper", "dominates_current", "accel", "job_accel",
                         "plot_arrows", "files", "storage", "study", "completed_now", "interrupted", "elapsed_s"}

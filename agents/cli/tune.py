@@ -1,6 +1,8 @@
 """``ringtune tune``: the main job — an Optuna Pareto study of print time against quality.
 
-``--json`` keys (stable): out, trials, front_size, quality, max_path_error_mm, motor_reserve,
+``--json`` keys (stable): out, trials, front_size, settled_on_model ({why: trials} of those whose
+twins were not simulated: "over a bound on the model alone" | "beaten on the model alone"), quality,
+max_path_error_mm, motor_reserve,
 max_show_through_mm, freq_margin, resolution {distance_mm, distance_rel, time_rel, pct_abs},
 chosen {config, print_time_s, quality_mm, path_error_mm, overshoot_mm, motor_load, measures (every
 metrics figure: ripple_mm, ripple_p90_mm, corner_in_mm, corner_out_mm, extrusion_over_pct,
@@ -35,8 +37,9 @@ job_accel {mode, commands, cap_mm_s2, searched, print_time_as_sliced_s, print_ti
 replaced_accel, saved_s}, per_feature (null when not searched, else {accel {visible|top_surface|
 hidden_walls|infill|solid_infill|travel: mm/s²}, ranges {group: {top_speed_mm_s, range, basis}}, corner, junction,
 min_cruise_ratio, why (why it was searched)}), plot_arrows, files {readme, summary, plot, best, apply,
-front, trials, job (with --gcode: the rewritten job)}, storage, study, completed_now, interrupted,
-elapsed_s.
+front, trials, job (with --gcode: the rewritten job)}, job_gcode (with --gcode, where the file was written:
+{path, lines_inserted, print_time_as_sliced_s, print_time_s (as the printer runs the file), first_layer_kept_mm_s2}),
+storage, study, completed_now, interrupted, elapsed_s.
 """
 
 from __future__ import annotations
