@@ -61,18 +61,18 @@ def _no_front(points: Sequence[Point] = (), baselines_too: bool = True) -> Ringt
     """The error when nothing is feasible, counting what ``points`` (every trial, when known) broke;
     ``baselines_too``: the baselines were candidates as well (the default choice)."""
     who = "every trial and every baseline" if baselines_too else "every trial"
-    return NoFeasible(f"no feasible configuration was found: {who} lost steps or broke a "
-                         f"bound{_broken_counts(points)}; raise the bound that rules most out, lower the acceleration range "
-                         "(--accel-range) or run more trials", "tune")
+    return NoFeasible(f"no feasible configuration was found: {who} lost steps or broke a bound"
+                      f"{_broken_counts(points)}; raise the bound that rules most out, lower the acceleration range "
+                      "(--accel-range) or run more trials", "tune")
 
 
-def knee(front: Sequence[Point], trials: Sequence[Point] | None = None) -> Point:
+def knee(front: Sequence[Point], trials: Sequence[Point] = (), baselines_too: bool = False) -> Point:
     """The front point closest to the ideal corner after scaling print time by the front's range
     and quality by its range but at least :data:`KNEE_QUALITY_SCALE` (10 µm; so that a front whose
     points all lie within a few micrometres is not bought with seconds). Where there is none, the
-    error counts what ``trials`` broke (given: the default choice, whose baselines failed too)."""
+    error counts what ``trials`` broke (``baselines_too``: the baselines were candidates and failed too)."""
     if not front:
-        raise _no_front(trials or (), trials is not None)
+        raise _no_front(trials, baselines_too)
     t = np.array([p.print_time_s for p in front])
     q = np.array([p.quality_mm for p in front])
     tn = (t - t.min()) / max(t.max() - t.min(), 1e-12)
@@ -80,10 +80,11 @@ def knee(front: Sequence[Point], trials: Sequence[Point] | None = None) -> Point
     return front[int(np.argmin(np.hypot(tn, qn)))]
 
 
-def choose(front: Sequence[Point], weight: float | None = None) -> Point:
-    """The point minimising ``print_time_s + weight·quality_mm`` (weight in s/mm), or else the knee."""
+def choose(front: Sequence[Point], weight: float | None = None, trials: Sequence[Point] = ()) -> Point:
+    """The point minimising ``print_time_s + weight·quality_mm`` (weight in s/mm), or else the knee;
+    where there is none, the error counts what ``trials`` broke."""
     if not front:
-        raise _no_front((), False)
+        raise _no_front(trials, False)
     if weight is not None:
         return min(front, key=lambda p: p.print_time_s + weight * p.quality_mm)
     return knee(front)
@@ -142,21 +143,15 @@ def pick(front: Sequence[Point], baselines: dict[str, Point], how: str = "fastes
 def _by_weight(front, _baselines, weight, _res, candidates) -> Choice:
     if weight is None:
         raise RingtuneError("--pick weight needs --weight W (seconds per mm)", "--pick")
-    if not front:
-        raise _no_front(candidates or (), False)
-    return Choice(choose(front, weight), "weight", None, f"minimises print time + {weight:g} s/mm × ripple")
+    return Choice(choose(front, weight, candidates or ()), "weight", None, f"minimises print time + {weight:g} s/mm × ripple")
 
 
 def _by_knee(front, _baselines, _weight, _res, candidates) -> Choice:
-    if not front:
-        raise _no_front(candidates or (), False)
-    return Choice(knee(front), "knee", None, "the knee of the front (closest to the ideal corner, time "
+    return Choice(knee(front, candidates or ()), "knee", None, "the knee of the front (closest to the ideal corner, time "
                   "scaled by the front's range, ripple by its range but at least 10 µm)")
 
 
 def _by_baselines(front, baselines, _weight, res, candidates) -> Choice:
-    if not front and not any(b.feasible for b in baselines.values()):
-        raise _no_front(candidates or ())
     pool = front if candidates is None else [p for p in candidates if p.feasible] or front
     return _fastest_at_baseline_quality(front, baselines, res, pool, candidates or ())
 
@@ -188,7 +183,7 @@ def _fastest_at_baseline_quality(front: list[Point], baselines: dict[str, Point]
             return Choice(p, "fastest-at-baseline-quality", held[0], why, held)
     why = f"no configuration the study tried is as fast as {_named(by_key, ' or ')} with {worse}" if by_key else \
         "there is no usable baseline to match"
-    return Choice(knee(front, trials), "knee", None, f"the knee of the front, because {why}")
+    return Choice(knee(front, trials, baselines_too=True), "knee", None, f"the knee of the front, because {why}")
 
 
 def runners_up(choice: Choice, pool: Sequence[Point], baselines: dict[str, Point], res: Resolution = DEFAULT_RESOLUTION,
