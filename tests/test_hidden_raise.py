@@ -238,6 +238,39 @@ def test_screening_on_the_exact_model_changes_the_walk_in_nothing_but_its_cost(s
     assert f"{lift.screened} screened on the exact model first" in lift.sentence()
 
 
+def test_judging_the_screens_passes_fastest_first_ends_where_judging_all_does(space):
+    """The judgement stricter than the screen (the twins ripple more: the infill above 7000 mm/s²
+    fails there, above RIPPLE_TOP already on the model): judging what the screen passes fastest
+    first, and only as far as the first that passes, ends the walk at the same point with the same
+    settings raised and the same reasons for what holds each (tests/test_fastest_first.py counts
+    what it leaves unjudged)."""
+    start_cfg = _start(space)
+    start = point_from_metrics(start_cfg, _metrics(start_cfg), max_path_error_mm=0.1, max_motor_load=0.8,
+                               max_show_through_mm=0.2)
+    judged = []
+
+    def evaluate(configs):
+        judged.append(len(configs))
+        out = [_metrics(c) for c in configs]
+        for c, m in zip(configs, out):
+            if c.feature_accel.get("infill", 0) > 7000:
+                m.ripple_mm = 0.07
+        return out
+
+    def exact(configs):
+        return [_metrics(c) for c in configs]
+
+    plain = raise_hidden(start, {"klipper": start}, evaluate, space, BOUNDS)
+    n_plain = sum(judged)
+    judged.clear()
+    lift = raise_hidden(start, {"klipper": start}, evaluate, space, BOUNDS, screen=exact)
+    assert lift.point.config == plain.point.config and lift.raised == plain.raised
+    assert 5000 < lift.point.config.feature_accel["infill"] <= 7000      # raised, as far as the judgement allows
+    assert [(h.key, h.value, h.tried, h.why.key if h.why else None) for h in lift.held] == \
+        [(h.key, h.value, h.tried, h.why.key if h.why else None) for h in plain.held]
+    assert lift.evaluations == sum(judged) < n_plain
+
+
 def test_tunes_walk_spends_no_visible_quality_the_choice_had(space):
     """``tune`` (refine) holds the walk to the baselines and to the choice it starts from: with
     Klipper's pick rippling 0.08 mm and the choice 0.05, infill above RIPPLE_TOP (ripple 0.08: no
