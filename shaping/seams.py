@@ -24,8 +24,23 @@ SEAM_ORDER = ("outer_wall", "top_surface", "bridge_overhang", "other")
 def move_classes(plan) -> np.ndarray:
     """(n_moves,) feature class of each planned move; a move that does not extrude is ``travel``."""
     mv = plan.moves
-    names = np.array([feature_class(n) for n in mv.features] or ["other"])
+    names = _label_classes(plan)
     return np.where(mv.extruding, names[mv.feature], "travel") if len(mv) else np.zeros(0, names.dtype)
+
+
+def present_classes(plan) -> set[str]:
+    """The classes of :func:`move_classes` that occur (from the labels the moves use, not the
+    per-move strings)."""
+    mv = plan.moves
+    if not len(mv):
+        return set()
+    out = set(_label_classes(plan)[np.unique(mv.feature[mv.extruding])].tolist())
+    return out | {"travel"} if not np.all(mv.extruding) else out
+
+
+def _label_classes(plan) -> np.ndarray:
+    """The feature class of each of the job's labels (``other`` alone when it has none)."""
+    return np.array([feature_class(n) for n in plan.moves.features] or ["other"])
 
 
 def _peak_beside(cls: np.ndarray, v: np.ndarray, idx: np.ndarray, step: int) -> np.ndarray:
@@ -51,18 +66,21 @@ def seam_candidates(plan, span: float) -> dict[str, tuple]:
     highest cruise speed (mm/s) of the other class's moves beside it, the harder they are driven
     the more they leave on the wall."""
     mv = plan.moves
-    cls = move_classes(plan)
-    empty = (np.zeros(0), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, dtype=cls.dtype))
-    if len(cls) < 2:
+    names = _label_classes(plan)
+    empty = (np.zeros(0), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, dtype=names.dtype))
+    if len(mv) < 2:
         return {"seam-in": empty, "seam-out": empty}
-    visible = np.isin(cls, list(seen_classes(np.unique(cls).tolist())))
+    # each move's class as a code (its index in ``label``): integers compare faster than strings
+    label = np.unique(np.append(names, "travel"))
+    cls = np.where(mv.extruding, np.searchsorted(label, names)[mv.feature], np.searchsorted(label, "travel"))
+    visible = np.isin(label, list(seen_classes(present_classes(plan))))[cls]
     change = cls[1:] != cls[:-1]
     first = np.flatnonzero(visible[1:] & change) + 1
     last = np.flatnonzero(visible[:-1] & change)
     t_end = mv.t_start + mv.duration
     return {
         "seam-in": (mv.t_start[first] - 0.2 * span, _peak_beside(cls, mv.v_cruise, first, -1),
-                    mv.line[first], cls[first]),
+                    mv.line[first], label[cls[first]]),
         "seam-out": (t_end[last] - 0.8 * span, _peak_beside(cls, mv.v_cruise, last, +1),
-                     mv.line[last], cls[last]),
+                     mv.line[last], label[cls[last]]),
     }
