@@ -50,14 +50,15 @@ class RewrittenJob:
 
 
 def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: str = "<gcode>",
-                        layer_inserts: dict[int, list[str]] | None = None) -> RewrittenJob:
+                        layer_inserts: dict[int, list[str]] | None = None, parsed: Job | None = None) -> RewrittenJob:
     """``data`` with the configuration's frequency limit, per-feature commands and Y schedule
     (``config.y_schedule`` at layer changes, unless ``layer_inserts`` is given) written in for
     ``config.firmware`` (``printer``: a Printer, TOML path or None for the embedded default; its
-    limits plan the times and give the junction rule the corner value is written in)."""
+    limits plan the times and give the junction rule the corner value is written in). ``parsed``:
+    ``data`` already read (:func:`ringtune.shaping.gcode.read_gcode`), which is then not read again."""
     printer = resolve_printer(printer)
     limits = printer.limits
-    original = read_gcode(data, source=source)
+    original = parsed if parsed is not None else read_gcode(data, source=source)
     before = plan_with_config(original, limits, None).plan.print_time
     if layer_inserts is None and config.y_schedule:
         sched = schedule_inserts([la.z for la in job_layers(original)], config)
@@ -74,7 +75,7 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     if not lines:
         raise RingtuneError("the job is empty", source)
     fc = FeatureCommands.from_config(config, limits)
-    out = rewrite_job(lines, config.firmware, fc, layer_inserts)
+    out = rewrite_job(lines, config.firmware, fc, layer_inserts, parsed=None if f_changed else original)
     inserted = len(out) - len(lines)
     nl = "\r\n" if lines[0].endswith("\r\n") else "\n"
     new = "".join(out).encode("utf-8", errors="surrogateescape")
@@ -120,9 +121,10 @@ def native_limit(config: TuneConfig) -> bool:
 
 
 def rewrite_file(src, dst, config: TuneConfig, printer=None,
-                 layer_inserts: dict[int, list[str]] | None = None) -> RewrittenJob:
-    """:func:`rewrite_gcode_bytes` of the file ``src``, written to ``dst`` (None: not written)."""
-    done = rewrite_gcode_bytes(read_gcode_bytes(src), config, printer, str(src), layer_inserts)
+                 layer_inserts: dict[int, list[str]] | None = None, parsed: Job | None = None) -> RewrittenJob:
+    """:func:`rewrite_gcode_bytes` of the file ``src``, written to ``dst`` (None: not written);
+    ``parsed``: the file already read."""
+    done = rewrite_gcode_bytes(read_gcode_bytes(src), config, printer, str(src), layer_inserts, parsed)
     if dst is not None:
         Path(dst).write_bytes(done.data)
     return done

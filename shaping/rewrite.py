@@ -142,7 +142,7 @@ def _feature_inserts(job: Job, firmware: str, fc: FeatureCommands) -> dict[int, 
 
 
 def rewrite_job(lines: list[str], firmware: str, feature_cmds: FeatureCommands | None,
-                layer_inserts: dict[int, list[str]] | None = None) -> list[str]:
+                layer_inserts: dict[int, list[str]] | None = None, parsed: Job | None = None) -> list[str]:
     """The job's lines with the per-feature commands and ``layer_inserts`` inserted (module
     docstring); every input line is kept as it is, in order.
 
@@ -152,10 +152,12 @@ def rewrite_job(lines: list[str], firmware: str, feature_cmds: FeatureCommands |
         feature_cmds: what to set per feature (:meth:`FeatureCommands.from_config`), or None.
         layer_inserts: {layer index (0 = first layer, :func:`layer_starts`): [G-code lines]},
             inserted before the first move of that layer, ahead of any feature command there.
+        parsed: ``lines`` already read (:func:`ringtune.shaping.gcode.read_gcode`), else they are read here.
     """
     keep = bool(lines) and lines[0].endswith("\n")
     nl = ("\r\n" if lines[0].endswith("\r\n") else "\n") if keep else ""
-    job = read_gcode("".join(ln if keep else ln + "\n" for ln in lines), source="job")
+    job = parsed if parsed is not None else read_gcode("".join(ln if keep else ln + "\n" for ln in lines),
+                                                       source="job")
     inserts: dict[int, list[str]] = {}
     if layer_inserts:
         starts = layer_starts(job)

@@ -27,7 +27,7 @@ from ringtune.agents.tune.space import (CORNER_UNIT, default_space, freq_floor_n
                                        unshaped_modes_note, walked_keys)
 from ringtune.agents.tune.stop import Bounds
 from ringtune.agents.tune.study_results import study_points
-from ringtune.envs.planned_job import planned_job, resolve_printer
+from ringtune.envs.planned_job import planned_job, resolve_job, resolve_printer
 from ringtune.envs.job_rewrite import first_layer_words, rewrite_file
 from ringtune.envs.printer_model import unmeasured_note
 from ringtune.envs.variants import TWIN_DAMPING
@@ -295,7 +295,7 @@ def _write_job(gcode: str, out_dir: Path, config, printer, result: dict, note: C
     files; the summary's sentence on it. A job that cannot be rewritten leaves the study standing:
     its file is None and a note says why."""
     try:
-        done = rewrite_file(gcode, out_dir / "job.gcode", config, printer)
+        done = rewrite_file(gcode, out_dir / "job.gcode", config, printer, parsed=resolve_job(gcode)[1])
     except RingtuneError as exc:
         result["files"]["job"] = None
         note(f"ringtune tune: job.gcode not written: {exc}")
