@@ -255,6 +255,21 @@ def test_frequency_limit_composes_with_the_rewrite(data_dir):
     assert done.after_s == pytest.approx(planned_job(printer, path, cfg).print_time, rel=1e-4)
 
 
+@pytest.mark.parametrize("freq_limit_hz", [0.0, 20.0], ids=["no limit", "F words changed"])
+def test_a_job_already_read_rewrites_to_the_same_bytes(data_dir, freq_limit_hz):
+    """tune hands the rewrite the job it read (``parsed``): the same file, times and insertions as
+    reading the bytes again, with the frequency limit's F words changed or not."""
+    path = data_dir / "gcode/ringtune_builtin_2025/test_print.gcode"
+    cfg = _config("klipper", "scv", 9.0, freq_limit_hz=freq_limit_hz)
+    printer = _printer("scv")
+    data = path.read_bytes()
+    fresh = rewrite_gcode_bytes(data, cfg, printer, str(path))
+    given = rewrite_gcode_bytes(data, cfg, printer, str(path), parsed=read_gcode(path))
+    assert given.data == fresh.data and given.lines_inserted == fresh.lines_inserted > 0
+    assert (given.before_s, given.after_s, given.config_s) == (fresh.before_s, fresh.after_s, fresh.config_s)
+    assert (given.f_lines_changed > 0) == (freq_limit_hz > 0)
+
+
 def test_rewrite_command(tmp_path, data_dir, capsys):
     cfg = _config("klipper", "scv", 8.0)
     (tmp_path / "best.json").write_text(json.dumps(cfg.to_dict()))
