@@ -97,6 +97,15 @@ def marlin_retractions(job: Job, limits, use: bool, e_only: np.ndarray) -> np.nd
     return e_only & known
 
 
+def row_min(a: np.ndarray) -> np.ndarray:
+    """Each row's minimum of an (n, k) array with few columns, column by column: ``a.min(axis=1)``
+    (NaN wins as there), several times faster along so short a row."""
+    out = a[:, 0]
+    for j in range(1, a.shape[1]):
+        out = np.minimum(out, a[:, j])
+    return np.array(out, copy=True) if a.shape[1] == 1 else out
+
+
 def kinematic_accel(accel: np.ndarray, u: np.ndarray, caps: np.ndarray, rule: str = "per_axis",
                     scale_xy: bool = False, skip: np.ndarray | None = None) -> np.ndarray:
     """The acceleration (mm/s²) each move gets under the per-axis ``caps`` ((n, 4), inf = none) by
@@ -113,11 +122,11 @@ def kinematic_accel(accel: np.ndarray, u: np.ndarray, caps: np.ndarray, rule: st
             xy = np.where(share > 0, 1.0 / share, np.inf)
             norm = np.maximum(caps[:, 0], caps[:, 1])
         else:
-            xy = ratio[:, :2].min(axis=1)
+            xy = row_min(ratio[:, :2])
             norm = np.hypot(caps[:, 0], caps[:, 1])
     if scale_xy:
         xy = xy * accel / norm
-    out = np.minimum(accel, np.minimum(xy, ratio[:, 2:].min(axis=1)))
+    out = np.minimum(accel, np.minimum(xy, row_min(ratio[:, 2:])))
     return out if skip is None else np.where(skip, accel, out)
 
 
@@ -134,7 +143,7 @@ def scale_by_axes(value: np.ndarray, u: np.ndarray, caps: np.ndarray) -> np.ndar
     au = np.abs(u)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(au > 0, caps / au, np.inf)
-    return np.minimum(value, ratio.min(axis=1))
+    return np.minimum(value, row_min(ratio))
 
 
 # -- the planner --------------------------------------------------------------------------------
@@ -218,7 +227,7 @@ def jerk_safe_speeds(job, limits, use, u, vmax) -> np.ndarray:
     jerk = jerk_limits(job, limits, use)
     axis_v = np.abs(u) * vmax[:, None]
     capped = np.where(axis_v > jerk, jerk, np.inf)
-    return np.minimum(vmax, capped.min(axis=1))
+    return np.minimum(vmax, row_min(capped))
 
 
 def jerk_junction(job, limits, use, u, vmax, safe) -> np.ndarray:
