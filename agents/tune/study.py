@@ -42,11 +42,11 @@ from collections import Counter
 from dataclasses import asdict, dataclass, field
 from typing import Any, Callable
 
-import numpy as np
 import optuna
 from optuna.trial import TrialState
 
 from ringtune.agents.tune import trial_screen
+from ringtune.agents.tune.sampler import make_sampler
 from ringtune.agents.tune.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MAX_SHOW_THROUGH_MM,
     DEFAULT_MOTOR_RESERVE, OBJECTIVES, metrics_dict, objective_value, variant_figures, variants_to_json)
 from ringtune.agents.tune.space import SearchSpace, config_from_params, default_space, suggest_params
@@ -121,25 +121,6 @@ def load_space(settings: StudySettings, printer: Any = None) -> SearchSpace:
     if printer is None:
         printer = load_printer(settings.printer)
     return default_space(printer, settings.firmware)
-
-
-def make_sampler(seed: int | None, n_startup_trials: int = 10):
-    """Multi-objective TPE whose random state depends only on (seed, trial number)."""
-    class ReseedingTPESampler(optuna.samplers.TPESampler):
-        def __init__(self, seed, **kw):
-            super().__init__(seed=seed, **kw)
-            self._base_seed = seed
-
-        def before_trial(self, study, trial):
-            if self._base_seed is not None:
-                s = int(np.random.SeedSequence([int(self._base_seed), int(trial.number)]).generate_state(1)[0])
-                self._rng.rng.seed(s)
-                self._random_sampler._rng.rng.seed(s ^ 0x5EED)
-            super().before_trial(study, trial)
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-        return ReseedingTPESampler(seed, n_startup_trials=n_startup_trials, multivariate=True, group=True)
 
 
 def open_study(settings: StudySettings, seed: int | None = None):
