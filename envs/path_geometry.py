@@ -43,13 +43,15 @@ class Legs:
     e_start: np.ndarray
     e_end: np.ndarray
 
-    @property
+    @cached_property
     def direction(self) -> np.ndarray:
+        """(L, 2) unit vector of each leg (computed once: the legs are not changed once made)."""
         d = self.end - self.start
         return d / np.maximum(_norm(d), EPS_LEN)[:, None]
 
-    @property
+    @cached_property
     def length(self) -> np.ndarray:
+        """(L,) length of each leg, mm."""
         return _norm(self.end - self.start)
 
     @cached_property

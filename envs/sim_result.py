@@ -6,6 +6,8 @@ Units: mm, s, mm/s², N."""
 
 from __future__ import annotations
 
+import functools
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,13 +89,24 @@ def motor_forces(printer: Printer, f_axis: np.ndarray, v: np.ndarray, a: np.ndar
     A = B = f_x/2, Y = f_y); each motor adds its rotor's inertia (m_r·a_motor) and friction."""
     motors = printer.drive_motors()
     D = np.array([d for _n, _m, d in motors], float).T                # (2, k)
-    f_belt = f_axis @ np.linalg.pinv(D.T)
+    f_belt = f_axis @ _drive_inverse(D)
     vm, am = v @ D, a @ D
     mr = np.array([mo.rotor_mass for _n, mo, _d in motors])
     fr = np.array([mo.friction for _n, mo, _d in motors])
     force = f_belt + mr * am * 1e-3 + fr * np.sign(vm)
     fmax = np.stack([mo.max_force(vm[:, k]) for k, (_n, mo, _d) in enumerate(motors)], axis=1)
     return force, fmax, motors
+
+
+@functools.lru_cache(maxsize=64)
+def _drive_inverse_of(key: bytes, shape: tuple) -> np.ndarray:
+    return np.linalg.pinv(np.frombuffer(key).reshape(shape).T)
+
+
+def _drive_inverse(D: np.ndarray) -> np.ndarray:
+    """The least-squares inverse of the drive ``D`` (2, k) as ``np.linalg.pinv(D.T)`` gives it,
+    computed once per drive (every window of a study asks it of the same few)."""
+    return _drive_inverse_of(np.ascontiguousarray(D).tobytes(), D.shape)
 
 
 def _result(t, p, dev, head, force, fmax, over, backend, rotor_lag=None) -> SimResult:
