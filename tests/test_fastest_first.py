@@ -27,7 +27,8 @@ def _point(t: float, ripple: float = 0.05):
                               max_show_through_mm=0.2)
 
 
-def _run(times, judged_ripple, screen_ripple=lambda t: 0.05, accept=lambda p: None, needed=lambda i, t: False):
+def _run(times, judged_ripple, screen_ripple=lambda t: 0.05, accept=lambda p: None, needed=lambda i, t: False,
+         screened=True):
     """judged_fastest_first over candidates with these print times (whole s; candidate i's config
     has accel 1000·t + i), the judgement's ripple by (print time, i) and the screen's by print
     time; the base ripples 0.05 mm at 100 s."""
@@ -42,7 +43,8 @@ def _run(times, judged_ripple, screen_ripple=lambda t: 0.05, accept=lambda p: No
         return [_metrics(c.accel // 1000.0, screen_ripple(c.accel // 1000.0)) for c in cs]
 
     base = _point(100.0)
-    out = judged_fastest_first(configs, evaluate, screen, {"klipper": base}, base, BOUNDS, DEFAULT_RESOLUTION, "t",
+    out = judged_fastest_first(configs, evaluate, screen if screened else None, {"klipper": base}, base, BOUNDS,
+                               DEFAULT_RESOLUTION, "t",
                                accept=accept, needed=needed, batch=2)
     return out, calls
 
@@ -96,3 +98,10 @@ def test_nothing_passes_every_candidate_judged():
     (taken, points, why, judged), calls = _run(times, lambda t, i: 0.09)
     assert taken is None and judged == 3 and calls == [[10.0, 20.0], [30.0]]
     assert all(w[0].key == "ripple_mm" for w in why) and points == [None] * 3
+
+
+def test_with_no_screen_every_candidate_is_judged_at_once_and_the_fastest_passing_taken():
+    times = [30.0, 10.0, 20.0]
+    (taken, points, why, judged), calls = _run(times, lambda t, i: 0.05 if t >= 20 else 0.09, screened=False)
+    assert times[taken] == 20.0 and judged == 3 and calls == [[10.0, 20.0, 30.0]]
+    assert why[1][0].key == "ripple_mm" and not why[1][1] and points[0] is not None

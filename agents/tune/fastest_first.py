@@ -25,7 +25,8 @@ from ringtune.shaping.config import TuneConfig
 BATCH = max(2, os.cpu_count() or 1)
 
 
-def judged_fastest_first(configs: Sequence[TuneConfig], evaluate: Callable, screen: Callable, bases: dict[str, Point],
+def judged_fastest_first(configs: Sequence[TuneConfig], evaluate: Callable, screen: Callable | None,
+                         bases: dict[str, Point],
                          faster_than: Point, bounds: Bounds, res: Resolution, label: str,
                          accept: Callable[[Point], object], needed: Callable[[int, int], bool] = lambda i, t: False,
                          batch: int = BATCH) -> tuple[int | None, list, list, int]:
@@ -38,6 +39,10 @@ def judged_fastest_first(configs: Sequence[TuneConfig], evaluate: Callable, scre
     n = len(configs)
     points: list[Point | None] = [None] * n
     why: list = [None] * n
+    if screen is None:       # no print time before the judgement: every candidate judged at once
+        every = [(0.0, i) for i in range(n)]
+        _judge(every, configs, evaluate, bases, faster_than, bounds, res, label, points, why)
+        return _take(every, points, why, accept), points, why, n
     todo = _screened(configs, screen, bases, faster_than, bounds, res, why)
     judged, taken = 0, None
     while todo and taken is None:

@@ -45,7 +45,7 @@ from ringtune.agents.tune.feature_groups import ABUTTING_GROUPS, CORNER_GROUPS, 
 from ringtune.agents.tune.space import (SearchSpace, config_from_params,
                                         params_from_config)
 from ringtune.agents.tune.fastest_first import judged_fastest_first
-from ringtune.agents.tune.stop import Bounds, Failure, failure_words, passing_why
+from ringtune.agents.tune.stop import Bounds, Failure, failure_words
 from ringtune.shaping.config import TuneConfig
 
 #: shares of the way from the current value to the range's top that are tried, fastest first
@@ -243,19 +243,15 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
             return None, []
         # a step must save MIN_STEP_SAVING of the print time: a raise that buys nothing is not taken
         beat = dataclasses.replace(walk.point, print_time_s=walk.point.print_time_s * (1.0 - MIN_STEP_SAVING))
-        configs = [c for _p, c in pairs]
-        if screen is None:
-            best, why, judged_n = _all_judged(configs, evaluate, bases, beat, bounds, res, wider)
-        else:
-            # fastest first: a slower candidate cannot be kept; those above the one kept are judged
-            # still, for what holds the setting (:func:`_held`)
-            value = [float(p[key]) for p, _c in pairs]
-            taken, points, why, judged_n = judged_fastest_first(
-                configs, evaluate, screen, bases, beat, bounds, res, "hidden raise",
-                accept=(lambda p: wider(p.config)) if wider is not None else (lambda p: None),
-                needed=lambda i, t: value[i] > value[t])
-            best = None if taken is None else points[taken]
-            walk.screened += len(configs)
+        # fastest first: a slower candidate cannot be kept; those above the one kept are judged
+        # still, for what holds the setting (:func:`_held`)
+        value = [float(p[key]) for p, _c in pairs]
+        taken, points, why, judged_n = judged_fastest_first(
+            [c for _p, c in pairs], evaluate, screen, bases, beat, bounds, res, "hidden raise",
+            accept=(lambda p: wider(p.config)) if wider is not None else (lambda p: None),
+            needed=lambda i, t: value[i] > value[t])
+        best = None if taken is None else points[taken]
+        walk.screened += len(pairs) if screen is not None else 0
         walk.evaluations += judged_n
         fails = [(params_from_config(c, space), *w) for (_p, c), w in zip(pairs, why) if w is not None]
         return best, fails
@@ -276,20 +272,6 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
             walk.point, params = best, new
         walk.held.append(_held(key, params, fails + more, space))
     return walk
-
-
-def _all_judged(configs: list[TuneConfig], evaluate, bases: dict[str, Point], beat: Point, bounds: Bounds,
-                res: Resolution, wider) -> tuple[Point | None, list, int]:
-    """With no screen: every candidate judged; (the fastest that passes and holds wider, or None;
-    per candidate why it failed, or None; how many were judged)."""
-    points, why, judged_n, _ = passing_why(configs, evaluate, None, bases, beat, bounds, res, "hidden raise")
-    for i in sorted((i for i, p in enumerate(points) if p is not None),
-                    key=lambda i: (points[i].print_time_s, points[i].quality_mm)):
-        off = wider(points[i].config) if wider is not None else None
-        if off is None:
-            return points[i], why, judged_n
-        why[i] = (off, False)
-    return None, why, judged_n
 
 
 def _held(key: str, params: dict[str, Any], fails: list[tuple[dict, tuple, bool]], space: SearchSpace) -> Held:
