@@ -211,12 +211,21 @@ def test_the_walk_stops_at_its_budget(space):
     assert "budget of 5 evaluations" in lift.sentence() and lift.to_dict()["cut"] is True
 
 
-def test_screening_on_the_exact_model_changes_the_walk_in_nothing_but_its_cost(space):
-    """Each batch screened first on an exact model no worse than the judgement (here the same
-    figures): the walk ends at the same point, and what fails is never judged."""
+def _plain_and_screened(space, evaluate, exact, judged: list):
+    """(the walk from :func:`_start` judging every candidate, how many it judged, the same walk
+    screened by ``exact`` first); ``judged``: the list ``evaluate`` appends its batch sizes to."""
     start_cfg = _start(space)
     start = point_from_metrics(start_cfg, _metrics(start_cfg), max_path_error_mm=0.1, max_motor_load=0.8,
                                max_show_through_mm=0.2)
+    plain = raise_hidden(start, {"klipper": start}, evaluate, space, BOUNDS)
+    n_plain = sum(judged)
+    judged.clear()
+    return plain, n_plain, raise_hidden(start, {"klipper": start}, evaluate, space, BOUNDS, screen=exact)
+
+
+def test_screening_on_the_exact_model_changes_the_walk_in_nothing_but_its_cost(space):
+    """Each batch screened first on an exact model no worse than the judgement (here the same
+    figures): the walk ends at the same point, and what fails is never judged."""
     judged, screened = [], []
 
     def evaluate(configs):
@@ -227,10 +236,7 @@ def test_screening_on_the_exact_model_changes_the_walk_in_nothing_but_its_cost(s
         screened.append(len(configs))
         return [_metrics(c) for c in configs]
 
-    plain = raise_hidden(start, {"klipper": start}, evaluate, space, BOUNDS)
-    n_plain = sum(judged)
-    judged.clear()
-    lift = raise_hidden(start, {"klipper": start}, evaluate, space, BOUNDS, screen=exact)
+    plain, n_plain, lift = _plain_and_screened(space, evaluate, exact, judged)
     assert lift.point.config == plain.point.config and lift.raised == plain.raised
     # every candidate screened; judged only what passed: the infill above RIPPLE_TOP, the corners
     # beyond the show-through bound and what saves no time are never judged
@@ -244,9 +250,6 @@ def test_judging_the_screens_passes_fastest_first_ends_where_judging_all_does(sp
     first, and only as far as the first that passes, ends the walk at the same point with the same
     settings raised and the same reasons for what holds each (tests/test_fastest_first.py counts
     what it leaves unjudged)."""
-    start_cfg = _start(space)
-    start = point_from_metrics(start_cfg, _metrics(start_cfg), max_path_error_mm=0.1, max_motor_load=0.8,
-                               max_show_through_mm=0.2)
     judged = []
 
     def evaluate(configs):
@@ -260,10 +263,7 @@ def test_judging_the_screens_passes_fastest_first_ends_where_judging_all_does(sp
     def exact(configs):
         return [_metrics(c) for c in configs]
 
-    plain = raise_hidden(start, {"klipper": start}, evaluate, space, BOUNDS)
-    n_plain = sum(judged)
-    judged.clear()
-    lift = raise_hidden(start, {"klipper": start}, evaluate, space, BOUNDS, screen=exact)
+    plain, n_plain, lift = _plain_and_screened(space, evaluate, exact, judged)
     assert lift.point.config == plain.point.config and lift.raised == plain.raised
     assert 5000 < lift.point.config.feature_accel["infill"] <= 7000      # raised, as far as the judgement allows
     assert [(h.key, h.value, h.tried, h.why.key if h.why else None) for h in lift.held] == \
