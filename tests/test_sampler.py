@@ -53,7 +53,12 @@ def test_the_points_are_optunas_own_with_the_split_made_once_per_trial(seed, mon
     # groups share one split: fewer splits than Optuna's own (one per group and trial), at least
     # one per trial sampled by TPE
     assert 40 <= len(calls) < n_own
-    assert tpe_module._split_trials is counted       # Optuna's function is back after each trial
+    # outside a trial's sampling the split is Optuna's own again (the memo is per trial and thread)
+    calls.clear()
+    study = optuna.create_study(directions=["minimize", "minimize"])
+    tpe_module._split_trials(study, [], 0)
+    tpe_module._split_trials(study, [], 0)
+    assert len(calls) == 2
 
 
 def test_without_the_split_function_nothing_changes(monkeypatch):

@@ -8,11 +8,14 @@ per trial.
   same finished trials into its better and worse share (non-dominated sorting and hypervolume
   contributions over every objective). That split is a pure function of the trials (their numbers,
   states and values), so it is computed once per trial and reused by every group: the same points,
-  a fraction of the sampler's time (tests/test_sampler.py).
+  a fraction of the sampler's time (tests/test_sampler.py). Optuna's (private) split function is
+  wrapped once per process; the wrapper memoises only while a trial of this sampler is being
+  sampled in the same thread, and is Optuna's own everywhere else.
 """
 
 from __future__ import annotations
 
+import threading
 import warnings
 from contextlib import contextmanager
 
@@ -47,26 +50,45 @@ class ReseedingTPESampler(optuna.samplers.TPESampler):
             return super().sample_relative(study, trial, search_space)
 
 
+#: the split memo of the trial being sampled, per thread (None: Optuna's own split)
+_active = threading.local()
+
+
 @contextmanager
 def split_once():
-    """Within the block, Optuna's TPE split of the trials is computed once per distinct set of
-    trials (numbers and states) and argument; outside it, Optuna's own. Where this Optuna has no
-    such function, nothing changes."""
-    split = getattr(_tpe, "_split_trials", None)
-    if split is None:
+    """Within the block (in this thread), Optuna's TPE split of the trials is computed once per
+    distinct set of trials (numbers and states) and arguments; elsewhere, Optuna's own. Where this
+    Optuna has no such function, nothing changes."""
+    if not _install():
         yield
         return
-    memo: dict = {}
+    _active.memo = {}
+    try:
+        yield
+    finally:
+        _active.memo = None
 
+
+def _install() -> bool:
+    """Route Optuna's split through :func:`_memoized` (once per process); False where it has none."""
+    split = getattr(_tpe, "_split_trials", None)
+    if split is None:
+        return False
+    if not getattr(split, "ringtune_memo", False):
+        _tpe._split_trials = _memoized(split)
+    return True
+
+
+def _memoized(split):
     def once(study, trials, *args, **kwargs):
+        memo = getattr(_active, "memo", None)
+        if memo is None:
+            return split(study, trials, *args, **kwargs)
         key = (tuple((t.number, t.state) for t in trials), args, tuple(sorted(kwargs.items())))
         if key not in memo:
             memo[key] = split(study, trials, *args, **kwargs)
         below, above = memo[key]
         return list(below), list(above)
 
-    _tpe._split_trials = once
-    try:
-        yield
-    finally:
-        _tpe._split_trials = split
+    once.ringtune_memo = True
+    return once
