@@ -7,7 +7,6 @@ Units: mm, s, mm/s², N."""
 from __future__ import annotations
 
 import functools
-
 from dataclasses import dataclass
 
 import numpy as np
