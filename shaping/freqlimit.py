@@ -26,6 +26,7 @@ import math
 import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.geometry_cache import by_geometry
 from ringtune.shaping.job import Job
 
 METHODS = ("nophead", "sections", "marlin")
@@ -114,9 +115,16 @@ def _window_wavelengths(lengths: np.ndarray, run_path: np.ndarray) -> np.ndarray
 
 
 def path_wavelengths(job: Job, method: str = "sections", features=None) -> np.ndarray:
-    """(n,) shortest three-cycle wavelength (mm of path) governing each move (inf = no limit).
+    """(n,) shortest three-cycle wavelength (mm of path) governing each move (inf = no limit;
+    read-only: computed once per job geometry, :mod:`ringtune.shaping.geometry_cache`).
 
     ``nophead``: one value per whole path; ``sections``: per run between direction changes."""
+    arrays = (job.start, job.end, job.feature, job.stop_before)
+    extra = (method, tuple(features) if features is not None else None, tuple(job.features))
+    return by_geometry("path_wavelengths", arrays, extra, lambda: _path_wavelengths(job, method, features))
+
+
+def _path_wavelengths(job: Job, method: str, features) -> np.ndarray:
     delta, d = _geometry(job)
     path = extrusion_paths(job, features)
     out = np.full(job.n_moves, np.inf)

@@ -29,6 +29,7 @@ import numpy as np
 from ringtune.shaping.features import VISIBLE, feature_class
 from ringtune.shaping.freqlimit import CYCLES
 from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.geometry_cache import by_geometry
 from ringtune.shaping.job import Job
 from ringtune.shaping.seams import SEAM_ORDER, seam_candidates
 
@@ -144,6 +145,17 @@ def _corner_candidates(plan, tau: float = 0.02):
     n = len(mv)
     if n < 2:
         return np.zeros(0), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.int64)
+    idx = by_geometry("corners", (mv.start, mv.end), (), lambda: _corner_moves(mv))
+    tj = mv.t_start[idx + 1]
+    vb = plan.motion.velocity(tj - tau)[:, :2]
+    va = plan.motion.velocity(tj + tau)[:, :2]
+    score = np.linalg.norm(va - vb, axis=1)
+    return tj, score, mv.line[idx + 1], idx + 1
+
+
+def _corner_moves(mv) -> np.ndarray:
+    """Index of the move before each junction inside extrusion that turns by more than 30°
+    (the moves' geometry alone; extruding: E grows while X/Y move)."""
     ext = mv.extruding
     both = ext[1:] & ext[:-1]
     d_prev = (mv.end[:-1] - mv.start[:-1])[:, :2]
@@ -152,12 +164,7 @@ def _corner_candidates(plan, tau: float = 0.02):
     norm = np.linalg.norm(d_prev, axis=1) * np.linalg.norm(d_next, axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
         cos = np.where(norm > 0, dot / norm, 1.0)
-    idx = np.flatnonzero(both & (cos < math.cos(math.radians(30))))
-    tj = mv.t_start[idx + 1]
-    vb = plan.motion.velocity(tj - tau)[:, :2]
-    va = plan.motion.velocity(tj + tau)[:, :2]
-    score = np.linalg.norm(va - vb, axis=1)
-    return tj, score, mv.line[idx + 1], idx + 1
+    return np.flatnonzero(both & (cos < math.cos(math.radians(30))))
 
 
 def direction_change_frequencies(plan):
@@ -170,24 +177,11 @@ def direction_change_frequencies(plan):
     ts, fs, ls = [], [], []
     if n < 2:
         return np.zeros(0), np.zeros(0), np.zeros(0, np.int64)
-    ext = mv.extruding
-    connected = np.all(mv.start[1:] == mv.end[:-1], axis=1)
     k = 2 * CYCLES
-    for axis in (0, 1):
-        s = np.sign(mv.end[:, axis] - mv.start[:, axis])
-        sel = np.flatnonzero((s != 0) & ext)
-        if len(sel) <= k:
-            continue
-        # a reversal at move j: previous moving move on this axis had the opposite sign, same path
-        prev, cur = sel[:-1], sel[1:]
-        same_path = _same_path(ext, connected, prev, cur)
-        rev = cur[(s[cur] != s[prev]) & same_path]
-        if len(rev) <= k:
-            continue
+    for rev, one_path in by_geometry("reversals", (mv.start, mv.end), (), lambda: _reversals(mv)):
         t_rev = mv.t_start[rev]
         span = t_rev[k:] - t_rev[:-k]
-        # all k reversals must lie in one path: no non-extruding move between the first and last
-        good = _same_path(ext, connected, rev[:-k], rev[k:]) & (span > 0)
+        good = one_path & (span > 0)
         with np.errstate(divide="ignore"):
             f = CYCLES / span
         ts.append(0.5 * (t_rev[k:] + t_rev[:-k])[good])
@@ -196,6 +190,29 @@ def direction_change_frequencies(plan):
     if not ts:
         return np.zeros(0), np.zeros(0), np.zeros(0, np.int64)
     return np.concatenate(ts), np.concatenate(fs), np.concatenate(ls)
+
+
+def _reversals(mv) -> tuple:
+    """Per axis with more than 2·CYCLES reversals inside extrusion paths: (the moves where X or Y
+    reverses within a path, whether the 2·CYCLES reversals from each lie in one path) — the
+    moves' geometry alone."""
+    ext = mv.extruding
+    connected = np.all(mv.start[1:] == mv.end[:-1], axis=1)
+    k = 2 * CYCLES
+    out = []
+    for axis in (0, 1):
+        s = np.sign(mv.end[:, axis] - mv.start[:, axis])
+        sel = np.flatnonzero((s != 0) & ext)
+        if len(sel) <= k:
+            continue
+        # a reversal at move j: previous moving move on this axis had the opposite sign, same path
+        prev, cur = sel[:-1], sel[1:]
+        rev = cur[(s[cur] != s[prev]) & _same_path(ext, connected, prev, cur)]
+        if len(rev) <= k:
+            continue
+        # all k reversals must lie in one path: no non-extruding move between the first and last
+        out.append((rev, _same_path(ext, connected, rev[:-k], rev[k:])))
+    return tuple(out)
 
 
 def _same_path(ext, connected, a, b) -> np.ndarray:
