@@ -311,7 +311,7 @@ def _build(job, limits, w, cruise2, acc, dec, d, u, vmax, extruding) -> Plan:
     ext = extruding[move_idx] & moving & (np.abs(v[:, 3]) + np.abs(a[:, 3]) > 0)
     motion = Motion(t, p, v, a, ext, np.where(moving, move_idx, -1))
     # move start times (after its dwell)
-    move_total = dur.sum(axis=1)
+    move_total = ((dur[:, 0] + dur[:, 1]) + dur[:, 2]) + dur[:, 3]      # dur.sum(axis=1), in its order, faster
     t_move0 = np.concatenate(([0.0], np.cumsum(move_total)[:-1])) + dwell
     duration = t_acc + t_cr + t_dec
     print_time = float(t[-1] + job.dwell_after)
