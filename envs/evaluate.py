@@ -14,6 +14,7 @@ lead-in for the shaper and the machine to settle:
 from __future__ import annotations
 
 import dataclasses
+from collections import OrderedDict
 from typing import Sequence
 
 from ringtune.envs.metrics import Metrics, worst_case
@@ -152,7 +153,7 @@ def evaluate_variants(configs: Sequence[TuneConfig], printers: Sequence, job=Non
     prepared = []
     for cfg in configs:
         pj = require_windows(planned_job(printers[0], job, cfg, job_accel=job_accel), job)
-        prepared.append((cfg, pj, window_runs(pj, cfg, settle, corner_tail(printers[0]), job_shapers)))
+        prepared.append((cfg, pj, shaped_windows(pj, cfg, settle, corner_tail(printers[0]), job_shapers)))
     per_printer = []
     for p in printers:
         tail = corner_tail(p)
@@ -170,6 +171,26 @@ def evaluate_variants(configs: Sequence[TuneConfig], printers: Sequence, job=Non
             i += len(runs)
         out.append(evs)
     return out
+
+
+#: the windows last shaped, by plan and configuration (the study shapes a trial's windows for the
+#: printer as modelled, then again for its twins: the same windows)
+_SHAPED: "OrderedDict[tuple, tuple]" = OrderedDict()
+_SHAPED_MAX = 8
+
+
+def shaped_windows(pj: PlannedJob, cfg: TuneConfig, settle: float, tail: float, job_shapers: bool) -> list[WindowRun]:
+    """:func:`ringtune.envs.windows.window_runs` of ``pj`` under ``cfg``, shaped once for a few
+    calls in a row (the corner tail, which only the metrics read, set per call)."""
+    key = (id(pj), cfg.key(), settle, job_shapers)
+    hit = _SHAPED.get(key)
+    if hit is None or hit[0] is not pj:
+        hit = (pj, window_runs(pj, cfg, settle, tail, job_shapers))
+        _SHAPED[key] = hit
+        while len(_SHAPED) > _SHAPED_MAX:
+            _SHAPED.popitem(last=False)
+    _SHAPED.move_to_end(key)
+    return [r if r.corner_tail == tail else dataclasses.replace(r, corner_tail=tail) for r in hit[1]]
 
 
 def _simulate_grouped(printers: list, motions: list[list[Motion]], backend: str, nthread: int | None) -> list[list]:

@@ -55,3 +55,23 @@ def test_cost_is_smooth_in_the_acceleration():
     for name, bound in (("path_error_mm", 0.05), ("overshoot_mm", 0.15), ("ringing_mm", 0.15)):
         v = np.array([getattr(m, name) for m in ms])
         assert np.max(np.abs(np.diff(v)) / v[:-1]) < bound, name
+
+
+def test_a_trials_windows_are_shaped_once_for_the_model_and_its_twins():
+    """shaped_windows: the same plan and configuration give the windows window_runs gives, shaped
+    once (the second call hands out the same shaped motions); a corner tail of the call's own is
+    set on them; another configuration is shaped anew."""
+    from ringtune.envs.evaluate import shaped_windows
+    from ringtune.envs.windows import window_runs
+
+    cfg = TuneConfig(shaper_x="mzv", freq_x=50.0, shaper_y="ei", freq_y=42.0, accel=5000.0)
+    pj = planned_job(load_printer(None), None, cfg)
+    first = shaped_windows(pj, cfg, 0.1, 0.0125, False)
+    fresh = window_runs(pj, cfg, 0.1, 0.0125, False)
+    assert len(first) == len(fresh) > 0
+    for a, b in zip(first, fresh):
+        assert a.t0 == b.t0 and np.array_equal(a.shaped.p, b.shaped.p) and np.array_equal(a.path.t, b.path.t)
+    again = shaped_windows(pj, cfg, 0.1, 0.02, False)
+    assert all(a.shaped is b.shaped and b.corner_tail == 0.02 for a, b in zip(first, again))
+    other = dataclasses.replace(cfg, freq_x=55.0)
+    assert shaped_windows(pj, other, 0.1, 0.0125, False)[0].shaped is not first[0].shaped
