@@ -134,9 +134,10 @@ def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN,
 
 
 def _trimmed(sim, t_lo: float, t_hi: float):
-    """The samples of ``sim`` with t in [t_lo, t_hi] (a shallow copy with sliced arrays)."""
+    """The samples of ``sim`` with t in [t_lo, t_hi] (a shallow copy with sliced arrays; the
+    sample times increase, so the samples kept are one run of them)."""
     t = np.asarray(sim.t)
-    keep = (t >= t_lo) & (t <= t_hi)
+    keep = slice(int(np.searchsorted(t, t_lo, side="left")), int(np.searchsorted(t, t_hi, side="right")))
     fields = {}
     for f in ("t", "commanded", "nozzle", "head_accel", "motor_force", "motor_force_max", "accel_sensor"):
         v = getattr(sim, f, None)
