@@ -25,6 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from ringtune.envs.sim_result import drive_inverse
+
 
 @dataclass(frozen=True)
 class PlanLoad:
@@ -59,7 +61,7 @@ def _per_motor(printer: Any, motion: Any) -> np.ndarray:
     """(n_motors, n_segments) load of each XY motor on each segment."""
     motors = printer.drive_motors()
     D = np.array([d for _n, _m, d in motors], float).T                  # (2, k)
-    P = np.linalg.pinv(D.T)                                             # (2, k)
+    P = drive_inverse(D)                                                # (2, k)
     mass = np.array([printer.moving_mass("x"), printer.moving_mass("y")])
     a = np.asarray(motion.a, float)[:, :2]
     v0 = np.asarray(motion.v, float)[:, :2]

@@ -88,7 +88,7 @@ def motor_forces(printer: Printer, f_axis: np.ndarray, v: np.ndarray, a: np.ndar
     A = B = f_x/2, Y = f_y); each motor adds its rotor's inertia (m_r·a_motor) and friction."""
     motors = printer.drive_motors()
     D = np.array([d for _n, _m, d in motors], float).T                # (2, k)
-    f_belt = f_axis @ _drive_inverse(D)
+    f_belt = f_axis @ drive_inverse(D)
     vm, am = v @ D, a @ D
     mr = np.array([mo.rotor_mass for _n, mo, _d in motors])
     fr = np.array([mo.friction for _n, mo, _d in motors])
@@ -99,12 +99,14 @@ def motor_forces(printer: Printer, f_axis: np.ndarray, v: np.ndarray, a: np.ndar
 
 @functools.lru_cache(maxsize=64)
 def _drive_inverse_of(key: bytes, shape: tuple) -> np.ndarray:
-    return np.linalg.pinv(np.frombuffer(key).reshape(shape).T)
+    inv = np.linalg.pinv(np.frombuffer(key).reshape(shape).T)
+    inv.flags.writeable = False          # one array handed to every caller
+    return inv
 
 
-def _drive_inverse(D: np.ndarray) -> np.ndarray:
+def drive_inverse(D: np.ndarray) -> np.ndarray:
     """The least-squares inverse of the drive ``D`` (2, k) as ``np.linalg.pinv(D.T)`` gives it,
-    computed once per drive (every window of a study asks it of the same few)."""
+    computed once per drive (every window and plan of a study asks it of the same few); read-only."""
     return _drive_inverse_of(np.ascontiguousarray(D).tobytes(), D.shape)
 
 

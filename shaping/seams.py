@@ -21,26 +21,16 @@ REACH = 5
 SEAM_ORDER = ("outer_wall", "top_surface", "bridge_overhang", "other")
 
 
-def move_classes(plan) -> np.ndarray:
-    """(n_moves,) feature class of each planned move; a move that does not extrude is ``travel``."""
-    mv = plan.moves
-    names = _label_classes(plan)
-    return np.where(mv.extruding, names[mv.feature], "travel") if len(mv) else np.zeros(0, names.dtype)
-
-
-def present_classes(plan) -> set[str]:
-    """The classes of :func:`move_classes` that occur (from the labels the moves use, not the
-    per-move strings)."""
-    mv = plan.moves
-    if not len(mv):
-        return set()
-    out = set(_label_classes(plan)[np.unique(mv.feature[mv.extruding])].tolist())
-    return out | {"travel"} if not np.all(mv.extruding) else out
-
-
-def _label_classes(plan) -> np.ndarray:
+def label_classes(plan) -> np.ndarray:
     """The feature class of each of the job's labels (``other`` alone when it has none)."""
     return np.array([feature_class(n) for n in plan.moves.features] or ["other"])
+
+
+def _present_classes(mv, names: np.ndarray) -> set[str]:
+    """The classes the moves have — their label's (``names``) where they extrude, ``travel``
+    where not — read from the labels the moves use, not from a string per move."""
+    out = set(names[np.unique(mv.feature[mv.extruding])].tolist())
+    return out | {"travel"} if not np.all(mv.extruding) else out
 
 
 def _peak_beside(cls: np.ndarray, v: np.ndarray, idx: np.ndarray, step: int) -> np.ndarray:
@@ -66,14 +56,14 @@ def seam_candidates(plan, span: float) -> dict[str, tuple]:
     highest cruise speed (mm/s) of the other class's moves beside it, the harder they are driven
     the more they leave on the wall."""
     mv = plan.moves
-    names = _label_classes(plan)
+    names = label_classes(plan)
     empty = (np.zeros(0), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, dtype=names.dtype))
     if len(mv) < 2:
         return {"seam-in": empty, "seam-out": empty}
     # each move's class as a code (its index in ``label``): integers compare faster than strings
     label = np.unique(np.append(names, "travel"))
     cls = np.where(mv.extruding, np.searchsorted(label, names)[mv.feature], np.searchsorted(label, "travel"))
-    visible = np.isin(label, list(seen_classes(present_classes(plan))))[cls]
+    visible = np.isin(label, list(seen_classes(_present_classes(mv, names))))[cls]
     change = cls[1:] != cls[:-1]
     first = np.flatnonzero(visible[1:] & change) + 1
     last = np.flatnonzero(visible[:-1] & change)

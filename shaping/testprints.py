@@ -26,12 +26,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ringtune.shaping.features import VISIBLE, feature_class
+from ringtune.shaping.features import VISIBLE
 from ringtune.shaping.freqlimit import CYCLES
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.geometry_cache import by_geometry
 from ringtune.shaping.job import Job
-from ringtune.shaping.seams import SEAM_ORDER, seam_candidates
+from ringtune.shaping.seams import SEAM_ORDER, label_classes, seam_candidates
 
 ZIGZAG_FREQS = (10.0, 15.0, 20.0, 30.0, 40.0, 55.0, 80.0)    # Hz at the commanded speed
 ZIGZAG_SPEED = 250.0         # mm/s
@@ -240,7 +240,7 @@ def _candidates(plan, span: float, order: bool = True) -> dict:
     tc, sc, lc, mc = _corner_candidates(plan)
     tz, fz, lz = direction_change_frequencies(plan)
     mv = plan.moves
-    names = np.array([feature_class(n) for n in mv.features] or ["other"])
+    names = label_classes(plan)
     cls_c = names[mv.feature[mc]] if len(mc) else np.zeros(0, str)
     cls_z = names[mv.feature[_last_move_of(mv.line, lz)]] if len(lz) else np.zeros(0, names.dtype)
     seen = np.isin(cls_c, list(VISIBLE))
