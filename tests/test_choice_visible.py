@@ -18,7 +18,7 @@ import json
 import pytest
 
 from ringtune.agents.cli.main import main
-from ringtune.agents.tune.stop import next_accels
+from ringtune.agents.tune.stop import MIN_STEP_SAVING, next_accels
 from ringtune.agents.tune.wider import WIDER
 from ringtune.envs.evaluate import evaluate_many
 from ringtune.envs.variants import variant_factors
@@ -161,8 +161,8 @@ def test_voron_reported_stop_is_the_measure_that_stops_it(v24_printer, tmp_path,
                  "show_through_mm": up.show_through_mm > res["max_show_through_mm"],
                  "path_error_mm": up.path_error_mm > res["max_path_error_mm"]}[key]
         assert bound
-    else:                                                                    # print time no longer falls
-        assert up.print_time_s >= mine.print_time_s
+    else:                                  # print time falls by less than the least saving a step must buy
+        assert up.print_time_s >= mine.print_time_s * (1 - MIN_STEP_SAVING)
 
 
 def test_simulate_shows_every_visible_measure_against_klippers_pick(capsys):

@@ -166,7 +166,7 @@ def test_a_failure_the_screen_saw_is_said_to_be_on_the_model_as_fitted(space):
 def test_a_raise_that_saves_less_than_the_least_step_is_not_taken(space):
     """Travel that takes almost no time (its raise saves under MIN_STEP_SAVING of the print time)
     stays where it was, more motor load for nothing; Held says the time it needed to beat."""
-    from ringtune.agents.tune.hidden_raise import MIN_STEP_SAVING
+    from ringtune.agents.tune.stop import MIN_STEP_SAVING
 
     def metrics(cfg):
         m = _metrics(cfg)

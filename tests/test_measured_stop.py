@@ -68,3 +68,27 @@ def test_a_frequency_limit_that_only_costs_time_is_shed(space):
     top = _highest_step_within(space)
     assert stop.point.config.accel == top and stop.point.config.freq_limit_hz == 0.0
     assert stop.point.print_time_s == pytest.approx(1000.0 + 1e6 / top)
+
+
+@pytest.mark.parametrize("c", [1e3, 1e6])
+def test_a_step_that_buys_under_the_least_saving_is_not_taken(space, c):
+    """A job whose print time is 1000 s + c/a: with c = 1e3 (its speeds bound it) the first 5 %
+    step saves c/a·(1 − a/a′) ≈ 0.01 s, under MIN_STEP_SAVING (0.05 %, 0.5 s) of the print time, so
+    the stop stays at 5000 mm/s² and says print time stops it; with c = 1e6 every step saves ~10 s
+    and it climbs to the ripple's top as before."""
+    from ringtune.agents.tune.stop import MIN_STEP_SAVING
+
+    def metrics(cfg):
+        return SimpleNamespace(**{**vars(_metrics(cfg)), "print_time_s": 1000.0 + c / float(cfg.accel)})
+
+    cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=54.2, freq_y=42.7, accel=5000.0)
+    start = point_from_metrics(cfg, metrics(cfg), max_path_error_mm=0.1, max_motor_load=0.8, max_show_through_mm=0.2)
+    stop = measured_stop(start, {"klipper": start}, lambda cs: [metrics(x) for x in cs], space, BOUNDS,
+                         labels={"klipper": "Klipper's rule"})
+    nxt = next_accels(5000.0, space.accel[1], space.accel_step, n=1)[0]
+    saving = c / 5000.0 - c / nxt
+    if saving < MIN_STEP_SAVING * start.print_time_s:
+        assert c == 1e3 and not stop.moved and stop.kind == "time" and stop.accel == nxt
+        assert "print time falls by less than 0.05 %" in stop.sentence
+    else:
+        assert c == 1e6 and stop.point.config.accel == _highest_step_within(space) and stop.kind == "measure"

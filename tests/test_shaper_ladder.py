@@ -280,3 +280,20 @@ def test_the_wider_check_refuses_the_fastest_and_takes_the_next_that_holds(space
     assert f"{V} faster ones refused: worse on a printer further off the model" in ladder.sentence()
     start, ladder, _ = _climb(space, _fits(), wider=lambda cfg: "worse")
     assert ladder.point is start and not ladder.moved and ladder.to_dict()["held_off"] > 0
+
+
+def test_a_rung_that_buys_under_the_least_saving_leaves_the_choice(space):
+    """The evaluator above with print time 1000 s + 1e3/a (the job's speeds bound it): zvd's and
+    2hump_ei's shapings keep the quality up to 7800 and 6800 mm/s² as before, but the fastest saves
+    1e3/5000 − 1e3/7800 ≈ 0.07 s, under MIN_STEP_SAVING (0.05 % of 1000.2 s): the choice stays."""
+    from ringtune.agents.tune.stop import MIN_STEP_SAVING
+
+    def metrics(cfg):
+        return SimpleNamespace(**{**vars(_metrics(cfg)), "print_time_s": 1000.0 + 1e3 / float(cfg.accel)})
+
+    start_cfg = TuneConfig(shaper_x="ei", freq_x=55.0, shaper_y="ei", freq_y=44.0, accel=5000.0)
+    start = point_from_metrics(start_cfg, metrics(start_cfg), max_path_error_mm=0.1, max_motor_load=0.8,
+                               max_show_through_mm=0.2)
+    assert 1e3 / 5000.0 - 1e3 / 7800.0 < MIN_STEP_SAVING * start.print_time_s
+    ladder = climb(start, {"klipper": start}, lambda cs: [metrics(c) for c in cs], space, BOUNDS, _fits())
+    assert not ladder.moved and ladder.point is start

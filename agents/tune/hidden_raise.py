@@ -23,8 +23,8 @@ choice it starts from (``tune`` passes both in ``bases``: the walk spends no vis
 top surfaces being seen): every bound kept (step loss, motor reserve, show-through, path error),
 no visible measure worse than any of them at the resolution (the job's and each visible class's own,
 :data:`~ringtune.agents.tune.pareto.JUDGED_KEYS`), print time lower than the current choice's by
-at least :data:`MIN_STEP_SAVING` (a raise that buys nothing is not worth its motor load). The
-fastest candidate that passes becomes the choice; where none does, the group stays where it was.
+at least :data:`~ringtune.agents.tune.stop.MIN_STEP_SAVING` (a raise that buys nothing is not worth
+its motor load). The fastest candidate that passes becomes the choice; where none does, the group stays where it was.
 Where the judgement is the worst of the printer and its detuned twins, each batch is screened on the
 exact model first and only what passes is judged (:func:`ringtune.agents.tune.stop.passing`).
 
@@ -36,7 +36,6 @@ the corner rule in the junction rule's unit).
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
@@ -45,7 +44,7 @@ from ringtune.agents.tune.feature_groups import ABUTTING_GROUPS, CORNER_GROUPS, 
 from ringtune.agents.tune.space import (SearchSpace, config_from_params,
                                         params_from_config)
 from ringtune.agents.tune.fastest_first import judged_fastest_first
-from ringtune.agents.tune.stop import Bounds, Failure, failure_words
+from ringtune.agents.tune.stop import MIN_STEP_SAVING, Bounds, Failure, failure_words, to_beat
 from ringtune.shaping.config import TuneConfig
 
 #: shares of the way from the current value to the range's top that are tried, fastest first
@@ -53,9 +52,6 @@ LEVELS = (1.0, 0.75, 0.5, 0.25)
 #: then, for an acceleration, these shares of the way from the highest level kept to the lowest
 #: one above it (the ladder's gaps are a quarter of the range)
 FINER = (2 / 3, 1 / 3)
-#: the least share of the print time a step must save to be taken (a tenth of the 0.5 % that counts
-#: as faster): a raise that buys nothing — more motor load, more show-through — is left out
-MIN_STEP_SAVING = 0.0005
 
 
 @dataclass
@@ -242,7 +238,7 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
         if not pairs:
             return None, []
         # a step must save MIN_STEP_SAVING of the print time: a raise that buys nothing is not taken
-        beat = dataclasses.replace(walk.point, print_time_s=walk.point.print_time_s * (1.0 - MIN_STEP_SAVING))
+        beat = to_beat(walk.point)
         # fastest first: a slower candidate cannot be kept; those above the one kept are judged
         # still, for what holds the setting (:func:`_held`)
         value = [float(p[key]) for p, _c in pairs]

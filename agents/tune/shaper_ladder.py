@@ -9,7 +9,8 @@ own pick the same way — climbs :data:`RUNGS` times the choice's acceleration (
 space's step, none above the range's top), everything else of the choice kept (frequency limit;
 per-feature settings raised in the same ratio). Every shaping still climbing is judged at the next
 rung in one batch, exactly as every trial (the study's evaluator, frequency margin and bounds), and
-held to the same baselines as the choice (:func:`ringtune.agents.tune.stop.failure`); a shaping
+held to the same baselines as the choice (:func:`ringtune.agents.tune.stop.failure`), and faster than
+it by at least :data:`~ringtune.agents.tune.stop.MIN_STEP_SAVING` of its print time; a shaping
 stops at its first failing rung. Then, in one batch, each shaping whose failing rung lies above the
 fastest passing acceleration is tried at :data:`FINER` of the way into that gap (the rungs are 7–15 %
 apart: a coarse winner is not the fine one). The fastest configuration that passed replaces the
@@ -41,7 +42,7 @@ from ringtune.agents.klipper.rule import DEFAULT_DAMPING_RATIO
 from ringtune.agents.tune.baselines import inside
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution
 from ringtune.agents.tune.space import SearchSpace
-from ringtune.agents.tune.stop import Bounds, passing, with_accel
+from ringtune.agents.tune.stop import Bounds, passing, to_beat, with_accel
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.smoothers import takes_damping
@@ -181,7 +182,8 @@ def climb(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[Tu
         highest passing accelerations and the fastest point updated; per item its point or None."""
         nonlocal best, n, screened
         points, judged, screens = passing([with_accel(shapings[i], a, space) for i, a in batch], evaluate, screen,
-                                          bases, start, bounds, res, "shaper ladder", max_judged=max_evaluations - n)
+                                          bases, to_beat(start), bounds, res, "shaper ladder",
+                                          max_judged=max_evaluations - n)
         n, screened = n + judged, screened + screens
         for (i, a), p in zip(batch, points):
             if p is not None:

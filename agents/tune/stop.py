@@ -5,7 +5,8 @@ From the choice, the acceleration is raised in steps of :data:`STEP_REL` (5 %, a
 ratio, each up to its own motor bound), each step judged exactly as every trial (the study's
 evaluator, frequency margin and bounds) and held to the same baselines as the choice (no visible
 measure worse than any of them at the resolution, every bound kept, print time lower than the step
-below). Steps are
+below's by at least :data:`MIN_STEP_SAVING`: a raise that buys nothing is not worth the quality and
+motor load it spends). Steps are
 evaluated :data:`LADDER` at a time in one ``evaluate_many`` call. Where a step fails, each shaper
 frequency is tried :data:`FREQ_REL` (2 %) up and down at that acceleration, and that step and the
 current choice without their frequency limit, where they have one (one batch); a variant that
@@ -16,7 +17,8 @@ every frequency variant, and what
 failed there is reported with both values — the measure that got worse than the baseline's (the
 largest relative excess), or the bound that binds (step loss, the motor reserve, the show-through
 or path-error bound) —, or at the top of the range (the motors' force, or the firmware's largest
-acceleration), or where print time stops falling (the job's speeds bound it, not acceleration).
+acceleration), or where print time stops falling by :data:`MIN_STEP_SAVING` (the job's speeds bound
+it, not acceleration).
 """
 
 from __future__ import annotations
@@ -41,6 +43,10 @@ FREQ_REL = 0.02
 LADDER = 4
 #: most configurations evaluated by one walk
 MAX_EVALUATIONS = 80
+#: the least share of the print time a raise after the study must save (the measured stop's steps,
+#: the shaper ladder's rungs, the walk where nobody looks): a tenth of the 0.5 % that counts as
+#: faster. A raise that buys less spends motor load and quality headroom for nothing
+MIN_STEP_SAVING = 0.0005
 
 
 @dataclass
@@ -83,6 +89,11 @@ class Stop:
                 "moved": self.moved, "from_accel": self.start.config.accel, "to_accel": self.point.config.accel,
                 "evaluations": self.evaluations, "sentence": self.sentence,
                 "variant": None if self.variant is None else list(self.variant)}
+
+
+def to_beat(p: Point) -> Point:
+    """``p`` with the print time a raise from it must get below: :data:`MIN_STEP_SAVING` less (s)."""
+    return dataclasses.replace(p, print_time_s=p.print_time_s * (1.0 - MIN_STEP_SAVING))
 
 
 def next_accels(accel: float, top: float, step: float, n: int = LADDER) -> list[float]:
@@ -259,7 +270,7 @@ def measured_stop(start: Point, bases: dict[str, Point], evaluate: Callable[[Seq
     wider = wider or (lambda cfg: None)
 
     def fails(p: Point, than: Point) -> Failure | None:
-        return failure(p, bases, than, bounds, res) or wider(p.config)
+        return failure(p, bases, to_beat(than), bounds, res) or wider(p.config)
 
     if space.accel_fixed or start.config.accel is None:
         return Stop(start, start, "not searched", sentence="The acceleration is not searched, so nothing is stepped.")
@@ -312,8 +323,9 @@ def _sentence(why: Failure, acc, cur: Point, base_label: str, basis: str) -> str
         what = failure_words(why, base_label)
         return f"What stops it at {here}: {what} at {acc:.0f} mm/s² (the next step, measured)."
     if kind == "time":
-        return (f"What stops it at {here}: print time no longer falls at {acc:.0f} mm/s² ({value:.3f} s against "
-                f"{limit:.3f} s): the job's speeds, not its acceleration, bound it.")
+        return (f"What stops it at {here}: print time falls by less than {MIN_STEP_SAVING * 100:g} % at {acc:.0f} "
+                f"mm/s² ({value:.3f} s against {cur.print_time_s:.3f} s): the job's speeds, not its acceleration, "
+                f"bound it.")
     if kind == "ceiling":
         return f"What stops it at {here}: the top of the acceleration range, {limit:.0f} mm/s² ({basis})."
     return f"The measured stop ended at {here} after its budget of evaluations, every step passing."
