@@ -24,7 +24,8 @@ top surfaces being seen): every bound kept (step loss, motor reserve, show-throu
 no visible measure worse than any of them at the resolution (the job's and each visible class's own,
 :data:`~ringtune.agents.tune.pareto.JUDGED_KEYS`), print time lower than the current choice's by
 at least :data:`~ringtune.agents.tune.stop.MIN_STEP_SAVING` (a raise that buys nothing is not worth
-its motor load). The fastest candidate that passes becomes the choice; where none does, the group stays where it was.
+its motor load). The fastest candidate that passes becomes the choice; where none does, the group
+stays where it was.
 Where the judgement is the worst of the printer and its detuned twins, each batch is screened on the
 exact model first and only what passes is judged (:func:`ringtune.agents.tune.stop.passing`).
 
