@@ -5,7 +5,9 @@ falls with acceleration and rises with a frequency limit; overshoot is Klipper's
 vibration of each axis's shaper on that axis's modes, scaled by the static deflection a/ω² of the
 acceleration; more than 6000 mm/s² loses steps. ``RINGTUNE_TEST_SLEEP`` (s) slows each call so that
 a test can interrupt a run mid-trial; ``RINGTUNE_TEST_HANG_AT=k`` makes the k-th call of a process
-touch the file ``RINGTUNE_TEST_HANG_FILE`` and then hang (a certain mid-trial interruption).
+touch the file ``RINGTUNE_TEST_HANG_FILE`` and then hang (a certain mid-trial interruption);
+``RINGTUNE_TEST_SLOW_PARITY=0|1`` makes a process whose id has that parity sleep 0.03 s on every
+call (of two workers started together, one: a test shifts which one lags behind).
 """
 
 from __future__ import annotations
@@ -37,6 +39,9 @@ def evaluate(configs, printer=None, job=None, **kw):
                 time.sleep(0.05)
         if delay:
             time.sleep(delay)
+        parity = os.environ.get("RINGTUNE_TEST_SLOW_PARITY", "")
+        if parity and os.getpid() % 2 == int(parity):
+            time.sleep(0.03)
         a = float(c.accel or 3000.0)
         t = 60.0 + 40.0 * math.sqrt(1000.0 / a)
         if c.freq_limit_hz > 0:

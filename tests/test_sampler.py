@@ -66,3 +66,20 @@ def test_without_the_split_function_nothing_changes(monkeypatch):
     monkeypatch.delattr(tpe_module, "_split_trials")
     with split_once():
         assert not hasattr(tpe_module, "_split_trials")
+
+
+def test_the_history_a_trial_sees_is_the_trials_lag_behind_it():
+    """History(study, k): every trial query answers with the trials numbered k and lower; the rest
+    of the study is its own (sampler.py: what a trial of N workers in step may read)."""
+    from ringtune.agents.tune.sampler import History
+
+    study = optuna.create_study(directions=["minimize", "minimize"])
+    for i in range(6):
+        study.add_trial(optuna.trial.create_trial(params={"x": float(i)}, values=[float(i), float(-i)],
+                                                  distributions={"x": optuna.distributions.FloatDistribution(0, 9)}))
+    seen = History(study, 3)
+    assert [t.number for t in seen.get_trials(deepcopy=False)] == [0, 1, 2, 3]
+    assert [t.number for t in seen._get_trials(deepcopy=False, states=None, use_cache=False)] == [0, 1, 2, 3]
+    assert [t.number for t in seen.trials] == [0, 1, 2, 3]
+    assert seen.directions == study.directions and seen.of(study)
+    assert [t.number for t in History(study, -1).get_trials()] == []

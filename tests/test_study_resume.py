@@ -139,6 +139,23 @@ def test_seeded_single_worker_runs_reproduce_exactly(tmp_path, in_tests_path):
     assert _complete(a) != _complete(c)
 
 
+def test_seeded_two_worker_runs_reproduce_exactly(tmp_path, in_tests_path, monkeypatch):
+    """Two local workers share the seed and run in step (study.py): trial n sees only the trials
+    numbered n − 2·2 and lower, after waiting for them, so which worker runs which trial — here one
+    or the other made to lag behind — changes nothing; another seed does."""
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")]))
+    runs = {}
+    for key, seed, parity in (("a", 11, "0"), ("b", 11, "1"), ("c", 12, "0")):
+        monkeypatch.setenv("RINGTUNE_TEST_SLOW_PARITY", parity)
+        runs[key] = _settings(f"journal:{tmp_path / (key + '.journal')}", n=30, seed=seed)
+        run = run_study(runs[key], workers=2)
+        assert run.completed_now == 30
+        workers = {t.user_attrs["worker"] for t in run.study.get_trials() if t.state.name == "COMPLETE"}
+        assert len(workers) == 2                # both processes did part of the work
+    assert _complete(runs["a"]) == _complete(runs["b"])
+    assert _complete(runs["a"]) != _complete(runs["c"])
+
+
 def test_sqlite_storage_resumes_too(tmp_path, in_tests_path):
     settings = _settings(f"sqlite:///{tmp_path / 'study.db'}", n=6)
     run_study(settings)

@@ -6,6 +6,7 @@
   heartbeat, so stale RUNNING trials of dead workers on any machine are failed and re-run once.
 - :func:`reap_dead_workers`: on this host, a RUNNING trial whose worker process is gone is failed
   at once and its parameters queued for one re-run; trials a Ctrl-C aborted likewise.
+- :func:`await_finished`: block until the trials up to a number have finished (workers in step).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 import os
 import socket
 import sqlite3
+import time
 import warnings
 from pathlib import Path
 
@@ -167,3 +169,27 @@ def _requeue_interrupted(study) -> None:
     for t in trials:
         if t.state.name == "FAIL" and t.user_attrs.get("interrupted"):
             _requeue(study, t, trials)
+
+
+#: s between looks at the storage while a trial waits for the ones before it
+AWAIT_POLL_S = 0.01
+#: s between checks, while waiting, for trials of this host whose worker process is gone
+AWAIT_REAP_S = 1.0
+
+
+def await_finished(study, upto: int) -> None:
+    """Block until every trial numbered ``upto`` or lower has finished (complete, pruned or failed);
+    a trial whose worker died is failed on the way: of this host at once (:func:`reap_dead_workers`),
+    of another by Optuna's heartbeat where the storage has one."""
+    if upto < 0:
+        return
+    open_states = (TrialState.RUNNING, TrialState.WAITING)
+    reaped = time.monotonic()
+    while any(t.number <= upto for t in study.get_trials(deepcopy=False, states=open_states)):
+        if time.monotonic() - reaped > AWAIT_REAP_S:
+            reap_dead_workers(study)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+                optuna.storages.fail_stale_trials(study)
+            reaped = time.monotonic()
+        time.sleep(AWAIT_POLL_S)

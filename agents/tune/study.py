@@ -25,7 +25,13 @@
   trials already complete; after Ctrl-C the current trial finishes first (a second Ctrl-C aborts
   it; it is re-run on the next start).
 - Reproducibility: the TPE sampler is reseeded from (seed, trial number) before every trial, so a
-  seeded single-worker run — interrupted and resumed, or not — reproduces exactly.
+  seeded single-worker run — interrupted and resumed, or not — reproduces exactly. The N local
+  workers of one run (``--workers N``) share the seed, and trial n waits for every trial numbered
+  n − 2N or lower (:data:`LAG_PER_WORKER`) and sees those alone, in its sampler and in the
+  judgement of what can count
+  (:mod:`ringtune.agents.tune.sampler`): a seeded run with N workers reproduces exactly too,
+  whichever worker runs which trial. (Workers of other machines sharing an RDB storage are not in
+  step.)
 """
 
 from __future__ import annotations
@@ -50,7 +56,7 @@ from ringtune.agents.tune.sampler import make_sampler
 from ringtune.agents.tune.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MAX_SHOW_THROUGH_MM,
     DEFAULT_MOTOR_RESERVE, OBJECTIVES, metrics_dict, objective_value, variant_figures, variants_to_json)
 from ringtune.agents.tune.space import SearchSpace, config_from_params, default_space, suggest_params
-from ringtune.agents.tune.storage import _this_worker, make_storage, reap_dead_workers
+from ringtune.agents.tune.storage import _this_worker, await_finished, make_storage, reap_dead_workers
 from ringtune.agents.tune.study_resume import check_resumed
 from ringtune.envs.printer import load_printer
 from ringtune.envs.variants import TWIN_DAMPING
@@ -123,14 +129,15 @@ def load_space(settings: StudySettings, printer: Any = None) -> SearchSpace:
     return default_space(printer, settings.firmware)
 
 
-def open_study(settings: StudySettings, seed: int | None = None):
-    """Create or load the study (same name + storage = the same study, from any process)."""
+def open_study(settings: StudySettings, seed: int | None = None, lag: int = 1):
+    """Create or load the study (same name + storage = the same study, from any process); ``lag``:
+    the local workers in step (module docstring)."""
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     storage = make_storage(settings.storage)
     study = optuna.create_study(storage=storage, study_name=settings.study_name,
                                 directions=["minimize"] * len(OBJECTIVES), load_if_exists=True,
                                 sampler=make_sampler(settings.seed if seed is None else seed,
-                                                     settings.n_startup_trials))
+                                                     settings.n_startup_trials, lag=lag, wait=await_finished))
     if study.user_attrs.get("objectives") is None:
         study.set_user_attr("objectives", objectives(settings))
         study.set_user_attr("settings", {k: v for k, v in settings.to_dict().items() if k != "storage"})
@@ -141,6 +148,9 @@ def open_study(settings: StudySettings, seed: int | None = None):
     return study
 
 
+#: trials each of N local workers may run ahead: trial n sees those numbered n − N·LAG_PER_WORKER
+#: and lower (module docstring), so a worker whose trial was quick seldom waits for a slow one
+LAG_PER_WORKER = 2
 def count_states(study) -> dict[str, int]:
     """How many trials the study holds in each state, by the state's name (every state, 0 too)."""
     n = Counter(t.state.name for t in study.get_trials(deepcopy=False))
@@ -169,13 +179,14 @@ def _install_sigint(flag: _Stop):
 
 def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any = None,
                on_trial: Callable[[Any], None] | None = None, stop: _Stop | None = None,
-               nthread: int | None = None) -> int:
+               nthread: int | None = None, lag: int = 1) -> int:
     """Run trials of the study until it has ``n_trials`` complete ones (or Ctrl-C). Returns the
-    number this worker completed. Each extra worker uses seed + 1009·index. ``nthread``: simulation
-    threads of the default evaluator (None: its own choice; workers sharing the cores take their
-    share: the figures do not depend on it)."""
-    seed = None if settings.seed is None else settings.seed + 1009 * worker_index
-    study = open_study(settings, seed=seed)
+    number this worker completed. ``lag`` > 1: one of that many local workers in step (module
+    docstring), all with the study's seed; otherwise each extra worker uses seed + 1009·index.
+    ``nthread``: simulation threads of the default evaluator (None: its own choice; workers sharing
+    the cores take their share: the figures do not depend on it)."""
+    seed = None if settings.seed is None else settings.seed + (0 if lag > 1 else 1009 * worker_index)
+    study = open_study(settings, seed=seed, lag=lag)
     evaluator = resolve_evaluator(settings.evaluator)
     if printer is None and settings.evaluator == DEFAULT_EVALUATOR:
         printer = load_printer(settings.printer)
@@ -199,7 +210,8 @@ def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any =
         params = suggest_params(trial, space)
         config = config_from_params(params, space)
         try:
-            m, screened = _judge(evaluator, settings, config, printer, nthread, study)
+            seen = getattr(study.sampler, "history", lambda s: s)(study)     # the trials this one may read
+            m, screened = _judge(evaluator, settings, config, printer, nthread, seen)
         except KeyboardInterrupt:
             trial.set_user_attr("interrupted", True)
             raise
@@ -288,14 +300,17 @@ def _judge(evaluator, settings: StudySettings, config: TuneConfig, printer, nthr
 
 def _worker_main(argv: list[str]) -> int:
     """``python -m ringtune.agents.tune.study worker INDEX [WORKERS]`` with the settings as JSON on
-    stdin (``WORKERS``: how many share the cores; each then simulates with its share of threads)."""
+    stdin (``WORKERS``: how many share the cores and run in step; each then simulates with its
+    share of threads)."""
     if len(argv) not in (2, 3) or argv[0] != "worker":
         print("usage: python -m ringtune.agents.tune.study worker INDEX [WORKERS]  (settings JSON on stdin)",
               file=sys.stderr)
         return 2
-    share = None if len(argv) == 2 else max(1, (os.cpu_count() or 1) // max(1, int(argv[2])))
+    workers = 1 if len(argv) == 2 else max(1, int(argv[2]))
+    share = None if len(argv) == 2 else max(1, (os.cpu_count() or 1) // workers)
     try:
-        run_worker(StudySettings(**json.loads(sys.stdin.read())), int(argv[1]), nthread=share)
+        run_worker(StudySettings(**json.loads(sys.stdin.read())), int(argv[1]), nthread=share,
+                   lag=LAG_PER_WORKER * workers if workers > 1 else 1)
     except KeyboardInterrupt:
         return 130
     except RingtuneError as exc:
