@@ -27,11 +27,10 @@
 - Reproducibility: the TPE sampler is reseeded from (seed, trial number) before every trial, so a
   seeded single-worker run — interrupted and resumed, or not — reproduces exactly. The N local
   workers of one run (``--workers N``) share the seed, and trial n waits for every trial numbered
-  n − 2N or lower (:data:`LAG_PER_WORKER`) and sees those alone, in its sampler and in the
-  judgement of what can count
-  (:mod:`ringtune.agents.tune.sampler`): a seeded run with N workers reproduces exactly too,
-  whichever worker runs which trial. (Workers of other machines sharing an RDB storage are not in
-  step.)
+  n − 2N or lower (:data:`LAG_PER_WORKER`) and sees those alone, in its sampler
+  (:mod:`ringtune.agents.tune.sampler`) and in the judgement of which twins can count: a seeded
+  run with N workers reproduces exactly too, whichever worker runs which trial. (Workers of other
+  machines sharing an RDB storage are not in step.)
 """
 
 from __future__ import annotations
@@ -151,6 +150,8 @@ def open_study(settings: StudySettings, seed: int | None = None, lag: int = 1):
 #: trials each of N local workers may run ahead: trial n sees those numbered n − N·LAG_PER_WORKER
 #: and lower (module docstring), so a worker whose trial was quick seldom waits for a slow one
 LAG_PER_WORKER = 2
+
+
 def count_states(study) -> dict[str, int]:
     """How many trials the study holds in each state, by the state's name (every state, 0 too)."""
     n = Counter(t.state.name for t in study.get_trials(deepcopy=False))
@@ -181,8 +182,9 @@ def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any =
                on_trial: Callable[[Any], None] | None = None, stop: _Stop | None = None,
                nthread: int | None = None, lag: int = 1) -> int:
     """Run trials of the study until it has ``n_trials`` complete ones (or Ctrl-C). Returns the
-    number this worker completed. ``lag`` > 1: one of that many local workers in step (module
-    docstring), all with the study's seed; otherwise each extra worker uses seed + 1009·index.
+    number this worker completed. ``lag`` > 1: one of several local workers in step, all with the
+    study's seed, trial n seeing the trials numbered n − ``lag`` and lower (module docstring);
+    otherwise each extra worker uses seed + 1009·index.
     ``nthread``: simulation threads of the default evaluator (None: its own choice; workers sharing
     the cores take their share: the figures do not depend on it)."""
     seed = None if settings.seed is None else settings.seed + (0 if lag > 1 else 1009 * worker_index)
