@@ -81,5 +81,5 @@ def test_the_history_a_trial_sees_is_the_trials_lag_behind_it():
     assert [t.number for t in seen.get_trials(deepcopy=False)] == [0, 1, 2, 3]
     assert [t.number for t in seen._get_trials(deepcopy=False, states=None, use_cache=False)] == [0, 1, 2, 3]
     assert [t.number for t in seen.trials] == [0, 1, 2, 3]
-    assert seen.directions == study.directions and seen.of(study)
+    assert seen.directions == study.directions
     assert [t.number for t in History(study, -1).get_trials()] == []

@@ -62,30 +62,27 @@ class ReseedingTPESampler(optuna.samplers.TPESampler):
             if self._wait is not None:
                 self._wait(study, upto)
             self._history = History(study, upto)
-        super().before_trial(self._seen(study), trial)
+        super().before_trial(self.history(study), trial)
 
     def infer_relative_search_space(self, study, trial):
-        return super().infer_relative_search_space(self._seen(study), trial)
+        return super().infer_relative_search_space(self.history(study), trial)
 
     def sample_relative(self, study, trial, search_space):
         with split_once():
-            return super().sample_relative(self._seen(study), trial, search_space)
+            return super().sample_relative(self.history(study), trial, search_space)
 
     def sample_independent(self, study, trial, param_name, param_distribution):
-        return super().sample_independent(self._seen(study), trial, param_name, param_distribution)
+        return super().sample_independent(self.history(study), trial, param_name, param_distribution)
 
     def after_trial(self, study, trial, state, values):
         self._history = None
         super().after_trial(study, trial, state, values)
 
-    def _seen(self, study):
-        """The study as the trial being sampled sees it (itself where there is no lag)."""
-        return self._history if self._history is not None and self._history.of(study) else study
-
     def history(self, study):
-        """The study as the trial being sampled sees it: the objective's judgement of what can
-        count reads the same trials (:mod:`ringtune.agents.tune.trial_screen`)."""
-        return self._seen(study)
+        """The study as the trial being sampled sees it (itself where there is no lag); the
+        objective's judgement of which twins can count reads the same trials
+        (:mod:`ringtune.agents.tune.trial_screen`)."""
+        return study if self._history is None else self._history
 
 
 class History:
@@ -95,11 +92,6 @@ class History:
     def __init__(self, study, upto: int):
         self._study = study
         self._upto = int(upto)
-
-    def of(self, study) -> bool:
-        """Whether this is a view of ``study`` (the same storage and study)."""
-        return study is self._study or (study._storage is self._study._storage
-                                        and study._study_id == self._study._study_id)
 
     def __getattr__(self, name):
         return getattr(self._study, name)

@@ -212,8 +212,7 @@ def run_worker(settings: StudySettings, worker_index: int = 0, *, printer: Any =
         params = suggest_params(trial, space)
         config = config_from_params(params, space)
         try:
-            seen = getattr(study.sampler, "history", lambda s: s)(study)     # the trials this one may read
-            m, screened = _judge(evaluator, settings, config, printer, nthread, seen)
+            m, screened = _judge(evaluator, settings, config, printer, nthread, study.sampler.history(study))
         except KeyboardInterrupt:
             trial.set_user_attr("interrupted", True)
             raise
