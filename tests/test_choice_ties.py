@@ -54,6 +54,23 @@ def test_a_faster_plan_still_wins_and_a_tie_nothing_beats_keeps_the_lowest_rippl
     assert fastest([low_ripple, better]) is low_ripple
 
 
+def test_the_study_finding_the_baselines_own_shaping_is_said_to_be_the_baseline_itself():
+    """The study's own trial of Klipper's shaping (its per-feature settings written out, all at the
+    one acceleration) is Klipper's pick found again: the sentence says nothing better was found,
+    not that it is "the best on the study's quality objective" of other shapings."""
+    klipper = _point("klipper", "mzv", PLAN_S, 0.0256, 0.0241, 13.1)
+    other = _point("ei", "ei", PLAN_S, 0.0262, 0.0240, 13.0)
+    again = _point("again", "mzv", PLAN_S, 0.0256, 0.0241, 13.1)
+    again.config.feature_accel.update({"infill": 25000.0, "travel": 25000.0})
+    again.config.corner = 5.0
+    choice = pick([other, again], {"klipper": klipper})
+    assert choice.point is again and "nothing better than Klipper's rule itself" in choice.sentence
+    # another shaping as fast, which nothing beats: the sentence names the tie-break
+    other = _point("ei", "ei", PLAN_S, 0.0250, 0.0240, 13.0)
+    choice = pick([other, again], {"klipper": klipper})
+    assert choice.point is other and "then the best on the study's quality objective" in choice.sentence
+
+
 def test_when_no_trial_is_feasible_a_feasible_baseline_is_chosen_else_the_error_counts_the_bounds():
     """With every trial over a bound, the default choice fell into an error although Klipper's pick
     (a candidate too) was feasible; and the error did not say which bound ruled the trials out."""

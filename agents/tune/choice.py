@@ -4,7 +4,6 @@ a sentence saying what was chosen and why."""
 
 from __future__ import annotations
 
-import dataclasses
 from collections import Counter
 from dataclasses import dataclass
 from typing import Sequence
@@ -13,6 +12,7 @@ import numpy as np
 
 from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, QUALITY_WORDS, Point, Resolution, broken_bounds, judge,
                                          no_worse, quality_keys)
+from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
 
@@ -219,6 +219,15 @@ def fastest(cands: Sequence[Point], res: Resolution = DEFAULT_RESOLUTION) -> Poi
     return min(unbeaten or tied, key=lambda p: p.quality_mm)
 
 
+def _same_shaping(a: TuneConfig, b: TuneConfig) -> bool:
+    """Whether two configurations shape and limit alike: shapers, frequencies, dampings, the
+    frequency limit and the acceleration (their per-feature settings aside)."""
+    def shaping(c: TuneConfig) -> tuple:
+        limit = (c.freq_limit_hz, c.freq_limit_method, c.min_speed_factor) if c.freq_limit_hz > 0 else 0.0
+        return (c.firmware, c.shaper_x, c.shaper_y, c.freq_x, c.freq_y, c.damping_x, c.damping_y, limit, c.accel)
+    return shaping(a) == shaping(b)
+
+
 def _tries(keys: list[str]) -> list[tuple]:
     """The sets of reference baselines (by key, best first) the default choice is held to, in turn:
     every one at once (no chaining: "same as the printer's, which is the same as Klipper's" must not
@@ -249,7 +258,7 @@ def _held_why(p: Point, b: Point, held: tuple, tries: list[tuple], worse: str,
                     f"(as fast as {first} at the resolution, {gain})")
         return (f"{lead}the fastest configuration the study tried with {worse} than {name} "
                 f"(same quality, faster than {first})")
-    if dataclasses.replace(p.config, extra={}) != dataclasses.replace(b.config, extra={}):
+    if not _same_shaping(p.config, b.config):
         return (f"{lead}no configuration the study tried is faster than {first} with {worse} than {name}; of those "
                 "as fast, one no other beats on a visible measure, then the best on the study's quality objective "
                 "(--quality)")
