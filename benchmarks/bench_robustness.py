@@ -11,12 +11,17 @@ wall's own), the printers on which the choice is worse than the pick at the repo
 and ×0.95 and ×1.05 with damping ×0.75) a choice tune made has none; the others show how far the
 guarantee carries beyond them.
 
-Run: ``python benchmarks/bench_robustness.py --config out/best.json [--gcode part] [--printer P]``
+Where Klipper's pick at its max_accel asks the motors for more than their reserve, tune judges it
+at the motors' limit (its summary says at what acceleration): pass that as ``--pick-accel``, since
+the three judged printers are held to that pick, not to one that loses steps.
+
+Run: ``python benchmarks/bench_robustness.py --config out/best.json [--gcode part] [--printer P] [--pick-accel A]``
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import time
 
@@ -40,12 +45,17 @@ def main() -> int:
     ap.add_argument("--config", required=True, help="the configuration to test (tune's best.json)")
     ap.add_argument("--gcode", default=None, help="job (default: the built-in test print; 'part': the built-in part)")
     ap.add_argument("--printer", default=None)
+    ap.add_argument("--pick-accel", type=float, default=None,
+                    help="mm/s²: Klipper's pick at this acceleration (where its max_accel asks the motors for more "
+                    "than their reserve, tune judges it at the motors' limit: the summary's BASELINES line gives it)")
     args = ap.parse_args()
     t0 = time.perf_counter()
     printer = resolve_printer(args.printer)
     job = job_path(args.gcode) if args.gcode else None
     chosen = TuneConfig.from_dict(json.load(open(args.config)))
     pick = baseline_configs(printer, chosen.firmware).configs["klipper"]
+    if args.pick_accel:
+        pick = dataclasses.replace(pick, accel=args.pick_accel)
     keys = [k for k in SHOWN if k != "print_time_s"]
     settle = auto_settle(printer)
     worse: dict[str, list[str]] = {k: [] for k in keys}

@@ -9,6 +9,7 @@ from __future__ import annotations
 from ringtune.agents.cli.common import load_config
 from ringtune.agents.cli.options import Value
 from ringtune.agents.tune.baselines import current_config
+from ringtune.agents.tune.pareto import DEFAULT_MOTOR_RESERVE
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
@@ -77,6 +78,15 @@ def freq_margin(args, config=None) -> float:
     if type(recorded) in (int, float) and 0 <= recorded < 0.5:    # a number, not a bool
         return float(recorded)
     return DEFAULT_FREQ_MARGIN
+
+
+def motor_reserve(config=None) -> float:
+    """The motor reserve (fraction) the baselines are judged with: the one the configuration was
+    tuned with (``motor_reserve`` in a best.json from tune), else tune's default."""
+    recorded = (config.extra or {}).get("motor_reserve") if config is not None else None
+    if type(recorded) in (int, float) and 0 <= recorded < 1:
+        return float(recorded)
+    return DEFAULT_MOTOR_RESERVE
 
 
 def _pair(text: str | None, option: str, read=str) -> tuple | None:

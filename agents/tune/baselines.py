@@ -4,7 +4,9 @@
   the user's own resonance files (``[measurement.klipper]``, written by ``ringtune identify``:
   ``shaper_x``, ``freq_x``, ``shaper_y``, ``freq_y``, ``max_accel``), it is that recommendation;
   otherwise the rule (:mod:`ringtune.agents.klipper.baseline`) on the model's simulated resonance
-  test, and its label says so.
+  test, and its label says so. Where the motors cannot follow it at its max_accel (step loss, or
+  over the reserve), it is judged at the highest acceleration found where they can
+  (:func:`accel_within_motors`), and its label and a note say so.
 - ``current`` — what the printer runs now (``[current]``: shaper, frequency and damping per axis and
   the acceleration, from its firmware configuration), when known.
 - ``none`` — no shaping at the printer's own acceleration.
@@ -47,6 +49,8 @@ class Baselines:
     labels: dict[str, str] = field(default_factory=dict)
     sources: dict[str, str] = field(default_factory=dict)
     fits: dict = field(default_factory=dict)
+    #: sentences for the summary on how a baseline was taken (Klipper's pick lowered to the motors)
+    notes: list[str] = field(default_factory=list)
 
     def add(self, key: str, config: TuneConfig, label: str, source: str) -> None:
         """One baseline's configuration, name and source (not evaluated)."""
@@ -187,14 +191,93 @@ def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable
     """:func:`baseline_configs` (or ``configs``, what it gave already) evaluated with the study's
     evaluator, bounds and frequency margin (``settings``: a StudySettings)."""
     out = configs if configs is not None else baseline_configs(printer, firmware, note=note)
-    configs = out.configs
-    metrics = evaluator(list(configs.values()), printer, settings.job, **tune_study.evaluator_kwargs(settings))
-    max_load = max_motor_load(settings.motor_reserve)
-    out.points = {key: point_from_metrics(cfg, m, quality, label=key, max_path_error_mm=settings.max_path_error_mm,
-                                          max_motor_load=max_load,
-                                          max_show_through_mm=getattr(settings, "max_show_through_mm", 0.0))
-                  for (key, cfg), m in zip(configs.items(), metrics)}
+
+    def judged(cfgs: dict[str, TuneConfig]) -> dict[str, Point]:
+        metrics = evaluator(list(cfgs.values()), printer, settings.job, **tune_study.evaluator_kwargs(settings))
+        return {key: point_from_metrics(cfg, m, quality, label=key, max_path_error_mm=settings.max_path_error_mm,
+                                        max_motor_load=max_motor_load(settings.motor_reserve),
+                                        max_show_through_mm=getattr(settings, "max_show_through_mm", 0.0))
+                for (key, cfg), m in zip(cfgs.items(), metrics)}
+
+    out.points = judged(out.configs)
+    _within_motors(out, judged, max_motor_load(settings.motor_reserve), note)
     return out
+
+
+#: evaluations spent at most lowering Klipper's pick to what the motors can do
+LOWER_TRIES = 4
+#: mm/s²: the grid its acceleration is lowered on (the study's step)
+LOWER_STEP = 100.0
+
+
+def accel_within_motors(accel: float, load: float, judge_at: Callable[[float], tuple[float, bool]],
+                        max_load: float) -> float | None:
+    """The highest acceleration found (mm/s², on :data:`LOWER_STEP`, below ``accel``, where a
+    configuration asks the motors for ``load`` of their force) at which ``judge_at(a)`` — (motor
+    load, whether the motors fail: step loss or over ``max_load``) — says they keep their reserve;
+    None where no try does (a job whose own accelerations rule). The first try scales ``accel`` by
+    the load allowed over the load measured (the force grows with the acceleration), the next ones
+    solve the line through the last two tries (a load with a part that does not grow); at most
+    :data:`LOWER_TRIES` evaluations."""
+    target, tried, best = max_load or 1.0, [(float(accel), float(load))], None
+    for _ in range(LOWER_TRIES):
+        (a1, l1), (a0, l0) = tried[-1], tried[-2] if len(tried) > 1 else (0.0, 0.0)
+        slope = (l1 - l0) / (a1 - a0)           # load per mm/s²
+        aim = a1 + (target - l1) / slope if slope > 0 else 0.95 * a1
+        a = min(aim, tried[0][0] - LOWER_STEP) // LOWER_STEP * LOWER_STEP
+        if a < LOWER_STEP or any(a == t for t, _l in tried):
+            break
+        load_a, fails = judge_at(float(a))
+        tried.append((a, load_a))
+        if not fails and (best is None or a > best):
+            best = float(a)
+    return best
+
+
+def lowered_words(accel: float, loses_steps: bool, load: float, lowered: float, load_lowered: float,
+                  max_load: float) -> str:
+    """The sentence saying Klipper's pick is judged at ``lowered`` mm/s², not its max_accel ``accel``
+    (where it loses steps and/or asks the motors for ``load``; ``max_load`` allowed)."""
+    was = " and ".join(w for w, broke in (("loses steps", loses_steps),
+                                          (f"asks the motors for {load:.0%} of their force ({max_load:.0%} allowed)",
+                                           max_load > 0 and load > max_load)) if broke)
+    return (f"Klipper's rule's max_accel {accel:.0f} mm/s² is a ceiling set by smoothing alone; there it {was}, so "
+            f"its pick is judged at {lowered:.0f} mm/s², where the motors keep their reserve (motor load "
+            f"{load_lowered:.0%})")
+
+
+def lowered_label(label: str, accel: float) -> str:
+    """Klipper's pick's ``label`` where it is judged at the motors' limit, ``accel`` mm/s²."""
+    return f"{label} at the motors' limit ({accel:.0f} mm/s²)"
+
+
+def _within_motors(out: Baselines, judged: Callable[[dict], dict], max_load: float,
+                   note: Callable[[str], None]) -> None:
+    """Where Klipper's pick at its max_accel loses steps or asks the motors for more than the reserve
+    allows, the pick at :func:`accel_within_motors` in its place: the rule sets max_accel by
+    smoothing alone, a ceiling ("max_accel <= …"), and a pick the motors cannot follow is nothing
+    anyone would print with. Said in ``out.notes`` and by ``note``; where no acceleration relieves
+    the motors, the pick stays as it was."""
+    first = out.points.get("klipper")
+    if first is None or not (first.step_loss or first.overloaded) or not first.config.accel:
+        return
+    points: dict[float, Point] = {}
+
+    def judge_at(a: float) -> tuple[float, bool]:
+        points[a] = judged({"klipper": dataclasses.replace(first.config, accel=a)})["klipper"]
+        return float(points[a].metrics.get("motor_load") or 0.0), points[a].step_loss or points[a].overloaded
+
+    load = float(first.metrics.get("motor_load") or 0.0)
+    lowered = accel_within_motors(first.config.accel, load, judge_at, max_load)
+    if lowered is None:
+        return
+    point = points[lowered]
+    words = lowered_words(first.config.accel, first.step_loss, load, lowered,
+                          float(point.metrics.get("motor_load") or 0.0), max_load)
+    out.configs["klipper"], out.points["klipper"] = point.config, point
+    out.labels["klipper"] = lowered_label(out.labels["klipper"], lowered)
+    out.notes.append(words + ".")
+    note(f"ringtune tune: {words}")
 
 
 def warm_start(kcfg: TuneConfig, fits: dict, space) -> list[TuneConfig]:

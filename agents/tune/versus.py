@@ -11,12 +11,14 @@ and :func:`best_dominating` the front point that dominates a baseline.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, Sequence
 
-from ringtune.agents.tune.baselines import Baselines, baseline_configs
+from ringtune.agents.tune.baselines import (Baselines, accel_within_motors, baseline_configs, lowered_label,
+                                            lowered_words)
 from ringtune.agents.tune.pareto import (CLASS_KEYS, DEFAULT_RESOLUTION, VISIBLE_KEYS, Point, Resolution,
-                                         compare_figure, judge, shown, words)
+                                         compare_figure, judge, max_motor_load, shown, words)
 from ringtune.envs.evaluate import evaluate_judged
 from ringtune.envs.variants import Variant
 
@@ -155,12 +157,43 @@ def best_dominating(front: Sequence[Point], base: Point, res: Resolution = DEFAU
 
 
 def baseline_evaluations(printer, firmware: str, job=None, *, backend: str = "mujoco", freq_margin: float = 0.0,
-                         job_accel: str | None = None, note: Callable[[str], None] = lambda s: None
-                         ) -> tuple[Baselines, dict]:
+                         job_accel: str | None = None, note: Callable[[str], None] = lambda s: None,
+                         motor_reserve: float = 0.0) -> tuple[Baselines, dict]:
     """Klipper's pick, what the printer runs now (when known) and no shaping, simulated as ``tune``
     judges them (one ``evaluate_judged`` call): (their :class:`Baselines`, {key: (judged Metrics,
-    Evaluation per printer variant)})."""
+    Evaluation per printer variant)}). Where Klipper's pick loses steps or asks the motors for more
+    than ``motor_reserve`` leaves (a fraction; 0: step loss alone), it is judged at the motors'
+    limit, as ``tune`` judges it (:func:`ringtune.agents.tune.baselines.accel_within_motors`)."""
     bl = baseline_configs(printer, firmware, note=note)
-    judged = evaluate_judged(list(bl.configs.values()), printer, job, backend, freq_margin=freq_margin,
-                             job_accel=job_accel)
-    return bl, dict(zip(bl.configs, judged))
+
+    def run(configs: list) -> list:
+        return evaluate_judged(configs, printer, job, backend, freq_margin=freq_margin, job_accel=job_accel)
+
+    judged = dict(zip(bl.configs, run(list(bl.configs.values()))))
+    if "klipper" in judged:
+        _klipper_within_motors(bl, judged, run, max_motor_load(motor_reserve), note)
+    return bl, judged
+
+
+def _klipper_within_motors(bl: Baselines, judged: dict, run: Callable[[list], list], max_load: float,
+                           note: Callable[[str], None]) -> None:
+    """Klipper's pick in ``bl`` and ``judged`` at the motors' limit where at its max_accel they fail."""
+    def fails(m) -> bool:
+        return bool(m.step_loss or (max_load > 0 and m.motor_load > max_load))
+
+    first, cfg = judged["klipper"][0], bl.configs["klipper"]
+    if not fails(first) or not cfg.accel:
+        return
+    runs: dict[float, tuple] = {}
+
+    def judge_at(a: float) -> tuple[float, bool]:
+        runs[a] = run([dataclasses.replace(cfg, accel=a)])[0]
+        return float(runs[a][0].motor_load), fails(runs[a][0])
+
+    lowered = accel_within_motors(cfg.accel, float(first.motor_load), judge_at, max_load)
+    if lowered is None:
+        return
+    note("ringtune tune: " + lowered_words(cfg.accel, bool(first.step_loss), float(first.motor_load), lowered,
+                                           float(runs[lowered][0].motor_load), max_load))
+    bl.configs["klipper"], judged["klipper"] = dataclasses.replace(cfg, accel=lowered), runs[lowered]
+    bl.labels["klipper"] = lowered_label(bl.labels["klipper"], lowered)
