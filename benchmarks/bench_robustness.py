@@ -11,9 +11,10 @@ wall's own), the printers on which the choice is worse than the pick at the repo
 and ×0.95 and ×1.05 with damping ×0.75) a choice tune made has none; the others show how far the
 guarantee carries beyond them.
 
-Where Klipper's pick at its max_accel asks the motors for more than their reserve, tune judges it
-at the motors' limit (its summary says at what acceleration): pass that as ``--pick-accel``, since
-the three judged printers are held to that pick, not to one that loses steps.
+Where Klipper's pick at its max_accel breaks a bound (step loss, the motor reserve, the path
+error), tune judges it at the highest acceleration found within them (its summary says which):
+pass that as ``--pick-accel``, since the three judged printers are held to that pick, not to one
+tune rules out.
 
 Run: ``python benchmarks/bench_robustness.py --config out/best.json [--gcode part] [--printer P] [--pick-accel A]``
 """
@@ -46,8 +47,9 @@ def main() -> int:
     ap.add_argument("--gcode", default=None, help="job (default: the built-in test print; 'part': the built-in part)")
     ap.add_argument("--printer", default=None)
     ap.add_argument("--pick-accel", type=float, default=None,
-                    help="mm/s²: Klipper's pick at this acceleration (where its max_accel asks the motors for more "
-                    "than their reserve, tune judges it at the motors' limit: the summary's BASELINES line gives it)")
+                    help="mm/s²: Klipper's pick at this acceleration (where at its max_accel it breaks a bound — step "
+                    "loss, the motor reserve, the path error — tune judges it within them: the summary's BASELINES "
+                    "line gives the acceleration)")
     args = ap.parse_args()
     t0 = time.perf_counter()
     printer = resolve_printer(args.printer)

@@ -34,7 +34,7 @@ import dataclasses
 from pathlib import Path
 
 from ringtune.agents.cli.common import GCODE_JOB_HELP, firmware_name, gcode_job, judgement, say_unmeasured
-from ringtune.agents.cli.simulate_config import build_config, freq_margin, motor_reserve
+from ringtune.agents.cli.simulate_config import build_config, freq_margin, max_path_error, motor_reserve
 from ringtune.agents.cli.trace_option import write_trace_option
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
@@ -264,6 +264,7 @@ def _baseline_runs(args, printer, config: TuneConfig, margin: float, out):
         return None
     return baseline_evaluations(printer, config.firmware, args.gcode, backend=args.backend, freq_margin=margin,
                                 job_accel=job_accel_mode(config), motor_reserve=motor_reserve(config),
+                                max_path_error_mm=max_path_error(config),
                                 note=lambda s: out.note(s.replace("ringtune tune", "ringtune simulate")))
 
 

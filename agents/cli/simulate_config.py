@@ -9,7 +9,7 @@ from __future__ import annotations
 from ringtune.agents.cli.common import load_config
 from ringtune.agents.cli.options import Value
 from ringtune.agents.tune.baselines import current_config
-from ringtune.agents.tune.pareto import DEFAULT_MOTOR_RESERVE
+from ringtune.agents.tune.pareto import DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MOTOR_RESERVE
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
@@ -87,6 +87,15 @@ def motor_reserve(config=None) -> float:
     if type(recorded) in (int, float) and 0 <= recorded < 1:
         return float(recorded)
     return DEFAULT_MOTOR_RESERVE
+
+
+def max_path_error(config=None) -> float:
+    """The path-error bound (mm) the baselines are judged with: the one the configuration was tuned
+    with (``max_path_error_mm`` in a best.json from tune), else tune's default."""
+    recorded = (config.extra or {}).get("max_path_error_mm") if config is not None else None
+    if type(recorded) in (int, float) and recorded >= 0:
+        return float(recorded)
+    return DEFAULT_MAX_PATH_ERROR_MM
 
 
 def _pair(text: str | None, option: str, read=str) -> tuple | None:

@@ -5,8 +5,8 @@
   ``shaper_x``, ``freq_x``, ``shaper_y``, ``freq_y``, ``max_accel``), it is that recommendation;
   otherwise the rule (:mod:`ringtune.agents.klipper.baseline`) on the model's simulated resonance
   test, and its label says so. Where the motors cannot follow it at its max_accel (step loss, or
-  over the reserve), it is judged at the highest acceleration found where they can
-  (:func:`accel_within_motors`), and its label and a note say so.
+  over the reserve) or its corners past the path-error bound, it is judged at the highest
+  acceleration found within the bounds (:func:`accel_within_bounds`), and its label and a note say so.
 - ``current`` — what the printer runs now (``[current]``: shaper, frequency and damping per axis and
   the acceleration, from its firmware configuration), when known.
 - ``none`` — no shaping at the printer's own acceleration.
@@ -200,80 +200,100 @@ def baselines_for(printer: Printer, firmware: str, settings, evaluator: Callable
                 for (key, cfg), m in zip(cfgs.items(), metrics)}
 
     out.points = judged(out.configs)
-    _within_motors(out, judged, max_motor_load(settings.motor_reserve), note)
+    _within_bounds(out, judged, bound_limits(max_motor_load(settings.motor_reserve), settings.max_path_error_mm),
+                   note)
     return out
 
 
-#: evaluations spent at most lowering Klipper's pick to what the motors can do
-LOWER_TRIES = 4
+#: evaluations spent at most lowering Klipper's pick into the bounds
+LOWER_TRIES = 6
 #: mm/s²: the grid its acceleration is lowered on (the study's step)
 LOWER_STEP = 100.0
+#: the bounds that fall with the acceleration, as (metrics key, words for its figure)
+LOWERED_BOUNDS = (("motor_load", "motor load"), ("path_error_mm", "path error"))
 
 
-def accel_within_motors(accel: float, load: float, judge_at: Callable[[float], tuple[float, bool]],
-                        max_load: float) -> float | None:
+def bound_limits(max_load: float, max_path_error_mm: float) -> dict[str, float]:
+    """{metrics key: bound} of :data:`LOWERED_BOUNDS` (0 = none); the motors' own edge (load 1) where
+    no reserve is kept."""
+    return {"motor_load": max_load or 1.0, "path_error_mm": max_path_error_mm}
+
+
+def bound_ratio(values, step_loss: bool, limits: dict[str, float]) -> float:
+    """The largest figure over its bound of ``limits`` (``values``: metrics key -> figure); above 1
+    where one is broken or the motors lose steps."""
+    r = max((float(values.get(k) or 0.0) / b for k, b in limits.items() if b > 0), default=0.0)
+    return max(r, 1.0 + 1e-6) if step_loss else r
+
+
+def accel_within_bounds(accel: float, ratio: float, judge_at: Callable[[float], tuple[float, bool]]) -> float | None:
     """The highest acceleration found (mm/s², on :data:`LOWER_STEP`, below ``accel``, where a
-    configuration asks the motors for ``load`` of their force) at which ``judge_at(a)`` — (motor
-    load, whether the motors fail: step loss or over ``max_load``) — says they keep their reserve;
-    None where no try does (a job whose own accelerations rule). The first try scales ``accel`` by
-    the load allowed over the load measured (the force grows with the acceleration), the next ones
-    solve the line through the last two tries (a load with a part that does not grow); at most
-    :data:`LOWER_TRIES` evaluations."""
-    target, tried, best = max_load or 1.0, [(float(accel), float(load))], None
+    configuration's :func:`bound_ratio` is ``ratio`` > 1) at which ``judge_at(a)`` — (its ratio there,
+    whether it keeps every bound) — says it does; None where no try gets there (a job whose own
+    accelerations rule). The first try scales ``accel`` by 1 / ``ratio`` (force and smoothing grow
+    with the acceleration); the next ones solve the line through the last two tries (a part that
+    does not grow), kept between the highest try within the bounds and the lowest over them (else
+    halfway); at most :data:`LOWER_TRIES` evaluations."""
+    tried, lo, hi = [(float(accel), float(ratio))], None, float(accel)
     for _ in range(LOWER_TRIES):
-        (a1, l1), (a0, l0) = tried[-1], tried[-2] if len(tried) > 1 else (0.0, 0.0)
-        slope = (l1 - l0) / (a1 - a0)           # load per mm/s²
-        aim = a1 + (target - l1) / slope if slope > 0 else 0.95 * a1
-        a = min(aim, tried[0][0] - LOWER_STEP) // LOWER_STEP * LOWER_STEP
-        if a < LOWER_STEP or any(a == t for t, _l in tried):
+        (a1, r1), (a0, r0) = tried[-1], tried[-2] if len(tried) > 1 else (0.0, 0.0)
+        slope = (r1 - r0) / (a1 - a0)           # ratio per mm/s²
+        aim = a1 + (1.0 - r1) / slope if slope > 0 else 0.95 * a1
+        if lo is not None:                      # bracketed: inside (lo, hi), else halfway
+            aim = aim if lo < aim < hi else (lo + hi) / 2
+        a = min(aim, hi - LOWER_STEP) // LOWER_STEP * LOWER_STEP
+        if a < LOWER_STEP or (lo is not None and a <= lo):
             break
-        load_a, fails = judge_at(float(a))
-        tried.append((a, load_a))
-        if not fails and (best is None or a > best):
-            best = float(a)
-    return best
+        r, ok = judge_at(float(a))
+        tried.append((a, r))
+        lo, hi = (float(a), hi) if ok else (lo, float(a))
+    return lo
 
 
-def lowered_words(accel: float, loses_steps: bool, load: float, lowered: float, load_lowered: float,
-                  max_load: float) -> str:
-    """The sentence saying Klipper's pick is judged at ``lowered`` mm/s², not its max_accel ``accel``
-    (where it loses steps and/or asks the motors for ``load``; ``max_load`` allowed)."""
-    was = " and ".join(w for w, broke in (("loses steps", loses_steps),
-                                          (f"asks the motors for {load:.0%} of their force ({max_load:.0%} allowed)",
-                                           max_load > 0 and load > max_load)) if broke)
-    return (f"Klipper's rule's max_accel {accel:.0f} mm/s² is a ceiling set by smoothing alone; there it {was}, so "
-            f"its pick is judged at {lowered:.0f} mm/s², where the motors keep their reserve (motor load "
-            f"{load_lowered:.0%})")
+def lowered_words(accel: float, before: tuple, lowered: float, after, limits: dict[str, float]) -> str:
+    """The sentence saying Klipper's pick is judged at ``lowered`` mm/s², not its max_accel ``accel``;
+    ``before``: (its figures there, whether it lost steps); ``after``: the figures at ``lowered``."""
+    values, lost = before
+    broke = ["loses steps"] if lost else []
+    broke += [f"has {name} {_fig(key, values)} ({_fig(key, limits)} allowed)" for key, name in LOWERED_BOUNDS
+              if limits.get(key, 0) > 0 and float(values.get(key) or 0.0) > limits[key]]
+    kept = ", ".join(f"{name} {_fig(key, after)}" for key, name in LOWERED_BOUNDS if limits.get(key, 0) > 0)
+    return (f"Klipper's rule's max_accel {accel:.0f} mm/s² is a ceiling set by smoothing alone; there its pick "
+            f"{' and '.join(broke)}, so it is judged at {lowered:.0f} mm/s², the highest found within the bounds "
+            f"({kept})")
+
+
+def _fig(key: str, values) -> str:
+    v = float(values.get(key) or 0.0)
+    return f"{v:.0%}" if key == "motor_load" else f"{v * 1000:.1f} µm"
 
 
 def lowered_label(label: str, accel: float) -> str:
-    """Klipper's pick's ``label`` where it is judged at the motors' limit, ``accel`` mm/s²."""
-    return f"{label} at the motors' limit ({accel:.0f} mm/s²)"
+    """Klipper's pick's ``label`` where it is judged below its max_accel, at ``accel`` mm/s²."""
+    return f"{label} at {accel:.0f} mm/s² (within the bounds)"
 
 
-def _within_motors(out: Baselines, judged: Callable[[dict], dict], max_load: float,
+def _within_bounds(out: Baselines, judged: Callable[[dict], dict], limits: dict[str, float],
                    note: Callable[[str], None]) -> None:
-    """Where Klipper's pick at its max_accel loses steps or asks the motors for more than the reserve
-    allows, the pick at :func:`accel_within_motors` in its place: the rule sets max_accel by
-    smoothing alone, a ceiling ("max_accel <= …"), and a pick the motors cannot follow is nothing
-    anyone would print with. Said in ``out.notes`` and by ``note``; where no acceleration relieves
-    the motors, the pick stays as it was."""
+    """Where Klipper's pick at its max_accel loses steps, asks the motors for more than the reserve
+    allows or rounds corners past the path-error bound, the pick at :func:`accel_within_bounds` in
+    its place: the rule sets max_accel by its own smoothing target alone, a ceiling ("max_accel <=
+    …"), and a pick over a bound is nothing the choice could be held to. Said in ``out.notes``
+    and by ``note``; where no acceleration gets within the bounds, the pick stays as it was."""
     first = out.points.get("klipper")
-    if first is None or not (first.step_loss or first.overloaded) or not first.config.accel:
+    if first is None or not (first.step_loss or first.overloaded or first.too_rough) or not first.config.accel:
         return
     points: dict[float, Point] = {}
 
     def judge_at(a: float) -> tuple[float, bool]:
-        points[a] = judged({"klipper": dataclasses.replace(first.config, accel=a)})["klipper"]
-        return float(points[a].metrics.get("motor_load") or 0.0), points[a].step_loss or points[a].overloaded
+        q = points[a] = judged({"klipper": dataclasses.replace(first.config, accel=a)})["klipper"]
+        return bound_ratio(q.metrics, q.step_loss, limits), q.feasible
 
-    load = float(first.metrics.get("motor_load") or 0.0)
-    lowered = accel_within_motors(first.config.accel, load, judge_at, max_load)
+    lowered = accel_within_bounds(first.config.accel, bound_ratio(first.metrics, first.step_loss, limits), judge_at)
     if lowered is None:
         return
     point = points[lowered]
-    words = lowered_words(first.config.accel, first.step_loss, load, lowered,
-                          float(point.metrics.get("motor_load") or 0.0), max_load)
+    words = lowered_words(first.config.accel, (first.metrics, first.step_loss), lowered, point.metrics, limits)
     out.configs["klipper"], out.points["klipper"] = point.config, point
     out.labels["klipper"] = lowered_label(out.labels["klipper"], lowered)
     out.notes.append(words + ".")

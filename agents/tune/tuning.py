@@ -279,6 +279,7 @@ def _report(req: TuneRequest, lim: Limits, fw: Firmware, printer, facts, space, 
         + [f"The {n[4:]}." for n in (fw.junction_note(printer.limits.junction),) if n], export_firmware=fw.name,
         max_show_through_mm=lim.max_st, baseline_binding=baseline_binding,
         best_extra={"job_accel": req.job_accel, "freq_margin": lim.margin, "motor_reserve": lim.reserve,
+                    "max_path_error_mm": lim.max_pe,
                     "top_speed_mm_s": facts.top_speed if req.gcode else float(printer.limits.velocity),
                     **({"stop": stop.to_dict()} if stop else {})})
     text = result.pop("summary_text")

@@ -15,8 +15,8 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, Sequence
 
-from ringtune.agents.tune.baselines import (Baselines, accel_within_motors, baseline_configs, lowered_label,
-                                            lowered_words)
+from ringtune.agents.tune.baselines import (LOWERED_BOUNDS, Baselines, accel_within_bounds, baseline_configs,
+                                            bound_limits, bound_ratio, lowered_label, lowered_words)
 from ringtune.agents.tune.pareto import (CLASS_KEYS, DEFAULT_RESOLUTION, VISIBLE_KEYS, Point, Resolution,
                                          compare_figure, judge, max_motor_load, shown, words)
 from ringtune.envs.evaluate import evaluate_judged
@@ -158,12 +158,13 @@ def best_dominating(front: Sequence[Point], base: Point, res: Resolution = DEFAU
 
 def baseline_evaluations(printer, firmware: str, job=None, *, backend: str = "mujoco", freq_margin: float = 0.0,
                          job_accel: str | None = None, note: Callable[[str], None] = lambda s: None,
-                         motor_reserve: float = 0.0) -> tuple[Baselines, dict]:
+                         motor_reserve: float = 0.0, max_path_error_mm: float = 0.0) -> tuple[Baselines, dict]:
     """Klipper's pick, what the printer runs now (when known) and no shaping, simulated as ``tune``
     judges them (one ``evaluate_judged`` call): (their :class:`Baselines`, {key: (judged Metrics,
-    Evaluation per printer variant)}). Where Klipper's pick loses steps or asks the motors for more
-    than ``motor_reserve`` leaves (a fraction; 0: step loss alone), it is judged at the motors'
-    limit, as ``tune`` judges it (:func:`ringtune.agents.tune.baselines.accel_within_motors`)."""
+    Evaluation per printer variant)}). Where Klipper's pick loses steps, asks the motors for more
+    than ``motor_reserve`` leaves (a fraction; 0: step loss alone) or has more path error than
+    ``max_path_error_mm`` (0: no bound), it is judged within the bounds, as ``tune`` judges it
+    (:func:`ringtune.agents.tune.baselines.accel_within_bounds`)."""
     bl = baseline_configs(printer, firmware, note=note)
 
     def run(configs: list) -> list:
@@ -171,29 +172,33 @@ def baseline_evaluations(printer, firmware: str, job=None, *, backend: str = "mu
 
     judged = dict(zip(bl.configs, run(list(bl.configs.values()))))
     if "klipper" in judged:
-        _klipper_within_motors(bl, judged, run, max_motor_load(motor_reserve), note)
+        _klipper_within_bounds(bl, judged, run, bound_limits(max_motor_load(motor_reserve), max_path_error_mm),
+                               note)
     return bl, judged
 
 
-def _klipper_within_motors(bl: Baselines, judged: dict, run: Callable[[list], list], max_load: float,
+def _klipper_within_bounds(bl: Baselines, judged: dict, run: Callable[[list], list], limits: dict,
                            note: Callable[[str], None]) -> None:
-    """Klipper's pick in ``bl`` and ``judged`` at the motors' limit where at its max_accel they fail."""
-    def fails(m) -> bool:
-        return bool(m.step_loss or (max_load > 0 and m.motor_load > max_load))
+    """Klipper's pick in ``bl`` and ``judged`` within the bounds where at its max_accel it breaks one."""
+    def figures(m) -> tuple[dict, bool]:
+        return {k: float(getattr(m, k)) for k, _name in LOWERED_BOUNDS}, bool(m.step_loss)
+
+    def ratio(m) -> float:
+        return bound_ratio(*figures(m), limits)
 
     first, cfg = judged["klipper"][0], bl.configs["klipper"]
-    if not fails(first) or not cfg.accel:
+    if ratio(first) <= 1.0 or not cfg.accel:
         return
     runs: dict[float, tuple] = {}
 
     def judge_at(a: float) -> tuple[float, bool]:
         runs[a] = run([dataclasses.replace(cfg, accel=a)])[0]
-        return float(runs[a][0].motor_load), fails(runs[a][0])
+        r = ratio(runs[a][0])
+        return r, r <= 1.0
 
-    lowered = accel_within_motors(cfg.accel, float(first.motor_load), judge_at, max_load)
+    lowered = accel_within_bounds(cfg.accel, ratio(first), judge_at)
     if lowered is None:
         return
-    note("ringtune tune: " + lowered_words(cfg.accel, bool(first.step_loss), float(first.motor_load), lowered,
-                                           float(runs[lowered][0].motor_load), max_load))
+    note("ringtune tune: " + lowered_words(cfg.accel, figures(first), lowered, figures(runs[lowered][0])[0], limits))
     bl.configs["klipper"], judged["klipper"] = dataclasses.replace(cfg, accel=lowered), runs[lowered]
     bl.labels["klipper"] = lowered_label(bl.labels["klipper"], lowered)
