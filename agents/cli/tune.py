@@ -101,9 +101,10 @@ choice written in (as `ringtune rewrite` writes it).
 
 Baselines: Klipper's rule — the recommendation recorded from your resonance files by `ringtune
 identify` when the printer has one, else the rule on the model's simulated resonance test (said so);
-where the motors cannot follow it at the rule's max_accel (a ceiling set by smoothing alone), its
-pick at the highest acceleration at which they keep their reserve (said so); what the printer runs
-now, when the printer description has a [current] section; no shaping.
+where at the rule's max_accel (a ceiling set by smoothing alone) its pick loses steps, runs the
+motors over their reserve or has more path error than the bound, the pick at the highest
+acceleration found within them (said so); what the printer runs now, when the printer description
+has a [current] section; no shaping.
 Objectives: print time, the worst visible wall's ripple and corner deviation (rounding or
 overshoot); hidden features reaching the outer wall by more than --max-show-through are ruled out.
 The configuration chosen by default is the fastest one with no visible measure (ripple and its 90th

@@ -49,7 +49,7 @@ class Baselines:
     labels: dict[str, str] = field(default_factory=dict)
     sources: dict[str, str] = field(default_factory=dict)
     fits: dict = field(default_factory=dict)
-    #: sentences for the summary on how a baseline was taken (Klipper's pick lowered to the motors)
+    #: sentences for the summary on how a baseline was taken (Klipper's pick lowered into the bounds)
     notes: list[str] = field(default_factory=list)
 
     def add(self, key: str, config: TuneConfig, label: str, source: str) -> None:
