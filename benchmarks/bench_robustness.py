@@ -12,9 +12,9 @@ and ×0.95 and ×1.05 with damping ×0.75) a choice tune made has none; the othe
 guarantee carries beyond them.
 
 Where Klipper's pick at its max_accel breaks a bound (step loss, the motor reserve, the path
-error), tune judges it at the highest acceleration found within them (its summary says which):
-pass that as ``--pick-accel``, since the three judged printers are held to that pick, not to one
-tune rules out.
+error), tune judges it at the highest acceleration found within them; so does this benchmark, with
+the reserve and bound best.json records (``--pick-accel`` sets another acceleration), since the
+three judged printers are held to that pick, not to one tune rules out.
 
 Run: ``python benchmarks/bench_robustness.py --config out/best.json [--gcode part] [--printer P] [--pick-accel A]``
 """
@@ -26,14 +26,16 @@ import dataclasses
 import json
 import time
 
+from ringtune.agents.cli.simulate_config import max_path_error, motor_reserve
 from ringtune.agents.tune.baselines import baseline_configs
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, metrics_dict, shown, verdict, words
-from ringtune.agents.tune.versus import SHOWN
+from ringtune.agents.tune.versus import SHOWN, baseline_evaluations
 from ringtune.envs.evaluate import evaluate_many
 from ringtune.envs.planned_job import resolve_printer
 from ringtune.envs.windows import auto_settle
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.config_plan import job_accel_mode
 
 FREQS = (0.85, 0.9, 0.95, 1.0, 1.05, 1.1, 1.15)
 DAMPINGS = (0.5, 0.75, 1.0, 1.5)
@@ -47,17 +49,20 @@ def main() -> int:
     ap.add_argument("--gcode", default=None, help="job (default: the built-in test print; 'part': the built-in part)")
     ap.add_argument("--printer", default=None)
     ap.add_argument("--pick-accel", type=float, default=None,
-                    help="mm/s²: Klipper's pick at this acceleration (where at its max_accel it breaks a bound — step "
-                    "loss, the motor reserve, the path error — tune judges it within them: the summary's BASELINES "
-                    "line gives the acceleration)")
+                    help="mm/s²: Klipper's pick at this acceleration (default: as tune judged it — where at its "
+                    "max_accel it breaks a bound, within the bounds best.json records)")
     args = ap.parse_args()
     t0 = time.perf_counter()
     printer = resolve_printer(args.printer)
     job = job_path(args.gcode) if args.gcode else None
     chosen = TuneConfig.from_dict(json.load(open(args.config)))
-    pick = baseline_configs(printer, chosen.firmware).configs["klipper"]
     if args.pick_accel:
-        pick = dataclasses.replace(pick, accel=args.pick_accel)
+        pick = dataclasses.replace(baseline_configs(printer, chosen.firmware).configs["klipper"], accel=args.pick_accel)
+    else:       # as tune judged it: within the bounds best.json records
+        extra = chosen.extra or {}
+        pick = baseline_evaluations(printer, chosen.firmware, job, freq_margin=float(extra.get("freq_margin", 0.05)),
+                                    job_accel=job_accel_mode(chosen), motor_reserve=motor_reserve(chosen),
+                                    max_path_error_mm=max_path_error(chosen), note=print)[0].configs["klipper"]
     keys = [k for k in SHOWN if k != "print_time_s"]
     settle = auto_settle(printer)
     worse: dict[str, list[str]] = {k: [] for k in keys}
