@@ -273,28 +273,49 @@ def lowered_label(label: str, accel: float) -> str:
     return f"{label} at {accel:.0f} mm/s² (within the bounds)"
 
 
+def lowered_pick(accel: float, before: tuple[dict, bool], judge_at: Callable[[float], tuple[dict, bool, bool]],
+                 limits: dict[str, float]) -> tuple[float, str] | None:
+    """Klipper's pick at its max_accel ``accel`` with ``before`` (its figures there, whether it lost
+    steps): where that breaks a bound of ``limits``, (the acceleration :func:`accel_within_bounds`
+    finds, the sentence saying so); None where it keeps them or no acceleration gets it within
+    them. ``judge_at(a)``: (the figures at ``a``, whether it lost steps, whether it keeps every
+    bound)."""
+    ratio = bound_ratio(*before, limits)
+    if ratio <= 1.0 or not accel:
+        return None
+    seen: dict[float, tuple] = {}
+
+    def at(a: float) -> tuple[float, bool]:
+        seen[a] = judge_at(a)
+        return bound_ratio(seen[a][0], seen[a][1], limits), seen[a][2]
+
+    lowered = accel_within_bounds(accel, ratio, at)
+    if lowered is None:
+        return None
+    return lowered, lowered_words(accel, before, lowered, seen[lowered][0], limits)
+
+
 def _within_bounds(out: Baselines, judged: Callable[[dict], dict], limits: dict[str, float],
                    note: Callable[[str], None]) -> None:
     """Where Klipper's pick at its max_accel loses steps, asks the motors for more than the reserve
-    allows or rounds corners past the path-error bound, the pick at :func:`accel_within_bounds` in
-    its place: the rule sets max_accel by its own smoothing target alone, a ceiling ("max_accel <=
-    …"), and a pick over a bound is nothing the choice could be held to. Said in ``out.notes``
-    and by ``note``; where no acceleration gets within the bounds, the pick stays as it was."""
+    allows or rounds corners past the path-error bound, the pick at :func:`lowered_pick` in its
+    place: the rule sets max_accel by its own smoothing target alone, a ceiling ("max_accel <= …"),
+    and a pick over a bound is nothing the choice could be held to. Said in ``out.notes`` and by
+    ``note``; where no acceleration gets within the bounds, the pick stays as it was."""
     first = out.points.get("klipper")
-    if first is None or not (first.step_loss or first.overloaded or first.too_rough) or not first.config.accel:
+    if first is None:
         return
     points: dict[float, Point] = {}
 
-    def judge_at(a: float) -> tuple[float, bool]:
+    def judge_at(a: float) -> tuple[dict, bool, bool]:
         q = points[a] = judged({"klipper": dataclasses.replace(first.config, accel=a)})["klipper"]
-        return bound_ratio(q.metrics, q.step_loss, limits), q.feasible
+        return q.metrics, q.step_loss, q.feasible
 
-    lowered = accel_within_bounds(first.config.accel, bound_ratio(first.metrics, first.step_loss, limits), judge_at)
-    if lowered is None:
+    found = lowered_pick(first.config.accel, (first.metrics, first.step_loss), judge_at, limits)
+    if found is None:
         return
-    point = points[lowered]
-    words = lowered_words(first.config.accel, (first.metrics, first.step_loss), lowered, point.metrics, limits)
-    out.configs["klipper"], out.points["klipper"] = point.config, point
+    lowered, words = found
+    out.configs["klipper"], out.points["klipper"] = points[lowered].config, points[lowered]
     out.labels["klipper"] = lowered_label(out.labels["klipper"], lowered)
     out.notes.append(words + ".")
     note(f"ringtune tune: {words}")

@@ -15,8 +15,8 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, Sequence
 
-from ringtune.agents.tune.baselines import (LOWERED_BOUNDS, Baselines, accel_within_bounds, baseline_configs,
-                                            bound_limits, bound_ratio, lowered_label, lowered_words)
+from ringtune.agents.tune.baselines import (LOWERED_BOUNDS, Baselines, baseline_configs, bound_limits, bound_ratio,
+                                            lowered_label, lowered_pick)
 from ringtune.agents.tune.pareto import (CLASS_KEYS, DEFAULT_RESOLUTION, VISIBLE_KEYS, Point, Resolution,
                                          compare_figure, judge, max_motor_load, shown, words)
 from ringtune.envs.evaluate import evaluate_judged
@@ -179,26 +179,22 @@ def baseline_evaluations(printer, firmware: str, job=None, *, backend: str = "mu
 
 def _klipper_within_bounds(bl: Baselines, judged: dict, run: Callable[[list], list], limits: dict,
                            note: Callable[[str], None]) -> None:
-    """Klipper's pick in ``bl`` and ``judged`` within the bounds where at its max_accel it breaks one."""
+    """Klipper's pick in ``bl`` and ``judged`` at :func:`~ringtune.agents.tune.baselines.lowered_pick`
+    where at its max_accel it breaks a bound."""
     def figures(m) -> tuple[dict, bool]:
         return {k: float(getattr(m, k)) for k, _name in LOWERED_BOUNDS}, bool(m.step_loss)
 
-    def ratio(m) -> float:
-        return bound_ratio(*figures(m), limits)
+    cfg, runs = bl.configs["klipper"], {}
 
-    first, cfg = judged["klipper"][0], bl.configs["klipper"]
-    if ratio(first) <= 1.0 or not cfg.accel:
-        return
-    runs: dict[float, tuple] = {}
-
-    def judge_at(a: float) -> tuple[float, bool]:
+    def judge_at(a: float) -> tuple[dict, bool, bool]:
         runs[a] = run([dataclasses.replace(cfg, accel=a)])[0]
-        r = ratio(runs[a][0])
-        return r, r <= 1.0
+        values, lost = figures(runs[a][0])
+        return values, lost, bound_ratio(values, lost, limits) <= 1.0
 
-    lowered = accel_within_bounds(cfg.accel, ratio(first), judge_at)
-    if lowered is None:
+    found = lowered_pick(cfg.accel, figures(judged["klipper"][0]), judge_at, limits)
+    if found is None:
         return
-    note("ringtune tune: " + lowered_words(cfg.accel, figures(first), lowered, figures(runs[lowered][0])[0], limits))
+    lowered, words = found
+    note(f"ringtune tune: {words}")
     bl.configs["klipper"], judged["klipper"] = dataclasses.replace(cfg, accel=lowered), runs[lowered]
     bl.labels["klipper"] = lowered_label(bl.labels["klipper"], lowered)
