@@ -26,7 +26,7 @@ import dataclasses
 import json
 import time
 
-from ringtune.agents.cli.simulate_config import max_path_error, motor_reserve
+from ringtune.agents.cli.simulate_config import freq_margin, max_path_error, motor_reserve
 from ringtune.agents.tune.baselines import baseline_configs
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, metrics_dict, shown, verdict, words
 from ringtune.agents.tune.versus import SHOWN, baseline_evaluations
@@ -59,8 +59,7 @@ def main() -> int:
     if args.pick_accel:
         pick = dataclasses.replace(baseline_configs(printer, chosen.firmware).configs["klipper"], accel=args.pick_accel)
     else:       # as tune judged it: within the bounds best.json records
-        extra = chosen.extra or {}
-        pick = baseline_evaluations(printer, chosen.firmware, job, freq_margin=float(extra.get("freq_margin", 0.05)),
+        pick = baseline_evaluations(printer, chosen.firmware, job, freq_margin=freq_margin(None, chosen),
                                     job_accel=job_accel_mode(chosen), motor_reserve=motor_reserve(chosen),
                                     max_path_error_mm=max_path_error(chosen), note=print)[0].configs["klipper"]
     keys = [k for k in SHOWN if k != "print_time_s"]

@@ -70,32 +70,30 @@ def build_config(args, out=None, printer=None):
 def freq_margin(args, config=None) -> float:
     """--freq-margin PCT as a fraction; default: the margin the configuration was tuned with
     (``freq_margin`` in a best.json from tune), else tune's default."""
-    if args.freq_margin is not None:
+    if args is not None and args.freq_margin is not None:
         if not 0 <= args.freq_margin < 50:
             raise RingtuneError(f"must be a percentage in [0, 50), not {args.freq_margin:g}", "--freq-margin")
         return args.freq_margin / 100.0
-    recorded = (config.extra or {}).get("freq_margin") if config is not None else None
-    if type(recorded) in (int, float) and 0 <= recorded < 0.5:    # a number, not a bool
-        return float(recorded)
-    return DEFAULT_FREQ_MARGIN
+    return _recorded(config, "freq_margin", 0.5, DEFAULT_FREQ_MARGIN)
 
 
 def motor_reserve(config=None) -> float:
     """The motor reserve (fraction) the baselines are judged with: the one the configuration was
     tuned with (``motor_reserve`` in a best.json from tune), else tune's default."""
-    recorded = (config.extra or {}).get("motor_reserve") if config is not None else None
-    if type(recorded) in (int, float) and 0 <= recorded < 1:
-        return float(recorded)
-    return DEFAULT_MOTOR_RESERVE
+    return _recorded(config, "motor_reserve", 1.0, DEFAULT_MOTOR_RESERVE)
 
 
 def max_path_error(config=None) -> float:
     """The path-error bound (mm) the baselines are judged with: the one the configuration was tuned
     with (``max_path_error_mm`` in a best.json from tune), else tune's default."""
-    recorded = (config.extra or {}).get("max_path_error_mm") if config is not None else None
-    if type(recorded) in (int, float) and recorded >= 0:
-        return float(recorded)
-    return DEFAULT_MAX_PATH_ERROR_MM
+    return _recorded(config, "max_path_error_mm", float("inf"), DEFAULT_MAX_PATH_ERROR_MM)
+
+
+def _recorded(config, key: str, below: float, default: float) -> float:
+    """The number tune recorded as ``key`` in the configuration's extras (a best.json) where it lies
+    in [0, ``below``), else ``default``."""
+    value = (config.extra or {}).get(key) if config is not None else None
+    return float(value) if type(value) in (int, float) and 0 <= value < below else default    # a number, not a bool
 
 
 def _pair(text: str | None, option: str, read=str) -> tuple | None:

@@ -6,7 +6,7 @@
   otherwise the rule (:mod:`ringtune.agents.klipper.baseline`) on the model's simulated resonance
   test, and its label says so. Where the motors cannot follow it at its max_accel (step loss, or
   over the reserve) or its corners past the path-error bound, it is judged at the highest
-  acceleration found within the bounds (:func:`accel_within_bounds`), and its label and a note say so.
+  acceleration found within the bounds (:func:`lowered_pick`), and its label and a note say so.
 - ``current`` — what the printer runs now (``[current]``: shaper, frequency and damping per axis and
   the acceleration, from its firmware configuration), when known.
 - ``none`` — no shaping at the printer's own acceleration.

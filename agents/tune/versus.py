@@ -164,7 +164,7 @@ def baseline_evaluations(printer, firmware: str, job=None, *, backend: str = "mu
     Evaluation per printer variant)}). Where Klipper's pick loses steps, asks the motors for more
     than ``motor_reserve`` leaves (a fraction; 0: step loss alone) or has more path error than
     ``max_path_error_mm`` (0: no bound), it is judged within the bounds, as ``tune`` judges it
-    (:func:`ringtune.agents.tune.baselines.accel_within_bounds`)."""
+    (:func:`ringtune.agents.tune.baselines.lowered_pick`)."""
     bl = baseline_configs(printer, firmware, note=note)
 
     def run(configs: list) -> list:
