@@ -15,7 +15,7 @@ import numpy as np
 
 from ringtune.envs.planned_job import resolve_printer
 from ringtune.shaping.config import TuneConfig
-from ringtune.shaping.config_plan import plan_with_config
+from ringtune.shaping.config_plan import job_accel_mode, plan_with_config
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import (FeatureCommands, accel_groups, class_corner_words, corner_words,
                                               first_layer_caps)
@@ -45,7 +45,8 @@ class RewrittenJob:
     lines_inserted: int
     f_lines_changed: int
     header: str
-    commands: FeatureCommands
+    commands: FeatureCommands | None     # None: nothing per feature (:func:`feature_commands`)
+    junction: str = "scv"                # the printer's junction rule the corner values are in
     first_layer: float | None = None     # mm/s²: the job's own first-layer acceleration kept (first_layer_kept)
 
 
@@ -74,7 +75,7 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     lines = [ln.decode("utf-8", errors="surrogateescape") for ln in data.splitlines(keepends=True)]
     if not lines:
         raise RingtuneError("the job is empty", source)
-    fc = FeatureCommands.from_config(config, limits)
+    fc = feature_commands(config, limits)
     out = rewrite_job(lines, config.firmware, fc, layer_inserts, parsed=None if f_changed else original)
     inserted = len(out) - len(lines)
     nl = "\r\n" if lines[0].endswith("\r\n") else "\n"
@@ -84,13 +85,30 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     # per feature — not the configuration's per-feature tables over them; the limit is in the F words
     rewritten = read_gcode(new, source=source)
     after = plan_with_config(rewritten, limits, machine_part(config), job_accel="respect").plan.print_time
-    header = (f"{HEADER} for {config.firmware} ({limits.junction}): {inserted} lines inserted at feature "
-              f"changes (accelerations {'; '.join(accel_groups(fc.accel))} mm/s²"
-              + "".join(f", {w}" for w in corner_words(fc.corner, fc.min_cruise_ratio)
-                        + class_corner_words(fc.class_corner, fc.class_mcr))
-              + f"); planned {before:.1f} s as sliced -> {after:.1f} s; nothing else differs from the input")
+    header = (f"{HEADER} for {config.firmware} ({limits.junction}): {inserted} lines inserted "
+              + (_set_words(fc) if fc is not None else "(the job's own acceleration commands stand: --job-accel "
+                 "respect, nothing per feature)")
+              + f"; planned {before:.1f} s as sliced -> {after:.1f} s; nothing else differs from the input")
     return RewrittenJob(header.encode() + nl.encode() + new, before, after, config_s, inserted, f_changed, header, fc,
-                        first_layer_kept(original))
+                        limits.junction, first_layer_kept(original) if fc is not None else None)
+
+
+def feature_commands(config: TuneConfig, limits) -> FeatureCommands | None:
+    """What the rewrite sets at each feature change: the configuration's per-feature settings, or
+    its one acceleration for every feature; None where the configuration was judged with the job's
+    own acceleration commands standing (``job_accel`` ``respect``) and sets nothing per feature:
+    then the file keeps them, as tune planned it (the configuration's acceleration is the machine's,
+    which export sends, for the moves the job sets none for)."""
+    if job_accel_mode(config) == "respect" and not config.per_feature:
+        return None
+    return FeatureCommands.from_config(config, limits)
+
+
+def _set_words(fc: FeatureCommands) -> str:
+    """``at feature changes (accelerations …, corner …)``: what the header says was set."""
+    return (f"at feature changes (accelerations {'; '.join(accel_groups(fc.accel))} mm/s²"
+            + "".join(f", {w}" for w in corner_words(fc.corner, fc.min_cruise_ratio)
+                      + class_corner_words(fc.class_corner, fc.class_mcr)) + ")")
 
 
 def first_layer_words(kept: float) -> str:

@@ -322,3 +322,40 @@ def test_line_endings_and_odd_bytes_are_kept():
     assert out[out.index(b"G1 X10 Y10 E2") - 1] == b"SET_VELOCITY_LIMIT ACCEL=9000 ; ringtune: infill"
     wall = out.index(b"G1 X10 Y0 E1 F3000 ; \x0c odd")
     assert out[wall - 1] == b"SET_VELOCITY_LIMIT ACCEL=1500 ; ringtune: outer_wall"
+
+
+#: a Klipper job setting its own acceleration per feature, two moves from rest to rest (a dwell between)
+OWN_ACCEL = (";TYPE:External perimeter\nM204 S1000\nG1 X100 Y0 E5 F6000\nG4 P0\n"
+             ";TYPE:Internal infill\nM204 S5000\nG1 X0 Y0 E10\n")
+
+
+@pytest.mark.parametrize("mode, per_feature, accels", [
+    ("respect", False, (1000.0, 5000.0)),            # the job's own commands stand, as tune judged
+    ("replace", False, (4000.0, 4000.0)),            # the configuration's one acceleration replaces them
+    ("respect", True, (2000.0, 8000.0)),             # per-feature settings overrule them in either mode
+])
+def test_the_rewritten_file_runs_each_move_as_tune_judged_it(mode, per_feature, accels):
+    """Truth: each move takes d/v + v/a (100 mm at 100 mm/s from rest to rest) with the acceleration
+    it runs at — the job's own where tune judged the configuration with them standing and it sets
+    nothing per feature (then the file is the input under the header), else the configuration's."""
+    printer = replace(load_printer(None), limits_dict={"accel": 3000, "velocity": 300, "junction": "scv",
+                                                       "min_cruise_ratio": 0.0})
+    cfg = TuneConfig(firmware="klipper", accel=4000.0, extra={"job_accel": mode},
+                     feature_accel={"outer_wall": 2000.0, "infill": 8000.0} if per_feature else {})
+    done = rewrite_gcode_bytes(OWN_ACCEL.encode(), cfg, printer)
+    truth = sum(1.0 + 100.0 / a for a in accels)
+    assert done.after_s == pytest.approx(truth, rel=1e-9) and done.config_s == pytest.approx(truth, rel=1e-9)
+    body = done.data.decode().split("\n", 1)[1]
+    assert (body == OWN_ACCEL) == (mode == "respect" and not per_feature)
+    assert (done.commands is None) == (body == OWN_ACCEL)
+
+
+def test_rewrite_command_with_the_jobs_own_accelerations_standing(tmp_path, capsys):
+    src, conf, dst = tmp_path / "own.gcode", tmp_path / "best.json", tmp_path / "out.gcode"
+    src.write_text(OWN_ACCEL)
+    conf.write_text(json.dumps(TuneConfig(firmware="klipper", accel=4000.0, extra={"job_accel": "respect"}).to_dict()))
+    assert main(["rewrite", str(src), "--config", str(conf), "-o", str(dst), "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["lines_inserted"] == 0 and res["feature_accel"] is None and res["corner"] is None
+    assert "the job's own acceleration commands stand" in res["header"] and res["junction"] == "scv"
+    assert dst.read_text().split("\n", 1)[1] == OWN_ACCEL

@@ -4,7 +4,8 @@ JSON keys (stable): ``input``, ``output``, ``firmware``, ``junction``, ``lines_i
 ``f_lines_changed`` (the frequency limit's F words), ``print_time_before_s`` (as sliced),
 ``print_time_after_s`` (the rewritten file), ``print_time_config_s`` (the configuration on the
 original, as ``tune`` reports it), ``feature_accel`` ({class: mm/s²}), ``corner``,
-``min_cruise_ratio``, ``header``, ``first_layer_kept`` (null, or the lowest acceleration the
+``min_cruise_ratio`` (these three null where nothing is set per feature: a configuration judged with
+the job's own accelerations standing, ``job_accel`` ``respect``), ``header``, ``first_layer_kept`` (null, or the lowest acceleration the
 job gives the first layer it slows itself, mm/s², which the rewrite keeps wherever it is lower than
 the per-feature one: said on stderr too).
 """
@@ -22,7 +23,9 @@ minimum_cruise_ratio once at the start, the per-axis caps raised once where the 
 (Marlin, Prusa, RRF: M201 X Y), and the configuration's frequency limit (as `ringtune limit`).
 Lines are only inserted, never changed (apart from the limit's F words); a comment on the first
 line says what was done. The same commands follow any acceleration command of the job itself, so
-the job's own values never rule a move.
+the job's own values never rule a move — unless tune judged the configuration with the job's own
+acceleration commands standing (--job-accel respect, recorded in best.json) and it sets nothing per
+feature: then they stand in the file too, and only the frequency limit and a Y schedule are written.
 
   Klipper/Kalico  SET_VELOCITY_LIMIT ACCEL=... [SQUARE_CORNER_VELOCITY=... MINIMUM_CRUISE_RATIO=...
                   ACCEL_TO_DECEL=...]   (ACCEL_TO_DECEL = ACCEL x (1 - minimum_cruise_ratio) where
@@ -52,13 +55,13 @@ def run(args, out) -> int:
     check_output_folder("--output", args.output)
     cfg = load_config(args.config, out)
     done = rewrite_file(args.file, args.output, cfg, args.printer)
-    from_cfg = done.commands
-    result = {"input": args.file, "output": args.output, "firmware": cfg.firmware, "junction": from_cfg.junction,
+    fc = done.commands
+    result = {"input": args.file, "output": args.output, "firmware": cfg.firmware, "junction": done.junction,
               "lines_inserted": done.lines_inserted, "f_lines_changed": done.f_lines_changed,
               "print_time_before_s": done.before_s, "print_time_after_s": done.after_s,
-              "print_time_config_s": done.config_s, "feature_accel": dict(from_cfg.accel),
-              "corner": from_cfg.corner, "min_cruise_ratio": from_cfg.min_cruise_ratio, "header": done.header,
-              "first_layer_kept": done.first_layer}
+              "print_time_config_s": done.config_s, "feature_accel": dict(fc.accel) if fc else None,
+              "corner": fc.corner if fc else None, "min_cruise_ratio": fc.min_cruise_ratio if fc else None,
+              "header": done.header, "first_layer_kept": done.first_layer}
     if done.first_layer:
         out.note(f"ringtune rewrite: {first_layer_words(done.first_layer)}")
     saved = done.before_s - done.after_s
