@@ -15,7 +15,7 @@ import numpy as np
 
 from ringtune.envs.planned_job import resolve_printer
 from ringtune.shaping.config import TuneConfig
-from ringtune.shaping.config_plan import job_accel_mode, plan_with_config
+from ringtune.shaping.config_plan import for_firmware, job_accel_mode, plan_with_config
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import (FeatureCommands, accel_groups, class_corner_words, corner_words,
                                               first_layer_caps)
@@ -58,7 +58,7 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     limits plan the times and give the junction rule the corner value is written in). ``parsed``:
     ``data`` already read (:func:`ringtune.shaping.gcode.read_gcode`), which is then not read again."""
     printer = resolve_printer(printer)
-    limits = printer.limits
+    limits = for_firmware(printer.limits, config)       # the job read as the configuration's firmware reads it
     original = parsed if parsed is not None else read_gcode(data, source=source)
     before = plan_with_config(original, limits, None).plan.print_time
     if layer_inserts is None and config.y_schedule:

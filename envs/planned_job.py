@@ -128,13 +128,13 @@ def resolve_job(job):
 KLIPPER_ACCEL_SETTINGS = ("accel_klipper", *KLIPPER_AXIS_SETTINGS.values())
 
 
-def job_accel_commands(job, junction: str) -> dict[str, float]:
-    """The acceleration commands a parsed job sets itself that a firmware with ``junction``'s rule
-    takes: {setting: largest value it sets} (mm/s²; keys of
-    :data:`ringtune.shaping.config_plan.JOB_ACCEL_SETTINGS`, under Klipper's ``scv`` those of
-    :data:`KLIPPER_ACCEL_SETTINGS`; empty when it sets none)."""
+def job_accel_commands(job, limits) -> dict[str, float]:
+    """The acceleration commands a parsed job sets itself that a firmware reading it as ``limits``
+    says (:attr:`ringtune.shaping.planner.MachineLimits.reads_like_klipper`) takes: {setting:
+    largest value it sets} (mm/s²; keys of :data:`ringtune.shaping.config_plan.JOB_ACCEL_SETTINGS`,
+    as Klipper reads a job those of :data:`KLIPPER_ACCEL_SETTINGS`; empty when it sets none)."""
     out = {}
-    for k in (KLIPPER_ACCEL_SETTINGS if junction == "scv" else JOB_ACCEL_SETTINGS):
+    for k in (KLIPPER_ACCEL_SETTINGS if limits.reads_like_klipper else JOB_ACCEL_SETTINGS):
         col = np.asarray(job.settings_table)[:, SETTING_KEYS.index(k)]
         col = col[~np.isnan(col)]
         if len(col):

@@ -6,8 +6,9 @@ and :func:`ringtune.envs.planned_job.planned_job` (every tuning trial) share.
    replace the machine's X/Y caps; how it meets the job's own acceleration
    commands is the job-acceleration mode (:data:`JOB_ACCEL_MODES`, argument ``job_accel`` or the
    config's ``extra["job_accel"]``): ``replace`` (default) — it replaces the job's own commands
-   (M204, SET_VELOCITY_LIMIT ACCEL and the X/Y caps of M201), what re-slicing at that acceleration
-   with the machine limits raised to it gives; ``respect`` — the job's commands stand and
+   (M204, SET_VELOCITY_LIMIT ACCEL and the X/Y caps of M201) at every feature change, as the
+   rewritten file does (step 3: a first layer the job slows itself and its retract acceleration
+   kept), what re-slicing at that acceleration with the machine limits raised to it gives; ``respect`` — the job's commands stand and
    ``config.accel`` rules wherever the job sets none (the print as sliced);
 2. the config's frequency limit rewrites the requested feedrates (``shaping.freqlimit``), unless
    the job's header says ``ringtune limit`` already did, with the same settings; without
@@ -37,7 +38,7 @@ from ringtune.shaping.planner import MachineLimits, Plan, plan
 
 #: how a config's acceleration meets the job's own acceleration commands (module docstring)
 JOB_ACCEL_MODES = ("replace", "respect")
-#: the job settings that "replace" removes (the job's own accelerations and X/Y acceleration caps)
+#: the job's own accelerations and X/Y acceleration caps (what "replace" overrules)
 JOB_ACCEL_SETTINGS = ("accel_print", "accel_travel", "accel_retract", "accel_klipper", "max_accel_x",
                       "max_accel_y", "limited_accel_x", "limited_accel_y")
 
@@ -76,13 +77,10 @@ def job_accel_mode(config: TuneConfig | None, job_accel: str | None = None) -> s
     return mode
 
 
-def without_job_accel(job: Job) -> Job:
-    """A copy of a parsed job whose own acceleration commands (:data:`JOB_ACCEL_SETTINGS`) are
-    gone, so that the machine's (or the config's) acceleration rules every move."""
-    cols = [SETTING_KEYS.index(k) for k in JOB_ACCEL_SETTINGS]
-    table = np.array(job.settings_table, dtype=float, copy=True)
-    table[:, cols] = np.nan
-    return replace(job, settings_table=table)
+def sets_accel(job: Job) -> bool:
+    """Whether the parsed job sets any acceleration of its own (:data:`JOB_ACCEL_SETTINGS`)."""
+    table = np.asarray(job.settings_table)
+    return bool(job.n_moves) and bool(np.any(~np.isnan(table[:, [SETTING_KEYS.index(k) for k in JOB_ACCEL_SETTINGS]])))
 
 
 def with_axis_caps(limits: MachineLimits, config: TuneConfig | None) -> MachineLimits:
@@ -126,9 +124,10 @@ def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None 
     accel = None if config is None or config.accel is None else float(config.accel)
     if accel is not None:     # export sends it as printing and travel acceleration (M204 P T)
         limits = replace(limits, accel=accel, travel_accel=None)
-        if mode == "replace" and not config.per_feature:
-            job = without_job_accel(job)
-    if config is not None and config.per_feature:   # over the job's own, as the rewritten file has them
+    # over the job's own, as the rewritten file has them: one acceleration replacing the job's own
+    # commands is written at every feature change too (the job's slowed first layer and its retract
+    # acceleration, M204 R, kept); a job with none of its own takes it as the machine's (the same plan)
+    if config is not None and (config.per_feature or (mode == "replace" and accel is not None and sets_accel(job))):
         job = with_feature_settings(job, FeatureCommands.from_config(config, limits))
         accel = None          # the settings are the job's own now, move by move
     job, freq_limit = _freq_limited(job, limits, config, use_job_limits)
@@ -150,7 +149,7 @@ def _freq_limited(job: Job, limits: MachineLimits, config: TuneConfig | None,
             return job, FreqLimitApplied(hz, method, 0, "job (ringtune limit)")
         limited = apply_freq_limit(job, hz, method, float(config.min_speed_factor), max_velocity=limits.max_velocity)
         return limited, FreqLimitApplied(hz, method, int(np.sum(limited.feed < job.feed)), "config")
-    if use_job_limits and job.file_setting("freq_limit_hz") > 0 and limits.junction != "scv":   # Klipper has no M201
+    if use_job_limits and job.file_setting("freq_limit_hz") > 0 and not limits.reads_like_klipper:   # Klipper has no M201
         limited = apply_freq_limit(job, None, "marlin", max_velocity=limits.max_velocity)
         return limited, FreqLimitApplied(job.file_setting("freq_limit_hz"), "marlin",
                                          int(np.sum(limited.feed < job.feed)), "job M201 F")

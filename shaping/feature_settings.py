@@ -61,7 +61,9 @@ class FeatureCommands:
     class_mcr: class -> the corner value / minimum_cruise_ratio where a class has its own (the
     others take ``corner`` / ``min_cruise_ratio``, or ``corner_now`` / ``mcr_now``, the printer's);
     atd_now: a Klipper from before 2024, its max_accel_to_decel (mm/s², kept where no
-    minimum_cruise_ratio is set; None: a current Klipper)."""
+    minimum_cruise_ratio is set; None: a current Klipper); klipper_reading: whether the firmware reads
+    a job as Klipper does (:attr:`ringtune.shaping.planner.MachineLimits.reads_like_klipper`; None:
+    as the junction rule implies) — which settings carry the X/Y caps."""
 
     accel: dict
     junction: str
@@ -73,6 +75,11 @@ class FeatureCommands:
     corner_now: float | None = None
     mcr_now: float | None = None
     atd_now: float | None = None
+    klipper_reading: bool | None = None
+
+    @property
+    def reads_like_klipper(self) -> bool:
+        return self.klipper_reading if self.klipper_reading is not None else self.junction == "scv"
 
     @classmethod
     def from_config(cls, config, limits) -> "FeatureCommands":
@@ -85,7 +92,8 @@ class FeatureCommands:
         now = corner_value(limits)
         return cls(accel, limits.junction, config.corner, mcr, _caps(config.firmware, limits, accel, config.axis_caps),
                    dict(config.feature_corner), dict(config.feature_min_cruise_ratio) if scv else {},
-                   float(now), float(limits.min_cruise_ratio), limits.accel_to_decel if scv else None)
+                   float(now), float(limits.min_cruise_ratio), limits.accel_to_decel if scv else None,
+                   limits.reads_like_klipper)
 
 
 def corner_value(limits) -> float:
@@ -256,7 +264,7 @@ def _settings(fc: FeatureCommands, eff: np.ndarray, label: np.ndarray, seam: np.
         out.update(min_cruise_ratio=mcr, accel_to_decel=_accel_to_decel(fc, eff, out["accel_klipper"], mcr))
     for ax, cap in zip("xy", fc.caps or ()):
         if cap is not None:
-            out[f"{caps_setting(fc.junction)}_{ax}"] = np.full(n, float(cap))
+            out[f"{caps_setting(fc.reads_like_klipper)}_{ax}"] = np.full(n, float(cap))
     return out
 
 
@@ -273,11 +281,11 @@ def _accel_to_decel(fc: FeatureCommands, eff: np.ndarray, accel: np.ndarray, mcr
     return np.where(unset, np.minimum(fc.atd_now, accel), atd)
 
 
-def caps_setting(junction: str) -> str:
-    """The prefix of the job settings that carry the X/Y acceleration caps under ``junction``'s
-    rule: Kalico's SET_VELOCITY_LIMIT X_ACCEL/Y_ACCEL (``limited_accel``) under Klipper's, M201 X Y
-    (``max_accel``) under Marlin's and RRF's."""
-    return "limited_accel" if junction == "scv" else "max_accel"
+def caps_setting(klipper: bool) -> str:
+    """The prefix of the job settings that carry the X/Y acceleration caps for a firmware reading the
+    job as Klipper does (``klipper``): Kalico's SET_VELOCITY_LIMIT X_ACCEL/Y_ACCEL
+    (``limited_accel``); else M201 X Y (``max_accel``), as Marlin and RRF read it."""
+    return "limited_accel" if klipper else "max_accel"
 
 
 def with_feature_settings(job: Job, fc: FeatureCommands) -> Job:

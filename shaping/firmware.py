@@ -179,7 +179,8 @@ class Firmware:
         own = " or ".join(JUNCTION_NAMES[j] for j in self.junctions)
         return (f"the printer description corners by {JUNCTION_NAMES.get(junction, junction)} ([limits] junction = "
                 f"\"{junction}\"), which {self.title} does not have (it corners by {own}): corners and print time "
-                f"are planned that way, not as {self.title} would; describe the printer with its own (`ringtune "
+                f"are planned that way, not as {self.title} would (the job's own acceleration commands are read as "
+                f"{self.title} reads them); describe the printer with its own (`ringtune "
                 "printer from-klipper|from-marlin|from-rrf` reads it)")
 
     @staticmethod
@@ -196,10 +197,12 @@ def job_reading(name) -> dict:
     """How the firmware ``name`` (a key of :data:`FIRMWARES`; None or unknown: not known) reads a
     job's limit commands, as :class:`ringtune.shaping.planner.MachineLimits` fields:
     RepRapFirmware takes M203 in mm/min (Marlin: mm/s); Marlin and Prusa have no M566 (RRF's
-    jerk), only M205 X Y. Not known: M203 in mm/s, M566 read."""
+    jerk), only M205 X Y; Klipper and Kalico read one acceleration and no M201/M203
+    (``klipper_reading``). Not known: M203 in mm/s, M566 read, the reading the junction rule implies."""
     fw = FIRMWARES.get(str(name or "").strip().lower())
     family = fw.family if fw else None
-    return {"m203_per_minute": family == "rrf", "reads_m566": family not in ("marlin", "marlin-ftm", "prusa")}
+    return {"m203_per_minute": family == "rrf", "reads_m566": family not in ("marlin", "marlin-ftm", "prusa"),
+            "klipper_reading": None if fw is None else family == "klipper"}
 
 
 #: each junction rule in words

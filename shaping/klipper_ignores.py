@@ -25,7 +25,7 @@ def klipper_ignored(job, limits) -> dict[str, list[int]]:
     ``scv``; ``accel_to_decel`` set: a Klipper from before 2024); empty under any other rule."""
     out: dict[str, list[int]] = {}
     old = limits.accel_to_decel is not None
-    for ev in job.events if limits.junction == "scv" else ():
+    for ev in job.events if limits.reads_like_klipper else ():
         what = _ignored_as(ev, old)
         if what:
             out.setdefault(what, []).append(int(ev.line))

@@ -78,7 +78,7 @@ def move_accels(job: Job, limits, use: bool, delta: np.ndarray, e_only: np.ndarr
         if keep is None:
             return np.full(job.n_moves, float(override))
         return np.where(keep, job_value(job, "accel_retract", limits.retract_accel, use), float(override))
-    if limits.junction == "scv":
+    if limits.reads_like_klipper:
         accel = job_value(job, "accel_klipper", limits.accel, use)
     else:
         a_print = job_value(job, "accel_print", limits.accel, use)
@@ -91,7 +91,7 @@ def move_accels(job: Job, limits, use: bool, delta: np.ndarray, e_only: np.ndarr
 def marlin_retractions(job: Job, limits, use: bool, e_only: np.ndarray) -> np.ndarray | None:
     """E-only moves that run at Marlin's ``M204 R`` without per-axis caps: where a retract
     acceleration is known (machine or job) under Marlin's junction rules; None under Klipper's."""
-    if limits.junction == "scv":
+    if limits.reads_like_klipper:
         return None
     known = ~np.isnan(job_value(job, "accel_retract", limits.retract_accel, use))
     return e_only & known

@@ -78,9 +78,14 @@ class MachineLimits:
     ACCEL_TO_DECEL); m203_per_minute: the firmware reads a job's M203 speeds in mm/min
     (RepRapFirmware; Marlin: mm/s); reads_m566: the firmware has RRF's M566 jerk beside M205
     (Marlin and Prusa have M205 alone);
-    travel_accel / retract_accel: Marlin's M204 T / R, RRF's M204 T (None = accel; the junction
-    rules ``jd`` and ``jerk`` use them, Klipper has one acceleration); axis_rule: how the per-axis
-    caps bind (:data:`AXIS_RULES`, module docstring); scale_xy_accel: Kalico's ``scale_xy_accel``.
+    travel_accel / retract_accel: Marlin's M204 T / R, RRF's M204 T (None = accel; a firmware reading
+    the job by role uses them, Klipper has one acceleration); axis_rule: how the per-axis
+    caps bind (:data:`AXIS_RULES`, module docstring); scale_xy_accel: Kalico's ``scale_xy_accel``;
+    klipper_reading: whether the firmware reads a job's limit commands as Klipper and Kalico do (one
+    acceleration from M204 S, or P and T together, or SET_VELOCITY_LIMIT; no M201/M203), else by
+    role as Marlin, Prusa and RepRapFirmware (M204 P printing, T travel, R retract; M201/M203 caps);
+    None: as the junction rule implies (Klipper's ``scv``, the others' ``jd``/``jerk``) — the
+    firmware, not its corner rule, decides it where both are known (:attr:`reads_like_klipper`).
     """
 
     accel: float = 3000.0
@@ -99,6 +104,13 @@ class MachineLimits:
     retract_accel: float | None = None
     axis_rule: str = "per_axis"
     scale_xy_accel: bool = False
+    klipper_reading: bool | None = None
+
+    @property
+    def reads_like_klipper(self) -> bool:
+        """Whether a job's limit commands are read as Klipper reads them (``klipper_reading``, else
+        the junction rule's firmware)."""
+        return self.klipper_reading if self.klipper_reading is not None else self.junction == "scv"
 
     def __post_init__(self) -> None:
         self.validate()
@@ -225,7 +237,7 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
     extruding = (delta[:, 3] > 0) & (np.hypot(delta[:, 0], delta[:, 1]) > 0)
 
     # -- speeds and accelerations per move --
-    klipper = limits.junction == "scv"      # Klipper's and Kalico's rule: the job's M201/M203 do not exist there,
+    klipper = limits.reads_like_klipper      # Klipper's and Kalico's reading: the job's M201/M203 do not exist there,
     velocity = job_value(job, "velocity", limits.velocity, use and klipper)   # nor SET_VELOCITY_LIMIT on Marlin/RRF
     vmax = np.minimum(job.feed, velocity)
     vmax = scale_by_axes(vmax, u, axis_caps(job, "max_vel", limits.max_velocity, use, klipper,

@@ -54,6 +54,7 @@ class _Dialect:
     family: str
     junction: str
     caps_set: str
+    klipper_reading: bool
 
     def accel(self, values: dict, corner_keys: tuple = ()) -> list[str]:
         """The lines setting the acceleration (and the corner settings ``corner_keys`` that change
@@ -61,7 +62,7 @@ class _Dialect:
         if self.junction == "scv" and self.family == "klipper":
             words = [f"ACCEL={_n(values['accel_klipper'])}", *_accel_to_decel(values)]
             return ["SET_VELOCITY_LIMIT " + " ".join(words + _klipper_words(values, corner_keys))]
-        if self.junction == "scv":
+        if self.junction == "scv" and self.klipper_reading:
             return [f"M204 P{_n(values['accel_klipper'])} T{_n(values['accel_klipper'])}"] + self.corner(values, corner_keys)
         return [f"M204 P{_n(values['accel_print'])} T{_n(values['accel_travel'])}"] + self.corner(values, corner_keys)
 
@@ -84,7 +85,7 @@ class _Dialect:
 
     def once(self, values: dict) -> list[str]:
         out = self.corner(values, [k for k in _CORNER_KEYS if k in values])
-        caps = caps_setting(self.junction)
+        caps = caps_setting(self.klipper_reading)
         if f"{caps}_x" in values and self.caps_set:
             out.append(self.caps_set.format(x=_n(values[f"{caps}_x"]), y=_n(values[f"{caps}_y"])))
         return out
@@ -111,7 +112,8 @@ def _dialect(firmware: str, fc: FeatureCommands) -> _Dialect:
     fw = FIRMWARES.get(str(firmware).lower())
     if fw is None:
         raise RingtuneError(f"must be one of {', '.join(FIRMWARES)}, not {firmware!r}", "firmware")
-    return _Dialect(fw.family if fw.family in ("klipper", "rrf") else "marlin", fc.junction, fw.axis_accel_set)
+    return _Dialect(fw.family if fw.family in ("klipper", "rrf") else "marlin", fc.junction, fw.axis_accel_set,
+                    fc.reads_like_klipper)
 
 
 def _feature_inserts(job: Job, firmware: str, fc: FeatureCommands) -> dict[int, list[str]]:

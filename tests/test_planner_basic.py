@@ -241,3 +241,20 @@ def test_marlin_has_no_m566_and_rrf_reads_both_jerk_commands():
     assert t("M566 X6000 Y6000\n" + square, "rrf") == pytest.approx(t("M205 X100 Y100\n" + square, "rrf"), rel=1e-12)
     assert t("M566 X6000 Y6000\n" + square, "rrf") < 0.9 * t(square, "rrf")
     assert t("M205 X100 Y100\nM566 X60 Y60\n" + square, "rrf") == pytest.approx(t(square, "rrf"), rel=1e-12)
+
+
+@pytest.mark.parametrize("junction", ["scv", "jd"])
+def test_the_firmware_not_its_corner_rule_reads_the_jobs_acceleration_commands(junction):
+    """One 100 mm move from rest to rest at F6000 (100 mm/s) after ``M201 X500 Y500`` and a lone
+    ``M204 P1000``, on a machine at 3000 mm/s² whose corners are described by ``junction``: Marlin
+    (toolhead at M204 P, capped by M201: 500 mm/s²) takes 1 + 100/500 s; Klipper acts on neither
+    line (no M201; a lone P needs T: toolhead.cmd_M204), 1 + 100/3000 s — whichever corner rule the
+    printer description gives, since the firmware reads the file."""
+    job = read_gcode("M201 X500 Y500\nM204 P1000\nG1 X100 E5 F6000\n")
+    lim = MachineLimits(accel=3000, velocity=300, junction=junction, min_cruise_ratio=0.0)
+    times = {fw: plan_with_config(job, lim, TuneConfig(firmware=fw, accel=None)).plan.print_time
+             for fw in ("marlin", "rrf", "klipper", "kalico")}
+    assert times["marlin"] == pytest.approx(1 + 100 / 500, rel=1e-9)
+    assert times["rrf"] == pytest.approx(1 + 100 / 500, rel=1e-9)
+    assert times["klipper"] == pytest.approx(1 + 100 / 3000, rel=1e-9)
+    assert times["kalico"] == pytest.approx(1 + 100 / 3000, rel=1e-9)

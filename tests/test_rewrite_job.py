@@ -359,3 +359,31 @@ def test_rewrite_command_with_the_jobs_own_accelerations_standing(tmp_path, caps
     assert res["lines_inserted"] == 0 and res["feature_accel"] is None and res["corner"] is None
     assert "the job's own acceleration commands stand" in res["header"] and res["junction"] == "scv"
     assert dst.read_text().split("\n", 1)[1] == OWN_ACCEL
+
+
+#: two layers of one 100 mm wall from rest to rest at 100 mm/s; the job slows its first (M204 S/P 1000)
+SLOWED_FIRST = ("G90\nM83\n{a1}\nG1 Z0.2 F600\nG4 P0\n;TYPE:External perimeter\nG1 X100 Y0 E5 F6000\nG4 P0\n"
+                "G1 Z0.4 F600\nG4 P0\n{a2}\n;TYPE:External perimeter\nG1 X0 Y0 E5 F6000\nG4 P0\n")
+
+
+@pytest.mark.parametrize("firmware, junction, a1, a2", [
+    ("klipper", "scv", "M204 S1000", "M204 S5000"),
+    ("marlin", "jd", "M204 P1000", "M204 P5000"),
+    ("marlin", "scv", "M204 P1000", "M204 P5000"),      # Marlin read as Marlin on a printer described with scv
+])
+def test_one_acceleration_replacing_the_jobs_own_is_judged_as_the_file_runs_it(firmware, junction, a1, a2):
+    """``--job-accel replace`` with one acceleration (4000 mm/s²): the rewrite writes it at every
+    feature change and keeps the first layer the job slows itself; tune's plan of the configuration
+    is that file's. Truth: each wall takes 1 + 100/a s (100 mm at 100 mm/s from rest to rest) with a
+    = 1000 on the first layer and 4000 on the second, plus the Z moves (0.2 mm at 10 mm/s, the
+    same in every plan, taken from the plan itself)."""
+    printer = replace(load_printer(None), limits_dict={"accel": 3000, "velocity": 300, "junction": junction,
+                                                       "min_cruise_ratio": 0.0})
+    text = SLOWED_FIRST.format(a1=a1, a2=a2)
+    cfg = TuneConfig(firmware=firmware, accel=4000.0, extra={"job_accel": "replace"})
+    done = rewrite_gcode_bytes(text.encode(), cfg, printer, "slowed")
+    plan = planned_job(printer, text, cfg).plan
+    walls = plan.moves.extruding
+    assert plan.moves.duration[walls].tolist() == pytest.approx([1 + 100 / 1000, 1 + 100 / 4000], rel=1e-12)
+    assert done.config_s == pytest.approx(plan.print_time, rel=1e-12)
+    assert done.after_s == pytest.approx(done.config_s, rel=1e-12) and done.first_layer == 1000.0

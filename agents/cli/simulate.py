@@ -46,7 +46,7 @@ from ringtune.envs.metrics import Metrics
 from ringtune.envs.plots import plot_evaluation
 from ringtune.envs.variants import variant_factors
 from ringtune.shaping.config import TuneConfig
-from ringtune.shaping.config_plan import job_accel_mode
+from ringtune.shaping.config_plan import for_firmware, job_accel_mode
 from ringtune.shaping.e_timing import E_TIMING_WORDS
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import per_feature_text
@@ -165,13 +165,12 @@ def job_commands(printer, gcode, config, out) -> list[dict]:
     notes = []
     if len(timeline) > 1:
         notes.append(describe_timeline(timeline, plan.events))
-    limits = resolve_printer(printer).limits
-    junction = limits.junction
+    limits = for_firmware(resolve_printer(printer).limits, config)
     for note in (klipper_ignored_note(klipper_ignored(parsed, limits)),
                  firmware_retraction_note(firmware_retractions(parsed))):
         if note:
             notes.append(note)
-    if job_accel_commands(parsed, junction):
+    if job_accel_commands(parsed, limits):
         mode = job_accel_mode(config) if config.accel is not None else "respect"
         notes.append("the job's own acceleration commands " + (
             "stand (--job-accel respect), as the printer would run them" if mode == "respect" else

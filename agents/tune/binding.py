@@ -20,7 +20,7 @@ import numpy as np
 
 from ringtune.envs.planned_job import resolve_job
 from ringtune.shaping.config import TuneConfig
-from ringtune.shaping.config_plan import plan_with_config, with_axis_caps
+from ringtune.shaping.config_plan import for_firmware, plan_with_config, with_axis_caps
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.planner import MachineLimits
 
@@ -71,7 +71,7 @@ def _variants(limits: MachineLimits) -> list[tuple[str, float, MachineLimits, st
     out = [(ax, float(cap), replace(limits, max_accel=tuple(0.0 if j == i else c for j, c in enumerate(caps)),
                                     scale_xy_accel=False), f"moves with {ax.upper()} travel")
            for i, (ax, cap) in enumerate(zip("xyz", caps)) if cap > 0]
-    if limits.junction == "scv":          # Klipper: one acceleration for every move
+    if limits.reads_like_klipper:          # Klipper: one acceleration for every move
         return out
     roles = (("retract", "retract_accel", "retractions (E-only moves)"), ("travel", "travel_accel", "travel moves"))
     return out + [(key, float(getattr(limits, attr)), replace(limits, **{attr: limits.accel}), what)
@@ -83,7 +83,7 @@ def binding_limits(printer, job, config: TuneConfig, firmware: str | None = None
     """The limits that lower some move's acceleration when ``job`` runs on ``printer`` under
     ``config``, each with the print time with and without it (module docstring)."""
     _, parsed = resolve_job(job)
-    limits = with_axis_caps(printer.limits, config)
+    limits = for_firmware(with_axis_caps(printer.limits, config), config)
     if config.accel is not None:
         limits = replace(limits, accel=float(config.accel))
     plain = replace(config, max_accel_x=None, max_accel_y=None)     # its caps are in ``limits`` now

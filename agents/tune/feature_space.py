@@ -26,6 +26,7 @@ from ringtune.agents.tune.motor_bound import motor_accel_limit
 from ringtune.agents.tune.feature_groups import ACCEL_GROUPS, CORNER_GROUPS, CORNER_WORDS, HIDDEN_CORNERS, SEEN_GROUPS
 from ringtune.agents.tune.space import CORNER_UNIT, SearchSpace
 from ringtune.envs.planned_job import planned_job, resolve_job
+from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.feature_settings import corner_value, effective_classes
 from ringtune.shaping.features import FEATURE_CLASSES
 from ringtune.shaping.firmware import FIRMWARES
@@ -41,11 +42,12 @@ MCR_RANGE = (0.0, 0.5)
 HIDDEN_CORNER_RANGE = {k: (lo, 2.0 * hi) for k, (lo, hi) in CORNER_RANGE.items()}
 
 
-def group_speeds(printer: Any, job: Any = None) -> dict[str, float]:
+def group_speeds(printer: Any, job: Any = None, firmware: str | None = None) -> dict[str, float]:
     """{group: top speed of its moves with X/Y motion, mm/s} for the groups the job has (planned
-    at the printer's limits: the speed each move asks for after the velocity limits)."""
+    at the printer's limits: the speed each move asks for after the velocity limits, the job's own
+    as ``firmware`` reads them; None: as the printer's own does)."""
     _, parsed = resolve_job(job)
-    moves = planned_job(printer, job, None).plan.moves
+    moves = planned_job(printer, job, TuneConfig(firmware=firmware, accel=None) if firmware else None).plan.moves
     xy = np.hypot(*(moves.end - moves.start)[:, :2].T) > 0
     cls = effective_classes(parsed)
     out = {}
@@ -60,7 +62,7 @@ def feature_space(space: SearchSpace, printer: Any, job: Any = None, reserve: fl
                   corner: bool = True, min_cruise_ratio: bool = True) -> SearchSpace:
     """``space`` with an acceleration range per group the job has (``visible`` stays ``accel``),
     the corner rule (``corner``) and, under Klipper's junction rule, minimum_cruise_ratio."""
-    speeds = group_speeds(printer, job)
+    speeds = group_speeds(printer, job, space.firmware)
     lo = space.accel[0]
     fw_hi = FIRMWARES[space.firmware].accel.hi
     groups, basis = [], {}

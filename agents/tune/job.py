@@ -21,6 +21,7 @@ from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point
 from ringtune.agents.tune.motor_bound import defaults_note
 from ringtune.envs.planned_job import job_accel_commands, planned_job, resolve_job
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.config_plan import for_firmware
 from ringtune.shaping.features import FEATURE_CLASSES, LABELLED_VISIBLE, class_indices
 from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions
 from ringtune.shaping.klipper_ignores import klipper_ignored, klipper_ignored_note
@@ -33,15 +34,22 @@ GCODE_WORDS = {"M201": (("max_accel_x", "X"), ("max_accel_y", "Y")),
 
 @dataclass
 class JobAccelFacts:
-    """The job's own acceleration commands and its top speed (mm/s)."""
+    """The job's own acceleration commands, as ``firmware`` reads them (None: as the printer's own
+    does, ``[current] firmware``), and its top speed (mm/s)."""
 
     printer: Any
     job: Any
+    firmware: str | None = None
     commands: dict = field(default_factory=dict)     # setting -> largest value set, mm/s²
     top_speed: float = 0.0
     cap: float | None = None                         # mm/s²: the largest acceleration the job lets any move have
     seen_low: float | None = None                    # mm/s²: the lowest its commands give a seen wall or surface
     #                                                  above the first layer (whose own the slicer sets for adhesion)
+
+    @property
+    def limits(self):
+        """The printer's limits as the firmware reads a job (:func:`ringtune.shaping.config_plan.for_firmware`)."""
+        return for_firmware(self.printer.limits, TuneConfig(firmware=self.firmware) if self.firmware else None)
 
     def time(self, config: TuneConfig, mode: str) -> float:
         """Planned time under ``mode``; ``respect`` is the job as sliced, so a per-feature
@@ -53,7 +61,7 @@ class JobAccelFacts:
     def accel_matters(self, space) -> bool:
         """Whether the acceleration changes the print time beyond the resolution under ``respect``
         over the space's range."""
-        lo, hi = (TuneConfig(accel=float(a)) for a in space.accel)
+        lo, hi = (TuneConfig(firmware=self.firmware or "klipper", accel=float(a)) for a in space.accel)
         t_lo, t_hi = self.time(lo, "respect"), self.time(hi, "respect")
         return abs(t_lo - t_hi) > DEFAULT_RESOLUTION.time_rel * max(t_lo, t_hi)
 
@@ -70,7 +78,7 @@ class JobAccelFacts:
     def _ignored(self) -> list[str]:
         """Under Klipper's rule, the sentence on the job's limit lines Klipper does not act on, and
         the one on its firmware retractions (each or none)."""
-        limits, job = self.printer.limits, resolve_job(self.job)[1]
+        limits, job = self.limits, resolve_job(self.job)[1]
         notes = (klipper_ignored_note(klipper_ignored(job, limits)),
                  firmware_retraction_note(firmware_retractions(job)))
         return [n for n in notes if n]
@@ -93,14 +101,16 @@ class JobAccelFacts:
         return out + [head + tail]
 
 
-def job_accel_facts(printer, job, mode: str) -> JobAccelFacts:
+def job_accel_facts(printer, job, mode: str, firmware: str | None = None) -> JobAccelFacts:
     """The job's acceleration commands, its top speed (the largest speed a move asks for after the
     velocity limits, mm/s; under ``respect`` the job's own limits count; ``tune`` uses the printer's
     velocity limit instead when no job is given) and the acceleration cap those commands put on it
-    (under ``respect``, planned at a very high machine acceleration)."""
+    (under ``respect``, planned at a very high machine acceleration). ``firmware``: the one tune
+    writes for, whose reading of the job's commands counts (None: the printer's own)."""
     _, parsed = resolve_job(job)
-    facts = JobAccelFacts(printer, job, job_accel_commands(parsed, printer.limits.junction))
-    pj = planned_job(printer, job, None)
+    facts = JobAccelFacts(printer, job, firmware)
+    facts.commands = job_accel_commands(parsed, facts.limits)
+    pj = planned_job(printer, job, TuneConfig(firmware=firmware, accel=None) if firmware else None)
     m = pj.plan.moves
     xy = np.hypot(*(m.end - m.start)[:, :2].T) > 0
     facts.top_speed = float(m.v_nominal[xy].max()) if xy.any() else float(printer.limits.velocity)
@@ -108,7 +118,8 @@ def job_accel_facts(printer, job, mode: str) -> JobAccelFacts:
         ruled = np.zeros(len(xy), bool)
         for k in facts.commands:
             ruled |= ~np.isnan(parsed.setting(k))
-        far = planned_job(printer, job, TuneConfig(accel=1e6), job_accel="respect").plan.moves
+        far = planned_job(printer, job, TuneConfig(firmware=firmware or "klipper", accel=1e6),
+                          job_accel="respect").plan.moves
         sel = xy & ruled
         facts.cap = float(far.accel[sel].max()) if sel.any() else None
         seen = sel & far.extruding & np.isin(class_indices(list(far.features))[far.feature],

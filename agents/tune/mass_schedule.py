@@ -35,6 +35,7 @@ from ringtune.envs.printer_model import Printer
 from ringtune.shaping.analysis import max_accel, residual_vibration, smoothing
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.config_plan import for_firmware
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.layer_commands import PRUSA_WEIGHT_ADJUST, TAG, prusa_weight_frequency, schedule_inserts
@@ -230,7 +231,7 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
     if not sched.needed:
         return sched
     notes.extend(_firmware_notes(config, printer, bands))
-    if any(b.accel for b in bands) and job_accel_commands(parsed, printer.limits.junction):
+    if any(b.accel for b in bands) and job_accel_commands(parsed, for_firmware(printer.limits, config)):
         notes.append("the job sets its own accelerations (M204 / SET_VELOCITY_LIMIT): a band's acceleration "
                      "holds only until the job's next one; rewrite them (`ringtune rewrite`, `limit --accel`) "
                      "or run `--band-accel keep`")

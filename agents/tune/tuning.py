@@ -65,7 +65,7 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     if unmeasured_note(printer):
         note(unmeasured_note(printer))
     quality = f"{req.quality}_mm"
-    facts = job_accel_facts(printer, req.gcode, req.job_accel)
+    facts = job_accel_facts(printer, req.gcode, req.job_accel, fw.name)
     configs = None if req.no_baselines else baseline_configs(printer, fw.name, note=note)
     space, floor_note, why = _space(req, lim, fw.name, printer, facts, note, configs)
     run_, settings, evaluator, bl, store = _study(req, lim, fw.name, printer, space, quality, out_dir, note,
