@@ -50,7 +50,7 @@ from ringtune.shaping.config_plan import for_firmware, job_accel_mode
 from ringtune.shaping.e_timing import E_TIMING_WORDS
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import per_feature_text
-from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.firmware import FIRMWARES, Firmware
 from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions
 from ringtune.shaping.job_shapers import describe_timeline, shaper_timeline
 from ringtune.shaping.klipper_ignores import klipper_ignored, klipper_ignored_note
@@ -226,6 +226,9 @@ def _inputs(args, out) -> tuple:
     printer = resolve_printer(args.printer)
     say_unmeasured(printer, out)
     config = build_config(args, out, printer)
+    said = Firmware.named(config.firmware).junction_note(printer.limits.junction)
+    if said:
+        out.note(f"ringtune simulate: {said}")
     margin = freq_margin(args, config)
     if args.gcode and not Path(args.gcode).is_file():
         raise RingtuneError("no such G-code file", f"--gcode {args.gcode}")
