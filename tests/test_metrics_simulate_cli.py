@@ -114,7 +114,7 @@ def test_the_accelerometer_plot_is_in_mm_per_s2_as_every_text(tmp_path, monkeypa
 def test_a_firmware_without_the_printers_corner_rule_is_said(firmware, said, capsys):
     """The embedded printer corners by Klipper's square_corner_velocity; simulating it for Marlin or
     RepRapFirmware says the corners are planned that way (as tune says), for Klipper nothing."""
-    assert main(["simulate", "--firmware", firmware, "--shaper", "zvd", "--freq", "50", "--no-baselines",
+    assert main(["simulate", "--firmware", firmware, "--shaper", "zv", "--freq", "50", "--no-baselines",
                  "--freq-margin", "0", "--json"]) == 0
     err = capsys.readouterr().err
     assert ("corners by Klipper's square-corner velocity" in err) is said
