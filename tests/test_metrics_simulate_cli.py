@@ -110,11 +110,12 @@ def test_the_accelerometer_plot_is_in_mm_per_s2_as_every_text(tmp_path, monkeypa
     assert np.allclose(lines0[0], 3000 * t) and np.allclose(lines1[0], 5000.0)
 
 
-@pytest.mark.parametrize("firmware, said", [("marlin", True), ("rrf", True), ("klipper", False)])
-def test_a_firmware_without_the_printers_corner_rule_is_said(firmware, said, capsys):
+@pytest.mark.parametrize("firmware, shaper, said", [("marlin", "zv", True), ("rrf", "zvd", True),
+                                                    ("klipper", "zv", False)])
+def test_a_firmware_without_the_printers_corner_rule_is_said(firmware, shaper, said, capsys):
     """The embedded printer corners by Klipper's square_corner_velocity; simulating it for Marlin or
     RepRapFirmware says the corners are planned that way (as tune says), for Klipper nothing."""
-    assert main(["simulate", "--firmware", firmware, "--shaper", "zv", "--freq", "50", "--no-baselines",
+    assert main(["simulate", "--firmware", firmware, "--shaper", shaper, "--freq", "50", "--no-baselines",
                  "--freq-margin", "0", "--json"]) == 0
     err = capsys.readouterr().err
     assert ("corners by Klipper's square-corner velocity" in err) is said
