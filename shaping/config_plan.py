@@ -8,8 +8,9 @@ and :func:`ringtune.envs.planned_job.planned_job` (every tuning trial) share.
    config's ``extra["job_accel"]``): ``replace`` (default) — it replaces the job's own commands
    (M204, SET_VELOCITY_LIMIT ACCEL and the X/Y caps of M201) at every feature change, as the
    rewritten file does (step 3: a first layer the job slows itself and its retract acceleration
-   kept), what re-slicing at that acceleration with the machine limits raised to it gives; ``respect`` — the job's commands stand and
-   ``config.accel`` rules wherever the job sets none (the print as sliced);
+   kept), what re-slicing at that acceleration with the machine limits raised to it gives;
+   ``respect`` — the job's commands stand and ``config.accel`` rules wherever the job sets none
+   (the print as sliced);
 2. the config's frequency limit rewrites the requested feedrates (``shaping.freqlimit``), unless
    the job's header says ``ringtune limit`` already did, with the same settings; without
    one, a job's own Marlin ``M201 F`` (XY_FREQUENCY_LIMIT) does, as Marlin would, unless the job's
@@ -149,7 +150,8 @@ def _freq_limited(job: Job, limits: MachineLimits, config: TuneConfig | None,
             return job, FreqLimitApplied(hz, method, 0, "job (ringtune limit)")
         limited = apply_freq_limit(job, hz, method, float(config.min_speed_factor), max_velocity=limits.max_velocity)
         return limited, FreqLimitApplied(hz, method, int(np.sum(limited.feed < job.feed)), "config")
-    if use_job_limits and job.file_setting("freq_limit_hz") > 0 and not limits.reads_like_klipper:   # Klipper has no M201
+    # Klipper has no M201 F
+    if use_job_limits and job.file_setting("freq_limit_hz") > 0 and not limits.reads_like_klipper:
         limited = apply_freq_limit(job, None, "marlin", max_velocity=limits.max_velocity)
         return limited, FreqLimitApplied(job.file_setting("freq_limit_hz"), "marlin",
                                          int(np.sum(limited.feed < job.feed)), "job M201 F")

@@ -5,9 +5,9 @@ JSON keys (stable): ``input``, ``output``, ``firmware``, ``junction``, ``lines_i
 ``print_time_after_s`` (the rewritten file), ``print_time_config_s`` (the configuration on the
 original, as ``tune`` reports it), ``feature_accel`` ({class: mm/s²}), ``corner``,
 ``min_cruise_ratio`` (these three null where nothing is set per feature: a configuration judged with
-the job's own accelerations standing, ``job_accel`` ``respect``), ``header``, ``first_layer_kept`` (null, or the lowest acceleration the
-job gives the first layer it slows itself, mm/s², which the rewrite keeps wherever it is lower than
-the per-feature one: said on stderr too).
+the job's own accelerations standing, ``job_accel`` ``respect``), ``header``, ``first_layer_kept``
+(null, or the lowest acceleration the job gives the first layer it slows itself, mm/s², which the
+rewrite keeps wherever it is lower than the per-feature one: said on stderr too).
 """
 
 from __future__ import annotations

@@ -113,8 +113,9 @@ def wanted(mode: str, space: SearchSpace, printer: Any, job: Any, job_sets_accel
         return False, "the acceleration is not searched"
     if job_sets_accel and job_accel == "respect":
         return False, ("the job sets its own accelerations and --job-accel respect keeps them "
-                       "(--job-accel replace searches them per feature, as re-slicing would; --per-feature on overrules "
-                       "them too, the seen features' included, against the print as sliced)")
+                       "(--job-accel replace searches them per feature, as re-slicing would; "
+                       "--per-feature on overrules them too, the seen features' included, against the "
+                       "print as sliced)")
     return True, f"the job has {', '.join(hidden)} apart from the visible features"
 
 
