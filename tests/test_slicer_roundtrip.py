@@ -10,6 +10,7 @@ configuration on the shipped part and on that same file.
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 from dataclasses import fields
 
@@ -18,6 +19,7 @@ import pytest
 from prusaslicer import prusaslicer, slice_part
 
 from ringtune.agents.cli.main import main
+from ringtune.envs.job_rewrite import rewrite_gcode_bytes
 from ringtune.envs.planned_job import planned_job, resolve_printer
 from ringtune.hardware.slicer_profile import KEYS, feature_accels, slicer_profile
 from ringtune.shaping.config import TuneConfig
@@ -151,3 +153,38 @@ def test_the_profile_sets_a_gcode_flavour_whose_acceleration_lines_the_firmware_
     for version in ("2.5", None):
         assert slicer_profile(marlin, "prusaslicer", version=version).settings["gcode_flavor"] == "marlin2"
     assert "gcode_flavor = marlin\n" in slicer_profile(klipper, "prusaslicer", version="2.5").render()
+
+
+#: a Marlin 2 profile whose slicer writes its own acceleration per feature (M204 P before each)
+MARLIN_OWN = ("gcode_flavor = marlin2\ndefault_acceleration = 3000\nperimeter_acceleration = 2000\n"
+              "bridge_acceleration = 1000\nfirst_layer_acceleration = 1000\n")
+
+
+def test_a_marlin_job_with_its_own_per_feature_accelerations_plans_and_rewrites_as_marlin_runs_it(tmp_path):
+    """PrusaSlicer's Marlin 2 job sets M204 P per feature. Truth, read from the file's text alone:
+    each extruding X/Y move runs at the last ``M204 P`` (or ``S``) before it — Marlin's print
+    acceleration, whatever corner rule the embedded printer description gives (Klipper's scv, under
+    which a lone M204 P would be ignored). Then --job-accel replace at one acceleration: the
+    rewritten file plans to tune's figure for the configuration."""
+    prusaslicer()
+    ini = tmp_path / "own.ini"
+    ini.write_text(MARLIN_OWN)
+    path = slice_part(tmp_path / "own.gcode", ini)
+    expected, now = [], None
+    for line in path.read_text().splitlines():
+        m = re.match(r"M204\b.*?\b[PS](\d+(?:\.\d*)?)", line)
+        if m:
+            now = float(m.group(1))
+        elif re.match(r"G[01]\b", line) and " E" in line and (" X" in line or " Y" in line) and now is not None:
+            if not re.search(r"\bE-", line):
+                expected.append(now)
+    printer = resolve_printer(None)
+    plan = planned_job(printer, str(path), TuneConfig(firmware="marlin", accel=None)).plan
+    m = plan.moves
+    ext = m.extruding & (np.hypot(*(m.end - m.start)[:, :2].T) > 0)
+    assert len(expected) == int(ext.sum()) and {1000.0, 2000.0, 3000.0} <= set(expected)
+    assert m.accel[ext] == pytest.approx(expected, rel=1e-12)
+    cfg = TuneConfig(firmware="marlin", accel=6000.0, extra={"job_accel": "replace"})
+    done = rewrite_gcode_bytes(path.read_bytes(), cfg, printer, str(path))
+    assert done.after_s == pytest.approx(done.config_s, rel=1e-9)
+    assert done.config_s == pytest.approx(planned_job(printer, str(path), cfg).print_time, rel=1e-12)
