@@ -339,3 +339,28 @@ def test_the_ceiling_sentence_says_what_share_of_the_room_the_walk_took():
     text = walk.ceiling_sentence(950.0)
     assert "950.0 s" in text and "took 200.0 of the 250.0 s" in text and "(1200.0 s)" in text and "(80 %)" in text
     assert "No faster than the walk's start (1200.0 s)" in walk.ceiling_sentence(1200.0)
+
+
+@pytest.mark.parametrize("junction", ["jerk", "jd"])
+def test_the_walks_ceiling_on_a_printer_without_minimum_cruise_ratio(junction):
+    """Marlin's and RRF's corner rules have no minimum_cruise_ratio (the space has none): the ceiling
+    still puts each corner group's rule at its range's top and every hidden group's acceleration at
+    its top, and its sentence does not speak of a ratio the firmware lacks."""
+    printer = dataclasses.replace(load_printer(None), limits_dict={**load_printer(None).limits_dict,
+                                                                   "junction": junction})
+    space = feature_space(default_space(printer, "marlin"), printer, "part")
+    assert space.hidden_min_cruise_ratio is None and space.hidden_corner is not None
+    params = {"shaper_x": "zv", "shaper_y": "zv", "freq_x": 50.0, "freq_y": 45.0, "damping_x": 0.1,
+              "damping_y": 0.1, "freq_limit": "off", "accel": 5000.0,
+              **{f"accel_{g}": 5000.0 for g, _lo, _hi in space.feature_accel}}
+    start = config_from_params(params, space)
+    ceiling = unseen_tops(start, space)
+    tops = {g: hi for g, _lo, hi in space.feature_accel}
+    for cls, group in (("inner_wall", "hidden_walls"), ("infill", "infill"), ("travel", "travel")):
+        assert ceiling.feature_accel[cls] == tops[group], cls
+    for cls in ("infill", "support", "travel", "solid_infill"):
+        assert ceiling.feature_corner[cls] == space.hidden_corner[1]
+    assert not ceiling.feature_min_cruise_ratio
+    lift = Raise(point=SimpleNamespace(print_time_s=95.0), start=SimpleNamespace(print_time_s=100.0))
+    assert "minimum_cruise_ratio" not in lift.ceiling_sentence(90.0, cruise=False)
+    assert "minimum_cruise_ratio 0" in lift.ceiling_sentence(90.0)

@@ -127,12 +127,12 @@ class Raise:
                 "evaluations": self.evaluations, "screened": self.screened, "budget": self.budget, "cut": self.cut,
                 "sentence": self.sentence(), "held": [h.to_dict() for h in self.held]}
 
-    def ceiling_sentence(self, ceiling_s: float) -> str:
+    def ceiling_sentence(self, ceiling_s: float, cruise: bool = True) -> str:
         """What the walk took of what it could reach: ``ceiling_s``, the planned print time (s) of
-        :func:`unseen_tops` of the choice."""
+        :func:`unseen_tops` of the choice; ``cruise``: the space has minimum_cruise_ratio (Klipper's)."""
+        ratio = ", the corners' minimum_cruise_ratio 0" if cruise else ""
         head = (f"Ceiling of the walk (the planner alone; neither quality nor the simulated motor load judged): every "
-                f"setting nobody sees at the top of its range, the corners' minimum_cruise_ratio 0, what a person sees "
-                f"as chosen: {ceiling_s:.1f} s.")
+                f"setting nobody sees at the top of its range{ratio}, what a person sees as chosen: {ceiling_s:.1f} s.")
         room = self.start.print_time_s - ceiling_s
         if room <= 0:
             return f"{head} No faster than the walk's start ({self.start.print_time_s:.1f} s)."
@@ -297,8 +297,9 @@ def unseen_tops(config: TuneConfig, space: SearchSpace) -> TuneConfig:
         if key == "corner" or key.removeprefix("accel_") in SEEN_GROUPS:
             continue
         params[key] = _top(key, space)
-        if key in CORNERS:
-            params[CORNERS[key][0]] = float(getattr(space, CORNERS[key][2])[0])
+        mcr_key, _corner_range, mcr_range = CORNERS.get(key, (None, None, None))
+        if mcr_range is not None and getattr(space, mcr_range) is not None and mcr_key in params:
+            params[mcr_key] = float(getattr(space, mcr_range)[0])     # Klipper's alone (scv)
     return config_from_params(params, space, extra=config.extra)
 
 

@@ -264,7 +264,7 @@ def _report(req: TuneRequest, lim: Limits, fw: Firmware, printer, facts, space, 
                                 "trial; µm and % the worst of the model and its twins unless said):")
                 pf_lines += [f"    {line}" for line in held]
             ceiling = planned_job(printer, req.gcode, unseen_tops(chosen.config, space), job_accel=req.job_accel).print_time
-            pf_lines.append(f"  {lift.ceiling_sentence(ceiling)}")
+            pf_lines.append(f"  {lift.ceiling_sentence(ceiling, space.hidden_min_cruise_ratio is not None)}")
             pf_json["ceiling_print_time_s"] = ceiling
     ja_json["searched"] = not space.accel_fixed
     result = report.write_report(
