@@ -281,6 +281,14 @@ def _accel_to_decel(fc: FeatureCommands, eff: np.ndarray, accel: np.ndarray, mcr
     return np.where(unset, np.minimum(fc.atd_now, accel), atd)
 
 
+def sets_corner(job: Job) -> bool:
+    """Whether the parsed job sets a corner rule or minimum_cruise_ratio of its own (M205 J / X Y,
+    M566, SET_VELOCITY_LIMIT SQUARE_CORNER_VELOCITY= / MINIMUM_CRUISE_RATIO=)."""
+    keys = {k for ks in _CORNER_KEYS.values() for k in ks} | {"min_cruise_ratio"}
+    table = np.asarray(job.settings_table)
+    return bool(job.n_moves) and bool(np.any(~np.isnan(table[:, [SETTING_KEYS.index(k) for k in sorted(keys)]])))
+
+
 def caps_setting(klipper: bool) -> str:
     """The prefix of the job settings that carry the X/Y acceleration caps for a firmware reading the
     job as Klipper does (``klipper``): Kalico's SET_VELOCITY_LIMIT X_ACCEL/Y_ACCEL

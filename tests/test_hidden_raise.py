@@ -364,3 +364,33 @@ def test_the_walks_ceiling_on_a_printer_without_minimum_cruise_ratio(junction):
     lift = Raise(point=SimpleNamespace(print_time_s=95.0), start=SimpleNamespace(print_time_s=100.0))
     assert "minimum_cruise_ratio" not in lift.ceiling_sentence(90.0, cruise=False)
     assert "minimum_cruise_ratio 0" in lift.ceiling_sentence(90.0)
+
+
+@pytest.mark.parametrize("keep_unset", [False, True])
+def test_a_job_with_its_own_corner_rule_keeps_it_where_the_walk_changes_nothing(space, keep_unset):
+    """The start leaves the corner settings unset (a single-acceleration choice: the job's own M205 /
+    SQUARE_CORNER_VELOCITY rule). With ``keep_unset`` (the job sets its own), every candidate of the
+    walk's first step (the corners nobody sees) leaves unset what that step does not change: the
+    job-wide corner rule and ratio, solid infill's corner rule and ratio; without it, a candidate
+    writes the printer's values out (the same plan on a job with no corner commands of its own)."""
+    params = params_from_config(_start(space), space)
+    start_cfg = dataclasses.replace(config_from_params(params, space), corner=None, min_cruise_ratio=None,
+                                    feature_corner={}, feature_min_cruise_ratio={})
+    start = point_from_metrics(start_cfg, _metrics(start_cfg), max_path_error_mm=0.1, max_motor_load=0.8,
+                               max_show_through_mm=0.2)
+    calls = []
+
+    def evaluate(configs):
+        calls.append(list(configs))
+        return [_metrics(c) for c in configs]
+
+    raise_hidden(start, {"klipper": start}, evaluate, space, BOUNDS, keep_unset=keep_unset)
+    first = calls[0]
+    assert first and any(c.feature_corner.get("infill", 0.0) > params["corner_hidden"] for c in first)
+    for c in first:
+        if keep_unset:
+            assert c.corner is None and c.min_cruise_ratio is None
+            assert "solid_infill" not in c.feature_corner and "solid_infill" not in c.feature_min_cruise_ratio
+        else:
+            assert c.corner == params["corner"] and c.min_cruise_ratio == params["min_cruise_ratio"]
+            assert c.feature_corner["solid_infill"] == params["corner_solid"]

@@ -37,7 +37,7 @@ the corner rule in the junction rule's unit).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Sequence
 
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution
@@ -218,24 +218,38 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
                  space: SearchSpace, bounds: Bounds, *, res: Resolution = DEFAULT_RESOLUTION,
                  max_evaluations: int | None = None,
                  screen: Callable[[Sequence[TuneConfig]], list] | None = None,
-                 wider: Callable[[TuneConfig], Failure | None] | None = None) -> Raise:
+                 wider: Callable[[TuneConfig], Failure | None] | None = None, keep_unset: bool = False) -> Raise:
     """Walk the features nobody sees up from ``start`` (module docstring); ``evaluate(configs) ->
     metrics`` judges as the study does; ``bases``: the baselines the choice was held to;
     ``max_evaluations``: no step begins once the walk has judged that many (``tune`` gives it the
     study's trials: a short study gets a short walk); ``screen``: the exact model alone, where
     ``evaluate`` judges the worst of the twins; ``wider(config)``: why a step that passes fails on
     printers further off the model (:mod:`ringtune.agents.tune.wider`), or None — asked of the
-    passing candidates fastest first, until one holds there too."""
+    passing candidates fastest first, until one holds there too. ``keep_unset``: the job sets its own
+    corner rule or minimum_cruise_ratio, so a candidate leaves each corner setting unset (the job's
+    own, as at the start) where the start has it unset and the walk has not changed it."""
     if not space.per_feature:
         return Raise(start, start)
     walk = Raise(start, start, budget=max_evaluations)
     params = params_from_config(start.config, space)
+    unset = _unset_corners(start.config, params) if keep_unset else {}
+
+    def config_of(p: dict[str, Any]) -> TuneConfig:
+        c = config_from_params(p, space, extra=start.config.extra)
+        changes: dict[str, Any] = {}
+        for key, (value, table, classes) in unset.items():
+            if p.get(key) != value:
+                continue
+            if table is None:
+                changes[key] = None
+            else:
+                changes[table] = {k: v for k, v in changes.get(table, getattr(c, table)).items() if k not in classes}
+        return replace(c, **changes) if changes else c
 
     def judged(candidates: list[dict[str, Any]], key: str) -> tuple[Point | None, list[tuple[dict, tuple, bool]]]:
         """(the fastest of ``candidates`` that passes against the current choice, or None; each
         that failed as (its parameters, why, seen by the screen))."""
-        pairs = [(p, c) for p, c in ((p, config_from_params(p, space, extra=start.config.extra)) for p in candidates)
-                 if c != walk.point.config]
+        pairs = [(p, c) for p, c in ((p, config_of(p)) for p in candidates) if c != walk.point.config]
         if not pairs:
             return None, []
         # a step must save MIN_STEP_SAVING of the print time: a raise that buys nothing is not taken
@@ -271,6 +285,19 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
     return walk
 
 
+def _unset_corners(config: TuneConfig, params: dict[str, Any]) -> dict[str, tuple]:
+    """{walk parameter: (its value in ``params``, the config's per-class table or None for the
+    job-wide setting, the classes)} of the corner settings ``config`` leaves unset."""
+    out: dict[str, tuple] = {k: (params[k], None, ()) for k in ("corner", "min_cruise_ratio")
+                             if k in params and getattr(config, k) is None}
+    for group, classes in CORNER_GROUPS.items():
+        for prefix, table in (("corner", "feature_corner"), ("min_cruise_ratio", "feature_min_cruise_ratio")):
+            key = f"{prefix}_{group}"
+            if key in params and not set(classes) & set(getattr(config, table)):
+                out[key] = (params[key], table, classes)
+    return out
+
+
 def _held(key: str, params: dict[str, Any], fails: list[tuple[dict, tuple, bool]], space: SearchSpace) -> Held:
     """What holds ``key`` where ``params`` has it: the failed candidate (parameters, why, screened)
     with the lowest value of ``key`` above it (for a corner rule, the one with its
@@ -300,7 +327,9 @@ def unseen_tops(config: TuneConfig, space: SearchSpace) -> TuneConfig:
         mcr_key, _corner_range, mcr_range = CORNERS.get(key, (None, None, None))
         if mcr_range is not None and getattr(space, mcr_range) is not None and mcr_key in params:
             params[mcr_key] = float(getattr(space, mcr_range)[0])     # Klipper's alone (scv)
-    return config_from_params(params, space, extra=config.extra)
+    # the job's corner rule is seen: as in ``config`` (unset: the job's own)
+    return replace(config_from_params(params, space, extra=config.extra), corner=config.corner,
+                   min_cruise_ratio=config.min_cruise_ratio)
 
 
 def _top(key: str, space: SearchSpace) -> float:

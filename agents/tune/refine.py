@@ -37,6 +37,8 @@ from ringtune.agents.tune.study import DEFAULT_EVALUATOR, StudySettings, evaluat
 from ringtune.agents.tune.wider import held_wider, study_evaluate_on, wider_check
 from ringtune.envs.evaluate import evaluate_twins
 from ringtune.envs.forked import split_map
+from ringtune.envs.planned_job import resolve_job
+from ringtune.shaping.feature_settings import sets_corner
 
 
 def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySettings, printer, space: SearchSpace,
@@ -101,6 +103,7 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
         step("the walk where nobody looks, each feature group toward its top ...")
         walk_bases = {**bases, "choice": choice.point}
         lift = raise_hidden(choice.point, walk_bases, evaluate, space, bounds, max_evaluations=settings.n_trials,
+                            keep_unset=sets_corner(resolve_job(settings.job)[1]),
                             screen=exact, wider=widen(walk_bases, choice.point))
         step(f"done ({lift.evaluations} judged, {lift.screened} screened)")
         if lift.moved:
