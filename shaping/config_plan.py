@@ -34,7 +34,7 @@ from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import FeatureCommands, with_feature_settings
 from ringtune.shaping.firmware import job_reading
 from ringtune.shaping.freqlimit import apply_freq_limit
-from ringtune.shaping.job import SETTING_KEYS, Job
+from ringtune.shaping.job import Job
 from ringtune.shaping.planner import MachineLimits, Plan, plan
 
 #: how a config's acceleration meets the job's own acceleration commands (module docstring)
@@ -80,8 +80,13 @@ def job_accel_mode(config: TuneConfig | None, job_accel: str | None = None) -> s
 
 def sets_accel(job: Job) -> bool:
     """Whether the parsed job sets any acceleration of its own (:data:`JOB_ACCEL_SETTINGS`)."""
-    table = np.asarray(job.settings_table)
-    return bool(job.n_moves) and bool(np.any(~np.isnan(table[:, [SETTING_KEYS.index(k) for k in JOB_ACCEL_SETTINGS]])))
+    return job.sets(JOB_ACCEL_SETTINGS)
+
+
+def as_read_by(firmware: str | None) -> TuneConfig | None:
+    """A configuration that sets nothing: a job planned with it is the job as ``firmware`` reads it
+    (None: as the printer's own, ``[current] firmware``, does)."""
+    return TuneConfig(firmware=firmware, accel=None) if firmware else None
 
 
 def with_axis_caps(limits: MachineLimits, config: TuneConfig | None) -> MachineLimits:

@@ -46,6 +46,7 @@ from ringtune.shaping.features import FEATURE_CLASSES, class_indices, seen_class
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.job import SETTING_KEYS, Job
 from ringtune.shaping.layers import layer_starts
+from ringtune.shaping.planner import reads_like_klipper
 
 TRAVEL = FEATURE_CLASSES.index("travel")
 
@@ -79,7 +80,7 @@ class FeatureCommands:
 
     @property
     def reads_like_klipper(self) -> bool:
-        return self.klipper_reading if self.klipper_reading is not None else self.junction == "scv"
+        return reads_like_klipper(self.klipper_reading, self.junction)
 
     @classmethod
     def from_config(cls, config, limits) -> "FeatureCommands":
@@ -284,9 +285,7 @@ def _accel_to_decel(fc: FeatureCommands, eff: np.ndarray, accel: np.ndarray, mcr
 def sets_corner(job: Job) -> bool:
     """Whether the parsed job sets a corner rule or minimum_cruise_ratio of its own (M205 J / X Y,
     M566, SET_VELOCITY_LIMIT SQUARE_CORNER_VELOCITY= / MINIMUM_CRUISE_RATIO=)."""
-    keys = {k for ks in _CORNER_KEYS.values() for k in ks} | {"min_cruise_ratio"}
-    table = np.asarray(job.settings_table)
-    return bool(job.n_moves) and bool(np.any(~np.isnan(table[:, [SETTING_KEYS.index(k) for k in sorted(keys)]])))
+    return job.sets(sorted({k for ks in _CORNER_KEYS.values() for k in ks} | {"min_cruise_ratio"}))
 
 
 def caps_setting(klipper: bool) -> str:

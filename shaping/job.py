@@ -97,6 +97,11 @@ class Job:
         col = SETTING_KEYS.index(key)
         return self.settings_table[self.settings, col]
 
+    def sets(self, keys) -> bool:
+        """Whether the file sets any of the settings ``keys`` anywhere."""
+        table = np.asarray(self.settings_table)
+        return bool(self.n_moves) and bool(np.any(~np.isnan(table[:, [SETTING_KEYS.index(k) for k in keys]])))
+
     def file_setting(self, key: str) -> float:
         """The first value the file set for ``key`` (NaN if never)."""
         col = self.settings_table[:, SETTING_KEYS.index(key)]

@@ -66,6 +66,13 @@ JUNCTIONS = ("scv", "jd", "jerk")
 AXIS_RULES = ("per_axis", "limited_corexy")
 
 
+def reads_like_klipper(klipper_reading: bool | None, junction: str) -> bool:
+    """Whether a job's limit commands are read as Klipper reads them: ``klipper_reading`` (the
+    firmware's, :func:`ringtune.shaping.firmware.job_reading`), else as the junction rule's firmware
+    would (Klipper's ``scv``)."""
+    return klipper_reading if klipper_reading is not None else junction == "scv"
+
+
 @dataclass
 class MachineLimits:
     """Motion limits of a machine (mm/s, mm/s², mm).
@@ -108,9 +115,7 @@ class MachineLimits:
 
     @property
     def reads_like_klipper(self) -> bool:
-        """Whether a job's limit commands are read as Klipper reads them (``klipper_reading``, else
-        the junction rule's firmware)."""
-        return self.klipper_reading if self.klipper_reading is not None else self.junction == "scv"
+        return reads_like_klipper(self.klipper_reading, self.junction)
 
     def __post_init__(self) -> None:
         self.validate()

@@ -21,7 +21,7 @@ from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point
 from ringtune.agents.tune.motor_bound import defaults_note
 from ringtune.envs.planned_job import job_accel_commands, planned_job, resolve_job
 from ringtune.shaping.config import TuneConfig
-from ringtune.shaping.config_plan import for_firmware
+from ringtune.shaping.config_plan import as_read_by, for_firmware
 from ringtune.shaping.features import FEATURE_CLASSES, LABELLED_VISIBLE, class_indices
 from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions
 from ringtune.shaping.klipper_ignores import klipper_ignored, klipper_ignored_note
@@ -49,7 +49,7 @@ class JobAccelFacts:
     @property
     def limits(self):
         """The printer's limits as the firmware reads a job (:func:`ringtune.shaping.config_plan.for_firmware`)."""
-        return for_firmware(self.printer.limits, TuneConfig(firmware=self.firmware) if self.firmware else None)
+        return for_firmware(self.printer.limits, as_read_by(self.firmware))
 
     def time(self, config: TuneConfig, mode: str) -> float:
         """Planned time under ``mode``; ``respect`` is the job as sliced, so a per-feature
@@ -110,7 +110,7 @@ def job_accel_facts(printer, job, mode: str, firmware: str | None = None) -> Job
     _, parsed = resolve_job(job)
     facts = JobAccelFacts(printer, job, firmware)
     facts.commands = job_accel_commands(parsed, facts.limits)
-    pj = planned_job(printer, job, TuneConfig(firmware=firmware, accel=None) if firmware else None)
+    pj = planned_job(printer, job, as_read_by(firmware))
     m = pj.plan.moves
     xy = np.hypot(*(m.end - m.start)[:, :2].T) > 0
     facts.top_speed = float(m.v_nominal[xy].max()) if xy.any() else float(printer.limits.velocity)
