@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from ringtune.agents.tune.study import StudySettings, count_states, open_study, run_study
+from ringtune.shaping.errors import RingtuneError
 
 TESTS = Path(__file__).resolve().parent
 EVALUATOR = "study_objective:evaluate"
@@ -105,8 +106,14 @@ def test_first_ctrl_c_finishes_the_running_trial(tmp_path, in_tests_path):
     assert counts["RUNNING"] == 0 and counts["FAIL"] == 0 and 3 <= counts["COMPLETE"] < 200
 
 
-def test_two_workers_finish_exactly_n_without_duplicates(tmp_path, in_tests_path):
+@pytest.mark.parametrize("start", ["forked", "spawned"])
+def test_two_workers_finish_exactly_n_without_duplicates(tmp_path, in_tests_path, monkeypatch, start):
+    """Forked workers (a journal study on Linux) and spawned ones (``python -m ... worker``, as on
+    an RDB storage or where the platform cannot fork) alike."""
+    from ringtune.agents.tune import workers as local_workers
     from ringtune.agents.tune.space import params_from_config
+
+    monkeypatch.setattr(local_workers, "CAN_FORK", start == "forked")
     from ringtune.agents.tune.study import load_space
     from ringtune.shaping.config import TuneConfig
 
@@ -127,6 +134,20 @@ def test_two_workers_finish_exactly_n_without_duplicates(tmp_path, in_tests_path
         assert sum(1 for q, _ in done.values() if dict(q) == p) == 1
     workers = {t.user_attrs["worker"] for t in run.study.get_trials() if t.state.name == "COMPLETE"}
     assert len(workers) == 2                    # both processes did part of the work
+    assert os.getpid() not in {int(w.rsplit(":", 1)[1]) for w in workers}
+
+
+def test_a_forked_worker_that_fails_is_an_error(tmp_path, in_tests_path, monkeypatch):
+    """A forked worker's error reaches ``run_study`` as the spawned one's exit code did."""
+    from ringtune.agents.tune import study as study_mod
+
+    def broken(settings, index, **kwargs):
+        raise RingtuneError("the job is gone", "job")
+
+    monkeypatch.setattr(study_mod, "run_worker", broken)
+    settings = _settings(f"journal:{tmp_path / 'study.journal'}", n=4)
+    with pytest.raises(RingtuneError, match=r"2 worker process\(es\) failed \(exit codes \[2, 2\]\)"):
+        run_study(settings, workers=2)
 
 
 def test_seeded_single_worker_runs_reproduce_exactly(tmp_path, in_tests_path):

@@ -222,6 +222,7 @@ class Progress:
     def update(self, done: int, total: int, study=None) -> None:
         if self.tty:
             if self._bar is None:
+                tqdm.monitor_interval = 0      # no monitor thread: the study's workers fork from this process
                 self._bar = tqdm(total=total, initial=min(done, total), desc="trials", unit="trial",
                                  file=self.stream, dynamic_ncols=True)
             delta = min(done, total) - self._bar.n

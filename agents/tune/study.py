@@ -35,6 +35,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import json
 import os
@@ -57,6 +58,7 @@ from ringtune.agents.tune.pareto import (DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MAX_
 from ringtune.agents.tune.space import SearchSpace, config_from_params, default_space, suggest_params
 from ringtune.agents.tune.storage import _this_worker, await_finished, make_storage, reap_dead_workers
 from ringtune.agents.tune.study_resume import check_resumed
+from ringtune.agents.tune.workers import start_workers
 from ringtune.envs.printer import load_printer
 from ringtune.envs.variants import TWIN_DAMPING
 from ringtune.shaping.config import TuneConfig
@@ -307,15 +309,21 @@ def _worker_main(argv: list[str]) -> int:
         print("usage: python -m ringtune.agents.tune.study worker INDEX [WORKERS]  (settings JSON on stdin)",
               file=sys.stderr)
         return 2
-    workers = 1 if len(argv) == 2 else max(1, int(argv[2]))
-    share = None if len(argv) == 2 else max(1, (os.cpu_count() or 1) // workers)
+    settings = StudySettings(**json.loads(sys.stdin.read()))
+    return _worker_code(settings, int(argv[1]), None if len(argv) == 2 else max(1, int(argv[2])))
+
+
+def _worker_code(settings: StudySettings, index: int, workers: int | None, printer: Any = None) -> int:
+    """Run worker ``index`` of ``workers`` local ones in step (None: a lone worker, not in step);
+    its exit code (130 after Ctrl-C, 2 after an error, said on stderr)."""
+    share = None if workers is None else max(1, (os.cpu_count() or 1) // workers)
     try:
-        run_worker(StudySettings(**json.loads(sys.stdin.read())), int(argv[1]), nthread=share,
-                   lag=LAG_PER_WORKER * workers if workers > 1 else 1)
+        run_worker(settings, index, printer=printer, nthread=share,
+                   lag=LAG_PER_WORKER * workers if workers and workers > 1 else 1)
     except KeyboardInterrupt:
         return 130
     except RingtuneError as exc:
-        print(f"ringtune worker {argv[1]}: error: {exc}", file=sys.stderr)
+        print(f"ringtune worker {index}: error: {exc}", file=sys.stderr)
         return 2
     return 0
 
@@ -354,7 +362,7 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
         run_worker(settings, 0, printer=printer, on_trial=on_trial, stop=stop)
         interrupted = stop.requested
     else:
-        interrupted = _run_workers(settings, study, workers, progress)
+        interrupted = _run_workers(settings, study, workers, progress, printer)
     after = count_states(study)["COMPLETE"]
     if progress:
         progress(after, settings.n_trials, study)
@@ -362,12 +370,15 @@ def run_study(settings: StudySettings, workers: int = 1, *, printer: Any = None,
 
 
 def _run_workers(settings: StudySettings, study, workers: int,
-                 progress: Callable[[int, int, Any], None] | None) -> bool:
-    """The study in ``workers`` spawned processes sharing its storage, this one watching and reporting
-    progress; whether Ctrl-C stopped it (a worker that fails otherwise is an error)."""
+                 progress: Callable[[int, int, Any], None] | None, printer: Any = None) -> bool:
+    """The study in ``workers`` processes sharing its storage (:mod:`ringtune.agents.tune.workers`:
+    forked with ``printer``, or spawned), this one watching and reporting progress; whether Ctrl-C
+    stopped it (a worker that fails otherwise is an error)."""
     interrupted = False
     _enqueue_new(study, settings.enqueue)      # once, here: workers racing to enqueue would duplicate
-    procs = _spawn_workers({**settings.to_dict(), "enqueue": []}, workers)
+    alone = dataclasses.replace(settings, enqueue=[])
+    procs = start_workers(alone.to_dict(), workers, lambda i: _worker_code(alone, i, workers, printer),
+                          settings.storage)
     try:
         while any(p.poll() is None for p in procs):
             time.sleep(0.3)
@@ -384,18 +395,7 @@ def _run_workers(settings: StudySettings, study, workers: int,
     return interrupted
 
 
-def _spawn_workers(settings: dict, workers: int) -> list[subprocess.Popen]:
-    """``workers`` worker processes (:func:`_worker_main`), each given ``settings`` as JSON on stdin."""
-    payload = json.dumps(settings)
-    procs = [subprocess.Popen([sys.executable, "-m", "ringtune.agents.tune.study", "worker", str(i), str(workers)],
-                              stdin=subprocess.PIPE, text=True) for i in range(workers)]
-    for p in procs:
-        p.stdin.write(payload)
-        p.stdin.close()
-    return procs
-
-
-def _let_finish(procs: list[subprocess.Popen], grace_s: float) -> None:
+def _let_finish(procs: list, grace_s: float) -> None:
     """Wait up to ``grace_s`` (s) in all for the processes to end; terminate those still running."""
     deadline = time.time() + grace_s
     for p in procs:
