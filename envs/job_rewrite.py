@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -26,6 +27,7 @@ from ringtune.shaping.gcode_post import limit_gcode_bytes
 from ringtune.shaping.layer_commands import TAG, schedule_inserts
 from ringtune.shaping.layers import job_layers
 from ringtune.shaping.job import Job
+from ringtune.shaping.job_shapers import overriding
 from ringtune.shaping.rewrite import rewrite_job
 
 HEADER = "; ringtune rewrite"
@@ -48,15 +50,21 @@ class RewrittenJob:
     commands: FeatureCommands | None     # None: nothing per feature (:func:`feature_commands`)
     junction: str = "scv"                # the printer's junction rule the corner values are in
     first_layer: float | None = None     # mm/s²: the job's own first-layer acceleration kept (first_layer_kept)
+    shaper_replaced: tuple = ()          # the job's own shaper commands replaced by the tuned shaper's: (line, text)
 
 
 def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: str = "<gcode>",
-                        layer_inserts: dict[int, list[str]] | None = None, parsed: Job | None = None) -> RewrittenJob:
+                        layer_inserts: dict[int, list[str]] | None = None, parsed: Job | None = None,
+                        shaper_lines: Callable[[TuneConfig], list[str]] | None = None) -> RewrittenJob:
     """``data`` with the configuration's frequency limit, per-feature commands and Y schedule
     (``config.y_schedule`` at layer changes, unless ``layer_inserts`` is given) written in for
     ``config.firmware`` (``printer``: a Printer, TOML path or None for the embedded default; its
     limits plan the times and give the junction rule the corner value is written in). ``parsed``:
-    ``data`` already read (:func:`ringtune.shaping.gcode.read_gcode`), which is then not read again."""
+    ``data`` already read (:func:`ringtune.shaping.gcode.read_gcode`), which is then not read again.
+    ``shaper_lines(config)``: the configuration's shaper in its firmware's G-code
+    (:func:`ringtune.hardware.dialects.shaper_commands`), asked only where the job has shaper
+    commands of its own that would move the printer off it (:func:`overriding`), and written in
+    their place; such a job without ``shaper_lines`` is refused, naming the line."""
     printer = resolve_printer(printer)
     limits = for_firmware(printer.limits, config)       # the job read as the configuration's firmware reads it
     original = parsed if parsed is not None else read_gcode(data, source=source)
@@ -76,8 +84,12 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     if not lines:
         raise RingtuneError("the job is empty", source)
     fc = feature_commands(config, limits)
-    out = rewrite_job(lines, config.firmware, fc, layer_inserts, parsed=None if f_changed else original)
-    inserted = len(out) - len(lines)
+    own = _own_shapers(original, config, shaper_lines)
+    # the limit's header and split moves move the lines down: the same commands, where they now stand
+    lined = read_gcode(data, source=source) if f_changed else original
+    replaced = {ev.line: list(shaper_lines(config)) for ev in overriding(lined.events, config)} if own else None
+    out = rewrite_job(lines, config.firmware, fc, layer_inserts, parsed=lined, replaced=replaced)
+    inserted = len(out) - len(lines) - sum(len(v) - 1 for v in (replaced or {}).values())
     nl = "\r\n" if lines[0].endswith("\r\n") else "\n"
     new = "".join(out).encode("utf-8", errors="surrogateescape")
     # the file as the printer runs it: the configuration's machine settings (its acceleration is the
@@ -88,9 +100,31 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     header = (f"{HEADER} for {config.firmware} ({limits.junction}): {inserted} lines inserted "
               + (_set_words(fc) if fc is not None else "(the job's own acceleration commands stand: --job-accel "
                  "respect, nothing per feature)")
+              + (f"; {shaper_words([ev.line for ev in own])}" if own else "")
               + f"; planned {before:.1f} s as sliced -> {after:.1f} s; nothing else differs from the input")
     return RewrittenJob(header.encode() + nl.encode() + new, before, after, config_s, inserted, f_changed, header, fc,
-                        limits.junction, first_layer_kept(original) if fc is not None else None)
+                        limits.junction, first_layer_kept(original) if fc is not None else None,
+                        tuple((ev.line, ev.text or ev.command) for ev in own))
+
+
+def _own_shapers(job: Job, config: TuneConfig, shaper_lines: Callable | None) -> list:
+    """The job's shaper commands the configuration's shaper replaces (:func:`overriding`); refused
+    without ``shaper_lines`` to put there."""
+    own = overriding(job.events, config)
+    if own and shaper_lines is None:
+        ev = own[0]
+        raise RingtuneError(f"the job sets its own input shaper ({ev.text or ev.command}), which would replace the "
+                            "tuned one while it prints, and no shaper command was given to put in its place",
+                            f"{job.source}, line {ev.line}")
+    return own
+
+
+def shaper_words(lines: list[int]) -> str:
+    """``the job's own shaper command on line 18 replaced by the tuned shaper's``."""
+    where = (f"line {lines[0]}" if len(lines) == 1 else
+             f"lines {', '.join(map(str, lines[:5]))}{' …' if len(lines) > 5 else ''}")
+    return (f"the job's own shaper command{'s' * (len(lines) > 1)} on {where} replaced by the tuned shaper's "
+            "(the tuned shaper then rules the whole job, as tune judged it)")
 
 
 def feature_commands(config: TuneConfig, limits) -> FeatureCommands | None:
@@ -139,10 +173,12 @@ def native_limit(config: TuneConfig) -> bool:
 
 
 def rewrite_file(src, dst, config: TuneConfig, printer=None,
-                 layer_inserts: dict[int, list[str]] | None = None, parsed: Job | None = None) -> RewrittenJob:
+                 layer_inserts: dict[int, list[str]] | None = None, parsed: Job | None = None,
+                 shaper_lines: Callable[[TuneConfig], list[str]] | None = None) -> RewrittenJob:
     """:func:`rewrite_gcode_bytes` of the file ``src``, written to ``dst`` (None: not written);
     ``parsed``: the file already read."""
-    done = rewrite_gcode_bytes(read_gcode_bytes(src), config, printer, str(src), layer_inserts, parsed)
+    done = rewrite_gcode_bytes(read_gcode_bytes(src), config, printer, str(src), layer_inserts, parsed,
+                               shaper_lines)
     if dst is not None:
         Path(dst).write_bytes(done.data)
     return done

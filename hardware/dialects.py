@@ -33,6 +33,8 @@ RRF shaper is ``shaper_x = "custom"`` with ``extra["custom"] = {"amplitudes": [A
 
 from __future__ import annotations
 
+import dataclasses
+
 from ringtune.hardware.dialect_klipper import klipper_export
 from ringtune.hardware.dialect_marlin import marlin_export, marlin_ftm_export, prusa_export
 from ringtune.hardware.dialect_rrf import rrf_export
@@ -210,3 +212,10 @@ def _freq_limit(config: TuneConfig, fw: Firmware, exp: Export) -> None:
     exp.lines.append(f"M201 F{fmt(f, 2)} S{fmt(pct, 0)}")
     exp.notes.append("M201 F/S needs XY_FREQUENCY_LIMIT compiled in (older Marlin uses G<min%> "
                      "instead of S)")
+
+
+def shaper_commands(config: TuneConfig, firmware: str | None = None) -> list[str]:
+    """The G-code lines that set ``config``'s shaper alone on ``firmware`` (default
+    ``config.firmware``): :func:`export_config`'s, without its frequency limit and acceleration
+    (the job rewriter writes them in place of a job's own shaper command)."""
+    return export_config(dataclasses.replace(config, freq_limit_hz=0.0), firmware, accel=False).lines

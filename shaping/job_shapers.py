@@ -126,6 +126,25 @@ def shaper_timeline(events, config: TuneConfig) -> list[tuple[float, TuneConfig]
     return steps
 
 
+def overriding(events, config: TuneConfig) -> list:
+    """The job's shaper commands (events) that would move the printer off ``config``'s shaping:
+    each applied alone to ``config`` changes it (a command that sets what ``config`` sets, or
+    nothing, is not one). The job rewriter puts ``config``'s own shaper command in their place, so
+    ``config`` rules the whole job, as ``tune`` judges it; then none of the rest moves it either."""
+    keys = ("shaper_x", "shaper_y", "freq_x", "freq_y", "damping_x", "damping_y")
+    out = []
+    for ev in events:
+        if ev.kind != "shaper" or ev.command not in _APPLY:
+            continue
+        d = {k: getattr(config, k) for k in keys}
+        _APPLY[ev.command](d, ev.params)
+        if any(d[k] != getattr(config, k) for k in keys if not (k.startswith(("freq", "damping"))
+                                                             and d[f"shaper_{k[-1]}"] == "none"
+                                                             and getattr(config, f"shaper_{k[-1]}") == "none")):
+            out.append(ev)
+    return out
+
+
 def config_at(timeline: list[tuple[float, TuneConfig]], t: float) -> TuneConfig:
     """The configuration in force at time ``t`` (s)."""
     cfg = timeline[0][1]

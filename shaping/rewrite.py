@@ -1,7 +1,8 @@
 """The job rewriter: a sliced job with the tuned acceleration (and corner rule) written in at each
 feature change, in the firmware's own dialect; nothing else of the file changes.
 
-:func:`rewrite_job` inserts lines, never edits one:
+:func:`rewrite_job` inserts lines and edits none, but the job's own shaper commands that would move
+the printer off the tuned shaper (``replaced``: the tuned shaper's command in their place):
 
 - before a move where the settings of :func:`ringtune.shaping.feature_settings.move_settings`
   change (a feature change, or for Klipper's one acceleration a travel), the commands that set
@@ -144,9 +145,10 @@ def _feature_inserts(job: Job, firmware: str, fc: FeatureCommands) -> dict[int, 
 
 
 def rewrite_job(lines: list[str], firmware: str, feature_cmds: FeatureCommands | None,
-                layer_inserts: dict[int, list[str]] | None = None, parsed: Job | None = None) -> list[str]:
+                layer_inserts: dict[int, list[str]] | None = None, parsed: Job | None = None,
+                replaced: dict[int, list[str]] | None = None) -> list[str]:
     """The job's lines with the per-feature commands and ``layer_inserts`` inserted (module
-    docstring); every input line is kept as it is, in order.
+    docstring); every input line is kept as it is, in order, but those of ``replaced``.
 
     Args:
         lines: the job's lines, with or without their line endings (the output keeps the form).
@@ -155,6 +157,9 @@ def rewrite_job(lines: list[str], firmware: str, feature_cmds: FeatureCommands |
         layer_inserts: {layer index (0 = first layer, :func:`layer_starts`): [G-code lines]},
             inserted before the first move of that layer, ahead of any feature command there.
         parsed: ``lines`` already read (:func:`ringtune.shaping.gcode.read_gcode`), else they are read here.
+        replaced: {source line (1-based): [G-code lines]} written instead of that line, the first
+            with a comment that quotes it (the job's own shaper commands, where the tuned shaper
+            takes their place: :func:`ringtune.shaping.job_shapers.overriding`).
     """
     keep = bool(lines) and lines[0].endswith("\n")
     nl = ("\r\n" if lines[0].endswith("\r\n") else "\n") if keep else ""
@@ -173,5 +178,9 @@ def rewrite_job(lines: list[str], firmware: str, feature_cmds: FeatureCommands |
     out: list[str] = []
     for ln, line in enumerate(lines, 1):
         out.extend(x + nl for x in inserts.get(ln, ()))
-        out.append(line)
+        if replaced and ln in replaced:
+            first, *rest = replaced[ln]
+            out.extend(x + nl for x in [f"{first} ; ringtune: in place of the job's own {line.strip()}", *rest])
+        else:
+            out.append(line)
     return out

@@ -20,6 +20,7 @@ from ringtune.agents.cli.main import main
 from ringtune.envs.planned_job import planned_job
 from ringtune.envs.job_rewrite import HEADER, rewrite_gcode_bytes
 from ringtune.envs.printer import load_printer
+from ringtune.hardware.dialects import shaper_commands
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import plan_with_config
 from ringtune.shaping.errors import RingtuneError
@@ -44,7 +45,10 @@ def _printer(junction: str):
 
 
 def _config(firmware: str, junction: str, corner: float, **kw) -> TuneConfig:
-    return TuneConfig(firmware=firmware, shaper_x="zv", shaper_y="zv", freq_x=45.0, freq_y=40.0, accel=6000.0,
+    """RepRapFirmware: one shaper for all axes (both mzv at 45 Hz: it has no zv)."""
+    shaper = "mzv" if firmware == "rrf" else "zv"
+    return TuneConfig(firmware=firmware, shaper_x=shaper, shaper_y=shaper, freq_x=45.0,
+                      freq_y=45.0 if firmware == "rrf" else 40.0, accel=6000.0,
                       feature_accel=dict(FEATURES), corner=corner,
                       min_cruise_ratio=0.25 if junction == "scv" else None, **kw)
 
@@ -109,13 +113,31 @@ def test_every_feature_change_carries_the_commands_and_nothing_else_changes(data
         cfg = replace(cfg, feature_corner=dict.fromkeys(BEHIND, 2 * corner),
                       feature_min_cruise_ratio=dict.fromkeys(BEHIND, 0.0) if junction == "scv" else {})
     printer = _printer(junction)
-    done = rewrite_gcode_bytes(src, cfg, printer, path)
+    done = rewrite_gcode_bytes(src, cfg, printer, path, shaper_lines=shaper_commands)
     old = src.decode("utf-8", "surrogateescape").splitlines()
     new = done.data.decode("utf-8", "surrogateescape").splitlines()
-    # the diff: only inserted lines, each one of ours (the header, a command of the firmware's dialect)
-    ops = difflib.SequenceMatcher(None, old, new, autojunk=False).get_opcodes()
+    # the job's own shaper commands (the PrusaSlicer tower's M593 F per layer) are replaced by the
+    # configuration's (Marlin: M593 X, then M593 Y), the first line quoting the job's: the file then
+    # shapes as tune judged it; with those put back, the diff has only inserted lines, each one of
+    # ours (the header, a command of the firmware's dialect)
+    own = {ev.line for ev in read_gcode(src, source=path).events if ev.kind == "shaper" and ev.command == "M593"}
+    assert [ln for ln, _t in done.shaper_replaced] == sorted(own) and bool(own) == ("ianalexis" in path)
+    first, *rest = shaper_commands(cfg)
+    mark = f"{first} ; ringtune: in place of the job's own "
+    restored, k = [], 0
+    while k < len(new):
+        if new[k].startswith(mark):
+            assert new[k + 1:k + 1 + len(rest)] == rest
+            restored.append(new[k][len(mark):])
+            k += 1 + len(rest)
+        else:
+            restored.append(new[k])
+            k += 1
+    assert sum(line.startswith(mark) for line in new) == len(own)
+    ops = difflib.SequenceMatcher(None, [ln.strip() for ln in old], [ln.strip() for ln in restored],
+                                  autojunk=False).get_opcodes()
     assert {op for op, *_ in ops} <= {"equal", "insert"}
-    added = [line for op, _, _, j1, j2 in ops if op == "insert" for line in new[j1:j2]]
+    added = [line for op, _, _, j1, j2 in ops if op == "insert" for line in restored[j1:j2]]
     assert len(added) == done.lines_inserted + 1 and added[0].startswith(HEADER)
     words = {"klipper": ("SET_VELOCITY_LIMIT ",), "marlin": ("M204 P", "M205 X", "M201 X"),
              "rrf": ("M204 P", "M566 X", "M201 X")}[firmware]
@@ -159,7 +181,7 @@ def test_stored_axis_caps_the_configuration_raises_are_raised_in_the_file(data_d
     printer = replace(load_printer(None), limits_dict={"accel": 500, "velocity": 300, "junction": "jerk",
                                                        "max_accel": [500, 500, 100, 5000]})
     cfg = replace(_config(firmware, "jerk", 9.0), max_accel_x=12000.0, max_accel_y=12000.0)
-    done = rewrite_gcode_bytes(source, cfg, printer, path)
+    done = rewrite_gcode_bytes(source, cfg, printer, path, shaper_lines=shaper_commands)
     assert "M201 X12000 Y12000" in done.data.decode()
     tune_s = planned_job(printer, read_gcode(source), cfg).print_time
     job = read_gcode(done.data, source="out")

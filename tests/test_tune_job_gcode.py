@@ -17,9 +17,21 @@ def _run(argv):
     return subprocess.run(RINGTUNE + argv, capture_output=True, text=True, timeout=900)
 
 
+#: a start G-code's own input shaper, far off any the study tries (Klipper's dialect)
+OWN_SHAPER = "SET_INPUT_SHAPER SHAPER_TYPE=zv SHAPER_FREQ_X=21 SHAPER_FREQ_Y=19"
+
+
 @pytest.mark.slow
-def test_simulate_of_the_rewritten_job_prints_tunes_figures(tmp_path, data_dir):
+@pytest.mark.parametrize("own_shaper", [False, True], ids=["as sliced", "with its own shaper"])
+def test_simulate_of_the_rewritten_job_prints_tunes_figures(tmp_path, data_dir, own_shaper):
+    """With a shaper command of the job's own, job.gcode has the tuned shaper's in its place (else the
+    printer would print with the job's, and simulate would judge that: the test fails before)."""
     job = data_dir / "gcode/ringtune_builtin_2025/test_print.gcode"      # labelled: walls and infill
+    if own_shaper:
+        lines = job.read_text().splitlines(keepends=True)
+        lines.insert(1, OWN_SHAPER + "\n")
+        job = tmp_path / "own_shaper.gcode"
+        job.write_text("".join(lines))
     out = tmp_path / "out"
     tuned = _run(["tune", "--gcode", str(job), "--trials", "6", "--seed", "2", "--no-baselines",
                   "--per-feature", "on", "--backend", "lti", "--out", str(out), "--json"])
@@ -48,6 +60,8 @@ def test_simulate_of_the_rewritten_job_prints_tunes_figures(tmp_path, data_dir):
     tol = 1e-5 if best["freq_limit_hz"] > 0 else 1e-9
     assert res["metrics"]["print_time_s"] == pytest.approx(report["chosen"]["print_time_s"], rel=tol)
     written = report["job_gcode"]          # --json says what the summary says of the file
+    assert written["shaper_replaced"] == ([{"line": 2, "text": OWN_SHAPER}] if own_shaper else [])
+    assert ("the job sets its own input shaper (line 2" in tuned.stderr) == own_shaper
     assert written["path"] == str(out / "job.gcode") and written["print_time_s"] == pytest.approx(
         res["metrics"]["print_time_s"], rel=1e-9)
     assert f"{written['lines_inserted']} lines inserted" in rewritten.splitlines()[0]

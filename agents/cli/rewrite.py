@@ -7,13 +7,16 @@ original, as ``tune`` reports it), ``feature_accel`` ({class: mm/s²}), ``corner
 ``min_cruise_ratio`` (these three null where nothing is set per feature: a configuration judged with
 the job's own accelerations standing, ``job_accel`` ``respect``), ``header``, ``first_layer_kept``
 (null, or the lowest acceleration the job gives the first layer it slows itself, mm/s², which the
-rewrite keeps wherever it is lower than the per-feature one: said on stderr too).
+rewrite keeps wherever it is lower than the per-feature one: said on stderr too), ``shaper_replaced``
+([{``line``, ``text``}]: the job's own shaper commands that would have moved the printer off the
+configuration's shaper, each replaced by the configuration's shaper command: said on stderr too).
 """
 
 from __future__ import annotations
 
 from ringtune.agents.cli.common import check_output_folder, load_config
-from ringtune.envs.job_rewrite import first_layer_words, rewrite_file
+from ringtune.envs.job_rewrite import first_layer_words, rewrite_file, shaper_words
+from ringtune.hardware.dialects import shaper_commands
 
 NAME = "rewrite"
 DESCRIPTION = """\
@@ -21,8 +24,9 @@ Write a tuned configuration into a sliced job, in the firmware's own dialect: be
 change (and, on Klipper, each travel) the acceleration of that feature class, the corner rule and
 minimum_cruise_ratio once at the start, the per-axis caps raised once where the firmware has them
 (Marlin, Prusa, RRF: M201 X Y), and the configuration's frequency limit (as `ringtune limit`).
-Lines are only inserted, never changed (apart from the limit's F words); a comment on the first
-line says what was done. The same commands follow any acceleration command of the job itself, so
+Lines are only inserted, never changed (apart from the limit's F words, and a shaper command of the
+job's own that would move the printer off the configuration's shaper: the configuration's shaper
+command takes its place, with a comment quoting it); a comment on the first line says what was done. The same commands follow any acceleration command of the job itself, so
 the job's own values never rule a move — unless tune judged the configuration with the job's own
 acceleration commands standing (--job-accel respect, recorded in best.json) and it sets nothing per
 feature: then they stand in the file too, and only the frequency limit and a Y schedule are written.
@@ -54,16 +58,19 @@ def add_arguments(parser) -> None:
 def run(args, out) -> int:
     check_output_folder("--output", args.output)
     cfg = load_config(args.config, out)
-    done = rewrite_file(args.file, args.output, cfg, args.printer)
+    done = rewrite_file(args.file, args.output, cfg, args.printer, shaper_lines=shaper_commands)
     fc = done.commands
     result = {"input": args.file, "output": args.output, "firmware": cfg.firmware, "junction": done.junction,
               "lines_inserted": done.lines_inserted, "f_lines_changed": done.f_lines_changed,
               "print_time_before_s": done.before_s, "print_time_after_s": done.after_s,
               "print_time_config_s": done.config_s, "feature_accel": dict(fc.accel) if fc else None,
               "corner": fc.corner if fc else None, "min_cruise_ratio": fc.min_cruise_ratio if fc else None,
-              "header": done.header, "first_layer_kept": done.first_layer}
+              "header": done.header, "first_layer_kept": done.first_layer,
+              "shaper_replaced": [{"line": ln, "text": t} for ln, t in done.shaper_replaced]}
     if done.first_layer:
         out.note(f"ringtune rewrite: {first_layer_words(done.first_layer)}")
+    if done.shaper_replaced:
+        out.note(f"ringtune rewrite: {shaper_words([ln for ln, _t in done.shaper_replaced])}")
     saved = done.before_s - done.after_s
     text = (f"{args.file} -> {args.output}: {done.lines_inserted} lines inserted"
             + (f", F changed on {done.f_lines_changed} lines (frequency limit)" if done.f_lines_changed else "")

@@ -28,7 +28,8 @@ from ringtune.agents.tune.space import (CORNER_UNIT, default_space, freq_floor_n
 from ringtune.agents.tune.stop import Bounds
 from ringtune.agents.tune.study_results import study_points
 from ringtune.envs.planned_job import planned_job, resolve_job, resolve_printer
-from ringtune.envs.job_rewrite import first_layer_words, rewrite_file
+from ringtune.envs.job_rewrite import first_layer_words, rewrite_file, shaper_words
+from ringtune.hardware.dialects import shaper_commands
 from ringtune.envs.printer_model import unmeasured_note
 from ringtune.envs.variants import TWIN_DAMPING
 from ringtune.shaping.errors import RingtuneError
@@ -296,7 +297,8 @@ def _write_job(gcode: str, out_dir: Path, config, printer, result: dict, note: C
     files; the summary's sentence on it. A job that cannot be rewritten leaves the study standing:
     its file is None and a note says why."""
     try:
-        done = rewrite_file(gcode, out_dir / "job.gcode", config, printer, parsed=resolve_job(gcode)[1])
+        done = rewrite_file(gcode, out_dir / "job.gcode", config, printer, parsed=resolve_job(gcode)[1],
+                            shaper_lines=shaper_commands)
     except RingtuneError as exc:
         result["files"]["job"] = None
         note(f"ringtune tune: job.gcode not written: {exc}")
@@ -311,6 +313,13 @@ def _write_job(gcode: str, out_dir: Path, config, printer, result: dict, note: C
     if done.first_layer:
         note(f"ringtune tune: job.gcode: {first_layer_words(done.first_layer)}")
         text += f"\nNote: {first_layer_words(done.first_layer)}."
+    if done.shaper_replaced:
+        ln, was = done.shaper_replaced[0]
+        said = (f"the job sets its own input shaper (line {ln}: {was}), which would replace the tuned one while it "
+                f"prints; job.gcode has {shaper_words([n for n, _t in done.shaper_replaced])}")
+        note(f"ringtune tune: {said}")
+        text += f"\nNote: {said}."
+    result["job_gcode"]["shaper_replaced"] = [{"line": n, "text": t} for n, t in done.shaper_replaced]
     if abs(done.after_s - done.config_s) > 1e-4 * done.config_s:     # the F words' rounding aside
         warn = (f"job.gcode plans at {done.after_s:.1f} s as the printer runs it, not the {done.config_s:.1f} s "
                 "tune judged the choice at: a setting the file cannot carry differs (please report it)")

@@ -1,0 +1,133 @@
+"""A job that sets its own input shaper (a start G-code's ``SET_INPUT_SHAPER``, ``M593``, ``M493``):
+tune judges the tuned shaper over the whole job, so the rewritten job carries the tuned shaper's
+command in place of each of the job's own that would move the printer off it, and keeps those that
+would not. Checked by reading the rewritten file back with the firmware's own semantics
+(:mod:`ringtune.shaping.job_shapers`: what each command leaves the shaper at) and planning it."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import pytest
+
+from ringtune.agents.cli.main import main
+from ringtune.envs.job_rewrite import rewrite_gcode_bytes
+from ringtune.envs.printer import load_printer
+from ringtune.hardware.dialects import shaper_commands
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.config_plan import plan_with_config
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.job_shapers import overriding, shaper_timeline
+
+#: a labelled square of walls, then infill: enough for a plan with a feature change
+BODY = """G90
+M83
+G1 Z0.2 F600
+;TYPE:External perimeter
+G1 X20 Y20 F9000
+G1 X45 Y20 E0.8 F3000
+G1 X45 Y45 E0.8
+G1 X20 Y45 E0.8
+G1 X20 Y20 E0.8
+;TYPE:Internal infill
+G1 X22 Y22 F9000
+G1 X43 Y43 E1.0 F6000
+G1 X43 Y22 F9000
+G1 X22 Y43 E1.0 F6000
+"""
+
+#: (firmware, its junction rule, the tuned shaper, a shaper command of the job's own that moves the
+#: printer off it, one that does not, one that sets no shaper at all)
+DIALECTS = [
+    ("klipper", "scv", ("ei", "mzv", 51.4, 46.6),
+     "SET_INPUT_SHAPER SHAPER_TYPE=zv SHAPER_FREQ_X=38 SHAPER_FREQ_Y=33",
+     "SET_INPUT_SHAPER SHAPER_FREQ_X=51.4 DAMPING_RATIO_Y=0.1", "SET_INPUT_SHAPER"),
+    ("marlin", "jerk", ("zv", "zv", 51.4, 46.6), "M593 F38 ; the slicer's own", "M593 X F51.4 D0.1", "M593"),
+    ("prusa", "jd", ("mzv", "ei", 51.4, 46.6), "M593 X T0 F38", "M593 Y T3 F46.6 D0.1", "M593 W"),
+    ("marlin-ftm", "jd", ("mzv", "mzv", 51.4, 46.6), "M493 X C1 A38", "M493 Y C8 A46.6", "M493 S1"),
+    ("rrf", "jerk", ("mzv", "mzv", 51.4, 51.4), 'M593 P"zvd" F38 S0.1', 'M593 P"mzv" F51.4 S0.1', "M593"),
+]
+
+
+def _config(firmware: str, shaping: tuple) -> TuneConfig:
+    sx, sy, fx, fy = shaping
+    return TuneConfig(firmware=firmware, shaper_x=sx, shaper_y=sy, freq_x=fx, freq_y=fy, accel=5000.0,
+                      feature_accel={"infill": 9000.0})
+
+
+def _printer(junction: str):
+    return replace(load_printer(None), limits_dict={"accel": 3000, "velocity": 300, "junction": junction})
+
+
+@pytest.mark.parametrize("firmware, junction, shaping, moves_off, agrees, sets_none", DIALECTS,
+                         ids=[d[0] for d in DIALECTS])
+def test_the_jobs_own_shaper_commands_that_move_the_printer_off_the_tuned_one_are_replaced(
+        firmware, junction, shaping, moves_off, agrees, sets_none):
+    cfg = _config(firmware, shaping)
+    job_text = f"G28\n{moves_off}\n{agrees}\n{sets_none}\n" + BODY
+    original = read_gcode(job_text, source="job")
+    # lines 2 to 4: only the first moves the printer off the tuned shaper
+    assert [ev.line for ev in overriding(original.events, cfg)] == [2]
+    printer = _printer(junction)
+    done = rewrite_gcode_bytes(job_text.encode(), cfg, printer, "job", shaper_lines=shaper_commands)
+    assert done.shaper_replaced == ((2, moves_off.split(";")[0].strip()),)
+    assert "the job's own shaper command on line 2 replaced by the tuned shaper's" in done.header
+    lines = done.data.decode().splitlines()[1:]          # the header aside
+    want = shaper_commands(cfg)
+    assert lines[1] == f"{want[0]} ; ringtune: in place of the job's own {moves_off}"
+    assert lines[2:1 + len(want)] == want[1:]
+    assert lines[1 + len(want):4 + len(want)] == [agrees, sets_none] + [lines[3 + len(want)]]
+    # read back as the firmware reads it: no command of the file moves the printer off the tuned
+    # shaper, so the tuned shaper rules every move (one step in the timeline of what is in force)
+    rewritten = read_gcode(done.data, source="out")
+    assert overriding(rewritten.events, cfg) == []
+    planned = plan_with_config(rewritten, printer.limits, cfg).plan
+    assert shaper_timeline(planned.events, cfg) == [(float("-inf"), cfg)]
+    # the original's own command would have changed it: the check above can fail
+    before = plan_with_config(original, printer.limits, cfg).plan
+    steps = shaper_timeline(before.events, cfg)
+    assert len(steps) >= 2 and steps[1][1] != cfg
+    # the replacement keeps the firmware's stop there: the file plans to the configuration's time
+    assert done.after_s == pytest.approx(done.config_s, rel=1e-9)
+    assert done.lines_inserted == len(lines) - len(job_text.splitlines()) - (len(want) - 1)
+
+
+def test_without_the_tuned_shaper_to_write_a_job_with_its_own_is_refused_by_line():
+    cfg = _config("klipper", ("ei", "mzv", 51.4, 46.6))
+    job_text = "G28\nSET_INPUT_SHAPER SHAPER_FREQ_Y=0\n" + BODY
+    with pytest.raises(RingtuneError, match=r"job, line 2: the job sets its own input shaper"):
+        rewrite_gcode_bytes(job_text.encode(), cfg, _printer("scv"), "job")
+    same = "G28\nSET_INPUT_SHAPER SHAPER_TYPE_X=ei SHAPER_FREQ_X=51.4\n" + BODY       # sets what cfg sets
+    done = rewrite_gcode_bytes(same.encode(), cfg, _printer("scv"), "job")
+    assert done.shaper_replaced == () and "SET_INPUT_SHAPER SHAPER_TYPE_X=ei SHAPER_FREQ_X=51.4\n" in done.data.decode()
+
+
+def test_rewrite_command_says_which_line_it_replaced(tmp_path, capsys):
+    cfg = _config("klipper", ("ei", "mzv", 51.4, 46.6))
+    (tmp_path / "best.json").write_text(json.dumps(cfg.to_dict()))
+    (tmp_path / "job.gcode").write_text("G28\nSET_INPUT_SHAPER SHAPER_TYPE=zv SHAPER_FREQ_X=38\n" + BODY)
+    out = tmp_path / "out.gcode"
+    assert main(["rewrite", str(tmp_path / "job.gcode"), "--config", str(tmp_path / "best.json"), "-o", str(out),
+                 "--json"]) == 0
+    got = capsys.readouterr()
+    assert json.loads(got.out)["shaper_replaced"] == [{"line": 2, "text": "SET_INPUT_SHAPER SHAPER_TYPE=zv "
+                                                                          "SHAPER_FREQ_X=38"}]
+    assert "the job's own shaper command on line 2 replaced by the tuned shaper's" in got.err
+    assert out.read_text().splitlines()[2].startswith("SET_INPUT_SHAPER SHAPER_FREQ_X=51.4 SHAPER_FREQ_Y=46.6")
+
+
+def test_with_a_frequency_limit_the_command_is_replaced_where_it_now_stands(data_dir):
+    """The limit's header and the moves it splits push the lines down: the job's own command is
+    still the one replaced (named by its line in the input), and nothing else."""
+    lines = (data_dir / "gcode/ringtune_builtin_2025/test_print.gcode").read_text().splitlines(keepends=True)
+    lines.insert(1, "SET_INPUT_SHAPER SHAPER_TYPE=zv SHAPER_FREQ_X=21\n")
+    cfg = replace(_config("klipper", ("ei", "mzv", 51.4, 46.6)), freq_limit_hz=20.0)
+    done = rewrite_gcode_bytes("".join(lines).encode(), cfg, _printer("scv"), "job", shaper_lines=shaper_commands)
+    assert done.f_lines_changed > 0 and done.shaper_replaced == ((2, "SET_INPUT_SHAPER SHAPER_TYPE=zv SHAPER_FREQ_X=21"),)
+    out = done.data.decode()
+    assert "SET_INPUT_SHAPER SHAPER_TYPE=zv SHAPER_FREQ_X=21" not in out.splitlines()
+    assert out.count("; ringtune: in place of the job's own SET_INPUT_SHAPER SHAPER_TYPE=zv SHAPER_FREQ_X=21") == 1
+    assert overriding(read_gcode(done.data, source="out").events, cfg) == []
+    assert done.after_s == pytest.approx(done.config_s, rel=1e-4)        # F words to 0.1 mm/min
