@@ -28,7 +28,7 @@ from ringtune.shaping.layer_commands import TAG, schedule_inserts
 from ringtune.shaping.layers import job_layers
 from ringtune.shaping.job import Job
 from ringtune.shaping.job_shapers import overriding
-from ringtune.shaping.rewrite import rewrite_job
+from ringtune.shaping.rewrite import rewrite_job, shapers_to_replace
 
 HEADER = "; ringtune rewrite"
 
@@ -73,21 +73,20 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
         sched = schedule_inserts([la.z for la in job_layers(original)], config)
         layer_inserts = {k: [f"{c} {TAG}" for c in v] for k, v in sched.items()}
     config_s = plan_with_config(original, limits, config).plan.print_time
+    own = _own_shapers(data, original, config, shaper_lines)        # numbered as in the input
     f_changed = 0
     if config.freq_limit_hz > 0 and not native_limit(config):
         data, res = limit_gcode_bytes(data, float(config.freq_limit_hz), config.freq_limit_method,
                                       float(config.min_speed_factor), source=source)
         f_changed = res.lines_changed
-    # lines end at \n, \r\n or \r, as the G-code reader numbers them (str.splitlines would also split
-    # at form feeds and other separators a comment may hold)
-    lines = [ln.decode("utf-8", errors="surrogateescape") for ln in data.splitlines(keepends=True)]
+    lines = _lines(data)
     if not lines:
         raise RingtuneError("the job is empty", source)
     fc = feature_commands(config, limits)
-    own = _own_shapers(original, config, shaper_lines)
     # the limit's header and split moves move the lines down: the same commands, where they now stand
     lined = read_gcode(data, source=source) if f_changed else original
-    replaced = {ev.line: list(shaper_lines(config)) for ev in overriding(lined.events, config)} if own else None
+    now = shapers_to_replace(lines, lined, config) if own and f_changed else own
+    replaced = {ev.line: list(shaper_lines(config)) for ev in now} if own else None
     out = rewrite_job(lines, config.firmware, fc, layer_inserts, parsed=lined, replaced=replaced)
     inserted = len(out) - len(lines) - sum(len(v) - 1 for v in (replaced or {}).values())
     nl = "\r\n" if lines[0].endswith("\r\n") else "\n"
@@ -107,10 +106,16 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
                         tuple((ev.line, ev.text or ev.command) for ev in own))
 
 
-def _own_shapers(job: Job, config: TuneConfig, shaper_lines: Callable | None) -> list:
-    """The job's shaper commands the configuration's shaper replaces (:func:`overriding`); refused
-    without ``shaper_lines`` to put there."""
-    own = overriding(job.events, config)
+def _lines(data: bytes) -> list[str]:
+    """The job's lines, ending at \n, \r\n or \r, as the G-code reader numbers them (str.splitlines
+    would also split at form feeds and other separators a comment may hold)."""
+    return [ln.decode("utf-8", errors="surrogateescape") for ln in data.splitlines(keepends=True)]
+
+
+def _own_shapers(data: bytes, job: Job, config: TuneConfig, shaper_lines: Callable | None) -> list:
+    """The shaper commands of ``job`` (read from ``data``) the configuration's shaper replaces
+    (:func:`ringtune.shaping.rewrite.shapers_to_replace`); refused without ``shaper_lines`` to put there."""
+    own = shapers_to_replace(_lines(data), job, config) if overriding(job.events, config) else []
     if own and shaper_lines is None:
         ev = own[0]
         raise RingtuneError(f"the job sets its own input shaper ({ev.text or ev.command}), which would replace the "

@@ -36,6 +36,8 @@ from ringtune.shaping.features import FEATURE_CLASSES
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.job import Job
+from ringtune.shaping.job_shapers import overriding
+from ringtune.shaping.layer_commands import TAG
 from ringtune.shaping.layers import layer_starts
 
 #: settings a block sets at every change (the others once, and after the job's own commands)
@@ -142,6 +144,14 @@ def _feature_inserts(job: Job, firmware: str, fc: FeatureCommands) -> dict[int, 
         lines += [f"{first} ; ringtune: {names[index[i]]}", *rest]
         out[int(job.line[i])] = lines
     return out
+
+
+def shapers_to_replace(lines: list[str], job: Job, config) -> list:
+    """The job's shaper commands (events) that would move the printer off ``config``'s shaping
+    (:func:`ringtune.shaping.job_shapers.overriding`), those ringtune wrote itself (a mass schedule's
+    band lines, tagged :data:`~ringtune.shaping.layer_commands.TAG`) aside; ``lines``: the job's,
+    as ``job`` numbers them."""
+    return [ev for ev in overriding(job.events, config) if TAG not in lines[ev.line - 1]]
 
 
 def rewrite_job(lines: list[str], firmware: str, feature_cmds: FeatureCommands | None,

@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import math
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -317,3 +318,34 @@ def test_rewrite_applies_the_configs_schedule_as_schedule_writes_it(tmp_path):
     assert tagged == written and len(tagged) >= 3
     freqs = [e.params["SHAPER_FREQ_Y"] for e in read_gcode(out).shaper_events()]
     assert freqs == [b.freq_y for b in s.bands]
+
+
+def test_a_jobs_own_shaper_command_gives_way_to_the_tuned_one_and_the_bands_follow_it(tmp_path):
+    """A start G-code's own SET_INPUT_SHAPER would put the printer on its shaper for the whole print
+    (the bands move only Y's frequency): ``schedule -o`` writes the tuned shaper's command in its
+    place, said in a note; read back as Klipper reads it, the tuned shaper rules up to the first
+    band line, and each band moves only Y's frequency from there. Scheduling the written job again
+    leaves the earlier schedule's band lines alone."""
+    from ringtune.hardware.dialects import shaper_commands
+    from ringtune.shaping.config_plan import plan_with_config
+    from ringtune.shaping.job_shapers import shaper_timeline
+
+    own = "SET_INPUT_SHAPER SHAPER_TYPE=zv SHAPER_FREQ_X=30 SHAPER_FREQ_Y=30"
+    path = tmp_path / "small.gcode"
+    path.write_text(own + "\n" + solid_block(size_mm=40.0, height_mm=60.0, layer_mm=0.6)[0])
+    cfg = TuneConfig(firmware="klipper", shaper_x="ei", shaper_y="mzv", freq_x=45.5, freq_y=38.9, accel=3000)
+    s = mass_schedule(cfg, None, path)
+    assert any(n.startswith(f"the job sets its own input shaper (line 1: {own})") for n in s.notes)
+    written = "".join(scheduled_lines(s, path))
+    assert written.splitlines()[0] == f"{shaper_commands(cfg)[0]} ; ringtune: in place of the job's own {own}"
+    job = read_gcode(written, source="written")
+    steps = shaper_timeline(plan_with_config(job, load_printer(None).limits, cfg).plan.events, cfg)
+    assert steps[0][1] == cfg and len(steps) == len(s.bands) + 1
+    for (_t, before), (_t2, after), band in zip(steps, steps[1:], s.bands):
+        assert after == replace(before, freq_y=band.freq_y)          # only Y's frequency moves
+    again = tmp_path / "again.gcode"
+    again.write_text(written)
+    rewritten = scheduled_lines(mass_schedule(cfg, None, again), again)
+    assert rewritten[0] == written.splitlines(keepends=True)[0]          # the tuned shaper's own: kept
+    bands = [ln for ln in written.splitlines(keepends=True) if TAG in ln]     # the bands' and their accelerations
+    assert len(bands) == sum(len(b.commands) for b in s.bands) and all(ln in rewritten for ln in bands)

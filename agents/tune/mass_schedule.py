@@ -32,15 +32,18 @@ from ringtune.agents.tune.space import freq_floor
 from ringtune.envs.bed_load import dominant_y_mode, is_bed_slinger
 from ringtune.envs.planned_job import job_accel_commands, resolve_job, resolve_printer
 from ringtune.envs.printer_model import Printer
+from ringtune.hardware.dialects import shaper_commands
 from ringtune.shaping.analysis import max_accel, residual_vibration, smoothing
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import for_firmware
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.job_shapers import overriding
 from ringtune.shaping.layer_commands import PRUSA_WEIGHT_ADJUST, TAG, prusa_weight_frequency, schedule_inserts
 from ringtune.shaping.layers import FILAMENT_DENSITY_G_CM3, FILAMENT_DIAMETER_MM, Layer, job_layers
-from ringtune.shaping.rewrite import rewrite_job
+from ringtune.shaping.rewrite import rewrite_job, shapers_to_replace
 from ringtune.shaping.slicer import slicer_filament
 from ringtune.shaping.shapers import get_shaper
 from ringtune.shaping.textfile import read_text_file
@@ -231,6 +234,12 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
     if not sched.needed:
         return sched
     notes.extend(_firmware_notes(config, printer, bands))
+    own = overriding(parsed.events, config)
+    if own:
+        notes.append(f"the job sets its own input shaper (line {own[0].line}: {own[0].text or own[0].command}"
+                     f"{f', and {len(own) - 1} more' if len(own) > 1 else ''}), which would move the printer off "
+                     "the tuned one while it prints: the job written (-o) has the tuned shaper's command in place "
+                     "of each (but a band line of an earlier schedule), so its bands move the tuned shaper")
     if any(b.accel for b in bands) and job_accel_commands(parsed, for_firmware(printer.limits, config)):
         notes.append("the job sets its own accelerations (M204 / SET_VELOCITY_LIMIT): a band's acceleration "
                      "holds only until the job's next one; rewrite them (`ringtune rewrite`, `limit --accel`) "
@@ -304,7 +313,13 @@ def _prusa_rule(config: TuneConfig, bands: list[Band]) -> None:
 
 def scheduled_lines(schedule: MassSchedule, path: str | Path) -> list[str]:
     """The job file's lines with each band's commands (tagged :data:`TAG`) inserted where the band's
-    first layer begins (:func:`ringtune.shaping.rewrite.rewrite_job`); every other line as it was."""
+    first layer begins (:func:`ringtune.shaping.rewrite.rewrite_job`); every other line as it was,
+    but a shaper command of the job's own that would move the printer off the configuration's
+    shaper, which gets the configuration's shaper command in its place (as ``ringtune rewrite``
+    does: the bands move the tuned shaper, as the schedule judged them)."""
     text = read_text_file(Path(path), "G-code job")
+    lines = text.splitlines(keepends=True)
+    job = read_gcode(text, source=str(path))
     inserts = {k: [f"{c} {TAG}" for c in cmds] for k, cmds in schedule.inserts().items()}
-    return rewrite_job(text.splitlines(keepends=True), schedule.config.firmware, None, layer_inserts=inserts)
+    replaced = {ev.line: shaper_commands(schedule.config) for ev in shapers_to_replace(lines, job, schedule.config)}
+    return rewrite_job(lines, schedule.config.firmware, None, layer_inserts=inserts, parsed=job, replaced=replaced)
