@@ -27,6 +27,7 @@ from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.gcode_file import read_gcode_bytes
 from ringtune.shaping.gcode_post import AccelResult, LimitResult, limit_file, rewrite_accel_bytes
 from ringtune.shaping.job import Job
+from ringtune.shaping.klipper_commands import macro_calls, macro_note
 from ringtune.shaping.klipper_ignores import klipper_ignored, klipper_ignored_note
 from ringtune.shaping.planner import MachineLimits
 from ringtune.shaping.slicer import slicer_estimate, slicer_flavor
@@ -160,6 +161,7 @@ class JobPlan:
         for e in p.events:
             kinds[e.kind] = kinds.get(e.kind, 0) + 1
         ignored = klipper_ignored(self.job, self.configured.limits)
+        macros = macro_calls(self.job) if self.configured.limits.reads_like_klipper else {}
         retractions = firmware_retractions(self.job)
         return {
             "job": self.name, "junction": self.junction, "junction_reason": self.why,
@@ -176,6 +178,8 @@ class JobPlan:
             "read_s": self.read_s, "plan_s": self.plan_s,
             # under Klipper's rule: the job's limit lines Klipper does not act on ({command: [lines]})
             "ignored_by_firmware": ignored, "ignored_note": klipper_ignored_note(ignored),
+            # read as Klipper reads it: the commands that are not Klipper's own ({command: [lines]})
+            "macro_calls": macros, "macro_note": macro_note(macros),
             # G10/G11 firmware retractions ({command: [lines]}), planned as taking no time
             "firmware_retraction": retractions, "firmware_retraction_note": firmware_retraction_note(retractions),
         }

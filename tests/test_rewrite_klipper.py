@@ -71,3 +71,25 @@ def test_a_jobs_accel_to_decel_does_nothing_on_this_klipper_nor_in_the_plan(real
     as_klipper = read_gcode("M83\nSET_VELOCITY_LIMIT ACCEL=6000 MINIMUM_CRUISE_RATIO=0.25\n" + zigzag)
     assert plan(read_gcode("M83\n" + "\n".join(lines) + "\n" + zigzag), limits).print_time == \
         pytest.approx(plan(as_klipper, limits).print_time, rel=1e-12)
+
+
+#: commands a sliced job carries: Klipper's own (of the modules this printer.cfg loads: the G-code
+#: core, the toolhead, [input_shaper]) and others (a start macro, a chamber heater, timelapse, a
+#: Marlin object label, Marlin's linear advance, a tool change, a user's own macro)
+KNOWN = ["G90", "M82", "M83", "G21", "M114", "M220 S100", "M221 S100", "M400", "G4 P1", "GET_POSITION",
+         "SET_VELOCITY_LIMIT", "SET_INPUT_SHAPER"]
+OTHERS = ["START_PRINT", "PRINT_END BED=0", "M141 S0", "TIMELAPSE_TAKE_FRAME", "M486 S1", "M900 K0.05", "T0",
+          "_MY_MACRO"]
+
+
+def test_klipper_answers_unknown_command_to_exactly_the_macro_calls_the_reader_finds(real_klipper):
+    """``shaping/klipper_commands.py`` against the real Klipper, which has no macros here: each
+    command the reader calls not Klipper's own is answered "Unknown command"; each of Klipper's own
+    (of the modules this printer.cfg loads) is not."""
+    from ringtune.shaping.klipper_commands import macro_calls
+
+    transcript = real_klipper.send(*KNOWN, *OTHERS)
+    unknown = set(re.findall(r'Unknown command:"([^"]+)"', transcript))
+    assert transcript.count("< ok") == len(KNOWN) + len(OTHERS), transcript
+    calls = macro_calls(read_gcode("\n".join(KNOWN + OTHERS) + "\n", source="job"))
+    assert set(calls) == unknown == {line.split()[0] for line in OTHERS}

@@ -5,7 +5,10 @@ JSON keys (stable): ``job`` (path or ``"built-in test print"``), ``junction`` (s
 lines, which apply from where they appear unless ``--no-job-limits`` — under Klipper's rule only
 those Klipper acts on), ``ignored_by_firmware`` ({command: [line numbers]} of the limit lines
 Klipper does not act on, under its rule; else empty) and ``ignored_note`` (that in words, or
-null), ``firmware_retraction`` ({``G10``/``G11``: [line numbers]} of the job's firmware
+null), ``macro_calls`` ({command: [line numbers]} of the commands that are not Klipper's own —
+macros of the printer.cfg, whose commands are not in the file — where the job is read as Klipper
+reads it; else empty) and ``macro_note`` (that in words, or null), ``firmware_retraction``
+({``G10``/``G11``: [line numbers]} of the job's firmware
 retractions, planned as taking no time: their length and speeds are the printer's) and
 ``firmware_retraction_note`` (that in words, or null), ``print_time_s``,
 ``print_time``, ``moves``, ``extruding_moves``, ``lines``, ``path_length_mm``,
@@ -124,7 +127,7 @@ def _text(r: dict) -> str:
         lines.append(f"  frequency limit {fl['hz']:g} Hz ({fl['method']}): {fl['moves_slowed']} moves slowed")
     if r["daa_hz"]:
         lines.append(f"  DAA at {r['daa_hz']:g} Hz")
-    for key in ("ignored_note", "firmware_retraction_note"):
+    for key in ("ignored_note", "macro_note", "firmware_retraction_note"):
         if r[key]:
             lines.append(f"  {r[key]}")
     lines.append("  time by feature:")

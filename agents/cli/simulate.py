@@ -51,9 +51,8 @@ from ringtune.shaping.e_timing import E_TIMING_WORDS
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import per_feature_text
 from ringtune.shaping.firmware import FIRMWARES, Firmware
-from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions
 from ringtune.shaping.job_shapers import describe_timeline, shaper_timeline
-from ringtune.shaping.klipper_ignores import klipper_ignored, klipper_ignored_note
+from ringtune.shaping.klipper_commands import reading_notes
 
 NAME = "simulate"
 DESCRIPTION = """\
@@ -166,10 +165,7 @@ def job_commands(printer, gcode, config, out) -> list[dict]:
     if len(timeline) > 1:
         notes.append(describe_timeline(timeline, plan.events))
     limits = for_firmware(resolve_printer(printer).limits, config)
-    for note in (klipper_ignored_note(klipper_ignored(parsed, limits)),
-                 firmware_retraction_note(firmware_retractions(parsed))):
-        if note:
-            notes.append(note)
+    notes.extend(reading_notes(parsed, limits))
     if job_accel_commands(parsed, limits):
         mode = job_accel_mode(config) if config.accel is not None else "respect"
         notes.append("the job's own acceleration commands " + (

@@ -23,8 +23,7 @@ from ringtune.envs.planned_job import job_accel_commands, planned_job, resolve_j
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import as_read_by, for_firmware
 from ringtune.shaping.features import FEATURE_CLASSES, LABELLED_VISIBLE, class_indices
-from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions
-from ringtune.shaping.klipper_ignores import klipper_ignored, klipper_ignored_note
+from ringtune.shaping.klipper_commands import reading_notes
 from ringtune.shaping.layers import layer_starts
 
 #: how the job's acceleration settings are written in G-code: command -> (setting, its word)
@@ -76,17 +75,14 @@ class JobAccelFacts:
         return ", ".join(parts)
 
     def _ignored(self) -> list[str]:
-        """Under Klipper's rule, the sentence on the job's limit lines Klipper does not act on, and
-        the one on its firmware retractions (each or none)."""
-        limits, job = self.limits, resolve_job(self.job)[1]
-        notes = (klipper_ignored_note(klipper_ignored(job, limits)),
-                 firmware_retraction_note(firmware_retractions(job)))
-        return [n for n in notes if n]
+        """What the printer does otherwise than the job reads
+        (:func:`ringtune.shaping.klipper_commands.reading_notes`)."""
+        return reading_notes(resolve_job(self.job)[1], self.limits)
 
     def notes(self, mode: str, space) -> list[str]:
-        """What the job's own acceleration commands do under ``mode``; first, under Klipper's rule, the
-        limit lines Klipper does not act on (:func:`ringtune.shaping.klipper_ignores.klipper_ignored_note`)
-        and the firmware retractions (:func:`ringtune.shaping.firmware_retraction.firmware_retraction_note`)."""
+        """What the job's own acceleration commands do under ``mode``; first, what the printer does
+        otherwise than the job reads (:meth:`_ignored`: the limit lines and macros under Klipper's
+        reading, the firmware retractions)."""
         out = self._ignored()
         if not self.commands:
             return out
