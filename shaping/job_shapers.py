@@ -34,6 +34,8 @@ from ringtune.shaping.shapers import shapers_from_config
 _FTM_MODES = ("none", "zv", "zvd", "zvdd", "zvddd", "ei", "2hump_ei", "3hump_ei", "mzv")
 _PRUSA_TYPES = ("zv", "zvd", "mzv", "ei", "2hump_ei", "3hump_ei", "none")
 _RRF_NAMES = {"ei2": "2hump_ei", "ei3": "3hump_ei"}
+#: the settings a shaper command changes
+_SHAPING = ("shaper_x", "shaper_y", "freq_x", "freq_y", "damping_x", "damping_y")
 
 
 def _num(v) -> float | None:
@@ -115,7 +117,7 @@ def shaper_timeline(events, config: TuneConfig) -> list[tuple[float, TuneConfig]
         if ev.kind != "shaper" or ev.time is None or ev.command not in _APPLY:
             continue
         cur = steps[-1][1]
-        d = {k: getattr(cur, k) for k in ("shaper_x", "shaper_y", "freq_x", "freq_y", "damping_x", "damping_y")}
+        d = {k: getattr(cur, k) for k in _SHAPING}
         _APPLY[ev.command](d, ev.params)
         try:
             nxt = replace(cur, **d)
@@ -131,18 +133,22 @@ def overriding(events, config: TuneConfig) -> list:
     each applied alone to ``config`` changes it (a command that sets what ``config`` sets, or
     nothing, is not one). The job rewriter puts ``config``'s own shaper command in their place, so
     ``config`` rules the whole job, as ``tune`` judges it; then none of the rest moves it either."""
-    keys = ("shaper_x", "shaper_y", "freq_x", "freq_y", "damping_x", "damping_y")
+    now = {k: getattr(config, k) for k in _SHAPING}
     out = []
     for ev in events:
         if ev.kind != "shaper" or ev.command not in _APPLY:
             continue
-        d = {k: getattr(config, k) for k in keys}
+        d = dict(now)
         _APPLY[ev.command](d, ev.params)
-        if any(d[k] != getattr(config, k) for k in keys if not (k.startswith(("freq", "damping"))
-                                                             and d[f"shaper_{k[-1]}"] == "none"
-                                                             and getattr(config, f"shaper_{k[-1]}") == "none")):
+        if any(_axis(d, ax) != _axis(now, ax) for ax in "xy"):
             out.append(ev)
     return out
+
+
+
+def _axis(d: dict, ax: str) -> tuple:
+    """What shapes axis ``ax`` in settings ``d``: its shaper, frequency and damping, or off."""
+    return ("none",) if d[f"shaper_{ax}"] == "none" else (d[f"shaper_{ax}"], d[f"freq_{ax}"], d[f"damping_{ax}"])
 
 
 def config_at(timeline: list[tuple[float, TuneConfig]], t: float) -> TuneConfig:
