@@ -115,7 +115,7 @@ def _lines(data: bytes) -> list[str]:
 def _own_shapers(data: bytes, job: Job, config: TuneConfig, shaper_lines: Callable | None) -> list:
     """The shaper commands of ``job`` (read from ``data``) the configuration's shaper replaces
     (:func:`ringtune.shaping.rewrite.shapers_to_replace`); refused without ``shaper_lines`` to put there."""
-    own = shapers_to_replace(_lines(data), job, config) if overriding(job.events, config) else []
+    own = shapers_to_replace(_lines(data), job, config) if overriding(job, config) else []
     if own and shaper_lines is None:
         ev = own[0]
         raise RingtuneError(f"the job sets its own input shaper ({ev.text or ev.command}), which would replace the "

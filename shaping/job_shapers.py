@@ -128,15 +128,16 @@ def shaper_timeline(events, config: TuneConfig) -> list[tuple[float, TuneConfig]
     return steps
 
 
-def overriding(events, config: TuneConfig) -> list:
-    """The job's shaper commands (events) that would move the printer off ``config``'s shaping:
-    each applied alone to ``config`` changes it (a command that sets what ``config`` sets, or
-    nothing, is not one). The job rewriter puts ``config``'s own shaper command in their place, so
-    ``config`` rules the whole job, as ``tune`` judges it; then none of the rest moves it either."""
+def overriding(job, config: TuneConfig) -> list:
+    """The shaper commands (events) of a parsed job (:class:`ringtune.shaping.job.Job`) that would
+    move the printer off ``config``'s shaping for a move: each applied alone to ``config`` changes it
+    (a command that sets what ``config`` sets, or nothing, is not one; nor is one after the job's
+    last move, an end G-code's). The job rewriter puts ``config``'s own shaper command in their
+    place, so ``config`` rules every move, as ``tune`` judges it; then none of the rest moves it either."""
     now = {k: getattr(config, k) for k in _SHAPING}
     out = []
-    for ev in events:
-        if ev.kind != "shaper" or ev.command not in _APPLY:
+    for ev in job.events:
+        if ev.kind != "shaper" or ev.command not in _APPLY or ev.move >= job.n_moves:
             continue
         d = dict(now)
         _APPLY[ev.command](d, ev.params)

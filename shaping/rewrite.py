@@ -151,7 +151,7 @@ def shapers_to_replace(lines: list[str], job: Job, config) -> list:
     (:func:`ringtune.shaping.job_shapers.overriding`), those ringtune wrote itself (a mass schedule's
     band lines, tagged :data:`~ringtune.shaping.layer_commands.TAG`) aside; ``lines``: the job's,
     as ``job`` numbers them."""
-    return [ev for ev in overriding(job.events, config) if TAG not in lines[ev.line - 1]]
+    return [ev for ev in overriding(job, config) if TAG not in lines[ev.line - 1]]
 
 
 def rewrite_job(lines: list[str], firmware: str, feature_cmds: FeatureCommands | None,

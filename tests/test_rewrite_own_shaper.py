@@ -66,10 +66,11 @@ def _printer(junction: str):
 def test_the_jobs_own_shaper_commands_that_move_the_printer_off_the_tuned_one_are_replaced(
         firmware, junction, shaping, moves_off, agrees, sets_none):
     cfg = _config(firmware, shaping)
-    job_text = f"G28\n{moves_off}\n{agrees}\n{sets_none}\n" + BODY
+    # an end G-code's shaper command (after the last move) shapes nothing printed: kept as it is
+    job_text = f"G28\n{moves_off}\n{agrees}\n{sets_none}\n" + BODY + moves_off + "\n"
     original = read_gcode(job_text, source="job")
-    # lines 2 to 4: only the first moves the printer off the tuned shaper
-    assert [ev.line for ev in overriding(original.events, cfg)] == [2]
+    # lines 2 to 4: only the first moves the printer off the tuned shaper for a move
+    assert [ev.line for ev in overriding(original, cfg)] == [2]
     printer = _printer(junction)
     done = rewrite_gcode_bytes(job_text.encode(), cfg, printer, "job", shaper_lines=shaper_commands)
     assert done.shaper_replaced == ((2, moves_off.split(";")[0].strip()),)
@@ -79,12 +80,15 @@ def test_the_jobs_own_shaper_commands_that_move_the_printer_off_the_tuned_one_ar
     assert lines[1] == f"{want[0]} ; ringtune: in place of the job's own {moves_off}"
     assert lines[2:1 + len(want)] == want[1:]
     assert lines[1 + len(want):4 + len(want)] == [agrees, sets_none] + [lines[3 + len(want)]]
+    assert lines[-1] == moves_off
     # read back as the firmware reads it: no command of the file moves the printer off the tuned
-    # shaper, so the tuned shaper rules every move (one step in the timeline of what is in force)
+    # shaper for a move, so the tuned shaper rules every move (the timeline of what is in force
+    # changes only once the last move is done, at the end G-code's command)
     rewritten = read_gcode(done.data, source="out")
-    assert overriding(rewritten.events, cfg) == []
+    assert overriding(rewritten, cfg) == []
     planned = plan_with_config(rewritten, printer.limits, cfg).plan
-    assert shaper_timeline(planned.events, cfg) == [(float("-inf"), cfg)]
+    steps = shaper_timeline(planned.events, cfg)
+    assert steps[0] == (float("-inf"), cfg) and [t for t, _c in steps[1:]] == [planned.print_time]
     # the original's own command would have changed it: the check above can fail
     before = plan_with_config(original, printer.limits, cfg).plan
     steps = shaper_timeline(before.events, cfg)
@@ -129,5 +133,5 @@ def test_with_a_frequency_limit_the_command_is_replaced_where_it_now_stands(data
     out = done.data.decode()
     assert "SET_INPUT_SHAPER SHAPER_TYPE=zv SHAPER_FREQ_X=21" not in out.splitlines()
     assert out.count("; ringtune: in place of the job's own SET_INPUT_SHAPER SHAPER_TYPE=zv SHAPER_FREQ_X=21") == 1
-    assert overriding(read_gcode(done.data, source="out").events, cfg) == []
+    assert overriding(read_gcode(done.data, source="out"), cfg) == []
     assert done.after_s == pytest.approx(done.config_s, rel=1e-4)        # F words to 0.1 mm/min

@@ -234,7 +234,7 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
     if not sched.needed:
         return sched
     notes.extend(_firmware_notes(config, printer, bands))
-    own = overriding(parsed.events, config)
+    own = overriding(parsed, config)
     if own:
         notes.append(f"the job sets its own input shaper (line {own[0].line}: {own[0].text or own[0].command}"
                      f"{f', and {len(own) - 1} more' if len(own) > 1 else ''}), which would move the printer off "
