@@ -114,6 +114,7 @@ def test_two_workers_finish_exactly_n_without_duplicates(tmp_path, in_tests_path
     from ringtune.agents.tune.space import params_from_config
 
     monkeypatch.setattr(local_workers, "CAN_FORK", start == "forked")
+    monkeypatch.setenv("RINGTUNE_TEST_SLEEP", "0.01")     # both workers get trials (see below)
     from ringtune.agents.tune.study import load_space
     from ringtune.shaping.config import TuneConfig
 
@@ -165,6 +166,9 @@ def test_seeded_two_worker_runs_reproduce_exactly(tmp_path, in_tests_path, monke
     numbered n − 2·2 and lower, after waiting for them, so which worker runs which trial — here one
     or the other made to lag behind — changes nothing; another seed does."""
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")]))
+    # a trial of at least 10 ms: a forked worker starts at once, and with trials of no cost the
+    # first could finish them all before the second has opened the study
+    monkeypatch.setenv("RINGTUNE_TEST_SLEEP", "0.01")
     runs = {}
     for key, seed, parity in (("a", 11, "0"), ("b", 11, "1"), ("c", 12, "0")):
         monkeypatch.setenv("RINGTUNE_TEST_SLOW_PARITY", parity)
