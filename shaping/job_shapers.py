@@ -12,6 +12,9 @@ changes the settings it names, for the moves after it, from the full stop the fi
   ``P"none"`` = off);
 - Marlin FT_MOTION ``M493 [X] [Y] C A I`` (``C`` the mode, 0 = off; ``S0`` turns FT_MOTION off).
 
+Each firmware acts on its own commands only (:data:`ACTED_ON`): a job sliced for another firmware
+keeps its shaping there (:func:`foreign_shapers` names what it ignores).
+
 :func:`shaper_timeline` folds them into (time s, :class:`TuneConfig`) steps starting from the
 configuration given; :func:`shape_timeline` shapes a motion piece by piece, each piece with the
 shapers in force, the pieces superposed as displacements (shaping is linear), which is what the
@@ -28,6 +31,7 @@ import numpy as np
 from ringtune.shaping.apply import shape_motion
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.motion import Motion
 from ringtune.shaping.shapers import shapers_from_config
 
@@ -36,6 +40,34 @@ _PRUSA_TYPES = ("zv", "zvd", "mzv", "ei", "2hump_ei", "3hump_ei", "none")
 _RRF_NAMES = {"ei2": "2hump_ei", "ei3": "3hump_ei"}
 #: the settings a shaper command changes
 _SHAPING = ("shaper_x", "shaper_y", "freq_x", "freq_y", "damping_x", "damping_y")
+#: the shaper commands each firmware family acts on; it does not have a job's others (Klipper
+#: answers "Unknown command" to an M593, Marlin to a SET_INPUT_SHAPER)
+ACTED_ON = {"klipper": ("SET_INPUT_SHAPER",), "marlin": ("M593",), "prusa": ("M593",), "marlin-ftm": ("M493",),
+            "rrf": ("M593",)}
+
+
+def acted_on(firmware: str) -> tuple[str, ...]:
+    """The shaper commands ``firmware`` (a name of :data:`ringtune.shaping.firmware.FIRMWARES`) acts on."""
+    return ACTED_ON[FIRMWARES[firmware].family]
+
+
+def foreign_shapers(job, firmware: str) -> dict[str, list[int]]:
+    """{command: the job's line numbers, in order} of the shaper commands of a parsed job that
+    ``firmware`` does not have (:data:`ACTED_ON`): they change nothing there."""
+    out: dict[str, list[int]] = {}
+    for ev in job.events:
+        if ev.kind == "shaper" and ev.command not in acted_on(firmware):
+            out.setdefault(ev.command, []).append(int(ev.line))
+    return out
+
+
+def foreign_shapers_note(found: dict[str, list[int]], firmware: str) -> str | None:
+    """One sentence on :func:`foreign_shapers` (None: there are none)."""
+    if not found:
+        return None
+    parts = ", ".join(f"{c} ×{len(lines)} (first on line {lines[0]})" for c, lines in found.items())
+    return (f"{FIRMWARES[firmware].title} has no {' or '.join(found)}: the job's {parts} change nothing there, and "
+            "are applied neither in the simulation nor in the job written (sliced for another firmware?)")
 
 
 def _num(v) -> float | None:
@@ -109,12 +141,14 @@ _APPLY = {"SET_INPUT_SHAPER": _klipper, "M593": _m593, "M493": _m493}
 
 def shaper_timeline(events, config: TuneConfig) -> list[tuple[float, TuneConfig]]:
     """[(from time s, configuration)]: ``config`` from the start, then after each shaper event
-    (planned, so with a ``time``) the configuration its command leaves. A command that leaves the
+    (planned, so with a ``time``) that ``config.firmware`` acts on (:data:`ACTED_ON`) the
+    configuration its command leaves. A command that leaves the
     shaping as it was adds no step. Values the firmware would refuse are refused here too (the
     configuration's own check), naming the event's line."""
     steps = [(-math.inf, config)]
+    acts = acted_on(config.firmware)
     for ev in events:
-        if ev.kind != "shaper" or ev.time is None or ev.command not in _APPLY:
+        if ev.kind != "shaper" or ev.time is None or ev.command not in acts:
             continue
         cur = steps[-1][1]
         d = {k: getattr(cur, k) for k in _SHAPING}
@@ -135,9 +169,10 @@ def overriding(job, config: TuneConfig) -> list:
     last move, an end G-code's). The job rewriter puts ``config``'s own shaper command in their
     place, so ``config`` rules every move, as ``tune`` judges it; then none of the rest moves it either."""
     now = {k: getattr(config, k) for k in _SHAPING}
+    acts = acted_on(config.firmware)
     out = []
     for ev in job.events:
-        if ev.kind != "shaper" or ev.command not in _APPLY or ev.move >= job.n_moves:
+        if ev.kind != "shaper" or ev.command not in acts or ev.move >= job.n_moves:
             continue
         d = dict(now)
         _APPLY[ev.command](d, ev.params)

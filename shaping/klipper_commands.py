@@ -14,6 +14,7 @@ it reads. :func:`macro_calls` finds those commands; :func:`macro_note` says so.
 from __future__ import annotations
 
 from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions
+from ringtune.shaping.job_shapers import foreign_shapers, foreign_shapers_note
 from ringtune.shaping.klipper_ignores import klipper_ignored, klipper_ignored_note
 
 KLIPPER_COMMANDS = frozenset("""
@@ -56,11 +57,11 @@ KLIPPER_COMMANDS = frozenset("""
 def macro_calls(job) -> dict[str, list[int]]:
     """{command: the job's line numbers, in order} of the commands of a parsed job
     (:class:`ringtune.shaping.job.Job`) that are not Klipper's own (:data:`KLIPPER_COMMANDS`), but
-    the limit commands of other firmwares (M201, M205 …: :mod:`ringtune.shaping.klipper_ignores`
-    says what Klipper does with them)."""
+    the limit and shaper commands of other firmwares (M201, M205, M593 …: said apart, by
+    :mod:`ringtune.shaping.klipper_ignores` and :func:`ringtune.shaping.job_shapers.foreign_shapers`)."""
     out: dict[str, list[int]] = {}
     for ev in job.events:
-        if ev.kind != "limits" and ev.command.upper() not in KLIPPER_COMMANDS:
+        if ev.kind not in ("limits", "shaper") and ev.command.upper() not in KLIPPER_COMMANDS:
             out.setdefault(ev.command.upper(), []).append(int(ev.line))
     return out
 
@@ -79,13 +80,15 @@ def macro_note(calls: dict[str, list[int]]) -> str | None:
             "printer run the job otherwise: put those settings in the job itself)")
 
 
-def reading_notes(job, limits) -> list[str]:
-    """What the printer does otherwise than the job reads, each said once: where ``limits`` (the
+def reading_notes(job, limits, firmware: str | None) -> list[str]:
+    """What ``firmware`` does otherwise than the job reads, each said once: where ``limits`` (the
     :class:`ringtune.shaping.planner.MachineLimits` it is planned with) read it as Klipper does,
     the limit lines Klipper does not act on (:mod:`ringtune.shaping.klipper_ignores`) and the
-    commands that are not Klipper's own (:func:`macro_note`); the firmware retractions
+    commands that are not Klipper's own (:func:`macro_note`); the shaper commands ``firmware`` does
+    not have (:func:`ringtune.shaping.job_shapers.foreign_shapers`; None: not said); the firmware retractions
     (:mod:`ringtune.shaping.firmware_retraction`)."""
     notes = [klipper_ignored_note(klipper_ignored(job, limits)),
              macro_note(macro_calls(job)) if limits.reads_like_klipper else None,
+             foreign_shapers_note(foreign_shapers(job, firmware), firmware) if firmware else None,
              firmware_retraction_note(firmware_retractions(job))]
     return [n for n in notes if n]

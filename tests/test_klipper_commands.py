@@ -42,7 +42,7 @@ def test_the_note_is_said_where_the_job_is_read_as_klipper_reads_it(data_dir):
                            "END_PRINT ×1 (line 15549): macros of your printer.cfg")
     klipper = MachineLimits(accel=3000, velocity=300, junction="scv")
     marlin = MachineLimits(accel=3000, velocity=300, junction="jerk", klipper_reading=False)
-    assert note in reading_notes(job, klipper) and note not in reading_notes(job, marlin)
+    assert note in reading_notes(job, klipper, "klipper") and note not in reading_notes(job, marlin, "marlin")
     assert macro_note({}) is None
     lines = "\n".join(f"MY_MACRO_{k}" for k in range(8)) + "\nM205 X10\nG1 X1 Y1 F600\n"
     many = macro_calls(read_gcode(lines, source="j"))

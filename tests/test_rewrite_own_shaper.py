@@ -19,7 +19,7 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import plan_with_config
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.gcode import read_gcode
-from ringtune.shaping.job_shapers import overriding, shaper_timeline
+from ringtune.shaping.job_shapers import foreign_shapers, foreign_shapers_note, overriding, shaper_timeline
 
 #: a labelled square of walls, then infill: enough for a plan with a feature change
 BODY = """G90
@@ -135,3 +135,19 @@ def test_with_a_frequency_limit_the_command_is_replaced_where_it_now_stands(data
     assert out.count("; ringtune: in place of the job's own SET_INPUT_SHAPER SHAPER_TYPE=zv SHAPER_FREQ_X=21") == 1
     assert overriding(read_gcode(done.data, source="out"), cfg) == []
     assert done.after_s == pytest.approx(done.config_s, rel=1e-4)        # F words to 0.1 mm/min
+
+
+def test_another_firmwares_shaper_command_is_kept_and_named():
+    """A Marlin job's M593 on Klipper, which has no M593: it moves nothing there, so the rewrite keeps
+    it and says it changes nothing; on Marlin the same line is the tuned shaper's to replace."""
+    job_text = "G28\nM593 X F38\n" + BODY
+    job = read_gcode(job_text, source="job")
+    klipper = _config("klipper", ("ei", "mzv", 51.4, 46.6))
+    done = rewrite_gcode_bytes(job_text.encode(), klipper, _printer("scv"), "job", shaper_lines=shaper_commands)
+    assert done.shaper_replaced == () and "M593 X F38" in done.data.decode().splitlines()
+    assert foreign_shapers(job, "klipper") == {"M593": [2]} and foreign_shapers(job, "marlin") == {}
+    assert foreign_shapers_note(foreign_shapers(job, "klipper"), "klipper").startswith(
+        "Klipper has no M593: the job's M593 ×1 (first on line 2) change nothing there")
+    marlin = _config("marlin", ("zv", "zv", 51.4, 46.6))
+    done = rewrite_gcode_bytes(job_text.encode(), marlin, _printer("jerk"), "job", shaper_lines=shaper_commands)
+    assert done.shaper_replaced == ((2, "M593 X F38"),)

@@ -1,7 +1,9 @@
 """``simulate`` runs a job as the printer would: the job's own shaper commands change the shaping
-from where they stand (a ringing test print's ``M593 X F0`` turns it off even on a printer whose
-``[current]`` section shapes), and its own acceleration commands stand unless replaced; every
-TuneConfig key has its option, so ``--config best.json`` and the same values as options agree."""
+from where they stand (a ringing test print's ``SET_INPUT_SHAPER SHAPER_FREQ_X=0`` turns it off
+even on a printer whose ``[current]`` section shapes), those of another firmware (a Marlin job's
+``M593``, which Klipper does not have) change nothing and are named, and its own acceleration
+commands stand unless replaced; every TuneConfig key has its option, so ``--config best.json`` and
+the same values as options agree."""
 
 from __future__ import annotations
 
@@ -33,7 +35,7 @@ def ripple_run(tmp_path_factory):
         gf = d / f"ripples-{fw}.gcode"
         assert main(["testprint", "ringing", "--firmware", fw, "--no-shaping", "--height", str(LAYER_Z),
                      "--side", str(SIDE), "--printer", str(toml), "-o", str(gf)]) == 0
-    g = d / "ripples-marlin.gcode"
+    g = d / "ripples-klipper.gcode"          # the [current] firmware's own commands
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
         assert main(["simulate", "--printer", str(toml), "--gcode", str(g), "--trace", str(trace),
@@ -45,8 +47,8 @@ def ripple_run(tmp_path_factory):
 def test_the_ripple_print_shows_ripples_on_a_printer_with_a_current_section(ripple_run, capsys):
     toml, g, tr, _, res = ripple_run
     printer = load_printer(str(toml))
-    # the job's M593 X F0 / M593 Y F0 turned shaping off: from there on (its last change, plus the
-    # [current] shaper's tail) the motors follow the G-code path itself
+    # the job's SET_INPUT_SHAPER SHAPER_FREQ_X=0 SHAPER_FREQ_Y=0 turned shaping off: from there on (its
+    # last change, plus the [current] shaper's tail) the motors follow the G-code path itself
     off = res["job_shapers"][-1]
     assert off["config"]["shaper_x"] == off["config"]["shaper_y"] == "none"
     moving = tr["t"] > off["time"] + 0.1
@@ -84,9 +86,28 @@ def test_simulate_says_it_applies_the_jobs_shaper_commands(ripple_run, capsys):
                  "--freq-margin", "0", "--json"]) == 0
     cap = capsys.readouterr()
     res = json.loads(cap.out)
-    assert "the job's own shaper commands are applied" in cap.err and "M593 X F0" in cap.err
+    assert "the job's own shaper commands are applied" in cap.err and "SET_INPUT_SHAPER SHAPER_FREQ_X=0" in cap.err
     assert [c["config"]["shaper_x"] for c in res["job_shapers"]][-1] == "none"
     assert res["job_shapers"][-1]["config"]["shaper_y"] == "none"
+
+
+def test_another_firmwares_shaper_commands_change_nothing_and_are_named(ripple_run, capsys):
+    """The same print sliced for Marlin (M593 X F0, M593 Y F0) on the Klipper printer: Klipper has no
+    M593, so the [current] shaper stays on, said with the lines; on Marlin the same file turns it off."""
+    toml, _, _, d, _ = ripple_run
+    g = d / "ripples-marlin.gcode"
+    lines = [n for n, ln in enumerate(g.read_text().splitlines(), 1) if ln.startswith("M593")]
+    assert len(lines) == 2
+    assert main(["simulate", "--printer", str(toml), "--gcode", str(g), "--backend", "lti",
+                 "--freq-margin", "0", "--json"]) == 0
+    cap = capsys.readouterr()
+    assert json.loads(cap.out)["job_shapers"] == []
+    assert f"Klipper has no M593: the job's M593 ×2 (first on line {lines[0]}) change nothing there" in cap.err
+    assert main(["simulate", "--printer", str(toml), "--gcode", str(g), "--firmware", "marlin", "--shaper", "zv",
+                 "--freq", "45.5,38.9", "--no-baselines", "--backend", "lti", "--freq-margin", "0", "--json"]) == 0
+    cap = capsys.readouterr()
+    last = json.loads(cap.out)["job_shapers"][-1]["config"]
+    assert last["shaper_x"] == last["shaper_y"] == "none" and "has no M593" not in cap.err
 
 
 def test_klipper_set_input_shaper_in_a_job_is_applied_too(ripple_run, capsys):

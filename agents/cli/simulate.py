@@ -165,7 +165,7 @@ def job_commands(printer, gcode, config, out) -> list[dict]:
     if len(timeline) > 1:
         notes.append(describe_timeline(timeline, plan.events))
     limits = for_firmware(resolve_printer(printer).limits, config)
-    notes.extend(reading_notes(parsed, limits))
+    notes.extend(reading_notes(parsed, limits, config.firmware))
     if job_accel_commands(parsed, limits):
         mode = job_accel_mode(config) if config.accel is not None else "respect"
         notes.append("the job's own acceleration commands " + (

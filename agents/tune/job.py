@@ -77,7 +77,7 @@ class JobAccelFacts:
     def _ignored(self) -> list[str]:
         """What the printer does otherwise than the job reads
         (:func:`ringtune.shaping.klipper_commands.reading_notes`)."""
-        return reading_notes(resolve_job(self.job)[1], self.limits)
+        return reading_notes(resolve_job(self.job)[1], self.limits, self.firmware)
 
     def notes(self, mode: str, space) -> list[str]:
         """What the job's own acceleration commands do under ``mode``; first, what the printer does
