@@ -26,10 +26,11 @@ minimum_cruise_ratio once at the start, the per-axis caps raised once where the 
 (Marlin, Prusa, RRF: M201 X Y), and the configuration's frequency limit (as `ringtune limit`).
 Lines are only inserted, never changed (apart from the limit's F words, and a shaper command of the
 job's own that would move the printer off the configuration's shaper: the configuration's shaper
-command takes its place, with a comment quoting it); a comment on the first line says what was done. The same commands follow any acceleration command of the job itself, so
-the job's own values never rule a move — unless tune judged the configuration with the job's own
-acceleration commands standing (--job-accel respect, recorded in best.json) and it sets nothing per
-feature: then they stand in the file too, and only the frequency limit and a Y schedule are written.
+command takes its place, with a comment quoting it); a comment on the first line says what was
+done. The same commands follow any acceleration command of the job itself, so the job's own values
+never rule a move — unless tune judged the configuration with the job's own acceleration commands
+standing (--job-accel respect, recorded in best.json) and it sets nothing per feature: then they
+stand in the file too, and only the frequency limit and a Y schedule are written.
 
   Klipper/Kalico  SET_VELOCITY_LIMIT ACCEL=... [SQUARE_CORNER_VELOCITY=... MINIMUM_CRUISE_RATIO=...
                   ACCEL_TO_DECEL=...]   (ACCEL_TO_DECEL = ACCEL x (1 - minimum_cruise_ratio) where

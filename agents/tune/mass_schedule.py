@@ -239,7 +239,7 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
         notes.append(f"the job sets its own input shaper (line {own[0].line}: {own[0].text or own[0].command}"
                      f"{f', and {len(own) - 1} more' if len(own) > 1 else ''}), which would move the printer off "
                      "the tuned one while it prints: the job written (-o) has the tuned shaper's command in place "
-                     "of each (but a band line of an earlier schedule), so its bands move the tuned shaper")
+                     "of each (an earlier schedule's band lines aside), so its bands move the tuned shaper")
     if any(b.accel for b in bands) and job_accel_commands(parsed, for_firmware(printer.limits, config)):
         notes.append("the job sets its own accelerations (M204 / SET_VELOCITY_LIMIT): a band's acceleration "
                      "holds only until the job's next one; rewrite them (`ringtune rewrite`, `limit --accel`) "
