@@ -32,6 +32,7 @@ from ringtune.shaping.apply import shape_motion
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.job import STOP_COMMANDS
 from ringtune.shaping.motion import Motion
 from ringtune.shaping.shapers import shapers_from_config
 
@@ -59,6 +60,24 @@ def foreign_shapers(job, firmware: str) -> dict[str, list[int]]:
         if ev.kind == "shaper" and ev.command not in acted_on(firmware):
             out.setdefault(ev.command, []).append(int(ev.line))
     return out
+
+
+def without_foreign_stops(job, firmware: str):
+    """``job`` as ``firmware`` runs it: no full stop before a move that only shaper commands it does
+    not have precede (the reader stops the planner at every shaper command; a firmware drains no
+    queue for a command it does not know: Klipper answers "Unknown command" and goes on)."""
+    acts = acted_on(firmware)
+    foreign = {ev.move for ev in job.events if ev.kind == "shaper" and ev.command not in acts}
+    if not foreign:
+        return job
+    others = {ev.move for ev in job.events if ev.command in STOP_COMMANDS
+              and not (ev.kind == "shaper" and ev.command not in acts)}
+    moves = sorted(m for m in foreign - others if 0 < m < job.n_moves)
+    if not moves:
+        return job
+    stop = job.stop_before.copy()
+    stop[moves] = False
+    return replace(job, stop_before=stop)
 
 
 def foreign_shapers_note(found: dict[str, list[int]], firmware: str) -> str | None:

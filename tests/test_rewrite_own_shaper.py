@@ -151,3 +151,22 @@ def test_another_firmwares_shaper_command_is_kept_and_named():
     marlin = _config("marlin", ("zv", "zv", 51.4, 46.6))
     done = rewrite_gcode_bytes(job_text.encode(), marlin, _printer("jerk"), "job", shaper_lines=shaper_commands)
     assert done.shaper_replaced == ((2, "M593 X F38"),)
+
+
+@pytest.mark.parametrize("firmware, junction, own, foreign", [
+    ("klipper", "scv", "SET_INPUT_SHAPER SHAPER_FREQ_X=40", "M593 X F40"),
+    ("marlin", "jerk", "M593 X F40", "SET_INPUT_SHAPER SHAPER_FREQ_X=40")])
+def test_a_firmware_stops_at_its_own_shaper_commands_and_not_at_another_firmwares(firmware, junction, own, foreign):
+    """Between two collinear moves at speed, the firmware's own shaper command drains its queue (the
+    same plan as an M400 there), another firmware's changes nothing (the same plan as no line)."""
+    cfg = _config(firmware, ("zv", "zv", 51.4, 46.6))
+    limits = _printer(junction).limits
+
+    def planned(middle: str) -> float:
+        text = f"G90\nM83\nG1 X10 Y10 F9000\nG1 X60 Y10 E1 F6000\n{middle}G1 X110 Y10 E1\n"
+        return plan_with_config(read_gcode(text, source="j"), limits, cfg).plan.print_time
+
+    drained, straight = planned("M400\n"), planned("")
+    assert drained > straight + 0.01                     # a full stop at 100 mm/s costs tens of ms
+    assert planned(own + "\n") == pytest.approx(drained, rel=1e-12)
+    assert planned(foreign + "\n") == pytest.approx(straight, rel=1e-12)
