@@ -33,6 +33,7 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.job import STOP_COMMANDS
+from ringtune.shaping.layer_commands import PRUSA_WEIGHT_ADJUST, prusa_weight_frequency
 from ringtune.shaping.motion import Motion
 from ringtune.shaping.shapers import shapers_from_config
 
@@ -78,6 +79,31 @@ def without_foreign_stops(job, firmware: str):
     stop = job.stop_before.copy()
     stop[moves] = False
     return replace(job, stop_before=stop)
+
+
+def prusa_weight_note(job, firmware: str) -> str | None:
+    """Where ``firmware`` is Prusa's and the job gives it the printed weight (``M74 W<g>``, which
+    PrusaSlicer's MK4 profiles write at every layer change): one sentence on what its own linear rule
+    does with it (:func:`ringtune.shaping.layer_commands.prusa_weight_frequency`; ``M593 A M`` of the
+    job set the rule), and what ringtune judges instead. None otherwise."""
+    if FIRMWARES[firmware].family != "prusa":
+        return None
+    weights = [(ev.line, _num(ev.params.get("W"))) for ev in job.events if ev.command == "M74"]
+    weights = [(line, w) for line, w in weights if w is not None]
+    if not weights:
+        return None
+    delta, limit = PRUSA_WEIGHT_ADJUST
+    for ev in job.events:
+        if ev.command == "M593":
+            delta = _num(ev.params.get("A")) if _num(ev.params.get("A")) is not None else delta
+            limit = _num(ev.params.get("M")) if _num(ev.params.get("M")) is not None else limit
+    heaviest = max(w for _l, w in weights)
+    shift = prusa_weight_frequency(0.0, heaviest, delta, limit)
+    return (f"the job gives the firmware the printed weight (M74 W ×{len(weights)}, first on line {weights[0][0]}): "
+            f"Prusa's own rule moves Y's shaper frequency with it, by {shift:+.1f} Hz at its heaviest ({heaviest:.0f} g; "
+            f"{delta:g} Hz at {limit:g} g), as the mass on the bed lowers Y's mode; ringtune judges the whole job at "
+            "the printer description's print_mass with Y's frequency as configured (neither the mode's fall nor the "
+            "firmware's shift), and the job written keeps the lines (`ringtune schedule` sets the rule from the model)")
 
 
 def foreign_shapers_note(found: dict[str, list[int]], firmware: str) -> str | None:

@@ -19,7 +19,8 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import plan_with_config
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.gcode import read_gcode
-from ringtune.shaping.job_shapers import foreign_shapers, foreign_shapers_note, overriding, shaper_timeline
+from ringtune.shaping.job_shapers import (foreign_shapers, foreign_shapers_note, overriding, prusa_weight_note,
+                                           shaper_timeline)
 
 #: a labelled square of walls, then infill: enough for a plan with a feature change
 BODY = """G90
@@ -170,3 +171,19 @@ def test_a_firmware_stops_at_its_own_shaper_commands_and_not_at_another_firmware
     assert drained > straight + 0.01                     # a full stop at 100 mm/s costs tens of ms
     assert planned(own + "\n") == pytest.approx(drained, rel=1e-12)
     assert planned(foreign + "\n") == pytest.approx(straight, rel=1e-12)
+
+
+def test_the_printed_weight_a_prusa_job_gives_its_firmware_is_said_with_the_shift_it_makes():
+    """PrusaSlicer's MK4 profiles write M74 W<g> (the weight printed so far) at each layer change; Buddy
+    moves Y's frequency by A·min(W/M, 1) (default A −20 Hz, M 800 g; M593 A M set them). ringtune
+    judges at the description's print mass, and says so with the shift the rule makes."""
+    layers = "G28\nG1 X10 Y10 F3000\nM74 W12.5\nG1 X20 E1\nM74 W143\nG1 X30 E1\n"
+    note = prusa_weight_note(read_gcode(layers, source="j"), "prusa")
+    assert f"by {-20 * 143 / 800:+.1f} Hz at its heaviest (143 g; -20 Hz at 800 g)" in note
+    assert "M74 W ×2, first on line 3" in note and "ringtune judges the whole job at" in note
+    own_rule = "M593 A-10 M500\n" + layers.replace("W143", "W600")
+    assert "by -10.0 Hz at its heaviest (600 g; -10 Hz at 500 g)" in prusa_weight_note(read_gcode(own_rule, source="j"),
+                                                                                        "prusa")
+    for other in ("marlin", "klipper", "rrf"):
+        assert prusa_weight_note(read_gcode(layers, source="j"), other) is None
+    assert prusa_weight_note(read_gcode(BODY, source="j"), "prusa") is None
