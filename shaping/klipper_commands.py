@@ -4,7 +4,8 @@ Klipper acts on the G-codes and extended commands its own modules register; any 
 job is a macro of the user's printer.cfg (``[gcode_macro PRINT_START]``), or, where none is defined,
 answered with "Unknown command" and skipped. A macro's commands are not in the job: if it sets the
 acceleration (``SET_VELOCITY_LIMIT``) or the input shaper, the printer runs the job otherwise than
-it reads. :func:`macro_calls` finds those commands; :func:`macro_note` says so.
+it reads. :func:`macro_calls` finds those commands; :func:`macro_note` says so
+(:mod:`ringtune.shaping.reading_notes` says it with the rest).
 
 :data:`KLIPPER_COMMANDS`: every command Klipper registers (``register_command``,
 ``register_mux_command``) or handles (a ``cmd_NAME`` method) in klippy and klippy/extras of Klipper
@@ -13,9 +14,6 @@ it reads. :func:`macro_calls` finds those commands; :func:`macro_note` says so.
 
 from __future__ import annotations
 
-from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions
-from ringtune.shaping.job_shapers import foreign_shapers, foreign_shapers_note, prusa_weight_note
-from ringtune.shaping.klipper_ignores import klipper_ignored, klipper_ignored_note
 
 KLIPPER_COMMANDS = frozenset("""
     ABORT ACCELEROMETER_DEBUG_READ ACCELEROMETER_DEBUG_WRITE ACCELEROMETER_MEASURE
@@ -79,19 +77,3 @@ def macro_note(calls: dict[str, list[int]]) -> str | None:
             "macro that does — a start macro's SET_VELOCITY_LIMIT, a per-feature acceleration macro — makes the "
             "printer run the job otherwise: put those settings in the job itself)")
 
-
-def reading_notes(job, limits, firmware: str | None) -> list[str]:
-    """What ``firmware`` does otherwise than the job reads, each said once: where ``limits`` (the
-    :class:`ringtune.shaping.planner.MachineLimits` it is planned with) read it as Klipper does,
-    the limit lines Klipper does not act on (:mod:`ringtune.shaping.klipper_ignores`) and the
-    commands that are not Klipper's own (:func:`macro_note`); the shaper commands ``firmware`` does
-    not have (:func:`ringtune.shaping.job_shapers.foreign_shapers`; None: not said) and, on Prusa's,
-    the printed weight the job gives it (:func:`ringtune.shaping.job_shapers.prusa_weight_note`); the
-    firmware retractions
-    (:mod:`ringtune.shaping.firmware_retraction`)."""
-    notes = [klipper_ignored_note(klipper_ignored(job, limits)),
-             macro_note(macro_calls(job)) if limits.reads_like_klipper else None,
-             foreign_shapers_note(foreign_shapers(job, firmware), firmware) if firmware else None,
-             prusa_weight_note(job, firmware) if firmware else None,
-             firmware_retraction_note(firmware_retractions(job))]
-    return [n for n in notes if n]

@@ -11,8 +11,9 @@ import json
 
 from ringtune.agents.cli.main import main
 from ringtune.shaping.gcode import read_gcode
-from ringtune.shaping.klipper_commands import KLIPPER_COMMANDS, macro_calls, macro_note, reading_notes
+from ringtune.shaping.klipper_commands import KLIPPER_COMMANDS, macro_calls, macro_note
 from ringtune.shaping.planner import MachineLimits
+from ringtune.shaping.reading_notes import reading_notes
 
 JOB = "gcode/bassco_ender3/ringing_tower.gcode"           # Simplify3D 4.1.2, for bassco's Ender 3 (Klipper)
 CFG = "klipper_config/ender3/printer.cfg"                  # the same owner's printer.cfg

@@ -52,7 +52,7 @@ from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import per_feature_text
 from ringtune.shaping.firmware import FIRMWARES, Firmware
 from ringtune.shaping.job_shapers import describe_timeline, shaper_timeline
-from ringtune.shaping.klipper_commands import reading_notes
+from ringtune.shaping.reading_notes import reading_notes
 
 NAME = "simulate"
 DESCRIPTION = """\

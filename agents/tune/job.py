@@ -23,7 +23,7 @@ from ringtune.envs.planned_job import job_accel_commands, planned_job, resolve_j
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import as_read_by, for_firmware
 from ringtune.shaping.features import FEATURE_CLASSES, LABELLED_VISIBLE, class_indices
-from ringtune.shaping.klipper_commands import reading_notes
+from ringtune.shaping.reading_notes import reading_notes
 from ringtune.shaping.layers import layer_starts
 
 #: how the job's acceleration settings are written in G-code: command -> (setting, its word)
@@ -76,7 +76,7 @@ class JobAccelFacts:
 
     def _ignored(self) -> list[str]:
         """What the printer does otherwise than the job reads
-        (:func:`ringtune.shaping.klipper_commands.reading_notes`)."""
+        (:func:`ringtune.shaping.reading_notes.reading_notes`)."""
         return reading_notes(resolve_job(self.job)[1], self.limits, self.firmware)
 
     def notes(self, mode: str, space) -> list[str]:

@@ -1,0 +1,29 @@
+"""What a firmware does otherwise than a job reads, in one place, each said once: ``tune`` and
+``simulate`` print these notes beside their figures, which are judged as the job reads."""
+
+from __future__ import annotations
+
+from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions
+from ringtune.shaping.job_shapers import foreign_shapers, foreign_shapers_note, prusa_weight_note
+from ringtune.shaping.klipper_commands import macro_calls, macro_note
+from ringtune.shaping.klipper_ignores import klipper_ignored, klipper_ignored_note
+
+
+def reading_notes(job, limits, firmware: str | None) -> list[str]:
+    """What ``firmware`` does otherwise than the job reads, each said once:
+
+    - where ``limits`` (the :class:`ringtune.shaping.planner.MachineLimits` it is planned with) read
+      it as Klipper does, the limit lines Klipper does not act on
+      (:mod:`ringtune.shaping.klipper_ignores`) and the commands that are not Klipper's own
+      (:func:`ringtune.shaping.klipper_commands.macro_note`);
+    - the shaper commands ``firmware`` does not have
+      (:func:`ringtune.shaping.job_shapers.foreign_shapers`) and, on Prusa's, the printed weight the
+      job gives it (:func:`ringtune.shaping.job_shapers.prusa_weight_note`); ``firmware`` None:
+      neither is said;
+    - the firmware retractions (:mod:`ringtune.shaping.firmware_retraction`)."""
+    notes = [klipper_ignored_note(klipper_ignored(job, limits)),
+             macro_note(macro_calls(job)) if limits.reads_like_klipper else None,
+             foreign_shapers_note(foreign_shapers(job, firmware), firmware) if firmware else None,
+             prusa_weight_note(job, firmware) if firmware else None,
+             firmware_retraction_note(firmware_retractions(job))]
+    return [n for n in notes if n]
