@@ -67,7 +67,9 @@ def test_replace_says_what_re_slicing_at_the_chosen_acceleration_saves(tmp_path,
     cfg = TuneConfig.from_dict(res["chosen"]["config"])
     assert ja["replaced_accel"] == cfg.accel and 2500 <= cfg.accel <= 5000
     limits = load_printer(None).limits
-    text = TOWER.read_text()
+    # the default printer is Klipper's, which has no M593: the tower's M593 per layer (Marlin's) is
+    # answered "Unknown command" and neither stops nor shapes anything there, as no line would
+    text = "\n".join(";" if ln.startswith("M593") else ln for ln in TOWER.read_text().splitlines())
 
     def strip(line):       # re-sliced: no M204, and M201 keeps only its Z and E caps
         words = line.split(";")[0].split()
@@ -86,7 +88,7 @@ def test_replace_says_what_re_slicing_at_the_chosen_acceleration_saves(tmp_path,
         lim = limits if accel is None else type(limits)(**{**limits.__dict__, "accel": accel})
         return planner.plan(job, lim).print_time
 
-    sliced = planned(str(TOWER), cfg.accel)      # the file's own lines rule (machine accel where none)
+    sliced = planned(text, cfg.accel)      # the file's own lines rule (machine accel where none)
     resliced = planned(stripped, cfg.accel)
     assert ja["print_time_as_sliced_s"] == pytest.approx(sliced, rel=1e-9)
     assert ja["print_time_replaced_s"] == pytest.approx(resliced, rel=1e-9)
