@@ -16,7 +16,7 @@ import numpy as np
 
 from ringtune.envs.planned_job import resolve_printer
 from ringtune.shaping.config import TuneConfig
-from ringtune.shaping.config_plan import for_firmware, job_accel_mode, plan_with_config
+from ringtune.shaping.config_plan import as_read_by, for_firmware, job_accel_mode, plan_with_config
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import (FeatureCommands, accel_groups, class_corner_words, corner_words,
                                               first_layer_caps)
@@ -68,7 +68,8 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     printer = resolve_printer(printer)
     limits = for_firmware(printer.limits, config)       # the job read as the configuration's firmware reads it
     original = parsed if parsed is not None else read_gcode(data, source=source)
-    before = plan_with_config(original, limits, None).plan.print_time
+    # as sliced, as that firmware runs it (another firmware's shaper commands make it no stop)
+    before = plan_with_config(original, limits, as_read_by(config.firmware)).plan.print_time
     if layer_inserts is None and config.y_schedule:
         sched = schedule_inserts([la.z for la in job_layers(original)], config)
         layer_inserts = {k: [f"{c} {TAG}" for c in v] for k, v in sched.items()}

@@ -100,8 +100,8 @@ def prusa_weight_note(job, firmware: str) -> str | None:
     heaviest = max(w for _l, w in weights)
     shift = prusa_weight_frequency(0.0, heaviest, delta, limit)
     return (f"the job gives the firmware the printed weight (M74 W ×{len(weights)}, first on line {weights[0][0]}): "
-            f"Prusa's own rule moves Y's shaper frequency with it, by {shift:+.1f} Hz at its heaviest ({heaviest:.0f} g; "
-            f"{delta:g} Hz at {limit:g} g), as the mass on the bed lowers Y's mode; ringtune judges the whole job at "
+            f"Prusa's own rule moves Y's shaper frequency with it, by {shift:+.1f} Hz at its heaviest "
+            f"({heaviest:.0f} g; {delta:g} Hz at {limit:g} g), as the mass on the bed lowers Y's mode; ringtune judges the whole job at "
             "the printer description's print_mass with Y's frequency as configured (neither the mode's fall nor the "
             "firmware's shift), and the job written keeps the lines (`ringtune schedule` sets the rule from the model)")
 

@@ -141,17 +141,23 @@ def test_with_a_frequency_limit_the_command_is_replaced_where_it_now_stands(data
 def test_another_firmwares_shaper_command_is_kept_and_named():
     """A Marlin job's M593 on Klipper, which has no M593: it moves nothing there, so the rewrite keeps
     it and says it changes nothing; on Marlin the same line is the tuned shaper's to replace."""
-    job_text = "G28\nM593 X F38\n" + BODY
+    job_text = "G28\n" + BODY.replace("G1 X45 Y20 E0.8 F3000\n",          # mid-wall, straight on
+                                       "G1 X32 Y20 E0.4 F3000\nM593 X F38\nG1 X45 Y20 E0.4\n")
     job = read_gcode(job_text, source="job")
     klipper = _config("klipper", ("ei", "mzv", 51.4, 46.6))
     done = rewrite_gcode_bytes(job_text.encode(), klipper, _printer("scv"), "job", shaper_lines=shaper_commands)
     assert done.shaper_replaced == () and "M593 X F38" in done.data.decode().splitlines()
-    assert foreign_shapers(job, "klipper") == {"M593": [2]} and foreign_shapers(job, "marlin") == {}
+    # "as sliced" is as Klipper runs it: no stop at the line it ignores, the same plan as without it
+    without = read_gcode(job_text.replace("M593 X F38\n", ";\n"), source="j")
+    assert done.before_s == pytest.approx(plan_with_config(without, _printer("scv").limits).plan.print_time, rel=1e-12)
+    line = job_text.splitlines().index("M593 X F38") + 1
+    assert foreign_shapers(job, "klipper") == {"M593": [line]} and foreign_shapers(job, "marlin") == {}
     assert foreign_shapers_note(foreign_shapers(job, "klipper"), "klipper").startswith(
-        "Klipper has no M593: the job's M593 ×1 (first on line 2) change nothing there")
+        f"Klipper has no M593: the job's M593 ×1 (first on line {line}) change nothing there")
     marlin = _config("marlin", ("zv", "zv", 51.4, 46.6))
     done = rewrite_gcode_bytes(job_text.encode(), marlin, _printer("jerk"), "job", shaper_lines=shaper_commands)
-    assert done.shaper_replaced == ((2, "M593 X F38"),)
+    assert done.shaper_replaced == ((line, "M593 X F38"),)
+    assert done.before_s > plan_with_config(without, _printer("jerk").limits).plan.print_time     # Marlin stops there
 
 
 @pytest.mark.parametrize("firmware, junction, own, foreign", [
