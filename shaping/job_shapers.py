@@ -56,11 +56,17 @@ def acted_on(firmware: str) -> tuple[str, ...]:
 def foreign_shapers(job, firmware: str) -> dict[str, list[int]]:
     """{command: the job's line numbers, in order} of the shaper commands of a parsed job that
     ``firmware`` does not have (:data:`ACTED_ON`): they change nothing there."""
+    acts = acted_on(firmware)
     out: dict[str, list[int]] = {}
     for ev in job.events:
-        if ev.kind == "shaper" and ev.command not in acted_on(firmware):
+        if _foreign(ev, acts):
             out.setdefault(ev.command, []).append(int(ev.line))
     return out
+
+
+def _foreign(ev, acts: tuple[str, ...]) -> bool:
+    """Whether job event ``ev`` is a shaper command of another firmware than the one acting on ``acts``."""
+    return ev.kind == "shaper" and ev.command not in acts
 
 
 def without_foreign_stops(job, firmware: str):
@@ -68,11 +74,10 @@ def without_foreign_stops(job, firmware: str):
     not have precede (the reader stops the planner at every shaper command; a firmware drains no
     queue for a command it does not know: Klipper answers "Unknown command" and goes on)."""
     acts = acted_on(firmware)
-    foreign = {ev.move for ev in job.events if ev.kind == "shaper" and ev.command not in acts}
+    foreign = {ev.move for ev in job.events if _foreign(ev, acts)}
     if not foreign:
         return job
-    others = {ev.move for ev in job.events if ev.command in STOP_COMMANDS
-              and not (ev.kind == "shaper" and ev.command not in acts)}
+    others = {ev.move for ev in job.events if ev.command in STOP_COMMANDS and not _foreign(ev, acts)}
     moves = sorted(m for m in foreign - others if 0 < m < job.n_moves)
     if not moves:
         return job
@@ -92,18 +97,19 @@ def prusa_weight_note(job, firmware: str) -> str | None:
     weights = [(line, w) for line, w in weights if w is not None]
     if not weights:
         return None
-    delta, limit = PRUSA_WEIGHT_ADJUST
+    rule = dict(zip("AM", PRUSA_WEIGHT_ADJUST))          # M593 A<Hz> M<g> set it, the last one standing
     for ev in job.events:
         if ev.command == "M593":
-            delta = _num(ev.params.get("A")) if _num(ev.params.get("A")) is not None else delta
-            limit = _num(ev.params.get("M")) if _num(ev.params.get("M")) is not None else limit
+            rule.update((k, _num(ev.params[k])) for k in "AM" if _num(ev.params.get(k)) is not None)
+    delta, limit = rule["A"], rule["M"]
     heaviest = max(w for _l, w in weights)
     shift = prusa_weight_frequency(0.0, heaviest, delta, limit)
     return (f"the job gives the firmware the printed weight (M74 W ×{len(weights)}, first on line {weights[0][0]}): "
             f"Prusa's own rule moves Y's shaper frequency with it, by {shift:+.1f} Hz at its heaviest "
-            f"({heaviest:.0f} g; {delta:g} Hz at {limit:g} g), as the mass on the bed lowers Y's mode; ringtune judges the whole job at "
-            "the printer description's print_mass with Y's frequency as configured (neither the mode's fall nor the "
-            "firmware's shift), and the job written keeps the lines (`ringtune schedule` sets the rule from the model)")
+            f"({heaviest:.0f} g; {delta:g} Hz at {limit:g} g), as the mass on the bed lowers Y's mode; ringtune "
+            "judges the whole job at the printer description's print_mass with Y's frequency as configured "
+            "(neither the mode's fall nor the firmware's shift), and the job written keeps the lines "
+            "(`ringtune schedule` sets the rule from the model)")
 
 
 def foreign_shapers_note(found: dict[str, list[int]], firmware: str) -> str | None:
