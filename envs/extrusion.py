@@ -63,7 +63,7 @@ def extrusion(e_made: np.ndarray, tu: np.ndarray, pts: np.ndarray, vec: np.ndarr
     ok = np.flatnonzero(leg >= 0)
     if len(ok) == 0:
         return _empty()
-    first, last = _run_ends(legs)
+    first, last = legs.run_ends
     k0, run, t = leg[ok], legs.run[leg[ok]], tu[ok]
     along = np.einsum("ij,ij->i", pts[ok] - vec[ok] - legs.start[k0], legs.direction[k0])
     s_near = legs.s_start[k0] + np.clip(along, 0.0, legs.length[k0])
@@ -124,17 +124,6 @@ def _leg_at(legs: Legs, s: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.nda
     idx = np.flatnonzero(legs.extruding)
     j = np.searchsorted(legs.s_start[idx], s, side="right") - 1
     return np.clip(idx[np.maximum(j, 0)], lo, hi)
-
-
-def _run_ends(legs: Legs) -> tuple[np.ndarray, np.ndarray]:
-    """Per extrusion run (index = run id): its first and its last extruding leg."""
-    n_runs = int(legs.run.max()) + 1 if len(legs) else 0
-    idx = np.flatnonzero(legs.extruding)
-    first = np.zeros(n_runs, np.int64)
-    last = np.zeros(n_runs, np.int64)
-    first[legs.run[idx[::-1]]] = idx[::-1]     # the lowest index of each run is written last
-    last[legs.run[idx]] = idx                  # the highest index of each run is written last
-    return first, last
 
 
 def _excess(lead: np.ndarray, s: np.ndarray, run: np.ndarray, span: float):

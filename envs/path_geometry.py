@@ -9,6 +9,7 @@ measure of :mod:`ringtune.envs.window_metrics` is taken against.
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -63,6 +64,26 @@ class Legs:
         new = self.extruding & ~(joined & prev_ext)
         return np.cumsum(new) - 1
 
+    @cached_property
+    def run_ends(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per extrusion run (index = run id): its first and its last extruding leg."""
+        n_runs = int(self.run.max()) + 1 if len(self) else 0
+        idx = np.flatnonzero(self.extruding)
+        first = np.zeros(n_runs, np.int64)
+        last = np.zeros(n_runs, np.int64)
+        first[self.run[idx[::-1]]] = idx[::-1]     # the lowest index of each run is written last
+        last[self.run[idx]] = idx                  # the highest index of each run is written last
+        return first, last
+
+    @cached_property
+    def extruding_segments(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(indices, start points, start-to-end vectors, squared lengths floored at EPS_LEN²) of the
+        extruding legs, as :func:`vector_from_segment` computes them."""
+        ext = np.flatnonzero(self.extruding)
+        a = self.start[ext]
+        ab = self.end[ext] - a
+        return ext, a, ab, np.maximum(ab[..., 0] * ab[..., 0] + ab[..., 1] * ab[..., 1], EPS_LEN ** 2)
+
     def __len__(self) -> int:
         return len(self.t_start)
 
@@ -113,6 +134,22 @@ def path_legs(path: Motion, classes: np.ndarray | None = None) -> Legs:
     return Legs(start, end, t_start, t_end, ext[first], turn, cls[first], s_start, e_start, e_end)
 
 
+#: the legs last made, by path: {id(path): (weak reference to it, its classes, legs)}
+_LEGS: dict[int, tuple] = {}
+
+
+def legs_of(path: Motion, classes: np.ndarray | None = None) -> Legs:
+    """:func:`path_legs` of ``path`` and ``classes``, made once while the path lives: a window is
+    measured on the printer and on each of its variants against the same path object."""
+    key = id(path)
+    hit = _LEGS.get(key)
+    if hit is not None and hit[0]() is path and hit[1] is classes:
+        return hit[2]
+    legs = path_legs(path, classes)
+    _LEGS[key] = (weakref.ref(path, lambda _ref, k=key: _LEGS.pop(k, None)), classes, legs)
+    return legs
+
+
 def p1_e(path: Motion) -> np.ndarray:
     """Extruder position (mm) at the end of each segment."""
     d = path.dt
@@ -122,9 +159,14 @@ def p1_e(path: Motion) -> np.ndarray:
 def vector_from_segment(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Vectors from the nearest point of segment a→b to pts; broadcasts (…, 2)."""
     ab = b - a
-    ap = pts - a
     # the two components summed by hand: numpy's sum along an axis of two is several times slower
-    denom = np.maximum(ab[..., 0] * ab[..., 0] + ab[..., 1] * ab[..., 1], EPS_LEN ** 2)
+    return _vector_from(pts, a, ab, np.maximum(ab[..., 0] * ab[..., 0] + ab[..., 1] * ab[..., 1], EPS_LEN ** 2))
+
+
+def _vector_from(pts: np.ndarray, a: np.ndarray, ab: np.ndarray, denom: np.ndarray) -> np.ndarray:
+    """:func:`vector_from_segment` with the segment given by its start ``a``, its vector ``ab`` and
+    ``denom``, |ab|² floored at EPS_LEN²."""
+    ap = pts - a
     s = np.clip((ap[..., 0] * ab[..., 0] + ap[..., 1] * ab[..., 1]) / denom, 0.0, 1.0)
     return pts - (a + s[..., None] * ab)
 
@@ -136,10 +178,9 @@ def nearest_leg(tu: np.ndarray, pts: np.ndarray, legs: Legs, window: float):
     dist = np.full(len(tu), np.inf)
     vec = np.full((len(tu), 2), np.nan)
     leg = np.full(len(tu), -1, dtype=np.int64)
-    ext = np.flatnonzero(legs.extruding)
+    ext, a, ab, denom = legs.extruding_segments
     if len(tu) == 0 or len(ext) == 0:
         return dist, vec, leg
-    a, b = legs.start[ext], legs.end[ext]
     lo, hi = legs.t_start[ext] - window, legs.t_end[ext] + window  # both non-decreasing
     # legs active around each sample form a contiguous band [j0, j1] of the time-ordered legs
     j0 = np.searchsorted(hi, tu, side="left")
@@ -153,7 +194,7 @@ def nearest_leg(tu: np.ndarray, pts: np.ndarray, legs: Legs, window: float):
         idx = j0[sl, None] + np.arange(width)[None, :]
         valid = idx <= j1[sl, None]
         idx = np.minimum(idx, len(ext) - 1)
-        e = vector_from_segment(pts[sl, None, :], np.take(a, idx, axis=0), np.take(b, idx, axis=0))
+        e = _vector_from(pts[sl, None, :], np.take(a, idx, axis=0), np.take(ab, idx, axis=0), np.take(denom, idx))
         d = np.where(valid, np.sqrt(np.einsum("ijk,ijk->ij", e, e)), np.inf)
         j = np.argmin(d, axis=1)
         rows = np.arange(len(j))

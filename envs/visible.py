@@ -69,9 +69,12 @@ def walls(tu, pts, legs: Legs, settle: float, early_end: float, min_wall: float)
 
 def corner_legs(legs: Legs, angle: float) -> np.ndarray:
     """Indices k of legs that start with a corner (leg k−1 → leg k turns by ≥ ``angle`` degrees),
-    at least one side extruding."""
-    k = np.flatnonzero(legs.turn_deg >= angle)
-    return k[legs.extruding[k] | legs.extruding[k - 1]]
+    at least one side extruding (found once per legs and angle)."""
+    found = legs.__dict__.setdefault("_corner_legs", {})
+    if angle not in found:
+        k = np.flatnonzero(legs.turn_deg >= angle)
+        found[angle] = k[legs.extruding[k] | legs.extruding[k - 1]]
+    return found[angle]
 
 
 def corner_deviation(tu, pts, legs: Legs, angle: float, before: float, after: float):

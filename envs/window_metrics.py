@@ -127,7 +127,7 @@ import numpy as np
 
 from ringtune.envs.extrusion import SPAN_MM, extrusion
 from ringtune.envs.metrics import EXTRUSION_KEYS, FEATURE_KEYS, SEEN_KEYS, Metrics, p90_from_walls
-from ringtune.envs.path_geometry import Legs, nearest_leg, path_legs
+from ringtune.envs.path_geometry import Legs, legs_of, nearest_leg, path_legs
 from ringtune.envs.path_measures import overshoot, path_error, ringing_rms
 from ringtune.envs.visible import Walls, corner_deviation, per_class_max, walls
 from ringtune.shaping.features import FEATURE_CLASSES, VISIBLE
@@ -181,7 +181,7 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
     seg = path.segment_index(tu)
     cls_seg = np.full(path.n_segments, _OTHER) if classes is None else np.asarray(classes, np.int64)
     extruding = (tu >= path.t[0]) & (tu <= path.t[-1]) & path.extruding[seg]
-    legs = path_legs(path, cls_seg)
+    legs = legs_of(path, classes) if classes is not None else path_legs(path, cls_seg)
     details: dict[str, Any] = {}
     dist, vec, leg = nearest_leg(tu, nozzle, legs, match_window)
     cls = cls_seg[seg[extruding]]
