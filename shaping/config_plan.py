@@ -35,7 +35,7 @@ from ringtune.shaping.feature_settings import FeatureCommands, with_feature_sett
 from ringtune.shaping.firmware import job_reading
 from ringtune.shaping.freqlimit import apply_freq_limit
 from ringtune.shaping.job import Job
-from ringtune.shaping.job_shapers import without_foreign_stops
+from ringtune.shaping.job_shapers import with_firmware_shaper_stops
 from ringtune.shaping.planner import MachineLimits, Plan, plan
 
 #: how a config's acceleration meets the job's own acceleration commands (module docstring)
@@ -137,8 +137,8 @@ def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None 
     if config is not None and (config.per_feature or (mode == "replace" and accel is not None and sets_accel(job))):
         job = with_feature_settings(job, FeatureCommands.from_config(config, limits))
         accel = None          # the settings are the job's own now, move by move
-    if config is not None:      # the firmware is known: its own shaper commands stop, others do not
-        job = without_foreign_stops(job, config.firmware)
+    if config is not None:      # the firmware is known: it stops where its own shaper commands change the shaping
+        job = with_firmware_shaper_stops(job, config.firmware)
     job, freq_limit = _freq_limited(job, limits, config, use_job_limits)
     daa = daa_freq if daa_freq is not None else (None if config is None else config.daa_freq)
     # replace: the config's acceleration wins over the job's own commands (a tuning knob);

@@ -2,8 +2,9 @@
 
 A job may set input shaping itself: a ringing test print turns it off (``M593 X F0``,
 ``SET_INPUT_SHAPER SHAPER_FREQ_X=0``), a tower changes the frequency band by band. Each command
-changes the settings it names, for the moves after it, from the full stop the firmware makes there
-(the reader sets ``stop_before``):
+changes the settings it names, for the moves after it; the reader stops the planner there
+(``stop_before``), and the plan keeps the stop where the firmware waits for the motion to end
+(:func:`stops_for`):
 
 - Klipper ``SET_INPUT_SHAPER``: ``SHAPER_TYPE[_X|_Y]``, ``SHAPER_FREQ_X|Y`` (0 = off),
   ``DAMPING_RATIO_X|Y``;
@@ -69,16 +70,38 @@ def _foreign(ev, acts: tuple[str, ...]) -> bool:
     return ev.kind == "shaper" and ev.command not in acts
 
 
-def without_foreign_stops(job, firmware: str):
-    """``job`` as ``firmware`` runs it: no full stop before a move that only shaper commands it does
-    not have precede (the reader stops the planner at every shaper command; a firmware drains no
-    queue for a command it does not know: Klipper answers "Unknown command" and goes on)."""
-    acts = acted_on(firmware)
-    foreign = {ev.move for ev in job.events if _foreign(ev, acts)}
-    if not foreign:
+#: per firmware family, the parameters of its own shaper command that make it wait for the motion to
+#: stop (None: every form of the command does). Klipper's SET_INPUT_SHAPER flushes the step
+#: generation whenever it has parameters (klippy/extras/input_shaper.py); Marlin's M593 synchronises
+#: the planner when it sets F (stepper.cpp: set_shaping_frequency), not for D alone; RepRapFirmware's
+#: M593 waits for standstill when it changes F, S, P, H or T. Without parameters each only reports.
+#: Prusa's M593 and Marlin's M493 are not read this way: every one is a stop.
+STOPPING_WORDS = {"klipper": (), "marlin": ("F",), "rrf": tuple("FSPHT"), "prusa": None, "marlin-ftm": None}
+
+
+def stops_for(ev, firmware: str) -> bool:
+    """Whether ``firmware`` waits for the motion to stop at the shaper command of job event ``ev``:
+    its own command in a form that changes the shaping (:data:`STOPPING_WORDS`), never another
+    firmware's (it drains no queue for a command it does not know: Klipper answers "Unknown
+    command" and goes on)."""
+    family = FIRMWARES[firmware].family
+    if _foreign(ev, ACTED_ON[family]):
+        return False
+    words = STOPPING_WORDS[family]
+    return words is None or bool(ev.params) and (not words or any(w in ev.params for w in words))
+
+
+def with_firmware_shaper_stops(job, firmware: str):
+    """``job`` as ``firmware`` runs it: no full stop before a move that only shaper commands it makes
+    no stop for precede (the reader stops the planner at every shaper command): another
+    firmware's, or its own in a form that only reports or leaves the queue running
+    (:func:`stops_for`)."""
+    idle = {ev.move for ev in job.events if ev.kind == "shaper" and not stops_for(ev, firmware)}
+    if not idle:
         return job
-    others = {ev.move for ev in job.events if ev.command in STOP_COMMANDS and not _foreign(ev, acts)}
-    moves = sorted(m for m in foreign - others if 0 < m < job.n_moves)
+    others = {ev.move for ev in job.events if ev.command in STOP_COMMANDS
+              and (ev.kind != "shaper" or stops_for(ev, firmware))}
+    moves = sorted(m for m in idle - others if 0 < m < job.n_moves)
     if not moves:
         return job
     stop = job.stop_before.copy()

@@ -179,6 +179,30 @@ def test_a_firmware_stops_at_its_own_shaper_commands_and_not_at_another_firmware
     assert planned(foreign + "\n") == pytest.approx(straight, rel=1e-12)
 
 
+@pytest.mark.parametrize("firmware, junction, stopping, running", [
+    ("klipper", "scv", "SET_INPUT_SHAPER DAMPING_RATIO_X=0.1", "SET_INPUT_SHAPER"),
+    ("marlin", "jerk", "M593 X F40", "M593 X D0.15"),
+    ("marlin", "jerk", "M593 F40 D0.1", "M593"),
+    ("rrf", "jerk", 'M593 P"zvd" F40 S0.15', "M593")])
+def test_a_firmware_stops_only_where_its_own_shaper_command_changes_the_shaping(firmware, junction, stopping, running):
+    """Klipper flushes at SET_INPUT_SHAPER with parameters (without: a report); Marlin's M593 syncs
+    the planner when it sets F, not for D alone; RepRapFirmware's M593 waits for standstill when it
+    changes F, S, P, H or T (no parameters: a report). Between two collinear moves at speed, the
+    stopping form plans as an M400 there, the other as no line."""
+    cfg = _config(firmware, ("zv", "zv", 51.4, 46.6))
+    limits = _printer(junction).limits
+
+    def planned(middle: str) -> float:
+        text = f"G90\nM83\nG1 X10 Y10 F9000\nG1 X60 Y10 E1 F6000\n{middle}G1 X110 Y10 E1\n"
+        return plan_with_config(read_gcode(text, source="j"), limits, cfg).plan.print_time
+
+    drained, straight = planned("M400\n"), planned("")
+    assert drained > straight + 0.01
+    assert planned(stopping + "\n") == pytest.approx(drained, rel=1e-12)
+    assert planned(running + "\n") == pytest.approx(straight, rel=1e-12)
+    assert planned(running + "\nM400\n") == pytest.approx(drained, rel=1e-12)     # another stop there stays
+
+
 def test_the_printed_weight_a_prusa_job_gives_its_firmware_is_said_with_the_shift_it_makes():
     """PrusaSlicer's MK4 profiles write M74 W<g> (the weight printed so far) at each layer change; Buddy
     moves Y's frequency by A·min(W/M, 1) (default A −20 Hz, M 800 g; M593 A M set them). ringtune
