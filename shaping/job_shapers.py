@@ -84,10 +84,9 @@ def stops_for(ev, firmware: str) -> bool:
     its own command in a form that changes the shaping (:data:`STOPPING_WORDS`), never another
     firmware's (it drains no queue for a command it does not know: Klipper answers "Unknown
     command" and goes on)."""
-    family = FIRMWARES[firmware].family
-    if _foreign(ev, ACTED_ON[family]):
+    if _foreign(ev, acted_on(firmware)):
         return False
-    words = STOPPING_WORDS[family]
+    words = STOPPING_WORDS[FIRMWARES[firmware].family]
     return words is None or bool(ev.params) and (not words or any(w in ev.params for w in words))
 
 
