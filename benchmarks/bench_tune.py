@@ -69,8 +69,7 @@ def main() -> int:
     res, wall, out = run_tune(args, "bench-tune-")
     if res is None:
         return 1
-    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = ru.ru_utime + ru.ru_stime
+    cpu = _children_cpu()
     print(f"ringtune tune --trials {args.trials} --workers {args.workers}: {wall:.1f} s wall on "
           f"{os.cpu_count()} cores (target ≤ 30 s): {'PASS' if wall <= 30 else 'FAIL'}; "
           f"load average {os.getloadavg()[0]:.1f} at the end (other work shares the cores); CPU time of the "
@@ -134,15 +133,25 @@ def _job_run(args, builtin_wall: float) -> int:
     from ringtune.envs.printer import load_printer
 
     planned = planned_job(load_printer(None), args.gcode, None).print_time
+    before = _children_cpu()
     res, wall, _ = run_tune(args, "bench-tune-job-", "--gcode", args.gcode)
     if res is None:
         return 1
+    cpu, cores = _children_cpu() - before, os.cpu_count() or 1
     pf = res.get("per_feature") or {}
     print(f"ringtune tune --gcode {args.gcode} ({planned / 60:.1f} min planned on the default printer) "
           f"--trials {args.trials} --workers {args.workers}: {wall:.1f} s wall (target ≤ 30 s): "
           f"{'PASS' if wall <= 30 else 'FAIL'}; {wall / builtin_wall:.2f}× the built-in print's {builtin_wall:.1f} s "
-          f"in this run; per feature: {pf.get('accel') or 'off'}")
+          f"in this run; CPU time of the command and its workers {cpu:.1f} s (÷ {cores} = {cpu / cores:.1f} s: the "
+          f"wall time if every core stayed busy; the rest, {wall - cpu / cores:.1f} s, is a core waiting); "
+          f"per feature: {pf.get('accel') or 'off'}")
     return 0
+
+
+def _children_cpu() -> float:
+    """CPU seconds (user + system) of this process's finished children so far."""
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
 
 
 def _stored(settings) -> dict:
