@@ -224,8 +224,8 @@ def _finish(ax, counts: dict, ylabel: str, full_legend: bool, box) -> list[str]:
     """A panel's off-scale note, limits, axis label and grid; its legend (below the panel, not over
     the points) when ``full_legend``, as the texts drawn."""
     notes = [f"{n} {where.replace('_', ' ')} (arrows)" for where, n in counts.items() if n]
-    if notes:
-        ax.text(0.01, 0.99, "; ".join(notes), transform=ax.transAxes, va="top", fontsize=7, color="0.3")
+    if notes:       # top right: the front falls from the top left, where the fast (chosen) points are labelled
+        ax.text(0.99, 0.99, "; ".join(notes), transform=ax.transAxes, ha="right", va="top", fontsize=7, color="0.3")
     ax.set_xlim(box[0], box[1])
     ax.set_ylim(box[2], box[3])
     ax.set_ylabel(ylabel, fontsize=10 if full_legend else 8)
