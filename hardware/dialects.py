@@ -52,12 +52,22 @@ SLICER_OVERRIDES = ("a sliced file's own acceleration commands (M204, SET_VELOCI
                     "same value in the slicer (ringtune export --slicer prusaslicer|orcaslicer|cura) or "
                     "rewrite a sliced file with ringtune limit FILE.gcode --accel A")
 
+#: said where a configuration sets accelerations or corner rules per feature: a firmware holds one
+PER_FEATURE = ("this configuration sets accelerations (or corner rules) per feature, which a firmware cannot "
+               "hold: these lines carry the visible walls' {a} mm/s², and the per-feature settings belong in the "
+               "job: print the job tune wrote with them (job.gcode, from tune --gcode), write them into any sliced "
+               "job with ringtune rewrite JOB --config CONFIG -o OUT, or re-slice with ringtune export CONFIG "
+               "--slicer prusaslicer|orcaslicer|cura; with these lines alone the job prints at the visible walls' "
+               "acceleration everywhere")
+
 
 def export_config(config: TuneConfig, firmware: str | None = None, accel: bool = True) -> Export:
     """The lines that put ``config`` on ``firmware`` (default: ``config.firmware``); ``accel``
     False leaves the printer's acceleration alone."""
     fw = Firmware.named(firmware or config.firmware, "--firmware")
     exp = _BUILDERS[fw.family](config, fw.name)
+    if config.per_feature:
+        exp.notes.insert(0, PER_FEATURE.format(a=fmt(config.accel or 0, 0)))
     _rounding_notes(config, exp)
     _freq_limit(config, fw, exp)
     _accel(config, fw, exp, accel)
@@ -96,7 +106,7 @@ def _accel(config: TuneConfig, fw: Firmware, exp: Export, apply: bool) -> None:
     if fw.axis_accel_report and config.axis_caps == (None, None):
         _read_back(exp, fw.axis_accel_report)     # push says whether the printer's caps hold it lower
     exp.notes.append(f"the printing acceleration becomes {fmt(a, fw.accel.decimals)} mm/s², the value "
-                     f"this config was tuned at; {SLICER_OVERRIDES}")
+                     f"this config was tuned at" + ("" if config.per_feature else f"; {SLICER_OVERRIDES}"))
     _accel_persistence(config, fw, exp, a)
 
 

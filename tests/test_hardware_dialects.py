@@ -322,3 +322,21 @@ def test_one_record_per_firmware_is_what_config_space_and_export_read():
         assert {s.split("(")[0] for s in default_space(printer, name).shapers} <= set(fw.shapers)
     assert [n for n, fw in FIRMWARES.items() if fw.one_shaper] == ["rrf", "rrf35", "rrf34"]
     assert [n for n, fw in FIRMWARES.items() if fw.freq_limit] == ["marlin", "marlin-ftm"]
+
+
+@pytest.mark.parametrize("fw", ["klipper", "marlin", "rrf"])
+def test_a_per_feature_configuration_says_its_settings_belong_in_the_job(fw):
+    """A firmware holds one acceleration: the lines carry the visible walls', and the first note says
+    where the per-feature ones go (a rewritten job, a re-slice), not that the slicer should get the
+    one value; a configuration with one acceleration keeps that advice."""
+    shaper = {"marlin": "zv", "rrf": "mzv"}.get(fw, "ei")   # what each has: Marlin's classic shaping is ZV
+    one = TuneConfig(shaper_x=shaper, shaper_y=shaper, freq_x=50.0, freq_y=50.0 if fw == "rrf" else 40.0,
+                     accel=4800.0, firmware=fw)                  # RRF: one shaper for both axes
+    per = TuneConfig(**{**one.to_dict(), "feature_accel": {"infill": 12000.0}})
+    assert per.per_feature and not one.per_feature
+    notes = export_config(per).notes
+    assert notes[0].startswith("this configuration sets accelerations (or corner rules) per feature")
+    assert "the visible walls' 4800 mm/s²" in notes[0] and "ringtune rewrite JOB --config CONFIG -o OUT" in notes[0]
+    assert not any("ringtune limit FILE.gcode --accel A" in n for n in notes)
+    assert any("ringtune limit FILE.gcode --accel A" in n for n in export_config(one).notes)
+    assert not any("per feature" in n for n in export_config(one).notes)

@@ -65,6 +65,14 @@ def test_simulate_of_the_rewritten_job_prints_tunes_figures(tmp_path, data_dir, 
     assert written["path"] == str(out / "job.gcode") and written["print_time_s"] == pytest.approx(
         res["metrics"]["print_time_s"], rel=1e-9)
     assert f"{written['lines_inserted']} lines inserted" in rewritten.splitlines()[0]
+    # the files a person reads name job.gcode: the per-feature settings live only there
+    readme, summary, apply = ((out / f).read_text() for f in ("README.txt", "summary.txt", "apply.txt"))
+    assert "6. job.gcode" in readme and "per feature at each feature change" in readme
+    assert (f"\nThe job with the choice written in: {out / 'job.gcode'} ({written['lines_inserted']} lines inserted; "
+            f"planned {written['print_time_as_sliced_s']:.1f} s as sliced -> {written['print_time_s']:.1f} s, the file "
+            "as the printer runs it).\n") in summary
+    assert ("the job sets its own input shaper (line 2" in summary) == own_shaper
+    assert "sets accelerations (or corner rules) per feature" in apply.splitlines()[1]
     assert written["print_time_as_sliced_s"] == pytest.approx(
         json.loads(_run(["plan", str(job), "--json"]).stdout)["print_time_s"], rel=1e-9)
     # the walk's ceiling: the choice with every group nobody sees at the top of its range as the

@@ -16,8 +16,25 @@ def _push_hint(best: Path, firmware: str) -> str:
     return f"ringtune push {best} --port /dev/ttyUSB0 --firmware {firmware}   (the printer's serial port)"
 
 
-def readme_text(out_dir: Path, firmware: str, storage: str, command: str) -> str:
-    """README.txt of the output folder: what each file is, which to open first, how to resume."""
+def _job_entry(out_dir: Path, per_feature: bool) -> str:
+    """README.txt's entry for job.gcode (tune --gcode): the job with the choice written in."""
+    what = ("""the accelerations and corner rules
+                 per feature at each feature change, which a firmware cannot hold (apply.txt
+                 alone prints every feature at the visible walls' acceleration), and the shaper"""
+            if per_feature else "the shaper and the acceleration")
+    best = out_dir / "best.json"
+    return f"""6. job.gcode     Your job with the chosen configuration written in: {what}.
+                 Print this file; summary.txt gives its planned time as sliced and as written.
+                 Another job: ringtune rewrite JOB --config {best} -o OUT
+                 or re-slice: ringtune export {best} --slicer prusaslicer|orcaslicer|cura
+"""
+
+
+def readme_text(out_dir: Path, firmware: str, storage: str, command: str, job: bool = False,
+                per_feature: bool = False) -> str:
+    """README.txt of the output folder: what each file is, which to open first, how to resume.
+    ``job``: tune was given a job, and writes it with the choice (job.gcode); ``per_feature``: the
+    choice sets accelerations or corner rules per feature."""
     return f"""ringtune tune results — start here
 =================================
 
@@ -37,7 +54,7 @@ def readme_text(out_dir: Path, firmware: str, storage: str, command: str) -> str
                      {_push_hint(out_dir / 'best.json', firmware)}
 4. best.json     The chosen configuration (TuneConfig) for ringtune simulate / export / push.
 5. front.csv, trials.csv   Every point of the front and every trial, for your own analysis.
-
+{_job_entry(out_dir, per_feature) if job else ""}
 To pick another point of the front: rerun with --pick knee, or --weight W (seconds of print time
 you would give for 1 mm less error; e.g. --weight 100). The study itself is kept in {storage}:
 running the same command again resumes it with nothing lost:

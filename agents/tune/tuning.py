@@ -21,6 +21,7 @@ from ringtune.agents.tune.out_dir import check_out, remove_if_empty
 from ringtune.agents.tune.choice import BASELINE_NAMES, pick, runners_up
 from ringtune.agents.tune.hidden_raise import unseen_tops
 from ringtune.agents.tune.pareto import VISIBLE_KEYS
+from ringtune.agents.tune.readme_text import readme_text
 from ringtune.agents.tune.refine import refine
 from ringtune.agents.tune.request import Limits, TuneRequest, check_request, shaping_min_freq
 from ringtune.agents.tune.space import (CORNER_UNIT, default_space, freq_floor_note, params_from_config,
@@ -286,7 +287,13 @@ def _report(req: TuneRequest, lim: Limits, fw: Firmware, printer, facts, space, 
     text = result.pop("summary_text")
     result["per_feature"] = pf_json
     if req.gcode:     # the job with the choice written in, beside best.json
-        text += _write_job(req.gcode, out_dir, chosen.config, printer, result, note)
+        job_text = _write_job(req.gcode, out_dir, chosen.config, printer, result, note)
+        if result["files"]["job"]:         # summary.txt and README.txt name it too
+            text += job_text
+            with open(out_dir / "summary.txt", "a") as f:
+                f.write(job_text.lstrip("\n") + "\n")
+            (out_dir / "README.txt").write_text(readme_text(out_dir, fw.name, store, req.command, job=True,
+                                                            per_feature=chosen.config.per_feature))
     for k, src in bl.sources.items():
         result["baselines"][k]["source"] = src
     return result, text, accel_json, ja_json
