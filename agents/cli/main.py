@@ -53,6 +53,11 @@ COMMANDS = {
 EXAMPLES = """\
 examples:
   ringtune tune                                  tune the built-in Ender-3-class printer (main job)
+  ringtune identify resonances_x.csv resonances_y.csv --klipper-config printer.cfg -o my.toml
+  ringtune tune --printer my.toml --gcode job.gcode
+                                                 your printer (modes from its resonance test) on your own
+                                                 sliced job: writes it back with the choice in
+                                                 (ringtune-out/job.gcode)
   ringtune shaper mzv --freq 40 --damping 0.1    impulses, duration, lag and band of a shaper
   ringtune response zv mzv ei --freq 40 --plot r.png
   ringtune plan job.gcode --json                 print time and move statistics
