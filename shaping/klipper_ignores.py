@@ -44,9 +44,22 @@ def _ignored_as(ev, old: bool) -> str | None:
 
 
 def _word_ignored(params: dict, old: bool) -> str | None:
-    """The SET_VELOCITY_LIMIT word among ``params`` that Klipper's version does not read, named."""
+    """The SET_VELOCITY_LIMIT word among ``params`` that Klipper's version does not read, named;
+    None where the line's other word says the same (:func:`_words_agree`)."""
     word = WORD_IGNORED[old]
-    return f"SET_VELOCITY_LIMIT {word}" if word in params else None
+    return f"SET_VELOCITY_LIMIT {word}" if word in params and not _words_agree(params) else None
+
+
+def _words_agree(params: dict) -> bool:
+    """Whether a SET_VELOCITY_LIMIT line's ACCEL_TO_DECEL is its ACCEL × (1 − its MINIMUM_CRUISE_RATIO)
+    (to 1 mm/s²), Klipper's own rule between the two: a line written for Klippers of both ages (as
+    ``ringtune rewrite`` writes it) runs the same on either, and the word one does not read loses
+    nothing."""
+    try:
+        accel, atd, ratio = (float(params[k]) for k in ("ACCEL", "ACCEL_TO_DECEL", "MINIMUM_CRUISE_RATIO"))
+    except (KeyError, TypeError, ValueError):
+        return False
+    return abs(atd - accel * (1.0 - ratio)) <= 1.0
 
 
 def _lone_m204(ev) -> bool:

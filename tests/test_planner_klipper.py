@@ -181,6 +181,32 @@ def test_klipper_acts_on_none_of_marlins_limit_lines_nor_on_a_lone_m204():
     assert klipper_ignored(job, dataclasses.replace(lim, junction="jd")) == {}     # Marlin acts on every one
 
 
+@pytest.mark.parametrize("old", [False, True], ids=["Klipper since 2024", "Klipper before 2024"])
+def test_a_line_whose_two_cruise_words_agree_loses_nothing_on_either_klipper(old):
+    """ACCEL_TO_DECEL = ACCEL × (1 − MINIMUM_CRUISE_RATIO) is Klipper's own rule between the two words,
+    so a line carrying both so (as ringtune rewrite writes it for Klippers of both ages) plans the same
+    on either: the word a version does not read is not named. Alone (OrcaSlicer's ACCEL_TO_DECEL beside
+    each ACCEL) or disagreeing, it is."""
+    lim = MachineLimits(accel=3000, velocity=1e6, junction="scv", square_corner_velocity=5, min_cruise_ratio=0.5,
+                        accel_to_decel=1500.0 if old else None)
+    zigzag = "".join(f"G1 X{50 + 5 * (i % 2)} Y{10 + 0.4 * i:.1f} E0.2 F12000\n" for i in range(20))
+
+    def named(line: str) -> dict:
+        return klipper_ignored(read_gcode("M83\n" + line + "\n" + zigzag), lim)
+
+    assert named("SET_VELOCITY_LIMIT ACCEL=4800 ACCEL_TO_DECEL=2400 MINIMUM_CRUISE_RATIO=0.5") == {}
+    assert named("SET_VELOCITY_LIMIT ACCEL=10800 ACCEL_TO_DECEL=10800 MINIMUM_CRUISE_RATIO=0") == {}
+    word = "MINIMUM_CRUISE_RATIO" if old else "ACCEL_TO_DECEL"
+    assert named("SET_VELOCITY_LIMIT ACCEL=4800 ACCEL_TO_DECEL=3000 MINIMUM_CRUISE_RATIO=0.5") == {
+        f"SET_VELOCITY_LIMIT {word}": [2]}
+    alone = "SET_VELOCITY_LIMIT ACCEL=4800 ACCEL_TO_DECEL=2400" if not old else \
+        "SET_VELOCITY_LIMIT ACCEL=4800 MINIMUM_CRUISE_RATIO=0.5"
+    assert named(alone) == {f"SET_VELOCITY_LIMIT {word}": [2]}
+    both = read_gcode("M83\nSET_VELOCITY_LIMIT ACCEL=4800 ACCEL_TO_DECEL=2400 MINIMUM_CRUISE_RATIO=0.5\n" + zigzag)
+    other = dataclasses.replace(lim, accel_to_decel=None if old else 1500.0)       # the other age
+    assert plan(both, lim).print_time == pytest.approx(plan(both, other).print_time, rel=1e-12)
+
+
 def test_klipper_takes_m204_s_and_p_with_t_and_kalicos_per_axis_accelerations():
     body = _marlin2_job().replace(MARLIN2_LINES, "")
     for line, accel in (("M204 S1000", 1000.0), ("M204 P1000 T1400", 1000.0),
