@@ -187,6 +187,38 @@ def test_a_raise_that_saves_less_than_the_least_step_is_not_taken(space):
     assert value < before and before - value < MIN_STEP_SAVING * before   # faster, by too little
 
 
+def test_a_walk_that_ends_no_faster_by_the_resolution_is_not_taken(space):
+    """Only the travel saves time here, 0.2 % of the print at its top: each step beats
+    MIN_STEP_SAVING, but the walk's end is "the same" print time by the summary's resolution
+    (0.5 %), so the choice stays where it was (the motor load for nothing); ``declined`` keeps where
+    the walk ended and the sentence says both. Where the travel saves 1 %, the walk is taken."""
+    def metrics(cfg, share):
+        m = _metrics(cfg)
+        travel = cfg.feature_accel.get("travel", 5000.0)
+        top = dict((f"accel_{g}", hi) for g, _lo, hi in space.feature_accel)["accel_travel"]
+        k = share * 1000.0 / (1 / 5000.0 - 1 / top)      # the travel at its top saves `share` of 1000 s
+        m.print_time_s = 1000.0 + k / travel - k / 5000.0
+        m.motor_load = 0.3 + 0.4 * (travel > 5000.0)
+        return m
+
+    for share, taken in ((0.002, False), (0.01, True)):
+        start_cfg = _start(space)
+        start = point_from_metrics(start_cfg, metrics(start_cfg, share), max_path_error_mm=0.1, max_motor_load=0.8,
+                                   max_show_through_mm=0.2)
+        lift = raise_hidden(start, {"klipper": start}, lambda cs: [metrics(c, share) for c in cs], space, BOUNDS)
+        assert lift.raised and lift.raised[0][0] == "accel_travel"
+        assert lift.moved == taken and (lift.point is start) == (not taken)
+        end = lift.point if taken else lift.declined
+        assert end.print_time_s == pytest.approx(1000.0 * (1 - share), rel=1e-12)
+        if not taken:
+            assert lift.sentence().startswith("Not raised where nobody looks: the walk (")
+            assert "ended at 998.000 s from 1000.000 s, a saving under the 0.5 % that counts as faster, for motor " \
+                   "load 70 % against 30 %: kept as it was." in lift.sentence()
+            assert lift.to_dict()["declined_print_time_s"] == pytest.approx(998.0)
+        else:
+            assert lift.declined is None and lift.to_dict()["declined_print_time_s"] is None
+
+
 def test_a_group_that_breaks_a_bound_at_every_level_stays(space):
     lift, _calls = _walk(space, travel_overloads=True)
     assert params_from_config(lift.point.config, space)["accel_travel"] == 5000.0

@@ -25,7 +25,9 @@ no visible measure worse than any of them at the resolution (the job's and each 
 :data:`~ringtune.agents.tune.pareto.JUDGED_KEYS`), print time lower than the current choice's by
 at least :data:`~ringtune.agents.tune.stop.MIN_STEP_SAVING` (a raise that buys nothing is not worth
 its motor load). The fastest candidate that passes becomes the choice; where none does, the group
-stays where it was.
+stays where it was. A walk that ends no faster than its start by the print-time resolution (0.5 %:
+what the summary calls "the same") is not taken (``declined``): it would spend motor load and
+hidden quality for nothing a person would notice.
 Where the judgement is the worst of the printer and its detuned twins, each batch is screened on the
 exact model first and only what passes is judged (:func:`ringtune.agents.tune.stop.passing`).
 
@@ -104,6 +106,7 @@ class Raise:
     cut: bool = False                # it stopped at its budget before its last step
     screened: int = 0
     held: list = field(default_factory=list)     # Held per setting walked, in the walk's order
+    declined: Point | None = None    # where the walk ended when that was not faster by the resolution
 
     @property
     def moved(self) -> bool:
@@ -118,11 +121,18 @@ class Raise:
             return (f"No feature nobody sees could go faster (by at least {MIN_STEP_SAVING * 100:g} % of the print "
                     f"time) with every visible measure kept ({spent}{cut}).")
         parts = ", ".join(f"{_name(k)} {a:g} → {b:g}" for k, a, b in self.raised)
+        if self.declined is not None:
+            end, load = self.declined, self.declined.metrics.get("motor_load", 0.0)
+            return (f"Not raised where nobody looks: the walk ({spent}{cut}; {parts}) ended at "
+                    f"{end.print_time_s:.3f} s from {self.start.print_time_s:.3f} s, a saving under the "
+                    f"{DEFAULT_RESOLUTION.time_rel * 100:g} % that counts as faster, for motor load "
+                    f"{load * 100:.0f} % against {self.start.metrics.get('motor_load', 0.0) * 100:.0f} %: kept as it was.")
         return (f"Raised where nobody looks, every visible measure and bound still kept ({spent}{cut}): {parts}; "
                 f"{self.start.print_time_s:.1f} s → {self.point.print_time_s:.1f} s.")
 
     def to_dict(self) -> dict[str, Any]:
         return {"raised": [{"parameter": k, "from": a, "to": b} for k, a, b in self.raised],
+                "declined_print_time_s": None if self.declined is None else self.declined.print_time_s,
                 "from_print_time_s": self.start.print_time_s, "to_print_time_s": self.point.print_time_s,
                 "evaluations": self.evaluations, "screened": self.screened, "budget": self.budget, "cut": self.cut,
                 "sentence": self.sentence(), "held": [h.to_dict() for h in self.held]}
@@ -282,6 +292,16 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
                             if k in new and new[k] != params.get(k)]
             walk.point, params = best, new
         walk.held.append(_held(key, params, fails + more, space))
+    return _worth_it(walk, res)
+
+
+def _worth_it(walk: Raise, res: Resolution) -> Raise:
+    """``walk`` as it ended, or back at its start (``declined``: where it ended) when that is not
+    faster by ``res``'s print-time resolution: a saving the summary calls "the same" is not worth
+    the motor load and hidden quality the raise spends."""
+    start, end = walk.start.print_time_s, walk.point.print_time_s
+    if walk.moved and start - end < res.tolerance("print_time_s", start, end):
+        walk.declined, walk.point = walk.point, walk.start
     return walk
 
 

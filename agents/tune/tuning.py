@@ -260,7 +260,7 @@ def _report(req: TuneRequest, lim: Limits, fw: Firmware, printer, facts, space, 
             labels = {**{k: bl.labels.get(k, BASELINE_NAMES.get(k, k)) for k in bl.points},
                       "choice": "the choice before the walk"}
             unit = f" {CORNER_UNIT[space.junction]}" if space.junction in CORNER_UNIT else ""
-            held = lift.held_lines(labels, unit)
+            held = lift.held_lines(labels, unit) if lift.declined is None else []
             if held:
                 pf_lines.append("  What holds each where it is (the next value the walk tried, measured as every "
                                 "trial; µm and % the worst of the model and its twins unless said):")
