@@ -104,7 +104,7 @@ def test_bad_value_is_one_line_and_exit_2_without_traceback():
     (["tune", "--trials", "0"], "--trials"),
     (["tune", "--storage", "bogus", "--no-baselines"], "--storage"),             # not a storage URL
     (["tune", "--storage", "postgresql+psycopg2://u:p@127.0.0.1:1/db", "--no-baselines"], "--storage"),
-    (["tune", "--gcode", "/nonexistent/job.gcode"], "--gcode"),
+    (["tune", "--gcode", "/nonexistent/job.gcode"], "--gcode /nonexistent/job.gcode: no such G-code file"),
     (["recommend", "--accel", "/nonexistent/resonances_x.csv"], "no such file"),
     (["recommend", "--method", "klipper"], "--accel"),                           # required group missing
     (["recommend", "--printer", "default", "--klipper-version", "0.9"], "--klipper-version"),

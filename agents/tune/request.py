@@ -90,7 +90,7 @@ def check_request(req: TuneRequest) -> Limits:
     max_st, st_source = show_through_bound(req.gcode, req.max_show_through, pareto.DEFAULT_MAX_SHOW_THROUGH_MM)
     accel_range = _accel_range(req.accel_range)
     if req.gcode and not Path(req.gcode).is_file():
-        raise RingtuneError("no such G-code file", "--gcode")
+        raise RingtuneError("no such G-code file", f"--gcode {req.gcode}")
     return Limits(how, bounds["max_path_error"], bounds["freq_margin"], bounds["motor_reserve"], max_st, st_source,
                    accel_range)
 
