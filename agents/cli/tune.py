@@ -97,8 +97,9 @@ the walk, on the judged printers and on wider ones (it spends no visible quality
 says what holds each setting where it stays (measured at the next value tried) and the walk's
 ceiling: the planned time with every setting nobody sees at its top, no quality judged. A walk
 that ends less than 0.5 % faster than it started (the same time, by the summary's resolution) is
-not taken: it would load the motors for nothing. One shaper configuration serves the whole job. With --gcode, job.gcode beside best.json is the job with the
-choice written in (as `ringtune rewrite` writes it).
+not taken: it would load the motors for nothing. One shaper configuration serves the whole job.
+With --gcode, job.gcode beside best.json is the job with the choice written in (as `ringtune
+rewrite` writes it).
 
 Baselines: Klipper's rule — the recommendation recorded from your resonance files by `ringtune
 identify` when the printer has one, else the rule on the model's simulated resonance test (said so);

@@ -107,6 +107,7 @@ class Raise:
     screened: int = 0
     held: list = field(default_factory=list)     # Held per setting walked, in the walk's order
     declined: Point | None = None    # where the walk ended when that was not faster by the resolution
+    resolution: Resolution = DEFAULT_RESOLUTION    # what counts as faster
 
     @property
     def moved(self) -> bool:
@@ -125,7 +126,7 @@ class Raise:
             end, load = self.declined, self.declined.metrics.get("motor_load", 0.0)
             return (f"Not raised where nobody looks: the walk ({spent}{cut}; {parts}) ended at "
                     f"{end.print_time_s:.3f} s from {self.start.print_time_s:.3f} s, a saving under the "
-                    f"{DEFAULT_RESOLUTION.time_rel * 100:g} % that counts as faster, for motor load "
+                    f"{self.resolution.time_rel * 100:g} % that counts as faster, for motor load "
                     f"{load * 100:.0f} % against {self.start.metrics.get('motor_load', 0.0) * 100:.0f} %: kept as it was.")
         return (f"Raised where nobody looks, every visible measure and bound still kept ({spent}{cut}): {parts}; "
                 f"{self.start.print_time_s:.1f} s → {self.point.print_time_s:.1f} s.")
@@ -240,7 +241,7 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
     own, as at the start) where the start has it unset and the walk has not changed it."""
     if not space.per_feature:
         return Raise(start, start)
-    walk = Raise(start, start, budget=max_evaluations)
+    walk = Raise(start, start, budget=max_evaluations, resolution=res)
     params = params_from_config(start.config, space)
     unset = _unset_corners(start.config, params) if keep_unset else {}
 
@@ -292,15 +293,15 @@ def raise_hidden(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequ
                             if k in new and new[k] != params.get(k)]
             walk.point, params = best, new
         walk.held.append(_held(key, params, fails + more, space))
-    return _worth_it(walk, res)
+    return _worth_it(walk)
 
 
-def _worth_it(walk: Raise, res: Resolution) -> Raise:
+def _worth_it(walk: Raise) -> Raise:
     """``walk`` as it ended, or back at its start (``declined``: where it ended) when that is not
-    faster by ``res``'s print-time resolution: a saving the summary calls "the same" is not worth
+    faster by its print-time resolution: a saving the summary calls "the same" is not worth
     the motor load and hidden quality the raise spends."""
     start, end = walk.start.print_time_s, walk.point.print_time_s
-    if walk.moved and start - end < res.tolerance("print_time_s", start, end):
+    if walk.moved and start - end < walk.resolution.tolerance("print_time_s", start, end):
         walk.declined, walk.point = walk.point, walk.start
     return walk
 
