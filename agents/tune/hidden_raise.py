@@ -123,11 +123,12 @@ class Raise:
                     f"time) with every visible measure kept ({spent}{cut}).")
         parts = ", ".join(f"{_name(k)} {a:g} → {b:g}" for k, a, b in self.raised)
         if self.declined is not None:
-            end, load = self.declined, self.declined.metrics.get("motor_load", 0.0)
+            end, start = self.declined, self.start
+            load, load0 = (p.metrics.get("motor_load", 0.0) * 100 for p in (end, start))
             return (f"Not raised where nobody looks: the walk ({spent}{cut}; {parts}) ended at "
-                    f"{end.print_time_s:.3f} s from {self.start.print_time_s:.3f} s, a saving under the "
+                    f"{end.print_time_s:.3f} s from {start.print_time_s:.3f} s, a saving under the "
                     f"{self.resolution.time_rel * 100:g} % that counts as faster, for motor load "
-                    f"{load * 100:.0f} % against {self.start.metrics.get('motor_load', 0.0) * 100:.0f} %: kept as it was.")
+                    f"{load:.0f} % against {load0:.0f} %: kept as it was.")
         return (f"Raised where nobody looks, every visible measure and bound still kept ({spent}{cut}): {parts}; "
                 f"{self.start.print_time_s:.1f} s → {self.point.print_time_s:.1f} s.")
 
