@@ -138,7 +138,7 @@ def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None 
         job = with_feature_settings(job, FeatureCommands.from_config(config, limits))
         accel = None          # the settings are the job's own now, move by move
     if config is not None:      # the firmware is known: it stops where its own shaper commands change the shaping
-        job = with_firmware_shaper_stops(job, config.firmware)
+        job = with_firmware_shaper_stops(job, config)
     job, freq_limit = _freq_limited(job, limits, config, use_job_limits)
     daa = daa_freq if daa_freq is not None else (None if config is None else config.daa_freq)
     # replace: the config's acceleration wins over the job's own commands (a tuning knob);

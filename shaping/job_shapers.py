@@ -74,9 +74,11 @@ def _foreign(ev, acts: tuple[str, ...]) -> bool:
 #: stop (None: every form of the command does). Klipper's SET_INPUT_SHAPER flushes the step
 #: generation whenever it has parameters (klippy/extras/input_shaper.py); Marlin's M593 synchronises
 #: the planner when it sets F (stepper.cpp: set_shaping_frequency), not for D alone; RepRapFirmware's
-#: M593 waits for standstill when it changes F, S, P, H or T. Without parameters each only reports.
-#: Prusa's M593 and Marlin's M493 are not read this way: every one is a stop.
-STOPPING_WORDS = {"klipper": (), "marlin": ("F",), "rrf": tuple("FSPHT"), "prusa": None, "marlin-ftm": None}
+#: M593 waits for standstill when it changes F, S, P, H or T; Prusa's M593 empties the queues
+#: (``set_axis_config``: planner.synchronize()) when it sets T, F, D or R, not for its weight rule (A,
+#: M) or W alone (Prusa-Firmware-Buddy M593.cpp, input_shaper_config.cpp). Without parameters each
+#: only reports. Marlin's M493 is not read this way: every one is a stop.
+STOPPING_WORDS = {"klipper": (), "marlin": ("F",), "rrf": tuple("FSPHT"), "prusa": tuple("TFDR"), "marlin-ftm": None}
 
 
 def stops_for(ev, firmware: str) -> bool:
@@ -90,22 +92,41 @@ def stops_for(ev, firmware: str) -> bool:
     return words is None or bool(ev.params) and (not words or any(w in ev.params for w in words))
 
 
-def with_firmware_shaper_stops(job, firmware: str):
-    """``job`` as ``firmware`` runs it: no full stop before a move that only shaper commands it makes
-    no stop for precede (the reader stops the planner at every shaper command): another
+def with_firmware_shaper_stops(job, config: TuneConfig):
+    """``job`` as ``config``'s firmware runs it: no full stop before a move that only shaper commands
+    it makes no stop for precede (the reader stops the planner at every shaper command): another
     firmware's, or its own in a form that only reports or leaves the queue running
-    (:func:`stops_for`)."""
+    (:func:`stops_for`); on Prusa's, a full stop at each printed weight it acts on
+    (:func:`weight_stops`), where ``config`` shapes Y, which the weight rule moves."""
+    firmware = config.firmware
     idle = {ev.move for ev in job.events if ev.kind == "shaper" and not stops_for(ev, firmware)}
-    if not idle:
-        return job
     others = {ev.move for ev in job.events if ev.command in STOP_COMMANDS
               and (ev.kind != "shaper" or stops_for(ev, firmware))}
-    moves = sorted(m for m in idle - others if 0 < m < job.n_moves)
-    if not moves:
+    weights = weight_stops(job, config)
+    moves = sorted(m for m in idle - others - weights if 0 < m < job.n_moves)
+    added = sorted(m for m in weights if 0 < m < job.n_moves and not job.stop_before[m])
+    if not moves and not added:
         return job
     stop = job.stop_before.copy()
     stop[moves] = False
+    stop[added] = True
     return replace(job, stop_before=stop)
+
+
+def weight_stops(job, config: TuneConfig) -> set[int]:
+    """The moves before which Prusa's firmware stops for a printed weight: ``M74 W<g>`` (g > 0) sets Y's
+    shaper by its weight rule through the call that empties the queues first (Prusa-Firmware-Buddy
+    M74.cpp, input_shaper_config.cpp ``set_axis_config``), while the rule is on (its default; ``M593
+    M0`` turns it off, ``M593 A`` or ``M`` > 0 on) and ``config`` shapes Y. Empty on any other firmware."""
+    if FIRMWARES[config.firmware].family != "prusa" or shapers_from_config(config)[0]["y"] is None:
+        return set()
+    on, out = True, set()
+    for ev in job.events:
+        if ev.command == "M593" and ("A" in ev.params or "M" in ev.params):
+            on = _num(ev.params.get("M")) != 0
+        elif ev.command == "M74" and on and (_num(ev.params.get("W")) or 0) > 0:
+            out.add(ev.move)
+    return out
 
 
 def prusa_weight_note(job, firmware: str) -> str | None:
@@ -131,7 +152,8 @@ def prusa_weight_note(job, firmware: str) -> str | None:
             f"({heaviest:.0f} g; {delta:g} Hz at {limit:g} g), as the mass on the bed lowers Y's mode; ringtune "
             "judges the whole job at the printer description's print_mass with Y's frequency as configured "
             "(neither the mode's fall nor the firmware's shift), and the job written keeps the lines "
-            "(`ringtune schedule` sets the rule from the model)")
+            "(`ringtune schedule` sets the rule from the model); the firmware empties its queues to change the "
+            "shaper, so each line is a full stop, as the plan has it")
 
 
 def foreign_shapers_note(found: dict[str, list[int]], firmware: str) -> str | None:

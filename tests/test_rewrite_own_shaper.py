@@ -166,14 +166,20 @@ def test_another_firmwares_shaper_command_is_kept_and_named():
     ("klipper", "scv", "SET_INPUT_SHAPER DAMPING_RATIO_X=0.1", "SET_INPUT_SHAPER"),
     ("marlin", "jerk", "M593 F40 D0.1", "M593 X D0.15"),
     ("marlin", "jerk", "M593 X F40", "M593"),
-    ("rrf", "jerk", 'M593 P"zvd" F40 S0.15', "M593")])
+    ("rrf", "jerk", 'M593 P"zvd" F40 S0.15', "M593"),
+    ("prusa", "jd", "M593 Y F40", "M593 A-10 M500"),
+    ("prusa", "jd", "M74 W120", "M74 W0"),
+    ("marlin", "jd", "M593 F40", "M74 W120")])
 def test_a_firmware_stops_where_its_own_shaper_command_changes_the_shaping_and_nowhere_else(
         firmware, junction, stopping, running):
     """Between two collinear moves at speed, a shaper command the firmware waits at plans as an M400
     there, one it does not as no line: another firmware's (it does not know it); Klipper's
     SET_INPUT_SHAPER without parameters (a report; with them it flushes); Marlin's M593 without F
     (it syncs the planner when it sets F, not for D alone) or without parameters; RepRapFirmware's
-    M593 without parameters (it waits for standstill when it changes F, S, P, H or T)."""
+    M593 without parameters (it waits for standstill when it changes F, S, P, H or T); Prusa's M593
+    that sets only its weight rule (it empties the queues when it sets T, F, D or R), and its M74 W
+    that gives no weight (with a weight it moves Y by the rule, emptying the queues first: a stop,
+    which Marlin, without M74, does not make)."""
     cfg = _config(firmware, ("zv", "zv", 51.4, 46.6))
     limits = _printer(junction).limits
 
@@ -186,6 +192,25 @@ def test_a_firmware_stops_where_its_own_shaper_command_changes_the_shaping_and_n
     assert planned(stopping + "\n") == pytest.approx(drained, rel=1e-12)
     assert planned(running + "\n") == pytest.approx(straight, rel=1e-12)
     assert planned(running + "\nM400\n") == pytest.approx(drained, rel=1e-12)     # another stop there stays
+
+
+def test_prusa_stops_at_a_printed_weight_only_while_its_weight_rule_is_on_and_y_is_shaped():
+    """M593 M0 turns Buddy's weight rule off (M74 then changes nothing, and waits for nothing), M593 A
+    turns it back on; with Y unshaped the rule has no Y shaper to move."""
+    limits = _printer("jd").limits
+    body = "G90\nM83\n{}G1 X10 Y10 F9000\nG1 X60 Y10 E1 F6000\n{}G1 X110 Y10 E1\n"
+
+    def planned(before: str, middle: str, shaping=("mzv", "mzv", 50.0, 40.0)) -> float:
+        return plan_with_config(read_gcode(body.format(before, middle), source="j"), limits,
+                                _config("prusa", shaping)).plan.print_time
+
+    drained, straight = planned("", "M400\n"), planned("", "")
+    assert drained > straight + 0.01
+    assert planned("", "M74 W50\n") == pytest.approx(drained, rel=1e-12)
+    assert planned("M593 M0\n", "M74 W50\n") == pytest.approx(straight, rel=1e-12)
+    assert planned("M593 M0\nM593 A-15\n", "M74 W50\n") == pytest.approx(drained, rel=1e-12)
+    assert planned("", "M74 W50\n", ("mzv", "none", 50.0, 0.0)) == pytest.approx(
+        planned("", "", ("mzv", "none", 50.0, 0.0)), rel=1e-12)
 
 
 def test_the_printed_weight_a_prusa_job_gives_its_firmware_is_said_with_the_shift_it_makes():
