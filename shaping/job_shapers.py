@@ -77,8 +77,9 @@ def _foreign(ev, acts: tuple[str, ...]) -> bool:
 #: M593 waits for standstill when it changes F, S, P, H or T; Prusa's M593 empties the queues
 #: (``set_axis_config``: planner.synchronize()) when it sets T, F, D or R, not for its weight rule (A,
 #: M) or W alone (Prusa-Firmware-Buddy M593.cpp, input_shaper_config.cpp). Without parameters each
-#: only reports. Marlin's M493 is not read this way: every one is a stop.
-STOPPING_WORDS = {"klipper": (), "marlin": ("F",), "rrf": tuple("FSPHT"), "prusa": tuple("TFDR"), "marlin-ftm": None}
+#: only reports. Marlin's M493 (M493.cpp @00317b4) sets C, A, I, Q, D, F and H without waiting; its S
+#: switches fixed-time motion on or off (ftMotion.toggle, not read): planned as a stop.
+STOPPING_WORDS = {"klipper": (), "marlin": ("F",), "rrf": tuple("FSPHT"), "prusa": tuple("TFDR"), "marlin-ftm": ("S",)}
 
 
 def stops_for(ev, firmware: str) -> bool:

@@ -169,7 +169,8 @@ def test_another_firmwares_shaper_command_is_kept_and_named():
     ("rrf", "jerk", 'M593 P"zvd" F40 S0.15', "M593"),
     ("prusa", "jd", "M593 Y F40", "M593 A-10 M500"),
     ("prusa", "jd", "M74 W120", "M74 W0"),
-    ("marlin", "jd", "M593 F40", "M74 W120")])
+    ("marlin", "jd", "M593 F40", "M74 W120"),
+    ("marlin-ftm", "jd", "M493 S1", "M493 X C1 A40 I0.1")])
 def test_a_firmware_stops_where_its_own_shaper_command_changes_the_shaping_and_nowhere_else(
         firmware, junction, stopping, running):
     """Between two collinear moves at speed, a shaper command the firmware waits at plans as an M400
@@ -179,7 +180,8 @@ def test_a_firmware_stops_where_its_own_shaper_command_changes_the_shaping_and_n
     M593 without parameters (it waits for standstill when it changes F, S, P, H or T); Prusa's M593
     that sets only its weight rule (it empties the queues when it sets T, F, D or R), and its M74 W
     that gives no weight (with a weight it moves Y by the rule, emptying the queues first: a stop,
-    which Marlin, without M74, does not make)."""
+    which Marlin, without M74, does not make); Marlin's M493 that sets a shaper (it waits only, as
+    assumed, where S switches fixed-time motion)."""
     cfg = _config(firmware, ("zv", "zv", 51.4, 46.6))
     limits = _printer(junction).limits
 
