@@ -74,7 +74,8 @@ def _foreign(ev, acts: tuple[str, ...]) -> bool:
 #: stop (None: every form of the command does). Klipper's SET_INPUT_SHAPER flushes the step
 #: generation whenever it has parameters (klippy/extras/input_shaper.py); Marlin's M593 synchronises
 #: the planner when it sets F (stepper.cpp: set_shaping_frequency), not for D alone; RepRapFirmware's
-#: M593 waits for standstill when it changes F, S, P, H or T; Prusa's M593 empties the queues
+#: M593 waits for standstill when it changes F, S, P, H or T, not for L (AxisShaper.cpp: "changing
+#: just the minimum acceleration is OK"); Prusa's M593 empties the queues
 #: (``set_axis_config``: planner.synchronize()) when it sets T, F, D or R, not for its weight rule (A,
 #: M) or W alone (Prusa-Firmware-Buddy M593.cpp, input_shaper_config.cpp). Without parameters each
 #: only reports. Marlin's M493 (M493.cpp @00317b4) sets C, A, I, Q, D, F and H without waiting; its S

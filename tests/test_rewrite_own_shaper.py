@@ -167,6 +167,7 @@ def test_another_firmwares_shaper_command_is_kept_and_named():
     ("marlin", "jerk", "M593 F40 D0.1", "M593 X D0.15"),
     ("marlin", "jerk", "M593 X F40", "M593"),
     ("rrf", "jerk", 'M593 P"zvd" F40 S0.15', "M593"),
+    ("rrf", "jerk", "M593 S0.15", "M593 L10"),
     ("prusa", "jd", "M593 Y F40", "M593 A-10 M500"),
     ("prusa", "jd", "M74 W120", "M74 W0"),
     ("marlin", "jd", "M593 F40", "M74 W120"),
@@ -177,7 +178,8 @@ def test_a_firmware_stops_where_its_own_shaper_command_changes_the_shaping_and_n
     there, one it does not as no line: another firmware's (it does not know it); Klipper's
     SET_INPUT_SHAPER without parameters (a report; with them it flushes); Marlin's M593 without F
     (it syncs the planner when it sets F, not for D alone) or without parameters; RepRapFirmware's
-    M593 without parameters (it waits for standstill when it changes F, S, P, H or T); Prusa's M593
+    M593 without parameters or with L alone (it waits for standstill when it changes F, S, P, H or T,
+    "changing just the minimum acceleration is OK", AxisShaper.cpp); Prusa's M593
     that sets only its weight rule (it empties the queues when it sets T, F, D or R), and its M74 W
     that gives no weight (with a weight it moves Y by the rule, emptying the queues first: a stop,
     which Marlin, without M74, does not make); Marlin's M493 that sets a shaper (it waits only, as
