@@ -82,7 +82,7 @@ class Legs:
         ext = np.flatnonzero(self.extruding)
         a = self.start[ext]
         ab = self.end[ext] - a
-        return ext, a, ab, np.maximum(ab[..., 0] * ab[..., 0] + ab[..., 1] * ab[..., 1], EPS_LEN ** 2)
+        return ext, a, ab, _squared_length(ab)
 
     def __len__(self) -> int:
         return len(self.t_start)
@@ -159,8 +159,13 @@ def p1_e(path: Motion) -> np.ndarray:
 def vector_from_segment(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Vectors from the nearest point of segment a→b to pts; broadcasts (…, 2)."""
     ab = b - a
-    # the two components summed by hand: numpy's sum along an axis of two is several times slower
-    return _vector_from(pts, a, ab, np.maximum(ab[..., 0] * ab[..., 0] + ab[..., 1] * ab[..., 1], EPS_LEN ** 2))
+    return _vector_from(pts, a, ab, _squared_length(ab))
+
+
+def _squared_length(ab: np.ndarray) -> np.ndarray:
+    """|ab|² of (…, 2) vectors, floored at EPS_LEN² (the two components summed by hand: numpy's sum
+    along an axis of two is several times slower)."""
+    return np.maximum(ab[..., 0] * ab[..., 0] + ab[..., 1] * ab[..., 1], EPS_LEN ** 2)
 
 
 def _vector_from(pts: np.ndarray, a: np.ndarray, ab: np.ndarray, denom: np.ndarray) -> np.ndarray:

@@ -71,7 +71,7 @@ def _foreign(ev, acts: tuple[str, ...]) -> bool:
 
 
 #: per firmware family, the parameters of its own shaper command that make it wait for the motion to
-#: stop (None: every form of the command does). Klipper's SET_INPUT_SHAPER flushes the step
+#: stop (empty: any parameter does). Klipper's SET_INPUT_SHAPER flushes the step
 #: generation whenever it has parameters (klippy/extras/input_shaper.py); Marlin's M593 synchronises
 #: the planner when it sets F (stepper.cpp: set_shaping_frequency), not for D alone; RepRapFirmware's
 #: M593 waits for standstill when it changes F, S, P, H or T, not for L (AxisShaper.cpp: "changing
@@ -91,7 +91,7 @@ def stops_for(ev, firmware: str) -> bool:
     if _foreign(ev, acted_on(firmware)):
         return False
     words = STOPPING_WORDS[FIRMWARES[firmware].family]
-    return words is None or bool(ev.params) and (not words or any(w in ev.params for w in words))
+    return bool(ev.params) and (not words or any(w in ev.params for w in words))
 
 
 def with_firmware_shaper_stops(job, config: TuneConfig):
@@ -102,9 +102,11 @@ def with_firmware_shaper_stops(job, config: TuneConfig):
     (:func:`weight_stops`), where ``config`` shapes Y, which the weight rule moves."""
     firmware = config.firmware
     idle = {ev.move for ev in job.events if ev.kind == "shaper" and not stops_for(ev, firmware)}
+    weights = weight_stops(job, config)
+    if not idle and not weights:      # every plan of a study passes here: most jobs have neither
+        return job
     others = {ev.move for ev in job.events if ev.command in STOP_COMMANDS
               and (ev.kind != "shaper" or stops_for(ev, firmware))}
-    weights = weight_stops(job, config)
     moves = sorted(m for m in idle - others - weights if 0 < m < job.n_moves)
     added = sorted(m for m in weights if 0 < m < job.n_moves and not job.stop_before[m])
     if not moves and not added:
