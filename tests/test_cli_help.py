@@ -184,3 +184,17 @@ def test_library_errors_name_their_parameter_and_the_command_the_flag(tmp_path, 
     # through the command line: one line naming the flag the user typed
     assert cli.main(["tune", "--workers", "0", "--trials", "1", "--out", str(tmp_path / "o")]) == 2
     assert capsys.readouterr().err.strip() == "ringtune tune: error: --workers: must be ≥ 1"
+
+
+def test_every_command_that_writes_a_file_or_folder_takes_dash_o():
+    """Where a command has an output option (``--output``, ``--out``), ``-o`` is its short form, so
+    ``ringtune identify … -o my.toml`` and ``ringtune tune … -o out`` read alike."""
+    with_output = []
+    for name in cli.COMMANDS:
+        parser, _ = cli.build_parser(name)
+        sub = next(a for a in parser._actions if a.dest == "command").choices[name]
+        outs = [a for a in sub._actions if {"--output", "--out"} & set(a.option_strings)]
+        for action in outs:
+            assert "-o" in action.option_strings, f"{name}: {action.option_strings} has no -o"
+        with_output += [name] * bool(outs)
+    assert {"tune", "identify", "rewrite", "export"} <= set(with_output)

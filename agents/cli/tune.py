@@ -155,7 +155,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "in step, so a seeded run reproduces exactly with the same --workers (2 on 2 cores: "
                    "about two thirds of the wall time)")
     p.add_argument("--seed", type=int, default=0, help="sampler seed (default 0)")
-    p.add_argument("--out", default="ringtune-out", metavar="DIR", help="output folder (default ringtune-out)")
+    p.add_argument("-o", "--out", default="ringtune-out", metavar="DIR", help="output folder (default ringtune-out)")
     p.add_argument("--pick", choices=("fastest-at-baseline-quality", "knee", "weight"), default=None,
                    help="which front point to choose: the fastest with no worse quality than the best baseline "
                         "(default), the knee, or the one minimising print time + W × error (--weight)")
