@@ -4,7 +4,9 @@ deviation) and M566 (RRF's jerk), which Klipper does not have, and M204 without 
 which it answers with "Invalid M204 command" (toolhead.py ``cmd_M204``) — what PrusaSlicer and
 OrcaSlicer write, one per feature, for Marlin 2 or RRF; and the word of SET_VELOCITY_LIMIT its
 version does not read: ACCEL_TO_DECEL since 2024 (what OrcaSlicer writes beside each ACCEL),
-MINIMUM_CRUISE_RATIO before. The planner runs a job under Klipper's rule as Klipper would
+MINIMUM_CRUISE_RATIO before, unless what is then in effect agrees with it (ACCEL_TO_DECEL = the
+acceleration × (1 − MINIMUM_CRUISE_RATIO): a line written for Klippers of both ages, as ``ringtune
+rewrite`` writes it, loses nothing on either). The planner runs a job under Klipper's rule as Klipper would
 (:func:`ringtune.shaping.lookahead.axis_caps`, :func:`ringtune.shaping.lookahead.klipper_smoothing`,
 the job's M204 in :mod:`ringtune.shaping.gcode_commands`); this says so."""
 
@@ -23,43 +25,82 @@ def klipper_ignored(job, limits) -> dict[str, list[int]]:
     (a parsed :class:`ringtune.shaping.job.Job`) where it is planned under Klipper's corner rule
     (``limits``, the :class:`ringtune.shaping.planner.MachineLimits` it is planned with: junction
     ``scv``; ``accel_to_decel`` set: a Klipper from before 2024); empty under any other rule."""
+    if not limits.reads_like_klipper:
+        return {}
+    events = [ev for ev in job.events if ev.kind == "limits"]
     out: dict[str, list[int]] = {}
-    old = limits.accel_to_decel is not None
-    for ev in job.events if limits.reads_like_klipper else ():
-        what = _ignored_as(ev, old)
+    for ev in events:
+        what = ev.command if ev.command in KLIPPER_UNKNOWN else LONE_M204 if _lone_m204(ev) else None
         if what:
             out.setdefault(what, []).append(int(ev.line))
+    lost = _unread_word_lost(events, limits, len(job.line))
+    if lost:
+        out[f"SET_VELOCITY_LIMIT {WORD_IGNORED[limits.accel_to_decel is not None]}"] = lost
     return out
 
 
-def _ignored_as(ev, old: bool) -> str | None:
-    """How :func:`klipper_ignored` names a job event Klipper does not act on (None: it does)."""
-    if ev.kind != "limits":
-        return None
-    if ev.command in KLIPPER_UNKNOWN:
-        return ev.command
-    if ev.command == "SET_VELOCITY_LIMIT":
-        return _word_ignored(ev.params, old)
-    return LONE_M204 if _lone_m204(ev) else None
-
-
-def _word_ignored(params: dict, old: bool) -> str | None:
-    """The SET_VELOCITY_LIMIT word among ``params`` that Klipper's version does not read, named;
-    None where the line's other word says the same (:func:`_words_agree`)."""
+def _unread_word_lost(events, limits, n_moves: int) -> list[int]:
+    """The lines whose SET_VELOCITY_LIMIT word the printer's Klipper does not read loses something:
+    where a move planned after that line, before the word's next line, meets the two ages' readings
+    of the cruise rule differing (:class:`_Cruise`). ``n_moves``: the job's moves."""
+    old = limits.accel_to_decel is not None
     word = WORD_IGNORED[old]
-    return f"SET_VELOCITY_LIMIT {word}" if word in params and not _words_agree(params) else None
+    cruise = _Cruise(limits.accel, limits.accel_to_decel if old else None, None if old else limits.min_cruise_ratio)
+    ruled = [ev for ev in events if ev.command in ("SET_VELOCITY_LIMIT", "M204")]
+    lost: list[int] = []
+    line = None                                   # the word's latest line
+    for ev, nxt in zip(ruled, [*ruled[1:], None]):
+        if ev.command == "SET_VELOCITY_LIMIT" and word in ev.params:
+            line = int(ev.line)
+        cruise.take(ev)
+        moves_follow = (nxt.move if nxt is not None else n_moves) > ev.move
+        if line is not None and moves_follow and not cruise.agrees() and line not in lost:
+            lost.append(line)
+    return lost
 
 
-def _words_agree(params: dict) -> bool:
-    """Whether a SET_VELOCITY_LIMIT line's ACCEL_TO_DECEL is its ACCEL × (1 − its MINIMUM_CRUISE_RATIO)
-    (to 1 mm/s²), Klipper's own rule between the two: a line written for Klippers of both ages (as
-    ``ringtune rewrite`` writes it) runs the same on either, and the word one does not read loses
-    nothing."""
+class _Cruise:
+    """Klipper's cruise rule as the job has set it so far, read both ways: the acceleration (mm/s²,
+    ACCEL or M204), ACCEL_TO_DECEL (mm/s², what a Klipper from before 2024 reads) and
+    MINIMUM_CRUISE_RATIO (what a current one reads); each the job's last word, else the printer's, None
+    where the printer's age has no such setting and the job has not set it."""
+
+    def __init__(self, accel: float, accel_to_decel: float | None, ratio: float | None):
+        self.accel, self.accel_to_decel, self.ratio = float(accel), accel_to_decel, ratio
+
+    def take(self, ev) -> None:
+        """The acceleration and cruise words of ``ev`` (SET_VELOCITY_LIMIT or M204)."""
+        p = ev.params
+        words = ({"ACCEL": _m204_accel(p)} if ev.command == "M204" else
+                 {k: _number(p.get(k)) for k in ("ACCEL", "ACCEL_TO_DECEL", "MINIMUM_CRUISE_RATIO")})
+        self.accel = words["ACCEL"] or self.accel
+        for key, attr in (("ACCEL_TO_DECEL", "accel_to_decel"), ("MINIMUM_CRUISE_RATIO", "ratio")):
+            if words.get(key) is not None:
+                setattr(self, attr, words[key])
+
+    def agrees(self) -> bool:
+        """Whether both readings give the same hill: ACCEL_TO_DECEL (capped at the acceleration, as
+        Klipper caps it) = the acceleration × (1 − MINIMUM_CRUISE_RATIO), to 1 mm/s² — Klipper's own
+        rule between the two; true while either is unset (the printer's own rules)."""
+        if self.accel_to_decel is None or self.ratio is None:
+            return True
+        return abs(min(self.accel_to_decel, self.accel) - self.accel * (1.0 - self.ratio)) <= 1.0
+
+
+def _m204_accel(params: dict) -> float | None:
+    """The acceleration (mm/s²) Klipper's M204 sets: S, else the lower of P and T where both are given."""
+    accel = _number(params.get("S"))
+    if accel is None and {"P", "T"} <= set(params):
+        accel = min(_number(params["P"]) or 0.0, _number(params["T"]) or 0.0) or None
+    return accel
+
+
+def _number(value) -> float | None:
+    """``value`` as a float, None where it is absent or not a number."""
     try:
-        accel, atd, ratio = (float(params[k]) for k in ("ACCEL", "ACCEL_TO_DECEL", "MINIMUM_CRUISE_RATIO"))
-    except (KeyError, TypeError, ValueError):
-        return False
-    return abs(atd - accel * (1.0 - ratio)) <= 1.0
+        return float(value)
+    except (TypeError, ValueError):
+        return None
 
 
 def _lone_m204(ev) -> bool:

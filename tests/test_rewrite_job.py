@@ -27,6 +27,7 @@ from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import FeatureCommands
 from ringtune.shaping.features import feature_class
 from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.klipper_ignores import klipper_ignored
 from ringtune.shaping.planner import MachineLimits
 from ringtune.shaping.layers import layer_starts
 from ringtune.shaping.rewrite import rewrite_job
@@ -409,3 +410,24 @@ def test_one_acceleration_replacing_the_jobs_own_is_judged_as_the_file_runs_it(f
     assert plan.moves.duration[walls].tolist() == pytest.approx([1 + 100 / 1000, 1 + 100 / 4000], rel=1e-12)
     assert done.config_s == pytest.approx(plan.print_time, rel=1e-12)
     assert done.after_s == pytest.approx(done.config_s, rel=1e-12) and done.first_layer == 1000.0
+
+
+@pytest.mark.parametrize("old", [False, True], ids=["Klipper since 2024", "Klipper before 2024"])
+def test_a_klipper_rewrite_loses_no_word_on_either_age(data_dir, old):
+    """Where every group shares the corner rule, the rewrite writes MINIMUM_CRUISE_RATIO once and
+    ACCEL_TO_DECEL beside each ACCEL: together they say the same on either Klipper, so nothing of
+    ringtune's own file is named as not acted on (a tune of the Cura job named the first ACCEL line)."""
+    path = data_dir / "gcode/fastlb_cura_um2/platte_klein_cut.gcode"
+    cfg = TuneConfig(firmware="klipper", accel=3300.0, feature_accel={"infill": 3300.0, "travel": 3300.0},
+                     corner=8.0, min_cruise_ratio=0.5, feature_corner={"infill": 8.0},
+                     feature_min_cruise_ratio={"infill": 0.5})
+    printer = replace(load_printer(None), limits_dict={
+        "accel": 3000, "velocity": 300, "junction": "scv", "min_cruise_ratio": 0.25,
+        **({"accel_to_decel": 1000.0} if old else {})})
+    done = rewrite_gcode_bytes(path.read_bytes(), cfg, printer, str(path))
+    text = done.data.decode()
+    assert "MINIMUM_CRUISE_RATIO=0.5" in text and "ACCEL=3300 ACCEL_TO_DECEL=1650" in text
+    assert klipper_ignored(read_gcode(text), printer.limits) == {}
+    # a word that disagrees with what is in effect is still named
+    bad = text.replace("ACCEL=3300 ACCEL_TO_DECEL=1650", "ACCEL=3300 ACCEL_TO_DECEL=3000", 1)
+    assert klipper_ignored(read_gcode(bad), printer.limits) != {}
