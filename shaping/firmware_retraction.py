@@ -1,9 +1,11 @@
 """Firmware retraction: ``G10`` and ``G11`` without parameters ask the printer to retract and restore
 the filament by its own settings — Klipper's ``[firmware_retraction]`` (``SET_RETRACTION``; no
 section: an unknown command, nothing moves), Marlin's M207/M208 (FWRETRACT), RepRapFirmware's M207
-(``G10`` with ``P`` or ``L`` is RRF's tool offset or temperature, not a retraction). The length and
-speeds are the printer's, not in the file, so the planner plans these E-only moves as taking no
-time; this counts them and says what that leaves out (s)."""
+(``G10`` with ``P`` or ``L`` is RRF's tool offset or temperature, not a retraction). Each is an
+E-only move, so the head comes to rest there as at a slicer's own retraction (the reader sets
+``stop_before``, :func:`is_firmware_retraction`). The length and speeds are the printer's, not in
+the file, so the planner plans these moves as taking no time; this counts them and says what that
+leaves out (s)."""
 
 from __future__ import annotations
 
@@ -11,12 +13,18 @@ from __future__ import annotations
 EXAMPLE_MM, EXAMPLE_OUT_MM_S, EXAMPLE_BACK_MM_S = 1.0, 20.0, 10.0
 
 
+def is_firmware_retraction(command: str, words) -> bool:
+    """Whether ``command`` with ``words`` (its letters) retracts or restores by the printer's own
+    settings: ``G10``/``G11`` without ``P`` or ``L``."""
+    return command in ("G10", "G11") and not {"P", "L"} & set(words)
+
+
 def firmware_retractions(job) -> dict[str, list[int]]:
     """{``"G10"`` / ``"G11"``: the job's line numbers, in order} of its firmware retractions and
     restores (a parsed :class:`ringtune.shaping.job.Job`); empty when it has none."""
     out: dict[str, list[int]] = {}
     for ev in job.events:
-        if ev.command in ("G10", "G11") and not {"P", "L"} & set(ev.params):
+        if is_firmware_retraction(ev.command, ev.params):
             out.setdefault(ev.command, []).append(int(ev.line))
     return out
 
@@ -30,5 +38,5 @@ def firmware_retraction_note(found: dict[str, list[int]]) -> str | None:
     parts = ", ".join(f"{cmd} ×{len(lines)} (first on line {lines[0]})" for cmd, lines in sorted(found.items()))
     return (f"the job retracts by firmware — {parts}: the length and speeds are the printer's (Klipper's "
             "[firmware_retraction], Marlin's M207/M208, RRF's M207), not in the file, so these moves are planned "
-            f"as taking no time; at {EXAMPLE_MM:g} mm out at {EXAMPLE_OUT_MM_S:g} mm/s and back at "
+            f"as stops that take no time; at {EXAMPLE_MM:g} mm out at {EXAMPLE_OUT_MM_S:g} mm/s and back at "
             f"{EXAMPLE_BACK_MM_S:g} mm/s they would add {each:.2f} s each, {n * each:.1f} s in all")

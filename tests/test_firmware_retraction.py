@@ -1,7 +1,8 @@
 """Firmware retraction said aloud: G10/G11 without parameters (the real Cura UltiGCode job retracts
 only so) are counted with their lines, RRF's G10 P/L (tool offsets, temperatures) is not a
-retraction, and plan says the moves are planned as taking no time, with the sum its example
-settings would add: 1 mm at 20 mm/s out and 10 mm/s back, 0.05 + 0.1 s each."""
+retraction, and plan says the moves are planned as stops that take no time, with the sum its
+example settings would add: 1 mm at 20 mm/s out and 10 mm/s back, 0.05 + 0.1 s each. Each is an
+E-only move, so the head comes to rest there, as at a slicer's own retraction."""
 
 from __future__ import annotations
 
@@ -12,6 +13,9 @@ from ringtune.agents.tune.job import job_accel_facts
 from ringtune.envs.printer import load_printer
 from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions
 from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.planner import MachineLimits, plan
+
+import pytest
 
 
 def test_the_cura_job_retracts_by_firmware_and_plan_says_what_that_leaves_out(data_dir, capsys):
@@ -24,7 +28,7 @@ def test_the_cura_job_retracts_by_firmware_and_plan_says_what_that_leaves_out(da
     res = json.loads(capsys.readouterr().out)
     assert res["firmware_retraction"] == want
     note = res["firmware_retraction_note"]
-    assert "planned as taking no time" in note and f"{4 * (1 / 20 + 1 / 10):.1f} s in all" in note
+    assert "planned as stops that take no time" in note and f"{4 * (1 / 20 + 1 / 10):.1f} s in all" in note
 
 
 def test_rrf_tool_offsets_are_not_retractions_and_a_job_without_any_says_nothing():
@@ -40,3 +44,17 @@ def test_tune_says_it_too(tmp_path):
     path.write_text("M83\n;TYPE:External perimeter\nG1 X20 Y0 E1 F6000\nG10\nG1 X20 Y20 F9000\nG11\nG1 X0 Y20 E1\n")
     notes = job_accel_facts(load_printer(None), str(path), "respect").notes("respect", None)
     assert [n for n in notes if n.startswith("the job retracts by firmware — G10 ×1 (first on line 4), G11 ×1")]
+
+
+@pytest.mark.parametrize("between, rests", [("G10", True), ("G11", True),
+                                            ("G10 P0 S210", False), ("G10 L2 P1 X5", False), ("", False)])
+def test_the_head_comes_to_rest_at_a_firmware_retraction_as_at_a_slicers_own(between, rests):
+    """Two 20 mm moves in a line at 50 mm/s, 1000 mm/s²: straight through, d/v + v/a for both
+    (0.85 s); at rest between them, twice that move's own d/v + v/a (0.9 s) — as a slicer's E-only
+    retraction gives, and RRF's G10 with P or L (a tool's offset or temperature) does not."""
+    text = f"M83\nG1 X0 Y0 F3000\nG1 X20 Y0 E1 F3000\n{between}\nG1 X40 Y0 E1\n"
+    lim = MachineLimits(accel=1000.0, velocity=300.0, junction="scv", square_corner_velocity=5.0,
+                        min_cruise_ratio=0.0)
+    d, v, a = 20.0, 50.0, 1000.0
+    want = 2 * (d / v + v / a) if rests else 2 * d / v + v / a
+    assert plan(read_gcode(text), lim).print_time == pytest.approx(want, rel=1e-9)
