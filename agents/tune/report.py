@@ -39,9 +39,10 @@ from ringtune.shaping.firmware import Firmware
 from ringtune.shaping.smoothers import takes_damping
 
 
-def describe(cfg) -> str:
+def describe(cfg, per_feature: bool = True) -> str:
     """One line: shapers, F, S (per axis where the axes' differ), frequency limit, acceleration and
-    the per-axis caps the configuration carries of a TuneConfig."""
+    the per-axis caps the configuration carries of a TuneConfig; then, with ``per_feature``, what it
+    sets per feature (:func:`ringtune.shaping.feature_settings.per_feature_text`)."""
     shaped = [a for a in "xy" if takes_damping(cfg.axis(a)[0])]
     dampings = {cfg.axis(a)[2] for a in shaped}
     per_axis_s = len(dampings) > 1
@@ -58,7 +59,7 @@ def describe(cfg) -> str:
                  f"freq limit {cfg.freq_limit_hz:.1f} Hz ({cfg.freq_limit_method})")
     caps = ", ".join(f"{a.upper()} {c:.0f}" for a, c in zip("xy", cfg.axis_caps) if c is not None)
     parts.append((f"accel {cfg.accel:.0f} mm/s²" if cfg.accel else "printer's accel")
-                 + (f" (axis caps {caps})" if caps else "") + per_feature_text(cfg))
+                 + (f" (axis caps {caps})" if caps else "") + (per_feature_text(cfg) if per_feature else ""))
     return ", ".join(parts)
 
 
@@ -94,15 +95,22 @@ _COLUMNS = {"ripple_mm": "ripple µm", "ripple_p90_mm": "p90 µm", "corner_in_mm
 
 
 def front_table(front: Sequence[Point], chosen: Point, quality: str) -> str:
-    """The front as text: time, then the visible measures the points have (µm, %), then the configuration."""
+    """The front as text: time, then the visible measures the points have (µm, %), then the
+    configuration. What most rows set per feature (the study samples the shapers and the visible
+    walls' acceleration; the rest is the same on every trial) is said once above the table, and
+    only a row that sets otherwise says its own."""
     keys = [k for k in VISIBLE_KEYS if k in (front[0].metrics if front else {})] or \
         list(dict.fromkeys((quality, "path_error_mm")))
     head = "".join(f" {_COLUMNS.get(k, QUALITY_LABEL.get(k, k) + ' µm'):>12}" for k in keys)
-    lines = [f"  {'':2}{'time s':>8}{head}  configuration"]
-    for p in front:
+    texts = [per_feature_text(p.config) for p in front]
+    common, count = Counter(texts).most_common(1)[0] if texts else ("", 0)
+    common = common if count > 1 else ""
+    lines = [f"  per feature, unless a row says otherwise: {common[2:-1]}"] if common else []
+    lines.append(f"  {'':2}{'time s':>8}{head}  configuration")
+    for p, text in zip(front, texts):
         mark = "*" if p is chosen else " "
         vals = "".join(f" {_num(p, k):>12}" for k in keys)
-        lines.append(f"  {mark:2}{p.print_time_s:8.3f}{vals}  {describe(p.config)}")
+        lines.append(f"  {mark:2}{p.print_time_s:8.3f}{vals}  {describe(p.config, per_feature=text != common)}")
     return "\n".join(lines)
 
 
