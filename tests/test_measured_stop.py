@@ -10,8 +10,10 @@ from types import SimpleNamespace
 import pytest
 
 from ringtune.agents.tune.pareto import point_from_metrics
+from ringtune.agents.tune.refine import declined_if_same_time
+from ringtune.agents.tune.shaper_ladder import Ladder
 from ringtune.agents.tune.space import default_space
-from ringtune.agents.tune.stop import Bounds, measured_stop, next_accels
+from ringtune.agents.tune.stop import MIN_STEP_SAVING, Bounds, measured_stop, next_accels
 from ringtune.envs.printer import load_printer
 from ringtune.shaping.config import TuneConfig
 
@@ -76,8 +78,6 @@ def test_a_step_that_buys_under_the_least_saving_is_not_taken(space, c):
     step saves c/a·(1 − a/a′) ≈ 0.01 s, under MIN_STEP_SAVING (0.05 %, 0.5 s) of the print time, so
     the stop stays at 5000 mm/s² and says print time stops it; with c = 1e6 every step saves ~10 s
     and it climbs to the ripple's top as before."""
-    from ringtune.agents.tune.stop import MIN_STEP_SAVING
-
     def metrics(cfg):
         return SimpleNamespace(**{**vars(_metrics(cfg)), "print_time_s": 1000.0 + c / float(cfg.accel)})
 
@@ -92,3 +92,48 @@ def test_a_step_that_buys_under_the_least_saving_is_not_taken(space, c):
         assert "print time falls by less than 0.05 %" in stop.sentence
     else:
         assert c == 1e6 and stop.point.config.accel == _highest_step_within(space) and stop.kind == "measure"
+
+
+@pytest.mark.parametrize("c, taken", [(7e4, False), (1e6, True)])
+def test_a_ladder_and_stop_that_end_no_faster_by_the_resolution_are_not_taken(space, c, taken):
+    """A job whose print time is 1000 s + c/a. With c = 70 000 the 5 % steps from 5500 mm/s² save
+    about c·0.05/a ≈ 0.5–0.6 s each, at least MIN_STEP_SAVING (0.05 %), so the stop climbs; but from
+    the study's choice at 5000 the whole climb saves c·(1/5000 − 1/a_end) < 4 s, under the 0.5 %
+    (5.07 s) the summary calls the same time: the study's choice stays, and the stop and the ladder
+    (which had moved to 5500 mm/s²) keep where they ended as ``declined``. With c = 1e6 the climb
+    saves ~57 s: taken."""
+    def metrics(cfg):
+        m = _metrics(cfg)
+        m.print_time_s = 1000.0 + c / float(cfg.accel)
+        m.motor_load = float(cfg.accel) / 10000.0
+        return m
+
+    def point(accel):
+        cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=54.2, freq_y=42.7, damping_x=0.15, damping_y=0.15,
+                         accel=accel)
+        return point_from_metrics(cfg, metrics(cfg), max_path_error_mm=0.1, max_motor_load=0.8,
+                                  max_show_through_mm=0.2)
+
+    before, rung = point(5000.0), point(5500.0)
+    ladder = Ladder(rung, before, tried=[("mzv @ 54.2 Hz", 5500.0)], evaluations=1, offered=1, first_rung=5500.0)
+    stop = measured_stop(rung, {"klipper": before}, lambda cs: [metrics(x) for x in cs], space, BOUNDS,
+                         labels={"klipper": "Klipper's rule"})
+    end = stop.point
+    assert stop.moved and end.config.accel > 5500.0
+    saved = before.print_time_s - end.print_time_s
+    assert (saved < 0.005 * before.print_time_s) == (not taken)
+    ladder2, stop2 = declined_if_same_time(before, ladder, stop)
+    if taken:
+        assert (ladder2, stop2) == (ladder, stop) and stop2.declined is None and ladder2.declined is None
+        return
+    assert stop2.point is before and not stop2.moved and stop2.declined is end and stop2.kind == "same time"
+    assert ladder2.point is before and not ladder2.moved and ladder2.declined is rung
+    assert stop2.sentence == (
+        f"Not raised: the shaper ladder and the measured stop ended at {end.config.accel:.0f} mm/s² "
+        f"({end.print_time_s:.3f} s from {before.print_time_s:.3f} s), a saving under the 0.5 % that counts as "
+        f"faster, for motor load {end.config.accel / 100:.0f} % against 50 %: kept at 5000 mm/s², as the study chose.")
+    assert "not taken" in ladder2.sentence() and "5500 mm/s²" in ladder2.sentence()
+    d = stop2.to_dict()
+    assert d["moved"] is False and d["declined_accel"] == end.config.accel
+    assert d["declined_print_time_s"] == pytest.approx(end.print_time_s)
+    assert ladder2.to_dict()["declined_config"]["accel"] == 5500.0

@@ -117,7 +117,9 @@ front only without a usable baseline; --pick knee|fastest-at-baseline-quality|we
 Then each shaper Klipper's rule fits climbs higher accelerations at its frequency and above,
 designed for more damping (the shaper ladder: the rule's max_accel, measured), and the fastest that
 keeps every measure becomes the choice. Then its acceleration is stepped up 5 % at a time with the
-same judgement until a measure gets worse or a bound binds (the summary names it, with both values).
+same judgement until a measure gets worse or a bound binds (the summary names it, with both values);
+where the ladder and the stop together end less than 0.5 % faster than the study's choice (the same
+time), neither is taken and the summary says where they ended.
 The study's choice, the ladder, the stop and the walk also simulate what they take on three printers
 further off the model than the twins (resonances ×0.85, ×1 and ×1.15 at half the damping), each
 alone: what is worse there than the baselines is not taken (the study's choice gives way to a slower

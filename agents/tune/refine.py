@@ -9,7 +9,9 @@
    :mod:`ringtune.agents.tune.wider`, replaces the choice.
 2. The measured stop (:mod:`ringtune.agents.tune.stop`): the acceleration stepped up 5 % at a time
    (and each shaper frequency 2 % either way where a step fails) until a measure is worse, on the
-   judged printers or on the wider ones.
+   judged printers or on the wider ones. Where the ladder and the stop together end less than the
+   print-time resolution (0.5 %) faster than the study's choice, neither is taken
+   (:func:`declined_if_same_time`).
 3. Per feature, the walk where nobody looks (:mod:`ringtune.agents.tune.hidden_raise`), each step
    held on the wider printers too.
 
@@ -30,7 +32,7 @@ from ringtune.agents.tune.baselines import Baselines
 from ringtune.agents.tune.hidden_raise import Raise, raise_hidden
 from ringtune.agents.tune.choice import BASELINE_NAMES, Choice
 from ringtune.agents.tune.shaper_ladder import Ladder, climb, shaping_text
-from ringtune.agents.tune.pareto import Point
+from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution
 from ringtune.agents.tune.space import SearchSpace
 from ringtune.agents.tune.stop import Bounds, Stop, failure_words, measured_stop
 from ringtune.agents.tune.study import DEFAULT_EVALUATOR, StudySettings, evaluator_kwargs
@@ -80,6 +82,7 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
                 f"{choice.sentence}; but that is worse on a printer further off the model "
                 f"({failure_words(off, names.get(off.baseline, off.baseline))}), so the choice starts from {then}"))
         step("climbing the shapers of Klipper's rule's table ...")
+        before = choice
         ladder = climb(choice.point, bases, evaluate, space, bounds, bl.fits, max_evaluations=settings.n_trials,
                        screen=exact, wider=widen(bases, choice.point))
         if ladder.moved:
@@ -94,6 +97,9 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
             choice = dataclasses.replace(choice, point=stop.point, sentence=(
                 f"{choice.sentence}; then stepped up by the measured stop from {stop.start.config.accel:.0f} to "
                 f"{stop.point.config.accel:.0f} mm/s², every visible measure still no worse"))
+        ladder, stop = declined_if_same_time(before.point, ladder, stop)
+        if stop.declined is not None:
+            choice = before
     else:
         bases = {"choice": choice.point}
     lift = None
@@ -113,6 +119,33 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
                 f"{choice.sentence}; then the features nobody sees raised toward their tops, no visible "
                 f"measure worse {held}"))
     return choice, stop, lift, ladder
+
+
+def declined_if_same_time(before: Point, ladder: Ladder, stop: Stop, res: Resolution = DEFAULT_RESOLUTION
+                          ) -> tuple[Ladder, Stop]:
+    """(ladder, stop) as they ended; or, where together they end less than the print-time resolution
+    faster than ``before`` (the study's choice they climbed from; 0.5 %: what the summary calls the
+    same time), both put back there, with ``declined`` where they ended and the stop's sentence
+    saying so: the acceleration everyone sees raised for a saving nobody would notice spends motor
+    load and the visible measures' margin (each held only at the resolution) for nothing, as the
+    walk where nobody looks declines it (:func:`ringtune.agents.tune.hidden_raise._worth_it`)."""
+    end = stop.point
+    t0, t1 = before.print_time_s, end.print_time_s
+    if end is before or t0 - t1 >= res.tolerance("print_time_s", t0, t1):
+        return ladder, stop
+    if ladder.moved:
+        ladder = dataclasses.replace(ladder, point=ladder.start, declined=ladder.point)
+    load = [p.metrics.get("motor_load", 0.0) * 100 for p in (end, before)]
+    shaping = ("" if (end.config.axis("x"), end.config.axis("y")) == (before.config.axis("x"), before.config.axis("y"))
+               else f", {shaping_text(end.config)}")
+    sentence = (f"Not raised: the shaper ladder and the measured stop ended at {end.config.accel:.0f} mm/s²{shaping} "
+                f"({t1:.3f} s from {t0:.3f} s), a saving under the {res.time_rel * 100:g} % that counts as faster, "
+                f"for motor load {load[0]:.0f} % against {load[1]:.0f} %: kept at {before.config.accel:.0f} mm/s², "
+                "as the study chose.")
+    stop = dataclasses.replace(stop, point=before, start=before, kind="same time", key="print_time_s", baseline=None,
+                               value=t1, base_value=t0, accel=float(end.config.accel), config=end.config,
+                               sentence=sentence, variant=None, declined=end)
+    return ladder, stop
 
 
 def _evaluators(evaluator: Callable, settings: StudySettings, printer) -> tuple[Callable, Callable | None]:

@@ -76,6 +76,7 @@ class Ladder:
     first_rung: float | None = None
     screened: int = 0
     held_off: int = 0        # faster passing points refused by the wider check
+    declined: Point | None = None    # its fastest, not taken: with the measured stop, no faster by the resolution
 
     @property
     def moved(self) -> bool:
@@ -97,6 +98,10 @@ class Ladder:
         n = sum(a is not None for _, a in self.tried)
         off = (f"; {self.held_off} faster one{'s' if self.held_off > 1 else ''} refused: worse on a printer "
                "further off the model" if self.held_off else "")
+        if self.declined is not None:
+            return (f"{head}: the fastest, {shaping_text(self.declined.config)} at {self.declined.config.accel:.0f} "
+                    f"mm/s² ({n} shaping{'s' if n > 1 else ''} passed a rung{off}), not taken: with the measured "
+                    "stop after it, no faster by the print-time resolution (below).")
         if not self.moved:
             return (f"{head}: none faster than the choice (" + (f"{n} passed a rung, none faster{off})." if n else
                     f"none passed the first rung, {self.first_rung:.0f} mm/s²)."))
@@ -107,6 +112,7 @@ class Ladder:
         return {"moved": self.moved, "from_accel": self.start.config.accel, "to_accel": self.point.config.accel,
                 "config": self.point.config.to_dict(), "evaluations": self.evaluations, "screened": self.screened,
                 "offered": self.offered, "held_off": self.held_off,
+                "declined_config": None if self.declined is None else self.declined.config.to_dict(),
                 "tried": [{"shaping": name, "highest_passing_accel": a} for name, a in self.tried],
                 "sentence": self.sentence()}
 

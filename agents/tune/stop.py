@@ -77,6 +77,7 @@ class Stop:
     evaluations: int = 0
     sentence: str = ""
     variant: tuple[float, float] | None = None    # where the measure is worse on one printer variant
+    declined: Point | None = None    # where the ladder and the stop ended, not taken (:func:`declined_if_same_time`)
 
     @property
     def moved(self) -> bool:
@@ -88,7 +89,9 @@ class Stop:
                 "accel": self.accel, "config": self.config.to_dict() if self.config else None,
                 "moved": self.moved, "from_accel": self.start.config.accel, "to_accel": self.point.config.accel,
                 "evaluations": self.evaluations, "sentence": self.sentence,
-                "variant": None if self.variant is None else list(self.variant)}
+                "variant": None if self.variant is None else list(self.variant),
+                "declined_accel": None if self.declined is None else self.declined.config.accel,
+                "declined_print_time_s": None if self.declined is None else self.declined.print_time_s}
 
 
 def to_beat(p: Point) -> Point:
