@@ -305,3 +305,21 @@ def test_recommend_takes_the_axis_from_the_file_name_and_says_when_it_cannot(dat
     assert "cannot tell which axis" in err and "--axes" in err and err.count("\n") == 1
     assert main(["recommend", "--json", "--accel", str(anon), "--axes", "x"]) == 0
     assert json.loads(capsys.readouterr().out)["axes"]["x"]["shaper"] == "ei"      # SOURCES.md: Klipper's pick, ei
+
+
+def test_recommend_takes_the_files_without_accel_as_identify_does(data_dir, capsys):
+    """``ringtune recommend resonances_*.csv`` (as ``identify`` takes them) is ``--accel`` with the
+    same files: the same JSON; without files or --printer it says both ways in one line."""
+    import json
+
+    from ringtune.agents.cli.main import main
+
+    d = _psd_dir(data_dir) / "bassco_ender3"
+    files = [str(d / "resonances_x_20210821_152037.csv"), str(d / "resonances_y_20210630_230110.csv")]
+    runs = []
+    for argv in (["--accel", *files], files, [files[0], "--accel", files[1]]):
+        assert main(["recommend", "--json", *argv]) == 0
+        runs.append(json.loads(capsys.readouterr().out))
+    assert runs[0] == runs[1] == runs[2] and runs[0]["config"]["shaper_x"] != "none" != runs[0]["config"]["shaper_y"]
+    assert main(["recommend"]) == 2
+    assert "give the resonance files (CSV…, or --accel CSV…" in capsys.readouterr().err

@@ -145,7 +145,7 @@ def test_cli_errors_are_one_line(capsys, tmp_path):
                        (["recommend", "--method", "policy", "--policy", str(tmp_path), "--printer", "default"],
                         "policy.zip is missing"),
                        (["train", "--envs", "0", "-o", str(tmp_path)], "--envs"),
-                       (["recommend"], "give --accel CSV"),
+                       (["recommend"], "give the resonance files (CSV…, or --accel CSV…"),
                        (["recommend", "--accel", "x.csv", "--printer", "default"], "not both"),
                        (["train", "--seed", "900000", "-o", str(tmp_path)], "--seed")):
         assert main(argv) == 2

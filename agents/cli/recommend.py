@@ -28,8 +28,8 @@ NAME = "recommend"
 DESCRIPTION = """\
 Recommend an input shaper from a resonance test, the way Klipper's calibrate_shaper does.
 
---accel takes Klipper TEST_RESONANCES files (resonances_x_*.csv, resonances_y_*.csv), calibration
-CSVs, or raw accelerometer captures; the axis comes from the file name (resonances_<axis>_...) or,
+--accel (or the files alone, as identify takes them) takes Klipper TEST_RESONANCES files
+(resonances_x_*.csv, resonances_y_*.csv), calibration CSVs, or raw accelerometer captures; the axis comes from the file name (resonances_<axis>_...) or,
 failing that, from the larger of its psd_x / psd_y columns (--axes overrides). Several files of one
 axis are fitted together. --printer runs the simulated resonance test of a modelled printer instead.
 
@@ -60,6 +60,7 @@ PARAMETER_FLAGS = {"version": "--klipper-version", "n_trials": "--refine"}
 def add_arguments(p: argparse.ArgumentParser) -> None:
     src = p.add_argument_group("what to recommend for (--accel, --printer, or both with --method policy)")
     src.add_argument("--accel", nargs="+", metavar="CSV", help="Klipper resonance / raw accelerometer CSV files")
+    src.add_argument("files", nargs="*", metavar="CSV", help="the same, without --accel (as identify takes them)")
     src.add_argument("--printer", metavar="P", help="printer TOML, or 'default': its simulated resonance test; "
                      "with --accel and --method policy, the model the starting answer is simulated on")
     p.add_argument("--method", choices=("klipper", "policy"), default="klipper",
@@ -84,9 +85,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace, out) -> int:
+    args.accel = [*(args.accel or []), *args.files] or None
     if not args.accel and not args.printer:
-        raise RingtuneError("give --accel CSV… (a measured resonance test) or --printer P (a simulated one)",
-                            "recommend")
+        raise RingtuneError("give the resonance files (CSV…, or --accel CSV…: a measured resonance test) or "
+                            "--printer P (a simulated one)", "recommend")
     if args.firmware is None:
         printer = resolve_printer(None if args.printer == "default" else args.printer) if args.printer else None
         args.firmware = target_firmware(None, printer, out.note, "ringtune recommend").name
