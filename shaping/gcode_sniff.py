@@ -55,8 +55,13 @@ def _first_code(head: bytes, text: str) -> list[str]:
     return code
 
 
+_STL = re.compile(r"^\s*(?:solid\b|facet\s+normal\b|outer\s+loop\b|vertex\s|endloop\b|endfacet\b)")
+_OBJ = re.compile(r"^\s*(?:v|vn|vt|f|o|g|s|mtllib|usemtl)\s")
+
 #: what a file whose first lines are not G-code looks like instead, tried in order
-_KINDS = (("a TOML file (a printer description? give it with --printer)", _TOML),
+_KINDS = (("an STL model (slice it first: ringtune reads the sliced job's G-code)", _STL),
+          ("an OBJ model (slice it first: ringtune reads the sliced job's G-code)", _OBJ),
+          ("a TOML file (a printer description? give it with --printer)", _TOML),
           ("a configuration file (printer.cfg?)", _CFG), ("a CSV table", _CSV))
 
 

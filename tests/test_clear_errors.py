@@ -62,6 +62,11 @@ def test_gcode_sniff_knows_real_files_from_the_data(data_dir):
     assert "CSV" in not_gcode(csv.read_bytes()[:HEAD])
     for cfg in sorted((data_dir / "klipper_config").glob("*/printer.cfg")):
         assert not_gcode(cfg.read_bytes()[:HEAD]) is not None, cfg
+    # the part's own model, before slicing: named as a model, with what to do
+    stl = (data_dir / "part" / "ringtune_part.stl").read_bytes()[:HEAD]
+    assert not_gcode(stl).startswith("looks like an STL model (slice it first")
+    obj = b"# made by hand\no cube\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1 2 3\n"
+    assert not_gcode(obj).startswith("looks like an OBJ model (slice it first")
 
 
 @pytest.mark.parametrize("argv,expected", [
