@@ -356,16 +356,23 @@ def _dense_unique(codes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.flatnonzero(present), rank[codes]
 
 
-def per_feature_text(config) -> str:
-    """What a configuration sets per feature, for one line of a report: ``" (inner_wall 11000,
-    infill 11000, travel 9100; corner 5; minimum_cruise_ratio 0.3)"`` ("" when nothing)."""
+def per_feature_words(config) -> str:
+    """What a configuration sets per feature, in words: ``"inner_wall 11000, infill 11000, travel
+    9100; corner 5; minimum_cruise_ratio 0.3"`` ("" when nothing)."""
     parts = []
     groups = accel_groups({c: a for c, a in config.feature_accel.items() if a != config.accel})
     if groups:
         parts.append(", ".join(groups))
     parts += corner_words(config.corner, config.min_cruise_ratio)
     parts += class_corner_words(config.feature_corner, config.feature_min_cruise_ratio)
-    return f" ({'; '.join(parts)})" if parts else ""
+    return "; ".join(parts)
+
+
+def per_feature_text(config) -> str:
+    """:func:`per_feature_words` for one line of a report: ``" (inner_wall 11000, …)"`` ("" when
+    nothing)."""
+    words = per_feature_words(config)
+    return f" ({words})" if words else ""
 
 
 def accel_groups(accel: dict, fmt: str = ".0f") -> list[str]:

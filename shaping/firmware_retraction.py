@@ -1,4 +1,4 @@
-"""Firmware retraction: ``G10`` and ``G11`` without parameters ask the printer to retract and restore
+"""Firmware retraction: ``G10`` and ``G11`` (without ``P`` or ``L``) ask the printer to retract and restore
 the filament by its own settings — Klipper's ``[firmware_retraction]`` (``SET_RETRACTION``; no
 section: an unknown command, nothing moves), Marlin's M207/M208 (FWRETRACT), RepRapFirmware's M207
 (``G10`` with ``P`` or ``L`` is RRF's tool offset or temperature, not a retraction). Each is an

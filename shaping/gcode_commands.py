@@ -18,6 +18,15 @@ _EXT_PARAM = re.compile(r"(\w+)\s*=\s*(\"[^\"]*\"|\S*)")
 BOUNDS = {"X": 1e5, "Y": 1e5, "Z": 1e5, "E": 1e6, "I": 1e5, "J": 1e5, "R": 1e5, "F": 1e7}
 
 
+def number_or_none(value) -> float | None:
+    """A stored word's value as a finite float; None where it is absent or not one."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
+
+
 def num(value: str, letter: str, where: str) -> float:
     """A finite, not absurdly large number from a G-code word value (else RingtuneError)."""
     try:

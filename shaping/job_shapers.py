@@ -33,6 +33,7 @@ from ringtune.shaping.apply import shape_motion
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.gcode_commands import number_or_none
 from ringtune.shaping.job import STOP_COMMANDS
 from ringtune.shaping.layer_commands import PRUSA_WEIGHT_ADJUST, prusa_weight_frequency
 from ringtune.shaping.motion import Motion
@@ -127,8 +128,8 @@ def weight_stops(job, config: TuneConfig) -> set[int]:
     on, out = True, set()
     for ev in job.events:
         if ev.command == "M593" and ("A" in ev.params or "M" in ev.params):
-            on = _num(ev.params.get("M")) != 0
-        elif ev.command == "M74" and on and (_num(ev.params.get("W")) or 0) > 0:
+            on = number_or_none(ev.params.get("M")) != 0
+        elif ev.command == "M74" and on and (number_or_none(ev.params.get("W")) or 0) > 0:
             out.add(ev.move)
     return out
 
@@ -140,14 +141,14 @@ def prusa_weight_note(job, firmware: str) -> str | None:
     job set the rule), and what ringtune judges instead. None otherwise."""
     if FIRMWARES[firmware].family != "prusa":
         return None
-    weights = [(ev.line, _num(ev.params.get("W"))) for ev in job.events if ev.command == "M74"]
+    weights = [(ev.line, number_or_none(ev.params.get("W"))) for ev in job.events if ev.command == "M74"]
     weights = [(line, w) for line, w in weights if w is not None]
     if not weights:
         return None
     rule = dict(zip("AM", PRUSA_WEIGHT_ADJUST))          # M593 A<Hz> M<g> set it, the last one standing
     for ev in job.events:
         if ev.command == "M593":
-            rule.update((k, _num(ev.params[k])) for k in "AM" if _num(ev.params.get(k)) is not None)
+            rule.update((k, number_or_none(ev.params[k])) for k in "AM" if number_or_none(ev.params.get(k)) is not None)
     delta, limit = rule["A"], rule["M"]
     heaviest = max(w for _l, w in weights)
     shift = prusa_weight_frequency(0.0, heaviest, delta, limit)
@@ -169,17 +170,9 @@ def foreign_shapers_note(found: dict[str, list[int]], firmware: str) -> str | No
             "are applied neither in the simulation nor in the job written (sliced for another firmware?)")
 
 
-def _num(v) -> float | None:
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        return None
-    return x if math.isfinite(x) else None
-
-
 def _indexed(table: tuple, v) -> str | None:
     """``table[int(v)]`` for a numeric ``v`` inside the table, else None."""
-    i = _num(v)
+    i = number_or_none(v)
     return table[int(i)] if i is not None and 0 <= int(i) < len(table) else None
 
 
@@ -200,7 +193,7 @@ def _klipper(cfg: dict, p: dict) -> None:
     for ax in "xy":
         kind = p.get(f"SHAPER_TYPE_{ax.upper()}", p.get("SHAPER_TYPE"))
         _set_axis(cfg, ax, str(kind).lower() if kind is not None else None,
-                  _num(p.get(f"SHAPER_FREQ_{ax.upper()}")), _num(p.get(f"DAMPING_RATIO_{ax.upper()}")))
+                  number_or_none(p.get(f"SHAPER_FREQ_{ax.upper()}")), number_or_none(p.get(f"DAMPING_RATIO_{ax.upper()}")))
 
 
 def _axes(p: dict) -> str:
@@ -212,19 +205,19 @@ def _m593(cfg: dict, p: dict) -> None:
     if "P" in p:                                     # RepRapFirmware: one shaper for all axes
         name = str(p["P"]).strip().lower().replace("-", "").replace("_", "")
         for ax in "xy":
-            _set_axis(cfg, ax, _RRF_NAMES.get(name, name), _num(p.get("F")), _num(p.get("S")))
+            _set_axis(cfg, ax, _RRF_NAMES.get(name, name), number_or_none(p.get("F")), number_or_none(p.get("S")))
         return
     kind = _indexed(_PRUSA_TYPES, p.get("T"))     # Prusa: T<type index>
     for ax in _axes(p):
-        freq = _num(p.get("F"))
+        freq = number_or_none(p.get("F"))
         shaper = kind
         if shaper is None and freq and cfg.get(f"shaper_{ax}") == "none":
             shaper = "zv"                            # Marlin classic has ZV only
-        _set_axis(cfg, ax, shaper, freq, _num(p.get("D")))
+        _set_axis(cfg, ax, shaper, freq, number_or_none(p.get("D")))
 
 
 def _m493(cfg: dict, p: dict) -> None:
-    if _num(p.get("S")) == 0:
+    if number_or_none(p.get("S")) == 0:
         for ax in "xy":
             _set_axis(cfg, ax, "none", None, None)
         return
@@ -232,7 +225,7 @@ def _m493(cfg: dict, p: dict) -> None:
         return
     kind = _indexed(_FTM_MODES, p.get("C"))
     for ax in _axes(p):
-        _set_axis(cfg, ax, kind, _num(p.get("A")), _num(p.get("I")))
+        _set_axis(cfg, ax, kind, number_or_none(p.get("A")), number_or_none(p.get("I")))
 
 
 _APPLY = {"SET_INPUT_SHAPER": _klipper, "M593": _m593, "M493": _m493}

@@ -12,6 +12,8 @@ the job's M204 in :mod:`ringtune.shaping.gcode_commands`); this says so."""
 
 from __future__ import annotations
 
+from ringtune.shaping.gcode_commands import number_or_none
+
 #: Marlin and RRF limit commands Klipper has no handler for
 KLIPPER_UNKNOWN = ("M201", "M203", "M205", "M566")
 #: how a lone M204 is named
@@ -72,7 +74,7 @@ class _Cruise:
         """The acceleration and cruise words of ``ev`` (SET_VELOCITY_LIMIT or M204)."""
         p = ev.params
         words = ({"ACCEL": _m204_accel(p)} if ev.command == "M204" else
-                 {k: _number(p.get(k)) for k in ("ACCEL", "ACCEL_TO_DECEL", "MINIMUM_CRUISE_RATIO")})
+                 {k: number_or_none(p.get(k)) for k in ("ACCEL", "ACCEL_TO_DECEL", "MINIMUM_CRUISE_RATIO")})
         self.accel = words["ACCEL"] or self.accel
         for key, attr in (("ACCEL_TO_DECEL", "accel_to_decel"), ("MINIMUM_CRUISE_RATIO", "ratio")):
             if words.get(key) is not None:
@@ -89,18 +91,10 @@ class _Cruise:
 
 def _m204_accel(params: dict) -> float | None:
     """The acceleration (mm/s²) Klipper's M204 sets: S, else the lower of P and T where both are given."""
-    accel = _number(params.get("S"))
+    accel = number_or_none(params.get("S"))
     if accel is None and {"P", "T"} <= set(params):
-        accel = min(_number(params["P"]) or 0.0, _number(params["T"]) or 0.0) or None
+        accel = min(number_or_none(params["P"]) or 0.0, number_or_none(params["T"]) or 0.0) or None
     return accel
-
-
-def _number(value) -> float | None:
-    """``value`` as a float, None where it is absent or not a number."""
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        return None
 
 
 def _lone_m204(ev) -> bool:

@@ -7,7 +7,7 @@ from __future__ import annotations
 from ringtune.agents.tune.pareto import Point
 from ringtune.agents.tune.report import describe, front_table
 from ringtune.shaping.config import TuneConfig
-from ringtune.shaping.feature_settings import per_feature_text
+from ringtune.shaping.feature_settings import per_feature_text, per_feature_words
 
 
 def _point(accel: float, t: float, **kw) -> Point:
@@ -21,11 +21,12 @@ def test_what_every_row_shares_per_feature_is_said_once_and_a_row_that_differs_s
     rows = [_point(6000.0, 90.0), _point(5000.0, 91.0), _point(4000.0, 92.0)]
     walked = _point(4000.0, 85.0, feature_accel={"infill": 12000.0, "travel": 15000.0})
     text = front_table([walked, *rows], walked, "ripple_mm").splitlines()
-    shared = per_feature_text(rows[0].config)
-    assert shared and shared != per_feature_text(walked.config)
-    assert text[0] == f"  per feature, unless a row says otherwise: {shared.strip()[1:-1]}"
+    shared = per_feature_words(rows[0].config)
+    assert shared and shared != per_feature_words(walked.config)
+    assert per_feature_text(rows[0].config) == f" ({shared})"
+    assert text[0] == f"  per feature, unless a row says otherwise: {shared}"
     body = text[2:]
-    assert len(body) == 4 and sum(shared in line for line in text) == 0
+    assert len(body) == 4 and sum(f"({shared})" in line for line in text) == 0
     assert body[0].startswith("  * ") and body[0].endswith(describe(walked.config))      # its own, whole
     for line, p in zip(body[1:], rows):
         assert line.endswith(describe(p.config, per_feature=False)) and "corner" not in line

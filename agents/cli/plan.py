@@ -8,8 +8,8 @@ Klipper does not act on, under its rule; else empty) and ``ignored_note`` (that 
 null), ``macro_calls`` ({command: [line numbers]} of the commands that are not Klipper's own —
 macros of the printer.cfg, whose commands are not in the file — where the job is read as Klipper
 reads it; else empty) and ``macro_note`` (that in words, or null), ``firmware_retraction``
-({``G10``/``G11``: [line numbers]} of the job's firmware
-retractions, planned as stops that take no time (E-only moves: the head comes to rest; their length and speeds are the printer's) and
+({``G10``/``G11``: [line numbers]} of the job's firmware retractions, planned as stops that take
+no time (E-only moves: the head comes to rest; their length and speeds are the printer's) and
 ``firmware_retraction_note`` (that in words, or null), ``print_time_s``,
 ``print_time``, ``moves``, ``extruding_moves``, ``lines``, ``path_length_mm``,
 ``time_by_feature`` ({feature: s}), ``junction_reason`` (why that junction rule, in words),

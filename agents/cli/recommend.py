@@ -29,9 +29,9 @@ DESCRIPTION = """\
 Recommend an input shaper from a resonance test, the way Klipper's calibrate_shaper does.
 
 --accel (or the files alone, as identify takes them) takes Klipper TEST_RESONANCES files
-(resonances_x_*.csv, resonances_y_*.csv), calibration CSVs, or raw accelerometer captures; the axis comes from the file name (resonances_<axis>_...) or,
-failing that, from the larger of its psd_x / psd_y columns (--axes overrides). Several files of one
-axis are fitted together. --printer runs the simulated resonance test of a modelled printer instead.
+(resonances_x_*.csv, resonances_y_*.csv), calibration CSVs, or raw accelerometer captures; the axis
+comes from the file name (resonances_<axis>_...) or, failing that, from the larger of its psd_x /
+psd_y columns (--axes overrides). Several files of one axis are fitted together. --printer runs the simulated resonance test of a modelled printer instead.
 
 --klipper-version head (default) uses current Klipper's formulas and rules; 0.13 the older ones
 (v0.13.0 and the releases of 2021-2023). --firmware aims the rule at another firmware's shapers

@@ -34,7 +34,7 @@ from ringtune.agents.tune.pareto_plot import plot_front
 from ringtune.agents.tune.readme_text import readme_text
 from ringtune.agents.tune.versus import QUALITY_LABEL, best_dominating, compare, table as versus_table, versus_all
 from ringtune.hardware.dialects import export_config, limit_command
-from ringtune.shaping.feature_settings import per_feature_text
+from ringtune.shaping.feature_settings import per_feature_text, per_feature_words
 from ringtune.shaping.firmware import Firmware
 from ringtune.shaping.smoothers import takes_damping
 
@@ -102,10 +102,10 @@ def front_table(front: Sequence[Point], chosen: Point, quality: str) -> str:
     keys = [k for k in VISIBLE_KEYS if k in (front[0].metrics if front else {})] or \
         list(dict.fromkeys((quality, "path_error_mm")))
     head = "".join(f" {_COLUMNS.get(k, QUALITY_LABEL.get(k, k) + ' µm'):>12}" for k in keys)
-    texts = [per_feature_text(p.config) for p in front]
+    texts = [per_feature_words(p.config) for p in front]
     common, count = Counter(texts).most_common(1)[0] if texts else ("", 0)
     common = common if count > 1 else ""
-    lines = [f"  per feature, unless a row says otherwise: {common[2:-1]}"] if common else []
+    lines = [f"  per feature, unless a row says otherwise: {common}"] if common else []
     lines.append(f"  {'':2}{'time s':>8}{head}  configuration")
     for p, text in zip(front, texts):
         mark = "*" if p is chosen else " "
