@@ -147,3 +147,22 @@ def test_simulate_judges_a_best_json_with_the_margin_it_was_tuned_with(tmp_path,
     assert res["freq_margin"] == 0.1 and [v["factor"] for v in res["variants"]] == [1.0, 0.9, 1.1]
     assert main(argv + ["--freq-margin", "0"]) == 0
     assert json.loads(capsys.readouterr().out)["freq_margin"] == 0
+
+
+@pytest.mark.parametrize("quality", [None, "corner_in", "overshoot"])
+def test_study_plots_what_a_person_sees_by_default_as_simulate_measures_it(tmp_path, capsys, quality):
+    """`study` plotted the whole path's overshoot by default; it now plots tune's default measure,
+    the worst visible wall's ripple (``--quality`` picks another), and each figure is the one
+    `simulate` gives for that configuration with the same judgement."""
+    argv = ["study", "--json", "--factor", "accel", "--values", "3000", "--shapers", "mzv", "--backend", "lti",
+            "-o", str(tmp_path / "a.png")] + (["--quality", quality] if quality else [])
+    assert main(argv) == 0
+    res = json.loads(capsys.readouterr().out)
+    key = f"{quality or 'ripple'}_mm"
+    row = res["shapers"]["mzv"]
+    assert res["quality"] == key
+    assert main(["simulate", "--json", "--backend", "lti", "--shaper", "mzv", "--freq", f"{row['freq_x']},{row['freq_y']}",
+                 "--accel", "3000", "--freq-margin", "5"]) == 0
+    sim = json.loads(capsys.readouterr().out)
+    assert row["quality_mm"][0] == pytest.approx(sim["metrics"][key], rel=1e-9)
+    assert row["print_time_s"][0] == pytest.approx(sim["metrics"]["print_time_s"], rel=1e-12)

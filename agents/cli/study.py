@@ -19,12 +19,15 @@ from pathlib import Path
 
 from ringtune.agents.cli.common import GCODE_JOB_HELP, firmware_name, gcode_job, judgement, say_unmeasured
 from ringtune.agents.cli.options import VALUES, number_list
+from ringtune.agents.tune.pareto import words
 from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 from ringtune.agents.tune.sweep import (FACTORS, factor_values, offered_shapers, plot_sweep, sweep,
     tuned_frequencies, write_csv)
 from ringtune.envs.planned_job import resolve_printer
 
 NAME = "study"
+#: the --quality choices: a visible measure or a whole-path one, in mm (``<name>_mm`` of the metrics)
+STUDY_QUALITIES = ("ripple", "ripple_p90", "corner_in", "corner_out", "overshoot", "path_error")
 DESCRIPTION = """\
 Sweep one factor and see how every shaper of the firmware responds, in print time and quality:
 
@@ -34,10 +37,13 @@ Sweep one factor and see how every shaper of the firmware responds, in print tim
 
 Each shaper is tuned first (Klipper's rule on the printer's simulated resonance test) and then
 the factor is varied. Quality is judged as `ringtune tune` judges it, the worst of the model and
-of its resonances --freq-margin per cent lower and higher with damping ×0.75 (default 5), except for freq-error,
-whose sweep itself moves the shaper against the resonances: that one judges the exact model unless
---freq-margin is given. The output says which. Writes a PNG (two panels: print time and quality against the factor, one
-line per shaper) and a CSV.
+of its resonances --freq-margin per cent lower and higher with damping ×0.75 (default 5), except for
+freq-error, whose sweep itself moves the shaper against the resonances: that one judges the exact
+model unless --freq-margin is given. The output says which. --quality picks the measure: ripple (the
+default, as tune's: the worst visible wall's peak-to-peak ripple), ripple_p90 (its 90th
+percentile), corner_in / corner_out (the visible corners' rounding / overshoot), overshoot or
+path_error (the whole path's, hidden features included). Writes a PNG (two panels: print time and
+the measure against the factor, one line per shaper) and a CSV.
 
 examples:
   ringtune study --factor freq-error
@@ -55,7 +61,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"G-code job, {GCODE_JOB_HELP} (default: the built-in test print)")
     p.add_argument("--firmware", type=firmware_name, default="klipper", help="target firmware (default klipper)")
     p.add_argument("--shapers", metavar="S1,S2", help="shapers to compare (default: all the firmware offers)")
-    p.add_argument("--quality", choices=("overshoot", "path_error"), default="overshoot")
+    p.add_argument("--quality", choices=STUDY_QUALITIES, default="ripple",
+                   help="the measure plotted against the factor (default ripple, as tune)")
     p.add_argument("--backend", choices=("mujoco", "lti"), default="mujoco")
     p.add_argument("--freq-margin", metavar="PCT", type=VALUES["margin_percent"], default=None,
                    help="judge also with every resonance PCT %% lower and higher, the worst counts (default "
@@ -94,7 +101,7 @@ def run(args: argparse.Namespace, out) -> int:
 def _text(args, name: str, values, results: dict, quality: str, judged: str) -> str:
     """The sweep as a table: per shaper and factor value, quality (µm) / print time (s), ! for lost steps."""
     label, unit, _ = FACTORS[args.factor]
-    word = quality.replace("_mm", "").replace("_", " ")
+    word = words(quality)[0]
     lines = [f"{label} ({unit}) sweep on {name}, {args.firmware}; {word} in µm / print time in s; "
              f"quality judged {judged}:",
              "  " + f"{'shaper':10}" + "".join(f"{v:>10g} " for v in values)]

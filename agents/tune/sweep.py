@@ -20,6 +20,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ringtune.agents.klipper.baseline import klipper_rule_on_simulated_test
+from ringtune.agents.tune.pareto import words
 from ringtune.agents.tune.space import checked_shapers
 from ringtune.envs.evaluate import evaluate_many
 from ringtune.shaping.config import TuneConfig
@@ -151,12 +152,12 @@ def plot_sweep(path: str | Path, factor: str, values: list[float], results: dict
         if bad.size:
             a2.scatter(np.take(xs, bad), np.take(r.quality_mm, bad), marker="x", c="red", zorder=5)
     a1.set_ylabel("print time (s)")
-    a2.set_ylabel(f"{quality.replace('_mm', '').replace('_', ' ')} (mm)")
+    a2.set_ylabel(f"{words(quality)[0]} (mm)")
     a2.set_xlabel(f"{label} ({shown})")
     for a in (a1, a2):
         a.grid(True, alpha=0.3)
     a1.legend(fontsize=8, ncol=4)
-    a1.set_title(f"{label}: {title}  (red x = lost steps)", fontsize=10)
+    a1.set_title(f"{label}: {title}\n(red x = lost steps)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
