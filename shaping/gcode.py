@@ -17,7 +17,7 @@ as an event of kind ``other`` (never an error). Slicer feature comments (``;TYPE
 G90/G91 set XYZ and E together as Marlin and RRF do (Klipper's G90 leaves an M83 in force; slicers
 write M82/M83 after G90, so real jobs read the same). Commands that make a firmware drain its queue (``G4``, ``G28``, ``G29``, ``M400``, ``M109``,
 ``M190``, ``M0/M1``, ``M600``, shaper changes) and a firmware retraction (``G10``/``G11`` without P
-or L: an E-only move) set ``stop_before`` on the next move: the planner
+or L that retracts or restores: an E-only move) set ``stop_before`` on the next move: the planner
 comes to rest there.
 
 The commands' handlers are mixins of the reader: settings and firmware extensions in
@@ -41,7 +41,7 @@ from typing import Iterable
 import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.firmware_retraction import is_firmware_retraction
+from ringtune.shaping.firmware_retraction import RetractionState
 from ringtune.shaping.gcode_file import open_lines, read_head, refuse_non_gcode
 from ringtune.shaping.gcode_sniff import HEAD
 from ringtune.shaping.job import (LIMIT_COMMANDS, SETTING_KEYS, SHAPER_COMMANDS, STOP_COMMANDS,
@@ -122,6 +122,7 @@ class _Reader(SettingCommands, MotionCommands):
         self.settings_dirty = False
         self.stop = True
         self.dwell = 0.0
+        self.retraction = RetractionState()     # a firmware retraction moves E only when it changes it
         self.tower: tuple | None = None        # active Klipper TUNING_TOWER
         self.tower_z = math.nan
         self.tower_value = math.nan
@@ -323,7 +324,7 @@ class _Reader(SettingCommands, MotionCommands):
             self.stop = True
             self._event("shaper", cmd, words, lineno, code)
         else:
-            if cmd in STOP_COMMANDS or is_firmware_retraction(cmd, words):
+            if cmd in STOP_COMMANDS or self.retraction.moves(cmd, words):
                 self.stop = True
             self._event("other", cmd, words, lineno, code)
 

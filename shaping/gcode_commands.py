@@ -127,6 +127,8 @@ class SettingCommands:
             self.stop = True
             self._event("shaper", cmd, params, lineno, code)
         else:
+            if cmd == "SET_RETRACTION":
+                self.retraction.reset()
             self._event("other", cmd, params, lineno, code)
 
     def _velocity_limit(self, params: dict, where: str) -> None:

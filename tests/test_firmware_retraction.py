@@ -46,15 +46,40 @@ def test_tune_says_it_too(tmp_path):
     assert [n for n in notes if n.startswith("the job retracts by firmware — G10 ×1 (first on line 4), G11 ×1")]
 
 
-@pytest.mark.parametrize("between, rests", [("G10", True), ("G11", True),
+@pytest.mark.parametrize("between, rests", [("G10", True), ("G11", False),
                                             ("G10 P0 S210", False), ("G10 L2 P1 X5", False), ("", False)])
 def test_the_head_comes_to_rest_at_a_firmware_retraction_as_at_a_slicers_own(between, rests):
     """Two 20 mm moves in a line at 50 mm/s, 1000 mm/s²: straight through, d/v + v/a for both
     (0.85 s); at rest between them, twice that move's own d/v + v/a (0.9 s) — as a slicer's E-only
-    retraction gives, and RRF's G10 with P or L (a tool's offset or temperature) does not."""
+    retraction gives; a G11 with nothing retracted, and RRF's G10 with P or L (a tool's offset or
+    temperature), do not."""
     text = f"M83\nG1 X0 Y0 F3000\nG1 X20 Y0 E1 F3000\n{between}\nG1 X40 Y0 E1\n"
     lim = MachineLimits(accel=1000.0, velocity=300.0, junction="scv", square_corner_velocity=5.0,
                         min_cruise_ratio=0.0)
     d, v, a = 20.0, 50.0, 1000.0
     want = 2 * (d / v + v / a) if rests else 2 * d / v + v / a
     assert plan(read_gcode(text), lim).print_time == pytest.approx(want, rel=1e-9)
+
+
+def test_a_retraction_while_retracted_or_a_restore_while_not_moves_nothing():
+    """The firmwares keep whether the filament is retracted (Klipper's is_retracted, Marlin's
+    retracted[]): a second G10, or a G11 with nothing retracted, moves nothing, so the head goes
+    straight through; Klipper's SET_RETRACTION clears the state. Each 20 mm move at 50 mm/s,
+    1000 mm/s²: d/v + v/a from rest to rest, d/v through."""
+    lim = MachineLimits(accel=1000.0, velocity=300.0, junction="scv", square_corner_velocity=5.0,
+                        min_cruise_ratio=0.0)
+    d, v, a = 20.0, 50.0, 1000.0
+
+    def stops(*between: str) -> int:
+        """Rests among the four junctions of five moves in a line with ``between`` before moves 2-5."""
+        text = "M83\nG1 X0 Y0 F3000\nG1 X20 Y0 E1\n" + "".join(
+            f"{b}\nG1 X{40 + 20 * i} Y0 E1\n" for i, b in enumerate(between))
+        t = plan(read_gcode(text), lim).print_time
+        n = round((t - (5 * d / v + v / a)) / (v / a))
+        assert t == pytest.approx(5 * d / v + v / a + n * v / a, rel=1e-9)
+        return n
+
+    assert stops("G10", "G11", "", "") == 2
+    assert stops("G10", "G10", "G11", "G11") == 2               # the second of each moves nothing
+    assert stops("G11", "", "", "") == 0                        # nothing retracted to restore
+    assert stops("G10", "SET_RETRACTION RETRACT_LENGTH=1", "G10", "G11") == 3
