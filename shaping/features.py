@@ -46,6 +46,24 @@ def seen_classes(present) -> frozenset:
     return LABELLED_VISIBLE if LABELLED_VISIBLE & set(present) else VISIBLE
 
 
+def nothing_seen_note(job) -> str | None:
+    """Where a parsed job (:class:`ringtune.shaping.job.Job`) extrudes only classes nobody sees (an
+    infill-only test, a support-only file): one sentence saying so, with its labels; no visible
+    measure is judged there (they all read 0). None otherwise, and for a job that extrudes nothing."""
+    d = job.end - job.start
+    extruding = (d[:, 3] > 0) & (np.hypot(d[:, 0], d[:, 1]) > 0)
+    if not extruding.any():
+        return None
+    used = np.unique(job.feature[extruding])
+    present = {feature_class(job.features[i]) for i in used}
+    if seen_classes(present) & present:
+        return None
+    labels = ", ".join(sorted({str(job.features[i]) for i in used}))
+    return (f"the job labels none of its extrusion as seen ({labels}): no visible measure (ripple, corners, "
+            "extrusion) is judged, they all read 0, so only the bounds (motor reserve, path error, show-through) "
+            "hold the acceleration")
+
+
 #: normalised label (lower case, ``-``/``_``/``/`` as spaces, single spaces) -> class; the
 #: spellings of PrusaSlicer/SuperSlicer, OrcaSlicer/Bambu Studio, Cura, Simplify3D and ideaMaker
 _EXACT = {

@@ -1,8 +1,10 @@
-"""What a firmware does otherwise than a job reads, in one place, each said once: ``tune`` and
-``simulate`` print these notes beside their figures, which are judged as the job reads."""
+"""What a firmware does otherwise than a job reads, and what the job leaves unjudged, in one place,
+each said once: ``tune`` and ``simulate`` print these notes beside their figures, which are judged
+as the job reads."""
 
 from __future__ import annotations
 
+from ringtune.shaping.features import nothing_seen_note
 from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions
 from ringtune.shaping.job_shapers import foreign_shapers, foreign_shapers_note, prusa_weight_note
 from ringtune.shaping.klipper_commands import macro_calls, macro_note
@@ -20,10 +22,11 @@ def reading_notes(job, limits, firmware: str | None) -> list[str]:
       (:func:`ringtune.shaping.job_shapers.foreign_shapers`) and, on Prusa's, the printed weight the
       job gives it (:func:`ringtune.shaping.job_shapers.prusa_weight_note`); ``firmware`` None:
       neither is said;
-    - the firmware retractions (:mod:`ringtune.shaping.firmware_retraction`)."""
+    - the firmware retractions (:mod:`ringtune.shaping.firmware_retraction`);
+    - a job that extrudes nothing a person sees (:func:`ringtune.shaping.features.nothing_seen_note`)."""
     notes = [klipper_ignored_note(klipper_ignored(job, limits)),
              macro_note(macro_calls(job)) if limits.reads_like_klipper else None,
              foreign_shapers_note(foreign_shapers(job, firmware), firmware) if firmware else None,
              prusa_weight_note(job, firmware) if firmware else None,
-             firmware_retraction_note(firmware_retractions(job))]
+             firmware_retraction_note(firmware_retractions(job)), nothing_seen_note(job)]
     return [n for n in notes if n]

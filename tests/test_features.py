@@ -11,8 +11,10 @@ from pathlib import Path
 import pytest
 
 from ringtune.shaping.features import (FEATURE_CLASSES, HIDDEN, VISIBLE, feature_class,
-                                       normalise_label)
+                                       normalise_label, nothing_seen_note)
 from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.planner import MachineLimits
+from ringtune.shaping.reading_notes import reading_notes
 
 DATA = Path(__file__).parent / "data" / "gcode"
 
@@ -84,3 +86,18 @@ def test_slicer_spellings(label, cls):
 def test_normalise_label():
     assert normalise_label("  WALL-OUTER ") == "wall outer"
     assert normalise_label("Skirt/Brim") == "skirt brim"
+
+
+def test_a_job_that_extrudes_nothing_seen_says_its_visible_measures_are_not_judged(data_dir):
+    """An infill-only file (or support-only) reads 0 on every visible measure: tune and simulate say
+    so (the reading notes) rather than let the zeros pass for quality. A job with any seen class, or
+    with unlabelled extrusion only (seen), or extruding nothing, says nothing."""
+    zigzag = "".join(f"G1 X{20 + 40 * (i % 2)} Y{20 + 0.5 * i:.1f} E0.5 F9000\n" for i in range(20))
+    hidden = read_gcode("M83\n;TYPE:Internal infill\n" + zigzag + ";TYPE:Skirt\n" + zigzag)
+    note = nothing_seen_note(hidden)
+    assert note.startswith("the job labels none of its extrusion as seen (Internal infill, Skirt)")
+    assert note in reading_notes(hidden, MachineLimits(), "klipper")
+    for text in ("M83\n;TYPE:Internal infill\n" + zigzag + ";TYPE:External perimeter\n" + zigzag,
+                 "M83\n" + zigzag, "G1 X10 Y10\nG1 X20 Y10\n"):
+        assert nothing_seen_note(read_gcode(text)) is None
+    assert nothing_seen_note(read_gcode(data_dir / "gcode/fastlb_cura_um2/platte_klein_cut.gcode")) is None
