@@ -83,3 +83,15 @@ def test_a_retraction_while_retracted_or_a_restore_while_not_moves_nothing():
     assert stops("G10", "G10", "G11", "G11") == 2               # the second of each moves nothing
     assert stops("G11", "", "", "") == 0                        # nothing retracted to restore
     assert stops("G10", "SET_RETRACTION RETRACT_LENGTH=1", "G10", "G11") == 3
+
+
+def test_tunes_summary_keeps_what_the_job_reading_leaves_out(data_dir, tmp_path, capsys):
+    """The reading notes went to the terminal only; summary.txt, what a user opens later, says them
+    too (here: the Cura job's firmware retractions)."""
+    path = data_dir / "gcode" / "fastlb_cura_um2" / "platte_klein_cut.gcode"
+    out = tmp_path / "out"
+    assert main(["tune", "--gcode", str(path), "--trials", "2", "--workers", "1", "-o", str(out)]) == 0
+    said = capsys.readouterr().err
+    note = firmware_retraction_note(firmware_retractions(read_gcode(path)))
+    assert note in said
+    assert f"{note[0].upper()}{note[1:]}." in (out / "summary.txt").read_text()

@@ -74,16 +74,16 @@ class JobAccelFacts:
             parts.append(f"SET_VELOCITY_LIMIT ACCEL={c['accel_klipper']:.0f} (or M204 S)")
         return ", ".join(parts)
 
-    def _ignored(self) -> list[str]:
-        """What the printer does otherwise than the job reads
+    def reading_notes(self) -> list[str]:
+        """What the printer does otherwise than the job reads, and what the job leaves unjudged
         (:func:`ringtune.shaping.reading_notes.reading_notes`)."""
         return reading_notes(resolve_job(self.job)[1], self.limits, self.firmware)
 
     def notes(self, mode: str, space) -> list[str]:
         """What the job's own acceleration commands do under ``mode``; first, what the printer does
-        otherwise than the job reads (:meth:`_ignored`: the limit lines and macros under Klipper's
+        otherwise than the job reads (:meth:`reading_notes`: the limit lines and macros under Klipper's
         reading, the firmware retractions)."""
-        out = self._ignored()
+        out = self.reading_notes()
         if not self.commands:
             return out
         head = f"the job sets its own accelerations ({self.described()}, mm/s²)" + (

@@ -278,7 +278,8 @@ def _report(req: TuneRequest, lim: Limits, fw: Firmware, printer, facts, space, 
         sections=[(head, lines) for head, lines in (("ACCELERATION", accel_lines), ("PER FEATURE", pf_lines),
                                                     ("THE JOB'S OWN ACCELERATIONS", ja_lines)) if lines],
         notes=_notes(floor_note, lim.st_source, lim.margin, len(settings.enqueue)) + bl.notes
-        + [f"The {n[4:]}." for n in (fw.junction_note(printer.limits.junction),) if n], export_firmware=fw.name,
+        + [f"The {n[4:]}." for n in (fw.junction_note(printer.limits.junction),) if n]
+        + [f"{n[0].upper()}{n[1:]}." for n in (facts.reading_notes() if req.gcode else [])], export_firmware=fw.name,
         max_show_through_mm=lim.max_st, baseline_binding=baseline_binding,
         best_extra={"job_accel": req.job_accel, "freq_margin": lim.margin, "motor_reserve": lim.reserve,
                     "max_path_error_mm": lim.max_pe,
