@@ -3,9 +3,9 @@ the filament by its own settings — Klipper's ``[firmware_retraction]`` (``SET_
 section: an unknown command, nothing moves), Marlin's M207/M208 (FWRETRACT), RepRapFirmware's M207
 (``G10`` with ``P`` or ``L`` is RRF's tool offset or temperature, not a retraction). Each is an
 E-only move, so the head comes to rest there as at a slicer's own retraction (the reader sets
-``stop_before``, :class:`RetractionState`: not at a G10 while retracted, nor a G11 while not). The length and speeds are the printer's, not in
-the file, so the planner plans these moves as taking no time; this counts them and says what that
-leaves out (s)."""
+``stop_before``, :class:`RetractionState`: not at a G10 while retracted, nor a G11 while not). The
+length and speeds are the printer's, not in the file, so the planner plans these moves as taking no
+time; this counts them and says what that leaves out (s)."""
 
 from __future__ import annotations
 
@@ -43,10 +43,14 @@ class RetractionState:
 
 def firmware_retractions(job) -> dict[str, list[int]]:
     """{``"G10"`` / ``"G11"``: the job's line numbers, in order} of its firmware retractions and
-    restores (a parsed :class:`ringtune.shaping.job.Job`); empty when it has none."""
+    restores that move the extruder (:class:`RetractionState`; a parsed
+    :class:`ringtune.shaping.job.Job`); empty when it has none."""
     out: dict[str, list[int]] = {}
+    state = RetractionState()
     for ev in job.events:
-        if is_firmware_retraction(ev.command, ev.params):
+        if ev.command == "SET_RETRACTION":
+            state.reset()
+        elif state.moves(ev.command, ev.params):
             out.setdefault(ev.command, []).append(int(ev.line))
     return out
 

@@ -34,6 +34,9 @@ def test_the_cura_job_retracts_by_firmware_and_plan_says_what_that_leaves_out(da
 def test_rrf_tool_offsets_are_not_retractions_and_a_job_without_any_says_nothing():
     job = read_gcode("G10 P0 S210 R150\nG10 L2 P1 X5\nM83\nG1 X10 E1 F1200\nG10\nG1 X0\nG11\n")
     assert firmware_retractions(job) == {"G10": [5], "G11": [7]}
+    # only what moves the extruder is counted: a second G10, a G11 with nothing retracted
+    again = read_gcode("M83\nG11\nG1 X10 E1 F1200\nG10\nG10\nG1 X0\nG11\nG11\n")
+    assert firmware_retractions(again) == {"G10": [4], "G11": [7]}
     plain = read_gcode("M83\nG1 X10 E1 F1200\n")
     assert firmware_retractions(plain) == {} and firmware_retraction_note({}) is None
 
