@@ -142,3 +142,24 @@ def test_speed_graph_of_the_real_ender3_and_its_real_tower(capsys, tmp_path, dat
     for k, v in d["orcaslicer"].items():
         assert f"{k} = {v}" in text
     assert d["orcaslicer"]["min_resonance_avoidance_speed"] == f"{worst['lo']:g}"
+
+
+TWO_MODES = ONE_MODE.replace('name = "one-mode"', 'name = "two-modes"').replace(
+    "[y]\nmass = 0.5\nmodes = [{ freq = 40.0, damping = 0.05 }]", "[y]\nmass = 0.5\nmodes = [{ freq = 60.0, damping = 0.05 }]")
+
+
+def test_each_direction_rings_with_the_modes_across_it():
+    """X at 40 Hz, Y at 60 Hz: a wall along X ripples across it with Y's mode, a wall along Y with
+    X's. Braking (v − v_corner)/a into the corner rings most at half a damped period, so each curve's
+    worst speed is about a/(2 f_d) of the crossing axis: 25 mm/s for the wall along X, 37.5 along Y.
+    (The entry into the corner runs along the other direction; it was labelled an outer wall too, so
+    both curves showed the worse of the two walls, the same curve twice.)"""
+    printer = printer_from_dict(tomllib.loads(TWO_MODES), "two-modes")
+    assert [m.freq for m in printer.x.modes] == [40.0] and [m.freq for m in printer.y.modes] == [60.0]
+    config = TuneConfig(firmware="klipper", shaper_x="none", shaper_y="none", accel=3000)
+    advice = speed_advice(printer, tower(100), config, step=2.5)
+    for along, across in (("x", 60.0), ("y", 40.0)):
+        worst = float(advice.speeds[int(np.argmax(advice.ripple[along]))])
+        peak = 3000 / (2 * across * math.sqrt(1 - 0.05 ** 2))
+        assert abs(worst - peak) <= 5.0, (along, worst, peak)
+    assert not np.allclose(advice.ripple["x"], advice.ripple["y"], rtol=0.05)

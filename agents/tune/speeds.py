@@ -135,7 +135,9 @@ def typical_wall(job) -> tuple[float, float, int]:
 
 def wall_gcode(direction, length: float, corner_deg: float, speed: float) -> str:
     """G-code of one wall of ``length`` mm along ``direction``, entered by an equally long extruding
-    move through a corner of ``corner_deg`` degrees, left by a travel, at ``speed`` mm/s."""
+    move through a corner of ``corner_deg`` degrees, left by a travel, at ``speed`` mm/s. Only the
+    wall is labelled an outer wall (the entry an inner one, nobody sees), so its ripple is the job's:
+    the entry runs along another direction, whose ripple belongs to that direction's curve."""
     d = np.asarray(direction, float)
     th = math.radians(corner_deg)
     u = np.array([d[0] * math.cos(-th) - d[1] * math.sin(-th), d[0] * math.sin(-th) + d[1] * math.cos(-th)])
@@ -143,8 +145,9 @@ def wall_gcode(direction, length: float, corner_deg: float, speed: float) -> str
     p2 = np.array([150.0, 150.0]) + length * d
     p3 = p2 + length * d
     f = speed * 60.0
-    return "\n".join(["G90", "M82", "G92 E0", f"G0 X{p0[0]:.4f} Y{p0[1]:.4f} F{f:.1f}", ";TYPE:Outer wall",
-                      f"G1 X150 Y150 E1 F{f:.1f}", f"G1 X{p2[0]:.4f} Y{p2[1]:.4f} E2", f"G0 X{p3[0]:.4f} Y{p3[1]:.4f}"])
+    return "\n".join(["G90", "M82", "G92 E0", f"G0 X{p0[0]:.4f} Y{p0[1]:.4f} F{f:.1f}", ";TYPE:Inner wall",
+                      f"G1 X150 Y150 E1 F{f:.1f}", ";TYPE:Outer wall", f"G1 X{p2[0]:.4f} Y{p2[1]:.4f} E2",
+                      f"G0 X{p3[0]:.4f} Y{p3[1]:.4f}"])
 
 
 def ripple_against_speed(printer: Printer, config: TuneConfig, direction, length: float, corner_deg: float,
