@@ -27,6 +27,7 @@ from ringtune.envs.figure import figure_texts
 from ringtune.envs.path_geometry import path_legs
 from ringtune.envs.variants import Variant
 from ringtune.envs.window_metrics import compute_metrics
+from ringtune.shaping.features import FEATURE_CLASSES, HIDDEN
 from ringtune.shaping.motion import Motion
 
 
@@ -118,12 +119,14 @@ def _across(sim, path: Motion, lag: float, at_xy) -> tuple[np.ndarray, np.ndarra
 
 
 def plot_ringing(sim, path: Motion, out, *, lag: float = 0.0, settle: float = 0.0,
-                 anticipate: float = 0.0, title: str = "", baseline: Overlay | None = None) -> Path:
+                 anticipate: float = 0.0, title: str = "", baseline: Overlay | None = None,
+                 classes: np.ndarray | None = None) -> Path:
     """Deviation across the wall (µm) after the corner with the worst ringing, against time (ms);
     the baseline's nozzle along the same wall (the wall of its path starting nearest the same
-    corner) drawn over it."""
-    m = compute_metrics(sim, path, lag=lag, settle=settle, anticipate=anticipate)
-    legs = path_legs(path)
+    corner) drawn over it. ``classes``: the feature class of each segment of ``path`` (the window's):
+    the axis names the wall's feature, and says where nobody sees it."""
+    m = compute_metrics(sim, path, lag=lag, settle=settle, anticipate=anticipate, classes=classes)
+    legs = path_legs(path, classes)
     at = m.details.get("ringing_at") or m.details.get("overshoot_at")
     plt, fig, (ax,) = _figure(figsize=(8.0, 4.5))
     if at is None or len(legs) < 2:
@@ -152,7 +155,7 @@ def plot_ringing(sim, path: Motion, out, *, lag: float = 0.0, settle: float = 0.
     wall_end = (legs.t_end[k] - tc - anticipate) * 1e3
     if anticipate > 0:
         ax.axvline(wall_end, color="g", ls="--", label="shaper starts the next turn")
-    ax.set_xlabel(f"time after the {legs.turn_deg[k]:.0f}° corner (ms)")
+    ax.set_xlabel(f"time after the {legs.turn_deg[k]:.0f}° corner (ms){_feature_words(legs.cls[k], classes)}")
     ax.set_ylabel("deviation across the wall (µm)")
     title = title or (f"Ringing after a {legs.turn_deg[k]:.0f}° corner: RMS {m.ringing_mm * 1e3:.1f} µm; "
                       f"overshoot in this window {m.overshoot_mm * 1e3:.1f} µm")
@@ -160,6 +163,14 @@ def plot_ringing(sim, path: Motion, out, *, lag: float = 0.0, settle: float = 0.
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     return _save(plt, fig, out, title, data)
+
+
+def _feature_words(cls: int, classes) -> str:
+    """``", into the infill: nobody sees it"``: the feature a wall belongs to ("" without classes)."""
+    if classes is None:
+        return ""
+    name = FEATURE_CLASSES[int(cls)]
+    return f", into the {name.replace('_', ' ')}" + (": nobody sees it" if name in HIDDEN else "")
 
 
 def plot_accel(sim, out, *, title: str = "", t0: float = 0.0, baseline: Overlay | None = None,
@@ -251,7 +262,7 @@ def plot_evaluation(ev, out_dir, prefix: str = "", *, factors=None, judged: str 
                               title=f"The job's worst ringing, RMS {part['ringing_mm'] * 1e3:.1f} µm\novershoot "
                               f"in this window {part['overshoot_mm'] * 1e3:.1f} µm (the job's worst "
                               f"{job_os * 1e3:.1f} µm){how}{on(v)}{vs}",
-                              baseline=_overlay(base, baseline_label, v, i)[0]))
+                              baseline=_overlay(base, baseline_label, v, i)[0], classes=r.classes))
     over, bt0 = _overlay(base, baseline_label, v, i)
     if over is not None:     # the whole simulated span, as for the configuration
         over.sim = base[v].sims[i]

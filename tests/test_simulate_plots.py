@@ -4,6 +4,7 @@ curves are the simulations' own samples (an independent evaluation of Klipper's 
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 from PIL import Image
@@ -12,6 +13,7 @@ from ringtune.agents.cli.main import main
 from ringtune.envs.evaluate import evaluate_judged
 from ringtune.envs.printer import load_printer
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.features import FEATURE_CLASSES, HIDDEN
 
 
 def _png(path) -> tuple[dict, str]:
@@ -55,6 +57,12 @@ def test_plots_overlay_klippers_pick_with_units(tmp_path, capsys):
     assert len(data["baseline_nozzle"]) > 20 and len(data["nozzle"]) > 20
     assert "deviation across the wall (µm)" in text and "against Klipper's pick" in text
     assert "nozzle across the wall, Klipper's pick" in text
+    # the wall's feature is named, and a hidden one said to be unseen (the worst ringing of a job
+    # is often in its infill, which nobody sees)
+    named = re.search(r"corner \(ms\), into the ([a-z ]+?)(: nobody sees it)?(\n|$)", text)
+    assert named, text
+    cls = named.group(1).replace(" ", "_")
+    assert cls in FEATURE_CLASSES and bool(named.group(2)) == (cls in HIDDEN)
 
     data, text = _png(plots / "accel.png")
     assert "acceleration (mm/s²)" in text and "|head acceleration|, Klipper's pick" in text
