@@ -66,10 +66,12 @@ def _xy(a, b) -> np.ndarray:
     return np.column_stack([np.asarray(a, float), np.asarray(b, float)])
 
 
-def plot_path(sim, path: Motion, out, *, lag: float = 0.0, title: str = "", baseline: Overlay | None = None) -> Path:
+def plot_path(sim, path: Motion, out, *, lag: float = 0.0, title: str = "", baseline: Overlay | None = None,
+              classes: np.ndarray | None = None) -> Path:
     """Nozzle vs commanded x/y path (mm), zoomed around the sample farthest from the path; the
-    baseline's nozzle on the same window drawn over it."""
-    m = compute_metrics(sim, path, lag=lag)
+    baseline's nozzle on the same window drawn over it. ``classes``: the feature class of each
+    segment of ``path``: the legend names the feature the largest error is on."""
+    m = compute_metrics(sim, path, lag=lag, classes=classes)
     where = m.details.get("path_error_at")
     plt, fig, (ax,) = _figure(figsize=(7.0, 6.0))
     t = np.asarray(sim.t)
@@ -90,8 +92,11 @@ def plot_path(sim, path: Motion, out, *, lag: float = 0.0, title: str = "", base
         r = max(4.0 * m.path_error_mm, 0.5)
         ax.set_xlim(x - r, x + r)
         ax.set_ylim(y - r, y + r)
+        legs = path_legs(path, classes)
+        k = int(np.argmin(np.maximum(legs.t_start - (where["t"] - lag), (where["t"] - lag) - legs.t_end)))
         ax.plot([x], [y], "o", mfc="none", mec="m", ms=12,
-                label=f"largest error {m.path_error_mm:.3f} mm at t = {where['t']:.3f} s")
+                label=f"largest error {m.path_error_mm:.3f} mm at t = {where['t']:.3f} s"
+                f"{_feature_words(legs.cls[k], classes, 'on')}")
     ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
@@ -165,12 +170,12 @@ def plot_ringing(sim, path: Motion, out, *, lag: float = 0.0, settle: float = 0.
     return _save(plt, fig, out, title, data)
 
 
-def _feature_words(cls: int, classes) -> str:
-    """``", into the infill: nobody sees it"``: the feature a wall belongs to ("" without classes)."""
+def _feature_words(cls: int, classes, prep: str = "into") -> str:
+    """``", into the infill: nobody sees it"``: the feature a place belongs to ("" without classes)."""
     if classes is None:
         return ""
     name = FEATURE_CLASSES[int(cls)]
-    return f", into the {name.replace('_', ' ')}" + (": nobody sees it" if name in HIDDEN else "")
+    return f", {prep} the {name.replace('_', ' ')}" + (": nobody sees it" if name in HIDDEN else "")
 
 
 def plot_accel(sim, out, *, title: str = "", t0: float = 0.0, baseline: Overlay | None = None,
@@ -251,7 +256,8 @@ def plot_evaluation(ev, out_dir, prefix: str = "", *, factors=None, judged: str 
     pe = evs[v].metrics.details["windows"][i]["path_error_mm"]
     files.append(plot_path(_trimmed(s, r.t0 + r.lag, r.t1 + r.lag), r.path, out_dir / f"{prefix}path.png",
                            lag=r.lag, title=f"Nozzle path at the job's largest path error, {pe * 1e3:.1f} µm"
-                           f"{how}{on(v)}{vs}", baseline=_overlay(base, baseline_label, v, i)[0]))
+                           f"{how}{on(v)}{vs}", baseline=_overlay(base, baseline_label, v, i)[0],
+                           classes=r.classes))
     v, i = worst("ringing_mm")
     r, s = evs[v].runs[i], evs[v].sims[i]
     part = evs[v].metrics.details["windows"][i]

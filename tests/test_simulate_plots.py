@@ -51,6 +51,10 @@ def test_plots_overlay_klippers_pick_with_units(tmp_path, capsys):
     assert any(w.shape == data["nozzle"].shape and np.allclose(w, data["nozzle"], atol=2e-6)
                for w in _windows_xy(mine))
     assert "x (mm)" in text and "y (mm)" in text
+    named = re.search(r"largest error [0-9.]+ mm at t = [0-9.]+ s, on the ([a-z ]+?)(: nobody sees it)?(\n|$)", text)
+    assert named, text          # the feature the largest error is on
+    cls = named.group(1).replace(" ", "_")
+    assert cls in FEATURE_CLASSES and bool(named.group(2)) == (cls in HIDDEN)
     assert f"Klipper's pick from the resonance files ({kcfg.shaper_x} {kcfg.freq_x:.1f}" in text
 
     data, text = _png(plots / "ringing.png")
