@@ -41,6 +41,7 @@ from ringtune.hardware.dialect_rrf import rrf_export
 from ringtune.hardware.export import Export
 from ringtune.hardware.firmware_check import canonical, check_value, fmt
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.feature_settings import corner_words
 from ringtune.shaping.firmware import Firmware, Span
 
 #: firmware family -> the builder of its lines (one module per family's dialect)
@@ -67,11 +68,21 @@ def export_config(config: TuneConfig, firmware: str | None = None, accel: bool =
     fw = Firmware.named(firmware or config.firmware, "--firmware")
     exp = _BUILDERS[fw.family](config, fw.name)
     if config.per_feature:
-        exp.notes.insert(0, PER_FEATURE.format(a=fmt(config.accel or 0, 0)))
+        exp.notes.insert(0, PER_FEATURE.format(a=fmt(config.accel or 0, 0)) + _corner_not_carried(config))
     _rounding_notes(config, exp)
     _freq_limit(config, fw, exp)
     _accel(config, fw, exp, accel)
     return exp
+
+
+def _corner_not_carried(config: TuneConfig) -> str:
+    """The PER_FEATURE note's tail where the configuration was tuned with a corner rule for the visible
+    walls (``corner``, ``min_cruise_ratio``), which these lines do not set: "" where it has none."""
+    words = corner_words(config.corner, config.min_cruise_ratio)
+    if not words:
+        return ""
+    return (f"; nor do they set the visible walls' corner rule it was tuned with ({'; '.join(words)}, "
+            "in the printer's corner rule's unit): set it on the printer as well, or print the job")
 
 
 def limit_command(config: TuneConfig) -> str:

@@ -340,3 +340,10 @@ def test_a_per_feature_configuration_says_its_settings_belong_in_the_job(fw):
     assert not any("ringtune limit FILE.gcode --accel A" in n for n in notes)
     assert any("ringtune limit FILE.gcode --accel A" in n for n in export_config(one).notes)
     assert not any("per feature" in n for n in export_config(one).notes)
+    # a corner rule tuned for the visible walls is not in the lines either, and the note says which
+    assert "corner rule" not in notes[0].split("per feature", 1)[1]
+    cornered = TuneConfig(**{**per.to_dict(), "corner": 7.0, "min_cruise_ratio": 0.25})
+    first = export_config(cornered).notes[0]
+    assert first.endswith("; nor do they set the visible walls' corner rule it was tuned with (corner 7; "
+                          "minimum_cruise_ratio 0.25, in the printer's corner rule's unit): set it on the printer "
+                          "as well, or print the job")
