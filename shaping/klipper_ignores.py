@@ -12,7 +12,7 @@ the job's M204 in :mod:`ringtune.shaping.gcode_commands`); this says so."""
 
 from __future__ import annotations
 
-from ringtune.shaping.gcode_commands import number_or_none
+import numpy as np
 
 #: Marlin and RRF limit commands Klipper has no handler for
 KLIPPER_UNKNOWN = ("M201", "M203", "M205", "M566")
@@ -29,72 +29,41 @@ def klipper_ignored(job, limits) -> dict[str, list[int]]:
     ``scv``; ``accel_to_decel`` set: a Klipper from before 2024); empty under any other rule."""
     if not limits.reads_like_klipper:
         return {}
-    events = [ev for ev in job.events if ev.kind == "limits"]
     out: dict[str, list[int]] = {}
-    for ev in events:
+    for ev in (ev for ev in job.events if ev.kind == "limits"):
         what = ev.command if ev.command in KLIPPER_UNKNOWN else LONE_M204 if _lone_m204(ev) else None
         if what:
             out.setdefault(what, []).append(int(ev.line))
-    lost = _unread_word_lost(events, limits, len(job.line))
+    lost = _unread_word_lost(job, limits)
     if lost:
         out[f"SET_VELOCITY_LIMIT {WORD_IGNORED[limits.accel_to_decel is not None]}"] = lost
     return out
 
 
-def _unread_word_lost(events, limits, n_moves: int) -> list[int]:
+def _unread_word_lost(job, limits) -> list[int]:
     """The lines whose SET_VELOCITY_LIMIT word the printer's Klipper does not read loses something:
-    where a move planned after that line, before the word's next line, meets the two ages' readings
-    of the cruise rule differing (:class:`_Cruise`). ``n_moves``: the job's moves."""
+    where a move it governs (before the word's next line) meets the two ages' readings of the cruise
+    rule differing. Each reading at a move is what the reader holds in force there (the job's last
+    ACCEL or M204, ACCEL_TO_DECEL, MINIMUM_CRUISE_RATIO), else the printer's; they agree where
+    ACCEL_TO_DECEL, capped at the acceleration as Klipper caps it, is the acceleration × (1 −
+    MINIMUM_CRUISE_RATIO) to 1 mm/s² (Klipper's own rule between the two), or while either is unset."""
     old = limits.accel_to_decel is not None
     word = WORD_IGNORED[old]
-    cruise = _Cruise(limits.accel, limits.accel_to_decel if old else None, None if old else limits.min_cruise_ratio)
-    ruled = [ev for ev in events if ev.command in ("SET_VELOCITY_LIMIT", "M204")]
-    lost: list[int] = []
-    line = None                                   # the word's latest line
-    for ev, nxt in zip(ruled, [*ruled[1:], None]):
-        if ev.command == "SET_VELOCITY_LIMIT" and word in ev.params:
-            line = int(ev.line)
-        cruise.take(ev)
-        moves_follow = (nxt.move if nxt is not None else n_moves) > ev.move
-        if line is not None and moves_follow and not cruise.agrees() and line not in lost:
-            lost.append(line)
-    return lost
+    said = [ev for ev in job.events if ev.command == "SET_VELOCITY_LIMIT" and word in ev.params]
+    if not said or not job.n_moves:
+        return []
+    accel = _in_force(job, "accel_klipper", limits.accel)
+    atd = _in_force(job, "accel_to_decel", limits.accel_to_decel if old else np.nan)
+    ratio = _in_force(job, "min_cruise_ratio", np.nan if old else limits.min_cruise_ratio)
+    differ = np.abs(np.minimum(atd, accel) - accel * (1.0 - ratio)) > 1.0      # False where either is NaN
+    governing = np.searchsorted([ev.move for ev in said], np.arange(job.n_moves), side="right") - 1
+    return [int(said[i].line) for i in np.unique(governing[differ & (governing >= 0)])]
 
 
-class _Cruise:
-    """Klipper's cruise rule as the job has set it so far, read both ways: the acceleration (mm/s²,
-    ACCEL or M204), ACCEL_TO_DECEL (mm/s², what a Klipper from before 2024 reads) and
-    MINIMUM_CRUISE_RATIO (what a current one reads); each the job's last word, else the printer's, None
-    where the printer's age has no such setting and the job has not set it."""
-
-    def __init__(self, accel: float, accel_to_decel: float | None, ratio: float | None):
-        self.accel, self.accel_to_decel, self.ratio = float(accel), accel_to_decel, ratio
-
-    def take(self, ev) -> None:
-        """The acceleration and cruise words of ``ev`` (SET_VELOCITY_LIMIT or M204)."""
-        p = ev.params
-        words = ({"ACCEL": _m204_accel(p)} if ev.command == "M204" else
-                 {k: number_or_none(p.get(k)) for k in ("ACCEL", "ACCEL_TO_DECEL", "MINIMUM_CRUISE_RATIO")})
-        self.accel = words["ACCEL"] or self.accel
-        for key, attr in (("ACCEL_TO_DECEL", "accel_to_decel"), ("MINIMUM_CRUISE_RATIO", "ratio")):
-            if words.get(key) is not None:
-                setattr(self, attr, words[key])
-
-    def agrees(self) -> bool:
-        """Whether both readings give the same hill: ACCEL_TO_DECEL (capped at the acceleration, as
-        Klipper caps it) = the acceleration × (1 − MINIMUM_CRUISE_RATIO), to 1 mm/s² — Klipper's own
-        rule between the two; true while either is unset (the printer's own rules)."""
-        if self.accel_to_decel is None or self.ratio is None:
-            return True
-        return abs(min(self.accel_to_decel, self.accel) - self.accel * (1.0 - self.ratio)) <= 1.0
-
-
-def _m204_accel(params: dict) -> float | None:
-    """The acceleration (mm/s²) Klipper's M204 sets: S, else the lower of P and T where both are given."""
-    accel = number_or_none(params.get("S"))
-    if accel is None and {"P", "T"} <= set(params):
-        accel = min(number_or_none(params["P"]) or 0.0, number_or_none(params["T"]) or 0.0) or None
-    return accel
+def _in_force(job, key: str, printer_value) -> np.ndarray:
+    """(n,) the setting in force at each move, the printer's where the job has not set it."""
+    v = job.setting(key)
+    return np.where(np.isnan(v), np.nan if printer_value is None else float(printer_value), v)
 
 
 def _lone_m204(ev) -> bool:
