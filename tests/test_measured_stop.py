@@ -131,7 +131,9 @@ def test_a_ladder_and_stop_that_end_no_faster_by_the_resolution_are_not_taken(sp
     assert stop2.sentence == (
         f"Not raised: the shaper ladder and the measured stop ended at {end.config.accel:.0f} mm/s² "
         f"({end.print_time_s:.3f} s from {before.print_time_s:.3f} s), a saving under the 0.5 % that counts as "
-        f"faster, for motor load {end.config.accel / 100:.0f} % against 50 %: kept at 5000 mm/s², as the study chose.")
+        f"faster, for motor load {end.config.accel / 100:.0f} % against 50 %: kept at 5000 mm/s², as the study chose. "
+        + stop.sentence.replace("What stops it at", "What stopped the climb at"))
+    assert f"What stopped the climb at {end.config.accel:.0f} mm/s²" in stop2.sentence
     assert "not taken" in ladder2.sentence() and "5500 mm/s²" in ladder2.sentence()
     d = stop2.to_dict()
     assert d["moved"] is False and d["declined_accel"] == end.config.accel

@@ -141,7 +141,7 @@ def declined_if_same_time(before: Point, ladder: Ladder, stop: Stop, res: Resolu
     sentence = (f"Not raised: the shaper ladder and the measured stop ended at {end.config.accel:.0f} mm/s²{shaping} "
                 f"({t1:.3f} s from {t0:.3f} s), a saving under the {res.time_rel * 100:g} % that counts as faster, "
                 f"for motor load {load[0]:.0f} % against {load[1]:.0f} %: kept at {before.config.accel:.0f} mm/s², "
-                "as the study chose.")
+                "as the study chose. " + stop.sentence.replace("What stops it at", "What stopped the climb at", 1))
     stop = dataclasses.replace(stop, point=before, start=before, kind="same time", key="print_time_s", baseline=None,
                                value=t1, base_value=t0, accel=float(end.config.accel), config=end.config,
                                sentence=sentence, variant=None, declined=end)
