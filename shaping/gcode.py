@@ -42,7 +42,7 @@ import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware_retraction import RetractionState
-from ringtune.shaping.gcode_file import open_lines, read_head, refuse_non_gcode
+from ringtune.shaping.gcode_file import is_binary_gcode, open_lines, read_gcode_bytes, read_head, refuse_non_gcode
 from ringtune.shaping.gcode_sniff import HEAD
 from ringtune.shaping.job import (LIMIT_COMMANDS, SETTING_KEYS, SHAPER_COMMANDS, STOP_COMMANDS,
                                   Event, Job)
@@ -368,9 +368,12 @@ def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = N
             is_path = False
     if is_path:
         path = Path(path_or_text)
-        refuse_non_gcode(read_head(path), str(path))
         reader = _Reader(str(path), arc_tolerance)
-        reader.feed_lines(open_lines(path))
+        if is_binary_gcode(path):
+            reader.feed_lines(io.StringIO(read_gcode_bytes(path).decode("utf-8", "replace"), newline=None))
+        else:
+            refuse_non_gcode(read_head(path), str(path))
+            reader.feed_lines(open_lines(path))
     else:
         source = source or "<gcode>"
         if isinstance(path_or_text, bytes):

@@ -20,7 +20,6 @@ _SIGNATURES = (
     (b"\xff\xd8\xff", "a JPEG image"),
     (b"GIF8", "a GIF image"),
     (b"%PDF", "a PDF document"),
-    (b"GCDE", "binary G-code (.bgcode): export plain G-code from the slicer, or convert it"),
     (b"PK\x03\x04", "a ZIP archive (a .3mf project or a policy?)"),
     (b"\x1f\x8b", "a gzip archive"),
 )

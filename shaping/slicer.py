@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import re
-from pathlib import Path
+
+from ringtune.shaping.gcode_file import gcode_text_or_none
 
 
 _EST_PRUSA = re.compile(r";\s*(?:estimated printing time \(normal mode\)|total estimated time)\s*[=:]\s*(.+)", re.I)
@@ -23,10 +24,7 @@ def _duration_seconds(text: str) -> float | None:
 
 def _text(path) -> str | None:
     """The file's text (undecodable bytes replaced), or None when it cannot be read."""
-    try:
-        return Path(path).read_text(encoding="utf-8", errors="replace")
-    except OSError:
-        return None
+    return gcode_text_or_none(path)
 
 
 def slicer_estimate(path) -> float | None:

@@ -21,9 +21,9 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
-from pathlib import Path
 
 from ringtune.shaping.builtin_jobs import job_path
+from ringtune.shaping.gcode_file import gcode_text_or_none
 
 _NUM = r"([\d.]+)"
 _RX = {
@@ -60,9 +60,8 @@ def spacing(width_mm: float, layer_mm: float) -> float:
 def infill_wall_gap(path) -> WallGap | None:
     """The gap from what the job's comments state (PrusaSlicer family), or None when it does not
     state all of perimeter count, perimeter width, infill overlap and layer height."""
-    try:
-        text = Path(path).read_text(encoding="utf-8", errors="replace")
-    except (OSError, TypeError):
+    text = gcode_text_or_none(path)
+    if text is None:
         return None
     found = {k: rx.search(text) for k, rx in _RX.items()}
     if not all(found.values()):

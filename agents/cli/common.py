@@ -17,6 +17,7 @@ from ringtune.shaping.builtin_jobs import BUILTIN_JOBS, job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import Firmware
+from ringtune.shaping.gcode_file import refuse_binary_output
 
 #: seconds between progress lines when stderr is not a terminal (``RINGTUNE_PROGRESS_S`` overrides)
 PROGRESS_INTERVAL_S = 10.0
@@ -67,6 +68,12 @@ def check_output_folder(option: str, path) -> None:
                             "first; only folder outputs such as tune --out are created)", f"{option} {path}")
     if Path(path).is_dir():
         raise RingtuneError("is a directory; give a file name", f"{option} {path}")
+
+
+def check_gcode_output(option: str, path) -> None:
+    """:func:`check_output_folder` for a G-code output, which must not be named ``.bgcode``."""
+    check_output_folder(option, path)
+    refuse_binary_output(option, path)
 
 
 def judgement(freq_margin: float) -> str:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ringtune.agents.cli.common import check_gcode_output
 from ringtune.agents.cli.options import VALUES
 from ringtune.envs.job_plan import limit_job
 from ringtune.shaping.errors import RingtuneError
@@ -79,6 +80,7 @@ def run(args, out) -> int:
         raise RingtuneError("give --freq-limit HZ, --accel A or both", "--freq-limit")
     if args.output is None and args.json:
         raise RingtuneError("--json needs -o OUT (stdout carries the JSON)", "--output")
+    check_gcode_output("--output", args.output)
     done = limit_job(args.file, args.freq_limit, args.method, args.min_speed_factor, args.accel, args.printer)
     result = _result(args, done)
     if args.output is None:

@@ -14,9 +14,10 @@ configuration's shaper, each replaced by the configuration's shaper command: sai
 
 from __future__ import annotations
 
-from ringtune.agents.cli.common import check_output_folder, load_config
+from ringtune.agents.cli.common import check_gcode_output, load_config
 from ringtune.envs.job_rewrite import first_layer_words, rewrite_file, shaper_words
 from ringtune.hardware.dialects import shaper_commands
+from ringtune.shaping.gcode_file import binary_note
 
 NAME = "rewrite"
 DESCRIPTION = """\
@@ -57,7 +58,7 @@ def add_arguments(parser) -> None:
 
 
 def run(args, out) -> int:
-    check_output_folder("--output", args.output)
+    check_gcode_output("--output", args.output)
     cfg = load_config(args.config, out)
     done = rewrite_file(args.file, args.output, cfg, args.printer, shaper_lines=shaper_commands)
     fc = done.commands
@@ -68,6 +69,8 @@ def run(args, out) -> int:
               "corner": fc.corner if fc else None, "min_cruise_ratio": fc.min_cruise_ratio if fc else None,
               "header": done.header, "first_layer_kept": done.first_layer,
               "shaper_replaced": [{"line": ln, "text": t} for ln, t in done.shaper_replaced]}
+    if binary_note(args.file):
+        out.note(f"ringtune rewrite: {binary_note(args.file)}")
     if done.first_layer:
         out.note(f"ringtune rewrite: {first_layer_words(done.first_layer)}")
     if done.shaper_replaced:

@@ -15,7 +15,7 @@ moves less than the band step, nothing is inserted, ``y_schedule`` and ``last_ba
 
 from __future__ import annotations
 
-from ringtune.agents.cli.common import check_output_folder, firmware_name, load_config
+from ringtune.agents.cli.common import check_gcode_output, check_output_folder, firmware_name, load_config
 from ringtune.agents.cli.options import VALUES
 from ringtune.agents.tune.mass_check import schedule_job
 from ringtune.agents.tune.mass_report import schedule_summary
@@ -84,7 +84,7 @@ def add_arguments(parser) -> None:
 
 
 def run(args, out) -> int:
-    check_output_folder("--output", args.output)
+    check_gcode_output("--output", args.output)
     check_output_folder("--config-out", args.config_out)
     cfg = load_config(args.config, out)
     if args.firmware is not None:

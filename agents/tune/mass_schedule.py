@@ -40,13 +40,13 @@ from ringtune.shaping.config_plan import for_firmware
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.gcode_file import read_gcode_bytes
 from ringtune.shaping.job_shapers import overriding
 from ringtune.shaping.layer_commands import PRUSA_WEIGHT_ADJUST, TAG, prusa_weight_frequency, schedule_inserts
 from ringtune.shaping.layers import FILAMENT_DENSITY_G_CM3, FILAMENT_DIAMETER_MM, Layer, job_layers
 from ringtune.shaping.rewrite import rewrite_job, shapers_to_replace
 from ringtune.shaping.slicer import slicer_filament
 from ringtune.shaping.shapers import get_shaper
-from ringtune.shaping.textfile import read_text_file
 
 #: a new band starts when the Y mode has moved this fraction from where the band started
 BAND_STEP = 0.02
@@ -317,7 +317,7 @@ def scheduled_lines(schedule: MassSchedule, path: str | Path) -> list[str]:
     but a shaper command of the job's own that would move the printer off the configuration's
     shaper, which gets the configuration's shaper command in its place (as ``ringtune rewrite``
     does: the bands move the tuned shaper, as the schedule judged them)."""
-    text = read_text_file(Path(path), "G-code job")
+    text = read_gcode_bytes(path).decode("utf-8", "replace")
     lines = text.splitlines(keepends=True)
     job = read_gcode(text, source=str(path))
     inserts = {k: [f"{c} {TAG}" for c in cmds] for k, cmds in schedule.inserts().items()}

@@ -35,6 +35,7 @@ from ringtune.envs.printer_model import unmeasured_note
 from ringtune.envs.variants import TWIN_DAMPING
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import Firmware
+from ringtune.shaping.gcode_file import binary_note
 
 
 @dataclass(frozen=True)
@@ -318,6 +319,9 @@ def _write_job(gcode: str, out_dir: Path, config, printer, result: dict, note: C
     text = (f"\nThe job with the choice written in: {out_dir / 'job.gcode'} ({done.lines_inserted} lines "
             f"inserted; planned {done.before_s:.1f} s as sliced -> {done.after_s:.1f} s, the file as the printer "
             "runs it).")
+    if binary_note(gcode):
+        note(f"ringtune tune: job.gcode: {binary_note(gcode)}")
+        text += f"\nNote: {binary_note(gcode)}."
     if done.first_layer:
         note(f"ringtune tune: job.gcode: {first_layer_words(done.first_layer)}")
         text += f"\nNote: {first_layer_words(done.first_layer)}."

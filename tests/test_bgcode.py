@@ -1,0 +1,154 @@
+"""Prusa's binary G-code (.bgcode) read as the plain G-code it holds.
+
+Truth: MeatPack bytes worked out by hand from the specification (4-bit codes "0123456789.E\\nGX" in
+no-spaces mode, low nibble first, 0xF where a full byte follows), and the test part's plain G-code
+against the same job packed by a writer written from the specification (tests/bgcode_writer.py),
+compressed by the heatshrink2 and zlib libraries and checked by zlib's CRC32.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+import zlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from bgcode_writer import block, meatpack, pack_line, write_bgcode
+
+from ringtune.agents.cli.main import main
+from ringtune.shaping.bgcode import decode_bgcode, meatpack_decode
+from ringtune.shaping.builtin_jobs import job_path
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.slicer import slicer_estimate
+from ringtune.shaping.wall_gap import infill_wall_gap
+
+ON = b"\xff\xff\xfb\xff\xff\xf7"          # packing on, no-spaces mode on
+
+
+@pytest.mark.parametrize("line, packed, text", [
+    # G1X10\n: (G,1) -> 1D, (X,1) -> 1E, (0,\n) -> C0; the reader puts the space back before X
+    ("G1 X10", b"\x1d\x1e\xc0", b"G1 X10\n"),
+    # M204 P4000\n: (M,2) -> 2F then 'M'; (0,4) -> 40; (space,P) -> FF ' ' 'P'; (4,0) 04; (0,0) 00; (\n,\n) CC
+    ("M204 P4000", b"\x2f\x4d\x40\xff\x20\x50\x04\x00\xcc", b"M204 P4000\n"),
+    # G11Y2\n: (G,1) 1D; (1,Y) -> F1 then 'Y'; (2,\n) -> C2
+    ("G11 Y2", b"\x1d\xf1\x59\xc2", b"G11 Y2\n"),
+    # G1E.5\n in no-spaces mode: E takes the space's code 11: (E,.) -> AB; (5,\n) -> C5
+    ("G1 E.5 ; inline comment", b"\x1d\xab\xc5", b"G1 E.5\n"),
+])
+def test_meatpack_bytes_worked_out_by_hand(line, packed, text):
+    assert pack_line(line) == packed
+    assert meatpack_decode(ON + packed) == text
+
+
+def test_comment_lines_travel_raw_between_packed_lines():
+    data = ON + b"\x1d\x1e\xc0" + b"\xff\xff\xfa" + b";TYPE:External perimeter\n" + b"\xff\xff\xfb" + b"\x1d\xab\xc5"
+    assert meatpack(";TYPE:External perimeter\nG1 E.5\n") == ON + b"\xff\xff\xfa;TYPE:External perimeter\n" \
+        + b"\xff\xff\xfb\x1d\xab\xc5"
+    assert meatpack_decode(data) == b"G1 X10\n;TYPE:External perimeter\nG1 E.5\n"
+
+
+def _split_config(text: str) -> tuple[str, dict]:
+    """(the G-code before PrusaSlicer's config block, the block's key = value pairs)."""
+    head, _, rest = text.partition("; prusaslicer_config = begin\n")
+    config = {}
+    for line in rest.split("; prusaslicer_config = end")[0].splitlines():
+        k, _, v = line[2:].partition(" = ")
+        config[k] = v
+    return head, config
+
+
+@pytest.fixture(scope="module")
+def part_pair(tmp_path_factory):
+    """(the part's plain G-code path, the same job as binary G-code)."""
+    plain = Path(job_path("part"))
+    code, config = _split_config(plain.read_text())
+    # PrusaSlicer puts its estimates in the print metadata block of a binary file, not in the G-code
+    lines = code.splitlines(keepends=True)
+    estimates = [ln for ln in lines if ln.startswith(("; estimated printing time", "; filament used"))]
+    meta = dict(ln[2:].rstrip("\n").split(" = ", 1) for ln in estimates)
+    out = tmp_path_factory.mktemp("bgcode") / "part.bgcode"
+    out.write_bytes(write_bgcode("".join(ln for ln in lines if ln not in estimates), config, print_meta=meta))
+    return plain, out
+
+
+def test_the_part_reads_the_same_from_binary_gcode(part_pair):
+    plain, binary = part_pair
+    a, b = read_gcode(plain), read_gcode(binary)
+    assert len(a.start) == len(b.start) > 30000
+    np.testing.assert_array_equal(a.start, b.start)
+    np.testing.assert_array_equal(a.end, b.end)
+    for name in ("feed", "settings", "stop_before", "dwell_before", "arc", "settings_table"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    assert [(e.kind, e.command, e.params, e.move) for e in a.events] == \
+        [(e.kind, e.command, e.params, e.move) for e in b.events]
+    assert list(a.features) == list(b.features) and (a.feature == b.feature).all()
+    assert infill_wall_gap(binary) == infill_wall_gap(plain) is not None
+    assert slicer_estimate(binary) == slicer_estimate(plain) > 600
+
+
+def test_plan_of_binary_gcode_is_the_plain_files(part_pair, capsys):
+    plain, binary = part_pair
+    got = []
+    for path in (plain, binary):
+        assert main(["plan", str(path), "--json"]) == 0
+        got.append(json.loads(capsys.readouterr().out))
+    assert got[1]["print_time_s"] == got[0]["print_time_s"] > 600
+
+
+def test_decoded_text_carries_metadata_as_comments():
+    code = "G28\nG1 X10 Y10 F3000\n"
+    data = write_bgcode(code, {"perimeters": "2"}, printer={"printer_model": "MK4S"},
+                        print_meta={"filament used [g]": "1.5"})
+    text = decode_bgcode(data, "x.bgcode").decode()
+    assert text.startswith("; generated by PrusaSlicer 2.8.1\n")
+    assert "; printer_model = MK4S\n" in text and "; filament used [g] = 1.5\n" in text
+    assert "G28\nG1 X10 Y10 F3000\n" in text
+    assert "; prusaslicer_config = begin\n; perimeters = 2\n; prusaslicer_config = end\n" in text
+
+
+def test_damaged_and_unknown_files_are_refused_in_one_line():
+    data = bytearray(write_bgcode("G28\n", {}))
+    good = bytes(data)
+    data[-6] ^= 0x01                                          # a bit of the G-code block's data
+    with pytest.raises(RingtuneError, match="CRC32"):
+        decode_bgcode(bytes(data), "x.bgcode")
+    with pytest.raises(RingtuneError, match="version 2"):
+        decode_bgcode(good[:4] + struct.pack("<I", 2) + good[8:], "x.bgcode")
+    with pytest.raises(RingtuneError, match="cut off"):
+        decode_bgcode(good[:-3], "x.bgcode")
+    no_code = b"GCDE" + struct.pack("<IH", 1, 1) + block(0, b"\0\0", b"Producer=x\n")
+    with pytest.raises(RingtuneError, match="no G-code block"):
+        decode_bgcode(no_code, "x.bgcode")
+
+
+def test_each_compression_reads_back():
+    text = b"G28\nG1 X10 Y10 F3000\n" * 200
+    for compression in (0, 1, 3):
+        data = b"GCDE" + struct.pack("<IH", 1, 1) + block(1, struct.pack("<H", 0), text, compression)
+        assert decode_bgcode(data, "x.bgcode") == text
+    assert zlib.crc32(b"123456789") == 0xCBF43926          # the CRC-32 the format names (check value)
+
+
+def test_rewrite_of_binary_gcode_writes_plain_gcode_and_says_so(part_pair, tmp_path, capsys):
+    """The rewritten binary job plans as the rewritten plain job does, is plain G-code, and a .bgcode
+    output name is refused in one line."""
+    plain, binary = part_pair
+    conf = tmp_path / "best.json"
+    conf.write_text(json.dumps(TuneConfig(accel=4800.0, feature_accel={"infill": 9000.0, "travel": 9000.0}).to_dict()))
+    got = []
+    for src in (plain, binary):
+        out = tmp_path / f"{src.stem}{src.suffix.replace('.', '_')}.gcode"
+        assert main(["rewrite", str(src), "--config", str(conf), "-o", str(out), "--json"]) == 0
+        cap = capsys.readouterr()
+        got.append((json.loads(cap.out), cap.err, out.read_bytes()))
+    (a, err_a, text_a), (b, err_b, text_b) = got
+    assert "is binary G-code (.bgcode)" in err_b and "binary G-code" not in err_a
+    assert b["print_time_after_s"] == a["print_time_after_s"] < a["print_time_before_s"] == b["print_time_before_s"]
+    assert b["lines_inserted"] == a["lines_inserted"] > 100 and not text_b.startswith(b"GCDE")
+    assert text_b.count(b"SET_VELOCITY_LIMIT") == text_a.count(b"SET_VELOCITY_LIMIT") >= a["lines_inserted"]
+    assert main(["rewrite", str(binary), "--config", str(conf), "-o", str(tmp_path / "x.bgcode")]) == 2
+    assert "writes plain G-code" in capsys.readouterr().err
