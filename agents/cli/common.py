@@ -39,7 +39,8 @@ def firmware_name(text: str) -> str:
 
 
 #: what --gcode's help adds: the built-in jobs by name
-GCODE_JOB_HELP = f"or a built-in job: {', '.join(BUILTIN_JOBS)} (a sliced test part, about 20 min)"
+GCODE_JOB_HELP = (f"plain or Prusa binary (.bgcode), or a built-in job: {', '.join(BUILTIN_JOBS)} (a sliced test part, "
+                  "about 20 min)")
 
 
 def gcode_job(text: str) -> str:
