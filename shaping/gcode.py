@@ -363,7 +363,7 @@ def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = N
     if isinstance(path_or_text, str) and "\n" not in path_or_text:
         p = Path(path_or_text)
         try:
-            is_path = p.suffix.lower() in (".gcode", ".gco", ".g", ".nc", ".gc") or p.is_file()
+            is_path = p.suffix.lower() in (".gcode", ".gco", ".g", ".nc", ".gc", ".bgcode") or p.is_file()
         except OSError:             # not a possible file name: G-code text
             is_path = False
     if is_path:

@@ -69,8 +69,9 @@ def run(args, out) -> int:
               "corner": fc.corner if fc else None, "min_cruise_ratio": fc.min_cruise_ratio if fc else None,
               "header": done.header, "first_layer_kept": done.first_layer,
               "shaper_replaced": [{"line": ln, "text": t} for ln, t in done.shaper_replaced]}
-    if binary_note(args.file):
-        out.note(f"ringtune rewrite: {binary_note(args.file)}")
+    binary = binary_note(args.file)
+    if binary:
+        out.note(f"ringtune rewrite: {binary}")
     if done.first_layer:
         out.note(f"ringtune rewrite: {first_layer_words(done.first_layer)}")
     if done.shaper_replaced:

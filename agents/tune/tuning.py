@@ -319,9 +319,10 @@ def _write_job(gcode: str, out_dir: Path, config, printer, result: dict, note: C
     text = (f"\nThe job with the choice written in: {out_dir / 'job.gcode'} ({done.lines_inserted} lines "
             f"inserted; planned {done.before_s:.1f} s as sliced -> {done.after_s:.1f} s, the file as the printer "
             "runs it).")
-    if binary_note(gcode):
-        note(f"ringtune tune: job.gcode: {binary_note(gcode)}")
-        text += f"\nNote: {binary_note(gcode)}."
+    binary = binary_note(gcode)
+    if binary:
+        note(f"ringtune tune: job.gcode: {binary}")
+        text += f"\nNote: {binary}."
     if done.first_layer:
         note(f"ringtune tune: job.gcode: {first_layer_words(done.first_layer)}")
         text += f"\nNote: {first_layer_words(done.first_layer)}."
