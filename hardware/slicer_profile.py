@@ -88,6 +88,14 @@ KEYS: dict[str, tuple[tuple[str, tuple[str, ...]], ...]] = {
         ("acceleration_print", ("other",)),
     ),
 }
+#: why a slicer's profile cannot carry the per-feature corner rule and minimum_cruise_ratio as judged
+CORNER_KEYS_WHY = {
+    "prusaslicer": "PrusaSlicer has no per-feature corner setting",
+    "orcaslicer": ("OrcaSlicer's per-feature jerk, written as SQUARE_CORNER_VELOCITY on Klipper, puts bridge infill, "
+                   "which is seen, under infill_jerk with the infill, and it has no minimum_cruise_ratio"),
+    "cura": ("Cura's per-feature jerk (jerk_infill, jerk_travel...) is written as M205 X Y, which Klipper ignores and "
+             "Marlin's junction deviation does not read, and it has no minimum_cruise_ratio"),
+}
 #: classes a slicer has no label or key for, and the key whose value they get
 CARRIED = {"cura": {"bridge_overhang": "acceleration_wall_0"}}
 
@@ -180,11 +188,9 @@ def slicer_profile(config: TuneConfig, slicer: str, firmware: str | None = None,
     common = [f"per-feature accelerations tuned for {fw.title} (mm/s²); the first-layer acceleration "
               "is left as the profile has it"] + _shared_notes(keys, wanted, effective)
     if config.feature_corner or config.feature_min_cruise_ratio:
-        orca = (" (OrcaSlicer's per-feature jerk, infill_jerk and travel_jerk, could carry the corner rule; "
-                "this profile does not write them)" if slicer == "orcaslicer" else "")
         common.append("the corner rule and minimum_cruise_ratio per feature class (feature_corner, "
-                      f"feature_min_cruise_ratio) are not in this profile{orca}: `ringtune rewrite` writes them "
-                      "into the sliced job at each feature change")
+                      f"feature_min_cruise_ratio) are not in this profile ({CORNER_KEYS_WHY[slicer]}): `ringtune "
+                      "rewrite` writes them into the sliced job at each feature change")
     seam = {c: wanted[c] for c in FEATURE_CLASSES if c in LABELLED_VISIBLE and wanted[c] < wanted["travel"]}
     if seam:
         common.append("the seam's travel (the hop onto a visible wall, the move off its end) was judged at the wall's "

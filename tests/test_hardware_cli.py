@@ -12,6 +12,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fake_printer import FakePrinter  # noqa: E402
 
 from ringtune.agents.cli.main import main  # noqa: E402
+from ringtune.hardware.slicer_profile import slicer_profile  # noqa: E402
+from ringtune.shaping.config import TuneConfig  # noqa: E402
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -132,3 +134,17 @@ def test_export_parts_are_separate_and_the_command_part_uses_semicolons(tmp_path
     assert main(["export", str(q), "--slicer", "cura", "--part", "slicer"]) == 0
     cura = capsys.readouterr().out
     assert "acceleration_enabled = True" in cura and "acceleration_print = 4000" in cura
+
+
+@pytest.mark.parametrize("slicer, why", [("prusaslicer", "no per-feature corner setting"),
+                                         ("orcaslicer", "bridge infill, which is seen, under infill_jerk"),
+                                         ("cura", "M205 X Y, which Klipper ignores")])
+def test_a_slicer_profile_says_why_it_leaves_the_corner_rule_to_the_rewrite(slicer, why, tmp_path, capsys):
+    p = tmp_path / "k.json"
+    p.write_text(json.dumps({"firmware": "klipper", "shaper_x": "ei", "shaper_y": "mzv", "freq_x": 51.2, "freq_y": 46.2,
+                             "accel": 4800, "feature_accel": {"infill": 12400}, "feature_corner": {"infill": 30}}))
+    assert main(["export", str(p), "--slicer", slicer, "--part", "slicer"]) == 0
+    text = capsys.readouterr().out
+    assert why in text and "`ringtune rewrite` writes them" in text
+    settings = slicer_profile(TuneConfig.from_dict(json.loads(p.read_text())), slicer).settings
+    assert settings and not [k for k in settings if "jerk" in k]
