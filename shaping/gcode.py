@@ -40,9 +40,10 @@ from typing import Iterable
 
 import numpy as np
 
+from ringtune.shaping.bgcode import is_bgcode
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware_retraction import RetractionState
-from ringtune.shaping.gcode_file import is_binary_gcode, open_lines, read_gcode_bytes, read_head, refuse_non_gcode
+from ringtune.shaping.gcode_file import open_lines, read_gcode_bytes, read_head, refuse_non_gcode
 from ringtune.shaping.gcode_sniff import HEAD
 from ringtune.shaping.job import (LIMIT_COMMANDS, SETTING_KEYS, SHAPER_COMMANDS, STOP_COMMANDS,
                                   Event, Job)
@@ -369,10 +370,11 @@ def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = N
     if is_path:
         path = Path(path_or_text)
         reader = _Reader(str(path), arc_tolerance)
-        if is_binary_gcode(path):
+        head = read_head(path)
+        if is_bgcode(head):          # binary G-code: its plain text, decoded whole
             reader.feed_lines(io.StringIO(read_gcode_bytes(path).decode("utf-8", "replace"), newline=None))
         else:
-            refuse_non_gcode(read_head(path), str(path))
+            refuse_non_gcode(head, str(path))
             reader.feed_lines(open_lines(path))
     else:
         source = source or "<gcode>"
