@@ -21,7 +21,7 @@ from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import ConfiguredPlan, plan_with_config
 from ringtune.shaping.firmware import FIRMWARES
-from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions
+from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions, retraction_plan
 from ringtune.shaping.freqlimit import commanded_frequencies as per_move
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.gcode_file import read_gcode_bytes
@@ -163,6 +163,7 @@ class JobPlan:
         ignored = klipper_ignored(self.job, self.configured.limits)
         macros = macro_calls(self.job) if self.configured.limits.reads_like_klipper else {}
         retractions = firmware_retractions(self.job)
+        planned = sum(r.e is not None for r in retraction_plan(self.job, self.configured.limits))
         return {
             "job": self.name, "junction": self.junction, "junction_reason": self.why,
             "limits": dict(asdict(self.configured.limits)),
@@ -180,8 +181,10 @@ class JobPlan:
             "ignored_by_firmware": ignored, "ignored_note": klipper_ignored_note(ignored),
             # read as Klipper reads it: the commands that are not Klipper's own ({command: [lines]})
             "macro_calls": macros, "macro_note": macro_note(macros),
-            # G10/G11 firmware retractions ({command: [lines]}), planned as taking no time
-            "firmware_retraction": retractions, "firmware_retraction_note": firmware_retraction_note(retractions),
+            # G10/G11 firmware retractions ({command: [lines]}), how many planned as E-only moves (the
+            # others as stops that take no time: their settings are not known)
+            "firmware_retraction": retractions, "firmware_retraction_planned": planned,
+            "firmware_retraction_note": firmware_retraction_note(self.job, self.configured.limits),
         }
 
 

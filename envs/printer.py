@@ -92,11 +92,13 @@ KINEMATICS = ("cartesian", "corexy", "corexz")
 #: M204 P, RRF M204 P, Klipper max_accel), ``travel_accel`` (M204 T), ``retract_accel`` (Marlin M204
 #: R: E-only moves), ``max_accel``/``max_velocity`` (per-axis caps x, y, z, e; 0 = none), ``axis_rule``
 #: (how those caps bind: ``per_axis`` or Kalico's ``limited_corexy``), ``scale_xy_accel`` (Kalico),
-#: the corner rule, Klipper's ``min_cruise_ratio`` and an old Klipper's ``accel_to_decel`` (mm/s²; see
-#: :class:`ringtune.shaping.planner.MachineLimits`)
+#: the corner rule, Klipper's ``min_cruise_ratio`` and an old Klipper's ``accel_to_decel`` (mm/s²), and
+#: the firmware retraction a ``G10``/``G11`` makes (``retract_length``, ``unretract_extra_length`` mm,
+#: ``retract_speed``, ``unretract_speed`` mm/s; see :class:`ringtune.shaping.planner.MachineLimits`)
 LIMIT_KEYS = ("accel", "velocity", "junction", "square_corner_velocity", "junction_deviation",
               "jerk", "max_accel", "max_velocity", "min_cruise_ratio", "accel_to_decel", "travel_accel",
-              "retract_accel", "axis_rule", "scale_xy_accel")
+              "retract_accel", "axis_rule", "scale_xy_accel", "retract_length", "retract_speed",
+              "unretract_extra_length", "unretract_speed")
 _TOP_KEYS = {"name", "kinematics", "limits", "x", "y", "motor", "belts", "print_mass", "description",
              "current", "measurement"}
 _BELT_KEYS = {"stiffness", "mismatch"}
@@ -153,8 +155,9 @@ def _has_force(axis_table: dict, base_raw: dict) -> bool:
 
 #: ``[limits]``' plain numbers and their bounds (as :func:`number` takes them)
 _LIMIT_BOUNDS = {**dict.fromkeys(("accel", "velocity", "square_corner_velocity", "junction_deviation", "travel_accel",
-                                  "retract_accel", "accel_to_decel"), {"lo": 0.0, "lo_open": True}),
-                 "min_cruise_ratio": {"lo": 0.0, "hi": 1.0}}
+                                  "retract_accel", "accel_to_decel", "retract_speed", "unretract_speed"),
+                                 {"lo": 0.0, "lo_open": True}),
+                 "min_cruise_ratio": {"lo": 0.0, "hi": 1.0}, "retract_length": {"lo": 0.0}, "unretract_extra_length": {}}
 
 
 def _check_limits(limits: dict, lw: str) -> None:
@@ -166,6 +169,9 @@ def _check_limits(limits: dict, lw: str) -> None:
         if key in limits and limits[key] not in allowed:
             raise RingtuneError(f"{key} must be one of {', '.join(allowed)}, not {limits[key]!r}", f"{lw}.{key}")
     flag(limits, "scale_xy_accel", lw, None)
+    speeds = [k for k in ("retract_speed", "unretract_speed") if k not in limits and limits.get("retract_length")]
+    if speeds:
+        raise RingtuneError("needed with a retract_length above 0 (mm/s)", f"{lw}.{speeds[0]}")
     for key in ("jerk", "max_accel", "max_velocity"):
         if key in limits and not _four_numbers(limits[key]):
             raise RingtuneError(f"{key} must be a list of 4 non-negative numbers (x, y, z, e)", f"{lw}.{key}")

@@ -28,6 +28,9 @@ What is taken (Klipper's option -> description key):
 - per motor (``stepper_x`` -> ``[x.motor]``, ``stepper_y`` -> ``[y.motor]``, one ``[motor]`` when
   both are the same): rotation distance, microsteps, run current and the named motor's constants,
   as :mod:`ringtune.hardware.klipper_motors` takes them;
+- ``[firmware_retraction]`` -> ``limits.retract_length``, ``retract_speed``, ``unretract_extra_length``,
+  ``unretract_speed`` (what a job's G10/G11 move; Klipper's defaults 0 mm, 20 mm/s, 0 mm, 10 mm/s
+  where unset, each said; no section: ``retract_length = 0``, since G10/G11 then move nothing, said);
 - ``[input_shaper]`` -> ``[current]``: ``shaper_x``/``freq_x``/``damping_x`` (and y) as Klipper runs
   them (``shaper_type_x`` else ``shaper_type`` else Klipper's ``mzv``; damping 0.1 by default; a
   zero or missing frequency is ``"none"``), ``accel`` = ``max_accel``, ``firmware = "klipper"``.
@@ -101,7 +104,29 @@ def _limits(src: Source) -> dict:
     limits["min_cruise_ratio"] = mcr
     _speed_caps(src, limits, velocity)
     _accel_caps(src, limits, accel)
+    limits.update(_firmware_retraction(src))
     return limits
+
+
+#: [firmware_retraction]'s options, as ``[limits]`` names them too: (Klipper's minimum, unit)
+RETRACTION_OPTIONS = {"retract_length": (0.0, " mm"), "retract_speed": (1.0, " mm/s"),
+                      "unretract_extra_length": (0.0, " mm"), "unretract_speed": (1.0, " mm/s")}
+
+
+def _firmware_retraction(src: Source) -> dict:
+    """``[firmware_retraction]`` -> what a job's G10/G11 move (Klipper's defaults where unset, each
+    said); no section: a length of 0 (a G10 is then an unknown command to Klipper and moves nothing)."""
+    if src.name("firmware_retraction") is None:
+        src.notes.append("no [firmware_retraction]: a job's G10/G11 are unknown commands to this printer and move "
+                         "nothing (limits.retract_length = 0)")
+        return {"retract_length": 0.0}
+    out = {k: src.number("firmware_retraction", k, KLIPPER_DEFAULTS[k], unit=unit)
+           for k, (_low, unit) in RETRACTION_OPTIONS.items()}
+    for k, v in out.items():
+        if v < RETRACTION_OPTIONS[k][0]:
+            raise RingtuneError(f"must be ≥ {RETRACTION_OPTIONS[k][0]:g}{RETRACTION_OPTIONS[k][1]} (Klipper's minimum), "
+                                f"not {v:g}", src.where("firmware_retraction", k))
+    return out
 
 
 def _speed_caps(src: Source, limits: dict, velocity: float) -> None:

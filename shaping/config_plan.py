@@ -21,6 +21,9 @@ and :func:`ringtune.envs.planned_job.planned_job` (every tuning trial) share.
    printing and travel accelerations (and X/Y caps where it sets them) whatever the mode — what
    the job rewriter writes into the file; the job's retract acceleration (M204 R) stays;
 4. the planner plans, with RepRapFirmware ≤ 3.3's DAA when the config (or the caller) selects it.
+
+Before all that, each firmware retraction (G10/G11) whose settings are known becomes the E-only move
+the firmware makes (:func:`ringtune.shaping.firmware_retraction.with_firmware_retractions`).
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import FeatureCommands, with_feature_settings
 from ringtune.shaping.firmware import job_reading
+from ringtune.shaping.firmware_retraction import with_firmware_retractions
 from ringtune.shaping.freqlimit import apply_freq_limit
 from ringtune.shaping.job import Job
 from ringtune.shaping.job_shapers import with_firmware_shaper_stops
@@ -128,6 +132,7 @@ def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None 
     """
     mode = job_accel_mode(config, job_accel)
     limits = for_firmware(with_axis_caps(limits, config), config)
+    job = with_firmware_retractions(job, limits)   # G10/G11 as the E-only moves the firmware makes, where known
     accel = None if config is None or config.accel is None else float(config.accel)
     if accel is not None:     # export sends it as printing and travel acceleration (M204 P T)
         limits = replace(limits, accel=accel, travel_accel=None)

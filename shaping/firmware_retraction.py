@@ -2,15 +2,49 @@
 the filament by its own settings — Klipper's ``[firmware_retraction]`` (``SET_RETRACTION``; no
 section: an unknown command, nothing moves), Marlin's M207/M208 (FWRETRACT), RepRapFirmware's M207
 (``G10`` with ``P`` or ``L`` is RRF's tool offset or temperature, not a retraction). Each is an
-E-only move, so the head comes to rest there as at a slicer's own retraction (the reader sets
-``stop_before``, :class:`RetractionState`: not at a G10 while retracted, nor a G11 while not). The
-length and speeds are the printer's, not in the file, so the planner plans these moves as taking no
-time; this counts them and says what that leaves out (s)."""
+E-only move (the reader records it, :class:`RetractionState`: not at a G10 while retracted, nor a G11
+while not).
+
+Where the settings are known — the printer's (``[limits]`` ``retract_length``, ``retract_speed``,
+``unretract_extra_length``, ``unretract_speed``: what ``printer from-klipper|from-marlin|from-rrf``
+read) or the job's own commands before it (Klipper ``SET_RETRACTION``; Marlin ``M207 S F``,
+``M208 S F``; RRF ``M207 S R F T``) — :func:`with_firmware_retractions` adds the E-only move each
+makes, as the firmware itself does, and the planner treats it as a slicer's own E-only move (Klipper
+comes to rest at it; a length of 0 moves nothing and the head goes on): Klipper runs ``G1 E-length F(int(60·speed))`` (its M220 speed
+factor applies) and restores ``length + extra`` of its settings at the ``G11``; Marlin and RRF move
+at their own speeds (no M220); each restores the length plus the extra (Marlin and RRF restore what
+the ``G10`` took: the same unless a job changes the length while retracted). The job's E
+words are unchanged by it (the firmwares keep the G-code's E position), so every later move is
+shifted by what is retracted. Where they are not known, the head stops there (the reader's
+``stop_before``: the printer assumed to retract, as a slicer's retraction stops Klipper), the moves take no
+time, and :func:`firmware_retraction_note` says what that leaves out. Not planned: a Z hop (Marlin's
+and RRF's M207 Z; ``printer from-marlin|from-rrf`` say so where the printer sets one).
+"""
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ringtune.shaping.errors import RingtuneError
+
 #: for the sentence's example: Klipper's default speeds (mm/s) at a 1 mm retraction
 EXAMPLE_MM, EXAMPLE_OUT_MM_S, EXAMPLE_BACK_MM_S = 1.0, 20.0, 10.0
+#: the settings, as MachineLimits names them
+KEYS = ("retract_length", "retract_speed", "unretract_extra_length", "unretract_speed")
+#: per firmware reading (:func:`dialect`): the job's command -> (word, setting, divisor to mm or mm/s),
+#: applied in order (RRF's F sets both speeds, then T the restore's own); RRF's M208 is the axis limits
+_WORDS = {
+    "klipper": {"SET_RETRACTION": (("RETRACT_LENGTH", "retract_length", 1), ("RETRACT_SPEED", "retract_speed", 1),
+                                   ("UNRETRACT_EXTRA_LENGTH", "unretract_extra_length", 1),
+                                   ("UNRETRACT_SPEED", "unretract_speed", 1))},
+    "marlin": {"M207": (("S", "retract_length", 1), ("F", "retract_speed", 60)),
+               "M208": (("S", "unretract_extra_length", 1), ("F", "unretract_speed", 60))},
+    "rrf": {"M207": (("S", "retract_length", 1), ("F", "retract_speed", 60), ("F", "unretract_speed", 60),
+                     ("R", "unretract_extra_length", 1), ("T", "unretract_speed", 60))},
+}
 
 
 def is_firmware_retraction(command: str, words) -> bool:
@@ -43,27 +77,171 @@ class RetractionState:
 
 def firmware_retractions(job) -> dict[str, list[int]]:
     """{``"G10"`` / ``"G11"``: the job's line numbers, in order} of its firmware retractions and
-    restores that move the extruder (:class:`RetractionState`; a parsed
-    :class:`ringtune.shaping.job.Job`); empty when it has none."""
+    restores that move the extruder (a parsed :class:`ringtune.shaping.job.Job`); empty when it has none."""
     out: dict[str, list[int]] = {}
-    state = RetractionState()
-    for ev in job.events:
-        if ev.command == "SET_RETRACTION":
-            state.reset()
-        elif state.moves(ev.command, ev.params):
-            out.setdefault(ev.command, []).append(int(ev.line))
+    for r in job.fw_retractions:
+        out.setdefault(r.command, []).append(int(r.line))
     return out
 
 
-def firmware_retraction_note(found: dict[str, list[int]]) -> str | None:
-    """One sentence on what :func:`firmware_retractions` found (None: nothing)."""
-    if not found:
+@dataclass(frozen=True)
+class Retraction:
+    """One firmware retraction as planned: the reader's record (``at``), the E it moves (mm; None:
+    the settings are not known) at ``speed`` (mm/s), and where the settings came from."""
+
+    at: object
+    e: float | None
+    speed: float | None
+    source: str
+
+
+def dialect(limits) -> str:
+    """How the firmware of ``limits`` reads retraction commands: ``klipper``, ``rrf`` (M203 in mm/min)
+    or ``marlin`` (Marlin and Prusa, and an unknown firmware on Marlin's corner rules)."""
+    if limits.reads_like_klipper:
+        return "klipper"
+    return "rrf" if limits.m203_per_minute else "marlin"
+
+
+def _num(value, what: str, where: str) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise RingtuneError(f"{what} must be a number, not {value!r}", where) from None
+    if not math.isfinite(x):
+        raise RingtuneError(f"{what} must be a finite number, not {value!r}", where)
+    return x
+
+
+def job_settings(ev, kind: str, where: str) -> dict[str, float]:
+    """What a job's command (an :class:`ringtune.shaping.job.Event`) sets of :data:`KEYS` on a
+    firmware of ``kind`` (:func:`dialect`): empty for other commands. Speeds in mm/s."""
+    out = {}
+    for word, key, scale in _WORDS[kind].get(ev.command, ()):
+        if word in ev.params:
+            out[key] = _num(ev.params[word], f"{ev.command} {word}", where) / scale
+    return out
+
+
+def retraction_plan(job, limits) -> list[Retraction]:
+    """Each of ``job``'s firmware retractions with the E it moves and its speed, on a firmware with
+    ``limits`` (a :class:`ringtune.shaping.planner.MachineLimits`): the printer's settings (its
+    ``unretract_extra_length`` only where it gives ``retract_length``), changed by the job's own
+    commands as they come (module docstring)."""
+    kind = dialect(limits)
+    values = {k: getattr(limits, k) if limits.retract_length is not None else None for k in KEYS}
+    source = dict.fromkeys(KEYS, "the printer's")
+    pending = [ev for ev in job.events if ev.command in _WORDS[kind]][::-1]     # the job's own, last first
+    out = []
+    for r in job.fw_retractions:
+        while pending and pending[-1].line < r.line:
+            ev = pending.pop()
+            for k, v in job_settings(ev, kind, f"{job.source}:{ev.line}").items():
+                values[k], source[k] = v, f"line {ev.line}"
+        out.append(_one(r, kind, values, source))
+    return out
+
+
+def _one(r, kind: str, values: dict, source: dict) -> Retraction:
+    """The retraction ``r`` under ``values`` (None where not known). A G11 restores the length in force
+    plus the extra (Klipper's rule; Marlin and RRF restore what the G10 took, the same unless the job
+    changes the length while retracted). A length of 0 moves nothing, whatever the speed."""
+    keys = ("retract_length", "retract_speed") if r.command == "G10" else (
+        "retract_length", "unretract_extra_length", "unretract_speed")
+    e = None if None in (values["retract_length"], values[keys[-2]]) else (
+        values["retract_length"] + values["unretract_extra_length"] if len(keys) == 3 else -values["retract_length"])
+    speed = values[keys[-1]]
+    if e is None or (e and speed is None):
+        return Retraction(r, None, None, "")
+    if kind == "klipper" and e:      # G1 E… F%d: whole mm/min, then the M220 factor
+        speed = math.floor(speed * 60) / 60 * r.speed_factor
+    return Retraction(r, e, speed if e else None, " and ".join(sorted({source[k] for k in keys})))
+
+
+def with_firmware_retractions(job, limits):
+    """``job`` with the E-only move of each firmware retraction whose settings are known
+    (:func:`retraction_plan`) inserted where the firmware makes it, every later move's E shifted
+    by it, and the reader's stop lifted where only such retractions made it (the planner decides
+    there as at a slicer's own E-only move; a length of 0 moves nothing and the head goes on); its
+    ``fw_retractions`` then empty (planned once). The same object when none is known."""
+    known = [p for p in retraction_plan(job, limits) if p.e is not None]
+    if not known:
+        return job
+    cache = job.__dict__.setdefault("_fw_planned", {})
+    key = tuple((p.at.line, p.e, p.speed) for p in known)
+    if key not in cache:
+        cache.clear()
+        cache[key] = _inserted(job, known)
+    return cache[key]
+
+
+def _inserted(job, known: list[Retraction]):
+    """The new job of :func:`with_firmware_retractions`."""
+    n = job.n_moves
+    t = np.array([(p.at.move, p.at.line, p.at.feature, p.at.settings, p.speed or 0.0, p.e, p.at.alone)
+                  for p in known], float)
+    stop = job.stop_before.copy()
+    stop[t[(t[:, 6] > 0) & (t[:, 0] < n), 0].astype(np.int64)] = False
+    t = t[t[:, 5] != 0]                                      # the retractions that move E
+    at, e = t[:, 0].astype(np.int64), t[:, 5]
+    cum = np.concatenate(([0.0], np.cumsum(e)))
+    start = np.vstack([job.start, job.end[-1:]])[at]        # where the head is: the next move's start, else the end
+    start[:, 3] += cum[:-1]
+    end = start.copy()
+    end[:, 3] += e
+    shift = np.outer(cum[np.searchsorted(at, np.arange(n), side="right")], [0, 0, 0, 1])
+    lines = t[:, 1].astype(np.int64)
+    new = dict(line=lines, feed=t[:, 4], feature=t[:, 2].astype(np.int64), settings=t[:, 3].astype(np.int64),
+               dwell_before=0.0, arc=False)
+    # an event comes after the inserted moves before its move, and at its move after those from earlier lines
+    key = at * 2**32 + lines
+    events = [replace(ev, move=ev.move + int(np.searchsorted(key, ev.move * 2**32 + ev.line))) for ev in job.events]
+    return replace(job, start=np.insert(job.start + shift, at, start, axis=0),
+                   end=np.insert(job.end + shift, at, end, axis=0), stop_before=np.insert(stop, at, False),
+                   events=events, fw_retractions=[], **{k: np.insert(getattr(job, k), at, v) for k, v in new.items()})
+
+
+def firmware_retraction_note(job, limits) -> str | None:
+    """One sentence on ``job``'s firmware retractions on a firmware with ``limits``: how they are
+    planned, or what leaving them out costs where the settings are not known (None: none)."""
+    plan = retraction_plan(job, limits)
+    if not plan:
         return None
-    n = max(len(v) for v in found.values())
-    each = EXAMPLE_MM / EXAMPLE_OUT_MM_S + EXAMPLE_MM / EXAMPLE_BACK_MM_S
-    parts = ", ".join(f"{cmd} ×{len(lines)} (first on line {lines[0]})" for cmd, lines in sorted(found.items()))
-    return (f"the job retracts by firmware — {parts}: the length and speeds are the printer's (Klipper's "
-            "[firmware_retraction], Marlin's M207/M208, RRF's M207), not in the file, so these moves are planned "
-            "as stops that take no time (the printer assumed to retract: Klipper's retract_length defaults to 0, "
-            f"and then the head does not stop); at {EXAMPLE_MM:g} mm out at {EXAMPLE_OUT_MM_S:g} mm/s and back at "
-            f"{EXAMPLE_BACK_MM_S:g} mm/s they would add {each:.2f} s each, {n * each:.1f} s in all")
+    parts = ", ".join(f"{cmd} ×{len(lines)} (first on line {lines[0]})"
+                      for cmd, lines in sorted(firmware_retractions(job).items()))
+    known = [p for p in plan if p.e is not None]
+    unknown = [p for p in plan if p.e is None]
+    return f"the job retracts by firmware — {parts}: " + "; ".join(filter(None, (_known_words(known),
+                                                                                 _unknown_words(unknown))))
+
+
+def _known_words(known: list[Retraction]) -> str:
+    if not known:
+        return ""
+    src = sorted({p.source for p in known})
+    return (f"{len(known)} planned as the E-only moves the firmware makes, by "
+            + "; ".join(_source_words(s) for s in src) + f" settings ({_settings_words(known)})")
+
+
+def _unknown_words(unknown: list[Retraction]) -> str:
+    if not unknown:
+        return ""
+    out, back = EXAMPLE_MM / EXAMPLE_OUT_MM_S, EXAMPLE_MM / EXAMPLE_BACK_MM_S
+    total = sum(out if p.at.command == "G10" else back for p in unknown)
+    return (f"{len(unknown)} planned as stops that take no time: the length and speeds are the printer's "
+            "(Klipper's [firmware_retraction], Marlin's M207/M208, RRF's M207), not in the printer description "
+            "([limits] retract_length, retract_speed, unretract_extra_length, unretract_speed; `ringtune printer "
+            "from-klipper|from-marlin|from-rrf` reads them) nor set by the job before them (the printer assumed to "
+            "retract: Klipper's retract_length defaults to 0, and then the head does not stop); at "
+            f"{EXAMPLE_MM:g} mm out at {EXAMPLE_OUT_MM_S:g} mm/s ({out:.2f} s) and back at {EXAMPLE_BACK_MM_S:g} "
+            f"mm/s ({back:.2f} s) they would add {total:.1f} s in all")
+
+
+def _source_words(source: str) -> str:
+    return source if source.startswith("the printer") else f"the job's own ({source})"
+
+
+def _settings_words(known: list[Retraction]) -> str:
+    """The distinct (E, speed) pairs of ``known`` in words (the first three, and how many more)."""
+    pairs = list(dict.fromkeys(f"{p.at.command} {p.e:+.4g} mm at {p.speed or 0:.4g} mm/s" for p in known))
+    return ", ".join(pairs[:3]) + f" and {len(pairs) - 3} more" * (len(pairs) > 3)

@@ -46,7 +46,7 @@ from ringtune.shaping.firmware_retraction import RetractionState
 from ringtune.shaping.gcode_file import open_lines, read_gcode_bytes, read_head, refuse_non_gcode
 from ringtune.shaping.gcode_sniff import HEAD
 from ringtune.shaping.job import (LIMIT_COMMANDS, SETTING_KEYS, SHAPER_COMMANDS, STOP_COMMANDS,
-                                  Event, Job)
+                                  Event, FirmwareRetractionAt, Job)
 from ringtune.shaping.gcode_commands import BOUNDS as _BOUNDS
 from ringtune.shaping.gcode_commands import SettingCommands
 from ringtune.shaping.gcode_commands import num as _num
@@ -124,6 +124,7 @@ class _Reader(SettingCommands, MotionCommands):
         self.stop = True
         self.dwell = 0.0
         self.retraction = RetractionState()     # a firmware retraction moves E only when it changes it
+        self.fw_pending: list[tuple] = []       # firmware retractions: FirmwareRetractionAt's fields
         self.tower: tuple | None = None        # active Klipper TUNING_TOWER
         self.tower_z = math.nan
         self.tower_value = math.nan
@@ -325,9 +326,29 @@ class _Reader(SettingCommands, MotionCommands):
             self.stop = True
             self._event("shaper", cmd, words, lineno, code)
         else:
-            if cmd in STOP_COMMANDS or self.retraction.moves(cmd, words):
+            if cmd in STOP_COMMANDS:
                 self.stop = True
+            elif self.retraction.moves(cmd, words):
+                self._retraction_at(cmd, lineno)
             self._event("other", cmd, words, lineno, code)
+
+    def _retraction_at(self, cmd: str, lineno: int) -> None:
+        """Note a firmware retraction that moves E, with the feature and settings in force (the head
+        stops there: :meth:`_retractions_stop`)."""
+        if self.settings_dirty:
+            self.settings_rows.append(tuple(self.settings.values()))
+            self.settings_dirty = False
+        self.fw_pending.append((self.n_done + len(self.m_line), cmd, lineno, self.cur_feature,
+                                len(self.settings_rows) - 1, self.speed_factor))
+
+    def _retractions_stop(self, stop: np.ndarray) -> list[FirmwareRetractionAt]:
+        """The firmware retractions, each ``alone`` where nothing else stops the head before its
+        move; ``stop`` (the moves' stops so far) then stops there too."""
+        moves = np.array([p[0] for p in self.fw_pending], np.int64)
+        moves = moves[moves < len(stop)]
+        alone = ~stop[moves]
+        stop[moves] = True
+        return [FirmwareRetractionAt(*p, alone=bool(a)) for p, a in zip(self.fw_pending, [*alone, *[True] * len(self.fw_pending)])]
 
     def job(self) -> Job:
         self._flush()
@@ -338,6 +359,7 @@ class _Reader(SettingCommands, MotionCommands):
             cols.append(arr.reshape(-1, 4) if name in ("m_start", "m_end") else arr)
         if self.settings_dirty:
             self.settings_rows.append(tuple(self.settings.values()))
+        retractions = self._retractions_stop(cols[6])
         return Job(
             line=cols[0], start=cols[1], end=cols[2], feed=cols[3], feature=cols[4],
             settings=cols[5], stop_before=cols[6], dwell_before=cols[7], arc=cols[8],
@@ -349,6 +371,7 @@ class _Reader(SettingCommands, MotionCommands):
             n_lines=self.n_lines,
             arc_tolerance=self.tol,
             limited=self.limited,
+            fw_retractions=retractions,
         )
 
 

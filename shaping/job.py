@@ -48,6 +48,23 @@ class Event:
     time: float | None = None
 
 
+@dataclass(frozen=True)
+class FirmwareRetractionAt:
+    """A ``G10``/``G11`` that moves the extruder by the printer's own settings (see
+    :mod:`ringtune.shaping.firmware_retraction`), where the reader met it: ``move`` the index of the
+    first move after it, ``command``, ``line``, ``feature`` and ``settings`` (indices, as a move's)
+    in force there, ``speed_factor`` the M220 factor then, ``alone`` whether only firmware
+    retractions stop the head before that move."""
+
+    move: int
+    command: str
+    line: int
+    feature: int
+    settings: int
+    speed_factor: float
+    alone: bool = True
+
+
 @dataclass
 class Job:
     """A parsed job: straight moves in machine coordinates (mm) and what surrounds them.
@@ -58,6 +75,7 @@ class Job:
     ``stop_before`` the firmware is at rest before this move, ``dwell_before`` s of dwell before it,
     ``arc`` the move is a chord of a G2/G3 arc. ``limited``: the frequency limit the file's F
     words already carry, from the header ``ringtune limit`` writes in its first lines (None: none).
+    ``fw_retractions``: :class:`FirmwareRetractionAt` of each G10/G11 that moves the extruder.
     """
 
     line: np.ndarray
@@ -77,6 +95,9 @@ class Job:
     n_lines: int = 0
     arc_tolerance: float = 0.01
     limited: tuple | None = None      # (Hz, method, min speed factor) of a ``ringtune limit`` header
+    #: the firmware retractions that move E, in file order; the planner adds their E-only moves
+    #: where the retraction settings are known (:func:`ringtune.shaping.firmware_retraction.with_firmware_retractions`)
+    fw_retractions: list = field(default_factory=list)
 
     @property
     def n_moves(self) -> int:

@@ -92,7 +92,11 @@ class MachineLimits:
     acceleration from M204 S, or P and T together, or SET_VELOCITY_LIMIT; no M201/M203), else by
     role as Marlin, Prusa and RepRapFirmware (M204 P printing, T travel, R retract; M201/M203 caps);
     None: as the junction rule implies (Klipper's ``scv``, the others' ``jd``/``jerk``) — the
-    firmware, not its corner rule, decides it where both are known (:attr:`reads_like_klipper`).
+    firmware, not its corner rule, decides it where both are known (:attr:`reads_like_klipper`);
+    retract_length (mm), retract_speed, unretract_extra_length (mm), unretract_speed (mm/s): what a
+    ``G10``/``G11`` moves the extruder by (Klipper's ``[firmware_retraction]``, Marlin's M207/M208,
+    RRF's M207; :mod:`ringtune.shaping.firmware_retraction`), None: not known (a retraction that
+    moves the extruder without its speed is not known either).
     """
 
     accel: float = 3000.0
@@ -112,6 +116,10 @@ class MachineLimits:
     axis_rule: str = "per_axis"
     scale_xy_accel: bool = False
     klipper_reading: bool | None = None
+    retract_length: float | None = None
+    retract_speed: float | None = None
+    unretract_extra_length: float = 0.0
+    unretract_speed: float | None = None
 
     @property
     def reads_like_klipper(self) -> bool:
@@ -166,7 +174,10 @@ _LIMIT_CHECKS = (
     (("square_corner_velocity", "junction_deviation"), _non_negative, "must be a number >= 0, not {v!r}"),
     (("min_cruise_ratio",), _fraction, "must be in [0, 1)"),
     (("jerk", "max_accel", "max_velocity"), _four_or_none, "needs 4 numbers >= 0 (x, y, z, e)"),
-    (("travel_accel", "retract_accel", "accel_to_decel"), _positive_or_none, "must be a positive number"),
+    (("travel_accel", "retract_accel", "accel_to_decel", "retract_speed", "unretract_speed"), _positive_or_none,
+     "must be a positive number"),
+    (("unretract_extra_length",), lambda v: isinstance(v, (int, float)) and math.isfinite(v), "must be a number, not {v!r}"),
+    (("retract_length",), lambda v: v is None or _non_negative(v), "must be a number >= 0, not {v!r}"),
 )
 
 

@@ -5,7 +5,7 @@ as the job reads."""
 from __future__ import annotations
 
 from ringtune.shaping.features import nothing_seen_note
-from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions
+from ringtune.shaping.firmware_retraction import firmware_retraction_note
 from ringtune.shaping.job_shapers import foreign_shapers, foreign_shapers_note, prusa_weight_note
 from ringtune.shaping.klipper_commands import macro_calls, macro_note
 from ringtune.shaping.klipper_ignores import klipper_ignored, klipper_ignored_note
@@ -28,5 +28,5 @@ def reading_notes(job, limits, firmware: str | None) -> list[str]:
              macro_note(macro_calls(job)) if limits.reads_like_klipper else None,
              foreign_shapers_note(foreign_shapers(job, firmware), firmware) if firmware else None,
              prusa_weight_note(job, firmware) if firmware else None,
-             firmware_retraction_note(firmware_retractions(job)), nothing_seen_note(job)]
+             firmware_retraction_note(job, limits), nothing_seen_note(job)]
     return [n for n in notes if n]

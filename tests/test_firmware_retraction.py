@@ -38,7 +38,7 @@ def test_rrf_tool_offsets_are_not_retractions_and_a_job_without_any_says_nothing
     again = read_gcode("M83\nG11\nG1 X10 E1 F1200\nG10\nG10\nG1 X0\nG11\nG11\n")
     assert firmware_retractions(again) == {"G10": [4], "G11": [7]}
     plain = read_gcode("M83\nG1 X10 E1 F1200\n")
-    assert firmware_retractions(plain) == {} and firmware_retraction_note({}) is None
+    assert firmware_retractions(plain) == {} and firmware_retraction_note(plain, MachineLimits()) is None
 
 
 
@@ -95,6 +95,6 @@ def test_tunes_summary_keeps_what_the_job_reading_leaves_out(data_dir, tmp_path,
     out = tmp_path / "out"
     assert main(["tune", "--gcode", str(path), "--trials", "2", "--workers", "1", "-o", str(out)]) == 0
     said = capsys.readouterr().err
-    note = firmware_retraction_note(firmware_retractions(read_gcode(path)))
+    note = firmware_retraction_note(read_gcode(path), load_printer(None).limits)
     assert note in said
     assert f"{note[0].upper()}{note[1:]}." in (out / "summary.txt").read_text()

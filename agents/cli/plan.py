@@ -8,9 +8,11 @@ Klipper does not act on, under its rule; else empty) and ``ignored_note`` (that 
 null), ``macro_calls`` ({command: [line numbers]} of the commands that are not Klipper's own —
 macros of the printer.cfg, whose commands are not in the file — where the job is read as Klipper
 reads it; else empty) and ``macro_note`` (that in words, or null), ``firmware_retraction``
-({``G10``/``G11``: [line numbers]} of the job's firmware retractions, planned as stops that take
-no time (E-only moves: the head comes to rest; their length and speeds are the printer's) and
-``firmware_retraction_note`` (that in words, or null), ``print_time_s``,
+({``G10``/``G11``: [line numbers]} of the job's firmware retractions: E-only moves, the head comes
+to rest), ``firmware_retraction_planned`` (how many of them are planned as the E-only moves the
+firmware makes, by the printer's ``[limits]`` retract_length, retract_speed, unretract_extra_length
+and unretract_speed or the job's own SET_RETRACTION/M207/M208 before them; the others as stops
+that take no time) and ``firmware_retraction_note`` (that in words, or null), ``print_time_s``,
 ``print_time``, ``moves``, ``extruding_moves``, ``lines``, ``path_length_mm``,
 ``time_by_feature`` ({feature: s}), ``junction_reason`` (why that junction rule, in words),
 ``top_frequencies`` (list of {``freq_hz``, ``line``, ``t``}: highest *planned* direction-change
