@@ -126,6 +126,10 @@ def _firmware_retraction(src: Source) -> dict:
         if v < RETRACTION_OPTIONS[k][0]:
             raise RingtuneError(f"must be ≥ {RETRACTION_OPTIONS[k][0]:g}{RETRACTION_OPTIONS[k][1]} (Klipper's minimum), "
                                 f"not {v:g}", src.where("firmware_retraction", k))
+    hop = src.number("firmware_retraction", "z_hop_height")
+    if hop:
+        src.notes.append(f"{src.where('firmware_retraction', 'z_hop_height')}: [firmware_retraction] z_hop_height "
+                         f"{hop:g} mm (Kalico's Z hop at each G10) is not planned")
     return out
 
 

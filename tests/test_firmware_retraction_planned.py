@@ -15,9 +15,11 @@ import re
 import pytest
 
 from ringtune.agents.cli.main import main
+from ringtune.hardware.klipper_config import printer_facts_from_klipper
 from ringtune.hardware.marlin_config import printer_facts_from_marlin
 from ringtune.hardware.rrf_config import printer_facts_from_rrf
 from ringtune.shaping.config_plan import plan_with_config
+from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware_retraction import firmware_retraction_note, retraction_plan
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.planner import MachineLimits
@@ -165,3 +167,26 @@ def test_the_note_says_how_they_are_planned_and_a_half_description_is_refused(tm
     assert main(["plan", "--printer", str(printer)]) != 0
     err = capsys.readouterr().err
     assert "[limits].unretract_speed: needed with a retract_length above 0" in err and "Traceback" not in err
+
+
+def test_klipper_configs_give_firmware_retraction_with_its_defaults_said(tmp_path):
+    """klippy/extras/firmware_retraction.py: retract_length 0, retract_speed 20, unretract_extra_length 0,
+    unretract_speed 10 where unset; without the section G10/G11 are unknown commands (length 0)."""
+    base = ("[printer]\nkinematics: cartesian\nmax_velocity: 300\nmax_accel: 3000\n"
+            "[stepper_x]\nmicrosteps: 16\nrotation_distance: 40\n[stepper_y]\nmicrosteps: 16\nrotation_distance: 40\n")
+    cfg = tmp_path / "printer.cfg"
+    cfg.write_text(base + "[firmware_retraction]\nretract_length: 0.6\nretract_speed: 45\nz_hop_height: 0.2\n")
+    facts = printer_facts_from_klipper(cfg)
+    lim = facts.description["limits"]
+    assert (lim["retract_length"], lim["retract_speed"], lim["unretract_extra_length"], lim["unretract_speed"]) == (
+        0.6, 45.0, 0.0, 10.0)
+    assert any("unretract_speed not set: Klipper's default 10 mm/s" in n for n in facts.notes)
+    assert any("z_hop_height 0.2 mm (Kalico's Z hop at each G10) is not planned" in n for n in facts.notes)
+    cfg.write_text(base)
+    facts = printer_facts_from_klipper(cfg)
+    assert facts.description["limits"]["retract_length"] == 0.0
+    assert "retract_speed" not in facts.description["limits"]
+    assert any(n.startswith("no [firmware_retraction]: a job's G10/G11 are unknown commands") for n in facts.notes)
+    cfg.write_text(base + "[firmware_retraction]\nretract_speed: 0.5\n")
+    with pytest.raises(RingtuneError, match="must be ≥ 1 mm/s"):
+        printer_facts_from_klipper(cfg)
