@@ -36,7 +36,7 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.feature_settings import FeatureCommands, with_feature_settings
 from ringtune.shaping.firmware import job_reading
-from ringtune.shaping.firmware_retraction import with_firmware_retractions
+from ringtune.shaping.firmware_retraction import with_firmware_retractions, without_inserted
 from ringtune.shaping.freqlimit import apply_freq_limit
 from ringtune.shaping.job import Job
 from ringtune.shaping.job_shapers import with_firmware_shaper_stops
@@ -150,7 +150,7 @@ def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None 
     # respect: it is the machine's acceleration (limits.accel), the job's commands stand
     planned = plan(job, limits, daa_freq=daa, use_job_limits=use_job_limits,
                    accel=accel if mode == "replace" else None)
-    return ConfiguredPlan(planned, limits, freq_limit, daa, job)
+    return ConfiguredPlan(planned, limits, freq_limit, daa, without_inserted(job))
 
 
 def _freq_limited(job: Job, limits: MachineLimits, config: TuneConfig | None,

@@ -176,29 +176,52 @@ def with_firmware_retractions(job, limits):
 
 
 def _inserted(job, known: list[Retraction]):
-    """The new job of :func:`with_firmware_retractions`."""
+    """The new job of :func:`with_firmware_retractions`: the E-only moves in, marked in
+    ``fw_inserted``, the events' move indices after them."""
     n = job.n_moves
     t = np.array([(p.at.move, p.at.line, p.at.feature, p.at.settings, p.speed or 0.0, p.e, p.at.alone)
                   for p in known], float)
     stop = job.stop_before.copy()
     stop[t[(t[:, 6] > 0) & (t[:, 0] < n), 0].astype(np.int64)] = False
     t = t[t[:, 5] != 0]                                      # the retractions that move E
-    at, e = t[:, 0].astype(np.int64), t[:, 5]
-    cum = np.concatenate(([0.0], np.cumsum(e)))
+    at, lines = t[:, 0].astype(np.int64), t[:, 1].astype(np.int64)
     start = np.vstack([job.start, job.end[-1:]])[at]        # where the head is: the next move's start, else the end
-    start[:, 3] += cum[:-1]
     end = start.copy()
-    end[:, 3] += e
-    shift = np.outer(cum[np.searchsorted(at, np.arange(n), side="right")], [0, 0, 0, 1])
-    lines = t[:, 1].astype(np.int64)
-    new = dict(line=lines, feed=t[:, 4], feature=t[:, 2].astype(np.int64), settings=t[:, 3].astype(np.int64),
-               dwell_before=0.0, arc=False)
+    end[:, 3] += t[:, 5]
+    new = dict(start=start, end=end, line=lines, feed=t[:, 4], feature=t[:, 2].astype(np.int64),
+               settings=t[:, 3].astype(np.int64), stop_before=False, dwell_before=0.0, arc=False)
     # an event comes after the inserted moves before its move, and at its move after those from earlier lines
     key = at * 2**32 + lines
     events = [replace(ev, move=ev.move + int(np.searchsorted(key, ev.move * 2**32 + ev.line))) for ev in job.events]
-    return replace(job, start=np.insert(job.start + shift, at, start, axis=0),
-                   end=np.insert(job.end + shift, at, end, axis=0), stop_before=np.insert(stop, at, False),
-                   events=events, fw_retractions=[], **{k: np.insert(getattr(job, k), at, v) for k, v in new.items()})
+    cols = {k: np.insert(stop if k == "stop_before" else getattr(job, k), at, v, axis=0) for k, v in new.items()}
+    return replace(job, events=events, fw_retractions=[], fw_inserted=np.insert(np.zeros(n, bool), at, True), **cols)
+
+
+def fold_retractions(job, per_move: tuple, seconds: np.ndarray):
+    """``job`` (with ``fw_inserted``) and the planner's ``per_move`` arrays (entry and exit v², then
+    the others, each (n,…)) without the inserted E-only moves: the head rests through each, so its
+    ``seconds`` go to the rest before the next move (after the last, ``dwell_after``); each move keeps
+    the entry and exit the plan gave it. So the plan's moves are the job's as read."""
+    keep = ~job.fw_inserted
+    into = np.cumsum(keep)[job.fw_inserted]                 # the move after each, among those kept
+    rest = np.bincount(into, weights=seconds[job.fw_inserted] + job.dwell_before[job.fw_inserted],
+                       minlength=int(keep.sum()) + 1)
+    kept = without_inserted(job)
+    kept.dwell_before = kept.dwell_before + rest[:-1]
+    kept.dwell_after = job.dwell_after + float(rest[-1])
+    return kept, tuple(a[keep] for a in per_move)
+
+
+def without_inserted(job):
+    """``job`` without the E-only moves :func:`with_firmware_retractions` put in (the events' indices
+    back to the moves as read)."""
+    if job.fw_inserted is None:
+        return job
+    keep = ~job.fw_inserted
+    before = np.concatenate(([0], np.cumsum(keep)))
+    cols = {k: getattr(job, k)[keep] for k in ("line", "start", "end", "feed", "feature", "settings",
+                                              "stop_before", "dwell_before", "arc")}
+    return replace(job, events=[replace(ev, move=int(before[ev.move])) for ev in job.events], fw_inserted=None, **cols)
 
 
 def firmware_retraction_note(job, limits) -> str | None:

@@ -98,6 +98,9 @@ class Job:
     #: the firmware retractions that move E, in file order; the planner adds their E-only moves
     #: where the retraction settings are known (:func:`ringtune.shaping.firmware_retraction.with_firmware_retractions`)
     fw_retractions: list = field(default_factory=list)
+    #: (n,) the E-only moves of firmware retractions put in for planning (None: none; the planner folds
+    #: them into the rest before the next move: :func:`ringtune.shaping.firmware_retraction.fold_retractions`)
+    fw_inserted: np.ndarray | None = None
 
     @property
     def n_moves(self) -> int:

@@ -50,6 +50,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware_retraction import fold_retractions
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.job import Job
 from ringtune.shaping.lookahead import (axis_caps, backward_pass, corexy_speed_cap, daa_adjust,
@@ -284,8 +285,10 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
     acc = accel.copy()
     if daa_freq:
         acc, decel, cruise2 = daa_adjust(daa_freq, daa_min_accel, w, cruise2, accel, d, u)
-
-    return _build(job, limits, w, cruise2, acc, decel, d, u, vmax, extruding)
+    per_move = (w[:-1], w[1:], cruise2, acc, decel, d, u, vmax, extruding)
+    if job.fw_inserted is not None:      # firmware retractions: their E-only moves become the rest they are
+        job, per_move = fold_retractions(job, per_move, _durations(*_speeds(*per_move[:3]), acc, decel, d).sum(axis=1))
+    return _build(job, limits, *per_move)
 
 
 def _junction_v2(job, limits, use, u, d, e_only, vmax, accel, amax_axes, v2) -> np.ndarray:
@@ -307,19 +310,27 @@ def _junction_v2(job, limits, use, u, d, e_only, vmax, accel, amax_axes, v2) -> 
     return cj
 
 
-def _build(job, limits, w, cruise2, acc, dec, d, u, vmax, extruding) -> Plan:
-    n = job.n_moves
-    s = np.sqrt(np.maximum(w[:-1], 0.0))
-    e = np.sqrt(np.maximum(w[1:], 0.0))
-    c = np.sqrt(np.maximum(cruise2, 0.0))
-    c = np.maximum(c, np.maximum(s, e))
-    t_acc = (c - s) / acc
-    t_dec = (c - e) / dec
-    d_acc = 0.5 * (s + c) * t_acc
-    d_dec = 0.5 * (c + e) * t_dec
-    d_cr = np.maximum(d - d_acc - d_dec, 0.0)
+def _speeds(start2, end2, cruise2) -> tuple:
+    """(entry, cruise, exit) speeds, mm/s, from their squares (the cruise at least either end)."""
+    s = np.sqrt(np.maximum(start2, 0.0))
+    e = np.sqrt(np.maximum(end2, 0.0))
+    return s, np.maximum(np.sqrt(np.maximum(cruise2, 0.0)), np.maximum(s, e)), e
+
+
+def _durations(s, c, e, acc, dec, d) -> np.ndarray:
+    """(n, 3) seconds of each move's acceleration, cruise and deceleration (speeds: :func:`_speeds`)."""
+    t_acc, t_dec = (c - s) / acc, (c - e) / dec
+    d_cr = np.maximum(d - 0.5 * (s + c) * t_acc - 0.5 * (c + e) * t_dec, 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        t_cr = np.where(c > 0, d_cr / c, 0.0)
+        return np.stack([t_acc, np.where(c > 0, d_cr / c, 0.0), t_dec], axis=1)
+
+
+def _build(job, limits, start2, end2, cruise2, acc, dec, d, u, vmax, extruding) -> Plan:
+    n = job.n_moves
+    s, c, e = _speeds(start2, end2, cruise2)
+    t_acc, t_cr, t_dec = _durations(s, c, e, acc, dec, d).T
+    d_acc = 0.5 * (s + c) * t_acc
+    d_cr = np.maximum(d - d_acc - 0.5 * (c + e) * t_dec, 0.0)
     dwell = job.dwell_before
     # segments per move: dwell, accel, cruise, decel
     dur = np.stack([dwell, t_acc, t_cr, t_dec], axis=1)                 # (n, 4)

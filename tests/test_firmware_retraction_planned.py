@@ -12,6 +12,7 @@ import json
 import math
 import re
 
+import numpy as np
 import pytest
 
 from ringtune.agents.cli.main import main
@@ -101,12 +102,24 @@ def test_a_klipper_without_firmware_retraction_moves_nothing_and_goes_on():
         _time(dwell.replace("G10\n", "").replace("G11\n", ""), **KLIPPER), rel=1e-12)
 
 
-def test_the_moves_after_keep_their_own_extrusion():
-    job = plan_with_config(read_gcode(JOB), MachineLimits(**KLIPPER, **SETTINGS)).job
-    d = job.end[:, 3] - job.start[:, 3]
-    assert job.n_moves == read_gcode(JOB).n_moves + 4
-    assert sorted(d[d != 0].round(6).tolist()) == [-0.8, -0.8, 0.9, 0.9, 1, 1, 1, 1]
-    assert abs(job.start[1:] - job.end[:-1]).max() < 1e-12      # one continuous path, E shifted after each
+def test_the_plans_moves_are_the_jobs_as_read_and_each_retraction_a_rest():
+    """What reads a plan beside its job (tune's feature groups, binding limits, windows) finds the
+    job's own moves; each E-only move is a rest before the next move, on Klipper from rest to rest at
+    the E cap: d/v + v/a, or 2·sqrt(d/a) short of v — here 0.8 mm at 35 mm/s and 0.9 at 25, 500 mm/s²."""
+    job = read_gcode(JOB)
+    caps = dict(KLIPPER, max_accel=(0.0, 0.0, 0.0, 500.0))
+    planned = plan_with_config(job, MachineLimits(**caps, **SETTINGS))
+    assert planned.job.n_moves == job.n_moves and (planned.plan.moves.line == job.line).all()
+    unknown = plan_with_config(job, MachineLimits(**caps)).plan        # the same stops, no time
+
+    def rest_to_rest(d, v, a=500.0):
+        return d / v + v / a if d >= v * v / a else 2 * math.sqrt(d / a)
+
+    want = 2 * rest_to_rest(0.8, 35.0) + 2 * rest_to_rest(0.9, 25.0)
+    assert planned.plan.print_time - unknown.print_time == pytest.approx(want, rel=1e-12)
+    after = np.array([2, 3])                                       # the moves after the first G10 and G11
+    assert np.diff(planned.plan.moves.t_start - unknown.moves.t_start)[after - 1] == pytest.approx(
+        [rest_to_rest(0.8, 35.0), rest_to_rest(0.9, 25.0)], rel=1e-9)
 
 
 def test_the_cura_job_with_a_printers_settings_plans_as_it_written_out(data_dir, tmp_path, capsys):
