@@ -157,7 +157,8 @@ def _has_force(axis_table: dict, base_raw: dict) -> bool:
 _LIMIT_BOUNDS = {**dict.fromkeys(("accel", "velocity", "square_corner_velocity", "junction_deviation", "travel_accel",
                                   "retract_accel", "accel_to_decel", "retract_speed", "unretract_speed"),
                                  {"lo": 0.0, "lo_open": True}),
-                 "min_cruise_ratio": {"lo": 0.0, "hi": 1.0}, "retract_length": {"lo": 0.0}, "unretract_extra_length": {}}
+                 "min_cruise_ratio": {"lo": 0.0, "hi": 1.0}, "retract_length": {"lo": 0.0},
+                 "unretract_extra_length": {}}
 
 
 def _check_limits(limits: dict, lw: str) -> None:

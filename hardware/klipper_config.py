@@ -124,8 +124,9 @@ def _firmware_retraction(src: Source) -> dict:
            for k, (_low, unit) in RETRACTION_OPTIONS.items()}
     for k, v in out.items():
         if v < RETRACTION_OPTIONS[k][0]:
-            raise RingtuneError(f"must be ≥ {RETRACTION_OPTIONS[k][0]:g}{RETRACTION_OPTIONS[k][1]} (Klipper's minimum), "
-                                f"not {v:g}", src.where("firmware_retraction", k))
+            low, unit = RETRACTION_OPTIONS[k]
+            raise RingtuneError(f"must be ≥ {low:g}{unit} (Klipper's minimum), not {v:g}",
+                                src.where("firmware_retraction", k))
     hop = src.number("firmware_retraction", "z_hop_height")
     if hop:
         src.notes.append(f"{src.where('firmware_retraction', 'z_hop_height')}: [firmware_retraction] z_hop_height "

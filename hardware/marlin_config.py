@@ -176,7 +176,8 @@ def printer_facts_from_marlin(path: str | Path, kinematics: str | None = None) -
     notes: list[str] = []
     report = _Report(text, path, notes)
     description: dict = _kinematics(kinematics, notes)
-    description["limits"] = {**_accels(report, notes), **_caps_and_junction(report, notes), **_retraction(report, notes)}
+    description["limits"] = {**_accels(report, notes), **_caps_and_junction(report, notes),
+                             **_retraction(report, notes)}
     place_gcode_motors(description, report.num, 1e-3)          # Marlin's M906: mA RMS
     if "M906" not in report.seen:
         notes.append("no M906 (TMC driver current): the run current is unknown")

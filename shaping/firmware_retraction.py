@@ -10,15 +10,16 @@ Where the settings are known — the printer's (``[limits]`` ``retract_length``,
 read) or the job's own commands before it (Klipper ``SET_RETRACTION``; Marlin ``M207 S F``,
 ``M208 S F``; RRF ``M207 S R F T``) — :func:`with_firmware_retractions` adds the E-only move each
 makes, as the firmware itself does, and the planner treats it as a slicer's own E-only move (Klipper
-comes to rest at it; a length of 0 moves nothing and the head goes on): Klipper runs ``G1 E-length F(int(60·speed))`` (its M220 speed
-factor applies) and restores ``length + extra`` of its settings at the ``G11``; Marlin and RRF move
-at their own speeds (no M220); each restores the length plus the extra (Marlin and RRF restore what
-the ``G10`` took: the same unless a job changes the length while retracted). The job's E
-words are unchanged by it (the firmwares keep the G-code's E position), so every later move is
-shifted by what is retracted. Where they are not known, the head stops there (the reader's
-``stop_before``: the printer assumed to retract, as a slicer's retraction stops Klipper), the moves take no
-time, and :func:`firmware_retraction_note` says what that leaves out. Not planned: a Z hop (Marlin's
-and RRF's M207 Z; ``printer from-marlin|from-rrf`` say so where the printer sets one).
+comes to rest at it; a length of 0 moves nothing and the head goes on). Klipper runs
+``G1 E-length F(int(60·speed))`` (its M220 speed factor applies); Marlin and RRF move at their own
+speeds (no M220). A ``G11`` restores the length plus the extra (Marlin and RRF restore what the
+``G10`` took: the same unless a job changes the length while retracted). The job's E words are
+unchanged by it (the firmwares keep the G-code's E position). The planner plans each E-only move
+among the job's, then folds it into the rest before the next move (:func:`fold_retractions`), so a
+plan's moves stay the job's as read. Where the settings are not known, the head stops there (the
+reader's ``stop_before``: the printer assumed to retract, as a slicer's retraction stops Klipper),
+the moves take no time, and :func:`firmware_retraction_note` says what that leaves out. Not
+planned: a Z hop (Marlin's and RRF's M207 Z, Kalico's z_hop_height; the printer readers say so).
 """
 
 from __future__ import annotations
@@ -148,9 +149,11 @@ def _one(r, kind: str, values: dict, source: dict) -> Retraction:
     changes the length while retracted). A length of 0 moves nothing, whatever the speed."""
     keys = ("retract_length", "retract_speed") if r.command == "G10" else (
         "retract_length", "unretract_extra_length", "unretract_speed")
-    e = None if None in (values["retract_length"], values[keys[-2]]) else (
-        values["retract_length"] + values["unretract_extra_length"] if len(keys) == 3 else -values["retract_length"])
-    speed = values[keys[-1]]
+    length, extra, speed = values["retract_length"], values[keys[-2]], values[keys[-1]]
+    if r.command == "G10":
+        e = None if length is None else -length
+    else:
+        e = None if None in (length, extra) else length + extra
     if e is None or (e and speed is None):
         return Retraction(r, None, None, "")
     if kind == "klipper" and e:      # G1 E… F%d: whole mm/min, then the M220 factor
@@ -160,10 +163,11 @@ def _one(r, kind: str, values: dict, source: dict) -> Retraction:
 
 def with_firmware_retractions(job, limits):
     """``job`` with the E-only move of each firmware retraction whose settings are known
-    (:func:`retraction_plan`) inserted where the firmware makes it, every later move's E shifted
-    by it, and the reader's stop lifted where only such retractions made it (the planner decides
-    there as at a slicer's own E-only move; a length of 0 moves nothing and the head goes on); its
-    ``fw_retractions`` then empty (planned once). The same object when none is known."""
+    (:func:`retraction_plan`) inserted where the firmware makes it and marked in ``fw_inserted``
+    (the planner plans them, then folds each into a rest: :func:`fold_retractions`), and the reader's
+    stop lifted where only such retractions made it (the planner decides there as at a slicer's own
+    E-only move; a length of 0 moves nothing and the head goes on); its ``fw_retractions`` then
+    empty (planned once). The same object when none is known."""
     known = [p for p in retraction_plan(job, limits) if p.e is not None]
     if not known:
         return job

@@ -348,7 +348,8 @@ class _Reader(SettingCommands, MotionCommands):
         moves = moves[moves < len(stop)]
         alone = ~stop[moves]
         stop[moves] = True
-        return [FirmwareRetractionAt(*p, alone=bool(a)) for p, a in zip(self.fw_pending, [*alone, *[True] * len(self.fw_pending)])]
+        alone = [*alone, *[True] * len(self.fw_pending)]         # after the last move: nothing to stop
+        return [FirmwareRetractionAt(*p, alone=bool(a)) for p, a in zip(self.fw_pending, alone)]
 
     def job(self) -> Job:
         self._flush()

@@ -177,7 +177,8 @@ _LIMIT_CHECKS = (
     (("jerk", "max_accel", "max_velocity"), _four_or_none, "needs 4 numbers >= 0 (x, y, z, e)"),
     (("travel_accel", "retract_accel", "accel_to_decel", "retract_speed", "unretract_speed"), _positive_or_none,
      "must be a positive number"),
-    (("unretract_extra_length",), lambda v: isinstance(v, (int, float)) and math.isfinite(v), "must be a number, not {v!r}"),
+    (("unretract_extra_length",), lambda v: isinstance(v, (int, float)) and math.isfinite(v),
+     "must be a number, not {v!r}"),
     (("retract_length",), lambda v: v is None or _non_negative(v), "must be a number >= 0, not {v!r}"),
 )
 
