@@ -19,7 +19,8 @@ import numpy as np
 from ringtune.envs.printer import load_printer
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
-from ringtune.shaping.config_plan import ConfiguredPlan, plan_with_config
+from ringtune.shaping.arcs import arc_resolution, arcs_note
+from ringtune.shaping.config_plan import ConfiguredPlan, for_firmware, plan_with_config
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions, retraction_plan
 from ringtune.shaping.freqlimit import commanded_frequencies as per_move
@@ -185,6 +186,8 @@ class JobPlan:
             # others as stops that take no time: their settings are not known)
             "firmware_retraction": retractions, "firmware_retraction_planned": planned,
             "firmware_retraction_note": firmware_retraction_note(self.job, self.configured.limits),
+            # G2/G3 arcs: how many, and how they are cut (Klipper's segments, else chords)
+            "arcs": self.job.arcs[0], "arcs_note": arcs_note(self.job, self.configured.limits),
         }
 
 
@@ -197,8 +200,9 @@ def plan_job(path=None, printer=None, config: TuneConfig | None = None, junction
     path = job_path(path)
     t0 = time.perf_counter()
     job = read_gcode(Path(path)) if path else builtin_test_print()
-    t_read = time.perf_counter() - t0
     limits, junction, why = planning_limits(job, path, printer, junction, config.firmware if config else None)
+    job = _arcs_as_cut(job, path, limits, config)
+    t_read = time.perf_counter() - t0
     t1 = time.perf_counter()
     configured = plan_with_config(job, limits, config, use_job_limits=use_job_limits, daa_freq=daa_freq)
     t_plan = time.perf_counter() - t1
@@ -233,12 +237,24 @@ def limit_job(path, freq_limit: float | None = None, method: str = "sections",
     return LimitedJob(data, res, acc, _frequencies(path, data, printer))
 
 
+def _arcs_as_cut(job: Job, source, limits, config: TuneConfig | None) -> Job:
+    """``job`` read again (from ``source``, a path or the G-code) with its arcs cut as the firmware
+    reading it with ``limits`` under ``config`` cuts them (:func:`ringtune.shaping.arcs.arc_resolution`);
+    itself when it has no arcs or that firmware's are the tolerance's chords."""
+    res = arc_resolution(for_firmware(limits, config))
+    if not job.arcs[0] or res is None or source is None:
+        return job
+    return read_gcode(Path(source) if not isinstance(source, bytes) else source, source=job.source,
+                      arc_resolution=res)
+
+
 def _frequencies(path, limited: bytes, printer=None) -> dict:
     """Highest commanded and planned direction-change frequencies of the file and of its limited
     text, through the same functions as ``ringtune plan``."""
     out: dict = {"commanded_hz": {}, "planned_hz": {}}
     for key, job in (("before", read_gcode(path)), ("after", read_gcode(limited, source=str(path)))):
         limits, junction, why = planning_limits(job, path, printer)
+        job = _arcs_as_cut(job, path if key == "before" else limited, limits, None)
         configured = plan_with_config(job, limits)
         out["planned_hz"][key] = _highest(planned_frequencies(configured.plan, 1))
         out["commanded_hz"][key] = _highest(commanded_frequencies(configured.job, 1))

@@ -15,6 +15,7 @@ from typing import Callable
 import numpy as np
 
 from ringtune.envs.planned_job import resolve_printer
+from ringtune.shaping.arcs import arc_resolution
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import as_read_by, for_firmware, job_accel_mode, plan_with_config
 from ringtune.shaping.errors import RingtuneError
@@ -67,7 +68,8 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     their place; such a job without ``shaper_lines`` is refused, naming the line."""
     printer = resolve_printer(printer)
     limits = for_firmware(printer.limits, config)       # the job read as the configuration's firmware reads it
-    original = parsed if parsed is not None else read_gcode(data, source=source)
+    arcs = arc_resolution(limits)                        # its arcs as that firmware cuts them
+    original = parsed if parsed is not None else read_gcode(data, source=source, arc_resolution=arcs)
     # as sliced, as that firmware runs it (another firmware's shaper commands make it no stop)
     before = plan_with_config(original, limits, as_read_by(config.firmware)).plan.print_time
     if layer_inserts is None and config.y_schedule:
@@ -85,7 +87,7 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
         raise RingtuneError("the job is empty", source)
     fc = feature_commands(config, limits)
     # the limit's header and split moves move the lines down: the same commands, where they now stand
-    lined = read_gcode(data, source=source) if f_changed else original
+    lined = read_gcode(data, source=source, arc_resolution=arcs) if f_changed else original
     now = shapers_to_replace(lines, lined, config) if own and f_changed else own
     replaced = {ev.line: list(shaper_lines(config)) for ev in now} if own else None
     out = rewrite_job(lines, config.firmware, fc, layer_inserts, parsed=lined, replaced=replaced)
@@ -95,7 +97,7 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     # the file as the printer runs it: the configuration's machine settings (its acceleration is the
     # machine's, its retract fallback too; its caps as export sends them), the file's own commands
     # per feature — not the configuration's per-feature tables over them; the limit is in the F words
-    rewritten = read_gcode(new, source=source)
+    rewritten = read_gcode(new, source=source, arc_resolution=arcs)
     after = plan_with_config(rewritten, limits, machine_part(config), job_accel="respect").plan.print_time
     header = (f"{HEADER} for {config.firmware} ({limits.junction}): {inserted} lines inserted "
               + (_set_words(fc) if fc is not None else "(the job's own acceleration commands stand: --job-accel "

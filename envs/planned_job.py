@@ -25,6 +25,7 @@ import numpy as np
 
 from ringtune.envs.printer import load_printer
 from ringtune.shaping import gcode, testprints
+from ringtune.shaping.arcs import arc_resolution
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import JOB_ACCEL_SETTINGS, for_firmware, job_accel_mode, plan_with_config
@@ -99,19 +100,24 @@ def resolve_printer(printer):
     return printer
 
 
-def resolve_job(job):
+def resolve_job(job, limits=None):
     """(cache key, parsed Job) from a path, G-code text, a Job, the name of a built-in job
-    (:data:`ringtune.shaping.builtin_jobs.BUILTIN_JOBS`), or None (built-in test print)."""
+    (:data:`ringtune.shaping.builtin_jobs.BUILTIN_JOBS`), or None (built-in test print).
+
+    ``limits``: the printer's (:class:`ringtune.shaping.planner.MachineLimits`): its arcs are cut as
+    its firmware cuts them (:func:`ringtune.shaping.arcs.arc_resolution`; None: tolerance chords) —
+    what reads a job beside the printer's plan of it passes the same, so their moves match."""
     job = job_path(job)
+    res = arc_resolution(limits)
     if job is None:
         key = ("builtin",)
     elif isinstance(job, (str, os.PathLike)):
         p = Path(job)
         if isinstance(job, str) and "\n" in job:
-            key = ("text", hash(job))
+            key = ("text", hash(job), res)
         elif p.is_file():
             st = p.stat()
-            key = ("file", str(p.resolve()), st.st_mtime_ns, st.st_size)
+            key = ("file", str(p.resolve()), st.st_mtime_ns, st.st_size, res)
         else:
             raise RingtuneError("no such G-code file", str(job))
     else:
@@ -119,7 +125,7 @@ def resolve_job(job):
     if key in _JOBS:
         _JOBS.move_to_end(key)
         return key, _JOBS[key]
-    parsed = testprints.builtin_test_print() if job is None else gcode.read_gcode(job)
+    parsed = testprints.builtin_test_print() if job is None else gcode.read_gcode(job, arc_resolution=res)
     return key, _remember(_JOBS, key, parsed)
 
 
@@ -168,8 +174,8 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
     corner settings left out: :func:`_reference_windows`), and every configuration is judged on
     those same corners and zigzags (:func:`ringtune.shaping.testprints.relocate_windows`)."""
     mode = job_accel_mode(config, job_accel)
-    jkey, parsed = resolve_job(job)
     limits = printer.limits
+    jkey, parsed = resolve_job(job, for_firmware(limits, config))
     settings = _plan_settings(config)
     fl, accel, daa, caps, feature = settings
     if accel is None:
@@ -192,7 +198,7 @@ def require_windows(pj: PlannedJob, job) -> PlannedJob:
     and why (a job that extrudes nothing: a "no extrusion" flavour, a dry run)."""
     if pj.windows:
         return pj
-    _key, parsed = resolve_job(job)
+    _key, parsed = resolve_job(job)       # whether it extrudes: the same however its arcs are cut
     why = ("the job extrudes nothing (no move adds filament while X/Y move; a slicer's \"no extrusion\" G-code "
            "flavour writes no E)" if not parsed.extruding.any() else
            "the job has no corner, zigzag or seam of printed lines to judge")

@@ -31,6 +31,8 @@ What is taken (Klipper's option -> description key):
 - ``[firmware_retraction]`` -> ``limits.retract_length``, ``retract_speed``, ``unretract_extra_length``,
   ``unretract_speed`` (what a job's G10/G11 move; Klipper's defaults 0 mm, 20 mm/s, 0 mm, 10 mm/s
   where unset, each said; no section: ``retract_length = 0``, since G10/G11 then move nothing, said);
+- ``[gcode_arcs] resolution`` -> ``limits.arc_resolution`` (Klipper's default 1 mm where unset, said;
+  no section: G2/G3 move nothing there, said);
 - ``[input_shaper]`` -> ``[current]``: ``shaper_x``/``freq_x``/``damping_x`` (and y) as Klipper runs
   them (``shaper_type_x`` else ``shaper_type`` else Klipper's ``mzv``; damping 0.1 by default; a
   zero or missing frequency is ``"none"``), ``accel`` = ``max_accel``, ``firmware = "klipper"``.
@@ -105,7 +107,22 @@ def _limits(src: Source) -> dict:
     _speed_caps(src, limits, velocity)
     _accel_caps(src, limits, accel)
     limits.update(_firmware_retraction(src))
+    limits.update(_gcode_arcs(src))
     return limits
+
+
+def _gcode_arcs(src: Source) -> dict:
+    """``[gcode_arcs] resolution`` -> ``limits.arc_resolution`` (mm; Klipper's default 1 mm where unset,
+    said); no section: none, said (G2/G3 are then unknown commands to Klipper: nothing moves)."""
+    if src.name("gcode_arcs") is None:
+        src.notes.append("no [gcode_arcs]: a job's G2/G3 arcs are unknown commands to this printer and move nothing "
+                         "(a job with arcs does not print as sliced; arcs are planned as Klipper's default 1 mm "
+                         "segments)")
+        return {}
+    res = src.number("gcode_arcs", "resolution", KLIPPER_DEFAULTS["arc_resolution"], unit=" mm")
+    if not res > 0:
+        raise RingtuneError(f"must be > 0 mm, not {res:g}", src.where("gcode_arcs", "resolution"))
+    return {"arc_resolution": res}
 
 
 #: [firmware_retraction]'s options, as ``[limits]`` names them too: (Klipper's minimum, unit)

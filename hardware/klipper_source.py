@@ -16,7 +16,8 @@ from ringtune.hardware.firmware_facts import to_number
 KLIPPER_DEFAULTS = {"square_corner_velocity": 5.0, "minimum_cruise_ratio": 0.5, "full_steps_per_rotation": 200,
             "shaper_type": "mzv", "damping_ratio": 0.1,
             # [firmware_retraction] (klippy/extras/firmware_retraction.py)
-            "retract_length": 0.0, "retract_speed": 20.0, "unretract_extra_length": 0.0, "unretract_speed": 10.0}
+            "retract_length": 0.0, "retract_speed": 20.0, "unretract_extra_length": 0.0, "unretract_speed": 10.0,
+            "arc_resolution": 1.0}        # [gcode_arcs] resolution (klippy/extras/gcode_arcs.py)
 
 
 @dataclass

@@ -1,6 +1,9 @@
 """G2/G3 arcs as the chords a firmware would move along (mm): the centre from I/J offsets or a
 radius R, the swept angle, and chords that deviate from the arc by at most a tolerance, Z and E
-interpolated along."""
+interpolated along — or, as Klipper's ``[gcode_arcs]`` cuts an I/J arc, ``floor(travel / resolution)``
+equal-angle segments (at least one; travel the arc's length with its helical rise,
+``klippy/extras/gcode_arcs.py``). Marlin's and RRF's own segment lengths are not modelled: their arcs are
+the tolerance's chords."""
 
 from __future__ import annotations
 
@@ -9,10 +12,24 @@ import math
 from ringtune.shaping.errors import RingtuneError
 
 
+#: Klipper's ``[gcode_arcs] resolution`` default, mm
+KLIPPER_ARC_RESOLUTION = 1.0
+
+
+def arc_resolution(limits) -> float | None:
+    """The segment length (mm) a firmware reading a job with ``limits`` (a
+    :class:`ringtune.shaping.planner.MachineLimits`) cuts arcs into: Klipper's ``arc_resolution``
+    (its default 1 mm unless the printer gives one); None for the others (tolerance chords)."""
+    if limits is None or not limits.reads_like_klipper:
+        return None
+    return limits.arc_resolution or KLIPPER_ARC_RESOLUTION
+
+
 def arc_chords(clockwise: bool, w: dict[str, float], start: list[float], end: list[float], tol: float,
-               where: str) -> list[list[float]]:
+               where: str, resolution: float | None = None) -> list[list[float]]:
     """The chord ends ([x, y, z, e] each, mm) of the arc from ``start`` to ``end`` (the last is
-    ``end``): as few chords as keep within ``tol`` mm of the arc; ``w``: the command's words (I J or R)."""
+    ``end``): as few chords as keep within ``tol`` mm of the arc, or with ``resolution`` (mm) Klipper's
+    segments of an I/J arc; ``w``: the command's words (I J or R)."""
     x0, y0 = start[0], start[1]
     cx, cy = arc_centre(clockwise, w, x0, y0, end[0], end[1], where)
     radius = math.hypot(x0 - cx, y0 - cy)
@@ -20,7 +37,10 @@ def arc_chords(clockwise: bool, w: dict[str, float], start: list[float], end: li
         raise RingtuneError("arc has zero radius", where)
     a0 = math.atan2(y0 - cy, x0 - cx)
     sweep = arc_sweep(clockwise, a0, math.atan2(end[1] - cy, end[0] - cx))
-    n = 1 if radius <= tol else max(1, math.ceil(abs(sweep) / (2 * math.acos(1 - tol / radius))))
+    if resolution is not None and "R" not in w:      # Klipper: floor(travel / resolution) segments
+        n = max(1, math.floor(math.hypot(radius * sweep, end[2] - start[2]) / resolution))
+    else:
+        n = 1 if radius <= tol else max(1, math.ceil(abs(sweep) / (2 * math.acos(1 - tol / radius))))
     points = []
     for k in range(1, n):
         f = k / n
@@ -57,3 +77,18 @@ def arc_sweep(clockwise: bool, a0: float, a1: float) -> float:
     if not clockwise and sweep <= 1e-12:
         return sweep + 2 * math.pi
     return sweep
+
+
+def arcs_note(job, limits) -> str | None:
+    """How ``job``'s arcs are planned on a firmware reading it with ``limits`` (None: it has none)."""
+    n = job.arcs[0]
+    if not n:
+        return None
+    res = arc_resolution(limits)
+    if res is None:
+        return (f"the job's {n} arcs (G2/G3) are planned as chords within {job.arc_tolerance:g} mm of the arc "
+                "(the firmware's own segment lengths are not modelled)")
+    whose = ("the printer's [gcode_arcs] resolution" if limits.arc_resolution else "Klipper's default resolution; "
+             "[limits] arc_resolution gives the printer's, which `ringtune printer from-klipper` reads")
+    return (f"the job's {n} arcs (G2/G3) are planned as Klipper's [gcode_arcs] cuts them: segments of {res:g} mm "
+            f"({whose}); Klipper refuses an arc given by R")

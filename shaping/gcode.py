@@ -103,11 +103,13 @@ def _strip_line_number(code: str, where: str) -> str:
 class _Reader(SettingCommands, MotionCommands):
     """State machine of one job being read."""
 
-    def __init__(self, source: str, arc_tolerance: float):
+    def __init__(self, source: str, arc_tolerance: float, arc_resolution: float | None = None):
         if not arc_tolerance > 0:
             raise RingtuneError(f"arc tolerance must be > 0 mm, not {arc_tolerance}", "arc_tolerance")
         self.source = source
         self.tol = arc_tolerance
+        self.resolution = arc_resolution        # Klipper's [gcode_arcs] segments, mm (None: tolerance chords)
+        self.n_arcs = 0
         self.pos = [0.0, 0.0, 0.0, 0.0]         # machine position x y z e
         self.offset = [0.0, 0.0, 0.0, 0.0]      # logical = machine - offset
         self.abs_xyz = True
@@ -373,13 +375,17 @@ class _Reader(SettingCommands, MotionCommands):
             arc_tolerance=self.tol,
             limited=self.limited,
             fw_retractions=retractions,
+            arcs=(self.n_arcs, self.resolution),
         )
 
 
-def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = None) -> Job:
+def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = None,
+               arc_resolution: float | None = None) -> Job:
     """Read a G-code job from a file path (streamed line by line) or from G-code text/bytes.
 
-    ``arc_tolerance``: largest distance (mm) between a G2/G3 arc and the chords replacing it.
+    ``arc_tolerance``: largest distance (mm) between a G2/G3 arc and the chords replacing it;
+    ``arc_resolution``: Klipper's ``[gcode_arcs] resolution`` (mm), which cuts I/J arcs into its own
+    segments instead (:func:`ringtune.shaping.arcs.arc_chords`; None: the tolerance's chords).
     Malformed values raise :class:`RingtuneError` naming ``file:line`` (``source`` names text
     input, default ``<gcode>``). Lines end at ``\n``, ``\r\n`` or ``\r`` for files and text alike,
     so line numbers are those of the file's bytes.
@@ -393,7 +399,7 @@ def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = N
             is_path = False
     if is_path:
         path = Path(path_or_text)
-        reader = _Reader(str(path), arc_tolerance)
+        reader = _Reader(str(path), arc_tolerance, arc_resolution)
         head = read_head(path)
         if is_bgcode(head):          # binary G-code: its plain text, decoded whole
             reader.feed_lines(io.StringIO(read_gcode_bytes(path).decode("utf-8", "replace"), newline=None))
@@ -405,6 +411,6 @@ def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = N
         if isinstance(path_or_text, bytes):
             refuse_non_gcode(path_or_text[:HEAD], source)
             path_or_text = path_or_text.decode("utf-8", "replace")
-        reader = _Reader(source, arc_tolerance)
+        reader = _Reader(source, arc_tolerance, arc_resolution)
         reader.feed_lines(io.StringIO(str(path_or_text), newline=None))
     return reader.job()

@@ -71,7 +71,8 @@ class MotionCommands:
             w = {k: v * self.unit if k in "XYZEIJRF" else v for k, v in w.items()}
         self._feedrate(w, where)
         end = self._target(w)
-        for point in arc_chords(clockwise, w, list(self.pos), end, self.tol, where):
+        self.n_arcs += 1
+        for point in arc_chords(clockwise, w, list(self.pos), end, self.tol, where, self.resolution):
             self._emit(point, lineno, arc=True)
 
 

@@ -90,14 +90,16 @@ def job_layers(job: Job, diameter_mm: float = FILAMENT_DIAMETER_MM,
 
 
 def job_slice(job: Job, first: int, stop: int) -> Job:
-    """Moves ``first`` to ``stop`` − 1 of ``job`` as a job of their own (their settings, features
-    and the events among them kept)."""
+    """Moves ``first`` to ``stop`` − 1 of ``job`` as a job of their own (their settings, features,
+    and the events and firmware retractions among them kept)."""
     if not 0 <= first < stop <= job.n_moves:
         raise RingtuneError(f"moves {first}..{stop} are outside the job's 0..{job.n_moves}", job.source)
     sl = slice(first, stop)
     events = [replace(e, move=e.move - first, time=None) for e in job.events if first <= e.move < stop]
+    retractions = [replace(r, move=r.move - first) for r in job.fw_retractions if first <= r.move < stop]
     stop_before = job.stop_before[sl].copy()
     stop_before[0] = True
     return replace(job, line=job.line[sl], start=job.start[sl], end=job.end[sl], feed=job.feed[sl],
                    feature=job.feature[sl], settings=job.settings[sl], stop_before=stop_before,
-                   dwell_before=job.dwell_before[sl], arc=job.arc[sl], events=events, dwell_after=0.0)
+                   dwell_before=job.dwell_before[sl], arc=job.arc[sl], events=events, dwell_after=0.0,
+                   fw_retractions=retractions)

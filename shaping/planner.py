@@ -97,7 +97,8 @@ class MachineLimits:
     retract_length (mm), retract_speed, unretract_extra_length (mm), unretract_speed (mm/s): what a
     ``G10``/``G11`` moves the extruder by (Klipper's ``[firmware_retraction]``, Marlin's M207/M208,
     RRF's M207; :mod:`ringtune.shaping.firmware_retraction`), None: not known (a retraction that
-    moves the extruder without its speed is not known either).
+    moves the extruder without its speed is not known either); arc_resolution: Klipper's ``[gcode_arcs]
+    resolution`` (mm; None: its default 1 mm, :func:`ringtune.shaping.arcs.arc_resolution`).
     """
 
     accel: float = 3000.0
@@ -121,6 +122,7 @@ class MachineLimits:
     retract_speed: float | None = None
     unretract_extra_length: float = 0.0
     unretract_speed: float | None = None
+    arc_resolution: float | None = None
 
     @property
     def reads_like_klipper(self) -> bool:
@@ -175,7 +177,8 @@ _LIMIT_CHECKS = (
     (("square_corner_velocity", "junction_deviation"), _non_negative, "must be a number >= 0, not {v!r}"),
     (("min_cruise_ratio",), _fraction, "must be in [0, 1)"),
     (("jerk", "max_accel", "max_velocity"), _four_or_none, "needs 4 numbers >= 0 (x, y, z, e)"),
-    (("travel_accel", "retract_accel", "accel_to_decel", "retract_speed", "unretract_speed"), _positive_or_none,
+    (("travel_accel", "retract_accel", "accel_to_decel", "retract_speed", "unretract_speed", "arc_resolution"),
+     _positive_or_none,
      "must be a positive number"),
     (("unretract_extra_length",), lambda v: isinstance(v, (int, float)) and math.isfinite(v),
      "must be a number, not {v!r}"),

@@ -12,7 +12,9 @@ reads it; else empty) and ``macro_note`` (that in words, or null), ``firmware_re
 to rest), ``firmware_retraction_planned`` (how many of them are planned as the E-only moves the
 firmware makes, by the printer's ``[limits]`` retract_length, retract_speed, unretract_extra_length
 and unretract_speed or the job's own SET_RETRACTION/M207/M208 before them; the others as stops
-that take no time) and ``firmware_retraction_note`` (that in words, or null), ``print_time_s``,
+that take no time) and ``firmware_retraction_note`` (that in words, or null), ``arcs`` (how many
+G2/G3 arcs the job has) and ``arcs_note`` (how they are cut: Klipper's ``[gcode_arcs]`` segments
+under Klipper's reading, else chords within 0.01 mm; null without arcs), ``print_time_s``,
 ``print_time``, ``moves``, ``extruding_moves``, ``lines``, ``path_length_mm``,
 ``time_by_feature`` ({feature: s}), ``junction_reason`` (why that junction rule, in words),
 ``top_frequencies`` (list of {``freq_hz``, ``line``, ``t``}: highest *planned* direction-change
@@ -129,7 +131,7 @@ def _text(r: dict) -> str:
         lines.append(f"  frequency limit {fl['hz']:g} Hz ({fl['method']}): {fl['moves_slowed']} moves slowed")
     if r["daa_hz"]:
         lines.append(f"  DAA at {r['daa_hz']:g} Hz")
-    for key in ("ignored_note", "macro_note", "firmware_retraction_note"):
+    for key in ("ignored_note", "macro_note", "firmware_retraction_note", "arcs_note"):
         if r[key]:
             lines.append(f"  {r[key]}")
     lines.append("  time by feature:")

@@ -82,8 +82,8 @@ def binding_limits(printer, job, config: TuneConfig, firmware: str | None = None
                    job_accel: str | None = None) -> list[Binding]:
     """The limits that lower some move's acceleration when ``job`` runs on ``printer`` under
     ``config``, each with the print time with and without it (module docstring)."""
-    _, parsed = resolve_job(job)
     limits = for_firmware(with_axis_caps(printer.limits, config), config)
+    _, parsed = resolve_job(job, limits)
     if config.accel is not None:
         limits = replace(limits, accel=float(config.accel))
     plain = replace(config, max_accel_x=None, max_accel_y=None)     # its caps are in ``limits`` now

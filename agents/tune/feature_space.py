@@ -26,7 +26,7 @@ from ringtune.agents.tune.motor_bound import motor_accel_limit
 from ringtune.agents.tune.feature_groups import ACCEL_GROUPS, CORNER_GROUPS, CORNER_WORDS, HIDDEN_CORNERS, SEEN_GROUPS
 from ringtune.agents.tune.space import CORNER_UNIT, SearchSpace
 from ringtune.envs.planned_job import planned_job, resolve_job
-from ringtune.shaping.config_plan import as_read_by
+from ringtune.shaping.config_plan import as_read_by, for_firmware
 from ringtune.shaping.feature_settings import corner_value, effective_classes
 from ringtune.shaping.features import FEATURE_CLASSES
 from ringtune.shaping.firmware import FIRMWARES
@@ -46,7 +46,7 @@ def group_speeds(printer: Any, job: Any = None, firmware: str | None = None) -> 
     """{group: top speed of its moves with X/Y motion, mm/s} for the groups the job has (planned
     at the printer's limits: the speed each move asks for after the velocity limits, the job's own
     as ``firmware`` reads them; None: as the printer's own does)."""
-    _, parsed = resolve_job(job)
+    _, parsed = resolve_job(job, for_firmware(printer.limits, as_read_by(firmware)))   # as the plan reads it
     moves = planned_job(printer, job, as_read_by(firmware)).plan.moves
     xy = np.hypot(*(moves.end - moves.start)[:, :2].T) > 0
     cls = effective_classes(parsed)

@@ -103,7 +103,7 @@ def job_accel_facts(printer, job, mode: str, firmware: str | None = None) -> Job
     velocity limit instead when no job is given) and the acceleration cap those commands put on it
     (under ``respect``, planned at a very high machine acceleration). ``firmware``: the one tune
     writes for, whose reading of the job's commands counts (None: the printer's own)."""
-    _, parsed = resolve_job(job)
+    _, parsed = resolve_job(job, for_firmware(printer.limits, as_read_by(firmware)))   # as the plan reads it
     facts = JobAccelFacts(printer, job, firmware)
     facts.commands = job_accel_commands(parsed, facts.limits)
     pj = planned_job(printer, job, as_read_by(firmware))

@@ -24,6 +24,7 @@ from ringtune.envs.planned_job import resolve_job, resolve_printer
 from ringtune.envs.printer_model import Printer
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.config_plan import for_firmware
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.layers import job_slice
@@ -61,7 +62,7 @@ def last_band_ripple(schedule: MassSchedule, printer=None, job=None, backend: st
 
 def _last_band(schedule: MassSchedule, printer: Printer, job):
     """(the job's moves of the last band, the printer with the band's mass on the bed)."""
-    _, parsed = resolve_job(job)
+    _, parsed = resolve_job(job, for_firmware(printer.limits, schedule.config))     # as the schedule read it
     band = schedule.bands[-1]
     first, last = schedule.layers[band.first_layer], schedule.layers[band.last_layer]
     return job_slice(parsed, first.first_move, last.last_move + 1), loaded(printer, band.mass_kg)

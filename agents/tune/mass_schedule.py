@@ -211,7 +211,7 @@ def mass_schedule(config: TuneConfig, printer=None, job=None, *, diameter_mm: fl
     the firmware's stock build, :func:`ringtune.agents.tune.space.freq_floor`)."""
     printer, job = resolve_printer(printer), job_path(job)
     _refuse(config, printer, step, band_accel)
-    _, parsed = resolve_job(job)
+    _, parsed = resolve_job(job, for_firmware(printer.limits, config))
     diameter_mm, density_g_cm3, source = filament(job, diameter_mm, density_g_cm3)
     layers = job_layers(parsed, diameter_mm, density_g_cm3)
     f_empty = dominant_y_mode(printer).freq

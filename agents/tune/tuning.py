@@ -33,6 +33,7 @@ from ringtune.envs.job_rewrite import first_layer_words, rewrite_file, shaper_wo
 from ringtune.hardware.dialects import shaper_commands
 from ringtune.envs.printer_model import unmeasured_note
 from ringtune.envs.variants import TWIN_DAMPING
+from ringtune.shaping.config_plan import for_firmware
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import Firmware
 from ringtune.shaping.gcode_file import binary_note
@@ -306,7 +307,8 @@ def _write_job(gcode: str, out_dir: Path, config, printer, result: dict, note: C
     files; the summary's sentence on it. A job that cannot be rewritten leaves the study standing:
     its file is None and a note says why."""
     try:
-        done = rewrite_file(gcode, out_dir / "job.gcode", config, printer, parsed=resolve_job(gcode)[1],
+        parsed = resolve_job(gcode, for_firmware(printer.limits, config))[1]    # as rewrite_file reads it
+        done = rewrite_file(gcode, out_dir / "job.gcode", config, printer, parsed=parsed,
                             shaper_lines=shaper_commands)
     except RingtuneError as exc:
         result["files"]["job"] = None
