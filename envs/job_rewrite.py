@@ -61,7 +61,8 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     (``config.y_schedule`` at layer changes, unless ``layer_inserts`` is given) written in for
     ``config.firmware`` (``printer``: a Printer, TOML path or None for the embedded default; its
     limits plan the times and give the junction rule the corner value is written in). ``parsed``:
-    ``data`` already read (:func:`ringtune.shaping.gcode.read_gcode`), which is then not read again.
+    ``data`` already read (:func:`ringtune.shaping.gcode.read_gcode`), which is then not read again
+    unless its arcs were cut otherwise than that firmware cuts them.
     ``shaper_lines(config)``: the configuration's shaper in its firmware's G-code
     (:func:`ringtune.hardware.dialects.shaper_commands`), asked only where the job has shaper
     commands of its own that would move the printer off it (:func:`overriding`), and written in
@@ -69,7 +70,9 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     printer = resolve_printer(printer)
     limits = for_firmware(printer.limits, config)       # the job read as the configuration's firmware reads it
     arcs = arc_resolution(limits)                        # its arcs as that firmware cuts them
-    original = parsed if parsed is not None else read_gcode(data, source=source, arc_resolution=arcs)
+    if parsed is None or (parsed.arcs[0] and parsed.arcs[1] != arcs):
+        parsed = read_gcode(data, source=source, arc_resolution=arcs)
+    original = parsed
     # as sliced, as that firmware runs it (another firmware's shaper commands make it no stop)
     before = plan_with_config(original, limits, as_read_by(config.firmware)).plan.print_time
     if layer_inserts is None and config.y_schedule:
