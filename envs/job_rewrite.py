@@ -62,7 +62,7 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     ``config.firmware`` (``printer``: a Printer, TOML path or None for the embedded default; its
     limits plan the times and give the junction rule the corner value is written in). ``parsed``:
     ``data`` already read (:func:`ringtune.shaping.gcode.read_gcode`), which is then not read again
-    unless its arcs were cut otherwise than that firmware cuts them.
+    unless it was read to cut arcs otherwise than that firmware cuts them.
     ``shaper_lines(config)``: the configuration's shaper in its firmware's G-code
     (:func:`ringtune.hardware.dialects.shaper_commands`), asked only where the job has shaper
     commands of its own that would move the printer off it (:func:`overriding`), and written in
@@ -70,7 +70,7 @@ def rewrite_gcode_bytes(data: bytes, config: TuneConfig, printer=None, source: s
     printer = resolve_printer(printer)
     limits = for_firmware(printer.limits, config)       # the job read as the configuration's firmware reads it
     arcs = arc_resolution(limits)                        # its arcs as that firmware cuts them
-    if parsed is None or (parsed.arcs[0] and parsed.arcs[1] != arcs):
+    if parsed is None or parsed.arcs[1] != arcs:
         parsed = read_gcode(data, source=source, arc_resolution=arcs)
     original = parsed
     # as sliced, as that firmware runs it (another firmware's shaper commands make it no stop)

@@ -158,7 +158,7 @@ def _one(r, kind: str, values: dict, source: dict) -> Retraction:
         return Retraction(r, None, None, "")
     if kind == "klipper" and e:      # G1 E… F%d: whole mm/min, then the M220 factor
         speed = math.floor(speed * 60) / 60 * r.speed_factor
-    return Retraction(r, e, speed if e else None, " and ".join(sorted({source[k] for k in keys})))
+    return Retraction(r, e, speed, " and ".join(sorted({source[k] for k in keys})))
 
 
 def with_firmware_retractions(job, limits):
@@ -197,7 +197,8 @@ def _inserted(job, known: list[Retraction]):
     # an event comes after the inserted moves before its move, and at its move after those from earlier lines
     key = at * 2**32 + lines
     events = [replace(ev, move=ev.move + int(np.searchsorted(key, ev.move * 2**32 + ev.line))) for ev in job.events]
-    cols = {k: np.insert(stop if k == "stop_before" else getattr(job, k), at, v, axis=0) for k, v in new.items()}
+    job = replace(job, stop_before=stop)
+    cols = {k: np.insert(getattr(job, k), at, v, axis=0) for k, v in new.items()}
     return replace(job, events=events, fw_retractions=[], fw_inserted=np.insert(np.zeros(n, bool), at, True), **cols)
 
 
