@@ -271,5 +271,6 @@ def _source_words(source: str) -> str:
 
 def _settings_words(known: list[Retraction]) -> str:
     """The distinct (E, speed) pairs of ``known`` in words (the first three, and how many more)."""
-    pairs = list(dict.fromkeys(f"{p.at.command} {p.e:+.4g} mm at {p.speed or 0:.4g} mm/s" for p in known))
+    pairs = list(dict.fromkeys(f"{p.at.command} {p.e:+.4g} mm at {p.speed:.4g} mm/s" if p.e else
+                               f"{p.at.command} moves nothing" for p in known))
     return ", ".join(pairs[:3]) + f" and {len(pairs) - 3} more" * (len(pairs) > 3)
