@@ -291,7 +291,8 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
         acc, decel, cruise2 = daa_adjust(daa_freq, daa_min_accel, w, cruise2, accel, d, u)
     per_move = (w[:-1], w[1:], cruise2, acc, decel, d, u, vmax, extruding)
     if job.fw_inserted is not None:      # firmware retractions: their E-only moves become the rest they are
-        job, per_move = fold_retractions(job, per_move, _durations(*_speeds(*per_move[:3]), acc, decel, d).sum(axis=1))
+        t_acc, t_cr, t_dec = _phases(*_speeds(*per_move[:3]), acc, decel, d)[:3]
+        job, per_move = fold_retractions(job, per_move, t_acc + t_cr + t_dec)
     return _build(job, limits, *per_move)
 
 
@@ -321,20 +322,20 @@ def _speeds(start2, end2, cruise2) -> tuple:
     return s, np.maximum(np.sqrt(np.maximum(cruise2, 0.0)), np.maximum(s, e)), e
 
 
-def _durations(s, c, e, acc, dec, d) -> np.ndarray:
-    """(n, 3) seconds of each move's acceleration, cruise and deceleration (speeds: :func:`_speeds`)."""
+def _phases(s, c, e, acc, dec, d) -> tuple:
+    """Per move (speeds: :func:`_speeds`): seconds of acceleration, cruise and deceleration, and
+    the mm of acceleration and of cruise."""
     t_acc, t_dec = (c - s) / acc, (c - e) / dec
-    d_cr = np.maximum(d - 0.5 * (s + c) * t_acc - 0.5 * (c + e) * t_dec, 0.0)
+    d_acc = 0.5 * (s + c) * t_acc
+    d_cr = np.maximum(d - d_acc - 0.5 * (c + e) * t_dec, 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.stack([t_acc, np.where(c > 0, d_cr / c, 0.0), t_dec], axis=1)
+        return t_acc, np.where(c > 0, d_cr / c, 0.0), t_dec, d_acc, d_cr
 
 
 def _build(job, limits, start2, end2, cruise2, acc, dec, d, u, vmax, extruding) -> Plan:
     n = job.n_moves
     s, c, e = _speeds(start2, end2, cruise2)
-    t_acc, t_cr, t_dec = _durations(s, c, e, acc, dec, d).T
-    d_acc = 0.5 * (s + c) * t_acc
-    d_cr = np.maximum(d - d_acc - 0.5 * (c + e) * t_dec, 0.0)
+    t_acc, t_cr, t_dec, d_acc, d_cr = _phases(s, c, e, acc, dec, d)
     dwell = job.dwell_before
     # segments per move: dwell, accel, cruise, decel
     dur = np.stack([dwell, t_acc, t_cr, t_dec], axis=1)                 # (n, 4)
