@@ -37,7 +37,7 @@ def arc_chords(clockwise: bool, w: dict[str, float], start: list[float], end: li
         raise RingtuneError("arc has zero radius", where)
     a0 = math.atan2(y0 - cy, x0 - cx)
     sweep = arc_sweep(clockwise, a0, math.atan2(end[1] - cy, end[0] - cx))
-    if resolution is not None and "R" not in w:      # Klipper: floor(travel / resolution) segments
+    if resolution is not None and "R" not in w:      # Klipper: floor(travel / resolution) segments (it refuses R)
         n = max(1, math.floor(math.hypot(radius * sweep, end[2] - start[2]) / resolution))
     else:
         n = 1 if radius <= tol else max(1, math.ceil(abs(sweep) / (2 * math.acos(1 - tol / radius))))
@@ -91,4 +91,12 @@ def arcs_note(job, limits) -> str | None:
     whose = ("the printer's [gcode_arcs] resolution" if limits.arc_resolution else "Klipper's default resolution; "
              "[limits] arc_resolution gives the printer's, which `ringtune printer from-klipper` reads")
     return (f"the job's {n} arcs (G2/G3) are planned as Klipper's [gcode_arcs] cuts them: segments of {res:g} mm "
-            f"({whose}); Klipper refuses an arc given by R")
+            f"({whose})" + _refused_words(job.arcs[2]))
+
+
+def _refused_words(lines: tuple) -> str:
+    """What Klipper does with the arcs on ``lines`` (given by R or in relative mode), or ""."""
+    if not lines:
+        return ""
+    return (f"; Klipper refuses {len(lines)} of them (given by R or in relative mode; the first on line {lines[0]}) "
+            "and stops the print there: they are planned as chords")

@@ -110,6 +110,7 @@ class _Reader(SettingCommands, MotionCommands):
         self.tol = arc_tolerance
         self.resolution = arc_resolution        # Klipper's [gcode_arcs] segments, mm (None: tolerance chords)
         self.n_arcs = 0
+        self.refused_arcs: list[int] = []        # lines of arcs Klipper refuses (by R, or in relative mode)
         self.pos = [0.0, 0.0, 0.0, 0.0]         # machine position x y z e
         self.offset = [0.0, 0.0, 0.0, 0.0]      # logical = machine - offset
         self.abs_xyz = True
@@ -375,7 +376,7 @@ class _Reader(SettingCommands, MotionCommands):
             arc_tolerance=self.tol,
             limited=self.limited,
             fw_retractions=retractions,
-            arcs=(self.n_arcs, self.resolution),
+            arcs=(self.n_arcs, self.resolution, tuple(self.refused_arcs)),
         )
 
 

@@ -72,6 +72,8 @@ class MotionCommands:
         self._feedrate(w, where)
         end = self._target(w)
         self.n_arcs += 1
+        if "R" in w or not self.abs_xyz:          # what Klipper's gcode_arcs refuses
+            self.refused_arcs.append(lineno)
         for point in arc_chords(clockwise, w, list(self.pos), end, self.tol, where, self.resolution):
             self._emit(point, lineno, arc=True)
 

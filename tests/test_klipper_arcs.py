@@ -16,6 +16,7 @@ import pytest
 from ringtune.agents.cli.main import main
 from ringtune.envs.printer import load_printer
 from ringtune.hardware.klipper_config import printer_facts_from_klipper
+from ringtune.shaping.arcs import arcs_note
 from ringtune.shaping.config_plan import plan_with_config
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.planner import MachineLimits
@@ -64,7 +65,7 @@ def test_the_reader_cuts_an_arc_into_klippers_segments(arc, res):
     job = read_gcode(text, arc_resolution=res)
     want = np.array(klipper_plan_arc(start, (x, y, z), (i, j), cmd == "G2", res, e))
     got = job.end[1:]
-    assert len(got) == len(want) and job.arcs == (1, res)
+    assert len(got) == len(want) and job.arcs == (1, res, ())
     assert np.abs(got - want).max() < 1e-9
 
 
@@ -101,6 +102,17 @@ def test_klippers_reading_plans_the_arcs_on_its_segments_and_marlins_on_chords(t
     assert main(["plan", str(tmp_path / "c3.gcode"), "--junction", "jd", "--json"]) == 0
     res = json.loads(capsys.readouterr().out)
     assert "chords within 0.01 mm of the arc" in res["arcs_note"]
+
+
+def test_the_arcs_klipper_refuses_are_named():
+    """gcode_arcs.py: "G2/G3 does not support R moves", nor relative move mode; the note names them
+    (they stay chords), and says nothing of them where the job has none."""
+    text = ("G90\nM83\nG1 X10 Y10 F3000\nG2 X20 Y10 R5 E1\nG3 X30 Y10 I5 J0 E1\nG91\nG2 X10 Y0 I5 J0 E1\n")
+    job = read_gcode(text, arc_resolution=1.0)
+    assert job.arcs == (3, 1.0, (4, 7))
+    note = arcs_note(job, KLIPPER)
+    assert "Klipper refuses 2 of them (given by R or in relative mode; the first on line 4)" in note
+    assert "refuses" not in arcs_note(read_gcode("G90\nG1 X3 Y0\nG3 X3 Y0 I-3 J0\n", arc_resolution=1.0), KLIPPER)
 
 
 def test_from_klipper_reads_gcode_arcs(tmp_path):
