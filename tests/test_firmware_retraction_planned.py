@@ -203,3 +203,21 @@ def test_klipper_configs_give_firmware_retraction_with_its_defaults_said(tmp_pat
     cfg.write_text(base + "[firmware_retraction]\nretract_speed: 0.5\n")
     with pytest.raises(RingtuneError, match="must be ≥ 1 mm/s"):
         printer_facts_from_klipper(cfg)
+
+
+def test_tune_on_the_cura_job_with_a_printers_retraction_writes_a_job_that_plans_as_it_judged(data_dir, tmp_path,
+                                                                                             capsys):
+    """Everything tune reads beside the plan (feature groups, binding limits, the rewritten job) finds
+    the job's own moves (a first version put the E-only moves into the plan, and tune failed there):
+    the run ends, says how the retractions are planned, and job.gcode plans at the time it reports."""
+    path = data_dir / "gcode" / "fastlb_cura_um2" / "platte_klein_cut.gcode"
+    printer = tmp_path / "p.toml"
+    base = (data_dir.parent.parent / "envs" / "data" / "ender3.toml").read_text()
+    printer.write_text(base.replace("[limits]", "[limits]\nretract_length = 4.5\nretract_speed = 25\n"
+                                    "unretract_speed = 25", 1))
+    out = tmp_path / "out"
+    assert main(["tune", "--gcode", str(path), "--printer", str(printer), "--trials", "3", "--workers", "1",
+                 "-o", str(out), "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert "8 planned as the E-only moves the firmware makes" in (out / "summary.txt").read_text()
+    assert res["job_gcode"]["print_time_s"] == pytest.approx(res["chosen"]["print_time_s"], rel=1e-4)
