@@ -129,6 +129,8 @@ def retraction_plan(job, limits) -> list[Retraction]:
     ``limits`` (a :class:`ringtune.shaping.planner.MachineLimits`): the printer's settings (its
     ``unretract_extra_length`` only where it gives ``retract_length``), changed by the job's own
     commands as they come (module docstring)."""
+    if not job.fw_retractions:          # every trial plans the job: nothing to walk through
+        return []
     kind = dialect(limits)
     values = {k: getattr(limits, k) if limits.retract_length is not None else None for k in KEYS}
     source = dict.fromkeys(KEYS, "the printer's")
