@@ -195,13 +195,12 @@ def junction_limits(job, limits, use, u, d, e_only, vmax, accel, amax_axes):
             ju = ju / np.where(norm > 0, norm, 1.0)[:, None]
         a_j = scale_by_axes(accel[1:], ju, amax_axes[1:])
         lim = a_j * jd * sin_d2 / (1 - sin_d2)
-        # Marlin JD_SMALL_SEGMENT_HANDLING: on segments under 1 mm whose junction angle (Marlin's
-        # fast acos approximation, minus its 0.18 rad safety margin) exceeds 135°, bound the
-        # speed as on the circular arc the segments approximate
-        jt = (np.radians(-40) * cos_c ** 2 - np.radians(50)) * cos_c + np.radians(90) - 0.18
-        small = (d[1:] < 1.0) & (jt > np.radians(135))
+        # Marlin JD_HANDLE_SMALL_SEGMENTS (planner.cpp since 2.0.6, in 2.1.x and Prusa Buddy): on a
+        # segment under 1 mm turning by less than 45° from the last, bound the speed as on the
+        # circular arc the segments approximate, v² = length · a / turn
+        small = (d[1:] < 1.0) & (cos_c < -0.7071067812)
         with np.errstate(divide="ignore", invalid="ignore"):
-            arc = d[1:] / (np.pi - jt) * a_j
+            arc = d[1:] * a_j / marlin_turn(cos_c)
         lim = np.where(small, np.minimum(lim, arc), lim)
         lim = np.where(rev, 0.05 ** 2, lim)
         c[1:] = lim
@@ -209,6 +208,17 @@ def junction_limits(job, limits, use, u, d, e_only, vmax, accel, amax_axes):
         safe = jerk_safe_speeds(job, limits, use, u, vmax)
         c[1:] = jerk_junction(job, limits, use, u, vmax, safe) ** 2
     return c, safe
+
+
+#: Marlin's MinMax polynomial for asin(t), t in [0, 1] (W. R. Franklin's; error ±0.033 rad), highest power first
+_ASIN_MINIMAX = (84.31466202, -242.7199627, 262.8130562, -131.1123477, 29.66153956, -1.451838349, 0.032843707)
+
+
+def marlin_turn(cos_c: np.ndarray) -> np.ndarray:
+    """The turn between two moves (rad; 0 straight on) as Marlin's JD_HANDLE_SMALL_SEGMENTS takes it
+    where it applies (``cos_c`` < 0: Marlin's junction_cos_theta, −cos of the turn): acos(−cos_c) by
+    the polynomial, π/2 − asin(−cos_c), which never falls below 0.033 (a straight run stays bounded)."""
+    return np.pi / 2 - np.polyval(_ASIN_MINIMAX, -cos_c)
 
 
 def jerk_setting(limits) -> str:

@@ -83,6 +83,37 @@ def test_marlin_junction_deviation_formula():
     assert p.moves.v_exit[0] ** 2 == pytest.approx(1500 * 0.02 * s / (1 - s), rel=1e-6)
 
 
+def _polygon(side: float, turn: float, n: int) -> str:
+    """G-code of ``n`` sides of ``side`` mm, each turning ``turn`` rad from the last, at 300 mm/s."""
+    x = y = heading = 0.0
+    lines = ["G1 X0 Y0 F18000"]
+    for _ in range(n):
+        x, y = x + side * math.cos(heading), y + side * math.sin(heading)
+        lines.append(f"G1 X{x:.6f} Y{y:.6f}")
+        heading += turn
+    return "\n".join(lines) + "\n"
+
+
+def test_marlin_small_segments_bound_the_speed_as_on_the_arc():
+    # Marlin 2.1 / Prusa Buddy JD_HANDLE_SMALL_SEGMENTS: a segment under 1 mm turning by less than 45°
+    # gets v² = length · a / turn, the turn by Marlin's MinMax polynomial: π/2 − asin(cos 0.3 rad)
+    # = 0.30706 rad at a true 0.3 (a polygon of 0.9 mm sides, radius ≈ 3 mm: v² ≈ a·R)
+    lim = MachineLimits(accel=2000, velocity=500, junction="jd", junction_deviation=0.05, min_cruise_ratio=0)
+    p = plan(read_gcode(_polygon(0.9, 0.3, 40)), lim)
+    turn = 0.30706459089839
+    v2 = p.moves.v_exit[10:30] ** 2
+    assert v2 == pytest.approx(np.full(20, 0.9 * 2000 / turn), rel=1e-4)      # coordinates to 1 µm
+    assert v2[0] == pytest.approx(2000 * 0.9 / (2 * math.sin(0.15)), rel=0.03)     # a · R of the polygon
+    # the junction rule alone would allow more here: sin(θ/2)/(1 − sin(θ/2)) with θ/2 = (π − 0.3)/2
+    s = math.cos(0.15)
+    assert 2000 * 0.05 * s / (1 - s) > 1.4 * v2[0]
+    # 1.05 mm sides, or a turn of 50°: the junction rule alone
+    for side, turn in ((1.05, 0.3), (0.9, math.radians(50))):
+        p = plan(read_gcode(_polygon(side, turn, 12)), lim)
+        s = math.cos(turn / 2)
+        assert p.moves.v_exit[5] ** 2 == pytest.approx(2000 * 0.05 * s / (1 - s), rel=1e-4)
+
+
 def test_classic_jerk_corner_and_start_from_rest():
     lim = MachineLimits(accel=1000, junction="jerk", jerk=(8, 8, 0.4, 5), min_cruise_ratio=0)
     p = plan(read_gcode("G1 X50 F6000\nG1 X50 Y50\n"), lim)

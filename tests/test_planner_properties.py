@@ -62,10 +62,16 @@ def ref_jd(prev, cur, lim):
         if norm > 0 and ju[a] != 0:
             a_j = min(a_j, lim.max_accel[a] / abs(ju[a] / norm))
     v2 = a_j * lim.junction_deviation * s / (1 - s)
-    jt = (math.radians(-40) * cos_t ** 2 - math.radians(50)) * cos_t + math.radians(90) - 0.18
-    if dc < 1 and jt > math.radians(135):
-        v2 = min(v2, dc / (math.pi - jt) * a_j)
+    if dc < 1 and cos_t < -0.7071067812:
+        v2 = min(v2, dc * a_j / marlin_turn_ref(-cos_t))
     return v2
+
+
+def marlin_turn_ref(t):
+    """Marlin's junction_theta for junction_cos_theta = −t: π/2 − its MinMax asin polynomial (planner.cpp)."""
+    asin = 0.032843707 + t * (-1.451838349 + t * (29.66153956 + t * (-131.1123477 + t * (
+        262.8130562 + t * (-242.7199627 + t * 84.31466202)))))
+    return math.pi / 2 - asin
 
 
 def ref_jerk(prev, cur, lim, vp_nom, vc_nom):
