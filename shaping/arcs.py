@@ -1,13 +1,17 @@
 """G2/G3 arcs as the chords a firmware would move along (mm): the centre from I/J offsets or a
 radius R, the swept angle, and chords that deviate from the arc by at most a tolerance, Z and E
-interpolated along — or, as Klipper's ``[gcode_arcs]`` cuts an I/J arc, ``floor(travel / resolution)``
-equal-angle segments (at least one; travel the arc's length with its helical rise,
-``klippy/extras/gcode_arcs.py``). Marlin's and RRF's own segment lengths are not modelled: their arcs are
-the tolerance's chords."""
+interpolated along — or the firmware's own segments: Klipper's ``[gcode_arcs]`` cuts an I/J arc into
+``floor(travel / resolution)`` equal-angle segments (at least one; travel the arc's length with its
+helical rise, ``klippy/extras/gcode_arcs.py``); Marlin 2.1 (``plan_arc``, ``G2_G3.cpp``) into
+equal-angle segments of at most ``MAX_ARC_SEGMENT_MM``, at least ``MIN_CIRCLE_SEGMENTS`` to a full
+circle (:class:`MarlinArcs`). RepRapFirmware's and Prusa Buddy's own segments (by deviation and
+speed, and their constants differ between versions) are not modelled: their arcs are the tolerance's
+chords."""
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 from ringtune.shaping.errors import RingtuneError
 
@@ -16,20 +20,52 @@ from ringtune.shaping.errors import RingtuneError
 KLIPPER_ARC_RESOLUTION = 1.0
 
 
-def arc_resolution(limits) -> float | None:
-    """The segment length (mm) a firmware reading a job with ``limits`` (a
-    :class:`ringtune.shaping.planner.MachineLimits`) cuts arcs into: Klipper's ``arc_resolution``
-    (its default 1 mm unless the printer gives one); None for the others (tolerance chords)."""
-    if limits is None or not limits.reads_like_klipper:
+@dataclass(frozen=True)
+class MarlinArcs:
+    """Marlin 2.1's arc segments, from its build settings (``Configuration_adv.h`` defaults; mm):
+    ``MIN_ARC_SEGMENT_MM``, ``MAX_ARC_SEGMENT_MM``, ``MIN_CIRCLE_SEGMENTS`` (no ``ARC_SEGMENTS_PER_SEC``)."""
+
+    min_mm: float = 0.1
+    max_mm: float = 1.0
+    circle_segments: int = 72
+
+    def segments(self, radius: float, sweep: float) -> int:
+        """How many equal-angle segments ``plan_arc`` cuts an arc of ``radius`` (mm) sweeping ``sweep``
+        (rad) into: the arc's flat length (Z left out) over the longest segment, no fewer than the
+        circle's share of ``circle_segments`` (all of them for a full circle), then as near both
+        lengths as whole segments come."""
+        turn = abs(sweep)
+        flat = radius * turn
+        least = max(1, math.ceil(self.circle_segments * turn / (2 * math.pi) - 1e-9))
+        nominal = max(math.floor(flat / self.max_mm), least)
+        if flat / nominal > self.max_mm:
+            return math.ceil(flat / self.max_mm)
+        if flat / nominal < self.min_mm:
+            return max(1, math.floor(flat / self.min_mm))
+        return nominal
+
+
+#: Marlin's default build
+MARLIN_ARCS = MarlinArcs()
+
+
+def arc_resolution(limits) -> float | MarlinArcs | None:
+    """How a firmware reading a job with ``limits`` (a :class:`ringtune.shaping.planner.MachineLimits`)
+    cuts arcs: Klipper's segment length ``arc_resolution`` (mm; its default 1 mm unless the printer
+    gives one); Marlin's default build (:data:`MARLIN_ARCS`); None for the others (tolerance chords)."""
+    if limits is None:
         return None
-    return limits.arc_resolution or KLIPPER_ARC_RESOLUTION
+    if limits.reads_like_klipper:
+        return limits.arc_resolution or KLIPPER_ARC_RESOLUTION
+    return MARLIN_ARCS if limits.cuts_arcs_like_marlin else None
 
 
 def arc_chords(clockwise: bool, w: dict[str, float], start: list[float], end: list[float], tol: float,
-               where: str, resolution: float | None = None) -> list[list[float]]:
+               where: str, resolution: float | MarlinArcs | None = None) -> list[list[float]]:
     """The chord ends ([x, y, z, e] each, mm) of the arc from ``start`` to ``end`` (the last is
     ``end``): as few chords as keep within ``tol`` mm of the arc, or with ``resolution`` (mm) Klipper's
-    segments of an I/J arc; ``w``: the command's words (I J or R)."""
+    segments of an I/J arc, or Marlin's segments (:class:`MarlinArcs`); ``w``: the command's words
+    (I J or R)."""
     x0, y0 = start[0], start[1]
     cx, cy = arc_centre(clockwise, w, x0, y0, end[0], end[1], where)
     radius = math.hypot(x0 - cx, y0 - cy)
@@ -37,7 +73,9 @@ def arc_chords(clockwise: bool, w: dict[str, float], start: list[float], end: li
         raise RingtuneError("arc has zero radius", where)
     a0 = math.atan2(y0 - cy, x0 - cx)
     sweep = arc_sweep(clockwise, a0, math.atan2(end[1] - cy, end[0] - cx))
-    if resolution is not None and "R" not in w:      # Klipper: floor(travel / resolution) segments (it refuses R)
+    if isinstance(resolution, MarlinArcs):
+        n = resolution.segments(radius, sweep)
+    elif resolution is not None and "R" not in w:      # Klipper: floor(travel / resolution) segments (it refuses R)
         n = max(1, math.floor(math.hypot(radius * sweep, end[2] - start[2]) / resolution))
     else:
         n = 1 if radius <= tol else max(1, math.ceil(abs(sweep) / (2 * math.acos(1 - tol / radius))))
@@ -88,6 +126,11 @@ def arcs_note(job, limits) -> str | None:
     if res is None:
         return (f"the job's {n} arcs (G2/G3) are planned as chords within {job.arc_tolerance:g} mm of the arc "
                 "(the firmware's own segment lengths are not modelled)")
+    if isinstance(res, MarlinArcs):
+        return (f"the job's {n} arcs (G2/G3) are planned as Marlin 2.1 cuts them with its default build settings: "
+                f"segments of at most {res.max_mm:g} mm (MAX_ARC_SEGMENT_MM; MIN_ARC_SEGMENT_MM {res.min_mm:g}), "
+                f"at least {res.circle_segments} to a full circle (MIN_CIRCLE_SEGMENTS); a build with other "
+                "values cuts them otherwise")
     whose = ("the printer's [gcode_arcs] resolution" if limits.arc_resolution else "Klipper's default resolution; "
              "[limits] arc_resolution gives the printer's, which `ringtune printer from-klipper` reads")
     return (f"the job's {n} arcs (G2/G3) are planned as Klipper's [gcode_arcs] cuts them: segments of {res:g} mm "

@@ -103,12 +103,12 @@ def _strip_line_number(code: str, where: str) -> str:
 class _Reader(SettingCommands, MotionCommands):
     """State machine of one job being read."""
 
-    def __init__(self, source: str, arc_tolerance: float, arc_resolution: float | None = None):
+    def __init__(self, source: str, arc_tolerance: float, arc_resolution=None):
         if not arc_tolerance > 0:
             raise RingtuneError(f"arc tolerance must be > 0 mm, not {arc_tolerance}", "arc_tolerance")
         self.source = source
         self.tol = arc_tolerance
-        self.resolution = arc_resolution        # Klipper's [gcode_arcs] segments, mm (None: tolerance chords)
+        self.resolution = arc_resolution        # the firmware's segments (arcs.arc_resolution; None: tolerance chords)
         self.n_arcs = 0
         self.refused_arcs: list[int] = []        # lines of arcs Klipper refuses (by R, or in relative mode)
         self.pos = [0.0, 0.0, 0.0, 0.0]         # machine position x y z e
@@ -381,12 +381,13 @@ class _Reader(SettingCommands, MotionCommands):
 
 
 def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = None,
-               arc_resolution: float | None = None) -> Job:
+               arc_resolution=None) -> Job:
     """Read a G-code job from a file path (streamed line by line) or from G-code text/bytes.
 
     ``arc_tolerance``: largest distance (mm) between a G2/G3 arc and the chords replacing it;
-    ``arc_resolution``: Klipper's ``[gcode_arcs] resolution`` (mm), which cuts I/J arcs into its own
-    segments instead (:func:`ringtune.shaping.arcs.arc_chords`; None: the tolerance's chords).
+    ``arc_resolution``: the firmware's own segments instead (:func:`ringtune.shaping.arcs.arc_resolution`:
+    Klipper's ``[gcode_arcs] resolution`` in mm, which cuts I/J arcs, or Marlin's
+    :class:`~ringtune.shaping.arcs.MarlinArcs`; None: the tolerance's chords).
     Malformed values raise :class:`RingtuneError` naming ``file:line`` (``source`` names text
     input, default ``<gcode>``). Lines end at ``\n``, ``\r\n`` or ``\r`` for files and text alike,
     so line numbers are those of the file's bytes.

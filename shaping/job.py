@@ -101,8 +101,9 @@ class Job:
     #: (n,) the E-only moves of firmware retractions put in for planning (None: none; the planner folds
     #: them into the rest before the next move: :func:`ringtune.shaping.firmware_retraction.fold_retractions`)
     fw_inserted: np.ndarray | None = None
-    #: (number of G2/G3 arcs, the Klipper resolution they were cut at, mm, or None: tolerance chords,
-    #: the lines of those Klipper refuses: given by R or in relative mode)
+    #: (number of G2/G3 arcs, the firmware's segments they were cut into — Klipper's resolution, mm, or
+    #: Marlin's MarlinArcs — or None: tolerance chords, the lines of those Klipper refuses: given by R or
+    #: in relative mode)
     arcs: tuple = (0, None, ())
 
     @property

@@ -98,7 +98,9 @@ class MachineLimits:
     ``G10``/``G11`` moves the extruder by (Klipper's ``[firmware_retraction]``, Marlin's M207/M208,
     RRF's M207; :mod:`ringtune.shaping.firmware_retraction`), None: not known (a retraction that
     moves the extruder without its speed is not known either); arc_resolution: Klipper's ``[gcode_arcs]
-    resolution`` (mm; None: its default 1 mm, :func:`ringtune.shaping.arcs.arc_resolution`).
+    resolution`` (mm; None: its default 1 mm, :func:`ringtune.shaping.arcs.arc_resolution`); marlin_arcs:
+    the firmware cuts G2/G3 as Marlin 2.1 does (None: as the junction rule implies, Marlin's ``jd``;
+    :attr:`cuts_arcs_like_marlin`).
     """
 
     accel: float = 3000.0
@@ -123,10 +125,18 @@ class MachineLimits:
     unretract_extra_length: float = 0.0
     unretract_speed: float | None = None
     arc_resolution: float | None = None
+    marlin_arcs: bool | None = None
 
     @property
     def reads_like_klipper(self) -> bool:
         return reads_like_klipper(self.klipper_reading, self.junction)
+
+    @property
+    def cuts_arcs_like_marlin(self) -> bool:
+        """Whether G2/G3 become Marlin's segments: the firmware's way, else Marlin's junction rule's."""
+        if self.marlin_arcs is not None:
+            return self.marlin_arcs
+        return not self.reads_like_klipper and self.junction == "jd"
 
     def __post_init__(self) -> None:
         self.validate()

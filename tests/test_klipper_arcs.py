@@ -2,7 +2,7 @@
 equal-angle segments (travel: the arc's length with its helical rise; klippy/extras/gcode_arcs.py
 ``planArc``, transcribed here on its own). On Klipper's reading a job's arcs are planned on those
 segments — the junctions between 1 mm segments of a 3 mm circle hold the head far below the speed
-0.01 mm chords allow —; on Marlin's and RRF's the tolerance's chords stay."""
+0.01 mm chords allow —; on RRF's the tolerance's chords stay (Marlin's: tests/test_marlin_arcs.py)."""
 
 from __future__ import annotations
 
@@ -99,7 +99,7 @@ def test_klippers_reading_plans_the_arcs_on_its_segments_and_marlins_on_chords(t
     assert res["arcs"] == 20 and "segments of 0.5 mm (the printer's [gcode_arcs] resolution)" in res["arcs_note"]
     assert res["print_time_s"] == pytest.approx(plan_with_config(
         read_gcode(_written_out(3.0, 100.0, 0.5)), load_printer(printer).limits).plan.print_time, rel=1e-9)
-    assert main(["plan", str(tmp_path / "c3.gcode"), "--junction", "jd", "--json"]) == 0
+    assert main(["plan", str(tmp_path / "c3.gcode"), "--junction", "jerk", "--json"]) == 0
     res = json.loads(capsys.readouterr().out)
     assert "chords within 0.01 mm of the arc" in res["arcs_note"]
 

@@ -1,0 +1,70 @@
+"""Arcs as Marlin 2.1 cuts them (``plan_arc``, Marlin/src/gcode/motion/G2_G3.cpp, default build:
+MIN_ARC_SEGMENT_MM 0.1, MAX_ARC_SEGMENT_MM 1.0, MIN_CIRCLE_SEGMENTS 72): equal-angle segments, their
+number worked out by hand below from those rules; a job read as Marlin reads it plans as those segments
+written out in G1 moves."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from ringtune.agents.cli.main import main
+from ringtune.shaping.arcs import MARLIN_ARCS, arc_resolution
+from ringtune.shaping.config_plan import plan_with_config
+from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.planner import MachineLimits
+
+MARLIN = MachineLimits(accel=1500.0, velocity=200.0, junction="jd", junction_deviation=0.013,
+                       klipper_reading=False, reads_m566=False, marlin_arcs=True)
+
+
+@pytest.mark.parametrize("radius, sweep, segments", [
+    # a full 3 mm circle: 18.85 mm; 18 whole mm < the 72 a circle takes; 0.26 mm each
+    (3.0, 2 * math.pi, 72),
+    # a quarter of a 40 mm circle: 62.83 mm; 62 whole mm (≥ 18) would be 1.013 mm each, over the
+    # 1 mm most: ceil(62.83) = 63
+    (40.0, math.pi / 2, 63),
+    # half a 0.5 mm circle: 1.571 mm; 36 by the circle's share, 0.044 mm each, under the 0.1 mm least:
+    # floor(15.71) = 15
+    (0.5, -math.pi, 15),
+    # a tenth of a turn on 10 mm: 6.283 mm; 6 whole mm < ceil(7.2) = 8; 0.785 mm each
+    (10.0, 2 * math.pi / 10, 8),
+])
+def test_marlins_segment_count(radius, sweep, segments):
+    assert MARLIN_ARCS.segments(radius, sweep) == segments
+
+
+def test_the_reader_cuts_arcs_into_marlins_segments_and_plans_them_as_written_out(tmp_path, capsys):
+    r, n = 3.0, 20
+    circles = f"G90\nM83\nG1 X{r} Y0 F6000\n" + f"G3 X{r} Y0 I{-r} J0 E1\n" * n
+    job = read_gcode(circles, arc_resolution=arc_resolution(MARLIN))
+    assert job.arcs[:2] == (n, MARLIN_ARCS)
+    ends = job.end[1:73, :2]
+    angles = np.arange(1, 73) * 2 * math.pi / 72
+    assert np.abs(ends - r * np.column_stack([np.cos(angles), np.sin(angles)])).max() < 1e-9
+    written = f"G90\nM83\nG1 X{r} Y0 F6000\n" + "".join(
+        f"G1 X{r * math.cos(a):.9f} Y{r * math.sin(a):.9f} E{1 / 72:.9f}\n" for a in angles) * n
+    marlin = plan_with_config(job, MARLIN).plan.print_time
+    assert marlin == pytest.approx(plan_with_config(read_gcode(written), MARLIN).plan.print_time, rel=1e-9)
+    # RR arcs too (Marlin takes R, which Klipper refuses): the same segments
+    half = read_gcode("G90\nG1 X3 Y0 F6000\nG3 X-3 Y0 R3 E1\n", arc_resolution=MARLIN_ARCS)
+    assert len(half.end) - 1 == 36
+    # on the command line: a printer whose corner rule is Marlin's junction deviation says so
+    path = tmp_path / "c.gcode"
+    path.write_text(circles)
+    assert main(["plan", str(path), "--junction", "jd", "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["arcs"] == n and "as Marlin 2.1 cuts them" in res["arcs_note"]
+    assert "at least 72 to a full circle" in res["arcs_note"]
+
+
+def test_which_firmware_cuts_arcs_like_marlin():
+    assert arc_resolution(MARLIN) is MARLIN_ARCS
+    assert arc_resolution(MachineLimits(junction="jd")) is MARLIN_ARCS            # firmware unknown: its rule's
+    assert arc_resolution(MachineLimits(junction="jerk")) is None                  # Marlin, Prusa or RRF: chords
+    rrf = MachineLimits(junction="jerk", klipper_reading=False, m203_per_minute=True, marlin_arcs=False)
+    assert arc_resolution(rrf) is None
+    assert arc_resolution(MachineLimits(junction="jerk", klipper_reading=False, marlin_arcs=True)) is MARLIN_ARCS
