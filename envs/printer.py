@@ -94,12 +94,13 @@ KINEMATICS = ("cartesian", "corexy", "corexz")
 #: (how those caps bind: ``per_axis`` or Kalico's ``limited_corexy``), ``scale_xy_accel`` (Kalico),
 #: the corner rule, Klipper's ``min_cruise_ratio`` and an old Klipper's ``accel_to_decel`` (mm/s²), and
 #: the firmware retraction a ``G10``/``G11`` makes (``retract_length``, ``unretract_extra_length`` mm,
-#: ``retract_speed``, ``unretract_speed`` mm/s) and Klipper's ``[gcode_arcs] resolution`` (``arc_resolution``,
+#: ``retract_speed``, ``unretract_speed`` mm/s, ``retract_zlift`` the Z hop mm) and Klipper's ``[gcode_arcs]
+#: resolution`` (``arc_resolution``,
 #: mm; see :class:`ringtune.shaping.planner.MachineLimits`)
 LIMIT_KEYS = ("accel", "velocity", "junction", "square_corner_velocity", "junction_deviation",
               "jerk", "max_accel", "max_velocity", "min_cruise_ratio", "accel_to_decel", "travel_accel",
               "retract_accel", "axis_rule", "scale_xy_accel", "retract_length", "retract_speed",
-              "unretract_extra_length", "unretract_speed", "arc_resolution")
+              "unretract_extra_length", "unretract_speed", "retract_zlift", "arc_resolution")
 _TOP_KEYS = {"name", "kinematics", "limits", "x", "y", "motor", "belts", "print_mass", "description",
              "current", "measurement"}
 _BELT_KEYS = {"stiffness", "mismatch"}
@@ -159,7 +160,7 @@ _LIMIT_BOUNDS = {**dict.fromkeys(("accel", "velocity", "square_corner_velocity",
                                   "retract_accel", "accel_to_decel", "retract_speed", "unretract_speed",
                                   "arc_resolution"),
                                  {"lo": 0.0, "lo_open": True}),
-                 "min_cruise_ratio": {"lo": 0.0, "hi": 1.0}, "retract_length": {"lo": 0.0},
+                 "min_cruise_ratio": {"lo": 0.0, "hi": 1.0}, "retract_length": {"lo": 0.0}, "retract_zlift": {"lo": 0.0},
                  "unretract_extra_length": {}}
 
 

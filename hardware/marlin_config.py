@@ -12,7 +12,7 @@ report). Read here, in Marlin's units:
 | ``M204 P R T`` (old: ``S T``) | print / retract / travel acceleration, mm/s² | ``limits.accel`` = P (else S), ``limits.retract_accel`` = R (E-only moves), ``limits.travel_accel`` = T |
 | ``M205 J`` or ``M205 X Y Z E`` | junction deviation, mm, or classic jerk, mm/s | ``limits.junction`` = ``jd`` / ``jerk`` and its value |
 | ``M906 X Y`` | TMC driver current, mA RMS | ``motor.run_current`` (A) |
-| ``M207 S F``, ``M208 S F`` | firmware retraction (FWRETRACT): length mm, speed mm/min; extra restore mm, its speed mm/min | ``limits.retract_length``, ``retract_speed`` (mm/s), ``unretract_extra_length``, ``unretract_speed`` (mm/s) |
+| ``M207 S F Z``, ``M208 S F`` | firmware retraction (FWRETRACT): length mm, speed mm/min, Z hop mm; extra restore mm, its speed mm/min | ``limits.retract_length``, ``retract_speed`` (mm/s), ``retract_zlift``, ``unretract_extra_length``, ``unretract_speed`` (mm/s) |
 | ``M593 X/Y F D`` | ZV input shaper (``firmware.md`` §2.1): F Hz (0 = off), D damping | ``[current]`` shaper ``zv`` |
 
 ``M503`` does not report the kinematics; the caller gives it (or it stays unknown, with a note).
@@ -136,19 +136,18 @@ def _caps_and_junction(report: _Report, notes: list[str]) -> dict:
 
 
 def _retraction(report: _Report, notes: list[str]) -> dict:
-    """``limits`` from FWRETRACT's M207 (S length, F speed mm/min) and M208 (S extra restore, F its
-    speed mm/min): what a job's G10/G11 move. Not reported (FWRETRACT off, or not captured): said."""
+    """``limits`` from FWRETRACT's M207 (S length, F speed mm/min, Z hop mm) and M208 (S extra restore, F
+    its speed mm/min): what a job's G10/G11 move. Not reported (FWRETRACT off, or not captured): said."""
     values = {"retract_length": report.num("M207", "S"), "retract_speed": report.num("M207", "F"),
               "unretract_extra_length": report.num("M208", "S"), "unretract_speed": report.num("M208", "F")}
     if any(v is None for v in values.values()):
         notes.append("no M207 S F and M208 S F (firmware retraction, FWRETRACT): what a job's G10/G11 move is "
                      "unknown; a job that uses them is planned with stops there that take no time")
         return {}
-    if report.num("M207", "Z"):
-        notes.append(f"M207 Z{report.num('M207', 'Z'):g}: the Z hop at each G10 is not planned")
     for k in ("retract_speed", "unretract_speed"):
         values[k] /= 60.0                       # mm/min
-    return values
+    zlift = report.num("M207", "Z")
+    return {**values, "retract_zlift": zlift} if zlift else values
 
 
 def _current_shaper(report: _Report, ax: str, notes: list[str]) -> dict:

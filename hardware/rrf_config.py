@@ -9,7 +9,7 @@ RRF's units differ between commands (``Duet3D/wiki-content:User_manual/Reference
 | ``M201 X Y Z E`` | max acceleration, mm/s² | ``limits.max_accel`` |
 | ``M203 X Y Z E`` | max speed, **mm/min** | ``limits.max_velocity`` = /60, mm/s; ``limits.velocity`` = max(X, Y) |
 | ``M204 P T`` | print / travel acceleration, mm/s² | ``limits.accel``, ``limits.travel_accel`` |
-| ``M207 S R F T`` | firmware retraction: length, extra restore (mm), retract speed (and the restore's unless T), restore speed (mm/min) | ``limits.retract_length``, ``unretract_extra_length``, ``retract_speed``, ``unretract_speed`` (mm/s) |
+| ``M207 S R F T Z`` | firmware retraction: length, extra restore (mm), retract speed (and the restore's unless T), restore speed (mm/min), Z hop (mm) | ``limits.retract_length``, ``unretract_extra_length``, ``retract_speed``, ``unretract_speed`` (mm/s), ``retract_zlift`` |
 | ``M566 X Y Z E`` | instantaneous speed change ("jerk"), **mm/min** | ``limits.jerk`` = /60, mm/s; ``junction = "jerk"`` |
 | ``M906 X Y`` | motor current, mA **peak** | ``motor.run_current`` = mA / 1000 / √2, A RMS |
 | ``M593 P"type" F S`` | the one shaper of every axis (``firmware.md`` §3.1): F Hz, S damping | ``[current]`` |
@@ -140,17 +140,16 @@ def printer_facts_from_rrf(path: str | Path) -> FirmwareFacts:
 
 
 def _retraction(cfg: _Config, notes: list[str]) -> dict:
-    """``limits`` from M207 (S length, R extra restore, F retract and restore speed, T the restore's own;
-    mm, mm/min): what a job's G10/G11 move. None: said."""
+    """``limits`` from M207 (S length, R extra restore, F retract and restore speed, T the restore's own,
+    Z hop; mm, mm/min): what a job's G10/G11 move. None: said."""
     length, f, t = cfg.num("M207", "S"), cfg.num("M207", "F"), cfg.num("M207", "T")
     if length is None or (length and not f):
         notes.append("no M207 S and F (firmware retraction): what a job's G10/G11 move is unknown; a job that uses "
                      "them is planned with stops there that take no time")
         return {}
-    if cfg.num("M207", "Z"):
-        notes.append(f"{cfg.where('M207', 'Z')}: a Z hop of {cfg.num('M207', 'Z'):g} mm at each G10 is not planned")
     speeds = {"retract_speed": f / 60.0, "unretract_speed": (t or f) / 60.0} if f else {}
-    return {"retract_length": length, "unretract_extra_length": cfg.num("M207", "R") or 0.0, **speeds}
+    hop = {"retract_zlift": cfg.num("M207", "Z")} if cfg.num("M207", "Z") else {}
+    return {"retract_length": length, "unretract_extra_length": cfg.num("M207", "R") or 0.0, **speeds, **hop}
 
 
 #: lines of config.g that run other files (M98 P"file", M501 runs config-override.g): what they set is

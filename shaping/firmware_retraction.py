@@ -18,14 +18,21 @@ unchanged by it (the firmwares keep the G-code's E position). The planner plans 
 among the job's, then folds it into the rest before the next move (:func:`fold_retractions`), so a
 plan's moves stay the job's as read. Where the settings are not known, the head stops there (the
 reader's ``stop_before``: the printer assumed to retract, as a slicer's retraction stops Klipper),
-the moves take no time, and :func:`firmware_retraction_note` says what that leaves out. Not
-planned: a Z hop (Marlin's and RRF's M207 Z, Kalico's z_hop_height; the printer readers say so).
+the moves take no time, and :func:`firmware_retraction_note` says what that leaves out.
+
+Z hop (Marlin's and RRF's ``M207 Z``, ``[limits] retract_zlift``): after a ``G10``'s E move the head
+rises by it, and before a ``G11``'s it comes down by what the ``G10`` raised, both at the Z axis's top
+speed (Marlin ``fwretract.cpp``: above 0.01 mm, ``max_feedrate_mm_s[Z]``; RRF ``RetractFilament``:
+above 0, ``MaxFeedrate(Z)``) — planned where the printer gives that speed (``[limits] max_velocity``),
+else left out and said. Klipper has no Z hop; Kalico's ``z_hop_height`` is not planned (the printer
+reader says so).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from itertools import chain
 
 import numpy as np
 
@@ -34,17 +41,19 @@ from ringtune.shaping.errors import RingtuneError
 #: for the sentence's example: Klipper's default speeds (mm/s) at a 1 mm retraction
 EXAMPLE_MM, EXAMPLE_OUT_MM_S, EXAMPLE_BACK_MM_S = 1.0, 20.0, 10.0
 #: the settings, as MachineLimits names them
-KEYS = ("retract_length", "retract_speed", "unretract_extra_length", "unretract_speed")
+KEYS = ("retract_length", "retract_speed", "unretract_extra_length", "unretract_speed", "retract_zlift")
+#: the Z hop (mm) each firmware makes above: Marlin's ``retract_zraise > 0.01``, RRF's ``> 0``; Klipper has none
+_LEAST_HOP = {"marlin": 0.01, "rrf": 0.0, "klipper": math.inf}
 #: per firmware reading (:func:`dialect`): the job's command -> (word, setting, divisor to mm or mm/s),
 #: applied in order (RRF's F sets both speeds, then T the restore's own); RRF's M208 is the axis limits
 _WORDS = {
     "klipper": {"SET_RETRACTION": (("RETRACT_LENGTH", "retract_length", 1), ("RETRACT_SPEED", "retract_speed", 1),
                                    ("UNRETRACT_EXTRA_LENGTH", "unretract_extra_length", 1),
                                    ("UNRETRACT_SPEED", "unretract_speed", 1))},
-    "marlin": {"M207": (("S", "retract_length", 1), ("F", "retract_speed", 60)),
+    "marlin": {"M207": (("S", "retract_length", 1), ("F", "retract_speed", 60), ("Z", "retract_zlift", 1)),
                "M208": (("S", "unretract_extra_length", 1), ("F", "unretract_speed", 60))},
     "rrf": {"M207": (("S", "retract_length", 1), ("F", "retract_speed", 60), ("F", "unretract_speed", 60),
-                     ("R", "unretract_extra_length", 1), ("T", "unretract_speed", 60))},
+                     ("R", "unretract_extra_length", 1), ("T", "unretract_speed", 60), ("Z", "retract_zlift", 1))},
 }
 
 
@@ -88,12 +97,15 @@ def firmware_retractions(job) -> dict[str, list[int]]:
 @dataclass(frozen=True)
 class Retraction:
     """One firmware retraction as planned: the reader's record (``at``), the E it moves (mm; None:
-    the settings are not known) at ``speed`` (mm/s), and where the settings came from."""
+    the settings are not known) at ``speed`` (mm/s), where the settings came from, and its Z hop
+    (``hop`` mm, up at a G10, down at a G11; at ``hop_speed`` mm/s, None: the Z top speed is not known)."""
 
     at: object
     e: float | None
     speed: float | None
     source: str
+    hop: float = 0.0
+    hop_speed: float | None = None
 
 
 def dialect(limits) -> str:
@@ -133,16 +145,28 @@ def retraction_plan(job, limits) -> list[Retraction]:
         return []
     kind = dialect(limits)
     values = {k: getattr(limits, k) if limits.retract_length is not None else None for k in KEYS}
+    values["retract_zlift"] = limits.retract_zlift          # none unless given
     source = dict.fromkeys(KEYS, "the printer's")
     pending = [ev for ev in job.events if ev.command in _WORDS[kind]][::-1]     # the job's own, last first
-    out = []
+    z_speed = float((limits.max_velocity or (0.0,) * 4)[2]) or None             # 0: no cap given
+    out, raised = [], 0.0
     for r in job.fw_retractions:
         while pending and pending[-1].line < r.line:
             ev = pending.pop()
             for k, v in job_settings(ev, kind, f"{job.source}:{ev.line}").items():
                 values[k], source[k] = v, f"line {ev.line}"
-        out.append(_one(r, kind, values, source))
+        p, raised = _hopped(_one(r, kind, values, source), values["retract_zlift"], _LEAST_HOP[kind], raised, z_speed)
+        out.append(p)
     return out
+
+
+def _hopped(p: Retraction, zlift: float, least: float, raised: float, z_speed: float | None):
+    """(``p`` with its Z hop, the hop raised after it): a G10's ``zlift`` (mm) where above ``least``, a
+    G11's the ``raised`` of the G10 before it down, at ``z_speed`` (mm/s; None: not known)."""
+    if p.e is None:
+        return p, raised
+    hop = -raised if p.at.command == "G11" else zlift * (zlift > least)
+    return (replace(p, hop=hop, hop_speed=z_speed) if hop else p), max(hop, 0.0)
 
 
 def _one(r, kind: str, values: dict, source: dict) -> Retraction:
@@ -174,26 +198,36 @@ def with_firmware_retractions(job, limits):
     if not known:
         return job
     cache = job.__dict__.setdefault("_fw_planned", {})
-    key = tuple((p.at.line, p.e, p.speed) for p in known)
+    key = tuple((p.at.line, p.e, p.speed, p.hop, p.hop_speed) for p in known)
     if key not in cache:
         cache.clear()
         cache[key] = _inserted(job, known)
     return cache[key]
 
 
+def _moves(p: Retraction) -> list[tuple]:
+    """The moves ``p`` makes, in order, as (move index, line, feature, settings, speed mm/s, ΔE, ΔZ):
+    a G10's E move then its hop, a G11's descent then its E move (those of no length, and a hop whose
+    speed is not known, left out)."""
+    base = (p.at.move, p.at.line, p.at.feature, p.at.settings)
+    e = [(*base, p.speed, p.e, 0.0)] if p.e else []
+    z = [(*base, p.hop_speed, 0.0, p.hop)] if p.hop_speed else []
+    return e + z if p.at.command == "G10" else z + e
+
+
 def _inserted(job, known: list[Retraction]):
-    """The new job of :func:`with_firmware_retractions`: the E-only moves in, marked in
+    """The new job of :func:`with_firmware_retractions`: the E-only moves (and Z hops) in, marked in
     ``fw_inserted``, the events' move indices after them."""
     n = job.n_moves
-    t = np.array([(p.at.move, p.at.line, p.at.feature, p.at.settings, p.speed or 0.0, p.e, p.at.alone)
-                  for p in known], float)
     stop = job.stop_before.copy()
-    stop[t[(t[:, 6] > 0) & (t[:, 0] < n), 0].astype(np.int64)] = False
-    t = t[t[:, 5] != 0]                                      # the retractions that move E
+    alone = np.array([(p.at.move, p.at.alone) for p in known], np.int64)
+    stop[alone[(alone[:, 1] > 0) & (alone[:, 0] < n), 0]] = False
+    t = np.array(list(chain.from_iterable(map(_moves, known))), float).reshape(-1, 7)
     at, lines = t[:, 0].astype(np.int64), t[:, 1].astype(np.int64)
     start = np.vstack([job.start, job.end[-1:]])[at]        # where the head is: the next move's start, else the end
     end = start.copy()
     end[:, 3] += t[:, 5]
+    end[:, 2] += t[:, 6]
     new = dict(start=start, end=end, line=lines, feed=t[:, 4], feature=t[:, 2].astype(np.int64),
                settings=t[:, 3].astype(np.int64), stop_before=False, dwell_before=0.0, arc=False)
     # an event comes after the inserted moves before its move, and at its move after those from earlier lines
@@ -242,7 +276,8 @@ def firmware_retraction_note(job, limits) -> str | None:
     known = [p for p in plan if p.e is not None]
     unknown = [p for p in plan if p.e is None]
     return f"the job retracts by firmware — {parts}: " + "; ".join(filter(None, (_known_words(known),
-                                                                                 _unknown_words(unknown))))
+                                                                                 _unknown_words(unknown),
+                                                                                 _hop_words(known))))
 
 
 def _known_words(known: list[Retraction]) -> str:
@@ -267,12 +302,26 @@ def _unknown_words(unknown: list[Retraction]) -> str:
             f"mm/s ({back:.2f} s) they would add {total:.1f} s in all")
 
 
+def _words(p: Retraction) -> str:
+    """``G10 -0.8 mm at 35 mm/s`` (with its hop: ``, Z +0.4 mm at 5 mm/s``), or ``G11 moves nothing``."""
+    head = f"{p.at.command} {p.e:+.4g} mm at {p.speed:.4g} mm/s" if p.e else f"{p.at.command} moves nothing"
+    return head + (f", Z {p.hop:+.4g} mm at {p.hop_speed:.4g} mm/s" if p.hop_speed else "")
+
+
+def _hop_words(known: list[Retraction]) -> str:
+    """The Z hops of ``known`` left out for want of the Z axis's top speed, or ""."""
+    left = [p for p in known if p.hop > 0 and p.hop_speed is None]
+    if not left:
+        return ""
+    return (f"the Z hop of {left[0].hop:g} mm at {len(left)} of them (up, and down at the G11) is left out: the firmware "
+            "moves it at the Z axis's top speed, which the printer description does not give ([limits] max_velocity z)")
+
+
 def _source_words(source: str) -> str:
     return source if source.startswith("the printer") else f"the job's own ({source})"
 
 
 def _settings_words(known: list[Retraction]) -> str:
     """The distinct (E, speed) pairs of ``known`` in words (the first three, and how many more)."""
-    pairs = list(dict.fromkeys(f"{p.at.command} {p.e:+.4g} mm at {p.speed:.4g} mm/s" if p.e else
-                               f"{p.at.command} moves nothing" for p in known))
+    pairs = list(dict.fromkeys(map(_words, known)))
     return ", ".join(pairs[:3]) + f" and {len(pairs) - 3} more" * (len(pairs) > 3)

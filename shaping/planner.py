@@ -97,7 +97,8 @@ class MachineLimits:
     retract_length (mm), retract_speed, unretract_extra_length (mm), unretract_speed (mm/s): what a
     ``G10``/``G11`` moves the extruder by (Klipper's ``[firmware_retraction]``, Marlin's M207/M208,
     RRF's M207; :mod:`ringtune.shaping.firmware_retraction`), None: not known (a retraction that
-    moves the extruder without its speed is not known either); arc_resolution: Klipper's ``[gcode_arcs]
+    moves the extruder without its speed is not known either); retract_zlift: the Z hop (mm) at each
+    ``G10`` (Marlin's and RRF's M207 Z); arc_resolution: Klipper's ``[gcode_arcs]
     resolution`` (mm; None: its default 1 mm, :func:`ringtune.shaping.arcs.arc_resolution`); marlin_arcs:
     the firmware cuts G2/G3 as Marlin 2.1 does (None: as the junction rule implies, Marlin's ``jd``;
     :attr:`cuts_arcs_like_marlin`).
@@ -126,6 +127,7 @@ class MachineLimits:
     unretract_speed: float | None = None
     arc_resolution: float | None = None
     marlin_arcs: bool | None = None
+    retract_zlift: float = 0.0
 
     @property
     def reads_like_klipper(self) -> bool:

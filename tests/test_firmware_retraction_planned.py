@@ -163,7 +163,9 @@ def test_firmware_configs_give_the_settings_in_their_units(tmp_path):
     lim = facts.description["limits"]
     assert (lim["retract_length"], lim["retract_speed"], lim["unretract_extra_length"], lim["unretract_speed"]) == (
         0.6, 50.0, 0.05, 50.0)
-    assert any("Z hop of 0.2 mm" in n for n in facts.notes)
+    assert lim["retract_zlift"] == 0.2 and not any("Z hop" in n for n in facts.notes)
+    m503.write_text(m503.read_text().replace("Z0.00", "Z0.40"))
+    assert printer_facts_from_marlin(m503, "cartesian").description["limits"]["retract_zlift"] == 0.4
     config.write_text("M669 K0\nM92 X80 Y80\nM207 S0.6 F3000 T1200\n")
     assert printer_facts_from_rrf(config).description["limits"]["unretract_speed"] == 20.0
 
@@ -221,3 +223,45 @@ def test_tune_on_the_cura_job_with_a_printers_retraction_writes_a_job_that_plans
     res = json.loads(capsys.readouterr().out)
     assert "8 planned as the E-only moves the firmware makes" in (out / "summary.txt").read_text()
     assert res["job_gcode"]["print_time_s"] == pytest.approx(res["chosen"]["print_time_s"], rel=1e-4)
+
+
+def _z_trapezoid(d: float, v: float, a: float) -> float:
+    """A move of d mm from rest to rest at top speed v, acceleration a."""
+    return d / v + v / a if d >= v * v / a else 2 * math.sqrt(d / a)
+
+
+@pytest.mark.parametrize("limits", [MARLIN, RRF], ids=["marlin", "rrf"])
+def test_a_z_hop_rises_after_the_g10_and_comes_down_before_the_g11_at_the_z_top_speed(limits):
+    """Marlin's fwretract.cpp and RRF's RetractFilament: the E move, then Z up by the hop at the Z axis's
+    top speed; at the G11, Z down first, then the E move. The same job with those moves written out
+    plans the same (the job stays at Z 0, so the hop is to Z 0.4 and back)."""
+    caps = dict(max_velocity=(300.0, 300.0, 5.0, 60.0), max_accel=(1000.0, 1000.0, 100.0, 1000.0))
+    job = "M207 Z0.4\n" + JOB
+    up, down = "G1 Z0.4 F300", "G1 Z0 F300"
+    explicit = "M207 Z0.4\n" + _written_out(JOB, "G1 E-0.8 F2100\n" + up, down + "\nG1 E0.9 F1500")
+    got = _time(job, **limits, **caps, **SETTINGS)
+    assert got == pytest.approx(_time(explicit, **limits, **caps), rel=1e-12)
+    # four Z moves of 0.4 mm at 5 mm/s: at least 4 × 0.4/5 s more than without, at most 4 trapezoids from rest
+    added = got - _time(JOB, **limits, **caps, **SETTINGS)
+    assert 4 * 0.4 / 5 < added <= 4 * _z_trapezoid(0.4, 5.0, 100.0) + 1e-9
+    # the printer's own hop (M207 Z read into [limits] retract_zlift) does the same
+    assert _time(JOB, **limits, **caps, **SETTINGS, retract_zlift=0.4) == pytest.approx(got, rel=1e-12)
+
+
+def test_marlin_hops_above_a_hundredth_of_a_mm_and_without_the_z_speed_the_hop_is_said():
+    caps = dict(max_velocity=(300.0, 300.0, 5.0, 60.0))
+    base = _time(JOB, **MARLIN, **caps, **SETTINGS)
+    assert _time(JOB, **MARLIN, **caps, **SETTINGS, retract_zlift=0.01) == pytest.approx(base, rel=1e-12)
+    assert _time(JOB, **RRF, **caps, **SETTINGS, retract_zlift=0.01) > _time(JOB, **RRF, **caps, **SETTINGS)
+    # Klipper has no Z hop
+    assert _time(JOB, **KLIPPER, **caps, **SETTINGS, retract_zlift=0.4) == pytest.approx(
+        _time(JOB, **KLIPPER, **caps, **SETTINGS), rel=1e-12)
+    lim = MachineLimits(**MARLIN, **SETTINGS, retract_zlift=0.4)
+    plan = retraction_plan(read_gcode(JOB), lim)
+    assert [p.hop for p in plan] == [0.4, -0.4, 0.4, -0.4] and all(p.hop_speed is None for p in plan)
+    assert _time(JOB, **MARLIN, **SETTINGS, retract_zlift=0.4) == pytest.approx(_time(JOB, **MARLIN, **SETTINGS))
+    note = firmware_retraction_note(read_gcode(JOB), lim)
+    assert "the Z hop of 0.4 mm at 2 of them (up, and down at the G11) is left out" in note
+    assert "[limits] max_velocity z" in note
+    note = firmware_retraction_note(read_gcode(JOB), MachineLimits(**MARLIN, **SETTINGS, **caps, retract_zlift=0.4))
+    assert "G10 -0.8 mm at 35 mm/s, Z +0.4 mm at 5 mm/s" in note and "left out" not in note
