@@ -183,8 +183,9 @@ def junction_limits(job, limits, use, u, d, e_only, vmax, accel, amax_axes):
         c[1:] = lim
     elif limits.junction == "jd":
         jd = job_value(job, "junction_deviation", limits.junction_deviation, use)[1:]
-        nv = np.where(e_only[:, None], np.array([0, 0, 0, 1.0]) * np.sign(u[:, 3:4]),
-                      np.concatenate([u[:, :3], np.zeros((len(u), 1))], axis=1))
+        # Marlin's unit vectors are over X, Y, Z and E together wherever E moves (planner.cpp: a move with
+        # E steps is normalised with its E component; an E-only move is ±E)
+        nv = u / np.linalg.norm(u, axis=1)[:, None]
         cos_t = -np.einsum("ij,ij->i", nv[1:], nv[:-1])
         rev = cos_t > 0.999999
         cos_c = np.clip(cos_t, -0.999999, 1.0)

@@ -48,8 +48,9 @@ def ref_scv(prev, cur, lim):
 
 def ref_jd(prev, cur, lim):
     (up, _, ep, _), (uc, dc, ec, Ac) = prev, cur
-    vp = [0, 0, 0, math.copysign(1, up[3])] if ep else [up[0], up[1], up[2], 0]
-    vc = [0, 0, 0, math.copysign(1, uc[3])] if ec else [uc[0], uc[1], uc[2], 0]
+    # Marlin normalises over X, Y, Z and E together (an E-only move: ±E)
+    vp = [x / math.sqrt(sum(y * y for y in up)) for x in up]
+    vc = [x / math.sqrt(sum(y * y for y in uc)) for x in uc]
     cos_t = -sum(a * b for a, b in zip(vp, vc))
     if cos_t > 0.999999:
         return 0.05 ** 2
