@@ -303,8 +303,8 @@ def _unknown_words(unknown: list[Retraction]) -> str:
 
 
 def _words(p: Retraction) -> str:
-    """``G10 -0.8 mm at 35 mm/s`` (with its hop: ``, Z +0.4 mm at 5 mm/s``), or ``G11 moves nothing``."""
-    head = f"{p.at.command} {p.e:+.4g} mm at {p.speed:.4g} mm/s" if p.e else f"{p.at.command} moves nothing"
+    """``G10 -0.8 mm at 35 mm/s`` (with its hop: ``, Z +0.4 mm at 5 mm/s``), or ``G11 moves no filament``."""
+    head = f"{p.at.command} {p.e:+.4g} mm at {p.speed:.4g} mm/s" if p.e else f"{p.at.command} moves no filament"
     return head + (f", Z {p.hop:+.4g} mm at {p.hop_speed:.4g} mm/s" if p.hop_speed else "")
 
 

@@ -246,6 +246,10 @@ def test_a_z_hop_rises_after_the_g10_and_comes_down_before_the_g11_at_the_z_top_
     assert 4 * 0.4 / 5 < added <= 4 * _z_trapezoid(0.4, 5.0, 100.0) + 1e-9
     # the printer's own hop (M207 Z read into [limits] retract_zlift) does the same
     assert _time(JOB, **limits, **caps, **SETTINGS, retract_zlift=0.4) == pytest.approx(got, rel=1e-12)
+    # a length of 0 still hops (both firmwares move Z whatever the E move)
+    none = dict(SETTINGS, retract_length=0.0, unretract_extra_length=0.0)
+    assert _time(job, **limits, **caps, **none) == pytest.approx(
+        _time("M207 Z0.4\n" + _written_out(JOB, up, down), **limits, **caps), rel=1e-12)
 
 
 def test_marlin_hops_above_a_hundredth_of_a_mm_and_without_the_z_speed_the_hop_is_said():
