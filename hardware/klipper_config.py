@@ -30,7 +30,8 @@ What is taken (Klipper's option -> description key):
   as :mod:`ringtune.hardware.klipper_motors` takes them;
 - ``[firmware_retraction]`` -> ``limits.retract_length``, ``retract_speed``, ``unretract_extra_length``,
   ``unretract_speed`` (what a job's G10/G11 move; Klipper's defaults 0 mm, 20 mm/s, 0 mm, 10 mm/s
-  where unset, each said; no section: ``retract_length = 0``, since G10/G11 then move nothing, said);
+  where unset, each said; no section: ``retract_length = 0``, since G10/G11 then move nothing, said),
+  and Kalico's ``z_hop_height`` -> ``retract_zlift``;
 - ``[gcode_arcs] resolution`` -> ``limits.arc_resolution`` (Klipper's default 1 mm where unset, said;
   no section: G2/G3 move nothing there, said);
 - ``[input_shaper]`` -> ``[current]``: ``shaper_x``/``freq_x``/``damping_x`` (and y) as Klipper runs
@@ -144,11 +145,8 @@ def _firmware_retraction(src: Source) -> dict:
             low, unit = RETRACTION_OPTIONS[k]
             raise RingtuneError(f"must be ≥ {low:g}{unit} (Klipper's minimum), not {v:g}",
                                 src.where("firmware_retraction", k))
-    hop = src.number("firmware_retraction", "z_hop_height")
-    if hop:
-        src.notes.append(f"{src.where('firmware_retraction', 'z_hop_height')}: [firmware_retraction] z_hop_height "
-                         f"{hop:g} mm (Kalico's Z hop at each G10) is not planned")
-    return out
+    hop = src.number("firmware_retraction", "z_hop_height")     # Kalico's (limits.retract_zlift)
+    return {**out, "retract_zlift": hop} if hop else out
 
 
 def _speed_caps(src: Source, limits: dict, velocity: float) -> None:

@@ -20,12 +20,13 @@ plan's moves stay the job's as read. Where the settings are not known, the head 
 reader's ``stop_before``: the printer assumed to retract, as a slicer's retraction stops Klipper),
 the moves take no time, and :func:`firmware_retraction_note` says what that leaves out.
 
-Z hop (Marlin's and RRF's ``M207 Z``, ``[limits] retract_zlift``): after a ``G10``'s E move the head
-rises by it, and before a ``G11``'s it comes down by what the ``G10`` raised, both at the Z axis's top
-speed (Marlin ``fwretract.cpp``: above 0.01 mm, ``max_feedrate_mm_s[Z]``; RRF ``RetractFilament``:
-above 0, ``MaxFeedrate(Z)``) — planned where the printer gives that speed (``[limits] max_velocity``),
-else left out and said. Klipper has no Z hop; Kalico's ``z_hop_height`` is not planned (the printer
-reader says so).
+Z hop (Marlin's and RRF's ``M207 Z``, Kalico's ``z_hop_height`` and ``SET_RETRACTION Z_HOP_HEIGHT``;
+``[limits] retract_zlift``): after a ``G10``'s E move the head rises by it, and before a ``G11``'s it
+comes down by what the ``G10`` raised (:class:`HopRule`): Marlin (``fwretract.cpp``: above 0.01 mm)
+and RRF (``RetractFilament``: above 0) at the Z axis's top speed — planned where the printer gives it
+(``[limits] max_velocity``), else left out and said; Kalico (``firmware_retraction.py``, only where
+the length is above 0) by ``G1 Z… F(int(0.8·max_velocity·60))``, which M220 scales and the Z caps bound.
+Mainline Klipper has none.
 """
 
 from __future__ import annotations
@@ -42,14 +43,14 @@ from ringtune.shaping.errors import RingtuneError
 EXAMPLE_MM, EXAMPLE_OUT_MM_S, EXAMPLE_BACK_MM_S = 1.0, 20.0, 10.0
 #: the settings, as MachineLimits names them
 KEYS = ("retract_length", "retract_speed", "unretract_extra_length", "unretract_speed", "retract_zlift")
-#: the Z hop (mm) each firmware makes above: Marlin's ``retract_zraise > 0.01``, RRF's ``> 0``; Klipper has none
-_LEAST_HOP = {"marlin": 0.01, "rrf": 0.0, "klipper": math.inf}
+#: Kalico's Z hop speed, a share of the printer's max_velocity (``ZHOP_MOVE_SPEED_FRACTION``)
+KALICO_HOP_SHARE = 0.8
 #: per firmware reading (:func:`dialect`): the job's command -> (word, setting, divisor to mm or mm/s),
 #: applied in order (RRF's F sets both speeds, then T the restore's own); RRF's M208 is the axis limits
 _WORDS = {
     "klipper": {"SET_RETRACTION": (("RETRACT_LENGTH", "retract_length", 1), ("RETRACT_SPEED", "retract_speed", 1),
                                    ("UNRETRACT_EXTRA_LENGTH", "unretract_extra_length", 1),
-                                   ("UNRETRACT_SPEED", "unretract_speed", 1))},
+                                   ("UNRETRACT_SPEED", "unretract_speed", 1), ("Z_HOP_HEIGHT", "retract_zlift", 1))},
     "marlin": {"M207": (("S", "retract_length", 1), ("F", "retract_speed", 60), ("Z", "retract_zlift", 1)),
                "M208": (("S", "unretract_extra_length", 1), ("F", "unretract_speed", 60))},
     "rrf": {"M207": (("S", "retract_length", 1), ("F", "retract_speed", 60), ("F", "unretract_speed", 60),
@@ -98,14 +99,39 @@ def firmware_retractions(job) -> dict[str, list[int]]:
 class Retraction:
     """One firmware retraction as planned: the reader's record (``at``), the E it moves (mm; None:
     the settings are not known) at ``speed`` (mm/s), where the settings came from, and its Z hop
-    (``hop`` mm, up at a G10, down at a G11; at ``hop_speed`` mm/s, None: the Z top speed is not known)."""
+    (``hop`` mm, up at a G10, down at a G11; at ``hop_speed`` mm/s, 0: the Z top speed is not known)."""
 
     at: object
     e: float | None
     speed: float | None
     source: str
     hop: float = 0.0
-    hop_speed: float | None = None
+    hop_speed: float = 0.0
+
+
+@dataclass(frozen=True)
+class HopRule:
+    """How a firmware makes a retraction's Z hop: above ``least`` mm, at ``speed`` mm/s (0: not
+    known), scaled by the M220 factor to the power ``m220`` (1: it is, 0: not), and whether a
+    retraction of no length hops too."""
+
+    least: float
+    speed: float
+    m220: int
+    without_length: bool
+
+
+#: the least Z hop Marlin makes (``retract_zraise > 0.01``); RRF and Kalico make any above 0
+_LEAST_HOP = {"marlin": 0.01}
+
+
+def hop_rule(limits, kind: str) -> HopRule:
+    """The :class:`HopRule` of the firmware reading a job with ``limits`` as ``kind`` (:func:`dialect`):
+    Kalico's ``G1 Z… F%d`` at 0.8 × max_velocity (none at length 0), else the Z axis's top speed
+    (``[limits] max_velocity`` z; 0: not given)."""
+    if kind == "klipper":
+        return HopRule(0.0, math.floor(KALICO_HOP_SHARE * limits.velocity * 60) / 60, 1, False)
+    return HopRule(_LEAST_HOP.get(kind, 0.0), float((limits.max_velocity or (0.0,) * 4)[2]), 0, True)
 
 
 def dialect(limits) -> str:
@@ -148,25 +174,26 @@ def retraction_plan(job, limits) -> list[Retraction]:
     values["retract_zlift"] = limits.retract_zlift          # none unless given
     source = dict.fromkeys(KEYS, "the printer's")
     pending = [ev for ev in job.events if ev.command in _WORDS[kind]][::-1]     # the job's own, last first
-    z_speed = float((limits.max_velocity or (0.0,) * 4)[2]) or None             # 0: no cap given
+    rule = hop_rule(limits, kind)
     out, raised = [], 0.0
     for r in job.fw_retractions:
         while pending and pending[-1].line < r.line:
             ev = pending.pop()
             for k, v in job_settings(ev, kind, f"{job.source}:{ev.line}").items():
                 values[k], source[k] = v, f"line {ev.line}"
-        p, raised = _hopped(_one(r, kind, values, source), values["retract_zlift"], _LEAST_HOP[kind], raised, z_speed)
+        p, raised = _hopped(_one(r, kind, values, source), values["retract_zlift"], rule, raised)
         out.append(p)
     return out
 
 
-def _hopped(p: Retraction, zlift: float, least: float, raised: float, z_speed: float | None):
-    """(``p`` with its Z hop, the hop raised after it): a G10's ``zlift`` (mm) where above ``least``, a
-    G11's the ``raised`` of the G10 before it down, at ``z_speed`` (mm/s; None: not known)."""
-    if p.e is None:
+def _hopped(p: Retraction, zlift: float, rule: HopRule, raised: float):
+    """(``p`` with its Z hop, the hop raised after it): a G10's ``zlift`` (mm) as ``rule`` makes it, a
+    G11's the ``raised`` of the G10 before it down."""
+    if p.e is None or not (p.e or rule.without_length):
         return p, raised
-    hop = -raised if p.at.command == "G11" else zlift * (zlift > least)
-    return (replace(p, hop=hop, hop_speed=z_speed) if hop else p), max(hop, 0.0)
+    hop = -raised if p.at.command == "G11" else zlift * (zlift > rule.least)
+    speed = rule.speed * p.at.speed_factor ** rule.m220
+    return (replace(p, hop=hop, hop_speed=speed) if hop else p), max(hop, 0.0)
 
 
 def _one(r, kind: str, values: dict, source: dict) -> Retraction:
@@ -310,7 +337,7 @@ def _words(p: Retraction) -> str:
 
 def _hop_words(known: list[Retraction]) -> str:
     """The Z hops of ``known`` left out for want of the Z axis's top speed, or ""."""
-    left = [p for p in known if p.hop > 0 and p.hop_speed is None]
+    left = [p for p in known if p.hop > 0 and not p.hop_speed]
     if not left:
         return ""
     return (f"the Z hop of {left[0].hop:g} mm at {len(left)} of them (up, and down at the G11) is left out: the firmware "

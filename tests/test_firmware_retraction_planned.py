@@ -196,7 +196,7 @@ def test_klipper_configs_give_firmware_retraction_with_its_defaults_said(tmp_pat
     assert (lim["retract_length"], lim["retract_speed"], lim["unretract_extra_length"], lim["unretract_speed"]) == (
         0.6, 45.0, 0.0, 10.0)
     assert any("unretract_speed not set: Klipper's default 10 mm/s" in n for n in facts.notes)
-    assert any("z_hop_height 0.2 mm (Kalico's Z hop at each G10) is not planned" in n for n in facts.notes)
+    assert lim["retract_zlift"] == 0.2
     cfg.write_text(base)
     facts = printer_facts_from_klipper(cfg)
     assert facts.description["limits"]["retract_length"] == 0.0
@@ -257,15 +257,33 @@ def test_marlin_hops_above_a_hundredth_of_a_mm_and_without_the_z_speed_the_hop_i
     base = _time(JOB, **MARLIN, **caps, **SETTINGS)
     assert _time(JOB, **MARLIN, **caps, **SETTINGS, retract_zlift=0.01) == pytest.approx(base, rel=1e-12)
     assert _time(JOB, **RRF, **caps, **SETTINGS, retract_zlift=0.01) > _time(JOB, **RRF, **caps, **SETTINGS)
-    # Klipper has no Z hop
-    assert _time(JOB, **KLIPPER, **caps, **SETTINGS, retract_zlift=0.4) == pytest.approx(
-        _time(JOB, **KLIPPER, **caps, **SETTINGS), rel=1e-12)
     lim = MachineLimits(**MARLIN, **SETTINGS, retract_zlift=0.4)
     plan = retraction_plan(read_gcode(JOB), lim)
-    assert [p.hop for p in plan] == [0.4, -0.4, 0.4, -0.4] and all(p.hop_speed is None for p in plan)
+    assert [p.hop for p in plan] == [0.4, -0.4, 0.4, -0.4] and all(p.hop_speed == 0 for p in plan)
     assert _time(JOB, **MARLIN, **SETTINGS, retract_zlift=0.4) == pytest.approx(_time(JOB, **MARLIN, **SETTINGS))
     note = firmware_retraction_note(read_gcode(JOB), lim)
     assert "the Z hop of 0.4 mm at 2 of them (up, and down at the G11) is left out" in note
     assert "[limits] max_velocity z" in note
     note = firmware_retraction_note(read_gcode(JOB), MachineLimits(**MARLIN, **SETTINGS, **caps, retract_zlift=0.4))
     assert "G10 -0.8 mm at 35 mm/s, Z +0.4 mm at 5 mm/s" in note and "left out" not in note
+
+
+def test_kalicos_hop_is_its_g1_at_eight_tenths_of_max_velocity_scaled_by_m220_and_bound_by_the_z_caps():
+    """Kalico's firmware_retraction.py: G10 runs ``G1 E-len F%d`` then ``G1 Z(z + hop) F(int(0.8 ·
+    max_velocity · 60))``; G11 ``G1 Z-hop`` (relative) at that F, then the E move; none of it at a
+    length of 0. Written out, the same job plans the same; the toolhead's Z caps bound the hop."""
+    caps = dict(max_velocity=(0.0, 0.0, 15.0, 0.0), max_accel=(0.0, 0.0, 200.0, 0.0))
+    f = int(0.8 * 300.0 * 60)
+    up, down = f"G1 Z0.4 F{f}", f"G1 Z0 F{f}"
+    for text in (JOB, "M220 S50\n" + JOB):
+        explicit = _written_out(text, "G1 E-0.8 F2100\n" + up, down + "\nG1 E0.9 F1500")
+        assert _time(text, **KLIPPER, **caps, **SETTINGS, retract_zlift=0.4) == pytest.approx(
+            _time(explicit, **KLIPPER, **caps), rel=1e-12)
+    # SET_RETRACTION Z_HOP_HEIGHT in the job does the same
+    job = "SET_RETRACTION Z_HOP_HEIGHT=0.4\n" + JOB
+    assert _time(job, **KLIPPER, **caps, **SETTINGS) == pytest.approx(
+        _time(JOB, **KLIPPER, **caps, **SETTINGS, retract_zlift=0.4), rel=1e-12)
+    # a length of 0: Kalico ignores the G10 and the G11, hop and all
+    none = dict(SETTINGS, retract_length=0.0)
+    assert _time(JOB, **KLIPPER, **caps, **none, retract_zlift=0.4) == pytest.approx(
+        _time(JOB, **KLIPPER, **caps, **none), rel=1e-12)
