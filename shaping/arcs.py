@@ -4,9 +4,9 @@ interpolated along — or the firmware's own segments: Klipper's ``[gcode_arcs]`
 ``floor(travel / resolution)`` equal-angle segments (at least one; travel the arc's length with its
 helical rise, ``klippy/extras/gcode_arcs.py``); Marlin 2.1 (``plan_arc``, ``G2_G3.cpp``) into
 equal-angle segments of at most ``MAX_ARC_SEGMENT_MM``, at least ``MIN_CIRCLE_SEGMENTS`` to a full
-circle (:class:`MarlinArcs`). RepRapFirmware's and Prusa Buddy's own segments (by deviation and
-speed, and their constants differ between versions) are not modelled: their arcs are the tolerance's
-chords."""
+circle (:class:`MarlinArcs`); RepRapFirmware 3.5+ (``GCodes::DoArcMove``) into segments set by the
+deviation they leave and the speed (:class:`RrfArcs`). Prusa Buddy's own (RRF's rule with its
+build's constants) are not modelled: its arcs, and an unknown firmware's, are the tolerance's chords."""
 
 from __future__ import annotations
 
@@ -29,11 +29,11 @@ class MarlinArcs:
     max_mm: float = 1.0
     circle_segments: int = 72
 
-    def segments(self, radius: float, sweep: float) -> int:
+    def segments(self, radius: float, sweep: float, speed: float = 0.0) -> int:
         """How many equal-angle segments ``plan_arc`` cuts an arc of ``radius`` (mm) sweeping ``sweep``
         (rad) into: the arc's flat length (Z left out) over the longest segment, no fewer than the
         circle's share of ``circle_segments`` (all of them for a full circle), then as near both
-        lengths as whole segments come."""
+        lengths as whole segments come (``speed`` is not used: no ``ARC_SEGMENTS_PER_SEC``)."""
         turn = abs(sweep)
         flat = radius * turn
         least = max(1, math.ceil(self.circle_segments * turn / (2 * math.pi) - 1e-9))
@@ -49,23 +49,50 @@ class MarlinArcs:
 MARLIN_ARCS = MarlinArcs()
 
 
-def arc_resolution(limits) -> float | MarlinArcs | None:
+@dataclass(frozen=True)
+class RrfArcs:
+    """RepRapFirmware 3.5+'s arc segments (``Configuration.h``): ``MaxArcDeviation`` (mm),
+    ``MinArcSegmentLength``, ``MaxArcSegmentLength`` (mm), ``MaxArcSegmentsPerSec``."""
+
+    deviation: float = 0.005
+    min_mm: float = 0.02
+    max_mm: float = 1.0
+    per_second: float = 200.0
+
+    def segments(self, radius: float, sweep: float, speed: float) -> int:
+        """How many equal-angle segments ``DoArcMove`` cuts an arc of ``radius`` (mm) sweeping ``sweep``
+        (rad) into at ``speed`` (mm/s): the length that deviates ``deviation`` from the arc,
+        sqrt(8·r·deviation), or what ``per_second`` segments cover at that speed if shorter, held
+        within the two lengths; the arc's flat length over it, + 0.8, whole (at least one)."""
+        length = min(max(min(math.sqrt(8 * radius * self.deviation), speed / self.per_second), self.min_mm), self.max_mm)
+        return max(int(radius * abs(sweep) / length + 0.8), 1)
+
+
+#: RepRapFirmware 3.5's and 3.6's constants
+RRF_ARCS = RrfArcs()
+
+
+def arc_resolution(limits) -> float | MarlinArcs | RrfArcs | None:
     """How a firmware reading a job with ``limits`` (a :class:`ringtune.shaping.planner.MachineLimits`)
     cuts arcs: Klipper's segment length ``arc_resolution`` (mm; its default 1 mm unless the printer
-    gives one); Marlin's default build (:data:`MARLIN_ARCS`); None for the others (tolerance chords)."""
+    gives one); RepRapFirmware's (it reads M203 in mm/min, :data:`RRF_ARCS`); Marlin's default build
+    (:data:`MARLIN_ARCS`); None for the others (tolerance chords)."""
     if limits is None:
         return None
     if limits.reads_like_klipper:
         return limits.arc_resolution or KLIPPER_ARC_RESOLUTION
+    if limits.m203_per_minute:
+        return RRF_ARCS
     return MARLIN_ARCS if limits.cuts_arcs_like_marlin else None
 
 
 def arc_chords(clockwise: bool, w: dict[str, float], start: list[float], end: list[float], tol: float,
-               where: str, resolution: float | MarlinArcs | None = None) -> list[list[float]]:
+               where: str, resolution: float | MarlinArcs | RrfArcs | None = None,
+               speed: float = 0.0) -> list[list[float]]:
     """The chord ends ([x, y, z, e] each, mm) of the arc from ``start`` to ``end`` (the last is
     ``end``): as few chords as keep within ``tol`` mm of the arc, or with ``resolution`` (mm) Klipper's
-    segments of an I/J arc, or Marlin's segments (:class:`MarlinArcs`); ``w``: the command's words
-    (I J or R)."""
+    segments of an I/J arc, or Marlin's or RRF's segments (:class:`MarlinArcs`, :class:`RrfArcs`; RRF's
+    depend on the move's ``speed``, mm/s); ``w``: the command's words (I J or R)."""
     x0, y0 = start[0], start[1]
     cx, cy = arc_centre(clockwise, w, x0, y0, end[0], end[1], where)
     radius = math.hypot(x0 - cx, y0 - cy)
@@ -73,8 +100,8 @@ def arc_chords(clockwise: bool, w: dict[str, float], start: list[float], end: li
         raise RingtuneError("arc has zero radius", where)
     a0 = math.atan2(y0 - cy, x0 - cx)
     sweep = arc_sweep(clockwise, a0, math.atan2(end[1] - cy, end[0] - cx))
-    if isinstance(resolution, MarlinArcs):
-        n = resolution.segments(radius, sweep)
+    if isinstance(resolution, (MarlinArcs, RrfArcs)):
+        n = resolution.segments(radius, sweep, speed)
     elif resolution is not None and "R" not in w:      # Klipper: floor(travel / resolution) segments (it refuses R)
         n = max(1, math.floor(math.hypot(radius * sweep, end[2] - start[2]) / resolution))
     else:
@@ -126,6 +153,10 @@ def arcs_note(job, limits) -> str | None:
     if res is None:
         return (f"the job's {n} arcs (G2/G3) are planned as chords within {job.arc_tolerance:g} mm of the arc "
                 "(the firmware's own segment lengths are not modelled)")
+    if isinstance(res, RrfArcs):
+        return (f"the job's {n} arcs (G2/G3) are planned as RepRapFirmware 3.5+ cuts them: segments that deviate "
+                f"{res.deviation:g} mm from the arc, or that {res.per_second:g} a second cover at the move's speed if "
+                f"shorter, within {res.min_mm:g}–{res.max_mm:g} mm")
     if isinstance(res, MarlinArcs):
         return (f"the job's {n} arcs (G2/G3) are planned as Marlin 2.1 cuts them with its default build settings: "
                 f"segments of at most {res.max_mm:g} mm (MAX_ARC_SEGMENT_MM; MIN_ARC_SEGMENT_MM {res.min_mm:g}), "

@@ -74,7 +74,8 @@ class MotionCommands:
         self.n_arcs += 1
         if "R" in w or not self.abs_xyz:          # what Klipper's gcode_arcs refuses
             self.refused_arcs.append(lineno)
-        for point in arc_chords(clockwise, w, list(self.pos), end, self.tol, where, self.resolution):
+        for point in arc_chords(clockwise, w, list(self.pos), end, self.tol, where, self.resolution,
+                                self.feed * self.speed_factor):
             self._emit(point, lineno, arc=True)
 
 

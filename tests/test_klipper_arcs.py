@@ -2,7 +2,7 @@
 equal-angle segments (travel: the arc's length with its helical rise; klippy/extras/gcode_arcs.py
 ``planArc``, transcribed here on its own). On Klipper's reading a job's arcs are planned on those
 segments — the junctions between 1 mm segments of a 3 mm circle hold the head far below the speed
-0.01 mm chords allow —; on RRF's the tolerance's chords stay (Marlin's: tests/test_marlin_arcs.py)."""
+0.01 mm chords allow — (Marlin's and RRF's own: tests/test_firmware_arcs.py)."""
 
 from __future__ import annotations
 

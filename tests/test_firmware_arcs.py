@@ -1,7 +1,9 @@
 """Arcs as Marlin 2.1 cuts them (``plan_arc``, Marlin/src/gcode/motion/G2_G3.cpp, default build:
-MIN_ARC_SEGMENT_MM 0.1, MAX_ARC_SEGMENT_MM 1.0, MIN_CIRCLE_SEGMENTS 72): equal-angle segments, their
-number worked out by hand below from those rules; a job read as Marlin reads it plans as those segments
-written out in G1 moves."""
+MIN_ARC_SEGMENT_MM 0.1, MAX_ARC_SEGMENT_MM 1.0, MIN_CIRCLE_SEGMENTS 72) and as RepRapFirmware 3.5+ does
+(``GCodes::DoArcMove``, Configuration.h: MaxArcDeviation 0.005, MinArcSegmentLength 0.02,
+MaxArcSegmentLength 1.0, MaxArcSegmentsPerSec 200): equal-angle segments, their number worked out by
+hand below from those rules; a job read as the firmware reads it plans as those segments written out in
+G1 moves."""
 
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ import numpy as np
 import pytest
 
 from ringtune.agents.cli.main import main
-from ringtune.shaping.arcs import MARLIN_ARCS, arc_resolution
+from ringtune.shaping.arcs import MARLIN_ARCS, RRF_ARCS, arc_resolution
 from ringtune.shaping.config_plan import plan_with_config
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.planner import MachineLimits
@@ -61,10 +63,45 @@ def test_the_reader_cuts_arcs_into_marlins_segments_and_plans_them_as_written_ou
     assert "at least 72 to a full circle" in res["arcs_note"]
 
 
-def test_which_firmware_cuts_arcs_like_marlin():
+def test_which_firmware_cuts_arcs_how():
     assert arc_resolution(MARLIN) is MARLIN_ARCS
     assert arc_resolution(MachineLimits(junction="jd")) is MARLIN_ARCS            # firmware unknown: its rule's
     assert arc_resolution(MachineLimits(junction="jerk")) is None                  # Marlin, Prusa or RRF: chords
-    rrf = MachineLimits(junction="jerk", klipper_reading=False, m203_per_minute=True, marlin_arcs=False)
-    assert arc_resolution(rrf) is None
+    assert arc_resolution(RRF) is RRF_ARCS
     assert arc_resolution(MachineLimits(junction="jerk", klipper_reading=False, marlin_arcs=True)) is MARLIN_ARCS
+    prusa = MachineLimits(junction="jerk", klipper_reading=False, reads_m566=False, marlin_arcs=False)
+    assert arc_resolution(prusa) is None
+
+
+RRF = MachineLimits(accel=1500.0, velocity=300.0, junction="jerk", jerk=(10.0, 10.0, 0.5, 20.0),
+                    klipper_reading=False, m203_per_minute=True, marlin_arcs=False)
+
+
+@pytest.mark.parametrize("radius, sweep, speed, segments", [
+    # a 3 mm circle at 100 mm/s: sqrt(8·3·0.005) = 0.3464 mm (< 100/200); 18.85/0.3464 + 0.8 = 55.2
+    (3.0, 2 * math.pi, 100.0, 55),
+    # a quarter of a 40 mm circle at 100 mm/s: sqrt(1.6) = 1.26 > 100/200 = 0.5 mm; 125.7 + 0.8 → 126
+    (40.0, math.pi / 2, 100.0, 126),
+    # the same at 300 mm/s: 1.5 and 1.26 over the 1 mm most: 62.83 + 0.8 → 63
+    (40.0, math.pi / 2, 300.0, 63),
+    # half a 0.5 mm circle: sqrt(0.02) = 0.1414 mm; 1.571/0.1414 + 0.8 = 11.9 → 11
+    (0.5, -math.pi, 100.0, 11),
+    # a quarter of a 0.01 mm circle at 1 mm/s: 0.005 under the 0.02 mm least; 0.785 + 0.8 → 1
+    (0.01, math.pi / 2, 1.0, 1),
+])
+def test_rrfs_segment_count(radius, sweep, speed, segments):
+    assert RRF_ARCS.segments(radius, sweep, speed) == segments
+
+
+def test_rrf_reads_arcs_into_its_segments_at_the_moves_speed_and_plans_them_as_written_out():
+    r, n = 3.0, 10
+    # at 50 mm/s (F3000, or F6000 under M220 S50) 50/200 = 0.25 mm is the shorter: 18.85/0.25 + 0.8 → 76
+    for f, m220, want in ((6000, 100, 55), (3000, 100, 76), (6000, 50, 76)):
+        circles = f"M220 S{m220}\nG90\nM83\nG1 X{r} Y0 F{f}\n" + f"G3 X{r} Y0 I{-r} J0 E1\n" * n
+        job = read_gcode(circles, arc_resolution=arc_resolution(RRF))
+        assert len(job.end) - 1 == n * want and job.arcs[:2] == (n, RRF_ARCS)
+        angles = np.arange(1, want + 1) * 2 * math.pi / want
+        written = f"M220 S{m220}\nG90\nM83\nG1 X{r} Y0 F{f}\n" + "".join(
+            f"G1 X{r * math.cos(a):.9f} Y{r * math.sin(a):.9f} E{1 / want:.9f}\n" for a in angles) * n
+        assert plan_with_config(job, RRF).plan.print_time == pytest.approx(      # the file's 1e-9 mm digits
+            plan_with_config(read_gcode(written), RRF).plan.print_time, rel=1e-7)
