@@ -4,9 +4,9 @@ interpolated along — or the firmware's own segments: Klipper's ``[gcode_arcs]`
 ``floor(travel / resolution)`` equal-angle segments (at least one; travel the arc's length with its
 helical rise, ``klippy/extras/gcode_arcs.py``); Marlin 2.1 (``plan_arc``, ``G2_G3.cpp``) into
 equal-angle segments of at most ``MAX_ARC_SEGMENT_MM``, at least ``MIN_CIRCLE_SEGMENTS`` to a full
-circle (:class:`MarlinArcs`); RepRapFirmware 3.5+ (``GCodes::DoArcMove``) into segments set by the
-deviation they leave and the speed (:class:`RrfArcs`). Prusa Buddy's own (RRF's rule with its
-build's constants) are not modelled: its arcs, and an unknown firmware's, are the tolerance's chords."""
+circle (:class:`MarlinArcs`); RepRapFirmware 3.5+ (``GCodes::DoArcMove``) and Prusa Buddy (``plan_arc``,
+its ``G2_G3.cpp``, RRF's rule with its own constants) into segments set by the deviation they leave and
+the speed (:class:`DeviationArcs`). An unknown firmware's arcs are the tolerance's chords."""
 
 from __future__ import annotations
 
@@ -50,49 +50,61 @@ MARLIN_ARCS = MarlinArcs()
 
 
 @dataclass(frozen=True)
-class RrfArcs:
-    """RepRapFirmware 3.5+'s arc segments (``Configuration.h``): ``MaxArcDeviation`` (mm),
-    ``MinArcSegmentLength``, ``MaxArcSegmentLength`` (mm), ``MaxArcSegmentsPerSec``."""
+class DeviationArcs:
+    """Arc segments set by the deviation they leave and the speed, RepRapFirmware's rule: its
+    ``MaxArcDeviation`` (mm), ``MinArcSegmentLength``, ``MaxArcSegmentLength`` (mm),
+    ``MaxArcSegmentsPerSec`` (3.5+, ``Configuration.h``), or Prusa Buddy's ``MAX_ARC_DEVIATION``,
+    ``MIN_ARC_SEGMENT_MM``, ``MAX_ARC_SEGMENT_MM``, ``MIN_ARC_SEGMENTS_PER_SEC`` (its printers'
+    ``Configuration_*_adv.h``); firmware: its name in what the user reads; sees_speed_factor: the
+    speed that sets the segments includes M220's factor (Buddy's ``plan_arc`` takes the feed rate
+    as the job gives it, ``feedrate_mm_s``, and only the planner the scaled one)."""
 
-    deviation: float = 0.005
-    min_mm: float = 0.02
-    max_mm: float = 1.0
-    per_second: float = 200.0
+    deviation: float
+    min_mm: float
+    max_mm: float
+    per_second: float
+    firmware: str
+    sees_speed_factor: bool = True
 
-    def segments(self, radius: float, sweep: float, speed: float) -> int:
-        """How many equal-angle segments ``DoArcMove`` cuts an arc of ``radius`` (mm) sweeping ``sweep``
-        (rad) into at ``speed`` (mm/s): the length that deviates ``deviation`` from the arc,
-        sqrt(8·r·deviation), or what ``per_second`` segments cover at that speed if shorter, held
-        within the two lengths; the arc's flat length over it, + 0.8, whole (at least one)."""
+    def segments(self, radius: float, sweep: float, feed: float, speed_factor: float = 1.0) -> int:
+        """How many equal-angle segments the firmware cuts an arc of ``radius`` (mm) sweeping ``sweep``
+        (rad) into at the job's ``feed`` (mm/s) under M220's ``speed_factor``: the length that deviates
+        ``deviation`` from the arc, sqrt(8·r·deviation), or what ``per_second`` segments cover at
+        the speed if shorter, held within the two lengths; the arc's flat length over it, + 0.8,
+        whole (at least one)."""
+        speed = feed * speed_factor if self.sees_speed_factor else feed
         length = min(max(min(math.sqrt(8 * radius * self.deviation), speed / self.per_second), self.min_mm), self.max_mm)
         return max(int(radius * abs(sweep) / length + 0.8), 1)
 
 
-#: RepRapFirmware 3.5's and 3.6's constants
-RRF_ARCS = RrfArcs()
+#: RepRapFirmware 3.5's and 3.6's constants (whether M220 reaches its arcs' speed is not checked: taken so)
+RRF_ARCS = DeviationArcs(0.005, 0.02, 1.0, 200.0, "RepRapFirmware 3.5+")
+#: Prusa Buddy's, the same in every printer's build (MK4, MK3.5, XL, MINI, CORE One)
+PRUSA_ARCS = DeviationArcs(0.02, 0.1, 2.0, 50.0, "Prusa Buddy", sees_speed_factor=False)
+#: whose arcs are which (:attr:`ringtune.shaping.planner.MachineLimits.arc_rule`; Klipper's are a length)
+ARC_RULES = {"marlin": MARLIN_ARCS, "rrf": RRF_ARCS, "prusa": PRUSA_ARCS}
 
 
-def arc_resolution(limits) -> float | MarlinArcs | RrfArcs | None:
+def arc_resolution(limits) -> float | MarlinArcs | DeviationArcs | None:
     """How a firmware reading a job with ``limits`` (a :class:`ringtune.shaping.planner.MachineLimits`)
-    cuts arcs: Klipper's segment length ``arc_resolution`` (mm; its default 1 mm unless the printer
-    gives one); RepRapFirmware's (it reads M203 in mm/min, :data:`RRF_ARCS`); Marlin's default build
-    (:data:`MARLIN_ARCS`); None for the others (tolerance chords)."""
-    if limits is None:
-        return None
-    if limits.reads_like_klipper:
+    cuts arcs, by :attr:`~ringtune.shaping.planner.MachineLimits.arc_rule`: Klipper's segment length
+    ``arc_resolution`` (mm; its default 1 mm unless the printer gives one); RepRapFirmware's
+    (:data:`RRF_ARCS`), Marlin's default build (:data:`MARLIN_ARCS`), Prusa Buddy's (:data:`PRUSA_ARCS`);
+    None where the firmware is not known (tolerance chords)."""
+    rule = None if limits is None else limits.arc_rule
+    if rule == "klipper":
         return limits.arc_resolution or KLIPPER_ARC_RESOLUTION
-    if limits.m203_per_minute:
-        return RRF_ARCS
-    return MARLIN_ARCS if limits.cuts_arcs_like_marlin else None
+    return ARC_RULES.get(rule)
 
 
 def arc_chords(clockwise: bool, w: dict[str, float], start: list[float], end: list[float], tol: float,
-               where: str, resolution: float | MarlinArcs | RrfArcs | None = None,
-               speed: float = 0.0) -> list[list[float]]:
+               where: str, resolution: float | MarlinArcs | DeviationArcs | None = None,
+               feed: float = 0.0, speed_factor: float = 1.0) -> list[list[float]]:
     """The chord ends ([x, y, z, e] each, mm) of the arc from ``start`` to ``end`` (the last is
     ``end``): as few chords as keep within ``tol`` mm of the arc, or with ``resolution`` (mm) Klipper's
-    segments of an I/J arc, or Marlin's or RRF's segments (:class:`MarlinArcs`, :class:`RrfArcs`; RRF's
-    depend on the move's ``speed``, mm/s); ``w``: the command's words (I J or R)."""
+    segments of an I/J arc, or Marlin's, RRF's or Buddy's segments (:class:`MarlinArcs`,
+    :class:`DeviationArcs`, which depend on the job's ``feed``, mm/s, and M220's ``speed_factor``);
+    ``w``: the command's words (I J or R)."""
     x0, y0 = start[0], start[1]
     cx, cy = arc_centre(clockwise, w, x0, y0, end[0], end[1], where)
     radius = math.hypot(x0 - cx, y0 - cy)
@@ -100,8 +112,10 @@ def arc_chords(clockwise: bool, w: dict[str, float], start: list[float], end: li
         raise RingtuneError("arc has zero radius", where)
     a0 = math.atan2(y0 - cy, x0 - cx)
     sweep = arc_sweep(clockwise, a0, math.atan2(end[1] - cy, end[0] - cx))
-    if isinstance(resolution, (MarlinArcs, RrfArcs)):
-        n = resolution.segments(radius, sweep, speed)
+    if isinstance(resolution, MarlinArcs):
+        n = resolution.segments(radius, sweep)
+    elif isinstance(resolution, DeviationArcs):
+        n = resolution.segments(radius, sweep, feed, speed_factor)
     elif resolution is not None and "R" not in w:      # Klipper: floor(travel / resolution) segments (it refuses R)
         n = max(1, math.floor(math.hypot(radius * sweep, end[2] - start[2]) / resolution))
     else:
@@ -153,9 +167,10 @@ def arcs_note(job, limits) -> str | None:
     if res is None:
         return (f"the job's {n} arcs (G2/G3) are planned as chords within {job.arc_tolerance:g} mm of the arc "
                 "(the firmware's own segment lengths are not modelled)")
-    if isinstance(res, RrfArcs):
-        return (f"the job's {n} arcs (G2/G3) are planned as RepRapFirmware 3.5+ cuts them: segments that deviate "
-                f"{res.deviation:g} mm from the arc, or that {res.per_second:g} a second cover at the move's speed if "
+    if isinstance(res, DeviationArcs):
+        speed = "the move's speed" if res.sees_speed_factor else "the job's feed rate (before M220)"
+        return (f"the job's {n} arcs (G2/G3) are planned as {res.firmware} cuts them: segments that deviate "
+                f"{res.deviation:g} mm from the arc, or that {res.per_second:g} a second cover at {speed} if "
                 f"shorter, within {res.min_mm:g}–{res.max_mm:g} mm")
     if isinstance(res, MarlinArcs):
         return (f"the job's {n} arcs (G2/G3) are planned as Marlin 2.1 cuts them with its default build settings: "

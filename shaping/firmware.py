@@ -198,13 +198,17 @@ def job_reading(name) -> dict:
     job's limit commands, as :class:`ringtune.shaping.planner.MachineLimits` fields:
     RepRapFirmware takes M203 in mm/min (Marlin: mm/s); Marlin and Prusa have no M566 (RRF's
     jerk), only M205 X Y; Klipper and Kalico read one acceleration and no M201/M203
-    (``klipper_reading``); Marlin cuts G2/G3 into its own segments (``marlin_arcs``). Not known: M203
-    in mm/s, M566 read, the reading and the arcs the junction rule implies."""
+    (``klipper_reading``); each family cuts G2/G3 into its own segments (``arc_firmware``). Not known:
+    M203 in mm/s, M566 read, the reading and the arcs the junction rule implies."""
     fw = FIRMWARES.get(str(name or "").strip().lower())
     family = fw.family if fw else None
     return {"m203_per_minute": family == "rrf", "reads_m566": family not in ("marlin", "marlin-ftm", "prusa"),
             "klipper_reading": None if fw is None else family == "klipper",
-            "marlin_arcs": None if fw is None else family in ("marlin", "marlin-ftm")}
+            "arc_firmware": None if fw is None else _ARC_FAMILY.get(family, family)}
+
+
+#: whose arcs a firmware family's are (:attr:`ringtune.shaping.planner.MachineLimits.arc_firmware`)
+_ARC_FAMILY = {"marlin-ftm": "marlin"}
 
 
 #: each junction rule in words

@@ -386,8 +386,9 @@ def read_gcode(path_or_text, arc_tolerance: float = 0.01, source: str | None = N
 
     ``arc_tolerance``: largest distance (mm) between a G2/G3 arc and the chords replacing it;
     ``arc_resolution``: the firmware's own segments instead (:func:`ringtune.shaping.arcs.arc_resolution`:
-    Klipper's ``[gcode_arcs] resolution`` in mm, which cuts I/J arcs, or Marlin's
-    :class:`~ringtune.shaping.arcs.MarlinArcs`; None: the tolerance's chords).
+    Klipper's ``[gcode_arcs] resolution`` in mm, which cuts I/J arcs, or Marlin's, RRF's or Buddy's
+    rule, :class:`~ringtune.shaping.arcs.MarlinArcs` or :class:`~ringtune.shaping.arcs.DeviationArcs`;
+    None: the tolerance's chords).
     Malformed values raise :class:`RingtuneError` naming ``file:line`` (``source`` names text
     input, default ``<gcode>``). Lines end at ``\n``, ``\r\n`` or ``\r`` for files and text alike,
     so line numbers are those of the file's bytes.

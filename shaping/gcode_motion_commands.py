@@ -75,7 +75,7 @@ class MotionCommands:
         if "R" in w or not self.abs_xyz:          # what Klipper's gcode_arcs refuses
             self.refused_arcs.append(lineno)
         for point in arc_chords(clockwise, w, list(self.pos), end, self.tol, where, self.resolution,
-                                self.feed * self.speed_factor):
+                                self.feed, self.speed_factor):
             self._emit(point, lineno, arc=True)
 
 

@@ -102,8 +102,8 @@ class Job:
     #: them into the rest before the next move: :func:`ringtune.shaping.firmware_retraction.fold_retractions`)
     fw_inserted: np.ndarray | None = None
     #: (number of G2/G3 arcs, the firmware's segments they were cut into — Klipper's resolution, mm, or
-    #: Marlin's MarlinArcs — or None: tolerance chords, the lines of those Klipper refuses: given by R or
-    #: in relative mode)
+    #: a MarlinArcs or DeviationArcs rule — or None: tolerance chords, the lines of those Klipper
+    #: refuses: given by R or in relative mode)
     arcs: tuple = (0, None, ())
 
     @property

@@ -99,9 +99,9 @@ class MachineLimits:
     RRF's M207; :mod:`ringtune.shaping.firmware_retraction`), None: not known (a retraction that
     moves the extruder without its speed is not known either); retract_zlift: the Z hop (mm) at each
     ``G10`` (Marlin's and RRF's M207 Z); arc_resolution: Klipper's ``[gcode_arcs]
-    resolution`` (mm; None: its default 1 mm, :func:`ringtune.shaping.arcs.arc_resolution`); marlin_arcs:
-    the firmware cuts G2/G3 as Marlin 2.1 does (None: as the junction rule implies, Marlin's ``jd``;
-    :attr:`cuts_arcs_like_marlin`).
+    resolution`` (mm; None: its default 1 mm, :func:`ringtune.shaping.arcs.arc_resolution`); arc_firmware:
+    whose segments G2/G3 become, ``klipper`` | ``marlin`` | ``rrf`` | ``prusa`` (None: as the reading
+    implies, :attr:`arc_rule`).
     """
 
     accel: float = 3000.0
@@ -126,7 +126,7 @@ class MachineLimits:
     unretract_extra_length: float = 0.0
     unretract_speed: float | None = None
     arc_resolution: float | None = None
-    marlin_arcs: bool | None = None
+    arc_firmware: str | None = None
     retract_zlift: float = 0.0
 
     @property
@@ -134,11 +134,15 @@ class MachineLimits:
         return reads_like_klipper(self.klipper_reading, self.junction)
 
     @property
-    def cuts_arcs_like_marlin(self) -> bool:
-        """Whether G2/G3 become Marlin's segments: the firmware's way, else Marlin's junction rule's."""
-        if self.marlin_arcs is not None:
-            return self.marlin_arcs
-        return not self.reads_like_klipper and self.junction == "jd"
+    def arc_rule(self) -> str | None:
+        """Whose segments G2/G3 become (:data:`ringtune.shaping.arcs.ARC_RULES`): the firmware's, else
+        Klipper's where the job is read as Klipper reads it, RepRapFirmware's where M203 is in mm/min,
+        Marlin's under its junction rule, None (not known: tolerance chords) otherwise."""
+        if self.arc_firmware is not None:
+            return self.arc_firmware
+        if self.reads_like_klipper:
+            return "klipper"
+        return "rrf" if self.m203_per_minute else "marlin" if self.junction == "jd" else None
 
     def __post_init__(self) -> None:
         self.validate()
