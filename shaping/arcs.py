@@ -77,7 +77,8 @@ class DeviationArcs:
         return max(int(radius * abs(sweep) / length + 0.8), 1)
 
 
-#: RepRapFirmware 3.5's and 3.6's constants (whether M220 reaches its arcs' speed is not checked: taken so)
+#: RepRapFirmware 3.5's and 3.6's constants; the speed includes M220's factor (LoadExtrusionAndFeedrateFromGCode
+#: scales ms.feedRate by speedFactor for a move of the job before DoArcMove cuts it)
 RRF_ARCS = DeviationArcs(0.005, 0.02, 1.0, 200.0, "RepRapFirmware 3.5+")
 #: Prusa Buddy's, the same in every printer's build (MK4, MK3.5, XL, MINI, CORE One)
 PRUSA_ARCS = DeviationArcs(0.02, 0.1, 2.0, 50.0, "Prusa Buddy", sees_speed_factor=False)
