@@ -43,6 +43,7 @@ Every default taken and every mapping made is a note; nothing is guessed silentl
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
@@ -107,6 +108,7 @@ def _limits(src: Source) -> dict:
     limits["min_cruise_ratio"] = mcr
     _speed_caps(src, limits, velocity)
     _accel_caps(src, limits, accel)
+    _extruder_caps(src, limits, accel, velocity)
     limits.update(_firmware_retraction(src))
     limits.update(_gcode_arcs(src))
     return limits
@@ -188,6 +190,30 @@ def _accel_cap(src: Source, ax: str, accel: float, limited: str | None) -> float
                          f"caps {ax.upper()} even when the acceleration is raised at run time")
         return accel
     return 0.0 if v is None else v
+
+
+def _extruder_caps(src: Source, limits: dict, accel: float, velocity: float) -> None:
+    """``[extruder] max_extrude_only_velocity`` / ``max_extrude_only_accel`` -> the E components of
+    ``limits.max_velocity`` / ``max_accel``: what a move of the extruder alone (a retraction) runs at
+    on Klipper; unset, Klipper's defaults (``kinematics/extruder.py``): max_velocity and max_accel ×
+    4·nozzle_diameter² / the filament's cross-section, each said. No [extruder]: none."""
+    if src.name("extruder") is None:
+        return
+    nozzle, filament = src.number("extruder", "nozzle_diameter"), src.number("extruder", "filament_diameter")
+    ratio = None
+    if nozzle and filament:
+        ratio = 4.0 * nozzle ** 2 / (math.pi * (filament / 2.0) ** 2)
+    for key, option, base in (("max_velocity", "max_extrude_only_velocity", velocity),
+                              ("max_accel", "max_extrude_only_accel", accel)):
+        cap = src.number("extruder", option) if src.given_by_user("extruder", option) else None
+        if cap is None and ratio is not None:
+            cap = base * ratio
+            src.notes.append(f"[extruder] {option} not set: Klipper's default, {base:g} × 4·{nozzle:g}² / "
+                             f"(π·({filament:g}/2)²) = {cap:.4g}, what a retraction (the extruder alone) runs at")
+        if cap:
+            caps = list(limits.get(key, (0.0, 0.0, 0.0, 0.0)))
+            caps[3] = cap
+            limits[key] = caps
 
 
 def _shaping_unknown(src: Source) -> bool:

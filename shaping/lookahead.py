@@ -45,10 +45,12 @@ KLIPPER_AXIS_SETTINGS = {("max_accel", "x"): "limited_accel_x", ("max_accel", "y
 
 
 def axis_caps(job: Job, prefix: str, machine: tuple | None, use: bool, klipper: bool = False,
-              unit: float = 1.0) -> np.ndarray:
+              unit: float = 1.0, e_alone: np.ndarray | None = None) -> np.ndarray:
     """(n, 4) per-axis caps (inf = none): the machine's, over them the job's own (× ``unit``:
     RepRapFirmware's M203 is in mm/min) — under ``klipper`` only those Klipper and Kalico take
-    (:data:`KLIPPER_AXIS_SETTINGS`)."""
+    (:data:`KLIPPER_AXIS_SETTINGS`), and the E cap only on the moves of the extruder alone
+    (``e_alone``): Klipper's ``max_extrude_only_velocity`` / ``_accel`` (``extruder.py``
+    ``check_move``; an extruding move has no E limit there)."""
     cols = []
     for i, ax in enumerate("xyze"):
         default = np.inf if machine is None or machine[i] <= 0 else machine[i]
@@ -56,6 +58,8 @@ def axis_caps(job: Job, prefix: str, machine: tuple | None, use: bool, klipper: 
         own = job_value(job, key, None, use and key is not None) * unit
         v = np.where(np.isnan(own), default, own)
         cols.append(np.where(v > 0, v, np.inf))       # Marlin: 0 means "no limit" for M201/M203
+    if klipper and e_alone is not None:
+        cols[3] = np.where(e_alone, cols[3], np.inf)
     return np.stack(cols, axis=1)
 
 
@@ -86,6 +90,16 @@ def move_accels(job: Job, limits, use: bool, delta: np.ndarray, e_only: np.ndarr
         a_retract = job_value(job, "accel_retract", limits.retract_accel or limits.accel, use)
         accel = np.where(e_only, a_retract, np.where(delta[:, 3] != 0, a_print, a_travel))
     return np.where(accel > 0, accel, limits.accel)
+
+
+def extruder_alone(accel: np.ndarray, vmax: np.ndarray, feed: np.ndarray, e_only: np.ndarray, a_cap: np.ndarray,
+                   v_cap: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(accel, vmax) with Klipper's moves of the extruder alone at their own caps (``a_cap``,
+    ``v_cap``: ``max_extrude_only_accel`` / ``_velocity``, inf = not known), not the toolhead's
+    acceleration or speed (``toolhead.py``: such a move starts unlimited and only the extruder's
+    ``check_move`` limits it); where a cap is not known, the toolhead's as before."""
+    return (np.where(e_only & np.isfinite(a_cap), a_cap, accel),
+            np.where(e_only & np.isfinite(v_cap), np.minimum(feed, v_cap), vmax))
 
 
 def marlin_retractions(job: Job, limits, use: bool, e_only: np.ndarray) -> np.ndarray | None:
@@ -149,8 +163,11 @@ def scale_by_axes(value: np.ndarray, u: np.ndarray, caps: np.ndarray) -> np.ndar
 # -- the planner --------------------------------------------------------------------------------
 
 
-def junction_limits(job, limits, use, u, d, e_only, vmax, accel, amax_axes):
-    """Junction v² limit between move i-1 and i (c[i], c[0] unused) and jerk 'safe' speeds."""
+def junction_limits(job, limits, use, u, d, e_only, vmax, accel, amax_axes, toolhead=None):
+    """Junction v² limit between move i-1 and i (c[i], c[0] unused) and jerk 'safe' speeds.
+    ``toolhead``: Klipper's acceleration before each move's own caps (None: ``accel``): its
+    junction deviation is scv²(√2 − 1)/that, and each move bounds the corner by it times the
+    move's own acceleration (``Move.calc_junction``), so a capped move (Z) corners slower."""
     n = job.n_moves
     c = np.full(n, np.inf)
     safe = np.zeros(n)
@@ -170,7 +187,8 @@ def junction_limits(job, limits, use, u, d, e_only, vmax, accel, amax_axes):
         with np.errstate(divide="ignore", invalid="ignore"):
             r_jd = sin_d2 / one_minus
             k = math.sqrt(2) - 1
-            jd_v2 = r_jd * k * np.minimum(scv[1:] ** 2, scv[:-1] ** 2)
+            own = scv ** 2 if toolhead is None else scv ** 2 * accel / toolhead
+            jd_v2 = r_jd * k * np.minimum(own[1:], own[:-1])
             q = 0.25 * sin_d2 / cos_d2
             cent = np.minimum(2 * accel[1:] * d[1:], 2 * accel[:-1] * d[:-1]) * q
         lim = np.where(ok, np.minimum(jd_v2, cent), np.inf)
@@ -291,17 +309,20 @@ def segmented_cummin(values: np.ndarray, run_start: np.ndarray) -> np.ndarray:
     return out
 
 
-def klipper_smoothing(job, limits, use, cj, w, cruise2, accel, d, dv2, v2):
+def klipper_smoothing(job, limits, use, cj, w, cruise2, accel, d, dv2, v2, toolhead=None):
     """Klipper's minimum_cruise_ratio: cap each accelerate/decelerate hill at the peak reached
     with the smoothed acceleration, then re-run the passes so junctions stay reachable.
 
-    The smoothed acceleration (mm/s²) is the acceleration × (1 − minimum_cruise_ratio), the job's
-    MINIMUM_CRUISE_RATIO over the machine's: a current Klipper and Kalico ignore ACCEL_TO_DECEL.
-    On a Klipper from before 2024 (``limits.accel_to_decel`` set: its max_accel_to_decel) it is
-    min(accel_to_decel, acceleration), the job's ACCEL_TO_DECEL over the machine's, whatever ACCEL
-    becomes; that Klipper has no MINIMUM_CRUISE_RATIO."""
+    The smoothed acceleration (mm/s²) is the toolhead's acceleration (``toolhead``, before a move's
+    own caps; None: ``accel``) × (1 − minimum_cruise_ratio), the job's MINIMUM_CRUISE_RATIO over
+    the machine's, and no more than the move's own (Klipper's ``mcr_pseudo_accel``, bounded in
+    ``Move.limit_speed``): a current Klipper and Kalico ignore ACCEL_TO_DECEL. On a Klipper from
+    before 2024 (``limits.accel_to_decel`` set: its max_accel_to_decel) it is min(accel_to_decel,
+    acceleration), the job's ACCEL_TO_DECEL over the machine's, whatever ACCEL becomes; that
+    Klipper has no MINIMUM_CRUISE_RATIO."""
     if limits.accel_to_decel is None:
-        a_s = accel * (1 - job_value(job, "min_cruise_ratio", limits.min_cruise_ratio, use))
+        mcr = job_value(job, "min_cruise_ratio", limits.min_cruise_ratio, use)
+        a_s = np.minimum((accel if toolhead is None else toolhead) * (1 - mcr), accel)
     else:
         a_s = np.minimum(job_value(job, "accel_to_decel", limits.accel_to_decel, use), accel)
     if np.all(a_s >= accel):

@@ -55,7 +55,8 @@ from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.job import Job
 from ringtune.shaping.lookahead import (axis_caps, backward_pass, corexy_speed_cap, daa_adjust,
                                         forward_pass, jerk_setting, job_value, junction_limits,
-                                        kinematic_accel, klipper_smoothing, marlin_retractions,
+                                        extruder_alone, kinematic_accel, klipper_smoothing,
+                                        marlin_retractions,
                                         move_accels, scale_by_axes)
 from ringtune.shaping.motion import Motion
 
@@ -80,7 +81,8 @@ class MachineLimits:
 
     accel: printing acceleration; velocity: top speed; junction: ``scv`` | ``jd`` | ``jerk``;
     square_corner_velocity (Klipper), junction_deviation (Marlin), jerk (x, y, z, e classic jerk);
-    max_accel / max_velocity: per-axis caps (x, y, z, e) or None; min_cruise_ratio (Klipper only);
+    max_accel / max_velocity: per-axis caps (x, y, z, e) or None (under Klipper's reading the E caps
+    bind only moves of the extruder alone: its max_extrude_only_accel / _velocity); min_cruise_ratio (Klipper only);
     accel_to_decel: a Klipper from before 2024 (no minimum_cruise_ratio), its max_accel_to_decel in
     mm/s², kept whatever ACCEL becomes (None: a current Klipper or Kalico, which ignore a job's
     ACCEL_TO_DECEL); m203_per_minute: the firmware reads a job's M203 speeds in mm/min
@@ -277,14 +279,17 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
     klipper = limits.reads_like_klipper      # Klipper's and Kalico's reading: the job's M201/M203 do not exist there,
     velocity = job_value(job, "velocity", limits.velocity, use and klipper)   # nor SET_VELOCITY_LIMIT on Marlin/RRF
     vmax = np.minimum(job.feed, velocity)
-    vmax = scale_by_axes(vmax, u, axis_caps(job, "max_vel", limits.max_velocity, use, klipper,
-                                            1 / 60 if limits.m203_per_minute else 1.0))
+    vcaps = axis_caps(job, "max_vel", limits.max_velocity, use, klipper, 1 / 60 if limits.m203_per_minute else 1.0,
+                      e_only)
+    vmax = scale_by_axes(vmax, u, vcaps)
     if limits.axis_rule == "limited_corexy":
         vmax = corexy_speed_cap(vmax, velocity, u)
-    accel = move_accels(job, limits, use, delta, e_only, accel_override)
-    amax_axes = axis_caps(job, "max_accel", limits.max_accel, use, klipper)
-    accel = kinematic_accel(accel, u, amax_axes, limits.axis_rule, limits.scale_xy_accel,
+    base = move_accels(job, limits, use, delta, e_only, accel_override)
+    amax_axes = axis_caps(job, "max_accel", limits.max_accel, use, klipper, e_alone=e_only)
+    accel = kinematic_accel(base, u, amax_axes, limits.axis_rule, limits.scale_xy_accel,
                             skip=marlin_retractions(job, limits, use, e_only))
+    if klipper:
+        accel, vmax = extruder_alone(accel, vmax, job.feed, e_only, amax_axes[:, 3], vcaps[:, 3])
     if np.any(~(vmax > 0)) or np.any(~(accel > 0)):
         i = int(np.flatnonzero(~((vmax > 0) & (accel > 0)))[0])
         raise RingtuneError("a move ends up with zero speed or acceleration (check M203/M201)",
@@ -292,13 +297,13 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
     v2 = vmax * vmax
     dv2 = 2.0 * accel * d
 
-    cj = _junction_v2(job, limits, use, u, d, e_only, vmax, accel, amax_axes, v2)
+    cj = _junction_v2(job, limits, use, u, d, e_only, vmax, accel, amax_axes, v2, base if klipper else None)
 
     w = backward_pass(forward_pass(cj, dv2), dv2)
     cruise2 = np.minimum(v2, 0.5 * (w[:-1] + w[1:] + dv2))
 
     if limits.junction == "scv":
-        cruise2, w = klipper_smoothing(job, limits, use, cj, w, cruise2, accel, d, dv2, v2)
+        cruise2, w = klipper_smoothing(job, limits, use, cj, w, cruise2, accel, d, dv2, v2, base)
 
     # -- DAA --
     decel = accel.copy()
@@ -312,11 +317,11 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
     return _build(job, limits, *per_move)
 
 
-def _junction_v2(job, limits, use, u, d, e_only, vmax, accel, amax_axes, v2) -> np.ndarray:
+def _junction_v2(job, limits, use, u, d, e_only, vmax, accel, amax_axes, v2, toolhead) -> np.ndarray:
     """Junction limits c[0..n] (v² at the start of move i; c[n] = end of the job): the rule's,
     full stops where the job stops, never above either move's top speed."""
     n = job.n_moves
-    c, safe = junction_limits(job, limits, use, u, d, e_only, vmax, accel, amax_axes)
+    c, safe = junction_limits(job, limits, use, u, d, e_only, vmax, accel, amax_axes, toolhead)
     stop = job.stop_before.copy()
     stop[0] = True
     if limits.junction == "jerk":

@@ -19,6 +19,7 @@ from ringtune.shaping.planner import MachineLimits, plan
 
 TOL = 1e-6
 AMAX = (20000.0, 5000.0, 100.0, 5000.0)     # per-axis accel caps x, y, z, e (mm/s²)
+VMAX = (250.0, 250.0, 10.0, 60.0)           # per-axis speed caps x, y, z, e (mm/s)
 
 
 def _unit(d):
@@ -136,25 +137,31 @@ def test_planned_motion_respects_every_limit(pts, junction, accel, daa, mcr):
         return
     lim = MachineLimits(accel=accel, velocity=250, junction=junction, square_corner_velocity=5,
                         junction_deviation=0.02, jerk=(8, 8, 0.4, 5), min_cruise_ratio=mcr,
-                        max_velocity=(250, 250, 10, 60), max_accel=AMAX)
+                        max_velocity=VMAX, max_accel=AMAX)
     p = plan(job, lim, daa_freq=daa)
     m, mo = p.moves, p.motion
     n = len(m)
     # -- expected per-move speed and acceleration caps --
+    # Klipper (scv): the E caps are max_extrude_only_velocity / _accel, the only limits of a move of
+    # the extruder alone and none of an extruding move (toolhead.py Move, extruder.py check_move)
+    klipper = junction == "scv"
     units = [_unit(list(job.end[i] - job.start[i])) for i in range(n)]
     caps_v, caps_a = [], []
     for i, (u, d, eonly) in enumerate(units):
+        if klipper and eonly:
+            caps_v.append(min(job.feed[i], VMAX[3]))
+            caps_a.append(AMAX[3])
+            continue
         v = min(job.feed[i], 250.0)
-        for a, cap in enumerate((250, 250, 10, 60)):
-            if abs(u[a]) > 0:
-                v = min(v, cap / abs(u[a]))
         a_cap = accel
-        for a, cap in enumerate(AMAX):
-            if abs(u[a]) > 0:
-                a_cap = min(a_cap, cap / abs(u[a]))
+        for a, (vcap, acap) in enumerate(zip(VMAX, AMAX)):
+            if abs(u[a]) > 0 and not (klipper and a == 3):
+                v = min(v, vcap / abs(u[a]))
+                a_cap = min(a_cap, acap / abs(u[a]))
         caps_v.append(v)
         caps_a.append(a_cap)
     caps_v, caps_a = np.array(caps_v), np.array(caps_a)
+    e_bound = np.array([not klipper or eonly for _u, _d, eonly in units])
     np.testing.assert_allclose(m.v_nominal, caps_v, rtol=1e-12)
     # -- every segment: speed <= nominal, |acceleration| <= limit, per-axis speed caps --
     seg_move = mo.move
@@ -166,10 +173,12 @@ def test_planned_motion_respects_every_limit(pts, junction, accel, daa, mcr):
         path_speed = np.where(np.linalg.norm(vel[:, :3], axis=1) > 0, np.linalg.norm(vel[:, :3], axis=1),
                               np.abs(vel[:, 3]))
         assert np.all(path_speed[moving] <= caps_v[seg_move[moving]] * (1 + TOL) + TOL)
-        for a, cap in enumerate((250, 250, 10, 60)):
-            assert np.all(np.abs(vel[:, a]) <= cap * (1 + TOL) + TOL)
+        for a, cap in enumerate(VMAX):
+            rows = moving & e_bound[seg_move] if a == 3 else slice(None)
+            assert np.all(np.abs(vel[rows, a]) <= cap * (1 + TOL) + TOL)
     for a, cap in enumerate(AMAX):
-        assert np.all(np.abs(mo.a[:, a]) <= cap * (1 + TOL))
+        rows = moving & e_bound[seg_move] if a == 3 else slice(None)
+        assert np.all(np.abs(mo.a[rows, a]) <= cap * (1 + TOL))
     acc_mag = np.where(np.linalg.norm(mo.a[:, :3], axis=1) > 0, np.linalg.norm(mo.a[:, :3], axis=1),
                        np.abs(mo.a[:, 3]))
     assert np.all(acc_mag[moving] <= caps_a[seg_move[moving]] * (1 + TOL))
