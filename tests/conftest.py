@@ -28,7 +28,7 @@ from real_klipper import real_klipper  # noqa: E402,F401  (session fixture: real
 #: starts one Klipper in ``.klipper-test/`` and a second worker starting its own there would stop it
 REAL_KLIPPER_MODULES = ("tests/test_real_klipper_push.py", "tests/test_fwconfig_moonraker.py",
                         "tests/test_identify_moonraker.py", "tests/test_mass_schedule_klipper.py",
-                        "tests/test_rewrite_klipper.py")
+                        "tests/test_rewrite_klipper.py", "tests/test_planner_real_klipper.py")
 
 
 @pytest.hookimpl(optionalhook=True)

@@ -1,0 +1,185 @@
+"""Planned print time against the real Klipper's own (Klipper 84104bb, session fixture
+``real_klipper``, tests/real_klipper.py): klippy in batch mode (``-i JOB -o OUT -d klipper.dict``)
+runs a job through its own G-code parser, toolhead look-ahead and extruder checks and logs the
+toolhead's print time on exit. Its time for an empty job (the start-up offset) taken off, that is
+the job's planned time to the millisecond of the log. The printer is described with ``ringtune
+printer from-klipper`` from the same printer.cfg, so the reader of the configuration (Z caps, the
+extruder's limits on retractions and Klipper's defaults for them) is checked with the planner.
+
+Jobs: the built-in PrusaSlicer part (40,163 moves, with its retractions and layer changes; its G28
+becomes SET_KINEMATIC_POSITION, since batch mode cannot home, and its heat-and-wait lines and closing
+M84, a dwell of Klipper's, are left out), the same rewritten with a per-feature configuration
+(SET_VELOCITY_LIMIT ACCEL, SQUARE_CORNER_VELOCITY and MINIMUM_CRUISE_RATIO at each feature
+change), and retractions on an extruder whose own limits exceed the toolhead's."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from ringtune.agents.cli.main import main  # noqa: E402
+from ringtune.shaping.builtin_jobs import job_path  # noqa: E402
+from ringtune.shaping.config import TuneConfig  # noqa: E402
+
+pytestmark = [pytest.mark.timeout(600), pytest.mark.slow]
+
+#: a cartesian printer on the Linux-process MCU's pins; {printer} and {extruder} are filled in
+CFG = """[mcu]
+serial: /tmp/ringtune-batch-mcu
+
+[printer]
+kinematics: cartesian
+{printer}
+
+[stepper_x]
+step_pin: gpio0
+dir_pin: gpio1
+enable_pin: !gpio2
+microsteps: 16
+rotation_distance: 40
+endstop_pin: ^gpio3
+position_endstop: 0
+position_max: 235
+
+[stepper_y]
+step_pin: gpio4
+dir_pin: gpio5
+enable_pin: !gpio6
+microsteps: 16
+rotation_distance: 40
+endstop_pin: ^gpio7
+position_endstop: 0
+position_max: 235
+
+[stepper_z]
+step_pin: gpio8
+dir_pin: gpio9
+enable_pin: !gpio10
+microsteps: 16
+rotation_distance: 8
+endstop_pin: ^gpio11
+position_endstop: 0
+position_max: 250
+
+[extruder]
+step_pin: gpio12
+dir_pin: gpio13
+enable_pin: !gpio14
+microsteps: 16
+rotation_distance: 33.5
+nozzle_diameter: 0.4
+filament_diameter: 1.75
+heater_pin: gpio15
+sensor_type: EPCOS 100K B57560G104F
+sensor_pin: analog0
+control: watermark
+min_temp: 0
+max_temp: 260
+min_extrude_temp: 0
+{extruder}
+
+[force_move]
+enable_force_move: True
+"""
+#: Klipper's example Ender 3 limits (config/printer-creality-ender3-2018.cfg), its extruder at defaults
+ENDER3 = "max_velocity: 300\nmax_accel: 3000\nmax_z_velocity: 5\nmax_z_accel: 100"
+START = "SET_KINEMATIC_POSITION X=0 Y=0 Z=0\n"
+
+
+def _klipper_time(svc, cfg: Path, job: Path) -> float:
+    """The toolhead's print time (s) at the end of ``job`` in klippy's batch mode, its time for an
+    empty job taken off."""
+    def run(path: Path) -> float:
+        log = path.with_suffix(".log")
+        subprocess.run([str(svc.dir / "kvenv" / "bin" / "python"), str(svc.dir / "k" / "klippy" / "klippy.py"),
+                        str(cfg), "-i", str(path), "-o", str(path.with_suffix(".serial")),
+                        "-d", str(svc.dir / "k" / "out" / "klipper.dict"), "-l", str(log)],
+                       capture_output=True, timeout=300, check=True)
+        text = log.read_text()
+        found = re.findall(r"Exiting \(print time ([\d.]+)s\)", text)
+        assert found, f"klippy wrote no print time: {text[-1500:]}"
+        return float(found[-1])
+    empty = job.parent / "empty.gcode"
+    empty.write_text(START)
+    return run(job) - run(empty)
+
+
+def _planned(tmp_path: Path, cfg: Path, job: Path, capsys) -> float:
+    """``ringtune plan`` of ``job`` on the printer ``printer from-klipper`` describes from ``cfg``."""
+    toml = tmp_path / "printer.toml"
+    assert main(["printer", "from-klipper", str(cfg), "-o", str(toml)]) == 0
+    capsys.readouterr()
+    assert main(["plan", str(job), "--printer", str(toml), "--json"]) == 0
+    return json.loads(capsys.readouterr().out)["print_time_s"]
+
+
+def _batch_part(tmp_path: Path) -> Path:
+    """The built-in part as batch mode can run it (module docstring)."""
+    lines = []
+    for line in Path(job_path("part")).read_text().splitlines(keepends=True):
+        if line.startswith("G28"):
+            lines.append(START)
+        elif not line.startswith(("M109", "M190", "M84")):
+            lines.append(line)
+    out = tmp_path / "part.gcode"
+    out.write_text("".join(lines))
+    return out
+
+
+def _cfg(tmp_path: Path, printer: str = ENDER3, extruder: str = "") -> Path:
+    cfg = tmp_path / "printer.cfg"
+    cfg.write_text(CFG.format(printer=printer, extruder=extruder))
+    return cfg
+
+
+def test_the_part_plans_at_real_klippers_time(real_klipper, tmp_path, capsys):
+    cfg, job = _cfg(tmp_path), _batch_part(tmp_path)
+    real = _klipper_time(real_klipper, cfg, job)
+    assert _planned(tmp_path, cfg, job, capsys) == pytest.approx(real, abs=2e-3)
+    assert real > 1300                     # the whole job ran (23 minutes)
+
+
+def test_the_part_rewritten_per_feature_plans_at_real_klippers_time(real_klipper, tmp_path, capsys):
+    cfg, job = _cfg(tmp_path), _batch_part(tmp_path)
+    config = TuneConfig(accel=4800.0, feature_accel={"infill": 12400.0, "travel": 10800.0, "inner_wall": 6000.0},
+                        corner=5.0, min_cruise_ratio=0.5, feature_corner={"infill": 30.0, "travel": 30.0,
+                                                                          "solid_infill": 9.0},
+                        feature_min_cruise_ratio={"infill": 0.0, "travel": 0.0, "solid_infill": 0.0})
+    config_path, tuned = tmp_path / "best.json", tmp_path / "tuned.gcode"
+    config.save(config_path)
+    assert main(["rewrite", str(job), "--config", str(config_path), "-o", str(tuned)]) == 0
+    capsys.readouterr()
+    assert "SQUARE_CORNER_VELOCITY=30" in tuned.read_text()
+    real = _klipper_time(real_klipper, cfg, tuned)
+    assert _planned(tmp_path, cfg, tuned, capsys) == pytest.approx(real, abs=2e-3)
+
+
+def _trapezoid(d: float, v: float, a: float, a_smooth: float) -> float:
+    """s for a move of ``d`` mm from rest to rest at top speed ``v`` and acceleration ``a``, its
+    peak no higher than minimum_cruise_ratio's smoothed acceleration ``a_smooth`` lets it reach:
+    v² = a_smooth·d (half of 2·a_smooth·d, Klipper's peak of a lone move)."""
+    top = min(v, (a_smooth * d) ** 0.5)
+    return 2 * top / a + (d - top * top / a) / top
+
+
+def test_retractions_run_at_the_extruders_own_limits_even_above_the_toolheads(real_klipper, tmp_path, capsys):
+    # retractions of 2 mm at 100 mm/s (F6000): the extruder's 150 mm/s and 20000 mm/s² bind, not the
+    # toolhead's 50 mm/s and 3000 mm/s²; minimum_cruise_ratio 0.5 smooths them at the toolhead's
+    # 3000 × 0.5 = 1500 mm/s² (under the extruder's 20000)
+    cfg = _cfg(tmp_path, printer="max_velocity: 50\nmax_accel: 3000",
+               extruder="max_extrude_only_velocity: 150\nmax_extrude_only_accel: 20000")
+    job = tmp_path / "retract.gcode"
+    job.write_text(START + "M83\n" + "G1 X40 Y0 E2 F3000\nG1 E-2 F6000\nG1 X0 Y0 F3000\nG1 E2 F6000\n" * 5)
+    real = _klipper_time(real_klipper, cfg, job)
+    assert _planned(tmp_path, cfg, job, capsys) == pytest.approx(real, abs=2e-3)
+    # by hand: every move starts and ends at rest (a move of the extruder alone has no junction speed)
+    by_hand = 10 * _trapezoid(40.0, 50.0, 3000.0, 1500.0) + 10 * _trapezoid(2.0, 100.0, 20000.0, 1500.0)
+    assert real == pytest.approx(by_hand, abs=2e-3)
+    assert by_hand - 10 * _trapezoid(40.0, 50.0, 3000.0, 1500.0) < 10 * _trapezoid(2.0, 50.0, 3000.0, 1500.0)
