@@ -197,23 +197,31 @@ def _extruder_caps(src: Source, limits: dict, accel: float, velocity: float) -> 
     ``limits.max_velocity`` / ``max_accel``: what a move of the extruder alone (a retraction) runs at
     on Klipper; unset, Klipper's defaults (``kinematics/extruder.py``): max_velocity and max_accel ×
     4·nozzle_diameter² / the filament's cross-section, each said. No [extruder]: none."""
-    if src.name("extruder") is None:
+    ratio = _extrude_ratio(src)
+    if ratio is None:
         return
-    nozzle, filament = src.number("extruder", "nozzle_diameter"), src.number("extruder", "filament_diameter")
-    ratio = None
-    if nozzle and filament:
-        ratio = 4.0 * nozzle ** 2 / (math.pi * (filament / 2.0) ** 2)
     for key, option, base in (("max_velocity", "max_extrude_only_velocity", velocity),
                               ("max_accel", "max_extrude_only_accel", accel)):
-        cap = src.number("extruder", option) if src.given_by_user("extruder", option) else None
-        if cap is None and ratio is not None:
-            cap = base * ratio
-            src.notes.append(f"[extruder] {option} not set: Klipper's default, {base:g} × 4·{nozzle:g}² / "
-                             f"(π·({filament:g}/2)²) = {cap:.4g}, what a retraction (the extruder alone) runs at")
-        if cap:
-            caps = list(limits.get(key, (0.0, 0.0, 0.0, 0.0)))
-            caps[3] = cap
-            limits[key] = caps
+        limits[key] = [*limits.get(key, (0.0, 0.0, 0.0, 0.0))[:3], _extrude_cap(src, option, base, ratio)]
+
+
+def _extrude_ratio(src: Source) -> float | None:
+    """Klipper's default ratio of the extruder-alone limits to the toolhead's: 4·nozzle_diameter² /
+    the filament's cross-section (None without an [extruder] giving both, which Klipper requires)."""
+    if src.name("extruder") is None:
+        return None
+    nozzle, filament = src.number("extruder", "nozzle_diameter"), src.number("extruder", "filament_diameter")
+    return 4.0 * nozzle ** 2 / (math.pi * (filament / 2.0) ** 2) if nozzle and filament else None
+
+
+def _extrude_cap(src: Source, option: str, base: float, ratio: float) -> float:
+    """The extruder's ``option`` as written, else Klipper's default ``base × ratio`` (said)."""
+    if src.given_by_user("extruder", option):
+        return src.number("extruder", option)
+    cap = base * ratio
+    src.notes.append(f"[extruder] {option} not set: Klipper's default, {base:g} × {ratio:.4g} (4·nozzle_diameter² / "
+                     f"the filament's cross-section) = {cap:.4g}, what a retraction (the extruder alone) runs at")
+    return cap
 
 
 def _shaping_unknown(src: Source) -> bool:
