@@ -43,7 +43,6 @@ Every default taken and every mapping made is a note; nothing is guessed silentl
 
 from __future__ import annotations
 
-import math
 import re
 from pathlib import Path
 
@@ -53,6 +52,7 @@ from ringtune.hardware.klipper_motors import stepper_motor
 from ringtune.hardware.klipper_source import KLIPPER_DEFAULTS, Source
 from ringtune.hardware.moonraker import Moonraker
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.extruder_alone import klipper_default_ratio
 
 #: shapers Klipper 84104bb has (``klippy/extras/shaper_defs.py``), unparameterised names
 KLIPPER_SHAPERS = ("zv", "mzv", "zvd", "ei", "2hump_ei", "3hump_ei")
@@ -211,7 +211,7 @@ def _extrude_ratio(src: Source) -> float | None:
     if src.name("extruder") is None:
         return None
     nozzle, filament = src.number("extruder", "nozzle_diameter"), src.number("extruder", "filament_diameter")
-    return 4.0 * nozzle ** 2 / (math.pi * (filament / 2.0) ** 2) if nozzle and filament else None
+    return klipper_default_ratio(nozzle, filament) if nozzle and filament else None
 
 
 def _extrude_cap(src: Source, option: str, base: float, ratio: float) -> float:

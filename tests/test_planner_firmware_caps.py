@@ -197,3 +197,35 @@ def test_the_summary_names_marlins_retract_acceleration_as_the_planner_measures_
                                               rel=1e-12)
     assert r.time_without_s < r.time_s
     assert "M204 R 500 mm/s² binds on 2 retractions" in binding_sentences([r], 3000.0)[1]
+
+
+def test_klipper_gives_its_e_caps_to_the_extruder_alone_and_says_when_it_has_none():
+    """Klipper (``toolhead.py``, ``extruder.py`` ``check_move``): a move of the extruder alone runs
+    at max_extrude_only_accel / _velocity alone, above the toolhead's if they are higher; an
+    extruding move has no E limit. Without them in the description, the note says so."""
+    from ringtune.shaping.extruder_alone import extruder_alone_note
+    from ringtune.shaping.planner import MachineLimits
+    lines = "G90\nM83\nG1 X30 Y0 E1.2 F3000\nG4 P0\nG1 E-1.5 F6000\nG4 P0\nG1 X0 Y0 E40 F3000\n"
+    job = read_gcode(lines)
+    base = dict(accel=2000.0, velocity=60.0, junction="scv", square_corner_velocity=5, min_cruise_ratio=0.0)
+    bare, capped = MachineLimits(**base), MachineLimits(**base, max_velocity=(0, 0, 0, 80), max_accel=(0, 0, 0, 9000))
+    # the retraction, rest to rest: 1.5 mm at min(100, 80) mm/s and 9000 mm/s² (not the toolhead's 60 and
+    # 2000), its peak no higher than the toolhead's 2000 mm/s² × (1 − minimum_cruise_ratio 0) reaches
+    # (Klipper's mcr_pseudo_accel, even at a ratio of 0; real Klipper gives 0.033 s for it)
+    moves = plan(job, capped).moves
+    assert moves.duration[1] == pytest.approx(_lone_move(1.5, 80.0, 9000.0, 2000.0), rel=1e-9)
+    assert plan(job, bare).moves.duration[1] == pytest.approx(_lone_move(1.5, 60.0, 2000.0, 2000.0), rel=1e-9)
+    # the extruding moves (the last pushes 40 mm of filament over 30 mm) are the same either way
+    assert moves.duration[[0, 2]] == pytest.approx(plan(job, bare).moves.duration[[0, 2]], rel=1e-12)
+    note = extruder_alone_note(job, bare)
+    assert "the job's 1 retractions" in note and "0.266 × max_accel" in note
+    assert extruder_alone_note(job, capped) is None
+    assert extruder_alone_note(job, MachineLimits(**{**base, "junction": "jd"}, klipper_reading=False)) is None
+    assert extruder_alone_note(read_gcode("G90\nG1 X10 Y0 F3000\n"), bare) is None
+
+
+def _lone_move(d: float, v: float, a: float, a_smooth: float) -> float:
+    """s for ``d`` mm from rest to rest at top speed ``v`` and acceleration ``a`` (trapezoid or
+    triangle), the peak no higher than v² = a_smooth·d (Klipper's lone move under its cruise ratio)."""
+    top = min(v, math.sqrt(min(a, a_smooth) * d))
+    return 2 * top / a + (d - top * top / a) / top

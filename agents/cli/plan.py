@@ -14,7 +14,10 @@ firmware makes, by the printer's ``[limits]`` retract_length, retract_speed, unr
 and unretract_speed or the job's own SET_RETRACTION/M207/M208 before them; the others as stops
 that take no time) and ``firmware_retraction_note`` (that in words, or null), ``arcs`` (how many
 G2/G3 arcs the job has) and ``arcs_note`` (how they are cut: Klipper's ``[gcode_arcs]`` segments
-under Klipper's reading, else chords within 0.01 mm; null without arcs), ``print_time_s``,
+under Klipper's reading, else chords within 0.01 mm; null without arcs), ``extruder_alone_note``
+(read as Klipper reads it: that the job's retractions, moves of the extruder alone, are planned at the
+toolhead's acceleration and speed since the printer gives no max_extrude_only_accel / _velocity; else
+null), ``print_time_s``,
 ``print_time``, ``moves``, ``extruding_moves``, ``lines``, ``path_length_mm``,
 ``time_by_feature`` ({feature: s}), ``junction_reason`` (why that junction rule, in words),
 ``top_frequencies`` (list of {``freq_hz``, ``line``, ``t``}: highest *planned* direction-change
@@ -131,7 +134,7 @@ def _text(r: dict) -> str:
         lines.append(f"  frequency limit {fl['hz']:g} Hz ({fl['method']}): {fl['moves_slowed']} moves slowed")
     if r["daa_hz"]:
         lines.append(f"  DAA at {r['daa_hz']:g} Hz")
-    for key in ("ignored_note", "macro_note", "firmware_retraction_note", "arcs_note"):
+    for key in ("ignored_note", "macro_note", "firmware_retraction_note", "arcs_note", "extruder_alone_note"):
         if r[key]:
             lines.append(f"  {r[key]}")
     lines.append("  time by feature:")

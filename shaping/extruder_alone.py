@@ -1,0 +1,39 @@
+"""Klipper's limits on moves of the extruder alone (retractions and their restores): its
+``[extruder] max_extrude_only_velocity`` and ``max_extrude_only_accel`` are their only limits
+(``toolhead.py`` plans such a move unlimited, ``extruder.py`` ``check_move`` caps it), and an
+extruding move has none on E. Unset, Klipper takes max_velocity and max_accel × 4·nozzle_diameter² /
+the filament's cross-section (0.266 for a 0.4 mm nozzle and 1.75 mm filament). The printer
+description carries them as the E components of ``[limits] max_velocity`` / ``max_accel``
+(``ringtune printer from-klipper`` reads them); where it does not, the planner plans those moves at
+the toolhead's acceleration and speed, and :func:`extruder_alone_note` says so."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def klipper_default_ratio(nozzle_diameter: float, filament_diameter: float) -> float:
+    """Klipper's default extruder-alone limits over the toolhead's: 4·nozzle² / (π·(filament/2)²) (mm)."""
+    return 4.0 * nozzle_diameter ** 2 / (math.pi * (filament_diameter / 2.0) ** 2)
+
+
+def extruder_alone_note(job, limits) -> str | None:
+    """Where ``job`` is read as Klipper reads it, has moves of the extruder alone and ``limits`` give
+    no E cap for them: that they are planned at the toolhead's acceleration and speed (None otherwise)."""
+    if not limits.reads_like_klipper or _known(limits.max_accel):
+        return None
+    delta = job.end - job.start
+    n = int(np.sum((np.abs(delta[:, :3]).sum(axis=1) == 0) & (delta[:, 3] != 0)))
+    if not n:
+        return None
+    return (f"the printer description gives no limits for moves of the extruder alone ([limits] max_accel and "
+            "max_velocity on e: Klipper's [extruder] max_extrude_only_accel / _velocity, which `ringtune printer "
+            f"from-klipper` reads): the job's {n} retractions and restores are planned at the toolhead's "
+            f"acceleration and speed, where Klipper's defaults are {klipper_default_ratio(0.4, 1.75):.3f} × "
+            "max_accel and max_velocity for a 0.4 mm nozzle and 1.75 mm filament, so they take longer there")
+
+
+def _known(caps) -> bool:
+    return caps is not None and caps[3] > 0
