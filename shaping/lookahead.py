@@ -48,9 +48,10 @@ def axis_caps(job: Job, prefix: str, machine: tuple | None, use: bool, klipper: 
               unit: float = 1.0, e_alone: np.ndarray | None = None) -> np.ndarray:
     """(n, 4) per-axis caps (inf = none): the machine's, over them the job's own (× ``unit``:
     RepRapFirmware's M203 is in mm/min) — under ``klipper`` only those Klipper and Kalico take
-    (:data:`KLIPPER_AXIS_SETTINGS`), and the E cap only on the moves of the extruder alone
-    (``e_alone``): Klipper's ``max_extrude_only_velocity`` / ``_accel`` (``extruder.py``
-    ``check_move``; an extruding move has no E limit there)."""
+    (:data:`KLIPPER_AXIS_SETTINGS`), and the E cap only on the moves ``e_alone`` marks: Klipper's
+    ``max_extrude_only_velocity`` / ``_accel`` bind a move with E and no X/Y motion, or with E
+    backwards (a retraction while wiping), by its E ratio (``extruder.py`` ``check_move``); a move
+    extruding forwards over X/Y has no E limit there."""
     cols = []
     for i, ax in enumerate("xyze"):
         default = np.inf if machine is None or machine[i] <= 0 else machine[i]

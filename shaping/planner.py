@@ -279,13 +279,15 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
     klipper = limits.reads_like_klipper      # Klipper's and Kalico's reading: the job's M201/M203 do not exist there,
     velocity = job_value(job, "velocity", limits.velocity, use and klipper)   # nor SET_VELOCITY_LIMIT on Marlin/RRF
     vmax = np.minimum(job.feed, velocity)
+    # Klipper caps E only on a move with E and no X/Y motion or with E backwards (extruder.py check_move)
+    e_capped = (delta[:, 3] != 0) & (((delta[:, 0] == 0) & (delta[:, 1] == 0)) | (delta[:, 3] < 0))
     vcaps = axis_caps(job, "max_vel", limits.max_velocity, use, klipper, 1 / 60 if limits.m203_per_minute else 1.0,
-                      e_only)
+                      e_capped)
     vmax = scale_by_axes(vmax, u, vcaps)
     if limits.axis_rule == "limited_corexy":
         vmax = corexy_speed_cap(vmax, velocity, u)
     base = move_accels(job, limits, use, delta, e_only, accel_override)
-    amax_axes = axis_caps(job, "max_accel", limits.max_accel, use, klipper, e_alone=e_only)
+    amax_axes = axis_caps(job, "max_accel", limits.max_accel, use, klipper, e_alone=e_capped)
     accel = kinematic_accel(base, u, amax_axes, limits.axis_rule, limits.scale_xy_accel,
                             skip=marlin_retractions(job, limits, use, e_only))
     if klipper:

@@ -183,3 +183,15 @@ def test_retractions_run_at_the_extruders_own_limits_even_above_the_toolheads(re
     by_hand = 10 * _trapezoid(40.0, 50.0, 3000.0, 1500.0) + 10 * _trapezoid(2.0, 100.0, 20000.0, 1500.0)
     assert real == pytest.approx(by_hand, abs=2e-3)
     assert by_hand - 10 * _trapezoid(40.0, 50.0, 3000.0, 1500.0) < 10 * _trapezoid(2.0, 50.0, 3000.0, 1500.0)
+
+
+def test_wipes_and_z_moves_that_extrude_take_the_extruders_limits_by_their_ratio(real_klipper, tmp_path, capsys):
+    # Klipper's extruder.py check_move caps a move with E and no X/Y motion, or with E backwards (a
+    # retraction while wiping), at max_extrude_only_velocity / _accel over its E ratio: a 2 mm wipe
+    # taking back 0.8 mm (ratio 0.4) at 798 / 0.4 mm/s²; a move extruding forwards over X/Y is not capped
+    cfg, job = _cfg(tmp_path), tmp_path / "wipes.gcode"
+    job.write_text(START + "G90\nM83\n" + "".join(
+        f"G1 X{10 + 20 * i} Y0 E0.5 F6000\nG1 X{12 + 20 * i} Y0 E-0.8 F6000\nG1 Z{0.3 * (i + 1):.1f} E0.05 F600\n"
+        f"G1 X{20 * (i + 1)} Y5 F9000\nG1 E0.8 F2400\n" for i in range(6)))
+    real = _klipper_time(real_klipper, cfg, job)
+    assert _planned(tmp_path, cfg, job, capsys) == pytest.approx(real, abs=2e-3)
