@@ -41,7 +41,7 @@ class MotionCommands:
             raise RingtuneError("dwell time must be >= 0", self._where(lineno))
         self.dwell += t
         self.stop = True
-        self._event("dwell", cmd, {"seconds": t}, lineno, code)
+        self._event("dwell", cmd, {"seconds": t, "s_word": words.get("S", 0.0)}, lineno, code)
 
     def _set_position(self, cmd: str, words: dict, lineno: int, code: str) -> None:
         """G92: the named axes (all without words) read the given value (NaN: 0) from here on."""

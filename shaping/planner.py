@@ -58,6 +58,7 @@ from ringtune.shaping.lookahead import (axis_caps, backward_pass, corexy_speed_c
                                         extruder_alone, kinematic_accel, klipper_smoothing,
                                         marlin_retractions,
                                         move_accels, scale_by_axes)
+from ringtune.shaping.klipper_reading import klipper_rests
 from ringtune.shaping.motion import Motion
 
 __all__ = ["MachineLimits", "MoveTable", "Plan", "plan", "limits_from_job", "guess_junction", "JUNCTIONS",
@@ -277,6 +278,9 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
 
     # -- speeds and accelerations per move --
     klipper = limits.reads_like_klipper      # Klipper's and Kalico's reading: the job's M201/M203 do not exist there,
+    if klipper:                              # nor rests at commands it does not have, nor G4's S word
+        stop, dwell, after = klipper_rests(job)
+        job = replace(job, stop_before=stop, dwell_before=dwell, dwell_after=after)
     velocity = job_value(job, "velocity", limits.velocity, use and klipper)   # nor SET_VELOCITY_LIMIT on Marlin/RRF
     vmax = np.minimum(job.feed, velocity)
     # Klipper caps E only on a move with E and no X/Y motion or with E backwards (extruder.py check_move)

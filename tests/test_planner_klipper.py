@@ -304,3 +304,21 @@ def test_an_old_klipper_keeps_its_accel_to_decel_where_the_configuration_sets_no
         ref = klipper_time(job.start, job.end, job.feed, 6000.0, 5.0, 1 - atd / 6000.0)
         assert plan_with_config(job, lim, cfg).plan.print_time == pytest.approx(ref, rel=1e-9)
         assert plan(read_gcode(out), lim).print_time == pytest.approx(ref, rel=1e-9)
+
+
+def test_klipper_rests_only_where_it_has_the_command_and_waits_for_g4_p_alone():
+    """Klipper has no M593 (unknown: the look-ahead runs on) and its G4 takes P alone
+    (toolhead.py cmd_G4); Marlin stops at M593 and waits for S seconds."""
+    moves = "G1 X10 Y0 E0.5 F6000\nG1 X20 Y0 E0.5\n"
+    scv = MachineLimits(accel=3000, velocity=300, junction="scv", square_corner_velocity=5, min_cruise_ratio=0.5)
+    jd = MachineLimits(accel=3000, velocity=300, junction="jd", junction_deviation=0.013, klipper_reading=False)
+    plain = read_gcode("M83\n" + moves)
+    shaped = read_gcode("M83\nG1 X10 Y0 E0.5 F6000\nM593 F40\nG1 X20 Y0 E0.5\n")
+    waits = read_gcode("M83\nG1 X10 Y0 E0.5 F6000\nG4 S10\nG1 X20 Y0 E0.5\n")
+    waits_p = read_gcode("M83\nG1 X10 Y0 E0.5 F6000\nG4 P500\nG1 X20 Y0 E0.5\n")
+    ref = klipper_time(plain.start, plain.end, plain.feed, 3000.0, 5.0, 0.5)
+    assert plan(shaped, scv).print_time == pytest.approx(ref, rel=1e-12)
+    assert plan(shaped, jd).print_time > plan(plain, jd).print_time + 0.01       # Marlin comes to rest
+    stopped = plan(waits_p, scv).print_time - 0.5                                # a rest, then 0.5 s
+    assert plan(waits, scv).print_time == pytest.approx(stopped, rel=1e-12) and stopped > ref
+    assert plan(waits, jd).print_time == pytest.approx(plan(waits_p, jd).print_time + 9.5, rel=1e-12)

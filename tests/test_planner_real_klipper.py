@@ -10,7 +10,8 @@ Jobs: the built-in PrusaSlicer part (40,163 moves, with its retractions and laye
 becomes SET_KINEMATIC_POSITION, since batch mode cannot home, and its heat-and-wait lines and closing
 M84, a dwell of Klipper's, are left out), the same rewritten with a per-feature configuration
 (SET_VELOCITY_LIMIT ACCEL, SQUARE_CORNER_VELOCITY and MINIMUM_CRUISE_RATIO at each feature
-change), and retractions on an extruder whose own limits exceed the toolhead's."""
+change), retractions on an extruder whose own limits exceed the toolhead's, wipes, and the two real
+ringing towers of tests/data (Simplify3D, PrusaSlicer for Marlin)."""
 
 from __future__ import annotations
 
@@ -120,10 +121,12 @@ def _planned(tmp_path: Path, cfg: Path, job: Path, capsys) -> float:
     return json.loads(capsys.readouterr().out)["print_time_s"]
 
 
-def _batch_part(tmp_path: Path) -> Path:
-    """The built-in part as batch mode can run it (module docstring)."""
-    lines = []
-    for line in Path(job_path("part")).read_text().splitlines(keepends=True):
+def _batch_part(tmp_path: Path, source: Path | None = None) -> Path:
+    """The built-in part (or ``source``) as batch mode can run it (module docstring): its G28 (else
+    its start) set the position instead, no heat-and-wait lines, no closing M84."""
+    text = Path(source or job_path("part")).read_text()
+    lines = [] if any(ln.startswith("G28") for ln in text.splitlines()) else [START]
+    for line in text.splitlines(keepends=True):
         if line.startswith("G28"):
             lines.append(START)
         elif not line.startswith(("M109", "M190", "M84")):
@@ -193,5 +196,15 @@ def test_wipes_and_z_moves_that_extrude_take_the_extruders_limits_by_their_ratio
     job.write_text(START + "G90\nM83\n" + "".join(
         f"G1 X{10 + 20 * i} Y0 E0.5 F6000\nG1 X{12 + 20 * i} Y0 E-0.8 F6000\nG1 Z{0.3 * (i + 1):.1f} E0.05 F600\n"
         f"G1 X{20 * (i + 1)} Y5 F9000\nG1 E0.8 F2400\n" for i in range(6)))
+    real = _klipper_time(real_klipper, cfg, job)
+    assert _planned(tmp_path, cfg, job, capsys) == pytest.approx(real, abs=2e-3)
+
+
+@pytest.mark.parametrize("tower", ["bassco_ender3", "ianalexis_ender3_marlin"])
+def test_real_towers_of_two_more_slicers_plan_at_real_klippers_time(tower, real_klipper, tmp_path, capsys, data_dir):
+    # Simplify3D's vase tower (START_PRINT, a macro); PrusaSlicer 2.9's, written for Marlin: M201/M203/
+    # M205 and a lone M204 Klipper does not act on, an M593 F at every layer that Klipper does not
+    # have (so it does not stop there) and a G4 S10 (Klipper's G4 waits for P alone)
+    cfg, job = _cfg(tmp_path), _batch_part(tmp_path, data_dir / "gcode" / tower / "ringing_tower.gcode")
     real = _klipper_time(real_klipper, cfg, job)
     assert _planned(tmp_path, cfg, job, capsys) == pytest.approx(real, abs=2e-3)

@@ -1,0 +1,45 @@
+"""Where Klipper comes to rest and waits otherwise than a job's commands read everywhere: it has no
+Marlin shaper commands (M593, M493), nor G29, M0, M1 or M600 unless a macro of the printer.cfg
+defines them, so the head does not stop there (an unknown command is answered and the look-ahead
+runs on); its G4 takes P (ms) alone (``toolhead.py`` ``cmd_G4``), so an S word waits nothing. The
+planner, reading a job as Klipper does, plans with :func:`klipper_rests`."""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: commands the reader stops at that Klipper does not have
+KLIPPER_NO_STOP = frozenset({"M593", "M493", "G29", "M0", "M1", "M600"})
+
+
+def klipper_rests(job) -> tuple[np.ndarray, np.ndarray, float]:
+    """(stop_before, dwell_before, dwell_after) of ``job`` as Klipper runs it: no rest where only
+    commands of :data:`KLIPPER_NO_STOP` stopped the head, no wait for a G4's S word."""
+    stop, dwell, after = job.stop_before, job.dwell_before, job.dwell_after
+    n = job.n_moves
+    unknown = {ev.move for ev in job.events if ev.command in KLIPPER_NO_STOP and 0 < ev.move < n}
+    if unknown:
+        for ev in job.events:          # any other command that stops there keeps the rest
+            if ev.move in unknown and _stops(ev):
+                unknown.discard(ev.move)
+        stop = stop.copy()
+        stop[list(unknown)] = False
+    waits = [(ev.move, ev.params["s_word"]) for ev in job.events if ev.kind == "dwell" and ev.params.get("s_word")]
+    if waits:
+        dwell = dwell.copy()
+        for move, s in waits:
+            if move < n:
+                dwell[move] -= s
+            else:
+                after -= s
+    return stop, dwell, after
+
+
+def _stops(ev) -> bool:
+    """Whether the command of ``ev`` brings Klipper to rest (a dwell, a wait, homing, a shaper change,
+    a firmware retraction; not one of :data:`KLIPPER_NO_STOP`)."""
+    return ev.command not in KLIPPER_NO_STOP and (ev.kind in ("dwell", "shaper") or ev.command in _REST)
+
+
+#: commands of Klipper's own the reader stops at besides dwells and shaper changes
+_REST = frozenset({"G28", "M400", "M109", "M190", "G10", "G11"})
