@@ -19,18 +19,25 @@ def klipper_default_ratio(nozzle_diameter: float, filament_diameter: float) -> f
     return 4.0 * nozzle_diameter ** 2 / (math.pi * (filament_diameter / 2.0) ** 2)
 
 
+def e_capped(delta: np.ndarray) -> np.ndarray:
+    """(n,) the moves (``delta``: (n, 4) x y z e, mm) Klipper's extruder limits bind (``extruder.py``
+    ``check_move``): with E and no X/Y motion (a retraction, its restore, a Z move that extrudes),
+    or with E backwards (a retraction while wiping)."""
+    return (delta[:, 3] != 0) & (((delta[:, 0] == 0) & (delta[:, 1] == 0)) | (delta[:, 3] < 0))
+
+
 def extruder_alone_note(job, limits) -> str | None:
-    """Where ``job`` is read as Klipper reads it, has moves of the extruder alone and ``limits`` give
-    no E cap for them: that they are planned at the toolhead's acceleration and speed (None otherwise)."""
+    """Where ``job`` is read as Klipper reads it, has moves its extruder limits bind (:func:`e_capped`)
+    and ``limits`` give none: that they are planned at the toolhead's acceleration and speed (None
+    otherwise)."""
     if not limits.reads_like_klipper or _known(limits.max_accel):
         return None
-    delta = job.end - job.start
-    n = int(np.sum((np.abs(delta[:, :3]).sum(axis=1) == 0) & (delta[:, 3] != 0)))
+    n = int(np.sum(e_capped(job.end - job.start)))
     if not n:
         return None
     return (f"the printer description gives no limits for moves of the extruder alone ([limits] max_accel and "
             "max_velocity on e: Klipper's [extruder] max_extrude_only_accel / _velocity, which `ringtune printer "
-            f"from-klipper` reads): the job's {n} retractions and restores are planned at the toolhead's "
+            f"from-klipper` reads): the job's {n} retractions, restores and wipes are planned at the toolhead's "
             f"acceleration and speed, where Klipper's defaults are {klipper_default_ratio(0.4, 1.75):.3f} × "
             "max_accel and max_velocity for a 0.4 mm nozzle and 1.75 mm filament, so they take longer there")
 

@@ -14,7 +14,16 @@ KLIPPER_NO_STOP = frozenset({"M593", "M493", "G29", "M0", "M1", "M600"})
 
 def klipper_rests(job) -> tuple[np.ndarray, np.ndarray, float]:
     """(stop_before, dwell_before, dwell_after) of ``job`` as Klipper runs it: no rest where only
-    commands of :data:`KLIPPER_NO_STOP` stopped the head, no wait for a G4's S word."""
+    commands of :data:`KLIPPER_NO_STOP` stopped the head, no wait for a G4's S word (worked out once
+    per job: the study plans one job many times)."""
+    cached = getattr(job, "_klipper_rests", None)
+    if cached is None:
+        cached = _rests(job)
+        job._klipper_rests = cached        # type: ignore[attr-defined]
+    return cached
+
+
+def _rests(job) -> tuple[np.ndarray, np.ndarray, float]:
     stop, dwell, after = job.stop_before, job.dwell_before, job.dwell_after
     n = job.n_moves
     unknown = {ev.move for ev in job.events if ev.command in KLIPPER_NO_STOP and 0 < ev.move < n}

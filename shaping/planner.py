@@ -50,15 +50,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.extruder_alone import e_capped
 from ringtune.shaping.firmware_retraction import fold_retractions
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.job import Job
-from ringtune.shaping.lookahead import (axis_caps, backward_pass, corexy_speed_cap, daa_adjust,
-                                        forward_pass, jerk_setting, job_value, junction_limits,
-                                        extruder_alone, kinematic_accel, klipper_smoothing,
-                                        marlin_retractions,
-                                        move_accels, scale_by_axes)
 from ringtune.shaping.klipper_reading import klipper_rests
+from ringtune.shaping.lookahead import (axis_caps, backward_pass, corexy_speed_cap, daa_adjust, extruder_alone,
+                                        forward_pass, jerk_setting, job_value, junction_limits, kinematic_accel,
+                                        klipper_smoothing, marlin_retractions, move_accels, scale_by_axes)
 from ringtune.shaping.motion import Motion
 
 __all__ = ["MachineLimits", "MoveTable", "Plan", "plan", "limits_from_job", "guess_junction", "JUNCTIONS",
@@ -83,7 +82,8 @@ class MachineLimits:
     accel: printing acceleration; velocity: top speed; junction: ``scv`` | ``jd`` | ``jerk``;
     square_corner_velocity (Klipper), junction_deviation (Marlin), jerk (x, y, z, e classic jerk);
     max_accel / max_velocity: per-axis caps (x, y, z, e) or None (under Klipper's reading the E caps
-    bind only moves of the extruder alone: its max_extrude_only_accel / _velocity); min_cruise_ratio (Klipper only);
+    are its max_extrude_only_accel / _velocity and bind only :func:`~ringtune.shaping.extruder_alone.e_capped`
+    moves); min_cruise_ratio (Klipper only);
     accel_to_decel: a Klipper from before 2024 (no minimum_cruise_ratio), its max_accel_to_decel in
     mm/s², kept whatever ACCEL becomes (None: a current Klipper or Kalico, which ignore a job's
     ACCEL_TO_DECEL); m203_per_minute: the firmware reads a job's M203 speeds in mm/min
@@ -283,15 +283,14 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
         job = replace(job, stop_before=stop, dwell_before=dwell, dwell_after=after)
     velocity = job_value(job, "velocity", limits.velocity, use and klipper)   # nor SET_VELOCITY_LIMIT on Marlin/RRF
     vmax = np.minimum(job.feed, velocity)
-    # Klipper caps E only on a move with E and no X/Y motion or with E backwards (extruder.py check_move)
-    e_capped = (delta[:, 3] != 0) & (((delta[:, 0] == 0) & (delta[:, 1] == 0)) | (delta[:, 3] < 0))
+    e_cap = e_capped(delta)                  # the moves Klipper's extruder limits bind
     vcaps = axis_caps(job, "max_vel", limits.max_velocity, use, klipper, 1 / 60 if limits.m203_per_minute else 1.0,
-                      e_capped)
+                      e_cap)
     vmax = scale_by_axes(vmax, u, vcaps)
     if limits.axis_rule == "limited_corexy":
         vmax = corexy_speed_cap(vmax, velocity, u)
     base = move_accels(job, limits, use, delta, e_only, accel_override)
-    amax_axes = axis_caps(job, "max_accel", limits.max_accel, use, klipper, e_alone=e_capped)
+    amax_axes = axis_caps(job, "max_accel", limits.max_accel, use, klipper, e_alone=e_cap)
     accel = kinematic_accel(base, u, amax_axes, limits.axis_rule, limits.scale_xy_accel,
                             skip=marlin_retractions(job, limits, use, e_only))
     if klipper:
