@@ -94,13 +94,14 @@ KINEMATICS = ("cartesian", "corexy", "corexz")
 #: (how those caps bind: ``per_axis`` or Kalico's ``limited_corexy``), ``scale_xy_accel`` (Kalico),
 #: the corner rule, Klipper's ``min_cruise_ratio`` and an old Klipper's ``accel_to_decel`` (mm/s²), and
 #: the firmware retraction a ``G10``/``G11`` makes (``retract_length``, ``unretract_extra_length`` mm,
-#: ``retract_speed``, ``unretract_speed`` mm/s, ``retract_zlift`` the Z hop mm) and Klipper's ``[gcode_arcs]
-#: resolution`` (``arc_resolution``,
-#: mm; see :class:`ringtune.shaping.planner.MachineLimits`)
+#: ``retract_speed``, ``unretract_speed`` mm/s, ``retract_zlift`` the Z hop mm), Klipper's ``[gcode_arcs]
+#: resolution`` (``arc_resolution``, mm) and its extruder's ``extrude_only_accel`` / ``extrude_only_velocity``
+#: (``max_extrude_only_*``: retractions; mm/s², mm/s); see :class:`ringtune.shaping.planner.MachineLimits`
 LIMIT_KEYS = ("accel", "velocity", "junction", "square_corner_velocity", "junction_deviation",
               "jerk", "max_accel", "max_velocity", "min_cruise_ratio", "accel_to_decel", "travel_accel",
               "retract_accel", "axis_rule", "scale_xy_accel", "retract_length", "retract_speed",
-              "unretract_extra_length", "unretract_speed", "retract_zlift", "arc_resolution")
+              "unretract_extra_length", "unretract_speed", "retract_zlift", "arc_resolution", "extrude_only_accel",
+              "extrude_only_velocity")
 _TOP_KEYS = {"name", "kinematics", "limits", "x", "y", "motor", "belts", "print_mass", "description",
              "current", "measurement"}
 _BELT_KEYS = {"stiffness", "mismatch"}
@@ -158,7 +159,7 @@ def _has_force(axis_table: dict, base_raw: dict) -> bool:
 #: ``[limits]``' plain numbers and their bounds (as :func:`number` takes them)
 _LIMIT_BOUNDS = {**dict.fromkeys(("accel", "velocity", "square_corner_velocity", "junction_deviation", "travel_accel",
                                   "retract_accel", "accel_to_decel", "retract_speed", "unretract_speed",
-                                  "arc_resolution"),
+                                  "arc_resolution", "extrude_only_accel", "extrude_only_velocity"),
                                  {"lo": 0.0, "lo_open": True}),
                  "min_cruise_ratio": {"lo": 0.0, "hi": 1.0}, "retract_length": {"lo": 0.0}, "retract_zlift": {"lo": 0.0},
                  "unretract_extra_length": {}}

@@ -193,16 +193,15 @@ def _accel_cap(src: Source, ax: str, accel: float, limited: str | None) -> float
 
 
 def _extruder_caps(src: Source, limits: dict, accel: float, velocity: float) -> None:
-    """``[extruder] max_extrude_only_velocity`` / ``max_extrude_only_accel`` -> the E components of
-    ``limits.max_velocity`` / ``max_accel``: what a move of the extruder alone (a retraction) runs at
+    """``[extruder] max_extrude_only_velocity`` / ``max_extrude_only_accel`` -> ``limits.extrude_only_velocity``
+    / ``extrude_only_accel``: what a move of the extruder alone (a retraction) runs at
     on Klipper; unset, Klipper's defaults (``kinematics/extruder.py``): max_velocity and max_accel ×
     4·nozzle_diameter² / the filament's cross-section, each said. No [extruder]: none."""
     ratio = _extrude_ratio(src)
     if ratio is None:
         return
-    for key, option, base in (("max_velocity", "max_extrude_only_velocity", velocity),
-                              ("max_accel", "max_extrude_only_accel", accel)):
-        limits[key] = [*limits.get(key, (0.0, 0.0, 0.0, 0.0))[:3], _extrude_cap(src, option, base, ratio)]
+    for key, base in (("extrude_only_velocity", velocity), ("extrude_only_accel", accel)):
+        limits[key] = _extrude_cap(src, f"max_{key}", base, ratio)
 
 
 def _extrude_ratio(src: Source) -> float | None:

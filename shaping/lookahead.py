@@ -45,13 +45,13 @@ KLIPPER_AXIS_SETTINGS = {("max_accel", "x"): "limited_accel_x", ("max_accel", "y
 
 
 def axis_caps(job: Job, prefix: str, machine: tuple | None, use: bool, klipper: bool = False,
-              unit: float = 1.0, e_alone: np.ndarray | None = None) -> np.ndarray:
+              unit: float = 1.0, e_alone: np.ndarray | None = None, e_klipper: float | None = None) -> np.ndarray:
     """(n, 4) per-axis caps (inf = none): the machine's, over them the job's own (× ``unit``:
     RepRapFirmware's M203 is in mm/min) — under ``klipper`` only those Klipper and Kalico take
-    (:data:`KLIPPER_AXIS_SETTINGS`), and the E cap only on the moves ``e_alone`` marks: Klipper's
-    ``max_extrude_only_velocity`` / ``_accel`` bind a move with E and no X/Y motion, or with E
-    backwards (a retraction while wiping), by its E ratio (``extruder.py`` ``check_move``); a move
-    extruding forwards over X/Y has no E limit there."""
+    (:data:`KLIPPER_AXIS_SETTINGS`), and on E its extruder's ``e_klipper``
+    (``max_extrude_only_velocity`` / ``_accel``; None: not known) on the moves ``e_alone`` marks alone
+    (:func:`ringtune.shaping.extruder_alone.e_capped`, by their E ratio: ``extruder.py``
+    ``check_move``); a move extruding forwards over X/Y has no E limit there."""
     cols = []
     for i, ax in enumerate("xyze"):
         default = np.inf if machine is None or machine[i] <= 0 else machine[i]
@@ -59,8 +59,9 @@ def axis_caps(job: Job, prefix: str, machine: tuple | None, use: bool, klipper: 
         own = job_value(job, key, None, use and key is not None) * unit
         v = np.where(np.isnan(own), default, own)
         cols.append(np.where(v > 0, v, np.inf))       # Marlin: 0 means "no limit" for M201/M203
-    if klipper and e_alone is not None:
-        cols[3] = np.where(e_alone, cols[3], np.inf)
+    if klipper:                                        # Klipper has no M201/M203 E: its extruder's own
+        on = np.zeros(job.n_moves, bool) if e_alone is None else e_alone
+        cols[3] = np.where(on, e_klipper or np.inf, np.inf)
     return np.stack(cols, axis=1)
 
 

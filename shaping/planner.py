@@ -81,9 +81,10 @@ class MachineLimits:
 
     accel: printing acceleration; velocity: top speed; junction: ``scv`` | ``jd`` | ``jerk``;
     square_corner_velocity (Klipper), junction_deviation (Marlin), jerk (x, y, z, e classic jerk);
-    max_accel / max_velocity: per-axis caps (x, y, z, e) or None (under Klipper's reading the E caps
-    are its max_extrude_only_accel / _velocity and bind only :func:`~ringtune.shaping.extruder_alone.e_capped`
-    moves); min_cruise_ratio (Klipper only);
+    max_accel / max_velocity: per-axis caps (x, y, z, e) or None (Marlin's and RRF's M201/M203; Klipper
+    has none on E); extrude_only_accel / extrude_only_velocity: Klipper's [extruder]
+    max_extrude_only_accel / _velocity (None: not known), the only limits of the moves
+    :func:`~ringtune.shaping.extruder_alone.e_capped` marks there; min_cruise_ratio (Klipper only);
     accel_to_decel: a Klipper from before 2024 (no minimum_cruise_ratio), its max_accel_to_decel in
     mm/s², kept whatever ACCEL becomes (None: a current Klipper or Kalico, which ignore a job's
     ACCEL_TO_DECEL); m203_per_minute: the firmware reads a job's M203 speeds in mm/min
@@ -131,6 +132,8 @@ class MachineLimits:
     arc_resolution: float | None = None
     arc_firmware: str | None = None
     retract_zlift: float = 0.0
+    extrude_only_accel: float | None = None
+    extrude_only_velocity: float | None = None
 
     @property
     def reads_like_klipper(self) -> bool:
@@ -196,7 +199,8 @@ _LIMIT_CHECKS = (
     (("square_corner_velocity", "junction_deviation"), _non_negative, "must be a number >= 0, not {v!r}"),
     (("min_cruise_ratio",), _fraction, "must be in [0, 1)"),
     (("jerk", "max_accel", "max_velocity"), _four_or_none, "needs 4 numbers >= 0 (x, y, z, e)"),
-    (("travel_accel", "retract_accel", "accel_to_decel", "retract_speed", "unretract_speed", "arc_resolution"),
+    (("travel_accel", "retract_accel", "accel_to_decel", "retract_speed", "unretract_speed", "arc_resolution",
+      "extrude_only_accel", "extrude_only_velocity"),
      _positive_or_none,
      "must be a positive number"),
     (("unretract_extra_length",), lambda v: isinstance(v, (int, float)) and math.isfinite(v),
@@ -285,12 +289,13 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
     vmax = np.minimum(job.feed, velocity)
     e_cap = e_capped(delta)                  # the moves Klipper's extruder limits bind
     vcaps = axis_caps(job, "max_vel", limits.max_velocity, use, klipper, 1 / 60 if limits.m203_per_minute else 1.0,
-                      e_cap)
+                      e_cap, limits.extrude_only_velocity)
     vmax = scale_by_axes(vmax, u, vcaps)
     if limits.axis_rule == "limited_corexy":
         vmax = corexy_speed_cap(vmax, velocity, u)
     base = move_accels(job, limits, use, delta, e_only, accel_override)
-    amax_axes = axis_caps(job, "max_accel", limits.max_accel, use, klipper, e_alone=e_cap)
+    amax_axes = axis_caps(job, "max_accel", limits.max_accel, use, klipper, e_alone=e_cap,
+                          e_klipper=limits.extrude_only_accel)
     accel = kinematic_accel(base, u, amax_axes, limits.axis_rule, limits.scale_xy_accel,
                             skip=marlin_retractions(job, limits, use, e_only))
     if klipper:

@@ -65,10 +65,10 @@ def test_klipper_speed_is_whole_mm_per_minute_and_m220_scales_it_marlin_does_not
 
 def test_an_isolated_retraction_takes_its_trapezoid_or_triangle():
     """G10 between two dwells (rest to rest): d/v + v/a when d ≥ v²/a, else 2·sqrt(d/a); the E cap
-    (max_accel e, Klipper's max_extrude_only_accel) sets a."""
+    (extrude_only_accel, Klipper's max_extrude_only_accel) sets a."""
     text = "M83\nG1 X10 E1 F3000\nG4 P0\nG10\nG4 P0\nG1 X20 E1\n"
     a = 500.0
-    lim = dict(KLIPPER, max_accel=(0.0, 0.0, 0.0, a))
+    lim = dict(KLIPPER, extrude_only_accel=a)
     for length, v in ((3.0, 30.0), (0.5, 40.0)):
         d = length
         want = d / v + v / a if d >= v * v / a else 2 * math.sqrt(d / a)
@@ -107,7 +107,7 @@ def test_the_plans_moves_are_the_jobs_as_read_and_each_retraction_a_rest():
     job's own moves; each E-only move is a rest before the next move, on Klipper from rest to rest at
     the E cap: d/v + v/a, or 2·sqrt(d/a) short of v — here 0.8 mm at 35 mm/s and 0.9 at 25, 500 mm/s²."""
     job = read_gcode(JOB)
-    caps = dict(KLIPPER, max_accel=(0.0, 0.0, 0.0, 500.0))
+    caps = dict(KLIPPER, extrude_only_accel=500.0)
     planned = plan_with_config(job, MachineLimits(**caps, **SETTINGS))
     assert planned.job.n_moves == job.n_moves and (planned.plan.moves.line == job.line).all()
     unknown = plan_with_config(job, MachineLimits(**caps)).plan        # the same stops, no time

@@ -284,21 +284,22 @@ def test_kinematics_mapped_or_refused_naming_file_and_value(kin, ok, tmp_path):
 
 
 def test_the_extruders_own_limits_on_retractions_as_written_or_klippers_defaults(tmp_path, data_dir):
-    """[extruder] max_extrude_only_velocity / _accel -> the E caps; unset, Klipper's defaults
+    """[extruder] max_extrude_only_velocity / _accel -> [limits] extrude_only_*; unset, Klipper's defaults
     (kinematics/extruder.py): max_velocity and max_accel × 4·nozzle_diameter² / (π·(filament/2)²)."""
     facts = printer_facts_from_klipper(data_dir / "klipper_config" / "ender3" / "printer.cfg")
     limits = facts.description["limits"]
     ratio = 4 * 0.4 ** 2 / (3.141592653589793 * 0.875 ** 2)          # its nozzle 0.400, filament 1.750
-    assert limits["max_velocity"][3] == pytest.approx(250 * ratio) and limits["max_velocity"][2] == 40
-    assert limits["max_accel"][3] == pytest.approx(4900 * ratio) and limits["max_accel"][2] == 100
+    assert limits["extrude_only_velocity"] == pytest.approx(250 * ratio) and limits["max_velocity"] == [0, 0, 40, 0]
+    assert limits["extrude_only_accel"] == pytest.approx(4900 * ratio) and limits["max_accel"] == [0, 0, 100, 0]
     assert sum("max_extrude_only" in n and "Klipper's default" in n for n in facts.notes) == 2
     (tmp_path / "printer.cfg").write_text(
         "[printer]\nkinematics: cartesian\nmax_velocity: 300\nmax_accel: 4000\n"
         "[extruder]\nnozzle_diameter: 0.6\nfilament_diameter: 1.75\nmax_extrude_only_velocity: 120\n"
         "max_extrude_only_accel: 6000\n")
     facts = printer_facts_from_klipper(tmp_path / "printer.cfg")
-    assert facts.description["limits"]["max_velocity"] == [0.0, 0.0, 0.0, 120.0]
-    assert facts.description["limits"]["max_accel"] == [0.0, 0.0, 0.0, 6000.0]
+    limits = facts.description["limits"]
+    assert (limits["extrude_only_velocity"], limits["extrude_only_accel"]) == (120.0, 6000.0)
+    assert "max_velocity" not in limits and "max_accel" not in limits
     assert not any("max_extrude_only" in n for n in facts.notes)
     (tmp_path / "printer.cfg").write_text("[printer]\nkinematics: cartesian\nmax_velocity: 300\nmax_accel: 4000\n")
-    assert "max_accel" not in printer_facts_from_klipper(tmp_path / "printer.cfg").description["limits"]
+    assert "extrude_only_accel" not in printer_facts_from_klipper(tmp_path / "printer.cfg").description["limits"]

@@ -208,7 +208,7 @@ def test_klipper_gives_its_e_caps_to_the_extruder_alone_and_says_when_it_has_non
     lines = "G90\nM83\nG1 X30 Y0 E1.2 F3000\nG4 P0\nG1 E-1.5 F6000\nG4 P0\nG1 X0 Y0 E40 F3000\n"
     job = read_gcode(lines)
     base = dict(accel=2000.0, velocity=60.0, junction="scv", square_corner_velocity=5, min_cruise_ratio=0.0)
-    bare, capped = MachineLimits(**base), MachineLimits(**base, max_velocity=(0, 0, 0, 80), max_accel=(0, 0, 0, 9000))
+    bare, capped = MachineLimits(**base), MachineLimits(**base, extrude_only_velocity=80, extrude_only_accel=9000)
     # the retraction, rest to rest: 1.5 mm at min(100, 80) mm/s and 9000 mm/s² (not the toolhead's 60 and
     # 2000), its peak no higher than the toolhead's 2000 mm/s² × (1 − minimum_cruise_ratio 0) reaches
     # (Klipper's mcr_pseudo_accel, even at a ratio of 0; real Klipper gives 0.033 s for it)
