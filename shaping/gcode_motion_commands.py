@@ -35,13 +35,15 @@ class MotionCommands:
         self._arc(cmd == "G2", _finite(words, self._where(lineno)), lineno)
 
     def _dwell(self, cmd: str, words: dict, lineno: int, code: str) -> None:
-        """G4 P<ms> S<s>: a pause (the planner stops there)."""
-        t = words.get("P", 0.0) / 1000.0 + words.get("S", 0.0)
+        """G4 P<ms> or S<s>: a pause (the planner stops there); S rules where both are given, as in
+        Marlin (``G4()``: S read after P) and RRF; ``p_seconds`` what Klipper, which reads P alone, waits."""
+        p = words.get("P", 0.0) / 1000.0
+        t = words["S"] if "S" in words else p
         if not t >= 0 or not math.isfinite(t):
             raise RingtuneError("dwell time must be >= 0", self._where(lineno))
         self.dwell += t
         self.stop = True
-        self._event("dwell", cmd, {"seconds": t, "s_word": words.get("S", 0.0)}, lineno, code)
+        self._event("dwell", cmd, {"seconds": t, "p_seconds": p}, lineno, code)
 
     def _set_position(self, cmd: str, words: dict, lineno: int, code: str) -> None:
         """G92: the named axes (all without words) read the given value (NaN: 0) from here on."""

@@ -33,7 +33,8 @@ def _rests(job) -> tuple[np.ndarray, np.ndarray, float]:
                 unknown.discard(ev.move)
         stop = stop.copy()
         stop[list(unknown)] = False
-    waits = [(ev.move, ev.params["s_word"]) for ev in job.events if ev.kind == "dwell" and ev.params.get("s_word")]
+    waits = [(ev.move, ev.params["seconds"] - ev.params["p_seconds"]) for ev in job.events
+             if ev.kind == "dwell" and ev.params["seconds"] != ev.params["p_seconds"]]
     if waits:
         dwell = dwell.copy()
         for move, s in waits:

@@ -322,3 +322,7 @@ def test_klipper_rests_only_where_it_has_the_command_and_waits_for_g4_p_alone():
     stopped = plan(waits_p, scv).print_time - 0.5                                # a rest, then 0.5 s
     assert plan(waits, scv).print_time == pytest.approx(stopped, rel=1e-12) and stopped > ref
     assert plan(waits, jd).print_time == pytest.approx(plan(waits_p, jd).print_time + 9.5, rel=1e-12)
+    # both words: Marlin waits S (G4() reads S after P), Klipper P
+    both = read_gcode("M83\nG1 X10 Y0 E0.5 F6000\nG4 P500 S2\nG1 X20 Y0 E0.5\n")
+    assert plan(both, jd).print_time == pytest.approx(plan(waits_p, jd).print_time + 1.5, rel=1e-12)
+    assert plan(both, scv).print_time == pytest.approx(plan(waits_p, scv).print_time, rel=1e-12)

@@ -208,3 +208,20 @@ def test_real_towers_of_two_more_slicers_plan_at_real_klippers_time(tower, real_
     cfg, job = _cfg(tmp_path), _batch_part(tmp_path, data_dir / "gcode" / tower / "ringing_tower.gcode")
     real = _klipper_time(real_klipper, cfg, job)
     assert _planned(tmp_path, cfg, job, capsys) == pytest.approx(real, abs=2e-3)
+
+
+def test_firmware_retraction_arcs_dwells_and_speed_factor_plan_at_real_klippers_time(real_klipper, tmp_path, capsys):
+    # [firmware_retraction] (G10/G11 as Klipper's own G1 E moves), [gcode_arcs] (G2/G3 cut at its
+    # resolution), G4 P, M220, M204 S and a SET_VELOCITY_LIMIT mid-job, relative moves
+    extra = ("\n[gcode_arcs]\nresolution: 0.5\n\n[firmware_retraction]\nretract_length: 0.8\nretract_speed: 35\n"
+             "unretract_extra_length: 0.1\nunretract_speed: 25\n")
+    cfg = _cfg(tmp_path)
+    cfg.write_text(cfg.read_text() + extra)
+    job = tmp_path / "mixed.gcode"
+    job.write_text(START + "G90\nM83\nG1 X20 Y20 E1 F6000\nG2 X40 Y20 I10 J0 E2 F3000\nG3 X20 Y20 I-10 J0 E2\n"
+                   "G10\nG1 X60 Y0 F9000\nG11\nM220 S50\nG1 X80 Y0 E1 F6000\nG4 P500\nM220 S100\nM204 S1000\n"
+                   "G1 X80 Y40 E1\nSET_VELOCITY_LIMIT ACCEL=8000 SQUARE_CORNER_VELOCITY=20 MINIMUM_CRUISE_RATIO=0.2\n"
+                   "G91\nG1 X-10 Y5 E0.5 F4000\nG1 X-3 Y7 E0.3\nG90\nG1 X0 Y0 F12000\n")
+    real = _klipper_time(real_klipper, cfg, job)
+    assert _planned(tmp_path, cfg, job, capsys) == pytest.approx(real, abs=2e-3)
+    assert real > 3.0
