@@ -31,7 +31,6 @@ from ringtune.shaping.gcode_post import AccelResult, LimitResult, limit_file, re
 from ringtune.shaping.job import Job
 from ringtune.shaping.klipper_commands import macro_calls, macro_note
 from ringtune.shaping.klipper_ignores import klipper_ignored, klipper_ignored_note
-from ringtune.shaping.planner import MachineLimits
 from ringtune.shaping.slicer import slicer_estimate, slicer_flavor
 from ringtune.shaping.testprints import builtin_test_print, direction_change_frequencies
 
@@ -84,15 +83,11 @@ def junction_rule(job: Job, path=None, printer=None, given: dict | None = None,
 
 def planning_limits(job: Job, path=None, printer=None, junction: str = "auto", firmware: str | None = None):
     """(the machine limits the job is planned with, the junction rule, why in words): the limits of
-    ``printer`` (TOML or embedded name; else the planner's defaults) with the rule of
+    ``printer`` (TOML or embedded name; None: the embedded default printer, as every command) with the rule of
     :func:`junction_rule` (``firmware``: the configuration's, if any)."""
-    given: dict = {}
-    if printer:
-        pr = load_printer(printer)
-        limits, given = pr.machine_limits(), dict(pr.limits_dict)
-    else:
-        limits = MachineLimits()
-    junction, why = junction_rule(job, path, printer, given, junction, firmware)
+    pr = load_printer(printer)
+    limits, given = pr.machine_limits(), dict(pr.limits_dict)
+    junction, why = junction_rule(job, path, printer or "the embedded default printer", given, junction, firmware)
     limits = replace(limits, junction=junction)
     if junction != "scv":
         limits = replace(limits, min_cruise_ratio=0.0)
@@ -197,7 +192,7 @@ class JobPlan:
 def plan_job(path=None, printer=None, config: TuneConfig | None = None, junction: str = "auto",
              use_job_limits: bool = True, daa_freq: float | None = None, top: int = 5) -> JobPlan:
     """Plan the G-code at ``path`` (a built-in job's name: its file; None: the built-in test print)
-    with ``printer``'s limits (TOML or embedded name; None: the planner's defaults), ``config``'s
+    with ``printer``'s limits (TOML or embedded name; None: the embedded default printer), ``config``'s
     frequency limit and acceleration, the junction rule of :func:`junction_rule`, and ``top``
     frequencies of each kind."""
     path = job_path(path)

@@ -32,7 +32,9 @@ def test_config_accel_overrides_the_jobs_own_m204():
 
 def test_daa_is_planned_not_shaped():
     """RRF ≤ 3.3's DAA retimes acceleration phases in the planner: the job gets slower, and the
-    ringing it leaves is lower than with no compensation at all."""
+    ringing it leaves is lower than with no compensation at all, window by window: where it changes
+    the motion the wall rings less, and nowhere more. (The job's worst window may be one DAA leaves
+    alone, a corner taken at the jerk speed with no acceleration phase to retime.)"""
     clear_cache()
     printer = resolve_printer(None)
     freq = printer.effective_modes("x")[0].freq
@@ -42,7 +44,11 @@ def test_daa_is_planned_not_shaped():
     pj = planned_job(printer, None, daa)
     assert pj.plan.print_time == m_daa.print_time_s
     assert m_daa.print_time_s > m_none.print_time_s
-    assert m_daa.ringing_mm < m_none.ringing_mm
+    ring_none, ring_daa = ([w["ringing_mm"] for w in m.details["windows"]] for m in (m_none, m_daa))
+    assert len(ring_none) == len(ring_daa) >= 4
+    assert all(d <= n + 1e-9 for d, n in zip(ring_daa, ring_none))
+    assert sum(d < 0.9 * n for d, n in zip(ring_daa, ring_none)) >= 2
+    assert m_daa.ringing_mm <= m_none.ringing_mm + 1e-9
 
 
 def test_the_plan_cache_holds_a_bounded_number_of_bytes(monkeypatch):

@@ -84,7 +84,9 @@ def test_plan_reads_the_slicer_flavour_when_the_job_sets_no_corner_rule(tmp_path
     plain = tmp_path / "plain.gcode"
     plain.write_text(body)
     res = _json(capsys, ["plan", str(plain)])
-    assert res["junction"] == "scv" and "nothing names a rule" in res["junction_reason"]
+    # nothing in the job names a rule: the embedded default printer's corner setting does
+    assert res["junction"] == "scv"
+    assert res["junction_reason"] == "the printer gives square_corner_velocity (the embedded default printer)"
     # Klipper's own command names Klipper's rule, before the flavour a Marlin 2 profile wrote
     orca = tmp_path / "orca.gcode"
     orca.write_text("SET_VELOCITY_LIMIT ACCEL=5000 ACCEL_TO_DECEL=2500\n" + body + "; gcode_flavor = marlin2\n")

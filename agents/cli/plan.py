@@ -91,7 +91,8 @@ examples:
 def add_arguments(parser) -> None:
     parser.add_argument("file", nargs="?", metavar="FILE.gcode", type=gcode_job,
                         help=f"G-code job, {GCODE_JOB_HELP} (default: the built-in test print)")
-    parser.add_argument("--printer", metavar="P", help="printer TOML or embedded name: its limits and junction rule")
+    parser.add_argument("--printer", metavar="P", help="printer TOML or embedded name: its limits and junction rule "
+                        "(default: the embedded Ender-3-class printer, as every command)")
     parser.add_argument("--config", metavar="C", help="TuneConfig JSON: frequency limit, accel, shapers for --trajectory")
     parser.add_argument("--junction", choices=("auto", "scv", "jd", "jerk"), default="auto",
                         help="junction rule (default auto: the printer's, else what the job's commands imply)")
