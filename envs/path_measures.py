@@ -14,6 +14,10 @@ from ringtune.envs.visible import corner_legs
 
 _ROUNDING = 1e-9  # mm: outward excursions below a nanometre are floating-point noise
 _EARLY = 0.001  # s: timing slack when assigning samples to the corner being turned
+#: s: the shortest measured stretch of a wall cut short by the window's end whose RMS counts as
+#: ringing: two and a half periods of a 25 Hz mode (a window gives the wall after the corner it is
+#: placed on about 0.2 s)
+RINGING_MIN_SPAN = 0.1
 
 
 def path_error(tu, pts, dist, details: dict) -> float:
@@ -55,9 +59,12 @@ def overshoot(tu, pts, dist, vec, leg, legs: Legs, angle: float, window: float, 
 def ringing_rms(walls, legs: Legs, angle: float, details: dict) -> float:
     """Worst RMS (about its mean) of the deviation across a measured wall that follows a corner
     (``walls``: :func:`ringtune.envs.visible.walls`, whose spans start ``settle`` s after the
-    corner)."""
+    corner). A wall the window's end cuts short counts where at least :data:`RINGING_MIN_SPAN` s
+    of it is measured: over a shorter stub just after its corner the RMS is the corner's transient,
+    and it grows as the stub shrinks, so it would depend on where the window happens to end."""
     after_corner = (legs.turn_deg[walls.leg] >= angle) & (legs.extruding[walls.leg - 1]
                                                          | legs.extruding[walls.leg]) & (walls.leg > 0)
+    after_corner &= walls.cut_span >= RINGING_MIN_SPAN
     if not after_corner.any():
         return 0.0
     i = int(np.argmax(np.where(after_corner, walls.rms, -1.0)))

@@ -22,13 +22,15 @@ _SIDE = 1e-9  # mm: smaller projections on the corner's bisector are neither inw
 class Walls:
     """The measured straight walls of a window: leg index, peak-to-peak of the nozzle's deviation
     across the wall (mm), largest distance from the wall's line (mm), RMS of the deviation about
-    its mean (mm), feature class index."""
+    its mean (mm), feature class index, and how long a stretch of the wall the samples cover where
+    the window's end cuts it short (s; ``inf`` where the wall ends inside the window)."""
 
     leg: np.ndarray
     ripple: np.ndarray
     offset: np.ndarray
     rms: np.ndarray
     cls: np.ndarray
+    cut_span: np.ndarray
 
 
 def wall_spans(legs: Legs, settle: float, early_end: float, min_wall: float):
@@ -52,7 +54,7 @@ def walls(tu, pts, legs: Legs, settle: float, early_end: float, min_wall: float)
     ks, i0, i1 = ks[ok], i0[ok], i1[ok]
     if len(ks) == 0:
         z = np.zeros(0)
-        return Walls(ks, z, z, z, ks)
+        return Walls(ks, z, z, z, ks, z)
     counts = i1 - i0
     first = np.cumsum(counts) - counts
     wall_of = np.repeat(np.arange(len(ks)), counts)
@@ -64,7 +66,9 @@ def walls(tu, pts, legs: Legs, settle: float, early_end: float, min_wall: float)
     lo = np.minimum.reduceat(dev, first)
     mean = np.add.reduceat(dev, first) / counts
     var = np.maximum(np.add.reduceat(dev * dev, first) / counts - mean * mean, 0.0)
-    return Walls(ks, hi - lo, np.maximum(np.abs(hi), np.abs(lo)), np.sqrt(var), legs.cls[ks])
+    ended = t1[ok] <= tu[-1]
+    cut_span = np.where(ended, np.inf, tu[i1 - 1] - tu[i0])
+    return Walls(ks, hi - lo, np.maximum(np.abs(hi), np.abs(lo)), np.sqrt(var), legs.cls[ks], cut_span)
 
 
 def corner_legs(legs: Legs, angle: float) -> np.ndarray:

@@ -104,7 +104,8 @@ Diagnostics and constraints:
 ``ringing_mm``
     max over straight walls that follow a corner of the RMS, about its mean, of the nozzle's
     perpendicular deviation from the wall's line over the span ``ripple_mm`` uses (a diagnostic:
-    the ripple is what is judged).
+    the ripple is what is judged); a wall the window's end cuts short counts where at least 0.1 s
+    of it is measured (:data:`ringtune.envs.path_measures.RINGING_MIN_SPAN`).
 ``peak_accel``
     max over all samples of the head's acceleration magnitude ``|(a_x, a_y)|``, mm/s².
 ``step_loss``

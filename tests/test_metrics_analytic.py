@@ -112,6 +112,33 @@ def test_corner_overshoot_and_wall_ringing_match_closed_forms():
     assert m.path_error_mm >= m.overshoot_mm
 
 
+def test_a_wall_the_window_cuts_short_rings_only_with_a_tenth_of_a_second_measured():
+    """Where the window's end cuts the wall after a corner, its ringing is the RMS over what is
+    measured (closed form) if that is at least 0.1 s; a shorter stub holds the corner's transient,
+    whose RMS exceeds the whole wall's and would grow as the window ends nearer the corner."""
+    A, f, zeta, tc = 0.12, 40.0, 0.05, 0.1
+    dx, sigma, wd = decaying(A, f, zeta)
+    path = polyline_motion([(0, 0), (10, 0), (10, 30)], [tc, 0.3])
+    sim = sim_of(path, lambda t: np.stack([dx(t - tc), 0 * t], axis=1))
+
+    def cut(measured):        # the samples end `measured` s after the corner, the wall goes on
+        keep = sim.t <= tc + measured + 1e-9
+        return FakeSim(sim.t[keep], sim.nozzle[keep], sim.head_accel[keep])
+
+    def rms_truth(b):
+        fn = lambda s: A * math.exp(-sigma * s) * math.sin(wd * s)  # noqa: E731
+        mean = quad(fn, 0.0, b, limit=400)[0] / b
+        ms = quad(lambda s: fn(s) ** 2, 0.0, b, limit=400)[0] / b
+        return math.sqrt(ms - mean * mean)
+
+    for measured in (0.105, 0.15, 0.25):
+        assert compute_metrics(cut(measured), path).ringing_mm == pytest.approx(rms_truth(measured), rel=5e-3)
+    assert rms_truth(0.03) > 1.5 * rms_truth(0.3)
+    for measured in (0.03, 0.095):
+        assert compute_metrics(cut(measured), path).ringing_mm == 0.0
+    assert compute_metrics(sim, path).ringing_mm == pytest.approx(rms_truth(0.3), rel=5e-3)
+
+
 def test_inward_deviation_is_not_overshoot():
     A, f, zeta, tc = 0.12, 40.0, 0.05, 0.1
     dx, *_ = decaying(A, f, zeta)
