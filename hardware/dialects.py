@@ -64,21 +64,79 @@ PER_FEATURE = ("this configuration sets accelerations (or corner rules) per feat
 
 def export_config(config: TuneConfig, firmware: str | None = None, accel: bool = True) -> Export:
     """The lines that put ``config`` on ``firmware`` (default: ``config.firmware``); ``accel``
-    False leaves the printer's acceleration alone."""
+    False leaves the printer's acceleration (and Klipper's corner rule) alone."""
     fw = Firmware.named(firmware or config.firmware, "--firmware")
     exp = _BUILDERS[fw.family](config, fw.name)
+    carried = accel and _carries_corner(config, fw)
     if config.per_feature:
-        exp.notes.insert(0, PER_FEATURE.format(a=fmt(config.accel or 0, 0)) + _corner_not_carried(config))
+        exp.notes.insert(0, PER_FEATURE.format(a=fmt(config.accel or 0, 0)) + _corner_not_carried(config, carried))
     _rounding_notes(config, exp)
     _freq_limit(config, fw, exp)
     _accel(config, fw, exp, accel)
+    _klipper_corner(config, fw, exp, carried)
     return exp
 
 
-def _corner_not_carried(config: TuneConfig) -> str:
+def _carries_corner(config: TuneConfig, fw: Firmware) -> bool:
+    """Whether the lines set the visible walls' corner rule the configuration was tuned with: on
+    Klipper and Kalico (``SET_VELOCITY_LIMIT SQUARE_CORNER_VELOCITY= MINIMUM_CRUISE_RATIO=``), for a
+    configuration tuned for one of them (its ``corner`` is then a square_corner_velocity, mm/s)."""
+    tuned_for = Firmware.named(config.firmware, "config: firmware").junctions
+    given = bool(corner_words(config.corner, config.min_cruise_ratio))
+    return (fw.family, tuned_for) == ("klipper", ("scv",)) and given
+
+
+#: Klipper's SET_VELOCITY_LIMIT words of the corner rule: (word, config field, expected key and
+#: [printer] key, unit, range)
+_KLIPPER_CORNER = (("SQUARE_CORNER_VELOCITY", "corner", "square_corner_velocity", "mm/s",
+                    Span(0.0, 1000.0, 6, why="Klipper takes any SQUARE_CORNER_VELOCITY >= 0; ringtune's "
+                                              "bound on a corner value")),
+                   ("MINIMUM_CRUISE_RATIO", "min_cruise_ratio", "minimum_cruise_ratio", "",
+                    Span(0.0, 0.999999, 6, why="Klipper takes 0 <= MINIMUM_CRUISE_RATIO < 1")))
+
+
+def _klipper_corner_values(config: TuneConfig, fw: Firmware) -> list[tuple]:
+    """[(word, key, unit, value as sent, its text)] of the corner settings the configuration gives."""
+    given = [(word, key, unit, span, getattr(config, name), name) for word, name, key, unit, span in _KLIPPER_CORNER]
+    sent = [(word, key, unit, check_value(v, span, key, unit, f"config: {name}", fw.title), span.decimals)
+            for word, key, unit, span, v, name in given if v is not None]
+    return [(word, key, unit, v, fmt(v, decimals)) for word, key, unit, v, decimals in sent]
+
+
+def _klipper_corner(config: TuneConfig, fw: Firmware, exp: Export, carried: bool) -> None:
+    """Where ``carried``: the visible walls' corner rule as Klipper's own command, read back with the
+    acceleration's report, and the [printer] keys that keep it (comment lines of the config part)."""
+    if not carried:
+        return
+    values = _klipper_corner_values(config, fw)
+    exp.setting_lines.update({key: len(exp.lines) for _, key, _, _, _ in values})
+    exp.expected.update({key: v for _, key, _, v, _ in values})
+    exp.lines.append("SET_VELOCITY_LIMIT " + " ".join(f"{word}={text}" for word, _, _, _, text in values))
+    _read_back(exp, fw.accel_report)
+    keys = "".join(f"#   {key}: {text}\n" for _, key, _, _, text in values)
+    exp.config_text = _printer_section(exp.config_text) + keys
+    exp.notes.append(_corner_note(values))
+
+
+def _printer_section(config_text: str) -> str:
+    """Klipper's config part, ending in the comment that opens the [printer] keys to set."""
+    header = "# and in the [printer] section:"
+    return config_text if header in config_text else config_text + header + "\n"
+
+
+def _corner_note(values: list[tuple]) -> str:
+    """What the corner rule becomes, and what keeps it after a restart."""
+    said = " and ".join(f"{key} {text}{unit and ' ' + unit}" for _, key, unit, _, text in values)
+    keys = " and ".join(key for _, key, _, _, _ in values)
+    return (f"the corner rule becomes {said}, the visible walls' own this config was tuned with; "
+            f"SET_VELOCITY_LIMIT lasts until restart: {keys} in printer.cfg's [printer] section keep it")
+
+
+def _corner_not_carried(config: TuneConfig, carried: bool) -> str:
     """The PER_FEATURE note's tail where the configuration was tuned with a corner rule for the visible
-    walls (``corner``, ``min_cruise_ratio``), which these lines do not set: "" where it has none."""
-    words = corner_words(config.corner, config.min_cruise_ratio)
+    walls (``corner``, ``min_cruise_ratio``), which these lines do not set: "" where it has none or
+    they set it (``carried``)."""
+    words = [] if carried else corner_words(config.corner, config.min_cruise_ratio)
     if not words:
         return ""
     return (f"; nor do they set the visible walls' corner rule it was tuned with ({'; '.join(words)}, "

@@ -7,7 +7,8 @@ Report formats (``shared/reference/firmware.md``):
 - Marlin ``M593``: ``  M593 X F40.00 D0.15`` per axis (may be prefixed ``echo:``)
 - Marlin FT_MOTION ``M493``: ``M493 X C8 A40.00 F0.00 I0.10 Q0.05`` per axis
 - Prusa ``M593``: ``axis X type=MZV freq=50.70 damp=0.10 vr=20.00`` or ``axis Z disabled``
-- acceleration: Klipper ``SET_VELOCITY_LIMIT`` (no args): ``// max_accel: 3000.000000``; Marlin and
+- acceleration: Klipper ``SET_VELOCITY_LIMIT`` (no args): ``// max_accel: 3000.000000`` (and
+  ``// minimum_cruise_ratio: 0.500000``, ``// square_corner_velocity: 5.000000``); Marlin and
   Prusa ``M204``: ``  M204 P3000.00 R3000.00 T3000.00``; RRF ``M204``: ``Maximum printing
   acceleration 3000.0, maximum travel acceleration 3000.0``
 - per-axis caps: Kalico ``SET_VELOCITY_LIMIT`` (no args): ``// max_x_accel: 10010.000000``;
@@ -117,6 +118,10 @@ _ACCEL_REPORTS = {
     "accel": {"klipper": re.compile(rf"max_accel:\s*{_NUM}"),
               "rrf": re.compile(rf"Maximum printing acceleration {_NUM}", re.I),
               "marlin": re.compile(rf"M204(?:\s+S-?[0-9]+(?:\.[0-9]*)?)?\s+P{_NUM}")},
+    # Klipper's corner rule, in the same SET_VELOCITY_LIMIT report (the others' are not read back)
+    "square_corner_velocity": {"klipper": re.compile(rf"square_corner_velocity:\s*{_NUM}"), "rrf": None,
+                               "marlin": None},
+    "minimum_cruise_ratio": {"klipper": re.compile(rf"minimum_cruise_ratio:\s*{_NUM}"), "rrf": None, "marlin": None},
     "travel_accel": {"klipper": None,
                      "rrf": re.compile(rf"maximum travel acceleration {_NUM}", re.I),
                      "marlin": re.compile(rf"M204\b[^\n]*?\sT{_NUM}")},

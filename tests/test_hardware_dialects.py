@@ -340,10 +340,53 @@ def test_a_per_feature_configuration_says_its_settings_belong_in_the_job(fw):
     assert not any("ringtune limit FILE.gcode --accel A" in n for n in notes)
     assert any("ringtune limit FILE.gcode --accel A" in n for n in export_config(one).notes)
     assert not any("per feature" in n for n in export_config(one).notes)
-    # a corner rule tuned for the visible walls is not in the lines either, and the note says which
+    # a corner rule tuned for the visible walls: Klipper's lines set it (next test); the others' do
+    # not, and the note says which
     assert "corner rule" not in notes[0].split("per feature", 1)[1]
     cornered = TuneConfig(**{**per.to_dict(), "corner": 7.0, "min_cruise_ratio": 0.25})
     first = export_config(cornered).notes[0]
-    assert first.endswith("; nor do they set the visible walls' corner rule it was tuned with (corner 7; "
-                          "minimum_cruise_ratio 0.25, in the printer's corner rule's unit): set it on the printer "
-                          "as well, or print the job")
+    not_carried = ("; nor do they set the visible walls' corner rule it was tuned with (corner 7; "
+                   "minimum_cruise_ratio 0.25, in the printer's corner rule's unit): set it on the printer "
+                   "as well, or print the job")
+    assert first.endswith(not_carried) is (fw != "klipper")
+    assert first.endswith(not_carried) is not any("SQUARE_CORNER_VELOCITY" in x for x in export_config(cornered).lines)
+
+
+#: Klipper's own answer to a bare SET_VELOCITY_LIMIT (toolhead.py cmd_SET_VELOCITY_LIMIT: "%.6f" each),
+#: as the console shows it
+KLIPPER_LIMITS_REPORT = ("// max_velocity: 300.000000\n// max_accel: 4800.000000\n"
+                         "// minimum_cruise_ratio: 0.250000\n// square_corner_velocity: 7.500000\n")
+
+
+@pytest.mark.parametrize("fw", ["klipper", "kalico"])
+def test_klippers_lines_set_the_visible_walls_corner_rule_and_read_it_back(fw):
+    """A configuration tuned for Klipper (or Kalico) with a corner rule: one SET_VELOCITY_LIMIT sets
+    square_corner_velocity (mm/s) and minimum_cruise_ratio after the acceleration, Klipper's report
+    gives them back, the config part names the [printer] keys; --no-accel leaves both alone, and a
+    configuration tuned for Marlin (whose corner value is a junction deviation) is not carried."""
+    cfg = TuneConfig(shaper_x="ei", shaper_y="mzv", freq_x=51.4, freq_y=46.6, accel=4800.0, firmware=fw,
+                     corner=7.5, min_cruise_ratio=0.25, feature_accel={"infill": 12000.0})
+    exp = export_config(cfg)
+    assert exp.lines[-2:] == ["SET_VELOCITY_LIMIT ACCEL=4800",
+                              "SET_VELOCITY_LIMIT SQUARE_CORNER_VELOCITY=7.5 MINIMUM_CRUISE_RATIO=0.25"]
+    at = len(exp.lines) - 1
+    assert exp.setting_lines["square_corner_velocity"] == exp.setting_lines["minimum_cruise_ratio"] == at
+    assert exp.readback.count("SET_VELOCITY_LIMIT") == 1
+    assert "#   square_corner_velocity: 7.5\n#   minimum_cruise_ratio: 0.25\n" in exp.config_text
+    assert any(n.startswith("the corner rule becomes square_corner_velocity 7.5 mm/s and minimum_cruise_ratio "
+                            "0.25") for n in exp.notes)
+    checked = compare(exp.expected, parse_report(fw, KLIPPER_LIMITS_REPORT))
+    assert {k: v["ok"] for k, v in checked.items() if k in ("accel", "square_corner_velocity",
+                                                            "minimum_cruise_ratio")} == \
+        {"accel": True, "square_corner_velocity": True, "minimum_cruise_ratio": True}
+    other = compare(exp.expected, parse_report(fw, KLIPPER_LIMITS_REPORT.replace("7.500000", "5.000000")))
+    assert not other["square_corner_velocity"]["ok"] and other["minimum_cruise_ratio"]["ok"]
+    untouched = export_config(cfg, accel=False)
+    assert not any("SET_VELOCITY_LIMIT" in x for x in untouched.lines)
+    assert "square_corner_velocity" not in untouched.expected
+    assert untouched.notes[0].endswith("set it on the printer as well, or print the job")
+    marlin_tuned = TuneConfig(**{**cfg.to_dict(), "firmware": "marlin", "shaper_x": "zv", "shaper_y": "zv",
+                                 "corner": 0.02})
+    assert not any("SQUARE_CORNER" in x for x in export_config(marlin_tuned, fw).lines)
+    fine = export_config(TuneConfig(**{**cfg.to_dict(), "corner": 7.1234567}))   # Klipper reports 6 decimals
+    assert fine.lines[-1].startswith("SET_VELOCITY_LIMIT SQUARE_CORNER_VELOCITY=7.123457 ")

@@ -137,6 +137,34 @@ def test_push_over_pty_and_moonraker_applies_and_reads_back_with_the_acceleratio
     _ready(klipper, mark)
 
 
+def _klipper_corner(svc) -> dict[str, str]:
+    """Klipper's own SET_VELOCITY_LIMIT report of its corner rule, as key -> printed value."""
+    return dict(re.findall(r"(square_corner_velocity|minimum_cruise_ratio):\s*(\S+)", svc.send("SET_VELOCITY_LIMIT")))
+
+
+def test_push_sets_the_visible_walls_corner_rule_and_reads_it_back(klipper, tmp_path, capsys):
+    """A configuration tuned with a corner rule for the visible walls: push sets Klipper's
+    square_corner_velocity and minimum_cruise_ratio and reads them back, over the pty and Moonraker."""
+    before = _klipper_corner(klipper)
+    mark = len(klipper.log.read_text(errors="replace"))
+    try:
+        for target, scv, mcr in ((["--port", klipper.pty], 7.5, 0.25),
+                                 (["--moonraker", klipper.moonraker_url], 9.0, 0.0)):
+            cfg = _write(tmp_path, "best.json", {**TUNED, "corner": scv, "min_cruise_ratio": mcr})
+            assert main(["push", str(cfg), *target, "--json"]) == 0
+            d = json.loads(capsys.readouterr().out)
+            assert d["ok"]
+            assert {k: d["settings"][k]["status"] for k in ("square_corner_velocity", "minimum_cruise_ratio")} == \
+                {"square_corner_velocity": "applied", "minimum_cruise_ratio": "applied"}
+            assert _klipper_corner(klipper) == {"square_corner_velocity": f"{scv:.6f}",
+                                                "minimum_cruise_ratio": f"{mcr:.6f}"}
+    finally:
+        klipper.send("SET_VELOCITY_LIMIT SQUARE_CORNER_VELOCITY={square_corner_velocity} "
+                     "MINIMUM_CRUISE_RATIO={minimum_cruise_ratio}".format(**before))
+    assert _klipper_corner(klipper) == before
+    _ready(klipper, mark)
+
+
 def test_the_exported_command_part_sent_as_a_file_is_all_understood(klipper, tmp_path, capsys):
     cfg = _write(tmp_path, "best.json", TUNED)
     out = tmp_path / "shaping.gcode"

@@ -82,7 +82,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--output", metavar="FILE", help="write the commands here, the config-file and "
                    "slicer parts beside it (else print them)")
     p.add_argument("--part", choices=PARTS, help="only this part (default: all there are)")
-    p.add_argument("--no-accel", action="store_true", help="leave the printer's acceleration alone")
+    p.add_argument("--no-accel", action="store_true",
+                   help="leave the printer's acceleration (and Klipper's corner rule) alone")
     p.add_argument("--slicer", choices=("prusaslicer", "orcaslicer", "cura"),
                    help="also write this slicer's per-feature acceleration settings")
     p.add_argument("--slicer-version", metavar="X.Y", help="the slicer's version where its keys differ "

@@ -86,7 +86,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="seconds without any answer before giving up (default 10)")
     p.add_argument("--save", action="store_true", help="persist the settings (see above)")
     p.add_argument("--save-file", metavar="FILE", help="where --save writes config lines (RRF, Klipper)")
-    p.add_argument("--no-accel", action="store_true", help="leave the printer's acceleration alone")
+    p.add_argument("--no-accel", action="store_true",
+                   help="leave the printer's acceleration (and Klipper's corner rule) alone")
     p.add_argument("--dry-run", action="store_true", help="print exactly what would be sent; send nothing")
     p.add_argument("--force", action="store_true", help="send values far outside what the printer is "
                    "configured for (refused otherwise, nothing sent)")
