@@ -197,6 +197,7 @@ def test_the_summary_names_marlins_retract_acceleration_as_the_planner_measures_
                                               rel=1e-12)
     assert r.time_without_s < r.time_s
     assert "M204 R 500 mm/s² binds on 2 retractions" in binding_sentences([r], 3000.0)[1]
+    assert "M204 R 500 mm/s² binds on 1 retraction (E-only move): " in replace(r, moves=1).sentence()
 
 
 def test_klipper_gives_its_e_caps_to_the_extruder_alone_and_says_when_it_has_none():
