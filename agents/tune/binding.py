@@ -46,10 +46,14 @@ class Binding:
 
     def sentence(self) -> str:
         pct = 100.0 * self.cost_s / self.time_without_s if self.time_without_s > 0 else 0.0
-        what = self.what if self.moves != 1 else self.what.replace("moves", "move").replace("retractions", "retraction")
-        return (f"{self.name} {self.value:.0f} mm/s² binds on {self.moves} {what}: the planner gives "
+        return (f"{self.name} {self.value:.0f} mm/s² binds on {_counted(self.moves, self.what)}: the planner gives "
                 f"{self.time_s:.2f} s with it and {self.time_without_s:.2f} s with it removed "
                 f"({self.cost_s:+.2f} s, {pct:+.1f} %)")
+
+
+def _counted(n: int, what: str) -> str:
+    """``"2 moves with Z travel"``, ``"1 move with Z travel"``."""
+    return f"{n} {what.replace('moves', 'move').replace('retractions', 'retraction') if n == 1 else what}"
 
 
 #: the limits' own names per firmware family (``x``, ``y``, ``z``: the per-axis caps), Marlin's G-code where
