@@ -97,10 +97,13 @@ _KLIPPER_CORNER = (("SQUARE_CORNER_VELOCITY", "corner", "square_corner_velocity"
 
 def _klipper_corner_values(config: TuneConfig, fw: Firmware) -> list[tuple]:
     """[(word, key, unit, value as sent, its text)] of the corner settings the configuration gives."""
-    given = [(word, key, unit, span, getattr(config, name), name) for word, name, key, unit, span in _KLIPPER_CORNER]
-    sent = [(word, key, unit, check_value(v, span, key, unit, f"config: {name}", fw.title), span.decimals)
-            for word, key, unit, span, v, name in given if v is not None]
-    return [(word, key, unit, v, fmt(v, decimals)) for word, key, unit, v, decimals in sent]
+    out = []
+    for word, name, key, unit, span in _KLIPPER_CORNER:
+        value = getattr(config, name)
+        if value is not None:
+            v = check_value(value, span, key, unit, f"config: {name}", fw.title)
+            out.append((word, key, unit, v, fmt(v, span.decimals)))
+    return out
 
 
 def _klipper_corner(config: TuneConfig, fw: Firmware, exp: Export, carried: bool) -> None:
