@@ -121,10 +121,14 @@ def _klipper_corner(config: TuneConfig, fw: Firmware, exp: Export, carried: bool
     exp.notes.append(_corner_note(values))
 
 
+#: the comment of Klipper's config part that opens the [printer] keys to set (the part replaces
+#: [input_shaper] only)
+_PRINTER_KEYS = "# and in the [printer] section:"
+
+
 def _printer_section(config_text: str) -> str:
     """Klipper's config part, ending in the comment that opens the [printer] keys to set."""
-    header = "# and in the [printer] section:"
-    return config_text if header in config_text else config_text + header + "\n"
+    return config_text if _PRINTER_KEYS in config_text else config_text + _PRINTER_KEYS + "\n"
 
 
 def _corner_note(values: list[tuple]) -> str:
@@ -251,7 +255,7 @@ def _klipper_printer_section(fw: Firmware, exp: Export, a: float) -> None:
             if k.startswith("max_accel_") and fw.axis_accel_config]
     exp.notes.append(f"SET_VELOCITY_LIMIT lasts until restart: {', '.join(['max_accel', *keys])} in "
                      "printer.cfg's [printer] section keeps it")
-    exp.config_text += f"# and in the [printer] section: max_accel: {fmt(a, fw.accel.decimals)}\n"
+    exp.config_text += f"{_PRINTER_KEYS} max_accel: {fmt(a, fw.accel.decimals)}\n"
     exp.config_text += "".join(f"#   {key}: {fmt(exp.expected['max_accel_' + key[4]], fw.axis_accel.decimals)}\n"
                                for key in keys)
 
