@@ -2,7 +2,7 @@
 
 On randomised printers never seen in training (``reset(seed=s)`` of ``ringtune/Tune-v0`` for ``s``
 in ``ringtune.agents.ppo.training.BENCH_SEEDS``; training uses seeds < 800000 and the evaluation callback
-900000–900007), the environment's cost (−reward), which is ``tune``'s judgement as one number
+900000–900015), the environment's cost (−reward), which is ``tune``'s judgement as one number
 (``ringtune.envs.judgement``: print-time ratio + 5 × the summed relative excess of every visible
 measure, extrusion and show-through over the baseline's — MZV on the printer's resonance peaks at
 its own acceleration — beyond tune's resolution, + the constraints: lost steps +10, motor load over

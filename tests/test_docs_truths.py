@@ -24,7 +24,7 @@ def test_training_time_is_one_statement(capsys):
     readme = " ".join(README.read_text().split())
     text = _help(capsys, "train")
     times = set(re.findall(r"\d+ min \d+ s|\d+(?:\.\d+)? min", text))
-    assert times == {"10 min 34 s", "6 min 42 s", "16.1 min"}, times
+    assert times, "`train --help` gives no measured training time"
     for t in times:
         assert t in readme
     assert "otherwise idle cores" in text and "otherwise idle cores" in readme

@@ -55,10 +55,12 @@ nothing else): a bar on a terminal, else (logs, CI, nohup) a line every 10 s wit
 and the held-out printers' best mean cost so far.
 
 Runs --envs environments in subprocesses, normalises observations and rewards (VecNormalize),
-evaluates on 8 held-out printers (seeds disjoint from training) at the start and during training,
+evaluates on 16 held-out printers (seeds disjoint from training) at the start and during training,
 shows a progress bar, and writes checkpoints. The training reward is the cost relative to a
 reference answer (MZV on the peak) on the same printer, each printer shown 4 times: the same
-optimum, without the spread between printers. The output folder DIR receives policy.zip and
+optimum, without the spread between printers. Every evaluation (the starting answer the policy
+observes, its answer, the held-out printers' cost) is judged as tune judges: on the printer and
+its resonances +-5 % with damping x0.75, the worst counting. The output folder DIR receives policy.zip and
 vecnormalize.pkl (the held-out best, the starting policy included), final.zip (the last weights),
 best/, training_curve.png, evaluations.npz and meta.json. --resume continues from the newest checkpoint
 in DIR up to --timesteps in total. --hpo first tunes PPO's own hyperparameters with Optuna (short
@@ -68,9 +70,8 @@ The policy's shaper frequencies are residuals around each axis's resonance peak 
 same resonance-test PSD it observes): 0 puts the shaper on the peak, +-1 an octave above or below,
 so the answer transfers to measured spectra; the frequency limit stays off unless chosen.
 
-The defaults (12,288 steps, 2 envs) train in 10 min 34 s on 2 otherwise idle cores (the policy
-measured in the README; 6 min 42 s before the judgement measured what a person sees), and took
-16.1 min then on cores shared with other work (load average ~3).
+The defaults (6,144 steps, 2 envs) train in 17 min 25 s on 2 otherwise idle cores (the policy
+measured in the README), 27 min 54 s on cores shared with a benchmark.
 
 Policy files are stable-baselines3 zips plus a pickle: loading one runs code from it, so only use
 policies you trained or trust.

@@ -42,15 +42,17 @@ from ringtune.agents.ppo.rl import rl
 from ringtune.envs.env import TuneEnv
 from ringtune.shaping.errors import RingtuneError
 
-#: held-out printers of the evaluation callback (never used for training)
-EVAL_SEEDS = tuple(range(900_000, 900_008))
+#: held-out printers of the evaluation callback (never used for training; the policy kept is the one
+#: whose mean cost on them is lowest, and one printer's cost can move by half between two policies:
+#: 16, not 8, so that no single printer decides which is kept)
+EVAL_SEEDS = tuple(range(900_000, 900_016))
 #: the benchmark's unseen printers (benchmarks/bench_ppo.py)
 BENCH_SEEDS = tuple(range(950_000, 950_020))
 #: training seeds must stay below this
 MAX_TRAIN_SEED = 800_000
-#: ``ringtune train`` defaults (acceptance 4: ≤ 20 min on 2 cores; one episode ~0.1 s per free core with
-#: the lti backend; measured 16.1 min wall on 2 cores shared with other jobs, load average ~3)
-DEFAULT_TIMESTEPS = 12_288
+#: ``ringtune train`` defaults (acceptance 4: ≤ 20 min on 2 cores; one episode ~0.35 s per free core with
+#: the lti backend, judged on the printer and its twins as tune judges: 3 evaluations of 3 printers)
+DEFAULT_TIMESTEPS = 6_144
 DEFAULT_N_ENVS = 2
 #: (``reference_reward``/``printer_repeats``: the training reward is relative to
 #: :data:`~ringtune.agents.ppo.policy.PRIOR` on the same printer, each printer shown 4 times; see
