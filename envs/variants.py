@@ -13,6 +13,13 @@ from typing import NamedTuple
 #: 0.075–0.15 around its 0.1 (its low end, 0.75×)
 TWIN_DAMPING = 0.75
 
+#: fraction: by default every configuration is judged on the printer and on the printer with all
+#: resonances 5 % lower and 5 % higher (damping ratios × TWIN_DAMPING), and the worst quality
+#: counts (``evaluate_many``'s ``freq_margin``): a real printer's frequencies drift by that much
+#: (print mass on the bed, toolhead position, a resonance test's 1.5 Hz bins), its damping is less
+#: certain still, and a shaper at the edge of its band on the exact model does not survive it
+DEFAULT_FREQ_MARGIN = 0.05
+
 
 class Variant(NamedTuple):
     """A printer variant a configuration is judged on: every mode's frequency × ``freq`` and damping

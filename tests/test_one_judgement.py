@@ -13,7 +13,7 @@ import sys
 import pytest
 
 from ringtune.agents.cli.main import main
-from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
+from ringtune.envs.variants import DEFAULT_FREQ_MARGIN
 
 RINGTUNE = [sys.executable, "-m", "ringtune.agents.cli.main"]
 

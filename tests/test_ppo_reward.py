@@ -10,7 +10,10 @@ import pytest
 
 from ringtune.agents.ppo import policy as ppo
 from ringtune.agents.ppo.reward import ReferenceRelative, reward_of
+from ringtune.agents.tune.study import StudySettings
 from ringtune.envs.env import TuneEnv
+from ringtune.envs.evaluate import evaluate_many
+from ringtune.envs.variants import DEFAULT_FREQ_MARGIN
 
 from test_ppo_train import SQUARE_JOB
 
@@ -95,3 +98,23 @@ def test_training_env_observes_the_prior_and_its_evaluation_is_the_reference():
     assert info["reference_cost"] == pytest.approx(-fresh.reward(fresh.evaluate(start)), rel=1e-9)
     env.reset()                # the same printer again: no evaluation
     assert len(calls) == 2
+
+
+def test_training_judges_as_tune_judges_on_the_printer_and_its_twins():
+    """The policy's environment (training, held-out printers, recommend) judges every answer as
+    tune does: the worst of the printer and its resonances ±5 % with damping ×0.75. Trained on the
+    printer alone, a policy learned answers the twins punish (README, PPO)."""
+    assert KW["freq_margin"] == DEFAULT_FREQ_MARGIN == StudySettings(storage="journal:unused").freq_margin
+    env = TuneEnv(randomize=True, **KW)
+    env.reset(seed=21)
+
+    def judged(cfg, margin):
+        return evaluate_many([cfg], env.printer, env.job, backend=KW["backend"], freq_margin=margin)[0]
+
+    assert env.start_metrics_.to_dict() == judged(env.config, DEFAULT_FREQ_MARGIN).to_dict()
+    action = ppo.prior_action(KW)
+    cfg = env.decode(action)
+    twins, alone = judged(cfg, DEFAULT_FREQ_MARGIN), judged(cfg, 0.0)
+    _, reward, *_ = env.step(action)
+    assert reward == pytest.approx(-env.cost(twins), abs=1e-12)
+    assert env.cost(twins) > env.cost(alone)        # the twins count: this answer rings more on one of them

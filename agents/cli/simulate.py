@@ -37,14 +37,13 @@ from ringtune.agents.cli.common import GCODE_JOB_HELP, firmware_name, gcode_job,
 from ringtune.agents.cli.simulate_config import build_config, freq_margin, max_path_error, motor_reserve
 from ringtune.agents.cli.trace_option import write_trace_option
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
-from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
 from ringtune.agents.tune.pareto import point_from_metrics
 from ringtune.agents.tune.versus import baseline_evaluations, table as versus_table, versus_all
 from ringtune.envs.evaluate import evaluate_judged
 from ringtune.envs.planned_job import job_accel_commands, planned_job, resolve_job, resolve_printer
 from ringtune.envs.metrics import Metrics
 from ringtune.envs.plots import plot_evaluation
-from ringtune.envs.variants import variant_factors
+from ringtune.envs.variants import DEFAULT_FREQ_MARGIN, variant_factors
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import for_firmware, job_accel_mode
 from ringtune.shaping.e_timing import E_TIMING_WORDS

@@ -10,7 +10,7 @@ from ringtune.agents.cli.common import load_config
 from ringtune.agents.cli.options import Value
 from ringtune.agents.tune.baselines import current_config
 from ringtune.agents.tune.pareto import DEFAULT_MAX_PATH_ERROR_MM, DEFAULT_MOTOR_RESERVE
-from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
+from ringtune.envs.variants import DEFAULT_FREQ_MARGIN
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import FIRMWARES

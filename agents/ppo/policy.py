@@ -27,6 +27,7 @@ import numpy as np
 from ringtune.agents.ppo.rl import rl
 from ringtune.envs.actions import encode_config
 from ringtune.envs.env import TuneEnv
+from ringtune.envs.variants import DEFAULT_FREQ_MARGIN
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
@@ -39,13 +40,13 @@ from ringtune.shaping.errors import RingtuneError
 #: (``observe_metrics``, ``start_action`` filled in by :func:`resolve_env_kwargs`): how much that
 #: printer rings, overshoots or loses steps at 4000 mm/s² is what decides how hard it can be driven,
 #: and a spectrum alone does not show it (the motor's force reserve, the moving masses)
-#: ``freq_margin`` 0.05: every evaluation (the starting answer it observes, its answer, the reward) is
+#: ``freq_margin`` (tune's, 0.05): every evaluation (the starting answer it observes, its answer, the reward) is
 #: judged as ``tune`` judges, on the printer and its resonances ±5 % with damping ×0.75. Trained on
 #: the printer alone, a policy learns answers its twins punish: the benchmark, which judges as tune
 #: does, then finds it worse than its own starting answer
 DEFAULT_ENV_KWARGS: dict[str, Any] = {"tune_accel": True, "observe_metrics": True, "backend": "lti",
                                       "freq_anchor": "peak", "freq_limit_gate": True, "accel_anchor": "model",
-                                      "freq_margin": 0.05}
+                                      "freq_margin": DEFAULT_FREQ_MARGIN}
 
 
 # -- environments -----------------------------------------------------------------------------------

@@ -60,16 +60,10 @@ from ringtune.agents.tune.storage import _this_worker, await_finished, make_stor
 from ringtune.agents.tune.study_resume import check_resumed
 from ringtune.agents.tune.workers import start_workers
 from ringtune.envs.printer import load_printer
-from ringtune.envs.variants import TWIN_DAMPING
+from ringtune.envs.variants import DEFAULT_FREQ_MARGIN, TWIN_DAMPING
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
-#: fraction: by default every configuration is judged on the printer and on the printer with all
-#: resonances 5 % lower and 5 % higher (damping ratios × TWIN_DAMPING), and the worst quality
-#: counts (``evaluate_many``'s ``freq_margin``): a real printer's frequencies drift by that much
-#: (print mass on the bed, toolhead position, a resonance test's 1.5 Hz bins), its damping is less
-#: certain still, and a shaper at the edge of its band on the exact model does not survive it
-DEFAULT_FREQ_MARGIN = 0.05
 DEFAULT_EVALUATOR = "ringtune.envs.evaluate:evaluate_many"
 
 
