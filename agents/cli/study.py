@@ -20,10 +20,10 @@ from pathlib import Path
 from ringtune.agents.cli.common import GCODE_JOB_HELP, firmware_name, gcode_job, judgement, say_unmeasured
 from ringtune.agents.cli.options import VALUES, number_list
 from ringtune.agents.tune.pareto import words
-from ringtune.envs.variants import DEFAULT_FREQ_MARGIN
 from ringtune.agents.tune.sweep import (FACTORS, factor_values, offered_shapers, plot_sweep, sweep,
     tuned_frequencies, write_csv)
 from ringtune.envs.planned_job import resolve_printer
+from ringtune.envs.variants import DEFAULT_FREQ_MARGIN
 
 NAME = "study"
 #: the --quality choices: a visible measure or a whole-path one, in mm (``<name>_mm`` of the metrics)
