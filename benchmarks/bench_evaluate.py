@@ -62,7 +62,7 @@ def main() -> None:
         ev.evaluate_many([cfg], printer, None, nthread=1, freq_margin=margin)
         return clock() - t0
 
-    from ringtune.agents.tune.study import DEFAULT_FREQ_MARGIN
+    from ringtune.envs.variants import DEFAULT_FREQ_MARGIN
     from ringtune.envs.metrics import worst_case
 
     variants = [printer, printer.detuned(1 - DEFAULT_FREQ_MARGIN), printer.detuned(1 + DEFAULT_FREQ_MARGIN)]

@@ -7,7 +7,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from ringtune.agents.tune import pareto, study as tune_study
+from ringtune.agents.tune import pareto
+from ringtune.envs.variants import DEFAULT_FREQ_MARGIN
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.wall_gap import show_through_bound
 
@@ -71,7 +72,7 @@ _RUN_CHECKS = (
 _BOUNDS = (
     ("max_path_error", "--max-path-error", pareto.DEFAULT_MAX_PATH_ERROR_MM, 1.0, lambda v: v >= 0,
      "must be ≥ 0 (mm; 0 = no bound)"),
-    ("freq_margin", "--freq-margin", tune_study.DEFAULT_FREQ_MARGIN, 0.01, lambda v: 0 <= v < 0.5,
+    ("freq_margin", "--freq-margin", DEFAULT_FREQ_MARGIN, 0.01, lambda v: 0 <= v < 0.5,
      "must be in [0, 50) per cent"),
     ("motor_reserve", "--motor-reserve", pareto.DEFAULT_MOTOR_RESERVE, 0.01, lambda v: 0 <= v < 1,
      "must be in [0, 100) per cent"),
