@@ -55,7 +55,8 @@ def test_pinned_eval_env_shows_the_same_printer_every_reset():
 
 
 @pytest.mark.slow
-def test_subprocess_training_writes_policy_resumes_and_recommends(tmp_path):
+def test_subprocess_training_writes_policy_resumes_and_recommends(tmp_path, monkeypatch):
+    monkeypatch.setattr(ppo_training, "EVAL_SEEDS", ppo_training.EVAL_SEEDS[:2])   # the mechanics, not the set
     kw = {"job": SQUARE_JOB}
     hyper = {"n_steps": 16, "batch_size": 16, "n_epochs": 2, "net_arch": [16, 16]}
     out = tmp_path / "pol"
@@ -213,6 +214,7 @@ def test_hpo_runs_short_trainings_and_returns_the_best(tmp_path, monkeypatch):
                 "net_arch": [8, 8]}
 
     monkeypatch.setattr(ppo_hpo, "suggest_hyper", small)
+    monkeypatch.setattr(ppo_training, "EVAL_SEEDS", ppo_training.EVAL_SEEDS[:2])   # the mechanics, not the set
     res = ppo_hpo.tune_hyperparameters(tmp_path, n_trials=2, budget=8, n_envs=1, seed=2,
                                        env_kwargs={"job": SQUARE_JOB})
     assert res["trials"] == 2 and len(res["all"]) == 2
