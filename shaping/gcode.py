@@ -16,7 +16,7 @@ as an event of kind ``other`` (never an error). Slicer feature comments (``;TYPE
 
 G90/G91 set XYZ and E together as Marlin and RRF do (Klipper's G90 leaves an M83 in force; slicers
 write M82/M83 after G90, so real jobs read the same). Commands that make a firmware drain its queue (``G4``, ``G28``, ``G29``, ``M400``, ``M109``,
-``M190``, ``M0/M1``, ``M600``, shaper changes) and a firmware retraction (``G10``/``G11`` without P
+``M190``, ``M0/M1``, ``M600``, shaper changes, ``M84``/``M18`` without S) and a firmware retraction (``G10``/``G11`` without P
 or L that retracts or restores: an E-only move) set ``stop_before`` on the next move: the planner
 comes to rest there.
 
@@ -45,7 +45,7 @@ from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware_retraction import RetractionState
 from ringtune.shaping.gcode_file import open_lines, read_gcode_bytes, read_head, refuse_non_gcode
 from ringtune.shaping.gcode_sniff import HEAD
-from ringtune.shaping.job import (LIMIT_COMMANDS, SETTING_KEYS, SHAPER_COMMANDS, STOP_COMMANDS,
+from ringtune.shaping.job import (LIMIT_COMMANDS, MOTORS_OFF, SETTING_KEYS, SHAPER_COMMANDS, STOP_COMMANDS,
                                   Event, FirmwareRetractionAt, Job)
 from ringtune.shaping.gcode_commands import BOUNDS as _BOUNDS
 from ringtune.shaping.gcode_commands import SettingCommands
@@ -329,7 +329,7 @@ class _Reader(SettingCommands, MotionCommands):
             self.stop = True
             self._event("shaper", cmd, words, lineno, code)
         else:
-            if cmd in STOP_COMMANDS:
+            if cmd in STOP_COMMANDS or (cmd in MOTORS_OFF and "S" not in words):
                 self.stop = True
             elif self.retraction.moves(cmd, words):
                 self._retraction_at(cmd, lineno)

@@ -26,6 +26,9 @@ SETTING_KEYS = (
 SHAPER_COMMANDS = ("M593", "M493", "SET_INPUT_SHAPER")
 LIMIT_COMMANDS = ("M201", "M203", "M204", "M205", "M220", "M566", "SET_VELOCITY_LIMIT")
 STOP_COMMANDS = {"G4", "G28", "G29", "M400", "M109", "M190", "M0", "M1", "M600", *SHAPER_COMMANDS}
+#: motors off: every firmware drains its queue first (Marlin's and RRF's M84 S… only sets the idle
+#: timeout and does not; Klipper reads no word of it)
+MOTORS_OFF = ("M84", "M18")
 AXES = "XYZE"
 
 

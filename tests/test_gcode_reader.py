@@ -9,6 +9,7 @@ import pytest
 
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.gcode import read_gcode
+from ringtune.shaping.klipper_reading import klipper_rests
 from ringtune.shaping.slicer import slicer_estimate
 
 
@@ -146,6 +147,21 @@ def test_dwell_and_homing_stop_the_planner():
     np.testing.assert_allclose(job.dwell_before, [0, 1.5, 0])
     np.testing.assert_array_equal(job.stop_before, [True, True, True])
     np.testing.assert_allclose(job.start[2], [0, 0, 0, 0])           # homed X -> 0
+
+
+def test_motors_off_stops_the_planner_unless_it_only_sets_the_idle_timeout():
+    # Marlin's and RRF's M84 S… sets the idle timeout and does not wait for the moves; M84 and M18
+    # without it drain the queue first, as G4 does; Klipper (klipper_reading) stops at both
+    job = read_gcode("G1 X10 F600\nM84 S30\nG1 X20\nM84\nG1 X30\nM18 X Y\nG1 X40\n")
+    np.testing.assert_array_equal(job.stop_before, [True, False, True, True])
+    np.testing.assert_allclose(job.dwell_before, 0.0)
+    stop, dwell, after = klipper_rests(job)
+    np.testing.assert_array_equal(stop, [True, True, True, True])
+    # each finds a motor on (a move since the last): 0.1 s before and after, and two 1 ms step flushes
+    np.testing.assert_allclose(dwell, [0, 0.202, 0.202, 0.202])
+    again = read_gcode("G28\nM84\nM84\nG1 X5 F600\nG1 E1\nM18\nM84\n")     # G28 turns them on
+    np.testing.assert_allclose(klipper_rests(again)[1], [0.202, 0.0])
+    assert klipper_rests(again)[2] == pytest.approx(0.202)                # after the last move
 
 
 def test_real_files_parse(data_dir):

@@ -8,10 +8,11 @@ extruder's limits on retractions and Klipper's defaults for them) is checked wit
 
 Jobs: the built-in PrusaSlicer part (40,163 moves, with its retractions and layer changes; its G28
 becomes SET_KINEMATIC_POSITION, since batch mode cannot home, and its heat-and-wait lines and closing
-M84, a dwell of Klipper's, are left out), the same rewritten with a per-feature configuration
+M84 are left out: batch mode, whose MCU clock reads 0, adds 0.05 s at the step flush of a job's last
+command that a printer does not), the same rewritten with a per-feature configuration
 (SET_VELOCITY_LIMIT ACCEL, SQUARE_CORNER_VELOCITY and MINIMUM_CRUISE_RATIO at each feature
-change), retractions on an extruder whose own limits exceed the toolhead's, wipes, and the two real
-ringing towers of tests/data (Simplify3D, PrusaSlicer for Marlin)."""
+change), retractions on an extruder whose own limits exceed the toolhead's, wipes, M84/M18 mid-job, and
+the two real ringing towers of tests/data (Simplify3D, PrusaSlicer for Marlin)."""
 
 from __future__ import annotations
 
@@ -225,3 +226,23 @@ def test_firmware_retraction_arcs_dwells_and_speed_factor_plan_at_real_klippers_
     real = _klipper_time(real_klipper, cfg, job)
     assert _planned(tmp_path, cfg, job, capsys) == pytest.approx(real, abs=2e-3)
     assert real > 3.0
+
+
+def test_motors_off_mid_job_rests_and_dwells_where_a_motor_is_on(real_klipper, tmp_path, capsys):
+    # M84 after moves: a rest, 0.1 s before and after turning the motors off and the step flush; again
+    # at once: a rest alone (nothing is on); M84 S30 (Marlin's idle timeout) turns them off all the same;
+    # M18 after a retraction alone (the extruder's motor is on). Each M84 clears the homing: the position
+    # is set again, where the head is, before the next move. Each is followed by a G4: batch mode, whose
+    # MCU clock reads 0, adds 0.05 s to a move that restarts at once after a step flush, a printer not.
+    cfg = _cfg(tmp_path)
+    job = tmp_path / "motors_off.gcode"
+    job.write_text(START + "G90\nM83\nG1 X40 Y0 E2 F6000\nM84\nG4 P300\nM84\nG4 P300\n"
+                   "SET_KINEMATIC_POSITION X=40 Y=0 Z=0\nG1 X40 Y30 E1.5 F6000\nM84 S30\nG4 P300\n"
+                   "SET_KINEMATIC_POSITION X=40 Y=30 Z=0\nG1 E-1 F2400\nM18\nG4 P300\n"
+                   "SET_KINEMATIC_POSITION X=40 Y=30 Z=0\nG1 X0 Y0 F9000\n")
+    real = _klipper_time(real_klipper, cfg, job)
+    planned = _planned(tmp_path, cfg, job, capsys)
+    assert planned == pytest.approx(real, abs=2e-3)
+    job.write_text("".join(line for line in job.read_text().splitlines(keepends=True)
+                           if not line.startswith(("M84", "M18"))))
+    assert planned - _planned(tmp_path, cfg, job, capsys) == pytest.approx(3 * 0.202, abs=1e-6)   # three on
