@@ -36,30 +36,39 @@ def klipper_rests(job) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 def _rests(job) -> tuple[np.ndarray, np.ndarray, float]:
-    stop, dwell, after = job.stop_before, job.dwell_before, job.dwell_after
     n = job.n_moves
-    unknown = {ev.move for ev in job.events if ev.command in KLIPPER_NO_STOP and 0 < ev.move < n}
-    if unknown:
-        for ev in job.events:          # any other command that stops there keeps the rest
-            if ev.move in unknown and _stops(ev):
-                unknown.discard(ev.move)
-        stop = stop.copy()
-        stop[list(unknown)] = False
-    waits = [(ev.move, ev.params["p_seconds"] - ev.params["seconds"]) for ev in job.events
-             if ev.kind == "dwell" and ev.params["seconds"] != ev.params["p_seconds"]]
-    off = [ev.move for ev in job.events if ev.command in MOTORS_OFF]
+    stop = _unknown_unstopped(job, job.stop_before)
+    off = [ev.move for ev in job.events if ev.command in MOTORS_OFF and 0 < ev.move < n]
     if off:
         stop = stop.copy()
-        stop[[m for m in off if 0 < m < n]] = True                 # an S word too
-        waits += [(m, MOTORS_OFF_DWELL) for m in _motors_on_at(job)]
-    if waits:
-        dwell = dwell.copy()
-        for move, s in waits:
-            if move < n:
-                dwell[move] += s
-            else:
-                after += s
+        stop[off] = True                                    # an S word too
+    dwell, after = job.dwell_before.copy(), job.dwell_after
+    for move, s in _waits(job):
+        if move < n:
+            dwell[move] += s
+        else:
+            after += s
     return stop, dwell, after
+
+
+def _waits(job) -> list[tuple[int, float]]:
+    """(move, s) Klipper waits before ``move`` beyond the reader's dwells: a G4's P where it gives S
+    too (the reader took S), and :data:`MOTORS_OFF_DWELL` at each M84/M18 that finds a motor on."""
+    g4 = [(ev.move, ev.params["p_seconds"] - ev.params["seconds"]) for ev in job.events
+          if ev.kind == "dwell" and ev.params["seconds"] != ev.params["p_seconds"]]
+    return g4 + [(m, MOTORS_OFF_DWELL) for m in _motors_on_at(job)]
+
+
+def _unknown_unstopped(job, stop: np.ndarray) -> np.ndarray:
+    """``stop`` without the rests only commands of :data:`KLIPPER_NO_STOP` made."""
+    n = job.n_moves
+    unknown = {ev.move for ev in job.events if ev.command in KLIPPER_NO_STOP and 0 < ev.move < n}
+    unknown -= {ev.move for ev in job.events if ev.move in unknown and _stops(ev)}   # another stops there
+    if not unknown:
+        return stop
+    stop = stop.copy()
+    stop[list(unknown)] = False
+    return stop
 
 
 def _motors_on_at(job) -> list[int]:
