@@ -72,10 +72,10 @@ def extrusion(e_made: np.ndarray, tu: np.ndarray, pts: np.ndarray, vec: np.ndarr
     straight = (t >= legs.t_start[k0] + after) & (t <= legs.t_end[k0] - before)
     lo_e, hi_e = legs.e_start[first[run]], legs.e_end[last[run]]
     made = np.clip(e_made[ok], lo_e, hi_e)
-    lead_path, cls = _lead(made, s_path, legs, first[run], last[run])
-    lead_near, _ = _lead(made, _running_max_per_run(s_near, run), legs, first[run], last[run])
+    asked, cls, _, beyond = _asked(s_path, legs, first[run], last[run])
+    lead_near = _lead(made, _running_max_per_run(s_near, run), legs, first[run], last[run])
     order = np.argsort(run, kind="stable")
-    excess, start = _excess(lead_path[order], s_path[order], run[order], span)
+    excess, start = _excess(made[order], asked[order], beyond[order], s_path[order], run[order], span)
     return Extrusion(lead_near[straight], cls[straight], excess, cls[order][start])
 
 
@@ -100,13 +100,26 @@ def _nozzle_path(s_near, pts, run, active, s_first) -> np.ndarray:
     return out
 
 
-def _lead(made, s, legs: Legs, lo: np.ndarray, hi: np.ndarray):
-    """(lead mm, feature class) of each sample: filament made beyond what the path holds up to
-    path position ``s``, in mm of that path."""
+def _asked(s, legs: Legs, lo: np.ndarray, hi: np.ndarray):
+    """(filament mm the path holds up to path position ``s``, the feature class there, the leg's
+    mean filament per mm of path, the filament the path would hold beyond its run's end at that
+    rate) of each sample: along the moves the leg was merged from, each at its own rate
+    (:attr:`Legs.knot_s`)."""
     k = _leg_at(legs, s, lo, hi)
     per_mm = np.maximum(legs.e_end[k] - legs.e_start[k], 1e-12) / np.maximum(legs.length[k], EPS_LEN)
-    asked = legs.e_start[k] + per_mm * np.clip(s - legs.s_start[k], 0.0, legs.length[k])
-    return (made - asked) / per_mm, legs.cls[k]
+    at = legs.s_start[k] + np.clip(s - legs.s_start[k], 0.0, legs.length[k])
+    j = np.clip(np.searchsorted(legs.knot_s, at, side="right") - 1, legs.knot_first[k], legs.knot_last[k] - 1)
+    s0, e0 = legs.knot_s[j], legs.knot_e[j]
+    frac = np.clip((at - s0) / np.maximum(legs.knot_s[j + 1] - s0, EPS_LEN), 0.0, 1.0)
+    asked = e0 + frac * (legs.knot_e[j + 1] - e0)
+    return asked, legs.cls[k], per_mm, per_mm * np.maximum(s - at, 0.0)
+
+
+def _lead(made, s, legs: Legs, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Lead (mm) of each sample: filament made beyond what the path holds up to path position
+    ``s``, in mm of path at the leg's mean rate."""
+    asked, _cls, per_mm, _beyond = _asked(s, legs, lo, hi)
+    return (made - asked) / per_mm
 
 
 def _running_max_per_run(s: np.ndarray, run: np.ndarray) -> np.ndarray:
@@ -126,12 +139,18 @@ def _leg_at(legs: Legs, s: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.nda
     return np.clip(idx[np.maximum(j, 0)], lo, hi)
 
 
-def _excess(lead: np.ndarray, s: np.ndarray, run: np.ndarray, span: float):
+def _excess(made: np.ndarray, asked: np.ndarray, beyond: np.ndarray, s: np.ndarray, run: np.ndarray,
+            span: float):
     """Relative excess of material over each stretch of ``span`` mm of a run's path, and the index
-    of the sample where it starts: (lead at the end − lead at the start) / path length between.
-    A run shorter than ``span`` (but longer than a quarter of it) is one stretch. Samples grouped
-    by run, in time order; ``s`` non-decreasing within each run."""
-    run_o, lead_o = run, lead
+    of the sample where it starts: the filament made over the stretch beyond what its path holds,
+    against what it holds (in filament, not in mm of path: a slicer's legs differ in filament per
+    mm, a short one by a hundred times, and a lead in mm of path is read at each end's own rate);
+    where the nozzle's travel runs past the run's end, that part of the stretch counts at the last
+    leg's rate in the denominator (``beyond``), so a stretch the path no longer holds is not
+    divided by nothing. A run shorter than ``span`` (but longer than a quarter of it) is one
+    stretch. Samples grouped by run, in time order; ``s`` and ``made`` non-decreasing within each
+    run."""
+    run_o = run
     big = float(np.ptp(s)) + 2.0 * span + 1.0
     key = s + run_o * big                                    # runs apart, each non-decreasing
     last = np.searchsorted(run_o, run_o, side="right") - 1    # last sample of each sample's run
@@ -144,5 +163,6 @@ def _excess(lead: np.ndarray, s: np.ndarray, run: np.ndarray, span: float):
     short = short[key[last[short]] - key[short] > 0.25 * span]
     i_all = np.concatenate([i_full, short])
     j_all = np.concatenate([j[i_full], last[short]])
-    length = np.maximum(key[j_all] - key[i_all], EPS_LEN)
-    return (lead_o[j_all] - lead_o[i_all]) / length, i_all
+    held = asked[j_all] - asked[i_all]
+    want = np.maximum(held + beyond[j_all] - beyond[i_all], 1e-12)
+    return (made[j_all] - made[i_all] - held) / want, i_all

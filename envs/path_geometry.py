@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
@@ -30,7 +30,10 @@ class Legs:
     between leg k−1 and leg k (0 for the first leg or where the legs do not touch); ``cls[k]`` the
     feature class index (:data:`ringtune.shaping.features.FEATURE_CLASSES`) of the leg;
     ``s_start[k]`` the path length (mm) from the path's start to the leg's start; ``e_start`` and
-    ``e_end`` the commanded extruder position (mm of filament) at the leg's ends.
+    ``e_end`` the commanded extruder position (mm of filament) at the leg's ends; ``knot_s`` and
+    ``knot_e`` (non-decreasing path length, mm, and the extruder position there) at both ends of
+    every segment the legs were merged from (leg k's: ``knot_first[k]`` to ``knot_last[k]``): a
+    leg's moves may differ in filament per mm of path.
     """
 
     start: np.ndarray
@@ -43,6 +46,10 @@ class Legs:
     s_start: np.ndarray
     e_start: np.ndarray
     e_end: np.ndarray
+    knot_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    knot_e: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    knot_first: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    knot_last: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     @cached_property
     def direction(self) -> np.ndarray:
@@ -128,10 +135,16 @@ def path_legs(path: Motion, classes: np.ndarray | None = None) -> Legs:
     turn = np.concatenate([[0.0], np.where(joined, np.degrees(np.arccos(cosang)), 0.0)])
     s_start = np.concatenate([[0.0], np.cumsum(leg_len)[:-1]])
     if path.p.shape[1] > 3:
-        e_start, e_end = path.p[keep[first], 3], p1_e(path)[keep[last]]
+        e0, e1 = path.p[keep, 3], p1_e(path)[keep]
     else:
-        e_start = e_end = np.zeros(len(first))
-    return Legs(start, end, t_start, t_end, ext[first], turn, cls[first], s_start, e_start, e_end)
+        e0 = e1 = np.zeros(len(keep))
+    leg = np.cumsum(np.concatenate([[True], ~same])) - 1
+    along = [s_start[leg] + np.clip(np.einsum("ij,ij->i", p[keep] - start[leg], d[leg]), 0.0, leg_len[leg])
+             for p in (p0, p1)]
+    knot_s = np.maximum.accumulate(np.column_stack(along).ravel())
+    knot_e = np.column_stack([e0, e1]).ravel()
+    return Legs(start, end, t_start, t_end, ext[first], turn, cls[first], s_start, e0[first], e1[last],
+                knot_s, knot_e, 2 * first, 2 * last + 1)
 
 
 #: the legs last made, by path: {id(path): (weak reference to it, its classes, legs)}

@@ -50,8 +50,9 @@ What a person sees (all mm unless stated):
     is counted by the length it travels (from the nearest point of the path where it starts the
     run), so a corner it cuts short gets its filament on a shorter path. Over every stretch of
     ``SPAN_MM`` = 1 mm of the nozzle's path within a run (a shorter run: the run), the material
-    laid against the asked is 1 + Δlead/length, lead being the filament pushed beyond what the
-    path holds up to the nozzle's position, in mm of path; the largest excess and the largest
+    laid against the asked is the filament pushed over the stretch against the filament the path
+    holds over it (in filament: where the rate per mm of path is the same along the stretch, 1 +
+    Δlead/length, lead in mm of path; slicers' legs differ in rate); the largest excess and the largest
     shortfall, in %, over the classes whose material a person sees (:data:`EXTRUSION_SEEN`: the
     visible ones, and the inner walls and solid infill that lie against them; they arise at starts,
     stops and corners). Sparse infill and support are nobody's to see: their own figures stay in

@@ -144,6 +144,33 @@ def test_extrusion_worked_example_of_the_docstring():
         assert lm.extrusion_over_pct == (pytest.approx(62.5, rel=2e-3) if counted else 0.0)
 
 
+def test_a_line_whose_rate_changes_midway_is_judged_in_filament():
+    """The extrusion rate quadruples halfway along the line (a slicer's legs differ in filament per
+    mm of path). Marlin ZV at 40 Hz puts E 0.625 mm of path ahead of the nozzle: the stretch of 1 mm
+    ending at the change gets the new rate over its last 0.625 mm, (4 − 1) × 0.625 = 187.5 % more
+    than asked; the shortfall is the stop's, 62.5 % — never beyond 100 % (a lead in mm of path
+    read at each end's own rate would make it −187.5 % where the lead drops from 2.5 to 0.625 mm)."""
+    cfg = TuneConfig(firmware="marlin", shaper_x="zv", shaper_y="zv", freq_x=40.0, freq_y=40.0,
+                     damping_x=0.0, damping_y=0.0)
+    shapers, centred = shapers_from_config(cfg)
+    td, r1, r2 = V / A, E_PER_MM, 4 * E_PER_MM
+    x_ramp, half = V * td / 2, LENGTH / 2
+    t = np.cumsum([0.0, td, (half - x_ramp) / V, (LENGTH - half - x_ramp) / V, td])
+    e1 = 5.0 + x_ramp * r1
+    e2 = e1 + (half - x_ramp) * r1
+    e3 = e2 + (LENGTH - half - x_ramp) * r2
+    p = [[0, 0, 0.2, 5.0], [x_ramp, 0, 0.2, e1], [half, 0, 0.2, e2], [LENGTH - x_ramp, 0, 0.2, e3]]
+    v = [[0, 0, 0, 0], [V, 0, 0, V * r1], [V, 0, 0, V * r2], [V, 0, 0, V * r2]]
+    a = [[A, 0, 0, A * r1], [0, 0, 0, 0], [0, 0, 0, 0], [-A, 0, 0, -A * r2]]
+    mo = Motion(t, p, v, a, np.ones(4, bool))
+    shaped = shape_motion(mo, shapers, centred)
+    ts = np.arange(shaped.t[0], shaped.t[-1], 1.0 / RATE)
+    m = compute_metrics(StiffSim(ts, shaped.position(ts)[:, :2], np.zeros((len(ts), 2))), mo, lag=0.00625,
+                        settle=0.0125, e_command=extruder_command(mo, shapers, centred, FIRMWARES["marlin"]))
+    assert m.extrusion_over_pct == pytest.approx(187.5, rel=2e-3)
+    assert m.extrusion_under_pct == pytest.approx(62.5, rel=2e-3)
+
+
 def test_retraction_after_the_line_is_not_material_taken_back():
     """E leading X/Y retracts while the nozzle still finishes the line: the part keeps what was
     laid (the shortfall at the stop is the lead, not the retraction)."""
@@ -218,3 +245,18 @@ def test_shaped_extruder_follows_the_shaped_path_with_two_shapers():
     # unshaped, the extruder keeps the planner's time while the axes start and stop on their own
     # shapers' (centred) clocks: the material at the start and stop is off by far more
     assert plain.extrusion_over_pct > 5 * synced.extrusion_over_pct
+
+
+def test_no_stretch_is_short_of_more_material_than_it_asks(data_dir):
+    """Cura's cut plate: its first wall after the cut carries 1200 mm of filament over 160 mm of path
+    (7.5 mm per mm, against 0.03–0.1 elsewhere). Unshaped, the nozzle lags that rate change and
+    every shortfall stays a shortfall of what was asked: at most 100 %, in every class (read in mm
+    of path at each end's own rate, this read 301 %); and a run's last stretch, which the nozzle's
+    travel carries past the path's end, is not divided by nothing (the built-in print)."""
+    from ringtune.envs.evaluate import evaluate
+    none = TuneConfig(shaper_x="none", shaper_y="none", accel=3000.0)
+    m = evaluate(none, None, data_dir / "gcode/fastlb_cura_um2/platte_klein_cut.gcode")
+    assert 0 < m.extrusion_under_pct <= 100.0
+    assert all(f["extrusion_under_pct"] <= 100.0 for f in m.features.values())
+    pick = evaluate(TuneConfig(shaper_x="ei", shaper_y="mzv", freq_x=51.4, freq_y=46.6, accel=4800.0))
+    assert 0 < pick.extrusion_over_pct < 100.0 and 0 < pick.extrusion_under_pct < 100.0
