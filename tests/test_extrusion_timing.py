@@ -76,6 +76,20 @@ def expected_lead(firmware: str, timing: str, sx, centred: bool) -> float:
     return V * (xy - e)
 
 
+def marlin_zv(mo: Motion):
+    """Metrics of ``mo`` under Marlin's classic ZV at 40 Hz, no damping (halves 12.5 ms apart, lag
+    6.25 ms), on a stiff machine, with Marlin's extruder; and the shaped command's samples."""
+    cfg = TuneConfig(firmware="marlin", shaper_x="zv", shaper_y="zv", freq_x=40.0, freq_y=40.0,
+                     damping_x=0.0, damping_y=0.0)
+    shapers, centred = shapers_from_config(cfg)
+    assert float(np.dot(shapers["x"].amplitudes, shapers["x"].times)) == pytest.approx(0.00625)
+    shaped = shape_motion(mo, shapers, centred)
+    t = np.arange(shaped.t[0], shaped.t[-1], 1.0 / RATE)
+    sim = StiffSim(t, shaped.position(t)[:, :2], np.zeros((len(t), 2)))
+    e_cmd = extruder_command(mo, shapers, centred, FIRMWARES["marlin"])
+    return compute_metrics(sim, mo, lag=0.00625, settle=0.0125, e_command=e_cmd), sim, e_cmd
+
+
 @pytest.mark.parametrize("firmware", list(FIRMWARES))
 def test_cruise_lead_is_the_shaped_axes_lag_times_speed(firmware):
     fw = FIRMWARES[firmware]
@@ -121,25 +135,16 @@ def test_shaped_extruder_lays_what_is_asked():
 def test_extrusion_worked_example_of_the_docstring():
     """Marlin classic ZV at 40 Hz, no damping: halves 12.5 ms apart, lag 6.25 ms, 0.625 mm at
     100 mm/s; 62.5 % too much material over the first mm, too little over the last."""
-    cfg = TuneConfig(firmware="marlin", shaper_x="zv", shaper_y="zv", freq_x=40.0, freq_y=40.0,
-                     damping_x=0.0, damping_y=0.0)
-    shapers, centred = shapers_from_config(cfg)
-    assert float(np.dot(shapers["x"].amplitudes, shapers["x"].times)) == pytest.approx(0.00625)
     mo = line()
-    shaped = shape_motion(mo, shapers, centred)
-    t = np.arange(shaped.t[0], shaped.t[-1], 1.0 / RATE)
-    m = compute_metrics(StiffSim(t, shaped.position(t)[:, :2], np.zeros((len(t), 2))), mo, lag=0.00625,
-                        settle=0.0125, e_command=extruder_command(mo, shapers, centred, FIRMWARES["marlin"]))
+    m, sim, e_cmd = marlin_zv(mo)
     assert m.e_lag_mm == pytest.approx(0.625, rel=1e-3)
     assert m.extrusion_over_pct == pytest.approx(62.5, rel=2e-3)
     assert m.extrusion_under_pct == pytest.approx(62.5, rel=2e-3)
     # the same line as sparse infill: nobody sees its material, so the job's figures leave it out
     # and its own stay in features; as solid infill (under a top surface) it counts
-    sim = StiffSim(t, shaped.position(t)[:, :2], np.zeros((len(t), 2)))
     for label, counted in (("infill", False), ("solid_infill", True)):
         cls = np.full(mo.n_segments, FEATURE_CLASSES.index(label))
-        lm = compute_metrics(sim, mo, lag=0.00625, settle=0.0125, classes=cls,
-                             e_command=extruder_command(mo, shapers, centred, FIRMWARES["marlin"]))
+        lm = compute_metrics(sim, mo, lag=0.00625, settle=0.0125, classes=cls, e_command=e_cmd)
         assert lm.features[label]["extrusion_over_pct"] == pytest.approx(62.5, rel=2e-3)
         assert lm.extrusion_over_pct == (pytest.approx(62.5, rel=2e-3) if counted else 0.0)
 
@@ -150,9 +155,6 @@ def test_a_line_whose_rate_changes_midway_is_judged_in_filament():
     ending at the change gets the new rate over its last 0.625 mm, (4 − 1) × 0.625 = 187.5 % more
     than asked; the shortfall is the stop's, 62.5 % — never beyond 100 % (a lead in mm of path
     read at each end's own rate would make it −187.5 % where the lead drops from 2.5 to 0.625 mm)."""
-    cfg = TuneConfig(firmware="marlin", shaper_x="zv", shaper_y="zv", freq_x=40.0, freq_y=40.0,
-                     damping_x=0.0, damping_y=0.0)
-    shapers, centred = shapers_from_config(cfg)
     td, r1, r2 = V / A, E_PER_MM, 4 * E_PER_MM
     x_ramp, half = V * td / 2, LENGTH / 2
     t = np.cumsum([0.0, td, (half - x_ramp) / V, (LENGTH - half - x_ramp) / V, td])
@@ -162,11 +164,7 @@ def test_a_line_whose_rate_changes_midway_is_judged_in_filament():
     p = [[0, 0, 0.2, 5.0], [x_ramp, 0, 0.2, e1], [half, 0, 0.2, e2], [LENGTH - x_ramp, 0, 0.2, e3]]
     v = [[0, 0, 0, 0], [V, 0, 0, V * r1], [V, 0, 0, V * r2], [V, 0, 0, V * r2]]
     a = [[A, 0, 0, A * r1], [0, 0, 0, 0], [0, 0, 0, 0], [-A, 0, 0, -A * r2]]
-    mo = Motion(t, p, v, a, np.ones(4, bool))
-    shaped = shape_motion(mo, shapers, centred)
-    ts = np.arange(shaped.t[0], shaped.t[-1], 1.0 / RATE)
-    m = compute_metrics(StiffSim(ts, shaped.position(ts)[:, :2], np.zeros((len(ts), 2))), mo, lag=0.00625,
-                        settle=0.0125, e_command=extruder_command(mo, shapers, centred, FIRMWARES["marlin"]))
+    m, _, _ = marlin_zv(Motion(t, p, v, a, np.ones(4, bool)))
     assert m.extrusion_over_pct == pytest.approx(187.5, rel=2e-3)
     assert m.extrusion_under_pct == pytest.approx(62.5, rel=2e-3)
 
@@ -174,18 +172,11 @@ def test_a_line_whose_rate_changes_midway_is_judged_in_filament():
 def test_retraction_after_the_line_is_not_material_taken_back():
     """E leading X/Y retracts while the nozzle still finishes the line: the part keeps what was
     laid (the shortfall at the stop is the lead, not the retraction)."""
-    cfg = TuneConfig(firmware="marlin", shaper_x="zv", shaper_y="zv", freq_x=40.0, freq_y=40.0,
-                     damping_x=0.0, damping_y=0.0)
-    shapers, centred = shapers_from_config(cfg)
     mo = line()
     end = mo.end_state()[0][-1]
     retract = Motion(np.array([mo.t[-1], mo.t[-1] + 0.02]), end[None, :], np.array([[0, 0, 0, -40.0]]),
                      np.zeros((1, 4)), np.zeros(1, bool))
-    job = Motion.concatenate([mo, retract])
-    shaped = shape_motion(job, shapers, centred)
-    t = np.arange(shaped.t[0], shaped.t[-1], 1.0 / RATE)
-    m = compute_metrics(StiffSim(t, shaped.position(t)[:, :2], np.zeros((len(t), 2))), job, lag=0.00625,
-                        settle=0.0125, e_command=extruder_command(job, shapers, centred, FIRMWARES["marlin"]))
+    m, _, _ = marlin_zv(Motion.concatenate([mo, retract]))
     assert m.extrusion_under_pct == pytest.approx(62.5, rel=2e-3)
 
 

@@ -216,16 +216,23 @@ def test_firmware_retraction_arcs_dwells_and_speed_factor_plan_at_real_klippers_
     # resolution), G4 P, M220, M204 S and a SET_VELOCITY_LIMIT mid-job, relative moves
     extra = ("\n[gcode_arcs]\nresolution: 0.5\n\n[firmware_retraction]\nretract_length: 0.8\nretract_speed: 35\n"
              "unretract_extra_length: 0.1\nunretract_speed: 25\n")
-    cfg = _cfg(tmp_path)
-    cfg.write_text(cfg.read_text() + extra)
-    job = tmp_path / "mixed.gcode"
-    job.write_text(START + "G90\nM83\nG1 X20 Y20 E1 F6000\nG2 X40 Y20 I10 J0 E2 F3000\nG3 X20 Y20 I-10 J0 E2\n"
-                   "G10\nG1 X60 Y0 F9000\nG11\nM220 S50\nG1 X80 Y0 E1 F6000\nG4 P500\nM220 S100\nM204 S1000\n"
-                   "G1 X80 Y40 E1\nSET_VELOCITY_LIMIT ACCEL=8000 SQUARE_CORNER_VELOCITY=20 MINIMUM_CRUISE_RATIO=0.2\n"
-                   "G91\nG1 X-10 Y5 E0.5 F4000\nG1 X-3 Y7 E0.3\nG90\nG1 X0 Y0 F12000\n")
-    real = _klipper_time(real_klipper, cfg, job)
-    assert _planned(tmp_path, cfg, job, capsys) == pytest.approx(real, abs=2e-3)
+    text = ("G90\nM83\nG1 X20 Y20 E1 F6000\nG2 X40 Y20 I10 J0 E2 F3000\nG3 X20 Y20 I-10 J0 E2\n"
+            "G10\nG1 X60 Y0 F9000\nG11\nM220 S50\nG1 X80 Y0 E1 F6000\nG4 P500\nM220 S100\nM204 S1000\n"
+            "G1 X80 Y40 E1\nSET_VELOCITY_LIMIT ACCEL=8000 SQUARE_CORNER_VELOCITY=20 MINIMUM_CRUISE_RATIO=0.2\n"
+            "G91\nG1 X-10 Y5 E0.5 F4000\nG1 X-3 Y7 E0.3\nG90\nG1 X0 Y0 F12000\n")
+    real, planned, _ = _both(real_klipper, tmp_path, capsys, text, extra)
+    assert planned == pytest.approx(real, abs=2e-3)
     assert real > 3.0
+
+
+def _both(svc, tmp_path: Path, capsys, text: str, extra_cfg: str = ""):
+    """(Klipper's time, ringtune's planned time, the job's path) of ``text`` after START, on the
+    Ender 3 configuration with ``extra_cfg`` appended."""
+    cfg = _cfg(tmp_path)
+    cfg.write_text(cfg.read_text() + extra_cfg)
+    job = tmp_path / "job.gcode"
+    job.write_text(START + text)
+    return _klipper_time(svc, cfg, job), _planned(tmp_path, cfg, job, capsys), job
 
 
 def test_motors_off_mid_job_rests_and_dwells_where_a_motor_is_on(real_klipper, tmp_path, capsys):
@@ -234,15 +241,13 @@ def test_motors_off_mid_job_rests_and_dwells_where_a_motor_is_on(real_klipper, t
     # M18 after a retraction alone (the extruder's motor is on). Each M84 clears the homing: the position
     # is set again, where the head is, before the next move. Each is followed by a G4: batch mode, whose
     # MCU clock reads 0, adds 0.05 s to a move that restarts at once after a step flush, a printer not.
-    cfg = _cfg(tmp_path)
-    job = tmp_path / "motors_off.gcode"
-    job.write_text(START + "G90\nM83\nG1 X40 Y0 E2 F6000\nM84\nG4 P300\nM84\nG4 P300\n"
-                   "SET_KINEMATIC_POSITION X=40 Y=0 Z=0\nG1 X40 Y30 E1.5 F6000\nM84 S30\nG4 P300\n"
-                   "SET_KINEMATIC_POSITION X=40 Y=30 Z=0\nG1 E-1 F2400\nM18\nG4 P300\n"
-                   "SET_KINEMATIC_POSITION X=40 Y=30 Z=0\nG1 X0 Y0 F9000\n")
-    real = _klipper_time(real_klipper, cfg, job)
-    planned = _planned(tmp_path, cfg, job, capsys)
+    text = ("G90\nM83\nG1 X40 Y0 E2 F6000\nM84\nG4 P300\nM84\nG4 P300\n"
+            "SET_KINEMATIC_POSITION X=40 Y=0 Z=0\nG1 X40 Y30 E1.5 F6000\nM84 S30\nG4 P300\n"
+            "SET_KINEMATIC_POSITION X=40 Y=30 Z=0\nG1 E-1 F2400\nM18\nG4 P300\n"
+            "SET_KINEMATIC_POSITION X=40 Y=30 Z=0\nG1 X0 Y0 F9000\n")
+    real, planned, job = _both(real_klipper, tmp_path, capsys, text)
     assert planned == pytest.approx(real, abs=2e-3)
+    cfg = tmp_path / "printer.cfg"
     job.write_text("".join(line for line in job.read_text().splitlines(keepends=True)
                            if not line.startswith(("M84", "M18"))))
     assert planned - _planned(tmp_path, cfg, job, capsys) == pytest.approx(3 * 0.202, abs=1e-6)   # three on
