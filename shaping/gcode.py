@@ -15,10 +15,10 @@ as an event of kind ``other`` (never an error). Slicer feature comments (``;TYPE
 ``;FEATURE:``, Simplify3D ``; feature ...``) tag the moves after them.
 
 G90/G91 set XYZ and E together as Marlin and RRF do (Klipper's G90 leaves an M83 in force; slicers
-write M82/M83 after G90, so real jobs read the same). Commands that make a firmware drain its queue (``G4``, ``G28``, ``G29``, ``M400``, ``M109``,
-``M190``, ``M0/M1``, ``M600``, shaper changes, ``M84``/``M18`` without S) and a firmware retraction (``G10``/``G11`` without P
-or L that retracts or restores: an E-only move) set ``stop_before`` on the next move: the planner
-comes to rest there.
+write M82/M83 after G90, so real jobs read the same). Commands that make a firmware drain its
+queue (``G4``, ``G28``, ``G29``, ``M400``, ``M109``, ``M190``, ``M0/M1``, ``M600``, shaper changes,
+``M84``/``M18`` without S) and a firmware retraction (``G10``/``G11`` without P or L that retracts
+or restores: an E-only move) set ``stop_before`` on the next move: the planner comes to rest there.
 
 The commands' handlers are mixins of the reader: settings and firmware extensions in
 :mod:`ringtune.shaping.gcode_commands`, arcs, dwells, G92 and G28 in

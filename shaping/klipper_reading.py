@@ -5,9 +5,9 @@ runs on); its G4 takes P (ms) alone (``toolhead.py`` ``cmd_G4``), so an S word w
 M84/M18 turns the motors off whatever the words (an S word is Marlin's idle timeout): it comes to
 rest and, where a motor is on (one has moved, or G28 homed, since the job began or the last M84),
 dwells 0.1 s before turning them off and 0.1 s after (``stepper_enable.py``, DISABLE_STALL_TIME) and
-flushes its steps (:data:`MOTORS_OFF_DWELL`); at
-the job's start the motors are taken as off (a printer idle since its last job). The planner,
-reading a job as Klipper does, plans with :func:`klipper_rests`."""
+flushes its steps (:data:`MOTORS_OFF_DWELL`); at the job's start the motors are taken as off (a
+printer idle since its last job). The planner, reading a job as Klipper does, plans with
+:func:`klipper_rests`."""
 
 from __future__ import annotations
 
