@@ -20,7 +20,7 @@ from ringtune.envs.printer import load_printer
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.arcs import arc_resolution, arcs_note
-from ringtune.shaping.extruder_alone import extruder_alone_note
+from ringtune.shaping.extruder_alone import extruder_alone_note, klipper_refusals, klipper_refusals_note
 from ringtune.shaping.config_plan import ConfiguredPlan, for_firmware, plan_with_config
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions, retraction_plan
@@ -186,6 +186,9 @@ class JobPlan:
             "arcs": self.job.arcs[0], "arcs_note": arcs_note(self.job, self.configured.limits),
             # Klipper: retractions planned without the extruder's own limits (not given), in words
             "extruder_alone_note": extruder_alone_note(self.job, self.configured.limits),
+            # Klipper: the moves its extruder refuses (it stops the print at the first)
+            "klipper_refusals": klipper_refusals(self.job, self.configured.limits),
+            "klipper_refusals_note": klipper_refusals_note(self.job, self.configured.limits),
         }
 
 

@@ -96,12 +96,14 @@ KINEMATICS = ("cartesian", "corexy", "corexz")
 #: the firmware retraction a ``G10``/``G11`` makes (``retract_length``, ``unretract_extra_length`` mm,
 #: ``retract_speed``, ``unretract_speed`` mm/s, ``retract_zlift`` the Z hop mm), Klipper's ``[gcode_arcs]
 #: resolution`` (``arc_resolution``, mm) and its extruder's ``extrude_only_accel`` / ``extrude_only_velocity``
-#: (``max_extrude_only_*``: retractions; mm/s², mm/s); see :class:`ringtune.shaping.planner.MachineLimits`
+#: (``max_extrude_only_*``: retractions; mm/s², mm/s), and what it refuses: ``max_extrude_ratio`` (filament per mm
+#: of path: max_extrude_cross_section / the filament's cross-section), ``nozzle_diameter`` and
+#: ``extrude_only_distance`` (mm); see :class:`ringtune.shaping.planner.MachineLimits`
 LIMIT_KEYS = ("accel", "velocity", "junction", "square_corner_velocity", "junction_deviation",
               "jerk", "max_accel", "max_velocity", "min_cruise_ratio", "accel_to_decel", "travel_accel",
               "retract_accel", "axis_rule", "scale_xy_accel", "retract_length", "retract_speed",
               "unretract_extra_length", "unretract_speed", "retract_zlift", "arc_resolution", "extrude_only_accel",
-              "extrude_only_velocity")
+              "extrude_only_velocity", "max_extrude_ratio", "nozzle_diameter", "extrude_only_distance")
 _TOP_KEYS = {"name", "kinematics", "limits", "x", "y", "motor", "belts", "print_mass", "description",
              "current", "measurement"}
 _BELT_KEYS = {"stiffness", "mismatch"}
@@ -159,7 +161,8 @@ def _has_force(axis_table: dict, base_raw: dict) -> bool:
 #: ``[limits]``' plain numbers and their bounds (as :func:`number` takes them)
 _LIMIT_BOUNDS = {**dict.fromkeys(("accel", "velocity", "square_corner_velocity", "junction_deviation", "travel_accel",
                                   "retract_accel", "accel_to_decel", "retract_speed", "unretract_speed",
-                                  "arc_resolution", "extrude_only_accel", "extrude_only_velocity"),
+                                  "arc_resolution", "extrude_only_accel", "extrude_only_velocity",
+                                  "max_extrude_ratio", "nozzle_diameter", "extrude_only_distance"),
                                  {"lo": 0.0, "lo_open": True}),
                  "min_cruise_ratio": {"lo": 0.0, "hi": 1.0}, "retract_length": {"lo": 0.0}, "retract_zlift": {"lo": 0.0},
                  "unretract_extra_length": {}}

@@ -43,6 +43,7 @@ Every default taken and every mapping made is a note; nothing is guessed silentl
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
@@ -196,12 +197,29 @@ def _extruder_caps(src: Source, limits: dict, accel: float, velocity: float) -> 
     """``[extruder] max_extrude_only_velocity`` / ``max_extrude_only_accel`` -> ``limits.extrude_only_velocity``
     / ``extrude_only_accel``: what a move of the extruder alone (a retraction) runs at
     on Klipper; unset, Klipper's defaults (``kinematics/extruder.py``): max_velocity and max_accel ×
-    4·nozzle_diameter² / the filament's cross-section, each said. No [extruder]: none."""
+    4·nozzle_diameter² / the filament's cross-section, each said; and what its extruder refuses
+    (``max_extrude_ratio``: max_extrude_cross_section, default 4·nozzle_diameter², over the
+    filament's cross-section; ``nozzle_diameter``; ``extrude_only_distance``: max_extrude_only_distance,
+    default 50 mm). No [extruder]: none."""
     ratio = _extrude_ratio(src)
     if ratio is None:
         return
     for key, base in (("extrude_only_velocity", velocity), ("extrude_only_accel", accel)):
         limits[key] = _extrude_cap(src, f"max_{key}", base, ratio)
+    nozzle, filament = src.number("extruder", "nozzle_diameter"), src.number("extruder", "filament_diameter")
+    limits["nozzle_diameter"] = nozzle
+    limits["max_extrude_ratio"] = (_extruder_option(src, "max_extrude_cross_section", 4.0 * nozzle ** 2, "mm²")
+                                   / (math.pi * (filament / 2.0) ** 2))
+    limits["extrude_only_distance"] = _extruder_option(src, "max_extrude_only_distance", 50.0, "mm")
+
+
+def _extruder_option(src: Source, option: str, default: float, unit: str) -> float:
+    """The extruder's ``option`` as written, else Klipper's ``default`` (said)."""
+    if src.given_by_user("extruder", option):
+        return src.number("extruder", option)
+    src.notes.append(f"[extruder] {option} not set: Klipper's default, {default:.4g} {unit}, "
+                     "past which it refuses a move")
+    return default
 
 
 def _extrude_ratio(src: Source) -> float | None:

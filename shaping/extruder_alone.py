@@ -42,3 +42,43 @@ def extruder_alone_note(job, limits) -> str | None:
             f"acceleration and speed, where Klipper's defaults are {klipper_default_ratio(0.4, 1.75):.3f} × "
             "max_accel and max_velocity for a 0.4 mm nozzle and 1.75 mm filament, so they take longer there")
 
+
+
+def klipper_refusals(job, limits) -> list[dict]:
+    """The moves of ``job`` Klipper's extruder refuses where it is read as Klipper reads it and
+    ``limits`` know its extruder (``extruder.py`` ``check_move``, which stops the print at the first):
+    ``{"line", "kind", "value", "limit"}`` with kind ``too_wide`` (an extruding move's filament per mm
+    of path over ``max_extrude_ratio``, unless it extrudes no more than ``nozzle_diameter`` × that
+    ratio) or ``too_long`` (a move of the extruder alone, or backwards, over
+    ``extrude_only_distance`` mm of filament). Empty otherwise."""
+    if not limits.reads_like_klipper or limits.max_extrude_ratio is None:
+        return []
+    d = job.end - job.start
+    e = d[:, 3]
+    xyz = np.sqrt(np.einsum("ij,ij->i", d[:, :3], d[:, :3]))
+    alone = e_capped(d)
+    rate = np.divide(e, xyz, out=np.zeros_like(e), where=xyz > 0)
+    tiny = (limits.nozzle_diameter or 0.0) * limits.max_extrude_ratio
+    wide = ~alone & (rate > limits.max_extrude_ratio) & (e > tiny)
+    far = limits.extrude_only_distance if limits.extrude_only_distance is not None else np.inf
+    long = alone & (np.abs(e) > far)
+    out = [(i, "too_wide", float(rate[i]), limits.max_extrude_ratio) for i in np.flatnonzero(wide)]
+    out += [(i, "too_long", float(abs(e[i])), far) for i in np.flatnonzero(long)]
+    return [{"line": int(job.line[i]), "kind": kind, "value": v, "limit": float(lim)}
+            for i, kind, v, lim in sorted(out)]
+
+
+def klipper_refusals_note(job, limits, shown: int = 3) -> str | None:
+    """:func:`klipper_refusals` in words (the first ``shown`` named), None where there are none."""
+    found = klipper_refusals(job, limits)
+    if not found:
+        return None
+    words = {"too_wide": lambda r: (f"line {r['line']} extrudes {r['value']:.3f} mm of filament per mm of path, past "
+                                    f"the {r['limit']:.3f} its max_extrude_cross_section allows (\"Move exceeds "
+                                    "maximum extrusion\")"),
+             "too_long": lambda r: (f"line {r['line']} moves the extruder alone by {r['value']:.1f} mm, past its "
+                                    f"max_extrude_only_distance {r['limit']:g} mm (\"Extrude only move too long\")")}
+    more = f"; {len(found) - shown} more" if len(found) > shown else ""
+    return (f"Klipper refuses {len(found)} of the job's moves and stops the print at the first (its extruder's "
+            f"check_move): " + "; ".join(words[r["kind"]](r) for r in found[:shown]) + more
+            + ". ringtune plans and judges the job as if Klipper ran on")

@@ -84,7 +84,9 @@ class MachineLimits:
     max_accel / max_velocity: per-axis caps (x, y, z, e) or None (Marlin's and RRF's M201/M203; Klipper
     has none on E); extrude_only_accel / extrude_only_velocity: Klipper's [extruder]
     max_extrude_only_accel / _velocity (None: not known), the only limits of the moves
-    :func:`~ringtune.shaping.extruder_alone.e_capped` marks there; min_cruise_ratio (Klipper only);
+    :func:`~ringtune.shaping.extruder_alone.e_capped` marks there; max_extrude_ratio,
+    nozzle_diameter (mm) and extrude_only_distance (mm): the moves Klipper's extruder refuses
+    (:func:`~ringtune.shaping.extruder_alone.klipper_refusals`; None: not known); min_cruise_ratio (Klipper only);
     accel_to_decel: a Klipper from before 2024 (no minimum_cruise_ratio), its max_accel_to_decel in
     mm/s², kept whatever ACCEL becomes (None: a current Klipper or Kalico, which ignore a job's
     ACCEL_TO_DECEL); m203_per_minute: the firmware reads a job's M203 speeds in mm/min
@@ -134,6 +136,9 @@ class MachineLimits:
     retract_zlift: float = 0.0
     extrude_only_accel: float | None = None
     extrude_only_velocity: float | None = None
+    max_extrude_ratio: float | None = None
+    nozzle_diameter: float | None = None
+    extrude_only_distance: float | None = None
 
     @property
     def reads_like_klipper(self) -> bool:
@@ -200,7 +205,7 @@ _LIMIT_CHECKS = (
     (("min_cruise_ratio",), _fraction, "must be in [0, 1)"),
     (("jerk", "max_accel", "max_velocity"), _four_or_none, "needs 4 numbers >= 0 (x, y, z, e)"),
     (("travel_accel", "retract_accel", "accel_to_decel", "retract_speed", "unretract_speed", "arc_resolution",
-      "extrude_only_accel", "extrude_only_velocity"),
+      "extrude_only_accel", "extrude_only_velocity", "max_extrude_ratio", "nozzle_diameter", "extrude_only_distance"),
      _positive_or_none,
      "must be a positive number"),
     (("unretract_extra_length",), lambda v: isinstance(v, (int, float)) and math.isfinite(v),

@@ -291,7 +291,11 @@ def test_the_extruders_own_limits_on_retractions_as_written_or_klippers_defaults
     ratio = 4 * 0.4 ** 2 / (3.141592653589793 * 0.875 ** 2)          # its nozzle 0.400, filament 1.750
     assert limits["extrude_only_velocity"] == pytest.approx(250 * ratio) and limits["max_velocity"] == [0, 0, 40, 0]
     assert limits["extrude_only_accel"] == pytest.approx(4900 * ratio) and limits["max_accel"] == [0, 0, 100, 0]
-    assert sum("max_extrude_only" in n and "Klipper's default" in n for n in facts.notes) == 2
+    assert sum("max_extrude_only_" in n and "Klipper's default" in n for n in facts.notes) == 2   # velocity, accel
+    # what its extruder refuses: max_extrude_cross_section unset (4 × 0.4² mm², said), the distance as written
+    assert limits["max_extrude_ratio"] == pytest.approx(ratio) and limits["nozzle_diameter"] == 0.4
+    assert limits["extrude_only_distance"] == 150.0
+    assert sum("max_extrude_cross_section not set" in n for n in facts.notes) == 1
     (tmp_path / "printer.cfg").write_text(
         "[printer]\nkinematics: cartesian\nmax_velocity: 300\nmax_accel: 4000\n"
         "[extruder]\nnozzle_diameter: 0.6\nfilament_diameter: 1.75\nmax_extrude_only_velocity: 120\n"
@@ -300,6 +304,9 @@ def test_the_extruders_own_limits_on_retractions_as_written_or_klippers_defaults
     limits = facts.description["limits"]
     assert (limits["extrude_only_velocity"], limits["extrude_only_accel"]) == (120.0, 6000.0)
     assert "max_velocity" not in limits and "max_accel" not in limits
-    assert not any("max_extrude_only" in n for n in facts.notes)
+    assert not any("max_extrude_only_v" in n or "max_extrude_only_a" in n for n in facts.notes)
+    assert limits["max_extrude_ratio"] == pytest.approx(4 * 0.6 ** 2 / (3.141592653589793 * 0.875 ** 2))
+    assert limits["extrude_only_distance"] == 50.0                                       # Klipper's default, said
+    assert sum("max_extrude_only_distance not set" in n for n in facts.notes) == 1
     (tmp_path / "printer.cfg").write_text("[printer]\nkinematics: cartesian\nmax_velocity: 300\nmax_accel: 4000\n")
     assert "extrude_only_accel" not in printer_facts_from_klipper(tmp_path / "printer.cfg").description["limits"]

@@ -17,6 +17,7 @@ the two real ringing towers of tests/data (Simplify3D, PrusaSlicer for Marlin)."
 from __future__ import annotations
 
 import json
+import math
 import re
 import subprocess
 import sys
@@ -95,16 +96,21 @@ ENDER3 = "max_velocity: 300\nmax_accel: 3000\nmax_z_velocity: 5\nmax_z_accel: 10
 START = "SET_KINEMATIC_POSITION X=0 Y=0 Z=0\n"
 
 
+def _klippy_log(svc, cfg: Path, path: Path, check: bool = True) -> str:
+    """The log of klippy's batch-mode run of the job at ``path`` (``check``: a failed run fails)."""
+    log = path.with_suffix(".log")
+    subprocess.run([str(svc.dir / "kvenv" / "bin" / "python"), str(svc.dir / "k" / "klippy" / "klippy.py"),
+                    str(cfg), "-i", str(path), "-o", str(path.with_suffix(".serial")),
+                    "-d", str(svc.dir / "k" / "out" / "klipper.dict"), "-l", str(log)],
+                   capture_output=True, timeout=300, check=check)
+    return log.read_text()
+
+
 def _klipper_time(svc, cfg: Path, job: Path) -> float:
     """The toolhead's print time (s) at the end of ``job`` in klippy's batch mode, its time for an
     empty job taken off."""
     def run(path: Path) -> float:
-        log = path.with_suffix(".log")
-        subprocess.run([str(svc.dir / "kvenv" / "bin" / "python"), str(svc.dir / "k" / "klippy" / "klippy.py"),
-                        str(cfg), "-i", str(path), "-o", str(path.with_suffix(".serial")),
-                        "-d", str(svc.dir / "k" / "out" / "klipper.dict"), "-l", str(log)],
-                       capture_output=True, timeout=300, check=True)
-        text = log.read_text()
+        text = _klippy_log(svc, cfg, path)
         found = re.findall(r"Exiting \(print time ([\d.]+)s\)", text)
         assert found, f"klippy wrote no print time: {text[-1500:]}"
         return float(found[-1])
@@ -251,3 +257,26 @@ def test_motors_off_mid_job_rests_and_dwells_where_a_motor_is_on(real_klipper, t
     job.write_text("".join(line for line in job.read_text().splitlines(keepends=True)
                            if not line.startswith(("M84", "M18"))))
     assert planned - _planned(tmp_path, cfg, job, capsys) == pytest.approx(3 * 0.202, abs=1e-6)   # three on
+
+
+def test_the_moves_klippers_extruder_refuses_are_named(real_klipper, tmp_path, capsys):
+    # a line at 0.48 mm² of extrusion (Klipper's default limit for a 0.4 mm nozzle: 4 × 0.4² = 0.64 mm²),
+    # one at 0.72 mm², a tiny one far over the rate but within nozzle × ratio, a 60 mm retraction (its
+    # default max_extrude_only_distance: 50 mm): Klipper names the second and the fourth, and so does plan
+    cfg = _cfg(tmp_path)
+    job = tmp_path / "refused.gcode"
+    job.write_text(START + "G90\nM83\nG1 X20 Y0 E1 F3000\nG1 X20 Y0.5 E0.1\nG1 X40 Y0 E6\nG1 X40.05 Y0 E0.1\n"
+                   "G1 E-60 F3000\nG1 X0 Y0 E0.5 F6000\n")
+    log = _klippy_log(real_klipper, cfg, job, check=False)
+    wide = [float(a) for a, _ in re.findall(r"Move exceeds maximum extrusion \(([\d.]+)mm\^2 vs ([\d.]+)mm\^2\)", log)]
+    far = [float(a) for a in re.findall(r"Extrude only move too long \(([-\d.]+)mm vs [\d.]+mm\)", log)]
+    assert len(wide) == 1 and far == [-60.0]
+    toml = tmp_path / "printer.toml"
+    assert main(["printer", "from-klipper", str(cfg), "-o", str(toml)]) == 0
+    capsys.readouterr()
+    assert main(["plan", str(job), "--printer", str(toml), "--json"]) == 0
+    found = json.loads(capsys.readouterr().out)["klipper_refusals"]
+    assert [(r["line"], r["kind"]) for r in found] == [(6, "too_wide"), (8, "too_long")]
+    area = math.pi * 1.75 ** 2 / 4                          # the filament's cross-section, mm²
+    assert found[0]["value"] * area == pytest.approx(wide[0], abs=1e-3)
+    assert found[0]["limit"] * area == pytest.approx(0.64) and found[1]["limit"] == 50.0

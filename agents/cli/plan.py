@@ -17,7 +17,11 @@ G2/G3 arcs the job has) and ``arcs_note`` (how they are cut: Klipper's ``[gcode_
 under Klipper's reading, else chords within 0.01 mm; null without arcs), ``extruder_alone_note``
 (read as Klipper reads it: that the job's retractions, moves of the extruder alone, are planned at the
 toolhead's acceleration and speed since the printer gives no max_extrude_only_accel / _velocity; else
-null), ``print_time_s``,
+null), ``klipper_refusals`` (read as Klipper reads it, the moves its extruder refuses, each
+{``line``, ``kind``: ``too_wide`` | ``too_long``, ``value``, ``limit``}: filament per mm of path
+against max_extrude_cross_section's, or mm of filament moved alone against
+max_extrude_only_distance; Klipper stops the print at the first) and ``klipper_refusals_note``
+(that in words, or null), ``print_time_s``,
 ``print_time``, ``moves``, ``extruding_moves``, ``lines``, ``path_length_mm``,
 ``time_by_feature`` ({feature: s}), ``junction_reason`` (why that junction rule, in words),
 ``top_frequencies`` (list of {``freq_hz``, ``line``, ``t``}: highest *planned* direction-change
@@ -135,7 +139,8 @@ def _text(r: dict) -> str:
         lines.append(f"  frequency limit {fl['hz']:g} Hz ({fl['method']}): {fl['moves_slowed']} moves slowed")
     if r["daa_hz"]:
         lines.append(f"  DAA at {r['daa_hz']:g} Hz")
-    for key in ("ignored_note", "macro_note", "firmware_retraction_note", "arcs_note", "extruder_alone_note"):
+    for key in ("ignored_note", "macro_note", "firmware_retraction_note", "arcs_note", "extruder_alone_note",
+                "klipper_refusals_note"):
         if r[key]:
             lines.append(f"  {r[key]}")
     lines.append("  time by feature:")
