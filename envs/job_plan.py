@@ -187,8 +187,8 @@ class JobPlan:
             # Klipper: retractions planned without the extruder's own limits (not given), in words
             "extruder_alone_note": extruder_alone_note(self.job, self.configured.limits),
             # Klipper: the moves its extruder refuses (it stops the print at the first)
-            "klipper_refusals": klipper_refusals(self.job, self.configured.limits),
-            "klipper_refusals_note": klipper_refusals_note(self.job, self.configured.limits),
+            "klipper_refusals": (refused := klipper_refusals(self.job, self.configured.limits)),
+            "klipper_refusals_note": klipper_refusals_note(refused),
         }
 
 

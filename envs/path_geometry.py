@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import weakref
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
@@ -29,11 +29,11 @@ class Legs:
     Arrays are (L, 2) points in mm and (L,) times in s; ``turn_deg[k]`` is the turn angle (deg)
     between leg k−1 and leg k (0 for the first leg or where the legs do not touch); ``cls[k]`` the
     feature class index (:data:`ringtune.shaping.features.FEATURE_CLASSES`) of the leg;
-    ``s_start[k]`` the path length (mm) from the path's start to the leg's start; ``e_start`` and
-    ``e_end`` the commanded extruder position (mm of filament) at the leg's ends; ``knot_s`` and
-    ``knot_e`` (non-decreasing path length, mm, and the extruder position there) at both ends of
-    every segment the legs were merged from (leg k's: ``knot_first[k]`` to ``knot_last[k]``): a
-    leg's moves may differ in filament per mm of path.
+    ``s_start[k]`` the path length (mm) from the path's start to the leg's start; ``knot_s`` and
+    ``knot_e`` (non-decreasing path length, mm, and the commanded extruder position there, mm of
+    filament) at both ends of every segment the legs were merged from (leg k's: ``knot_first[k]`` to
+    ``knot_last[k]``; ``e_start``/``e_end`` its ends): a leg's moves may differ in filament per mm of
+    path.
     """
 
     start: np.ndarray
@@ -44,12 +44,20 @@ class Legs:
     turn_deg: np.ndarray
     cls: np.ndarray
     s_start: np.ndarray
-    e_start: np.ndarray
-    e_end: np.ndarray
-    knot_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    knot_e: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    knot_first: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    knot_last: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    knot_s: np.ndarray
+    knot_e: np.ndarray
+    knot_first: np.ndarray
+    knot_last: np.ndarray
+
+    @cached_property
+    def e_start(self) -> np.ndarray:
+        """(L,) extruder position (mm of filament) at each leg's start."""
+        return self.knot_e[self.knot_first]
+
+    @cached_property
+    def e_end(self) -> np.ndarray:
+        """(L,) extruder position (mm of filament) at each leg's end."""
+        return self.knot_e[self.knot_last]
 
     @cached_property
     def direction(self) -> np.ndarray:
@@ -102,7 +110,7 @@ def _norm(v: np.ndarray) -> np.ndarray:
 
 def _empty_legs() -> Legs:
     z, e = np.zeros((0, 2)), np.zeros(0)
-    return Legs(z, z, e, e, e.astype(bool), e, e.astype(np.int64), e, e, e)
+    return Legs(z, z, e, e, e.astype(bool), e, e.astype(np.int64), e, e, e, e.astype(np.int64), e.astype(np.int64))
 
 
 def path_legs(path: Motion, classes: np.ndarray | None = None) -> Legs:
@@ -143,8 +151,8 @@ def path_legs(path: Motion, classes: np.ndarray | None = None) -> Legs:
              for p in (p0, p1)]
     knot_s = np.maximum.accumulate(np.column_stack(along).ravel())
     knot_e = np.column_stack([e0, e1]).ravel()
-    return Legs(start, end, t_start, t_end, ext[first], turn, cls[first], s_start, e0[first], e1[last],
-                knot_s, knot_e, 2 * first, 2 * last + 1)
+    return Legs(start, end, t_start, t_end, ext[first], turn, cls[first], s_start, knot_s, knot_e,
+                2 * first, 2 * last + 1)
 
 
 #: the legs last made, by path: {id(path): (weak reference to it, its classes, legs)}

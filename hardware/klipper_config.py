@@ -43,7 +43,6 @@ Every default taken and every mapping made is a note; nothing is guessed silentl
 
 from __future__ import annotations
 
-import math
 import re
 from pathlib import Path
 
@@ -53,7 +52,7 @@ from ringtune.hardware.klipper_motors import stepper_motor
 from ringtune.hardware.klipper_source import KLIPPER_DEFAULTS, Source
 from ringtune.hardware.moonraker import Moonraker
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.extruder_alone import klipper_default_ratio
+from ringtune.shaping.extruder_alone import filament_area, klipper_default_ratio
 
 #: shapers Klipper 84104bb has (``klippy/extras/shaper_defs.py``), unparameterised names
 KLIPPER_SHAPERS = ("zv", "mzv", "zvd", "ei", "2hump_ei", "3hump_ei")
@@ -201,44 +200,39 @@ def _extruder_caps(src: Source, limits: dict, accel: float, velocity: float) -> 
     (``max_extrude_ratio``: max_extrude_cross_section, default 4·nozzle_diameter², over the
     filament's cross-section; ``nozzle_diameter``; ``extrude_only_distance``: max_extrude_only_distance,
     default 50 mm). No [extruder]: none."""
-    ratio = _extrude_ratio(src)
-    if ratio is None:
+    sizes = _nozzle_and_filament(src)
+    if sizes is None:
         return
+    nozzle, filament = sizes
+    ratio = klipper_default_ratio(nozzle, filament)
     for key, base in (("extrude_only_velocity", velocity), ("extrude_only_accel", accel)):
-        limits[key] = _extrude_cap(src, f"max_{key}", base, ratio)
-    nozzle, filament = src.number("extruder", "nozzle_diameter"), src.number("extruder", "filament_diameter")
+        cap = base * ratio
+        limits[key] = _extruder_option(src, f"max_{key}", cap, f"{base:g} × {ratio:.4g} (4·nozzle_diameter² / the "
+                                       f"filament's cross-section) = {cap:.4g}, what a retraction (the extruder "
+                                       "alone) runs at")
     limits["nozzle_diameter"] = nozzle
-    limits["max_extrude_ratio"] = (_extruder_option(src, "max_extrude_cross_section", 4.0 * nozzle ** 2, "mm²")
-                                   / (math.pi * (filament / 2.0) ** 2))
-    limits["extrude_only_distance"] = _extruder_option(src, "max_extrude_only_distance", 50.0, "mm")
+    refused = "past which it refuses a move"
+    limits["max_extrude_ratio"] = (_extruder_option(src, "max_extrude_cross_section", 4.0 * nozzle ** 2,
+                                                    f"{4.0 * nozzle ** 2:.4g} mm², {refused}")
+                                   / filament_area(filament))
+    limits["extrude_only_distance"] = _extruder_option(src, "max_extrude_only_distance", 50.0, f"50 mm, {refused}")
 
 
-def _extruder_option(src: Source, option: str, default: float, unit: str) -> float:
-    """The extruder's ``option`` as written, else Klipper's ``default`` (said)."""
+def _extruder_option(src: Source, option: str, default: float, said: str) -> float:
+    """The extruder's ``option`` as written, else Klipper's ``default``, said as ``said``."""
     if src.given_by_user("extruder", option):
         return src.number("extruder", option)
-    src.notes.append(f"[extruder] {option} not set: Klipper's default, {default:.4g} {unit}, "
-                     "past which it refuses a move")
+    src.notes.append(f"[extruder] {option} not set: Klipper's default, {said}")
     return default
 
 
-def _extrude_ratio(src: Source) -> float | None:
-    """Klipper's default ratio of the extruder-alone limits to the toolhead's: 4·nozzle_diameter² /
-    the filament's cross-section (None without an [extruder] giving both, which Klipper requires)."""
+def _nozzle_and_filament(src: Source) -> tuple[float, float] | None:
+    """The [extruder]'s nozzle_diameter and filament_diameter (mm; None without an [extruder] giving
+    both, which Klipper requires)."""
     if src.name("extruder") is None:
         return None
     nozzle, filament = src.number("extruder", "nozzle_diameter"), src.number("extruder", "filament_diameter")
-    return klipper_default_ratio(nozzle, filament) if nozzle and filament else None
-
-
-def _extrude_cap(src: Source, option: str, base: float, ratio: float) -> float:
-    """The extruder's ``option`` as written, else Klipper's default ``base × ratio`` (said)."""
-    if src.given_by_user("extruder", option):
-        return src.number("extruder", option)
-    cap = base * ratio
-    src.notes.append(f"[extruder] {option} not set: Klipper's default, {base:g} × {ratio:.4g} (4·nozzle_diameter² / "
-                     f"the filament's cross-section) = {cap:.4g}, what a retraction (the extruder alone) runs at")
-    return cap
+    return (nozzle, filament) if nozzle and filament else None
 
 
 def _shaping_unknown(src: Source) -> bool:

@@ -15,9 +15,15 @@ import math
 import numpy as np
 
 
+def filament_area(filament_diameter: float) -> float:
+    """The filament's cross-section, mm², for its diameter (mm)."""
+    return math.pi * (filament_diameter / 2.0) ** 2
+
+
 def klipper_default_ratio(nozzle_diameter: float, filament_diameter: float) -> float:
-    """Klipper's default extruder-alone limits over the toolhead's: 4·nozzle² / (π·(filament/2)²) (mm)."""
-    return 4.0 * nozzle_diameter ** 2 / (math.pi * (filament_diameter / 2.0) ** 2)
+    """Klipper's default extruder-alone limits over the toolhead's, and its default max_extrude_ratio:
+    4·nozzle² (max_extrude_cross_section's default, mm²) / the filament's cross-section."""
+    return 4.0 * nozzle_diameter ** 2 / filament_area(filament_diameter)
 
 
 def e_capped(delta: np.ndarray) -> np.ndarray:
@@ -68,9 +74,9 @@ def klipper_refusals(job, limits) -> list[dict]:
             for i, kind, v, lim in sorted(out)]
 
 
-def klipper_refusals_note(job, limits, shown: int = 3) -> str | None:
-    """:func:`klipper_refusals` in words (the first ``shown`` named), None where there are none."""
-    found = klipper_refusals(job, limits)
+def klipper_refusals_note(found: list[dict], shown: int = 3) -> str | None:
+    """What :func:`klipper_refusals` ``found``, in words (the first ``shown`` named), None where it
+    found none."""
     if not found:
         return None
     words = {"too_wide": lambda r: (f"line {r['line']} extrudes {r['value']:.3f} mm of filament per mm of path, past "

@@ -5,7 +5,7 @@ as the job reads."""
 from __future__ import annotations
 
 from ringtune.shaping.arcs import arcs_note
-from ringtune.shaping.extruder_alone import extruder_alone_note, klipper_refusals_note
+from ringtune.shaping.extruder_alone import extruder_alone_note, klipper_refusals, klipper_refusals_note
 from ringtune.shaping.features import nothing_seen_note
 from ringtune.shaping.firmware_retraction import firmware_retraction_note
 from ringtune.shaping.job_shapers import foreign_shapers, foreign_shapers_note, prusa_weight_note
@@ -35,5 +35,5 @@ def reading_notes(job, limits, firmware: str | None) -> list[str]:
              foreign_shapers_note(foreign_shapers(job, firmware), firmware) if firmware else None,
              prusa_weight_note(job, firmware) if firmware else None,
              firmware_retraction_note(job, limits), arcs_note(job, limits), extruder_alone_note(job, limits),
-             klipper_refusals_note(job, limits), nothing_seen_note(job)]
+             klipper_refusals_note(klipper_refusals(job, limits)), nothing_seen_note(job)]
     return [n for n in notes if n]
