@@ -31,15 +31,26 @@ REAL_KLIPPER_MODULES = ("tests/test_real_klipper_push.py", "tests/test_fwconfig_
                         "tests/test_rewrite_klipper.py", "tests/test_planner_real_klipper.py")
 
 
+#: modules whose tests share an expensive module fixture (a tune run, a closed loop): each module's
+#: tests run on one xdist worker, so the fixture is computed once, not once per worker
+SHARED_FIXTURE_MODULES = ("tests/test_tune_accel.py", "tests/test_ripples_closed_loop.py",
+                          "tests/test_trial_screen.py")
+
+
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config, log):
     """xdist's scheduling by scope, each test its own scope (as ``--dist load``) but the real-Klipper
-    modules one scope together."""
+    modules one scope together and each module of :data:`SHARED_FIXTURE_MODULES` one scope.
+    (xdist's own ``--dist loadgroup`` does not group under pytest 9: its workers rename a node by an
+    attribute pytest 9 no longer reads.)"""
     from xdist.scheduler import LoadScopeScheduling
 
     class RealKlipperOnOneWorker(LoadScopeScheduling):
         def _split_scope(self, nodeid: str) -> str:
-            return "real_klipper" if nodeid.split("::", 1)[0] in REAL_KLIPPER_MODULES else nodeid
+            module = nodeid.split("::", 1)[0]
+            if module in REAL_KLIPPER_MODULES:
+                return "real_klipper"
+            return module if module in SHARED_FIXTURE_MODULES else nodeid
 
     return RealKlipperOnOneWorker(config, log)
 
