@@ -438,6 +438,32 @@ def test_readme_same_command_keeps_the_trials_and_the_warm_start_sentence_reads(
     assert command_line(argparse.Namespace(gcode="/tmp/my job.gcode")) == "ringtune tune --gcode '/tmp/my job.gcode'"
 
 
+def test_the_command_that_resumes_carries_every_option_given(tmp_path):
+    """README.txt's command (``command_line``) parsed again by tune's own parser gives every option
+    as first given: each option of the parser set away from its default at once."""
+    import argparse
+    import shlex
+
+    from ringtune.agents.cli.tune import add_arguments, command_line
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    job = tmp_path / "my job.gcode"
+    job.write_text("G1 X1 Y1 F600\n")
+    argv = ["--printer", "p.toml", "--gcode", str(job), "--firmware", "marlin", "--trials", "7",
+            "--storage", "sqlite:///s.db", "--study", "s2", "--workers", "2", "--seed", "3", "--out", "o",
+            "--pick", "weight", "--weight", "0.5", "--quality", "overshoot", "--max-show-through", "0.04",
+            "--max-path-error", "0.2", "--motor-reserve", "30", "--freq-margin", "3", "--shaping-min-freq", "25",
+            "--accel-range", "2000,9000", "--job-accel", "replace", "--per-feature", "off", "--backend", "lti",
+            "--evaluator", "m:f", "--no-baselines"]
+    given = parser.parse_args(argv)
+    defaults = parser.parse_args([])
+    assert all(getattr(given, k) != getattr(defaults, k) for k in vars(given)), "an option left at its default"
+    words = shlex.split(command_line(given))
+    assert words[:2] == ["ringtune", "tune"]
+    assert parser.parse_args(words[2:]) == given
+
+
 def test_warm_start_sentence_with_no_neighbour(tmp_path, capsys, fake_evaluator):
     """A recorded recommendation equal to the rule's pick on the model, a firmware without the EI
     family (Marlin: ZV only) and a fixed acceleration leave Klipper's pick alone to start from: the

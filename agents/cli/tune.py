@@ -260,11 +260,8 @@ class Progress:
             self._bar.close()
 
 
-_DEFAULTS = {"printer": None, "gcode": None, "firmware": None, "trials": 200, "storage": None,
-             "study": "ringtune", "workers": 1, "seed": 0, "out": "ringtune-out", "pick": None, "weight": None,
-             "quality": "ripple", "max_path_error": None, "max_show_through": None, "motor_reserve": None, "freq_margin": None,
-             "accel_range": None, "job_accel": "respect", "backend": "mujoco", "evaluator": None,
-             "no_baselines": False}
+#: each option's default: the request's own (every field of TuneRequest but the command line)
+_DEFAULTS = {f.name: f.default for f in dataclasses.fields(TuneRequest) if f.name != "command"}
 
 
 def command_line(args) -> str:
