@@ -455,13 +455,40 @@ def test_the_command_that_resumes_carries_every_option_given(tmp_path):
             "--pick", "weight", "--weight", "0.5", "--quality", "overshoot", "--max-show-through", "0.04",
             "--max-path-error", "0.2", "--motor-reserve", "30", "--freq-margin", "3", "--shaping-min-freq", "25",
             "--accel-range", "2000,9000", "--job-accel", "replace", "--per-feature", "off", "--backend", "lti",
-            "--evaluator", "m:f", "--no-baselines"]
+            "--evaluator", "m:f", "--no-baselines", "--no-refine"]
     given = parser.parse_args(argv)
     defaults = parser.parse_args([])
     assert all(getattr(given, k) != getattr(defaults, k) for k in vars(given)), "an option left at its default"
     words = shlex.split(command_line(given))
     assert words[:2] == ["ringtune", "tune"]
     assert parser.parse_args(words[2:]) == given
+
+
+def test_no_refine_takes_the_studys_choice_as_it_left_it_and_the_same_study_refines_later(tmp_path, capsys):
+    """--no-refine: no walk runs (nothing "after the study"), the choice is a trial the study stored
+    (its figures those of trials.csv), the summary says so and the command that resumes keeps the flag.
+    The same folder without it resumes the same study (no new trial) and runs the walks."""
+    import csv
+
+    out = tmp_path / "out"
+    args = ["tune", "--json", "--trials", "3", "--out", str(out)]
+    assert main([*args, "--no-refine"]) == 0
+    got, err = capsys.readouterr()
+    res = json.loads(got)
+    assert res["refined"] is False and res["stop"] is None and res["shaper_ladder"] is None
+    assert res["hidden_raise"] is None and "after the study" not in err
+    chosen = res["chosen"]
+    rows = list(csv.DictReader((out / "trials.csv").open()))
+    figures = {"print_time_s": chosen["print_time_s"], **chosen["measures"]}
+    same = [r for r in rows if all(float(r[k]) == pytest.approx(figures[k], rel=1e-4, abs=1e-6)
+                                   for k in ("print_time_s", "ripple_mm", "corner_in_mm", "corner_out_mm"))
+            and float(r["accel"]) == chosen["config"]["accel"] and r["shaper_x"] == chosen["config"]["shaper_x"]]
+    assert same, "the choice is not a trial of the study"
+    assert "taken as the study left it (--no-refine" in (out / "summary.txt").read_text()
+    assert "--no-refine" in (out / "README.txt").read_text()
+    assert main(args) == 0
+    res2 = json.loads(capsys.readouterr()[0])
+    assert res2["completed_now"] == 0 and res2["refined"] is True and res2["stop"] is not None
 
 
 def test_warm_start_sentence_with_no_neighbour(tmp_path, capsys, fake_evaluator):

@@ -3,7 +3,7 @@
 ``--json`` keys (stable): out, trials, front_size, settled_on_model ({why: trials} of those whose
 twins were not simulated: "over a bound on the model alone" | "beaten on the model alone"), quality,
 max_path_error_mm, motor_reserve,
-max_show_through_mm, freq_margin, resolution {distance_mm, distance_rel, time_rel, pct_abs},
+max_show_through_mm, freq_margin, refined (false with --no-refine: no ladder, stop or walk ran), resolution {distance_mm, distance_rel, time_rel, pct_abs},
 chosen {config, print_time_s, quality_mm, path_error_mm, overshoot_mm, motor_load, measures (every
 metrics figure: ripple_mm, ripple_p90_mm, corner_in_mm, corner_out_mm, extrusion_over_pct,
 extrusion_under_pct, e_lag_mm, show_through_mm, ...), chosen_by, against (the baseline it is at least
@@ -200,6 +200,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="advanced: score configs with your own f(configs, printer, job) -> metrics")
     p.add_argument("--no-baselines", action="store_true", help="skip the baselines (Klipper's rule, what the "
                    "printer runs now, no shaping)")
+    p.add_argument("--no-refine", action="store_true",
+                   help="take the study's choice as the study left it: no shaper ladder, measured stop or walk "
+                        "where nobody looks after it (what the search alone finds, for a study of what they add; "
+                        "quicker on a long job)")
 
 
 def run(args: argparse.Namespace, out) -> int:

@@ -41,6 +41,7 @@ class TuneRequest:
     backend: str = "mujoco"
     evaluator: str | None = None
     no_baselines: bool = False
+    no_refine: bool = False              # the study's choice as it left it: no ladder, stop or walk
     command: str = "ringtune tune"       # the command line that reproduces the run
 
 

@@ -83,14 +83,19 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
              "the variants alone")
     front = pareto.pareto_front(points, also=_also(points, quality))
     choice = pick(front, baselines, lim.how, req.weight, candidates=points, why_none=unshaped_modes_note(printer, space))
-    choice, stop, lift, ladder = refine(choice, bl, evaluator, settings, printer, space,
-                                        Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st), note,
-                                        runners_up(choice, points, baselines))
+    if req.no_refine:
+        stop = lift = ladder = None
+        choice = dataclasses.replace(choice, sentence=f"{choice.sentence}; taken as the study left it (--no-refine: "
+                                     "no shaper ladder, measured stop or walk where nobody looks)")
+    else:
+        choice, stop, lift, ladder = refine(choice, bl, evaluator, settings, printer, space,
+                                            Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st), note,
+                                            runners_up(choice, points, baselines))
     result, text, accel_json, ja_json = _report(req, lim, fw, printer, facts, space, quality, points, front, choice,
                                                 (stop, lift, ladder), bl, settings, floor_note, why, out_dir, store, note)
     result.update({"stop": stop.to_dict() if stop else None,
                    "shaper_ladder": ladder.to_dict() if ladder else None, "hidden_raise": lift.to_dict() if lift else None,
-                   "freq_margin": lim.margin,
+                   "freq_margin": lim.margin, "refined": not req.no_refine,
                    "accel": accel_json, "job_accel": ja_json, "storage": store,
                    "study": req.study, "completed_now": run_.completed_now, "interrupted": run_.interrupted,
                    "elapsed_s": time.time() - t_start})
