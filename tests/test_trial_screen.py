@@ -103,12 +103,12 @@ def test_tune_counts_the_settled_trials_and_does_not_call_them_old(tmp_path, cap
     ringtune had none: tune must not say that of it."""
     from ringtune.agents.cli.main import main
     assert main(["tune", "--trials", "16", "--workers", "1", "--seed", "0", "--out", str(tmp_path / "out"),
-                 "--per-feature", "off"]) == 0
+                 "--per-feature", "off", "--no-refine"]) == 0
     out, err = capsys.readouterr()
     settled = [p for p in study_points_of(tmp_path / "out") if p.screened]
     assert settled, "this run settles some trials on the model alone"
     assert main(["tune", "--trials", "16", "--workers", "1", "--seed", "0", "--out", str(tmp_path / "out"),
-                 "--per-feature", "off", "--json"]) == 0      # resumed: nothing left to run, the same report
+                 "--per-feature", "off", "--no-refine", "--json"]) == 0      # resumed: nothing left to run, the same report
     counts = json.loads(capsys.readouterr()[0])["settled_on_model"]
     assert counts == {k: sum(p.screened == k for p in settled) for k in {p.screened for p in settled}}
     beaten = sum(p.screened == trial_screen.BEATEN for p in settled)

@@ -120,10 +120,10 @@ def test_trials_stored_without_their_variants_are_said(tmp_path, monkeypatch, ca
     import ringtune.agents.tune.study as study_module
     monkeypatch.setattr(study_module, "variant_figures", lambda m: ())
     assert main(["tune", "--trials", "3", "--workers", "1", "--seed", "0", "--out", str(tmp_path / "out"),
-                 "--per-feature", "off"]) == 0
+                 "--per-feature", "off", "--no-refine"]) == 0
     err = capsys.readouterr().err
     assert "3 of the study's 3 trials were stored without their figures on each printer variant" in err
     monkeypatch.undo()
     assert main(["tune", "--trials", "3", "--workers", "1", "--seed", "0", "--out", str(tmp_path / "new"),
-                 "--per-feature", "off"]) == 0
+                 "--per-feature", "off", "--no-refine"]) == 0
     assert "stored without their figures" not in capsys.readouterr().err
