@@ -464,14 +464,15 @@ def test_the_command_that_resumes_carries_every_option_given(tmp_path):
     assert parser.parse_args(words[2:]) == given
 
 
-def test_no_refine_takes_the_studys_choice_as_it_left_it_and_the_same_study_refines_later(tmp_path, capsys):
+def test_no_refine_takes_the_studys_choice_as_it_left_it_and_the_same_study_refines_later(tmp_path, capsys,
+                                                                                          fake_evaluator):
     """--no-refine: no walk runs (nothing "after the study"), the choice is a trial the study stored
     (its figures those of trials.csv), the summary says so and the command that resumes keeps the flag.
     The same folder without it resumes the same study (no new trial) and runs the walks."""
     import csv
 
     out = tmp_path / "out"
-    args = ["tune", "--json", "--trials", "3", "--out", str(out)]
+    args = ["tune", "--json", "--trials", "6", "--out", str(out), "--evaluator", fake_evaluator]
     assert main([*args, "--no-refine"]) == 0
     got, err = capsys.readouterr()
     res = json.loads(got)
@@ -481,7 +482,7 @@ def test_no_refine_takes_the_studys_choice_as_it_left_it_and_the_same_study_refi
     rows = list(csv.DictReader((out / "trials.csv").open()))
     figures = {"print_time_s": chosen["print_time_s"], **chosen["measures"]}
     same = [r for r in rows if all(float(r[k]) == pytest.approx(figures[k], rel=1e-4, abs=1e-6)
-                                   for k in ("print_time_s", "ripple_mm", "corner_in_mm", "corner_out_mm"))
+                                   for k in ("print_time_s", "overshoot_mm", "path_error_mm"))
             and float(r["accel"]) == chosen["config"]["accel"] and r["shaper_x"] == chosen["config"]["shaper_x"]]
     assert same, "the choice is not a trial of the study"
     assert "taken as the study left it (--no-refine" in (out / "summary.txt").read_text()
