@@ -2,8 +2,8 @@
 
 ``--json`` keys (stable): out, trials, front_size, settled_on_model ({why: trials} of those whose
 twins were not simulated: "over a bound on the model alone" | "beaten on the model alone"), quality,
-max_path_error_mm, motor_reserve,
-max_show_through_mm, freq_margin, refined (false with --no-refine: no ladder, stop or walk ran), resolution {distance_mm, distance_rel, time_rel, pct_abs},
+max_path_error_mm, motor_reserve, max_show_through_mm, freq_margin, refined (false with --no-refine:
+no ladder, stop or walk ran), resolution {distance_mm, distance_rel, time_rel, pct_abs},
 chosen {config, print_time_s, quality_mm, path_error_mm, overshoot_mm, motor_load, measures (every
 metrics figure: ripple_mm, ripple_p90_mm, corner_in_mm, corner_out_mm, extrusion_over_pct,
 extrusion_under_pct, e_lag_mm, show_through_mm, ...), chosen_by, against (the baseline it is at least

@@ -85,11 +85,12 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     choice = pick(front, baselines, lim.how, req.weight, candidates=points, why_none=unshaped_modes_note(printer, space))
     if req.no_refine:
         stop = lift = ladder = None
-        choice = dataclasses.replace(choice, sentence=f"{choice.sentence}; taken as the study left it (--no-refine: "
-                                     "no shaper ladder, measured stop or walk where nobody looks)")
+        choice = dataclasses.replace(choice, sentence=(f"{choice.sentence}; taken as the study left it "
+                                                       "(--no-refine: no shaper ladder, measured stop or walk "
+                                                       "where nobody looks)"))
     else:
-        choice, stop, lift, ladder = refine(choice, bl, evaluator, settings, printer, space,
-                                            Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st), note,
+        bounds = Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st)
+        choice, stop, lift, ladder = refine(choice, bl, evaluator, settings, printer, space, bounds, note,
                                             runners_up(choice, points, baselines))
     result, text, accel_json, ja_json = _report(req, lim, fw, printer, facts, space, quality, points, front, choice,
                                                 (stop, lift, ladder), bl, settings, floor_note, why, out_dir, store, note)
