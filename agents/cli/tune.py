@@ -125,7 +125,9 @@ further off the model than the twins (resonances ×0.85, ×1 and ×1.15 at half 
 alone: what is worse there than the baselines is not taken (the study's choice gives way to a slower
 study point that holds there, or to the baseline), since a step that only rides the twins'
 resolution ripples more on a printer a little further off. Differences under 1 µm or 5 % of a
-distance, 1 point or 5 % of extrusion and 0.5 % of print time count as the same.
+distance, 1 point or 5 % of extrusion and 0.5 % of print time count as the same. --no-refine takes
+the study's choice as the study left it, with none of the ladder, the stop or the walk: what the
+search alone finds (the same folder without it later resumes the study and runs them).
 
 With no arguments it tunes the built-in Ender-3-class printer on the built-in test print into
 ./ringtune-out/ in about a minute; open ringtune-out/README.txt first. Running the same command
