@@ -41,6 +41,7 @@ from ringtune.shaping.freqlimit import apply_freq_limit
 from ringtune.shaping.job import Job
 from ringtune.shaping.job_shapers import with_firmware_shaper_stops
 from ringtune.shaping.planner import MachineLimits, Plan, plan
+from ringtune.shaping.prusa_limits import hardware_limits, job_model
 
 #: how a config's acceleration meets the job's own acceleration commands (module docstring)
 JOB_ACCEL_MODES = ("replace", "respect")
@@ -114,11 +115,16 @@ def _carries(job: Job, config: TuneConfig) -> bool:
             and abs(floor - config.min_speed_factor) <= 1e-5 * max(floor, 1e-9))
 
 
-def for_firmware(limits: MachineLimits, config: TuneConfig | None) -> MachineLimits:
+def for_firmware(limits: MachineLimits, config: TuneConfig | None, job: Job | None = None) -> MachineLimits:
     """``limits`` as the firmware the configuration is for reads a job: RepRapFirmware its M203
-    in mm/min, Marlin and Prusa without RRF's M566 (None: the printer's own, ``[current]
-    firmware``)."""
-    return limits if config is None else replace(limits, **job_reading(config.firmware))
+    in mm/min, Marlin and Prusa without RRF's M566, Prusa held to the hardware limits of the model
+    ``job`` names (:mod:`ringtune.shaping.prusa_limits`, normal mode) (None: the printer's own,
+    ``[current] firmware``)."""
+    if config is None:
+        return limits
+    limits = replace(limits, **job_reading(config.firmware))
+    hw = hardware_limits(job_model(job)) if config.firmware == "prusa" and job is not None else None
+    return limits if hw is None else replace(limits, hw_max_accel=hw.max_accel, hw_max_velocity=hw.max_velocity)
 
 
 def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None = None, *,
@@ -131,7 +137,7 @@ def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None 
     ``job_accel``: ``replace`` or ``respect`` (:func:`job_accel_mode`).
     """
     mode = job_accel_mode(config, job_accel)
-    limits = for_firmware(with_axis_caps(limits, config), config)
+    limits = for_firmware(with_axis_caps(limits, config), config, job)
     job = with_firmware_retractions(job, limits)   # G10/G11 as the E-only moves the firmware makes, where known
     accel = None if config is None or config.accel is None else float(config.accel)
     if accel is not None:     # export sends it as printing and travel acceleration (M204 P T)

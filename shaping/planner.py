@@ -107,7 +107,9 @@ class MachineLimits:
     ``G10`` (Marlin's and RRF's M207 Z); arc_resolution: Klipper's ``[gcode_arcs]
     resolution`` (mm; None: its default 1 mm, :func:`ringtune.shaping.arcs.arc_resolution`); arc_firmware:
     whose segments G2/G3 become, ``klipper`` | ``marlin`` | ``rrf`` | ``prusa`` (None: as the reading
-    implies, :attr:`arc_rule`).
+    implies, :attr:`arc_rule`); hw_max_accel / hw_max_velocity: a firmware's compiled ceilings (x, y,
+    z, e) on the per-axis caps whatever M201/M203 ask (Prusa-Firmware-Buddy's HWLIMIT for the job's
+    model, :mod:`ringtune.shaping.prusa_limits`), None: none.
     """
 
     accel: float = 3000.0
@@ -139,6 +141,8 @@ class MachineLimits:
     max_extrude_ratio: float | None = None
     nozzle_diameter: float | None = None
     extrude_only_distance: float | None = None
+    hw_max_accel: tuple | None = None
+    hw_max_velocity: tuple | None = None
 
     @property
     def reads_like_klipper(self) -> bool:
@@ -203,7 +207,8 @@ _LIMIT_CHECKS = (
     (("accel", "velocity"), _positive, "must be a positive number, not {v!r}"),
     (("square_corner_velocity", "junction_deviation"), _non_negative, "must be a number >= 0, not {v!r}"),
     (("min_cruise_ratio",), _fraction, "must be in [0, 1)"),
-    (("jerk", "max_accel", "max_velocity"), _four_or_none, "needs 4 numbers >= 0 (x, y, z, e)"),
+    (("jerk", "max_accel", "max_velocity", "hw_max_accel", "hw_max_velocity"), _four_or_none,
+     "needs 4 numbers >= 0 (x, y, z, e)"),
     (("travel_accel", "retract_accel", "accel_to_decel", "retract_speed", "unretract_speed", "arc_resolution",
       "extrude_only_accel", "extrude_only_velocity", "max_extrude_ratio", "nozzle_diameter", "extrude_only_distance"),
      _positive_or_none,
@@ -259,6 +264,15 @@ class Plan:
 
 
 # -- the planner ---------------------------------------------------------------------------------
+
+def _held(caps: np.ndarray, ceiling: tuple | None) -> np.ndarray:
+    """(n, 4) per-axis caps held to a firmware's compiled ceilings (x, y, z, e; 0: none), whatever
+    M201/M203 ask: Prusa-Firmware-Buddy's HWLIMIT (:mod:`ringtune.shaping.prusa_limits`)."""
+    if ceiling is None:
+        return caps
+    top = np.array([c if c > 0 else np.inf for c in ceiling], float)
+    return np.minimum(caps, top[None, :])
+
 def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | None = None,
          use_job_limits: bool = True, daa_min_accel: float = 10.0,
          accel: float | None = None) -> Plan:
@@ -295,12 +309,13 @@ def plan(job_or_moves, limits: MachineLimits | None = None, daa_freq: float | No
     e_cap = e_capped(delta)                  # the moves Klipper's extruder limits bind
     vcaps = axis_caps(job, "max_vel", limits.max_velocity, use, klipper, 1 / 60 if limits.m203_per_minute else 1.0,
                       e_cap, limits.extrude_only_velocity)
+    vcaps = _held(vcaps, limits.hw_max_velocity)
     vmax = scale_by_axes(vmax, u, vcaps)
     if limits.axis_rule == "limited_corexy":
         vmax = corexy_speed_cap(vmax, velocity, u)
     base = move_accels(job, limits, use, delta, e_only, accel_override)
-    amax_axes = axis_caps(job, "max_accel", limits.max_accel, use, klipper, e_alone=e_cap,
-                          e_klipper=limits.extrude_only_accel)
+    amax_axes = _held(axis_caps(job, "max_accel", limits.max_accel, use, klipper, e_alone=e_cap,
+                                e_klipper=limits.extrude_only_accel), limits.hw_max_accel)
     accel = kinematic_accel(base, u, amax_axes, limits.axis_rule, limits.scale_xy_accel,
                             skip=marlin_retractions(job, limits, use, e_only))
     if klipper:

@@ -25,6 +25,7 @@ import numpy as np
 from ringtune.agents.tune.motor_bound import motor_accel_limit
 from ringtune.agents.tune.feature_groups import ACCEL_GROUPS, CORNER_GROUPS, CORNER_WORDS, HIDDEN_CORNERS, SEEN_GROUPS
 from ringtune.agents.tune.space import CORNER_UNIT, SearchSpace
+from ringtune.agents.tune.hardware_cap import accel_ceiling
 from ringtune.envs.planned_job import planned_job, resolve_job
 from ringtune.shaping.config_plan import as_read_by, for_firmware
 from ringtune.shaping.feature_settings import corner_value, effective_classes
@@ -64,7 +65,7 @@ def feature_space(space: SearchSpace, printer: Any, job: Any = None, reserve: fl
     the corner rule (``corner``) and, under Klipper's junction rule, minimum_cruise_ratio."""
     speeds = group_speeds(printer, job, space.firmware)
     lo = space.accel[0]
-    fw_hi = FIRMWARES[space.firmware].accel.hi
+    fw_hi = min(FIRMWARES[space.firmware].accel.hi, accel_ceiling(printer, job, space.firmware)[0] or math.inf)
     groups, basis = [], {}
     for group, v in speeds.items():
         if group == "visible":

@@ -22,6 +22,7 @@ from ringtune.agents.tune.choice import BASELINE_NAMES, pick, runners_up
 from ringtune.agents.tune.hidden_raise import unseen_tops
 from ringtune.agents.tune.pareto import VISIBLE_KEYS
 from ringtune.agents.tune.readme_text import readme_text
+from ringtune.agents.tune.hardware_cap import held_to_ceiling
 from ringtune.agents.tune.refine import refine
 from ringtune.agents.tune.request import Limits, TuneRequest, check_request, shaping_min_freq
 from ringtune.agents.tune.space import (CORNER_UNIT, default_space, freq_floor_note, params_from_config,
@@ -167,6 +168,7 @@ def _space(req: TuneRequest, lim: Limits, firmware: str, printer, facts, note: C
                           min_freq=min_freq)
     if lim.accel_range is None and configs is not None:
         space = _reaching_baselines(space, configs, note)
+    space = held_to_ceiling(space, printer, req.gcode, note)
     floor_note = freq_floor_note(firmware, min_freq, space)
     if floor_note:
         note(f"ringtune tune: {floor_note}")

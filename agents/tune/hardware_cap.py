@@ -1,0 +1,43 @@
+"""A firmware's compiled ceiling on the accelerations the search may choose: Prusa-Firmware-Buddy's
+hardware limits for the model the job names (:mod:`ringtune.shaping.prusa_limits`).
+
+An acceleration above it is not an option on that printer (M201 cannot raise the cap), so the
+search range and each feature group's range stop there, and ``tune`` says what it holds to (or
+that the job names no model it knows, and the range is not held).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Callable
+
+from ringtune.agents.tune.space import SearchSpace
+from ringtune.envs.planned_job import resolve_job
+from ringtune.shaping.config_plan import as_read_by, for_firmware
+from ringtune.shaping.prusa_limits import hardware_limits, hardware_note, job_model
+
+
+def accel_ceiling(printer: Any, job: Any, firmware: str) -> tuple[float | None, str | None]:
+    """(the X/Y acceleration ceiling in mm/s², or None; the model the job names, or None) on
+    ``firmware`` (only ``prusa`` has one) for ``job`` (a path, text, parsed job, or None: the
+    built-in print, which names no model)."""
+    if firmware != "prusa":
+        return None, None
+    _, parsed = resolve_job(job, for_firmware(printer.limits, as_read_by(firmware)))
+    model = job_model(parsed)
+    hw = hardware_limits(model)
+    return (None if hw is None else float(min(hw.max_accel[:2]))), model
+
+
+def held_to_ceiling(space: SearchSpace, printer: Any, job: Any, note: Callable[[str], None]) -> SearchSpace:
+    """``space`` with its acceleration range held under the firmware's ceiling for ``job`` (said in a
+    note, as is a Prusa job whose model ringtune does not know); unchanged on other firmwares."""
+    if space.firmware != "prusa":
+        return space
+    top, model = accel_ceiling(printer, job, space.firmware)
+    note(f"ringtune tune: {hardware_note(model)}")
+    if top is None or space.accel[1] <= top:
+        return space
+    return dataclasses.replace(space, accel=(min(space.accel[0], top), top), accel_basis=(
+        f"Prusa-Firmware-Buddy's hardware limit on the {model} (HWLIMIT_NORMAL_MAX_ACCELERATION X/Y, "
+        f"{top:.0f} mm/s²; M201 cannot raise it)"))
