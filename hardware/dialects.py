@@ -43,6 +43,7 @@ from ringtune.hardware.firmware_check import canonical, check_value, fmt
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.feature_settings import corner_words
 from ringtune.shaping.firmware import Firmware, Span
+from ringtune.shaping.prusa_limits import PRUSA_HARDWARE_LIMITS
 
 #: firmware family -> the builder of its lines (one module per family's dialect)
 _BUILDERS = {"klipper": klipper_export, "rrf": rrf_export, "marlin": marlin_export,
@@ -74,7 +75,28 @@ def export_config(config: TuneConfig, firmware: str | None = None, accel: bool =
     _freq_limit(config, fw, exp)
     _accel(config, fw, exp, accel)
     _klipper_corner(config, fw, exp, carried)
+    if accel:
+        _hardware_ceiling(config, fw, exp)
     return exp
+
+
+def _hardware_ceiling(config: TuneConfig, fw: Firmware, exp: Export) -> None:
+    """On Prusa-Firmware-Buddy: where the config asks more than a model's compiled ceiling
+    (:mod:`ringtune.shaping.prusa_limits`), which no file names here, that it runs at the ceiling there."""
+    if fw.name != "prusa":
+        return
+    asked = max([config.accel or 0.0, *config.feature_accel.values(), *(c or 0.0 for c in config.axis_caps)])
+    limits = {m: (h["normal"].max_accel[0], h["stealth"].max_accel[0]) for m, h in PRUSA_HARDWARE_LIMITS.items()}
+    if asked <= min(stealth for _n, stealth in limits.values()):
+        return
+    known = "; ".join(f"{m} {n:.0f}, in stealth mode {st:.0f}" for m, (n, st) in limits.items())
+    lower = [m for m, (n, _st) in limits.items() if n < asked]
+    where = (f"on the {' and the '.join(lower)}, and on any of them in stealth mode," if lower
+             else "in stealth mode")
+    exp.notes.append(f"this config asks for up to {asked:.0f} mm/s², and Prusa-Firmware-Buddy holds M201 X/Y to its "
+                     f"model's hardware limit whatever a line asks ({known} mm/s²): {where} the printer runs at "
+                     "its limit, slower than this config was planned (tune --gcode on a job naming its model, "
+                     "M862.3, plans with it)")
 
 
 def _carries_corner(config: TuneConfig, fw: Firmware) -> bool:

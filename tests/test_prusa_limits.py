@@ -86,3 +86,19 @@ def test_tune_for_an_mk4_searches_only_what_the_mk4_takes(tmp_path, capsys):
     assert main(["tune", "--json", "--firmware", "prusa", "--gcode", str(job), "--trials", "3", "--no-refine",
                  "--out", str(tmp_path / "out2")]) == 0
     assert "the job names no model (M862.3)" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("accel, feature, held", [
+    (9000.0, {}, "on the MK4, and on any of them in stealth mode,"),           # above the MK4's 7000 only
+    (4800.0, {"infill": 12400.0}, "on the MK4 and the COREONE, and"),         # a feature's, above both
+    (3000.0, {}, "in stealth mode the printer runs at its limit"),             # above stealth mode's 2500
+    (2000.0, {}, None),
+])
+def test_export_for_prusa_says_where_the_hardware_limit_holds_the_config(accel, feature, held):
+    from ringtune.hardware.dialects import export_config
+
+    cfg = TuneConfig(firmware="prusa", shaper_x="mzv", shaper_y="mzv", freq_x=50.0, freq_y=40.0, accel=accel,
+                     feature_accel=feature)
+    said = [n for n in export_config(cfg).notes if "hardware limit" in n]
+    assert (said[0].count(held) == 1) if held else not said
+    assert not [n for n in export_config(replace(cfg, firmware="klipper")).notes if "hardware limit" in n]
