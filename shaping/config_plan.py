@@ -124,7 +124,8 @@ def for_firmware(limits: MachineLimits, config: TuneConfig | None, job: Job | No
         return limits
     limits = replace(limits, **job_reading(config.firmware))
     hw = hardware_limits(job_model(job)) if config.firmware == "prusa" and job is not None else None
-    return limits if hw is None else replace(limits, hw_max_accel=hw.max_accel, hw_max_velocity=hw.max_velocity)
+    return limits if hw is None else replace(limits, hw_max_accel=hw.max_accel, hw_max_velocity=hw.max_velocity,
+                                             hw_max_jerk=hw.jerk)
 
 
 def plan_with_config(job: Job, limits: MachineLimits, config: TuneConfig | None = None, *,

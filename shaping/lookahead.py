@@ -249,8 +249,12 @@ def jerk_setting(limits) -> str:
 
 
 def jerk_limits(job, limits, use) -> np.ndarray:
+    """(n, 4) classic jerk per move and axis, mm/s: the job's own over the machine's, held to a
+    firmware's compiled ceiling where it has one (``limits.hw_max_jerk``)."""
     key = jerk_setting(limits)
-    return np.stack([job_value(job, f"{key}_{ax}", limits.jerk[i], use) for i, ax in enumerate("xyze")], axis=1)
+    jerk = np.stack([job_value(job, f"{key}_{ax}", limits.jerk[i], use) for i, ax in enumerate("xyze")], axis=1)
+    hw = getattr(limits, "hw_max_jerk", None)
+    return jerk if hw is None else np.minimum(jerk, np.asarray(hw, float)[None, :])
 
 
 def jerk_safe_speeds(job, limits, use, u, vmax) -> np.ndarray:

@@ -107,8 +107,8 @@ class MachineLimits:
     ``G10`` (Marlin's and RRF's M207 Z); arc_resolution: Klipper's ``[gcode_arcs]
     resolution`` (mm; None: its default 1 mm, :func:`ringtune.shaping.arcs.arc_resolution`); arc_firmware:
     whose segments G2/G3 become, ``klipper`` | ``marlin`` | ``rrf`` | ``prusa`` (None: as the reading
-    implies, :attr:`arc_rule`); hw_max_accel / hw_max_velocity: a firmware's compiled ceilings (x, y,
-    z, e) on the per-axis caps whatever M201/M203 ask (Prusa-Firmware-Buddy's HWLIMIT for the job's
+    implies, :attr:`arc_rule`); hw_max_accel / hw_max_velocity / hw_max_jerk: a firmware's compiled
+    ceilings (x, y, z, e) on the per-axis caps and classic jerk whatever M201/M203/M205 ask (Prusa-Firmware-Buddy's HWLIMIT for the job's
     model, :mod:`ringtune.shaping.prusa_limits`), None: none.
     """
 
@@ -143,6 +143,7 @@ class MachineLimits:
     extrude_only_distance: float | None = None
     hw_max_accel: tuple | None = None
     hw_max_velocity: tuple | None = None
+    hw_max_jerk: tuple | None = None
 
     @property
     def reads_like_klipper(self) -> bool:
@@ -207,7 +208,7 @@ _LIMIT_CHECKS = (
     (("accel", "velocity"), _positive, "must be a positive number, not {v!r}"),
     (("square_corner_velocity", "junction_deviation"), _non_negative, "must be a number >= 0, not {v!r}"),
     (("min_cruise_ratio",), _fraction, "must be in [0, 1)"),
-    (("jerk", "max_accel", "max_velocity", "hw_max_accel", "hw_max_velocity"), _four_or_none,
+    (("jerk", "max_accel", "max_velocity", "hw_max_accel", "hw_max_velocity", "hw_max_jerk"), _four_or_none,
      "needs 4 numbers >= 0 (x, y, z, e)"),
     (("travel_accel", "retract_accel", "accel_to_decel", "retract_speed", "unretract_speed", "arc_resolution",
       "extrude_only_accel", "extrude_only_velocity", "max_extrude_ratio", "nozzle_diameter", "extrude_only_distance"),

@@ -102,3 +102,37 @@ def test_export_for_prusa_says_where_the_hardware_limit_holds_the_config(accel, 
     said = [n for n in export_config(cfg).notes if "hardware limit" in n]
     assert (said[0].count(held) == 1) if held else not said
     assert not [n for n in export_config(replace(cfg, firmware="klipper")).notes if "hardware limit" in n]
+
+
+def test_buddy_holds_m205_jerk_to_the_mk4_limit(limits):
+    """Classic jerk (Prusa's M205 X/Y): X/Y at most 10 mm/s on the MK4 (HWLIMIT_NORMAL_JERK), Z 2, E 10."""
+    jerky = replace(limits, junction="jerk", jerk=(8.0, 8.0, 0.4, 5.0))
+    cfg = TuneConfig(firmware="prusa", accel=5000.0)
+
+    def planned(model_line, m205, *caps):
+        text = _job(model_line, *caps, feed=9000).replace("M204 P12000 T12000", f"M204 P12000 T12000\nM205 {m205}")
+        return plan_with_config(read_gcode(text), jerky, cfg, job_accel="respect").plan
+
+    held = planned('M862.3 P "MK4"', "X20 Y20")
+    # Buddy's min() of each: jerk X/Y 10 (the printer's Z 0.4 and E 5 under 2 and 10), M201 and M203 as above
+    truth = planned(";", "X10 Y10 Z0.4 E5", "X7000 Y7000 Z100 E2500", "X300 Y300 Z5 E100")
+    assert held.print_time == pytest.approx(truth.print_time, rel=1e-12)
+    assert planned(";", "X20 Y20", "X7000 Y7000 Z100 E2500", "X300 Y300 Z5 E100").print_time < held.print_time
+
+
+def test_the_corner_search_stays_under_the_mk4_jerk_limit(tmp_path):
+    from ringtune.agents.tune.feature_space import CORNER_RANGE, HIDDEN_CORNER_RANGE, feature_space
+    from ringtune.agents.tune.space import default_space
+
+    from ringtune.envs.printer import printer_from_dict
+
+    base = load_printer(None).to_dict()
+    printer = printer_from_dict({**base, "limits": {**base["limits"], "junction": "jerk"}}, "jerk printer")
+    job = tmp_path / "mk4.gcode"
+    for line, top in (('M862.3 P "MK4"', 10.0), (";", None)):
+        job.write_text(_job(line, feed=7200))
+        space = feature_space(default_space(printer, "prusa"), printer, str(job))
+        assert CORNER_RANGE["jerk"][1] > 10.0 and HIDDEN_CORNER_RANGE["jerk"][1] > 10.0   # the case: they reach above
+        want = top or CORNER_RANGE["jerk"][1]
+        assert space.corner[1] == want
+        assert space.hidden_corner is None or space.hidden_corner[1] == (top or HIDDEN_CORNER_RANGE["jerk"][1])

@@ -25,7 +25,7 @@ import numpy as np
 from ringtune.agents.tune.motor_bound import motor_accel_limit
 from ringtune.agents.tune.feature_groups import ACCEL_GROUPS, CORNER_GROUPS, CORNER_WORDS, HIDDEN_CORNERS, SEEN_GROUPS
 from ringtune.agents.tune.space import CORNER_UNIT, SearchSpace
-from ringtune.agents.tune.hardware_cap import accel_ceiling
+from ringtune.agents.tune.hardware_cap import accel_ceiling, corner_ceiling, held_range
 from ringtune.envs.planned_job import planned_job, resolve_job
 from ringtune.shaping.config_plan import as_read_by, for_firmware
 from ringtune.shaping.feature_settings import corner_value, effective_classes
@@ -83,11 +83,12 @@ def feature_space(space: SearchSpace, printer: Any, job: Any = None, reserve: fl
     sayable = junction != "scv" or klipper       # square_corner_velocity is Klipper's alone
     mcr = min_cruise_ratio and junction == "scv" and klipper
     behind = any(c in HIDDEN_CORNERS for g in speeds for c in ACCEL_GROUPS[g])
+    top = corner_ceiling(printer, job, space.firmware, junction)     # a firmware's compiled jerk ceiling
     return dataclasses.replace(
         space, feature_accel=tuple(groups), junction=junction,
-        corner=CORNER_RANGE[junction] if (corner and sayable) else None,
+        corner=held_range(CORNER_RANGE[junction], top) if (corner and sayable) else None,
         min_cruise_ratio=MCR_RANGE if mcr else None,
-        hidden_corner=HIDDEN_CORNER_RANGE[junction] if (corner and sayable and behind) else None,
+        hidden_corner=held_range(HIDDEN_CORNER_RANGE[junction], top) if (corner and sayable and behind) else None,
         hidden_min_cruise_ratio=MCR_RANGE if (mcr and behind) else None,
         feature_basis=basis, corner_now=float(now), mcr_now=float(lim.min_cruise_ratio))
 

@@ -17,16 +17,34 @@ from ringtune.shaping.config_plan import as_read_by, for_firmware
 from ringtune.shaping.prusa_limits import hardware_limits, hardware_note, job_model
 
 
-def accel_ceiling(printer: Any, job: Any, firmware: str) -> tuple[float | None, str | None]:
-    """(the X/Y acceleration ceiling in mm/s², or None; the model the job names, or None) on
-    ``firmware`` (only ``prusa`` has one) for ``job`` (a path, text, parsed job, or None: the
-    built-in print, which names no model)."""
+def _limits(printer: Any, job: Any, firmware: str):
+    """(the model's hardware limits or None, the model the job names or None) on ``firmware`` (only
+    ``prusa`` has them) for ``job`` (a path, text, parsed job, or None: the built-in print, which
+    names no model)."""
     if firmware != "prusa":
         return None, None
     _, parsed = resolve_job(job, for_firmware(printer.limits, as_read_by(firmware)))
     model = job_model(parsed)
-    hw = hardware_limits(model)
+    return hardware_limits(model), model
+
+
+def accel_ceiling(printer: Any, job: Any, firmware: str) -> tuple[float | None, str | None]:
+    """(the X/Y acceleration ceiling in mm/s², or None; the model the job names, or None)."""
+    hw, model = _limits(printer, job, firmware)
     return (None if hw is None else float(min(hw.max_accel[:2]))), model
+
+
+def corner_ceiling(printer: Any, job: Any, firmware: str, junction: str) -> float | None:
+    """The ceiling on the corner rule's value under ``junction`` (classic jerk X/Y, mm/s), or None."""
+    hw, _model = _limits(printer, job, firmware)
+    return float(min(hw.jerk[:2])) if hw is not None and junction == "jerk" else None
+
+
+def held_range(rng: tuple | None, top: float | None) -> tuple | None:
+    """``rng`` (lo, hi) with its top held to ``top`` (None: not held; a range above it: at it)."""
+    if rng is None or top is None:
+        return rng
+    return (min(rng[0], top), min(rng[1], top))
 
 
 def held_to_ceiling(space: SearchSpace, printer: Any, job: Any, note: Callable[[str], None]) -> SearchSpace:
