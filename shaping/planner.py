@@ -108,8 +108,8 @@ class MachineLimits:
     resolution`` (mm; None: its default 1 mm, :func:`ringtune.shaping.arcs.arc_resolution`); arc_firmware:
     whose segments G2/G3 become, ``klipper`` | ``marlin`` | ``rrf`` | ``prusa`` (None: as the reading
     implies, :attr:`arc_rule`); hw_max_accel / hw_max_velocity / hw_max_jerk: a firmware's compiled
-    ceilings (x, y, z, e) on the per-axis caps and classic jerk whatever M201/M203/M205 ask (Prusa-Firmware-Buddy's HWLIMIT for the job's
-    model, :mod:`ringtune.shaping.prusa_limits`), None: none.
+    ceilings (x, y, z, e) on the per-axis caps and classic jerk whatever M201/M203/M205 ask
+    (Prusa-Firmware-Buddy's HWLIMIT for the job's model, :mod:`ringtune.shaping.prusa_limits`), None: none.
     """
 
     accel: float = 3000.0

@@ -1,9 +1,9 @@
-"""A firmware's compiled ceiling on the accelerations the search may choose: Prusa-Firmware-Buddy's
-hardware limits for the model the job names (:mod:`ringtune.shaping.prusa_limits`).
+"""A firmware's compiled ceilings on the accelerations and classic jerk the search may choose:
+Prusa-Firmware-Buddy's hardware limits for the model the job names (:mod:`ringtune.shaping.prusa_limits`).
 
-An acceleration above it is not an option on that printer (M201 cannot raise the cap), so the
-search range and each feature group's range stop there, and ``tune`` says what it holds to (or
-that the job names no model it knows, and the range is not held).
+A value above them is not an option on that printer (M201 and M205 cannot raise them), so the
+search range, each feature group's range and the jerk's stop there, and ``tune`` says what it
+holds to (or that the job names no model it knows, and nothing is held).
 """
 
 from __future__ import annotations
