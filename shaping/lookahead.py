@@ -253,7 +253,7 @@ def jerk_limits(job, limits, use) -> np.ndarray:
     firmware's compiled ceiling where it has one (``limits.hw_max_jerk``)."""
     key = jerk_setting(limits)
     jerk = np.stack([job_value(job, f"{key}_{ax}", limits.jerk[i], use) for i, ax in enumerate("xyze")], axis=1)
-    hw = getattr(limits, "hw_max_jerk", None)
+    hw = limits.hw_max_jerk
     return jerk if hw is None else np.minimum(jerk, np.asarray(hw, float)[None, :])
 
 
