@@ -43,7 +43,7 @@ from ringtune.hardware.firmware_check import canonical, check_value, fmt
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.feature_settings import corner_words
 from ringtune.shaping.firmware import Firmware, Span
-from ringtune.shaping.prusa_limits import PRUSA_HARDWARE_LIMITS
+from ringtune.shaping.prusa_limits import PRUSA_HARDWARE_LIMITS, STEALTH_ACCEL
 
 #: firmware family -> the builder of its lines (one module per family's dialect)
 _BUILDERS = {"klipper": klipper_export, "rrf": rrf_export, "marlin": marlin_export,
@@ -87,7 +87,7 @@ def _hardware_ceiling(config: TuneConfig, fw: Firmware, exp: Export) -> None:
         return
     asked = max([config.accel or 0.0, *config.feature_accel.values(), *(c or 0.0 for c in config.axis_caps)])
     limits = {m: (h["normal"].max_accel[0], h["stealth"].max_accel[0]) for m, h in PRUSA_HARDWARE_LIMITS.items()}
-    if asked <= min(stealth for _n, stealth in limits.values()):
+    if asked <= STEALTH_ACCEL:
         return
     known = "; ".join(f"{m} {n:.0f}, in stealth mode {st:.0f}" for m, (n, st) in limits.items())
     lower = [m for m, (n, _st) in limits.items() if n < asked]

@@ -1,16 +1,18 @@
-"""Prusa-Firmware-Buddy's hardware limits: the ceilings its planner holds M201 and M203 to, per model.
+"""Prusa-Firmware-Buddy's hardware limits: the ceilings its planner holds M201, M203 and M205 to, per model.
 
 Buddy's ``Planner::apply_settings`` (``lib/Marlin/Marlin/src/module/planner.cpp``) runs with the lower
 of each user setting — M201's per-axis acceleration, M203's per-axis speed, M205's classic jerk — and
 the model's compiled ``HWLIMIT_NORMAL_MAX_ACCELERATION`` / ``_MAX_FEEDRATE`` / ``_JERK``
-(``HWLIMIT_STEALTH_*`` in stealth mode), from ``include/marlin/Configuration_<MODEL>.h``: an ``M201 X12000`` on a model held to 7000
-runs at 7000, and with it every move whose X share would need more. A job sliced for a Prusa names
+(``HWLIMIT_STEALTH_*`` in stealth mode), from ``include/marlin/Configuration_<MODEL>.h``: an
+``M201 X12000`` on a model held to 7000 runs at 7000, and with it every move whose X share would
+need more. A job sliced for a Prusa names
 its model in PrusaSlicer's printer check, ``M862.3 P "MK4"``; the firmware's mode (normal or
 stealth) is the printer's own setting, which no file says.
 
 The table holds the models whose limits were read from Buddy's source (MK4 at commit 0908c808,
-CORE One at 21c125d6; other versions may differ): X, Y, Z, E in mm/s² and mm/s. Other models (MK4S, MK3.9, MK3.5, MINI, XL) are not held here: the
-versions read of their configurations define no HWLIMIT, and their limits are not guessed.
+CORE One at 21c125d6; other versions may differ): X, Y, Z, E in mm/s² and mm/s. Other models (MK4S,
+MK3.9, MK3.5, MINI, XL) are not held here: the versions read of their configurations define no
+HWLIMIT, and their limits are not guessed.
 """
 
 from __future__ import annotations
@@ -41,6 +43,8 @@ PRUSA_HARDWARE_LIMITS: dict[str, dict[str, HardwareLimits]] = {
 }
 #: the mode ringtune plans in: the firmware's default (stealth is a setting on the printer)
 MODE = "normal"
+#: mm/s²: the lowest X acceleration ceiling of stealth mode over the models held
+STEALTH_ACCEL = min(h["stealth"].max_accel[0] for h in PRUSA_HARDWARE_LIMITS.values())
 
 
 def job_model(job) -> str | None:
@@ -72,5 +76,5 @@ def hardware_note(model: str | None) -> str:
     which = f"the {model} the job's M862.3 names is not among those ringtune knows" if model else \
         "the job names no model (M862.3)"
     return (f"Prusa-Firmware-Buddy holds M201 X/Y and M203 X/Y to its model's hardware limits (normal mode, "
-            f"mm/s²: {held}; stealth mode 2500), and {which}: planned without them, so an acceleration "
-            "above your model's limit runs at that limit, slower than planned")
+            f"mm/s²: {held}; stealth mode {STEALTH_ACCEL:.0f}), and {which}: planned without them, so an "
+            "acceleration above your model's limit runs at that limit, slower than planned")

@@ -25,7 +25,7 @@ import numpy as np
 from ringtune.agents.tune.motor_bound import motor_accel_limit
 from ringtune.agents.tune.feature_groups import ACCEL_GROUPS, CORNER_GROUPS, CORNER_WORDS, HIDDEN_CORNERS, SEEN_GROUPS
 from ringtune.agents.tune.space import CORNER_UNIT, SearchSpace
-from ringtune.agents.tune.hardware_cap import accel_ceiling, corner_ceiling, held_range
+from ringtune.agents.tune.hardware_cap import accel_ceiling, corner_ceiling, held_range, job_hardware
 from ringtune.envs.planned_job import planned_job, resolve_job
 from ringtune.shaping.config_plan import as_read_by, for_firmware
 from ringtune.shaping.feature_settings import corner_value, effective_classes
@@ -65,7 +65,8 @@ def feature_space(space: SearchSpace, printer: Any, job: Any = None, reserve: fl
     the corner rule (``corner``) and, under Klipper's junction rule, minimum_cruise_ratio."""
     speeds = group_speeds(printer, job, space.firmware)
     lo = space.accel[0]
-    fw_hi = min(FIRMWARES[space.firmware].accel.hi, accel_ceiling(printer, job, space.firmware)[0] or math.inf)
+    hw, _model = job_hardware(printer, job, space.firmware)       # a firmware's compiled ceilings
+    fw_hi = min(FIRMWARES[space.firmware].accel.hi, accel_ceiling(hw) or math.inf)
     groups, basis = [], {}
     for group, v in speeds.items():
         if group == "visible":
@@ -83,7 +84,7 @@ def feature_space(space: SearchSpace, printer: Any, job: Any = None, reserve: fl
     sayable = junction != "scv" or klipper       # square_corner_velocity is Klipper's alone
     mcr = min_cruise_ratio and junction == "scv" and klipper
     behind = any(c in HIDDEN_CORNERS for g in speeds for c in ACCEL_GROUPS[g])
-    top = corner_ceiling(printer, job, space.firmware, junction)     # a firmware's compiled jerk ceiling
+    top = corner_ceiling(hw, junction)
     return dataclasses.replace(
         space, feature_accel=tuple(groups), junction=junction,
         corner=held_range(CORNER_RANGE[junction], top) if (corner and sayable) else None,

@@ -14,10 +14,10 @@ from typing import Any, Callable
 from ringtune.agents.tune.space import SearchSpace
 from ringtune.envs.planned_job import resolve_job
 from ringtune.shaping.config_plan import as_read_by, for_firmware
-from ringtune.shaping.prusa_limits import hardware_limits, hardware_note, job_model
+from ringtune.shaping.prusa_limits import HardwareLimits, hardware_limits, hardware_note, job_model
 
 
-def _limits(printer: Any, job: Any, firmware: str):
+def job_hardware(printer: Any, job: Any, firmware: str) -> tuple[HardwareLimits | None, str | None]:
     """(the model's hardware limits or None, the model the job names or None) on ``firmware`` (only
     ``prusa`` has them) for ``job`` (a path, text, parsed job, or None: the built-in print, which
     names no model)."""
@@ -28,15 +28,13 @@ def _limits(printer: Any, job: Any, firmware: str):
     return hardware_limits(model), model
 
 
-def accel_ceiling(printer: Any, job: Any, firmware: str) -> tuple[float | None, str | None]:
-    """(the X/Y acceleration ceiling in mm/s², or None; the model the job names, or None)."""
-    hw, model = _limits(printer, job, firmware)
-    return (None if hw is None else float(min(hw.max_accel[:2]))), model
+def accel_ceiling(hw: HardwareLimits | None) -> float | None:
+    """The X/Y acceleration ceiling of ``hw``, mm/s² (None: none)."""
+    return None if hw is None else float(min(hw.max_accel[:2]))
 
 
-def corner_ceiling(printer: Any, job: Any, firmware: str, junction: str) -> float | None:
+def corner_ceiling(hw: HardwareLimits | None, junction: str) -> float | None:
     """The ceiling on the corner rule's value under ``junction`` (classic jerk X/Y, mm/s), or None."""
-    hw, _model = _limits(printer, job, firmware)
     return float(min(hw.jerk[:2])) if hw is not None and junction == "jerk" else None
 
 
@@ -52,10 +50,11 @@ def held_to_ceiling(space: SearchSpace, printer: Any, job: Any, note: Callable[[
     note, as is a Prusa job whose model ringtune does not know); unchanged on other firmwares."""
     if space.firmware != "prusa":
         return space
-    top, model = accel_ceiling(printer, job, space.firmware)
+    hw, model = job_hardware(printer, job, space.firmware)
+    top = accel_ceiling(hw)
     note(f"ringtune tune: {hardware_note(model)}")
     if top is None or space.accel[1] <= top:
         return space
-    return dataclasses.replace(space, accel=(min(space.accel[0], top), top), accel_basis=(
+    return dataclasses.replace(space, accel=held_range(space.accel, top), accel_basis=(
         f"Prusa-Firmware-Buddy's hardware limit on the {model} (HWLIMIT_NORMAL_MAX_ACCELERATION X/Y, "
         f"{top:.0f} mm/s²; M201 cannot raise it)"))
