@@ -57,7 +57,10 @@ def pytest_xdist_make_scheduler(config, log):
 
 def pytest_collection_modifyitems(config, items):
     """A test using ``real_klipper`` outside :data:`REAL_KLIPPER_MODULES` would start a second
-    Klipper under xdist: refused at collection, with its name."""
+    Klipper under xdist: refused at collection, with its name. The tests marked ``slow`` run first,
+    in their own order: xdist hands tests out in collection order, and a long test collected last
+    keeps one worker busy after the other has run out of work."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
     for item in items:
         if "real_klipper" in getattr(item, "fixturenames", ()) and item.nodeid.split("::", 1)[0] not in REAL_KLIPPER_MODULES:
             raise pytest.UsageError(f"{item.nodeid} uses real_klipper: add its module to "

@@ -58,6 +58,7 @@ def test_top_level_help_imports_no_command_and_a_command_help_only_its_own():
     assert rc == 0 and commands & set(cli.COMMANDS) == {"tune"}, commands
 
 
+@pytest.mark.slow
 def test_without_the_rl_extra_every_command_starts_and_policy_says_so_in_one_line(tmp_path):
     """A core install (no torch, no stable-baselines3): every command's help works, Klipper's rule
     runs, and ``recommend --method policy`` is one line naming the extra, exit 2."""

@@ -207,6 +207,7 @@ def test_klipper_configs_give_firmware_retraction_with_its_defaults_said(tmp_pat
         printer_facts_from_klipper(cfg)
 
 
+@pytest.mark.slow
 def test_tune_on_the_cura_job_with_a_printers_retraction_writes_a_job_that_plans_as_it_judged(data_dir, tmp_path,
                                                                                              capsys):
     """Everything tune reads beside the plan (feature groups, binding limits, the rewritten job) finds

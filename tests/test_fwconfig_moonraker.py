@@ -22,6 +22,7 @@ def _defaults(notes: list[str]) -> set[str]:
     return {n for n in notes if "Klipper's default" in n}
 
 
+@pytest.mark.slow
 def test_moonraker_gives_the_printer_of_the_file_klipper_read(real_klipper, capsys):
     from_file = printer_facts_from_klipper(real_klipper.printer_cfg)
     from_mr = printer_facts_from_moonraker(real_klipper.moonraker_url)
@@ -57,6 +58,7 @@ damping_ratio_y: 0.07
 """
 
 
+@pytest.mark.slow
 def test_comments_and_save_config_block_read_as_klipper_reads_them(real_klipper):
     """A SAVE_CONFIG block that fills in shaper_type_y and conflicts on shaper_freq_y: the file
     reader and Klipper agree on both (type zv from the block, frequency 40 from above it)."""

@@ -44,6 +44,7 @@ def _tables(im) -> list[dict[tuple[str, str], list[str]]]:
     return tables
 
 
+@pytest.mark.slow
 def test_shaper_graph_of_the_real_ender3_files_shows_the_json_numbers(capsys, tmp_path, data_dir):
     cfg = tmp_path / "best.json"
     cfg.write_text(json.dumps({"firmware": "klipper", "shaper_x": "ei", "freq_x": 50.0, "damping_x": 0.1,
@@ -98,6 +99,7 @@ SETS = sorted(p.name for p in (Path(__file__).resolve().parent / "data/accel/kli
               if p.is_dir() and p.name != ENDER.rsplit("/", 1)[1])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", SETS)
 def test_every_real_file_set_draws_the_json_numbers_and_recommends_pick(name, capsys, tmp_path, data_dir):
     """Every other Klipper file set in tests/data (one or two axes): the PNG is drawn, its table holds the

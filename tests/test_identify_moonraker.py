@@ -36,6 +36,7 @@ def test_which_test_a_file_holds():
     assert best["x"] == ("gcodes", {"path": "resonances_x_b.csv", "modified": 9.0}) and set(best) == {"x", "y"}
 
 
+@pytest.mark.slow
 def test_identify_moonraker_gives_the_toml_of_the_same_local_files(real_klipper, data_dir, tmp_path, capsys,
                                                                    monkeypatch):
     root = _config_root(real_klipper.moonraker_url)

@@ -251,6 +251,7 @@ def test_the_help_examples_name_motors_the_table_has():
     assert names and all(lookup_motor(n) is not None for n in names), names
 
 
+@pytest.mark.slow
 def test_the_added_mass_error_it_states_is_the_error_it_makes_on_noisy_tests():
     """With the simulated test's measurement noise (Welch scatter, seeded), one pair of tests cannot
     pin the mass to 5 %; the standard error identify states must then be the real scatter: over 40

@@ -131,6 +131,7 @@ def test_from_klipper_reads_gcode_arcs(tmp_path):
     assert any(n.startswith("no [gcode_arcs]: a job's G2/G3 arcs are unknown commands") for n in facts.notes)
 
 
+@pytest.mark.slow
 def test_tune_on_a_job_with_arcs_writes_a_job_that_plans_as_it_judged(tmp_path, capsys):
     """Everything tune reads beside the plan (feature groups, binding limits, the rewritten job)
     cuts the arcs as the plan does: the run ends, and job.gcode plans at the time tune reports."""

@@ -75,6 +75,7 @@ def test_tune_on_the_default_printer_compares_against_the_files_pick(tmp_path, c
     assert (c["shaper_x"], c["freq_x"], c["shaper_y"], c["freq_y"], c["accel"]) == ("ei", 51.4, "mzv", 46.6, 4800.0)
 
 
+@pytest.mark.slow
 def test_the_simulated_baseline_does_not_move_with_the_studys_seed(tmp_path, capsys, fake_evaluator):
     toml = tmp_path / "p.toml"
     toml.write_text('name = "m"\n[x]\nmodes = [{ freq = 47.0, damping = 0.08 }]\n'

@@ -68,6 +68,7 @@ def test_buddy_holds_m201_and_m203_to_the_mk4_limits(limits):
         assert other.print_time == pytest.approx(free.print_time, rel=1e-12)
 
 
+@pytest.mark.slow
 def test_tune_for_an_mk4_searches_only_what_the_mk4_takes(tmp_path, capsys):
     job = tmp_path / "mk4.gcode"
     job.write_text(_job('M862.3 P "MK4"', feed=7200))      # 120 mm/s: the default printer's motors keep up

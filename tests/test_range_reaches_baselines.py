@@ -13,6 +13,8 @@ import json
 from pathlib import Path
 from types import SimpleNamespace
 
+import pytest
+
 from ringtune.agents.cli.main import main
 from ringtune.agents.tune.space import default_space
 from ringtune.agents.tune.tuning import _reaching_baselines
@@ -54,6 +56,7 @@ def test_the_range_reaches_down_to_the_baselines_acceleration(tmp_path, capsys):
     assert _reaching_baselines(space, configs, notes.append) is space and len(notes) == 1
 
 
+@pytest.mark.slow
 def test_a_printer_set_fast_gets_no_choice_worse_than_klippers_pick(tmp_path, capsys):
     path = _voron0(tmp_path)
     capsys.readouterr()

@@ -138,6 +138,7 @@ def loop(tmp_path_factory):
     return results
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["ender3", "voron24", "random0", "random1", "random2"])
 def test_ripple_spacing_recovers_the_dominant_mode(loop, name, capsys):
     true, meas, plain, decay, _ = loop[name]

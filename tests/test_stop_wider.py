@@ -105,6 +105,7 @@ def space():
     return default_space(load_printer(None), "klipper")
 
 
+@pytest.mark.slow
 def test_on_the_default_printer_the_check_holds_a_step_that_is_worse_off_the_model(space):
     from ringtune.envs.evaluate import evaluate_many as judged_by
 

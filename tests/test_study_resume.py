@@ -62,6 +62,7 @@ def in_tests_path(monkeypatch):
     monkeypatch.syspath_prepend(str(TESTS))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("storage", ["journal", "sqlite"])
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT])
 def test_interrupt_mid_trial_then_resume_loses_and_repeats_nothing(tmp_path, in_tests_path, sig, storage):
@@ -217,6 +218,7 @@ def test_seeded_run_stopped_and_resumed_reproduces_the_straight_run(tmp_path, in
     assert _complete(pieces) == _complete(straight)
 
 
+@pytest.mark.slow
 def test_seeded_tune_cli_on_the_real_simulation_reproduces_exactly(tmp_path, capsys):
     """`ringtune tune --seed S` twice (real evaluator, one worker): identical trials, front and choice."""
     from ringtune.agents.cli.main import main

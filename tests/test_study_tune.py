@@ -60,6 +60,7 @@ def fake_evaluator(monkeypatch):
     return "study_objective:evaluate"
 
 
+@pytest.mark.slow
 def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evaluator):
     out = tmp_path / "out"
     rc = main(["tune", "--json", "--out", str(out), "--trials", "10", "--evaluator", fake_evaluator])
@@ -101,6 +102,7 @@ def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evalua
     assert rc == 2 and "different firmware" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_max_path_error_is_a_constraint_of_the_study(tmp_path, capsys, fake_evaluator):
     """Every trial carries the constraint path_error_mm − bound; the front holds only trials within
     the bound; the bound can be changed when the results are read again (resume)."""
@@ -129,6 +131,7 @@ def test_max_path_error_is_a_constraint_of_the_study(tmp_path, capsys, fake_eval
     assert main(["tune", "--max-path-error", "-1", "--out", str(out)]) == 2
 
 
+@pytest.mark.slow
 def test_a_study_judged_before_the_damped_twins_is_not_resumed_under_them(tmp_path, capsys, fake_evaluator):
     """A study stored before the twins' damping was recorded was judged with the twins' damping
     ratios unchanged (×1): resuming it under today's ×0.75 would mix two judgements in one front, so
@@ -156,6 +159,7 @@ def test_a_study_judged_before_the_damped_twins_is_not_resumed_under_them(tmp_pa
     assert json.loads(capsys.readouterr().out)["completed_now"] == 2
 
 
+@pytest.mark.slow
 def test_ctrl_c_on_tune_then_rerun_resumes(tmp_path, fake_evaluator):
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "ringtune.agents.cli.main", "tune", "--out", str(out), "--trials", "14", "--no-baselines",

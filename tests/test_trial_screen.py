@@ -47,6 +47,7 @@ def _full(printer, settings, points):
                                max_show_through_mm=settings.max_show_through_mm) for p, m in zip(points, ms)]
 
 
+@pytest.mark.slow
 def test_each_settled_trial_is_what_its_full_judgement_says(study):
     printer, settings, bases, points = study
     settled = [p for p in points if p.screened]
@@ -98,6 +99,7 @@ def test_judged_trials_carry_every_variant_and_the_report_counts_the_settled(stu
     assert f"nor those of {over} counted above" in line
 
 
+@pytest.mark.slow
 def test_tune_counts_the_settled_trials_and_does_not_call_them_old(tmp_path, capsys):
     """A settled trial has no figures per variant, as a trial of a study begun by an earlier
     ringtune had none: tune must not say that of it."""

@@ -144,6 +144,7 @@ def _check_within_reserve(res: dict, toml: Path) -> None:
     assert not m.step_loss and m.motor_load <= 0.8
 
 
+@pytest.mark.slow
 def test_weak_and_strong_motor_on_the_same_frame(tmp_path, capsys):
     """Masses and modes unlike the defaults; only the motor differs. The acceleration range's top is
     where the motor would need all its force (rigid: (F − friction)/(m_y + m_rotor) below the corner
@@ -161,6 +162,7 @@ def test_weak_and_strong_motor_on_the_same_frame(tmp_path, capsys):
     assert rw["chosen"]["config"]["accel"] < rs["chosen"]["config"]["accel"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [11, 12])
 def test_held_out_random_printers_never_choose_beyond_the_reserve(tmp_path, capsys, seed):
     """Seeded random printers with known motors, masses and modes, none of them seen while building
@@ -204,6 +206,7 @@ def v24_run(tmp_path_factory):
     return json.loads(buf.getvalue()), (out / "summary.txt").read_text(), toml
 
 
+@pytest.mark.slow
 def test_per_axis_cap_does_not_cap_the_tuned_acceleration(v24_run):
     """max_y_accel (4130, a cap the planner applies to Y moves) is not the top of the search: the
     tuned value becomes max_accel, so the range reaches the motor bound, above the 8994 mm/s² of
@@ -351,6 +354,7 @@ def test_every_cap_the_summary_names_is_checked_against_the_planner_without_it(v
     assert seen, "no baseline names the Kalico cap that holds it"
 
 
+@pytest.mark.slow
 def test_with_a_job_the_range_is_judged_at_the_jobs_own_top_speed(tmp_path, capsys):
     """A job whose fastest XY move is 250 mm/s (under the printer's 300 mm/s limit, above the motor's
     150 mm/s corner speed): the range top is where the motor needs all its force at 250 mm/s (rigid:

@@ -464,6 +464,7 @@ def test_the_command_that_resumes_carries_every_option_given(tmp_path):
     assert parser.parse_args(words[2:]) == given
 
 
+@pytest.mark.slow
 def test_no_refine_takes_the_studys_choice_as_it_left_it_and_the_same_study_refines_later(tmp_path, capsys,
                                                                                           fake_evaluator):
     """--no-refine: no walk runs (nothing "after the study"), the choice is a trial the study stored

@@ -113,6 +113,7 @@ def test_the_screen_is_the_judgements_exact_variant():
     assert set(figs) == set(dict(judged.variants)[EXACT])
 
 
+@pytest.mark.slow
 def test_trials_stored_without_their_variants_are_said(tmp_path, monkeypatch, capsys):
     """A study begun by an earlier ringtune kept only the worst over the variants: its trials are
     held to the baselines over that alone, and tune says how many."""

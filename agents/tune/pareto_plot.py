@@ -279,14 +279,12 @@ def plot_front(path: Path, points: Sequence[Point], front: Sequence[Point], chos
     fig.suptitle(f"{title}\nprint time against wall ripple; every measure of the same points, lower is better; "
                  "baselines and the chosen point marked on each", fontsize=10)
     fig.tight_layout()
-    fig.canvas.draw()
-    leg = ax_main.get_legend()      # whether it overlaps any panel's plotting area
-    over = bool(leg is not None and any(leg.get_window_extent().overlaps(a.get_window_extent()) for a in fig.axes))
     spec = {m[0]: m for m in (main, *small)}
-    data = {}
-    for k, v in drawn.items():
-        v["legend_over_points"] = over
-        data[k] = {"unit": spec[k][2], "scale": spec[k][3], **v.pop("series")}
+    data = {k: {"unit": spec[k][2], "scale": spec[k][3], **v.pop("series")} for k, v in drawn.items()}
     fig.savefig(path, metadata={"Title": title, "Data": json.dumps(data)}, bbox_inches="tight")
+    leg = ax_main.get_legend()      # whether it overlaps any panel's plotting area, as savefig drew them
+    over = bool(leg is not None and any(leg.get_window_extent().overlaps(a.get_window_extent()) for a in fig.axes))
+    for v in drawn.values():
+        v["legend_over_points"] = over
     plt.close(fig)
     return drawn
