@@ -12,7 +12,11 @@ the printer and its resonances ±5 % with damping ×0.75, ``--freq-margin``), of
 - policy: the policy's one-shot recommendation from the printer's simulated resonance test;
 - prior: the answer training starts from (``ringtune.agents.ppo.policy.PRIOR``: MZV on the detected
   peaks, fixed damping and acceleration), i.e. what PPO itself adds is policy vs prior;
+- guarded: the policy's answer or its starting answer, whichever costs less (``ringtune recommend
+  --method policy``'s default, :mod:`ringtune.agents.ppo.guard`: two evaluations);
 - policy+optuna20: that answer as the first of 20 Optuna (TPE) trials over the same action space;
+- guarded+optuna20: the guard's answer as the first of 20 trials (what ``recommend --refine 20`` does:
+  the guard's two evaluations, then 20 trials, the first of them the answer kept, evaluated again);
 - optuna20: Optuna alone with the same 20 evaluations, over the absolute action space (PPO against
   Optuna at equal evaluations);
 - optuna200: Optuna alone, 200 trials, over the absolute action space (F over 15-150 Hz: it
@@ -39,7 +43,8 @@ from pathlib import Path
 
 import numpy as np
 
-METHODS = ("policy", "prior", "policy+optuna20", "optuna20", "optuna200", "klipper", "none")
+METHODS = ("policy", "prior", "guarded", "policy+optuna20", "guarded+optuna20", "optuna20", "optuna200", "klipper",
+           "none")
 
 
 BASELINES = ("optuna20", "optuna200", "klipper", "none")
@@ -53,6 +58,7 @@ def bench_printer(job: tuple) -> dict:
     import torch
 
     from ringtune.agents.klipper.baseline import klipper_rule_on_simulated_test
+    from ringtune.agents.ppo.guard import hold_to_start, start_action
     from ringtune.agents.ppo.policy import load_policy, prior_action
     from ringtune.agents.ppo.refine import PrinterCost, optuna_search
     from ringtune.envs.env import TuneEnv
@@ -75,7 +81,10 @@ def bench_printer(job: tuple) -> dict:
         row["policy_infer_s"] = time.perf_counter() - t
         row["policy"] = cost.of_action(action)
         row["prior"] = cost.of_action(prior_action(kw))
+        kept, held = hold_to_start(cost, action, start_action(kw))      # the guard's own two evaluations
+        row["guarded"] = min(held.policy_cost, held.start_cost)
         row["policy+optuna20"] = optuna_search(cost, n_refine, seed, first_action=action).best_cost
+        row["guarded+optuna20"] = optuna_search(cost, n_refine, seed, first_action=kept).best_cost
     if cached:
         row.update({k: cached[k] for k in (*BASELINES, "optuna200_s")})
         return row
@@ -143,6 +152,10 @@ def simulated_table(policy_dir: str | None, n: int, workers: int, backend: str, 
     q = summary["prior"][0]
     better = sum(r["policy"] < r["prior"] - 1e-9 for r in rows)
     print(f"what PPO adds to its starting answer: {(p / q - 1) * 100:+.1f} % mean cost, better on {better} of {len(rows)}")
+    g, go = summary["guarded"][0], summary["guarded+optuna20"][0]
+    print(f"guarded (the better of the two, two evaluations): {g:.4f}, {(g / o - 1) * 100:+.1f} % against optuna200 "
+          f"(below it on {sum(r['guarded'] < r['optuna200'] - 1e-9 for r in rows)} of {len(rows)} printers); "
+          f"guarded+optuna{n_refine} {go:.4f}, {(go / o - 1) * 100:+.1f} %")
     return {"rows": rows, "summary": summary}
 
 

@@ -125,13 +125,22 @@ def _check_recommend_cli(policy_dir):
         TuneConfig.from_dict(d["config"]).validate()
     d = run(["--method", "policy", "--policy", str(policy_dir), "--printer", "default", "--refine", "2"])
     assert d["refine"]["trials"] == 2 and d["refine"]["best_cost"] <= d["refine"]["first_cost"]
-    # the study's first trial is the policy's own one-shot answer: its cost, scored independently
+    # the guard: the policy's one-shot answer and the answer it starts from (PRIOR, encoded by the
+    # policy module), each scored independently by the environment's cost; the lower kept, and the
+    # study's first trial is the answer kept
     from ringtune.agents.ppo.refine import PrinterCost
 
     policy = ppo.load_policy(policy_dir)
     one_shot, _ = ppo_recommend.policy_on_simulated_test(policy, None, seed=0)
-    cost = PrinterCost(None, policy.env_kwargs, seed=0).of_config(one_shot)
-    assert d["refine"]["first_cost"] == pytest.approx(cost, rel=1e-6)
+    scorer = PrinterCost(None, policy.env_kwargs, seed=0)
+    mine, start = scorer.of_config(one_shot), scorer.of_action(ppo.prior_action(policy.env_kwargs))
+    assert d["guard"]["policy_cost"] == pytest.approx(mine, rel=1e-6)
+    assert d["guard"]["start_cost"] == pytest.approx(start, rel=1e-6)
+    assert d["guard"]["kept"] == ("start" if start < mine else "policy")
+    assert d["refine"]["first_cost"] == pytest.approx(min(mine, start), rel=1e-6)
+    # without the guard the study starts from the policy's own answer
+    d = run(["--method", "policy", "--policy", str(policy_dir), "--printer", "default", "--refine", "2", "--no-guard"])
+    assert d["guard"] is None and d["refine"]["first_cost"] == pytest.approx(mine, rel=1e-6)
 
 
 def test_load_policy_names_the_missing_file(tmp_path):

@@ -44,7 +44,10 @@ loading one runs code from it, so only use policies you trained or trust. The po
 resonance spectra and the simulated metrics of its starting answer on a model of the printer: with
 --accel alone, modes fitted to the files and the default printer's masses, motor and limits; give
 --printer P too (e.g. from `ringtune identify` plus your [motor] and masses) to use your own model.
---refine N hands the policy's answer to Optuna as the first of N trials on that model.
+The policy's answer is then judged against the answer it started from (MZV on the peaks) on that
+model, by the cost training used (tune's judgement as one number), and the lower kept: one more
+simulation, and never worse on the model than where the policy began (--no-guard: its answer as it is).
+--refine N hands the answer kept to Optuna as the first of N trials on that model.
 
 example:
   ringtune recommend --accel resonances_x_20210821_152037.csv resonances_y_20210630_230110.csv \\
@@ -82,6 +85,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--policy", metavar="DIR", help="--method policy: folder from `ringtune train` "
                    "(trusted source only: it is unpickled)")
     p.add_argument("--refine", type=VALUES["count"], metavar="N", help="--method policy --printer: refine with N Optuna trials")
+    p.add_argument("--no-guard", dest="guard", action="store_false",
+                   help="--method policy: the policy's answer as it is, not judged against its starting answer")
 
 
 def run(args: argparse.Namespace, out) -> int:
@@ -133,18 +138,20 @@ def _run_policy(args, out) -> int:
     [--refine N]``. ``--json`` keys: method ("policy"), firmware,
     policy (folder), sources ({axis: [files]} or {axis: ["printer:<name>"]}), model (name of the
     printer model the starting answer is simulated on and refined on), config (TuneConfig dict),
-    inference_s (s, loading excluded; with --accel it includes fitting the model), refine (null or
-    {"trials", "first_cost", "best_cost"}: the environment's cost of the policy's answer and of the
-    best trial), output.
+    inference_s (s, loading excluded; with --accel it includes fitting the model), guard (null with
+    --no-guard, or {"kept": "policy" | "start", "policy_cost", "start_cost"}: the environment's cost
+    of the policy's answer and of its starting answer on the model), refine (null or {"trials",
+    "first_cost", "best_cost"}: the environment's cost of the answer kept and of the best trial), output.
     """
     if not args.policy:
         raise RingtuneError("needs --policy DIR (a folder written by `ringtune train -o DIR`)", "--policy")
     pick = policy_pick(args.policy, args.firmware, args.accel, args.printer, args.axes, args.seed or 0, args.refine,
-                       out.note)
+                       out.note, guard=args.guard)
     written = _save(pick.config, args.output)
     out.emit({"method": "policy", "firmware": args.firmware, "policy": str(pick.policy.path),
               "sources": pick.sources, "model": pick.model, "config": pick.config.to_dict(),
-              "inference_s": pick.inference_s, "refine": pick.refined, "output": written},
+              "inference_s": pick.inference_s, "guard": pick.guard.to_dict() if pick.guard else None,
+              "refine": pick.refined, "output": written},
              _policy_text(pick, written))
     return 0
 
@@ -161,8 +168,11 @@ def _policy_text(pick, written: str | None) -> str:
             f"Y: {config.shaper_y} @ {config.freq_y:.1f} Hz, damping {config.damping_y:.3f}",
             f"frequency limit: {config.freq_limit_hz:.0f} Hz" if config.freq_limit_hz else "frequency limit: off",
             f"acceleration: {accel}"]
+    if pick.guard is not None:
+        text.append(pick.guard.sentence())
     if refined:
-        text.append(f"refined: cost {refined['first_cost']:.4f} (policy) -> {refined['best_cost']:.4f} "
+        first = "the answer kept" if pick.guard is not None else "policy"
+        text.append(f"refined: cost {refined['first_cost']:.4f} ({first}) -> {refined['best_cost']:.4f} "
                     f"after {refined['trials']} trials")
     text.append(f"written to {written}" if written else "(use -o best.json to save it)")
     return "\n".join(text)

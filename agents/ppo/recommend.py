@@ -7,10 +7,12 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from ringtune.agents.identify.accelerometer import resonance_psds
+from ringtune.agents.ppo.guard import hold_to_start, start_action
 from ringtune.agents.ppo.policy import Policy, load_policy
 from ringtune.agents.ppo.refine import PrinterCost, optuna_search
 from ringtune.envs.planned_job import resolve_printer
@@ -106,7 +108,9 @@ class PolicyPick:
     """A trained policy's answer (``ringtune recommend --method policy``): the TuneConfig (its
     ``extra`` says how it was made), the policy, where the data came from per axis, the model
     the starting answer was simulated on, the inference time (s, loading excluded; with files it
-    includes fitting the model) and the refinement (None or {trials, first_cost, best_cost})."""
+    includes fitting the model), the guard (None or :class:`ringtune.agents.ppo.guard.Guard`: the
+    policy's answer against its starting answer on the model) and the refinement (None or {trials,
+    first_cost, best_cost})."""
 
     config: TuneConfig
     policy: Policy
@@ -114,14 +118,17 @@ class PolicyPick:
     model: str
     inference_s: float
     refined: dict | None
+    guard: Any = None
 
 
 def policy_pick(policy_dir, firmware: str = "klipper", accel: list | None = None, printer=None,
-                axes: str | None = None, seed: int = 0, refine: int | None = None, note=_silent) -> PolicyPick:
+                axes: str | None = None, seed: int = 0, refine: int | None = None, note=_silent,
+                guard: bool = True) -> PolicyPick:
     """The policy in ``policy_dir`` on the resonance files ``accel`` (modes fitted to them; the
     rest of the model from ``printer``, TOML or embedded name) or on ``printer``'s simulated
-    resonance test (``seed`` its noise); ``refine``: that many Optuna trials on the model, the
-    policy's answer first."""
+    resonance test (``seed`` its noise). ``guard``: the policy's answer and its starting answer
+    judged on the model, the lower cost kept (:mod:`ringtune.agents.ppo.guard`); ``refine``: that
+    many Optuna trials on the model, the answer kept first."""
     policy = load_policy(policy_dir)
     trained = policy.env_kwargs.get("firmware", "klipper")
     if firmware != trained:
@@ -141,13 +148,21 @@ def policy_pick(policy_dir, firmware: str = "klipper", accel: list | None = None
         config, action = policy_on_simulated_test(policy, printer, seed)
         sources = {ax: [f"printer:{getattr(printer, 'name', 'default')}"] for ax in ("x", "y")}
     inference = time.perf_counter() - t0
-    refined = None
+    refined, held = None, None
+    cost = PrinterCost(printer, policy.env_kwargs, seed=seed, peaks=peaks) if guard or refine else None
+    if guard:
+        note("judging the policy's answer against its starting answer on the model ...")
+        kept, held = hold_to_start(cost, action, start_action(policy.env_kwargs))
+        if held.kept == "start":
+            action = kept
+            config = decode_measured(cost.env, kept, spectra) if accel else cost.env.decode(kept)
     if refine:
-        note(f"refining with Optuna: {refine} trials, the policy's answer first ...")
-        cost = PrinterCost(printer, policy.env_kwargs, seed=seed, peaks=peaks)
+        first = "the answer the guard kept" if guard else "the policy's answer"
+        note(f"refining with Optuna: {refine} trials, {first} first ...")
         res = optuna_search(cost, int(refine), seed, first_action=action)
         config = decode_measured(cost.env, res.best_action, spectra) if accel else res.best_config
         refined = {"trials": int(refine), "first_cost": res.first_cost, "best_cost": res.best_cost}
-    config = dataclasses.replace(config, extra={"method": "policy", "policy": str(policy.path),
-                                                "sources": sources, "refine": refined})
-    return PolicyPick(config, policy, sources, getattr(printer, "name", "the default printer"), inference, refined)
+    config = dataclasses.replace(config, extra={"method": "policy", "policy": str(policy.path), "sources": sources,
+                                                "guard": held.to_dict() if held else None, "refine": refined})
+    return PolicyPick(config, policy, sources, getattr(printer, "name", "the default printer"), inference, refined,
+                      held)
