@@ -59,7 +59,7 @@ def bench_printer(job: tuple) -> dict:
 
     from ringtune.agents.klipper.baseline import klipper_rule_on_simulated_test
     from ringtune.agents.ppo.guard import hold_to_start, start_action
-    from ringtune.agents.ppo.policy import load_policy, prior_action
+    from ringtune.agents.ppo.policy import load_policy
     from ringtune.agents.ppo.refine import PrinterCost, optuna_search
     from ringtune.envs.env import TuneEnv
     from ringtune.shaping.config import TuneConfig
@@ -79,9 +79,8 @@ def bench_printer(job: tuple) -> dict:
         t = time.perf_counter()
         action = policy.act(obs)
         row["policy_infer_s"] = time.perf_counter() - t
-        row["policy"] = cost.of_action(action)
-        row["prior"] = cost.of_action(prior_action(kw))
-        kept, held = hold_to_start(cost, action, start_action(kw))      # the guard's own two evaluations
+        kept, held = hold_to_start(cost, action, start_action(kw))   # the answer and its start, judged once each
+        row["policy"], row["prior"] = held.policy_cost, held.start_cost
         row["guarded"] = min(held.policy_cost, held.start_cost)
         row["policy+optuna20"] = optuna_search(cost, n_refine, seed, first_action=action).best_cost
         row["guarded+optuna20"] = optuna_search(cost, n_refine, seed, first_action=kept).best_cost

@@ -7,12 +7,11 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from ringtune.agents.identify.accelerometer import resonance_psds
-from ringtune.agents.ppo.guard import hold_to_start, start_action
+from ringtune.agents.ppo.guard import Guard, hold_to_start, start_action
 from ringtune.agents.ppo.policy import Policy, load_policy
 from ringtune.agents.ppo.refine import PrinterCost, optuna_search
 from ringtune.envs.planned_job import resolve_printer
@@ -118,7 +117,7 @@ class PolicyPick:
     model: str
     inference_s: float
     refined: dict | None
-    guard: Any = None
+    guard: Guard | None = None
 
 
 def policy_pick(policy_dir, firmware: str = "klipper", accel: list | None = None, printer=None,
