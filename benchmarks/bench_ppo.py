@@ -171,15 +171,16 @@ class _Serial:
 
 
 def real_table(policy_dir: str, data: Path) -> None:
-    """Policy vs Klipper's rule on the real Klipper resonance files."""
+    """Policy vs Klipper's rule on the real Klipper resonance files; then what the guard keeps there."""
     from ringtune.agents.klipper import baseline as klipper_baseline
     from ringtune.agents.identify.accelerometer import resonance_psds
     from ringtune.agents.ppo.policy import load_policy
-    from ringtune.agents.ppo.recommend import axis_spectra, recommend_from_psd
+    from ringtune.agents.ppo.recommend import axis_spectra, policy_pick, recommend_from_psd
     from ringtune.shaping.config import TuneConfig
     from ringtune.shaping.shapers import get_shaper
 
     policy = load_policy(policy_dir)
+    kept = n = 0
     print(f"\nreal Klipper resonance files ({data}): policy vs Klipper's rule (HEAD)")
     print("(the policy's starting answer is simulated on modes fitted to each file with the default printer's "
           "masses, motor and limits; Klipper's accel is its max_accel suggestion)")
@@ -210,6 +211,10 @@ def real_table(policy_dir: str, data: Path) -> None:
             print(f"{folder.name:<28}{ax:<4}{f'{name} {f:.1f} Hz S={s:.2f}':<26}{f'{kn} {kf:.1f} Hz':<22}"
                   f"{acc:>22}  {'ok' if ok is True else ok}")
         print(f"{'':<32}freq limit {pc.freq_limit_hz:.0f} Hz, inference {dt * 1e3:.0f} ms")
+        guarded = policy_pick(policy_dir, accel=files)       # what `recommend --method policy` answers
+        kept, n = kept + (guarded.guard.kept == "start"), n + 1
+        print(f"{'':<32}{guarded.guard.sentence()}")
+    print(f"the guard kept the starting answer on {kept} of the {n} printers")
 
 
 def main(argv=None) -> int:
