@@ -71,7 +71,7 @@ def hardware_note(model: str | None) -> str:
                 f"{lim.max_accel[0]:.0f}/{lim.max_accel[1]:.0f} mm/s² and M203 X/Y to {lim.max_velocity[0]:.0f}/"
                 f"{lim.max_velocity[1]:.0f} mm/s, M205 X/Y jerk to {lim.jerk[0]:g}/{lim.jerk[1]:g} mm/s in normal mode "
                 f"(HWLIMIT_NORMAL_*; stealth mode: "
-                f"{PRUSA_HARDWARE_LIMITS[model]['stealth'].max_accel[0]:.0f} mm/s²): planned with them, "
+                f"{hardware_limits(model, 'stealth').max_accel[0]:.0f} mm/s²): planned with them, "
                 "the accelerations searched within them; a print in stealth mode runs slower than planned")
     which = f"the {model} the job's M862.3 names is not among those ringtune knows" if model else \
         "the job names no model (M862.3)"
