@@ -261,6 +261,31 @@ def test_without_a_recorded_recommendation_the_baseline_says_simulated_and_curre
     assert "current" in res["vs_baselines"]
 
 
+def test_what_a_klipper_printer_runs_now_is_left_out_where_the_target_firmware_cannot_run_it(tmp_path, capsys,
+                                                                                             fake_evaluator):
+    """A printer described from Klipper running EI on X (the real Switchwire's printer.cfg), tuned for
+    Marlin (ZV only) or RepRapFirmware (one shaper for all axes, no plain EI): its [current] is no
+    baseline there; it is said why, and the tune runs on against Klipper's rule and no shaping."""
+    toml = _printer_toml(tmp_path / "p.toml", current={"source": "printer.cfg", "firmware": "klipper",
+                                                       "shaper_x": "ei", "freq_x": 60.0, "shaper_y": "mzv",
+                                                       "freq_y": 37.2, "accel": 5000.0})
+    for fw, lacks in (("marlin", "has no 'ei' shaper"), ("rrf", "has no 'ei' shaper")):
+        out = tmp_path / f"out-{fw}"
+        assert main(["tune", "--json", "--printer", str(toml), "--firmware", fw, "--out", str(out), "--trials", "4",
+                     "--evaluator", fake_evaluator, "--accel-range", "1000,5000", "--no-refine"]) == 0
+        cap = capsys.readouterr()
+        assert set(json.loads(cap.out)["baselines"]) == {"klipper", "none"}
+        said = [ln for ln in cap.err.splitlines() if "what the printer runs now ([current]) cannot be compared" in ln]
+        assert len(said) == 1 and f"on {fw}" in said[0] and lacks in said[0]
+    toml = _printer_toml(tmp_path / "q.toml", current={"firmware": "klipper", "shaper_x": "mzv", "freq_x": 60.0,
+                                                       "shaper_y": "zvd", "freq_y": 37.2, "accel": 5000.0})
+    assert main(["tune", "--json", "--printer", str(toml), "--firmware", "rrf", "--out", str(tmp_path / "o"),
+                 "--trials", "4", "--evaluator", fake_evaluator, "--accel-range", "1000,5000", "--no-refine"]) == 0
+    cap = capsys.readouterr()
+    assert "current" not in json.loads(cap.out)["baselines"]
+    assert "rrf runs one shaper for all axes, the printer runs a different shaper per axis now" in cap.err
+
+
 # -- progress (acceptance 14.6, tune part) --------------------------------------------------------
 def test_progress_goes_to_a_log_file_as_lines(tmp_path, fake_evaluator):
     out = tmp_path / "out"

@@ -75,7 +75,7 @@ def recorded_klipper(printer: Printer, firmware: str) -> tuple[TuneConfig | None
         cfg = _checked(fields, rec.get("max_accel"), printer, "[measurement.klipper]",
                        "Klipper's calibrate_shaper rule on the resonance files (recorded by ringtune identify)")
         shapers_from_config(cfg)          # Klipper's shapers may not be the firmware's (Marlin: zv only)
-        _runs_on(cfg, firmware)
+        _runs_on(cfg, firmware, "[measurement.klipper]", "the files' picks differ per axis")
     except (TypeError, ValueError, RingtuneError) as exc:
         return None, f"[measurement.klipper] cannot be used for {firmware}: {exc}"
     return cfg, ""
@@ -97,14 +97,14 @@ def _model_fits(printer: Printer, firmware: str) -> dict:
         return {}
 
 
-def _runs_on(cfg: TuneConfig, firmware: str) -> None:
-    """Refuse a recorded Klipper pick ``firmware`` cannot run: a shaper it lacks, or two axes' picks
-    on a firmware with one shaper for all axes (Klipper's rule is then aimed at it instead)."""
+def _runs_on(cfg: TuneConfig, firmware: str, where: str, differ: str) -> None:
+    """Refuse a recorded configuration (``where``) ``firmware`` cannot run: a shaper it lacks, or two
+    axes' shapers on a firmware with one shaper for all axes (``differ`` says how they differ; for
+    Klipper's pick, its rule is then aimed at that one shaper instead)."""
     for ax in ("x", "y"):
         check_available(cfg.axis(ax)[0], firmware, f"shaper_{ax}")
     if FIRMWARES[firmware].one_shaper and cfg.axis("x")[:2] != cfg.axis("y")[:2]:
-        raise RingtuneError(f"{firmware} runs one shaper for all axes, the files' picks differ per axis",
-                            "[measurement.klipper]")
+        raise RingtuneError(f"{firmware} runs one shaper for all axes, {differ}", where)
 
 
 def current_config(printer: Printer, firmware: str) -> tuple[TuneConfig | None, str]:
@@ -124,6 +124,9 @@ def current_config(printer: Printer, firmware: str) -> tuple[TuneConfig | None, 
             fields[f"damping_{ax}"] = float(z) if z is not None else DEFAULT_DAMPING_RATIO
         cfg = _checked(fields, cur.get("accel"), printer, "[current]",
                        f"what the printer runs now ({cur.get('source') or '[current]'})")
+        # a printer described from another firmware's config (Klipper's ei, per axis) may run
+        # shapers this one lacks: nothing to compare with on it
+        _runs_on(cfg, firmware, "[current]", "the printer runs a different shaper per axis now")
     except (TypeError, ValueError, RingtuneError) as exc:
         return None, f"what the printer runs now ([current]) cannot be compared on {firmware}: {exc}"
     return cfg, ""
