@@ -24,6 +24,7 @@ from ringtune.shaping.extruder_alone import extruder_alone_note, klipper_refusal
 from ringtune.shaping.config_plan import ConfiguredPlan, for_firmware, plan_with_config
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions, retraction_plan
+from ringtune.shaping.flavor_units import flavor_note
 from ringtune.shaping.freqlimit import commanded_frequencies as per_move
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.gcode_file import read_gcode_bytes
@@ -189,6 +190,8 @@ class JobPlan:
             # Klipper: the moves its extruder refuses (it stops the print at the first)
             "klipper_refusals": (refused := klipper_refusals(self.job, self.configured.limits)),
             "klipper_refusals_note": klipper_refusals_note(refused),
+            # a job sliced for another firmware: its limit lines read in other units, or not at all
+            "flavor_note": flavor_note(self.job, self.configured.limits, None),
         }
 
 

@@ -21,7 +21,9 @@ null), ``klipper_refusals`` (read as Klipper reads it, the moves its extruder re
 {``line``, ``kind``: ``too_wide`` | ``too_long``, ``value``, ``limit``}: filament per mm of path
 against max_extrude_cross_section's, or mm of filament moved alone against
 max_extrude_only_distance; Klipper stops the print at the first) and ``klipper_refusals_note``
-(that in words, or null), ``print_time_s``,
+(that in words, or null), ``flavor_note`` (a job sliced for another firmware than the printer's: its
+limit lines that firmware reads in other units — M203 in mm/min on RepRapFirmware, mm/s elsewhere —
+or not at all — M566 on Marlin —, in words; else null), ``print_time_s``,
 ``print_time``, ``moves``, ``extruding_moves``, ``lines``, ``path_length_mm``,
 ``time_by_feature`` ({feature: s}), ``junction_reason`` (why that junction rule, in words),
 ``top_frequencies`` (list of {``freq_hz``, ``line``, ``t``}: highest *planned* direction-change
@@ -140,7 +142,7 @@ def _text(r: dict) -> str:
     if r["daa_hz"]:
         lines.append(f"  DAA at {r['daa_hz']:g} Hz")
     for key in ("ignored_note", "macro_note", "firmware_retraction_note", "arcs_note", "extruder_alone_note",
-                "klipper_refusals_note"):
+                "klipper_refusals_note", "flavor_note"):
         if r[key]:
             lines.append(f"  {r[key]}")
     lines.append("  time by feature:")
