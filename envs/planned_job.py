@@ -125,8 +125,23 @@ def resolve_job(job, limits=None):
     if key in _JOBS:
         _JOBS.move_to_end(key)
         return key, _JOBS[key]
+    twin = _arc_free_twin(key)
+    if twin is not None:      # a job without arcs reads the same whoever cuts arcs: only its record differs
+        return key, _remember(_JOBS, key, dataclasses.replace(twin, arcs=(0, res, ())))
     parsed = testprints.builtin_test_print() if job is None else gcode.read_gcode(job, arc_resolution=res)
     return key, _remember(_JOBS, key, parsed)
+
+
+def _arc_free_twin(key):
+    """The job cached for the same file or text read with another arc resolution (``key`` but its
+    last item), where it has no arcs (G2/G3): the moves read are the same, so the file is not read
+    again; else None."""
+    if key[0] not in ("file", "text"):
+        return None
+    for other, job in _JOBS.items():
+        if other[:-1] == key[:-1] and other[0] == key[0] and not job.arcs[0] and not job.arcs[2]:
+            return job
+    return None
 
 
 #: the job's acceleration settings Klipper and Kalico take (:func:`job_accel_commands`): M204 S or

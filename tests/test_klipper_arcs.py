@@ -14,10 +14,13 @@ import numpy as np
 import pytest
 
 from ringtune.agents.cli.main import main
+from ringtune.envs.planned_job import resolve_job
 from ringtune.envs.printer import load_printer
 from ringtune.hardware.klipper_config import printer_facts_from_klipper
-from ringtune.shaping.arcs import arcs_note
+from ringtune.shaping import gcode
+from ringtune.shaping.arcs import arc_resolution, arcs_note
 from ringtune.shaping.config_plan import plan_with_config
+from ringtune.shaping.firmware import job_reading
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.planner import MachineLimits
 
@@ -148,3 +151,26 @@ def test_tune_on_a_job_with_arcs_writes_a_job_that_plans_as_it_judged(tmp_path, 
     res = json.loads(capsys.readouterr().out)
     assert "planned as Klipper's [gcode_arcs] cuts them" in (out / "summary.txt").read_text()
     assert res["job_gcode"]["print_time_s"] == pytest.approx(res["chosen"]["print_time_s"], rel=1e-4)
+
+
+def test_a_job_without_arcs_is_read_once_whoever_cuts_arcs(tmp_path, monkeypatch):
+    """The reader is asked once for a file without G2/G3 read as Klipper, Marlin and an unknown
+    firmware cut arcs (the moves are the same: only the arcs' record names each reading); a file
+    with arcs is read again for each cutting, since its moves differ."""
+    calls = []
+    real = gcode.read_gcode
+    monkeypatch.setattr(gcode, "read_gcode", lambda *a, **k: calls.append(k.get("arc_resolution")) or real(*a, **k))
+    readings = [MachineLimits(**job_reading(fw)) for fw in ("klipper", "marlin")] + [None]
+    straight = tmp_path / "straight.gcode"
+    straight.write_text("G90\nM82\nG1 X0 Y0 F6000\n" + "".join(f"G1 X{10 * (i % 2)} Y{i} E{i} F3000\n"
+                                                             for i in range(1, 9)))
+    jobs = [resolve_job(str(straight), lim)[1] for lim in readings]
+    assert len(calls) == 1
+    for job, lim in zip(jobs, readings):
+        assert job.arcs == (0, arc_resolution(lim), ())
+        assert np.array_equal(job.end, jobs[0].end) and job.line.tolist() == jobs[0].line.tolist()
+    calls.clear()
+    arcs = tmp_path / "arcs.gcode"
+    arcs.write_text(_circles(3.0, 100.0))
+    cut = [resolve_job(str(arcs), lim)[1] for lim in readings]
+    assert len(calls) == 3 and len(cut[0].end) != len(cut[2].end)
