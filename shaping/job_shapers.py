@@ -10,7 +10,8 @@ changes the settings it names, for the moves after it; the reader stops the plan
   ``DAMPING_RATIO_X|Y``;
 - Marlin ``M593 [X] [Y] F D`` (classic ZV; no axis letter: both; ``F0`` = off); Prusa ``M593 ... T
   F D`` (``T`` the type index); RepRapFirmware ``M593 P"type" F S`` (one shaper for all axes,
-  ``P"none"`` = off);
+  ``P"none"`` = off; without P the type stays, so a Marlin job's ``M593 F15`` sets its frequency,
+  and an F outside its range — ``F0`` among them — fails the command, which changes nothing);
 - Marlin FT_MOTION ``M493 [X] [Y] C A I`` (``C`` the mode, 0 = off; ``S0`` turns FT_MOTION off).
 
 Each firmware acts on its own commands only (:data:`ACTED_ON`): a job sliced for another firmware
@@ -202,11 +203,7 @@ def _axes(p: dict) -> str:
 
 
 def _m593(cfg: dict, p: dict) -> None:
-    if "P" in p:                                     # RepRapFirmware: one shaper for all axes
-        name = str(p["P"]).strip().lower().replace("-", "").replace("_", "")
-        for ax in "xy":
-            _set_axis(cfg, ax, _RRF_NAMES.get(name, name), number_or_none(p.get("F")), number_or_none(p.get("S")))
-        return
+    """Marlin's and Prusa's M593 (RepRapFirmware's: :func:`_rrf_m593`)."""
     kind = _indexed(_PRUSA_TYPES, p.get("T"))     # Prusa: T<type index>
     for ax in _axes(p):
         freq = number_or_none(p.get("F"))
@@ -228,7 +225,29 @@ def _m493(cfg: dict, p: dict) -> None:
         _set_axis(cfg, ax, kind, number_or_none(p.get("A")), number_or_none(p.get("I")))
 
 
+def _rrf_m593(cfg: dict, p: dict, freq_span) -> None:
+    """RepRapFirmware's M593, one shaper for all axes: P its type (none given, as in a Marlin job's
+    ``M593 F30``: the type stays), F and S its frequency and damping; an F outside the firmware's
+    range (``freq_span``; F0, Marlin's "off", among them) fails the whole command, which then changes
+    nothing (AxisShaper::Configure's limited F)."""
+    freq, damping = number_or_none(p.get("F")), number_or_none(p.get("S"))
+    if freq is not None and not freq_span.lo <= freq <= freq_span.hi:
+        return
+    name = str(p.get("P", "")).strip().lower().replace("-", "").replace("_", "") or None
+    for ax in "xy":
+        _set_axis(cfg, ax, _RRF_NAMES.get(name, name), freq, damping)
+
+
 _APPLY = {"SET_INPUT_SHAPER": _klipper, "M593": _m593, "M493": _m493}
+
+
+def _apply(command: str, cfg: dict, params: dict, firmware: str) -> None:
+    """Apply one shaper command to ``cfg`` (shaping fields) as ``firmware`` reads it."""
+    fw = FIRMWARES[firmware]
+    if command == "M593" and fw.family == "rrf":
+        _rrf_m593(cfg, params, fw.freq)
+    else:
+        _APPLY[command](cfg, params)
 
 
 def shaper_timeline(events, config: TuneConfig) -> list[tuple[float, TuneConfig]]:
@@ -237,21 +256,26 @@ def shaper_timeline(events, config: TuneConfig) -> list[tuple[float, TuneConfig]
     configuration its command leaves. A command that leaves the
     shaping as it was adds no step. Values the firmware would refuse are refused here too (the
     configuration's own check), naming the event's line."""
-    steps = [(-math.inf, config)]
+    return [(-math.inf, config)] + [(float(ev.time), nxt) for ev, nxt in _changes(events, config)]
+
+
+def _changes(events, config: TuneConfig):
+    """(event, the configuration it leaves) of each planned shaper event that changes the shaping,
+    in order, from ``config`` (:func:`shaper_timeline`)."""
+    cur = config
     acts = acted_on(config.firmware)
     for ev in events:
         if ev.kind != "shaper" or ev.time is None or ev.command not in acts:
             continue
-        cur = steps[-1][1]
         d = {k: getattr(cur, k) for k in _SHAPING}
-        _APPLY[ev.command](d, ev.params)
+        _apply(ev.command, d, ev.params, cur.firmware)
         try:
             nxt = replace(cur, **d)
         except RingtuneError as exc:
             raise RingtuneError(f"{ev.command}: {exc.bare}", f"line {ev.line}") from None
         if nxt != cur:
-            steps.append((float(ev.time), nxt))
-    return steps
+            cur = nxt
+            yield ev, nxt
 
 
 def overriding(job, config: TuneConfig) -> list:
@@ -267,7 +291,7 @@ def overriding(job, config: TuneConfig) -> list:
         if ev.kind != "shaper" or ev.command not in acts or ev.move >= job.n_moves:
             continue
         d = dict(now)
-        _APPLY[ev.command](d, ev.params)
+        _apply(ev.command, d, ev.params, config.firmware)
         if any(_axis(d, ax) != _axis(now, ax) for ax in "xy"):
             out.append(ev)
     return out
@@ -289,10 +313,10 @@ def config_at(timeline: list[tuple[float, TuneConfig]], t: float) -> TuneConfig:
 
 
 def describe_timeline(timeline: list[tuple[float, TuneConfig]], events) -> str:
-    """One sentence: how many shaper changes the job makes and the first one."""
+    """One sentence: how many shaper changes the job makes (at least one) and the first: the line
+    that makes it (a command the firmware refuses changes nothing)."""
     n = len(timeline) - 1
-    first = next(e for e in events if e.kind == "shaper" and e.time is not None)
-    c = timeline[1][1] if n else timeline[0][1]
+    first, c = next(_changes(events, timeline[0][1]))
     axes = ", ".join(f"{ax.upper()} " + ("off" if getattr(c, f"shaper_{ax}") == "none" else
                                           f"{getattr(c, f'shaper_{ax}')} {getattr(c, f'freq_{ax}'):g} Hz")
                      for ax in "xy")

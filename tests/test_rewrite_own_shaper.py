@@ -19,8 +19,9 @@ from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import plan_with_config
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.gcode import read_gcode
-from ringtune.shaping.job_shapers import (foreign_shapers, foreign_shapers_note, overriding, prusa_weight_note,
-                                           shaper_timeline)
+from ringtune.shaping.job_shapers import (describe_timeline, foreign_shapers, foreign_shapers_note, overriding,
+                                           prusa_weight_note, shaper_timeline)
+from ringtune.shaping.planner import MachineLimits
 
 #: a labelled square of walls, then infill: enough for a plan with a feature change
 BODY = """G90
@@ -231,3 +232,29 @@ def test_the_printed_weight_a_prusa_job_gives_its_firmware_is_said_with_the_shif
     for other in ("marlin", "klipper", "rrf"):
         assert prusa_weight_note(read_gcode(layers, source="j"), other) is None
     assert prusa_weight_note(read_gcode(BODY, source="j"), "prusa") is None
+
+
+def test_a_marlin_m593_on_reprapfirmware_keeps_the_type_and_an_f_it_refuses_changes_nothing():
+    """A Marlin ringing tower's ``M593 F0`` then ``M593 F15`` on RepRapFirmware: RRF's M593 without
+    P keeps the shaper type and sets F (AxisShaper::Configure), and refuses an F below its minimum
+    or above 1000 Hz (the command then changes nothing: F0 does not turn shaping off there); on
+    Marlin, F0 turns it off and F15 is ZV at 15 Hz. The note names the line that made the first change."""
+    text = ("G90\nM83\nG1 X0 Y0 F6000\nM593 F0\nG1 X20 Y0 E1\nM593 S0.2\nG1 X20 Y20 E1\n"
+            "M593 F15\nG1 X0 Y20 E1\nM593 P\"zvd\" F40\nG1 X0 Y0 E1\n")
+    job = read_gcode(text, source="tower")
+    for fw, start, want in (
+            ("rrf", ("mzv", 50.0), [("mzv", 50.0), ("mzv", 15.0), ("zvd", 40.0)]),
+            ("marlin", ("zv", 50.0), [("none", None), ("zv", 15.0), ("zv", 40.0)])):
+        cfg = TuneConfig(firmware=fw, shaper_x=start[0], shaper_y=start[0], freq_x=start[1], freq_y=start[1])
+        events = plan_with_config(job, MachineLimits(), cfg).plan.events
+        timeline = shaper_timeline(events, cfg)
+        got = [(c.shaper_x, c.freq_x if c.shaper_x != "none" else None) for _t, c in timeline[1:]]
+        assert got == want and all(c.axis("x") == c.axis("y") for _t, c in timeline), (fw, got)
+        first = {"rrf": "line 6, M593 S0.2: X mzv 50 Hz", "marlin": "line 4, M593 F0: X off, Y off"}[fw]
+        assert first in describe_timeline(timeline, events)
+        if fw == "rrf":       # F0 refused, so the first change is S0.2's damping, kept with F15
+            assert [c.damping_x for _t, c in timeline[1:]] == [0.2, 0.2, 0.2]
+    rrf = TuneConfig(firmware="rrf", shaper_x="mzv", shaper_y="mzv", freq_x=50.0, freq_y=50.0)
+    assert [ev.line for ev in overriding(job, rrf)] == [6, 8, 10]       # S0.2 sets RRF's damping
+    above = read_gcode("G90\nM83\nG1 X0 Y0 F6000\nM593 F2000\nG1 X20 Y0 E1\nM593 F3\nG1 X0 Y0 E1\n", source="t")
+    assert overriding(above, rrf) == []            # above 1000 Hz, below RRF 3.6's 4 Hz: refused, nothing changes
