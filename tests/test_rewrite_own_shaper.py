@@ -15,6 +15,7 @@ from ringtune.agents.cli.main import main
 from ringtune.envs.job_rewrite import rewrite_gcode_bytes
 from ringtune.envs.printer import load_printer
 from ringtune.hardware.dialects import shaper_commands
+from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import plan_with_config
 from ringtune.shaping.errors import RingtuneError
@@ -258,3 +259,17 @@ def test_a_marlin_m593_on_reprapfirmware_keeps_the_type_and_an_f_it_refuses_chan
     assert [ev.line for ev in overriding(job, rrf)] == [6, 8, 10]       # S0.2 sets RRF's damping
     above = read_gcode("G90\nM83\nG1 X0 Y0 F6000\nM593 F2000\nG1 X20 Y0 E1\nM593 F3\nG1 X0 Y0 E1\n", source="t")
     assert overriding(above, rrf) == []            # above 1000 Hz, below RRF 3.6's 4 Hz: refused, nothing changes
+
+
+def test_rewrite_limit_and_schedule_take_the_built_in_part_by_name(tmp_path, capsys):
+    """``part`` names the built-in sliced part for every command that reads a job, as for ``tune
+    --gcode part``: the file read is the shipped one, and the rewritten job is written."""
+    part = str(job_path("part"))
+    cfg = tmp_path / "c.json"
+    cfg.write_text(json.dumps({"firmware": "klipper", "shaper_x": "mzv", "freq_x": 50.0, "shaper_y": "mzv",
+                               "freq_y": 45.0, "accel": 4000.0, "feature_accel": {"infill": 8000.0}}))
+    assert main(["rewrite", "part", "--config", str(cfg), "-o", str(tmp_path / "r.gcode"), "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["input"] == part and (tmp_path / "r.gcode").stat().st_size > 0
+    assert main(["limit", "part", "--freq-limit", "50", "-o", str(tmp_path / "l.gcode"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["input"] == part

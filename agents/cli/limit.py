@@ -17,7 +17,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ringtune.agents.cli.common import check_gcode_output
+from ringtune.agents.cli.common import GCODE_JOB_HELP, check_gcode_output, gcode_job
 from ringtune.agents.cli.options import VALUES
 from ringtune.envs.job_plan import limit_job
 from ringtune.shaping.errors import RingtuneError
@@ -59,7 +59,7 @@ PARAMETER_FLAGS = {"limit_hz": "--freq-limit"}
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("file", metavar="FILE.gcode", help="G-code file to limit")
+    parser.add_argument("file", metavar="FILE.gcode", type=gcode_job, help=f"G-code file to limit, {GCODE_JOB_HELP}")
     parser.add_argument("--freq-limit", metavar="HZ", type=VALUES["freq"], default=None,
                         help="largest direction-change frequency, Hz")
     parser.add_argument("--accel", metavar="A", type=VALUES["accel"], default=None,

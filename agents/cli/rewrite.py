@@ -14,7 +14,7 @@ configuration's shaper, each replaced by the configuration's shaper command: sai
 
 from __future__ import annotations
 
-from ringtune.agents.cli.common import check_gcode_output, load_config
+from ringtune.agents.cli.common import GCODE_JOB_HELP, check_gcode_output, gcode_job, load_config
 from ringtune.envs.job_rewrite import first_layer_words, rewrite_file, shaper_words
 from ringtune.hardware.dialects import shaper_commands
 from ringtune.shaping.gcode_file import binary_note
@@ -50,7 +50,7 @@ examples:
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("file", metavar="JOB.gcode", help="sliced G-code job")
+    parser.add_argument("file", metavar="JOB.gcode", type=gcode_job, help=f"sliced G-code job, {GCODE_JOB_HELP}")
     parser.add_argument("--config", metavar="C", required=True, help="TuneConfig JSON (tune's best.json)")
     parser.add_argument("-o", "--output", metavar="OUT", required=True, help="rewritten G-code file")
     parser.add_argument("--printer", metavar="P", help="printer TOML or embedded name (default: the built-in printer, "

@@ -15,7 +15,8 @@ moves less than the band step, nothing is inserted, ``y_schedule`` and ``last_ba
 
 from __future__ import annotations
 
-from ringtune.agents.cli.common import check_gcode_output, check_output_folder, firmware_name, load_config
+from ringtune.agents.cli.common import (GCODE_JOB_HELP, check_gcode_output, check_output_folder, firmware_name,
+                                        gcode_job, load_config)
 from ringtune.agents.cli.options import VALUES
 from ringtune.agents.tune.mass_check import schedule_job
 from ringtune.agents.tune.mass_report import schedule_summary
@@ -58,7 +59,7 @@ PARAMETER_FLAGS = {"diameter_mm": "--filament-diameter", "density_g_cm3": "--fil
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("gcode", metavar="JOB.gcode", help="the sliced job")
+    parser.add_argument("gcode", metavar="JOB.gcode", type=gcode_job, help=f"the sliced job, {GCODE_JOB_HELP}")
     parser.add_argument("--config", metavar="C", required=True, help="TuneConfig JSON (tune's best.json)")
     parser.add_argument("--printer", metavar="P", help="printer TOML or embedded name (default: ender3)")
     parser.add_argument("--firmware", type=firmware_name, default=None,
