@@ -139,7 +139,7 @@ def _arc_free_twin(key):
     if key[0] not in ("file", "text"):
         return None
     for other, job in _JOBS.items():
-        if other[:-1] == key[:-1] and other[0] == key[0] and not job.arcs[0] and not job.arcs[2]:
+        if other[:-1] == key[:-1] and not job.arcs[0] and not job.arcs[2]:
             return job
     return None
 
