@@ -15,9 +15,11 @@ from pathlib import Path
 import pytest
 
 from ringtune.agents.cli.main import main
+from ringtune.agents.tune.baselines import current_config
 from ringtune.agents.tune.choice import pick
 from ringtune.agents.tune.pareto import Point, judge, pareto_front
 from ringtune.agents.tune.versus import compare
+from ringtune.envs.printer import load_printer
 from ringtune.shaping.config import TuneConfig
 
 TESTS = Path(__file__).resolve().parent
@@ -265,25 +267,26 @@ def test_what_a_klipper_printer_runs_now_is_left_out_where_the_target_firmware_c
                                                                                              fake_evaluator):
     """A printer described from Klipper running EI on X (the real Switchwire's printer.cfg), tuned for
     Marlin (ZV only) or RepRapFirmware (one shaper for all axes, no plain EI): its [current] is no
-    baseline there; it is said why, and the tune runs on against Klipper's rule and no shaping."""
+    baseline there, and why is said; the tune runs on against Klipper's rule and no shaping. A
+    shaper per axis that RRF has, on RRF's one shaper, is left out the same way; on Klipper it stands."""
     toml = _printer_toml(tmp_path / "p.toml", current={"source": "printer.cfg", "firmware": "klipper",
                                                        "shaper_x": "ei", "freq_x": 60.0, "shaper_y": "mzv",
                                                        "freq_y": 37.2, "accel": 5000.0})
-    for fw, lacks in (("marlin", "has no 'ei' shaper"), ("rrf", "has no 'ei' shaper")):
-        out = tmp_path / f"out-{fw}"
-        assert main(["tune", "--json", "--printer", str(toml), "--firmware", fw, "--out", str(out), "--trials", "4",
-                     "--evaluator", fake_evaluator, "--accel-range", "1000,5000", "--no-refine"]) == 0
-        cap = capsys.readouterr()
-        assert set(json.loads(cap.out)["baselines"]) == {"klipper", "none"}
-        said = [ln for ln in cap.err.splitlines() if "what the printer runs now ([current]) cannot be compared" in ln]
-        assert len(said) == 1 and f"on {fw}" in said[0] and lacks in said[0]
-    toml = _printer_toml(tmp_path / "q.toml", current={"firmware": "klipper", "shaper_x": "mzv", "freq_x": 60.0,
-                                                       "shaper_y": "zvd", "freq_y": 37.2, "accel": 5000.0})
-    assert main(["tune", "--json", "--printer", str(toml), "--firmware", "rrf", "--out", str(tmp_path / "o"),
+    assert main(["tune", "--json", "--printer", str(toml), "--firmware", "marlin", "--out", str(tmp_path / "o"),
                  "--trials", "4", "--evaluator", fake_evaluator, "--accel-range", "1000,5000", "--no-refine"]) == 0
     cap = capsys.readouterr()
-    assert "current" not in json.loads(cap.out)["baselines"]
-    assert "rrf runs one shaper for all axes, the printer runs a different shaper per axis now" in cap.err
+    assert set(json.loads(cap.out)["baselines"]) == {"klipper", "none"}
+    said = [ln for ln in cap.err.splitlines() if "what the printer runs now ([current]) cannot be compared" in ln]
+    assert len(said) == 1 and "on marlin" in said[0] and "has no 'ei' shaper" in said[0]
+    printer = load_printer(str(toml))
+    cfg, why = current_config(printer, "rrf")
+    assert cfg is None and "on rrf" in why and "has no 'ei' shaper" in why
+    assert current_config(printer, "klipper")[0].shaper_x == "ei"
+    per_axis = load_printer(str(_printer_toml(tmp_path / "q.toml", current={
+        "firmware": "klipper", "shaper_x": "mzv", "freq_x": 60.0, "shaper_y": "zvd", "freq_y": 37.2})))
+    cfg, why = current_config(per_axis, "rrf")
+    assert cfg is None and "rrf runs one shaper for all axes, the printer runs a different shaper per axis now" in why
+    assert current_config(per_axis, "marlin")[0] is None and current_config(per_axis, "kalico")[0] is not None
 
 
 # -- progress (acceptance 14.6, tune part) --------------------------------------------------------
