@@ -7,6 +7,7 @@ import numpy as np
 
 from ringtune.agents.ppo.guard import hold_to_start, start_action
 from ringtune.agents.ppo.policy import prior_action, resolve_env_kwargs
+from ringtune.agents.ppo.refine import PrinterCost
 
 
 class _Cost:
@@ -44,3 +45,16 @@ def test_the_start_is_the_environments_own_starting_answer():
     assert np.allclose(start_action(kw), prior_action(kw))
     kw = resolve_env_kwargs({"observe_metrics": False, "accel_anchor": "absolute"})
     assert kw.get("start_action") is None and np.allclose(start_action(kw), prior_action(kw))
+
+
+def test_the_cost_of_a_configuration_is_simulated_once(monkeypatch):
+    """The guard's kept answer is the refinement's first trial: the cost of one configuration, asked
+    again, is the same number without a second simulation (a fixed printer judges it the same)."""
+    cost = PrinterCost(None, resolve_env_kwargs({"backend": "lti"}), backend="lti")
+    calls = []
+    real = cost.env.evaluate
+    monkeypatch.setattr(cost.env, "evaluate", lambda c: calls.append(c) or real(c))
+    start = start_action(resolve_env_kwargs({"backend": "lti"}))
+    first, again = cost.of_action(start), cost.of_action(start)
+    other = cost.of_action(np.clip(start + 0.3, -1.0, 1.0))
+    assert first == again and len(calls) == 2 and cost.n_evaluations == 2 and other != first

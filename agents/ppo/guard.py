@@ -34,11 +34,9 @@ class Guard:
         return {"kept": self.kept, "policy_cost": self.policy_cost, "start_cost": self.start_cost}
 
     def sentence(self) -> str:
-        if self.kept == "start":
-            return (f"guard: the policy's answer costs {self.policy_cost:.4f}, its starting answer (MZV on the peaks) "
-                    f"{self.start_cost:.4f} on the model: the starting answer kept")
+        kept = "the starting answer kept" if self.kept == "start" else "the policy's kept"
         return (f"guard: the policy's answer costs {self.policy_cost:.4f}, its starting answer (MZV on the peaks) "
-                f"{self.start_cost:.4f} on the model: the policy's kept")
+                f"{self.start_cost:.4f} on the model: {kept}")
 
 
 def start_action(env_kwargs: dict) -> np.ndarray:

@@ -38,17 +38,23 @@ class PrinterCost:
         if peaks is not None:
             self.env.observe_start(peaks=peaks)
         self.n_evaluations = 0
+        self._costs: dict = {}       # by configuration: one fixed printer judges it the same every time
 
     @property
     def spec(self):
         return self.env.spec_
 
     def of_config(self, config: TuneConfig) -> float:
-        self.n_evaluations += 1
-        try:
-            return -self.env.reward(self.env.evaluate(config))
-        except RingtuneError:
-            return float(self.env.step_loss_penalty)
+        """The environment's cost of ``config``, simulated once (the guard's answer, judged again as
+        the refinement's first trial, is not simulated twice)."""
+        key = config.key()
+        if key not in self._costs:
+            self.n_evaluations += 1
+            try:
+                self._costs[key] = -self.env.reward(self.env.evaluate(config))
+            except RingtuneError:
+                self._costs[key] = float(self.env.step_loss_penalty)
+        return self._costs[key]
 
     def of_action(self, action) -> float:
         return self.of_config(self.env.decode(np.clip(np.asarray(action, float), -1, 1)))
