@@ -7,12 +7,18 @@ changes the settings it names, for the moves after it; the reader stops the plan
 (:func:`stops_for`):
 
 - Klipper ``SET_INPUT_SHAPER``: ``SHAPER_TYPE[_X|_Y]``, ``SHAPER_FREQ_X|Y`` (0 = off),
-  ``DAMPING_RATIO_X|Y``;
+  ``DAMPING_RATIO_X|Y``; an axis turned off keeps its type, so a later ``SHAPER_FREQ_X=50`` alone
+  turns it on again with it (Klipper's InputShaperParams); where shaping starts off, the type is
+  Klipper's default, ``mzv`` (the command exists only with an ``[input_shaper]`` section, whose
+  ``shaper_type`` defaults to it);
 - Marlin ``M593 [X] [Y] F D`` (classic ZV; no axis letter: both; ``F0`` = off); Prusa ``M593 ... T
   F D`` (``T`` the type index); RepRapFirmware ``M593 P"type" F S`` (one shaper for all axes,
   ``P"none"`` = off; without P the type stays, so a Marlin job's ``M593 F15`` sets its frequency,
   and an F outside its range — ``F0`` among them — fails the command, which changes nothing);
 - Marlin FT_MOTION ``M493 [X] [Y] C A I`` (``C`` the mode, 0 = off; ``S0`` turns FT_MOTION off).
+
+A command that changes only what an axis that is off keeps (its damping, a type) is no step: the
+shaping is the same; what it stores applies once the axis is on again.
 
 Each firmware acts on its own commands only (:data:`ACTED_ON`): a job sliced for another firmware
 keeps its shaping there (:func:`foreign_shapers` names what it ignores).
@@ -190,11 +196,28 @@ def _set_axis(cfg: dict, ax: str, shaper: str | None, freq: float | None, dampin
         cfg[f"damping_{ax}"] = damping
 
 
+#: Klipper's shaper_type where the [input_shaper] section names none
+KLIPPER_DEFAULT_TYPE = "mzv"
+
+
 def _klipper(cfg: dict, p: dict) -> None:
+    """Klipper's SET_INPUT_SHAPER: each axis's type (``kept_<ax>``: the one it keeps while off),
+    frequency (0: off) and damping, each as given or as it was."""
     for ax in "xy":
-        kind = p.get(f"SHAPER_TYPE_{ax.upper()}", p.get("SHAPER_TYPE"))
-        _set_axis(cfg, ax, str(kind).lower() if kind is not None else None,
-                  number_or_none(p.get(f"SHAPER_FREQ_{ax.upper()}")), number_or_none(p.get(f"DAMPING_RATIO_{ax.upper()}")))
+        kind = p.get("SHAPER_TYPE", p.get(f"SHAPER_TYPE_{ax.upper()}"))
+        kept = str(kind).lower() if kind is not None else cfg[f"kept_{ax}"]
+        freq = number_or_none(p.get(f"SHAPER_FREQ_{ax.upper()}"))
+        if freq is None:
+            freq = 0.0 if cfg[f"shaper_{ax}"] == "none" else cfg[f"freq_{ax}"]
+        damping = number_or_none(p.get(f"DAMPING_RATIO_{ax.upper()}"))
+        if damping is not None:
+            cfg[f"damping_{ax}"] = damping
+        if kept != "none":
+            cfg[f"kept_{ax}"] = kept
+        if kept == "none" or freq <= 0:
+            cfg[f"shaper_{ax}"] = "none"
+        else:
+            cfg[f"shaper_{ax}"], cfg[f"freq_{ax}"] = kept, freq
 
 
 def _axes(p: dict) -> str:
@@ -241,8 +264,22 @@ def _rrf_m593(cfg: dict, p: dict, freq_span) -> None:
 _APPLY = {"SET_INPUT_SHAPER": _klipper, "M593": _m593, "M493": _m493}
 
 
+def _settings(config: TuneConfig) -> dict:
+    """The shaping fields of ``config`` as a command changes them, with the type each axis keeps
+    while off (``kept_x``, ``kept_y``: its own, or Klipper's default where it is off)."""
+    d = {k: getattr(config, k) for k in _SHAPING}
+    for ax in "xy":
+        d[f"kept_{ax}"] = KLIPPER_DEFAULT_TYPE if d[f"shaper_{ax}"] == "none" else d[f"shaper_{ax}"]
+    return d
+
+
+def _shaping(d: dict) -> dict:
+    """``d`` without what only a command reads (the kept types)."""
+    return {k: d[k] for k in _SHAPING}
+
+
 def _apply(command: str, cfg: dict, params: dict, firmware: str) -> None:
-    """Apply one shaper command to ``cfg`` (shaping fields) as ``firmware`` reads it."""
+    """Apply one shaper command to ``cfg`` (:func:`_settings`) as ``firmware`` reads it."""
     fw = FIRMWARES[firmware]
     if command == "M593" and fw.family == "rrf":
         _rrf_m593(cfg, params, fw.freq)
@@ -262,19 +299,20 @@ def shaper_timeline(events, config: TuneConfig) -> list[tuple[float, TuneConfig]
 def _changes(events, config: TuneConfig):
     """(event, the configuration it leaves) of each planned shaper event that changes the shaping,
     in order, from ``config`` (:func:`shaper_timeline`)."""
-    cur = config
+    cur, d = config, _settings(config)
     acts = acted_on(config.firmware)
     for ev in events:
         if ev.kind != "shaper" or ev.time is None or ev.command not in acts:
             continue
-        d = {k: getattr(cur, k) for k in _SHAPING}
+        before = dict(d)
         _apply(ev.command, d, ev.params, cur.firmware)
         try:
-            nxt = replace(cur, **d)
+            nxt = replace(cur, **_shaping(d))
         except RingtuneError as exc:
             raise RingtuneError(f"{ev.command}: {exc.bare}", f"line {ev.line}") from None
-        if nxt != cur:
-            cur = nxt
+        changed = any(_axis(d, ax) != _axis(before, ax) for ax in "xy")
+        cur = nxt              # what an axis that is off stores travels on with it
+        if changed:
             yield ev, nxt
 
 
@@ -284,7 +322,7 @@ def overriding(job, config: TuneConfig) -> list:
     (a command that sets what ``config`` sets, or nothing, is not one; nor is one after the job's
     last move, an end G-code's). The job rewriter puts ``config``'s own shaper command in their
     place, so ``config`` rules every move, as ``tune`` judges it; then none of the rest moves it either."""
-    now = {k: getattr(config, k) for k in _SHAPING}
+    now = _settings(config)
     acts = acted_on(config.firmware)
     out = []
     for ev in job.events:

@@ -93,3 +93,52 @@ def test_klipper_answers_unknown_command_to_exactly_the_macro_calls_the_reader_f
     assert transcript.count("< ok") == len(KNOWN) + len(OTHERS), transcript
     calls = macro_calls(read_gcode("\n".join(KNOWN + OTHERS) + "\n", source="job"))
     assert set(calls) == unknown == {line.split()[0] for line in OTHERS}
+
+
+REPORT = re.compile(r"shaper_type_(x|y):(\S+) shaper_freq_\1:(\S+) damping_ratio_\1:(\S+)")
+
+#: a job that turns shaping off, stores a damping and a type while it is off (no change of the
+#: shaping), then turns it on by frequency alone (each axis with the type it kept or was given)
+SHAPER_LINES = ["SET_INPUT_SHAPER SHAPER_FREQ_X=0 SHAPER_FREQ_Y=0",
+                "SET_INPUT_SHAPER DAMPING_RATIO_X=0.15 SHAPER_TYPE_Y=zv",
+                "SET_INPUT_SHAPER SHAPER_FREQ_X=48 SHAPER_FREQ_Y=40"]
+
+
+def _shaping(report: str) -> dict:
+    """{axis: (type, Hz, damping)} from Klipper's SET_INPUT_SHAPER report; (“none”,) where off."""
+    out = {}
+    for ax, kind, freq, damping in REPORT.findall(report):
+        out[ax] = ("none",) if float(freq) == 0 else (kind, float(freq), float(damping))
+    return out
+
+
+def test_the_job_shaper_timeline_is_what_klipper_reports_after_each_command(real_klipper):
+    """``shaping/job_shapers.py`` against Klipper's own InputShaperParams: after each job line the
+    shaping the timeline holds is the one Klipper reports (an axis turned off keeps its type, a
+    type or a damping set while it is off waits for it); a line that changes nothing the shaping
+    does is no step."""
+    from ringtune.shaping.config_plan import plan_with_config
+    from ringtune.shaping.job_shapers import config_at, shaper_timeline
+
+    start = _shaping(real_klipper.send("SET_INPUT_SHAPER"))
+    assert start["x"] != ("none",) and start["y"] != ("none",), start
+    (tx, fx, dx), (ty, fy, dy) = start["x"], start["y"]
+    cfg = TuneConfig(shaper_x=tx, shaper_y=ty, freq_x=fx, freq_y=fy, damping_x=dx, damping_y=dy)
+    try:
+        reported = [_shaping(real_klipper.send(line)) for line in SHAPER_LINES]
+    finally:      # the session's Klipper as it was found
+        real_klipper.send(f"SET_INPUT_SHAPER SHAPER_TYPE_X={tx} SHAPER_TYPE_Y={ty} SHAPER_FREQ_X={fx} "
+                          f"SHAPER_FREQ_Y={fy} DAMPING_RATIO_X={dx} DAMPING_RATIO_Y={dy}")
+    assert _shaping(real_klipper.send("SET_INPUT_SHAPER")) == start
+    moves = "".join(f"{line}\nG1 X{10 * (i + 1)} Y0 E1 F600\n" for i, line in enumerate(SHAPER_LINES))
+    job = read_gcode("M83\n" + moves)
+    events = plan_with_config(job, MachineLimits(), cfg).plan.events
+    timeline = shaper_timeline(events, cfg)
+    times = [ev.time for ev in events if ev.kind == "shaper"]
+    for t, klipper in zip(times, reported):
+        c = config_at(timeline, t)
+        ours = {ax: c.axis(ax) for ax in "xy"}
+        assert {ax: ("none",) if v[0] == "none" else (v[0], pytest.approx(v[1]), pytest.approx(v[2]))
+                for ax, v in ours.items()} == klipper
+    assert reported[-1] == {"x": (tx, 48.0, 0.15), "y": ("zv", 40.0, dy)}
+    assert len(timeline) - 1 == 2          # off, then on again: the middle line changes no shaping

@@ -273,3 +273,18 @@ def test_rewrite_limit_and_schedule_take_the_built_in_part_by_name(tmp_path, cap
     assert res["input"] == part and (tmp_path / "r.gcode").stat().st_size > 0
     assert main(["limit", "part", "--freq-limit", "50", "-o", str(tmp_path / "l.gcode"), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["input"] == part
+
+
+def test_a_klipper_job_turning_shaping_on_by_frequency_alone_gets_the_sections_default_type():
+    """Shaping off from the start (``[input_shaper]`` with no frequency): ``SHAPER_FREQ_X=40`` alone
+    turns X on with Klipper's default shaper_type, mzv; a type named while Y is off waits for its
+    frequency; a damping stored while off is no change of the shaping."""
+    text = ("G90\nM83\nG1 X0 Y0 F6000\nSET_INPUT_SHAPER DAMPING_RATIO_Y=0.2 SHAPER_TYPE_Y=ei\nG1 X20 Y0 E1\n"
+            "SET_INPUT_SHAPER SHAPER_FREQ_X=40\nG1 X20 Y20 E1\nSET_INPUT_SHAPER SHAPER_FREQ_Y=35\nG1 X0 Y0 E1\n")
+    cfg = TuneConfig(shaper_x="none", shaper_y="none")
+    events = plan_with_config(read_gcode(text, source="t"), MachineLimits(), cfg).plan.events
+    timeline = shaper_timeline(events, cfg)
+    assert [(c.axis("x"), c.axis("y")[0]) for _t, c in timeline[1:]] == [
+        (("mzv", 40.0, cfg.damping_x), "none"), (("mzv", 40.0, cfg.damping_x), "ei")]
+    assert timeline[-1][1].axis("y") == ("ei", 35.0, 0.2)
+    assert "2 changes; first at line 6, SET_INPUT_SHAPER SHAPER_FREQ_X=40" in describe_timeline(timeline, events)
