@@ -11,9 +11,9 @@ changes the settings it names, for the moves after it; the reader stops the plan
   turns it on again with it (Klipper's InputShaperParams); where shaping starts off, the type is
   Klipper's default, ``mzv`` (the command exists only with an ``[input_shaper]`` section, whose
   ``shaper_type`` defaults to it);
-- Marlin ``M593 [X] [Y] F D`` (classic ZV; no axis letter: both; ``F0`` = off); Prusa ``M593 ... T
-  F D`` (``T`` the type index); RepRapFirmware ``M593 P"type" F S`` (one shaper for all axes,
-  ``P"none"`` = off; without P the type stays, so a Marlin job's ``M593 F15`` sets its frequency,
+- Marlin ``M593 [X] [Y] F D`` (classic ZV; no axis letter: both; ``F0`` = off; a ``D`` outside 0–1
+  is skipped, the rest applies); Prusa ``M593 ... T F D`` (``T`` the type index);
+  RepRapFirmware ``M593 P"type" F S`` (one shaper for all axes, ``P"none"`` = off; without P the type stays, so a Marlin job's ``M593 F15`` sets its frequency,
   and an F outside its range — ``F0`` among them — fails the command, which changes nothing);
 - Marlin FT_MOTION ``M493 [X] [Y] C A I`` (``C`` the mode, 0 = off; ``S0`` turns FT_MOTION off).
 
@@ -236,6 +236,13 @@ def _m593(cfg: dict, p: dict) -> None:
         _set_axis(cfg, ax, shaper, freq, number_or_none(p.get("D")))
 
 
+def _marlin_d_kept(p: dict) -> dict:
+    """Marlin's M593 without a ``D`` outside 0–1, which it answers "?Zeta (D) value out of range"
+    and skips, setting the rest of the command (M593.cpp)."""
+    d = number_or_none(p.get("D"))
+    return p if d is None or 0.0 <= d <= 1.0 else {k: v for k, v in p.items() if k != "D"}
+
+
 def _m493(cfg: dict, p: dict) -> None:
     if number_or_none(p.get("S")) == 0:
         for ax in "xy":
@@ -283,6 +290,8 @@ def _apply(command: str, cfg: dict, params: dict, firmware: str) -> None:
     fw = FIRMWARES[firmware]
     if command == "M593" and fw.family == "rrf":
         _rrf_m593(cfg, params, fw.freq)
+    elif command == "M593" and fw.family == "marlin":
+        _m593(cfg, _marlin_d_kept(params))
     else:
         _APPLY[command](cfg, params)
 
