@@ -13,7 +13,8 @@ changes the settings it names, for the moves after it; the reader stops the plan
   ``shaper_type`` defaults to it);
 - Marlin ``M593 [X] [Y] F D`` (classic ZV; no axis letter: both; ``F0`` = off; a ``D`` outside 0–1
   is skipped, the rest applies); Prusa ``M593 ... T F D`` (``T`` the type index);
-  RepRapFirmware ``M593 P"type" F S`` (one shaper for all axes, ``P"none"`` = off; without P the type stays, so a Marlin job's ``M593 F15`` sets its frequency,
+  RepRapFirmware ``M593 P"type" F S`` (one shaper for all axes, ``P"none"`` = off; without P the
+  type stays, so a Marlin job's ``M593 F15`` sets its frequency,
   and an F outside its range — ``F0`` among them — fails the command, which changes nothing);
 - Marlin FT_MOTION ``M493 [X] [Y] C A I`` (``C`` the mode, 0 = off; ``S0`` turns FT_MOTION off).
 
