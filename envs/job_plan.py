@@ -44,8 +44,10 @@ FLAVOR_JUNCTION = {"klipper": "scv", "marlin2": "jd", "marlin": "jerk", "reprapf
 JOB_JUNCTION = (
     ("square_corner_velocity", "scv", "the job sets SQUARE_CORNER_VELOCITY (Klipper)"),
     ("junction_deviation", "jd", "the job sets M205 J (Marlin's junction deviation)"),
-    ("jerk_x", "jerk", "the job sets M205 X/Y (jerk: legacy Marlin, and PrusaSlicer's own estimate)"),
-    ("jerk_y", "jerk", "the job sets M205 X/Y (jerk: legacy Marlin, and PrusaSlicer's own estimate)"),
+    ("jerk_x", "jerk", "the job sets a jerk (M205 X/Y: legacy Marlin, and PrusaSlicer's own estimate; "
+                       "RepRapFirmware's M566)"),
+    ("jerk_y", "jerk", "the job sets a jerk (M205 X/Y: legacy Marlin, and PrusaSlicer's own estimate; "
+                       "RepRapFirmware's M566)"),
 )
 #: a printer's corner setting ([limits]) -> the rule it belongs to, in order
 CORNER_JUNCTION = {"square_corner_velocity": "scv", "junction_deviation": "jd", "jerk": "jerk"}
@@ -82,17 +84,35 @@ def junction_rule(job: Job, path=None, printer=None, given: dict | None = None,
                    "flavour): Klipper's, the default; --junction jd|jerk for Marlin")
 
 
+#: slicer flavours whose M203 speeds are in mm/min (RepRapFirmware's reading)
+FLAVOR_M203_PER_MINUTE = ("reprapfirmware", "reprap")
+
+
 def planning_limits(job: Job, path=None, printer=None, junction: str = "auto", firmware: str | None = None):
     """(the machine limits the job is planned with, the junction rule, why in words): the limits of
     ``printer`` (TOML or embedded name; None: the embedded default printer, as every command) with the rule of
-    :func:`junction_rule` (``firmware``: the configuration's, if any)."""
+    :func:`junction_rule` (``firmware``: the configuration's, if any). Where neither the printer
+    (its ``[current] firmware``) nor a configuration names the firmware, a job its slicer wrote for
+    RepRapFirmware has its M203 speeds read in mm/min, as there (the why says so)."""
     pr = load_printer(printer)
     limits, given = pr.machine_limits(), dict(pr.limits_dict)
     junction, why = junction_rule(job, path, printer or "the embedded default printer", given, junction, firmware)
     limits = replace(limits, junction=junction)
+    if not (firmware or pr.current.get("firmware")):
+        limits, why = _flavor_reading(limits, why, slicer_flavor(path) if path else None)
     if junction != "scv":
         limits = replace(limits, min_cruise_ratio=0.0)
     return limits, junction, why
+
+
+def _flavor_reading(limits, why: str, flavor: str | None):
+    """(limits, why) for a printer whose firmware nothing names: M203 in mm/min for a job sliced
+    for RepRapFirmware, said; else as they were."""
+    if flavor not in FLAVOR_M203_PER_MINUTE:
+        return limits, why
+    return replace(limits, m203_per_minute=True), why + (
+        f"; its M203 speeds read in mm/min, as RepRapFirmware reads them (the slicer wrote it for {flavor} "
+        "and nothing names the printer's firmware)")
 
 
 def planned_frequencies(p, top: int) -> list[dict]:

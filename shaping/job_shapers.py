@@ -201,15 +201,21 @@ def _set_axis(cfg: dict, ax: str, shaper: str | None, freq: float | None, dampin
 KLIPPER_DEFAULT_TYPE = "mzv"
 
 
+def _klipper_freq(cfg: dict, ax: str, p: dict) -> float:
+    """Hz an axis runs at after a SET_INPUT_SHAPER: as given, else as it was (0 where off)."""
+    freq = number_or_none(p.get(f"SHAPER_FREQ_{ax.upper()}"))
+    if freq is not None:
+        return freq
+    return 0.0 if cfg[f"shaper_{ax}"] == "none" else cfg[f"freq_{ax}"]
+
+
 def _klipper(cfg: dict, p: dict) -> None:
     """Klipper's SET_INPUT_SHAPER: each axis's type (``kept_<ax>``: the one it keeps while off),
     frequency (0: off) and damping, each as given or as it was."""
     for ax in "xy":
         kind = p.get("SHAPER_TYPE", p.get(f"SHAPER_TYPE_{ax.upper()}"))
         kept = str(kind).lower() if kind is not None else cfg[f"kept_{ax}"]
-        freq = number_or_none(p.get(f"SHAPER_FREQ_{ax.upper()}"))
-        if freq is None:
-            freq = 0.0 if cfg[f"shaper_{ax}"] == "none" else cfg[f"freq_{ax}"]
+        freq = _klipper_freq(cfg, ax, p)
         damping = number_or_none(p.get(f"DAMPING_RATIO_{ax.upper()}"))
         if damping is not None:
             cfg[f"damping_{ax}"] = damping

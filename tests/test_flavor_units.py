@@ -5,8 +5,10 @@ Marlin; the planner reads them so and the notes say it, with the figures the pla
 from __future__ import annotations
 
 import json
+from importlib import resources
 
 import numpy as np
+import pytest
 
 from ringtune.agents.cli.main import main
 from ringtune.shaping import gcode
@@ -72,13 +74,34 @@ def test_an_rrf_jobs_m203_is_uncapped_on_marlin_and_its_m566_sets_nothing(tmp_pa
 
 
 def test_plan_json_carries_the_note(tmp_path, capsys):
-    """``ringtune plan --json`` has ``flavor_note`` (null where the flavour and the reading agree)."""
+    """``ringtune plan --json`` has ``flavor_note`` (null where the flavour and the reading agree); on
+    a printer that names no firmware (the embedded default), an RRF job's M203 is read in mm/min, as
+    its slicer wrote it, and the reason says so."""
     body = "G90\nM82\nG1 X0 Y0 F6000\n" + "".join(f"G1 X{10 * (i % 2)} Y{i} E{i + 1} F3000\n" for i in range(1, 12))
     path = tmp_path / "rrf.gcode"
     path.write_text(RRF_HEADER + body + "; gcode_flavor = reprapfirmware\n")
-    assert main(["plan", str(path), "--json"]) == 0
+    marlin = tmp_path / "marlin.toml"
+    marlin.write_text((resources.files("ringtune.envs.data") / "ender3.toml").read_text()
+                      + '\n[current]\nfirmware = "marlin"\nshaper_x = "zv"\nfreq_x = 45.5\nshaper_y = "zv"\n'
+                      'freq_y = 38.9\n')
+    assert main(["plan", str(path), "--printer", str(marlin), "--json"]) == 0
     res = json.loads(capsys.readouterr().out)
     assert res["flavor_note"] and "line 2 caps X 30000 mm/s" in res["flavor_note"]
+    assert main(["plan", str(path), "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["flavor_note"] is None and "M203 speeds read in mm/min" in res["junction_reason"]
+    # read so, M203 X6000 Y6000 caps a travel at F18000 to 100 mm/s: the time of the same job with
+    # the caps written in mm/s, planned as Marlin reads it
+    travel = "G90\nM82\nG1 X0 Y0 F6000\nG1 X0 Y200 F18000\nG1 X150 Y200 F18000\nG1 X0 Y0 E5 F3000\n"
+    rrf = tmp_path / "rrf-caps.gcode"
+    rrf.write_text("M203 X6000 Y6000 Z720 E7200\n" + travel + "; gcode_flavor = reprapfirmware\n")
+    same = tmp_path / "marlin-caps.gcode"
+    same.write_text("M203 X100 Y100 Z12 E120\nM205 X8 Y8\n" + travel + "; gcode_flavor = marlin2\n")
+    times = []
+    for job in (rrf, same):
+        assert main(["plan", str(job), "--junction", "jerk", "--json"]) == 0
+        times.append(json.loads(capsys.readouterr().out)["print_time_s"])
+    assert times[0] == pytest.approx(times[1], rel=1e-12) and times[0] > 200 / 100
     plain = tmp_path / "plain.gcode"
     plain.write_text(body)
     assert main(["plan", str(plain), "--json"]) == 0

@@ -70,7 +70,7 @@ def test_plan_of_a_marlin_job_uses_its_rule_and_says_why(data_dir, capsys):
     forced = _json(capsys, ["plan", src, "--junction", "scv"])
     assert forced["junction_reason"] == "--junction" and forced["vs_slicer"] < -0.02
     assert main(["plan", src]) == 0
-    assert "planned with jerk (classic jerk): the job sets M205 X/Y" in capsys.readouterr().out
+    assert "planned with jerk (classic jerk): the job sets a jerk (M205 X/Y" in capsys.readouterr().out
 
 
 def test_plan_reads_the_slicer_flavour_when_the_job_sets_no_corner_rule(tmp_path, capsys):

@@ -67,7 +67,8 @@ commands imply (SET_VELOCITY_LIMIT SQUARE_CORNER_VELOCITY -> scv, M205 J -> jd, 
 jerk), else the firmware the slicer wrote it for (gcode_flavor / FLAVOR: klipper -> scv,
 marlin2 -> jd as Marlin 2 ships, marlin (legacy), reprapfirmware, repetier -> jerk), else the
 printer's corner setting, else scv; the output says which rule and why. Limits the job sets in its header
-(M201/M203/M204/M205, SET_VELOCITY_LIMIT) override the printer's; a job's own Marlin
+(M201/M203/M204/M205, SET_VELOCITY_LIMIT) override the printer's, M203 in mm/s unless the firmware
+reads mm/min (RepRapFirmware; on a printer naming no firmware, a job sliced for it); a job's own Marlin
 XY_FREQUENCY_LIMIT (M201 F<Hz> S<%>) slows its zigzags as Marlin would. When the slicer wrote
 its own time estimate into the file, it is shown beside ours.
 
