@@ -185,16 +185,16 @@ def _indexed(table: tuple, v) -> str | None:
 
 
 def _set_axis(cfg: dict, ax: str, shaper: str | None, freq: float | None, damping: float | None) -> None:
-    """Apply one axis's change: frequency 0 or shaper ``none`` turns it off."""
-    if freq is not None and freq <= 0 or shaper == "none":
-        cfg[f"shaper_{ax}"] = "none"
-        return
-    if shaper is not None:
-        cfg[f"shaper_{ax}"] = shaper
-    if freq is not None:
-        cfg[f"freq_{ax}"] = freq
+    """Apply one axis's change: frequency 0 or shaper ``none`` turns it off (a damping, or a
+    frequency beside ``none``, is kept for when it is on again, as the firmwares keep them)."""
     if damping is not None:
         cfg[f"damping_{ax}"] = damping
+    if freq is not None and freq > 0:
+        cfg[f"freq_{ax}"] = freq
+    if freq is not None and freq <= 0 or shaper == "none":
+        cfg[f"shaper_{ax}"] = "none"
+    elif shaper is not None:
+        cfg[f"shaper_{ax}"] = shaper
 
 
 #: Klipper's shaper_type where the [input_shaper] section names none
