@@ -12,7 +12,8 @@ changes the settings it names, for the moves after it; the reader stops the plan
   Klipper's default, ``mzv`` (the command exists only with an ``[input_shaper]`` section, whose
   ``shaper_type`` defaults to it);
 - Marlin ``M593 [X] [Y] F D`` (classic ZV; no axis letter: both; ``F0`` = off; a ``D`` outside 0–1
-  is skipped, the rest applies); Prusa ``M593 ... T F D`` (``T`` the type index);
+  is skipped, the rest applies); Prusa ``M593 ... T F D`` (``T`` the type index; an axis turned
+  off keeps nothing: the next change turns it on from Buddy's defaults, :func:`_prusa_m593`);
   RepRapFirmware ``M593 P"type" F S`` (one shaper for all axes, ``P"none"`` = off; without P the
   type stays, so a Marlin job's ``M593 F15`` sets its frequency,
   and an F outside its range — ``F0`` among them — fails the command, which changes nothing);
@@ -48,7 +49,8 @@ from ringtune.shaping.motion import Motion
 from ringtune.shaping.shapers import shapers_from_config
 
 _FTM_MODES = ("none", "zv", "zvd", "zvdd", "zvddd", "ei", "2hump_ei", "3hump_ei", "mzv")
-_PRUSA_TYPES = ("zv", "zvd", "mzv", "ei", "2hump_ei", "3hump_ei", "none")
+#: Prusa-Firmware-Buddy's M593 T (input_shaper::Type, first zv to last ei_3hump; another T is skipped)
+_PRUSA_TYPES = ("zv", "zvd", "mzv", "ei", "2hump_ei", "3hump_ei")
 _RRF_NAMES = {"ei2": "2hump_ei", "ei3": "3hump_ei"}
 #: the settings a shaper command changes
 _SHAPING = ("shaper_x", "shaper_y", "freq_x", "freq_y", "damping_x", "damping_y")
@@ -233,21 +235,51 @@ def _axes(p: dict) -> str:
 
 
 def _m593(cfg: dict, p: dict) -> None:
-    """Marlin's and Prusa's M593 (RepRapFirmware's: :func:`_rrf_m593`)."""
-    kind = _indexed(_PRUSA_TYPES, p.get("T"))     # Prusa: T<type index>
+    """Marlin's M593 (classic ZV; Prusa's: :func:`_prusa_m593`, RepRapFirmware's: :func:`_rrf_m593`)."""
     for ax in _axes(p):
         freq = number_or_none(p.get("F"))
-        shaper = kind
-        if shaper is None and freq and cfg.get(f"shaper_{ax}") == "none":
-            shaper = "zv"                            # Marlin classic has ZV only
+        shaper = "zv" if freq and cfg.get(f"shaper_{ax}") == "none" else None
         _set_axis(cfg, ax, shaper, freq, number_or_none(p.get("D")))
+
+
+#: Prusa-Firmware-Buddy's ``axis_x_default`` / ``axis_y_default`` (input_shaper_config.hpp: MZV at
+#: 50.7 and 40.6 Hz, damping 0.1): what an axis that is off starts from when an M593 changes it
+PRUSA_AXIS_DEFAULTS = {"x": ("mzv", 50.7, 0.1), "y": ("mzv", 40.6, 0.1)}
+
+
+def _prusa_m593(cfg: dict, p: dict, freq_span) -> None:
+    """Prusa-Firmware-Buddy's M593 (M593.cpp): a D outside 0–1, a negative F, a T outside its types or
+    an R not above 0 is skipped; F0 turns the axis off; any other change of an axis (D, F, T, R) turns
+    it on from where it is, or, where it is off, from Buddy's defaults (:data:`PRUSA_AXIS_DEFAULTS`:
+    it keeps nothing of an axis it turned off), the frequency clamped to ``freq_span`` (10–100 Hz)."""
+    d, f = _within(p.get("D"), 0.0, 1.0), _within(p.get("F"), 0.0, math.inf)
+    kind, r = _indexed(_PRUSA_TYPES, p.get("T")), _within(p.get("R"), 1e-300, math.inf)
+    if all(v is None for v in (d, f, kind, r)):
+        return
+    for ax in _axes(p):
+        if f == 0.0:
+            cfg[f"shaper_{ax}"] = "none"
+            continue
+        base = PRUSA_AXIS_DEFAULTS[ax] if cfg[f"shaper_{ax}"] == "none" else _axis(cfg, ax)
+        cfg[f"shaper_{ax}"], cfg[f"damping_{ax}"] = _or(kind, base[0]), _or(d, base[2])
+        cfg[f"freq_{ax}"] = min(max(_or(f, base[1]), freq_span.lo), freq_span.hi)
+
+
+def _within(word, lo: float, hi: float) -> float | None:
+    """A command word's number where it lies in [lo, hi], else None (absent, or one the firmware skips)."""
+    v = number_or_none(word)
+    return v if v is not None and lo <= v <= hi else None
+
+
+def _or(value, default):
+    """``value``, or ``default`` where it is None."""
+    return default if value is None else value
 
 
 def _marlin_d_kept(p: dict) -> dict:
     """Marlin's M593 without a ``D`` outside 0–1, which it answers "?Zeta (D) value out of range"
     and skips, setting the rest of the command (M593.cpp)."""
-    d = number_or_none(p.get("D"))
-    return p if d is None or 0.0 <= d <= 1.0 else {k: v for k, v in p.items() if k != "D"}
+    return p if "D" not in p or _within(p["D"], 0.0, 1.0) is not None else {k: v for k, v in p.items() if k != "D"}
 
 
 def _m493(cfg: dict, p: dict) -> None:
@@ -299,6 +331,8 @@ def _apply(command: str, cfg: dict, params: dict, firmware: str) -> None:
         _rrf_m593(cfg, params, fw.freq)
     elif command == "M593" and fw.family == "marlin":
         _m593(cfg, _marlin_d_kept(params))
+    elif command == "M593" and fw.family == "prusa":
+        _prusa_m593(cfg, params, fw.freq)
     else:
         _APPLY[command](cfg, params)
 

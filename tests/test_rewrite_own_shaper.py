@@ -303,3 +303,24 @@ def test_marlin_skips_a_damping_out_of_range_and_sets_the_rest_of_the_m593():
         (("zv", 45.0, cfg.damping_x), ("zv", 40.0, cfg.damping_y)),
         (("zv", 45.0, cfg.damping_x), ("none", 40.0, cfg.damping_y)),
         (("none", 45.0, 0.25), ("none", 40.0, 0.3)), (("zv", 42.0, 0.25), ("zv", 42.0, 0.3))]
+
+
+def test_prusa_turns_an_axis_on_again_from_its_defaults_and_skips_what_it_refuses():
+    """Prusa-Firmware-Buddy's M593 (M593.cpp, input_shaper_config.hpp): F0 turns an axis off and it
+    keeps nothing of it; the next change of that axis (here a D alone) turns it on from Buddy's
+    defaults, MZV at 50.7 Hz on X and 40.6 Hz on Y, damping 0.1; a frequency is clamped to 10–100 Hz;
+    a D outside 0–1 or a T past 3HUMP_EI (5) is skipped, so a line of nothing else changes nothing;
+    M593 A M (the weight rule) changes no axis."""
+    text = ("G90\nM83\nG1 X0 Y0 F6000\nM593 X F0\nG1 X20 Y0 E1\nM593 X D0.2\nG1 X0 Y0 E1\nM593 Y F150\n"
+            "G1 X5 Y5 E1\nM593 X D1.5\nM593 T6\nM593 A-20 M800\nG1 X9 Y5 E1\nM593 F0\nG1 X0 Y0 E1\nM593 Y T3\n"
+            "G1 X5 Y9 E1\n")
+    cfg = TuneConfig(firmware="prusa", shaper_x="mzv", shaper_y="zvd", freq_x=48.0, freq_y=38.0, damping_x=0.12,
+                     damping_y=0.08)
+    events = plan_with_config(read_gcode(text, source="t"), MachineLimits(), cfg).plan.events
+    timeline = shaper_timeline(events, cfg)
+    assert [(c.axis("x"), c.axis("y")) for _t, c in timeline[1:]] == [
+        (("none", 48.0, 0.12), ("zvd", 38.0, 0.08)),
+        (("mzv", 50.7, 0.2), ("zvd", 38.0, 0.08)),
+        (("mzv", 50.7, 0.2), ("zvd", 100.0, 0.08)),
+        (("none", 50.7, 0.2), ("none", 100.0, 0.08)),
+        (("none", 50.7, 0.2), ("ei", 40.6, 0.1))]
