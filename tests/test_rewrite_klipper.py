@@ -17,6 +17,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from ringtune.shaping.config import TuneConfig  # noqa: E402
+from ringtune.shaping.errors import RingtuneError  # noqa: E402
 from ringtune.shaping.feature_settings import FeatureCommands  # noqa: E402
 from ringtune.shaping.gcode import read_gcode  # noqa: E402
 from ringtune.shaping.planner import MachineLimits, plan  # noqa: E402
@@ -142,3 +143,10 @@ def test_the_job_shaper_timeline_is_what_klipper_reports_after_each_command(real
                 for ax, v in ours.items()} == klipper
     assert reported[-1] == {"x": (tx, 48.0, 0.15), "y": ("zv", 40.0, dy)}
     assert len(timeline) - 1 == 2          # off, then on again: the middle line changes no shaping
+    # "none" is no type of Klipper's: it refuses the line (a print stops there), and so does the timeline
+    refused = real_klipper.send("SET_INPUT_SHAPER SHAPER_TYPE_X=none")
+    assert "Unsupported shaper type" in refused and _shaping(real_klipper.send("SET_INPUT_SHAPER")) == start
+    bad = read_gcode("M83\nG1 X10 Y0 E1 F600\nSET_INPUT_SHAPER SHAPER_TYPE_X=none\nG1 X20 Y0 E1\n")
+    with pytest.raises(RingtuneError, match="Unsupported shaper type") as err:
+        shaper_timeline(plan_with_config(bad, MachineLimits(), cfg).plan.events, cfg)
+    assert err.value.where == "line 3"

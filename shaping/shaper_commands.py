@@ -1,0 +1,202 @@
+"""Each firmware's shaper command applied to the shaping it leaves in force (Hz, damping ratio).
+
+The settings are a dict of the shaping fields of a :class:`~ringtune.shaping.config.TuneConfig`
+(:func:`settings_of`) plus what Klipper keeps of an axis that is off (``kept_x``, ``kept_y``: its
+type); :func:`apply_command` changes them as the firmware does:
+
+- Klipper ``SET_INPUT_SHAPER``: ``SHAPER_TYPE[_X|_Y]``, ``SHAPER_FREQ_X|Y`` (0 = off),
+  ``DAMPING_RATIO_X|Y``; an axis turned off keeps its type, so a later ``SHAPER_FREQ_X=50`` alone
+  turns it on again with it (Klipper's InputShaperParams); where shaping starts off, the type is
+  Klipper's default, ``mzv`` (the command exists only with an ``[input_shaper]`` section, whose
+  ``shaper_type`` defaults to it);
+- Marlin ``M593 [X] [Y] F D`` (classic ZV; no axis letter: both; ``F0`` = off; a ``D`` outside 0–1
+  is skipped, the rest applies); Prusa ``M593 ... T F D`` (``T`` the type index; an axis turned
+  off keeps nothing: the next change turns it on from Buddy's defaults, :func:`_prusa_m593`);
+  RepRapFirmware ``M593 P"type" F S`` (one shaper for all axes, ``P"none"`` = off; without P the
+  type stays, so a Marlin job's ``M593 F15`` sets its frequency,
+  and an F outside its range — ``F0`` among them — fails the command, which changes nothing);
+- Marlin FT_MOTION ``M493 [X] [Y] C A I`` (``C`` the mode, 0 = off; ``S0`` turns FT_MOTION off).
+
+What a command stores for an axis that is off (its damping, a type; not on Prusa, which keeps
+nothing of it) applies once the axis is on again.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.firmware import FIRMWARES
+from ringtune.shaping.gcode_commands import number_or_none
+
+_FTM_MODES = ("none", "zv", "zvd", "zvdd", "zvddd", "ei", "2hump_ei", "3hump_ei", "mzv")
+#: Prusa-Firmware-Buddy's M593 T (input_shaper::Type, first zv to last ei_3hump; another T is skipped)
+_PRUSA_TYPES = ("zv", "zvd", "mzv", "ei", "2hump_ei", "3hump_ei")
+_RRF_NAMES = {"ei2": "2hump_ei", "ei3": "3hump_ei"}
+#: the settings a shaper command changes
+SHAPING = ("shaper_x", "shaper_y", "freq_x", "freq_y", "damping_x", "damping_y")
+
+
+def _indexed(table: tuple, v) -> str | None:
+    """``table[int(v)]`` for a numeric ``v`` inside the table, else None."""
+    i = number_or_none(v)
+    return table[int(i)] if i is not None and 0 <= int(i) < len(table) else None
+
+
+def _set_axis(cfg: dict, ax: str, shaper: str | None, freq: float | None, damping: float | None) -> None:
+    """Apply one axis's change: frequency 0 or shaper ``none`` turns it off (a damping, or a
+    frequency beside ``none``, is kept for when it is on again, as the firmwares keep them)."""
+    if damping is not None:
+        cfg[f"damping_{ax}"] = damping
+    if freq is not None and freq > 0:
+        cfg[f"freq_{ax}"] = freq
+    if freq is not None and freq <= 0 or shaper == "none":
+        cfg[f"shaper_{ax}"] = "none"
+    elif shaper is not None:
+        cfg[f"shaper_{ax}"] = shaper
+
+
+#: Klipper's shaper_type where the [input_shaper] section names none
+KLIPPER_DEFAULT_TYPE = "mzv"
+
+
+def _klipper_freq(cfg: dict, ax: str, p: dict) -> float:
+    """Hz an axis runs at after a SET_INPUT_SHAPER: as given, else as it was (0 where off)."""
+    freq = number_or_none(p.get(f"SHAPER_FREQ_{ax.upper()}"))
+    if freq is not None:
+        return freq
+    return 0.0 if cfg[f"shaper_{ax}"] == "none" else cfg[f"freq_{ax}"]
+
+
+def _klipper(cfg: dict, p: dict) -> None:
+    """Klipper's SET_INPUT_SHAPER: each axis's type (``kept_<ax>``: the one it keeps while off),
+    frequency (0: off) and damping, each as given or as it was."""
+    for ax in "xy":
+        kind = p.get("SHAPER_TYPE", p.get(f"SHAPER_TYPE_{ax.upper()}"))
+        kept = str(kind).lower() if kind is not None else cfg[f"kept_{ax}"]
+        if kept == "none":
+            raise RingtuneError(f"Klipper has no shaper type {kind!r}: it answers \"Unsupported shaper type\" and "
+                                "stops the print there (SHAPER_FREQ_X=0 / SHAPER_FREQ_Y=0 turn shaping off)")
+        freq = _klipper_freq(cfg, ax, p)
+        damping = number_or_none(p.get(f"DAMPING_RATIO_{ax.upper()}"))
+        if damping is not None:
+            cfg[f"damping_{ax}"] = damping
+        cfg[f"kept_{ax}"] = kept
+        if freq <= 0:
+            cfg[f"shaper_{ax}"] = "none"
+        else:
+            cfg[f"shaper_{ax}"], cfg[f"freq_{ax}"] = kept, freq
+
+
+def _axes(p: dict) -> str:
+    named = "".join(ax for ax in "xy" if ax.upper() in p)
+    return named or "xy"
+
+
+def _m593(cfg: dict, p: dict) -> None:
+    """Marlin's M593 (classic ZV; Prusa's: :func:`_prusa_m593`, RepRapFirmware's: :func:`_rrf_m593`)."""
+    for ax in _axes(p):
+        freq = number_or_none(p.get("F"))
+        shaper = "zv" if freq and cfg.get(f"shaper_{ax}") == "none" else None
+        _set_axis(cfg, ax, shaper, freq, number_or_none(p.get("D")))
+
+
+#: Prusa-Firmware-Buddy's ``axis_x_default`` / ``axis_y_default`` (input_shaper_config.hpp: MZV at
+#: 50.7 and 40.6 Hz, damping 0.1): what an axis that is off starts from when an M593 changes it
+PRUSA_AXIS_DEFAULTS = {"x": ("mzv", 50.7, 0.1), "y": ("mzv", 40.6, 0.1)}
+
+
+def _prusa_m593(cfg: dict, p: dict, freq_span) -> None:
+    """Prusa-Firmware-Buddy's M593 (M593.cpp): a D outside 0–1, a negative F, a T outside its types or
+    an R not above 0 is skipped; F0 turns the axis off; any other change of an axis (D, F, T, R) turns
+    it on from where it is, or, where it is off, from Buddy's defaults (:data:`PRUSA_AXIS_DEFAULTS`:
+    it keeps nothing of an axis it turned off), the frequency clamped to ``freq_span`` (10–100 Hz)."""
+    d, f = _within(p.get("D"), 0.0, 1.0), _within(p.get("F"), 0.0, math.inf)
+    kind, r = _indexed(_PRUSA_TYPES, p.get("T")), _within(p.get("R"), 1e-300, math.inf)
+    if all(v is None for v in (d, f, kind, r)):
+        return
+    for ax in _axes(p):
+        if f == 0.0:
+            cfg[f"shaper_{ax}"] = "none"
+            continue
+        base = PRUSA_AXIS_DEFAULTS[ax] if cfg[f"shaper_{ax}"] == "none" else axis_of(cfg, ax)
+        cfg[f"shaper_{ax}"], cfg[f"damping_{ax}"] = _or(kind, base[0]), _or(d, base[2])
+        cfg[f"freq_{ax}"] = min(max(_or(f, base[1]), freq_span.lo), freq_span.hi)
+
+
+def _within(word, lo: float, hi: float) -> float | None:
+    """A command word's number where it lies in [lo, hi], else None (absent, or one the firmware skips)."""
+    v = number_or_none(word)
+    return v if v is not None and lo <= v <= hi else None
+
+
+def _or(value, default):
+    """``value``, or ``default`` where it is None."""
+    return default if value is None else value
+
+
+def _marlin_d_kept(p: dict) -> dict:
+    """Marlin's M593 without a ``D`` outside 0–1, which it answers "?Zeta (D) value out of range"
+    and skips, setting the rest of the command (M593.cpp)."""
+    return p if "D" not in p or _within(p["D"], 0.0, 1.0) is not None else {k: v for k, v in p.items() if k != "D"}
+
+
+def _m493(cfg: dict, p: dict) -> None:
+    if number_or_none(p.get("S")) == 0:
+        for ax in "xy":
+            _set_axis(cfg, ax, "none", None, None)
+        return
+    if not any(k in p for k in "CAI"):
+        return
+    kind = _indexed(_FTM_MODES, p.get("C"))
+    for ax in _axes(p):
+        _set_axis(cfg, ax, kind, number_or_none(p.get("A")), number_or_none(p.get("I")))
+
+
+def _rrf_m593(cfg: dict, p: dict, freq_span) -> None:
+    """RepRapFirmware's M593, one shaper for all axes: P its type (none given, as in a Marlin job's
+    ``M593 F30``: the type stays), F and S its frequency and damping; an F outside the firmware's
+    range (``freq_span``; F0, Marlin's "off", among them) fails the whole command, which then changes
+    nothing (AxisShaper::Configure's limited F)."""
+    freq, damping = number_or_none(p.get("F")), number_or_none(p.get("S"))
+    if freq is not None and not freq_span.lo <= freq <= freq_span.hi:
+        return
+    name = str(p.get("P", "")).strip().lower().replace("-", "").replace("_", "") or None
+    for ax in "xy":
+        _set_axis(cfg, ax, _RRF_NAMES.get(name, name), freq, damping)
+
+
+_APPLY = {"SET_INPUT_SHAPER": _klipper, "M593": _m593, "M493": _m493}
+
+
+def settings_of(config: TuneConfig) -> dict:
+    """The shaping fields of ``config`` as a command changes them, with the type each axis keeps
+    while off (``kept_x``, ``kept_y``: its own, or Klipper's default where it is off)."""
+    d = {k: getattr(config, k) for k in SHAPING}
+    for ax in "xy":
+        d[f"kept_{ax}"] = KLIPPER_DEFAULT_TYPE if d[f"shaper_{ax}"] == "none" else d[f"shaper_{ax}"]
+    return d
+
+
+def shaping_of(d: dict) -> dict:
+    """``d`` without what only a command reads (the kept types)."""
+    return {k: d[k] for k in SHAPING}
+
+
+def apply_command(command: str, cfg: dict, params: dict, firmware: str) -> None:
+    """Apply one shaper command to ``cfg`` (:func:`settings_of`) as ``firmware`` reads it."""
+    fw = FIRMWARES[firmware]
+    if command == "M593" and fw.family == "rrf":
+        _rrf_m593(cfg, params, fw.freq)
+    elif command == "M593" and fw.family == "marlin":
+        _m593(cfg, _marlin_d_kept(params))
+    elif command == "M593" and fw.family == "prusa":
+        _prusa_m593(cfg, params, fw.freq)
+    else:
+        _APPLY[command](cfg, params)
+
+
+def axis_of(d: dict, ax: str) -> tuple:
+    """What shapes axis ``ax`` in settings ``d``: its shaper, frequency and damping, or off."""
+    return ("none",) if d[f"shaper_{ax}"] == "none" else (d[f"shaper_{ax}"], d[f"freq_{ax}"], d[f"damping_{ax}"])
