@@ -15,7 +15,8 @@ type); :func:`apply_command` changes them as the firmware does:
   RepRapFirmware ``M593 P"type" F S`` (one shaper for all axes, ``P"none"`` = off; without P the
   type stays, so a Marlin job's ``M593 F15`` sets its frequency,
   and an F outside its range — ``F0`` among them — fails the command, which changes nothing);
-- Marlin FT_MOTION ``M493 [X] [Y] C A I`` (``C`` the mode, 0 = off; ``S0`` turns FT_MOTION off).
+- Marlin FT_MOTION ``M493 [X] [Y] C A I`` (``C`` the mode, 0 = off; ``S0`` turns FT_MOTION off and
+  ``S1`` on again with the shapers it had; A and I set only an axis that shapes).
 
 What a command stores for an axis that is off (its damping, a type; not on Prusa, which keeps
 nothing of it) applies once the axis is on again.
@@ -142,16 +143,32 @@ def _marlin_d_kept(p: dict) -> dict:
     return p if "D" not in p or _within(p["D"], 0.0, 1.0) is not None else {k: v for k, v in p.items() if k != "D"}
 
 
-def _m493(cfg: dict, p: dict) -> None:
-    if number_or_none(p.get("S")) == 0:
-        for ax in "xy":
-            _set_axis(cfg, ax, "none", None, None)
-        return
-    if not any(k in p for k in "CAI"):
-        return
-    kind = _indexed(_FTM_MODES, p.get("C"))
-    for ax in _axes(p):
-        _set_axis(cfg, ax, kind, number_or_none(p.get("A")), number_or_none(p.get("I")))
+def _m493(cfg: dict, p: dict, freq_span, zeta_span) -> None:
+    """Marlin FT_MOTION's M493 (M493.cpp @00317b4): S0 / S1 turn fixed-time motion off and on again,
+    its shapers kept (``ftm_on``, ``ftm``); a C outside its modes fails the rest of the command; A and
+    I set an axis that shapes (after the command's C), within ``freq_span`` and ``zeta_span``, else
+    are skipped; the axes named, else X and Y."""
+    if "S" in p:
+        cfg["ftm_on"] = number_or_none(p["S"]) != 0          # Marlin's value_bool: S alone is on
+    mode = _indexed(_FTM_MODES, p.get("C"))
+    if mode is not None or number_or_none(p.get("C")) is None:
+        a, i = _within(p.get("A"), freq_span.lo, freq_span.hi), _within(p.get("I"), zeta_span.lo, zeta_span.hi)
+        for ax in _axes(p):
+            was_mode, was_freq, was_zeta = cfg["ftm"][ax]
+            now = _or(mode, was_mode)
+            a_ax, i_ax = (a, i) if now != "none" else (None, None)
+            cfg["ftm"] = {**cfg["ftm"], ax: (now, _or(a_ax, was_freq), _or(i_ax, was_zeta))}
+    _ftm_in_force(cfg)
+
+
+def _ftm_in_force(cfg: dict) -> None:
+    """The shaping FT_MOTION's settings put in force: each axis's mode while it is on, else none."""
+    for ax in "xy":
+        mode, freq, zeta = cfg["ftm"][ax]
+        if cfg["ftm_on"] and mode != "none":
+            cfg[f"shaper_{ax}"], cfg[f"freq_{ax}"], cfg[f"damping_{ax}"] = mode, freq, zeta
+        else:
+            cfg[f"shaper_{ax}"] = "none"
 
 
 def _rrf_m593(cfg: dict, p: dict, freq_span) -> None:
@@ -167,15 +184,17 @@ def _rrf_m593(cfg: dict, p: dict, freq_span) -> None:
         _set_axis(cfg, ax, _RRF_NAMES.get(name, name), freq, damping)
 
 
-_APPLY = {"SET_INPUT_SHAPER": _klipper, "M593": _m593, "M493": _m493}
+_APPLY = {"SET_INPUT_SHAPER": _klipper, "M593": _m593}
 
 
 def settings_of(config: TuneConfig) -> dict:
     """The shaping fields of ``config`` as a command changes them, with the type each axis keeps
-    while off (``kept_x``, ``kept_y``: its own, or Klipper's default where it is off)."""
+    while off (``kept_x``, ``kept_y``: its own, or Klipper's default where it is off) and FT_MOTION's
+    state (``ftm_on``; ``ftm``: {axis: (mode, Hz, zeta)} kept while it is off)."""
     d = {k: getattr(config, k) for k in SHAPING}
     for ax in "xy":
         d[f"kept_{ax}"] = KLIPPER_DEFAULT_TYPE if d[f"shaper_{ax}"] == "none" else d[f"shaper_{ax}"]
+    d["ftm_on"], d["ftm"] = True, {ax: config.axis(ax) for ax in "xy"}
     return d
 
 
@@ -193,6 +212,8 @@ def apply_command(command: str, cfg: dict, params: dict, firmware: str) -> None:
         _m593(cfg, _marlin_d_kept(params))
     elif command == "M593" and fw.family == "prusa":
         _prusa_m593(cfg, params, fw.freq)
+    elif command == "M493":
+        _m493(cfg, params, fw.freq, fw.damping)
     else:
         _APPLY[command](cfg, params)
 

@@ -324,3 +324,28 @@ def test_prusa_turns_an_axis_on_again_from_its_defaults_and_skips_what_it_refuse
         (("mzv", 50.7, 0.2), ("zvd", 100.0, 0.08)),
         (("none", 50.7, 0.2), ("none", 100.0, 0.08)),
         (("none", 50.7, 0.2), ("ei", 40.6, 0.1))]
+
+
+def test_marlin_ft_motion_turned_off_and_on_again_keeps_its_shapers_and_skips_what_it_refuses():
+    """Marlin FT_MOTION's M493 (M493.cpp @00317b4): S0 turns fixed-time motion off and S1 on again with
+    the shapers it had, an A given meanwhile included; a C outside its modes (0–8) fails the command;
+    A and I set an axis only while it shapes, I within 0.01–1; a line that leaves the shaping as it
+    was is no step."""
+    lines = ["M493 S0", "M493 X A52", "M493 S1", "M493 C9 A30", "M493 Y C0", "M493 Y A45 I0.2", "M493 Y C5",
+             "M493 X I0.005"]
+    text = "G90\nM83\nG1 X0 Y0 F6000\n" + "".join(f"{ln}\nG1 X{5 * (k % 2)} Y{k} E1\n" for k, ln in enumerate(lines))
+    cfg = TuneConfig(firmware="marlin-ftm", shaper_x="mzv", shaper_y="mzv", freq_x=48.0, freq_y=38.0)
+    events = plan_with_config(read_gcode(text, source="t"), MachineLimits(), cfg).plan.events
+    timeline = shaper_timeline(events, cfg)
+    shown = [tuple(c.axis(ax) if c.axis(ax)[0] != "none" else "off" for ax in "xy") for _t, c in timeline[1:]]
+    assert shown == [("off", "off"), (("mzv", 52.0, 0.1), ("mzv", 38.0, 0.1)), (("mzv", 52.0, 0.1), "off"),
+                     (("mzv", 52.0, 0.1), ("ei", 38.0, 0.1))]
+    assert [ev.text.split(";")[0].strip() for ev, _c in _changes_of(events, cfg)] == \
+        ["M493 S0", "M493 S1", "M493 Y C0", "M493 Y C5"]
+
+
+def _changes_of(events, cfg):
+    """(event, configuration) of each step of the timeline, paired by time."""
+    steps = shaper_timeline(events, cfg)[1:]
+    by_time = {ev.time: ev for ev in events if ev.kind == "shaper"}
+    return [(by_time[t], c) for t, c in steps]
