@@ -53,13 +53,13 @@ JOB_JUNCTION = (
 CORNER_JUNCTION = {"square_corner_velocity": "scv", "junction_deviation": "jd", "jerk": "jerk"}
 
 
-def junction_rule(job: Job, path=None, printer=None, given: dict | None = None,
+def junction_rule(job: Job, flavor: str | None = None, printer=None, given: dict | None = None,
                   junction: str = "auto", firmware: str | None = None) -> tuple[str, str]:
     """(rule, why in words): ``junction`` if not ``"auto"``; else the printer's ``[limits]
     junction`` (``given``: its limits); else, for a configuration made for Klipper or Kalico
     (``firmware``), scv, their one rule; else what the job's own commands imply; else the
-    slicer's flavour (:data:`FLAVOR_JUNCTION`, read from the file at ``path``); else the printer's
-    corner setting; else scv."""
+    slicer's flavour (:data:`FLAVOR_JUNCTION`; ``flavor``: the file's,
+    :func:`ringtune.shaping.slicer.slicer_flavor`); else the printer's corner setting; else scv."""
     given = given or {}
     if junction != "auto":
         return junction, "--junction"
@@ -74,7 +74,6 @@ def junction_rule(job: Job, path=None, printer=None, given: dict | None = None,
             return rule, why
     if any(ev.command == "SET_VELOCITY_LIMIT" for ev in job.events):
         return "scv", "the job uses SET_VELOCITY_LIMIT, which only Klipper and Kalico have"
-    flavor = slicer_flavor(path) if path else None
     if flavor in FLAVOR_JUNCTION:
         return FLAVOR_JUNCTION[flavor], f"the slicer wrote the job for {flavor}"
     for key, rule in CORNER_JUNCTION.items():
@@ -96,10 +95,11 @@ def planning_limits(job: Job, path=None, printer=None, junction: str = "auto", f
     RepRapFirmware has its M203 speeds read in mm/min, as there (the why says so)."""
     pr = load_printer(printer)
     limits, given = pr.machine_limits(), dict(pr.limits_dict)
-    junction, why = junction_rule(job, path, printer or "the embedded default printer", given, junction, firmware)
+    flavor = slicer_flavor(path) if path else None
+    junction, why = junction_rule(job, flavor, printer or "the embedded default printer", given, junction, firmware)
     limits = replace(limits, junction=junction)
     if not (firmware or pr.current.get("firmware")):
-        limits, why = _flavor_reading(limits, why, slicer_flavor(path) if path else None)
+        limits, why = _flavor_reading(limits, why, flavor)
     if junction != "scv":
         limits = replace(limits, min_cruise_ratio=0.0)
     return limits, junction, why
