@@ -65,6 +65,9 @@ KLIPPER_DEFAULT_TYPE = "mzv"
 def _klipper_freq(cfg: dict, ax: str, p: dict) -> float:
     """Hz an axis runs at after a SET_INPUT_SHAPER: as given, else as it was (0 where off)."""
     freq = number_or_none(p.get(f"SHAPER_FREQ_{ax.upper()}"))
+    if freq is not None and freq < 0:
+        raise RingtuneError(f"SHAPER_FREQ_{ax.upper()}={freq:g}: Klipper takes a frequency of at least 0 Hz, refuses "
+                            "the line and stops the print there")
     if freq is not None:
         return freq
     return 0.0 if cfg[f"shaper_{ax}"] == "none" else cfg[f"freq_{ax}"]

@@ -144,9 +144,12 @@ def test_the_job_shaper_timeline_is_what_klipper_reports_after_each_command(real
     assert reported[-1] == {"x": (tx, 48.0, 0.15), "y": ("zv", 40.0, dy)}
     assert len(timeline) - 1 == 2          # off, then on again: the middle line changes no shaping
     # "none" is no type of Klipper's: it refuses the line (a print stops there), and so does the timeline
-    refused = real_klipper.send("SET_INPUT_SHAPER SHAPER_TYPE_X=none")
-    assert "Unsupported shaper type" in refused and _shaping(real_klipper.send("SET_INPUT_SHAPER")) == start
-    bad = read_gcode("M83\nG1 X10 Y0 E1 F600\nSET_INPUT_SHAPER SHAPER_TYPE_X=none\nG1 X20 Y0 E1\n")
-    with pytest.raises(RingtuneError, match="Unsupported shaper type") as err:
-        shaper_timeline(plan_with_config(bad, MachineLimits(), cfg).plan.events, cfg)
-    assert err.value.where == "line 3"
+    # nor is a negative frequency: Klipper refuses both lines (a print stops there), and so does the timeline
+    for line, said in (("SET_INPUT_SHAPER SHAPER_TYPE_X=none", "Unsupported shaper type"),
+                       ("SET_INPUT_SHAPER SHAPER_FREQ_X=-5", "minimum of 0")):
+        refused = real_klipper.send(line)
+        assert said in refused and _shaping(real_klipper.send("SET_INPUT_SHAPER")) == start, refused
+        bad = read_gcode(f"M83\nG1 X10 Y0 E1 F600\n{line}\nG1 X20 Y0 E1\n")
+        with pytest.raises(RingtuneError, match="Unsupported shaper type|at least 0 Hz") as err:
+            shaper_timeline(plan_with_config(bad, MachineLimits(), cfg).plan.events, cfg)
+        assert err.value.where == "line 3"
