@@ -10,7 +10,7 @@ type); :func:`apply_command` changes them as the firmware does:
   Klipper's default, ``mzv`` (the command exists only with an ``[input_shaper]`` section, whose
   ``shaper_type`` defaults to it);
 - Marlin ``M593 [X] [Y] F D`` (classic ZV; no axis letter: both; ``F0`` = off; a ``D`` outside 0–1
-  is skipped, the rest applies); Prusa ``M593 ... T F D`` (``T`` the type index; an axis turned
+  or a negative ``F`` is skipped, the rest applies); Prusa ``M593 ... T F D`` (``T`` the type index; an axis turned
   off keeps nothing: the next change turns it on from Buddy's defaults, :func:`_prusa_m593`);
   RepRapFirmware ``M593 P"type" F S`` (one shaper for all axes, ``P"none"`` = off; without P the
   type stays, so a Marlin job's ``M593 F15`` sets its frequency,
@@ -140,10 +140,15 @@ def _or(value, default):
     return default if value is None else value
 
 
-def _marlin_d_kept(p: dict) -> dict:
-    """Marlin's M593 without a ``D`` outside 0–1, which it answers "?Zeta (D) value out of range"
-    and skips, setting the rest of the command (M593.cpp)."""
-    return p if "D" not in p or _within(p["D"], 0.0, 1.0) is not None else {k: v for k, v in p.items() if k != "D"}
+#: the words of Marlin's M593 and the range outside which it skips each ("?Zeta (D) value out of
+#: range", "?Frequency (F) must be greater than …"), setting the rest of the command (M593.cpp)
+_MARLIN_M593_RANGES = {"D": (0.0, 1.0), "F": (0.0, math.inf)}
+
+
+def _marlin_kept(p: dict) -> dict:
+    """Marlin's M593 without the words it skips (:data:`_MARLIN_M593_RANGES`)."""
+    ranges = _MARLIN_M593_RANGES
+    return {k: v for k, v in p.items() if k not in ranges or _within(v, *ranges[k]) is not None}
 
 
 def _m493(cfg: dict, p: dict, freq_span, zeta_span) -> None:
@@ -212,7 +217,7 @@ def apply_command(command: str, cfg: dict, params: dict, firmware: str) -> None:
     if command == "M593" and fw.family == "rrf":
         _rrf_m593(cfg, params, fw.freq)
     elif command == "M593" and fw.family == "marlin":
-        _m593(cfg, _marlin_d_kept(params))
+        _m593(cfg, _marlin_kept(params))
     elif command == "M593" and fw.family == "prusa":
         _prusa_m593(cfg, params, fw.freq)
     elif command == "M493":

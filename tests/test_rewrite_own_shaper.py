@@ -292,13 +292,15 @@ def test_a_klipper_job_turning_shaping_on_by_frequency_alone_gets_the_sections_d
 
 def test_marlin_skips_a_damping_out_of_range_and_sets_the_rest_of_the_m593():
     """Marlin's M593 answers a D outside 0–1 "?Zeta (D) value out of range" and sets its F all the
-    same (M593.cpp); a damping within range set while the axis is off is no change of the shaping."""
-    text = ("G90\nM83\nG1 X0 Y0 F6000\nM593 X D1.5 F45\nG1 X20 Y0 E1\nM593 Y F0\nG1 X0 Y0 E1\nM593 Y D0.3\n"
+    same, and skips a negative F likewise (M593.cpp); a damping within range set while the axis is off
+    is no change of the shaping."""
+    text = ("G90\nM83\nG1 X0 Y0 F6000\nM593 X D1.5 F45\nG1 X20 Y0 E1\nM593 X F-4\nM593 Y F0\nG1 X0 Y0 E1\nM593 Y D0.3\n"
             "G1 X5 Y5 E1\nM593 X F0 D0.25\nG1 X9 Y5 E1\nM593 F42\nG1 X0 Y0 E1\n")
     cfg = TuneConfig(firmware="marlin", shaper_x="zv", shaper_y="zv", freq_x=50.0, freq_y=40.0)
     events = plan_with_config(read_gcode(text, source="t"), MachineLimits(), cfg).plan.events
     timeline = shaper_timeline(events, cfg)
-    # M593 Y D0.3, stored while Y is off, is no step; nor is the D0.25 beside X's F0: both apply at F42
+    # M593 X F-4 is skipped; M593 Y D0.3, stored while Y is off, is no step; nor is the D0.25 beside
+    # X's F0: both apply at F42
     assert [(c.axis("x"), c.axis("y")) for _t, c in timeline[1:]] == [
         (("zv", 45.0, cfg.damping_x), ("zv", 40.0, cfg.damping_y)),
         (("zv", 45.0, cfg.damping_x), ("none", 40.0, cfg.damping_y)),
