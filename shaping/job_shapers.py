@@ -32,13 +32,12 @@ from ringtune.shaping.gcode_commands import number_or_none
 from ringtune.shaping.job import STOP_COMMANDS
 from ringtune.shaping.layer_commands import PRUSA_WEIGHT_ADJUST, prusa_weight_frequency
 from ringtune.shaping.motion import Motion
-from ringtune.shaping.shaper_commands import apply_command, axis_of, settings_of, shaping_of
+from ringtune.shaping.shaper_commands import READERS, apply_command, axis_of, settings_of, shaping_of
 from ringtune.shaping.shapers import shapers_from_config
 
 #: the shaper commands each firmware family acts on; it does not have a job's others (Klipper
 #: answers "Unknown command" to an M593, Marlin to a SET_INPUT_SHAPER)
-ACTED_ON = {"klipper": ("SET_INPUT_SHAPER",), "marlin": ("M593",), "prusa": ("M593",), "marlin-ftm": ("M493",),
-            "rrf": ("M593",)}
+ACTED_ON = {family: tuple(c for c, f in READERS if f == family) for _c, family in READERS}
 
 
 def acted_on(firmware: str) -> tuple[str, ...]:

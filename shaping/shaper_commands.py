@@ -73,7 +73,7 @@ def _klipper_freq(cfg: dict, ax: str, p: dict) -> float:
     return 0.0 if cfg[f"shaper_{ax}"] == "none" else cfg[f"freq_{ax}"]
 
 
-def _klipper(cfg: dict, p: dict) -> None:
+def _klipper(cfg: dict, p: dict, _fw) -> None:
     """Klipper's SET_INPUT_SHAPER: each axis's type (``kept_<ax>``: the one it keeps while off),
     frequency (0: off) and damping, each as given or as it was."""
     for ax in "xy":
@@ -98,12 +98,17 @@ def _axes(p: dict) -> str:
     return named or "xy"
 
 
-def _m593(cfg: dict, p: dict) -> None:
-    """Marlin's M593 (classic ZV; Prusa's: :func:`_prusa_m593`, RepRapFirmware's: :func:`_rrf_m593`)."""
+#: the words of Marlin's M593 and the range outside which it skips each ("?Zeta (D) value out of
+#: range", "?Frequency (F) must be greater than …"), setting the rest of the command (M593.cpp)
+_MARLIN_M593_RANGES = {"D": (0.0, 1.0), "F": (0.0, math.inf)}
+
+
+def _marlin_m593(cfg: dict, p: dict, _fw) -> None:
+    """Marlin's M593 (classic ZV), without the words it skips (:data:`_MARLIN_M593_RANGES`)."""
+    p = {k: v for k, v in p.items() if k not in _MARLIN_M593_RANGES or _within(v, *_MARLIN_M593_RANGES[k]) is not None}
+    freq, damping = number_or_none(p.get("F")), number_or_none(p.get("D"))
     for ax in _axes(p):
-        freq = number_or_none(p.get("F"))
-        shaper = "zv" if freq and cfg.get(f"shaper_{ax}") == "none" else None
-        _set_axis(cfg, ax, shaper, freq, number_or_none(p.get("D")))
+        _set_axis(cfg, ax, "zv" if freq and cfg[f"shaper_{ax}"] == "none" else None, freq, damping)
 
 
 #: Prusa-Firmware-Buddy's ``axis_x_default`` / ``axis_y_default`` (input_shaper_config.hpp: MZV at
@@ -111,11 +116,11 @@ def _m593(cfg: dict, p: dict) -> None:
 PRUSA_AXIS_DEFAULTS = {"x": ("mzv", 50.7, 0.1), "y": ("mzv", 40.6, 0.1)}
 
 
-def _prusa_m593(cfg: dict, p: dict, freq_span) -> None:
+def _prusa_m593(cfg: dict, p: dict, fw) -> None:
     """Prusa-Firmware-Buddy's M593 (M593.cpp): a D outside 0–1, a negative F, a T outside its types or
     an R not above 0 is skipped; F0 turns the axis off; any other change of an axis (D, F, T, R) turns
     it on from where it is, or, where it is off, from Buddy's defaults (:data:`PRUSA_AXIS_DEFAULTS`:
-    it keeps nothing of an axis it turned off), the frequency clamped to ``freq_span`` (10–100 Hz)."""
+    it keeps nothing of an axis it turned off), the frequency clamped to ``fw.freq`` (10–100 Hz)."""
     d, f = _within(p.get("D"), 0.0, 1.0), _within(p.get("F"), 0.0, math.inf)
     kind, r = _indexed(_PRUSA_TYPES, p.get("T")), _within(p.get("R"), 1e-300, math.inf)
     if all(v is None for v in (d, f, kind, r)):
@@ -126,7 +131,7 @@ def _prusa_m593(cfg: dict, p: dict, freq_span) -> None:
             continue
         base = PRUSA_AXIS_DEFAULTS[ax] if cfg[f"shaper_{ax}"] == "none" else axis_of(cfg, ax)
         cfg[f"shaper_{ax}"], cfg[f"damping_{ax}"] = _or(kind, base[0]), _or(d, base[2])
-        cfg[f"freq_{ax}"] = min(max(_or(f, base[1]), freq_span.lo), freq_span.hi)
+        cfg[f"freq_{ax}"] = min(max(_or(f, base[1]), fw.freq.lo), fw.freq.hi)
 
 
 def _within(word, lo: float, hi: float) -> float | None:
@@ -140,27 +145,16 @@ def _or(value, default):
     return default if value is None else value
 
 
-#: the words of Marlin's M593 and the range outside which it skips each ("?Zeta (D) value out of
-#: range", "?Frequency (F) must be greater than …"), setting the rest of the command (M593.cpp)
-_MARLIN_M593_RANGES = {"D": (0.0, 1.0), "F": (0.0, math.inf)}
-
-
-def _marlin_kept(p: dict) -> dict:
-    """Marlin's M593 without the words it skips (:data:`_MARLIN_M593_RANGES`)."""
-    ranges = _MARLIN_M593_RANGES
-    return {k: v for k, v in p.items() if k not in ranges or _within(v, *ranges[k]) is not None}
-
-
-def _m493(cfg: dict, p: dict, freq_span, zeta_span) -> None:
+def _m493(cfg: dict, p: dict, fw) -> None:
     """Marlin FT_MOTION's M493 (M493.cpp @00317b4): S0 / S1 turn fixed-time motion off and on again,
     its shapers kept (``ftm_on``, ``ftm``); a C outside its modes fails the rest of the command; A and
-    I set an axis that shapes (after the command's C), within ``freq_span`` and ``zeta_span``, else
+    I set an axis that shapes (after the command's C), within ``fw.freq`` and ``fw.damping``, else
     are skipped; the axes named, else X and Y."""
     if "S" in p:
         cfg["ftm_on"] = number_or_none(p["S"]) != 0          # Marlin's value_bool: S alone is on
     mode = _indexed(_FTM_MODES, p.get("C"))
     if mode is not None or number_or_none(p.get("C")) is None:
-        a, i = _within(p.get("A"), freq_span.lo, freq_span.hi), _within(p.get("I"), zeta_span.lo, zeta_span.hi)
+        a, i = _within(p.get("A"), fw.freq.lo, fw.freq.hi), _within(p.get("I"), fw.damping.lo, fw.damping.hi)
         for ax in _axes(p):
             was_mode, was_freq, was_zeta = cfg["ftm"][ax]
             now = _or(mode, was_mode)
@@ -179,20 +173,23 @@ def _ftm_in_force(cfg: dict) -> None:
             cfg[f"shaper_{ax}"] = "none"
 
 
-def _rrf_m593(cfg: dict, p: dict, freq_span) -> None:
+def _rrf_m593(cfg: dict, p: dict, fw) -> None:
     """RepRapFirmware's M593, one shaper for all axes: P its type (none given, as in a Marlin job's
     ``M593 F30``: the type stays), F and S its frequency and damping; an F outside the firmware's
-    range (``freq_span``; F0, Marlin's "off", among them) fails the whole command, which then changes
+    range (``fw.freq``; F0, Marlin's "off", among them) fails the whole command, which then changes
     nothing (AxisShaper::Configure's limited F)."""
     freq, damping = number_or_none(p.get("F")), number_or_none(p.get("S"))
-    if freq is not None and not freq_span.lo <= freq <= freq_span.hi:
+    if freq is not None and not fw.freq.contains(freq):
         return
     name = str(p.get("P", "")).strip().lower().replace("-", "").replace("_", "") or None
     for ax in "xy":
         _set_axis(cfg, ax, _RRF_NAMES.get(name, name), freq, damping)
 
 
-_APPLY = {"SET_INPUT_SHAPER": _klipper, "M593": _m593}
+#: (command, firmware family) -> its reader, ``reader(settings, params, firmware record)``: the
+#: commands each family acts on (:data:`ringtune.shaping.job_shapers.ACTED_ON` is read from it)
+READERS = {("SET_INPUT_SHAPER", "klipper"): _klipper, ("M593", "marlin"): _marlin_m593,
+           ("M593", "prusa"): _prusa_m593, ("M593", "rrf"): _rrf_m593, ("M493", "marlin-ftm"): _m493}
 
 
 def settings_of(config: TuneConfig) -> dict:
@@ -207,23 +204,14 @@ def settings_of(config: TuneConfig) -> dict:
 
 
 def shaping_of(d: dict) -> dict:
-    """``d`` without what only a command reads (the kept types)."""
+    """``d`` without what only a command reads (the kept types, FT_MOTION's state)."""
     return {k: d[k] for k in SHAPING}
 
 
 def apply_command(command: str, cfg: dict, params: dict, firmware: str) -> None:
     """Apply one shaper command to ``cfg`` (:func:`settings_of`) as ``firmware`` reads it."""
     fw = FIRMWARES[firmware]
-    if command == "M593" and fw.family == "rrf":
-        _rrf_m593(cfg, params, fw.freq)
-    elif command == "M593" and fw.family == "marlin":
-        _m593(cfg, _marlin_kept(params))
-    elif command == "M593" and fw.family == "prusa":
-        _prusa_m593(cfg, params, fw.freq)
-    elif command == "M493":
-        _m493(cfg, params, fw.freq, fw.damping)
-    else:
-        _APPLY[command](cfg, params)
+    READERS[(command, fw.family)](cfg, params, fw)
 
 
 def axis_of(d: dict, ax: str) -> tuple:
