@@ -24,7 +24,7 @@ from ringtune.shaping.extruder_alone import extruder_alone_note, klipper_refusal
 from ringtune.shaping.config_plan import ConfiguredPlan, for_firmware, plan_with_config
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions, retraction_plan
-from ringtune.shaping.flavor_units import flavor_note
+from ringtune.shaping.flavor_units import FLAVOR_M203_PER_MINUTE, flavor_note
 from ringtune.shaping.freqlimit import commanded_frequencies as per_move
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.gcode_file import read_gcode_bytes
@@ -83,10 +83,6 @@ def junction_rule(job: Job, flavor: str | None = None, printer=None, given: dict
                    "flavour): Klipper's, the default; --junction jd|jerk for Marlin")
 
 
-#: slicer flavours whose M203 speeds are in mm/min (RepRapFirmware's reading)
-FLAVOR_M203_PER_MINUTE = ("reprapfirmware", "reprap")
-
-
 def planning_limits(job: Job, path=None, printer=None, junction: str = "auto", firmware: str | None = None):
     """(the machine limits the job is planned with, the junction rule, why in words): the limits of
     ``printer`` (TOML or embedded name; None: the embedded default printer, as every command) with the rule of
@@ -108,7 +104,7 @@ def planning_limits(job: Job, path=None, printer=None, junction: str = "auto", f
 def _flavor_reading(limits, why: str, flavor: str | None):
     """(limits, why) for a printer whose firmware nothing names: M203 in mm/min for a job sliced
     for RepRapFirmware, said; else as they were."""
-    if flavor not in FLAVOR_M203_PER_MINUTE:
+    if not FLAVOR_M203_PER_MINUTE.get(str(flavor).lower()):
         return limits, why
     return replace(limits, m203_per_minute=True), why + (
         f"; its M203 speeds read in mm/min, as RepRapFirmware reads them (the slicer wrote it for {flavor} "
