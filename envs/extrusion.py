@@ -73,7 +73,7 @@ def extrusion(e_made: np.ndarray, tu: np.ndarray, pts: np.ndarray, vec: np.ndarr
     lo_e, hi_e = legs.e_start[first[run]], legs.e_end[last[run]]
     made = np.clip(e_made[ok], lo_e, hi_e)
     asked, cls, _, beyond = _asked(s_path, legs, first[run], last[run])
-    lead_near = _lead(made, _running_max_per_run(s_near, run), legs, first[run], last[run])
+    lead_near = _held_at(made, run, legs) - _running_max_per_run(s_near, run)
     order = np.argsort(run, kind="stable")
     excess, start = _excess(made[order], asked[order], beyond[order], s_path[order], run[order], span)
     return Extrusion(lead_near[straight], cls[straight], excess, cls[order][start])
@@ -115,11 +115,27 @@ def _asked(s, legs: Legs, lo: np.ndarray, hi: np.ndarray):
     return asked, legs.cls[k], per_mm, per_mm * np.maximum(s - at, 0.0)
 
 
-def _lead(made, s, legs: Legs, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Lead (mm) of each sample: filament made beyond what the path holds up to path position
-    ``s``, in mm of path at the leg's mean rate."""
-    asked, _cls, per_mm, _beyond = _asked(s, legs, lo, hi)
-    return (made - asked) / per_mm
+def _held_at(made: np.ndarray, run: np.ndarray, legs: Legs) -> np.ndarray:
+    """Path position (mm) up to which each sample's run holds the filament ``made`` (within the
+    run's, mm): the inverse of the path's filament along the run, each merged move at its own
+    filament per mm (:attr:`Legs.knot_s`), so a lead read across a change of rate is the path
+    between the nozzle and where the extruder has got to, not a rate's guess at it."""
+    first, last = legs.run_ends
+    runs, rank = np.unique(run, return_inverse=True)
+    lo, hi = legs.knot_first[first[runs]], legs.knot_last[last[runs]]
+    count = hi - lo + 1
+    begin = np.concatenate([[0], np.cumsum(count)[:-1]])
+    own = np.repeat(np.arange(len(runs)), count)
+    knot = lo[own] + np.arange(int(count.sum())) - begin[own]      # the runs' knots, run by run
+    base = legs.knot_e[lo]
+    rel = np.maximum(legs.knot_e[knot] - base[own], 0.0)
+    big = 2.0 ** np.ceil(np.log2(float(np.max(rel, initial=0.0)) + 2.0))   # runs apart, each non-decreasing
+    key = np.maximum.accumulate(rel + own * big)
+    at = np.searchsorted(key, np.maximum(made - base[rank], 0.0) + rank * big, side="right") - 1
+    j = knot[np.clip(at, begin[rank], begin[rank] + count[rank] - 2)]
+    e0, s0 = legs.knot_e[j], legs.knot_s[j]
+    frac = np.clip((made - e0) / np.maximum(legs.knot_e[j + 1] - e0, 1e-12), 0.0, 1.0)
+    return s0 + frac * (legs.knot_s[j + 1] - s0)
 
 
 def _running_max_per_run(s: np.ndarray, run: np.ndarray) -> np.ndarray:

@@ -149,13 +149,9 @@ def test_extrusion_worked_example_of_the_docstring():
         assert lm.extrusion_over_pct == (pytest.approx(62.5, rel=2e-3) if counted else 0.0)
 
 
-def test_a_line_whose_rate_changes_midway_is_judged_in_filament():
-    """The extrusion rate quadruples halfway along the line (a slicer's legs differ in filament per
-    mm of path). Marlin ZV at 40 Hz puts E 0.625 mm of path ahead of the nozzle: the stretch of 1 mm
-    ending at the change gets the new rate over its last 0.625 mm, (4 − 1) × 0.625 = 187.5 % more
-    than asked; the shortfall is the stop's, 62.5 % — never beyond 100 % (a lead in mm of path
-    read at each end's own rate would make it −187.5 % where the lead drops from 2.5 to 0.625 mm)."""
-    td, r1, r2 = V / A, E_PER_MM, 4 * E_PER_MM
+def line_changing_rate(factor: float) -> Motion:
+    """:func:`line` whose extrusion rate changes by ``factor`` halfway along (two moves, one leg)."""
+    td, r1, r2 = V / A, E_PER_MM, factor * E_PER_MM
     x_ramp, half = V * td / 2, LENGTH / 2
     t = np.cumsum([0.0, td, (half - x_ramp) / V, (LENGTH - half - x_ramp) / V, td])
     e1 = 5.0 + x_ramp * r1
@@ -164,9 +160,27 @@ def test_a_line_whose_rate_changes_midway_is_judged_in_filament():
     p = [[0, 0, 0.2, 5.0], [x_ramp, 0, 0.2, e1], [half, 0, 0.2, e2], [LENGTH - x_ramp, 0, 0.2, e3]]
     v = [[0, 0, 0, 0], [V, 0, 0, V * r1], [V, 0, 0, V * r2], [V, 0, 0, V * r2]]
     a = [[A, 0, 0, A * r1], [0, 0, 0, 0], [0, 0, 0, 0], [-A, 0, 0, -A * r2]]
-    m, _, _ = marlin_zv(Motion(t, p, v, a, np.ones(4, bool)))
+    return Motion(t, p, v, a, np.ones(4, bool))
+
+
+def test_a_line_whose_rate_changes_midway_is_judged_in_filament():
+    """The extrusion rate quadruples halfway along the line (a slicer's legs differ in filament per
+    mm of path). Marlin ZV at 40 Hz puts E 0.625 mm of path ahead of the nozzle: the stretch of 1 mm
+    ending at the change gets the new rate over its last 0.625 mm, (4 − 1) × 0.625 = 187.5 % more
+    than asked; the shortfall is the stop's, 62.5 % — never beyond 100 % (a lead in mm of path
+    read at each end's own rate would make it −187.5 % where the lead drops from 2.5 to 0.625 mm)."""
+    m, _, _ = marlin_zv(line_changing_rate(4.0))
     assert m.extrusion_over_pct == pytest.approx(187.5, rel=2e-3)
     assert m.extrusion_under_pct == pytest.approx(62.5, rel=2e-3)
+
+
+@pytest.mark.parametrize("factor", [4.0, 0.25, 1.3])
+def test_the_lead_across_a_change_of_rate_is_the_path_between_nozzle_and_extruder(factor):
+    """E runs 6.25 ms ahead of the nozzle at 100 mm/s: 0.625 mm of path wherever the rate changes
+    (where the extruder has got to, read along the path at each move's own rate; read at the leg's
+    mean rate it was 1.0 mm for a fourfold change)."""
+    m, _, _ = marlin_zv(line_changing_rate(factor))
+    assert m.e_lag_mm == pytest.approx(0.625, rel=1e-3)
 
 
 def test_retraction_after_the_line_is_not_material_taken_back():
