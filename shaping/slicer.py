@@ -10,6 +10,10 @@ from ringtune.shaping.gcode_file import gcode_text_or_none
 _EST_PRUSA = re.compile(r";\s*(?:estimated printing time \(normal mode\)|total estimated time)\s*[=:]\s*(.+)", re.I)
 _EST_S3D = re.compile(r";\s*Build time:\s*(.+)", re.I)
 _EST_CURA = re.compile(r"^;TIME:\s*(\d+(?:\.\d+)?)\s*$", re.M)
+_ELAPSED_CURA = re.compile(r";TIME_ELAPSED:\s*(\d+(?:\.\d+)?)")
+#: the ``;TIME:`` CuraEngine writes before it has estimated anything; Cura's window puts its
+#: estimate there afterwards, a job sliced by CuraEngine alone keeps it (111 min for any model)
+CURA_TIME_PLACEHOLDER = 6666.0
 _DURATION = re.compile(r"(\d+(?:\.\d+)?)\s*(d|days?|h|hours?|m|min|minutes?|s|sec|seconds?)\b", re.I)
 
 
@@ -29,7 +33,9 @@ def _text(path) -> str | None:
 
 def slicer_estimate(path) -> float | None:
     """The print time (s) the slicer wrote into the file (PrusaSlicer/Orca ``estimated printing
-    time (normal mode)``, Simplify3D ``Build time``, Cura ``;TIME:``), or None."""
+    time (normal mode)``, Simplify3D ``Build time``, Cura ``;TIME:``; where that is CuraEngine's
+    placeholder, :data:`CURA_TIME_PLACEHOLDER`, or absent, its last ``;TIME_ELAPSED:``, the
+    engine's own estimate at the last layer's end), or None."""
     text = _text(path)
     if text is None:
         return None
@@ -38,7 +44,10 @@ def slicer_estimate(path) -> float | None:
         if m:
             return _duration_seconds(m.group(1))
     m = _EST_CURA.search(text)
-    return float(m.group(1)) if m else None
+    if m and float(m.group(1)) != CURA_TIME_PLACEHOLDER:
+        return float(m.group(1))
+    last = _ELAPSED_CURA.match(text, max(text.rfind(";TIME_ELAPSED:"), 0))
+    return float(last.group(1)) if last else (float(m.group(1)) if m else None)
 
 
 #: the firmware a slicer says it wrote the job for: PrusaSlicer / SuperSlicer / OrcaSlicer

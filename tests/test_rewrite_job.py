@@ -1,5 +1,6 @@
 """The job rewriter (issue 22): real files of three slicers (PrusaSlicer for Marlin, Simplify3D for
-Klipper, Cura for an Ultimaker read as RepRapFirmware) get the chosen commands at every feature
+Klipper, Cura for an Ultimaker read as RepRapFirmware, and the test part sliced whole by CuraEngine for
+Marlin 2's junction deviation) get the chosen commands at every feature
 change and nothing else; the rewritten file plans to the time ``tune`` reports for the
 configuration; the layer hook inserts where a layer starts.
 
@@ -37,7 +38,8 @@ FEATURES = {"outer_wall": 2500.0, "top_surface": 3500.0, "support": 4000.0, "inf
 #: (file, firmware, junction rule, corner value in that rule's unit)
 SLICED = [("gcode/ianalexis_ender3_marlin/ringing_tower.gcode", "marlin", "jerk", 9.0),      # PrusaSlicer
           ("gcode/bassco_ender3/ringing_tower.gcode", "klipper", "scv", 8.0),                # Simplify3D
-          ("gcode/fastlb_cura_um2/platte_klein_cut.gcode", "rrf", "jerk", 9.0)]              # Cura
+          ("gcode/fastlb_cura_um2/platte_klein_cut.gcode", "rrf", "jerk", 9.0),              # Cura
+          pytest.param("part/part_cura.gcode", "marlin", "jd", 0.02, marks=pytest.mark.slow)]  # Cura, whole
 
 
 def _printer(junction: str):
@@ -140,7 +142,8 @@ def test_every_feature_change_carries_the_commands_and_nothing_else_changes(data
     assert {op for op, *_ in ops} <= {"equal", "insert"}
     added = [line for op, _, _, j1, j2 in ops if op == "insert" for line in restored[j1:j2]]
     assert len(added) == done.lines_inserted + 1 and added[0].startswith(HEADER)
-    words = {"klipper": ("SET_VELOCITY_LIMIT ",), "marlin": ("M204 P", "M205 X", "M201 X"),
+    words = {"klipper": ("SET_VELOCITY_LIMIT ",), "marlin": ("M204 P", "M205 J" if junction == "jd" else "M205 X",
+                                                             "M201 X"),
              "rrf": ("M204 P", "M566 X", "M201 X")}[firmware]
     assert all(line.startswith(words) for line in added[1:])
     # every move runs with its feature's acceleration, as the reader (the firmware) holds it
@@ -156,14 +159,19 @@ def test_every_feature_change_carries_the_commands_and_nothing_else_changes(data
     else:
         assert np.array_equal(job.setting("accel_print"), want_p)
         assert np.array_equal(job.setting("accel_travel"), want_t)
-        assert np.allclose(job.setting("jerk_x"), want_corner) and np.allclose(job.setting("jerk_y"), want_corner)
+        if junction == "jd":
+            assert np.allclose(job.setting("junction_deviation"), want_corner)
+        else:
+            assert np.allclose(job.setting("jerk_x"), want_corner) and np.allclose(job.setting("jerk_y"), want_corner)
         assert np.all(job.setting("max_accel_x") >= max(FEATURES.values()))
     # the planned time of the rewritten file is tune's figure for the configuration
     tune_s = planned_job(printer, (data_dir / path), cfg).print_time
     assert done.config_s == pytest.approx(tune_s, rel=1e-12)
     assert done.after_s == pytest.approx(tune_s, rel=1e-9)
     assert plan_with_config(job, printer.limits, cfg).plan.print_time == pytest.approx(tune_s, rel=1e-9)
-    if firmware != "rrf":     # the file sets every acceleration a move takes (Marlin's M204 R is in the job)
+    # where the file sets every acceleration a move takes (Marlin's M204 R in the job: not Cura's, not RRF's
+    # M204), it plans to that time as it stands
+    if firmware != "rrf" and np.all(np.isfinite(job.setting("accel_retract"))):
         assert plan_with_config(job, printer.limits, None).plan.print_time == pytest.approx(tune_s, rel=1e-9)
 
 
