@@ -370,7 +370,12 @@ def test_the_ceiling_sentence_says_what_share_of_the_room_the_walk_took():
     walk = Raise(point(1000.0), point(1200.0))
     text = walk.ceiling_sentence(950.0)
     assert "950.0 s" in text and "took 200.0 of the 250.0 s" in text and "(1200.0 s)" in text and "(80 %)" in text
-    assert "No faster than the walk's start (1200.0 s)" in walk.ceiling_sentence(1200.0)
+    assert "No faster than the walk's start (1200.0 s)" in Raise(point(1200.0), point(1200.0)).ceiling_sentence(1200.0)
+    # tops that plan slower than where the walk ended (Kalico's caps: a higher ACCEL lowers the
+    # corners' speed where the caps bind) are said to be no ceiling, not a share over 100 %
+    for ceiling in (1100.0, 1250.0):
+        text = walk.ceiling_sentence(ceiling)
+        assert "ended faster than that, at 1000.0 s" in text and "no ceiling" in text and "%" not in text
 
 
 @pytest.mark.parametrize("junction", ["jerk", "jd"])

@@ -146,6 +146,10 @@ class Raise:
         head = (f"Ceiling of the walk (the planner alone; neither quality nor the simulated motor load judged): every "
                 f"setting nobody sees at the top of its range{ratio}, what a person sees as chosen: {ceiling_s:.1f} s.")
         room = self.start.print_time_s - ceiling_s
+        if self.point.print_time_s < ceiling_s:     # the walk's own steps were timed: one top plans slower
+            return (f"{head} The walk ended faster than that, at {self.point.print_time_s:.1f} s: on this printer "
+                    "a setting at the top of its range plans slower than where the walk left it, so the tops "
+                    "are no ceiling.")
         if room <= 0:
             return f"{head} No faster than the walk's start ({self.start.print_time_s:.1f} s)."
         took = self.start.print_time_s - self.point.print_time_s
