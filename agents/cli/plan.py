@@ -70,7 +70,8 @@ printer's corner setting, else scv; the output says which rule and why. Limits t
 (M201/M203/M204/M205, SET_VELOCITY_LIMIT) override the printer's, M203 in mm/s unless the firmware
 reads mm/min (RepRapFirmware; on a printer naming no firmware, a job sliced for it); a job's own Marlin
 XY_FREQUENCY_LIMIT (M201 F<Hz> S<%>) slows its zigzags as Marlin would. When the slicer wrote
-its own time estimate into the file, it is shown beside ours.
+its own time estimate into the file, it is shown beside ours (Cura's `;TIME:`; where CuraEngine run
+alone left its placeholder, 6666 s for any model, its last `;TIME_ELAPSED:`).
 
 Direction-change frequencies (three cycles of zigzag while extruding) are given two ways:
 commanded, at the G-code's own speeds F (what `ringtune limit` and a firmware frequency limit act
