@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import pytest
 
-from ringtune.agents.tune.pareto import (Point, compare_figure, judge, point_from_metrics, variants_from_json,
-                                         variants_to_json)
-from ringtune.agents.tune.stop import Bounds, as_exact_variant, failure, failure_words
+from ringtune.agents.tune.pareto import (DEFAULT_RESOLUTION, Point, compare_figure, judge, point_from_metrics,
+                                         variants_from_json, variants_to_json)
+from ringtune.agents.tune.stop import Bounds, as_exact_variant, failure, failure_words, to_beat
 from ringtune.agents.tune.study import StudySettings, run_study
 from ringtune.agents.tune.study_results import study_points
 from ringtune.agents.tune.versus import table, versus
@@ -41,6 +41,17 @@ def test_worse_on_one_variant_is_worse_though_the_worst_over_them_is_the_same():
     assert why[:5] == ("measure", KEY, "klipper", 0.0148, 0.0111) and why.variant == HIGH
     assert failure_words(why, "Klipper's rule") == ("outer wall ripple 14.8 µm > 11.1 µm of Klipper's rule on the "
                                                      "printer with its resonances 5 % higher and damping ×0.75")
+
+
+def test_a_step_that_saves_too_little_says_the_saving_a_step_needs():
+    """A raise from 100 s to 99.97 s saves 0.03 %, under the 0.05 % a step must save: the words give
+    the time and the time it had to get below (100 s less 0.05 %), not a bare "not below"."""
+    start = _point(0.01, {}, "start")
+    step = Point(TuneConfig(), 99.97, 0.01, metrics={KEY: 0.01}, label="step")
+    why = failure(step, {}, to_beat(start), Bounds(), DEFAULT_RESOLUTION)
+    assert why[:4] == ("time", "print_time_s", None, 99.97) and why.limit == pytest.approx(99.95)
+    assert failure_words(why, "Klipper's rule") == ("print time 99.970 s, not the 0.05 % faster a step must be "
+                                                     "(below 99.950 s)")
 
 
 def test_no_worse_on_every_variant_keeps_the_verdict_of_the_worst():
