@@ -345,7 +345,8 @@ def failure_words(why: Failure, base_label: str) -> str:
         on = "" if why.variant is None else f" on {Variant(*why.variant).words()}"
         return f"{words(key)[0]} {shown(key, value)} > {shown(key, limit)} of {base_label}{on}"
     if kind == "time":
-        return f"print time {value:.3f} s, not the {MIN_STEP_SAVING * 100:g} % faster a step must be (below {limit:.3f} s)"
+        return (f"print time {value:.3f} s, not the {MIN_STEP_SAVING * 100:g} % faster a step must be "
+                f"(below {limit:.3f} s)")
     return {"step_loss": "a motor loses steps",
             "motor_load": f"motor load {value * 100:.0f} % > the reserve's {limit * 100:.0f} %",
             "show_through_mm": f"show-through {shown(key, value)} > the {shown(key, limit)} bound",
