@@ -52,3 +52,13 @@ def test_plan_compares_with_the_engines_estimate_not_the_placeholder(cura_part, 
     res = json.loads(capsys.readouterr().out)
     assert res["slicer_estimate_s"] == pytest.approx(1915.414508)
     assert res["vs_slicer"] == pytest.approx(res["print_time_s"] / 1915.414508 - 1)
+
+
+def test_plan_names_the_class_each_of_curas_labels_is_judged_as(cura_part, capsys):
+    """Cura's PrintFeatureType labels, each with the class its meaning gives (its walls, sparse
+    fill, the skin of top and bottom faces alike, the skirt that is not the part)."""
+    assert main(["plan", str(cura_part)]) == 0
+    rows = {line.split()[0]: line.split()[1] for line in capsys.readouterr().out.splitlines()
+            if line.startswith("    ") and line.strip().endswith("%")}
+    assert rows == {"FILL": "infill", "SKIN": "top_surface", "WALL-OUTER": "outer_wall", "WALL-INNER": "inner_wall",
+                    "SKIRT": "support", "unknown": "other"}

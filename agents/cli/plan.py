@@ -51,6 +51,7 @@ from ringtune.envs.job_plan import hms, plan_job
 from ringtune.shaping.firmware import JUNCTION_NAMES
 from ringtune.shaping.e_timing import firmware_trajectory, sample_features
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.features import feature_class
 
 NAME = "plan"
 DESCRIPTION = """\
@@ -147,9 +148,9 @@ def _text(r: dict) -> str:
                 "klipper_refusals_note", "flavor_note"):
         if r[key]:
             lines.append(f"  {r[key]}")
-    lines.append("  time by feature:")
+    lines.append("  time by feature (the job's label, the class ringtune judges it as):")
     for k, v in sorted(r["time_by_feature"].items(), key=lambda kv: -kv[1]):
-        lines.append(f"    {k:<28} {hms(v):>10}  {100 * v / max(t, 1e-12):5.1f} %")
+        lines.append(f"    {k:<28} {feature_class(k):<16} {hms(v):>10}  {100 * v / max(t, 1e-12):5.1f} %")
     top, top_cmd = r["top_frequencies"], r["top_commanded_frequencies"]
     if top or top_cmd:
         lines.append("  highest direction-change frequencies (three cycles of zigzag while extruding):")
