@@ -20,6 +20,7 @@ from ringtune.envs.printer import load_printer
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.arcs import arc_resolution, arcs_note
+from ringtune.shaping.features import feature_class
 from ringtune.shaping.extruder_alone import extruder_alone_note, klipper_refusals, klipper_refusals_note
 from ringtune.shaping.config_plan import ConfiguredPlan, for_firmware, plan_with_config
 from ringtune.shaping.firmware import FIRMWARES
@@ -184,6 +185,7 @@ class JobPlan:
             "print_time_s": p.print_time, "print_time": hms(p.print_time),
             "moves": len(p.moves), "extruding_moves": int(p.moves.extruding.sum()), "lines": self.job.n_lines,
             "path_length_mm": float(p.moves.length.sum()), "time_by_feature": p.time_by_feature(),
+            "feature_classes": {label: feature_class(label) for label in p.time_by_feature()},
             "top_frequencies": self.top, "top_commanded_frequencies": self.top_commanded,
             "max_planned_freq_hz": _highest(self.top), "max_commanded_freq_hz": _highest(self.top_commanded),
             "shaper_events": shaper_events, "events": kinds,

@@ -60,5 +60,8 @@ def test_plan_names_the_class_each_of_curas_labels_is_judged_as(cura_part, capsy
     assert main(["plan", str(cura_part)]) == 0
     rows = {line.split()[0]: line.split()[1] for line in capsys.readouterr().out.splitlines()
             if line.startswith("    ") and line.strip().endswith("%")}
-    assert rows == {"FILL": "infill", "SKIN": "top_surface", "WALL-OUTER": "outer_wall", "WALL-INNER": "inner_wall",
-                    "SKIRT": "support", "unknown": "other"}
+    cura = {"FILL": "infill", "SKIN": "top_surface", "WALL-OUTER": "outer_wall", "WALL-INNER": "inner_wall",
+            "SKIRT": "support", "unknown": "other"}
+    assert rows == cura
+    assert main(["plan", str(cura_part), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["feature_classes"] == cura

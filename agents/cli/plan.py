@@ -25,7 +25,8 @@ max_extrude_only_distance; Klipper stops the print at the first) and ``klipper_r
 limit lines that firmware reads in other units — M203 in mm/min on RepRapFirmware, mm/s elsewhere —
 or not at all — M566 on Marlin —, in words; else null), ``print_time_s``,
 ``print_time``, ``moves``, ``extruding_moves``, ``lines``, ``path_length_mm``,
-``time_by_feature`` ({feature: s}), ``junction_reason`` (why that junction rule, in words),
+``time_by_feature`` ({feature: s}), ``feature_classes`` ({feature: the class it is judged as}),
+``junction_reason`` (why that junction rule, in words),
 ``top_frequencies`` (list of {``freq_hz``, ``line``, ``t``}: highest *planned* direction-change
 frequencies while extruding, three cycles each, in planned time: what the printer does),
 ``top_commanded_frequencies`` (list of {``freq_hz``, ``line``}: highest direction-change
@@ -51,7 +52,6 @@ from ringtune.envs.job_plan import hms, plan_job
 from ringtune.shaping.firmware import JUNCTION_NAMES
 from ringtune.shaping.e_timing import firmware_trajectory, sample_features
 from ringtune.shaping.errors import RingtuneError
-from ringtune.shaping.features import feature_class
 
 NAME = "plan"
 DESCRIPTION = """\
@@ -150,7 +150,7 @@ def _text(r: dict) -> str:
             lines.append(f"  {r[key]}")
     lines.append("  time by feature (the job's label, the class ringtune judges it as):")
     for k, v in sorted(r["time_by_feature"].items(), key=lambda kv: -kv[1]):
-        lines.append(f"    {k:<28} {feature_class(k):<16} {hms(v):>10}  {100 * v / max(t, 1e-12):5.1f} %")
+        lines.append(f"    {k:<28} {r['feature_classes'][k]:<16} {hms(v):>10}  {100 * v / max(t, 1e-12):5.1f} %")
     top, top_cmd = r["top_frequencies"], r["top_commanded_frequencies"]
     if top or top_cmd:
         lines.append("  highest direction-change frequencies (three cycles of zigzag while extruding):")
