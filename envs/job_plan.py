@@ -179,13 +179,14 @@ class JobPlan:
         macros = macro_calls(self.job) if self.configured.limits.reads_like_klipper else {}
         retractions = firmware_retractions(self.job)
         planned = sum(r.e is not None for r in retraction_plan(self.job, self.configured.limits))
+        by_feature = p.time_by_feature()
         return {
             "job": self.name, "junction": self.junction, "junction_reason": self.why,
             "limits": dict(asdict(self.configured.limits)),
             "print_time_s": p.print_time, "print_time": hms(p.print_time),
             "moves": len(p.moves), "extruding_moves": int(p.moves.extruding.sum()), "lines": self.job.n_lines,
-            "path_length_mm": float(p.moves.length.sum()), "time_by_feature": p.time_by_feature(),
-            "feature_classes": {label: feature_class(label) for label in p.time_by_feature()},
+            "path_length_mm": float(p.moves.length.sum()), "time_by_feature": by_feature,
+            "feature_classes": {label: feature_class(label) for label in by_feature},
             "top_frequencies": self.top, "top_commanded_frequencies": self.top_commanded,
             "max_planned_freq_hz": _highest(self.top), "max_commanded_freq_hz": _highest(self.top_commanded),
             "shaper_events": shaper_events, "events": kinds,
