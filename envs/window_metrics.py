@@ -46,13 +46,15 @@ What a person sees (all mm unless stated):
 ``extrusion_over_pct`` / ``extrusion_under_pct``
     seed 002's extruder timing. The firmware pushes filament as its extruder command says
     (running maximum: retracted filament is not taken back from the part); the G-code asks, per mm
-    of path, the filament of the path's own moves. Along each extrusion run the nozzle's position
-    is counted by the length it travels (from the nearest point of the path where it starts the
-    run), so a corner it cuts short gets its filament on a shorter path. Over every stretch of
-    ``SPAN_MM`` = 1 mm of the nozzle's path within a run (a shorter run: the run), the material
-    laid against the asked is the filament pushed over the stretch against the filament the path
-    holds over it (in filament: where the rate per mm of path is the same along the stretch, 1 +
-    Δlead/length, lead in mm of path; slicers' legs differ in rate); the largest excess and the largest
+    of path, the filament of the path's own moves. The bead lies along the nozzle's own path:
+    along each extrusion run it is measured by the length the nozzle travels from where it is
+    along the run when the run starts (a travel that brings it there, beside or back over the
+    wall's start, is not wall). Over every stretch of ``SPAN_MM`` = 1 mm of it within a run (a
+    shorter run the window holds whole: the run), the material laid against the asked is the
+    filament pushed over the stretch against the filament per mm the path asks where the nozzle
+    is, times the length it moved (so a corner it cuts short gets its filament on a shorter path;
+    on a straight line at one rate, 1 + Δlead/length, lead in mm of path; slicers' moves differ in
+    rate, each counts at its own); the largest excess and the largest
     shortfall, in %, over the classes whose material a person sees (:data:`EXTRUSION_SEEN`: the
     visible ones, and the inner walls and solid infill that lie against them; they arise at starts,
     stops and corners). Sparse infill and support are nobody's to see: their own figures stay in
