@@ -1,4 +1,5 @@
-"""Material at a wall's start reached by a travel, and a wall a window cuts, against exact truth.
+"""Material at a wall's start reached by a travel, a wall a window cuts, and a change of rate after
+many cut corners, against exact truth.
 
 A wall that starts where a travel stops (a seam): a centred shaper starts the nozzle turning before
 the wall's time, so the nozzle's motion before the extruder starts is the end of the travel, not
@@ -21,6 +22,7 @@ from ringtune.envs.window_metrics import compute_metrics
 from ringtune.shaping.apply import shape_motion
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.e_timing import extruder_command
+from ringtune.shaping.features import FEATURE_CLASSES
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.motion import Motion
 from ringtune.shaping.shapers import shapers_from_config
@@ -78,3 +80,55 @@ def test_a_wall_the_window_cuts_within_its_first_mm_has_no_stretch_to_judge():
     assert m.extrusion_over_pct == 0.0 and m.extrusion_under_pct == 0.0
     whole = klipper_zv_metrics(mo)
     assert whole.extrusion_over_pct > 5.0          # the same start, judged whole, is judged
+
+
+def meander_then_wall() -> tuple[Motion, np.ndarray]:
+    """From rest up Y, a meander of 20 right-angle corners at 100 mm/s (legs of 2 mm along ±Y, 1 mm
+    along +X), 2 mm more along +X, a 28 mm wall along +X whose rate quadruples after 15 mm, 2 mm
+    more, to rest. Returns the motion and each segment's class (the wall outer_wall, the rest
+    infill: at the stop the extruder on the planner's clock runs a·Δ²/8 ahead of the centred
+    command, which is not the wall's to judge here)."""
+    v = 100.0
+    ramp_t = v / 20000.0
+    legs = [((0.0, 1.0), 2.0 - v * ramp_t / 2)]
+    for k in range(10):
+        legs += [((1.0, 0.0), 1.0), ((0.0, -1.0 if k % 2 == 0 else 1.0), 2.0)]
+    legs += [((1.0, 0.0), 2.0), ((1.0, 0.0), 15.0), ((1.0, 0.0), 13.0), ((1.0, 0.0), 2.0 - v * ramp_t / 2)]
+    rates = [E_PER_MM] * (len(legs) - 2) + [4 * E_PER_MM] * 2
+    cls = ["infill"] * (len(legs) - 3) + ["outer_wall", "outer_wall", "infill"]
+    t, p, vel, acc = [0.0, ramp_t], [[0.0, 0.0, 0.2, 5.0]], [[0.0, 0.0, 0.0, 0.0]], [[0.0, 20000.0, 0.0, 20000 * E_PER_MM]]
+    pos = np.array([0.0, v * ramp_t / 2, 0.2, 5.0 + v * ramp_t / 2 * E_PER_MM])
+    for (dx, dy), length in legs:
+        rate = rates[len(p) - 1]
+        p.append(pos.tolist())
+        vel.append([v * dx, v * dy, 0.0, v * rate])
+        acc.append([0.0, 0.0, 0.0, 0.0])
+        pos = pos + np.array([dx * length, dy * length, 0.0, length * rate])
+        t.append(t[-1] + length / v)
+    p.append(pos.tolist())
+    vel.append([v, 0.0, 0.0, v * rates[-1]])
+    acc.append([-20000.0, 0.0, 0.0, -20000.0 * rates[-1]])
+    t.append(t[-1] + ramp_t)
+    classes = [FEATURE_CLASSES.index(c) for c in ["infill", *cls, "infill"]]
+    mo = Motion(np.array(t), np.array(p), np.array(vel), np.array(acc), np.ones(len(p), bool))
+    return mo, np.array(classes)
+
+
+def test_corners_cut_earlier_in_a_run_do_not_move_a_later_change_of_rate():
+    """On a straight wall the centred shaper puts the nozzle where the planner is and E follows the
+    planner: every stretch of the wall gets what it asks, across its fourfold change of rate too.
+    The 20 corners before it, each cut short, saved the nozzle path; counted on from there, the
+    change of rate landed 8.7 mm early (it read 300 % too much on the wall)."""
+    mo, classes = meander_then_wall()
+    cfg = TuneConfig(firmware="klipper", shaper_x="zv", shaper_y="zv", freq_x=F, freq_y=F,
+                     damping_x=0.0, damping_y=0.0)
+    shapers, centred = shapers_from_config(cfg)
+    sx = shapers["x"]
+    shaped = shape_motion(mo, shapers, centred)
+    t = np.arange(shaped.t[0], shaped.t[-1], 1.0 / RATE)
+    sim = StiffSim(t, shaped.position(t)[:, :2], np.zeros((len(t), 2)))
+    m = compute_metrics(sim, mo, settle=sx.duration - sx.centre_delay, anticipate=sx.centre_delay,
+                        classes=classes, e_command=extruder_command(mo, shapers, centred, FIRMWARES["klipper"]))
+    wall = m.features["outer_wall"]
+    assert wall["extrusion_over_pct"] < 0.5 and wall["extrusion_under_pct"] < 0.5
+    assert m.features["infill"]["extrusion_over_pct"] > 2.0          # the corners themselves are judged
