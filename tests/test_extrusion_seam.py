@@ -96,7 +96,8 @@ def meander_then_wall() -> tuple[Motion, np.ndarray]:
     legs += [((1.0, 0.0), 2.0), ((1.0, 0.0), 15.0), ((1.0, 0.0), 13.0), ((1.0, 0.0), 2.0 - v * ramp_t / 2)]
     rates = [E_PER_MM] * (len(legs) - 2) + [4 * E_PER_MM] * 2
     cls = ["infill"] * (len(legs) - 3) + ["outer_wall", "outer_wall", "infill"]
-    t, p, vel, acc = [0.0, ramp_t], [[0.0, 0.0, 0.2, 5.0]], [[0.0, 0.0, 0.0, 0.0]], [[0.0, 20000.0, 0.0, 20000 * E_PER_MM]]
+    t, p, vel = [0.0, ramp_t], [[0.0, 0.0, 0.2, 5.0]], [[0.0, 0.0, 0.0, 0.0]]
+    acc = [[0.0, 20000.0, 0.0, 20000 * E_PER_MM]]
     pos = np.array([0.0, v * ramp_t / 2, 0.2, 5.0 + v * ramp_t / 2 * E_PER_MM])
     for (dx, dy), length in legs:
         rate = rates[len(p) - 1]
