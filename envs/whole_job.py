@@ -1,0 +1,82 @@
+"""A configuration's measures over the whole job, not only its quality windows (a check of them).
+
+``tune`` judges quality on a few windows of the job (:mod:`ringtune.envs.windows`): its sharpest
+corners, fastest zigzags and seams, chosen on the printer's own plan, each with at most
+:data:`~ringtune.envs.windows.SETTLE_MAX` s of history. This simulates the whole job instead, in
+pieces of about ``span`` s cut only where nothing is printed (:func:`span_edges`), each with a
+lead-in of :data:`LEAD_TAUS` time constants of the printer's slowest-decaying mode (what the
+machine still carries of earlier motion: e^−6, 0.25 %), and measures each as a window
+(:func:`ringtune.envs.windows.metrics_of`); the job's figures are the worst over the pieces. With
+the exact linear backend a 20-minute job takes about a minute.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ringtune.envs.metrics import Metrics
+from ringtune.envs.planned_job import PlannedJob, planned_job, resolve_printer
+from ringtune.envs.sim import simulate_batch
+from ringtune.envs.windows import corner_tail, metrics_of, window_runs
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.testprints import Window
+
+#: s of the job per simulated piece (about: cut where nothing is printed)
+SPAN_S = 300.0
+#: time constants 1/(ζω) of the slowest-decaying mode simulated before each piece
+LEAD_TAUS = 6.0
+#: Hz of the exact backend's samples (a corner's deepest cut is a sample's: at 2 kHz its phase moved
+#: the built-in print's worst corner rounding by 6 %)
+RATE_HZ = 5000.0
+
+
+def lead_in(printer, taus: float = LEAD_TAUS) -> float:
+    """s of history simulated before each piece: ``taus`` time constants 1/(ζω) of the printer's
+    slowest-decaying mode (no upper bound: a lightly damped mode rings for seconds)."""
+    rates = [m.damping * m.omega for ax in ("x", "y") for m in printer.effective_modes(ax)]
+    return float(taus / max(min(rates), 1e-9)) if rates else 0.0
+
+
+def span_edges(motion, span: float) -> np.ndarray:
+    """Times (s) that cut ``motion`` into pieces of about ``span`` s, only where nothing is printed:
+    from each cut on, the middle of the non-extruding stretch (a travel, a retraction, a layer
+    change) nearest a span later and at least half a span later. No printed line, wall or corner is
+    cut; a job that never stops extruding is one piece."""
+    t = np.asarray(motion.t, float)
+    idle = ~np.asarray(motion.extruding, bool)
+    mids = 0.5 * (t[:-1] + t[1:])[idle]
+    edges = [motion.start_time]
+    while True:
+        later = mids[(mids >= edges[-1] + 0.5 * span) & (mids < motion.end_time)]
+        if not len(later):
+            break
+        edges.append(float(later[np.argmin(np.abs(later - (edges[-1] + span)))]))
+    return np.array([*edges, motion.end_time])
+
+
+def whole_job_metrics(config: TuneConfig, printer=None, job=None, *, span: float = SPAN_S,
+                      backend: str = "lti", job_accel: str | None = None) -> Metrics:
+    """The job's metrics with all of it simulated (print time the planner's, s).
+
+    Args:
+        config: the configuration, as ``tune`` judges it (its shapers rule the whole job).
+        printer: a ``Printer``, a TOML path or None (the embedded default).
+        job: as :func:`ringtune.envs.evaluate.evaluate` takes it.
+        span: s per simulated piece (:func:`span_edges`).
+        backend: ``"lti"`` (exact linear, default; sampled at :data:`RATE_HZ`) or ``"mujoco"``.
+        job_accel: as :func:`ringtune.envs.evaluate.evaluate`.
+    """
+    if not span > 0:
+        raise RingtuneError(f"must be > 0 s, not {span}", "span")
+    printer = resolve_printer(printer)
+    pj = planned_job(printer, job, config, job_accel=job_accel)
+    edges = span_edges(pj.motion, span)
+    parts = []
+    for a, b in zip(edges, edges[1:]):
+        runs = window_runs(PlannedJob(pj.plan, [Window(float(a), float(b), "span", 0.0)]), config,
+                           lead_in(printer), corner_tail(printer))
+        sims = simulate_batch(printer, [r.shaped for r in runs], backend=backend, initial="static",
+                              timestep=1.0 / RATE_HZ if backend == "lti" else None)
+        parts.append(metrics_of(runs, sims, pj.print_time))
+    return Metrics.worst(parts, print_time_s=pj.print_time)

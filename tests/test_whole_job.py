@@ -1,0 +1,59 @@
+"""The whole job simulated (envs/whole_job.py): cut only where nothing is printed, the same figures
+however it is cut, and never below what its quality windows, parts of it, measure."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ringtune.envs.evaluate import evaluate_many
+from ringtune.envs.planned_job import planned_job, resolve_printer
+from ringtune.envs.whole_job import lead_in, span_edges, whole_job_metrics
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
+
+VISIBLE_KEYS = ("ripple_mm", "corner_in_mm", "corner_out_mm", "extrusion_over_pct", "extrusion_under_pct")
+
+
+def test_the_part_is_cut_only_where_nothing_is_printed():
+    motion = planned_job(resolve_printer(None), "part", TuneConfig()).motion
+    edges = span_edges(motion, 60.0)
+    assert edges[0] == motion.start_time and edges[-1] == motion.end_time
+    assert np.all(np.diff(edges) > 0) and len(edges) > 10
+    inner = edges[1:-1]
+    seg = np.searchsorted(motion.t, inner, side="right") - 1
+    assert not motion.extruding[seg].any()                  # each cut inside a non-extruding move
+    assert np.all(np.diff(edges)[:-1] >= 30.0)              # at least half a span apart
+
+
+def test_the_lead_in_is_six_time_constants_of_the_slowest_mode():
+    printer = resolve_printer(None)
+    rates = [m.damping * m.omega for ax in "xy" for m in printer.effective_modes(ax)]
+    assert lead_in(printer) == pytest.approx(6.0 / min(rates))
+
+
+@pytest.mark.parametrize("accel", [4800.0, 8000.0])
+def test_the_figures_do_not_depend_on_where_the_job_is_cut(accel):
+    """The built-in print in pieces of about 1 s and in one piece: the same figures within 3 %
+    (what remains is where the 5 kHz samples fall on a corner's deepest point)."""
+    cfg = TuneConfig(accel=accel)
+    pieces, whole = (whole_job_metrics(cfg, span=s) for s in (1.0, 100.0))
+    for k in VISIBLE_KEYS:
+        assert getattr(pieces, k) == pytest.approx(getattr(whole, k), rel=0.03), k
+
+
+@pytest.mark.parametrize("cfg", [TuneConfig(), TuneConfig(shaper_x="none", shaper_y="none", freq_x=0.0, freq_y=0.0),
+                                 TuneConfig(accel=8000.0)], ids=["pick", "unshaped", "fast"])
+def test_the_whole_job_measures_at_least_what_its_windows_do(cfg):
+    """The windows are parts of the job: over all of it no visible measure is lower (within the
+    2 kHz windows' own sampling, 3 %), and the print time is the same plan's."""
+    windows = evaluate_many([cfg], None, None, "lti")[0]
+    whole = whole_job_metrics(cfg)
+    assert whole.print_time_s == windows.print_time_s
+    for k in VISIBLE_KEYS:
+        assert getattr(whole, k) >= 0.97 * getattr(windows, k), k
+
+
+def test_a_span_that_is_not_positive_is_refused():
+    with pytest.raises(RingtuneError, match="span"):
+        whole_job_metrics(TuneConfig(), span=0.0)
