@@ -208,6 +208,18 @@ def planned_job(printer, job=None, config: TuneConfig | None = None, *,
     return _remember(_PLANS, key, pj)
 
 
+def windows_sentence(pj: PlannedJob) -> str:
+    """Where a planned job's quality measures are taken, in words: how many quality windows, how
+    much of the print time they span (s), what they hold; the rest of the job is planned only."""
+    kinds = [w.kind.split("-")[0] for w in pj.windows]
+    words = (("corner", "sharpest corner"), ("zigzag", "fastest zigzag"), ("seam", "seam"))
+    held = ", ".join(f"{n} {word}{'s' if n > 1 else ''}" for k, word in words if (n := kinds.count(k)))
+    span = sum(w.t1 - w.t0 for w in pj.windows)
+    return (f"measures: the worst over the job's {len(pj.windows)} quality windows, {span:.1f} s of its "
+            f"{pj.print_time:.1f} s ({held} of its features, chosen on the printer's own plan), each simulated "
+            "with its lead-in; the rest of the job is planned, not simulated")
+
+
 def require_windows(pj: PlannedJob, job) -> PlannedJob:
     """``pj`` where it has quality windows to judge; else a :class:`RingtuneError` naming the job
     and why (a job that extrudes nothing: a "no extrusion" flavour, a dry run)."""

@@ -24,6 +24,7 @@ from ringtune.envs.evaluate import evaluate_many
 from ringtune.envs.variants import variant_factors
 from ringtune.envs.windows import auto_settle
 from ringtune.envs.printer import load_printer
+from ringtune.envs.planned_job import planned_job
 from ringtune.shaping.config import TuneConfig
 
 SEEN = ("ripple_mm", "ripple_p90_mm", "corner_in_mm", "corner_out_mm")
@@ -84,6 +85,14 @@ def test_200_trials_on_the_default_printer_never_choose_more_ripple_or_worse_cor
                 assert not _worse(key, value, theirs.features["outer_wall"][key]), (v, "outer_wall", key)
     summary = (tmp_path / "out" / "summary.txt").read_text()
     assert "WHAT A PERSON SEES" in summary and "What stops it at" in summary
+    # where the measures are taken, under the table: the chosen plan's windows, counted here
+    pj = planned_job(printer, None, chosen)
+    kinds = [w.kind for w in pj.windows]
+    span = sum(w.t1 - w.t0 for w in pj.windows)
+    assert res["judged_on"] in summary and res["judged_on"].startswith(
+        f"measures: the worst over the job's {len(kinds)} quality windows, {span:.1f} s of its {pj.print_time:.1f} s")
+    assert f"{kinds.count('corner')} sharpest corner" in res["judged_on"]
+    assert f"{sum(k.startswith('seam') for k in kinds)} seam" in res["judged_on"]
     best = json.loads((tmp_path / "out" / "best.json").read_text())
     assert best["stop"] == res["stop"] and best["versus"]["klipper"]["ripple_mm"] == \
         res["versus"]["klipper"]["ripple_mm"]["verdict"]

@@ -128,14 +128,15 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
                  motor_reserve: float = 0.0, resolution: Resolution = DEFAULT_RESOLUTION,
                  baseline_labels: dict[str, str] | None = None, sections: Sequence[tuple[str, list[str]]] = (),
                  export_firmware: str | None = None, best_extra: dict | None = None,
-                 max_show_through_mm: float = 0.0, baseline_binding: dict[str, list] | None = None
-                 ) -> dict[str, Any]:
+                 max_show_through_mm: float = 0.0, baseline_binding: dict[str, list] | None = None,
+                 judged_on: str = "") -> dict[str, Any]:
     """Write the output folder; returns the summary dict (also the CLI's --json).
 
     ``baseline_labels``: how each baseline is named (e.g. "Klipper's rule on a simulated resonance
     test"); ``sections``: (title, lines) blocks printed after the baselines (the acceleration's
     limit, the job's own accelerations); ``export_firmware``: the dialect apply.txt is written in
-    (default ``firmware``); ``best_extra``: more keys for best.json's extra."""
+    (default ``firmware``); ``best_extra``: more keys for best.json's extra; ``judged_on``: where the
+    measures are taken (:func:`ringtune.envs.planned_job.windows_sentence`), under the table."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     chosen = choice.point
@@ -171,6 +172,8 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
     if baselines and "ripple_mm" in chosen.metrics:
         s += ["", "WHAT A PERSON SEES (the chosen configuration against each baseline, same simulation):"]
         s.extend(versus_table(chosen, baselines, labels, resolution))
+        if judged_on:
+            s.append(f"  ({judged_on}.)")
     for head, lines in sections:
         s += ["", f"{head}:"] + [f"  {line}" for line in lines]
     s += ["", _front_head(chosen, quality, len(front), len(points)), front_table(front, chosen, quality), ""]
@@ -198,6 +201,7 @@ def write_report(out_dir: Path, *, points: Sequence[Point], front: Sequence[Poin
         "baselines": {k: _baseline_dict(b, labels[k], binding.get(k, [])) for k, b in baselines.items()},
         "vs_baselines": {k: c.to_dict() for k, c in comparisons.items()},
         "versus": vs,
+        "judged_on": judged_on,
         "dominates_klipper": _dominating_dict(dominating, "klipper"),
         "dominates_current": _dominating_dict(dominating, "current"),
         "plot_arrows": arrows,

@@ -29,7 +29,7 @@ from ringtune.agents.tune.space import (CORNER_UNIT, default_space, freq_floor_n
                                        unshaped_modes_note, walked_keys)
 from ringtune.agents.tune.stop import Bounds
 from ringtune.agents.tune.study_results import study_points
-from ringtune.envs.planned_job import planned_job, resolve_job, resolve_printer
+from ringtune.envs.planned_job import planned_job, resolve_job, resolve_printer, windows_sentence
 from ringtune.envs.job_rewrite import first_layer_words, rewrite_file, shaper_words
 from ringtune.hardware.dialects import shaper_commands
 from ringtune.envs.printer_model import unmeasured_note
@@ -291,6 +291,7 @@ def _report(req: TuneRequest, lim: Limits, fw: Firmware, printer, facts, space, 
         + [f"The {n[4:]}." for n in (fw.junction_note(printer.limits.junction),) if n]
         + [f"{n[0].upper()}{n[1:]}." for n in (facts.reading_notes() if req.gcode else [])], export_firmware=fw.name,
         max_show_through_mm=lim.max_st, baseline_binding=baseline_binding,
+        judged_on=windows_sentence(planned_job(printer, req.gcode, chosen.config, job_accel=req.job_accel)),
         best_extra={"job_accel": req.job_accel, "freq_margin": lim.margin, "motor_reserve": lim.reserve,
                     "max_path_error_mm": lim.max_pe,
                     "top_speed_mm_s": facts.top_speed if req.gcode else float(printer.limits.velocity),
