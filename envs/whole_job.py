@@ -17,13 +17,16 @@ import numpy as np
 from ringtune.envs.metrics import Metrics
 from ringtune.envs.planned_job import PlannedJob, planned_job, resolve_printer
 from ringtune.envs.sim import simulate_batch
-from ringtune.envs.windows import corner_tail, metrics_of, window_runs
+from ringtune.envs.windows import auto_settle, corner_tail, metrics_of, window_runs
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
+from ringtune.shaping.seams import SEAM_ORDER, seam_candidates
 from ringtune.shaping.testprints import Window
 
 #: s of the job per simulated piece (about: cut where nothing is printed)
 SPAN_S = 300.0
+#: s of a seam's window (as the quality windows': the seam at a fifth of it)
+SEAM_SPAN_S = 0.25
 #: time constants 1/(ζω) of the slowest-decaying mode simulated before each piece
 LEAD_TAUS = 6.0
 #: Hz of the exact backend's samples (a corner's deepest cut is a sample's: at 2 kHz its phase moved
@@ -80,3 +83,35 @@ def whole_job_metrics(config: TuneConfig, printer=None, job=None, *, span: float
                               timestep=1.0 / RATE_HZ if backend == "lti" else None)
         parts.append(metrics_of(runs, sims, pj.print_time))
     return Metrics.worst(parts, print_time_s=pj.print_time)
+
+
+def seam_windows(plan, span: float = SEAM_SPAN_S) -> list[Window]:
+    """A window on every seam of a visible class (a visible run's first and last move: where a
+    travel, an inner wall or infill meets what is seen; :func:`ringtune.shaping.seams.seam_candidates`),
+    in time order; overlapping ones merged into one."""
+    cands = seam_candidates(plan, span)
+    t0 = np.sort(np.concatenate([cands[side][0][np.isin(cands[side][3], SEAM_ORDER)]
+                                 for side in ("seam-in", "seam-out")]))
+    a = np.clip(t0, plan.motion.start_time, plan.motion.end_time)
+    b = np.clip(t0 + span, plan.motion.start_time, plan.motion.end_time)
+    a, b = a[b > a], b[b > a]
+    if not len(a):
+        return []
+    reach = np.maximum.accumulate(b)
+    first = np.concatenate([[True], a[1:] > reach[:-1]])         # starts after all before it end
+    last = np.append(np.flatnonzero(first)[1:] - 1, len(a) - 1)
+    return [Window(float(x), float(y), "seam", 0.0) for x, y in zip(a[first], reach[last])]
+
+
+def seam_metrics(config: TuneConfig, printer=None, job=None, *, backend: str = "lti",
+                 job_accel: str | None = None) -> Metrics:
+    """The job's metrics on every seam of a visible class (:func:`seam_windows`), each simulated
+    as a quality window is (its history :func:`ringtune.envs.windows.auto_settle`, samples at
+    2 kHz): where settings per feature land on what is seen (the hop's deceleration rings into the
+    wall's first millimetres; a shaper spreads the next move back over its last ones), every seam,
+    where the quality windows hold a few."""
+    printer = resolve_printer(printer)
+    pj = planned_job(printer, job, config, job_accel=job_accel)
+    runs = window_runs(PlannedJob(pj.plan, seam_windows(pj.plan)), config, auto_settle(printer), corner_tail(printer))
+    sims = simulate_batch(printer, [r.shaped for r in runs], backend=backend, initial="static")
+    return metrics_of(runs, sims, pj.print_time)

@@ -108,6 +108,7 @@ class Raise:
     held: list = field(default_factory=list)     # Held per setting walked, in the walk's order
     declined: Point | None = None    # where the walk ended when that was not faster by the resolution
     resolution: Resolution = DEFAULT_RESOLUTION    # what counts as faster
+    seams: Any = None                # the seam check of its end (:mod:`ringtune.agents.tune.seam_check`)
 
     @property
     def moved(self) -> bool:
@@ -137,7 +138,8 @@ class Raise:
                 "declined_print_time_s": None if self.declined is None else self.declined.print_time_s,
                 "from_print_time_s": self.start.print_time_s, "to_print_time_s": self.point.print_time_s,
                 "evaluations": self.evaluations, "screened": self.screened, "budget": self.budget, "cut": self.cut,
-                "sentence": self.sentence(), "held": [h.to_dict() for h in self.held]}
+                "sentence": self.sentence(), "held": [h.to_dict() for h in self.held],
+                "seam_check": None if self.seams is None else self.seams.to_dict()}
 
     def ceiling_sentence(self, ceiling_s: float, cruise: bool = True) -> str:
         """What the walk took of what it could reach: ``ceiling_s``, the planned print time (s) of

@@ -33,6 +33,7 @@ from ringtune.agents.tune.hidden_raise import Raise, raise_hidden
 from ringtune.agents.tune.choice import BASELINE_NAMES, Choice
 from ringtune.agents.tune.shaper_ladder import Ladder, climb, shaping_text
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution
+from ringtune.agents.tune.seam_check import check_seams
 from ringtune.agents.tune.space import SearchSpace
 from ringtune.agents.tune.stop import Bounds, Stop, failure_words, measured_stop
 from ringtune.agents.tune.study import DEFAULT_EVALUATOR, StudySettings, evaluator_kwargs
@@ -118,6 +119,16 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
             choice = dataclasses.replace(choice, point=lift.point, sentence=(
                 f"{choice.sentence}; then the features nobody sees raised toward their tops, no visible "
                 f"measure worse {held}"))
+        if lift.moved and settings.evaluator == DEFAULT_EVALUATOR:
+            step("every seam of what a person sees, the walk's end against its start ...")
+            lift.seams = check_seams(lift.start, lift.point, walk_bases, evaluate, bounds, printer, settings.job,
+                                     job_accel=evaluator_kwargs(settings)["job_accel"])
+            step(f"done ({lift.seams.seams} seams, {lift.seams.simulated} configurations)")
+            if lift.seams.point is not lift.point:
+                choice = dataclasses.replace(choice, point=lift.seams.point, sentence=(
+                    f"{choice.sentence}; at every seam of what a person sees, "
+                    + ("the walk taken back" if lift.seams.point is lift.start
+                       else f"{', '.join(lift.seams.taken_back)} taken back")))
     return choice, stop, lift, ladder
 
 

@@ -278,6 +278,9 @@ def _report(req: TuneRequest, lim: Limits, fw: Firmware, printer, facts, space, 
             ceiling = planned_job(printer, req.gcode, unseen_tops(chosen.config, space), job_accel=req.job_accel).print_time
             pf_lines.append(f"  {lift.ceiling_sentence(ceiling, space.hidden_min_cruise_ratio is not None)}")
             pf_json["ceiling_print_time_s"] = ceiling
+            if lift.seams is not None:
+                pf_lines.append(f"  {lift.seams.sentence()}")
+                pf_json["seam_check"] = lift.seams.to_dict()
     ja_json["searched"] = not space.accel_fixed
     result = report.write_report(
         out_dir, points=points, front=front, choice=choice, baselines=bl.points, quality=quality,

@@ -1,0 +1,121 @@
+"""After the walk where nobody looks: every seam of what a person sees, not only the windows' few.
+
+The walk (:mod:`ringtune.agents.tune.hidden_raise`) judges each step on the job's quality windows,
+which hold four seams. Settings per feature land on what is seen at every seam (a travel's
+deceleration rings into the wall's first millimetres), and a seam the windows do not hold can be
+worse: on the part as CuraEngine slices it, travel at 10,800 mm/s² with its corners at 30 mm/s left
+the outer wall's corner overshoot at 40.0 µm against 29.8 µm before the walk, at a seam whose first
+corner comes 0.6 mm in (the whole job simulated, ``benchmarks/bench_whole_job.py``). So the walk's
+end is simulated on every seam of a visible class (:func:`ringtune.envs.whole_job.seam_metrics`:
+the exact linear model of the printer as modelled) against the walk's start; where a visible
+measure is worse at the resolution, the raises that meet the seams are taken back, one more at a
+time — travel's acceleration, travel's corners, the inner walls' acceleration (they are printed
+just before the outer wall), then the whole walk — each judged again on the seams and as every
+trial, and the first that holds is the choice.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable, Sequence
+
+from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution, metrics_dict, verdict
+from ringtune.agents.tune.stop import Bounds, Failure, evaluated, failure, failure_words
+from ringtune.agents.tune.versus import SHOWN
+from ringtune.envs.forked import split_map
+from ringtune.envs.planned_job import planned_job
+from ringtune.envs.whole_job import seam_metrics, seam_windows
+from ringtune.shaping.config import TuneConfig
+
+#: what is taken back, one more at a time: (words, per-class tables, class)
+TAKE_BACK = (("travel's acceleration", ("feature_accel",), "travel"),
+             ("travel's corner rule", ("feature_corner", "feature_min_cruise_ratio"), "travel"),
+             ("the inner walls' acceleration", ("feature_accel",), "inner_wall"))
+
+
+@dataclass
+class SeamCheck:
+    """The seams' verdict on the walk's end (``failure`` against its start, None: it held), what was
+    taken back (words), the choice after it, how many seams and configurations were simulated."""
+
+    start: Point
+    point: Point
+    seams: int
+    failure: Failure | None = None
+    taken_back: list = field(default_factory=list)
+    simulated: int = 0
+
+    def sentence(self) -> str:
+        head = (f"Every seam of what a person sees ({self.seams} windows, the exact linear model of the printer "
+                "as modelled) against the choice before the walk")
+        if self.failure is None:
+            return f"{head}: no visible measure worse."
+        why = failure_words(self.failure, "the choice before the walk")
+        if self.point is self.start:
+            return f"{head}: {why}, so the walk is taken back ({self.start.print_time_s:.1f} s)."
+        return (f"{head}: {why}, so {', '.join(self.taken_back)} back as before the walk, which holds there: "
+                f"{self.point.print_time_s:.1f} s.")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"seams": self.seams, "held": self.failure is None, "taken_back": list(self.taken_back),
+                "failure": None if self.failure is None else self.failure._asdict(),
+                "print_time_s": self.point.print_time_s, "simulated": self.simulated, "sentence": self.sentence()}
+
+
+def seam_failure(mine, base, res: Resolution = DEFAULT_RESOLUTION) -> Failure | None:
+    """The visible measure (the job's and the outer wall's own, :data:`SHOWN`) of metrics ``mine``
+    worse than ``base``'s at the resolution by the largest ratio, or None."""
+    m, b = metrics_dict(mine), metrics_dict(base)
+    worse = [(m[k] / max(b[k], 1e-12), k) for k in SHOWN
+             if k != "print_time_s" and k in m and k in b and verdict(k, m[k], b[k], res) == "worse"]
+    if not worse:
+        return None
+    _ratio, k = max(worse)
+    return Failure("measure", k, "choice", m[k], b[k])
+
+
+def taken_back(end: TuneConfig, start: TuneConfig) -> list[tuple[str, TuneConfig]]:
+    """(words, configuration) of ``end`` with one more of :data:`TAKE_BACK` as in ``start`` each,
+    those that differ; last ``start`` itself."""
+    out, cfg, said = [], end, []
+    for what, tables, cls in TAKE_BACK:
+        changed = {t: _as_in(getattr(cfg, t), getattr(start, t), cls) for t in tables
+                   if getattr(start, t).get(cls) != getattr(cfg, t).get(cls)}
+        if changed:
+            cfg = replace(cfg, **changed)
+            said.append(what)
+            out.append((", ".join(said), cfg))
+    return out + [("the walk", start)]
+
+
+def _as_in(now: dict, before: dict, cls: str) -> dict:
+    """The per-class table ``now`` with ``cls`` as in ``before`` (absent where it is absent there)."""
+    return {**{k: v for k, v in now.items() if k != cls}, **({cls: before[cls]} if cls in before else {})}
+
+
+def check_seams(start: Point, end: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[TuneConfig]], list],
+                bounds: Bounds, printer, job, *, job_accel: str | None = None,
+                res: Resolution = DEFAULT_RESOLUTION) -> SeamCheck:
+    """:class:`SeamCheck` of the walk from ``start`` to ``end`` (module docstring); ``evaluate``,
+    ``bases`` and ``bounds`` as the walk judged (a configuration taken back must still pass them
+    and be faster than ``start``). The seams of two configurations, then of every step back, are
+    simulated at once, split over the cores (:func:`ringtune.envs.forked.split_map`)."""
+    def on_seams(configs: list[TuneConfig]) -> list:
+        return split_map(lambda part: [seam_metrics(c, printer, job, job_accel=job_accel) for c in part], configs)
+
+    seams = len(seam_windows(planned_job(printer, job, end.config, job_accel=job_accel).plan))
+    base, mine = on_seams([start.config, end.config])
+    check = SeamCheck(start, end, seams, seam_failure(mine, base, res), simulated=2)
+    if check.failure is None:
+        return check
+    steps = [(words, cfg) for words, cfg in taken_back(end.config, start.config) if cfg != start.config]
+    check.simulated += len(steps)
+    for (words, cfg), m in zip(steps, on_seams([cfg for _w, cfg in steps])):
+        if seam_failure(m, base, res) is not None:
+            continue
+        p = evaluated([cfg], evaluate, bounds, "seam check")[0]
+        if failure(p, bases, start, bounds, res) is None:
+            check.point, check.taken_back = p, words.split(", ")
+            return check
+    check.point = start
+    return check
