@@ -132,7 +132,7 @@ def _wanted(coord, loc, step, r, legs: Legs, lo, hi):
     where the nozzle is. Where the nozzle moves (``step`` > 0), what the path asks per mm where it
     is, times the length moved (a corner cut short asks the shorter path's material); elsewhere
     (before the run starts) what the path holds over the nozzle's progress along it."""
-    held_at, _, _, _ = _asked(coord, legs, lo, hi)
+    held_at = _asked(coord, legs, lo, hi)
     rate, cls, past = _rate_at(loc, legs, lo, hi)
     firsts = np.concatenate([[True], r[1:] != r[:-1]])
     progress = np.where(firsts, 0.0, np.diff(held_at, prepend=held_at[0]))
@@ -170,19 +170,15 @@ def _whole_runs(t: np.ndarray, run: np.ndarray, t_first: np.ndarray, t_last: np.
     return (lo[run] <= t_first[run]) & (hi[run] >= t_last[run])
 
 
-def _asked(s, legs: Legs, lo: np.ndarray, hi: np.ndarray):
-    """(filament mm the path holds up to path position ``s``, the feature class there, the leg's
-    mean filament per mm of path, the filament the path would hold beyond its run's end at that
-    rate) of each sample: along the moves the leg was merged from, each at its own rate
-    (:attr:`Legs.knot_s`)."""
+def _asked(s, legs: Legs, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Filament (mm) the path holds up to path position ``s`` of each sample's run (within it):
+    along the moves each leg was merged from, each at its own rate (:attr:`Legs.knot_s`)."""
     k = _leg_at(legs, s, lo, hi)
-    per_mm = np.maximum(legs.e_end[k] - legs.e_start[k], 1e-12) / np.maximum(legs.length[k], EPS_LEN)
     at = legs.s_start[k] + np.clip(s - legs.s_start[k], 0.0, legs.length[k])
     j = np.clip(np.searchsorted(legs.knot_s, at, side="right") - 1, legs.knot_first[k], legs.knot_last[k] - 1)
     s0, e0 = legs.knot_s[j], legs.knot_e[j]
     frac = np.clip((at - s0) / np.maximum(legs.knot_s[j + 1] - s0, EPS_LEN), 0.0, 1.0)
-    asked = e0 + frac * (legs.knot_e[j + 1] - e0)
-    return asked, legs.cls[k], per_mm, per_mm * np.maximum(s - at, 0.0)
+    return e0 + frac * (legs.knot_e[j + 1] - e0)
 
 
 def _held_at(made: np.ndarray, run: np.ndarray, legs: Legs) -> np.ndarray:
