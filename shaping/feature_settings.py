@@ -12,8 +12,8 @@ How each firmware takes an acceleration per feature:
 - Klipper / Kalico (junction rule ``scv``): one acceleration for every move
   (``SET_VELOCITY_LIMIT ACCEL``), so the value in force follows the move's *effective class*: the
   class of its feature label when it extrudes; ``travel`` for an X/Y move that does not, unless it
-  lands on or leaves a visible extrusion (the hop into an outer wall's seam, the move off its
-  end): then the class of that extrusion, so what a person sees at the seam is the wall's; a move
+  lands on or leaves a visible extrusion (every move of the hop into an outer wall's seam, the move
+  off its end): then the class of that extrusion, so what a person sees at the seam is the wall's; a move
   without X/Y motion (retract, unretract, Z hop) keeps the class of the move before it, so it never
   costs a command of its own;
 - Marlin, Prusa, RepRapFirmware (``jd`` / ``jerk``): ``M204 P`` is the printing acceleration,
@@ -194,10 +194,12 @@ def first_layer_caps(job: Job) -> dict[str, np.ndarray]:
 
 
 def _seam_travel(cls: np.ndarray, xy: np.ndarray, extruding: np.ndarray) -> np.ndarray:
-    """``cls`` with each travel move (X/Y without E) next to a visible extrusion (moves without X/Y
-    motion between skipped) in that extrusion's class: the one it lands on, else the one it
-    leaves. Why: the travel's deceleration rings into the wall it lands on (the seam a person
-    sees) and a shaper spreads its acceleration back over the end of the wall it leaves
+    """``cls`` with the travel moves (X/Y without E) next to a visible extrusion (moves without X/Y
+    motion between skipped) in that extrusion's class: every travel of the hops that land on it
+    (the travel moves from the last extrusion before it), else the one that leaves it. Why: the
+    travel's decelerations ring into the wall it lands on (the seam a person sees: a slicer that
+    hops in several moves, CuraEngine's G0s, decelerates hard just before the last short one) and a
+    shaper spreads its acceleration back over the end of the wall it leaves
     (:mod:`ringtune.shaping.seams`); at the wall's own settings the seam is the wall's. ``other``
     counts as visible only in a job that labels nothing visible (else it is a purge line)."""
     k = np.flatnonzero(xy)
@@ -207,10 +209,12 @@ def _seam_travel(cls: np.ndarray, xy: np.ndarray, extruding: np.ndarray) -> np.n
     seen = seen_classes(FEATURE_CLASSES[i] for i in np.unique(c[ext]))
     vis = ext & np.isin(c, [FEATURE_CLASSES.index(v) for v in seen])
     travel = ~ext & (c == TRAVEL)
-    lands = travel & np.r_[vis[1:], False]
+    n = len(c)
+    nxt = np.minimum.accumulate(np.where(travel, n, np.arange(n))[::-1])[::-1]   # the next non-travel move
+    lands = travel & (nxt < n) & vis[np.minimum(nxt, n - 1)]
     leaves = travel & ~lands & np.r_[False, vis[:-1]]
     out = cls.copy()
-    out[k[lands]] = c[np.flatnonzero(lands) + 1]
+    out[k[lands]] = c[nxt[lands]]
     out[k[leaves]] = c[np.flatnonzero(leaves) - 1]
     return out
 

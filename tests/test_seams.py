@@ -75,6 +75,22 @@ def test_the_seams_travel_takes_the_walls_class_for_klippers_one_acceleration():
     assert by_line["G1 X70 Y50 E3 F3000"] == "infill"
 
 
+def test_every_move_of_a_hop_onto_the_wall_takes_the_walls_class():
+    """A hop in three travel moves (CuraEngine's G0s) onto the wall: all three run with the wall's
+    settings, not only the last short one, after which the wall would ring from the long one's
+    deceleration; a hop in two moves from the wall to the infill keeps travel after its first move."""
+    gcode = ("G28\nG1 Z0.2 F600\n;TYPE:WALL-OUTER\nG1 X0 Y10 E1 F3000\nG0 X30 Y10 F9000\nG0 X30 Y40\nG0 X30.5 Y40\n"
+             "G1 X50 Y40 E2 F3000\nG0 X50 Y60 F9000\nG0 X60 Y60\n;TYPE:FILL\nG1 X60 Y80 E3 F3000\n")
+    job = read_gcode(gcode)
+    cls = [FEATURE_CLASSES[c] for c in effective_classes(job)]
+    by_line = dict(zip((gcode.splitlines()[ln - 1] for ln in job.line), cls))
+    for hop in ("G0 X30 Y10 F9000", "G0 X30 Y40", "G0 X30.5 Y40"):
+        assert by_line[hop] == "outer_wall", hop
+    assert by_line["G0 X50 Y60 F9000"] == "outer_wall"       # leaves the wall's end
+    assert by_line["G0 X60 Y60"] == "travel"                 # on to the infill
+    assert by_line["G1 X60 Y80 E3 F3000"] == "infill"
+
+
 def test_the_windows_hold_the_seams_and_keep_them_on_another_plan():
     p = plan(read_gcode(WALL), MachineLimits(accel=3000))
     wins = testprints.quality_windows(p, max_windows=2, span=0.1)
