@@ -8,10 +8,10 @@ the outer wall's corner overshoot at 40.0 µm against 29.8 µm before the walk, 
 corner comes 0.6 mm in (the whole job simulated, ``benchmarks/bench_whole_job.py``). So the walk's
 end is simulated on every seam of a visible class (:func:`ringtune.envs.whole_job.seam_metrics`:
 the exact linear model of the printer as modelled) against the walk's start; where a visible
-measure is worse at the resolution, the raises that meet the seams are taken back, one more at a
-time — travel's acceleration, travel's corners, the inner walls' acceleration (they are printed
-just before the outer wall), then the whole walk — each judged again on the seams and as every
-trial, and the first that holds is the choice.
+measure is worse at the resolution, the raises that meet the seams are taken back — travel's
+acceleration, travel's corner rule, the inner walls' acceleration (they are printed just before
+the outer wall): each alone, the fastest first, then all of them, then the whole walk — each judged
+again on the seams and as every trial, and the first that holds is the choice.
 """
 
 from __future__ import annotations
@@ -75,16 +75,18 @@ def seam_failure(mine, base, res: Resolution = DEFAULT_RESOLUTION) -> Failure | 
 
 
 def taken_back(end: TuneConfig, start: TuneConfig) -> list[tuple[str, TuneConfig]]:
-    """(words, configuration) of ``end`` with one more of :data:`TAKE_BACK` as in ``start`` each,
-    those that differ; last ``start`` itself."""
-    out, cfg, said = [], end, []
+    """(words, configuration) of ``end`` with what it changed of :data:`TAKE_BACK` as in ``start``:
+    each alone, then all of them together (where more than one changed); last ``start`` itself."""
+    out, together, said = [], end, []
     for what, tables, cls in TAKE_BACK:
-        changed = {t: _as_in(getattr(cfg, t), getattr(start, t), cls) for t in tables
-                   if getattr(start, t).get(cls) != getattr(cfg, t).get(cls)}
+        changed = {t: _as_in(getattr(end, t), getattr(start, t), cls) for t in tables
+                   if getattr(start, t).get(cls) != getattr(end, t).get(cls)}
         if changed:
-            cfg = replace(cfg, **changed)
+            out.append((what, replace(end, **changed)))
+            together = replace(together, **{t: _as_in(getattr(together, t), getattr(start, t), cls) for t in changed})
             said.append(what)
-            out.append((", ".join(said), cfg))
+    if len(said) > 1:
+        out.append((", ".join(said), together))
     return out + [("the walk", start)]
 
 
@@ -110,9 +112,11 @@ def check_seams(start: Point, end: Point, bases: dict[str, Point], evaluate: Cal
         return check
     steps = [(words, cfg) for words, cfg in taken_back(end.config, start.config) if cfg != start.config]
     check.simulated += len(steps)
-    for (words, cfg), m in zip(steps, on_seams([cfg for _w, cfg in steps])):
-        if seam_failure(m, base, res) is not None:
-            continue
+    held = [(m.print_time_s, i) for i, m in enumerate(on_seams([cfg for _w, cfg in steps]))
+            if seam_failure(m, base, res) is None]
+    # each alone, fastest first, then all together (the last step): the first that also passes as judged
+    for _t, i in sorted(held, key=lambda ti: (len(steps) > 1 and ti[1] == len(steps) - 1, ti[0])):
+        words, cfg = steps[i]
         p = evaluated([cfg], evaluate, bounds, "seam check")[0]
         if failure(p, bases, start, bounds, res) is None:
             check.point, check.taken_back = p, words.split(", ")
