@@ -3,9 +3,10 @@
 The walk (:mod:`ringtune.agents.tune.hidden_raise`) judges each step on the job's quality windows,
 which hold four seams. Settings per feature land on what is seen at every seam (a travel's
 deceleration rings into the wall's first millimetres), and a seam the windows do not hold can be
-worse: on the part as CuraEngine slices it, travel at 10,800 mm/s² with its corners at 30 mm/s left
-the outer wall's corner overshoot at 40.0 µm against 29.8 µm before the walk, at a seam whose first
-corner comes 0.6 mm in (the whole job simulated, ``benchmarks/bench_whole_job.py``). So the walk's
+worse: on the part as CuraEngine slices it, when only the last move of a hop onto the wall took the
+wall's settings, travel at 10,800 mm/s² with its corners at 30 mm/s left the outer wall's corner
+overshoot at 40.0 µm against 29.8 µm before the walk, at a seam whose first corner comes 0.6 mm in
+(the whole job simulated, ``benchmarks/bench_whole_job.py``); this check found it. So the walk's
 end is simulated on every seam of a visible class (:func:`ringtune.envs.whole_job.seam_metrics`:
 the exact linear model of the printer as modelled) against the walk's start; where a visible
 measure is worse at the resolution, the raises that meet the seams are taken back — travel's
