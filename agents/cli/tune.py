@@ -38,8 +38,9 @@ replaced_accel, saved_s}, per_feature (null when not searched, else {accel {visi
 hidden_walls|infill|solid_infill|travel: mm/s²}, ranges {group: {top_speed_mm_s, range, basis}}, corner, junction,
 min_cruise_ratio, why (why it was searched), ceiling_print_time_s, seam_check (null, or the walk's end
 judged at every seam of what is seen: {seams, held, taken_back, failure, print_time_s, simulated, sentence})}),
-judged_on (where the measures are taken: the job's quality windows, in words), plot_arrows, files {readme, summary, plot, best, apply,
-front, trials, job (with --gcode: the rewritten job)}, job_gcode (with --gcode, where the file was written:
+judged_on (where the measures are taken: the job's quality windows, in words), plot_arrows,
+files {readme, summary, plot, best, apply, front, trials, job (with --gcode: the rewritten job)},
+job_gcode (with --gcode, where the file was written:
 {path, lines_inserted, print_time_as_sliced_s, print_time_s (as the printer runs the file), first_layer_kept_mm_s2}),
 storage, study, completed_now, interrupted, elapsed_s.
 """

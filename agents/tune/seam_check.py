@@ -67,8 +67,8 @@ def seam_failure(mine, base, res: Resolution = DEFAULT_RESOLUTION) -> Failure | 
     """The visible measure (the job's and the outer wall's own, :data:`SHOWN`) of metrics ``mine``
     worse than ``base``'s at the resolution by the largest ratio, or None."""
     m, b = metrics_dict(mine), metrics_dict(base)
-    worse = [(m[k] / max(b[k], 1e-12), k) for k in SHOWN
-             if k != "print_time_s" and k in m and k in b and verdict(k, m[k], b[k], res) == "worse"]
+    both = m.keys() & b.keys() - {"print_time_s"}
+    worse = [(m[k] / max(b[k], 1e-12), k) for k in SHOWN if k in both and verdict(k, m[k], b[k], res) == "worse"]
     if not worse:
         return None
     _ratio, k = max(worse)
@@ -93,7 +93,10 @@ def taken_back(end: TuneConfig, start: TuneConfig) -> list[tuple[str, TuneConfig
 
 def _as_in(now: dict, before: dict, cls: str) -> dict:
     """The per-class table ``now`` with ``cls`` as in ``before`` (absent where it is absent there)."""
-    return {**{k: v for k, v in now.items() if k != cls}, **({cls: before[cls]} if cls in before else {})}
+    out = dict(now)
+    out.pop(cls, None)
+    out.update((k, before[k]) for k in before.keys() & {cls})
+    return out
 
 
 def check_seams(start: Point, end: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[TuneConfig]], list],
