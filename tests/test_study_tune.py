@@ -79,8 +79,8 @@ def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evalua
     assert set(res["baselines"]) == {"klipper", "none"} and res["trials"] == 10
     # the --json keys tune.py documents as stable
     assert set(res) == {"out", "trials", "front_size", "settled_on_model", "quality", "max_path_error_mm", "motor_reserve",
-                        "judged_on", "max_show_through_mm", "freq_margin", "refined", "resolution", "chosen", "baselines",
-                        "vs_baselines",
+                        "judged_on", "max_show_through_mm", "freq_margin", "refined", "resolution", "chosen",
+                        "baselines", "vs_baselines",
                         "versus", "stop", "shaper_ladder", "hidden_raise", "per_feature", "dominates_klipper", "dominates_current", "accel", "job_accel",
                         "plot_arrows", "files", "storage", "study", "completed_now", "interrupted", "elapsed_s"}
     assert set(res["chosen"]) == {"config", "print_time_s", "quality_mm", "path_error_mm", "overshoot_mm",
