@@ -69,8 +69,9 @@ def _expected_accel(job, cfg: TuneConfig, junction: str) -> tuple[np.ndarray, np
 
 def _effective(job) -> list[tuple]:
     """Per move: (the class its settings follow, True on the seam's travel), by a loop: the label's
-    class when it extrudes, ``travel`` for an X/Y move without E — unless the next X/Y move (else
-    the one before) extrudes a visible class: then that class (the seam's travel,
+    class when it extrudes, ``travel`` for an X/Y move without E — unless the next X/Y move that
+    extrudes, past any travel between (else the X/Y move before), is of a visible class: then that
+    class (the seam's travel: every move of a hop onto the wall, the move off its end,
     ``shaping/feature_settings.py``; ``other`` is visible only in a job labelling nothing visible);
     a move without X/Y keeps the one before it (before any X/Y move: its label's, no seam)."""
     xy = [i for i, (a, b) in enumerate(zip(job.start, job.end)) if np.hypot(*(b - a)[:2]) > 0]
@@ -83,7 +84,7 @@ def _effective(job) -> list[tuple]:
     for n, i in enumerate(xy):
         if cls[i] != "travel":
             continue
-        nxt = cls[xy[n + 1]] if n + 1 < len(xy) else None
+        nxt = next((cls[j] for j in xy[n + 1:] if cls[j] != "travel"), None)
         prv = cls[xy[n - 1]] if n > 0 else None
         if nxt in seen:
             eff[i] = (nxt, True)
