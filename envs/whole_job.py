@@ -17,7 +17,7 @@ import numpy as np
 from ringtune.envs.metrics import Metrics
 from ringtune.envs.planned_job import PlannedJob, planned_job, resolve_printer
 from ringtune.envs.sim import simulate_batch
-from ringtune.envs.windows import auto_settle, corner_tail, metrics_of, window_runs
+from ringtune.envs.windows import auto_settle, corner_tail, metrics_of, slowest_tau, window_runs
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.seams import SEAM_ORDER, seam_candidates
@@ -35,10 +35,10 @@ RATE_HZ = 5000.0
 
 
 def lead_in(printer, taus: float = LEAD_TAUS) -> float:
-    """s of history simulated before each piece: ``taus`` time constants 1/(ζω) of the printer's
-    slowest-decaying mode (no upper bound: a lightly damped mode rings for seconds)."""
-    rates = [m.damping * m.omega for ax in ("x", "y") for m in printer.effective_modes(ax)]
-    return float(taus / max(min(rates), 1e-9)) if rates else 0.0
+    """s of history simulated before each piece: ``taus`` time constants of the printer's
+    slowest-decaying mode (:func:`ringtune.envs.windows.slowest_tau`; no upper bound, unlike a
+    quality window's: a lightly damped mode rings for seconds)."""
+    return taus * slowest_tau(printer)
 
 
 def span_edges(motion, span: float) -> np.ndarray:

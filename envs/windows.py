@@ -53,12 +53,16 @@ class WindowRun:
     corner_tail: float = CORNER_TAIL       # s, see compute_metrics
 
 
-def auto_settle(printer) -> float:
-    """s of history simulated before each window: SETTLE_TAUS time constants 1/(ζω) of the
-    printer's slowest-decaying mode, clipped to [SETTLE_MIN, SETTLE_MAX]."""
+def slowest_tau(printer) -> float:
+    """s: the time constant 1/(ζω) of the printer's slowest-decaying mode (0 without modes)."""
     rates = [m.damping * m.omega for ax in ("x", "y") for m in printer.effective_modes(ax)]
-    tau = 1.0 / max(min(rates), 1e-9) if rates else 0.0
-    return float(min(max(SETTLE_TAUS * tau, SETTLE_MIN), SETTLE_MAX))
+    return float(1.0 / max(min(rates), 1e-9)) if rates else 0.0
+
+
+def auto_settle(printer) -> float:
+    """s of history simulated before each window: SETTLE_TAUS time constants of the printer's
+    slowest-decaying mode (:func:`slowest_tau`), clipped to [SETTLE_MIN, SETTLE_MAX]."""
+    return float(min(max(SETTLE_TAUS * slowest_tau(printer), SETTLE_MIN), SETTLE_MAX))
 
 
 def corner_tail(printer) -> float:

@@ -24,8 +24,7 @@ from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution, m
 from ringtune.agents.tune.stop import Bounds, Failure, evaluated, failure, failure_words
 from ringtune.agents.tune.versus import SHOWN
 from ringtune.envs.forked import split_map
-from ringtune.envs.planned_job import planned_job
-from ringtune.envs.whole_job import seam_metrics, seam_windows
+from ringtune.envs.whole_job import seam_metrics
 from ringtune.shaping.config import TuneConfig
 
 #: what is taken back, one more at a time: (words, per-class tables, class)
@@ -109,8 +108,8 @@ def check_seams(start: Point, end: Point, bases: dict[str, Point], evaluate: Cal
     def on_seams(configs: list[TuneConfig]) -> list:
         return split_map(lambda part: [seam_metrics(c, printer, job, job_accel=job_accel) for c in part], configs)
 
-    seams = len(seam_windows(planned_job(printer, job, end.config, job_accel=job_accel).plan))
     base, mine = on_seams([start.config, end.config])
+    seams = len(mine.details.get("windows", ()))         # each seam window's own figures
     check = SeamCheck(start, end, seams, seam_failure(mine, base, res), simulated=2)
     if check.failure is None:
         return check
