@@ -93,15 +93,18 @@ class Metrics:
     @staticmethod
     def worst(parts: Iterable["Metrics"], print_time_s: float = float("nan")) -> "Metrics":
         """Combine per-window metrics: the max of every measure, any step loss; the ripple's 90th
-        percentile over the walls of all windows (kept in ``details["ripple_walls"]``)."""
+        percentile over the walls of all windows (kept in ``details["ripple_walls"]``) of the classes
+        the first part judged as seen (``details["seen_classes"]``; :data:`VISIBLE` if it says none)."""
         parts = list(parts)
         if not parts:
             return Metrics(print_time_s=print_time_s)
         out = _combined(parts, print_time_s)
+        seen = parts[0].details.get("seen_classes", sorted(VISIBLE))
         walls_all = [w for p in parts for w in p.details.get("ripple_walls", [])]
         if walls_all and all("ripple_walls" in p.details for p in parts):
-            p90_from_walls(out, walls_all)
-        out.details = {"windows": [p.to_dict(details=True) for p in parts], "ripple_walls": walls_all}
+            p90_from_walls(out, walls_all, seen)
+        out.details = {"windows": [p.to_dict(details=True) for p in parts], "ripple_walls": walls_all,
+                       "seen_classes": seen}
         return out
 
 
@@ -119,12 +122,14 @@ def _combined(parts: list[Metrics], print_time_s: float) -> Metrics:
     return out
 
 
-def p90_from_walls(out: Metrics, walls_all: list) -> None:
-    """Set the 90th percentiles of ``out`` (top level and per class) from [class, ripple] pairs."""
+def p90_from_walls(out: Metrics, walls_all: list, seen: Iterable[str] = VISIBLE) -> None:
+    """Set the 90th percentiles of ``out`` from [class, ripple] pairs: per class, and at the top
+    level over the classes in ``seen`` (the job's seen classes)."""
+    seen = set(seen)
     by_class: dict[str, list[float]] = {}
     for cls, ripple in walls_all:
         by_class.setdefault(cls, []).append(ripple)
-    out.ripple_p90_mm = p90(np.array([r for c, rs in by_class.items() if c in VISIBLE for r in rs]))
+    out.ripple_p90_mm = p90(np.array([r for c, rs in by_class.items() if c in seen for r in rs]))
     for cls, vals in out.features.items():
         vals["ripple_p90_mm"] = p90(np.array(by_class.get(cls, [])))
 

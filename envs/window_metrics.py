@@ -14,7 +14,9 @@ sample's time minus ``lag`` (the causal shaper's centroid; 0 for centred shapers
 *extruding* when the unshaped path deposits material at that time; its *class* is the feature
 class of that path segment. *Visible* classes (outer walls, top surfaces, bridges and overhangs,
 unlabelled moves) are judged by ripple, corners and extrusion; *hidden* ones (inner walls, infill,
-solid infill, support) by show-through and extrusion.
+solid infill, support) by show-through and extrusion. In a job that labels its visible features,
+unlabelled extrusion is a purge line: measured per class, but not in the job's figures
+(``seen_classes``).
 
 What a person sees (all mm unless stated):
 
@@ -155,7 +157,7 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
                     match_window: float = 0.05, min_wall: float = 0.02,
                     print_time_s: float = float("nan"), classes: np.ndarray | None = None,
                     e_command: Motion | None = None, e_command_synced: Motion | None = None,
-                    corner_tail: float = CORNER_TAIL) -> Metrics:
+                    corner_tail: float = CORNER_TAIL, seen_classes=None) -> Metrics:
     """Quality metrics of one simulated window against its unshaped commanded path.
 
     Args:
@@ -179,6 +181,9 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
             :func:`ringtune.shaping.e_timing.extruder_command`); None: no extrusion measures.
         e_command_synced: the same with the firmware's E synchronisation on, or None.
         corner_tail: s after the shaped command finished turning that still belong to the corner.
+        seen_classes: the classes the job-level measures are taken over (the job's seen classes,
+            :func:`ringtune.shaping.seams.job_seen_classes`: ``other`` is a purge line in a job
+            that labels its visible features); None: :data:`VISIBLE`. Per class, all are measured.
     """
     t, nozzle, machine = _machine(sim)
     tu = t - lag  # sample times on the unshaped clock
@@ -186,12 +191,13 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
     cls_seg = np.full(path.n_segments, _OTHER) if classes is None else np.asarray(classes, np.int64)
     extruding = (tu >= path.t[0]) & (tu <= path.t[-1]) & path.extruding[seg]
     legs = legs_of(path, classes) if classes is not None else path_legs(path, cls_seg)
-    details: dict[str, Any] = {}
+    vis = _VISIBLE if seen_classes is None else np.isin(FEATURE_CLASSES, list(seen_classes))
+    details: dict[str, Any] = {"seen_classes": [c for c, v in zip(FEATURE_CLASSES, vis) if v]}
     dist, vec, leg = nearest_leg(tu, nozzle, legs, match_window)
     cls = cls_seg[seg[extruding]]
     ex = (tu[extruding], nozzle[extruding], dist[extruding], vec[extruding], leg[extruding])
     w = walls(ex[0], ex[1], legs, settle - lag, anticipate + lag, min_wall)
-    seen = _VISIBLE[cls]        # the bound on the path is what a person sees (hidden ones: show-through)
+    seen = vis[cls]             # the bound on the path is what a person sees (hidden ones: show-through)
     old = dict(path_error_mm=path_error(ex[0][seen], ex[1][seen], ex[2][seen], details),
                overshoot_mm=overshoot(*ex, legs, corner_angle_deg, corner_window, anticipate + lag, details),
                ringing_mm=ringing_rms(w, legs, corner_angle_deg, details))
@@ -202,12 +208,13 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
     made = _made(t, e_command)
     if made is not None:
         per_cls.update(_extruded(made, tu, nozzle, vec, leg, legs, anticipate + lag, settle - lag))
-    m = Metrics(print_time_s=print_time_s, details=details, **old, **machine, **_top(per_cls))
+    m = Metrics(print_time_s=print_time_s, details=details, **old, **machine, **_top(per_cls, vis))
     m.features = _features(per_cls, np.unique(cls))
-    p90_from_walls(m, details["ripple_walls"])
+    p90_from_walls(m, details["ripple_walls"], details["seen_classes"])
     synced = _made(t, e_command_synced)
     if synced is not None:
-        m.extrusion_if_synced = _top(_extruded(synced, tu, nozzle, vec, leg, legs, anticipate + lag, settle - lag))
+        m.extrusion_if_synced = _top(_extruded(synced, tu, nozzle, vec, leg, legs, anticipate + lag, settle - lag),
+                                     vis)
     return m
 
 
@@ -267,16 +274,17 @@ def _extruded(made, tu, pts, vec, leg, legs: Legs, before: float, after: float) 
             "e_lag_mm": per_class_max(np.abs(ex.lead), ex.lead_cls, _N)}
 
 
-def _top(per_cls: dict[str, np.ndarray]) -> dict[str, float]:
-    """The job-level values: seen measures over visible classes, show-through over hidden ones,
-    extrusion over :data:`EXTRUSION_SEEN` (the ripple's p90 is set from the walls,
-    :func:`p90_from_walls`)."""
+def _top(per_cls: dict[str, np.ndarray], vis: np.ndarray) -> dict[str, float]:
+    """The job-level values: seen measures over the seen classes ``vis`` (a mask over
+    FEATURE_CLASSES), show-through over hidden ones, extrusion over those and the rest of
+    :data:`EXTRUSION_SEEN` (the ripple's p90 is set from the walls, :func:`p90_from_walls`)."""
     out = {}
+    extrusion_seen = vis | (_EXTRUSION_SEEN & ~_VISIBLE)
     for k, v in per_cls.items():
         if k in SEEN_KEYS:
-            out[k] = float(np.max(v[_VISIBLE]))
+            out[k] = float(np.max(v[vis]))
         elif k in EXTRUSION_KEYS:
-            out[k] = float(np.max(v[_EXTRUSION_SEEN]))
+            out[k] = float(np.max(v[extrusion_seen]))
         elif k == "show_through_mm":
             out[k] = float(np.max(v))
     return out

@@ -26,6 +26,7 @@ from ringtune.shaping.features import FEATURE_CLASSES, class_indices
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.job_shapers import config_at, shaper_timeline
 from ringtune.shaping.motion import Motion
+from ringtune.shaping.seams import job_seen_classes
 from ringtune.shaping.shapers import shapers_from_config
 
 #: bounds (s) of the simulated history before each window beyond the shaper's duration; within
@@ -51,6 +52,7 @@ class WindowRun:
     e_command: Motion | None = None        # the firmware's extruder on the shaped clock
     e_synced: Motion | None = None         # ... with its E synchronisation on (None: no such option)
     corner_tail: float = CORNER_TAIL       # s, see compute_metrics
+    seen_classes: frozenset | None = None  # the job's seen classes (None: VISIBLE), see compute_metrics
 
 
 def slowest_tau(printer) -> float:
@@ -117,6 +119,7 @@ def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN,
     shapers in force at its start (``simulate``; ``tune`` judges the configuration's own)."""
     timeline = shaper_timeline(pj.plan.events, config) if job_shapers else [(-math.inf, config)]
     motion = pj.motion
+    seen = job_seen_classes(pj.plan)
     runs = []
     for w in pj.windows:
         cfg = config_at(timeline, w.t0)
@@ -133,7 +136,7 @@ def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN,
         path = motion.window(max(a, lo), min(b, hi))
         e_cmd, synced = _extruder(raw, shapers, centred, cfg)
         runs.append(WindowRun(w.t0, w.t1, shaped.window(a, b), path, lag, after, before,
-                              segment_classes(pj, path), e_cmd, synced, tail))
+                              segment_classes(pj, path), e_cmd, synced, tail, seen))
     return runs
 
 
@@ -157,7 +160,8 @@ def metrics_of(runs: list[WindowRun], sims: list, print_time: float) -> Metrics:
         part = compute_metrics(_trimmed(sim, run.t0 + run.lag, run.t1 + run.lag), run.path,
                                lag=run.lag, settle=run.settle, anticipate=run.anticipate,
                                classes=run.classes, e_command=run.e_command,
-                               e_command_synced=run.e_synced, corner_tail=run.corner_tail)
+                               e_command_synced=run.e_synced, corner_tail=run.corner_tail,
+                               seen_classes=run.seen_classes)
         parts.append(part)
     return Metrics.worst(parts, print_time_s=print_time)
 

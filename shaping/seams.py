@@ -33,6 +33,15 @@ def _present_classes(mv, names: np.ndarray) -> set[str]:
     return out | {"travel"} if not np.all(mv.extruding) else out
 
 
+def job_seen_classes(plan) -> frozenset:
+    """The classes of ``plan``'s job a person sees (:func:`ringtune.shaping.features.seen_classes`
+    of the classes its moves extrude: ``other`` only where the job labels nothing visible)."""
+    mv = getattr(plan, "moves", None)
+    if mv is None or not len(mv):
+        return seen_classes(())
+    return seen_classes(_present_classes(mv, label_classes(plan)))
+
+
 def _peak_beside(cls: np.ndarray, v: np.ndarray, idx: np.ndarray, step: int) -> np.ndarray:
     """Per move index in ``idx``: the highest cruise speed (mm/s) of the up to :data:`REACH` moves
     on side ``step`` (−1 before, +1 after) up to the next move of the same class."""

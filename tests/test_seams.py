@@ -21,10 +21,10 @@ from ringtune.shaping import testprints
 from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.feature_settings import effective_classes
-from ringtune.shaping.features import FEATURE_CLASSES
+from ringtune.shaping.features import FEATURE_CLASSES, LABELLED_VISIBLE, VISIBLE
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.planner import MachineLimits, plan
-from ringtune.shaping.seams import seam_candidates
+from ringtune.shaping.seams import job_seen_classes, seam_candidates
 
 WALL = """G28
 G1 Z0.2 F600
@@ -60,6 +60,14 @@ def test_a_wall_between_two_travels_has_one_seam_each_side_scored_by_the_travel_
     assert t_out + span == pytest.approx(mv.t_start[i_out] + mv.duration[i_out] + 0.2 * span)
     # the infill after the travel is hidden: no seam of its own
     assert set(c["seam-in"][3]) == set(c["seam-out"][3]) == {"outer_wall"}
+
+
+def test_a_purge_line_before_labelled_walls_is_not_seen_but_unlabelled_walls_are():
+    limits = MachineLimits(accel=3000.0, square_corner_velocity=5.0, min_cruise_ratio=0.0)
+    purge = "G28\nG1 Z0.2 F600\nG1 X0 Y0 F6000\nG1 X0 Y100 E5 F1500\n" + WALL.split("G1 Z0.2 F600\n", 1)[1]
+    assert job_seen_classes(plan(read_gcode(purge), limits)) == LABELLED_VISIBLE
+    bare = "\n".join(ln for ln in purge.splitlines() if not ln.startswith(";TYPE:"))
+    assert job_seen_classes(plan(read_gcode(bare), limits)) == VISIBLE
 
 
 def test_the_seams_travel_takes_the_walls_class_for_klippers_one_acceleration():

@@ -191,6 +191,27 @@ def test_hidden_features_count_only_through_show_through():
     assert hidden.features["infill"]["path_error_mm"] == pytest.approx(seen.path_error_mm)
 
 
+def test_unlabelled_extrusion_in_a_labelled_job_is_measured_but_not_judged():
+    """The oscillating corner as unlabelled extrusion (``other``): in a job that labels nothing
+    visible it is what a person sees; in one that labels its outer walls it is a purge line, kept
+    per class (the same figures) but out of the job's ripple, corners, path error and extrusion."""
+    from ringtune.shaping.features import LABELLED_VISIBLE, VISIBLE
+    mo, tc, t_end = corner_motion(100.0, 5000.0)
+    printer = printer_from_dict({"x": {"modes": [{"freq": 40.0, "damping": 0.05}]},
+                                 "y": {"modes": [{"freq": 32.0, "damping": 0.05}]}, "motor": {"slip": False}})
+    sim = simulate(printer, mo, backend="lti", initial="static")
+    other = _classes(mo, ["other"] * mo.n_segments)
+    alone = compute_metrics(sim, mo, classes=other, seen_classes=VISIBLE)
+    purge = compute_metrics(sim, mo, classes=other, seen_classes=LABELLED_VISIBLE)
+    assert alone.ripple_mm > 0.1 and alone.corner_out_mm > 0.05 and alone.path_error_mm > 0.1
+    assert alone.ripple_mm == compute_metrics(sim, mo, classes=other).ripple_mm     # None: VISIBLE
+    assert purge.ripple_mm == purge.corner_out_mm == purge.corner_in_mm == purge.path_error_mm == 0
+    assert purge.ripple_p90_mm == 0 and purge.show_through_mm == 0     # not hidden either
+    assert purge.features["other"] == pytest.approx(alone.features["other"])
+    assert Metrics.worst([purge]).ripple_p90_mm == 0 and alone.ripple_p90_mm > 0.1
+    assert Metrics.worst([purge]).details["seen_classes"] == sorted(LABELLED_VISIBLE, key=FEATURE_CLASSES.index)
+
+
 def test_worst_combines_windows_and_recomputes_the_percentile():
     a = Metrics(ripple_mm=0.01, details={"ripple_walls": [["outer_wall", 0.01], ["infill", 0.5]]},
                 features={"outer_wall": dict.fromkeys(FEATURE_KEYS, 0.01)})
