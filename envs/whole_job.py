@@ -29,8 +29,9 @@ SPAN_S = 300.0
 SEAM_SPAN_S = 0.25
 #: time constants 1/(ζω) of the slowest-decaying mode simulated before each piece
 LEAD_TAUS = 6.0
-#: Hz of the exact backend's samples (a corner's deepest cut is a sample's: at 2 kHz its phase moved
-#: the built-in print's worst corner rounding by 6 %)
+#: Hz of the exact backend's samples (corners are measured between samples; from 2 to 20 kHz Klipper's
+#: pick on the built-in print moves its corners by 0.2 %, its ripple by 0.7 %, its outer wall's
+#: under-extrusion by 3.5 %: what is still read at the samples)
 RATE_HZ = 5000.0
 
 

@@ -186,7 +186,8 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
             that labels its visible features); None: :data:`VISIBLE`. Per class, all are measured.
     """
     t, nozzle, machine = _machine(sim)
-    tu = t - lag  # sample times on the unshaped clock
+    tu, nozzle = _with_edges(t - lag, nozzle, path)   # sample times on the unshaped clock
+    t = tu + lag
     seg = path.segment_index(tu)
     cls_seg = np.full(path.n_segments, _OTHER) if classes is None else np.asarray(classes, np.int64)
     extruding = (tu >= path.t[0]) & (tu <= path.t[-1]) & path.extruding[seg]
@@ -218,6 +219,27 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
     return m
 
 
+def _with_edges(tu: np.ndarray, nozzle: np.ndarray, path: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """The samples with one more at each instant inside them where ``path`` starts or stops
+    extruding (the nozzle there linear between its neighbours: second order in the spacing). What
+    the nozzle does as a wall starts or ends counts from that instant: a wall that starts at the end
+    of a travel is off the travel's line by what the travel left, and the first sample after it,
+    anywhere up to a spacing later, reads less of it as it decays."""
+    ext = np.asarray(path.extruding, bool)
+    if len(tu) < 2 or len(ext) < 2:
+        return tu, nozzle
+    b = np.arange(1, len(ext))
+    starts = path.t[b[ext[1:] & ~ext[:-1]]]
+    ends = np.nextafter(path.t[b[ext[:-1] & ~ext[1:]]], -np.inf)     # still in the extruding segment
+    edges = np.concatenate([starts, ends])
+    edges = np.setdiff1d(edges[(edges > tu[0]) & (edges < tu[-1])], tu)
+    if not len(edges):
+        return tu, nozzle
+    at = np.searchsorted(tu, edges)
+    pts = np.column_stack([np.interp(edges, tu, nozzle[:, c]) for c in range(nozzle.shape[1])])
+    return np.insert(tu, at, edges), np.insert(nozzle, at, pts, axis=0)
+
+
 def _machine(sim: Any):
     """(t, nozzle x/y, {peak_accel, step_loss, motor_load}) of a simulation result."""
     t = np.asarray(sim.t, float)
@@ -244,11 +266,8 @@ def _seen(tu, pts, dist, cls, legs: Legs, w: Walls, angle: float, settle: float,
         details["ripple_at"] = {"t_start": float(legs.t_start[k]), "t_end": float(legs.t_end[k]),
                                 "x": float(legs.start[k, 0]), "y": float(legs.start[k, 1]),
                                 "feature": FEATURE_CLASSES[legs.cls[k]]}
-    inward, outward = corner_deviation(tu, pts, legs, angle, early, max(settle, 0.0) + tail)
-    # never further from the corner than from the path: after chords shorter than the corner's
-    # span, a sample on the next leg would be measured from legs it has left
-    near = np.where(np.isfinite(dist), dist, np.inf)
-    inward, outward = np.minimum(inward, near), np.minimum(outward, near)
+    near = np.where(np.isfinite(dist), dist, np.inf)     # never further from the corner than from the path
+    inward, outward = corner_deviation(tu, pts, legs, angle, early, max(settle, 0.0) + tail, near)
     out = per_class_max(outward, cls, _N)
     hidden_reach = np.maximum(out, per_class_max(w.offset, w.cls, _N))
     finite = np.isfinite(dist)

@@ -152,6 +152,48 @@ def test_corner_rounding_is_the_shaped_commands_own_cut(flavor, name, through):
     assert m.corner_out_mm < 1e-6            # a stiff shaped command never leaves the corner outward
 
 
+@pytest.mark.parametrize("name, through", [("mzv", True), ("ei", True), ("mzv", False), ("ei", False)])
+def test_corner_rounding_between_samples_does_not_depend_on_their_phase(name, through):
+    """At the quality windows' 2 kHz the deepest cut falls between samples (the distance to the
+    nearer leg has a kink there): measured on the chord between them, the rounding is the shaped
+    command's own (brute force at 1 MHz) within 0.2 % whatever the samples' phase, where the
+    nearest sample alone reads up to 5 % short."""
+    shaper = get_shaper(name, 45.0, 0.1, "klipper")
+    mo = _l_path(100.0, 20.0, through)
+    shaped = shape_motion(mo, {"x": shaper, "y": shaper}, True)
+    shifts = shaper.times - shaper.centre_delay
+    t = np.arange(-0.05, mo.end_time + 0.05, 1e-6)
+    pts = sum(A * mo.position(t - s)[:, :2] for A, s in zip(shaper.amplitudes, shifts))
+    cut = _deepest_cut(pts, np.array([20.0, 0.0]), np.array([1.0, 0.0]), np.array([0.0, 1.0]))
+    for phase in np.linspace(0.0, 1.0, 13)[:-1]:
+        ts = np.arange(shaped.t[0] + phase / 2000.0, shaped.t[-1], 1 / 2000.0)
+        sim = StiffSim(ts, shaped.position(ts)[:, :2], np.zeros((len(ts), 2)))
+        m = compute_metrics(sim, mo, settle=shaper.duration - shaper.centre_delay,
+                            anticipate=shaper.centre_delay, corner_tail=0.0)
+        assert m.corner_in_mm == pytest.approx(cut, rel=2e-3)
+
+
+@pytest.mark.parametrize("phase", [0.0, 0.2, 0.5, 0.9])
+def test_what_a_travel_leaves_counts_from_the_instant_the_wall_starts(phase):
+    """A travel along +X stops (5000 mm/s²) where a wall along +Y starts from rest (90°); the
+    nozzle is off the travel's line outward by A·e^(−s/τ) (s from the wall's start): at the start
+    it is A from both legs, past the corner, and the wall closes in on it at once. The outward
+    figure is that instant's A whatever the 2 kHz samples' phase (within the nozzle's curvature
+    over a sample, 1 %); the first sample after it, up to 0.5 ms later, reads A·e^(−s/τ) − a·s²/2,
+    down to 87 % of it."""
+    a, amp, tau = 5000.0, 0.02, 0.005
+    td = 100.0 / a
+    t = np.cumsum([0.0, td, 0.1, td, td, 0.1, td])
+    acc = np.hstack([np.array([[a, 0], [0, 0], [-a, 0], [0, a], [0, 0], [0, -a]], float), np.zeros((6, 2))])
+    mo = Motion.from_constant_accel(t, acc, p0=[0.0, 0.0, 0.2, 0.0], extruding=np.arange(6) >= 3)
+    ts = np.arange(phase / 2000.0, mo.end_time, 1 / 2000.0)
+    off = amp * np.exp(-(ts - t[3]) / tau)
+    nozzle = mo.position(ts)[:, :2] - np.column_stack([np.zeros_like(ts), off])
+    sim = StiffSim(ts, nozzle, np.zeros((len(ts), 2)))
+    m = compute_metrics(sim, mo, classes=_classes(mo, ["travel"] * 3 + ["outer_wall"] * 3))
+    assert m.features["outer_wall"]["corner_out_mm"] == pytest.approx(amp, rel=0.01)
+
+
 def test_corner_worked_example_of_the_docstring():
     """ZV with no damping at 50 Hz (two halves 10 ms apart, centred), 100 mm/s through a 90°
     corner, stiff: the command cuts the corner by v·Δt/4 = 0.25 mm."""
