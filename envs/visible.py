@@ -81,12 +81,13 @@ def corner_legs(legs: Legs, angle: float) -> np.ndarray:
     return found[angle]
 
 
-def corner_deviation(tu, pts, legs: Legs, angle: float, before: float, after: float, near=None):
+def corner_deviation(tu, pts, legs: Legs, angle: float, before: float, after: float, near=None,
+                     step: float = 0.0):
     """Per sample: (inward, outward) distance (mm) from the corner being turned, 0 where the
     sample is on the other side or belongs to no corner. ``near``: each sample's distance to the
     nearest leg of the window (mm, inf where none); given, both are capped by it (after chords
     shorter than the corner's span a sample on the next leg would be measured from legs it has
-    left) and the inward cut between samples is added (:func:`_chord_cut`).
+    left) and the inward cut between samples ``step`` s apart is added (:func:`_chord_cut`).
 
     A sample belongs to the latest corner whose span ``[tc − before, tc + after]`` (unshaped clock,
     tc the corner's time) it lies in; its deviation is the vector ``e`` from the nearest point of the
@@ -118,23 +119,21 @@ def corner_deviation(tu, pts, legs: Legs, angle: float, before: float, after: fl
         return inward, outward
     own = inward <= near                  # the corner's legs are the nearest: its cut is the sample's
     inward, outward = np.minimum(inward, near), np.minimum(outward, near)
-    return np.maximum(inward, _chord_cut(tu, pts, legs, j, k, np.where(own, inward, 0.0), d_in < d_out)), outward
+    cut = _chord_cut(tu, pts, legs, j, k, np.where(own, inward, 0.0), d_in < d_out, step)
+    return np.maximum(inward, cut), outward
 
 
-def _chord_cut(tu, pts, legs: Legs, j, k, inward, on_in) -> np.ndarray:
+def _chord_cut(tu, pts, legs: Legs, j, k, inward, on_in, step: float) -> np.ndarray:
     """Per sample i: the inward cut where the chord to sample i+1 crosses from the incoming leg's
     side to the outgoing one's (0 elsewhere). The cut is the largest distance to the *nearer* leg,
     a kink where the two distances are equal, which samples miss by up to half their spacing (5 %
     of a corner's rounding at 2 kHz); on the chord both distances are linear, so their crossing is
     exact for it (the chord's error is second order in the spacing). Only where both ends of the
-    chord cut the same corner, at most a sample step apart, and the crossing's feet lie on both legs."""
+    chord cut the same corner, at most ``step`` s (the sampling's) apart, and the crossing's feet
+    lie on both legs."""
     out = np.zeros(len(tu))
-    if len(tu) < 2:
-        return out
-    dt = np.diff(tu)
-    step = float(np.median(dt))           # the sampling step (a few samples are inserted between)
-    i = np.flatnonzero((inward[:-1] > 0) & (inward[1:] > 0) & (j[:-1] == j[1:]) & (on_in[:-1] != on_in[1:])
-                       & (dt <= 1.5 * step))
+    i = np.flatnonzero((inward[:-1] > 0) & (inward[1:] > 0) & (on_in[:-1] != on_in[1:]))
+    i = i[(j[i] == j[i + 1]) & (tu[i + 1] - tu[i] <= 1.5 * step)]
     if not len(i):
         return out
     kk = k[i]

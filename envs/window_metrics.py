@@ -186,6 +186,7 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
             that labels its visible features); None: :data:`VISIBLE`. Per class, all are measured.
     """
     t, nozzle, machine = _machine(sim)
+    step = (t[-1] - t[0]) / (len(t) - 1) if len(t) > 1 else 0.0
     tu, nozzle = _with_edges(t - lag, nozzle, path)   # sample times on the unshaped clock
     t = tu + lag
     seg = path.segment_index(tu)
@@ -203,7 +204,7 @@ def compute_metrics(sim: Any, path: Motion, *, lag: float = 0.0, settle: float =
                overshoot_mm=overshoot(*ex, legs, corner_angle_deg, corner_window, anticipate + lag, details),
                ringing_mm=ringing_rms(w, legs, corner_angle_deg, details))
     per_cls = _seen(ex[0], ex[1], ex[2], cls, legs, w, corner_angle_deg, settle - lag,
-                    anticipate + lag, corner_tail, details)
+                    anticipate + lag, corner_tail, step, details)
     # extrusion: every sample near an extruding leg in time (the extruder may start before the
     # nozzle arrives and stop before it finishes)
     made = _made(t, e_command)
@@ -226,17 +227,17 @@ def _with_edges(tu: np.ndarray, nozzle: np.ndarray, path: Motion) -> tuple[np.nd
     of a travel is off the travel's line by what the travel left, and the first sample after it,
     anywhere up to a spacing later, reads less of it as it decays."""
     ext = np.asarray(path.extruding, bool)
-    if len(tu) < 2 or len(ext) < 2:
+    b = np.flatnonzero(ext[1:] != ext[:-1]) + 1
+    if len(tu) < 2 or not len(b):
         return tu, nozzle
-    b = np.arange(1, len(ext))
-    starts = path.t[b[ext[1:] & ~ext[:-1]]]
-    ends = np.nextafter(path.t[b[ext[:-1] & ~ext[1:]]], -np.inf)     # still in the extruding segment
-    edges = np.concatenate([starts, ends])
-    edges = np.setdiff1d(edges[(edges > tu[0]) & (edges < tu[-1])], tu)
+    edges = np.where(ext[b], path.t[b], np.nextafter(path.t[b], -np.inf))   # an end: still in the segment
+    edges = edges[(edges > tu[0]) & (edges < tu[-1])]
+    at = np.searchsorted(tu, edges)
+    new = tu[at] != edges
+    edges, at = edges[new], at[new]
     if not len(edges):
         return tu, nozzle
-    at = np.searchsorted(tu, edges)
-    pts = np.column_stack([np.interp(edges, tu, nozzle[:, c]) for c in range(nozzle.shape[1])])
+    pts = nozzle[at - 1] + (nozzle[at] - nozzle[at - 1]) * ((edges - tu[at - 1]) / (tu[at] - tu[at - 1]))[:, None]
     return np.insert(tu, at, edges), np.insert(nozzle, at, pts, axis=0)
 
 
@@ -257,9 +258,10 @@ def _machine(sim: Any):
 
 
 def _seen(tu, pts, dist, cls, legs: Legs, w: Walls, angle: float, settle: float, early: float,
-          tail: float, details: dict) -> dict[str, np.ndarray]:
+          tail: float, step: float, details: dict) -> dict[str, np.ndarray]:
     """Per class (arrays over FEATURE_CLASSES): ripple, corner in/out, show-through and path error
-    of the extruding samples (the ripple's p90 is set from the walls of all windows)."""
+    of the extruding samples (the ripple's p90 is set from the walls of all windows); ``step``: s
+    between the simulation's samples."""
     details["ripple_walls"] = [[FEATURE_CLASSES[c], float(r)] for c, r in zip(w.cls, w.ripple)]
     if len(w.leg):
         k = w.leg[int(np.argmax(w.ripple))]
@@ -267,7 +269,7 @@ def _seen(tu, pts, dist, cls, legs: Legs, w: Walls, angle: float, settle: float,
                                 "x": float(legs.start[k, 0]), "y": float(legs.start[k, 1]),
                                 "feature": FEATURE_CLASSES[legs.cls[k]]}
     near = np.where(np.isfinite(dist), dist, np.inf)     # never further from the corner than from the path
-    inward, outward = corner_deviation(tu, pts, legs, angle, early, max(settle, 0.0) + tail, near)
+    inward, outward = corner_deviation(tu, pts, legs, angle, early, max(settle, 0.0) + tail, near, step)
     out = per_class_max(outward, cls, _N)
     hidden_reach = np.maximum(out, per_class_max(w.offset, w.cls, _N))
     finite = np.isfinite(dist)
