@@ -41,7 +41,10 @@ What a person sees (all mm unless stated):
     nearest point of the corner's two legs, inward (cutting the corner: the shaper's smoothing)
     or outward (past the corner, outside the turn: overshoot) by the side of the corner's
     bisector it lies on, never more than the sample's distance to the path (after chords shorter
-    than the corner's span the nozzle is already on the next leg); the worst of each. *Example*: a
+    than the corner's span the nozzle is already on the next leg); the worst of each, read between
+    samples too: inward where the chord between two samples crosses from one leg's side to the
+    other's (the distance to the nearer leg has a kink there), and at the instant a wall starts or
+    stops extruding (a sample is added there: what a travel leaves on a wall's start). *Example*: a
     90° corner taken at a constant 100 mm/s, Klipper ZV at 50 Hz with no damping (two halves 10 ms
     apart, centred), a stiff machine: the shaped command cuts the corner by v·Δt/4 = 0.25 mm
     (corner_in 0.25 mm, corner_out 0).
