@@ -34,24 +34,25 @@ def test_the_lead_in_is_six_time_constants_of_the_slowest_mode():
 
 @pytest.mark.parametrize("accel", [4800.0, 8000.0])
 def test_the_figures_do_not_depend_on_where_the_job_is_cut(accel):
-    """The built-in print in pieces of about 1 s and in one piece: the same figures within 3 %
-    (what remains is where the 5 kHz samples fall on a corner's deepest point)."""
+    """The built-in print in pieces of about 1 s and in one piece: the same figures within 0.5 %
+    (what remains is where the 5 kHz samples fall on a wall's ripple and a bead's extrusion; the
+    corners are read between samples: 3 % before)."""
     cfg = TuneConfig(accel=accel)
     pieces, whole = (whole_job_metrics(cfg, span=s) for s in (1.0, 100.0))
     for k in VISIBLE_KEYS:
-        assert getattr(pieces, k) == pytest.approx(getattr(whole, k), rel=0.03), k
+        assert getattr(pieces, k) == pytest.approx(getattr(whole, k), rel=0.005), k
 
 
 @pytest.mark.parametrize("cfg", [TuneConfig(), TuneConfig(shaper_x="none", shaper_y="none", freq_x=0.0, freq_y=0.0),
                                  TuneConfig(accel=8000.0)], ids=["pick", "unshaped", "fast"])
 def test_the_whole_job_measures_at_least_what_its_windows_do(cfg):
     """The windows are parts of the job: over all of it no visible measure is lower (within the
-    2 kHz windows' own sampling, 3 %), and the print time is the same plan's."""
+    2 kHz windows' own sampling of ripple and extrusion, 1 %), and the print time is the same plan's."""
     windows = evaluate_many([cfg], None, None, "lti")[0]
     whole = whole_job_metrics(cfg)
     assert whole.print_time_s == windows.print_time_s
     for k in VISIBLE_KEYS:
-        assert getattr(whole, k) >= 0.97 * getattr(windows, k), k
+        assert getattr(whole, k) >= 0.99 * getattr(windows, k), k
 
 
 def test_a_span_that_is_not_positive_is_refused():
