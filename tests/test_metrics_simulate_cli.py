@@ -8,6 +8,7 @@ import pytest
 
 from ringtune.agents.cli.main import main
 from ringtune.envs.evaluate import evaluate
+from ringtune.envs.whole_job import whole_job_metrics
 from ringtune.shaping.config import TuneConfig
 
 METRIC_KEYS = {"print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss", "motor_load",
@@ -43,6 +44,35 @@ def test_json_matches_evaluate_and_shaping_helps(capsys):
     assert off["print_time_s"] == pytest.approx(res["metrics"]["print_time_s"])
     assert off["overshoot_mm"] > 5 * res["metrics"]["overshoot_mm"]
     assert off["ringing_mm"] > 5 * res["metrics"]["ringing_mm"]
+
+
+def test_whole_job_puts_the_windows_beside_all_of_the_job(capsys):
+    """--whole-job: the configuration and Klipper's pick on the windows and over the whole job (the
+    printer as modelled, the exact linear backend), each verdict the reports' rule (1 µm or 5 %
+    for distances, 1 point or 5 % for extrusion) applied here to the printed figures."""
+    code, out, _ = run_cli(["simulate", "--json", "--shaper", "mzv", "--freq", "45.5,38.9", "--damping", "0.1",
+                            "--accel", "6000", "--whole-job"], capsys)
+    assert code == 0
+    check = json.loads(out)["whole_job"]
+    assert set(check) == {"where", "seconds", "baseline", "measures", "differ", "worse"} and check["baseline"]
+    cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=45.5, freq_y=38.9, damping_x=0.1, damping_y=0.1,
+                     accel=6000.0)
+    whole, windows = whole_job_metrics(cfg), evaluate(cfg, backend="lti")
+    ripple = check["measures"]["ripple_mm"]
+    assert ripple["whole"][0] == pytest.approx(whole.ripple_mm) and ripple["windows"][0] == pytest.approx(windows.ripple_mm)
+    assert check["measures"]["outer_wall:corner_in_mm"]["whole"][0] == pytest.approx(
+        whole.features["outer_wall"]["corner_in_mm"])
+
+    def rule(k, mine, theirs):
+        tol = max(0.05 * max(mine, theirs), 1.0 if k.endswith("_pct") else 1e-3)
+        return "worse" if mine - theirs > tol else "better" if theirs - mine > tol else "same"
+    for k, v in check["measures"].items():
+        assert v["verdict_windows"] == rule(k, *v["windows"]) and v["verdict_whole"] == rule(k, *v["whole"]), k
+    assert check["worse"] == [k for k, v in check["measures"].items() if v["verdict_whole"] == "worse"]
+    assert check["differ"] == [k for k, v in check["measures"].items() if v["verdict_windows"] != v["verdict_whole"]]
+    code, text, _ = run_cli(["simulate", "--shaper", "mzv", "--freq", "45.5,38.9", "--accel", "6000",
+                             "--whole-job", "--no-baselines"], capsys)
+    assert code == 0 and "over the whole job" in text and "no Klipper's pick to compare" in text
 
 
 @pytest.mark.slow

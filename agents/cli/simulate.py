@@ -25,7 +25,11 @@ configuration is; empty with ``--no-baselines``), ``versus`` ({baseline: {measur
 resolution; ringtune.agents.tune.versus),
 ``binding`` (the firmware limits that hold some moves below the configuration's acceleration, each
 measured by the planner without it: list of {``name``, ``value`` mm/s², ``what``, ``moves``,
-``time_s``, ``time_without_s``}, as ``tune``'s).
+``time_s``, ``time_without_s``}, as ``tune``'s), ``whole_job`` (with ``--whole-job`` only: the
+configuration and Klipper's pick on the quality windows and over all of the job, the printer as
+modelled, the exact linear backend: {``where``, ``seconds``, ``baseline`` (bool), ``measures``
+({key: {``windows``: [this, pick], ``whole``: [this, pick], ``verdict_windows``, ``verdict_whole``}}),
+``differ``, ``worse`` (keys)}; ringtune.agents.tune.whole_job_check).
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ from ringtune.agents.cli.trace_option import write_trace_option
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.pareto import point_from_metrics
 from ringtune.agents.tune.versus import baseline_evaluations, table as versus_table, versus_all
+from ringtune.agents.tune.whole_job_check import whole_job_check
 from ringtune.envs.evaluate import evaluate_judged
 from ringtune.envs.planned_job import job_accel_commands, planned_job, resolve_job, resolve_printer
 from ringtune.envs.metrics import Metrics
@@ -104,6 +109,7 @@ examples:
   ringtune simulate --printer my.toml --gcode part.gcode --config best.json --json
   ringtune simulate --config best.json --freq-margin 0     # the exact model only
   ringtune simulate --gcode ripples.gcode --trace nozzle.csv   # what the model prints
+  ringtune simulate --gcode part --config best.json --whole-job # do the windows' verdicts hold?
 """
 
 
@@ -141,6 +147,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-baselines", action="store_true",
                         help="skip the baselines (Klipper's pick, what the printer runs now, no shaping) that every "
                              "visible measure is compared with")
+    parser.add_argument("--whole-job", action="store_true",
+                        help="also simulate all of the job, not only its quality windows, with Klipper's pick beside "
+                             "it (the printer as modelled, the exact linear backend; about a minute for a 20-minute "
+                             "job): every visible measure on the windows and over the whole job, and whether the "
+                             "verdicts against the pick hold")
     parser.add_argument("--plot", metavar="DIR", help="write path, ringing and accelerometer plots (PNG) to DIR")
     parser.add_argument("--trace", metavar="OUT.csv", help="write the simulated nozzle path (t, commanded and "
                         "nozzle x y, ...) of the whole job, or of its quality windows if it is long")
@@ -209,6 +220,7 @@ def run(args, out) -> int:
     }
     lines = _text(result, m, config, printer, judged, len(evs)) + _binding_said(bindings, config)
     lines += _baselines(result, m, args, base)
+    lines += _whole_job(result, args, printer, config, base, out) if args.whole_job else []
     lines += [f"plot: {p}" for p in plots]
     out.emit(result, "\n".join(lines))
     return 0
@@ -280,6 +292,18 @@ def _baselines(result: dict, m, args, base) -> list[str]:
     result["versus"] = versus_all(mine, points)
     return ["", "against each baseline (the same job and judgement):"] + versus_table(mine, points, bl.labels,
                                                                                         name="this")
+
+
+def _whole_job(result: dict, args, printer, config: TuneConfig, base, out) -> list[str]:
+    """Fill ``whole_job`` of ``result`` (:func:`ringtune.agents.tune.whole_job_check.whole_job_check`,
+    against Klipper's pick when the baselines have one); the text table."""
+    pick = base[0].configs.get("klipper") if base is not None else None
+    out.note("simulating all of the job" + (" and Klipper's pick" if pick else "") + " (the exact linear model) ...")
+    check = whole_job_check(config, printer, args.gcode, pick, job_accel=job_accel_mode(config))
+    result["whole_job"] = check.to_dict()
+    against = ", against Klipper's pick" if pick else " (no Klipper's pick to compare: --no-baselines or none)"
+    return ["", f"over the whole job ({check.seconds:.0f} s to simulate), the printer as modelled, the exact linear "
+                f"model{against}", f"  windows: {check.where}"] + check.table("this", "Klipper's pick")
 
 
 def _plot_baseline(base):
