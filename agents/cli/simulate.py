@@ -67,7 +67,8 @@ the job's quality windows (sharpest corners, fastest zigzags):
 
   print_time_s   planned print time of the whole job, s
   ripple_mm      worst peak-to-peak of the nozzle across a visible straight wall (outer walls,
-                 top surfaces, overhangs, unlabelled moves); ripple_p90_mm its 90th percentile
+                 top surfaces, overhangs; unlabelled moves where the job labels none of these, else
+                 they are a purge line); ripple_p90_mm its 90th percentile
   corner_in_mm   worst rounding of a visible corner (inwards); corner_out_mm its overshoot
   extrusion_over_pct / extrusion_under_pct
                  worst excess / shortfall of material over 1 mm of path, with the firmware's own

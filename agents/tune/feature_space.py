@@ -133,7 +133,8 @@ def feature_section(config, space: SearchSpace) -> tuple[list[str], dict]:
                                                              ("min_cruise_ratio", config.feature_min_cruise_ratio))},
             **{f"{name}_corner_classes": list(CORNER_GROUPS[name]) for name in CORNER_GROUPS}}
     lines = [f"  visible walls (outer walls, overhangs, unlabelled moves): {config.accel:.0f} mm/s² "
-             f"(searched {space.accel[0]:.0f}–{space.accel[1]:.0f}; judged by ripple, corners, extrusion)"]
+             f"(searched {space.accel[0]:.0f}–{space.accel[1]:.0f}; judged by ripple, corners, extrusion; unlabelled "
+             "moves only where the job labels nothing visible, else they are a purge line)"]
     for group, lo, hi in space.feature_accel:
         a = config.feature_accel.get(ACCEL_GROUPS[group][0], config.accel)
         info["accel"][group] = a
