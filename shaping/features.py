@@ -64,6 +64,25 @@ def nothing_seen_note(job) -> str | None:
             "hold the acceleration")
 
 
+def purge_note(job) -> str | None:
+    """Where a parsed job labels what is seen and also extrudes moves of class ``other`` (no label,
+    as before CuraEngine's first label, PrusaSlicer's ``Custom`` or ``Gap fill``): one
+    sentence saying they are not judged as the part (:func:`seen_classes`) but run at the visible
+    walls' settings, with their labels ("no label" for the parser's ``unknown``, index 0), count
+    and first line. None otherwise."""
+    d = job.end - job.start
+    extruding = (d[:, 3] > 0) & (np.hypot(d[:, 0], d[:, 1]) > 0)
+    used = np.unique(job.feature[extruding])
+    cls = {int(i): feature_class(job.features[i]) for i in used}
+    if "other" not in cls.values() or not LABELLED_VISIBLE & set(cls.values()):
+        return None
+    other = extruding & np.isin(job.feature, [i for i, c in cls.items() if c == "other"])
+    labels = ", ".join(sorted({str(job.features[i]) if i else "no label" for i in np.unique(job.feature[other])}))
+    return (f"the job labels what a person sees, so its other extrusion ({labels}: {int(other.sum())} moves from "
+            f"line {int(job.line[other][0])}, a purge line or the like) is not judged as the part; it runs at the "
+            "visible walls' settings")
+
+
 #: normalised label (lower case, ``-``/``_``/``/`` as spaces, single spaces) -> class; the
 #: spellings of PrusaSlicer/SuperSlicer, OrcaSlicer/Bambu Studio, Cura, Simplify3D and ideaMaker
 _EXACT = {

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from ringtune.shaping.arcs import arcs_note
 from ringtune.shaping.extruder_alone import extruder_alone_note, klipper_refusals, klipper_refusals_note
-from ringtune.shaping.features import nothing_seen_note
+from ringtune.shaping.features import nothing_seen_note, purge_note
 from ringtune.shaping.firmware_retraction import firmware_retraction_note
 from ringtune.shaping.flavor_units import flavor_note
 from ringtune.shaping.job_shapers import foreign_shapers, foreign_shapers_note, prusa_weight_note
@@ -30,7 +30,8 @@ def reading_notes(job, limits, firmware: str | None) -> list[str]:
     - on Klipper, retractions planned without the extruder's own limits
       (:func:`ringtune.shaping.extruder_alone.extruder_alone_note`), and the moves its extruder refuses
       (:func:`ringtune.shaping.extruder_alone.klipper_refusals_note`);
-    - a job that extrudes nothing a person sees (:func:`ringtune.shaping.features.nothing_seen_note`);
+    - a job that extrudes nothing a person sees (:func:`ringtune.shaping.features.nothing_seen_note`),
+      or labels what is seen and extrudes more (:func:`ringtune.shaping.features.purge_note`);
     - the limit lines of a job sliced for another firmware that this one reads in other units, or
       not at all (:func:`ringtune.shaping.flavor_units.flavor_note`)."""
     notes = [klipper_ignored_note(klipper_ignored(job, limits)),
@@ -38,6 +39,6 @@ def reading_notes(job, limits, firmware: str | None) -> list[str]:
              foreign_shapers_note(foreign_shapers(job, firmware), firmware) if firmware else None,
              prusa_weight_note(job, firmware) if firmware else None,
              firmware_retraction_note(job, limits), arcs_note(job, limits), extruder_alone_note(job, limits),
-             klipper_refusals_note(klipper_refusals(job, limits)), nothing_seen_note(job),
+             klipper_refusals_note(klipper_refusals(job, limits)), nothing_seen_note(job), purge_note(job),
              flavor_note(job, limits, firmware)]
     return [n for n in notes if n]

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from ringtune.shaping.features import (FEATURE_CLASSES, HIDDEN, VISIBLE, feature_class,
-                                       normalise_label, nothing_seen_note)
+                                       normalise_label, nothing_seen_note, purge_note)
 from ringtune.shaping.gcode import read_gcode
 from ringtune.shaping.planner import MachineLimits
 from ringtune.shaping.reading_notes import reading_notes
@@ -86,6 +86,23 @@ def test_slicer_spellings(label, cls):
 def test_normalise_label():
     assert normalise_label("  WALL-OUTER ") == "wall outer"
     assert normalise_label("Skirt/Brim") == "skirt brim"
+
+
+def test_a_labelled_jobs_purge_line_is_said_not_judged(data_dir):
+    """CuraEngine's slice of the part purges twice before its first label (the Creality start
+    G-code's lines 25 and 27): said, with its label, count and line; a job without
+    labels, or labelling only hidden features, or with nothing unlabelled, says nothing."""
+    cura = read_gcode(data_dir / "part/part_cura.gcode")
+    lines = (data_dir / "part/part_cura.gcode").read_text().splitlines()
+    note = purge_note(cura)
+    assert note.startswith("the job labels what a person sees, so its other extrusion (no label: 2 moves from line 25,")
+    assert lines[24].startswith("G1") and " E" in lines[24] and lines[26].startswith("G1") and " E" in lines[26]
+    assert note in reading_notes(cura, MachineLimits(), "klipper")
+    zigzag = "".join(f"G1 X{20 + 40 * (i % 2)} Y{20 + 0.5 * i:.1f} E0.5 F9000\n" for i in range(20))
+    for text in ("M83\n" + zigzag, "M83\n" + zigzag + ";TYPE:Internal infill\n" + zigzag,
+                 "M83\n;TYPE:External perimeter\n" + zigzag):
+        assert purge_note(read_gcode(text)) is None
+    assert "(no label: 20 moves from line 2," in purge_note(read_gcode("M83\n" + zigzag + ";TYPE:External perimeter\n" + zigzag))
 
 
 def test_a_job_that_extrudes_nothing_seen_says_its_visible_measures_are_not_judged(data_dir):
