@@ -18,11 +18,15 @@ raw label to one of :data:`FEATURE_CLASSES`:
 - ``support``: material that is not the part: support and its interface, skirt, brim, raft,
   wipe/prime towers, ooze shields;
 - ``other``: unlabelled moves and labels that could be on the surface or are unknown (custom
-  G-code, gap fill, PrusaSlicer ``Mixed``).
+  G-code, gap fill, PrusaSlicer ``Mixed``); gap fill stays here because PrusaSlicer gives it its
+  ``default_acceleration``, as :mod:`ringtune.hardware.slicer_profile` exports ``other``.
 
 :data:`VISIBLE` classes are judged by what a person sees (ripple, corners, extrusion);
-:data:`HIDDEN` ones only by what shows through and by extrusion. Unlabelled and unknown moves count
-as visible: a label we cannot read is not a licence to print it badly.
+:data:`HIDDEN` ones only by what shows through and by extrusion. Unlabelled and unknown moves run
+at the visible walls' settings (a label we cannot read is not a licence to print it badly); in a
+job that labels nothing visible they are judged as seen, in one that labels its visible features
+they are not judged — there they are mostly a purge line — (:func:`seen_classes`), which
+:func:`purge_note` says with their labels.
 """
 
 from __future__ import annotations
@@ -66,7 +70,8 @@ def nothing_seen_note(job) -> str | None:
 
 def purge_note(job) -> str | None:
     """Where a parsed job labels what is seen and also extrudes moves of class ``other`` (no label,
-    as before CuraEngine's first label, PrusaSlicer's ``Custom`` or ``Gap fill``): one
+    as before CuraEngine's first label, PrusaSlicer's ``Custom`` or ``Gap fill``, a label not
+    known here): one
     sentence saying they are not judged as the part (:func:`seen_classes`) but run at the visible
     walls' settings, with their labels ("no label" for the parser's ``unknown``, index 0), count
     and first line. None otherwise."""
@@ -79,7 +84,7 @@ def purge_note(job) -> str | None:
     other = extruding & np.isin(job.feature, [i for i, c in cls.items() if c == "other"])
     labels = ", ".join(sorted({str(job.features[i]) if i else "no label" for i in np.unique(job.feature[other])}))
     return (f"the job labels what a person sees, so its other extrusion ({labels}: {int(other.sum())} moves from "
-            f"line {int(job.line[other][0])}, a purge line or the like) is not judged as the part; it runs at the "
+            f"line {int(job.line[other][0])}; mostly a purge line) is not judged as the part; it runs at the "
             "visible walls' settings")
 
 

@@ -95,14 +95,14 @@ def test_a_labelled_jobs_purge_line_is_said_not_judged(data_dir):
     cura = read_gcode(data_dir / "part/part_cura.gcode")
     lines = (data_dir / "part/part_cura.gcode").read_text().splitlines()
     note = purge_note(cura)
-    assert note.startswith("the job labels what a person sees, so its other extrusion (no label: 2 moves from line 25,")
+    assert note.startswith("the job labels what a person sees, so its other extrusion (no label: 2 moves from line 25; mostly a purge line) is not")
     assert lines[24].startswith("G1") and " E" in lines[24] and lines[26].startswith("G1") and " E" in lines[26]
     assert note in reading_notes(cura, MachineLimits(), "klipper")
     zigzag = "".join(f"G1 X{20 + 40 * (i % 2)} Y{20 + 0.5 * i:.1f} E0.5 F9000\n" for i in range(20))
     for text in ("M83\n" + zigzag, "M83\n" + zigzag + ";TYPE:Internal infill\n" + zigzag,
                  "M83\n;TYPE:External perimeter\n" + zigzag):
         assert purge_note(read_gcode(text)) is None
-    assert "(no label: 20 moves from line 2," in purge_note(read_gcode("M83\n" + zigzag + ";TYPE:External perimeter\n" + zigzag))
+    assert "(no label: 20 moves from line 2;" in purge_note(read_gcode("M83\n" + zigzag + ";TYPE:External perimeter\n" + zigzag))
 
 
 def test_a_job_that_extrudes_nothing_seen_says_its_visible_measures_are_not_judged(data_dir):
