@@ -70,11 +70,10 @@ def nothing_seen_note(job) -> str | None:
 
 def purge_note(job) -> str | None:
     """Where a parsed job labels what is seen and also extrudes moves of class ``other`` (no label,
-    as before CuraEngine's first label, PrusaSlicer's ``Custom`` or ``Gap fill``, a label not
-    known here): one
-    sentence saying they are not judged as the part (:func:`seen_classes`) but run at the visible
-    walls' settings, with their labels ("no label" for the parser's ``unknown``, index 0), count
-    and first line. None otherwise."""
+    as before CuraEngine's first label, PrusaSlicer's ``Custom`` or ``Gap fill``, a label not known
+    here): one sentence saying they are not judged as the part (:func:`seen_classes`) but run at the
+    visible walls' settings, with their labels ("no label" for the parser's ``unknown``, index 0),
+    count and first line. None otherwise."""
     d = job.end - job.start
     extruding = (d[:, 3] > 0) & (np.hypot(d[:, 0], d[:, 1]) > 0)
     used = np.unique(job.feature[extruding])
