@@ -19,6 +19,7 @@ from typing import Any
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, metrics_dict, shown, verdict, words
 from ringtune.agents.tune.versus import SHOWN
 from ringtune.envs.evaluate import evaluate_many
+from ringtune.envs.forked import split_map
 from ringtune.envs.planned_job import planned_job, windows_sentence
 from ringtune.envs.whole_job import whole_job_metrics
 from ringtune.shaping.config import TuneConfig
@@ -99,7 +100,8 @@ def whole_job_check(config: TuneConfig, printer, job, baseline: TuneConfig | Non
     windows = [metrics_dict(m) for m in evaluate_many(configs, printer, job, "lti", job_accel=job_accel)]
     where = windows_sentence(planned_job(printer, job, config, job_accel=job_accel))
     t0 = time.perf_counter()
-    whole = [metrics_dict(whole_job_metrics(c, printer, job, job_accel=job_accel)) for c in configs]
+    whole = split_map(lambda part: [metrics_dict(whole_job_metrics(c, printer, job, job_accel=job_accel))
+                                    for c in part], configs)      # one configuration per core
     seconds = time.perf_counter() - t0
     return WholeJobCheck(_common_keys(windows + whole), windows, whole, where, seconds)
 
