@@ -43,7 +43,7 @@ def main() -> int:
           f"Klipper's pick ({pick.shaper_x} @ {pick.freq_x:g} Hz / {pick.shaper_y} @ {pick.freq_y:g} Hz, "
           f"{pick.accel:g} mm/s²); the printer as modelled, the exact linear backend")
     check = whole_job_check(chosen, printer, job, pick, job_accel=mode)
-    print(f"  windows: {check.where}")
+    print(f"  {check.where}")
     print(f"  whole job: {check.whole[0]['print_time_s']:.1f} s and {check.whole[1]['print_time_s']:.1f} s "
           f"simulated ({check.seconds:.0f} s)")
     print("\n".join(check.table("choice", "Klipper's pick")))

@@ -304,7 +304,7 @@ def _whole_job(result: dict, args, printer, config: TuneConfig, base, out) -> li
     result["whole_job"] = check.to_dict()
     against = ", against Klipper's pick" if pick else " (no Klipper's pick to compare: --no-baselines or none)"
     return ["", f"over the whole job ({check.seconds:.0f} s to simulate), the printer as modelled, the exact linear "
-                f"model{against}", f"  windows: {check.where}"] + check.table("this", "Klipper's pick")
+                f"model{against}", f"  {check.where}"] + check.table("this", "Klipper's pick")
 
 
 def _plot_baseline(base):
