@@ -86,6 +86,22 @@ def whole_job_metrics(config: TuneConfig, printer=None, job=None, *, span: float
     return Metrics.worst(parts, print_time_s=pj.print_time)
 
 
+def outer_wall_worst(m: Metrics, key: str) -> dict | None:
+    """Where the outer wall's worst ``key`` (``corner_in_mm`` or ``corner_out_mm``) of metrics
+    ``m`` is — {value mm, t s (unshaped clock), x, y mm} — found in its windows (and the windows of
+    its pieces, :func:`whole_job_metrics`); None where no window held the outer wall."""
+    found = []
+
+    def walk(details: dict) -> None:
+        at = details.get("outer_wall_at", {}).get(key)
+        if at is not None:
+            found.append(at)
+        for w in details.get("windows", ()):
+            walk(w.get("details", {}))
+    walk(m.details)
+    return max(found, key=lambda at: at["value"]) if found else None
+
+
 def seam_windows(plan, span: float = SEAM_SPAN_S) -> list[Window]:
     """A window on every seam of a visible class (a visible run's first and last move: where a
     travel, an inner wall or infill meets what is seen; :func:`ringtune.shaping.seams.seam_candidates`),

@@ -148,6 +148,7 @@ _VISIBLE = np.array([c in VISIBLE for c in FEATURE_CLASSES])
 EXTRUSION_SEEN = VISIBLE | {"inner_wall", "solid_infill"}
 _EXTRUSION_SEEN = np.array([c in EXTRUSION_SEEN for c in FEATURE_CLASSES])
 _OTHER = FEATURE_CLASSES.index("other")
+_OUTER_WALL = FEATURE_CLASSES.index("outer_wall")
 _N = len(FEATURE_CLASSES)
 #: s after the shaped command finished turning a corner that still belongs to it, by default
 CORNER_TAIL = 0.0125
@@ -273,6 +274,10 @@ def _seen(tu, pts, dist, cls, legs: Legs, w: Walls, angle: float, settle: float,
                                 "feature": FEATURE_CLASSES[legs.cls[k]]}
     near = np.where(np.isfinite(dist), dist, np.inf)     # never further from the corner than from the path
     inward, outward = corner_deviation(tu, pts, legs, angle, early, max(settle, 0.0) + tail, near, step)
+    ow = cls == _OUTER_WALL
+    if ow.any():     # where the outer wall's worst corner is (the sample's: a chord's cut is at its start)
+        details["outer_wall_at"] = {k: _place(tu, pts, np.where(ow, v, -1.0))
+                                    for k, v in (("corner_in_mm", inward), ("corner_out_mm", outward))}
     out = per_class_max(outward, cls, _N)
     hidden_reach = np.maximum(out, per_class_max(w.offset, w.cls, _N))
     finite = np.isfinite(dist)
@@ -281,6 +286,12 @@ def _seen(tu, pts, dist, cls, legs: Legs, w: Walls, angle: float, settle: float,
             "corner_in_mm": per_class_max(inward, cls, _N), "corner_out_mm": out,
             "show_through_mm": np.where(_VISIBLE, 0.0, hidden_reach),
             "path_error_mm": per_class_max(dist[finite], cls[finite], _N)}
+
+
+def _place(tu: np.ndarray, pts: np.ndarray, values: np.ndarray) -> dict[str, float]:
+    """{value (mm), t (unshaped clock, s), x, y (mm)} of the largest of ``values``."""
+    i = int(np.argmax(values))
+    return {"value": float(values[i]), "t": float(tu[i]), "x": float(pts[i, 0]), "y": float(pts[i, 1])}
 
 
 def _made(t: np.ndarray, e_command: Motion | None) -> np.ndarray | None:

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 
 from ringtune.agents.cli.main import main
 from ringtune.envs.evaluate import evaluate
 from ringtune.envs.whole_job import whole_job_metrics
+from ringtune.shaping.testprints import builtin_test_gcode
 from ringtune.shaping.config import TuneConfig
 
 METRIC_KEYS = {"print_time_s", "path_error_mm", "overshoot_mm", "ringing_mm", "peak_accel", "step_loss", "motor_load",
@@ -54,7 +56,8 @@ def test_whole_job_puts_the_windows_beside_all_of_the_job(capsys):
                             "--accel", "6000", "--whole-job"], capsys)
     assert code == 0
     check = json.loads(out)["whole_job"]
-    assert set(check) == {"where", "seconds", "baseline", "measures", "differ", "worse"} and check["baseline"]
+    assert set(check) == {"where", "seconds", "baseline", "measures", "differ", "worse", "outer_wall_worst"}
+    assert check["baseline"]
     cfg = TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=45.5, freq_y=38.9, damping_x=0.1, damping_y=0.1,
                      accel=6000.0)
     whole, windows = whole_job_metrics(cfg), evaluate(cfg, backend="lti")
@@ -70,6 +73,13 @@ def test_whole_job_puts_the_windows_beside_all_of_the_job(capsys):
         assert v["verdict_windows"] == rule(k, *v["windows"]) and v["verdict_whole"] == rule(k, *v["whole"]), k
     assert check["worse"] == [k for k, v in check["measures"].items() if v["verdict_whole"] == "worse"]
     assert check["differ"] == [k for k, v in check["measures"].items() if v["verdict_windows"] != v["verdict_whole"]]
+    # where the outer wall's worst corners are: the whole job's figure, at a corner of the move on the
+    # line named (the built-in print's text: the move from the line before's X/Y to its own)
+    lines = builtin_test_gcode().splitlines()
+    for k, at in check["outer_wall_worst"].items():
+        assert at["value"] == pytest.approx(check["measures"][k]["whole"][0])
+        ends = [[float(w[1:]) for w in lines[n - 1].split() if w[0] in "XY"] for n in (at["line"] - 1, at["line"])]
+        assert min(math.dist((at["x"], at["y"]), p) for p in ends) < 1.0, (k, at, ends)
     code, text, _ = run_cli(["simulate", "--shaper", "mzv", "--freq", "45.5,38.9", "--accel", "6000",
                              "--whole-job", "--no-baselines"], capsys)
     assert code == 0 and "over the whole job" in text and "no Klipper's pick to compare" in text

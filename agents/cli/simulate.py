@@ -29,7 +29,9 @@ measured by the planner without it: list of {``name``, ``value`` mm/s², ``what`
 configuration and Klipper's pick on the quality windows and over all of the job, the printer as
 modelled, the exact linear backend: {``where``, ``seconds``, ``baseline`` (bool), ``measures``
 ({key: {``windows``: [this, pick], ``whole``: [this, pick], ``verdict_windows``, ``verdict_whole``}}),
-``differ``, ``worse`` (keys)}; ringtune.agents.tune.whole_job_check).
+``differ``, ``worse`` (keys), ``outer_wall_worst`` ({key: {``value`` mm, ``t`` s, ``x``, ``y`` mm,
+``line``}}: where this configuration's outer wall has its worst corner over the whole job)};
+ringtune.agents.tune.whole_job_check).
 """
 
 from __future__ import annotations

@@ -13,15 +13,17 @@ with the verdict against the baseline at the reports' resolution (1 µm or 5 %; 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
+
+import numpy as np
 
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, metrics_dict, shown, verdict, words
 from ringtune.agents.tune.versus import SHOWN
 from ringtune.envs.evaluate import evaluate_many
 from ringtune.envs.forked import split_map
 from ringtune.envs.planned_job import planned_job, windows_sentence
-from ringtune.envs.whole_job import whole_job_metrics
+from ringtune.envs.whole_job import outer_wall_worst, whole_job_metrics
 from ringtune.shaping.config import TuneConfig
 
 
@@ -29,13 +31,16 @@ from ringtune.shaping.config import TuneConfig
 class WholeJobCheck:
     """A configuration's measures (and a baseline's, or None) on the windows and over the whole job:
     ``windows``/``whole`` are ``[config's, baseline's]`` :func:`metrics_dict`; ``keys`` the visible
-    measures both hold; ``where`` the windows in words; ``seconds`` the whole job's simulation."""
+    measures both hold; ``where`` the windows in words; ``seconds`` the whole job's simulation;
+    ``places`` where the configuration's outer wall has its worst corner over the whole job
+    (:data:`PLACED`; with the G-code line of the move there)."""
 
     keys: list[str]
     windows: list[dict]
     whole: list[dict]
     where: str
     seconds: float
+    places: dict = field(default_factory=dict)     # {key: {value, t, x, y, line}}: the configuration's
 
     def verdicts(self, side: int) -> dict[str, str]:
         """``{key: better|same|worse}`` of the configuration against the baseline on the windows
@@ -60,7 +65,7 @@ class WholeJobCheck:
                 "measures": {k: {"windows": [d[k] for d in self.windows], "whole": [d[k] for d in self.whole],
                                  **({"verdict_windows": on_windows[k], "verdict_whole": on_whole[k]}
                                     if on_whole else {})} for k in self.keys},
-                "differ": self.differ(), "worse": self.worse()}
+                "differ": self.differ(), "worse": self.worse(), "outer_wall_worst": self.places}
 
     def table(self, name: str = "this", baseline: str = "the baseline") -> list[str]:
         """The text report: one line per measure (the windows' figures and verdict, then the whole
@@ -71,6 +76,9 @@ class WholeJobCheck:
         on = (self.verdicts(0), self.verdicts(1))
         for k in self.keys:
             lines.append(f"  {words(k)[0]:<{w}}" + _cells(k, self.windows, on[0]) + _cells(k, self.whole, on[1]))
+        lines += [f"  the outer wall's worst {words(k)[0].replace('outer wall ', '')} over the whole job ({name}): "
+                  f"{shown(k, at['value'])} at {at['t']:.2f} s, X {at['x']:.2f} Y {at['y']:.2f} (G-code line {at['line']})"
+                  for k, at in self.places.items()]
         return lines + [f"verdicts against {baseline} that differ between the windows and the whole job: "
                         f"{_listed(self.differ(), len(self.keys))}",
                         f"measures worse than {baseline}'s over the whole job: {_listed(self.worse(), len(self.keys))}"
@@ -100,10 +108,23 @@ def whole_job_check(config: TuneConfig, printer, job, baseline: TuneConfig | Non
     windows = [metrics_dict(m) for m in evaluate_many(configs, printer, job, "lti", job_accel=job_accel)]
     where = windows_sentence(planned_job(printer, job, config, job_accel=job_accel))
     t0 = time.perf_counter()
-    whole = split_map(lambda part: [metrics_dict(whole_job_metrics(c, printer, job, job_accel=job_accel))
-                                    for c in part], configs)      # one configuration per core
+    measured = split_map(lambda part: [_measured(c, printer, job, job_accel) for c in part], configs)  # a core each
     seconds = time.perf_counter() - t0
-    return WholeJobCheck(_common_keys(windows + whole), windows, whole, where, seconds)
+    whole = [figures for figures, _ in measured]
+    moves = planned_job(printer, job, config, job_accel=job_accel).plan.moves
+    places = {k: {**at, "line": int(moves.line[max(np.searchsorted(moves.t_start, at["t"], side="right") - 1, 0)])}
+              for k, at in measured[0][1].items() if at is not None}
+    return WholeJobCheck(_common_keys(windows + whole), windows, whole, where, seconds, places)
+
+
+#: the measures whose worst place over the whole job is said (the outer wall's own)
+PLACED = ("outer_wall:corner_in_mm", "outer_wall:corner_out_mm")
+
+
+def _measured(config: TuneConfig, printer, job, job_accel) -> tuple[dict, dict]:
+    """(:func:`metrics_dict` of the whole job, {key of :data:`PLACED`: where it is worst or None})."""
+    m = whole_job_metrics(config, printer, job, job_accel=job_accel)
+    return metrics_dict(m), {k: outer_wall_worst(m, k.split(":")[1]) for k in PLACED}
 
 
 def _common_keys(figures: list[dict]) -> list[str]:
