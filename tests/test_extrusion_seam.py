@@ -133,3 +133,23 @@ def test_corners_cut_earlier_in_a_run_do_not_move_a_later_change_of_rate():
     wall = m.features["outer_wall"]
     assert wall["extrusion_over_pct"] < 0.5 and wall["extrusion_under_pct"] < 0.5
     assert m.features["infill"]["extrusion_over_pct"] > 2.0          # the corners themselves are judged
+
+
+@pytest.mark.parametrize("phase", [0.0, 0.3, 0.7])
+def test_a_blob_on_a_fast_wall_reads_its_own_share_of_one_mm(phase):
+    """A straight wall at 150 mm/s, the nozzle on it, the extruder pushing ε = 10 % of a
+    millimetre's filament more over 1 ms: every stretch of exactly 1 mm holding the blob lays
+    10 % too much. At 2 kHz the samples are 0.075 mm apart; a stretch that ran to the first
+    sample past 1 mm was 1.05 mm long here and read 9.52 %. Its end is now placed between the two
+    samples about it."""
+    v, e_mm, t0, tau = 150.0, 0.033, 0.06, 0.001
+    eps, t_end = 0.1 * e_mm, WALL / v
+    path = Motion(np.array([0.0, t_end]), np.array([[0.0, 0.0, 0.2, 0.0]]), np.array([[v, 0.0, 0.0, v * e_mm]]),
+                  np.zeros((1, 4)), np.array([True]))
+    e_cmd = Motion(np.array([0.0, t0, t0 + tau, t_end + 0.01]),
+                   np.array([[0.0], [e_mm * v * t0], [e_mm * v * (t0 + tau) + eps]]),
+                   np.array([[e_mm * v], [e_mm * v + eps / tau], [e_mm * v]]), np.zeros((3, 1)), np.ones(3, bool))
+    t = np.arange(phase / 2000.0, t_end, 1 / 2000.0)
+    sim = StiffSim(t, path.position(t)[:, :2], np.zeros((len(t), 2)))
+    m = compute_metrics(sim, path, e_command=e_cmd, classes=np.array([FEATURE_CLASSES.index("outer_wall")]))
+    assert m.extrusion_over_pct == pytest.approx(10.0, rel=1e-3)
