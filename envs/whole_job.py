@@ -76,14 +76,19 @@ def whole_job_metrics(config: TuneConfig, printer=None, job=None, *, span: float
     printer = resolve_printer(printer)
     pj = planned_job(printer, job, config, job_accel=job_accel)
     edges = span_edges(pj.motion, span)
-    parts = []
-    for a, b in zip(edges, edges[1:]):
-        runs = window_runs(PlannedJob(pj.plan, [Window(float(a), float(b), "span", 0.0)]), config,
-                           lead_in(printer), corner_tail(printer))
-        sims = simulate_batch(printer, [r.shaped for r in runs], backend=backend, initial="static",
-                              timestep=1.0 / RATE_HZ if backend == "lti" else None)
-        parts.append(metrics_of(runs, sims, pj.print_time))
+    step = 1.0 / RATE_HZ if backend == "lti" else None
+    parts = [_simulated(printer, pj, [Window(float(a), float(b), "span", 0.0)], config, lead_in(printer), backend, step)
+             for a, b in zip(edges, edges[1:])]
     return Metrics.worst(parts, print_time_s=pj.print_time)
+
+
+def _simulated(printer, pj: PlannedJob, windows: list[Window], config: TuneConfig, settle: float, backend: str,
+               timestep: float | None = None) -> Metrics:
+    """The metrics of ``windows`` of planned job ``pj``, each shaped with ``settle`` s of history
+    and simulated from rest (:func:`ringtune.envs.windows.window_runs`, ``metrics_of``)."""
+    runs = window_runs(PlannedJob(pj.plan, windows), config, settle, corner_tail(printer))
+    sims = simulate_batch(printer, [r.shaped for r in runs], backend=backend, initial="static", timestep=timestep)
+    return metrics_of(runs, sims, pj.print_time)
 
 
 def outer_wall_worst(m: Metrics, key: str) -> dict | None:
@@ -129,6 +134,4 @@ def seam_metrics(config: TuneConfig, printer=None, job=None, *, backend: str = "
     where the quality windows hold a few."""
     printer = resolve_printer(printer)
     pj = planned_job(printer, job, config, job_accel=job_accel)
-    runs = window_runs(PlannedJob(pj.plan, seam_windows(pj.plan)), config, auto_settle(printer), corner_tail(printer))
-    sims = simulate_batch(printer, [r.shaped for r in runs], backend=backend, initial="static")
-    return metrics_of(runs, sims, pj.print_time)
+    return _simulated(printer, pj, seam_windows(pj.plan), config, auto_settle(printer), backend)
