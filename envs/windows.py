@@ -153,16 +153,17 @@ def _trimmed(sim, t_lo: float, t_hi: float):
     return SimpleNamespace(step_loss=bool(getattr(sim, "step_loss", False)), **fields)
 
 
+def window_metrics(run: WindowRun, sim) -> Metrics:
+    """One simulated window's metrics (its samples inside [t0, t1] on the unshaped clock)."""
+    return compute_metrics(_trimmed(sim, run.t0 + run.lag, run.t1 + run.lag), run.path,
+                           lag=run.lag, settle=run.settle, anticipate=run.anticipate,
+                           classes=run.classes, e_command=run.e_command,
+                           e_command_synced=run.e_synced, corner_tail=run.corner_tail,
+                           seen_classes=run.seen_classes)
+
+
 def metrics_of(runs: list[WindowRun], sims: list, print_time: float) -> Metrics:
     """Job metrics from the simulated windows: the worst window's values."""
-    parts = []
-    for run, sim in zip(runs, sims):
-        part = compute_metrics(_trimmed(sim, run.t0 + run.lag, run.t1 + run.lag), run.path,
-                               lag=run.lag, settle=run.settle, anticipate=run.anticipate,
-                               classes=run.classes, e_command=run.e_command,
-                               e_command_synced=run.e_synced, corner_tail=run.corner_tail,
-                               seen_classes=run.seen_classes)
-        parts.append(part)
-    return Metrics.worst(parts, print_time_s=print_time)
+    return Metrics.worst([window_metrics(run, sim) for run, sim in zip(runs, sims)], print_time_s=print_time)
 
 

@@ -1,0 +1,100 @@
+"""Windows that are the same motion elsewhere in the job, simulated and measured once.
+
+A sliced job repeats itself: the same layer many times, the same object twice on the bed. Two
+windows whose commands — shaped and unshaped motion, the extruder's, the feature of every segment —
+are the same relative to their own start (time, position) give the same response on a printer
+whose mechanics do not depend on where the head is (the linear model, ``backend="lti"``), so the
+same measures at shifted times and places. Commands are compared to :data:`DECIMALS` decimals
+(s, mm, mm/s, mm/s²: 0.1 µs, 0.01 µm): the planner's arithmetic on absolute times leaves noise far
+below that, and a difference at that size moves a measure by far less than the 1 µm the verdicts
+resolve. A measure's place (``t``, ``x``, ``y`` … in its details) is moved to the window it stands for.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+
+import numpy as np
+
+from ringtune.envs.metrics import Metrics
+
+#: decimals each command is compared to, by unit (s, mm, mm/s, mm/s²)
+DECIMALS = {"t": 7, "p": 5, "v": 4, "a": 2}
+
+
+def _rounded(x: np.ndarray, unit: str) -> np.ndarray:
+    """``x`` to :data:`DECIMALS` of ``unit``, −0 as 0 (a noise below zero rounds to −0.0, other bytes)."""
+    return np.round(x, DECIMALS[unit]) + 0.0
+
+
+def _motion_key(m, t0: float, p0: np.ndarray) -> bytes:
+    """``m``'s segments relative to time ``t0`` and position ``p0`` (x, y, z, e), rounded."""
+    if m is None:
+        return b"-"
+    parts = (_rounded(m.t - t0, "t"), _rounded(m.p - p0[:m.p.shape[1]], "p"), _rounded(m.v, "v"),
+             _rounded(m.a, "a"), m.extruding)
+    return b"|".join(np.ascontiguousarray(x).tobytes() + str(x.shape).encode() for x in parts)
+
+
+def _origin(run) -> np.ndarray:
+    return np.asarray(run.path.p[0], float)
+
+
+def signature(run) -> str:
+    """A digest of everything a window's simulation and measures depend on, relative to its start."""
+    p0 = _origin(run)
+    h = hashlib.sha1()
+    for m in (run.shaped, run.path):
+        h.update(_motion_key(m, run.t0, p0))
+    for m in (run.e_command, run.e_synced):         # one column: the extruder, from its own start
+        h.update(_motion_key(m, run.t0, m.p[0] if m is not None else p0))
+    h.update(_rounded(np.array([run.t1 - run.t0]), "t").tobytes())
+    h.update(repr((run.lag, run.settle, run.anticipate, run.corner_tail,
+                   sorted(run.seen_classes) if run.seen_classes is not None else None)).encode())
+    h.update(b"-" if run.classes is None else np.asarray(run.classes).tobytes())
+    return h.hexdigest()
+
+
+def distinct(runs: list) -> tuple[list[int], list[int]]:
+    """(index of the first of each distinct window, for every window the position of its own in
+    that list)."""
+    first: dict[str, int] = {}
+    firsts, of = [], []
+    for i, run in enumerate(runs):
+        key = signature(run)
+        if key not in first:
+            first[key] = len(firsts)
+            firsts.append(i)
+        of.append(first[key])
+    return firsts, of
+
+
+def _shift(node, dt: float, dx: float, dy: float):
+    """``node`` (a details tree) with every time moved by ``dt`` s and every x, y by ``dx``, ``dy`` mm."""
+    if isinstance(node, list):
+        return [_shift(v, dt, dx, dy) for v in node]
+    if not isinstance(node, dict):
+        return node
+    out = {}
+    for k, v in node.items():
+        if isinstance(v, (dict, list)):
+            out[k] = _shift(v, dt, dx, dy)
+        elif isinstance(v, float) and (k == "t" or k.startswith("t_") or k.endswith("_t")):
+            out[k] = v + dt
+        elif isinstance(v, float) and k in ("x", "y"):
+            out[k] = v + (dx if k == "x" else dy)
+        else:
+            out[k] = v
+    return out
+
+
+def moved(m: Metrics, source, target) -> Metrics:
+    """Window ``source``'s measures ``m`` as window ``target``'s (the same motion elsewhere): its
+    places moved by the difference of the two windows' starts."""
+    if target is source:
+        return m
+    d = _origin(target) - _origin(source)
+    out = copy.copy(m)
+    out.details = _shift(m.details, float(target.t0 - source.t0), float(d[0]), float(d[1]))
+    return out
