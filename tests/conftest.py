@@ -6,9 +6,14 @@ The real files the tests use (accelerometer data, G-code, Klipper configurations
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
+
+# numpy's OpenBLAS to one thread, as the ``ringtune`` command sets it (ringtune/agents/__init__.py):
+# with two xdist workers on two cores its extra threads only spin; set before a test imports numpy
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 DATA = Path(__file__).resolve().parent / "data"
 
