@@ -21,7 +21,8 @@ from ringtune.shaping.builtin_jobs import job_path
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.arcs import arc_resolution, arcs_note
 from ringtune.shaping.features import feature_class
-from ringtune.shaping.extruder_alone import extruder_alone_note, klipper_refusals, klipper_refusals_note
+from ringtune.shaping.extruder_alone import extruder_alone_note
+from ringtune.shaping.klipper_refusals import klipper_refusals, klipper_refusals_note
 from ringtune.shaping.config_plan import ConfiguredPlan, for_firmware, plan_with_config
 from ringtune.shaping.firmware import FIRMWARES
 from ringtune.shaping.firmware_retraction import firmware_retraction_note, firmware_retractions, retraction_plan

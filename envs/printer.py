@@ -72,6 +72,7 @@ the checked values in :mod:`ringtune.envs.toml_checks`).
 
 from __future__ import annotations
 
+import math
 import tomllib
 from importlib import resources
 from pathlib import Path
@@ -98,12 +99,14 @@ KINEMATICS = ("cartesian", "corexy", "corexz")
 #: resolution`` (``arc_resolution``, mm) and its extruder's ``extrude_only_accel`` / ``extrude_only_velocity``
 #: (``max_extrude_only_*``: retractions; mm/s², mm/s), and what it refuses: ``max_extrude_ratio`` (filament per mm
 #: of path: max_extrude_cross_section / the filament's cross-section), ``nozzle_diameter`` and
-#: ``extrude_only_distance`` (mm); see :class:`ringtune.shaping.planner.MachineLimits`
+#: ``extrude_only_distance`` (mm); ``travel_x`` / ``travel_y``: [min, max] mm where the toolhead may go
+#: (Klipper's position_min / position_max); see :class:`ringtune.shaping.planner.MachineLimits`
 LIMIT_KEYS = ("accel", "velocity", "junction", "square_corner_velocity", "junction_deviation",
               "jerk", "max_accel", "max_velocity", "min_cruise_ratio", "accel_to_decel", "travel_accel",
               "retract_accel", "axis_rule", "scale_xy_accel", "retract_length", "retract_speed",
               "unretract_extra_length", "unretract_speed", "retract_zlift", "arc_resolution", "extrude_only_accel",
-              "extrude_only_velocity", "max_extrude_ratio", "nozzle_diameter", "extrude_only_distance")
+              "extrude_only_velocity", "max_extrude_ratio", "nozzle_diameter", "extrude_only_distance", "travel_x",
+              "travel_y")
 _TOP_KEYS = {"name", "kinematics", "limits", "x", "y", "motor", "belts", "print_mass", "description",
              "current", "measurement"}
 _BELT_KEYS = {"stiffness", "mismatch"}
@@ -183,6 +186,14 @@ def _check_limits(limits: dict, lw: str) -> None:
     for key in ("jerk", "max_accel", "max_velocity"):
         if key in limits and not _four_numbers(limits[key]):
             raise RingtuneError(f"{key} must be a list of 4 non-negative numbers (x, y, z, e)", f"{lw}.{key}")
+    for key in ("travel_x", "travel_y"):
+        if key in limits and not _range(limits[key]):
+            raise RingtuneError(f"{key} must be a list [min, max] of two numbers, min below max (mm)", f"{lw}.{key}")
+
+
+def _range(v) -> bool:
+    return (isinstance(v, list) and len(v) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                        and math.isfinite(x) for x in v) and v[0] < v[1])
 
 
 def _four_numbers(v) -> bool:

@@ -182,7 +182,7 @@ class Printer:
         firmware it runs (``[current] firmware``) reads a job: RRF's M203 in mm/min, no M566 on
         Marlin (:func:`ringtune.shaping.firmware.job_reading`)."""
         kw = dict(self.limits_dict)
-        for key in ("jerk", "max_accel", "max_velocity"):
+        for key in ("jerk", "max_accel", "max_velocity", "travel_x", "travel_y"):
             if key in kw and kw[key] is not None:
                 kw[key] = tuple(kw[key])
         return MachineLimits(**kw, **job_reading(self.current.get("firmware")))

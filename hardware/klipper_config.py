@@ -34,6 +34,8 @@ What is taken (Klipper's option -> description key):
   and Kalico's ``z_hop_height`` -> ``retract_zlift``;
 - ``[gcode_arcs] resolution`` -> ``limits.arc_resolution`` (Klipper's default 1 mm where unset, said;
   no section: G2/G3 move nothing there, said);
+- ``[stepper_x]`` / ``[stepper_y]`` position_min (Klipper's default 0) and position_max ->
+  ``limits.travel_x`` / ``travel_y`` ([min, max] mm: a move ending past them Klipper refuses);
 - ``[input_shaper]`` -> ``[current]``: ``shaper_x``/``freq_x``/``damping_x`` (and y) as Klipper runs
   them (``shaper_type_x`` else ``shaper_type`` else Klipper's ``mzv``; damping 0.1 by default; a
   zero or missing frequency is ``"none"``), ``accel`` = ``max_accel``, ``firmware = "klipper"``.
@@ -46,7 +48,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, place_motors
+from ringtune.hardware.firmware_facts import KINEMATICS, FirmwareFacts, place_motors, to_number
 from ringtune.hardware.klipper_cfgfile import read_klipper_cfg
 from ringtune.hardware.klipper_motors import stepper_motor
 from ringtune.hardware.klipper_source import KLIPPER_DEFAULTS, Source
@@ -111,7 +113,27 @@ def _limits(src: Source) -> dict:
     _extruder_caps(src, limits, accel, velocity)
     limits.update(_firmware_retraction(src))
     limits.update(_gcode_arcs(src))
+    limits.update(_travel(src))
     return limits
+
+
+def _travel(src: Source) -> dict:
+    """``[stepper_x]`` / ``[stepper_y]`` position_min (Klipper's default 0) and position_max ->
+    ``limits.travel_x`` / ``travel_y`` = [min, max] mm: where Klipper lets the toolhead go (a move
+    ending past them is refused, "Move out of range"); none where position_max is not given."""
+    out = {}
+    for ax in "xy":
+        sec = f"stepper_{ax}"
+        top = src.number(sec, "position_max") if src.name(sec) is not None else None
+        if top is None:
+            continue
+        low = src.get(sec, "position_min")
+        low = 0.0 if low is None else to_number(low, src.where(sec, "position_min"))
+        if not low < top:
+            raise RingtuneError(f"position_max {top:g} must be above position_min {low:g}",
+                                src.where(sec, "position_max"))
+        out[f"travel_{ax}"] = [low, top]
+    return out
 
 
 def _gcode_arcs(src: Source) -> dict:

@@ -86,7 +86,7 @@ class MachineLimits:
     max_extrude_only_accel / _velocity (None: not known), the only limits of the moves
     :func:`~ringtune.shaping.extruder_alone.e_capped` marks there; max_extrude_ratio,
     nozzle_diameter (mm) and extrude_only_distance (mm): the moves Klipper's extruder refuses
-    (:func:`~ringtune.shaping.extruder_alone.klipper_refusals`; None: not known); min_cruise_ratio (Klipper only);
+    (:func:`~ringtune.shaping.klipper_refusals.klipper_refusals`; None: not known); min_cruise_ratio (Klipper only);
     accel_to_decel: a Klipper from before 2024 (no minimum_cruise_ratio), its max_accel_to_decel in
     mm/s², kept whatever ACCEL becomes (None: a current Klipper or Kalico, which ignore a job's
     ACCEL_TO_DECEL); m203_per_minute: the firmware reads a job's M203 speeds in mm/min
@@ -109,7 +109,10 @@ class MachineLimits:
     whose segments G2/G3 become, ``klipper`` | ``marlin`` | ``rrf`` | ``prusa`` (None: as the reading
     implies, :attr:`arc_rule`); hw_max_accel / hw_max_velocity / hw_max_jerk: a firmware's compiled
     ceilings (x, y, z, e) on the per-axis caps and classic jerk whatever M201/M203/M205 ask
-    (Prusa-Firmware-Buddy's HWLIMIT for the job's model, :mod:`ringtune.shaping.prusa_limits`), None: none.
+    (Prusa-Firmware-Buddy's HWLIMIT for the job's model, :mod:`ringtune.shaping.prusa_limits`), None: none;
+    travel_x / travel_y: where the toolhead may go on X / Y, (min, max) mm (Klipper's ``[stepper_x]``
+    position_min / position_max: it refuses a move that ends past them,
+    :func:`~ringtune.shaping.klipper_refusals.klipper_refusals`), None: not known.
     """
 
     accel: float = 3000.0
@@ -144,6 +147,8 @@ class MachineLimits:
     hw_max_accel: tuple | None = None
     hw_max_velocity: tuple | None = None
     hw_max_jerk: tuple | None = None
+    travel_x: tuple | None = None
+    travel_y: tuple | None = None
 
     @property
     def reads_like_klipper(self) -> bool:
@@ -214,6 +219,9 @@ _LIMIT_CHECKS = (
       "extrude_only_accel", "extrude_only_velocity", "max_extrude_ratio", "nozzle_diameter", "extrude_only_distance"),
      _positive_or_none,
      "must be a positive number"),
+    (("travel_x", "travel_y"), lambda v: v is None or (len(v) == 2 and all(math.isfinite(x) for x in v)
+                                                      and v[0] < v[1]),
+     "needs 2 numbers, min < max (mm)"),
     (("unretract_extra_length",), lambda v: isinstance(v, (int, float)) and math.isfinite(v),
      "must be a number, not {v!r}"),
     (("retract_length",), lambda v: v is None or _non_negative(v), "must be a number >= 0, not {v!r}"),

@@ -5,7 +5,8 @@ as the job reads."""
 from __future__ import annotations
 
 from ringtune.shaping.arcs import arcs_note
-from ringtune.shaping.extruder_alone import extruder_alone_note, klipper_refusals, klipper_refusals_note
+from ringtune.shaping.extruder_alone import extruder_alone_note
+from ringtune.shaping.klipper_refusals import klipper_refusals, klipper_refusals_note
 from ringtune.shaping.features import nothing_seen_note, purge_note
 from ringtune.shaping.firmware_retraction import firmware_retraction_note
 from ringtune.shaping.flavor_units import flavor_note
@@ -29,7 +30,7 @@ def reading_notes(job, limits, firmware: str | None) -> list[str]:
     - how its arcs are cut (:func:`ringtune.shaping.arcs.arcs_note`);
     - on Klipper, retractions planned without the extruder's own limits
       (:func:`ringtune.shaping.extruder_alone.extruder_alone_note`), and the moves its extruder refuses
-      (:func:`ringtune.shaping.extruder_alone.klipper_refusals_note`);
+      (:func:`ringtune.shaping.klipper_refusals.klipper_refusals_note`);
     - a job that extrudes nothing a person sees (:func:`ringtune.shaping.features.nothing_seen_note`),
       or labels what is seen and extrudes more (:func:`ringtune.shaping.features.purge_note`);
     - the limit lines of a job sliced for another firmware that this one reads in other units, or

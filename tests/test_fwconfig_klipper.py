@@ -310,3 +310,27 @@ def test_the_extruders_own_limits_on_retractions_as_written_or_klippers_defaults
     assert sum("max_extrude_only_distance not set" in n for n in facts.notes) == 1
     (tmp_path / "printer.cfg").write_text("[printer]\nkinematics: cartesian\nmax_velocity: 300\nmax_accel: 4000\n")
     assert "extrude_only_accel" not in printer_facts_from_klipper(tmp_path / "printer.cfg").description["limits"]
+
+
+@pytest.mark.parametrize("name,where", [("ender3", "printer.cfg"), ("switchwire", "printer.cfg"),
+                                        ("v0", "config/axis.cfg"), ("v24", "steppers.cfg")])
+def test_where_the_toolhead_may_go_is_each_rails_position_min_and_max(data_dir, name, where):
+    folder = data_dir / "klipper_config" / name
+    limits = printer_facts_from_klipper(folder / "printer.cfg").description["limits"]
+    for ax in "xy":
+        try:
+            low = _num(folder / where, f"stepper_{ax}", "position_min")
+        except AssertionError:
+            low = 0.0                                                   # Klipper's default (stepper.py)
+        assert limits[f"travel_{ax}"] == [low, _num(folder / where, f"stepper_{ax}", "position_max")]
+
+
+def test_a_rail_without_position_max_gives_no_travel_and_one_below_its_min_is_refused(tmp_path):
+    head = "[printer]\nkinematics: cartesian\nmax_velocity: 300\nmax_accel: 4000\n"
+    (tmp_path / "printer.cfg").write_text(head + "[stepper_x]\nposition_min: -5\nposition_max: 230\n[stepper_y]\n")
+    limits = printer_facts_from_klipper(tmp_path / "printer.cfg").description["limits"]
+    assert limits["travel_x"] == [-5.0, 230.0] and "travel_y" not in limits
+    (tmp_path / "printer.cfg").write_text(head + "[stepper_x]\nposition_min: 10\nposition_max: 10\n")
+    with pytest.raises(RingtuneError) as exc:
+        printer_facts_from_klipper(tmp_path / "printer.cfg")
+    assert "position_max" in str(exc.value) and "printer.cfg" in str(exc.value)

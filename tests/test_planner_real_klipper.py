@@ -280,3 +280,26 @@ def test_the_moves_klippers_extruder_refuses_are_named(real_klipper, tmp_path, c
     area = math.pi * 1.75 ** 2 / 4                          # the filament's cross-section, mm²
     assert found[0]["value"] * area == pytest.approx(wide[0], abs=1e-3)
     assert found[0]["limit"] * area == pytest.approx(0.64) and found[1]["limit"] == 50.0
+
+
+def test_the_moves_out_of_klippers_range_are_named(real_klipper, tmp_path, capsys):
+    # X past stepper_x's position_max 235 (refused: Klipper stays at X 0, the plan goes on from 240),
+    # Y alone (allowed: only the axes a move moves are checked), back, Y below its position_min 0,
+    # then the far corner exactly (allowed): Klipper's batch mode refuses the first and the fourth
+    # move, and so does plan, from the same printer.cfg
+    cfg = _cfg(tmp_path)
+    job = tmp_path / "range.gcode"
+    job.write_text(START + "G90\nM83\nG1 X240 Y10 F6000\nG1 Y20\nG1 X10 Y10\nG1 X10 Y-1\nG1 X235 Y235\nG1 X0 Y0\n")
+    log = _klippy_log(real_klipper, cfg, job, check=False)
+    refused = [(float(x), float(y)) for x, y in re.findall(r"Move out of range: ([-\d.]+) ([-\d.]+) [-\d.]+", log)]
+    assert refused == [(240.0, 10.0), (10.0, -1.0)]
+    toml = tmp_path / "printer.toml"
+    assert main(["printer", "from-klipper", str(cfg), "-o", str(toml)]) == 0
+    capsys.readouterr()
+    assert main(["plan", str(job), "--printer", str(toml), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    found = out["klipper_refusals"]
+    assert [(r["line"], r["kind"], r["value"], r["limit"]) for r in found] == [
+        (4, "out_of_range_x", 240.0, 235.0), (7, "out_of_range_y", -1.0, 0.0)]
+    assert "line 4 moves X to 240.000 mm, past stepper_x's position_max 235 mm" in out["klipper_refusals_note"]
+    assert "line 7 moves Y to -1.000 mm, past stepper_y's position_min 0 mm" in out["klipper_refusals_note"]

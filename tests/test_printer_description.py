@@ -111,6 +111,8 @@ def test_chain_of_masses_and_stiffnesses():
     ('kinematics = "corexy"\n[belts]\nstiffness = 1e9', "[belts].stiffness"),
     ('[limits]\naccel = -1', "[limits].accel"),
     ('[limits]\nspeed = 100', "[limits]"),
+    ('[limits]\ntravel_x = [235, 0]', "[limits].travel_x"),
+    ('[limits]\ntravel_y = [0, 235, 250]', "[limits].travel_y"),
     ('[x]\nmasses = [0.3, 0.1]\nstiffnesses = [1e4]', "[x].stiffnesses"),
     ('[x]\nmodes = []', "[x].modes"),
     ('wheels = 4', "printer.toml"),

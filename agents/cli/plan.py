@@ -17,13 +17,14 @@ G2/G3 arcs the job has) and ``arcs_note`` (how they are cut: Klipper's ``[gcode_
 under Klipper's reading, else chords within 0.01 mm; null without arcs), ``extruder_alone_note``
 (read as Klipper reads it: that the job's retractions, moves of the extruder alone, are planned at the
 toolhead's acceleration and speed since the printer gives no max_extrude_only_accel / _velocity; else
-null), ``klipper_refusals`` (read as Klipper reads it, the moves its extruder refuses, each
-{``line``, ``kind``: ``too_wide`` | ``too_long``, ``value``, ``limit``}: filament per mm of path
-against max_extrude_cross_section's, or mm of filament moved alone against
-max_extrude_only_distance; Klipper stops the print at the first) and ``klipper_refusals_note``
-(that in words, or null), ``flavor_note`` (a job sliced for another firmware than the printer's: its
-limit lines that firmware reads in other units — M203 in mm/min on RepRapFirmware, mm/s elsewhere —
-or not at all — M566 on Marlin —, in words; else null), ``print_time_s``,
+null), ``klipper_refusals`` (read as Klipper reads it, the moves it refuses, each
+{``line``, ``kind``: ``out_of_range_x`` | ``out_of_range_y`` | ``too_wide`` | ``too_long``, ``value``,
+``limit``}: where the move ends against stepper_x's / stepper_y's position_min or position_max
+(``[limits] travel_x`` / ``travel_y``), filament per mm of path against max_extrude_cross_section's,
+or mm of filament moved alone against max_extrude_only_distance; Klipper stops the print at the
+first) and ``klipper_refusals_note`` (that in words, or null), ``flavor_note`` (a job sliced for
+another firmware than the printer's: its limit lines that firmware reads in other units — M203 in
+mm/min on RepRapFirmware, mm/s elsewhere — or not at all — M566 on Marlin —, in words; else null), ``print_time_s``,
 ``print_time``, ``moves``, ``extruding_moves``, ``lines``, ``path_length_mm``,
 ``time_by_feature`` ({feature: s}), ``feature_classes`` ({feature: the class it is judged as}),
 ``junction_reason`` (why that junction rule, in words),
