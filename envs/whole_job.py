@@ -18,7 +18,7 @@ from ringtune.envs.metrics import Metrics
 from ringtune.envs.planned_job import PlannedJob, planned_job, resolve_printer
 from ringtune.envs.sim import simulate_batch
 from ringtune.envs.window_dedup import distinct, moved
-from ringtune.envs.windows import auto_settle, corner_tail, metrics_of, slowest_tau, window_metrics, window_runs
+from ringtune.envs.windows import auto_settle, corner_tail, slowest_tau, window_metrics, window_runs
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.seams import SEAM_ORDER, seam_candidates
@@ -86,14 +86,12 @@ def whole_job_metrics(config: TuneConfig, printer=None, job=None, *, span: float
 def _simulated(printer, pj: PlannedJob, windows: list[Window], config: TuneConfig, settle: float, backend: str,
                timestep: float | None = None) -> Metrics:
     """The metrics of ``windows`` of planned job ``pj``, each shaped with ``settle`` s of history
-    and simulated from rest (:func:`ringtune.envs.windows.window_runs`, ``metrics_of``); on the
+    and simulated from rest (:func:`ringtune.envs.windows.window_runs`, ``window_metrics``); on the
     exact linear model a window that repeats another's motion is simulated once
     (:mod:`ringtune.envs.window_dedup`)."""
     runs = window_runs(PlannedJob(pj.plan, windows), config, settle, corner_tail(printer))
-    if backend != "lti":
-        sims = simulate_batch(printer, [r.shaped for r in runs], backend=backend, initial="static", timestep=timestep)
-        return metrics_of(runs, sims, pj.print_time)
-    firsts, of = distinct(runs)             # the linear model does not depend on where the head is
+    every = list(range(len(runs)))
+    firsts, of = distinct(runs) if backend == "lti" else (every, every)    # lti: the same wherever the head is
     sims = simulate_batch(printer, [runs[i].shaped for i in firsts], backend=backend, initial="static",
                           timestep=timestep)
     own = [window_metrics(runs[i], sim) for i, sim in zip(firsts, sims)]
