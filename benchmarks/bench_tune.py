@@ -75,6 +75,7 @@ def main() -> int:
           f"load average {os.getloadavg()[0]:.1f} at the end (other work shares the cores); CPU time of the "
           f"command and its workers {cpu:.1f} s (÷ {os.cpu_count()} = {cpu / os.cpu_count():.1f} s: the wall time on idle cores if "
           "both stayed busy)")
+    print(f"  {_steps(res)}")
     vs = res.get("versus", {}).get("klipper")
     if vs:
         print(f"  chosen ({res['chosen']['chosen_by']}) against Klipper's pick, same simulation: "
@@ -145,7 +146,18 @@ def _job_run(args, builtin_wall: float) -> int:
           f"in this run; CPU time of the command and its workers {cpu:.1f} s (÷ {cores} = {cpu / cores:.1f} s: the "
           f"wall time if every core stayed busy; the rest, {wall - cpu / cores:.1f} s, is a core waiting); "
           f"per feature: {pf.get('accel') or 'off'}")
+    print(f"  {_steps(res)}")
     return 0
+
+
+def _steps(res: dict) -> str:
+    """Each step's wall-clock seconds, as tune measured them (``timings_s`` of its ``--json``)."""
+    laps = res.get("timings_s") or {}
+    parts = laps.get("refine_parts") or {}
+    top = ", ".join(f"{k.removesuffix('_s')} {v:.1f}" for k, v in laps.items() if k != "refine_parts")
+    inner = ", ".join(f"{k.removesuffix('_s')} {v:.1f}" for k, v in parts.items())
+    return f"steps (s, tune's own clock, of its {res.get('elapsed_s', float('nan')):.1f} s): {top}" + (
+        f"; after the study: {inner}" if inner else "")
 
 
 def _children_cpu() -> float:

@@ -63,9 +63,17 @@ def fake_evaluator(monkeypatch):
 @pytest.mark.slow
 def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evaluator):
     out = tmp_path / "out"
+    t0 = time.time()
     rc = main(["tune", "--json", "--out", str(out), "--trials", "10", "--evaluator", fake_evaluator])
+    wall = time.time() - t0
     assert rc == 0
     res = json.loads(capsys.readouterr().out)
+    # each step's wall-clock time: the steps cover the whole run, which the clock around it holds
+    laps = res["timings_s"]
+    assert set(laps) == {"setup_s", "study_s", "choice_s", "refine_s", "report_s", "refine_parts"}
+    assert sum(v for k, v in laps.items() if k != "refine_parts") == pytest.approx(res["elapsed_s"], abs=0.01)
+    assert 0 < res["elapsed_s"] <= wall and min(v for k, v in laps.items() if k != "refine_parts") >= 0
+    assert laps["study_s"] > 0 and sum(laps["refine_parts"].values()) <= laps["refine_s"] + 0.01
     for name in ("README.txt", "summary.txt", "pareto.png", "best.json", "apply.txt", "front.csv", "trials.csv"):
         assert (out / name).is_file() and (out / name).stat().st_size > 0, name
     assert (out / "pareto.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -82,7 +90,8 @@ def test_tune_writes_the_output_folder_and_resumes(tmp_path, capsys, fake_evalua
                         "judged_on", "max_show_through_mm", "freq_margin", "refined", "resolution", "chosen",
                         "baselines", "vs_baselines",
                         "versus", "stop", "shaper_ladder", "hidden_raise", "per_feature", "dominates_klipper", "dominates_current", "accel", "job_accel",
-                        "plot_arrows", "files", "storage", "study", "completed_now", "interrupted", "elapsed_s"}
+                        "plot_arrows", "files", "storage", "study", "completed_now", "interrupted", "elapsed_s",
+                        "timings_s"}
     assert set(res["chosen"]) == {"config", "print_time_s", "quality_mm", "path_error_mm", "overshoot_mm",
                                   "motor_load", "measures", "chosen_by", "against", "held_to", "why", "rewrite_jobs"}
     assert set(res["accel"]) == {"range", "searched", "basis", "chosen", "stopped_by", "headroom", "defaults",

@@ -42,7 +42,9 @@ judged_on (where the measures are taken: the job's quality windows, in words), p
 files {readme, summary, plot, best, apply, front, trials, job (with --gcode: the rewritten job)},
 job_gcode (with --gcode, where the file was written:
 {path, lines_inserted, print_time_as_sliced_s, print_time_s (as the printer runs the file), first_layer_kept_mm_s2}),
-storage, study, completed_now, interrupted, elapsed_s.
+storage, study, completed_now, interrupted, elapsed_s, timings_s (wall-clock s of each step, summing to
+elapsed_s: setup_s, study_s, choice_s, refine_s, report_s, and refine_parts {wider_check_s,
+shaper_ladder_s, measured_stop_s, walk_s, seam_check_s: those that ran}).
 """
 
 from __future__ import annotations

@@ -45,16 +45,25 @@ from ringtune.shaping.feature_settings import sets_corner
 
 
 def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySettings, printer, space: SearchSpace,
-           bounds: Bounds, note: Callable[[str], None] = lambda s: None, runners_up: Sequence[Point] = ()
-           ) -> tuple[Choice, Stop | None, Raise | None, Ladder | None]:
+           bounds: Bounds, note: Callable[[str], None] = lambda s: None, runners_up: Sequence[Point] = (),
+           laps: dict | None = None) -> tuple[Choice, Stop | None, Raise | None, Ladder | None]:
     """(the choice, the measured stop or None, the raise where nobody looks or None, the shaper
     ladder or None): a choice held to baselines climbs the ladder and takes the measured stop; then,
     searching per feature, the raise, held to the same baselines and to the choice it starts from
     (or, where the choice is held to none: ``--no-baselines``, ``--pick knee``, to that alone).
     ``evaluator``: the study's (``f(configs, printer, job, **kwargs)``); ``bounds``: the study's;
-    ``note``: one progress line as each walk starts and ends (they take a while on a long job)."""
+    ``note``: one progress line as each walk starts and ends (they take a while on a long job);
+    ``laps``: filled with the wall-clock seconds of each step (``wider_check_s``, ``shaper_ladder_s``,
+    ``measured_stop_s``, ``walk_s``, ``seam_check_s``; those that ran)."""
     evaluate, exact = _evaluators(evaluator, settings, printer)
     t0 = time.monotonic()
+    laps = {} if laps is None else laps
+    last = [t0]
+
+    def lap(name: str) -> None:
+        now = time.monotonic()
+        laps[name] = now - last[0]
+        last[0] = now
 
     # the wider printers' simulations, shared by the four checks below (each baseline simulated once)
     on = (study_evaluate_on(settings.job, evaluator_kwargs(settings), printer)
@@ -82,6 +91,7 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
             choice = dataclasses.replace(choice, point=start, sentence=(
                 f"{choice.sentence}; but that is worse on a printer further off the model "
                 f"({failure_words(off, names.get(off.baseline, off.baseline))}), so the choice starts from {then}"))
+        lap("wider_check_s")
         step("climbing the shapers of Klipper's rule's table ...")
         before = choice
         ladder = climb(choice.point, bases, evaluate, space, bounds, bl.fits, max_evaluations=settings.n_trials,
@@ -91,9 +101,11 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
                 f"{choice.sentence}; then, climbing the shapers of Klipper's rule's table, "
                 f"{shaping_text(ladder.point.config)} at {ladder.point.config.accel:.0f} mm/s², every visible "
                 f"measure still no worse"))
+        lap("shaper_ladder_s")
         step(f"{ladder.evaluations} judged; the measured stop, stepping the acceleration up ...")
         stop = measured_stop(choice.point, bases, evaluate, space, bounds, labels=names,
                              wider=widen(bases, choice.point))
+        lap("measured_stop_s")
         if stop.moved:
             choice = dataclasses.replace(choice, point=stop.point, sentence=(
                 f"{choice.sentence}; then stepped up by the measured stop from {stop.start.config.accel:.0f} to "
@@ -112,6 +124,7 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
         lift = raise_hidden(choice.point, walk_bases, evaluate, space, bounds, max_evaluations=settings.n_trials,
                             keep_unset=sets_corner(resolve_job(settings.job)[1]),
                             screen=exact, wider=widen(walk_bases, choice.point))
+        lap("walk_s")
         step(f"done ({lift.evaluations} judged, {lift.screened} screened)")
         if lift.moved:
             held = ("than the baseline's or the choice's own before" if choice.baseline is not None
@@ -123,6 +136,7 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
             step("every seam of what a person sees, the walk's end against its start ...")
             lift.seams = check_seams(lift.start, lift.point, walk_bases, evaluate, bounds, printer, settings.job,
                                      job_accel=evaluator_kwargs(settings)["job_accel"])
+            lap("seam_check_s")
             step(f"done ({lift.seams.seams} seams, {lift.seams.simulated} configurations)")
             if lift.seams.point is not lift.point:
                 choice = dataclasses.replace(choice, point=lift.seams.point, sentence=(

@@ -20,6 +20,7 @@ from ringtune.agents.tune.motor_bound import top_speed_load_note
 from ringtune.agents.tune.out_dir import check_out, remove_if_empty
 from ringtune.agents.tune.choice import BASELINE_NAMES, pick, runners_up
 from ringtune.agents.tune.hidden_raise import unseen_tops
+from ringtune.agents.tune.laps import Laps
 from ringtune.agents.tune.pareto import VISIBLE_KEYS
 from ringtune.agents.tune.readme_text import readme_text
 from ringtune.agents.tune.hardware_cap import held_to_ceiling
@@ -58,6 +59,7 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     from then on); ``progress``: ``progress(quality, max_pe, reserve, space)`` gives an object with
     ``update(done, total, study)`` and ``close()``."""
     t_start = time.time()
+    laps = Laps(t_start)
     if req.firmware is not None:
         Firmware.named(req.firmware, "--firmware")
     lim = check_request(req)
@@ -73,8 +75,10 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     facts = job_accel_facts(printer, req.gcode, req.job_accel, fw.name)
     configs = None if req.no_baselines else baseline_configs(printer, fw.name, note=note)
     space, floor_note, why = _space(req, lim, fw.name, printer, facts, note, configs)
+    laps.lap("setup_s")
     run_, settings, evaluator, bl, store = _study(req, lim, fw.name, printer, space, quality, out_dir, note,
                                                   release, progress, configs)
+    laps.lap("study_s")
     baselines = bl.points
     points = study_points(run_.study, space, quality, lim.max_pe, lim.reserve, lim.max_st)
     unsplit = sum(not p.variants and not p.screened for p in points)
@@ -84,6 +88,7 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
              "the variants alone")
     front = pareto.pareto_front(points, also=_also(points, quality))
     choice = pick(front, baselines, lim.how, req.weight, candidates=points, why_none=unshaped_modes_note(printer, space))
+    laps.lap("choice_s")
     if req.no_refine:
         stop = lift = ladder = None
         choice = dataclasses.replace(choice, sentence=(f"{choice.sentence}; taken as the study left it "
@@ -92,15 +97,17 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     else:
         bounds = Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st)
         choice, stop, lift, ladder = refine(choice, bl, evaluator, settings, printer, space, bounds, note,
-                                            runners_up(choice, points, baselines))
+                                            runners_up(choice, points, baselines), laps=laps.parts)
+    laps.lap("refine_s")
     result, text, accel_json, ja_json = _report(req, lim, fw, printer, facts, space, quality, points, front, choice,
                                                 (stop, lift, ladder), bl, settings, floor_note, why, out_dir, store, note)
     result.update({"stop": stop.to_dict() if stop else None,
                    "shaper_ladder": ladder.to_dict() if ladder else None, "hidden_raise": lift.to_dict() if lift else None,
                    "freq_margin": lim.margin, "refined": not req.no_refine,
                    "accel": accel_json, "job_accel": ja_json, "storage": store,
-                   "study": req.study, "completed_now": run_.completed_now, "interrupted": run_.interrupted,
-                   "elapsed_s": time.time() - t_start})
+                   "study": req.study, "completed_now": run_.completed_now, "interrupted": run_.interrupted})
+    laps.lap("report_s")
+    result.update({"timings_s": laps.to_dict(), "elapsed_s": laps.last - t_start})
     lines = [text.rstrip("\n"), "", f"Results in {out_dir}/ — open {out_dir / 'README.txt'} first."]
     if run_.interrupted:
         lines.append(f"Interrupted after {run_.completed_before + run_.completed_now} complete trials; "
