@@ -111,6 +111,7 @@ class _Reader(SettingCommands, MotionCommands):
         self.resolution = arc_resolution        # the firmware's segments (arcs.arc_resolution; None: tolerance chords)
         self.n_arcs = 0
         self.refused_arcs: list[int] = []        # lines of arcs Klipper refuses (by R, or in relative mode)
+        self.position_events: list[tuple] = []    # Job.position_events
         self.pos = [0.0, 0.0, 0.0, 0.0]         # machine position x y z e
         self.offset = [0.0, 0.0, 0.0, 0.0]      # logical = machine - offset
         self.abs_xyz = True
@@ -303,6 +304,8 @@ class _Reader(SettingCommands, MotionCommands):
         elif cmd in MODE_COMMANDS:
             for attr, value in MODE_COMMANDS[cmd].items():
                 setattr(self, attr, value)
+            if "abs_xyz" in MODE_COMMANDS[cmd]:
+                self.position_events.append((lineno, "abs" if self.abs_xyz else "rel", (0, 1)))
         elif cmd in self._HANDLERS:
             self._HANDLERS[cmd](self, cmd, self._words(rest, lineno), lineno, code)
         elif cmd in LIMIT_COMMANDS or cmd in SHAPER_COMMANDS:
@@ -377,6 +380,7 @@ class _Reader(SettingCommands, MotionCommands):
             limited=self.limited,
             fw_retractions=retractions,
             arcs=(self.n_arcs, self.resolution, tuple(self.refused_arcs)),
+            position_events=self.position_events,
         )
 
 

@@ -53,6 +53,7 @@ class MotionCommands:
             if ax in words:
                 v = 0.0 if math.isnan(words[ax]) else words[ax] * self.unit
                 self.offset[i] = self.pos[i] - v
+        self.position_events.append((lineno, "set", tuple(i for i in (0, 1) if AXES[i] in words)))
 
     def _home(self, cmd: str, words: dict, lineno: int, code: str) -> None:
         """G28: the named axes (all without words) to 0, offsets cleared; the planner stops."""
@@ -61,6 +62,7 @@ class MotionCommands:
         for i in named or (0, 1, 2):
             self.pos[i] = 0.0
             self.offset[i] = 0.0
+        self.position_events.append((lineno, "home", tuple(i for i in (named or (0, 1, 2)) if i < 2)))
         self.stop = True
         self._event("other", cmd, words, lineno, code)
 

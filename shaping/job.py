@@ -98,6 +98,10 @@ class Job:
     n_lines: int = 0
     arc_tolerance: float = 0.01
     limited: tuple | None = None      # (Hz, method, min speed factor) of a ``ringtune limit`` header
+    #: (line, kind, axes) of what makes the reader's X/Y position the firmware's or not, in file order:
+    #: ``home`` (G28: the firmware is at its endstop, the reader at 0), ``set`` (G92), ``abs`` / ``rel``
+    #: (G90 / G91); axes: indices 0 (X) and 1 (Y) it names (:func:`ringtune.shaping.klipper_refusals.known_xy`)
+    position_events: list = field(default_factory=list)
     #: the firmware retractions that move E, in file order; the planner adds their E-only moves
     #: where the retraction settings are known (:func:`ringtune.shaping.firmware_retraction.with_firmware_retractions`)
     fw_retractions: list = field(default_factory=list)

@@ -13,16 +13,65 @@ import numpy as np
 from ringtune.shaping.extruder_alone import e_capped
 
 
+def known_xy(job) -> np.ndarray:
+    """(n, 2) where each move's X / Y end is where the firmware puts it: after a move in absolute
+    mode that moves the axis, unless a G28 (the firmware at its endstop, the reader at 0) or a G92
+    of the axis while its position was not known stands between (``Job.position_events``). A job's
+    first moves before any such move are not known either (the head is where it was)."""
+    n = len(job.line)
+    out = np.zeros((n, 2), bool)
+    events = sorted(getattr(job, "position_events", ()) or ())
+    bounds = [0, *np.searchsorted(job.line, [line for line, _k, _a in events], side="left"), n]
+    known, offset_known, absolute = [False, False], [True, True], True
+    for s in range(len(bounds) - 1):
+        if s:
+            absolute = _after(events[s - 1], known, offset_known, absolute)
+        for i in (0, 1):
+            _segment(job, slice(bounds[s], bounds[s + 1]), i, known, offset_known, absolute, out)
+    return out
+
+
+def _home(known: list, offset_known: list, i: int) -> None:
+    known[i], offset_known[i] = False, True
+
+
+def _set(known: list, offset_known: list, i: int) -> None:
+    offset_known[i] = known[i]
+
+
+#: what a position event does to an axis it names: G28 homes it, G92 keeps its offset known only if
+#: its position was
+_ON_AXIS = {"home": _home, "set": _set}
+
+
+def _after(event: tuple, known: list, offset_known: list, absolute: bool) -> bool:
+    """Apply one position event; whether moves are absolute after it."""
+    _line, kind, axes = event
+    for i in axes:
+        _ON_AXIS.get(kind, lambda *_: None)(known, offset_known, i)
+    return {"abs": True, "rel": False}.get(kind, absolute)
+
+
+def _segment(job, rows: slice, i: int, known: list, offset_known: list, absolute: bool, out: np.ndarray) -> None:
+    """Fill ``out[rows, i]`` for moves between two position events; ``known[i]`` as it ends."""
+    out[rows, i] = known[i]
+    moving = np.flatnonzero(job.end[rows, i] != job.start[rows, i]) if absolute else ()
+    if len(moving):
+        out[rows.start + moving[0]:rows.stop, i] = known[i] = offset_known[i]
+
+
 def out_of_range(job, limits) -> list[tuple[int, str, float, float]]:
     """(move index, ``out_of_range_x`` | ``out_of_range_y``, where the move ends, the bound it passes)
-    of the moves of ``job`` that end past ``limits.travel_x`` / ``travel_y`` on an axis they move."""
+    of the moves of ``job`` that end past ``limits.travel_x`` / ``travel_y`` on an axis they move,
+    where the end is known to be the firmware's (:func:`known_xy`: a G28 then relative moves
+    would be counted from 0, not from the endstop)."""
+    spans = [(i, ax, getattr(limits, f"travel_{ax}", None)) for i, ax in enumerate("xy")]
+    spans = [(i, ax, span) for i, ax, span in spans if span is not None]
+    known = known_xy(job) if spans else None
     out = []
-    for i, ax in enumerate("xy"):
-        span = getattr(limits, f"travel_{ax}", None)
-        if span is None:
-            continue
+    for i, ax, span in spans:
         end, moved = job.end[:, i], job.end[:, i] != job.start[:, i]
-        for k in np.flatnonzero(moved & ((end < span[0]) | (end > span[1]))):
+        for k in np.flatnonzero(known[:, i] & moved & ((end < span[0]) | (end > span[1]))):
             out.append((int(k), f"out_of_range_{ax}", float(end[k]), float(span[0] if end[k] < span[0] else span[1])))
     return out
 

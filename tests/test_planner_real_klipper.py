@@ -303,3 +303,21 @@ def test_the_moves_out_of_klippers_range_are_named(real_klipper, tmp_path, capsy
         (4, "out_of_range_x", 240.0, 235.0), (7, "out_of_range_y", -1.0, 0.0)]
     assert "line 4 moves X to 240.000 mm, past stepper_x's position_max 235 mm" in out["klipper_refusals_note"]
     assert "line 7 moves Y to -1.000 mm, past stepper_y's position_min 0 mm" in out["klipper_refusals_note"]
+
+
+def test_a_move_from_where_the_reader_cannot_know_the_head_is_not_named(real_klipper, tmp_path, capsys):
+    # Klipper puts the head at X 100 (as a G28 puts it at an endstop ringtune reads as 0); a relative
+    # move of −50 ends at 50 there, which Klipper takes — ringtune reads −50, unknown, and names
+    # nothing; the absolute move after it past position_max 235 both name
+    cfg = _cfg(tmp_path)
+    job = tmp_path / "unknown.gcode"
+    job.write_text("SET_KINEMATIC_POSITION X=100 Y=0 Z=0\nG91\nG1 X-50 F6000\nG90\nG1 X240 Y10\nG1 X0 Y0\n")
+    log = _klippy_log(real_klipper, cfg, job, check=False)
+    refused = [float(x) for x, _y in re.findall(r"Move out of range: ([-\d.]+) ([-\d.]+) [-\d.]+", log)]
+    assert refused == [240.0]
+    toml = tmp_path / "printer.toml"
+    assert main(["printer", "from-klipper", str(cfg), "-o", str(toml)]) == 0
+    capsys.readouterr()
+    assert main(["plan", str(job), "--printer", str(toml), "--json"]) == 0
+    found = json.loads(capsys.readouterr().out)["klipper_refusals"]
+    assert [(r["line"], r["kind"], r["value"]) for r in found] == [(5, "out_of_range_x", 240.0)]
