@@ -53,7 +53,9 @@ class MotionCommands:
             if ax in words:
                 v = 0.0 if math.isnan(words[ax]) else words[ax] * self.unit
                 self.offset[i] = self.pos[i] - v
-        self.position_events.append((lineno, "set", tuple(i for i in (0, 1) if AXES[i] in words)))
+        xy = tuple(i for i in (0, 1) if AXES[i] in words)
+        if xy:                                    # a G92 E0 (each layer, each retraction) leaves X/Y as they are
+            self.position_events.append((lineno, "set", xy))
 
     def _home(self, cmd: str, words: dict, lineno: int, code: str) -> None:
         """G28: the named axes (all without words) to 0, offsets cleared; the planner stops."""
