@@ -31,6 +31,7 @@ from typing import Callable, Sequence
 from ringtune.agents.tune.baselines import Baselines
 from ringtune.agents.tune.hidden_raise import Raise, raise_hidden
 from ringtune.agents.tune.choice import BASELINE_NAMES, Choice
+from ringtune.agents.tune.laps import Laps
 from ringtune.agents.tune.shaper_ladder import Ladder, climb, shaping_text
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution
 from ringtune.agents.tune.seam_check import check_seams
@@ -46,24 +47,18 @@ from ringtune.shaping.feature_settings import sets_corner
 
 def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySettings, printer, space: SearchSpace,
            bounds: Bounds, note: Callable[[str], None] = lambda s: None, runners_up: Sequence[Point] = (),
-           laps: dict | None = None) -> tuple[Choice, Stop | None, Raise | None, Ladder | None]:
+           laps: Laps | None = None) -> tuple[Choice, Stop | None, Raise | None, Ladder | None]:
     """(the choice, the measured stop or None, the raise where nobody looks or None, the shaper
     ladder or None): a choice held to baselines climbs the ladder and takes the measured stop; then,
     searching per feature, the raise, held to the same baselines and to the choice it starts from
     (or, where the choice is held to none: ``--no-baselines``, ``--pick knee``, to that alone).
     ``evaluator``: the study's (``f(configs, printer, job, **kwargs)``); ``bounds``: the study's;
     ``note``: one progress line as each walk starts and ends (they take a while on a long job);
-    ``laps``: filled with the wall-clock seconds of each step (``wider_check_s``, ``shaper_ladder_s``,
+    ``laps``: given the wall-clock seconds of each step (``wider_check_s``, ``shaper_ladder_s``,
     ``measured_stop_s``, ``walk_s``, ``seam_check_s``; those that ran)."""
     evaluate, exact = _evaluators(evaluator, settings, printer)
     t0 = time.monotonic()
-    laps = {} if laps is None else laps
-    last = [t0]
-
-    def lap(name: str) -> None:
-        now = time.monotonic()
-        laps[name] = now - last[0]
-        last[0] = now
+    lap = (laps or Laps()).lap
 
     # the wider printers' simulations, shared by the four checks below (each baseline simulated once)
     on = (study_evaluate_on(settings.job, evaluator_kwargs(settings), printer)

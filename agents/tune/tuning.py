@@ -97,7 +97,7 @@ def tune(req: TuneRequest, note: Callable[[str], None] = lambda s: None, release
     else:
         bounds = Bounds(lim.max_pe, pareto.max_motor_load(lim.reserve), lim.max_st)
         choice, stop, lift, ladder = refine(choice, bl, evaluator, settings, printer, space, bounds, note,
-                                            runners_up(choice, points, baselines), laps=laps.parts)
+                                            runners_up(choice, points, baselines), laps=laps.parts())
     laps.lap("refine_s")
     result, text, accel_json, ja_json = _report(req, lim, fw, printer, facts, space, quality, points, front, choice,
                                                 (stop, lift, ladder), bl, settings, floor_note, why, out_dir, store, note)
