@@ -37,7 +37,7 @@ def with_plan_load(metrics: Metrics, printer, pj: PlannedJob) -> Metrics:
     key = repr((printer.moving_mass("x"), printer.moving_mass("y"), printer.drive_motors()))
     cached = getattr(pj, "_plan_load", None)
     if cached is None or cached[0] != key:
-        cached = (key, plan_load(printer, pj.plan.motion))
+        cached = (key, plan_load(printer, pj.plan.xy_kinematics()))
         pj._plan_load = cached  # type: ignore[attr-defined]
     load = cached[1]
     moves = pj.plan.moves

@@ -47,7 +47,9 @@ def segment_loads(printer: Any, motion: Any) -> np.ndarray:
 
 
 def plan_load(printer: Any, motion: Any) -> PlanLoad:
-    """The largest :func:`segment_loads` over the whole motion and where it is."""
+    """The largest :func:`segment_loads` over the whole motion and where it is (``motion``: a
+    Motion, or anything with its ``t``, ``v``, ``a`` (x, y first) and ``move``, such as
+    :meth:`ringtune.shaping.plan_result.Plan.xy_kinematics`)."""
     per = _per_motor(printer, motion)
     if per.size == 0:
         return PlanLoad(0.0, "", float("nan"), -1)

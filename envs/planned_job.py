@@ -53,7 +53,7 @@ REFERENCE_FREE = (*JOB_ACCEL_SETTINGS, "square_corner_velocity", "junction_devia
 class PlannedJob:
     """A planned job and its quality windows (cached)."""
 
-    plan: Any                 # shaping.planner.Plan
+    plan: Any                 # shaping.plan_result.Plan
     windows: list             # [Window(t0, t1, kind, score)]
 
     @property
@@ -79,11 +79,8 @@ def _remember(cache: OrderedDict, key, value):
 
 
 def _nbytes(value) -> int:
-    """Bytes of the arrays of a cached planned job (its motion and move table; 0 for a window list)."""
-    plan = getattr(value, "plan", None)
-    parts = [getattr(plan, "motion", None), getattr(plan, "moves", None)]
-    return sum(a.nbytes for part in parts if part is not None and hasattr(part, "__dict__")
-               for a in vars(part).values() if isinstance(a, np.ndarray))
+    """Bytes of the arrays of a cached planned job (:attr:`Plan.nbytes`; 0 for a window list)."""
+    return int(getattr(getattr(value, "plan", None), "nbytes", 0))
 
 
 def clear_cache() -> None:

@@ -118,7 +118,7 @@ def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN,
     (:func:`ringtune.shaping.job_shapers.shaper_timeline`); each window is shaped with the
     shapers in force at its start (``simulate``; ``tune`` judges the configuration's own)."""
     timeline = shaper_timeline(pj.plan.events, config) if job_shapers else [(-math.inf, config)]
-    motion = pj.motion
+    plan = pj.plan
     seen = job_seen_classes(pj.plan)
     runs = []
     for w in pj.windows:
@@ -127,13 +127,13 @@ def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN,
         active = any(s is not None for s in shapers.values())
         duration, lag, after, before = shaper_timing(shapers, centred)
         a, b = w.t0 - duration - settle, w.t1 + duration
-        lo, hi = max(a - duration, motion.start_time), min(b + duration, motion.end_time)
+        lo, hi = max(a - duration, plan.start_time), min(b + duration, plan.end_time)
         if hi - lo <= 1e-9:
             continue
-        raw = motion.window(lo, hi)
+        raw = plan.motion_window(lo, hi)
         shaped = shape_motion(raw, shapers, centred) if active else raw
         a, b = max(a, shaped.start_time), min(b, shaped.end_time)
-        path = motion.window(max(a, lo), min(b, hi))
+        path = plan.motion_window(max(a, lo), min(b, hi))
         e_cmd, synced = _extruder(raw, shapers, centred, cfg)
         runs.append(WindowRun(w.t0, w.t1, shaped.window(a, b), path, lag, after, before,
                               segment_classes(pj, path), e_cmd, synced, tail, seen))

@@ -40,7 +40,8 @@ from ringtune.shaping.firmware_retraction import with_firmware_retractions, with
 from ringtune.shaping.freqlimit import apply_freq_limit
 from ringtune.shaping.job import Job
 from ringtune.shaping.job_shapers import with_firmware_shaper_stops
-from ringtune.shaping.planner import MachineLimits, Plan, plan
+from ringtune.shaping.plan_result import Plan
+from ringtune.shaping.planner import MachineLimits, plan
 from ringtune.shaping.prusa_limits import hardware_limits, job_model
 
 #: how a config's acceleration meets the job's own acceleration commands (module docstring)

@@ -45,7 +45,7 @@ stop at zero).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -58,9 +58,10 @@ from ringtune.shaping.klipper_reading import klipper_rests
 from ringtune.shaping.lookahead import (axis_caps, backward_pass, corexy_speed_cap, daa_adjust, extruder_alone,
                                         forward_pass, jerk_setting, job_value, junction_limits, kinematic_accel,
                                         klipper_smoothing, marlin_retractions, move_accels, scale_by_axes)
-from ringtune.shaping.motion import Motion
+from ringtune.shaping.plan_result import MoveTable, Plan
+from ringtune.shaping.plan_segments import PlanSegments
 
-__all__ = ["MachineLimits", "MoveTable", "Plan", "plan", "limits_from_job", "guess_junction", "JUNCTIONS",
+__all__ = ["MachineLimits", "plan", "limits_from_job", "guess_junction", "JUNCTIONS",
            "AXIS_RULES"]
 
 JUNCTIONS = ("scv", "jd", "jerk")
@@ -228,50 +229,6 @@ _LIMIT_CHECKS = (
 )
 
 
-@dataclass
-class MoveTable:
-    """Per planned move: source line, geometry, speeds (mm/s), accelerations (mm/s²) and times (s)."""
-
-    line: np.ndarray
-    start: np.ndarray
-    end: np.ndarray
-    length: np.ndarray
-    feed: np.ndarray          # requested speed
-    v_nominal: np.ndarray     # after velocity limits
-    v_entry: np.ndarray
-    v_cruise: np.ndarray
-    v_exit: np.ndarray
-    accel: np.ndarray         # acceleration phase
-    decel: np.ndarray         # deceleration phase (differs from accel only under DAA)
-    t_start: np.ndarray       # when the move starts moving
-    duration: np.ndarray
-    feature: np.ndarray
-    extruding: np.ndarray
-    features: list = field(default_factory=list)
-
-    def __len__(self) -> int:
-        return len(self.line)
-
-
-@dataclass
-class Plan:
-    motion: Motion
-    moves: MoveTable
-    print_time: float
-    events: list
-    limits: MachineLimits | None = None
-
-    def time_by_feature(self) -> dict[str, float]:
-        """Seconds of motion per slicer feature (dwells are not counted)."""
-        out: dict[str, float] = {}
-        sums = np.bincount(self.moves.feature, weights=self.moves.duration,
-                           minlength=len(self.moves.features))
-        for name, s in zip(self.moves.features, sums):
-            if s > 0:
-                out[name] = float(s)
-        return out
-
-
 # -- the planner ---------------------------------------------------------------------------------
 
 def _held(caps: np.ndarray, ceiling: tuple | None) -> np.ndarray:
@@ -402,18 +359,11 @@ def _build(job, limits, start2, end2, cruise2, acc, dec, d, u, vmax, extruding) 
     dist0 = np.stack([np.zeros(n), np.zeros(n), d_acc, d_acc + d_cr], axis=1)
     speed0 = np.stack([np.zeros(n), s, c, c], axis=1)
     acc_sg = np.stack([np.zeros(n), acc, np.zeros(n), -dec], axis=1)
-    # the segments that last, in order: flat index 4·move + kind (np.take: a gather of rows ten
-    # times faster than fancy indexing, the same values)
+    # the segments that last, in order: flat index 4·move + kind; their states are built where
+    # asked (PlanSegments: a trial reads a few windows of a long job)
     kept = np.flatnonzero(dur > 1e-12)
-    move_idx = kept >> 2
-    moving = (kept & 3) != 0
     t = np.concatenate(([0.0], np.cumsum(np.take(dur, kept))))
-    u_seg = np.take(u, move_idx, axis=0)
-    p = np.take(job.start, move_idx, axis=0) + u_seg * np.take(dist0, kept)[:, None]
-    v = u_seg * np.take(speed0, kept)[:, None]
-    a = u_seg * np.take(acc_sg, kept)[:, None]
-    ext = extruding[move_idx] & moving & (np.abs(v[:, 3]) + np.abs(a[:, 3]) > 0)
-    motion = Motion(t, p, v, a, ext, np.where(moving, move_idx, -1))
+    segments = PlanSegments.of(t, kept, job.start, u, dist0, speed0, acc_sg, extruding)
     # move start times (after its dwell)
     move_total = ((dur[:, 0] + dur[:, 1]) + dur[:, 2]) + dur[:, 3]      # dur.sum(axis=1), in its order, faster
     t_move0 = np.concatenate(([0.0], np.cumsum(move_total)[:-1])) + dwell
@@ -428,7 +378,7 @@ def _build(job, limits, start2, end2, cruise2, acc, dec, d, u, vmax, extruding) 
         events.append(replace(ev, time=tt))
     table = MoveTable(job.line, job.start, job.end, d, job.feed, vmax, s, c, e, acc, dec,
                       t_move0, duration, job.feature, extruding, list(job.features))
-    return Plan(motion, table, print_time, events, limits)
+    return Plan(segments, table, print_time, events, limits)
 
 
 #: job header settings that set MachineLimits fields: (job's setting, field, 0 allowed)

@@ -147,8 +147,8 @@ def _corner_candidates(plan, tau: float = 0.02):
         return np.zeros(0), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.int64)
     idx = by_geometry("corners", (mv.start, mv.end), (), lambda: _corner_moves(mv))
     tj = mv.t_start[idx + 1]
-    vb = plan.motion.velocity(tj - tau)[:, :2]
-    va = plan.motion.velocity(tj + tau)[:, :2]
+    vb = plan.velocity(tj - tau)[:, :2]
+    va = plan.velocity(tj + tau)[:, :2]
     score = np.linalg.norm(va - vb, axis=1)
     return tj, score, mv.line[idx + 1], idx + 1
 
@@ -290,12 +290,12 @@ def quality_windows(plan, max_windows: int = 8, span: float = 0.25, seams: int =
     seams of visible classes (:data:`SEAM_WINDOWS`; each the one whose neighbouring motion runs
     fastest). Sorted by start time; ``kind`` is ``corner``, ``zigzag``, ``seam-in`` or
     ``seam-out``, ``feature`` the class there."""
-    duration = plan.motion.end_time
+    duration = plan.end_time
     span = min(span, duration)
     cands = _candidates(plan, span)
     cursor = dict.fromkeys(cands, 0)
     chosen: list[Window] = []
-    lo_t, hi_t = plan.motion.start_time, duration - span
+    lo_t, hi_t = plan.start_time, duration - span
 
     def take(kind: str, quota: int) -> int:
         t0s, scores, lines, classes, order = cands[kind]
@@ -349,9 +349,9 @@ def relocate_windows(plan, reference: list[Window], span: float = 0.25) -> list[
     and the cost then jumps by ~10 % between neighbouring accelerations; comparing configurations
     on the same corners keeps the objective smooth. A line ``plan`` lacks as a candidate takes the
     candidate of that kind on the nearest line."""
-    duration = plan.motion.end_time
+    duration = plan.end_time
     span = min(span, duration)
-    lo_t, hi_t = plan.motion.start_time, duration - span
+    lo_t, hi_t = plan.start_time, duration - span
     c = _candidates(plan, span, order=False)
     corners = tuple(np.concatenate([c["seen-corner"][j], c["hidden-corner"][j]]) for j in range(4))
     cands = {"corner": corners, "zigzag": c["zigzag"][:4], **seam_candidates(plan, span)}

@@ -44,9 +44,15 @@ def rigid_sims(runs):
     return sims
 
 
+def motion_plan(motion):
+    """A stand-in for a planned job's plan made of one motion (what window_runs reads of it)."""
+    return SimpleNamespace(motion=motion, print_time=motion.duration, start_time=motion.start_time,
+                           end_time=motion.end_time, motion_window=motion.window)
+
+
 def run(config: TuneConfig, settle_override=None):
     motion, tc = trapezoid_square()
-    pj = PlannedJob(SimpleNamespace(motion=motion, print_time=motion.duration),
+    pj = PlannedJob(motion_plan(motion),
                     [SimpleNamespace(t0=tc - 0.1, t1=tc + 0.15, kind="corner")])
     runs = window_runs(pj, config, settle=0.02)
     if settle_override is not None:
@@ -99,7 +105,7 @@ def test_short_walls_are_straight_between_the_shaper_turns(firmware, shaper):
     """Walls shorter than the settling plus the next corner's anticipation still measure zero
     ringing on a rigid printer: the window ends where the shaped command starts the next turn."""
     motion = zigzag()
-    pj = PlannedJob(SimpleNamespace(motion=motion, print_time=motion.duration),
+    pj = PlannedJob(motion_plan(motion),
                     [SimpleNamespace(t0=0.04, t1=0.2, kind="zigzag")])
     cfg = TuneConfig(firmware=firmware, shaper_x=shaper, shaper_y=shaper, freq_x=70.0, freq_y=70.0)
     runs = window_runs(pj, cfg, settle=0.02)
