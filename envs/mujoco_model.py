@@ -127,7 +127,7 @@ def _body(sysm, i: int, name: str, y: float, rotor, grav: float, site: str) -> s
                 f'<inertial pos="0 0 0" mass="{sysm.mass[i]:.12g}" diaginertia="1e-6 1e-6 1e-6"/>'
                 f'<joint name="q_{name}" type="slide" axis="{_AXIS_DIRS[sysm.axis[i]]}" '
                 f'stiffness="{sysm.joint_stiffness[i]:.12g}" damping="{sysm.joint_damping[i]:.12g}"/>'
-                f'<geom type="box" size="5 5 5" contype="0" conaffinity="0"/>{site}</body>')
+                f'{site}</body>')
     rho = rotor.peak * rotor.scale / (rotor.mass * grav)
     inertia = rotor.mass * (rotor.scale ** 2 - rho ** 2)
     return (f'<body name="{name}" pos="0 {y:g} 0">'
