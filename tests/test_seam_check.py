@@ -12,7 +12,7 @@ from dataclasses import replace
 
 import pytest
 
-from ringtune.agents.tune.pareto import Point
+from ringtune.agents.tune.pareto import Point, metrics_dict
 from ringtune.agents.tune.seam_check import check_seams, seam_failure, taken_back
 from ringtune.agents.tune.stop import Bounds, evaluated
 from ringtune.envs.evaluate import evaluate_many
@@ -86,3 +86,15 @@ def test_the_check_finds_what_the_whole_job_shows_and_takes_back_what_holds_ther
     assert seam_failure(whole_job_metrics(kept, printer, job), whole_start) is None
     assert check.point.print_time_s < start.print_time_s
     assert "Every seam of what a person sees" in check.sentence() and "back as before the walk" in check.sentence()
+    # the outer wall's worst over the seams, said beside the quality windows': the seams are part of
+    # the whole job, so no seam is worse than the whole job's worst (within the history each is
+    # simulated with), and the windows' figure is what the walk's end was judged by
+    whole = metrics_dict(whole_walked)
+    assert set(check.worst) == {"outer_wall:ripple_mm", "outer_wall:corner_in_mm", "outer_wall:corner_out_mm"}
+    for key, got in check.worst.items():
+        assert got["walk_end"] <= whole[key] * 1.05 + 0.001, key
+        assert got["windows"] == end.metrics[key]
+    ripple = check.worst["outer_wall:ripple_mm"]
+    assert "The outer wall, worst over those seams" in check.sentence()
+    assert f"ripple {ripple['walk_end'] * 1000:.1f} / {ripple['walk_start'] * 1000:.1f} / " in check.sentence()
+    assert check.to_dict()["outer_wall_worst_mm"] == check.worst

@@ -37,7 +37,8 @@ job_accel {mode, commands, cap_mm_s2, searched, print_time_as_sliced_s, print_ti
 replaced_accel, saved_s}, per_feature (null when not searched, else {accel {visible|top_surface|
 hidden_walls|infill|solid_infill|travel: mm/s²}, ranges {group: {top_speed_mm_s, range, basis}}, corner, junction,
 min_cruise_ratio, why (why it was searched), ceiling_print_time_s, seam_check (null, or the walk's end
-judged at every seam of what is seen: {seams, held, taken_back, failure, print_time_s, simulated, sentence})}),
+judged at every seam of what is seen: {seams, held, taken_back, failure, print_time_s, simulated,
+outer_wall_worst_mm {figure: {walk_end, walk_start, windows}}, sentence})}),
 judged_on (where the measures are taken: the job's quality windows, in words), plot_arrows,
 files {readme, summary, plot, best, apply, front, trials, job (with --gcode: the rewritten job)},
 job_gcode (with --gcode, where the file was written:

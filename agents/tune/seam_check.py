@@ -20,7 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Sequence
 
-from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution, metrics_dict, verdict
+from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution, metrics_dict, shown, verdict, words
 from ringtune.agents.tune.stop import Bounds, Failure, evaluated, failure, failure_words
 from ringtune.agents.tune.versus import SHOWN
 from ringtune.envs.forked import split_map
@@ -31,12 +31,16 @@ from ringtune.shaping.config import TuneConfig
 TAKE_BACK = (("travel's acceleration", ("feature_accel",), "travel"),
              ("travel's corner rule", ("feature_corner", "feature_min_cruise_ratio"), "travel"),
              ("the inner walls' acceleration", ("feature_accel",), "inner_wall"))
+#: the outer wall's figures whose worst over every seam is reported beside the quality windows'
+SEAM_WORST = ("outer_wall:ripple_mm", "outer_wall:corner_in_mm", "outer_wall:corner_out_mm")
 
 
 @dataclass
 class SeamCheck:
     """The seams' verdict on the walk's end (``failure`` against its start, None: it held), what was
-    taken back (words), the choice after it, how many seams and configurations were simulated."""
+    taken back (words), the choice after it, how many seams and configurations were simulated, and
+    ``worst``: per figure of :data:`SEAM_WORST` (mm), its worst over every seam for the walk's end
+    and its start (exact model) and over the quality windows for the end (as judged)."""
 
     start: Point
     point: Point
@@ -44,22 +48,34 @@ class SeamCheck:
     failure: Failure | None = None
     taken_back: list = field(default_factory=list)
     simulated: int = 0
+    worst: dict = field(default_factory=dict)
 
     def sentence(self) -> str:
         head = (f"Every seam of what a person sees ({self.seams} windows, the exact linear model of the printer "
                 "as modelled) against the choice before the walk")
         if self.failure is None:
-            return f"{head}: no visible measure worse."
+            return f"{head}: no visible measure worse.{self._worst_words()}"
         why = failure_words(self.failure, "the choice before the walk")
         if self.point is self.start:
-            return f"{head}: {why}, so the walk is taken back ({self.start.print_time_s:.1f} s)."
+            return f"{head}: {why}, so the walk is taken back ({self.start.print_time_s:.1f} s).{self._worst_words()}"
         return (f"{head}: {why}, so {', '.join(self.taken_back)} back as before the walk, which holds there: "
-                f"{self.point.print_time_s:.1f} s.")
+                f"{self.point.print_time_s:.1f} s.{self._worst_words()}")
+
+    def _worst_words(self) -> str:
+        """The outer wall's worst over the seams against the quality windows' (where it was measured)."""
+        if not self.worst:
+            return ""
+        rows = "; ".join(f"{words(k)[0].removeprefix('outer wall ')} "
+                         + " / ".join(shown(k, w[s]).removesuffix(" µm") for s in ("walk_end", "walk_start", "windows"))
+                         + " µm" for k, w in self.worst.items())
+        return (" The outer wall, worst over those seams at the walk's end / before it, and over the quality "
+                f"windows as judged (the figures the choice is compared by): {rows}.")
 
     def to_dict(self) -> dict[str, Any]:
         return {"seams": self.seams, "held": self.failure is None, "taken_back": list(self.taken_back),
                 "failure": None if self.failure is None else self.failure._asdict(),
-                "print_time_s": self.point.print_time_s, "simulated": self.simulated, "sentence": self.sentence()}
+                "print_time_s": self.point.print_time_s, "simulated": self.simulated,
+                "outer_wall_worst_mm": self.worst, "sentence": self.sentence()}
 
 
 def seam_failure(mine, base, res: Resolution = DEFAULT_RESOLUTION) -> Failure | None:
@@ -72,6 +88,14 @@ def seam_failure(mine, base, res: Resolution = DEFAULT_RESOLUTION) -> Failure | 
         return None
     _ratio, k = max(worse)
     return Failure("measure", k, "choice", m[k], b[k])
+
+
+def seam_worst(mine, base, end: Point) -> dict[str, dict[str, float]]:
+    """Per figure of :data:`SEAM_WORST` present in all three: its worst (mm) over every seam for the
+    walk's end (``mine``) and start (``base``), and over the end's quality windows (as judged)."""
+    m, b, w = metrics_dict(mine), metrics_dict(base), end.metrics
+    return {k: {"walk_end": m[k], "walk_start": b[k], "windows": w[k]} for k in SEAM_WORST
+            if k in m and k in b and k in w}
 
 
 def taken_back(end: TuneConfig, start: TuneConfig) -> list[tuple[str, TuneConfig]]:
@@ -110,7 +134,7 @@ def check_seams(start: Point, end: Point, bases: dict[str, Point], evaluate: Cal
 
     base, mine = on_seams([start.config, end.config])
     seams = len(mine.details.get("windows", ()))         # each seam window's own figures
-    check = SeamCheck(start, end, seams, seam_failure(mine, base, res), simulated=2)
+    check = SeamCheck(start, end, seams, seam_failure(mine, base, res), simulated=2, worst=seam_worst(mine, base, end))
     if check.failure is None:
         return check
     steps = [(words, cfg) for words, cfg in taken_back(end.config, start.config) if cfg != start.config]
