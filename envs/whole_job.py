@@ -122,8 +122,8 @@ def seam_windows(plan, span: float = SEAM_SPAN_S) -> list[Window]:
     cands = seam_candidates(plan, span)
     t0 = np.sort(np.concatenate([cands[side][0][np.isin(cands[side][3], SEAM_ORDER)]
                                  for side in ("seam-in", "seam-out")]))
-    a = np.clip(t0, plan.motion.start_time, plan.motion.end_time)
-    b = np.clip(t0 + span, plan.motion.start_time, plan.motion.end_time)
+    a = np.clip(t0, plan.start_time, plan.end_time)
+    b = np.clip(t0 + span, plan.start_time, plan.end_time)
     a, b = a[b > a], b[b > a]
     if not len(a):
         return []
