@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ringtune.shaping.features import feature_class, seen_classes
+from ringtune.shaping.geometry_cache import by_geometry
 
 #: moves looked at on the other side of a seam (stopping at the visible class itself)
 REACH = 5
@@ -26,11 +27,14 @@ def label_classes(plan) -> np.ndarray:
     return np.array([feature_class(n) for n in plan.moves.features] or ["other"])
 
 
-def _present_classes(mv, names: np.ndarray) -> set[str]:
+def _present_classes(mv, names: np.ndarray) -> frozenset[str]:
     """The classes the moves have — their label's (``names``) where they extrude, ``travel``
-    where not — read from the labels the moves use, not from a string per move."""
-    out = set(names[np.unique(mv.feature[mv.extruding])].tolist())
-    return out | {"travel"} if not np.all(mv.extruding) else out
+    where not — read from the labels the moves use, not from a string per move; once per job
+    (the moves' ends and labels: every plan of a job has the same)."""
+    def compute() -> frozenset[str]:
+        out = set(names[np.unique(mv.feature[mv.extruding])].tolist())
+        return frozenset(out | {"travel"} if not np.all(mv.extruding) else out)
+    return by_geometry("present-classes", (mv.start, mv.end, mv.feature), tuple(names.tolist()), compute)
 
 
 def job_seen_classes(plan) -> frozenset:
@@ -40,6 +44,17 @@ def job_seen_classes(plan) -> frozenset:
     if mv is None or not len(mv):
         return seen_classes(())
     return seen_classes(_present_classes(mv, label_classes(plan)))
+
+
+def _seam_moves(mv, names: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(label, each move's class code in it, a visible run's first moves, their last moves): the
+    job's labels and geometry alone."""
+    # each move's class as a code (its index in ``label``): integers compare faster than strings
+    label = np.unique(np.append(names, "travel"))
+    cls = np.where(mv.extruding, np.searchsorted(label, names)[mv.feature], np.searchsorted(label, "travel"))
+    visible = np.isin(label, list(seen_classes(_present_classes(mv, names))))[cls]
+    change = cls[1:] != cls[:-1]
+    return label, cls, np.flatnonzero(visible[1:] & change) + 1, np.flatnonzero(visible[:-1] & change)
 
 
 def _peak_beside(cls: np.ndarray, v: np.ndarray, idx: np.ndarray, step: int) -> np.ndarray:
@@ -69,13 +84,8 @@ def seam_candidates(plan, span: float) -> dict[str, tuple]:
     empty = (np.zeros(0), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, dtype=names.dtype))
     if len(mv) < 2:
         return {"seam-in": empty, "seam-out": empty}
-    # each move's class as a code (its index in ``label``): integers compare faster than strings
-    label = np.unique(np.append(names, "travel"))
-    cls = np.where(mv.extruding, np.searchsorted(label, names)[mv.feature], np.searchsorted(label, "travel"))
-    visible = np.isin(label, list(seen_classes(_present_classes(mv, names))))[cls]
-    change = cls[1:] != cls[:-1]
-    first = np.flatnonzero(visible[1:] & change) + 1
-    last = np.flatnonzero(visible[:-1] & change)
+    label, cls, first, last = by_geometry("seam-moves", (mv.start, mv.end, mv.feature), tuple(names.tolist()),
+                                          lambda: _seam_moves(mv, names))
     t_end = mv.t_start + mv.duration
     return {
         "seam-in": (mv.t_start[first] - 0.2 * span, _peak_beside(cls, mv.v_cruise, first, -1),

@@ -12,7 +12,7 @@ import pytest
 
 from ringtune.envs.planned_job import resolve_job
 from ringtune.envs.printer import load_printer
-from ringtune.shaping import freqlimit, geometry_cache, testprints
+from ringtune.shaping import freqlimit, geometry_cache, seams, testprints
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.config_plan import plan_with_config
 
@@ -60,9 +60,9 @@ def part():
 
 def test_the_planners_copies_of_a_job_share_one_computation_with_the_values_computed_afresh(part, monkeypatch):
     limits = load_printer(None).limits
-    counted = {"wavelengths": 0, "corners": 0, "reversals": 0}
+    counted = {"wavelengths": 0, "corners": 0, "reversals": 0, "seams": 0}
     for name, mod, fn in (("wavelengths", freqlimit, "_path_wavelengths"), ("corners", testprints, "_corner_moves"),
-                          ("reversals", testprints, "_reversals")):
+                          ("reversals", testprints, "_reversals"), ("seams", seams, "_seam_moves")):
         orig = getattr(mod, fn)
 
         def wrapped(*a, _orig=orig, _name=name, **k):
@@ -76,13 +76,19 @@ def test_the_planners_copies_of_a_job_share_one_computation_with_the_values_comp
                          feature_accel={"infill": 2 * accel})
         plans.append(plan_with_config(part, limits, cfg).plan)
         testprints._candidates(plans[-1], 0.25)
+        seams.seam_candidates(plans[-1], 0.25)
     # three settings, three copies of the job: one computation of each
-    assert counted == {"wavelengths": 1, "corners": 1, "reversals": 1}
+    assert counted == {"wavelengths": 1, "corners": 1, "reversals": 1, "seams": 1}
     # the cached values are those computed afresh, on a copy with new arrays
     fresh = dataclasses.replace(part, start=part.start.copy(), end=part.end.copy(), feature=part.feature.copy(),
                                 stop_before=part.stop_before.copy())
     assert np.array_equal(freqlimit.path_wavelengths(fresh, "sections"), freqlimit.path_wavelengths(part, "sections"))
     assert counted["wavelengths"] == 2
     moves = dataclasses.replace(plans[0].moves, start=plans[0].moves.start.copy(), end=plans[0].moves.end.copy())
+    names = seams.label_classes(plans[0])
+    afresh = seams._seam_moves(moves, names)
+    cached = geometry_cache.by_geometry("seam-moves", (plans[0].moves.start, plans[0].moves.end, plans[0].moves.feature),
+                                        tuple(names.tolist()), lambda: None)
+    assert all(np.array_equal(a, b) for a, b in zip(afresh, cached)) and len(afresh[2]) > 100
     assert np.array_equal(testprints._corner_moves(moves), geometry_cache.by_geometry(
         "corners", (plans[0].moves.start, plans[0].moves.end), (), lambda: None))
