@@ -69,16 +69,17 @@ class PlanSegments:
         kept = self.kept[sel]
         return np.where((kept & 3) != 0, kept >> 2, -1)
 
-    def _rows(self, sel, xy_only: bool = False) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
-        """(p, v, a) of the segments ``sel`` (a slice or index array); ``xy_only``: (None, v, a)
-        of the x and y columns."""
+    def _rows(self, sel, columns: int = 4, position: bool = True) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
+        """(p, v, a) of the segments ``sel`` (a slice or index array), their first ``columns``
+        axes (x, y, z, e); p None without ``position``."""
         kept = self.kept[sel]
         move = kept >> 2
-        u_seg = np.take(self.u[:, :2] if xy_only else self.u, move, axis=0)
+        u, start = (self.u, self.start) if columns >= 4 else (self.u[:, :columns], self.start[:, :columns])
+        u_seg = np.take(u, move, axis=0)
         v, a = u_seg * np.take(self.speed0, kept)[:, None], u_seg * np.take(self.acc, kept)[:, None]
-        if xy_only:
+        if not position:
             return None, v, a
-        return np.take(self.start, move, axis=0) + u_seg * np.take(self.dist0, kept)[:, None], v, a
+        return np.take(start, move, axis=0) + u_seg * np.take(self.dist0, kept)[:, None], v, a
 
     def motion(self) -> Motion:
         """The whole motion."""
@@ -104,13 +105,13 @@ class PlanSegments:
         t = self.t
         tc = np.clip(times, t[0], t[-1])
         idx = np.clip(np.searchsorted(t, tc, side="right") - 1, 0, self.n_segments - 1)
-        _p, v, a = self._rows(idx)
+        _p, v, a = self._rows(idx, position=False)
         inside = (times >= t[0]) & (times <= t[-1])
         return (v + a * (tc - t[idx])[:, None]) * inside[:, None]
 
     def xy_kinematics(self) -> XYKinematics:
         """The x/y velocity and acceleration of every segment (what the motors' load reads)."""
-        _p, v, a = self._rows(slice(None), xy_only=True)
+        _p, v, a = self._rows(slice(None), columns=2, position=False)
         return XYKinematics(self.t, v, a, self.move)
 
     @property
