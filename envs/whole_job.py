@@ -3,7 +3,8 @@
 ``tune`` judges quality on a few windows of the job (:mod:`ringtune.envs.windows`): its sharpest
 corners, fastest zigzags and seams, chosen on the printer's own plan, each with at most
 :data:`~ringtune.envs.windows.SETTLE_MAX` s of history. This simulates the whole job instead, in
-pieces of about ``span`` s cut only where nothing is printed (:func:`span_edges`), each with a
+pieces of about ``span`` s cut where nothing is printed (a job printed without pause for longer than
+two spans inside a straight line too: :func:`span_edges`), each with a
 lead-in of :data:`LEAD_TAUS` time constants of the printer's slowest-decaying mode (what the
 machine still carries of earlier motion: e^−6, 0.25 %), and measures each as a window
 (:func:`ringtune.envs.windows.metrics_of`); the job's figures are the worst over the pieces. With
@@ -26,6 +27,8 @@ from ringtune.shaping.testprints import Window
 
 #: s of the job per simulated piece (about: cut where nothing is printed)
 SPAN_S = 300.0
+#: most spans a piece may hold before it is cut inside the printing (:func:`span_edges`)
+LONGEST = 2.0
 #: s of a seam's window (as the quality windows': the seam at a fifth of it)
 SEAM_SPAN_S = 0.25
 #: time constants 1/(ζω) of the slowest-decaying mode simulated before each piece
@@ -44,19 +47,28 @@ def lead_in(printer, taus: float = LEAD_TAUS) -> float:
 
 
 def span_edges(motion, span: float) -> np.ndarray:
-    """Times (s) that cut ``motion`` into pieces of about ``span`` s, only where nothing is printed:
+    """Times (s) that cut ``motion`` into pieces of about ``span`` s, where nothing is printed:
     from each cut on, the middle of the non-extruding stretch (a travel, a retraction, a layer
-    change) nearest a span later and at least half a span later. No printed line, wall or corner is
-    cut; a job that never stops extruding is one piece."""
+    change) nearest a span later and at least half a span later. A job printed for longer than
+    :data:`LONGEST` spans without such a stretch (a vase, a tower in one bead) is cut inside the
+    printing too, at the middle of the longest segment between half a span and one and a half spans
+    on (a straight line's cruise, no corner within half of it): a piece holds at most
+    ``LONGEST · span`` s, so memory stays bounded however long the job prints without pause."""
     t = np.asarray(motion.t, float)
-    idle = ~np.asarray(motion.extruding, bool)
-    mids = 0.5 * (t[:-1] + t[1:])[idle]
+    mid = 0.5 * (t[:-1] + t[1:])
+    idle = mid[~np.asarray(motion.extruding, bool)]
     edges = [motion.start_time]
     while True:
-        later = mids[(mids >= edges[-1] + 0.5 * span) & (mids < motion.end_time)]
-        if not len(later):
+        e = edges[-1]
+        later = idle[(idle >= e + 0.5 * span) & (idle < motion.end_time)]
+        cut = float(later[np.argmin(np.abs(later - (e + span)))]) if len(later) else None
+        if motion.end_time - e > LONGEST * span and (cut is None or cut > e + LONGEST * span):
+            reach = np.flatnonzero((mid >= e + 0.5 * span) & (mid <= e + 1.5 * span))
+            if len(reach):
+                cut = float(mid[reach[np.argmax(np.diff(t)[reach])]])
+        if cut is None:
             break
-        edges.append(float(later[np.argmin(np.abs(later - (edges[-1] + span)))]))
+        edges.append(cut)
     return np.array([*edges, motion.end_time])
 
 

@@ -8,7 +8,7 @@ import pytest
 
 from ringtune.envs.evaluate import evaluate_many
 from ringtune.envs.planned_job import planned_job, resolve_printer
-from ringtune.envs.whole_job import lead_in, span_edges, whole_job_metrics
+from ringtune.envs.whole_job import LONGEST, lead_in, span_edges, whole_job_metrics
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
@@ -58,3 +58,36 @@ def test_the_whole_job_measures_at_least_what_its_windows_do(cfg):
 def test_a_span_that_is_not_positive_is_refused():
     with pytest.raises(RingtuneError, match="span"):
         whole_job_metrics(TuneConfig(), span=0.0)
+
+
+def vase_job(path) -> str:
+    """A square vase: 20 turns of 40 mm walls printed without a pause (about 36 s)."""
+    lines = ["G28", "G90", "M83", "G1 Z0.2 F600", "G1 X80 Y80 F6000", ";TYPE:External perimeter"]
+    z = 0.2
+    for _turn in range(20):
+        for x, y in ((120, 80), (120, 120), (80, 120), (80, 80)):
+            z += 0.05
+            lines.append(f"G1 X{x} Y{y} Z{z:.3f} E1.6 F6000")
+    lines.append("G1 X60 Y60 F9000")
+    path.write_text("\n".join(lines) + "\n")
+    return str(path)
+
+
+def test_printing_without_pause_is_cut_inside_a_straight_line_with_the_same_figures(tmp_path):
+    """A job printed without pause is cut inside its printing once it runs past LONGEST spans (so a
+    vase's pieces, and their memory, stay bounded), in the middle of a straight line; the figures
+    are those of the job simulated in one piece (to 1e-4: the lead-in's e^-6 of history)."""
+    job = vase_job(tmp_path / "vase.gcode")
+    motion = planned_job(resolve_printer(None), job, TuneConfig()).motion
+    edges = span_edges(motion, 3.0)
+    inner = edges[1:-1]
+    seg = np.searchsorted(motion.t, inner, side="right") - 1
+    printing = motion.extruding[seg]
+    assert printing.sum() >= 8 and not printing[-1]              # the last cut: the travel off the vase
+    assert np.all(np.diff(edges) <= LONGEST * 3.0 + 1e-9)
+    at, dt = seg[printing], np.diff(motion.t)[seg[printing]]
+    assert np.all(np.abs(inner[printing] - 0.5 * (motion.t[at] + motion.t[at + 1])) < 1e-9) and np.all(dt > 0.2)
+    assert len(span_edges(motion, 100.0)) == 2                          # one piece
+    cut, whole = (whole_job_metrics(TuneConfig(), None, job, span=s) for s in (3.0, 100.0))
+    for k in VISIBLE_KEYS:
+        assert getattr(cut, k) == pytest.approx(getattr(whole, k), rel=1e-4), k

@@ -65,9 +65,10 @@ class SeamCheck:
         """The outer wall's worst over the seams against the quality windows' (where it was measured)."""
         if not self.worst:
             return ""
+        cols = ("walk_end", "walk_start", "windows")
         rows = "; ".join(f"{words(k)[0].removeprefix('outer wall ')} "
-                         + " / ".join(shown(k, w[s]).removesuffix(" µm") for s in ("walk_end", "walk_start", "windows"))
-                         + " µm" for k, w in self.worst.items())
+                         + " / ".join(shown(k, w[c]).removesuffix(" µm") for c in cols) + " µm"
+                         for k, w in self.worst.items())
         return (" The outer wall, worst over those seams at the walk's end / before it, and over the quality "
                 f"windows as judged (the figures the choice is compared by): {rows}.")
 

@@ -3,9 +3,10 @@
 ``tune`` judges each configuration on the job's quality windows (a few seconds of it). This
 measures a configuration, and a baseline beside it (Klipper's pick), on those windows and over all
 of the job (:func:`ringtune.envs.whole_job.whole_job_metrics`: the exact linear backend at 5 kHz, in
-pieces cut only where nothing is printed, each after six time constants of the slowest mode), both
-on the printer as modelled (not its twins) with the same exact backend, so what differs between the
-two columns is only where is measured. Every visible measure, the job's and the outer wall's own,
+pieces cut where nothing is printed or, after two spans printed without a pause, inside a straight
+line, each after six time constants of the slowest mode), both on the printer as modelled (not its
+twins) with the same exact backend, so what differs between the two columns is only where is
+measured. Every visible measure, the job's and the outer wall's own,
 with the verdict against the baseline at the reports' resolution (1 µm or 5 %; 1 percentage point or
 5 % of extrusion). Used by ``ringtune simulate --whole-job`` and ``benchmarks/bench_whole_job.py``.
 """
