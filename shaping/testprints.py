@@ -138,19 +138,23 @@ def builtin_test_print() -> Job:
 
 
 # -- windows ------------------------------------------------------------------------------------
-def _corner_candidates(plan, tau: float = 0.02):
-    """Junctions inside extrusion: time, xy velocity change over ±tau (mm/s), line, index of the
-    move after the junction."""
+def _corner_candidates(plan, score: bool = True):
+    """Junctions inside extrusion: time, xy velocity change (:func:`_corner_scores`; NaN without
+    ``score``), line, index of the move after the junction."""
     mv = plan.moves
     n = len(mv)
     if n < 2:
         return np.zeros(0), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.int64)
     idx = by_geometry("corners", (mv.start, mv.end), (), lambda: _corner_moves(mv))
     tj = mv.t_start[idx + 1]
+    return tj, _corner_scores(plan, tj) if score else np.full(len(tj), np.nan), mv.line[idx + 1], idx + 1
+
+
+def _corner_scores(plan, tj: np.ndarray, tau: float = 0.02) -> np.ndarray:
+    """The xy velocity change (mm/s) over ±``tau`` s around each junction time ``tj`` (s)."""
     vb = plan.velocity(tj - tau)[:, :2]
     va = plan.velocity(tj + tau)[:, :2]
-    score = np.linalg.norm(va - vb, axis=1)
-    return tj, score, mv.line[idx + 1], idx + 1
+    return np.linalg.norm(va - vb, axis=1)
 
 
 def _corner_moves(mv) -> np.ndarray:
@@ -233,11 +237,12 @@ WINDOW_SHARES = (("seen-corner", 0.5), ("zigzag", 0.25), ("hidden-corner", 0.25)
 SEAM_WINDOWS = 4
 
 
-def _candidates(plan, span: float, order: bool = True) -> dict:
+def _candidates(plan, span: float, order: bool = True, corner_scores: bool = True) -> dict:
     """Per window kind: (t0 of the window, score, line, feature class, order best first; None
     without ``order``). Support, skirt and brim (class ``support``: not the part) offer none while
-    the part offers any."""
-    tc, sc, lc, mc = _corner_candidates(plan)
+    the part offers any. Without ``corner_scores`` the corners' scores are NaN and ``"corner-times"``
+    gives their junction times (seen, hidden), to score the few that are wanted."""
+    tc, sc, lc, mc = _corner_candidates(plan, corner_scores)
     tz, fz, lz = direction_change_frequencies(plan)
     mv = plan.moves
     names = label_classes(plan)
@@ -254,6 +259,8 @@ def _candidates(plan, span: float, order: bool = True) -> dict:
             ("zigzag", part_z, tz - 0.5 * span, fz, lz, cls_z)):
         t0, score, line, cls = t0[pick], score[pick], line[pick], cls[pick]
         out[kind] = (t0, score, line, cls, _best_per_class_first(score, cls) if order else None)
+    if not corner_scores:
+        out["corner-times"] = (tc[seen & part_c], tc[~seen & part_c])
     return out
 
 
@@ -352,17 +359,20 @@ def relocate_windows(plan, reference: list[Window], span: float = 0.25) -> list[
     duration = plan.end_time
     span = min(span, duration)
     lo_t, hi_t = plan.start_time, duration - span
-    c = _candidates(plan, span, order=False)
+    c = _candidates(plan, span, order=False, corner_scores=False)     # a corner scored where taken
     corners = tuple(np.concatenate([c["seen-corner"][j], c["hidden-corner"][j]]) for j in range(4))
+    corner_times = np.concatenate(c["corner-times"])
     cands = {"corner": corners, "zigzag": c["zigzag"][:4], **seam_candidates(plan, span)}
     out = []
     for w in reference:
-        t0s, scores, lines, classes = cands.get(w.kind, cands["corner"])
-        if len(lines) == 0:
-            t0s, scores, lines, classes = cands["zigzag" if w.kind == "corner" else "corner"]
+        kind = w.kind if w.kind in cands else "corner"
+        if len(cands[kind][2]) == 0:
+            kind = "zigzag" if w.kind == "corner" else "corner"
+        t0s, scores, lines, classes = cands[kind]
         if len(lines) == 0:
             return quality_windows(plan, max_windows=len(reference), span=span)
         i = int(np.argmin(np.abs(np.asarray(lines, np.int64) - int(w.line))))
         t0 = float(min(max(t0s[i], lo_t), hi_t))
-        out.append(Window(t0, t0 + span, w.kind, float(scores[i]), int(lines[i]), str(classes[i])))
+        score = _corner_scores(plan, corner_times[i:i + 1])[0] if kind == "corner" else scores[i]
+        out.append(Window(t0, t0 + span, w.kind, float(score), int(lines[i]), str(classes[i])))
     return sorted(out, key=lambda w: w.t0)

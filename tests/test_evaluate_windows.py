@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 
 from ringtune.envs.evaluate import evaluate
 from ringtune.envs.planned_job import planned_job
@@ -75,3 +76,24 @@ def test_a_trials_windows_are_shaped_once_for_the_model_and_its_twins():
     assert all(a.shaped is b.shaped and b.corner_tail == 0.02 for a, b in zip(first, again))
     other = dataclasses.replace(cfg, freq_x=55.0)
     assert shaped_windows(pj, other, 0.1, 0.0125, False)[0].shaped is not first[0].shaped
+
+
+def test_a_relocated_corner_is_scored_as_the_whole_motion_scores_it():
+    """relocate_windows scores only the corners it takes (quality_windows scores every candidate):
+    each relocated corner's score is the xy velocity change over ±20 ms at its junction, 0.2 of a
+    window after the window's start, read from the whole planned motion; the other kinds keep
+    their lines (the part, on two accelerations)."""
+    from ringtune.shaping import testprints
+
+    printer = load_printer(None)
+    ref = planned_job(printer, "part", CONFIG).windows
+    for accel in (3000.0, 9000.0):
+        plan = planned_job(printer, "part", dataclasses.replace(CONFIG, accel=accel)).plan
+        moved = testprints.relocate_windows(plan, ref, span=0.25)
+        assert sorted((w.kind, w.line) for w in moved) == sorted((w.kind, w.line) for w in ref)
+        corners = [w for w in moved if w.kind == "corner"]
+        assert len(corners) >= 4
+        for w in corners:
+            tj = np.array([w.t0 + 0.05])
+            dv = plan.motion.velocity(tj + 0.02)[:, :2] - plan.motion.velocity(tj - 0.02)[:, :2]
+            assert w.score == pytest.approx(float(np.linalg.norm(dv)), rel=1e-9, abs=1e-9)
