@@ -19,6 +19,28 @@ import numpy as np
 AXES = ("x", "y", "z", "e")
 
 
+def locate(t: np.ndarray, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For boundaries ``t`` (n+1,) s: the segment active at each of ``times`` (clipped to the first
+    and last), the time into it (s, the times clipped to [t[0], t[-1]]) and whether it is inside."""
+    times = np.asarray(times, dtype=float)
+    tc = np.clip(times, t[0], t[-1])
+    idx = np.searchsorted(t, tc, side="right") - 1
+    np.clip(idx, 0, len(t) - 2, out=idx)
+    return idx, tc - t[idx], (times >= t[0]) & (times <= t[-1])
+
+
+def span_rows(t: np.ndarray, t_start: float, t_end: float) -> tuple[float, float, int, int]:
+    """For boundaries ``t`` (n+1,) s: [t_start, t_end] clipped to them and the segments i0..i1−1
+    it covers; ValueError where it is empty."""
+    t_start, t_end = max(t_start, t[0]), min(t_end, t[-1])
+    if t_end <= t_start:
+        raise ValueError(f"empty window [{t_start}, {t_end}]")
+    n = len(t) - 1
+    i0 = int(np.clip(np.searchsorted(t, t_start, side="right") - 1, 0, n - 1))
+    i1 = int(np.clip(np.searchsorted(t, t_end, side="left"), i0 + 1, n))
+    return t_start, t_end, i0, i1
+
+
 @dataclass
 class Motion:
     """Commanded motion as segments of constant acceleration.
@@ -92,11 +114,7 @@ class Motion:
 
     # -- evaluation ------------------------------------------------------------------------------
     def _locate(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        times = np.asarray(times, dtype=float)
-        tc = np.clip(times, self.t[0], self.t[-1])
-        idx = np.searchsorted(self.t, tc, side="right") - 1
-        np.clip(idx, 0, self.n_segments - 1, out=idx)
-        return idx, tc - self.t[idx], (times >= self.t[0]) & (times <= self.t[-1])
+        return locate(self.t, times)
 
     def position(self, times: np.ndarray) -> np.ndarray:
         """(len(times), 4) position, mm; held constant outside [t[0], t[-1]]."""
@@ -155,12 +173,7 @@ class Motion:
 
     def window(self, t_start: float, t_end: float) -> "Motion":
         """The part of the motion inside [t_start, t_end] (segments cut exactly at the edges)."""
-        t_start = max(t_start, self.t[0])
-        t_end = min(t_end, self.t[-1])
-        if t_end <= t_start:
-            raise ValueError(f"empty window [{t_start}, {t_end}]")
-        i0 = int(np.clip(np.searchsorted(self.t, t_start, side="right") - 1, 0, self.n_segments - 1))
-        i1 = int(np.clip(np.searchsorted(self.t, t_end, side="left"), i0 + 1, self.n_segments))
+        t_start, t_end, i0, i1 = span_rows(self.t, t_start, t_end)
         t = self.t[i0:i1 + 1].copy()
         p = self.p[i0:i1].copy()
         v = self.v[i0:i1].copy()

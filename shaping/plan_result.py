@@ -65,23 +65,15 @@ class Plan:
         return float(self.segments.t[-1])
 
     def motion_window(self, t_start: float, t_end: float) -> Motion:
-        """``motion.window(t_start, t_end)`` (s), the same values, building only that span where
-        the whole motion is not built."""
-        if self._motion is not None:
-            return self._motion.window(t_start, t_end)
+        """``motion.window(t_start, t_end)`` (s), the same values, building only that span."""
         return self.segments.window(t_start, t_end)
 
     def velocity(self, times: np.ndarray) -> np.ndarray:
         """``motion.velocity(times)``, (len(times), 4) mm/s, the same values."""
-        if self._motion is not None:
-            return self._motion.velocity(times)
         return self.segments.velocity(times)
 
     def xy_kinematics(self) -> XYKinematics:
         """The x/y velocity and acceleration of every segment (:meth:`PlanSegments.xy_kinematics`)."""
-        if self._motion is not None:
-            m = self._motion
-            return XYKinematics(m.t, m.v[:, :2], m.a[:, :2], m.move)
         return self.segments.xy_kinematics()
 
     @property

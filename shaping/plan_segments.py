@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ringtune.shaping.motion import Motion
+from ringtune.shaping.motion import Motion, locate, span_rows
 
 
 @dataclass(frozen=True)
@@ -88,26 +88,16 @@ class PlanSegments:
 
     def window(self, t_start: float, t_end: float) -> Motion:
         """``self.motion().window(t_start, t_end)``, building only its segments."""
-        t = self.t
-        lo, hi = max(t_start, t[0]), min(t_end, t[-1])
-        n = self.n_segments
-        if hi <= lo:
-            raise ValueError(f"empty window [{lo}, {hi}]")
-        i0 = int(np.clip(np.searchsorted(t, lo, side="right") - 1, 0, n - 1))
-        i1 = int(np.clip(np.searchsorted(t, hi, side="left"), i0 + 1, n))
+        lo, hi, i0, i1 = span_rows(self.t, t_start, t_end)
         p, v, a = self._rows(slice(i0, i1))
-        part = Motion(t[i0:i1 + 1], p, v, a, self.extruding[i0:i1], self._move(slice(i0, i1)))
+        part = Motion(self.t[i0:i1 + 1], p, v, a, self.extruding[i0:i1], self._move(slice(i0, i1)))
         return part.window(lo, hi)
 
     def velocity(self, times: np.ndarray) -> np.ndarray:
         """``self.motion().velocity(times)``, (len(times), 4) mm/s, from the segments there only."""
-        times = np.asarray(times, float)
-        t = self.t
-        tc = np.clip(times, t[0], t[-1])
-        idx = np.clip(np.searchsorted(t, tc, side="right") - 1, 0, self.n_segments - 1)
+        idx, tau, inside = locate(self.t, times)
         _p, v, a = self._rows(idx, position=False)
-        inside = (times >= t[0]) & (times <= t[-1])
-        return (v + a * (tc - t[idx])[:, None]) * inside[:, None]
+        return (v + a * tau[:, None]) * inside[:, None]
 
     def xy_kinematics(self) -> XYKinematics:
         """The x/y velocity and acceleration of every segment (what the motors' load reads)."""
