@@ -103,16 +103,16 @@ def main() -> None:
 
     from ringtune.envs.mujoco_model import INTEGRATOR, TIMESTEP, build_model
 
-    model = build_model(printer, TIMESTEP, INTEGRATOR)
+    model = build_model(printer, TIMESTEP, INTEGRATOR, actuators=False)     # as simulate runs it
     nsteps = [int(np.ceil(m.duration / TIMESTEP)) for m in motions]
     nstate = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS)
     init = np.zeros((len(motions), nstate))
-    ctrl = np.zeros((len(motions), max(nsteps), model.nu))
+    ctrl = np.zeros((len(motions), max(nsteps), model.nv))                # the drive forces
     data = mujoco.MjData(model)
     raw = []
     for _ in range(7):
         t0 = clock()
-        rollout.rollout(model, data, init, ctrl)
+        rollout.rollout(model, data, init, ctrl, control_spec=int(mujoco.mjtState.mjSTATE_QFRC_APPLIED))
         raw.append(clock() - t0)
 
     med = statistics.median(warm)

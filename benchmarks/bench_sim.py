@@ -72,14 +72,15 @@ def main() -> None:
         # the same model simulate builds on one thread: the windows as replicas of one model
         nmax = max(_grid(m, TIMESTEP, 0.0) for m in motions)
         chunks = _chunks(len(motions), 1)
-        models = [build_model([printer] * len(c)) for c in chunks]
+        models = [build_model([printer] * len(c), actuators=False) for c in chunks]
         nstate = mujoco.mj_stateSize(models[0], mujoco.mjtState.mjSTATE_FULLPHYSICS)
         init = np.zeros((len(chunks), nstate))
-        ctrl = np.zeros((len(chunks), nmax, models[0].nu))
+        ctrl = np.zeros((len(chunks), nmax, models[0].nv))          # the drive forces, as simulate gives them
         data = mujoco.MjData(models[0])
         arg = models if len(models) > 1 else models[0]
         simulate_batch(printer, motions, nthread=1)                  # warm the model cache
-        raw, sim = _best_pair(lambda: rollout.rollout(arg, data, init, ctrl),
+        forces = int(mujoco.mjtState.mjSTATE_QFRC_APPLIED)
+        raw, sim = _best_pair(lambda: rollout.rollout(arg, data, init, ctrl, control_spec=forces),
                               lambda: simulate_batch(printer, motions, nthread=1))
         lti = _best(lambda: simulate_batch(printer, motions, backend="lti"))
         steps = len(chunks) * nmax

@@ -34,7 +34,7 @@ from mujoco import rollout
 
 from ringtune.envs.lti import frequency_response_along, response
 from ringtune.envs.modal_system import LinearSystem
-from ringtune.envs.mujoco_model import INTEGRATOR, TIMESTEP, build_model, linear_system
+from ringtune.envs.mujoco_model import INTEGRATOR, TIMESTEP, build_model, drive_gains, linear_system
 from ringtune.envs.printer import load_printer
 from ringtune.envs.printer_model import Printer
 from ringtune.envs.sim_result import SimResult, post_process
@@ -240,6 +240,8 @@ def _lti_response(sysm, motion, t, x0):
     return response(sysm, motion, t, x0)
 
 
+#: what a rollout's control array gives each step: the generalised forces (the models have no actuators)
+_FORCES = int(mujoco.mjtState.mjSTATE_QFRC_APPLIED)
 #: most windows packed into one MuJoCo model as independent replicas (amortises per-step cost)
 MAX_REPLICAS = 16
 
@@ -267,12 +269,14 @@ def _datas(model, n: int) -> list:
 
 
 def _pack(group: list[int], chunks, m0, printers, systems, motions, nsteps, h, initial):
-    """Initial states and controls of one rollout batch (a row per replica model of ``group``) and
-    where each motion sits in it: (init, ctrl, [(batch row, motion, dof offset, kinematics)])."""
+    """Initial states and drive forces of one rollout batch (a row per replica model of ``group``)
+    and where each motion sits in it: (init, forces, [(batch row, motion, dof offset, kinematics)]).
+    The forces are each coordinate's ``qfrc_applied``, :func:`drive_gains` times its control (−a of
+    its axis, mm/s²): what the motor actuators would apply, bit for bit."""
     nstate = mujoco.mj_stateSize(m0, mujoco.mjtState.mjSTATE_FULLPHYSICS)
     members = [i for ci in group for i in chunks[ci]]
     init = np.zeros((len(group), nstate))
-    ctrl = np.zeros((len(group), max(nsteps[i] for i in members), m0.nu))
+    ctrl = np.zeros((len(group), max(nsteps[i] for i in members), m0.nv))
     init[:, 0] = min(motions[i].start_time for i in members)
     layout = []
     for b, ci in enumerate(group):
@@ -285,7 +289,7 @@ def _pack(group: list[int], chunks, m0, printers, systems, motions, nsteps, h, i
             init[b, 1 + m0.nq + off:1 + m0.nq + off + n] = x0[n:] / sc
             kin = _kinematics(mo, mo.start_time, h, nsteps[i] + 1)
             u = _step_controls(kin[0], kin[1], h)                     # (nstep, 2) = −a
-            ctrl[b, :nsteps[i], off:off + n] = u @ sysm.B.T if sysm.rotors else u[:, sysm.axis]
+            ctrl[b, :nsteps[i], off:off + n] = (u @ sysm.B.T if sysm.rotors else u[:, sysm.axis]) * drive_gains(sysm)
             layout.append((b, i, off, kin))
             off += n
     return init, ctrl, layout
@@ -322,7 +326,7 @@ def _rollout(printers, systems, motions, h, dec, tail, initial, nthread):
     # sort by length so that chunks pad little; each chunk is one replicated model
     order = sorted(range(len(motions)), key=lambda i: nsteps[i])
     chunks = [[order[j] for j in c] for c in _chunks(len(motions), nthread)]
-    models = [build_model([printers[i] for i in c], h, INTEGRATOR) for c in chunks]
+    models = [build_model([printers[i] for i in c], h, INTEGRATOR, actuators=False) for c in chunks]
     groups: dict = {}
     for ci, m in enumerate(models):
         groups.setdefault((m.nq, m.nv, m.nu, m.ntendon), []).append(ci)
@@ -332,7 +336,7 @@ def _rollout(printers, systems, motions, h, dec, tail, initial, nthread):
         init, ctrl, layout = _pack(cis, chunks, m0, printers, systems, motions, nsteps, h, initial)
         nth = max(1, min(nthread, len(cis)))
         # one model per batch row, one MjData per thread (rollout runs a single one unthreaded)
-        state, _ = rollout.rollout([models[ci] for ci in cis], _datas(m0, nth), init, ctrl)
+        state, _ = rollout.rollout([models[ci] for ci in cis], _datas(m0, nth), init, ctrl, control_spec=_FORCES)
         _unpack(layout, init, state, m0.nq, printers, systems, motions, nsteps, h, dec, results)
     return results
 

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from ringtune.envs.mujoco_model import build_model, linear_system
+from ringtune.envs.mujoco_model import build_model, drive_gains, linear_system
 from ringtune.envs.printer import load_printer, printer_from_dict
 from ringtune.envs.rotor import undamped_frequencies
 from ringtune.envs.sim import simulate, simulate_batch
@@ -224,6 +224,36 @@ def test_mjcf_magnet_is_the_stepper_torque_angle_curve():
         mujoco.mj_mulM(m, d, Mu, unit)
         assert Mu[r.index] * r.scale ** -2 == pytest.approx(r.mass, rel=1e-9)
         assert np.count_nonzero(Mu) == 1                          # diagonal mass matrix
+
+
+@pytest.mark.parametrize("name,slip", [("ender3", None), ("voron24", None), ("ender3", False)])
+def test_the_drive_as_generalised_forces_is_the_motors_to_the_bit(name, slip):
+    """simulate's models have no actuators: each coordinate is driven by ``qfrc_applied`` =
+    drive_gains · control. A rollout of that model is MuJoCo's own actuated model driven by the
+    same controls, bit for bit (rotors, CoreXY belts and the rigid motor)."""
+    import mujoco
+    from mujoco import rollout
+
+    d = load_printer(name).to_dict()
+    if slip is not None:
+        d["motor"]["slip"] = slip
+    p = printer_from_dict(d)
+    s = linear_system(p)
+    driven, bare = build_model([p, p]), build_model([p, p], actuators=False)
+    assert driven.nu == 2 * s.n and bare.nu == 0 and bare.nv == driven.nv
+    rng = np.random.default_rng(3)
+    nstate = mujoco.mj_stateSize(driven, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    init = np.zeros((1, nstate))
+    init[0, 1:1 + driven.nq] = rng.normal(0, 0.01, driven.nq)
+    a = rng.normal(0, 3000.0, (1, 400, 2))
+    per = -(a @ s.B.T) if s.rotors else -a[..., s.axis]                 # each coordinate's control
+    ctrl = np.concatenate([per, per], axis=-1)
+    forces = ctrl * np.tile(drive_gains(s), 2)
+    want, _ = rollout.rollout(driven, mujoco.MjData(driven), init, ctrl)
+    got, _ = rollout.rollout(bare, mujoco.MjData(bare), init, forces,
+                             control_spec=int(mujoco.mjtState.mjSTATE_QFRC_APPLIED))
+    assert np.abs(want).max() > 0
+    np.testing.assert_array_equal(got, want)
 
 
 def test_slip_model_is_the_default_when_the_motor_can_carry_the_modes():
