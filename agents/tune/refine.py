@@ -34,13 +34,13 @@ from ringtune.agents.tune.choice import BASELINE_NAMES, Choice
 from ringtune.agents.tune.laps import Laps
 from ringtune.agents.tune.shaper_ladder import Ladder, climb, shaping_text
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution
-from ringtune.agents.tune.seam_check import check_seams
+from ringtune.agents.tune.seam_check import check_seams, seams_of
 from ringtune.agents.tune.space import SearchSpace
 from ringtune.agents.tune.stop import Bounds, Stop, failure_words, measured_stop
 from ringtune.agents.tune.study import DEFAULT_EVALUATOR, StudySettings, evaluator_kwargs
 from ringtune.agents.tune.wider import held_wider, study_evaluate_on, wider_check
 from ringtune.envs.evaluate import evaluate_twins
-from ringtune.envs.forked import split_map
+from ringtune.envs.forked import Helpers
 from ringtune.envs.planned_job import resolve_job
 from ringtune.shaping.feature_settings import sets_corner
 
@@ -56,12 +56,24 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
     ``note``: one progress line as each walk starts and ends (they take a while on a long job);
     ``laps``: given the wall-clock seconds of each step (``wider_check_s``, ``shaper_ladder_s``,
     ``measured_stop_s``, ``walk_s``, ``seam_check_s``; those that ran)."""
-    evaluate, exact = _evaluators(evaluator, settings, printer)
+    with Helpers() as helpers:        # the cores' helper processes, forked once for every walk
+        return _refine(choice, bl, evaluator, settings, printer, space, bounds, note, runners_up, laps, helpers)
+
+
+def _refine(choice, bl, evaluator, settings, printer, space, bounds, note, runners_up, laps, helpers: Helpers):
+    """:func:`refine`, its batches split over ``helpers``."""
+    evaluate, exact = _evaluators(evaluator, settings, printer, helpers)
+    job_accel = evaluator_kwargs(settings).get("job_accel")
+
+    @helpers.register
+    def seams(part):
+        return seams_of(part, printer, settings.job, job_accel)
+
     t0 = time.monotonic()
     lap = (laps or Laps()).lap
 
     # the wider printers' simulations, shared by the four checks below (each baseline simulated once)
-    on = (study_evaluate_on(settings.job, evaluator_kwargs(settings), printer)
+    on = (study_evaluate_on(settings.job, evaluator_kwargs(settings), printer, helpers)
           if exact is not None and settings.evaluator == DEFAULT_EVALUATOR else None)
 
     def widen(held: dict, start):
@@ -130,7 +142,7 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
         if lift.moved and settings.evaluator == DEFAULT_EVALUATOR:
             step("every seam of what a person sees, the walk's end against its start ...")
             lift.seams = check_seams(lift.start, lift.point, walk_bases, evaluate, bounds, printer, settings.job,
-                                     job_accel=evaluator_kwargs(settings)["job_accel"])
+                                     job_accel=job_accel, split=lambda configs: helpers.map(seams, configs))
             lap("seam_check_s")
             step(f"done ({lift.seams.seams} seams, {lift.seams.simulated} configurations)")
             if lift.seams.point is not lift.point:
@@ -168,31 +180,43 @@ def declined_if_same_time(before: Point, ladder: Ladder, stop: Stop, res: Resolu
     return ladder, stop
 
 
-def _evaluators(evaluator: Callable, settings: StudySettings, printer) -> tuple[Callable, Callable | None]:
+def _evaluators(evaluator: Callable, settings: StudySettings, printer, helpers: Helpers | None = None
+                ) -> tuple[Callable, Callable | None]:
     """(judge, screen): ``judge(configs)`` as the study judges; ``screen(configs)`` the default
     evaluator on the exact model alone where the judgement is the worst of the printer and its
     detuned twins (else None). What the screen evaluated and is then judged has only its twins
-    simulated (:func:`ringtune.envs.evaluate.evaluate_twins`: the same figures)."""
+    simulated (:func:`ringtune.envs.evaluate.evaluate_twins`: the same figures). The real
+    simulation's batches are split over ``helpers`` (the same figures); an injected evaluator runs
+    as given, in this process."""
     kwargs = evaluator_kwargs(settings)
     margin = kwargs.get("freq_margin")
     seen: dict[str, object] = {}
+    split = helpers.map if helpers is not None and settings.evaluator == DEFAULT_EVALUATOR else _in_process
+    register = helpers.register if helpers is not None else (lambda fn: fn)
 
-    # the real simulation's batches are split over the cores (the same figures); an injected
-    # evaluator runs as given, in this process
-    split = split_map if settings.evaluator == DEFAULT_EVALUATOR else _in_process
+    @register
+    def twins(part):
+        return evaluate_twins([c for c, _ in part], [m for _, m in part], printer, settings.job, kwargs["backend"],
+                              freq_margin=margin, job_accel=kwargs["job_accel"])
+
+    @register
+    def judged(part):
+        return evaluator(part, printer, settings.job, **kwargs)
+
+    @register
+    def exact(part):
+        return evaluator(part, printer, settings.job, **{**kwargs, "freq_margin": 0.0})
 
     def judge(configs):
         configs = list(configs)
         known = [seen.get(c.key()) for c in configs]          # empty without a screen
         if configs and all(m is not None for m in known):
-            return split(lambda part: evaluate_twins([c for c, _ in part], [m for _, m in part], printer,
-                                                     settings.job, kwargs["backend"], freq_margin=margin,
-                                                     job_accel=kwargs["job_accel"]), list(zip(configs, known)))
-        return split(lambda part: evaluator(part, printer, settings.job, **kwargs), configs)
+            return split(twins, list(zip(configs, known)))
+        return split(judged, configs)
 
     def screen(configs):
         configs = list(configs)
-        out = split(lambda part: evaluator(part, printer, settings.job, **{**kwargs, "freq_margin": 0.0}), configs)
+        out = split(exact, configs)
         seen.update((c.key(), m) for c, m in zip(configs, out))
         return out
 
@@ -200,5 +224,5 @@ def _evaluators(evaluator: Callable, settings: StudySettings, printer) -> tuple[
 
 
 def _in_process(fn, items) -> list:
-    """``fn(items)`` here (:func:`ringtune.envs.forked.split_map`'s signature, unsplit)."""
+    """``fn(items)`` here (:meth:`ringtune.envs.forked.Helpers.map`'s signature, unsplit)."""
     return list(fn(list(items)))

@@ -123,15 +123,23 @@ def _as_in(now: dict, before: dict, cls: str) -> dict:
     return out
 
 
+def seams_of(configs: Sequence[TuneConfig], printer, job, job_accel: str | None = None) -> list:
+    """Each configuration's figures over every seam of ``job`` (:func:`seam_metrics`)."""
+    return [seam_metrics(c, printer, job, job_accel=job_accel) for c in configs]
+
+
 def check_seams(start: Point, end: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[TuneConfig]], list],
                 bounds: Bounds, printer, job, *, job_accel: str | None = None,
-                res: Resolution = DEFAULT_RESOLUTION) -> SeamCheck:
+                res: Resolution = DEFAULT_RESOLUTION, split: Callable | None = None) -> SeamCheck:
     """:class:`SeamCheck` of the walk from ``start`` to ``end`` (module docstring); ``evaluate``,
     ``bases`` and ``bounds`` as the walk judged (a configuration taken back must still pass them
     and be faster than ``start``). The seams of two configurations, then of every step back, are
-    simulated at once, split over the cores (:func:`ringtune.envs.forked.split_map`)."""
+    simulated at once, split over the cores: by ``split(configs)`` (:func:`seams_of`'s figures, e.g.
+    on :class:`ringtune.envs.forked.Helpers`), else by :func:`ringtune.envs.forked.split_map`."""
     def on_seams(configs: list[TuneConfig]) -> list:
-        return split_map(lambda part: [seam_metrics(c, printer, job, job_accel=job_accel) for c in part], configs)
+        if split is not None:
+            return split(configs)
+        return split_map(lambda part: seams_of(part, printer, job, job_accel), configs)
 
     base, mine = on_seams([start.config, end.config])
     seams = len(mine.details.get("windows", ()))         # each seam window's own figures

@@ -21,7 +21,7 @@ from typing import Callable, Sequence
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, JUDGED_KEYS, Point, Resolution, judge, point_from_metrics
 from ringtune.agents.tune.stop import Failure, worst_measure
 from ringtune.envs.evaluate import evaluate_variants
-from ringtune.envs.forked import split_map
+from ringtune.envs.forked import Helpers
 from ringtune.envs.variants import Variant
 from ringtune.envs.windows import auto_settle
 from ringtune.shaping.config import TuneConfig
@@ -80,23 +80,32 @@ def _worse_than(mine: Point, before: Point, key: str, res: Resolution) -> bool:
     return f is None or f.verdict == "worse"
 
 
-def study_evaluate_on(job, kwargs: dict, printer) -> Callable[[Sequence[TuneConfig], Sequence[Variant]], list]:
+def study_evaluate_on(job, kwargs: dict, printer, helpers: Helpers | None = None
+                      ) -> Callable[[Sequence[TuneConfig], Sequence[Variant]], list]:
     """``evaluate_on(configs, variants)`` as the study's default evaluator judges (its backend and
     job-acceleration mode), each variant of ``printer`` alone with the model's lead-in, the variants
-    split over the cores, each part in one batch (:func:`ringtune.envs.evaluate.evaluate_variants`:
-    the same figures as one call each).
+    split over the cores (``helpers``, else a fork per call), each part in one batch
+    (:func:`ringtune.envs.evaluate.evaluate_variants`: the same figures as one call each).
     What it simulated once (the baselines, a walk's start) it remembers, so the walks that share it
     do not simulate it again."""
     settle = auto_settle(printer)
     known: dict[tuple[str, Variant], object] = {}
 
+    def on_variants(part, todo):
+        return [[e.metrics for e in evs] for evs in evaluate_variants(
+            todo, [v.of(printer) for v in part], job, kwargs.get("backend", "mujoco"), settle=settle,
+            job_accel=kwargs.get("job_accel"))]
+
+    if helpers is not None:
+        helpers.register(on_variants)
+    else:
+        helpers = Helpers()             # nothing registered: a fork per call
+
     def evaluate_on(configs, variants):
         todo = list({c.key(): c for c in configs if any((c.key(), v) not in known for v in variants)}.values())
         if todo:
             # the variants split over the cores (each variant's figures are what it gets alone)
-            runs = split_map(lambda part: [[e.metrics for e in evs] for evs in evaluate_variants(
-                todo, [v.of(printer) for v in part], job, kwargs.get("backend", "mujoco"), settle=settle,
-                job_accel=kwargs.get("job_accel"))], list(variants))
+            runs = helpers.map(on_variants, list(variants), todo)
             for v, metrics in zip(variants, runs):
                 known.update(((c.key(), v), m) for c, m in zip(todo, metrics))
         return [[known[(c.key(), v)] for c in configs] for v in variants]
