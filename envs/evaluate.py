@@ -22,7 +22,9 @@ from ringtune.envs.plan_load import plan_load
 from ringtune.envs.planned_job import PlannedJob, planned_job, require_windows, resolve_printer
 from ringtune.envs.sim import auto_timestep, simulate_batch
 from ringtune.envs.variants import variant_factors
-from ringtune.envs.windows import SETTLE_MIN, WindowRun, auto_settle, corner_tail, metrics_of, window_runs
+from ringtune.envs.window_dedup import WindowMemo, moved
+from ringtune.envs.windows import (SETTLE_MIN, WindowRun, auto_settle, corner_tail, metrics_of, window_metrics,
+                                   window_runs)
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.motion import Motion
@@ -68,7 +70,8 @@ def evaluate(config: TuneConfig, printer=None, job=None, backend: str = "mujoco"
 
 def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
                   settle: float | None = None, nthread: int | None = None,
-                  freq_margin: float = 0.0, job_accel: str | None = None) -> list[Metrics]:
+                  freq_margin: float = 0.0, job_accel: str | None = None,
+                  memo: WindowMemo | None = None) -> list[Metrics]:
     """:func:`evaluate` for many configs, all their windows simulated in one ``simulate_batch``.
 
     ``freq_margin`` > 0 (a fraction, e.g. 0.05): each config is also judged on the printer with
@@ -76,15 +79,16 @@ def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend
     (:func:`variant_factors`), and the worst quality counts
     (:func:`ringtune.envs.metrics.worst_case`), so that a shaper tuned to the edge of its band on
     the exact model is not preferred to one that survives the drift of a real printer or a damping
-    ratio fitted high."""
+    ratio fitted high. ``memo``: windows measured before are not simulated again
+    (:class:`ringtune.envs.window_dedup.WindowMemo`)."""
     return [m for m, _ in evaluate_judged(configs, printer, job, backend, settle=settle, nthread=nthread,
-                                          freq_margin=freq_margin, job_accel=job_accel)]
+                                          freq_margin=freq_margin, job_accel=job_accel, memo=memo)]
 
 
 def evaluate_judged(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
                     settle: float | None = None, nthread: int | None = None,
                     freq_margin: float = 0.0, job_accel: str | None = None,
-                    job_shapers: bool = False) -> list[tuple[Metrics, list["Evaluation"]]]:
+                    job_shapers: bool = False, memo: WindowMemo | None = None) -> list[tuple[Metrics, list["Evaluation"]]]:
     """:func:`evaluate_many`'s figures with what they came from: per config, (the judged metrics,
     its :class:`Evaluation` on each printer variant of :func:`variant_factors`). ``tune`` and
     ``simulate`` both judge through here, so their figures for one configuration are the same.
@@ -97,7 +101,7 @@ def evaluate_judged(configs: Sequence[TuneConfig], printer=None, job=None, backe
         settle = auto_settle(printer)
     factors = variant_factors(freq_margin)
     runs = evaluate_variants(configs, [v.of(printer) for v in factors], job, backend, settle=settle, nthread=nthread,
-                             job_accel=job_accel, job_shapers=job_shapers)
+                             job_accel=job_accel, job_shapers=job_shapers, memo=memo)
     per_config = [list(evs) for evs in zip(*runs)]        # per config, its Evaluation per variant
     return [(evs[0].metrics if len(evs) == 1 else worst_case((e.metrics for e in evs), factors), evs)
             for evs in per_config]
@@ -105,7 +109,7 @@ def evaluate_judged(configs: Sequence[TuneConfig], printer=None, job=None, backe
 
 def evaluate_twins(configs: Sequence[TuneConfig], exact: Sequence[Metrics], printer=None, job=None,
                    backend: str = "mujoco", *, freq_margin: float, job_accel: str | None = None,
-                   nthread: int | None = None) -> list[Metrics]:
+                   nthread: int | None = None, memo: WindowMemo | None = None) -> list[Metrics]:
     """:func:`evaluate_many` with ``freq_margin`` for configurations whose figures on the exact model
     (``exact``: :func:`evaluate_many` with no margin, same printer, job and backend) are known: only
     the detuned twins are simulated, and the worst of the three counts, as :func:`evaluate_judged`
@@ -114,7 +118,7 @@ def evaluate_twins(configs: Sequence[TuneConfig], exact: Sequence[Metrics], prin
     factors = variant_factors(freq_margin)
     twins = [v.of(printer) for v in factors if not v.exact]
     runs = evaluate_variants(configs, twins, job, backend, settle=auto_settle(printer), nthread=nthread,
-                             job_accel=job_accel)
+                             job_accel=job_accel, memo=memo)
     return [worst_case([m, *(e.metrics for e in evs)], factors) for m, evs in zip(exact, zip(*runs))]
 
 
@@ -126,7 +130,7 @@ class Evaluation:
     metrics: Metrics
     planned: PlannedJob
     runs: list[WindowRun]
-    sims: list                # SimResult per run
+    sims: list | None         # SimResult per run (None: measured through a WindowMemo)
 
 
 def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
@@ -142,13 +146,15 @@ def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, bac
 
 def evaluate_variants(configs: Sequence[TuneConfig], printers: Sequence, job=None, backend: str = "mujoco", *,
                       settle: float = SETTLE_MIN, nthread: int | None = None, job_accel: str | None = None,
-                      job_shapers: bool = False) -> list[list[Evaluation]]:
+                      job_shapers: bool = False, memo: WindowMemo | None = None) -> list[list[Evaluation]]:
     """:func:`evaluate_detailed` of ``configs`` on each of ``printers`` (variants of one printer
     with the same limits: its resonances detuned), per printer a list per config. Each config's
     job is planned and its windows shaped once (only the corner tail depends on the variant), and
     the windows of all variants whose integration step is the same go to one ``simulate_batch``
     (as many replicas, threads over the cores): the same figures as one call per variant, for
-    less than the cost of one call per variant."""
+    less than the cost of one call per variant. With ``memo`` only the windows it does not know are
+    simulated (each distinct one once) and then remembered; the evaluations then carry no
+    simulations (``sims`` None), only their figures."""
     printers = [resolve_printer(p) for p in printers]
     prepared = []
     for cfg in configs:
@@ -159,6 +165,8 @@ def evaluate_variants(configs: Sequence[TuneConfig], printers: Sequence, job=Non
         tail = corner_tail(p)
         per_printer.append([(cfg, pj, runs if tail == corner_tail(printers[0]) else
                              [dataclasses.replace(r, corner_tail=tail) for r in runs]) for cfg, pj, runs in prepared])
+    if memo is not None:
+        return _remembered(printers, per_printer, backend, nthread, memo)
     sims = _simulate_grouped(printers, [[r.shaped for _c, _p, runs in pp for r in runs] for pp in per_printer],
                              backend, nthread)
     out = []
@@ -169,6 +177,37 @@ def evaluate_variants(configs: Sequence[TuneConfig], printers: Sequence, job=Non
             metrics = with_plan_load(metrics_of(runs, part, pj.print_time), printers[0], pj)
             evs.append(Evaluation(cfg, metrics, pj, runs, part))
             i += len(runs)
+        out.append(evs)
+    return out
+
+
+def _remembered(printers: list, per_printer: list, backend: str, nthread: int | None, memo: WindowMemo
+                ) -> list[list[Evaluation]]:
+    """:func:`evaluate_variants`' evaluations with ``memo``: each window's measures remembered,
+    else simulated (each distinct window of the call once) and remembered."""
+    keys = [[[memo.key(p, backend, r) for r in runs] for _c, _pj, runs in pp] for p, pp in zip(printers, per_printer)]
+    found: dict = {}
+    todo: list[list] = [[] for _ in printers]
+    for k, pp in enumerate(per_printer):
+        for (_c, _pj, runs), ks in zip(pp, keys[k]):
+            for run, key in zip(runs, ks):
+                if key not in found:
+                    got = memo.get(key, run)
+                    found[key] = (got, run) if got is not None else None
+                    if got is None:
+                        todo[k].append((key, run))
+    sims = _simulate_grouped(printers, [[r.shaped for _k, r in t] for t in todo], backend, nthread)
+    for t, psims in zip(todo, sims):
+        for (key, run), sim in zip(t, psims):
+            found[key] = (window_metrics(run, sim), run)
+            memo.put(key, run, found[key][0])
+    out = []
+    for k, pp in enumerate(per_printer):
+        evs = []
+        for (cfg, pj, runs), ks in zip(pp, keys[k]):
+            parts = [moved(*found[key], run) for run, key in zip(runs, ks)]
+            evs.append(Evaluation(cfg, with_plan_load(Metrics.worst(parts, print_time_s=pj.print_time), printers[0], pj),
+                                  pj, runs, None))
         out.append(evs)
     return out
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
+from collections import OrderedDict
 
 import numpy as np
 
@@ -98,3 +99,48 @@ def moved(m: Metrics, source, target) -> Metrics:
     out = copy.copy(m)
     out.details = _shift(m.details, float(target.t0 - source.t0), float(d[0]), float(d[1]))
     return out
+
+
+class WindowMemo:
+    """Measures of windows already simulated, remembered by printer, backend and :func:`signature`:
+    a window whose commands are those of one measured before, on the same printer, takes its
+    measures (moved to its place, :func:`moved`) instead of a simulation.
+
+    After the study ``tune`` walks one setting at a time (a feature group's acceleration, a corner
+    rule): a candidate changes the moves of one feature, and most of its quality windows (8–9 of
+    13 on the two copies of the part) are its start's, shifted in time. The commands are compared
+    as :func:`signature` compares them (to 0.1 µs and 0.01 µm), so a remembered window's figures
+    are a fresh simulation's to the rounding of its shifted clock (far below the 1 µm the verdicts
+    resolve), not to the bit. Holds at most ``size`` windows, the oldest forgotten first."""
+
+    def __init__(self, size: int = 4096):
+        self.size = size
+        self._known: OrderedDict = OrderedDict()      # key -> (metrics, the run they were measured on)
+        self._printers: dict = {}                     # id(printer) -> (printer, its description)
+        self.hits = 0
+        self.misses = 0
+
+    def key(self, printer, backend: str, run) -> tuple:
+        """What a window's measures depend on: the printer's description, the backend, the commands."""
+        got = self._printers.get(id(printer))
+        if got is None or got[0] is not printer:
+            if len(self._printers) > 64:
+                self._printers.clear()
+            got = self._printers[id(printer)] = (printer, printer.to_toml())
+        return got[1], backend, signature(run)
+
+    def get(self, key: tuple, run) -> Metrics | None:
+        """The measures remembered for ``key``, moved to ``run``'s place, or None."""
+        hit = self._known.get(key)
+        if hit is None:
+            self.misses += 1
+            return None
+        self.hits += 1
+        self._known.move_to_end(key)
+        return moved(hit[0], hit[1], run)
+
+    def put(self, key: tuple, run, metrics: Metrics) -> None:
+        self._known[key] = (metrics, run)
+        self._known.move_to_end(key)
+        while len(self._known) > self.size:
+            self._known.popitem(last=False)

@@ -107,3 +107,36 @@ def test_the_parts_seams_are_the_same_figures_with_each_simulated_alone(monkeypa
     alone = whole_job.seam_metrics(PICK, printer, "part").to_dict(details=True)
     assert np.isfinite(merged["corner_in_mm"]) and merged["corner_in_mm"] > 0
     _same(merged, alone)
+
+
+def test_a_memo_measures_a_candidates_shared_windows_once_with_a_fresh_simulations_figures(monkeypatch):
+    """The walk's candidates each change one feature group's moves: through a WindowMemo, the
+    windows they share with the start (and with each other) on the same printer variant are not
+    simulated again, and every figure, each window's and where it stands included, is what a fresh
+    evaluation of each candidate alone gives (to the rounding the windows are compared at)."""
+    import ringtune.envs.evaluate as evaluate
+    from ringtune.envs.window_dedup import WindowMemo
+
+    hidden = {"inner_wall": 4800.0, "infill": 4800.0, "support": 4800.0, "solid_infill": 4800.0, "travel": 4800.0}
+    start = dataclasses.replace(PICK, feature_accel={"top_surface": 4800.0, **hidden})
+    cands = [start, dataclasses.replace(start, feature_accel={**start.feature_accel, "infill": 12000.0, "support": 12000.0}),
+             dataclasses.replace(start, feature_accel={**start.feature_accel, "travel": 10000.0}),
+             dataclasses.replace(start, feature_corner={"infill": 30.0, "support": 30.0, "travel": 30.0})]
+    fresh = [evaluate.evaluate_many([c], None, "part", freq_margin=0.05)[0] for c in cands]
+    simulated = []
+    real = evaluate._simulate_grouped
+    monkeypatch.setattr(evaluate, "_simulate_grouped", lambda printers, motions, *a: (
+        simulated.append(sum(map(len, motions))) or real(printers, motions, *a)))
+    memo = WindowMemo()
+    remembered = [evaluate.evaluate_many([c], None, "part", freq_margin=0.05, memo=memo)[0] for c in cands]
+    for a, b in zip(fresh, remembered):
+        _same(b.to_dict(details=True), a.to_dict(details=True))
+    windows = len(fresh[0].details["variants"]) * len(evaluate.evaluate_variants([start], [resolve_printer(None)], "part",
+                                                                               settle=0.1)[0][0].runs)
+    assert simulated[0] == windows                        # the start: every window, on each variant
+    assert all(0 < n < windows / 2 for n in simulated[1:]), (windows, simulated)   # a candidate: under half
+    assert memo.hits > memo.misses / 2
+    # on another printer nothing is taken from the memo: its own windows are simulated
+    stiff = dataclasses.replace(resolve_printer(None), print_mass=0.2)
+    evaluate.evaluate_many([start], stiff, "part", memo=memo)
+    assert simulated[-1] == windows // 3

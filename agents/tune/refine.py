@@ -36,12 +36,13 @@ from ringtune.agents.tune.shaper_ladder import Ladder, climb, shaping_text
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution
 from ringtune.agents.tune.seam_check import check_seams, seams_of
 from ringtune.agents.tune.space import SearchSpace
-from ringtune.agents.tune.stop import Bounds, Stop, failure_words, measured_stop
+from ringtune.agents.tune.stop import Bounds, Stop, evaluated, failure_words, measured_stop
 from ringtune.agents.tune.study import DEFAULT_EVALUATOR, StudySettings, evaluator_kwargs
 from ringtune.agents.tune.wider import held_wider, study_evaluate_on, wider_check
 from ringtune.envs.evaluate import evaluate_twins
 from ringtune.envs.forked import Helpers
 from ringtune.envs.planned_job import resolve_job
+from ringtune.envs.window_dedup import WindowMemo
 from ringtune.shaping.feature_settings import sets_corner
 
 
@@ -63,6 +64,9 @@ def refine(choice: Choice, bl: Baselines, evaluator: Callable, settings: StudySe
 def _refine(choice, bl, evaluator, settings, printer, space, bounds, note, runners_up, laps, helpers: Helpers):
     """:func:`refine`, its batches split over ``helpers``."""
     evaluate, exact = _evaluators(evaluator, settings, printer, helpers)
+    # the walk's candidates each change one feature's moves: most of their windows are its start's,
+    # measured once (WindowMemo); the walk's end is judged afresh, so what is reported is exact
+    walk_evaluate, walk_exact = _evaluators(evaluator, settings, printer, helpers, memo=True)
     job_accel = evaluator_kwargs(settings).get("job_accel")
 
     @helpers.register
@@ -128,9 +132,11 @@ def _refine(choice, bl, evaluator, settings, printer, space, bounds, note, runne
         # choice's own before the walk (the top surfaces are seen)
         step("the walk where nobody looks, each feature group toward its top ...")
         walk_bases = {**bases, "choice": choice.point}
-        lift = raise_hidden(choice.point, walk_bases, evaluate, space, bounds, max_evaluations=settings.n_trials,
+        lift = raise_hidden(choice.point, walk_bases, walk_evaluate, space, bounds, max_evaluations=settings.n_trials,
                             keep_unset=sets_corner(resolve_job(settings.job)[1]),
-                            screen=exact, wider=widen(walk_bases, choice.point))
+                            screen=walk_exact, wider=widen(walk_bases, choice.point))
+        if lift.moved and settings.evaluator == DEFAULT_EVALUATOR:
+            lift.point = evaluated([lift.point.config], evaluate, bounds, lift.point.label)[0]
         lap("walk_s")
         step(f"done ({lift.evaluations} judged, {lift.screened} screened)")
         if lift.moved:
@@ -180,15 +186,19 @@ def declined_if_same_time(before: Point, ladder: Ladder, stop: Stop, res: Resolu
     return ladder, stop
 
 
-def _evaluators(evaluator: Callable, settings: StudySettings, printer, helpers: Helpers | None = None
-                ) -> tuple[Callable, Callable | None]:
+def _evaluators(evaluator: Callable, settings: StudySettings, printer, helpers: Helpers | None = None,
+                memo: bool = False) -> tuple[Callable, Callable | None]:
     """(judge, screen): ``judge(configs)`` as the study judges; ``screen(configs)`` the default
     evaluator on the exact model alone where the judgement is the worst of the printer and its
     detuned twins (else None). What the screen evaluated and is then judged has only its twins
     simulated (:func:`ringtune.envs.evaluate.evaluate_twins`: the same figures). The real
     simulation's batches are split over ``helpers`` (the same figures); an injected evaluator runs
-    as given, in this process."""
+    as given, in this process. ``memo``: the real simulation measures each window it has met
+    before (in this process, on the same printer variant) from memory
+    (:class:`ringtune.envs.window_dedup.WindowMemo`: a fresh simulation's figures to about 1e-7)."""
     kwargs = evaluator_kwargs(settings)
+    if memo and settings.evaluator == DEFAULT_EVALUATOR:
+        kwargs["memo"] = WindowMemo()     # each helper fills its own copy
     margin = kwargs.get("freq_margin")
     seen: dict[str, object] = {}
     split = helpers.map if helpers is not None and settings.evaluator == DEFAULT_EVALUATOR else _in_process
@@ -197,7 +207,7 @@ def _evaluators(evaluator: Callable, settings: StudySettings, printer, helpers: 
     @register
     def twins(part):
         return evaluate_twins([c for c, _ in part], [m for _, m in part], printer, settings.job, kwargs["backend"],
-                              freq_margin=margin, job_accel=kwargs["job_accel"])
+                              freq_margin=margin, job_accel=kwargs["job_accel"], memo=kwargs.get("memo"))
 
     @register
     def judged(part):
