@@ -120,12 +120,14 @@ def window_runs(pj: PlannedJob, config: TuneConfig, settle: float = SETTLE_MIN,
     timeline = shaper_timeline(pj.plan.events, config) if job_shapers else [(-math.inf, config)]
     plan = pj.plan
     seen = job_seen_classes(pj.plan)
-    runs = []
+    runs, shaping = [], {}
     for w in pj.windows:
         cfg = config_at(timeline, w.t0)
-        shapers, centred = shapers_from_config(cfg)
-        active = any(s is not None for s in shapers.values())
-        duration, lag, after, before = shaper_timing(shapers, centred)
+        if id(cfg) not in shaping:          # the shapers of each configuration in force, built once
+            shapers, centred = shapers_from_config(cfg)
+            shaping[id(cfg)] = (shapers, centred, any(s is not None for s in shapers.values()),
+                                shaper_timing(shapers, centred))
+        shapers, centred, active, (duration, lag, after, before) = shaping[id(cfg)]
         a, b = w.t0 - duration - settle, w.t1 + duration
         lo, hi = max(a - duration, plan.start_time), min(b + duration, plan.end_time)
         if hi - lo <= 1e-9:
