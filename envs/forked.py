@@ -133,6 +133,37 @@ class Helpers:
         self.close()
 
 
+def in_background(fn: Callable[..., R], *args) -> Callable[[], R]:
+    """``fn(*args)`` computed in a forked child while this process goes on; the function returned
+    waits for it and gives its result, or raises its error here. Computed at once where the
+    platform cannot fork."""
+    if not CAN_FORK:
+        try:
+            value = fn(*args)
+        except Exception as e:          # noqa: BLE001 - raised when the result is asked, as forked
+            error = e
+            return lambda: _raise(error)
+        return lambda: value
+    ctx = multiprocessing.get_context("fork")
+    recv, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_child, args=(lambda one: [fn(*one[0])], [args], send), daemon=True)
+    proc.start()
+    send.close()
+
+    def result() -> R:
+        try:
+            return _result(recv, proc)[0]
+        finally:
+            recv.close()
+            proc.join()
+
+    return result
+
+
+def _raise(e: BaseException):
+    raise e
+
+
 def _parts(items: list, k: int) -> list[list]:
     """``items`` in ``k`` contiguous parts of near-equal length."""
     bounds = [round(i * len(items) / k) for i in range(k + 1)]

@@ -10,7 +10,7 @@ import signal
 import pytest
 
 from ringtune.envs.evaluate import evaluate_many
-from ringtune.envs.forked import CAN_FORK, Helpers, split_map
+from ringtune.envs.forked import CAN_FORK, Helpers, in_background, split_map
 from ringtune.shaping.config import TuneConfig
 from ringtune.shaping.errors import RingtuneError
 
@@ -109,3 +109,26 @@ def test_a_helpers_error_is_raised_here_and_new_helpers_serve_the_next_batch():
         with pytest.raises(RingtuneError, match="ended without a result"):
             helpers.map(dies_on_zero, [0, 1, 2, 3])
         assert helpers.map(dies_on_zero, [4, 5, 6]) == [4, 5, 6]
+
+
+def test_in_background_computes_in_another_process_while_this_one_goes_on(tmp_path):
+    import time
+
+    def waits_for_the_parent(path):
+        """Sees the file this process writes after starting it (so it was not computed first)."""
+        for _ in range(1000):
+            if path.exists():
+                return os.getpid(), path.read_text()
+            time.sleep(0.01)
+        return os.getpid(), None
+
+    done = in_background(waits_for_the_parent, tmp_path / "go.txt")
+    (tmp_path / "go.txt").write_text("written here")
+    pid, text = done()
+    assert pid != os.getpid() and text == "written here"
+
+    def fails():
+        raise RingtuneError("no such job", "job.gcode")
+
+    with pytest.raises(RingtuneError, match="job.gcode: no such job"):
+        in_background(fails)()

@@ -1,6 +1,7 @@
 """``tune --gcode JOB`` writes the job with the choice in it (``job.gcode`` beside ``best.json``),
 and ``simulate --config best.json --gcode job.gcode`` prints tune's figures: the rewritten file is
-planned to the same time and judged on the same corners and zigzags (issue 22)."""
+planned to the same time and judged on the same corners and zigzags (issue 22); a job that cannot
+be rewritten leaves the study standing."""
 
 from __future__ import annotations
 
@@ -9,6 +10,11 @@ import subprocess
 import sys
 
 import pytest
+
+from ringtune.agents.tune.job_write import job_written, start_job
+from ringtune.envs.printer import load_printer
+from ringtune.shaping.config import TuneConfig
+from ringtune.shaping.errors import RingtuneError
 
 RINGTUNE = [sys.executable, "-m", "ringtune.agents.cli.main"]
 
@@ -89,3 +95,17 @@ def test_simulate_of_the_rewritten_job_prints_tunes_figures(tmp_path, data_dir, 
     assert plan.returncode == 0, plan.stderr
     assert pf["ceiling_print_time_s"] == pytest.approx(json.loads(plan.stdout)["print_time_s"], rel=1e-9)
     assert pf["ceiling_print_time_s"] < report["chosen"]["print_time_s"]
+
+
+def test_a_job_that_cannot_be_rewritten_leaves_the_study_standing(tmp_path):
+    """The rewrite runs in a forked child while the report is drawn; where the job cannot be read,
+    the error comes back as the reason, the files name no job and a note says why."""
+    missing = tmp_path / "missing.gcode"
+    done = start_job(str(missing), tmp_path / "out", TuneConfig(shaper_x="mzv", shaper_y="mzv", freq_x=50.0,
+                                                                freq_y=40.0, accel=3000.0), load_printer(None))()
+    assert isinstance(done, RingtuneError) and "missing.gcode" in str(done)
+    notes, result = [], {"files": {"job": "to be named"}}
+    assert job_written(done, str(missing), tmp_path / "out", result, notes.append) == ""
+    assert result["files"]["job"] is None and "job_gcode" not in result
+    assert notes == [f"ringtune tune: job.gcode not written: {done}"]
+    assert not (tmp_path / "out" / "job.gcode").exists()

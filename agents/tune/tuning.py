@@ -16,6 +16,7 @@ from ringtune.agents.tune import feature_space, pareto, report, storage, study a
 from ringtune.agents.tune.baselines import Baselines, baseline_configs, baselines_for, inside, warm_start
 from ringtune.agents.tune.binding import binding_limits, binding_sentences
 from ringtune.agents.tune.job import accel_statement, job_accel_facts, job_accel_section
+from ringtune.agents.tune.job_write import job_written, start_job
 from ringtune.agents.tune.motor_bound import top_speed_load_note
 from ringtune.agents.tune.out_dir import check_out, remove_if_empty
 from ringtune.agents.tune.choice import BASELINE_NAMES, pick, runners_up
@@ -30,15 +31,10 @@ from ringtune.agents.tune.space import (CORNER_UNIT, default_space, freq_floor_n
                                        unshaped_modes_note, walked_keys)
 from ringtune.agents.tune.stop import Bounds
 from ringtune.agents.tune.study_results import study_points
-from ringtune.envs.planned_job import planned_job, resolve_job, resolve_printer, windows_sentence
-from ringtune.envs.job_rewrite import first_layer_words, rewrite_file, shaper_words
-from ringtune.hardware.dialects import shaper_commands
+from ringtune.envs.planned_job import planned_job, resolve_printer, windows_sentence
 from ringtune.envs.printer_model import unmeasured_note
 from ringtune.envs.variants import TWIN_DAMPING
-from ringtune.shaping.config_plan import for_firmware
-from ringtune.shaping.errors import RingtuneError
 from ringtune.shaping.firmware import Firmware
-from ringtune.shaping.gcode_file import binary_note
 
 
 @dataclass(frozen=True)
@@ -289,6 +285,8 @@ def _report(req: TuneRequest, lim: Limits, fw: Firmware, printer, facts, space, 
                 pf_lines.append(f"  {lift.seams.sentence()}")
                 pf_json["seam_check"] = lift.seams.to_dict()
     ja_json["searched"] = not space.accel_fixed
+    # the job with the choice written in, beside best.json: rewritten while the report is drawn
+    job = start_job(req.gcode, out_dir, chosen.config, printer) if req.gcode else None
     result = report.write_report(
         out_dir, points=points, front=front, choice=choice, baselines=bl.points, quality=quality,
         printer_name=getattr(printer, "name", "printer"), job_name=Path(req.gcode).name if req.gcode else
@@ -308,8 +306,8 @@ def _report(req: TuneRequest, lim: Limits, fw: Firmware, printer, facts, space, 
                     **({"stop": stop.to_dict()} if stop else {})})
     text = result.pop("summary_text")
     result["per_feature"] = pf_json
-    if req.gcode:     # the job with the choice written in, beside best.json
-        job_text = _write_job(req.gcode, out_dir, chosen.config, printer, result, note)
+    if job is not None:
+        job_text = job_written(job(), req.gcode, out_dir, result, note)
         if result["files"]["job"]:         # summary.txt and README.txt name it too
             text += job_text
             with open(out_dir / "summary.txt", "a") as f:
@@ -319,47 +317,6 @@ def _report(req: TuneRequest, lim: Limits, fw: Firmware, printer, facts, space, 
     for k, src in bl.sources.items():
         result["baselines"][k]["source"] = src
     return result, text, accel_json, ja_json
-
-
-def _write_job(gcode: str, out_dir: Path, config, printer, result: dict, note: Callable[[str], None]) -> str:
-    """Write ``out_dir``/job.gcode, the job with ``config`` written in, and name it in ``result``'s
-    files; the summary's sentence on it. A job that cannot be rewritten leaves the study standing:
-    its file is None and a note says why."""
-    try:
-        parsed = resolve_job(gcode, for_firmware(printer.limits, config))[1]    # as rewrite_file reads it
-        done = rewrite_file(gcode, out_dir / "job.gcode", config, printer, parsed=parsed,
-                            shaper_lines=shaper_commands)
-    except RingtuneError as exc:
-        result["files"]["job"] = None
-        note(f"ringtune tune: job.gcode not written: {exc}")
-        return ""
-    result["files"]["job"] = str(out_dir / "job.gcode")
-    result["job_gcode"] = {"path": str(out_dir / "job.gcode"), "lines_inserted": done.lines_inserted,
-                           "print_time_as_sliced_s": done.before_s, "print_time_s": done.after_s,
-                           "first_layer_kept_mm_s2": done.first_layer}
-    text = (f"\nThe job with the choice written in: {out_dir / 'job.gcode'} ({done.lines_inserted} lines "
-            f"inserted; planned {done.before_s:.1f} s as sliced -> {done.after_s:.1f} s, the file as the printer "
-            "runs it).")
-    binary = binary_note(gcode)
-    if binary:
-        note(f"ringtune tune: job.gcode: {binary}")
-        text += f"\nNote: {binary}."
-    if done.first_layer:
-        note(f"ringtune tune: job.gcode: {first_layer_words(done.first_layer)}")
-        text += f"\nNote: {first_layer_words(done.first_layer)}."
-    if done.shaper_replaced:
-        ln, was = done.shaper_replaced[0]
-        said = (f"the job sets its own input shaper (line {ln}: {was}), which would replace the tuned one while it "
-                f"prints; job.gcode has {shaper_words([n for n, _t in done.shaper_replaced])}")
-        note(f"ringtune tune: {said}")
-        text += f"\nNote: {said}."
-    result["job_gcode"]["shaper_replaced"] = [{"line": n, "text": t} for n, t in done.shaper_replaced]
-    if abs(done.after_s - done.config_s) > 1e-4 * done.config_s:     # the F words' rounding aside
-        warn = (f"job.gcode plans at {done.after_s:.1f} s as the printer runs it, not the {done.config_s:.1f} s "
-                "tune judged the choice at: a setting the file cannot carry differs (please report it)")
-        note(f"ringtune tune: {warn}")
-        text += f"\nWARNING: {warn}."
-    return text
 
 
 def _accel_section(req: TuneRequest, lim: Limits, firmware: str, printer, space, points, chosen, stop):
