@@ -146,7 +146,7 @@ def in_background(fn: Callable[..., R], *args) -> Callable[[], R]:
         return lambda: value
     ctx = multiprocessing.get_context("fork")
     recv, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(lambda one: [fn(*one[0])], [args], send), daemon=True)
+    proc = ctx.Process(target=_child, args=(lambda _none: [fn(*args)], None, send), daemon=True)
     proc.start()
     send.close()
 
