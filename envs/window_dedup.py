@@ -95,9 +95,15 @@ def moved(m: Metrics, source, target) -> Metrics:
     places moved by the difference of the two windows' starts."""
     if target is source:
         return m
-    d = _origin(target) - _origin(source)
+    return _moved(m, source.t0, _origin(source), target)
+
+
+def _moved(m: Metrics, t0: float, origin: np.ndarray, target) -> Metrics:
+    """Measures ``m`` of a window that started at time ``t0`` and position ``origin``, as window
+    ``target``'s."""
+    d = _origin(target) - origin
     out = copy.copy(m)
-    out.details = _shift(m.details, float(target.t0 - source.t0), float(d[0]), float(d[1]))
+    out.details = _shift(m.details, float(target.t0 - t0), float(d[0]), float(d[1]))
     return out
 
 
@@ -115,7 +121,7 @@ class WindowMemo:
 
     def __init__(self, size: int = 4096):
         self.size = size
-        self._known: OrderedDict = OrderedDict()      # key -> (metrics, the run they were measured on)
+        self._known: OrderedDict = OrderedDict()      # key -> (metrics, the start time and place they are at)
         self._printers: dict = {}                     # id(printer) -> (printer, its description)
         self.hits = 0
         self.misses = 0
@@ -137,10 +143,11 @@ class WindowMemo:
             return None
         self.hits += 1
         self._known.move_to_end(key)
-        return moved(hit[0], hit[1], run)
+        return _moved(*hit, run)
 
     def put(self, key: tuple, run, metrics: Metrics) -> None:
-        self._known[key] = (metrics, run)
+        """Remember ``metrics``, measured on window ``run``, for ``key``."""
+        self._known[key] = (metrics, run.t0, _origin(run).copy())
         self._known.move_to_end(key)
         while len(self._known) > self.size:
             self._known.popitem(last=False)
