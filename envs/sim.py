@@ -278,7 +278,7 @@ def _pack(group: list[int], chunks, m0, printers, systems, motions, nsteps, h, i
     init = np.zeros((len(group), nstate))
     ctrl = np.zeros((len(group), max(nsteps[i] for i in members), m0.nv))
     init[:, 0] = min(motions[i].start_time for i in members)
-    layout = []
+    layout, gains = [], {}
     for b, ci in enumerate(group):
         off = 0
         for i in chunks[ci]:
@@ -289,7 +289,10 @@ def _pack(group: list[int], chunks, m0, printers, systems, motions, nsteps, h, i
             init[b, 1 + m0.nq + off:1 + m0.nq + off + n] = x0[n:] / sc
             kin = _kinematics(mo, mo.start_time, h, nsteps[i] + 1)
             u = _step_controls(kin[0], kin[1], h)                     # (nstep, 2) = −a
-            ctrl[b, :nsteps[i], off:off + n] = (u @ sysm.B.T if sysm.rotors else u[:, sysm.axis]) * drive_gains(sysm)
+            g = gains.get(id(sysm))
+            if g is None:
+                g = gains[id(sysm)] = drive_gains(sysm)
+            ctrl[b, :nsteps[i], off:off + n] = (u @ sysm.B.T if sysm.rotors else u[:, sysm.axis]) * g
             layout.append((b, i, off, kin))
             off += n
     return init, ctrl, layout
