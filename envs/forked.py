@@ -93,8 +93,7 @@ class Helpers:
         index = next((i for i, f in enumerate(self._fns) if f is fn), None)
         if index is None or (self._helpers and index >= self._known):
             return split_map(lambda part: fn(part, *args), items, k)
-        if not self._helpers:
-            self._start()
+        self._grow(k - 1)
         chunks = _parts(items, k)
         try:
             for (conn, _proc), chunk in zip(self._helpers, chunks[:-1]):
@@ -108,10 +107,13 @@ class Helpers:
             self.close()                # a helper may still owe a reply: start afresh
             raise
 
-    def _start(self) -> None:
+    def _grow(self, n: int) -> None:
+        """At least ``n`` helpers running (forked as a batch first needs them: a small batch on a
+        machine of many cores forks no more than it uses)."""
         ctx = multiprocessing.get_context("fork")
-        self._known = len(self._fns)
-        for _ in range(self.parts - 1):
+        if not self._helpers:
+            self._known = len(self._fns)
+        while len(self._helpers) < n:
             here, there = ctx.Pipe()
             proc = ctx.Process(target=_serve, args=(self._fns, there), daemon=True)
             proc.start()

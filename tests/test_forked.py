@@ -4,6 +4,7 @@ split; Helpers' processes are forked once and serve every later batch."""
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import signal
 
@@ -84,6 +85,17 @@ def test_helpers_are_forked_once_and_serve_every_batch_in_order():
     for pid in pids - {os.getpid()}:                             # closed: ended and reaped
         with pytest.raises(ProcessLookupError):
             os.kill(pid, 0)
+
+
+def test_helpers_fork_as_many_as_a_batch_needs():
+    before = len(multiprocessing.active_children())
+    with Helpers(parts=4) as helpers:
+        helpers.register(_pids)
+        small = {p for _, p in helpers.map(_pids, range(2))}
+        assert len(small) == 2 and len(multiprocessing.active_children()) == before + 1
+        large = {p for _, p in helpers.map(_pids, range(8))}
+        assert len(large) == 4 and small <= large                  # the first helper serves again
+    assert len(multiprocessing.active_children()) == before
 
 
 def test_a_helpers_error_is_raised_here_and_new_helpers_serve_the_next_batch():
