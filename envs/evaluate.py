@@ -71,7 +71,7 @@ def evaluate(config: TuneConfig, printer=None, job=None, backend: str = "mujoco"
 def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
                   settle: float | None = None, nthread: int | None = None,
                   freq_margin: float = 0.0, job_accel: str | None = None,
-                  memo: WindowMemo | None = None) -> list[Metrics]:
+                  memo: WindowMemo | None = None, windows: Sequence[int] | None = None) -> list[Metrics]:
     """:func:`evaluate` for many configs, all their windows simulated in one ``simulate_batch``.
 
     ``freq_margin`` > 0 (a fraction, e.g. 0.05): each config is also judged on the printer with
@@ -80,20 +80,24 @@ def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend
     (:func:`ringtune.envs.metrics.worst_case`), so that a shaper tuned to the edge of its band on
     the exact model is not preferred to one that survives the drift of a real printer or a damping
     ratio fitted high. ``memo``: windows measured before are not simulated again
-    (:class:`ringtune.envs.window_dedup.WindowMemo`)."""
+    (:class:`ringtune.envs.window_dedup.WindowMemo`). ``windows``: only these of each config's
+    shaped quality windows (indices, in the job's order; None: all), the figures the worst of
+    those (a screen that rejects on a few windows what the whole job rejects)."""
     return [m for m, _ in evaluate_judged(configs, printer, job, backend, settle=settle, nthread=nthread,
-                                          freq_margin=freq_margin, job_accel=job_accel, memo=memo)]
+                                          freq_margin=freq_margin, job_accel=job_accel, memo=memo, windows=windows)]
 
 
 def evaluate_judged(configs: Sequence[TuneConfig], printer=None, job=None, backend: str = "mujoco", *,
                     settle: float | None = None, nthread: int | None = None,
                     freq_margin: float = 0.0, job_accel: str | None = None,
-                    job_shapers: bool = False, memo: WindowMemo | None = None) -> list[tuple[Metrics, list["Evaluation"]]]:
+                    job_shapers: bool = False, memo: WindowMemo | None = None, windows: Sequence[int] | None = None
+                    ) -> list[tuple[Metrics, list["Evaluation"]]]:
     """:func:`evaluate_many`'s figures with what they came from: per config, (the judged metrics,
     its :class:`Evaluation` on each printer variant of :func:`variant_factors`). ``tune`` and
     ``simulate`` both judge through here, so their figures for one configuration are the same.
     ``job_shapers``: the job's own shaper commands apply (:func:`window_runs`; ``simulate``), else
-    the configuration's shapers rule the whole job (``tune``: the shaper being tuned)."""
+    the configuration's shapers rule the whole job (``tune``: the shaper being tuned); ``windows``:
+    as :func:`evaluate_many`."""
     if not 0 <= freq_margin < 1:
         raise RingtuneError(f"must be in [0, 1), not {freq_margin}", "freq_margin")
     printer = resolve_printer(printer)
@@ -101,7 +105,7 @@ def evaluate_judged(configs: Sequence[TuneConfig], printer=None, job=None, backe
         settle = auto_settle(printer)
     factors = variant_factors(freq_margin)
     runs = evaluate_variants(configs, [v.of(printer) for v in factors], job, backend, settle=settle, nthread=nthread,
-                             job_accel=job_accel, job_shapers=job_shapers, memo=memo)
+                             job_accel=job_accel, job_shapers=job_shapers, memo=memo, windows=windows)
     per_config = [list(evs) for evs in zip(*runs)]        # per config, its Evaluation per variant
     return [(evs[0].metrics if len(evs) == 1 else worst_case((e.metrics for e in evs), factors), evs)
             for evs in per_config]
@@ -146,7 +150,8 @@ def evaluate_detailed(configs: Sequence[TuneConfig], printer=None, job=None, bac
 
 def evaluate_variants(configs: Sequence[TuneConfig], printers: Sequence, job=None, backend: str = "mujoco", *,
                       settle: float = SETTLE_MIN, nthread: int | None = None, job_accel: str | None = None,
-                      job_shapers: bool = False, memo: WindowMemo | None = None) -> list[list[Evaluation]]:
+                      job_shapers: bool = False, memo: WindowMemo | None = None,
+                      windows: Sequence[int] | None = None) -> list[list[Evaluation]]:
     """:func:`evaluate_detailed` of ``configs`` on each of ``printers`` (variants of one printer
     with the same limits: its resonances detuned), per printer a list per config. Each config's
     job is planned and its windows shaped once (only the corner tail depends on the variant), and
@@ -154,12 +159,13 @@ def evaluate_variants(configs: Sequence[TuneConfig], printers: Sequence, job=Non
     (as many replicas, threads over the cores): the same figures as one call per variant, for
     less than the cost of one call per variant. With ``memo`` only the windows it does not know are
     simulated (each distinct one once) and then remembered; the evaluations then carry no
-    simulations (``sims`` None), only their figures."""
+    simulations (``sims`` None), only their figures. ``windows``: as :func:`evaluate_many`."""
     printers = [resolve_printer(p) for p in printers]
     prepared = []
     for cfg in configs:
         pj = require_windows(planned_job(printers[0], job, cfg, job_accel=job_accel), job)
-        prepared.append((cfg, pj, shaped_windows(pj, cfg, settle, corner_tail(printers[0]), job_shapers)))
+        runs = shaped_windows(pj, cfg, settle, corner_tail(printers[0]), job_shapers)
+        prepared.append((cfg, pj, runs if windows is None else [runs[i] for i in windows]))
     per_printer = []
     for p in printers:
         tail = corner_tail(p)

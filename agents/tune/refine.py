@@ -190,7 +190,8 @@ def _evaluators(evaluator: Callable, settings: StudySettings, printer, helpers: 
                 memo: bool = False) -> tuple[Callable, Callable | None]:
     """(judge, screen): ``judge(configs)`` as the study judges; ``screen(configs)`` the default
     evaluator on the exact model alone where the judgement is the worst of the printer and its
-    detuned twins (else None). What the screen evaluated and is then judged has only its twins
+    detuned twins (else None); with the default evaluator ``screen.on_windows(configs, windows)``
+    screens on some of the windows only (:mod:`ringtune.agents.tune.first_windows`). What the screen evaluated and is then judged has only its twins
     simulated (:func:`ringtune.envs.evaluate.evaluate_twins`: the same figures). The real
     simulation's batches are split over ``helpers`` (the same figures); an injected evaluator runs
     as given, in this process. ``memo``: the real simulation measures each window it has met
@@ -217,6 +218,10 @@ def _evaluators(evaluator: Callable, settings: StudySettings, printer, helpers: 
     def exact(part):
         return evaluator(part, printer, settings.job, **{**kwargs, "freq_margin": 0.0})
 
+    @register
+    def exact_on(part, windows):
+        return evaluator(part, printer, settings.job, **{**kwargs, "freq_margin": 0.0, "windows": windows})
+
     def judge(configs):
         configs = list(configs)
         known = [seen.get(c.key()) for c in configs]          # empty without a screen
@@ -230,9 +235,11 @@ def _evaluators(evaluator: Callable, settings: StudySettings, printer, helpers: 
         seen.update((c.key(), m) for c, m in zip(configs, out))
         return out
 
+    if settings.evaluator == DEFAULT_EVALUATOR:      # a subset of the windows: figures never judged
+        screen.on_windows = lambda configs, windows: split(exact_on, list(configs), windows)
     return judge, (screen if margin else None)
 
 
-def _in_process(fn, items) -> list:
-    """``fn(items)`` here (:meth:`ringtune.envs.forked.Helpers.map`'s signature, unsplit)."""
-    return list(fn(list(items)))
+def _in_process(fn, items, *args) -> list:
+    """``fn(items, *args)`` here (:meth:`ringtune.envs.forked.Helpers.map`'s signature, unsplit)."""
+    return list(fn(list(items), *args))

@@ -16,7 +16,8 @@ fastest passing acceleration is tried at :data:`FINER` of the way into that gap 
 apart: a coarse winner is not the fine one). The fastest configuration that passed replaces the
 choice; the measured stop then walks it on in 5 % steps. Where the judgement is the worst of the
 printer and its detuned twins, each batch is screened on the exact model first
-(:func:`ringtune.agents.tune.stop.passing`). At most ``max_evaluations`` configurations are judged
+(:func:`ringtune.agents.tune.stop.passing`), a big one on a few of the job's windows before the rest
+(:mod:`ringtune.agents.tune.first_windows`: the same verdicts). At most ``max_evaluations`` configurations are judged
 (tune: the study's trials), the shapings taken in the rule's table order where a batch would judge
 more.
 
@@ -40,6 +41,7 @@ from typing import Any, Callable, Sequence
 
 from ringtune.agents.klipper.rule import DEFAULT_DAMPING_RATIO
 from ringtune.agents.tune.baselines import inside
+from ringtune.agents.tune.first_windows import staged_failures
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION, Point, Resolution
 from ringtune.agents.tune.space import SearchSpace
 from ringtune.agents.tune.stop import Bounds, passing, to_beat, with_accel
@@ -189,7 +191,7 @@ def climb(start: Point, bases: dict[str, Point], evaluate: Callable[[Sequence[Tu
         nonlocal best, n, screened
         points, judged, screens = passing([with_accel(shapings[i], a, space) for i, a in batch], evaluate, screen,
                                           bases, to_beat(start), bounds, res, "shaper ladder",
-                                          max_judged=max_evaluations - n)
+                                          max_judged=max_evaluations - n, verdicts=staged_failures)
         n, screened = n + judged, screened + screens
         for (i, a), p in zip(batch, points):
             if p is not None:

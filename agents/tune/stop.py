@@ -158,8 +158,8 @@ def evaluated(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[TuneCo
 
 def passing(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[TuneConfig]], list],
             screen: Callable[[Sequence[TuneConfig]], list] | None, bases: dict[str, Point], faster_than: Point,
-            bounds: Bounds, res: Resolution, label: str, max_judged: int | None = None
-            ) -> tuple[list[Point | None], int, int]:
+            bounds: Bounds, res: Resolution, label: str, max_judged: int | None = None,
+            verdicts: Callable[..., list] | None = None) -> tuple[list[Point | None], int, int]:
     """(per config, its judged point where it passes against ``bases`` and ``faster_than``
     (:func:`failure`), else None; how many were judged; how many screened). ``max_judged``: judge
     at most that many, the first in ``configs``' order (the rest count as not passing).
@@ -168,10 +168,19 @@ def passing(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[TuneConf
     the printer and its detuned twins. What fails on the exact model fails the judgement too (the
     worst case is no better on any measure, the exact model is one of the variants judged
     (:func:`as_exact_variant`), and print time is the same), so only what passes the screen is
-    judged: a third of the cost for what fails."""
+    judged: a third of the cost for what fails. ``verdicts``: how the screen's verdicts are found
+    (:func:`screen_failures`' signature and result; default that: every config on every window)."""
     out, _why, judged, screened = passing_why(configs, evaluate, screen, bases, faster_than, bounds, res, label,
-                                              max_judged)
+                                              max_judged, verdicts)
     return out, judged, screened
+
+
+def screen_failures(configs: Sequence[TuneConfig], screen: Callable[[Sequence[TuneConfig]], list],
+                    bases: dict[str, Point], faster_than: Point, bounds: Bounds, res: Resolution
+                    ) -> list[Failure | None]:
+    """Per config, why it fails on the exact model (``screen``), or None."""
+    return [failure(as_exact_variant(p), bases, faster_than, bounds, res)
+            for p in evaluated(configs, screen, bounds, "")]
 
 
 def as_exact_variant(p: Point) -> Point:
@@ -184,7 +193,8 @@ def as_exact_variant(p: Point) -> Point:
 
 def passing_why(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[TuneConfig]], list],
                 screen: Callable[[Sequence[TuneConfig]], list] | None, bases: dict[str, Point], faster_than: Point,
-                bounds: Bounds, res: Resolution, label: str, max_judged: int | None = None
+                bounds: Bounds, res: Resolution, label: str, max_judged: int | None = None,
+                verdicts: Callable[..., list] | None = None
                 ) -> tuple[list[Point | None], list[tuple | None], int, int]:
     """:func:`passing`, with why each config failed: per config (:func:`failure`'s tuple, and
     whether it was seen on the exact model alone, by the screen), or None where it passed or was
@@ -192,8 +202,7 @@ def passing_why(configs: Sequence[TuneConfig], evaluate: Callable[[Sequence[Tune
     keep = [True] * len(configs)
     why: list[tuple | None] = [None] * len(configs)
     if screen is not None and configs:
-        fails = [failure(as_exact_variant(p), bases, faster_than, bounds, res)
-                 for p in evaluated(configs, screen, bounds, "")]
+        fails = (verdicts or screen_failures)(list(configs), screen, bases, faster_than, bounds, res)
         keep = [f is None for f in fails]
         why = [None if f is None else (f, True) for f in fails]
     if max_judged is not None:          # the first max_judged of those kept, in order

@@ -1,0 +1,104 @@
+"""A big batch screened on a few quality windows first: what fails there fails on the whole job.
+
+The screen (:func:`ringtune.agents.tune.stop.screen_failures`) judges each configuration on the
+exact model over every quality window of the job. In a big batch most fail (the shaper ladder's 66
+shapings at a rung, all of them on the part), and each failure shows in one or two windows. Every
+figure of the job but the ripple's 90th percentiles is the worst window's, and a figure's verdict
+is monotone in it (worse than a baseline's where it exceeds it by more than the resolution, which
+grows more slowly than the figure). So a configuration that breaks a bound, is worse than a
+baseline on such a figure, or is no faster, on some of the windows, does so on the whole job:
+
+1. the batch's first :data:`PROBES` configurations are screened on every window; the windows where
+   a probe fails on that window alone rank first (by how many probes fail there, then by how far);
+2. the rest are screened on the :data:`FIRST` first-ranked windows; what fails there is rejected
+   with that failure (its figures those windows', lower bounds of the job's, never judged or shown);
+3. the others are screened on every window, as without this step.
+
+The verdicts are the screen's on every window (a test checks them against it); a batch smaller
+than :data:`MIN_BATCH`, a screen that cannot take a subset of windows (``on_windows``), or probes
+that fail on no window alone are screened on every window at once.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable, Sequence
+
+from ringtune.agents.tune.pareto import Point, point_from_metrics
+from ringtune.agents.tune.stop import Bounds, Failure, as_exact_variant, evaluated, failure
+from ringtune.envs.metrics import Metrics
+from ringtune.shaping.config import TuneConfig
+
+#: configurations screened on every window first, whose failures rank the windows (one per core)
+PROBES = 2
+#: windows the rest of the batch is screened on first
+FIRST = 2
+#: smallest batch screened in stages (a smaller one saves less than a round of the helpers costs)
+MIN_BATCH = 8
+#: the figures that are not the worst window's (more windows can lower them)
+NOT_WORST = "ripple_p90_mm"
+
+
+def staged_failures(configs: Sequence[TuneConfig], screen: Callable[[Sequence[TuneConfig]], list],
+                    bases: dict[str, Point], faster_than: Point, bounds: Bounds, res) -> list[Failure | None]:
+    """:func:`ringtune.agents.tune.stop.screen_failures`' verdicts (per config, why it fails on the
+    exact model, or None), found in stages (module docstring). ``screen.on_windows(configs,
+    windows)``: the screen on those windows only (indices into each config's shaped windows)."""
+    configs = list(configs)
+    on_windows = getattr(screen, "on_windows", None)
+    if on_windows is None or len(configs) < MIN_BATCH:
+        return _verdicts(configs, screen(configs), bases, faster_than, bounds, res)
+    probed = screen(configs[:PROBES])
+    out = _verdicts(configs[:PROBES], probed, bases, faster_than, bounds, res)
+    first = sorted(ranked_windows(configs[:PROBES], probed, bases, faster_than, bounds, res)[:FIRST])
+    rest = configs[PROBES:]
+    if not first:
+        return out + _verdicts(rest, screen(rest), bases, faster_than, bounds, res)
+    early = [fails_anyway(p, bases, faster_than, bounds, res) for p in evaluated(
+        rest, lambda cs: on_windows(cs, first), bounds, "")]
+    todo = [c for c, f in zip(rest, early) if f is None]
+    full = iter(_verdicts(todo, screen(todo), bases, faster_than, bounds, res) if todo else [])
+    return out + [f if f is not None else next(full) for f in early]
+
+
+def fails_anyway(p: Point, bases: dict[str, Point], faster_than: Point, bounds: Bounds, res) -> Failure | None:
+    """Why ``p``, screened on some of the job's windows, fails on the whole job, or None: its
+    failure (:func:`ringtune.agents.tune.stop.failure` on the exact model) over the figures that are
+    the worst window's (the ripple's 90th percentiles left out)."""
+    return failure(as_exact_variant(_worst_window_figures(p)), bases, faster_than, bounds, res)
+
+
+def ranked_windows(configs: Sequence[TuneConfig], metrics: Sequence[Metrics], bases: dict[str, Point],
+                   faster_than: Point, bounds: Bounds, res) -> list[int]:
+    """The windows (indices) where a configuration, screened on every window (``metrics``), fails
+    on that window alone: where more of them fail first, then where one fails by the larger ratio
+    of its figure to the limit; print time, the job's, is no window's."""
+    score: dict[int, tuple[int, float]] = {}
+    for cfg, m in zip(configs, metrics):
+        for i, d in enumerate(m.details.get("windows", [])):
+            f = fails_anyway(_window_point(cfg, d, m.print_time_s, bounds), bases, faster_than, bounds, res)
+            if f is not None and f.kind != "time":
+                n, ratio = score.get(i, (0, 0.0))
+                score[i] = (n + 1, max(ratio, float(f.value or 0.0) / max(float(f.limit or 0.0), 1e-12)))
+    return sorted(score, key=lambda i: (-score[i][0], -score[i][1], i))
+
+
+def _verdicts(configs, metrics, bases, faster_than, bounds, res) -> list[Failure | None]:
+    """Per config, :func:`failure` of its screened point on the exact model."""
+    return [failure(as_exact_variant(p), bases, faster_than, bounds, res)
+            for p in evaluated(configs, lambda _cs: metrics, bounds, "")]
+
+
+def _window_point(cfg: TuneConfig, window: dict, print_time_s: float, bounds: Bounds) -> Point:
+    """The point of one window's measures (``Metrics.to_dict`` with details), as a job's."""
+    fields = {k: v for k, v in window.items() if k in {f.name for f in dataclasses.fields(Metrics)}}
+    m = Metrics(**{**fields, "print_time_s": print_time_s, "details": {}})
+    return point_from_metrics(cfg, m, max_path_error_mm=bounds.max_path_error_mm,
+                              max_motor_load=bounds.max_motor_load, max_show_through_mm=bounds.max_show_through_mm)
+
+
+def _worst_window_figures(p: Point) -> Point:
+    """``p`` without the figures that are not the worst window's (:data:`NOT_WORST`)."""
+    return dataclasses.replace(p, metrics={k: v for k, v in p.metrics.items() if not k.endswith(NOT_WORST)},
+                               variants=tuple((v, {k: x for k, x in figs.items() if not k.endswith(NOT_WORST)})
+                                              for v, figs in p.variants))
