@@ -7,7 +7,7 @@ import dataclasses
 
 import pytest
 
-from ringtune.agents.tune.first_windows import FIRST, PROBES, fails_anyway, ranked_windows, staged_failures
+from ringtune.agents.tune.first_windows import PROBES, fails_anyway, nearness, ranked_windows, staged_failures
 from ringtune.agents.tune.pareto import DEFAULT_RESOLUTION
 from ringtune.agents.tune.stop import Bounds, evaluated, screen_failures
 from ringtune.envs.evaluate import evaluate_many
@@ -64,7 +64,8 @@ def test_staged_verdicts_are_the_screens_on_every_window(held):
 
 def test_what_fails_on_one_window_fails_on_the_job(held):
     """Each candidate on each window alone: where it fails there (the 90th percentiles left out),
-    it fails on the whole job; and the windows ranked from the probes are windows where they fail."""
+    it fails on the whole job, and there alone its nearness to failing is above 1; the windows
+    ranked from the probes are every window, those where a probe fails first."""
     bases, beat = held
     screen = Screen()
     metrics = screen(CANDIDATES)
@@ -74,5 +75,9 @@ def test_what_fails_on_one_window_fails_on_the_job(held):
     failing = {(w, i) for w in range(n) for i, p in enumerate(alone[w])
                if fails_anyway(p, bases, beat, BOUNDS, DEFAULT_RESOLUTION) is not None}
     assert failing and all(whole[i] is not None for _w, i in failing)
+    near = {(w, i) for w in range(n) for i, p in enumerate(alone[w])
+            if nearness(p, bases, BOUNDS, DEFAULT_RESOLUTION) > 1.0}
+    assert near == failing
     ranked = ranked_windows(CANDIDATES[:PROBES], metrics[:PROBES], bases, beat, BOUNDS, DEFAULT_RESOLUTION)
-    assert len(ranked) >= FIRST and set(ranked) == {w for w, i in failing if i < PROBES}
+    probes_fail = {w for w, i in failing if i < PROBES}
+    assert sorted(ranked) == list(range(n)) and set(ranked[:len(probes_fail)]) == probes_fail
