@@ -81,8 +81,8 @@ def evaluate_many(configs: Sequence[TuneConfig], printer=None, job=None, backend
     the exact model is not preferred to one that survives the drift of a real printer or a damping
     ratio fitted high. ``memo``: windows measured before are not simulated again
     (:class:`ringtune.envs.window_dedup.WindowMemo`). ``windows``: only these of each config's
-    shaped quality windows (indices, in the job's order; None: all), the figures the worst of
-    those (a screen that rejects on a few windows what the whole job rejects)."""
+    shaped quality windows (indices, in the job's order, those it has; None: all), the figures the
+    worst of those (a screen that rejects on a few windows what the whole job rejects)."""
     return [m for m, _ in evaluate_judged(configs, printer, job, backend, settle=settle, nthread=nthread,
                                           freq_margin=freq_margin, job_accel=job_accel, memo=memo, windows=windows)]
 
@@ -165,7 +165,7 @@ def evaluate_variants(configs: Sequence[TuneConfig], printers: Sequence, job=Non
     for cfg in configs:
         pj = require_windows(planned_job(printers[0], job, cfg, job_accel=job_accel), job)
         runs = shaped_windows(pj, cfg, settle, corner_tail(printers[0]), job_shapers)
-        prepared.append((cfg, pj, runs if windows is None else [runs[i] for i in windows]))
+        prepared.append((cfg, pj, runs if windows is None else [runs[i] for i in windows if i < len(runs)]))
     per_printer = []
     for p in printers:
         tail = corner_tail(p)

@@ -81,3 +81,18 @@ def test_what_fails_on_one_window_fails_on_the_job(held):
     ranked = ranked_windows(CANDIDATES[:PROBES], metrics[:PROBES], bases, beat, BOUNDS, DEFAULT_RESOLUTION)
     probes_fail = {w for w, i in failing if i < PROBES}
     assert sorted(ranked) == list(range(n)) and set(ranked[:len(probes_fail)]) == probes_fail
+
+
+def test_a_subset_of_windows_gives_those_windows_figures():
+    """evaluate_many(windows=...) simulates only those windows: each alone has the figures the
+    whole evaluation gives it (the same bits), and two together the larger of each figure."""
+    cfg = CANDIDATES[1]
+    whole = evaluate_many([cfg], load_printer(None), None)[0].details["windows"]
+    for i in (0, len(whole) - 1):
+        alone = evaluate_many([cfg], load_printer(None), None, windows=[i])[0].details["windows"]
+        assert len(alone) == 1
+        assert {k: v for k, v in alone[0].items() if k != "print_time_s"} == \
+            {k: v for k, v in whole[i].items() if k != "print_time_s"}
+    both = evaluate_many([cfg], load_printer(None), None, windows=[0, len(whole) - 1])[0]
+    for k in ("ripple_mm", "corner_in_mm", "corner_out_mm", "extrusion_under_pct", "path_error_mm"):
+        assert getattr(both, k) == max(whole[0][k], whole[-1][k])
