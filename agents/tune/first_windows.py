@@ -28,7 +28,7 @@ import math
 from typing import Callable, Sequence
 
 from ringtune.agents.tune.pareto import JUDGED_KEYS, Point, point_from_metrics
-from ringtune.agents.tune.stop import Bounds, Failure, as_exact_variant, evaluated, failure
+from ringtune.agents.tune.stop import Bounds, Failure, as_exact_variant, evaluated, failure, screen_failures
 from ringtune.envs.metrics import Metrics
 from ringtune.shaping.config import TuneConfig
 
@@ -106,9 +106,8 @@ def nearness(p: Point, bases: dict[str, Point], bounds: Bounds, res) -> float:
 
 
 def _verdicts(configs, metrics, bases, faster_than, bounds, res) -> list[Failure | None]:
-    """Per config, :func:`failure` of its screened point on the exact model."""
-    return [failure(as_exact_variant(p), bases, faster_than, bounds, res)
-            for p in evaluated(configs, lambda _cs: metrics, bounds, "")]
+    """:func:`ringtune.agents.tune.stop.screen_failures` of configurations already screened (``metrics``)."""
+    return screen_failures(configs, lambda _cs: metrics, bases, faster_than, bounds, res)
 
 
 def _window_point(cfg: TuneConfig, window: dict, print_time_s: float, bounds: Bounds) -> Point:

@@ -191,8 +191,9 @@ def _evaluators(evaluator: Callable, settings: StudySettings, printer, helpers: 
     """(judge, screen): ``judge(configs)`` as the study judges; ``screen(configs)`` the default
     evaluator on the exact model alone where the judgement is the worst of the printer and its
     detuned twins (else None); with the default evaluator ``screen.on_windows(configs, windows)``
-    screens on some of the windows only (:mod:`ringtune.agents.tune.first_windows`). What the screen evaluated and is then judged has only its twins
-    simulated (:func:`ringtune.envs.evaluate.evaluate_twins`: the same figures). The real
+    screens on some of the windows only (:mod:`ringtune.agents.tune.first_windows`). What the
+    screen evaluated and is then judged has only its twins simulated
+    (:func:`ringtune.envs.evaluate.evaluate_twins`: the same figures). The real
     simulation's batches are split over ``helpers`` (the same figures); an injected evaluator runs
     as given, in this process. ``memo``: the real simulation measures each window it has met
     before (in this process, on the same printer variant) from memory

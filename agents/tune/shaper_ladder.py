@@ -16,10 +16,10 @@ fastest passing acceleration is tried at :data:`FINER` of the way into that gap 
 apart: a coarse winner is not the fine one). The fastest configuration that passed replaces the
 choice; the measured stop then walks it on in 5 % steps. Where the judgement is the worst of the
 printer and its detuned twins, each batch is screened on the exact model first
-(:func:`ringtune.agents.tune.stop.passing`), a big one on a few of the job's windows before the rest
-(:mod:`ringtune.agents.tune.first_windows`: the same verdicts). At most ``max_evaluations`` configurations are judged
-(tune: the study's trials), the shapings taken in the rule's table order where a batch would judge
-more.
+(:func:`ringtune.agents.tune.stop.passing`), a big one on a few of the job's windows before the
+rest (:mod:`ringtune.agents.tune.first_windows`: the same verdicts). At most ``max_evaluations``
+configurations are judged (tune: the study's trials), the shapings taken in the rule's table order
+where a batch would judge more.
 
 Why: the study samples a dozen dimensions at once and seldom meets the narrow region where a
 shorter shaper at a higher acceleration keeps the baseline's quality (on the part, the fastest
