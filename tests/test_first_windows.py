@@ -78,7 +78,7 @@ def test_what_fails_on_one_window_fails_on_the_job(held):
     near = {(w, i) for w in range(n) for i, p in enumerate(alone[w])
             if nearness(p, bases, BOUNDS, DEFAULT_RESOLUTION) > 1.0}
     assert near == failing
-    ranked = ranked_windows(CANDIDATES[:PROBES], metrics[:PROBES], bases, beat, BOUNDS, DEFAULT_RESOLUTION)
+    ranked = ranked_windows(CANDIDATES[:PROBES], metrics[:PROBES], bases, BOUNDS, DEFAULT_RESOLUTION)
     probes_fail = {w for w, i in failing if i < PROBES}
     assert sorted(ranked) == list(range(n)) and set(ranked[:len(probes_fail)]) == probes_fail
 

@@ -53,7 +53,7 @@ def staged_failures(configs: Sequence[TuneConfig], screen: Callable[[Sequence[Tu
         return _verdicts(configs, screen(configs), bases, faster_than, bounds, res)
     probed = screen(configs[:PROBES])
     out = _verdicts(configs[:PROBES], probed, bases, faster_than, bounds, res)
-    first = sorted(ranked_windows(configs[:PROBES], probed, bases, faster_than, bounds, res)[:FIRST])
+    first = sorted(ranked_windows(configs[:PROBES], probed, bases, bounds, res)[:FIRST])
     rest = configs[PROBES:]
     early = [fails_anyway(p, bases, faster_than, bounds, res) for p in evaluated(
         rest, lambda cs: on_windows(cs, first), bounds, "")]
@@ -70,24 +70,24 @@ def fails_anyway(p: Point, bases: dict[str, Point], faster_than: Point, bounds: 
 
 
 def ranked_windows(configs: Sequence[TuneConfig], metrics: Sequence[Metrics], bases: dict[str, Point],
-                   faster_than: Point, bounds: Bounds, res) -> list[int]:
+                   bounds: Bounds, res) -> list[int]:
     """Every window (index) of configurations screened on every window (``metrics``), those where
-    more of them fail on that window alone first (print time, the job's, is no window's), then
-    those where one comes nearest to failing (:func:`nearness`)."""
+    more of them fail on that window alone first (:func:`nearness` above 1), then those where one
+    comes nearest to failing."""
     score: dict[int, tuple[int, float]] = {}
     for cfg, m in zip(configs, metrics):
         for i, d in enumerate(m.details.get("windows", [])):
-            p = _window_point(cfg, d, m.print_time_s, bounds)
-            f = fails_anyway(p, bases, faster_than, bounds, res)
-            n, near = score.get(i, (0, 0.0))
-            score[i] = (n + (f is not None and f.kind != "time"), max(near, nearness(p, bases, bounds, res)))
+            near = nearness(_window_point(cfg, d, m.print_time_s, bounds), bases, bounds, res)
+            n, top = score.get(i, (0, 0.0))
+            score[i] = (n + (near > 1.0), max(top, near))
     return sorted(score, key=lambda i: (-score[i][0], -score[i][1], i))
 
 
 def nearness(p: Point, bases: dict[str, Point], bounds: Bounds, res) -> float:
     """How near ``p`` is to failing on a worst-window figure: the largest ratio of one to where it
     would fail (a bound; a baseline's figure, over its printer variants or on the exact model, plus
-    the resolution); ≥ 1 where it fails, infinite where it loses steps."""
+    the resolution); above 1 exactly where :func:`fails_anyway` finds a bound or a measure,
+    infinite where it loses steps."""
     if p.step_loss:
         return math.inf
     out = [float(p.metrics.get(k, 0.0)) / b for k, b in (("path_error_mm", bounds.max_path_error_mm),
