@@ -36,7 +36,7 @@ from ringtune.shaping.config import TuneConfig
 PROBES = 2
 #: windows the rest of the batch is screened on first
 FIRST = 2
-#: smallest batch screened in stages (a smaller one saves less than a round of the helpers costs)
+#: smallest batch screened in stages (in a smaller one the probes, screened on every window, are over a quarter)
 MIN_BATCH = 8
 #: the figures that are not the worst window's (more windows can lower them)
 NOT_WORST = "ripple_p90_mm"
