@@ -52,7 +52,8 @@ def held():
 
 def test_staged_verdicts_are_the_screens_on_every_window(held):
     """Same pass or fail per candidate as the screen on every window, the passing ones screened on
-    every window; the failing ones found on fewer windows."""
+    every window; the failing ones found on fewer windows, and, where the probes pass, the batch
+    screened on every window at once."""
     bases, beat = held
     full, staged = Screen(), Screen()
     want = screen_failures(CANDIDATES, full, bases, beat, BOUNDS, DEFAULT_RESOLUTION)
@@ -60,6 +61,12 @@ def test_staged_verdicts_are_the_screens_on_every_window(held):
     assert [f is None for f in got] == [f is None for f in want]
     assert 0 < sum(f is None for f in want) < len(want) - PROBES     # some pass, most fail
     assert staged.windows < full.windows
+    passers = [c for c, f in zip(CANDIDATES, want) if f is None]     # probes that pass: no stages
+    again = Screen()
+    order = passers + [c for c in CANDIDATES if c not in passers]
+    assert [f is None for f in staged_failures(order, again, bases, beat, BOUNDS, DEFAULT_RESOLUTION)] == \
+        [f is None for f in screen_failures(order, Screen(), bases, beat, BOUNDS, DEFAULT_RESOLUTION)]
+    assert again.windows == full.windows
 
 
 def test_what_fails_on_one_window_fails_on_the_job(held):

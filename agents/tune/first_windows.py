@@ -16,9 +16,11 @@ baseline on such a figure, or is no faster, on some of the windows, does so on t
    with that failure (its figures those windows', lower bounds of the job's, never judged or shown);
 3. the others are screened on every window, as without this step.
 
-The verdicts are the screen's on every window (a test checks them against it); a batch smaller
+The verdicts are the screen's on every window (a test checks them against it). A batch smaller
 than :data:`MIN_BATCH`, or a screen that cannot take a subset of windows (``on_windows``), is
-screened on every window at once.
+screened on every window at once; so is the rest of a batch whose probes both pass (the shaper
+ladder's later batches on the built-in print pass whole, and the first windows would be screened
+for nothing).
 """
 
 from __future__ import annotations
@@ -53,8 +55,10 @@ def staged_failures(configs: Sequence[TuneConfig], screen: Callable[[Sequence[Tu
         return _verdicts(configs, screen(configs), bases, faster_than, bounds, res)
     probed = screen(configs[:PROBES])
     out = _verdicts(configs[:PROBES], probed, bases, faster_than, bounds, res)
-    first = sorted(ranked_windows(configs[:PROBES], probed, bases, bounds, res)[:FIRST])
     rest = configs[PROBES:]
+    if all(f is None for f in out):     # the probes pass: so will most of the batch, on every window
+        return out + _verdicts(rest, screen(rest), bases, faster_than, bounds, res)
+    first = sorted(ranked_windows(configs[:PROBES], probed, bases, bounds, res)[:FIRST])
     early = [fails_anyway(p, bases, faster_than, bounds, res) for p in evaluated(
         rest, lambda cs: on_windows(cs, first), bounds, "")]
     todo = [c for c, f in zip(rest, early) if f is None]
