@@ -56,7 +56,7 @@ def staged_failures(configs: Sequence[TuneConfig], screen: Callable[[Sequence[Tu
     probed = screen(configs[:PROBES])
     out = _verdicts(configs[:PROBES], probed, bases, faster_than, bounds, res)
     rest = configs[PROBES:]
-    if all(f is None for f in out):     # the probes pass: so will most of the batch, on every window
+    if all(f is None for f in out):     # both pass: where a batch passes whole, the first windows save nothing
         return out + _verdicts(rest, screen(rest), bases, faster_than, bounds, res)
     first = sorted(ranked_windows(configs[:PROBES], probed, bases, bounds, res)[:FIRST])
     early = [fails_anyway(p, bases, faster_than, bounds, res) for p in evaluated(
